@@ -1,0 +1,147 @@
+"""Measured postures: slider positions, inclinometer angles and rotary angle per posture."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .device import DeviceModel, inclinometer_angles
+from .errors import InvalidMeasurementError
+from .kinematics import inverse_kinematics
+from .model import HexaParameters
+
+SPHERE = "sphere"  # platform anywhere on the L-sphere (eqs. 7, 8, 12)
+FIXED = "fixed"  # inclinometer reads zero: position [0, 0, -L] (eqs. 10, 13)
+POSTURE_KINDS = (SPHERE, FIXED)
+
+
+@dataclass(frozen=True)
+class MeasurementLimits:
+    """Plausibility limits on readings; readings outside are rejected as invalid."""
+
+    inclinometer_range_rad: float = np.radians(60.0)
+    rotary_range_rad: float = np.pi
+    slider_min_m: float = -1.0
+    slider_max_m: float = 2.0
+
+
+@dataclass
+class Measurements:
+    """N measured postures (SI units).
+
+    slider_positions (N, 6) lambda, m; inclinometer (N, 2) = [alpha, beta], rad;
+    rotary (N,) = phi, rad; kinds (N,) 'sphere' or 'fixed'.
+    """
+
+    slider_positions: np.ndarray
+    inclinometer: np.ndarray
+    rotary: np.ndarray
+    kinds: np.ndarray = field(default=None)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        self.slider_positions = np.atleast_2d(np.asarray(self.slider_positions, dtype=float))
+        n = len(self.slider_positions)
+        self.inclinometer = np.asarray(self.inclinometer, dtype=float).reshape(-1, 2) if n else np.zeros((0, 2))
+        self.rotary = np.asarray(self.rotary, dtype=float).reshape(-1)
+        if self.kinds is None:
+            self.kinds = np.full(n, SPHERE)
+        self.kinds = np.asarray(self.kinds).astype(str)
+
+    def __len__(self) -> int:
+        return len(self.slider_positions)
+
+    def subset(self, indices: np.ndarray) -> "Measurements":
+        indices = np.asarray(indices, dtype=int)
+        return Measurements(
+            self.slider_positions[indices], self.inclinometer[indices], self.rotary[indices], self.kinds[indices]
+        )
+
+    @staticmethod
+    def concatenate(parts: list["Measurements"]) -> "Measurements":
+        return Measurements(
+            np.concatenate([p.slider_positions for p in parts]),
+            np.concatenate([p.inclinometer for p in parts]),
+            np.concatenate([p.rotary for p in parts]),
+            np.concatenate([p.kinds for p in parts]),
+        )
+
+    def validate(self, limits: MeasurementLimits = MeasurementLimits()) -> None:
+        """Raise InvalidMeasurementError naming the first problem and the posture indices."""
+        n = len(self)
+        if self.slider_positions.shape != (n, 6):
+            raise InvalidMeasurementError(f"slider_positions must be (N, 6), got {self.slider_positions.shape}")
+        if self.inclinometer.shape != (n, 2) or self.rotary.shape != (n,) or self.kinds.shape != (n,):
+            raise InvalidMeasurementError(
+                f"inconsistent lengths: {n} slider rows, {len(self.inclinometer)} inclinometer rows, "
+                f"{len(self.rotary)} rotary values, {len(self.kinds)} kinds"
+            )
+        channels = {
+            "slider_positions": self.slider_positions,
+            "inclinometer": self.inclinometer,
+            "rotary": self.rotary[:, None],
+        }
+        for name, values in channels.items():
+            bad = np.flatnonzero(~np.all(np.isfinite(values), axis=1))
+            if bad.size:
+                raise InvalidMeasurementError(f"non-finite {name} (NaN or inf) at posture(s) {bad.tolist()}", bad)
+        self._check_range(
+            "inclinometer angle", np.abs(self.inclinometer).max(axis=1) if n else np.zeros(0),
+            limits.inclinometer_range_rad, "rad",
+        )
+        self._check_range("rotary angle", np.abs(self.rotary), limits.rotary_range_rad, "rad")
+        low = np.flatnonzero(np.any(self.slider_positions < limits.slider_min_m, axis=1)
+                             | np.any(self.slider_positions > limits.slider_max_m, axis=1))
+        if low.size:
+            raise InvalidMeasurementError(
+                f"slider position outside [{limits.slider_min_m}, {limits.slider_max_m}] m at posture(s) {low.tolist()}",
+                low,
+            )
+        unknown = sorted(set(self.kinds) - set(POSTURE_KINDS))
+        if unknown:
+            raise InvalidMeasurementError(f"unknown posture kind(s) {unknown}; expected one of {POSTURE_KINDS}")
+
+    @staticmethod
+    def _check_range(name: str, magnitude: np.ndarray, limit: float, unit: str) -> None:
+        bad = np.flatnonzero(magnitude > limit)
+        if bad.size:
+            raise InvalidMeasurementError(
+                f"{name} beyond its range of +-{limit:.4g} {unit} at posture(s) {bad.tolist()}", bad
+            )
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """Uniform measurement noise, half-widths in SI units (the paper's section 4 model)."""
+
+    slider_m: float = 0.0
+    angle_rad: float = 0.0
+
+    @classmethod
+    def from_microns(cls, microns: float) -> "NoiseModel":
+        """'X um' noise as in Table 3: +-X um on sliders and +-X urad on every angle."""
+        return cls(slider_m=microns * 1e-6, angle_rad=microns * 1e-6)
+
+
+def simulate_measurements(
+    params: HexaParameters,
+    poses: np.ndarray,
+    kinds: np.ndarray | str = SPHERE,
+    device: DeviceModel = DeviceModel(),
+    noise: NoiseModel = NoiseModel(),
+    rng: np.random.Generator | None = None,
+) -> Measurements:
+    """What the device and the slider encoders read at ``poses`` on the machine ``params``."""
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    rng = rng if rng is not None else np.random.default_rng(0)
+    sliders = inverse_kinematics(params, poses)
+    alpha, beta = inclinometer_angles(poses[:, :3])
+    angles = np.column_stack([alpha, beta])
+    rotary = poses[:, 5].copy()
+    n = len(poses)
+    if noise.slider_m:
+        sliders = sliders + rng.uniform(-noise.slider_m, noise.slider_m, sliders.shape)
+    if noise.angle_rad:
+        angles = angles + rng.uniform(-noise.angle_rad, noise.angle_rad, angles.shape)
+        rotary = rotary + rng.uniform(-noise.angle_rad, noise.angle_rad, n)
+    kinds_array = np.full(n, kinds) if isinstance(kinds, str) else np.asarray(kinds)
+    return Measurements(sliders, angles, rotary, kinds_array)

@@ -1,0 +1,89 @@
+"""Measurement postures over the paper's workspace (section 4).
+
+Sphere postures: x, y uniform within +-400 mm, z on the L-sphere below the base
+joint (z = -sqrt(L^2 - x^2 - y^2)), the three Euler angles uniform within
++-35 deg.  Fixed-position postures: the inclinometer reads zero, so the
+platform sits at [0, 0, -L] and only the orientation varies.
+Infeasible postures (a leg cannot reach, a slider outside its stroke) and
+ill-conditioned ones (pose Jacobian condition number too large) are rejected
+and redrawn.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .device import DEFAULT_LINK_LENGTH_M
+from .kinematics import leg_geometry, pose_jacobian
+from .model import HexaParameters
+
+
+@dataclass(frozen=True)
+class Workspace:
+    """Where postures are drawn, and what makes one acceptable (SI units)."""
+
+    link_length: float = DEFAULT_LINK_LENGTH_M
+    xy_range_m: float = 0.400
+    rotation_range_rad: float = np.radians(35.0)
+    slider_stroke_m: tuple[float, float] = (0.0, 0.9)
+    max_condition: float = 200.0  # of the pose Jacobian with angles scaled by link_length
+    min_leg_rail_cosine: float = 0.2  # w / l: legs far from perpendicular to their rail
+
+
+def _sphere_candidates(rng: np.random.Generator, n: int, workspace: Workspace) -> np.ndarray:
+    xy = rng.uniform(-workspace.xy_range_m, workspace.xy_range_m, (n, 2))
+    z = -np.sqrt(workspace.link_length**2 - np.sum(xy**2, axis=1))
+    angles = rng.uniform(-workspace.rotation_range_rad, workspace.rotation_range_rad, (n, 3))
+    return np.column_stack([xy, z, angles])
+
+
+def _fixed_candidates(rng: np.random.Generator, n: int, workspace: Workspace) -> np.ndarray:
+    position = np.tile([0.0, 0.0, -workspace.link_length], (n, 1))
+    angles = rng.uniform(-workspace.rotation_range_rad, workspace.rotation_range_rad, (n, 3))
+    return np.column_stack([position, angles])
+
+
+def acceptable_poses(params: HexaParameters, poses: np.ndarray, workspace: Workspace = Workspace()) -> np.ndarray:
+    """Mask of poses that are reachable, inside the stroke and well conditioned."""
+    geometry = leg_geometry(params, poses)
+    reachable = np.all(geometry.discriminant > 0.0, axis=1)
+    low, high = workspace.slider_stroke_m
+    in_stroke = np.all((geometry.slider_positions >= low) & (geometry.slider_positions <= high), axis=1)
+    away_from_rail = np.all(geometry.rail_leg_dot > workspace.min_leg_rail_cosine * params.leg_lengths, axis=1)
+    ok = reachable & in_stroke & away_from_rail
+    conditioned = np.zeros(len(poses), bool)
+    if np.any(ok):
+        jac = pose_jacobian(_subset_geometry(geometry, ok), poses[ok, 3:6])
+        jac[:, :, 3:] /= workspace.link_length  # angles -> lengths, so the condition number is unit-free
+        conditioned[ok] = np.linalg.cond(jac) < workspace.max_condition
+    return ok & conditioned
+
+
+def _subset_geometry(geometry, mask):
+    from .kinematics import _subset
+
+    return _subset(geometry, mask)
+
+
+def sample_poses(
+    params: HexaParameters,
+    n: int,
+    rng: np.random.Generator,
+    kind: str = "sphere",
+    workspace: Workspace = Workspace(),
+) -> np.ndarray:
+    """n acceptable poses of the given kind ('sphere' or 'fixed'), (n, 6)."""
+    draw = {"sphere": _sphere_candidates, "fixed": _fixed_candidates}[kind]
+    accepted: list[np.ndarray] = []
+    count = 0
+    for _ in range(1000):
+        if count >= n:
+            break
+        candidates = draw(rng, max(2 * (n - count), 16), workspace)
+        good = candidates[acceptable_poses(params, candidates, workspace)]
+        accepted.append(good)
+        count += len(good)
+    else:
+        raise RuntimeError(f"could not find {n} acceptable {kind} postures in the workspace")
+    return np.concatenate(accepted)[:n]
