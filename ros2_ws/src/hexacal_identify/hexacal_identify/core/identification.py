@@ -194,7 +194,15 @@ def identify(nominal: HexaParameters, measurements: Measurements, options: Solve
             all_poses = np.concatenate([solver.poses, readmitted_poses])[order]
             solver = _LevenbergMarquardt(_Problem(measurements, merged[order], options, free), solver.params, all_poses)
         solver.iterations, solver.initial_block = iterations, initial_block
-        return solver.result(nominal, {**unused, **set_aside}, started)
+        result = solver.result(nominal, {**unused, **set_aside}, started)
+    if not result.identifiability.identifiable and not options.allow_rank_deficient:
+        # Identifiable at the start but not at the solution: the apparent information came from the
+        # nominal model's errors, not from the data. Refuse rather than return a number that means nothing.
+        raise RankDeficientError(
+            "at the identified parameters the measurements do not determine every parameter: "
+            + result.identifiability.verdict(), result.identifiability,
+        )
+    return result
 
 
 def _admit(params: HexaParameters, problem: _Problem, context: str):

@@ -120,8 +120,9 @@ def pose_jacobian(geometry: LegGeometry, angles: np.ndarray) -> np.ndarray:
     Position columns: e / w.  Angle column k: axis_k . (R B x e) / w, since
     d(R B) = axis_k x R B for a rate about axis_k.
     """
-    unit = geometry.leg_vectors / geometry.rail_leg_dot[..., None]
-    moment = np.cross(geometry.rotated_platform_points, unit)
+    with np.errstate(divide="ignore", invalid="ignore"):  # w = 0 only where a leg cannot reach: flagged by FK
+        unit = geometry.leg_vectors / geometry.rail_leg_dot[..., None]
+        moment = np.cross(geometry.rotated_platform_points, unit)
     axes = euler_rate_axes(angles)
     return np.concatenate([unit, np.einsum("ncj,njk->nck", moment, axes)], axis=2)
 

@@ -27,7 +27,7 @@ class Workspace:
     xy_range_m: float = 0.400
     rotation_range_rad: float = np.radians(35.0)
     slider_stroke_m: tuple[float, float] = (0.0, 0.9)
-    max_condition: float = 200.0  # of the pose Jacobian with angles scaled by link_length
+    max_condition: float = 80.0  # of the pose Jacobian with angles scaled by link_length; rejects ~4%
     min_leg_rail_cosine: float = 0.2  # w / l: legs far from perpendicular to their rail
 
 

@@ -1,0 +1,84 @@
+#!/usr/bin/env python3
+"""Identification wall time versus the paper-style baseline, in one process.
+
+For each posture count: simulate nominal set 2 with 10 um / 10 urad noise on the
+Table 1 machine, time ``identify`` (median of several runs after a warm-up), and
+time the baseline once (per-posture FK, finite-difference Jacobian re-solving FK
+for every column and posture, scipy ``least_squares``) on the identical problem.
+Postures whose FK fails with the nominal parameters are left out of both, since
+the baseline has no way to set them aside.
+
+Run: ``.venv/bin/python benchmarks/bench_identification.py [--json] [--baseline-max 200]``
+Targets (2-core machine): 50 postures < 15 ms, >= 300x the baseline at 50, linear growth.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import time
+
+import numpy as np
+
+from hexacal_identify.core.baseline import absolute_residuals, identify_baseline
+from hexacal_identify.core.identification import identify
+from hexacal_identify.core.measurements import Measurements
+from hexacal_identify.core.study import StudyRun, simulate_run_measurements
+
+POSTURE_COUNTS = (25, 50, 200, 1000, 5000)
+
+
+def problem(postures: int, seed: int) -> tuple[StudyRun, Measurements]:
+    run = StudyRun(postures=int(postures * 1.2) + 5, noise_um=10.0, seed=seed)
+    measurements = simulate_run_measurements(run)
+    finite = np.all(np.isfinite(absolute_residuals(run.nominal().vector, measurements).reshape(-1, 4)), axis=1)
+    return run, measurements.subset(np.flatnonzero(finite)[:postures])
+
+
+def time_identify(run: StudyRun, measurements: Measurements, repeats: int) -> tuple[float, int]:
+    identify(run.nominal(), measurements)  # warm-up: imports, caches
+    times = []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        result = identify(run.nominal(), measurements)
+        times.append(time.perf_counter() - started)
+    return statistics.median(times), result.iterations
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--json", action="store_true", help="print the rows as a JSON list")
+    parser.add_argument("--baseline-max", type=int, default=200, help="skip the baseline above this many postures")
+    parser.add_argument("--postures", type=int, nargs="*", default=list(POSTURE_COUNTS))
+    parser.add_argument("--seed", type=int, default=3)
+    args = parser.parse_args(argv)
+    rows = []
+    for count in args.postures:
+        run, measurements = problem(count, args.seed)
+        seconds, iterations = time_identify(run, measurements, repeats=7 if count <= 200 else 3)
+        baseline = identify_baseline(run.nominal(), measurements).seconds if count <= args.baseline_max else None
+        rows.append({
+            "postures": len(measurements),
+            "seconds": seconds,
+            "baseline_seconds": baseline,
+            "ratio": (baseline / seconds) if baseline else None,
+            "iterations": iterations,
+            "microseconds_per_posture": seconds / len(measurements) * 1e6,
+        })
+        if not args.json:
+            print(f"  measured {len(measurements)} postures", file=sys.stderr)
+    if args.json:
+        print(json.dumps(rows))
+        return 0
+    print(f"{'postures':>9} {'hexacal ms':>11} {'baseline ms':>12} {'ratio':>8} {'LM iters':>9} {'us/posture':>11}")
+    for row in rows:
+        baseline = f"{row['baseline_seconds'] * 1e3:12.1f}" if row["baseline_seconds"] else f"{'skipped':>12}"
+        ratio = f"{row['ratio']:8.0f}" if row["ratio"] else f"{'-':>8}"
+        print(f"{row['postures']:9d} {row['seconds'] * 1e3:11.2f} {baseline} {ratio} {row['iterations']:9d} "
+              f"{row['microseconds_per_posture']:11.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,103 @@
+"""``hexacal``: the command-line tool (study, parameter files, offline calibration from bags).
+
+Exit codes: 0 success; 1 the calibration ran but did not converge; 2 bad input
+or a refused calibration (one line on stderr naming the problem, no traceback).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from . import cli_study
+
+EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
+
+
+def _add_params_parser(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "params",
+        help="write a parameters YAML: the exact Table 1 machine or a nominal set 1-3",
+        description="Write a ROS 2 parameters YAML (SI units) for the Table 1 machine or one of the paper's "
+        "nominal sets (Table 1 + seeded errors with Table 2's statistics).",
+    )
+    parser.add_argument("which", choices=("table1", "nominal"), help="table1: exact machine; nominal: nominal set")
+    parser.add_argument("--set", type=int, choices=(1, 2, 3), default=2, help="nominal set (default 2)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the nominal errors (default 0)")
+    parser.add_argument("--out", type=Path, required=True, help="output YAML file")
+    parser.set_defaults(handler=_write_params)
+
+
+def _write_params(args) -> int:
+    from hexacal_msgs_py.parameters_file import save_parameters
+
+    from .core.model import nominal_set, table1_parameters
+
+    if args.which == "table1":
+        params, comment = table1_parameters(), "Table 1 of Rauf, Kim, Ryu (exact machine), SI units"
+    else:
+        params = nominal_set(args.set, seed=args.seed)
+        comment = f"nominal set {args.set} (Table 1 + errors with Table 2 statistics, seed {args.seed}), SI units"
+    save_parameters(args.out, params.vector, header_comment=comment)
+    print(f"wrote {args.out}")
+    return EXIT_OK
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="hexacal", description="Kinematic calibration of Hexa Slide parallel manipulators (ROS 2)."
+    )
+    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    cli_study.add_parser(subparsers)
+    _add_params_parser(subparsers)
+    for module_name in ("cli_bag", "cli_demo"):
+        module = _optional_module(module_name)
+        if module is not None:
+            module.add_parsers(subparsers)
+    return parser
+
+
+def _optional_module(name: str):
+    import importlib
+
+    try:
+        return importlib.import_module(f"{__package__}.{name}")
+    except ModuleNotFoundError as error:
+        if error.name == f"{__package__}.{name}":
+            return None
+        raise
+
+
+def _named_errors() -> tuple[type[BaseException], ...]:
+    """Errors that mean bad input: reported in one line, exit code 2."""
+    from hexacal_msgs_py.errors import HexacalContractError
+
+    from .core.errors import CalibrationError
+
+    errors: list[type[BaseException]] = [HexacalContractError, CalibrationError, FileNotFoundError,
+                                         NotADirectoryError, IsADirectoryError, PermissionError, ValueError]
+    bag = _optional_module("bag")
+    if bag is not None and hasattr(bag, "BagError"):
+        errors.append(bag.BagError)
+    return tuple(errors)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.handler(args))
+    except _named_errors() as error:
+        print(f"hexacal {args.command}: error: {_one_line(error)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"hexacal {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+def _one_line(error: BaseException) -> str:
+    text = str(error) or type(error).__name__
+    return " | ".join(line.strip() for line in text.splitlines() if line.strip())
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,173 @@
+"""``hexacal study``: the paper's section 4, reproduced and printed beside the paper's numbers."""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from . import figures
+from .cli_common import Progress, load_params_arg
+from .core.identifiability import DEFAULT_RANK_TOLERANCE
+from .core.model import TABLE2_ERROR_STATS_MM, error_stats_mm, table1_parameters
+from .core.residuals import COST_EQUATIONS, COSTS
+from .core.study import (
+    PAPER_TABLE3,
+    StudyRun,
+    identifiability_by_cost,
+    noise_free_recovery,
+    noise_study,
+    run_calibration,
+)
+
+UM, DEG = 1e6, np.degrees(1.0)
+
+
+def add_parser(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "study",
+        help="reproduce the paper's simulation study (section 4)",
+        description="Reproduce section 4 of the paper on the simulated Table 1 machine, print the paper's numbers "
+        "side by side and write PNG figures. With --json, run only the configured calibration and print its result.",
+    )
+    parser.add_argument("--true-params", type=Path, help="parameters YAML of the simulated machine (default: Table 1)")
+    parser.add_argument("--nominal-params", type=Path, help="parameters YAML to start from (default: nominal set --nominal-set)")
+    parser.add_argument("--nominal-set", type=int, choices=(1, 2, 3), default=2, help="Table 2 error set (default 2)")
+    parser.add_argument("--postures", type=int, default=50, help="measured postures (default 50)")
+    parser.add_argument("--noise-um", type=float, default=10.0,
+                        help="uniform noise half-width: um on sliders, urad on angles (default 10)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--seeds", type=int, default=5, help="seeds per noise level in the Table 3 study (default 5)")
+    parser.add_argument("--cost", choices=COSTS, default="absolute", help="cost function (default absolute, eq. 7)")
+    parser.add_argument("--validation-postures", type=int, default=50, help="fresh postures for pose errors (default 50)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object for the configured run, nothing else")
+    parser.add_argument("--out", type=Path, default=Path("study_out"), help="directory for PNG figures (default study_out)")
+    parser.set_defaults(handler=run)
+
+
+def configured_run(args) -> StudyRun:
+    true_params = load_params_arg(args.true_params) if args.true_params else table1_parameters()
+    nominal = load_params_arg(args.nominal_params) if args.nominal_params else None
+    if args.postures < 1:
+        raise ValueError(f"--postures must be positive, got {args.postures}")
+    return StudyRun(
+        true_params=true_params, nominal_params=nominal, nominal_set_number=args.nominal_set,
+        postures=args.postures, noise_um=args.noise_um, seed=args.seed, cost=args.cost,
+        validation_postures=args.validation_postures,
+    )
+
+
+def run(args) -> int:
+    configured = configured_run(args)
+    if args.json:
+        print(json.dumps(run_calibration(configured).to_json()))
+        return 0
+    progress = Progress(enabled=True)
+    args.out.mkdir(parents=True, exist_ok=True)
+    _print_identifiability(args.out)
+    _print_noise_free(args.out, progress)
+    _print_noise_table(args.out, args.seeds, progress)
+    _print_procedures(progress)
+    _print_configured(configured)
+    progress.close()
+    print(f"\nfigures written to {args.out}/")
+    return 0
+
+
+def _print_identifiability(out: Path) -> None:
+    print("Identifiability of each cost function (paper: 'all parameters are identifiable'), exact data, "
+          "40 postures (30 sphere + 10 fixed-position where needed):")
+    print(f"  {'cost':<13} {'equations':<12} {'postures':<16} {'rank':>5} {'condition':>10}  verdict")
+    spectra = {}
+    for row in identifiability_by_cost():
+        report = row.report
+        postures = f"{row.sphere_postures} sph + {row.fixed_postures} fix"
+        verdict = "all 54 identifiable" if report.identifiable else "NOT all identifiable: " + "; ".join(
+            d.description for d in report.null_directions)
+        print(f"  {row.cost:<13} {COST_EQUATIONS[row.cost]:<12} {postures:<16} {report.rank:>5} "
+              f"{report.condition_number:>10.3g}  {verdict}")
+        spectra[f"{row.cost} ({COST_EQUATIONS[row.cost]})"] = report.singular_values
+    figures.singular_values(spectra, DEFAULT_RANK_TOLERANCE, out / "identifiability_singular_values.png")
+
+
+def _print_noise_free(out: Path, progress: Progress) -> None:
+    print("\nNo noise, 25 postures, eq. 7 (paper Figs. 4-6: every parameter identified):")
+    print(f"  {'set':>3} {'Table 2 max/mean/sigma mm':>27} {'ours max/mean/sigma mm':>25} "
+          f"{'final max |error| m':>20} {'iters':>6} {'solve ms':>9}")
+    for outcome in noise_free_recovery(progress=progress.step):
+        number = outcome.run.nominal_set_number
+        paper = "/".join(f"{v:g}" for v in TABLE2_ERROR_STATS_MM[number])
+        ours = "/".join(f"{v:.2f}" for v in error_stats_mm(outcome.initial_parameter_errors))
+        final = float(np.max(np.abs(outcome.final_parameter_errors)))
+        print(f"  {number:>3} {paper:>27} {ours:>25} {final:>20.2e} {outcome.result.iterations:>6} "
+              f"{outcome.result.solve_seconds * 1e3:>9.1f}")
+        figures.parameter_errors(outcome.initial_parameter_errors, outcome.final_parameter_errors,
+                                 f"Nominal set {number}, no noise (cf. paper Fig. {number + 3})",
+                                 out / f"fig{number + 3}_parameter_errors_set{number}.png")
+
+
+def _print_noise_table(out: Path, seeds: int, progress: Progress) -> None:
+    print(f"\nMeasurement noise, 50 postures, nominal set 2, eq. 7; mean over 50 validation postures, "
+          f"{seeds} seeds (mean +- spread) [paper Table 3]:")
+    summaries = noise_study(seeds=range(seeds), progress=progress.step)
+    before_pos = summaries[0].mean_and_spread("before", "position_mean_m")
+    before_ori = summaries[0].mean_and_spread("before", "orientation_mean_rad")
+    print(f"  {'':<12} {'initial':>22} " + " ".join(f"{'+-' + format(s.noise_um, 'g') + ' um':>24}" for s in summaries))
+    paper_pos = [PAPER_TABLE3[int(s.noise_um)]["position_m"] for s in summaries]
+    paper_ori = [PAPER_TABLE3[int(s.noise_um)]["orientation_rad"] for s in summaries]
+    after_pos = [s.mean_and_spread("after", "position_mean_m") for s in summaries]
+    after_ori = [s.mean_and_spread("after", "orientation_mean_rad") for s in summaries]
+    print(f"  {'position um':<12} {_pm(before_pos, UM):>22} " + " ".join(f"{_pm(v, UM):>24}" for v in after_pos))
+    print(f"  {'  paper':<12} {PAPER_TABLE3['initial']['position_m'] * UM:>22.0f} "
+          + " ".join(f"{v * UM:>24.1f}" for v in paper_pos))
+    print(f"  {'orient. deg':<12} {_pm(before_ori, DEG, 3):>22} " + " ".join(f"{_pm(v, DEG, 4):>24}" for v in after_ori))
+    print(f"  {'  paper':<12} {PAPER_TABLE3['initial']['orientation_rad'] * DEG:>22.2f} "
+          + " ".join(f"{v * DEG:>24.4f}" for v in paper_ori))
+    figures.noise_table(
+        [s.noise_um for s in summaries], [v[0] * UM for v in after_pos], [v[1] * UM for v in after_pos],
+        [v * UM for v in paper_pos], [v[0] * DEG for v in after_ori], [v * DEG for v in paper_ori],
+        out / "table3_pose_error_vs_noise.png",
+    )
+    for figure_number, summary in zip((7, 8, 9), summaries):
+        if summary.outcomes:
+            first = summary.outcomes[0]
+            figures.chain_errors(first.initial_parameter_errors, first.final_parameter_errors,
+                                 f"Errors in kinematic chains, +-{summary.noise_um:g} um noise (cf. paper Fig. {figure_number})",
+                                 out / f"fig{figure_number}_chain_errors_{summary.noise_um:g}um.png")
+
+
+def _print_procedures(progress: Progress) -> None:
+    print("\nSphere + fixed-position procedure, 60 sphere + 20 fixed postures, +-10 um noise, nominal set 2 "
+          "(paper: 'of the same order as the noise'):")
+    print(f"  {'cost':<13} {'equations':<12} {'outcome':<16} {'position um':>12} {'orient. deg':>12} {'solve ms':>9}")
+    for cost in COSTS:
+        progress.step(f"procedure {cost}")
+        try:
+            outcome = run_calibration(StudyRun(postures=80, noise_um=10.0, cost=cost))
+        except Exception as error:  # a refusal is the finding: print why
+            reason = getattr(error, "reason", type(error).__name__)
+            print(f"  {cost:<13} {COST_EQUATIONS[cost]:<12} {'refused: ' + reason:<16}")
+            continue
+        after = outcome.after.summary()
+        print(f"  {cost:<13} {COST_EQUATIONS[cost]:<12} {outcome.result.reason:<16} "
+              f"{after['position_mean_m'] * UM:>12.1f} {after['orientation_mean_rad'] * DEG:>12.4f} "
+              f"{outcome.result.solve_seconds * 1e3:>9.1f}")
+
+
+def _print_configured(run: StudyRun) -> None:
+    outcome = run_calibration(run)
+    result = outcome.result
+    before, after = outcome.before.summary(), outcome.after.summary()
+    print(f"\nConfigured run: {run.postures} postures, +-{run.noise_um:g} um, seed {run.seed}, cost {run.cost}: "
+          f"{result.reason} in {result.iterations} iterations, {result.solve_seconds * 1e3:.1f} ms, "
+          f"rank {result.rank}, condition {result.condition_number:.3g}")
+    print(f"  pose error before: {before['position_mean_m'] * UM:.1f} um, {before['orientation_mean_rad'] * DEG:.4f} deg; "
+          f"after: {after['position_mean_m'] * UM:.2f} um, {after['orientation_mean_rad'] * DEG:.5f} deg")
+    if result.rejected_postures:
+        print(f"  {len(result.rejected_postures)} posture(s) rejected: "
+              + "; ".join(f"#{i}: {why}" for i, why in sorted(result.rejected_postures.items())))
+
+
+def _pm(value: tuple[float, float], scale: float, digits: int = 1) -> str:
+    return f"{value[0] * scale:.{digits}f} +- {value[1] * scale:.{digits}f}"

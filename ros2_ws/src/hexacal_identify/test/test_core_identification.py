@@ -1,0 +1,128 @@
+"""Identification: analytic vs finite-difference Jacobian, exact recovery, identifiability, named errors."""
+import numpy as np
+import pytest
+
+from hexacal_identify.core.baseline import absolute_residuals, finite_difference_jacobian
+from hexacal_identify.core.device import DeviceModel
+from hexacal_identify.core.errors import InvalidMeasurementError, RankDeficientError, TooFewPosturesError
+from hexacal_identify.core.identification import CONVERGED, SolverOptions, identify
+from hexacal_identify.core.kinematics import forward_kinematics, pose_parameter_sensitivity
+from hexacal_identify.core.measurements import Measurements, NoiseModel, simulate_measurements
+from hexacal_identify.core.model import HexaParameters, nominal_set, table1_parameters
+from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.residuals import COSTS, ChannelSigma, CostFunction
+from hexacal_identify.core.study import StudyRun, identifiability_by_cost, simulate_run_measurements
+
+TRUE = table1_parameters()
+
+
+def _measurements(n, seed, noise_um=0.0):
+    rng = np.random.default_rng(seed)
+    poses = sample_poses(TRUE, n, rng)
+    return simulate_measurements(TRUE, poses, noise=NoiseModel.from_microns(noise_um), rng=rng)
+
+
+@pytest.mark.parametrize("cost", COSTS)
+def test_analytic_identification_jacobian_matches_finite_differences(cost):
+    params = nominal_set(1, seed=1)
+    measurements = simulate_run_measurements(StudyRun(postures=16, noise_um=5.0, seed=2, cost=cost))
+    function = CostFunction(cost, measurements, DeviceModel(), ChannelSigma())
+    keep = np.flatnonzero(function.usable())
+    function = CostFunction(cost, measurements.subset(keep), DeviceModel(), ChannelSigma())
+
+    def solve(vector):
+        fk = forward_kinematics(HexaParameters(vector), function.measurements.slider_positions,
+                                function.initial_poses(), tolerance=1e-13, fit_tilt_first=True)
+        assert not fk.failures
+        return fk.poses
+
+    poses = solve(params.vector)
+    sensitivity, _ = pose_parameter_sensitivity(params, poses)
+    analytic = function.residuals(poses, sensitivity).jacobian
+    numeric = finite_difference_jacobian(lambda v: function.residuals(solve(v), None).values, params.vector, 1e-6)
+    np.testing.assert_allclose(analytic, numeric, atol=2e-6 * np.abs(numeric).max(), rtol=1e-4)
+
+
+def test_paper_style_residuals_equal_the_batched_ones():
+    params = nominal_set(1, seed=0)
+    measurements = _measurements(10, 3, noise_um=5)
+    function = CostFunction("absolute", measurements, DeviceModel(), ChannelSigma())
+    fk = forward_kinematics(params, measurements.slider_positions, function.initial_poses(), fit_tilt_first=True)
+    batched = function.residuals(fk.poses, None).values.reshape(2, -1)  # [phi rows], [x y z rows]
+    per_posture = absolute_residuals(params.vector, measurements).reshape(-1, 4)
+    np.testing.assert_allclose(per_posture[:, 3], batched[0][:10], atol=1e-10)
+    np.testing.assert_allclose(per_posture[:, :3].reshape(-1), batched[0][10:].tolist() + batched[1].tolist(), atol=1e-10)
+
+
+@pytest.mark.parametrize("number", [1, 2, 3])
+def test_exact_parameters_recovered_without_noise(number):
+    result = identify(nominal_set(number, seed=0), _measurements(25, 10 + number))
+    assert result.reason == CONVERGED
+    assert result.rank == 54
+    assert np.max(np.abs(result.parameters.vector - TRUE.vector)) < 1e-9
+    assert len(result.used_postures) == 25, result.rejected_postures
+
+
+def test_eq7_has_full_rank_and_the_other_costs_are_reported_honestly():
+    rows = {row.cost: row.report for row in identifiability_by_cost()}
+    assert rows["absolute"].rank == 54 and rows["sphere-fixed"].rank == 54
+    # eq. 8 alone cannot see a base rotation about the vertical Y axis of eq. 2 (absorbed by theta).
+    assert rows["sphere"].rank == 53
+    assert "rotation of the base frame about Y" in rows["sphere"].null_directions[0].description
+    assert rows["fixed"].rank == 53 and rows["relative"].rank == 53
+
+
+def test_noisy_identification_is_within_its_own_uncertainty():
+    result = identify(nominal_set(2, seed=0), _measurements(50, 21, noise_um=10))
+    assert result.reason == CONVERGED
+    normalized = np.abs(result.parameters.vector - TRUE.vector) / result.std
+    assert np.median(normalized) < 2.0 and np.max(normalized) < 6.0
+    assert 5e-6 < result.rms_residual["x"] < 2e-5  # ~ the noise, in m
+    assert set(result.to_json()) >= {"parameters", "std", "rank", "condition_number", "solve_seconds",
+                                     "iterations", "reason"}
+
+
+def test_nan_reading_is_a_named_error_naming_the_posture():
+    measurements = _measurements(30, 4)
+    measurements.inclinometer[7, 1] = np.nan
+    with pytest.raises(InvalidMeasurementError, match=r"\[7\]") as caught:
+        identify(nominal_set(1), measurements)
+    assert caught.value.reason == "invalid-measurement"
+
+
+def test_out_of_range_inclinometer_angle_is_rejected():
+    measurements = _measurements(30, 4)
+    measurements.inclinometer[3, 0] = 2.0
+    with pytest.raises(InvalidMeasurementError, match="range"):
+        identify(nominal_set(1), measurements)
+
+
+def test_too_few_postures_is_a_named_error():
+    with pytest.raises(TooFewPosturesError, match="13 usable posture"):
+        identify(nominal_set(1), _measurements(13, 5))  # 52 residuals < 54 parameters
+
+
+def test_rank_deficient_problem_is_refused_with_the_combination_named():
+    measurements = _measurements(40, 6)
+    with pytest.raises(RankDeficientError) as caught:
+        identify(nominal_set(1), measurements, SolverOptions(cost="sphere"))
+    assert caught.value.reason == "rank-deficient"
+    assert "rotation of the base frame about Y" in str(caught.value)
+    allowed = identify(nominal_set(1), measurements, SolverOptions(cost="sphere", allow_rank_deficient=True))
+    assert allowed.rank == 53 and np.isnan(allowed.std).any()
+
+
+def test_fixing_a_parameter_makes_the_sphere_cost_identifiable():
+    measurements = _measurements(40, 6)
+    free = np.ones(54, bool)
+    free[4 * 9 + 2] = False  # chain_5.A0z known: removes the base rotation about Y
+    start = HexaParameters(np.where(free, nominal_set(1).vector, TRUE.vector))
+    result = identify(start, measurements, SolverOptions(cost="sphere", free_parameters=tuple(free)))
+    assert result.rank == 53 and result.reason == CONVERGED
+    assert np.max(np.abs(result.parameters.vector - TRUE.vector)) < 1e-9
+
+
+def test_measurements_with_inconsistent_lengths_are_rejected():
+    measurements = Measurements(np.zeros((3, 6)) + 0.3, np.zeros((2, 2)), np.zeros(3))
+    with pytest.raises(InvalidMeasurementError, match="inconsistent lengths"):
+        measurements.validate()
