@@ -1,0 +1,1 @@
+"""Simulated Hexa Slide manipulator driver."""

@@ -1,0 +1,55 @@
+from pathlib import Path
+
+from setuptools import find_packages, setup
+
+package_name = 'hexacal_identify'
+here = Path(__file__).resolve().parent
+
+# Relative paths (setuptools requires them); sorted for reproducible builds.
+# The launch directory may be missing or empty.
+launch_files = sorted(str(p.relative_to(here)) for p in here.glob('launch/*.launch.py'))
+
+data_files = [
+    ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+    ('share/' + package_name, ['package.xml']),
+]
+if launch_files:
+    data_files.append(('share/' + package_name + '/launch', launch_files))
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    package_data={package_name: ['data/*.yaml', 'core/data/*.yaml']},
+    data_files=data_files,
+    # ROS packages (rclpy, message packages, hexacal_msgs_py) come from the
+    # ROS install or the workspace, not PyPI; see requirements.txt.
+    install_requires=[
+        'setuptools',
+        'numpy',
+        'scipy',
+        'pyyaml',
+        'mcap',
+        'mcap-ros2-support',
+        'matplotlib',
+        'tqdm',
+        'threadpoolctl',
+        'lz4',
+        'zstandard',
+    ],
+    zip_safe=True,
+    maintainer='hexacal developers',
+    maintainer_email='hexacal@example.com',
+    description='Hexa Slide kinematic calibration: identification core, nodes and CLI.',
+    license='Apache-2.0',
+    python_requires='>=3.10',
+    entry_points={
+        'console_scripts': [
+            'collector = hexacal_identify.collector_node:main',
+            'identify = hexacal_identify.identify_node:main',
+            'replay = hexacal_identify.replay:main',
+            'hexacal = hexacal_identify.cli:main',
+            'bringup = hexacal_identify.bringup:main',
+        ],
+    },
+)

@@ -1,0 +1,147 @@
+"""Validated, immutable sensor readings of the hexacal contract (ROS-free).
+
+Units: slider positions (the articular variables lambda_i) in m; inclinometer
+angles alpha (about X) and beta (about Y) and the rotary angle phi in rad;
+stamps in ns.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+import math
+import operator
+
+from hexacal_msgs_py.errors import InvalidReadingError
+from hexacal_msgs_py.names import N_CHAINS, POSTURE_NAMES
+
+
+def _check_stamp(kind: str, stamp_ns: object) -> int:
+    if isinstance(stamp_ns, bool):
+        raise InvalidReadingError(f'{kind}: stamp_ns must be an integer, got {stamp_ns!r}')
+    try:
+        value = operator.index(stamp_ns)  # accepts numpy integers, rejects floats
+    except TypeError:
+        raise InvalidReadingError(
+            f'{kind}: stamp_ns must be an integer, got {stamp_ns!r}') from None
+    if value < 0:
+        raise InvalidReadingError(f'{kind}: stamp_ns must be >= 0, got {value}')
+    return value
+
+
+def _check_value(kind: str, name: str, value: object) -> float:
+    if isinstance(value, (bool, str, bytes)):
+        raise InvalidReadingError(f'{kind}: {name} must be a number, got {value!r}')
+    try:
+        number = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise InvalidReadingError(f'{kind}: {name} must be a number, got {value!r}') from None
+    if not math.isfinite(number):
+        raise InvalidReadingError(f'{kind}: {name} must be finite, got {number!r}')
+    return number
+
+
+def _check_sliders(kind: str, positions: object) -> tuple[float, ...]:
+    if isinstance(positions, (str, bytes)) or not isinstance(positions, Iterable):
+        raise InvalidReadingError(
+            f'{kind}: slider_positions must be a sequence of {N_CHAINS} numbers, '
+            f'got {positions!r}')
+    values = tuple(positions)
+    if len(values) != N_CHAINS:
+        raise InvalidReadingError(
+            f'{kind}: slider_positions must have {N_CHAINS} values, got {len(values)}')
+    return tuple(
+        _check_value(kind, f'slider_{i}', value) for i, value in enumerate(values, start=1))
+
+
+@dataclass(frozen=True)
+class SliderReading:
+    """Positions of the six sliders along their rails (m)."""
+
+    stamp_ns: int
+    slider_positions: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        kind = type(self).__name__
+        object.__setattr__(self, 'stamp_ns', _check_stamp(kind, self.stamp_ns))
+        object.__setattr__(
+            self, 'slider_positions', _check_sliders(kind, self.slider_positions))
+
+
+@dataclass(frozen=True)
+class InclinometerReading:
+    """Biaxial inclinometer angles: alpha about X, beta about Y (rad)."""
+
+    stamp_ns: int
+    alpha: float
+    beta: float
+
+    def __post_init__(self) -> None:
+        kind = type(self).__name__
+        object.__setattr__(self, 'stamp_ns', _check_stamp(kind, self.stamp_ns))
+        object.__setattr__(self, 'alpha', _check_value(kind, 'alpha', self.alpha))
+        object.__setattr__(self, 'beta', _check_value(kind, 'beta', self.beta))
+
+
+@dataclass(frozen=True)
+class EncoderReading:
+    """Rotary sensor angle phi of the calibration device (rad)."""
+
+    stamp_ns: int
+    phi: float
+
+    def __post_init__(self) -> None:
+        kind = type(self).__name__
+        object.__setattr__(self, 'stamp_ns', _check_stamp(kind, self.stamp_ns))
+        object.__setattr__(self, 'phi', _check_value(kind, 'phi', self.phi))
+
+
+@dataclass(frozen=True)
+class PostureReading:
+    """One measured posture: slider positions (m) with the device's alpha, beta, phi (rad)."""
+
+    stamp_ns: int
+    slider_positions: tuple[float, ...]
+    alpha: float
+    beta: float
+    phi: float
+
+    def __post_init__(self) -> None:
+        kind = type(self).__name__
+        object.__setattr__(self, 'stamp_ns', _check_stamp(kind, self.stamp_ns))
+        object.__setattr__(
+            self, 'slider_positions', _check_sliders(kind, self.slider_positions))
+        object.__setattr__(self, 'alpha', _check_value(kind, 'alpha', self.alpha))
+        object.__setattr__(self, 'beta', _check_value(kind, 'beta', self.beta))
+        object.__setattr__(self, 'phi', _check_value(kind, 'phi', self.phi))
+
+    @classmethod
+    def from_parts(
+        cls,
+        sliders: SliderReading,
+        inclinometer: InclinometerReading,
+        encoder: EncoderReading,
+        stamp_ns: int | None = None,
+    ) -> PostureReading:
+        """Combine synchronised readings; the stamp defaults to the sliders' stamp."""
+        return cls(
+            stamp_ns=sliders.stamp_ns if stamp_ns is None else stamp_ns,
+            slider_positions=sliders.slider_positions,
+            alpha=inclinometer.alpha,
+            beta=inclinometer.beta,
+            phi=encoder.phi,
+        )
+
+    def values(self) -> tuple[float, ...]:
+        """The nine values in POSTURE_NAMES order."""
+        return self.slider_positions + (self.alpha, self.beta, self.phi)
+
+    @classmethod
+    def from_values(cls, stamp_ns: int, values: Iterable[float]) -> PostureReading:
+        """Inverse of values(): nine numbers in POSTURE_NAMES order."""
+        numbers = tuple(values)
+        if len(numbers) != len(POSTURE_NAMES):
+            raise InvalidReadingError(
+                f'{cls.__name__}: expected {len(POSTURE_NAMES)} values '
+                f'{POSTURE_NAMES}, got {len(numbers)}')
+        return cls(stamp_ns, numbers[:N_CHAINS], *numbers[N_CHAINS:])
