@@ -46,3 +46,14 @@ def test_invalid_parameter_vectors_are_rejected_with_the_name():
         HexaParameters(vector)
     with pytest.raises(ValueError, match="54"):
         HexaParameters(np.zeros(53))
+
+
+def test_shipped_table1_file_is_the_table1_machine():
+    from pathlib import Path
+
+    from hexacal_msgs_py.parameters_file import load_parameters
+
+    import hexacal_identify
+
+    shipped = Path(hexacal_identify.__file__).parent / "data" / "table1_exact.yaml"
+    np.testing.assert_array_equal(load_parameters(shipped), table1_parameters().vector)

@@ -123,8 +123,12 @@ class HexaParameters:
 
 
 def table1_parameters() -> HexaParameters:
-    """The paper's exact machine (Table 1), converted from mm to SI."""
-    return HexaParameters((_TABLE1_MM.T * 1e-3).reshape(-1))
+    """The paper's exact machine (Table 1), converted from mm to SI.
+
+    Shipped as the default "exact" parameter file ``hexacal_identify/data/table1_exact.yaml``.
+    Rounded to 1e-10 m so the file reads like the table (0.2614, not 0.26139999999999997).
+    """
+    return HexaParameters(np.round(_TABLE1_MM.T / 1000.0, 10).reshape(-1))
 
 
 def error_vector_with_stats(rng: np.random.Generator, max_mm: float, mean_mm: float, sigma_mm: float) -> np.ndarray:

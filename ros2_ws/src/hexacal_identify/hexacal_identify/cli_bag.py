@@ -1,0 +1,102 @@
+"""``hexacal calibrate BAG`` and ``hexacal bag-info BAG``: everything the nodes do, offline from a bag."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .cli_common import load_params_arg
+from .core.device import DEFAULT_LINK_LENGTH_M
+from .core.identification import CONVERGED
+from .core.residuals import COSTS
+
+UM, MM = 1e6, 1e3
+
+
+def add_parsers(subparsers) -> None:
+    calibrate = subparsers.add_parser(
+        "calibrate",
+        help="calibrate from a recorded bag (no ROS graph needed)",
+        description="Identify the 54 parameters from a rosbag2 bag (directory with metadata.yaml + .mcap, or a "
+        "single .mcap file) with the same core call the identify node uses. Postures come from the bag's "
+        "/hexacal/posture topic, or are re-detected from its raw sensor streams.",
+    )
+    calibrate.add_argument("bag", type=Path, help="bag directory or .mcap file")
+    calibrate.add_argument("--nominal", type=Path, required=True, help="parameters YAML to start from")
+    calibrate.add_argument("--output", type=Path, required=True, help="parameters YAML to write (atomically)")
+    calibrate.add_argument("--cost", choices=COSTS, default="absolute", help="cost function (default absolute)")
+    calibrate.add_argument("--link-length", type=float, default=DEFAULT_LINK_LENGTH_M,
+                           help=f"device link length L in m (default {DEFAULT_LINK_LENGTH_M})")
+    calibrate.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    calibrate.set_defaults(handler=run_calibrate)
+
+    info = subparsers.add_parser("bag-info", help="describe a bag (like `ros2 bag info`) and its postures",
+                                 description="Print a bag's files, duration, topics with types and counts, "
+                                 "and the postures it holds.")
+    info.add_argument("bag", type=Path, help="bag directory or .mcap file")
+    info.set_defaults(handler=run_bag_info)
+
+
+def run_calibrate(args) -> int:
+    from hexacal_msgs_py.parameters_file import save_parameters
+
+    from .pipeline import calibrate, postures_from_bag
+
+    nominal = load_params_arg(args.nominal)
+    if args.output.exists() and args.output.is_dir():
+        raise IsADirectoryError(f"--output {args.output} is a directory; name a YAML file")
+    bag = postures_from_bag(args.bag)
+    result = calibrate(nominal, bag.postures, cost=args.cost, link_length=args.link_length)
+    comment = (f"hexacal calibrate {args.bag} (cost {args.cost}, {len(result.used_postures)} postures, "
+               f"{result.reason}), SI units")
+    if result.reason == CONVERGED:
+        save_parameters(args.output, result.parameters.vector, header_comment=comment)
+    if args.json:
+        payload = result.to_json()
+        payload["bag"] = {"path": str(args.bag), "postures": len(bag.postures), "source": bag.source,
+                          "ignored_topics": bag.ignored_topics}
+        payload["output"] = str(args.output) if result.reason == CONVERGED else None
+        print(json.dumps(payload))
+    else:
+        _print_summary(args, bag, result)
+    return 0 if result.reason == CONVERGED else 1
+
+
+def _print_summary(args, bag, result) -> None:
+    print(f"bag {args.bag}: {len(bag.postures)} postures from the {bag.source}")
+    if bag.ignored_topics:
+        print(f"  ignored topics: {', '.join(bag.ignored_topics)}")
+    print(f"{result.reason} in {result.iterations} iterations ({result.solve_seconds * 1e3:.1f} ms), "
+          f"cost {result.cost}, rank {result.rank}, condition number {result.condition_number:.3g}")
+    print(f"postures used {len(result.used_postures)}, rejected {len(result.rejected_postures)}")
+    for index, why in sorted(result.rejected_postures.items()):
+        print(f"  posture {index}: {why}")
+    print("RMS residual: " + ", ".join(
+        f"{k} {v * UM:.2f} {'urad' if k.startswith('phi') else 'um'}" for k, v in result.rms_residual.items()))
+    correction = (result.parameters.vector - result.initial_parameters.vector) * MM
+    print(f"largest correction {np.max(np.abs(correction)):.3f} mm, largest std "
+          f"{np.nanmax(result.std) * UM:.2f} um (rail components x1e-6)")
+    if result.reason == CONVERGED:
+        print(f"wrote {args.output}")
+    else:
+        print(f"not written: the solver stopped with '{result.reason}'", file=sys.stderr)
+
+
+def run_bag_info(args) -> int:
+    from .bag import open_bag
+    from .pipeline import postures_from_bag
+
+    info = open_bag(args.bag).info()
+    print(info.format())
+    try:
+        bag = postures_from_bag(args.bag)
+    except Exception as error:  # the bag is readable but holds no usable postures: say why
+        print(f"Postures:          none usable ({error})")
+        return 0
+    print(f"Postures:          {len(bag.postures)} (from the {bag.source})")
+    for key, value in sorted(bag.plan.items()):
+        print(f"Plan:              {key} = {value}")
+    return 0
