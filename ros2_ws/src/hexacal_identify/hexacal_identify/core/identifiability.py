@@ -28,6 +28,7 @@ class NullDirection:
 
     description: str
     coefficients: dict[str, float]  # parameter name -> component (unit-norm, scaled units)
+    fix: str | None = None  # the unknown to hold fixed for this direction, when the explanation names one
 
 
 @dataclass
@@ -46,8 +47,15 @@ class IdentifiabilityReport:
 
     @property
     def unidentifiable_parameters(self) -> list[str]:
-        """The parameters a user would fix to make the rest identifiable (last pivots)."""
-        return self.pivot_order[self.rank:]
+        """The unknowns a user would fix to make the rest identifiable.
+
+        A device defect that a frame motion imitates is named first (fixing it is
+        choosing the frame, which the device defines anyway); the rest are the last
+        pivots of the column-pivoted QR.
+        """
+        named = [d.fix for d in self.null_directions if d.fix]
+        rest = [name for name in reversed(self.pivot_order) if name not in named]
+        return named + rest[: max(self.n_parameters - self.rank - len(named), 0)]
 
     def verdict(self) -> str:
         if self.identifiable:
@@ -102,7 +110,7 @@ def analyze(
     _, _, pivots = scipy.linalg.qr(scaled, mode="economic", pivoting=True)
     null_space = vt[rank:].T
     gauges = _gauge_directions(params, free, scales, link_length) if params is not None else []
-    directions = _describe(null_space, names, gauges)
+    directions = _describe(null_space, names, gauges, _device_directions(free, scales))
     return IdentifiabilityReport(
         rank=rank,
         n_parameters=jacobian.shape[1],
@@ -135,7 +143,7 @@ def _gauge_directions(params: HexaParameters, free: np.ndarray | None, scales: n
             delta[~mask] = 0.0
         vector = delta.reshape(-1)
         if free is not None:
-            vector = vector[free]
+            vector = np.concatenate([vector, np.zeros(len(free) - len(vector))])[free]
         return vector * scales
 
     gauges = []
@@ -168,49 +176,80 @@ def _gauge_directions(params: HexaParameters, free: np.ndarray | None, scales: n
     return [(name, vec) for name, vec in gauges if np.linalg.norm(vec) > 0]
 
 
-def _describe(null_space: np.ndarray, names: list[str], gauges: list[tuple[str, np.ndarray]]) -> list[NullDirection]:
+def _device_directions(free: np.ndarray | None, scales: np.ndarray) -> list[tuple[str, np.ndarray]]:
+    """Unit changes of each identified device defect, in scaled free coordinates."""
+    from .device import DEVICE_PARAMETER_NAMES
+
+    if free is None or len(free) <= N_PARAMETERS:
+        return []
+    directions = []
+    for k, name in enumerate(DEVICE_PARAMETER_NAMES):
+        vector = np.zeros(len(free))
+        vector[N_PARAMETERS + k] = 1.0
+        vector = vector[free] * scales
+        if np.linalg.norm(vector) > 0:
+            directions.append((name, vector))
+    return directions
+
+
+def _describe(null_space: np.ndarray, names: list[str], gauges: list[tuple[str, np.ndarray]],
+              device: list[tuple[str, np.ndarray]] = ()) -> list[NullDirection]:
+    """One entry per null dimension: a named explanation where one fits, else the parameters it mixes."""
     if null_space.shape[1] == 0:
         return []
-    described: list[NullDirection] = []
-    explained = _explain_by_gauges(null_space, gauges)
-    for column, text in zip(null_space.T, explained):
-        order = np.argsort(-np.abs(column))
-        top = [i for i in order[:6] if abs(column[i]) > 0.15 * abs(column[order[0]])]
-        coefficients = {names[i]: float(column[i]) for i in top}
-        if text is None:
-            mix = ", ".join(f"{names[i]} ({column[i]:+.2f})" for i in top)
-            text = f"parameters that move together without changing any measurement: {mix}"
-        described.append(NullDirection(text, coefficients))
+    explained = _explanations(null_space, gauges, list(device))
+    described = [NullDirection(text, _top_coefficients(vector, names), fix) for text, vector, fix in explained]
+    # Whatever the named motions do not cover: list the parameters of the remaining null directions.
+    if explained:
+        covered, _ = np.linalg.qr(np.column_stack([vector for _, vector, _ in explained]))
+        rest = null_space - covered @ (covered.T @ null_space)
+        u, singular, _ = np.linalg.svd(rest, full_matrices=False)
+        rest_basis = u[:, singular > 1e-6][:, : null_space.shape[1] - len(explained)]
+    else:
+        rest_basis = null_space
+    for column in rest_basis.T:
+        coefficients = _top_coefficients(column, names)
+        mix = ", ".join(f"{name} ({value:+.2f})" for name, value in coefficients.items())
+        described.append(NullDirection(f"parameters that move together without changing any measurement: {mix}",
+                                       coefficients))
     return described
 
 
-def _explain_by_gauges(null_space: np.ndarray, gauges: list[tuple[str, np.ndarray]]) -> list[str | None]:
-    """Name each null direction after the gauge motion it coincides with, when one does."""
-    texts: list[str | None] = [None] * null_space.shape[1]
-    if not gauges:
-        return texts
-    used: set[int] = set()
-    for j, column in enumerate(null_space.T):
-        best, best_score = None, 0.0
-        for g, (_, vector) in enumerate(gauges):
-            score = abs(np.dot(column, vector)) / np.linalg.norm(vector)
-            if score > best_score and g not in used:
-                best, best_score = g, score
-        if best is not None and best_score > 0.99:
-            used.add(best)
-            texts[j] = gauges[best][0]
-    # A null space spanned by gauges, but not aligned with them one by one.
-    if any(t is None for t in texts):
-        inside = [name for name, vector in gauges if _in_span(vector, null_space)]
-        for j, t in enumerate(texts):
-            if t is None and inside:
-                texts[j] = "a combination of: " + "; ".join(inside)
-    return texts
+def _top_coefficients(vector: np.ndarray, names: list[str]) -> dict[str, float]:
+    order = np.argsort(-np.abs(vector))
+    return {names[i]: float(vector[i]) for i in order[:6] if abs(vector[i]) > 0.15 * abs(vector[order[0]])}
 
 
-def _in_span(vector: np.ndarray, basis: np.ndarray) -> bool:
-    unit = vector / np.linalg.norm(vector)
-    return float(np.linalg.norm(basis.T @ unit)) > 0.99
+def _explanations(null_space: np.ndarray, gauges: list[tuple[str, np.ndarray]],
+                  device: list[tuple[str, np.ndarray]]) -> list[tuple[str, np.ndarray, str | None]]:
+    """Named motions that lie in the null space, most specific first, none repeating another.
+
+    Candidates: a frame motion alone; a device defect alone (no effect at all);
+    a device defect together with a frame motion (the motion imitates the
+    defect, e.g. an inclinometer offset and a base rotation).  A candidate
+    explains a null direction when some vector of its span lies in the null
+    space (largest principal cosine > 0.999).
+    """
+    candidates = [(name, [vector], None) for name, vector in gauges]
+    candidates += [(f"the device's {name} has no effect on these measurements", [vector], name)
+                   for name, vector in device]
+    candidates += [(f"the device's {d_name} cannot be told apart from {g_name}", [d_vector, g_vector], d_name)
+                   for d_name, d_vector in device for g_name, g_vector in gauges]
+    found: list[tuple[str, np.ndarray, str | None]] = []
+    for text, vectors, fix in candidates:
+        basis, _ = np.linalg.qr(np.column_stack(vectors))
+        _, cosines, vt = np.linalg.svd(null_space.T @ basis)
+        if cosines[0] < 0.999:
+            continue
+        member = basis @ vt[0]
+        if found:
+            previous, _ = np.linalg.qr(np.column_stack([v for _, v, _ in found]))
+            if np.linalg.norm(previous.T @ member) > 0.99:
+                continue  # already explained
+        found.append((text, member, f"device.{fix}" if fix else None))
+        if len(found) == null_space.shape[1]:
+            break
+    return found
 
 
 __all__ = ["IdentifiabilityReport", "NullDirection", "analyze", "column_scales", "N_PARAMETERS"]

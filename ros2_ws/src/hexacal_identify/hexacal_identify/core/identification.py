@@ -6,27 +6,48 @@ identification Jacobian (eq. 6) analytically by implicit differentiation of
 IK(X, u) = lambda, and takes a damped Gauss-Newton step ``du`` (eq. 5) in
 column-scaled coordinates.  The SVD of the scaled Jacobian is reused for every
 damping value tried in an iteration.
+
+Beyond the paper:
+
+* The unknowns are the 54 kinematic parameters followed by the 5 device defects
+  (``device.DEVICE_PARAMETER_NAMES``); masks choose which are identified.
+* With a known noise model the residuals are whitened per posture by the
+  covariance the reading noise propagates to them (through eq. 4 and FK), so the
+  fit is weighted by what each row really knows and the covariance is the
+  Cramer-Rao bound of that noise.
+* Postures are screened: one whose residual is far above the others' (a glitched
+  reading, a wrong FK branch) is excluded and reported; a Huber or soft-L1 loss
+  (iteratively reweighted) is available as well.
 """
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from .device import DeviceModel
+from .device import DEVICE_PARAMETER_NAMES, N_DEVICE_PARAMETERS, DeviceDefects, DeviceModel
 from .errors import InvalidMeasurementError, RankDeficientError, TooFewPosturesError
 from .identifiability import DEFAULT_RANK_TOLERANCE, IdentifiabilityReport, analyze, column_scales
-from .kinematics import forward_kinematics, pose_parameter_sensitivity
-from .measurements import MeasurementLimits, Measurements
+from .kinematics import forward_kinematics, pose_sensitivities
+from .measurements import MeasurementLimits, Measurements, NoiseModel
 from .model import N_PARAMETERS, HexaParameters, parameter_names
-from .residuals import COSTS, ChannelSigma, CostFunction, ResidualBlock
+from .residuals import COSTS, N_NOISE_SOURCES, ChannelSigma, CostFunction, ResidualBlock
 
 CONVERGED = "converged"
 ITERATION_LIMIT = "iteration-limit"
 DIVERGED = "diverged"
 FLOOR_STEP_M = 1e-9  # a Gauss-Newton step below this (m) is at the rounding floor of FK and residuals
+ROBUST_LOSSES = ("huber", "soft_l1")
+MAX_ROUNDS = 20  # outer rounds: re-admitting postures, screening outliers, refitting weights
+IRLS_TOLERANCE = 1e-9  # robust reweighting stops when no unknown moves more than this (m)
+N_UNKNOWNS = N_PARAMETERS + N_DEVICE_PARAMETERS
+
+
+def unknown_names() -> list[str]:
+    """Names of the 54 kinematic parameters followed by the 5 device defects."""
+    return parameter_names() + [f"device.{name}" for name in DEVICE_PARAMETER_NAMES]
 
 
 @dataclass(frozen=True)
@@ -36,11 +57,17 @@ class SolverOptions:
     sigma: ChannelSigma = ChannelSigma()
     limits: MeasurementLimits = MeasurementLimits()
     free_parameters: tuple[bool, ...] | None = None  # mask over the 54; None = all
+    device_defects: DeviceDefects = DeviceDefects()  # assumed (and starting) device defects
+    free_device: tuple[str, ...] = ()  # device defects to identify, names from DEVICE_PARAMETER_NAMES
+    noise: NoiseModel | None = None  # known reading noise: whiten the residuals by it
+    robust_loss: str | None = None  # None, 'huber' or 'soft_l1'
+    outlier_threshold: float | None = 6.0  # a posture whose RMS residual exceeds this x the median is excluded
+    outlier_floor: float = 1e-7  # ... and exceeds this (m or rad, unweighted): below, it is rounding, not a glitch
     max_iterations: int = 100
     step_tolerance: float = 1e-12  # converged when max |du| (m or unit-vector component) is below
     relative_cost_tolerance: float = 1e-9  # ... or an accepted step lowers the cost by less than this
     rank_tolerance: float = DEFAULT_RANK_TOLERANCE
-    allow_rank_deficient: bool = False  # solve in the identifiable subspace instead of refusing
+    allow_rank_deficient: bool = False  # hold the unidentifiable unknowns fixed instead of refusing
     fk_tolerance: float = 1e-12
     # Branch check (section 3.3): a nominal model with Table 2's set-3 errors already moves FK
     # solutions ~70 mm from the measured position, another FK branch moves them much further.
@@ -48,12 +75,24 @@ class SolverOptions:
     branch_tolerance_rad: float = 0.5
 
     def free_mask(self) -> np.ndarray:
-        if self.free_parameters is None:
-            return np.ones(N_PARAMETERS, bool)
-        mask = np.asarray(self.free_parameters, bool)
-        if mask.shape != (N_PARAMETERS,):
+        """Mask over the 59 unknowns (54 kinematic + 5 device)."""
+        kinematic = np.ones(N_PARAMETERS, bool) if self.free_parameters is None else np.asarray(self.free_parameters, bool)
+        if kinematic.shape != (N_PARAMETERS,):
             raise ValueError(f"free_parameters must be a mask of {N_PARAMETERS} booleans")
-        return mask
+        unknown = sorted(set(self.free_device) - set(DEVICE_PARAMETER_NAMES))
+        if unknown:
+            raise ValueError(f"unknown device parameter(s) {unknown}; choose from {', '.join(DEVICE_PARAMETER_NAMES)}")
+        device = np.array([name in self.free_device for name in DEVICE_PARAMETER_NAMES])
+        return np.concatenate([kinematic, device])
+
+    def validate(self) -> None:
+        if self.cost not in COSTS:
+            raise ValueError(f"unknown cost function {self.cost!r}; choose one of {', '.join(COSTS)}")
+        if self.robust_loss not in (None, *ROBUST_LOSSES):
+            raise ValueError(f"unknown robust loss {self.robust_loss!r}; choose one of {', '.join(ROBUST_LOSSES)}")
+        if self.noise is not None and not self.noise.known:
+            raise ValueError("a noise model for weighting needs positive slider and angle noise")
+        self.free_mask()
 
 
 @dataclass
@@ -61,7 +100,7 @@ class IdentificationResult:
     parameters: HexaParameters
     initial_parameters: HexaParameters
     std: np.ndarray  # (54,), NaN for fixed or unidentifiable parameters
-    covariance: np.ndarray  # (54, 54) in parameter units; zero rows for fixed ones
+    covariance: np.ndarray  # (59, 59): 54 kinematic then 5 device; zero rows for fixed ones
     rank: int
     condition_number: float
     iterations: int
@@ -70,13 +109,20 @@ class IdentificationResult:
     solve_seconds: float
     used_postures: list[int]
     rejected_postures: dict[int, str]
-    rms_residual: dict[str, float]  # per channel, after
+    rms_residual: dict[str, float]  # per channel, after, unweighted units (m, rad)
     initial_rms_residual: dict[str, float]
     residuals: np.ndarray  # final residual rows (unweighted units)
     residual_channels: np.ndarray
     residual_postures: np.ndarray  # original posture index of each row
     identifiability: IdentifiabilityReport
     poses: np.ndarray = field(repr=False, default=None)  # FK poses of the used postures
+    device: DeviceDefects = field(default_factory=DeviceDefects)
+    device_std: np.ndarray = field(default_factory=lambda: np.full(N_DEVICE_PARAMETERS, np.nan))
+    free_device: tuple[str, ...] = ()
+    variance_factor: float = float("nan")  # residual variance / expected: ~1 when the noise model fits
+    weighted: bool = False
+    robust_loss: str | None = None
+    held_for_identifiability: list[str] = field(default_factory=list)  # held at their start values
 
     @property
     def correlation(self) -> np.ndarray:
@@ -88,7 +134,7 @@ class IdentificationResult:
         """The JSON object printed by ``hexacal study --json`` and ``hexacal calibrate --json``."""
         from hexacal_msgs_py.parameters_file import parameters_to_chain_dict
 
-        return {
+        payload = {
             "parameters": parameters_to_chain_dict(self.parameters.vector),
             "std": parameters_to_chain_dict(np.nan_to_num(self.std, nan=-1.0)),
             "rank": self.rank,
@@ -101,11 +147,25 @@ class IdentificationResult:
             "postures_rejected": [{"index": i, "reason": r} for i, r in sorted(self.rejected_postures.items())],
             "rms_residual": self.rms_residual,
             "identifiability": self.identifiability.to_json(),
+            "device": {n: float(v) for n, v in zip(DEVICE_PARAMETER_NAMES, self.device.vector)},
+            "device_identified": list(self.free_device),
+            "device_std": {n: (None if not np.isfinite(s) else float(s))
+                           for n, s in zip(DEVICE_PARAMETER_NAMES, self.device_std)},
+            "weighted_by_noise_model": self.weighted,
+            "variance_factor": self.variance_factor,
+            "robust_loss": self.robust_loss,
+            "held_for_identifiability": self.held_for_identifiability,
         }
+        payload["std_note"] = "-1 marks a parameter that was held fixed or is not identifiable"
+        return payload
+
+
+def _split(vector: np.ndarray) -> tuple[HexaParameters, DeviceDefects]:
+    return HexaParameters(vector[:N_PARAMETERS]), DeviceDefects.from_vector(vector[N_PARAMETERS:])
 
 
 class _Problem:
-    """The postures in use, their cost function, and FK + residuals for a parameter vector."""
+    """The postures in use, their cost function, and FK + residuals for an unknown vector."""
 
     def __init__(self, measurements: Measurements, used: np.ndarray, options: SolverOptions, free: np.ndarray):
         self.measurements = measurements
@@ -114,85 +174,175 @@ class _Problem:
         self.free = free
         self.cost = CostFunction(options.cost, measurements.subset(self.used), options.device, options.sigma)
 
-    def without(self, local_indices: list[int]) -> "_Problem":
-        keep = np.setdiff1d(np.arange(len(self.used)), local_indices)
+    def without(self, local_indices) -> "_Problem":
+        keep = np.setdiff1d(np.arange(len(self.used)), list(local_indices))
         return _Problem(self.measurements, self.used[keep], self.options, self.free)
 
     def solve_fk(self, params: HexaParameters, start: np.ndarray, fit_tilt_first: bool = False):
         return forward_kinematics(
-            params,
-            self.cost.measurements.slider_positions,
-            start,
+            params, self.cost.measurements.slider_positions, start,
             tolerance=self.options.fk_tolerance,
             branch_tolerance_m=self.options.branch_tolerance_m,
             branch_tolerance_rad=self.options.branch_tolerance_rad,
             fit_tilt_first=fit_tilt_first,
         )
 
-    def expected_poses(self) -> np.ndarray:
-        return self.cost.initial_poses()
+    def expected_poses(self, defects: DeviceDefects) -> np.ndarray:
+        return self.cost.initial_poses(defects)
 
-    def residuals(self, poses: np.ndarray) -> ResidualBlock:
-        return self.cost.residuals(poses, None)
+    def residuals(self, vector: np.ndarray, poses: np.ndarray) -> ResidualBlock:
+        return self.cost.residuals(poses, None, _split(vector)[1])
 
-    def jacobian(self, params: HexaParameters, poses: np.ndarray) -> ResidualBlock:
-        sensitivity, _ = pose_parameter_sensitivity(params, poses)
-        return self.cost.residuals(poses, sensitivity[:, :, self.free])
+    def jacobian(self, vector: np.ndarray, poses: np.ndarray) -> ResidualBlock:
+        params, defects = _split(vector)
+        block = self.cost.residuals(poses, pose_sensitivities(params, poses), defects, with_device=True)
+        block.jacobian = block.jacobian[:, self.free]
+        return block
 
-    def row_count(self) -> int:
-        return len(self.residuals(self.expected_poses()).values) if len(self.used) else 0
+    def row_count(self, defects: DeviceDefects) -> int:
+        return len(self.cost.residuals(self.expected_poses(defects), None, defects).values) if len(self.used) else 0
 
     def check_enough(self, set_aside: dict[int, str]) -> None:
         n_free = int(self.free.sum())
-        rows = self.row_count()
+        rows = self.row_count(self.options.device_defects)
         if rows < n_free:
             raise TooFewPosturesError(
-                f"{len(self.used)} usable posture(s) give {rows} residuals for {n_free} parameters "
+                f"{len(self.used)} usable posture(s) give {rows} residuals for {n_free} unknowns "
                 f"with the {self.options.cost} cost function ({len(set_aside)} posture(s) set aside); "
                 "measure more postures"
             )
 
 
-def identify(nominal: HexaParameters, measurements: Measurements, options: SolverOptions = SolverOptions()) -> IdentificationResult:
-    """Identify the parameters from measured postures, starting from ``nominal``.
+class _RowTransform:
+    """Fixed row weighting for one LM run: whitening by the noise model, then robust weights."""
+
+    def __init__(self, block: ResidualBlock | None = None, noise: NoiseModel | None = None,
+                 robust_loss: str | None = None):
+        self.whitener = _Whitener(block, noise) if (noise is not None and block is not None) else None
+        self.robust = None
+        if robust_loss is not None and block is not None:
+            values = self.whitener.apply_values(block.values) if self.whitener else block.values
+            self.robust = _robust_weights(values, robust_loss)
+
+    def values(self, block: ResidualBlock) -> np.ndarray:
+        values = self.whitener.apply_values(block.values) if self.whitener else block.values
+        return values * self.robust if self.robust is not None else values
+
+    def apply(self, block: ResidualBlock) -> ResidualBlock:
+        jacobian = self.whitener.apply_matrix(block.jacobian) if self.whitener else block.jacobian
+        if self.robust is not None:
+            jacobian = jacobian * self.robust[:, None]
+        return ResidualBlock(self.values(block), jacobian, block.channels, block.postures)
+
+
+class _Whitener:
+    """Per-posture inverse Cholesky factors of the covariance that reading noise gives the rows.
+
+    Rows of one posture (phi and position, or phi and link length) share its
+    slider noise through FK, so they are whitened together; rows of the relative
+    cost pair two postures and are scaled by their own standard deviation (the
+    correlation between consecutive differences is left out).
+    """
+
+    def __init__(self, block: ResidualBlock, noise: NoiseModel):
+        variances = noise.standard_deviations() ** 2
+        if block.noise_jacobian is None:
+            raise InvalidMeasurementError("noise weighting needs the rows' noise derivatives")
+        paired = block.partners >= 0 if block.partners is not None else np.zeros(len(block.values), bool)
+        self.scales = np.ones(len(block.values))
+        if np.any(paired):
+            own = np.einsum("rk,k,rk->r", block.noise_jacobian[paired], variances, block.noise_jacobian[paired])
+            partner = np.einsum("rk,k,rk->r", block.partner_noise_jacobian[paired], variances,
+                                block.partner_noise_jacobian[paired])
+            self.scales[paired] = 1.0 / np.sqrt(own + partner)
+        self.groups: list[tuple[np.ndarray, np.ndarray]] = []  # (row indices (P, k), inverse factors (P, k, k))
+        single = np.flatnonzero(~paired)
+        postures = block.postures[single]
+        order = np.argsort(postures, kind="stable")
+        single, postures = single[order], postures[order]
+        _, starts, counts = np.unique(postures, return_index=True, return_counts=True)
+        for size in np.unique(counts):
+            rows = np.stack([single[s:s + size] for s, c in zip(starts, counts) if c == size])
+            g = block.noise_jacobian[rows]  # (P, k, 9)
+            covariance = np.einsum("pik,k,pjk->pij", g, variances, g)
+            covariance += np.eye(size) * 1e-30  # rows with no noise at all would be singular
+            self.groups.append((rows, np.linalg.inv(np.linalg.cholesky(covariance))))
+
+    def apply_values(self, values: np.ndarray) -> np.ndarray:
+        out = values * self.scales
+        for rows, factor in self.groups:
+            out[rows] = np.einsum("pij,pj->pi", factor, values[rows])
+        return out
+
+    def apply_matrix(self, matrix: np.ndarray) -> np.ndarray:
+        out = matrix * self.scales[:, None]
+        for rows, factor in self.groups:
+            out[rows] = np.einsum("pij,pjc->pic", factor, matrix[rows])
+        return out
+
+
+def _robust_weights(values: np.ndarray, loss: str) -> np.ndarray:
+    """sqrt of IRLS weights; the scale is a MAD estimate of the inlier residual spread."""
+    scale = 1.4826 * np.median(np.abs(values)) + 1e-300
+    if loss == "huber":
+        z = np.abs(values) / (1.345 * scale)
+        weights = np.where(z <= 1.0, 1.0, 1.0 / np.maximum(z, 1e-300))
+    else:
+        z = values / scale
+        weights = 1.0 / np.sqrt(1.0 + z**2)
+    return np.sqrt(weights)
+
+
+def _identify_once(nominal: HexaParameters, measurements: Measurements, options: SolverOptions) -> IdentificationResult:
+    """Identify the parameters (and chosen device defects) from measured postures, starting from ``nominal``.
 
     Postures whose forward kinematics fails (with the nominal parameters, or at
     a trial step near a singularity of the current model) are set aside; once
     the parameters have converged they are tried again and, where FK now
-    succeeds, the solve continues with them: a poor nominal model does not cost
-    postures.  Raises InvalidMeasurementError, TooFewPosturesError or
-    RankDeficientError (each with a ``reason``); otherwise returns a result
-    whose ``reason`` is 'converged', 'iteration-limit' or 'diverged'.
+    succeeds, the solve continues with them.  Postures whose residual stands out
+    (``outlier_threshold``) are excluded and reported.  Raises
+    InvalidMeasurementError, TooFewPosturesError or RankDeficientError (each with
+    a ``reason``); otherwise returns a result whose ``reason`` is 'converged',
+    'iteration-limit' or 'diverged'.
     """
     started = time.perf_counter()
-    if options.cost not in COSTS:
-        raise ValueError(f"unknown cost function {options.cost!r}; choose one of {', '.join(COSTS)}")
+    options.validate()
     measurements.validate(options.limits)
     free = options.free_mask()
+    start = np.concatenate([nominal.vector, options.device_defects.vector])
     usable = CostFunction(options.cost, measurements, options.device, options.sigma).usable()
     unused = {int(i): f"not used by the {options.cost} cost function" for i in np.flatnonzero(~usable)}
     # Small dense problems run fastest on one BLAS thread; more threads only add contention.
     with threadpool_limits(limits=1, user_api="blas"):
-        problem, poses, set_aside = _admit(nominal, _Problem(measurements, np.flatnonzero(usable), options, free),
+        problem, poses, set_aside = _admit(start, _Problem(measurements, np.flatnonzero(usable), options, free),
                                            "with the nominal parameters")
         problem.check_enough({**unused, **set_aside})
-        solver = _LevenbergMarquardt(problem, nominal, poses)
-        initial_block = solver.initial_block
-        iterations = 0
-        for _ in range(3):
-            solver.run()
-            iterations += solver.iterations
+        solver = _run(problem, start, poses, options)
+        initial_block, iterations = solver.initial_block, solver.iterations
+        previous = start
+        for round_number in range(MAX_ROUNDS):
             set_aside.update(solver.dropped)
-            if not set_aside or solver.reason != CONVERGED:
+            problem, vector, poses = solver.problem, solver.vector, solver.poses
+            changed = False
+            if solver.reason == CONVERGED:
+                problem, poses, changed = _readmit(problem, vector, poses, set_aside, options)
+            outliers = _outliers(problem, vector, poses, options)
+            if outliers:
+                set_aside.update(outliers)
+                outlying = np.isin(problem.used, list(outliers))
+                problem, poses = problem.without(np.flatnonzero(outlying)), poses[~outlying]
+                problem.check_enough({**unused, **set_aside})
+                changed = True
+            # Noise weights depend on the poses: refit them once at the solution. Robust weights depend on
+            # the residuals: iterate (IRLS) until the solution stops moving.
+            moved = float(np.max(np.abs(vector - previous)))
+            reweight = (round_number == 0 and options.noise is not None) or (
+                options.robust_loss is not None and moved > IRLS_TOLERANCE)
+            if not changed and not reweight:
                 break
-            retry = _Problem(measurements, np.array(sorted(set_aside)), options, free)
-            readmitted, readmitted_poses, set_aside = _admit(solver.params, retry, "with the identified parameters")
-            if not len(readmitted.used):
-                break
-            merged = np.concatenate([solver.problem.used, readmitted.used])
-            order = np.argsort(merged)
-            all_poses = np.concatenate([solver.poses, readmitted_poses])[order]
-            solver = _LevenbergMarquardt(_Problem(measurements, merged[order], options, free), solver.params, all_poses)
+            previous = vector
+            solver = _run(problem, vector, poses, options)
+            iterations += solver.iterations
         solver.iterations, solver.initial_block = iterations, initial_block
         result = solver.result(nominal, {**unused, **set_aside}, started)
     if not result.identifiability.identifiable and not options.allow_rank_deficient:
@@ -205,44 +355,124 @@ def identify(nominal: HexaParameters, measurements: Measurements, options: Solve
     return result
 
 
-def _admit(params: HexaParameters, problem: _Problem, context: str):
+def identify(nominal: HexaParameters, measurements: Measurements, options: SolverOptions = SolverOptions()) -> IdentificationResult:
+    """Identify the parameters (and chosen device defects) from measured postures, starting from ``nominal``.
+
+    See ``_identify_once`` for the procedure.  With ``allow_rank_deficient`` a
+    problem found rank-deficient is solved again from the start with the unknowns
+    the analysis names held at their start values (fixing the gauge: a
+    minimum-norm step would still drift along the unseen directions); the result
+    reports them in ``held_for_identifiability`` and its identifiability analysis
+    covers everything that was asked for.
+    """
+    result = _identify_once(nominal, measurements, options)
+    if result.identifiability.identifiable or not options.allow_rank_deficient:
+        return result
+    held = result.identifiability.unidentifiable_parameters
+    free = options.free_mask() & ~np.isin(unknown_names(), held)
+    reduced = replace(options, free_parameters=tuple(bool(f) for f in free[:N_PARAMETERS]),
+                      free_device=tuple(n for n, f in zip(DEVICE_PARAMETER_NAMES, free[N_PARAMETERS:]) if f))
+    again = _identify_once(nominal, measurements, reduced)
+    again.identifiability, again.rank = result.identifiability, result.rank
+    again.held_for_identifiability = held
+    again.std[np.isin(parameter_names(), held)] = np.nan
+    return again
+
+
+def _run(problem: "_Problem", vector: np.ndarray, poses: np.ndarray, options: SolverOptions) -> "_LevenbergMarquardt":
+    transform = _RowTransform()
+    if options.noise is not None or options.robust_loss is not None:
+        params, defects = _split(vector)
+        raw = problem.cost.residuals(poses, pose_sensitivities(params, poses), defects, with_device=True)
+        transform = _RowTransform(raw, options.noise, options.robust_loss)
+    solver = _LevenbergMarquardt(problem, vector, poses, transform)
+    solver.run()
+    return solver
+
+
+def _admit(vector: np.ndarray, problem: "_Problem", context: str):
     """FK from the expected postures; keep those that converge, set the others aside with the reason."""
-    fk = problem.solve_fk(params, problem.expected_poses(), fit_tilt_first=True)
+    params, defects = _split(vector)
+    fk = problem.solve_fk(params, problem.expected_poses(defects), fit_tilt_first=True)
     failed = sorted(fk.failures)
     set_aside = {int(problem.used[i]): f"forward kinematics {context}: {fk.failures[i]}" for i in failed}
     return problem.without(failed), fk.poses[fk.converged], set_aside
 
 
-class _LevenbergMarquardt:
-    """Damped Gauss-Newton in column-scaled coordinates; the cost never increases."""
+def _readmit(problem: "_Problem", vector: np.ndarray, poses: np.ndarray, set_aside: dict[int, str],
+             options: SolverOptions) -> tuple["_Problem", np.ndarray, bool]:
+    """Retry set-aside FK failures with the identified parameters; keep those that now pass."""
+    retry_indices = np.array(sorted(i for i, why in set_aside.items() if why.startswith("forward kinematics")))
+    if retry_indices.size == 0:
+        return problem, poses, False
+    retry = _Problem(problem.measurements, retry_indices, options, problem.free)
+    readmitted, readmitted_poses, still = _admit(vector, retry, "with the identified parameters")
+    for index in retry_indices:
+        set_aside.pop(int(index), None)
+    set_aside.update(still)
+    if not len(readmitted.used):
+        return problem, poses, False
+    merged = np.concatenate([problem.used, readmitted.used])
+    order = np.argsort(merged)
+    merged_poses = np.concatenate([poses, readmitted_poses])[order]
+    return _Problem(problem.measurements, merged[order], options, problem.free), merged_poses, True
 
-    def __init__(self, problem: _Problem, start: HexaParameters, poses: np.ndarray):
+
+def _outliers(problem: "_Problem", vector: np.ndarray, poses: np.ndarray, options: SolverOptions) -> dict[int, str]:
+    """Postures whose residual stands far above the others': a glitched reading or a wrong FK branch."""
+    if options.outlier_threshold is None or len(poses) < 3:
+        return {}
+    block = problem.residuals(vector, poses)
+    whitened = options.noise is not None
+    values = block.values
+    if whitened:
+        params, defects = _split(vector)
+        raw = problem.cost.residuals(poses, pose_sensitivities(params, poses), defects, with_device=True)
+        values = _RowTransform(raw, options.noise).values(block)
+    count = np.bincount(block.postures, minlength=len(poses))
+    rms = np.sqrt(np.bincount(block.postures, weights=values**2, minlength=len(poses)) / np.maximum(count, 1))
+    typical = np.median(rms) + 1e-300
+    if whitened:
+        typical = max(typical, 1.0)  # whitened rows are ~1 by construction; exact data must not make 1e-12 "big"
+    floor = 0.0 if whitened else options.outlier_floor
+    flagged = np.flatnonzero((rms > options.outlier_threshold * typical) & (rms > floor))
+    return {
+        int(problem.used[i]): (
+            f"outlier: residual {rms[i] / typical:.0f} x the median posture's "
+            "(glitched reading or wrong forward-kinematics branch)"
+        )
+        for i in flagged
+    }
+
+
+class _LevenbergMarquardt:
+    """Damped Gauss-Newton in column-scaled coordinates; the (weighted) cost never increases."""
+
+    def __init__(self, problem: _Problem, start: np.ndarray, poses: np.ndarray, transform: _RowTransform | None = None):
         self.problem = problem
         self.options = problem.options
         self.free = problem.free
-        self.params = start
+        self.transform = transform or _RowTransform()
+        self.vector = np.array(start, dtype=float)
         self.poses = poses
-        self.block = problem.jacobian(start, poses)
-        self.initial_block = self.block
+        self.raw_block = problem.jacobian(self.vector, poses)
+        self.block = self.transform.apply(self.raw_block)
+        self.initial_block = self.raw_block
         self.scales = column_scales(self.block.jacobian)
         self.iterations = 0
         self.reason = ITERATION_LIMIT
         self.dropped: dict[int, str] = {}
 
+    @property
+    def params(self) -> HexaParameters:
+        return _split(self.vector)[0]
+
+    def free_names(self) -> list[str]:
+        return [n for n, f in zip(unknown_names(), self.free) if f]
+
     def analyze(self) -> IdentifiabilityReport:
         return analyze(self.block.jacobian, self.free_names(), self.params, self.free, self.options.rank_tolerance,
                        self.options.device.link_length)
-
-    def free_names(self) -> list[str]:
-        return [n for n, f in zip(parameter_names(), self.free) if f]
-
-    def _check_rank(self, singular: np.ndarray) -> None:
-        rank = int(np.sum(singular > self.options.rank_tolerance * singular[0]))
-        if rank < len(singular) and not self.options.allow_rank_deficient:
-            report = self.analyze()
-            raise RankDeficientError(
-                "the measurements do not determine every parameter: " + report.verdict(), report
-            )
 
     def run(self) -> None:
         cost = float(self.block.values @ self.block.values)
@@ -250,9 +480,10 @@ class _LevenbergMarquardt:
         self.iterations = 0
         while self.iterations < self.options.max_iterations:
             self.iterations += 1
+            # Rank deficiency is judged once, at the solution (identify): at the nominal parameters
+            # residual-sized terms can make a gauge direction look weakly determined. Steps here simply
+            # stay out of directions the data do not determine.
             s, vt, projected = _scaled_svd(self.block, self.scales)
-            if self.iterations == 1:
-                self._check_rank(s)
             keep = s > self.options.rank_tolerance * s[0]
             gauss_newton = self._step(0.0, s, keep, vt, projected)
             # The full Gauss-Newton step would lower the cost by |U_k^T r|^2: when that is negligible
@@ -283,8 +514,9 @@ class _LevenbergMarquardt:
                 # step is negligible, otherwise the model cannot follow the data from here.
                 self.reason = CONVERGED if at_floor else DIVERGED
                 return
-            self.params, self.poses, trial_cost = trial
-            self.block = self.problem.jacobian(self.params, self.poses)
+            self.vector, self.poses, trial_cost = trial
+            self.raw_block = self.problem.jacobian(self.vector, self.poses)
+            self.block = self.transform.apply(self.raw_block)
             decrease, cost = cost - trial_cost, trial_cost
             damping = max(damping / 10.0, 1e-12)
             if decrease <= self.options.relative_cost_tolerance * cost:
@@ -294,15 +526,16 @@ class _LevenbergMarquardt:
     def _step(self, damping, s, keep, vt, projected) -> np.ndarray:
         """LM step for one damping value (zero along unidentifiable directions)."""
         factor = np.where(keep, s / (s**2 + damping * s[0] ** 2), 0.0)
-        step = np.zeros(N_PARAMETERS)
+        step = np.zeros(N_UNKNOWNS)
         step[self.free] = -(vt.T @ (factor * projected)) / self.scales
         return step
 
     def _try(self, step: np.ndarray):
-        """(params, poses, cost) of a trial step; None if it fails; {index: why} for a few FK failures."""
+        """(vector, poses, cost) of a trial step; None if it fails; {index: why} for a few FK failures."""
+        vector = self.vector + step
         try:
-            params = HexaParameters(self.params.vector + step)
-        except ValueError:  # the step left the valid parameter set (|a_xy| >= 1)
+            params, _ = _split(vector)
+        except ValueError:  # the step left the valid parameter set (|a_xy| >= 1, absurd device defects)
             return None
         fk = self.problem.solve_fk(params, self.poses)
         if fk.failures:
@@ -310,33 +543,41 @@ class _LevenbergMarquardt:
             # many failing at once means the step is too long.
             few = len(fk.failures) <= max(1, len(self.poses) // 20)
             return dict(fk.failures) if few else None
-        values = self.problem.residuals(fk.poses).values
-        return params, fk.poses, float(values @ values)
+        values = self.transform.values(self.problem.residuals(vector, fk.poses))
+        return vector, fk.poses, float(values @ values)
 
     def _drop(self, failures: dict[int, str]) -> None:
         local = sorted(failures)
         for i in local:
-            self.dropped[int(self.problem.used[i])] = (
-                f"forward kinematics failed during identification: {failures[i]}"
-            )
+            self.dropped[int(self.problem.used[i])] = f"forward kinematics failed during identification: {failures[i]}"
         keep = np.setdiff1d(np.arange(len(self.poses)), local)
         self.problem = self.problem.without(local)
         self.problem.check_enough(self.dropped)
         self.poses = self.poses[keep]
-        self.block = self.problem.jacobian(self.params, self.poses)
+        # Whitening/robust weights were per row of the old posture set: refit them on the new one.
+        if self.transform.whitener is not None or self.transform.robust is not None:
+            params, defects = _split(self.vector)
+            raw = self.problem.cost.residuals(self.poses, pose_sensitivities(params, self.poses), defects,
+                                              with_device=True)
+            self.transform = _RowTransform(raw, self.options.noise, self.options.robust_loss)
+        self.raw_block = self.problem.jacobian(self.vector, self.poses)
+        self.block = self.transform.apply(self.raw_block)
 
     def result(self, nominal: HexaParameters, rejected: dict[int, str], started: float) -> IdentificationResult:
         used = self.problem.used
         report = self.analyze()
-        covariance = _covariance(self.block, self.scales, self.free, self.options.rank_tolerance)
-        std = np.sqrt(np.diag(covariance))
-        std[~self.free] = np.nan
-        std[np.isinf(std)] = np.nan
+        weighted = self.transform.whitener is not None
+        covariance, variance_factor = _covariance(self.block, self.scales, self.free, self.options.rank_tolerance,
+                                                  known_noise=weighted)
+        std_all = np.sqrt(np.diag(covariance))
+        std_all[~self.free] = np.nan
+        std_all[np.isinf(std_all)] = np.nan
+        params, defects = _split(self.vector)
         sigma = self.options.sigma
         return IdentificationResult(
-            parameters=self.params,
+            parameters=params,
             initial_parameters=nominal,
-            std=std,
+            std=std_all[:N_PARAMETERS],
             covariance=np.nan_to_num(covariance, nan=0.0, posinf=0.0),
             rank=report.rank,
             condition_number=report.condition_number,
@@ -346,13 +587,19 @@ class _LevenbergMarquardt:
             solve_seconds=time.perf_counter() - started,
             used_postures=[int(i) for i in used],
             rejected_postures=rejected,
-            rms_residual=_rms_by_channel(self.block, sigma),
+            rms_residual=_rms_by_channel(self.raw_block, sigma),
             initial_rms_residual=_rms_by_channel(self.initial_block, sigma),
-            residuals=_unweighted(self.block, sigma),
-            residual_channels=self.block.channels,
-            residual_postures=used[self.block.postures],
+            residuals=_unweighted(self.raw_block, sigma),
+            residual_channels=self.raw_block.channels,
+            residual_postures=used[self.raw_block.postures],
             identifiability=report,
             poses=self.poses,
+            device=defects,
+            device_std=std_all[N_PARAMETERS:],
+            free_device=tuple(n for n, f in zip(DEVICE_PARAMETER_NAMES, self.free[N_PARAMETERS:]) if f),
+            variance_factor=variance_factor,
+            weighted=weighted,
+            robust_loss=self.options.robust_loss,
         )
 
 
@@ -363,24 +610,28 @@ def _scaled_svd(block: ResidualBlock, scales: np.ndarray) -> tuple[np.ndarray, n
     return s, vt, u_r.T @ (q.T @ block.values)
 
 
-def _covariance(block: ResidualBlock, scales: np.ndarray, free: np.ndarray, rank_tolerance: float) -> np.ndarray:
-    """s^2 (J^T J)^-1 over the identifiable subspace, s^2 = |r|^2 / (rows - rank).
+def _covariance(block: ResidualBlock, scales: np.ndarray, free: np.ndarray, rank_tolerance: float,
+                known_noise: bool = False) -> tuple[np.ndarray, float]:
+    """Parameter covariance over the identifiable subspace, and the variance factor s^2.
 
-    Parameters touched by an unidentifiable direction get an infinite variance
-    (std NaN in the result): the data say nothing about them.
+    s^2 = |r|^2 / (rows - rank).  With rows whitened by a known noise model the
+    covariance is (J^T J)^-1 itself (the Cramer-Rao bound of that noise) and s^2
+    should be ~1; otherwise it is s^2 (J^T J)^-1.  Parameters touched by an
+    unidentifiable direction get an infinite variance (std NaN in the result).
     """
     s, vt, _ = _scaled_svd(block, scales)
     keep = s > rank_tolerance * s[0]
     rank = int(keep.sum())
     variance = float(block.values @ block.values) / max(len(block.values) - rank, 1)
-    scaled_cov = variance * ((vt[keep].T / s[keep] ** 2) @ vt[keep]) / np.outer(scales, scales)
-    covariance = np.zeros((N_PARAMETERS, N_PARAMETERS))
+    factor = 1.0 if known_noise else variance
+    scaled_cov = factor * ((vt[keep].T / s[keep] ** 2) @ vt[keep]) / np.outer(scales, scales)
+    covariance = np.zeros((N_UNKNOWNS, N_UNKNOWNS))
     covariance[np.ix_(free, free)] = scaled_cov
     if rank < len(s):
         weak = np.flatnonzero(np.any(np.abs(vt[~keep]) > 1e-6, axis=0))
         free_index = np.flatnonzero(free)
         covariance[free_index[weak], free_index[weak]] = np.inf
-    return covariance
+    return covariance, variance
 
 
 def _unweighted(block: ResidualBlock, sigma: ChannelSigma) -> np.ndarray:
@@ -400,8 +651,10 @@ __all__ = [
     "CONVERGED",
     "DIVERGED",
     "ITERATION_LIMIT",
+    "N_NOISE_SOURCES",
     "IdentificationResult",
     "InvalidMeasurementError",
     "SolverOptions",
     "identify",
+    "unknown_names",
 ]

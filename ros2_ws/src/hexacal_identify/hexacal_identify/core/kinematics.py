@@ -307,10 +307,18 @@ def _wrap(angle: np.ndarray) -> np.ndarray:
     return (angle + np.pi) % (2 * np.pi) - np.pi
 
 
-def pose_parameter_sensitivity(params: HexaParameters, poses: np.ndarray) -> tuple[np.ndarray, LegGeometry]:
-    """dX/du (N, 6, 54) at FK solutions, by implicit differentiation of IK(X, u) = lambda.
+@dataclass
+class PoseSensitivity:
+    """Derivatives of FK poses: w.r.t. the 54 parameters and w.r.t. the 6 slider readings."""
 
-    With lambda held fixed: J_inv dX + (d lambda/d u) du = 0, so
+    wrt_parameters: np.ndarray  # dX/du, (N, 6, 54)
+    wrt_sliders: np.ndarray  # dX/d lambda = J_inv^-1, (N, 6, 6)
+
+
+def pose_sensitivities(params: HexaParameters, poses: np.ndarray) -> PoseSensitivity:
+    """dX/du and dX/d lambda at FK solutions, by implicit differentiation of IK(X, u) = lambda.
+
+    J_inv dX = d lambda - (d lambda/d u) du, so dX/d lambda = J_inv^-1 and
     dX/du = -J_inv^-1 d lambda/d u.  d lambda/d u is block diagonal, so column
     block c of dX/du is the outer product of column c of J_inv^-1 with chain c's
     9-vector of derivatives.
@@ -318,8 +326,13 @@ def pose_parameter_sensitivity(params: HexaParameters, poses: np.ndarray) -> tup
     geometry = leg_geometry(params, poses)
     jac_inverse = np.linalg.inv(pose_jacobian(geometry, poses[:, 3:6]))
     blocks = parameter_jacobian_blocks(params, geometry)
-    sensitivity = -jac_inverse[:, :, :, None] * blocks[:, None, :, :]
-    return sensitivity.reshape(len(poses), 6, N_CHAINS * FIELDS_PER_CHAIN), geometry
+    wrt_parameters = -jac_inverse[:, :, :, None] * blocks[:, None, :, :]
+    return PoseSensitivity(wrt_parameters.reshape(len(poses), 6, N_CHAINS * FIELDS_PER_CHAIN), jac_inverse)
+
+
+def pose_parameter_sensitivity(params: HexaParameters, poses: np.ndarray) -> tuple[np.ndarray, LegGeometry]:
+    """dX/du (N, 6, 54) at FK solutions (see ``pose_sensitivities``) and the leg geometry there."""
+    return pose_sensitivities(params, poses).wrt_parameters, leg_geometry(params, poses)
 
 
 def rail_xy_slice(chain: int) -> slice:

@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .device import DeviceModel, inclinometer_angles
+from .device import DeviceDefects, DeviceModel, inclinometer_readings
 from .errors import InvalidMeasurementError
 from .kinematics import inverse_kinematics
 from .model import HexaParameters
@@ -37,6 +37,7 @@ class Measurements:
     inclinometer: np.ndarray
     rotary: np.ndarray
     kinds: np.ndarray = field(default=None)  # type: ignore[assignment]
+    link_lengths: np.ndarray | None = None  # LVDT variant: measured link length per posture, m
 
     def __post_init__(self) -> None:
         self.slider_positions = np.atleast_2d(np.asarray(self.slider_positions, dtype=float))
@@ -46,23 +47,33 @@ class Measurements:
         if self.kinds is None:
             self.kinds = np.full(n, SPHERE)
         self.kinds = np.asarray(self.kinds).astype(str)
+        if self.link_lengths is not None:
+            self.link_lengths = np.asarray(self.link_lengths, dtype=float).reshape(-1)
 
     def __len__(self) -> int:
         return len(self.slider_positions)
 
     def subset(self, indices: np.ndarray) -> "Measurements":
         indices = np.asarray(indices, dtype=int)
+        lengths = None if self.link_lengths is None else self.link_lengths[indices]
         return Measurements(
-            self.slider_positions[indices], self.inclinometer[indices], self.rotary[indices], self.kinds[indices]
+            self.slider_positions[indices], self.inclinometer[indices], self.rotary[indices], self.kinds[indices],
+            lengths,
         )
 
     @staticmethod
     def concatenate(parts: list["Measurements"]) -> "Measurements":
+        lengths = None
+        if any(p.link_lengths is not None for p in parts):
+            if not all(p.link_lengths is not None for p in parts):
+                raise InvalidMeasurementError("cannot mix postures with and without measured link lengths")
+            lengths = np.concatenate([p.link_lengths for p in parts])
         return Measurements(
             np.concatenate([p.slider_positions for p in parts]),
             np.concatenate([p.inclinometer for p in parts]),
             np.concatenate([p.rotary for p in parts]),
             np.concatenate([p.kinds for p in parts]),
+            lengths,
         )
 
     def validate(self, limits: MeasurementLimits = MeasurementLimits()) -> None:
@@ -80,6 +91,10 @@ class Measurements:
             "inclinometer": self.inclinometer,
             "rotary": self.rotary[:, None],
         }
+        if self.link_lengths is not None:
+            if self.link_lengths.shape != (n,):
+                raise InvalidMeasurementError(f"link_lengths must have one value per posture, got {self.link_lengths.shape}")
+            channels["link_lengths"] = self.link_lengths[:, None]
         for name, values in channels.items():
             bad = np.flatnonzero(~np.all(np.isfinite(values), axis=1))
             if bad.size:
@@ -96,6 +111,9 @@ class Measurements:
                 f"slider position outside [{limits.slider_min_m}, {limits.slider_max_m}] m at posture(s) {low.tolist()}",
                 low,
             )
+        if self.link_lengths is not None and np.any(self.link_lengths <= 0):
+            bad = np.flatnonzero(self.link_lengths <= 0)
+            raise InvalidMeasurementError(f"measured link length must be positive at posture(s) {bad.tolist()}", bad)
         unknown = sorted(set(self.kinds) - set(POSTURE_KINDS))
         if unknown:
             raise InvalidMeasurementError(f"unknown posture kind(s) {unknown}; expected one of {POSTURE_KINDS}")
@@ -121,6 +139,14 @@ class NoiseModel:
         """'X um' noise as in Table 3: +-X um on sliders and +-X urad on every angle."""
         return cls(slider_m=microns * 1e-6, angle_rad=microns * 1e-6)
 
+    def standard_deviations(self) -> np.ndarray:
+        """Std of the 9 readings of a posture (6 sliders, alpha, beta, phi): a / sqrt(3) for +-a uniform."""
+        return np.array([self.slider_m] * 6 + [self.angle_rad] * 3) / np.sqrt(3.0)
+
+    @property
+    def known(self) -> bool:
+        return self.slider_m > 0 and self.angle_rad > 0
+
 
 def simulate_measurements(
     params: HexaParameters,
@@ -129,19 +155,33 @@ def simulate_measurements(
     device: DeviceModel = DeviceModel(),
     noise: NoiseModel = NoiseModel(),
     rng: np.random.Generator | None = None,
+    defects: DeviceDefects = DeviceDefects(),
+    lvdt: bool = False,
 ) -> Measurements:
-    """What the device and the slider encoders read at ``poses`` on the machine ``params``."""
+    """What the device and the slider encoders read at ``poses`` on the machine ``params``.
+
+    The readings go through the defect model (a defective inclinometer reads the
+    true link direction with offsets and a skewed axis, the rotary sensor adds
+    phi0).  With ``lvdt`` the link is prismatic and an LVDT reports its length
+    per posture, minus the offset dL (the device's length error); otherwise the
+    poses must lie on the true sphere of radius L + dL.
+    """
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
     rng = rng if rng is not None else np.random.default_rng(0)
     sliders = inverse_kinematics(params, poses)
-    alpha, beta = inclinometer_angles(poses[:, :3])
+    alpha, beta = inclinometer_readings(poses[:, :3], defects)
     angles = np.column_stack([alpha, beta])
-    rotary = poses[:, 5].copy()
+    rotary = poses[:, 5] + defects.phi0
     n = len(poses)
     if noise.slider_m:
         sliders = sliders + rng.uniform(-noise.slider_m, noise.slider_m, sliders.shape)
     if noise.angle_rad:
         angles = angles + rng.uniform(-noise.angle_rad, noise.angle_rad, angles.shape)
         rotary = rotary + rng.uniform(-noise.angle_rad, noise.angle_rad, n)
+    lengths = None
+    if lvdt:
+        lengths = np.linalg.norm(poses[:, :3], axis=1) - defects.dL
+        if noise.slider_m:
+            lengths = lengths + rng.uniform(-noise.slider_m, noise.slider_m, n)
     kinds_array = np.full(n, kinds) if isinstance(kinds, str) else np.asarray(kinds)
-    return Measurements(sliders, angles, rotary, kinds_array)
+    return Measurements(sliders, angles, rotary, kinds_array, lengths)

@@ -3,7 +3,7 @@
 Every residual is written ``r(u)`` with Jacobian ``dr/du``; the solver takes the
 Gauss-Newton step ``du = -J^+ r``.  Computed quantities come from forward
 kinematics with parameters u; dX/du comes from implicit differentiation
-(``kinematics.pose_parameter_sensitivity``), never from finite differences.
+(``kinematics.pose_sensitivities``), never from finite differences.
 
 Cost functions (``COSTS``):
 
@@ -18,6 +18,15 @@ Cost functions (``COSTS``):
                     of the same kind, plus phi_m - phi_c on every posture.  Differences
                     cancel a link-length or inclinometer offset; the paper leaves the
                     pairing open, consecutive pairs are the choice made here.
+
+With device defects (``device.DeviceDefects``) the measured side changes: the
+measured position comes from the defect model, L becomes L + dL, phi_m becomes
+phi_read - phi0, and the fixed position is where the defective inclinometer
+reads zero.  Their derivatives are the 5 device columns of the Jacobian.
+
+For weighting by known sensor noise, each row also carries its derivatives
+w.r.t. its posture's 9 noise sources (6 slider readings, alpha, beta, phi):
+``noise_jacobian``; rows of the relative cost also depend on the partner posture.
 """
 from __future__ import annotations
 
@@ -25,7 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .device import DeviceModel, measured_position
+from .device import N_DEVICE_PARAMETERS, DeviceDefects, DeviceModel, device_position
+from .kinematics import PoseSensitivity
 from .measurements import FIXED, SPHERE, Measurements
 
 COSTS = ("absolute", "sphere", "fixed", "sphere-fixed", "relative")
@@ -36,6 +46,8 @@ COST_EQUATIONS = {
     "sphere-fixed": "eqs. 8 + 10",
     "relative": "eqs. 12 + 13",
 }
+N_NOISE_SOURCES = 9  # per posture: 6 sliders, alpha, beta, phi
+DL, ALPHA0, BETA0, GAMMA, PHI0 = range(N_DEVICE_PARAMETERS)
 
 
 @dataclass(frozen=True)
@@ -48,12 +60,25 @@ class ChannelSigma:
 
 @dataclass
 class ResidualBlock:
-    """Rows of one kind: residual values, Jacobian rows and the channel each row belongs to."""
+    """Rows of residuals with their Jacobian, channel, posture and noise derivatives."""
 
     values: np.ndarray
-    jacobian: np.ndarray | None
+    jacobian: np.ndarray | None  # (rows, 54 [+ 5 device])
     channels: np.ndarray
-    postures: np.ndarray  # posture index (into the used set) of each row
+    postures: np.ndarray  # posture index (into the cost's measurements) of each row
+    noise_jacobian: np.ndarray | None = None  # (rows, 9) w.r.t. the row's posture's noise sources
+    partners: np.ndarray | None = None  # (rows,) second posture of a relative row, -1 if none
+    partner_noise_jacobian: np.ndarray | None = None  # (rows, 9)
+
+
+@dataclass
+class _Pieces:
+    """What every block needs at the current poses."""
+
+    poses: np.ndarray
+    d_params: np.ndarray | None  # dX/du (N, 6, n)
+    d_sliders: np.ndarray | None  # dX/d lambda (N, 6, 6)
+    with_device: bool
 
 
 class CostFunction:
@@ -65,10 +90,10 @@ class CostFunction:
         self.cost = cost
         self.measurements = measurements
         self.link_length = device.link_length
+        # LVDT variant (section 4): a measured link length per posture replaces the constant L.
+        self.link_lengths = (measurements.link_lengths if measurements.link_lengths is not None
+                             else np.full(len(measurements), device.link_length))
         self.sigma = sigma
-        alpha, beta = measurements.inclinometer.T
-        self.measured_positions = measured_position(alpha, beta, self.link_length)
-        self.fixed_position = np.array([0.0, 0.0, -self.link_length])
         self.is_fixed = measurements.kinds == FIXED
         self.is_sphere = measurements.kinds == SPHERE
 
@@ -78,89 +103,202 @@ class CostFunction:
             return self.is_fixed.copy()
         return np.ones(len(self.measurements), bool)
 
-    def initial_poses(self) -> np.ndarray:
+    def measured(self, defects: DeviceDefects = DeviceDefects()):
+        alpha, beta = self.measurements.inclinometer.T
+        return device_position(alpha, beta, self.link_lengths, defects)
+
+    def fixed_position(self, defects: DeviceDefects = DeviceDefects()):
+        """Where the (defective) inclinometer reads zero: the fixed position of eq. 10."""
+        return device_position(np.zeros(1), np.zeros(1), self.link_length, defects)
+
+    def initial_poses(self, defects: DeviceDefects = DeviceDefects()) -> np.ndarray:
         """Expected postures: measured position and phi, theta = psi = 0 (the FK start and branch reference)."""
         n = len(self.measurements)
-        position = np.where(self.is_fixed[:, None], self.fixed_position, self.measured_positions)
-        return np.column_stack([position, np.zeros((n, 2)), self.measurements.rotary])
+        position = np.where(self.is_fixed[:, None], self.fixed_position(defects).position,
+                            self.measured(defects).position)
+        return np.column_stack([position, np.zeros((n, 2)), self.measurements.rotary - defects.phi0])
 
-    def residuals(self, poses: np.ndarray, sensitivity: np.ndarray | None) -> ResidualBlock:
-        """Stacked residuals (and Jacobian rows when ``sensitivity`` = dX/du is given)."""
-        blocks = [self._phi_block(poses, sensitivity)]
-        if self.cost == "absolute":
-            blocks.append(self._position_block(np.arange(len(poses)), self.measured_positions, poses, sensitivity))
-        elif self.cost == "fixed":
-            blocks.append(self._fixed_block(poses, sensitivity, np.ones(len(poses), bool)))
-        elif self.cost == "sphere":
-            blocks.append(self._length_block(poses, sensitivity, np.ones(len(poses), bool)))
-        elif self.cost == "sphere-fixed":
-            blocks.append(self._length_block(poses, sensitivity, self.is_sphere))
-            blocks.append(self._fixed_block(poses, sensitivity, self.is_fixed))
+    def residuals(self, poses: np.ndarray, sensitivity: np.ndarray | PoseSensitivity | None,
+                  defects: DeviceDefects = DeviceDefects(), with_device: bool = False) -> ResidualBlock:
+        """Stacked residuals; with ``sensitivity`` also the Jacobian (54 columns, + 5 device columns
+        if ``with_device``) and, for a PoseSensitivity, each row's noise derivatives."""
+        if isinstance(sensitivity, PoseSensitivity):
+            pieces = _Pieces(poses, sensitivity.wrt_parameters, sensitivity.wrt_sliders, with_device)
         else:
-            blocks.append(self._relative_length_block(poses, sensitivity))
-            blocks.append(self._relative_position_block(poses, sensitivity))
+            pieces = _Pieces(poses, sensitivity, None, with_device)
+        blocks = [self._phi_block(pieces, defects)]
+        everyone = np.ones(len(poses), bool)
+        if self.cost == "absolute":
+            blocks.append(self._measured_position_block(pieces, defects))
+        elif self.cost == "fixed":
+            blocks.append(self._fixed_block(pieces, defects, everyone))
+        elif self.cost == "sphere":
+            blocks.append(self._length_block(pieces, defects, everyone))
+        elif self.cost == "sphere-fixed":
+            blocks.append(self._length_block(pieces, defects, self.is_sphere))
+            blocks.append(self._fixed_block(pieces, defects, self.is_fixed))
+        else:
+            blocks.append(self._relative_length_block(pieces))
+            blocks.append(self._relative_position_block(pieces))
         return _stack(blocks)
 
+    # -- helpers ------------------------------------------------------------------
+    def _jacobian(self, pieces: _Pieces, rows_from_pose: np.ndarray | None, device_rows: np.ndarray) -> np.ndarray | None:
+        """[d r/d u | d r/d device] from rows_from_pose (rows, n) and device_rows (rows, 5)."""
+        if pieces.d_params is None:
+            return None
+        return np.hstack([rows_from_pose, device_rows]) if pieces.with_device else rows_from_pose
+
+    @staticmethod
+    def _noise(pieces: _Pieces, index: np.ndarray, d_row_d_pose: np.ndarray, d_row_d_readings: np.ndarray | None):
+        """Row derivatives w.r.t. [6 sliders, alpha, beta, phi]: d_row_d_pose (rows, 6) through FK."""
+        if pieces.d_sliders is None:
+            return None
+        noise = np.zeros((len(index), N_NOISE_SOURCES))
+        noise[:, :6] = np.einsum("ri,rij->rj", d_row_d_pose, pieces.d_sliders[index])
+        if d_row_d_readings is not None:
+            noise[:, 6:] = d_row_d_readings
+        return noise
+
     # -- blocks -----------------------------------------------------------------
-    def _phi_block(self, poses, sensitivity):
-        index = np.arange(len(poses))
-        values = (self.measurements.rotary - poses[:, 5]) / self.sigma.angle_rad
-        jac = None if sensitivity is None else -sensitivity[:, 5, :] / self.sigma.angle_rad
-        return ResidualBlock(values, jac, np.full(len(index), "phi"), index)
-
-    def _position_block(self, index, targets, poses, sensitivity):
-        values = ((targets[index] - poses[index, :3]) / self.sigma.position_m).reshape(-1)
+    def _phi_block(self, pieces: _Pieces, defects: DeviceDefects) -> ResidualBlock:
+        n = len(pieces.poses)
+        index = np.arange(n)
+        scale = 1.0 / self.sigma.angle_rad
+        values = (self.measurements.rotary - defects.phi0 - pieces.poses[:, 5]) * scale
         jac = None
-        if sensitivity is not None:
-            jac = (-sensitivity[index, :3, :] / self.sigma.position_m).reshape(-1, sensitivity.shape[2])
-        channels = np.tile(np.array(["x", "y", "z"]), len(index))
-        return ResidualBlock(values, jac, channels, np.repeat(index, 3))
+        if pieces.d_params is not None:
+            device_rows = np.zeros((n, N_DEVICE_PARAMETERS))
+            device_rows[:, PHI0] = -scale
+            jac = self._jacobian(pieces, -pieces.d_params[:, 5, :] * scale, device_rows)
+        d_pose = np.zeros((n, 6))
+        d_pose[:, 5] = -scale
+        readings = np.zeros((n, 3))
+        readings[:, 2] = scale
+        return ResidualBlock(values, jac, np.full(n, "phi"), index, self._noise(pieces, index, d_pose, readings))
 
-    def _fixed_block(self, poses, sensitivity, mask):
+    def _position_rows(self, pieces: _Pieces, index: np.ndarray, targets: np.ndarray,
+                       d_targets_d_device: np.ndarray, d_targets_d_readings: np.ndarray | None) -> ResidualBlock:
+        """Rows target - P_c for postures ``index``; targets (k, 3), derivatives (k, 3, 4) and (k, 3, 2)."""
+        scale = 1.0 / self.sigma.position_m
+        k = len(index)
+        values = ((targets - pieces.poses[index, :3]) * scale).reshape(-1)
+        jac = None
+        if pieces.d_params is not None:
+            device_rows = np.zeros((k, 3, N_DEVICE_PARAMETERS))
+            device_rows[:, :, :4] = d_targets_d_device * scale
+            jac = self._jacobian(pieces, (-pieces.d_params[index, :3, :] * scale).reshape(3 * k, -1),
+                                 device_rows.reshape(3 * k, -1))
+        d_pose = np.zeros((k, 3, 6))
+        d_pose[:, [0, 1, 2], [0, 1, 2]] = -scale
+        readings = None
+        if d_targets_d_readings is not None:
+            readings = np.zeros((k, 3, 3))
+            readings[:, :, :2] = d_targets_d_readings * scale
+            readings = readings.reshape(3 * k, 3)
+        rows = np.repeat(index, 3)
+        noise = self._noise(pieces, rows, d_pose.reshape(3 * k, 6), readings)
+        channels = np.tile(np.array(["x", "y", "z"]), k)
+        return ResidualBlock(values, jac, channels, rows, noise)
+
+    def _measured_position_block(self, pieces: _Pieces, defects: DeviceDefects) -> ResidualBlock:
+        measured = self.measured(defects)
+        index = np.arange(len(pieces.poses))
+        return self._position_rows(pieces, index, measured.position, measured.d_defects, measured.d_readings)
+
+    def _fixed_block(self, pieces: _Pieces, defects: DeviceDefects, mask: np.ndarray) -> ResidualBlock:
         index = np.flatnonzero(mask)
-        targets = np.broadcast_to(self.fixed_position, poses.shape[:1] + (3,))
-        return self._position_block(index, targets, poses, sensitivity)
+        fixed = self.fixed_position(defects)
+        targets = np.broadcast_to(fixed.position, (len(index), 3))
+        d_device = np.broadcast_to(fixed.d_defects, (len(index), 3, 4))
+        return self._position_rows(pieces, index, targets, d_device, None)
 
-    def _lengths(self, poses, sensitivity, index):
-        position = poses[index, :3]
+    def _lengths(self, pieces: _Pieces, index: np.ndarray):
+        position = pieces.poses[index, :3]
         length = np.linalg.norm(position, axis=1)
-        jac = None
-        if sensitivity is not None:
-            jac = np.einsum("ni,nik->nk", position / length[:, None], sensitivity[index, :3, :])
-        return length, jac
+        direction = position / length[:, None]
+        d_params = None
+        if pieces.d_params is not None:
+            d_params = np.einsum("ni,nik->nk", direction, pieces.d_params[index, :3, :])
+        d_pose = np.zeros((len(index), 6))
+        d_pose[:, :3] = direction
+        return length, d_params, d_pose
 
-    def _length_block(self, poses, sensitivity, mask):
+    def _length_block(self, pieces: _Pieces, defects: DeviceDefects, mask: np.ndarray) -> ResidualBlock:
         index = np.flatnonzero(mask)
-        length, jac = self._lengths(poses, sensitivity, index)
-        values = (self.link_length - length) / self.sigma.position_m
-        jac = None if jac is None else -jac / self.sigma.position_m
-        return ResidualBlock(values, jac, np.full(len(index), "link_length"), index)
-
-    def _relative_length_block(self, poses, sensitivity):
-        index = np.flatnonzero(self.is_sphere)
-        length, jac = self._lengths(poses, sensitivity, index)
-        values = np.diff(length) / self.sigma.position_m
-        jac = None if jac is None else np.diff(jac, axis=0) / self.sigma.position_m
-        return ResidualBlock(values, jac, np.full(len(values), "link_length_difference"), index[1:])
-
-    def _relative_position_block(self, poses, sensitivity):
-        index = np.flatnonzero(self.is_fixed)
-        values = (np.diff(poses[index, :3], axis=0) / self.sigma.position_m).reshape(-1)
+        scale = 1.0 / self.sigma.position_m
+        length, d_params, d_pose = self._lengths(pieces, index)
+        values = (self.link_lengths[index] + defects.dL - length) * scale
         jac = None
-        if sensitivity is not None:
-            diff = np.diff(sensitivity[index, :3, :], axis=0) / self.sigma.position_m
-            jac = diff.reshape(-1, sensitivity.shape[2])
+        if d_params is not None:
+            device_rows = np.zeros((len(index), N_DEVICE_PARAMETERS))
+            device_rows[:, DL] = scale
+            jac = self._jacobian(pieces, -d_params * scale, device_rows)
+        noise = self._noise(pieces, index, -d_pose * scale, np.zeros((len(index), 3)))
+        return ResidualBlock(values, jac, np.full(len(index), "link_length"), index, noise)
+
+    def _relative_length_block(self, pieces: _Pieces) -> ResidualBlock:
+        index = np.flatnonzero(self.is_sphere)
+        scale = 1.0 / self.sigma.position_m
+        length, d_params, d_pose = self._lengths(pieces, index)
+        values = np.diff(length) * scale
+        jac = None
+        if d_params is not None:
+            jac = self._jacobian(pieces, np.diff(d_params, axis=0) * scale,
+                                 np.zeros((len(values), N_DEVICE_PARAMETERS)))
+        block = ResidualBlock(values, jac, np.full(len(values), "link_length_difference"), index[1:])
+        return self._with_partner_noise(block, pieces, index, d_pose * scale)
+
+    def _relative_position_block(self, pieces: _Pieces) -> ResidualBlock:
+        index = np.flatnonzero(self.is_fixed)
+        scale = 1.0 / self.sigma.position_m
         pairs = max(len(index) - 1, 0)
+        values = (np.diff(pieces.poses[index, :3], axis=0) * scale).reshape(-1)
+        jac = None
+        if pieces.d_params is not None:
+            diff = np.diff(pieces.d_params[index, :3, :], axis=0) * scale
+            jac = self._jacobian(pieces, diff.reshape(3 * pairs, -1), np.zeros((3 * pairs, N_DEVICE_PARAMETERS)))
         channels = np.tile(np.array(["x_difference", "y_difference", "z_difference"]), pairs)
-        return ResidualBlock(values, jac, channels, np.repeat(index[1:], 3))
+        block = ResidualBlock(values, jac, channels, np.repeat(index[1:], 3))
+        d_pose = np.zeros((len(index), 3, 6))
+        d_pose[:, [0, 1, 2], [0, 1, 2]] = scale
+        return self._with_partner_noise(block, pieces, index, d_pose, rows_per_pair=3)
+
+    def _with_partner_noise(self, block: ResidualBlock, pieces: _Pieces, index: np.ndarray,
+                            d_value_d_pose: np.ndarray, rows_per_pair: int = 1) -> ResidualBlock:
+        """Rows value_j - value_k: noise derivatives from posture j (+) and its partner k (-)."""
+        if pieces.d_sliders is None or len(index) < 2:
+            return block
+        d_pose = d_value_d_pose.reshape(len(index), rows_per_pair, 6)
+        later = np.repeat(index[1:], rows_per_pair)
+        earlier = np.repeat(index[:-1], rows_per_pair)
+        block.noise_jacobian = self._noise(pieces, later, d_pose[1:].reshape(-1, 6), np.zeros((len(later), 3)))
+        block.partner_noise_jacobian = self._noise(pieces, earlier, -d_pose[:-1].reshape(-1, 6),
+                                                   np.zeros((len(earlier), 3)))
+        block.partners = earlier
+        return block
 
 
 def _stack(blocks: list[ResidualBlock]) -> ResidualBlock:
-    values = np.concatenate([b.values for b in blocks])
-    channels = np.concatenate([b.channels for b in blocks])
-    postures = np.concatenate([b.postures for b in blocks])
-    if blocks[0].jacobian is None:
-        return ResidualBlock(values, None, channels, postures)
-    width = blocks[0].jacobian.shape[1]
-    jac = np.concatenate([b.jacobian.reshape(-1, width) for b in blocks])
-    return ResidualBlock(values, jac, channels, postures)
+    def join(name):
+        parts = [getattr(b, name) for b in blocks]
+        if any(p is None for p in parts):
+            return None
+        return np.concatenate(parts)
+
+    partners = None
+    if any(b.partners is not None for b in blocks) and all(b.noise_jacobian is not None for b in blocks):
+        partners = np.concatenate([b.partners if b.partners is not None else np.full(len(b.values), -1)
+                                   for b in blocks])
+        partner_noise = np.concatenate([
+            b.partner_noise_jacobian if b.partner_noise_jacobian is not None
+            else np.zeros((len(b.values), N_NOISE_SOURCES)) for b in blocks])
+    else:
+        partner_noise = None
+    width = next((b.jacobian.shape[1] for b in blocks if b.jacobian is not None and b.jacobian.size), 0)
+    jacobian = None
+    if blocks[0].jacobian is not None:
+        jacobian = np.concatenate([b.jacobian.reshape(-1, width) if b.jacobian.size else np.zeros((0, width))
+                                   for b in blocks])
+    return ResidualBlock(join("values"), jacobian, join("channels"), join("postures"), join("noise_jacobian"),
+                         partners, partner_noise)

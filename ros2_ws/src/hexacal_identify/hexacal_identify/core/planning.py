@@ -1,0 +1,709 @@
+"""Posture planning: choose the K measuring postures that best determine the 54 parameters.
+
+Measuring a posture costs machine time, so the postures are chosen, not drawn:
+from a large set of feasible candidates (sphere and fixed-position postures,
+section 3.2), K are picked to maximise an observability index of the
+identification Jacobian (eq. 6 / 9 / 11) at the nominal parameters.
+
+Candidates and limits (``PostureLimits``, SI units).  Defaults keep the paper's
+section 4 workspace and reject almost nothing of it:
+
+* x, y within +-400 mm on the L-sphere, the three Euler angles within +-35 deg (paper);
+* inclinometer range +-45 deg: the +-400 mm square needs up to 42.5 deg at its
+  corners (|alpha|, |beta| <= 37.3 deg on the feasible part), so a common
+  +-45 deg biaxial sensor covers it;
+* slider stroke 0..0.9 m, pose-Jacobian condition number < 80 (angles scaled by
+  L) and leg-rail cosine > 0.2, as ``postures.Workspace`` (away from singularities);
+* U joint (on the slider): angle between the leg and the rail direction <= 60 deg
+  (the feasible workspace needs <= 52 deg);
+* S joint (on the platform): angle between the leg (B -> A) and the platform
+  normal z' <= 90 deg (rejects 0.8 % of the feasible workspace; the median
+  posture already needs 62 deg on its worst leg).
+
+Observability indices (Sun & Hollerbach 2008; sigma = singular values of the
+column-scaled identification Jacobian, n = 54 parameters, m = postures):
+
+* O1 = (sigma_1 ... sigma_n)^(1/n) / sqrt(m)  (Borm & Menq; D-optimal, the default)
+* O2 = sigma_min / sigma_max                  (inverse condition number, Driels & Pathre)
+* O3 = sigma_min                              (Nahvi & Hollerbach)
+* O4 = sigma_min^2 / sigma_max                (noise amplification index, Nahvi & Hollerbach)
+
+Column scaling: every design is scaled by the same column scales, the RMS
+per-posture column norm over the whole candidate set, so indices of different
+designs compare (a design's own unit-norm scaling would give each design its own
+yardstick).  O1's ranking of designs does not depend on the scaling at all.
+
+Selection: greedy (add the candidate that maximises the index, one at a time;
+the information matrix gets a rank-r update per posture, and all candidates
+are scored at once with batched r x r determinants or 54 x 54 eigenvalues) and
+Fedorov-style exchange (from the greedy design, swap a design posture for the
+candidate that improves the index most, until a whole pass swaps nothing).
+While the design has fewer rows than parameters every index is zero; the D
+criterion with a tiny ridge (log det(M + delta I)) then chooses, whatever index
+was asked for, because it rewards each new independent direction.
+
+The relative cost (eqs. 12, 13) differences consecutive postures of the same
+kind, so a posture's rows depend on its predecessor: greedy appends in plan
+order (exact), exchange swaps within a kind in place (also exact).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import yaml
+
+from .device import DEFAULT_LINK_LENGTH_M, DeviceModel, inclinometer_angles
+from .kinematics import leg_geometry, pose_jacobian, pose_parameter_sensitivity
+from .measurements import FIXED, POSTURE_KINDS, SPHERE, NoiseModel, simulate_measurements
+from .model import N_PARAMETERS, HexaParameters
+from .postures import Workspace, acceptable_poses
+from .residuals import COSTS, ChannelSigma, CostFunction
+
+INDICES = ("O1", "O2", "O3", "O4")
+METHODS = ("greedy", "exchange")
+RIDGE = 1e-8  # delta of log det(M + delta I), relative to the mean per-posture information
+RANK_TOLERANCE = 1e-9  # eigenvalue of M (= sigma^2) relative to the largest: below counts as missing
+Progress = Callable[[str], None]
+
+
+def _quiet(_: str) -> None:
+    pass
+
+
+# --------------------------------------------------------------------------- limits and candidates
+@dataclass(frozen=True)
+class PostureLimits:
+    """Everything a planned posture must respect (SI units; defaults in the module doc)."""
+
+    link_length: float = DEFAULT_LINK_LENGTH_M
+    xy_range_m: float = 0.400
+    rotation_range_rad: float = float(np.radians(35.0))
+    inclinometer_range_rad: float = float(np.radians(45.0))
+    slider_stroke_m: tuple[float, float] = (0.0, 0.9)
+    max_u_joint_angle_rad: float = float(np.radians(60.0))
+    max_s_joint_angle_rad: float = float(np.radians(90.0))
+    max_condition: float = 80.0
+    min_leg_rail_cosine: float = 0.2
+
+    def workspace(self) -> Workspace:
+        return Workspace(self.link_length, self.xy_range_m, self.rotation_range_rad, tuple(self.slider_stroke_m),
+                         self.max_condition, self.min_leg_rail_cosine)
+
+    def to_json(self) -> dict:
+        payload = asdict(self)
+        payload["slider_stroke_m"] = list(self.slider_stroke_m)
+        return payload
+
+    def check(self, params: HexaParameters, poses: np.ndarray) -> dict[str, np.ndarray]:
+        """One mask per limit (True = respected), for N poses (N, 6)."""
+        poses = np.atleast_2d(np.asarray(poses, dtype=float))
+        geometry = leg_geometry(params, poses)
+        reachable = np.all(geometry.discriminant > 0.0, axis=1)
+        alpha, beta = inclinometer_angles(poses[:, :3])
+        with np.errstate(invalid="ignore"):
+            leg_direction = geometry.leg_vectors / np.linalg.norm(geometry.leg_vectors, axis=2, keepdims=True)
+        u_cos = np.einsum("nci,ci->nc", leg_direction, params.rail_directions)
+        platform_normal = geometry.rotations[:, :, 2]  # z' in the base frame
+        s_cos = np.einsum("nci,ni->nc", -leg_direction, platform_normal)
+        tolerance = 1e-9  # the sphere radius is recomputed from x, y; allow its rounding
+        on_sphere = np.abs(np.linalg.norm(poses[:, :3], axis=1) - self.link_length) < tolerance
+        return {
+            "on_link_sphere": on_sphere,
+            "xy_range": np.all(np.abs(poses[:, :2]) <= self.xy_range_m + tolerance, axis=1),
+            "rotation_range": np.all(np.abs(poses[:, 3:6]) <= self.rotation_range_rad + tolerance, axis=1),
+            "inclinometer_range": np.maximum(np.abs(alpha), np.abs(beta)) <= self.inclinometer_range_rad,
+            # reachable, slider stroke, leg-rail cosine and condition number, as Workspace defines them
+            "workspace": acceptable_poses(params, poses, self.workspace()),
+            "u_joint_angle": reachable & np.all(u_cos >= np.cos(self.max_u_joint_angle_rad), axis=1),
+            "s_joint_angle": reachable & np.all(s_cos >= np.cos(self.max_s_joint_angle_rad), axis=1),
+        }
+
+    def feasible(self, params: HexaParameters, poses: np.ndarray) -> np.ndarray:
+        checks = self.check(params, poses)
+        return np.logical_and.reduce(list(checks.values()))
+
+
+def default_fixed_fraction(cost: str) -> float:
+    """Share of fixed-position candidates: only where the cost function uses them (as study.posture_split).
+
+    Fixed-position postures cost more to take (the sliders are adjusted until the
+    inclinometer reads zero, section 3.2), so costs that gain nothing from them get none.
+    """
+    return {"fixed": 1.0, "sphere-fixed": 0.25, "relative": 0.25}.get(cost, 0.0)
+
+
+def generate_candidates(params: HexaParameters, n: int, rng: np.random.Generator,
+                        limits: PostureLimits = PostureLimits(), fixed_fraction: float = 0.0
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """n feasible candidate postures (poses (n, 6), kinds (n,)): sphere ones first, then fixed."""
+    n_fixed = int(round(n * fixed_fraction))
+    parts, kinds = [], []
+    for kind, count in ((SPHERE, n - n_fixed), (FIXED, n_fixed)):
+        accepted, found = [], 0
+        for _ in range(200):
+            if found >= count:
+                break
+            draws = _draw(kind, rng, max(2 * (count - found), 64), limits)
+            good = draws[limits.feasible(params, draws)]
+            accepted.append(good)
+            found += len(good)
+        else:
+            raise RuntimeError(f"could not find {count} feasible {kind} postures within the limits")
+        if count:
+            parts.append(np.concatenate(accepted)[:count])
+            kinds.append(np.full(count, kind))
+    if not parts:
+        return np.zeros((0, 6)), np.zeros(0, dtype=str)
+    return np.concatenate(parts), np.concatenate(kinds)
+
+
+def _draw(kind: str, rng: np.random.Generator, n: int, limits: PostureLimits) -> np.ndarray:
+    angles = rng.uniform(-limits.rotation_range_rad, limits.rotation_range_rad, (n, 3))
+    if kind == FIXED:  # inclinometer at zero: the platform sits at [0, 0, -L]
+        return np.column_stack([np.tile([0.0, 0.0, -limits.link_length], (n, 1)), angles])
+    xy = rng.uniform(-limits.xy_range_m, limits.xy_range_m, (n, 2))
+    z = -np.sqrt(limits.link_length**2 - np.sum(xy**2, axis=1))
+    return np.column_stack([xy, z, angles])
+
+
+# --------------------------------------------------------------------------- observability indices
+def observability_indices(singular_values: np.ndarray, n_postures: int) -> dict[str, float]:
+    """O1..O4 from the singular values of a column-scaled identification Jacobian (module doc)."""
+    sigma = np.sort(np.asarray(singular_values, dtype=float))[::-1]
+    largest, smallest = float(sigma[0]), float(sigma[-1])
+    if smallest <= 0.0:
+        return {"O1": 0.0, "O2": 0.0, "O3": 0.0, "O4": 0.0}
+    return {
+        "O1": float(np.exp(np.mean(np.log(sigma))) / np.sqrt(n_postures)),
+        "O2": smallest / largest,
+        "O3": smallest,
+        "O4": smallest**2 / largest,
+    }
+
+
+def observability_index(jacobian: np.ndarray, n_postures: int, index: str = "O1",
+                        scales: np.ndarray | None = None) -> float:
+    """One index of a Jacobian (rows x 54); ``scales`` None = unit-norm columns (as identifiability.analyze)."""
+    if index not in INDICES:
+        raise ValueError(f"unknown observability index {index!r}; choose one of {', '.join(INDICES)}")
+    if scales is None:
+        norms = np.linalg.norm(jacobian, axis=0)
+        scales = np.where(norms > 0, norms, 1.0)
+    singular = np.linalg.svd(jacobian / scales, compute_uv=False)
+    singular = np.concatenate([singular, np.zeros(jacobian.shape[1] - len(singular))])
+    return observability_indices(singular, n_postures)[index]
+
+
+def _index_from_eigenvalues(eigenvalues: np.ndarray, n_postures: int, index: str) -> np.ndarray:
+    """Index of information matrices from their eigenvalues (..., n), ascending."""
+    sigma = np.sqrt(np.maximum(eigenvalues, 0.0))
+    smallest, largest = sigma[..., 0], sigma[..., -1]
+    deficient = eigenvalues[..., 0] <= RANK_TOLERANCE * eigenvalues[..., -1]
+    if index == "O1":
+        with np.errstate(divide="ignore"):
+            value = np.exp(np.mean(np.log(sigma), axis=-1)) / np.sqrt(n_postures)
+    elif index == "O2":
+        value = smallest / largest
+    elif index == "O3":
+        value = smallest
+    else:
+        value = smallest**2 / largest
+    return np.where(deficient, 0.0, value)
+
+
+# --------------------------------------------------------------------------- the design problem
+@dataclass
+class CandidateSet:
+    """Candidates and their identification-Jacobian rows at the nominal parameters (column-scaled).
+
+    For every cost but 'relative', ``rows[i]`` are posture i's rows (zero-padded to
+    the same count).  For 'relative', ``rows[i]`` is posture i's phi row and
+    ``difference_rows[i]`` its position (fixed) or link-length (sphere) rows,
+    which enter as differences with the previous posture of the same kind.
+    """
+
+    poses: np.ndarray
+    kinds: np.ndarray
+    cost: str
+    scales: np.ndarray  # (54,)
+    rows: np.ndarray  # (N, r, 54)
+    difference_rows: np.ndarray | None = None  # (N, r', 54), relative cost only
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+    @property
+    def relative(self) -> bool:
+        return self.difference_rows is not None
+
+    def slot_rows(self, candidates: np.ndarray, previous: np.ndarray, following: np.ndarray) -> np.ndarray:
+        """Rows candidate c adds in a plan slot between ``previous`` and ``following`` (same kind; -1 = none)."""
+        candidates = np.asarray(candidates, dtype=int)
+        own = self.rows[candidates]
+        if not self.relative:
+            return own
+        previous = np.broadcast_to(previous, candidates.shape)
+        following = np.broadcast_to(following, candidates.shape)
+        diff = self.difference_rows
+        before = np.where((previous >= 0)[:, None, None], diff[candidates] - diff[np.maximum(previous, 0)], 0.0)
+        after = np.where((following >= 0)[:, None, None], diff[np.maximum(following, 0)] - diff[candidates], 0.0)
+        return np.concatenate([own, before, after], axis=1)
+
+    def design_jacobian(self, design: np.ndarray) -> np.ndarray:
+        """Stacked (scaled) rows of a plan, in plan order."""
+        design = np.asarray(design, dtype=int)
+        blocks = []
+        for slot, candidate in enumerate(design):
+            previous, following = _neighbours(self.kinds, design, slot)
+            rows = self.slot_rows(np.array([candidate]), np.array([previous]), np.array([-1]))[0]
+            blocks.append(rows)
+        stacked = np.concatenate(blocks) if blocks else np.zeros((0, N_PARAMETERS))
+        return stacked[np.any(stacked != 0.0, axis=1)]
+
+    def information(self, design: np.ndarray) -> np.ndarray:
+        jacobian = self.design_jacobian(design)
+        return jacobian.T @ jacobian
+
+    def indices(self, design: np.ndarray) -> dict[str, float]:
+        """O1..O4 of a plan (on this set's column scales)."""
+        eigenvalues = np.linalg.eigvalsh(self.information(design))
+        return {name: float(_index_from_eigenvalues(eigenvalues, len(design), name)) for name in INDICES}
+
+
+def _neighbours(kinds: np.ndarray, design: np.ndarray, slot: int) -> tuple[int, int]:
+    """Previous and next design entries of the same kind as design[slot] (-1 = none)."""
+    kind = kinds[design[slot]]
+    same_before = [c for c in design[:slot] if kinds[c] == kind]
+    same_after = [c for c in design[slot + 1:] if kinds[c] == kind]
+    return (int(same_before[-1]) if same_before else -1, int(same_after[0]) if same_after else -1)
+
+
+def build_candidate_set(nominal: HexaParameters, poses: np.ndarray, kinds: np.ndarray, cost: str = "absolute",
+                        device: DeviceModel = DeviceModel(), sigma: ChannelSigma = ChannelSigma(),
+                        noise: NoiseModel | None = None) -> CandidateSet:
+    """Analytic identification-Jacobian rows of every candidate (pose_parameter_sensitivity + CostFunction).
+
+    With ``noise``, each posture's rows are whitened by the covariance the reading
+    noise propagates to its residuals (slider noise through FK, inclinometer
+    noise through eq. 4, rotary noise): near a singularity a posture's rows look
+    large, but so does its slider noise, and whitening tells the two apart.
+    Not for the relative cost (its rows mix two postures' noise).
+    """
+    if cost not in COSTS:
+        raise ValueError(f"unknown cost function {cost!r}; choose one of {', '.join(COSTS)}")
+    if noise is not None and cost == "relative":
+        raise ValueError("noise weighting of the plan is not available for the relative cost")
+    # At the nominal parameters the commanded pose is where the model puts the platform,
+    # so noise-free simulated readings there are the expected measurements.
+    measurements = simulate_measurements(nominal, poses, kinds, device)
+    sensitivity, geometry = pose_parameter_sensitivity(nominal, poses)
+    own_cost = "sphere-fixed" if cost == "relative" else cost
+    function = CostFunction(own_cost, measurements, device, sigma)
+    block = function.residuals(poses, sensitivity)
+    phi = block.channels == "phi"
+    if cost == "relative":
+        rows = _rows_per_posture(block.jacobian[phi], block.postures[phi], len(poses))
+        difference = _rows_per_posture(block.jacobian[~phi], block.postures[~phi], len(poses))
+        stacked = np.concatenate([rows, difference], axis=1)
+    else:
+        rows = _rows_per_posture(block.jacobian, block.postures, len(poses))
+        difference = None
+        if noise is not None:
+            rows = _whiten(rows, _noise_rows(function, poses, geometry, block, sigma, device), noise)
+        stacked = rows
+    # RMS per-posture column norm over all candidates: one yardstick for every design.
+    norms = np.sqrt(np.einsum("nrk,nrk->k", stacked, stacked) / max(len(poses), 1))
+    scales = np.where(norms > 0, norms, 1.0)
+    return CandidateSet(poses, np.asarray(kinds).astype(str), cost, scales, rows / scales,
+                        None if difference is None else difference / scales)
+
+
+def _noise_rows(function: CostFunction, poses: np.ndarray, geometry, block, sigma: ChannelSigma,
+                device: DeviceModel) -> np.ndarray:
+    """d residual / d readings (rows, 9): 6 sliders, alpha, beta, phi, in the order of ``block``'s rows."""
+    slider_sensitivity = np.linalg.inv(pose_jacobian(geometry, poses[:, 3:6]))  # dX / d lambda
+    wrt_sliders = function.residuals(poses, slider_sensitivity).jacobian
+    wrt_readings = np.zeros((len(block.channels), 3))
+    is_phi = block.channels == "phi"
+    wrt_readings[is_phi, 2] = 1.0 / sigma.angle_rad  # r = phi_m - phi_c
+    measured_xyz = np.isin(block.channels, ("x", "y", "z")) & (function.cost == "absolute")
+    if np.any(measured_xyz):  # eq. 4: the measured position moves with alpha and beta
+        alpha, beta = inclinometer_angles(poses[:, :3])
+        length = device.link_length
+        d_alpha = np.column_stack([-length * np.sin(alpha) * np.sin(beta), -length * np.cos(alpha),
+                                   length * np.sin(alpha) * np.cos(beta)])
+        d_beta = np.column_stack([length * np.cos(alpha) * np.cos(beta), np.zeros_like(alpha),
+                                  length * np.cos(alpha) * np.sin(beta)])
+        axis = np.searchsorted(["x", "y", "z"], block.channels[measured_xyz])
+        posture = block.postures[measured_xyz]
+        wrt_readings[measured_xyz, 0] = d_alpha[posture, axis] / sigma.position_m
+        wrt_readings[measured_xyz, 1] = d_beta[posture, axis] / sigma.position_m
+    return _rows_per_posture(np.column_stack([wrt_sliders, wrt_readings]), block.postures, len(poses))
+
+
+def _whiten(rows: np.ndarray, noise_rows: np.ndarray, noise: NoiseModel) -> np.ndarray:
+    """L^-1 rows per posture, with L L^T the residual covariance (padding rows keep unit variance)."""
+    std = np.array([noise.slider_m] * 6 + [noise.angle_rad] * 3) / np.sqrt(3.0)  # +-a uniform
+    weighted = noise_rows * std
+    covariance = weighted @ weighted.transpose(0, 2, 1)
+    padding = ~np.any(rows != 0.0, axis=2) & ~np.any(noise_rows != 0.0, axis=2)
+    covariance += np.einsum("nr,rs->nrs", padding.astype(float), np.eye(rows.shape[1]))
+    return np.linalg.solve(np.linalg.cholesky(covariance), rows)
+
+
+def _rows_per_posture(jacobian: np.ndarray, postures: np.ndarray, n: int) -> np.ndarray:
+    """Scatter Jacobian rows into (n, max rows per posture, 54), zero-padded."""
+    order = np.argsort(postures, kind="stable")
+    postures = postures[order]
+    counts = np.bincount(postures, minlength=n)
+    width = int(counts.max()) if len(counts) else 0
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    position = np.arange(len(postures)) - starts[postures]
+    out = np.zeros((n, max(width, 1), jacobian.shape[1]))
+    out[postures, position] = jacobian[order]
+    return out
+
+
+# --------------------------------------------------------------------------- scoring
+def _score(base: np.ndarray, added: np.ndarray, n_postures: int, index: str, ridge: float,
+           use_d_criterion: bool) -> np.ndarray:
+    """Criterion of base + A_c^T A_c for every candidate c (higher is better)."""
+    if use_d_criterion or index == "O1":
+        # log det(B + A^T A) = log det B + log det(I + A B^-1 A^T): r x r determinants per candidate.
+        regularised = base + ridge * np.eye(len(base))
+        inverse = np.linalg.inv(regularised)
+        inner = (added @ inverse) @ added.transpose(0, 2, 1) + np.eye(added.shape[1])
+        return np.linalg.slogdet(regularised)[1] + np.linalg.slogdet(inner)[1]
+    eigenvalues = np.linalg.eigvalsh(base[None] + added.transpose(0, 2, 1) @ added)
+    return _index_from_eigenvalues(eigenvalues, n_postures, index)
+
+
+def _full_rank(information: np.ndarray) -> bool:
+    eigenvalues = np.linalg.eigvalsh(information)
+    return bool(eigenvalues[0] > RANK_TOLERANCE * eigenvalues[-1])
+
+
+def greedy_design(candidates: CandidateSet, n_postures: int, index: str = "O1",
+                  progress: Progress = _quiet, allowed: np.ndarray | None = None) -> tuple[np.ndarray, list[float]]:
+    """Add, one at a time, the candidate that maximises the index; returns (design, D-criterion history).
+
+    The history holds log det(M + delta I) after each pick: it never decreases.
+    """
+    _check_index(index)
+    n = len(candidates)
+    if n_postures > n:
+        raise ValueError(f"cannot choose {n_postures} postures from {n} candidates")
+    available = np.ones(n, bool) if allowed is None else np.array(allowed, bool)
+    ridge = RIDGE * _mean_posture_information(candidates)
+    information = np.zeros((N_PARAMETERS, N_PARAMETERS))
+    design: list[int] = []
+    last_of_kind = {kind: -1 for kind in POSTURE_KINDS}
+    history = []
+    for step in range(n_postures):
+        pool = np.flatnonzero(available)
+        previous = np.array([last_of_kind[k] for k in candidates.kinds[pool]])
+        added = candidates.slot_rows(pool, previous, np.full(len(pool), -1))
+        d_phase = not _full_rank(information)
+        scores = _score(information, added, step + 1, index, ridge, d_phase)
+        best = int(np.argmax(scores))
+        choice = int(pool[best])
+        design.append(choice)
+        available[choice] = False
+        last_of_kind[candidates.kinds[choice]] = choice
+        information = information + added[best].T @ added[best]
+        history.append(float(np.linalg.slogdet(information + ridge * np.eye(N_PARAMETERS))[1]))
+        progress(f"greedy {index}: {step + 1}/{n_postures} postures")
+    return np.array(design, dtype=int), history
+
+
+def exchange_design(candidates: CandidateSet, start: np.ndarray, index: str = "O1", max_passes: int = 10,
+                    progress: Progress = _quiet, screen: int = 300) -> tuple[np.ndarray, list[float]]:
+    """Fedorov-style exchange from ``start``: swap a plan posture for the best candidate while the index improves.
+
+    Returns (design, criterion after each accepted swap), strictly increasing.  For
+    O2-O4 each slot scores the ``screen`` candidates with the best D-criterion gain
+    exactly (eigenvalues); O1 scores every candidate.  The relative cost swaps
+    within a kind, in place, so each posture keeps its neighbours.
+    """
+    _check_index(index)
+    design = np.array(start, dtype=int)
+    ridge = RIDGE * _mean_posture_information(candidates)
+    information = candidates.information(design)
+    use_d = not _full_rank(information)
+    current = _design_criterion(information, len(design), index, ridge, use_d)
+    history = [current]
+    for sweep in range(max_passes):
+        swapped = False
+        for slot in range(len(design)):
+            previous, following = _neighbours(candidates.kinds, design, slot)
+            old = candidates.slot_rows(design[slot:slot + 1], np.array([previous]), np.array([following]))[0]
+            base = information - old.T @ old
+            pool = np.setdiff1d(np.arange(len(candidates)), design)
+            if candidates.relative:  # keep the kind sequence: the differences stay between the same slots
+                pool = pool[candidates.kinds[pool] == candidates.kinds[design[slot]]]
+            if not len(pool):
+                continue
+            added = candidates.slot_rows(pool, np.full(len(pool), previous), np.full(len(pool), following))
+            if not (use_d or index == "O1") and len(pool) > screen:
+                d_gain = _score(base, added, len(design), index, ridge, True)
+                keep = np.argsort(d_gain)[-screen:]
+                pool, added = pool[keep], added[keep]
+            scores = _score(base, added, len(design), index, ridge, use_d)
+            best = int(np.argmax(scores))
+            if scores[best] > current + 1e-12 * max(abs(current), 1.0):
+                design[slot] = pool[best]
+                information = base + added[best].T @ added[best]
+                current = float(scores[best])
+                history.append(current)
+                swapped = True
+        progress(f"exchange {index}: pass {sweep + 1}, {len(history) - 1} swaps")
+        if not swapped:
+            break
+    return design, history
+
+
+def _design_criterion(information: np.ndarray, n_postures: int, index: str, ridge: float, use_d: bool) -> float:
+    if use_d or index == "O1":
+        return float(np.linalg.slogdet(information + ridge * np.eye(len(information)))[1])
+    return float(_index_from_eigenvalues(np.linalg.eigvalsh(information), n_postures, index))
+
+
+def _mean_posture_information(candidates: CandidateSet) -> float:
+    """Mean eigenvalue of one posture's information: the unit of the ridge."""
+    stacked = candidates.rows if not candidates.relative else np.concatenate(
+        [candidates.rows, candidates.difference_rows], axis=1)
+    return float(np.einsum("nrk,nrk->", stacked, stacked) / (len(candidates) * N_PARAMETERS))
+
+
+def _check_index(index: str) -> None:
+    if index not in INDICES:
+        raise ValueError(f"unknown observability index {index!r}; choose one of {', '.join(INDICES)}")
+
+
+def travel_order(poses: np.ndarray, kinds: np.ndarray, link_length: float, keep_order_within_kind: bool) -> np.ndarray:
+    """Plan order: sphere postures first, then fixed ones (section 3.2's procedure); within a kind a
+    nearest-neighbour tour (angles weighted by L) to shorten the moves, unless the order must stay."""
+    order = []
+    for kind in POSTURE_KINDS:
+        members = np.flatnonzero(kinds == kind)
+        if keep_order_within_kind or len(members) < 3:
+            order.extend(members.tolist())
+            continue
+        weighted = np.column_stack([poses[members, :3], poses[members, 3:6] * link_length])
+        remaining = list(range(len(members)))
+        current = int(np.argmin(np.linalg.norm(weighted[:, :2], axis=1)))  # start near the centre
+        tour = [current]
+        remaining.remove(current)
+        while remaining:
+            distance = np.linalg.norm(weighted[remaining] - weighted[current], axis=1)
+            current = remaining[int(np.argmin(distance))]
+            tour.append(current)
+            remaining.remove(current)
+        order.extend(members[tour].tolist())
+    return np.array(order, dtype=int)
+
+
+# --------------------------------------------------------------------------- the plan
+METADATA_PREFIX = "# hexacal-plan: "  # one comment line of JSON: strict plan loaders skip it, Plan.load reads it
+
+
+@dataclass
+class Plan:
+    """Postures for the driver's plan-file mode; YAML, SI units (m, rad).
+
+    File format (what ``hexacal_driver.plan.load_plan`` reads)::
+
+        # hexacal-plan: {"index": "O1", ...}      <- planner metadata, a comment
+        plan:
+          name: greedy-O1-25-3f2a9c1e
+          link_length: 0.75
+        postures:
+          - {kind: sphere, pose: [x, y, z, theta, psi, phi]}
+
+    The metadata rides in a comment because the driver's loader accepts only
+    ``name`` and ``link_length`` in ``plan``; the name ends with the plan's
+    fingerprint, so a bag that records the plan name says exactly which postures it followed.
+    """
+
+    name: str
+    link_length: float
+    poses: np.ndarray
+    kinds: np.ndarray
+    metadata: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.poses = np.atleast_2d(np.asarray(self.poses, dtype=float)).reshape(-1, 6)
+        self.kinds = np.asarray(self.kinds).astype(str).reshape(-1)
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise ValueError("plan name must be a non-empty string")
+        if len(self.kinds) != len(self.poses) or not len(self.poses):
+            raise ValueError(f"plan needs postures and one kind each: {len(self.poses)} poses, {len(self.kinds)} kinds")
+        unknown = sorted(set(self.kinds) - set(POSTURE_KINDS))
+        if unknown:
+            raise ValueError(f"unknown posture kind(s) {unknown}; expected one of {POSTURE_KINDS}")
+        if not np.all(np.isfinite(self.poses)):
+            raise ValueError("plan poses must be finite numbers")
+        if not (np.isfinite(self.link_length) and self.link_length > 0):
+            raise ValueError(f"plan link_length must be a positive length in m, got {self.link_length}")
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+    def fingerprint(self) -> str:
+        """First 8 hex digits of the sha256 of kinds and poses (to 1e-12): names the postures."""
+        text = ";".join(f"{k}:" + ",".join(f"{v:.12e}" for v in pose) for k, pose in zip(self.kinds, self.poses))
+        return hashlib.sha256(text.encode()).hexdigest()[:8]
+
+    def to_text(self) -> str:
+        metadata = dict(_plain(self.metadata), fingerprint=self.fingerprint())
+        lines = [METADATA_PREFIX + json.dumps(metadata, sort_keys=True),
+                 "plan:", f"  name: {json.dumps(self.name)}", f"  link_length: {float(self.link_length)!r}",
+                 "postures:"]
+        for kind, pose in zip(self.kinds, self.poses):
+            lines.append(f"  - {{kind: {kind}, pose: [{', '.join(repr(float(v)) for v in pose)}]}}")
+        return "\n".join(lines) + "\n"
+
+    def save(self, path: Path | str) -> Path:
+        """Write atomically (temporary file in the same directory, fsync, rename)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        try:
+            with os.fdopen(handle, "w", encoding="utf-8") as stream:
+                stream.write(self.to_text())
+                stream.flush()
+                os.fsync(stream.fileno())
+            os.chmod(temporary, 0o644)
+            os.replace(temporary, path)
+        except BaseException:
+            Path(temporary).unlink(missing_ok=True)
+            raise
+        return path
+
+    @classmethod
+    def load(cls, path: Path | str) -> "Plan":
+        text = Path(path).read_text(encoding="utf-8")
+        document = yaml.safe_load(text)
+        if not isinstance(document, dict) or not isinstance(document.get("plan"), dict):
+            raise ValueError(f"{path}: not a plan file (no 'plan' mapping)")
+        header = dict(document["plan"])
+        postures = document.get("postures")
+        if not isinstance(postures, list) or not postures:
+            raise ValueError(f"{path}: 'postures' must be a non-empty list")
+        try:
+            kinds = [str(p["kind"]) for p in postures]
+            poses = np.array([[float(v) for v in p["pose"]] for p in postures])
+        except (KeyError, TypeError, ValueError) as error:
+            raise ValueError(f"{path}: every posture needs 'kind' and a 6-number 'pose' ({error})") from None
+        if poses.ndim != 2 or poses.shape[1] != 6:
+            raise ValueError(f"{path}: every pose must have 6 numbers [x, y, z, theta, psi, phi]")
+        if "name" not in header or "link_length" not in header:
+            raise ValueError(f"{path}: 'plan' needs 'name' and 'link_length' (m)")
+        metadata = {}
+        for line in text.splitlines():
+            if line.startswith(METADATA_PREFIX):
+                metadata = json.loads(line[len(METADATA_PREFIX):])
+                metadata.pop("fingerprint", None)
+        return cls(str(header["name"]), float(header["link_length"]), poses, np.array(kinds), metadata)
+
+
+def _plain(value):
+    """Metadata as JSON-safe builtins."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+@dataclass
+class PlanningResult:
+    plan: Plan
+    candidates: CandidateSet
+    design: np.ndarray  # candidate indices, in plan order
+    selection_order: np.ndarray  # the same indices in the order greedy / exchange chose them
+    indices: dict[str, float]  # O1..O4 of the plan
+    greedy_history: list[float]
+    exchange_history: list[float]
+    candidate_seconds: float
+    selection_seconds: float
+
+    def random_indices(self, draws: int = 20, seed: int = 0) -> dict[str, float]:
+        """Mean O1..O4 of random plans of the same size and kind mix from the same candidates."""
+        rng = np.random.default_rng(seed)
+        kinds = self.candidates.kinds
+        counts = {k: int(np.sum(self.plan.kinds == k)) for k in POSTURE_KINDS}
+        values = []
+        for _ in range(draws):
+            design = np.concatenate([rng.choice(np.flatnonzero(kinds == k), c, replace=False)
+                                     for k, c in counts.items() if c])
+            values.append(self.candidates.indices(design))
+        return {name: float(np.mean([v[name] for v in values])) for name in INDICES}
+
+
+def plan_postures(nominal: HexaParameters, n_postures: int, *, index: str = "O1", method: str = "greedy",
+                  n_candidates: int = 2000, cost: str = "absolute", limits: PostureLimits = PostureLimits(),
+                  fixed_fraction: float | None = None, seed: int = 0, sigma: ChannelSigma = ChannelSigma(),
+                  noise: NoiseModel | None = None, name: str | None = None,
+                  progress: Progress = _quiet) -> PlanningResult:
+    """Candidates -> Jacobian rows at ``nominal`` -> greedy (and exchange) selection -> ordered Plan."""
+    _check_index(index)
+    if method not in METHODS:
+        raise ValueError(f"unknown planning method {method!r}; choose one of {', '.join(METHODS)}")
+    if n_postures < 1:
+        raise ValueError(f"--postures must be positive, got {n_postures}")
+    if n_candidates < n_postures:
+        raise ValueError(f"need at least as many candidates ({n_candidates}) as postures ({n_postures})")
+    started = time.perf_counter()
+    fraction = default_fixed_fraction(cost) if fixed_fraction is None else fixed_fraction
+    device = DeviceModel(limits.link_length)
+    rng = np.random.default_rng([seed, 0x91A4])
+    poses, kinds = generate_candidates(nominal, n_candidates, rng, limits, fraction)
+    progress(f"{len(poses)} candidates")
+    candidates = build_candidate_set(nominal, poses, kinds, cost, device, sigma, noise)
+    candidate_seconds = time.perf_counter() - started
+    started = time.perf_counter()
+    design, greedy_history = greedy_design(candidates, n_postures, index, progress)
+    exchange_history: list[float] = []
+    if method == "exchange":
+        design, exchange_history = exchange_design(candidates, design, index, progress=progress)
+    selection_seconds = time.perf_counter() - started
+    selection_order = design.copy()
+    order = travel_order(poses[design], kinds[design], limits.link_length, keep_order_within_kind=cost == "relative")
+    design = design[order]
+    indices = candidates.indices(design)
+    weighting = "none" if noise is None else f"noise slider {noise.slider_m:g} m, angles {noise.angle_rad:g} rad"
+    metadata = {
+        "planner": "hexacal plan",
+        "index": index,
+        "index_value": indices[index],
+        "method": method,
+        "cost": cost,
+        "weighting": weighting,
+        "candidates": int(len(poses)),
+        "seed": int(seed),
+        "nominal_fingerprint": hashlib.sha256(np.round(nominal.vector, 12).tobytes()).hexdigest()[:16],
+        "limits": limits.to_json(),
+    }
+    plan = Plan(name or "plan", limits.link_length, poses[design], kinds[design], metadata)
+    if name is None:  # default name: what it is and which postures
+        plan.name = f"{method}-{index}-{n_postures}-{plan.fingerprint()}"
+    return PlanningResult(plan, candidates, design, selection_order, indices, greedy_history, exchange_history,
+                          candidate_seconds, selection_seconds)
+
+
+__all__ = [
+    "INDICES", "METHODS", "CandidateSet", "Plan", "PlanningResult", "PostureLimits", "build_candidate_set",
+    "default_fixed_fraction", "exchange_design", "generate_candidates", "greedy_design", "observability_index",
+    "observability_indices", "plan_postures", "travel_order",
+]
