@@ -50,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     cli_study.add_parser(subparsers)
     _add_params_parser(subparsers)
-    for module_name in ("cli_bag", "cli_demo"):
+    for module_name in ("cli_bag", "cli_demo", "cli_plan_report"):
         module = _optional_module(module_name)
         if module is not None:
             module.add_parsers(subparsers)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import figures
+from . import figures, planning_study
 from .cli_common import Progress, load_params_arg
 from .core.identifiability import DEFAULT_RANK_TOLERANCE
 from .core.model import TABLE2_ERROR_STATS_MM, error_stats_mm, table1_parameters
@@ -43,6 +43,7 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--validation-postures", type=int, default=50, help="fresh postures for pose errors (default 50)")
     parser.add_argument("--json", action="store_true", help="print one JSON object for the configured run, nothing else")
     parser.add_argument("--out", type=Path, default=Path("study_out"), help="directory for PNG figures (default study_out)")
+    planning_study.add_arguments(parser)
     parser.set_defaults(handler=run)
 
 
@@ -59,6 +60,8 @@ def configured_run(args) -> StudyRun:
 
 
 def run(args) -> int:
+    if args.plan:
+        return planning_study.run(args)
     configured = configured_run(args)
     if args.json:
         print(json.dumps(run_calibration(configured).to_json()))

@@ -93,3 +93,101 @@ def singular_values(spectra: dict[str, np.ndarray], rank_tolerance: float, path:
     ax.set_title("Identifiability: singular values of the scaled identification Jacobian")
     ax.legend(fontsize=8)
     return _save(fig, path)
+
+
+# --------------------------------------------------------------------------- calibration report and planning
+UM = 1e6
+
+
+def parameter_corrections(correction_m: np.ndarray, std_m: np.ndarray, path: Path) -> Path:
+    """Each parameter's correction (identified - initial) with +-std error bars, and the std alone (log)."""
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(11, 5.6), sharex=True)
+    index = np.arange(1, len(correction_m) + 1)
+    std = np.where(np.isfinite(std_m), std_m, np.nan)
+    top.axhline(0.0, color="0.6", lw=0.8)
+    top.errorbar(index, correction_m * MM, yerr=np.nan_to_num(std) * MM, fmt="o", ms=3, capsize=2,
+                 color="tab:blue", ecolor="tab:red", label="correction +- std")
+    top.set_ylabel("correction [mm]")
+    top.legend(loc="upper right", fontsize=8)
+    top.set_title("Identified corrections (rail components a: x1000, as Table 1)")
+    bottom.semilogy(index, np.where(std > 0, std * UM, np.nan), "s", ms=3, color="tab:red")
+    bottom.set_ylabel("std [um]")
+    bottom.set_xlabel("parameter (chain-major: A0x A0y A0z Bx By Bz l ax ay per chain)")
+    for ax in (top, bottom):
+        for chain in range(1, N_CHAINS):
+            ax.axvline(chain * FIELDS_PER_CHAIN + 0.5, color="0.85", lw=0.8)
+    return _save(fig, path)
+
+
+def residuals_by_posture(postures: np.ndarray, values: np.ndarray, channels: np.ndarray, path: Path) -> Path:
+    """Final residuals per posture, one marker per channel: lengths in um (left), angles in urad (right)."""
+    channels = np.asarray(channels).astype(str)
+    angular = np.char.startswith(channels, "phi")
+    fig, axes = plt.subplots(1, 2, figsize=(11, 3.6))
+    for ax, mask, unit in ((axes[0], ~angular, "um"), (axes[1], angular, "urad")):
+        for channel in dict.fromkeys(channels[mask].tolist()):
+            rows = channels == channel
+            ax.plot(postures[rows], values[rows] * UM, ".", ms=5, label=channel)
+        ax.axhline(0.0, color="0.6", lw=0.8)
+        ax.set_xlabel("posture index")
+        ax.set_ylabel(f"residual [{unit}]")
+        if np.any(mask):
+            ax.legend(fontsize=7, ncol=2)
+    axes[0].set_title("Length / position residuals")
+    axes[1].set_title("Rotary (phi) residuals")
+    return _save(fig, path)
+
+
+def pose_error_map(x_m: np.ndarray, y_m: np.ndarray, std_m: np.ndarray, path: Path,
+                   postures_xy_m: np.ndarray | None = None) -> Path:
+    """Predicted std of the position error over the workspace (heat map, um); NaN cells are infeasible."""
+    fig, ax = plt.subplots(figsize=(6.2, 5.0))
+    mesh = ax.pcolormesh(x_m * MM, y_m * MM, std_m * UM, shading="auto", cmap="viridis")
+    fig.colorbar(mesh, ax=ax, label="predicted position error std [um]")
+    if postures_xy_m is not None and len(postures_xy_m):
+        ax.plot(postures_xy_m[:, 0] * MM, postures_xy_m[:, 1] * MM, "w+", ms=6, label="measured postures")
+        ax.legend(fontsize=8, loc="upper right")
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.set_aspect("equal")
+    ax.set_title("Predicted pose error on the L-sphere, zero rotation")
+    return _save(fig, path)
+
+
+def postures_on_sphere(poses: np.ndarray, kinds: np.ndarray, path: Path, xy_range_m: float = 0.4) -> Path:
+    """The postures used, seen from above (x, y on the L-sphere), coloured by kind; arrows show the tilt."""
+    fig, ax = plt.subplots(figsize=(5.6, 5.0))
+    kinds = np.asarray(kinds).astype(str)
+    colours = {"sphere": "tab:blue", "fixed": "tab:orange"}
+    for kind in dict.fromkeys(kinds.tolist()):
+        rows = kinds == kind
+        ax.scatter(poses[rows, 0] * MM, poses[rows, 1] * MM, s=22, color=colours.get(kind, "k"),
+                   label=f"{kind} ({int(rows.sum())})", zorder=3)
+        # theta tilts about Y (moves x'), psi about X: a short arrow shows each posture's tilt
+        ax.quiver(poses[rows, 0] * MM, poses[rows, 1] * MM, np.degrees(poses[rows, 3]), -np.degrees(poses[rows, 4]),
+                  color=colours.get(kind, "k"), alpha=0.45, angles="xy", scale_units="xy", scale=0.25, width=0.004)
+    limit = xy_range_m * MM
+    ax.add_patch(plt.Rectangle((-limit, -limit), 2 * limit, 2 * limit, fill=False, ls="--", color="0.5"))
+    ax.set_xlim(-1.15 * limit, 1.15 * limit)
+    ax.set_ylim(-1.15 * limit, 1.15 * limit)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.legend(fontsize=8, loc="upper right")
+    ax.set_title("Postures used (arrows: tilt theta, -psi; 1 deg = 4 mm)")
+    return _save(fig, path)
+
+
+def planning_accuracy(ks: Sequence[int], curves: dict[str, tuple[Sequence[float], Sequence[float]]],
+                      reference_um: float, reference_label: str, path: Path) -> Path:
+    """Validation position error vs number of postures: planned against random (mean +- spread over seeds)."""
+    fig, ax = plt.subplots(figsize=(7.5, 4.2))
+    for label, (mean_um, spread_um) in curves.items():
+        ax.errorbar(ks, mean_um, yerr=spread_um, fmt="o-", capsize=3, label=label)
+    ax.axhline(reference_um, color="k", ls="--", lw=0.9, label=reference_label)
+    ax.set_xlabel("postures K")
+    ax.set_ylabel("mean validation position error [um]")
+    ax.set_yscale("log")
+    ax.set_title("Accuracy vs number of postures: planned vs random")
+    ax.legend(fontsize=8)
+    return _save(fig, path)

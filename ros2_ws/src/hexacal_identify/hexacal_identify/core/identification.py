@@ -21,11 +21,12 @@ Beyond the paper:
 """
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 from .device import DEVICE_PARAMETER_NAMES, N_DEVICE_PARAMETERS, DeviceDefects, DeviceModel
 from .errors import InvalidMeasurementError, RankDeficientError, TooFewPosturesError
@@ -43,6 +44,12 @@ ROBUST_LOSSES = ("huber", "soft_l1")
 MAX_ROUNDS = 20  # outer rounds: re-admitting postures, screening outliers, refitting weights
 IRLS_TOLERANCE = 1e-9  # robust reweighting stops when no unknown moves more than this (m)
 N_UNKNOWNS = N_PARAMETERS + N_DEVICE_PARAMETERS
+
+
+@functools.lru_cache(maxsize=1)
+def _blas_controller() -> ThreadpoolController:
+    """Built once: inspecting the loaded BLAS libraries costs about a millisecond each time."""
+    return ThreadpoolController()
 
 
 def unknown_names() -> list[str]:
@@ -313,7 +320,7 @@ def _identify_once(nominal: HexaParameters, measurements: Measurements, options:
     usable = CostFunction(options.cost, measurements, options.device, options.sigma).usable()
     unused = {int(i): f"not used by the {options.cost} cost function" for i in np.flatnonzero(~usable)}
     # Small dense problems run fastest on one BLAS thread; more threads only add contention.
-    with threadpool_limits(limits=1, user_api="blas"):
+    with _blas_controller().limit(limits=1, user_api="blas"):
         problem, poses, set_aside = _admit(start, _Problem(measurements, np.flatnonzero(usable), options, free),
                                            "with the nominal parameters")
         problem.check_enough({**unused, **set_aside})

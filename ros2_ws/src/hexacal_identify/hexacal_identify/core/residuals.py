@@ -96,6 +96,7 @@ class CostFunction:
         self.sigma = sigma
         self.is_fixed = measurements.kinds == FIXED
         self.is_sphere = measurements.kinds == SPHERE
+        self._measured_cache = None
 
     def usable(self) -> np.ndarray:
         """Mask of postures this cost function uses."""
@@ -104,8 +105,11 @@ class CostFunction:
         return np.ones(len(self.measurements), bool)
 
     def measured(self, defects: DeviceDefects = DeviceDefects()):
-        alpha, beta = self.measurements.inclinometer.T
-        return device_position(alpha, beta, self.link_lengths, defects)
+        """Positions from the readings through the defect model; the last result is kept (defects rarely change)."""
+        if self._measured_cache is None or self._measured_cache[0] != defects:
+            alpha, beta = self.measurements.inclinometer.T
+            self._measured_cache = (defects, device_position(alpha, beta, self.link_lengths, defects))
+        return self._measured_cache[1]
 
     def fixed_position(self, defects: DeviceDefects = DeviceDefects()):
         """Where the (defective) inclinometer reads zero: the fixed position of eq. 10."""
