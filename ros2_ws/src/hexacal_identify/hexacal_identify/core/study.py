@@ -15,7 +15,7 @@ from typing import Callable, Iterable
 
 import numpy as np
 
-from .device import DeviceModel
+from .device import DeviceDefects, DeviceModel
 from .errors import CalibrationError
 from .identifiability import IdentifiabilityReport, analyze
 from .identification import IdentificationResult, SolverOptions, identify
@@ -56,6 +56,11 @@ class StudyRun:
     validation_postures: int = 50
     device: DeviceModel = DeviceModel()
     workspace: Workspace = Workspace()
+    defects: DeviceDefects = DeviceDefects()  # the simulated device's defects
+    identify_device: tuple[str, ...] = ()  # device defects to identify jointly
+    weighted: bool = False  # whiten residuals by the (known) simulated noise
+    robust_loss: str | None = None
+    lvdt: bool = False
 
     def nominal(self) -> HexaParameters:
         if self.nominal_params is not None:
@@ -105,6 +110,12 @@ def posture_split(cost: str, total: int) -> tuple[int, int]:
 
 
 def simulate_run_measurements(run: StudyRun) -> Measurements:
+    if run.defects != DeviceDefects() or run.lvdt:
+        from .device_study import simulate_procedure
+
+        sphere, fixed = posture_split(run.cost, run.postures)
+        return simulate_procedure(run.true_params, run.defects, sphere, fixed, run.noise_um, run.seed, run.lvdt,
+                                  run.device)
     rng = np.random.default_rng([run.seed, 0x5EED])
     sphere_count, fixed_count = posture_split(run.cost, run.postures)
     noise = NoiseModel.from_microns(run.noise_um)
@@ -118,12 +129,20 @@ def simulate_run_measurements(run: StudyRun) -> Measurements:
 
 def run_calibration(run: StudyRun, options: SolverOptions | None = None) -> StudyOutcome:
     """Simulate the measurements of ``run``, identify, and validate on fresh postures."""
-    options = options or SolverOptions(cost=run.cost, device=run.device)
+    from .device_study import device_frame_poses, device_frame_truth
+
+    options = options or SolverOptions(
+        cost=run.cost, device=run.device, free_device=run.identify_device, robust_loss=run.robust_loss,
+        noise=NoiseModel.from_microns(run.noise_um) if run.weighted and run.noise_um > 0 else None,
+    )
     measurements = simulate_run_measurements(run)
     result = identify(run.nominal(), measurements, options)
-    poses = validation_poses(run.true_params, run.validation_postures, run.seed, run.workspace)
-    before = pose_errors(run.true_params, run.nominal(), poses)
-    after = pose_errors(run.true_params, result.parameters, poses)
+    # Judged in the frames the device defines (identical to the true frames for an ideal device).
+    truth = device_frame_truth(run.true_params, run.defects)
+    poses = device_frame_poses(validation_poses(run.true_params, run.validation_postures, run.seed, run.workspace),
+                               run.defects)
+    before = pose_errors(truth, run.nominal(), poses)
+    after = pose_errors(truth, result.parameters, poses)
     return StudyOutcome(run, result, before, after)
 
 
