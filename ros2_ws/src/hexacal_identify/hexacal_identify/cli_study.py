@@ -7,8 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import figures, planning_study
+from . import cli_study_device, figures, planning_study
 from .cli_common import Progress, load_params_arg
+from .core.device import DeviceDefects
 from .core.identifiability import DEFAULT_RANK_TOLERANCE
 from .core.model import TABLE2_ERROR_STATS_MM, error_stats_mm, table1_parameters
 from .core.residuals import COST_EQUATIONS, COSTS
@@ -44,6 +45,7 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object for the configured run, nothing else")
     parser.add_argument("--out", type=Path, default=Path("study_out"), help="directory for PNG figures (default study_out)")
     planning_study.add_arguments(parser)
+    cli_study_device.add_arguments(parser)
     parser.set_defaults(handler=run)
 
 
@@ -56,6 +58,8 @@ def configured_run(args) -> StudyRun:
         true_params=true_params, nominal_params=nominal, nominal_set_number=args.nominal_set,
         postures=args.postures, noise_um=args.noise_um, seed=args.seed, cost=args.cost,
         validation_postures=args.validation_postures,
+        defects=args.device_defects or DeviceDefects(), identify_device=args.identify_device,
+        weighted=args.weighted, robust_loss=args.robust, lvdt=args.lvdt,
     )
 
 
@@ -72,6 +76,7 @@ def run(args) -> int:
     _print_noise_free(args.out, progress)
     _print_noise_table(args.out, args.seeds, progress)
     _print_procedures(progress)
+    cli_study_device.print_sections(args, progress)
     _print_configured(configured)
     progress.close()
     print(f"\nfigures written to {args.out}/")
