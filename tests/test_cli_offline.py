@@ -1,0 +1,109 @@
+"""``hexacal calibrate`` and ``hexacal bag-info`` on bags of known content, as a user runs them."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hexacal_identify.core import sample_poses, simulate_measurements, table1_parameters
+from hexacal_identify.core.model import nominal_set
+from hexacal_msgs_py.parameters_file import load_parameters, save_parameters
+from synthetic_recording import write_recording
+
+TRUE = table1_parameters()
+
+
+def hexacal(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "hexacal_identify.cli", *map(str, args)],
+                          capture_output=True, text=True, timeout=300, cwd=cwd)
+
+
+@pytest.fixture(scope="module")
+def exact_postures():
+    return simulate_measurements(TRUE, sample_poses(TRUE, 40, np.random.default_rng(11)))
+
+
+@pytest.fixture(scope="module")
+def nominal_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("params") / "nominal.yaml"
+    save_parameters(path, nominal_set(2).vector)
+    return path
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory, exact_postures):
+    return write_recording(tmp_path_factory.mktemp("bags") / "recorded", exact_postures, seed=1)
+
+
+def test_calibrate_from_the_posture_topic(recorded, nominal_file, tmp_path):
+    output = tmp_path / "calibrated.yaml"
+    completed = hexacal("calibrate", recorded, "--nominal", nominal_file, "--output", output, "--json")
+    assert completed.returncode == 0, completed.stderr
+    result = json.loads(completed.stdout)
+    assert result["reason"] == "converged" and result["rank"] == 54
+    assert result["bag"]["postures"] == 40 and result["bag"]["source"] == "posture topic"
+    assert set(result) >= {"parameters", "std", "rank", "condition_number", "solve_seconds", "postures_used",
+                           "postures_rejected", "iterations", "reason"}
+    identified = load_parameters(output)
+    assert np.max(np.abs(identified - TRUE.vector)) < 5e-4  # 10 um noise averaged over each dwell
+    assert np.max(np.abs(identified - nominal_set(2).vector)) > 1e-3  # it did move from the nominal
+
+
+def test_raw_streams_only_are_redetected_and_foreign_topics_ignored(exact_postures, nominal_file, tmp_path):
+    bag = write_recording(tmp_path / "raw_only", exact_postures, seed=2, postures=False, extra_topic="/chatter")
+    completed = hexacal("calibrate", bag, "--nominal", nominal_file, "--output", tmp_path / "out.yaml", "--json")
+    assert completed.returncode == 0, completed.stderr
+    result = json.loads(completed.stdout)
+    assert result["bag"]["source"] == "raw streams (re-detected)" and result["bag"]["postures"] == 40
+    assert result["bag"]["ignored_topics"] == ["/chatter"]
+    assert np.max(np.abs(load_parameters(tmp_path / "out.yaml") - TRUE.vector)) < 5e-4
+
+
+def test_a_missing_stream_is_named(exact_postures, nominal_file, tmp_path):
+    bag = write_recording(tmp_path / "no_encoder", exact_postures, seed=3,
+                          postures=False, drop_topic="hexacal/encoder")
+    completed = hexacal("calibrate", bag, "--nominal", nominal_file, "--output", tmp_path / "out.yaml")
+    assert completed.returncode == 2
+    assert "/hexacal/encoder" in completed.stderr and "Traceback" not in completed.stderr
+    assert len(completed.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "out.yaml").exists()
+
+
+@pytest.mark.parametrize("damage", ["random bytes", "empty", "missing"])
+def test_unreadable_bags_give_one_line_errors(damage, nominal_file, tmp_path):
+    path = tmp_path / "bag.mcap"
+    if damage == "random bytes":
+        path.write_bytes(np.random.default_rng(0).bytes(5000))
+    elif damage == "empty":
+        path.write_bytes(b"")
+    completed = hexacal("calibrate", path, "--nominal", nominal_file, "--output", tmp_path / "out.yaml")
+    assert completed.returncode == 2, completed.stdout
+    assert "Traceback" not in completed.stderr and len(completed.stderr.strip().splitlines()) == 1
+
+
+def test_truncated_bag_keeps_what_was_complete(recorded, nominal_file, tmp_path):
+    mcap = next(Path(recorded).glob("*.mcap"))
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(mcap.read_bytes()[: int(mcap.stat().st_size * 0.7)])
+    completed = hexacal("calibrate", cut, "--nominal", nominal_file, "--output", tmp_path / "out.yaml", "--json")
+    assert completed.returncode == 0, completed.stderr
+    result = json.loads(completed.stdout)
+    assert 15 <= result["bag"]["postures"] < 40
+
+
+def test_bad_parameter_file_is_named(recorded, tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("/**:\n  ros__parameters:\n    chain_1.A0: [0.1, 0.2]\n")
+    completed = hexacal("calibrate", recorded, "--nominal", bad, "--output", tmp_path / "out.yaml")
+    assert completed.returncode == 2 and "chain_1.A0" in completed.stderr
+
+
+def test_bag_info_lists_topics_counts_and_postures(recorded):
+    completed = hexacal("bag-info", recorded)
+    assert completed.returncode == 0, completed.stderr
+    text = completed.stdout
+    assert "Topic: /hexacal/posture | Type: sensor_msgs/msg/JointState | Count: 40" in text
+    assert "/hexacal/sliders" in text and "Duration:" in text
+    assert "Postures:          40 (from the posture topic)" in text
