@@ -15,10 +15,10 @@ import numpy as np
 from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, JOINT_STATE_TYPE, POSTURE_TOPIC, SLIDERS_TOPIC
 from hexacal_msgs_py.readings import PostureReading
 
-from .core.device import DeviceModel
+from .core.device import DEVICE_PARAMETER_NAMES, DeviceModel
 from .core.errors import InvalidMeasurementError
 from .core.identification import IdentificationResult, SolverOptions, identify
-from .core.measurements import FIXED, SPHERE, Measurements
+from .core.measurements import FIXED, SPHERE, Measurements, NoiseModel
 from .core.model import HexaParameters, parameter_names
 
 # A posture whose inclinometer reads zero on both axes (within this, rad) was taken at the fixed
@@ -42,10 +42,19 @@ def measurements_from_postures(postures: Sequence[PostureReading],
 
 
 def calibrate(nominal: HexaParameters, postures: Sequence[PostureReading], *, cost: str = "absolute",
-              link_length: float = DeviceModel().link_length, allow_rank_deficient: bool = False) -> IdentificationResult:
-    """Identify the parameters from received postures: the one call behind the node and the CLI."""
+              link_length: float = DeviceModel().link_length, allow_rank_deficient: bool = False,
+              identify_device: Sequence[str] = (), noise: NoiseModel | None = None,
+              robust_loss: str | None = None) -> IdentificationResult:
+    """Identify the parameters from received postures: the one call behind the node and the CLI.
+
+    ``identify_device`` names device defects to identify jointly (e.g. dL, alpha0,
+    gamma); ``noise`` (reading noise half-widths) weights the residuals by it.
+    A problem the postures do not determine raises RankDeficientError (never a
+    number that means nothing) unless ``allow_rank_deficient``.
+    """
     options = SolverOptions(cost=cost, device=DeviceModel(link_length=link_length),
-                            allow_rank_deficient=allow_rank_deficient)
+                            allow_rank_deficient=allow_rank_deficient, free_device=tuple(identify_device),
+                            noise=noise, robust_loss=robust_loss)
     return identify(nominal, measurements_from_postures(postures), options)
 
 
@@ -62,7 +71,12 @@ def status_fields(result: IdentificationResult) -> dict[str, str]:
         "solve_seconds": f"{result.solve_seconds:.6f}",
         "identifiable": str(result.identifiability.identifiable).lower(),
     }
+    fields["identifiability"] = result.identifiability.verdict().replace("\n", " ")
     fields.update({f"rms_residual.{k}": f"{v:.6g}" for k, v in result.rms_residual.items()})
+    for index, name in enumerate(DEVICE_PARAMETER_NAMES):
+        if name in result.free_device:
+            fields[f"device.{name}"] = f"{result.device.vector[index]:.6g}"
+            fields[f"std.device.{name}"] = f"{result.device_std[index]:.6g}"
     fields.update({f"std.{name}": f"{s:.6g}" for name, s in zip(parameter_names(), result.std)})
     for index, why in sorted(result.rejected_postures.items())[:20]:
         fields[f"rejected.{index}"] = why
