@@ -9,8 +9,10 @@ from pathlib import Path
 import numpy as np
 
 from .cli_common import load_params_arg
+from .cli_study_device import device_names_argument
 from .core.device import DEFAULT_LINK_LENGTH_M
-from .core.identification import CONVERGED
+from .core.identification import CONVERGED, ROBUST_LOSSES
+from .core.measurements import NoiseModel
 from .core.residuals import COSTS
 
 UM, MM = 1e6, 1e3
@@ -30,6 +32,12 @@ def add_parsers(subparsers) -> None:
     calibrate.add_argument("--cost", choices=COSTS, default="absolute", help="cost function (default absolute)")
     calibrate.add_argument("--link-length", type=float, default=DEFAULT_LINK_LENGTH_M,
                            help=f"device link length L in m (default {DEFAULT_LINK_LENGTH_M})")
+    calibrate.add_argument("--identify-device", type=device_names_argument, default=(),
+                           help="device defects to identify jointly, e.g. dL,alpha0,gamma (beta0 and phi0 are "
+                           "frame definitions: eq. 7 cannot see them)")
+    calibrate.add_argument("--noise-um", type=float, default=None,
+                           help="known reading noise half-width (um on sliders, urad on angles): weight residuals by it")
+    calibrate.add_argument("--robust", choices=ROBUST_LOSSES, default=None, help="robust loss (huber or soft_l1)")
     calibrate.add_argument("--json", action="store_true", help="print the result as one JSON object")
     calibrate.set_defaults(handler=run_calibrate)
 
@@ -49,7 +57,9 @@ def run_calibrate(args) -> int:
     if args.output.exists() and args.output.is_dir():
         raise IsADirectoryError(f"--output {args.output} is a directory; name a YAML file")
     bag = postures_from_bag(args.bag)
-    result = calibrate(nominal, bag.postures, cost=args.cost, link_length=args.link_length)
+    noise = NoiseModel.from_microns(args.noise_um) if args.noise_um else None
+    result = calibrate(nominal, bag.postures, cost=args.cost, link_length=args.link_length,
+                       identify_device=args.identify_device, noise=noise, robust_loss=args.robust)
     comment = (f"hexacal calibrate {args.bag} (cost {args.cost}, {len(result.used_postures)} postures, "
                f"{result.reason}), SI units")
     if result.reason == CONVERGED:

@@ -24,7 +24,7 @@ def _defects(text: str) -> DeviceDefects:
         raise argparse.ArgumentTypeError(str(error)) from None
 
 
-def _device_names(text: str) -> tuple[str, ...]:
+def device_names_argument(text: str) -> tuple[str, ...]:
     names = tuple(n.strip() for n in text.split(",") if n.strip())
     unknown = [n for n in names if n not in DEVICE_PARAMETER_NAMES]
     if unknown:
@@ -34,7 +34,7 @@ def _device_names(text: str) -> tuple[str, ...]:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--device-defects", type=_defects, default=None, help=DEFECTS_HELP)
-    parser.add_argument("--identify-device", type=_device_names, default=(),
+    parser.add_argument("--identify-device", type=device_names_argument, default=(),
                         help="device defects to identify jointly in the configured run, e.g. dL,alpha0,gamma")
     parser.add_argument("--weighted", action="store_true",
                         help="weight residuals by the known reading noise (configured run)")
