@@ -60,6 +60,7 @@ $(STAMP): $(SETUP_INPUTS) | $(VENV_PY)
 	touch $@
 
 test: setup
+	sh scripts/ensure_chromium.sh
 	$(VENV_PY) -m pytest $(PYTEST_ARGS)
 
 demo: setup

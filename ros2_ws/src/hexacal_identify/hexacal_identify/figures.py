@@ -180,14 +180,16 @@ def postures_on_sphere(poses: np.ndarray, kinds: np.ndarray, path: Path, xy_rang
 
 def planning_accuracy(ks: Sequence[int], curves: dict[str, tuple[Sequence[float], Sequence[float]]],
                       reference_um: float, reference_label: str, path: Path) -> Path:
-    """Validation position error vs number of postures: planned against random (mean +- spread over seeds)."""
+    """Validation position error vs number of postures: planned against random (mean +- error bar over seeds)."""
     fig, ax = plt.subplots(figsize=(7.5, 4.2))
     for label, (mean_um, spread_um) in curves.items():
-        ax.errorbar(ks, mean_um, yerr=spread_um, fmt="o-", capsize=3, label=label)
+        mean_um, spread_um = np.asarray(mean_um, float), np.asarray(spread_um, float)
+        lower = np.minimum(spread_um, 0.9 * mean_um)  # a log axis cannot show a bar below zero
+        ax.errorbar(ks, mean_um, yerr=[lower, spread_um], fmt="o-", capsize=3, label=label)
     ax.axhline(reference_um, color="k", ls="--", lw=0.9, label=reference_label)
     ax.set_xlabel("postures K")
     ax.set_ylabel("mean validation position error [um]")
     ax.set_yscale("log")
-    ax.set_title("Accuracy vs number of postures: planned vs random")
+    ax.set_title("Accuracy vs number of postures: planned vs random (mean +- s.e. over seeds)")
     ax.legend(fontsize=8)
     return _save(fig, path)

@@ -28,6 +28,18 @@ column-scaled identification Jacobian, n = 54 parameters, m = postures):
 * O3 = sigma_min                              (Nahvi & Hollerbach)
 * O4 = sigma_min^2 / sigma_max                (noise amplification index, Nahvi & Hollerbach)
 
+and, beyond them, I (I-optimal): the least predicted mean squared position error
+over the workspace, trace(W M^-1), with M = J^T J the information of the plan and
+W the mean of dP/du^T dP/du over the sphere candidates (drawn like validation
+postures).  It targets what a calibration is judged by; ``hexacal study --plan``
+measures it against O1.
+
+Noise weighting (``noise``, on by default in ``hexacal plan``): each posture's rows
+are whitened by the covariance its reading noise propagates to its residuals.
+Unweighted, the indices favour postures near singularities, where dX/du is large
+but so is the amplified slider noise; weighted, M is the Fisher information and
+sqrt(trace(W M^-1)) is the predicted RMS position error in metres.
+
 Column scaling: every design is scaled by the same column scales, the RMS
 per-posture column norm over the whole candidate set, so indices of different
 designs compare (a design's own unit-norm scaling would give each design its own
@@ -68,6 +80,8 @@ from .postures import Workspace, acceptable_poses
 from .residuals import COSTS, ChannelSigma, CostFunction
 
 INDICES = ("O1", "O2", "O3", "O4")
+PREDICTION = "I"  # I-optimal: least predicted mean squared position error over the workspace
+CRITERIA = INDICES + (PREDICTION,)
 METHODS = ("greedy", "exchange")
 RIDGE = 1e-8  # delta of log det(M + delta I), relative to the mean per-posture information
 RANK_TOLERANCE = 1e-9  # eigenvalue of M (= sigma^2) relative to the largest: below counts as missing
@@ -236,6 +250,8 @@ class CandidateSet:
     scales: np.ndarray  # (54,)
     rows: np.ndarray  # (N, r, 54)
     difference_rows: np.ndarray | None = None  # (N, r', 54), relative cost only
+    # mean of dP/du^T dP/du over the sphere candidates (column-scaled): what the position error weighs
+    position_weight: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.poses)
@@ -272,10 +288,25 @@ class CandidateSet:
         jacobian = self.design_jacobian(design)
         return jacobian.T @ jacobian
 
+    def rank(self, design: np.ndarray) -> int:
+        eigenvalues = np.linalg.eigvalsh(self.information(design))
+        return int(np.sum(eigenvalues > RANK_TOLERANCE * eigenvalues[-1]))
+
     def indices(self, design: np.ndarray) -> dict[str, float]:
         """O1..O4 of a plan (on this set's column scales)."""
         eigenvalues = np.linalg.eigvalsh(self.information(design))
         return {name: float(_index_from_eigenvalues(eigenvalues, len(design), name)) for name in INDICES}
+
+    def predicted_position_error(self, design: np.ndarray) -> float:
+        """sqrt(trace(W M^-1)): predicted RMS position error over the workspace, linearised.
+
+        In metres when the rows are noise-weighted (M is then the Fisher information),
+        per unit residual noise otherwise; infinite when the plan is rank deficient.
+        """
+        information = self.information(design)
+        if not _full_rank(information):
+            return float("inf")
+        return float(np.sqrt(np.trace(self.position_weight @ np.linalg.inv(information))))
 
 
 def _neighbours(kinds: np.ndarray, design: np.ndarray, slot: int) -> tuple[int, int]:
@@ -322,8 +353,12 @@ def build_candidate_set(nominal: HexaParameters, poses: np.ndarray, kinds: np.nd
     # RMS per-posture column norm over all candidates: one yardstick for every design.
     norms = np.sqrt(np.einsum("nrk,nrk->k", stacked, stacked) / max(len(poses), 1))
     scales = np.where(norms > 0, norms, 1.0)
+    # Validation postures are drawn like the sphere candidates: their mean dP/du^T dP/du weighs the error.
+    sphere = np.asarray(kinds) == SPHERE
+    position = sensitivity[sphere if np.any(sphere) else slice(None), :3, :]
+    weight = np.einsum("nik,nil->kl", position, position) / max(len(position), 1)
     return CandidateSet(poses, np.asarray(kinds).astype(str), cost, scales, rows / scales,
-                        None if difference is None else difference / scales)
+                        None if difference is None else difference / scales, weight / np.outer(scales, scales))
 
 
 def _noise_rows(function: CostFunction, poses: np.ndarray, geometry, block, sigma: ChannelSigma,
@@ -374,8 +409,16 @@ def _rows_per_posture(jacobian: np.ndarray, postures: np.ndarray, n: int) -> np.
 
 # --------------------------------------------------------------------------- scoring
 def _score(base: np.ndarray, added: np.ndarray, n_postures: int, index: str, ridge: float,
-           use_d_criterion: bool) -> np.ndarray:
+           use_d_criterion: bool, weight: np.ndarray | None = None) -> np.ndarray:
     """Criterion of base + A_c^T A_c for every candidate c (higher is better)."""
+    if index == PREDICTION and not use_d_criterion:
+        # -trace(W (B + A^T A)^-1) by Woodbury: trace(W B^-1) - trace(S^-1 A B^-1 W B^-1 A^T), S = I + A B^-1 A^T.
+        inverse = np.linalg.inv(base + ridge * np.eye(len(base)))
+        projected = added @ inverse
+        inner = projected @ added.transpose(0, 2, 1) + np.eye(added.shape[1])
+        weighted = projected @ weight @ projected.transpose(0, 2, 1)
+        reduction = np.trace(np.linalg.solve(inner, weighted), axis1=1, axis2=2)
+        return reduction - np.trace(weight @ inverse)
     if use_d_criterion or index == "O1":
         # log det(B + A^T A) = log det B + log det(I + A B^-1 A^T): r x r determinants per candidate.
         regularised = base + ridge * np.eye(len(base))
@@ -391,32 +434,52 @@ def _full_rank(information: np.ndarray) -> bool:
     return bool(eigenvalues[0] > RANK_TOLERANCE * eigenvalues[-1])
 
 
-def greedy_design(candidates: CandidateSet, n_postures: int, index: str = "O1",
-                  progress: Progress = _quiet, allowed: np.ndarray | None = None) -> tuple[np.ndarray, list[float]]:
+def greedy_design(candidates: CandidateSet, n_postures: int, index: str = "O1", progress: Progress = _quiet,
+                  kind_counts: dict[str, int] | None = None, screen: int = 300) -> tuple[np.ndarray, list[float]]:
     """Add, one at a time, the candidate that maximises the index; returns (design, D-criterion history).
 
     The history holds log det(M + delta I) after each pick: it never decreases.
+    ``kind_counts`` caps the postures of each kind.  The relative cost needs it:
+    there, a kind's first posture adds only its phi row (its differences need a
+    partner), so one-step greedy would never start the fixed-position kind.
+    For O2-O4 only the ``screen`` candidates with the best D-criterion gain are
+    scored exactly (54 x 54 eigenvalues each); O1 and I score every candidate.
     """
     _check_index(index)
     n = len(candidates)
     if n_postures > n:
         raise ValueError(f"cannot choose {n_postures} postures from {n} candidates")
-    available = np.ones(n, bool) if allowed is None else np.array(allowed, bool)
+    available = np.ones(n, bool)
+    remaining = dict(kind_counts) if kind_counts is not None else None
     ridge = RIDGE * _mean_posture_information(candidates)
     information = np.zeros((N_PARAMETERS, N_PARAMETERS))
     design: list[int] = []
     last_of_kind = {kind: -1 for kind in POSTURE_KINDS}
     history = []
+    if remaining is not None:
+        if sum(remaining.values()) < n_postures:
+            raise ValueError(f"kind_counts {remaining} allow fewer than {n_postures} postures")
+        available &= np.isin(candidates.kinds, [k for k, count in remaining.items() if count > 0])
     for step in range(n_postures):
         pool = np.flatnonzero(available)
+        if not len(pool):
+            raise ValueError(f"only {step} candidates fit the kind counts; {n_postures} requested")
         previous = np.array([last_of_kind[k] for k in candidates.kinds[pool]])
         added = candidates.slot_rows(pool, previous, np.full(len(pool), -1))
         d_phase = not _full_rank(information)
-        scores = _score(information, added, step + 1, index, ridge, d_phase)
+        if not (d_phase or index in ("O1", PREDICTION)) and len(pool) > screen:
+            keep = np.argsort(_score(information, added, step + 1, index, ridge, True))[-screen:]
+            pool, added = pool[keep], added[keep]
+        scores = _score(information, added, step + 1, index, ridge, d_phase, candidates.position_weight)
         best = int(np.argmax(scores))
         choice = int(pool[best])
         design.append(choice)
         available[choice] = False
+        if remaining is not None:
+            kind = candidates.kinds[choice]
+            remaining[kind] -= 1
+            if remaining[kind] <= 0:
+                available &= candidates.kinds != kind
         last_of_kind[candidates.kinds[choice]] = choice
         information = information + added[best].T @ added[best]
         history.append(float(np.linalg.slogdet(information + ridge * np.eye(N_PARAMETERS))[1]))
@@ -438,7 +501,7 @@ def exchange_design(candidates: CandidateSet, start: np.ndarray, index: str = "O
     ridge = RIDGE * _mean_posture_information(candidates)
     information = candidates.information(design)
     use_d = not _full_rank(information)
-    current = _design_criterion(information, len(design), index, ridge, use_d)
+    current = _design_criterion(information, len(design), index, ridge, use_d, candidates.position_weight)
     history = [current]
     for sweep in range(max_passes):
         swapped = False
@@ -452,11 +515,11 @@ def exchange_design(candidates: CandidateSet, start: np.ndarray, index: str = "O
             if not len(pool):
                 continue
             added = candidates.slot_rows(pool, np.full(len(pool), previous), np.full(len(pool), following))
-            if not (use_d or index == "O1") and len(pool) > screen:
+            if not (use_d or index in ("O1", PREDICTION)) and len(pool) > screen:
                 d_gain = _score(base, added, len(design), index, ridge, True)
                 keep = np.argsort(d_gain)[-screen:]
                 pool, added = pool[keep], added[keep]
-            scores = _score(base, added, len(design), index, ridge, use_d)
+            scores = _score(base, added, len(design), index, ridge, use_d, candidates.position_weight)
             best = int(np.argmax(scores))
             if scores[best] > current + 1e-12 * max(abs(current), 1.0):
                 design[slot] = pool[best]
@@ -470,7 +533,10 @@ def exchange_design(candidates: CandidateSet, start: np.ndarray, index: str = "O
     return design, history
 
 
-def _design_criterion(information: np.ndarray, n_postures: int, index: str, ridge: float, use_d: bool) -> float:
+def _design_criterion(information: np.ndarray, n_postures: int, index: str, ridge: float, use_d: bool,
+                      weight: np.ndarray | None = None) -> float:
+    if index == PREDICTION and not use_d:
+        return -float(np.trace(weight @ np.linalg.inv(information + ridge * np.eye(len(information)))))
     if use_d or index == "O1":
         return float(np.linalg.slogdet(information + ridge * np.eye(len(information)))[1])
     return float(_index_from_eigenvalues(np.linalg.eigvalsh(information), n_postures, index))
@@ -484,8 +550,8 @@ def _mean_posture_information(candidates: CandidateSet) -> float:
 
 
 def _check_index(index: str) -> None:
-    if index not in INDICES:
-        raise ValueError(f"unknown observability index {index!r}; choose one of {', '.join(INDICES)}")
+    if index not in CRITERIA:
+        raise ValueError(f"unknown observability index {index!r}; choose one of {', '.join(CRITERIA)}")
 
 
 def travel_order(poses: np.ndarray, kinds: np.ndarray, link_length: float, keep_order_within_kind: bool) -> np.ndarray:
@@ -632,23 +698,25 @@ class PlanningResult:
     candidates: CandidateSet
     design: np.ndarray  # candidate indices, in plan order
     selection_order: np.ndarray  # the same indices in the order greedy / exchange chose them
-    indices: dict[str, float]  # O1..O4 of the plan
+    indices: dict[str, float]  # O1..O4 of the plan, and I: its predicted RMS position error (see CandidateSet)
+    rank: int  # of its identification Jacobian: below 54 every index is 0
     greedy_history: list[float]
     exchange_history: list[float]
     candidate_seconds: float
     selection_seconds: float
 
     def random_indices(self, draws: int = 20, seed: int = 0) -> dict[str, float]:
-        """Mean O1..O4 of random plans of the same size and kind mix from the same candidates."""
+        """Mean O1..O4 and I of random plans of the same size and kind mix from the same candidates."""
         rng = np.random.default_rng(seed)
         kinds = self.candidates.kinds
         counts = {k: int(np.sum(self.plan.kinds == k)) for k in POSTURE_KINDS}
-        values = []
-        for _ in range(draws):
-            design = np.concatenate([rng.choice(np.flatnonzero(kinds == k), c, replace=False)
-                                     for k, c in counts.items() if c])
-            values.append(self.candidates.indices(design))
-        return {name: float(np.mean([v[name] for v in values])) for name in INDICES}
+        designs = [np.concatenate([rng.choice(np.flatnonzero(kinds == k), c, replace=False)
+                                   for k, c in counts.items() if c]) for _ in range(draws)]
+        values = [self.candidates.indices(design) for design in designs]
+        errors = [self.candidates.predicted_position_error(d) for d in designs]
+        means = {name: float(np.mean([v[name] for v in values])) for name in INDICES}
+        means[PREDICTION] = float(np.mean(errors))
+        return means
 
 
 def plan_postures(nominal: HexaParameters, n_postures: int, *, index: str = "O1", method: str = "greedy",
@@ -673,7 +741,11 @@ def plan_postures(nominal: HexaParameters, n_postures: int, *, index: str = "O1"
     candidates = build_candidate_set(nominal, poses, kinds, cost, device, sigma, noise)
     candidate_seconds = time.perf_counter() - started
     started = time.perf_counter()
-    design, greedy_history = greedy_design(candidates, n_postures, index, progress)
+    kind_counts = None
+    if cost == "relative":  # the paper's 3 sphere : 1 fixed (60 + 20, 30 + 10), as study.posture_split
+        fixed = max(n_postures // 4, 1) if np.any(kinds == FIXED) else 0
+        kind_counts = {SPHERE: n_postures - fixed, FIXED: fixed}
+    design, greedy_history = greedy_design(candidates, n_postures, index, progress, kind_counts)
     exchange_history: list[float] = []
     if method == "exchange":
         design, exchange_history = exchange_design(candidates, design, index, progress=progress)
@@ -682,11 +754,14 @@ def plan_postures(nominal: HexaParameters, n_postures: int, *, index: str = "O1"
     order = travel_order(poses[design], kinds[design], limits.link_length, keep_order_within_kind=cost == "relative")
     design = design[order]
     indices = candidates.indices(design)
+    indices[PREDICTION] = candidates.predicted_position_error(design)
+    rank = candidates.rank(design)
     weighting = "none" if noise is None else f"noise slider {noise.slider_m:g} m, angles {noise.angle_rad:g} rad"
     metadata = {
         "planner": "hexacal plan",
         "index": index,
         "index_value": indices[index],
+        "rank": rank,
         "method": method,
         "cost": cost,
         "weighting": weighting,
@@ -698,12 +773,12 @@ def plan_postures(nominal: HexaParameters, n_postures: int, *, index: str = "O1"
     plan = Plan(name or "plan", limits.link_length, poses[design], kinds[design], metadata)
     if name is None:  # default name: what it is and which postures
         plan.name = f"{method}-{index}-{n_postures}-{plan.fingerprint()}"
-    return PlanningResult(plan, candidates, design, selection_order, indices, greedy_history, exchange_history,
+    return PlanningResult(plan, candidates, design, selection_order, indices, rank, greedy_history, exchange_history,
                           candidate_seconds, selection_seconds)
 
 
 __all__ = [
-    "INDICES", "METHODS", "CandidateSet", "Plan", "PlanningResult", "PostureLimits", "build_candidate_set",
+    "CRITERIA", "INDICES", "METHODS", "PREDICTION", "CandidateSet", "Plan", "PlanningResult", "PostureLimits", "build_candidate_set",
     "default_fixed_fraction", "exchange_design", "generate_candidates", "greedy_design", "observability_index",
     "observability_indices", "plan_postures", "travel_order",
 ]

@@ -1,0 +1,408 @@
+"""The calibration report: a result file with everything, and a self-contained HTML page of it.
+
+``save_result`` writes a JSON file that is a superset of ``IdentificationResult.to_json()``
+(what ``hexacal calibrate --json`` prints): the same keys, plus under
+``report_data`` the vectors and arrays a report needs (SI units; NaN as null).
+``write_report`` turns such a file (or a plain ``--json`` output, with fewer
+figures, or an IdentificationResult) into DIR/index.html plus PNG figures.  The
+page embeds the PNGs as data URIs, so it opens offline and alone; the PNG files
+sit beside it for reuse.  A tiny inline script records on <body> how many images
+decoded (``data-images-loaded`` / ``data-images-total``), for headless checks.
+"""
+from __future__ import annotations
+
+import base64
+import html
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .core.device import DEFAULT_LINK_LENGTH_M
+from .core.model import N_PARAMETERS, parameter_names
+
+RESULT_FORMAT = "hexacal-result/1"
+UM, MM = 1e6, 1e3
+MAP_GRID = 41  # cells per axis of the predicted pose-error map
+
+
+# --------------------------------------------------------------------------- result file
+def result_payload(result, extras: dict | None = None, *, measurements=None, true_parameters=None,
+                   link_length: float | None = None) -> dict:
+    """``result.to_json()`` plus the arrays of ``report_data`` (see module doc)."""
+    payload = result.to_json()
+    used = [int(i) for i in result.used_postures]
+    kinds = None
+    if measurements is not None:
+        kinds = [str(k) for k in np.asarray(measurements.kinds)[used]]
+    identifiability = result.identifiability
+    truth = None
+    if true_parameters is not None:
+        truth = np.asarray(getattr(true_parameters, "vector", true_parameters), dtype=float)[:N_PARAMETERS]
+    if link_length is None:
+        link_length = DEFAULT_LINK_LENGTH_M
+    payload["format"] = RESULT_FORMAT
+    payload["report_data"] = _plain({
+        "parameter_names": parameter_names(),
+        "parameters": result.parameters.vector,
+        "initial_parameters": result.initial_parameters.vector,
+        "true_parameters": truth,
+        "std": np.asarray(result.std, dtype=float)[:N_PARAMETERS],
+        "covariance": np.asarray(result.covariance, dtype=float)[:N_PARAMETERS, :N_PARAMETERS],
+        "initial_rms_residual": result.initial_rms_residual,
+        "residuals": {"values": result.residuals, "channels": [str(c) for c in result.residual_channels],
+                      "postures": [int(p) for p in result.residual_postures]},
+        "used_postures": used,
+        "poses": result.poses if result.poses is not None else [],
+        "kinds": kinds,
+        "singular_values": identifiability.singular_values,
+        "verdict": identifiability.verdict(),
+        "link_length": link_length,
+        "extras": extras or {},
+    })
+    return payload
+
+
+def save_result(path: Path | str, result, extras: dict | None = None, *, measurements=None,
+                true_parameters=None, link_length: float | None = None) -> Path:
+    """Write ``result_payload`` as strict JSON, atomically."""
+    payload = result_payload(result, extras, measurements=measurements, true_parameters=true_parameters,
+                             link_length=link_length)
+    return _atomic_write(Path(path), json.dumps(_plain(payload), allow_nan=False))
+
+
+def load_result(path: Path | str) -> dict:
+    """A result file: from save_result, or a plain ``--json`` output (then without report_data)."""
+    try:
+        payload = json.loads(Path(path).read_text(encoding="utf-8"))
+    except json.JSONDecodeError as error:
+        raise ValueError(f"{path}: not a JSON result file ({error})") from None
+    if not isinstance(payload, dict) or "rank" not in payload or "reason" not in payload:
+        raise ValueError(f"{path}: not a hexacal result (expected the output of save_result or "
+                         "`hexacal calibrate --json`, with 'rank' and 'reason')")
+    return payload
+
+
+def _plain(value: Any) -> Any:
+    """JSON-safe builtins; NaN and inf become null."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, np.generic):
+        return _plain(value.item())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def _atomic_write(path: Path, content: str | bytes) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(handle, "wb") as stream:
+            stream.write(content.encode("utf-8") if isinstance(content, str) else content)
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.chmod(temporary, 0o644)
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+    return path
+
+
+# --------------------------------------------------------------------------- the report
+def write_report(source, out_dir: Path | str, *, title: str | None = None, **result_options) -> Path:
+    """DIR/index.html (+ PNGs) from a result file path, a payload dict, or an IdentificationResult.
+
+    With an IdentificationResult, ``result_options`` are those of ``result_payload``
+    (measurements, true_parameters, link_length, extras): what the identify node passes.
+    """
+    if isinstance(source, (str, Path)):
+        payload = load_result(source)
+        title = title or f"hexacal calibration report: {Path(source).name}"
+    elif isinstance(source, dict):
+        payload = source
+    else:
+        payload = _plain(result_payload(source, **result_options))
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    sections = _Sections(payload, out)
+    page = _page(title or "hexacal calibration report", sections.build())
+    return _atomic_write(out / "index.html", page)
+
+
+def _vector(values) -> np.ndarray | None:
+    if values is None:
+        return None
+    return np.array([np.nan if v is None else v for v in values], dtype=float)
+
+
+def _parameters_from_chain_dict(chains: dict | None) -> np.ndarray | None:
+    if not chains:
+        return None
+    from hexacal_msgs_py.parameters_file import chain_dict_to_parameters
+
+    return np.asarray(chain_dict_to_parameters(chains), dtype=float)
+
+
+class _Sections:
+    """Builds each section's HTML and figure from a payload; a section without its data says so."""
+
+    def __init__(self, payload: dict, out: Path):
+        self.payload = payload
+        self.out = out
+        data = payload.get("report_data") or {}
+        self.data = data
+        self.parameters = _vector(data.get("parameters"))
+        if self.parameters is None:
+            self.parameters = _parameters_from_chain_dict(payload.get("parameters"))
+        self.initial = _vector(data.get("initial_parameters"))
+        self.truth = _vector(data.get("true_parameters"))
+        std = _vector(data.get("std"))
+        if std is None and payload.get("std"):  # plain --json output: -1 marks an unknown std
+            std = _parameters_from_chain_dict(payload["std"])
+            std = np.where(std < 0, np.nan, std)
+        self.std = std
+        covariance = data.get("covariance")
+        self.covariance = None if covariance is None else np.array(
+            [[np.nan if v is None else v for v in row] for row in covariance], dtype=float)
+        self.names = data.get("parameter_names") or parameter_names()
+        self.link_length = float(data.get("link_length") or DEFAULT_LINK_LENGTH_M)
+
+    def build(self) -> list[str]:
+        parts = [self.summary()]
+        for section in (self.corrections, self.truth_errors, self.residuals, self.identifiability,
+                        self.pose_error_map, self.postures):
+            parts.append(section())
+        return parts
+
+    # -- helpers
+    def figure(self, name: str, draw) -> str:
+        path = draw(self.out / name)
+        encoded = base64.b64encode(Path(path).read_bytes()).decode("ascii")
+        return (f'<figure><img src="data:image/png;base64,{encoded}" alt="{html.escape(name)}">'
+                f'<figcaption>{html.escape(name)}</figcaption></figure>')
+
+    @staticmethod
+    def missing(title: str, why: str) -> str:
+        return f"<section><h2>{html.escape(title)}</h2><p class='note'>Not shown: {html.escape(why)}.</p></section>"
+
+    # -- sections
+    def summary(self) -> str:
+        p = self.payload
+        rows = [
+            ("Outcome", p.get("reason"), "outcome"),
+            ("Cost function", p.get("cost"), "cost"),
+            ("Rank", f"{p.get('rank')} of {(p.get('identifiability') or {}).get('n_parameters', N_PARAMETERS)}", "rank"),
+            ("Condition number (column-scaled)", _fmt(p.get("condition_number"), "{:.4g}"), "condition"),
+            ("Iterations", p.get("iterations"), "iterations"),
+            ("Solve time", _fmt(p.get("solve_seconds"), "{:.3f} s"), "solve-time"),
+            ("Postures used", p.get("postures_used"), "postures-used"),
+            ("Postures rejected", len(p.get("postures_rejected") or []), "postures-rejected"),
+        ]
+        initial_rms = self.data.get("initial_rms_residual") or {}
+        for channel, value in (p.get("rms_residual") or {}).items():
+            scale, unit = (UM, "urad") if channel.startswith("phi") else (UM, "um")
+            before = initial_rms.get(channel)
+            text = f"{value * scale:.3f} {unit}" if value is not None else "n/a"
+            if before is not None:
+                text += f" (before: {before * scale:.3f} {unit})"
+            rows.append((f"RMS residual {channel}", text, f"rms-{channel}"))
+        if self.parameters is not None and self.initial is not None:
+            correction = self.parameters - self.initial
+            k = int(np.nanargmax(np.abs(correction)))
+            rows.append(("Largest correction", f"{correction[k] * MM:+.4f} mm ({self.names[k]})", "largest-correction"))
+        if self.std is not None and np.any(np.isfinite(self.std)):
+            k = int(np.nanargmax(self.std))
+            rows.append(("Largest std", f"{self.std[k] * UM:.3f} um ({self.names[k]})", "largest-std"))
+        if self.truth is not None and self.initial is not None and self.parameters is not None:
+            before = np.max(np.abs(self.initial - self.truth))
+            after = np.max(np.abs(self.parameters - self.truth))
+            rows.append(("Largest parameter error (truth known)", f"before {before * MM:.4f} mm, after {after * UM:.3f} um",
+                         "truth-error"))
+        validation = (self.data.get("extras") or {}).get("validation") or p.get("validation")
+        if validation:
+            for when in ("before", "after"):
+                v = validation.get(when) or {}
+                if "position_mean_m" in v:
+                    rows.append((f"Validation pose error {when}",
+                                 f"{v['position_mean_m'] * UM:.2f} um, {math.degrees(v['orientation_mean_rad']):.5f} deg",
+                                 f"validation-{when}"))
+        table = "".join(f"<tr><th>{html.escape(str(k))}</th><td id='{i}'>{html.escape(str(v))}</td></tr>"
+                        for k, v, i in rows)
+        rejected = p.get("postures_rejected") or []
+        rejected_html = ""
+        if rejected:
+            items = "".join(f"<li>posture {r.get('index')}: {html.escape(str(r.get('reason')))}</li>" for r in rejected)
+            rejected_html = f"<h3>Rejected postures</h3><ul>{items}</ul>"
+        return f"<section><h2>Summary</h2><table class='summary'>{table}</table>{rejected_html}</section>"
+
+    def corrections(self) -> str:
+        title = "Parameter corrections and their standard deviations"
+        if self.parameters is None or self.initial is None or self.std is None:
+            return self.missing(title, "the result file has no initial parameters (save it with report.save_result)")
+        from . import figures
+
+        correction = self.parameters - self.initial
+        image = self.figure("corrections.png", lambda path: figures.parameter_corrections(correction, self.std, path))
+        rows = "".join(
+            f"<tr><td>{html.escape(n)}</td><td>{c * MM:+.4f}</td><td>{_fmt(s * UM, '{:.3f}')}</td></tr>"
+            for n, c, s in zip(self.names, correction, self.std))
+        table = ("<details><summary>All 54 parameters</summary><table class='data'><tr><th>parameter</th>"
+                 f"<th>correction [mm]</th><th>std [um]</th></tr>{rows}</table></details>")
+        return f"<section><h2>{title}</h2>{image}{table}</section>"
+
+    def truth_errors(self) -> str:
+        title = "Errors before and after, per chain (simulation: truth known)"
+        if self.truth is None or self.initial is None or self.parameters is None:
+            return self.missing(title, "the true parameters are not known (a real machine)")
+        from . import figures
+
+        before, after = self.initial - self.truth, self.parameters - self.truth
+        images = self.figure("parameter_errors.png", lambda path: figures.parameter_errors(
+            before, after, "Parameter errors before (square) and after (circle), cf. paper Figs. 4-6", path))
+        images += self.figure("chain_errors.png", lambda path: figures.chain_errors(
+            before, after, "Errors in kinematic chains, cf. paper Figs. 7-9", path))
+        return f"<section><h2>{title}</h2>{images}</section>"
+
+    def residuals(self) -> str:
+        title = "Residuals per posture and channel"
+        residuals = self.data.get("residuals")
+        if not residuals or not residuals.get("values"):
+            return self.missing(title, "the result file has no residual rows")
+        from . import figures
+
+        values = _vector(residuals["values"])
+        image = self.figure("residuals.png", lambda path: figures.residuals_by_posture(
+            np.asarray(residuals["postures"]), values, np.asarray(residuals["channels"]), path))
+        return f"<section><h2>{title}</h2>{image}</section>"
+
+    def identifiability(self) -> str:
+        title = "Identifiability: singular values of the scaled identification Jacobian"
+        identifiability = self.payload.get("identifiability") or {}
+        singular = self.data.get("singular_values") or identifiability.get("singular_values")
+        verdict = self.data.get("verdict") or _verdict_from_json(identifiability)
+        if not singular:
+            return self.missing(title, "the result file has no singular values")
+        from . import figures
+        from .core.identifiability import DEFAULT_RANK_TOLERANCE
+
+        image = self.figure("singular_values.png", lambda path: figures.singular_values(
+            {"this calibration": _vector(singular)}, DEFAULT_RANK_TOLERANCE, path))
+        return (f"<section><h2>{title}</h2><p class='verdict' id='verdict'>{html.escape(verdict)}</p>"
+                f"{image}</section>")
+
+    def pose_error_map(self) -> str:
+        title = "Predicted position error over the workspace"
+        if self.covariance is None or self.parameters is None:
+            return self.missing(title, "the result file has no covariance")
+        from . import figures
+
+        x, y, std = predicted_position_error_map(self.parameters, self.covariance, self.link_length)
+        poses = np.array(self.data.get("poses") or np.zeros((0, 6)), dtype=float).reshape(-1, 6)
+        image = self.figure("pose_error_map.png", lambda path: figures.pose_error_map(x, y, std, path, poses[:, :2]))
+        finite = std[np.isfinite(std)]
+        numbers = (f"<p>Linearised: std = sqrt(trace(J_p C J_p<sup>T</sup>)), J_p = dP/du at each (x, y) on the "
+                   f"L-sphere with zero rotation, C the parameter covariance. Median {np.median(finite) * UM:.2f} um, "
+                   f"max {np.max(finite) * UM:.2f} um over the feasible cells.</p>") if finite.size else ""
+        return f"<section><h2>{title}</h2>{numbers}{image}</section>"
+
+    def postures(self) -> str:
+        title = "Postures used"
+        poses = np.array(self.data.get("poses") or [], dtype=float).reshape(-1, 6)
+        if not len(poses):
+            return self.missing(title, "the result file has no poses")
+        from . import figures
+
+        kinds = self.data.get("kinds")
+        if kinds is None:  # not recorded: a posture at [0, 0, -L] within 1 mm was a fixed-position one
+            at_fixed = np.linalg.norm(poses[:, :3] - [0.0, 0.0, -self.link_length], axis=1) < 1e-3
+            kinds = np.where(at_fixed, "fixed", "sphere")
+        image = self.figure("postures.png", lambda path: figures.postures_on_sphere(poses, np.asarray(kinds), path))
+        return f"<section><h2>{title}</h2>{image}</section>"
+
+
+def predicted_position_error_map(parameters: np.ndarray, covariance: np.ndarray, link_length: float,
+                                 grid: int = MAP_GRID, xy_range_m: float = 0.4):
+    """(x, y, std) of the linearised position error, sqrt(trace(J_p C J_p^T)), on an x, y grid (m).
+
+    J_p = dP/du at (x, y, -sqrt(L^2 - x^2 - y^2), 0, 0, 0); cells the machine cannot
+    reach (postures.Workspace) are NaN.  Parameters without a variance count as exact.
+    """
+    from .core.kinematics import pose_parameter_sensitivity
+    from .core.model import HexaParameters
+    from .core.postures import Workspace, acceptable_poses
+
+    params = HexaParameters(np.asarray(parameters, dtype=float)[:N_PARAMETERS])
+    axis = np.linspace(-xy_range_m, xy_range_m, grid)
+    x, y = np.meshgrid(axis, axis)
+    radius2 = link_length**2 - x**2 - y**2
+    poses = np.column_stack([x.ravel(), y.ravel(), -np.sqrt(np.maximum(radius2, 0.0)).ravel(), np.zeros((x.size, 3))])
+    ok = (radius2.ravel() > 0) & acceptable_poses(params, poses, Workspace(link_length=link_length))
+    std = np.full(x.size, np.nan)
+    if np.any(ok):
+        sensitivity, _ = pose_parameter_sensitivity(params, poses[ok])
+        cov = np.nan_to_num(np.asarray(covariance, dtype=float)[:N_PARAMETERS, :N_PARAMETERS], nan=0.0, posinf=0.0)
+        position = sensitivity[:, :3, :]
+        std[ok] = np.sqrt(np.maximum(np.einsum("nik,kl,nil->n", position, cov, position), 0.0))
+    return x, y, std.reshape(x.shape)
+
+
+def _verdict_from_json(identifiability: dict) -> str:
+    if not identifiability:
+        return "unknown"
+    if identifiability.get("identifiable"):
+        return (f"all {identifiability.get('n_parameters')} parameters identifiable (rank {identifiability.get('rank')}, "
+                f"condition number {identifiability.get('condition_number', float('nan')):.3g})")
+    combos = "; ".join(identifiability.get("unidentifiable_combinations") or [])
+    return f"rank {identifiability.get('rank')} of {identifiability.get('n_parameters')}: not identifiable: {combos}"
+
+
+def _fmt(value, pattern: str) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "n/a"
+    return pattern.format(value)
+
+
+_STYLE = """
+body { font-family: sans-serif; margin: 2em auto; max-width: 1150px; color: #222; }
+h1 { font-size: 1.5em; } h2 { font-size: 1.2em; border-bottom: 1px solid #ccc; margin-top: 2em; }
+table.summary th { text-align: left; padding-right: 2em; font-weight: normal; color: #555; }
+table.data { border-collapse: collapse; font-size: 0.85em; } table.data td, table.data th { padding: 1px 8px; }
+figure { margin: 1em 0; } img { max-width: 100%; } figcaption { font-size: 0.8em; color: #777; }
+.verdict { font-weight: bold; white-space: pre-wrap; } .note { color: #777; }
+"""
+
+# Counts the images that decoded once the page has loaded, for headless checks (works offline: no requests).
+_IMAGE_CHECK = """
+window.addEventListener('load', function () {
+  var images = document.images, loaded = 0;
+  for (var i = 0; i < images.length; i++) { if (images[i].complete && images[i].naturalWidth > 0) loaded++; }
+  document.body.setAttribute('data-images-loaded', String(loaded));
+  document.body.setAttribute('data-images-total', String(images.length));
+});
+"""
+
+
+def _page(title: str, sections: list[str]) -> str:
+    return (
+        "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
+        f"<title>{html.escape(title)}</title><style>{_STYLE}</style></head>\n<body>"
+        f"<h1>{html.escape(title)}</h1>"
+        "<p class='note'>Units: parameters in mm (rail components a as 1000 x the unit vector), standard deviations "
+        "and residuals in um and urad; the files hold SI units.</p>\n"
+        + "\n".join(sections)
+        + f"\n<script>{_IMAGE_CHECK}</script></body></html>\n"
+    )
+
+
+__all__ = ["RESULT_FORMAT", "load_result", "predicted_position_error_map", "result_payload", "save_result",
+           "write_report"]
