@@ -1,4 +1,5 @@
 """``hexacal calibrate`` and ``hexacal bag-info`` on bags of known content, as a user runs them."""
+import base64
 import json
 import subprocess
 import sys
@@ -107,3 +108,22 @@ def test_bag_info_lists_topics_counts_and_postures(recorded):
     assert "Topic: /hexacal/posture | Type: sensor_msgs/msg/JointState | Count: 40" in text
     assert "/hexacal/sliders" in text and "Duration:" in text
     assert "Postures:          40 (from the posture topic)" in text
+
+
+def test_calibrate_writes_a_report_and_a_result_the_report_command_reads(recorded, nominal_file, tmp_path):
+    completed = hexacal("calibrate", recorded, "--nominal", nominal_file, "--output", tmp_path / "out.yaml",
+                        "--report", tmp_path / "report", "--save-result", tmp_path / "result.json")
+    assert completed.returncode == 0, completed.stderr
+    page = (tmp_path / "report" / "index.html").read_text()
+    assert "converged" in page and "54" in page
+    images = [part.split('"')[0] for part in page.split('src="')[1:]]
+    assert len(images) >= 4
+    for source in images:  # embedded PNGs (self-contained page) or files beside it
+        if source.startswith("data:image/png;base64,"):
+            png = base64.b64decode(source.split(",", 1)[1])
+        else:
+            png = (tmp_path / "report" / source).read_bytes()
+        assert png.startswith(b"\x89PNG") and len(png) > 1000
+    again = hexacal("report", tmp_path / "result.json", "--out", tmp_path / "again")
+    assert again.returncode == 0, again.stderr
+    assert (tmp_path / "again" / "index.html").exists()

@@ -38,6 +38,10 @@ def add_parsers(subparsers) -> None:
     calibrate.add_argument("--noise-um", type=float, default=None,
                            help="known reading noise half-width (um on sliders, urad on angles): weight residuals by it")
     calibrate.add_argument("--robust", choices=ROBUST_LOSSES, default=None, help="robust loss (huber or soft_l1)")
+    calibrate.add_argument("--save-result", type=Path, default=None, metavar="FILE",
+                           help="write the full result (what `hexacal report` reads) as JSON")
+    calibrate.add_argument("--report", type=Path, default=None, metavar="DIR",
+                           help="write the HTML calibration report (index.html + PNG figures) into DIR")
     calibrate.add_argument("--json", action="store_true", help="print the result as one JSON object")
     calibrate.set_defaults(handler=run_calibrate)
 
@@ -51,7 +55,8 @@ def add_parsers(subparsers) -> None:
 def run_calibrate(args) -> int:
     from hexacal_msgs_py.parameters_file import save_parameters
 
-    from .pipeline import calibrate, postures_from_bag
+    from .pipeline import calibrate, measurements_from_postures, postures_from_bag
+    from .report import save_result, write_report
 
     nominal = load_params_arg(args.nominal)
     if args.output.exists() and args.output.is_dir():
@@ -64,6 +69,13 @@ def run_calibrate(args) -> int:
                f"{result.reason}), SI units")
     if result.reason == CONVERGED:
         save_parameters(args.output, result.parameters.vector, header_comment=comment)
+    measurements = measurements_from_postures(bag.postures)
+    extras = {"bag": str(args.bag), "nominal": str(args.nominal)}
+    if args.save_result:
+        save_result(args.save_result, result, extras, measurements=measurements, link_length=args.link_length)
+    if args.report:
+        write_report(result, args.report, title=f"hexacal calibration report: {args.bag}", extras=extras,
+                     measurements=measurements, link_length=args.link_length)
     if args.json:
         payload = result.to_json()
         payload["bag"] = {"path": str(args.bag), "postures": len(bag.postures), "source": bag.source,
