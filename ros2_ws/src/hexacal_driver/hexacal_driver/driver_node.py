@@ -1,0 +1,278 @@
+"""Node `driver`: the simulated Hexa Slide machine with the measuring device attached.
+
+Walks a posture plan on the true machine and publishes, at `rate_hz`, the
+slider positions (`hexacal/sliders`), the inclinometer angles
+(`hexacal/inclinometer`) and the rotary angle (`hexacal/encoder`), each with
+fresh uniform noise, stamped with the node clock (SENSOR_QOS, SI units).
+
+The machine starts standing at the plan's first posture. With
+`wait_for_subscriber` (default) it holds there until something subscribes to
+the slider stream, so a collector started a little later still sees every
+posture. When the plan is done it stands at the last posture (still
+publishing), or walks the plan again with `loop`.
+
+The math lives in `simulation.py` and `plan.py`; this node keeps time and publishes.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+import sys
+import time
+
+import numpy as np
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
+import rclpy
+from rclpy.exceptions import InvalidParameterValueException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+
+from hexacal_driver.plan import GENERATED_PLANS, PlanError, PosturePlan, load_plan, resolve_plan
+from hexacal_driver.simulation import DONE, DWELLING, PlanWalker, SensorSimulator
+from hexacal_identify.core.measurements import NoiseModel
+from hexacal_identify.core.model import HexaParameters, table1_parameters
+from hexacal_msgs_py.conversions import (
+    encoder_reading_to_joint_state,
+    inclinometer_reading_to_joint_state,
+    slider_reading_to_joint_state,
+)
+from hexacal_msgs_py.errors import ParameterFileError
+from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, SLIDERS_TOPIC
+from hexacal_msgs_py.parameters_file import load_parameters
+from hexacal_msgs_py.qos import SENSOR_QOS
+from hexacal_msgs_py.readings import EncoderReading, InclinometerReading, SliderReading
+
+NODE_NAME = 'driver'
+# Parameters that may change while the node runs; all others shape the plan and are read-only.
+RUNTIME_PARAMETERS = ('slider_noise_m', 'angle_noise_rad')
+
+
+@dataclass(frozen=True)
+class _Spec:
+    default: object
+    description: str
+    low: float | int | None = None
+    high: float | int | None = None
+    constraints: str = ''
+
+
+PARAMETERS: dict[str, _Spec] = {
+    'true_params': _Spec('', 'parameters YAML (SI) of the simulated true machine; '
+                         'empty: Table 1 of the paper'),
+    'link_length': _Spec(0.75, 'measuring link length L between the U-joint centres (m)',
+                         0.1, 5.0),
+    'slider_noise_m': _Spec(1e-5, 'half-width of the uniform slider noise (m)', 0.0, 0.01),
+    'angle_noise_rad': _Spec(1e-5, 'half-width of the uniform inclinometer and rotary noise '
+                             '(rad)', 0.0, 0.1),
+    'seed': _Spec(0, 'seed of the random plan and of the noise', 0, 2**31 - 1),
+    'rate_hz': _Spec(100.0, 'publishing rate of every sensor stream (Hz)', 1.0, 1000.0),
+    'settle_s': _Spec(1.0, 'time to move from one posture to the next (s)', 0.05, 600.0),
+    'dwell_s': _Spec(1.5, 'time standing still at each posture (s)', 0.1, 3600.0),
+    'plan': _Spec('random', 'posture plan: random (sphere postures), fixed (fixed-position '
+                  'postures), mixed (3 sphere : 1 fixed) or the path of a plan YAML',
+                  constraints="'random', 'fixed', 'mixed' or an existing plan file"),
+    'postures': _Spec(50, 'number of postures of a random, fixed or mixed plan', 1, 100000),
+    'loop': _Spec(False, 'walk the plan again when done (else stand at the last posture)'),
+    'wait_for_subscriber': _Spec(True, 'hold the first posture until hexacal/sliders has a '
+                                 'subscriber'),
+}
+
+
+class DriverConfigurationError(Exception):
+    """The node's parameters do not describe a machine and plan it can simulate."""
+
+
+def _descriptor(name: str, spec: _Spec) -> ParameterDescriptor:
+    descriptor = ParameterDescriptor(
+        name=name, description=spec.description, additional_constraints=spec.constraints,
+        read_only=name not in RUNTIME_PARAMETERS)
+    if isinstance(spec.default, float):
+        descriptor.floating_point_range = [FloatingPointRange(
+            from_value=float(spec.low), to_value=float(spec.high), step=0.0)]
+    elif isinstance(spec.default, int) and not isinstance(spec.default, bool):
+        descriptor.integer_range = [IntegerRange(
+            from_value=int(spec.low), to_value=int(spec.high), step=1)]
+    return descriptor
+
+
+def _parameter_problem(parameter: Parameter) -> str | None:
+    """Checks beyond type and range (which the descriptors enforce)."""
+    value = parameter.value
+    if parameter.name == 'plan':
+        if value in GENERATED_PLANS:
+            return None
+        if not value:
+            return f"plan must be one of {list(GENERATED_PLANS)} or a plan file path, got ''"
+        try:
+            load_plan(value)
+        except PlanError as error:
+            return (f'plan {value!r} is neither one of {list(GENERATED_PLANS)} nor a valid '
+                    f'plan file: {error}')
+    elif parameter.name == 'true_params' and value:
+        try:
+            load_parameters(value)
+        except ParameterFileError as error:
+            return f'true_params: {error}'
+    elif parameter.name in ('link_length', 'rate_hz', 'settle_s', 'dwell_s', 'slider_noise_m',
+                            'angle_noise_rad') and not math.isfinite(value):
+        return f'{parameter.name} must be finite, got {value}'
+    return None
+
+
+class DriverNode(Node):
+    """Simulated machine + device: plan walker, noisy sensors, three SENSOR_QOS publishers."""
+
+    def __init__(self) -> None:
+        super().__init__(NODE_NAME)
+        # Registered before declaring, so command-line overrides are validated too.
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        for name, spec in PARAMETERS.items():
+            self.declare_parameter(name, spec.default, _descriptor(name, spec))
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        value = {name: self.get_parameter(name).value for name in PARAMETERS}
+
+        self.true_params = self._load_true_params(value['true_params'])
+        try:
+            self.plan: PosturePlan = resolve_plan(value['plan'], self.true_params,
+                                                  value['postures'], value['seed'],
+                                                  value['link_length'])
+        except PlanError as error:
+            raise DriverConfigurationError(str(error)) from error
+        self.declare_parameter('plan_name', self.plan.name, ParameterDescriptor(
+            description='name of the plan being walked (set by the node)', read_only=True),
+            ignore_override=True)
+        self.walker = PlanWalker(self.true_params, self.plan.poses, value['settle_s'],
+                                 value['dwell_s'], value['loop'])
+        # Noise draws from their own stream: the same seed gives the same plan whatever the noise.
+        self.sensors = SensorSimulator(
+            NoiseModel(value['slider_noise_m'], value['angle_noise_rad']),
+            np.random.default_rng([value['seed'], 0x5E45]))
+        self.rate_hz = float(value['rate_hz'])
+        self.wait_for_subscriber = bool(value['wait_for_subscriber'])
+
+        self._sliders_pub = self.create_publisher(JointState, SLIDERS_TOPIC, SENSOR_QOS)
+        self._inclinometer_pub = self.create_publisher(JointState, INCLINOMETER_TOPIC, SENSOR_QOS)
+        self._encoder_pub = self.create_publisher(JointState, ENCODER_TOPIC, SENSOR_QOS)
+        self._ticks = 0  # plan time is ticks / rate_hz: every posture gets its samples under load
+        self._started = False
+        self._started_monotonic = 0.0
+        self._last_reported: tuple[int, int, str] | None = None
+        self._timer = self.create_timer(1.0 / self.rate_hz, self._tick)
+
+        source = 'Table 1' if not value['true_params'] else value['true_params']
+        self.get_logger().info(
+            f'{self.plan.describe()}; true machine: {source}; {self.rate_hz:g} Hz, settle '
+            f"{self.walker.settle_s:g} s, dwell {self.walker.dwell_s:g} s (one pass "
+            f'{self.walker.lap_duration_s:.1f} s), noise +-{self.sensors.noise.slider_m:g} m / '
+            f"+-{self.sensors.noise.angle_rad:g} rad{', looping' if self.walker.loop else ''}")
+        if self.wait_for_subscriber:
+            self.get_logger().info(
+                f'holding the first posture until {self._sliders_pub.topic_name} has a subscriber')
+
+    # ------------------------------------------------------------------ parameters
+
+    def _load_true_params(self, path: str) -> HexaParameters:
+        if not path:
+            return table1_parameters()
+        try:
+            return HexaParameters(load_parameters(path))
+        except (ParameterFileError, ValueError) as error:
+            raise DriverConfigurationError(f'true_params: {error}') from error
+
+    def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        for parameter in parameters:
+            problem = _parameter_problem(parameter)
+            if problem:
+                return SetParametersResult(successful=False, reason=problem)
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, parameters: list[Parameter]) -> None:
+        if not hasattr(self, 'sensors'):
+            return  # still declaring
+        noise = self.sensors.noise
+        for parameter in parameters:
+            if parameter.name == 'slider_noise_m':
+                noise = NoiseModel(parameter.value, noise.angle_rad)
+            elif parameter.name == 'angle_noise_rad':
+                noise = NoiseModel(noise.slider_m, parameter.value)
+        if noise != self.sensors.noise:
+            self.sensors.noise = noise
+            self.get_logger().info(
+                f'noise now +-{noise.slider_m:g} m / +-{noise.angle_rad:g} rad')
+
+    # ------------------------------------------------------------------ publishing
+
+    def _tick(self) -> None:
+        if not self._started:
+            if self.wait_for_subscriber and self.count_subscribers(
+                    self._sliders_pub.topic_name) == 0:
+                self._publish(self.walker.sample(0.0))
+                return
+            self._started = True
+            self._started_monotonic = time.monotonic()
+            self.get_logger().info(f"starting plan '{self.plan.name}'")
+        sample = self.walker.sample(self._ticks / self.rate_hz)
+        self._ticks += 1
+        self._publish(sample)
+        self._report(sample.posture_index, sample.lap, sample.phase)
+
+    def _publish(self, sample) -> None:
+        readings = self.sensors.read(sample)
+        # One stamp for the three: the sensors are sampled together.
+        stamp = self.get_clock().now().nanoseconds
+        self._sliders_pub.publish(slider_reading_to_joint_state(
+            SliderReading(stamp, tuple(readings.sliders_m.tolist()))))
+        self._inclinometer_pub.publish(inclinometer_reading_to_joint_state(
+            InclinometerReading(stamp, readings.alpha_rad, readings.beta_rad)))
+        self._encoder_pub.publish(encoder_reading_to_joint_state(
+            EncoderReading(stamp, readings.phi_rad)))
+
+    def _report(self, index: int, lap: int, phase: str) -> None:
+        state = (index, lap, phase)
+        if phase not in (DWELLING, DONE) or state == self._last_reported:
+            return
+        self._last_reported = state
+        elapsed = time.monotonic() - self._started_monotonic
+        if phase == DONE:
+            self.get_logger().info(
+                f"end of plan '{self.plan.name}': {len(self.plan)} postures in {elapsed:.1f} s; "
+                'standing at the last posture')
+            return
+        pose = self.plan.poses[index]
+        lap_text = f' (lap {lap + 1})' if self.walker.loop else ''
+        self.get_logger().info(
+            f'posture {index + 1}/{len(self.plan)}{lap_text} ({self.plan.kinds[index]}): '
+            f'position [{pose[0] * 1e3:.1f}, {pose[1] * 1e3:.1f}, {pose[2] * 1e3:.1f}] mm, '
+            f'angles [{math.degrees(pose[3]):.1f}, {math.degrees(pose[4]):.1f}, '
+            f'{math.degrees(pose[5]):.1f}] deg')
+        if self.walker.loop and index == len(self.plan) - 1:
+            self.get_logger().info(f"end of plan '{self.plan.name}' lap {lap + 1}: looping")
+
+
+def main(args: list[str] | None = None) -> int:
+    rclpy.init(args=args)
+    try:
+        node = DriverNode()
+    except (DriverConfigurationError, InvalidParameterValueException) as error:
+        rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {error}')
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main(sys.argv))

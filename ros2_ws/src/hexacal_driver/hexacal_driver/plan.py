@@ -1,0 +1,305 @@
+"""Posture plans: which postures the simulated machine visits, in which order (ROS-free).
+
+A plan is a list of platform poses ``[x, y, z, theta, psi, phi]`` (m, rad, the
+paper's eq. 1), each of one kind:
+
+* ``sphere``: the measuring link is free, so the platform lies on the sphere of
+  radius L (the link length) below the base joint O;
+* ``fixed``: the inclinometer reads zero, so the platform sits at ``[0, 0, -L]``
+  and only its orientation varies (section 3.2's second procedure).
+
+Plan file (YAML, SI units)::
+
+    plan:
+      name: my-plan
+      link_length: 0.75
+    postures:
+      - {kind: sphere, pose: [0.1, -0.2, -0.7141428428542851, 0.1, 0.0, -0.2]}
+      - {kind: fixed,  pose: [0.0, 0.0, -0.75, 0.3, -0.1, 0.25]}
+
+`load_plan` checks everything it can without a machine model and raises
+`PlanError` naming the file, the posture and the problem; `check_reachable`
+then checks a plan against a machine's parameters.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from hexacal_identify.core.device import DEFAULT_LINK_LENGTH_M, inclinometer_angles
+from hexacal_identify.core.errors import UnreachablePoseError
+from hexacal_identify.core.kinematics import inverse_kinematics
+from hexacal_identify.core.measurements import FIXED, POSTURE_KINDS, SPHERE, MeasurementLimits
+from hexacal_identify.core.model import HexaParameters
+from hexacal_identify.core.postures import Workspace, sample_poses
+
+RANDOM_PLAN = 'random'  # sphere postures only
+FIXED_PLAN = 'fixed'  # fixed-position postures only
+MIXED_PLAN = 'mixed'  # 3 sphere : 1 fixed, interleaved
+GENERATED_PLANS = (RANDOM_PLAN, FIXED_PLAN, MIXED_PLAN)
+
+# A posture of a plan file must be on the link sphere (or at [0, 0, -L]) to within this:
+# the device makes any other position physically impossible. Files written by save_plan
+# (repr floats) are exact.
+POSITION_TOLERANCE_M = 1e-6
+MAX_TILT_RAD = math.pi / 2  # |theta|, |psi|: beyond this the Euler angles are ambiguous
+
+_PLAN_KEYS = {'name', 'link_length'}
+_POSTURE_KEYS = {'kind', 'pose'}
+
+
+class PlanError(ValueError):
+    """A posture plan is invalid; the message names the file, the posture and the problem."""
+
+
+@dataclass(frozen=True)
+class PosturePlan:
+    """An ordered list of postures; poses (N, 6) in m and rad, kinds (N,) 'sphere'/'fixed'."""
+
+    name: str
+    link_length: float
+    poses: np.ndarray
+    kinds: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        poses = np.array(self.poses, dtype=float).reshape(-1, 6)
+        poses.setflags(write=False)
+        object.__setattr__(self, 'poses', poses)
+        object.__setattr__(self, 'kinds', tuple(str(k) for k in self.kinds))
+        problem = _plan_problem(self)
+        if problem:
+            raise PlanError(f'plan {self.name!r}: {problem}')
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+    def counts(self) -> dict[str, int]:
+        """Number of postures of each kind."""
+        return {kind: self.kinds.count(kind) for kind in POSTURE_KINDS}
+
+    def describe(self) -> str:
+        counts = self.counts()
+        return (f"plan '{self.name}': {len(self)} postures ({counts[SPHERE]} sphere, "
+                f'{counts[FIXED]} fixed), link length {self.link_length:g} m')
+
+
+def _plan_problem(plan: PosturePlan) -> str | None:
+    """What is wrong with a plan, or None (checks that need no machine model)."""
+    if not isinstance(plan.name, str) or not plan.name.strip():
+        return 'name must be a non-empty string'
+    length = plan.link_length
+    if isinstance(length, bool) or not isinstance(length, (int, float, np.floating)) \
+            or not math.isfinite(length) or length <= 0:
+        return f'link_length must be a positive number of m, got {length!r}'
+    if len(plan.poses) == 0:
+        return 'has no postures'
+    if len(plan.kinds) != len(plan.poses):
+        return f'{len(plan.poses)} poses but {len(plan.kinds)} kinds'
+    limits = MeasurementLimits()
+    for index, (pose, kind) in enumerate(zip(plan.poses, plan.kinds)):
+        problem = _posture_problem(pose, kind, float(length), limits)
+        if problem:
+            return f'posture {index}: {problem}'
+    return None
+
+
+def _posture_problem(pose: np.ndarray, kind: str, link_length: float,
+                     limits: MeasurementLimits) -> str | None:
+    if kind not in POSTURE_KINDS:
+        return f'kind must be one of {list(POSTURE_KINDS)}, got {kind!r}'
+    if not np.all(np.isfinite(pose)):
+        return f'pose must be finite, got {pose.tolist()}'
+    position = pose[:3]
+    if kind == FIXED:
+        offset = float(np.linalg.norm(position - [0.0, 0.0, -link_length]))
+        if offset > POSITION_TOLERANCE_M:
+            return (f'a fixed posture must be at [0, 0, -{link_length:g}] m, got '
+                    f'{position.tolist()} ({offset:.3g} m away)')
+    else:
+        radius = float(np.linalg.norm(position))
+        if position[2] >= 0 or abs(radius - link_length) > POSITION_TOLERANCE_M:
+            horizontal = float(position[0] ** 2 + position[1] ** 2)
+            expected = (f'z = {-math.sqrt(link_length ** 2 - horizontal)!r} for this x, y'
+                        if horizontal < link_length ** 2 else 'x^2 + y^2 < L^2')
+            return (f'a sphere posture must lie on the link sphere |p| = {link_length:g} m '
+                    f'below O ({expected}), got |p| = {radius!r} m, z = {position[2]!r} m')
+        alpha, beta = inclinometer_angles(position[None])
+        tilt = max(abs(float(alpha[0])), abs(float(beta[0])))
+        if tilt > limits.inclinometer_range_rad:
+            return (f'inclinometer angle {math.degrees(tilt):.1f} deg is beyond its range of '
+                    f'+-{math.degrees(limits.inclinometer_range_rad):.0f} deg')
+    theta, psi, phi = pose[3:]
+    if max(abs(theta), abs(psi)) >= MAX_TILT_RAD:
+        return f'theta and psi must be within +-pi/2 rad, got {theta!r}, {psi!r}'
+    if abs(phi) > limits.rotary_range_rad:
+        return f'phi must be within +-pi rad (rotary sensor range), got {phi!r}'
+    return None
+
+
+# --------------------------------------------------------------------------- generated plans
+
+
+def generated_plan(which: str, params: HexaParameters, count: int, seed: int,
+                   link_length: float = DEFAULT_LINK_LENGTH_M) -> PosturePlan:
+    """'random' (sphere), 'fixed' or 'mixed' (3 sphere : 1 fixed) postures drawn with `seed`."""
+    if which not in GENERATED_PLANS:
+        raise PlanError(
+            f'plan must be one of {list(GENERATED_PLANS)} or a plan file, got {which!r}')
+    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
+        raise PlanError(f'the number of postures must be a positive integer, got {count!r}')
+    if which == MIXED_PLAN:
+        fixed_count = count // 4
+        counts = {SPHERE: count - fixed_count, FIXED: fixed_count}
+    else:
+        counts = {SPHERE: count if which == RANDOM_PLAN else 0,
+                  FIXED: count if which == FIXED_PLAN else 0}
+    rng = np.random.default_rng([int(seed), 0x9A7])
+    workspace = Workspace(link_length=link_length)
+    try:
+        drawn = {kind: list(sample_poses(params, n, rng, kind, workspace)) if n else []
+                 for kind, n in counts.items()}
+    except RuntimeError as error:  # sample_poses: this machine has too few acceptable poses
+        raise PlanError(f'cannot draw a {which} plan of {count} postures: {error}') from error
+    poses, kinds = [], []
+    for index in range(count):
+        # Every fourth posture is a fixed one while there are some left: S S S F S S S F ...
+        kind = FIXED if (index % 4 == 3 and drawn[FIXED]) or not drawn[SPHERE] else SPHERE
+        poses.append(drawn[kind].pop(0))
+        kinds.append(kind)
+    return PosturePlan(f'{which}-{count}-seed{seed}', float(link_length), np.array(poses),
+                       tuple(kinds))
+
+
+# --------------------------------------------------------------------------- plan files
+
+
+def load_plan(path: str | os.PathLike[str]) -> PosturePlan:
+    """Read and check a plan file; PlanError names the file and the problem."""
+    name = os.fspath(path)
+
+    def fail(message: str) -> PlanError:
+        return PlanError(f'{name}: {message}')
+
+    try:
+        text = Path(path).read_text(encoding='utf-8')
+    except OSError as error:
+        raise fail(f'cannot read: {error.strerror or error}') from error
+    except UnicodeDecodeError as error:
+        raise fail(f'not UTF-8 text: {error}') from error
+    try:
+        document = yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        raise fail(f'invalid YAML: {error}') from error
+    if not isinstance(document, dict):
+        raise fail("expected a mapping with keys 'plan' and 'postures'")
+    unknown = sorted(set(map(str, document)) - {'plan', 'postures'})
+    if unknown:
+        raise fail(f"unknown top-level key(s) {unknown}; expected 'plan' and 'postures'")
+    header = document.get('plan')
+    if not isinstance(header, dict):
+        raise fail("'plan' must be a mapping with 'name' and 'link_length'")
+    unknown = sorted(set(map(str, header)) - _PLAN_KEYS)
+    if unknown:
+        raise fail(f'unknown key(s) {unknown} in plan; expected {sorted(_PLAN_KEYS)}')
+    for key in sorted(_PLAN_KEYS):
+        if key not in header:
+            raise fail(f'plan.{key} is missing')
+    length = header['link_length']
+    if isinstance(length, bool) or not isinstance(length, (int, float)):
+        raise fail(f'plan.link_length must be a number of m, got {length!r}')
+    entries = document.get('postures')
+    if not isinstance(entries, list) or not entries:
+        raise fail("'postures' must be a non-empty list of {kind, pose} entries")
+    poses, kinds = [], []
+    for index, entry in enumerate(entries):
+        if not isinstance(entry, dict):
+            raise fail(f'posture {index}: expected a mapping with kind and pose, got {entry!r}')
+        unknown = sorted(set(map(str, entry)) - _POSTURE_KEYS)
+        missing = sorted(_POSTURE_KEYS - set(entry))
+        if unknown or missing:
+            raise fail(f'posture {index}: keys must be {sorted(_POSTURE_KEYS)}'
+                       + (f', unknown {unknown}' if unknown else '')
+                       + (f', missing {missing}' if missing else ''))
+        pose = entry['pose']
+        if not isinstance(pose, list) or len(pose) != 6 or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in pose):
+            raise fail(f'posture {index}: pose must be 6 numbers [x, y, z, theta, psi, phi] '
+                       f'(m, rad), got {pose!r}')
+        poses.append([float(v) for v in pose])
+        kinds.append(entry['kind'])
+    try:
+        return PosturePlan(header['name'], float(length), np.array(poses), tuple(kinds))
+    except PlanError as error:
+        raise fail(str(error)) from None
+
+
+def plan_document(plan: PosturePlan) -> dict[str, Any]:
+    """The plan-file mapping of a plan (floats as Python floats)."""
+    return {
+        'plan': {'name': plan.name, 'link_length': float(plan.link_length)},
+        'postures': [{'kind': kind, 'pose': [float(v) for v in pose]}
+                     for kind, pose in zip(plan.kinds, plan.poses)],
+    }
+
+
+def save_plan(path: str | os.PathLike[str], plan: PosturePlan) -> None:
+    """Write a plan file that load_plan reads back exactly (repr floats)."""
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    lines = ['plan:', f'  name: {json.dumps(plan.name)}',
+             f'  link_length: {float(plan.link_length)!r}', 'postures:']
+    for kind, pose in zip(plan.kinds, plan.poses):
+        values = ', '.join(repr(float(v)) for v in pose)
+        lines.append(f'  - {{kind: {kind}, pose: [{values}]}}')
+    temporary = target.with_name(f'.{target.name}.tmp')
+    temporary.write_text('\n'.join(lines) + '\n', encoding='utf-8')
+    os.replace(temporary, target)
+
+
+# --------------------------------------------------------------------------- against a machine
+
+
+def check_reachable(plan: PosturePlan, params: HexaParameters,
+                    workspace: Workspace = Workspace()) -> np.ndarray:
+    """Slider positions (N, 6) of every posture on `params`; PlanError if a posture is out of reach.
+
+    Out of reach: a leg cannot reach its joint, or a slider is outside the rail stroke.
+    """
+    try:
+        sliders = inverse_kinematics(params, plan.poses)
+    except UnreachablePoseError as error:
+        indices = [int(i) for i in error.indices[:10]]
+        raise PlanError(f"plan '{plan.name}': posture(s) {indices} cannot be reached by this "
+                        'machine (a leg is shorter than its distance to the rail)') from error
+    low, high = workspace.slider_stroke_m
+    outside = np.flatnonzero(np.any((sliders < low) | (sliders > high), axis=1))
+    if outside.size:
+        raise PlanError(f"plan '{plan.name}': posture(s) {outside[:10].tolist()} need a slider "
+                        f'outside the stroke [{low:g}, {high:g}] m')
+    return sliders
+
+
+def resolve_plan(spec: str, params: HexaParameters, count: int, seed: int,
+                 link_length: float = DEFAULT_LINK_LENGTH_M) -> PosturePlan:
+    """A plan from the driver's `plan` parameter: a generated plan's name or a plan-file path.
+
+    A plan file's link length must match the device's; the plan must be reachable.
+    """
+    if spec in GENERATED_PLANS:
+        plan = generated_plan(spec, params, count, seed, link_length)
+    else:
+        if not spec:
+            raise PlanError(f'plan must be one of {list(GENERATED_PLANS)} or a plan file path')
+        plan = load_plan(spec)
+        if not math.isclose(plan.link_length, link_length, rel_tol=0.0, abs_tol=1e-9):
+            raise PlanError(f'{spec}: plan.link_length {plan.link_length!r} m differs from the '
+                            f"device's link length {link_length!r} m")
+    check_reachable(plan, params, Workspace(link_length=link_length))
+    return plan

@@ -1,0 +1,422 @@
+"""Node `collector`: turn the three sensor streams into postures, and record everything.
+
+Subscribes `hexacal/sliders`, `hexacal/inclinometer` and `hexacal/encoder`
+(SENSOR_QOS) as raw CDR, so the bag holds exactly the bytes that arrived;
+pairs the streams on the slider stamps (StreamSynchronizer), finds the
+stationary periods (PostureDetector) and publishes one averaged posture per
+period on `hexacal/posture` (POSTURE_QOS, stamp = capture time).
+
+Recording goes to a rosbag2 MCAP bag `<output_dir>/<bag_name>/` (BagWriter):
+the raw streams and the postures, flushed every `flush_every_s` and after every
+posture (before publishing it), so a SIGKILL loses at most the posture in
+progress and never one that was published (`reindex` restores metadata.yaml).
+Services `hexacal/start_recording` and `hexacal/stop_recording`
+(std_srvs/Trigger) open a new bag and close the current one. If the driver's
+parameters can be read, the plan it walks is stored as bag metadata
+`hexacal.plan`.
+
+Invalid messages (NaN, missing joints, names and positions of different
+lengths, undecodable bytes) are recorded as received, counted and logged
+(throttled), and never stop the node.
+"""
+from __future__ import annotations
+
+from datetime import datetime
+from pathlib import Path
+import sys
+
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+import rclpy
+from rclpy.exceptions import InvalidParameterValueException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter, parameter_value_to_python
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import QoSProfile
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+import yaml
+
+from hexacal_msgs_py.conversions import (
+    joint_state_to_encoder_reading,
+    joint_state_to_inclinometer_reading,
+    joint_state_to_slider_reading,
+    posture_reading_to_joint_state,
+)
+from hexacal_msgs_py.errors import InvalidReadingError
+from hexacal_msgs_py.names import (
+    ENCODER_TOPIC,
+    INCLINOMETER_TOPIC,
+    JOINT_STATE_TYPE,
+    POSTURE_TOPIC,
+    SLIDERS_TOPIC,
+)
+from hexacal_msgs_py.qos import POSTURE_QOS, SENSOR_QOS
+
+from .bag import BagError, BagWriter
+from .posture_detector import DetectedPosture, PostureDetector, StreamSynchronizer
+
+NODE_NAME = 'collector'
+START_RECORDING_SERVICE = 'hexacal/start_recording'
+STOP_RECORDING_SERVICE = 'hexacal/stop_recording'
+PLAN_METADATA = 'hexacal.plan'
+COLLECTOR_METADATA = 'hexacal.collector'
+# Driver parameters that describe the plan it walks (see hexacal_driver.driver_node).
+DRIVER_PLAN_PARAMETERS = ('plan', 'plan_name', 'postures', 'seed', 'link_length', 'settle_s',
+                          'dwell_s', 'rate_hz', 'slider_noise_m', 'angle_noise_rad')
+INVALID_LOG_PERIOD_S = 5.0
+STALE_LOG_PERIOD_S = 10.0
+NS_PER_S = 1_000_000_000
+
+_DETECTOR_PARAMETERS = {
+    # name: (default, description, low, high); defaults are PostureDetector's.
+    'window_s': (0.3, 'a sample is stationary when every channel stayed within its tolerance '
+                 'over this window (s)', 0.02, 10.0),
+    'capture_s': (0.5, 'stationary time averaged into one posture (s)', 0.02, 60.0),
+    'slider_tolerance_m': (2e-4, 'peak-to-peak slider motion still counted as stationary (m)',
+                           1e-7, 0.1),
+    'angle_tolerance_rad': (2e-4, 'peak-to-peak angle motion still counted as stationary (rad)',
+                            1e-7, 0.1),
+    'max_gap_s': (0.1, 'a longer gap in the data drops the posture being captured (s)',
+                  0.001, 10.0),
+    'max_skew_s': (0.02, 'largest stamp difference of paired sensor readings (s)', 0.0, 1.0),
+}
+
+
+def qos_profiles_yaml(profile: QoSProfile) -> str:
+    """offered_qos_profiles text of a topic (rosbag2 metadata version 9 spelling)."""
+    def duration(value) -> dict[str, int]:
+        seconds, nanoseconds = divmod(int(value.nanoseconds), NS_PER_S)
+        return {'sec': seconds, 'nsec': nanoseconds}
+
+    return yaml.safe_dump([{
+        'history': profile.history.name.lower(),
+        'depth': int(profile.depth),
+        'reliability': profile.reliability.name.lower(),
+        'durability': profile.durability.name.lower(),
+        'deadline': duration(profile.deadline),
+        'lifespan': duration(profile.lifespan),
+        'liveliness': profile.liveliness.name.lower(),
+        'liveliness_lease_duration': duration(profile.liveliness_lease_duration),
+        'avoid_ros_namespace_conventions': bool(profile.avoid_ros_namespace_conventions),
+    }], sort_keys=False)
+
+
+def _float_descriptor(description: str, low: float, high: float,
+                      read_only: bool = True) -> ParameterDescriptor:
+    return ParameterDescriptor(
+        description=description, read_only=read_only,
+        floating_point_range=[FloatingPointRange(from_value=low, to_value=high, step=0.0)])
+
+
+class CollectorNode(Node):
+    """Synchronise, detect postures, publish them and record the bag."""
+
+    def __init__(self) -> None:
+        super().__init__(NODE_NAME)
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.declare_parameter('output_dir', 'bags', ParameterDescriptor(
+            description='directory that receives the bag directories'))
+        self.declare_parameter('bag_name', '', ParameterDescriptor(
+            description='bag directory name; empty: hexacal_<date>_<time>'))
+        self.declare_parameter('record', True, ParameterDescriptor(
+            description='record from the start (else only after hexacal/start_recording)',
+            read_only=True))
+        self.declare_parameter('flush_every_s', 0.5, _float_descriptor(
+            'period of making the bag durable on disk (s); it is also flushed after every '
+            'posture', 0.05, 60.0, read_only=False))
+        self.declare_parameter('driver_node', 'driver', ParameterDescriptor(
+            description='node (relative to this namespace) whose plan parameters are recorded',
+            read_only=True))
+        for name, (default, description, low, high) in _DETECTOR_PARAMETERS.items():
+            self.declare_parameter(name, default, _float_descriptor(description, low, high))
+        value = {name: self.get_parameter(name).value
+                 for name in ('record', 'flush_every_s', 'driver_node', *_DETECTOR_PARAMETERS)}
+
+        self.synchronizer = StreamSynchronizer(max_skew_ns=int(value['max_skew_s'] * NS_PER_S))
+        self.detector = PostureDetector(
+            window_s=value['window_s'], capture_s=value['capture_s'],
+            slider_tolerance_m=value['slider_tolerance_m'],
+            angle_tolerance_rad=value['angle_tolerance_rad'], max_gap_s=value['max_gap_s'])
+        self.detector_settings = {name: repr(value[name]) for name in _DETECTOR_PARAMETERS}
+        self.postures_published = 0
+        self.invalid: dict[str, int] = {}
+        self.writer: BagWriter | None = None
+        self.bag_postures = 0
+        self._bag_counter = 0
+        self._plan_recorded = False
+        self._plan_request = None
+
+        self._posture_pub = self.create_publisher(JointState, POSTURE_TOPIC, POSTURE_QOS)
+        self.topic_names = {
+            topic: self.resolve_topic_name(topic)
+            for topic in (SLIDERS_TOPIC, INCLINOMETER_TOPIC, ENCODER_TOPIC, POSTURE_TOPIC)}
+        self._qos_yaml = {topic: qos_profiles_yaml(SENSOR_QOS) for topic in self.topic_names}
+        self._qos_yaml[POSTURE_TOPIC] = qos_profiles_yaml(POSTURE_QOS)
+        self._subscriptions_by_topic = {
+            topic: self.create_subscription(
+                JointState, topic,
+                lambda data, info, topic=topic: self._on_raw(topic, data, info),
+                SENSOR_QOS, raw=True)
+            for topic in (SLIDERS_TOPIC, INCLINOMETER_TOPIC, ENCODER_TOPIC)}
+        self.create_service(Trigger, START_RECORDING_SERVICE, self._start_recording)
+        self.create_service(Trigger, STOP_RECORDING_SERVICE, self._stop_recording)
+        self._driver_parameters = AsyncParameterClient(self, value['driver_node'])
+        self._flush_timer = self.create_timer(value['flush_every_s'], self._flush)
+        self._housekeeping_timer = self.create_timer(1.0, self._housekeeping)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+
+        self.get_logger().info(
+            f"collecting postures on {self.topic_names[POSTURE_TOPIC]} (window "
+            f"{value['window_s']:g} s, capture {value['capture_s']:g} s)")
+        if value['record']:
+            self.open_bag()
+
+    # ------------------------------------------------------------------ parameters
+
+    def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        for parameter in parameters:
+            if parameter.name == 'bag_name' and ('/' in parameter.value
+                                                 or parameter.value in ('.', '..')):
+                return SetParametersResult(successful=False, reason=(
+                    f'bag_name must be a plain directory name, got {parameter.value!r}'))
+            if parameter.name == 'output_dir' and not parameter.value:
+                return SetParametersResult(successful=False,
+                                           reason='output_dir must not be empty')
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, parameters: list[Parameter]) -> None:
+        for parameter in parameters:
+            if parameter.name == 'flush_every_s':
+                self._flush_timer.timer_period_ns = int(parameter.value * NS_PER_S)
+
+    # ------------------------------------------------------------------ streams
+
+    def _on_raw(self, topic: str, data: bytes, info: dict) -> None:
+        received_ns = info.get('received_timestamp') or self.get_clock().now().nanoseconds
+        self._record(topic, data, received_ns, info.get('source_timestamp') or None)
+        try:
+            message = deserialize_message(data, JointState)
+        except Exception as error:  # noqa: BLE001 - any undecodable bytes count as invalid
+            self._invalid(topic, f'cannot decode a JointState: {error}')
+            return
+        try:
+            if topic == SLIDERS_TOPIC:
+                samples = self.synchronizer.add_sliders(joint_state_to_slider_reading(message))
+            elif topic == INCLINOMETER_TOPIC:
+                samples = self.synchronizer.add_inclinometer(
+                    joint_state_to_inclinometer_reading(message))
+            else:
+                samples = self.synchronizer.add_encoder(joint_state_to_encoder_reading(message))
+        except InvalidReadingError as error:
+            self._invalid(topic, str(error))
+            return
+        for sample in samples:
+            for posture in self.detector.add(sample):
+                self._on_posture(posture)
+
+    def _invalid(self, topic: str, problem: str) -> None:
+        self.invalid[topic] = self.invalid.get(topic, 0) + 1
+        self.get_logger().warning(
+            f'ignored an invalid message on {self.topic_names[topic]} '
+            f'({self.invalid[topic]} so far): {problem}',
+            throttle_duration_sec=INVALID_LOG_PERIOD_S)
+
+    def _on_posture(self, posture: DetectedPosture) -> None:
+        message = posture_reading_to_joint_state(posture.reading)
+        if self.writer is not None:
+            # Durable before it is published: whoever received a posture finds it in the bag.
+            # BagWriter.write encodes the exact wire CDR; rclpy's serialize_message appends
+            # padding bytes that strict readers (rosbags) reject.
+            self._record(POSTURE_TOPIC, message, self.get_clock().now().nanoseconds)
+            if self.writer is not None:
+                self.bag_postures += 1
+                self._flush()
+        self._posture_pub.publish(message)
+        self.postures_published += 1
+        spread_um = max(posture.std[:6]) * 1e6
+        spread_urad = max(posture.std[6:]) * 1e6
+        self.get_logger().info(
+            f'posture {self.postures_published}: {posture.sample_count} samples, '
+            f'std <= {spread_um:.1f} um (sliders) / {spread_urad:.1f} urad (angles)')
+
+    # ------------------------------------------------------------------ recording
+
+    def _record(self, topic: str, data: bytes | JointState, log_time_ns: int,
+                publish_time_ns: int | None = None) -> None:
+        """Write CDR bytes as received, or encode a message; a bag error stops recording."""
+        if self.writer is None:
+            return
+        try:
+            if isinstance(data, bytes):
+                self.writer.write_raw(self.topic_names[topic], data, log_time_ns, publish_time_ns)
+            else:
+                self.writer.write(self.topic_names[topic], data, log_time_ns)
+        except BagError as error:
+            self.get_logger().error(f'recording stopped: {error}')
+            self.close_bag()
+
+    def _flush(self) -> None:
+        if self.writer is None or self.writer.message_count == self.writer.flushed_message_count:
+            return
+        try:
+            self.writer.flush()
+        except BagError as error:
+            self.get_logger().error(f'recording stopped: {error}')
+            self.close_bag()
+
+    def _next_bag_directory(self) -> Path:
+        output_dir = Path(self.get_parameter('output_dir').value)
+        base = self.get_parameter('bag_name').value or datetime.now().strftime(
+            'hexacal_%Y%m%d_%H%M%S')
+        self._bag_counter += 1
+        candidate = output_dir / base
+        if self.get_parameter('bag_name').value and self._bag_counter == 1:
+            return candidate  # an explicit name is used as given (BagWriter refuses to overwrite)
+        suffix = 1
+        while candidate.exists():
+            suffix += 1
+            candidate = output_dir / f'{base}_{suffix}'
+        return candidate
+
+    def open_bag(self) -> str:
+        """Start recording into a new bag directory; returns its path (BagError on failure)."""
+        if self.writer is not None:
+            return str(self.writer.directory)
+        directory = self._next_bag_directory()
+        try:
+            writer = BagWriter(directory, custom_data={'hexacal.recorded_by':
+                                                       self.get_fully_qualified_name()})
+        except BagError as error:
+            self.get_logger().error(f'cannot record to {directory}: {error}')
+            raise
+        try:
+            for topic, name in self.topic_names.items():
+                writer.add_topic(name, JOINT_STATE_TYPE, self._qos_yaml[topic])
+            writer.write_metadata(COLLECTOR_METADATA, {
+                'namespace': self.get_namespace(), **self.detector_settings})
+        except BagError as error:
+            self.get_logger().error(f'cannot record to {directory}: {error}')
+            try:
+                writer.close()
+            except BagError:
+                pass  # already reported
+            raise
+        self.writer, self.bag_postures = writer, 0
+        self._plan_recorded, self._plan_request = False, None
+        self.get_logger().info(f'recording to {directory}')
+        return str(directory)
+
+    def close_bag(self, log: bool = True) -> str | None:
+        """Finish the bag (metadata.yaml); returns what happened, None if not recording."""
+        writer, self.writer = self.writer, None
+        if writer is None:
+            return None
+        try:
+            writer.close()
+            text = (f'closed bag {writer.directory}: {writer.message_count} messages, '
+                    f'{self.bag_postures} postures')
+        except BagError as error:
+            text = f'closing {writer.directory}: {error}'
+        if log:
+            self.get_logger().info(text)
+        return text
+
+    def _start_recording(self, request: Trigger.Request,
+                         response: Trigger.Response) -> Trigger.Response:
+        if self.writer is not None:
+            response.success = True
+            response.message = f'already recording to {self.writer.directory}'
+            return response
+        try:
+            response.message = f'recording to {self.open_bag()}'
+            response.success = True
+        except BagError as error:
+            response.success, response.message = False, f'cannot record: {error}'
+        return response
+
+    def _stop_recording(self, request: Trigger.Request,
+                        response: Trigger.Response) -> Trigger.Response:
+        text = self.close_bag()
+        response.success = text is not None
+        response.message = text or 'not recording'
+        return response
+
+    # ------------------------------------------------------------------ housekeeping
+
+    def _housekeeping(self) -> None:
+        now_ns = self.get_clock().now().nanoseconds
+        status = self.synchronizer.status(now_ns)
+        silent = [self.topic_names[topic] for topic, name in (
+            (SLIDERS_TOPIC, 'sliders'), (INCLINOMETER_TOPIC, 'inclinometer'),
+            (ENCODER_TOPIC, 'encoder')) if status[name].last_stamp_ns is not None
+            and status[name].stale]
+        if silent:
+            self.get_logger().warning(f"no recent data on {', '.join(silent)}",
+                                      throttle_duration_sec=STALE_LOG_PERIOD_S)
+        self._request_plan()
+
+    def _request_plan(self) -> None:
+        """Ask the driver for its plan once per bag (optional: the bag is fine without it)."""
+        if self.writer is None or self._plan_recorded or self._plan_request is not None:
+            return
+        if not self._driver_parameters.services_are_ready():
+            return
+        writer = self.writer
+        self._plan_request = self._driver_parameters.get_parameters(list(DRIVER_PLAN_PARAMETERS))
+        self._plan_request.add_done_callback(lambda future: self._record_plan(writer, future))
+
+    def _record_plan(self, writer: BagWriter, future) -> None:
+        self._plan_request = None
+        if writer is not self.writer or future.exception() is not None:
+            return
+        plan = {}
+        for name, value in zip(DRIVER_PLAN_PARAMETERS, future.result().values):
+            python_value = parameter_value_to_python(value)
+            if python_value is not None:
+                plan[name] = str(python_value)
+        if not plan:
+            return
+        try:
+            writer.write_metadata(PLAN_METADATA, plan)
+        except BagError as error:
+            self.get_logger().error(f'recording stopped: {error}')
+            self.close_bag()
+            return
+        self._plan_recorded = True
+        self.get_logger().info(f"recorded the driver's plan {plan.get('plan_name', plan)}")
+
+    def summary(self) -> str:
+        dropped = self.detector.dropped
+        return (f'{self.postures_published} postures published; invalid messages '
+                f'{self.invalid or 0}; periods dropped {dropped or 0}; unpaired samples '
+                f'{self.synchronizer.unpaired or 0}')
+
+
+def main(args: list[str] | None = None) -> int:
+    rclpy.init(args=args)
+    try:
+        node = CollectorNode()
+    except (InvalidParameterValueException, BagError) as error:
+        rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {error}')
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        closed = node.close_bag(log=False)  # metadata.yaml: the bag is complete
+        summary = node.summary()
+        node.destroy_node()
+        # A signal has shut the context down: log once the node (and its rosout publisher) is gone.
+        logger = rclpy.logging.get_logger(NODE_NAME)
+        for line in filter(None, (closed, summary)):
+            logger.info(line)
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main(sys.argv))

@@ -1,0 +1,341 @@
+"""Node `identify`: keep every posture received and calibrate on request.
+
+Subscribes `hexacal/posture` (POSTURE_QOS). Service `hexacal/calibrate`
+(std_srvs/Trigger) runs `pipeline.calibrate` on a worker thread, from the live
+postures or, with the `bag` parameter, from a recorded bag; the executor
+(multi-threaded, reentrant service group) keeps receiving postures and
+answers a second call at once with 'busy: a calibration is running'.
+
+On success the 54 parameters are written atomically to `output` (under
+`output_dir`) and published on `hexacal/parameters` (transient local: late
+subscribers get them), with the outcome on `hexacal/calibration_status`. A
+refused or failed calibration publishes an ERROR status naming the reason and
+no parameters; the postures received are kept either way. Between
+calibrations the status reports the postures received so far ('collecting',
+`postures_received`). At start-up an existing `output` file is republished.
+"""
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from datetime import datetime, timezone
+import math
+import os
+from pathlib import Path
+import sys
+import threading
+
+from diagnostic_msgs.msg import DiagnosticArray
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+import rclpy
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.exceptions import InvalidParameterValueException
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import Trigger
+
+from hexacal_msgs_py.conversions import (
+    diagnostic_status,
+    joint_state_to_posture_reading,
+    parameters_to_multiarray,
+)
+from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError, ParameterFileError
+from hexacal_msgs_py.names import (
+    CALIBRATE_SERVICE,
+    CALIBRATION_STATUS_TOPIC,
+    PARAMETERS_TOPIC,
+    POSTURE_TOPIC,
+)
+from hexacal_msgs_py.parameters_file import load_parameters, save_parameters
+from hexacal_msgs_py.qos import PARAMETERS_QOS, POSTURE_QOS, STATUS_QOS
+from hexacal_msgs_py.readings import PostureReading
+
+from . import pipeline
+from .core.errors import CalibrationError
+from .core.identification import CONVERGED, ITERATION_LIMIT
+from .core.model import HexaParameters
+from .core.residuals import COSTS
+
+NODE_NAME = 'identify'
+BUSY_MESSAGE = 'busy: a calibration is running'
+STATUS_NAME = 'hexacal calibration'
+DEFAULT_OUTPUT = 'hexacal_calibration.yaml'
+INVALID_LOG_PERIOD_S = 5.0
+PROGRESS_LOG_PERIOD_S = 5.0
+
+
+def output_path(output: str, output_dir: str) -> Path:
+    """The file `output` names, which must lie under `output_dir` (ValueError otherwise)."""
+    if not output:
+        raise ValueError('output must name a file')
+    directory = Path(output_dir or os.getcwd()).expanduser().resolve()
+    target = (directory / Path(output).expanduser()).resolve()
+    if target == directory or not target.is_relative_to(directory):
+        raise ValueError(f'output {output!r} is outside output_dir {str(directory)!r}: '
+                         'the node writes only under output_dir')
+    return target
+
+
+@dataclass
+class Outcome:
+    """What one calibration request did: the service response and the status to publish."""
+
+    success: bool
+    message: str
+    level: str  # 'OK', 'WARN' or 'ERROR'
+    values: dict[str, object]
+    parameters: HexaParameters | None = None
+
+
+def _failure(reason: str, message: str, **values: object) -> Outcome:
+    return Outcome(False, f'{reason}: {message}', 'ERROR', {'outcome': reason, **values})
+
+
+class IdentifyNode(Node):
+    """Posture store + calibration service + transient-local result."""
+
+    def __init__(self) -> None:
+        super().__init__(NODE_NAME)
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.declare_parameter('output_dir', os.getcwd(), ParameterDescriptor(
+            description='directory the node writes under (default: its working directory)'))
+        self.declare_parameter('output', DEFAULT_OUTPUT, ParameterDescriptor(
+            description='parameters YAML written after a calibration; relative to output_dir, '
+            'and never outside it'))
+        self.declare_parameter('nominal', '', ParameterDescriptor(
+            description='parameters YAML of the nominal model to start from (required to '
+            'calibrate)'))
+        self.declare_parameter('cost', 'absolute', ParameterDescriptor(
+            description='cost function of the identification', additional_constraints=(
+                'one of ' + ', '.join(COSTS))))
+        self.declare_parameter('bag', '', ParameterDescriptor(
+            description="bag to calibrate from; '' = the postures received live"))
+        self.declare_parameter('link_length', 0.75, ParameterDescriptor(
+            description='measuring link length L (m)', floating_point_range=[
+                FloatingPointRange(from_value=0.1, to_value=5.0, step=0.0)]))
+
+        self._postures: list[PostureReading] = []
+        self._postures_lock = threading.Lock()
+        self.invalid_postures = 0
+        self._busy = threading.Lock()
+        # Orders 'collecting' statuses (posture thread) against the calibration's statuses.
+        self._status_lock = threading.Lock()
+        self._calibrating = False
+        self._last_outcome = 'none'
+        self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix='calibration')
+
+        self._parameters_pub = self.create_publisher(
+            Float64MultiArray, PARAMETERS_TOPIC, PARAMETERS_QOS)
+        self._status_pub = self.create_publisher(
+            DiagnosticArray, CALIBRATION_STATUS_TOPIC, STATUS_QOS)
+        self.create_subscription(JointState, POSTURE_TOPIC, self._on_posture, POSTURE_QOS,
+                                 callback_group=MutuallyExclusiveCallbackGroup())
+        self.create_service(Trigger, CALIBRATE_SERVICE, self._on_calibrate,
+                            callback_group=ReentrantCallbackGroup())
+        self._republish_saved()
+        self.get_logger().info(
+            f'collecting postures on {self.resolve_topic_name(POSTURE_TOPIC)}; calibrate with '
+            f'{self.resolve_topic_name(CALIBRATE_SERVICE)}')
+
+    # ------------------------------------------------------------------ parameters
+
+    def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        def current(name: str, fallback: str) -> str:
+            new = [p.value for p in parameters if p.name == name]
+            if new:
+                return new[0]
+            return self.get_parameter(name).value if self.has_parameter(name) else fallback
+
+        for parameter in parameters:
+            if parameter.name == 'cost' and parameter.value not in COSTS:
+                return SetParametersResult(successful=False, reason=(
+                    f"cost must be one of {', '.join(COSTS)}, got {parameter.value!r}"))
+            if parameter.name == 'link_length' and not math.isfinite(parameter.value):
+                return SetParametersResult(successful=False, reason='link_length must be finite')
+            if parameter.name in ('output', 'output_dir'):
+                try:
+                    output_path(current('output', DEFAULT_OUTPUT), current('output_dir', ''))
+                except ValueError as error:
+                    return SetParametersResult(successful=False, reason=str(error))
+        return SetParametersResult(successful=True)
+
+    def _output_path(self) -> Path:
+        return output_path(self.get_parameter('output').value,
+                           self.get_parameter('output_dir').value)
+
+    # ------------------------------------------------------------------ postures
+
+    def _on_posture(self, message: JointState) -> None:
+        try:
+            posture = joint_state_to_posture_reading(message)
+        except InvalidReadingError as error:
+            self.invalid_postures += 1
+            self.get_logger().warning(
+                f'ignored an invalid posture ({self.invalid_postures} so far): {error}',
+                throttle_duration_sec=INVALID_LOG_PERIOD_S)
+            return
+        with self._postures_lock:
+            self._postures.append(posture)
+            count = len(self._postures)
+        with self._status_lock:
+            if not self._calibrating:  # a running calibration's status stays until its result
+                self._status_pub.publish(self._status_message(
+                    'OK', f'{count} postures received',
+                    {'outcome': 'collecting', 'postures_received': count,
+                     'last_calibration': self._last_outcome}))
+        self.get_logger().info(f'{count} postures received',
+                               throttle_duration_sec=PROGRESS_LOG_PERIOD_S)
+
+    def posture_count(self) -> int:
+        with self._postures_lock:
+            return len(self._postures)
+
+    # ------------------------------------------------------------------ calibration
+
+    def _on_calibrate(self, request: Trigger.Request,
+                      response: Trigger.Response) -> Trigger.Response:
+        if not self._busy.acquire(blocking=False):
+            response.success, response.message = False, BUSY_MESSAGE
+            return response
+        try:
+            # The solve runs on the worker; this executor thread only waits for it.
+            outcome = self._worker.submit(self._calibrate).result()
+            response.success, response.message = outcome.success, outcome.message
+        except Exception as error:  # noqa: BLE001 - a caller must always get an answer
+            response.success = False
+            response.message = f'internal-error: {type(error).__name__}: {error}'
+        finally:
+            self._busy.release()
+        return response
+
+    def _calibrate(self) -> Outcome:
+        try:
+            outcome = self._run_calibration()
+        except Exception as error:  # noqa: BLE001 - the node must survive and say what happened
+            self.get_logger().error(f'calibration failed unexpectedly: {error!r}')
+            outcome = _failure('internal-error', f'{type(error).__name__}: {error}')
+        with self._status_lock:
+            self._publish_result(outcome)
+            self._calibrating = False
+            self._last_outcome = str(outcome.values.get('outcome', outcome.level))
+        # One call site per severity: rclpy refuses a severity change at the same line.
+        if outcome.success:
+            self.get_logger().info(outcome.message)
+        else:
+            self.get_logger().error(outcome.message)
+        return outcome
+
+    def _run_calibration(self) -> Outcome:
+        nominal_path = self.get_parameter('nominal').value
+        cost = self.get_parameter('cost').value
+        bag = self.get_parameter('bag').value
+        link_length = self.get_parameter('link_length').value
+        target = self._output_path()
+        if not nominal_path:
+            return _failure('missing-parameter', "parameter 'nominal' is not set: give the "
+                            'nominal parameters YAML to start from (-p nominal:=<path>)')
+        try:
+            nominal = HexaParameters(load_parameters(nominal_path))
+        except (ParameterFileError, ValueError) as error:
+            return _failure('invalid-nominal', f'nominal: {error}')
+        if bag:
+            try:
+                loaded = pipeline.postures_from_bag(bag)
+            except Exception as error:  # noqa: BLE001 - BagError, CalibrationError, contract errors
+                return _failure('invalid-bag', f'bag {bag}: {error}', bag=bag)
+            postures, source = loaded.postures, f'bag {bag} ({loaded.source})'
+        else:
+            with self._postures_lock:
+                postures = list(self._postures)
+            source = 'live postures'
+        self.get_logger().info(f'calibrating from {len(postures)} {source}, {cost} cost')
+        with self._status_lock:
+            self._calibrating = True
+            self._status_pub.publish(self._status_message(
+                'OK', f'calibrating from {len(postures)} postures',
+                {'outcome': 'running', 'postures_received': len(postures), 'source': source}))
+        try:
+            result = pipeline.calibrate(nominal, postures, cost=cost, link_length=link_length)
+        except CalibrationError as error:
+            return _failure(error.reason, str(error), postures_received=len(postures),
+                            source=source)
+        values: dict[str, object] = {'postures_received': len(postures), 'source': source,
+                                     **pipeline.status_fields(result)}
+        summary = (f'{len(result.used_postures)} of {len(postures)} postures, {cost} cost, '
+                   f'{result.iterations} iterations, rank {result.rank}, rms residual '
+                   + ', '.join(f'{k} {v:.3g}' for k, v in result.rms_residual.items()))
+        if result.reason not in (CONVERGED, ITERATION_LIMIT):
+            return _failure(result.reason, f'the identification did not converge ({summary})',
+                            **values)
+        try:
+            save_parameters(target, result.parameters.vector, header_comment=(
+                f'hexacal calibration {datetime.now(timezone.utc).isoformat(timespec="seconds")}'
+                f'\nfrom {source}: {summary}\nnominal: {nominal_path}; SI units'))
+        except HexacalContractError as error:
+            return Outcome(False, f'output-not-written: calibrated ({summary}) but {error}',
+                           'WARN', {**values, 'outcome': 'output-not-written'},
+                           result.parameters)
+        values['output'] = str(target)
+        level = 'OK' if result.reason == CONVERGED else 'WARN'
+        return Outcome(True, f'{result.reason}: {summary}; wrote {target}', level, values,
+                       result.parameters)
+
+    def _status_message(self, level: str, message: str,
+                        values: dict[str, object]) -> DiagnosticArray:
+        return diagnostic_status(level, STATUS_NAME, message, values,
+                                 hardware_id=self.get_fully_qualified_name(),
+                                 stamp=self.get_clock().now().nanoseconds)
+
+    def _publish_result(self, outcome: Outcome) -> None:
+        if outcome.parameters is not None:
+            self._parameters_pub.publish(parameters_to_multiarray(outcome.parameters.vector))
+        self._status_pub.publish(self._status_message(outcome.level, outcome.message,
+                                                      outcome.values))
+
+    def _republish_saved(self) -> None:
+        try:
+            target = self._output_path()
+        except ValueError:
+            return
+        if not target.exists():
+            return
+        try:
+            vector = load_parameters(target)
+        except ParameterFileError as error:
+            self.get_logger().error(f'not republishing the saved calibration: {error}')
+            return
+        self._parameters_pub.publish(parameters_to_multiarray(vector))
+        self.get_logger().info(f'republished the saved calibration {target}')
+
+    def shutdown(self) -> None:
+        self._worker.shutdown(wait=True, cancel_futures=True)
+
+
+def main(args: list[str] | None = None) -> int:
+    rclpy.init(args=args)
+    try:
+        node = IdentifyNode()
+    except InvalidParameterValueException as error:
+        rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {error}')
+        rclpy.try_shutdown()
+        return 2
+    # Several threads: a waiting service call must not block postures or a second call.
+    executor = MultiThreadedExecutor(num_threads=4)
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown(timeout_sec=5.0)
+        node.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main(sys.argv))
