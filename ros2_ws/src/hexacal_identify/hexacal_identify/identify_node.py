@@ -54,10 +54,13 @@ from hexacal_msgs_py.qos import PARAMETERS_QOS, POSTURE_QOS, STATUS_QOS
 from hexacal_msgs_py.readings import PostureReading
 
 from . import pipeline
+from .core.device import DEVICE_PARAMETER_NAMES
 from .core.errors import CalibrationError
-from .core.identification import CONVERGED, ITERATION_LIMIT
+from .core.identification import CONVERGED, ITERATION_LIMIT, ROBUST_LOSSES
+from .core.measurements import NoiseModel
 from .core.model import HexaParameters
 from .core.residuals import COSTS
+from .report import write_report
 
 NODE_NAME = 'identify'
 BUSY_MESSAGE = 'busy: a calibration is running'
@@ -65,6 +68,10 @@ STATUS_NAME = 'hexacal calibration'
 DEFAULT_OUTPUT = 'hexacal_calibration.yaml'
 INVALID_LOG_PERIOD_S = 5.0
 PROGRESS_LOG_PERIOD_S = 5.0
+
+
+def _names(text: str) -> tuple[str, ...]:
+    return tuple(name.strip() for name in text.split(',') if name.strip())
 
 
 def output_path(output: str, output_dir: str) -> Path:
@@ -116,6 +123,21 @@ class IdentifyNode(Node):
         self.declare_parameter('link_length', 0.75, ParameterDescriptor(
             description='measuring link length L (m)', floating_point_range=[
                 FloatingPointRange(from_value=0.1, to_value=5.0, step=0.0)]))
+        self.declare_parameter('identify_device', '', ParameterDescriptor(
+            description="device defects to identify jointly, comma-separated (e.g. 'dL,alpha0,gamma'); "
+            "'' = none", additional_constraints='names from ' + ', '.join(DEVICE_PARAMETER_NAMES)))
+        self.declare_parameter('noise_slider_m', 0.0, ParameterDescriptor(
+            description='known slider noise half-width (m); with noise_angle_rad > 0 the residuals are '
+            'weighted by the reading noise; 0 = unweighted', floating_point_range=[
+                FloatingPointRange(from_value=0.0, to_value=0.01, step=0.0)]))
+        self.declare_parameter('noise_angle_rad', 0.0, ParameterDescriptor(
+            description='known angle noise half-width (rad), see noise_slider_m', floating_point_range=[
+                FloatingPointRange(from_value=0.0, to_value=0.01, step=0.0)]))
+        self.declare_parameter('robust_loss', '', ParameterDescriptor(
+            description="'' (least squares), 'huber' or 'soft_l1'"))
+        self.declare_parameter('report_dir', 'report', ParameterDescriptor(
+            description="HTML calibration report written after each calibration, relative to output_dir; "
+            "'' = none"))
 
         self._postures: list[PostureReading] = []
         self._postures_lock = threading.Lock()
@@ -150,6 +172,19 @@ class IdentifyNode(Node):
             return self.get_parameter(name).value if self.has_parameter(name) else fallback
 
         for parameter in parameters:
+            if parameter.name == 'identify_device':
+                unknown = sorted(set(_names(parameter.value)) - set(DEVICE_PARAMETER_NAMES))
+                if unknown:
+                    return SetParametersResult(successful=False, reason=(
+                        f"identify_device: unknown {unknown}; choose from {', '.join(DEVICE_PARAMETER_NAMES)}"))
+            if parameter.name == 'robust_loss' and parameter.value not in ('', *ROBUST_LOSSES):
+                return SetParametersResult(successful=False, reason=(
+                    f"robust_loss must be '', {', '.join(ROBUST_LOSSES)}; got {parameter.value!r}"))
+            if parameter.name == 'report_dir':
+                try:
+                    output_path(parameter.value or '.', current('output_dir', ''))
+                except ValueError as error:
+                    return SetParametersResult(successful=False, reason=f'report_dir: {error}')
             if parameter.name == 'cost' and parameter.value not in COSTS:
                 return SetParametersResult(successful=False, reason=(
                     f"cost must be one of {', '.join(COSTS)}, got {parameter.value!r}"))
@@ -257,8 +292,14 @@ class IdentifyNode(Node):
             self._status_pub.publish(self._status_message(
                 'OK', f'calibrating from {len(postures)} postures',
                 {'outcome': 'running', 'postures_received': len(postures), 'source': source}))
+        slider_noise = self.get_parameter('noise_slider_m').value
+        angle_noise = self.get_parameter('noise_angle_rad').value
+        noise = NoiseModel(slider_noise, angle_noise) if slider_noise > 0 and angle_noise > 0 else None
         try:
-            result = pipeline.calibrate(nominal, postures, cost=cost, link_length=link_length)
+            result = pipeline.calibrate(
+                nominal, postures, cost=cost, link_length=link_length,
+                identify_device=_names(self.get_parameter('identify_device').value), noise=noise,
+                robust_loss=self.get_parameter('robust_loss').value or None)
         except CalibrationError as error:
             return _failure(error.reason, str(error), postures_received=len(postures),
                             source=source)
@@ -279,9 +320,26 @@ class IdentifyNode(Node):
                            'WARN', {**values, 'outcome': 'output-not-written'},
                            result.parameters)
         values['output'] = str(target)
+        report = self._write_report(result, postures, source, link_length)
+        if report is not None:
+            values['report'] = str(report)
         level = 'OK' if result.reason == CONVERGED else 'WARN'
         return Outcome(True, f'{result.reason}: {summary}; wrote {target}', level, values,
                        result.parameters)
+
+    def _write_report(self, result, postures, source: str, link_length: float) -> Path | None:
+        """The HTML report of this calibration under output_dir; a failure is logged, never fatal."""
+        report_dir = self.get_parameter('report_dir').value
+        if not report_dir:
+            return None
+        try:
+            directory = output_path(report_dir, self.get_parameter('output_dir').value)
+            return write_report(result, directory, title=f'hexacal calibration ({source})',
+                                measurements=pipeline.measurements_from_postures(postures),
+                                link_length=link_length, extras={'source': source})
+        except Exception as error:  # noqa: BLE001 - the parameters are written; the report is extra
+            self.get_logger().warning(f'calibration report not written: {error}')
+            return None
 
     def _status_message(self, level: str, message: str,
                         values: dict[str, object]) -> DiagnosticArray:
