@@ -36,19 +36,20 @@ def _joint_state(stamp_ns: int, names, values) -> dict:
 def write_recording(directory: Path, exact: Measurements, *, noise_m: float = 1e-5, noise_rad: float = 1e-5,
                     rate_hz: float = 100.0, dwell_s: float = 1.0, move_s: float = 0.6, seed: int = 0,
                     raw: bool = True, postures: bool = True, extra_topic: str | None = None,
-                    drop_topic: str | None = None) -> Path:
+                    drop_topic: str | None = None, namespace: str = "", nan_every: int = 0) -> Path:
     rng = np.random.default_rng(seed)
     period = int(1e9 / rate_hz)
     values = np.column_stack([exact.slider_positions, exact.inclinometer, exact.rotary])  # (N, 9)
     half_widths = np.array([noise_m] * 6 + [noise_rad] * 3)
+    prefix = f"/{namespace.strip('/')}/" if namespace else "/"
     with BagWriter(directory) as writer:
         topics = {SLIDERS_TOPIC: SLIDER_NAMES, INCLINOMETER_TOPIC: INCLINOMETER_NAMES, ENCODER_TOPIC: ENCODER_NAMES}
         if raw:
             for topic in topics:
                 if topic != drop_topic:
-                    writer.add_topic("/" + topic, JOINT_STATE)
+                    writer.add_topic(prefix + topic, JOINT_STATE)
         if postures:
-            writer.add_topic("/" + POSTURE_TOPIC, JOINT_STATE)
+            writer.add_topic(prefix + POSTURE_TOPIC, JOINT_STATE)
         if extra_topic:
             writer.add_topic(extra_topic, "std_msgs/msg/String")
         stamp = 1_700_000_000 * 1_000_000_000
@@ -57,21 +58,23 @@ def write_recording(directory: Path, exact: Measurements, *, noise_m: float = 1e
             moving = int(move_s * rate_hz)
             samples = [previous + (target - previous) * (k + 1) / moving for k in range(moving)]
             dwell = target + rng.uniform(-1, 1, (int(dwell_s * rate_hz), 9)) * half_widths
-            for is_dwell, sample in [(False, s) for s in samples] + [(True, s) for s in dwell]:
+            for count, sample in enumerate(samples + list(dwell)):
                 stamp += period
+                if nan_every and count % nan_every == nan_every - 1:
+                    sample = np.where(np.arange(9) == 2, np.nan, sample)  # a glitched slider_3 reading
                 if raw:
-                    _write_raw(writer, stamp, sample, drop_topic)
+                    _write_raw(writer, stamp, sample, drop_topic, prefix)
                 if extra_topic and stamp % (10 * period) == 0:
                     writer.write(extra_topic, {"data": "not hexacal"}, stamp)
             if postures:
-                writer.write("/" + POSTURE_TOPIC, _joint_state(stamp, POSTURE_NAMES, dwell.mean(axis=0)), stamp)
+                writer.write(prefix + POSTURE_TOPIC, _joint_state(stamp, POSTURE_NAMES, dwell.mean(axis=0)), stamp)
             previous = target
     return directory
 
 
-def _write_raw(writer: BagWriter, stamp: int, sample: np.ndarray, drop_topic: str | None) -> None:
+def _write_raw(writer: BagWriter, stamp: int, sample: np.ndarray, drop_topic: str | None, prefix: str) -> None:
     parts = ((SLIDERS_TOPIC, SLIDER_NAMES, sample[:6]), (INCLINOMETER_TOPIC, INCLINOMETER_NAMES, sample[6:8]),
              (ENCODER_TOPIC, ENCODER_NAMES, sample[8:]))
     for topic, names, values in parts:
         if topic != drop_topic:
-            writer.write("/" + topic, _joint_state(stamp, names, values), stamp)
+            writer.write(prefix + topic, _joint_state(stamp, names, values), stamp)

@@ -127,3 +127,13 @@ def test_calibrate_writes_a_report_and_a_result_the_report_command_reads(recorde
     again = hexacal("report", tmp_path / "result.json", "--out", tmp_path / "again")
     assert again.returncode == 0, again.stderr
     assert (tmp_path / "again" / "index.html").exists()
+
+
+def test_namespaced_bag_with_glitched_readings_is_redetected(exact_postures, nominal_file, tmp_path):
+    bag = write_recording(tmp_path / "left", exact_postures, seed=4, postures=False, namespace="left",
+                          nan_every=97)
+    completed = hexacal("calibrate", bag, "--nominal", nominal_file, "--output", tmp_path / "out.yaml", "--json")
+    assert completed.returncode == 0, completed.stderr
+    result = json.loads(completed.stdout)
+    assert result["bag"]["postures"] == 40 and result["bag"]["invalid_messages"] == 40  # one NaN per posture
+    assert np.max(np.abs(load_parameters(tmp_path / "out.yaml") - TRUE.vector)) < 5e-4

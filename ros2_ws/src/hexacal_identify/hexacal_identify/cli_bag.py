@@ -79,7 +79,7 @@ def run_calibrate(args) -> int:
     if args.json:
         payload = result.to_json()
         payload["bag"] = {"path": str(args.bag), "postures": len(bag.postures), "source": bag.source,
-                          "ignored_topics": bag.ignored_topics}
+                          "ignored_topics": bag.ignored_topics, "invalid_messages": bag.invalid_messages}
         payload["output"] = str(args.output) if result.reason == CONVERGED else None
         print(json.dumps(payload))
     else:
@@ -91,6 +91,8 @@ def _print_summary(args, bag, result) -> None:
     print(f"bag {args.bag}: {len(bag.postures)} postures from the {bag.source}")
     if bag.ignored_topics:
         print(f"  ignored topics: {', '.join(bag.ignored_topics)}")
+    if bag.invalid_messages:
+        print(f"  {bag.invalid_messages} invalid message(s) skipped (NaN/inf, missing joints, mismatched lengths)")
     print(f"{result.reason} in {result.iterations} iterations ({result.solve_seconds * 1e3:.1f} ms), "
           f"cost {result.cost}, rank {result.rank}, condition number {result.condition_number:.3g}")
     print(f"postures used {len(result.used_postures)}, rejected {len(result.rejected_postures)}")

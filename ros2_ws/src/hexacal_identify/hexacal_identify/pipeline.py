@@ -89,10 +89,13 @@ class BagPostures:
     source: str  # "posture topic" or "raw streams (re-detected)"
     plan: dict[str, str] = field(default_factory=dict)  # recorded posture plan metadata, if any
     ignored_topics: list[str] = field(default_factory=list)
+    invalid_messages: int = 0  # messages of hexacal's topics that were not valid readings (skipped)
 
 
 def _topic_key(topic: str) -> str:
-    return topic.lstrip("/")
+    """'hexacal/posture' for '/hexacal/posture' and for a namespaced '/left/hexacal/posture'."""
+    parts = topic.strip("/").split("/")
+    return "/".join(parts[-2:]) if len(parts) >= 2 and parts[-2] == "hexacal" else topic.lstrip("/")
 
 
 def postures_from_bag(path: Path | str, **detector_options) -> BagPostures:
@@ -105,7 +108,14 @@ def postures_from_bag(path: Path | str, **detector_options) -> BagPostures:
     from .bag import open_bag
 
     reader = open_bag(path)
-    topics = {_topic_key(t): t for t in reader.topics()}
+    topics: dict[str, str] = {}
+    for topic in reader.topics():
+        key = _topic_key(topic)
+        if key in topics and key in (POSTURE_TOPIC, *RAW_TOPICS):
+            raise InvalidMeasurementError(
+                f"bag {path} holds {key} from several namespaces ({topics[key]}, {topic}): "
+                "calibrate one machine at a time")
+        topics[key] = topic
     ours = {POSTURE_TOPIC, *RAW_TOPICS}
     ignored = sorted(t for k, t in topics.items() if k not in ours)
     plan = {}
@@ -114,15 +124,29 @@ def postures_from_bag(path: Path | str, **detector_options) -> BagPostures:
             plan.update({f"{record.name}.{k}": v for k, v in record.data.items()})
     _check_types(reader, topics)
     if POSTURE_TOPIC in topics:
-        postures = [_posture(m.decoded) for m in reader.messages([topics[POSTURE_TOPIC]])]
-        return BagPostures(postures, "posture topic", plan, ignored)
+        postures, invalid = _valid(reader.messages([topics[POSTURE_TOPIC]]), _posture)
+        return BagPostures(postures, "posture topic", plan, ignored, invalid)
     missing = [t for t in RAW_TOPICS if t not in topics]
     if missing:
         raise InvalidMeasurementError(
             f"bag {path} has no {POSTURE_TOPIC} topic and lacks the raw stream(s) "
             f"{', '.join('/' + t for t in missing)} needed to re-detect postures"
         )
-    return BagPostures(_redetect(reader, topics, **detector_options), "raw streams (re-detected)", plan, ignored)
+    postures, invalid = _redetect(reader, topics, **detector_options)
+    return BagPostures(postures, "raw streams (re-detected)", plan, ignored, invalid)
+
+
+def _valid(messages, convert) -> tuple[list, int]:
+    """Convert every message that is a valid reading; count (and skip) the others."""
+    from hexacal_msgs_py.errors import InvalidReadingError
+
+    converted, invalid = [], 0
+    for message in messages:
+        try:
+            converted.append(convert(message.decoded))
+        except InvalidReadingError:
+            invalid += 1  # NaN, missing joint, mismatched lengths: recorded as received, not used
+    return converted, invalid
 
 
 def _check_types(reader, topics: dict[str, str]) -> None:
@@ -142,7 +166,8 @@ def _posture(message) -> PostureReading:
     return joint_state_to_posture_reading(message)
 
 
-def _redetect(reader, topics: dict[str, str], **detector_options) -> list[PostureReading]:
+def _redetect(reader, topics: dict[str, str], **detector_options) -> tuple[list[PostureReading], int]:
+    from hexacal_msgs_py.errors import InvalidReadingError
     from hexacal_msgs_py.conversions import (
         joint_state_to_encoder_reading,
         joint_state_to_inclinometer_reading,
@@ -158,14 +183,19 @@ def _redetect(reader, topics: dict[str, str], **detector_options) -> list[Postur
         ENCODER_TOPIC: lambda m: (joint_state_to_encoder_reading(m).phi,),
     }
     by_name = {topics[t]: t for t in RAW_TOPICS}
+    invalid = 0
     for message in reader.messages(list(by_name)):
         key = by_name[message.topic]
         decoded = message.decoded
-        stamp = decoded.header.stamp.sec * 1_000_000_000 + decoded.header.stamp.nanosec
+        try:
+            value = convert[key](decoded)
+        except InvalidReadingError:
+            invalid += 1  # a bad reading is skipped; the synchroniser pairs around the gap
+            continue
         stamps, values = streams[key]
-        stamps.append(stamp)
-        values.append(convert[key](decoded))
+        stamps.append(decoded.header.stamp.sec * 1_000_000_000 + decoded.header.stamp.nanosec)
+        values.append(value)
     arrays = [(np.array(streams[t][0], dtype=np.int64), np.array(streams[t][1], dtype=float)) for t in RAW_TOPICS]
     stamps, values = synchronize_arrays(arrays[0][0], arrays[0][1], arrays[1][0], arrays[1][1],
                                         arrays[2][0], arrays[2][1])
-    return [d.reading for d in detect_postures(stamps, values, **detector_options)]
+    return [d.reading for d in detect_postures(stamps, values, **detector_options)], invalid
