@@ -11,6 +11,7 @@ import numpy as np
 from .cli_common import load_params_arg
 from .cli_study_device import device_names_argument
 from .core.device import DEFAULT_LINK_LENGTH_M
+from .core.errors import CalibrationError
 from .core.identification import CONVERGED, ROBUST_LOSSES
 from .core.measurements import NoiseModel
 from .core.residuals import COSTS
@@ -63,8 +64,13 @@ def run_calibrate(args) -> int:
         raise IsADirectoryError(f"--output {args.output} is a directory; name a YAML file")
     bag = postures_from_bag(args.bag)
     noise = NoiseModel.from_microns(args.noise_um) if args.noise_um else None
-    result = calibrate(nominal, bag.postures, cost=args.cost, link_length=args.link_length,
-                       identify_device=args.identify_device, noise=noise, robust_loss=args.robust)
+    try:
+        result = calibrate(nominal, bag.postures, cost=args.cost, link_length=args.link_length,
+                           identify_device=args.identify_device, noise=noise, robust_loss=args.robust)
+    except CalibrationError as error:
+        if bag.rejected or bag.invalid_messages:  # say what of the bag was not used
+            error.args = (f"{error} [bag {args.bag}: {_not_used(bag)}]",)
+        raise
     comment = (f"hexacal calibrate {args.bag} (cost {args.cost}, {len(result.used_postures)} postures, "
                f"{result.reason}), SI units")
     if result.reason == CONVERGED:
@@ -79,7 +85,8 @@ def run_calibrate(args) -> int:
     if args.json:
         payload = result.to_json()
         payload["bag"] = {"path": str(args.bag), "postures": len(bag.postures), "source": bag.source,
-                          "ignored_topics": bag.ignored_topics, "invalid_messages": bag.invalid_messages}
+                          "ignored_topics": bag.ignored_topics, "invalid_messages": bag.invalid_messages,
+                          "rejected_postures": [{"index": i, "reason": r, "detail": d} for i, r, d in bag.rejected]}
         payload["output"] = str(args.output) if result.reason == CONVERGED else None
         print(json.dumps(payload))
     else:
@@ -93,6 +100,10 @@ def _print_summary(args, bag, result) -> None:
         print(f"  ignored topics: {', '.join(bag.ignored_topics)}")
     if bag.invalid_messages:
         print(f"  {bag.invalid_messages} invalid message(s) skipped (NaN/inf, missing joints, mismatched lengths)")
+    if bag.rejected:
+        print(f"  {len(bag.rejected)} posture(s) set aside (beyond a sensor's range):")
+        for index, reason, detail in bag.rejected[:20]:
+            print(f"    posture {index}: {reason}: {detail}")
     print(f"{result.reason} in {result.iterations} iterations ({result.solve_seconds * 1e3:.1f} ms), "
           f"cost {result.cost}, rank {result.rank}, condition number {result.condition_number:.3g}")
     print(f"postures used {len(result.used_postures)}, rejected {len(result.rejected_postures)}")
@@ -109,6 +120,19 @@ def _print_summary(args, bag, result) -> None:
         print(f"not written: the solver stopped with '{result.reason}'", file=sys.stderr)
 
 
+def _not_used(bag) -> str:
+    parts = []
+    if bag.invalid_messages:
+        parts.append(f"{bag.invalid_messages} invalid message(s) skipped")
+    if bag.rejected:
+        reasons: dict[str, int] = {}
+        for _, reason, _ in bag.rejected:
+            reasons[reason] = reasons.get(reason, 0) + 1
+        parts.append(f"{len(bag.rejected)} posture(s) set aside ("
+                     + ", ".join(f"{n} {r}" for r, n in sorted(reasons.items())) + ")")
+    return "; ".join(parts)
+
+
 def run_bag_info(args) -> int:
     from .bag import open_bag
     from .pipeline import postures_from_bag
@@ -122,5 +146,5 @@ def run_bag_info(args) -> int:
         return 0
     print(f"Postures:          {len(bag.postures)} (from the {bag.source})")
     for key, value in sorted(bag.plan.items()):
-        print(f"Plan:              {key} = {value}")
+        print(f"Recorded:          {key} = {value}")
     return 0

@@ -1,0 +1,141 @@
+"""Bag replay tests on the recorded sample bags of bags/ (see bags/README.md).
+
+* Every sample bag reads with `rosbags` (an independent reader): topics, types and
+  counts equal metadata.yaml.
+* Each bag's raw streams replayed (`replay`) into a fresh collector + identify:
+  the collector re-detects the bag's postures (same count, same values within
+  the noise) and the calibration matches the truth the bag was made with.
+* Each bag's posture topic replayed straight into identify: the published
+  parameters equal `hexacal calibrate` of the same bag to 1e-9.
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from hexacal_identify.core.model import HexaParameters, table1_parameters
+from hexacal_identify.core.validation import pose_errors, validation_poses
+from hexacal_identify.pipeline import postures_from_bag
+from system_support import (
+    STOP_TIMEOUT_S,
+    fast_collector_parameters,
+    node_argv,
+    probe,  # noqa: F401 - fixture
+    write_parameter_files,
+)
+from rosproc import venv_executable
+
+BAGS = Path(__file__).resolve().parent.parent / "bags"
+# name -> (cost, noise half-width m, postures): how each bag was made (bags/README.md).
+SAMPLES = {
+    "sphere50_noise10": ("absolute", 10e-6, 50),
+    "sphere60_fixed20_noise10": ("sphere-fixed", 10e-6, 80),
+    "sphere30_nonoise": ("absolute", 0.0, 30),
+}
+RAW_TOPICS = ["/hexacal/sliders", "/hexacal/inclinometer", "/hexacal/encoder"]
+RAW_REPLAY_RATE = 6.0  # 50 Hz streams at 300 Hz: the collector keeps up, detection uses header stamps
+POSTURE_REPLAY_RATE = 40.0  # postures are reliable, one per ~2 s recorded
+TRUE = table1_parameters()
+
+
+def recorded_posture_values(bag: Path) -> np.ndarray:
+    return np.array([p.values() for p in postures_from_bag(bag).postures])
+
+
+@pytest.mark.parametrize("name", sorted(SAMPLES))
+def test_rosbags_reads_every_sample_bag_as_metadata_says(name):
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    bag = BAGS / name
+    metadata = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    declared = {t["topic_metadata"]["name"]: (t["topic_metadata"]["type"], t["message_count"])
+                for t in metadata["topics_with_message_count"]}
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    counts: dict[str, int] = {}
+    with Reader(bag) as reader:
+        found = {c.topic: c.msgtype for c in reader.connections}
+        for connection, _, raw in reader.messages():
+            message = typestore.deserialize_cdr(raw, connection.msgtype)
+            assert np.all(np.isfinite(message.position))
+            counts[connection.topic] = counts.get(connection.topic, 0) + 1
+    assert {topic: (found[topic], counts[topic]) for topic in found} == declared
+    assert declared["/hexacal/posture"][1] == SAMPLES[name][2]
+    assert metadata["message_count"] == sum(counts.values())
+
+
+def _replay(bag: Path, topics: list[str], ros_processes, probe, rate: float) -> None:
+    replay = ros_processes.start([venv_executable("replay"), str(bag), "--rate", str(rate),
+                                  "--topics", *topics, "--wait-for-subscribers", "20"], name="replay")
+    # Spin the probe meanwhile: it listens to what the nodes publish while the bag plays.
+    probe.spin_until(lambda: not replay.running(), 600.0, f"replay of {bag.name}", replay.describe)
+    assert replay.popen.returncode == 0, replay.describe()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(SAMPLES))
+def test_raw_streams_replayed_into_collector_and_identify(name, ros_processes, tmp_path, probe):
+    cost, noise, count = SAMPLES[name]
+    bag = BAGS / name
+    _, nominal = write_parameter_files(tmp_path)
+    collector = ros_processes.start(node_argv("collector", fast_collector_parameters(
+        tmp_path / "bags", bag_name="rerecorded", window_s=0.3, capture_s=0.5)), name="collector")
+    identify = ros_processes.start(node_argv("identify", {
+        "nominal": str(nominal), "cost": cost, "output_dir": str(tmp_path / "out")}), name="identify")
+    probe.subscribe_postures()
+    probe.subscribe_status()
+    probe.wait_for_node("collector", "/", collector)
+    probe.wait_for_node("identify", "/", identify)
+    _replay(bag, RAW_TOPICS, ros_processes, probe, RAW_REPLAY_RATE)
+    probe.spin_until(lambda: probe.postures_received_by_identify() == count, 60.0,
+                     f"identify to hold the {count} re-detected postures", identify.describe)
+
+    recorded = recorded_posture_values(bag)
+    redetected = np.array([p.values() for p in probe.postures])
+    assert redetected.shape == recorded.shape
+    # Both are means over a dwell of the same samples, windows may differ by a few samples.
+    tolerance = max(noise, 1e-9)
+    assert np.max(np.abs(redetected - recorded)) < tolerance, np.max(np.abs(redetected - recorded))
+
+    received = probe.subscribe_parameters()
+    response = probe.call_trigger()
+    assert response.success, response.message
+    probe.spin_until(lambda: received, 30.0, "the published parameters")
+    assert ros_processes.stop(collector, STOP_TIMEOUT_S) == 0
+    calibrated = HexaParameters(received[-1])
+    after = pose_errors(TRUE, calibrated, validation_poses(TRUE, 30, 0)).summary()
+    assert after["position_max_m"] < (1e-9 if noise == 0 else 60e-6), after
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(SAMPLES))
+def test_posture_topic_replayed_into_identify_equals_offline_calibration(name, ros_processes, tmp_path, probe):
+    cost, _, count = SAMPLES[name]
+    bag = BAGS / name
+    _, nominal = write_parameter_files(tmp_path)
+    identify = ros_processes.start(node_argv("identify", {
+        "nominal": str(nominal), "cost": cost, "output_dir": str(tmp_path / "out")}), name="identify")
+    probe.subscribe_status()
+    probe.wait_for_node("identify", "/", identify)
+    _replay(bag, ["/hexacal/posture"], ros_processes, probe, POSTURE_REPLAY_RATE)
+    probe.spin_until(lambda: probe.postures_received_by_identify() == count, 60.0,
+                     f"identify to hold the bag's {count} postures", identify.describe)
+    received = probe.subscribe_parameters()
+    response = probe.call_trigger()
+    assert response.success, response.message
+    probe.spin_until(lambda: received, 30.0, "the published parameters")
+
+    offline = subprocess.run([sys.executable, "-m", "hexacal_identify.cli", "calibrate", str(bag), "--nominal",
+                              str(nominal), "--output", str(tmp_path / "offline.yaml"), "--cost", cost, "--json"],
+                             capture_output=True, text=True, timeout=300)
+    assert offline.returncode == 0, offline.stderr
+    from hexacal_msgs_py.parameters_file import chain_dict_to_parameters
+
+    np.testing.assert_allclose(received[-1], chain_dict_to_parameters(json.loads(offline.stdout)["parameters"]),
+                               rtol=0, atol=1e-9)
