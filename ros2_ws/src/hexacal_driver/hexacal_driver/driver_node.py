@@ -6,8 +6,8 @@ slider positions (`hexacal/sliders`), the inclinometer angles
 fresh uniform noise, stamped with the node clock (SENSOR_QOS, SI units).
 
 The machine starts standing at the plan's first posture. With
-`wait_for_subscriber` (default) it holds there until something subscribes to
-the slider stream, so a collector started a little later still sees every
+`wait_for_subscriber` (default) it holds there until a subscriber is matched on
+all three streams, so a collector started a little later still sees every
 posture. When the plan is done it stands at the last posture (still
 publishing), or walks the plan again with `loop`.
 
@@ -80,8 +80,8 @@ PARAMETERS: dict[str, _Spec] = {
                   constraints="'random', 'fixed', 'mixed' or an existing plan file"),
     'postures': _Spec(50, 'number of postures of a random, fixed or mixed plan', 1, 100000),
     'loop': _Spec(False, 'walk the plan again when done (else stand at the last posture)'),
-    'wait_for_subscriber': _Spec(True, 'hold the first posture until hexacal/sliders has a '
-                                 'subscriber'),
+    'wait_for_subscriber': _Spec(True, 'hold the first posture until the three sensor streams '
+                                 'have a matched subscriber'),
 }
 
 
@@ -161,6 +161,9 @@ class DriverNode(Node):
         self._inclinometer_pub = self.create_publisher(JointState, INCLINOMETER_TOPIC, SENSOR_QOS)
         self._encoder_pub = self.create_publisher(JointState, ENCODER_TOPIC, SENSOR_QOS)
         self._ticks = 0  # plan time is ticks / rate_hz: every posture gets its samples under load
+        self.published = 0  # messages published on each of the three streams (load accounting)
+        self.published_before_plan = 0  # ... of which while holding for a subscriber
+        self.plan_start_stamp_ns: int | None = None  # stamp of the first message of the plan
         self._started = False
         self._started_monotonic = 0.0
         self._last_reported: tuple[int, int, str] | None = None
@@ -211,12 +214,15 @@ class DriverNode(Node):
 
     def _tick(self) -> None:
         if not self._started:
-            if self.wait_for_subscriber and self.count_subscribers(
-                    self._sliders_pub.topic_name) == 0:
+            # Matched (DDS), not just on the graph, on all three: no plan sample goes to nobody.
+            if self.wait_for_subscriber and min(
+                    publisher.get_subscription_count() for publisher in (
+                        self._sliders_pub, self._inclinometer_pub, self._encoder_pub)) == 0:
                 self._publish(self.walker.sample(0.0))
                 return
             self._started = True
             self._started_monotonic = time.monotonic()
+            self.published_before_plan = self.published
             self.get_logger().info(f"starting plan '{self.plan.name}'")
         sample = self.walker.sample(self._ticks / self.rate_hz)
         self._ticks += 1
@@ -227,12 +233,15 @@ class DriverNode(Node):
         readings = self.sensors.read(sample)
         # One stamp for the three: the sensors are sampled together.
         stamp = self.get_clock().now().nanoseconds
+        if self._started and self.plan_start_stamp_ns is None:
+            self.plan_start_stamp_ns = stamp
         self._sliders_pub.publish(slider_reading_to_joint_state(
             SliderReading(stamp, tuple(readings.sliders_m.tolist()))))
         self._inclinometer_pub.publish(inclinometer_reading_to_joint_state(
             InclinometerReading(stamp, readings.alpha_rad, readings.beta_rad)))
         self._encoder_pub.publish(encoder_reading_to_joint_state(
             EncoderReading(stamp, readings.phi_rad)))
+        self.published += 1
 
     def _report(self, index: int, lap: int, phase: str) -> None:
         state = (index, lap, phase)
@@ -269,7 +278,12 @@ def main(args: list[str] | None = None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        counts = (f'published {node.published} messages on each sensor stream, '
+                  f'{node.published - node.published_before_plan} of them since the plan '
+                  f'started (first stamp {node.plan_start_stamp_ns} ns)')
         node.destroy_node()
+        # After a signal the context is shut down: log once the node (and its rosout) is gone.
+        rclpy.logging.get_logger(NODE_NAME).info(counts)
         rclpy.try_shutdown()
     return 0
 

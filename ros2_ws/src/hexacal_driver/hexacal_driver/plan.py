@@ -197,6 +197,8 @@ def load_plan(path: str | os.PathLike[str]) -> PosturePlan:
         document = yaml.safe_load(text)
     except yaml.YAMLError as error:
         raise fail(f'invalid YAML: {error}') from error
+    except RecursionError:  # PyYAML composes recursively: '[[[[...' thousands deep
+        raise fail('invalid YAML: nested too deeply') from None
     if not isinstance(document, dict):
         raise fail("expected a mapping with keys 'plan' and 'postures'")
     unknown = sorted(set(map(str, document)) - {'plan', 'postures'})

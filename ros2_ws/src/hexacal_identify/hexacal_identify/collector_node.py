@@ -17,28 +17,38 @@ parameters can be read, the plan it walks is stored as bag metadata
 
 Invalid messages (NaN, missing joints, names and positions of different
 lengths, undecodable bytes) are recorded as received, counted and logged
-(throttled), and never stop the node.
+(throttled), and never stop the node. So are readings whose stamps repeat or go
+back in time, slider readings without a partner within `max_skew_s` (stale or
+missing inclinometer/encoder stamps) and messages DDS reports lost. A stream
+with no message for `STREAM_STOPPED_S` is reported stopped, and a posture being
+captured then is dropped (never published half-measured). Every change of these
+counters, of the stopped streams or of the recording (e.g. disk full) is logged
+and published on `hexacal/calibration_status` (status name 'hexacal collector').
 """
 from __future__ import annotations
 
 from datetime import datetime
 from pathlib import Path
 import sys
+import time
 
+from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 import rclpy
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.qos import QoSProfile
+from rclpy.qos import HistoryPolicy, QoSProfile
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 import yaml
 
 from hexacal_msgs_py.conversions import (
+    diagnostic_status,
     joint_state_to_encoder_reading,
     joint_state_to_inclinometer_reading,
     joint_state_to_slider_reading,
@@ -46,16 +56,23 @@ from hexacal_msgs_py.conversions import (
 )
 from hexacal_msgs_py.errors import InvalidReadingError
 from hexacal_msgs_py.names import (
+    CALIBRATION_STATUS_TOPIC,
     ENCODER_TOPIC,
     INCLINOMETER_TOPIC,
     JOINT_STATE_TYPE,
     POSTURE_TOPIC,
     SLIDERS_TOPIC,
 )
-from hexacal_msgs_py.qos import POSTURE_QOS, SENSOR_QOS
+from hexacal_msgs_py.qos import POSTURE_QOS, SENSOR_QOS, STATUS_QOS
 
 from .bag import BagError, BagWriter
-from .posture_detector import DetectedPosture, PostureDetector, StreamSynchronizer
+from .posture_detector import (
+    DROPPED_AT_END,
+    DROPPED_FOR_STREAM_STOP,
+    DetectedPosture,
+    PostureDetector,
+    StreamSynchronizer,
+)
 
 NODE_NAME = 'collector'
 START_RECORDING_SERVICE = 'hexacal/start_recording'
@@ -68,6 +85,15 @@ DRIVER_PLAN_PARAMETERS = ('plan', 'plan_name', 'postures', 'seed', 'link_length'
 INVALID_LOG_PERIOD_S = 5.0
 STALE_LOG_PERIOD_S = 10.0
 NS_PER_S = 1_000_000_000
+STATUS_NAME = 'hexacal collector'
+RAW_TOPICS = (SLIDERS_TOPIC, INCLINOMETER_TOPIC, ENCODER_TOPIC)
+# A stream with no message for this long (receipt time) has stopped, e.g. the driver died.
+STREAM_STOPPED_S = 1.0
+# The sensor publishers are best effort (SENSOR_QOS); a deep reader queue absorbs executor
+# pauses (bag flushes, GC) at 1 kHz instead of overwriting samples.
+SENSOR_SUBSCRIPTION_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=SENSOR_QOS.reliability,
+    durability=SENSOR_QOS.durability)
 
 _DETECTOR_PARAMETERS = {
     # name: (default, description, low, high); defaults are PostureDetector's.
@@ -142,6 +168,12 @@ class CollectorNode(Node):
         self.detector_settings = {name: repr(value[name]) for name in _DETECTOR_PARAMETERS}
         self.postures_published = 0
         self.invalid: dict[str, int] = {}
+        self.received = {topic: 0 for topic in RAW_TOPICS}
+        self.lost: dict[str, int] = {}  # messages DDS reports lost (best effort)
+        self._last_receipt_ns: dict[str, int] = {}
+        self.stopped_streams: tuple[str, ...] = ()
+        self.recording_error: str | None = None
+        self._reported: dict[str, object] | None = None  # problems in the last status
         self.writer: BagWriter | None = None
         self.bag_postures = 0
         self._bag_counter = 0
@@ -149,6 +181,8 @@ class CollectorNode(Node):
         self._plan_request = None
 
         self._posture_pub = self.create_publisher(JointState, POSTURE_TOPIC, POSTURE_QOS)
+        self._status_pub = self.create_publisher(
+            DiagnosticArray, CALIBRATION_STATUS_TOPIC, STATUS_QOS)
         self.topic_names = {
             topic: self.resolve_topic_name(topic)
             for topic in (SLIDERS_TOPIC, INCLINOMETER_TOPIC, ENCODER_TOPIC, POSTURE_TOPIC)}
@@ -158,8 +192,10 @@ class CollectorNode(Node):
             topic: self.create_subscription(
                 JointState, topic,
                 lambda data, info, topic=topic: self._on_raw(topic, data, info),
-                SENSOR_QOS, raw=True)
-            for topic in (SLIDERS_TOPIC, INCLINOMETER_TOPIC, ENCODER_TOPIC)}
+                SENSOR_SUBSCRIPTION_QOS, raw=True,
+                event_callbacks=SubscriptionEventCallbacks(
+                    message_lost=lambda status, topic=topic: self._on_lost(topic, status)))
+            for topic in RAW_TOPICS}
         self.create_service(Trigger, START_RECORDING_SERVICE, self._start_recording)
         self.create_service(Trigger, STOP_RECORDING_SERVICE, self._stop_recording)
         self._driver_parameters = AsyncParameterClient(self, value['driver_node'])
@@ -194,6 +230,8 @@ class CollectorNode(Node):
     # ------------------------------------------------------------------ streams
 
     def _on_raw(self, topic: str, data: bytes, info: dict) -> None:
+        self.received[topic] += 1
+        self._last_receipt_ns[topic] = time.monotonic_ns()
         received_ns = info.get('received_timestamp') or self.get_clock().now().nanoseconds
         self._record(topic, data, received_ns, info.get('source_timestamp') or None)
         try:
@@ -215,6 +253,9 @@ class CollectorNode(Node):
         for sample in samples:
             for posture in self.detector.add(sample):
                 self._on_posture(posture)
+
+    def _on_lost(self, topic: str, status) -> None:
+        self.lost[topic] = int(status.total_count)
 
     def _invalid(self, topic: str, problem: str) -> None:
         self.invalid[topic] = self.invalid.get(topic, 0) + 1
@@ -254,8 +295,14 @@ class CollectorNode(Node):
             else:
                 self.writer.write(self.topic_names[topic], data, log_time_ns)
         except BagError as error:
-            self.get_logger().error(f'recording stopped: {error}')
-            self.close_bag()
+            self._recording_failed(error)
+
+    def _recording_failed(self, error: BagError) -> None:
+        """Stop recording after a bag error (e.g. disk full); the bag stays readable."""
+        self.recording_error = f'{error.reason}: {error}'
+        self.get_logger().error(f'recording stopped: {error}')
+        self.close_bag()
+        self._publish_status()
 
     def _flush(self) -> None:
         if self.writer is None or self.writer.message_count == self.writer.flushed_message_count:
@@ -263,8 +310,7 @@ class CollectorNode(Node):
         try:
             self.writer.flush()
         except BagError as error:
-            self.get_logger().error(f'recording stopped: {error}')
-            self.close_bag()
+            self._recording_failed(error)
 
     def _next_bag_directory(self) -> Path:
         output_dir = Path(self.get_parameter('output_dir').value)
@@ -304,6 +350,7 @@ class CollectorNode(Node):
                 pass  # already reported
             raise
         self.writer, self.bag_postures = writer, 0
+        self.recording_error = None
         self._plan_recorded, self._plan_request = False, None
         self.get_logger().info(f'recording to {directory}')
         return str(directory)
@@ -355,7 +402,88 @@ class CollectorNode(Node):
         if silent:
             self.get_logger().warning(f"no recent data on {', '.join(silent)}",
                                       throttle_duration_sec=STALE_LOG_PERIOD_S)
+        self._check_streams()
+        self._publish_status()
         self._request_plan()
+
+    def _check_streams(self) -> None:
+        """Report streams that stopped (receipt time) and drop a posture they leave half-captured."""
+        now_ns = time.monotonic_ns()
+        stopped = tuple(self.topic_names[topic] for topic in RAW_TOPICS
+                        if topic in self._last_receipt_ns
+                        and now_ns - self._last_receipt_ns[topic] > STREAM_STOPPED_S * NS_PER_S)
+        if stopped != self.stopped_streams:
+            if stopped:
+                self.get_logger().warning(
+                    f"stream(s) stopped: no message on {', '.join(stopped)} for "
+                    f'{STREAM_STOPPED_S:g} s')
+            else:
+                self.get_logger().info(
+                    f"stream(s) resumed: {', '.join(self.stopped_streams)}")
+            self.stopped_streams = stopped
+        if stopped:
+            dropped = self.detector.abort(DROPPED_FOR_STREAM_STOP)
+            if dropped is not None:
+                self.get_logger().warning(
+                    f'dropped a partial posture ({dropped.sample_count} samples over '
+                    f'{(dropped.last_stamp_ns - dropped.first_stamp_ns) / NS_PER_S:.2f} s, '
+                    f"never published): {', '.join(stopped)} stopped")
+
+    def problems(self) -> dict[str, object]:
+        """Counters of everything not used, by stream and reason (what the status reports)."""
+        problems: dict[str, object] = {}
+        for topic, count in sorted(self.invalid.items()):
+            problems[f'invalid.{topic}'] = count
+        for topic, count in sorted(self.lost.items()):
+            if count:
+                problems[f'lost.{topic}'] = count
+        for stream, reasons in self.synchronizer.rejected.items():
+            for reason, count in sorted(reasons.items()):
+                problems[f'rejected.{stream}.{reason}'] = count
+        for reason, count in sorted(self.synchronizer.unpaired.items()):
+            problems[f'unpaired.{reason}'] = count
+        for reason, count in sorted(self.detector.rejected.items()):
+            problems[f'rejected.samples.{reason}'] = count
+        for reason, count in sorted(self.detector.dropped.items()):
+            problems[f'dropped.{reason}'] = count
+        if self.stopped_streams:
+            problems['streams_stopped'] = ', '.join(self.stopped_streams)
+        if self.recording_error:
+            problems['recording_error'] = self.recording_error
+        return problems
+
+    def _publish_status(self) -> None:
+        """Publish on hexacal/calibration_status when a problem counter or state changed."""
+        problems = self.problems()
+        if problems == self._reported:
+            return
+        previous = self._reported or {}
+        changed = [key for key, value in problems.items() if previous.get(key) != value]
+        self._reported = problems
+        if self.recording_error:
+            level, outcome = 'ERROR', 'recording-stopped'
+            message = f'recording stopped: {self.recording_error}'
+        else:
+            level = 'WARN' if changed else 'OK'  # a new or grown problem; 'OK' once all clear
+            outcome = 'recording' if self.writer is not None else 'not-recording'
+            message = ('; '.join(f'{key}: {problems[key]}' for key in changed)
+                       if changed else 'no new problems')
+        values: dict[str, object] = {
+            'outcome': outcome, 'postures_published': self.postures_published,
+            'bag': str(self.writer.directory) if self.writer is not None else '',
+            **{f'received.{topic}': count for topic, count in self.received.items()},
+            **problems}
+        self._status_pub.publish(diagnostic_status(
+            level, STATUS_NAME, message, values, hardware_id=self.get_fully_qualified_name(),
+            stamp=self.get_clock().now().nanoseconds))
+        # Invalid messages, stopped streams, their dropped postures and recording errors are
+        # logged where they happen.
+        counters = [key for key in changed if not key.startswith((
+            'invalid.', 'streams_stopped', 'recording_error', f'dropped.{DROPPED_FOR_STREAM_STOP}'))]
+        if counters:
+            self.get_logger().warning(
+                'not used: ' + '; '.join(f'{key}: {problems[key]}' for key in counters),
+                throttle_duration_sec=INVALID_LOG_PERIOD_S)
 
     def _request_plan(self) -> None:
         """Ask the driver for its plan once per bag (optional: the bag is fine without it)."""
@@ -381,17 +509,20 @@ class CollectorNode(Node):
         try:
             writer.write_metadata(PLAN_METADATA, plan)
         except BagError as error:
-            self.get_logger().error(f'recording stopped: {error}')
-            self.close_bag()
+            self._recording_failed(error)
             return
         self._plan_recorded = True
         self.get_logger().info(f"recorded the driver's plan {plan.get('plan_name', plan)}")
 
     def summary(self) -> str:
+        self.detector.abort(DROPPED_AT_END)  # a posture still being captured is never published
         dropped = self.detector.dropped
-        return (f'{self.postures_published} postures published; invalid messages '
-                f'{self.invalid or 0}; periods dropped {dropped or 0}; unpaired samples '
-                f'{self.synchronizer.unpaired or 0}')
+        rejected = {stream: reasons for stream, reasons in self.synchronizer.rejected.items()
+                    if reasons}
+        return (f'{self.postures_published} postures published; messages received '
+                f'{self.received}; invalid messages {self.invalid or 0}; lost {self.lost or 0}; '
+                f'stamps rejected {rejected or 0}; periods dropped {dropped or 0}; '
+                f'unpaired samples {self.synchronizer.unpaired or 0}')
 
 
 def main(args: list[str] | None = None) -> int:

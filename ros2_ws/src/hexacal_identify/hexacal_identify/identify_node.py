@@ -12,13 +12,19 @@ subscribers get them), with the outcome on `hexacal/calibration_status`. A
 refused or failed calibration publishes an ERROR status naming the reason and
 no parameters; the postures received are kept either way. Between
 calibrations the status reports the postures received so far ('collecting',
-`postures_received`). At start-up an existing `output` file is republished.
+`postures_received`). A posture that is not valid (NaN/inf, missing joints) or
+reads beyond a sensor's range (pipeline.posture_problem) is never stored: it is
+logged and counted in the status (`postures_rejected`, `rejected.<reason>`,
+`last_rejection`), and the postures already received are kept. At start-up an
+existing `output` file is republished, and temporary files of a write that a
+crash interrupted are removed (the output itself is only ever replaced whole).
 """
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from datetime import datetime, timezone
+import glob
 import math
 import os
 from pathlib import Path
@@ -141,7 +147,9 @@ class IdentifyNode(Node):
 
         self._postures: list[PostureReading] = []
         self._postures_lock = threading.Lock()
-        self.invalid_postures = 0
+        self.invalid_postures = 0  # rejected postures, all reasons
+        self.rejected_postures: dict[str, int] = {}
+        self._last_rejection = ''
         self._busy = threading.Lock()
         # Orders 'collecting' statuses (posture thread) against the calibration's statuses.
         self._status_lock = threading.Lock()
@@ -180,9 +188,9 @@ class IdentifyNode(Node):
             if parameter.name == 'robust_loss' and parameter.value not in ('', *ROBUST_LOSSES):
                 return SetParametersResult(successful=False, reason=(
                     f"robust_loss must be '', {', '.join(ROBUST_LOSSES)}; got {parameter.value!r}"))
-            if parameter.name == 'report_dir':
+            if parameter.name == 'report_dir' and parameter.value:  # '' = no report
                 try:
-                    output_path(parameter.value or '.', current('output_dir', ''))
+                    output_path(parameter.value, current('output_dir', ''))
                 except ValueError as error:
                     return SetParametersResult(successful=False, reason=f'report_dir: {error}')
             if parameter.name == 'cost' and parameter.value not in COSTS:
@@ -206,21 +214,41 @@ class IdentifyNode(Node):
     def _on_posture(self, message: JointState) -> None:
         try:
             posture = joint_state_to_posture_reading(message)
+            problem = pipeline.posture_problem(posture)
         except InvalidReadingError as error:
+            problem = ('invalid-reading', str(error))
+        if problem is not None:
+            reason, detail = problem
             self.invalid_postures += 1
+            self.rejected_postures[reason] = self.rejected_postures.get(reason, 0) + 1
+            self._last_rejection = f'{reason}: {detail}'
             self.get_logger().warning(
-                f'ignored an invalid posture ({self.invalid_postures} so far): {error}',
+                f'ignored an invalid posture ({self.invalid_postures} so far): {reason}: {detail}',
                 throttle_duration_sec=INVALID_LOG_PERIOD_S)
-            return
-        with self._postures_lock:
-            self._postures.append(posture)
-            count = len(self._postures)
+            level = 'WARN'
+            with self._postures_lock:
+                count = len(self._postures)
+        else:
+            level = 'OK'
+            with self._postures_lock:
+                self._postures.append(posture)
+                count = len(self._postures)
         with self._status_lock:
             if not self._calibrating:  # a running calibration's status stays until its result
-                self._status_pub.publish(self._status_message(
-                    'OK', f'{count} postures received',
-                    {'outcome': 'collecting', 'postures_received': count,
-                     'last_calibration': self._last_outcome}))
+                values: dict[str, object] = {
+                    'outcome': 'collecting', 'postures_received': count,
+                    'last_calibration': self._last_outcome}
+                if self.invalid_postures:
+                    values.update({'postures_rejected': self.invalid_postures,
+                                   **{f'rejected.{reason}': n
+                                      for reason, n in sorted(self.rejected_postures.items())},
+                                   'last_rejection': self._last_rejection})
+                text = f'{count} postures received'
+                if self.invalid_postures:
+                    text += f', {self.invalid_postures} rejected (last: {self._last_rejection})'
+                self._status_pub.publish(self._status_message(level, text, values))
+        if problem is not None:
+            return
         self.get_logger().info(f'{count} postures received',
                                throttle_duration_sec=PROGRESS_LOG_PERIOD_S)
 
@@ -282,10 +310,13 @@ class IdentifyNode(Node):
             except Exception as error:  # noqa: BLE001 - BagError, CalibrationError, contract errors
                 return _failure('invalid-bag', f'bag {bag}: {error}', bag=bag)
             postures, source = loaded.postures, f'bag {bag} ({loaded.source})'
+            not_used = {'postures_rejected_on_receipt': len(loaded.rejected),
+                        'invalid_messages': loaded.invalid_messages}
         else:
             with self._postures_lock:
                 postures = list(self._postures)
             source = 'live postures'
+            not_used = {'postures_rejected_on_receipt': self.invalid_postures}
         self.get_logger().info(f'calibrating from {len(postures)} {source}, {cost} cost')
         with self._status_lock:
             self._calibrating = True
@@ -302,9 +333,9 @@ class IdentifyNode(Node):
                 robust_loss=self.get_parameter('robust_loss').value or None)
         except CalibrationError as error:
             return _failure(error.reason, str(error), postures_received=len(postures),
-                            source=source)
+                            source=source, **not_used)
         values: dict[str, object] = {'postures_received': len(postures), 'source': source,
-                                     **pipeline.status_fields(result)}
+                                     **pipeline.status_fields(result), **not_used}
         summary = (f'{len(result.used_postures)} of {len(postures)} postures, {cost} cost, '
                    f'{result.iterations} iterations, rank {result.rank}, rms residual '
                    + ', '.join(f'{k} {v:.3g}' for k, v in result.rms_residual.items()))
@@ -358,6 +389,14 @@ class IdentifyNode(Node):
             target = self._output_path()
         except ValueError:
             return
+        # save_parameters writes '.<name>.<random>.tmp' beside the target, then renames it:
+        # a leftover one is a write that a crash interrupted, never a calibration.
+        for leftover in target.parent.glob(f'.{glob.escape(target.name)}.*.tmp'):
+            try:
+                leftover.unlink()
+                self.get_logger().warning(f'removed {leftover}, an interrupted write')
+            except OSError as error:
+                self.get_logger().warning(f'cannot remove {leftover}: {error}')
         if not target.exists():
             return
         try:

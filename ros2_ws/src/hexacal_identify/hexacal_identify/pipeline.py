@@ -18,7 +18,7 @@ from hexacal_msgs_py.readings import PostureReading
 from .core.device import DEVICE_PARAMETER_NAMES, DeviceModel
 from .core.errors import InvalidMeasurementError
 from .core.identification import IdentificationResult, SolverOptions, identify
-from .core.measurements import FIXED, SPHERE, Measurements, NoiseModel
+from .core.measurements import FIXED, SPHERE, MeasurementLimits, Measurements, NoiseModel
 from .core.model import HexaParameters, parameter_names
 
 # A posture whose inclinometer reads zero on both axes (within this, rad) was taken at the fixed
@@ -27,6 +27,30 @@ from .core.model import HexaParameters, parameter_names
 FIXED_POSITION_TOLERANCE_RAD = 5e-5
 RAW_TOPICS = (SLIDERS_TOPIC, INCLINOMETER_TOPIC, ENCODER_TOPIC)
 TABLE1_FILE = Path(__file__).parent / "data" / "table1_exact.yaml"  # the default "exact" machine
+# Reasons a received posture is rejected before it is stored (posture_problem).
+SLIDER_BEYOND_STROKE = "slider-beyond-stroke"
+ANGLE_OUT_OF_RANGE = "angle-out-of-range"
+
+
+def posture_problem(posture: PostureReading,
+                    limits: MeasurementLimits = MeasurementLimits()) -> tuple[str, str] | None:
+    """(reason, description) if a (finite) posture reads beyond a sensor's range, else None.
+
+    The same limits as the core's Measurements.validate: a posture outside them
+    would make the whole identification refuse, so the node and the bag reader
+    set it aside with this reason and keep every other posture.
+    """
+    for index, value in enumerate(posture.slider_positions, start=1):
+        if not limits.slider_min_m <= value <= limits.slider_max_m:
+            return SLIDER_BEYOND_STROKE, (
+                f"slider_{index} = {value!r} m is beyond the stroke "
+                f"[{limits.slider_min_m:g}, {limits.slider_max_m:g}] m")
+    for name, value, limit in (("inclinometer_x (alpha)", posture.alpha, limits.inclinometer_range_rad),
+                               ("inclinometer_y (beta)", posture.beta, limits.inclinometer_range_rad),
+                               ("rotary (phi)", posture.phi, limits.rotary_range_rad)):
+        if abs(value) > limit:
+            return ANGLE_OUT_OF_RANGE, f"{name} = {value!r} rad is beyond the sensor's range +-{limit:.4g} rad"
+    return None
 
 
 def measurements_from_postures(postures: Sequence[PostureReading],
@@ -90,6 +114,19 @@ class BagPostures:
     plan: dict[str, str] = field(default_factory=dict)  # recorded posture plan metadata, if any
     ignored_topics: list[str] = field(default_factory=list)
     invalid_messages: int = 0  # messages of hexacal's topics that were not valid readings (skipped)
+    # Postures set aside (posture_problem): (index among the bag's postures, reason, description).
+    rejected: list[tuple[int, str, str]] = field(default_factory=list)
+
+
+def _screened(postures: list[PostureReading]) -> tuple[list[PostureReading], list[tuple[int, str, str]]]:
+    kept, rejected = [], []
+    for index, posture in enumerate(postures):
+        problem = posture_problem(posture)
+        if problem is None:
+            kept.append(posture)
+        else:
+            rejected.append((index, *problem))
+    return kept, rejected
 
 
 def _topic_key(topic: str) -> str:
@@ -103,7 +140,11 @@ def postures_from_bag(path: Path | str, **detector_options) -> BagPostures:
 
     Topics other than hexacal's are ignored; a bag with neither a posture topic
     nor all three raw streams raises InvalidMeasurementError naming what is
-    missing.  Bag-format problems raise the bag layer's BagError subclasses.
+    missing.  Bag-format problems raise the bag layer's BagError subclasses, also
+    a hexacal topic whose JointState definition is another message version.
+    Messages that do not decode or are not valid readings are skipped and counted
+    (``invalid_messages``); postures beyond a sensor's range are set aside with
+    the reason (``rejected``).
     """
     from .bag import open_bag
 
@@ -125,7 +166,8 @@ def postures_from_bag(path: Path | str, **detector_options) -> BagPostures:
     _check_types(reader, topics)
     if POSTURE_TOPIC in topics:
         postures, invalid = _valid(reader.messages([topics[POSTURE_TOPIC]]), _posture)
-        return BagPostures(postures, "posture topic", plan, ignored, invalid)
+        kept, rejected = _screened(postures)
+        return BagPostures(kept, "posture topic", plan, ignored, invalid, rejected)
     missing = [t for t in RAW_TOPICS if t not in topics]
     if missing:
         raise InvalidMeasurementError(
@@ -133,31 +175,88 @@ def postures_from_bag(path: Path | str, **detector_options) -> BagPostures:
             f"{', '.join('/' + t for t in missing)} needed to re-detect postures"
         )
     postures, invalid = _redetect(reader, topics, **detector_options)
-    return BagPostures(postures, "raw streams (re-detected)", plan, ignored, invalid)
+    kept, rejected = _screened(postures)
+    return BagPostures(kept, "raw streams (re-detected)", plan, ignored, invalid, rejected)
 
 
 def _valid(messages, convert) -> tuple[list, int]:
     """Convert every message that is a valid reading; count (and skip) the others."""
     from hexacal_msgs_py.errors import InvalidReadingError
 
-    converted, invalid = [], 0
+    from .bag import BagDecodeError
+
+    converted, invalid, checked = [], 0, set()
     for message in messages:
         try:
-            converted.append(convert(message.decoded))
-        except InvalidReadingError:
-            invalid += 1  # NaN, missing joint, mismatched lengths: recorded as received, not used
+            converted.append(convert(_joint_state(message, checked)))
+        except (InvalidReadingError, BagDecodeError):
+            # NaN, missing joint, mismatched lengths, bytes that are no JointState (the collector
+            # records what arrived): not used, counted.
+            invalid += 1
     return converted, invalid
 
 
 def _check_types(reader, topics: dict[str, str]) -> None:
-    from .bag import BagSchemaError
+    from .bag import BagSchemaError, MessageDefinitionNotFoundError, message_definition
+    from .bag.schemas import SCHEMA_ENCODING, field_signature
 
     infos = reader.topics()
+    try:
+        installed = field_signature(message_definition(JOINT_STATE_TYPE))
+    except MessageDefinitionNotFoundError:
+        installed = None  # no .msg files to compare with: the bag's own schema decodes it
     for key in (POSTURE_TOPIC, *RAW_TOPICS):
-        if key in topics and infos[topics[key]].type_name != JOINT_STATE_TYPE:
+        if key not in topics:
+            continue
+        topic = topics[key]
+        if infos[topic].type_name != JOINT_STATE_TYPE:
             raise BagSchemaError(
-                f"topic /{key} has type {infos[topics[key]].type_name}, expected {JOINT_STATE_TYPE}"
-            )
+                f"topic /{key} has type {infos[topic].type_name}, expected {JOINT_STATE_TYPE}",
+                topic=topic, expected=JOINT_STATE_TYPE, found=infos[topic].type_name)
+        for encoding, text in reader.schemas(topic) if installed is not None else ():
+            found = field_signature(text) if encoding == SCHEMA_ENCODING else installed
+            if found != installed:
+                raise BagSchemaError(
+                    f"topic {topic} was recorded with another version of {JOINT_STATE_TYPE}: "
+                    f"{_signature_difference(found, installed)}", topic=topic,
+                    expected=JOINT_STATE_TYPE, found=infos[topic].type_name)
+
+
+def _signature_difference(found, installed) -> str:
+    found_fields, installed_fields = dict((n, t) for t, n in found), dict((n, t) for t, n in installed)
+    parts = [f"no field {name!r}" for name in installed_fields if name not in found_fields]
+    parts += [f"extra field {found_fields[name]} {name}" for name in found_fields if name not in installed_fields]
+    parts += [f"field {name!r} is {found_fields[name]}, not {installed_fields[name]}"
+              for name in installed_fields if name in found_fields and found_fields[name] != installed_fields[name]]
+    if not parts:
+        parts = [f"fields in another order ({', '.join(found_fields)})"]
+    return "; ".join(parts) + " (installed: " + ", ".join(f"{t} {n}" for t, n in installed) + ")"
+
+
+def _joint_state(message, checked: set[str]):
+    """message.decoded, checked once per topic to have JointState's fields and types.
+
+    The schema check (_check_types) compares the definition text; this catches a
+    text the decoder reads differently (e.g. a malformed dependency section).
+    """
+    decoded = message.decoded
+    if message.topic not in checked:
+        try:
+            stamp = decoded.header.stamp
+            usable = (isinstance(stamp.sec, int) and isinstance(stamp.nanosec, int)
+                      and all(isinstance(name, str) for name in decoded.name)
+                      and all(isinstance(value, float) for value in decoded.position))
+        except (AttributeError, TypeError):
+            usable = False
+        if not usable:
+            from .bag import BagSchemaError
+
+            raise BagSchemaError(
+                f"topic {message.topic}: its schema does not decode to a {JOINT_STATE_TYPE} "
+                f"(header.stamp, name: string[], position: float64[]); got {decoded!r:.200}",
+                topic=message.topic, expected=JOINT_STATE_TYPE, found=message.type_name)
+        checked.add(message.topic)
+    return decoded
 
 
 def _posture(message) -> PostureReading:
@@ -174,6 +273,7 @@ def _redetect(reader, topics: dict[str, str], **detector_options) -> tuple[list[
         joint_state_to_slider_reading,
     )
 
+    from .bag import BagDecodeError
     from .posture_detector import detect_postures, synchronize_arrays
 
     streams: dict[str, tuple[list[int], list]] = {t: ([], []) for t in RAW_TOPICS}
@@ -183,13 +283,13 @@ def _redetect(reader, topics: dict[str, str], **detector_options) -> tuple[list[
         ENCODER_TOPIC: lambda m: (joint_state_to_encoder_reading(m).phi,),
     }
     by_name = {topics[t]: t for t in RAW_TOPICS}
-    invalid = 0
+    invalid, checked = 0, set()
     for message in reader.messages(list(by_name)):
         key = by_name[message.topic]
-        decoded = message.decoded
         try:
+            decoded = _joint_state(message, checked)
             value = convert[key](decoded)
-        except InvalidReadingError:
+        except (InvalidReadingError, BagDecodeError):
             invalid += 1  # a bad reading is skipped; the synchroniser pairs around the gap
             continue
         stamps, values = streams[key]

@@ -46,8 +46,11 @@ NO_ENCODER_WITHIN_SKEW = "no_encoder_within_skew"
 DROPPED_FOR_MOTION = "motion"
 DROPPED_FOR_GAP = "gap"
 DROPPED_AT_END = "end_of_stream"
+DROPPED_FOR_STREAM_STOP = "stream_stopped"  # a sensor stream went silent (e.g. the driver died)
 
 _NS_PER_S = 1_000_000_000
+# Largest stamp the detector takes (year 2116): stamp arithmetic stays within int64.
+MAX_STAMP_NS = 2**62
 
 
 # =========================================================================== synchronizer
@@ -377,8 +380,15 @@ class PostureDetector:
 
     def update(self, stamps_ns: ArrayLike, values: ArrayLike) -> list[DetectedPosture]:
         """Feed N samples: stamps (N,) in ns, values (N, 9); returns the postures completed."""
-        stamps = np.asarray(stamps_ns, dtype=np.int64).ravel()
-        array = np.asarray(values, dtype=np.float64)
+        try:
+            stamps = np.asarray(stamps_ns, dtype=np.int64).ravel()
+            array = np.asarray(values, dtype=np.float64)
+        except (TypeError, ValueError, OverflowError) as error:
+            raise InvalidReadingError(
+                f"stamps must be integer ns and values numbers: {error}") from None
+        if stamps.size and (stamps.min() < 0 or stamps.max() > MAX_STAMP_NS):
+            raise InvalidReadingError(f"stamps must be in [0, {MAX_STAMP_NS}] ns, got "
+                                      f"[{stamps.min()}, {stamps.max()}]")
         if array.shape != (len(stamps), N_CHANNELS):
             raise InvalidReadingError(f"values must have shape ({len(stamps)}, {N_CHANNELS}) "
                                       f"for {len(stamps)} stamps, got {array.shape}")
@@ -392,10 +402,17 @@ class PostureDetector:
 
     def finish(self) -> DroppedPeriod | None:
         """End of data: report (never emit) a period still being captured."""
-        dropped = None
-        if self.state is DetectorState.CAPTURING:
-            dropped = self._drop(DROPPED_AT_END)
-        return dropped
+        return self.abort(DROPPED_AT_END)
+
+    def abort(self, reason: str) -> DroppedPeriod | None:
+        """Drop (count, never emit) a period being captured, e.g. when a stream stopped.
+
+        Returns the dropped period, or None if nothing was being captured. Samples
+        that arrive later start a new period after the usual window.
+        """
+        if self.state is not DetectorState.CAPTURING:
+            return None
+        return self._drop(reason)
 
     # ------------------------------------------------------------------ internals
 
@@ -440,9 +457,11 @@ class PostureDetector:
             np.maximum(segment_index, 0))
         maxima, minima = _window_extrema(all_values, window_start, indices)
         full = stamps - self.window_ns >= segment_start_ns
-        still = np.all(maxima - minima <= self.tolerances, axis=1)
+        with np.errstate(over="ignore"):  # readings near the float range: inf spread = moving
+            still = np.all(maxima - minima <= self.tolerances, axis=1)
+            window_mid = (maxima + minima) / 2
         verdicts = np.where(full, np.where(still, _STILL, _MOVING), _UNKNOWN)
-        postures = self._run_states(stamps, values, verdicts, (maxima + minima) / 2)
+        postures = self._run_states(stamps, values, verdicts, window_mid)
 
         # Keep the samples a later window can reach: same segment, within window_ns of the last.
         self._last_stamp_ns = int(stamps[-1])

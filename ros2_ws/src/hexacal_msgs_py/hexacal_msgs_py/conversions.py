@@ -79,7 +79,11 @@ def _joint_positions(msg: JointState, names: Sequence[str], what: str) -> list[f
             f'(names: {list(msg.name)})')
     positions = []
     for name in names:
-        value = float(msg.position[index[name]])
+        try:
+            value = float(msg.position[index[name]])
+        except (TypeError, ValueError, IndexError) as error:
+            raise InvalidReadingError(f"{what}: joint '{name}' position is not a number: "
+                                      f'{error}') from None
         if not math.isfinite(value):
             raise InvalidReadingError(f"{what}: joint '{name}' position is {value!r}")
         positions.append(value)

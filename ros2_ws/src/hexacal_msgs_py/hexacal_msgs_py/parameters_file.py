@@ -126,6 +126,8 @@ def load_parameters_file(path: PathLike) -> tuple[np.ndarray, dict[str, Any]]:
         document = yaml.load(text, Loader=_RosParametersLoader)  # noqa: S506 (safe loader)
     except yaml.YAMLError as error:
         raise fail(f'invalid YAML: {error}') from error
+    except RecursionError:  # PyYAML composes recursively: '[[[[...' thousands deep
+        raise fail('invalid YAML: nested too deeply') from None
     flat: dict[str, Any] = {}
     _flatten(_ros_parameters(document, fail), '', flat, fail)
     vector = _vector_from_flat(flat, fail)
@@ -239,7 +241,10 @@ def _flatten(mapping: Mapping[Any, Any], prefix: str, out: dict[str, Any], fail:
 def _number(value: object, name: str, fail: _Fail) -> float:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         raise fail(f'{name} must be numeric, got {value!r}')
-    number = float(value)
+    try:
+        number = float(value)
+    except OverflowError:  # an integer beyond the float range
+        number = math.inf
     if not math.isfinite(number):
         raise fail(f'{name} must be finite, got {number!r}')
     return number

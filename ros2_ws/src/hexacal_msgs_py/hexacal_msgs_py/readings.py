@@ -36,6 +36,8 @@ def _check_value(kind: str, name: str, value: object) -> float:
         number = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
         raise InvalidReadingError(f'{kind}: {name} must be a number, got {value!r}') from None
+    except OverflowError:  # an integer beyond the float range
+        number = math.inf
     if not math.isfinite(number):
         raise InvalidReadingError(f'{kind}: {name} must be finite, got {number!r}')
     return number

@@ -576,6 +576,16 @@ class BagReader:
         return {name: TopicInfo(topic.type_name, counts[name], topic.qos_profiles)
                 for name, topic in self._topics.items()}
 
+    def schemas(self, topic_name: str) -> list[tuple[str, str]]:
+        """(encoding, text) of the schema of `topic_name` in each file that has the topic."""
+        found = []
+        for mcap_file, channel_topics in zip(self._files, self._channel_topics):
+            for channel_id, topic in channel_topics.items():
+                if _topic_key(topic.name) == _topic_key(topic_name):
+                    schema = mcap_file.schemas[mcap_file.channels[channel_id].schema_id]
+                    found.append((schema.encoding, schema.data.decode("utf-8", errors="replace")))
+        return found
+
     def metadata(self) -> list[MetadataRecord]:
         """All MCAP metadata records, in file order."""
         return [record for mcap_file in self._files for record in mcap_file.metadata]
@@ -680,7 +690,8 @@ def load_metadata_yaml(path: Path) -> dict[str, Any]:
         if not isinstance(information, dict):
             raise TypeError("rosbag2_bagfile_information is not a mapping")
         return information
-    except (OSError, UnicodeDecodeError, yaml.YAMLError, KeyError, TypeError) as error:
+    except (OSError, UnicodeDecodeError, yaml.YAMLError, KeyError, TypeError,
+            RecursionError) as error:  # RecursionError: YAML nested thousands deep
         raise BagMetadataError(f"{path} is not a readable rosbag2 metadata file "
                                f"({type(error).__name__}: {error}); rebuild it with reindex"
                                ) from error

@@ -128,6 +128,22 @@ def field_names(type_name: str) -> tuple[str, ...]:
     return tuple(names)
 
 
+def field_signature(definition: str) -> tuple[tuple[str, str], ...]:
+    """(type, name) of each field (not constant) of the top-level message of a ros2msg text.
+
+    Comments, blank lines, default values and the spelling 'pkg/msg/Type' versus
+    'pkg/Type' do not matter; a field added, removed, renamed or retyped does:
+    two texts with the same signature decode the same CDR bytes the same way.
+    """
+    own = re.split(r"^={80}\s*$", definition, maxsplit=1, flags=re.MULTILINE)[0]
+    fields = []
+    for line in own.splitlines():
+        match = _FIELD_LINE_RE.match(line.split("#", 1)[0])
+        if match and not match.group(3):  # 'TYPE NAME=VALUE' is a constant
+            fields.append((match.group(1).replace("/msg/", "/"), match.group(2)))
+    return tuple(fields)
+
+
 def message_definition(type_name: str) -> str:
     """Concatenated ros2msg definition of `type_name`, as rosbag2 stores it in an MCAP schema."""
     normalized = normalize_type_name(type_name)

@@ -21,8 +21,11 @@ class MeasurementLimits:
 
     inclinometer_range_rad: float = np.radians(60.0)
     rotary_range_rad: float = np.pi
-    slider_min_m: float = -1.0
-    slider_max_m: float = 2.0
+    # The rail stroke postures are planned in (postures.Workspace.slider_stroke_m, 0 .. 0.9 m)
+    # plus 0.1 m (device defects move simulated sliders ~20 mm past it): a slider reading beyond
+    # is a sensor fault, not a posture of the machine.
+    slider_min_m: float = -0.1
+    slider_max_m: float = 1.0
 
 
 @dataclass
