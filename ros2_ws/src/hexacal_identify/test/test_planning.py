@@ -140,6 +140,9 @@ def test_bad_plan_files_are_refused(tmp_path):
     path.write_text("postures: []\n")
     with pytest.raises(ValueError, match="not a plan file"):
         Plan.load(path)
+    path.write_text("plan: {name: x\n  : [broken\n")
+    with pytest.raises(ValueError, match="not readable as a plan file"):
+        Plan.load(path)
     with pytest.raises(ValueError, match="observability index"):
         plan_postures(NOMINAL, 5, index="O9", n_candidates=50)
 

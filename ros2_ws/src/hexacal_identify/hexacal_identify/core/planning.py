@@ -656,8 +656,11 @@ class Plan:
 
     @classmethod
     def load(cls, path: Path | str) -> "Plan":
-        text = Path(path).read_text(encoding="utf-8")
-        document = yaml.safe_load(text)
+        try:
+            text = Path(path).read_text(encoding="utf-8")
+            document = yaml.safe_load(text)
+        except (yaml.YAMLError, UnicodeDecodeError, RecursionError) as error:
+            raise ValueError(f"{path}: not readable as a plan file: {str(error).splitlines()[0]}") from None
         if not isinstance(document, dict) or not isinstance(document.get("plan"), dict):
             raise ValueError(f"{path}: not a plan file (no 'plan' mapping)")
         header = dict(document["plan"])
@@ -676,7 +679,10 @@ class Plan:
         metadata = {}
         for line in text.splitlines():
             if line.startswith(METADATA_PREFIX):
-                metadata = json.loads(line[len(METADATA_PREFIX):])
+                try:
+                    metadata = dict(json.loads(line[len(METADATA_PREFIX):]))
+                except (ValueError, TypeError):
+                    raise ValueError(f"{path}: its '{METADATA_PREFIX.strip()}' comment is not a JSON object") from None
                 metadata.pop("fingerprint", None)
         return cls(str(header["name"]), float(header["link_length"]), poses, np.array(kinds), metadata)
 
