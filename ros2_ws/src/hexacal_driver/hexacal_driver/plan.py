@@ -31,7 +31,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from hexacal_identify.core.device import DEFAULT_LINK_LENGTH_M, inclinometer_angles
 from hexacal_identify.core.errors import UnreachablePoseError
@@ -39,6 +38,7 @@ from hexacal_identify.core.kinematics import inverse_kinematics
 from hexacal_identify.core.measurements import FIXED, POSTURE_KINDS, SPHERE, MeasurementLimits
 from hexacal_identify.core.model import HexaParameters
 from hexacal_identify.core.postures import Workspace, sample_poses
+from hexacal_msgs_py.parameters_file import read_yaml_document
 
 RANDOM_PLAN = 'random'  # sphere postures only
 FIXED_PLAN = 'fixed'  # fixed-position postures only
@@ -187,18 +187,7 @@ def load_plan(path: str | os.PathLike[str]) -> PosturePlan:
     def fail(message: str) -> PlanError:
         return PlanError(f'{name}: {message}')
 
-    try:
-        text = Path(path).read_text(encoding='utf-8')
-    except OSError as error:
-        raise fail(f'cannot read: {error.strerror or error}') from error
-    except UnicodeDecodeError as error:
-        raise fail(f'not UTF-8 text: {error}') from error
-    try:
-        document = yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        raise fail(f'invalid YAML: {error}') from error
-    except RecursionError:  # PyYAML composes recursively: '[[[[...' thousands deep
-        raise fail('invalid YAML: nested too deeply') from None
+    document = read_yaml_document(path, fail)
     if not isinstance(document, dict):
         raise fail("expected a mapping with keys 'plan' and 'postures'")
     unknown = sorted(set(map(str, document)) - {'plan', 'postures'})

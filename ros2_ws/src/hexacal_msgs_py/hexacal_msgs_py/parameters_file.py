@@ -109,13 +109,14 @@ def load_parameters(path: PathLike) -> np.ndarray:
     return load_parameters_file(path)[0]
 
 
-def load_parameters_file(path: PathLike) -> tuple[np.ndarray, dict[str, Any]]:
-    """Load the 54-vector and the other parameters (dotted name -> value)."""
-    name = os.fspath(path)
+def read_yaml_document(path: PathLike, fail: _Fail,
+                       loader: type = yaml.SafeLoader) -> Any:
+    """A YAML file's document with a safe loader; every failure becomes fail(message), raised.
 
-    def fail(message: str) -> ParameterFileError:
-        return ParameterFileError(f'{name}: {message}')
-
+    Shared by the loaders of YAML files (parameters here, posture plans in the
+    driver) so a missing file, bad encoding, bad YAML or absurd nesting is always
+    a named error of the caller's kind.
+    """
     try:
         text = Path(path).read_text(encoding='utf-8')
     except OSError as error:
@@ -123,11 +124,21 @@ def load_parameters_file(path: PathLike) -> tuple[np.ndarray, dict[str, Any]]:
     except UnicodeDecodeError as error:
         raise fail(f'not UTF-8 text: {error}') from error
     try:
-        document = yaml.load(text, Loader=_RosParametersLoader)  # noqa: S506 (safe loader)
+        return yaml.load(text, Loader=loader)  # noqa: S506 - loader is SafeLoader or a subclass
     except yaml.YAMLError as error:
         raise fail(f'invalid YAML: {error}') from error
     except RecursionError:  # PyYAML composes recursively: '[[[[...' thousands deep
         raise fail('invalid YAML: nested too deeply') from None
+
+
+def load_parameters_file(path: PathLike) -> tuple[np.ndarray, dict[str, Any]]:
+    """Load the 54-vector and the other parameters (dotted name -> value)."""
+    name = os.fspath(path)
+
+    def fail(message: str) -> ParameterFileError:
+        return ParameterFileError(f'{name}: {message}')
+
+    document = read_yaml_document(path, fail, _RosParametersLoader)
     flat: dict[str, Any] = {}
     _flatten(_ros_parameters(document, fail), '', flat, fail)
     vector = _vector_from_flat(flat, fail)
