@@ -241,7 +241,7 @@ class DriverNode(Node):
             InclinometerReading(stamp, readings.alpha_rad, readings.beta_rad)))
         self._encoder_pub.publish(encoder_reading_to_joint_state(
             EncoderReading(stamp, readings.phi_rad)))
-        self.published += 1
+        self.published += 1  # complete ticks: Ctrl-C may cut the last one after some of its publishes
 
     def _report(self, index: int, lap: int, phase: str) -> None:
         state = (index, lap, phase)
@@ -265,6 +265,8 @@ class DriverNode(Node):
             self.get_logger().info(f"end of plan '{self.plan.name}' lap {lap + 1}: looping")
 
 
+SHUTDOWN_LINGER_S = 0.3
+
 def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args)
     try:
@@ -281,6 +283,9 @@ def main(args: list[str] | None = None) -> int:
         counts = (f'published {node.published} messages on each sensor stream, '
                   f'{node.published - node.published_before_plan} of them since the plan '
                   f'started (first stamp {node.plan_start_stamp_ns} ns)')
+        # Best-effort samples of the last ticks may still sit in Fast DDS's writer queues: give its
+        # send threads a moment before the publishers are destroyed, so a stop loses nothing in flight.
+        time.sleep(SHUTDOWN_LINGER_S)
         node.destroy_node()
         # After a signal the context is shut down: log once the node (and its rosout) is gone.
         rclpy.logging.get_logger(NODE_NAME).info(counts)
