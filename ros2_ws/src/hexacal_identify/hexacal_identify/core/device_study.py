@@ -20,7 +20,7 @@ import numpy as np
 
 from .device import DeviceDefects, DeviceModel, device_position
 from .errors import CalibrationError
-from .identification import IdentificationResult, SolverOptions, identify
+from .identification import SolverOptions, identify
 from .measurements import FIXED, SPHERE, Measurements, NoiseModel, simulate_measurements
 from .model import HexaParameters, nominal_set, table1_parameters
 from .postures import Workspace, sample_poses
@@ -167,4 +167,4 @@ def compare_methods(defects: DeviceDefects = DEFAULT_DEFECTS, noise_um: float = 
 
 
 __all__ = ["DEFAULT_DEFECTS", "METHODS", "compare_methods", "device_frame_poses", "device_frame_truth",
-           "simulate_procedure", "IdentificationResult"]
+           "simulate_procedure"]

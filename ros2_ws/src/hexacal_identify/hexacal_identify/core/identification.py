@@ -206,6 +206,15 @@ class _Problem:
         block.jacobian = block.jacobian[:, self.free]
         return block
 
+    def row_transform(self, vector: np.ndarray, poses: np.ndarray, robust: bool = True) -> "_RowTransform":
+        """Row weights at this solution: whitening by the noise model and/or robust weights (none if neither)."""
+        loss = self.options.robust_loss if robust else None
+        if self.options.noise is None and loss is None:
+            return _RowTransform()
+        params, defects = _split(vector)
+        raw = self.cost.residuals(poses, pose_sensitivities(params, poses), defects, with_device=True)
+        return _RowTransform(raw, self.options.noise, loss)
+
     def row_count(self, defects: DeviceDefects) -> int:
         return len(self.cost.residuals(self.expected_poses(defects), None, defects).values) if len(self.used) else 0
 
@@ -387,12 +396,7 @@ def identify(nominal: HexaParameters, measurements: Measurements, options: Solve
 
 
 def _run(problem: "_Problem", vector: np.ndarray, poses: np.ndarray, options: SolverOptions) -> "_LevenbergMarquardt":
-    transform = _RowTransform()
-    if options.noise is not None or options.robust_loss is not None:
-        params, defects = _split(vector)
-        raw = problem.cost.residuals(poses, pose_sensitivities(params, poses), defects, with_device=True)
-        transform = _RowTransform(raw, options.noise, options.robust_loss)
-    solver = _LevenbergMarquardt(problem, vector, poses, transform)
+    solver = _LevenbergMarquardt(problem, vector, poses, problem.row_transform(vector, poses))
     solver.run()
     return solver
 
@@ -433,9 +437,7 @@ def _outliers(problem: "_Problem", vector: np.ndarray, poses: np.ndarray, option
     whitened = options.noise is not None
     values = block.values
     if whitened:
-        params, defects = _split(vector)
-        raw = problem.cost.residuals(poses, pose_sensitivities(params, poses), defects, with_device=True)
-        values = _RowTransform(raw, options.noise).values(block)
+        values = problem.row_transform(vector, poses, robust=False).values(block)
     count = np.bincount(block.postures, minlength=len(poses))
     rms = np.sqrt(np.bincount(block.postures, weights=values**2, minlength=len(poses)) / np.maximum(count, 1))
     typical = np.median(rms) + 1e-300
@@ -562,11 +564,7 @@ class _LevenbergMarquardt:
         self.problem.check_enough(self.dropped)
         self.poses = self.poses[keep]
         # Whitening/robust weights were per row of the old posture set: refit them on the new one.
-        if self.transform.whitener is not None or self.transform.robust is not None:
-            params, defects = _split(self.vector)
-            raw = self.problem.cost.residuals(self.poses, pose_sensitivities(params, self.poses), defects,
-                                              with_device=True)
-            self.transform = _RowTransform(raw, self.options.noise, self.options.robust_loss)
+        self.transform = self.problem.row_transform(self.vector, self.poses)
         self.raw_block = self.problem.jacobian(self.vector, self.poses)
         self.block = self.transform.apply(self.raw_block)
 
