@@ -27,7 +27,6 @@ from dataclasses import dataclass
 import json
 import math
 import os
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -38,6 +37,7 @@ from hexacal_identify.core.kinematics import inverse_kinematics
 from hexacal_identify.core.measurements import FIXED, POSTURE_KINDS, SPHERE, MeasurementLimits
 from hexacal_identify.core.model import HexaParameters
 from hexacal_identify.core.postures import Workspace, sample_poses
+from hexacal_msgs_py.files import atomic_write
 from hexacal_msgs_py.parameters_file import read_yaml_document
 
 RANDOM_PLAN = 'random'  # sphere postures only
@@ -242,16 +242,12 @@ def plan_document(plan: PosturePlan) -> dict[str, Any]:
 
 def save_plan(path: str | os.PathLike[str], plan: PosturePlan) -> None:
     """Write a plan file that load_plan reads back exactly (repr floats)."""
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
     lines = ['plan:', f'  name: {json.dumps(plan.name)}',
              f'  link_length: {float(plan.link_length)!r}', 'postures:']
     for kind, pose in zip(plan.kinds, plan.poses):
         values = ', '.join(repr(float(v)) for v in pose)
         lines.append(f'  - {{kind: {kind}, pose: [{values}]}}')
-    temporary = target.with_name(f'.{target.name}.tmp')
-    temporary.write_text('\n'.join(lines) + '\n', encoding='utf-8')
-    os.replace(temporary, target)
+    atomic_write(path, '\n'.join(lines) + '\n')
 
 
 # --------------------------------------------------------------------------- against a machine

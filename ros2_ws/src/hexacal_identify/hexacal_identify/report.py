@@ -15,12 +15,11 @@ import base64
 import html
 import json
 import math
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from hexacal_msgs_py.files import atomic_write
 
 from .core.device import DEFAULT_LINK_LENGTH_M
 from .core.model import N_PARAMETERS, parameter_names
@@ -103,19 +102,7 @@ def _plain(value: Any) -> Any:
 
 
 def _atomic_write(path: Path, content: str | bytes) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            stream.write(content.encode("utf-8") if isinstance(content, str) else content)
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.chmod(temporary, 0o644)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
-    return path
+    return atomic_write(path, content)
 
 
 # --------------------------------------------------------------------------- the report

@@ -20,21 +20,19 @@ in PARAMETER_FIELDS chain-major order.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-import contextlib
 import json
 import math
 import numbers
 import os
 from pathlib import Path
 import re
-import stat
-import tempfile
 from typing import Any, Union
 
 import numpy as np
 import yaml
 
 from hexacal_msgs_py.errors import InvalidParametersError, ParameterFileError
+from hexacal_msgs_py.files import atomic_write
 from hexacal_msgs_py.names import (
     N_CHAINS,
     N_PARAMETERS,
@@ -57,7 +55,6 @@ _CHAIN_KEY_NAMES = frozenset(
     f'chain_{chain}.{key}' for chain in range(1, N_CHAINS + 1) for key in CHAIN_KEYS)
 _PARAMETER_NAME = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$')
 _MAX_NAMESPACE_DEPTH = 8
-_DEFAULT_FILE_MODE = 0o644
 
 _Fail = Callable[[str], Exception]
 
@@ -335,40 +332,8 @@ def _yaml_value(value: object, name: str, fail: _Fail) -> str:
 
 
 def _atomic_write(target: Path, text: str, fail: _Fail) -> None:
-    """Temp file in the same directory, fsync, os.replace: readers never see a partial file."""
+    """files.atomic_write, with a failure named as this file's ParameterFileError."""
     try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        try:
-            mode = stat.S_IMODE(target.stat().st_mode)
-        except FileNotFoundError:
-            mode = _DEFAULT_FILE_MODE
-        descriptor, temp_name = tempfile.mkstemp(
-            prefix=f'.{target.name}.', suffix='.tmp', dir=target.parent)
-        try:
-            with os.fdopen(descriptor, 'w', encoding='utf-8') as stream:
-                stream.write(text)
-                stream.flush()
-                os.fsync(stream.fileno())
-            os.chmod(temp_name, mode)
-            os.replace(temp_name, target)
-        except BaseException:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(temp_name)
-            raise
-        _fsync_directory(target.parent)
+        atomic_write(target, text)
     except OSError as error:
         raise fail(f'cannot write: {error.strerror or error}') from error
-
-
-def _fsync_directory(directory: Path) -> None:
-    # Makes the rename durable; not all file systems allow opening a directory.
-    try:
-        descriptor = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(descriptor)
-    except OSError:
-        pass
-    finally:
-        os.close(descriptor)

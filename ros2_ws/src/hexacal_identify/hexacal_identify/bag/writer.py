@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 import yaml
+from hexacal_msgs_py.files import atomic_write
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 
@@ -154,28 +155,8 @@ def metadata_document(info: BagInfo, *, custom_data: Mapping[str, str] | None = 
 
 def write_metadata_yaml(directory: Path, document: Mapping[str, Any]) -> Path:
     """Write <directory>/metadata.yaml atomically (temp file, fsync, rename, fsync dir)."""
-    target = directory / METADATA_FILE_NAME
-    temporary = directory / f".{METADATA_FILE_NAME}.tmp"
     text = yaml.safe_dump({"rosbag2_bagfile_information": dict(document)}, sort_keys=False)
-    try:
-        with open(temporary, "w", encoding="utf-8") as handle:
-            handle.write(text)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(temporary, target)
-    except OSError:
-        temporary.unlink(missing_ok=True)  # e.g. disk full: leave no half-written file behind
-        raise
-    _fsync_directory(directory)
-    return target
-
-
-def _fsync_directory(directory: Path) -> None:
-    descriptor = os.open(directory, os.O_RDONLY)
-    try:
-        os.fsync(descriptor)
-    finally:
-        os.close(descriptor)
+    return atomic_write(directory / METADATA_FILE_NAME, text)  # e.g. disk full: no half-written file
 
 
 class _DurableFile:

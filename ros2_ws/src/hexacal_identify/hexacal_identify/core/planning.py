@@ -62,8 +62,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import tempfile
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -639,20 +637,9 @@ class Plan:
 
     def save(self, path: Path | str) -> Path:
         """Write atomically (temporary file in the same directory, fsync, rename)."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        try:
-            with os.fdopen(handle, "w", encoding="utf-8") as stream:
-                stream.write(self.to_text())
-                stream.flush()
-                os.fsync(stream.fileno())
-            os.chmod(temporary, 0o644)
-            os.replace(temporary, path)
-        except BaseException:
-            Path(temporary).unlink(missing_ok=True)
-            raise
-        return path
+        from hexacal_msgs_py.files import atomic_write
+
+        return atomic_write(path, self.to_text())
 
     @classmethod
     def load(cls, path: Path | str) -> "Plan":
