@@ -27,9 +27,7 @@ from rcl_interfaces.msg import (
     ParameterDescriptor,
     SetParametersResult,
 )
-import rclpy
 from rclpy.exceptions import InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -38,6 +36,7 @@ from hexacal_driver.plan import GENERATED_PLANS, PlanError, PosturePlan, load_pl
 from hexacal_driver.simulation import DONE, DWELLING, PlanWalker, SensorSimulator
 from hexacal_identify.core.measurements import NoiseModel
 from hexacal_identify.core.model import HexaParameters, table1_parameters
+from hexacal_identify.node_runtime import run_node
 from hexacal_msgs_py.conversions import (
     encoder_reading_to_joint_state,
     inclinometer_reading_to_joint_state,
@@ -267,30 +266,18 @@ class DriverNode(Node):
 
 SHUTDOWN_LINGER_S = 0.3
 
+def _finish(node: DriverNode) -> list[str]:
+    # Best-effort samples of the last ticks may still sit in Fast DDS's writer queues: give its
+    # send threads a moment before the publishers are destroyed, so a stop loses nothing in flight.
+    time.sleep(SHUTDOWN_LINGER_S)
+    return [f'published {node.published} messages on each sensor stream, '
+            f'{node.published - node.published_before_plan} of them since the plan '
+            f'started (first stamp {node.plan_start_stamp_ns} ns)']
+
+
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = DriverNode()
-    except (DriverConfigurationError, InvalidParameterValueException) as error:
-        rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {error}')
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        counts = (f'published {node.published} messages on each sensor stream, '
-                  f'{node.published - node.published_before_plan} of them since the plan '
-                  f'started (first stamp {node.plan_start_stamp_ns} ns)')
-        # Best-effort samples of the last ticks may still sit in Fast DDS's writer queues: give its
-        # send threads a moment before the publishers are destroyed, so a stop loses nothing in flight.
-        time.sleep(SHUTDOWN_LINGER_S)
-        node.destroy_node()
-        # After a signal the context is shut down: log once the node (and its rosout) is gone.
-        rclpy.logging.get_logger(NODE_NAME).info(counts)
-        rclpy.try_shutdown()
-    return 0
+    return run_node(NODE_NAME, DriverNode, args=args, finish=_finish,
+                    startup_errors=(DriverConfigurationError, InvalidParameterValueException))
 
 
 if __name__ == '__main__':

@@ -34,10 +34,8 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
-import rclpy
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
@@ -66,6 +64,7 @@ from hexacal_msgs_py.names import (
 from hexacal_msgs_py.qos import POSTURE_QOS, SENSOR_QOS, STATUS_QOS
 
 from .bag import BagError, BagWriter
+from .node_runtime import run_node
 from .posture_detector import (
     DROPPED_AT_END,
     DROPPED_FOR_STREAM_STOP,
@@ -525,28 +524,14 @@ class CollectorNode(Node):
                 f'unpaired samples {self.synchronizer.unpaired or 0}')
 
 
+def _finish(node: CollectorNode) -> list[str]:
+    closed = node.close_bag(log=False)  # metadata.yaml and the MCAP footer: the bag is complete
+    return [closed, node.summary()]
+
+
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = CollectorNode()
-    except (InvalidParameterValueException, BagError) as error:
-        rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {error}')
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        closed = node.close_bag(log=False)  # metadata.yaml: the bag is complete
-        summary = node.summary()
-        node.destroy_node()
-        # A signal has shut the context down: log once the node (and its rosout publisher) is gone.
-        logger = rclpy.logging.get_logger(NODE_NAME)
-        for line in filter(None, (closed, summary)):
-            logger.info(line)
-        rclpy.try_shutdown()
-    return 0
+    return run_node(NODE_NAME, CollectorNode, args=args, finish=_finish,
+                    startup_errors=(InvalidParameterValueException, BagError))
 
 
 if __name__ == '__main__':

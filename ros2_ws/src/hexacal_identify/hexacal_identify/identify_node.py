@@ -33,10 +33,9 @@ import threading
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
-import rclpy
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.exceptions import InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -66,6 +65,7 @@ from .core.identification import CONVERGED, ITERATION_LIMIT, ROBUST_LOSSES
 from .core.measurements import NoiseModel
 from .core.model import HexaParameters
 from .core.residuals import COSTS
+from .node_runtime import run_node
 from .report import write_report
 
 NODE_NAME = 'identify'
@@ -411,27 +411,16 @@ class IdentifyNode(Node):
         self._worker.shutdown(wait=True, cancel_futures=True)
 
 
+def _finish(node: IdentifyNode) -> list[str]:
+    node.shutdown()  # a calibration under way finishes: its files are written whole
+    return []
+
+
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = IdentifyNode()
-    except InvalidParameterValueException as error:
-        rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {error}')
-        rclpy.try_shutdown()
-        return 2
     # Several threads: a waiting service call must not block postures or a second call.
-    executor = MultiThreadedExecutor(num_threads=4)
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.shutdown(timeout_sec=5.0)
-        node.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(NODE_NAME, IdentifyNode, args=args, finish=_finish,
+                    make_executor=lambda: MultiThreadedExecutor(num_threads=4),
+                    startup_errors=(InvalidParameterValueException,))
 
 
 if __name__ == '__main__':

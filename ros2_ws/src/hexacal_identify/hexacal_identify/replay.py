@@ -22,6 +22,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from .bag import BagError, open_bag
 from .bag.writer import qos_profiles_for_metadata
+from .node_runtime import hold_termination_signals
 
 _RELIABILITY = {"reliable": ReliabilityPolicy.RELIABLE, "best_effort": ReliabilityPolicy.BEST_EFFORT}
 _DURABILITY = {"transient_local": DurabilityPolicy.TRANSIENT_LOCAL, "volatile": DurabilityPolicy.VOLATILE}
@@ -86,6 +87,8 @@ class BagPlayer(Node):
         first = messages[0].log_time_ns
         started = time.monotonic()
         for count, message in enumerate(messages, 1):
+            if not self.context.ok():  # SIGTERM: rclpy shut the context down
+                return count - 1
             due = started + (message.log_time_ns - first) / 1e9 / rate
             delay = due - time.monotonic()
             if delay > 0:
@@ -123,6 +126,8 @@ def main(argv: list[str] | None = None) -> int:
         player.wait_for_subscribers(args.wait_for_subscribers)
         while True:
             sent = player.play(args.rate)
+            if not player.context.ok():  # stopped by a signal
+                return 0
             player.get_logger().info(f"replayed {sent} messages from {args.bag}")
             if not args.loop:
                 break
@@ -133,6 +138,7 @@ def main(argv: list[str] | None = None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
     finally:
+        hold_termination_signals()  # a second Ctrl-C must not interrupt the shutdown
         if player is not None:
             player.destroy_node()
         rclpy.try_shutdown()

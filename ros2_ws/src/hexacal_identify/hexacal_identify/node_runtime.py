@@ -1,0 +1,96 @@
+"""How every hexacal node starts, spins and stops: one place for the shutdown rules.
+
+A terminal's Ctrl-C reaches a node twice under `ros2 launch`: the terminal sends
+SIGINT to the whole process group, then launch forwards another SIGINT to each
+node; supervisors send SIGTERM. rclpy's own handlers turn the first signal into
+a shutdown of the context, which ends spinning. They also chain to the Python
+handler that was there before, which for SIGINT would raise KeyboardInterrupt
+at whatever line the main thread is on - possibly in the middle of closing a
+bag. So a no-op Python handler is installed before rclpy's, and once spinning
+has ended SIGINT and SIGTERM are ignored: the node finishes its files,
+destroys itself and exits 0 with no traceback, however many signals follow.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+import signal
+from typing import TypeVar
+
+import rclpy
+from rclpy.executors import Executor, ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation
+from rclpy.node import Node
+
+TERMINATION_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+NodeT = TypeVar('NodeT', bound=Node)
+RCLError = rclpy_implementation.RCLError
+
+
+def _noted(signum: int, frame: object) -> None:
+    """Python-level handler under rclpy's: the context shutdown already ends spinning."""
+
+
+def hold_termination_signals() -> None:
+    """Ignore SIGINT and SIGTERM from now on: the process is already shutting down."""
+    for signum in TERMINATION_SIGNALS:
+        signal.signal(signum, signal.SIG_IGN)
+
+
+def run_node(
+    node_name: str,
+    create: Callable[[], NodeT],
+    *,
+    args: list[str] | None = None,
+    startup_errors: tuple[type[BaseException], ...] = (),
+    make_executor: Callable[[], Executor] | None = None,
+    finish: Callable[[NodeT], Iterable[str]] | None = None,
+) -> int:
+    """Run one node until a signal or an external shutdown; return the exit code.
+
+    ``startup_errors`` raised by ``create`` are a bad configuration: logged as
+    fatal, exit code 2. ``finish`` runs after spinning with the termination
+    signals held (close bags, write files, wait for workers); the lines it
+    returns are logged after the node is destroyed, since the context (and the
+    node's rosout publisher) may already be shut down by the signal.
+    """
+    for signum in TERMINATION_SIGNALS:  # before rclpy.init, so rclpy chains to these
+        signal.signal(signum, _noted)
+    rclpy.init(args=args)
+    logger = rclpy.logging.get_logger(node_name)
+    try:
+        node = create()
+    except startup_errors as error:
+        logger.fatal(f'cannot start: {error}')
+        rclpy.try_shutdown()
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        hold_termination_signals()
+        rclpy.try_shutdown()
+        return 0
+    executor = make_executor() if make_executor is not None else None
+    lines: list[str] = []
+    try:
+        if executor is None:
+            rclpy.spin(node)
+        else:
+            executor.add_node(node)
+            executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except RCLError:
+        # A signal that shuts the context down while the executor builds its wait set surfaces as
+        # "context is not valid" instead of ExternalShutdownException: the same shutdown.
+        if node.context.ok():
+            raise
+    finally:
+        hold_termination_signals()
+        if executor is not None:
+            executor.shutdown(timeout_sec=5.0)
+        if finish is not None:
+            lines = [line for line in finish(node) if line]
+        node.destroy_node()
+        for line in lines:
+            logger.info(line)
+        rclpy.try_shutdown()
+    return 0

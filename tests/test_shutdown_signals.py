@@ -1,0 +1,133 @@
+"""Every node stops cleanly on Ctrl-C as a terminal and `ros2 launch` send it, and on SIGTERM.
+
+Ctrl-C under `ros2 launch`: the terminal sends SIGINT to the process group, then
+launch forwards another SIGINT to each node ~50 ms later, while the node is
+shutting down. Either way, and on SIGTERM, a node exits 0 with no traceback and
+leaves its files finished: the bag with metadata.yaml and its MCAP footer
+(readable by rosbags), the parameters file and report complete or untouched.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+import signal
+import time
+
+import pytest
+
+from hexacal_identify.bag import open_bag
+from hexacal_msgs_py.parameters_file import load_parameters
+from rosproc import RosProcess, venv_executable
+from system_support import (
+    STOP_TIMEOUT_S,
+    fast_collector_parameters,
+    fast_driver_parameters,
+    node_argv,
+    probe,  # noqa: F401 - fixture
+    write_parameter_files,
+)
+
+REPOSITORY = Path(__file__).resolve().parents[1]
+SAMPLE_BAG = REPOSITORY / 'bags' / 'sphere60_fixed20_noise10'
+LAUNCH_FORWARD_DELAY_S = 0.05  # launch's SIGINT follows the terminal's by about this much
+
+PATTERNS = ('ctrl-c-under-launch', 'sigterm')
+
+
+def send(process: RosProcess, pattern: str) -> None:
+    if pattern == 'sigterm':
+        os.killpg(process.pid, signal.SIGTERM)
+        return
+    os.killpg(process.pid, signal.SIGINT)  # the terminal: the whole group
+    time.sleep(LAUNCH_FORWARD_DELAY_S)  # the signal pattern itself, not a wait for a condition
+    try:
+        os.kill(process.pid, signal.SIGINT)  # ros2 launch: the node itself, during its shutdown
+    except ProcessLookupError:
+        pass  # already gone: nothing left to interrupt
+
+
+def assert_clean_exit(process: RosProcess, pattern: str) -> str:
+    send(process, pattern)
+    process.popen.wait(STOP_TIMEOUT_S)
+    log = process.log_text()
+    assert process.popen.returncode == 0, log
+    assert 'Traceback' not in log and 'KeyboardInterrupt' not in log, log
+    return log
+
+
+def assert_bag_finished(bag: Path) -> None:
+    from rosbags.rosbag2 import Reader
+
+    assert (bag / 'metadata.yaml').exists()
+    assert not open_bag(bag).info().truncated  # the MCAP footer is there
+    with Reader(bag) as reader:  # an independent reader accepts the directory as it is
+        assert reader.message_count == sum(1 for _ in reader.messages())
+        assert reader.message_count > 0
+    assert not list(bag.glob('.*.tmp'))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('pattern', PATTERNS)
+def test_collector_and_driver_stop_cleanly_while_recording(pattern, ros_processes, tmp_path,
+                                                           probe):
+    truth, _ = write_parameter_files(tmp_path)
+    probe.subscribe_postures()
+    collector = ros_processes.start(node_argv('collector', fast_collector_parameters(
+        tmp_path / 'bags', bag_name='stopped')))
+    probe.wait_for_node('collector', process=collector)
+    driver = ros_processes.start(node_argv('driver', fast_driver_parameters(
+        postures=30, seed=4, true_params=str(truth))))
+    probe.spin_until(lambda: len(probe.postures) >= 2, 60.0, 'two postures',
+                     lambda: collector.describe() + '\n' + driver.describe())
+
+    ros_processes.processes.remove(collector)  # stopped here, by the signals under test
+    ros_processes.processes.remove(driver)
+    try:
+        # The collector first: it is still receiving all three streams when the signals arrive.
+        assert_clean_exit(collector, pattern)
+        assert_clean_exit(driver, pattern)
+    finally:
+        for process in (collector, driver):
+            process._log_file.close()
+    assert_bag_finished(tmp_path / 'bags' / 'stopped')
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('pattern', PATTERNS)
+def test_identify_stops_cleanly_during_a_calibration(pattern, ros_processes, tmp_path, probe):
+    _, nominal = write_parameter_files(tmp_path)
+    out = tmp_path / 'out'
+    identify = ros_processes.start(node_argv('identify', {
+        'nominal': str(nominal), 'bag': str(SAMPLE_BAG), 'output_dir': str(out)}))
+    probe.wait_for_node('identify', process=identify)
+    probe.trigger_async()
+    probe.spin_until(lambda: 'calibrating from' in identify.log_text(), 60.0,
+                     'the calibration to start', identify.describe)
+
+    ros_processes.processes.remove(identify)
+    try:
+        assert_clean_exit(identify, pattern)
+    finally:
+        identify._log_file.close()
+    # Complete or untouched: a parameters file, if there is one, loads whole; no temp files left.
+    written = sorted(p.name for p in out.rglob('*') if p.is_file()) if out.exists() else []
+    assert not [name for name in written if name.endswith('.tmp')], written
+    for path in out.glob('*.yaml'):
+        assert load_parameters(path).shape == (54,)
+    for path in out.rglob('*.html'):
+        assert path.read_text().rstrip().endswith('</html>'), path
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('pattern', PATTERNS)
+def test_replay_stops_cleanly_while_publishing(pattern, ros_processes, probe):
+    replay = ros_processes.start([venv_executable('replay'), str(SAMPLE_BAG), '--loop',
+                                  '--rate', '5'])
+    probe.spin_until(lambda: probe.node.count_publishers('/hexacal/sliders') >= 1, 60.0,
+                     'the replay publishers', replay.describe)
+
+    ros_processes.processes.remove(replay)
+    try:
+        assert_clean_exit(replay, pattern)
+    finally:
+        replay._log_file.close()
