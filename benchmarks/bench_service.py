@@ -142,7 +142,7 @@ class ServiceClock:
                 state = values.get('report_state')
                 finished = values.get('outcome') not in ('running', 'collecting')
                 # A node without report_state wrote the report before its result status.
-                if state in REPORT_DONE or (finished and state is None):
+                if state in REPORT_DONE or (finished and state != 'writing'):
                     return stamp, values
             return None
 

@@ -505,6 +505,8 @@ def test_identify_names_bad_files_and_paths_and_writes_only_under_output_dir(
     assert '20 of 20 postures' in response.message  # every refusal kept the postures
     assert np.abs(load_parameters(out / 'hexacal_calibration.yaml')
                   - load_parameters(truth)).max() < 1e-3
+    probe.spin_until(lambda: [s for s in probe.statuses if s[2].get('report_state') == 'ready'],
+                     120.0, 'the report (written after the answer)', identify.describe)
     written = {p for p in tmp_path.rglob('*') if 'logs' not in p.parts} - before
     assert written and all(out in p.parents for p in written), sorted(map(str, written))
     assert (out / 'report' / 'index.html') in written

@@ -84,8 +84,12 @@ def test_fifty_postures_calibrate_the_simulated_machine(ros_processes, tmp_path,
     assert fields['identifiable'] == 'true' and fields['rank'] == '54'
     assert 'all 54 parameters identifiable' in fields['identifiability']
     assert 0 < float(fields['std.chain_1.A0x']) < 1e-3  # per-parameter std, m
-    report = tmp_path / 'out' / 'report' / 'index.html'  # the identify node's report
-    assert fields['report'] == str(report) and 'converged' in report.read_text()
+    # The identify node's report is written after the answer; a later status says it is ready.
+    ready = probe.spin_until(lambda: [s for s in probe.statuses if s[2].get('report_state') == 'ready'],
+                             120.0, 'the report', identify.describe)[-1][2]
+    report = tmp_path / 'out' / 'report' / 'index.html'
+    assert ready['outcome'] == 'converged'
+    assert ready['report'] == str(report) and 'converged' in report.read_text()
 
     for process in nodes:  # driver first: the collector records to the end, then closes
         assert ros_processes.stop(process, STOP_TIMEOUT_S) == 0, process.log_path.read_text()

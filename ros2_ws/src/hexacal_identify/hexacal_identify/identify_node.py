@@ -8,7 +8,17 @@ answers a second call at once with 'busy: a calibration is running'.
 
 On success the 54 parameters are written atomically to `output` (under
 `output_dir`) and published on `hexacal/parameters` (transient local: late
-subscribers get them), with the outcome on `hexacal/calibration_status`. A
+subscribers get them), with the outcome on `hexacal/calibration_status`, and
+the service answers. Only then is the HTML report (`report_dir`) written, on a
+background worker of its own, so the answer waits for the solve and the
+parameters file alone: the result status says `report_state: writing`, and a
+follow-up status with the same values says `report_state: ready` with the
+page's path in `report`, or `report_state: failed` with `report_error` (logged;
+the parameters, the file and the outcome stay as they are). One report is
+written at a time, that of the latest calibration: a newer calibration replaces
+a report still waiting to start, and the follow-up of an older calibration is
+not published over a newer one's status. On shutdown the report under way (and
+the one waiting, the latest) are finished, so the report is whole. A
 refused or failed calibration publishes an ERROR status naming the reason and
 no parameters; the postures received are kept either way. Between
 calibrations the status reports the postures received so far ('collecting',
@@ -74,6 +84,9 @@ STATUS_NAME = 'hexacal calibration'
 DEFAULT_OUTPUT = 'hexacal_calibration.yaml'
 INVALID_LOG_PERIOD_S = 5.0
 PROGRESS_LOG_PERIOD_S = 5.0
+# The report task lets the answer go out first: rendering holds the GIL in long stretches, and the
+# executor thread that sends the response would wait for it (a few ms per switch).
+REPORT_START_DELAY_S = 0.05
 
 
 def _names(text: str) -> tuple[str, ...]:
@@ -101,6 +114,19 @@ class Outcome:
     level: str  # 'OK', 'WARN' or 'ERROR'
     values: dict[str, object]
     parameters: HexaParameters | None = None
+    report: ReportJob | None = None  # written after the answer (report_state 'writing')
+
+
+@dataclass
+class ReportJob:
+    """What the background report of one calibration needs (parameters read when it ran)."""
+
+    report_dir: str
+    output_dir: str
+    result: object  # IdentificationResult
+    postures: list[PostureReading]
+    source: str
+    link_length: float
 
 
 def _failure(reason: str, message: str, **values: object) -> Outcome:
@@ -156,6 +182,13 @@ class IdentifyNode(Node):
         self._calibrating = False
         self._last_outcome = 'none'
         self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix='calibration')
+        # The report of the latest calibration, written after the answer on a worker of its own;
+        # _calibration_number (under _status_lock) tells whether its follow-up status is still current.
+        self._report_worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix='report')
+        self._report_lock = threading.Lock()
+        self._pending_report: tuple[int, Outcome] | None = None
+        self._calibration_number = 0
+        self._nominal_cache: tuple[tuple, HexaParameters] | None = None  # (file identity, model)
 
         self._parameters_pub = self.create_publisher(
             Float64MultiArray, PARAMETERS_TOPIC, PARAMETERS_QOS)
@@ -275,6 +308,9 @@ class IdentifyNode(Node):
         return response
 
     def _calibrate(self) -> Outcome:
+        with self._status_lock:
+            self._calibration_number += 1
+            number = self._calibration_number
         try:
             outcome = self._run_calibration()
         except Exception as error:  # noqa: BLE001 - the node must survive and say what happened
@@ -284,6 +320,8 @@ class IdentifyNode(Node):
             self._publish_result(outcome)
             self._calibrating = False
             self._last_outcome = str(outcome.values.get('outcome', outcome.level))
+        if outcome.report is not None:
+            self._queue_report(number, outcome)
         # One call site per severity: rclpy refuses a severity change at the same line.
         if outcome.success:
             self.get_logger().info(outcome.message)
@@ -301,7 +339,7 @@ class IdentifyNode(Node):
             return _failure('missing-parameter', "parameter 'nominal' is not set: give the "
                             'nominal parameters YAML to start from (-p nominal:=<path>)')
         try:
-            nominal = HexaParameters(load_parameters(nominal_path))
+            nominal = self._load_nominal(nominal_path)
         except (ParameterFileError, ValueError) as error:
             return _failure('invalid-nominal', f'nominal: {error}')
         if bag:
@@ -351,26 +389,75 @@ class IdentifyNode(Node):
                            'WARN', {**values, 'outcome': 'output-not-written'},
                            result.parameters)
         values['output'] = str(target)
-        report = self._write_report(result, postures, source, link_length)
-        if report is not None:
-            values['report'] = str(report)
+        # The report (figures, pose-error map, result payload) is written after the answer.
+        report_dir = self.get_parameter('report_dir').value
+        report = None
+        if report_dir:
+            report = ReportJob(report_dir, self.get_parameter('output_dir').value, result,
+                               postures, source, link_length)
+            values['report_state'] = 'writing'
+        else:
+            values['report_state'] = 'disabled'
         level = 'OK' if result.reason == CONVERGED else 'WARN'
         return Outcome(True, f'{result.reason}: {summary}; wrote {target}', level, values,
-                       result.parameters)
+                       result.parameters, report)
 
-    def _write_report(self, result, postures, source: str, link_length: float) -> Path | None:
-        """The HTML report of this calibration under output_dir; a failure is logged, never fatal."""
-        report_dir = self.get_parameter('report_dir').value
-        if not report_dir:
-            return None
+    def _load_nominal(self, path: str) -> HexaParameters:
+        """The nominal model; the YAML (~4 ms to parse) is read again only when the file changed."""
         try:
-            directory = output_path(report_dir, self.get_parameter('output_dir').value)
-            return write_report(result, directory, title=f'hexacal calibration ({source})',
-                                measurements=pipeline.measurements_from_postures(postures),
-                                link_length=link_length, extras={'source': source})
+            info = os.stat(path)
+            key = (os.path.abspath(path), info.st_dev, info.st_ino, info.st_size, info.st_mtime_ns,
+                   info.st_ctime_ns)
+        except OSError:
+            key = None  # load_parameters names the problem
+        cached = self._nominal_cache
+        if key is not None and cached is not None and cached[0] == key:
+            return cached[1]
+        nominal = HexaParameters(load_parameters(path))  # immutable: safe to share
+        if key is not None:
+            self._nominal_cache = (key, nominal)
+        return nominal
+
+    # ------------------------------------------------------------------ report
+
+    def _queue_report(self, number: int, outcome: Outcome) -> None:
+        """Write this calibration's report after the answer, replacing one not yet started."""
+        with self._report_lock:
+            replaced, self._pending_report = self._pending_report, (number, outcome)
+        if replaced is not None:
+            self.get_logger().info(f'the report of calibration {replaced[0]} is replaced by '
+                                   f'that of calibration {number}')
+        self._report_worker.submit(self._write_pending_report)
+
+    def _write_pending_report(self) -> None:
+        threading.Event().wait(REPORT_START_DELAY_S)  # a sleep (the import lines are left alone)
+        with self._report_lock:
+            pending, self._pending_report = self._pending_report, None
+        if pending is None:
+            return  # a newer calibration replaced it, and an earlier task wrote that one
+        number, outcome = pending
+        job = outcome.report
+        try:
+            directory = output_path(job.report_dir, job.output_dir)
+            path = write_report(job.result, directory, title=f'hexacal calibration ({job.source})',
+                                measurements=pipeline.measurements_from_postures(job.postures),
+                                link_length=job.link_length, extras={'source': job.source})
         except Exception as error:  # noqa: BLE001 - the parameters are written; the report is extra
             self.get_logger().warning(f'calibration report not written: {error}')
-            return None
+            state, text = 'failed', f'report failed: {error}'
+            extra = {'report_error': f'{type(error).__name__}: {error}'}
+        else:
+            self.get_logger().info(f'calibration report written: {path}')
+            state, text, extra = 'ready', f'report ready: {path}', {'report': str(path)}
+        with self._status_lock:
+            if number != self._calibration_number:
+                return  # a newer calibration's status stands
+            try:
+                self._status_pub.publish(self._status_message(
+                    outcome.level, f'{outcome.message}; {text}',
+                    {**outcome.values, 'report_state': state, **extra}))
+            except Exception as error:  # noqa: BLE001 - shutting down: the context may be gone
+                self.get_logger().warning(f'report status not published: {error}')
 
     def _status_message(self, level: str, message: str,
                         values: dict[str, object]) -> DiagnosticArray:
@@ -409,6 +496,9 @@ class IdentifyNode(Node):
 
     def shutdown(self) -> None:
         self._worker.shutdown(wait=True, cancel_futures=True)
+        # After the calibration worker: a calibration that finished during shutdown queues its report.
+        # The report under way and the latest one waiting are written whole (atomic_write).
+        self._report_worker.shutdown(wait=True)
 
 
 def _finish(node: IdentifyNode) -> list[str]:
