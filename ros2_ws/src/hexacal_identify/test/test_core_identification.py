@@ -5,7 +5,8 @@ import pytest
 from hexacal_identify.core.baseline import absolute_residuals, finite_difference_jacobian
 from hexacal_identify.core.device import DeviceModel
 from hexacal_identify.core.errors import InvalidMeasurementError, RankDeficientError, TooFewPosturesError
-from hexacal_identify.core.identification import CONVERGED, SolverOptions, identify
+from hexacal_identify.core.identifiability import DEFAULT_RANK_TOLERANCE, analyze, column_scales
+from hexacal_identify.core.identification import CONVERGED, SolverOptions, _NormalEquations, identify
 from hexacal_identify.core.kinematics import forward_kinematics, pose_parameter_sensitivity
 from hexacal_identify.core.measurements import Measurements, NoiseModel, simulate_measurements
 from hexacal_identify.core.model import HexaParameters, nominal_set, table1_parameters
@@ -126,3 +127,57 @@ def test_measurements_with_inconsistent_lengths_are_rejected():
     measurements = Measurements(np.zeros((3, 6)) + 0.3, np.zeros((2, 2)), np.zeros(3))
     with pytest.raises(InvalidMeasurementError, match="inconsistent lengths"):
         measurements.validate()
+
+
+def _svd_reference(jacobian, values, scales, rank_tolerance, damping):
+    """What the solver computed before the normal equations: QR + SVD of the tall column-scaled Jacobian."""
+    q, r = np.linalg.qr(jacobian / scales)
+    u_r, s, vt = np.linalg.svd(r)
+    projected = u_r.T @ (q.T @ values)
+    keep = s > rank_tolerance * s[0]
+    factor = np.where(keep, s / (s**2 + damping * s[0] ** 2), 0.0)
+    step = -(vt.T @ (factor * projected))
+    inverse = (vt[keep].T / s[keep] ** 2) @ vt[keep]
+    return step, float(projected[keep] @ projected[keep]), inverse, keep
+
+
+def _scaled_problem(cost):
+    measurements = simulate_run_measurements(StudyRun(postures=30, noise_um=10.0, seed=4, cost=cost))
+    function = CostFunction(cost, measurements, DeviceModel(), ChannelSigma())
+    function = CostFunction(cost, measurements.subset(np.flatnonzero(function.usable())), DeviceModel(), ChannelSigma())
+    params = nominal_set(2, seed=0)
+    fk = forward_kinematics(params, function.measurements.slider_positions, function.initial_poses(),
+                            fit_tilt_first=True)
+    assert not fk.failures
+    block = function.residuals(fk.poses, pose_parameter_sensitivity(params, fk.poses)[0])
+    return block, column_scales(block.jacobian)
+
+
+@pytest.mark.parametrize("cost", ["absolute", "sphere"])  # full rank, and rank 53 (base rotation about Y)
+def test_normal_equations_give_the_steps_and_covariance_of_the_tall_svd(cost):
+    block, scales = _scaled_problem(cost)
+    normal = _NormalEquations.of(block, scales, DEFAULT_RANK_TOLERANCE)
+    # J^T J squares the condition number (~2e3-5e3 here): ~1e-8 relative agreement is what rounding allows.
+    tolerance = 1e-7
+    for damping in (0.0, 1e-6, 1e-3, 1.0):
+        step, decrease, inverse, keep = _svd_reference(block.jacobian, block.values, scales,
+                                                       DEFAULT_RANK_TOLERANCE, damping)
+        np.testing.assert_array_equal(normal.keep, keep)
+        np.testing.assert_allclose(normal.scaled_step(damping), step, rtol=0, atol=tolerance * np.abs(step).max())
+    np.testing.assert_allclose(normal.predicted_decrease(), decrease, rtol=tolerance)
+    np.testing.assert_allclose(normal.scaled_inverse(), inverse, rtol=0, atol=tolerance * np.abs(inverse).max())
+    assert normal.rank == (54 if cost == "absolute" else 53)
+
+
+@pytest.mark.parametrize("cost", ["absolute", "sphere"])
+def test_identifiability_from_the_gram_root_matches_the_tall_jacobian(cost):
+    block, scales = _scaled_problem(cost)
+    normal = _NormalEquations.of(block, scales, DEFAULT_RANK_TOLERANCE)
+    params = nominal_set(2, seed=0)
+    tall = analyze(block.jacobian, params=params)
+    small = analyze(block.jacobian, params=params, gram_root=normal.square_root() * scales)
+    assert small.rank == tall.rank and small.verdict().splitlines()[:2] == tall.verdict().splitlines()[:2]
+    assert [d.description for d in small.null_directions] == [d.description for d in tall.null_directions]
+    identified = slice(0, tall.rank)
+    np.testing.assert_allclose(small.singular_values[identified], tall.singular_values[identified], rtol=1e-8)
+    np.testing.assert_allclose(small.condition_number, tall.condition_number, rtol=1e-8)

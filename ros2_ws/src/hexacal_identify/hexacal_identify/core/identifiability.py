@@ -95,19 +95,28 @@ def analyze(
     free: np.ndarray | None = None,
     rank_tolerance: float = DEFAULT_RANK_TOLERANCE,
     link_length: float = DEFAULT_LINK_LENGTH_M,
+    gram_root: np.ndarray | None = None,
 ) -> IdentifiabilityReport:
-    """Rank, conditioning and unidentifiable combinations of a (rows x free params) Jacobian."""
+    """Rank, conditioning and unidentifiable combinations of a (rows x free params) Jacobian.
+
+    ``gram_root``, if given, is an n x n F with F^T F = J^T J (the solver has it
+    from its normal equations).  Everything here depends on J only through
+    J^T J (column norms, singular values and V, the greedy choices of the
+    column-pivoted QR), so F stands in for the tall J and nothing of J's size is
+    decomposed.  Where several columns are equally good pivots (the A0z of
+    different chains for a base rotation), rounding decides which one is
+    suggested for fixing, with or without F.
+    """
     names = names if names is not None else parameter_names()[: jacobian.shape[1]]
-    scales = column_scales(jacobian)
-    scaled = jacobian / scales
-    zero_columns = np.linalg.norm(jacobian, axis=0) == 0
-    scaled[:, zero_columns] = 0.0
+    factor = jacobian if gram_root is None else gram_root
+    scales = column_scales(factor)
+    scaled = factor / scales  # zero columns stay zero (their scale is 1)
     # Full V when there are fewer rows than parameters, so the null space is complete.
     _, singular, vt = np.linalg.svd(scaled, full_matrices=scaled.shape[0] < scaled.shape[1])
     singular = np.concatenate([singular, np.zeros(jacobian.shape[1] - len(singular))])
     rank = int(np.sum(singular > rank_tolerance * singular[0])) if singular[0] > 0 else 0
     condition = float(singular[0] / singular[rank - 1]) if rank else float("inf")
-    _, _, pivots = scipy.linalg.qr(scaled, mode="economic", pivoting=True)
+    _, pivots = scipy.linalg.qr(scaled, mode="r", pivoting=True)
     null_space = vt[rank:].T
     gauges = _gauge_directions(params, free, scales, link_length) if params is not None else []
     directions = _describe(null_space, names, gauges, _device_directions(free, scales))

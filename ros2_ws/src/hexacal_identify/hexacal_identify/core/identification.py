@@ -4,8 +4,11 @@ Each iteration solves forward kinematics for every posture (warm-started from
 the previous solution), forms the residuals of the chosen cost function and the
 identification Jacobian (eq. 6) analytically by implicit differentiation of
 IK(X, u) = lambda, and takes a damped Gauss-Newton step ``du`` (eq. 5) in
-column-scaled coordinates.  The SVD of the scaled Jacobian is reused for every
-damping value tried in an iteration.
+column-scaled coordinates.  The tall Jacobian (4 rows per posture) is reduced
+once per iteration to its normal equations (J^T J, J^T r: n x n, n <= 59);
+their eigendecomposition serves every damping value tried, the convergence
+test, the covariance and the identifiability analysis, so the per-posture work
+is one pass over J.
 
 Beyond the paper:
 
@@ -464,10 +467,8 @@ class _LevenbergMarquardt:
         self.transform = transform or _RowTransform()
         self.vector = np.array(start, dtype=float)
         self.poses = poses
-        self.raw_block = problem.jacobian(self.vector, poses)
-        self.block = self.transform.apply(self.raw_block)
+        self._set_block(problem.jacobian(self.vector, poses), first=True)
         self.initial_block = self.raw_block
-        self.scales = column_scales(self.block.jacobian)
         self.iterations = 0
         self.reason = ITERATION_LIMIT
         self.dropped: dict[int, str] = {}
@@ -479,9 +480,18 @@ class _LevenbergMarquardt:
     def free_names(self) -> list[str]:
         return [n for n, f in zip(unknown_names(), self.free) if f]
 
+    def _set_block(self, raw_block: ResidualBlock, first: bool = False) -> None:
+        """Take the (unweighted) residuals and Jacobian at the current vector; reduce them to normal equations."""
+        self.raw_block = raw_block
+        self.block = self.transform.apply(raw_block)
+        if first:  # columns are scaled by their norms at the start of the run, fixed for the run
+            self.scales = column_scales(self.block.jacobian)
+        self.normal = _NormalEquations.of(self.block, self.scales, self.options.rank_tolerance)
+
     def analyze(self) -> IdentifiabilityReport:
+        # The normal equations already hold J^T J: its n x n square root spares analyze() a tall SVD.
         return analyze(self.block.jacobian, self.free_names(), self.params, self.free, self.options.rank_tolerance,
-                       self.options.device.link_length)
+                       self.options.device.link_length, gram_root=self.normal.square_root() * self.scales)
 
     def run(self) -> None:
         cost = float(self.block.values @ self.block.values)
@@ -492,12 +502,11 @@ class _LevenbergMarquardt:
             # Rank deficiency is judged once, at the solution (identify): at the nominal parameters
             # residual-sized terms can make a gauge direction look weakly determined. Steps here simply
             # stay out of directions the data do not determine.
-            s, vt, projected = _scaled_svd(self.block, self.scales)
-            keep = s > self.options.rank_tolerance * s[0]
-            gauss_newton = self._step(0.0, s, keep, vt, projected)
+            normal = self.normal
+            gauss_newton = self._step(normal, 0.0)
             # The full Gauss-Newton step would lower the cost by |U_k^T r|^2: when that is negligible
             # (or the step itself is), the minimum is reached to working precision.
-            predicted_decrease = float(projected[keep] @ projected[keep])
+            predicted_decrease = normal.predicted_decrease()
             if (np.max(np.abs(gauss_newton)) < self.options.step_tolerance
                     or predicted_decrease <= self.options.relative_cost_tolerance * cost):
                 self.reason = CONVERGED
@@ -507,7 +516,7 @@ class _LevenbergMarquardt:
             at_floor = np.max(np.abs(gauss_newton)) < FLOOR_STEP_M or predicted_decrease < 1e-6 * cost
             trial = None
             while damping < 1e12:
-                trial = self._try(self._step(damping, s, keep, vt, projected))
+                trial = self._try(self._step(normal, damping))
                 if isinstance(trial, dict) or (trial is not None and trial[2] < cost):
                     break
                 trial = None
@@ -524,19 +533,17 @@ class _LevenbergMarquardt:
                 self.reason = CONVERGED if at_floor else DIVERGED
                 return
             self.vector, self.poses, trial_cost = trial
-            self.raw_block = self.problem.jacobian(self.vector, self.poses)
-            self.block = self.transform.apply(self.raw_block)
+            self._set_block(self.problem.jacobian(self.vector, self.poses))
             decrease, cost = cost - trial_cost, trial_cost
             damping = max(damping / 10.0, 1e-12)
             if decrease <= self.options.relative_cost_tolerance * cost:
                 self.reason = CONVERGED
                 return
 
-    def _step(self, damping, s, keep, vt, projected) -> np.ndarray:
-        """LM step for one damping value (zero along unidentifiable directions)."""
-        factor = np.where(keep, s / (s**2 + damping * s[0] ** 2), 0.0)
+    def _step(self, normal: "_NormalEquations", damping: float) -> np.ndarray:
+        """LM step over all unknowns for one damping value (zero along unidentifiable directions)."""
         step = np.zeros(N_UNKNOWNS)
-        step[self.free] = -(vt.T @ (factor * projected)) / self.scales
+        step[self.free] = normal.scaled_step(damping) / self.scales
         return step
 
     def _try(self, step: np.ndarray):
@@ -565,14 +572,13 @@ class _LevenbergMarquardt:
         self.poses = self.poses[keep]
         # Whitening/robust weights were per row of the old posture set: refit them on the new one.
         self.transform = self.problem.row_transform(self.vector, self.poses)
-        self.raw_block = self.problem.jacobian(self.vector, self.poses)
-        self.block = self.transform.apply(self.raw_block)
+        self._set_block(self.problem.jacobian(self.vector, self.poses))
 
     def result(self, nominal: HexaParameters, rejected: dict[int, str], started: float) -> IdentificationResult:
         used = self.problem.used
         report = self.analyze()
         weighted = self.transform.whitener is not None
-        covariance, variance_factor = _covariance(self.block, self.scales, self.free, self.options.rank_tolerance,
+        covariance, variance_factor = _covariance(self.normal, len(self.block.values), self.scales, self.free,
                                                   known_noise=weighted)
         std_all = np.sqrt(np.diag(covariance))
         std_all[~self.free] = np.nan
@@ -608,14 +614,63 @@ class _LevenbergMarquardt:
         )
 
 
-def _scaled_svd(block: ResidualBlock, scales: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Singular values, V^T and U^T r of the column-scaled Jacobian, via QR first (J is tall)."""
-    q, r = np.linalg.qr(block.jacobian / scales)
-    u_r, s, vt = np.linalg.svd(r)
-    return s, vt, u_r.T @ (q.T @ block.values)
+@dataclass(frozen=True)
+class _NormalEquations:
+    """Column-scaled normal equations of one Jacobian: J_s^T J_s = V diag(lam) V^T, J_s^T r and |r|^2.
+
+    J_s = J / scales.  lam are the squared singular values of J_s and V its right
+    singular vectors, so everything the SVD of the tall J_s gave is here at n x n
+    cost: with g = J_s^T r, U^T r = V^T g / sqrt(lam).  Forming J^T J squares the
+    condition number (~1e3-1e4 for the column-scaled problems here, so ~1e-9
+    relative error in the smallest lam); directions with lam <= tol^2 lam_max are
+    unidentifiable exactly where s <= tol s_max was before.
+    """
+
+    eigenvalues: np.ndarray  # lam, descending, negative rounding clipped to 0
+    eigenvectors: np.ndarray  # V, (n, n), columns in the order of lam
+    gradient: np.ndarray  # J_s^T r
+    squared_norm: float  # |r|^2
+    keep: np.ndarray  # identifiable directions: lam > tol^2 lam_max
+
+    @classmethod
+    def of(cls, block: ResidualBlock, scales: np.ndarray, rank_tolerance: float) -> "_NormalEquations":
+        jacobian = block.jacobian
+        gram = (jacobian.T @ jacobian) / np.outer(scales, scales)  # numpy uses BLAS syrk for J^T J
+        eigenvalues, eigenvectors = np.linalg.eigh(gram)
+        eigenvalues, eigenvectors = np.maximum(eigenvalues[::-1], 0.0), eigenvectors[:, ::-1]
+        keep = eigenvalues > rank_tolerance**2 * eigenvalues[0]
+        return cls(eigenvalues, eigenvectors, (jacobian.T @ block.values) / scales,
+                   float(block.values @ block.values), keep)
+
+    @property
+    def rank(self) -> int:
+        return int(self.keep.sum())
+
+    def _projected_gradient(self) -> np.ndarray:
+        """V^T g over the identifiable directions (zero elsewhere)."""
+        return np.where(self.keep, self.eigenvectors.T @ self.gradient, 0.0)
+
+    def scaled_step(self, damping: float) -> np.ndarray:
+        """-(J_s^T J_s + damping lam_max I)^+ g on the identifiable subspace (damping 0: Gauss-Newton)."""
+        denominator = np.where(self.keep, self.eigenvalues + damping * self.eigenvalues[0], 1.0)
+        return -self.eigenvectors @ (self._projected_gradient() / denominator)
+
+    def predicted_decrease(self) -> float:
+        """|U_k^T r|^2: how much the full Gauss-Newton step would lower |r|^2."""
+        projected = self._projected_gradient()
+        return float(np.sum(projected**2 / np.where(self.keep, self.eigenvalues, 1.0)))
+
+    def scaled_inverse(self) -> np.ndarray:
+        """(J_s^T J_s)^+ over the identifiable subspace."""
+        kept = self.eigenvectors[:, self.keep]
+        return (kept / self.eigenvalues[self.keep]) @ kept.T
+
+    def square_root(self) -> np.ndarray:
+        """F (n x n) with F^T F = J_s^T J_s: stands in for J_s wherever only J_s^T J_s matters."""
+        return np.sqrt(self.eigenvalues)[:, None] * self.eigenvectors.T
 
 
-def _covariance(block: ResidualBlock, scales: np.ndarray, free: np.ndarray, rank_tolerance: float,
+def _covariance(normal: _NormalEquations, rows: int, scales: np.ndarray, free: np.ndarray,
                 known_noise: bool = False) -> tuple[np.ndarray, float]:
     """Parameter covariance over the identifiable subspace, and the variance factor s^2.
 
@@ -624,16 +679,12 @@ def _covariance(block: ResidualBlock, scales: np.ndarray, free: np.ndarray, rank
     should be ~1; otherwise it is s^2 (J^T J)^-1.  Parameters touched by an
     unidentifiable direction get an infinite variance (std NaN in the result).
     """
-    s, vt, _ = _scaled_svd(block, scales)
-    keep = s > rank_tolerance * s[0]
-    rank = int(keep.sum())
-    variance = float(block.values @ block.values) / max(len(block.values) - rank, 1)
+    variance = normal.squared_norm / max(rows - normal.rank, 1)
     factor = 1.0 if known_noise else variance
-    scaled_cov = factor * ((vt[keep].T / s[keep] ** 2) @ vt[keep]) / np.outer(scales, scales)
     covariance = np.zeros((N_UNKNOWNS, N_UNKNOWNS))
-    covariance[np.ix_(free, free)] = scaled_cov
-    if rank < len(s):
-        weak = np.flatnonzero(np.any(np.abs(vt[~keep]) > 1e-6, axis=0))
+    covariance[np.ix_(free, free)] = factor * normal.scaled_inverse() / np.outer(scales, scales)
+    if normal.rank < len(normal.eigenvalues):
+        weak = np.flatnonzero(np.any(np.abs(normal.eigenvectors[:, ~normal.keep]) > 1e-6, axis=1))
         free_index = np.flatnonzero(free)
         covariance[free_index[weak], free_index[weak]] = np.inf
     return covariance, variance

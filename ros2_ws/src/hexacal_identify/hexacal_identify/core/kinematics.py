@@ -114,6 +114,13 @@ def inverse_kinematics(params: HexaParameters, poses: np.ndarray) -> np.ndarray:
     return geometry.slider_positions
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b over the last axis: np.cross's products, without its per-call axis handling (FK calls this often)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
 def pose_jacobian(geometry: LegGeometry, angles: np.ndarray) -> np.ndarray:
     """J_inv = d lambda / d X, (N, 6 chains, 6 pose coordinates).
 
@@ -122,7 +129,7 @@ def pose_jacobian(geometry: LegGeometry, angles: np.ndarray) -> np.ndarray:
     """
     with np.errstate(divide="ignore", invalid="ignore"):  # w = 0 only where a leg cannot reach: flagged by FK
         unit = geometry.leg_vectors / geometry.rail_leg_dot[..., None]
-        moment = np.cross(geometry.rotated_platform_points, unit)
+        moment = _cross(geometry.rotated_platform_points, unit)
     axes = euler_rate_axes(angles)
     return np.concatenate([unit, np.einsum("ncj,njk->nck", moment, axes)], axis=2)
 
