@@ -17,7 +17,8 @@ hexacal/calibrate ``--calls`` times. Per call it measures, from just before
 
 Between calls it waits for the report, so each call starts on an idle node.
 The bare solve time is ``pipeline.calibrate`` on the same nominal model and
-postures in this process (median of ``--solve-repeats`` after a warm-up).
+postures in this process: after a warm-up, ``--solve-repeats`` runs before each
+call (interleaved, so both see the same load), median of all.
 
 Run: ``.venv/bin/python benchmarks/bench_service.py [--json] [--postures 50 200] [--calls 5]``
 Target (issue 12): the response and the published parameters within the solve
@@ -67,20 +68,25 @@ def claim_domain_id() -> int:
     raise RuntimeError('no free ROS domain id in 1..100')
 
 
-def bare_solve_seconds(nominal_path: Path, postures: list, repeats: int) -> float:
-    """Median wall time of pipeline.calibrate (the node's solve call) in this process."""
-    from hexacal_identify import pipeline
-    from hexacal_identify.core.model import HexaParameters
-    from hexacal_msgs_py.parameters_file import load_parameters
+class BareSolve:
+    """Wall times of pipeline.calibrate (the node's solve call) in this process, after a warm-up."""
 
-    nominal = HexaParameters(load_parameters(nominal_path))
-    pipeline.calibrate(nominal, postures)  # warm-up: imports, caches
-    times = []
-    for _ in range(repeats):
-        started = time.perf_counter()
-        pipeline.calibrate(nominal, postures)
-        times.append(time.perf_counter() - started)
-    return statistics.median(times)
+    def __init__(self, nominal_path: Path, postures: list) -> None:
+        from hexacal_identify import pipeline
+        from hexacal_identify.core.model import HexaParameters
+        from hexacal_msgs_py.parameters_file import load_parameters
+
+        self.calibrate = pipeline.calibrate
+        self.nominal = HexaParameters(load_parameters(nominal_path))
+        self.postures = postures
+        self.times: list[float] = []
+        self.calibrate(self.nominal, postures)  # warm-up: imports, caches
+
+    def run(self, repeats: int) -> None:
+        for _ in range(repeats):
+            started = time.perf_counter()
+            self.calibrate(self.nominal, self.postures)
+            self.times.append(time.perf_counter() - started)
 
 
 class ServiceClock:
@@ -165,7 +171,7 @@ def measure(count: int, calls: int, solve_repeats: int, work_dir: Path, seed: in
     work_dir.mkdir(parents=True, exist_ok=True)
     _, nominal = write_parameter_files(work_dir)
     postures = simulated_postures(count, seed=seed)
-    solve = bare_solve_seconds(nominal, postures, solve_repeats)
+    bare = BareSolve(nominal, postures)
 
     probe = Probe()
     node = None
@@ -180,7 +186,11 @@ def measure(count: int, calls: int, solve_repeats: int, work_dir: Path, seed: in
         probe.publish_postures(postures)
         clock.spin_until(lambda: clock.postures_received() == count, START_TIMEOUT_S,
                          f'identify to hold {count} postures', node.describe)
-        samples = [clock.call(node.describe) for _ in range(calls)]
+        samples = []
+        for _ in range(calls):
+            # Interleaved with the calls, so both see the same load of a shared machine.
+            bare.run(solve_repeats)
+            samples.append(clock.call(node.describe))
     finally:
         probe.close()
         if node is not None:
@@ -189,6 +199,7 @@ def measure(count: int, calls: int, solve_repeats: int, work_dir: Path, seed: in
     def median(key: str) -> float:
         return statistics.median(s[key] for s in samples)
 
+    solve = statistics.median(bare.times)
     row = {
         'postures': count,
         'solve_seconds': solve,
@@ -202,6 +213,9 @@ def measure(count: int, calls: int, solve_repeats: int, work_dir: Path, seed: in
             s['node_solve_seconds'] for s in samples if s['node_solve_seconds'] is not None)
         if any(s['node_solve_seconds'] is not None for s in samples) else None,
         'report_states': sorted({s['report_state'] for s in samples}),
+        'calls_response_seconds': [s['response_seconds'] for s in samples],
+        'calls_parameters_seconds': [s['parameters_seconds'] for s in samples],
+        'calls_node_solve_seconds': [s['node_solve_seconds'] for s in samples],
         'calls': calls,
     }
     row['met'] = max(row['response_seconds'], row['parameters_seconds']) <= solve + MARGIN_S
@@ -232,7 +246,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--json', action='store_true', help='print the rows as a JSON list')
     parser.add_argument('--postures', type=int, nargs='*', default=list(POSTURE_COUNTS))
     parser.add_argument('--calls', type=int, default=5, help='calibrate calls per posture count')
-    parser.add_argument('--solve-repeats', type=int, default=7)
+    parser.add_argument('--solve-repeats', type=int, default=3,
+                        help='bare solves before each call (their median is solve_seconds)')
     parser.add_argument('--seed', type=int, default=0)
     parser.add_argument('--work-dir', type=Path, default=None,
                         help='keep the outputs and logs here (default: a temporary directory)')
