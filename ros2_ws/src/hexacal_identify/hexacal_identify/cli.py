@@ -10,17 +10,22 @@ import sys
 from pathlib import Path
 
 from . import cli_study
+from .cli_common import LazySubcommands
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
 
 
 def _add_params_parser(subparsers) -> None:
-    parser = subparsers.add_parser(
+    subparsers.add_parser(
         "params",
         help="write a parameters YAML: the exact Table 1 machine or a nominal set 1-3",
         description="Write a ROS 2 parameters YAML (SI units) for the Table 1 machine or one of the paper's "
         "nominal sets (Table 1 + seeded errors with Table 2's statistics).",
+        fill=_params_arguments,
     )
+
+
+def _params_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("which", choices=("table1", "nominal"), help="table1: exact machine; nominal: nominal set")
     parser.add_argument("--set", type=int, choices=(1, 2, 3), default=2, help="nominal set (default 2)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the nominal errors (default 0)")
@@ -43,17 +48,24 @@ def _write_params(args) -> int:
     return EXIT_OK
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(fill: bool = True) -> argparse.ArgumentParser:
+    """The whole ``hexacal`` parser; with fill=False a command's arguments are added when it is chosen.
+
+    main() parses with fill=False, so a command imports only the modules its own options and handler
+    need (see cli_common.LazySubcommands) and `hexacal --help` imports none of them.
+    """
     parser = argparse.ArgumentParser(
         prog="hexacal", description="Kinematic calibration of Hexa Slide parallel manipulators (ROS 2)."
     )
-    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", action=LazySubcommands)
     cli_study.add_parser(subparsers)
     _add_params_parser(subparsers)
     for module_name in ("cli_bag", "cli_demo", "cli_plan_report"):
         module = _optional_module(module_name)
         if module is not None:
             module.add_parsers(subparsers)
+    if fill:
+        subparsers.fill_all()
     return parser
 
 
@@ -83,7 +95,7 @@ def _named_errors() -> tuple[type[BaseException], ...]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    args = build_parser(fill=False).parse_args(argv)
     try:
         return int(args.handler(args))
     except _named_errors() as error:

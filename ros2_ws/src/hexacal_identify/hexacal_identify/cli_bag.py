@@ -6,27 +6,33 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from .cli_common import load_params_arg
-from .cli_study_device import device_names_argument
-from .core.device import DEFAULT_LINK_LENGTH_M
-from .core.errors import CalibrationError
-from .core.identification import CONVERGED, ROBUST_LOSSES
-from .core.measurements import NoiseModel
-from .core.residuals import COSTS
 
+# The solver, the bag reader and the report are imported where they run: this module is imported by every `hexacal`
+# start-up to register the commands.
 UM, MM = 1e6, 1e3
 
 
 def add_parsers(subparsers) -> None:
-    calibrate = subparsers.add_parser(
+    subparsers.add_parser(
         "calibrate",
         help="calibrate from a recorded bag (no ROS graph needed)",
         description="Identify the 54 parameters from a rosbag2 bag (directory with metadata.yaml + .mcap, or a "
         "single .mcap file) with the same core call the identify node uses. Postures come from the bag's "
         "/hexacal/posture topic, or are re-detected from its raw sensor streams.",
+        fill=_calibrate_arguments,
     )
+    subparsers.add_parser("bag-info", help="describe a bag (like `ros2 bag info`) and its postures",
+                          description="Print a bag's files, duration, topics with types and counts, "
+                          "and the postures it holds.", fill=_bag_info_arguments)
+
+
+def _calibrate_arguments(calibrate: argparse.ArgumentParser) -> None:
+    from .cli_study_device import device_names_argument
+    from .core.device import DEFAULT_LINK_LENGTH_M
+    from .core.identification import ROBUST_LOSSES
+    from .core.residuals import COSTS
+
     calibrate.add_argument("bag", type=Path, help="bag directory or .mcap file")
     calibrate.add_argument("--nominal", type=Path, required=True, help="parameters YAML to start from")
     calibrate.add_argument("--output", type=Path, required=True, help="parameters YAML to write (atomically)")
@@ -46,9 +52,8 @@ def add_parsers(subparsers) -> None:
     calibrate.add_argument("--json", action="store_true", help="print the result as one JSON object")
     calibrate.set_defaults(handler=run_calibrate)
 
-    info = subparsers.add_parser("bag-info", help="describe a bag (like `ros2 bag info`) and its postures",
-                                 description="Print a bag's files, duration, topics with types and counts, "
-                                 "and the postures it holds.")
+
+def _bag_info_arguments(info: argparse.ArgumentParser) -> None:
     info.add_argument("bag", type=Path, help="bag directory or .mcap file")
     info.set_defaults(handler=run_bag_info)
 
@@ -56,8 +61,10 @@ def add_parsers(subparsers) -> None:
 def run_calibrate(args) -> int:
     from hexacal_msgs_py.parameters_file import save_parameters
 
+    from .core.errors import CalibrationError
+    from .core.identification import CONVERGED
+    from .core.measurements import NoiseModel
     from .pipeline import calibrate, measurements_from_postures, postures_from_bag
-    from .report import save_result, write_report
 
     nominal = load_params_arg(args.nominal)
     if args.output.exists() and args.output.is_dir():
@@ -78,8 +85,12 @@ def run_calibrate(args) -> int:
     measurements = measurements_from_postures(bag.postures)
     extras = {"bag": str(args.bag), "nominal": str(args.nominal)}
     if args.save_result:
+        from .report import save_result
+
         save_result(args.save_result, result, extras, measurements=measurements, link_length=args.link_length)
     if args.report:
+        from .report import write_report
+
         write_report(result, args.report, title=f"hexacal calibration report: {args.bag}", extras=extras,
                      measurements=measurements, link_length=args.link_length)
     if args.json:
@@ -95,6 +106,10 @@ def run_calibrate(args) -> int:
 
 
 def _print_summary(args, bag, result) -> None:
+    import numpy as np
+
+    from .core.identification import CONVERGED
+
     print(f"bag {args.bag}: {len(bag.postures)} postures from the {bag.source}")
     if bag.ignored_topics:
         print(f"  ignored topics: {', '.join(bag.ignored_topics)}")

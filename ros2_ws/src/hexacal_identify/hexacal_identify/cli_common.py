@@ -1,10 +1,56 @@
-"""Shared pieces of the ``hexacal`` command line: progress display and parameter-file arguments."""
+"""Shared pieces of the ``hexacal`` command line: lazy subcommands, progress display, parameter-file arguments.
+
+Imported by every ``hexacal`` start-up: keep its imports to the standard library.
+"""
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING, Callable
 
-from .core.model import HexaParameters
+if TYPE_CHECKING:
+    from .core.model import HexaParameters
+
+
+class LazySubcommands(argparse._SubParsersAction):
+    """Subcommand parsers whose arguments are added only when their command is chosen.
+
+    ``add_parser(name, fill=f, help=..., description=...)`` registers the command
+    (its name and help are all `hexacal --help` shows); ``f(parser)`` adds the
+    arguments and the handler when the command line names the command, before
+    its arguments are parsed. So a command imports only what its own options and
+    handler need (the solver for `calibrate`, the studies for `study`), and
+    `hexacal --help` none of them.
+    """
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._fills: dict[str, Callable[[argparse.ArgumentParser], None]] = {}
+
+    def add_parser(self, name: str, *, fill: Callable[[argparse.ArgumentParser], None] | None = None,
+                   **kwargs) -> argparse.ArgumentParser:
+        parser = super().add_parser(name, **kwargs)
+        if fill is not None:
+            self._fills[name] = fill
+        return parser
+
+    def fill(self, name: str) -> argparse.ArgumentParser:
+        """The parser of command `name` with its arguments (added now if they were not yet)."""
+        parser = self._name_parser_map[name]
+        fill = self._fills.pop(name, None)
+        if fill is not None:
+            fill(parser)
+        return parser
+
+    def fill_all(self) -> None:
+        for name in list(self._fills):
+            self.fill(name)
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        if values and values[0] in self._name_parser_map:
+            self.fill(values[0])
+        super().__call__(parser, namespace, values, option_string)
 
 
 class Progress:
@@ -30,5 +76,7 @@ class Progress:
 def load_params_arg(path: Path) -> HexaParameters:
     """A parameters YAML named on the command line, validated (ParameterFileError names the bad key)."""
     from hexacal_msgs_py.parameters_file import load_parameters
+
+    from .core.model import HexaParameters
 
     return HexaParameters(load_parameters(path))

@@ -18,11 +18,12 @@ import signal
 import sys
 import tempfile
 import time
-from typing import IO, Callable
+from typing import IO, TYPE_CHECKING, Callable
 
-import numpy as np
+if TYPE_CHECKING:  # numpy and the process launcher are imported where the demo runs, not at `hexacal` start-up
+    import numpy as np
 
-from .bringup import NodeGroup, NodeLaunch, RunningNode
+    from .bringup import NodeGroup, RunningNode
 
 DOMAIN_ID_RANGE = range(1, 101)
 # Shared with tests/conftest.py: a demo and a test session never pick the same domain.
@@ -138,6 +139,7 @@ def _run(args) -> int:
     paths = _paths(args)
     from hexacal_msgs_py.parameters_file import save_parameters
 
+    from .bringup import NodeGroup, NodeLaunch
     from .core.model import nominal_set, table1_parameters
 
     true_params, nominal = table1_parameters(), nominal_set(2, seed=args.seed)
@@ -338,6 +340,8 @@ class _RosSession:
 def parameter_error_rows(true_vector: np.ndarray,
                          vector: np.ndarray) -> dict[str, tuple[float, float]]:
     """Per group A0, B, l, a: (max, mean) |error| in mm (a: unit-vector components x 1000)."""
+    import numpy as np
+
     errors = np.abs(np.asarray(vector) - np.asarray(true_vector)).reshape(6, 9) * 1e3
     return {name: (float(errors[:, columns].max()), float(errors[:, columns].mean()))
             for name, columns in GROUPS.items()}

@@ -5,22 +5,41 @@ import json
 import math
 from pathlib import Path
 
+from typing import TYPE_CHECKING
+
 from .cli_common import Progress, load_params_arg
-from .core.device import DEFAULT_LINK_LENGTH_M
-from .core.model import N_PARAMETERS
-from .core.planning import CRITERIA, INDICES, METHODS, PREDICTION, PostureLimits
-from .core.residuals import COSTS
+
+if TYPE_CHECKING:
+    from .core.planning import PostureLimits
+
+# The planner and the report are imported where they run: this module is imported by every `hexacal` start-up to
+# register the commands.
 
 
 def add_parsers(subparsers) -> None:
-    plan = subparsers.add_parser(
+    subparsers.add_parser(
         "plan",
         help="choose K measuring postures that maximise an observability index; write a plan file",
         description="Draw feasible candidate postures (sphere and fixed-position, within the inclinometer range, "
         "slider stroke, U/S-joint limits, away from singularities), score them with the identification Jacobian "
         "at the nominal parameters and choose K that maximise the observability index. Writes the driver's "
         "plan-file format (YAML, SI units) atomically.",
+        fill=_plan_arguments,
     )
+    subparsers.add_parser(
+        "report",
+        help="write a self-contained HTML report (PNG figures) of a calibration result",
+        description="Read a result JSON (from report.save_result, or the output of `hexacal calibrate --json` / "
+        "`hexacal study --json`, which gives fewer figures) and write DIR/index.html with its figures.",
+        fill=_report_arguments,
+    )
+
+
+def _plan_arguments(plan) -> None:
+    from .core.device import DEFAULT_LINK_LENGTH_M
+    from .core.planning import CRITERIA, METHODS, PostureLimits
+    from .core.residuals import COSTS
+
     plan.add_argument("--postures", type=int, required=True, help="number of postures K to choose")
     plan.add_argument("--index", choices=CRITERIA, default="O1",
                       help="O1 D-optimal (default), O2 inverse condition number, O3 smallest singular value, "
@@ -59,12 +78,8 @@ def add_parsers(subparsers) -> None:
     plan.add_argument("--json", action="store_true", help="print one JSON object (no progress display)")
     plan.set_defaults(handler=run_plan)
 
-    report = subparsers.add_parser(
-        "report",
-        help="write a self-contained HTML report (PNG figures) of a calibration result",
-        description="Read a result JSON (from report.save_result, or the output of `hexacal calibrate --json` / "
-        "`hexacal study --json`, which gives fewer figures) and write DIR/index.html with its figures.",
-    )
+
+def _report_arguments(report) -> None:
     report.add_argument("result", type=Path, help="result JSON file")
     report.add_argument("--out", type=Path, required=True, help="output directory")
     report.add_argument("--title", help="page title")
@@ -72,6 +87,8 @@ def add_parsers(subparsers) -> None:
 
 
 def _limits(args) -> PostureLimits:
+    from .core.planning import PostureLimits
+
     low, high = args.slider_stroke_m
     return PostureLimits(
         link_length=args.link_length, xy_range_m=args.xy_range_mm / 1e3,
@@ -84,8 +101,8 @@ def _limits(args) -> PostureLimits:
 
 def run_plan(args) -> int:
     from .core.measurements import NoiseModel
-    from .core.model import table1_parameters
-    from .core.planning import plan_postures
+    from .core.model import N_PARAMETERS, table1_parameters
+    from .core.planning import INDICES, PREDICTION, plan_postures
 
     nominal = load_params_arg(args.nominal) if args.nominal else table1_parameters()
     if args.out.is_dir():

@@ -3,35 +3,34 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from . import cli_study_device, figures, planning_study
 from .cli_common import Progress, load_params_arg
-from .core.device import DeviceDefects
-from .core.identifiability import DEFAULT_RANK_TOLERANCE
-from .core.model import TABLE2_ERROR_STATS_MM, error_stats_mm, table1_parameters
-from .core.residuals import COST_EQUATIONS, COSTS
-from .core.study import (
-    PAPER_TABLE3,
-    StudyRun,
-    identifiability_by_cost,
-    noise_free_recovery,
-    noise_study,
-    run_calibration,
-)
 
-UM, DEG = 1e6, np.degrees(1.0)
+if TYPE_CHECKING:
+    from .core.study import StudyRun
+
+# The studies (core.study, planning_study, the device study, figures with matplotlib) are imported where they run:
+# this module is imported by every `hexacal` start-up to register the command.
+UM, DEG = 1e6, math.degrees(1.0)
 
 
 def add_parser(subparsers) -> None:
-    parser = subparsers.add_parser(
+    subparsers.add_parser(
         "study",
         help="reproduce the paper's simulation study (section 4)",
         description="Reproduce section 4 of the paper on the simulated Table 1 machine, print the paper's numbers "
         "side by side and write PNG figures. With --json, run only the configured calibration and print its result.",
+        fill=add_arguments,
     )
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from . import cli_study_device, planning_study
+    from .core.residuals import COSTS
+
     parser.add_argument("--true-params", type=Path, help="parameters YAML of the simulated machine (default: Table 1)")
     parser.add_argument("--nominal-params", type=Path, help="parameters YAML to start from (default: nominal set --nominal-set)")
     parser.add_argument("--nominal-set", type=int, choices=(1, 2, 3), default=2, help="Table 2 error set (default 2)")
@@ -50,6 +49,10 @@ def add_parser(subparsers) -> None:
 
 
 def configured_run(args) -> StudyRun:
+    from .core.device import DeviceDefects
+    from .core.model import table1_parameters
+    from .core.study import StudyRun
+
     true_params = load_params_arg(args.true_params) if args.true_params else table1_parameters()
     nominal = load_params_arg(args.nominal_params) if args.nominal_params else None
     if args.postures < 1:
@@ -64,6 +67,9 @@ def configured_run(args) -> StudyRun:
 
 
 def run(args) -> int:
+    from . import cli_study_device, planning_study
+    from .core.study import run_calibration
+
     if args.plan:
         return planning_study.run(args)
     configured = configured_run(args)
@@ -84,6 +90,11 @@ def run(args) -> int:
 
 
 def _print_identifiability(out: Path) -> None:
+    from . import figures
+    from .core.identifiability import DEFAULT_RANK_TOLERANCE
+    from .core.residuals import COST_EQUATIONS
+    from .core.study import identifiability_by_cost
+
     print("Identifiability of each cost function (paper: 'all parameters are identifiable'), exact data, "
           "40 postures (30 sphere + 10 fixed-position where needed):")
     print(f"  {'cost':<13} {'equations':<12} {'postures':<16} {'rank':>5} {'condition':>10}  verdict")
@@ -100,6 +111,12 @@ def _print_identifiability(out: Path) -> None:
 
 
 def _print_noise_free(out: Path, progress: Progress) -> None:
+    import numpy as np
+
+    from . import figures
+    from .core.model import TABLE2_ERROR_STATS_MM, error_stats_mm
+    from .core.study import noise_free_recovery
+
     print("\nNo noise, 25 postures, eq. 7 (paper Figs. 4-6: every parameter identified):")
     print(f"  {'set':>3} {'Table 2 max/mean/sigma mm':>27} {'ours max/mean/sigma mm':>25} "
           f"{'final max |error| m':>20} {'iters':>6} {'solve ms':>9}")
@@ -116,6 +133,9 @@ def _print_noise_free(out: Path, progress: Progress) -> None:
 
 
 def _print_noise_table(out: Path, seeds: int, progress: Progress) -> None:
+    from . import figures
+    from .core.study import PAPER_TABLE3, noise_study
+
     print(f"\nMeasurement noise, 50 postures, nominal set 2, eq. 7; mean over 50 validation postures, "
           f"{seeds} seeds (mean +- spread) [paper Table 3]:")
     summaries = noise_study(seeds=range(seeds), progress=progress.step)
@@ -146,6 +166,9 @@ def _print_noise_table(out: Path, seeds: int, progress: Progress) -> None:
 
 
 def _print_procedures(progress: Progress) -> None:
+    from .core.residuals import COST_EQUATIONS, COSTS
+    from .core.study import StudyRun, run_calibration
+
     print("\nSphere + fixed-position procedure, 60 sphere + 20 fixed postures, +-10 um noise, nominal set 2 "
           "(paper: 'of the same order as the noise'):")
     print(f"  {'cost':<13} {'equations':<12} {'outcome':<16} {'position um':>12} {'orient. deg':>12} {'solve ms':>9}")
@@ -164,6 +187,8 @@ def _print_procedures(progress: Progress) -> None:
 
 
 def _print_configured(run: StudyRun) -> None:
+    from .core.study import run_calibration
+
     outcome = run_calibration(run)
     result = outcome.result
     before, after = outcome.before.summary(), outcome.after.summary()

@@ -2,16 +2,14 @@
 from __future__ import annotations
 
 import argparse
-
-import numpy as np
+import math
 
 from .cli_common import Progress
 from .core.device import DEVICE_PARAMETER_NAMES, DeviceDefects
-from .core.device_study import DEFAULT_DEFECTS, compare_methods
-from .core.identification import ROBUST_LOSSES
-from .core.uncertainty import monte_carlo
 
-UM, DEG, URAD = 1e6, np.degrees(1.0), 1e6
+# The device study and the Monte Carlo check are imported where they run: `hexacal calibrate` imports this module
+# for device_names_argument.
+UM, DEG, URAD = 1e6, math.degrees(1.0), 1e6
 DEFECTS_HELP = ("device defects of the simulated device, SI units, e.g. dL=0.0005,alpha0=2e-4,beta0=-1.5e-4,"
                 "gamma=1e-4,phi0=1e-4 (dL link-length offset m; alpha0/beta0 inclinometer zero offsets about X/Y rad; "
                 "gamma non-perpendicularity of the inclinometer axes rad; phi0 rotary zero offset rad)")
@@ -33,6 +31,8 @@ def device_names_argument(text: str) -> tuple[str, ...]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from .core.identification import ROBUST_LOSSES
+
     parser.add_argument("--device-defects", type=_defects, default=None, help=DEFECTS_HELP)
     parser.add_argument("--identify-device", type=device_names_argument, default=(),
                         help="device defects to identify jointly in the configured run, e.g. dL,alpha0,gamma")
@@ -46,12 +46,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def print_sections(args, progress: Progress) -> None:
+    from .core.device_study import DEFAULT_DEFECTS
+
     print_device_defects(args.device_defects or DEFAULT_DEFECTS, args.noise_um, args.defect_seeds, progress)
     if args.monte_carlo > 0:
         print_monte_carlo(args.monte_carlo, args.noise_um, progress)
 
 
 def print_device_defects(defects: DeviceDefects, noise_um: float, seeds: int, progress: Progress) -> None:
+    import numpy as np
+
+    from .core.device_study import compare_methods
+
     print(f"\nDevice defects ({defects.describe()}), +-{noise_um:g} um / urad noise, 60 sphere + 20 fixed postures, "
           f"nominal set 2, {seeds} seeds; pose error over 50 validation postures in the frames the device defines:")
     outcomes = compare_methods(defects, noise_um, range(seeds), progress=progress.step)
@@ -97,6 +103,10 @@ def _ref_orientation(outcomes) -> float:
 
 
 def print_monte_carlo(seeds: int, noise_um: float, progress: Progress) -> None:
+    import numpy as np
+
+    from .core.uncertainty import monte_carlo
+
     print(f"\nUncertainty check: one calibration (50 postures, +-{noise_um:g} um / urad, noise-weighted) repeated over "
           f"{seeds} noise seeds:")
     summary = monte_carlo(seeds=seeds, noise_um=noise_um, progress=progress.step)
