@@ -68,6 +68,7 @@ demo: setup
 
 bench: setup
 	$(VENV_PY) benchmarks/bench_identification.py
+	$(VENV_PY) benchmarks/bench_startup.py
 
 clean:
 	rm -rf $(VENV) build install log ros2_ws/build ros2_ws/install ros2_ws/log \

@@ -254,8 +254,8 @@ def measure(repeats: int, nodes: bool = True) -> list[dict]:
 
 
 def format_table(rows: list[dict]) -> str:
-    lines = [f'{"what":<44} {"median s":>9} {"min s":>7} {"max s":>7} {"x base":>7}  {"target":<10} result',
-             '-' * 96]
+    lines = [f'{"what":<48} {"median s":>9} {"min s":>7} {"max s":>7} {"x base":>7}  {"target":<10} result',
+             '-' * 100]
     for row in rows:
         if row['target_ratio'] is not None:
             target = f'<= {row["target_ratio"]:g}x'
@@ -264,7 +264,7 @@ def format_table(rows: list[dict]) -> str:
         else:
             target = ''
         verdict = '' if row['met'] is None else ('met' if row['met'] else 'NOT met')
-        lines.append(f'{row["name"]:<44} {row["median_s"]:>9.3f} {row["min_s"]:>7.3f} {row["max_s"]:>7.3f} '
+        lines.append(f'{row["name"]:<48} {row["median_s"]:>9.3f} {row["min_s"]:>7.3f} {row["max_s"]:>7.3f} '
                      f'{row["ratio"]:>7.2f}  {target:<10} {verdict}')
     return '\n'.join(lines)
 

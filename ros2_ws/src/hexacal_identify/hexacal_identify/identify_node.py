@@ -68,10 +68,10 @@ from hexacal_msgs_py.parameters_file import load_parameters, save_parameters
 from hexacal_msgs_py.qos import PARAMETERS_QOS, POSTURE_QOS, STATUS_QOS
 from hexacal_msgs_py.readings import PostureReading
 
-from . import pipeline
+# pipeline and core.identification (the solver, scipy.linalg) are imported where they are used: at the first
+# posture or calibration, not at start-up.
 from .core.device import DEVICE_PARAMETER_NAMES
 from .core.errors import CalibrationError
-from .core.identification import CONVERGED, ITERATION_LIMIT, ROBUST_LOSSES
 from .core.measurements import NoiseModel
 from .core.model import HexaParameters
 from .core.residuals import COSTS
@@ -218,9 +218,12 @@ class IdentifyNode(Node):
                 if unknown:
                     return SetParametersResult(successful=False, reason=(
                         f"identify_device: unknown {unknown}; choose from {', '.join(DEVICE_PARAMETER_NAMES)}"))
-            if parameter.name == 'robust_loss' and parameter.value not in ('', *ROBUST_LOSSES):
-                return SetParametersResult(successful=False, reason=(
-                    f"robust_loss must be '', {', '.join(ROBUST_LOSSES)}; got {parameter.value!r}"))
+            if parameter.name == 'robust_loss' and parameter.value != '':  # '' (the default): no import
+                from .core.identification import ROBUST_LOSSES
+
+                if parameter.value not in ROBUST_LOSSES:
+                    return SetParametersResult(successful=False, reason=(
+                        f"robust_loss must be '', {', '.join(ROBUST_LOSSES)}; got {parameter.value!r}"))
             if parameter.name == 'report_dir' and parameter.value:  # '' = no report
                 try:
                     output_path(parameter.value, current('output_dir', ''))
@@ -245,6 +248,8 @@ class IdentifyNode(Node):
     # ------------------------------------------------------------------ postures
 
     def _on_posture(self, message: JointState) -> None:
+        from . import pipeline
+
         try:
             posture = joint_state_to_posture_reading(message)
             problem = pipeline.posture_problem(posture)
@@ -330,6 +335,9 @@ class IdentifyNode(Node):
         return outcome
 
     def _run_calibration(self) -> Outcome:
+        from . import pipeline
+        from .core.identification import CONVERGED, ITERATION_LIMIT
+
         nominal_path = self.get_parameter('nominal').value
         cost = self.get_parameter('cost').value
         bag = self.get_parameter('bag').value
@@ -430,6 +438,8 @@ class IdentifyNode(Node):
         self._report_worker.submit(self._write_pending_report)
 
     def _write_pending_report(self) -> None:
+        from . import pipeline
+
         threading.Event().wait(REPORT_START_DELAY_S)  # a sleep (the import lines are left alone)
         with self._report_lock:
             pending, self._pending_report = self._pending_report, None
