@@ -82,7 +82,7 @@ def run_calibrate(args) -> int:
                f"{result.reason}), SI units")
     if result.reason == CONVERGED:
         save_parameters(args.output, result.parameters.vector, header_comment=comment)
-    measurements = measurements_from_postures(bag.postures)
+    measurements = measurements_from_postures(bag.postures) if args.save_result or args.report else None
     extras = {"bag": str(args.bag), "nominal": str(args.nominal)}
     if args.save_result:
         from .report import save_result
