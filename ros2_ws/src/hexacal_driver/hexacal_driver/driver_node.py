@@ -49,6 +49,11 @@ from hexacal_msgs_py.qos import SENSOR_QOS
 from hexacal_msgs_py.readings import EncoderReading, InclinometerReading, SliderReading
 
 NODE_NAME = 'driver'
+# The timer wakes at most this often and publishes rate_hz / MAX_WAKE_HZ samples per wake-up,
+# each stamped with its own sampling time (1 / rate_hz apart, the last one now): an executor
+# wake-up costs more than the publishing, so 1 kHz costs 200 wake-ups per second, not 1000.
+MAX_WAKE_HZ = 200.0
+NS_PER_S = 1_000_000_000
 # Parameters that may change while the node runs; all others shape the plan and are read-only.
 RUNTIME_PARAMETERS = ('slider_noise_m', 'angle_noise_rad')
 
@@ -166,7 +171,15 @@ class DriverNode(Node):
         self._started = False
         self._started_monotonic = 0.0
         self._last_reported: tuple[int, int, str] | None = None
-        self._timer = self.create_timer(1.0 / self.rate_hz, self._tick)
+        self._per_wake = max(1, math.ceil(self.rate_hz / MAX_WAKE_HZ - 1e-9))
+        self._period_ns = int(round(NS_PER_S / self.rate_hz))
+        self._last_stamp_ns = -1
+        # Preallocated messages: each tick sets the stamps and positions only.
+        self._messages = {
+            'sliders': slider_reading_to_joint_state(SliderReading(0, (0.0,) * 6)),
+            'inclinometer': inclinometer_reading_to_joint_state(InclinometerReading(0, 0.0, 0.0)),
+            'encoder': encoder_reading_to_joint_state(EncoderReading(0, 0.0))}
+        self._timer = self.create_timer(self._per_wake / self.rate_hz, self._wake)
 
         source = 'Table 1' if not value['true_params'] else value['true_params']
         self.get_logger().info(
@@ -211,13 +224,22 @@ class DriverNode(Node):
 
     # ------------------------------------------------------------------ publishing
 
-    def _tick(self) -> None:
+    def _wake(self) -> None:
+        """Publish the samples of one timer period, stamped 1 / rate_hz apart up to now."""
+        now = self.get_clock().now().nanoseconds
+        for remaining in range(self._per_wake - 1, -1, -1):
+            # Strictly increasing and never ahead of the clock, even after a late wake-up.
+            stamp = max(now - remaining * self._period_ns, self._last_stamp_ns + 1)
+            self._last_stamp_ns = stamp
+            self._tick(stamp)
+
+    def _tick(self, stamp: int) -> None:
         if not self._started:
             # Matched (DDS), not just on the graph, on all three: no plan sample goes to nobody.
             if self.wait_for_subscriber and min(
                     publisher.get_subscription_count() for publisher in (
                         self._sliders_pub, self._inclinometer_pub, self._encoder_pub)) == 0:
-                self._publish(self.walker.sample(0.0))
+                self._publish(self.walker.sample(0.0), stamp)
                 return
             self._started = True
             self._started_monotonic = time.monotonic()
@@ -225,21 +247,25 @@ class DriverNode(Node):
             self.get_logger().info(f"starting plan '{self.plan.name}'")
         sample = self.walker.sample(self._ticks / self.rate_hz)
         self._ticks += 1
-        self._publish(sample)
+        self._publish(sample, stamp)
         self._report(sample.posture_index, sample.lap, sample.phase)
 
-    def _publish(self, sample) -> None:
+    def _publish(self, sample, stamp: int) -> None:
         readings = self.sensors.read(sample)
         # One stamp for the three: the sensors are sampled together.
-        stamp = self.get_clock().now().nanoseconds
         if self._started and self.plan_start_stamp_ns is None:
             self.plan_start_stamp_ns = stamp
-        self._sliders_pub.publish(slider_reading_to_joint_state(
-            SliderReading(stamp, tuple(readings.sliders_m.tolist()))))
-        self._inclinometer_pub.publish(inclinometer_reading_to_joint_state(
-            InclinometerReading(stamp, readings.alpha_rad, readings.beta_rad)))
-        self._encoder_pub.publish(encoder_reading_to_joint_state(
-            EncoderReading(stamp, readings.phi_rad)))
+        seconds, nanoseconds = divmod(stamp, NS_PER_S)
+        messages = self._messages
+        for message in messages.values():
+            message.header.stamp.sec = seconds
+            message.header.stamp.nanosec = nanoseconds
+        messages['sliders'].position = readings.sliders_m.tolist()
+        messages['inclinometer'].position = [readings.alpha_rad, readings.beta_rad]
+        messages['encoder'].position = [readings.phi_rad]
+        self._sliders_pub.publish(messages['sliders'])
+        self._inclinometer_pub.publish(messages['inclinometer'])
+        self._encoder_pub.publish(messages['encoder'])
         self.published += 1  # complete ticks: Ctrl-C may cut the last one after some of its publishes
 
     def _report(self, index: int, lap: int, phase: str) -> None:

@@ -12,6 +12,7 @@ phi (rad). Stamps are integer ns.
 from __future__ import annotations
 
 import math
+from bisect import bisect_left
 from collections import deque
 from dataclasses import dataclass
 from enum import Enum
@@ -73,10 +74,12 @@ class _StreamState:
         self.last_stamp_ns: int | None = None
         self.accepted = 0
         self.rejected: dict[str, int] = {}
-        # (stamp_ns, reading) of the latest readings, oldest first.
-        self.recent: deque[tuple[int, Any]] = deque(maxlen=history)
+        # Stamps and values (tuples of floats) of the latest readings, oldest first; the stamps
+        # strictly increase (accept), so the nearest reading is found by bisection.
+        self.stamps: deque[int] = deque(maxlen=history)
+        self.values: deque[tuple[float, ...]] = deque(maxlen=history)
 
-    def accept(self, stamp_ns: int, reading: Any) -> bool:
+    def accept(self, stamp_ns: int, values: tuple[float, ...]) -> bool:
         """Keep a reading unless its stamp repeats or goes back in time (counted)."""
         if self.last_stamp_ns is not None and stamp_ns <= self.last_stamp_ns:
             reason = DUPLICATE_STAMP if stamp_ns == self.last_stamp_ns else OUT_OF_ORDER
@@ -84,16 +87,19 @@ class _StreamState:
             return False
         self.last_stamp_ns = stamp_ns
         self.accepted += 1
-        self.recent.append((stamp_ns, reading))
+        self.stamps.append(stamp_ns)
+        self.values.append(values)
         return True
 
-    def nearest(self, stamp_ns: int, max_skew_ns: int) -> Any | None:
-        """The kept reading closest to stamp_ns (earlier wins a tie) within max_skew_ns."""
+    def nearest(self, stamp_ns: int, max_skew_ns: int) -> tuple[float, ...] | None:
+        """The kept values closest to stamp_ns (earlier wins a tie) within max_skew_ns."""
+        stamps = self.stamps
+        after = bisect_left(stamps, stamp_ns)
         best, best_skew = None, max_skew_ns + 1
-        for candidate_ns, reading in self.recent:
-            skew = abs(candidate_ns - stamp_ns)
-            if skew < best_skew:
-                best, best_skew = reading, skew
+        if after > 0 and stamp_ns - stamps[after - 1] < best_skew:
+            best, best_skew = self.values[after - 1], stamp_ns - stamps[after - 1]
+        if after < len(stamps) and stamps[after] - stamp_ns < best_skew:
+            best = self.values[after]
         return best
 
 
@@ -114,27 +120,41 @@ class StreamSynchronizer:
         self.max_skew_ns = int(max_skew_ns)
         self.stale_after_ns = int(stale_after_ns)
         self._streams = {name: _StreamState(name, history) for name in STREAMS}
-        self._pending: deque[SliderReading] = deque()
+        self._pending: deque[tuple[int, tuple[float, ...]]] = deque()  # slider (stamp, values)
         self._history = history
         self.unpaired: dict[str, int] = {}
         self.emitted = 0
 
     def add_sliders(self, reading: SliderReading) -> list[PostureReading]:
-        if self._streams[SLIDERS_STREAM].accept(reading.stamp_ns, reading):
-            self._pending.append(reading)
-        return self._resolve(force_count=max(0, len(self._pending) - self._history))
+        return _readings(self.add_values(SLIDERS_STREAM, reading.stamp_ns,
+                                         reading.slider_positions))
 
     def add_inclinometer(self, reading: InclinometerReading) -> list[PostureReading]:
-        self._streams[INCLINOMETER_STREAM].accept(reading.stamp_ns, reading)
-        return self._resolve()
+        return _readings(self.add_values(INCLINOMETER_STREAM, reading.stamp_ns,
+                                         (reading.alpha, reading.beta)))
 
     def add_encoder(self, reading: EncoderReading) -> list[PostureReading]:
-        self._streams[ENCODER_STREAM].accept(reading.stamp_ns, reading)
+        return _readings(self.add_values(ENCODER_STREAM, reading.stamp_ns, (reading.phi,)))
+
+    def add_values(self, stream: str, stamp_ns: int,
+                   values: tuple[float, ...]) -> list[tuple[int, tuple[float, ...]]]:
+        """add_sliders/add_inclinometer/add_encoder for already validated readings.
+
+        `values` are the reading's numbers as a tuple of finite floats (six slider
+        positions; alpha, beta; phi), `stamp_ns` a non-negative int. Returns the
+        paired samples as (stamp_ns, nine values in POSTURE_NAMES order): the
+        collector's per-message path, without building reading objects.
+        """
+        if stream == SLIDERS_STREAM:
+            if self._streams[SLIDERS_STREAM].accept(stamp_ns, values):
+                self._pending.append((stamp_ns, values))
+            return self._resolve(force_count=max(0, len(self._pending) - self._history))
+        self._streams[stream].accept(stamp_ns, values)
         return self._resolve()
 
     def flush(self) -> list[PostureReading]:
         """Pair every waiting slider reading with what has arrived (end of stream)."""
-        return self._resolve(force_count=len(self._pending))
+        return _readings(self._resolve(force_count=len(self._pending)))
 
     def status(self, now_ns: int) -> dict[str, StreamStatus]:
         return {
@@ -157,18 +177,21 @@ class StreamSynchronizer:
         """Per stream, the count of rejected readings by reason."""
         return {name: dict(state.rejected) for name, state in self._streams.items()}
 
-    def _resolve(self, force_count: int = 0) -> list[PostureReading]:
-        emitted: list[PostureReading] = []
+    def _resolve(self, force_count: int = 0) -> list[tuple[int, tuple[float, ...]]]:
+        emitted: list[tuple[int, tuple[float, ...]]] = []
+        if not self._pending:
+            return emitted
         inclinometer = self._streams[INCLINOMETER_STREAM]
         encoder = self._streams[ENCODER_STREAM]
         newest_slider_ns = self._streams[SLIDERS_STREAM].last_stamp_ns
         while self._pending:
-            sliders = self._pending[0]
-            stamp = sliders.stamp_ns
+            stamp, sliders = self._pending[0]
             ready = (force_count > 0
                      or newest_slider_ns - stamp > self.max_skew_ns
-                     or all(s.last_stamp_ns is not None and s.last_stamp_ns >= stamp
-                            for s in (inclinometer, encoder)))
+                     or (inclinometer.last_stamp_ns is not None
+                         and inclinometer.last_stamp_ns >= stamp
+                         and encoder.last_stamp_ns is not None
+                         and encoder.last_stamp_ns >= stamp))
             if not ready:
                 break
             self._pending.popleft()
@@ -179,9 +202,13 @@ class StreamSynchronizer:
                 reason = NO_INCLINOMETER_WITHIN_SKEW if angles is None else NO_ENCODER_WITHIN_SKEW
                 self.unpaired[reason] = self.unpaired.get(reason, 0) + 1
                 continue
-            emitted.append(PostureReading.from_parts(sliders, angles, rotary))
+            emitted.append((stamp, sliders + angles + rotary))
         self.emitted += len(emitted)
         return emitted
+
+
+def _readings(samples: list[tuple[int, tuple[float, ...]]]) -> list[PostureReading]:
+    return [PostureReading.from_values(stamp, values) for stamp, values in samples]
 
 
 def synchronize_arrays(slider_stamps_ns: ArrayLike, slider_positions_m: ArrayLike,
