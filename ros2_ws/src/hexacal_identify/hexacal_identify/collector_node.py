@@ -363,7 +363,7 @@ class CollectorNode(Node):
             try:
                 with subscription.handle:
                     take = subscription.handle.take_message
-                    while True:
+                    while len(taken) < SENSOR_SUBSCRIPTION_QOS.depth:  # bounded under any flow
                         item = take(JointState, True)
                         if item is None:
                             break
