@@ -21,7 +21,7 @@ setup(
     python_requires='>=3.10',
     entry_points={
         'console_scripts': [
-            'driver = hexacal_driver.driver_node:main',
+            'driver = hexacal_driver.entry:driver',
         ],
     },
 )

@@ -45,8 +45,8 @@ setup(
     python_requires='>=3.10',
     entry_points={
         'console_scripts': [
-            'collector = hexacal_identify.collector_node:main',
-            'identify = hexacal_identify.identify_node:main',
+            'collector = hexacal_identify.node_entry:collector',
+            'identify = hexacal_identify.node_entry:identify',
             'replay = hexacal_identify.replay:main',
             'hexacal = hexacal_identify.cli:main',
             'bringup = hexacal_identify.bringup:main',

@@ -9,26 +9,40 @@ at whatever line the main thread is on - possibly in the middle of closing a
 bag. So a no-op Python handler is installed before rclpy's, and once spinning
 has ended SIGINT and SIGTERM are ignored: the node finishes its files,
 destroys itself and exits 0 with no traceback, however many signals follow.
+
+A node module calls `remember_termination_signals()` before its heavy imports,
+so a Ctrl-C while the node is still starting is remembered and the node stops
+as soon as it exists, instead of a KeyboardInterrupt traceback from an import.
+This module imports rclpy only inside `run_node` for the same reason.
 """
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 import signal
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
-import rclpy
-from rclpy.executors import Executor, ExternalShutdownException
-from rclpy.impl.implementation_singleton import rclpy_implementation
-from rclpy.node import Node
+if TYPE_CHECKING:
+    from rclpy.executors import Executor
+    from rclpy.node import Node
 
 TERMINATION_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
-NodeT = TypeVar('NodeT', bound=Node)
-RCLError = rclpy_implementation.RCLError
+NodeT = TypeVar('NodeT', bound='Node')
+_received: list[int] = []  # signals seen by the Python-level handler
 
 
 def _noted(signum: int, frame: object) -> None:
-    """Python-level handler under rclpy's: the context shutdown already ends spinning."""
+    """Python-level handler under rclpy's: the context shutdown already ends spinning.
+
+    Remembered, for a signal that arrives before rclpy.init has installed rclpy's handlers.
+    """
+    _received.append(signum)
+
+
+def remember_termination_signals() -> None:
+    """From now on SIGINT and SIGTERM are remembered, not raised: `run_node` acts on them."""
+    for signum in TERMINATION_SIGNALS:
+        signal.signal(signum, _noted)
 
 
 def hold_termination_signals() -> None:
@@ -37,13 +51,21 @@ def hold_termination_signals() -> None:
         signal.signal(signum, signal.SIG_IGN)
 
 
+def _stopped_during_startup() -> int:
+    import rclpy
+
+    hold_termination_signals()
+    rclpy.try_shutdown()
+    return 0
+
+
 def run_node(
     node_name: str,
     create: Callable[[], NodeT],
     *,
     args: list[str] | None = None,
     startup_errors: tuple[type[BaseException], ...] = (),
-    make_executor: Callable[[], Executor] | None = None,
+    make_executor: Callable[[], 'Executor'] | None = None,
     finish: Callable[[NodeT], Iterable[str]] | None = None,
 ) -> int:
     """Run one node until a signal or an external shutdown; return the exit code.
@@ -54,33 +76,41 @@ def run_node(
     returns are logged after the node is destroyed, since the context (and the
     node's rosout publisher) may already be shut down by the signal.
     """
-    for signum in TERMINATION_SIGNALS:  # before rclpy.init, so rclpy chains to these
-        signal.signal(signum, _noted)
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+
+    remember_termination_signals()  # before rclpy.init, so that rclpy chains to these
     rclpy.init(args=args)
     logger = rclpy.logging.get_logger(node_name)
     try:
         node = create()
     except startup_errors as error:
-        logger.fatal(f'cannot start: {error}')
-        rclpy.try_shutdown()
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        hold_termination_signals()
-        rclpy.try_shutdown()
-        return 0
-    executor = make_executor() if make_executor is not None else None
+        if rclpy.ok():
+            logger.fatal(f'cannot start: {error}')
+            rclpy.try_shutdown()
+            return 2
+        return _stopped_during_startup()
+    except Exception:
+        # A signal during start-up shuts the context down under the constructor, whose next rcl
+        # call then fails ("context is not valid"): that is a stop, not a crash.
+        if rclpy.ok():
+            raise
+        return _stopped_during_startup()
+    executor = None
     lines: list[str] = []
     try:
-        if executor is None:
-            rclpy.spin(node)
-        else:
-            executor.add_node(node)
-            executor.spin()
+        if node.context.ok() and not _received:
+            executor = make_executor() if make_executor is not None else None
+            if executor is None:
+                rclpy.spin(node)
+            else:
+                executor.add_node(node)
+                executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except RCLError:
-        # A signal that shuts the context down while the executor builds its wait set surfaces as
-        # "context is not valid" instead of ExternalShutdownException: the same shutdown.
+    except Exception:
+        # A signal that shuts the context down while an executor is created or builds its wait
+        # set surfaces as an rcl error ("context is not valid"), not as ExternalShutdownException.
         if node.context.ok():
             raise
     finally:
