@@ -613,7 +613,9 @@ def test_collector_names_bad_stamps_stale_and_stopped_streams(ros_processes, tmp
                send_bad_stamps)
     warned = [level for level, _, v in probe.statuses if 'rejected.sliders.out_of_order' in v]
     assert warned[0] == WARN
-    assert 'not used: ' in collector.log_text()
+    # The collector logs the rejection just after publishing the status that counts it.
+    probe.spin_until(lambda: 'not used: ' in collector.log_text(), 20.0,
+                     'the rejection logged', collector.describe)
 
     # Stale inclinometer stamps (5 s behind the sliders): never paired, never a posture.
     feed.inclinometer_lag_ns = 5 * 10**9
