@@ -69,6 +69,9 @@ demo: setup
 bench: setup
 	$(VENV_PY) benchmarks/bench_identification.py
 	$(VENV_PY) benchmarks/bench_startup.py
+	$(VENV_PY) benchmarks/bench_service.py
+	$(VENV_PY) benchmarks/bench_load.py --minutes 1
+	$(VENV_PY) benchmarks/bench_load.py --minutes 1 --busy-core
 
 clean:
 	rm -rf $(VENV) build install log ros2_ws/build ros2_ws/install ros2_ws/log \
