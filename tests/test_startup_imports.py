@@ -3,7 +3,8 @@
 Each check runs the command in a fresh interpreter (``hexacal_identify.cli.main``,
 what the ``hexacal`` script calls) and reads ``sys.modules`` afterwards:
 `hexacal --help` imports neither numpy nor scipy, `hexacal calibrate` neither
-matplotlib, scipy.optimize nor the studies, and the node modules no scipy.
+matplotlib, scipy (not even scipy.linalg: core.identifiability has its own
+pivoted QR) nor the studies, and the node modules no scipy.
 """
 from __future__ import annotations
 
@@ -66,7 +67,7 @@ def test_command_help_imports_no_matplotlib_nor_studies(tmp_path, command):
     assert imported(modules, ('matplotlib', 'scipy.optimize', 'rclpy', *STUDY_MODULES)) == []
 
 
-def test_calibrate_imports_no_matplotlib_scipy_optimize_or_studies(tmp_path):
+def test_calibrate_imports_no_matplotlib_scipy_or_studies(tmp_path):
     from hexacal_identify.core.model import nominal_set
     from hexacal_msgs_py.parameters_file import save_parameters
 
@@ -77,7 +78,22 @@ def test_calibrate_imports_no_matplotlib_scipy_optimize_or_studies(tmp_path):
     assert code == 0, output
     assert output_file.exists(), output  # it did calibrate
     assert 'hexacal_identify.core.identification' in modules
-    assert imported(modules, ('rclpy', *HEAVY)) == []
+    assert 'hexacal_identify.core.identifiability' in modules
+    assert imported(modules, ('rclpy', 'scipy', *HEAVY)) == []
+
+
+def test_refused_calibration_imports_no_scipy(tmp_path):
+    """The sphere cost is rank 53: the refusal names the combination and what to fix, without scipy."""
+    from hexacal_identify.core.model import nominal_set
+    from hexacal_msgs_py.parameters_file import save_parameters
+
+    nominal = tmp_path / 'nominal2.yaml'
+    save_parameters(nominal, nominal_set(2, seed=0).vector)
+    code, modules, output = modules_after(tmp_path, 'calibrate', str(BAG), '--nominal', str(nominal),
+                                          '--output', str(tmp_path / 'calibrated.yaml'), '--cost', 'sphere')
+    assert code == 2, output
+    assert 'rank 53 of 54' in output and 'A0z' in output
+    assert imported(modules, ('scipy', *HEAVY)) == []
 
 
 def test_the_check_sees_lazily_imported_modules(tmp_path):
