@@ -57,6 +57,11 @@ _RECORD_HEADER = struct.Struct("<BQ")
 _MESSAGE_PREFIX = struct.Struct("<HIQQ")  # channel_id, sequence, log_time, publish_time
 _FOOTER_BODY = struct.Struct("<QQI")  # summary_start, summary_offset_start, summary_crc
 _FOOTER_RECORD_SIZE = _RECORD_HEADER.size + _FOOTER_BODY.size
+_CHANNEL_ID = struct.Struct("<H")
+# Chunk index: message_start_time, message_end_time, chunk_start_offset, chunk_length, then the
+# byte length of the message_index_offsets map of (channel id u16, offset u64) entries.
+_CHUNK_INDEX_PREFIX = struct.Struct("<QQQQI")
+_CHUNK_INDEX_ENTRY_SIZE = 10
 # A corrupt length field must not make us allocate gigabytes.
 _MAX_UNCOMPRESSED_CHUNK_BYTES = 1 << 30
 _DECODABLE_SCHEMA_ENCODINGS = (SCHEMA_ENCODING, "ros2idl")
@@ -247,8 +252,11 @@ def _decompress(chunk: Chunk) -> bytes:
     return data
 
 
-def _chunk_records(chunk: Chunk) -> list[Any]:
-    """All schema, channel and message records of a chunk (all or nothing)."""
+def _chunk_records(chunk: Chunk, ignore_channels: frozenset[int] = frozenset()) -> list[Any]:
+    """All schema, channel and message records of a chunk (all or nothing).
+
+    Messages on ``ignore_channels`` are left out (not unpacked; still checked for length).
+    """
     data = _decompress(chunk)
     records = []
     position = 0
@@ -259,10 +267,25 @@ def _chunk_records(chunk: Chunk) -> list[Any]:
         position += _RECORD_HEADER.size
         if length > len(data) - position:
             raise _Damage(f"record of {length} bytes overruns its chunk")
-        if opcode in (Opcode.MESSAGE, Opcode.SCHEMA, Opcode.CHANNEL):
+        if (opcode == Opcode.MESSAGE and ignore_channels and length >= _MESSAGE_PREFIX.size
+                and _CHANNEL_ID.unpack_from(data, position)[0] in ignore_channels):
+            pass
+        elif opcode in (Opcode.MESSAGE, Opcode.SCHEMA, Opcode.CHANNEL):
             records.append(_parse_record(opcode, data[position:position + length]))
         position += length
     return records
+
+
+def _chunk_index_channels(body: bytes) -> tuple[int, frozenset[int]]:
+    """(chunk_start_offset, ids of the channels with messages in the chunk) of a chunk index record."""
+    if len(body) < _CHUNK_INDEX_PREFIX.size:
+        raise _Damage(f"chunk index record of {len(body)} bytes is too short")
+    _, _, chunk_offset, _, map_length = _CHUNK_INDEX_PREFIX.unpack_from(body)
+    start = _CHUNK_INDEX_PREFIX.size
+    if map_length % _CHUNK_INDEX_ENTRY_SIZE or map_length > len(body) - start:
+        raise _Damage("chunk index's message index offsets overrun the record")
+    return chunk_offset, frozenset(_CHANNEL_ID.unpack_from(body, position)[0]
+                                   for position in range(start, start + map_length, _CHUNK_INDEX_ENTRY_SIZE))
 
 
 class _Scan:
@@ -291,7 +314,12 @@ class _Scan:
         self.stop_offset = offset
         self.stop_reason = f"stopped at byte {offset} of {self.size}: {reason}"
 
-    def records(self) -> Iterator[Any]:
+    def records(self, skip_chunks: frozenset[int] = frozenset(),
+                ignore_channels: frozenset[int] = frozenset()) -> Iterator[Any]:
+        """Records in file order; chunks expanded except those starting at an offset in ``skip_chunks``.
+
+        Messages on ``ignore_channels`` are left out of the expanded chunks.
+        """
         try:
             handle = open(self.path, "rb")
         except OSError as error:
@@ -312,6 +340,10 @@ class _Scan:
                     self.stop(offset, f"{_opcode_name(opcode)} record of {length} bytes, "
                                       f"only {available} left in the file")
                     return
+                if opcode == Opcode.CHUNK and offset in skip_chunks:
+                    offset += _RECORD_HEADER.size + length
+                    handle.seek(offset)
+                    continue
                 body = handle.read(length)
                 if len(body) < length:
                     self.stop(offset, "file shrank while reading")
@@ -320,7 +352,7 @@ class _Scan:
                     if offset == len(MCAP_MAGIC) and opcode != Opcode.HEADER:
                         raise _Damage("first record is not an MCAP header")
                     if opcode == Opcode.CHUNK:
-                        parsed = _chunk_records(_parse_record(opcode, body))
+                        parsed = _chunk_records(_parse_record(opcode, body), ignore_channels)
                     else:
                         record = _parse_record(opcode, body)
                         parsed = [] if record is None else [record]
@@ -367,6 +399,9 @@ class _McapFile:
         self.start_time_ns: int | None = None
         self.end_time_ns: int | None = None
         self.metadata: list[MetadataRecord] = []
+        # chunk offset -> the channels it holds messages of, from the summary's chunk indexes
+        # (empty without a summary, or if any chunk index does not parse).
+        self.chunk_channels: dict[int, frozenset[int]] = {}
         self.truncation_note = ""
         if not (footer is not None and footer.summary_start and self._load_summary(footer)):
             self._index_by_scan()
@@ -415,6 +450,7 @@ class _McapFile:
         """Index from the summary section; False if it lacks statistics or channels."""
         statistics: Statistics | None = None
         metadata_indexes: list[MetadataIndex] = []
+        chunk_channels: dict[int, frozenset[int]] | None = {}
         with open(self.path, "rb") as handle:
             handle.seek(footer.summary_start)
             data = handle.read(self._footer_offset - footer.summary_start)
@@ -427,6 +463,15 @@ class _McapFile:
                     position += _RECORD_HEADER.size
                     if length > len(data) - position:
                         raise _Damage("summary record overruns the summary section")
+                    if opcode == Opcode.CHUNK_INDEX:
+                        if chunk_channels is not None:
+                            try:
+                                offset, channel_ids = _chunk_index_channels(data[position:position + length])
+                                chunk_channels[offset] = channel_ids
+                            except _Damage:
+                                chunk_channels = None  # not used: every chunk is read
+                        position += length
+                        continue
                     record = _parse_record(opcode, data[position:position + length])
                     position += length
                     if isinstance(record, Schema):
@@ -455,6 +500,7 @@ class _McapFile:
                 raise BagCorruptError(f"{self.path}: damaged MCAP summary: {damage}",
                                       path=str(self.path)) from damage
         self.counts = {cid: statistics.channel_message_counts.get(cid, 0) for cid in self.channels}
+        self.chunk_channels = chunk_channels or {}
         if statistics.message_count:
             self.start_time_ns = statistics.message_start_time
             self.end_time_ns = statistics.message_end_time
@@ -611,7 +657,13 @@ class BagReader:
             if not selected:
                 continue
             scan = mcap_file.scan()
-            for record in scan.records():
+            # A complete file's summary says which channels each chunk holds: chunks with none of the
+            # selected ones (and no unknown channel, which the scan would report) are not read, and
+            # messages of known unselected channels are not unpacked.
+            skip_chunks = frozenset(offset for offset, ids in mcap_file.chunk_channels.items()
+                                    if ids and ids.isdisjoint(selected) and ids <= channel_topics.keys())
+            ignore_channels = frozenset(channel_topics.keys() - selected.keys())
+            for record in scan.records(skip_chunks, ignore_channels):
                 if not isinstance(record, _RawMessage):
                     continue
                 topic = selected.get(record.channel_id)
