@@ -1,4 +1,8 @@
-"""Atomic file writes (ROS-free): readers see the old file or the new one, never a partial one."""
+"""Atomic file writes (ROS-free): readers see the old file or the new one, never a partial one.
+
+Also the one YAML text loader (parameters files, posture plans, bag metadata):
+libyaml's parser when PyYAML has it, else PyYAML's pure-Python one.
+"""
 from __future__ import annotations
 
 import contextlib
@@ -6,8 +10,32 @@ import os
 from pathlib import Path
 import stat
 import tempfile
+from typing import Any
 
 DEFAULT_FILE_MODE = 0o644
+# libyaml's parser composes nested collections by C recursion: tens of thousands of levels crash the
+# interpreter, where the pure-Python parser raises RecursionError at about a thousand.  Nesting needs
+# one indicator character per level, so text with fewer of them than this goes to libyaml.
+MAX_LIBYAML_INDICATORS = 1000
+_NESTING_INDICATORS = '[{-:?'
+
+
+def load_yaml_text(text: str, loader: type | None = None, fast_loader: type | None = None) -> Any:
+    """``yaml.load(text, Loader=loader)``, through ``fast_loader`` (a libyaml twin of it) when safe.
+
+    Default: ``yaml.SafeLoader`` and ``yaml.CSafeLoader``.  The fast loader is
+    used when PyYAML has libyaml and the text cannot nest more than about
+    MAX_LIBYAML_INDICATORS deep; else the pure-Python loader (as before, a
+    RecursionError for absurd nesting).  yaml.YAMLError and RecursionError
+    propagate: callers name the file.
+    """
+    import yaml
+
+    if loader is None:
+        loader, fast_loader = yaml.SafeLoader, getattr(yaml, 'CSafeLoader', None)
+    if fast_loader is not None and sum(text.count(c) for c in _NESTING_INDICATORS) < MAX_LIBYAML_INDICATORS:
+        loader = fast_loader
+    return yaml.load(text, Loader=loader)  # noqa: S506 - a safe loader (SafeLoader, CSafeLoader or subclasses)
 
 
 def atomic_write(target: Path | str, content: str | bytes) -> Path:

@@ -32,7 +32,7 @@ import numpy as np
 import yaml
 
 from hexacal_msgs_py.errors import InvalidParametersError, ParameterFileError
-from hexacal_msgs_py.files import atomic_write
+from hexacal_msgs_py.files import atomic_write, load_yaml_text
 from hexacal_msgs_py.names import (
     N_CHAINS,
     N_PARAMETERS,
@@ -66,11 +66,23 @@ class _RosParametersLoader(yaml.SafeLoader):
     """
 
 
-_RosParametersLoader.add_implicit_resolver(
-    'tag:yaml.org,2002:float',
-    re.compile(r'^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$'),
-    list('-+0123456789.'),
-)
+def _read_exponent_floats(loader: type) -> None:
+    loader.add_implicit_resolver(
+        'tag:yaml.org,2002:float',
+        re.compile(r'^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$'),
+        list('-+0123456789.'),
+    )
+
+
+_read_exponent_floats(_RosParametersLoader)
+_FAST_LOADERS: dict[type, type] = {}  # pure-Python loader -> its twin with libyaml's parser
+if getattr(yaml, 'CSafeLoader', None) is not None:
+
+    class _RosParametersCLoader(yaml.CSafeLoader):
+        """_RosParametersLoader with libyaml's parser (same resolvers and constructors)."""
+
+    _read_exponent_floats(_RosParametersCLoader)
+    _FAST_LOADERS.update({yaml.SafeLoader: yaml.CSafeLoader, _RosParametersLoader: _RosParametersCLoader})
 
 
 def as_parameter_vector(vector: object) -> np.ndarray:
@@ -112,7 +124,8 @@ def read_yaml_document(path: PathLike, fail: _Fail,
 
     Shared by the loaders of YAML files (parameters here, posture plans in the
     driver) so a missing file, bad encoding, bad YAML or absurd nesting is always
-    a named error of the caller's kind.
+    a named error of the caller's kind.  SafeLoader and the parameters loader
+    parse with libyaml when PyYAML has it (files.load_yaml_text).
     """
     try:
         text = Path(path).read_text(encoding='utf-8')
@@ -121,7 +134,7 @@ def read_yaml_document(path: PathLike, fail: _Fail,
     except UnicodeDecodeError as error:
         raise fail(f'not UTF-8 text: {error}') from error
     try:
-        return yaml.load(text, Loader=loader)  # noqa: S506 - loader is SafeLoader or a subclass
+        return load_yaml_text(text, loader, _FAST_LOADERS.get(loader))
     except yaml.YAMLError as error:
         raise fail(f'invalid YAML: {error}') from error
     except RecursionError:  # PyYAML composes recursively: '[[[[...' thousands deep

@@ -21,7 +21,6 @@ from io import BytesIO
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator, Mapping, NamedTuple
 
-import yaml
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import EndOfFile
 from mcap.opcode import Opcode
@@ -736,8 +735,11 @@ def mcap_files_in(directory: Path) -> list[Path]:
 
 def load_metadata_yaml(path: Path) -> dict[str, Any]:
     """The rosbag2_bagfile_information mapping of a metadata.yaml."""
+    import yaml
+    from hexacal_msgs_py.files import load_yaml_text
+
     try:
-        document = yaml.safe_load(path.read_text(encoding="utf-8"))
+        document = load_yaml_text(path.read_text(encoding="utf-8"))  # SafeLoader, libyaml's parser if any
         information = document["rosbag2_bagfile_information"]
         if not isinstance(information, dict):
             raise TypeError("rosbag2_bagfile_information is not a mapping")
