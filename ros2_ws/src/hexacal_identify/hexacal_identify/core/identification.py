@@ -205,8 +205,12 @@ class _Problem:
 
     def jacobian(self, vector: np.ndarray, poses: np.ndarray) -> ResidualBlock:
         params, defects = _split(vector)
-        block = self.cost.residuals(poses, pose_sensitivities(params, poses), defects, with_device=True)
-        block.jacobian = block.jacobian[:, self.free]
+        # The 5 device columns are only formed when a device defect is identified.
+        with_device = bool(self.free[N_PARAMETERS:].any())
+        block = self.cost.residuals(poses, pose_sensitivities(params, poses), defects, with_device=with_device)
+        columns = self.free if with_device else self.free[:N_PARAMETERS]
+        if not columns.all():
+            block.jacobian = block.jacobian[:, columns]
         return block
 
     def row_transform(self, vector: np.ndarray, poses: np.ndarray, robust: bool = True) -> "_RowTransform":

@@ -76,19 +76,108 @@ class LegGeometry:
     discriminant: np.ndarray  # l^2 - |d|^2 + (a.d)^2, (N, 6); negative = unreachable
 
 
+class _Chains:
+    """One parameter set's per-chain constants, coordinate-major ((3, 6) arrays: row = x, y, z)."""
+
+    __slots__ = ("base", "platform", "rails", "lengths", "lengths_squared", "rail_z_slope")
+
+    def __init__(self, params: HexaParameters):
+        per_chain = params.per_chain
+        self.base = np.ascontiguousarray(per_chain[:, 0:3].T)
+        self.platform = np.ascontiguousarray(per_chain[:, 3:6].T)
+        self.rails = np.ascontiguousarray(params.rail_directions.T)
+        self.lengths = per_chain[:, 6].copy()
+        self.lengths_squared = self.lengths**2
+        # a_z = -sqrt(1 - ax^2 - ay^2) => d a_z / d a_x = -a_x / a_z (and likewise for y): (2, 6).
+        self.rail_z_slope = -self.rails[:2] / self.rails[2]
+
+
+class _Legs:
+    """Eq. 3 for N postures x 6 chains, coordinate-major: vectors are (3, N, 6), one (N, 6) array per axis.
+
+    The arithmetic is written out per coordinate (no small-dimension einsums): FK
+    evaluates this several times per identification iteration.
+    """
+
+    __slots__ = ("angles", "rotations", "rotated", "sliders", "legs", "rail_dot", "discriminant")
+
+    def __init__(self, chains: _Chains, poses: np.ndarray):
+        self.angles = poses[:, 3:6]
+        self.rotations = rotation_matrices(self.angles)  # (N, 3, 3)
+        rotated = np.matmul(self.rotations, chains.platform).transpose(1, 0, 2)  # R B, (3, N, 6)
+        d = rotated + (poses[:, :3].T[:, :, None] - chains.base[:, None, :])  # A0 -> B
+        rails = chains.rails
+        a_dot_d = rails[0] * d[0] + rails[1] * d[1] + rails[2] * d[2]
+        discriminant = chains.lengths_squared - (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) + a_dot_d * a_dot_d
+        root = np.sqrt(np.maximum(discriminant, 0.0))
+        sliders = a_dot_d - root
+        self.rotated = rotated
+        self.sliders = sliders
+        self.legs = d - sliders * rails[:, None, :]
+        self.rail_dot = root
+        self.discriminant = discriminant
+
+    def subset(self, mask: np.ndarray) -> "_Legs":
+        out = object.__new__(_Legs)
+        out.angles, out.rotations = self.angles[mask], self.rotations[mask]
+        out.rotated, out.legs = self.rotated[:, mask], self.legs[:, mask]
+        out.sliders, out.rail_dot, out.discriminant = self.sliders[mask], self.rail_dot[mask], self.discriminant[mask]
+        return out
+
+    def replace_rows(self, mask: np.ndarray, rows: "_Legs") -> None:
+        self.angles = self.angles.copy()
+        for name in ("angles", "rotations", "sliders", "rail_dot", "discriminant"):
+            getattr(self, name)[mask] = getattr(rows, name)
+        self.rotated[:, mask] = rows.rotated
+        self.legs[:, mask] = rows.legs
+
+    def reachable(self) -> np.ndarray:
+        return np.all(self.discriminant >= 0.0, axis=1)
+
+    def unit_legs(self) -> np.ndarray:
+        """e / w, (3, N, 6) (inf/NaN at a singular leg, which FK flags)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return self.legs / self.rail_dot
+
+    def pose_jacobian(self, unit: np.ndarray | None = None) -> np.ndarray:
+        """J_inv = d lambda / d X, (N, 6 chains, 6 pose coordinates); see ``pose_jacobian``."""
+        unit = self.unit_legs() if unit is None else unit
+        rb = self.rotated
+        with np.errstate(invalid="ignore"):
+            mx = rb[1] * unit[2] - rb[2] * unit[1]  # (R B) x (e / w), per coordinate
+            my = rb[2] * unit[0] - rb[0] * unit[2]
+            mz = rb[0] * unit[1] - rb[1] * unit[0]
+            ct, cp = np.cos(self.angles[:, 0:2]).T[:, :, None]
+            st, sp = np.sin(self.angles[:, 0:2]).T[:, :, None]
+            jac = np.empty(unit.shape[1:] + (6,))
+            jac[:, :, 0:3] = unit.transpose(1, 2, 0)
+            # Rotation axes of d theta, d psi, d phi (euler_rate_axes): e_Y, (ct, 0, -st), (st cp, -sp, ct cp).
+            jac[:, :, 3] = my
+            jac[:, :, 4] = ct * mx - st * mz
+            jac[:, :, 5] = (st * cp) * mx - sp * my + (ct * cp) * mz
+        return jac
+
+    def parameter_blocks(self, chains: _Chains, unit: np.ndarray | None = None) -> np.ndarray:
+        """d lambda_c / d u_c, (N, 6, 9); see ``parameter_jacobian_blocks``."""
+        unit = self.unit_legs() if unit is None else unit
+        blocks = np.empty(unit.shape[1:] + (FIELDS_PER_CHAIN,))
+        blocks[..., 0:3] = -unit.transpose(1, 2, 0)
+        # R^T (e / w): (N, 3, 3)^T @ (N, 3, 6) -> (N, 3, 6)
+        blocks[..., 3:6] = np.matmul(self.rotations.transpose(0, 2, 1), unit.transpose(1, 0, 2)).transpose(0, 2, 1)
+        blocks[..., 6] = -chains.lengths / self.rail_dot
+        d_rail = -self.sliders * unit  # d lambda / d a (full vector), (3, N, 6)
+        blocks[..., 7] = d_rail[0] + d_rail[2] * chains.rail_z_slope[0]
+        blocks[..., 8] = d_rail[1] + d_rail[2] * chains.rail_z_slope[1]
+        return blocks
+
+    def as_geometry(self) -> LegGeometry:
+        return LegGeometry(self.rotations, self.rotated.transpose(1, 2, 0), self.sliders,
+                           self.legs.transpose(1, 2, 0), self.rail_dot, self.discriminant)
+
+
 def leg_geometry(params: HexaParameters, poses: np.ndarray) -> LegGeometry:
     """Eq. 3 for every chain and posture, keeping the intermediate vectors."""
-    poses = np.asarray(poses, dtype=float)
-    rotations = rotation_matrices(poses[:, 3:6])
-    rotated_b = np.einsum("nij,cj->nci", rotations, params.platform_points)
-    d = poses[:, None, :3] + rotated_b - params.base_points[None]
-    rails = params.rail_directions
-    a_dot_d = np.einsum("ncj,cj->nc", d, rails)
-    discriminant = params.leg_lengths**2 - np.einsum("ncj,ncj->nc", d, d) + a_dot_d**2
-    root = np.sqrt(np.maximum(discriminant, 0.0))
-    sliders = a_dot_d - root
-    legs = d - sliders[..., None] * rails[None]
-    return LegGeometry(rotations, rotated_b, sliders, legs, root, discriminant)
+    return _Legs(_Chains(params), np.asarray(poses, dtype=float)).as_geometry()
 
 
 def inverse_kinematics(params: HexaParameters, poses: np.ndarray) -> np.ndarray:
@@ -130,8 +219,7 @@ def pose_jacobian(geometry: LegGeometry, angles: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):  # w = 0 only where a leg cannot reach: flagged by FK
         unit = geometry.leg_vectors / geometry.rail_leg_dot[..., None]
         moment = _cross(geometry.rotated_platform_points, unit)
-    axes = euler_rate_axes(angles)
-    return np.concatenate([unit, np.einsum("ncj,njk->nck", moment, axes)], axis=2)
+        return np.concatenate([unit, np.matmul(moment, euler_rate_axes(angles))], axis=2)
 
 
 def parameter_jacobian_blocks(params: HexaParameters, geometry: LegGeometry) -> np.ndarray:
@@ -144,7 +232,7 @@ def parameter_jacobian_blocks(params: HexaParameters, geometry: LegGeometry) -> 
     unit = legs / w[..., None]
     blocks = np.empty(legs.shape[:2] + (FIELDS_PER_CHAIN,))
     blocks[..., 0:3] = -unit
-    blocks[..., 3:6] = np.einsum("nji,ncj->nci", geometry.rotations, unit)
+    blocks[..., 3:6] = np.matmul(unit, geometry.rotations)  # R^T e / w, as rows: (e/w)^T R
     blocks[..., 6] = -params.leg_lengths[None] / w
     # a_z = -sqrt(1 - ax^2 - ay^2) => d a_z / d a_x = -a_x / a_z (and likewise for y).
     rails = params.rail_directions
@@ -182,75 +270,92 @@ def forward_kinematics(
     branch_tolerance_m: float = 0.05,
     branch_tolerance_rad: float = 0.35,
     fit_tilt_first: bool = False,
+    reference_poses: np.ndarray | None = None,
 ) -> ForwardKinematicsResult:
     """Newton iteration X <- X - J_inv^-1 (IK(X) - lambda) (section 2.2), batched.
 
     Converged when every |IK(X) - lambda| < tolerance (m).  A step that leaves
     the reachable set or increases the residual is halved (up to 10 times).  The
     branch check of section 3.3 rejects a solution whose position moved more
-    than ``branch_tolerance_m`` from the initial guess, or whose phi moved more
-    than ``branch_tolerance_rad``: the initial guess is the expected posture.
+    than ``branch_tolerance_m`` from the expected posture, or whose phi moved more
+    than ``branch_tolerance_rad``: the expected posture is ``reference_poses``,
+    by default the initial guess.  (A caller with a better Newton start than the
+    expected posture, e.g. a first-order prediction, passes both.)
     With ``fit_tilt_first`` the two unmeasured angles (theta, psi) are first
     fitted with position and phi held at the guess, which brings Newton's start
     close to the solution when only position and phi are known (the device's case).
     """
     targets = np.atleast_2d(np.asarray(slider_positions, dtype=float))
     start = np.atleast_2d(np.asarray(initial_poses, dtype=float))
-    poses = _fit_tilt(params, targets, start) if fit_tilt_first else start.copy()
+    reference = start if reference_poses is None else np.atleast_2d(np.asarray(reference_poses, dtype=float))
+    chains = _Chains(params)
+    poses = _fit_tilt(chains, targets, start) if fit_tilt_first else start.copy()
     n = len(targets)
     converged = np.zeros(n, bool)
     iterations = np.zeros(n, int)
     failures: dict[int, str] = {}
-    active = np.flatnonzero(np.all(np.isfinite(targets), axis=1) & np.all(np.isfinite(start), axis=1))
-    for i in np.setdiff1d(np.arange(n), active):
+    finite = np.all(np.isfinite(targets), axis=1) & np.all(np.isfinite(start), axis=1)
+    if reference is not start:
+        finite &= np.all(np.isfinite(reference), axis=1)
+    for i in np.flatnonzero(~finite):
         failures[int(i)] = "non-finite slider positions or initial pose"
-    geometry = leg_geometry(params, poses[active])
-    error = _slider_error(geometry, targets[active])
+    active = np.flatnonzero(finite)
+    target = targets[active]
+    legs = _Legs(chains, poses[active])
+    error = _slider_error(legs, target)
     for iteration in range(max_iterations + 1):
         done = error < tolerance
-        converged[active[done]] = True
-        active, error = active[~done], error[~done]
+        if done.any():
+            converged[active[done]] = True
+            keep = ~done
+            active, error, target = active[keep], error[keep], target[keep]
+            if active.size:
+                legs = legs.subset(keep)
         if active.size == 0 or iteration == max_iterations:
             break
-        geometry = _subset(geometry, ~done)
         iterations[active] += 1
-        jac = pose_jacobian(geometry, poses[active, 3:6])
-        residual = geometry.slider_positions - targets[active]
-        step, solvable = _solve_batched(jac, residual)
-        for i in active[~solvable]:
-            failures[int(i)] = "singular pose Jacobian (the platform is at a singularity)"
-        active, error, step = active[solvable], error[solvable], step[solvable]
-        poses[active], geometry, error = _damped_update(params, poses[active], step, targets[active], error)
+        step, solvable = _solve_batched(legs.pose_jacobian(), legs.sliders - target)
+        if not solvable.all():
+            for i in active[~solvable]:
+                failures[int(i)] = "singular pose Jacobian (the platform is at a singularity)"
+            active, error, step, target = active[solvable], error[solvable], step[solvable], target[solvable]
+        poses[active], legs, error = _damped_update(chains, poses[active], step, target, error)
     for i in active:
         failures.setdefault(int(i), f"no convergence in {max_iterations} Newton iterations")
-    _check_branch(poses, start, converged, failures, branch_tolerance_m, branch_tolerance_rad)
+    _check_branch(poses, reference, converged, failures, branch_tolerance_m, branch_tolerance_rad)
     poses[~converged] = np.nan
     return ForwardKinematicsResult(poses, converged, iterations, failures)
 
 
-def _fit_tilt(params: HexaParameters, targets: np.ndarray, start: np.ndarray, iterations: int = 4) -> np.ndarray:
+def _fit_tilt(chains: _Chains, targets: np.ndarray, start: np.ndarray, iterations: int = 4) -> np.ndarray:
     """Gauss-Newton on (theta, psi) alone: least squares over the 6 sliders, 2 unknowns."""
     poses = start.copy()
     finite = np.all(np.isfinite(targets), axis=1) & np.all(np.isfinite(start), axis=1)
+    fitted, target = poses[finite], targets[finite]
     for _ in range(iterations):
-        geometry = leg_geometry(params, poses[finite])
-        if not np.all(geometry.discriminant >= 0.0):
+        legs = _Legs(chains, fitted)
+        if not np.all(legs.discriminant >= 0.0):
             break
-        jac = pose_jacobian(geometry, poses[finite, 3:6])[:, :, 3:5]
-        residual = geometry.slider_positions - targets[finite]
-        normal = np.einsum("nci,ncj->nij", jac, jac)
-        rhs = np.einsum("nci,nc->ni", jac, residual)
+        jac = legs.pose_jacobian()[:, :, 3:5]
+        residual = legs.sliders - target
+        # 2 x 2 normal equations per posture, written out.
+        a = np.sum(jac[:, :, 0] * jac[:, :, 0], axis=1)
+        b = np.sum(jac[:, :, 0] * jac[:, :, 1], axis=1)
+        c = np.sum(jac[:, :, 1] * jac[:, :, 1], axis=1)
+        normal = np.stack([a, b, b, c], axis=1).reshape(-1, 2, 2)
+        rhs = np.stack([np.sum(jac[:, :, 0] * residual, axis=1), np.sum(jac[:, :, 1] * residual, axis=1)], axis=1)
         try:
             step = np.linalg.solve(normal, rhs[..., None])[..., 0]
         except np.linalg.LinAlgError:
             break
-        poses[finite, 3:5] -= np.clip(step, -0.3, 0.3)
+        fitted[:, 3:5] -= np.clip(step, -0.3, 0.3)
+    poses[finite] = fitted
     return np.where(np.isfinite(poses), poses, start)
 
 
-def _slider_error(geometry: LegGeometry, targets: np.ndarray) -> np.ndarray:
-    error = np.max(np.abs(geometry.slider_positions - targets), axis=1)
-    return np.where(np.all(geometry.discriminant >= 0.0, axis=1), error, np.inf)
+def _slider_error(legs: _Legs, targets: np.ndarray) -> np.ndarray:
+    error = np.max(np.abs(legs.sliders - targets), axis=1)
+    return np.where(legs.reachable(), error, np.inf)
 
 
 def _subset(geometry: LegGeometry, mask: np.ndarray) -> LegGeometry:
@@ -274,28 +379,24 @@ def _solve_batched(jac: np.ndarray, residual: np.ndarray) -> tuple[np.ndarray, n
     return step, solvable
 
 
-def _damped_update(params, poses, step, targets, error):
+def _damped_update(chains: _Chains, poses: np.ndarray, step: np.ndarray, targets: np.ndarray, error: np.ndarray):
     """Take X - step, halving the step where it does not reduce the slider error."""
-    scale = np.ones(len(poses))
     trial = poses - step
-    geometry = leg_geometry(params, trial)
-    trial_error = _slider_error(geometry, targets)
+    legs = _Legs(chains, trial)
+    trial_error = _slider_error(legs, targets)
+    scale = None
     for _ in range(10):
         worse = ~(trial_error < error) & (error > 0)
         if not np.any(worse):
             break
+        if scale is None:
+            scale = np.ones(len(poses))
         scale[worse] *= 0.5
         trial[worse] = poses[worse] - scale[worse, None] * step[worse]
-        sub = leg_geometry(params, trial[worse])
-        geometry = _replace_rows(geometry, worse, sub)
+        sub = _Legs(chains, trial[worse])
+        legs.replace_rows(worse, sub)
         trial_error[worse] = _slider_error(sub, targets[worse])
-    return trial, geometry, trial_error
-
-
-def _replace_rows(geometry: LegGeometry, mask: np.ndarray, rows: LegGeometry) -> LegGeometry:
-    for name in LegGeometry.__dataclass_fields__:
-        getattr(geometry, name)[mask] = getattr(rows, name)
-    return geometry
+    return trial, legs, trial_error
 
 
 def _check_branch(poses, start, converged, failures, tol_m, tol_rad) -> None:
@@ -314,12 +415,52 @@ def _wrap(angle: np.ndarray) -> np.ndarray:
     return (angle + np.pi) % (2 * np.pi) - np.pi
 
 
-@dataclass
 class PoseSensitivity:
-    """Derivatives of FK poses: w.r.t. the 54 parameters and w.r.t. the 6 slider readings."""
+    """Derivatives of FK poses: w.r.t. the 54 parameters and w.r.t. the 6 slider readings.
 
-    wrt_parameters: np.ndarray  # dX/du, (N, 6, 54)
-    wrt_sliders: np.ndarray  # dX/d lambda = J_inv^-1, (N, 6, 6)
+    Kept factored: dX/du[n, k, 9 c + f] = -wrt_sliders[n, k, c] * slider_blocks[n, c, f]
+    (d lambda / d u is block diagonal), so a cost function can form just the rows
+    it needs (``rows``, ``combined``) in one pass; ``wrt_parameters`` is the full
+    (N, 6, 54) array, formed on first use.
+    """
+
+    def __init__(self, wrt_sliders: np.ndarray, slider_blocks: np.ndarray):
+        self.wrt_sliders = wrt_sliders  # dX/d lambda = J_inv^-1, (N, 6, 6)
+        self.slider_blocks = slider_blocks  # d lambda_c / d u_c, (N, 6, 9)
+        self._wrt_parameters = None
+
+    @property
+    def wrt_parameters(self) -> np.ndarray:
+        """dX/du, (N, 6, 54)."""
+        if self._wrt_parameters is None:
+            full = -self.wrt_sliders[:, :, :, None] * self.slider_blocks[:, None, :, :]
+            self._wrt_parameters = full.reshape(len(full), 6, N_CHAINS * FIELDS_PER_CHAIN)
+        return self._wrt_parameters
+
+    def _pick(self, index: np.ndarray | None):
+        if index is None:
+            return self.wrt_sliders, self.slider_blocks
+        return self.wrt_sliders[index], self.slider_blocks[index]
+
+    def rows(self, index: np.ndarray | None, coordinates: slice, factor: float) -> np.ndarray:
+        """factor * dX[coordinates]/du for postures ``index`` (None: all), (k, m, 54)."""
+        inverse, blocks = self._pick(index)
+        # factor * (-M b) = (-factor M) b: the sign is exact, so with factor -1 this is M b bit for bit.
+        weights = inverse[:, coordinates, :] * -factor
+        out = weights[:, :, :, None] * blocks[:, None, :, :]
+        return out.reshape(len(out), out.shape[1], N_CHAINS * FIELDS_PER_CHAIN)
+
+    def combined(self, index: np.ndarray | None, weights: np.ndarray) -> np.ndarray:
+        """sum_k weights[:, k] dX_k/du for postures ``index`` (None: all); weights (k, 6) -> (k, 54)."""
+        inverse, blocks = self._pick(index)
+        mixed = -np.matmul(weights[:, None, :], inverse)  # (k, 1, 6)
+        out = mixed[:, 0, :, None] * blocks
+        return out.reshape(len(out), N_CHAINS * FIELDS_PER_CHAIN)
+
+    def predict(self, step: np.ndarray) -> np.ndarray:
+        """dX for a parameter step du (54,), first order: (N, 6)."""
+        d_sliders = np.einsum("ncf,cf->nc", self.slider_blocks, step.reshape(N_CHAINS, FIELDS_PER_CHAIN))
+        return -np.matmul(self.wrt_sliders, d_sliders[:, :, None])[:, :, 0]
 
 
 def pose_sensitivities(params: HexaParameters, poses: np.ndarray) -> PoseSensitivity:
@@ -330,11 +471,10 @@ def pose_sensitivities(params: HexaParameters, poses: np.ndarray) -> PoseSensiti
     block c of dX/du is the outer product of column c of J_inv^-1 with chain c's
     9-vector of derivatives.
     """
-    geometry = leg_geometry(params, poses)
-    jac_inverse = np.linalg.inv(pose_jacobian(geometry, poses[:, 3:6]))
-    blocks = parameter_jacobian_blocks(params, geometry)
-    wrt_parameters = -jac_inverse[:, :, :, None] * blocks[:, None, :, :]
-    return PoseSensitivity(wrt_parameters.reshape(len(poses), 6, N_CHAINS * FIELDS_PER_CHAIN), jac_inverse)
+    chains = _Chains(params)
+    legs = _Legs(chains, np.asarray(poses, dtype=float))
+    unit = legs.unit_legs()
+    return PoseSensitivity(np.linalg.inv(legs.pose_jacobian(unit)), legs.parameter_blocks(chains, unit))
 
 
 def pose_parameter_sensitivity(params: HexaParameters, poses: np.ndarray) -> tuple[np.ndarray, LegGeometry]:

@@ -76,9 +76,29 @@ class _Pieces:
     """What every block needs at the current poses."""
 
     poses: np.ndarray
-    d_params: np.ndarray | None  # dX/du (N, 6, n)
+    d_params: np.ndarray | None  # dX/du (N, 6, n), or None when only the factored form is given
     d_sliders: np.ndarray | None  # dX/d lambda (N, 6, 6)
     with_device: bool
+    factored: PoseSensitivity | None = None  # dX/du kept factored: rows formed in one pass each
+
+    @property
+    def has_jacobian(self) -> bool:
+        return self.d_params is not None or self.factored is not None
+
+    def pose_rows(self, index: np.ndarray | None, coordinates: slice, factor: float) -> np.ndarray:
+        """factor * dX[coordinates]/du for postures ``index`` (None: all), (k, m, n)."""
+        if self.factored is not None:
+            return self.factored.rows(index, coordinates, factor)
+        d_params = self.d_params if index is None else self.d_params[index]
+        return factor * d_params[:, coordinates, :]
+
+    def position_combination(self, index: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """sum_i weights[:, i] dP_i/du for postures ``index``, weights (k, 3) -> (k, n)."""
+        if self.factored is not None:
+            full = np.zeros((len(index), 6))
+            full[:, :3] = weights
+            return self.factored.combined(index, full)
+        return np.einsum("ni,nik->nk", weights, self.d_params[index, :3, :])
 
 
 class CostFunction:
@@ -127,7 +147,7 @@ class CostFunction:
         """Stacked residuals; with ``sensitivity`` also the Jacobian (54 columns, + 5 device columns
         if ``with_device``) and, for a PoseSensitivity, each row's noise derivatives."""
         if isinstance(sensitivity, PoseSensitivity):
-            pieces = _Pieces(poses, sensitivity.wrt_parameters, sensitivity.wrt_sliders, with_device)
+            pieces = _Pieces(poses, None, sensitivity.wrt_sliders, with_device, sensitivity)
         else:
             pieces = _Pieces(poses, sensitivity, None, with_device)
         blocks = [self._phi_block(pieces, defects)]
@@ -149,7 +169,7 @@ class CostFunction:
     # -- helpers ------------------------------------------------------------------
     def _jacobian(self, pieces: _Pieces, rows_from_pose: np.ndarray | None, device_rows: np.ndarray) -> np.ndarray | None:
         """[d r/d u | d r/d device] from rows_from_pose (rows, n) and device_rows (rows, 5)."""
-        if pieces.d_params is None:
+        if not pieces.has_jacobian:
             return None
         return np.hstack([rows_from_pose, device_rows]) if pieces.with_device else rows_from_pose
 
@@ -171,10 +191,10 @@ class CostFunction:
         scale = 1.0 / self.sigma.angle_rad
         values = (self.measurements.rotary - defects.phi0 - pieces.poses[:, 5]) * scale
         jac = None
-        if pieces.d_params is not None:
+        if pieces.has_jacobian:
             device_rows = np.zeros((n, N_DEVICE_PARAMETERS))
             device_rows[:, PHI0] = -scale
-            jac = self._jacobian(pieces, -pieces.d_params[:, 5, :] * scale, device_rows)
+            jac = self._jacobian(pieces, pieces.pose_rows(None, slice(5, 6), -scale)[:, 0, :], device_rows)
         d_pose = np.zeros((n, 6))
         d_pose[:, 5] = -scale
         readings = np.zeros((n, 3))
@@ -188,11 +208,12 @@ class CostFunction:
         k = len(index)
         values = ((targets - pieces.poses[index, :3]) * scale).reshape(-1)
         jac = None
-        if pieces.d_params is not None:
+        if pieces.has_jacobian:
             device_rows = np.zeros((k, 3, N_DEVICE_PARAMETERS))
             device_rows[:, :, :4] = d_targets_d_device * scale
-            jac = self._jacobian(pieces, (-pieces.d_params[index, :3, :] * scale).reshape(3 * k, -1),
-                                 device_rows.reshape(3 * k, -1))
+            everyone = k == len(pieces.poses) and np.array_equal(index, np.arange(k))
+            rows = pieces.pose_rows(None if everyone else index, slice(0, 3), -scale)
+            jac = self._jacobian(pieces, rows.reshape(3 * k, -1), device_rows.reshape(3 * k, -1))
         d_pose = np.zeros((k, 3, 6))
         d_pose[:, [0, 1, 2], [0, 1, 2]] = -scale
         readings = None
@@ -222,8 +243,8 @@ class CostFunction:
         length = np.linalg.norm(position, axis=1)
         direction = position / length[:, None]
         d_params = None
-        if pieces.d_params is not None:
-            d_params = np.einsum("ni,nik->nk", direction, pieces.d_params[index, :3, :])
+        if pieces.has_jacobian:
+            d_params = pieces.position_combination(index, direction)
         d_pose = np.zeros((len(index), 6))
         d_pose[:, :3] = direction
         return length, d_params, d_pose
@@ -259,8 +280,8 @@ class CostFunction:
         pairs = max(len(index) - 1, 0)
         values = (np.diff(pieces.poses[index, :3], axis=0) * scale).reshape(-1)
         jac = None
-        if pieces.d_params is not None:
-            diff = np.diff(pieces.d_params[index, :3, :], axis=0) * scale
+        if pieces.has_jacobian:
+            diff = np.diff(pieces.pose_rows(index, slice(0, 3), 1.0), axis=0) * scale
             jac = self._jacobian(pieces, diff.reshape(3 * pairs, -1), np.zeros((3 * pairs, N_DEVICE_PARAMETERS)))
         channels = np.tile(np.array(["x_difference", "y_difference", "z_difference"]), pairs)
         block = ResidualBlock(values, jac, channels, np.repeat(index[1:], 3))
