@@ -44,6 +44,29 @@ def test_analytic_identification_jacobian_matches_finite_differences(cost):
     np.testing.assert_allclose(analytic, numeric, atol=2e-6 * np.abs(numeric).max(), rtol=1e-4)
 
 
+@pytest.mark.parametrize("cost", COSTS)
+def test_factored_sensitivity_gives_the_same_jacobian_and_noise_rows(cost):
+    """CostFunction.residuals with a PoseSensitivity (rows formed from the factored dX/du) equals the full-array path."""
+    from hexacal_identify.core.kinematics import pose_sensitivities
+
+    params = nominal_set(1, seed=1)
+    measurements = simulate_run_measurements(StudyRun(postures=16, noise_um=5.0, seed=2, cost=cost))
+    function = CostFunction(cost, measurements, DeviceModel(), ChannelSigma(position_m=1e-5, angle_rad=2e-5))
+    fk = forward_kinematics(params, measurements.slider_positions, function.initial_poses(), fit_tilt_first=True)
+    assert not fk.failures
+    sensitivity = pose_sensitivities(params, fk.poses)
+    for with_device in (False, True):
+        factored = function.residuals(fk.poses, sensitivity, with_device=with_device)
+        full = function.residuals(fk.poses, sensitivity.wrt_parameters, with_device=with_device)
+        assert factored.jacobian.shape == (len(factored.values), 54 + 5 * with_device)
+        np.testing.assert_allclose(factored.jacobian, full.jacobian, rtol=1e-12, atol=1e-12 * np.abs(full.jacobian).max())
+        np.testing.assert_array_equal(factored.values, full.values)
+        assert factored.noise_jacobian is not None and full.noise_jacobian is None
+    without_noise = function.residuals(fk.poses, sensitivity, with_noise=False)
+    assert without_noise.noise_jacobian is None
+    np.testing.assert_array_equal(without_noise.jacobian, function.residuals(fk.poses, sensitivity).jacobian)
+
+
 def test_paper_style_residuals_equal_the_batched_ones():
     params = nominal_set(1, seed=0)
     measurements = _measurements(10, 3, noise_um=5)

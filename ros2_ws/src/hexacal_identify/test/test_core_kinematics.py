@@ -113,3 +113,47 @@ def test_parameter_jacobian_matches_finite_differences():
             plus = inverse_kinematics(HexaParameters(params.vector + h), poses)[:, chain]
             minus = inverse_kinematics(HexaParameters(params.vector - h), poses)[:, chain]
             np.testing.assert_allclose(blocks[:, chain, field], (plus - minus) / 2e-7, atol=1e-7, rtol=1e-6)
+
+
+def test_fk_internal_jacobians_match_finite_differences_and_the_public_ones():
+    """FK's and the sensitivities' coordinate-major path (_Legs) against IK differences and the LegGeometry path."""
+    from hexacal_identify.core.kinematics import _Chains, _Legs
+
+    params = nominal_set(2, seed=3)
+    poses = sample_poses(TRUE, 12, np.random.default_rng(9))
+    chains = _Chains(params)
+    legs = _Legs(chains, poses)
+    geometry = leg_geometry(params, poses)
+    np.testing.assert_allclose(legs.sliders, inverse_kinematics(params, poses), rtol=0, atol=1e-15)
+    jac = legs.pose_jacobian()
+    np.testing.assert_allclose(jac, pose_jacobian(geometry, poses[:, 3:6]), rtol=1e-12, atol=1e-12)
+    for k in range(6):
+        h = np.zeros(6)
+        h[k] = 1e-6
+        numeric = _central(lambda p: inverse_kinematics(params, p), poses, h)
+        np.testing.assert_allclose(jac[:, :, k], numeric, atol=1e-8, rtol=1e-6)
+    blocks = legs.parameter_blocks(chains)
+    np.testing.assert_allclose(blocks, parameter_jacobian_blocks(params, geometry), rtol=1e-12, atol=1e-12)
+    for chain in range(6):
+        for field in range(9):
+            h = np.zeros(54)
+            h[chain * 9 + field] = 1e-7
+            plus = inverse_kinematics(HexaParameters(params.vector + h), poses)[:, chain]
+            minus = inverse_kinematics(HexaParameters(params.vector - h), poses)[:, chain]
+            np.testing.assert_allclose(blocks[:, chain, field], (plus - minus) / 2e-7, atol=1e-7, rtol=1e-6)
+
+
+def test_factored_pose_sensitivity_rows_equal_the_full_array():
+    from hexacal_identify.core.kinematics import pose_sensitivities
+
+    params = nominal_set(1, seed=4)
+    poses = sample_poses(TRUE, 9, np.random.default_rng(10))
+    sensitivity = pose_sensitivities(params, poses)
+    full = sensitivity.wrt_parameters
+    assert full.shape == (9, 6, 54)
+    index = np.array([0, 3, 8])
+    np.testing.assert_array_equal(sensitivity.rows(None, slice(5, 6), -1.0), -full[:, 5:6, :])
+    np.testing.assert_allclose(sensitivity.rows(index, slice(0, 3), 2.5), 2.5 * full[index, :3, :], rtol=1e-15, atol=0)
+    weights = np.random.default_rng(11).normal(size=(3, 6))
+    np.testing.assert_allclose(sensitivity.combined(index, weights), np.einsum("nk,nkp->np", weights, full[index]),
+                               rtol=1e-12, atol=1e-14 * np.abs(full).max())

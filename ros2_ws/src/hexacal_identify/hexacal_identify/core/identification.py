@@ -207,7 +207,8 @@ class _Problem:
         params, defects = _split(vector)
         # The 5 device columns are only formed when a device defect is identified.
         with_device = bool(self.free[N_PARAMETERS:].any())
-        block = self.cost.residuals(poses, pose_sensitivities(params, poses), defects, with_device=with_device)
+        block = self.cost.residuals(poses, pose_sensitivities(params, poses), defects, with_device=with_device,
+                                    with_noise=False)  # noise derivatives: only row_transform's block needs them
         columns = self.free if with_device else self.free[:N_PARAMETERS]
         if not columns.all():
             block.jacobian = block.jacobian[:, columns]

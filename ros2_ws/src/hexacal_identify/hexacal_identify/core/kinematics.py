@@ -31,9 +31,14 @@ POSE_LABELS = ("x", "y", "z", "theta", "psi", "phi")
 def rotation_matrices(angles: np.ndarray) -> np.ndarray:
     """R = R_Y(theta) R_X(psi) R_z(phi) (eq. 2) for angles (N, 3) = [theta, psi, phi]."""
     angles = np.asarray(angles, dtype=float)
-    ct, cp, cf = np.cos(angles.T)
-    st, sp, sf = np.sin(angles.T)
-    rot = np.empty(angles.shape[:-1] + (3, 3))
+    return _rotation_from_trig(np.cos(angles.T), np.sin(angles.T))
+
+
+def _rotation_from_trig(cosines: np.ndarray, sines: np.ndarray) -> np.ndarray:
+    """rotation_matrices from cos and sin of [theta, psi, phi] (each (3, ...))."""
+    ct, cp, cf = cosines
+    st, sp, sf = sines
+    rot = np.empty(cosines.shape[1:] + (3, 3))
     rot[..., 0, 0] = ct * cf + st * sp * sf
     rot[..., 0, 1] = -ct * sf + st * sp * cf
     rot[..., 0, 2] = st * cp
@@ -99,11 +104,13 @@ class _Legs:
     evaluates this several times per identification iteration.
     """
 
-    __slots__ = ("angles", "rotations", "rotated", "sliders", "legs", "rail_dot", "discriminant")
+    __slots__ = ("tilt_trig", "rotations", "rotated", "sliders", "legs", "rail_dot", "discriminant")
 
     def __init__(self, chains: _Chains, poses: np.ndarray):
-        self.angles = poses[:, 3:6]
-        self.rotations = rotation_matrices(self.angles)  # (N, 3, 3)
+        angles = poses[:, 3:6].T
+        cosines, sines = np.cos(angles), np.sin(angles)
+        self.tilt_trig = np.stack([cosines[0], sines[0], cosines[1], sines[1]])  # ct, st, cp, sp: (4, N)
+        self.rotations = _rotation_from_trig(cosines, sines)  # (N, 3, 3)
         rotated = np.matmul(self.rotations, chains.platform).transpose(1, 0, 2)  # R B, (3, N, 6)
         d = rotated + (poses[:, :3].T[:, :, None] - chains.base[:, None, :])  # A0 -> B
         rails = chains.rails
@@ -119,15 +126,15 @@ class _Legs:
 
     def subset(self, mask: np.ndarray) -> "_Legs":
         out = object.__new__(_Legs)
-        out.angles, out.rotations = self.angles[mask], self.rotations[mask]
+        out.tilt_trig, out.rotations = self.tilt_trig[:, mask], self.rotations[mask]
         out.rotated, out.legs = self.rotated[:, mask], self.legs[:, mask]
         out.sliders, out.rail_dot, out.discriminant = self.sliders[mask], self.rail_dot[mask], self.discriminant[mask]
         return out
 
     def replace_rows(self, mask: np.ndarray, rows: "_Legs") -> None:
-        self.angles = self.angles.copy()
-        for name in ("angles", "rotations", "sliders", "rail_dot", "discriminant"):
+        for name in ("rotations", "sliders", "rail_dot", "discriminant"):
             getattr(self, name)[mask] = getattr(rows, name)
+        self.tilt_trig[:, mask] = rows.tilt_trig
         self.rotated[:, mask] = rows.rotated
         self.legs[:, mask] = rows.legs
 
@@ -147,8 +154,7 @@ class _Legs:
             mx = rb[1] * unit[2] - rb[2] * unit[1]  # (R B) x (e / w), per coordinate
             my = rb[2] * unit[0] - rb[0] * unit[2]
             mz = rb[0] * unit[1] - rb[1] * unit[0]
-            ct, cp = np.cos(self.angles[:, 0:2]).T[:, :, None]
-            st, sp = np.sin(self.angles[:, 0:2]).T[:, :, None]
+            ct, st, cp, sp = self.tilt_trig[:, :, None]
             jac = np.empty(unit.shape[1:] + (6,))
             jac[:, :, 0:3] = unit.transpose(1, 2, 0)
             # Rotation axes of d theta, d psi, d phi (euler_rate_axes): e_Y, (ct, 0, -st), (st cp, -sp, ct cp).
@@ -270,24 +276,20 @@ def forward_kinematics(
     branch_tolerance_m: float = 0.05,
     branch_tolerance_rad: float = 0.35,
     fit_tilt_first: bool = False,
-    reference_poses: np.ndarray | None = None,
 ) -> ForwardKinematicsResult:
     """Newton iteration X <- X - J_inv^-1 (IK(X) - lambda) (section 2.2), batched.
 
     Converged when every |IK(X) - lambda| < tolerance (m).  A step that leaves
     the reachable set or increases the residual is halved (up to 10 times).  The
     branch check of section 3.3 rejects a solution whose position moved more
-    than ``branch_tolerance_m`` from the expected posture, or whose phi moved more
-    than ``branch_tolerance_rad``: the expected posture is ``reference_poses``,
-    by default the initial guess.  (A caller with a better Newton start than the
-    expected posture, e.g. a first-order prediction, passes both.)
+    than ``branch_tolerance_m`` from the initial guess, or whose phi moved more
+    than ``branch_tolerance_rad``: the initial guess is the expected posture.
     With ``fit_tilt_first`` the two unmeasured angles (theta, psi) are first
     fitted with position and phi held at the guess, which brings Newton's start
     close to the solution when only position and phi are known (the device's case).
     """
     targets = np.atleast_2d(np.asarray(slider_positions, dtype=float))
     start = np.atleast_2d(np.asarray(initial_poses, dtype=float))
-    reference = start if reference_poses is None else np.atleast_2d(np.asarray(reference_poses, dtype=float))
     chains = _Chains(params)
     poses = _fit_tilt(chains, targets, start) if fit_tilt_first else start.copy()
     n = len(targets)
@@ -295,8 +297,6 @@ def forward_kinematics(
     iterations = np.zeros(n, int)
     failures: dict[int, str] = {}
     finite = np.all(np.isfinite(targets), axis=1) & np.all(np.isfinite(start), axis=1)
-    if reference is not start:
-        finite &= np.all(np.isfinite(reference), axis=1)
     for i in np.flatnonzero(~finite):
         failures[int(i)] = "non-finite slider positions or initial pose"
     active = np.flatnonzero(finite)
@@ -322,7 +322,7 @@ def forward_kinematics(
         poses[active], legs, error = _damped_update(chains, poses[active], step, target, error)
     for i in active:
         failures.setdefault(int(i), f"no convergence in {max_iterations} Newton iterations")
-    _check_branch(poses, reference, converged, failures, branch_tolerance_m, branch_tolerance_rad)
+    _check_branch(poses, start, converged, failures, branch_tolerance_m, branch_tolerance_rad)
     poses[~converged] = np.nan
     return ForwardKinematicsResult(poses, converged, iterations, failures)
 
@@ -457,10 +457,6 @@ class PoseSensitivity:
         out = mixed[:, 0, :, None] * blocks
         return out.reshape(len(out), N_CHAINS * FIELDS_PER_CHAIN)
 
-    def predict(self, step: np.ndarray) -> np.ndarray:
-        """dX for a parameter step du (54,), first order: (N, 6)."""
-        d_sliders = np.einsum("ncf,cf->nc", self.slider_blocks, step.reshape(N_CHAINS, FIELDS_PER_CHAIN))
-        return -np.matmul(self.wrt_sliders, d_sliders[:, :, None])[:, :, 0]
 
 
 def pose_sensitivities(params: HexaParameters, poses: np.ndarray) -> PoseSensitivity:

@@ -143,11 +143,12 @@ class CostFunction:
         return np.column_stack([position, np.zeros((n, 2)), self.measurements.rotary - defects.phi0])
 
     def residuals(self, poses: np.ndarray, sensitivity: np.ndarray | PoseSensitivity | None,
-                  defects: DeviceDefects = DeviceDefects(), with_device: bool = False) -> ResidualBlock:
+                  defects: DeviceDefects = DeviceDefects(), with_device: bool = False,
+                  with_noise: bool = True) -> ResidualBlock:
         """Stacked residuals; with ``sensitivity`` also the Jacobian (54 columns, + 5 device columns
-        if ``with_device``) and, for a PoseSensitivity, each row's noise derivatives."""
+        if ``with_device``) and, for a PoseSensitivity and ``with_noise``, each row's noise derivatives."""
         if isinstance(sensitivity, PoseSensitivity):
-            pieces = _Pieces(poses, None, sensitivity.wrt_sliders, with_device, sensitivity)
+            pieces = _Pieces(poses, None, sensitivity.wrt_sliders if with_noise else None, with_device, sensitivity)
         else:
             pieces = _Pieces(poses, sensitivity, None, with_device)
         blocks = [self._phi_block(pieces, defects)]
