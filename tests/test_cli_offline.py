@@ -137,3 +137,13 @@ def test_namespaced_bag_with_glitched_readings_is_redetected(exact_postures, nom
     result = json.loads(completed.stdout)
     assert result["bag"]["postures"] == 40 and result["bag"]["invalid_messages"] == 40  # one NaN per posture
     assert np.max(np.abs(load_parameters(tmp_path / "out.yaml") - TRUE.vector)) < 5e-4
+
+
+@pytest.mark.parametrize("cost", ["fixed", "sphere-fixed", "relative"])
+def test_a_cost_needing_fixed_postures_on_a_sphere_only_bag_is_named(recorded, nominal_file, cost, tmp_path):
+    completed = hexacal("calibrate", recorded, "--nominal", nominal_file, "--output", tmp_path / "out.yaml",
+                        "--cost", cost)
+    assert completed.returncode == 2, completed.stdout
+    assert f"the {cost} cost function needs at least" in completed.stderr
+    assert "0 fixed-position" in completed.stderr and "Traceback" not in completed.stderr
+    assert not (tmp_path / "out.yaml").exists()

@@ -334,7 +334,11 @@ def _identify_once(nominal: HexaParameters, measurements: Measurements, options:
     measurements.validate(options.limits)
     free = options.free_mask()
     start = np.concatenate([nominal.vector, options.device_defects.vector])
-    usable = CostFunction(options.cost, measurements, options.device, options.sigma).usable()
+    cost = CostFunction(options.cost, measurements, options.device, options.sigma)
+    missing = cost.missing_postures()
+    if missing is not None:
+        raise TooFewPosturesError(missing)
+    usable = cost.usable()
     unused = {int(i): f"not used by the {options.cost} cost function" for i in np.flatnonzero(~usable)}
     # Small dense problems run fastest on one BLAS thread; more threads only add contention.
     with _blas_controller().limit(limits=1, user_api="blas"):

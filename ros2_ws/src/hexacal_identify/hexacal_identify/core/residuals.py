@@ -124,6 +124,22 @@ class CostFunction:
             return self.is_fixed.copy()
         return np.ones(len(self.measurements), bool)
 
+    def missing_postures(self) -> str | None:
+        """Why these postures cannot feed this cost function at all (None when they can).
+
+        Eqs. 10 and 13 compare fixed-position postures and eq. 12 compares sphere postures: a
+        cost that needs a kind the measurement set lacks is a named error, not an empty block."""
+        n_fixed, n_sphere = int(self.is_fixed.sum()), int(self.is_sphere.sum())
+        needs = {"fixed": (("fixed-position", n_fixed, 1),),
+                 "sphere-fixed": (("fixed-position", n_fixed, 1),),
+                 "relative": (("fixed-position", n_fixed, 2), ("sphere", n_sphere, 2))}.get(self.cost, ())
+        for kind, have, least in needs:
+            if have < least:
+                return (f"the {self.cost} cost function needs at least {least} {kind} posture(s) and the "
+                        f"measurements hold {have} ({n_sphere} sphere, {n_fixed} fixed-position); "
+                        "record postures of that kind or choose another cost function")
+        return None
+
     def measured(self, defects: DeviceDefects = DeviceDefects()):
         """Positions from the readings through the defect model; the last result is kept (defects rarely change)."""
         if self._measured_cache is None or self._measured_cache[0] != defects:
