@@ -117,7 +117,7 @@ def test_parameter_jacobian_matches_finite_differences():
 
 def test_fk_internal_jacobians_match_finite_differences_and_the_public_ones():
     """FK's and the sensitivities' coordinate-major path (_Legs) against IK differences and the LegGeometry path."""
-    from hexacal_identify.core.kinematics import _Chains, _Legs
+    from hexacal_identify.core.architectures.hexa_slide import _Chains, _Legs
 
     params = nominal_set(2, seed=3)
     poses = sample_poses(TRUE, 12, np.random.default_rng(9))

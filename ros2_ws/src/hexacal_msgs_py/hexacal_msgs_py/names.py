@@ -3,6 +3,10 @@
 Topic and service names are relative so that a node's namespace applies.
 """
 
+from hexacal_msgs_py.models import DEVICE_JOINT_NAMES, GOUGH_STEWART, HEXA_SLIDE, MODELS
+
+_HEXA = MODELS[HEXA_SLIDE]
+
 SLIDERS_TOPIC = 'hexacal/sliders'
 INCLINOMETER_TOPIC = 'hexacal/inclinometer'
 ENCODER_TOPIC = 'hexacal/encoder'
@@ -34,33 +38,29 @@ TOPIC_TYPES: dict[str, str] = {
     CALIBRATION_STATUS_TOPIC: CALIBRATION_STATUS_TYPE,
 }
 
-# JointState joint names. Slider positions are the articular variables
-# lambda_i in m; inclinometer_x is alpha (about X), inclinometer_y is beta
-# (about Y) and rotary is phi, all in rad.
-N_CHAINS = 6
-SLIDER_NAMES: tuple[str, ...] = tuple(f'slider_{i}' for i in range(1, N_CHAINS + 1))
-INCLINOMETER_NAMES: tuple[str, ...] = ('inclinometer_x', 'inclinometer_y')
-ENCODER_NAMES: tuple[str, ...] = ('rotary',)
-POSTURE_NAMES: tuple[str, ...] = SLIDER_NAMES + INCLINOMETER_NAMES + ENCODER_NAMES
+# JointState joint names. Actuator positions are the articular variables
+# lambda_i in m (Hexa Slide: slider_1..6 along the rails; Gough-Stewart:
+# leg_1..6, leg extensions); inclinometer_x is alpha (about X), inclinometer_y
+# is beta (about Y) and rotary is phi, all in rad. The per-model layouts live
+# in models.py; the names below are the Hexa Slide's (the default model).
+N_CHAINS = _HEXA.n_chains
+SLIDER_NAMES: tuple[str, ...] = _HEXA.actuator_names
+LEG_NAMES: tuple[str, ...] = MODELS[GOUGH_STEWART].actuator_names
+INCLINOMETER_NAMES: tuple[str, ...] = DEVICE_JOINT_NAMES[:2]
+ENCODER_NAMES: tuple[str, ...] = DEVICE_JOINT_NAMES[2:]
+POSTURE_NAMES: tuple[str, ...] = _HEXA.posture_names
 
-# The 54-vector is chain-major: for each chain A0 (3, base frame, m),
-# B (3, platform frame, m), link length l (m), rail direction a_x, a_y
+# The Hexa Slide's 54-vector is chain-major: for each chain A0 (3, base frame,
+# m), B (3, platform frame, m), link length l (m), rail direction a_x, a_y
 # (x, y components of the unit rail vector a).
-PARAMETER_FIELDS: tuple[str, ...] = ('A0x', 'A0y', 'A0z', 'Bx', 'By', 'Bz', 'l', 'ax', 'ay')
+PARAMETER_FIELDS: tuple[str, ...] = _HEXA.fields
 N_PARAMETERS_PER_CHAIN = len(PARAMETER_FIELDS)
 N_PARAMETERS = N_CHAINS * N_PARAMETERS_PER_CHAIN
 
 # Full name of every entry of the 54-vector, e.g. 'chain_3.ax'.
-PARAMETER_NAMES: tuple[str, ...] = tuple(
-    f'chain_{chain}.{field}'
-    for chain in range(1, N_CHAINS + 1)
-    for field in PARAMETER_FIELDS)
+PARAMETER_NAMES: tuple[str, ...] = _HEXA.parameter_names
 
 
 def parameter_index(chain: int, field: str) -> int:
     """Index into the 54-vector of `field` of `chain` (1-based, as in chain_1)."""
-    if not 1 <= chain <= N_CHAINS:
-        raise ValueError(f'chain must be in 1..{N_CHAINS}, got {chain}')
-    if field not in PARAMETER_FIELDS:
-        raise ValueError(f'field must be one of {PARAMETER_FIELDS}, got {field!r}')
-    return (chain - 1) * N_PARAMETERS_PER_CHAIN + PARAMETER_FIELDS.index(field)
+    return _HEXA.parameter_index(chain, field)

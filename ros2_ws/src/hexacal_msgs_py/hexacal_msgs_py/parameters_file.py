@@ -15,11 +15,27 @@ direction vector)::
 Both dotted keys and nested mappings (``chain_1: {A0: [...]}``) load, as in
 ROS 2; files are written with dotted keys. The vector form is the 54-vector
 in PARAMETER_FIELDS chain-major order.
+
+Other machine models (models.py) name themselves with ``model: <name>`` beside
+their chain keys, e.g. a Gough-Stewart platform::
+
+    /**:
+      ros__parameters:
+        model: gough_stewart
+        chain_1.A: [x, y, z]
+        chain_1.B: [x, y, z]
+        chain_1.l0: 0.85
+        ...
+
+A file without ``model`` is a Hexa Slide; Hexa Slide files are written without
+it, exactly as before.  A ``chain_N.<key>`` that is not a key of the file's
+model is an error naming the key.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 import json
 import math
 import numbers
@@ -33,26 +49,26 @@ import yaml
 
 from hexacal_msgs_py.errors import InvalidParametersError, ParameterFileError
 from hexacal_msgs_py.files import atomic_write, load_yaml_text
-from hexacal_msgs_py.names import (
-    N_CHAINS,
-    N_PARAMETERS,
-    N_PARAMETERS_PER_CHAIN,
-    PARAMETER_NAMES,
+from hexacal_msgs_py.models import (
+    DEFAULT_MODEL,
+    HEXA_SLIDE,
+    MODEL_KEY,
+    MODELS,
+    ModelLayout,
+    model_for_vector_size,
+    model_layout,
 )
+from hexacal_msgs_py.names import N_CHAINS
 
 PathLike = Union[str, os.PathLike]
 ChainDict = dict[str, dict[str, Any]]
 
-# Per-chain key -> (offset in the chain's 9 fields, number of values);
-# None marks a scalar. Written in this order.
+# The Hexa Slide's per-chain key -> (offset in the chain's 9 fields, number of
+# values); None marks a scalar. Written in this order. (Every model's keys:
+# models.MODELS[name].chain_keys.)
 CHAIN_KEYS: dict[str, tuple[int, int | None]] = {
-    'A0': (0, 3),
-    'B': (3, 3),
-    'a': (7, 2),
-    'l': (6, None),
-}
-_CHAIN_KEY_NAMES = frozenset(
-    f'chain_{chain}.{key}' for chain in range(1, N_CHAINS + 1) for key in CHAIN_KEYS)
+    key.name: (key.offset, key.count) for key in MODELS[HEXA_SLIDE].chain_keys}
+_CHAIN_KEY = re.compile(r'^chain_[0-9]+\.')
 _PARAMETER_NAME = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$')
 _MAX_NAMESPACE_DEPTH = 8
 
@@ -85,37 +101,76 @@ if getattr(yaml, 'CSafeLoader', None) is not None:
     _FAST_LOADERS.update({yaml.SafeLoader: yaml.CSafeLoader, _RosParametersLoader: _RosParametersCLoader})
 
 
-def as_parameter_vector(vector: object) -> np.ndarray:
-    """Return a float64 copy of `vector`, checked to be 54 finite numbers."""
+def _layout_of(model: str | ModelLayout | None, size: int | None = None) -> ModelLayout:
+    """The named model's layout; None: the Hexa Slide, or the one model of a vector of `size`."""
+    if isinstance(model, ModelLayout):
+        return model
+    if model is None:
+        return model_layout(DEFAULT_MODEL) if size is None else model_for_vector_size(size)
+    return model_layout(model)
+
+
+def as_parameter_vector(vector: object, model: str | ModelLayout | None = None) -> np.ndarray:
+    """Return a float64 copy of `vector`, checked to be the model's number of finite values.
+
+    Without `model`, a vector of 54 values is a Hexa Slide's and one of 42 a
+    Gough-Stewart platform's.
+    """
     try:
         array = np.array(vector, dtype=np.float64)
     except (TypeError, ValueError) as error:
+        expected = _layout_of(model).n_parameters if model is not None else 'the model\'s'
         raise InvalidParametersError(
-            f'parameter vector must be {N_PARAMETERS} numbers: {error}') from None
-    if array.shape != (N_PARAMETERS,):
+            f'parameter vector must be {expected} numbers: {error}') from None
+    if model is None:
+        sizes = sorted({layout.n_parameters for layout in MODELS.values()})
+        if array.ndim != 1 or array.size not in sizes:
+            raise InvalidParametersError(
+                f'parameter vector must have shape ({sizes[-1]},) (a Hexa Slide) or one of '
+                f'{[(n,) for n in sizes]} (see models.MODELS), got {array.shape}')
+    layout = _layout_of(model, array.size)
+    if array.shape != (layout.n_parameters,):
         raise InvalidParametersError(
-            f'parameter vector must have shape ({N_PARAMETERS},), got {array.shape}')
+            f'parameter vector must have shape ({layout.n_parameters},) for a {layout.name}, got {array.shape}')
     bad = np.flatnonzero(~np.isfinite(array))
     if bad.size:
         index = int(bad[0])
         raise InvalidParametersError(
             f'parameter vector must be finite, got {array[index]!r} at '
-            f'{PARAMETER_NAMES[index]} (index {index})')
+            f'{layout.parameter_names[index]} (index {index})')
     return array
 
 
-def validate_parameters(vector: object) -> np.ndarray:
-    """as_parameter_vector() plus physical checks: ax^2+ay^2 < 1 and l > 0."""
-    array = as_parameter_vector(vector)
-    problem = _physical_problem(array)
+def validate_parameters(vector: object, model: str | ModelLayout | None = None) -> np.ndarray:
+    """as_parameter_vector() plus the model's physical checks (Hexa Slide: ax^2+ay^2 < 1 and l > 0)."""
+    array = as_parameter_vector(vector, model)
+    problem = _layout_of(model, array.size).physical_problem(array)
     if problem:
         raise InvalidParametersError(problem)
     return array
 
 
+@dataclass(frozen=True)
+class ParametersFile:
+    """A parameters file's contents: its model, the parameter vector and the other parameters."""
+
+    model: str
+    vector: np.ndarray
+    extras: dict[str, Any]
+
+    @property
+    def layout(self) -> ModelLayout:
+        return MODELS[self.model]
+
+
 def load_parameters(path: PathLike) -> np.ndarray:
-    """Load the 54-vector from a ROS 2 parameters YAML file."""
-    return load_parameters_file(path)[0]
+    """Load the parameter vector (54 for a Hexa Slide) from a ROS 2 parameters YAML file."""
+    return read_parameters_file(path).vector
+
+
+def load_model(path: PathLike) -> str:
+    """The model a parameters file names (``hexa_slide`` when it names none)."""
+    return read_parameters_file(path).model
 
 
 def read_yaml_document(path: PathLike, fail: _Fail,
@@ -142,7 +197,13 @@ def read_yaml_document(path: PathLike, fail: _Fail,
 
 
 def load_parameters_file(path: PathLike) -> tuple[np.ndarray, dict[str, Any]]:
-    """Load the 54-vector and the other parameters (dotted name -> value)."""
+    """Load the parameter vector and the other parameters (dotted name -> value; not ``model``)."""
+    contents = read_parameters_file(path)
+    return contents.vector, contents.extras
+
+
+def read_parameters_file(path: PathLike) -> ParametersFile:
+    """Load a parameters file: its model (key ``model``, default hexa_slide), vector and extras."""
     name = os.fspath(path)
 
     def fail(message: str) -> ParameterFileError:
@@ -151,9 +212,20 @@ def load_parameters_file(path: PathLike) -> tuple[np.ndarray, dict[str, Any]]:
     document = read_yaml_document(path, fail, _RosParametersLoader)
     flat: dict[str, Any] = {}
     _flatten(_ros_parameters(document, fail), '', flat, fail)
-    vector = _vector_from_flat(flat, fail)
-    extras = {key: value for key, value in flat.items() if key not in _CHAIN_KEY_NAMES}
-    return vector, extras
+    layout = _model_from_flat(flat, fail)
+    vector = _vector_from_flat(flat, fail, layout)
+    chain_keys = layout.chain_key_names
+    extras = {key: value for key, value in flat.items() if key not in chain_keys and key != MODEL_KEY}
+    return ParametersFile(layout.name, vector, extras)
+
+
+def _model_from_flat(flat: Mapping[str, Any], fail: _Fail) -> ModelLayout:
+    if MODEL_KEY not in flat:
+        return MODELS[DEFAULT_MODEL]
+    try:
+        return model_layout(flat[MODEL_KEY])
+    except InvalidParametersError as error:
+        raise fail(f'{MODEL_KEY}: {error}') from None
 
 
 def save_parameters(
@@ -161,10 +233,13 @@ def save_parameters(
     vector: object,
     extras: Mapping[str, Any] | None = None,
     header_comment: str | None = None,
+    model: str | None = None,
 ) -> None:
-    """Write the 54-vector (and extra parameters) atomically as ROS 2 parameters YAML.
+    """Write the parameter vector (and extra parameters) atomically as ROS 2 parameters YAML.
 
     Floats are written with repr() so that loading gives the same bits back.
+    `model` defaults to the one model of the vector's size; a model other than
+    the Hexa Slide is written as ``model: <name>`` first.
     """
     name = os.fspath(path)
 
@@ -172,9 +247,10 @@ def save_parameters(
         return ParameterFileError(f'{name}: {message}')
 
     try:
-        array = validate_parameters(vector)
+        array = validate_parameters(vector, model)
     except InvalidParametersError as error:
         raise fail(str(error)) from None
+    layout = _layout_of(model, array.size)
     flat_extras: dict[str, Any] = {}
     if extras:
         _flatten(extras, '', flat_extras, fail)
@@ -182,16 +258,22 @@ def save_parameters(
     if header_comment:
         lines += [f'# {line}'.rstrip() for line in header_comment.splitlines()]
     lines += ['/**:', '  ros__parameters:']
-    for chain in range(1, N_CHAINS + 1):
-        fields = array[(chain - 1) * N_PARAMETERS_PER_CHAIN:chain * N_PARAMETERS_PER_CHAIN]
-        for key, (offset, count) in CHAIN_KEYS.items():
-            if count is None:
-                text = _format_float(fields[offset])
+    if layout.name != HEXA_SLIDE:
+        lines.append(f'    {MODEL_KEY}: {layout.name}')
+    for chain, entry in _chain_entries(array, layout):
+        for key, value in entry.items():
+            if isinstance(value, list):
+                text = '[' + ', '.join(_format_float(v) for v in value) + ']'
             else:
-                text = '[' + ', '.join(_format_float(v) for v in fields[offset:offset + count]) + ']'
+                text = _format_float(value)
             lines.append(f'    chain_{chain}.{key}: {text}')
+    chain_keys = layout.chain_key_names
     for key, value in flat_extras.items():
-        if key in _CHAIN_KEY_NAMES:
+        if key == MODEL_KEY:
+            if value != layout.name:
+                raise fail(f'extra parameter {MODEL_KEY}={value!r} contradicts the vector\'s model {layout.name}')
+            continue
+        if key in chain_keys or _CHAIN_KEY.match(key):
             raise fail(f'extra parameter {key} collides with a kinematic parameter')
         if not _PARAMETER_NAME.match(key):
             raise fail(f'extra parameter name {key!r} is not a valid ROS 2 parameter name')
@@ -199,32 +281,45 @@ def save_parameters(
     _atomic_write(Path(path), '\n'.join(lines) + '\n', fail)
 
 
-def parameters_to_chain_dict(vector: object) -> ChainDict:
-    """{'chain_1': {'A0': [3], 'B': [3], 'a': [ax, ay], 'l': l}, ...} (the CLI's JSON shape)."""
-    array = as_parameter_vector(vector)
-    result: ChainDict = {}
-    for chain in range(1, N_CHAINS + 1):
-        fields = array[(chain - 1) * N_PARAMETERS_PER_CHAIN:chain * N_PARAMETERS_PER_CHAIN]
+def _chain_entries(array: np.ndarray, layout: ModelLayout):
+    """(chain number, {key: value or list}) per chain, keys in the model's file order."""
+    width = layout.fields_per_chain
+    for chain in range(1, layout.n_chains + 1):
+        fields = array[(chain - 1) * width:chain * width]
         entry: dict[str, Any] = {}
-        for key, (offset, count) in CHAIN_KEYS.items():
-            if count is None:
-                entry[key] = float(fields[offset])
+        for key in layout.chain_keys:
+            if key.count is None:
+                entry[key.name] = float(fields[key.offset])
             else:
-                entry[key] = [float(v) for v in fields[offset:offset + count]]
-        result[f'chain_{chain}'] = entry
-    return result
+                entry[key.name] = [float(v) for v in fields[key.offset:key.offset + key.count]]
+        yield chain, entry
 
 
-def chain_dict_to_parameters(chains: Mapping[str, Any]) -> np.ndarray:
-    """Inverse of parameters_to_chain_dict(), with the same checks as load_parameters()."""
+def parameters_to_chain_dict(vector: object, model: str | None = None) -> ChainDict:
+    """{'chain_1': {'A0': [3], 'B': [3], 'a': [ax, ay], 'l': l}, ...} (the CLI's JSON shape).
+
+    Keys are the model's (Gough-Stewart: A, B, l0); `model` defaults to the
+    one model of the vector's size.
+    """
+    array = as_parameter_vector(vector, model)
+    layout = _layout_of(model, array.size)
+    return {f'chain_{chain}': entry for chain, entry in _chain_entries(array, layout)}
+
+
+def chain_dict_to_parameters(chains: Mapping[str, Any], model: str | None = None) -> np.ndarray:
+    """Inverse of parameters_to_chain_dict(), with the same checks as load_parameters().
+
+    `model` defaults to the Hexa Slide.
+    """
     def fail(message: str) -> InvalidParametersError:
         return InvalidParametersError(message)
 
+    layout = _layout_of(model)
     if not isinstance(chains, Mapping):
         raise fail(f'expected a mapping chain_1..chain_{N_CHAINS}, got {type(chains).__name__}')
     flat: dict[str, Any] = {}
     _flatten(chains, '', flat, fail)
-    return _vector_from_flat(flat, fail)
+    return _vector_from_flat(flat, fail, layout)
 
 
 def _ros_parameters(document: object, fail: _Fail) -> Mapping[str, Any]:
@@ -271,12 +366,17 @@ def _number(value: object, name: str, fail: _Fail) -> float:
     return number
 
 
-def _vector_from_flat(flat: Mapping[str, Any], fail: _Fail) -> np.ndarray:
-    vector = np.empty(N_PARAMETERS, dtype=np.float64)
-    for chain in range(1, N_CHAINS + 1):
-        base = (chain - 1) * N_PARAMETERS_PER_CHAIN
-        for key, (offset, count) in CHAIN_KEYS.items():
-            name = f'chain_{chain}.{key}'
+def _vector_from_flat(flat: Mapping[str, Any], fail: _Fail, layout: ModelLayout) -> np.ndarray:
+    known = layout.chain_key_names
+    for name in flat:
+        if _CHAIN_KEY.match(name) and name not in known:
+            keys = ', '.join(key.name for key in layout.chain_keys)
+            raise fail(f'{name} is not a {layout.name} parameter (its chain keys are {keys})')
+    vector = np.empty(layout.n_parameters, dtype=np.float64)
+    for chain in range(1, layout.n_chains + 1):
+        base = (chain - 1) * layout.fields_per_chain
+        for key in layout.chain_keys:
+            name, offset, count = f'chain_{chain}.{key.name}', key.offset, key.count
             if name not in flat:
                 raise fail(f'missing key {name}')
             value = flat[name]
@@ -289,24 +389,10 @@ def _vector_from_flat(flat: Mapping[str, Any], fail: _Fail) -> np.ndarray:
                 raise fail(f'{name} must have {count} values, got {len(value)}')
             for i, item in enumerate(value):
                 vector[base + offset + i] = _number(item, name, fail)
-    problem = _physical_problem(vector)
+    problem = layout.physical_problem(vector)
     if problem:
         raise fail(problem)
     return vector
-
-
-def _physical_problem(vector: np.ndarray) -> str | None:
-    for chain in range(1, N_CHAINS + 1):
-        base = (chain - 1) * N_PARAMETERS_PER_CHAIN
-        ax, ay = float(vector[base + 7]), float(vector[base + 8])
-        norm_xy = ax * ax + ay * ay
-        if norm_xy >= 1.0:
-            return (f'chain_{chain}.a = [{ax!r}, {ay!r}] is not the x, y components of a '
-                    f'unit vector (ax^2 + ay^2 = {norm_xy!r} >= 1)')
-        length = float(vector[base + 6])
-        if length <= 0.0:
-            return f'chain_{chain}.l must be > 0 m, got {length!r}'
-    return None
 
 
 def _format_float(value: float) -> str:

@@ -333,7 +333,7 @@ def build_candidate_set(nominal: HexaParameters, poses: np.ndarray, kinds: np.nd
     # At the nominal parameters the commanded pose is where the model puts the platform,
     # so noise-free simulated readings there are the expected measurements.
     measurements = simulate_measurements(nominal, poses, kinds, device)
-    sensitivity, geometry = pose_parameter_sensitivity(nominal, poses)
+    sensitivity, legs = pose_parameter_sensitivity(nominal, poses)
     own_cost = "sphere-fixed" if cost == "relative" else cost
     function = CostFunction(own_cost, measurements, device, sigma)
     block = function.residuals(poses, sensitivity)
@@ -346,7 +346,7 @@ def build_candidate_set(nominal: HexaParameters, poses: np.ndarray, kinds: np.nd
         rows = _rows_per_posture(block.jacobian, block.postures, len(poses))
         difference = None
         if noise is not None:
-            rows = _whiten(rows, _noise_rows(function, poses, geometry, block, sigma, device), noise)
+            rows = _whiten(rows, _noise_rows(function, poses, legs, block, sigma, device), noise)
         stacked = rows
     # RMS per-posture column norm over all candidates: one yardstick for every design.
     norms = np.sqrt(np.einsum("nrk,nrk->k", stacked, stacked) / max(len(poses), 1))
@@ -359,10 +359,10 @@ def build_candidate_set(nominal: HexaParameters, poses: np.ndarray, kinds: np.nd
                         None if difference is None else difference / scales, weight / np.outer(scales, scales))
 
 
-def _noise_rows(function: CostFunction, poses: np.ndarray, geometry, block, sigma: ChannelSigma,
+def _noise_rows(function: CostFunction, poses: np.ndarray, legs, block, sigma: ChannelSigma,
                 device: DeviceModel) -> np.ndarray:
     """d residual / d readings (rows, 9): 6 sliders, alpha, beta, phi, in the order of ``block``'s rows."""
-    slider_sensitivity = np.linalg.inv(pose_jacobian(geometry, poses[:, 3:6]))  # dX / d lambda
+    slider_sensitivity = np.linalg.inv(legs.pose_jacobian())  # dX / d lambda
     wrt_sliders = function.residuals(poses, slider_sensitivity).jacobian
     wrt_readings = np.zeros((len(block.channels), 3))
     is_phi = block.channels == "phi"

@@ -15,8 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .device import DEFAULT_LINK_LENGTH_M
-from .kinematics import leg_geometry, pose_jacobian
-from .model import HexaParameters
+from .architectures import KinematicParameters
 
 
 @dataclass(frozen=True)
@@ -28,7 +27,9 @@ class Workspace:
     rotation_range_rad: float = np.radians(35.0)
     slider_stroke_m: tuple[float, float] = (0.0, 0.9)
     max_condition: float = 80.0  # of the pose Jacobian with angles scaled by link_length; rejects ~4%
-    min_leg_rail_cosine: float = 0.2  # w / l: legs far from perpendicular to their rail
+    # Hexa Slide: w / l, legs far from perpendicular to their rail; Gough-Stewart: the least cosine of a
+    # passive joint's angle (architectures/*.acceptable_poses).
+    min_leg_rail_cosine: float = 0.2
 
 
 def _sphere_candidates(rng: np.random.Generator, n: int, workspace: Workspace) -> np.ndarray:
@@ -44,30 +45,13 @@ def _fixed_candidates(rng: np.random.Generator, n: int, workspace: Workspace) ->
     return np.column_stack([position, angles])
 
 
-def acceptable_poses(params: HexaParameters, poses: np.ndarray, workspace: Workspace = Workspace()) -> np.ndarray:
-    """Mask of poses that are reachable, inside the stroke and well conditioned."""
-    geometry = leg_geometry(params, poses)
-    reachable = np.all(geometry.discriminant > 0.0, axis=1)
-    low, high = workspace.slider_stroke_m
-    in_stroke = np.all((geometry.slider_positions >= low) & (geometry.slider_positions <= high), axis=1)
-    away_from_rail = np.all(geometry.rail_leg_dot > workspace.min_leg_rail_cosine * params.leg_lengths, axis=1)
-    ok = reachable & in_stroke & away_from_rail
-    conditioned = np.zeros(len(poses), bool)
-    if np.any(ok):
-        jac = pose_jacobian(_subset_geometry(geometry, ok), poses[ok, 3:6])
-        jac[:, :, 3:] /= workspace.link_length  # angles -> lengths, so the condition number is unit-free
-        conditioned[ok] = np.linalg.cond(jac) < workspace.max_condition
-    return ok & conditioned
-
-
-def _subset_geometry(geometry, mask):
-    from .kinematics import _subset
-
-    return _subset(geometry, mask)
+def acceptable_poses(params: KinematicParameters, poses: np.ndarray, workspace: Workspace = Workspace()) -> np.ndarray:
+    """Mask of poses that are reachable, inside the stroke and well conditioned (the architecture decides how)."""
+    return params.architecture.acceptable_poses(params, np.asarray(poses, dtype=float), workspace)
 
 
 def sample_poses(
-    params: HexaParameters,
+    params: KinematicParameters,
     n: int,
     rng: np.random.Generator,
     kind: str = "sphere",

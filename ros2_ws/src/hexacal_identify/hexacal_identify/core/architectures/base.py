@@ -1,0 +1,158 @@
+"""The interface a kinematic architecture implements, and the parameters it owns.
+
+An architecture is six chains between base and platform, each driven by one
+actuator whose reading lambda_c is a function of the pose X and the chain's
+own parameters u_c (inverse kinematics).  Everything else in the core (forward
+kinematics, the identification Jacobian by implicit differentiation, every
+cost function, the solver, identifiability, planning, the studies) is written
+against this interface:
+
+* ``layout``: the contract's ``ModelLayout`` (names, units, per-chain fields);
+* ``chains(params)``: the per-chain constants of one parameter set;
+* ``legs(chains, poses)``: IK for N poses with what the derivatives reuse -
+  ``sliders`` (N, 6) actuator readings, ``reachable()``, ``pose_jacobian()``
+  = d lambda / d X (N, 6, 6) and ``parameter_blocks(chains)`` = d lambda_c /
+  d u_c (N, 6, fields per chain), plus ``subset``/``replace_rows`` for the
+  batched Newton iteration;
+* frame motions expressed as parameter changes (identifiability's named
+  combinations, the device-frame study);
+* the default machine, its workspace and nominal error sets.
+
+Poses are ``X = [x, y, z, theta, psi, phi]`` with R = R_Y(theta) R_X(psi)
+R_z(phi) (eq. 2) for every architecture.
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Any, ClassVar, Protocol
+
+import numpy as np
+
+from hexacal_msgs_py.models import ModelLayout
+
+
+class Legs(Protocol):
+    """IK of N poses x 6 chains (see the module docstring)."""
+
+    sliders: np.ndarray  # actuator readings lambda, (N, 6)
+
+    def reachable(self) -> np.ndarray: ...  # (N,) every chain can reach
+
+    def pose_jacobian(self, unit: np.ndarray | None = None) -> np.ndarray: ...  # (N, 6, 6)
+
+    def parameter_blocks(self, chains: Any, unit: np.ndarray | None = None) -> np.ndarray: ...  # (N, 6, F)
+
+    def unit_legs(self) -> np.ndarray: ...  # the shared factor of both Jacobians
+
+    def subset(self, mask: np.ndarray) -> "Legs": ...
+
+    def replace_rows(self, mask: np.ndarray, rows: "Legs") -> None: ...
+
+
+@dataclass(frozen=True)
+class KinematicParameters:
+    """A parameter vector of one architecture, chain-major in its layout's field order (SI units)."""
+
+    vector: np.ndarray
+    architecture: ClassVar["Architecture"]
+
+    def __post_init__(self) -> None:
+        layout = self.architecture.layout
+        vector = np.array(self.vector, dtype=float).reshape(-1)
+        if vector.shape != (layout.n_parameters,):
+            raise ValueError(f"expected {layout.n_parameters} parameters for a {layout.name}, got {vector.size}")
+        if not np.all(np.isfinite(vector)):
+            bad = [layout.parameter_names[i] for i in np.flatnonzero(~np.isfinite(vector))]
+            raise ValueError(f"non-finite parameter(s): {', '.join(bad)}")
+        problem = self.architecture.vector_problem(vector)
+        if problem:
+            raise ValueError(problem)
+        vector.setflags(write=False)
+        object.__setattr__(self, "vector", vector)
+
+    @property
+    def model(self) -> str:
+        return self.architecture.name
+
+    @property
+    def layout(self) -> ModelLayout:
+        return self.architecture.layout
+
+    @property
+    def per_chain(self) -> np.ndarray:
+        """(6, fields per chain) view, one row per chain."""
+        return self.vector.reshape(self.layout.n_chains, self.layout.fields_per_chain)
+
+    @property
+    def base_points(self) -> np.ndarray:
+        """Base-side joint of each chain in the base frame, (6, 3) (Hexa Slide: rail start A0; UPS: A)."""
+        return self.per_chain[:, 0:3]
+
+    @property
+    def platform_points(self) -> np.ndarray:
+        """Platform joint centres B in the platform frame, (6, 3)."""
+        return self.per_chain[:, 3:6]
+
+    def with_vector(self, vector: np.ndarray) -> "KinematicParameters":
+        return type(self)(vector)
+
+
+class Architecture(ABC):
+    """One kinematic architecture (see the module docstring)."""
+
+    name: ClassVar[str]
+    layout: ClassVar[ModelLayout]
+    parameters_type: ClassVar[type[KinematicParameters]]
+    unreachable_reason: ClassVar[str]  # what makes IK fail, for the error message
+    # Table 2-like nominal error sets: set number -> (max, mean, RMS) of the errors, mm.
+    nominal_error_stats_mm: ClassVar[dict[int, tuple[float, float, float]]]
+
+    def vector_problem(self, vector: np.ndarray) -> str | None:
+        """Why `vector` is not a parameter set of this architecture (None: it is)."""
+        return self.layout.physical_problem(vector)
+
+    def parameters(self, vector: np.ndarray) -> KinematicParameters:
+        return self.parameters_type(vector)
+
+    @abstractmethod
+    def default_parameters(self) -> KinematicParameters:
+        """The shipped default machine ("exact" parameters of the studies and the driver)."""
+
+    @abstractmethod
+    def default_workspace(self) -> Any:
+        """The postures.Workspace measurement postures are drawn from on the default machine."""
+
+    @abstractmethod
+    def chains(self, params: KinematicParameters) -> Any:
+        """Per-chain constants of one parameter set, reused by every ``legs`` call."""
+
+    @abstractmethod
+    def legs(self, chains: Any, poses: np.ndarray) -> Legs:
+        """IK for poses (N, 6) with the intermediates both Jacobians reuse."""
+
+    @abstractmethod
+    def acceptable_poses(self, params: KinematicParameters, poses: np.ndarray, workspace: Any) -> np.ndarray:
+        """Mask of poses that are reachable, inside the actuator stroke, away from singular legs
+        and well conditioned (postures.Workspace's limits)."""
+
+    @abstractmethod
+    def joint_cosines(self, params: KinematicParameters, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Cosines of the base-side and platform-side passive joint angles, each (N, 6) (planning limits)."""
+
+    @abstractmethod
+    def frame_motion(self, params: KinematicParameters, base_translation=None, base_rotation=None,
+                     platform_translation=None, platform_rotation=None) -> np.ndarray:
+        """First-order parameter change (vector) that re-expresses the machine in a base frame moved by
+        (translation, small rotation vector) and a platform frame moved likewise: the measurements
+        cannot see it.  Arguments are 3-vectors (None: no motion); rotations about the frame origins."""
+
+    @abstractmethod
+    def actuator_zero_shift(self, params: KinematicParameters, chain: int) -> tuple[str, np.ndarray]:
+        """(description, parameter change) equivalent to an offset of chain's actuator zero (0-based)."""
+
+    @abstractmethod
+    def in_frames(self, params: KinematicParameters, base_rotation: np.ndarray,
+                  platform_rotation: np.ndarray) -> KinematicParameters:
+        """The same machine in a base frame rotated by base_rotation^T and a platform frame rotated by
+        platform_rotation^T about their origins (exact, not first order): points p -> rotation @ p."""

@@ -1,0 +1,99 @@
+"""Pose geometry every architecture shares: eq. 2's rotation and the pose Jacobian of a chain closure.
+
+Written per coordinate ((3, N, 6) arrays, one (N, 6) array per axis; no small
+einsums) because forward kinematics evaluates it several times per
+identification iteration.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def rotation_from_trig(cosines: np.ndarray, sines: np.ndarray) -> np.ndarray:
+    """R = R_Y(theta) R_X(psi) R_z(phi) (eq. 2) from cos and sin of [theta, psi, phi] (each (3, ...))."""
+    ct, cp, cf = cosines
+    st, sp, sf = sines
+    rot = np.empty(cosines.shape[1:] + (3, 3))
+    rot[..., 0, 0] = ct * cf + st * sp * sf
+    rot[..., 0, 1] = -ct * sf + st * sp * cf
+    rot[..., 0, 2] = st * cp
+    rot[..., 1, 0] = cp * sf
+    rot[..., 1, 1] = cp * cf
+    rot[..., 1, 2] = -sp
+    rot[..., 2, 0] = -st * cf + ct * sp * sf
+    rot[..., 2, 1] = st * sf + ct * sp * cf
+    rot[..., 2, 2] = ct * cp
+    return rot
+
+
+class PlatformPoints:
+    """R and R B for N poses: what every chain closure starts from (coordinate-major)."""
+
+    __slots__ = ("tilt_trig", "rotations", "rotated", "offsets")
+
+    def __init__(self, platform: np.ndarray, base: np.ndarray, poses: np.ndarray):
+        """platform, base: (3, 6) joint centres (platform frame, base frame); poses (N, 6)."""
+        angles = poses[:, 3:6].T
+        cosines, sines = np.cos(angles), np.sin(angles)
+        self.tilt_trig = np.stack([cosines[0], sines[0], cosines[1], sines[1]])  # ct, st, cp, sp: (4, N)
+        self.rotations = rotation_from_trig(cosines, sines)  # (N, 3, 3)
+        self.rotated = np.matmul(self.rotations, platform).transpose(1, 0, 2)  # R B, (3, N, 6)
+        self.offsets = self.rotated + (poses[:, :3].T[:, :, None] - base[:, None, :])  # P + R B - A, (3, N, 6)
+
+
+def euler_rate_axes(angles: np.ndarray) -> np.ndarray:
+    """Unit axes (N, 3, 3), columns = rotation axes of d theta, d psi, d phi in the base frame.
+
+    omega = e_Y dtheta + R_Y(theta) e_X dpsi + R_Y(theta) R_X(psi) e_z dphi.
+    """
+    angles = np.asarray(angles, dtype=float)
+    ct, cp = np.cos(angles[:, 0]), np.cos(angles[:, 1])
+    st, sp = np.sin(angles[:, 0]), np.sin(angles[:, 1])
+    axes = np.zeros((len(angles), 3, 3))
+    axes[:, 1, 0] = 1.0
+    axes[:, 0, 1] = ct
+    axes[:, 2, 1] = -st
+    axes[:, 0, 2] = st * cp
+    axes[:, 1, 2] = -sp
+    axes[:, 2, 2] = ct * cp
+    return axes
+
+
+def cross_last(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b over the last axis: np.cross's products, without its per-call axis handling (FK calls this often)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def pose_jacobian_rows(rotated: np.ndarray, unit: np.ndarray, tilt_trig: np.ndarray) -> np.ndarray:
+    """d lambda / d X (N, 6, 6) of chains whose d lambda = unit . d(P + R B).
+
+    Position columns: unit.  Angle column k: axis_k . ((R B) x unit), since
+    d(R B) = axis_k x R B for a rate about axis_k; the axes of d theta, d psi,
+    d phi are e_Y, (ct, 0, -st), (st cp, -sp, ct cp) (euler_rate_axes).
+    """
+    rb = rotated
+    with np.errstate(invalid="ignore"):
+        mx = rb[1] * unit[2] - rb[2] * unit[1]  # (R B) x unit, per coordinate
+        my = rb[2] * unit[0] - rb[0] * unit[2]
+        mz = rb[0] * unit[1] - rb[1] * unit[0]
+        ct, st, cp, sp = tilt_trig[:, :, None]
+        jac = np.empty(unit.shape[1:] + (6,))
+        jac[:, :, 0:3] = unit.transpose(1, 2, 0)
+        jac[:, :, 3] = my
+        jac[:, :, 4] = ct * mx - st * mz
+        jac[:, :, 5] = (st * cp) * mx - sp * my + (ct * cp) * mz
+    return jac
+
+
+def platform_point_derivatives(rotations: np.ndarray, unit: np.ndarray) -> np.ndarray:
+    """R^T unit, (N, 6, 3): d lambda / d B of chains whose d lambda = unit . d(R B)."""
+    return np.matmul(rotations.transpose(0, 2, 1), unit.transpose(1, 0, 2)).transpose(0, 2, 1)
+
+
+def condition_ok(jac: np.ndarray, link_length: float, max_condition: float) -> np.ndarray:
+    """Pose-Jacobian condition number below max_condition, angles scaled to lengths by link_length."""
+    jac = jac.copy()
+    jac[:, :, 3:] /= link_length  # angles -> lengths, so the condition number is unit-free
+    return np.linalg.cond(jac) < max_condition
