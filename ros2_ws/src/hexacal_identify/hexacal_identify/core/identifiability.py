@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .device import DEFAULT_LINK_LENGTH_M
-from .model import FIELDS_PER_CHAIN, N_CHAINS, N_PARAMETERS, HexaParameters, parameter_names
+from .architectures import KinematicParameters
+from .model import N_PARAMETERS, parameter_names
 
 DEFAULT_RANK_TOLERANCE = 1e-6
 
@@ -171,7 +172,7 @@ def pivoted_qr(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def analyze(
     jacobian: np.ndarray,
     names: list[str] | None = None,
-    params: HexaParameters | None = None,
+    params: KinematicParameters | None = None,
     free: np.ndarray | None = None,
     rank_tolerance: float = DEFAULT_RANK_TOLERANCE,
     link_length: float = DEFAULT_LINK_LENGTH_M,
@@ -187,7 +188,8 @@ def analyze(
     different chains for a base rotation), rounding decides which one is
     suggested for fixing, with or without F.
     """
-    names = names if names is not None else parameter_names()[: jacobian.shape[1]]
+    model = params.model if params is not None else None
+    names = names if names is not None else parameter_names(model)[: jacobian.shape[1]]
     factor = jacobian if gram_root is None else gram_root
     scales = column_scales(factor)
     scaled = factor / scales  # zero columns stay zero (their scale is 1)
@@ -199,7 +201,8 @@ def analyze(
     _, pivots = pivoted_qr(scaled)
     null_space = vt[rank:].T
     gauges = _gauge_directions(params, free, scales, link_length) if params is not None else []
-    directions = _describe(null_space, names, gauges, _device_directions(free, scales))
+    n_parameters = params.layout.n_parameters if params is not None else N_PARAMETERS
+    directions = _describe(null_space, names, gauges, _device_directions(free, scales, n_parameters))
     return IdentifiabilityReport(
         rank=rank,
         n_parameters=jacobian.shape[1],
@@ -211,26 +214,18 @@ def analyze(
     )
 
 
-def _gauge_directions(params: HexaParameters, free: np.ndarray | None, scales: np.ndarray,
+def _gauge_directions(params: KinematicParameters, free: np.ndarray | None, scales: np.ndarray,
                       link_length: float) -> list[tuple[str, np.ndarray]]:
-    """Parameter changes that move a frame (or one slider's zero), in scaled free coordinates."""
-    a0, b, rails = params.base_points, params.platform_points, params.rail_directions
+    """Parameter changes that move a frame (or one actuator's zero), in scaled free coordinates.
+
+    The architecture says what each motion does to its parameters (``frame_motion``,
+    ``actuator_zero_shift``); the names are the same for every architecture.
+    """
+    arch = params.architecture
     axis_names = "XYZ"
 
-    def direction(d_a0=None, d_b=None, d_rail=None, chain_only=None):
-        delta = np.zeros((N_CHAINS, FIELDS_PER_CHAIN))
-        if d_a0 is not None:
-            delta[:, 0:3] = d_a0
-        if d_b is not None:
-            delta[:, 3:6] = d_b
-        if d_rail is not None:
-            # keep a a unit vector with a_z < 0: d ax, d ay are the x, y parts of d a.
-            delta[:, 7:9] = d_rail[:, :2]
-        if chain_only is not None:
-            mask = np.zeros(N_CHAINS, bool)
-            mask[chain_only] = True
-            delta[~mask] = 0.0
-        vector = delta.reshape(-1)
+    def direction(delta: np.ndarray) -> np.ndarray:
+        vector = delta
         if free is not None:
             vector = np.concatenate([vector, np.zeros(len(free) - len(vector))])[free]
         return vector * scales
@@ -244,37 +239,35 @@ def _gauge_directions(params: HexaParameters, free: np.ndarray | None, scales: n
             (
                 f"a rotation of the base frame about the {axis_names[k]} axis through the fixed-position point "
                 f"[0, 0, -{link_length:g}] m",
-                direction(d_a0=np.cross(axis, a0 - fixed_point), d_rail=np.cross(axis, rails)),
+                direction(arch.frame_motion(params, base_rotation=axis, base_translation=-np.cross(axis, fixed_point))),
             )
         )
     for k, axis in enumerate(np.eye(3)):
-        gauges.append((f"a translation of the base frame along {axis_names[k]}", direction(d_a0=np.tile(axis, (6, 1)))))
-        gauges.append(
-            (
-                f"a rotation of the base frame about {axis_names[k]}",
-                direction(d_a0=np.cross(axis, a0), d_rail=np.cross(axis, rails)),
-            )
-        )
-        gauges.append((f"a translation of the platform frame along {axis_names[k].lower()}'", direction(d_b=np.tile(axis, (6, 1)))))
-        gauges.append((f"a rotation of the platform frame about {axis_names[k].lower()}'", direction(d_b=np.cross(axis, b))))
-    for chain in range(N_CHAINS):
-        gauges.append(
-            (f"a shift of chain_{chain + 1}'s rail start A0 along its rail (a slider zero offset)",
-             direction(d_a0=rails, chain_only=chain))
-        )
+        gauges.append((f"a translation of the base frame along {axis_names[k]}",
+                       direction(arch.frame_motion(params, base_translation=axis))))
+        gauges.append((f"a rotation of the base frame about {axis_names[k]}",
+                       direction(arch.frame_motion(params, base_rotation=axis))))
+        gauges.append((f"a translation of the platform frame along {axis_names[k].lower()}'",
+                       direction(arch.frame_motion(params, platform_translation=axis))))
+        gauges.append((f"a rotation of the platform frame about {axis_names[k].lower()}'",
+                       direction(arch.frame_motion(params, platform_rotation=axis))))
+    for chain in range(params.layout.n_chains):
+        name, delta = arch.actuator_zero_shift(params, chain)
+        gauges.append((name, direction(delta)))
     return [(name, vec) for name, vec in gauges if np.linalg.norm(vec) > 0]
 
 
-def _device_directions(free: np.ndarray | None, scales: np.ndarray) -> list[tuple[str, np.ndarray]]:
+def _device_directions(free: np.ndarray | None, scales: np.ndarray,
+                       n_parameters: int = N_PARAMETERS) -> list[tuple[str, np.ndarray]]:
     """Unit changes of each identified device defect, in scaled free coordinates."""
     from .device import DEVICE_PARAMETER_NAMES
 
-    if free is None or len(free) <= N_PARAMETERS:
+    if free is None or len(free) <= n_parameters:
         return []
     directions = []
     for k, name in enumerate(DEVICE_PARAMETER_NAMES):
         vector = np.zeros(len(free))
-        vector[N_PARAMETERS + k] = 1.0
+        vector[n_parameters + k] = 1.0
         vector = vector[free] * scales
         if np.linalg.norm(vector) > 0:
             directions.append((name, vector))

@@ -36,7 +36,8 @@ from .errors import InvalidMeasurementError, RankDeficientError, TooFewPosturesE
 from .identifiability import DEFAULT_RANK_TOLERANCE, IdentifiabilityReport, analyze, column_scales
 from .kinematics import forward_kinematics, pose_sensitivities
 from .measurements import MeasurementLimits, Measurements, NoiseModel
-from .model import N_PARAMETERS, HexaParameters, parameter_names
+from .architectures import Architecture, KinematicParameters
+from .model import N_PARAMETERS, parameter_names
 from .residuals import COSTS, N_NOISE_SOURCES, ChannelSigma, CostFunction, ResidualBlock
 
 CONVERGED = "converged"
@@ -46,7 +47,7 @@ FLOOR_STEP_M = 1e-9  # a Gauss-Newton step below this (m) is at the rounding flo
 ROBUST_LOSSES = ("huber", "soft_l1")
 MAX_ROUNDS = 20  # outer rounds: re-admitting postures, screening outliers, refitting weights
 IRLS_TOLERANCE = 1e-9  # robust reweighting stops when no unknown moves more than this (m)
-N_UNKNOWNS = N_PARAMETERS + N_DEVICE_PARAMETERS
+N_UNKNOWNS = N_PARAMETERS + N_DEVICE_PARAMETERS  # of a Hexa Slide; any model: n_parameters + 5
 
 
 @functools.lru_cache(maxsize=1)
@@ -55,9 +56,9 @@ def _blas_controller() -> ThreadpoolController:
     return ThreadpoolController()
 
 
-def unknown_names() -> list[str]:
-    """Names of the 54 kinematic parameters followed by the 5 device defects."""
-    return parameter_names() + [f"device.{name}" for name in DEVICE_PARAMETER_NAMES]
+def unknown_names(model: str | None = None) -> list[str]:
+    """Names of the model's kinematic parameters (default: the Hexa Slide's 54) followed by the 5 device defects."""
+    return parameter_names(model) + [f"device.{name}" for name in DEVICE_PARAMETER_NAMES]
 
 
 @dataclass(frozen=True)
@@ -66,7 +67,7 @@ class SolverOptions:
     device: DeviceModel = DeviceModel()
     sigma: ChannelSigma = ChannelSigma()
     limits: MeasurementLimits = MeasurementLimits()
-    free_parameters: tuple[bool, ...] | None = None  # mask over the 54; None = all
+    free_parameters: tuple[bool, ...] | None = None  # mask over the kinematic parameters; None = all
     device_defects: DeviceDefects = DeviceDefects()  # assumed (and starting) device defects
     free_device: tuple[str, ...] = ()  # device defects to identify, names from DEVICE_PARAMETER_NAMES
     noise: NoiseModel | None = None  # known reading noise: whiten the residuals by it
@@ -84,33 +85,34 @@ class SolverOptions:
     branch_tolerance_m: float = 0.2
     branch_tolerance_rad: float = 0.5
 
-    def free_mask(self) -> np.ndarray:
-        """Mask over the 59 unknowns (54 kinematic + 5 device)."""
-        kinematic = np.ones(N_PARAMETERS, bool) if self.free_parameters is None else np.asarray(self.free_parameters, bool)
-        if kinematic.shape != (N_PARAMETERS,):
-            raise ValueError(f"free_parameters must be a mask of {N_PARAMETERS} booleans")
+    def free_mask(self, n_parameters: int = N_PARAMETERS) -> np.ndarray:
+        """Mask over the unknowns: n_parameters kinematic (54 for a Hexa Slide) + 5 device."""
+        kinematic = (np.ones(n_parameters, bool) if self.free_parameters is None
+                     else np.asarray(self.free_parameters, bool))
+        if kinematic.shape != (n_parameters,):
+            raise ValueError(f"free_parameters must be a mask of {n_parameters} booleans")
         unknown = sorted(set(self.free_device) - set(DEVICE_PARAMETER_NAMES))
         if unknown:
             raise ValueError(f"unknown device parameter(s) {unknown}; choose from {', '.join(DEVICE_PARAMETER_NAMES)}")
         device = np.array([name in self.free_device for name in DEVICE_PARAMETER_NAMES])
         return np.concatenate([kinematic, device])
 
-    def validate(self) -> None:
+    def validate(self, n_parameters: int = N_PARAMETERS) -> None:
         if self.cost not in COSTS:
             raise ValueError(f"unknown cost function {self.cost!r}; choose one of {', '.join(COSTS)}")
         if self.robust_loss not in (None, *ROBUST_LOSSES):
             raise ValueError(f"unknown robust loss {self.robust_loss!r}; choose one of {', '.join(ROBUST_LOSSES)}")
         if self.noise is not None and not self.noise.known:
             raise ValueError("a noise model for weighting needs positive slider and angle noise")
-        self.free_mask()
+        self.free_mask(n_parameters)
 
 
 @dataclass
 class IdentificationResult:
-    parameters: HexaParameters
-    initial_parameters: HexaParameters
-    std: np.ndarray  # (54,), NaN for fixed or unidentifiable parameters
-    covariance: np.ndarray  # (59, 59): 54 kinematic then 5 device; zero rows for fixed ones
+    parameters: KinematicParameters
+    initial_parameters: KinematicParameters
+    std: np.ndarray  # (n,), n = 54 for a Hexa Slide; NaN for fixed or unidentifiable parameters
+    covariance: np.ndarray  # (n + 5, n + 5): kinematic then 5 device; zero rows for fixed ones
     rank: int
     condition_number: float
     iterations: int
@@ -144,9 +146,11 @@ class IdentificationResult:
         """The JSON object printed by ``hexacal study --json`` and ``hexacal calibrate --json``."""
         from hexacal_msgs_py.parameters_file import parameters_to_chain_dict
 
+        model = self.parameters.model
         payload = {
-            "parameters": parameters_to_chain_dict(self.parameters.vector),
-            "std": parameters_to_chain_dict(np.nan_to_num(self.std, nan=-1.0)),
+            "model": model,
+            "parameters": parameters_to_chain_dict(self.parameters.vector, model),
+            "std": parameters_to_chain_dict(np.nan_to_num(self.std, nan=-1.0), model),
             "rank": self.rank,
             "condition_number": self.condition_number,
             "solve_seconds": self.solve_seconds,
@@ -170,14 +174,19 @@ class IdentificationResult:
         return payload
 
 
-def _split(vector: np.ndarray) -> tuple[HexaParameters, DeviceDefects]:
-    return HexaParameters(vector[:N_PARAMETERS]), DeviceDefects.from_vector(vector[N_PARAMETERS:])
+def _split(vector: np.ndarray, arch: Architecture) -> tuple[KinematicParameters, DeviceDefects]:
+    """The unknown vector's kinematic parameters (the architecture's) and the 5 device defects after them."""
+    n = arch.layout.n_parameters
+    return arch.parameters(vector[:n]), DeviceDefects.from_vector(vector[n:])
 
 
 class _Problem:
     """The postures in use, their cost function, and FK + residuals for an unknown vector."""
 
-    def __init__(self, measurements: Measurements, used: np.ndarray, options: SolverOptions, free: np.ndarray):
+    def __init__(self, measurements: Measurements, used: np.ndarray, options: SolverOptions, free: np.ndarray,
+                 arch: Architecture):
+        self.arch = arch
+        self.n_parameters = arch.layout.n_parameters
         self.measurements = measurements
         self.used = np.asarray(used, dtype=int)
         self.options = options
@@ -186,9 +195,9 @@ class _Problem:
 
     def without(self, local_indices) -> "_Problem":
         keep = np.setdiff1d(np.arange(len(self.used)), list(local_indices))
-        return _Problem(self.measurements, self.used[keep], self.options, self.free)
+        return _Problem(self.measurements, self.used[keep], self.options, self.free, self.arch)
 
-    def solve_fk(self, params: HexaParameters, start: np.ndarray, fit_tilt_first: bool = False):
+    def solve_fk(self, params: KinematicParameters, start: np.ndarray, fit_tilt_first: bool = False):
         return forward_kinematics(
             params, self.cost.measurements.slider_positions, start,
             tolerance=self.options.fk_tolerance,
@@ -201,15 +210,15 @@ class _Problem:
         return self.cost.initial_poses(defects)
 
     def residuals(self, vector: np.ndarray, poses: np.ndarray) -> ResidualBlock:
-        return self.cost.residuals(poses, None, _split(vector)[1])
+        return self.cost.residuals(poses, None, _split(vector, self.arch)[1])
 
     def jacobian(self, vector: np.ndarray, poses: np.ndarray) -> ResidualBlock:
-        params, defects = _split(vector)
+        params, defects = _split(vector, self.arch)
         # The 5 device columns are only formed when a device defect is identified.
-        with_device = bool(self.free[N_PARAMETERS:].any())
+        with_device = bool(self.free[self.n_parameters:].any())
         block = self.cost.residuals(poses, pose_sensitivities(params, poses), defects, with_device=with_device,
                                     with_noise=False)  # noise derivatives: only row_transform's block needs them
-        columns = self.free if with_device else self.free[:N_PARAMETERS]
+        columns = self.free if with_device else self.free[:self.n_parameters]
         if not columns.all():
             block.jacobian = block.jacobian[:, columns]
         return block
@@ -219,7 +228,7 @@ class _Problem:
         loss = self.options.robust_loss if robust else None
         if self.options.noise is None and loss is None:
             return _RowTransform()
-        params, defects = _split(vector)
+        params, defects = _split(vector, self.arch)
         raw = self.cost.residuals(poses, pose_sensitivities(params, poses), defects, with_device=True)
         return _RowTransform(raw, self.options.noise, loss)
 
@@ -317,7 +326,7 @@ def _robust_weights(values: np.ndarray, loss: str) -> np.ndarray:
     return np.sqrt(weights)
 
 
-def _identify_once(nominal: HexaParameters, measurements: Measurements, options: SolverOptions) -> IdentificationResult:
+def _identify_once(nominal: KinematicParameters, measurements: Measurements, options: SolverOptions) -> IdentificationResult:
     """Identify the parameters (and chosen device defects) from measured postures, starting from ``nominal``.
 
     Postures whose forward kinematics fails (with the nominal parameters, or at
@@ -330,9 +339,10 @@ def _identify_once(nominal: HexaParameters, measurements: Measurements, options:
     'iteration-limit' or 'diverged'.
     """
     started = time.perf_counter()
-    options.validate()
+    n_parameters = nominal.layout.n_parameters
+    options.validate(n_parameters)
     measurements.validate(options.limits)
-    free = options.free_mask()
+    free = options.free_mask(n_parameters)
     start = np.concatenate([nominal.vector, options.device_defects.vector])
     cost = CostFunction(options.cost, measurements, options.device, options.sigma)
     missing = cost.missing_postures()
@@ -342,7 +352,8 @@ def _identify_once(nominal: HexaParameters, measurements: Measurements, options:
     unused = {int(i): f"not used by the {options.cost} cost function" for i in np.flatnonzero(~usable)}
     # Small dense problems run fastest on one BLAS thread; more threads only add contention.
     with _blas_controller().limit(limits=1, user_api="blas"):
-        problem, poses, set_aside = _admit(start, _Problem(measurements, np.flatnonzero(usable), options, free),
+        problem, poses, set_aside = _admit(start, _Problem(measurements, np.flatnonzero(usable), options, free,
+                                                                 nominal.architecture),
                                            "with the nominal parameters")
         problem.check_enough({**unused, **set_aside})
         solver = _run(problem, start, poses, options)
@@ -383,7 +394,7 @@ def _identify_once(nominal: HexaParameters, measurements: Measurements, options:
     return result
 
 
-def identify(nominal: HexaParameters, measurements: Measurements, options: SolverOptions = SolverOptions()) -> IdentificationResult:
+def identify(nominal: KinematicParameters, measurements: Measurements, options: SolverOptions = SolverOptions()) -> IdentificationResult:
     """Identify the parameters (and chosen device defects) from measured postures, starting from ``nominal``.
 
     See ``_identify_once`` for the procedure.  With ``allow_rank_deficient`` a
@@ -397,13 +408,14 @@ def identify(nominal: HexaParameters, measurements: Measurements, options: Solve
     if result.identifiability.identifiable or not options.allow_rank_deficient:
         return result
     held = result.identifiability.unidentifiable_parameters
-    free = options.free_mask() & ~np.isin(unknown_names(), held)
-    reduced = replace(options, free_parameters=tuple(bool(f) for f in free[:N_PARAMETERS]),
-                      free_device=tuple(n for n, f in zip(DEVICE_PARAMETER_NAMES, free[N_PARAMETERS:]) if f))
+    n = nominal.layout.n_parameters
+    free = options.free_mask(n) & ~np.isin(unknown_names(nominal.model), held)
+    reduced = replace(options, free_parameters=tuple(bool(f) for f in free[:n]),
+                      free_device=tuple(name for name, f in zip(DEVICE_PARAMETER_NAMES, free[n:]) if f))
     again = _identify_once(nominal, measurements, reduced)
     again.identifiability, again.rank = result.identifiability, result.rank
     again.held_for_identifiability = held
-    again.std[np.isin(parameter_names(), held)] = np.nan
+    again.std[np.isin(parameter_names(nominal.model), held)] = np.nan
     return again
 
 
@@ -415,7 +427,7 @@ def _run(problem: "_Problem", vector: np.ndarray, poses: np.ndarray, options: So
 
 def _admit(vector: np.ndarray, problem: "_Problem", context: str):
     """FK from the expected postures; keep those that converge, set the others aside with the reason."""
-    params, defects = _split(vector)
+    params, defects = _split(vector, problem.arch)
     fk = problem.solve_fk(params, problem.expected_poses(defects), fit_tilt_first=True)
     failed = sorted(fk.failures)
     set_aside = {int(problem.used[i]): f"forward kinematics {context}: {fk.failures[i]}" for i in failed}
@@ -428,7 +440,7 @@ def _readmit(problem: "_Problem", vector: np.ndarray, poses: np.ndarray, set_asi
     retry_indices = np.array(sorted(i for i, why in set_aside.items() if why.startswith("forward kinematics")))
     if retry_indices.size == 0:
         return problem, poses, False
-    retry = _Problem(problem.measurements, retry_indices, options, problem.free)
+    retry = _Problem(problem.measurements, retry_indices, options, problem.free, problem.arch)
     readmitted, readmitted_poses, still = _admit(vector, retry, "with the identified parameters")
     for index in retry_indices:
         set_aside.pop(int(index), None)
@@ -438,7 +450,7 @@ def _readmit(problem: "_Problem", vector: np.ndarray, poses: np.ndarray, set_asi
     merged = np.concatenate([problem.used, readmitted.used])
     order = np.argsort(merged)
     merged_poses = np.concatenate([poses, readmitted_poses])[order]
-    return _Problem(problem.measurements, merged[order], options, problem.free), merged_poses, True
+    return _Problem(problem.measurements, merged[order], options, problem.free, problem.arch), merged_poses, True
 
 
 def _outliers(problem: "_Problem", vector: np.ndarray, poses: np.ndarray, options: SolverOptions) -> dict[int, str]:
@@ -483,11 +495,11 @@ class _LevenbergMarquardt:
         self.dropped: dict[int, str] = {}
 
     @property
-    def params(self) -> HexaParameters:
-        return _split(self.vector)[0]
+    def params(self) -> KinematicParameters:
+        return _split(self.vector, self.problem.arch)[0]
 
     def free_names(self) -> list[str]:
-        return [n for n, f in zip(unknown_names(), self.free) if f]
+        return [n for n, f in zip(unknown_names(self.problem.arch.name), self.free) if f]
 
     def _set_block(self, raw_block: ResidualBlock, first: bool = False) -> None:
         """Take the (unweighted) residuals and Jacobian at the current vector; reduce them to normal equations."""
@@ -551,7 +563,7 @@ class _LevenbergMarquardt:
 
     def _step(self, normal: "_NormalEquations", damping: float) -> np.ndarray:
         """LM step over all unknowns for one damping value (zero along unidentifiable directions)."""
-        step = np.zeros(N_UNKNOWNS)
+        step = np.zeros(len(self.free))
         step[self.free] = normal.scaled_step(damping) / self.scales
         return step
 
@@ -559,7 +571,7 @@ class _LevenbergMarquardt:
         """(vector, poses, cost) of a trial step; None if it fails; {index: why} for a few FK failures."""
         vector = self.vector + step
         try:
-            params, _ = _split(vector)
+            params, _ = _split(vector, self.problem.arch)
         except ValueError:  # the step left the valid parameter set (|a_xy| >= 1, absurd device defects)
             return None
         fk = self.problem.solve_fk(params, self.poses)
@@ -583,7 +595,7 @@ class _LevenbergMarquardt:
         self.transform = self.problem.row_transform(self.vector, self.poses)
         self._set_block(self.problem.jacobian(self.vector, self.poses))
 
-    def result(self, nominal: HexaParameters, rejected: dict[int, str], started: float) -> IdentificationResult:
+    def result(self, nominal: KinematicParameters, rejected: dict[int, str], started: float) -> IdentificationResult:
         used = self.problem.used
         report = self.analyze()
         weighted = self.transform.whitener is not None
@@ -592,12 +604,13 @@ class _LevenbergMarquardt:
         std_all = np.sqrt(np.diag(covariance))
         std_all[~self.free] = np.nan
         std_all[np.isinf(std_all)] = np.nan
-        params, defects = _split(self.vector)
+        params, defects = _split(self.vector, self.problem.arch)
+        n = self.problem.n_parameters
         sigma = self.options.sigma
         return IdentificationResult(
             parameters=params,
             initial_parameters=nominal,
-            std=std_all[:N_PARAMETERS],
+            std=std_all[:n],
             covariance=np.nan_to_num(covariance, nan=0.0, posinf=0.0),
             rank=report.rank,
             condition_number=report.condition_number,
@@ -615,8 +628,8 @@ class _LevenbergMarquardt:
             identifiability=report,
             poses=self.poses,
             device=defects,
-            device_std=std_all[N_PARAMETERS:],
-            free_device=tuple(n for n, f in zip(DEVICE_PARAMETER_NAMES, self.free[N_PARAMETERS:]) if f),
+            device_std=std_all[n:],
+            free_device=tuple(name for name, f in zip(DEVICE_PARAMETER_NAMES, self.free[n:]) if f),
             variance_factor=variance_factor,
             weighted=weighted,
             robust_loss=self.options.robust_loss,
@@ -690,7 +703,7 @@ def _covariance(normal: _NormalEquations, rows: int, scales: np.ndarray, free: n
     """
     variance = normal.squared_norm / max(rows - normal.rank, 1)
     factor = 1.0 if known_noise else variance
-    covariance = np.zeros((N_UNKNOWNS, N_UNKNOWNS))
+    covariance = np.zeros((len(free), len(free)))
     covariance[np.ix_(free, free)] = factor * normal.scaled_inverse() / np.outer(scales, scales)
     if normal.rank < len(normal.eigenvalues):
         weak = np.flatnonzero(np.any(np.abs(normal.eigenvectors[:, ~normal.keep]) > 1e-6, axis=1))
