@@ -18,34 +18,74 @@ EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
 def _add_params_parser(subparsers) -> None:
     subparsers.add_parser(
         "params",
-        help="write a parameters YAML: the exact Table 1 machine or a nominal set 1-3",
-        description="Write a ROS 2 parameters YAML (SI units) for the Table 1 machine or one of the paper's "
-        "nominal sets (Table 1 + seeded errors with Table 2's statistics).",
+        help="write a parameters YAML: a model's default machine (Table 1) or a nominal set 1-3",
+        description="Write a ROS 2 parameters YAML (SI units) for the default machine of a model (the Hexa "
+        "Slide of Table 1, or the default Gough-Stewart platform) or one of its nominal sets (the default "
+        "machine + seeded errors with Table 2's statistics).",
         fill=_params_arguments,
     )
 
 
 def _params_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("which", choices=("table1", "nominal"), help="table1: exact machine; nominal: nominal set")
+    from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
+
+    parser.add_argument("which", choices=("table1", "default", "nominal"),
+                        help="table1: the exact Table 1 Hexa Slide; default: the model's default machine "
+                        "(Table 1 for hexa_slide); nominal: a nominal set")
+    parser.add_argument("--model", choices=tuple(MODELS), default=DEFAULT_MODEL,
+                        help=f"machine model (default {DEFAULT_MODEL})")
     parser.add_argument("--set", type=int, choices=(1, 2, 3), default=2, help="nominal set (default 2)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the nominal errors (default 0)")
     parser.add_argument("--out", type=Path, required=True, help="output YAML file")
     parser.set_defaults(handler=_write_params)
 
 
+TABLE1_COMMENT = "Table 1 of Rauf, Kim, Ryu (exact machine), SI units"
+
+
 def _write_params(args) -> int:
+    from hexacal_msgs_py.models import HEXA_SLIDE
     from hexacal_msgs_py.parameters_file import save_parameters
 
-    from .core.model import nominal_set, table1_parameters
+    from .core.architectures import default_parameters
+    from .core.model import nominal_set
 
-    if args.which == "table1":
-        params, comment = table1_parameters(), "Table 1 of Rauf, Kim, Ryu (exact machine), SI units"
+    if args.which == "table1" and args.model != HEXA_SLIDE:
+        raise ValueError(f"table1 is the Hexa Slide of Rauf, Kim, Ryu's Table 1, not a {args.model}; "
+                         f"write `default` for the default {args.model} machine")
+    if args.which in ("table1", "default"):
+        params = default_parameters(args.model)
+        comment = default_machine_comment(args.model, params.vector)
     else:
-        params = nominal_set(args.set, seed=args.seed)
-        comment = f"nominal set {args.set} (Table 1 + errors with Table 2 statistics, seed {args.seed}), SI units"
-    save_parameters(args.out, params.vector, header_comment=comment)
+        params = nominal_set(args.set, seed=args.seed, model=args.model)
+        machine = "Table 1" if args.model == HEXA_SLIDE else f"the default {args.model} machine"
+        comment = f"nominal set {args.set} ({machine} + errors with Table 2 statistics, seed {args.seed}), SI units"
+    save_parameters(args.out, params.vector, header_comment=comment, model=args.model)
     print(f"wrote {args.out}")
     return EXIT_OK
+
+
+def default_machine_comment(model: str, vector) -> str:
+    """Header comment of the default-machine file of `model` (what hexacal_identify/data/ ships)."""
+    import numpy as np
+
+    from hexacal_msgs_py.models import HEXA_SLIDE, MODELS
+
+    from .core.architectures import architecture
+
+    if model == HEXA_SLIDE:
+        return TABLE1_COMMENT
+    arch = architecture(model)
+    low, high = arch.default_workspace().slider_stroke_m
+    chains = np.asarray(vector, dtype=float).reshape(6, -1)
+    base_radius = float(np.mean(np.hypot(chains[:, 0], chains[:, 1])))
+    platform_radius = float(np.mean(np.hypot(chains[:, 3], chains[:, 4])))
+    offsets = chains[:, MODELS[model].fields.index("l0")]
+    return (f"Default {MODELS[model].title} of hexacal (SI units): base joints on a {base_radius:.2f} m circle,\n"
+            f"platform joints on a {platform_radius:.2f} m circle, with mm-level as-built irregularity.\n"
+            f"Stroke limits ({low:g}, {high:g}) m of the actuator reading lambda; l0 {offsets.min():.4f}-"
+            f"{offsets.max():.4f} m, so legs {offsets.min() + low:.2f}-{offsets.max() + high:.2f} m.\n"
+            f"Written by `hexacal params default --model {model}`.")
 
 
 def build_parser(fill: bool = True) -> argparse.ArgumentParser:
@@ -60,7 +100,7 @@ def build_parser(fill: bool = True) -> argparse.ArgumentParser:
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", action=LazySubcommands)
     cli_study.add_parser(subparsers)
     _add_params_parser(subparsers)
-    for module_name in ("cli_bag", "cli_demo", "cli_plan_report"):
+    for module_name in ("cli_bag", "cli_demo", "cli_plan_report", "cli_export"):
         module = _optional_module(module_name)
         if module is not None:
             module.add_parsers(subparsers)
