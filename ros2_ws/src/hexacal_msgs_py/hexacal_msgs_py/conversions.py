@@ -3,6 +3,13 @@
 Imports the message packages but not rclpy, so it works in offline tools
 (e.g. bag processing). Joints are looked up by name: order does not matter and
 extra joints are ignored.
+
+The actuator joints depend on the machine model (models.py): ``slider_1..6``
+on a Hexa Slide, ``leg_1..6`` on a Gough-Stewart platform. Every conversion
+that reads or writes actuator joints or parameters takes ``model`` (a model
+name or a ``ModelLayout``), defaulting to the Hexa Slide, so callers written
+before other models existed keep working unchanged. `actuator_model` tells
+which model a message's joint names belong to.
 """
 
 from __future__ import annotations
@@ -18,16 +25,15 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, Header, MultiArrayDimension, MultiArrayLayout
 
 from hexacal_msgs_py.errors import InvalidParametersError, InvalidReadingError
-from hexacal_msgs_py.names import (
-    ENCODER_NAMES,
-    INCLINOMETER_NAMES,
-    N_CHAINS,
-    N_PARAMETERS,
-    N_PARAMETERS_PER_CHAIN,
-    PARAMETER_FIELDS,
-    POSTURE_NAMES,
-    SLIDER_NAMES,
+from hexacal_msgs_py.models import (
+    DEFAULT_MODEL,
+    MODELS,
+    ModelLayout,
+    model_for_actuator_names,
+    model_for_vector_size,
+    model_layout,
 )
+from hexacal_msgs_py.names import ENCODER_NAMES, INCLINOMETER_NAMES
 from hexacal_msgs_py.parameters_file import validate_parameters
 from hexacal_msgs_py.readings import (
     EncoderReading,
@@ -38,11 +44,27 @@ from hexacal_msgs_py.readings import (
 
 NS_PER_S = 1_000_000_000
 
-# Float64MultiArray layout of the parameters topic: 6 chains x 9 fields.
-PARAMETERS_LAYOUT: tuple[tuple[str, int, int], ...] = (
-    ('chain', N_CHAINS, N_PARAMETERS),
-    (','.join(PARAMETER_FIELDS), N_PARAMETERS_PER_CHAIN, N_PARAMETERS_PER_CHAIN),
-)
+ModelArgument = str | ModelLayout | None  # a model name or layout; None: the Hexa Slide
+
+
+def layout_of(model: ModelArgument = None) -> ModelLayout:
+    """The layout `model` names (None: the Hexa Slide; an unknown name: InvalidParametersError)."""
+    if isinstance(model, ModelLayout):
+        return model
+    return model_layout(DEFAULT_MODEL if model is None else model)
+
+
+def parameters_layout(model: ModelArgument = None) -> tuple[tuple[str, int, int], ...]:
+    """Float64MultiArray layout (label, size, stride) of a model's parameters: chains x fields."""
+    layout = layout_of(model)
+    return (('chain', layout.n_chains, layout.n_parameters),
+            (','.join(layout.fields), layout.fields_per_chain, layout.fields_per_chain))
+
+
+# Float64MultiArray layout of the parameters topic for the Hexa Slide: 6 chains x 9 fields
+# (Gough-Stewart: 6 x 7, parameters_layout('gough_stewart')).
+PARAMETERS_LAYOUT: tuple[tuple[str, int, int], ...] = parameters_layout()
+_MODEL_OF_PARAMETERS_LAYOUT = {parameters_layout(layout): layout for layout in MODELS.values()}
 
 DIAGNOSTIC_LEVELS = {
     'OK': DiagnosticStatus.OK,
@@ -99,9 +121,17 @@ def _joint_state(stamp: int, names: Sequence[str], positions: Sequence[float],
     )
 
 
-def joint_state_to_slider_reading(msg: JointState) -> SliderReading:
-    """JointState with joints slider_1..slider_6 (m) -> SliderReading."""
-    positions = _joint_positions(msg, SLIDER_NAMES, 'sliders')
+def actuator_model(names: Sequence[str]) -> ModelLayout | None:
+    """The model whose six actuator joints all appear in `names` (a JointState's name list), or None."""
+    return model_for_actuator_names(names)
+
+
+def joint_state_to_slider_reading(msg: JointState, model: ModelArgument = None) -> SliderReading:
+    """JointState with the model's actuator joints (m) -> SliderReading.
+
+    Hexa Slide (default): slider_1..slider_6; Gough-Stewart: leg_1..leg_6.
+    """
+    positions = _joint_positions(msg, layout_of(model).actuator_names, 'sliders')
     return SliderReading(stamp_ns(msg.header.stamp), tuple(positions))
 
 
@@ -117,14 +147,22 @@ def joint_state_to_encoder_reading(msg: JointState) -> EncoderReading:
     return EncoderReading(stamp_ns(msg.header.stamp), phi)
 
 
-def joint_state_to_posture_reading(msg: JointState) -> PostureReading:
-    """JointState with all POSTURE_NAMES joints -> PostureReading."""
-    values = _joint_positions(msg, POSTURE_NAMES, 'posture')
+def joint_state_to_posture_reading(msg: JointState, model: ModelArgument = None) -> PostureReading:
+    """JointState with all of the model's posture joints -> PostureReading.
+
+    The posture joints are the six actuators of the model (Hexa Slide, the
+    default: slider_1..6; Gough-Stewart: leg_1..6), then inclinometer_x,
+    inclinometer_y, rotary.
+    """
+    values = _joint_positions(msg, layout_of(model).posture_names, 'posture')
     return PostureReading.from_values(stamp_ns(msg.header.stamp), values)
 
 
-def slider_reading_to_joint_state(reading: SliderReading, frame_id: str = '') -> JointState:
-    return _joint_state(reading.stamp_ns, SLIDER_NAMES, reading.slider_positions, frame_id)
+def slider_reading_to_joint_state(reading: SliderReading, frame_id: str = '',
+                                  model: ModelArgument = None) -> JointState:
+    """SliderReading -> JointState with the model's actuator joints (default slider_1..6)."""
+    return _joint_state(reading.stamp_ns, layout_of(model).actuator_names,
+                        reading.slider_positions, frame_id)
 
 
 def inclinometer_reading_to_joint_state(
@@ -137,35 +175,59 @@ def encoder_reading_to_joint_state(reading: EncoderReading, frame_id: str = '') 
     return _joint_state(reading.stamp_ns, ENCODER_NAMES, (reading.phi,), frame_id)
 
 
-def posture_reading_to_joint_state(reading: PostureReading, frame_id: str = '') -> JointState:
-    return _joint_state(reading.stamp_ns, POSTURE_NAMES, reading.values(), frame_id)
+def posture_reading_to_joint_state(reading: PostureReading, frame_id: str = '',
+                                   model: ModelArgument = None) -> JointState:
+    """PostureReading -> JointState with the model's posture joints (default: the Hexa Slide's)."""
+    return _joint_state(reading.stamp_ns, layout_of(model).posture_names, reading.values(),
+                        frame_id)
 
 
-def parameters_to_multiarray(vector: object) -> Float64MultiArray:
-    """54-vector -> Float64MultiArray with a 6 x 9 (chain x field) layout."""
-    array = validate_parameters(vector)
+def parameters_to_multiarray(vector: object, model: ModelArgument = None) -> Float64MultiArray:
+    """Parameter vector -> Float64MultiArray with a chain x field layout.
+
+    `model` defaults to the one model of the vector's size (54: Hexa Slide,
+    6 x 9; 42: Gough-Stewart, 6 x 7); the dimension labels name the fields.
+    """
+    array = validate_parameters(vector, model)
+    if model is None:
+        model = model_for_vector_size(array.size)
     layout = MultiArrayLayout(
         dim=[MultiArrayDimension(label=label, size=size, stride=stride)
-             for label, size, stride in PARAMETERS_LAYOUT],
+             for label, size, stride in parameters_layout(model)],
         data_offset=0,
     )
     return Float64MultiArray(layout=layout, data=array.tolist())
 
 
-def multiarray_to_parameters(msg: Float64MultiArray) -> np.ndarray:
-    """Float64MultiArray from parameters_to_multiarray() -> 54-vector (checked)."""
+def multiarray_model(msg: Float64MultiArray) -> ModelLayout:
+    """The model whose layout a parameters message carries (InvalidParametersError if none)."""
     layout = tuple((d.label, d.size, d.stride) for d in msg.layout.dim)
-    if layout != PARAMETERS_LAYOUT:
+    if layout not in _MODEL_OF_PARAMETERS_LAYOUT:
+        expected = ' or '.join(f'{parameters_layout(m)} ({m.name})' for m in MODELS.values())
         raise InvalidParametersError(
-            f'parameters message layout must be {PARAMETERS_LAYOUT} (label, size, stride), '
-            f'got {layout}')
+            f'parameters message layout must be {expected} (label, size, stride), got {layout}')
+    return _MODEL_OF_PARAMETERS_LAYOUT[layout]
+
+
+def multiarray_to_parameters(msg: Float64MultiArray, model: ModelArgument = None) -> np.ndarray:
+    """Float64MultiArray from parameters_to_multiarray() -> parameter vector (checked).
+
+    Without `model` the layout of any known model is accepted (multiarray_model
+    tells which); with `model`, only that model's.
+    """
+    layout = tuple((d.label, d.size, d.stride) for d in msg.layout.dim)
+    if model is not None and layout != parameters_layout(model):
+        raise InvalidParametersError(
+            f'parameters message layout must be {parameters_layout(model)} (label, size, stride) '
+            f'for a {layout_of(model).name}, got {layout}')
+    found = multiarray_model(msg)
     if msg.layout.data_offset != 0:
         raise InvalidParametersError(
             f'parameters message data_offset must be 0, got {msg.layout.data_offset}')
-    if len(msg.data) != N_PARAMETERS:
+    if len(msg.data) != found.n_parameters:
         raise InvalidParametersError(
-            f'parameters message must hold {N_PARAMETERS} values, got {len(msg.data)}')
-    return validate_parameters(np.asarray(msg.data, dtype=np.float64))
+            f'parameters message must hold {found.n_parameters} values, got {len(msg.data)}')
+    return validate_parameters(np.asarray(msg.data, dtype=np.float64), found.name)
 
 
 def _level_byte(level: int | bytes | str) -> bytes:

@@ -3,7 +3,14 @@
 Topic and service names are relative so that a node's namespace applies.
 """
 
-from hexacal_msgs_py.models import DEVICE_JOINT_NAMES, GOUGH_STEWART, HEXA_SLIDE, MODELS
+from hexacal_msgs_py.models import (
+    DEFAULT_MODEL,
+    DEVICE_JOINT_NAMES,
+    GOUGH_STEWART,
+    HEXA_SLIDE,
+    MODELS,
+    model_layout,
+)
 
 _HEXA = MODELS[HEXA_SLIDE]
 
@@ -59,6 +66,16 @@ N_PARAMETERS = N_CHAINS * N_PARAMETERS_PER_CHAIN
 
 # Full name of every entry of the 54-vector, e.g. 'chain_3.ax'.
 PARAMETER_NAMES: tuple[str, ...] = _HEXA.parameter_names
+
+
+def actuator_names(model: str | None = None) -> tuple[str, ...]:
+    """Actuator joint names of `model` on hexacal/sliders (None: the Hexa Slide's slider_1..6)."""
+    return model_layout(DEFAULT_MODEL if model is None else model).actuator_names
+
+
+def posture_names(model: str | None = None) -> tuple[str, ...]:
+    """Joint names of a posture of `model`: its six actuators, inclinometer_x, inclinometer_y, rotary."""
+    return model_layout(DEFAULT_MODEL if model is None else model).posture_names
 
 
 def parameter_index(chain: int, field: str) -> int:

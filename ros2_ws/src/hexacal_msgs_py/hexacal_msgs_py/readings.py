@@ -1,8 +1,10 @@
 """Validated, immutable sensor readings of the hexacal contract (ROS-free).
 
-Units: slider positions (the articular variables lambda_i) in m; inclinometer
-angles alpha (about X) and beta (about Y) and the rotary angle phi in rad;
-stamps in ns.
+Units: slider positions (the articular variables lambda_i: slider positions
+along the rails on a Hexa Slide, leg extensions on a Gough-Stewart platform) in
+m; inclinometer angles alpha (about X) and beta (about Y) and the rotary angle
+phi in rad; stamps in ns.  The readings do not name the model: the six
+actuator values are in chain order whatever their joint names (models.py).
 """
 
 from __future__ import annotations
@@ -58,7 +60,7 @@ def _check_sliders(kind: str, positions: object) -> tuple[float, ...]:
 
 @dataclass(frozen=True)
 class SliderReading:
-    """Positions of the six sliders along their rails (m)."""
+    """The six actuator readings lambda (m): slider positions (Hexa Slide) or leg extensions."""
 
     stamp_ns: int
     slider_positions: tuple[float, ...]
@@ -100,7 +102,7 @@ class EncoderReading:
 
 @dataclass(frozen=True)
 class PostureReading:
-    """One measured posture: slider positions (m) with the device's alpha, beta, phi (rad)."""
+    """One measured posture: the six actuator readings (m) with the device's alpha, beta, phi (rad)."""
 
     stamp_ns: int
     slider_positions: tuple[float, ...]
@@ -135,7 +137,7 @@ class PostureReading:
         )
 
     def values(self) -> tuple[float, ...]:
-        """The nine values in POSTURE_NAMES order."""
+        """The nine values in posture-joint order: six actuators, alpha, beta, phi (POSTURE_NAMES)."""
         return self.slider_positions + (self.alpha, self.beta, self.phi)
 
     @classmethod
