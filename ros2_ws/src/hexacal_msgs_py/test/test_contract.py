@@ -473,3 +473,187 @@ def test_paths_may_be_strings(tmp_path):
     path = str(Path(tmp_path) / 'p.yaml')
     save_parameters(path, example_vector())
     assert load_parameters(path).tobytes() == example_vector().tobytes()
+
+
+# --- models (models.py) and Gough-Stewart parameters files ---------------------
+
+def gs_example_vector() -> np.ndarray:
+    """A valid Gough-Stewart 42-vector with distinct, non-round values."""
+    rng = np.random.default_rng(11)
+    chains = []
+    for chain in range(6):
+        angle = chain * math.pi / 3
+        base = [0.5 * math.cos(angle), 0.5 * math.sin(angle), 0.0] + rng.uniform(-1e-3, 1e-3, 3)
+        platform = [0.2 * math.cos(angle + 0.5), 0.2 * math.sin(angle + 0.5), 0.015] + rng.uniform(-1e-3, 1e-3, 3)
+        chains.append(np.concatenate([base, platform, [0.6 + rng.uniform(-1e-3, 1e-3)]]))
+    return np.concatenate(chains)
+
+
+def gs_dotted_yaml(vector: np.ndarray, model_line: str | None = '    model: gough_stewart') -> str:
+    lines = ['/**:', '  ros__parameters:'] + ([model_line] if model_line else [])
+    for chain, f in enumerate(vector.reshape(6, 7).tolist(), start=1):
+        lines.append(f'    chain_{chain}.A: [{f[0]!r}, {f[1]!r}, {f[2]!r}]')
+        lines.append(f'    chain_{chain}.B: [{f[3]!r}, {f[4]!r}, {f[5]!r}]')
+        lines.append(f'    chain_{chain}.l0: {f[6]!r}')
+    return '\n'.join(lines) + '\n'
+
+
+def test_model_layouts():
+    from hexacal_msgs_py import models
+
+    assert set(models.MODELS) == {'hexa_slide', 'gough_stewart'}
+    assert models.DEFAULT_MODEL == 'hexa_slide' and models.MODEL_KEY == 'model'
+    slide, gs = models.MODELS['hexa_slide'], models.MODELS['gough_stewart']
+    assert slide.n_parameters == 54 and slide.parameter_names == names.PARAMETER_NAMES
+    assert slide.actuator_names == names.SLIDER_NAMES and slide.posture_names == names.POSTURE_NAMES
+    assert gs.n_parameters == 42 and gs.fields_per_chain == 7
+    assert gs.fields == ('Ax', 'Ay', 'Az', 'Bx', 'By', 'Bz', 'l0')
+    assert gs.parameter_units == ('m',) * 42
+    assert gs.parameter_names[:8] == ('chain_1.Ax', 'chain_1.Ay', 'chain_1.Az', 'chain_1.Bx', 'chain_1.By',
+                                      'chain_1.Bz', 'chain_1.l0', 'chain_2.Ax')
+    assert gs.parameter_index(6, 'l0') == 41 and gs.parameter_index(3, 'By') == 18
+    assert gs.parameter_names[gs.parameter_index(4, 'Az')] == 'chain_4.Az'
+    assert gs.actuator_names == tuple(f'leg_{i}' for i in range(1, 7))
+    assert gs.posture_names == gs.actuator_names + ('inclinometer_x', 'inclinometer_y', 'rotary')
+    assert gs.chain_key_names == frozenset(f'chain_{c}.{k}' for c in range(1, 7) for k in ('A', 'B', 'l0'))
+    with pytest.raises(ValueError, match='l0'):
+        gs.parameter_index(1, 'A0x')
+    with pytest.raises(ValueError, match='1..6'):
+        gs.parameter_index(0, 'l0')
+
+
+def test_model_lookups_name_the_problem():
+    from hexacal_msgs_py import models
+
+    assert models.model_layout('gough_stewart').name == 'gough_stewart'
+    for bad in ('stewart', None, 3):
+        with pytest.raises(InvalidParametersError, match='gough_stewart, hexa_slide'):
+            models.model_layout(bad)
+    assert models.model_for_vector_size(54).name == 'hexa_slide'
+    assert models.model_for_vector_size(42).name == 'gough_stewart'
+    with pytest.raises(InvalidParametersError, match='43 values'):
+        models.model_for_vector_size(43)
+    assert models.model_for_actuator_names(['leg_%d' % i for i in range(6, 0, -1)] + ['rotary']).name == \
+        'gough_stewart'
+    assert models.model_for_actuator_names(names.POSTURE_NAMES).name == 'hexa_slide'
+    assert models.model_for_actuator_names(['leg_1', 'leg_2', 'slider_3']) is None
+
+
+def test_gough_stewart_file_round_trips_bit_exact_with_model_and_extras(tmp_path):
+    from hexacal_msgs_py.parameters_file import read_parameters_file
+
+    vector = gs_example_vector()
+    vector[2] = 1e-5
+    vector[5] = -0.0
+    path = tmp_path / 'gs.yaml'
+    save_parameters(path, vector, extras={'bag': 'bags/gs', 'rank': 42}, header_comment='hexapod')
+    text = path.read_text()
+    assert text.startswith('# hexapod\n/**:\n  ros__parameters:\n    model: gough_stewart\n'
+                           '    chain_1.A: [')
+    assert '    chain_6.l0: ' in text and 'A0' not in text
+    contents = read_parameters_file(path)
+    assert contents.model == 'gough_stewart' and contents.layout.n_parameters == 42
+    assert contents.vector.tobytes() == vector.tobytes()
+    assert contents.extras == {'bag': 'bags/gs', 'rank': 42}
+    # Written explicitly as a Gough-Stewart: the same file.
+    again = tmp_path / 'again.yaml'
+    save_parameters(again, vector, extras={'bag': 'bags/gs', 'rank': 42}, header_comment='hexapod',
+                    model='gough_stewart')
+    assert again.read_bytes() == path.read_bytes()
+
+
+def test_gough_stewart_nested_form_and_hexa_slide_defaults(tmp_path):
+    from hexacal_msgs_py.parameters_file import load_model, read_parameters_file
+
+    vector = gs_example_vector()
+    nested = ['/**:', '  ros__parameters:', '    model: gough_stewart']
+    for chain, f in enumerate(vector.reshape(6, 7).tolist(), start=1):
+        nested.append(f'    chain_{chain}: {{A: [{f[0]!r}, {f[1]!r}, {f[2]!r}], '
+                      f'B: [{f[3]!r}, {f[4]!r}, {f[5]!r}], l0: {f[6]!r}}}')
+    path = tmp_path / 'nested.yaml'
+    path.write_text('\n'.join(nested) + '\n')
+    assert read_parameters_file(path).vector.tobytes() == vector.tobytes()
+    # No model key: a Hexa Slide, written as before (no model line); an explicit hexa_slide loads too.
+    slide = tmp_path / 'slide.yaml'
+    save_parameters(slide, example_vector())
+    assert 'model' not in slide.read_text() and load_model(slide) == 'hexa_slide'
+    explicit = tmp_path / 'explicit.yaml'
+    explicit.write_text(dotted_yaml(example_vector()).replace(
+        '  ros__parameters:\n', '  ros__parameters:\n    model: hexa_slide\n'))
+    assert load_model(explicit) == 'hexa_slide'
+    assert load_parameters(explicit).tobytes() == example_vector().tobytes()
+
+
+@pytest.mark.parametrize('text_change, expected', [
+    (('chain_3.A:', 'chain_3.A0:'), 'gs.yaml: chain_3.A0 is not a gough_stewart parameter .*A, B, l0'),
+    (('    chain_2.l0: ', '    chain_2.l: '), 'gs.yaml: chain_2.l is not a gough_stewart parameter'),
+    (('model: gough_stewart', 'model: stewart'), "gs.yaml: model: unknown model 'stewart'"),
+    (('model: gough_stewart', 'model: 7'), 'gs.yaml: model: unknown model 7'),
+    (('    model: gough_stewart\n', ''), 'gs.yaml: chain_1.A is not a hexa_slide parameter'),
+])
+def test_gough_stewart_file_errors_name_file_and_key(tmp_path, text_change, expected):
+    path = tmp_path / 'gs.yaml'
+    path.write_text(gs_dotted_yaml(gs_example_vector()).replace(*text_change, 1))
+    with pytest.raises(ParameterFileError, match=expected):
+        load_parameters(path)
+
+
+@pytest.mark.parametrize('key, value, expected', [
+    ('chain_4.l0', '0.0', 'chain_4.l0 must be > 0 m'),
+    ('chain_1.l0', '-0.6', 'chain_1.l0 must be > 0 m'),
+    ('chain_2.A', '[0.1, 0.2]', 'chain_2.A must have 3 values, got 2'),
+    ('chain_5.B', '[0.1, .nan, 0.2]', 'chain_5.B must be finite'),
+    ('chain_6.l0', '[0.6]', 'chain_6.l0 must be numeric'),
+])
+def test_gough_stewart_validation_errors(tmp_path, key, value, expected):
+    path = tmp_path / 'gs.yaml'
+    path.write_text(_replace_line(gs_dotted_yaml(gs_example_vector()), key, value))
+    with pytest.raises(ParameterFileError, match=f'gs.yaml: {expected}'):
+        load_parameters(path)
+
+
+def test_gough_stewart_missing_key_is_named(tmp_path):
+    path = tmp_path / 'gs.yaml'
+    path.write_text(''.join(line + '\n' for line in gs_dotted_yaml(gs_example_vector()).splitlines()
+                            if 'chain_5.l0' not in line))
+    with pytest.raises(ParameterFileError, match='gs.yaml: missing key chain_5.l0'):
+        load_parameters(path)
+
+
+def test_vector_sizes_pick_or_check_the_model(tmp_path):
+    from hexacal_msgs_py.parameters_file import as_parameter_vector, validate_parameters
+
+    assert as_parameter_vector(gs_example_vector()).shape == (42,)
+    with pytest.raises(InvalidParametersError, match='shape'):
+        as_parameter_vector(np.zeros(43))
+    with pytest.raises(InvalidParametersError, match=r'\(54,\) for a hexa_slide'):
+        as_parameter_vector(gs_example_vector(), 'hexa_slide')
+    with pytest.raises(InvalidParametersError, match=r'\(42,\) for a gough_stewart'):
+        as_parameter_vector(example_vector(), 'gough_stewart')
+    bad = gs_example_vector()
+    bad[13] = -1.0
+    with pytest.raises(InvalidParametersError, match='chain_2.l0 must be > 0'):
+        validate_parameters(bad)
+    path = tmp_path / 'gs.yaml'
+    with pytest.raises(ParameterFileError, match='gs.yaml: .*42'):
+        save_parameters(path, example_vector(), model='gough_stewart')
+    with pytest.raises(ParameterFileError, match='contradicts'):
+        save_parameters(path, gs_example_vector(), extras={'model': 'hexa_slide'})
+    with pytest.raises(ParameterFileError, match='collides'):
+        save_parameters(path, gs_example_vector(), extras={'chain_1': {'l0': 0.6}})
+    assert not path.exists()
+
+
+def test_gough_stewart_chain_dict_round_trip():
+    vector = gs_example_vector()
+    chains = parameters_to_chain_dict(vector)
+    assert list(chains) == [f'chain_{i}' for i in range(1, 7)]
+    assert chains['chain_2'] == {'A': vector[7:10].tolist(), 'B': vector[10:13].tolist(), 'l0': vector[13]}
+    assert parameters_to_chain_dict(vector, 'gough_stewart') == chains
+    decoded = json.loads(json.dumps(chains))
+    assert chain_dict_to_parameters(decoded, model='gough_stewart').tobytes() == vector.tobytes()
+    with pytest.raises(InvalidParametersError, match='chain_1.A is not a hexa_slide parameter'):
+        chain_dict_to_parameters(decoded)  # the default model is the Hexa Slide
+    decoded['chain_4']['l0'] = 0.0
+    with pytest.raises(InvalidParametersError, match='chain_4.l0 must be > 0'):
+        chain_dict_to_parameters(decoded, model='gough_stewart')
