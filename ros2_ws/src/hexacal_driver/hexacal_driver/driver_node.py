@@ -1,7 +1,11 @@
-"""Node `driver`: the simulated Hexa Slide machine with the measuring device attached.
+"""Node `driver`: a simulated machine (Hexa Slide or Gough-Stewart) with the measuring device attached.
 
-Walks a posture plan on the true machine and publishes, at `rate_hz`, the
-slider positions (`hexacal/sliders`), the inclinometer angles
+The true machine is `true_params` (a parameters YAML of either model, which
+names its model), or the default machine of `model` (Hexa Slide: Table 1;
+Gough-Stewart: the default hexapod of core.architectures). Walks a posture plan
+on it and publishes, at `rate_hz`, the actuator readings (`hexacal/sliders`:
+joints slider_1..6 on a Hexa Slide, leg_1..6 on a Gough-Stewart platform), the
+inclinometer angles
 (`hexacal/inclinometer`) and the rotary angle (`hexacal/encoder`), each with
 fresh uniform noise, stamped with the node clock (SENSOR_QOS, SI units).
 
@@ -34,8 +38,8 @@ from sensor_msgs.msg import JointState
 
 from hexacal_driver.plan import GENERATED_PLANS, PlanError, PosturePlan, load_plan, resolve_plan
 from hexacal_driver.simulation import DONE, DWELLING, PlanWalker, SensorSimulator
+from hexacal_identify.core.architectures import KinematicParameters, architecture, parameters_for
 from hexacal_identify.core.measurements import NoiseModel
-from hexacal_identify.core.model import HexaParameters, table1_parameters
 from hexacal_identify.node_runtime import run_node
 from hexacal_msgs_py.conversions import (
     encoder_reading_to_joint_state,
@@ -43,8 +47,9 @@ from hexacal_msgs_py.conversions import (
     slider_reading_to_joint_state,
 )
 from hexacal_msgs_py.errors import ParameterFileError
+from hexacal_msgs_py.models import DEFAULT_MODEL, HEXA_SLIDE, MODELS
 from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, SLIDERS_TOPIC
-from hexacal_msgs_py.parameters_file import load_parameters
+from hexacal_msgs_py.parameters_file import load_parameters, read_parameters_file
 from hexacal_msgs_py.qos import SENSOR_QOS
 from hexacal_msgs_py.readings import EncoderReading, InclinometerReading, SliderReading
 
@@ -67,9 +72,16 @@ class _Spec:
     constraints: str = ''
 
 
+MODEL_CHOICES = ('', *MODELS)
+
 PARAMETERS: dict[str, _Spec] = {
-    'true_params': _Spec('', 'parameters YAML (SI) of the simulated true machine; '
-                         'empty: Table 1 of the paper'),
+    'true_params': _Spec('', 'parameters YAML (SI) of the simulated true machine, of any model '
+                         "(its 'model' key); empty: the default machine of `model` (Hexa Slide: "
+                         'Table 1 of the paper)'),
+    'model': _Spec('', "machine model: 'hexa_slide' or 'gough_stewart'; '' = the model of "
+                   'true_params, else hexa_slide. Without true_params the default machine of '
+                   'the model is simulated; with it, the two must agree',
+                   constraints="'', " + ', '.join(repr(name) for name in MODELS)),
     'link_length': _Spec(0.75, 'measuring link length L between the U-joint centres (m)',
                          0.1, 5.0),
     'slider_noise_m': _Spec(1e-5, 'half-width of the uniform slider noise (m)', 0.0, 0.01),
@@ -124,6 +136,8 @@ def _parameter_problem(parameter: Parameter) -> str | None:
             load_parameters(value)
         except ParameterFileError as error:
             return f'true_params: {error}'
+    elif parameter.name == 'model' and value not in MODEL_CHOICES:
+        return (f"model must be '' or one of {', '.join(MODELS)}, got {value!r}")
     elif parameter.name in ('link_length', 'rate_hz', 'settle_s', 'dwell_s', 'slider_noise_m',
                             'angle_noise_rad') and not math.isfinite(value):
         return f'{parameter.name} must be finite, got {value}'
@@ -142,7 +156,8 @@ class DriverNode(Node):
         self.add_post_set_parameters_callback(self._apply_parameters)
         value = {name: self.get_parameter(name).value for name in PARAMETERS}
 
-        self.true_params = self._load_true_params(value['true_params'])
+        self.true_params = self._load_true_params(value['true_params'], value['model'])
+        self.model = self.true_params.model
         try:
             self.plan: PosturePlan = resolve_plan(value['plan'], self.true_params,
                                                   value['postures'], value['seed'],
@@ -176,12 +191,20 @@ class DriverNode(Node):
         self._last_stamp_ns = -1
         # Preallocated messages: each tick sets the stamps and positions only.
         self._messages = {
-            'sliders': slider_reading_to_joint_state(SliderReading(0, (0.0,) * 6)),
+            'sliders': slider_reading_to_joint_state(SliderReading(0, (0.0,) * 6),
+                                                     model=self.model),
             'inclinometer': inclinometer_reading_to_joint_state(InclinometerReading(0, 0.0, 0.0)),
             'encoder': encoder_reading_to_joint_state(EncoderReading(0, 0.0))}
         self._timer = self.create_timer(self._per_wake / self.rate_hz, self._wake)
 
-        source = 'Table 1' if not value['true_params'] else value['true_params']
+        if value['true_params']:
+            source = value['true_params']
+        elif self.model == HEXA_SLIDE:
+            source = 'Table 1'
+        else:
+            source = f'the default {MODELS[self.model].title}'
+        if self.model != HEXA_SLIDE:
+            source += f' ({self.model}, joints {", ".join(MODELS[self.model].actuator_names)})'
         self.get_logger().info(
             f'{self.plan.describe()}; true machine: {source}; {self.rate_hz:g} Hz, settle '
             f"{self.walker.settle_s:g} s, dwell {self.walker.dwell_s:g} s (one pass "
@@ -193,13 +216,19 @@ class DriverNode(Node):
 
     # ------------------------------------------------------------------ parameters
 
-    def _load_true_params(self, path: str) -> HexaParameters:
+    def _load_true_params(self, path: str, model: str) -> KinematicParameters:
         if not path:
-            return table1_parameters()
+            return architecture(model or DEFAULT_MODEL).default_parameters()
         try:
-            return HexaParameters(load_parameters(path))
+            loaded = read_parameters_file(path)
+            params = parameters_for(loaded.model, loaded.vector)
         except (ParameterFileError, ValueError) as error:
             raise DriverConfigurationError(f'true_params: {error}') from error
+        if model and model != loaded.model:
+            raise DriverConfigurationError(
+                f'model {model!r} contradicts true_params {path}, a {loaded.model} parameters '
+                f"file: leave model '' or name the file's model")
+        return params
 
     def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for parameter in parameters:

@@ -19,11 +19,15 @@ Plan file (YAML, SI units)::
 
 `load_plan` checks everything it can without a machine model and raises
 `PlanError` naming the file, the posture and the problem; `check_reachable`
-then checks a plan against a machine's parameters.
+then checks a plan against a machine's parameters. Plans are the same for every
+architecture (poses of the platform); generated plans draw their poses in the
+architecture's default workspace (Hexa Slide: the paper's; Gough-Stewart: a
+smaller one, legs within their stroke) and a plan is reachable when every
+actuator of that machine stays within the workspace's stroke.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import json
 import math
 import os
@@ -35,7 +39,7 @@ from hexacal_identify.core.device import DEFAULT_LINK_LENGTH_M, inclinometer_ang
 from hexacal_identify.core.errors import UnreachablePoseError
 from hexacal_identify.core.kinematics import inverse_kinematics
 from hexacal_identify.core.measurements import FIXED, POSTURE_KINDS, SPHERE, MeasurementLimits
-from hexacal_identify.core.model import HexaParameters
+from hexacal_identify.core.architectures import KinematicParameters
 from hexacal_identify.core.postures import Workspace, sample_poses
 from hexacal_msgs_py.files import atomic_write
 from hexacal_msgs_py.parameters_file import read_yaml_document
@@ -146,9 +150,18 @@ def _posture_problem(pose: np.ndarray, kind: str, link_length: float,
 # --------------------------------------------------------------------------- generated plans
 
 
-def generated_plan(which: str, params: HexaParameters, count: int, seed: int,
+def machine_workspace(params: KinematicParameters,
+                      link_length: float = DEFAULT_LINK_LENGTH_M) -> Workspace:
+    """The workspace plans are drawn and checked in: the architecture's default, with this link length."""
+    return replace(params.architecture.default_workspace(), link_length=float(link_length))
+
+
+def generated_plan(which: str, params: KinematicParameters, count: int, seed: int,
                    link_length: float = DEFAULT_LINK_LENGTH_M) -> PosturePlan:
-    """'random' (sphere), 'fixed' or 'mixed' (3 sphere : 1 fixed) postures drawn with `seed`."""
+    """'random' (sphere), 'fixed' or 'mixed' (3 sphere : 1 fixed) postures drawn with `seed`.
+
+    Poses come from the architecture's default workspace (machine_workspace).
+    """
     if which not in GENERATED_PLANS:
         raise PlanError(
             f'plan must be one of {list(GENERATED_PLANS)} or a plan file, got {which!r}')
@@ -161,7 +174,7 @@ def generated_plan(which: str, params: HexaParameters, count: int, seed: int,
         counts = {SPHERE: count if which == RANDOM_PLAN else 0,
                   FIXED: count if which == FIXED_PLAN else 0}
     rng = np.random.default_rng([int(seed), 0x9A7])
-    workspace = Workspace(link_length=link_length)
+    workspace = machine_workspace(params, link_length)
     try:
         drawn = {kind: list(sample_poses(params, n, rng, kind, workspace)) if n else []
                  for kind, n in counts.items()}
@@ -253,27 +266,33 @@ def save_plan(path: str | os.PathLike[str], plan: PosturePlan) -> None:
 # --------------------------------------------------------------------------- against a machine
 
 
-def check_reachable(plan: PosturePlan, params: HexaParameters,
-                    workspace: Workspace = Workspace()) -> np.ndarray:
-    """Slider positions (N, 6) of every posture on `params`; PlanError if a posture is out of reach.
+def check_reachable(plan: PosturePlan, params: KinematicParameters,
+                    workspace: Workspace | None = None) -> np.ndarray:
+    """Actuator readings (N, 6) of every posture on `params`; PlanError if a posture is out of reach.
 
-    Out of reach: a leg cannot reach its joint, or a slider is outside the rail stroke.
+    Out of reach: a chain cannot close (Hexa Slide: a leg cannot reach its rail), or an
+    actuator is outside the stroke of `workspace` (default: the architecture's default
+    workspace, whose stroke is the machine's).
     """
+    architecture = params.architecture
+    if workspace is None:
+        workspace = architecture.default_workspace()
     try:
         sliders = inverse_kinematics(params, plan.poses)
     except UnreachablePoseError as error:
         indices = [int(i) for i in error.indices[:10]]
         raise PlanError(f"plan '{plan.name}': posture(s) {indices} cannot be reached by this "
-                        'machine (a leg is shorter than its distance to the rail)') from error
+                        f'machine ({architecture.unreachable_reason})') from error
     low, high = workspace.slider_stroke_m
     outside = np.flatnonzero(np.any((sliders < low) | (sliders > high), axis=1))
     if outside.size:
-        raise PlanError(f"plan '{plan.name}': posture(s) {outside[:10].tolist()} need a slider "
+        actuator = architecture.layout.actuator_prefix
+        raise PlanError(f"plan '{plan.name}': posture(s) {outside[:10].tolist()} need a {actuator} "
                         f'outside the stroke [{low:g}, {high:g}] m')
     return sliders
 
 
-def resolve_plan(spec: str, params: HexaParameters, count: int, seed: int,
+def resolve_plan(spec: str, params: KinematicParameters, count: int, seed: int,
                  link_length: float = DEFAULT_LINK_LENGTH_M) -> PosturePlan:
     """A plan from the driver's `plan` parameter: a generated plan's name or a plan-file path.
 
@@ -288,5 +307,5 @@ def resolve_plan(spec: str, params: HexaParameters, count: int, seed: int,
         if not math.isclose(plan.link_length, link_length, rel_tol=0.0, abs_tol=1e-9):
             raise PlanError(f'{spec}: plan.link_length {plan.link_length!r} m differs from the '
                             f"device's link length {link_length!r} m")
-    check_reachable(plan, params, Workspace(link_length=link_length))
+    check_reachable(plan, params, machine_workspace(params, link_length))
     return plan

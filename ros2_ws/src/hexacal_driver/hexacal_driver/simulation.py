@@ -10,7 +10,9 @@ stands still for `dwell_s`. Motion follows a quintic (minimum-jerk) time law,
 so sliders start and stop smoothly; the platform moves along the great circle
 of the link sphere, as the measuring link forces it to, with the Euler angles
 interpolated linearly. Slider positions are the true machine's inverse
-kinematics of the platform pose.
+kinematics of the platform pose. Any architecture (core.architectures): the
+"sliders" are its six actuator readings (Hexa Slide: slider positions along the
+rails; Gough-Stewart: leg extensions).
 """
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ from hexacal_identify.core.device import inclinometer_angles
 from hexacal_identify.core.errors import UnreachablePoseError
 from hexacal_identify.core.kinematics import inverse_kinematics
 from hexacal_identify.core.measurements import NoiseModel
-from hexacal_identify.core.model import HexaParameters
+from hexacal_identify.core.architectures import KinematicParameters
 
 SETTLING = 'settling'  # moving to the posture (or, at the start, standing at it)
 DWELLING = 'dwelling'  # standing still at the posture: what the collector measures
@@ -63,7 +65,7 @@ class WalkSample:
     """Where the machine is at one instant of the plan."""
 
     pose: np.ndarray  # [x y z theta psi phi], m and rad
-    sliders: np.ndarray  # (6,) slider positions lambda of the true machine, m
+    sliders: np.ndarray  # (6,) actuator readings lambda of the true machine (slider positions), m
     posture_index: int  # the posture being approached or held
     phase: str  # SETTLING, DWELLING or DONE
     lap: int  # 0 for the first pass over the plan; counts up when looping
@@ -72,7 +74,7 @@ class WalkSample:
 class PlanWalker:
     """Time since the plan started -> pose and slider positions of the true machine."""
 
-    def __init__(self, params: HexaParameters, poses: np.ndarray, settle_s: float,
+    def __init__(self, params: KinematicParameters, poses: np.ndarray, settle_s: float,
                  dwell_s: float, loop: bool = False):
         poses = np.atleast_2d(np.asarray(poses, dtype=float))
         if poses.ndim != 2 or poses.shape[1] != 6 or len(poses) == 0:
