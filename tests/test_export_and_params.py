@@ -1,4 +1,5 @@
-"""``hexacal params`` for either model and ``hexacal export`` (LinuxCNC genhexkins HAL, yaml, json), as a user runs them.
+"""``hexacal params`` for either model and ``hexacal export`` (LinuxCNC genhexkins HAL, yaml, json),
+as a user runs them.
 
 The commands run in-process through ``hexacal_identify.cli.main`` (what the
 ``hexacal`` script calls); the start-up import check runs a fresh interpreter.
