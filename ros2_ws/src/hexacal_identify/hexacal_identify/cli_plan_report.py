@@ -7,7 +7,7 @@ from pathlib import Path
 
 from typing import TYPE_CHECKING
 
-from .cli_common import Progress, load_params_arg
+from .cli_common import Progress
 
 if TYPE_CHECKING:
     from .core.planning import PostureLimits
@@ -21,9 +21,11 @@ def add_parsers(subparsers) -> None:
         "plan",
         help="choose K measuring postures that maximise an observability index; write a plan file",
         description="Draw feasible candidate postures (sphere and fixed-position, within the inclinometer range, "
-        "slider stroke, U/S-joint limits, away from singularities), score them with the identification Jacobian "
-        "at the nominal parameters and choose K that maximise the observability index. Writes the driver's "
-        "plan-file format (YAML, SI units) atomically.",
+        "actuator stroke, U/S-joint limits, away from singularities), score them with the identification Jacobian "
+        "at the nominal parameters and choose K that maximise the observability index. The machine model (Hexa "
+        "Slide, Gough-Stewart platform) is the nominal parameters file's; workspace limits not given default to "
+        "that model's workspace. Writes the driver's plan-file format (YAML, SI units, the model under "
+        "plan.model) atomically.",
         fill=_plan_arguments,
     )
     subparsers.add_parser(
@@ -36,7 +38,6 @@ def add_parsers(subparsers) -> None:
 
 
 def _plan_arguments(plan) -> None:
-    from .core.device import DEFAULT_LINK_LENGTH_M
     from .core.planning import CRITERIA, METHODS, PostureLimits
     from .core.residuals import COSTS
 
@@ -48,32 +49,41 @@ def _plan_arguments(plan) -> None:
                       help="greedy (default), or exchange: greedy followed by Fedorov-style swaps")
     plan.add_argument("--candidates", type=int, default=2000, help="candidate postures to choose from (default 2000)")
     plan.add_argument("--cost", choices=COSTS, default="absolute", help="cost function to plan for (default absolute)")
-    plan.add_argument("--nominal", type=Path, help="parameters YAML of the nominal model (default: Table 1)")
+    plan.add_argument("--nominal", type=Path, help="parameters YAML of the nominal machine, of any model (its "
+                      "'model' key; default: the Table 1 Hexa Slide)")
     plan.add_argument("--seed", type=int, default=0, help="seed of the candidate draw (default 0)")
     plan.add_argument("--name", help="plan name (default: method-index-K-fingerprint)")
     plan.add_argument("--noise-um", type=float, default=10.0,
-                      help="weight rows by the reading noise: +-X um sliders, +-X urad angles (default 10; only "
-                      "the slider/angle ratio matters)")
+                      help="weight rows by the reading noise: +-X um actuators, +-X urad angles (default 10; only "
+                      "the actuator/angle ratio matters)")
     plan.add_argument("--unweighted", action="store_true",
                       help="plan on the plain (unweighted) identification Jacobian")
     plan.add_argument("--fixed-fraction", type=float,
                       help="share of fixed-position candidates (default: 0.25 for sphere-fixed/relative, 1 for "
                       "fixed, else 0)")
+    # Workspace limits default (None) to the nominal model's workspace: the Hexa Slide's values in brackets.
     defaults = PostureLimits()
-    plan.add_argument("--link-length", type=float, default=DEFAULT_LINK_LENGTH_M, help="device link length L, m")
-    plan.add_argument("--xy-range-mm", type=float, default=defaults.xy_range_m * 1e3, help="|x|, |y| limit (default 400)")
-    plan.add_argument("--rotation-range-deg", type=float, default=math.degrees(defaults.rotation_range_rad),
-                      help="|theta|, |psi|, |phi| limit (default 35)")
+    plan.add_argument("--link-length", type=float, help=f"device link length L, m (default "
+                      f"{defaults.link_length:g})")
+    plan.add_argument("--xy-range-mm", type=float,
+                      help=f"|x|, |y| limit (default: the model's workspace; Hexa Slide {defaults.xy_range_m * 1e3:g}, "
+                      "Gough-Stewart 250)")
+    plan.add_argument("--rotation-range-deg", type=float,
+                      help=f"|theta|, |psi|, |phi| limit (default: the model's workspace; Hexa Slide "
+                      f"{math.degrees(defaults.rotation_range_rad):g}, Gough-Stewart 20)")
     plan.add_argument("--inclinometer-range-deg", type=float, default=math.degrees(defaults.inclinometer_range_rad),
                       help="inclinometer range (default 45)")
-    plan.add_argument("--slider-stroke-m", type=float, nargs=2, default=list(defaults.slider_stroke_m),
-                      metavar=("MIN", "MAX"), help="slider stroke (default 0 0.9)")
+    plan.add_argument("--stroke-m", "--slider-stroke-m", dest="stroke_m", type=float, nargs=2,
+                      metavar=("MIN", "MAX"), help="actuator stroke: the reading lambda's range (default: the "
+                      "model's; Hexa Slide slider 0 0.9, Gough-Stewart leg extension 0 0.5)")
     plan.add_argument("--max-u-joint-deg", type=float, default=math.degrees(defaults.max_u_joint_angle_rad),
-                      help="max angle between leg and rail at the U joint (default 60)")
+                      help="max angle of the base-side U joint: leg to rail (Hexa Slide), leg to the downward "
+                      "vertical (Gough-Stewart) (default 60)")
     plan.add_argument("--max-s-joint-deg", type=float, default=math.degrees(defaults.max_s_joint_angle_rad),
                       help="max angle between leg and platform normal at the S joint (default 90)")
-    plan.add_argument("--max-condition", type=float, default=defaults.max_condition,
-                      help="max pose-Jacobian condition number, angles scaled by L (default 80)")
+    plan.add_argument("--max-condition", type=float,
+                      help=f"max pose-Jacobian condition number, angles scaled by L (default: the model's "
+                      f"workspace, {defaults.max_condition:g} for both)")
     plan.add_argument("--out", type=Path, required=True, help="plan file to write (YAML)")
     plan.add_argument("--json", action="store_true", help="print one JSON object (no progress display)")
     plan.set_defaults(handler=run_plan)
@@ -86,25 +96,44 @@ def _report_arguments(report) -> None:
     report.set_defaults(handler=run_report)
 
 
-def _limits(args) -> PostureLimits:
+def _limits(args, nominal) -> PostureLimits:
+    """The nominal machine's default limits (its architecture's workspace), with the options given replacing them."""
     from .core.planning import PostureLimits
 
-    low, high = args.slider_stroke_m
-    return PostureLimits(
-        link_length=args.link_length, xy_range_m=args.xy_range_mm / 1e3,
-        rotation_range_rad=math.radians(args.rotation_range_deg),
-        inclinometer_range_rad=math.radians(args.inclinometer_range_deg), slider_stroke_m=(low, high),
-        max_u_joint_angle_rad=math.radians(args.max_u_joint_deg),
-        max_s_joint_angle_rad=math.radians(args.max_s_joint_deg), max_condition=args.max_condition,
-    )
+    given = {
+        "link_length": args.link_length,
+        "xy_range_m": None if args.xy_range_mm is None else args.xy_range_mm / 1e3,
+        "rotation_range_rad": None if args.rotation_range_deg is None else math.radians(args.rotation_range_deg),
+        "actuator_stroke_m": None if args.stroke_m is None else tuple(args.stroke_m),
+        "max_condition": args.max_condition,
+        "inclinometer_range_rad": math.radians(args.inclinometer_range_deg),
+        "max_u_joint_angle_rad": math.radians(args.max_u_joint_deg),
+        "max_s_joint_angle_rad": math.radians(args.max_s_joint_deg),
+    }
+    return PostureLimits.for_machine(nominal, **{name: value for name, value in given.items() if value is not None})
+
+
+def load_nominal(path: Path | None):
+    """The nominal machine: a parameters YAML of any model (its ``model`` key), or the default machine."""
+    from .core.architectures import default_parameters, parameters_for
+
+    if path is None:
+        return default_parameters()
+    from hexacal_msgs_py.parameters_file import read_parameters_file
+
+    contents = read_parameters_file(path)
+    try:
+        return parameters_for(contents.model, contents.vector)
+    except ValueError as error:  # the architecture's own checks: name the file, as the loader does
+        raise ValueError(f"{path}: {error}") from None
 
 
 def run_plan(args) -> int:
     from .core.measurements import NoiseModel
-    from .core.model import N_PARAMETERS, table1_parameters
     from .core.planning import INDICES, PREDICTION, plan_postures
 
-    nominal = load_params_arg(args.nominal) if args.nominal else table1_parameters()
+    nominal = load_nominal(args.nominal)
+    layout = nominal.layout
     if args.out.is_dir():
         raise IsADirectoryError(f"--out {args.out} is a directory; name a YAML file")
     weighted = not args.unweighted and args.cost != "relative" and args.noise_um > 0
@@ -113,7 +142,7 @@ def run_plan(args) -> int:
     progress = Progress(enabled=not args.json, total=steps)
     try:
         planning = plan_postures(nominal, args.postures, index=args.index, method=args.method,
-                                 n_candidates=args.candidates, cost=args.cost, limits=_limits(args),
+                                 n_candidates=args.candidates, cost=args.cost, limits=_limits(args, nominal),
                                  fixed_fraction=args.fixed_fraction, seed=args.seed, noise=noise, name=args.name,
                                  progress=progress.step)
     finally:
@@ -125,15 +154,15 @@ def run_plan(args) -> int:
     counts = {kind: int((plan.kinds == kind).sum()) for kind in ("sphere", "fixed")}
     if args.json:
         print(json.dumps({
-            "out": str(args.out), "name": plan.name, "postures": len(plan), "kinds": counts,
+            "out": str(args.out), "name": plan.name, "model": plan.model, "postures": len(plan), "kinds": counts,
             "index": args.index, "method": args.method, "cost": args.cost, "weighted": weighted,
             "candidates": len(planning.candidates), "rank": planning.rank, "indices": planning.indices, "random_mean_indices": random,
             "candidate_seconds": planning.candidate_seconds, "selection_seconds": planning.selection_seconds,
             "exchange_swaps": max(len(planning.exchange_history) - 1, 0),
         }))
         return 0
-    print(f"plan '{plan.name}': {len(plan)} postures ({counts['sphere']} sphere, {counts['fixed']} fixed) chosen "
-          f"from {len(planning.candidates)} candidates by {args.method} on {args.index} "
+    print(f"plan '{plan.name}' for the {layout.title}: {len(plan)} postures ({counts['sphere']} sphere, "
+          f"{counts['fixed']} fixed) chosen from {len(planning.candidates)} candidates by {args.method} on {args.index} "
           f"({'noise-weighted' if weighted else 'unweighted'}, cost {args.cost})")
     print(f"  candidates {planning.candidate_seconds:.2f} s, selection {planning.selection_seconds:.2f} s"
           + (f", {len(planning.exchange_history) - 1} exchange swaps" if args.method == "exchange" else ""))
@@ -144,9 +173,9 @@ def run_plan(args) -> int:
     if weighted and math.isfinite(error):
         print(f"  predicted RMS position error over the workspace (linearised, noise-weighted fit): "
               f"{error * 1e6:.1f} um planned, {random[PREDICTION] * 1e6:.1f} um random")
-    if planning.rank < N_PARAMETERS:
-        print(f"  note: rank {planning.rank} of {N_PARAMETERS} with the {args.cost} cost, so every index is 0; the "
-              "plan maximises log det(M + delta I), the information on the identifiable part")
+    if planning.rank < layout.n_parameters:
+        print(f"  note: rank {planning.rank} of {layout.n_parameters} with the {args.cost} cost, so every index is 0; "
+              "the plan maximises log det(M + delta I), the information on the identifiable part")
     print(f"wrote {args.out}")
     return 0
 

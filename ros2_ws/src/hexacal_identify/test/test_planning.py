@@ -103,7 +103,7 @@ def test_planning_25_of_2000_takes_seconds():
 @pytest.mark.parametrize("cost", ["absolute", "sphere-fixed", "relative"])
 def test_every_planned_posture_respects_every_limit(cost):
     limits = PostureLimits(inclinometer_range_rad=np.radians(30.0), max_u_joint_angle_rad=np.radians(45.0),
-                           max_s_joint_angle_rad=np.radians(80.0), slider_stroke_m=(0.05, 0.85), max_condition=60.0)
+                           max_s_joint_angle_rad=np.radians(80.0), actuator_stroke_m=(0.05, 0.85), max_condition=60.0)
     planning = plan_postures(NOMINAL, 30, n_candidates=600, cost=cost, limits=limits, seed=5)
     plan = planning.plan
     checks = limits.check(NOMINAL, plan.poses)

@@ -1,27 +1,42 @@
-"""Posture planning: choose the K measuring postures that best determine the 54 parameters.
+"""Posture planning: choose the K measuring postures that best determine the model's parameters.
 
 Measuring a posture costs machine time, so the postures are chosen, not drawn:
 from a large set of feasible candidates (sphere and fixed-position postures,
 section 3.2), K are picked to maximise an observability index of the
-identification Jacobian (eq. 6 / 9 / 11) at the nominal parameters.
+identification Jacobian (eq. 6 / 9 / 11) at the nominal parameters.  Every
+architecture plans the same way: the nominal parameters name their
+architecture (``params.architecture``), which supplies the IK, the
+workspace check and the passive-joint angles; n below is its number of
+parameters (54 for the Hexa Slide, 42 for the Gough-Stewart platform).
 
-Candidates and limits (``PostureLimits``, SI units).  Defaults keep the paper's
-section 4 workspace and reject almost nothing of it:
+Candidates and limits (``PostureLimits``, SI units).  By default the limits are
+the nominal machine's own workspace (``PostureLimits.for_machine``: the
+architecture's ``default_workspace()``, so the Hexa Slide keeps the paper's
+section 4 workspace and the default Gough-Stewart platform gets its own),
+plus the device and joint limits below, which reject almost nothing of either:
 
-* x, y within +-400 mm on the L-sphere, the three Euler angles within +-35 deg (paper);
-* inclinometer range +-45 deg: the +-400 mm square needs up to 42.5 deg at its
-  corners (|alpha|, |beta| <= 37.3 deg on the feasible part), so a common
-  +-45 deg biaxial sensor covers it;
-* slider stroke 0..0.9 m, pose-Jacobian condition number < 80 (angles scaled by
-  L) and leg-rail cosine > 0.2, as ``postures.Workspace`` (away from singularities);
-* U joint (on the slider): angle between the leg and the rail direction <= 60 deg
-  (the feasible workspace needs <= 52 deg);
-* S joint (on the platform): angle between the leg (B -> A) and the platform
-  normal z' <= 90 deg (rejects 0.8 % of the feasible workspace; the median
-  posture already needs 62 deg on its worst leg).
+* x, y within the workspace's range on the L-sphere (Hexa Slide +-400 mm,
+  Gough-Stewart +-250 mm), the three Euler angles within its rotation range
+  (+-35 deg, +-20 deg);
+* inclinometer range +-45 deg: the Hexa Slide's +-400 mm square needs up to
+  42.5 deg at its corners (|alpha|, |beta| <= 37.3 deg on the feasible part),
+  so a common +-45 deg biaxial sensor covers it;
+* actuator stroke (Hexa Slide sliders 0..0.9 m, Gough-Stewart leg extension
+  0..0.5 m), pose-Jacobian condition number < 80 (angles scaled by L) and the
+  architecture's distance from singular legs (``postures.Workspace``);
+* base-side passive joint (the U joint: on the slider of a Hexa Slide, on the
+  base of a Gough-Stewart leg): its angle <= 60 deg, measured from the rail
+  direction (Hexa Slide; the feasible workspace needs <= 52 deg) or from the
+  downward vertical (Gough-Stewart; its workspace needs <= 51 deg);
+* platform-side joint (the S joint): angle between the leg (B -> A) and the
+  platform normal z' <= 90 deg (rejects 0.8 % of the Hexa Slide's feasible
+  workspace, where the median posture already needs 62 deg on its worst leg;
+  nothing of the Gough-Stewart one, which needs <= 74 deg).
+
+The joint angles come from ``Architecture.joint_cosines``.
 
 Observability indices (Sun & Hollerbach 2008; sigma = singular values of the
-column-scaled identification Jacobian, n = 54 parameters, m = postures):
+column-scaled identification Jacobian, n parameters, m = postures):
 
 * O1 = (sigma_1 ... sigma_n)^(1/n) / sqrt(m)  (Borm & Menq; D-optimal, the default)
 * O2 = sigma_min / sigma_max                  (inverse condition number, Driels & Pathre)
@@ -37,7 +52,7 @@ measures it against O1.
 Noise weighting (``noise``, on by default in ``hexacal plan``): each posture's rows
 are whitened by the covariance its reading noise propagates to its residuals.
 Unweighted, the indices favour postures near singularities, where dX/du is large
-but so is the amplified slider noise; weighted, M is the Fisher information and
+but so is the amplified actuator noise; weighted, M is the Fisher information and
 sqrt(trace(W M^-1)) is the predicted RMS position error in metres.
 
 Column scaling: every design is scaled by the same column scales, the RMS
@@ -47,7 +62,7 @@ yardstick).  O1's ranking of designs does not depend on the scaling at all.
 
 Selection: greedy (add the candidate that maximises the index, one at a time;
 the information matrix gets a rank-r update per posture, and all candidates
-are scored at once with batched r x r determinants or 54 x 54 eigenvalues) and
+are scored at once with batched r x r determinants or n x n eigenvalues) and
 Fedorov-style exchange (from the greedy design, swap a design posture for the
 candidate that improves the index most, until a whole pass swaps nothing).
 While the design has fewer rows than parameters every index is zero; the D
@@ -69,12 +84,13 @@ from typing import Callable
 
 import numpy as np
 import yaml
+from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 
-from .device import DEFAULT_LINK_LENGTH_M, DeviceModel, inclinometer_angles
-from .kinematics import leg_geometry, pose_jacobian, pose_parameter_sensitivity
+from .architectures import KinematicParameters
+from .device import DeviceModel, inclinometer_angles
+from .kinematics import pose_parameter_sensitivity
 from .measurements import FIXED, POSTURE_KINDS, SPHERE, NoiseModel, simulate_measurements
-from .model import N_PARAMETERS, HexaParameters
-from .postures import Workspace, acceptable_poses
+from .postures import Workspace
 from .residuals import COSTS, ChannelSigma, CostFunction
 
 INDICES = ("O1", "O2", "O3", "O4")
@@ -91,40 +107,62 @@ def _quiet(_: str) -> None:
 
 
 # --------------------------------------------------------------------------- limits and candidates
+_PAPER_WORKSPACE = Workspace()  # the dataclass defaults: section 4's workspace (the Hexa Slide's default)
+
+
 @dataclass(frozen=True)
 class PostureLimits:
-    """Everything a planned posture must respect (SI units; defaults in the module doc)."""
+    """Everything a planned posture must respect (SI units; module doc).
 
-    link_length: float = DEFAULT_LINK_LENGTH_M
-    xy_range_m: float = 0.400
-    rotation_range_rad: float = float(np.radians(35.0))
+    The field defaults are ``postures.Workspace``'s (the paper's workspace) plus
+    the device and joint limits; ``for_machine(params)`` takes the workspace of
+    the nominal machine's architecture instead, which is what ``plan_postures``
+    uses when it is given no limits.
+    """
+
+    link_length: float = _PAPER_WORKSPACE.link_length
+    xy_range_m: float = float(_PAPER_WORKSPACE.xy_range_m)
+    rotation_range_rad: float = float(_PAPER_WORKSPACE.rotation_range_rad)
     inclinometer_range_rad: float = float(np.radians(45.0))
-    slider_stroke_m: tuple[float, float] = (0.0, 0.9)
-    max_u_joint_angle_rad: float = float(np.radians(60.0))
-    max_s_joint_angle_rad: float = float(np.radians(90.0))
-    max_condition: float = 80.0
-    min_leg_rail_cosine: float = 0.2
+    actuator_stroke_m: tuple[float, float] = tuple(_PAPER_WORKSPACE.slider_stroke_m)  # Workspace's name for it
+    max_u_joint_angle_rad: float = float(np.radians(60.0))  # base-side passive joint
+    max_s_joint_angle_rad: float = float(np.radians(90.0))  # platform-side spherical joint
+    max_condition: float = float(_PAPER_WORKSPACE.max_condition)
+    min_leg_cosine: float = float(_PAPER_WORKSPACE.min_leg_rail_cosine)  # away from singular legs (architecture's)
+
+    @classmethod
+    def from_workspace(cls, workspace: Workspace, **overrides) -> "PostureLimits":
+        """A workspace's limits, the device and joint limits at their defaults; ``overrides`` replace fields."""
+        values = dict(link_length=float(workspace.link_length), xy_range_m=float(workspace.xy_range_m),
+                      rotation_range_rad=float(workspace.rotation_range_rad),
+                      actuator_stroke_m=tuple(float(v) for v in workspace.slider_stroke_m),
+                      max_condition=float(workspace.max_condition),
+                      min_leg_cosine=float(workspace.min_leg_rail_cosine))
+        values.update(overrides)
+        return cls(**values)
+
+    @classmethod
+    def for_machine(cls, params: KinematicParameters, **overrides) -> "PostureLimits":
+        """The default limits for planning on ``params``: its architecture's default workspace."""
+        return cls.from_workspace(params.architecture.default_workspace(), **overrides)
 
     def workspace(self) -> Workspace:
-        return Workspace(self.link_length, self.xy_range_m, self.rotation_range_rad, tuple(self.slider_stroke_m),
-                         self.max_condition, self.min_leg_rail_cosine)
+        return Workspace(self.link_length, self.xy_range_m, self.rotation_range_rad, tuple(self.actuator_stroke_m),
+                         self.max_condition, self.min_leg_cosine)
 
     def to_json(self) -> dict:
         payload = asdict(self)
-        payload["slider_stroke_m"] = list(self.slider_stroke_m)
+        payload["actuator_stroke_m"] = list(self.actuator_stroke_m)
         return payload
 
-    def check(self, params: HexaParameters, poses: np.ndarray) -> dict[str, np.ndarray]:
+    def check(self, params: KinematicParameters, poses: np.ndarray) -> dict[str, np.ndarray]:
         """One mask per limit (True = respected), for N poses (N, 6)."""
         poses = np.atleast_2d(np.asarray(poses, dtype=float))
-        geometry = leg_geometry(params, poses)
-        reachable = np.all(geometry.discriminant > 0.0, axis=1)
+        arch = params.architecture
+        reachable = arch.legs(arch.chains(params), poses).reachable()
         alpha, beta = inclinometer_angles(poses[:, :3])
         with np.errstate(invalid="ignore"):
-            leg_direction = geometry.leg_vectors / np.linalg.norm(geometry.leg_vectors, axis=2, keepdims=True)
-        u_cos = np.einsum("nci,ci->nc", leg_direction, params.rail_directions)
-        platform_normal = geometry.rotations[:, :, 2]  # z' in the base frame
-        s_cos = np.einsum("nci,ni->nc", -leg_direction, platform_normal)
+            u_cos, s_cos = arch.joint_cosines(params, poses)
         tolerance = 1e-9  # the sphere radius is recomputed from x, y; allow its rounding
         on_sphere = np.abs(np.linalg.norm(poses[:, :3], axis=1) - self.link_length) < tolerance
         return {
@@ -132,13 +170,13 @@ class PostureLimits:
             "xy_range": np.all(np.abs(poses[:, :2]) <= self.xy_range_m + tolerance, axis=1),
             "rotation_range": np.all(np.abs(poses[:, 3:6]) <= self.rotation_range_rad + tolerance, axis=1),
             "inclinometer_range": np.maximum(np.abs(alpha), np.abs(beta)) <= self.inclinometer_range_rad,
-            # reachable, slider stroke, leg-rail cosine and condition number, as Workspace defines them
-            "workspace": acceptable_poses(params, poses, self.workspace()),
+            # reachable, actuator stroke, singular legs and condition number, as the architecture defines them
+            "workspace": arch.acceptable_poses(params, poses, self.workspace()),
             "u_joint_angle": reachable & np.all(u_cos >= np.cos(self.max_u_joint_angle_rad), axis=1),
             "s_joint_angle": reachable & np.all(s_cos >= np.cos(self.max_s_joint_angle_rad), axis=1),
         }
 
-    def feasible(self, params: HexaParameters, poses: np.ndarray) -> np.ndarray:
+    def feasible(self, params: KinematicParameters, poses: np.ndarray) -> np.ndarray:
         checks = self.check(params, poses)
         return np.logical_and.reduce(list(checks.values()))
 
@@ -146,16 +184,21 @@ class PostureLimits:
 def default_fixed_fraction(cost: str) -> float:
     """Share of fixed-position candidates: only where the cost function uses them (as study.posture_split).
 
-    Fixed-position postures cost more to take (the sliders are adjusted until the
+    Fixed-position postures cost more to take (the actuators are adjusted until the
     inclinometer reads zero, section 3.2), so costs that gain nothing from them get none.
     """
     return {"fixed": 1.0, "sphere-fixed": 0.25, "relative": 0.25}.get(cost, 0.0)
 
 
-def generate_candidates(params: HexaParameters, n: int, rng: np.random.Generator,
-                        limits: PostureLimits = PostureLimits(), fixed_fraction: float = 0.0
+def generate_candidates(params: KinematicParameters, n: int, rng: np.random.Generator,
+                        limits: PostureLimits | None = None, fixed_fraction: float = 0.0
                         ) -> tuple[np.ndarray, np.ndarray]:
-    """n feasible candidate postures (poses (n, 6), kinds (n,)): sphere ones first, then fixed."""
+    """n feasible candidate postures (poses (n, 6), kinds (n,)): sphere ones first, then fixed.
+
+    ``limits`` None = ``PostureLimits.for_machine(params)``.
+    """
+    if limits is None:
+        limits = PostureLimits.for_machine(params)
     n_fixed = int(round(n * fixed_fraction))
     parts, kinds = [], []
     for kind, count in ((SPHERE, n - n_fixed), (FIXED, n_fixed)):
@@ -203,7 +246,7 @@ def observability_indices(singular_values: np.ndarray, n_postures: int) -> dict[
 
 def observability_index(jacobian: np.ndarray, n_postures: int, index: str = "O1",
                         scales: np.ndarray | None = None) -> float:
-    """One index of a Jacobian (rows x 54); ``scales`` None = unit-norm columns (as identifiability.analyze)."""
+    """One index of a Jacobian (rows x n parameters); ``scales`` None = unit-norm columns (as identifiability.analyze)."""
     if index not in INDICES:
         raise ValueError(f"unknown observability index {index!r}; choose one of {', '.join(INDICES)}")
     if scales is None:
@@ -245,14 +288,18 @@ class CandidateSet:
     poses: np.ndarray
     kinds: np.ndarray
     cost: str
-    scales: np.ndarray  # (54,)
-    rows: np.ndarray  # (N, r, 54)
-    difference_rows: np.ndarray | None = None  # (N, r', 54), relative cost only
+    scales: np.ndarray  # (n,), n = the model's parameters
+    rows: np.ndarray  # (N, r, n)
+    difference_rows: np.ndarray | None = None  # (N, r', n), relative cost only
     # mean of dP/du^T dP/du over the sphere candidates (column-scaled): what the position error weighs
     position_weight: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.poses)
+
+    @property
+    def n_parameters(self) -> int:
+        return len(self.scales)
 
     @property
     def relative(self) -> bool:
@@ -279,7 +326,7 @@ class CandidateSet:
             previous, following = _neighbours(self.kinds, design, slot)
             rows = self.slot_rows(np.array([candidate]), np.array([previous]), np.array([-1]))[0]
             blocks.append(rows)
-        stacked = np.concatenate(blocks) if blocks else np.zeros((0, N_PARAMETERS))
+        stacked = np.concatenate(blocks) if blocks else np.zeros((0, self.n_parameters))
         return stacked[np.any(stacked != 0.0, axis=1)]
 
     def information(self, design: np.ndarray) -> np.ndarray:
@@ -315,15 +362,15 @@ def _neighbours(kinds: np.ndarray, design: np.ndarray, slot: int) -> tuple[int, 
     return (int(same_before[-1]) if same_before else -1, int(same_after[0]) if same_after else -1)
 
 
-def build_candidate_set(nominal: HexaParameters, poses: np.ndarray, kinds: np.ndarray, cost: str = "absolute",
+def build_candidate_set(nominal: KinematicParameters, poses: np.ndarray, kinds: np.ndarray, cost: str = "absolute",
                         device: DeviceModel = DeviceModel(), sigma: ChannelSigma = ChannelSigma(),
                         noise: NoiseModel | None = None) -> CandidateSet:
     """Analytic identification-Jacobian rows of every candidate (pose_parameter_sensitivity + CostFunction).
 
     With ``noise``, each posture's rows are whitened by the covariance the reading
-    noise propagates to its residuals (slider noise through FK, inclinometer
+    noise propagates to its residuals (actuator noise through FK, inclinometer
     noise through eq. 4, rotary noise): near a singularity a posture's rows look
-    large, but so does its slider noise, and whitening tells the two apart.
+    large, but so does its actuator noise, and whitening tells the two apart.
     Not for the relative cost (its rows mix two postures' noise).
     """
     if cost not in COSTS:
@@ -361,9 +408,9 @@ def build_candidate_set(nominal: HexaParameters, poses: np.ndarray, kinds: np.nd
 
 def _noise_rows(function: CostFunction, poses: np.ndarray, legs, block, sigma: ChannelSigma,
                 device: DeviceModel) -> np.ndarray:
-    """d residual / d readings (rows, 9): 6 sliders, alpha, beta, phi, in the order of ``block``'s rows."""
-    slider_sensitivity = np.linalg.inv(legs.pose_jacobian())  # dX / d lambda
-    wrt_sliders = function.residuals(poses, slider_sensitivity).jacobian
+    """d residual / d readings (rows, 9): 6 actuators, alpha, beta, phi, in the order of ``block``'s rows."""
+    actuator_sensitivity = np.linalg.inv(legs.pose_jacobian())  # dX / d lambda
+    wrt_actuators = function.residuals(poses, actuator_sensitivity).jacobian
     wrt_readings = np.zeros((len(block.channels), 3))
     is_phi = block.channels == "phi"
     wrt_readings[is_phi, 2] = 1.0 / sigma.angle_rad  # r = phi_m - phi_c
@@ -379,12 +426,13 @@ def _noise_rows(function: CostFunction, poses: np.ndarray, legs, block, sigma: C
         posture = block.postures[measured_xyz]
         wrt_readings[measured_xyz, 0] = d_alpha[posture, axis] / sigma.position_m
         wrt_readings[measured_xyz, 1] = d_beta[posture, axis] / sigma.position_m
-    return _rows_per_posture(np.column_stack([wrt_sliders, wrt_readings]), block.postures, len(poses))
+    return _rows_per_posture(np.column_stack([wrt_actuators, wrt_readings]), block.postures, len(poses))
 
 
 def _whiten(rows: np.ndarray, noise_rows: np.ndarray, noise: NoiseModel) -> np.ndarray:
     """L^-1 rows per posture, with L L^T the residual covariance (padding rows keep unit variance)."""
-    std = np.array([noise.slider_m] * 6 + [noise.angle_rad] * 3) / np.sqrt(3.0)  # +-a uniform
+    actuators = noise_rows.shape[2] - 3  # the readings: one per actuator, then alpha, beta, phi
+    std = np.array([noise.slider_m] * actuators + [noise.angle_rad] * 3) / np.sqrt(3.0)  # +-a uniform
     weighted = noise_rows * std
     covariance = weighted @ weighted.transpose(0, 2, 1)
     padding = ~np.any(rows != 0.0, axis=2) & ~np.any(noise_rows != 0.0, axis=2)
@@ -393,7 +441,7 @@ def _whiten(rows: np.ndarray, noise_rows: np.ndarray, noise: NoiseModel) -> np.n
 
 
 def _rows_per_posture(jacobian: np.ndarray, postures: np.ndarray, n: int) -> np.ndarray:
-    """Scatter Jacobian rows into (n, max rows per posture, 54), zero-padded."""
+    """Scatter Jacobian rows into (n, max rows per posture, columns), zero-padded."""
     order = np.argsort(postures, kind="stable")
     postures = postures[order]
     counts = np.bincount(postures, minlength=n)
@@ -441,7 +489,7 @@ def greedy_design(candidates: CandidateSet, n_postures: int, index: str = "O1", 
     there, a kind's first posture adds only its phi row (its differences need a
     partner), so one-step greedy would never start the fixed-position kind.
     For O2-O4 only the ``screen`` candidates with the best D-criterion gain are
-    scored exactly (54 x 54 eigenvalues each); O1 and I score every candidate.
+    scored exactly (n x n eigenvalues each); O1 and I score every candidate.
     """
     _check_index(index)
     n = len(candidates)
@@ -450,7 +498,7 @@ def greedy_design(candidates: CandidateSet, n_postures: int, index: str = "O1", 
     available = np.ones(n, bool)
     remaining = dict(kind_counts) if kind_counts is not None else None
     ridge = RIDGE * _mean_posture_information(candidates)
-    information = np.zeros((N_PARAMETERS, N_PARAMETERS))
+    information = np.zeros((candidates.n_parameters, candidates.n_parameters))
     design: list[int] = []
     last_of_kind = {kind: -1 for kind in POSTURE_KINDS}
     history = []
@@ -480,7 +528,7 @@ def greedy_design(candidates: CandidateSet, n_postures: int, index: str = "O1", 
                 available &= candidates.kinds != kind
         last_of_kind[candidates.kinds[choice]] = choice
         information = information + added[best].T @ added[best]
-        history.append(float(np.linalg.slogdet(information + ridge * np.eye(N_PARAMETERS))[1]))
+        history.append(float(np.linalg.slogdet(information + ridge * np.eye(candidates.n_parameters))[1]))
         progress(f"greedy {index}: {step + 1}/{n_postures} postures")
     return np.array(design, dtype=int), history
 
@@ -544,7 +592,7 @@ def _mean_posture_information(candidates: CandidateSet) -> float:
     """Mean eigenvalue of one posture's information: the unit of the ridge."""
     stacked = candidates.rows if not candidates.relative else np.concatenate(
         [candidates.rows, candidates.difference_rows], axis=1)
-    return float(np.einsum("nrk,nrk->", stacked, stacked) / (len(candidates) * N_PARAMETERS))
+    return float(np.einsum("nrk,nrk->", stacked, stacked) / (len(candidates) * candidates.n_parameters))
 
 
 def _check_index(index: str) -> None:
@@ -577,6 +625,7 @@ def travel_order(poses: np.ndarray, kinds: np.ndarray, link_length: float, keep_
 
 # --------------------------------------------------------------------------- the plan
 METADATA_PREFIX = "# hexacal-plan: "  # one comment line of JSON: strict plan loaders skip it, Plan.load reads it
+PLAN_MODEL_KEY = "model"  # in the plan mapping: the machine model (absent = the Hexa Slide, DEFAULT_MODEL)
 
 
 @dataclass
@@ -585,15 +634,21 @@ class Plan:
 
     File format (what ``hexacal_driver.plan.load_plan`` reads)::
 
-        # hexacal-plan: {"index": "O1", ...}      <- planner metadata, a comment
+        # hexacal-plan: {"index": "O1", "model": "gough_stewart", ...}   <- planner metadata, a comment
         plan:
           name: greedy-O1-25-3f2a9c1e
           link_length: 0.75
+          model: gough_stewart
         postures:
           - {kind: sphere, pose: [x, y, z, theta, psi, phi]}
 
-    The metadata rides in a comment because the driver's loader accepts only
-    ``name`` and ``link_length`` in ``plan``; the name ends with the plan's
+    ``plan.model`` names the machine model the postures were planned for (the
+    nominal parameters' architecture), so the driver can refuse a plan made for
+    another machine.  Like the parameters files, a plan without ``model`` is a
+    Hexa Slide's: the key is written only for other models, so Hexa Slide plan
+    files stay as they were.  The metadata (which always names the model) rides
+    in a comment because the driver's loader accepts only ``name``,
+    ``link_length`` (and ``model``) in ``plan``; the name ends with the plan's
     fingerprint, so a bag that records the plan name says exactly which postures it followed.
     """
 
@@ -602,6 +657,7 @@ class Plan:
     poses: np.ndarray
     kinds: np.ndarray
     metadata: dict = field(default_factory=dict)
+    model: str = DEFAULT_MODEL
 
     def __post_init__(self) -> None:
         self.poses = np.atleast_2d(np.asarray(self.poses, dtype=float)).reshape(-1, 6)
@@ -617,6 +673,9 @@ class Plan:
             raise ValueError("plan poses must be finite numbers")
         if not (np.isfinite(self.link_length) and self.link_length > 0):
             raise ValueError(f"plan link_length must be a positive length in m, got {self.link_length}")
+        if self.model not in MODELS:
+            raise ValueError(f"plan model {self.model!r} is not a machine model hexacal knows "
+                             f"({', '.join(sorted(MODELS))})")
 
     def __len__(self) -> int:
         return len(self.poses)
@@ -629,8 +688,10 @@ class Plan:
     def to_text(self) -> str:
         metadata = dict(_plain(self.metadata), fingerprint=self.fingerprint())
         lines = [METADATA_PREFIX + json.dumps(metadata, sort_keys=True),
-                 "plan:", f"  name: {json.dumps(self.name)}", f"  link_length: {float(self.link_length)!r}",
-                 "postures:"]
+                 "plan:", f"  name: {json.dumps(self.name)}", f"  link_length: {float(self.link_length)!r}"]
+        if self.model != DEFAULT_MODEL:  # as parameters files: no model = a Hexa Slide
+            lines.append(f"  {PLAN_MODEL_KEY}: {self.model}")
+        lines.append("postures:")
         for kind, pose in zip(self.kinds, self.poses):
             lines.append(f"  - {{kind: {kind}, pose: [{', '.join(repr(float(v)) for v in pose)}]}}")
         return "\n".join(lines) + "\n"
@@ -671,7 +732,11 @@ class Plan:
                 except (ValueError, TypeError):
                     raise ValueError(f"{path}: its '{METADATA_PREFIX.strip()}' comment is not a JSON object") from None
                 metadata.pop("fingerprint", None)
-        return cls(str(header["name"]), float(header["link_length"]), poses, np.array(kinds), metadata)
+        model = header.get(PLAN_MODEL_KEY, DEFAULT_MODEL)
+        if not isinstance(model, str) or model not in MODELS:
+            raise ValueError(f"{path}: plan.{PLAN_MODEL_KEY} {model!r} is not a machine model hexacal knows "
+                             f"({', '.join(sorted(MODELS))})")
+        return cls(str(header["name"]), float(header["link_length"]), poses, np.array(kinds), metadata, model)
 
 
 def _plain(value):
@@ -692,7 +757,7 @@ class PlanningResult:
     design: np.ndarray  # candidate indices, in plan order
     selection_order: np.ndarray  # the same indices in the order greedy / exchange chose them
     indices: dict[str, float]  # O1..O4 of the plan, and I: its predicted RMS position error (see CandidateSet)
-    rank: int  # of its identification Jacobian: below 54 every index is 0
+    rank: int  # of its identification Jacobian: below the model's parameter count every index is 0
     greedy_history: list[float]
     exchange_history: list[float]
     candidate_seconds: float
@@ -712,13 +777,18 @@ class PlanningResult:
         return means
 
 
-def plan_postures(nominal: HexaParameters, n_postures: int, *, index: str = "O1", method: str = "greedy",
-                  n_candidates: int = 2000, cost: str = "absolute", limits: PostureLimits = PostureLimits(),
+def plan_postures(nominal: KinematicParameters, n_postures: int, *, index: str = "O1", method: str = "greedy",
+                  n_candidates: int = 2000, cost: str = "absolute", limits: PostureLimits | None = None,
                   fixed_fraction: float | None = None, seed: int = 0, sigma: ChannelSigma = ChannelSigma(),
                   noise: NoiseModel | None = None, name: str | None = None,
                   progress: Progress = _quiet) -> PlanningResult:
-    """Candidates -> Jacobian rows at ``nominal`` -> greedy (and exchange) selection -> ordered Plan."""
+    """Candidates -> Jacobian rows at ``nominal`` -> greedy (and exchange) selection -> ordered Plan.
+
+    ``nominal`` names its architecture; ``limits`` None = ``PostureLimits.for_machine(nominal)``.
+    """
     _check_index(index)
+    if limits is None:
+        limits = PostureLimits.for_machine(nominal)
     if method not in METHODS:
         raise ValueError(f"unknown planning method {method!r}; choose one of {', '.join(METHODS)}")
     if n_postures < 1:
@@ -749,9 +819,11 @@ def plan_postures(nominal: HexaParameters, n_postures: int, *, index: str = "O1"
     indices = candidates.indices(design)
     indices[PREDICTION] = candidates.predicted_position_error(design)
     rank = candidates.rank(design)
-    weighting = "none" if noise is None else f"noise slider {noise.slider_m:g} m, angles {noise.angle_rad:g} rad"
+    actuator = nominal.layout.actuator_prefix
+    weighting = "none" if noise is None else f"noise {actuator} {noise.slider_m:g} m, angles {noise.angle_rad:g} rad"
     metadata = {
         "planner": "hexacal plan",
+        "model": nominal.model,
         "index": index,
         "index_value": indices[index],
         "rank": rank,
@@ -763,7 +835,7 @@ def plan_postures(nominal: HexaParameters, n_postures: int, *, index: str = "O1"
         "nominal_fingerprint": hashlib.sha256(np.round(nominal.vector, 12).tobytes()).hexdigest()[:16],
         "limits": limits.to_json(),
     }
-    plan = Plan(name or "plan", limits.link_length, poses[design], kinds[design], metadata)
+    plan = Plan(name or "plan", limits.link_length, poses[design], kinds[design], metadata, nominal.model)
     if name is None:  # default name: what it is and which postures
         plan.name = f"{method}-{index}-{n_postures}-{plan.fingerprint()}"
     return PlanningResult(plan, candidates, design, selection_order, indices, rank, greedy_history, exchange_history,
@@ -771,7 +843,7 @@ def plan_postures(nominal: HexaParameters, n_postures: int, *, index: str = "O1"
 
 
 __all__ = [
-    "CRITERIA", "INDICES", "METHODS", "PREDICTION", "CandidateSet", "Plan", "PlanningResult", "PostureLimits", "build_candidate_set",
+    "CRITERIA", "INDICES", "METHODS", "PLAN_MODEL_KEY", "PREDICTION", "CandidateSet", "Plan", "PlanningResult", "PostureLimits", "build_candidate_set",
     "default_fixed_fraction", "exchange_design", "generate_candidates", "greedy_design", "observability_index",
     "observability_indices", "plan_postures", "travel_order",
 ]
