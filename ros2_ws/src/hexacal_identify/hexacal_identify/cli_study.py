@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 from .cli_common import Progress, load_params_arg
 
 if TYPE_CHECKING:
+    from .core.architectures import KinematicParameters
     from .core.study import StudyRun
 
 # The studies (core.study, planning_study, the device study, figures with matplotlib) are imported where they run:
@@ -22,16 +23,24 @@ def add_parser(subparsers) -> None:
         "study",
         help="reproduce the paper's simulation study (section 4)",
         description="Reproduce section 4 of the paper on the simulated Table 1 machine, print the paper's numbers "
-        "side by side and write PNG figures. With --json, run only the configured calibration and print its result.",
+        "side by side and write PNG figures (--model gough_stewart: the same study of the default Gough-Stewart "
+        "platform). With --json, run only the configured calibration and print its result.",
         fill=add_arguments,
     )
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from hexacal_msgs_py.models import MODELS
+
     from . import cli_study_device, planning_study
     from .core.residuals import COSTS
 
-    parser.add_argument("--true-params", type=Path, help="parameters YAML of the simulated machine (default: Table 1)")
+    parser.add_argument("--model", choices=tuple(MODELS), default=None,
+                        help="machine model studied (default: the model of --true-params / --nominal-params, "
+                        "else hexa_slide); its default machine is simulated when --true-params is not given")
+    parser.add_argument("--true-params", type=Path,
+                        help="parameters YAML of the simulated machine (default: the model's default machine, "
+                        "Table 1 for the Hexa Slide)")
     parser.add_argument("--nominal-params", type=Path, help="parameters YAML to start from (default: nominal set --nominal-set)")
     parser.add_argument("--nominal-set", type=int, choices=(1, 2, 3), default=2, help="Table 2 error set (default 2)")
     parser.add_argument("--postures", type=int, default=50, help="measured postures (default 50)")
@@ -48,13 +57,43 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(handler=run)
 
 
+def _load_params(path: Path) -> KinematicParameters:
+    """A parameters YAML of any model, validated (ParameterFileError names the file and the bad key)."""
+    from hexacal_msgs_py.parameters_file import read_parameters_file
+
+    from .core.architectures import parameters_for
+
+    contents = read_parameters_file(path)
+    return parameters_for(contents.model, contents.vector)
+
+
+def study_model(args) -> str:
+    """The model studied: --model, else the model of the parameters files given, else the Hexa Slide.
+
+    Every model named (option and files) must be the same one: a mismatch is a named error.
+    """
+    from hexacal_msgs_py.models import DEFAULT_MODEL
+    from hexacal_msgs_py.parameters_file import load_model
+
+    named = [(f"--model {args.model}", args.model)] if args.model else []
+    for option, path in (("--true-params", args.true_params), ("--nominal-params", args.nominal_params)):
+        if path is not None:
+            named.append((f"{option} {path} (a {load_model(path)} file)", load_model(path)))
+    models = {model for _, model in named}
+    if len(models) > 1:
+        raise ValueError("the machine models disagree: " + ", ".join(text for text, _ in named)
+                         + "; the simulated machine and the starting model must be the same model")
+    return models.pop() if models else DEFAULT_MODEL
+
+
 def configured_run(args) -> StudyRun:
+    from .core.architectures import default_parameters
     from .core.device import DeviceDefects
-    from .core.model import table1_parameters
     from .core.study import StudyRun
 
-    true_params = load_params_arg(args.true_params) if args.true_params else table1_parameters()
-    nominal = load_params_arg(args.nominal_params) if args.nominal_params else None
+    model = study_model(args)
+    true_params = _load_params(args.true_params) if args.true_params else default_parameters(model)
+    nominal = _load_params(args.nominal_params) if args.nominal_params else None
     if args.postures < 1:
         raise ValueError(f"--postures must be positive, got {args.postures}")
     return StudyRun(
@@ -76,33 +115,59 @@ def run(args) -> int:
     if args.json:
         print(json.dumps(run_calibration(configured).to_json()))
         return 0
+    from .core.architectures import default_parameters
+
+    # The study's sections run on the model's default machine (the paper's: Table 1); the configured run on
+    # --true-params when given.
+    truth = default_parameters(configured.model)
     progress = Progress(enabled=True)
     args.out.mkdir(parents=True, exist_ok=True)
-    _print_identifiability(args.out)
-    _print_noise_free(args.out, progress)
-    _print_noise_table(args.out, args.seeds, progress)
-    _print_procedures(progress)
-    cli_study_device.print_sections(args, progress)
+    _print_model(truth)
+    _print_identifiability(args.out, truth)
+    _print_noise_free(args.out, progress, truth)
+    _print_noise_table(args.out, args.seeds, progress, truth)
+    _print_procedures(progress, truth)
+    cli_study_device.print_sections(args, progress, truth)
     _print_configured(configured)
     progress.close()
     print(f"\nfigures written to {args.out}/")
     return 0
 
 
-def _print_identifiability(out: Path) -> None:
+def _paper(truth: KinematicParameters, text: str) -> str:
+    """``text`` where the paper studied this model (its numbers are printed), else nothing."""
+    from .core.study import paper_reference
+
+    return text if paper_reference(truth.model) is not None else ""
+
+
+def _print_model(truth: KinematicParameters) -> None:
+    """A line naming the machine where it is not the paper's (the paper's study prints as it always has)."""
+    from .core.study import paper_reference
+
+    if paper_reference(truth.model) is None:
+        layout = truth.layout
+        print(f"Model {layout.name}: {layout.title}, {layout.n_parameters} parameters per machine "
+              f"({' '.join(layout.fields)} per chain), its default machine and workspace; the paper's "
+              "numbers are for another machine and are not printed.\n")
+
+
+def _print_identifiability(out: Path, truth: KinematicParameters) -> None:
     from . import figures
     from .core.identifiability import DEFAULT_RANK_TOLERANCE
     from .core.residuals import COST_EQUATIONS
     from .core.study import identifiability_by_cost
 
-    print("Identifiability of each cost function (paper: 'all parameters are identifiable'), exact data, "
-          "40 postures (30 sphere + 10 fixed-position where needed):")
+    claim = _paper(truth, " (paper: 'all parameters are identifiable')")
+    print(f"Identifiability of each cost function{claim}, "
+          "exact data, 40 postures (30 sphere + 10 fixed-position where needed):")
     print(f"  {'cost':<13} {'equations':<12} {'postures':<16} {'rank':>5} {'condition':>10}  verdict")
     spectra = {}
-    for row in identifiability_by_cost():
+    n_parameters = truth.layout.n_parameters
+    for row in identifiability_by_cost(truth):
         report = row.report
         postures = f"{row.sphere_postures} sph + {row.fixed_postures} fix"
-        verdict = "all 54 identifiable" if report.identifiable else "NOT all identifiable: " + "; ".join(
+        verdict = f"all {n_parameters} identifiable" if report.identifiable else "NOT all identifiable: " + "; ".join(
             d.description for d in report.null_directions)
         print(f"  {row.cost:<13} {COST_EQUATIONS[row.cost]:<12} {postures:<16} {report.rank:>5} "
               f"{report.condition_number:>10.3g}  {verdict}")
@@ -110,48 +175,55 @@ def _print_identifiability(out: Path) -> None:
     figures.singular_values(spectra, DEFAULT_RANK_TOLERANCE, out / "identifiability_singular_values.png")
 
 
-def _print_noise_free(out: Path, progress: Progress) -> None:
+def _print_noise_free(out: Path, progress: Progress, truth: KinematicParameters) -> None:
     import numpy as np
 
     from . import figures
-    from .core.model import TABLE2_ERROR_STATS_MM, error_stats_mm
+    from .core.model import error_stats_mm
     from .core.study import noise_free_recovery
 
-    print("\nNo noise, 25 postures, eq. 7 (paper Figs. 4-6: every parameter identified):")
+    # The nominal sets' target statistics: Table 2's rows (every shipped architecture draws its sets with them).
+    target_stats = truth.architecture.nominal_error_stats_mm
+    print(f"\nNo noise, 25 postures, eq. 7 ({_paper(truth, 'paper Figs. 4-6: ')}every parameter identified):")
     print(f"  {'set':>3} {'Table 2 max/mean/sigma mm':>27} {'ours max/mean/sigma mm':>25} "
           f"{'final max |error| m':>20} {'iters':>6} {'solve ms':>9}")
-    for outcome in noise_free_recovery(progress=progress.step):
+    for outcome in noise_free_recovery(progress=progress.step, true_params=truth):
         number = outcome.run.nominal_set_number
-        paper = "/".join(f"{v:g}" for v in TABLE2_ERROR_STATS_MM[number])
+        paper = "/".join(f"{v:g}" for v in target_stats[number])
         ours = "/".join(f"{v:.2f}" for v in error_stats_mm(outcome.initial_parameter_errors))
         final = float(np.max(np.abs(outcome.final_parameter_errors)))
         print(f"  {number:>3} {paper:>27} {ours:>25} {final:>20.2e} {outcome.result.iterations:>6} "
               f"{outcome.result.solve_seconds * 1e3:>9.1f}")
         figures.parameter_errors(outcome.initial_parameter_errors, outcome.final_parameter_errors,
-                                 f"Nominal set {number}, no noise (cf. paper Fig. {number + 3})",
+                                 f"Nominal set {number}, no noise{_paper(truth, f' (cf. paper Fig. {number + 3})')}",
                                  out / f"fig{number + 3}_parameter_errors_set{number}.png")
 
 
-def _print_noise_table(out: Path, seeds: int, progress: Progress) -> None:
+def _print_noise_table(out: Path, seeds: int, progress: Progress, truth: KinematicParameters) -> None:
     from . import figures
-    from .core.study import PAPER_TABLE3, noise_study
+    from .core.study import noise_study, paper_reference
 
+    paper_table = paper_reference(truth.model)
     print(f"\nMeasurement noise, 50 postures, nominal set 2, eq. 7; mean over 50 validation postures, "
-          f"{seeds} seeds (mean +- spread) [paper Table 3]:")
-    summaries = noise_study(seeds=range(seeds), progress=progress.step)
+          f"{seeds} seeds (mean +- spread){_paper(truth, ' [paper Table 3]')}:")
+    summaries = noise_study(seeds=range(seeds), progress=progress.step, true_params=truth)
     before_pos = summaries[0].mean_and_spread("before", "position_mean_m")
     before_ori = summaries[0].mean_and_spread("before", "orientation_mean_rad")
     print(f"  {'':<12} {'initial':>22} " + " ".join(f"{'+-' + format(s.noise_um, 'g') + ' um':>24}" for s in summaries))
-    paper_pos = [PAPER_TABLE3[int(s.noise_um)]["position_m"] for s in summaries]
-    paper_ori = [PAPER_TABLE3[int(s.noise_um)]["orientation_rad"] for s in summaries]
     after_pos = [s.mean_and_spread("after", "position_mean_m") for s in summaries]
     after_ori = [s.mean_and_spread("after", "orientation_mean_rad") for s in summaries]
     print(f"  {'position um':<12} {_pm(before_pos, UM):>22} " + " ".join(f"{_pm(v, UM):>24}" for v in after_pos))
-    print(f"  {'  paper':<12} {PAPER_TABLE3['initial']['position_m'] * UM:>22.0f} "
-          + " ".join(f"{v * UM:>24.1f}" for v in paper_pos))
+    if paper_table is not None:
+        paper_pos = [paper_table[int(s.noise_um)]["position_m"] for s in summaries]
+        print(f"  {'  paper':<12} {paper_table['initial']['position_m'] * UM:>22.0f} "
+              + " ".join(f"{v * UM:>24.1f}" for v in paper_pos))
     print(f"  {'orient. deg':<12} {_pm(before_ori, DEG, 3):>22} " + " ".join(f"{_pm(v, DEG, 4):>24}" for v in after_ori))
-    print(f"  {'  paper':<12} {PAPER_TABLE3['initial']['orientation_rad'] * DEG:>22.2f} "
-          + " ".join(f"{v * DEG:>24.4f}" for v in paper_ori))
+    if paper_table is not None:
+        paper_ori = [paper_table[int(s.noise_um)]["orientation_rad"] for s in summaries]
+        print(f"  {'  paper':<12} {paper_table['initial']['orientation_rad'] * DEG:>22.2f} "
+              + " ".join(f"{v * DEG:>24.4f}" for v in paper_ori))
+    else:  # the figure's comparison bars: none
+        paper_pos = paper_ori = [float("nan")] * len(summaries)
     figures.noise_table(
         [s.noise_um for s in summaries], [v[0] * UM for v in after_pos], [v[1] * UM for v in after_pos],
         [v * UM for v in paper_pos], [v[0] * DEG for v in after_ori], [v * DEG for v in paper_ori],
@@ -161,21 +233,22 @@ def _print_noise_table(out: Path, seeds: int, progress: Progress) -> None:
         if summary.outcomes:
             first = summary.outcomes[0]
             figures.chain_errors(first.initial_parameter_errors, first.final_parameter_errors,
-                                 f"Errors in kinematic chains, +-{summary.noise_um:g} um noise (cf. paper Fig. {figure_number})",
+                                 f"Errors in kinematic chains, +-{summary.noise_um:g} um noise"
+                                 f"{_paper(truth, f' (cf. paper Fig. {figure_number})')}",
                                  out / f"fig{figure_number}_chain_errors_{summary.noise_um:g}um.png")
 
 
-def _print_procedures(progress: Progress) -> None:
+def _print_procedures(progress: Progress, truth: KinematicParameters) -> None:
     from .core.residuals import COST_EQUATIONS, COSTS
     from .core.study import StudyRun, run_calibration
 
-    print("\nSphere + fixed-position procedure, 60 sphere + 20 fixed postures, +-10 um noise, nominal set 2 "
-          "(paper: 'of the same order as the noise'):")
+    claim = _paper(truth, " (paper: 'of the same order as the noise')")
+    print(f"\nSphere + fixed-position procedure, 60 sphere + 20 fixed postures, +-10 um noise, nominal set 2{claim}:")
     print(f"  {'cost':<13} {'equations':<12} {'outcome':<16} {'position um':>12} {'orient. deg':>12} {'solve ms':>9}")
     for cost in COSTS:
         progress.step(f"procedure {cost}")
         try:
-            outcome = run_calibration(StudyRun(postures=80, noise_um=10.0, cost=cost))
+            outcome = run_calibration(StudyRun(true_params=truth, postures=80, noise_um=10.0, cost=cost))
         except Exception as error:  # a refusal is the finding: print why
             reason = getattr(error, "reason", type(error).__name__)
             print(f"  {cost:<13} {COST_EQUATIONS[cost]:<12} {'refused: ' + reason:<16}")

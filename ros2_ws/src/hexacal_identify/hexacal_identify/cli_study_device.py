@@ -3,9 +3,13 @@ from __future__ import annotations
 
 import argparse
 import math
+from typing import TYPE_CHECKING
 
 from .cli_common import Progress
 from .core.device import DEVICE_PARAMETER_NAMES, DeviceDefects
+
+if TYPE_CHECKING:
+    from .core.architectures import KinematicParameters
 
 # The device study and the Monte Carlo check are imported where they run: `hexacal calibrate` imports this module
 # for device_names_argument.
@@ -45,22 +49,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--defect-seeds", type=int, default=3, help="seeds per method in the device-defect table")
 
 
-def print_sections(args, progress: Progress) -> None:
+def print_sections(args, progress: Progress, truth: KinematicParameters | None = None) -> None:
+    """The device-defect table and the Monte Carlo check on ``truth`` (default: the Table 1 Hexa Slide)."""
     from .core.device_study import DEFAULT_DEFECTS
 
-    print_device_defects(args.device_defects or DEFAULT_DEFECTS, args.noise_um, args.defect_seeds, progress)
+    print_device_defects(args.device_defects or DEFAULT_DEFECTS, args.noise_um, args.defect_seeds, progress, truth)
     if args.monte_carlo > 0:
-        print_monte_carlo(args.monte_carlo, args.noise_um, progress)
+        print_monte_carlo(args.monte_carlo, args.noise_um, progress, truth)
 
 
-def print_device_defects(defects: DeviceDefects, noise_um: float, seeds: int, progress: Progress) -> None:
+def print_device_defects(defects: DeviceDefects, noise_um: float, seeds: int, progress: Progress,
+                         truth: KinematicParameters | None = None) -> None:
     import numpy as np
 
     from .core.device_study import compare_methods
 
     print(f"\nDevice defects ({defects.describe()}), +-{noise_um:g} um / urad noise, 60 sphere + 20 fixed postures, "
           f"nominal set 2, {seeds} seeds; pose error over 50 validation postures in the frames the device defines:")
-    outcomes = compare_methods(defects, noise_um, range(seeds), progress=progress.step)
+    outcomes = compare_methods(defects, noise_um, range(seeds), progress=progress.step, true_params=truth)
     references = {False: None, True: None}
     for outcome in outcomes:
         if not outcome.method.defective:
@@ -102,18 +108,19 @@ def _ref_orientation(outcomes) -> float:
     return reference.mean(reference.orientation_mean_rad)
 
 
-def print_monte_carlo(seeds: int, noise_um: float, progress: Progress) -> None:
+def print_monte_carlo(seeds: int, noise_um: float, progress: Progress,
+                      truth: KinematicParameters | None = None) -> None:
     import numpy as np
 
     from .core.uncertainty import monte_carlo
 
     print(f"\nUncertainty check: one calibration (50 postures, +-{noise_um:g} um / urad, noise-weighted) repeated over "
           f"{seeds} noise seeds:")
-    summary = monte_carlo(seeds=seeds, noise_um=noise_um, progress=progress.step)
+    summary = monte_carlo(seeds=seeds, noise_um=noise_um, progress=progress.step, true_params=truth)
     ratio = summary.std_ratio
     within = int(np.sum(np.abs(ratio - 1) <= 0.2))
     print(f"  empirical / predicted std per parameter: median {np.median(ratio):.3f}, range {ratio.min():.3f}-"
-          f"{ratio.max():.3f}, {within}/54 within 20% (sampling error of a std over {seeds} seeds: "
+          f"{ratio.max():.3f}, {within}/{len(ratio)} within 20% (sampling error of a std over {seeds} seeds: "
           f"~{100 / np.sqrt(2 * (seeds - 1)):.0f}%)")
     pose_ratio = summary.pose_error_mean_m / summary.predicted_pose_error_mean_m
     print(f"  mean pose error {summary.pose_error_mean_m * UM:.2f} um, linearised prediction "

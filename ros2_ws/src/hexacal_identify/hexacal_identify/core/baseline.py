@@ -6,7 +6,8 @@ way the paper describes it: forward kinematics solved posture by posture with
 the Newton algorithm of section 2.2, and a finite-difference identification
 Jacobian in which every column re-solves FK for every posture, handed to a
 general least-squares solver (scipy's ``least_squares``).  It is correct but slow;
-``identification.identify`` is the method.
+``identification.identify`` is the method.  Any architecture: FK is Newton on the
+architecture's IK and its pose Jacobian d lambda / d X (``legs.pose_jacobian``).
 """
 from __future__ import annotations
 
@@ -16,28 +17,35 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
+from .architectures import KinematicParameters, parameters_for
 from .device import DeviceModel, measured_position
-from .kinematics import leg_geometry, pose_jacobian
 from .measurements import Measurements
-from .model import HexaParameters
 
 
-def forward_kinematics_one(params: HexaParameters, sliders: np.ndarray, guess: np.ndarray,
+def forward_kinematics_one(params: KinematicParameters, sliders: np.ndarray, guess: np.ndarray,
                            tolerance: float = 1e-12, max_iterations: int = 50) -> np.ndarray:
     """Section 2.2 for a single posture: X <- X - J_inv^-1 (IK(X) - Q_d) until |IK(X) - Q_d| < tolerance."""
+    arch = params.architecture
+    chains = arch.chains(params)
     pose = np.array(guess, dtype=float)
     for _ in range(max_iterations):
-        geometry = leg_geometry(params, pose[None])
-        residual = geometry.slider_positions[0] - sliders
+        legs = arch.legs(chains, pose[None])
+        if not legs.reachable()[0]:
+            break
+        residual = legs.sliders[0] - sliders
         if np.max(np.abs(residual)) < tolerance:
             return pose
-        pose = pose - np.linalg.solve(pose_jacobian(geometry, pose[None, 3:6])[0], residual)
+        pose = pose - np.linalg.solve(legs.pose_jacobian()[0], residual)
     return np.full(6, np.nan)
 
 
-def absolute_residuals(vector: np.ndarray, measurements: Measurements, device: DeviceModel = DeviceModel()) -> np.ndarray:
-    """Eq. 7 residuals, FK posture by posture (what the paper's numerical Jacobian differentiates)."""
-    params = HexaParameters(vector)
+def absolute_residuals(vector: np.ndarray, measurements: Measurements, device: DeviceModel = DeviceModel(),
+                       model: str | None = None) -> np.ndarray:
+    """Eq. 7 residuals, FK posture by posture (what the paper's numerical Jacobian differentiates).
+
+    ``vector`` holds the parameters of ``model`` (default: the Hexa Slide).
+    """
+    params = parameters_for(model, vector)
     alpha, beta = measurements.inclinometer.T
     measured = measured_position(alpha, beta, device.link_length)
     rows = np.empty((len(measurements), 4))
@@ -61,17 +69,19 @@ def finite_difference_jacobian(residual_function, vector: np.ndarray, step: floa
 
 @dataclass
 class BaselineResult:
-    parameters: HexaParameters
+    parameters: KinematicParameters
     seconds: float
     evaluations: int
     status: str
 
 
-def identify_baseline(nominal: HexaParameters, measurements: Measurements, device: DeviceModel = DeviceModel()) -> BaselineResult:
+def identify_baseline(nominal: KinematicParameters, measurements: Measurements,
+                      device: DeviceModel = DeviceModel()) -> BaselineResult:
     """Paper-style identification: per-posture FK, forward-difference Jacobian, scipy least_squares."""
     started = time.perf_counter()
     solution = least_squares(
-        absolute_residuals, nominal.vector, jac="2-point", method="lm", args=(measurements, device),
+        absolute_residuals, nominal.vector, jac="2-point", method="lm", args=(measurements, device, nominal.model),
         xtol=1e-12, ftol=1e-12,
     )
-    return BaselineResult(HexaParameters(solution.x), time.perf_counter() - started, int(solution.nfev), solution.message)
+    return BaselineResult(nominal.with_vector(solution.x), time.perf_counter() - started, int(solution.nfev),
+                          solution.message)

@@ -9,11 +9,12 @@ about z'.  Those two are frame definitions, not calibration results: joint
 identification holds them at zero and identifies dL, alpha0 and gamma, and
 every method here is judged against the true machine expressed in the frames
 the device defines (``device_frame_truth``) - the frames the calibrated
-controller works in.
+controller works in.  All of it holds for any architecture: the frames are the
+device's, and the architecture re-expresses its parameters in them (``in_frames``).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
@@ -22,7 +23,8 @@ from .device import DeviceDefects, DeviceModel, device_position
 from .errors import CalibrationError
 from .identification import SolverOptions, identify
 from .measurements import FIXED, SPHERE, Measurements, NoiseModel, simulate_measurements
-from .model import HexaParameters, nominal_set, table1_parameters
+from .architectures import KinematicParameters, default_parameters
+from .model import nominal_set
 from .postures import Workspace, sample_poses
 from .validation import pose_errors, validation_poses
 
@@ -41,18 +43,15 @@ def _rotation_z(angle: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def device_frame_truth(true_params: HexaParameters, defects: DeviceDefects) -> HexaParameters:
+def device_frame_truth(true_params: KinematicParameters, defects: DeviceDefects) -> KinematicParameters:
     """The true machine in the device-defined frames: base turned by -beta0 about Y, platform by phi0 about z'.
 
     A reading beta + beta0 puts the measured position at R_Y(-beta0) p (eq. 4), so
     the device's base frame is the true one turned by -beta0 about Y; a rotary
     reading phi + phi0 makes the platform frame R R_z(phi0), so B' = R_z(-phi0) B.
+    The architecture turns every base-frame and platform-frame quantity of its parameters.
     """
-    base = _rotation_y(-defects.beta0)
-    rails = true_params.rail_directions @ base.T
-    return HexaParameters.from_parts(true_params.base_points @ base.T,
-                                     true_params.platform_points @ _rotation_z(-defects.phi0).T,
-                                     true_params.leg_lengths, rails[:, :2])
+    return true_params.architecture.in_frames(true_params, _rotation_y(-defects.beta0), _rotation_z(-defects.phi0))
 
 
 def device_frame_poses(poses: np.ndarray, defects: DeviceDefects) -> np.ndarray:
@@ -64,19 +63,21 @@ def device_frame_poses(poses: np.ndarray, defects: DeviceDefects) -> np.ndarray:
     return converted
 
 
-def simulate_procedure(true_params: HexaParameters, defects: DeviceDefects, sphere: int, fixed: int,
+def simulate_procedure(true_params: KinematicParameters, defects: DeviceDefects, sphere: int, fixed: int,
                        noise_um: float, seed: int, lvdt: bool = False,
-                       device: DeviceModel = DeviceModel()) -> Measurements:
+                       device: DeviceModel = DeviceModel(), workspace: Workspace | None = None) -> Measurements:
     """Readings of the paper's two-step procedure with a defective device.
 
     Sphere postures lie on the true sphere of radius L + dL (with an LVDT the link
     is prismatic: radii vary by +-50 mm); fixed postures sit where the defective
-    inclinometer reads zero.
+    inclinometer reads zero.  Postures are drawn from ``workspace`` (default: the
+    architecture's) with its link length replaced by the true one.
     """
     rng = np.random.default_rng([seed, 0xDEF])
     noise = NoiseModel.from_microns(noise_um)
     true_length = device.link_length + defects.dL
-    workspace = Workspace(link_length=true_length)
+    base_workspace = workspace if workspace is not None else true_params.architecture.default_workspace()
+    workspace = replace(base_workspace, link_length=true_length)
     parts = []
     if sphere:
         poses = sample_poses(true_params, sphere, rng, SPHERE, workspace)
@@ -133,9 +134,14 @@ class MethodOutcome:
 
 def compare_methods(defects: DeviceDefects = DEFAULT_DEFECTS, noise_um: float = 10.0, seeds=range(3),
                     sphere: int = 60, fixed: int = 20, nominal_set_number: int = 2,
-                    progress: Callable[[str], None] = lambda _: None) -> list[MethodOutcome]:
-    """Every method of METHODS on the same machine, procedure and seeds; pose errors in the device frames."""
-    true_params = table1_parameters()
+                    progress: Callable[[str], None] = lambda _: None,
+                    true_params: KinematicParameters | None = None, model: str | None = None) -> list[MethodOutcome]:
+    """Every method of METHODS on the same machine, procedure and seeds; pose errors in the device frames.
+
+    The machine is ``true_params``, else the default machine of ``model`` (default: the Table 1 Hexa Slide).
+    """
+    if true_params is None:
+        true_params = default_parameters(model)
     outcomes = []
     for method in METHODS:
         used_defects = defects if method.defective else DeviceDefects()
@@ -148,7 +154,7 @@ def compare_methods(defects: DeviceDefects = DEFAULT_DEFECTS, noise_um: float = 
                                     noise=NoiseModel.from_microns(noise_um) if method.weighted else None,
                                     allow_rank_deficient=method.cost == "relative")
             try:
-                result = identify(nominal_set(nominal_set_number, seed=seed), measurements, options)
+                result = identify(nominal_set(nominal_set_number, seed=seed, exact=true_params), measurements, options)
             except CalibrationError as error:
                 outcome.failures.append(f"seed {seed}: {error.reason}")
                 continue

@@ -1,4 +1,8 @@
-"""Measured postures: slider positions, inclinometer angles and rotary angle per posture."""
+"""Measured postures: actuator readings, inclinometer angles and rotary angle per posture.
+
+The six actuator readings are ``slider_positions`` whatever the architecture
+(Hexa Slide: slider positions along the rails; Gough-Stewart: leg extensions).
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -8,7 +12,7 @@ import numpy as np
 from .device import DeviceDefects, DeviceModel, inclinometer_readings
 from .errors import InvalidMeasurementError
 from .kinematics import inverse_kinematics
-from .model import HexaParameters
+from .architectures import KinematicParameters
 
 SPHERE = "sphere"  # platform anywhere on the L-sphere (eqs. 7, 8, 12)
 FIXED = "fixed"  # inclinometer reads zero: position [0, 0, -L] (eqs. 10, 13)
@@ -21,9 +25,9 @@ class MeasurementLimits:
 
     inclinometer_range_rad: float = np.radians(60.0)
     rotary_range_rad: float = np.pi
-    # The rail stroke postures are planned in (postures.Workspace.slider_stroke_m, 0 .. 0.9 m)
-    # plus 0.1 m (device defects move simulated sliders ~20 mm past it): a slider reading beyond
-    # is a sensor fault, not a posture of the machine.
+    # The actuator stroke postures are planned in (postures.Workspace.slider_stroke_m: 0 .. 0.9 m on
+    # the Hexa Slide's rails, 0 .. 0.5 m of the default Gough-Stewart legs) plus 0.1 m (device defects
+    # move simulated actuators ~20 mm past it): a reading beyond is a sensor fault, not a posture.
     slider_min_m: float = -0.1
     slider_max_m: float = 1.0
 
@@ -32,7 +36,7 @@ class MeasurementLimits:
 class Measurements:
     """N measured postures (SI units).
 
-    slider_positions (N, 6) lambda, m; inclinometer (N, 2) = [alpha, beta], rad;
+    slider_positions (N, 6) actuator readings lambda, m; inclinometer (N, 2) = [alpha, beta], rad;
     rotary (N,) = phi, rad; kinds (N,) 'sphere' or 'fixed'.
     """
 
@@ -152,7 +156,7 @@ class NoiseModel:
 
 
 def simulate_measurements(
-    params: HexaParameters,
+    params: KinematicParameters,
     poses: np.ndarray,
     kinds: np.ndarray | str = SPHERE,
     device: DeviceModel = DeviceModel(),
@@ -161,7 +165,7 @@ def simulate_measurements(
     defects: DeviceDefects = DeviceDefects(),
     lvdt: bool = False,
 ) -> Measurements:
-    """What the device and the slider encoders read at ``poses`` on the machine ``params``.
+    """What the device and the actuator encoders read at ``poses`` on the machine ``params`` (any architecture).
 
     The readings go through the defect model (a defective inclinometer reads the
     true link direction with offsets and a skewed axis, the rotary sensor adds

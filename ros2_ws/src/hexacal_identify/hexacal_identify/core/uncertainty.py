@@ -10,6 +10,8 @@ many noise seeds (same machine, same postures) and compares:
   covariance predicts for it (sampling the Gaussian of the linear model);
 * the efficiency CRB variance / empirical mean squared error per parameter
   (1 = as good as any unbiased estimator can be for Gaussian noise).
+
+Written against the parameters object: any architecture, n = its number of parameters.
 """
 from __future__ import annotations
 
@@ -21,7 +23,8 @@ import numpy as np
 from .identification import SolverOptions, identify
 from .kinematics import euler_rate_axes, pose_sensitivities
 from .measurements import NoiseModel, simulate_measurements
-from .model import N_PARAMETERS, HexaParameters, nominal_set, table1_parameters
+from .architectures import KinematicParameters, default_parameters
+from .model import nominal_set
 from .postures import sample_poses
 from .validation import pose_errors, validation_poses
 
@@ -33,15 +36,20 @@ class PredictedPoseErrors:
     position_std_m: np.ndarray  # (N, 3) std of x, y, z
 
 
-def predicted_pose_errors(params: HexaParameters, covariance: np.ndarray, poses: np.ndarray,
+def predicted_pose_errors(params: KinematicParameters, covariance: np.ndarray, poses: np.ndarray,
                           samples: int = 4000, seed: int = 0) -> PredictedPoseErrors:
-    """Pose errors the parameter covariance predicts at ``poses`` (linearised: dX = dX/du du)."""
-    covariance = np.asarray(covariance)[:N_PARAMETERS, :N_PARAMETERS]
-    sensitivity = pose_sensitivities(params, poses).wrt_parameters  # (N, 6, 54)
+    """Pose errors the parameter covariance predicts at ``poses`` (linearised: dX = dX/du du).
+
+    ``covariance`` may carry the device defects after the n kinematic parameters: only the
+    kinematic block is used.
+    """
+    n = params.layout.n_parameters
+    covariance = np.asarray(covariance)[:n, :n]
+    sensitivity = pose_sensitivities(params, poses).wrt_parameters  # (N, 6, n)
     # Draw du ~ N(0, C) once and push it through every pose's linear map.
     eigenvalues, eigenvectors = np.linalg.eigh((covariance + covariance.T) / 2)
     root = eigenvectors * np.sqrt(np.clip(eigenvalues, 0.0, None))
-    draws = np.random.default_rng(seed).standard_normal((samples, N_PARAMETERS)) @ root.T
+    draws = np.random.default_rng(seed).standard_normal((samples, n)) @ root.T
     d_pose = np.einsum("nik,sk->nsi", sensitivity, draws)  # (N, samples, 6)
     rotation_axes = euler_rate_axes(poses[:, 3:6])  # angle rates -> rotation vector
     rotation = np.einsum("nij,nsj->nsi", rotation_axes, d_pose[:, :, 3:6])
@@ -56,10 +64,10 @@ def predicted_pose_errors(params: HexaParameters, covariance: np.ndarray, poses:
 @dataclass
 class MonteCarloSummary:
     seeds: int
-    predicted_std: np.ndarray  # (54,) from the covariance (mean over seeds)
-    empirical_std: np.ndarray  # (54,) spread of the estimates over seeds
-    empirical_rmse: np.ndarray  # (54,) root mean squared error vs the truth
-    crb_std: np.ndarray  # (54,) Cramer-Rao bound for Gaussian noise of the same variance, at the truth
+    predicted_std: np.ndarray  # (n,) from the covariance (mean over seeds); n = 54 for a Hexa Slide
+    empirical_std: np.ndarray  # (n,) spread of the estimates over seeds
+    empirical_rmse: np.ndarray  # (n,) root mean squared error vs the truth
+    crb_std: np.ndarray  # (n,) Cramer-Rao bound for Gaussian noise of the same variance, at the truth
     pose_error_mean_m: float  # measured, mean over seeds and validation postures
     predicted_pose_error_mean_m: float  # linearised prediction from the covariance
     orientation_error_mean_rad: float
@@ -78,14 +86,21 @@ class MonteCarloSummary:
 
 def monte_carlo(seeds: int = 200, postures: int = 50, noise_um: float = 10.0, nominal_set_number: int = 2,
                 validation_count: int = 50, weighted: bool = True,
-                progress: Callable[[str], None] = lambda _: None) -> MonteCarloSummary:
-    """One calibration (same machine, same postures) repeated over noise seeds."""
-    true_params = table1_parameters()
-    poses = sample_poses(true_params, postures, np.random.default_rng(12345))
+                progress: Callable[[str], None] = lambda _: None,
+                true_params: KinematicParameters | None = None, model: str | None = None) -> MonteCarloSummary:
+    """One calibration (same machine, same postures) repeated over noise seeds.
+
+    The machine is ``true_params``, else the default machine of ``model`` (default: the Table 1
+    Hexa Slide); postures come from its architecture's default workspace.
+    """
+    if true_params is None:
+        true_params = default_parameters(model)
+    workspace = true_params.architecture.default_workspace()
+    poses = sample_poses(true_params, postures, np.random.default_rng(12345), "sphere", workspace)
     noise = NoiseModel.from_microns(noise_um)
     options = SolverOptions(noise=noise if weighted else None)
-    nominal = nominal_set(nominal_set_number, seed=0)
-    validation = validation_poses(true_params, validation_count, 0)
+    nominal = nominal_set(nominal_set_number, seed=0, exact=true_params)
+    validation = validation_poses(true_params, validation_count, 0, workspace)
     estimates, stds, position, orientation, factors = [], [], [], [], []
     first_covariance = None
     for seed in range(seeds):
@@ -116,12 +131,12 @@ def monte_carlo(seeds: int = 200, postures: int = 50, noise_um: float = 10.0, no
     )
 
 
-def _crb_std(true_params: HexaParameters, poses: np.ndarray, noise: NoiseModel, options: SolverOptions) -> np.ndarray:
+def _crb_std(true_params: KinematicParameters, poses: np.ndarray, noise: NoiseModel, options: SolverOptions) -> np.ndarray:
     """Std of the Cramer-Rao bound at the truth: exact readings, residuals whitened by the noise covariance."""
     exact = simulate_measurements(true_params, poses)
     crb_options = SolverOptions(noise=noise, cost=options.cost)
     result = identify(true_params, exact, crb_options)
-    return np.sqrt(np.diag(result.covariance)[:N_PARAMETERS])
+    return np.sqrt(np.diag(result.covariance)[:true_params.layout.n_parameters])
 
 
 __all__ = ["MonteCarloSummary", "PredictedPoseErrors", "monte_carlo", "predicted_pose_errors"]

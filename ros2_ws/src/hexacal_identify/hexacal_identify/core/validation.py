@@ -1,4 +1,4 @@
-"""Pose accuracy of a parameter set, judged against the true machine (simulation only)."""
+"""Pose accuracy of a parameter set, judged against the true machine (simulation only), any architecture."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .kinematics import forward_kinematics, inverse_kinematics, rotation_matrices
-from .model import HexaParameters
+from .architectures import KinematicParameters
 from .postures import Workspace, sample_poses
 
 
@@ -27,16 +27,22 @@ class PoseErrors:
         }
 
 
-def validation_poses(true_params: HexaParameters, n: int, seed: int, workspace: Workspace = Workspace()) -> np.ndarray:
-    """Fresh postures, drawn like the measurement postures but from their own seed."""
+def validation_poses(true_params: KinematicParameters, n: int, seed: int,
+                     workspace: Workspace | None = None) -> np.ndarray:
+    """Fresh postures, drawn like the measurement postures but from their own seed.
+
+    ``workspace`` defaults to the architecture's default workspace.
+    """
+    if workspace is None:
+        workspace = true_params.architecture.default_workspace()
     return sample_poses(true_params, n, np.random.default_rng([seed, 0x7A11D]), "sphere", workspace)
 
 
-def pose_errors(true_params: HexaParameters, model_params: HexaParameters, poses: np.ndarray,
+def pose_errors(true_params: KinematicParameters, model_params: KinematicParameters, poses: np.ndarray,
                 align_base_rotation_y: bool = False) -> PoseErrors:
-    """Command the true machine's slider positions for ``poses``; where does ``model_params`` put it?
+    """Command the true machine's actuator readings for ``poses``; where does ``model_params`` put it?
 
-    The controller's view: FK with the model parameters at the slider positions
+    The controller's view: FK with the model parameters at the actuator readings
     the true machine has at each pose, compared with that pose (Table 3's errors).
     With ``align_base_rotation_y`` the model's poses are first turned about the
     base Y axis by the best-fitting angle: the error left is what remains once the
