@@ -32,6 +32,11 @@ from .architectures.hexa_slide import subset_geometry as _subset  # noqa: F401
 from .errors import ForwardKinematicsError, InvalidMeasurementError, UnreachablePoseError
 
 POSE_LABELS = ("x", "y", "z", "theta", "psi", "phi")
+MAX_HALVINGS = 10  # a Newton step is halved at most this often to reduce the slider error
+# A posture whose Newton step fails to reduce the error at every step length this often has no
+# solution near its start: stop there rather than spend every remaining iteration on it (Newton's
+# direction is a descent direction wherever the pose Jacobian is regular, so a solvable one never stalls).
+MAX_STALLS = 3
 __all__ = ["POSE_LABELS", "ForwardKinematicsResult", "PoseSensitivity", "euler_rate_axes", "forward_kinematics",
            "inverse_kinematics", "pose_sensitivities", "rotation_matrices"]
 
@@ -126,12 +131,17 @@ def forward_kinematics(
     target = targets[active]
     legs = arch.legs(chains, poses[active])
     error = _slider_error(legs, target)
+    stalls = np.zeros(len(active), int)  # Newton steps that no halving made better
     for iteration in range(max_iterations + 1):
         done = error < tolerance
-        if done.any():
+        stuck = stalls >= MAX_STALLS
+        for i in active[stuck & ~done]:
+            failures[int(i)] = (f"no convergence: {MAX_STALLS} Newton steps did not reduce the slider error "
+                                "at any step length (no solution near the expected posture)")
+        if done.any() or stuck.any():
             converged[active[done]] = True
-            keep = ~done
-            active, error, target = active[keep], error[keep], target[keep]
+            keep = ~done & ~stuck
+            active, error, target, stalls = active[keep], error[keep], target[keep], stalls[keep]
             if active.size:
                 legs = legs.subset(keep)
         if active.size == 0 or iteration == max_iterations:
@@ -142,7 +152,9 @@ def forward_kinematics(
             for i in active[~solvable]:
                 failures[int(i)] = "singular pose Jacobian (the platform is at a singularity)"
             active, error, step, target = active[solvable], error[solvable], step[solvable], target[solvable]
-        poses[active], legs, error = _damped_update(arch, chains, poses[active], step, target, error)
+            stalls = stalls[solvable]
+        poses[active], legs, error, stalled = _damped_update(arch, chains, poses[active], step, target, error)
+        stalls += stalled
     for i in active:
         failures.setdefault(int(i), f"no convergence in {max_iterations} Newton iterations")
     _check_branch(poses, start, converged, failures, branch_tolerance_m, branch_tolerance_rad)
@@ -199,12 +211,15 @@ def _solve_batched(jac: np.ndarray, residual: np.ndarray) -> tuple[np.ndarray, n
 
 
 def _damped_update(arch, chains, poses: np.ndarray, step: np.ndarray, targets: np.ndarray, error: np.ndarray):
-    """Take X - step, halving the step where it does not reduce the slider error."""
+    """Take X - step, halving the step where it does not reduce the slider error.
+
+    Also returns the mask of postures where even the smallest step did not reduce it (stalled)."""
     trial = poses - step
     legs = arch.legs(chains, trial)
     trial_error = _slider_error(legs, targets)
     scale = None
-    for _ in range(10):
+    worse = np.zeros(len(poses), bool)
+    for _ in range(MAX_HALVINGS):
         worse = ~(trial_error < error) & (error > 0)
         if not np.any(worse):
             break
@@ -215,7 +230,9 @@ def _damped_update(arch, chains, poses: np.ndarray, step: np.ndarray, targets: n
         sub = arch.legs(chains, trial[worse])
         legs.replace_rows(worse, sub)
         trial_error[worse] = _slider_error(sub, targets[worse])
-    return trial, legs, trial_error
+    else:
+        worse = ~(trial_error < error) & (error > 0)
+    return trial, legs, trial_error, worse
 
 
 def _check_branch(poses, start, converged, failures, tol_m, tol_rad) -> None:
