@@ -26,6 +26,41 @@ sin s, -cos s cos b), and the alpha axis fixes s through
 ``cos(gamma) sin s - sin(gamma) sin b cos s = -sin a'``, i.e.
 ``s = asin(C / R) - delta`` with C = -sin a', R = hypot(A, B), delta = atan2(B, A),
 A = cos(gamma), B = -sin(gamma) sin b.  With no defects s = -alpha: eq. 4.
+
+Mounting (``DeviceModel.mount``, the parameter ``device.mount``):
+
+* ``hanging`` (default): everything above - the device's base joint O at the
+  base origin, the platform below it (the Hexa Slide; a ceiling-mounted
+  hexapod).  Fixed position [0, 0, -L].
+* ``standing``: an upright machine (a Gough-Stewart hexapod on the floor).  The
+  device's base joint O is still the base origin, the platform is above it.
+  The base frame is the same (Z up, against gravity; X and Y along the
+  inclinometer's measuring axes at zero reading, section 2.3), the readings are
+  the same (alpha about X, beta about Y, both zero with the link vertical, the
+  same defects with the same meaning), and the link points up::
+
+      p = (-L cos(alpha) sin(beta), L sin(alpha), L cos(alpha) cos(beta)) = -p_hanging
+
+  Fixed position [0, 0, +L].  Why this one: an inclinometer senses gravity, so
+  on either mount it must sit upright on the link (an upside-down one does not
+  read zero with the link vertical).  With the same sensor fixed the same way
+  to the link, a reading stands for one orientation R of the rigid link (the U
+  joint at O allows the same orientations whichever way the link leaves it),
+  and only the link's direction in that body differs: from O to the platform
+  it is R (0, 0, -1) hanging and R (0, 0, +1) standing.  The platform end of
+  an upright link moves opposite to the lower end of a hanging one (a reading
+  that swings a hanging link's end to +x swings a standing link's end to -x),
+  so the whole defect model holds with p -> -p, exactly: ``dL``, ``alpha0``,
+  ``beta0``, ``gamma`` keep their meaning and every derivative changes sign.
+  Turning the hanging formula by 180 deg about X, (L ca sb, L sa, L ca cb), or
+  about Y, (-L ca sb, -L sa, L ca cb), is this formula with beta, respectively
+  alpha, negated: an inclinometer whose beta (alpha) sign is reversed, not the
+  same sensor; the printed eq. 4, (L ca sb, -L sa, L ca cb), is this formula
+  with both negated: a sensor turned by 180 deg about the link.  A device
+  mounted that way is used by negating the reversed readings before they
+  enter hexacal; the mount option does not do it.
+  The rotary sensor is unchanged: it reads phi, the rotation of the platform
+  about its own z axis (eq. 2), on either mount.
 """
 from __future__ import annotations
 
@@ -33,21 +68,79 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from .errors import CalibrationError
+
 DEFAULT_LINK_LENGTH_M = 0.750
+HANGING = "hanging"  # platform below the device's base joint: p_z = -L cos(alpha) cos(beta)
+STANDING = "standing"  # platform above it: p = -p_hanging
+MOUNTS = (HANGING, STANDING)
+DEFAULT_MOUNT = HANGING
 DEVICE_PARAMETER_NAMES = ("dL", "alpha0", "beta0", "gamma", "phi0")
 DEVICE_PARAMETER_UNITS = ("m", "rad", "rad", "rad", "rad")
 N_DEVICE_PARAMETERS = len(DEVICE_PARAMETER_NAMES)
 
 
+class DeviceMountError(CalibrationError, ValueError):
+    """A device mount that is neither ``hanging`` nor ``standing``."""
+
+    reason = "invalid-device-mount"
+
+
+def check_mount(mount: str) -> str:
+    """``mount`` if it is one of MOUNTS, else a DeviceMountError naming the allowed values."""
+    if not (isinstance(mount, str) and mount in MOUNTS):
+        raise DeviceMountError(f"device mount must be one of {', '.join(MOUNTS)} (default {DEFAULT_MOUNT}), "
+                               f"got {mount!r}")
+    return mount
+
+
+def _standing(mount: str) -> bool:
+    """True for the standing mount (p = -p_hanging); validates ``mount``."""
+    return check_mount(mount) == STANDING
+
+
 @dataclass(frozen=True)
 class DeviceModel:
-    """Geometry of the measuring link as the identification assumes it."""
+    """Geometry of the measuring link as the identification assumes it.
+
+    ``mount``: ``hanging`` (platform below the device's base joint, default) or
+    ``standing`` (platform above it); the module doc says what each means.
+    """
 
     link_length: float = DEFAULT_LINK_LENGTH_M
+    mount: str = DEFAULT_MOUNT
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.link_length) and self.link_length > 0):
             raise ValueError(f"link_length must be a positive length in m, got {self.link_length}")
+        check_mount(self.mount)
+
+    def position(self, alpha: np.ndarray, beta: np.ndarray, defects: "DeviceDefects | None" = None,
+                 link_length: float | np.ndarray | None = None) -> "DevicePosition":
+        """Platform positions (and derivatives) from readings; ``link_length`` per posture for an LVDT."""
+        length = self.link_length if link_length is None else link_length
+        return device_position(alpha, beta, length, defects if defects is not None else DeviceDefects(), self.mount)
+
+    def readings(self, position: np.ndarray, defects: "DeviceDefects | None" = None) -> tuple[np.ndarray, np.ndarray]:
+        """What the (defective) inclinometer reads with the platform at ``position`` (N, 3)."""
+        return inclinometer_readings(position, defects if defects is not None else DeviceDefects(), self.mount)
+
+    def angles(self, position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(alpha, beta) of an ideal inclinometer with the platform at ``position`` (N, 3)."""
+        return inclinometer_angles(position, self.mount)
+
+    def fixed_position(self, defects: "DeviceDefects | None" = None) -> "DevicePosition":
+        """Where the (defective) inclinometer reads zero, (1, 3), with its derivatives."""
+        return fixed_position(self.link_length, defects if defects is not None else DeviceDefects(), self.mount)
+
+    @property
+    def fixed_point(self) -> np.ndarray:
+        """The ideal fixed position (eq. 10): [0, 0, -L] hanging, [0, 0, +L] standing, (3,)."""
+        return fixed_point(self.link_length, self.mount)
+
+    def sphere_z(self, xy: np.ndarray, link_length: float | None = None) -> np.ndarray:
+        """z of the sphere postures above (N, 2) ``xy``: on the link's side of O."""
+        return sphere_z(xy, self.link_length if link_length is None else link_length, self.mount)
 
 
 @dataclass(frozen=True)
@@ -97,31 +190,54 @@ class DeviceDefects:
         return ", ".join(f"{n}={getattr(self, n):g} {u}" for n, u in zip(DEVICE_PARAMETER_NAMES, DEVICE_PARAMETER_UNITS))
 
 
-def measured_position(alpha: np.ndarray, beta: np.ndarray, link_length: float | np.ndarray) -> np.ndarray:
+def measured_position(alpha: np.ndarray, beta: np.ndarray, link_length: float | np.ndarray,
+                      mount: str = DEFAULT_MOUNT) -> np.ndarray:
     """Platform position from the inclinometer (eq. 4, sign of z as in the module doc), (N, 3)."""
+    standing = _standing(mount)
     alpha = np.asarray(alpha, dtype=float)
     beta = np.asarray(beta, dtype=float)
     length = np.asarray(link_length, dtype=float)
-    return np.stack(
+    position = np.stack(
         [length * np.cos(alpha) * np.sin(beta), -length * np.sin(alpha), -length * np.cos(alpha) * np.cos(beta)],
         axis=-1,
     )
+    return -position if standing else position
 
 
-def inclinometer_angles(position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def inclinometer_angles(position: np.ndarray, mount: str = DEFAULT_MOUNT) -> tuple[np.ndarray, np.ndarray]:
     """Inverse of eq. 4: (alpha, beta) of the link pointing from O to ``position``."""
-    return inclinometer_readings(position, DeviceDefects())
+    return inclinometer_readings(position, DeviceDefects(), mount)
 
 
-def inclinometer_readings(position: np.ndarray, defects: DeviceDefects) -> tuple[np.ndarray, np.ndarray]:
+def inclinometer_readings(position: np.ndarray, defects: DeviceDefects,
+                          mount: str = DEFAULT_MOUNT) -> tuple[np.ndarray, np.ndarray]:
     """What a defective inclinometer reads for the link pointing from O to ``position`` (no noise)."""
     position = np.atleast_2d(np.asarray(position, dtype=float))
+    if _standing(mount):
+        position = -position  # the same reading as a hanging link pointing the other way (module doc)
     u = position / np.linalg.norm(position, axis=1, keepdims=True)
     b = np.arctan2(u[:, 0], -u[:, 2])
     sin_s, cos_s = u[:, 1], np.hypot(u[:, 0], u[:, 2])
     sensed = np.cos(defects.gamma) * sin_s - np.sin(defects.gamma) * np.sin(b) * cos_s
     alpha_true = np.arcsin(np.clip(-sensed, -1.0, 1.0))
     return alpha_true + defects.alpha0, b + defects.beta0
+
+
+def fixed_point(link_length: float, mount: str = DEFAULT_MOUNT) -> np.ndarray:
+    """Where an ideal inclinometer reads zero (eq. 10): [0, 0, -L] hanging, [0, 0, +L] standing, (3,)."""
+    if _standing(mount):
+        return np.array([0.0, 0.0, link_length])
+    return np.array([0.0, 0.0, -link_length])
+
+
+def sphere_z(xy: np.ndarray, link_length: float, mount: str = DEFAULT_MOUNT) -> np.ndarray:
+    """z of the points of the L-sphere about O above (N, 2) ``xy``, on the platform's side of O.
+
+    Hanging: -sqrt(L^2 - x^2 - y^2) (the sphere postures' z until now); standing: +sqrt(...)."""
+    standing = _standing(mount)
+    xy = np.asarray(xy, dtype=float)
+    z = np.sqrt(link_length**2 - np.sum(xy**2, axis=1))
+    return z if standing else -z
 
 
 @dataclass
@@ -134,8 +250,11 @@ class DevicePosition:
 
 
 def device_position(alpha: np.ndarray, beta: np.ndarray, link_length: float | np.ndarray,
-                    defects: DeviceDefects = DeviceDefects()) -> DevicePosition:
-    """Platform position from inclinometer readings through the defect model (module doc)."""
+                    defects: DeviceDefects = DeviceDefects(), mount: str = DEFAULT_MOUNT) -> DevicePosition:
+    """Platform position from inclinometer readings through the defect model (module doc).
+
+    Standing: the hanging result negated (position and both derivative arrays)."""
+    standing = _standing(mount)
     alpha = np.atleast_1d(np.asarray(alpha, dtype=float))
     beta = np.atleast_1d(np.asarray(beta, dtype=float))
     length = np.broadcast_to(np.asarray(link_length, dtype=float) + defects.dL, alpha.shape)
@@ -161,4 +280,12 @@ def device_position(alpha: np.ndarray, beta: np.ndarray, link_length: float | np
     d_defects = np.stack([u, -scale * du_ds * ds_da[:, None], -scale * du_dbeta, scale * du_ds * ds_dg[:, None]],
                          axis=-1)
     d_readings = np.stack([scale * du_ds * ds_da[:, None], scale * du_dbeta], axis=-1)
+    if standing:
+        return DevicePosition(-(scale * u), -d_defects, -d_readings)
     return DevicePosition(scale * u, d_defects, d_readings)
+
+
+def fixed_position(link_length: float, defects: DeviceDefects = DeviceDefects(),
+                   mount: str = DEFAULT_MOUNT) -> DevicePosition:
+    """Where the (defective) inclinometer reads zero: the fixed position of eq. 10, (1, 3), with derivatives."""
+    return device_position(np.zeros(1), np.zeros(1), link_length, defects, mount)

@@ -11,7 +11,8 @@ Cost functions (``COSTS``):
                     with the measured position from the inclinometer (eq. 4).
 * ``sphere``        eq. 8, every posture: [L - |P_c|, phi_m - phi_c] (fixed postures lie
                     on the sphere too).
-* ``fixed``         eq. 10, fixed-position postures only: [0 - x_c, 0 - y_c, -L - z_c, phi_m - phi_c].
+* ``fixed``         eq. 10, fixed-position postures only: [0 - x_c, 0 - y_c, -L - z_c, phi_m - phi_c]
+                    (+L - z_c for a standing device, ``DeviceModel.mount``).
 * ``sphere-fixed``  eq. 8 on sphere postures and eq. 10 on fixed-position postures.
 * ``relative``      eq. 12 on sphere postures: |P_c^j| - |P_c^k|, and eq. 13 on fixed
                     postures: P_c^j - P_c^k, each for consecutive postures (j = k + 1)
@@ -23,6 +24,9 @@ With device defects (``device.DeviceDefects``) the measured side changes: the
 measured position comes from the defect model, L becomes L + dL, phi_m becomes
 phi_read - phi0, and the fixed position is where the defective inclinometer
 reads zero.  Their derivatives are the 5 device columns of the Jacobian.
+Measured positions, the fixed position and their derivatives come from
+``device`` for the device's mount (hanging: eq. 4 as in device.py; standing:
+the same readings give -p), so nothing here depends on the mount.
 
 For weighting by known sensor noise, each row also carries its derivatives
 w.r.t. its posture's 9 noise sources (6 slider readings, alpha, beta, phi):
@@ -34,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .device import N_DEVICE_PARAMETERS, DeviceDefects, DeviceModel, device_position
+from .device import N_DEVICE_PARAMETERS, DeviceDefects, DeviceModel, device_position, fixed_position
 from .kinematics import PoseSensitivity
 from .measurements import FIXED, SPHERE, Measurements
 
@@ -110,6 +114,7 @@ class CostFunction:
         self.cost = cost
         self.measurements = measurements
         self.link_length = device.link_length
+        self.mount = device.mount
         # LVDT variant (section 4): a measured link length per posture replaces the constant L.
         self.link_lengths = (measurements.link_lengths if measurements.link_lengths is not None
                              else np.full(len(measurements), device.link_length))
@@ -144,12 +149,12 @@ class CostFunction:
         """Positions from the readings through the defect model; the last result is kept (defects rarely change)."""
         if self._measured_cache is None or self._measured_cache[0] != defects:
             alpha, beta = self.measurements.inclinometer.T
-            self._measured_cache = (defects, device_position(alpha, beta, self.link_lengths, defects))
+            self._measured_cache = (defects, device_position(alpha, beta, self.link_lengths, defects, self.mount))
         return self._measured_cache[1]
 
     def fixed_position(self, defects: DeviceDefects = DeviceDefects()):
         """Where the (defective) inclinometer reads zero: the fixed position of eq. 10."""
-        return device_position(np.zeros(1), np.zeros(1), self.link_length, defects)
+        return fixed_position(self.link_length, defects, self.mount)
 
     def initial_poses(self, defects: DeviceDefects = DeviceDefects()) -> np.ndarray:
         """Expected postures: measured position and phi, theta = psi = 0 (the FK start and branch reference)."""
