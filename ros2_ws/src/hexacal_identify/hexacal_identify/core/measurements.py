@@ -176,7 +176,7 @@ def simulate_measurements(
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
     rng = rng if rng is not None else np.random.default_rng(0)
     sliders = inverse_kinematics(params, poses)
-    alpha, beta = inclinometer_readings(poses[:, :3], defects)
+    alpha, beta = inclinometer_readings(poses[:, :3], defects, device.mount)
     angles = np.column_stack([alpha, beta])
     rotary = poses[:, 5] + defects.phi0
     n = len(poses)
