@@ -295,3 +295,16 @@ def test_noise_free_identification_of_an_upright_hexapod_with_a_standing_device(
     assert np.max(np.abs(result.parameters.vector - true.vector)) < 1e-9
     for name in free:
         assert getattr(result.device, name) == pytest.approx(getattr(defects, name), abs=1e-10)
+
+
+def test_simulated_readings_follow_the_device_mount():
+    from hexacal_identify.core.measurements import simulate_measurements
+
+    params = _upright_machine()
+    poses, kinds = _upright_poses(8, 2, 9, L + SMALL.dL)
+    expected, poses = _standing_measurements(params, poses, kinds, SMALL)
+    simulated = simulate_measurements(params, poses, kinds, DeviceModel(L, "standing"), defects=SMALL)
+    np.testing.assert_array_equal(simulated.inclinometer, expected.inclinometer)
+    hanging = simulate_measurements(params, poses, kinds, DeviceModel(L), defects=SMALL)
+    np.testing.assert_array_equal(hanging.inclinometer,
+                                  np.column_stack(inclinometer_readings(poses[:, :3], SMALL, "hanging")))
