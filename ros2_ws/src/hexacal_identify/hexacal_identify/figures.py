@@ -1,8 +1,12 @@
 """PNG figures of the study and the calibration report (matplotlib, headless).
 
-Display units are labelled: parameter errors in mm (rail-direction components
-as 1000 x the unit-vector component, like the paper's Table 1), pose errors in
-um and deg.
+Display units are labelled: parameter errors in mm (a dimensionless parameter,
+such as the Hexa Slide's rail-direction components, as 1000 x its value, like
+the paper's Table 1), pose errors in um and deg.
+
+Parameter figures are labelled with the machine model's own fields (its
+``ModelLayout``): pass ``layout``, or let the figure take the one model whose
+parameter vector has that many entries (54 Hexa Slide, 42 Gough-Stewart).
 """
 from __future__ import annotations
 
@@ -15,9 +19,23 @@ matplotlib.use("Agg")  # no display: figures are files
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .core.model import FIELDS_PER_CHAIN, N_CHAINS, PARAMETER_FIELDS  # noqa: E402
+from hexacal_msgs_py.models import ModelLayout, model_for_vector_size  # noqa: E402
 
 MM = 1e3
+
+
+def _layout(n_values: int, layout: ModelLayout | None) -> ModelLayout:
+    """The layout of a parameter vector of ``n_values`` entries (``layout`` if given)."""
+    return layout if layout is not None else model_for_vector_size(n_values)
+
+
+def _per_chain_label(layout: ModelLayout) -> str:
+    return f"parameter (chain-major: {' '.join(layout.fields)} per chain)"
+
+
+def _chain_separators(ax, layout: ModelLayout) -> None:
+    for chain in range(1, layout.n_chains):
+        ax.axvline(chain * layout.fields_per_chain + 0.5, color="0.85", lw=0.8)
 
 
 def _save(fig, path: Path) -> Path:
@@ -29,33 +47,37 @@ def _save(fig, path: Path) -> Path:
     return path
 
 
-def parameter_errors(initial_m: np.ndarray, final_m: np.ndarray, title: str, path: Path) -> Path:
-    """Figs. 4-6: initial (square) and final (circle) error of each of the 54 parameters."""
+def parameter_errors(initial_m: np.ndarray, final_m: np.ndarray, title: str, path: Path,
+                     layout: ModelLayout | None = None) -> Path:
+    """Figs. 4-6: initial (square) and final (circle) error of each of the model's parameters."""
+    layout = _layout(len(initial_m), layout)
     fig, ax = plt.subplots(figsize=(10, 3.6))
     index = np.arange(1, len(initial_m) + 1)
     ax.axhline(0.0, color="0.6", lw=0.8)
     ax.plot(index, initial_m * MM, "s", mfc="none", color="tab:red", label="initial error")
     ax.plot(index, final_m * MM, "o", mfc="none", color="tab:blue", label="final error")
-    for chain in range(1, N_CHAINS):
-        ax.axvline(chain * FIELDS_PER_CHAIN + 0.5, color="0.85", lw=0.8)
-    ax.set_xlabel("parameter (chain-major: A0x A0y A0z Bx By Bz l ax ay per chain)")
+    _chain_separators(ax, layout)
+    ax.set_xlabel(_per_chain_label(layout))
     ax.set_ylabel("error [mm]")
     ax.set_title(title)
     ax.legend(loc="upper right")
     return _save(fig, path)
 
 
-def chain_errors(initial_m: np.ndarray, final_m: np.ndarray, title: str, path: Path) -> Path:
+def chain_errors(initial_m: np.ndarray, final_m: np.ndarray, title: str, path: Path,
+                 layout: ModelLayout | None = None) -> Path:
     """Figs. 7-9: per kinematic chain, each parameter's error before and after (log scale)."""
-    fig, axes = plt.subplots(1, N_CHAINS, figsize=(13, 3.4), sharey=True)
-    before = np.abs(initial_m.reshape(N_CHAINS, FIELDS_PER_CHAIN)) * MM
-    after = np.abs(final_m.reshape(N_CHAINS, FIELDS_PER_CHAIN)) * MM
-    x = np.arange(FIELDS_PER_CHAIN)
+    layout = _layout(len(initial_m), layout)
+    shape = (layout.n_chains, layout.fields_per_chain)
+    fig, axes = plt.subplots(1, layout.n_chains, figsize=(13, 3.4), sharey=True)
+    before = np.abs(np.asarray(initial_m).reshape(shape)) * MM
+    after = np.abs(np.asarray(final_m).reshape(shape)) * MM
+    x = np.arange(layout.fields_per_chain)
     for chain, ax in enumerate(axes):
         ax.bar(x - 0.2, np.maximum(before[chain], 1e-9), 0.4, color="tab:red", label="before")
         ax.bar(x + 0.2, np.maximum(after[chain], 1e-9), 0.4, color="tab:blue", label="after")
         ax.set_yscale("log")
-        ax.set_xticks(x, PARAMETER_FIELDS, rotation=90, fontsize=7)
+        ax.set_xticks(x, layout.fields, rotation=90, fontsize=7)
         ax.set_title(f"chain {chain + 1}", fontsize=9)
     axes[0].set_ylabel("|error| [mm]")
     axes[0].legend(fontsize=7)
@@ -99,8 +121,10 @@ def singular_values(spectra: dict[str, np.ndarray], rank_tolerance: float, path:
 UM = 1e6
 
 
-def parameter_corrections(correction_m: np.ndarray, std_m: np.ndarray, path: Path) -> Path:
+def parameter_corrections(correction_m: np.ndarray, std_m: np.ndarray, path: Path,
+                          layout: ModelLayout | None = None) -> Path:
     """Each parameter's correction (identified - initial) with +-std error bars, and the std alone (log)."""
+    layout = _layout(len(correction_m), layout)
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(11, 5.6), sharex=True)
     index = np.arange(1, len(correction_m) + 1)
     std = np.where(np.isfinite(std_m), std_m, np.nan)
@@ -109,13 +133,14 @@ def parameter_corrections(correction_m: np.ndarray, std_m: np.ndarray, path: Pat
                  color="tab:blue", ecolor="tab:red", label="correction +- std")
     top.set_ylabel("correction [mm]")
     top.legend(loc="upper right", fontsize=8)
-    top.set_title("Identified corrections (rail components a: x1000, as Table 1)")
+    dimensionless = [name for name, unit in zip(layout.fields, layout.field_units) if unit == "1"]
+    top.set_title("Identified corrections" + (f" (dimensionless {', '.join(dimensionless)}: x1000)"
+                                              if dimensionless else ""))
     bottom.semilogy(index, np.where(std > 0, std * UM, np.nan), "s", ms=3, color="tab:red")
     bottom.set_ylabel("std [um]")
-    bottom.set_xlabel("parameter (chain-major: A0x A0y A0z Bx By Bz l ax ay per chain)")
+    bottom.set_xlabel(_per_chain_label(layout))
     for ax in (top, bottom):
-        for chain in range(1, N_CHAINS):
-            ax.axvline(chain * FIELDS_PER_CHAIN + 0.5, color="0.85", lw=0.8)
+        _chain_separators(ax, layout)
     return _save(fig, path)
 
 

@@ -8,6 +8,10 @@ figures, or an IdentificationResult) into DIR/index.html plus PNG figures.  The
 page embeds the PNGs as data URIs, so it opens offline and alone; the PNG files
 sit beside it for reuse.  A tiny inline script records on <body> how many images
 decoded (``data-images-loaded`` / ``data-images-total``), for headless checks.
+
+Any machine model: the result names its model (``model``, as ``calibrate --json``
+prints it; none = a Hexa Slide), and the page's parameter tables, figures and
+workspace map use that model's fields, units, actuator names and default workspace.
 """
 from __future__ import annotations
 
@@ -18,11 +22,15 @@ import math
 from pathlib import Path
 from typing import Any
 
+from dataclasses import replace
+
 import numpy as np
 from hexacal_msgs_py.files import atomic_write
 
+from hexacal_msgs_py.models import DEFAULT_MODEL, ModelLayout
+
+from .core.architectures import architecture
 from .core.device import DEFAULT_LINK_LENGTH_M
-from .core.model import N_PARAMETERS, parameter_names
 
 RESULT_FORMAT = "hexacal-result/1"
 UM, MM = 1e6, 1e3
@@ -34,6 +42,8 @@ def result_payload(result, extras: dict | None = None, *, measurements=None, tru
                    link_length: float | None = None) -> dict:
     """``result.to_json()`` plus the arrays of ``report_data`` (see module doc)."""
     payload = result.to_json()
+    layout = result.parameters.layout
+    n = layout.n_parameters
     used = [int(i) for i in result.used_postures]
     kinds = None
     if measurements is not None:
@@ -41,17 +51,17 @@ def result_payload(result, extras: dict | None = None, *, measurements=None, tru
     identifiability = result.identifiability
     truth = None
     if true_parameters is not None:
-        truth = np.asarray(getattr(true_parameters, "vector", true_parameters), dtype=float)[:N_PARAMETERS]
+        truth = np.asarray(getattr(true_parameters, "vector", true_parameters), dtype=float)[:n]
     if link_length is None:
         link_length = DEFAULT_LINK_LENGTH_M
     payload["format"] = RESULT_FORMAT
     payload["report_data"] = _plain({
-        "parameter_names": parameter_names(),
+        "parameter_names": list(layout.parameter_names),
         "parameters": result.parameters.vector,
         "initial_parameters": result.initial_parameters.vector,
         "true_parameters": truth,
-        "std": np.asarray(result.std, dtype=float)[:N_PARAMETERS],
-        "covariance": np.asarray(result.covariance, dtype=float)[:N_PARAMETERS, :N_PARAMETERS],
+        "std": np.asarray(result.std, dtype=float)[:n],
+        "covariance": np.asarray(result.covariance, dtype=float)[:n, :n],
         "initial_rms_residual": result.initial_rms_residual,
         "residuals": {"values": result.residuals, "channels": [str(c) for c in result.residual_channels],
                       "postures": [int(p) for p in result.residual_postures]},
@@ -122,7 +132,7 @@ def write_report(source, out_dir: Path | str, *, title: str | None = None, **res
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     sections = _Sections(payload, out)
-    page = _page(title or "hexacal calibration report", sections.build())
+    page = _page(title or "hexacal calibration report", sections.build(), sections.layout)
     return _atomic_write(out / "index.html", page)
 
 
@@ -132,12 +142,12 @@ def _vector(values) -> np.ndarray | None:
     return np.array([np.nan if v is None else v for v in values], dtype=float)
 
 
-def _parameters_from_chain_dict(chains: dict | None) -> np.ndarray | None:
+def _parameters_from_chain_dict(chains: dict | None, model: str) -> np.ndarray | None:
     if not chains:
         return None
     from hexacal_msgs_py.parameters_file import chain_dict_to_parameters
 
-    return np.asarray(chain_dict_to_parameters(chains), dtype=float)
+    return np.asarray(chain_dict_to_parameters(chains, model), dtype=float)
 
 
 class _Sections:
@@ -148,24 +158,36 @@ class _Sections:
         self.out = out
         data = payload.get("report_data") or {}
         self.data = data
+        self.model = payload.get("model") or DEFAULT_MODEL  # results written before models existed: Hexa Slide
+        self.architecture = architecture(self.model)  # an unknown model is a ValueError naming the known ones
+        self.layout: ModelLayout = self.architecture.layout
         self.parameters = _vector(data.get("parameters"))
         if self.parameters is None:
-            self.parameters = _parameters_from_chain_dict(payload.get("parameters"))
+            self.parameters = _parameters_from_chain_dict(payload.get("parameters"), self.model)
         self.initial = _vector(data.get("initial_parameters"))
         self.truth = _vector(data.get("true_parameters"))
         std = _vector(data.get("std"))
         if std is None and payload.get("std"):  # plain --json output: -1 marks an unknown std
-            std = _parameters_from_chain_dict(payload["std"])
+            std = _parameters_from_chain_dict(payload["std"], self.model)
             std = np.where(std < 0, np.nan, std)
         self.std = std
         covariance = data.get("covariance")
         self.covariance = None if covariance is None else np.array(
             [[np.nan if v is None else v for v in row] for row in covariance], dtype=float)
-        self.names = data.get("parameter_names") or parameter_names()
+        self.names = data.get("parameter_names") or list(self.layout.parameter_names)
+        n = self.layout.n_parameters
+        for name, values in (("parameters", self.parameters), ("initial parameters", self.initial),
+                             ("true parameters", self.truth), ("standard deviations", self.std),
+                             ("parameter names", self.names)):
+            if values is not None and len(values) != n:
+                raise ValueError(f"the result's {name} have {len(values)} entries, but its model "
+                                 f"{self.model} has {n} parameters")
         self.link_length = float(data.get("link_length") or DEFAULT_LINK_LENGTH_M)
+        # Where the machine works: its architecture's default workspace, on this result's measuring link.
+        self.workspace = replace(self.architecture.default_workspace(), link_length=self.link_length)
 
     def build(self) -> list[str]:
-        parts = [self.summary()]
+        parts = [self.summary(), self.identified()]
         for section in (self.corrections, self.truth_errors, self.residuals, self.identifiability,
                         self.pose_error_map, self.postures):
             parts.append(section())
@@ -188,7 +210,10 @@ class _Sections:
         rows = [
             ("Outcome", p.get("reason"), "outcome"),
             ("Cost function", p.get("cost"), "cost"),
-            ("Rank", f"{p.get('rank')} of {(p.get('identifiability') or {}).get('n_parameters', N_PARAMETERS)}", "rank"),
+            ("Machine model", f"{self.layout.title}: {self.layout.n_parameters} parameters, actuators "
+             f"{self.layout.actuator_names[0]}..{self.layout.actuator_names[-1]}", "model"),
+            ("Rank", f"{p.get('rank')} of "
+             f"{(p.get('identifiability') or {}).get('n_parameters', self.layout.n_parameters)}", "rank"),
             ("Condition number (column-scaled)", _fmt(p.get("condition_number"), "{:.4g}"), "condition"),
             ("Iterations", p.get("iterations"), "iterations"),
             ("Solve time", _fmt(p.get("solve_seconds"), "{:.3f} s"), "solve-time"),
@@ -232,6 +257,31 @@ class _Sections:
             rejected_html = f"<h3>Rejected postures</h3><ul>{items}</ul>"
         return f"<section><h2>Summary</h2><table class='summary'>{table}</table>{rejected_html}</section>"
 
+    def identified(self) -> str:
+        """The identified parameters per chain, in the model's own keys (A0/B/a/l, A/B/l0, ...) and display units."""
+        layout = self.layout
+        title = f"Identified parameters: {layout.title}"
+        if self.parameters is None:
+            return self.missing(title, "the result file has no parameters")
+        per_chain = self.parameters.reshape(layout.n_chains, layout.fields_per_chain)
+        dimensionless = set(_dimensionless(layout))
+        header, legend = "<th>chain</th><th>actuator</th>", ""
+        for key in layout.chain_keys:
+            fields = layout.fields[key.offset:key.offset + (key.count or 1)]
+            unit = "x1000" if set(fields) <= dimensionless else "mm"
+            header += f"<th title='{html.escape(key.description)}'>{html.escape(key.name)} [{unit}]</th>"
+            legend += f"<li><b>{html.escape(key.name)}</b> ({', '.join(fields)}): {html.escape(key.description)}</li>"
+        rows = ""
+        for chain in range(layout.n_chains):
+            cells = ""
+            for key in layout.chain_keys:
+                values = per_chain[chain, key.offset:key.offset + (key.count or 1)] * MM
+                cells += f"<td>{', '.join(f'{v:.4f}' for v in values)}</td>"
+            rows += (f"<tr><td>chain_{chain + 1}</td><td>{html.escape(layout.actuator_names[chain])}</td>"
+                     f"{cells}</tr>")
+        return (f"<section><h2>{html.escape(title)}</h2><table class='data' id='identified-parameters'>"
+                f"<tr>{header}</tr>{rows}</table><ul class='note'>{legend}</ul></section>")
+
     def corrections(self) -> str:
         title = "Parameter corrections and their standard deviations"
         if self.parameters is None or self.initial is None or self.std is None:
@@ -239,11 +289,12 @@ class _Sections:
         from . import figures
 
         correction = self.parameters - self.initial
-        image = self.figure("corrections.png", lambda path: figures.parameter_corrections(correction, self.std, path))
+        image = self.figure("corrections.png", lambda path: figures.parameter_corrections(
+            correction, self.std, path, self.layout))
         rows = "".join(
             f"<tr><td>{html.escape(n)}</td><td>{c * MM:+.4f}</td><td>{_fmt(s * UM, '{:.3f}')}</td></tr>"
             for n, c, s in zip(self.names, correction, self.std))
-        table = ("<details><summary>All 54 parameters</summary><table class='data'><tr><th>parameter</th>"
+        table = (f"<details><summary>All {len(self.names)} parameters</summary><table class='data'><tr><th>parameter</th>"
                  f"<th>correction [mm]</th><th>std [um]</th></tr>{rows}</table></details>")
         return f"<section><h2>{title}</h2>{image}{table}</section>"
 
@@ -255,9 +306,10 @@ class _Sections:
 
         before, after = self.initial - self.truth, self.parameters - self.truth
         images = self.figure("parameter_errors.png", lambda path: figures.parameter_errors(
-            before, after, "Parameter errors before (square) and after (circle), cf. paper Figs. 4-6", path))
+            before, after, "Parameter errors before (square) and after (circle), cf. paper Figs. 4-6", path,
+            self.layout))
         images += self.figure("chain_errors.png", lambda path: figures.chain_errors(
-            before, after, "Errors in kinematic chains, cf. paper Figs. 7-9", path))
+            before, after, "Errors in kinematic chains, cf. paper Figs. 7-9", path, self.layout))
         return f"<section><h2>{title}</h2>{images}</section>"
 
     def residuals(self) -> str:
@@ -293,7 +345,8 @@ class _Sections:
             return self.missing(title, "the result file has no covariance")
         from . import figures
 
-        x, y, std = predicted_position_error_map(self.parameters, self.covariance, self.link_length)
+        x, y, std = predicted_position_error_map(self.parameters, self.covariance, self.link_length,
+                                                 xy_range_m=self.workspace.xy_range_m, model=self.model)
         poses = np.array(self.data.get("poses") or np.zeros((0, 6)), dtype=float).reshape(-1, 6)
         image = self.figure("pose_error_map.png", lambda path: figures.pose_error_map(x, y, std, path, poses[:, :2]))
         finite = std[np.isfinite(std)]
@@ -313,31 +366,37 @@ class _Sections:
         if kinds is None:  # not recorded: a posture at [0, 0, -L] within 1 mm was a fixed-position one
             at_fixed = np.linalg.norm(poses[:, :3] - [0.0, 0.0, -self.link_length], axis=1) < 1e-3
             kinds = np.where(at_fixed, "fixed", "sphere")
-        image = self.figure("postures.png", lambda path: figures.postures_on_sphere(poses, np.asarray(kinds), path))
+        image = self.figure("postures.png", lambda path: figures.postures_on_sphere(
+            poses, np.asarray(kinds), path, self.workspace.xy_range_m))
         return f"<section><h2>{title}</h2>{image}</section>"
 
 
 def predicted_position_error_map(parameters: np.ndarray, covariance: np.ndarray, link_length: float,
-                                 grid: int = MAP_GRID, xy_range_m: float = 0.4):
+                                 grid: int = MAP_GRID, xy_range_m: float | None = None, model: str | None = None):
     """(x, y, std) of the linearised position error, sqrt(trace(J_p C J_p^T)), on an x, y grid (m).
 
     J_p = dP/du at (x, y, -sqrt(L^2 - x^2 - y^2), 0, 0, 0); cells the machine cannot
-    reach (postures.Workspace) are NaN.  Parameters without a variance count as exact.
+    reach (its architecture's default workspace, on this link) are NaN.  Parameters without a
+    variance count as exact.  ``model`` None = the Hexa Slide; ``xy_range_m`` None = the workspace's.
     """
     from .core.kinematics import pose_parameter_sensitivity
-    from .core.model import HexaParameters
-    from .core.postures import Workspace, acceptable_poses
+    from .core.postures import acceptable_poses
 
-    params = HexaParameters(np.asarray(parameters, dtype=float)[:N_PARAMETERS])
+    arch = architecture(model)
+    n = arch.layout.n_parameters
+    params = arch.parameters(np.asarray(parameters, dtype=float)[:n])
+    workspace = replace(arch.default_workspace(), link_length=link_length)
+    if xy_range_m is None:
+        xy_range_m = workspace.xy_range_m
     axis = np.linspace(-xy_range_m, xy_range_m, grid)
     x, y = np.meshgrid(axis, axis)
     radius2 = link_length**2 - x**2 - y**2
     poses = np.column_stack([x.ravel(), y.ravel(), -np.sqrt(np.maximum(radius2, 0.0)).ravel(), np.zeros((x.size, 3))])
-    ok = (radius2.ravel() > 0) & acceptable_poses(params, poses, Workspace(link_length=link_length))
+    ok = (radius2.ravel() > 0) & acceptable_poses(params, poses, workspace)
     std = np.full(x.size, np.nan)
     if np.any(ok):
         sensitivity, _ = pose_parameter_sensitivity(params, poses[ok])
-        cov = np.nan_to_num(np.asarray(covariance, dtype=float)[:N_PARAMETERS, :N_PARAMETERS], nan=0.0, posinf=0.0)
+        cov = np.nan_to_num(np.asarray(covariance, dtype=float)[:n, :n], nan=0.0, posinf=0.0)
         position = sensitivity[:, :3, :]
         std[ok] = np.sqrt(np.maximum(np.einsum("nik,kl,nil->n", position, cov, position), 0.0))
     return x, y, std.reshape(x.shape)
@@ -379,12 +438,19 @@ window.addEventListener('load', function () {
 """
 
 
-def _page(title: str, sections: list[str]) -> str:
+def _dimensionless(layout: ModelLayout) -> list[str]:
+    """Per-chain fields without a unit (the Hexa Slide's rail components ax, ay): shown as 1000 x the value."""
+    return [name for name, unit in zip(layout.fields, layout.field_units) if unit == "1"]
+
+
+def _page(title: str, sections: list[str], layout: ModelLayout) -> str:
+    dimensionless = _dimensionless(layout)
+    scaled = f" (dimensionless {', '.join(dimensionless)} as 1000 x the value)" if dimensionless else ""
     return (
         "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
         f"<title>{html.escape(title)}</title><style>{_STYLE}</style></head>\n<body>"
         f"<h1>{html.escape(title)}</h1>"
-        "<p class='note'>Units: parameters in mm (rail components a as 1000 x the unit vector), standard deviations "
+        f"<p class='note'>Units: parameters in mm{scaled}, standard deviations "
         "and residuals in um and urad; the files hold SI units.</p>\n"
         + "\n".join(sections)
         + f"\n<script>{_IMAGE_CHECK}</script></body></html>\n"
