@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .cli_common import Progress, load_params_arg
+from .cli_common import Progress
 
 if TYPE_CHECKING:
     from .core.architectures import KinematicParameters
@@ -78,7 +78,8 @@ def study_model(args) -> str:
     named = [(f"--model {args.model}", args.model)] if args.model else []
     for option, path in (("--true-params", args.true_params), ("--nominal-params", args.nominal_params)):
         if path is not None:
-            named.append((f"{option} {path} (a {load_model(path)} file)", load_model(path)))
+            model = load_model(path)
+            named.append((f"{option} {path} (a {model} file)", model))
     models = {model for _, model in named}
     if len(models) > 1:
         raise ValueError("the machine models disagree: " + ", ".join(text for text, _ in named)
@@ -109,6 +110,7 @@ def run(args) -> int:
     from . import cli_study_device, planning_study
     from .core.study import run_calibration
 
+    args.model = study_model(args)  # resolved once: the files' model when --model is not given
     if args.plan:
         return planning_study.run(args)
     configured = configured_run(args)
