@@ -195,9 +195,11 @@ class GoughStewart(Architecture):
     @staticmethod
     def _cosines(legs: _Legs) -> tuple[np.ndarray, np.ndarray]:
         unit = legs.unit_legs()  # (3, N, 6), A -> B
-        base_cos = -unit[2]  # the base U joint's neutral axis points down, towards the platform
+        # The joints' neutral axes are normal to the base and platform planes, pointing along the legs:
+        # down from a ceiling-mounted base, up from an upright one; |cos| serves both mounts.
+        base_cos = np.abs(unit[2])
         normal = legs.rotations[:, :, 2]  # z' in the base frame, (N, 3)
-        platform_cos = -(unit[0] * normal[:, 0:1] + unit[1] * normal[:, 1:2] + unit[2] * normal[:, 2:3])
+        platform_cos = np.abs(unit[0] * normal[:, 0:1] + unit[1] * normal[:, 1:2] + unit[2] * normal[:, 2:3])
         return base_cos, platform_cos
 
     def joint_cosines(self, params: GoughStewartParameters, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
