@@ -12,6 +12,8 @@ from .cli_common import Progress
 if TYPE_CHECKING:
     from .core.planning import PostureLimits
 
+MOUNT_PARAMETER = "device.mount"  # the parameters-file key of the device mount (core/device.py)
+
 # The planner and the report are imported where they run: this module is imported by every `hexacal` start-up to
 # register the commands.
 
@@ -84,6 +86,9 @@ def _plan_arguments(plan) -> None:
     plan.add_argument("--max-condition", type=float,
                       help=f"max pose-Jacobian condition number, angles scaled by L (default: the model's "
                       f"workspace, {defaults.max_condition:g} for both)")
+    plan.add_argument("--mount", choices=("hanging", "standing"),
+                      help="device mount: hanging (platform below the device's base joint) or standing (above it; "
+                      "an upright machine); default: the nominal file's device.mount, else hanging")
     plan.add_argument("--out", type=Path, required=True, help="plan file to write (YAML)")
     plan.add_argument("--json", action="store_true", help="print one JSON object (no progress display)")
     plan.set_defaults(handler=run_plan)
@@ -96,11 +101,15 @@ def _report_arguments(report) -> None:
     report.set_defaults(handler=run_report)
 
 
-def _limits(args, nominal) -> PostureLimits:
-    """The nominal machine's default limits (its architecture's workspace), with the options given replacing them."""
+def _limits(args, nominal, extras: dict) -> PostureLimits:
+    """The nominal machine's default limits (its architecture's workspace), with the options given replacing them.
+
+    The device mount: --mount, else the nominal file's ``device.mount``, else hanging.
+    """
     from .core.planning import PostureLimits
 
     given = {
+        "mount": args.mount or extras.get(MOUNT_PARAMETER),
         "link_length": args.link_length,
         "xy_range_m": None if args.xy_range_mm is None else args.xy_range_mm / 1e3,
         "rotation_range_rad": None if args.rotation_range_deg is None else math.radians(args.rotation_range_deg),
@@ -113,17 +122,18 @@ def _limits(args, nominal) -> PostureLimits:
     return PostureLimits.for_machine(nominal, **{name: value for name, value in given.items() if value is not None})
 
 
-def load_nominal(path: Path | None):
-    """The nominal machine: a parameters YAML of any model (its ``model`` key), or the default machine."""
+def load_nominal(path: Path | None) -> tuple:
+    """(parameters, other parameters of the file): a parameters YAML of any model (its ``model`` key), or the
+    default machine (no other parameters)."""
     from .core.architectures import default_parameters, parameters_for
 
     if path is None:
-        return default_parameters()
+        return default_parameters(), {}
     from hexacal_msgs_py.parameters_file import read_parameters_file
 
     contents = read_parameters_file(path)
     try:
-        return parameters_for(contents.model, contents.vector)
+        return parameters_for(contents.model, contents.vector), dict(contents.extras)
     except ValueError as error:  # the architecture's own checks: name the file, as the loader does
         raise ValueError(f"{path}: {error}") from None
 
@@ -132,8 +142,9 @@ def run_plan(args) -> int:
     from .core.measurements import NoiseModel
     from .core.planning import INDICES, PREDICTION, plan_postures
 
-    nominal = load_nominal(args.nominal)
+    nominal, extras = load_nominal(args.nominal)
     layout = nominal.layout
+    limits = _limits(args, nominal, extras)
     if args.out.is_dir():
         raise IsADirectoryError(f"--out {args.out} is a directory; name a YAML file")
     weighted = not args.unweighted and args.cost != "relative" and args.noise_um > 0
@@ -142,7 +153,7 @@ def run_plan(args) -> int:
     progress = Progress(enabled=not args.json, total=steps)
     try:
         planning = plan_postures(nominal, args.postures, index=args.index, method=args.method,
-                                 n_candidates=args.candidates, cost=args.cost, limits=_limits(args, nominal),
+                                 n_candidates=args.candidates, cost=args.cost, limits=limits,
                                  fixed_fraction=args.fixed_fraction, seed=args.seed, noise=noise, name=args.name,
                                  progress=progress.step)
     finally:
@@ -154,14 +165,15 @@ def run_plan(args) -> int:
     counts = {kind: int((plan.kinds == kind).sum()) for kind in ("sphere", "fixed")}
     if args.json:
         print(json.dumps({
-            "out": str(args.out), "name": plan.name, "model": plan.model, "postures": len(plan), "kinds": counts,
+            "out": str(args.out), "name": plan.name, "model": plan.model, "mount": plan.mount, "postures": len(plan),
+            "kinds": counts,
             "index": args.index, "method": args.method, "cost": args.cost, "weighted": weighted,
             "candidates": len(planning.candidates), "rank": planning.rank, "indices": planning.indices, "random_mean_indices": random,
             "candidate_seconds": planning.candidate_seconds, "selection_seconds": planning.selection_seconds,
             "exchange_swaps": max(len(planning.exchange_history) - 1, 0),
         }))
         return 0
-    print(f"plan '{plan.name}' for the {layout.title}: {len(plan)} postures ({counts['sphere']} sphere, "
+    print(f"plan '{plan.name}' for the {layout.title} ({plan.mount} device): {len(plan)} postures ({counts['sphere']} sphere, "
           f"{counts['fixed']} fixed) chosen from {len(planning.candidates)} candidates by {args.method} on {args.index} "
           f"({'noise-weighted' if weighted else 'unweighted'}, cost {args.cost})")
     print(f"  candidates {planning.candidate_seconds:.2f} s, selection {planning.selection_seconds:.2f} s"

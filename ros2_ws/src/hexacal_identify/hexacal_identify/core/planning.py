@@ -87,7 +87,7 @@ import yaml
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 
 from .architectures import KinematicParameters
-from .device import DeviceModel, inclinometer_angles
+from .device import DEFAULT_MOUNT, STANDING, DeviceModel, check_mount, fixed_point, inclinometer_angles, sphere_z
 from .kinematics import pose_parameter_sensitivity
 from .measurements import FIXED, POSTURE_KINDS, SPHERE, NoiseModel, simulate_measurements
 from .postures import Workspace
@@ -129,6 +129,10 @@ class PostureLimits:
     max_s_joint_angle_rad: float = float(np.radians(90.0))  # platform-side spherical joint
     max_condition: float = float(_PAPER_WORKSPACE.max_condition)
     min_leg_cosine: float = float(_PAPER_WORKSPACE.min_leg_rail_cosine)  # away from singular legs (architecture's)
+    mount: str = DEFAULT_MOUNT  # the device's (device.py): hanging = postures below O, standing = above it
+
+    def __post_init__(self) -> None:
+        check_mount(self.mount)
 
     @classmethod
     def from_workspace(cls, workspace: Workspace, **overrides) -> "PostureLimits":
@@ -146,6 +150,9 @@ class PostureLimits:
         """The default limits for planning on ``params``: its architecture's default workspace."""
         return cls.from_workspace(params.architecture.default_workspace(), **overrides)
 
+    def device(self) -> DeviceModel:
+        return DeviceModel(self.link_length, self.mount)
+
     def workspace(self) -> Workspace:
         return Workspace(self.link_length, self.xy_range_m, self.rotation_range_rad, tuple(self.actuator_stroke_m),
                          self.max_condition, self.min_leg_cosine)
@@ -160,7 +167,7 @@ class PostureLimits:
         poses = np.atleast_2d(np.asarray(poses, dtype=float))
         arch = params.architecture
         reachable = arch.legs(arch.chains(params), poses).reachable()
-        alpha, beta = inclinometer_angles(poses[:, :3])
+        alpha, beta = inclinometer_angles(poses[:, :3], self.mount)
         with np.errstate(invalid="ignore"):
             u_cos, s_cos = arch.joint_cosines(params, poses)
         tolerance = 1e-9  # the sphere radius is recomputed from x, y; allow its rounding
@@ -179,6 +186,10 @@ class PostureLimits:
     def feasible(self, params: KinematicParameters, poses: np.ndarray) -> np.ndarray:
         checks = self.check(params, poses)
         return np.logical_and.reduce(list(checks.values()))
+
+
+class InfeasibleLimitsError(ValueError):
+    """The limits leave (almost) no feasible candidate posture on the nominal machine."""
 
 
 def default_fixed_fraction(cost: str) -> float:
@@ -202,7 +213,7 @@ def generate_candidates(params: KinematicParameters, n: int, rng: np.random.Gene
     n_fixed = int(round(n * fixed_fraction))
     parts, kinds = [], []
     for kind, count in ((SPHERE, n - n_fixed), (FIXED, n_fixed)):
-        accepted, found = [], 0
+        accepted, found, drawn = [], 0, 0
         for _ in range(200):
             if found >= count:
                 break
@@ -210,8 +221,12 @@ def generate_candidates(params: KinematicParameters, n: int, rng: np.random.Gene
             good = draws[limits.feasible(params, draws)]
             accepted.append(good)
             found += len(good)
-        else:
-            raise RuntimeError(f"could not find {count} feasible {kind} postures within the limits")
+            drawn += len(draws)
+        else:  # bad input (limits that exclude the machine's workspace), not a failure: a ValueError
+            raise InfeasibleLimitsError(
+                f"could not find {count} feasible {kind} postures within the limits: {found} of {drawn} drawn "
+                f"were feasible for the {params.layout.title} with a {limits.mount} device (check the "
+                "workspace, stroke and joint limits against the nominal machine)")
         if count:
             parts.append(np.concatenate(accepted)[:count])
             kinds.append(np.full(count, kind))
@@ -222,11 +237,10 @@ def generate_candidates(params: KinematicParameters, n: int, rng: np.random.Gene
 
 def _draw(kind: str, rng: np.random.Generator, n: int, limits: PostureLimits) -> np.ndarray:
     angles = rng.uniform(-limits.rotation_range_rad, limits.rotation_range_rad, (n, 3))
-    if kind == FIXED:  # inclinometer at zero: the platform sits at [0, 0, -L]
-        return np.column_stack([np.tile([0.0, 0.0, -limits.link_length], (n, 1)), angles])
+    if kind == FIXED:  # inclinometer at zero: the platform sits at [0, 0, -L] ([0, 0, +L] standing)
+        return np.column_stack([np.tile(fixed_point(limits.link_length, limits.mount), (n, 1)), angles])
     xy = rng.uniform(-limits.xy_range_m, limits.xy_range_m, (n, 2))
-    z = -np.sqrt(limits.link_length**2 - np.sum(xy**2, axis=1))
-    return np.column_stack([xy, z, angles])
+    return np.column_stack([xy, sphere_z(xy, limits.link_length, limits.mount), angles])
 
 
 # --------------------------------------------------------------------------- observability indices
@@ -416,8 +430,9 @@ def _noise_rows(function: CostFunction, poses: np.ndarray, legs, block, sigma: C
     wrt_readings[is_phi, 2] = 1.0 / sigma.angle_rad  # r = phi_m - phi_c
     measured_xyz = np.isin(block.channels, ("x", "y", "z")) & (function.cost == "absolute")
     if np.any(measured_xyz):  # eq. 4: the measured position moves with alpha and beta
-        alpha, beta = inclinometer_angles(poses[:, :3])
-        length = device.link_length
+        alpha, beta = inclinometer_angles(poses[:, :3], device.mount)
+        # eq. 4's derivatives; a standing link's end is p = -p_hanging(alpha, beta) (device.py)
+        length = -device.link_length if device.mount == STANDING else device.link_length
         d_alpha = np.column_stack([-length * np.sin(alpha) * np.sin(beta), -length * np.cos(alpha),
                                    length * np.sin(alpha) * np.cos(beta)])
         d_beta = np.column_stack([length * np.cos(alpha) * np.cos(beta), np.zeros_like(alpha),
@@ -626,6 +641,7 @@ def travel_order(poses: np.ndarray, kinds: np.ndarray, link_length: float, keep_
 # --------------------------------------------------------------------------- the plan
 METADATA_PREFIX = "# hexacal-plan: "  # one comment line of JSON: strict plan loaders skip it, Plan.load reads it
 PLAN_MODEL_KEY = "model"  # in the plan mapping: the machine model (absent = the Hexa Slide, DEFAULT_MODEL)
+PLAN_MOUNT_KEY = "mount"  # in the plan mapping: the device mount (absent = hanging, device.DEFAULT_MOUNT)
 
 
 @dataclass
@@ -639,6 +655,7 @@ class Plan:
           name: greedy-O1-25-3f2a9c1e
           link_length: 0.75
           model: gough_stewart
+          mount: standing
         postures:
           - {kind: sphere, pose: [x, y, z, theta, psi, phi]}
 
@@ -646,9 +663,12 @@ class Plan:
     nominal parameters' architecture), so the driver can refuse a plan made for
     another machine.  Like the parameters files, a plan without ``model`` is a
     Hexa Slide's: the key is written only for other models, so Hexa Slide plan
-    files stay as they were.  The metadata (which always names the model) rides
-    in a comment because the driver's loader accepts only ``name``,
-    ``link_length`` (and ``model``) in ``plan``; the name ends with the plan's
+    files stay as they were.  ``plan.mount`` likewise names a device mount other
+    than ``hanging`` (``standing``: the postures lie above the device's base
+    joint, the fixed position is [0, 0, +L]).  The metadata (which always names
+    the model, and the mount among the limits) rides in a comment because the
+    driver's loader accepts only ``name``, ``link_length`` (and ``model``,
+    ``mount``) in ``plan``; the name ends with the plan's
     fingerprint, so a bag that records the plan name says exactly which postures it followed.
     """
 
@@ -658,6 +678,7 @@ class Plan:
     kinds: np.ndarray
     metadata: dict = field(default_factory=dict)
     model: str = DEFAULT_MODEL
+    mount: str = DEFAULT_MOUNT
 
     def __post_init__(self) -> None:
         self.poses = np.atleast_2d(np.asarray(self.poses, dtype=float)).reshape(-1, 6)
@@ -676,6 +697,7 @@ class Plan:
         if self.model not in MODELS:
             raise ValueError(f"plan model {self.model!r} is not a machine model hexacal knows "
                              f"({', '.join(sorted(MODELS))})")
+        check_mount(self.mount)
 
     def __len__(self) -> int:
         return len(self.poses)
@@ -691,6 +713,8 @@ class Plan:
                  "plan:", f"  name: {json.dumps(self.name)}", f"  link_length: {float(self.link_length)!r}"]
         if self.model != DEFAULT_MODEL:  # as parameters files: no model = a Hexa Slide
             lines.append(f"  {PLAN_MODEL_KEY}: {self.model}")
+        if self.mount != DEFAULT_MOUNT:  # no mount = hanging
+            lines.append(f"  {PLAN_MOUNT_KEY}: {self.mount}")
         lines.append("postures:")
         for kind, pose in zip(self.kinds, self.poses):
             lines.append(f"  - {{kind: {kind}, pose: [{', '.join(repr(float(v)) for v in pose)}]}}")
@@ -736,7 +760,12 @@ class Plan:
         if not isinstance(model, str) or model not in MODELS:
             raise ValueError(f"{path}: plan.{PLAN_MODEL_KEY} {model!r} is not a machine model hexacal knows "
                              f"({', '.join(sorted(MODELS))})")
-        return cls(str(header["name"]), float(header["link_length"]), poses, np.array(kinds), metadata, model)
+        mount = header.get(PLAN_MOUNT_KEY, DEFAULT_MOUNT)
+        try:
+            check_mount(mount)
+        except ValueError as error:
+            raise ValueError(f"{path}: plan.{PLAN_MOUNT_KEY}: {error}") from None
+        return cls(str(header["name"]), float(header["link_length"]), poses, np.array(kinds), metadata, model, mount)
 
 
 def _plain(value):
@@ -797,7 +826,7 @@ def plan_postures(nominal: KinematicParameters, n_postures: int, *, index: str =
         raise ValueError(f"need at least as many candidates ({n_candidates}) as postures ({n_postures})")
     started = time.perf_counter()
     fraction = default_fixed_fraction(cost) if fixed_fraction is None else fixed_fraction
-    device = DeviceModel(limits.link_length)
+    device = limits.device()
     rng = np.random.default_rng([seed, 0x91A4])
     poses, kinds = generate_candidates(nominal, n_candidates, rng, limits, fraction)
     progress(f"{len(poses)} candidates")
@@ -835,7 +864,8 @@ def plan_postures(nominal: KinematicParameters, n_postures: int, *, index: str =
         "nominal_fingerprint": hashlib.sha256(np.round(nominal.vector, 12).tobytes()).hexdigest()[:16],
         "limits": limits.to_json(),
     }
-    plan = Plan(name or "plan", limits.link_length, poses[design], kinds[design], metadata, nominal.model)
+    plan = Plan(name or "plan", limits.link_length, poses[design], kinds[design], metadata, nominal.model,
+                limits.mount)
     if name is None:  # default name: what it is and which postures
         plan.name = f"{method}-{index}-{n_postures}-{plan.fingerprint()}"
     return PlanningResult(plan, candidates, design, selection_order, indices, rank, greedy_history, exchange_history,
@@ -843,7 +873,7 @@ def plan_postures(nominal: KinematicParameters, n_postures: int, *, index: str =
 
 
 __all__ = [
-    "CRITERIA", "INDICES", "METHODS", "PLAN_MODEL_KEY", "PREDICTION", "CandidateSet", "Plan", "PlanningResult", "PostureLimits", "build_candidate_set",
+    "CRITERIA", "INDICES", "InfeasibleLimitsError", "METHODS", "PLAN_MODEL_KEY", "PLAN_MOUNT_KEY", "PREDICTION", "CandidateSet", "Plan", "PlanningResult", "PostureLimits", "build_candidate_set",
     "default_fixed_fraction", "exchange_design", "generate_candidates", "greedy_design", "observability_index",
     "observability_indices", "plan_postures", "travel_order",
 ]
