@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .device import DEFAULT_LINK_LENGTH_M
+from .device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, fixed_point
 from .architectures import KinematicParameters
 from .model import N_PARAMETERS, parameter_names
 
@@ -176,6 +176,7 @@ def analyze(
     free: np.ndarray | None = None,
     rank_tolerance: float = DEFAULT_RANK_TOLERANCE,
     link_length: float = DEFAULT_LINK_LENGTH_M,
+    mount: str = DEFAULT_MOUNT,
     gram_root: np.ndarray | None = None,
 ) -> IdentifiabilityReport:
     """Rank, conditioning and unidentifiable combinations of a (rows x free params) Jacobian.
@@ -200,7 +201,7 @@ def analyze(
     condition = float(singular[0] / singular[rank - 1]) if rank else float("inf")
     _, pivots = pivoted_qr(scaled)
     null_space = vt[rank:].T
-    gauges = _gauge_directions(params, free, scales, link_length) if params is not None else []
+    gauges = _gauge_directions(params, free, scales, link_length, mount) if params is not None else []
     n_parameters = params.layout.n_parameters if params is not None else N_PARAMETERS
     directions = _describe(null_space, names, gauges, _device_directions(free, scales, n_parameters))
     return IdentifiabilityReport(
@@ -215,7 +216,7 @@ def analyze(
 
 
 def _gauge_directions(params: KinematicParameters, free: np.ndarray | None, scales: np.ndarray,
-                      link_length: float) -> list[tuple[str, np.ndarray]]:
+                      link_length: float, mount: str = DEFAULT_MOUNT) -> list[tuple[str, np.ndarray]]:
     """Parameter changes that move a frame (or one actuator's zero), in scaled free coordinates.
 
     The architecture says what each motion does to its parameters (``frame_motion``,
@@ -231,15 +232,15 @@ def _gauge_directions(params: KinematicParameters, free: np.ndarray | None, scal
         return vector * scales
 
     gauges = []
-    # The fixed-position procedure pins the platform at [0, 0, -L]: a rotation of the base frame about
+    # The fixed-position procedure pins the platform at [0, 0, -L] ([0, 0, +L] standing): a rotation of the base frame about
     # that point leaves it pinned, so name rotations about it as well as about O.
-    fixed_point = np.array([0.0, 0.0, -link_length])
+    fixed = fixed_point(link_length, mount)
     for k, axis in enumerate(np.eye(3)):
         gauges.append(
             (
                 f"a rotation of the base frame about the {axis_names[k]} axis through the fixed-position point "
-                f"[0, 0, -{link_length:g}] m",
-                direction(arch.frame_motion(params, base_rotation=axis, base_translation=-np.cross(axis, fixed_point))),
+                f"[0, 0, {fixed[2]:g}] m",
+                direction(arch.frame_motion(params, base_rotation=axis, base_translation=-np.cross(axis, fixed))),
             )
         )
     for k, axis in enumerate(np.eye(3)):

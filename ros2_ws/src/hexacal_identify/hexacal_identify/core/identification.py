@@ -512,7 +512,8 @@ class _LevenbergMarquardt:
     def analyze(self) -> IdentifiabilityReport:
         # The normal equations already hold J^T J: its n x n square root spares analyze() a tall SVD.
         return analyze(self.block.jacobian, self.free_names(), self.params, self.free, self.options.rank_tolerance,
-                       self.options.device.link_length, gram_root=self.normal.square_root() * self.scales)
+                       self.options.device.link_length, self.options.device.mount,
+                       gram_root=self.normal.square_root() * self.scales)
 
     def run(self) -> None:
         cost = float(self.block.values @ self.block.values)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .device import DEFAULT_LINK_LENGTH_M
+from .device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, fixed_point, sphere_z
 from .architectures import KinematicParameters
 
 
@@ -30,17 +30,18 @@ class Workspace:
     # Hexa Slide: w / l, legs far from perpendicular to their rail; Gough-Stewart: the least cosine of a
     # passive joint's angle (architectures/*.acceptable_poses).
     min_leg_rail_cosine: float = 0.2
+    mount: str = DEFAULT_MOUNT  # the device's: the link sphere lies below (hanging) or above (standing) O
 
 
 def _sphere_candidates(rng: np.random.Generator, n: int, workspace: Workspace) -> np.ndarray:
     xy = rng.uniform(-workspace.xy_range_m, workspace.xy_range_m, (n, 2))
-    z = -np.sqrt(workspace.link_length**2 - np.sum(xy**2, axis=1))
+    z = sphere_z(xy, workspace.link_length, workspace.mount)
     angles = rng.uniform(-workspace.rotation_range_rad, workspace.rotation_range_rad, (n, 3))
     return np.column_stack([xy, z, angles])
 
 
 def _fixed_candidates(rng: np.random.Generator, n: int, workspace: Workspace) -> np.ndarray:
-    position = np.tile([0.0, 0.0, -workspace.link_length], (n, 1))
+    position = np.tile(fixed_point(workspace.link_length, workspace.mount), (n, 1))
     angles = rng.uniform(-workspace.rotation_range_rad, workspace.rotation_range_rad, (n, 3))
     return np.column_stack([position, angles])
 
