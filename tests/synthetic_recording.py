@@ -3,7 +3,10 @@
 Raw streams at ``rate_hz``: each posture is held for ``dwell_s`` (readings with fresh
 noise) and reached by a ``move_s`` linear move of the sliders and angles; the
 posture topic carries the mean of each dwell, stamped at its end.  Used to test
-the offline tools on bags of known content.
+the offline tools on bags of known content.  ``model`` names the actuator joints
+(Hexa Slide: slider_1..6, the default; Gough-Stewart: leg_1..6) and, with
+``record_model``, is written to the bag's ``hexacal.collector`` metadata as the
+collector does.
 """
 from __future__ import annotations
 
@@ -18,10 +21,10 @@ from hexacal_msgs_py.names import (
     ENCODER_TOPIC,
     INCLINOMETER_NAMES,
     INCLINOMETER_TOPIC,
-    POSTURE_NAMES,
     POSTURE_TOPIC,
-    SLIDER_NAMES,
     SLIDERS_TOPIC,
+    actuator_names,
+    posture_names,
 )
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -36,14 +39,18 @@ def _joint_state(stamp_ns: int, names, values) -> dict:
 def write_recording(directory: Path, exact: Measurements, *, noise_m: float = 1e-5, noise_rad: float = 1e-5,
                     rate_hz: float = 100.0, dwell_s: float = 1.0, move_s: float = 0.6, seed: int = 0,
                     raw: bool = True, postures: bool = True, extra_topic: str | None = None,
-                    drop_topic: str | None = None, namespace: str = "", nan_every: int = 0) -> Path:
+                    drop_topic: str | None = None, namespace: str = "", nan_every: int = 0,
+                    model: str | None = None, record_model: str | None = None) -> Path:
     rng = np.random.default_rng(seed)
+    slider_names, names = actuator_names(model), posture_names(model)
     period = int(1e9 / rate_hz)
     values = np.column_stack([exact.slider_positions, exact.inclinometer, exact.rotary])  # (N, 9)
     half_widths = np.array([noise_m] * 6 + [noise_rad] * 3)
     prefix = f"/{namespace.strip('/')}/" if namespace else "/"
     with BagWriter(directory) as writer:
-        topics = {SLIDERS_TOPIC: SLIDER_NAMES, INCLINOMETER_TOPIC: INCLINOMETER_NAMES, ENCODER_TOPIC: ENCODER_NAMES}
+        if record_model is not None:
+            writer.write_metadata("hexacal.collector", {"namespace": "/", "model": record_model})
+        topics = {SLIDERS_TOPIC: slider_names, INCLINOMETER_TOPIC: INCLINOMETER_NAMES, ENCODER_TOPIC: ENCODER_NAMES}
         if raw:
             for topic in topics:
                 if topic != drop_topic:
@@ -63,17 +70,18 @@ def write_recording(directory: Path, exact: Measurements, *, noise_m: float = 1e
                 if nan_every and count % nan_every == nan_every - 1:
                     sample = np.where(np.arange(9) == 2, np.nan, sample)  # a glitched slider_3 reading
                 if raw:
-                    _write_raw(writer, stamp, sample, drop_topic, prefix)
+                    _write_raw(writer, stamp, sample, drop_topic, prefix, slider_names)
                 if extra_topic and stamp % (10 * period) == 0:
                     writer.write(extra_topic, {"data": "not hexacal"}, stamp)
             if postures:
-                writer.write(prefix + POSTURE_TOPIC, _joint_state(stamp, POSTURE_NAMES, dwell.mean(axis=0)), stamp)
+                writer.write(prefix + POSTURE_TOPIC, _joint_state(stamp, names, dwell.mean(axis=0)), stamp)
             previous = target
     return directory
 
 
-def _write_raw(writer: BagWriter, stamp: int, sample: np.ndarray, drop_topic: str | None, prefix: str) -> None:
-    parts = ((SLIDERS_TOPIC, SLIDER_NAMES, sample[:6]), (INCLINOMETER_TOPIC, INCLINOMETER_NAMES, sample[6:8]),
+def _write_raw(writer: BagWriter, stamp: int, sample: np.ndarray, drop_topic: str | None, prefix: str,
+               slider_names=actuator_names()) -> None:
+    parts = ((SLIDERS_TOPIC, slider_names, sample[:6]), (INCLINOMETER_TOPIC, INCLINOMETER_NAMES, sample[6:8]),
              (ENCODER_TOPIC, ENCODER_NAMES, sample[8:]))
     for topic, names, values in parts:
         if topic != drop_topic:

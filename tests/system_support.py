@@ -34,6 +34,7 @@ class Probe:
     node: Any = None
     executor: Any = None
     postures: list = field(default_factory=list)
+    posture_joint_names: list = field(default_factory=list)
     parameters: list = field(default_factory=list)
     statuses: list = field(default_factory=list)
 
@@ -92,15 +93,19 @@ class Probe:
 
     # ------------------------------------------------------------------ topics
 
-    def subscribe_postures(self, topic: str = 'hexacal/posture') -> None:
+    def subscribe_postures(self, topic: str = 'hexacal/posture', model: str | None = None) -> None:
+        """Postures of `model` (default: the Hexa Slide's joints) are appended to self.postures;
+        the joint names of every message to self.posture_joint_names."""
         from sensor_msgs.msg import JointState
 
         from hexacal_msgs_py.conversions import joint_state_to_posture_reading
         from hexacal_msgs_py.qos import POSTURE_QOS
 
-        self.node.create_subscription(
-            JointState, topic, lambda m: self.postures.append(joint_state_to_posture_reading(m)),
-            POSTURE_QOS)
+        def on_posture(message: JointState) -> None:
+            self.posture_joint_names.append(tuple(message.name))
+            self.postures.append(joint_state_to_posture_reading(message, model))
+
+        self.node.create_subscription(JointState, topic, on_posture, POSTURE_QOS)
 
     def subscribe_parameters(self, topic: str = 'hexacal/parameters') -> list:
         """A new transient-local subscription; returns the list its vectors are appended to."""
@@ -140,8 +145,9 @@ class Probe:
         return counts[-1] if counts else 0
 
     def publish_postures(self, postures: Sequence, topic: str = 'hexacal/posture',
-                         subscribers: int = 1) -> None:
-        """Publish postures once `subscribers` subscriptions (besides ours) are matched."""
+                         subscribers: int = 1, model: str | None = None) -> None:
+        """Publish postures (with `model`'s joint names, default the Hexa Slide's) once
+        `subscribers` subscriptions (besides ours) are matched."""
         from sensor_msgs.msg import JointState
 
         from hexacal_msgs_py.conversions import posture_reading_to_joint_state
@@ -152,7 +158,7 @@ class Probe:
         self.spin_until(lambda: publisher.get_subscription_count() >= subscribers + own,
                         NODE_START_TIMEOUT_S, f'{subscribers} subscriber(s) on {topic}')
         for posture in postures:
-            publisher.publish(posture_reading_to_joint_state(posture))
+            publisher.publish(posture_reading_to_joint_state(posture, model=model))
 
     # ------------------------------------------------------------------ services
 
@@ -182,27 +188,38 @@ def probe():
 # --------------------------------------------------------------------------- data
 
 
-def write_parameter_files(directory: Path) -> tuple[Path, Path]:
-    """(Table 1 truth, nominal set 2 seed 0) as parameters YAML in directory."""
-    from hexacal_identify.core.model import nominal_set, table1_parameters
+def write_parameter_files(directory: Path, model: str | None = None) -> tuple[Path, Path]:
+    """(truth, nominal set 2 seed 0) as parameters YAML in directory.
+
+    The truth is Table 1 (the default) or the default machine of `model`
+    (written with its ``model`` key, as is the nominal set).
+    """
+    from hexacal_identify.core.architectures import default_parameters
+    from hexacal_identify.core.model import nominal_set
     from hexacal_msgs_py.parameters_file import save_parameters
 
-    true_path, nominal_path = directory / 'true_table1.yaml', directory / 'nominal_set2.yaml'
-    save_parameters(true_path, table1_parameters().vector)
-    save_parameters(nominal_path, nominal_set(2, seed=0).vector)
+    if model in (None, 'hexa_slide'):
+        true_path, nominal_path = directory / 'true_table1.yaml', directory / 'nominal_set2.yaml'
+    else:
+        true_path = directory / f'true_{model}.yaml'
+        nominal_path = directory / f'nominal_set2_{model}.yaml'
+    save_parameters(true_path, default_parameters(model).vector, model=model)
+    save_parameters(nominal_path, nominal_set(2, seed=0, model=model).vector, model=model)
     return true_path, nominal_path
 
 
-def simulated_postures(count: int, seed: int = 0, noise_um: float = 10.0) -> list:
-    """PostureReadings of sphere postures on the Table 1 machine (core simulation)."""
+def simulated_postures(count: int, seed: int = 0, noise_um: float = 10.0,
+                       model: str | None = None) -> list:
+    """PostureReadings of sphere postures on the Table 1 machine (or the default machine of
+    `model`, in its default workspace) (core simulation)."""
+    from hexacal_identify.core.architectures import architecture
     from hexacal_identify.core.measurements import NoiseModel, simulate_measurements
-    from hexacal_identify.core.model import table1_parameters
     from hexacal_identify.core.postures import sample_poses
     from hexacal_msgs_py.readings import PostureReading
 
     rng = np.random.default_rng([seed, 42])
-    truth = table1_parameters()
-    poses = sample_poses(truth, count, rng, 'sphere')
+    truth = architecture(model).default_parameters()
+    poses = sample_poses(truth, count, rng, 'sphere', architecture(model).default_workspace())
     data = simulate_measurements(truth, poses, 'sphere', noise=NoiseModel.from_microns(noise_um),
                                  rng=rng)
     return [PostureReading.from_values(1_000_000_000 * (i + 1), [

@@ -198,15 +198,21 @@ def launches(namespace: str = '', nominal: str = '', output_dir: str = '', bag_d
              driver: Mapping[str, object] | None = None,
              collector: Mapping[str, object] | None = None,
              identify: Mapping[str, object] | None = None,
-             with_driver: bool = True) -> list[NodeLaunch]:
-    """The NodeLaunch of each node; empty options keep the nodes' defaults."""
+             with_driver: bool = True, model: str = '') -> list[NodeLaunch]:
+    """The NodeLaunch of each node; empty options keep the nodes' defaults.
+
+    `model` (hexa_slide or gough_stewart) goes to the driver and the collector;
+    identify takes its model from the nominal file.
+    """
     driver_parameters: dict[str, object] = {}
+    collector_model: dict[str, object] = {'model': model} if model else {}
+    driver_parameters.update(collector_model)
     if plan:
         driver_parameters['plan'] = plan
     if postures is not None:
         driver_parameters['postures'] = int(postures)
     driver_parameters.update(driver or {})
-    collector_parameters: dict[str, object] = {'record': bool(record)}
+    collector_parameters: dict[str, object] = {'record': bool(record), **collector_model}
     if bag_dir:
         collector_parameters['output_dir'] = str(bag_dir)
     collector_parameters.update(collector or {})
@@ -221,6 +227,24 @@ def launches(namespace: str = '', nominal: str = '', output_dir: str = '', bag_d
     if with_driver:
         nodes.append(NodeLaunch('driver', driver_parameters, namespace))
     return nodes
+
+
+def _file_model(path: str) -> str:
+    """The model a parameters file names if it is not the default Hexa Slide; '' otherwise.
+
+    '' also for a file that cannot be read: the node that reads it names the problem.
+    """
+    if not path:
+        return ''
+    from hexacal_msgs_py.errors import HexacalContractError
+    from hexacal_msgs_py.models import DEFAULT_MODEL
+    from hexacal_msgs_py.parameters_file import read_parameters_file
+
+    try:
+        model = read_parameters_file(path).model
+    except (HexacalContractError, OSError, ValueError):
+        return ''
+    return '' if model == DEFAULT_MODEL else model
 
 
 def _parse_param(text: str) -> tuple[str, str, object]:
@@ -257,7 +281,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "YAML (default: the driver's)")
     parser.add_argument('--postures', type=int, default=None, help='postures of a generated plan')
     parser.add_argument('--true-params', default='', help='parameters YAML of the simulated '
-                        'machine (default: Table 1)')
+                        'machine, of either model (default: the default machine of --model)')
+    parser.add_argument('--model', default='', choices=('', 'hexa_slide', 'gough_stewart'),
+                        help='machine model of the driver and the collector (default: the model '
+                        '--nominal, else --true-params names, else hexa_slide)')
     parser.add_argument('--no-driver', action='store_true',
                         help='start only collector and identify (a real machine publishes)')
     parser.add_argument('--param', action='append', type=_parse_param, default=[],
@@ -277,7 +304,8 @@ def main(argv: list[str] | None = None) -> int:
         extra['driver'].setdefault('true_params', str(Path(args.true_params).resolve()))
     nodes = launches(args.namespace, args.nominal, args.output_dir, args.bag_dir, args.plan,
                      args.postures, not args.no_record, extra['driver'], extra['collector'],
-                     extra['identify'], with_driver=not args.no_driver)
+                     extra['identify'], with_driver=not args.no_driver,
+                     model=args.model or _file_model(args.nominal) or _file_model(args.true_params))
     group = NodeGroup(die_with_parent=True)
     received: list[int] = []
 

@@ -6,8 +6,6 @@ import json
 import sys
 from pathlib import Path
 
-from .cli_common import load_params_arg
-
 # The solver, the bag reader and the report are imported where they run: this module is imported by every `hexacal`
 # start-up to register the commands.
 UM, MM = 1e6, 1e3
@@ -17,9 +15,11 @@ def add_parsers(subparsers) -> None:
     subparsers.add_parser(
         "calibrate",
         help="calibrate from a recorded bag (no ROS graph needed)",
-        description="Identify the 54 parameters from a rosbag2 bag (directory with metadata.yaml + .mcap, or a "
+        description="Identify the kinematic parameters (54 of a Hexa Slide, 42 of a Gough-Stewart platform: the "
+        "model the --nominal file names) from a rosbag2 bag (directory with metadata.yaml + .mcap, or a "
         "single .mcap file) with the same core call the identify node uses. Postures come from the bag's "
-        "/hexacal/posture topic, or are re-detected from its raw sensor streams.",
+        "/hexacal/posture topic, or are re-detected from its raw sensor streams; their actuator joints "
+        "(slider_1..6 or leg_1..6) must be the nominal model's.",
         fill=_calibrate_arguments,
     )
     subparsers.add_parser("bag-info", help="describe a bag (like `ros2 bag info`) and its postures",
@@ -34,7 +34,9 @@ def _calibrate_arguments(calibrate: argparse.ArgumentParser) -> None:
     from .core.residuals import COSTS
 
     calibrate.add_argument("bag", type=Path, help="bag directory or .mcap file")
-    calibrate.add_argument("--nominal", type=Path, required=True, help="parameters YAML to start from")
+    calibrate.add_argument("--nominal", type=Path, required=True,
+                           help="parameters YAML to start from; its model (key model, none: hexa_slide) is the "
+                           "machine's")
     calibrate.add_argument("--output", type=Path, required=True, help="parameters YAML to write (atomically)")
     calibrate.add_argument("--cost", choices=COSTS, default="absolute", help="cost function (default absolute)")
     calibrate.add_argument("--link-length", type=float, default=DEFAULT_LINK_LENGTH_M,
@@ -64,12 +66,13 @@ def run_calibrate(args) -> int:
     from .core.errors import CalibrationError
     from .core.identification import CONVERGED
     from .core.measurements import NoiseModel
-    from .pipeline import calibrate, measurements_from_postures, postures_from_bag
+    from .pipeline import calibrate, check_model, load_machine, measurements_from_postures, postures_from_bag
 
-    nominal = load_params_arg(args.nominal)
+    nominal = load_machine(args.nominal)
     if args.output.exists() and args.output.is_dir():
         raise IsADirectoryError(f"--output {args.output} is a directory; name a YAML file")
     bag = postures_from_bag(args.bag)
+    check_model(bag.model, nominal, f"bag {args.bag}", str(args.nominal))
     noise = NoiseModel.from_microns(args.noise_um) if args.noise_um else None
     try:
         result = calibrate(nominal, bag.postures, cost=args.cost, link_length=args.link_length,
@@ -81,7 +84,7 @@ def run_calibrate(args) -> int:
     comment = (f"hexacal calibrate {args.bag} (cost {args.cost}, {len(result.used_postures)} postures, "
                f"{result.reason}), SI units")
     if result.reason == CONVERGED:
-        save_parameters(args.output, result.parameters.vector, header_comment=comment)
+        save_parameters(args.output, result.parameters.vector, model=result.parameters.model, header_comment=comment)
     measurements = measurements_from_postures(bag.postures) if args.save_result or args.report else None
     extras = {"bag": str(args.bag), "nominal": str(args.nominal)}
     if args.save_result:
@@ -95,7 +98,7 @@ def run_calibrate(args) -> int:
                      measurements=measurements, link_length=args.link_length)
     if args.json:
         payload = result.to_json()
-        payload["bag"] = {"path": str(args.bag), "postures": len(bag.postures), "source": bag.source,
+        payload["bag"] = {"path": str(args.bag), "model": bag.model, "postures": len(bag.postures), "source": bag.source,
                           "ignored_topics": bag.ignored_topics, "invalid_messages": bag.invalid_messages,
                           "rejected_postures": [{"index": i, "reason": r, "detail": d} for i, r, d in bag.rejected]}
         payload["output"] = str(args.output) if result.reason == CONVERGED else None
@@ -110,7 +113,9 @@ def _print_summary(args, bag, result) -> None:
 
     from .core.identification import CONVERGED
 
-    print(f"bag {args.bag}: {len(bag.postures)} postures from the {bag.source}")
+    model = result.parameters.model
+    model_text = "" if model == "hexa_slide" else f" ({model})"
+    print(f"bag {args.bag}{model_text}: {len(bag.postures)} postures from the {bag.source}")
     if bag.ignored_topics:
         print(f"  ignored topics: {', '.join(bag.ignored_topics)}")
     if bag.invalid_messages:
@@ -128,7 +133,7 @@ def _print_summary(args, bag, result) -> None:
         f"{k} {v * UM:.2f} {'urad' if k.startswith('phi') else 'um'}" for k, v in result.rms_residual.items()))
     correction = (result.parameters.vector - result.initial_parameters.vector) * MM
     print(f"largest correction {np.max(np.abs(correction)):.3f} mm, largest std "
-          f"{np.nanmax(result.std) * UM:.2f} um (rail components x1e-6)")
+          f"{np.nanmax(result.std) * UM:.2f} um" + (" (rail components x1e-6)" if model == "hexa_slide" else ""))
     if result.reason == CONVERGED:
         print(f"wrote {args.output}")
     else:

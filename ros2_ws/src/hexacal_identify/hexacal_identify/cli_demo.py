@@ -1,7 +1,8 @@
 """``hexacal demo``: the whole system on a simulated machine, end to end (what `make demo` runs).
 
-Writes the true machine (Table 1) and the nominal model (set 2, seed 0) as
-parameters YAML, starts collector, identify and driver as child processes in a
+Writes the true machine (Table 1; with ``--model gough_stewart`` the default
+Gough-Stewart platform) and the nominal model (set 2, seed 0) as parameters
+YAML, starts collector, identify and driver as child processes in a
 ROS domain of its own (localhost discovery), follows the postures as they are
 collected, calls `hexacal/calibrate`, receives the published parameters and
 prints the parameter and pose errors before and after calibration.
@@ -31,6 +32,12 @@ DOMAIN_LOCK_PATTERN = 'hexacal-test-ros-domain-{}.lock'
 GRAPH_TIMEOUT_S = 30.0
 CALIBRATE_TIMEOUT_S = 300.0
 GROUPS = {'A0': slice(0, 3), 'B': slice(3, 6), 'l': slice(6, 7), 'a': slice(7, 9)}
+# Parameter groups of the before/after table, per model (chain-major fields, see models.py).
+MODEL_GROUPS = {
+    'hexa_slide': GROUPS,
+    'gough_stewart': {'A': slice(0, 3), 'B': slice(3, 6), 'l0': slice(6, 7)},
+}
+MODEL_CHOICES = tuple(MODEL_GROUPS)
 EXIT_OK, EXIT_FAILED = 0, 1
 
 
@@ -41,9 +48,13 @@ class DemoError(RuntimeError):
 def add_parsers(subparsers) -> None:
     parser = subparsers.add_parser(
         'demo', help='simulate a machine, collect postures over ROS 2, calibrate, print the errors',
-        description='Run driver, collector and identify on a simulated Table 1 machine, calibrate '
-        'nominal set 2 from the collected postures and print parameter and pose errors before '
-        'and after. Takes about 1.5 minutes with the defaults.')
+        description='Run driver, collector and identify on a simulated Table 1 machine (or, with '
+        '--model gough_stewart, the default Gough-Stewart platform), calibrate nominal set 2 from '
+        'the collected postures and print parameter and pose errors before and after. Takes '
+        'about 1.5 minutes with the defaults.')
+    parser.add_argument('--model', choices=MODEL_CHOICES, default='hexa_slide',
+                        help='machine model: hexa_slide (Table 1, default) or gough_stewart '
+                        '(the default 6-UPS hexapod)')
     parser.add_argument('--postures', type=int, default=50, help='postures to collect (default 50)')
     parser.add_argument('--noise-um', type=float, default=10.0,
                         help='uniform noise half-width: um on sliders, urad on angles (default 10)')
@@ -101,17 +112,26 @@ class DemoPaths:
     logs: Path
 
 
+def _model(args) -> str:
+    return getattr(args, 'model', None) or 'hexa_slide'
+
+
 def _paths(args) -> DemoPaths:
     stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
     work = (args.out or Path('out') / f'demo_{stamp}').resolve()
-    return DemoPaths(work, (args.bag_dir / f'demo_{stamp}').resolve(), work / 'true_table1.yaml',
+    truth = 'true_table1.yaml' if _model(args) == 'hexa_slide' else f'true_{_model(args)}.yaml'
+    return DemoPaths(work, (args.bag_dir / f'demo_{stamp}').resolve(), work / truth,
                      work / 'nominal_set2.yaml', work / 'calibration.yaml', work / 'logs')
 
 
 def _check_args(args) -> None:
-    if args.postures < 14:
-        raise ValueError(f'--postures must be at least 14 (54 parameters, 4 residuals per '
-                         f'posture), got {args.postures}')
+    from hexacal_msgs_py.models import model_layout
+
+    count = model_layout(_model(args)).n_parameters
+    minimum = math.ceil(count / 4)
+    if args.postures < minimum:
+        raise ValueError(f'--postures must be at least {minimum} ({count} parameters, 4 residuals '
+                         f'per posture), got {args.postures}')
     for name in ('noise_um', 'settle_s', 'dwell_s', 'rate_hz'):
         value = getattr(args, name)
         if not math.isfinite(value) or value < 0 or (name != 'noise_um' and value == 0):
@@ -140,13 +160,22 @@ def _run(args) -> int:
     from hexacal_msgs_py.parameters_file import save_parameters
 
     from .bringup import NodeGroup, NodeLaunch
-    from .core.model import nominal_set, table1_parameters
+    from .core.architectures import architecture
+    from .core.model import nominal_set
 
-    true_params, nominal = table1_parameters(), nominal_set(2, seed=args.seed)
-    save_parameters(paths.true_params, true_params.vector,
-                    header_comment='hexacal demo: the simulated true machine (Table 1), SI units')
-    save_parameters(paths.nominal, nominal.vector, header_comment=(
-        f'hexacal demo: nominal set 2 (Table 1 + Table 2 errors, seed {args.seed}), SI units'))
+    model = _model(args)
+    true_params, nominal = architecture(model).default_parameters(), nominal_set(2, seed=args.seed,
+                                                                                 model=model)
+    if model == 'hexa_slide':
+        truth_text, nominal_text = 'Table 1', 'Table 1 + Table 2 errors'
+    else:
+        truth_text = f'the default {model} machine'
+        nominal_text = f'the default {model} machine + errors with Table 2-like statistics'
+    save_parameters(paths.true_params, true_params.vector, model=model,
+                    header_comment=f'hexacal demo: the simulated true machine ({truth_text}), SI units')
+    save_parameters(paths.nominal, nominal.vector, model=model, header_comment=(
+        f'hexacal demo: nominal set 2 ({nominal_text}, seed {args.seed}), SI units'))
+    collector_model = {} if model == 'hexa_slide' else {'model': model}
     domain_id = claim_domain_id()
     env = {'ROS_DOMAIN_ID': str(domain_id), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
     os.environ.update(env)  # the in-process node below joins the same domain
@@ -157,7 +186,7 @@ def _run(args) -> int:
     session = None
     try:
         collector = group.start(NodeLaunch('collector', {
-            'output_dir': str(paths.bag.parent), 'bag_name': paths.bag.name}),
+            'output_dir': str(paths.bag.parent), 'bag_name': paths.bag.name, **collector_model}),
             env, paths.logs / 'collector.log')
         identify = group.start(NodeLaunch('identify', {
             'nominal': str(paths.nominal), 'output_dir': str(paths.work),
@@ -172,7 +201,8 @@ def _run(args) -> int:
             'slider_noise_m': args.noise_um * 1e-6, 'angle_noise_rad': args.noise_um * 1e-6}),
             env, paths.logs / 'driver.log')
         expected_s = args.postures * (args.settle_s + args.dwell_s)
-        print(f'hexacal demo: driver walks a {args.plan} plan of {args.postures} postures, '
+        machine = '' if model == 'hexa_slide' else f' on a {model}'
+        print(f'hexacal demo: driver walks a {args.plan} plan of {args.postures} postures{machine}, '
               f'+-{args.noise_um:g} um / +-{args.noise_um:g} urad noise, {args.rate_hz:g} Hz '
               f'(about {expected_s:.0f} s)', flush=True)
         _follow_postures(session, group, args.postures, 2.0 * expected_s + 60.0)
@@ -199,9 +229,7 @@ def _run(args) -> int:
     if unclean:
         print(f'hexacal demo: warning: nodes exited with {unclean} (logs in {paths.logs})',
               file=sys.stderr)
-    from .core.model import HexaParameters
-
-    print(report(true_params, nominal, HexaParameters(calibrated), args, paths,
+    print(report(true_params, nominal, true_params.with_vector(calibrated), args, paths,
                  time.monotonic() - started))
     if not (paths.bag / 'metadata.yaml').exists():
         print(f'hexacal demo: error: the bag {paths.bag} was not closed (no metadata.yaml)',
@@ -337,31 +365,42 @@ class _RosSession:
 # --------------------------------------------------------------------------- the report
 
 
-def parameter_error_rows(true_vector: np.ndarray,
-                         vector: np.ndarray) -> dict[str, tuple[float, float]]:
-    """Per group A0, B, l, a: (max, mean) |error| in mm (a: unit-vector components x 1000)."""
+def parameter_error_rows(true_vector: np.ndarray, vector: np.ndarray,
+                         model: str = 'hexa_slide') -> dict[str, tuple[float, float]]:
+    """Per group (Hexa Slide: A0, B, l, a; Gough-Stewart: A, B, l0): (max, mean) |error| in mm
+    (a: unit-vector components x 1000)."""
     import numpy as np
 
-    errors = np.abs(np.asarray(vector) - np.asarray(true_vector)).reshape(6, 9) * 1e3
+    groups = MODEL_GROUPS[model]
+    fields = max(columns.stop for columns in groups.values())
+    errors = np.abs(np.asarray(vector) - np.asarray(true_vector)).reshape(6, fields) * 1e3
     return {name: (float(errors[:, columns].max()), float(errors[:, columns].mean()))
-            for name, columns in GROUPS.items()}
+            for name, columns in groups.items()}
 
 
 def report(true_params, nominal, calibrated, args, paths: DemoPaths, wall_s: float) -> str:
     from .bag import open_bag
     from .core.validation import pose_errors, validation_poses
 
-    before = parameter_error_rows(true_params.vector, nominal.vector)
-    after = parameter_error_rows(true_params.vector, calibrated.vector)
-    lines = ['', 'Parameter errors vs the simulated truth (Table 1), |error| in mm '
-             '(a: unit-vector components x 1000, as in Table 1)',
+    model = true_params.model
+    groups = MODEL_GROUPS[model]
+    before = parameter_error_rows(true_params.vector, nominal.vector, model)
+    after = parameter_error_rows(true_params.vector, calibrated.vector, model)
+    if model == 'hexa_slide':
+        title = ('Parameter errors vs the simulated truth (Table 1), |error| in mm '
+                 '(a: unit-vector components x 1000, as in Table 1)')
+    else:
+        title = (f'Parameter errors vs the simulated truth (the default {model} machine), '
+                 '|error| in mm')
+    lines = ['', title,
              f"{'group':<6}{'count':>6}{'before max':>13}{'before mean':>13}"
              f"{'after max':>12}{'after mean':>12}"]
-    for name, columns in GROUPS.items():
+    for name, columns in groups.items():
         count = 6 * (columns.stop - columns.start)
         lines.append(f'{name:<6}{count:>6}{before[name][0]:>13.3f}{before[name][1]:>13.3f}'
                      f'{after[name][0]:>12.4f}{after[name][1]:>12.4f}')
-    poses = validation_poses(true_params, args.validation_postures, args.seed)
+    poses = validation_poses(true_params, args.validation_postures, args.seed,
+                             true_params.architecture.default_workspace())
     lines += ['', f'Pose errors over {len(poses)} validation postures',
               f"{'':<20}{'position mean':>15}{'position max':>14}{'orientation mean':>18}"
               f"{'orientation max':>17}",

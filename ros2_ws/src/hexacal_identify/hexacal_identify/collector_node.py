@@ -6,6 +6,13 @@ pairs the streams on the slider stamps (StreamSynchronizer), finds the
 stationary periods (PostureDetector) and publishes one averaged posture per
 period on `hexacal/posture` (POSTURE_QOS, stamp = capture time).
 
+The machine model (and so the actuator joints read on `hexacal/sliders` and
+written on `hexacal/posture`: slider_1..6 on a Hexa Slide, leg_1..6 on a
+Gough-Stewart platform) is the `model` parameter, or the model named by the
+parameters YAML `parameters_file` (e.g. the nominal file identify uses), else the
+Hexa Slide. Sliders messages without the model's actuator joints are invalid
+(counted and logged, naming the model they do carry).
+
 Recording goes to a rosbag2 MCAP bag `<output_dir>/<bag_name>/` (BagWriter):
 the raw streams and the postures, flushed every `flush_every_s` and after every
 posture (before publishing it), so a SIGKILL loses at most the posture in
@@ -13,7 +20,9 @@ progress and never one that was published (`reindex` restores metadata.yaml).
 Services `hexacal/start_recording` and `hexacal/stop_recording`
 (std_srvs/Trigger) open a new bag and close the current one. If the driver's
 parameters can be read, the plan it walks is stored as bag metadata
-`hexacal.plan`.
+`hexacal.plan`. The model that recorded the bag is stored twice: in the MCAP
+metadata record `hexacal.collector` (key `model`, beside the detector settings)
+and in metadata.yaml's `custom_data` (`hexacal.model`).
 
 Invalid messages (NaN, missing joints, names and positions of different
 lengths, undecodable bytes) are recorded as received, counted and logged
@@ -50,13 +59,15 @@ from std_srvs.srv import Trigger
 import yaml
 
 from hexacal_msgs_py.conversions import (
+    actuator_model,
     diagnostic_status,
     joint_state_to_encoder_reading,
     joint_state_to_inclinometer_reading,
     joint_state_to_slider_reading,
     posture_reading_to_joint_state,
 )
-from hexacal_msgs_py.errors import InvalidReadingError
+from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError
+from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 from hexacal_msgs_py.names import (
     CALIBRATION_STATUS_TOPIC,
     ENCODER_NAMES,
@@ -65,9 +76,9 @@ from hexacal_msgs_py.names import (
     INCLINOMETER_TOPIC,
     JOINT_STATE_TYPE,
     POSTURE_TOPIC,
-    SLIDER_NAMES,
     SLIDERS_TOPIC,
 )
+from hexacal_msgs_py.parameters_file import read_parameters_file
 from hexacal_msgs_py.qos import POSTURE_QOS, SENSOR_QOS, STATUS_QOS
 
 from .bag import BagError, BagWriter
@@ -88,6 +99,8 @@ START_RECORDING_SERVICE = 'hexacal/start_recording'
 STOP_RECORDING_SERVICE = 'hexacal/stop_recording'
 PLAN_METADATA = 'hexacal.plan'
 COLLECTOR_METADATA = 'hexacal.collector'
+MODEL_CUSTOM_DATA = 'hexacal.model'  # metadata.yaml custom_data key naming the recording's model
+MODEL_CHOICES = ('', *MODELS)
 # Driver parameters that describe the plan it walks (see hexacal_driver.driver_node).
 DRIVER_PLAN_PARAMETERS = ('plan', 'plan_name', 'postures', 'seed', 'link_length', 'settle_s',
                           'dwell_s', 'rate_hz', 'slider_noise_m', 'angle_noise_rad')
@@ -110,11 +123,31 @@ SENSOR_SUBSCRIPTION_QOS = QoSProfile(
 POLL_PERIOD_S = 0.01
 _STREAM_OF_TOPIC = {SLIDERS_TOPIC: SLIDERS_STREAM, INCLINOMETER_TOPIC: INCLINOMETER_STREAM,
                     ENCODER_TOPIC: ENCODER_STREAM}
-_JOINTS_OF_TOPIC = {SLIDERS_TOPIC: tuple(SLIDER_NAMES), INCLINOMETER_TOPIC: tuple(INCLINOMETER_NAMES),
-                    ENCODER_TOPIC: tuple(ENCODER_NAMES)}
+_DEVICE_JOINTS_OF_TOPIC = {INCLINOMETER_TOPIC: tuple(INCLINOMETER_NAMES),
+                           ENCODER_TOPIC: tuple(ENCODER_NAMES)}
 _CDR_HEADER = b'\x00\x01\x00\x00'  # XCDR1 little endian, what Fast DDS sends
 _STAMP = struct.Struct('<iI')
 _UINT32 = struct.Struct('<I')
+
+
+class CollectorConfigurationError(Exception):
+    """The collector's parameters contradict each other (e.g. model and parameters_file)."""
+
+
+def resolve_model(model: str, parameters_file: str) -> str:
+    """The collector's model: `model`, else the model `parameters_file` names, else the Hexa Slide.
+
+    Both given and different: CollectorConfigurationError; an unreadable file:
+    its ParameterFileError (a contract error naming the file and key).
+    """
+    if not parameters_file:
+        return model or DEFAULT_MODEL
+    named = read_parameters_file(parameters_file).model
+    if model and model != named:
+        raise CollectorConfigurationError(
+            f"model {model!r} contradicts parameters_file {parameters_file}, a {named} parameters "
+            "file: leave model '' or name the file's model")
+    return named
 
 
 class _PolledGroup(CallbackGroup):
@@ -271,10 +304,22 @@ class CollectorNode(Node):
         self.declare_parameter('driver_node', 'driver', ParameterDescriptor(
             description='node (relative to this namespace) whose plan parameters are recorded',
             read_only=True))
+        self.declare_parameter('model', '', ParameterDescriptor(
+            description="machine model, which names the actuator joints: 'hexa_slide' "
+            "(slider_1..6) or 'gough_stewart' (leg_1..6); '' = the model of parameters_file, "
+            'else hexa_slide', read_only=True,
+            additional_constraints="'', " + ', '.join(repr(name) for name in MODELS)))
+        self.declare_parameter('parameters_file', '', ParameterDescriptor(
+            description="a parameters YAML of the machine (e.g. identify's nominal file) whose "
+            "'model' key gives the model; '' = none", read_only=True))
         for name, (default, description, low, high) in _DETECTOR_PARAMETERS.items():
             self.declare_parameter(name, default, _float_descriptor(description, low, high))
         value = {name: self.get_parameter(name).value
-                 for name in ('record', 'flush_every_s', 'driver_node', *_DETECTOR_PARAMETERS)}
+                 for name in ('record', 'flush_every_s', 'driver_node', 'model', 'parameters_file',
+                              *_DETECTOR_PARAMETERS)}
+        self.model = resolve_model(value['model'], value['parameters_file'])
+        self.actuator_names = MODELS[self.model].actuator_names
+        self._joints_of_topic = {SLIDERS_TOPIC: self.actuator_names, **_DEVICE_JOINTS_OF_TOPIC}
 
         self.synchronizer = StreamSynchronizer(max_skew_ns=int(value['max_skew_s'] * NS_PER_S))
         self.detector = PostureDetector(
@@ -331,7 +376,8 @@ class CollectorNode(Node):
 
         self.get_logger().info(
             f"collecting postures on {self.topic_names[POSTURE_TOPIC]} (window "
-            f"{value['window_s']:g} s, capture {value['capture_s']:g} s)")
+            f"{value['window_s']:g} s, capture {value['capture_s']:g} s); model {self.model}, "
+            f"actuator joints {self.actuator_names[0]}..{self.actuator_names[-1]}")
         if value['record']:
             self.open_bag()
 
@@ -346,6 +392,15 @@ class CollectorNode(Node):
             if parameter.name == 'output_dir' and not parameter.value:
                 return SetParametersResult(successful=False,
                                            reason='output_dir must not be empty')
+            if parameter.name == 'model' and parameter.value not in MODEL_CHOICES:
+                return SetParametersResult(successful=False, reason=(
+                    f"model must be '' or one of {', '.join(MODELS)}, got {parameter.value!r}"))
+            if parameter.name == 'parameters_file' and parameter.value:
+                try:
+                    read_parameters_file(parameter.value)
+                except HexacalContractError as error:
+                    return SetParametersResult(successful=False,
+                                               reason=f'parameters_file: {error}')
         return SetParametersResult(successful=True)
 
     def _apply_parameters(self, parameters: list[Parameter]) -> None:
@@ -404,7 +459,7 @@ class CollectorNode(Node):
             return None
         try:
             if topic == SLIDERS_TOPIC:
-                sliders = joint_state_to_slider_reading(message)
+                sliders = self._slider_reading(message)
                 reading = sliders.stamp_ns, sliders.slider_positions
             elif topic == INCLINOMETER_TOPIC:
                 angles = joint_state_to_inclinometer_reading(message)
@@ -416,13 +471,27 @@ class CollectorNode(Node):
             self._invalid(topic, str(error))
             return None
         try:
-            fast = _FastJointState(data, message, _JOINTS_OF_TOPIC[topic])
+            fast = _FastJointState(data, message, self._joints_of_topic[topic])
         except (ValueError, KeyError, struct.error):
             pass  # decoded the full way every time
         else:
             if fast.read(data) == reading:
                 self._fast_decoders[topic] = fast
         return reading
+
+    def _slider_reading(self, message: JointState):
+        """The model's actuator joints of a sliders message; another model's joints are named."""
+        try:
+            return joint_state_to_slider_reading(message, self.model)
+        except InvalidReadingError as error:
+            carried = actuator_model(message.name)
+            if carried is not None and carried.name != self.model:
+                raise InvalidReadingError(
+                    f'{error}; it carries the actuator joints of a {carried.name} '
+                    f'({carried.actuator_names[0]}..{carried.actuator_names[-1]}) but this '
+                    f'collector records a {self.model} (parameters model / parameters_file)'
+                ) from None
+            raise
 
     def _detect(self) -> None:
         """Run the posture detector over the samples paired since the last call."""
@@ -457,7 +526,7 @@ class CollectorNode(Node):
             throttle_duration_sec=INVALID_LOG_PERIOD_S)
 
     def _on_posture(self, posture: DetectedPosture) -> None:
-        message = posture_reading_to_joint_state(posture.reading)
+        message = posture_reading_to_joint_state(posture.reading, model=self.model)
         if self.writer is not None:
             # Durable before it is published: whoever received a posture finds it in the bag.
             # BagWriter.write encodes the exact wire CDR; rclpy's serialize_message appends
@@ -524,8 +593,9 @@ class CollectorNode(Node):
             return str(self.writer.directory)
         directory = self._next_bag_directory()
         try:
-            writer = BagWriter(directory, custom_data={'hexacal.recorded_by':
-                                                       self.get_fully_qualified_name()})
+            writer = BagWriter(directory, custom_data={
+                'hexacal.recorded_by': self.get_fully_qualified_name(),
+                MODEL_CUSTOM_DATA: self.model})
         except BagError as error:
             self.get_logger().error(f'cannot record to {directory}: {error}')
             raise
@@ -533,7 +603,8 @@ class CollectorNode(Node):
             for topic, name in self.topic_names.items():
                 writer.add_topic(name, JOINT_STATE_TYPE, self._qos_yaml[topic])
             writer.write_metadata(COLLECTOR_METADATA, {
-                'namespace': self.get_namespace(), **self.detector_settings})
+                'namespace': self.get_namespace(), 'model': self.model,
+                **self.detector_settings})
         except BagError as error:
             self.get_logger().error(f'cannot record to {directory}: {error}')
             try:
@@ -726,7 +797,8 @@ def _finish(node: CollectorNode) -> list[str]:
 
 def main(args: list[str] | None = None) -> int:
     return run_node(NODE_NAME, CollectorNode, args=args, finish=_finish,
-                    startup_errors=(InvalidParameterValueException, BagError))
+                    startup_errors=(InvalidParameterValueException, BagError,
+                                    CollectorConfigurationError, HexacalContractError))
 
 
 if __name__ == '__main__':

@@ -1,12 +1,21 @@
 """Node `identify`: keep every posture received and calibrate on request.
 
+The machine model is the one the `nominal` parameters file names (``model:``;
+none = Hexa Slide): postures carry its actuator joints (slider_1..6 on a Hexa
+Slide, leg_1..6 on a Gough-Stewart platform), the result has its parameters
+(54 or 42, published with that model's layout and saved with its ``model``
+key). A posture with another model's joints is rejected on receipt
+(`rejected.model-mismatch`); without a readable nominal file the joints decide,
+and a calibration whose postures are of another model than the nominal file (or
+bag) is refused as `model-mismatch`.
+
 Subscribes `hexacal/posture` (POSTURE_QOS). Service `hexacal/calibrate`
 (std_srvs/Trigger) runs `pipeline.calibrate` on a worker thread, from the live
 postures or, with the `bag` parameter, from a recorded bag; the executor
 (multi-threaded, reentrant service group) keeps receiving postures and
 answers a second call at once with 'busy: a calibration is running'.
 
-On success the 54 parameters are written atomically to `output` (under
+On success the parameters are written atomically to `output` (under
 `output_dir`) and published on `hexacal/parameters` (transient local: late
 subscribers get them), with the outcome on `hexacal/calibration_status`, and
 the service answers. Only then is the HTML report (`report_dir`) written, on a
@@ -53,27 +62,29 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
 from hexacal_msgs_py.conversions import (
+    actuator_model,
     diagnostic_status,
     joint_state_to_posture_reading,
     parameters_to_multiarray,
 )
 from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError, ParameterFileError
+from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 from hexacal_msgs_py.names import (
     CALIBRATE_SERVICE,
     CALIBRATION_STATUS_TOPIC,
     PARAMETERS_TOPIC,
     POSTURE_TOPIC,
 )
-from hexacal_msgs_py.parameters_file import load_parameters, save_parameters
+from hexacal_msgs_py.parameters_file import read_parameters_file, save_parameters
 from hexacal_msgs_py.qos import PARAMETERS_QOS, POSTURE_QOS, STATUS_QOS
 from hexacal_msgs_py.readings import PostureReading
 
 # pipeline and core.identification (the solver, scipy.linalg) are imported where they are used: at the first
 # posture or calibration, not at start-up.
+from .core.architectures import KinematicParameters, parameters_for
 from .core.device import DEVICE_PARAMETER_NAMES
 from .core.errors import CalibrationError
 from .core.measurements import NoiseModel
-from .core.model import HexaParameters
 from .core.residuals import COSTS
 from .node_runtime import run_node
 from .report import write_report
@@ -113,7 +124,7 @@ class Outcome:
     message: str
     level: str  # 'OK', 'WARN' or 'ERROR'
     values: dict[str, object]
-    parameters: HexaParameters | None = None
+    parameters: KinematicParameters | None = None
     report: ReportJob | None = None  # written after the answer (report_state 'writing')
 
 
@@ -146,7 +157,8 @@ class IdentifyNode(Node):
             'and never outside it'))
         self.declare_parameter('nominal', '', ParameterDescriptor(
             description='parameters YAML of the nominal model to start from (required to '
-            'calibrate)'))
+            "calibrate); its 'model' key (none: hexa_slide) is the machine model, which names "
+            'the posture joints'))
         self.declare_parameter('cost', 'absolute', ParameterDescriptor(
             description='cost function of the identification', additional_constraints=(
                 'one of ' + ', '.join(COSTS))))
@@ -172,6 +184,7 @@ class IdentifyNode(Node):
             "'' = none"))
 
         self._postures: list[PostureReading] = []
+        self._posture_models: list[str] = []  # the model of each stored posture's joints
         self._postures_lock = threading.Lock()
         self.invalid_postures = 0  # rejected postures, all reasons
         self.rejected_postures: dict[str, int] = {}
@@ -188,7 +201,8 @@ class IdentifyNode(Node):
         self._report_lock = threading.Lock()
         self._pending_report: tuple[int, Outcome] | None = None
         self._calibration_number = 0
-        self._nominal_cache: tuple[tuple, HexaParameters] | None = None  # (file identity, model)
+        self._nominal_cache: tuple[tuple, KinematicParameters] | None = None  # (file identity, model)
+        self._model_cache: tuple[tuple, str | None] | None = None  # (file identity, model name)
 
         self._parameters_pub = self.create_publisher(
             Float64MultiArray, PARAMETERS_TOPIC, PARAMETERS_QOS)
@@ -250,11 +264,21 @@ class IdentifyNode(Node):
     def _on_posture(self, message: JointState) -> None:
         from . import pipeline
 
-        try:
-            posture = joint_state_to_posture_reading(message)
-            problem = pipeline.posture_problem(posture)
-        except InvalidReadingError as error:
-            problem = ('invalid-reading', str(error))
+        expected = self._nominal_model()
+        carried = actuator_model(message.name)
+        model = expected or (carried.name if carried is not None else DEFAULT_MODEL)
+        if expected is not None and carried is not None and carried.name != expected \
+                and not set(MODELS[expected].actuator_names).issubset(message.name):
+            names = carried.actuator_names
+            problem = (pipeline.MODEL_MISMATCH, (
+                f'posture carries the actuator joints of a {carried.name} ({names[0]}..{names[-1]}) but '
+                f"the nominal model is a {expected}'s ({self.get_parameter('nominal').value})"))
+        else:
+            try:
+                posture = joint_state_to_posture_reading(message, model)
+                problem = pipeline.posture_problem(posture, model=model)
+            except InvalidReadingError as error:
+                problem = ('invalid-reading', str(error))
         if problem is not None:
             reason, detail = problem
             self.invalid_postures += 1
@@ -270,6 +294,7 @@ class IdentifyNode(Node):
             level = 'OK'
             with self._postures_lock:
                 self._postures.append(posture)
+                self._posture_models.append(model)
                 count = len(self._postures)
         with self._status_lock:
             if not self._calibrating:  # a running calibration's status stays until its result
@@ -358,11 +383,20 @@ class IdentifyNode(Node):
             postures, source = loaded.postures, f'bag {bag} ({loaded.source})'
             not_used = {'postures_rejected_on_receipt': len(loaded.rejected),
                         'invalid_messages': loaded.invalid_messages}
+            postures_models = {loaded.model} if loaded.model else set()
         else:
             with self._postures_lock:
                 postures = list(self._postures)
+                postures_models = set(self._posture_models)
             source = 'live postures'
             not_used = {'postures_rejected_on_receipt': self.invalid_postures}
+        for model in sorted(postures_models):
+            try:
+                pipeline.check_model(model, nominal, 'the bag' if bag else 'the postures received',
+                                     nominal_path)
+            except pipeline.ModelMismatchError as error:
+                return _failure(error.reason, str(error), postures_received=len(postures),
+                                source=source, model=nominal.model)
         self.get_logger().info(f'calibrating from {len(postures)} {source}, {cost} cost')
         with self._status_lock:
             self._calibrating = True
@@ -389,7 +423,7 @@ class IdentifyNode(Node):
             return _failure(result.reason, f'the identification did not converge ({summary})',
                             **values)
         try:
-            save_parameters(target, result.parameters.vector, header_comment=(
+            save_parameters(target, result.parameters.vector, model=result.parameters.model, header_comment=(
                 f'hexacal calibration {datetime.now(timezone.utc).isoformat(timespec="seconds")}'
                 f'\nfrom {source}: {summary}\nnominal: {nominal_path}; SI units'))
         except HexacalContractError as error:
@@ -410,21 +444,36 @@ class IdentifyNode(Node):
         return Outcome(True, f'{result.reason}: {summary}; wrote {target}', level, values,
                        result.parameters, report)
 
-    def _load_nominal(self, path: str) -> HexaParameters:
+    def _load_nominal(self, path: str) -> KinematicParameters:
         """The nominal model; the YAML (~4 ms to parse) is read again only when the file changed."""
-        try:
-            info = os.stat(path)
-            key = (os.path.abspath(path), info.st_dev, info.st_ino, info.st_size, info.st_mtime_ns,
-                   info.st_ctime_ns)
-        except OSError:
-            key = None  # load_parameters names the problem
+        key = _file_identity(path)  # None: read_parameters_file names the problem
         cached = self._nominal_cache
         if key is not None and cached is not None and cached[0] == key:
             return cached[1]
-        nominal = HexaParameters(load_parameters(path))  # immutable: safe to share
+        loaded = read_parameters_file(path)
+        nominal = parameters_for(loaded.model, loaded.vector)  # immutable: safe to share
         if key is not None:
             self._nominal_cache = (key, nominal)
+            self._model_cache = (key, nominal.model)
         return nominal
+
+    def _nominal_model(self) -> str | None:
+        """The model the nominal file names; None without a (readable) nominal file. Cached per file."""
+        path = self.get_parameter('nominal').value
+        if not path:
+            return None
+        key = _file_identity(path)
+        if key is None:
+            return None
+        cached = self._model_cache
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        try:
+            model: str | None = read_parameters_file(path).model
+        except (HexacalContractError, ValueError):
+            model = None  # the calibration names the problem ('invalid-nominal')
+        self._model_cache = (key, model)
+        return model
 
     # ------------------------------------------------------------------ report
 
@@ -477,7 +526,8 @@ class IdentifyNode(Node):
 
     def _publish_result(self, outcome: Outcome) -> None:
         if outcome.parameters is not None:
-            self._parameters_pub.publish(parameters_to_multiarray(outcome.parameters.vector))
+            self._parameters_pub.publish(parameters_to_multiarray(outcome.parameters.vector,
+                                                                  outcome.parameters.model))
         self._status_pub.publish(self._status_message(outcome.level, outcome.message,
                                                       outcome.values))
 
@@ -497,11 +547,11 @@ class IdentifyNode(Node):
         if not target.exists():
             return
         try:
-            vector = load_parameters(target)
+            saved = read_parameters_file(target)
         except ParameterFileError as error:
             self.get_logger().error(f'not republishing the saved calibration: {error}')
             return
-        self._parameters_pub.publish(parameters_to_multiarray(vector))
+        self._parameters_pub.publish(parameters_to_multiarray(saved.vector, saved.model))
         self.get_logger().info(f'republished the saved calibration {target}')
 
     def shutdown(self) -> None:
@@ -509,6 +559,16 @@ class IdentifyNode(Node):
         # After the calibration worker: a calibration that finished during shutdown queues its report.
         # The report under way and the latest one waiting are written whole (atomic_write).
         self._report_worker.shutdown(wait=True)
+
+
+def _file_identity(path: str) -> tuple | None:
+    """What changes when a file is replaced or edited (None: it cannot be stat'ed)."""
+    try:
+        info = os.stat(path)
+    except OSError:
+        return None
+    return (os.path.abspath(path), info.st_dev, info.st_ino, info.st_size, info.st_mtime_ns,
+            info.st_ctime_ns)
 
 
 def _finish(node: IdentifyNode) -> list[str]:

@@ -4,6 +4,12 @@ The node and the CLI both go through :func:`calibrate`, so a bag calibrated
 offline gives the same parameters as the node that received the same postures.
 No rclpy here: the message objects from a bag are decoded by mcap_ros2 and read
 through the contract's name-based conversions.
+
+Any machine model: the nominal parameters file names its model (``model:``,
+none = Hexa Slide), and a bag's actuator joint names tell which model recorded
+it (slider_1..6: Hexa Slide, leg_1..6: Gough-Stewart; the collector also
+stores it in the bag's ``hexacal.collector`` metadata). `check_model` refuses to
+calibrate the postures of one model with the nominal parameters of another.
 """
 from __future__ import annotations
 
@@ -12,14 +18,16 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, JOINT_STATE_TYPE, POSTURE_TOPIC, SLIDERS_TOPIC
 from hexacal_msgs_py.readings import PostureReading
 
+from .core.architectures import KinematicParameters, parameters_for
 from .core.device import DEVICE_PARAMETER_NAMES, DeviceModel
 from .core.errors import InvalidMeasurementError
 from .core.identification import IdentificationResult, SolverOptions, identify
 from .core.measurements import FIXED, SPHERE, MeasurementLimits, Measurements, NoiseModel
-from .core.model import HexaParameters, parameter_names
+from .core.model import parameter_names
 
 # A posture whose inclinometer reads zero on both axes (within this, rad) was taken at the fixed
 # position [0, 0, -L] (section 3.2's second procedure). 5e-5 rad is 37 um at L = 0.75 m: above
@@ -28,22 +36,55 @@ FIXED_POSITION_TOLERANCE_RAD = 5e-5
 RAW_TOPICS = (SLIDERS_TOPIC, INCLINOMETER_TOPIC, ENCODER_TOPIC)
 TABLE1_FILE = Path(__file__).parent / "data" / "table1_exact.yaml"  # the default "exact" machine
 # Reasons a received posture is rejected before it is stored (posture_problem).
-SLIDER_BEYOND_STROKE = "slider-beyond-stroke"
+SLIDER_BEYOND_STROKE = "slider-beyond-stroke"  # (any model's actuator: a leg on a Gough-Stewart)
 ANGLE_OUT_OF_RANGE = "angle-out-of-range"
+MODEL_MISMATCH = "model-mismatch"
 
 
-def posture_problem(posture: PostureReading,
-                    limits: MeasurementLimits = MeasurementLimits()) -> tuple[str, str] | None:
+class ModelMismatchError(InvalidMeasurementError):
+    """Postures of one machine model, nominal parameters of another: nothing to calibrate."""
+
+    reason = MODEL_MISMATCH
+
+
+def load_machine(path: Path | str) -> KinematicParameters:
+    """The parameters of a parameters YAML, of the model it names (ParameterFileError names the file and key)."""
+    from hexacal_msgs_py.parameters_file import read_parameters_file
+
+    loaded = read_parameters_file(path)
+    return parameters_for(loaded.model, loaded.vector)
+
+
+def _joints_text(model: str) -> str:
+    names = MODELS[model].actuator_names
+    return f"{names[0]}..{names[-1]}"
+
+
+def check_model(postures_model: str | None, nominal: KinematicParameters, what: str, nominal_source: str = "") -> None:
+    """ModelMismatchError if postures of `postures_model` (None: unknown, not checked) meet a nominal of another."""
+    if postures_model is None or postures_model == nominal.model:
+        return
+    source = f" {nominal_source}" if nominal_source else ""
+    raise ModelMismatchError(
+        f"{what} holds {postures_model} postures (actuator joints {_joints_text(postures_model)}) but the nominal "
+        f"parameters{source} are a {nominal.model}'s (joints {_joints_text(nominal.model)}): give a {postures_model} "
+        "nominal parameters file")
+
+
+def posture_problem(posture: PostureReading, limits: MeasurementLimits = MeasurementLimits(),
+                    model: str | None = None) -> tuple[str, str] | None:
     """(reason, description) if a (finite) posture reads beyond a sensor's range, else None.
 
     The same limits as the core's Measurements.validate: a posture outside them
     would make the whole identification refuse, so the node and the bag reader
-    set it aside with this reason and keep every other posture.
+    set it aside with this reason and keep every other posture. `model` names
+    the actuators in the description (default: the Hexa Slide's sliders).
     """
-    for index, value in enumerate(posture.slider_positions, start=1):
+    names = MODELS[model or DEFAULT_MODEL].actuator_names
+    for name, value in zip(names, posture.slider_positions):
         if not limits.slider_min_m <= value <= limits.slider_max_m:
             return SLIDER_BEYOND_STROKE, (
-                f"slider_{index} = {value!r} m is beyond the stroke "
+                f"{name} = {value!r} m is beyond the stroke "
                 f"[{limits.slider_min_m:g}, {limits.slider_max_m:g}] m")
     for name, value, limit in (("inclinometer_x (alpha)", posture.alpha, limits.inclinometer_range_rad),
                                ("inclinometer_y (beta)", posture.beta, limits.inclinometer_range_rad),
@@ -65,14 +106,15 @@ def measurements_from_postures(postures: Sequence[PostureReading],
     return Measurements(sliders, angles, rotary, np.where(fixed, FIXED, SPHERE))
 
 
-def calibrate(nominal: HexaParameters, postures: Sequence[PostureReading], *, cost: str = "absolute",
+def calibrate(nominal: KinematicParameters, postures: Sequence[PostureReading], *, cost: str = "absolute",
               link_length: float = DeviceModel().link_length, allow_rank_deficient: bool = False,
               identify_device: Sequence[str] = (), noise: NoiseModel | None = None,
               robust_loss: str | None = None) -> IdentificationResult:
     """Identify the parameters from received postures: the one call behind the node and the CLI.
 
-    ``identify_device`` names device defects to identify jointly (e.g. dL, alpha0,
-    gamma); ``noise`` (reading noise half-widths) weights the residuals by it.
+    ``nominal`` is the starting parameter set of any architecture (its model is the
+    result's). ``identify_device`` names device defects to identify jointly (e.g. dL,
+    alpha0, gamma); ``noise`` (reading noise half-widths) weights the residuals by it.
     A problem the postures do not determine raises RankDeficientError (never a
     number that means nothing) unless ``allow_rank_deficient``.
     """
@@ -84,8 +126,10 @@ def calibrate(nominal: HexaParameters, postures: Sequence[PostureReading], *, co
 
 def status_fields(result: IdentificationResult) -> dict[str, str]:
     """Key/values for /hexacal/calibration_status (SI units, machine-readable)."""
+    model = result.parameters.model
     fields = {
         "outcome": result.reason,
+        "model": model,
         "cost": result.cost,
         "rank": str(result.rank),
         "condition_number": f"{result.condition_number:.6g}",
@@ -101,7 +145,7 @@ def status_fields(result: IdentificationResult) -> dict[str, str]:
         if name in result.free_device:
             fields[f"device.{name}"] = f"{result.device.vector[index]:.6g}"
             fields[f"std.device.{name}"] = f"{result.device_std[index]:.6g}"
-    fields.update({f"std.{name}": f"{s:.6g}" for name, s in zip(parameter_names(), result.std)})
+    fields.update({f"std.{name}": f"{s:.6g}" for name, s in zip(parameter_names(model), result.std)})
     for index, why in sorted(result.rejected_postures.items())[:20]:
         fields[f"rejected.{index}"] = why
     return fields
@@ -116,12 +160,16 @@ class BagPostures:
     invalid_messages: int = 0  # messages of hexacal's topics that were not valid readings (skipped)
     # Postures set aside (posture_problem): (index among the bag's postures, reason, description).
     rejected: list[tuple[int, str, str]] = field(default_factory=list)
+    # The machine model that recorded the bag: its actuator joint names (else the collector's metadata);
+    # None when the bag holds neither.
+    model: str | None = None
 
 
-def _screened(postures: list[PostureReading]) -> tuple[list[PostureReading], list[tuple[int, str, str]]]:
+def _screened(postures: list[PostureReading],
+              model: str | None = None) -> tuple[list[PostureReading], list[tuple[int, str, str]]]:
     kept, rejected = [], []
     for index, posture in enumerate(postures):
-        problem = posture_problem(posture)
+        problem = posture_problem(posture, model=model)
         if problem is None:
             kept.append(posture)
         else:
@@ -137,6 +185,11 @@ def _topic_key(topic: str) -> str:
 
 def postures_from_bag(path: Path | str, **detector_options) -> BagPostures:
     """Postures of a bag: its posture topic, else re-detected from the raw streams.
+
+    Either machine model: the actuator joints of the posture (or sliders) messages
+    tell which (``model``); a bag mixing the joints of two models, or whose joints
+    contradict the model its collector recorded (metadata ``hexacal.collector``),
+    raises InvalidMeasurementError.
 
     Topics other than hexacal's are ignored; a bag with neither a posture topic
     nor all three raw streams raises InvalidMeasurementError naming what is
@@ -163,20 +216,60 @@ def postures_from_bag(path: Path | str, **detector_options) -> BagPostures:
     for record in reader.metadata():
         if record.name.startswith("hexacal"):
             plan.update({f"{record.name}.{k}": v for k, v in record.data.items()})
+    recorded_model = plan.get(RECORDED_MODEL_KEY) or None
+    if recorded_model is not None and recorded_model not in MODELS:
+        raise InvalidMeasurementError(f"bag {path}: its metadata names an unknown model {recorded_model!r} "
+                                      f"({RECORDED_MODEL_KEY}); hexacal knows {', '.join(MODELS)}")
     _check_types(reader, topics)
     if POSTURE_TOPIC in topics:
-        postures, invalid = _valid(reader.messages([topics[POSTURE_TOPIC]]), _posture)
-        kept, rejected = _screened(postures)
-        return BagPostures(kept, "posture topic", plan, ignored, invalid, rejected)
+        models: set[str] = set()
+        postures, invalid = _valid(reader.messages([topics[POSTURE_TOPIC]]),
+                                   lambda m: _posture(m, models, recorded_model))
+        model = _bag_model(path, models, recorded_model)
+        kept, rejected = _screened(postures, model)
+        return BagPostures(kept, "posture topic", plan, ignored, invalid, rejected, model)
     missing = [t for t in RAW_TOPICS if t not in topics]
     if missing:
         raise InvalidMeasurementError(
             f"bag {path} has no {POSTURE_TOPIC} topic and lacks the raw stream(s) "
             f"{', '.join('/' + t for t in missing)} needed to re-detect postures"
         )
-    postures, invalid = _redetect(reader, topics, **detector_options)
-    kept, rejected = _screened(postures)
-    return BagPostures(kept, "raw streams (re-detected)", plan, ignored, invalid, rejected)
+    models = set()
+    postures, invalid = _redetect(reader, topics, models, recorded_model, **detector_options)
+    model = _bag_model(path, models, recorded_model)
+    kept, rejected = _screened(postures, model)
+    return BagPostures(kept, "raw streams (re-detected)", plan, ignored, invalid, rejected, model)
+
+
+RECORDED_MODEL_KEY = "hexacal.collector.model"  # the collector's metadata record, key 'model'
+
+
+def _bag_model(path, models: set[str], recorded_model: str | None) -> str | None:
+    """The one model of a bag's actuator joints (else the recorded one); two models or a contradiction raise."""
+    if len(models) > 1:
+        raise InvalidMeasurementError(
+            f"bag {path} holds the actuator joints of several models ({', '.join(sorted(models))}): "
+            "calibrate one machine at a time")
+    if models:
+        (model,) = models
+        if recorded_model is not None and recorded_model != model:
+            raise InvalidMeasurementError(
+                f"bag {path}: its messages carry {model} joints ({_joints_text(model)}) but its collector "
+                f"recorded a {recorded_model} ({RECORDED_MODEL_KEY})")
+        return model
+    return recorded_model
+
+
+def _model_of(decoded, models: set[str], recorded_model: str | None) -> str:
+    """The model whose actuator joints a message carries (noted in `models`); else the expected one,
+    whose conversion then names the missing joints."""
+    from hexacal_msgs_py.conversions import actuator_model
+
+    carried = actuator_model(decoded.name)
+    if carried is None:
+        return recorded_model or DEFAULT_MODEL
+    models.add(carried.name)
+    return carried.name
 
 
 def _valid(messages, convert) -> tuple[list, int]:
@@ -259,13 +352,14 @@ def _joint_state(message, checked: set[str]):
     return decoded
 
 
-def _posture(message) -> PostureReading:
+def _posture(message, models: set[str], recorded_model: str | None) -> PostureReading:
     from hexacal_msgs_py.conversions import joint_state_to_posture_reading
 
-    return joint_state_to_posture_reading(message)
+    return joint_state_to_posture_reading(message, _model_of(message, models, recorded_model))
 
 
-def _redetect(reader, topics: dict[str, str], **detector_options) -> tuple[list[PostureReading], int]:
+def _redetect(reader, topics: dict[str, str], models: set[str], recorded_model: str | None,
+              **detector_options) -> tuple[list[PostureReading], int]:
     from hexacal_msgs_py.errors import InvalidReadingError
     from hexacal_msgs_py.conversions import (
         joint_state_to_encoder_reading,
@@ -278,7 +372,8 @@ def _redetect(reader, topics: dict[str, str], **detector_options) -> tuple[list[
 
     streams: dict[str, tuple[list[int], list]] = {t: ([], []) for t in RAW_TOPICS}
     convert = {
-        SLIDERS_TOPIC: lambda m: joint_state_to_slider_reading(m).slider_positions,
+        SLIDERS_TOPIC: lambda m: joint_state_to_slider_reading(
+            m, _model_of(m, models, recorded_model)).slider_positions,
         INCLINOMETER_TOPIC: lambda m: (lambda r: (r.alpha, r.beta))(joint_state_to_inclinometer_reading(m)),
         ENCODER_TOPIC: lambda m: (joint_state_to_encoder_reading(m).phi,),
     }

@@ -16,7 +16,10 @@ ARGUMENTS = {
     'record': ('true', 'record from the start'),
     'plan': ('random', 'driver plan: random, fixed, mixed or a plan YAML path'),
     'postures': ('50', 'postures of a generated plan'),
-    'true_params': ('', 'parameters YAML of the simulated machine (empty: Table 1)'),
+    'true_params': ('', 'parameters YAML of the simulated machine, of either model (empty: the '
+                    'default machine of model; Hexa Slide: Table 1)'),
+    'model': ('', "machine model of driver and collector: hexa_slide, gough_stewart or '' (that "
+              'of true_params, else hexa_slide); identify takes it from the nominal file'),
     'use_driver': ('true', 'start the simulated machine (false with a real one)'),
 }
 
@@ -45,6 +48,7 @@ def generate_launch_description():
             'plan': text('plan'),
             'postures': ParameterValue(argument('postures'), value_type=int),
             'true_params': text('true_params'),
+            'model': text('model'),
         }])
     collector = Node(
         package='hexacal_identify', executable='collector', name='collector',
@@ -52,6 +56,7 @@ def generate_launch_description():
         parameters=[{
             'output_dir': text('bag_dir'),
             'record': ParameterValue(argument('record'), value_type=bool),
+            'model': text('model'),
         }])
     identify = Node(
         package='hexacal_identify', executable='identify', name='identify',
