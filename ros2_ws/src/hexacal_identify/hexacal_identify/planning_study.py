@@ -1,10 +1,13 @@
 """``hexacal study --plan``: accuracy versus number of postures, planned against random, over seeds.
 
 For each seed the machine, its nominal model, the noise and the 50 validation
-postures are those of ``core.study`` (``StudyRun``); random postures go through
+postures are those of ``core.study`` (``StudyRun``, on the default machine of
+the model studied: ``hexacal study --plan --model gough_stewart`` runs the
+default Gough-Stewart platform); random postures go through
 ``run_calibration`` unchanged.  Planned postures are chosen at the nominal model
-(the planner never sees the true machine), measured on the true machine with the
-same noise, identified with the same solver and validated on the same postures.
+(the planner never sees the true machine) within the study's workspace and device,
+measured on the true machine with the same noise, identified with the same solver
+and validated on the same postures.
 
 Claim checked: planned postures reach the mean validation position error of
 50 random postures with at most half as many (K <= 25).
@@ -17,12 +20,13 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
+from hexacal_msgs_py.models import DEFAULT_MODEL
 
 from .core.errors import CalibrationError
 from .core.identification import SolverOptions, identify
 from .core.measurements import NoiseModel, simulate_measurements
-from .core.planning import CRITERIA, METHODS, PREDICTION, exchange_design, plan_postures
-from .core.study import StudyOutcome, StudyRun, run_calibration
+from .core.planning import CRITERIA, METHODS, PREDICTION, PostureLimits, exchange_design, plan_postures
+from .core.study import StudyOutcome, StudyRun, run_calibration, study_truth
 from .core.validation import pose_errors, validation_poses
 
 DEFAULT_KS = (15, 20, 25, 30, 40, 50)
@@ -53,6 +57,7 @@ class PlanningStudy:
     cost: str
     index: str
     method: str
+    model: str = DEFAULT_MODEL
     # variant -> (len(ks), len(seeds)) mean validation position error, m; NaN where the calibration failed
     position_error_m: dict[str, np.ndarray] = field(default_factory=dict)
     orientation_error_rad: dict[str, np.ndarray] = field(default_factory=dict)
@@ -97,7 +102,7 @@ class PlanningStudy:
                 "per_seed_position_mean_m": [_nan_to_none(row) for row in self.position_error_m[name]],
                 "failures": self.failures.get(name, []),
             }
-        return {"ks": self.ks, "seeds": self.seeds, "noise_um": self.noise_um, "cost": self.cost,
+        return {"model": self.model, "ks": self.ks, "seeds": self.seeds, "noise_um": self.noise_um, "cost": self.cost,
                 "index": self.index, "method": self.method, "variants": variants,
                 "claims": {name: self.claim(name) for name in variants if name != RANDOM}}
 
@@ -112,7 +117,7 @@ def calibrate_at(run: StudyRun, poses: np.ndarray, kinds: np.ndarray) -> StudyOu
     measurements = simulate_measurements(run.true_params, poses, kinds, run.device,
                                          NoiseModel.from_microns(run.noise_um), rng)
     result = identify(run.nominal(), measurements, SolverOptions(cost=run.cost, device=run.device))
-    validation = validation_poses(run.true_params, run.validation_postures, run.seed, run.workspace)
+    validation = validation_poses(run.true_params, run.validation_postures, run.seed, run.resolved_workspace)
     before = pose_errors(run.true_params, run.nominal(), validation)
     after = pose_errors(run.true_params, result.parameters, validation)
     return StudyOutcome(run, result, before, after)
@@ -120,7 +125,7 @@ def calibrate_at(run: StudyRun, poses: np.ndarray, kinds: np.ndarray) -> StudyOu
 
 def planned_variants(index: str, cost: str, noise_um: float) -> dict[str, tuple[str, NoiseModel | None]]:
     """name -> (index, noise weighting): the index asked for, weighted and not, and the I-optimal plan."""
-    noise = NoiseModel.from_microns(noise_um if noise_um > 0 else 1.0)  # only the slider/angle ratio matters
+    noise = NoiseModel.from_microns(noise_um if noise_um > 0 else 1.0)  # only the actuator/angle ratio matters
     if cost == "relative":  # no noise weighting for the relative cost
         return {f"planned-{name}-unweighted": (name, None) for name in dict.fromkeys([index, PREDICTION])}
     variants = {f"planned-{index}": (index, noise)}
@@ -132,11 +137,16 @@ def planned_variants(index: str, cost: str, noise_um: float) -> dict[str, tuple[
 
 def planned_vs_random(ks=DEFAULT_KS, seeds=range(10), noise_um: float = 10.0, cost: str = "absolute",
                       nominal_set_number: int = 2, index: str = "O1", method: str = "greedy",
-                      candidates: int = 2000, progress: Callable[[str], None] = lambda _: None) -> PlanningStudy:
-    """Validation error vs K for random postures and the planned variants (``planned_variants``)."""
+                      candidates: int = 2000, progress: Callable[[str], None] = lambda _: None,
+                      model: str | None = None, true_params=None) -> PlanningStudy:
+    """Validation error vs K for random postures and the planned variants (``planned_variants``).
+
+    The machine: ``true_params``, else the default machine of ``model`` (default: the Table 1 Hexa Slide).
+    """
+    truth = study_truth(true_params, model)
     ks = sorted(set(int(k) for k in ks) | {REFERENCE_RANDOM_POSTURES})
     seeds = [int(s) for s in seeds]
-    study = PlanningStudy(ks, seeds, noise_um, cost, index, method)
+    study = PlanningStudy(ks, seeds, noise_um, cost, index, method, truth.model)
     weighting = planned_variants(index, cost, noise_um)
     variants = [RANDOM, *weighting]
     for name in variants:
@@ -144,22 +154,26 @@ def planned_vs_random(ks=DEFAULT_KS, seeds=range(10), noise_um: float = 10.0, co
         study.orientation_error_rad[name] = np.full((len(ks), len(seeds)), np.nan)
         study.failures[name] = []
     for column, seed in enumerate(seeds):
-        base = StudyRun(nominal_set_number=nominal_set_number, noise_um=noise_um, seed=seed, cost=cost)
+        base = StudyRun(true_params=truth, nominal_set_number=nominal_set_number, noise_um=noise_um, seed=seed,
+                        cost=cost)
+        # Candidates where the study draws its random postures: its workspace, on its device.
+        limits = PostureLimits.from_workspace(base.resolved_workspace, mount=base.device.mount)
         for name, (variant_index, noise) in weighting.items():
             progress(f"seed {seed}: planning {name}")
             planning = plan_postures(base.nominal(), max(ks), index=variant_index, method="greedy",
-                                     n_candidates=candidates, cost=cost, seed=seed, noise=noise)
+                                     n_candidates=candidates, cost=cost, limits=limits, seed=seed, noise=noise)
             for row, k in enumerate(ks):
                 # Greedy is prefix-consistent: its first K picks are its K-posture plan.
                 design = planning.selection_order[:k]
                 if method == "exchange":
                     design, _ = exchange_design(planning.candidates, design, variant_index)
-                run = StudyRun(nominal_set_number=nominal_set_number, noise_um=noise_um, seed=seed, cost=cost,
-                               postures=k)
+                run = StudyRun(true_params=truth, nominal_set_number=nominal_set_number, noise_um=noise_um,
+                               seed=seed, cost=cost, postures=k)
                 _record(study, name, row, column, k, seed, progress,
                         lambda: calibrate_at(run, planning.candidates.poses[design], planning.candidates.kinds[design]))
         for row, k in enumerate(ks):
-            run = StudyRun(nominal_set_number=nominal_set_number, noise_um=noise_um, seed=seed, cost=cost, postures=k)
+            run = StudyRun(true_params=truth, nominal_set_number=nominal_set_number, noise_um=noise_um, seed=seed,
+                           cost=cost, postures=k)
             _record(study, RANDOM, row, column, k, seed, progress, lambda: run_calibration(run))
     return study
 
@@ -185,7 +199,7 @@ def run(args) -> int:
     progress = Progress(enabled=not args.json)
     try:
         study = planned_vs_random(args.plan_ks, seeds, args.noise_um, args.cost, args.nominal_set, args.index,
-                                  args.method, args.candidates, progress.step)
+                                  args.method, args.candidates, progress.step, model=getattr(args, "model", None))
     finally:
         progress.close()
     if args.json:
@@ -206,7 +220,10 @@ def run(args) -> int:
 
 def _print_table(study: PlanningStudy) -> None:
     names = list(study.position_error_m)
-    print(f"Planned vs random postures: mean validation position error [um] over {len(study.seeds)} seeds "
+    from .core.architectures import architecture
+
+    print(f"Planned vs random postures, {architecture(study.model).layout.title}: mean validation position error "
+          f"[um] over {len(study.seeds)} seeds "
           f"(mean +- std; failed calibrations in brackets), +-{study.noise_um:g} um noise, cost {study.cost}, "
           f"index {study.index}, {study.method}:")
     print(f"  {'K':>3} " + " ".join(f"{name:>26}" for name in names))

@@ -30,7 +30,7 @@ from hexacal_msgs_py.files import atomic_write
 from hexacal_msgs_py.models import DEFAULT_MODEL, ModelLayout
 
 from .core.architectures import architecture
-from .core.device import DEFAULT_LINK_LENGTH_M
+from .core.device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, STANDING, check_mount, fixed_point
 
 RESULT_FORMAT = "hexacal-result/1"
 UM, MM = 1e6, 1e3
@@ -39,8 +39,12 @@ MAP_GRID = 41  # cells per axis of the predicted pose-error map
 
 # --------------------------------------------------------------------------- result file
 def result_payload(result, extras: dict | None = None, *, measurements=None, true_parameters=None,
-                   link_length: float | None = None) -> dict:
-    """``result.to_json()`` plus the arrays of ``report_data`` (see module doc)."""
+                   link_length: float | None = None, mount: str | None = None) -> dict:
+    """``result.to_json()`` plus the arrays of ``report_data`` (see module doc).
+
+    ``mount``: the device mount (device.py), recorded when given; a report of a file without it takes the
+    side of the device's base joint the poses are on.
+    """
     payload = result.to_json()
     layout = result.parameters.layout
     n = layout.n_parameters
@@ -73,14 +77,16 @@ def result_payload(result, extras: dict | None = None, *, measurements=None, tru
         "link_length": link_length,
         "extras": extras or {},
     })
+    if mount is not None:
+        payload["report_data"]["mount"] = check_mount(mount)
     return payload
 
 
 def save_result(path: Path | str, result, extras: dict | None = None, *, measurements=None,
-                true_parameters=None, link_length: float | None = None) -> Path:
+                true_parameters=None, link_length: float | None = None, mount: str | None = None) -> Path:
     """Write ``result_payload`` as strict JSON, atomically."""
     payload = result_payload(result, extras, measurements=measurements, true_parameters=true_parameters,
-                             link_length=link_length)
+                             link_length=link_length, mount=mount)
     return _atomic_write(Path(path), json.dumps(_plain(payload), allow_nan=False))
 
 
@@ -120,7 +126,7 @@ def write_report(source, out_dir: Path | str, *, title: str | None = None, **res
     """DIR/index.html (+ PNGs) from a result file path, a payload dict, or an IdentificationResult.
 
     With an IdentificationResult, ``result_options`` are those of ``result_payload``
-    (measurements, true_parameters, link_length, extras): what the identify node passes.
+    (measurements, true_parameters, link_length, mount, extras): what the identify node passes.
     """
     if isinstance(source, (str, Path)):
         payload = load_result(source)
@@ -183,6 +189,10 @@ class _Sections:
                 raise ValueError(f"the result's {name} have {len(values)} entries, but its model "
                                  f"{self.model} has {n} parameters")
         self.link_length = float(data.get("link_length") or DEFAULT_LINK_LENGTH_M)
+        self.poses = np.array(data.get("poses") or np.zeros((0, 6)), dtype=float).reshape(-1, 6)
+        # The device mount: recorded, else the side of O the poses are on (standing: the platform above it).
+        self.mount = check_mount(data.get("mount") or (
+            STANDING if len(self.poses) and np.median(self.poses[:, 2]) > 0 else DEFAULT_MOUNT))
         # Where the machine works: its architecture's default workspace, on this result's measuring link.
         self.workspace = replace(self.architecture.default_workspace(), link_length=self.link_length)
 
@@ -346,8 +356,9 @@ class _Sections:
         from . import figures
 
         x, y, std = predicted_position_error_map(self.parameters, self.covariance, self.link_length,
-                                                 xy_range_m=self.workspace.xy_range_m, model=self.model)
-        poses = np.array(self.data.get("poses") or np.zeros((0, 6)), dtype=float).reshape(-1, 6)
+                                                 xy_range_m=self.workspace.xy_range_m, model=self.model,
+                                                 mount=self.mount)
+        poses = self.poses
         image = self.figure("pose_error_map.png", lambda path: figures.pose_error_map(x, y, std, path, poses[:, :2]))
         finite = std[np.isfinite(std)]
         numbers = (f"<p>Linearised: std = sqrt(trace(J_p C J_p<sup>T</sup>)), J_p = dP/du at each (x, y) on the "
@@ -357,14 +368,14 @@ class _Sections:
 
     def postures(self) -> str:
         title = "Postures used"
-        poses = np.array(self.data.get("poses") or [], dtype=float).reshape(-1, 6)
+        poses = self.poses
         if not len(poses):
             return self.missing(title, "the result file has no poses")
         from . import figures
 
         kinds = self.data.get("kinds")
-        if kinds is None:  # not recorded: a posture at [0, 0, -L] within 1 mm was a fixed-position one
-            at_fixed = np.linalg.norm(poses[:, :3] - [0.0, 0.0, -self.link_length], axis=1) < 1e-3
+        if kinds is None:  # not recorded: a posture at [0, 0, -L] ([0, 0, L] standing) within 1 mm was a fixed one
+            at_fixed = np.linalg.norm(poses[:, :3] - fixed_point(self.link_length, self.mount), axis=1) < 1e-3
             kinds = np.where(at_fixed, "fixed", "sphere")
         image = self.figure("postures.png", lambda path: figures.postures_on_sphere(
             poses, np.asarray(kinds), path, self.workspace.xy_range_m))
@@ -372,10 +383,11 @@ class _Sections:
 
 
 def predicted_position_error_map(parameters: np.ndarray, covariance: np.ndarray, link_length: float,
-                                 grid: int = MAP_GRID, xy_range_m: float | None = None, model: str | None = None):
+                                 grid: int = MAP_GRID, xy_range_m: float | None = None, model: str | None = None,
+                                 mount: str = DEFAULT_MOUNT):
     """(x, y, std) of the linearised position error, sqrt(trace(J_p C J_p^T)), on an x, y grid (m).
 
-    J_p = dP/du at (x, y, -sqrt(L^2 - x^2 - y^2), 0, 0, 0); cells the machine cannot
+    J_p = dP/du at (x, y, -sqrt(L^2 - x^2 - y^2), 0, 0, 0) (+sqrt standing); cells the machine cannot
     reach (its architecture's default workspace, on this link) are NaN.  Parameters without a
     variance count as exact.  ``model`` None = the Hexa Slide; ``xy_range_m`` None = the workspace's.
     """
@@ -391,7 +403,9 @@ def predicted_position_error_map(parameters: np.ndarray, covariance: np.ndarray,
     axis = np.linspace(-xy_range_m, xy_range_m, grid)
     x, y = np.meshgrid(axis, axis)
     radius2 = link_length**2 - x**2 - y**2
-    poses = np.column_stack([x.ravel(), y.ravel(), -np.sqrt(np.maximum(radius2, 0.0)).ravel(), np.zeros((x.size, 3))])
+    side = np.sign(fixed_point(link_length, mount)[2])  # -1 hanging, +1 standing: the platform's side of O
+    poses = np.column_stack([x.ravel(), y.ravel(), side * np.sqrt(np.maximum(radius2, 0.0)).ravel(),
+                             np.zeros((x.size, 3))])
     ok = (radius2.ravel() > 0) & acceptable_poses(params, poses, workspace)
     std = np.full(x.size, np.nan)
     if np.any(ok):
