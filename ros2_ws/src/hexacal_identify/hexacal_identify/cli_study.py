@@ -83,7 +83,7 @@ def study_model(args) -> str:
     models = {model for _, model in named}
     if len(models) > 1:
         raise ValueError("the machine models disagree: " + ", ".join(text for text, _ in named)
-                         + "; the simulated machine and the starting model must be the same model")
+                         + "; the model studied, the simulated machine and the starting model must be one model")
     return models.pop() if models else DEFAULT_MODEL
 
 
