@@ -79,8 +79,8 @@ def _plan_arguments(plan) -> None:
                       metavar=("MIN", "MAX"), help="actuator stroke: the reading lambda's range (default: the "
                       "model's; Hexa Slide slider 0 0.9, Gough-Stewart leg extension 0 0.5)")
     plan.add_argument("--max-u-joint-deg", type=float, default=math.degrees(defaults.max_u_joint_angle_rad),
-                      help="max angle of the base-side U joint: leg to rail (Hexa Slide), leg to the downward "
-                      "vertical (Gough-Stewart) (default 60)")
+                      help="max angle of the base-side U joint: leg to rail (Hexa Slide), leg to the base normal "
+                      "(Gough-Stewart) (default 60)")
     plan.add_argument("--max-s-joint-deg", type=float, default=math.degrees(defaults.max_s_joint_angle_rad),
                       help="max angle between leg and platform normal at the S joint (default 90)")
     plan.add_argument("--max-condition", type=float,

@@ -27,7 +27,7 @@ plus the device and joint limits below, which reject almost nothing of either:
 * base-side passive joint (the U joint: on the slider of a Hexa Slide, on the
   base of a Gough-Stewart leg): its angle <= 60 deg, measured from the rail
   direction (Hexa Slide; the feasible workspace needs <= 52 deg) or from the
-  downward vertical (Gough-Stewart; its workspace needs <= 51 deg);
+  base normal (Gough-Stewart; its workspace needs <= 51 deg);
 * platform-side joint (the S joint): angle between the leg (B -> A) and the
   platform normal z' <= 90 deg (rejects 0.8 % of the Hexa Slide's feasible
   workspace, where the median posture already needs 62 deg on its worst leg;
@@ -129,7 +129,7 @@ class PostureLimits:
     max_s_joint_angle_rad: float = float(np.radians(90.0))  # platform-side spherical joint
     max_condition: float = float(_PAPER_WORKSPACE.max_condition)
     min_leg_cosine: float = float(_PAPER_WORKSPACE.min_leg_rail_cosine)  # away from singular legs (architecture's)
-    mount: str = DEFAULT_MOUNT  # the device's (device.py): hanging = postures below O, standing = above it
+    mount: str = _PAPER_WORKSPACE.mount  # the device's (device.py): hanging = postures below O, standing = above
 
     def __post_init__(self) -> None:
         check_mount(self.mount)
@@ -141,7 +141,7 @@ class PostureLimits:
                       rotation_range_rad=float(workspace.rotation_range_rad),
                       actuator_stroke_m=tuple(float(v) for v in workspace.slider_stroke_m),
                       max_condition=float(workspace.max_condition),
-                      min_leg_cosine=float(workspace.min_leg_rail_cosine))
+                      min_leg_cosine=float(workspace.min_leg_rail_cosine), mount=workspace.mount)
         values.update(overrides)
         return cls(**values)
 
@@ -155,7 +155,7 @@ class PostureLimits:
 
     def workspace(self) -> Workspace:
         return Workspace(self.link_length, self.xy_range_m, self.rotation_range_rad, tuple(self.actuator_stroke_m),
-                         self.max_condition, self.min_leg_cosine)
+                         self.max_condition, self.min_leg_cosine, self.mount)
 
     def to_json(self) -> dict:
         payload = asdict(self)
