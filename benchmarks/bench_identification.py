@@ -27,6 +27,7 @@ import numpy as np
 from hexacal_identify.core.baseline import absolute_residuals, identify_baseline
 from hexacal_identify.core.identification import identify
 from hexacal_identify.core.measurements import Measurements
+from hexacal_identify.core.architectures import ARCHITECTURES, default_parameters
 from hexacal_identify.core.study import StudyRun, simulate_run_measurements
 
 POSTURE_COUNTS = (25, 50, 200, 1000, 5000, 20000)
@@ -34,10 +35,11 @@ TARGET_RATIO_AT_50 = 2000.0  # identify at 50 postures vs the paper-style baseli
 TARGET_GROWTH_50_TO_5000 = 20.0  # t(5000) / t(50), for 100x the postures
 
 
-def problem(postures: int, seed: int) -> tuple[StudyRun, Measurements]:
-    run = StudyRun(postures=int(postures * 1.2) + 5, noise_um=10.0, seed=seed)
+def problem(postures: int, seed: int, model: str = "hexa_slide") -> tuple[StudyRun, Measurements]:
+    run = StudyRun(true_params=default_parameters(model), postures=int(postures * 1.2) + 5, noise_um=10.0, seed=seed)
     measurements = simulate_run_measurements(run)
-    finite = np.all(np.isfinite(absolute_residuals(run.nominal().vector, measurements).reshape(-1, 4)), axis=1)
+    finite = np.all(np.isfinite(absolute_residuals(run.nominal().vector, measurements, model=model).reshape(-1, 4)),
+                    axis=1)
     return run, measurements.subset(np.flatnonzero(finite)[:postures])
 
 
@@ -87,13 +89,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--baseline-max", type=int, default=200, help="skip the baseline above this many postures")
     parser.add_argument("--postures", type=int, nargs="*", default=list(POSTURE_COUNTS))
     parser.add_argument("--seed", type=int, default=3)
+    parser.add_argument("--model", choices=sorted(ARCHITECTURES), default="hexa_slide",
+                        help="machine model: its default machine, nominal set 2 (default hexa_slide)")
     args = parser.parse_args(argv)
     rows = []
     for count in args.postures:
-        run, measurements = problem(count, args.seed)
+        run, measurements = problem(count, args.seed, args.model)
         seconds, iterations = time_identify(run, measurements, repeats=15 if count <= 200 else 3)
         baseline = identify_baseline(run.nominal(), measurements).seconds if count <= args.baseline_max else None
         rows.append({
+            "model": args.model,
             "postures": len(measurements),
             "seconds": seconds,
             "baseline_seconds": baseline,
