@@ -7,6 +7,9 @@
   the noise) and the calibration matches the truth the bag was made with.
 * Each bag's posture topic replayed straight into identify: the published
   parameters equal `hexacal calibrate` of the same bag to 1e-9.
+
+The Hexa Slide bags were made on Table 1, the Gough-Stewart bag on the default
+Gough-Stewart machine; each is calibrated from nominal set 2 (seed 0) of its model.
 """
 from __future__ import annotations
 
@@ -19,7 +22,7 @@ import numpy as np
 import pytest
 import yaml
 
-from hexacal_identify.core.model import HexaParameters, table1_parameters
+from hexacal_identify.core.architectures import architecture
 from hexacal_identify.core.validation import pose_errors, validation_poses
 from hexacal_identify.pipeline import postures_from_bag
 from system_support import (
@@ -37,11 +40,17 @@ SAMPLES = {
     "sphere50_noise10": ("absolute", 10e-6, 50),
     "sphere60_fixed20_noise10": ("sphere-fixed", 10e-6, 80),
     "sphere30_nonoise": ("absolute", 0.0, 30),
+    "gs_sphere50_noise10": ("absolute", 10e-6, 50),
 }
+# The machine model of each bag (default: the Hexa Slide).
+MODELS = {"gs_sphere50_noise10": "gough_stewart"}
 RAW_TOPICS = ["/hexacal/sliders", "/hexacal/inclinometer", "/hexacal/encoder"]
 RAW_REPLAY_RATE = 3.0  # 50 Hz streams at 150 Hz: the collector keeps up on a busy 2-core machine (stamps drive detection)
 POSTURE_REPLAY_RATE = 40.0  # postures are reliable, one per ~2 s recorded
-TRUE = table1_parameters()
+
+
+def model_of(name: str) -> str:
+    return MODELS.get(name, "hexa_slide")
 
 
 def recorded_posture_values(bag: Path) -> np.ndarray:
@@ -68,6 +77,9 @@ def test_rosbags_reads_every_sample_bag_as_metadata_says(name):
     assert {topic: (found[topic], counts[topic]) for topic in found} == declared
     assert declared["/hexacal/posture"][1] == SAMPLES[name][2]
     assert metadata["message_count"] == sum(counts.values())
+    if name in MODELS:  # recorded by a collector that knew its model
+        assert metadata["custom_data"]["hexacal.model"] == MODELS[name]
+    assert postures_from_bag(bag).model == model_of(name)
 
 
 def _replay(bag: Path, topics: list[str], ros_processes, probe, rate: float) -> None:
@@ -82,13 +94,16 @@ def _replay(bag: Path, topics: list[str], ros_processes, probe, rate: float) -> 
 @pytest.mark.parametrize("name", sorted(SAMPLES))
 def test_raw_streams_replayed_into_collector_and_identify(name, ros_processes, tmp_path, probe):
     cost, noise, count = SAMPLES[name]
+    model = model_of(name)
     bag = BAGS / name
-    _, nominal = write_parameter_files(tmp_path)
+    _, nominal = write_parameter_files(tmp_path, model)
+    collector_model = {"model": model} if name in MODELS else {}
     collector = ros_processes.start(node_argv("collector", fast_collector_parameters(
-        tmp_path / "bags", bag_name="rerecorded", window_s=0.3, capture_s=0.5)), name="collector")
+        tmp_path / "bags", bag_name="rerecorded", window_s=0.3, capture_s=0.5, **collector_model)),
+        name="collector")
     identify = ros_processes.start(node_argv("identify", {
         "nominal": str(nominal), "cost": cost, "output_dir": str(tmp_path / "out")}), name="identify")
-    probe.subscribe_postures()
+    probe.subscribe_postures(model=model)
     probe.subscribe_status()
     probe.wait_for_node("collector", "/", collector)
     probe.wait_for_node("identify", "/", identify)
@@ -108,8 +123,11 @@ def test_raw_streams_replayed_into_collector_and_identify(name, ros_processes, t
     assert response.success, response.message
     probe.spin_until(lambda: received, 30.0, "the published parameters")
     assert ros_processes.stop(collector, STOP_TIMEOUT_S) == 0
-    calibrated = HexaParameters(received[-1])
-    after = pose_errors(TRUE, calibrated, validation_poses(TRUE, 30, 0)).summary()
+    assert postures_from_bag(tmp_path / "bags" / "rerecorded").model == model
+    truth = architecture(model).default_parameters()
+    calibrated = truth.with_vector(received[-1])
+    poses = validation_poses(truth, 30, 0, architecture(model).default_workspace())
+    after = pose_errors(truth, calibrated, poses).summary()
     assert after["position_max_m"] < (1e-9 if noise == 0 else 60e-6), after
 
 
@@ -118,7 +136,7 @@ def test_raw_streams_replayed_into_collector_and_identify(name, ros_processes, t
 def test_posture_topic_replayed_into_identify_equals_offline_calibration(name, ros_processes, tmp_path, probe):
     cost, _, count = SAMPLES[name]
     bag = BAGS / name
-    _, nominal = write_parameter_files(tmp_path)
+    _, nominal = write_parameter_files(tmp_path, model_of(name))
     identify = ros_processes.start(node_argv("identify", {
         "nominal": str(nominal), "cost": cost, "output_dir": str(tmp_path / "out")}), name="identify")
     probe.subscribe_status()
@@ -137,5 +155,7 @@ def test_posture_topic_replayed_into_identify_equals_offline_calibration(name, r
     assert offline.returncode == 0, offline.stderr
     from hexacal_msgs_py.parameters_file import chain_dict_to_parameters
 
-    np.testing.assert_allclose(received[-1], chain_dict_to_parameters(json.loads(offline.stdout)["parameters"]),
+    result = json.loads(offline.stdout)
+    assert result["model"] == model_of(name) and result["bag"]["model"] == model_of(name)
+    np.testing.assert_allclose(received[-1], chain_dict_to_parameters(result["parameters"], model_of(name)),
                                rtol=0, atol=1e-9)
