@@ -217,6 +217,24 @@ def test_the_report_calibrate_and_identify_write_for_a_gough_stewart_result(cali
     assert "after calibration" in text and "Not shown: the true parameters are not known" in text
 
 
+def test_calibrate_report_of_the_gough_stewart_sample_bag(nominal_file, tmp_path):
+    """`hexacal calibrate BAG --nominal GS.yaml --report DIR` on the recorded hexapod bag: a Gough-Stewart page."""
+    from pathlib import Path
+
+    bag = Path(__file__).resolve().parents[1] / "bags" / "gs_sphere50_noise10"
+    if not bag.is_dir():
+        pytest.skip(f"{bag} is not in this checkout")
+    out = tmp_path / "calibrate-report"
+    completed = subprocess.run([sys.executable, "-m", "hexacal_identify.cli", "calibrate", str(bag), "--nominal",
+                                str(nominal_file), "--output", str(tmp_path / "calibrated.yaml"), "--report", str(out)],
+                               capture_output=True, text=True, timeout=300)
+    assert completed.returncode == 0, completed.stderr
+    text = _text((out / "index.html").read_text(encoding="utf-8"))
+    _assert_gough_stewart_page(text)
+    assert "Rank 42 of 42" in text and "Postures used 50" in text
+    assert (out / "pose_error_map.png").stat().st_size > 1000
+
+
 def test_a_result_whose_vectors_do_not_fit_its_model_is_refused(calibration, tmp_path):
     _, _, path = calibration
     payload = json.loads(path.read_text())
