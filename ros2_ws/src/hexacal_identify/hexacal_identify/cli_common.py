@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
 if TYPE_CHECKING:
-    from .core.model import HexaParameters
+    from .core.architectures import KinematicParameters
 
 
 class LazySubcommands(argparse._SubParsersAction):
@@ -73,10 +73,12 @@ class Progress:
             self._bar.close()
 
 
-def load_params_arg(path: Path) -> HexaParameters:
-    """A parameters YAML named on the command line, validated (ParameterFileError names the bad key)."""
-    from hexacal_msgs_py.parameters_file import load_parameters
+def load_params_arg(path: Path) -> "KinematicParameters":
+    """A parameters YAML named on the command line, of the model it names, validated
+    (ParameterFileError names the file and the bad key)."""
+    from hexacal_msgs_py.parameters_file import read_parameters_file
 
-    from .core.model import HexaParameters
+    from .core.architectures import parameters_for
 
-    return HexaParameters(load_parameters(path))
+    contents = read_parameters_file(path)
+    return parameters_for(contents.model, contents.vector)
