@@ -2,7 +2,9 @@
 
 The true machine is `true_params` (a parameters YAML of either model, which
 names its model), or the default machine of `model` (Hexa Slide: Table 1;
-Gough-Stewart: the default hexapod of core.architectures). Walks a posture plan
+Gough-Stewart: the default hexapod of core.architectures); the device hangs
+below the base (``device.mount`` of true_params: ``standing`` for an upright
+machine, core/device.py). Walks a posture plan
 on it and publishes, at `rate_hz`, the actuator readings (`hexacal/sliders`:
 joints slider_1..6 on a Hexa Slide, leg_1..6 on a Gough-Stewart platform), the
 inclinometer angles
@@ -39,6 +41,7 @@ from sensor_msgs.msg import JointState
 from hexacal_driver.plan import GENERATED_PLANS, PlanError, PosturePlan, load_plan, resolve_plan
 from hexacal_driver.simulation import DONE, DWELLING, PlanWalker, SensorSimulator
 from hexacal_identify.core.architectures import KinematicParameters, architecture, parameters_for
+from hexacal_identify.core.device import DEFAULT_MOUNT, DeviceMountError, check_mount
 from hexacal_identify.core.measurements import NoiseModel
 from hexacal_identify.node_runtime import run_node
 from hexacal_msgs_py.conversions import (
@@ -54,6 +57,7 @@ from hexacal_msgs_py.qos import SENSOR_QOS
 from hexacal_msgs_py.readings import EncoderReading, InclinometerReading, SliderReading
 
 NODE_NAME = 'driver'
+MOUNT_PARAMETER = 'device.mount'  # parameters-file key of the device mount (core/device.py)
 # The timer wakes at most this often and publishes rate_hz / MAX_WAKE_HZ samples per wake-up,
 # each stamped with its own sampling time (1 / rate_hz apart, the last one now): an executor
 # wake-up costs more than the publishing, so 1 kHz costs 200 wake-ups per second, not 1000.
@@ -76,7 +80,8 @@ MODEL_CHOICES = ('', *MODELS)
 
 PARAMETERS: dict[str, _Spec] = {
     'true_params': _Spec('', 'parameters YAML (SI) of the simulated true machine, of any model '
-                         "(its 'model' key); empty: the default machine of `model` (Hexa Slide: "
+                         "(its 'model' key; 'device.mount: standing' for an upright device, "
+                         'default hanging); empty: the default machine of `model` (Hexa Slide: '
                          'Table 1 of the paper)'),
     'model': _Spec('', "machine model: 'hexa_slide' or 'gough_stewart'; '' = the model of "
                    'true_params, else hexa_slide. Without true_params the default machine of '
@@ -156,12 +161,12 @@ class DriverNode(Node):
         self.add_post_set_parameters_callback(self._apply_parameters)
         value = {name: self.get_parameter(name).value for name in PARAMETERS}
 
-        self.true_params = self._load_true_params(value['true_params'], value['model'])
+        self.true_params, self.mount = self._load_true_params(value['true_params'], value['model'])
         self.model = self.true_params.model
         try:
             self.plan: PosturePlan = resolve_plan(value['plan'], self.true_params,
                                                   value['postures'], value['seed'],
-                                                  value['link_length'])
+                                                  value['link_length'], self.mount)
         except PlanError as error:
             raise DriverConfigurationError(str(error)) from error
         self.declare_parameter('plan_name', self.plan.name, ParameterDescriptor(
@@ -172,7 +177,7 @@ class DriverNode(Node):
         # Noise draws from their own stream: the same seed gives the same plan whatever the noise.
         self.sensors = SensorSimulator(
             NoiseModel(value['slider_noise_m'], value['angle_noise_rad']),
-            np.random.default_rng([value['seed'], 0x5E45]))
+            np.random.default_rng([value['seed'], 0x5E45]), self.mount)
         self.rate_hz = float(value['rate_hz'])
         self.wait_for_subscriber = bool(value['wait_for_subscriber'])
 
@@ -205,6 +210,8 @@ class DriverNode(Node):
             source = f'the default {MODELS[self.model].title}'
         if self.model != HEXA_SLIDE:
             source += f' ({self.model}, joints {", ".join(MODELS[self.model].actuator_names)})'
+        if self.mount != DEFAULT_MOUNT:
+            source += f', {self.mount} device'
         self.get_logger().info(
             f'{self.plan.describe()}; true machine: {source}; {self.rate_hz:g} Hz, settle '
             f"{self.walker.settle_s:g} s, dwell {self.walker.dwell_s:g} s (one pass "
@@ -216,19 +223,21 @@ class DriverNode(Node):
 
     # ------------------------------------------------------------------ parameters
 
-    def _load_true_params(self, path: str, model: str) -> KinematicParameters:
+    def _load_true_params(self, path: str, model: str) -> tuple[KinematicParameters, str]:
+        """The true machine and the device mount (the file's device.mount, else hanging)."""
         if not path:
-            return architecture(model or DEFAULT_MODEL).default_parameters()
+            return architecture(model or DEFAULT_MODEL).default_parameters(), DEFAULT_MOUNT
         try:
             loaded = read_parameters_file(path)
             params = parameters_for(loaded.model, loaded.vector)
-        except (ParameterFileError, ValueError) as error:
+            mount = check_mount(loaded.extras.get(MOUNT_PARAMETER, DEFAULT_MOUNT))
+        except (ParameterFileError, DeviceMountError, ValueError) as error:
             raise DriverConfigurationError(f'true_params: {error}') from error
         if model and model != loaded.model:
             raise DriverConfigurationError(
                 f'model {model!r} contradicts true_params {path}, a {loaded.model} parameters '
                 f"file: leave model '' or name the file's model")
-        return params
+        return params, mount
 
     def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for parameter in parameters:

@@ -8,18 +8,25 @@ paper's eq. 1), each of one kind:
 * ``fixed``: the inclinometer reads zero, so the platform sits at ``[0, 0, -L]``
   and only its orientation varies (section 3.2's second procedure).
 
+With the device mount ``standing`` (core/device.py: an upright machine, the
+platform above the device's base joint) sphere postures lie on the upper half
+of the sphere and the fixed position is ``[0, 0, +L]``.
+
 Plan file (YAML, SI units)::
 
     plan:
       name: my-plan
       link_length: 0.75
+      model: gough_stewart   # optional: the machine model planned for (absent: hexa_slide)
+      mount: standing        # optional: the device mount (absent: hanging)
     postures:
       - {kind: sphere, pose: [0.1, -0.2, -0.7141428428542851, 0.1, 0.0, -0.2]}
       - {kind: fixed,  pose: [0.0, 0.0, -0.75, 0.3, -0.1, 0.25]}
 
 `load_plan` checks everything it can without a machine model and raises
 `PlanError` naming the file, the posture and the problem; `check_reachable`
-then checks a plan against a machine's parameters. Plans are the same for every
+then checks a plan against a machine's parameters, and `resolve_plan` refuses a
+plan made for another model or device mount than the driver's. Plans are the same for every
 architecture (poses of the platform); generated plans draw their poses in the
 architecture's default workspace (Hexa Slide: the paper's; Gough-Stewart: a
 smaller one, legs within their stroke) and a plan is reachable when every
@@ -35,13 +42,20 @@ from typing import Any
 
 import numpy as np
 
-from hexacal_identify.core.device import DEFAULT_LINK_LENGTH_M, inclinometer_angles
+from hexacal_identify.core.device import (
+    DEFAULT_LINK_LENGTH_M,
+    DEFAULT_MOUNT,
+    MOUNTS,
+    fixed_point,
+    inclinometer_angles,
+)
 from hexacal_identify.core.errors import UnreachablePoseError
 from hexacal_identify.core.kinematics import inverse_kinematics
 from hexacal_identify.core.measurements import FIXED, POSTURE_KINDS, SPHERE, MeasurementLimits
 from hexacal_identify.core.architectures import KinematicParameters
 from hexacal_identify.core.postures import Workspace, sample_poses
 from hexacal_msgs_py.files import atomic_write
+from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 from hexacal_msgs_py.parameters_file import read_yaml_document
 
 RANDOM_PLAN = 'random'  # sphere postures only
@@ -55,7 +69,8 @@ GENERATED_PLANS = (RANDOM_PLAN, FIXED_PLAN, MIXED_PLAN)
 POSITION_TOLERANCE_M = 1e-6
 MAX_TILT_RAD = math.pi / 2  # |theta|, |psi|: beyond this the Euler angles are ambiguous
 
-_PLAN_KEYS = {'name', 'link_length'}
+_PLAN_KEYS = {'name', 'link_length'}  # required
+_OPTIONAL_PLAN_KEYS = {'model', 'mount'}  # absent: the Hexa Slide, hanging (written only otherwise)
 _POSTURE_KEYS = {'kind', 'pose'}
 
 
@@ -71,6 +86,8 @@ class PosturePlan:
     link_length: float
     poses: np.ndarray
     kinds: tuple[str, ...]
+    model: str = DEFAULT_MODEL  # the machine model the plan was made for
+    mount: str = DEFAULT_MOUNT  # the device mount: hanging (platform below O) or standing
 
     def __post_init__(self) -> None:
         poses = np.array(self.poses, dtype=float).reshape(-1, 6)
@@ -90,8 +107,10 @@ class PosturePlan:
 
     def describe(self) -> str:
         counts = self.counts()
+        machine = '' if self.model == DEFAULT_MODEL else f', for a {self.model}'
+        mount = '' if self.mount == DEFAULT_MOUNT else f', {self.mount} device'
         return (f"plan '{self.name}': {len(self)} postures ({counts[SPHERE]} sphere, "
-                f'{counts[FIXED]} fixed), link length {self.link_length:g} m')
+                f'{counts[FIXED]} fixed), link length {self.link_length:g} m{machine}{mount}')
 
 
 def _plan_problem(plan: PosturePlan) -> str | None:
@@ -106,35 +125,42 @@ def _plan_problem(plan: PosturePlan) -> str | None:
         return 'has no postures'
     if len(plan.kinds) != len(plan.poses):
         return f'{len(plan.poses)} poses but {len(plan.kinds)} kinds'
+    if plan.model not in MODELS:
+        return f"model must be one of {', '.join(MODELS)}, got {plan.model!r}"
+    if plan.mount not in MOUNTS:
+        return f"mount must be one of {', '.join(MOUNTS)}, got {plan.mount!r}"
     limits = MeasurementLimits()
     for index, (pose, kind) in enumerate(zip(plan.poses, plan.kinds)):
-        problem = _posture_problem(pose, kind, float(length), limits)
+        problem = _posture_problem(pose, kind, float(length), limits, plan.mount)
         if problem:
             return f'posture {index}: {problem}'
     return None
 
 
 def _posture_problem(pose: np.ndarray, kind: str, link_length: float,
-                     limits: MeasurementLimits) -> str | None:
+                     limits: MeasurementLimits, mount: str = DEFAULT_MOUNT) -> str | None:
     if kind not in POSTURE_KINDS:
         return f'kind must be one of {list(POSTURE_KINDS)}, got {kind!r}'
     if not np.all(np.isfinite(pose)):
         return f'pose must be finite, got {pose.tolist()}'
     position = pose[:3]
+    side = 1.0 if mount == DEFAULT_MOUNT else -1.0  # hanging: below O (z < 0); standing: above
     if kind == FIXED:
-        offset = float(np.linalg.norm(position - [0.0, 0.0, -link_length]))
+        offset = float(np.linalg.norm(position - fixed_point(link_length, mount)))
         if offset > POSITION_TOLERANCE_M:
-            return (f'a fixed posture must be at [0, 0, -{link_length:g}] m, got '
+            sign = '-' if side > 0 else ''
+            return (f'a fixed posture must be at [0, 0, {sign}{link_length:g}] m, got '
                     f'{position.tolist()} ({offset:.3g} m away)')
     else:
         radius = float(np.linalg.norm(position))
-        if position[2] >= 0 or abs(radius - link_length) > POSITION_TOLERANCE_M:
+        if side * position[2] >= 0 or abs(radius - link_length) > POSITION_TOLERANCE_M:
             horizontal = float(position[0] ** 2 + position[1] ** 2)
-            expected = (f'z = {-math.sqrt(link_length ** 2 - horizontal)!r} for this x, y'
+            expected = (f'z = {-side * math.sqrt(link_length ** 2 - horizontal)!r} for this x, y'
                         if horizontal < link_length ** 2 else 'x^2 + y^2 < L^2')
+            where = 'below' if side > 0 else 'above'
             return (f'a sphere posture must lie on the link sphere |p| = {link_length:g} m '
-                    f'below O ({expected}), got |p| = {radius!r} m, z = {position[2]!r} m')
-        alpha, beta = inclinometer_angles(position[None])
+                    f'{where} O ({expected}), got |p| = {radius!r} m, z = {position[2]!r} m')
+        alpha, beta = inclinometer_angles(position[None], mount)
         tilt = max(abs(float(alpha[0])), abs(float(beta[0])))
         if tilt > limits.inclinometer_range_rad:
             return (f'inclinometer angle {math.degrees(tilt):.1f} deg is beyond its range of '
@@ -150,17 +176,23 @@ def _posture_problem(pose: np.ndarray, kind: str, link_length: float,
 # --------------------------------------------------------------------------- generated plans
 
 
-def machine_workspace(params: KinematicParameters,
-                      link_length: float = DEFAULT_LINK_LENGTH_M) -> Workspace:
-    """The workspace plans are drawn and checked in: the architecture's default, with this link length."""
-    return replace(params.architecture.default_workspace(), link_length=float(link_length))
+def machine_workspace(params: KinematicParameters, link_length: float = DEFAULT_LINK_LENGTH_M,
+                      mount: str = DEFAULT_MOUNT) -> Workspace:
+    """The workspace plans are drawn and checked in: the architecture's default, with this link
+    length (and device mount; the Workspace's default, hanging, is left as it is)."""
+    workspace = replace(params.architecture.default_workspace(), link_length=float(link_length))
+    if mount != DEFAULT_MOUNT:
+        workspace = replace(workspace, mount=mount)
+    return workspace
 
 
 def generated_plan(which: str, params: KinematicParameters, count: int, seed: int,
-                   link_length: float = DEFAULT_LINK_LENGTH_M) -> PosturePlan:
+                   link_length: float = DEFAULT_LINK_LENGTH_M,
+                   mount: str = DEFAULT_MOUNT) -> PosturePlan:
     """'random' (sphere), 'fixed' or 'mixed' (3 sphere : 1 fixed) postures drawn with `seed`.
 
-    Poses come from the architecture's default workspace (machine_workspace).
+    Poses come from the architecture's default workspace (machine_workspace) on the
+    device mount's side of O.
     """
     if which not in GENERATED_PLANS:
         raise PlanError(
@@ -174,7 +206,7 @@ def generated_plan(which: str, params: KinematicParameters, count: int, seed: in
         counts = {SPHERE: count if which == RANDOM_PLAN else 0,
                   FIXED: count if which == FIXED_PLAN else 0}
     rng = np.random.default_rng([int(seed), 0x9A7])
-    workspace = machine_workspace(params, link_length)
+    workspace = machine_workspace(params, link_length, mount)
     try:
         drawn = {kind: list(sample_poses(params, n, rng, kind, workspace)) if n else []
                  for kind, n in counts.items()}
@@ -187,7 +219,7 @@ def generated_plan(which: str, params: KinematicParameters, count: int, seed: in
         poses.append(drawn[kind].pop(0))
         kinds.append(kind)
     return PosturePlan(f'{which}-{count}-seed{seed}', float(link_length), np.array(poses),
-                       tuple(kinds))
+                       tuple(kinds), params.model, mount)
 
 
 # --------------------------------------------------------------------------- plan files
@@ -209,9 +241,10 @@ def load_plan(path: str | os.PathLike[str]) -> PosturePlan:
     header = document.get('plan')
     if not isinstance(header, dict):
         raise fail("'plan' must be a mapping with 'name' and 'link_length'")
-    unknown = sorted(set(map(str, header)) - _PLAN_KEYS)
+    unknown = sorted(set(map(str, header)) - _PLAN_KEYS - _OPTIONAL_PLAN_KEYS)
     if unknown:
-        raise fail(f'unknown key(s) {unknown} in plan; expected {sorted(_PLAN_KEYS)}')
+        raise fail(f'unknown key(s) {unknown} in plan; expected {sorted(_PLAN_KEYS)} '
+                   f'(optional {sorted(_OPTIONAL_PLAN_KEYS)})')
     for key in sorted(_PLAN_KEYS):
         if key not in header:
             raise fail(f'plan.{key} is missing')
@@ -238,16 +271,28 @@ def load_plan(path: str | os.PathLike[str]) -> PosturePlan:
                        f'(m, rad), got {pose!r}')
         poses.append([float(v) for v in pose])
         kinds.append(entry['kind'])
+    model = header.get('model', DEFAULT_MODEL)
+    if not isinstance(model, str) or model not in MODELS:
+        raise fail(f"plan.model must be one of {', '.join(MODELS)}, got {model!r}")
+    mount = header.get('mount', DEFAULT_MOUNT)
+    if not isinstance(mount, str) or mount not in MOUNTS:
+        raise fail(f"plan.mount must be one of {', '.join(MOUNTS)}, got {mount!r}")
     try:
-        return PosturePlan(header['name'], float(length), np.array(poses), tuple(kinds))
+        return PosturePlan(header['name'], float(length), np.array(poses), tuple(kinds), model,
+                           mount)
     except PlanError as error:
         raise fail(str(error)) from None
 
 
 def plan_document(plan: PosturePlan) -> dict[str, Any]:
     """The plan-file mapping of a plan (floats as Python floats)."""
+    header: dict[str, Any] = {'name': plan.name, 'link_length': float(plan.link_length)}
+    if plan.model != DEFAULT_MODEL:  # as in parameters files: absent = a Hexa Slide
+        header['model'] = plan.model
+    if plan.mount != DEFAULT_MOUNT:
+        header['mount'] = plan.mount
     return {
-        'plan': {'name': plan.name, 'link_length': float(plan.link_length)},
+        'plan': header,
         'postures': [{'kind': kind, 'pose': [float(v) for v in pose]}
                      for kind, pose in zip(plan.kinds, plan.poses)],
     }
@@ -256,7 +301,12 @@ def plan_document(plan: PosturePlan) -> dict[str, Any]:
 def save_plan(path: str | os.PathLike[str], plan: PosturePlan) -> None:
     """Write a plan file that load_plan reads back exactly (repr floats)."""
     lines = ['plan:', f'  name: {json.dumps(plan.name)}',
-             f'  link_length: {float(plan.link_length)!r}', 'postures:']
+             f'  link_length: {float(plan.link_length)!r}']
+    if plan.model != DEFAULT_MODEL:  # Hexa Slide plan files stay as they were
+        lines.append(f'  model: {plan.model}')
+    if plan.mount != DEFAULT_MOUNT:
+        lines.append(f'  mount: {plan.mount}')
+    lines.append('postures:')
     for kind, pose in zip(plan.kinds, plan.poses):
         values = ', '.join(repr(float(v)) for v in pose)
         lines.append(f'  - {{kind: {kind}, pose: [{values}]}}')
@@ -293,13 +343,15 @@ def check_reachable(plan: PosturePlan, params: KinematicParameters,
 
 
 def resolve_plan(spec: str, params: KinematicParameters, count: int, seed: int,
-                 link_length: float = DEFAULT_LINK_LENGTH_M) -> PosturePlan:
+                 link_length: float = DEFAULT_LINK_LENGTH_M,
+                 mount: str = DEFAULT_MOUNT) -> PosturePlan:
     """A plan from the driver's `plan` parameter: a generated plan's name or a plan-file path.
 
-    A plan file's link length must match the device's; the plan must be reachable.
+    A plan file's link length must match the device's, its model the machine's and its
+    mount the device's; the plan must be reachable.
     """
     if spec in GENERATED_PLANS:
-        plan = generated_plan(spec, params, count, seed, link_length)
+        plan = generated_plan(spec, params, count, seed, link_length, mount)
     else:
         if not spec:
             raise PlanError(f'plan must be one of {list(GENERATED_PLANS)} or a plan file path')
@@ -307,5 +359,11 @@ def resolve_plan(spec: str, params: KinematicParameters, count: int, seed: int,
         if not math.isclose(plan.link_length, link_length, rel_tol=0.0, abs_tol=1e-9):
             raise PlanError(f'{spec}: plan.link_length {plan.link_length!r} m differs from the '
                             f"device's link length {link_length!r} m")
-    check_reachable(plan, params, machine_workspace(params, link_length))
+        if plan.model != params.model:
+            raise PlanError(f'{spec}: the plan was made for a {plan.model} (plan.model; absent: '
+                            f'hexa_slide) but the machine is a {params.model}')
+        if plan.mount != mount:
+            raise PlanError(f'{spec}: the plan is for a {plan.mount} device (plan.mount) but the '
+                            f'device is {mount}')
+    check_reachable(plan, params, machine_workspace(params, link_length, mount))
     return plan

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from hexacal_identify.core.device import inclinometer_angles
+from hexacal_identify.core.device import DEFAULT_MOUNT, inclinometer_angles
 from hexacal_identify.core.errors import UnreachablePoseError
 from hexacal_identify.core.kinematics import inverse_kinematics
 from hexacal_identify.core.measurements import NoiseModel
@@ -138,10 +138,12 @@ class SensorReadings:
     phi_rad: float
 
 
-def exact_readings(pose: np.ndarray, sliders: np.ndarray) -> SensorReadings:
-    """What noise-free sensors read: the sliders, eq. 4 inverted for alpha/beta, and phi."""
+def exact_readings(pose: np.ndarray, sliders: np.ndarray,
+                   mount: str = DEFAULT_MOUNT) -> SensorReadings:
+    """What noise-free sensors read: the sliders, eq. 4 inverted for alpha/beta (for the device
+    mount, core/device.py), and phi."""
     pose = np.asarray(pose, dtype=float)
-    alpha, beta = inclinometer_angles(pose[None, :3])
+    alpha, beta = inclinometer_angles(pose[None, :3], mount)
     return SensorReadings(np.array(sliders, dtype=float), float(alpha[0]), float(beta[0]),
                           float(pose[5]))
 
@@ -149,12 +151,13 @@ def exact_readings(pose: np.ndarray, sliders: np.ndarray) -> SensorReadings:
 class SensorSimulator:
     """Adds fresh uniform noise (NoiseModel half-widths) to every reading."""
 
-    def __init__(self, noise: NoiseModel, rng: np.random.Generator):
+    def __init__(self, noise: NoiseModel, rng: np.random.Generator, mount: str = DEFAULT_MOUNT):
         self.noise = noise
         self.rng = rng
+        self.mount = mount
 
     def read(self, sample: WalkSample) -> SensorReadings:
-        exact = exact_readings(sample.pose, sample.sliders)
+        exact = exact_readings(sample.pose, sample.sliders, self.mount)
         slider_noise = self.rng.uniform(-1.0, 1.0, 6) * self.noise.slider_m
         angle_noise = self.rng.uniform(-1.0, 1.0, 3) * self.noise.angle_rad
         return SensorReadings(exact.sliders_m + slider_noise, exact.alpha_rad + angle_noise[0],

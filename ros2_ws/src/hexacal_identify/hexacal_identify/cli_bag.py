@@ -41,6 +41,9 @@ def _calibrate_arguments(calibrate: argparse.ArgumentParser) -> None:
     calibrate.add_argument("--cost", choices=COSTS, default="absolute", help="cost function (default absolute)")
     calibrate.add_argument("--link-length", type=float, default=DEFAULT_LINK_LENGTH_M,
                            help=f"device link length L in m (default {DEFAULT_LINK_LENGTH_M})")
+    calibrate.add_argument("--mount", choices=("hanging", "standing"), default=None,
+                           help="device mount: hanging (platform below the device's base joint) or standing (an "
+                           "upright machine); default: the nominal file's device.mount, else hanging")
     calibrate.add_argument("--identify-device", type=device_names_argument, default=(),
                            help="device defects to identify jointly, e.g. dL,alpha0,gamma (beta0 and phi0 are "
                            "frame definitions: eq. 7 cannot see them)")
@@ -66,9 +69,11 @@ def run_calibrate(args) -> int:
     from .core.errors import CalibrationError
     from .core.identification import CONVERGED
     from .core.measurements import NoiseModel
-    from .pipeline import calibrate, check_model, load_machine, measurements_from_postures, postures_from_bag
+    from .pipeline import calibrate, check_model, load_machine_and_mount, measurements_from_postures, postures_from_bag
 
-    nominal = load_machine(args.nominal)
+    nominal, mount = load_machine_and_mount(args.nominal)
+    mount = args.mount or mount
+    mount_option = {} if mount == "hanging" else {"mount": mount}
     if args.output.exists() and args.output.is_dir():
         raise IsADirectoryError(f"--output {args.output} is a directory; name a YAML file")
     bag = postures_from_bag(args.bag)
@@ -76,7 +81,7 @@ def run_calibrate(args) -> int:
     noise = NoiseModel.from_microns(args.noise_um) if args.noise_um else None
     try:
         result = calibrate(nominal, bag.postures, cost=args.cost, link_length=args.link_length,
-                           identify_device=args.identify_device, noise=noise, robust_loss=args.robust)
+                           identify_device=args.identify_device, noise=noise, robust_loss=args.robust, mount=mount)
     except CalibrationError as error:
         if bag.rejected or bag.invalid_messages:  # say what of the bag was not used
             error.args = (f"{error} [bag {args.bag}: {_not_used(bag)}]",)
@@ -90,12 +95,13 @@ def run_calibrate(args) -> int:
     if args.save_result:
         from .report import save_result
 
-        save_result(args.save_result, result, extras, measurements=measurements, link_length=args.link_length)
+        save_result(args.save_result, result, extras, measurements=measurements, link_length=args.link_length,
+                    **mount_option)
     if args.report:
         from .report import write_report
 
         write_report(result, args.report, title=f"hexacal calibration report: {args.bag}", extras=extras,
-                     measurements=measurements, link_length=args.link_length)
+                     measurements=measurements, link_length=args.link_length, **mount_option)
     if args.json:
         payload = result.to_json()
         payload["bag"] = {"path": str(args.bag), "model": bag.model, "postures": len(bag.postures), "source": bag.source,

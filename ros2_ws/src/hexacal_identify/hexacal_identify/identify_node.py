@@ -1,7 +1,8 @@
 """Node `identify`: keep every posture received and calibrate on request.
 
 The machine model is the one the `nominal` parameters file names (``model:``;
-none = Hexa Slide): postures carry its actuator joints (slider_1..6 on a Hexa
+none = Hexa Slide), and so is the device mount (``device.mount``: hanging, the
+default, or standing for an upright machine): postures carry its actuator joints (slider_1..6 on a Hexa
 Slide, leg_1..6 on a Gough-Stewart platform), the result has its parameters
 (54 or 42, published with that model's layout and saved with its ``model``
 key). A posture with another model's joints is rejected on receipt
@@ -81,7 +82,7 @@ from hexacal_msgs_py.readings import PostureReading
 
 # pipeline and core.identification (the solver, scipy.linalg) are imported where they are used: at the first
 # posture or calibration, not at start-up.
-from .core.architectures import KinematicParameters, parameters_for
+from .core.architectures import KinematicParameters
 from .core.device import DEVICE_PARAMETER_NAMES
 from .core.errors import CalibrationError
 from .core.measurements import NoiseModel
@@ -138,6 +139,7 @@ class ReportJob:
     postures: list[PostureReading]
     source: str
     link_length: float
+    mount: str = 'hanging'
 
 
 def _failure(reason: str, message: str, **values: object) -> Outcome:
@@ -201,7 +203,8 @@ class IdentifyNode(Node):
         self._report_lock = threading.Lock()
         self._pending_report: tuple[int, Outcome] | None = None
         self._calibration_number = 0
-        self._nominal_cache: tuple[tuple, KinematicParameters] | None = None  # (file identity, model)
+        # (file identity, (parameters, device mount)) of the nominal file
+        self._nominal_cache: tuple[tuple, tuple[KinematicParameters, str]] | None = None
         self._model_cache: tuple[tuple, str | None] | None = None  # (file identity, model name)
 
         self._parameters_pub = self.create_publisher(
@@ -372,7 +375,7 @@ class IdentifyNode(Node):
             return _failure('missing-parameter', "parameter 'nominal' is not set: give the "
                             'nominal parameters YAML to start from (-p nominal:=<path>)')
         try:
-            nominal = self._load_nominal(nominal_path)
+            nominal, mount = self._load_nominal(nominal_path)
         except (ParameterFileError, ValueError) as error:
             return _failure('invalid-nominal', f'nominal: {error}')
         if bag:
@@ -410,7 +413,7 @@ class IdentifyNode(Node):
             result = pipeline.calibrate(
                 nominal, postures, cost=cost, link_length=link_length,
                 identify_device=_names(self.get_parameter('identify_device').value), noise=noise,
-                robust_loss=self.get_parameter('robust_loss').value or None)
+                robust_loss=self.get_parameter('robust_loss').value or None, mount=mount)
         except CalibrationError as error:
             return _failure(error.reason, str(error), postures_received=len(postures),
                             source=source, **not_used)
@@ -436,7 +439,7 @@ class IdentifyNode(Node):
         report = None
         if report_dir:
             report = ReportJob(report_dir, self.get_parameter('output_dir').value, result,
-                               postures, source, link_length)
+                               postures, source, link_length, mount)
             values['report_state'] = 'writing'
         else:
             values['report_state'] = 'disabled'
@@ -444,18 +447,20 @@ class IdentifyNode(Node):
         return Outcome(True, f'{result.reason}: {summary}; wrote {target}', level, values,
                        result.parameters, report)
 
-    def _load_nominal(self, path: str) -> KinematicParameters:
-        """The nominal model; the YAML (~4 ms to parse) is read again only when the file changed."""
+    def _load_nominal(self, path: str) -> tuple[KinematicParameters, str]:
+        """The nominal model and the device mount; the YAML (~4 ms to parse) is read again only
+        when the file changed."""
+        from .pipeline import load_machine_and_mount
+
         key = _file_identity(path)  # None: read_parameters_file names the problem
         cached = self._nominal_cache
         if key is not None and cached is not None and cached[0] == key:
             return cached[1]
-        loaded = read_parameters_file(path)
-        nominal = parameters_for(loaded.model, loaded.vector)  # immutable: safe to share
+        loaded = load_machine_and_mount(path)  # immutable: safe to share
         if key is not None:
-            self._nominal_cache = (key, nominal)
-            self._model_cache = (key, nominal.model)
-        return nominal
+            self._nominal_cache = (key, loaded)
+            self._model_cache = (key, loaded[0].model)
+        return loaded
 
     def _nominal_model(self) -> str | None:
         """The model the nominal file names; None without a (readable) nominal file. Cached per file."""
@@ -498,9 +503,11 @@ class IdentifyNode(Node):
         job = outcome.report
         try:
             directory = output_path(job.report_dir, job.output_dir)
+            mount = {} if job.mount == 'hanging' else {'mount': job.mount}
             path = write_report(job.result, directory, title=f'hexacal calibration ({job.source})',
                                 measurements=pipeline.measurements_from_postures(job.postures),
-                                link_length=job.link_length, extras={'source': job.source})
+                                link_length=job.link_length, extras={'source': job.source},
+                                **mount)
         except Exception as error:  # noqa: BLE001 - the parameters are written; the report is extra
             self.get_logger().warning(f'calibration report not written: {error}')
             state, text = 'failed', f'report failed: {error}'

@@ -23,7 +23,7 @@ from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, JOINT_STATE
 from hexacal_msgs_py.readings import PostureReading
 
 from .core.architectures import KinematicParameters, parameters_for
-from .core.device import DEVICE_PARAMETER_NAMES, DeviceModel
+from .core.device import DEFAULT_MOUNT, DEVICE_PARAMETER_NAMES, DeviceModel, check_mount
 from .core.errors import InvalidMeasurementError
 from .core.identification import IdentificationResult, SolverOptions, identify
 from .core.measurements import FIXED, SPHERE, MeasurementLimits, Measurements, NoiseModel
@@ -47,12 +47,27 @@ class ModelMismatchError(InvalidMeasurementError):
     reason = MODEL_MISMATCH
 
 
+MOUNT_PARAMETER = "device.mount"  # parameters-file key of the device mount (core/device.py)
+
+
 def load_machine(path: Path | str) -> KinematicParameters:
     """The parameters of a parameters YAML, of the model it names (ParameterFileError names the file and key)."""
+    return load_machine_and_mount(path)[0]
+
+
+def load_machine_and_mount(path: Path | str) -> tuple[KinematicParameters, str]:
+    """(parameters, device mount) of a parameters YAML: its model's parameters and its ``device.mount``
+    (default hanging; another value is a DeviceMountError naming the file)."""
     from hexacal_msgs_py.parameters_file import read_parameters_file
 
+    from .core.device import DeviceMountError
+
     loaded = read_parameters_file(path)
-    return parameters_for(loaded.model, loaded.vector)
+    try:
+        mount = check_mount(loaded.extras.get(MOUNT_PARAMETER, DEFAULT_MOUNT))
+    except DeviceMountError as error:
+        raise DeviceMountError(f"{path}: {MOUNT_PARAMETER}: {error}") from None
+    return parameters_for(loaded.model, loaded.vector), mount
 
 
 def _joints_text(model: str) -> str:
@@ -109,16 +124,17 @@ def measurements_from_postures(postures: Sequence[PostureReading],
 def calibrate(nominal: KinematicParameters, postures: Sequence[PostureReading], *, cost: str = "absolute",
               link_length: float = DeviceModel().link_length, allow_rank_deficient: bool = False,
               identify_device: Sequence[str] = (), noise: NoiseModel | None = None,
-              robust_loss: str | None = None) -> IdentificationResult:
+              robust_loss: str | None = None, mount: str = DEFAULT_MOUNT) -> IdentificationResult:
     """Identify the parameters from received postures: the one call behind the node and the CLI.
 
     ``nominal`` is the starting parameter set of any architecture (its model is the
     result's). ``identify_device`` names device defects to identify jointly (e.g. dL,
     alpha0, gamma); ``noise`` (reading noise half-widths) weights the residuals by it.
+    ``mount`` is the device's (hanging, or standing for an upright machine).
     A problem the postures do not determine raises RankDeficientError (never a
     number that means nothing) unless ``allow_rank_deficient``.
     """
-    options = SolverOptions(cost=cost, device=DeviceModel(link_length=link_length),
+    options = SolverOptions(cost=cost, device=DeviceModel(link_length=link_length, mount=mount),
                             allow_rank_deficient=allow_rank_deficient, free_device=tuple(identify_device),
                             noise=noise, robust_loss=robust_loss)
     return identify(nominal, measurements_from_postures(postures), options)
