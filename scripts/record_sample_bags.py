@@ -31,12 +31,14 @@ class Sample:
     postures: int
     noise_m: float  # slider noise half-width, m; the angle noise is the same number in rad
     seed: int
+    model: str = "hexa_slide"  # machine model simulated (its default machine) and recorded
 
 
 SAMPLES = (
     Sample("sphere50_noise10", "random", 50, 10e-6, 1),
     Sample("sphere60_fixed20_noise10", "mixed", 80, 10e-6, 2),
     Sample("sphere30_nonoise", "random", 30, 0.0, 3),
+    Sample("gs_sphere50_noise10", "random", 50, 10e-6, 4, "gough_stewart"),
 )
 DRIVER = {"rate_hz": 50.0, "settle_s": 0.6, "dwell_s": 1.2}
 
@@ -61,14 +63,15 @@ def record(sample: Sample, domain: int) -> Path:
     os.environ.update(env)
     bin_dir = Path(sys.executable).parent
     collector = subprocess.Popen([str(bin_dir / "collector"), *_ros_args(
-        {"output_dir": str(BAGS), "bag_name": sample.name})], env=env, start_new_session=True)
+        {"output_dir": str(BAGS), "bag_name": sample.name, "model": sample.model})], env=env,
+        start_new_session=True)
     rclpy.init()
     node = rclpy.create_node("sample_recorder")
     received: list[JointState] = []
     node.create_subscription(JointState, "/" + POSTURE_TOPIC, received.append, POSTURE_QOS)
     driver = subprocess.Popen([str(bin_dir / "driver"), *_ros_args({
         "plan": sample.plan, "postures": sample.postures, "seed": sample.seed,
-        "slider_noise_m": sample.noise_m, "angle_noise_rad": sample.noise_m, **DRIVER})],
+        "slider_noise_m": sample.noise_m, "angle_noise_rad": sample.noise_m, "model": sample.model, **DRIVER})],
         env=env, start_new_session=True)
     deadline = time.monotonic() + sample.postures * 5 + 60
     try:
