@@ -28,7 +28,7 @@ from hexacal_identify.core.baseline import absolute_residuals, identify_baseline
 from hexacal_identify.core.identification import identify
 from hexacal_identify.core.measurements import Measurements
 from hexacal_identify.core.architectures import ARCHITECTURES, default_parameters
-from hexacal_identify.core.study import StudyRun, simulate_run_measurements
+from hexacal_identify.studies.accuracy import StudyRun, simulate_run_measurements
 
 POSTURE_COUNTS = (25, 50, 200, 1000, 5000, 20000)
 TARGET_RATIO_AT_50 = 2000.0  # identify at 50 postures vs the paper-style baseline at 50

@@ -228,7 +228,7 @@ def simulated_postures(count: int, seed: int = 0, noise_um: float = 10.0,
 
 def node_argv(executable: str, parameters: dict[str, object], namespace: str = '') -> list[str]:
     """argv of a console script with --ros-args, as bringup builds it."""
-    from hexacal_identify.bringup import NodeLaunch
+    from hexacal_identify.nodes.bringup import NodeLaunch
 
     launch = NodeLaunch(executable, parameters, namespace)
     argv = launch.command()

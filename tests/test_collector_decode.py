@@ -12,7 +12,7 @@ import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 
-from hexacal_identify.collector_node import _FastJointState, _positions_layout, _stamp_of
+from hexacal_identify.nodes.collector import _FastJointState, _positions_layout, _stamp_of
 from hexacal_msgs_py.conversions import joint_state_to_slider_reading, to_stamp
 from hexacal_msgs_py.names import SLIDER_NAMES
 

@@ -27,7 +27,7 @@ from hexacal_identify.cli import main as hexacal_main
 from hexacal_identify.core.model import HexaParameters
 from hexacal_identify.pipeline import calibrate
 from hexacal_msgs_py.readings import PostureReading
-from hexacal_identify.identify_node import output_path
+from hexacal_identify.nodes.identify import output_path
 from hexacal_msgs_py.names import JOINT_STATE_TYPE, POSTURE_NAMES, SLIDER_NAMES
 from hexacal_msgs_py.parameters_file import load_parameters, save_parameters
 from system_support import (

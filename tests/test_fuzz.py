@@ -23,7 +23,7 @@ from hexacal_identify.bag import BagError, BagWriter, message_definition, open_b
 from hexacal_identify.core.errors import CalibrationError
 from hexacal_identify.core.model import nominal_set
 from hexacal_identify.pipeline import postures_from_bag
-from hexacal_identify.posture_detector import PostureDetector, StreamSynchronizer
+from hexacal_identify.core.posture_detector import PostureDetector, StreamSynchronizer
 from hexacal_msgs_py.errors import (
     HexacalContractError,
     InvalidParametersError,

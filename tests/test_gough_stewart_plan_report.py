@@ -143,7 +143,7 @@ def calibration(tmp_path_factory):
     measurements = Measurements.concatenate(parts)
     result = identify(nominal_set(1, seed=2, exact=TRUE), measurements, SolverOptions(cost="sphere-fixed"))
     assert result.reason == CONVERGED and result.parameters.model == "gough_stewart"
-    from hexacal_identify.report import save_result
+    from hexacal_identify.report.page import save_result
 
     path = tmp_path_factory.mktemp("gs-result") / "result.json"
     save_result(path, result, {"source": "test_gough_stewart_plan_report"}, measurements=measurements,
@@ -207,7 +207,7 @@ def test_report_of_a_plain_gough_stewart_json_output(calibration, tmp_path):
 
 def test_the_report_calibrate_and_identify_write_for_a_gough_stewart_result(calibration, tmp_path):
     """write_report(result, ...): what `hexacal calibrate --report` and the identify node call."""
-    from hexacal_identify.report import write_report
+    from hexacal_identify.report.page import write_report
 
     result, measurements, _ = calibration
     page = write_report(result, tmp_path / "node", title="after calibration", measurements=measurements,
@@ -247,7 +247,7 @@ def test_a_result_whose_vectors_do_not_fit_its_model_is_refused(calibration, tmp
 
 
 def test_parameter_figures_are_labelled_with_the_models_fields(monkeypatch, tmp_path):
-    from hexacal_identify import figures
+    from hexacal_identify.report import figures as figures
 
     seen = []
     monkeypatch.setattr(figures, "_save", lambda fig, path: seen.append(fig) or path)

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from hexacal_identify.posture_detector import (
+from hexacal_identify.core.posture_detector import (
     DROPPED_AT_END,
     DROPPED_FOR_GAP,
     DROPPED_FOR_MOTION,

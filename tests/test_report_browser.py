@@ -21,7 +21,7 @@ from hexacal_identify.core.identification import CONVERGED, SolverOptions, ident
 from hexacal_identify.core.measurements import FIXED, SPHERE, Measurements, NoiseModel, simulate_measurements
 from hexacal_identify.core.model import nominal_set, table1_parameters
 from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.report import load_result, save_result
+from hexacal_identify.report.page import load_result, save_result
 
 TRUE = table1_parameters()
 CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -65,7 +65,7 @@ def test_result_file_is_a_superset_of_the_json_output(calibration):
 
 def test_write_report_takes_a_result_directly(calibration, tmp_path):
     """What the identify node calls after a calibration: no result file needed."""
-    from hexacal_identify.report import write_report
+    from hexacal_identify.report.page import write_report
 
     result, _ = calibration
     page = write_report(result, tmp_path / "node-report", title="after calibration")

@@ -21,8 +21,8 @@ BAG = REPO / 'bags' / 'sphere50_noise10'
 
 # Modules of the simulation studies and their figures: only `hexacal study` (and `plan`, `report`) need them.
 STUDY_MODULES = (
-    'hexacal_identify.core.study', 'hexacal_identify.core.device_study', 'hexacal_identify.core.uncertainty',
-    'hexacal_identify.core.baseline', 'hexacal_identify.planning_study', 'hexacal_identify.figures',
+    'hexacal_identify.studies.accuracy', 'hexacal_identify.studies.device', 'hexacal_identify.core.uncertainty',
+    'hexacal_identify.core.baseline', 'hexacal_identify.studies.planning', 'hexacal_identify.report.figures',
 )
 HEAVY = ('matplotlib', 'scipy.optimize', *STUDY_MODULES)
 
@@ -101,12 +101,12 @@ def test_the_check_sees_lazily_imported_modules(tmp_path):
     code, modules, output = modules_after(tmp_path, 'study', '--help')
     assert code == 0, output
     assert '--monte-carlo' in output
-    assert 'hexacal_identify.planning_study' in imported(modules, HEAVY)
+    assert 'hexacal_identify.studies.planning' in imported(modules, HEAVY)
 
 
 def test_node_modules_import_no_scipy_matplotlib_or_studies():
     script = ('import json, sys\n'
-              'import hexacal_identify.collector_node, hexacal_identify.identify_node, hexacal_driver.driver_node\n'
+              'import hexacal_identify.nodes.collector, hexacal_identify.nodes.identify, hexacal_driver.driver_node\n'
               'print(json.dumps(sorted(sys.modules)))\n')
     completed = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True, timeout=120)
     assert completed.returncode == 0, completed.stderr

@@ -40,16 +40,16 @@ setup(
     zip_safe=True,
     maintainer='hexacal developers',
     maintainer_email='hexacal@example.com',
-    description='Hexa Slide kinematic calibration: identification core, nodes and CLI.',
+    description='Kinematic calibration of six-leg parallel manipulators (Hexa Slide, Gough-Stewart): identification core, nodes and CLI.',
     license='Apache-2.0',
     python_requires='>=3.10',
     entry_points={
         'console_scripts': [
-            'collector = hexacal_identify.node_entry:collector',
-            'identify = hexacal_identify.node_entry:identify',
-            'replay = hexacal_identify.replay:main',
+            'collector = hexacal_identify.nodes.entry:collector',
+            'identify = hexacal_identify.nodes.entry:identify',
+            'replay = hexacal_identify.nodes.replay:main',
             'hexacal = hexacal_identify.cli:main',
-            'bringup = hexacal_identify.bringup:main',
+            'bringup = hexacal_identify.nodes.bringup:main',
         ],
     },
 )

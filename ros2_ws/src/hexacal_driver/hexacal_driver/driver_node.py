@@ -43,7 +43,7 @@ from hexacal_driver.simulation import DONE, DWELLING, PlanWalker, SensorSimulato
 from hexacal_identify.core.architectures import KinematicParameters, architecture, parameters_for
 from hexacal_identify.core.device import DEFAULT_MOUNT, DeviceMountError, check_mount
 from hexacal_identify.core.measurements import NoiseModel
-from hexacal_identify.node_runtime import run_node
+from hexacal_identify.nodes.runtime import run_node
 from hexacal_msgs_py.conversions import (
     encoder_reading_to_joint_state,
     inclinometer_reading_to_joint_state,

@@ -32,7 +32,7 @@ from hexacal_driver.simulation import (
 from hexacal_identify.core.measurements import FIXED, SPHERE, NoiseModel, simulate_measurements
 from hexacal_identify.core.model import nominal_set, table1_parameters
 from hexacal_identify.pipeline import calibrate
-from hexacal_identify.posture_detector import PostureDetector
+from hexacal_identify.core.posture_detector import PostureDetector
 
 TRUE = table1_parameters()
 L = 0.75

@@ -19,14 +19,14 @@ import pytest
 from hexacal_identify.core.architectures import architecture, default_parameters
 from hexacal_identify.core.baseline import absolute_residuals
 from hexacal_identify.core.device import DeviceDefects, DeviceModel
-from hexacal_identify.core.device_study import device_frame_poses, device_frame_truth
+from hexacal_identify.studies.device import device_frame_poses, device_frame_truth
 from hexacal_identify.core.identification import CONVERGED
 from hexacal_identify.core.kinematics import forward_kinematics, inverse_kinematics, pose_sensitivities
 from hexacal_identify.core.measurements import FIXED, SPHERE, simulate_measurements
 from hexacal_identify.core.model import error_stats_mm, nominal_set
 from hexacal_identify.core.postures import sample_poses
 from hexacal_identify.core.residuals import ChannelSigma, CostFunction
-from hexacal_identify.core.study import StudyRun, identifiability_by_cost, run_calibration
+from hexacal_identify.studies.accuracy import StudyRun, identifiability_by_cost, run_calibration
 from hexacal_identify.core.uncertainty import predicted_pose_errors
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.parameters_file import read_parameters_file, save_parameters

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from hexacal_identify.core.device import DeviceDefects, device_position, inclinometer_readings, measured_position
-from hexacal_identify.core.device_study import (
+from hexacal_identify.studies.device import (
     DEFAULT_DEFECTS,
     IDENTIFIED_WITH_EQ7,
     device_frame_poses,

@@ -12,7 +12,7 @@ from hexacal_identify.core.measurements import Measurements, NoiseModel, simulat
 from hexacal_identify.core.model import HexaParameters, nominal_set, table1_parameters
 from hexacal_identify.core.postures import sample_poses
 from hexacal_identify.core.residuals import COSTS, ChannelSigma, CostFunction
-from hexacal_identify.core.study import StudyRun, identifiability_by_cost, simulate_run_measurements
+from hexacal_identify.studies.accuracy import StudyRun, identifiability_by_cost, simulate_run_measurements
 
 TRUE = table1_parameters()
 

@@ -16,7 +16,7 @@ from hexacal_identify.core.identifiability import pivoted_qr
 from hexacal_identify.core.identification import SolverOptions, identify
 from hexacal_identify.core.model import nominal_set
 from hexacal_identify.core.residuals import COSTS
-from hexacal_identify.core.study import StudyRun, identifiability_by_cost, simulate_run_measurements
+from hexacal_identify.studies.accuracy import StudyRun, identifiability_by_cost, simulate_run_measurements
 
 scipy_linalg = pytest.importorskip("scipy.linalg")
 

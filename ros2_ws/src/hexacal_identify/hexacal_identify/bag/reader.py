@@ -35,7 +35,7 @@ from mcap.records import (
     Statistics,
 )
 
-from .errors import (
+from hexacal_identify.bag.errors import (
     BagCorruptError,
     BagDecodeError,
     BagEmptyError,
@@ -46,7 +46,7 @@ from .errors import (
     BagNotFoundError,
     BagSchemaError,
 )
-from .schemas import MESSAGE_ENCODING, SCHEMA_ENCODING, normalize_type_name
+from hexacal_identify.bag.schemas import MESSAGE_ENCODING, SCHEMA_ENCODING, normalize_type_name
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 METADATA_FILE_NAME = "metadata.yaml"

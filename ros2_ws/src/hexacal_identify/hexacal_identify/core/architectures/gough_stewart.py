@@ -32,8 +32,8 @@ import numpy as np
 
 from hexacal_msgs_py.models import GOUGH_STEWART, MODELS
 
-from .base import Architecture, KinematicParameters
-from .common import PlatformPoints, condition_ok, platform_point_derivatives, pose_jacobian_rows
+from hexacal_identify.core.architectures.base import Architecture, KinematicParameters
+from hexacal_identify.core.architectures.common import PlatformPoints, condition_ok, platform_point_derivatives, pose_jacobian_rows
 
 LAYOUT = MODELS[GOUGH_STEWART]
 N_CHAINS = LAYOUT.n_chains
@@ -168,7 +168,7 @@ class GoughStewart(Architecture):
         return default_gough_stewart()
 
     def default_workspace(self):
-        from ..postures import Workspace
+        from hexacal_identify.core.postures import Workspace
 
         return Workspace(xy_range_m=0.25, rotation_range_rad=float(np.radians(20.0)), slider_stroke_m=STROKE_M)
 

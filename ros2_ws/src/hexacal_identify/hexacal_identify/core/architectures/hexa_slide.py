@@ -32,8 +32,8 @@ import numpy as np
 
 from hexacal_msgs_py.models import HEXA_SLIDE, MODELS
 
-from .base import Architecture, KinematicParameters
-from .common import PlatformPoints, cross_last, euler_rate_axes, platform_point_derivatives, pose_jacobian_rows
+from hexacal_identify.core.architectures.base import Architecture, KinematicParameters
+from hexacal_identify.core.architectures.common import PlatformPoints, cross_last, euler_rate_axes, platform_point_derivatives, pose_jacobian_rows
 
 LAYOUT = MODELS[HEXA_SLIDE]
 N_CHAINS = LAYOUT.n_chains
@@ -272,7 +272,7 @@ class HexaSlide(Architecture):
         return table1_parameters()
 
     def default_workspace(self):
-        from ..postures import Workspace
+        from hexacal_identify.core.postures import Workspace
 
         return Workspace()
 

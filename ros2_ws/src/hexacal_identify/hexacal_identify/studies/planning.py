@@ -1,7 +1,7 @@
 """``hexacal study --plan``: accuracy versus number of postures, planned against random, over seeds.
 
 For each seed the machine, its nominal model, the noise and the 50 validation
-postures are those of ``core.study`` (``StudyRun``, on the default machine of
+postures are those of ``studies.accuracy`` (``StudyRun``, on the default machine of
 the model studied: ``hexacal study --plan --model gough_stewart`` runs the
 default Gough-Stewart platform); random postures go through
 ``run_calibration`` unchanged.  Planned postures are chosen at the nominal model
@@ -22,12 +22,12 @@ from typing import Callable
 import numpy as np
 from hexacal_msgs_py.models import DEFAULT_MODEL
 
-from .core.errors import CalibrationError
-from .core.identification import SolverOptions, identify
-from .core.measurements import NoiseModel, simulate_measurements
-from .core.planning import CRITERIA, METHODS, PREDICTION, PostureLimits, exchange_design, plan_postures
-from .core.study import StudyOutcome, StudyRun, run_calibration, study_truth
-from .core.validation import pose_errors, validation_poses
+from hexacal_identify.core.errors import CalibrationError
+from hexacal_identify.core.identification import SolverOptions, identify
+from hexacal_identify.core.measurements import NoiseModel, simulate_measurements
+from hexacal_identify.core.planning import CRITERIA, METHODS, PREDICTION, PostureLimits, exchange_design, plan_postures
+from hexacal_identify.studies.accuracy import StudyOutcome, StudyRun, run_calibration, study_truth
+from hexacal_identify.core.validation import pose_errors, validation_poses
 
 DEFAULT_KS = (15, 20, 25, 30, 40, 50)
 REFERENCE_RANDOM_POSTURES = 50
@@ -192,8 +192,8 @@ def _record(study: PlanningStudy, name: str, row: int, column: int, k: int, seed
 
 def run(args) -> int:
     """Handler of ``hexacal study --plan``."""
-    from . import figures
-    from .cli_common import Progress
+    from hexacal_identify.report import figures as figures
+    from hexacal_identify.cli.common import Progress
 
     seeds = list(range(args.seed, args.seed + args.plan_seeds))
     progress = Progress(enabled=not args.json)
@@ -220,7 +220,7 @@ def run(args) -> int:
 
 def _print_table(study: PlanningStudy) -> None:
     names = list(study.position_error_m)
-    from .core.architectures import architecture
+    from hexacal_identify.core.architectures import architecture
 
     print(f"Planned vs random postures, {architecture(study.model).layout.title}: mean validation position error "
           f"[um] over {len(study.seeds)} seeds "

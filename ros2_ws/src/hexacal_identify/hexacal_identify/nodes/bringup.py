@@ -30,8 +30,8 @@ import yaml
 
 EXECUTABLE_MODULES = {
     'driver': 'hexacal_driver.driver_node',
-    'collector': 'hexacal_identify.collector_node',
-    'identify': 'hexacal_identify.identify_node',
+    'collector': 'hexacal_identify.nodes.collector',
+    'identify': 'hexacal_identify.nodes.identify',
 }
 DEFAULT_STOP_TIMEOUT_S = 10.0
 _PR_SET_PDEATHSIG = 1

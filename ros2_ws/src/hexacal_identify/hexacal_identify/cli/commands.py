@@ -9,8 +9,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from . import cli_study
-from .cli_common import LazySubcommands
+from hexacal_identify.cli import study as cli_study
+from hexacal_identify.cli.common import LazySubcommands
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -47,8 +47,8 @@ def _write_params(args) -> int:
     from hexacal_msgs_py.models import HEXA_SLIDE
     from hexacal_msgs_py.parameters_file import save_parameters
 
-    from .core.architectures import default_parameters
-    from .core.model import nominal_set
+    from hexacal_identify.core.architectures import default_parameters
+    from hexacal_identify.core.model import nominal_set
 
     if args.which == "table1" and args.model != HEXA_SLIDE:
         raise ValueError(f"table1 is the Hexa Slide of Rauf, Kim, Ryu's Table 1, not a {args.model}; "
@@ -71,7 +71,7 @@ def default_machine_comment(model: str, vector) -> str:
 
     from hexacal_msgs_py.models import HEXA_SLIDE, MODELS
 
-    from .core.architectures import architecture
+    from hexacal_identify.core.architectures import architecture
 
     if model == HEXA_SLIDE:
         return TABLE1_COMMENT
@@ -92,15 +92,15 @@ def build_parser(fill: bool = True) -> argparse.ArgumentParser:
     """The whole ``hexacal`` parser; with fill=False a command's arguments are added when it is chosen.
 
     main() parses with fill=False, so a command imports only the modules its own options and handler
-    need (see cli_common.LazySubcommands) and `hexacal --help` imports none of them.
+    need (see cli.common.LazySubcommands) and `hexacal --help` imports none of them.
     """
     parser = argparse.ArgumentParser(
-        prog="hexacal", description="Kinematic calibration of Hexa Slide parallel manipulators (ROS 2)."
+        prog="hexacal", description="Kinematic calibration of six-leg parallel manipulators: Hexa Slide, Gough-Stewart (ROS 2)."
     )
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", action=LazySubcommands)
     cli_study.add_parser(subparsers)
     _add_params_parser(subparsers)
-    for module_name in ("cli_bag", "cli_demo", "cli_plan_report", "cli_export"):
+    for module_name in ("calibrate", "demo", "plan_report", "export"):
         module = _optional_module(module_name)
         if module is not None:
             module.add_parsers(subparsers)
@@ -109,13 +109,17 @@ def build_parser(fill: bool = True) -> argparse.ArgumentParser:
     return parser
 
 
+def _full(name: str) -> str:
+    return name if name.startswith("hexacal_identify.") else f"{__package__}.{name}"
+
+
 def _optional_module(name: str):
     import importlib
 
     try:
-        return importlib.import_module(f"{__package__}.{name}")
+        return importlib.import_module(_full(name))
     except ModuleNotFoundError as error:
-        if error.name == f"{__package__}.{name}":
+        if error.name == _full(name):
             return None
         raise
 
@@ -124,11 +128,11 @@ def _named_errors() -> tuple[type[BaseException], ...]:
     """Errors that mean bad input: reported in one line, exit code 2."""
     from hexacal_msgs_py.errors import HexacalContractError
 
-    from .core.errors import CalibrationError
+    from hexacal_identify.core.errors import CalibrationError
 
     errors: list[type[BaseException]] = [HexacalContractError, CalibrationError, FileNotFoundError,
                                          NotADirectoryError, IsADirectoryError, PermissionError, ValueError]
-    bag = _optional_module("bag")
+    bag = _optional_module("hexacal_identify.bag")
     if bag is not None and hasattr(bag, "BagError"):
         errors.append(bag.BagError)
     return tuple(errors)

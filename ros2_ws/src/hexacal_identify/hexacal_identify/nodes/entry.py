@@ -4,7 +4,7 @@ The driver's is `hexacal_driver.entry:driver`, written the same way.
 
 Each remembers SIGINT/SIGTERM before importing its node module: the imports
 (rclpy, numpy, message packages) take a noticeable part of a second, and a
-Ctrl-C in that time must stop the node cleanly (`node_runtime.run_node` acts on
+Ctrl-C in that time must stop the node cleanly (`nodes.runtime.run_node` acts on
 the remembered signal once rclpy is up) instead of raising KeyboardInterrupt
 out of an import.
 """
@@ -12,19 +12,19 @@ from __future__ import annotations
 
 import sys
 
-from .node_runtime import remember_termination_signals
+from hexacal_identify.nodes.runtime import remember_termination_signals
 
 
 def collector() -> int:
     remember_termination_signals()
-    from .collector_node import main
+    from hexacal_identify.nodes.collector import main
 
     return main(sys.argv)
 
 
 def identify() -> int:
     remember_termination_signals()
-    from .identify_node import main
+    from hexacal_identify.nodes.identify import main
 
     return main(sys.argv)
 

@@ -1,0 +1,1 @@
+"""The HTML calibration report and its figures (matplotlib, imported only here)."""
