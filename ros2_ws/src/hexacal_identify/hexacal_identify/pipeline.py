@@ -22,12 +22,12 @@ from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, JOINT_STATE_TYPE, POSTURE_TOPIC, SLIDERS_TOPIC
 from hexacal_msgs_py.readings import PostureReading
 
-from hexacal_identify.core.architectures import KinematicParameters, parameters_for
-from hexacal_identify.core.device import DEFAULT_MOUNT, DEVICE_PARAMETER_NAMES, DeviceModel, check_mount
-from hexacal_identify.core.errors import InvalidMeasurementError
-from hexacal_identify.core.identification import IdentificationResult, SolverOptions, identify
-from hexacal_identify.core.measurements import FIXED, SPHERE, MeasurementLimits, Measurements, NoiseModel
-from hexacal_identify.core.model import parameter_names
+from .core.architectures import KinematicParameters, parameters_for
+from .core.device import DEFAULT_MOUNT, DEVICE_PARAMETER_NAMES, DeviceModel, check_mount
+from .core.errors import InvalidMeasurementError
+from .core.identification import IdentificationResult, SolverOptions, identify
+from .core.measurements import FIXED, SPHERE, MeasurementLimits, Measurements, NoiseModel
+from .core.model import parameter_names
 
 # A posture whose inclinometer reads zero on both axes (within this, rad) was taken at the fixed
 # position [0, 0, -L] (section 3.2's second procedure). 5e-5 rad is 37 um at L = 0.75 m: above
@@ -60,7 +60,7 @@ def load_machine_and_mount(path: Path | str) -> tuple[KinematicParameters, str]:
     (default hanging; another value is a DeviceMountError naming the file)."""
     from hexacal_msgs_py.parameters_file import read_parameters_file
 
-    from hexacal_identify.core.device import DeviceMountError
+    from .core.device import DeviceMountError
 
     loaded = read_parameters_file(path)
     try:
@@ -215,7 +215,7 @@ def postures_from_bag(path: Path | str, **detector_options) -> BagPostures:
     (``invalid_messages``); postures beyond a sensor's range are set aside with
     the reason (``rejected``).
     """
-    from hexacal_identify.bag import open_bag
+    from .bag import open_bag
 
     reader = open_bag(path)
     topics: dict[str, str] = {}
@@ -292,7 +292,7 @@ def _valid(messages, convert) -> tuple[list, int]:
     """Convert every message that is a valid reading; count (and skip) the others."""
     from hexacal_msgs_py.errors import InvalidReadingError
 
-    from hexacal_identify.bag import BagDecodeError
+    from .bag import BagDecodeError
 
     converted, invalid, checked = [], 0, set()
     for message in messages:
@@ -306,8 +306,8 @@ def _valid(messages, convert) -> tuple[list, int]:
 
 
 def _check_types(reader, topics: dict[str, str]) -> None:
-    from hexacal_identify.bag import BagSchemaError, MessageDefinitionNotFoundError, message_definition
-    from hexacal_identify.bag.schemas import SCHEMA_ENCODING, field_signature
+    from .bag import BagSchemaError, MessageDefinitionNotFoundError, message_definition
+    from .bag.schemas import SCHEMA_ENCODING, field_signature
 
     infos = reader.topics()
     try:
@@ -358,7 +358,7 @@ def _joint_state(message, checked: set[str]):
         except (AttributeError, TypeError):
             usable = False
         if not usable:
-            from hexacal_identify.bag import BagSchemaError
+            from .bag import BagSchemaError
 
             raise BagSchemaError(
                 f"topic {message.topic}: its schema does not decode to a {JOINT_STATE_TYPE} "
@@ -383,8 +383,8 @@ def _redetect(reader, topics: dict[str, str], models: set[str], recorded_model: 
         joint_state_to_slider_reading,
     )
 
-    from hexacal_identify.bag import BagDecodeError
-    from hexacal_identify.core.posture_detector import detect_postures, synchronize_arrays
+    from .bag import BagDecodeError
+    from .core.posture_detector import detect_postures, synchronize_arrays
 
     streams: dict[str, tuple[list[int], list]] = {t: ([], []) for t in RAW_TOPICS}
     convert = {

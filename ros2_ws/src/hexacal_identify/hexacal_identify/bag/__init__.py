@@ -43,7 +43,7 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:
-    from hexacal_identify.bag.errors import (
+    from .errors import (
         BagCorruptError,
         BagDecodeError,
         BagEmptyError,
@@ -57,7 +57,7 @@ if TYPE_CHECKING:
         BagWriteError,
         MessageDefinitionNotFoundError,
     )
-    from hexacal_identify.bag.reader import BagInfo, BagMessage, BagReader, FileInfo, MetadataRecord, TopicInfo, open_bag
-    from hexacal_identify.bag.reindex import reindex
-    from hexacal_identify.bag.schemas import message_definition, normalize_type_name
-    from hexacal_identify.bag.writer import DEFAULT_QOS_PROFILES_YAML, ROSBAG2_METADATA_VERSION, STORAGE_PRESETS, BagWriter
+    from .reader import BagInfo, BagMessage, BagReader, FileInfo, MetadataRecord, TopicInfo, open_bag
+    from .reindex import reindex
+    from .schemas import message_definition, normalize_type_name
+    from .writer import DEFAULT_QOS_PROFILES_YAML, ROSBAG2_METADATA_VERSION, STORAGE_PRESETS, BagWriter

@@ -35,7 +35,7 @@ from mcap.records import (
     Statistics,
 )
 
-from hexacal_identify.bag.errors import (
+from .errors import (
     BagCorruptError,
     BagDecodeError,
     BagEmptyError,
@@ -46,7 +46,7 @@ from hexacal_identify.bag.errors import (
     BagNotFoundError,
     BagSchemaError,
 )
-from hexacal_identify.bag.schemas import MESSAGE_ENCODING, SCHEMA_ENCODING, normalize_type_name
+from .schemas import MESSAGE_ENCODING, SCHEMA_ENCODING, normalize_type_name
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 METADATA_FILE_NAME = "metadata.yaml"

@@ -10,10 +10,10 @@ import os
 from pathlib import Path
 from typing import Mapping
 
-from hexacal_identify.bag.errors import BagMetadataError, BagMissingFileError, BagNotFoundError, BagWriteError
-from hexacal_identify.bag.reader import METADATA_FILE_NAME, BagInfo, BagReader, _McapFile, load_metadata_yaml
-from hexacal_identify.bag.reader import mcap_files_in
-from hexacal_identify.bag.writer import ROS_DISTRO, metadata_document, write_metadata_yaml
+from .errors import BagMetadataError, BagMissingFileError, BagNotFoundError, BagWriteError
+from .reader import METADATA_FILE_NAME, BagInfo, BagReader, _McapFile, load_metadata_yaml
+from .reader import mcap_files_in
+from .writer import ROS_DISTRO, metadata_document, write_metadata_yaml
 
 
 def reindex(directory: str | os.PathLike[str], *,

@@ -14,7 +14,7 @@ import re
 import sys
 from pathlib import Path
 
-from hexacal_identify.bag.errors import BagSchemaError, MessageDefinitionNotFoundError
+from .errors import BagSchemaError, MessageDefinitionNotFoundError
 
 SCHEMA_ENCODING = "ros2msg"
 MESSAGE_ENCODING = "cdr"

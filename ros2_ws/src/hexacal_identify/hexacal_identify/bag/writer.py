@@ -22,9 +22,9 @@ from hexacal_msgs_py.files import atomic_write
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 
-from hexacal_identify.bag.errors import BagEncodeError, BagError, BagSchemaError, BagWriteError
-from hexacal_identify.bag.reader import METADATA_FILE_NAME, STORAGE_IDENTIFIER, BagInfo, FileInfo, TopicInfo
-from hexacal_identify.bag.schemas import (
+from .errors import BagEncodeError, BagError, BagSchemaError, BagWriteError
+from .reader import METADATA_FILE_NAME, STORAGE_IDENTIFIER, BagInfo, FileInfo, TopicInfo
+from .schemas import (
     MESSAGE_ENCODING,
     SCHEMA_ENCODING,
     field_names,

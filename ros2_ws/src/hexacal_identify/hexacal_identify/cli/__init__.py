@@ -1,5 +1,5 @@
 """The `hexacal` command line: one module per group of subcommands; `main` parses and dispatches."""
 
-from hexacal_identify.cli.commands import build_parser, main
+from .commands import build_parser, main
 
 __all__ = ["build_parser", "main"]

@@ -1,6 +1,6 @@
 """`python -m hexacal_identify.cli`: the hexacal command."""
 import sys
 
-from hexacal_identify.cli.commands import main
+from .commands import main
 
 sys.exit(main())

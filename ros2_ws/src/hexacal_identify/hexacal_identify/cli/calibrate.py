@@ -28,10 +28,10 @@ def add_parsers(subparsers) -> None:
 
 
 def _calibrate_arguments(calibrate: argparse.ArgumentParser) -> None:
-    from hexacal_identify.cli.study_device import device_names_argument
-    from hexacal_identify.core.device import DEFAULT_LINK_LENGTH_M
-    from hexacal_identify.core.identification import ROBUST_LOSSES
-    from hexacal_identify.core.residuals import COSTS
+    from .study_device import device_names_argument
+    from ..core.device import DEFAULT_LINK_LENGTH_M
+    from ..core.identification import ROBUST_LOSSES
+    from ..core.residuals import COSTS
 
     calibrate.add_argument("bag", type=Path, help="bag directory or .mcap file")
     calibrate.add_argument("--nominal", type=Path, required=True,
@@ -66,10 +66,10 @@ def _bag_info_arguments(info: argparse.ArgumentParser) -> None:
 def run_calibrate(args) -> int:
     from hexacal_msgs_py.parameters_file import save_parameters
 
-    from hexacal_identify.core.errors import CalibrationError
-    from hexacal_identify.core.identification import CONVERGED
-    from hexacal_identify.core.measurements import NoiseModel
-    from hexacal_identify.pipeline import calibrate, check_model, load_machine_and_mount, measurements_from_postures, postures_from_bag
+    from ..core.errors import CalibrationError
+    from ..core.identification import CONVERGED
+    from ..core.measurements import NoiseModel
+    from ..pipeline import calibrate, check_model, load_machine_and_mount, measurements_from_postures, postures_from_bag
 
     nominal, mount = load_machine_and_mount(args.nominal)
     mount = args.mount or mount
@@ -93,12 +93,12 @@ def run_calibrate(args) -> int:
     measurements = measurements_from_postures(bag.postures) if args.save_result or args.report else None
     extras = {"bag": str(args.bag), "nominal": str(args.nominal)}
     if args.save_result:
-        from hexacal_identify.report.page import save_result
+        from ..report.page import save_result
 
         save_result(args.save_result, result, extras, measurements=measurements, link_length=args.link_length,
                     **mount_option)
     if args.report:
-        from hexacal_identify.report.page import write_report
+        from ..report.page import write_report
 
         write_report(result, args.report, title=f"hexacal calibration report: {args.bag}", extras=extras,
                      measurements=measurements, link_length=args.link_length, **mount_option)
@@ -117,7 +117,7 @@ def run_calibrate(args) -> int:
 def _print_summary(args, bag, result) -> None:
     import numpy as np
 
-    from hexacal_identify.core.identification import CONVERGED
+    from ..core.identification import CONVERGED
 
     model = result.parameters.model
     model_text = "" if model == "hexa_slide" else f" ({model})"
@@ -160,8 +160,8 @@ def _not_used(bag) -> str:
 
 
 def run_bag_info(args) -> int:
-    from hexacal_identify.bag import open_bag
-    from hexacal_identify.pipeline import postures_from_bag
+    from ..bag import open_bag
+    from ..pipeline import postures_from_bag
 
     info = open_bag(args.bag).info()
     print(info.format())

@@ -9,8 +9,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from hexacal_identify.cli import study as cli_study
-from hexacal_identify.cli.common import LazySubcommands
+from . import study as cli_study
+from .common import LazySubcommands
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -47,8 +47,8 @@ def _write_params(args) -> int:
     from hexacal_msgs_py.models import HEXA_SLIDE
     from hexacal_msgs_py.parameters_file import save_parameters
 
-    from hexacal_identify.core.architectures import default_parameters
-    from hexacal_identify.core.model import nominal_set
+    from ..core.architectures import default_parameters
+    from ..core.model import nominal_set
 
     if args.which == "table1" and args.model != HEXA_SLIDE:
         raise ValueError(f"table1 is the Hexa Slide of Rauf, Kim, Ryu's Table 1, not a {args.model}; "
@@ -71,7 +71,7 @@ def default_machine_comment(model: str, vector) -> str:
 
     from hexacal_msgs_py.models import HEXA_SLIDE, MODELS
 
-    from hexacal_identify.core.architectures import architecture
+    from ..core.architectures import architecture
 
     if model == HEXA_SLIDE:
         return TABLE1_COMMENT
@@ -128,7 +128,7 @@ def _named_errors() -> tuple[type[BaseException], ...]:
     """Errors that mean bad input: reported in one line, exit code 2."""
     from hexacal_msgs_py.errors import HexacalContractError
 
-    from hexacal_identify.core.errors import CalibrationError
+    from ..core.errors import CalibrationError
 
     errors: list[type[BaseException]] = [HexacalContractError, CalibrationError, FileNotFoundError,
                                          NotADirectoryError, IsADirectoryError, PermissionError, ValueError]

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
 if TYPE_CHECKING:
-    from hexacal_identify.core.architectures import KinematicParameters
+    from ..core.architectures import KinematicParameters
 
 
 class LazySubcommands(argparse._SubParsersAction):
@@ -78,7 +78,7 @@ def load_params_arg(path: Path) -> "KinematicParameters":
     (ParameterFileError names the file and the bad key)."""
     from hexacal_msgs_py.parameters_file import read_parameters_file
 
-    from hexacal_identify.core.architectures import parameters_for
+    from ..core.architectures import parameters_for
 
     contents = read_parameters_file(path)
     return parameters_for(contents.model, contents.vector)

@@ -24,7 +24,7 @@ from typing import IO, TYPE_CHECKING, Callable
 if TYPE_CHECKING:  # numpy and the process launcher are imported where the demo runs, not at `hexacal` start-up
     import numpy as np
 
-    from hexacal_identify.nodes.bringup import NodeGroup, RunningNode
+    from ..nodes.bringup import NodeGroup, RunningNode
 
 DOMAIN_ID_RANGE = range(1, 101)
 # Shared with tests/conftest.py: a demo and a test session never pick the same domain.
@@ -159,9 +159,9 @@ def _run(args) -> int:
     paths = _paths(args)
     from hexacal_msgs_py.parameters_file import save_parameters
 
-    from hexacal_identify.nodes.bringup import NodeGroup, NodeLaunch
-    from hexacal_identify.core.architectures import architecture
-    from hexacal_identify.core.model import nominal_set
+    from ..nodes.bringup import NodeGroup, NodeLaunch
+    from ..core.architectures import architecture
+    from ..core.model import nominal_set
 
     model = _model(args)
     true_params, nominal = architecture(model).default_parameters(), nominal_set(2, seed=args.seed,
@@ -379,8 +379,8 @@ def parameter_error_rows(true_vector: np.ndarray, vector: np.ndarray,
 
 
 def report(true_params, nominal, calibrated, args, paths: DemoPaths, wall_s: float) -> str:
-    from hexacal_identify.bag import open_bag
-    from hexacal_identify.core.validation import pose_errors, validation_poses
+    from ..bag import open_bag
+    from ..core.validation import pose_errors, validation_poses
 
     model = true_params.model
     groups = MODEL_GROUPS[model]

@@ -7,10 +7,10 @@ from pathlib import Path
 
 from typing import TYPE_CHECKING
 
-from hexacal_identify.cli.common import Progress
+from .common import Progress
 
 if TYPE_CHECKING:
-    from hexacal_identify.core.planning import PostureLimits
+    from ..core.planning import PostureLimits
 
 MOUNT_PARAMETER = "device.mount"  # the parameters-file key of the device mount (core/device.py)
 
@@ -40,8 +40,8 @@ def add_parsers(subparsers) -> None:
 
 
 def _plan_arguments(plan) -> None:
-    from hexacal_identify.core.planning import CRITERIA, METHODS, PostureLimits
-    from hexacal_identify.core.residuals import COSTS
+    from ..core.planning import CRITERIA, METHODS, PostureLimits
+    from ..core.residuals import COSTS
 
     plan.add_argument("--postures", type=int, required=True, help="number of postures K to choose")
     plan.add_argument("--index", choices=CRITERIA, default="O1",
@@ -106,7 +106,7 @@ def _limits(args, nominal, extras: dict) -> PostureLimits:
 
     The device mount: --mount, else the nominal file's ``device.mount``, else hanging.
     """
-    from hexacal_identify.core.planning import PostureLimits
+    from ..core.planning import PostureLimits
 
     given = {
         "mount": args.mount or extras.get(MOUNT_PARAMETER),
@@ -125,7 +125,7 @@ def _limits(args, nominal, extras: dict) -> PostureLimits:
 def load_nominal(path: Path | None) -> tuple:
     """(parameters, other parameters of the file): a parameters YAML of any model (its ``model`` key), or the
     default machine (no other parameters)."""
-    from hexacal_identify.core.architectures import default_parameters, parameters_for
+    from ..core.architectures import default_parameters, parameters_for
 
     if path is None:
         return default_parameters(), {}
@@ -139,8 +139,8 @@ def load_nominal(path: Path | None) -> tuple:
 
 
 def run_plan(args) -> int:
-    from hexacal_identify.core.measurements import NoiseModel
-    from hexacal_identify.core.planning import INDICES, PREDICTION, plan_postures
+    from ..core.measurements import NoiseModel
+    from ..core.planning import INDICES, PREDICTION, plan_postures
 
     nominal, extras = load_nominal(args.nominal)
     layout = nominal.layout
@@ -193,7 +193,7 @@ def run_plan(args) -> int:
 
 
 def run_report(args) -> int:
-    from hexacal_identify.report.page import write_report
+    from ..report.page import write_report
 
     page = write_report(args.result, args.out, title=args.title)
     print(f"wrote {page}")

@@ -7,11 +7,11 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from hexacal_identify.cli.common import Progress
+from .common import Progress
 
 if TYPE_CHECKING:
-    from hexacal_identify.core.architectures import KinematicParameters
-    from hexacal_identify.studies.accuracy import StudyRun
+    from ..core.architectures import KinematicParameters
+    from ..studies.accuracy import StudyRun
 
 # The studies (studies.accuracy, studies.planning, studies.device, figures with matplotlib) are imported where they run:
 # this module is imported by every `hexacal` start-up to register the command.
@@ -32,10 +32,10 @@ def add_parser(subparsers) -> None:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from hexacal_msgs_py.models import MODELS
 
-    from hexacal_identify.cli import study_device as cli_study_device
+    from . import study_device as cli_study_device
 
-    from hexacal_identify.studies import planning as planning_study
-    from hexacal_identify.core.residuals import COSTS
+    from ..studies import planning as planning_study
+    from ..core.residuals import COSTS
 
     parser.add_argument("--model", choices=tuple(MODELS), default=None,
                         help="machine model studied (default: the model of --true-params / --nominal-params, "
@@ -63,7 +63,7 @@ def _load_params(path: Path) -> KinematicParameters:
     """A parameters YAML of any model, validated (ParameterFileError names the file and the bad key)."""
     from hexacal_msgs_py.parameters_file import read_parameters_file
 
-    from hexacal_identify.core.architectures import parameters_for
+    from ..core.architectures import parameters_for
 
     contents = read_parameters_file(path)
     return parameters_for(contents.model, contents.vector)
@@ -90,9 +90,9 @@ def study_model(args) -> str:
 
 
 def configured_run(args) -> StudyRun:
-    from hexacal_identify.core.architectures import default_parameters
-    from hexacal_identify.core.device import DeviceDefects
-    from hexacal_identify.studies.accuracy import StudyRun
+    from ..core.architectures import default_parameters
+    from ..core.device import DeviceDefects
+    from ..studies.accuracy import StudyRun
 
     model = study_model(args)
     true_params = _load_params(args.true_params) if args.true_params else default_parameters(model)
@@ -109,9 +109,9 @@ def configured_run(args) -> StudyRun:
 
 
 def run(args) -> int:
-    from hexacal_identify.cli import study_device as cli_study_device
-    from hexacal_identify.studies import planning as planning_study
-    from hexacal_identify.studies.accuracy import run_calibration
+    from . import study_device as cli_study_device
+    from ..studies import planning as planning_study
+    from ..studies.accuracy import run_calibration
 
     args.model = study_model(args)  # resolved once: the files' model when --model is not given
     if args.plan:
@@ -120,7 +120,7 @@ def run(args) -> int:
     if args.json:
         print(json.dumps(run_calibration(configured).to_json()))
         return 0
-    from hexacal_identify.core.architectures import default_parameters
+    from ..core.architectures import default_parameters
 
     # The study's sections run on the model's default machine (the paper's: Table 1); the configured run on
     # --true-params when given.
@@ -141,14 +141,14 @@ def run(args) -> int:
 
 def _paper(truth: KinematicParameters, text: str) -> str:
     """``text`` where the paper studied this model (its numbers are printed), else nothing."""
-    from hexacal_identify.studies.accuracy import paper_reference
+    from ..studies.accuracy import paper_reference
 
     return text if paper_reference(truth.model) is not None else ""
 
 
 def _print_model(truth: KinematicParameters) -> None:
     """A line naming the machine where it is not the paper's (the paper's study prints as it always has)."""
-    from hexacal_identify.studies.accuracy import paper_reference
+    from ..studies.accuracy import paper_reference
 
     if paper_reference(truth.model) is None:
         layout = truth.layout
@@ -158,10 +158,10 @@ def _print_model(truth: KinematicParameters) -> None:
 
 
 def _print_identifiability(out: Path, truth: KinematicParameters) -> None:
-    from hexacal_identify.report import figures as figures
-    from hexacal_identify.core.identifiability import DEFAULT_RANK_TOLERANCE
-    from hexacal_identify.core.residuals import COST_EQUATIONS
-    from hexacal_identify.studies.accuracy import identifiability_by_cost
+    from ..report import figures
+    from ..core.identifiability import DEFAULT_RANK_TOLERANCE
+    from ..core.residuals import COST_EQUATIONS
+    from ..studies.accuracy import identifiability_by_cost
 
     claim = _paper(truth, " (paper: 'all parameters are identifiable')")
     print(f"Identifiability of each cost function{claim}, "
@@ -183,9 +183,9 @@ def _print_identifiability(out: Path, truth: KinematicParameters) -> None:
 def _print_noise_free(out: Path, progress: Progress, truth: KinematicParameters) -> None:
     import numpy as np
 
-    from hexacal_identify.report import figures as figures
-    from hexacal_identify.core.model import error_stats_mm
-    from hexacal_identify.studies.accuracy import noise_free_recovery
+    from ..report import figures
+    from ..core.model import error_stats_mm
+    from ..studies.accuracy import noise_free_recovery
 
     # The nominal sets' target statistics: Table 2's rows (every shipped architecture draws its sets with them).
     target_stats = truth.architecture.nominal_error_stats_mm
@@ -205,8 +205,8 @@ def _print_noise_free(out: Path, progress: Progress, truth: KinematicParameters)
 
 
 def _print_noise_table(out: Path, seeds: int, progress: Progress, truth: KinematicParameters) -> None:
-    from hexacal_identify.report import figures as figures
-    from hexacal_identify.studies.accuracy import noise_study, paper_reference
+    from ..report import figures
+    from ..studies.accuracy import noise_study, paper_reference
 
     paper_table = paper_reference(truth.model)
     print(f"\nMeasurement noise, 50 postures, nominal set 2, eq. 7; mean over 50 validation postures, "
@@ -244,8 +244,8 @@ def _print_noise_table(out: Path, seeds: int, progress: Progress, truth: Kinemat
 
 
 def _print_procedures(progress: Progress, truth: KinematicParameters) -> None:
-    from hexacal_identify.core.residuals import COST_EQUATIONS, COSTS
-    from hexacal_identify.studies.accuracy import StudyRun, run_calibration
+    from ..core.residuals import COST_EQUATIONS, COSTS
+    from ..studies.accuracy import StudyRun, run_calibration
 
     claim = _paper(truth, " (paper: 'of the same order as the noise')")
     print(f"\nSphere + fixed-position procedure, 60 sphere + 20 fixed postures, +-10 um noise, nominal set 2{claim}:")
@@ -265,7 +265,7 @@ def _print_procedures(progress: Progress, truth: KinematicParameters) -> None:
 
 
 def _print_configured(run: StudyRun) -> None:
-    from hexacal_identify.studies.accuracy import run_calibration
+    from ..studies.accuracy import run_calibration
 
     outcome = run_calibration(run)
     result = outcome.result

@@ -5,11 +5,11 @@ import argparse
 import math
 from typing import TYPE_CHECKING
 
-from hexacal_identify.cli.common import Progress
-from hexacal_identify.core.device import DEVICE_PARAMETER_NAMES, DeviceDefects
+from .common import Progress
+from ..core.device import DEVICE_PARAMETER_NAMES, DeviceDefects
 
 if TYPE_CHECKING:
-    from hexacal_identify.core.architectures import KinematicParameters
+    from ..core.architectures import KinematicParameters
 
 # The device study and the Monte Carlo check are imported where they run: `hexacal calibrate` imports this module
 # for device_names_argument.
@@ -35,7 +35,7 @@ def device_names_argument(text: str) -> tuple[str, ...]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from hexacal_identify.core.identification import ROBUST_LOSSES
+    from ..core.identification import ROBUST_LOSSES
 
     parser.add_argument("--device-defects", type=_defects, default=None, help=DEFECTS_HELP)
     parser.add_argument("--identify-device", type=device_names_argument, default=(),
@@ -51,7 +51,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def print_sections(args, progress: Progress, truth: KinematicParameters | None = None) -> None:
     """The device-defect table and the Monte Carlo check on ``truth`` (default: the Table 1 Hexa Slide)."""
-    from hexacal_identify.studies.device import DEFAULT_DEFECTS
+    from ..studies.device import DEFAULT_DEFECTS
 
     print_device_defects(args.device_defects or DEFAULT_DEFECTS, args.noise_um, args.defect_seeds, progress, truth)
     if args.monte_carlo > 0:
@@ -62,7 +62,7 @@ def print_device_defects(defects: DeviceDefects, noise_um: float, seeds: int, pr
                          truth: KinematicParameters | None = None) -> None:
     import numpy as np
 
-    from hexacal_identify.studies.device import compare_methods
+    from ..studies.device import compare_methods
 
     print(f"\nDevice defects ({defects.describe()}), +-{noise_um:g} um / urad noise, 60 sphere + 20 fixed postures, "
           f"nominal set 2, {seeds} seeds; pose error over 50 validation postures in the frames the device defines:")
@@ -112,7 +112,7 @@ def print_monte_carlo(seeds: int, noise_um: float, progress: Progress,
                       truth: KinematicParameters | None = None) -> None:
     import numpy as np
 
-    from hexacal_identify.core.uncertainty import monte_carlo
+    from ..core.uncertainty import monte_carlo
 
     print(f"\nUncertainty check: one calibration (50 postures, +-{noise_um:g} um / urad, noise-weighted) repeated over "
           f"{seeds} noise seeds:")

@@ -48,8 +48,8 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:
-    from hexacal_identify.core.device import DeviceModel, inclinometer_angles, measured_position
-    from hexacal_identify.core.errors import (
+    from .device import DeviceModel, inclinometer_angles, measured_position
+    from .errors import (
         CalibrationError,
         ForwardKinematicsError,
         InvalidMeasurementError,
@@ -57,9 +57,9 @@ if TYPE_CHECKING:
         TooFewPosturesError,
         UnreachablePoseError,
     )
-    from hexacal_identify.core.identification import IdentificationResult, SolverOptions, identify
-    from hexacal_identify.core.kinematics import forward_kinematics, inverse_kinematics
-    from hexacal_identify.core.measurements import FIXED, SPHERE, Measurements, NoiseModel, simulate_measurements
-    from hexacal_identify.core.model import N_PARAMETERS, HexaParameters, nominal_set, parameter_names, table1_parameters
-    from hexacal_identify.core.postures import Workspace, sample_poses
-    from hexacal_identify.core.residuals import COSTS, ChannelSigma
+    from .identification import IdentificationResult, SolverOptions, identify
+    from .kinematics import forward_kinematics, inverse_kinematics
+    from .measurements import FIXED, SPHERE, Measurements, NoiseModel, simulate_measurements
+    from .model import N_PARAMETERS, HexaParameters, nominal_set, parameter_names, table1_parameters
+    from .postures import Workspace, sample_poses
+    from .residuals import COSTS, ChannelSigma

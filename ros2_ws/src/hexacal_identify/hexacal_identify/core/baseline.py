@@ -17,9 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from hexacal_identify.core.architectures import KinematicParameters, parameters_for
-from hexacal_identify.core.device import DeviceModel, measured_position
-from hexacal_identify.core.measurements import Measurements
+from .architectures import KinematicParameters, parameters_for
+from .device import DeviceModel, measured_position
+from .measurements import Measurements
 
 
 def forward_kinematics_one(params: KinematicParameters, sliders: np.ndarray, guess: np.ndarray,

@@ -68,7 +68,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from hexacal_identify.core.errors import CalibrationError
+from .errors import CalibrationError
 
 DEFAULT_LINK_LENGTH_M = 0.750
 HANGING = "hanging"  # platform below the device's base joint: p_z = -L cos(alpha) cos(beta)

@@ -15,9 +15,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hexacal_identify.core.device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, fixed_point
-from hexacal_identify.core.architectures import KinematicParameters
-from hexacal_identify.core.model import N_PARAMETERS, parameter_names
+from .device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, fixed_point
+from .architectures import KinematicParameters
+from .model import N_PARAMETERS, parameter_names
 
 DEFAULT_RANK_TOLERANCE = 1e-6
 
@@ -261,7 +261,7 @@ def _gauge_directions(params: KinematicParameters, free: np.ndarray | None, scal
 def _device_directions(free: np.ndarray | None, scales: np.ndarray,
                        n_parameters: int = N_PARAMETERS) -> list[tuple[str, np.ndarray]]:
     """Unit changes of each identified device defect, in scaled free coordinates."""
-    from hexacal_identify.core.device import DEVICE_PARAMETER_NAMES
+    from .device import DEVICE_PARAMETER_NAMES
 
     if free is None or len(free) <= n_parameters:
         return []

@@ -31,14 +31,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from hexacal_identify.core.device import DEVICE_PARAMETER_NAMES, N_DEVICE_PARAMETERS, DeviceDefects, DeviceModel
-from hexacal_identify.core.errors import InvalidMeasurementError, RankDeficientError, TooFewPosturesError
-from hexacal_identify.core.identifiability import DEFAULT_RANK_TOLERANCE, IdentifiabilityReport, analyze, column_scales
-from hexacal_identify.core.kinematics import forward_kinematics, pose_sensitivities
-from hexacal_identify.core.measurements import MeasurementLimits, Measurements, NoiseModel
-from hexacal_identify.core.architectures import Architecture, KinematicParameters
-from hexacal_identify.core.model import N_PARAMETERS, parameter_names
-from hexacal_identify.core.residuals import COSTS, N_NOISE_SOURCES, ChannelSigma, CostFunction, ResidualBlock
+from .device import DEVICE_PARAMETER_NAMES, N_DEVICE_PARAMETERS, DeviceDefects, DeviceModel
+from .errors import InvalidMeasurementError, RankDeficientError, TooFewPosturesError
+from .identifiability import DEFAULT_RANK_TOLERANCE, IdentifiabilityReport, analyze, column_scales
+from .kinematics import forward_kinematics, pose_sensitivities
+from .measurements import MeasurementLimits, Measurements, NoiseModel
+from .architectures import Architecture, KinematicParameters
+from .model import N_PARAMETERS, parameter_names
+from .residuals import COSTS, N_NOISE_SOURCES, ChannelSigma, CostFunction, ResidualBlock
 
 CONVERGED = "converged"
 ITERATION_LIMIT = "iteration-limit"

@@ -17,19 +17,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hexacal_identify.core.architectures import KinematicParameters
-from hexacal_identify.core.architectures.common import cross_last as _cross  # noqa: F401
-from hexacal_identify.core.architectures.common import euler_rate_axes, rotation_from_trig as _rotation_from_trig
+from .architectures import KinematicParameters
+from .architectures.common import cross_last as _cross  # noqa: F401
+from .architectures.common import euler_rate_axes, rotation_from_trig as _rotation_from_trig
 # The Hexa Slide's posture-major reference path, under the names it has always had here.
-from hexacal_identify.core.architectures.hexa_slide import (  # noqa: F401
+from .architectures.hexa_slide import (  # noqa: F401
     LegGeometry,
     leg_geometry,
     parameter_jacobian_blocks,
     pose_jacobian,
     rail_xy_slice,
 )
-from hexacal_identify.core.architectures.hexa_slide import subset_geometry as _subset  # noqa: F401
-from hexacal_identify.core.errors import ForwardKinematicsError, InvalidMeasurementError, UnreachablePoseError
+from .architectures.hexa_slide import subset_geometry as _subset  # noqa: F401
+from .errors import ForwardKinematicsError, InvalidMeasurementError, UnreachablePoseError
 
 POSE_LABELS = ("x", "y", "z", "theta", "psi", "phi")
 MAX_HALVINGS = 10  # a Newton step is halved at most this often to reduce the slider error

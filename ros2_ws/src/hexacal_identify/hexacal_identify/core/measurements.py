@@ -9,10 +9,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hexacal_identify.core.device import DeviceDefects, DeviceModel, inclinometer_readings
-from hexacal_identify.core.errors import InvalidMeasurementError
-from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.architectures import KinematicParameters
+from .device import DeviceDefects, DeviceModel, inclinometer_readings
+from .errors import InvalidMeasurementError
+from .kinematics import inverse_kinematics
+from .architectures import KinematicParameters
 
 SPHERE = "sphere"  # platform anywhere on the L-sphere (eqs. 7, 8, 12)
 FIXED = "fixed"  # inclinometer reads zero: position [0, 0, -L] (eqs. 10, 13)

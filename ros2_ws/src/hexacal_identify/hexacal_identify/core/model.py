@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from hexacal_identify.core.architectures import KinematicParameters, architecture
-from hexacal_identify.core.architectures.hexa_slide import (  # noqa: F401  (the Hexa Slide's long-standing names)
+from .architectures import KinematicParameters, architecture
+from .architectures.hexa_slide import (  # noqa: F401  (the Hexa Slide's long-standing names)
     A0_SLICE,
     AXY_SLICE,
     B_SLICE,

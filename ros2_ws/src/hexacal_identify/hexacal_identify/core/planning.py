@@ -86,12 +86,12 @@ import numpy as np
 import yaml
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 
-from hexacal_identify.core.architectures import KinematicParameters
-from hexacal_identify.core.device import DEFAULT_MOUNT, STANDING, DeviceModel, check_mount, fixed_point, inclinometer_angles, sphere_z
-from hexacal_identify.core.kinematics import pose_parameter_sensitivity
-from hexacal_identify.core.measurements import FIXED, POSTURE_KINDS, SPHERE, NoiseModel, simulate_measurements
-from hexacal_identify.core.postures import Workspace
-from hexacal_identify.core.residuals import COSTS, ChannelSigma, CostFunction
+from .architectures import KinematicParameters
+from .device import DEFAULT_MOUNT, STANDING, DeviceModel, check_mount, fixed_point, inclinometer_angles, sphere_z
+from .kinematics import pose_parameter_sensitivity
+from .measurements import FIXED, POSTURE_KINDS, SPHERE, NoiseModel, simulate_measurements
+from .postures import Workspace
+from .residuals import COSTS, ChannelSigma, CostFunction
 
 INDICES = ("O1", "O2", "O3", "O4")
 PREDICTION = "I"  # I-optimal: least predicted mean squared position error over the workspace

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hexacal_identify.core.device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, fixed_point, sphere_z
-from hexacal_identify.core.architectures import KinematicParameters
+from .device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, fixed_point, sphere_z
+from .architectures import KinematicParameters
 
 
 @dataclass(frozen=True)

@@ -38,9 +38,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hexacal_identify.core.device import N_DEVICE_PARAMETERS, DeviceDefects, DeviceModel, device_position, fixed_position
-from hexacal_identify.core.kinematics import PoseSensitivity
-from hexacal_identify.core.measurements import FIXED, SPHERE, Measurements
+from .device import N_DEVICE_PARAMETERS, DeviceDefects, DeviceModel, device_position, fixed_position
+from .kinematics import PoseSensitivity
+from .measurements import FIXED, SPHERE, Measurements
 
 COSTS = ("absolute", "sphere", "fixed", "sphere-fixed", "relative")
 COST_EQUATIONS = {

@@ -20,13 +20,13 @@ from typing import Callable
 
 import numpy as np
 
-from hexacal_identify.core.identification import SolverOptions, identify
-from hexacal_identify.core.kinematics import euler_rate_axes, pose_sensitivities
-from hexacal_identify.core.measurements import NoiseModel, simulate_measurements
-from hexacal_identify.core.architectures import KinematicParameters, default_parameters
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.validation import pose_errors, validation_poses
+from .identification import SolverOptions, identify
+from .kinematics import euler_rate_axes, pose_sensitivities
+from .measurements import NoiseModel, simulate_measurements
+from .architectures import KinematicParameters, default_parameters
+from .model import nominal_set
+from .postures import sample_poses
+from .validation import pose_errors, validation_poses
 
 
 @dataclass

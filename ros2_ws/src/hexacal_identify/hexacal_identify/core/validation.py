@@ -5,9 +5,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hexacal_identify.core.kinematics import forward_kinematics, inverse_kinematics, rotation_matrices
-from hexacal_identify.core.architectures import KinematicParameters
-from hexacal_identify.core.postures import Workspace, sample_poses
+from .kinematics import forward_kinematics, inverse_kinematics, rotation_matrices
+from .architectures import KinematicParameters
+from .postures import Workspace, sample_poses
 
 
 @dataclass

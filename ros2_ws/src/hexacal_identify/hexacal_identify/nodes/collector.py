@@ -81,9 +81,9 @@ from hexacal_msgs_py.names import (
 from hexacal_msgs_py.parameters_file import read_parameters_file
 from hexacal_msgs_py.qos import POSTURE_QOS, SENSOR_QOS, STATUS_QOS
 
-from hexacal_identify.bag import BagError, BagWriter
-from hexacal_identify.nodes.runtime import run_node
-from hexacal_identify.core.posture_detector import (
+from ..bag import BagError, BagWriter
+from .runtime import run_node
+from ..core.posture_detector import (
     DROPPED_AT_END,
     DROPPED_FOR_STREAM_STOP,
     ENCODER_STREAM,

@@ -12,19 +12,19 @@ from __future__ import annotations
 
 import sys
 
-from hexacal_identify.nodes.runtime import remember_termination_signals
+from .runtime import remember_termination_signals
 
 
 def collector() -> int:
     remember_termination_signals()
-    from hexacal_identify.nodes.collector import main
+    from .collector import main
 
     return main(sys.argv)
 
 
 def identify() -> int:
     remember_termination_signals()
-    from hexacal_identify.nodes.identify import main
+    from .identify import main
 
     return main(sys.argv)
 

@@ -82,13 +82,13 @@ from hexacal_msgs_py.readings import PostureReading
 
 # pipeline and core.identification (the solver, scipy.linalg) are imported where they are used: at the first
 # posture or calibration, not at start-up.
-from hexacal_identify.core.architectures import KinematicParameters
-from hexacal_identify.core.device import DEVICE_PARAMETER_NAMES
-from hexacal_identify.core.errors import CalibrationError
-from hexacal_identify.core.measurements import NoiseModel
-from hexacal_identify.core.residuals import COSTS
-from hexacal_identify.nodes.runtime import run_node
-from hexacal_identify.report.page import write_report
+from ..core.architectures import KinematicParameters
+from ..core.device import DEVICE_PARAMETER_NAMES
+from ..core.errors import CalibrationError
+from ..core.measurements import NoiseModel
+from ..core.residuals import COSTS
+from .runtime import run_node
+from ..report.page import write_report
 
 NODE_NAME = 'identify'
 BUSY_MESSAGE = 'busy: a calibration is running'
@@ -236,7 +236,7 @@ class IdentifyNode(Node):
                     return SetParametersResult(successful=False, reason=(
                         f"identify_device: unknown {unknown}; choose from {', '.join(DEVICE_PARAMETER_NAMES)}"))
             if parameter.name == 'robust_loss' and parameter.value != '':  # '' (the default): no import
-                from hexacal_identify.core.identification import ROBUST_LOSSES
+                from ..core.identification import ROBUST_LOSSES
 
                 if parameter.value not in ROBUST_LOSSES:
                     return SetParametersResult(successful=False, reason=(
@@ -265,7 +265,7 @@ class IdentifyNode(Node):
     # ------------------------------------------------------------------ postures
 
     def _on_posture(self, message: JointState) -> None:
-        from hexacal_identify import pipeline
+        from .. import pipeline
 
         expected = self._nominal_model()
         carried = actuator_model(message.name)
@@ -363,8 +363,8 @@ class IdentifyNode(Node):
         return outcome
 
     def _run_calibration(self) -> Outcome:
-        from hexacal_identify import pipeline
-        from hexacal_identify.core.identification import CONVERGED, ITERATION_LIMIT
+        from .. import pipeline
+        from ..core.identification import CONVERGED, ITERATION_LIMIT
 
         nominal_path = self.get_parameter('nominal').value
         cost = self.get_parameter('cost').value
@@ -450,7 +450,7 @@ class IdentifyNode(Node):
     def _load_nominal(self, path: str) -> tuple[KinematicParameters, str]:
         """The nominal model and the device mount; the YAML (~4 ms to parse) is read again only
         when the file changed."""
-        from hexacal_identify.pipeline import load_machine_and_mount
+        from ..pipeline import load_machine_and_mount
 
         key = _file_identity(path)  # None: read_parameters_file names the problem
         cached = self._nominal_cache
@@ -492,7 +492,7 @@ class IdentifyNode(Node):
         self._report_worker.submit(self._write_pending_report)
 
     def _write_pending_report(self) -> None:
-        from hexacal_identify import pipeline
+        from .. import pipeline
 
         threading.Event().wait(REPORT_START_DELAY_S)  # a sleep (the import lines are left alone)
         with self._report_lock:

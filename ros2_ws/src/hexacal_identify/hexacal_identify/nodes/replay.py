@@ -20,9 +20,9 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from hexacal_identify.bag import BagError, open_bag
-from hexacal_identify.bag.writer import qos_profiles_for_metadata
-from hexacal_identify.nodes.runtime import hold_termination_signals
+from ..bag import BagError, open_bag
+from ..bag.writer import qos_profiles_for_metadata
+from .runtime import hold_termination_signals
 
 _RELIABILITY = {"reliable": ReliabilityPolicy.RELIABLE, "best_effort": ReliabilityPolicy.BEST_EFFORT}
 _DURABILITY = {"transient_local": DurabilityPolicy.TRANSIENT_LOCAL, "volatile": DurabilityPolicy.VOLATILE}

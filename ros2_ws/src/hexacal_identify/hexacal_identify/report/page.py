@@ -29,8 +29,8 @@ from hexacal_msgs_py.files import atomic_write
 
 from hexacal_msgs_py.models import DEFAULT_MODEL, ModelLayout
 
-from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, STANDING, check_mount, fixed_point
+from ..core.architectures import architecture
+from ..core.device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, STANDING, check_mount, fixed_point
 
 RESULT_FORMAT = "hexacal-result/1"
 UM, MM = 1e6, 1e3
@@ -296,7 +296,7 @@ class _Sections:
         title = "Parameter corrections and their standard deviations"
         if self.parameters is None or self.initial is None or self.std is None:
             return self.missing(title, "the result file has no initial parameters (save it with report.save_result)")
-        from hexacal_identify.report import figures as figures
+        from . import figures
 
         correction = self.parameters - self.initial
         image = self.figure("corrections.png", lambda path: figures.parameter_corrections(
@@ -312,7 +312,7 @@ class _Sections:
         title = "Errors before and after, per chain (simulation: truth known)"
         if self.truth is None or self.initial is None or self.parameters is None:
             return self.missing(title, "the true parameters are not known (a real machine)")
-        from hexacal_identify.report import figures as figures
+        from . import figures
 
         before, after = self.initial - self.truth, self.parameters - self.truth
         images = self.figure("parameter_errors.png", lambda path: figures.parameter_errors(
@@ -327,7 +327,7 @@ class _Sections:
         residuals = self.data.get("residuals")
         if not residuals or not residuals.get("values"):
             return self.missing(title, "the result file has no residual rows")
-        from hexacal_identify.report import figures as figures
+        from . import figures
 
         values = _vector(residuals["values"])
         image = self.figure("residuals.png", lambda path: figures.residuals_by_posture(
@@ -341,8 +341,8 @@ class _Sections:
         verdict = self.data.get("verdict") or _verdict_from_json(identifiability)
         if not singular:
             return self.missing(title, "the result file has no singular values")
-        from hexacal_identify.report import figures as figures
-        from hexacal_identify.core.identifiability import DEFAULT_RANK_TOLERANCE
+        from . import figures
+        from ..core.identifiability import DEFAULT_RANK_TOLERANCE
 
         image = self.figure("singular_values.png", lambda path: figures.singular_values(
             {"this calibration": _vector(singular)}, DEFAULT_RANK_TOLERANCE, path))
@@ -353,7 +353,7 @@ class _Sections:
         title = "Predicted position error over the workspace"
         if self.covariance is None or self.parameters is None:
             return self.missing(title, "the result file has no covariance")
-        from hexacal_identify.report import figures as figures
+        from . import figures
 
         x, y, std = predicted_position_error_map(self.parameters, self.covariance, self.link_length,
                                                  xy_range_m=self.workspace.xy_range_m, model=self.model,
@@ -371,7 +371,7 @@ class _Sections:
         poses = self.poses
         if not len(poses):
             return self.missing(title, "the result file has no poses")
-        from hexacal_identify.report import figures as figures
+        from . import figures
 
         kinds = self.data.get("kinds")
         if kinds is None:  # not recorded: a posture at [0, 0, -L] ([0, 0, L] standing) within 1 mm was a fixed one
@@ -391,8 +391,8 @@ def predicted_position_error_map(parameters: np.ndarray, covariance: np.ndarray,
     reach (its architecture's default workspace, on this link) are NaN.  Parameters without a
     variance count as exact.  ``model`` None = the Hexa Slide; ``xy_range_m`` None = the workspace's.
     """
-    from hexacal_identify.core.kinematics import pose_parameter_sensitivity
-    from hexacal_identify.core.postures import acceptable_poses
+    from ..core.kinematics import pose_parameter_sensitivity
+    from ..core.postures import acceptable_poses
 
     arch = architecture(model)
     n = arch.layout.n_parameters

@@ -23,17 +23,17 @@ import numpy as np
 
 from hexacal_msgs_py.models import HEXA_SLIDE
 
-from hexacal_identify.core.device import DeviceDefects, DeviceModel
-from hexacal_identify.core.errors import CalibrationError
-from hexacal_identify.core.identifiability import IdentifiabilityReport, analyze
-from hexacal_identify.core.identification import IdentificationResult, SolverOptions, identify
-from hexacal_identify.core.kinematics import pose_parameter_sensitivity
-from hexacal_identify.core.measurements import FIXED, SPHERE, Measurements, NoiseModel, simulate_measurements
-from hexacal_identify.core.architectures import KinematicParameters, default_parameters
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.postures import Workspace, sample_poses
-from hexacal_identify.core.residuals import COSTS, ChannelSigma, CostFunction
-from hexacal_identify.core.validation import PoseErrors, pose_errors, validation_poses
+from ..core.device import DeviceDefects, DeviceModel
+from ..core.errors import CalibrationError
+from ..core.identifiability import IdentifiabilityReport, analyze
+from ..core.identification import IdentificationResult, SolverOptions, identify
+from ..core.kinematics import pose_parameter_sensitivity
+from ..core.measurements import FIXED, SPHERE, Measurements, NoiseModel, simulate_measurements
+from ..core.architectures import KinematicParameters, default_parameters
+from ..core.model import nominal_set
+from ..core.postures import Workspace, sample_poses
+from ..core.residuals import COSTS, ChannelSigma, CostFunction
+from ..core.validation import PoseErrors, pose_errors, validation_poses
 
 # Table 3 of the paper: initial error, then after calibration at 5, 10, 20 um noise.
 PAPER_TABLE3 = {
@@ -150,7 +150,7 @@ def posture_split(cost: str, total: int) -> tuple[int, int]:
 
 def simulate_run_measurements(run: StudyRun) -> Measurements:
     if run.defects != DeviceDefects() or run.lvdt:
-        from hexacal_identify.studies.device import simulate_procedure
+        from .device import simulate_procedure
 
         sphere, fixed = posture_split(run.cost, run.postures)
         return simulate_procedure(run.true_params, run.defects, sphere, fixed, run.noise_um, run.seed, run.lvdt,
@@ -168,7 +168,7 @@ def simulate_run_measurements(run: StudyRun) -> Measurements:
 
 def run_calibration(run: StudyRun, options: SolverOptions | None = None) -> StudyOutcome:
     """Simulate the measurements of ``run``, identify, and validate on fresh postures."""
-    from hexacal_identify.studies.device import device_frame_poses, device_frame_truth
+    from .device import device_frame_poses, device_frame_truth
 
     options = options or SolverOptions(
         cost=run.cost, device=run.device, free_device=run.identify_device, robust_loss=run.robust_loss,
@@ -219,7 +219,7 @@ def identifiability_by_cost(
 
 def _true_poses(run: StudyRun, measurements: Measurements) -> np.ndarray:
     """Exact poses of noise-free simulated measurements: recovered by FK with the true parameters."""
-    from hexacal_identify.core.kinematics import forward_kinematics
+    from ..core.kinematics import forward_kinematics
 
     function = CostFunction(run.cost, measurements, run.device, ChannelSigma())
     fk = forward_kinematics(run.true_params, measurements.slider_positions, function.initial_poses(), fit_tilt_first=True)

@@ -19,14 +19,14 @@ from typing import Callable
 
 import numpy as np
 
-from hexacal_identify.core.device import DeviceDefects, DeviceModel, device_position
-from hexacal_identify.core.errors import CalibrationError
-from hexacal_identify.core.identification import SolverOptions, identify
-from hexacal_identify.core.measurements import FIXED, SPHERE, Measurements, NoiseModel, simulate_measurements
-from hexacal_identify.core.architectures import KinematicParameters, default_parameters
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.postures import Workspace, sample_poses
-from hexacal_identify.core.validation import pose_errors, validation_poses
+from ..core.device import DeviceDefects, DeviceModel, device_position
+from ..core.errors import CalibrationError
+from ..core.identification import SolverOptions, identify
+from ..core.measurements import FIXED, SPHERE, Measurements, NoiseModel, simulate_measurements
+from ..core.architectures import KinematicParameters, default_parameters
+from ..core.model import nominal_set
+from ..core.postures import Workspace, sample_poses
+from ..core.validation import pose_errors, validation_poses
 
 DEFAULT_DEFECTS = DeviceDefects(dL=5e-4, alpha0=2e-4, beta0=-1.5e-4, gamma=1e-4, phi0=1e-4)
 FRAME_DEFINING = ("beta0", "phi0")  # imitated exactly by a base rotation about Y / platform rotation about z'

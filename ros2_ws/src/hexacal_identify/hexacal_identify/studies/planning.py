@@ -22,12 +22,12 @@ from typing import Callable
 import numpy as np
 from hexacal_msgs_py.models import DEFAULT_MODEL
 
-from hexacal_identify.core.errors import CalibrationError
-from hexacal_identify.core.identification import SolverOptions, identify
-from hexacal_identify.core.measurements import NoiseModel, simulate_measurements
-from hexacal_identify.core.planning import CRITERIA, METHODS, PREDICTION, PostureLimits, exchange_design, plan_postures
-from hexacal_identify.studies.accuracy import StudyOutcome, StudyRun, run_calibration, study_truth
-from hexacal_identify.core.validation import pose_errors, validation_poses
+from ..core.errors import CalibrationError
+from ..core.identification import SolverOptions, identify
+from ..core.measurements import NoiseModel, simulate_measurements
+from ..core.planning import CRITERIA, METHODS, PREDICTION, PostureLimits, exchange_design, plan_postures
+from .accuracy import StudyOutcome, StudyRun, run_calibration, study_truth
+from ..core.validation import pose_errors, validation_poses
 
 DEFAULT_KS = (15, 20, 25, 30, 40, 50)
 REFERENCE_RANDOM_POSTURES = 50
@@ -192,8 +192,8 @@ def _record(study: PlanningStudy, name: str, row: int, column: int, k: int, seed
 
 def run(args) -> int:
     """Handler of ``hexacal study --plan``."""
-    from hexacal_identify.report import figures as figures
-    from hexacal_identify.cli.common import Progress
+    from ..report import figures
+    from ..cli.common import Progress
 
     seeds = list(range(args.seed, args.seed + args.plan_seeds))
     progress = Progress(enabled=not args.json)
@@ -220,7 +220,7 @@ def run(args) -> int:
 
 def _print_table(study: PlanningStudy) -> None:
     names = list(study.position_error_m)
-    from hexacal_identify.core.architectures import architecture
+    from ..core.architectures import architecture
 
     print(f"Planned vs random postures, {architecture(study.model).layout.title}: mean validation position error "
           f"[um] over {len(study.seeds)} seeds "

@@ -12,9 +12,9 @@ import numpy as np
 
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 
-from hexacal_identify.core.architectures.base import Architecture, KinematicParameters, Legs
-from hexacal_identify.core.architectures.gough_stewart import ARCHITECTURE as _GOUGH_STEWART
-from hexacal_identify.core.architectures.hexa_slide import ARCHITECTURE as _HEXA_SLIDE
+from .base import Architecture, KinematicParameters, Legs
+from .gough_stewart import ARCHITECTURE as _GOUGH_STEWART
+from .hexa_slide import ARCHITECTURE as _HEXA_SLIDE
 
 ARCHITECTURES: dict[str, Architecture] = {arch.name: arch for arch in (_HEXA_SLIDE, _GOUGH_STEWART)}
 assert set(ARCHITECTURES) == set(MODELS), "every model of the contract has an architecture"

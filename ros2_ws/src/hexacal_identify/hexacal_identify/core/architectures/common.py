@@ -97,3 +97,21 @@ def condition_ok(jac: np.ndarray, link_length: float, max_condition: float) -> n
     jac = jac.copy()
     jac[:, :, 3:] /= link_length  # angles -> lengths, so the condition number is unit-free
     return np.linalg.cond(jac) < max_condition
+
+
+def move_joint_points(delta: np.ndarray, base_points: np.ndarray, platform_points: np.ndarray,
+                      base_translation=None, base_rotation=None, platform_translation=None,
+                      platform_rotation=None) -> None:
+    """Add to ``delta`` (6, fields) the first-order change of the joint points of a frame motion.
+
+    Every architecture keeps the base-side points in fields 0:3 and the platform points in 3:6
+    (KinematicParameters.base_points / platform_points); a point p moves by t + w x p.
+    """
+    if base_translation is not None:
+        delta[:, 0:3] += np.asarray(base_translation)
+    if base_rotation is not None:
+        delta[:, 0:3] += np.cross(base_rotation, base_points)
+    if platform_translation is not None:
+        delta[:, 3:6] += np.asarray(platform_translation)
+    if platform_rotation is not None:
+        delta[:, 3:6] += np.cross(platform_rotation, platform_points)

@@ -32,8 +32,8 @@ import numpy as np
 
 from hexacal_msgs_py.models import GOUGH_STEWART, MODELS
 
-from hexacal_identify.core.architectures.base import Architecture, KinematicParameters
-from hexacal_identify.core.architectures.common import PlatformPoints, condition_ok, platform_point_derivatives, pose_jacobian_rows
+from .base import Architecture, KinematicParameters
+from .common import PlatformPoints, condition_ok, move_joint_points, platform_point_derivatives, pose_jacobian_rows
 
 LAYOUT = MODELS[GOUGH_STEWART]
 N_CHAINS = LAYOUT.n_chains
@@ -168,7 +168,7 @@ class GoughStewart(Architecture):
         return default_gough_stewart()
 
     def default_workspace(self):
-        from hexacal_identify.core.postures import Workspace
+        from ..postures import Workspace
 
         return Workspace(xy_range_m=0.25, rotation_range_rad=float(np.radians(20.0)), slider_stroke_m=STROKE_M)
 
@@ -208,14 +208,8 @@ class GoughStewart(Architecture):
     def frame_motion(self, params: GoughStewartParameters, base_translation=None, base_rotation=None,
                      platform_translation=None, platform_rotation=None) -> np.ndarray:
         delta = np.zeros((N_CHAINS, FIELDS_PER_CHAIN))
-        if base_translation is not None:
-            delta[:, A_SLICE] += np.asarray(base_translation)
-        if base_rotation is not None:
-            delta[:, A_SLICE] += np.cross(base_rotation, params.base_points)
-        if platform_translation is not None:
-            delta[:, B_SLICE] += np.asarray(platform_translation)
-        if platform_rotation is not None:
-            delta[:, B_SLICE] += np.cross(platform_rotation, params.platform_points)
+        move_joint_points(delta, params.base_points, params.platform_points, base_translation, base_rotation,
+                          platform_translation, platform_rotation)
         return delta.reshape(-1)
 
     def actuator_zero_shift(self, params: GoughStewartParameters, chain: int) -> tuple[str, np.ndarray]:

@@ -32,8 +32,15 @@ import numpy as np
 
 from hexacal_msgs_py.models import HEXA_SLIDE, MODELS
 
-from hexacal_identify.core.architectures.base import Architecture, KinematicParameters
-from hexacal_identify.core.architectures.common import PlatformPoints, cross_last, euler_rate_axes, platform_point_derivatives, pose_jacobian_rows
+from .base import Architecture, KinematicParameters
+from .common import (
+    PlatformPoints,
+    cross_last,
+    euler_rate_axes,
+    move_joint_points,
+    platform_point_derivatives,
+    pose_jacobian_rows,
+)
 
 LAYOUT = MODELS[HEXA_SLIDE]
 N_CHAINS = LAYOUT.n_chains
@@ -272,7 +279,7 @@ class HexaSlide(Architecture):
         return table1_parameters()
 
     def default_workspace(self):
-        from hexacal_identify.core.postures import Workspace
+        from ..postures import Workspace
 
         return Workspace()
 
@@ -309,16 +316,11 @@ class HexaSlide(Architecture):
     def frame_motion(self, params: HexaParameters, base_translation=None, base_rotation=None,
                      platform_translation=None, platform_rotation=None) -> np.ndarray:
         delta = np.zeros((N_CHAINS, FIELDS_PER_CHAIN))
-        if base_translation is not None:
-            delta[:, A0_SLICE] += np.asarray(base_translation)
+        move_joint_points(delta, params.base_points, params.platform_points, base_translation, base_rotation,
+                          platform_translation, platform_rotation)
         if base_rotation is not None:
-            delta[:, A0_SLICE] += np.cross(base_rotation, params.base_points)
-            # keep a a unit vector with a_z < 0: d ax, d ay are the x, y parts of d a.
+            # the rails turn with the base; keep a a unit vector with a_z < 0: d ax, d ay are the x, y parts of d a.
             delta[:, AXY_SLICE] += np.cross(base_rotation, params.rail_directions)[:, :2]
-        if platform_translation is not None:
-            delta[:, B_SLICE] += np.asarray(platform_translation)
-        if platform_rotation is not None:
-            delta[:, B_SLICE] += np.cross(platform_rotation, params.platform_points)
         return delta.reshape(-1)
 
     def actuator_zero_shift(self, params: HexaParameters, chain: int) -> tuple[str, np.ndarray]:
