@@ -47,6 +47,8 @@ setup(
         'console_scripts': [
             'collector = hexacal_identify.nodes.entry:collector',
             'identify = hexacal_identify.nodes.entry:identify',
+            'executor = hexacal_identify.nodes.entry:executor',
+            'kinematics = hexacal_identify.nodes.entry:kinematics',
             'replay = hexacal_identify.nodes.replay:main',
             'hexacal = hexacal_identify.cli:main',
             'bringup = hexacal_identify.nodes.bringup:main',

@@ -21,11 +21,35 @@ POSTURE_TOPIC = 'hexacal/posture'
 PARAMETERS_TOPIC = 'hexacal/parameters'
 CALIBRATION_STATUS_TOPIC = 'hexacal/calibration_status'
 CALIBRATE_SERVICE = 'hexacal/calibrate'
+VERIFY_SERVICE = 'hexacal/verify'  # identify: verify the latest calibration on the postures received since
+
+# The executor walks a plan on the machine through its trajectory controller.
+EXECUTOR_PAUSE_SERVICE = 'hexacal/executor/pause'
+EXECUTOR_RESUME_SERVICE = 'hexacal/executor/resume'
+EXECUTOR_ABORT_SERVICE = 'hexacal/executor/abort'
+# ros2_control's joint_trajectory_controller listens here (absolute: the controller's own namespace).
+DEFAULT_COMMAND_TOPIC = '/joint_trajectory_controller/joint_trajectory'
+
+# The kinematics node: the calibrated model at work.
+PLATFORM_POSE_TOPIC = 'hexacal/platform_pose'  # FK of the live actuator readings
+TARGET_POSE_TOPIC = 'hexacal/target_pose'  # commanded platform pose -> compensated actuator command
+MACHINE_MARKERS_TOPIC = 'hexacal/machine_markers'  # base joints, rails/legs, platform, device link
+
+# Status names on CALIBRATION_STATUS_TOPIC (one DiagnosticArray topic for every node's status).
+CALIBRATION_STATUS_NAME = 'hexacal calibration'
+COLLECTOR_STATUS_NAME = 'hexacal collector'
+EXECUTOR_STATUS_NAME = 'hexacal executor'
+KINEMATICS_STATUS_NAME = 'hexacal kinematics'
+VERIFICATION_STATUS_NAME = 'hexacal verification'
 
 JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
 FLOAT64_MULTI_ARRAY_TYPE = 'std_msgs/msg/Float64MultiArray'
 DIAGNOSTIC_ARRAY_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
 TRIGGER_TYPE = 'std_srvs/srv/Trigger'
+IMU_TYPE = 'sensor_msgs/msg/Imu'
+POSE_STAMPED_TYPE = 'geometry_msgs/msg/PoseStamped'
+MARKER_ARRAY_TYPE = 'visualization_msgs/msg/MarkerArray'
+JOINT_TRAJECTORY_TYPE = 'trajectory_msgs/msg/JointTrajectory'
 
 SLIDERS_TYPE = JOINT_STATE_TYPE
 INCLINOMETER_TYPE = JOINT_STATE_TYPE
@@ -43,6 +67,9 @@ TOPIC_TYPES: dict[str, str] = {
     POSTURE_TOPIC: POSTURE_TYPE,
     PARAMETERS_TOPIC: PARAMETERS_TYPE,
     CALIBRATION_STATUS_TOPIC: CALIBRATION_STATUS_TYPE,
+    PLATFORM_POSE_TOPIC: POSE_STAMPED_TYPE,
+    TARGET_POSE_TOPIC: POSE_STAMPED_TYPE,
+    MACHINE_MARKERS_TOPIC: MARKER_ARRAY_TYPE,
 }
 
 # JointState joint names. Actuator positions are the articular variables

@@ -34,3 +34,23 @@ STATUS_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
+
+# Commands: reliable, volatile (a stale command must not replay on a late joiner); what ros2_control's
+# joint_trajectory_controller subscribes with (system default QoS: reliable, volatile).
+COMMAND_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+
+# The live platform pose is a stream like the sensors it comes from.
+POSE_QOS: QoSProfile = SENSOR_QOS
+
+# Machine markers: the latest set is what a visualiser needs, also when it joins late.
+MARKERS_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)

@@ -100,7 +100,7 @@ def build_parser(fill: bool = True) -> argparse.ArgumentParser:
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", action=LazySubcommands)
     cli_study.add_parser(subparsers)
     _add_params_parser(subparsers)
-    for module_name in ("calibrate", "demo", "plan_report", "export"):
+    for module_name in ("calibrate", "demo", "plan_report", "export", "verify", "kinematics"):
         module = _optional_module(module_name)
         if module is not None:
             module.add_parsers(subparsers)

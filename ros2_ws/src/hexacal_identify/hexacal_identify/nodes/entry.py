@@ -28,3 +28,16 @@ def identify() -> int:
 
     return main(sys.argv)
 
+
+def executor() -> int:
+    remember_termination_signals()
+    from .executor import main
+
+    return main(sys.argv)
+
+
+def kinematics() -> int:
+    remember_termination_signals()
+    from .kinematics import main
+
+    return main(sys.argv)
