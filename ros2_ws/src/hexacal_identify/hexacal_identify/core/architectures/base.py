@@ -16,7 +16,8 @@ against this interface:
   batched Newton iteration;
 * frame motions expressed as parameter changes (identifiability's named
   combinations, the device-frame study);
-* the default machine, its workspace and nominal error sets.
+* the default machine, its workspace and nominal error sets;
+* ``drawing(params, pose)``: what a visualiser draws of the machine at a pose.
 
 Poses are ``X = [x, y, z, theta, psi, phi]`` with R = R_Y(theta) R_X(psi)
 R_z(phi) (eq. 2) for every architecture.
@@ -30,6 +31,8 @@ from typing import Any, ClassVar, Protocol
 import numpy as np
 
 from hexacal_msgs_py.models import ModelLayout
+
+from .common import rotation_from_trig
 
 
 class Legs(Protocol):
@@ -156,3 +159,27 @@ class Architecture(ABC):
                   platform_rotation: np.ndarray) -> KinematicParameters:
         """The same machine in a base frame rotated by base_rotation^T and a platform frame rotated by
         platform_rotation^T about their origins (exact, not first order): points p -> rotation @ p."""
+
+    @abstractmethod
+    def drawing(self, params: KinematicParameters, pose: np.ndarray,
+                actuators: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """The machine at ``pose`` (6,) as named point sets and line segments in the base frame (m).
+
+        A (k, 3) array is a set of points (joint centres), a (k, 2, 3) array k segments (start, end).
+        ``actuators`` are the readings lambda (6,) at that pose (None: IK of ``pose``).  Every
+        architecture draws ``base_joints`` (6, 3), ``platform_joints`` (6, 3) = P + R B, ``platform``
+        (6, 2, 3), the outline through the platform joints, and ``device_link`` (1, 2, 3), base origin O
+        to P; this body gives the last three, and each architecture adds its chains (``rails``,
+        ``sliders``, ``legs``, ...)."""
+        pose = np.asarray(pose, dtype=float).reshape(6)
+        rotation = rotation_from_trig(np.cos(pose[3:6]), np.sin(pose[3:6]))
+        joints = pose[:3] + params.platform_points @ rotation.T
+        # Outline in the order of the joints' angles about their centroid on the platform.
+        local = params.platform_points - params.platform_points.mean(axis=0)
+        order = np.argsort(np.arctan2(local[:, 1], local[:, 0]))
+        outline = np.stack([joints[order], joints[np.roll(order, -1)]], axis=1)
+        return {
+            "platform_joints": joints,
+            "platform": outline,
+            "device_link": np.array([[np.zeros(3), pose[:3]]]),
+        }

@@ -223,6 +223,25 @@ class GoughStewart(Architecture):
                                                  params.platform_points @ platform_rotation.T,
                                                  params.leg_offsets)
 
+    def drawing(self, params: GoughStewartParameters, pose: np.ndarray,
+                actuators: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Base.drawing plus the legs: ``base_joints`` A, ``legs`` (6, 2, 3) A -> platform joint, and
+        ``cylinders`` (6, 2, 3), the part of each leg from A as long as the leg at reading zero (l0), the
+        rest being the extended rod (the pose decides the drawing; ``actuators`` are not needed)."""
+        drawn = super().drawing(params, pose, actuators)
+        base, joints = params.base_points, drawn["platform_joints"]
+        legs = joints - base
+        lengths = np.linalg.norm(legs, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            housing = np.where(lengths[:, None] > 0, legs * (np.minimum(params.leg_offsets, lengths)
+                                                             / lengths)[:, None], 0.0)
+        drawn.update(
+            base_joints=base.copy(),
+            legs=np.stack([base, joints], axis=1),
+            cylinders=np.stack([base, base + housing], axis=1),
+        )
+        return drawn
+
 
 ARCHITECTURE = GoughStewart()
 GoughStewartParameters.architecture = ARCHITECTURE

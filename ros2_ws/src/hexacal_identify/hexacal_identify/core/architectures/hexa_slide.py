@@ -336,6 +336,28 @@ class HexaSlide(Architecture):
                                          params.platform_points @ platform_rotation.T,
                                          params.leg_lengths, rails[:, :2])
 
+    def drawing(self, params: HexaParameters, pose: np.ndarray,
+                actuators: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Base.drawing plus the chains: ``base_joints`` the rail starts A0, ``rails`` (6, 2, 3) over the
+        default workspace's stroke (extended to reach the slider), ``sliders`` A0 + lambda a and ``legs``
+        (6, 2, 3) slider -> platform joint."""
+        drawn = super().drawing(params, pose, actuators)
+        if actuators is None:
+            sliders = leg_geometry(params, np.asarray(pose, dtype=float).reshape(1, 6)).slider_positions[0]
+        else:
+            sliders = np.asarray(actuators, dtype=float).reshape(N_CHAINS)
+        rails, starts = params.rail_directions, params.base_points
+        low, high = self.default_workspace().slider_stroke_m
+        rail_ends = np.column_stack([np.minimum(low, sliders), np.maximum(high, sliders)])
+        slider_points = starts + sliders[:, None] * rails
+        drawn.update(
+            base_joints=starts.copy(),
+            rails=starts[:, None, :] + rail_ends[:, :, None] * rails[:, None, :],
+            sliders=slider_points,
+            legs=np.stack([slider_points, drawn["platform_joints"]], axis=1),
+        )
+        return drawn
+
 
 ARCHITECTURE = HexaSlide()
 HexaParameters.architecture = ARCHITECTURE
