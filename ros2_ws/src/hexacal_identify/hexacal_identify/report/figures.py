@@ -218,3 +218,43 @@ def planning_accuracy(ks: Sequence[int], curves: dict[str, tuple[Sequence[float]
     ax.set_title("Accuracy vs number of postures: planned vs random (mean +- s.e. over seeds)")
     ax.legend(fontsize=8)
     return _save(fig, path)
+
+
+def verification_errors(nominal_m: np.ndarray, calibrated_m: np.ndarray, threshold_m: float, path: Path,
+                        kinds: np.ndarray | None = None, nominal_rotary_rad: np.ndarray | None = None,
+                        calibrated_rotary_rad: np.ndarray | None = None) -> Path:
+    """Verification: per fresh posture, the position error |P_fk - P_measured| of the nominal (square) and the
+    calibrated (circle) parameters, um on a log axis, with the verdict's threshold; below, |rotary error| in urad.
+
+    NaN (forward kinematics failed) is drawn as an x on the lower edge; fixed-position postures are filled."""
+    nominal_m, calibrated_m = np.asarray(nominal_m, float), np.asarray(calibrated_m, float)
+    rotary = nominal_rotary_rad is not None and calibrated_rotary_rad is not None
+    fig, axes = plt.subplots(2 if rotary else 1, 1, figsize=(11, 6.4 if rotary else 3.8), sharex=True, squeeze=False)
+    index = np.arange(len(nominal_m))
+    fixed = (np.asarray(kinds).astype(str) == "fixed") if kinds is not None else np.zeros(len(index), bool)
+    panels = [(axes[0, 0], nominal_m * UM, calibrated_m * UM, "position error [um]", threshold_m * UM)]
+    if rotary:
+        panels.append((axes[1, 0], np.abs(np.asarray(nominal_rotary_rad, float)) * UM,
+                       np.abs(np.asarray(calibrated_rotary_rad, float)) * UM, "|rotary error| [urad]", None))
+    for ax, before, after, label, threshold in panels:
+        finite = np.concatenate([before[np.isfinite(before)], after[np.isfinite(after)]])
+        floor = max(float(np.min(finite[finite > 0])) / 3 if np.any(finite > 0) else 1e-3, 1e-6)
+        for values, marker, colour, name in ((before, "s", "tab:red", "nominal"),
+                                             (after, "o", "tab:blue", "calibrated")):
+            ok = np.isfinite(values)
+            shown = np.maximum(values, floor)  # an exact fit (0) stays on the log axis
+            ax.plot(index[ok & ~fixed], shown[ok & ~fixed], marker, mfc="none", color=colour, ms=5,
+                    label=f"{name} (sphere)" if fixed.any() else name)
+            if fixed.any():
+                ax.plot(index[ok & fixed], shown[ok & fixed], marker, color=colour, ms=5, label=f"{name} (fixed)")
+            if (~ok).any():
+                ax.plot(index[~ok], np.full(int((~ok).sum()), floor), "x", color=colour, ms=7,
+                        label=f"{name}: forward kinematics failed")
+        if threshold is not None:
+            ax.axhline(threshold, color="k", ls="--", lw=0.9, label=f"threshold {threshold:.1f} um")
+        ax.set_yscale("log")
+        ax.set_ylabel(label)
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    axes[0, 0].set_title("Verification on fresh postures: forward kinematics vs the device's measurement")
+    axes[-1, 0].set_xlabel("verification posture index")
+    return _save(fig, path)

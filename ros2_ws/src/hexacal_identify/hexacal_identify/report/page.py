@@ -122,11 +122,15 @@ def _atomic_write(path: Path, content: str | bytes) -> Path:
 
 
 # --------------------------------------------------------------------------- the report
-def write_report(source, out_dir: Path | str, *, title: str | None = None, **result_options) -> Path:
+def write_report(source, out_dir: Path | str, *, title: str | None = None, verification: dict | None = None,
+                 **result_options) -> Path:
     """DIR/index.html (+ PNGs) from a result file path, a payload dict, or an IdentificationResult.
 
     With an IdentificationResult, ``result_options`` are those of ``result_payload``
     (measurements, true_parameters, link_length, mount, extras): what the identify node passes.
+    ``verification``: a verification of this calibration on fresh postures
+    (``core.verification.VerificationResult.to_json(per_posture=True)``), shown in its own section
+    (a payload's own ``verification`` key is shown the same way).
     """
     if isinstance(source, (str, Path)):
         payload = load_result(source)
@@ -135,6 +139,8 @@ def write_report(source, out_dir: Path | str, *, title: str | None = None, **res
         payload = source
     else:
         payload = _plain(result_payload(source, **result_options))
+    if verification is not None:
+        payload = {**payload, "verification": _plain(verification)}
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     sections = _Sections(payload, out)
@@ -197,7 +203,10 @@ class _Sections:
         self.workspace = replace(self.architecture.default_workspace(), link_length=self.link_length)
 
     def build(self) -> list[str]:
-        parts = [self.summary(), self.identified()]
+        parts = [self.summary()]
+        if self.payload.get("verification"):
+            parts.append(verification_section(self.payload["verification"], self.figure))
+        parts.append(self.identified())
         for section in (self.corrections, self.truth_errors, self.residuals, self.identifiability,
                         self.pose_error_map, self.postures):
             parts.append(section())
@@ -382,6 +391,95 @@ class _Sections:
         return f"<section><h2>{title}</h2>{image}</section>"
 
 
+def verification_section(verification: dict, figure) -> str:
+    """The verification section: nominal vs calibrated figures, verdict, and the per-posture figure.
+
+    ``verification`` is ``VerificationResult.to_json(per_posture=True)`` (SI units, null for NaN);
+    ``figure(name, draw)`` embeds a PNG (``_Sections.figure``)."""
+    title = "Verification on fresh postures (no ground truth)"
+    sets = {name: verification.get(name) or {} for name in ("nominal", "calibrated")}
+
+    def cell(name: str, key: str, scale: float, unit: str) -> str:
+        value = sets[name].get(key)
+        return "n/a" if value is None else f"{value * scale:.2f} {unit}"
+
+    rows = [("Position error rms", "position_rms_m", UM, "um"), ("Position error max", "position_max_m", UM, "um"),
+            ("Rotary error rms", "rotary_rms_rad", UM, "urad")]
+    table = "<tr><th></th><th>nominal</th><th>calibrated</th></tr>"
+    for label, key, scale, unit in rows:
+        table += (f"<tr><th>{label}</th><td id='verification-nominal-{key}'>{cell('nominal', key, scale, unit)}</td>"
+                  f"<td id='verification-calibrated-{key}'>{cell('calibrated', key, scale, unit)}</td></tr>")
+    table += ("<tr><th>Forward kinematics failed</th>" + "".join(
+        f"<td id='verification-{name}-fk-failures'>{int(sets[name].get('fk_failures') or 0)}</td>"
+        for name in sets) + "</tr>")
+    improvement = verification.get("improvement")
+    threshold = verification.get("threshold_m")
+    summary_rows = [
+        ("Postures", verification.get("postures"), "verification-postures"),
+        ("Improvement (nominal rms / calibrated rms)", "n/a" if improvement is None else f"{improvement:.1f} x",
+         "verification-improvement"),
+        ("Threshold", ("n/a" if threshold is None else f"{threshold * UM:.2f} um")
+         + (f" ({verification['threshold_source']})" if verification.get("threshold_source") else ""),
+         "verification-threshold"),
+    ]
+    noise = verification.get("expected_noise")
+    if noise and noise.get("position_rms_m") is not None:
+        summary_rows.append(("Expected from reading noise alone",
+                             f"{noise['position_rms_m'] * UM:.2f} um, {(noise.get('rotary_rms_rad') or 0) * UM:.2f} urad",
+                             "verification-expected-noise"))
+    summary_rows.append(("Verdict", verification.get("verdict_reason") or verification.get("verdict"),
+                         "verification-verdict"))
+    summary = "".join(f"<tr><th>{html.escape(str(k))}</th><td id='{i}'>{html.escape(str(v))}</td></tr>"
+                      for k, v, i in summary_rows)
+    failures = ""
+    for name in sets:
+        failed = sets[name].get("failed_postures") or []
+        if failed:
+            items = "".join(f"<li>posture {f.get('index')}: {html.escape(str(f.get('reason')))}</li>" for f in failed)
+            failures += f"<h3>Forward kinematics failed with the {name} parameters</h3><ul>{items}</ul>"
+    image = ""
+    per_posture = verification.get("per_posture") or {}
+    if per_posture.get("nominal_position_error_m") is not None:
+        from . import figures
+
+        before = _vector(per_posture["nominal_position_error_m"])
+        after = _vector(per_posture["calibrated_position_error_m"])
+        rotary = [per_posture.get(f"{name}_rotary_error_rad") for name in sets]
+        image = figure("verification.png", lambda path: figures.verification_errors(
+            before, after, threshold if threshold is not None else float("nan"), path,
+            kinds=np.asarray(per_posture.get("kinds") or ["sphere"] * len(before)),
+            nominal_rotary_rad=_vector(rotary[0]), calibrated_rotary_rad=_vector(rotary[1])))
+    text = ("<p>Fresh postures, not used in the fit: what the device measured (position by eq. 4, the fixed "
+            "point for fixed-position postures; phi from the rotary sensor) against forward kinematics at the "
+            "measured actuator readings, with the nominal and with the calibrated parameters.</p>")
+    return (f"<section id='verification'><h2>{title}</h2>{text}<table class='data' id='verification-figures'>"
+            f"{table}</table><table class='summary'>{summary}</table>{failures}{image}</section>")
+
+
+def write_verification_report(verification: dict, out_dir: Path | str, *, title: str | None = None) -> Path:
+    """DIR/index.html (+ verification.png) with the verification section alone (``hexacal verify --report``)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    verification = _plain(verification)
+    layout = architecture(verification.get("model") or DEFAULT_MODEL).layout
+
+    def figure(name: str, draw) -> str:
+        path = draw(out / name)
+        encoded = base64.b64encode(Path(path).read_bytes()).decode("ascii")
+        return (f'<figure><img src="data:image/png;base64,{encoded}" alt="{html.escape(name)}">'
+                f'<figcaption>{html.escape(name)}</figcaption></figure>')
+
+    rows = [("Machine model", f"{layout.title}"), ("Source", verification.get("source") or "n/a"),
+            ("Nominal parameters", verification.get("nominal_file") or "n/a"),
+            ("Calibrated parameters", verification.get("calibrated_file") or "n/a"),
+            ("Device", f"link {(verification.get('link_length_m') or DEFAULT_LINK_LENGTH_M) * MM:.1f} mm, "
+             f"{verification.get('mount') or DEFAULT_MOUNT}")]
+    header = "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>" for k, v in rows)
+    sections = [f"<section><h2>Summary</h2><table class='summary'>{header}</table></section>",
+                verification_section(verification, figure)]
+    return _atomic_write(out / "index.html", _page(title or "hexacal verification report", sections, layout))
+
+
 def predicted_position_error_map(parameters: np.ndarray, covariance: np.ndarray, link_length: float,
                                  grid: int = MAP_GRID, xy_range_m: float | None = None, model: str | None = None,
                                  mount: str = DEFAULT_MOUNT):
@@ -472,4 +570,4 @@ def _page(title: str, sections: list[str], layout: ModelLayout) -> str:
 
 
 __all__ = ["RESULT_FORMAT", "load_result", "predicted_position_error_map", "result_payload", "save_result",
-           "write_report"]
+           "verification_section", "write_report", "write_verification_report"]
