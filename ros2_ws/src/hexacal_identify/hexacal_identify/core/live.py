@@ -1,0 +1,93 @@
+"""The calibrated model at work: the pose of live actuator readings, actuator targets of a commanded pose.
+
+What the ``kinematics`` node and ``hexacal ik`` / ``hexacal fk`` share (ROS-free):
+
+* ``home_pose``: where a solve starts when nothing better is known - the
+  workspace centre, the device's fixed point (``[0, 0, -L]`` hanging,
+  ``[0, 0, +L]`` standing) with the platform level and phi = 0;
+* ``solve_pose``: forward kinematics of one set of readings.  Newton from the
+  guess first (the previous pose, while tracking a moving machine); when it
+  does not converge near the guess, a continuation: the readings are moved
+  from those of the guess to the target in steps, each solved from the last,
+  so the solution found is the assembly mode connected to the guess (the
+  working mode when the guess is the home pose) and never another branch;
+* ``actuator_targets``: inverse kinematics of a commanded pose, refused when a
+  leg cannot reach it (``UnreachablePoseError``) or a reading would leave the
+  stroke (``OutOfStrokeError``, naming the actuators).
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from .architectures import KinematicParameters
+from .device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, fixed_point
+from .errors import ForwardKinematicsError, UnreachablePoseError
+from .kinematics import forward_kinematics, inverse_kinematics
+
+MIN_CONTINUATION_STEP = 1.0 / 512  # of the way from the guess's readings to the target's
+
+
+class OutOfStrokeError(UnreachablePoseError):
+    """A commanded pose needs an actuator reading outside the stroke limits."""
+
+    reason = "outside-stroke"
+
+
+def home_pose(link_length: float = DEFAULT_LINK_LENGTH_M, mount: str = DEFAULT_MOUNT) -> np.ndarray:
+    """The workspace centre [x, y, z, theta, psi, phi]: the device's fixed point, platform level, phi 0."""
+    return np.concatenate([fixed_point(link_length, mount), np.zeros(3)])
+
+
+def default_stroke(params: KinematicParameters) -> tuple[float, float]:
+    """The architecture's actuator stroke (m) of its default workspace."""
+    low, high = params.architecture.default_workspace().slider_stroke_m
+    return float(low), float(high)
+
+
+def actuator_targets(params: KinematicParameters, pose: Sequence[float],
+                     stroke: tuple[float, float] | None = None) -> np.ndarray:
+    """The six actuator readings (m) that put the platform at ``pose``, inside ``stroke`` (None: the
+    architecture's default).  UnreachablePoseError / OutOfStrokeError say why a pose is refused."""
+    pose = np.asarray(pose, dtype=float).reshape(1, 6)
+    targets = inverse_kinematics(params, pose)[0]
+    low, high = default_stroke(params) if stroke is None else stroke
+    outside = np.flatnonzero((targets < low) | (targets > high))
+    if outside.size:
+        names = params.layout.actuator_names
+        detail = ", ".join(f"{names[i]} {targets[i]:.6f} m" for i in outside)
+        raise OutOfStrokeError(f"outside the stroke [{low:g}, {high:g}] m: {detail}", outside.tolist())
+    return targets
+
+
+def solve_pose(params: KinematicParameters, actuators: Sequence[float], guess: Sequence[float]) -> np.ndarray:
+    """The pose (6,) of the readings ``actuators`` (6,), on the branch of ``guess`` (see the module doc).
+
+    ForwardKinematicsError when neither Newton from the guess nor the continuation converges."""
+    target = np.asarray(actuators, dtype=float).reshape(6)
+    start = np.asarray(guess, dtype=float).reshape(6)
+    result = forward_kinematics(params, target[None], start[None])
+    if result.converged[0]:
+        return result.poses[0]
+    direct = result.failures.get(0, "no convergence")
+    if not np.all(np.isfinite(target)):
+        raise ForwardKinematicsError(f"non-finite actuator readings {target.tolist()}", [0])
+    try:
+        start_readings = inverse_kinematics(params, start[None])[0]
+    except UnreachablePoseError as error:
+        raise ForwardKinematicsError(f"{direct}; the guess itself is unreachable ({error})", [0]) from None
+    pose, done, step = start, 0.0, 1.0
+    while done < 1.0:
+        step = min(step, 1.0 - done)
+        readings = start_readings + (done + step) * (target - start_readings)
+        result = forward_kinematics(params, readings[None], pose[None])
+        if result.converged[0]:
+            pose, done, step = result.poses[0], done + step, 2.0 * step
+            continue
+        step /= 2.0
+        if step < MIN_CONTINUATION_STEP:
+            raise ForwardKinematicsError(
+                f"no pose on the guess's branch: Newton from the guess: {direct}; the continuation from the "
+                f"guess's readings stopped {100.0 * done:.1f}% of the way ({result.failures.get(0, '')})", [0])
+    return pose
