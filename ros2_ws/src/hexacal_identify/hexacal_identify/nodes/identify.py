@@ -38,6 +38,30 @@ logged and counted in the status (`postures_rejected`, `rejected.<reason>`,
 `last_rejection`), and the postures already received are kept. At start-up an
 existing `output` file is republished, and temporary files of a write that a
 crash interrupted are removed (the output itself is only ever replaced whole).
+
+Verification without ground truth (core/verification.py): service
+`hexacal/verify` (std_srvs/Trigger) verifies the latest calibration - the latest
+one that produced parameters, or at start-up the republished `output` file - on
+the postures received after it: those that arrived after the calibration took its
+postures (a second, verification plan walked on the machine), never one the fit
+used. It compares the device's measurement with forward kinematics at the
+measured actuator readings for the nominal (`nominal`) and the calibrated
+parameters, publishes the figures on `hexacal/calibration_status` under the name
+'hexacal verification' (outcome `verified`, the JSON keys of `hexacal verify`
+flattened: `nominal.position_rms_m`, ..., `improvement`, `threshold_m`,
+`verdict`), and answers success when the verdict is pass ('pass: ...' / 'fail:
+...'). The threshold is `verify_threshold_m` (0: 3x the residual the reading
+noise alone gives when `noise_slider_m` and `noise_angle_rad` are set, else 50
+um). It refuses, with an ERROR status naming the reason and no figures, when no
+calibration exists yet (`no-calibration`) or no posture arrived since
+(`no-postures`). The report of that calibration is then written again with a
+verification section, in the background like the calibration's: the
+verification status says `report_state: writing`, its follow-up `ready` (with
+`report`) or `failed`; the calibration's own status keeps its report_state
+semantics. A calibration republished at start-up has no report here: its
+verification page goes to `<report_dir>/verification/`. Postures stay in the
+store either way: the next calibration fits on every posture received (the
+verification postures included), and is verified on the postures after it.
 """
 from __future__ import annotations
 
@@ -75,6 +99,8 @@ from hexacal_msgs_py.names import (
     CALIBRATION_STATUS_TOPIC,
     PARAMETERS_TOPIC,
     POSTURE_TOPIC,
+    VERIFICATION_STATUS_NAME,
+    VERIFY_SERVICE,
 )
 from hexacal_msgs_py.parameters_file import read_parameters_file, save_parameters
 from hexacal_msgs_py.qos import PARAMETERS_QOS, POSTURE_QOS, STATUS_QOS
@@ -83,15 +109,16 @@ from hexacal_msgs_py.readings import PostureReading
 # pipeline and core.identification (the solver, scipy.linalg) are imported where they are used: at the first
 # posture or calibration, not at start-up.
 from ..core.architectures import KinematicParameters
-from ..core.device import DEVICE_PARAMETER_NAMES
+from ..core.device import DEVICE_PARAMETER_NAMES, DeviceDefects
 from ..core.errors import CalibrationError
 from ..core.measurements import NoiseModel
 from ..core.residuals import COSTS
 from .runtime import run_node
-from ..report.page import write_report
+from ..report.page import write_report, write_verification_report
 
 NODE_NAME = 'identify'
 BUSY_MESSAGE = 'busy: a calibration is running'
+BUSY_VERIFYING_MESSAGE = 'busy: a verification is running'
 STATUS_NAME = 'hexacal calibration'
 DEFAULT_OUTPUT = 'hexacal_calibration.yaml'
 INVALID_LOG_PERIOD_S = 5.0
@@ -127,6 +154,13 @@ class Outcome:
     values: dict[str, object]
     parameters: KinematicParameters | None = None
     report: ReportJob | None = None  # written after the answer (report_state 'writing')
+    # A calibration's: live postures received before it took its postures (the later ones verify it),
+    # the device defects it identified (none: the ideal device), the device it assumed.
+    verify_from: int = 0
+    defects: DeviceDefects = DeviceDefects()
+    link_length: float | None = None
+    mount: str | None = None
+    source: str = ''
 
 
 @dataclass
@@ -144,6 +178,33 @@ class ReportJob:
 
 def _failure(reason: str, message: str, **values: object) -> Outcome:
     return Outcome(False, f'{reason}: {message}', 'ERROR', {'outcome': reason, **values})
+
+
+@dataclass
+class LatestCalibration:
+    """The calibration hexacal/verify verifies: the latest that produced parameters."""
+
+    number: int  # its calibration number (0: the saved output republished at start-up)
+    parameters: KinematicParameters
+    defects: DeviceDefects  # device defects identified with it
+    source: str  # what it was fitted on, for the messages
+    verify_from: int  # live postures received before it took its postures: the later ones verify it
+    link_length: float | None  # the device it assumed (None: the node's parameters at verify time)
+    mount: str | None
+    outcome: Outcome | None  # its result (its report job); None when republished from the file
+
+
+@dataclass
+class VerificationTask:
+    """The report of one verification: the calibration's page again with a verification section."""
+
+    number: int  # the verification number: its follow-up status is published while it is the latest
+    calibration_number: int
+    job: ReportJob | None  # the calibration's report job; None: a verification page alone
+    report_dir: str
+    output_dir: str
+    payload: dict  # VerificationResult.to_json(per_posture=True) + source
+    outcome: Outcome  # the verification status to follow up
 
 
 class IdentifyNode(Node):
@@ -181,6 +242,10 @@ class IdentifyNode(Node):
                 FloatingPointRange(from_value=0.0, to_value=0.01, step=0.0)]))
         self.declare_parameter('robust_loss', '', ParameterDescriptor(
             description="'' (least squares), 'huber' or 'soft_l1'"))
+        self.declare_parameter('verify_threshold_m', 0.0, ParameterDescriptor(
+            description='hexacal/verify passes when the calibrated position rms is at most this (m); 0 = '
+            '3x the rms the reading noise alone gives when noise_slider_m and noise_angle_rad are set, '
+            'else 50 um', floating_point_range=[FloatingPointRange(from_value=0.0, to_value=0.1, step=0.0)]))
         self.declare_parameter('report_dir', 'report', ParameterDescriptor(
             description="HTML calibration report written after each calibration, relative to output_dir; "
             "'' = none"))
@@ -202,7 +267,12 @@ class IdentifyNode(Node):
         self._report_worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix='report')
         self._report_lock = threading.Lock()
         self._pending_report: tuple[int, Outcome] | None = None
+        self._pending_verification_report: VerificationTask | None = None
         self._calibration_number = 0
+        self._busy_message = BUSY_MESSAGE  # what a call answers while _busy is held
+        # The calibration hexacal/verify verifies (under _status_lock), and the verifications so far.
+        self._latest: LatestCalibration | None = None
+        self._verification_number = 0
         # (file identity, (parameters, device mount)) of the nominal file
         self._nominal_cache: tuple[tuple, tuple[KinematicParameters, str]] | None = None
         self._model_cache: tuple[tuple, str | None] | None = None  # (file identity, model name)
@@ -215,10 +285,13 @@ class IdentifyNode(Node):
                                  callback_group=MutuallyExclusiveCallbackGroup())
         self.create_service(Trigger, CALIBRATE_SERVICE, self._on_calibrate,
                             callback_group=ReentrantCallbackGroup())
+        self.create_service(Trigger, VERIFY_SERVICE, self._on_verify,
+                            callback_group=ReentrantCallbackGroup())
         self._republish_saved()
         self.get_logger().info(
             f'collecting postures on {self.resolve_topic_name(POSTURE_TOPIC)}; calibrate with '
-            f'{self.resolve_topic_name(CALIBRATE_SERVICE)}')
+            f'{self.resolve_topic_name(CALIBRATE_SERVICE)}, verify with '
+            f'{self.resolve_topic_name(VERIFY_SERVICE)}')
 
     # ------------------------------------------------------------------ parameters
 
@@ -304,6 +377,8 @@ class IdentifyNode(Node):
                 values: dict[str, object] = {
                     'outcome': 'collecting', 'postures_received': count,
                     'last_calibration': self._last_outcome}
+                if self._latest is not None:  # the postures hexacal/verify would use
+                    values['verification_postures'] = max(count - self._latest.verify_from, 0)
                 if self.invalid_postures:
                     values.update({'postures_rejected': self.invalid_postures,
                                    **{f'rejected.{reason}': n
@@ -327,7 +402,7 @@ class IdentifyNode(Node):
     def _on_calibrate(self, request: Trigger.Request,
                       response: Trigger.Response) -> Trigger.Response:
         if not self._busy.acquire(blocking=False):
-            response.success, response.message = False, BUSY_MESSAGE
+            response.success, response.message = False, self._busy_message
             return response
         try:
             # The solve runs on the worker; this executor thread only waits for it.
@@ -353,6 +428,10 @@ class IdentifyNode(Node):
             self._publish_result(outcome)
             self._calibrating = False
             self._last_outcome = str(outcome.values.get('outcome', outcome.level))
+            if outcome.parameters is not None:  # published: the calibration hexacal/verify verifies
+                self._latest = LatestCalibration(number, outcome.parameters, outcome.defects, outcome.source,
+                                                 outcome.verify_from, outcome.link_length, outcome.mount,
+                                                 outcome)
         if outcome.report is not None:
             self._queue_report(number, outcome)
         # One call site per severity: rclpy refuses a severity change at the same line.
@@ -393,6 +472,8 @@ class IdentifyNode(Node):
                 postures_models = set(self._posture_models)
             source = 'live postures'
             not_used = {'postures_rejected_on_receipt': self.invalid_postures}
+        with self._postures_lock:  # the postures after these were never in this fit: they verify it
+            verify_from = len(self._postures)
         for model in sorted(postures_models):
             try:
                 pipeline.check_model(model, nominal, 'the bag' if bag else 'the postures received',
@@ -432,7 +513,8 @@ class IdentifyNode(Node):
         except HexacalContractError as error:
             return Outcome(False, f'output-not-written: calibrated ({summary}) but {error}',
                            'WARN', {**values, 'outcome': 'output-not-written'},
-                           result.parameters)
+                           result.parameters, verify_from=verify_from, defects=result.device,
+                           link_length=link_length, mount=mount, source=source)
         values['output'] = str(target)
         # The report (figures, pose-error map, result payload) is written after the answer.
         report_dir = self.get_parameter('report_dir').value
@@ -445,7 +527,124 @@ class IdentifyNode(Node):
             values['report_state'] = 'disabled'
         level = 'OK' if result.reason == CONVERGED else 'WARN'
         return Outcome(True, f'{result.reason}: {summary}; wrote {target}', level, values,
-                       result.parameters, report)
+                       result.parameters, report, verify_from=verify_from, defects=result.device,
+                       link_length=link_length, mount=mount, source=source)
+
+    # ------------------------------------------------------------------ verification
+
+    def _on_verify(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        if not self._busy.acquire(blocking=False):
+            response.success, response.message = False, self._busy_message
+            return response
+        self._busy_message = BUSY_VERIFYING_MESSAGE
+        try:
+            outcome = self._worker.submit(self._verify).result()  # serialised with calibrations
+            response.success, response.message = outcome.success, outcome.message
+        except Exception as error:  # noqa: BLE001 - a caller must always get an answer
+            response.success = False
+            response.message = f'internal-error: {type(error).__name__}: {error}'
+        finally:
+            self._busy_message = BUSY_MESSAGE
+            self._busy.release()
+        return response
+
+    def _verify(self) -> Outcome:
+        with self._status_lock:
+            self._verification_number += 1
+            number = self._verification_number
+            latest = self._latest
+        task = None
+        try:
+            outcome, task = self._run_verification(number, latest)
+        except Exception as error:  # noqa: BLE001 - the node must survive and say what happened
+            self.get_logger().error(f'verification failed unexpectedly: {error!r}')
+            outcome = _failure('internal-error', f'{type(error).__name__}: {error}')
+        with self._status_lock:
+            self._status_pub.publish(self._verification_status(outcome.level, outcome.message,
+                                                               outcome.values))
+        if task is not None:
+            with self._report_lock:
+                self._pending_verification_report = task
+            self._report_worker.submit(self._write_pending_report)
+        if outcome.level == 'OK':
+            self.get_logger().info(f'verification: {outcome.message}')
+        else:
+            self.get_logger().warning(f'verification: {outcome.message}')
+        return outcome
+
+    def _run_verification(self, number: int,
+                          latest: LatestCalibration | None) -> tuple[Outcome, VerificationTask | None]:
+        from .. import pipeline
+        from ..core.device import DeviceModel
+        from ..core.verification import PASS, verify
+
+        if latest is None:
+            return _failure('no-calibration', 'no calibration to verify yet: calibrate first '
+                            f'({self.resolve_service_name(CALIBRATE_SERVICE)}), then measure fresh postures '
+                            'and call verify again'), None
+        with self._postures_lock:
+            postures = list(self._postures[latest.verify_from:])
+            postures_models = set(self._posture_models[latest.verify_from:])
+        about = {'calibration': latest.source, 'calibration_number': latest.number,
+                 'postures_before_calibration': latest.verify_from}
+        if not postures:
+            return _failure('no-postures', f'no postures received since the calibration it verifies '
+                            f'({latest.source}, calibration {latest.number}): measure fresh postures '
+                            '(a verification plan) and call verify again', postures=0, **about), None
+        nominal_path = self.get_parameter('nominal').value
+        if not nominal_path:
+            return _failure('missing-parameter', "parameter 'nominal' is not set: verification compares "
+                            'the nominal and the calibrated parameters (-p nominal:=<path>)', **about), None
+        try:
+            nominal, mount = self._load_nominal(nominal_path)
+        except (ParameterFileError, ValueError) as error:
+            return _failure('invalid-nominal', f'nominal: {error}', **about), None
+        link_length = latest.link_length or self.get_parameter('link_length').value
+        mount = latest.mount or mount
+        slider_noise = self.get_parameter('noise_slider_m').value
+        angle_noise = self.get_parameter('noise_angle_rad').value
+        noise = NoiseModel(slider_noise, angle_noise) if slider_noise > 0 and angle_noise > 0 else None
+        threshold = self.get_parameter('verify_threshold_m').value or None
+        try:
+            for model in sorted(postures_models):
+                pipeline.check_model(model, nominal, 'the postures received since the calibration',
+                                     nominal_path)
+            result = verify(nominal, latest.parameters, pipeline.measurements_from_postures(postures),
+                            device=DeviceModel(link_length=link_length, mount=mount),
+                            threshold_m=threshold, noise=noise,
+                            postures_model=next(iter(postures_models)) if len(postures_models) == 1 else None,
+                            calibrated_defects=latest.defects)
+        except (CalibrationError, ValueError) as error:
+            return _failure(getattr(error, 'reason', 'invalid-input'), str(error), postures=len(postures),
+                            **about), None
+        values: dict[str, object] = {'outcome': 'verified', **result.status_values(), **about}
+        before, after = result.nominal.figures(), result.calibrated.figures()
+        message = (f'{result.verdict_reason()}; position rms nominal {before["position_rms_m"] * 1e6:.2f} um, '
+                   f'calibrated {after["position_rms_m"] * 1e6:.2f} um ({result.improvement:.1f}x), rotary rms '
+                   f'nominal {before["rotary_rms_rad"] * 1e6:.2f} urad, calibrated '
+                   f'{after["rotary_rms_rad"] * 1e6:.2f} urad; {result.postures} postures since calibration '
+                   f'{latest.number}')
+        passed = result.verdict == PASS
+        task = None
+        report_dir = self.get_parameter('report_dir').value
+        job = latest.outcome.report if latest.outcome is not None else None
+        if job is not None or report_dir:
+            values['report_state'] = 'writing'
+        else:
+            values['report_state'] = 'disabled'
+        outcome = Outcome(passed, message, 'OK' if passed else 'WARN', values)
+        if values['report_state'] == 'writing':
+            payload = {**result.to_json(per_posture=True), 'source': f'{len(postures)} live postures',
+                       'calibration': latest.source, 'nominal_file': nominal_path}
+            task = VerificationTask(number, latest.number, job, report_dir,
+                                    self.get_parameter('output_dir').value, payload, outcome)
+        return outcome, task
+
+    def _verification_status(self, level: str, message: str,
+                             values: dict[str, object]) -> DiagnosticArray:
+        return diagnostic_status(level, VERIFICATION_STATUS_NAME, message, values,
+                                 hardware_id=self.get_fully_qualified_name(),
+                                 stamp=self.get_clock().now().nanoseconds)
 
     def _load_nominal(self, path: str) -> tuple[KinematicParameters, str]:
         """The nominal model and the device mount; the YAML (~4 ms to parse) is read again only
@@ -492,38 +691,73 @@ class IdentifyNode(Node):
         self._report_worker.submit(self._write_pending_report)
 
     def _write_pending_report(self) -> None:
-        from .. import pipeline
-
+        """Write what waits: the latest calibration's report and/or the latest verification's, as one page
+        when the verification is of that calibration; then publish their follow-up statuses."""
         threading.Event().wait(REPORT_START_DELAY_S)  # a sleep (the import lines are left alone)
         with self._report_lock:
             pending, self._pending_report = self._pending_report, None
-        if pending is None:
-            return  # a newer calibration replaced it, and an earlier task wrote that one
-        number, outcome = pending
-        job = outcome.report
+            verification, self._pending_verification_report = self._pending_verification_report, None
+        if pending is None and verification is None:
+            return  # a newer task replaced it, and an earlier task wrote that one
+        if pending is not None and verification is not None \
+                and verification.calibration_number != pending[0]:
+            # A verification of an older calibration: the newer calibration's page replaces it.
+            self._follow_up_verification(verification, 'superseded', 'report superseded by calibration '
+                                         f'{pending[0]}', {})
+            verification = None
+        if pending is not None:
+            number, job = pending[0], pending[1].report
+        else:
+            number, job = verification.calibration_number, verification.job
         try:
-            directory = output_path(job.report_dir, job.output_dir)
-            mount = {} if job.mount == 'hanging' else {'mount': job.mount}
-            path = write_report(job.result, directory, title=f'hexacal calibration ({job.source})',
-                                measurements=pipeline.measurements_from_postures(job.postures),
-                                link_length=job.link_length, extras={'source': job.source},
-                                **mount)
+            path = self._write_page(job, verification)
         except Exception as error:  # noqa: BLE001 - the parameters are written; the report is extra
             self.get_logger().warning(f'calibration report not written: {error}')
             state, text = 'failed', f'report failed: {error}'
             extra = {'report_error': f'{type(error).__name__}: {error}'}
         else:
-            self.get_logger().info(f'calibration report written: {path}')
+            what = 'calibration' if job is not None else 'verification'
+            self.get_logger().info(f'{what} report written: {path}')
             state, text, extra = 'ready', f'report ready: {path}', {'report': str(path)}
+        if pending is not None:
+            outcome = pending[1]
+            with self._status_lock:
+                if number == self._calibration_number:  # else a newer calibration's status stands
+                    try:
+                        self._status_pub.publish(self._status_message(
+                            outcome.level, f'{outcome.message}; {text}',
+                            {**outcome.values, 'report_state': state, **extra}))
+                    except Exception as error:  # noqa: BLE001 - shutting down: the context may be gone
+                        self.get_logger().warning(f'report status not published: {error}')
+        if verification is not None:
+            self._follow_up_verification(verification, state, text, extra)
+
+    def _write_page(self, job: ReportJob | None, verification: VerificationTask | None) -> Path:
+        """The calibration's page (with the verification's section), or the verification's page alone."""
+        from .. import pipeline
+
+        if job is None:  # a calibration republished at start-up: no result to show, its verification alone
+            directory = output_path(verification.report_dir, verification.output_dir) / 'verification'
+            return write_verification_report(verification.payload, directory,
+                                             title=f'hexacal verification ({verification.payload["calibration"]})')
+        directory = output_path(job.report_dir, job.output_dir)
+        mount = {} if job.mount == 'hanging' else {'mount': job.mount}
+        return write_report(job.result, directory, title=f'hexacal calibration ({job.source})',
+                            measurements=pipeline.measurements_from_postures(job.postures),
+                            link_length=job.link_length, extras={'source': job.source},
+                            verification=None if verification is None else verification.payload, **mount)
+
+    def _follow_up_verification(self, task: VerificationTask, state: str, text: str,
+                                extra: dict[str, object]) -> None:
         with self._status_lock:
-            if number != self._calibration_number:
-                return  # a newer calibration's status stands
+            if task.number != self._verification_number:
+                return  # a newer verification's status stands
             try:
-                self._status_pub.publish(self._status_message(
-                    outcome.level, f'{outcome.message}; {text}',
-                    {**outcome.values, 'report_state': state, **extra}))
+                self._status_pub.publish(self._verification_status(
+                    task.outcome.level, f'{task.outcome.message}; {text}',
+                    {**task.outcome.values, 'report_state': state, **extra}))
             except Exception as error:  # noqa: BLE001 - shutting down: the context may be gone
-                self.get_logger().warning(f'report status not published: {error}')
+                self.get_logger().warning(f'verification report status not published: {error}')
 
     def _status_message(self, level: str, message: str,
                         values: dict[str, object]) -> DiagnosticArray:
@@ -560,6 +794,16 @@ class IdentifyNode(Node):
             return
         self._parameters_pub.publish(parameters_to_multiarray(saved.vector, saved.model))
         self.get_logger().info(f'republished the saved calibration {target}')
+        try:
+            from ..core.architectures import parameters_for
+
+            parameters = parameters_for(saved.model, saved.vector)
+        except ValueError as error:
+            self.get_logger().warning(f'the saved calibration cannot be verified: {error}')
+            return
+        with self._status_lock:  # hexacal/verify verifies it on the postures received from now on
+            self._latest = LatestCalibration(0, parameters, DeviceDefects(),
+                                             f'saved calibration {target}', 0, None, None, None)
 
     def shutdown(self) -> None:
         self._worker.shutdown(wait=True, cancel_futures=True)
