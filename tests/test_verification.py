@@ -31,6 +31,12 @@ from hexacal_identify.core.verification import (
     verify,
 )
 from hexacal_msgs_py.parameters_file import save_parameters
+from system_support import (
+    node_argv,
+    probe,  # noqa: F401 - fixture
+    simulated_postures,
+    write_parameter_files,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 SAMPLE_FIT_BAG = REPO / "bags" / "sphere60_fixed20_noise10"  # Table 1, seed 2
@@ -320,3 +326,94 @@ def test_verify_help_imports_no_matplotlib_nor_ros():
     completed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert completed.returncode == 0, completed.stderr
     assert "--calibrated" in completed.stdout and completed.stdout.strip().endswith("[]")
+
+
+# --------------------------------------------------------------------------- node
+
+
+def _named_statuses(probe) -> list:
+    """(name, level, message, values) of every status on hexacal/calibration_status, appended as they arrive."""
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    from hexacal_msgs_py.conversions import status_values
+    from hexacal_msgs_py.qos import STATUS_QOS
+
+    received: list = []
+
+    def on_status(message: DiagnosticArray) -> None:
+        for status in message.status:
+            level = int.from_bytes(status.level, "little") if isinstance(status.level, bytes) else int(status.level)
+            received.append((status.name, level, status.message, status_values(status)))
+
+    probe.node.create_subscription(DiagnosticArray, "hexacal/calibration_status", on_status, STATUS_QOS)
+    return received
+
+
+def test_identify_verifies_the_latest_calibration_on_the_postures_received_after_it(ros_processes, tmp_path,
+                                                                                    probe):
+    from hexacal_msgs_py.names import CALIBRATION_STATUS_NAME, VERIFICATION_STATUS_NAME, VERIFY_SERVICE
+
+    _, nominal = write_parameter_files(tmp_path)
+    out = tmp_path / "out"
+    identify = ros_processes.start(node_argv("identify", {
+        "nominal": str(nominal), "output_dir": str(out), "noise_slider_m": 1e-5, "noise_angle_rad": 1e-5}))
+    probe.wait_for_node("identify", process=identify)
+    probe.subscribe_status()
+    named = _named_statuses(probe)
+
+    def verification(after: int, predicate) -> tuple:
+        return probe.spin_until(
+            lambda: [s for s in named[after:] if s[0] == VERIFICATION_STATUS_NAME and predicate(s[3])],
+            120.0, "a verification status", identify.describe)[-1]
+
+    refused = probe.call_trigger(VERIFY_SERVICE)
+    assert not refused.success and refused.message.startswith("no-calibration:"), refused.message
+    assert verification(0, lambda v: v.get("outcome") == "no-calibration")[1] == 2  # ERROR
+
+    probe.publish_postures(simulated_postures(50, seed=21))
+    probe.spin_until(lambda: probe.postures_received_by_identify() == 50, 60.0, "identify to hold 50 postures",
+                     identify.describe)
+    calibrated = probe.call_trigger()
+    assert calibrated.success and "50 of 50 postures" in calibrated.message, calibrated.message
+    mark = len(named)
+    refused = probe.call_trigger(VERIFY_SERVICE)
+    assert not refused.success and refused.message.startswith("no-postures:"), refused.message
+    verification(mark, lambda v: v.get("outcome") == "no-postures")
+
+    # Fresh postures of the same machine, never in the fit: the verification set.
+    probe.publish_postures(simulated_postures(30, seed=22))
+    probe.spin_until(lambda: probe.postures_received_by_identify() == 80, 60.0, "identify to hold 80 postures",
+                     identify.describe)
+    collecting = [v for _, _, v in probe.statuses if v.get("outcome") == "collecting"][-1]
+    assert collecting["verification_postures"] == "30"
+    # The calibration's report is written (and followed up) before the verification rewrites it.
+    probe.spin_until(lambda: [s for s in named if s[0] == CALIBRATION_STATUS_NAME
+                              and s[3].get("report_state") == "ready"], 120.0, "the calibration report")
+    mark = len(named)
+    response = probe.call_trigger(VERIFY_SERVICE)
+    assert response.success, response.message
+    assert response.message.startswith("pass: calibrated position rms"), response.message
+    _, level, message, values = verification(mark, lambda v: v.get("outcome") == "verified")
+    assert level == 0 and values["verdict"] == "pass" and values["postures"] == "30"
+    assert values["report_state"] == "writing" and values["calibration_number"] == "1"
+    assert values["postures_before_calibration"] == "50"
+    nominal_rms, calibrated_rms = float(values["nominal.position_rms_m"]), float(values["calibrated.position_rms_m"])
+    noise_rms = float(values["expected_noise.position_rms_m"])
+    assert 1e-3 < nominal_rms < 0.05  # millimetres with the nominal set
+    assert 0.5 * noise_rms < calibrated_rms < 2.5 * noise_rms, values  # the noise level after
+    assert calibrated_rms < 60e-6 and float(values["improvement"]) > 100
+    assert float(values["threshold_m"]) == pytest.approx(3 * noise_rms, rel=1e-4)
+    for key in ("nominal.position_max_m", "nominal.rotary_rms_rad", "calibrated.position_max_m",
+                "calibrated.rotary_rms_rad", "model"):
+        assert key in values
+
+    # The report gains the verification section; the follow-up says so on the verification status.
+    _, _, ready_message, ready = verification(mark, lambda v: v.get("report_state") == "ready")
+    page = out / "report" / "index.html"
+    assert ready["report"] == str(page) and f"report ready: {page}" in ready_message
+    text = page.read_text()
+    assert "Verification on fresh postures" in text and "id='verification-figures'" in text
+    assert text.rstrip().endswith("</html>") and "converged" in text  # still the calibration's report
+    assert (out / "report" / "verification.png").stat().st_size > 1000
+    assert {k: v for k, v in ready.items() if k not in ("report_state", "report")} == \
+        {k: v for k, v in values.items() if k != "report_state"}
