@@ -18,8 +18,16 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+from hexacal_msgs_py.inputs import IMU_INCLINOMETER, INPUT_NAMES, InputMapping, InputMappingError
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
-from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, JOINT_STATE_TYPE, POSTURE_TOPIC, SLIDERS_TOPIC
+from hexacal_msgs_py.names import (
+    ENCODER_TOPIC,
+    IMU_TYPE,
+    INCLINOMETER_TOPIC,
+    JOINT_STATE_TYPE,
+    POSTURE_TOPIC,
+    SLIDERS_TOPIC,
+)
 from hexacal_msgs_py.readings import PostureReading
 
 from .core.architectures import KinematicParameters, parameters_for
@@ -173,12 +181,15 @@ class BagPostures:
     source: str  # "posture topic" or "raw streams (re-detected)"
     plan: dict[str, str] = field(default_factory=dict)  # recorded posture plan metadata, if any
     ignored_topics: list[str] = field(default_factory=list)
-    invalid_messages: int = 0  # messages of hexacal's topics that were not valid readings (skipped)
+    invalid_messages: int = 0  # readings of hexacal's inputs that were not valid (skipped)
     # Postures set aside (posture_problem): (index among the bag's postures, reason, description).
     rejected: list[tuple[int, str, str]] = field(default_factory=list)
     # The machine model that recorded the bag: its actuator joint names (else the collector's metadata);
     # None when the bag holds neither.
     model: str | None = None
+    # The input mapping the collector recorded (topics and joints of the raw inputs); None: a bag
+    # without one, whose raw inputs are the contract's topics and joints.
+    mapping: InputMapping | None = None
 
 
 def _screened(postures: list[PostureReading],
@@ -199,24 +210,47 @@ def _topic_key(topic: str) -> str:
     return "/".join(parts[-2:]) if len(parts) >= 2 and parts[-2] == "hexacal" else topic.lstrip("/")
 
 
-def postures_from_bag(path: Path | str, **detector_options) -> BagPostures:
-    """Postures of a bag: its posture topic, else re-detected from the raw streams.
+COLLECTOR_METADATA = "hexacal.collector"  # the collector's metadata record (model, detector, mapping)
+# Where postures come from: the posture topic if the bag has one, else the raw inputs ("auto");
+# only the posture topic; or always re-detected from the raw inputs.
+POSTURE_SOURCES = ("auto", "posture", "raw")
+# The collector's detector settings in its metadata record: re-detection uses them.
+_DETECTOR_SETTINGS = ("window_s", "capture_s", "slider_tolerance_m", "angle_tolerance_rad", "max_gap_s",
+                      "max_skew_s")
+
+
+def postures_from_bag(path: Path | str, *, source: str = "auto", **detector_options) -> BagPostures:
+    """Postures of a bag: its posture topic, else re-detected from the raw inputs.
+
+    ``source``: "auto" (the posture topic if there is one, else the raw inputs), "posture"
+    (the posture topic only) or "raw" (re-detect even when there is a posture topic).
+    Re-detection uses the detector settings the collector recorded (``hexacal.collector``;
+    the detector's defaults where none), ``detector_options`` override them (window_s,
+    capture_s, slider_tolerance_m, angle_tolerance_rad, max_gap_s, max_skew_s).
+
+    The raw inputs are the contract's topics (hexacal/sliders, hexacal/inclinometer,
+    hexacal/encoder, any namespace) and joints, or, when the collector recorded an input
+    mapping (hexacal_msgs_py.inputs: ``actuator_joints``, ``inclinometer_type``, the topic of
+    each input, ...), the recorded topics read by that mapping: e.g. all three from one
+    /joint_states with custom joint names, the inclinometer from a sensor_msgs/Imu, with
+    signs and offsets applied. The posture topic has the contract's names either way.
 
     Either machine model: the actuator joints of the posture (or sliders) messages
-    tell which (``model``); a bag mixing the joints of two models, or whose joints
-    contradict the model its collector recorded (metadata ``hexacal.collector``),
+    tell which (``model``), else the model the collector recorded; a bag mixing the
+    joints of two models, or whose joints contradict the model its collector recorded,
     raises InvalidMeasurementError.
 
-    Topics other than hexacal's are ignored; a bag with neither a posture topic
-    nor all three raw streams raises InvalidMeasurementError naming what is
-    missing.  Bag-format problems raise the bag layer's BagError subclasses, also
-    a hexacal topic whose JointState definition is another message version.
-    Messages that do not decode or are not valid readings are skipped and counted
-    (``invalid_messages``); postures beyond a sensor's range are set aside with
-    the reason (``rejected``).
+    Other topics are ignored; a bag with neither a posture topic nor all three raw
+    inputs raises InvalidMeasurementError naming what is missing.  Bag-format
+    problems raise the bag layer's BagError subclasses, also an input topic whose
+    definition is another message version.  Messages that do not decode or are not
+    valid readings are skipped and counted (``invalid_messages``, per reading);
+    postures beyond a sensor's range are set aside with the reason (``rejected``).
     """
     from .bag import open_bag
 
+    if source not in POSTURE_SOURCES:
+        raise ValueError(f"source must be one of {', '.join(POSTURE_SOURCES)}, got {source!r}")
     reader = open_bag(path)
     topics: dict[str, str] = {}
     for topic in reader.topics():
@@ -226,35 +260,88 @@ def postures_from_bag(path: Path | str, **detector_options) -> BagPostures:
                 f"bag {path} holds {key} from several namespaces ({topics[key]}, {topic}): "
                 "calibrate one machine at a time")
         topics[key] = topic
-    ours = {POSTURE_TOPIC, *RAW_TOPICS}
-    ignored = sorted(t for k, t in topics.items() if k not in ours)
-    plan = {}
+    plan: dict[str, str] = {}
+    collector: dict[str, str] = {}
     for record in reader.metadata():
         if record.name.startswith("hexacal"):
             plan.update({f"{record.name}.{k}": v for k, v in record.data.items()})
+        if record.name == COLLECTOR_METADATA:
+            collector.update(record.data)
     recorded_model = plan.get(RECORDED_MODEL_KEY) or None
     if recorded_model is not None and recorded_model not in MODELS:
         raise InvalidMeasurementError(f"bag {path}: its metadata names an unknown model {recorded_model!r} "
                                       f"({RECORDED_MODEL_KEY}); hexacal knows {', '.join(MODELS)}")
-    _check_types(reader, topics)
-    if POSTURE_TOPIC in topics:
+    try:
+        mapping = InputMapping.from_metadata(collector, recorded_model)
+    except InputMappingError as error:
+        raise InvalidMeasurementError(f"bag {path}: the input mapping its collector recorded "
+                                      f"({COLLECTOR_METADATA}) is invalid: {error}") from None
+    raw = _raw_topics(reader.topics(), topics, mapping)
+    ours = {topics[POSTURE_TOPIC]} if POSTURE_TOPIC in topics else set()
+    ours.update(raw.values())
+    ignored = sorted(t for t in reader.topics() if t not in ours)
+    _check_types(reader, _expected_types(topics, raw, mapping))
+    if POSTURE_TOPIC in topics and source != "raw":
         models: set[str] = set()
         postures, invalid = _valid(reader.messages([topics[POSTURE_TOPIC]]),
                                    lambda m: _posture(m, models, recorded_model))
         model = _bag_model(path, models, recorded_model)
         kept, rejected = _screened(postures, model)
-        return BagPostures(kept, "posture topic", plan, ignored, invalid, rejected, model)
-    missing = [t for t in RAW_TOPICS if t not in topics]
+        return BagPostures(kept, "posture topic", plan, ignored, invalid, rejected, model, mapping)
+    if source == "posture":
+        raise InvalidMeasurementError(f"bag {path} has no {POSTURE_TOPIC} topic")
+    missing = [_input_text(t, mapping) for t in RAW_TOPICS if t not in raw]
     if missing:
         raise InvalidMeasurementError(
             f"bag {path} has no {POSTURE_TOPIC} topic and lacks the raw stream(s) "
-            f"{', '.join('/' + t for t in missing)} needed to re-detect postures"
-        )
+            f"{', '.join(missing)} needed to re-detect postures" if POSTURE_TOPIC not in topics else
+            f"bag {path} lacks the raw stream(s) {', '.join(missing)} needed to re-detect postures")
+    options = {name: float(collector[name]) for name in _DETECTOR_SETTINGS if _is_number(collector.get(name))}
+    options.update(detector_options)
     models = set()
-    postures, invalid = _redetect(reader, topics, models, recorded_model, **detector_options)
+    postures, invalid = _redetect(reader, raw, mapping, models, recorded_model, **options)
     model = _bag_model(path, models, recorded_model)
     kept, rejected = _screened(postures, model)
-    return BagPostures(kept, "raw streams (re-detected)", plan, ignored, invalid, rejected, model)
+    return BagPostures(kept, "raw streams (re-detected)", plan, ignored, invalid, rejected, model, mapping)
+
+
+def _is_number(text: str | None) -> bool:
+    try:
+        return text is not None and np.isfinite(float(text))
+    except ValueError:
+        return False
+
+
+def _input_text(input_topic: str, mapping: InputMapping | None) -> str:
+    recorded = mapping.input_topic(input_topic) if mapping is not None else ""
+    if recorded and recorded.lstrip("/") != input_topic:
+        return f"{recorded} (the {INPUT_NAMES[input_topic]} input)"
+    return "/" + input_topic
+
+
+def _raw_topics(infos, topics: dict[str, str], mapping: InputMapping | None) -> dict[str, str]:
+    """The bag topic of each raw input that the bag has: the recorded mapping's, else the contract's."""
+    raw: dict[str, str] = {}
+    by_name = {name.lstrip("/"): name for name in infos}
+    for input_topic in RAW_TOPICS:
+        recorded = mapping.input_topic(input_topic) if mapping is not None else ""
+        if recorded:
+            if recorded.lstrip("/") in by_name:
+                raw[input_topic] = by_name[recorded.lstrip("/")]
+        elif input_topic in topics:
+            raw[input_topic] = topics[input_topic]
+    return raw
+
+
+def _expected_types(topics: dict[str, str], raw: dict[str, str],
+                    mapping: InputMapping | None) -> dict[str, str]:
+    """The message type each of the bag's posture and input topics must have."""
+    expected = {topics[POSTURE_TOPIC]: JOINT_STATE_TYPE} if POSTURE_TOPIC in topics else {}
+    for input_topic, name in raw.items():
+        imu = (input_topic == INCLINOMETER_TOPIC and mapping is not None
+               and mapping.inclinometer_type == IMU_INCLINOMETER)
+        expected[name] = IMU_TYPE if imu else JOINT_STATE_TYPE
+    return expected
 
 
 RECORDED_MODEL_KEY = "hexacal.collector.model"  # the collector's metadata record, key 'model'
@@ -305,30 +392,32 @@ def _valid(messages, convert) -> tuple[list, int]:
     return converted, invalid
 
 
-def _check_types(reader, topics: dict[str, str]) -> None:
+def _check_types(reader, expected: dict[str, str]) -> None:
+    """Each topic of `expected` (bag topic -> type) has that type, in the installed version."""
     from .bag import BagSchemaError, MessageDefinitionNotFoundError, message_definition
     from .bag.schemas import SCHEMA_ENCODING, field_signature
 
     infos = reader.topics()
-    try:
-        installed = field_signature(message_definition(JOINT_STATE_TYPE))
-    except MessageDefinitionNotFoundError:
-        installed = None  # no .msg files to compare with: the bag's own schema decodes it
-    for key in (POSTURE_TOPIC, *RAW_TOPICS):
-        if key not in topics:
-            continue
-        topic = topics[key]
-        if infos[topic].type_name != JOINT_STATE_TYPE:
+    installed: dict[str, object] = {}
+    for topic, type_name in expected.items():
+        if infos[topic].type_name != type_name:
+            shown = _topic_key(topic) if _topic_key(topic).startswith("hexacal/") else topic.lstrip("/")
             raise BagSchemaError(
-                f"topic /{key} has type {infos[topic].type_name}, expected {JOINT_STATE_TYPE}",
-                topic=topic, expected=JOINT_STATE_TYPE, found=infos[topic].type_name)
-        for encoding, text in reader.schemas(topic) if installed is not None else ():
-            found = field_signature(text) if encoding == SCHEMA_ENCODING else installed
-            if found != installed:
+                f"topic /{shown} has type {infos[topic].type_name}, expected {type_name}",
+                topic=topic, expected=type_name, found=infos[topic].type_name)
+        if type_name not in installed:
+            try:
+                installed[type_name] = field_signature(message_definition(type_name))
+            except MessageDefinitionNotFoundError:
+                installed[type_name] = None  # no .msg files to compare with: the bag's own schema decodes it
+        signature = installed[type_name]
+        for encoding, text in reader.schemas(topic) if signature is not None else ():
+            found = field_signature(text) if encoding == SCHEMA_ENCODING else signature
+            if found != signature:
                 raise BagSchemaError(
-                    f"topic {topic} was recorded with another version of {JOINT_STATE_TYPE}: "
-                    f"{_signature_difference(found, installed)}", topic=topic,
-                    expected=JOINT_STATE_TYPE, found=infos[topic].type_name)
+                    f"topic {topic} was recorded with another version of {type_name}: "
+                    f"{_signature_difference(found, signature)}", topic=topic,
+                    expected=type_name, found=infos[topic].type_name)
 
 
 def _signature_difference(found, installed) -> str:
@@ -374,10 +463,39 @@ def _posture(message, models: set[str], recorded_model: str | None) -> PostureRe
     return joint_state_to_posture_reading(message, _model_of(message, models, recorded_model))
 
 
-def _redetect(reader, topics: dict[str, str], models: set[str], recorded_model: str | None,
+def _imu(message, checked: set[str]):
+    """message.decoded of an Imu topic, checked once per topic to have the fields the inclinometer reads."""
+    decoded = message.decoded
+    if message.topic not in checked:
+        try:
+            stamp, orientation = decoded.header.stamp, decoded.orientation
+            usable = (isinstance(stamp.sec, int) and isinstance(stamp.nanosec, int)
+                      and all(isinstance(getattr(orientation, axis), float) for axis in "xyzw")
+                      and len(decoded.orientation_covariance) == 9)
+        except (AttributeError, TypeError):
+            usable = False
+        if not usable:
+            from .bag import BagSchemaError
+
+            raise BagSchemaError(
+                f"topic {message.topic}: its schema does not decode to a {IMU_TYPE} "
+                f"(header.stamp, orientation, orientation_covariance); got {decoded!r:.200}",
+                topic=message.topic, expected=IMU_TYPE, found=message.type_name)
+        checked.add(message.topic)
+    return decoded
+
+
+def _redetect(reader, topics: dict[str, str], mapping: InputMapping | None, models: set[str],
+              recorded_model: str | None, max_skew_s: float | None = None,
               **detector_options) -> tuple[list[PostureReading], int]:
+    """Re-detect the postures of the raw inputs (`topics`: input -> bag topic), read by `mapping`.
+
+    Inputs that share a topic (one /joint_states) are read from each of its messages once;
+    a reading that is not valid counts once in the returned number of invalid readings.
+    """
     from hexacal_msgs_py.errors import InvalidReadingError
     from hexacal_msgs_py.conversions import (
+        imu_to_inclinometer_reading,
         joint_state_to_encoder_reading,
         joint_state_to_inclinometer_reading,
         joint_state_to_slider_reading,
@@ -386,27 +504,41 @@ def _redetect(reader, topics: dict[str, str], models: set[str], recorded_model: 
     from .bag import BagDecodeError
     from .core.posture_detector import detect_postures, synchronize_arrays
 
+    imu = mapping is not None and mapping.inclinometer_type == IMU_INCLINOMETER
     streams: dict[str, tuple[list[int], list]] = {t: ([], []) for t in RAW_TOPICS}
     convert = {
         SLIDERS_TOPIC: lambda m: joint_state_to_slider_reading(
-            m, _model_of(m, models, recorded_model)).slider_positions,
-        INCLINOMETER_TOPIC: lambda m: (lambda r: (r.alpha, r.beta))(joint_state_to_inclinometer_reading(m)),
-        ENCODER_TOPIC: lambda m: (joint_state_to_encoder_reading(m).phi,),
+            m, _model_of(m, models, recorded_model), mapping).slider_positions,
+        INCLINOMETER_TOPIC: lambda m: (lambda r: (r.alpha, r.beta))(
+            imu_to_inclinometer_reading(m, mapping) if imu else joint_state_to_inclinometer_reading(m, mapping)),
+        ENCODER_TOPIC: lambda m: (joint_state_to_encoder_reading(m, mapping).phi,),
     }
-    by_name = {topics[t]: t for t in RAW_TOPICS}
+    inputs_of: dict[str, list[str]] = {}
+    for input_topic in RAW_TOPICS:
+        inputs_of.setdefault(topics[input_topic], []).append(input_topic)
+    imu_topic = topics[INCLINOMETER_TOPIC] if imu else None
     invalid, checked = 0, set()
-    for message in reader.messages(list(by_name)):
-        key = by_name[message.topic]
+    for message in reader.messages(list(inputs_of)):
+        inputs = inputs_of[message.topic]
         try:
-            decoded = _joint_state(message, checked)
-            value = convert[key](decoded)
-        except (InvalidReadingError, BagDecodeError):
-            invalid += 1  # a bad reading is skipped; the synchroniser pairs around the gap
+            decoded = _imu(message, checked) if message.topic == imu_topic else _joint_state(message, checked)
+        except BagDecodeError:
+            invalid += len(inputs)  # bytes that are no message: not used, counted
             continue
-        stamps, values = streams[key]
-        stamps.append(decoded.header.stamp.sec * 1_000_000_000 + decoded.header.stamp.nanosec)
-        values.append(value)
+        stamp = None
+        for key in inputs:
+            try:
+                value = convert[key](decoded)
+            except InvalidReadingError:
+                invalid += 1  # a bad reading is skipped; the synchroniser pairs around the gap
+                continue
+            if stamp is None:
+                stamp = decoded.header.stamp.sec * 1_000_000_000 + decoded.header.stamp.nanosec
+            stamps, values = streams[key]
+            stamps.append(stamp)
+            values.append(value)
     arrays = [(np.array(streams[t][0], dtype=np.int64), np.array(streams[t][1], dtype=float)) for t in RAW_TOPICS]
+    skew = {} if max_skew_s is None else {"max_skew_ns": int(max_skew_s * 1_000_000_000)}
     stamps, values = synchronize_arrays(arrays[0][0], arrays[0][1], arrays[1][0], arrays[1][1],
-                                        arrays[2][0], arrays[2][1])
+                                        arrays[2][0], arrays[2][1], **skew)
     return [d.reading for d in detect_postures(stamps, values, **detector_options)], invalid

@@ -10,6 +10,12 @@ that reads or writes actuator joints or parameters takes ``model`` (a model
 name or a ``ModelLayout``), defaulting to the Hexa Slide, so callers written
 before other models existed keep working unchanged. `actuator_model` tells
 which model a message's joint names belong to.
+
+The sensor conversions also take an `InputMapping` (inputs.py): the joint
+names a user's drivers publish (e.g. one ros2_control ``/joint_states``), an
+inclinometer that is a ``sensor_msgs/Imu`` (`imu_to_inclinometer_reading`, by
+the convention inputs.py writes down) and per-channel inclinometer signs and
+zero offsets. Without one, the contract's names are read, as always.
 """
 
 from __future__ import annotations
@@ -21,10 +27,15 @@ import numbers
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 import numpy as np
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64MultiArray, Header, MultiArrayDimension, MultiArrayLayout
 
 from hexacal_msgs_py.errors import InvalidParametersError, InvalidReadingError
+from hexacal_msgs_py.inputs import (
+    InputMapping,
+    imu_inclinometer_angles,
+    inclinometer_angles_to_quaternion,
+)
 from hexacal_msgs_py.models import (
     DEFAULT_MODEL,
     MODELS,
@@ -126,24 +137,68 @@ def actuator_model(names: Sequence[str]) -> ModelLayout | None:
     return model_for_actuator_names(names)
 
 
-def joint_state_to_slider_reading(msg: JointState, model: ModelArgument = None) -> SliderReading:
+def joint_state_to_slider_reading(msg: JointState, model: ModelArgument = None,
+                                  mapping: InputMapping | None = None) -> SliderReading:
     """JointState with the model's actuator joints (m) -> SliderReading.
 
-    Hexa Slide (default): slider_1..slider_6; Gough-Stewart: leg_1..leg_6.
+    Hexa Slide (default): slider_1..slider_6; Gough-Stewart: leg_1..leg_6; with a
+    `mapping`, its actuator_joints (in chain order) instead.
     """
-    positions = _joint_positions(msg, layout_of(model).actuator_names, 'sliders')
+    names = mapping.actuator_joints if mapping is not None else layout_of(model).actuator_names
+    positions = _joint_positions(msg, names, 'sliders')
     return SliderReading(stamp_ns(msg.header.stamp), tuple(positions))
 
 
-def joint_state_to_inclinometer_reading(msg: JointState) -> InclinometerReading:
-    """JointState with joints inclinometer_x (alpha), inclinometer_y (beta) (rad)."""
-    alpha, beta = _joint_positions(msg, INCLINOMETER_NAMES, 'inclinometer')
+def joint_state_to_inclinometer_reading(msg: JointState,
+                                        mapping: InputMapping | None = None) -> InclinometerReading:
+    """JointState with joints inclinometer_x (alpha), inclinometer_y (beta) (rad).
+
+    With a `mapping`: its inclinometer_joints, then its signs and offsets
+    (alpha = sign * (position - offset), inputs.py).
+    """
+    if mapping is None:
+        alpha, beta = _joint_positions(msg, INCLINOMETER_NAMES, 'inclinometer')
+    else:
+        alpha, beta = mapping.inclinometer_angles(
+            *_joint_positions(msg, mapping.inclinometer_joints, 'inclinometer'))
     return InclinometerReading(stamp_ns(msg.header.stamp), alpha, beta)
 
 
-def joint_state_to_encoder_reading(msg: JointState) -> EncoderReading:
-    """JointState with joint rotary (phi, rad) -> EncoderReading."""
-    (phi,) = _joint_positions(msg, ENCODER_NAMES, 'encoder')
+def imu_to_inclinometer_reading(msg: Imu, mapping: InputMapping | None = None) -> InclinometerReading:
+    """sensor_msgs/Imu -> InclinometerReading: alpha, beta from the orientation (inputs.py's
+    convention), then the mapping's signs and offsets.
+
+    An Imu without an orientation estimate (orientation_covariance[0] = -1) or whose
+    orientation is not a finite unit quaternion raises InvalidReadingError.
+    """
+    orientation = msg.orientation
+    raw = imu_inclinometer_angles((orientation.x, orientation.y, orientation.z, orientation.w),
+                                  float(msg.orientation_covariance[0]))
+    alpha, beta = mapping.inclinometer_angles(*raw) if mapping is not None else raw
+    return InclinometerReading(stamp_ns(msg.header.stamp), alpha, beta)
+
+
+def inclinometer_angles_to_imu(reading: InclinometerReading, frame_id: str = '',
+                               mapping: InputMapping | None = None, yaw: float = 0.0) -> Imu:
+    """An Imu whose orientation reads as `reading` (after the mapping's signs and offsets), with
+    heading `yaw`: what a simulated IMU on the link publishes. Only the orientation is filled;
+    angular velocity and linear acceleration are marked unknown (covariance[0] = -1)."""
+    raw = (mapping.raw_inclinometer(reading.alpha, reading.beta) if mapping is not None
+           else (reading.alpha, reading.beta))
+    x, y, z, w = inclinometer_angles_to_quaternion(*raw, yaw=yaw)
+    message = Imu(header=Header(stamp=to_stamp(reading.stamp_ns), frame_id=frame_id))
+    message.orientation.x, message.orientation.y = x, y
+    message.orientation.z, message.orientation.w = z, w
+    message.angular_velocity_covariance[0] = -1.0
+    message.linear_acceleration_covariance[0] = -1.0
+    return message
+
+
+def joint_state_to_encoder_reading(msg: JointState,
+                                   mapping: InputMapping | None = None) -> EncoderReading:
+    """JointState with joint rotary (phi, rad) -> EncoderReading (the mapping's rotary_joint)."""
+    names = ENCODER_NAMES if mapping is None else (mapping.rotary_joint,)
+    (phi,) = _joint_positions(msg, names, 'encoder')
     return EncoderReading(stamp_ns(msg.header.stamp), phi)
 
 

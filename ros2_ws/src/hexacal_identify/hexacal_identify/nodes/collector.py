@@ -6,6 +6,28 @@ pairs the streams on the slider stamps (StreamSynchronizer), finds the
 stationary periods (PostureDetector) and publishes one averaged posture per
 period on `hexacal/posture` (POSTURE_QOS, stamp = capture time).
 
+Inputs from the user's own drivers (hexacal_msgs_py.inputs): the three inputs
+are ROS names, so `--ros-args -r hexacal/sliders:=/joint_states` (and the same
+for the other two) reads them from any topic; parameters `actuator_joints`
+(six, chain order; default the model's), `inclinometer_joints` (two: alpha,
+beta; default inclinometer_x, inclinometer_y) and `rotary_joint` (default
+rotary) name the joints. Inputs remapped to one topic (ros2_control's
+joint_state_broadcaster on /joint_states, extra joints besides) share one
+subscription: each message is recorded once and every reading is taken from
+it once. `inclinometer_type: imu` reads the inclinometer from a sensor_msgs/Imu
+orientation (the convention of hexacal_msgs_py.inputs); `inclinometer_signs`
+and `inclinometer_offsets_rad` correct either type per channel (angle = sign *
+(raw - offset)). Postures and the bag's posture records keep the contract's
+names; the bag records the inputs under their real topics and types and the
+mapping in the `hexacal.collector` record (and metadata.yaml custom_data
+`hexacal.inputs`), which the offline tools read. A bad mapping is a named error
+at start (exit 2).
+
+It also records `hexacal/platform_pose` (geometry_msgs/PoseStamped) and
+`hexacal/machine_markers` (visualization_msgs/MarkerArray) as received, when
+someone publishes them (the kinematics node), so a bag replays as a moving
+machine; they play no part in the calibration.
+
 The machine model (and so the actuator joints read on `hexacal/sliders` and
 written on `hexacal/posture`: slider_1..6 on a Hexa Slide, leg_1..6 on a
 Gough-Stewart platform) is the `model` parameter, or the model named by the
@@ -38,6 +60,7 @@ from __future__ import annotations
 
 from datetime import datetime
 import heapq
+import json
 import math
 from pathlib import Path
 import struct
@@ -46,40 +69,60 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from geometry_msgs.msg import PoseStamped
 from rclpy.callback_groups import CallbackGroup
 from rclpy.event_handler import QoSSubscriptionEventType, SubscriptionEventCallbacks
-from rclpy.exceptions import InvalidHandle, InvalidParameterValueException
+from rclpy.exceptions import (
+    InvalidHandle,
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+)
 from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import HistoryPolicy, QoSProfile
 from rclpy.serialization import deserialize_message
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import Imu, JointState
 from std_srvs.srv import Trigger
+from visualization_msgs.msg import MarkerArray
 import yaml
 
 from hexacal_msgs_py.conversions import (
     actuator_model,
     diagnostic_status,
+    imu_to_inclinometer_reading,
     joint_state_to_encoder_reading,
     joint_state_to_inclinometer_reading,
     joint_state_to_slider_reading,
     posture_reading_to_joint_state,
 )
 from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError
+from hexacal_msgs_py.inputs import (
+    DEFAULT_INCLINOMETER_JOINTS,
+    DEFAULT_OFFSETS_RAD,
+    DEFAULT_ROTARY_JOINT,
+    DEFAULT_SIGNS,
+    IMU_INCLINOMETER,
+    INCLINOMETER_TYPES,
+    InputMapping,
+    imu_inclinometer_angles,
+)
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 from hexacal_msgs_py.names import (
     CALIBRATION_STATUS_TOPIC,
-    ENCODER_NAMES,
     ENCODER_TOPIC,
-    INCLINOMETER_NAMES,
+    IMU_TYPE,
     INCLINOMETER_TOPIC,
     JOINT_STATE_TYPE,
+    MACHINE_MARKERS_TOPIC,
+    MARKER_ARRAY_TYPE,
+    PLATFORM_POSE_TOPIC,
+    POSE_STAMPED_TYPE,
     POSTURE_TOPIC,
     SLIDERS_TOPIC,
 )
 from hexacal_msgs_py.parameters_file import read_parameters_file
-from hexacal_msgs_py.qos import POSTURE_QOS, SENSOR_QOS, STATUS_QOS
+from hexacal_msgs_py.qos import MARKERS_QOS, POSE_QOS, POSTURE_QOS, SENSOR_QOS, STATUS_QOS
 
 from ..bag import BagError, BagWriter
 from .runtime import run_node
@@ -100,6 +143,7 @@ STOP_RECORDING_SERVICE = 'hexacal/stop_recording'
 PLAN_METADATA = 'hexacal.plan'
 COLLECTOR_METADATA = 'hexacal.collector'
 MODEL_CUSTOM_DATA = 'hexacal.model'  # metadata.yaml custom_data key naming the recording's model
+INPUTS_CUSTOM_DATA = 'hexacal.inputs'  # metadata.yaml custom_data: the input mapping as JSON
 MODEL_CHOICES = ('', *MODELS)
 # Driver parameters that describe the plan it walks (see hexacal_driver.driver_node).
 DRIVER_PLAN_PARAMETERS = ('plan', 'plan_name', 'postures', 'seed', 'link_length', 'settle_s',
@@ -123,11 +167,16 @@ SENSOR_SUBSCRIPTION_QOS = QoSProfile(
 POLL_PERIOD_S = 0.01
 _STREAM_OF_TOPIC = {SLIDERS_TOPIC: SLIDERS_STREAM, INCLINOMETER_TOPIC: INCLINOMETER_STREAM,
                     ENCODER_TOPIC: ENCODER_STREAM}
-_DEVICE_JOINTS_OF_TOPIC = {INCLINOMETER_TOPIC: tuple(INCLINOMETER_NAMES),
-                           ENCODER_TOPIC: tuple(ENCODER_NAMES)}
+# Recorded as received when published (the kinematics node), not used by the calibration:
+# (topic, message class, type name, QoS).
+RECORDED_ONLY_TOPICS = ((PLATFORM_POSE_TOPIC, PoseStamped, POSE_STAMPED_TYPE, POSE_QOS),
+                        (MACHINE_MARKERS_TOPIC, MarkerArray, MARKER_ARRAY_TYPE, MARKERS_QOS))
 _CDR_HEADER = b'\x00\x01\x00\x00'  # XCDR1 little endian, what Fast DDS sends
 _STAMP = struct.Struct('<iI')
 _UINT32 = struct.Struct('<I')
+_DOUBLE = struct.Struct('<d')
+_QUATERNION = struct.Struct('<4d')
+_IMU_DOUBLES = 4 + 9 + 3 + 9 + 3 + 9  # orientation, its covariance, angular velocity, ..., all float64
 
 
 class CollectorConfigurationError(Exception):
@@ -171,30 +220,41 @@ def _stamp_of(data: bytes) -> int:
     return seconds * NS_PER_S + nanoseconds
 
 
+def _align(position: int, size: int) -> int:
+    """`position` rounded up to a multiple of `size` counted from byte 4 (after the CDR header)."""
+    return position + (-(position - 4)) % size
+
+
+def _skip_doubles(data: bytes, offset: int) -> tuple[int, int]:
+    """(count, offset after) of the float64 sequence at `offset` (its uint32 length first)."""
+    offset = _align(offset, 4)
+    (count,) = _UINT32.unpack_from(data, offset)
+    offset += 4
+    if count:
+        offset = _align(offset, 8)
+    return count, offset + 8 * count
+
+
 def _positions_layout(data: bytes) -> tuple[int, int] | None:
     """(offset, count) of the position doubles in little-endian JointState CDR, None if malformed."""
     if data[:4] != _CDR_HEADER:
         return None
     offset = 12  # after the header stamp; alignment is relative to byte 4
-
-    def align(position: int, size: int) -> int:
-        return position + (-(position - 4)) % size
-
     try:
         (length,) = _UINT32.unpack_from(data, offset)  # frame_id
         offset += 4 + length
-        offset = align(offset, 4)
+        offset = _align(offset, 4)
         (names,) = _UINT32.unpack_from(data, offset)
         offset += 4
         for _ in range(names):
-            offset = align(offset, 4)
+            offset = _align(offset, 4)
             (length,) = _UINT32.unpack_from(data, offset)
             offset += 4 + length
-        offset = align(offset, 4)
+        offset = _align(offset, 4)
         (count,) = _UINT32.unpack_from(data, offset)
         offset += 4
         if count:
-            offset = align(offset, 8)
+            offset = _align(offset, 8)
     except struct.error:
         return None
     if offset + 8 * count > len(data):
@@ -206,9 +266,12 @@ class _FastJointState:
     """Reads the wanted positions straight from CDR bytes laid out like a known good message.
 
     Learned from a message that rclpy decoded and the contract accepted: every later message
-    whose bytes equal it outside the stamp and the positions (same frame_id, names, velocity,
-    effort) has the same joints at the same offsets. Anything else (and non-finite values or
-    negative stamps) goes the full way, which reports the problem exactly as before.
+    of the same size whose bytes equal it from the stamp to the positions (same frame_id,
+    names, number of positions) and whose velocity and effort sequences have the same lengths
+    has the same joints at the same offsets; the velocity and effort values may change (ros2_control's
+    joint_state_broadcaster fills them). Anything else (and non-finite wanted values or
+    negative stamps) goes the full way, which reports the problem exactly as before. The wanted
+    joints are any of the message's, in any order (extra joints are skipped).
     """
 
     def __init__(self, data: bytes, message: JointState, wanted: tuple[str, ...]) -> None:
@@ -224,16 +287,28 @@ class _FastJointState:
         self.offset = offset
         self.size = len(data)
         self.prefix = bytes(data[12:offset])
-        self.suffix = bytes(data[offset + 8 * count:])
-        self.suffix_start = offset + 8 * count
+        suffix_start = offset + 8 * count
+        try:
+            velocities, after = _skip_doubles(data, suffix_start)
+            efforts, end = _skip_doubles(data, after)
+        except struct.error:
+            raise ValueError('no velocity and effort sequences') from None
+        if (velocities, efforts) != (len(message.velocity), len(message.effort)) or end > len(data):
+            raise ValueError('layout does not match the decoded message')
+        # Where the two sequence lengths sit and what they are.
+        self.counts = ((_align(suffix_start, 4), velocities),
+                       (_align(after, 4), efforts))
         if list(self.positions.unpack_from(data, offset)) != list(message.position):
             raise ValueError('layout does not match the decoded message')
 
     def read(self, data: bytes) -> tuple[int, tuple[float, ...]] | None:
         """(stamp_ns, wanted positions), or None: decode this message the full way."""
         if (len(data) != self.size or data[12:self.offset] != self.prefix
-                or data[self.suffix_start:] != self.suffix or data[:4] != _CDR_HEADER):
+                or data[:4] != _CDR_HEADER):
             return None
+        for offset, count in self.counts:
+            if _UINT32.unpack_from(data, offset)[0] != count:
+                return None
         seconds, nanoseconds = _STAMP.unpack_from(data, 4)
         if seconds < 0:
             return None
@@ -243,6 +318,74 @@ class _FastJointState:
             if not math.isfinite(value):
                 return None
         return seconds * NS_PER_S + nanoseconds, values
+
+
+class _FastImu:
+    """Reads an Imu's orientation from CDR bytes laid out like a known good message.
+
+    An Imu is fixed-size after its frame_id: every message of the learned size with the same
+    frame_id has the orientation at the same offset. Returns the inclinometer's raw angles by
+    the contract's convention (hexacal_msgs_py.inputs); anything it cannot read (another
+    layout, a negative stamp, no orientation estimate, a quaternion that is not a unit one)
+    goes the full way, which reports the problem.
+    """
+
+    def __init__(self, data: bytes, message: Imu) -> None:
+        if data[:4] != _CDR_HEADER:
+            raise ValueError('not a little-endian Imu')
+        try:
+            (length,) = _UINT32.unpack_from(data, 12)
+        except struct.error:
+            raise ValueError('not an Imu') from None
+        self.offset = _align(16 + length, 8)
+        self.size = len(data)
+        if self.offset + 8 * _IMU_DOUBLES > self.size:
+            raise ValueError('not an Imu')
+        self.prefix = bytes(data[12:self.offset])
+        orientation = message.orientation
+        if (_QUATERNION.unpack_from(data, self.offset)
+                != (orientation.x, orientation.y, orientation.z, orientation.w)
+                or _DOUBLE.unpack_from(data, self.offset + 32)[0]
+                != message.orientation_covariance[0]):
+            raise ValueError('layout does not match the decoded message')
+
+    def read(self, data: bytes) -> tuple[int, tuple[float, ...]] | None:
+        """(stamp_ns, (raw alpha, raw beta)), or None: decode this message the full way."""
+        if (len(data) != self.size or data[12:self.offset] != self.prefix
+                or data[:4] != _CDR_HEADER):
+            return None
+        seconds, nanoseconds = _STAMP.unpack_from(data, 4)
+        if seconds < 0:
+            return None
+        try:
+            angles = imu_inclinometer_angles(_QUATERNION.unpack_from(data, self.offset),
+                                             _DOUBLE.unpack_from(data, self.offset + 32)[0])
+        except InvalidReadingError:
+            return None
+        return seconds * NS_PER_S + nanoseconds, angles
+
+
+class _Source:
+    """One subscribed topic and the inputs read from it (several when remapped to one topic)."""
+
+    def __init__(self, name: str, inputs: tuple[str, ...], message_type: type, type_name: str,
+                 qos: QoSProfile, mapping: InputMapping) -> None:
+        self.name = name  # resolved topic name, as recorded
+        self.inputs = inputs  # contract input topics, in RAW_TOPICS order
+        self.message_type = message_type
+        self.type_name = type_name
+        self.qos_yaml = qos_profiles_yaml(qos)
+        self.subscription = None
+        self.fast: _FastJointState | _FastImu | None = None
+        self.key = '+'.join(inputs)  # the loss counter's name: lost.<inputs>
+        # Where each input's values are in the wanted joints' values of a JointState source.
+        self.wanted: tuple[str, ...] = ()
+        self.slices: list[tuple[str, int, int]] = []
+        for topic in inputs:
+            joints = mapping.input_joints(topic)
+            self.slices.append((topic, len(self.wanted), len(self.wanted) + len(joints)))
+            self.wanted += joints
+
 
 _DETECTOR_PARAMETERS = {
     # name: (default, description, low, high); defaults are PostureDetector's.
@@ -319,7 +462,7 @@ class CollectorNode(Node):
                               *_DETECTOR_PARAMETERS)}
         self.model = resolve_model(value['model'], value['parameters_file'])
         self.actuator_names = MODELS[self.model].actuator_names
-        self._joints_of_topic = {SLIDERS_TOPIC: self.actuator_names, **_DEVICE_JOINTS_OF_TOPIC}
+        self.mapping = self._declare_inputs()
 
         self.synchronizer = StreamSynchronizer(max_skew_ns=int(value['max_skew_s'] * NS_PER_S))
         self.detector = PostureDetector(
@@ -344,27 +487,46 @@ class CollectorNode(Node):
         self._posture_pub = self.create_publisher(JointState, POSTURE_TOPIC, POSTURE_QOS)
         self._status_pub = self.create_publisher(
             DiagnosticArray, CALIBRATION_STATUS_TOPIC, STATUS_QOS)
-        self.topic_names = {
-            topic: self.resolve_topic_name(topic)
-            for topic in (SLIDERS_TOPIC, INCLINOMETER_TOPIC, ENCODER_TOPIC, POSTURE_TOPIC)}
-        self._qos_yaml = {topic: qos_profiles_yaml(SENSOR_QOS) for topic in self.topic_names}
-        self._qos_yaml[POSTURE_TOPIC] = qos_profiles_yaml(POSTURE_QOS)
+        self.topic_names = {topic: resolved for topic, resolved in zip(RAW_TOPICS, self.mapping.topics)}
+        self.topic_names[POSTURE_TOPIC] = self.resolve_topic_name(POSTURE_TOPIC)
+        self._qos_yaml = {POSTURE_TOPIC: qos_profiles_yaml(POSTURE_QOS)}
         polled = _PolledGroup()
-        self._subscriptions_by_topic = {
-            topic: self.create_subscription(
-                JointState, topic,
-                lambda data, info, topic=topic: self._on_raw(topic, data, info),
+        # One subscription per distinct input topic: inputs remapped to one topic share it.
+        self._sources: list[_Source] = []
+        for name in dict.fromkeys(self.mapping.topics):
+            inputs = tuple(topic for topic in RAW_TOPICS if self.topic_names[topic] == name)
+            imu = inputs == (INCLINOMETER_TOPIC,) and self.mapping.inclinometer_type == IMU_INCLINOMETER
+            source = _Source(name, inputs, Imu if imu else JointState,
+                             IMU_TYPE if imu else JOINT_STATE_TYPE, SENSOR_QOS, self.mapping)
+            source.subscription = self.create_subscription(
+                source.message_type, name,
+                lambda data, info, source=source: self._on_raw(source, data, info),
                 SENSOR_SUBSCRIPTION_QOS, raw=True, callback_group=polled,
                 event_callbacks=SubscriptionEventCallbacks(
-                    message_lost=lambda status, topic=topic: self._on_lost(topic, status)))
-            for topic in RAW_TOPICS}
+                    message_lost=lambda status, key=source.key: self._on_lost(key, status)))
+            self._sources.append(source)
         # Their QoS event handlers are in the polled group too: in the wait set, a subscription's
         # events wake the executor on every message. The loss count is read by housekeeping.
         self._lost_handlers = {
-            topic: [handler for handler in subscription.event_handlers
-                    if handler.event_type == QoSSubscriptionEventType.RCL_SUBSCRIPTION_MESSAGE_LOST]
-            for topic, subscription in self._subscriptions_by_topic.items()}
-        self._fast_decoders: dict[str, _FastJointState] = {}
+            source.key: [handler for handler in source.subscription.event_handlers
+                         if handler.event_type
+                         == QoSSubscriptionEventType.RCL_SUBSCRIPTION_MESSAGE_LOST]
+            for source in self._sources}
+        # Recorded as received, when published; taken by the same poll (no executor wake-ups).
+        self._recorded_only: list[_Source] = []
+        for topic, message_type, type_name, qos in RECORDED_ONLY_TOPICS:
+            name = self.resolve_topic_name(topic)
+            if name in self.mapping.topics:
+                continue  # remapped onto an input: one subscription per topic
+            source = _Source(name, (), message_type, type_name, qos, self.mapping)
+            source.subscription = self.create_subscription(
+                message_type, name, lambda data, info, source=source: self._record_only(
+                    source, data, info), qos, raw=True, callback_group=polled)
+            self._recorded_only.append(source)
+        self._recorded_only_added: set[str] = set()  # registered in the current bag
+        self._transform_inclinometer = (
+            (self.mapping.inclinometer_signs, self.mapping.inclinometer_offsets_rad)
+            != (DEFAULT_SIGNS, DEFAULT_OFFSETS_RAD))
         self._samples: list[tuple[int, tuple[float, ...]]] = []  # paired, for the detector
         self._poll_timer = self.create_timer(POLL_PERIOD_S, self._poll)
         self.create_service(Trigger, START_RECORDING_SERVICE, self._start_recording)
@@ -378,10 +540,46 @@ class CollectorNode(Node):
             f"collecting postures on {self.topic_names[POSTURE_TOPIC]} (window "
             f"{value['window_s']:g} s, capture {value['capture_s']:g} s); model {self.model}, "
             f"actuator joints {self.actuator_names[0]}..{self.actuator_names[-1]}")
+        self.get_logger().info(f'inputs: {self.mapping.describe()}')
         if value['record']:
             self.open_bag()
 
     # ------------------------------------------------------------------ parameters
+
+    def _declare_inputs(self) -> InputMapping:
+        """The input mapping parameters (read only), validated: InputMappingError names the problem."""
+        def declare(name: str, default, description: str, constraints: str = ''):
+            # Dynamic typing: [1, -1] (integers) is as good as [1.0, -1.0]; InputMapping checks types.
+            return self.declare_parameter(name, default, ParameterDescriptor(
+                description=description, read_only=True, dynamic_typing=True,
+                additional_constraints=constraints)).value
+
+        actuators = declare(
+            'actuator_joints', list(self.actuator_names),
+            'the six actuator joints in chain order, as the sliders input (hexacal/sliders, or '
+            'the topic it is remapped to, e.g. /joint_states) names them; default: the '
+            "model's (slider_1..6 or leg_1..6)", 'six distinct names')
+        inclinometer = declare(
+            'inclinometer_joints', list(DEFAULT_INCLINOMETER_JOINTS),
+            'the inclinometer joints alpha (about X), beta (about Y) of a JointState '
+            'inclinometer input (rad)', 'two distinct names')
+        rotary = declare('rotary_joint', DEFAULT_ROTARY_JOINT,
+                         'the rotary sensor joint (phi, rad) of the encoder input')
+        kind = declare(
+            'inclinometer_type', 'joint_state',
+            "'joint_state': the inclinometer input is a sensor_msgs/JointState with "
+            "inclinometer_joints; 'imu': a sensor_msgs/Imu whose orientation gives alpha and beta "
+            '(hexacal_msgs_py.inputs)', ', '.join(repr(t) for t in INCLINOMETER_TYPES))
+        signs = declare('inclinometer_signs', list(DEFAULT_SIGNS),
+                        'per channel (alpha, beta): 1 or -1; angle = sign * (raw - offset)',
+                        'two values, each 1 or -1')
+        offsets = declare('inclinometer_offsets_rad', list(DEFAULT_OFFSETS_RAD),
+                          'per channel (alpha, beta): the raw reading with the link level (rad); '
+                          'angle = sign * (raw - offset)', 'two finite values within +-pi')
+        return InputMapping(
+            actuator_joints=actuators, inclinometer_joints=inclinometer, rotary_joint=rotary,
+            inclinometer_type=kind, inclinometer_signs=signs, inclinometer_offsets_rad=offsets,
+            topics=tuple(self.resolve_topic_name(topic) for topic in RAW_TOPICS))
 
     def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for parameter in parameters:
@@ -413,16 +611,16 @@ class CollectorNode(Node):
     def _poll(self) -> None:
         """Take every queued sensor message, handle them in stamp order, then run the detector."""
         batches = []
-        for topic, subscription in self._subscriptions_by_topic.items():
+        for source in self._sources:
             taken = []
             try:
-                with subscription.handle:
-                    take = subscription.handle.take_message
+                with source.subscription.handle:
+                    take = source.subscription.handle.take_message
                     while len(taken) < SENSOR_SUBSCRIPTION_QOS.depth:  # bounded under any flow
-                        item = take(JointState, True)
+                        item = take(source.message_type, True)
                         if item is None:
                             break
-                        taken.append((_stamp_of(item[0]), topic, item[0], item[1]))
+                        taken.append((_stamp_of(item[0]), source, item[0], item[1]))
             except InvalidHandle:
                 continue  # shutting down
             if taken:
@@ -431,58 +629,95 @@ class CollectorNode(Node):
             messages = heapq.merge(*batches, key=lambda entry: entry[0])
         else:
             messages = batches[0] if batches else ()
-        for _, topic, data, info in messages:
-            self._on_raw(topic, data, info)
+        for _, source, data, info in messages:
+            self._on_raw(source, data, info)
         self._detect()
+        for source in self._recorded_only:
+            self._take_recorded_only(source)
 
-    def _on_raw(self, topic: str, data: bytes, info: dict) -> None:
-        self.received[topic] += 1
-        self._last_receipt_ns[topic] = time.monotonic_ns()
+    def _on_raw(self, source: _Source, data: bytes, info: dict) -> None:
+        """One message of an input topic: recorded once, each input's reading taken once."""
+        now_ns = time.monotonic_ns()
+        for topic in source.inputs:
+            self.received[topic] += 1
+            self._last_receipt_ns[topic] = now_ns
         received_ns = info.get('received_timestamp') or self.get_clock().now().nanoseconds
-        self._record(topic, data, received_ns, info.get('source_timestamp') or None)
-        fast = self._fast_decoders.get(topic)
-        reading = fast.read(data) if fast is not None else None
-        if reading is None:
-            reading = self._decode(topic, data)
-            if reading is None:
+        self._record(source.name, data, received_ns, info.get('source_timestamp') or None)
+        readings = None
+        if source.fast is not None:
+            raw = source.fast.read(data)
+            if raw is not None:
+                readings = self._split(source, *raw)
+        if readings is None:
+            readings = self._decode(source, data)
+            if readings is None:
                 return
-        samples = self.synchronizer.add_values(_STREAM_OF_TOPIC[topic], *reading)
-        if samples:
-            self._samples += samples
+        stamp, values = readings
+        for topic, reading in values:
+            samples = self.synchronizer.add_values(_STREAM_OF_TOPIC[topic], stamp, reading)
+            if samples:
+                self._samples += samples
 
-    def _decode(self, topic: str, data: bytes) -> tuple[int, tuple[float, ...]] | None:
-        """rclpy decoding and the contract's checks: (stamp_ns, values), None if invalid."""
+    def _split(self, source: _Source, stamp: int, raw: tuple[float, ...]):
+        """(stamp, [(input, values)]) of a fast read: each input's slice, the inclinometer corrected."""
+        if source.message_type is Imu:
+            angles = (self.mapping.inclinometer_angles(*raw) if self._transform_inclinometer
+                      else raw)
+            return stamp, [(INCLINOMETER_TOPIC, angles)]
+        values = []
+        for topic, start, end in source.slices:
+            reading = raw[start:end]
+            if topic == INCLINOMETER_TOPIC and self._transform_inclinometer:
+                reading = self.mapping.inclinometer_angles(*reading)
+            values.append((topic, reading))
+        return stamp, values
+
+    def _decode(self, source: _Source, data: bytes):
+        """rclpy decoding and the contract's checks: (stamp_ns, [(input, values)] of the valid
+        inputs), None if none is valid; learns the in-place reader from a fully valid message."""
         try:
-            message = deserialize_message(data, JointState)
+            message = deserialize_message(data, source.message_type)
         except Exception as error:  # noqa: BLE001 - any undecodable bytes count as invalid
-            self._invalid(topic, f'cannot decode a JointState: {error}')
+            for topic in source.inputs:
+                self._invalid(topic, f'cannot decode a {source.type_name}: {error}')
             return None
-        try:
-            if topic == SLIDERS_TOPIC:
-                sliders = self._slider_reading(message)
-                reading = sliders.stamp_ns, sliders.slider_positions
-            elif topic == INCLINOMETER_TOPIC:
-                angles = joint_state_to_inclinometer_reading(message)
-                reading = angles.stamp_ns, (angles.alpha, angles.beta)
+        values = []
+        stamp = None
+        for topic in source.inputs:
+            try:
+                if topic == SLIDERS_TOPIC:
+                    sliders = self._slider_reading(message)
+                    stamp, reading = sliders.stamp_ns, sliders.slider_positions
+                elif topic == INCLINOMETER_TOPIC:
+                    angles = (imu_to_inclinometer_reading(message, self.mapping)
+                              if source.message_type is Imu
+                              else joint_state_to_inclinometer_reading(message, self.mapping))
+                    stamp, reading = angles.stamp_ns, (angles.alpha, angles.beta)
+                else:
+                    rotary = joint_state_to_encoder_reading(message, self.mapping)
+                    stamp, reading = rotary.stamp_ns, (rotary.phi,)
+            except InvalidReadingError as error:
+                self._invalid(topic, str(error))
+                continue
+            values.append((topic, reading))
+        if not values:
+            return None
+        if len(values) == len(source.inputs):
+            try:
+                fast = (_FastImu(data, message) if source.message_type is Imu
+                        else _FastJointState(data, message, source.wanted))
+            except (ValueError, KeyError, struct.error):
+                pass  # decoded the full way every time
             else:
-                rotary = joint_state_to_encoder_reading(message)
-                reading = rotary.stamp_ns, (rotary.phi,)
-        except InvalidReadingError as error:
-            self._invalid(topic, str(error))
-            return None
-        try:
-            fast = _FastJointState(data, message, self._joints_of_topic[topic])
-        except (ValueError, KeyError, struct.error):
-            pass  # decoded the full way every time
-        else:
-            if fast.read(data) == reading:
-                self._fast_decoders[topic] = fast
-        return reading
+                raw = fast.read(data)
+                if raw is not None and self._split(source, *raw) == (stamp, values):
+                    source.fast = fast
+        return stamp, values
 
     def _slider_reading(self, message: JointState):
-        """The model's actuator joints of a sliders message; another model's joints are named."""
+        """The actuator joints of a sliders message; another model's joints are named."""
         try:
-            return joint_state_to_slider_reading(message, self.model)
+            return joint_state_to_slider_reading(message, self.model, self.mapping)
         except InvalidReadingError as error:
             carried = actuator_model(message.name)
             if carried is not None and carried.name != self.model:
@@ -492,6 +727,32 @@ class CollectorNode(Node):
                     f'collector records a {self.model} (parameters model / parameters_file)'
                 ) from None
             raise
+
+    def _take_recorded_only(self, source: _Source) -> None:
+        """Record what arrived on a recorded-only topic (platform pose, machine markers)."""
+        try:
+            with source.subscription.handle:
+                take = source.subscription.handle.take_message
+                for _ in range(SENSOR_SUBSCRIPTION_QOS.depth):
+                    item = take(source.message_type, True)
+                    if item is None:
+                        break
+                    self._record_only(source, *item)
+        except InvalidHandle:
+            pass  # shutting down
+
+    def _record_only(self, source: _Source, data: bytes, info: dict) -> None:
+        if self.writer is None:
+            return
+        if source.name not in self._recorded_only_added:
+            try:
+                self.writer.add_topic(source.name, source.type_name, source.qos_yaml)
+            except BagError as error:
+                self._recording_failed(error)
+                return
+            self._recorded_only_added.add(source.name)
+        received_ns = info.get('received_timestamp') or self.get_clock().now().nanoseconds
+        self._record(source.name, data, received_ns, info.get('source_timestamp') or None)
 
     def _detect(self) -> None:
         """Run the posture detector over the samples paired since the last call."""
@@ -531,7 +792,8 @@ class CollectorNode(Node):
             # Durable before it is published: whoever received a posture finds it in the bag.
             # BagWriter.write encodes the exact wire CDR; rclpy's serialize_message appends
             # padding bytes that strict readers (rosbags) reject.
-            self._record(POSTURE_TOPIC, message, self.get_clock().now().nanoseconds)
+            self._record(self.topic_names[POSTURE_TOPIC], message,
+                         self.get_clock().now().nanoseconds)
             if self.writer is not None:
                 self.bag_postures += 1
                 self._flush()
@@ -545,16 +807,17 @@ class CollectorNode(Node):
 
     # ------------------------------------------------------------------ recording
 
-    def _record(self, topic: str, data: bytes | JointState, log_time_ns: int,
+    def _record(self, name: str, data: bytes | JointState, log_time_ns: int,
                 publish_time_ns: int | None = None) -> None:
-        """Write CDR bytes as received, or encode a message; a bag error stops recording."""
+        """Write CDR bytes as received, or encode a message, on the bag topic `name`; a bag error
+        stops recording."""
         if self.writer is None:
             return
         try:
             if isinstance(data, bytes):
-                self.writer.write_raw(self.topic_names[topic], data, log_time_ns, publish_time_ns)
+                self.writer.write_raw(name, data, log_time_ns, publish_time_ns)
             else:
-                self.writer.write(self.topic_names[topic], data, log_time_ns)
+                self.writer.write(name, data, log_time_ns)
         except BagError as error:
             self._recording_failed(error)
 
@@ -595,16 +858,20 @@ class CollectorNode(Node):
         try:
             writer = BagWriter(directory, custom_data={
                 'hexacal.recorded_by': self.get_fully_qualified_name(),
-                MODEL_CUSTOM_DATA: self.model})
+                MODEL_CUSTOM_DATA: self.model,
+                INPUTS_CUSTOM_DATA: json.dumps(self.mapping.to_metadata())})
         except BagError as error:
             self.get_logger().error(f'cannot record to {directory}: {error}')
             raise
         try:
-            for topic, name in self.topic_names.items():
-                writer.add_topic(name, JOINT_STATE_TYPE, self._qos_yaml[topic])
+            # The inputs under their real topics and types (e.g. /joint_states once for all three).
+            for source in self._sources:
+                writer.add_topic(source.name, source.type_name, source.qos_yaml)
+            writer.add_topic(self.topic_names[POSTURE_TOPIC], JOINT_STATE_TYPE,
+                             self._qos_yaml[POSTURE_TOPIC])
             writer.write_metadata(COLLECTOR_METADATA, {
                 'namespace': self.get_namespace(), 'model': self.model,
-                **self.detector_settings})
+                **self.detector_settings, **self.mapping.to_metadata()})
         except BagError as error:
             self.get_logger().error(f'cannot record to {directory}: {error}')
             try:
@@ -613,6 +880,7 @@ class CollectorNode(Node):
                 pass  # already reported
             raise
         self.writer, self.bag_postures = writer, 0
+        self._recorded_only_added = set()
         self.recording_error = None
         self._plan_recorded, self._plan_request = False, None
         self.get_logger().info(f'recording to {directory}')
@@ -659,10 +927,10 @@ class CollectorNode(Node):
         self._poll_lost()
         now_ns = self.get_clock().now().nanoseconds
         status = self.synchronizer.status(now_ns)
-        silent = [self.topic_names[topic] for topic, name in (
+        silent = list(dict.fromkeys(self.topic_names[topic] for topic, name in (
             (SLIDERS_TOPIC, 'sliders'), (INCLINOMETER_TOPIC, 'inclinometer'),
             (ENCODER_TOPIC, 'encoder')) if status[name].last_stamp_ns is not None
-            and status[name].stale]
+            and status[name].stale))
         if silent:
             self.get_logger().warning(f"no recent data on {', '.join(silent)}",
                                       throttle_duration_sec=STALE_LOG_PERIOD_S)
@@ -673,9 +941,10 @@ class CollectorNode(Node):
     def _check_streams(self) -> None:
         """Report streams that stopped (receipt time) and drop a posture they leave half-captured."""
         now_ns = time.monotonic_ns()
-        stopped = tuple(self.topic_names[topic] for topic in RAW_TOPICS
-                        if topic in self._last_receipt_ns
-                        and now_ns - self._last_receipt_ns[topic] > STREAM_STOPPED_S * NS_PER_S)
+        # Inputs remapped to one topic stop together: the topic is named once.
+        stopped = tuple(dict.fromkeys(
+            self.topic_names[topic] for topic in RAW_TOPICS if topic in self._last_receipt_ns
+            and now_ns - self._last_receipt_ns[topic] > STREAM_STOPPED_S * NS_PER_S))
         if stopped != self.stopped_streams:
             if stopped:
                 self.get_logger().warning(
@@ -797,8 +1066,8 @@ def _finish(node: CollectorNode) -> list[str]:
 
 def main(args: list[str] | None = None) -> int:
     return run_node(NODE_NAME, CollectorNode, args=args, finish=_finish,
-                    startup_errors=(InvalidParameterValueException, BagError,
-                                    CollectorConfigurationError, HexacalContractError))
+                    startup_errors=(InvalidParameterValueException, InvalidParameterTypeException,
+                                    BagError, CollectorConfigurationError, HexacalContractError))
 
 
 if __name__ == '__main__':
