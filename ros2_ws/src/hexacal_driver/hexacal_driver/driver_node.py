@@ -17,6 +17,23 @@ all three streams, so a collector started a little later still sees every
 posture. When the plan is done it stands at the last posture (still
 publishing), or walks the plan again with `loop`.
 
+Commanded mode (`command_topic` set, e.g. /joint_trajectory_controller/joint_trajectory):
+the machine takes the real machine's interface instead of walking a plan. Like
+ros2_control's joint_trajectory_controller with mock hardware, it follows
+`trajectory_msgs/JointTrajectory` commands on that topic (COMMAND_QOS): the
+model's actuator joints (any order), each new trajectory replacing the one
+followed, the setpoints moving linearly through its points at the slower of
+their time_from_start and `max_actuator_speed_m_s`. A command with other joint
+names, an empty, malformed or late one, or one with a position outside the
+stroke (the true machine's workspace) is rejected with a log line and ignored.
+It starts standing at the fixed-position point with zero angles and keeps
+publishing the three sensor streams (with noise as configured) for where the
+machine stands: the measuring link holds the platform on its sphere, so the pose
+is the one on the sphere whose true actuator positions are nearest the
+setpoints (simulation.device_constrained_pose), the actuator readings those
+positions and the device readings those of the pose. `plan`, `postures`,
+`settle_s`, `dwell_s`, `loop` and `wait_for_subscriber` do not apply.
+
 The math lives in `simulation.py` and `plan.py`; this node keeps time and publishes.
 """
 from __future__ import annotations
@@ -33,15 +50,26 @@ from rcl_interfaces.msg import (
     ParameterDescriptor,
     SetParametersResult,
 )
-from rclpy.exceptions import InvalidParameterValueException
+from rclpy.exceptions import InvalidParameterValueException, InvalidTopicNameException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
 
 from hexacal_driver.plan import GENERATED_PLANS, PlanError, PosturePlan, load_plan, resolve_plan
-from hexacal_driver.simulation import DONE, DWELLING, PlanWalker, SensorSimulator
+from hexacal_driver.simulation import (
+    DONE,
+    DWELLING,
+    MOVING,
+    CommandFollower,
+    ConstraintError,
+    PlanWalker,
+    SensorSimulator,
+    check_trajectory,
+)
 from hexacal_identify.core.architectures import KinematicParameters, architecture, parameters_for
-from hexacal_identify.core.device import DEFAULT_MOUNT, DeviceMountError, check_mount
+from hexacal_identify.core.device import DEFAULT_MOUNT, DeviceMountError, check_mount, fixed_point
+from hexacal_identify.core.errors import UnreachablePoseError
 from hexacal_identify.core.measurements import NoiseModel
 from hexacal_identify.nodes.runtime import run_node
 from hexacal_msgs_py.conversions import (
@@ -53,7 +81,7 @@ from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.models import DEFAULT_MODEL, HEXA_SLIDE, MODELS
 from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, SLIDERS_TOPIC
 from hexacal_msgs_py.parameters_file import load_parameters, read_parameters_file
-from hexacal_msgs_py.qos import SENSOR_QOS
+from hexacal_msgs_py.qos import COMMAND_QOS, SENSOR_QOS
 from hexacal_msgs_py.readings import EncoderReading, InclinometerReading, SliderReading
 
 NODE_NAME = 'driver'
@@ -103,6 +131,13 @@ PARAMETERS: dict[str, _Spec] = {
     'loop': _Spec(False, 'walk the plan again when done (else stand at the last posture)'),
     'wait_for_subscriber': _Spec(True, 'hold the first posture until the three sensor streams '
                                  'have a matched subscriber'),
+    'command_topic': _Spec('', "'' (default): walk the plan; else follow trajectory_msgs/"
+                           'JointTrajectory commands on this topic (e.g. /joint_trajectory_'
+                           'controller/joint_trajectory) like a trajectory controller with mock '
+                           'hardware, instead of walking a plan'),
+    'max_actuator_speed_m_s': _Spec(0.1, 'commanded mode: the fastest an actuator moves (m/s); '
+                                    'slower when a point\'s time_from_start asks for it',
+                                    1e-6, 10.0),
 }
 
 
@@ -144,7 +179,7 @@ def _parameter_problem(parameter: Parameter) -> str | None:
     elif parameter.name == 'model' and value not in MODEL_CHOICES:
         return (f"model must be '' or one of {', '.join(MODELS)}, got {value!r}")
     elif parameter.name in ('link_length', 'rate_hz', 'settle_s', 'dwell_s', 'slider_noise_m',
-                            'angle_noise_rad') and not math.isfinite(value):
+                            'angle_noise_rad', 'max_actuator_speed_m_s') and not math.isfinite(value):
         return f'{parameter.name} must be finite, got {value}'
     return None
 
@@ -163,17 +198,26 @@ class DriverNode(Node):
 
         self.true_params, self.mount = self._load_true_params(value['true_params'], value['model'])
         self.model = self.true_params.model
-        try:
-            self.plan: PosturePlan = resolve_plan(value['plan'], self.true_params,
-                                                  value['postures'], value['seed'],
-                                                  value['link_length'], self.mount)
-        except PlanError as error:
-            raise DriverConfigurationError(str(error)) from error
-        self.declare_parameter('plan_name', self.plan.name, ParameterDescriptor(
+        self.command_topic = value['command_topic']
+        self.link_length = float(value['link_length'])
+        self.plan: PosturePlan | None = None
+        self.walker: PlanWalker | None = None
+        self.follower: CommandFollower | None = None
+        if self.command_topic:
+            self.follower = self._start_follower(value['max_actuator_speed_m_s'])
+            plan_name = f'commanded on {self.command_topic}'
+        else:
+            try:
+                self.plan = resolve_plan(value['plan'], self.true_params, value['postures'],
+                                         value['seed'], value['link_length'], self.mount)
+            except PlanError as error:
+                raise DriverConfigurationError(str(error)) from error
+            self.walker = PlanWalker(self.true_params, self.plan.poses, value['settle_s'],
+                                     value['dwell_s'], value['loop'])
+            plan_name = self.plan.name
+        self.declare_parameter('plan_name', plan_name, ParameterDescriptor(
             description='name of the plan being walked (set by the node)', read_only=True),
             ignore_override=True)
-        self.walker = PlanWalker(self.true_params, self.plan.poses, value['settle_s'],
-                                 value['dwell_s'], value['loop'])
         # Noise draws from their own stream: the same seed gives the same plan whatever the noise.
         self.sensors = SensorSimulator(
             NoiseModel(value['slider_noise_m'], value['angle_noise_rad']),
@@ -191,6 +235,7 @@ class DriverNode(Node):
         self._started = False
         self._started_monotonic = 0.0
         self._last_reported: tuple[int, int, str] | None = None
+        self._last_phase = ''
         self._per_wake = max(1, math.ceil(self.rate_hz / MAX_WAKE_HZ - 1e-9))
         self._period_ns = int(round(NS_PER_S / self.rate_hz))
         self._last_stamp_ns = -1
@@ -200,6 +245,14 @@ class DriverNode(Node):
                                                      model=self.model),
             'inclinometer': inclinometer_reading_to_joint_state(InclinometerReading(0, 0.0, 0.0)),
             'encoder': encoder_reading_to_joint_state(EncoderReading(0, 0.0))}
+        self.commands_accepted = 0
+        self.commands_rejected = 0
+        if self.follower is not None:
+            try:
+                self.create_subscription(JointTrajectory, self.command_topic, self._on_command,
+                                         COMMAND_QOS)
+            except InvalidTopicNameException as error:
+                raise DriverConfigurationError(f'command_topic: {error}') from error
         self._timer = self.create_timer(self._per_wake / self.rate_hz, self._wake)
 
         if value['true_params']:
@@ -212,6 +265,16 @@ class DriverNode(Node):
             source += f' ({self.model}, joints {", ".join(MODELS[self.model].actuator_names)})'
         if self.mount != DEFAULT_MOUNT:
             source += f', {self.mount} device'
+        if self.follower is not None:
+            low, high = self.stroke
+            topic = self.resolve_topic_name(self.command_topic)
+            self.get_logger().info(
+                f'following JointTrajectory commands on {topic} (joints '
+                f'{", ".join(MODELS[self.model].actuator_names)}, at most '
+                f'{self.follower.max_speed_m_s:g} m/s, stroke [{low:g}, {high:g}] m); true machine: '
+                f'{source}; {self.rate_hz:g} Hz, noise +-{self.sensors.noise.slider_m:g} m / '
+                f'+-{self.sensors.noise.angle_rad:g} rad; standing at the fixed-position point')
+            return
         self.get_logger().info(
             f'{self.plan.describe()}; true machine: {source}; {self.rate_hz:g} Hz, settle '
             f"{self.walker.settle_s:g} s, dwell {self.walker.dwell_s:g} s (one pass "
@@ -238,6 +301,51 @@ class DriverNode(Node):
                 f'model {model!r} contradicts true_params {path}, a {loaded.model} parameters '
                 f"file: leave model '' or name the file's model")
         return params, mount
+
+    def _start_follower(self, max_speed: float) -> CommandFollower:
+        """Commanded mode: the machine stands at the fixed-position point with zero angles."""
+        from hexacal_driver.plan import machine_workspace
+
+        self.stroke = tuple(float(v) for v in machine_workspace(
+            self.true_params, self.link_length, self.mount).slider_stroke_m)
+        home = np.concatenate([fixed_point(self.link_length, self.mount), np.zeros(3)])
+        try:
+            follower = CommandFollower(self.true_params, home, max_speed, self.link_length,
+                                       self.mount)
+        except (UnreachablePoseError, ConstraintError) as error:
+            raise DriverConfigurationError(
+                f'commanded mode: the machine cannot stand at the fixed-position point {home[:3]} '
+                f'with zero angles: {error}') from error
+        low, high = self.stroke
+        if np.any((follower.sliders < low) | (follower.sliders > high)):
+            raise DriverConfigurationError(
+                f'commanded mode: at the fixed-position point the actuators '
+                f'{np.round(follower.sliders, 4).tolist()} m are outside the stroke [{low:g}, '
+                f'{high:g}] m')
+        return follower
+
+    def _on_command(self, message: JointTrajectory) -> None:
+        """A JointTrajectory command: follow it, or reject it with the reason."""
+        points = [(list(point.positions),
+                   point.time_from_start.sec + point.time_from_start.nanosec * 1e-9)
+                  for point in message.points]
+        checked, problem = check_trajectory(list(message.joint_names), points,
+                                            MODELS[self.model].actuator_names, self.stroke)
+        now_ns = self.get_clock().now().nanoseconds
+        start_ns = message.header.stamp.sec * NS_PER_S + message.header.stamp.nanosec
+        if problem is None and start_ns and start_ns + int(checked[-1].time_from_start_s * 1e9) < now_ns:
+            problem = 'it ends in the past (header.stamp + time_from_start)'
+        if problem is not None:
+            self.commands_rejected += 1
+            self.get_logger().warning(f'rejected a JointTrajectory command: {problem}')
+            return
+        self.commands_accepted += 1
+        end_s = self.follower.command(now_ns / NS_PER_S, checked,
+                                      start_ns / NS_PER_S if start_ns else None)
+        target = checked[-1].positions
+        self.get_logger().info(
+            f'command {self.commands_accepted}: to [{", ".join(f"{v * 1e3:.3f}" for v in target)}] '
+            f'mm in {end_s - now_ns / NS_PER_S:.2f} s')
 
     def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for parameter in parameters:
@@ -272,6 +380,14 @@ class DriverNode(Node):
             self._tick(stamp)
 
     def _tick(self, stamp: int) -> None:
+        if self.follower is not None:
+            if not self._started:
+                self._started = True
+                self.published_before_plan = self.published
+            sample = self.follower.sample(stamp / NS_PER_S)
+            self._publish(sample, stamp)
+            self._report_motion(sample.phase)
+            return
         if not self._started:
             # Matched (DDS), not just on the graph, on all three: no plan sample goes to nobody.
             if self.wait_for_subscriber and min(
@@ -306,6 +422,18 @@ class DriverNode(Node):
         self._encoder_pub.publish(messages['encoder'])
         self.published += 1  # complete ticks: Ctrl-C may cut the last one after some of its publishes
 
+    def _report_motion(self, phase: str) -> None:
+        """Commanded mode: one line when a commanded motion ends (with the link's strain)."""
+        if phase == self._last_phase:
+            return
+        self._last_phase = phase
+        if phase != MOVING and self.commands_accepted:
+            strain = self.follower.strain_m
+            self.get_logger().info(
+                f'standing at the commanded position (actuators {strain * 1e6:.0f} um from the '
+                'setpoints: the strain of the measuring link)' if strain > 1e-6 else
+                'standing at the commanded position')
+
     def _report(self, index: int, lap: int, phase: str) -> None:
         state = (index, lap, phase)
         if phase not in (DWELLING, DONE) or state == self._last_reported:
@@ -334,9 +462,13 @@ def _finish(node: DriverNode) -> list[str]:
     # Best-effort samples of the last ticks may still sit in Fast DDS's writer queues: give its
     # send threads a moment before the publishers are destroyed, so a stop loses nothing in flight.
     time.sleep(SHUTDOWN_LINGER_S)
-    return [f'published {node.published} messages on each sensor stream, '
-            f'{node.published - node.published_before_plan} of them since the plan '
-            f'started (first stamp {node.plan_start_stamp_ns} ns)']
+    lines = [f'published {node.published} messages on each sensor stream, '
+             f'{node.published - node.published_before_plan} of them since the plan '
+             f'started (first stamp {node.plan_start_stamp_ns} ns)']
+    if node.follower is not None:
+        lines.append(f'commands: {node.commands_accepted} followed, {node.commands_rejected} '
+                     'rejected')
+    return lines
 
 
 def main(args: list[str] | None = None) -> int:

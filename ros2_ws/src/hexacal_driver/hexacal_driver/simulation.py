@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from hexacal_identify.core.device import DEFAULT_MOUNT, inclinometer_angles
+from hexacal_identify.core.device import DEFAULT_MOUNT, STANDING, inclinometer_angles
 from hexacal_identify.core.errors import UnreachablePoseError
 from hexacal_identify.core.kinematics import inverse_kinematics
 from hexacal_identify.core.measurements import NoiseModel
@@ -162,3 +162,211 @@ class SensorSimulator:
         angle_noise = self.rng.uniform(-1.0, 1.0, 3) * self.noise.angle_rad
         return SensorReadings(exact.sliders_m + slider_noise, exact.alpha_rad + angle_noise[0],
                               exact.beta_rad + angle_noise[1], exact.phi_rad + angle_noise[2])
+
+
+# --------------------------------------------------------------------------- commanded mode
+
+MOVING = 'moving'  # commanded mode: a trajectory is being followed
+STILL = 'still'  # commanded mode: the setpoints stand still
+
+_CONSTRAINT_ITERATIONS = 30
+_CONSTRAINT_STEP_M = 1e-11  # Gauss-Newton stops when its step is below this (rad)
+
+
+class ConstraintError(RuntimeError):
+    """No platform pose on the link sphere near the previous one fits the actuator setpoints."""
+
+
+def device_constrained_pose(params: KinematicParameters, setpoints: np.ndarray, start: np.ndarray,
+                            link_length: float, mount: str = DEFAULT_MOUNT) -> tuple[np.ndarray, np.ndarray]:
+    """Where the machine stands with its actuators commanded to `setpoints` and the measuring link attached.
+
+    The link (U joints at both ends, fixed length L) holds the platform on the sphere of radius
+    L about O: 5 DOF for 6 position-controlled actuators. Setpoints that the true machine cannot
+    reach on that sphere (those computed from an imperfect nominal model, millimetres off) strain
+    the machine until the actuators, equally stiff servos, settle where the elastic energy is
+    least: the pose on the sphere whose true inverse kinematics is nearest to the setpoints in the
+    least-squares sense. The actuator encoders read that pose's true actuator positions, which
+    differ from the setpoints by the strain; every reading is therefore exactly consistent with the
+    true machine, as on a real one. Setpoints the true machine reaches on the sphere (the plan-
+    walking mode's) give that pose exactly.
+
+    Gauss-Newton over (alpha, beta, theta, psi, phi) from `start` (the previous pose: the solution
+    stays on the branch the machine is on), the position on the sphere by eq. 4 (core/device.py).
+    Returns (pose (6,), true actuator readings (6,)); ConstraintError if `start` is out of reach.
+    """
+    setpoints = np.asarray(setpoints, dtype=float)
+    start = np.asarray(start, dtype=float)
+    arch = params.architecture
+    chains = arch.chains(params)
+    sign = -1.0 if mount == STANDING else 1.0  # standing: p = -p_hanging (core/device.py)
+    alpha, beta = inclinometer_angles(start[None, :3], mount)
+    state = np.array([alpha[0], beta[0], *start[3:]])
+
+    def evaluate(s: np.ndarray):
+        ca, sa, cb, sb = math.cos(s[0]), math.sin(s[0]), math.cos(s[1]), math.sin(s[1])
+        position = sign * link_length * np.array([ca * sb, -sa, -ca * cb])
+        pose = np.concatenate([position, s[2:]])
+        legs = arch.legs(chains, pose[None])
+        if not bool(legs.reachable()[0]):
+            return pose, legs, None, math.inf
+        tangent = np.zeros((6, 5))
+        tangent[:3, 0] = sign * link_length * np.array([-sa * sb, -ca, sa * cb])
+        tangent[:3, 1] = sign * link_length * np.array([ca * cb, 0.0, ca * sb])
+        tangent[3:, 2:] = np.eye(3)
+        residual = legs.sliders[0] - setpoints
+        return pose, legs, tangent, float(residual @ residual)
+
+    pose, legs, tangent, cost = evaluate(state)
+    if not math.isfinite(cost):
+        raise ConstraintError('the previous pose is out of reach of the true machine')
+    for _ in range(_CONSTRAINT_ITERATIONS):
+        jacobian = legs.pose_jacobian()[0] @ tangent
+        step = np.linalg.lstsq(jacobian, legs.sliders[0] - setpoints, rcond=None)[0]
+        size = float(np.max(np.abs(step)))
+        if size < _CONSTRAINT_STEP_M:
+            break
+        scale = 1.0
+        for _halving in range(8):
+            trial = evaluate(state - scale * step)
+            if trial[3] <= cost:
+                break
+            scale *= 0.5
+        else:
+            break  # no step reduces the strain: this is its minimum, to rounding
+        state = state - scale * step
+        pose, legs, tangent, cost = trial
+    return pose, legs.sliders[0].copy()
+
+
+@dataclass(frozen=True)
+class TrajectoryPoint:
+    """One point of a commanded trajectory: actuator positions in model order, m; s from its start."""
+
+    positions: np.ndarray
+    time_from_start_s: float
+
+
+def check_trajectory(joint_names: list[str], points: list[tuple[list[float], float]],
+                     expected_names: tuple[str, ...],
+                     stroke_m: tuple[float, float]) -> tuple[list[TrajectoryPoint], str | None]:
+    """A JointTrajectory's joints and points in the machine's order, or the reason it is rejected.
+
+    Like ros2_control's joint_trajectory_controller (without partial joint goals): the joint
+    names must be exactly the machine's actuators (any order, each once), every point needs one
+    finite position per joint, times from start must strictly increase and not be negative, and
+    an empty trajectory is rejected. Unlike the controller, a position outside the actuator
+    stroke rejects the whole command (a simulated hard limit) instead of being clamped.
+    """
+    names = list(joint_names)
+    if not names:
+        return [], 'no joint names'
+    if len(set(names)) != len(names):
+        return [], f'joint names repeat: {names}'
+    if set(names) != set(expected_names):
+        unknown = sorted(set(names) - set(expected_names))
+        missing = sorted(set(expected_names) - set(names))
+        return [], (f"joint names {names} are not this machine's actuators "
+                    f"{list(expected_names)}" + (f': unknown {unknown}' if unknown else '')
+                    + (f', missing {missing}' if missing else ''))
+    if not points:
+        return [], 'empty trajectory (no points)'
+    order = [names.index(name) for name in expected_names]
+    low, high = stroke_m
+    checked: list[TrajectoryPoint] = []
+    previous = -math.inf
+    for index, (positions, time_s) in enumerate(points):
+        if len(positions) != len(names):
+            return [], f'point {index} has {len(positions)} positions for {len(names)} joints'
+        values = np.array([float(positions[i]) for i in order])
+        if not np.all(np.isfinite(values)):
+            return [], f'point {index} has non-finite positions {values.tolist()}'
+        if not math.isfinite(time_s) or time_s < 0.0:
+            return [], f'point {index} time_from_start {time_s!r} s is negative or not finite'
+        if time_s <= previous:
+            return [], (f'time_from_start of point {index} ({time_s:g} s) is not after that of '
+                        f'point {index - 1} ({previous:g} s)')
+        outside = [f'{expected_names[i]} {values[i]:.6g} m' for i in range(len(values))
+                   if not low <= values[i] <= high]
+        if outside:
+            return [], (f'point {index} is outside the actuator stroke [{low:g}, {high:g}] m: '
+                        + ', '.join(outside))
+        previous = time_s
+        checked.append(TrajectoryPoint(values, float(time_s)))
+    return checked, None
+
+
+class CommandFollower:
+    """A trajectory controller with mock hardware, on the true machine with the device attached.
+
+    Each accepted trajectory replaces the one being followed and starts from the current
+    setpoints (as joint_trajectory_controller does on its topic interface). The setpoints move
+    linearly from point to point, all actuators together, each segment taking its
+    time_from_start difference or longer if the fastest actuator would exceed
+    `max_speed_m_s`. The machine's pose is where the device link lets it be
+    (`device_constrained_pose`); `sample` gives it with the true actuator readings.
+    """
+
+    def __init__(self, params: KinematicParameters, start_pose: np.ndarray, max_speed_m_s: float,
+                 link_length: float, mount: str = DEFAULT_MOUNT):
+        if not (max_speed_m_s > 0 and math.isfinite(max_speed_m_s)):
+            raise ValueError(f'max_speed_m_s must be > 0, got {max_speed_m_s}')
+        self.params = params
+        self.max_speed_m_s = float(max_speed_m_s)
+        self.link_length = float(link_length)
+        self.mount = mount
+        self.pose = np.array(start_pose, dtype=float)
+        self.setpoints = inverse_kinematics(params, self.pose[None])[0]
+        self.sliders = self.setpoints.copy()
+        self.pose, self.sliders = device_constrained_pose(params, self.setpoints, self.pose,
+                                                          self.link_length, mount)
+        # Segments (start time s, end time s, start setpoints, end setpoints) of the trajectory.
+        self._segments: list[tuple[float, float, np.ndarray, np.ndarray]] = []
+        self._solved_for = self.setpoints.copy()
+        self.commands = 0
+        self.strain_m = float(np.max(np.abs(self.sliders - self.setpoints)))
+
+    @property
+    def end_time_s(self) -> float:
+        """When the trajectory being followed ends (-inf if none)."""
+        return self._segments[-1][1] if self._segments else -math.inf
+
+    def setpoints_at(self, now_s: float) -> np.ndarray:
+        for start_s, end_s, begin, end in self._segments:
+            if now_s < start_s:
+                return begin.copy()
+            if now_s < end_s:
+                s = (now_s - start_s) / (end_s - start_s)
+                return begin + s * (end - begin)
+        return self._segments[-1][3].copy() if self._segments else self.setpoints.copy()
+
+    def command(self, now_s: float, points: list[TrajectoryPoint], start_s: float | None = None) -> float:
+        """Follow `points` (checked, model order) from now (or from start_s if later); returns
+        the time the last point is reached, s."""
+        current = self.setpoints_at(now_s)
+        self.setpoints = current
+        begin_s = max(now_s, start_s) if start_s is not None else now_s
+        segments = []
+        previous_positions, previous_time, t = current, 0.0, begin_s
+        for point in points:
+            largest = float(np.max(np.abs(point.positions - previous_positions)))
+            duration = max(point.time_from_start_s - previous_time, largest / self.max_speed_m_s)
+            segments.append((t, t + duration, previous_positions, point.positions.copy()))
+            previous_positions, previous_time, t = point.positions, point.time_from_start_s, t + duration
+        self._segments = segments
+        self.commands += 1
+        return t
+
+    def sample(self, now_s: float) -> WalkSample:
+        """The machine at now_s (node clock, s): pose, true actuator readings, MOVING or STILL."""
+        self.setpoints = self.setpoints_at(now_s)
+        if not np.array_equal(self.setpoints, self._solved_for):
+            try:
+                self.pose, self.sliders = device_constrained_pose(
+                    self.params, self.setpoints, self.pose, self.link_length, self.mount)
+            except (ConstraintError, UnreachablePoseError):
+                pass  # stays where it was (a setpoint path the link does not allow)
+            self._solved_for = self.setpoints.copy()
+            self.strain_m = float(np.max(np.abs(self.sliders - self.setpoints)))
+        phase = MOVING if now_s < self.end_time_s else STILL
+        return WalkSample(self.pose.copy(), self.sliders.copy(), 0, phase, 0)

@@ -1,0 +1,596 @@
+"""Walking a posture plan on a machine through its trajectory controller (ROS-free).
+
+The executor node (nodes/executor.py) feeds this module what it hears and
+publishes what it answers; everything that decides is here, unit-tested without ROS.
+
+For each posture of a plan from ``hexacal plan``:
+
+1. Targets: inverse kinematics of the planned pose with the *nominal*
+   parameters (the only model a user has before calibrating). Every target of
+   the plan is checked before anything moves (`plan_targets`): a pose the
+   nominal machine cannot reach, an actuator outside the stroke limits, or a
+   posture that is not where its kind says (a sphere posture off the link
+   sphere, a fixed-position posture away from the fixed point) refuses the
+   whole plan (`PlanRefusedError`, listing the postures). Chosen over skipping
+   them: a plan that needs a target outside the stroke was made for another
+   machine or other limits, and walking what remains of it would measure a
+   different plan than the one asked for.
+2. Move: one command, the targets with ``time_from_start`` from the largest
+   actuator move at ``max_actuator_speed_m_s`` (`move_duration`).
+3. Arrive: the measured actuators are at the target (within
+   ``position_tolerance_m``) and still (peak-to-peak within
+   ``still_tolerance_m``) over the last ``settle_s``, counted from when the
+   command's own time has passed.  The tolerance allows for the strain of the
+   measuring link: the link holds the platform on its sphere, so where the
+   nominal model is millimetres off, the actuators stop up to millimetres away
+   from targets the true machine cannot reach on that sphere.
+4. Fixed-position postures (eq. 10) are reached in closed loop: with the
+   machine still, the mean inclinometer reading (alpha, beta) over ``settle_s``
+   gives the platform's position by eq. 4; the commanded pose's position is
+   moved by ``-dp/d(alpha, beta) [alpha, beta]`` (eq. 4's derivative,
+   `fixed_position_correction`) and new targets come from the nominal inverse
+   kinematics, until both angles are within ``fixed_tolerance_rad``; after
+   ``max_corrections`` the posture is skipped and reported.  Intermediate stops
+   are valid sphere postures if the collector measures them.
+5. Measured: the collector's posture of this stop (received after the last
+   command, its actuators within ``still_tolerance_m`` of the still mean).
+   Then the next posture.
+
+A posture not done within ``timeout_s`` of its first command is skipped and
+reported with what was missing. Pause holds the machine (a one-point command at
+the measured actuator positions) and restarts the current posture on resume
+(its timeout too); abort holds it and ends the plan.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+import math
+
+import numpy as np
+
+from .architectures import KinematicParameters
+from .device import DEFAULT_MOUNT, device_position, fixed_point
+from .errors import CalibrationError
+from .measurements import FIXED, POSTURE_KINDS, SPHERE
+
+WAITING = 'waiting'  # for the machine (actuator readings, a controller on the command topic)
+RUNNING = 'running'
+PAUSED = 'paused'
+ABORTED = 'aborted'
+DONE = 'done'
+REFUSED = 'refused'  # the plan was refused before anything moved
+STATES = (WAITING, RUNNING, PAUSED, ABORTED, DONE, REFUSED)
+
+MOVE, CORRECT, HOLD = 'move', 'correct', 'hold'  # why a command is sent
+
+MIN_MOVE_S = 0.1  # shortest time_from_start of a command (a zero time asks a controller to jump)
+HOLD_S = 0.2  # time_from_start of a hold command
+POSITION_CHECK_M = 1e-6  # a plan posture's position must be where its kind says, to within this
+MIN_WINDOW_READINGS = 3  # readings a still window needs
+DEFAULT_OVERHEAD_S = 1.0  # ETA before any posture is done: per posture, besides moving and settle_s
+
+
+class PlanRefusedError(CalibrationError, ValueError):
+    """The plan has postures the executor will not command; `problems` maps posture index -> why."""
+
+    reason = 'plan-refused'
+
+    def __init__(self, message: str, problems: dict[int, str]):
+        super().__init__(message)
+        self.problems = dict(problems)
+
+
+@dataclass(frozen=True)
+class ExecutionSettings:
+    """The executor's tolerances and limits (SI units)."""
+
+    max_actuator_speed_m_s: float = 0.05
+    position_tolerance_m: float = 5e-3
+    still_tolerance_m: float = 1e-4
+    settle_s: float = 0.5
+    timeout_s: float = 60.0
+    fixed_tolerance_rad: float = 2e-5
+    max_corrections: int = 5
+    wait_for_posture: bool = True
+
+    def __post_init__(self) -> None:
+        problems = []
+        for name in ('max_actuator_speed_m_s', 'position_tolerance_m', 'still_tolerance_m', 'settle_s',
+                     'timeout_s', 'fixed_tolerance_rad'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value) or value <= 0:
+                problems.append(f'{name} must be a positive finite number, got {value!r}')
+        if isinstance(self.max_corrections, bool) or not isinstance(self.max_corrections, int) \
+                or self.max_corrections < 0:
+            problems.append(f'max_corrections must be an integer >= 0, got {self.max_corrections!r}')
+        if problems:
+            raise ValueError('; '.join(problems))
+
+
+@dataclass(frozen=True)
+class Command:
+    """Actuator targets (model order, m) to reach in duration_s: one JointTrajectory point."""
+
+    positions: np.ndarray
+    duration_s: float
+    purpose: str  # MOVE, CORRECT or HOLD
+    posture: int  # plan index (0-based) it serves; -1 for a hold
+
+
+@dataclass
+class PostureOutcome:
+    index: int
+    kind: str
+    measured: bool
+    reason: str  # why it was skipped ('' when measured)
+    duration_s: float
+    move_s: float  # the planned move time of its first command
+    corrections: int
+
+
+def default_stroke(nominal: KinematicParameters) -> tuple[float, float]:
+    """The actuator stroke of the nominal model's architecture (its default workspace), m."""
+    low, high = nominal.architecture.default_workspace().slider_stroke_m
+    return float(low), float(high)
+
+
+def check_stroke(stroke: tuple[float, float] | list[float]) -> tuple[float, float]:
+    """(low, high) with low < high, both finite; ValueError naming the problem."""
+    values = list(stroke)
+    if len(values) != 2 or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                   and math.isfinite(v) for v in values) or values[0] >= values[1]:
+        raise ValueError(f'stroke limits must be two finite numbers [low, high] with low < high (m), '
+                         f'got {values!r}')
+    return float(values[0]), float(values[1])
+
+
+def plan_targets(nominal: KinematicParameters, poses: np.ndarray, kinds, stroke: tuple[float, float],
+                 link_length: float, mount: str = DEFAULT_MOUNT) -> tuple[np.ndarray, dict[int, str]]:
+    """Nominal actuator targets (N, 6) of every planned pose, and the problem of each posture that
+    cannot be commanded (index -> reason; its row is NaN where it has no targets)."""
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    kinds = [str(kind) for kind in kinds]
+    low, high = check_stroke(stroke)
+    arch = nominal.architecture
+    names = nominal.layout.actuator_names
+    problems: dict[int, str] = {}
+    targets = np.full((len(poses), 6), np.nan)
+    finite = np.all(np.isfinite(poses), axis=1)
+    for index in np.flatnonzero(~finite):
+        problems[int(index)] = 'the pose is not finite'
+    if finite.any():
+        legs = arch.legs(arch.chains(nominal), np.where(finite[:, None], poses, 0.0))
+        reachable = legs.reachable() & finite
+        targets[reachable] = legs.sliders[reachable]
+        for index in np.flatnonzero(finite & ~reachable):
+            problems[int(index)] = (f'the nominal machine cannot reach it '
+                                    f'({arch.unreachable_reason})')
+    point = fixed_point(link_length, mount)
+    for index, (pose, kind) in enumerate(zip(poses, kinds)):
+        if index in problems:
+            continue
+        if kind not in POSTURE_KINDS:
+            problems[index] = f'kind {kind!r} is not one of {list(POSTURE_KINDS)}'
+        elif kind == FIXED and np.linalg.norm(pose[:3] - point) > POSITION_CHECK_M:
+            problems[index] = (f'a fixed-position posture must be at {point.tolist()} m, got '
+                               f'{pose[:3].tolist()}')
+        elif kind == SPHERE and abs(np.linalg.norm(pose[:3]) - link_length) > POSITION_CHECK_M:
+            problems[index] = (f'a sphere posture must be on the link sphere |p| = {link_length:g} m, '
+                               f'got |p| = {np.linalg.norm(pose[:3]):.9g} m')
+        else:
+            outside = [f'{names[c]} {targets[index, c]:.4f} m' for c in range(6)
+                       if not low <= targets[index, c] <= high]
+            if outside:
+                problems[index] = (f'target outside the stroke [{low:g}, {high:g}] m: '
+                                   + ', '.join(outside))
+    return targets, problems
+
+
+def refusal_message(problems: dict[int, str], total: int, shown: int = 10) -> str:
+    """One line naming the refused postures (1-based, as progress counts them) and why."""
+    items = sorted(problems.items())
+    listed = '; '.join(f'posture {index + 1}: {why}' for index, why in items[:shown])
+    more = f'; ... and {len(items) - shown} more' if len(items) > shown else ''
+    return (f'plan refused before anything moved: {len(items)} of {total} postures cannot be '
+            f'commanded (postures {[index + 1 for index, _ in items]}): {listed}{more}')
+
+
+def check_plan(nominal: KinematicParameters, poses: np.ndarray, kinds, stroke: tuple[float, float],
+               link_length: float, mount: str = DEFAULT_MOUNT) -> np.ndarray:
+    """The targets of every posture, or PlanRefusedError listing each one that cannot be commanded."""
+    targets, problems = plan_targets(nominal, poses, kinds, stroke, link_length, mount)
+    if problems:
+        raise PlanRefusedError(refusal_message(problems, len(targets)), problems)
+    return targets
+
+
+def move_duration(current: np.ndarray, target: np.ndarray, max_speed_m_s: float,
+                  minimum_s: float = MIN_MOVE_S) -> float:
+    """time_from_start of a move: the largest actuator move at max_speed_m_s, at least minimum_s."""
+    largest = float(np.max(np.abs(np.asarray(target, dtype=float) - np.asarray(current, dtype=float))))
+    return max(largest / max_speed_m_s, minimum_s)
+
+
+def fixed_position_correction(alpha: float, beta: float, link_length: float,
+                              mount: str = DEFAULT_MOUNT) -> np.ndarray:
+    """Platform position change (3,) that brings the inclinometer from (alpha, beta) to zero:
+    ``-dp/d(alpha, beta) [alpha, beta]`` with eq. 4's derivative at the reading (first order)."""
+    placed = device_position(np.array([alpha]), np.array([beta]), link_length, mount=mount)
+    return -placed.d_readings[0] @ np.array([alpha, beta])
+
+
+def corrected_pose(commanded: np.ndarray, alpha: float, beta: float, link_length: float,
+                   mount: str = DEFAULT_MOUNT) -> np.ndarray:
+    """The commanded pose with its position corrected for the inclinometer reading (orientation kept)."""
+    pose = np.array(commanded, dtype=float)
+    pose[:3] += fixed_position_correction(alpha, beta, link_length, mount)
+    return pose
+
+
+def joint_positions(names, positions, wanted) -> np.ndarray | None:
+    """Positions of the `wanted` joints, in that order, from a JointState's names/positions
+    (None if one is missing, repeated or not finite)."""
+    index: dict[str, int] = {}
+    for i, name in enumerate(names):
+        if name in index and name in wanted:
+            return None
+        index[name] = i
+    try:
+        values = np.array([float(positions[index[name]]) for name in wanted])
+    except (KeyError, IndexError, TypeError, ValueError):
+        return None
+    return values if np.all(np.isfinite(values)) else None
+
+
+class ReadingWindow:
+    """Recent (time s, values) readings, oldest first, kept for `keep_s`."""
+
+    def __init__(self, keep_s: float):
+        self.keep_s = float(keep_s)
+        self._times: deque[float] = deque()
+        self._values: deque[np.ndarray] = deque()
+
+    def add(self, now: float, values: np.ndarray) -> None:
+        self._times.append(float(now))
+        self._values.append(np.asarray(values, dtype=float))
+        while self._times and self._times[0] < now - self.keep_s:
+            self._times.popleft()
+            self._values.popleft()
+
+    @property
+    def latest(self) -> np.ndarray | None:
+        return self._values[-1] if self._values else None
+
+    def between(self, start: float, end: float) -> np.ndarray:
+        """Readings received in [start, end], (n, channels)."""
+        chosen = [v for t, v in zip(self._times, self._values) if start <= t <= end]
+        return np.array(chosen) if chosen else np.empty((0, 0))
+
+
+class PlanExecution:
+    """The executor's state machine: feed it readings, postures and time; send its commands."""
+
+    def __init__(self, nominal: KinematicParameters, poses: np.ndarray, kinds, targets: np.ndarray,
+                 settings: ExecutionSettings, stroke: tuple[float, float], link_length: float,
+                 mount: str = DEFAULT_MOUNT, start_paused: bool = False):
+        self.nominal = nominal
+        self.poses = np.atleast_2d(np.asarray(poses, dtype=float))
+        self.kinds = [str(kind) for kind in kinds]
+        self.targets = np.asarray(targets, dtype=float)
+        self.settings = settings
+        self.stroke = check_stroke(stroke)
+        self.link_length = float(link_length)
+        self.mount = mount
+        self.state = WAITING
+        self.start_paused = bool(start_paused)
+        self.index = 0  # current posture
+        self.outcomes: list[PostureOutcome] = []
+        keep = 4.0 * settings.settle_s + 2.0
+        self.actuators = ReadingWindow(keep)
+        self.inclinometer = ReadingWindow(keep)
+        self.messages: list[tuple[str, str]] = []  # (level, text) for the node to log
+        self.total_corrections = 0
+        self.started_at: float | None = None
+        self.finished_at: float | None = None
+        self._paused_total = 0.0
+        self._paused_at: float | None = None
+        self._phase: str | None = None  # 'moving' (arriving) or 'posture' (waiting for the collector)
+        self._pose_cmd = np.zeros(6)
+        self._target = np.zeros(6)
+        self._corrections = 0
+        self._posture_start = 0.0
+        self._first_move_s = 0.0
+        self._command_time = 0.0
+        self._arrive_after = 0.0
+        self._still_mean: np.ndarray | None = None
+        self._postures: list[tuple[float, np.ndarray]] = []  # (received, actuators) since the last command
+        self._sent_any = False
+
+    # ------------------------------------------------------------------ inputs
+
+    def on_actuators(self, now: float, positions: np.ndarray) -> None:
+        self.actuators.add(now, positions)
+
+    def on_inclinometer(self, now: float, alpha: float, beta: float) -> None:
+        self.inclinometer.add(now, np.array([alpha, beta]))
+
+    def on_posture(self, now: float, actuators: np.ndarray) -> None:
+        if self.state in (RUNNING, PAUSED) and self._phase is not None:
+            self._postures.append((now, np.asarray(actuators, dtype=float)))
+
+    # ------------------------------------------------------------------ control
+
+    @property
+    def total(self) -> int:
+        return len(self.poses)
+
+    @property
+    def measured(self) -> int:
+        return sum(outcome.measured for outcome in self.outcomes)
+
+    @property
+    def skipped(self) -> list[PostureOutcome]:
+        return [outcome for outcome in self.outcomes if not outcome.measured]
+
+    def start(self, now: float) -> list[Command]:
+        """The machine is there (readings arrive, a controller listens): begin, or wait paused."""
+        if self.state != WAITING or self.actuators.latest is None:
+            return []
+        self.started_at = now
+        if self.start_paused:
+            self.state = PAUSED
+            self._paused_at = now
+            self._say('info', f'ready to walk {self.total} postures; paused until resumed')
+            return []
+        self.state = RUNNING
+        return self._begin(now, fresh=True)
+
+    def pause(self, now: float) -> tuple[bool, str, list[Command]]:
+        if self.state == WAITING:
+            self.start_paused = True
+            return True, 'paused: the plan will not start until resumed', []
+        if self.state == PAUSED:
+            return True, f'already paused at posture {self.index + 1} of {self.total}', []
+        if self.state != RUNNING:
+            return False, f'cannot pause: the executor is {self.state}', []
+        self.state = PAUSED
+        self._paused_at = now
+        self._phase = None
+        text = (f'paused at posture {self.index + 1} of {self.total}: holding; resume restarts '
+                'this posture')
+        self._say('info', text)
+        return True, text, self._hold()
+
+    def resume(self, now: float) -> tuple[bool, str, list[Command]]:
+        if self.state == WAITING:
+            self.start_paused = False
+            return True, 'resumed: the plan starts when the machine is ready', []
+        if self.state != PAUSED:
+            return False, f'cannot resume: the executor is {self.state}', []
+        if self._paused_at is not None:
+            self._paused_total += now - self._paused_at
+            self._paused_at = None
+        self.state = RUNNING
+        text = f'resumed at posture {self.index + 1} of {self.total}'
+        self._say('info', text)
+        return True, text, self._begin(now, fresh=not self._sent_any)
+
+    def abort(self, now: float) -> tuple[bool, str, list[Command]]:
+        if self.state in (ABORTED, DONE, REFUSED):
+            return False, f'cannot abort: the executor is already {self.state}', []
+        was = self.state
+        if self._paused_at is not None:
+            self._paused_total += now - self._paused_at
+            self._paused_at = None
+        self.state = ABORTED
+        self.finished_at = now
+        self._phase = None
+        text = (f'aborted at posture {self.index + 1} of {self.total} ({self.measured} measured, '
+                f'{len(self.skipped)} skipped)')
+        self._say('warn', text)
+        return True, text, self._hold() if was == RUNNING else []
+
+    def step(self, now: float) -> list[Command]:
+        """Advance on the readings so far; the commands to publish now."""
+        if self.state != RUNNING or self._phase is None:
+            return []
+        settings = self.settings
+        if now - self._posture_start > settings.timeout_s:
+            return self._skip(now, self._timeout_reason(now))
+        if self._phase == 'moving':
+            still = self._still_mean_at(now)
+            if still is None:
+                return []
+            if self.kinds[self.index] == FIXED:
+                angles = self._mean_angles(now)
+                if angles is None:
+                    return []
+                alpha, beta = angles
+                if max(abs(alpha), abs(beta)) > settings.fixed_tolerance_rad:
+                    return self._correct(now, alpha, beta)
+            self._still_mean = still
+            self._phase = 'posture'
+        if self._phase == 'posture':
+            if not settings.wait_for_posture or self._posture_matched():
+                return self._complete(now)
+        return []
+
+    # ------------------------------------------------------------------ progress
+
+    def eta_s(self, now: float) -> float | None:
+        """Seconds until the plan is done at the pace so far (None when not running or paused)."""
+        if self.state not in (RUNNING, PAUSED, WAITING):
+            return None
+        done = [o for o in self.outcomes if o.measured]
+        overhead = (float(np.mean([o.duration_s - o.move_s for o in done])) if done
+                    else self.settings.settle_s + DEFAULT_OVERHEAD_S)
+        remaining = 0.0
+        previous = self.actuators.latest if self.actuators.latest is not None else self.targets[0]
+        for index in range(self.index, self.total):
+            remaining += move_duration(previous, self.targets[index],
+                                       self.settings.max_actuator_speed_m_s) + max(overhead, 0.0)
+            previous = self.targets[index]
+        if self.state == RUNNING and self._phase is not None:
+            remaining -= min(now - self._posture_start, remaining)
+        return max(remaining, 0.0)
+
+    def progress(self, now: float) -> dict[str, object]:
+        """The status fields: state, posture k of K, measured, skipped (which and why), ETA."""
+        current = min(self.index + 1, self.total)
+        values: dict[str, object] = {
+            'state': self.state, 'posture': current if self.state != DONE else self.total,
+            'postures': self.total, 'measured': self.measured, 'skipped': len(self.skipped),
+            'corrections': self.total_corrections}
+        if self.skipped:
+            values['skipped_postures'] = '; '.join(f'{o.index + 1}: {o.reason}' for o in self.skipped)
+        if self.state in (RUNNING, PAUSED) and self.index < self.total:
+            values['kind'] = self.kinds[self.index]
+        eta = self.eta_s(now)
+        if eta is not None:
+            values['eta_s'] = round(eta, 1)
+        if self.started_at is not None:
+            end = self.finished_at if self.finished_at is not None else now
+            values['elapsed_s'] = round(end - self.started_at, 1)
+        return values
+
+    def summary(self) -> str:
+        return (f'{self.measured} of {self.total} postures measured, {len(self.skipped)} skipped'
+                + (f" ({'; '.join(f'{o.index + 1}: {o.reason}' for o in self.skipped)})"
+                   if self.skipped else ''))
+
+    # ------------------------------------------------------------------ internals
+
+    def _say(self, level: str, text: str) -> None:
+        self.messages.append((level, text))
+
+    def _hold(self) -> list[Command]:
+        latest = self.actuators.latest
+        if latest is None or not self._sent_any:
+            return []
+        return [Command(latest.copy(), HOLD_S, HOLD, -1)]
+
+    def _begin(self, now: float, fresh: bool) -> list[Command]:
+        """Command the current posture (fresh: from its planned pose; else resume its corrections)."""
+        if self.index >= self.total:
+            return self._finish(now)
+        if fresh:
+            self._pose_cmd = self.poses[self.index].copy()
+            self._target = self.targets[self.index].copy()
+            self._corrections = 0
+        self._posture_start = now
+        command = self._command(now, MOVE if self._corrections == 0 else CORRECT)
+        self._first_move_s = command.duration_s
+        return [command]
+
+    def _command(self, now: float, purpose: str) -> Command:
+        current = self.actuators.latest if self.actuators.latest is not None else self._target
+        duration = move_duration(current, self._target, self.settings.max_actuator_speed_m_s)
+        self._command_time = now
+        self._arrive_after = now + duration
+        self._phase = 'moving'
+        self._postures = []
+        self._still_mean = None
+        self._sent_any = True
+        return Command(self._target.copy(), duration, purpose, self.index)
+
+    def _still_mean_at(self, now: float) -> np.ndarray | None:
+        settle = self.settings.settle_s
+        if now < self._arrive_after + settle:
+            return None
+        window = self.actuators.between(now - settle, now)
+        if len(window) < MIN_WINDOW_READINGS:
+            return None
+        if float(np.max(np.ptp(window, axis=0))) > self.settings.still_tolerance_m:
+            return None
+        mean = window.mean(axis=0)
+        if float(np.max(np.abs(mean - self._target))) > self.settings.position_tolerance_m:
+            return None
+        return mean
+
+    def _mean_angles(self, now: float) -> tuple[float, float] | None:
+        window = self.inclinometer.between(max(now - self.settings.settle_s, self._arrive_after), now)
+        if len(window) < MIN_WINDOW_READINGS:
+            return None
+        alpha, beta = window.mean(axis=0)
+        return float(alpha), float(beta)
+
+    def _posture_matched(self) -> bool:
+        if self._still_mean is None:
+            return False
+        tolerance = self.settings.still_tolerance_m
+        return any(float(np.max(np.abs(actuators - self._still_mean))) <= tolerance
+                   for _, actuators in self._postures)
+
+    def _correct(self, now: float, alpha: float, beta: float) -> list[Command]:
+        index = self.index
+        if self._corrections >= self.settings.max_corrections:
+            return self._skip(now, (
+                f'fixed position not reached after {self._corrections} corrections (inclinometer '
+                f'{alpha:.3g}, {beta:.3g} rad; tolerance {self.settings.fixed_tolerance_rad:g} rad)'))
+        pose = corrected_pose(self._pose_cmd, alpha, beta, self.link_length, self.mount)
+        arch = self.nominal.architecture
+        legs = arch.legs(arch.chains(self.nominal), pose[None])
+        if not bool(legs.reachable()[0]):
+            return self._skip(now, 'the fixed-position correction leaves the nominal workspace')
+        target = legs.sliders[0]
+        low, high = self.stroke
+        if np.any((target < low) | (target > high)):
+            return self._skip(now, f'the fixed-position correction needs a target outside the stroke '
+                                   f'[{low:g}, {high:g}] m')
+        self._corrections += 1
+        self.total_corrections += 1
+        self._pose_cmd, self._target = pose, target
+        self._say('info', f'posture {index + 1}: inclinometer {alpha:.3g}, {beta:.3g} rad; correction '
+                          f'{self._corrections} moves the platform by '
+                          f'{np.linalg.norm(fixed_position_correction(alpha, beta, self.link_length, self.mount)) * 1e6:.0f} um')
+        return [self._command(now, CORRECT)]
+
+    def _timeout_reason(self, now: float) -> str:
+        timeout = self.settings.timeout_s
+        if self._phase == 'posture':
+            return f'no posture from the collector within {timeout:g} s'
+        latest = self.actuators.latest
+        if latest is None or self.actuators.between(now - self.settings.settle_s, now).size == 0:
+            return f'no actuator readings (timeout {timeout:g} s)'
+        away = float(np.max(np.abs(latest - self._target)))
+        if self.kinds[self.index] == FIXED and away <= self.settings.position_tolerance_m \
+                and self._corrections:
+            return (f'fixed position not reached within {timeout:g} s '
+                    f'({self._corrections} corrections)')
+        return (f'not at the target and still within {timeout:g} s (actuators up to '
+                f'{away * 1e3:.3f} mm from it)')
+
+    def _skip(self, now: float, reason: str) -> list[Command]:
+        self._record(now, False, reason)
+        self._say('warn', f'posture {self.index + 1} of {self.total} ({self.kinds[self.index]}) '
+                          f'skipped: {reason}')
+        return self._advance(now)
+
+    def _complete(self, now: float) -> list[Command]:
+        self._record(now, True, '')
+        corrections = f', {self._corrections} corrections' if self._corrections else ''
+        self._say('info', f'posture {self.index + 1} of {self.total} ({self.kinds[self.index]}) '
+                          f'measured in {now - self._posture_start:.1f} s{corrections}')
+        return self._advance(now)
+
+    def _record(self, now: float, measured: bool, reason: str) -> None:
+        self.outcomes.append(PostureOutcome(self.index, self.kinds[self.index], measured, reason,
+                                            now - self._posture_start, self._first_move_s,
+                                            self._corrections))
+
+    def _advance(self, now: float) -> list[Command]:
+        self.index += 1
+        self._phase = None
+        self._corrections = 0
+        return self._begin(now, fresh=True)
+
+    def _finish(self, now: float) -> list[Command]:
+        self.state = DONE
+        self.finished_at = now
+        self._phase = None
+        self.index = self.total
+        elapsed = now - (self.started_at or now)
+        self._say('info', f'plan done in {elapsed:.1f} s: {self.summary()}')
+        return []
