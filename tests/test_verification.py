@@ -417,3 +417,44 @@ def test_identify_verifies_the_latest_calibration_on_the_postures_received_after
     assert (out / "report" / "verification.png").stat().st_size > 1000
     assert {k: v for k, v in ready.items() if k not in ("report_state", "report")} == \
         {k: v for k, v in values.items() if k != "report_state"}
+
+
+def test_restarted_identify_verifies_the_saved_calibration(ros_processes, tmp_path, probe):
+    from hexacal_msgs_py.names import VERIFICATION_STATUS_NAME, VERIFY_SERVICE
+    from system_support import STOP_TIMEOUT_S
+
+    _, nominal = write_parameter_files(tmp_path)
+    out = tmp_path / "out"
+    parameters = {"nominal": str(nominal), "output_dir": str(out)}
+    first = ros_processes.start(node_argv("identify", parameters), name="identify-first")
+    probe.wait_for_node("identify", process=first)
+    probe.subscribe_status()
+    probe.publish_postures(simulated_postures(40, seed=31))
+    probe.spin_until(lambda: probe.postures_received_by_identify() == 40, 60.0, "identify to hold 40 postures",
+                     first.describe)
+    assert probe.call_trigger().success
+    assert ros_processes.stop(first, STOP_TIMEOUT_S) == 0
+    calibration_page = (out / "report" / "index.html").read_text()
+
+    restarted = ros_processes.start(node_argv("identify", parameters), name="identify-restarted")
+    probe.spin_until(lambda: "republished the saved calibration" in restarted.log_text(), 30.0,
+                     "the restarted node to republish", restarted.describe)
+    named = _named_statuses(probe)
+    refused = probe.call_trigger(VERIFY_SERVICE)
+    assert not refused.success and refused.message.startswith("no-postures:") and "saved calibration" in \
+        refused.message, refused.message
+    probe.publish_postures(simulated_postures(25, seed=32))
+    probe.spin_until(lambda: [s for s in probe.statuses if s[2].get("outcome") == "collecting"
+                              and s[2].get("postures_received") == "25"], 60.0, "25 postures after the restart",
+                     restarted.describe)
+    response = probe.call_trigger(VERIFY_SERVICE)
+    assert response.success, response.message
+    _, _, _, ready = probe.spin_until(
+        lambda: [s for s in named if s[0] == VERIFICATION_STATUS_NAME and s[3].get("report_state") == "ready"],
+        120.0, "the verification report", restarted.describe)[-1]
+    assert ready["calibration_number"] == "0" and ready["calibration"].startswith("saved calibration")
+    assert float(ready["calibrated.position_rms_m"]) < 50e-6 < 1e-3 < float(ready["nominal.position_rms_m"])
+    page = out / "report" / "verification" / "index.html"
+    assert ready["report"] == str(page)
+    assert "Verification on fresh postures" in page.read_text()
+    assert (out / "report" / "index.html").read_text() == calibration_page  # the earlier report is left alone
