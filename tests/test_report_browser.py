@@ -133,3 +133,38 @@ def test_report_of_a_plain_json_output_says_what_is_missing(calibration, tmp_pat
     completed = subprocess.run([sys.executable, "-m", "hexacal_identify.cli", "report", str(bad), "--out",
                                 str(tmp_path / "r2")], capture_output=True, text=True, timeout=300)
     assert completed.returncode == 2 and "not a hexacal result" in completed.stderr
+
+
+def test_report_with_a_verification_section_loads_in_headless_chromium(calibration, tmp_path):
+    """What identify writes after hexacal/verify: the calibration's page with the verification section and its
+    figure; every image decodes and the verification figures are on the page in um / urad."""
+    from hexacal_identify.core.verification import verify
+    from hexacal_identify.report.page import write_report
+
+    result, _ = calibration
+    rng = np.random.default_rng(12)
+    fresh = simulate_measurements(TRUE, sample_poses(TRUE, 20, rng, SPHERE), SPHERE,
+                                  noise=NoiseModel.from_microns(5.0), rng=rng)
+    checked = verify(result.initial_parameters, result.parameters, fresh)
+    out = tmp_path / "verified"
+    page = write_report(result, out, title="after verification", measurements=None,
+                        verification=checked.to_json(per_posture=True))
+    assert (out / "verification.png").stat().st_size > 1000
+    source = page.read_text(encoding="utf-8")
+    expected_images = len(re.findall(r"<img\b", source))
+    browser = _chromium()
+    dumped = subprocess.run([browser, *CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / 'profile'}",
+                             "--virtual-time-budget=10000", "--dump-dom", page.as_uri()],
+                            capture_output=True, text=True, timeout=180, env={**os.environ, "HOME": str(tmp_path)})
+    assert dumped.returncode == 0, dumped.stderr[-2000:]
+    body = re.search(r"<body([^>]*)>", dumped.stdout)
+    assert body and f'data-images-loaded="{expected_images}"' in body.group(1), body
+    text = html.unescape(re.sub(r"<[^>]+>", " ", re.sub(r"<(script|style)[^>]*>.*?</\1>", " ", dumped.stdout,
+                                                        flags=re.S)))
+    text = re.sub(r"\s+", " ", text)
+    figures = checked.to_json()
+    assert "Verification on fresh postures" in text
+    assert (f"Position error rms {figures['nominal']['position_rms_m'] * 1e6:.2f} um "
+            f"{figures['calibrated']['position_rms_m'] * 1e6:.2f} um") in text
+    assert f"Rotary error rms {figures['nominal']['rotary_rms_rad'] * 1e6:.2f} urad" in text
+    assert f"Verdict {checked.verdict_reason()}" in text
