@@ -319,6 +319,27 @@ def test_cli_sample_bags_calibrate_on_one_recording_verify_on_another(tmp_path):
     assert payload["nominal"]["fk_failures"] == len(payload["nominal"]["failed_postures"])
 
 
+def test_cli_gough_stewart_recordings(tmp_path):
+    """The same on the default Gough-Stewart platform: calibrate one recording, verify another."""
+    from synthetic_recording import write_recording
+
+    gs = "gough_stewart"
+    truth = default_parameters(gs)
+    nominal, calibrated = tmp_path / "nominal2_gs.yaml", tmp_path / "calibrated_gs.yaml"
+    save_parameters(nominal, nominal_set(2, seed=0, model=gs).vector, model=gs)
+    fit = write_recording(tmp_path / "fit", _postures(truth, 41, 40, 0, model=gs), seed=41, rate_hz=25.0, raw=False,
+                          model=gs, record_model=gs)
+    fresh = write_recording(tmp_path / "verify", _postures(truth, 42, 20, 5, model=gs), seed=42, rate_hz=25.0,
+                            raw=False, model=gs, record_model=gs)
+    completed = _hexacal("calibrate", fit, "--nominal", nominal, "--output", calibrated)
+    assert completed.returncode == 0, completed.stderr
+    completed = _hexacal("verify", fresh, "--nominal", nominal, "--calibrated", calibrated, "--json")
+    assert completed.returncode == 0, completed.stderr
+    payload = json.loads(completed.stdout)
+    assert payload["model"] == gs and payload["postures"] == 25 and payload["verdict"] == "pass"
+    assert payload["nominal"]["position_rms_m"] > 1e-3 and payload["calibrated"]["position_rms_m"] < 15e-6
+
+
 def test_verify_help_imports_no_matplotlib_nor_ros():
     script = ("import sys\nfrom hexacal_identify import cli\ntry:\n    cli.main(['verify', '--help'])\n"
               "except SystemExit:\n    pass\n"
