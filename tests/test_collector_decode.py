@@ -70,3 +70,79 @@ def test_malformed_bytes_have_no_layout():
     assert _positions_layout(data[:20]) is None
     assert _positions_layout(b'\x00\x00\x00\x00' + data[4:]) is None  # big endian
     assert _learned(data).read(data[:-8]) is None
+
+
+# ------------------------------------------------ a user's /joint_states and an Imu (issue #11)
+
+BROADCASTER_NAMES = ('base_yaw', 'act_c', 'act_a', 'incl_b', 'act_b', 'gripper', 'act_d', 'act_e',
+                     'act_f', 'rot', 'incl_a')
+WANTED = ('act_a', 'act_b', 'act_c', 'act_d', 'act_e', 'act_f', 'incl_a', 'incl_b', 'rot')
+
+
+def _broadcaster(stamp_ns: int, positions, velocity=None, effort=None, names=BROADCASTER_NAMES,
+                 frame_id: str = '') -> bytes:
+    """What ros2_control's joint_state_broadcaster publishes: every joint, with velocity and effort."""
+    count = len(names)
+    message = JointState(name=list(names), position=[float(p) for p in positions],
+                         velocity=[float(v) for v in (velocity if velocity is not None else [0.0] * count)],
+                         effort=[float(e) for e in (effort if effort is not None else [0.0] * count)])
+    message.header.stamp = to_stamp(stamp_ns)
+    message.header.frame_id = frame_id
+    return serialize_message(message)
+
+
+def _positions(seed: float) -> list[float]:
+    return [seed + 0.01 * i for i in range(len(BROADCASTER_NAMES))]
+
+
+def test_a_broadcaster_message_is_read_in_place_whatever_its_velocity_and_effort():
+    first = _broadcaster(7, _positions(0.1))
+    fast = _FastJointState(first, deserialize_message(first, JointState), WANTED)
+    for k in range(1, 5):
+        positions = _positions(0.1 * k)
+        positions[BROADCASTER_NAMES.index('gripper')] = math.nan  # an extra joint: not read
+        data = _broadcaster(10 * k, positions, velocity=[k * 0.5] * 11, effort=[-k * 1.5] * 11)
+        decoded = deserialize_message(data, JointState)
+        expected = tuple(decoded.position[list(decoded.name).index(name)] for name in WANTED)
+        assert fast.read(data) == (10 * k, expected)
+
+
+@pytest.mark.parametrize('other', [
+    dict(velocity=[0.0] * 10, effort=[0.0] * 12),  # same size, other sequence lengths
+    dict(velocity=[], effort=[0.0] * 11),
+    dict(names=(*BROADCASTER_NAMES[:-1], 'incl_z')),
+    dict(frame_id='x'),
+])
+def test_a_broadcaster_message_laid_out_otherwise_goes_the_full_way(other):
+    first = _broadcaster(7, _positions(0.1))
+    fast = _FastJointState(first, deserialize_message(first, JointState), WANTED)
+    assert fast.read(_broadcaster(8, _positions(0.2), **other)) is None
+
+
+def _imu(stamp_ns: int, alpha: float, beta: float, frame_id: str = 'imu_link', yaw: float = 0.4,
+         covariance_0: float = 0.0) -> bytes:
+    from hexacal_msgs_py.conversions import inclinometer_angles_to_imu
+    from hexacal_msgs_py.readings import InclinometerReading
+
+    message = inclinometer_angles_to_imu(InclinometerReading(stamp_ns, alpha, beta), frame_id, yaw=yaw)
+    message.orientation_covariance[0] = covariance_0
+    return serialize_message(message)
+
+
+def test_an_imu_is_read_in_place_as_the_contract_converts_it():
+    from sensor_msgs.msg import Imu
+
+    from hexacal_identify.nodes.collector import _FastImu
+    from hexacal_msgs_py.conversions import imu_to_inclinometer_reading
+
+    first = _imu(5, 0.01, -0.02)
+    fast = _FastImu(first, deserialize_message(first, Imu))
+    for k, (alpha, beta, yaw) in enumerate([(0.1, 0.2, 0.0), (-0.25, 0.05, 2.5), (3e-6, -1e-7, -1.0)]):
+        data = _imu(1_000 + k, alpha, beta, yaw=yaw)
+        reading = imu_to_inclinometer_reading(deserialize_message(data, Imu))
+        assert fast.read(data) == (reading.stamp_ns, (reading.alpha, reading.beta))
+        assert reading.alpha == pytest.approx(alpha, abs=1e-15)
+        assert reading.beta == pytest.approx(beta, abs=1e-15)
+    assert fast.read(_imu(9, 0.1, 0.1, frame_id='other')) is None
+    assert fast.read(_imu(9, 0.1, 0.1, covariance_0=-1.0)) is None  # no orientation: full way
+    assert fast.read(first[:-8]) is None
