@@ -1,0 +1,311 @@
+"""The kinematics node with real processes (#11 section 4): the calibrated model at work.
+
+The simulated driver walks its plan (noise-free readings) on the true machine;
+two kinematics nodes follow it, one (namespace ``true``) with the true
+parameters file, one (``nominal``) with nominal set 2:
+
+* the platform pose of each reading: the true node's equals the pose forward
+  kinematics with the true parameters gives for the published readings, and
+  the plan's pose while the machine stands there, within micrometres; the
+  nominal node's is millimetres off;
+* machine markers: the architecture's drawing at a published pose, in the base frame;
+* a target pose becomes a JointTrajectory with IK(true) or IK(nominal) of it; a
+  target no leg reaches and one outside the stroke are refused on the status
+  topic and nothing is published;
+* a calibration published on the node's hexacal/parameters replaces the
+  nominal parameters (the nominal node then tracks the truth); one of the
+  other model is refused.
+
+Every wait is on a condition; the probe only spins.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+
+from hexacal_driver.plan import resolve_plan
+from hexacal_identify.core.architectures import architecture, parameters_for
+from hexacal_identify.core.kinematics import inverse_kinematics
+from hexacal_identify.core.live import home_pose, solve_pose
+from hexacal_msgs_py.models import GOUGH_STEWART, HEXA_SLIDE, MODELS
+from hexacal_msgs_py.parameters_file import read_parameters_file
+from system_support import (
+    NODE_START_TIMEOUT_S,
+    STOP_TIMEOUT_S,
+    node_argv,
+    probe,  # noqa: F401 - fixture
+    write_parameter_files,
+)
+
+PLAN_POSTURES, SEED = 3, 5
+DRIVER = {'plan': 'random', 'postures': PLAN_POSTURES, 'seed': SEED, 'rate_hz': 50.0, 'settle_s': 0.4,
+          'dwell_s': 0.6, 'loop': True, 'slider_noise_m': 0.0, 'angle_noise_rad': 0.0,
+          'wait_for_subscriber': False}
+SPEED = 0.05  # max_actuator_speed of the nodes, m/s
+NAMESPACES = ('true', 'nominal')
+STATUS_NAME = 'hexacal kinematics'
+
+
+@dataclass
+class Listener:
+    """What the probe received: readings and poses by stamp, markers, commands and statuses per namespace."""
+
+    readings: dict = field(default_factory=dict)  # stamp ns -> (6,)
+    poses: dict = field(default_factory=lambda: {ns: {} for ns in NAMESPACES})  # ns -> stamp -> (6,)
+    frames: dict = field(default_factory=lambda: {ns: set() for ns in NAMESPACES})
+    markers: list = field(default_factory=list)  # MarkerArray of the true node
+    commands: dict = field(default_factory=lambda: {ns: [] for ns in NAMESPACES})
+    statuses: dict = field(default_factory=lambda: {ns: [] for ns in NAMESPACES})  # (level, message, values)
+
+
+def listen(probe, model: str) -> Listener:
+    from diagnostic_msgs.msg import DiagnosticArray
+    from geometry_msgs.msg import PoseStamped
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import JointState
+    from trajectory_msgs.msg import JointTrajectory
+    from visualization_msgs.msg import MarkerArray
+
+    from hexacal_msgs_py.conversions import joint_state_to_slider_reading, stamp_ns, status_values
+    from hexacal_msgs_py.poses import pose_from_message
+    from hexacal_msgs_py.qos import COMMAND_QOS, MARKERS_QOS, POSE_QOS, SENSOR_QOS
+
+    heard = Listener()
+    node = probe.node
+    # Deeper than STATUS_QOS's depth 1 (compatible with it): no status is lost between two spins.
+    status_qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+    def on_readings(message):
+        heard.readings[stamp_ns(message.header.stamp)] = np.array(
+            joint_state_to_slider_reading(message, model).slider_positions)
+
+    node.create_subscription(JointState, '/hexacal/sliders', on_readings, SENSOR_QOS)
+    for ns in NAMESPACES:
+        def on_pose(message, ns=ns):
+            heard.poses[ns][stamp_ns(message.header.stamp)] = np.array(pose_from_message(message))
+            heard.frames[ns].add(message.header.frame_id)
+
+        def on_command(message, ns=ns):
+            heard.commands[ns].append(message)
+
+        def on_status(message, ns=ns):
+            for status in message.status:
+                if status.name == STATUS_NAME:
+                    heard.statuses[ns].append((status.level[0] if isinstance(status.level, bytes)
+                                               else int(status.level), status.message, status_values(status)))
+
+        node.create_subscription(PoseStamped, f'/{ns}/hexacal/platform_pose', on_pose, POSE_QOS)
+        node.create_subscription(JointTrajectory, f'/{ns}/command', on_command, COMMAND_QOS)
+        node.create_subscription(DiagnosticArray, f'/{ns}/hexacal/calibration_status', on_status, status_qos)
+    node.create_subscription(MarkerArray, '/true/hexacal/machine_markers', heard.markers.append, MARKERS_QOS)
+    return heard
+
+
+def kinematics_argv(namespace: str, parameters_file, **extra) -> list[str]:
+    argv = node_argv('kinematics', {'parameters': str(parameters_file), 'command_topic': 'command',
+                                    'max_actuator_speed': SPEED, **extra}, namespace)
+    return argv + ['-r', 'hexacal/sliders:=/hexacal/sliders']  # the driver's readings, outside the namespace
+
+
+def matched_poses(heard: Listener, ns: str) -> list[tuple[int, np.ndarray, np.ndarray]]:
+    """(stamp, readings, node pose) of every pose whose reading the probe received too."""
+    return [(stamp, heard.readings[stamp], pose) for stamp, pose in sorted(heard.poses[ns].items())
+            if stamp in heard.readings]
+
+
+def pose_error(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """(position distance m, largest angle difference rad)."""
+    return float(np.linalg.norm(a[:3] - b[:3])), float(np.abs(a[3:] - b[3:]).max())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('model', [HEXA_SLIDE, GOUGH_STEWART])
+def test_kinematics_node_tracks_commands_and_draws(ros_processes, tmp_path, probe, model):
+    truth_path, nominal_path = write_parameter_files(tmp_path, model)
+    arch = architecture(model)
+    truth = parameters_for(model, read_parameters_file(truth_path).vector)
+    nominal = parameters_for(model, read_parameters_file(nominal_path).vector)
+    plan = resolve_plan('random', truth, PLAN_POSTURES, SEED)
+    plan_readings = inverse_kinematics(truth, plan.poses)
+    heard = listen(probe, model)
+
+    nodes = {'true': ros_processes.start(kinematics_argv('true', truth_path), name='kinematics-true'),
+             'nominal': ros_processes.start(kinematics_argv('nominal', nominal_path), name='kinematics-nominal')}
+    for ns, process in nodes.items():
+        probe.wait_for_node('kinematics', f'/{ns}', process)
+    driver = ros_processes.start(node_argv('driver', {**DRIVER, 'true_params': str(truth_path)}))
+    processes = [driver, *nodes.values()]
+
+    def details() -> str:
+        return '\n'.join(p.describe(15) for p in processes)
+
+    def alive():
+        for process in processes:
+            if not process.running():
+                raise AssertionError(f'a node exited early\n{process.describe()}')
+
+    # Readings of every plan posture (while the machine stands there), posed by both nodes.
+    def standing_indices(ns: str) -> set[int]:
+        alive()
+        found = set()
+        for _, readings, _ in matched_poses(heard, ns):
+            close = np.abs(plan_readings - readings).max(axis=1) < 1e-12
+            found.update(np.flatnonzero(close).tolist())
+        return found
+
+    probe.spin_until(lambda: all(len(standing_indices(ns)) == PLAN_POSTURES for ns in NAMESPACES), 60.0,
+                     'platform poses of every plan posture from both nodes', details)
+    assert heard.frames == {'true': {'hexacal_base'}, 'nominal': {'hexacal_base'}}
+
+    # True parameters: the published readings' pose (FK in the test, from the workspace centre) within
+    # micrometres, and the plan's pose while the machine stands at a posture.
+    guess = home_pose()
+    worst_fk = worst_plan = (0.0, 0.0)
+    nominal_standing = []
+    for stamp, readings, pose in matched_poses(heard, 'true'):
+        guess = solve_pose(truth, readings, guess)
+        worst_fk = max(worst_fk, pose_error(pose, guess))
+        close = np.flatnonzero(np.abs(plan_readings - readings).max(axis=1) < 1e-12)
+        if close.size:
+            worst_plan = max(worst_plan, pose_error(pose, plan.poses[close[0]]))
+            if stamp in heard.poses['nominal']:
+                nominal_standing.append(pose_error(heard.poses['nominal'][stamp], plan.poses[close[0]]))
+    assert worst_fk[0] < 1e-6 and worst_fk[1] < 1e-6, worst_fk
+    assert worst_plan[0] < 1e-6 and worst_plan[1] < 1e-6, worst_plan
+    # Nominal parameters: millimetres off the true pose.
+    nominal_position = np.array([e[0] for e in nominal_standing])
+    assert nominal_position.size and nominal_position.min() > 5e-4 and nominal_position.max() < 0.05, \
+        nominal_position
+
+    # Markers: the drawing of the machine at one of the published poses, in the base frame.
+    def drawn() -> tuple | None:
+        for array in reversed(heard.markers):
+            stamp = array.markers[0].header.stamp
+            pose = heard.poses['true'].get(stamp.sec * 1_000_000_000 + stamp.nanosec)
+            if pose is not None:
+                return array, pose
+        return None
+
+    marker_array, drawn_pose = probe.spin_until(drawn, 10.0, 'machine markers of a received pose', details)
+    markers = {m.ns: m for m in marker_array.markers}
+    drawing = arch.drawing(truth, drawn_pose)
+    assert set(markers) == set(drawing) >= {'base_joints', 'platform_joints', 'platform', 'device_link',
+                                            'rails' if model == HEXA_SLIDE else 'legs'}
+    for name, marker in markers.items():
+        assert marker.header.frame_id == 'hexacal_base'
+        points = np.array([[p.x, p.y, p.z] for p in marker.points])
+        assert np.allclose(points, drawing[name].reshape(-1, 3), atol=1e-9), name
+        assert marker.type == (marker.SPHERE_LIST if drawing[name].ndim == 2 else marker.LINE_LIST)
+    assert np.allclose(np.array([[p.x, p.y, p.z] for p in markers['device_link'].points]),
+                       [[0, 0, 0], drawn_pose[:3]], atol=1e-12)
+
+    # Commands: a target pose -> the actuator targets of each node's parameters.
+    from geometry_msgs.msg import PoseStamped
+
+    from hexacal_msgs_py.poses import fill_pose_message
+    from hexacal_msgs_py.qos import COMMAND_QOS
+
+    publishers = {ns: probe.node.create_publisher(PoseStamped, f'/{ns}/hexacal/target_pose', COMMAND_QOS)
+                  for ns in NAMESPACES}
+    for publisher in publishers.values():
+        probe.spin_until(lambda p=publisher: p.get_subscription_count() >= 1, NODE_START_TIMEOUT_S,
+                         f'a subscriber on {publisher.topic_name}')
+
+    def send(ns: str, pose, frame: str = 'hexacal_base', zero_quaternion: bool = False) -> None:
+        message = fill_pose_message(PoseStamped(), pose)
+        if zero_quaternion:
+            orientation = message.pose.orientation
+            orientation.x = orientation.y = orientation.z = orientation.w = 0.0
+        message.header.frame_id = frame
+        message.header.stamp = probe.node.get_clock().now().to_msg()
+        publishers[ns].publish(message)
+
+    def refusals(ns: str) -> list[dict]:
+        return [values for _, _, values in heard.statuses[ns] if values.get('outcome') == 'refused']
+
+    target = plan.poses[1] + np.array([0.004, -0.003, 0.002, 0.01, -0.01, 0.02])
+    # First the refused ones: a pose no leg configuration reaches, one outside the stroke, a wrong frame.
+    low, high = arch.default_workspace().slider_stroke_m
+    outside = np.array([0.0, 0.0, home_pose()[2] - 0.5, 0.0, 0.0, 0.0])  # half a metre below the centre
+    assert np.any(inverse_kinematics(truth, outside[None])[0] > high) or \
+        np.any(inverse_kinematics(truth, outside[None])[0] < low)
+    # IK fails: a Hexa Slide leg shorter than its distance to the rail (a Gough-Stewart leg fails only at
+    # zero length); a zero quaternion is no orientation.
+    expected = ['unreachable-pose'] if model == HEXA_SLIDE else []
+    expected += ['outside-stroke', 'wrong-frame', 'invalid-target']
+    for ns in NAMESPACES:
+        if model == HEXA_SLIDE:
+            send(ns, [3.0, 0.0, -0.7, 0.0, 0.0, 0.0])
+        send(ns, outside)
+        send(ns, target, frame='world')
+        send(ns, target, zero_quaternion=True)
+    for ns in NAMESPACES:
+        probe.spin_until(lambda ns=ns: len(refusals(ns)) >= len(expected), 15.0, f'the refusals of {ns}', details)
+    for ns in NAMESPACES:
+        reasons = [values['reason'] for values in refusals(ns)]
+        assert reasons == expected, heard.statuses[ns]
+        level = [level for level, _, values in heard.statuses[ns] if values.get('outcome') == 'refused']
+        assert level == [1] * len(expected)  # WARN
+        assert 'nothing sent' in [m for _, m, v in heard.statuses[ns] if v.get('outcome') == 'refused'][0]
+        send(ns, target)
+    for ns in NAMESPACES:
+        probe.spin_until(lambda ns=ns: heard.commands[ns] and [
+            v for _, _, v in heard.statuses[ns] if v.get('outcome') == 'sent'], 15.0,
+            f'a command and its status from {ns}', details)
+    for ns, params in (('true', truth), ('nominal', nominal)):
+        assert len(heard.commands[ns]) == 1  # nothing was sent for the refused targets (commands keep order)
+        command = heard.commands[ns][0]
+        assert list(command.joint_names) == list(MODELS[model].actuator_names)
+        assert len(command.points) == 1
+        positions = np.array(command.points[0].positions)
+        assert np.allclose(positions, inverse_kinematics(params, target[None])[0], atol=1e-12, rtol=0)
+        duration = command.points[0].time_from_start.sec + command.points[0].time_from_start.nanosec * 1e-9
+        assert 0.1 <= duration < (high - low) / SPEED + 0.2
+        sent = [values for _, _, values in heard.statuses[ns] if values.get('outcome') == 'sent'][-1]
+        assert float(sent['move_time_s']) == pytest.approx(duration, abs=1e-9)
+    # The two models of the machine ask for different readings (mm apart): the compensation.
+    difference = np.abs(np.array(heard.commands['true'][0].points[0].positions)
+                        - np.array(heard.commands['nominal'][0].points[0].positions)).max()
+    assert 1e-4 < difference < 2e-2, difference
+
+    # A calibration of the other model is refused; the true parameters published on the nominal node's
+    # hexacal/parameters replace its nominal ones: it then tracks the truth.
+    from std_msgs.msg import Float64MultiArray
+
+    from hexacal_msgs_py.conversions import parameters_to_multiarray
+    from hexacal_msgs_py.qos import PARAMETERS_QOS
+
+    other = next(m for m in MODELS if m != model)
+    calibrations = probe.node.create_publisher(Float64MultiArray, '/nominal/hexacal/parameters', PARAMETERS_QOS)
+    probe.spin_until(lambda: calibrations.get_subscription_count() >= 1, NODE_START_TIMEOUT_S,
+                     'the nominal node on hexacal/parameters')
+    calibrations.publish(parameters_to_multiarray(architecture(other).default_parameters().vector, other))
+    probe.spin_until(lambda: [v for _, _, v in heard.statuses['nominal'] if v.get('outcome') == 'model-mismatch'],
+                     15.0, 'the model-mismatch status', details)
+    calibrations.publish(parameters_to_multiarray(truth.vector, model))
+    update = probe.spin_until(
+        lambda: [(level, m, v) for level, m, v in heard.statuses['nominal']
+                 if v.get('outcome') == 'parameters' and v.get('parameters_source') == '/nominal/hexacal/parameters'],
+        15.0, 'the calibration taken', details)[-1]
+    assert update[0] == 0 and 'new calibration' in update[1] and float(update[2]['largest_change_m']) > 1e-4
+    taken = max(heard.readings)  # readings after this are posed with the new parameters
+
+    def tracks_the_truth() -> bool:
+        alive()
+        later = [(readings, pose) for stamp, readings, pose in matched_poses(heard, 'nominal') if stamp > taken]
+        return len(later) >= 20 and later
+    later = probe.spin_until(tracks_the_truth, 30.0, 'poses with the new calibration', details)
+    guess = later[0][1]
+    for readings, pose in later:
+        guess = solve_pose(truth, readings, guess)
+        assert pose_error(pose, guess)[0] < 1e-6
+
+    for process in processes:
+        assert ros_processes.stop(process, STOP_TIMEOUT_S) == 0, process.log_path.read_text()
+    log = nodes['nominal'].log_path.read_text()
+    assert 'new calibration on /nominal/hexacal/parameters' in log
+    assert f'a {other} calibration on hexacal/parameters does not fit this {model} machine' in log
+    assert f'1 commands sent, {len(expected)} refused, 1 calibrations taken' in log  # the summary at shutdown
