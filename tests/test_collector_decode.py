@@ -146,3 +146,48 @@ def test_an_imu_is_read_in_place_as_the_contract_converts_it():
     assert fast.read(_imu(9, 0.1, 0.1, frame_id='other')) is None
     assert fast.read(_imu(9, 0.1, 0.1, covariance_0=-1.0)) is None  # no orientation: full way
     assert fast.read(first[:-8]) is None
+
+
+def test_the_collector_reads_one_joint_states_for_its_three_inputs_once_each():
+    """All three inputs remapped to one topic: one subscription, each reading taken once per message,
+    the in-place reader learned from the first message, the synchronizer pairing them exactly."""
+    import rclpy
+
+    from hexacal_identify.nodes.collector import CollectorNode
+    from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, SLIDERS_TOPIC
+
+    rclpy.init(args=['--ros-args', '-p', 'record:=false', '-p', 'window_s:=0.2', '-p', 'capture_s:=0.3',
+                     '-p', 'actuator_joints:=[act_a, act_b, act_c, act_d, act_e, act_f]',
+                     '-p', 'inclinometer_joints:=[incl_a, incl_b]', '-p', 'rotary_joint:=rot',
+                     '-p', 'inclinometer_signs:=[1, -1]', '-p', 'inclinometer_offsets_rad:=[0.0, 0.005]',
+                     *[item for topic in ('sliders', 'inclinometer', 'encoder')
+                       for item in ('-r', f'hexacal/{topic}:=/joint_states')]])
+    node = None
+    try:
+        node = CollectorNode()
+        (source,) = node._sources
+        assert source.name == '/joint_states' and source.inputs == (SLIDERS_TOPIC, INCLINOMETER_TOPIC,
+                                                                    ENCODER_TOPIC)
+        published = []
+        node._posture_pub.publish = published.append
+        positions = _positions(0.1)
+        for k in range(60):  # 0.6 s still at 100 Hz
+            node._on_raw(source, _broadcaster(1_000_000_000 + 10_000_000 * k, positions,
+                                              velocity=[0.1 * k] * 11, effort=[0.2 * k] * 11), {})
+            assert source.fast is not None  # learned from the first message
+            node._detect()
+        assert node.received == {SLIDERS_TOPIC: 60, INCLINOMETER_TOPIC: 60, ENCODER_TOPIC: 60}
+        assert {name: status.accepted for name, status in node.synchronizer.status(0).items()} == {
+            'sliders': 60, 'inclinometer': 60, 'encoder': 60}
+        assert node.invalid == {} and node.synchronizer.unpaired == {}
+        (posture,) = published
+        value = dict(zip(BROADCASTER_NAMES, positions))
+        assert list(posture.name) == [f'slider_{i}' for i in range(1, 7)] + [
+            'inclinometer_x', 'inclinometer_y', 'rotary']
+        assert list(posture.position) == pytest.approx(
+            [value[f'act_{c}'] for c in 'abcdef'] + [value['incl_a'], -(value['incl_b'] - 0.005),
+                                                     value['rot']], abs=1e-15)
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.shutdown()
