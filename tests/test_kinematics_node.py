@@ -122,6 +122,27 @@ def pose_error(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     return float(np.linalg.norm(a[:3] - b[:3])), float(np.abs(a[3:] - b[3:]).max())
 
 
+@pytest.mark.parametrize('parameters, words', [
+    ({'parameters': 'missing.yaml'}, 'parameters: missing.yaml'),
+    (['stroke_limits:=[0.5, 0.1]'], 'stroke_limits must be [low, high]'),
+    (['stroke_limits:=0.5'], "expecting type 'DOUBLE_ARRAY'"),
+    ({'mount': 'sideways'}, "mount must be '' or one of hanging, standing"),
+    ({'max_actuator_speed': -1.0}, 'max_actuator_speed'),
+])
+def test_bad_configuration_stops_the_node_with_exit_2(ros_processes, tmp_path, parameters, words):
+    from rosproc import venv_executable, wait_for
+
+    if isinstance(parameters, dict):
+        argv = node_argv('kinematics', parameters)
+    else:  # written out: node_argv quotes lists as strings
+        argv = [venv_executable('kinematics'), '--ros-args', *(a for p in parameters for a in ('-p', p))]
+    process = ros_processes.start(argv)
+    wait_for(lambda: not process.running(), NODE_START_TIMEOUT_S, what='the node to exit', details=process.describe)
+    assert process.popen.returncode == 2, process.describe()
+    log = process.log_text()
+    assert words in log and 'Traceback' not in log, log
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize('model', [HEXA_SLIDE, GOUGH_STEWART])
 def test_kinematics_node_tracks_commands_and_draws(ros_processes, tmp_path, probe, model):

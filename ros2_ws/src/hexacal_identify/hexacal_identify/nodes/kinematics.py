@@ -52,7 +52,11 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, PoseStamped
 import numpy as np
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
-from rclpy.exceptions import InvalidParameterValueException, ParameterUninitializedException
+from rclpy.exceptions import (
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    ParameterUninitializedException,
+)
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -453,7 +457,8 @@ def _finish(node: KinematicsNode) -> list[str]:
 
 def main(args: list[str] | None = None) -> int:
     return run_node(NODE_NAME, KinematicsNode, args=args, finish=_finish,
-                    startup_errors=(KinematicsConfigurationError, InvalidParameterValueException))
+                    startup_errors=(KinematicsConfigurationError, InvalidParameterValueException,
+                                    InvalidParameterTypeException))
 
 
 if __name__ == '__main__':
