@@ -235,6 +235,85 @@ def test_raw_cdr_from_rclpy_roundtrip(tmp_path):
     assert deserialize_message(obj.data_bytes, JointState).position[0] == pytest.approx(0.99)
 
 
+def machine_messages(i: int):
+    """What the collector records besides JointStates (#11): an Imu inclinometer, the kinematics
+    node's platform pose and machine markers (rclpy message objects)."""
+    from builtin_interfaces.msg import Time
+    from geometry_msgs.msg import Point, PoseStamped
+    from sensor_msgs.msg import Imu
+    from std_msgs.msg import Header
+    from visualization_msgs.msg import Marker, MarkerArray
+
+    header = Header(stamp=Time(sec=1_700_000_000 + i, nanosec=5), frame_id="base_link")
+    imu = Imu(header=header)
+    imu.orientation.x, imu.orientation.w = 0.01 * i, 1.0
+    imu.linear_acceleration_covariance[0] = -1.0
+    pose = PoseStamped(header=header)
+    pose.pose.position.x, pose.pose.position.z = 0.001 * i, -0.75
+    pose.pose.orientation.w = 1.0
+    rails = Marker(header=header, ns="rails", id=i, type=Marker.LINE_LIST, action=Marker.ADD,
+                   points=[Point(x=0.1 * k, y=0.0, z=-0.2) for k in range(12)], text="rails")
+    rails.scale.x = 0.005
+    rails.color.r, rails.color.a = 0.8, 1.0
+    rails.lifetime.sec = 2
+    platform = Marker(header=header, ns="platform", id=0, type=Marker.CYLINDER)
+    platform.pose = pose.pose
+    return {"/imu": imu, "/hexacal/platform_pose": pose,
+            "/hexacal/machine_markers": MarkerArray(markers=[rails, platform])}
+
+
+def test_imu_pose_and_markers_roundtrip_with_every_reader(tmp_path):
+    """Raw CDR of sensor_msgs/Imu, geometry_msgs/PoseStamped and visualization_msgs/MarkerArray
+    (nested Marker, Point, ColorRGBA, Duration, ...) is written with its schema and reads back with
+    our reader, mcap_ros2 and rosbags."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    from rclpy.serialization import serialize_message
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    types = {"/imu": "sensor_msgs/msg/Imu", "/hexacal/platform_pose": "geometry_msgs/msg/PoseStamped",
+             "/hexacal/machine_markers": "visualization_msgs/msg/MarkerArray"}
+    directory = tmp_path / "machine"
+    serialized = {topic: [] for topic in types}
+    with BagWriter(directory) as writer:
+        for topic, type_name in types.items():
+            writer.add_topic(topic, type_name)
+        for i in range(5):
+            for topic, message in machine_messages(i).items():
+                serialized[topic].append(serialize_message(message))
+                writer.write_raw(topic, serialized[topic][-1], T0_NS + i)
+        writer.write("/hexacal/machine_markers", machine_messages(9)["/hexacal/machine_markers"], T0_NS + 9)
+
+    reader = open_bag(directory)
+    assert {name: (info.type_name, info.count) for name, info in reader.topics().items()} == {
+        "/imu": (types["/imu"], 5), "/hexacal/platform_pose": (types["/hexacal/platform_pose"], 5),
+        "/hexacal/machine_markers": (types["/hexacal/machine_markers"], 6)}
+    for topic in types:
+        messages = list(reader.messages([topic]))
+        assert [m.data_bytes for m in messages[:5]] == serialized[topic]
+        decoded = messages[4].decoded
+        if topic == "/imu":
+            assert decoded.orientation.x == 0.04 and decoded.linear_acceleration_covariance[0] == -1.0
+        elif topic == "/hexacal/platform_pose":
+            assert decoded.pose.position.x == 0.004 and decoded.header.frame_id == "base_link"
+        else:
+            rails, platform = decoded.markers
+            assert len(rails.points) == 12 and rails.points[11].x == pytest.approx(1.1)
+            assert rails.lifetime.sec == 2 and rails.text == "rails" and platform.pose.position.z == -0.75
+        assert messages[-1].decoded is not None  # the encoded one decodes too
+    counts = {}
+    with open(next(directory.glob("*.mcap")), "rb") as stream:
+        for _, channel, _, message in make_reader(stream, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+    assert counts == {"/imu": 5, "/hexacal/platform_pose": 5, "/hexacal/machine_markers": 6}
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    with Reader(directory) as rosbags_reader:
+        decoded = [typestore.deserialize_cdr(raw, c.msgtype) for c, _, raw in rosbags_reader.messages()]
+    assert len(decoded) == 16
+    assert sum(len(getattr(m, "markers", [])) for m in decoded) == 12
+
+
 @pytest.mark.parametrize("preset", ["fastwrite", "zstd_fast", "zstd_small"])
 def test_storage_presets_roundtrip(tmp_path, preset):
     from mcap.reader import make_reader

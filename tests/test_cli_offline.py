@@ -147,3 +147,98 @@ def test_a_cost_needing_fixed_postures_on_a_sphere_only_bag_is_named(recorded, n
     assert f"the {cost} cost function needs at least" in completed.stderr
     assert "0 fixed-position" in completed.stderr and "Traceback" not in completed.stderr
     assert not (tmp_path / "out.yaml").exists()
+
+
+# --------------------------------------------------------------------------- a user's drivers (#11)
+
+ACTUATORS = ["lift_1", "lift_2", "lift_3", "lift_4", "lift_5", "lift_6"]
+
+
+def write_mapped_recording(directory, exact, *, seed: int = 0, imu_type: str = "sensor_msgs/msg/Imu",
+                           drop_imu: bool = False, mapping_overrides: dict | None = None,
+                           noise: float = 1e-5, rate_hz: float = 100.0):
+    """A bag as the collector records a ros2_control machine with an IMU: /joint_states (custom
+    actuator names, the rotary joint, another joint) and /imu (alpha reversed, offsets), no posture
+    topic, the input mapping in the hexacal.collector record."""
+    from hexacal_identify.bag import BagWriter
+    from hexacal_msgs_py.inputs import InputMapping, inclinometer_angles_to_quaternion
+
+    mapping = InputMapping(ACTUATORS, rotary_joint="roll", inclinometer_type="imu", inclinometer_signs=(-1, 1),
+                           inclinometer_offsets_rad=(0.003, -0.001), topics=("/joint_states", "/imu", "/joint_states"))
+    record = {"namespace": "/", "model": "hexa_slide", "window_s": "0.3", **mapping.to_metadata()}
+    record.update(mapping_overrides or {})
+    rng = np.random.default_rng(seed)
+    values = np.column_stack([exact.slider_positions, exact.inclinometer, exact.rotary])
+    period = int(1e9 / rate_hz)
+    stamp = 1_700_000_000 * 1_000_000_000
+    with BagWriter(directory) as writer:
+        writer.write_metadata("hexacal.collector", record)
+        writer.add_topic("/joint_states", "sensor_msgs/msg/JointState")
+        if not drop_imu:
+            writer.add_topic("/imu", imu_type)
+        previous = values[0]
+        for target in values:
+            moving = [previous + (target - previous) * (k + 1) / 60 for k in range(60)]
+            dwell = target + rng.uniform(-1, 1, (100, 9)) * noise
+            for sample in moving + list(dwell):
+                stamp += period
+                header = {"stamp": {"sec": stamp // 1_000_000_000, "nanosec": stamp % 1_000_000_000},
+                          "frame_id": "base_link"}
+                writer.write("/joint_states", {
+                    "header": header, "name": ["roll", *reversed(ACTUATORS), "gripper"],
+                    "position": [float(sample[8]), *map(float, reversed(sample[:6])), 0.5],
+                    "velocity": [], "effort": []}, stamp)
+                if drop_imu:
+                    continue
+                raw = mapping.raw_inclinometer(sample[6], sample[7])
+                x, y, z, w = inclinometer_angles_to_quaternion(*raw, yaw=-1.2)
+                if imu_type.endswith("Imu"):
+                    writer.write("/imu", {"header": header, "orientation": {"x": x, "y": y, "z": z, "w": w},
+                                          "orientation_covariance": [0.0] * 9}, stamp)
+                else:
+                    writer.write("/imu", {"header": header, "name": ["x", "y"], "position": list(raw),
+                                          "velocity": [], "effort": []}, stamp)
+            previous = target
+    return directory
+
+
+def test_a_mapped_bag_of_joint_states_and_an_imu_calibrates(exact_postures, nominal_file, tmp_path):
+    bag = write_mapped_recording(tmp_path / "mapped", exact_postures, seed=5)
+    completed = hexacal("calibrate", bag, "--nominal", nominal_file, "--output", tmp_path / "out.yaml", "--json")
+    assert completed.returncode == 0, completed.stderr
+    result = json.loads(completed.stdout)
+    assert result["bag"]["source"] == "raw streams (re-detected)" and result["bag"]["postures"] == 40
+    assert result["bag"]["ignored_topics"] == [] and result["bag"]["invalid_messages"] == 0
+    assert np.max(np.abs(load_parameters(tmp_path / "out.yaml") - TRUE.vector)) < 5e-4
+    info = hexacal("bag-info", bag)
+    assert "hexacal.collector.inclinometer_type = imu" in info.stdout
+    assert 'hexacal.collector.actuator_joints = ["lift_1"' in info.stdout
+
+
+def test_a_mapped_bag_reads_as_the_contracts_recording_of_the_same_readings(exact_postures, tmp_path):
+    from hexacal_identify.pipeline import postures_from_bag
+
+    mapped = postures_from_bag(write_mapped_recording(tmp_path / "mapped", exact_postures, seed=6, noise=0.0))
+    contract = postures_from_bag(write_recording(tmp_path / "contract", exact_postures, seed=6, noise_m=0.0,
+                                                 noise_rad=0.0, dwell_s=1.0, move_s=0.6, postures=False))
+    assert len(mapped.postures) == len(contract.postures) == 40
+    difference = np.abs(np.array([p.values() for p in mapped.postures])
+                        - np.array([p.values() for p in contract.postures])).max()
+    assert difference < 1e-12, difference
+
+
+@pytest.mark.parametrize("case, text", [
+    ("no imu", "lacks the raw stream(s) /imu (the inclinometer input)"),
+    ("imu is a joint state", "topic /imu has type sensor_msgs/msg/JointState, expected sensor_msgs/msg/Imu"),
+    ("bad mapping", "the input mapping its collector recorded (hexacal.collector) is invalid: "
+                    "inclinometer_signs: each sign must be 1 or -1"),
+])
+def test_mapped_bag_problems_are_named(exact_postures, nominal_file, tmp_path, case, text):
+    options = {"no imu": dict(drop_imu=True), "imu is a joint state": dict(imu_type="sensor_msgs/msg/JointState"),
+               "bad mapping": dict(mapping_overrides={"inclinometer_signs": "[1, 3]"})}[case]
+    few = type(exact_postures)(exact_postures.slider_positions[:3], exact_postures.inclinometer[:3],
+                               exact_postures.rotary[:3], exact_postures.kinds[:3])
+    bag = write_mapped_recording(tmp_path / "bag", few, **options)
+    completed = hexacal("calibrate", bag, "--nominal", nominal_file, "--output", tmp_path / "out.yaml")
+    assert completed.returncode == 2, completed.stdout
+    assert text in completed.stderr and len(completed.stderr.strip().splitlines()) == 1, completed.stderr
