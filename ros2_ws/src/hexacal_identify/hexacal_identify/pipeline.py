@@ -10,6 +10,12 @@ none = Hexa Slide), and a bag's actuator joint names tell which model recorded
 it (slider_1..6: Hexa Slide, leg_1..6: Gough-Stewart; the collector also
 stores it in the bag's ``hexacal.collector`` metadata). `check_model` refuses to
 calibrate the postures of one model with the nominal parameters of another.
+
+Inputs from a user's own drivers: when the collector recorded an input mapping
+(hexacal_msgs_py.inputs, in ``hexacal.collector``), the raw inputs are the
+recorded topics (e.g. one /joint_states for all three, an Imu inclinometer)
+read by that mapping, through the same contract conversions the collector uses;
+a bag without one is read by the contract's topics and joints, as always.
 """
 from __future__ import annotations
 

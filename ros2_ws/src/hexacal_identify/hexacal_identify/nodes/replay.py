@@ -3,8 +3,13 @@
 Messages go out as the recorded CDR bytes (no decode/encode), in log-time order,
 with the recorded spacing divided by ``--rate``, on publishers whose QoS is the
 one each topic was recorded with (offered_qos_profiles).  Header stamps are the
-recorded ones, so downstream nodes see the recorded timing.  The tool exits when
-the bag is done (or loops with ``--loop``); Ctrl-C stops it cleanly.
+recorded ones, so downstream nodes see the recorded timing.  Any recorded type
+that is installed plays: the sensor streams as the user's drivers published them
+(e.g. /joint_states, an Imu), the postures, and the platform pose and machine
+markers the collector records (geometry_msgs/PoseStamped,
+visualization_msgs/MarkerArray, transient local as recorded), so a bag replays
+as a moving machine in RViz or Foxglove.  The tool exits when the bag is done
+(or loops with ``--loop``); Ctrl-C stops it cleanly.
 """
 from __future__ import annotations
 
