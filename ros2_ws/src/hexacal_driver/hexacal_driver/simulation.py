@@ -21,9 +21,9 @@ import math
 
 import numpy as np
 
-from hexacal_identify.core.device import DEFAULT_MOUNT, STANDING, inclinometer_angles
+from hexacal_identify.core.device import DEFAULT_MOUNT, STANDING, fixed_point, inclinometer_angles
 from hexacal_identify.core.errors import UnreachablePoseError
-from hexacal_identify.core.kinematics import inverse_kinematics
+from hexacal_identify.core.kinematics import forward_kinematics, inverse_kinematics
 from hexacal_identify.core.measurements import NoiseModel
 from hexacal_identify.core.architectures import KinematicParameters
 
@@ -171,6 +171,7 @@ STILL = 'still'  # commanded mode: the setpoints stand still
 
 _CONSTRAINT_ITERATIONS = 30
 _CONSTRAINT_STEP_M = 1e-11  # Gauss-Newton stops when its step is below this (rad)
+STRAIN_RETRY_M = 1e-3  # a strain above this is checked from a second start (device_constrained_pose)
 
 
 class ConstraintError(RuntimeError):
@@ -193,6 +194,8 @@ def device_constrained_pose(params: KinematicParameters, setpoints: np.ndarray, 
 
     Gauss-Newton over (alpha, beta, theta, psi, phi) from `start` (the previous pose: the solution
     stays on the branch the machine is on), the position on the sphere by eq. 4 (core/device.py).
+    A strain above STRAIN_RETRY_M from there is checked against a start from the true forward
+    kinematics of the setpoints (a long move can leave the warm start in a poor local minimum).
     Returns (pose (6,), true actuator readings (6,)); ConstraintError if `start` is out of reach.
     """
     setpoints = np.asarray(setpoints, dtype=float)
@@ -200,8 +203,6 @@ def device_constrained_pose(params: KinematicParameters, setpoints: np.ndarray, 
     arch = params.architecture
     chains = arch.chains(params)
     sign = -1.0 if mount == STANDING else 1.0  # standing: p = -p_hanging (core/device.py)
-    alpha, beta = inclinometer_angles(start[None, :3], mount)
-    state = np.array([alpha[0], beta[0], *start[3:]])
 
     def evaluate(s: np.ndarray):
         ca, sa, cb, sb = math.cos(s[0]), math.sin(s[0]), math.cos(s[1]), math.sin(s[1])
@@ -217,26 +218,48 @@ def device_constrained_pose(params: KinematicParameters, setpoints: np.ndarray, 
         residual = legs.sliders[0] - setpoints
         return pose, legs, tangent, float(residual @ residual)
 
-    pose, legs, tangent, cost = evaluate(state)
+    def solve(near: np.ndarray):
+        alpha, beta = inclinometer_angles(near[None, :3], mount)
+        state = np.array([alpha[0], beta[0], *near[3:]])
+        pose, legs, tangent, cost = evaluate(state)
+        if not math.isfinite(cost):
+            return pose, legs, cost
+        for _ in range(_CONSTRAINT_ITERATIONS):
+            jacobian = legs.pose_jacobian()[0] @ tangent
+            step = np.linalg.lstsq(jacobian, legs.sliders[0] - setpoints, rcond=None)[0]
+            if float(np.max(np.abs(step))) < _CONSTRAINT_STEP_M:
+                break
+            scale = 1.0
+            for _halving in range(8):
+                trial = evaluate(state - scale * step)
+                if trial[3] <= cost:
+                    break
+                scale *= 0.5
+            else:
+                break  # no step reduces the strain: this is its minimum, to rounding
+            state = state - scale * step
+            pose, legs, tangent, cost = trial
+        return pose, legs, cost
+
+    pose, legs, cost = solve(start)
     if not math.isfinite(cost):
         raise ConstraintError('the previous pose is out of reach of the true machine')
-    for _ in range(_CONSTRAINT_ITERATIONS):
-        jacobian = legs.pose_jacobian()[0] @ tangent
-        step = np.linalg.lstsq(jacobian, legs.sliders[0] - setpoints, rcond=None)[0]
-        size = float(np.max(np.abs(step)))
-        if size < _CONSTRAINT_STEP_M:
-            break
-        scale = 1.0
-        for _halving in range(8):
-            trial = evaluate(state - scale * step)
-            if trial[3] <= cost:
-                break
-            scale *= 0.5
-        else:
-            break  # no step reduces the strain: this is its minimum, to rounding
-        state = state - scale * step
-        pose, legs, tangent, cost = trial
+    if cost > STRAIN_RETRY_M ** 2:
+        home = np.concatenate([fixed_point(link_length, mount), np.zeros(3)])
+        guesses = np.array([start, home])
+        guesses[:, 3:] = _wrap(guesses[:, 3:])
+        free = forward_kinematics(params, np.tile(setpoints, (2, 1)), guesses,
+                                  branch_tolerance_m=math.inf, branch_tolerance_rad=math.inf)
+        for found in free.poses[free.converged]:
+            other = solve(found)
+            if other[2] < cost:
+                pose, legs, cost = other
+    pose = np.concatenate([pose[:3], _wrap(pose[3:])])
     return pose, legs.sliders[0].copy()
+
+
+def _wrap(angles: np.ndarray) -> np.ndarray:
+    return (np.asarray(angles, dtype=float) + math.pi) % (2.0 * math.pi) - math.pi
 
 
 @dataclass(frozen=True)

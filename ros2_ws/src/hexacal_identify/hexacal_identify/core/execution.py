@@ -16,7 +16,17 @@ For each posture of a plan from ``hexacal plan``:
    machine or other limits, and walking what remains of it would measure a
    different plan than the one asked for.
 2. Move: one command, the targets with ``time_from_start`` from the largest
-   actuator move at ``max_actuator_speed_m_s`` (`move_duration`).
+   actuator move at ``max_actuator_speed_m_s`` (`move_duration`). With the
+   measuring link attached the platform must stay on the link sphere on the
+   way too: a controller interpolates a one-point command in joint space, which
+   between two postures leaves the sphere by centimetres and strains the
+   machine against the link. So with ``path_step_m`` > 0 (the default) the
+   command carries intermediate points, the nominal inverse kinematics of poses
+   along the sphere (great circle about O, Euler angles linear; `sphere_path`),
+   at most ``path_step_m`` apart, each timed at the same speed limit; its last
+   point is the target. The paths between consecutive postures are checked
+   with the plan; the first one, from where the machine stands, when it starts.
+   ``path_step_m`` = 0 sends the single point.
 3. Arrive: the measured actuators are at the target (within
    ``position_tolerance_m``) and still (peak-to-peak within
    ``still_tolerance_m``) over the last ``settle_s``, counted from when the
@@ -65,6 +75,8 @@ STATES = (WAITING, RUNNING, PAUSED, ABORTED, DONE, REFUSED)
 MOVE, CORRECT, HOLD = 'move', 'correct', 'hold'  # why a command is sent
 
 MIN_MOVE_S = 0.1  # shortest time_from_start of a command (a zero time asks a controller to jump)
+MIN_SEGMENT_S = 0.01  # shortest time between two points of a path
+SAME_SPHERE = 1e-3  # positions within this fraction of L of the link sphere move along it
 HOLD_S = 0.2  # time_from_start of a hold command
 POSITION_CHECK_M = 1e-6  # a plan posture's position must be where its kind says, to within this
 MIN_WINDOW_READINGS = 3  # readings a still window needs
@@ -93,9 +105,13 @@ class ExecutionSettings:
     fixed_tolerance_rad: float = 2e-5
     max_corrections: int = 5
     wait_for_posture: bool = True
+    path_step_m: float = 0.02  # 0: one-point commands
 
     def __post_init__(self) -> None:
         problems = []
+        if isinstance(self.path_step_m, bool) or not isinstance(self.path_step_m, (int, float)) \
+                or not math.isfinite(self.path_step_m) or self.path_step_m < 0:
+            problems.append(f'path_step_m must be a finite number >= 0, got {self.path_step_m!r}')
         for name in ('max_actuator_speed_m_s', 'position_tolerance_m', 'still_tolerance_m', 'settle_s',
                      'timeout_s', 'fixed_tolerance_rad'):
             value = getattr(self, name)
@@ -111,12 +127,26 @@ class ExecutionSettings:
 
 @dataclass(frozen=True)
 class Command:
-    """Actuator targets (model order, m) to reach in duration_s: one JointTrajectory point."""
+    """One JointTrajectory: points (n, 6) of actuator positions (model order, m) at times (n,) s
+    from its start; the last point is the target."""
 
-    positions: np.ndarray
-    duration_s: float
+    points: np.ndarray
+    times: np.ndarray
     purpose: str  # MOVE, CORRECT or HOLD
     posture: int  # plan index (0-based) it serves; -1 for a hold
+
+    @property
+    def positions(self) -> np.ndarray:
+        """The target: the last point."""
+        return self.points[-1]
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.times[-1])
+
+
+class PathError(ValueError):
+    """A path along the link sphere leaves the nominal workspace or the stroke."""
 
 
 @dataclass
@@ -188,6 +218,26 @@ def plan_targets(nominal: KinematicParameters, poses: np.ndarray, kinds, stroke:
     return targets, problems
 
 
+def path_problems(nominal: KinematicParameters, poses: np.ndarray, stroke: tuple[float, float],
+                  link_length: float, step_m: float, skip: set[int] = frozenset(),
+                  mount: str = DEFAULT_MOUNT) -> dict[int, str]:
+    """Postures whose path from the previous posture (along the link sphere, directly or by way of
+    the centre: `route_command`) cannot be commanded."""
+    problems: dict[int, str] = {}
+    if step_m <= 0:
+        return problems
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    for index in range(1, len(poses)):
+        if index in skip or index - 1 in skip:
+            continue
+        try:
+            route_command(nominal, np.zeros(6), poses[index - 1], poses[index], stroke, 1.0,
+                          link_length, step_m, mount)
+        except PathError as error:
+            problems[index] = f'the path from posture {index}: {error}'
+    return problems
+
+
 def refusal_message(problems: dict[int, str], total: int, shown: int = 10) -> str:
     """One line naming the refused postures (1-based, as progress counts them) and why."""
     items = sorted(problems.items())
@@ -198,9 +248,12 @@ def refusal_message(problems: dict[int, str], total: int, shown: int = 10) -> st
 
 
 def check_plan(nominal: KinematicParameters, poses: np.ndarray, kinds, stroke: tuple[float, float],
-               link_length: float, mount: str = DEFAULT_MOUNT) -> np.ndarray:
-    """The targets of every posture, or PlanRefusedError listing each one that cannot be commanded."""
+               link_length: float, mount: str = DEFAULT_MOUNT, path_step_m: float = 0.0) -> np.ndarray:
+    """The targets of every posture, or PlanRefusedError listing each one that cannot be commanded
+    (with path_step_m > 0, also each whose path from the previous posture cannot)."""
     targets, problems = plan_targets(nominal, poses, kinds, stroke, link_length, mount)
+    problems.update(path_problems(nominal, poses, stroke, link_length, path_step_m, set(problems),
+                                  mount))
     if problems:
         raise PlanRefusedError(refusal_message(problems, len(targets)), problems)
     return targets
@@ -211,6 +264,100 @@ def move_duration(current: np.ndarray, target: np.ndarray, max_speed_m_s: float,
     """time_from_start of a move: the largest actuator move at max_speed_m_s, at least minimum_s."""
     largest = float(np.max(np.abs(np.asarray(target, dtype=float) - np.asarray(current, dtype=float))))
     return max(largest / max_speed_m_s, minimum_s)
+
+
+def interpolate_pose(start: np.ndarray, end: np.ndarray, s: float, link_length: float) -> np.ndarray:
+    """The pose a fraction s of the way from start to end: on the link sphere (great circle about
+    O) when both positions are on it, else a straight line; Euler angles linear."""
+    start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+    p0, p1 = start[:3], end[:3]
+    r0, r1 = float(np.linalg.norm(p0)), float(np.linalg.norm(p1))
+    on_sphere = max(abs(r0 - link_length), abs(r1 - link_length)) <= SAME_SPHERE * link_length
+    angle = math.acos(min(max(float(p0 @ p1) / (r0 * r1), -1.0), 1.0)) if r0 > 0 and r1 > 0 else 0.0
+    if on_sphere and 1e-12 < angle < math.pi - 1e-6:
+        position = (math.sin((1 - s) * angle) * p0 + math.sin(s * angle) * p1) / math.sin(angle)
+        position *= ((1 - s) * r0 + s * r1) / float(np.linalg.norm(position))
+    else:
+        position = p0 + s * (p1 - p0)
+    return np.concatenate([position, start[3:] + s * (end[3:] - start[3:])])
+
+
+def sphere_path(start: np.ndarray, end: np.ndarray, link_length: float, step_m: float) -> np.ndarray:
+    """Poses (n, 6) from start (excluded) to end (included) along the link sphere, at most step_m
+    apart in position and step_m / L in each angle; just [end] for step_m = 0."""
+    start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+    if step_m <= 0:
+        return end[None].copy()
+    p0, p1 = start[:3], end[:3]
+    r0, r1 = float(np.linalg.norm(p0)), float(np.linalg.norm(p1))
+    angle = math.acos(min(max(float(p0 @ p1) / (r0 * r1), -1.0), 1.0)) if r0 > 0 and r1 > 0 else 0.0
+    length = max(angle * max(r0, r1), float(np.linalg.norm(p1 - p0)))
+    turn = float(np.max(np.abs(end[3:] - start[3:]))) * link_length
+    count = max(1, math.ceil(max(length, turn) / step_m - 1e-9))
+    return np.array([interpolate_pose(start, end, (k + 1) / count, link_length)
+                     for k in range(count)])
+
+
+def path_command(nominal: KinematicParameters, current: np.ndarray, poses: np.ndarray,
+                 stroke: tuple[float, float], max_speed_m_s: float, purpose: str = 'move',
+                 posture: int = -1) -> Command:
+    """The command through `poses` (nominal inverse kinematics) from the actuators at `current`:
+    each point timed from its largest actuator move at max_speed_m_s (the whole at least
+    MIN_MOVE_S); PathError if a pose is out of the nominal machine's reach or the stroke."""
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    arch = nominal.architecture
+    legs = arch.legs(arch.chains(nominal), poses)
+    reachable = legs.reachable()
+    if not np.all(reachable):
+        raise PathError(f'{int(np.sum(~reachable))} of its {len(poses)} points are out of the '
+                        f"nominal machine's reach ({arch.unreachable_reason})")
+    points = legs.sliders
+    low, high = stroke
+    outside = np.any((points < low) | (points > high), axis=1)
+    if np.any(outside):
+        names = nominal.layout.actuator_names
+        worst = points[np.flatnonzero(outside)[0]]
+        which = ', '.join(f'{names[c]} {worst[c]:.4f} m' for c in range(6)
+                          if not low <= worst[c] <= high)
+        raise PathError(f'{int(np.sum(outside))} of its {len(poses)} points are outside the stroke '
+                        f'[{low:g}, {high:g}] m ({which})')
+    previous = np.concatenate([np.asarray(current, dtype=float)[None], points[:-1]])
+    segments = np.maximum(np.max(np.abs(points - previous), axis=1) / max_speed_m_s, MIN_SEGMENT_S)
+    times = np.cumsum(segments)
+    if times[-1] < MIN_MOVE_S:
+        times *= MIN_MOVE_S / times[-1]
+    return Command(points.copy(), times, purpose, posture)
+
+
+def route_command(nominal: KinematicParameters, current: np.ndarray, start: np.ndarray, end: np.ndarray,
+                  stroke: tuple[float, float], max_speed_m_s: float, link_length: float, step_m: float,
+                  mount: str = DEFAULT_MOUNT, purpose: str = 'move', posture: int = -1) -> Command:
+    """The command along the link sphere from pose `start` to `end` (`sphere_path`); if that path
+    leaves the stroke or the nominal workspace, by way of the centre (the fixed-position point,
+    zero angles: the middle of the workspace); PathError (the direct path's) if neither can be
+    commanded."""
+    try:
+        return path_command(nominal, current, sphere_path(start, end, link_length, step_m), stroke,
+                            max_speed_m_s, purpose, posture)
+    except PathError as error:
+        centre = np.concatenate([fixed_point(link_length, mount), np.zeros(3)])
+        via = np.concatenate([sphere_path(start, centre, link_length, step_m),
+                              sphere_path(centre, end, link_length, step_m)])
+        try:
+            return path_command(nominal, current, via, stroke, max_speed_m_s, purpose, posture)
+        except PathError:
+            raise error from None
+
+
+def on_sphere(pose: np.ndarray, link_length: float, mount: str = DEFAULT_MOUNT) -> np.ndarray:
+    """The pose with its position moved radially onto the link sphere (on the mount's side of O)."""
+    pose = np.array(pose, dtype=float)
+    radius = float(np.linalg.norm(pose[:3]))
+    if radius > 0:
+        pose[:3] *= link_length / radius
+    else:
+        pose[:3] = fixed_point(link_length, mount)
+    return pose
 
 
 def fixed_position_correction(alpha: float, beta: float, link_length: float,
@@ -307,6 +454,9 @@ class PlanExecution:
         self._still_mean: np.ndarray | None = None
         self._postures: list[tuple[float, np.ndarray]] = []  # (received, actuators) since the last command
         self._sent_any = False
+        self._where: np.ndarray | None = None  # the pose the last move went to
+        self._at_where = False  # the machine stood still there since (so the next path starts there)
+        self.refusal = ''  # why the plan was refused (state REFUSED)
 
     # ------------------------------------------------------------------ inputs
 
@@ -467,33 +617,85 @@ class PlanExecution:
 
     def _hold(self) -> list[Command]:
         latest = self.actuators.latest
+        self._at_where = False
         if latest is None or not self._sent_any:
             return []
-        return [Command(latest.copy(), HOLD_S, HOLD, -1)]
+        return [Command(latest.copy()[None], np.array([HOLD_S]), HOLD, -1)]
 
     def _begin(self, now: float, fresh: bool) -> list[Command]:
         """Command the current posture (fresh: from its planned pose; else resume its corrections)."""
-        if self.index >= self.total:
-            return self._finish(now)
-        if fresh:
-            self._pose_cmd = self.poses[self.index].copy()
-            self._target = self.targets[self.index].copy()
-            self._corrections = 0
-        self._posture_start = now
-        command = self._command(now, MOVE if self._corrections == 0 else CORRECT)
-        self._first_move_s = command.duration_s
-        return [command]
+        while True:
+            if self.index >= self.total:
+                return self._finish(now)
+            if fresh:
+                self._pose_cmd = self.poses[self.index].copy()
+                self._target = self.targets[self.index].copy()
+                self._corrections = 0
+            self._posture_start = now
+            try:
+                command = self._command(now, MOVE)
+            except PathError as error:
+                if not self._sent_any:  # nothing has moved yet: the plan is refused
+                    self.state = REFUSED
+                    self.finished_at = now
+                    self._phase = None
+                    self.refusal = (f'plan refused before anything moved: the path from where the '
+                                    f'machine stands to posture {self.index + 1}: {error}')
+                    self._say('error', self.refusal)
+                    return []
+                self._record(now, False, f'its path cannot be commanded: {error}')
+                self._say('warn', f'posture {self.index + 1} of {self.total} skipped: its path '
+                                  f'cannot be commanded: {error}')
+                self.index += 1
+                fresh = True
+                continue
+            self._first_move_s = command.duration_s
+            return [command]
 
     def _command(self, now: float, purpose: str) -> Command:
+        """The command to the current commanded pose: along the link sphere from where the machine
+        is (MOVE), or one point (CORRECT: a small correction from a standstill); PathError."""
         current = self.actuators.latest if self.actuators.latest is not None else self._target
-        duration = move_duration(current, self._target, self.settings.max_actuator_speed_m_s)
+        step = self.settings.path_step_m
+        start = None
+        if purpose != CORRECT and step > 0:
+            start = self._where if self._at_where else self._estimate()
+        if start is None:
+            command = path_command(self.nominal, current, self._pose_cmd[None], self.stroke,
+                                   self.settings.max_actuator_speed_m_s, purpose, self.index)
+        else:
+            command = route_command(self.nominal, current, start, self._pose_cmd, self.stroke,
+                                    self.settings.max_actuator_speed_m_s, self.link_length, step,
+                                    self.mount, purpose, self.index)
+        self._target = command.positions.copy()
+        self._where, self._at_where = self._pose_cmd.copy(), False
         self._command_time = now
-        self._arrive_after = now + duration
+        self._arrive_after = now + command.duration_s
         self._phase = 'moving'
         self._postures = []
         self._still_mean = None
         self._sent_any = True
-        return Command(self._target.copy(), duration, purpose, self.index)
+        return command
+
+    def _estimate(self) -> np.ndarray | None:
+        """Where the platform stands, by nominal forward kinematics of the measured actuators
+        (moved onto the link sphere); None (one-point command) if that fails."""
+        from .kinematics import forward_kinematics
+
+        latest = self.actuators.latest
+        if latest is None:
+            return None
+        guesses = [pose for pose in (self._where, self.poses[min(self.index, self.total - 1)],
+                                     np.concatenate([fixed_point(self.link_length, self.mount),
+                                                     np.zeros(3)])) if pose is not None]
+        found = forward_kinematics(self.nominal, np.tile(latest, (len(guesses), 1)),
+                                   np.array(guesses))
+        for pose, converged in zip(found.poses, found.converged):
+            if converged:
+                return on_sphere(pose, self.link_length, self.mount)
+        self._say('warn', 'cannot tell where the platform stands (nominal forward kinematics of '
+                          'the measured actuators failed): one-point command')
+        return None
 
     def _still_mean_at(self, now: float) -> np.ndarray | None:
         settle = self.settings.settle_s
@@ -529,23 +731,19 @@ class PlanExecution:
             return self._skip(now, (
                 f'fixed position not reached after {self._corrections} corrections (inclinometer '
                 f'{alpha:.3g}, {beta:.3g} rad; tolerance {self.settings.fixed_tolerance_rad:g} rad)'))
-        pose = corrected_pose(self._pose_cmd, alpha, beta, self.link_length, self.mount)
-        arch = self.nominal.architecture
-        legs = arch.legs(arch.chains(self.nominal), pose[None])
-        if not bool(legs.reachable()[0]):
-            return self._skip(now, 'the fixed-position correction leaves the nominal workspace')
-        target = legs.sliders[0]
-        low, high = self.stroke
-        if np.any((target < low) | (target > high)):
-            return self._skip(now, f'the fixed-position correction needs a target outside the stroke '
-                                   f'[{low:g}, {high:g}] m')
+        previous = self._pose_cmd
+        self._pose_cmd = corrected_pose(previous, alpha, beta, self.link_length, self.mount)
+        try:
+            command = self._command(now, CORRECT)
+        except PathError as error:
+            self._pose_cmd = previous
+            return self._skip(now, f'the fixed-position correction cannot be commanded: {error}')
         self._corrections += 1
         self.total_corrections += 1
-        self._pose_cmd, self._target = pose, target
+        moved = np.linalg.norm(self._pose_cmd[:3] - previous[:3])
         self._say('info', f'posture {index + 1}: inclinometer {alpha:.3g}, {beta:.3g} rad; correction '
-                          f'{self._corrections} moves the platform by '
-                          f'{np.linalg.norm(fixed_position_correction(alpha, beta, self.link_length, self.mount)) * 1e6:.0f} um')
-        return [self._command(now, CORRECT)]
+                          f'{self._corrections} moves the platform by {moved * 1e6:.0f} um')
+        return [command]
 
     def _timeout_reason(self, now: float) -> str:
         timeout = self.settings.timeout_s
@@ -569,6 +767,7 @@ class PlanExecution:
         return self._advance(now)
 
     def _complete(self, now: float) -> list[Command]:
+        self._at_where = True  # it stood still at the commanded pose: the next path starts there
         self._record(now, True, '')
         corrections = f', {self._corrections} corrections' if self._corrections else ''
         self._say('info', f'posture {self.index + 1} of {self.total} ({self.kinds[self.index]}) '

@@ -100,6 +100,7 @@ from ..core.execution import (
     check_stroke,
     default_stroke,
     joint_positions,
+    path_problems,
     plan_targets,
     refusal_message,
 )
@@ -149,6 +150,10 @@ PARAMETERS: dict[str, _Spec] = {
                                  'as fixed', 1e-7, 0.01),
     'max_corrections': _Spec(SETTINGS.max_corrections, 'closed-loop corrections of a '
                              'fixed-position posture before it is skipped', 0, 100),
+    'path_step_m': _Spec(SETTINGS.path_step_m, 'a move goes along the link sphere through '
+                         'points at most this far apart (m; also this / L rad in each angle), so '
+                         'the platform stays where the measuring link lets it; 0: one-point '
+                         'commands (joint-space moves)', 0.0, 1.0),
     'inclinometer_joints': _Spec(list(INCLINOMETER_NAMES), 'the inclinometer joints alpha (about '
                                  'X), beta (about Y) of the inclinometer input (rad)',
                                  constraints='two distinct names'),
@@ -225,6 +230,11 @@ def _parameter_problem(parameter: Parameter) -> str | None:
     return None
 
 
+def _duration(seconds: float) -> Duration:
+    nanoseconds = int(round(max(seconds, 0.0) * 1e9))
+    return Duration(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
+
+
 def _now_s(node: Node) -> float:
     return node.get_clock().now().nanoseconds * 1e-9
 
@@ -260,7 +270,7 @@ class ExecutorNode(Node):
                 still_tolerance_m=value['still_tolerance_m'], settle_s=value['settle_s'],
                 timeout_s=value['timeout_s'], fixed_tolerance_rad=value['fixed_tolerance_rad'],
                 max_corrections=value['max_corrections'],
-                wait_for_posture=value['wait_for_posture'])
+                wait_for_posture=value['wait_for_posture'], path_step_m=value['path_step_m'])
         except ValueError as error:
             raise ExecutorConfigurationError(str(error)) from error
         self.calibrate_when_done = bool(value['calibrate_when_done'])
@@ -268,14 +278,18 @@ class ExecutorNode(Node):
 
         targets, problems = plan_targets(self.nominal, self.plan.poses, self.plan.kinds, self.stroke,
                                          self.plan.link_length, self.plan.mount)
-        self.refusal = refusal_message(problems, len(targets)) if problems else ''
+        problems.update(path_problems(self.nominal, self.plan.poses, self.stroke,
+                                      self.plan.link_length, self.settings.path_step_m,
+                                      set(problems), self.plan.mount))
+        refusal = refusal_message(problems, len(targets)) if problems else ''
         if problems and self.shutdown_when_done:
-            raise PlanRefusedError(self.refusal, problems)
+            raise PlanRefusedError(refusal, problems)
         self.execution = PlanExecution(
             self.nominal, self.plan.poses, self.plan.kinds, targets, self.settings, self.stroke,
             self.plan.link_length, self.plan.mount, start_paused=bool(value['start_paused']))
         if problems:
             self.execution.state = REFUSED
+            self.execution.refusal = refusal
         self.refused_postures = sorted(problems)
 
         try:
@@ -312,7 +326,7 @@ class ExecutorNode(Node):
             f'{self.settings.max_actuator_speed_m_s:g} m/s, stroke [{self.stroke[0]:g}, '
             f'{self.stroke[1]:g}] m')
         if problems:
-            self.get_logger().error(self.refusal)
+            self.get_logger().error(refusal)
         self._publish_status(force=True)
         self._timer = self.create_timer(CONTROL_PERIOD_S, self._tick)
 
@@ -396,7 +410,7 @@ class ExecutorNode(Node):
 
     def _service(self, response: Trigger.Response, action) -> Trigger.Response:
         if self.execution.state == REFUSED:
-            response.success, response.message = False, f'the plan was refused: {self.refusal}'
+            response.success, response.message = False, self.execution.refusal
             return response
         success, message, commands = action(_now_s(self))
         self._send(commands)
@@ -446,28 +460,31 @@ class ExecutorNode(Node):
             return
         self.get_logger().info(f'starting: {len(self.plan.poses)} postures')
         self._send(self.execution.start(now))
+        if self.execution.state == REFUSED:
+            self._publish_status(force=True)
 
     def _send(self, commands: list[Command]) -> None:
         for command in commands:
-            seconds = max(command.duration_s, 0.0)
-            whole = int(seconds)
             message = JointTrajectory()  # header.stamp zero: the controller starts it on receipt
             message.joint_names = list(self.actuator_joints)
-            message.points = [JointTrajectoryPoint(
-                positions=[float(p) for p in command.positions],
-                time_from_start=Duration(sec=whole, nanosec=int(round((seconds - whole) * 1e9)) % 1_000_000_000))]
+            message.points = [JointTrajectoryPoint(positions=[float(p) for p in point],
+                                                   time_from_start=_duration(seconds))
+                              for point, seconds in zip(command.points, command.times)]
             self._command_pub.publish(message)
             self.commands_sent += 1
             what = (f'posture {command.posture + 1} of {self.execution.total}' if command.posture >= 0
                     else 'hold')
-            self.get_logger().debug(f'{command.purpose} ({what}): '
-                                    f'[{", ".join(f"{p * 1e3:.3f}" for p in command.positions)}] mm '
-                                    f'in {seconds:.2f} s')
+            self.get_logger().debug(
+                f'{command.purpose} ({what}): {len(command.points)} points to '
+                f'[{", ".join(f"{p * 1e3:.3f}" for p in command.positions)}] mm in '
+                f'{command.duration_s:.2f} s')
 
     def _drain_messages(self) -> None:
         messages, self.execution.messages = self.execution.messages, []
         for level, text in messages:
-            if level == 'warn':
+            if level == 'error':
+                self.get_logger().error(text)
+            elif level == 'warn':
                 self.get_logger().warning(text)
             else:
                 self.get_logger().info(text)
@@ -513,7 +530,7 @@ class ExecutorNode(Node):
         values['commands_sent'] = self.commands_sent
         if self.execution.state == REFUSED:
             values['refused_postures'] = ', '.join(str(i + 1) for i in self.refused_postures)
-            values['reason'] = self.refusal
+            values['reason'] = self.execution.refusal
         if self.execution.state == WAITING and self._waiting_for:
             values['waiting_for'] = '; '.join(self._waiting_for)
         if self.calibrate_when_done:
@@ -545,7 +562,7 @@ class ExecutorNode(Node):
     def _status_text(self, values: dict[str, object]) -> str:
         state = self.execution.state
         if state == REFUSED:
-            return self.refusal
+            return self.execution.refusal
         if state == WAITING:
             return 'waiting for ' + ', '.join(self._waiting_for) if self._waiting_for else 'starting'
         text = (f"{state}: posture {values['posture']} of {values['postures']}, "

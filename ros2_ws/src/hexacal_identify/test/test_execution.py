@@ -1,0 +1,252 @@
+"""core/execution.py: targets, stroke check, time_from_start, the fixed-position correction, the state machine."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hexacal_identify.core.architectures import default_parameters
+from hexacal_identify.core.device import fixed_point, inclinometer_angles, measured_position
+from hexacal_identify.core.execution import (
+    ABORTED,
+    CORRECT,
+    DONE,
+    HOLD,
+    MIN_MOVE_S,
+    MOVE,
+    PAUSED,
+    RUNNING,
+    WAITING,
+    ExecutionSettings,
+    PlanExecution,
+    PlanRefusedError,
+    check_plan,
+    check_stroke,
+    corrected_pose,
+    default_stroke,
+    fixed_position_correction,
+    joint_positions,
+    move_duration,
+    plan_targets,
+)
+from hexacal_identify.core.kinematics import inverse_kinematics
+from hexacal_identify.core.model import nominal_set, table1_parameters
+from hexacal_identify.core.postures import sample_poses
+
+L = 0.75
+NOMINAL = nominal_set(2, seed=0)
+GS = 'gough_stewart'
+
+
+def _plan(params=NOMINAL, sphere=4, fixed=2, seed=0):
+    rng = np.random.default_rng(seed)
+    workspace = params.architecture.default_workspace()
+    poses = np.concatenate([sample_poses(params, n, rng, kind, workspace)
+                            for kind, n in (('sphere', sphere), ('fixed', fixed)) if n])
+    return poses, ['sphere'] * sphere + ['fixed'] * fixed
+
+
+# --------------------------------------------------------------------------- targets and the stroke
+
+
+@pytest.mark.parametrize('model', [None, GS])
+def test_targets_are_the_nominal_inverse_kinematics(model):
+    nominal = nominal_set(2, seed=0, model=model)
+    poses, kinds = _plan(nominal)
+    targets = check_plan(nominal, poses, kinds, default_stroke(nominal), L)
+    np.testing.assert_array_equal(targets, inverse_kinematics(nominal, poses))
+    assert default_stroke(nominal) == tuple(nominal.architecture.default_workspace().slider_stroke_m)
+
+
+def test_a_target_outside_the_stroke_refuses_the_whole_plan_naming_each_posture():
+    poses, kinds = _plan()
+    targets = inverse_kinematics(NOMINAL, poses)
+    high = float(np.sort(targets.max(axis=1))[-3])  # the two highest postures go beyond it
+    with pytest.raises(PlanRefusedError) as caught:
+        check_plan(NOMINAL, poses, kinds, (0.0, high), L)
+    outside = sorted(int(i) for i in np.flatnonzero(targets.max(axis=1) > high))
+    assert len(outside) == 2 and sorted(caught.value.problems) == outside
+    message = str(caught.value)
+    assert caught.value.reason == 'plan-refused'
+    assert 'plan refused before anything moved: 2 of 6 postures' in message
+    assert f'postures {[i + 1 for i in outside]}' in message
+    assert f'outside the stroke [0, {high:g}] m: slider_' in message
+
+
+def test_unreachable_and_misplaced_postures_are_named():
+    poses, kinds = _plan()
+    poses = poses.copy()
+    poses[0, :3] *= 1.01  # off the link sphere
+    poses[4, :3] = [0.01, 0.0, -L]  # a fixed posture away from the fixed point
+    poses[1, 2] = -5.0  # far below: no leg reaches
+    _, problems = plan_targets(NOMINAL, poses, kinds, default_stroke(NOMINAL), L)
+    assert 'must be on the link sphere' in problems[0]
+    assert 'cannot reach it' in problems[1]
+    assert 'a fixed-position posture must be at' in problems[4]
+    assert set(problems) == {0, 1, 4}
+
+
+@pytest.mark.parametrize('stroke', [(0.5, 0.1), (0.0,), (0.0, math.inf), ('a', 1.0)])
+def test_stroke_limits_must_be_two_increasing_numbers(stroke):
+    with pytest.raises(ValueError, match='stroke limits must be two finite numbers'):
+        check_stroke(stroke)
+
+
+def test_time_from_start_is_the_largest_move_at_the_maximum_speed():
+    assert move_duration(np.zeros(6), np.array([0.0, 0.1, -0.3, 0, 0, 0]), 0.1) == pytest.approx(3.0)
+    assert move_duration(np.zeros(6), np.full(6, 1e-6), 0.1) == MIN_MOVE_S
+
+
+@pytest.mark.parametrize('mount', ['hanging', 'standing'])
+def test_the_fixed_position_correction_brings_the_inclinometer_to_zero(mount):
+    alpha, beta = 4e-3, -7e-3
+    position = measured_position(alpha, beta, L, mount)
+    corrected = position + fixed_position_correction(alpha, beta, L, mount)
+    # eq. 4's derivative: first order, so the error left is second order in the angles (~L * 1e-5).
+    assert np.linalg.norm(corrected - fixed_point(L, mount)) < 5e-5
+    left = np.abs(np.array(inclinometer_angles(corrected[None], mount)).ravel()).max()
+    assert left < 1e-4 < max(abs(alpha), abs(beta))
+    pose = np.array([*position, 0.1, -0.2, 0.3])
+    moved = corrected_pose(pose, alpha, beta, L, mount)
+    np.testing.assert_array_equal(moved[3:], pose[3:])  # the orientation is kept
+
+
+def test_joint_positions_by_name_in_any_order():
+    assert joint_positions(['b', 'x', 'a'], [2.0, 9.0, 1.0], ('a', 'b')).tolist() == [1.0, 2.0]
+    assert joint_positions(['a'], [1.0], ('a', 'b')) is None
+    assert joint_positions(['a', 'b'], [1.0, math.nan], ('a', 'b')) is None
+    assert joint_positions(['a', 'a', 'b'], [1.0, 1.0, 2.0], ('a', 'b')) is None
+
+
+def test_settings_name_every_bad_value():
+    with pytest.raises(ValueError, match='settle_s must be a positive.*max_corrections must be'):
+        ExecutionSettings(settle_s=0.0, max_corrections=-1)
+
+
+# --------------------------------------------------------------------------- the state machine
+
+
+class _Machine:
+    """A machine that reaches every command exactly after its time_from_start (no link strain),
+    and a collector that measures after 0.4 s of stillness; the inclinometer reads its true
+    platform position."""
+
+    def __init__(self, truth, execution: PlanExecution, speed_factor: float = 1.0):
+        self.truth = truth
+        self.execution = execution
+        self.position = inverse_kinematics(truth, np.array([[0, 0, -L, 0, 0, 0.0]]))[0]
+        self.start, self.goal, self.t0, self.t1 = self.position, self.position, 0.0, 0.0
+        self.speed_factor = speed_factor
+        self.commands = []
+        self.measured_at = None
+        self.t = 0.0
+
+    def command(self, commands):
+        for command in commands:
+            self.commands.append(command)
+            self.start = self.at(self.t)
+            self.goal = command.positions
+            self.t0, self.t1 = self.t, self.t + command.duration_s / self.speed_factor
+
+    def at(self, t):
+        if t >= self.t1:
+            return self.goal
+        s = (t - self.t0) / (self.t1 - self.t0)
+        return self.start + s * (self.goal - self.start)
+
+    def run(self, until, dt=0.01):
+        from hexacal_identify.core.kinematics import forward_kinematics
+
+        execution = self.execution
+        while self.t < until and execution.state not in (DONE, ABORTED):
+            q = self.at(self.t)
+            execution.on_actuators(self.t, q)
+            if self.t >= self.t1:
+                if self.measured_at is None:
+                    pose = forward_kinematics(self.truth, q[None], np.array([[0, 0, -L, 0, 0, 0.0]]))
+                    angles = inclinometer_angles(pose.poses[:, :3])
+                    self.angles = (float(angles[0][0]), float(angles[1][0]))
+                    self.measured_at = self.t + 0.4
+                execution.on_inclinometer(self.t, *self.angles)
+                if self.t >= self.measured_at:
+                    execution.on_posture(self.t, q)
+                    self.measured_at = math.inf
+            else:
+                self.measured_at = None
+            self.command(execution.start(self.t) if execution.state == WAITING
+                         else execution.step(self.t))
+            self.t += dt
+
+
+def _execution(nominal=NOMINAL, sphere=3, fixed=1, **settings):
+    poses, kinds = _plan(nominal, sphere, fixed)
+    stroke = default_stroke(nominal)
+    settings = {'max_actuator_speed_m_s': 0.5, 'settle_s': 0.2, **settings}
+    return PlanExecution(nominal, poses, kinds, check_plan(nominal, poses, kinds, stroke, L),
+                         ExecutionSettings(**settings), stroke, L)
+
+
+def test_a_plan_is_walked_to_the_end_with_the_fixed_posture_in_closed_loop():
+    execution = _execution(NOMINAL)
+    machine = _Machine(table1_parameters(), execution)
+    machine.run(60.0)
+    assert execution.state == DONE and execution.measured == 4 and not execution.skipped
+    purposes = [c.purpose for c in machine.commands]
+    assert purposes[:4] == [MOVE] * 4 and CORRECT in purposes  # the fixed one was corrected
+    assert max(map(abs, machine.angles)) <= execution.settings.fixed_tolerance_rad
+    assert execution.outcomes[-1].corrections >= 1
+    progress = execution.progress(machine.t)
+    assert progress['state'] == 'done' and progress['posture'] == 4 and progress['skipped'] == 0
+    assert 'eta_s' not in progress
+
+
+def test_pause_holds_and_resume_restarts_the_posture_abort_ends_the_plan():
+    execution = _execution(NOMINAL, sphere=4, fixed=0)
+    machine = _Machine(default_parameters(), execution)
+    machine.run(0.05)
+    assert execution.state == RUNNING and len(machine.commands) == 1
+    ok, message, commands = execution.pause(machine.t)
+    assert ok and execution.state == PAUSED and 'paused at posture 1 of 4' in message
+    assert [c.purpose for c in commands] == [HOLD]
+    np.testing.assert_array_equal(commands[0].positions, execution.actuators.latest)
+    machine.command(commands)
+    machine.run(machine.t + 3.0)  # paused: nothing moves on
+    assert execution.state == PAUSED and execution.measured == 0
+    assert execution.progress(machine.t)['state'] == 'paused'
+    ok, message, commands = execution.resume(machine.t)
+    assert ok and execution.state == RUNNING and [c.purpose for c in commands] == [MOVE]
+    np.testing.assert_array_equal(commands[0].positions, execution.targets[0])
+    machine.command(commands)
+    while execution.measured < 2:
+        machine.run(machine.t + 0.1)
+    ok, message, commands = execution.abort(machine.t)
+    assert ok and execution.state == ABORTED and 'aborted at posture 3 of 4 (2 measured' in message
+    assert [c.purpose for c in commands] == [HOLD]
+    assert not execution.abort(machine.t)[0] and not execution.resume(machine.t)[0]
+    assert execution.step(machine.t + 100.0) == []  # nothing more is ever commanded
+
+
+def test_a_posture_not_reached_in_time_is_skipped_and_reported():
+    execution = _execution(NOMINAL, sphere=2, fixed=0, timeout_s=0.5)
+    machine = _Machine(default_parameters(), execution, speed_factor=0.01)  # 100x too slow
+    machine.run(10.0)
+    assert execution.state == DONE and execution.measured == 0 and len(execution.skipped) == 2
+    reason = execution.skipped[0].reason
+    assert reason.startswith('not at the target and still within 0.5 s (actuators up to')
+    progress = execution.progress(machine.t)
+    assert progress['skipped'] == 2 and progress['skipped_postures'].startswith('1: not at the target')
+
+
+def test_start_paused_waits_for_resume_and_eta_counts_down():
+    execution = _execution(NOMINAL, sphere=3, fixed=0)
+    execution.start_paused = True
+    machine = _Machine(default_parameters(), execution)
+    machine.run(1.0)
+    assert execution.state == PAUSED and machine.commands == []
+    eta_before = execution.eta_s(machine.t)
+    assert eta_before > 0
+    machine.command(execution.resume(machine.t)[2])
+    while execution.measured < 1:
+        machine.run(machine.t + 0.1)
+    assert 0 < execution.eta_s(machine.t) < eta_before
