@@ -222,6 +222,11 @@ def test_kinematics_node_tracks_commands_and_draws(ros_processes, tmp_path, prob
 
     marker_array, drawn_pose = probe.spin_until(drawn, 10.0, 'machine markers of a received pose', details)
     markers = {m.ns: m for m in marker_array.markers}
+    # At most markers_rate_hz (10 Hz) while the readings come at 50 Hz: each drawing is of a newer pose,
+    # and they are about 0.1 s apart.
+    stamps = np.array([a.markers[0].header.stamp.sec + a.markers[0].header.stamp.nanosec * 1e-9
+                       for a in heard.markers])
+    assert len(stamps) >= 2 and np.all(np.diff(stamps) > 0.05), np.diff(stamps)
     drawing = arch.drawing(truth, drawn_pose)
     assert set(markers) == set(drawing) >= {'base_joints', 'platform_joints', 'platform', 'device_link',
                                             'rails' if model == HEXA_SLIDE else 'legs'}

@@ -39,8 +39,10 @@ is refused (`model-mismatch`) and the model in use is kept.
 Pose <-> PoseStamped: hexacal_msgs_py.poses (position m; orientation the
 quaternion of R = R_Y(theta) R_X(psi) R_z(phi), eq. 2).  Status: DiagnosticArray
 on `hexacal/calibration_status` (STATUS_QOS), status name 'hexacal
-kinematics', with `outcome` (parameters, tracking, sent, refused,
-pose-failed, invalid-reading, model-mismatch) and the figures of the event.
+kinematics', with `outcome` (waiting, parameters, tracking, sent, refused with
+its `reason`, pose-failed, invalid-reading, invalid-parameters,
+model-mismatch) and the figures of the event; repeated reading problems are
+logged and published at most every LOG_PERIOD_S.
 """
 from __future__ import annotations
 
