@@ -9,7 +9,13 @@ import subprocess
 import pytest
 
 from rosproc import venv_executable
-from system_support import STOP_TIMEOUT_S, node_argv, pid_alive, probe  # noqa: F401 - fixture
+from system_support import (  # noqa: F401 - probe is a fixture
+    STOP_TIMEOUT_S,
+    node_argv,
+    pid_alive,
+    probe,
+    write_parameter_files,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 LAUNCH_FILE = REPO / 'ros2_ws/src/hexacal_identify/launch/hexacal.launch.py'
@@ -19,11 +25,13 @@ LAUNCH_FILE = REPO / 'ros2_ws/src/hexacal_identify/launch/hexacal.launch.py'
     ('driver', 'holding the first posture until'),
     ('collector', 'recording to'),
     ('identify', 'collecting postures on'),
+    ('executor', 'waiting for actuator readings'),
 ])
 def test_node_starts_and_exits_0_on_ctrl_c(ros_processes, tmp_path, probe, executable,
                                            startup_line):
     parameters = {'collector': {'output_dir': str(tmp_path / 'bags'), 'bag_name': 'smoke'},
-                  'identify': {'output_dir': str(tmp_path)}}.get(executable, {})
+                  'identify': {'output_dir': str(tmp_path)},
+                  'executor': _executor_files(tmp_path)}.get(executable, {})
     process = ros_processes.start(node_argv(executable, parameters))
     probe.wait_for_node(executable, process=process)  # on the graph
     probe.spin_until(lambda: startup_line in process.log_text(), 15.0,
@@ -48,6 +56,43 @@ def test_bad_parameters_stop_a_node_with_the_reason(tmp_path, executable, parame
         parameters = {'output_dir': str(tmp_path), **parameters}
     result = subprocess.run(node_argv(executable, parameters), capture_output=True, text=True,
                             timeout=60, cwd=tmp_path)
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert problem in result.stdout + result.stderr
+
+
+def _executor_files(directory: Path, model: str | None = None) -> dict[str, str]:
+    """plan and nominal parameters of an executor: a generated mixed plan of 8 postures."""
+    from hexacal_driver.plan import generated_plan, save_plan
+    from hexacal_identify.core.architectures import default_parameters
+
+    _, nominal = write_parameter_files(directory, model)
+    plan = directory / f'plan_{model or "hexa_slide"}.yaml'
+    save_plan(plan, generated_plan('mixed', default_parameters(model), 8, seed=0))
+    return {'plan': str(plan), 'nominal': str(nominal)}
+
+
+@pytest.mark.parametrize('parameters, problem', [
+    ({}, "parameter 'plan' is required"),
+    ({'settle_s': 0.0}, 'settle_s out of range'),
+    ({'max_corrections': -1}, 'max_corrections out of range'),
+    ({'command_topic': 'bad topic'}, 'command_topic'),
+    ({'inclinometer_joints': '[a, a]'}, 'inclinometer_joints must be 2 distinct joint names'),
+    ({'stroke_limits_m': '[0.9, 0.1]'}, 'stroke limits must be two finite numbers'),
+    ({'nominal': '/nonexistent.yaml'}, 'nominal:'),
+    ({'model': 'gough_stewart'}, 'was made for a gough_stewart'),
+])
+def test_bad_executor_parameters_stop_it_with_the_reason(tmp_path, parameters, problem):
+    parameters = dict(parameters)
+    files = _executor_files(tmp_path)
+    if parameters.pop('model', None):  # a Gough-Stewart plan for the Hexa Slide nominal
+        files['plan'] = _executor_files(tmp_path, 'gough_stewart')['plan']
+    if problem.startswith("parameter 'plan'"):
+        files = {}
+    values = {**files, **parameters}
+    lists = {name: value for name, value in values.items() if str(value).startswith('[')}
+    argv = node_argv('executor', {k: v for k, v in values.items() if k not in lists})
+    argv += [item for name, value in lists.items() for item in ('-p', f'{name}:={value}')]
+    result = subprocess.run(argv, capture_output=True, text=True, timeout=60, cwd=tmp_path)
     assert result.returncode == 2, result.stdout + result.stderr
     assert problem in result.stdout + result.stderr
 

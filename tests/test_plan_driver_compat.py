@@ -46,3 +46,24 @@ def test_a_gough_stewart_plan_names_its_model_and_the_driver_walks_only_that_mac
     assert "model" not in hexa.read_text()
     with pytest.raises(PlanError, match="made for a hexa_slide"):
         resolve_plan(str(hexa), truth, 0, 0)
+
+
+@pytest.mark.parametrize("model", [None, GS])
+def test_a_planned_file_is_what_the_executor_commands_within_the_commanded_drivers_stroke(tmp_path, model):
+    from hexacal_driver.plan import machine_workspace
+    from hexacal_identify.core.execution import check_plan, default_stroke
+    from hexacal_identify.core.kinematics import inverse_kinematics
+    from hexacal_identify.core.planning import Plan
+
+    nominal = nominal_set(2, model=model)
+    planning = plan_postures(nominal, 16, n_candidates=500, cost="sphere-fixed", seed=7)
+    plan = Plan.load(planning.plan.save(tmp_path / "plan.yaml"))  # what the executor reads
+    driver_plan = load_plan(tmp_path / "plan.yaml")  # what the plan-walking driver reads
+    np.testing.assert_array_equal(plan.poses, driver_plan.poses)
+    # Every target and every path between postures (along the link sphere) can be commanded.
+    targets = check_plan(nominal, plan.poses, plan.kinds, default_stroke(nominal), plan.link_length,
+                         plan.mount, path_step_m=0.02)
+    np.testing.assert_array_equal(targets, inverse_kinematics(nominal, plan.poses))
+    # The stroke the executor checks is the one the commanded driver enforces.
+    truth = default_parameters(model)
+    assert default_stroke(nominal) == tuple(machine_workspace(truth, plan.link_length).slider_stroke_m)
