@@ -31,7 +31,8 @@ publishing the three sensor streams (with noise as configured) for where the
 machine stands: the measuring link holds the platform on its sphere, so the pose
 is the one on the sphere whose true actuator positions are nearest the
 setpoints (simulation.device_constrained_pose), the actuator readings those
-positions and the device readings those of the pose. `plan`, `postures`,
+positions and the device readings those of the pose (a strain beyond 10 mm, the
+sign of commands that leave the sphere, is logged as a warning). `plan`, `postures`,
 `settle_s`, `dwell_s`, `loop` and `wait_for_subscriber` do not apply.
 
 The math lives in `simulation.py` and `plan.py`; this node keeps time and publishes.
@@ -91,6 +92,9 @@ MOUNT_PARAMETER = 'device.mount'  # parameters-file key of the device mount (cor
 # wake-up costs more than the publishing, so 1 kHz costs 200 wake-ups per second, not 1000.
 MAX_WAKE_HZ = 200.0
 NS_PER_S = 1_000_000_000
+# Commanded mode: a strain of the measuring link beyond this is logged (at most every period).
+STRAIN_WARNING_M = 0.01
+STRAIN_WARNING_PERIOD_S = 5.0
 # Parameters that may change while the node runs; all others shape the plan and are read-only.
 RUNTIME_PARAMETERS = ('slider_noise_m', 'angle_noise_rad')
 
@@ -423,7 +427,14 @@ class DriverNode(Node):
         self.published += 1  # complete ticks: Ctrl-C may cut the last one after some of its publishes
 
     def _report_motion(self, phase: str) -> None:
-        """Commanded mode: one line when a commanded motion ends (with the link's strain)."""
+        """Commanded mode: one line when a commanded motion ends (with the link's strain); a
+        warning while the link strains the machine beyond STRAIN_WARNING_M."""
+        strain = self.follower.strain_m
+        if strain > STRAIN_WARNING_M:
+            self.get_logger().warning(
+                f'the measuring link strains the machine: actuators {strain * 1e3:.1f} mm from '
+                'their setpoints (commanded positions off the link sphere: move along it)',
+                throttle_duration_sec=STRAIN_WARNING_PERIOD_S)
         if phase == self._last_phase:
             return
         self._last_phase = phase

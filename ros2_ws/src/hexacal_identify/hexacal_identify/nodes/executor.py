@@ -5,9 +5,14 @@
 
 For each planned posture: inverse kinematics with the nominal parameters gives
 the actuator targets, published as a ``trajectory_msgs/JointTrajectory`` (the
-actuator joints, one point, ``time_from_start`` from the largest move at
+actuator joints, ``time_from_start`` from the largest move at
 ``max_actuator_speed_m_s``) on ``command_topic`` (COMMAND_QOS: the topic
-interface of ros2_control's joint_trajectory_controller); then it waits until
+interface of ros2_control's joint_trajectory_controller). The trajectory's last
+point is the target; with ``path_step_m`` > 0 (default 0.02 m) the points
+before it keep the platform on the measuring link's sphere on the way (a
+one-point command, ``path_step_m: 0``, is interpolated in joint space by the
+controller and strains the machine against the link by centimetres between far
+postures; core/execution.py). Then it waits until
 the measured actuators (``hexacal/sliders``, SENSOR_QOS) are at the target and
 still, and for the collector's posture on ``hexacal/posture``, and moves on.
 Fixed-position postures are reached in closed loop on the inclinometer
