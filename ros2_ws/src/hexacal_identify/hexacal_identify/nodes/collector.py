@@ -519,9 +519,14 @@ class CollectorNode(Node):
             if name in self.mapping.topics:
                 continue  # remapped onto an input: one subscription per topic
             source = _Source(name, (), message_type, type_name, qos, self.mapping)
+            # The publisher's QoS is what the bag records (replay offers it again); the reader's
+            # queue is deep, as for the sensors: a pose stream at the sensor rate between polls.
+            reader_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST,
+                                    depth=SENSOR_SUBSCRIPTION_QOS.depth,
+                                    reliability=qos.reliability, durability=qos.durability)
             source.subscription = self.create_subscription(
                 message_type, name, lambda data, info, source=source: self._record_only(
-                    source, data, info), qos, raw=True, callback_group=polled)
+                    source, data, info), reader_qos, raw=True, callback_group=polled)
             self._recorded_only.append(source)
         self._recorded_only_added: set[str] = set()  # registered in the current bag
         self._transform_inclinometer = (
