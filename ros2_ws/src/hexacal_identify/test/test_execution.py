@@ -250,3 +250,12 @@ def test_start_paused_waits_for_resume_and_eta_counts_down():
     while execution.measured < 1:
         machine.run(machine.t + 0.1)
     assert 0 < execution.eta_s(machine.t) < eta_before
+
+
+def test_the_stroke_defaults_to_the_plans_limits_then_the_models():
+    from hexacal_identify.core.execution import plan_stroke
+
+    assert plan_stroke({'limits': {'actuator_stroke_m': [0.05, 0.8]}}, NOMINAL) == (
+        (0.05, 0.8), "the plan's limits")
+    assert plan_stroke({}, NOMINAL) == ((0.0, 0.9), "the hexa_slide's default workspace")
+    assert plan_stroke({'limits': {'actuator_stroke_m': 'x'}}, nominal_set(2, model=GS))[0] == (0.0, 0.5)

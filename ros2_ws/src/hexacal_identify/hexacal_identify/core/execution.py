@@ -166,6 +166,18 @@ def default_stroke(nominal: KinematicParameters) -> tuple[float, float]:
     return float(low), float(high)
 
 
+def plan_stroke(metadata: dict, nominal: KinematicParameters) -> tuple[tuple[float, float], str]:
+    """The stroke a plan was made within (``hexacal plan`` records its limits in the plan's
+    metadata: ``limits.actuator_stroke_m``), else the nominal model's; and which one it is."""
+    limits = metadata.get('limits') if isinstance(metadata, dict) else None
+    if isinstance(limits, dict) and 'actuator_stroke_m' in limits:
+        try:
+            return check_stroke(list(limits['actuator_stroke_m'])), "the plan's limits"
+        except (TypeError, ValueError):
+            pass
+    return default_stroke(nominal), f"the {nominal.model}'s default workspace"
+
+
 def check_stroke(stroke: tuple[float, float] | list[float]) -> tuple[float, float]:
     """(low, high) with low < high, both finite; ValueError naming the problem."""
     values = list(stroke)

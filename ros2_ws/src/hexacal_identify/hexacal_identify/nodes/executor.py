@@ -20,7 +20,8 @@ Fixed-position postures are reached in closed loop on the inclinometer
 (its docstring has the rules); this node hears, publishes and keeps time.
 
 * The whole plan is checked before anything moves: a target outside the
-  stroke (``stroke_limits_m``, default the model's), out of the nominal
+  stroke (``stroke_limits_m``; default the stroke the plan was made within,
+  ``hexacal plan``'s limits, else the model's), out of the nominal
   machine's reach or off its posture kind refuses the plan - nothing is ever
   published on the command topic; the ERROR status (state ``refused``) and the
   log list the postures. With ``shutdown_when_done`` the refusal is a start-up
@@ -103,7 +104,7 @@ from ..core.execution import (
     PlanExecution,
     PlanRefusedError,
     check_stroke,
-    default_stroke,
+    plan_stroke,
     joint_positions,
     path_problems,
     plan_targets,
@@ -174,7 +175,8 @@ PARAMETERS: dict[str, _Spec] = {
 # Declared once the nominal file is read: their defaults are the model's.
 MODEL_PARAMETERS: dict[str, _Spec] = {
     'stroke_limits_m': _Spec([0.0, 1.0], '[low, high] actuator stroke (m) every target must lie '
-                             "in; default: the model's stroke (its default workspace)",
+                             "in; default: the plan's (hexacal plan's --stroke-m, recorded "
+                             "in the plan file), else the model's (its default workspace)",
                              constraints='two finite numbers, low < high'),
     'actuator_joints': _Spec(['slider_1'], 'the six actuator joints in chain order, as the '
                              'controller and the sliders input name them; default: the '
@@ -257,13 +259,16 @@ class ExecutorNode(Node):
         self.nominal, nominal_mount = self._load_nominal(value['nominal'])
         self.model = self.nominal.model
         self.plan = self._load_plan(value['plan'], nominal_mount)
-        defaults = {'stroke_limits_m': list(default_stroke(self.nominal)),
+        stroke, self.stroke_source = plan_stroke(self.plan.metadata, self.nominal)
+        defaults = {'stroke_limits_m': list(stroke),
                     'actuator_joints': list(self.nominal.layout.actuator_names)}
         for name, spec in MODEL_PARAMETERS.items():
             value[name] = self.declare_parameter(name, defaults[name], _descriptor(name, spec)).value
         self.actuator_joints = _names('actuator_joints', list(value['actuator_joints']), 6)
         self.posture_joints = self.nominal.layout.actuator_names  # the collector's (contract) names
         self.inclinometer_joints = _names('inclinometer_joints', list(value['inclinometer_joints']), 2)
+        if list(value['stroke_limits_m']) != list(stroke):
+            self.stroke_source = 'stroke_limits_m'
         try:
             self.stroke = check_stroke(list(value['stroke_limits_m']))
         except ValueError as error:
@@ -329,7 +334,7 @@ class ExecutorNode(Node):
             f"{counts['fixed']} fixed) for a {self.model}; commands on "
             f'{self._command_pub.topic_name} (joints {", ".join(self.actuator_joints)}), at most '
             f'{self.settings.max_actuator_speed_m_s:g} m/s, stroke [{self.stroke[0]:g}, '
-            f'{self.stroke[1]:g}] m')
+            f'{self.stroke[1]:g}] m ({self.stroke_source})')
         if problems:
             self.get_logger().error(refusal)
         self._publish_status(force=True)
