@@ -295,9 +295,10 @@ class _FastJointState:
             raise ValueError('no velocity and effort sequences') from None
         if (velocities, efforts) != (len(message.velocity), len(message.effort)) or end > len(data):
             raise ValueError('layout does not match the decoded message')
-        # Where the two sequence lengths sit and what they are.
-        self.counts = ((_align(suffix_start, 4), velocities),
-                       (_align(after, 4), efforts))
+        # The two sequence lengths, read with one unpack (the velocities between them skipped).
+        self.counts_offset = _align(suffix_start, 4)
+        self.counts = struct.Struct(f'<I{_align(after, 4) - self.counts_offset - 4}xI')
+        self.expected_counts = (velocities, efforts)
         if list(self.positions.unpack_from(data, offset)) != list(message.position):
             raise ValueError('layout does not match the decoded message')
 
@@ -306,9 +307,8 @@ class _FastJointState:
         if (len(data) != self.size or data[12:self.offset] != self.prefix
                 or data[:4] != _CDR_HEADER):
             return None
-        for offset, count in self.counts:
-            if _UINT32.unpack_from(data, offset)[0] != count:
-                return None
+        if self.counts.unpack_from(data, self.counts_offset) != self.expected_counts:
+            return None
         seconds, nanoseconds = _STAMP.unpack_from(data, 4)
         if seconds < 0:
             return None
@@ -378,6 +378,7 @@ class _Source:
         self.subscription = None
         self.fast: _FastJointState | _FastImu | None = None
         self.key = '+'.join(inputs)  # the loss counter's name: lost.<inputs>
+        self.stream: str | None = None  # set when the in-place values are the one input's reading
         # Where each input's values are in the wanted joints' values of a JointState source.
         self.wanted: tuple[str, ...] = ()
         self.slices: list[tuple[str, int, int]] = []
@@ -532,6 +533,11 @@ class CollectorNode(Node):
         self._transform_inclinometer = (
             (self.mapping.inclinometer_signs, self.mapping.inclinometer_offsets_rad)
             != (DEFAULT_SIGNS, DEFAULT_OFFSETS_RAD))
+        for source in self._sources:
+            # A source of one input whose in-place values are its reading as they are.
+            (topic, *others) = source.inputs
+            if not others and not (topic == INCLINOMETER_TOPIC and self._transform_inclinometer):
+                source.stream = _STREAM_OF_TOPIC[topic]
         self._samples: list[tuple[int, tuple[float, ...]]] = []  # paired, for the detector
         self._poll_timer = self.create_timer(POLL_PERIOD_S, self._poll)
         self.create_service(Trigger, START_RECORDING_SERVICE, self._start_recording)
@@ -652,6 +658,11 @@ class CollectorNode(Node):
         if source.fast is not None:
             raw = source.fast.read(data)
             if raw is not None:
+                if source.stream is not None:  # one input, its values as read: the 1 kHz path
+                    samples = self.synchronizer.add_values(source.stream, *raw)
+                    if samples:
+                        self._samples += samples
+                    return
                 readings = self._split(source, *raw)
         if readings is None:
             readings = self._decode(source, data)
