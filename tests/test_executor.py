@@ -99,10 +99,10 @@ class ExecutorWatch:
             + '\n'.join(p.describe(15) for p in processes))
 
 
-def _machine_and_collector(ros_processes, probe, tmp_path, truth, nominal, **driver):
-    driver_process = ros_processes.start(_driver(truth, **driver))
+def _machine_and_collector(ros_processes, probe, tmp_path, truth, nominal, **collector):
+    driver_process = ros_processes.start(_driver(truth))
     collector = ros_processes.start(node_argv('collector', fast_collector_parameters(
-        tmp_path / 'bags', bag_name='executor', parameters_file=str(nominal))))
+        tmp_path / 'bags', bag_name='executor', parameters_file=str(nominal), **collector)))
     probe.wait_for_node('driver', process=driver_process)
     probe.wait_for_node('collector', process=collector)
     return driver_process, collector
@@ -144,6 +144,11 @@ def _walk_to_a_calibration(ros_processes, tmp_path, probe, model, postures):
     for process in (executor, driver, collector, identify):
         assert ros_processes.stop(process, STOP_TIMEOUT_S) == 0, process.log_path.read_text()
     assert len(watch.commands) >= postures  # one per posture, more for the corrections
+    from hexacal_identify.pipeline import postures_from_bag
+
+    recorded = postures_from_bag(tmp_path / 'bags' / 'executor')
+    # The plan's postures, and the one where the machine stood before the first move.
+    assert postures <= len(recorded.postures) <= postures + 2
     return error, before, after, done
 
 

@@ -259,6 +259,10 @@ class ExecutorNode(Node):
         self.nominal, nominal_mount = self._load_nominal(value['nominal'])
         self.model = self.nominal.model
         self.plan = self._load_plan(value['plan'], nominal_mount)
+        # As the driver's: a collector with driver_node:=executor records the plan in its bag.
+        self.declare_parameter('plan_name', self.plan.name, ParameterDescriptor(
+            description='name of the plan being walked (set by the node)', read_only=True),
+            ignore_override=True)
         stroke, self.stroke_source = plan_stroke(self.plan.metadata, self.nominal)
         defaults = {'stroke_limits_m': list(stroke),
                     'actuator_joints': list(self.nominal.layout.actuator_names)}
