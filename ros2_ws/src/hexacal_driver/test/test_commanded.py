@@ -18,7 +18,7 @@ from hexacal_driver.simulation import (
     device_constrained_pose,
 )
 from hexacal_identify.core.architectures import default_parameters
-from hexacal_identify.core.device import fixed_point, inclinometer_angles
+from hexacal_identify.core.device import fixed_point
 from hexacal_identify.core.execution import (
     ABORTED,
     DONE,

@@ -54,7 +54,7 @@ the measured actuator positions) and restarts the current posture on resume
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 import math
 
 import numpy as np
