@@ -214,6 +214,7 @@ def test_pause_holds_and_resume_restarts_the_posture_abort_ends_the_plan():
     machine.run(machine.t + 3.0)  # paused: nothing moves on
     assert execution.state == PAUSED and execution.measured == 0
     assert execution.progress(machine.t)['state'] == 'paused'
+    assert execution.progress(machine.t)['paused_s'] >= 2.9
     ok, message, commands = execution.resume(machine.t)
     assert ok and execution.state == RUNNING and [c.purpose for c in commands] == [MOVE]
     np.testing.assert_array_equal(commands[0].positions, execution.targets[0])

@@ -615,6 +615,9 @@ class PlanExecution:
         if self.started_at is not None:
             end = self.finished_at if self.finished_at is not None else now
             values['elapsed_s'] = round(end - self.started_at, 1)
+            paused = self._paused_total + (now - self._paused_at if self._paused_at is not None else 0.0)
+            if paused > 0:
+                values['paused_s'] = round(paused, 1)
         return values
 
     def summary(self) -> str:

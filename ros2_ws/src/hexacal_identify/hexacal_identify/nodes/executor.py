@@ -558,7 +558,7 @@ class ExecutorNode(Node):
     def _publish_status(self, force: bool = False) -> None:
         now = _now_s(self)
         values = self.status_values(now)
-        key = tuple((k, v) for k, v in values.items() if k not in ('eta_s', 'elapsed_s'))
+        key = tuple((k, v) for k, v in values.items() if k not in ('eta_s', 'elapsed_s', 'paused_s'))
         if not force and key == self._last_published and now - self._last_status < STATUS_PERIOD_S:
             return
         self._last_published, self._last_status = key, now
