@@ -1,11 +1,17 @@
 """``hexacal demo``: the whole system on a simulated machine, end to end (what `make demo` runs).
 
-Writes the true machine (Table 1; with ``--model gough_stewart`` the default
-Gough-Stewart platform) and the nominal model (set 2, seed 0) as parameters
-YAML, starts collector, identify and driver as child processes in a
-ROS domain of its own (localhost discovery), follows the postures as they are
-collected, calls `hexacal/calibrate`, receives the published parameters and
-prints the parameter and pose errors before and after calibration.
+The way a real machine is calibrated, with the simulated machine standing in
+for it through the interfaces a real one offers: writes the true machine
+(Table 1; with ``--model gough_stewart`` the default Gough-Stewart platform)
+and the nominal model (set 2) as parameters YAML, plans the postures (O1) and
+a second, verification plan, starts collector, identify and the driver in
+commanded mode (it follows JointTrajectory commands like a ros2_control
+trajectory controller) in a ROS domain of its own (localhost discovery),
+walks the plan with the executor, calls `hexacal/calibrate`, walks the
+verification plan, calls `hexacal/verify`, and prints the parameter and pose
+errors before and after calibration (against the simulated truth), the
+verification table (no truth needed) and the path of the HTML report.
+Everything it writes lands under ``out/demo_<timestamp>/`` (the bag in ``bag/``).
 """
 from __future__ import annotations
 
@@ -48,10 +54,12 @@ class DemoError(RuntimeError):
 def add_parsers(subparsers) -> None:
     parser = subparsers.add_parser(
         'demo', help='simulate a machine, collect postures over ROS 2, calibrate, print the errors',
-        description='Run driver, collector and identify on a simulated Table 1 machine (or, with '
-        '--model gough_stewart, the default Gough-Stewart platform), calibrate nominal set 2 from '
-        'the collected postures and print parameter and pose errors before and after. Takes '
-        'about 1.5 minutes with the defaults.')
+        description='Plan postures (O1), walk them with the executor on a simulated Table 1 machine '
+        '(or, with --model gough_stewart, the default Gough-Stewart platform) driven through its '
+        'trajectory-controller interface, collect, calibrate nominal set 2, walk a verification plan '
+        'and verify; print parameter and pose errors before and after, the verification table and '
+        'the HTML report path. Takes about 2-3 minutes with the defaults; everything lands under '
+        'out/demo_<timestamp>.')
     parser.add_argument('--model', choices=MODEL_CHOICES, default='hexa_slide',
                         help='machine model: hexa_slide (Table 1, default) or gough_stewart '
                         '(the default 6-UPS hexapod)')
@@ -61,12 +69,18 @@ def add_parsers(subparsers) -> None:
     parser.add_argument('--out', type=Path, default=None,
                         help='work directory for the parameter YAMLs and logs '
                         '(default out/demo_<timestamp>)')
-    parser.add_argument('--bag-dir', type=Path, default=Path('bags'),
-                        help='the bag is recorded to <bag-dir>/demo_<timestamp> (default bags)')
+    parser.add_argument('--bag-dir', type=Path, default=None,
+                        help='record the bag to <bag-dir>/demo_<timestamp> (default: <out>/bag)')
     parser.add_argument('--plan', choices=('mixed', 'random'), default='mixed',
-                        help='mixed: 3 sphere : 1 fixed postures (default); random: sphere only')
-    parser.add_argument('--settle-s', type=float, default=0.5, help='move time between postures')
-    parser.add_argument('--dwell-s', type=float, default=1.2, help='stationary time per posture')
+                        help='mixed: 3 sphere : 1 fixed-position postures, O1-planned for eqs. 8 + 10 '
+                        '(default); random: sphere postures, O1-planned for eq. 7')
+    parser.add_argument('--verify-postures', type=int, default=20,
+                        help='fresh postures of the verification plan (default 20; 0: no verification)')
+    parser.add_argument('--settle-s', type=float, default=0.3,
+                        help='how long the machine stands still at a target before its posture is taken')
+    parser.add_argument('--dwell-s', type=float, default=1.2,
+                        help='longest wait for the collector at a standing posture beyond --settle-s '
+                        '(the executor moves on as soon as the posture is measured)')
     parser.add_argument('--rate-hz', type=float, default=100.0, help='sensor rate (default 100)')
     parser.add_argument('--seed', type=int, default=0, help='seed of plan, noise and nominal set')
     parser.add_argument('--validation-postures', type=int, default=50,
@@ -110,6 +124,9 @@ class DemoPaths:
     nominal: Path
     calibration: Path
     logs: Path
+    plan: Path
+    verification_plan: Path
+    report: Path
 
 
 def _model(args) -> str:
@@ -120,8 +137,9 @@ def _paths(args) -> DemoPaths:
     stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
     work = (args.out or Path('out') / f'demo_{stamp}').resolve()
     truth = 'true_table1.yaml' if _model(args) == 'hexa_slide' else f'true_{_model(args)}.yaml'
-    return DemoPaths(work, (args.bag_dir / f'demo_{stamp}').resolve(), work / truth,
-                     work / 'nominal_set2.yaml', work / 'calibration.yaml', work / 'logs')
+    bag = (args.bag_dir / f'demo_{stamp}').resolve() if args.bag_dir is not None else work / 'bag'
+    return DemoPaths(work, bag, work / truth, work / 'nominal_set2.yaml', work / 'calibration.yaml',
+                     work / 'logs', work / 'plan.yaml', work / 'verification_plan.yaml', work / 'report')
 
 
 def _check_args(args) -> None:
@@ -136,9 +154,8 @@ def _check_args(args) -> None:
         value = getattr(args, name)
         if not math.isfinite(value) or value < 0 or (name != 'noise_um' and value == 0):
             raise ValueError(f"--{name.replace('_', '-')} must be positive, got {value}")
-    if args.dwell_s < 1.0:
-        raise ValueError(f'--dwell-s must be at least 1.0 s: the collector needs 0.8 s of '
-                         f'stillness per posture, got {args.dwell_s}')
+    if args.verify_postures < 0:
+        raise ValueError(f'--verify-postures must be 0 or more, got {args.verify_postures}')
 
 
 def _interrupt(signum: int, frame: object) -> None:
@@ -154,9 +171,34 @@ def run(args) -> int:
         signal.signal(signal.SIGTERM, previous)
 
 
+# Executor and commanded driver: moves at up to 0.5 m/s (executor) on a machine that follows at 1 m/s;
+# the collector's detector window 0.2 s + capture 0.3 s (the executor waits for each posture).
+EXECUTOR_SPEED_M_S = 0.5
+DRIVER_SPEED_M_S = 1.0
+COLLECTOR_WINDOWS = {'window_s': 0.2, 'capture_s': 0.3}
+PLAN_CANDIDATES = 1000
+
+
+def _plans(args, nominal, paths: DemoPaths) -> None:
+    """The calibration plan (O1) and the verification plan (fresh postures, another candidate draw)."""
+    from ..core.measurements import NoiseModel
+    from ..core.planning import plan_postures
+
+    noise = NoiseModel.from_microns(args.noise_um) if args.noise_um > 0 else None
+    mixed = args.plan == 'mixed'
+    plan_postures(nominal, args.postures, index='O1', cost='sphere-fixed' if mixed else 'absolute',
+                  fixed_fraction=0.25 if mixed else None, n_candidates=PLAN_CANDIDATES, seed=args.seed,
+                  noise=noise, name='demo-calibration').plan.save(paths.plan)
+    if args.verify_postures:
+        plan_postures(nominal, args.verify_postures, index='O1', cost='absolute',
+                      n_candidates=PLAN_CANDIDATES, seed=args.seed + 1000, noise=noise,
+                      name='demo-verification').plan.save(paths.verification_plan)
+
+
 def _run(args) -> int:
     started = time.monotonic()
     paths = _paths(args)
+    from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC
     from hexacal_msgs_py.parameters_file import save_parameters
 
     from ..nodes.bringup import NodeGroup, NodeLaunch
@@ -175,7 +217,7 @@ def _run(args) -> int:
                     header_comment=f'hexacal demo: the simulated true machine ({truth_text}), SI units')
     save_parameters(paths.nominal, nominal.vector, model=model, header_comment=(
         f'hexacal demo: nominal set 2 ({nominal_text}, seed {args.seed}), SI units'))
-    collector_model = {} if model == 'hexa_slide' else {'model': model}
+    _plans(args, nominal, paths)
     domain_id = claim_domain_id()
     env = {'ROS_DOMAIN_ID': str(domain_id), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
     os.environ.update(env)  # the in-process node below joins the same domain
@@ -184,30 +226,32 @@ def _run(args) -> int:
 
     group = NodeGroup()
     session = None
+    verification = None
     try:
-        collector = group.start(NodeLaunch('collector', {
-            'output_dir': str(paths.bag.parent), 'bag_name': paths.bag.name, **collector_model}),
-            env, paths.logs / 'collector.log')
-        identify = group.start(NodeLaunch('identify', {
+        group.start(NodeLaunch('collector', {
+            'output_dir': str(paths.bag.parent), 'bag_name': paths.bag.name,
+            'parameters_file': str(paths.nominal), **COLLECTOR_WINDOWS}), env, paths.logs / 'collector.log')
+        group.start(NodeLaunch('identify', {
             'nominal': str(paths.nominal), 'output_dir': str(paths.work),
-            'output': paths.calibration.name}), env, paths.logs / 'identify.log')
+            'output': paths.calibration.name, 'report_dir': str(paths.report),
+            'noise_slider_m': args.noise_um * 1e-6, 'noise_angle_rad': args.noise_um * 1e-6}),
+            env, paths.logs / 'identify.log')
         session = _RosSession()
         session.wait('the collector and identify nodes to come up', GRAPH_TIMEOUT_S, group,
                      session.graph_ready)
-        driver = group.start(NodeLaunch('driver', {
-            'true_params': str(paths.true_params), 'plan': args.plan,
-            'postures': args.postures, 'seed': args.seed, 'rate_hz': float(args.rate_hz),
-            'settle_s': float(args.settle_s), 'dwell_s': float(args.dwell_s),
+        group.start(NodeLaunch('driver', {
+            'true_params': str(paths.true_params), 'command_topic': DEFAULT_COMMAND_TOPIC,
+            'max_actuator_speed_m_s': DRIVER_SPEED_M_S, 'rate_hz': float(args.rate_hz), 'seed': args.seed,
             'slider_noise_m': args.noise_um * 1e-6, 'angle_noise_rad': args.noise_um * 1e-6}),
             env, paths.logs / 'driver.log')
-        expected_s = args.postures * (args.settle_s + args.dwell_s)
-        machine = '' if model == 'hexa_slide' else f' on a {model}'
-        print(f'hexacal demo: driver walks a {args.plan} plan of {args.postures} postures{machine}, '
-              f'+-{args.noise_um:g} um / +-{args.noise_um:g} urad noise, {args.rate_hz:g} Hz '
-              f'(about {expected_s:.0f} s)', flush=True)
-        _follow_postures(session, group, args.postures, 2.0 * expected_s + 60.0)
-        session.wait(f'identify to hold all {args.postures} postures', 30.0, group,
-                     lambda: session.identify_postures >= args.postures)
+        machine = '' if model == 'hexa_slide' else f' of a {model}'
+        print(f'hexacal demo: the executor walks an O1 plan of {args.postures} postures ({args.plan}) on '
+              f'the simulated machine{machine} through its trajectory-controller interface, '
+              f'+-{args.noise_um:g} um / +-{args.noise_um:g} urad noise, {args.rate_hz:g} Hz', flush=True)
+        walked = _walk(session, group, args, paths.plan, paths.nominal, 'calibration', env,
+                       paths.logs / 'executor.log')
+        session.wait(f'identify to hold the {walked} postures', 30.0, group,
+                     lambda: session.identify_postures >= walked)
         calibrate_started = time.monotonic()
         success, message = session.calibrate(group)
         if not success:
@@ -216,6 +260,14 @@ def _run(args) -> int:
                                   lambda: session.parameters)
         calibrate_s = time.monotonic() - calibrate_started
         print(f'hexacal demo: calibrated in {calibrate_s:.1f} s: {message}', flush=True)
+        if args.verify_postures:
+            print(f'hexacal demo: the executor walks a verification plan of {args.verify_postures} fresh '
+                  'postures', flush=True)
+            walked = _walk(session, group, args, paths.verification_plan, paths.nominal, 'verification', env,
+                           paths.logs / 'executor_verification.log')
+            session.wait('identify to hold the verification postures', 30.0, group,
+                         lambda: session.verification_postures >= walked)
+            verification = session.verify(group)
     except DemoError as error:
         print(f'hexacal demo: error: {error}', file=sys.stderr, flush=True)
         for node in group.nodes:
@@ -224,18 +276,72 @@ def _run(args) -> int:
     finally:
         if session is not None:
             session.close()
-        codes = group.stop(order=('driver', 'collector', 'identify'))
+        codes = group.stop(order=('executor', 'driver', 'collector', 'identify'))
     unclean = {name: code for name, code in codes.items() if code != 0}
     if unclean:
         print(f'hexacal demo: warning: nodes exited with {unclean} (logs in {paths.logs})',
               file=sys.stderr)
     print(report(true_params, nominal, true_params.with_vector(calibrated), args, paths,
-                 time.monotonic() - started))
+                 time.monotonic() - started, verification))
     if not (paths.bag / 'metadata.yaml').exists():
         print(f'hexacal demo: error: the bag {paths.bag} was not closed (no metadata.yaml)',
               file=sys.stderr)
         return EXIT_FAILED
     return EXIT_OK
+
+
+def _walk(session: '_RosSession', group: NodeGroup, args, plan: Path, nominal: Path, label: str, env: dict,
+          log: Path) -> int:
+    """Start an executor on ``plan``, show its progress, wait until it is done; the postures measured."""
+    from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC
+    from tqdm import tqdm
+
+    from ..core.planning import Plan
+    from ..nodes.bringup import NodeLaunch
+
+    total = len(Plan.load(plan))
+    session.executor_values = {}
+    executor = group.start(NodeLaunch('executor', {
+        'plan': str(plan), 'nominal': str(nominal), 'command_topic': DEFAULT_COMMAND_TOPIC,
+        'max_actuator_speed_m_s': EXECUTOR_SPEED_M_S, 'settle_s': float(args.settle_s),
+        'timeout_s': 30.0 + float(args.dwell_s)}), env, log)
+    interactive = sys.stderr.isatty()
+    bar = tqdm(total=total, desc=f'{label} postures', unit='posture', file=sys.stderr, disable=not interactive)
+    shown = 0
+
+    def progress():
+        nonlocal shown
+        values = session.executor_values
+        count = min(int(values.get('measured', 0) or 0) + int(values.get('skipped', 0) or 0), total)
+        if count > shown:
+            bar.update(count - shown)
+            if not interactive and (count % 10 == 0 or count == total):
+                print(f'{label} postures: {count}/{total}', flush=True)
+            shown = count
+        state = values.get('state')
+        if state in ('refused', 'aborted'):
+            raise DemoError(f'the executor {state} the {label} plan: {values}')
+        return values if state == 'done' else None
+
+    try:
+        done = session.wait(f'the executor to walk the {label} plan', 60.0 + 10.0 * total, group, progress)
+    finally:
+        bar.close()
+    _stop(group, executor)  # the next plan gets an executor of its own
+    skipped = int(done.get('skipped', 0) or 0)
+    if skipped:
+        print(f'hexacal demo: {skipped} {label} posture(s) skipped: see {log}', flush=True)
+    return int(done.get('measured', 0) or 0)
+
+
+def _stop(group: NodeGroup, node: RunningNode) -> None:
+    """Stop one node of the group (SIGINT, escalating) and take it out of the group."""
+    group._stop_one(node, 10.0)
+    group.nodes.remove(node)
+    if node.log_file:
+        node.log_file.close()
+    if node.popen.returncode != 0:
+        print(f'hexacal demo: warning: {node.name} exited with {node.popen.returncode}', file=sys.stderr)
 
 
 def _log_tail(node: RunningNode, lines: int = 15) -> str:
@@ -290,6 +396,7 @@ class _RosSession:
             CALIBRATION_STATUS_TOPIC,
             PARAMETERS_TOPIC,
             POSTURE_TOPIC,
+            VERIFY_SERVICE,
         )
         from hexacal_msgs_py.qos import PARAMETERS_QOS, POSTURE_QOS, STATUS_QOS
 
@@ -301,6 +408,9 @@ class _RosSession:
         self.executor.add_node(self.node)
         self.postures = 0  # seen here
         self.identify_postures = 0  # received by identify, from its status
+        self.verification_postures = 0  # received by identify since the calibration, from its status
+        self.executor_values: dict[str, str] = {}  # the executor's latest status
+        self.verification_values: dict[str, str] = {}  # identify's latest verification status
         self.parameters: np.ndarray | None = None
         self._trigger = Trigger
         self.node.create_subscription(JointState, POSTURE_TOPIC, self._on_posture, POSTURE_QOS)
@@ -309,6 +419,7 @@ class _RosSession:
         self.node.create_subscription(DiagnosticArray, CALIBRATION_STATUS_TOPIC, self._on_status,
                                       STATUS_QOS)
         self.client = self.node.create_client(Trigger, CALIBRATE_SERVICE)
+        self.verify_client = self.node.create_client(Trigger, VERIFY_SERVICE)
         self.posture_topic = self.node.resolve_topic_name(POSTURE_TOPIC)
 
     def _on_posture(self, message) -> None:
@@ -316,11 +427,17 @@ class _RosSession:
 
     def _on_status(self, message) -> None:
         from hexacal_msgs_py.conversions import status_values
+        from hexacal_msgs_py.names import EXECUTOR_STATUS_NAME, VERIFICATION_STATUS_NAME
 
         for status in message.status:
             values = status_values(status)
-            if values.get('outcome') == 'collecting':
+            if status.name == EXECUTOR_STATUS_NAME:
+                self.executor_values = values
+            elif status.name == VERIFICATION_STATUS_NAME:
+                self.verification_values = values
+            elif values.get('outcome') == 'collecting':
                 self.identify_postures = int(values.get('postures_received', 0))
+                self.verification_postures = int(values.get('verification_postures', 0) or 0)
 
     def _on_parameters(self, message) -> None:
         from hexacal_msgs_py.conversions import multiarray_to_parameters
@@ -354,6 +471,22 @@ class _RosSession:
                              lambda: future.result() if future.done() else None)
         return bool(response.success), str(response.message)
 
+    def verify(self, group: NodeGroup) -> dict[str, str]:
+        """Call hexacal/verify; the verification status once its report section is written."""
+        self.verification_values = {}
+        future = self.verify_client.call_async(self._trigger.Request())
+        response = self.wait('the hexacal/verify response', CALIBRATE_TIMEOUT_S, group,
+                             lambda: future.result() if future.done() else None)
+        def figures():
+            values = self.verification_values
+            if values.get('outcome') == 'verified':
+                return values if values.get('report_state') != 'writing' else None
+            if values.get('outcome'):  # a refusal (no calibration, no postures since)
+                raise DemoError(f'hexacal/verify refused: {response.message}')
+            return None
+
+        return self.wait('the verification figures', 60.0, group, figures)
+
     def close(self) -> None:
         import rclpy
 
@@ -378,7 +511,29 @@ def parameter_error_rows(true_vector: np.ndarray, vector: np.ndarray,
             for name, columns in groups.items()}
 
 
-def report(true_params, nominal, calibrated, args, paths: DemoPaths, wall_s: float) -> str:
+def verification_table(values: dict[str, str]) -> list[str]:
+    """The verification figures (identify's status values) as a table, um / urad."""
+    def number(key: str) -> float:
+        try:
+            return float(values.get(key, 'nan'))
+        except ValueError:
+            return float('nan')
+
+    lines = ['', f"Verification on {values.get('postures', '?')} fresh postures: what the device measured "
+             '(eq. 4, rotary) vs forward kinematics at the measured actuators - no ground truth',
+             f"{'':<20}{'position rms':>14}{'position max':>14}{'rotary rms':>12}",
+             f"{'':<20}{'(um)':>14}{'(um)':>14}{'(urad)':>12}"]
+    for label, name in (('nominal', 'nominal'), ('calibrated', 'calibrated')):
+        lines.append(f"{label:<20}{number(name + '.position_rms_m') * 1e6:>14.1f}"
+                     f"{number(name + '.position_max_m') * 1e6:>14.1f}"
+                     f"{number(name + '.rotary_rms_rad') * 1e6:>12.1f}")
+    lines.append(f"improvement {number('improvement'):.0f}x, threshold {number('threshold_m') * 1e6:.1f} um: "
+                 f"{values.get('verdict', '?')}")
+    return lines
+
+
+def report(true_params, nominal, calibrated, args, paths: DemoPaths, wall_s: float,
+           verification: dict[str, str] | None = None) -> str:
     from ..bag import open_bag
     from ..core.validation import pose_errors, validation_poses
 
@@ -420,7 +575,18 @@ def report(true_params, nominal, calibrated, args, paths: DemoPaths, wall_s: flo
         bag_text += f'  ({info.message_count} messages, {postures} postures)'
     except Exception as error:  # noqa: BLE001 - the report still prints, with the path
         bag_text += f'  (unreadable: {error})'
-    lines += ['', f'bag:        {bag_text}', f'calibrated: {paths.calibration}',
+    if verification:
+        lines += verification_table(verification)
+    page = _report_page(paths, verification)
+    lines += ['', f'bag:        {bag_text}', f'report:     {page}', f'calibrated: {paths.calibration}',
               f'nominal:    {paths.nominal}', f'truth:      {paths.true_params}',
               f'logs:       {paths.logs}', f'wall time:  {wall_s:.0f} s']
     return '\n'.join(lines)
+
+
+def _report_page(paths: DemoPaths, verification: dict[str, str] | None) -> str:
+    """The HTML report identify wrote (the verification's page when it has one)."""
+    if verification and verification.get('report'):
+        return verification['report']
+    pages = sorted(paths.report.rglob('index.html')) if paths.report.exists() else []
+    return str(pages[0]) if pages else f'{paths.report} (not written)'
