@@ -109,16 +109,30 @@ def test_help_exits_0(command, expected):
     assert expected in result.stdout
 
 
+def _launch_module():
+    spec = importlib.util.spec_from_file_location('hexacal_launch', LAUNCH_FILE)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)  # imports nothing from launch at module level
+    return module
+
+
+def _pids(bringup) -> set[int]:
+    return {int(pid) for pid in re.findall(r'started \w+ \(pid (\d+)\)', bringup.log_text())}
+
+
 @pytest.mark.slow
-def test_bringup_starts_three_nodes_and_stops_them_on_ctrl_c(ros_processes, tmp_path, probe):
+def test_bringup_starts_its_nodes_and_stops_them_on_ctrl_c(ros_processes, tmp_path, probe):
+    """Without an executor plan: the driver walks its own plan (as before), plus kinematics."""
     bringup = ros_processes.start([
         venv_executable('bringup'), '--namespace', 'smoke', '--bag-dir', str(tmp_path / 'bags'),
         '--output-dir', str(tmp_path / 'out'), '--plan', 'random', '--postures', '3',
         '--param', 'collector:bag_name=smoke_bag'])
-    for name in ('driver', 'collector', 'identify'):
+    for name in ('driver', 'collector', 'identify', 'kinematics'):
         probe.wait_for_node(name, '/smoke', bringup)
-    pids = {int(pid) for pid in re.findall(r'started \w+ \(pid (\d+)\)', bringup.log_text())}
-    assert len(pids) == 3
+    pids = _pids(bringup)
+    assert len(pids) == 4
+    assert 'started executor' not in bringup.log_text()
+    assert 'command_topic' not in re.search(r'started driver .*', bringup.log_text()).group(0)
     code = ros_processes.stop(bringup, STOP_TIMEOUT_S)
     log = bringup.log_path.read_text(errors='replace')
     assert code == 0, log
@@ -127,23 +141,162 @@ def test_bringup_starts_three_nodes_and_stops_them_on_ctrl_c(ros_processes, tmp_
     assert (tmp_path / 'bags' / 'smoke_bag' / 'metadata.yaml').exists()
 
 
+@pytest.mark.slow
+def test_bringup_with_an_executor_plan_commands_the_simulated_driver(ros_processes, tmp_path,
+                                                                   probe):
+    """--executor-plan: the executor walks it on the driver in commanded mode; --no-kinematics."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from trajectory_msgs.msg import JointTrajectory
+
+    from hexacal_msgs_py.conversions import status_values
+    from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC, EXECUTOR_STATUS_NAME
+    from hexacal_msgs_py.qos import COMMAND_QOS, STATUS_QOS
+
+    files = _executor_files(tmp_path)
+    commands, states = [], []
+    probe.node.create_subscription(JointTrajectory, DEFAULT_COMMAND_TOPIC, commands.append,
+                                   COMMAND_QOS)
+    probe.node.create_subscription(DiagnosticArray, 'hexacal/calibration_status', lambda m: [
+        states.append(status_values(s).get('state')) for s in m.status
+        if s.name == EXECUTOR_STATUS_NAME], STATUS_QOS)
+    bringup = ros_processes.start([
+        venv_executable('bringup'), '--bag-dir', str(tmp_path / 'bags'), '--output-dir',
+        str(tmp_path / 'out'), '--nominal', files['nominal'], '--executor-plan', files['plan'],
+        '--no-kinematics', '--param', 'collector:bag_name=exec_bag',
+        '--param', 'executor:max_actuator_speed_m_s=0.5'])
+    for name in ('driver', 'collector', 'identify', 'executor'):
+        probe.wait_for_node(name, '/', bringup)
+    log = bringup.log_text()
+    assert len(_pids(bringup)) == 4 and 'started kinematics' not in log
+    driver_line = re.search(r'started driver .*', log).group(0)
+    assert f'command_topic:={DEFAULT_COMMAND_TOPIC}' in driver_line
+    assert 'plan:=' not in driver_line.split('--ros-args')[1].replace('command_topic', '')
+    probe.spin_until(lambda: commands and 'running' in states, 60.0,
+                     'the executor commanding the simulated machine', bringup.describe)
+    assert [n for n in commands[0].joint_names] == [f'slider_{i}' for i in range(1, 7)]
+    code = ros_processes.stop(bringup, STOP_TIMEOUT_S)
+    log = bringup.log_path.read_text(errors='replace')
+    assert code == 0, log
+    assert 'all nodes stopped cleanly' in log and 'Traceback' not in log, log
+
+
 def test_launch_file_compiles():
     source = LAUNCH_FILE.read_text()
     compile(source, str(LAUNCH_FILE), 'exec')
-    spec = importlib.util.spec_from_file_location('hexacal_launch', LAUNCH_FILE)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)  # imports nothing from launch at module level
+    module = _launch_module()
     assert callable(module.generate_launch_description)
-    assert {'namespace', 'nominal', 'plan', 'postures'} <= set(module.ARGUMENTS)
+    assert {'namespace', 'nominal', 'plan', 'postures', 'use_driver', 'executor_plan',
+            'command_topic', 'calibrate_when_done', 'kinematics_parameters', 'sliders_topic',
+            'inclinometer_topic', 'encoder_topic', 'inclinometer_type', 'actuator_joints',
+            'inclinometer_joints', 'rotary_joint'} <= set(module.ARGUMENTS)
+
+
+# The launch file passes its declared defaults, which are the nodes' own defaults that bringup
+# leaves unset.
+LAUNCH_DEFAULTS = {('collector', 'output_dir', 'bags'), ('driver', 'plan', 'random'),
+                   ('driver', 'postures', '50')}
+
+
+def _nodes(nodes) -> dict[str, tuple]:
+    """executable -> (namespace, parameters without the launch defaults, remaps)."""
+    return {node.executable: (node.namespace, {
+        name: value for name, value in node.parameters.items()
+        if (node.executable, name, str(value)) not in LAUNCH_DEFAULTS}, node.remaps) for node in nodes}
+
+
+@pytest.mark.parametrize('launch_arguments, bringup_options', [
+    ({}, []),
+    ({'namespace': 'left', 'plan': 'mixed', 'postures': '7', 'record': 'false',
+      'use_kinematics': 'false'},
+     ['--namespace', 'left', '--plan', 'mixed', '--postures', '7', '--no-record',
+      '--no-kinematics']),
+    ({'nominal': 'n.yaml', 'executor_plan': 'p.yaml', 'calibrate_when_done': 'true',
+      'command_topic': '/arm_controller/joint_trajectory', 'kinematics_parameters': 'c.yaml'},
+     ['--nominal', 'n.yaml', '--executor-plan', 'p.yaml', '--calibrate-when-done',
+      '--command-topic', '/arm_controller/joint_trajectory', '--kinematics-parameters',
+      'c.yaml']),
+    ({'use_driver': 'false', 'nominal': 'n.yaml', 'executor_plan': 'p.yaml',
+      'sliders_topic': '/joint_states', 'inclinometer_topic': '/joint_states',
+      'encoder_topic': '/joint_states', 'actuator_joints': '[a1, a2, a3, a4, a5, a6]',
+      'inclinometer_joints': 'tilt_x,tilt_y', 'rotary_joint': 'roll',
+      'inclinometer_signs': '1,-1', 'inclinometer_offsets_rad': '[0.0, 0.002]',
+      'shutdown_when_done': 'true'},
+     ['--no-driver', '--nominal', 'n.yaml', '--executor-plan', 'p.yaml',
+      '--sliders-topic', '/joint_states', '--inclinometer-topic', '/joint_states',
+      '--encoder-topic', '/joint_states', '--actuator-joints', 'a1,a2,a3,a4,a5,a6',
+      '--inclinometer-joints', '[tilt_x, tilt_y]', '--rotary-joint', 'roll',
+      '--inclinometer-signs', '1,-1', '--inclinometer-offsets-rad', '0,0.002',
+      '--shutdown-when-done']),
+])
+def test_launch_file_and_bringup_start_the_same_nodes(launch_arguments, bringup_options):
+    """The launch file's nodes (through launches_from_arguments) are bringup's, argument for
+    option: the same executables, parameters and remaps."""
+    from hexacal_identify.nodes import bringup
+
+    from_launch = _nodes(_launch_module().node_launches(launch_arguments))
+    from_bringup = _nodes(bringup.node_launches(
+        bringup.build_parser().parse_args(bringup_options)))
+    assert from_launch == from_bringup
+
+
+def test_launch_nodes_of_a_real_ros2_control_machine():
+    """use_driver:=false with everything on /joint_states: no driver; each reader remapped; the
+    mapping to the collector (joints to the executor too); commands on the controller's topic."""
+    nodes = {node.executable: node for node in _launch_module().node_launches({
+        'use_driver': 'false', 'nominal': 'n.yaml', 'executor_plan': 'p.yaml',
+        'calibrate_when_done': 'true', 'sliders_topic': '/joint_states',
+        'inclinometer_topic': '/joint_states', 'encoder_topic': '/joint_states',
+        'inclinometer_joints': 'tilt_x,tilt_y', 'rotary_joint': 'link_rotary',
+        'inclinometer_signs': '[1, -1]'})}
+    assert set(nodes) == {'collector', 'identify', 'kinematics', 'executor'}
+    everything = {'hexacal/sliders': '/joint_states', 'hexacal/inclinometer': '/joint_states',
+                  'hexacal/encoder': '/joint_states'}
+    assert nodes['collector'].remaps == everything
+    assert nodes['executor'].remaps == {k: everything[k] for k in everything
+                                        if k != 'hexacal/encoder'}
+    assert nodes['kinematics'].remaps == {'hexacal/sliders': '/joint_states'}
+    assert nodes['identify'].remaps == {}
+    collector, executor = nodes['collector'].parameters, nodes['executor'].parameters
+    assert collector['inclinometer_joints'] == ['tilt_x', 'tilt_y']
+    assert collector['rotary_joint'] == 'link_rotary' and collector['inclinometer_signs'] == [1, -1]
+    assert executor['inclinometer_joints'] == ['tilt_x', 'tilt_y']
+    assert executor['calibrate_when_done'] is True
+    assert executor['command_topic'] == nodes['kinematics'].parameters['command_topic'] \
+        == '/joint_trajectory_controller/joint_trajectory'
+    assert Path(executor['plan']).is_absolute() and Path(executor['nominal']).is_absolute()
+    argv = nodes['collector'].command()
+    assert argv[argv.index('-p', argv.index('inclinometer_signs:=[1, -1]') - 1)] == '-p'
+    # An Imu inclinometer: the executor (a JointState reader) keeps its own inclinometer input.
+    imu = {node.executable: node for node in _launch_module().node_launches({
+        'use_driver': 'false', 'nominal': 'n.yaml', 'executor_plan': 'p.yaml',
+        'inclinometer_topic': '/imu', 'inclinometer_type': 'imu'})}
+    assert imu['collector'].remaps == {'hexacal/inclinometer': '/imu'}
+    assert imu['collector'].parameters['inclinometer_type'] == 'imu'
+    assert imu['executor'].remaps == {}
+
+
+def test_bringup_spells_the_contract_names():
+    from hexacal_identify.nodes import bringup
+    from hexacal_msgs_py import inputs, names
+
+    assert (bringup.SLIDERS, bringup.INCLINOMETER, bringup.ENCODER) == (
+        names.SLIDERS_TOPIC, names.INCLINOMETER_TOPIC, names.ENCODER_TOPIC)
+    assert bringup.DEFAULT_COMMAND_TOPIC == names.DEFAULT_COMMAND_TOPIC
+    assert bringup.INCLINOMETER_TYPES == inputs.INCLINOMETER_TYPES
+    assert bringup.ros_parameter_text(['leg_a', 'true', 1, 0.0]) == '[leg_a, "true", 1, 0.0]'
+
+
+def test_bringup_refuses_an_executor_plan_without_nominal():
+    result = subprocess.run([venv_executable('bringup'), '--executor-plan', 'p.yaml'],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2 and '--executor-plan needs --nominal' in result.stderr
 
 
 def test_launch_description_builds_where_launch_is_installed():
     pytest.importorskip('launch_ros', reason='launch/launch_ros are not on PyPI; ROS installs only')
-    spec = importlib.util.spec_from_file_location('hexacal_launch', LAUNCH_FILE)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = _launch_module()
     description = module.generate_launch_description()
-    assert len(description.entities) == len(module.ARGUMENTS) + 3
+    assert len(description.entities) == len(module.ARGUMENTS) + 1  # + the nodes' OpaqueFunction
 
 
 def test_driver_validates_parameter_changes_at_runtime(ros_processes, probe):

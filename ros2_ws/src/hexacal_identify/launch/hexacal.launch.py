@@ -1,66 +1,100 @@
-"""Start the hexacal driver, collector and identify nodes (ROS 2 Jazzy install).
+"""Start the hexacal nodes (ROS 2 Jazzy install).
 
     ros2 launch hexacal_identify hexacal.launch.py nominal:=/path/nominal.yaml plan:=mixed
 
-Without a ROS install (the PyPI venv has no `launch`), `bringup` does the same.
-The launch imports are inside generate_launch_description() so this file
-still compiles and imports where `launch` is missing.
+collector, identify and kinematics (unless use_kinematics:=false); the simulated
+driver unless use_driver:=false (a real machine publishes); the executor when
+executor_plan names a plan from `hexacal plan` (it walks the plan through the
+trajectory controller on command_topic; the simulated driver then runs in
+commanded mode on that topic, else it walks its own `plan` as before).
+A real ros2_control machine:
+
+    ros2 launch hexacal_identify hexacal.launch.py use_driver:=false nominal:=nominal.yaml \\
+        executor_plan:=plan.yaml calibrate_when_done:=true sliders_topic:=/joint_states \\
+        inclinometer_topic:=/joint_states encoder_topic:=/joint_states \\
+        inclinometer_joints:=tilt_x,tilt_y rotary_joint:=link_rotary
+
+Without a ROS install (the PyPI venv has no `launch`), `bringup` does the same:
+the arguments go through hexacal_identify.nodes.bringup.launches_from_arguments,
+which builds the nodes (parameters and remaps) of both. The launch imports are
+inside generate_launch_description() so this file still compiles and imports
+where `launch` is missing.
 """
 
 # Launch arguments: name -> (default, description). '' keeps the node's own default.
 ARGUMENTS = {
-    'namespace': ('', 'namespace of all three nodes, e.g. left'),
-    'nominal': ('', 'nominal parameters YAML for identify (required to calibrate)'),
+    'namespace': ('', 'namespace of all the nodes, e.g. left'),
+    'nominal': ('', 'nominal parameters YAML for identify and the executor (required to '
+                'calibrate)'),
     'output_dir': ('', 'directory identify writes its calibration YAML under'),
     'bag_dir': ('bags', 'directory the collector records bags into'),
     'record': ('true', 'record from the start'),
-    'plan': ('random', 'driver plan: random, fixed, mixed or a plan YAML path'),
+    'plan': ('random', 'driver plan when there is no executor_plan: random, fixed, mixed or a '
+             'plan YAML path'),
     'postures': ('50', 'postures of a generated plan'),
     'true_params': ('', 'parameters YAML of the simulated machine, of either model (empty: the '
                     'default machine of model; Hexa Slide: Table 1)'),
     'model': ('', "machine model of driver and collector: hexa_slide, gough_stewart or '' (that "
-              'of true_params, else hexa_slide); identify takes it from the nominal file'),
+              'of nominal, else true_params, else hexa_slide); identify and the executor take '
+              'it from the nominal file'),
     'use_driver': ('true', 'start the simulated machine (false with a real one)'),
+    # Plan execution and the calibrated model.
+    'executor_plan': ('', "plan YAML from `hexacal plan`: the executor walks it ('' = no "
+                      'executor; the simulated driver walks plan)'),
+    'command_topic': ('/joint_trajectory_controller/joint_trajectory',
+                      'JointTrajectory command topic of the executor, kinematics and the '
+                      'commanded simulated driver'),
+    'calibrate_when_done': ('false', 'the executor calls hexacal/calibrate at the end'),
+    'shutdown_when_done': ('false', 'end the launch once the executor is done'),
+    'use_kinematics': ('true', 'start the kinematics node'),
+    'kinematics_parameters': ('', "calibrated parameters YAML kinematics starts from ('' = "
+                              'the next calibration on hexacal/parameters)'),
+    # Where a real machine's readings come from (the collector's input mapping).
+    'sliders_topic': ('hexacal/sliders', 'actuator readings (sensor_msgs/JointState)'),
+    'inclinometer_topic': ('hexacal/inclinometer', 'inclinometer readings (JointState or Imu)'),
+    'encoder_topic': ('hexacal/encoder', 'rotary sensor readings (JointState)'),
+    'inclinometer_type': ('', "joint_state or imu ('' = joint_state)"),
+    'actuator_joints': ('', "the six actuator joints in chain order, a,b,c,d,e,f ('' = the "
+                        "model's)"),
+    'inclinometer_joints': ('', "alpha, beta joints of a JointState inclinometer, x,y ('' = "
+                            'inclinometer_x,inclinometer_y)'),
+    'rotary_joint': ('', "the rotary sensor joint ('' = rotary)"),
+    'inclinometer_signs': ('', "per channel 1 or -1, e.g. 1,-1 ('' = 1,1)"),
+    'inclinometer_offsets_rad': ('', "per channel zero offsets (rad), e.g. 0.0,0.002 ('' = 0,0)"),
 }
+
+
+def node_launches(values):
+    """The nodes (hexacal_identify.nodes.bringup.NodeLaunch) of these argument values."""
+    from hexacal_identify.nodes.bringup import launches_from_arguments
+
+    return launches_from_arguments({**{n: d for n, (d, _) in ARGUMENTS.items()}, **values})
 
 
 def generate_launch_description():
     from launch import LaunchDescription
-    from launch.actions import DeclareLaunchArgument
-    from launch.conditions import IfCondition
+    from launch.actions import DeclareLaunchArgument, OpaqueFunction, Shutdown
     from launch.substitutions import LaunchConfiguration
     from launch_ros.actions import Node
-    from launch_ros.parameter_descriptions import ParameterValue
 
-    def argument(name):
-        return LaunchConfiguration(name)
-
-    def text(name):  # a string parameter even when empty or number-like
-        return ParameterValue(LaunchConfiguration(name), value_type=str)
+    from hexacal_identify.nodes.bringup import PACKAGES, normalize_namespace
 
     declared = [DeclareLaunchArgument(name, default_value=default, description=description)
                 for name, (default, description) in ARGUMENTS.items()]
-    namespace = argument('namespace')
-    driver = Node(
-        package='hexacal_driver', executable='driver', name='driver', namespace=namespace,
-        condition=IfCondition(argument('use_driver')), output='screen',
-        parameters=[{
-            'plan': text('plan'),
-            'postures': ParameterValue(argument('postures'), value_type=int),
-            'true_params': text('true_params'),
-            'model': text('model'),
-        }])
-    collector = Node(
-        package='hexacal_identify', executable='collector', name='collector',
-        namespace=namespace, output='screen',
-        parameters=[{
-            'output_dir': text('bag_dir'),
-            'record': ParameterValue(argument('record'), value_type=bool),
-            'model': text('model'),
-        }])
-    identify = Node(
-        package='hexacal_identify', executable='identify', name='identify',
-        namespace=namespace, output='screen',
-        # An empty output_dir means the node's working directory.
-        parameters=[{'nominal': text('nominal'), 'output_dir': text('output_dir')}])
-    return LaunchDescription([*declared, collector, identify, driver])
+
+    def nodes(context):
+        values = {name: LaunchConfiguration(name).perform(context) for name in ARGUMENTS}
+        shutdown = values['shutdown_when_done'].strip().lower() in ('true', '1', 'yes', 'on')
+        actions = []
+        for launch in node_launches(values):
+            actions.append(Node(
+                package=PACKAGES[launch.executable], executable=launch.executable,
+                name=launch.executable, namespace=normalize_namespace(launch.namespace) or None,
+                output='screen', parameters=[dict(launch.parameters)],
+                remappings=list(launch.remaps.items()),
+                # the executor's end (shutdown_when_done) ends the launch
+                on_exit=[Shutdown(reason='the executor is done')]
+                if shutdown and launch.executable == 'executor' else None))
+        return actions
+
+    return LaunchDescription([*declared, OpaqueFunction(function=nodes)])
