@@ -19,7 +19,7 @@ SRC = REPO / 'ros2_ws' / 'src'
 PACKAGES = ('hexacal_msgs_py', 'hexacal_identify', 'hexacal_driver')
 EXECUTABLES = {
     'hexacal_driver': ('driver',),
-    'hexacal_identify': ('collector', 'identify', 'replay', 'hexacal', 'bringup'),
+    'hexacal_identify': ('collector', 'identify', 'executor', 'kinematics', 'replay', 'hexacal', 'bringup'),
 }
 # ROS packages that, when imported, must be declared in package.xml.
 ROS_PACKAGES = frozenset({

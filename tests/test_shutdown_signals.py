@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 import signal
+import subprocess
 import time
 
 import pytest
@@ -120,17 +121,43 @@ def test_replay_stops_cleanly_while_publishing(pattern, ros_processes, probe):
     assert_clean_exit(replay, pattern)
 
 
+def _plan(tmp_path: Path, nominal: Path) -> Path:
+    out = tmp_path / 'plan.yaml'
+    if not out.exists():
+        completed = subprocess.run([venv_executable('hexacal'), 'plan', '--postures', '12', '--candidates', '200',
+                                    '--nominal', str(nominal), '--out', str(out)],
+                                   capture_output=True, text=True, timeout=120)
+        assert completed.returncode == 0, completed.stderr
+    return out
+
+
+@pytest.mark.parametrize('pattern', PATTERNS)
+@pytest.mark.parametrize('executable', ('executor', 'kinematics'))
+def test_executor_and_kinematics_stop_cleanly_while_running(executable, pattern, ros_processes, tmp_path,
+                                                            probe):
+    """The executor waiting for its machine and the kinematics node waiting for readings: exit 0 on
+    the launch pattern and on SIGTERM."""
+    _, nominal = write_parameter_files(tmp_path)
+    parameters = {'executor': {'plan': str(_plan(tmp_path, nominal)), 'nominal': str(nominal)},
+                  'kinematics': {'parameters': str(nominal)}}[executable]
+    process = ros_processes.start(node_argv(executable, parameters))
+    probe.wait_for_node(executable, process=process)
+    assert_clean_exit(process, pattern)
+
+
 STARTUP_SIGNAL_DELAYS_S = (0.05, 0.3, 0.6, 1.0, 1.5)  # during imports, rclpy.init, the constructor
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize('executable', ('collector', 'identify', 'driver'))
+@pytest.mark.parametrize('executable', ('collector', 'identify', 'driver', 'executor', 'kinematics'))
 def test_ctrl_c_while_a_node_starts_is_a_clean_stop(executable, ros_processes, tmp_path):
     """A Ctrl-C at any moment of start-up: exit 0, no traceback (the signal is the stimulus)."""
     _, nominal = write_parameter_files(tmp_path)
     parameters = {'collector': {'output_dir': str(tmp_path / 'bags')},
                   'identify': {'nominal': str(nominal), 'output_dir': str(tmp_path / 'out')},
-                  'driver': fast_driver_parameters(postures=5)}[executable]
+                  'driver': fast_driver_parameters(postures=5),
+                  'executor': {'plan': str(_plan(tmp_path, nominal)), 'nominal': str(nominal)},
+                  'kinematics': {'parameters': str(nominal)}}[executable]
     for delay in STARTUP_SIGNAL_DELAYS_S:
         process = ros_processes.start(node_argv(executable, parameters))
         time.sleep(delay)  # when the signal arrives is what this test varies
