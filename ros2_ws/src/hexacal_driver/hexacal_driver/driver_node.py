@@ -73,6 +73,7 @@ from hexacal_identify.core.device import DEFAULT_MOUNT, DeviceMountError, check_
 from hexacal_identify.core.errors import UnreachablePoseError
 from hexacal_identify.core.measurements import NoiseModel
 from hexacal_identify.nodes.runtime import run_node
+from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
 from hexacal_msgs_py.conversions import (
     encoder_reading_to_joint_state,
     inclinometer_reading_to_joint_state,
@@ -86,7 +87,6 @@ from hexacal_msgs_py.qos import COMMAND_QOS, SENSOR_QOS
 from hexacal_msgs_py.readings import EncoderReading, InclinometerReading, SliderReading
 
 NODE_NAME = 'driver'
-MOUNT_PARAMETER = 'device.mount'  # parameters-file key of the device mount (core/device.py)
 # The timer wakes at most this often and publishes rate_hz / MAX_WAKE_HZ samples per wake-up,
 # each stamped with its own sampling time (1 / rate_hz apart, the last one now): an executor
 # wake-up costs more than the publishing, so 1 kHz costs 200 wake-ups per second, not 1000.

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
 from hexacal_msgs_py.inputs import IMU_INCLINOMETER, INPUT_NAMES, InputMapping, InputMappingError
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 from hexacal_msgs_py.names import (
@@ -61,7 +62,6 @@ class ModelMismatchError(InvalidMeasurementError):
     reason = MODEL_MISMATCH
 
 
-MOUNT_PARAMETER = "device.mount"  # parameters-file key of the device mount (core/device.py)
 
 
 def load_machine(path: Path | str) -> KinematicParameters:

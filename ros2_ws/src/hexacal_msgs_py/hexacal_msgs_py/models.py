@@ -21,6 +21,7 @@ from hexacal_msgs_py.errors import InvalidParametersError
 
 N_CHAINS = 6
 MODEL_KEY = 'model'
+DEVICE_MOUNT_KEY = 'device.mount'  # parameters-file key of the device mount: hanging | standing (core/device.py)
 HEXA_SLIDE = 'hexa_slide'
 GOUGH_STEWART = 'gough_stewart'
 DEFAULT_MODEL = HEXA_SLIDE

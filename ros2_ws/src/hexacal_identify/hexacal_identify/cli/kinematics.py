@@ -92,13 +92,14 @@ def parse_values(text: str, option: str, what: str) -> list[float]:
 
 def _load(path: Path):
     """(parameters object, device mount) of a parameters YAML."""
+    from hexacal_msgs_py.models import DEVICE_MOUNT_KEY
     from hexacal_msgs_py.parameters_file import read_parameters_file
 
     from ..core.architectures import parameters_for
     from ..core.device import DEFAULT_MOUNT, check_mount
 
     contents = read_parameters_file(path)
-    mount = check_mount(contents.extras.get("device.mount", DEFAULT_MOUNT))
+    mount = check_mount(contents.extras.get(DEVICE_MOUNT_KEY, DEFAULT_MOUNT))
     return parameters_for(contents.model, contents.vector), mount
 
 

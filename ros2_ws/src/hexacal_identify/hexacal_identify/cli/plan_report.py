@@ -12,7 +12,7 @@ from .common import Progress
 if TYPE_CHECKING:
     from ..core.planning import PostureLimits
 
-MOUNT_PARAMETER = "device.mount"  # the parameters-file key of the device mount (core/device.py)
+MOUNT_PARAMETER = "device.mount"  # = hexacal_msgs_py.models.DEVICE_MOUNT_KEY (not imported: `hexacal --help` stays light)
 
 # The planner and the report are imported where they run: this module is imported by every `hexacal` start-up to
 # register the commands.

@@ -59,6 +59,7 @@ from .errors import InvalidMeasurementError
 from .kinematics import forward_kinematics
 from .measurements import MeasurementLimits, Measurements, NoiseModel
 from .residuals import ChannelSigma, CostFunction
+from .jsonsafe import json_safe as _plain
 
 DEFAULT_THRESHOLD_M = 50e-6
 NOISE_THRESHOLD_FACTOR = 3.0  # threshold = this x the predicted noise rms, when the reading noise is known
@@ -300,21 +301,6 @@ def _text(value: float) -> str:
     if not np.isfinite(value):
         return "nan" if np.isnan(value) else "inf"
     return f"{value:.6g}"
-
-
-def _plain(value):
-    """JSON-safe builtins; NaN and inf become null."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, np.generic):
-        return _plain(value.item())
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
-    return value
 
 
 __all__ = ["DEFAULT_THRESHOLD_M", "FAIL", "FIGURE_KEYS", "NOISE_THRESHOLD_FACTOR", "PASS", "SetResiduals", "VerificationModelError",

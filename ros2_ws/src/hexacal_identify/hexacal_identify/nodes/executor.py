@@ -72,6 +72,7 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
 from hexacal_msgs_py.conversions import diagnostic_status
 from hexacal_msgs_py.errors import HexacalContractError
 from hexacal_msgs_py.names import (
@@ -113,7 +114,6 @@ from ..core.execution import (
 from .runtime import run_node
 
 NODE_NAME = 'executor'
-MOUNT_PARAMETER = 'device.mount'  # parameters-file key of the device mount (core/device.py)
 CONTROL_PERIOD_S = 0.05  # the state machine steps this often
 STATUS_PERIOD_S = 1.0  # progress (ETA) is republished at least this often
 SERVICE_WAIT_S = 30.0  # calibrate_when_done: how long hexacal/calibrate may take to appear

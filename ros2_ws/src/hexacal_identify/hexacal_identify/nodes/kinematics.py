@@ -66,6 +66,7 @@ from std_msgs.msg import ColorRGBA, Float64MultiArray, Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
+from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
 from hexacal_msgs_py.conversions import (
     diagnostic_status,
     joint_state_to_slider_reading,
@@ -96,7 +97,6 @@ from .runtime import run_node
 
 NODE_NAME = 'kinematics'
 DEFAULT_BASE_FRAME = 'hexacal_base'
-MOUNT_PARAMETER = 'device.mount'  # parameters-file key of the device mount (core/device.py)
 MIN_MOVE_TIME_S = 0.1  # a command's time_from_start is never shorter
 LOG_PERIOD_S = 5.0  # repeated problems (bad readings, failed solves) are logged at most this often
 NS_PER_S = 1_000_000_000

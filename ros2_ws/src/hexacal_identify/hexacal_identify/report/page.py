@@ -20,7 +20,6 @@ import html
 import json
 import math
 from pathlib import Path
-from typing import Any
 
 from dataclasses import replace
 
@@ -31,6 +30,7 @@ from hexacal_msgs_py.models import DEFAULT_MODEL, ModelLayout
 
 from ..core.architectures import architecture
 from ..core.device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, STANDING, check_mount, fixed_point
+from ..core.jsonsafe import json_safe as _plain
 
 RESULT_FORMAT = "hexacal-result/1"
 UM, MM = 1e6, 1e3
@@ -100,21 +100,6 @@ def load_result(path: Path | str) -> dict:
         raise ValueError(f"{path}: not a hexacal result (expected the output of save_result or "
                          "`hexacal calibrate --json`, with 'rank' and 'reason')")
     return payload
-
-
-def _plain(value: Any) -> Any:
-    """JSON-safe builtins; NaN and inf become null."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, np.generic):
-        return _plain(value.item())
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 def _atomic_write(path: Path, content: str | bytes) -> Path:
