@@ -154,6 +154,12 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
+    except Exception:
+        # A signal while the player is being built shuts the context down under it; the next rcl
+        # call (creating a publisher) then fails: a stop, not a crash (nodes/runtime.py's rule).
+        if rclpy.ok():
+            raise
+        return 0
     finally:
         hold_termination_signals()  # a second Ctrl-C must not interrupt the shutdown
         if player is not None:
