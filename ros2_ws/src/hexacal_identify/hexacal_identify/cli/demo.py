@@ -335,13 +335,9 @@ def _walk(session: '_RosSession', group: NodeGroup, args, plan: Path, nominal: P
 
 
 def _stop(group: NodeGroup, node: RunningNode) -> None:
-    """Stop one node of the group (SIGINT, escalating) and take it out of the group."""
-    group._stop_one(node, 10.0)
-    group.nodes.remove(node)
-    if node.log_file:
-        node.log_file.close()
-    if node.popen.returncode != 0:
-        print(f'hexacal demo: warning: {node.name} exited with {node.popen.returncode}', file=sys.stderr)
+    code = group.stop_node(node, 10.0)
+    if code != 0:
+        print(f'hexacal demo: warning: {node.name} exited with {code}', file=sys.stderr)
 
 
 def _log_tail(node: RunningNode, lines: int = 15) -> str:

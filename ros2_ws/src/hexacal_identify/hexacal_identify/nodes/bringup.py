@@ -211,6 +211,14 @@ class NodeGroup:
         self.nodes = []
         return codes
 
+    def stop_node(self, node: RunningNode, timeout: float = DEFAULT_STOP_TIMEOUT_S) -> int:
+        """Stop one node of the group (SIGINT, escalating), take it out of the group; its exit code."""
+        self._stop_one(node, timeout)
+        self.nodes.remove(node)
+        if node.log_file:
+            node.log_file.close()
+        return node.popen.returncode
+
     @staticmethod
     def _stop_one(node: RunningNode, timeout: float) -> None:
         for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
