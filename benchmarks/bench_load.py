@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import asdict, dataclass, field
-import fcntl
 import json
 import os
 from pathlib import Path
@@ -46,6 +45,7 @@ sys.path.insert(0, str(REPO / 'tests'))
 
 from hexacal_identify.bag import open_bag  # noqa: E402
 from rosproc import RosProcess, start_node, stop, venv_executable, wait_for  # noqa: E402
+from ros_domain import claim_domain_id  # benchmarks/ros_domain.py (this directory is on sys.path)
 
 STREAMS = ('/hexacal/sliders', '/hexacal/inclinometer', '/hexacal/encoder')
 START_TIMEOUT_S = 60.0
@@ -170,24 +170,6 @@ class LoadResult:
             verdict = 'n/a' if met is None else 'met' if met else 'NOT met'
             lines.append(f'  {verdict:<8}{text}')
         return '\n'.join(lines)
-
-
-def claim_domain_id() -> int:
-    """A ROS domain no test session or other benchmark uses (same lock files as tests/conftest.py)."""
-    if os.environ.get('HEXACAL_TEST_DOMAIN_ID'):
-        return int(os.environ['HEXACAL_TEST_DOMAIN_ID'])
-    for offset in range(100):
-        domain_id = 1 + (os.getpid() + offset) % 100
-        lock = open(Path(tempfile.gettempdir()) / f'hexacal-test-ros-domain-{domain_id}.lock',
-                    'a')  # noqa: SIM115 (held open for the whole run)
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            lock.close()
-            continue
-        claim_domain_id.lock = lock  # type: ignore[attr-defined]
-        return domain_id
-    raise RuntimeError('no free ROS domain id in 1..100')
 
 
 def proc_status(pid: int) -> tuple[float, float]:

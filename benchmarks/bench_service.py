@@ -29,7 +29,6 @@ one row per posture count with ``postures``, ``solve_seconds``,
 from __future__ import annotations
 
 import argparse
-import fcntl
 import json
 import os
 from pathlib import Path
@@ -37,6 +36,7 @@ import statistics
 import sys
 import tempfile
 import time
+from ros_domain import claim_domain_id  # benchmarks/ros_domain.py (this directory is on sys.path)
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / 'tests'))
@@ -48,24 +48,6 @@ CALL_TIMEOUT_S = 120.0
 REPORT_TIMEOUT_S = 120.0
 STOP_TIMEOUT_S = 60.0
 REPORT_DONE = ('ready', 'failed')
-
-
-def claim_domain_id() -> int:
-    """A ROS domain no test session or other benchmark uses (same lock files as tests/conftest.py)."""
-    if os.environ.get('HEXACAL_TEST_DOMAIN_ID'):
-        return int(os.environ['HEXACAL_TEST_DOMAIN_ID'])
-    for offset in range(100):
-        domain_id = 1 + (os.getpid() + offset) % 100
-        lock = open(Path(tempfile.gettempdir()) / f'hexacal-test-ros-domain-{domain_id}.lock',
-                    'a')  # noqa: SIM115 (held open for the whole run)
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            lock.close()
-            continue
-        claim_domain_id.lock = lock  # type: ignore[attr-defined]
-        return domain_id
-    raise RuntimeError('no free ROS domain id in 1..100')
 
 
 class BareSolve:

@@ -30,7 +30,6 @@ Targets: ``hexacal --help`` within 2x the baseline, ``hexacal calibrate`` of the
 from __future__ import annotations
 
 import argparse
-import fcntl
 import json
 import os
 from pathlib import Path
@@ -41,6 +40,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from ros_domain import claim_domain_id  # benchmarks/ros_domain.py (this directory is on sys.path)
 
 REPO = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
@@ -68,24 +68,6 @@ STARTED_LINES = {'collector': 'recording to', 'identify': 'collecting postures o
 SPIN_WAIT_S = 0.5
 STOP_PROBLEMS: list[str] = []  # nodes that did not exit 0 on SIGINT (logs kept)
 LOG_FORMAT = '[{severity}] [{time}] [{name}]: {message}'  # rcutils' default, set explicitly: parsed below
-
-
-def claim_domain_id() -> int:
-    """A ROS domain no test session or other benchmark uses (same lock files as tests/conftest.py)."""
-    if os.environ.get('HEXACAL_TEST_DOMAIN_ID'):
-        return int(os.environ['HEXACAL_TEST_DOMAIN_ID'])
-    for offset in range(100):
-        domain_id = 1 + (os.getpid() + offset) % 100
-        lock = open(Path(tempfile.gettempdir()) / f'hexacal-test-ros-domain-{domain_id}.lock',
-                    'a')  # noqa: SIM115 (held open for the whole run)
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            lock.close()
-            continue
-        claim_domain_id.lock = lock  # type: ignore[attr-defined]
-        return domain_id
-    raise RuntimeError('no free ROS domain id in 1..100')
 
 
 def time_command(argv: list[str], repeats: int) -> list[float]:
