@@ -39,18 +39,12 @@ The math lives in `simulation.py` and `plan.py`; this node keeps time and publis
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 import math
 import sys
 import time
 
 import numpy as np
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-    SetParametersResult,
-)
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import InvalidParameterValueException, InvalidTopicNameException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -85,6 +79,7 @@ from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, SLIDERS_TOP
 from hexacal_msgs_py.parameters_file import load_parameters, read_parameters_file
 from hexacal_msgs_py.qos import COMMAND_QOS, SENSOR_QOS
 from hexacal_msgs_py.readings import EncoderReading, InclinometerReading, SliderReading
+from hexacal_identify.nodes.parameters import ParameterSpec as _Spec, parameter_descriptor
 
 NODE_NAME = 'driver'
 # The timer wakes at most this often and publishes rate_hz / MAX_WAKE_HZ samples per wake-up,
@@ -97,15 +92,6 @@ STRAIN_WARNING_M = 0.01
 STRAIN_WARNING_PERIOD_S = 5.0
 # Parameters that may change while the node runs; all others shape the plan and are read-only.
 RUNTIME_PARAMETERS = ('slider_noise_m', 'angle_noise_rad')
-
-
-@dataclass(frozen=True)
-class _Spec:
-    default: object
-    description: str
-    low: float | int | None = None
-    high: float | int | None = None
-    constraints: str = ''
 
 
 MODEL_CHOICES = ('', *MODELS)
@@ -149,19 +135,6 @@ class DriverConfigurationError(Exception):
     """The node's parameters do not describe a machine and plan it can simulate."""
 
 
-def _descriptor(name: str, spec: _Spec) -> ParameterDescriptor:
-    descriptor = ParameterDescriptor(
-        name=name, description=spec.description, additional_constraints=spec.constraints,
-        read_only=name not in RUNTIME_PARAMETERS)
-    if isinstance(spec.default, float):
-        descriptor.floating_point_range = [FloatingPointRange(
-            from_value=float(spec.low), to_value=float(spec.high), step=0.0)]
-    elif isinstance(spec.default, int) and not isinstance(spec.default, bool):
-        descriptor.integer_range = [IntegerRange(
-            from_value=int(spec.low), to_value=int(spec.high), step=1)]
-    return descriptor
-
-
 def _parameter_problem(parameter: Parameter) -> str | None:
     """Checks beyond type and range (which the descriptors enforce)."""
     value = parameter.value
@@ -196,7 +169,7 @@ class DriverNode(Node):
         # Registered before declaring, so command-line overrides are validated too.
         self.add_on_set_parameters_callback(self._validate_parameters)
         for name, spec in PARAMETERS.items():
-            self.declare_parameter(name, spec.default, _descriptor(name, spec))
+            self.declare_parameter(name, spec.default, parameter_descriptor(name, spec, read_only=name not in RUNTIME_PARAMETERS))
         self.add_post_set_parameters_callback(self._apply_parameters)
         value = {name: self.get_parameter(name).value for name in PARAMETERS}
 

@@ -48,19 +48,13 @@ chain order; ``inclinometer_joints`` those of the inclinometer input.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 import math
 import sys
 import time
 
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticArray
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-    SetParametersResult,
-)
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import (
     InvalidParameterTypeException,
     InvalidParameterValueException,
@@ -112,6 +106,7 @@ from ..core.execution import (
     refusal_message,
 )
 from .runtime import run_node
+from .parameters import ParameterSpec as _Spec, parameter_descriptor
 
 NODE_NAME = 'executor'
 CONTROL_PERIOD_S = 0.05  # the state machine steps this often
@@ -119,15 +114,6 @@ STATUS_PERIOD_S = 1.0  # progress (ETA) is republished at least this often
 SERVICE_WAIT_S = 30.0  # calibrate_when_done: how long hexacal/calibrate may take to appear
 INVALID_LOG_PERIOD_S = 5.0
 SHUTDOWN_LINGER_S = 0.3  # the last status (and hold command) reach their subscribers
-
-
-@dataclass(frozen=True)
-class _Spec:
-    default: object
-    description: str
-    low: float | int | None = None
-    high: float | int | None = None
-    constraints: str = ''
 
 
 SETTINGS = ExecutionSettings()
@@ -188,20 +174,6 @@ class ExecutorConfigurationError(Exception):
     """The node's parameters do not describe a plan it can walk on this machine."""
 
 
-def _descriptor(name: str, spec: _Spec) -> ParameterDescriptor:
-    descriptor = ParameterDescriptor(name=name, description=spec.description, read_only=True,
-                                     additional_constraints=spec.constraints)
-    if isinstance(spec.default, list):
-        descriptor.dynamic_typing = True  # [0, 1] is as good as [0.0, 1.0]; checked below
-    elif isinstance(spec.default, float):
-        descriptor.floating_point_range = [FloatingPointRange(
-            from_value=float(spec.low), to_value=float(spec.high), step=0.0)]
-    elif isinstance(spec.default, int) and not isinstance(spec.default, bool):
-        descriptor.integer_range = [IntegerRange(
-            from_value=int(spec.low), to_value=int(spec.high), step=1)]
-    return descriptor
-
-
 def _names(name: str, value: object, count: int) -> tuple[str, ...]:
     if not isinstance(value, (list, tuple)) or len(value) != count or not all(
             isinstance(item, str) and item for item in value) or len(set(value)) != count:
@@ -253,7 +225,7 @@ class ExecutorNode(Node):
         super().__init__(NODE_NAME)
         self.add_on_set_parameters_callback(self._validate_parameters)
         for name, spec in PARAMETERS.items():
-            self.declare_parameter(name, spec.default, _descriptor(name, spec))
+            self.declare_parameter(name, spec.default, parameter_descriptor(name, spec))
         value = {name: self.get_parameter(name).value for name in PARAMETERS}
 
         self.nominal, nominal_mount = self._load_nominal(value['nominal'])
@@ -267,7 +239,7 @@ class ExecutorNode(Node):
         defaults = {'stroke_limits_m': list(stroke),
                     'actuator_joints': list(self.nominal.layout.actuator_names)}
         for name, spec in MODEL_PARAMETERS.items():
-            value[name] = self.declare_parameter(name, defaults[name], _descriptor(name, spec)).value
+            value[name] = self.declare_parameter(name, defaults[name], parameter_descriptor(name, spec)).value
         self.actuator_joints = _names('actuator_joints', list(value['actuator_joints']), 6)
         self.posture_joints = self.nominal.layout.actuator_names  # the collector's (contract) names
         self.inclinometer_joints = _names('inclinometer_joints', list(value['inclinometer_joints']), 2)
