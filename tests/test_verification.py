@@ -464,8 +464,10 @@ def test_restarted_identify_verifies_the_saved_calibration(ros_processes, tmp_pa
     refused = probe.call_trigger(VERIFY_SERVICE)
     assert not refused.success and refused.message.startswith("no-postures:") and "saved calibration" in \
         refused.message, refused.message
+    # The first node's statuses counted through 25 too: look only at those that arrive after the restart.
+    after_restart = len(probe.statuses)
     probe.publish_postures(simulated_postures(25, seed=32))
-    probe.spin_until(lambda: [s for s in probe.statuses if s[2].get("outcome") == "collecting"
+    probe.spin_until(lambda: [s for s in probe.statuses[after_restart:] if s[2].get("outcome") == "collecting"
                               and s[2].get("postures_received") == "25"], 60.0, "25 postures after the restart",
                      restarted.describe)
     response = probe.call_trigger(VERIFY_SERVICE)
