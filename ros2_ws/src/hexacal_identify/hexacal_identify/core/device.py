@@ -27,6 +27,19 @@ sin s, -cos s cos b), and the alpha axis fixes s through
 ``s = asin(C / R) - delta`` with C = -sin a', R = hypot(A, B), delta = atan2(B, A),
 A = cos(gamma), B = -sin(gamma) sin b.  With no defects s = -alpha: eq. 4.
 
+Turning the device about its link axis (``device_turn`` per posture, rad; the
+posture message's ``device_turn`` joint).  The whole device - both U-joint
+fixtures, the link, the sensors - is remounted turned by ``turn`` about the
+base Z axis through O (the link axis at zero reading).  It then reads, in its
+own turned frame, exactly what the normal device reads: the readings belong to
+``R_z(turn)^T p`` and the position is ``p = R_z(turn) p_device(readings)``.
+Turned by pi (the classic reversal of an inclinometer) the sensor reads the
+true angles negated plus the same zero offsets, so alpha0 and beta0 change sign
+against the geometry and eq. 7 separates them from the machine; turned by pi/2
+the axes swap, so the skew gamma acts on the other axis and is separated too.
+The rotary sensor turns with the link: it reads ``phi - turn + phi0`` (wrapped
+to [-pi, pi)); phi0 keeps its sign (a platform-frame definition whatever the turn).
+
 Mounting (``DeviceModel.mount``, the parameter ``device.mount``):
 
 * ``hanging`` (default): everything above - the device's base joint O at the
@@ -116,22 +129,28 @@ class DeviceModel:
         check_mount(self.mount)
 
     def position(self, alpha: np.ndarray, beta: np.ndarray, defects: "DeviceDefects | None" = None,
-                 link_length: float | np.ndarray | None = None) -> "DevicePosition":
-        """Platform positions (and derivatives) from readings; ``link_length`` per posture for an LVDT."""
+                 link_length: float | np.ndarray | None = None,
+                 device_turn: np.ndarray | float | None = None) -> "DevicePosition":
+        """Platform positions (and derivatives) from readings; ``link_length`` per posture for an LVDT,
+        ``device_turn`` (rad) per posture for a device turned about its link (module doc)."""
         length = self.link_length if link_length is None else link_length
-        return device_position(alpha, beta, length, defects if defects is not None else DeviceDefects(), self.mount)
+        return device_position(alpha, beta, length, defects if defects is not None else DeviceDefects(), self.mount,
+                               device_turn)
 
-    def readings(self, position: np.ndarray, defects: "DeviceDefects | None" = None) -> tuple[np.ndarray, np.ndarray]:
-        """What the (defective) inclinometer reads with the platform at ``position`` (N, 3)."""
-        return inclinometer_readings(position, defects if defects is not None else DeviceDefects(), self.mount)
+    def readings(self, position: np.ndarray, defects: "DeviceDefects | None" = None,
+                 device_turn: np.ndarray | float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """What the (defective, possibly turned) inclinometer reads with the platform at ``position`` (N, 3)."""
+        return inclinometer_readings(position, defects if defects is not None else DeviceDefects(), self.mount,
+                                     device_turn)
 
     def angles(self, position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(alpha, beta) of an ideal inclinometer with the platform at ``position`` (N, 3)."""
         return inclinometer_angles(position, self.mount)
 
-    def fixed_position(self, defects: "DeviceDefects | None" = None) -> "DevicePosition":
-        """Where the (defective) inclinometer reads zero, (1, 3), with its derivatives."""
-        return fixed_position(self.link_length, defects if defects is not None else DeviceDefects(), self.mount)
+    def fixed_position(self, defects: "DeviceDefects | None" = None, device_turn: float = 0.0) -> "DevicePosition":
+        """Where the (defective, possibly turned) inclinometer reads zero, (1, 3), with its derivatives."""
+        return fixed_position(self.link_length, defects if defects is not None else DeviceDefects(), self.mount,
+                              device_turn)
 
     @property
     def fixed_point(self) -> np.ndarray:
@@ -190,6 +209,82 @@ class DeviceDefects:
         return ", ".join(f"{n}={getattr(self, n):g} {u}" for n, u in zip(DEVICE_PARAMETER_NAMES, DEVICE_PARAMETER_UNITS))
 
 
+@dataclass(frozen=True)
+class DevicePrior:
+    """Prior knowledge of device parameters: a value and a standard deviation (SI) per defect.
+
+    A caliper measurement of the link (dL = 0 +- 10 um), an inclinometer's
+    calibration certificate (alpha0 = 0 +- 50 urad): the solver adds one row
+    (value - prior) / std per entry (maximum a posteriori with a Gaussian prior,
+    the rows whitened like the data), so the covariance includes them.  A
+    parameter with a prior is identified.  ``entries``: (name, value, std) with
+    names from DEVICE_PARAMETER_NAMES.
+    """
+
+    entries: tuple[tuple[str, float, float], ...] = ()
+
+    def __post_init__(self) -> None:
+        seen = set()
+        for entry in self.entries:
+            if len(entry) != 3:
+                raise ValueError(f"a device prior is (name, value, std), got {entry!r}")
+            name, value, std = entry
+            if name not in DEVICE_PARAMETER_NAMES:
+                raise ValueError(f"device prior on unknown parameter {name!r}; choose from "
+                                 f"{', '.join(DEVICE_PARAMETER_NAMES)}")
+            if name in seen:
+                raise ValueError(f"device prior on {name} given twice")
+            seen.add(name)
+            if not (np.isfinite(value) and np.isfinite(std) and std > 0):
+                raise ValueError(f"device prior on {name}: value must be finite and std positive (SI units), "
+                                 f"got {value!r} +- {std!r}")
+
+    def __bool__(self) -> bool:
+        return bool(self.entries)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(name for name, _, _ in self.entries)
+
+    @property
+    def indices(self) -> np.ndarray:
+        """Index of each entry's parameter in DEVICE_PARAMETER_NAMES."""
+        return np.array([DEVICE_PARAMETER_NAMES.index(name) for name in self.names], dtype=int)
+
+    @property
+    def values(self) -> np.ndarray:
+        return np.array([value for _, value, _ in self.entries], dtype=float)
+
+    @property
+    def stds(self) -> np.ndarray:
+        return np.array([std for _, _, std in self.entries], dtype=float)
+
+    def get(self, name: str) -> tuple[float, float] | None:
+        """(value, std) of the prior on ``name``, or None."""
+        return next(((value, std) for n, value, std in self.entries if n == name), None)
+
+    @classmethod
+    def parse(cls, text: str) -> "DevicePrior":
+        """'dL=0:10e-6,alpha0=0:50e-6' (NAME=VALUE:STD, SI units) -> DevicePrior."""
+        entries = []
+        for item in filter(None, (part.strip() for part in text.split(","))):
+            name, sep, rest = item.partition("=")
+            value, colon, std = rest.partition(":")
+            name = name.strip()
+            if not sep or not colon:
+                raise ValueError(f"bad device prior {item!r}: expected NAME=VALUE:STD in SI units, "
+                                 "e.g. dL=0:10e-6 (link length offset 0 +- 10 um)")
+            try:
+                entries.append((name, float(value), float(std)))
+            except ValueError:
+                raise ValueError(f"device prior {item!r}: VALUE and STD must be numbers in SI units") from None
+        return cls(tuple(entries))
+
+    def describe(self) -> str:
+        units = dict(zip(DEVICE_PARAMETER_NAMES, DEVICE_PARAMETER_UNITS))
+        return ", ".join(f"{name}={value:g} +- {std:g} {units[name]}" for name, value, std in self.entries)
+
+
 def measured_position(alpha: np.ndarray, beta: np.ndarray, link_length: float | np.ndarray,
                       mount: str = DEFAULT_MOUNT) -> np.ndarray:
     """Platform position from the inclinometer (eq. 4, sign of z as in the module doc), (N, 3)."""
@@ -209,10 +304,24 @@ def inclinometer_angles(position: np.ndarray, mount: str = DEFAULT_MOUNT) -> tup
     return inclinometer_readings(position, DeviceDefects(), mount)
 
 
-def inclinometer_readings(position: np.ndarray, defects: DeviceDefects,
-                          mount: str = DEFAULT_MOUNT) -> tuple[np.ndarray, np.ndarray]:
-    """What a defective inclinometer reads for the link pointing from O to ``position`` (no noise)."""
+def turn_rotations(device_turn: np.ndarray | float | None, n: int) -> np.ndarray:
+    """R_z(turn) per posture, (n, 3, 3): the frame of a device turned by ``turn`` about its link axis."""
+    turn = np.zeros(n) if device_turn is None else np.broadcast_to(np.asarray(device_turn, dtype=float), (n,))
+    c, s = np.cos(turn), np.sin(turn)
+    rotation = np.zeros((n, 3, 3))
+    rotation[:, 0, 0], rotation[:, 0, 1], rotation[:, 1, 0], rotation[:, 1, 1] = c, -s, s, c
+    rotation[:, 2, 2] = 1.0
+    return rotation
+
+
+def inclinometer_readings(position: np.ndarray, defects: DeviceDefects, mount: str = DEFAULT_MOUNT,
+                          device_turn: np.ndarray | float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """What a defective inclinometer reads for the link pointing from O to ``position`` (no noise).
+
+    ``device_turn`` (rad, per posture): the device turned about its link axis (module doc)."""
     position = np.atleast_2d(np.asarray(position, dtype=float))
+    # The turned device reads, in its own (turned) frame, what the normal one reads: R_z(turn)^T p.
+    position = np.einsum("nji,nj->ni", turn_rotations(device_turn, len(position)), position)
     if _standing(mount):
         position = -position  # the same reading as a hanging link pointing the other way (module doc)
     u = position / np.linalg.norm(position, axis=1, keepdims=True)
@@ -250,10 +359,12 @@ class DevicePosition:
 
 
 def device_position(alpha: np.ndarray, beta: np.ndarray, link_length: float | np.ndarray,
-                    defects: DeviceDefects = DeviceDefects(), mount: str = DEFAULT_MOUNT) -> DevicePosition:
+                    defects: DeviceDefects = DeviceDefects(), mount: str = DEFAULT_MOUNT,
+                    device_turn: np.ndarray | float | None = None) -> DevicePosition:
     """Platform position from inclinometer readings through the defect model (module doc).
 
-    Standing: the hanging result negated (position and both derivative arrays)."""
+    Standing: the hanging result negated (position and both derivative arrays).
+    ``device_turn`` (rad, per posture): the device turned about its link axis, p = R_z(turn) p_device."""
     standing = _standing(mount)
     alpha = np.atleast_1d(np.asarray(alpha, dtype=float))
     beta = np.atleast_1d(np.asarray(beta, dtype=float))
@@ -280,12 +391,19 @@ def device_position(alpha: np.ndarray, beta: np.ndarray, link_length: float | np
     d_defects = np.stack([u, -scale * du_ds * ds_da[:, None], -scale * du_dbeta, scale * du_ds * ds_dg[:, None]],
                          axis=-1)
     d_readings = np.stack([scale * du_ds * ds_da[:, None], scale * du_dbeta], axis=-1)
+    position = scale * u
+    if device_turn is not None:  # the turned device's frame is R_z(turn) of the normal one
+        rotation = turn_rotations(device_turn, len(alpha))
+        position = np.einsum("nij,nj->ni", rotation, position)
+        d_defects = np.einsum("nij,njk->nik", rotation, d_defects)
+        d_readings = np.einsum("nij,njk->nik", rotation, d_readings)
     if standing:
-        return DevicePosition(-(scale * u), -d_defects, -d_readings)
-    return DevicePosition(scale * u, d_defects, d_readings)
+        return DevicePosition(-position, -d_defects, -d_readings)
+    return DevicePosition(position, d_defects, d_readings)
 
 
 def fixed_position(link_length: float, defects: DeviceDefects = DeviceDefects(),
-                   mount: str = DEFAULT_MOUNT) -> DevicePosition:
-    """Where the (defective) inclinometer reads zero: the fixed position of eq. 10, (1, 3), with derivatives."""
-    return device_position(np.zeros(1), np.zeros(1), link_length, defects, mount)
+                   mount: str = DEFAULT_MOUNT, device_turn: float = 0.0) -> DevicePosition:
+    """Where the (defective, possibly turned) inclinometer reads zero: the fixed position of eq. 10,
+    (1, 3), with derivatives."""
+    return device_position(np.zeros(1), np.zeros(1), link_length, defects, mount, np.array([device_turn]))

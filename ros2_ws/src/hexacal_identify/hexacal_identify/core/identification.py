@@ -31,7 +31,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from .device import DEVICE_PARAMETER_NAMES, N_DEVICE_PARAMETERS, DeviceDefects, DeviceModel
+from .device import DEVICE_PARAMETER_NAMES, N_DEVICE_PARAMETERS, DeviceDefects, DeviceModel, DevicePrior
 from .errors import InvalidMeasurementError, RankDeficientError, TooFewPosturesError
 from .identifiability import DEFAULT_RANK_TOLERANCE, IdentifiabilityReport, analyze, column_scales
 from .kinematics import forward_kinematics, pose_sensitivities
@@ -70,6 +70,7 @@ class SolverOptions:
     free_parameters: tuple[bool, ...] | None = None  # mask over the kinematic parameters; None = all
     device_defects: DeviceDefects = DeviceDefects()  # assumed (and starting) device defects
     free_device: tuple[str, ...] = ()  # device defects to identify, names from DEVICE_PARAMETER_NAMES
+    device_prior: DevicePrior = DevicePrior()  # prior value +- std per device defect (identified, MAP rows)
     noise: NoiseModel | None = None  # known reading noise: whiten the residuals by it
     robust_loss: str | None = None  # None, 'huber' or 'soft_l1'
     outlier_threshold: float | None = 6.0  # a posture whose RMS residual exceeds this x the median is excluded
@@ -94,7 +95,8 @@ class SolverOptions:
         unknown = sorted(set(self.free_device) - set(DEVICE_PARAMETER_NAMES))
         if unknown:
             raise ValueError(f"unknown device parameter(s) {unknown}; choose from {', '.join(DEVICE_PARAMETER_NAMES)}")
-        device = np.array([name in self.free_device for name in DEVICE_PARAMETER_NAMES])
+        identified = set(self.free_device) | set(self.device_prior.names)
+        device = np.array([name in identified for name in DEVICE_PARAMETER_NAMES])
         return np.concatenate([kinematic, device])
 
     def validate(self, n_parameters: int = N_PARAMETERS) -> None:
@@ -104,6 +106,10 @@ class SolverOptions:
             raise ValueError(f"unknown robust loss {self.robust_loss!r}; choose one of {', '.join(ROBUST_LOSSES)}")
         if self.noise is not None and not self.noise.known:
             raise ValueError("a noise model for weighting needs positive slider and angle noise")
+        if self.device_prior and self.noise is None:
+            raise ValueError(f"a device prior ({self.device_prior.describe()}) is weighed against the data by the "
+                             "reading noise: give the noise model too (noise_slider_m and noise_angle_rad, "
+                             "--noise-um / --weighted)")
         self.free_mask(n_parameters)
 
 
@@ -222,6 +228,24 @@ class _Problem:
         if not columns.all():
             block.jacobian = block.jacobian[:, columns]
         return block
+
+    def with_prior(self, block: ResidualBlock, vector: np.ndarray) -> ResidualBlock:
+        """``block`` (weighted rows) with one row (value - prior) / std per device prior appended."""
+        prior = self.options.device_prior
+        if not prior:
+            return block
+        unknowns = self.n_parameters + prior.indices
+        values = (vector[unknowns] - prior.values) / prior.stds
+        jacobian = None
+        if block.jacobian is not None:
+            column = np.cumsum(self.free) - 1  # the prior's parameters are free: their device columns exist
+            jacobian = np.zeros((len(values), block.jacobian.shape[1]))
+            jacobian[np.arange(len(values)), column[unknowns]] = 1.0 / prior.stds
+            jacobian = np.vstack([block.jacobian, jacobian])
+        channels = np.array([f"prior.{name}" for name in prior.names])
+        return ResidualBlock(np.concatenate([block.values, values]), jacobian,
+                             np.concatenate([block.channels, channels]),
+                             np.concatenate([block.postures, np.full(len(values), -1)]))
 
     def row_transform(self, vector: np.ndarray, poses: np.ndarray, robust: bool = True) -> "_RowTransform":
         """Row weights at this solution: whitening by the noise model and/or robust weights (none if neither)."""
@@ -344,6 +368,7 @@ def _identify_once(nominal: KinematicParameters, measurements: Measurements, opt
     measurements.validate(options.limits)
     free = options.free_mask(n_parameters)
     start = np.concatenate([nominal.vector, options.device_defects.vector])
+    start[n_parameters + options.device_prior.indices] = options.device_prior.values  # start at the prior
     cost = CostFunction(options.cost, measurements, options.device, options.sigma)
     missing = cost.missing_postures()
     if missing is not None:
@@ -504,7 +529,7 @@ class _LevenbergMarquardt:
     def _set_block(self, raw_block: ResidualBlock, first: bool = False) -> None:
         """Take the (unweighted) residuals and Jacobian at the current vector; reduce them to normal equations."""
         self.raw_block = raw_block
-        self.block = self.transform.apply(raw_block)
+        self.block = self.problem.with_prior(self.transform.apply(raw_block), self.vector)
         if first:  # columns are scaled by their norms at the start of the run, fixed for the run
             self.scales = column_scales(self.block.jacobian)
         self.normal = _NormalEquations.of(self.block, self.scales, self.options.rank_tolerance)
@@ -581,7 +606,9 @@ class _LevenbergMarquardt:
             # many failing at once means the step is too long.
             few = len(fk.failures) <= max(1, len(self.poses) // 20)
             return dict(fk.failures) if few else None
-        values = self.transform.values(self.problem.residuals(vector, fk.poses))
+        block = self.problem.residuals(vector, fk.poses)
+        values = self.problem.with_prior(ResidualBlock(self.transform.values(block), None, block.channels,
+                                                       block.postures), vector).values
         return vector, fk.poses, float(values @ values)
 
     def _drop(self, failures: dict[int, str]) -> None:

@@ -37,7 +37,9 @@ class Measurements:
     """N measured postures (SI units).
 
     slider_positions (N, 6) actuator readings lambda, m; inclinometer (N, 2) = [alpha, beta], rad;
-    rotary (N,) = phi, rad; kinds (N,) 'sphere' or 'fixed'.
+    rotary (N,) = phi, rad; kinds (N,) 'sphere' or 'fixed'; device_turn (N,) rad: how far the
+    device was turned about its link axis from its normal mounting for that posture (pi: the
+    reversal procedure, device.py), readings as the sensors gave them; None = all normal.
     """
 
     slider_positions: np.ndarray
@@ -45,6 +47,7 @@ class Measurements:
     rotary: np.ndarray
     kinds: np.ndarray = field(default=None)  # type: ignore[assignment]
     link_lengths: np.ndarray | None = None  # LVDT variant: measured link length per posture, m
+    device_turn: np.ndarray | None = None  # per posture: device turned about its link axis, rad
 
     def __post_init__(self) -> None:
         self.slider_positions = np.atleast_2d(np.asarray(self.slider_positions, dtype=float))
@@ -56,6 +59,15 @@ class Measurements:
         self.kinds = np.asarray(self.kinds).astype(str)
         if self.link_lengths is not None:
             self.link_lengths = np.asarray(self.link_lengths, dtype=float).reshape(-1)
+        if self.device_turn is not None:
+            self.device_turn = np.asarray(self.device_turn, dtype=float).reshape(-1)
+            if not np.any(self.device_turn):
+                self.device_turn = None  # all in the normal mounting: the same as no turns
+
+    @property
+    def turns(self) -> np.ndarray:
+        """(N,) device turn per posture, rad (zeros without turns)."""
+        return self.device_turn if self.device_turn is not None else np.zeros(len(self))
 
     def __len__(self) -> int:
         return len(self.slider_positions)
@@ -63,9 +75,10 @@ class Measurements:
     def subset(self, indices: np.ndarray) -> "Measurements":
         indices = np.asarray(indices, dtype=int)
         lengths = None if self.link_lengths is None else self.link_lengths[indices]
+        turns = None if self.device_turn is None else self.device_turn[indices]
         return Measurements(
             self.slider_positions[indices], self.inclinometer[indices], self.rotary[indices], self.kinds[indices],
-            lengths,
+            lengths, turns,
         )
 
     @staticmethod
@@ -75,12 +88,15 @@ class Measurements:
             if not all(p.link_lengths is not None for p in parts):
                 raise InvalidMeasurementError("cannot mix postures with and without measured link lengths")
             lengths = np.concatenate([p.link_lengths for p in parts])
+        turns = None
+        if any(p.device_turn is not None for p in parts):
+            turns = np.concatenate([p.turns for p in parts])
         return Measurements(
             np.concatenate([p.slider_positions for p in parts]),
             np.concatenate([p.inclinometer for p in parts]),
             np.concatenate([p.rotary for p in parts]),
             np.concatenate([p.kinds for p in parts]),
-            lengths,
+            lengths, turns,
         )
 
     def validate(self, limits: MeasurementLimits = MeasurementLimits()) -> None:
@@ -102,6 +118,10 @@ class Measurements:
             if self.link_lengths.shape != (n,):
                 raise InvalidMeasurementError(f"link_lengths must have one value per posture, got {self.link_lengths.shape}")
             channels["link_lengths"] = self.link_lengths[:, None]
+        if self.device_turn is not None:
+            if self.device_turn.shape != (n,):
+                raise InvalidMeasurementError(f"device_turn must have one angle per posture, got {self.device_turn.shape}")
+            channels["device_turn"] = self.device_turn[:, None]
         for name, values in channels.items():
             bad = np.flatnonzero(~np.all(np.isfinite(values), axis=1))
             if bad.size:
@@ -164,6 +184,7 @@ def simulate_measurements(
     rng: np.random.Generator | None = None,
     defects: DeviceDefects = DeviceDefects(),
     lvdt: bool = False,
+    device_turn: np.ndarray | float | None = None,
 ) -> Measurements:
     """What the device and the actuator encoders read at ``poses`` on the machine ``params`` (any architecture).
 
@@ -171,15 +192,19 @@ def simulate_measurements(
     true link direction with offsets and a skewed axis, the rotary sensor adds
     phi0).  With ``lvdt`` the link is prismatic and an LVDT reports its length
     per posture, minus the offset dL (the device's length error); otherwise the
-    poses must lie on the true sphere of radius L + dL.
+    poses must lie on the true sphere of radius L + dL.  ``device_turn`` (rad, per
+    posture or one value): the device turned about its link axis (pi: reversed,
+    device.py); the rotary sensor turns with it and reads phi - turn + phi0.
     """
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
     rng = rng if rng is not None else np.random.default_rng(0)
     sliders = inverse_kinematics(params, poses)
-    alpha, beta = inclinometer_readings(poses[:, :3], defects, device.mount)
-    angles = np.column_stack([alpha, beta])
-    rotary = poses[:, 5] + defects.phi0
     n = len(poses)
+    turns = None if device_turn is None else np.broadcast_to(np.asarray(device_turn, float), (n,)).copy()
+    alpha, beta = inclinometer_readings(poses[:, :3], defects, device.mount, turns)
+    angles = np.column_stack([alpha, beta])
+    rotary = poses[:, 5] + defects.phi0 - (0.0 if turns is None else turns)
+    rotary = (rotary + np.pi) % (2.0 * np.pi) - np.pi  # the sensor's range
     if noise.slider_m:
         sliders = sliders + rng.uniform(-noise.slider_m, noise.slider_m, sliders.shape)
     if noise.angle_rad:
@@ -191,4 +216,4 @@ def simulate_measurements(
         if noise.slider_m:
             lengths = lengths + rng.uniform(-noise.slider_m, noise.slider_m, n)
     kinds_array = np.full(n, kinds) if isinstance(kinds, str) else np.asarray(kinds)
-    return Measurements(sliders, angles, rotary, kinds_array, lengths)
+    return Measurements(sliders, angles, rotary, kinds_array, lengths, turns)

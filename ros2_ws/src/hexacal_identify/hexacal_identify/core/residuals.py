@@ -40,6 +40,7 @@ import numpy as np
 
 from .device import N_DEVICE_PARAMETERS, DeviceDefects, DeviceModel, device_position, fixed_position
 from .kinematics import PoseSensitivity
+from .errors import InvalidMeasurementError
 from .measurements import FIXED, SPHERE, Measurements
 
 COSTS = ("absolute", "sphere", "fixed", "sphere-fixed", "relative")
@@ -119,6 +120,11 @@ class CostFunction:
         self.link_lengths = (measurements.link_lengths if measurements.link_lengths is not None
                              else np.full(len(measurements), device.link_length))
         self.sigma = sigma
+        if cost == "relative" and measurements.device_turn is not None:
+            raise InvalidMeasurementError(
+                "the relative cost function (eqs. 12 + 13) pairs consecutive postures and cancels offsets "
+                f"itself; {int(np.count_nonzero(measurements.device_turn))} posture(s) were taken with the device "
+                "turned about its link: use the absolute cost (eq. 7), which identifies the offsets from them")
         self.is_fixed = measurements.kinds == FIXED
         self.is_sphere = measurements.kinds == SPHERE
         self._measured_cache = None
@@ -149,19 +155,33 @@ class CostFunction:
         """Positions from the readings through the defect model; the last result is kept (defects rarely change)."""
         if self._measured_cache is None or self._measured_cache[0] != defects:
             alpha, beta = self.measurements.inclinometer.T
-            self._measured_cache = (defects, device_position(alpha, beta, self.link_lengths, defects, self.mount))
+            self._measured_cache = (defects, device_position(alpha, beta, self.link_lengths, defects, self.mount,
+                                                             self.measurements.device_turn))
         return self._measured_cache[1]
 
-    def fixed_position(self, defects: DeviceDefects = DeviceDefects()):
-        """Where the (defective) inclinometer reads zero: the fixed position of eq. 10."""
-        return fixed_position(self.link_length, defects, self.mount)
+    def fixed_position(self, defects: DeviceDefects = DeviceDefects(), device_turn: float = 0.0):
+        """Where the (defective, possibly turned) inclinometer reads zero: the fixed position of eq. 10."""
+        return fixed_position(self.link_length, defects, self.mount, device_turn)
+
+    def fixed_positions(self, defects: DeviceDefects, index: np.ndarray):
+        """Fixed positions (k, 3) and their device derivatives (k, 3, 4) of postures ``index``: a turned
+        device reads zero elsewhere (its offsets turn with it)."""
+        turns = self.measurements.turns[index]
+        zeros = np.zeros(len(index))
+        fixed = device_position(zeros, zeros, self.link_length, defects, self.mount,
+                                turns if np.any(turns) else None)
+        return fixed.position, fixed.d_defects
 
     def initial_poses(self, defects: DeviceDefects = DeviceDefects()) -> np.ndarray:
         """Expected postures: measured position and phi, theta = psi = 0 (the FK start and branch reference)."""
         n = len(self.measurements)
-        position = np.where(self.is_fixed[:, None], self.fixed_position(defects).position,
-                            self.measured(defects).position)
-        return np.column_stack([position, np.zeros((n, 2)), self.measurements.rotary - defects.phi0])
+        fixed, _ = self.fixed_positions(defects, np.arange(n))
+        position = np.where(self.is_fixed[:, None], fixed, self.measured(defects).position)
+        return np.column_stack([position, np.zeros((n, 2)), self.measured_phi(defects)])
+
+    def measured_phi(self, defects: DeviceDefects = DeviceDefects()) -> np.ndarray:
+        """phi from the rotary readings: a device turned about its link reads phi - turn + phi0, wrapped."""
+        return wrap_angle(self.measurements.rotary + self.measurements.turns - defects.phi0)
 
     def residuals(self, poses: np.ndarray, sensitivity: np.ndarray | PoseSensitivity | None,
                   defects: DeviceDefects = DeviceDefects(), with_device: bool = False,
@@ -211,7 +231,7 @@ class CostFunction:
         n = len(pieces.poses)
         index = np.arange(n)
         scale = 1.0 / self.sigma.angle_rad
-        values = (self.measurements.rotary - defects.phi0 - pieces.poses[:, 5]) * scale
+        values = wrap_angle(self.measured_phi(defects) - pieces.poses[:, 5]) * scale
         jac = None
         if pieces.has_jacobian:
             device_rows = np.zeros((n, N_DEVICE_PARAMETERS))
@@ -255,9 +275,7 @@ class CostFunction:
 
     def _fixed_block(self, pieces: _Pieces, defects: DeviceDefects, mask: np.ndarray) -> ResidualBlock:
         index = np.flatnonzero(mask)
-        fixed = self.fixed_position(defects)
-        targets = np.broadcast_to(fixed.position, (len(index), 3))
-        d_device = np.broadcast_to(fixed.d_defects, (len(index), 3, 4))
+        targets, d_device = self.fixed_positions(defects, index)
         return self._position_rows(pieces, index, targets, d_device, None)
 
     def _lengths(self, pieces: _Pieces, index: np.ndarray):
@@ -324,6 +342,11 @@ class CostFunction:
                                                    np.zeros((len(earlier), 3)))
         block.partners = earlier
         return block
+
+
+def wrap_angle(angle: np.ndarray) -> np.ndarray:
+    """Angles into [-pi, pi)."""
+    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def _stack(blocks: list[ResidualBlock]) -> ResidualBlock:
