@@ -12,6 +12,7 @@ layout live in ``hexacal_identify.core.architectures``.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -91,6 +92,14 @@ class ModelLayout:
 
 
 DEVICE_JOINT_NAMES: tuple[str, ...] = ('inclinometer_x', 'inclinometer_y', 'rotary')
+
+# Optional extra joint of a posture JointState and of an inclinometer
+# JointState: the measuring device's rotation about its link axis from its
+# normal mounting, rad (0 normal, pi reversed, pi/2 a quarter turn).  Absent
+# means 0, so every message and bag without it keeps its meaning.
+DEVICE_TURN_JOINT = 'device_turn'
+# |device_turn| may not exceed one full turn.
+MAX_DEVICE_TURN = 2.0 * math.pi
 
 
 def _hexa_slide_problem(vector: np.ndarray) -> str | None:

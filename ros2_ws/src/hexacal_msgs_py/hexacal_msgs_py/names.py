@@ -6,6 +6,8 @@ Topic and service names are relative so that a node's namespace applies.
 from hexacal_msgs_py.models import (
     DEFAULT_MODEL,
     DEVICE_JOINT_NAMES,
+    DEVICE_TURN_JOINT,
+    MAX_DEVICE_TURN,
     GOUGH_STEWART,
     HEXA_SLIDE,
     MODELS,
@@ -83,6 +85,10 @@ LEG_NAMES: tuple[str, ...] = MODELS[GOUGH_STEWART].actuator_names
 INCLINOMETER_NAMES: tuple[str, ...] = DEVICE_JOINT_NAMES[:2]
 ENCODER_NAMES: tuple[str, ...] = DEVICE_JOINT_NAMES[2:]
 POSTURE_NAMES: tuple[str, ...] = _HEXA.posture_names
+# DEVICE_TURN_JOINT ('device_turn', rad) is an optional extra joint of the
+# posture and inclinometer JointStates (not in POSTURE_NAMES / INCLINOMETER_NAMES):
+# the device's rotation about its link axis from its normal mounting (0 normal,
+# pi reversed, pi/2 quarter turn); absent means 0.  |turn| <= MAX_DEVICE_TURN (2 pi).
 
 # The Hexa Slide's 54-vector is chain-major: for each chain A0 (3, base frame,
 # m), B (3, platform frame, m), link length l (m), rail direction a_x, a_y

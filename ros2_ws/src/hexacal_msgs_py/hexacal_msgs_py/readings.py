@@ -15,7 +15,7 @@ import math
 import operator
 
 from hexacal_msgs_py.errors import InvalidReadingError
-from hexacal_msgs_py.names import N_CHAINS, POSTURE_NAMES
+from hexacal_msgs_py.names import DEVICE_TURN_JOINT, MAX_DEVICE_TURN, N_CHAINS, POSTURE_NAMES
 
 
 def _check_stamp(kind: str, stamp_ns: object) -> int:
@@ -43,6 +43,14 @@ def _check_value(kind: str, name: str, value: object) -> float:
     if not math.isfinite(number):
         raise InvalidReadingError(f'{kind}: {name} must be finite, got {number!r}')
     return number
+
+
+def _check_turn(kind: str, value: object) -> float:
+    turn = _check_value(kind, DEVICE_TURN_JOINT, value)
+    if abs(turn) > MAX_DEVICE_TURN:
+        raise InvalidReadingError(
+            f'{kind}: {DEVICE_TURN_JOINT} must be within +-2 pi rad, got {turn!r}')
+    return turn
 
 
 def _check_sliders(kind: str, positions: object) -> tuple[float, ...]:
@@ -74,17 +82,23 @@ class SliderReading:
 
 @dataclass(frozen=True)
 class InclinometerReading:
-    """Biaxial inclinometer angles: alpha about X, beta about Y (rad)."""
+    """Biaxial inclinometer angles: alpha about X, beta about Y (rad).
+
+    device_turn: the device's rotation about its link axis from its normal
+    mounting (rad; 0 normal, pi reversed, pi/2 quarter turn), |turn| <= 2 pi.
+    """
 
     stamp_ns: int
     alpha: float
     beta: float
+    device_turn: float = 0.0
 
     def __post_init__(self) -> None:
         kind = type(self).__name__
         object.__setattr__(self, 'stamp_ns', _check_stamp(kind, self.stamp_ns))
         object.__setattr__(self, 'alpha', _check_value(kind, 'alpha', self.alpha))
         object.__setattr__(self, 'beta', _check_value(kind, 'beta', self.beta))
+        object.__setattr__(self, 'device_turn', _check_turn(kind, self.device_turn))
 
 
 @dataclass(frozen=True)
@@ -102,13 +116,21 @@ class EncoderReading:
 
 @dataclass(frozen=True)
 class PostureReading:
-    """One measured posture: the six actuator readings (m) with the device's alpha, beta, phi (rad)."""
+    """One measured posture: the six actuator readings (m) with the device's alpha, beta, phi (rad).
+
+    device_turn: the mounting the posture was measured in, the device's
+    rotation about its link axis from its normal mounting (rad; 0 normal, pi
+    reversed, pi/2 quarter turn), |turn| <= 2 pi.  It is not one of the nine
+    values() (POSTURE_NAMES); on a JointState it is the optional joint
+    DEVICE_TURN_JOINT, absent when 0.
+    """
 
     stamp_ns: int
     slider_positions: tuple[float, ...]
     alpha: float
     beta: float
     phi: float
+    device_turn: float = 0.0
 
     def __post_init__(self) -> None:
         kind = type(self).__name__
@@ -118,6 +140,7 @@ class PostureReading:
         object.__setattr__(self, 'alpha', _check_value(kind, 'alpha', self.alpha))
         object.__setattr__(self, 'beta', _check_value(kind, 'beta', self.beta))
         object.__setattr__(self, 'phi', _check_value(kind, 'phi', self.phi))
+        object.__setattr__(self, 'device_turn', _check_turn(kind, self.device_turn))
 
     @classmethod
     def from_parts(
@@ -127,13 +150,17 @@ class PostureReading:
         encoder: EncoderReading,
         stamp_ns: int | None = None,
     ) -> PostureReading:
-        """Combine synchronised readings; the stamp defaults to the sliders' stamp."""
+        """Combine synchronised readings; the stamp defaults to the sliders' stamp.
+
+        The device turn is the inclinometer reading's.
+        """
         return cls(
             stamp_ns=sliders.stamp_ns if stamp_ns is None else stamp_ns,
             slider_positions=sliders.slider_positions,
             alpha=inclinometer.alpha,
             beta=inclinometer.beta,
             phi=encoder.phi,
+            device_turn=inclinometer.device_turn,
         )
 
     def values(self) -> tuple[float, ...]:
@@ -141,11 +168,13 @@ class PostureReading:
         return self.slider_positions + (self.alpha, self.beta, self.phi)
 
     @classmethod
-    def from_values(cls, stamp_ns: int, values: Iterable[float]) -> PostureReading:
-        """Inverse of values(): nine numbers in POSTURE_NAMES order."""
+    def from_values(
+        cls, stamp_ns: int, values: Iterable[float], device_turn: float = 0.0,
+    ) -> PostureReading:
+        """Inverse of values(): nine numbers in POSTURE_NAMES order (and the device turn, rad)."""
         numbers = tuple(values)
         if len(numbers) != len(POSTURE_NAMES):
             raise InvalidReadingError(
                 f'{cls.__name__}: expected {len(POSTURE_NAMES)} values '
                 f'{POSTURE_NAMES}, got {len(numbers)}')
-        return cls(stamp_ns, numbers[:N_CHAINS], *numbers[N_CHAINS:])
+        return cls(stamp_ns, numbers[:N_CHAINS], *numbers[N_CHAINS:], device_turn=device_turn)
