@@ -105,6 +105,7 @@ def configured_run(args) -> StudyRun:
         validation_postures=args.validation_postures,
         defects=args.device_defects or DeviceDefects(), identify_device=args.identify_device,
         weighted=args.weighted, robust_loss=args.robust, lvdt=args.lvdt,
+        procedure=args.procedure, device_prior=args.device_prior,
     )
 
 
@@ -274,10 +275,25 @@ def _print_configured(run: StudyRun) -> None:
           f"{result.reason} in {result.iterations} iterations, {result.solve_seconds * 1e3:.1f} ms, "
           f"rank {result.rank}, condition {result.condition_number:.3g}")
     print(f"  pose error before: {before['position_mean_m'] * UM:.1f} um, {before['orientation_mean_rad'] * DEG:.4f} deg; "
-          f"after: {after['position_mean_m'] * UM:.2f} um, {after['orientation_mean_rad'] * DEG:.5f} deg")
+          f"after: {after['position_mean_m'] * UM:.2f} um, {after['orientation_mean_rad'] * DEG:.5f} deg"
+          + (" (frames the calibration works in)" if run.defects != type(run.defects)() else ""))
+    if run.defects != type(run.defects)() and outcome.after_true_frames is not None:
+        true_frames = outcome.after_true_frames.summary()
+        print(f"  after, in the true frames (gravity base frame, origin at O): {true_frames['position_mean_m'] * UM:.2f} um, "
+              f"{true_frames['orientation_mean_rad'] * DEG:.5f} deg; procedure {run.procedure}"
+              + (f", device prior {run.device_prior.describe()}" if run.device_prior else ""))
+        for name, value, std in zip(result.free_device, *_device_values(result)):
+            print(f"  device {name}: identified {value:.4g} +- {std:.2g} (SI), true {getattr(run.defects, name):.4g}")
     if result.rejected_postures:
         print(f"  {len(result.rejected_postures)} posture(s) rejected: "
               + "; ".join(f"#{i}: {why}" for i, why in sorted(result.rejected_postures.items())))
+
+
+def _device_values(result) -> tuple[list[float], list[float]]:
+    from ..core.device import DEVICE_PARAMETER_NAMES
+
+    index = [DEVICE_PARAMETER_NAMES.index(name) for name in result.free_device]
+    return [float(result.device.vector[i]) for i in index], [float(result.device_std[i]) for i in index]
 
 
 def _pm(value: tuple[float, float], scale: float, digits: int = 1) -> str:

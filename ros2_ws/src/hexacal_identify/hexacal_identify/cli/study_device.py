@@ -6,7 +6,7 @@ import math
 from typing import TYPE_CHECKING
 
 from .common import Progress
-from ..core.device import DEVICE_PARAMETER_NAMES, DeviceDefects
+from ..core.device import DEVICE_PARAMETER_NAMES, DeviceDefects, DevicePrior
 
 if TYPE_CHECKING:
     from ..core.architectures import KinematicParameters
@@ -22,6 +22,14 @@ DEFECTS_HELP = ("device defects of the simulated device, SI units, e.g. dL=0.000
 def _defects(text: str) -> DeviceDefects:
     try:
         return DeviceDefects.parse(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def device_prior_argument(text: str) -> DevicePrior:
+    """--device-prior NAME=VALUE:STD[,...] (SI units) -> DevicePrior; a bad text is an argparse error."""
+    try:
+        return DevicePrior.parse(text)
     except ValueError as error:
         raise argparse.ArgumentTypeError(str(error)) from None
 
@@ -46,66 +54,75 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lvdt", action="store_true", help="LVDT variant: the link length is measured per posture")
     parser.add_argument("--monte-carlo", type=int, default=100, metavar="SEEDS",
                         help="noise seeds for the uncertainty check (default 100; 0 skips it)")
-    parser.add_argument("--defect-seeds", type=int, default=3, help="seeds per method in the device-defect table")
+    parser.add_argument("--defect-seeds", type=int, default=10, help="seeds per row of the device-defect table "
+                        "(default 10)")
+    parser.add_argument("--procedure", choices=("none", "reversal", "quarter-turns"), default="none",
+                        help="configured run: turn the device about its link axis between walks of the plan "
+                             "(reversal: 0/180 deg; quarter-turns: 0/90/180/270 deg); identify beta0 with it "
+                             "(--identify-device dL,alpha0,beta0,gamma)")
+    parser.add_argument("--device-prior", type=device_prior_argument, default=DevicePrior(), metavar="NAME=VALUE:STD",
+                        help="configured run: prior knowledge of the device, SI units, e.g. dL=5e-4:10e-6 (a caliper "
+                             "reading of the link, +-10 um); needs --weighted")
 
 
 def print_sections(args, progress: Progress, truth: KinematicParameters | None = None) -> None:
     """The device-defect table and the Monte Carlo check on ``truth`` (default: the Table 1 Hexa Slide)."""
     from ..studies.device import DEFAULT_DEFECTS
 
-    print_device_defects(args.device_defects or DEFAULT_DEFECTS, args.noise_um, args.defect_seeds, progress, truth)
+    print_device_defects(args.device_defects or DEFAULT_DEFECTS, args.noise_um, args.defect_seeds, progress, truth,
+                         args.monte_carlo)
     if args.monte_carlo > 0:
         print_monte_carlo(args.monte_carlo, args.noise_um, progress, truth)
 
 
 def print_device_defects(defects: DeviceDefects, noise_um: float, seeds: int, progress: Progress,
-                         truth: KinematicParameters | None = None) -> None:
+                         truth: KinematicParameters | None = None, efficiency_seeds: int = 100) -> None:
+    """The device table: every remedy on the same seeds, the issue's claims met / NOT met, the estimator's efficiency."""
     import numpy as np
 
-    from ..studies.device import compare_methods
+    from ..studies.device_procedure import (CLAIM_EFFICIENCY, RECOMMENDED_PROCEDURE, claims, device_table,
+                                            estimator_efficiency)
 
-    print(f"\nDevice defects ({defects.describe()}), +-{noise_um:g} um / urad noise, 60 sphere + 20 fixed postures, "
-          f"nominal set 2, {seeds} seeds; pose error over 50 validation postures in the frames the device defines:")
-    outcomes = compare_methods(defects, noise_um, range(seeds), progress=progress.step, true_params=truth)
-    references = {False: None, True: None}
+    print(f"\nDevice defects ({defects.describe()}), 50 postures, +-{noise_um:g} um / urad noise, weighted by it, "
+          f"nominal set 2, {seeds} seeds; mean position error over 50 validation postures (um) in the device frames "
+          "(base frame of the inclinometer's zero, platform frame of the rotary zero) and in the true frames "
+          "(gravity-aligned base frame, origin at the device's joint O):")
+    outcomes = device_table(defects, range(seeds), 50, noise_um, truth, progress.step)
+    reference = outcomes[0].mean(outcomes[0].true_frame_position_m)
+    print(f"  {'method':<56} {'device fr.':>10} {'true fr.':>9} {'x ref':>6} {'origin-al.':>10} {'orient. urad':>12}"
+          "  device errors rms (um, urad)")
     for outcome in outcomes:
-        if not outcome.method.defective:
-            references[outcome.method.weighted] = outcome.mean(outcome.position_mean_m)
-    print(f"  {'method':<56} {'position um':>12} {'aligned* um':>12} {'x ref':>6} {'orient. deg':>12} {'rank':>8}")
-    for outcome in outcomes:
-        position = outcome.mean(outcome.position_mean_m)
-        reference = references[outcome.method.weighted]
-        ratio = f"{position / reference:6.1f}" if reference else f"{'-':>6}"
-        rank = f"{outcome.ranks[0]}/{outcome.n_unknowns}" if outcome.ranks else "-"
+        true_frames = outcome.mean(outcome.true_frame_position_m)
+        rmse = outcome.device_rmse()
+        identified = set(outcome.row.identify) | {name for name, _ in outcome.row.caliper}
+        errors = ", ".join(f"{name} {rmse[i] * URAD:.1f}" for i, name in enumerate(DEVICE_PARAMETER_NAMES)
+                           if name in identified) or "-"
         failures = f"  failed: {'; '.join(outcome.failures)}" if outcome.failures else ""
-        print(f"  {outcome.method.label:<56} {position * UM:>12.1f} "
-              f"{outcome.mean(outcome.aligned_position_mean_m) * UM:>12.1f} {ratio} "
-              f"{outcome.mean(outcome.orientation_mean_rad) * DEG:>12.5f} {rank:>8}{failures}")
-        if outcome.device and outcome.method.free_device:
-            estimate = np.mean(outcome.device, axis=0)
-            print("      identified: " + ", ".join(
-                f"{name} {estimate[i] * URAD:.1f} (true {defects.vector[i] * URAD:.1f})"
-                for i, name in enumerate(DEVICE_PARAMETER_NAMES) if name in outcome.method.free_device)
-                + "  [um or urad]")
-    print("  * aligned: after removing the best-fitting base rotation about Y, the one frame motion the relative and "
-          "sphere-only costs cannot see.")
-    print("  beta0 and phi0 are frame definitions (a base rotation about Y and a platform rotation about z' imitate "
-          "them exactly with eq. 7): held at 0, not identified.")
-    joint = next(o for o in outcomes if o.method.free_device and o.method.weighted and not o.method.lvdt)
-    ignored = next(o for o in outcomes if o.method.defective and o.method.cost == "absolute" and not o.method.free_device)
-    relative = next(o for o in outcomes if o.method.cost == "relative")
-    joint_ratio = joint.mean(joint.position_mean_m) / references[True]
-    print(f"  claim 'joint within 1.5x of the defect-free calibration': position {joint_ratio:.1f}x "
-          f"({'met' if joint_ratio <= 1.5 else 'NOT met'}), orientation "
-          f"{joint.mean(joint.orientation_mean_rad) / _ref_orientation(outcomes):.2f}x; "
-          f"eq. 7 ignoring defects {ignored.mean(ignored.position_mean_m) / references[False]:.0f}x; "
-          f"relative {relative.mean(relative.aligned_position_mean_m) / joint.mean(joint.aligned_position_mean_m):.1f}x "
-          "the joint result (aligned)")
-
-
-def _ref_orientation(outcomes) -> float:
-    reference = next(o for o in outcomes if not o.method.defective and o.method.weighted)
-    return reference.mean(reference.orientation_mean_rad)
+        print(f"  {outcome.row.label:<56} {outcome.mean(outcome.device_frame_position_m) * UM:>10.1f} "
+              f"{true_frames * UM:>9.1f} {true_frames / reference:>6.2f} "
+              f"{outcome.mean(outcome.origin_aligned_position_m) * UM:>10.1f} "
+              f"{outcome.mean(outcome.true_frame_orientation_rad) * URAD:>12.1f}  {errors}{failures}")
+    print("  x ref: true-frame position error / the ideal device's.  origin-al.: true frames after removing the "
+          "mean position error, i.e. with the base frame's origin O re-referenced.  beta0 and phi0 are held at 0 "
+          "unless identified: without a turning procedure beta0 is the device base frame's tilt about Y, phi0 is "
+          "always the platform frame's zero yaw (it moves no position).")
+    for claim in claims(outcomes):
+        print(f"  claim: {claim.text}: {claim.value:.2f}x ({'met' if claim.met else 'NOT met'})")
+    if efficiency_seeds > 1:
+        summary = estimator_efficiency(efficiency_seeds, RECOMMENDED_PROCEDURE, defects=defects, noise_um=noise_um,
+                                       true_params=truth, progress=progress.step)
+        print(f"  joint estimator ({RECOMMENDED_PROCEDURE}, {', '.join(summary.identified)}) over "
+              f"{summary.seeds} noise seeds, same postures: CRB std / RMS error / bias per device parameter (um, urad):")
+        for name, crb, rmse, bias, eff in zip(summary.identified, summary.crb_std, summary.rmse, summary.bias,
+                                              summary.efficiency):
+            print(f"    {name:<7} {crb * URAD:8.2f} {rmse * URAD:8.2f} {bias * URAD:+8.2f}  efficiency {eff:.2f} "
+                  f"({'met' if eff >= CLAIM_EFFICIENCY else 'NOT met'})")
+        pose = summary.pose_efficiency
+        print(f"    validation position: predicted rms {np.sqrt(summary.predicted_position_ms_m2) * UM:.2f} um, "
+              f"Monte Carlo {np.sqrt(summary.position_ms_m2) * UM:.2f} um, efficiency {pose:.2f} "
+              f"({'met' if pose >= CLAIM_EFFICIENCY else 'NOT met'}); sampling error of an efficiency over "
+              f"{summary.seeds} seeds ~{100 * np.sqrt(2 / max(summary.seeds - 1, 1)):.0f}%"
+              + (f"; {summary.failures} seed(s) failed" if summary.failures else ""))
 
 
 def print_monte_carlo(seeds: int, noise_um: float, progress: Progress,

@@ -39,7 +39,7 @@ def validation_poses(true_params: KinematicParameters, n: int, seed: int,
 
 
 def pose_errors(true_params: KinematicParameters, model_params: KinematicParameters, poses: np.ndarray,
-                align_base_rotation_y: bool = False) -> PoseErrors:
+                align_base_rotation_y: bool = False, align_origin: bool = False) -> PoseErrors:
     """Command the true machine's actuator readings for ``poses``; where does ``model_params`` put it?
 
     The controller's view: FK with the model parameters at the actuator readings
@@ -48,12 +48,17 @@ def pose_errors(true_params: KinematicParameters, model_params: KinematicParamet
     base Y axis by the best-fitting angle: the error left is what remains once the
     one frame rotation that sphere-only and relative cost functions cannot see is
     set aside (it must then come from somewhere else, e.g. a fixed parameter).
+    With ``align_origin`` the mean position error is removed first: what is left
+    once the base frame's origin (the device's joint O) is re-referenced.
     """
     sliders = inverse_kinematics(true_params, poses)
     fk = forward_kinematics(model_params, sliders, poses, branch_tolerance_m=0.2, branch_tolerance_rad=0.5)
     if align_base_rotation_y:
         fk.poses[:] = _rotate_about_y(fk.poses, _best_angle_about_y(fk.poses[:, :3], poses[:, :3]))
-    position = np.linalg.norm(fk.poses[:, :3] - poses[:, :3], axis=1)
+    offsets = fk.poses[:, :3] - poses[:, :3]
+    if align_origin:
+        offsets = offsets - np.nanmean(offsets, axis=0)
+    position = np.linalg.norm(offsets, axis=1)
     difference = rotation_matrices(fk.poses[:, 3:6]) - rotation_matrices(poses[:, 3:6])
     # |R1 - R2|_F = 2 sqrt(2) sin(angle / 2): accurate for micro-radian angles, unlike arccos of the trace.
     chord = np.linalg.norm(difference, axis=(1, 2)) / (2.0 * np.sqrt(2.0))

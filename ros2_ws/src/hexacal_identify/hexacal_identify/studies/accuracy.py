@@ -23,7 +23,7 @@ import numpy as np
 
 from hexacal_msgs_py.models import HEXA_SLIDE
 
-from ..core.device import DeviceDefects, DeviceModel
+from ..core.device import DeviceDefects, DeviceModel, DevicePrior
 from ..core.errors import CalibrationError
 from ..core.identifiability import IdentifiabilityReport, analyze
 from ..core.identification import IdentificationResult, SolverOptions, identify
@@ -86,6 +86,8 @@ class StudyRun:
     weighted: bool = False  # whiten residuals by the (known) simulated noise
     robust_loss: str | None = None
     lvdt: bool = False
+    procedure: str = "none"  # device turns between walks (studies.device_procedure.PROCEDURES)
+    device_prior: DevicePrior = DevicePrior()  # prior knowledge of the device (identified with MAP rows)
 
     def __post_init__(self) -> None:
         if self.nominal_params is not None and self.nominal_params.model != self.true_params.model:
@@ -113,6 +115,7 @@ class StudyOutcome:
     result: IdentificationResult
     before: PoseErrors
     after: PoseErrors
+    after_true_frames: PoseErrors | None = None  # the same postures judged in the true (gravity, O) frames
 
     @property
     def initial_parameter_errors(self) -> np.ndarray:
@@ -125,6 +128,8 @@ class StudyOutcome:
     def to_json(self) -> dict:
         payload = self.result.to_json()
         payload["validation"] = {"before": self.before.summary(), "after": self.after.summary()}
+        if self.after_true_frames is not None:
+            payload["validation"]["after_true_frames"] = self.after_true_frames.summary()
         payload["parameter_error_max_m"] = {
             "before": float(np.max(np.abs(self.initial_parameter_errors))),
             "after": float(np.max(np.abs(self.final_parameter_errors))),
@@ -134,6 +139,8 @@ class StudyOutcome:
             "noise_um": self.run.noise_um,
             "seed": self.run.seed,
             "validation_postures": self.run.validation_postures,
+            "procedure": self.run.procedure,
+            "device_prior": {name: {"value": value, "std": std} for name, value, std in self.run.device_prior.entries},
         }
         return payload
 
@@ -149,12 +156,13 @@ def posture_split(cost: str, total: int) -> tuple[int, int]:
 
 
 def simulate_run_measurements(run: StudyRun) -> Measurements:
-    if run.defects != DeviceDefects() or run.lvdt:
+    if run.defects != DeviceDefects() or run.lvdt or run.procedure != "none":
         from .device import simulate_procedure
+        from .device_procedure import procedure_turns
 
         sphere, fixed = posture_split(run.cost, run.postures)
         return simulate_procedure(run.true_params, run.defects, sphere, fixed, run.noise_um, run.seed, run.lvdt,
-                                  run.device, run.resolved_workspace)
+                                  run.device, run.resolved_workspace, procedure_turns(run.procedure, sphere))
     rng = np.random.default_rng([run.seed, 0x5EED])
     sphere_count, fixed_count = posture_split(run.cost, run.postures)
     noise = NoiseModel.from_microns(run.noise_um)
@@ -168,21 +176,23 @@ def simulate_run_measurements(run: StudyRun) -> Measurements:
 
 def run_calibration(run: StudyRun, options: SolverOptions | None = None) -> StudyOutcome:
     """Simulate the measurements of ``run``, identify, and validate on fresh postures."""
-    from .device import device_frame_poses, device_frame_truth
+    from .device import calibrated_frames, device_frame_poses, device_frame_truth
 
     options = options or SolverOptions(
         cost=run.cost, device=run.device, free_device=run.identify_device, robust_loss=run.robust_loss,
         noise=NoiseModel.from_microns(run.noise_um) if run.weighted and run.noise_um > 0 else None,
+        device_prior=run.device_prior,
     )
     measurements = simulate_run_measurements(run)
     result = identify(run.nominal(), measurements, options)
-    # Judged in the frames the device defines (identical to the true frames for an ideal device).
-    truth = device_frame_truth(run.true_params, run.defects)
-    poses = device_frame_poses(validation_poses(run.true_params, run.validation_postures, run.seed,
-                                                run.resolved_workspace), run.defects)
+    # Judged in the frames the calibration works in: the device's where it left beta0 / phi0 unidentified
+    # (identical to the true frames for an ideal device), and in the true frames.
+    frames = calibrated_frames(run.defects, result.free_device)
+    validation = validation_poses(run.true_params, run.validation_postures, run.seed, run.resolved_workspace)
+    truth, poses = device_frame_truth(run.true_params, frames), device_frame_poses(validation, frames)
     before = pose_errors(truth, run.nominal(), poses)
     after = pose_errors(truth, result.parameters, poses)
-    return StudyOutcome(run, result, before, after)
+    return StudyOutcome(run, result, before, after, pose_errors(run.true_params, result.parameters, validation))
 
 
 @dataclass

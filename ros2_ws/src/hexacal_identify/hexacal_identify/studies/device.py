@@ -54,6 +54,12 @@ def device_frame_truth(true_params: KinematicParameters, defects: DeviceDefects)
     return true_params.architecture.in_frames(true_params, _rotation_y(-defects.beta0), _rotation_z(-defects.phi0))
 
 
+def calibrated_frames(defects: DeviceDefects, identified: tuple[str, ...]) -> DeviceDefects:
+    """The frame-defining defects a calibration leaves in its frames: beta0 and phi0 unless it identified them."""
+    return DeviceDefects(beta0=0.0 if "beta0" in identified else defects.beta0,
+                         phi0=0.0 if "phi0" in identified else defects.phi0)
+
+
 def device_frame_poses(poses: np.ndarray, defects: DeviceDefects) -> np.ndarray:
     """Poses in the device frames: R_Y(-beta0) P, and R_Y(-beta0) R R_z(phi0) = angles (theta - beta0, psi, phi + phi0)."""
     converted = np.array(poses, dtype=float)
@@ -65,13 +71,15 @@ def device_frame_poses(poses: np.ndarray, defects: DeviceDefects) -> np.ndarray:
 
 def simulate_procedure(true_params: KinematicParameters, defects: DeviceDefects, sphere: int, fixed: int,
                        noise_um: float, seed: int, lvdt: bool = False,
-                       device: DeviceModel = DeviceModel(), workspace: Workspace | None = None) -> Measurements:
+                       device: DeviceModel = DeviceModel(), workspace: Workspace | None = None,
+                       device_turn: np.ndarray | None = None) -> Measurements:
     """Readings of the paper's two-step procedure with a defective device.
 
     Sphere postures lie on the true sphere of radius L + dL (with an LVDT the link
     is prismatic: radii vary by +-50 mm); fixed postures sit where the defective
     inclinometer reads zero.  Postures are drawn from ``workspace`` (default: the
-    architecture's) with its link length replaced by the true one.
+    architecture's) with its link length replaced by the true one.  ``device_turn``
+    (rad, one per sphere posture): the device turned about its link for them.
     """
     rng = np.random.default_rng([seed, 0xDEF])
     noise = NoiseModel.from_microns(noise_um)
@@ -84,7 +92,8 @@ def simulate_procedure(true_params: KinematicParameters, defects: DeviceDefects,
         if lvdt:
             radius = rng.uniform(true_length - 0.05, true_length + 0.05, sphere)
             poses[:, :3] *= (radius / true_length)[:, None]
-        parts.append(simulate_measurements(true_params, poses, SPHERE, device, noise, rng, defects, lvdt))
+        parts.append(simulate_measurements(true_params, poses, SPHERE, device, noise, rng, defects, lvdt,
+                                           device_turn))
     if fixed:
         poses = sample_poses(true_params, fixed, rng, FIXED, workspace)
         poses[:, :3] = device_position(np.zeros(1), np.zeros(1), device.link_length, defects).position[0]
