@@ -16,6 +16,12 @@ names a user's drivers publish (e.g. one ros2_control ``/joint_states``), an
 inclinometer that is a ``sensor_msgs/Imu`` (`imu_to_inclinometer_reading`, by
 the convention inputs.py writes down) and per-channel inclinometer signs and
 zero offsets. Without one, the contract's names are read, as always.
+
+The device's turn about its link axis (rad: 0 normal mounting, pi reversed,
+pi/2 a quarter turn) travels as the optional joint ``device_turn``
+(DEVICE_TURN_JOINT) of the inclinometer and posture JointStates, whatever the
+mapping: absent means 0, and it is written only when non-zero, so messages and
+bags of a normally mounted device are the same as before it existed.
 """
 
 from __future__ import annotations
@@ -44,7 +50,7 @@ from hexacal_msgs_py.models import (
     model_for_vector_size,
     model_layout,
 )
-from hexacal_msgs_py.names import ENCODER_NAMES, INCLINOMETER_NAMES
+from hexacal_msgs_py.names import DEVICE_TURN_JOINT, ENCODER_NAMES, INCLINOMETER_NAMES
 from hexacal_msgs_py.parameters_file import validate_parameters
 from hexacal_msgs_py.readings import (
     EncoderReading,
@@ -123,6 +129,23 @@ def _joint_positions(msg: JointState, names: Sequence[str], what: str) -> list[f
     return positions
 
 
+def _device_turn(msg: JointState, what: str) -> float:
+    """The optional DEVICE_TURN_JOINT position of `msg` (rad); 0.0 when the joint is absent."""
+    names = list(msg.name)
+    if DEVICE_TURN_JOINT not in names:
+        return 0.0
+    (turn,) = _joint_positions(msg, (DEVICE_TURN_JOINT,), what)
+    return turn
+
+
+def _with_turn(names: Sequence[str], values: Sequence[float],
+               turn: float) -> tuple[tuple[str, ...], tuple[float, ...]]:
+    """Names and values with the device_turn joint appended when `turn` is non-zero."""
+    if turn == 0.0:
+        return tuple(names), tuple(values)
+    return tuple(names) + (DEVICE_TURN_JOINT,), tuple(values) + (turn,)
+
+
 def _joint_state(stamp: int, names: Sequence[str], positions: Sequence[float],
                  frame_id: str) -> JointState:
     return JointState(
@@ -154,14 +177,16 @@ def joint_state_to_inclinometer_reading(msg: JointState,
     """JointState with joints inclinometer_x (alpha), inclinometer_y (beta) (rad).
 
     With a `mapping`: its inclinometer_joints, then its signs and offsets
-    (alpha = sign * (position - offset), inputs.py).
+    (alpha = sign * (position - offset), inputs.py). The optional joint
+    device_turn (rad) gives the reading's device_turn; absent, it is 0.
     """
     if mapping is None:
         alpha, beta = _joint_positions(msg, INCLINOMETER_NAMES, 'inclinometer')
     else:
         alpha, beta = mapping.inclinometer_angles(
             *_joint_positions(msg, mapping.inclinometer_joints, 'inclinometer'))
-    return InclinometerReading(stamp_ns(msg.header.stamp), alpha, beta)
+    turn = _device_turn(msg, 'inclinometer')
+    return InclinometerReading(stamp_ns(msg.header.stamp), alpha, beta, turn)
 
 
 def imu_to_inclinometer_reading(msg: Imu, mapping: InputMapping | None = None) -> InclinometerReading:
@@ -207,10 +232,12 @@ def joint_state_to_posture_reading(msg: JointState, model: ModelArgument = None)
 
     The posture joints are the six actuators of the model (Hexa Slide, the
     default: slider_1..6; Gough-Stewart: leg_1..6), then inclinometer_x,
-    inclinometer_y, rotary.
+    inclinometer_y, rotary; the optional joint device_turn (rad, absent: 0)
+    gives the reading's device_turn.
     """
     values = _joint_positions(msg, layout_of(model).posture_names, 'posture')
-    return PostureReading.from_values(stamp_ns(msg.header.stamp), values)
+    turn = _device_turn(msg, 'posture')
+    return PostureReading.from_values(stamp_ns(msg.header.stamp), values, device_turn=turn)
 
 
 def slider_reading_to_joint_state(reading: SliderReading, frame_id: str = '',
@@ -222,8 +249,10 @@ def slider_reading_to_joint_state(reading: SliderReading, frame_id: str = '',
 
 def inclinometer_reading_to_joint_state(
         reading: InclinometerReading, frame_id: str = '') -> JointState:
-    return _joint_state(
-        reading.stamp_ns, INCLINOMETER_NAMES, (reading.alpha, reading.beta), frame_id)
+    """InclinometerReading -> JointState inclinometer_x, inclinometer_y (and device_turn if non-zero)."""
+    names, values = _with_turn(INCLINOMETER_NAMES, (reading.alpha, reading.beta),
+                               reading.device_turn)
+    return _joint_state(reading.stamp_ns, names, values, frame_id)
 
 
 def encoder_reading_to_joint_state(reading: EncoderReading, frame_id: str = '') -> JointState:
@@ -232,9 +261,11 @@ def encoder_reading_to_joint_state(reading: EncoderReading, frame_id: str = '') 
 
 def posture_reading_to_joint_state(reading: PostureReading, frame_id: str = '',
                                    model: ModelArgument = None) -> JointState:
-    """PostureReading -> JointState with the model's posture joints (default: the Hexa Slide's)."""
-    return _joint_state(reading.stamp_ns, layout_of(model).posture_names, reading.values(),
-                        frame_id)
+    """PostureReading -> JointState with the model's posture joints (default: the Hexa Slide's),
+    then device_turn when the reading's device_turn is non-zero."""
+    names, values = _with_turn(layout_of(model).posture_names, reading.values(),
+                               reading.device_turn)
+    return _joint_state(reading.stamp_ns, names, values, frame_id)
 
 
 def parameters_to_multiarray(vector: object, model: ModelArgument = None) -> Float64MultiArray:
