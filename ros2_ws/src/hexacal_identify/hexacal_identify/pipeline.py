@@ -38,7 +38,7 @@ from hexacal_msgs_py.names import (
 from hexacal_msgs_py.readings import PostureReading
 
 from .core.architectures import KinematicParameters, parameters_for
-from .core.device import DEFAULT_MOUNT, DEVICE_PARAMETER_NAMES, DeviceModel, check_mount
+from .core.device import DEFAULT_MOUNT, DEVICE_PARAMETER_NAMES, DeviceModel, DevicePrior, check_mount
 from .core.errors import InvalidMeasurementError
 from .core.identification import IdentificationResult, SolverOptions, identify
 from .core.measurements import FIXED, SPHERE, MeasurementLimits, Measurements, NoiseModel
@@ -125,37 +125,57 @@ def posture_problem(posture: PostureReading, limits: MeasurementLimits = Measure
 
 def measurements_from_postures(postures: Sequence[PostureReading],
                                fixed_tolerance_rad: float = FIXED_POSITION_TOLERANCE_RAD) -> Measurements:
-    """Stack posture readings into Measurements; kinds from the inclinometer reading."""
+    """Stack posture readings into Measurements; kinds from the inclinometer reading.
+
+    Each posture's ``device_turn`` (rad: the device turned about its link axis, e.g. pi for a
+    reversal) goes with it; a turned device reads zero at the same fixed position, so the kinds
+    are told apart the same way."""
     if not postures:
         return Measurements(np.zeros((0, 6)), np.zeros((0, 2)), np.zeros(0), np.zeros(0, str))
     sliders = np.array([p.slider_positions for p in postures], dtype=float)
     angles = np.array([[p.alpha, p.beta] for p in postures], dtype=float)
     rotary = np.array([p.phi for p in postures], dtype=float)
     fixed = np.all(np.abs(angles) <= fixed_tolerance_rad, axis=1)
-    return Measurements(sliders, angles, rotary, np.where(fixed, FIXED, SPHERE))
+    return Measurements(sliders, angles, rotary, np.where(fixed, FIXED, SPHERE),
+                        device_turn=[p.device_turn for p in postures])
 
 
 def calibrate(nominal: KinematicParameters, postures: Sequence[PostureReading], *, cost: str = "absolute",
               link_length: float = DeviceModel().link_length, allow_rank_deficient: bool = False,
               identify_device: Sequence[str] = (), noise: NoiseModel | None = None,
-              robust_loss: str | None = None, mount: str = DEFAULT_MOUNT) -> IdentificationResult:
+              robust_loss: str | None = None, mount: str = DEFAULT_MOUNT,
+              device_prior: DevicePrior | None = None) -> IdentificationResult:
     """Identify the parameters from received postures: the one call behind the node and the CLI.
 
     ``nominal`` is the starting parameter set of any architecture (its model is the
     result's). ``identify_device`` names device defects to identify jointly (e.g. dL,
     alpha0, gamma); ``noise`` (reading noise half-widths) weights the residuals by it.
     ``mount`` is the device's (hanging, or standing for an upright machine).
+    ``device_prior``: prior knowledge of device parameters (a caliper's dL = 0 +- 10 um, a
+    certificate's alpha0 = 0 +- 50 urad; SI units): each such parameter is identified, its prior
+    weighed against the data by ``noise``, which it therefore requires (ValueError naming both).
     A problem the postures do not determine raises RankDeficientError (never a
     number that means nothing) unless ``allow_rank_deficient``.
     """
     options = SolverOptions(cost=cost, device=DeviceModel(link_length=link_length, mount=mount),
                             allow_rank_deficient=allow_rank_deficient, free_device=tuple(identify_device),
-                            noise=noise, robust_loss=robust_loss)
+                            noise=noise, robust_loss=robust_loss,
+                            device_prior=device_prior if device_prior is not None else DevicePrior())
     return identify(nominal, measurements_from_postures(postures), options)
 
 
-def status_fields(result: IdentificationResult) -> dict[str, str]:
-    """Key/values for /hexacal/calibration_status (SI units, machine-readable)."""
+def device_prior_json(prior: DevicePrior | None) -> dict[str, dict[str, float]]:
+    """{name: {"value", "std"}} (SI units) of a device prior: what ``calibrate --json`` and the report carry."""
+    if prior is None:
+        return {}
+    return {name: {"value": float(value), "std": float(std)} for name, value, std in prior.entries}
+
+
+def status_fields(result: IdentificationResult, device_prior: DevicePrior | None = None) -> dict[str, str]:
+    """Key/values for /hexacal/calibration_status (SI units, machine-readable).
+
+    Identified device parameters: posterior ``device.<name>`` / ``std.device.<name>``; with a prior on
+    one, also ``prior.device.<name>`` / ``prior_std.device.<name>``."""
     model = result.parameters.model
     fields = {
         "outcome": result.reason,
@@ -175,6 +195,10 @@ def status_fields(result: IdentificationResult) -> dict[str, str]:
         if name in result.free_device:
             fields[f"device.{name}"] = f"{result.device.vector[index]:.6g}"
             fields[f"std.device.{name}"] = f"{result.device_std[index]:.6g}"
+        prior = device_prior.get(name) if device_prior is not None else None
+        if prior is not None:
+            fields[f"prior.device.{name}"] = f"{prior[0]:.6g}"
+            fields[f"prior_std.device.{name}"] = f"{prior[1]:.6g}"
     fields.update({f"std.{name}": f"{s:.6g}" for name, s in zip(parameter_names(model), result.std)})
     for index, why in sorted(result.rejected_postures.items())[:20]:
         fields[f"rejected.{index}"] = why

@@ -27,6 +27,20 @@ def add_parsers(subparsers) -> None:
                           "and the postures it holds.", fill=_bag_info_arguments)
 
 
+def device_prior_argument(text: str):
+    """--device-prior NAME=VALUE:STD,... (SI units) -> DevicePrior; argparse names a bad one (exit code 2)."""
+    from ..core.device import DevicePrior
+
+    try:
+        prior = DevicePrior.parse(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+    if not prior:
+        raise argparse.ArgumentTypeError("no device prior given: expected NAME=VALUE:STD[,...] in SI units, "
+                                         "e.g. dL=0:10e-6")
+    return prior
+
+
 def _calibrate_arguments(calibrate: argparse.ArgumentParser) -> None:
     from .study_device import device_names_argument
     from ..core.device import DEFAULT_LINK_LENGTH_M
@@ -47,6 +61,11 @@ def _calibrate_arguments(calibrate: argparse.ArgumentParser) -> None:
     calibrate.add_argument("--identify-device", type=device_names_argument, default=(),
                            help="device defects to identify jointly, e.g. dL,alpha0,gamma (beta0 and phi0 are "
                            "frame definitions: eq. 7 cannot see them)")
+    calibrate.add_argument("--device-prior", type=device_prior_argument, default=None, metavar="NAME=VALUE:STD,...",
+                           help="prior knowledge of device parameters in SI units (m, rad), e.g. "
+                           "dL=0:10e-6,alpha0=0:50e-6 (link length offset 0 +- 10 um from a caliper, inclinometer "
+                           "zero 0 +- 50 urad from its certificate): each is identified, weighed against the data "
+                           "by the reading noise (needs --noise-um)")
     calibrate.add_argument("--noise-um", type=float, default=None,
                            help="known reading noise half-width (um on sliders, urad on angles): weight residuals by it")
     calibrate.add_argument("--robust", choices=ROBUST_LOSSES, default=None, help="robust loss (huber or soft_l1)")
@@ -69,7 +88,8 @@ def run_calibrate(args) -> int:
     from ..core.errors import CalibrationError
     from ..core.identification import CONVERGED
     from ..core.measurements import NoiseModel
-    from ..pipeline import calibrate, check_model, load_machine_and_mount, measurements_from_postures, postures_from_bag
+    from ..pipeline import (calibrate, check_model, device_prior_json, load_machine_and_mount,
+                            measurements_from_postures, postures_from_bag)
 
     nominal, mount = load_machine_and_mount(args.nominal)
     mount = args.mount or mount
@@ -81,7 +101,8 @@ def run_calibrate(args) -> int:
     noise = NoiseModel.from_microns(args.noise_um) if args.noise_um else None
     try:
         result = calibrate(nominal, bag.postures, cost=args.cost, link_length=args.link_length,
-                           identify_device=args.identify_device, noise=noise, robust_loss=args.robust, mount=mount)
+                           identify_device=args.identify_device, noise=noise, robust_loss=args.robust, mount=mount,
+                           device_prior=args.device_prior)
     except CalibrationError as error:
         if bag.rejected or bag.invalid_messages:  # say what of the bag was not used
             error.args = (f"{error} [bag {args.bag}: {_not_used(bag)}]",)
@@ -96,14 +117,16 @@ def run_calibrate(args) -> int:
         from ..report.page import save_result
 
         save_result(args.save_result, result, extras, measurements=measurements, link_length=args.link_length,
-                    **mount_option)
+                    device_prior=args.device_prior, **mount_option)
     if args.report:
         from ..report.page import write_report
 
         write_report(result, args.report, title=f"hexacal calibration report: {args.bag}", extras=extras,
-                     measurements=measurements, link_length=args.link_length, **mount_option)
+                     measurements=measurements, link_length=args.link_length, device_prior=args.device_prior,
+                     **mount_option)
     if args.json:
         payload = result.to_json()
+        payload["device_prior"] = device_prior_json(args.device_prior)  # beside device / device_std, SI units
         payload["bag"] = {"path": str(args.bag), "model": bag.model, "postures": len(bag.postures), "source": bag.source,
                           "ignored_topics": bag.ignored_topics, "invalid_messages": bag.invalid_messages,
                           "rejected_postures": [{"index": i, "reason": r, "detail": d} for i, r, d in bag.rejected]}
@@ -140,10 +163,34 @@ def _print_summary(args, bag, result) -> None:
     correction = (result.parameters.vector - result.initial_parameters.vector) * MM
     print(f"largest correction {np.max(np.abs(correction)):.3f} mm, largest std "
           f"{np.nanmax(result.std) * UM:.2f} um" + (" (rail components x1e-6)" if model == "hexa_slide" else ""))
+    for line in device_prior_lines(result, args.device_prior):
+        print(line)
     if result.reason == CONVERGED:
         print(f"wrote {args.output}")
     else:
         print(f"not written: the solver stopped with '{result.reason}'", file=sys.stderr)
+
+
+def device_prior_lines(result, prior) -> list[str]:
+    """Prior vs identified value of each identified device parameter, in um (dL) and urad (angles)."""
+    import numpy as np
+
+    from ..core.device import DEVICE_PARAMETER_NAMES
+
+    if not result.free_device:
+        return []
+    lines = ["device parameters (prior -> identified; dL in um, angles in urad):"]
+    for index, name in enumerate(DEVICE_PARAMETER_NAMES):
+        if name not in result.free_device:
+            continue
+        unit = "um" if name == "dL" else "urad"
+        given = prior.get(name) if prior is not None else None
+        prior_text = "none" if given is None else f"{given[0] * UM:.3f} +- {given[1] * UM:.3f} {unit}"
+        std = result.device_std[index]
+        std_text = f"{std * UM:.3f}" if np.isfinite(std) else "n/a"
+        lines.append(f"  {name}: prior {prior_text}, identified {result.device.vector[index] * UM:.3f} +- "
+                     f"{std_text} {unit}")
+    return lines
 
 
 def _not_used(bag) -> str:

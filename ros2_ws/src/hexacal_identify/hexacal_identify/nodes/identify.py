@@ -39,6 +39,17 @@ logged and counted in the status (`postures_rejected`, `rejected.<reason>`,
 existing `output` file is republished, and temporary files of a write that a
 crash interrupted are removed (the output itself is only ever replaced whole).
 
+Prior knowledge of the device (core.device.DevicePrior): `device.link_length` (m, a caliper's measured
+length; 0 = not measured) with `device.link_length_std` (m; > 0 makes a prior on dL =
+device.link_length - link_length, `link_length` being the length the device model assumes), and
+`device.<defect>` / `device.<defect>_std` (rad) for alpha0, beta0, gamma, phi0. A std > 0 makes a
+prior: that parameter is identified, and the prior is weighed against the data by the reading noise,
+so it needs `noise_slider_m` and `noise_angle_rad` (else the calibration fails as
+`device-prior-without-noise`). The result status carries each prior (`prior.device.<name>`,
+`prior_std.device.<name>`) beside the posterior (`device.<name>`, `std.device.<name>`), and the report
+shows them side by side. A negative or non-finite std, and a link std without the measured length, are
+refused when set.
+
 Verification without ground truth (core/verification.py): service
 `hexacal/verify` (std_srvs/Trigger) verifies the latest calibration - the latest
 one that produced parameters, or at start-up the republished `output` file - on
@@ -109,7 +120,7 @@ from hexacal_msgs_py.readings import PostureReading
 # pipeline and core.identification (the solver, scipy.linalg) are imported where they are used: at the first
 # posture or calibration, not at start-up.
 from ..core.architectures import KinematicParameters
-from ..core.device import DEVICE_PARAMETER_NAMES, DeviceDefects
+from ..core.device import DEVICE_PARAMETER_NAMES, DeviceDefects, DevicePrior
 from ..core.errors import CalibrationError
 from ..core.measurements import NoiseModel
 from ..core.residuals import COSTS
@@ -126,6 +137,15 @@ PROGRESS_LOG_PERIOD_S = 5.0
 # The report task lets the answer go out first: rendering holds the GIL in long stretches, and the
 # executor thread that sends the response would wait for it (a few ms per switch).
 REPORT_START_DELAY_S = 0.05
+
+
+# Prior knowledge of the device (parameters device.*): the measured link length, and a value per defect,
+# each with its std; a std > 0 makes a prior (DevicePrior), 0 = none.
+LINK_LENGTH_PRIOR = 'device.link_length'
+ANGLE_PRIORS = ('alpha0', 'beta0', 'gamma', 'phi0')
+PRIOR_VALUE_PARAMETERS = (LINK_LENGTH_PRIOR, *(f'device.{name}' for name in ANGLE_PRIORS))
+PRIOR_STD_PARAMETERS = tuple(f'{name}_std' for name in PRIOR_VALUE_PARAMETERS)
+MISSING_NOISE_FOR_PRIOR = 'device-prior-without-noise'
 
 
 def _names(text: str) -> tuple[str, ...]:
@@ -174,6 +194,7 @@ class ReportJob:
     source: str
     link_length: float
     mount: str = 'hanging'
+    device_prior: DevicePrior | None = None  # shown beside the identified device parameters
 
 
 def _failure(reason: str, message: str, **values: object) -> Outcome:
@@ -242,6 +263,20 @@ class IdentifyNode(Node):
                 FloatingPointRange(from_value=0.0, to_value=0.01, step=0.0)]))
         self.declare_parameter('robust_loss', '', ParameterDescriptor(
             description="'' (least squares), 'huber' or 'soft_l1'"))
+        # Declared value before std: a std given at start-up is checked against its value (declared first).
+        self.declare_parameter(LINK_LENGTH_PRIOR, 0.0, ParameterDescriptor(
+            description='measured length of the device link (m), e.g. by a caliper; with '
+            'device.link_length_std > 0 it is a prior on dL = device.link_length - link_length (link_length '
+            'is the length the device model assumes); 0.0 = not measured'))
+        self.declare_parameter(f'{LINK_LENGTH_PRIOR}_std', 0.0, ParameterDescriptor(
+            description='standard deviation of device.link_length (m); > 0 makes the prior (needs '
+            'device.link_length > 0 and noise_slider_m, noise_angle_rad); 0.0 = no prior'))
+        for name in ANGLE_PRIORS:
+            self.declare_parameter(f'device.{name}', 0.0, ParameterDescriptor(
+                description=f'prior value of the device defect {name} (rad), used when device.{name}_std > 0'))
+            self.declare_parameter(f'device.{name}_std', 0.0, ParameterDescriptor(
+                description=f'standard deviation of the prior on {name} (rad); > 0 makes it a prior (the '
+                'defect is identified; needs noise_slider_m and noise_angle_rad); 0.0 = no prior'))
         self.declare_parameter('verify_threshold_m', 0.0, ParameterDescriptor(
             description='hexacal/verify passes when the calibrated position rms is at most this (m); 0 = '
             '3x the rms the reading noise alone gives when noise_slider_m and noise_angle_rad are set, '
@@ -324,12 +359,47 @@ class IdentifyNode(Node):
                     f"cost must be one of {', '.join(COSTS)}, got {parameter.value!r}"))
             if parameter.name == 'link_length' and not math.isfinite(parameter.value):
                 return SetParametersResult(successful=False, reason='link_length must be finite')
+            if parameter.name in PRIOR_VALUE_PARAMETERS and not math.isfinite(parameter.value):
+                return SetParametersResult(successful=False, reason=(
+                    f'{parameter.name} must be finite (SI units: m for the link, rad for angles), '
+                    f'got {parameter.value!r}'))
+            if parameter.name in PRIOR_STD_PARAMETERS and not (
+                    math.isfinite(parameter.value) and parameter.value >= 0):
+                return SetParametersResult(successful=False, reason=(
+                    f'{parameter.name} must be a finite standard deviation >= 0 (0 = no prior), '
+                    f'got {parameter.value!r}'))
+            if parameter.name == LINK_LENGTH_PRIOR and parameter.value < 0:
+                return SetParametersResult(successful=False, reason=(
+                    f'{LINK_LENGTH_PRIOR} is a length in m (0 = not measured), got {parameter.value!r}'))
+            if parameter.name in (LINK_LENGTH_PRIOR, f'{LINK_LENGTH_PRIOR}_std') and \
+                    current(f'{LINK_LENGTH_PRIOR}_std', 0.0) > 0 and current(LINK_LENGTH_PRIOR, 0.0) <= 0:
+                return SetParametersResult(successful=False, reason=(
+                    f'{LINK_LENGTH_PRIOR}_std > 0 makes a prior on the link length, but {LINK_LENGTH_PRIOR} '
+                    'is not set: give the measured length in m (-p device.link_length:=0.7503), or set '
+                    f'{LINK_LENGTH_PRIOR}_std to 0'))
             if parameter.name in ('output', 'output_dir'):
                 try:
                     output_path(current('output', DEFAULT_OUTPUT), current('output_dir', ''))
                 except ValueError as error:
                     return SetParametersResult(successful=False, reason=str(error))
         return SetParametersResult(successful=True)
+
+    def _device_prior(self, link_length: float) -> DevicePrior:
+        """The prior the device.* parameters give (empty: none). The link's is on dL = device.link_length -
+        link_length (the length the device model assumes); ValueError when it is incomplete."""
+        entries = []
+        std = self.get_parameter(f'{LINK_LENGTH_PRIOR}_std').value
+        if std > 0:
+            measured = self.get_parameter(LINK_LENGTH_PRIOR).value
+            if measured <= 0:
+                raise ValueError(f'{LINK_LENGTH_PRIOR}_std = {std:g} m but {LINK_LENGTH_PRIOR} is not set: give '
+                                 'the measured link length in m')
+            entries.append(('dL', measured - link_length, std))
+        for name in ANGLE_PRIORS:
+            std = self.get_parameter(f'device.{name}_std').value
+            if std > 0:
+                entries.append((name, self.get_parameter(f'device.{name}').value, std))
+        return DevicePrior(tuple(entries))
 
     def _output_path(self) -> Path:
         return output_path(self.get_parameter('output').value,
@@ -491,15 +561,29 @@ class IdentifyNode(Node):
         angle_noise = self.get_parameter('noise_angle_rad').value
         noise = NoiseModel(slider_noise, angle_noise) if slider_noise > 0 and angle_noise > 0 else None
         try:
+            device_prior = self._device_prior(link_length)
+        except ValueError as error:
+            return _failure('invalid-device-prior', str(error), postures_received=len(postures),
+                            source=source, **not_used)
+        if device_prior and noise is None:
+            return _failure(MISSING_NOISE_FOR_PRIOR, (
+                f'a device prior ({device_prior.describe()}) is weighed against the data by the reading noise: '
+                'set noise_slider_m and noise_angle_rad (> 0), or the prior std parameters (device.*_std) to 0'),
+                postures_received=len(postures), source=source, **not_used)
+        try:
             result = pipeline.calibrate(
                 nominal, postures, cost=cost, link_length=link_length,
                 identify_device=_names(self.get_parameter('identify_device').value), noise=noise,
-                robust_loss=self.get_parameter('robust_loss').value or None, mount=mount)
+                robust_loss=self.get_parameter('robust_loss').value or None, mount=mount,
+                device_prior=device_prior)
         except CalibrationError as error:
             return _failure(error.reason, str(error), postures_received=len(postures),
                             source=source, **not_used)
+        except ValueError as error:  # options the solver refuses (SolverOptions.validate): named, not a crash
+            return _failure('invalid-options', str(error), postures_received=len(postures),
+                            source=source, **not_used)
         values: dict[str, object] = {'postures_received': len(postures), 'source': source,
-                                     **pipeline.status_fields(result), **not_used}
+                                     **pipeline.status_fields(result, device_prior), **not_used}
         summary = (f'{len(result.used_postures)} of {len(postures)} postures, {cost} cost, '
                    f'{result.iterations} iterations, rank {result.rank}, rms residual '
                    + ', '.join(f'{k} {v:.3g}' for k, v in result.rms_residual.items()))
@@ -521,7 +605,7 @@ class IdentifyNode(Node):
         report = None
         if report_dir:
             report = ReportJob(report_dir, self.get_parameter('output_dir').value, result,
-                               postures, source, link_length, mount)
+                               postures, source, link_length, mount, device_prior)
             values['report_state'] = 'writing'
         else:
             values['report_state'] = 'disabled'
@@ -745,6 +829,7 @@ class IdentifyNode(Node):
         return write_report(job.result, directory, title=f'hexacal calibration ({job.source})',
                             measurements=pipeline.measurements_from_postures(job.postures),
                             link_length=job.link_length, extras={'source': job.source},
+                            device_prior=job.device_prior,
                             verification=None if verification is None else verification.payload, **mount)
 
     def _follow_up_verification(self, task: VerificationTask, state: str, text: str,

@@ -39,13 +39,17 @@ MAP_GRID = 41  # cells per axis of the predicted pose-error map
 
 # --------------------------------------------------------------------------- result file
 def result_payload(result, extras: dict | None = None, *, measurements=None, true_parameters=None,
-                   link_length: float | None = None, mount: str | None = None) -> dict:
+                   link_length: float | None = None, mount: str | None = None, device_prior=None) -> dict:
     """``result.to_json()`` plus the arrays of ``report_data`` (see module doc).
 
     ``mount``: the device mount (device.py), recorded when given; a report of a file without it takes the
-    side of the device's base joint the poses are on.
+    side of the device's base joint the poses are on.  ``device_prior``: the DevicePrior the calibration
+    was given (or its ``{name: {value, std}}`` form), recorded as ``device_prior`` beside ``device`` and
+    ``device_std`` (what ``calibrate --json`` prints); the page shows prior and posterior side by side.
     """
     payload = result.to_json()
+    if device_prior is not None:
+        payload["device_prior"] = _device_prior_dict(device_prior)
     layout = result.parameters.layout
     n = layout.n_parameters
     used = [int(i) for i in result.used_postures]
@@ -82,11 +86,20 @@ def result_payload(result, extras: dict | None = None, *, measurements=None, tru
     return payload
 
 
+def _device_prior_dict(prior) -> dict:
+    """{name: {"value", "std"}} (SI) of a DevicePrior, or such a dict as it is."""
+    if isinstance(prior, dict):
+        return {str(name): {"value": float(entry["value"]), "std": float(entry["std"])}
+                for name, entry in prior.items()}
+    return {name: {"value": float(value), "std": float(std)} for name, value, std in prior.entries}
+
+
 def save_result(path: Path | str, result, extras: dict | None = None, *, measurements=None,
-                true_parameters=None, link_length: float | None = None, mount: str | None = None) -> Path:
+                true_parameters=None, link_length: float | None = None, mount: str | None = None,
+                device_prior=None) -> Path:
     """Write ``result_payload`` as strict JSON, atomically."""
     payload = result_payload(result, extras, measurements=measurements, true_parameters=true_parameters,
-                             link_length=link_length, mount=mount)
+                             link_length=link_length, mount=mount, device_prior=device_prior)
     return _atomic_write(Path(path), json.dumps(_plain(payload), allow_nan=False))
 
 
@@ -192,6 +205,8 @@ class _Sections:
         if self.payload.get("verification"):
             parts.append(verification_section(self.payload["verification"], self.figure))
         parts.append(self.identified())
+        if self.payload.get("device_identified"):
+            parts.append(self.device_parameters())
         for section in (self.corrections, self.truth_errors, self.residuals, self.identifiability,
                         self.pose_error_map, self.postures):
             parts.append(section())
@@ -285,6 +300,33 @@ class _Sections:
                      f"{cells}</tr>")
         return (f"<section><h2>{html.escape(title)}</h2><table class='data' id='identified-parameters'>"
                 f"<tr>{header}</tr>{rows}</table><ul class='note'>{legend}</ul></section>")
+
+    def device_parameters(self) -> str:
+        """Prior (value +- std, or none) and posterior of each identified device parameter, um / urad."""
+        from ..core.device import DEVICE_PARAMETER_NAMES
+
+        title = "Device parameters: prior and posterior"
+        identified = [n for n in DEVICE_PARAMETER_NAMES if n in (self.payload.get("device_identified") or ())]
+        device = self.payload.get("device") or {}
+        device_std = self.payload.get("device_std") or {}
+        prior = self.payload.get("device_prior") or {}
+        rows = ""
+        for name in identified:
+            unit = "um" if name == "dL" else "urad"
+            given = prior.get(name)
+            prior_text = "none" if not given else (f"{given['value'] * UM:.3f} +- {given['std'] * UM:.3f} {unit}")
+            value, std = device.get(name), device_std.get(name)
+            posterior = "n/a" if value is None else (
+                f"{value * UM:.3f} +- {_fmt(None if std is None else std * UM, '{:.3f}')} {unit}")
+            rows += (f"<tr><td>{html.escape(name)}</td><td>{unit}</td><td id='device-prior-{name}'>"
+                     f"{html.escape(prior_text)}</td><td id='device-posterior-{name}'>{html.escape(posterior)}</td>"
+                     "</tr>")
+        note = ("<p class='note'>dL (link length offset) in um, angles (inclinometer zeros alpha0, beta0, axis skew "
+                "gamma, rotary zero phi0) in urad; +- one standard deviation. A prior enters the fit as one "
+                "weighted row (value - prior) / std.</p>")
+        return (f"<section><h2>{title}</h2><table class='data' id='device-parameters'><tr><th>parameter</th>"
+                "<th>unit</th><th>prior</th><th>identified (posterior)</th></tr>"
+                f"{rows}</table>{note}</section>")
 
     def corrections(self) -> str:
         title = "Parameter corrections and their standard deviations"
