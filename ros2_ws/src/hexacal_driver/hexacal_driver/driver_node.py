@@ -35,6 +35,21 @@ positions and the device readings those of the pose (a strain beyond 10 mm, the
 sign of commands that leave the sphere, is logged as a warning). `plan`, `postures`,
 `settle_s`, `dwell_s`, `loop` and `wait_for_subscriber` do not apply.
 
+The measuring device (core/device.py): `device_defects` ('' an ideal device;
+e.g. 'dL=5e-4,alpha0=2e-4,beta0=-1e-4,gamma=1e-4,phi0=3e-4', SI units) are the
+simulated device's errors, and `device_turn` (rad, settable at run time) how
+far it is turned about its link axis from its normal mounting (0 normal, pi
+reversed, pi/2 a quarter turn). The inclinometer and rotary readings go through
+the core's defect model for that turn (the rotary reads wrap(phi - turn +
+phi0)), and the inclinometer message carries the joint `device_turn` whenever
+the turn is non-zero. `link_length` stays the nominal L; the true link is L +
+dL, so the platform stands on that sphere: plan postures (planned on the
+nominal sphere) move radially onto it, fixed postures to where the defective,
+turned inclinometer reads zero, and the commanded mode's link holds the
+platform on it. A plan file's posture may name its own `device_turn` (plan.py):
+the device is turned to it while that posture is walked; the others take the
+parameter.
+
 The math lives in `simulation.py` and `plan.py`; this node keeps time and publishes.
 """
 from __future__ import annotations
@@ -61,9 +76,16 @@ from hexacal_driver.simulation import (
     PlanWalker,
     SensorSimulator,
     check_trajectory,
+    device_true_poses,
 )
 from hexacal_identify.core.architectures import KinematicParameters, architecture, parameters_for
-from hexacal_identify.core.device import DEFAULT_MOUNT, DeviceMountError, check_mount, fixed_point
+from hexacal_identify.core.device import (
+    DEFAULT_MOUNT,
+    DeviceDefects,
+    DeviceMountError,
+    check_mount,
+    fixed_point,
+)
 from hexacal_identify.core.errors import UnreachablePoseError
 from hexacal_identify.core.measurements import NoiseModel
 from hexacal_identify.nodes.runtime import run_node
@@ -75,7 +97,12 @@ from hexacal_msgs_py.conversions import (
 )
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.models import DEFAULT_MODEL, HEXA_SLIDE, MODELS
-from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, SLIDERS_TOPIC
+from hexacal_msgs_py.names import (
+    ENCODER_TOPIC,
+    INCLINOMETER_TOPIC,
+    MAX_DEVICE_TURN,
+    SLIDERS_TOPIC,
+)
 from hexacal_msgs_py.parameters_file import load_parameters, read_parameters_file
 from hexacal_msgs_py.qos import COMMAND_QOS, SENSOR_QOS
 from hexacal_msgs_py.readings import EncoderReading, InclinometerReading, SliderReading
@@ -91,7 +118,7 @@ NS_PER_S = 1_000_000_000
 STRAIN_WARNING_M = 0.01
 STRAIN_WARNING_PERIOD_S = 5.0
 # Parameters that may change while the node runs; all others shape the plan and are read-only.
-RUNTIME_PARAMETERS = ('slider_noise_m', 'angle_noise_rad')
+RUNTIME_PARAMETERS = ('slider_noise_m', 'angle_noise_rad', 'device_turn')
 
 
 MODEL_CHOICES = ('', *MODELS)
@@ -125,6 +152,16 @@ PARAMETERS: dict[str, _Spec] = {
                            'JointTrajectory commands on this topic (e.g. /joint_trajectory_'
                            'controller/joint_trajectory) like a trajectory controller with mock '
                            'hardware, instead of walking a plan'),
+    'device_defects': _Spec('', "the simulated device's errors, 'NAME=VALUE,...' with NAME one "
+                            'of dL (link length offset, m: the true link is link_length + dL), '
+                            'alpha0, beta0 (inclinometer zero offsets, rad), gamma (skew of the '
+                            "inclinometer axes, rad), phi0 (rotary zero offset, rad); '' = an "
+                            'ideal device', constraints="'' or NAME=VALUE pairs (core.device."
+                            'DeviceDefects.parse)'),
+    'device_turn': _Spec(0.0, "the device's rotation about its link axis from its normal "
+                         'mounting (rad; 0 normal, pi reversed, pi/2 a quarter turn), for the '
+                         'postures whose plan entry names none; settable at run time',
+                         -MAX_DEVICE_TURN, MAX_DEVICE_TURN),
     'max_actuator_speed_m_s': _Spec(0.1, 'commanded mode: the fastest an actuator moves (m/s); '
                                     'slower when a point\'s time_from_start asks for it',
                                     1e-6, 10.0),
@@ -153,6 +190,14 @@ def _parameter_problem(parameter: Parameter) -> str | None:
             load_parameters(value)
         except ParameterFileError as error:
             return f'true_params: {error}'
+    elif parameter.name == 'device_defects':
+        try:
+            DeviceDefects.parse(value)
+        except ValueError as error:
+            return f'device_defects {value!r}: {error}'
+    elif parameter.name == 'device_turn' and not (math.isfinite(value)
+                                                  and abs(value) <= MAX_DEVICE_TURN):
+        return f'device_turn must be a finite angle within +-2 pi rad, got {value!r}'
     elif parameter.name == 'model' and value not in MODEL_CHOICES:
         return (f"model must be '' or one of {', '.join(MODELS)}, got {value!r}")
     elif parameter.name in ('link_length', 'rate_hz', 'settle_s', 'dwell_s', 'slider_noise_m',
@@ -177,6 +222,13 @@ class DriverNode(Node):
         self.model = self.true_params.model
         self.command_topic = value['command_topic']
         self.link_length = float(value['link_length'])
+        self.defects = DeviceDefects.parse(value['device_defects'])  # checked when declared
+        self.true_link_length = self.link_length + self.defects.dL  # the sphere the platform is on
+        if not self.true_link_length > 0:
+            raise DriverConfigurationError(
+                f'device_defects dL {self.defects.dL:g} m leaves no link of link_length '
+                f'{self.link_length:g} m')
+        self.device_turn = float(value['device_turn'])
         self.plan: PosturePlan | None = None
         self.walker: PlanWalker | None = None
         self.follower: CommandFollower | None = None
@@ -189,8 +241,7 @@ class DriverNode(Node):
                                          value['seed'], value['link_length'], self.mount)
             except PlanError as error:
                 raise DriverConfigurationError(str(error)) from error
-            self.walker = PlanWalker(self.true_params, self.plan.poses, value['settle_s'],
-                                     value['dwell_s'], value['loop'])
+            self.walker = self._plan_walker(value['settle_s'], value['dwell_s'], value['loop'])
             plan_name = self.plan.name
         self.declare_parameter('plan_name', plan_name, ParameterDescriptor(
             description='name of the plan being walked (set by the node)', read_only=True),
@@ -198,7 +249,7 @@ class DriverNode(Node):
         # Noise draws from their own stream: the same seed gives the same plan whatever the noise.
         self.sensors = SensorSimulator(
             NoiseModel(value['slider_noise_m'], value['angle_noise_rad']),
-            np.random.default_rng([value['seed'], 0x5E45]), self.mount)
+            np.random.default_rng([value['seed'], 0x5E45]), self.mount, self.defects)
         self.rate_hz = float(value['rate_hz'])
         self.wait_for_subscriber = bool(value['wait_for_subscriber'])
 
@@ -222,6 +273,9 @@ class DriverNode(Node):
                                                      model=self.model),
             'inclinometer': inclinometer_reading_to_joint_state(InclinometerReading(0, 0.0, 0.0)),
             'encoder': encoder_reading_to_joint_state(EncoderReading(0, 0.0))}
+        # The inclinometer message of a turned device: the device_turn joint too.
+        self._turned_inclinometer = inclinometer_reading_to_joint_state(
+            InclinometerReading(0, 0.0, 0.0, math.pi))
         self.commands_accepted = 0
         self.commands_rejected = 0
         if self.follower is not None:
@@ -242,6 +296,10 @@ class DriverNode(Node):
             source += f' ({self.model}, joints {", ".join(MODELS[self.model].actuator_names)})'
         if self.mount != DEFAULT_MOUNT:
             source += f', {self.mount} device'
+        if self.defects != DeviceDefects():
+            source += f'; device defects {self.defects.describe()}'
+        if self.device_turn != 0.0:
+            source += f'; device turned {self.device_turn:.6g} rad about its link'
         if self.follower is not None:
             low, high = self.stroke
             topic = self.resolve_topic_name(self.command_topic)
@@ -279,15 +337,40 @@ class DriverNode(Node):
                 f"file: leave model '' or name the file's model")
         return params, mount
 
+    def _plan_walker(self, settle_s: float, dwell_s: float, loop: bool) -> PlanWalker:
+        """The walker over the plan's postures as the true device lets the platform stand
+        (simulation.device_true_poses: on the sphere L + dL, fixed ones where the turned device
+        reads zero)."""
+        turns = self._posture_turns()
+        poses = device_true_poses(self.plan.poses, self.plan.kinds, self.link_length,
+                                  self.defects, self.mount, turns)
+        try:
+            return PlanWalker(self.true_params, poses, settle_s, dwell_s, loop)
+        except UnreachablePoseError as error:
+            raise DriverConfigurationError(
+                f"plan '{self.plan.name}' with the device's true link length "
+                f'{self.true_link_length!r} m (device_defects): {error}') from error
+
+    def _posture_turns(self) -> np.ndarray:
+        """The device turn of every plan posture (rad): the plan's, else the parameter."""
+        return np.array([self.plan.device_turn(i, self.device_turn) for i in range(len(self.plan))])
+
+    def _sample_turn(self, sample) -> float:
+        """The device turn while `sample` is measured: the posture's (plan mode), else the parameter."""
+        if self.plan is None:
+            return self.device_turn
+        return self.plan.device_turn(sample.posture_index, self.device_turn)
+
     def _start_follower(self, max_speed: float) -> CommandFollower:
         """Commanded mode: the machine stands at the fixed-position point with zero angles."""
         from hexacal_driver.plan import machine_workspace
 
         self.stroke = tuple(float(v) for v in machine_workspace(
             self.true_params, self.link_length, self.mount).slider_stroke_m)
-        home = np.concatenate([fixed_point(self.link_length, self.mount), np.zeros(3)])
+        # The link holds the platform on the true sphere (link_length + dL).
+        home = np.concatenate([fixed_point(self.true_link_length, self.mount), np.zeros(3)])
         try:
-            follower = CommandFollower(self.true_params, home, max_speed, self.link_length,
+            follower = CommandFollower(self.true_params, home, max_speed, self.true_link_length,
                                        self.mount)
         except (UnreachablePoseError, ConstraintError) as error:
             raise DriverConfigurationError(
@@ -344,6 +427,19 @@ class DriverNode(Node):
             self.sensors.noise = noise
             self.get_logger().info(
                 f'noise now +-{noise.slider_m:g} m / +-{noise.angle_rad:g} rad')
+        for parameter in parameters:
+            if parameter.name == 'device_turn' and float(parameter.value) != self.device_turn:
+                previous, self.device_turn = self.device_turn, float(parameter.value)
+                if self.walker is not None and self.defects != DeviceDefects():
+                    # Fixed postures stand where the turned device reads zero: re-place them
+                    # (same timing; the walk goes on from where it is).
+                    walker = self.walker
+                    self.walker = self._plan_walker(walker.settle_s, walker.dwell_s, walker.loop)
+                self.get_logger().info(
+                    f'device_turn {previous:.6g} -> {self.device_turn:.6g} rad: the device is '
+                    'turned about its link axis'
+                    + (' (for the postures whose plan names no turn)'
+                       if self.plan is not None and self.plan.device_turns else ''))
 
     # ------------------------------------------------------------------ publishing
 
@@ -382,7 +478,8 @@ class DriverNode(Node):
         self._report(sample.posture_index, sample.lap, sample.phase)
 
     def _publish(self, sample, stamp: int) -> None:
-        readings = self.sensors.read(sample)
+        turn = self._sample_turn(sample)
+        readings = self.sensors.read(sample, turn)
         # One stamp for the three: the sensors are sampled together.
         if self._started and self.plan_start_stamp_ns is None:
             self.plan_start_stamp_ns = stamp
@@ -392,10 +489,17 @@ class DriverNode(Node):
             message.header.stamp.sec = seconds
             message.header.stamp.nanosec = nanoseconds
         messages['sliders'].position = readings.sliders_m.tolist()
-        messages['inclinometer'].position = [readings.alpha_rad, readings.beta_rad]
+        if turn == 0.0:  # the normal mounting: the message as it always was
+            inclinometer = messages['inclinometer']
+            inclinometer.position = [readings.alpha_rad, readings.beta_rad]
+        else:
+            inclinometer = self._turned_inclinometer
+            inclinometer.header.stamp.sec = seconds
+            inclinometer.header.stamp.nanosec = nanoseconds
+            inclinometer.position = [readings.alpha_rad, readings.beta_rad, turn]
         messages['encoder'].position = [readings.phi_rad]
         self._sliders_pub.publish(messages['sliders'])
-        self._inclinometer_pub.publish(messages['inclinometer'])
+        self._inclinometer_pub.publish(inclinometer)
         self._encoder_pub.publish(messages['encoder'])
         self.published += 1  # complete ticks: Ctrl-C may cut the last one after some of its publishes
 
@@ -435,7 +539,9 @@ class DriverNode(Node):
             f'posture {index + 1}/{len(self.plan)}{lap_text} ({self.plan.kinds[index]}): '
             f'position [{pose[0] * 1e3:.1f}, {pose[1] * 1e3:.1f}, {pose[2] * 1e3:.1f}] mm, '
             f'angles [{math.degrees(pose[3]):.1f}, {math.degrees(pose[4]):.1f}, '
-            f'{math.degrees(pose[5]):.1f}] deg')
+            f'{math.degrees(pose[5]):.1f}] deg'
+            + (f', device turned {turn:.6g} rad' if (turn := self.plan.device_turn(
+                index, self.device_turn)) != 0.0 else ''))
         if self.walker.loop and index == len(self.plan) - 1:
             self.get_logger().info(f"end of plan '{self.plan.name}' lap {lap + 1}: looping")
 

@@ -22,6 +22,13 @@ Plan file (YAML, SI units)::
     postures:
       - {kind: sphere, pose: [0.1, -0.2, -0.7141428428542851, 0.1, 0.0, -0.2]}
       - {kind: fixed,  pose: [0.0, 0.0, -0.75, 0.3, -0.1, 0.25]}
+      - {kind: sphere, pose: [0.1, -0.2, -0.7141428428542851, 0.1, 0.0, -0.2], device_turn: 3.141592653589793}
+
+A posture may name the device's turn about its link axis, ``device_turn`` (rad:
+0 the normal mounting, pi reversed, pi/2 a quarter turn; |turn| <= 2 pi): the
+simulated device is turned to it while the driver walks that posture. A
+posture without it takes the driver's ``device_turn`` parameter, so every plan
+file written before turns existed walks as before.
 
 `load_plan` checks everything it can without a machine model and raises
 `PlanError` naming the file, the posture and the problem; `check_reachable`
@@ -72,6 +79,8 @@ MAX_TILT_RAD = math.pi / 2  # |theta|, |psi|: beyond this the Euler angles are a
 _PLAN_KEYS = {'name', 'link_length'}  # required
 _OPTIONAL_PLAN_KEYS = {'model', 'mount'}  # absent: the Hexa Slide, hanging (written only otherwise)
 _POSTURE_KEYS = {'kind', 'pose'}
+_OPTIONAL_POSTURE_KEYS = {'device_turn'}  # rad; absent: the driver's device_turn parameter
+MAX_DEVICE_TURN_RAD = 2.0 * math.pi
 
 
 class PlanError(ValueError):
@@ -80,7 +89,11 @@ class PlanError(ValueError):
 
 @dataclass(frozen=True)
 class PosturePlan:
-    """An ordered list of postures; poses (N, 6) in m and rad, kinds (N,) 'sphere'/'fixed'."""
+    """An ordered list of postures; poses (N, 6) in m and rad, kinds (N,) 'sphere'/'fixed'.
+
+    device_turns: per posture the device's turn about its link axis (rad) or None (the
+    driver's device_turn parameter); () when no posture names one.
+    """
 
     name: str
     link_length: float
@@ -88,18 +101,29 @@ class PosturePlan:
     kinds: tuple[str, ...]
     model: str = DEFAULT_MODEL  # the machine model the plan was made for
     mount: str = DEFAULT_MOUNT  # the device mount: hanging (platform below O) or standing
+    device_turns: tuple[float | None, ...] = ()  # per posture, rad; None: the driver's parameter
 
     def __post_init__(self) -> None:
         poses = np.array(self.poses, dtype=float).reshape(-1, 6)
         poses.setflags(write=False)
         object.__setattr__(self, 'poses', poses)
         object.__setattr__(self, 'kinds', tuple(str(k) for k in self.kinds))
+        turns = tuple(self.device_turns)
+        if all(t is None for t in turns):
+            turns = ()  # no posture names a turn: the same plan as one without turns
+        object.__setattr__(self, 'device_turns', turns)
         problem = _plan_problem(self)
         if problem:
             raise PlanError(f'plan {self.name!r}: {problem}')
 
     def __len__(self) -> int:
         return len(self.poses)
+
+    def device_turn(self, index: int, default: float = 0.0) -> float:
+        """The device turn of posture `index` (rad): the plan's, else `default`."""
+        if self.device_turns and self.device_turns[index] is not None:
+            return float(self.device_turns[index])
+        return float(default)
 
     def counts(self) -> dict[str, int]:
         """Number of postures of each kind."""
@@ -109,8 +133,11 @@ class PosturePlan:
         counts = self.counts()
         machine = '' if self.model == DEFAULT_MODEL else f', for a {self.model}'
         mount = '' if self.mount == DEFAULT_MOUNT else f', {self.mount} device'
+        given = sum(t is not None for t in self.device_turns)
+        turns = f', {given} with a device turn' if given else ''
         return (f"plan '{self.name}': {len(self)} postures ({counts[SPHERE]} sphere, "
-                f'{counts[FIXED]} fixed), link length {self.link_length:g} m{machine}{mount}')
+                f'{counts[FIXED]} fixed), link length {self.link_length:g} m{machine}{mount}'
+                f'{turns}')
 
 
 def _plan_problem(plan: PosturePlan) -> str | None:
@@ -129,11 +156,29 @@ def _plan_problem(plan: PosturePlan) -> str | None:
         return f"model must be one of {', '.join(MODELS)}, got {plan.model!r}"
     if plan.mount not in MOUNTS:
         return f"mount must be one of {', '.join(MOUNTS)}, got {plan.mount!r}"
+    if plan.device_turns:
+        if len(plan.device_turns) != len(plan.poses):
+            return f'{len(plan.poses)} poses but {len(plan.device_turns)} device turns'
+        for index, turn in enumerate(plan.device_turns):
+            problem = _turn_problem(turn)
+            if problem:
+                return f'posture {index}: {problem}'
     limits = MeasurementLimits()
     for index, (pose, kind) in enumerate(zip(plan.poses, plan.kinds)):
         problem = _posture_problem(pose, kind, float(length), limits, plan.mount)
         if problem:
             return f'posture {index}: {problem}'
+    return None
+
+
+def _turn_problem(turn: object) -> str | None:
+    """What is wrong with a posture's device_turn (None is fine: not given), or None."""
+    if turn is None:
+        return None
+    if isinstance(turn, bool) or not isinstance(turn, (int, float, np.floating, np.integer)):
+        return f'device_turn must be a number of rad, got {turn!r}'
+    if not (math.isfinite(turn) and abs(turn) <= MAX_DEVICE_TURN_RAD):
+        return f'device_turn must be a finite angle within +-2 pi rad, got {turn!r}'
     return None
 
 
@@ -254,16 +299,24 @@ def load_plan(path: str | os.PathLike[str]) -> PosturePlan:
     entries = document.get('postures')
     if not isinstance(entries, list) or not entries:
         raise fail("'postures' must be a non-empty list of {kind, pose} entries")
-    poses, kinds = [], []
+    poses, kinds, turns = [], [], []
     for index, entry in enumerate(entries):
         if not isinstance(entry, dict):
             raise fail(f'posture {index}: expected a mapping with kind and pose, got {entry!r}')
-        unknown = sorted(set(map(str, entry)) - _POSTURE_KEYS)
+        unknown = sorted(set(map(str, entry)) - _POSTURE_KEYS - _OPTIONAL_POSTURE_KEYS)
         missing = sorted(_POSTURE_KEYS - set(entry))
         if unknown or missing:
             raise fail(f'posture {index}: keys must be {sorted(_POSTURE_KEYS)}'
                        + (f', unknown {unknown}' if unknown else '')
-                       + (f', missing {missing}' if missing else ''))
+                       + (f', missing {missing}' if missing else '')
+                       + f' (optional {sorted(_OPTIONAL_POSTURE_KEYS)})')
+        turn = entry.get('device_turn')
+        problem = _turn_problem(turn) if 'device_turn' in entry else None
+        if 'device_turn' in entry and turn is None:
+            problem = 'device_turn must be a number of rad, got null'
+        if problem:
+            raise fail(f'posture {index}: {problem}')
+        turns.append(None if turn is None else float(turn))
         pose = entry['pose']
         if not isinstance(pose, list) or len(pose) != 6 or not all(
                 isinstance(v, (int, float)) and not isinstance(v, bool) for v in pose):
@@ -279,7 +332,7 @@ def load_plan(path: str | os.PathLike[str]) -> PosturePlan:
         raise fail(f"plan.mount must be one of {', '.join(MOUNTS)}, got {mount!r}")
     try:
         return PosturePlan(header['name'], float(length), np.array(poses), tuple(kinds), model,
-                           mount)
+                           mount, tuple(turns))
     except PlanError as error:
         raise fail(str(error)) from None
 
@@ -291,11 +344,13 @@ def plan_document(plan: PosturePlan) -> dict[str, Any]:
         header['model'] = plan.model
     if plan.mount != DEFAULT_MOUNT:
         header['mount'] = plan.mount
-    return {
-        'plan': header,
-        'postures': [{'kind': kind, 'pose': [float(v) for v in pose]}
-                     for kind, pose in zip(plan.kinds, plan.poses)],
-    }
+    postures: list[dict[str, Any]] = []
+    for index, (kind, pose) in enumerate(zip(plan.kinds, plan.poses)):
+        entry: dict[str, Any] = {'kind': kind, 'pose': [float(v) for v in pose]}
+        if plan.device_turns and plan.device_turns[index] is not None:
+            entry['device_turn'] = float(plan.device_turns[index])
+        postures.append(entry)
+    return {'plan': header, 'postures': postures}
 
 
 def save_plan(path: str | os.PathLike[str], plan: PosturePlan) -> None:
@@ -307,9 +362,11 @@ def save_plan(path: str | os.PathLike[str], plan: PosturePlan) -> None:
     if plan.mount != DEFAULT_MOUNT:
         lines.append(f'  mount: {plan.mount}')
     lines.append('postures:')
-    for kind, pose in zip(plan.kinds, plan.poses):
+    for index, (kind, pose) in enumerate(zip(plan.kinds, plan.poses)):
         values = ', '.join(repr(float(v)) for v in pose)
-        lines.append(f'  - {{kind: {kind}, pose: [{values}]}}')
+        turn = (f', device_turn: {float(plan.device_turns[index])!r}'
+                if plan.device_turns and plan.device_turns[index] is not None else '')
+        lines.append(f'  - {{kind: {kind}, pose: [{values}]{turn}}}')
     atomic_write(path, '\n'.join(lines) + '\n')
 
 

@@ -13,6 +13,14 @@ interpolated linearly. Slider positions are the true machine's inverse
 kinematics of the platform pose. Any architecture (core.architectures): the
 "sliders" are its six actuator readings (Hexa Slide: slider positions along the
 rails; Gough-Stewart: leg extensions).
+
+The device may be defective and turned about its link axis (core/device.py:
+`DeviceDefects`, ``device_turn`` rad, 0 normal mounting, pi reversed, pi/2 a
+quarter turn): the inclinometer reads through the core's defect model
+(`inclinometer_readings`) in the turned device's frame and the rotary sensor
+reads wrap(phi - turn + phi0). Its link is L + dL long, so the platform stands
+on that true sphere (`device_true_poses`): sphere postures radially on it,
+fixed postures where the defective, turned inclinometer reads zero.
 """
 from __future__ import annotations
 
@@ -21,10 +29,18 @@ import math
 
 import numpy as np
 
-from hexacal_identify.core.device import DEFAULT_MOUNT, STANDING, fixed_point, inclinometer_angles
+from hexacal_identify.core.device import (
+    DEFAULT_MOUNT,
+    STANDING,
+    DeviceDefects,
+    device_position,
+    fixed_point,
+    inclinometer_angles,
+    inclinometer_readings,
+)
 from hexacal_identify.core.errors import UnreachablePoseError
 from hexacal_identify.core.kinematics import forward_kinematics, inverse_kinematics
-from hexacal_identify.core.measurements import NoiseModel
+from hexacal_identify.core.measurements import FIXED, NoiseModel
 from hexacal_identify.core.architectures import KinematicParameters
 
 SETTLING = 'settling'  # moving to the posture (or, at the start, standing at it)
@@ -138,26 +154,67 @@ class SensorReadings:
     phi_rad: float
 
 
-def exact_readings(pose: np.ndarray, sliders: np.ndarray,
-                   mount: str = DEFAULT_MOUNT) -> SensorReadings:
-    """What noise-free sensors read: the sliders, eq. 4 inverted for alpha/beta (for the device
-    mount, core/device.py), and phi."""
+IDEAL_DEVICE = DeviceDefects()
+
+
+def wrap_angle(angle: float) -> float:
+    """angle wrapped to [-pi, pi) (the rotary sensor's range)."""
+    return (float(angle) + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def exact_readings(pose: np.ndarray, sliders: np.ndarray, mount: str = DEFAULT_MOUNT,
+                   defects: DeviceDefects = IDEAL_DEVICE,
+                   device_turn: float = 0.0) -> SensorReadings:
+    """What noise-free sensors read: the sliders, the inclinometer's alpha/beta through the core's
+    defect model (core.device.inclinometer_readings, for the device mount and `device_turn` rad
+    about the link axis), and the rotary phi - turn + phi0 wrapped to [-pi, pi) (phi as it is for
+    an ideal device in its normal mounting)."""
     pose = np.asarray(pose, dtype=float)
-    alpha, beta = inclinometer_angles(pose[None, :3], mount)
-    return SensorReadings(np.array(sliders, dtype=float), float(alpha[0]), float(beta[0]),
-                          float(pose[5]))
+    turn = float(device_turn)
+    alpha, beta = inclinometer_readings(pose[None, :3], defects, mount,
+                                        None if turn == 0.0 else turn)
+    phi = float(pose[5])
+    if turn != 0.0 or defects.phi0 != 0.0:
+        phi = wrap_angle(phi - turn + defects.phi0)
+    return SensorReadings(np.array(sliders, dtype=float), float(alpha[0]), float(beta[0]), phi)
+
+
+def device_true_poses(poses: np.ndarray, kinds, link_length: float,
+                      defects: DeviceDefects = IDEAL_DEVICE, mount: str = DEFAULT_MOUNT,
+                      device_turns: np.ndarray | float | None = None) -> np.ndarray:
+    """Where the platform stands for plan `poses` (planned on the nominal sphere of radius
+    `link_length`) with the true device attached: sphere postures moved radially onto the true
+    sphere of radius L + dL, fixed postures (kind 'fixed') where the defective inclinometer,
+    turned by the posture's `device_turns` (rad), reads zero (core.device.device_position).
+    Orientations are kept. An ideal device changes nothing (the poses are returned as given)."""
+    poses = np.array(poses, dtype=float).reshape(-1, 6)
+    if defects == IDEAL_DEVICE:
+        return poses
+    n = len(poses)
+    turns = np.zeros(n) if device_turns is None else np.broadcast_to(
+        np.asarray(device_turns, dtype=float), (n,))
+    true_length = float(link_length) + defects.dL
+    radius = np.linalg.norm(poses[:, :3], axis=1)
+    fixed = np.array([str(kind) == FIXED for kind in kinds])
+    zero = device_position(np.zeros(n), np.zeros(n), float(link_length), defects, mount, turns)
+    sphere_positions = poses[:, :3] * (true_length / radius)[:, None]
+    poses[:, :3] = np.where(fixed[:, None], zero.position, sphere_positions)
+    return poses
 
 
 class SensorSimulator:
-    """Adds fresh uniform noise (NoiseModel half-widths) to every reading."""
+    """Adds fresh uniform noise (NoiseModel half-widths) to every reading of a device with
+    `defects`; read() takes the device's turn about its link axis (rad)."""
 
-    def __init__(self, noise: NoiseModel, rng: np.random.Generator, mount: str = DEFAULT_MOUNT):
+    def __init__(self, noise: NoiseModel, rng: np.random.Generator, mount: str = DEFAULT_MOUNT,
+                 defects: DeviceDefects = IDEAL_DEVICE):
         self.noise = noise
         self.rng = rng
         self.mount = mount
+        self.defects = defects
 
-    def read(self, sample: WalkSample) -> SensorReadings:
-        exact = exact_readings(sample.pose, sample.sliders, self.mount)
+    def read(self, sample: WalkSample, device_turn: float = 0.0) -> SensorReadings:
+        exact = exact_readings(sample.pose, sample.sliders, self.mount, self.defects, device_turn)
         slider_noise = self.rng.uniform(-1.0, 1.0, 6) * self.noise.slider_m
         angle_noise = self.rng.uniform(-1.0, 1.0, 3) * self.noise.angle_rad
         return SensorReadings(exact.sliders_m + slider_noise, exact.alpha_rad + angle_noise[0],

@@ -55,9 +55,21 @@ with no message for `STREAM_STOPPED_S` is reported stopped, and a posture being
 captured then is dropped (never published half-measured). Every change of these
 counters, of the stopped streams or of the recording (e.g. disk full) is logged
 and published on `hexacal/calibration_status` (status name 'hexacal collector').
+
+Device turn: every posture says in which mounting of the device it was taken,
+the device's rotation about its link axis from its normal mounting (rad: 0
+normal, pi reversed, pi/2 a quarter turn), as the optional posture joint
+`device_turn` (written only when non-zero; hexacal_msgs_py.conversions). It is
+the `device_turn` joint of the inclinometer message the posture was paired
+with when that message carries it (a simulated or instrumented device), else
+the parameter `device_turn` (rad, -2 pi..2 pi, default 0, settable at run
+time: an operator who turned a real device sets `ros2 param set /collector
+device_turn 3.14159` before its postures).
 """
 from __future__ import annotations
 
+import bisect
+from dataclasses import replace
 from datetime import datetime
 import heapq
 import json
@@ -110,11 +122,13 @@ from hexacal_msgs_py.inputs import (
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 from hexacal_msgs_py.names import (
     CALIBRATION_STATUS_TOPIC,
+    DEVICE_TURN_JOINT,
     ENCODER_TOPIC,
     IMU_TYPE,
     INCLINOMETER_TOPIC,
     JOINT_STATE_TYPE,
     MACHINE_MARKERS_TOPIC,
+    MAX_DEVICE_TURN,
     MARKER_ARRAY_TYPE,
     PLATFORM_POSE_TOPIC,
     POSE_STAMPED_TYPE,
@@ -147,7 +161,10 @@ INPUTS_CUSTOM_DATA = 'hexacal.inputs'  # metadata.yaml custom_data: the input ma
 MODEL_CHOICES = ('', *MODELS)
 # Driver parameters that describe the plan it walks (see hexacal_driver.driver_node).
 DRIVER_PLAN_PARAMETERS = ('plan', 'plan_name', 'postures', 'seed', 'link_length', 'settle_s',
-                          'dwell_s', 'rate_hz', 'slider_noise_m', 'angle_noise_rad')
+                          'dwell_s', 'rate_hz', 'slider_noise_m', 'angle_noise_rad',
+                          'device_defects', 'device_turn')
+# Device turns carried by inclinometer messages, kept for looking up a posture's turn.
+MAX_TURN_CHANGES = 1000
 INVALID_LOG_PERIOD_S = 5.0
 STALE_LOG_PERIOD_S = 10.0
 NS_PER_S = 1_000_000_000
@@ -283,6 +300,9 @@ class _FastJointState:
             raise ValueError('layout does not match the decoded message')
         index = {name: i for i, name in enumerate(message.name)}
         self.order = tuple(index[name] for name in wanted)
+        # The optional device_turn joint (read beside the wanted ones; None: not carried).
+        self.turn_index = index.get(DEVICE_TURN_JOINT)
+        self.last_turn: float | None = None
         self.positions = struct.Struct(f'<{count}d')
         self.offset = offset
         self.size = len(data)
@@ -317,6 +337,11 @@ class _FastJointState:
         for value in values:
             if not math.isfinite(value):
                 return None
+        if self.turn_index is not None:
+            turn = positions[self.turn_index]
+            if not abs(turn) <= MAX_DEVICE_TURN:  # NaN too: the full way reports it
+                return None
+            self.last_turn = turn
         return seconds * NS_PER_S + nanoseconds, values
 
 
@@ -329,6 +354,9 @@ class _FastImu:
     layout, a negative stamp, no orientation estimate, a quaternion that is not a unit one)
     goes the full way, which reports the problem.
     """
+
+    turn_index = None  # an Imu carries no device turn
+    last_turn = None
 
     def __init__(self, data: bytes, message: Imu) -> None:
         if data[:4] != _CDR_HEADER:
@@ -378,6 +406,7 @@ class _Source:
         self.subscription = None
         self.fast: _FastJointState | _FastImu | None = None
         self.key = '+'.join(inputs)  # the loss counter's name: lost.<inputs>
+        self.has_inclinometer = INCLINOMETER_TOPIC in inputs  # may carry the device turn
         self.stream: str | None = None  # set when the in-place values are the one input's reading
         # Where each input's values are in the wanted joints' values of a JointState source.
         self.wanted: tuple[str, ...] = ()
@@ -458,6 +487,14 @@ class CollectorNode(Node):
             "'model' key gives the model; '' = none", read_only=True))
         for name, (default, description, low, high) in _DETECTOR_PARAMETERS.items():
             self.declare_parameter(name, default, _float_descriptor(description, low, high))
+        self.declare_parameter('device_turn', 0.0, _float_descriptor(
+            "the device's rotation about its link axis from its normal mounting (rad; 0 normal, "
+            'pi reversed, pi/2 a quarter turn) for postures whose inclinometer message has no '
+            f"'{DEVICE_TURN_JOINT}' joint (a message that has it wins); settable at run time",
+            -MAX_DEVICE_TURN, MAX_DEVICE_TURN, read_only=False))
+        self.device_turn = self._checked_turn(self.get_parameter('device_turn').value)
+        # (inclinometer stamp, turn carried from then on, None: not carried), in stamp order.
+        self._turn_changes: list[tuple[int, float | None]] = []
         value = {name: self.get_parameter(name).value
                  for name in ('record', 'flush_every_s', 'driver_node', 'model', 'parameters_file',
                               *_DETECTOR_PARAMETERS)}
@@ -552,6 +589,10 @@ class CollectorNode(Node):
             f"{value['window_s']:g} s, capture {value['capture_s']:g} s); model {self.model}, "
             f"actuator joints {self.actuator_names[0]}..{self.actuator_names[-1]}")
         self.get_logger().info(f'inputs: {self.mapping.describe()}')
+        if self.device_turn != 0.0:
+            self.get_logger().info(
+                f'device_turn {self.device_turn:.6g} rad for postures whose inclinometer '
+                f'message has no {DEVICE_TURN_JOINT} joint')
         if value['record']:
             self.open_bag()
 
@@ -592,8 +633,29 @@ class CollectorNode(Node):
             inclinometer_type=kind, inclinometer_signs=signs, inclinometer_offsets_rad=offsets,
             topics=tuple(self.resolve_topic_name(topic) for topic in RAW_TOPICS))
 
+    @staticmethod
+    def _checked_turn(value: object) -> float:
+        """The device_turn parameter as a float; InvalidParameterValueException if not a finite
+        angle within +-2 pi rad."""
+        problem = CollectorNode._turn_problem(value)
+        if problem is not None:
+            raise InvalidParameterValueException('device_turn', value, problem)
+        return float(value)
+
+    @staticmethod
+    def _turn_problem(value: object) -> str | None:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            return f'device_turn must be a number (rad), got {value!r}'
+        if not abs(float(value)) <= MAX_DEVICE_TURN:
+            return f'device_turn must be a finite angle within +-2 pi rad, got {value!r}'
+        return None
+
     def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for parameter in parameters:
+            if parameter.name == 'device_turn':
+                problem = self._turn_problem(parameter.value)
+                if problem is not None:
+                    return SetParametersResult(successful=False, reason=problem)
             if parameter.name == 'bag_name' and ('/' in parameter.value
                                                  or parameter.value in ('.', '..')):
                 return SetParametersResult(successful=False, reason=(
@@ -616,6 +678,13 @@ class CollectorNode(Node):
         for parameter in parameters:
             if parameter.name == 'flush_every_s':
                 self._flush_timer.timer_period_ns = int(parameter.value * NS_PER_S)
+            if parameter.name == 'device_turn':
+                previous, self.device_turn = self.device_turn, float(parameter.value)
+                if self.device_turn != previous:
+                    self.get_logger().info(
+                        f'device_turn {previous:.6g} -> {self.device_turn:.6g} rad: postures '
+                        f'from now on whose inclinometer message has no {DEVICE_TURN_JOINT} '
+                        'joint carry it')
 
     # ------------------------------------------------------------------ streams
 
@@ -658,6 +727,8 @@ class CollectorNode(Node):
         if source.fast is not None:
             raw = source.fast.read(data)
             if raw is not None:
+                if source.has_inclinometer:
+                    self._note_turn(raw[0], source.fast.last_turn)
                 if source.stream is not None:  # one input, its values as read: the 1 kHz path
                     samples = self.synchronizer.add_values(source.stream, *raw)
                     if samples:
@@ -705,10 +776,12 @@ class CollectorNode(Node):
                     sliders = self._slider_reading(message)
                     stamp, reading = sliders.stamp_ns, sliders.slider_positions
                 elif topic == INCLINOMETER_TOPIC:
-                    angles = (imu_to_inclinometer_reading(message, self.mapping)
-                              if source.message_type is Imu
+                    imu = source.message_type is Imu
+                    angles = (imu_to_inclinometer_reading(message, self.mapping) if imu
                               else joint_state_to_inclinometer_reading(message, self.mapping))
                     stamp, reading = angles.stamp_ns, (angles.alpha, angles.beta)
+                    carried = not imu and DEVICE_TURN_JOINT in message.name
+                    self._note_turn(stamp, angles.device_turn if carried else None)
                 else:
                     rotary = joint_state_to_encoder_reading(message, self.mapping)
                     stamp, reading = rotary.stamp_ns, (rotary.phi,)
@@ -802,8 +875,33 @@ class CollectorNode(Node):
             f'({self.invalid[topic]} so far): {problem}',
             throttle_duration_sec=INVALID_LOG_PERIOD_S)
 
+    def _note_turn(self, stamp_ns: int, turn: float | None) -> None:
+        """The device turn an inclinometer message stamped `stamp_ns` carries (None: none)."""
+        changes = self._turn_changes
+        if changes:
+            if changes[-1][1] == turn:
+                return
+        elif turn is None:
+            return  # nothing carried yet: the parameter
+        changes.append((stamp_ns, turn))
+        if len(changes) > MAX_TURN_CHANGES:
+            del changes[:len(changes) - MAX_TURN_CHANGES]
+
+    def _turn_at(self, stamp_ns: int) -> float:
+        """The device turn of a posture stamped `stamp_ns` (its last sample): the one the
+        inclinometer messages carried then, else the device_turn parameter."""
+        changes = self._turn_changes
+        limit = stamp_ns + self.synchronizer.max_skew_ns  # the paired inclinometer stamp
+        at = bisect.bisect_right(changes, limit, key=lambda change: change[0])
+        turn = changes[at - 1][1] if at else None
+        if at > 1:
+            del changes[:at - 1]  # later postures are later
+        return self.device_turn if turn is None else turn
+
     def _on_posture(self, posture: DetectedPosture) -> None:
-        message = posture_reading_to_joint_state(posture.reading, model=self.model)
+        turn = self._turn_at(posture.reading.stamp_ns)
+        reading = posture.reading if turn == 0.0 else replace(posture.reading, device_turn=turn)
+        message = posture_reading_to_joint_state(reading, model=self.model)
         if self.writer is not None:
             # Durable before it is published: whoever received a posture finds it in the bag.
             # BagWriter.write encodes the exact wire CDR; rclpy's serialize_message appends
@@ -817,9 +915,10 @@ class CollectorNode(Node):
         self.postures_published += 1
         spread_um = max(posture.std[:6]) * 1e6
         spread_urad = max(posture.std[6:]) * 1e6
+        turned = f', device turn {turn:.6g} rad' if turn != 0.0 else ''
         self.get_logger().info(
             f'posture {self.postures_published}: {posture.sample_count} samples, '
-            f'std <= {spread_um:.1f} um (sliders) / {spread_urad:.1f} urad (angles)')
+            f'std <= {spread_um:.1f} um (sliders) / {spread_urad:.1f} urad (angles){turned}')
 
     # ------------------------------------------------------------------ recording
 
