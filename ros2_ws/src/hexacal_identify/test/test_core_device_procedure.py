@@ -184,3 +184,57 @@ def test_efficiency_summary_compares_the_monte_carlo_with_the_bound():
     # 8 seeds: a loose check that the estimator is near its bound, not a measurement of it.
     assert np.all((summary.efficiency > 0.2) & (summary.efficiency < 5))
     assert 0.2 < summary.pose_efficiency < 5
+
+
+def test_planning_with_device_columns_priors_and_turns():
+    from hexacal_identify.core.planning import PREDICTION, Plan, plan_postures
+
+    nominal = nominal_set(2, seed=0, exact=TRUE)
+    noise = NoiseModel.from_microns(10)
+    plain = plan_postures(nominal, 30, index=PREDICTION, n_candidates=200, seed=1, noise=noise)
+    assert plain.plan.device_turns is None and plain.candidates.n_parameters == TRUE.layout.n_parameters
+    turned = plan_postures(nominal, 30, index=PREDICTION, n_candidates=200, seed=1, noise=noise,
+                           device_columns=ALL_BUT_PHI0, device_turns=PROCEDURES["quarter-turns"])
+    assert turned.candidates.n_parameters == TRUE.layout.n_parameters + 4
+    assert len(turned.candidates) == 800  # every candidate in every mounting
+    assert turned.rank == TRUE.layout.n_parameters + 4  # beta0 identifiable: the plan uses several mountings
+    turns = turned.plan.turns
+    assert len(set(np.round(turns, 9))) >= 2
+    assert np.all(np.diff(turns) >= 0)  # grouped by mounting: one remount per turn
+    with_prior = plan_postures(nominal, 30, index=PREDICTION, n_candidates=200, seed=1, noise=noise,
+                               device_columns=("alpha0", "gamma"), device_prior=DevicePrior((("dL", 0.0, 1e-5),)))
+    assert with_prior.candidates.device_columns == ("dL", "alpha0", "gamma")
+    scale = with_prior.candidates.scales[TRUE.layout.n_parameters]
+    assert with_prior.candidates.start_information()[TRUE.layout.n_parameters, TRUE.layout.n_parameters] == \
+        pytest.approx(1 / (1e-5 * scale) ** 2)
+    # The plan file carries the turns; plans without turns keep their format and fingerprint.
+    text = turned.plan.to_text()
+    assert "device_turn: 3.14159" in text
+    assert "device_turn" not in plain.plan.to_text()
+    assert plain.plan.fingerprint() == Plan(plain.plan.name, 0.75, plain.plan.poses, plain.plan.kinds).fingerprint()
+    with pytest.raises(ValueError, match="absolute cost"):
+        plan_postures(nominal, 30, n_candidates=200, cost="sphere", noise=None, device_columns=("dL",))
+
+
+def test_plan_files_round_trip_device_turns(tmp_path):
+    from hexacal_identify.core.planning import Plan
+
+    poses = np.tile([0.1, 0.0, -0.74, 0.0, 0.0, 0.0], (3, 1))
+    plan = Plan("turned", 0.75, poses, np.full(3, "sphere"), device_turns=[0.0, math.pi, math.pi / 2])
+    loaded = Plan.load(plan.save(tmp_path / "plan.yaml"))
+    np.testing.assert_array_equal(loaded.turns, [0.0, math.pi, math.pi / 2])
+    assert loaded.fingerprint() == plan.fingerprint() != Plan("plain", 0.75, poses, np.full(3, "sphere")).fingerprint()
+    with pytest.raises(ValueError, match="device_turn"):
+        Plan("bad", 0.75, poses, np.full(3, "sphere"), device_turns=[0.0, np.nan, 0.0])
+
+
+def test_planned_rows_simulate_the_plan_on_the_true_sphere():
+    from hexacal_identify.studies.device_procedure import ROWS, simulate_planned_run
+
+    row = next(r for r in ROWS if r.planned and r.procedure == "quarter-turns" and not r.caliper)
+    nominal = nominal_set(2, seed=0, exact=TRUE)
+    measurements = simulate_planned_run(TRUE, nominal, DEFAULT_DEFECTS, 20, 0.0, 0, row, DevicePrior())
+    assert len(measurements) == 20 and measurements.device_turn is not None
+    result = identify(nominal, measurements, SolverOptions(free_device=ALL_BUT_PHI0))
+    # Exact readings on the true sphere of L + dL: the device parameters come back exactly.
+    np.testing.assert_allclose(result.device.vector[:4], DEFAULT_DEFECTS.vector[:4], atol=1e-9)

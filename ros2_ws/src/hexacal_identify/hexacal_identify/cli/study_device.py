@@ -83,7 +83,8 @@ def print_device_defects(defects: DeviceDefects, noise_um: float, seeds: int, pr
     from ..studies.device_procedure import (CLAIM_EFFICIENCY, RECOMMENDED_PROCEDURE, claims, device_table,
                                             estimator_efficiency)
 
-    print(f"\nDevice defects ({defects.describe()}), 50 postures, +-{noise_um:g} um / urad noise, weighted by it, "
+    print(f"\nDevice defects ({defects.describe()}), 50 postures (random, or planned per seed: I-optimal on the "
+          f"nominal machine with the device columns, priors and turns), +-{noise_um:g} um / urad noise, weighted by it, "
           f"nominal set 2, {seeds} seeds; mean position error over 50 validation postures (um) in the device frames "
           "(base frame of the inclinometer's zero, platform frame of the rotary zero) and in the true frames "
           "(gravity-aligned base frame, origin at the device's joint O):")
@@ -102,12 +103,14 @@ def print_device_defects(defects: DeviceDefects, noise_um: float, seeds: int, pr
               f"{true_frames * UM:>9.1f} {true_frames / reference:>6.2f} "
               f"{outcome.mean(outcome.origin_aligned_position_m) * UM:>10.1f} "
               f"{outcome.mean(outcome.true_frame_orientation_rad) * URAD:>12.1f}  {errors}{failures}")
-    print("  x ref: true-frame position error / the ideal device's.  origin-al.: true frames after removing the "
+    print("  x ref: true-frame position error / the ideal device's with random postures.  origin-al.: true frames after removing the "
           "mean position error, i.e. with the base frame's origin O re-referenced.  beta0 and phi0 are held at 0 "
           "unless identified: without a turning procedure beta0 is the device base frame's tilt about Y, phi0 is "
           "always the platform frame's zero yaw (it moves no position).")
     for claim in claims(outcomes):
-        print(f"  claim: {claim.text}: {claim.value:.2f}x ({'met' if claim.met else 'NOT met'})")
+        print(f"  claim: {claim.text}: {claim.value:.2f}x the ideal device with random postures, the baseline "
+              f"({'met' if claim.met else 'NOT met'}); {claim.like_for_like:.2f}x an ideal device calibrated the "
+              f"same way ({'met' if claim.met_like_for_like else 'NOT met'})")
     if efficiency_seeds > 1:
         summary = estimator_efficiency(efficiency_seeds, RECOMMENDED_PROCEDURE, defects=defects, noise_um=noise_um,
                                        true_params=truth, progress=progress.step)

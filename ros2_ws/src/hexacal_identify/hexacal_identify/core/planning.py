@@ -72,6 +72,17 @@ was asked for, because it rewards each new independent direction.
 The relative cost (eqs. 12, 13) differences consecutive postures of the same
 kind, so a posture's rows depend on its predecessor: greedy appends in plan
 order (exact), exchange swaps within a kind in place (also exact).
+
+Planning for an imperfect device (``device_columns``, ``device_prior``,
+``procedure``; absolute cost).  The rows gain the columns of the device
+parameters identified with the machine, the information starts from the
+priors' (1 / std^2 on their columns), and every sphere candidate is offered
+once per device turn of the procedure (``studies.device_procedure.PROCEDURES``:
+0 / 180 deg, or 0 / 90 / 180 / 270 deg), so the plan chooses which postures
+to measure in which mounting.  I then predicts the position error with the
+device parameters' uncertainty marginalised: W weighs the kinematic columns
+only.  The plan's postures carry their ``device_turn`` and are ordered by turn
+(one remount per turn), each turn's postures in a travel tour.
 """
 from __future__ import annotations
 
@@ -87,8 +98,9 @@ import yaml
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 
 from .architectures import KinematicParameters
-from .device import DEFAULT_MOUNT, STANDING, DeviceModel, check_mount, fixed_point, inclinometer_angles, sphere_z
-from .kinematics import pose_parameter_sensitivity
+from .device import (DEFAULT_MOUNT, DEVICE_PARAMETER_NAMES, STANDING, DeviceDefects, DeviceModel, DevicePrior,
+                     check_mount, fixed_point, inclinometer_angles, sphere_z)
+from .kinematics import pose_parameter_sensitivity, pose_sensitivities
 from .measurements import FIXED, POSTURE_KINDS, SPHERE, NoiseModel, simulate_measurements
 from .postures import Workspace
 from .residuals import COSTS, ChannelSigma, CostFunction
@@ -307,6 +319,9 @@ class CandidateSet:
     difference_rows: np.ndarray | None = None  # (N, r', n), relative cost only
     # mean of dP/du^T dP/du over the sphere candidates (column-scaled): what the position error weighs
     position_weight: np.ndarray | None = None
+    prior_information: np.ndarray | None = None  # (n, n) information of the device priors (column-scaled)
+    turns: np.ndarray | None = None  # (N,) device turn of each candidate, rad (None: all normal)
+    device_columns: tuple[str, ...] = ()  # device parameters after the model's, in DEVICE_PARAMETER_NAMES order
 
     def __len__(self) -> int:
         return len(self.poses)
@@ -345,7 +360,13 @@ class CandidateSet:
 
     def information(self, design: np.ndarray) -> np.ndarray:
         jacobian = self.design_jacobian(design)
-        return jacobian.T @ jacobian
+        return jacobian.T @ jacobian + self.start_information()
+
+    def start_information(self) -> np.ndarray:
+        """The information before any posture: the device priors' (zero without priors)."""
+        if self.prior_information is not None:
+            return self.prior_information.copy()
+        return np.zeros((self.n_parameters, self.n_parameters))
 
     def rank(self, design: np.ndarray) -> int:
         eigenvalues = np.linalg.eigvalsh(self.information(design))
@@ -378,7 +399,8 @@ def _neighbours(kinds: np.ndarray, design: np.ndarray, slot: int) -> tuple[int, 
 
 def build_candidate_set(nominal: KinematicParameters, poses: np.ndarray, kinds: np.ndarray, cost: str = "absolute",
                         device: DeviceModel = DeviceModel(), sigma: ChannelSigma = ChannelSigma(),
-                        noise: NoiseModel | None = None) -> CandidateSet:
+                        noise: NoiseModel | None = None, device_columns: tuple[str, ...] = (),
+                        device_prior: DevicePrior = DevicePrior(), turns: np.ndarray | None = None) -> CandidateSet:
     """Analytic identification-Jacobian rows of every candidate (pose_parameter_sensitivity + CostFunction).
 
     With ``noise``, each posture's rows are whitened by the covariance the reading
@@ -391,6 +413,9 @@ def build_candidate_set(nominal: KinematicParameters, poses: np.ndarray, kinds: 
         raise ValueError(f"unknown cost function {cost!r}; choose one of {', '.join(COSTS)}")
     if noise is not None and cost == "relative":
         raise ValueError("noise weighting of the plan is not available for the relative cost")
+    if device_columns or device_prior or turns is not None:
+        return _device_candidate_set(nominal, poses, kinds, cost, device, sigma, noise, device_columns,
+                                     device_prior, turns)
     # At the nominal parameters the commanded pose is where the model puts the platform,
     # so noise-free simulated readings there are the expected measurements.
     measurements = simulate_measurements(nominal, poses, kinds, device)
@@ -418,6 +443,41 @@ def build_candidate_set(nominal: KinematicParameters, poses: np.ndarray, kinds: 
     weight = np.einsum("nik,nil->kl", position, position) / max(len(position), 1)
     return CandidateSet(poses, np.asarray(kinds).astype(str), cost, scales, rows / scales,
                         None if difference is None else difference / scales, weight / np.outer(scales, scales))
+
+
+def _device_candidate_set(nominal: KinematicParameters, poses: np.ndarray, kinds: np.ndarray, cost: str,
+                          device: DeviceModel, sigma: ChannelSigma, noise: NoiseModel | None,
+                          device_columns: tuple[str, ...], device_prior: DevicePrior,
+                          turns: np.ndarray | None) -> CandidateSet:
+    """Candidates with device columns, priors and device turns (module doc): rows of the absolute cost."""
+    if cost != "absolute":
+        raise ValueError(f"planning for device parameters or device turns needs the absolute cost (eq. 7), got {cost}")
+    if device_prior and noise is None:
+        raise ValueError("a device prior is weighed against the reading noise: plan with the noise model")
+    columns = tuple(name for name in DEVICE_PARAMETER_NAMES if name in set(device_columns) | set(device_prior.names))
+    measurements = simulate_measurements(nominal, poses, kinds, device, device_turn=turns)
+    sensitivity = pose_sensitivities(nominal, poses)
+    function = CostFunction(cost, measurements, device, sigma)
+    block = function.residuals(poses, sensitivity, DeviceDefects(), with_device=True)
+    n = nominal.layout.n_parameters
+    keep = np.concatenate([np.ones(n, bool), np.isin(DEVICE_PARAMETER_NAMES, columns)])
+    rows = _rows_per_posture(block.jacobian[:, keep], block.postures, len(poses))
+    if noise is not None:
+        rows = _whiten(rows, _rows_per_posture(block.noise_jacobian, block.postures, len(poses)), noise)
+    norms = np.sqrt(np.einsum("nrk,nrk->k", rows, rows) / max(len(poses), 1))
+    scales = np.where(norms > 0, norms, 1.0)
+    sphere = np.asarray(kinds) == SPHERE
+    position = sensitivity.wrt_parameters[sphere if np.any(sphere) else slice(None), :3, :]
+    weight = np.zeros((len(scales), len(scales)))
+    weight[:n, :n] = np.einsum("nik,nil->kl", position, position) / max(len(position), 1)
+    prior = np.zeros_like(weight)
+    for name, _, std in device_prior.entries:
+        column = n + columns.index(name)
+        prior[column, column] = 1.0 / std**2
+    scale_square = np.outer(scales, scales)
+    return CandidateSet(poses, np.asarray(kinds).astype(str), cost, scales, rows / scales, None,
+                        weight / scale_square, prior / scale_square if device_prior else None,
+                        None if turns is None else np.asarray(turns, dtype=float), columns)
 
 
 def _noise_rows(function: CostFunction, poses: np.ndarray, legs, block, sigma: ChannelSigma,
@@ -513,7 +573,7 @@ def greedy_design(candidates: CandidateSet, n_postures: int, index: str = "O1", 
     available = np.ones(n, bool)
     remaining = dict(kind_counts) if kind_counts is not None else None
     ridge = RIDGE * _mean_posture_information(candidates)
-    information = np.zeros((candidates.n_parameters, candidates.n_parameters))
+    information = candidates.start_information()
     design: list[int] = []
     last_of_kind = {kind: -1 for kind in POSTURE_KINDS}
     history = []
@@ -615,6 +675,13 @@ def _check_index(index: str) -> None:
         raise ValueError(f"unknown observability index {index!r}; choose one of {', '.join(CRITERIA)}")
 
 
+def _turn_order(turns: np.ndarray | None, design: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """``order`` (a travel order of ``design``) regrouped by device turn, stably: one remount per turn."""
+    if turns is None:
+        return order
+    return order[np.argsort(turns[design][order], kind="stable")]
+
+
 def travel_order(poses: np.ndarray, kinds: np.ndarray, link_length: float, keep_order_within_kind: bool) -> np.ndarray:
     """Plan order: sphere postures first, then fixed ones (section 3.2's procedure); within a kind a
     nearest-neighbour tour (angles weighted by L) to shorten the moves, unless the order must stay."""
@@ -658,6 +725,7 @@ class Plan:
           mount: standing
         postures:
           - {kind: sphere, pose: [x, y, z, theta, psi, phi]}
+          - {kind: sphere, pose: [...], device_turn: 3.141592653589793}
 
     ``plan.model`` names the machine model the postures were planned for (the
     nominal parameters' architecture), so the driver can refuse a plan made for
@@ -670,6 +738,9 @@ class Plan:
     driver's loader accepts only ``name``, ``link_length`` (and ``model``,
     ``mount``) in ``plan``; the name ends with the plan's
     fingerprint, so a bag that records the plan name says exactly which postures it followed.
+    ``device_turn`` (rad, only where non-zero): the device is turned about its link
+    axis by that much for the posture (a turning procedure, module doc); postures
+    without it are taken in the normal mounting.
     """
 
     name: str
@@ -679,9 +750,16 @@ class Plan:
     metadata: dict = field(default_factory=dict)
     model: str = DEFAULT_MODEL
     mount: str = DEFAULT_MOUNT
+    device_turns: np.ndarray | None = None  # (K,) rad per posture; None = every posture in the normal mounting
 
     def __post_init__(self) -> None:
         self.poses = np.atleast_2d(np.asarray(self.poses, dtype=float)).reshape(-1, 6)
+        if self.device_turns is not None:
+            self.device_turns = np.asarray(self.device_turns, dtype=float).reshape(-1)
+            if self.device_turns.shape != (len(self.poses),) or not np.all(np.isfinite(self.device_turns)):
+                raise ValueError(f"plan device_turn: one finite angle (rad) per posture, got {self.device_turns!r}")
+            if not np.any(self.device_turns):
+                self.device_turns = None
         self.kinds = np.asarray(self.kinds).astype(str).reshape(-1)
         if not isinstance(self.name, str) or not self.name.strip():
             raise ValueError("plan name must be a non-empty string")
@@ -702,9 +780,15 @@ class Plan:
     def __len__(self) -> int:
         return len(self.poses)
 
+    @property
+    def turns(self) -> np.ndarray:
+        """(K,) device turn per posture, rad (zeros when none is turned)."""
+        return self.device_turns if self.device_turns is not None else np.zeros(len(self.poses))
+
     def fingerprint(self) -> str:
-        """First 8 hex digits of the sha256 of kinds and poses (to 1e-12): names the postures."""
-        text = ";".join(f"{k}:" + ",".join(f"{v:.12e}" for v in pose) for k, pose in zip(self.kinds, self.poses))
+        """First 8 hex digits of the sha256 of kinds, poses (to 1e-12) and device turns: names the postures."""
+        text = ";".join(f"{k}:" + ",".join(f"{v:.12e}" for v in pose) + (f"@{turn:.12e}" if turn else "")
+                        for k, pose, turn in zip(self.kinds, self.poses, self.turns))
         return hashlib.sha256(text.encode()).hexdigest()[:8]
 
     def to_text(self) -> str:
@@ -716,8 +800,9 @@ class Plan:
         if self.mount != DEFAULT_MOUNT:  # no mount = hanging
             lines.append(f"  {PLAN_MOUNT_KEY}: {self.mount}")
         lines.append("postures:")
-        for kind, pose in zip(self.kinds, self.poses):
-            lines.append(f"  - {{kind: {kind}, pose: [{', '.join(repr(float(v)) for v in pose)}]}}")
+        for kind, pose, turn in zip(self.kinds, self.poses, self.turns):
+            turned = f", device_turn: {float(turn)!r}" if turn else ""
+            lines.append(f"  - {{kind: {kind}, pose: [{', '.join(repr(float(v)) for v in pose)}]{turned}}}")
         return "\n".join(lines) + "\n"
 
     def save(self, path: Path | str) -> Path:
@@ -742,6 +827,7 @@ class Plan:
         try:
             kinds = [str(p["kind"]) for p in postures]
             poses = np.array([[float(v) for v in p["pose"]] for p in postures])
+            turns = np.array([float(p.get("device_turn", 0.0)) for p in postures])
         except (KeyError, TypeError, ValueError) as error:
             raise ValueError(f"{path}: every posture needs 'kind' and a 6-number 'pose' ({error})") from None
         if poses.ndim != 2 or poses.shape[1] != 6:
@@ -765,7 +851,8 @@ class Plan:
             check_mount(mount)
         except ValueError as error:
             raise ValueError(f"{path}: plan.{PLAN_MOUNT_KEY}: {error}") from None
-        return cls(str(header["name"]), float(header["link_length"]), poses, np.array(kinds), metadata, model, mount)
+        return cls(str(header["name"]), float(header["link_length"]), poses, np.array(kinds), metadata, model, mount,
+                   turns)
 
 
 def _plain(value):
@@ -810,10 +897,14 @@ def plan_postures(nominal: KinematicParameters, n_postures: int, *, index: str =
                   n_candidates: int = 2000, cost: str = "absolute", limits: PostureLimits | None = None,
                   fixed_fraction: float | None = None, seed: int = 0, sigma: ChannelSigma = ChannelSigma(),
                   noise: NoiseModel | None = None, name: str | None = None,
-                  progress: Progress = _quiet) -> PlanningResult:
+                  progress: Progress = _quiet, device_columns: tuple[str, ...] = (),
+                  device_prior: DevicePrior = DevicePrior(), device_turns: tuple[float, ...] = (0.0,)
+                  ) -> PlanningResult:
     """Candidates -> Jacobian rows at ``nominal`` -> greedy (and exchange) selection -> ordered Plan.
 
     ``nominal`` names its architecture; ``limits`` None = ``PostureLimits.for_machine(nominal)``.
+    ``device_columns`` / ``device_prior``: device parameters identified with the machine (module doc);
+    ``device_turns``: the mountings of a turning procedure, each sphere candidate offered in each.
     """
     _check_index(index)
     if limits is None:
@@ -829,8 +920,16 @@ def plan_postures(nominal: KinematicParameters, n_postures: int, *, index: str =
     device = limits.device()
     rng = np.random.default_rng([seed, 0x91A4])
     poses, kinds = generate_candidates(nominal, n_candidates, rng, limits, fraction)
+    turns = None
+    if len(device_turns) > 1 or any(device_turns):  # every sphere candidate in every mounting
+        sphere = kinds == SPHERE
+        turns = np.concatenate([np.repeat(np.asarray(device_turns, float), int(sphere.sum())),
+                                np.zeros(int((~sphere).sum()))])
+        poses = np.concatenate([np.tile(poses[sphere], (len(device_turns), 1)), poses[~sphere]])
+        kinds = np.concatenate([np.tile(kinds[sphere], len(device_turns)), kinds[~sphere]])
     progress(f"{len(poses)} candidates")
-    candidates = build_candidate_set(nominal, poses, kinds, cost, device, sigma, noise)
+    candidates = build_candidate_set(nominal, poses, kinds, cost, device, sigma, noise, tuple(device_columns),
+                                     device_prior, turns)
     candidate_seconds = time.perf_counter() - started
     started = time.perf_counter()
     kind_counts = None
@@ -843,7 +942,8 @@ def plan_postures(nominal: KinematicParameters, n_postures: int, *, index: str =
         design, exchange_history = exchange_design(candidates, design, index, progress=progress)
     selection_seconds = time.perf_counter() - started
     selection_order = design.copy()
-    order = travel_order(poses[design], kinds[design], limits.link_length, keep_order_within_kind=cost == "relative")
+    order = _turn_order(turns, design, travel_order(poses[design], kinds[design], limits.link_length,
+                                                    keep_order_within_kind=cost == "relative"))
     design = design[order]
     indices = candidates.indices(design)
     indices[PREDICTION] = candidates.predicted_position_error(design)
@@ -864,8 +964,11 @@ def plan_postures(nominal: KinematicParameters, n_postures: int, *, index: str =
         "nominal_fingerprint": hashlib.sha256(np.round(nominal.vector, 12).tobytes()).hexdigest()[:16],
         "limits": limits.to_json(),
     }
+    if turns is not None or candidates.device_columns:
+        metadata.update(device_columns=list(candidates.device_columns), device_turns=list(device_turns),
+                        device_prior={n: {"value": v, "std": sd} for n, v, sd in device_prior.entries})
     plan = Plan(name or "plan", limits.link_length, poses[design], kinds[design], metadata, nominal.model,
-                limits.mount)
+                limits.mount, None if turns is None else turns[design])
     if name is None:  # default name: what it is and which postures
         plan.name = f"{method}-{index}-{n_postures}-{plan.fingerprint()}"
     return PlanningResult(plan, candidates, design, selection_order, indices, rank, greedy_history, exchange_history,
