@@ -42,6 +42,7 @@ def add_parsers(subparsers) -> None:
 def _plan_arguments(plan) -> None:
     from ..core.planning import CRITERIA, METHODS, PostureLimits
     from ..core.residuals import COSTS
+    from .study_device import device_names_argument, device_prior_argument
 
     plan.add_argument("--postures", type=int, required=True, help="number of postures K to choose")
     plan.add_argument("--index", choices=CRITERIA, default="O1",
@@ -89,6 +90,16 @@ def _plan_arguments(plan) -> None:
     plan.add_argument("--mount", choices=("hanging", "standing"),
                       help="device mount: hanging (platform below the device's base joint) or standing (above it; "
                       "an upright machine); default: the nominal file's device.mount, else hanging")
+    plan.add_argument("--procedure", choices=("none", "reversal", "quarter-turns"), default="none",
+                      help="turning procedure: offer every candidate with the device turned about its link axis by "
+                      "0/180 deg (reversal) or 0/90/180/270 deg (quarter-turns); the plan says which posture is "
+                      "taken in which mounting (device_turn) and groups them, one remount per turn (absolute cost)")
+    plan.add_argument("--identify-device", type=device_names_argument, default=(), metavar="NAMES",
+                      help="device parameters identified with the machine, e.g. dL,alpha0,beta0,gamma: the plan "
+                      "also informs them (absolute cost)")
+    plan.add_argument("--device-prior", type=device_prior_argument, default=None, metavar="NAME=VALUE:STD",
+                      help="prior knowledge of the device, SI units, e.g. dL=0:10e-6 (a caliper's +-10 um): the plan "
+                      "starts from its information (needs the noise weighting)")
     plan.add_argument("--out", type=Path, required=True, help="plan file to write (YAML)")
     plan.add_argument("--json", action="store_true", help="print one JSON object (no progress display)")
     plan.set_defaults(handler=run_plan)
@@ -139,6 +150,9 @@ def load_nominal(path: Path | None) -> tuple:
 
 
 def run_plan(args) -> int:
+    import numpy as np
+
+    from ..core.device import DevicePrior, procedure_turns
     from ..core.measurements import NoiseModel
     from ..core.planning import INDICES, PREDICTION, plan_postures
 
@@ -155,7 +169,9 @@ def run_plan(args) -> int:
         planning = plan_postures(nominal, args.postures, index=args.index, method=args.method,
                                  n_candidates=args.candidates, cost=args.cost, limits=limits,
                                  fixed_fraction=args.fixed_fraction, seed=args.seed, noise=noise, name=args.name,
-                                 progress=progress.step)
+                                 progress=progress.step, device_columns=args.identify_device,
+                                 device_prior=args.device_prior or DevicePrior(),
+                                 device_turns=procedure_turns(args.procedure))
     finally:
         progress.close()
     random = planning.random_indices()
@@ -171,6 +187,9 @@ def run_plan(args) -> int:
             "candidates": len(planning.candidates), "rank": planning.rank, "indices": planning.indices, "random_mean_indices": random,
             "candidate_seconds": planning.candidate_seconds, "selection_seconds": planning.selection_seconds,
             "exchange_swaps": max(len(planning.exchange_history) - 1, 0),
+            "procedure": args.procedure, "device_columns": list(planning.candidates.device_columns),
+            "device_turns": {f"{turn:.6f}": int(np.sum(np.isclose(plan.turns, turn))) for turn in
+                             procedure_turns(args.procedure)},
         }))
         return 0
     print(f"plan '{plan.name}' for the {layout.title} ({plan.mount} device): {len(plan)} postures ({counts['sphere']} sphere, "
@@ -185,6 +204,12 @@ def run_plan(args) -> int:
     if weighted and math.isfinite(error):
         print(f"  predicted RMS position error over the workspace (linearised, noise-weighted fit): "
               f"{error * 1e6:.1f} um planned, {random[PREDICTION] * 1e6:.1f} um random")
+    if args.procedure != "none" or planning.candidates.device_columns:
+        mountings = ", ".join(f"{int(np.sum(np.isclose(plan.turns, turn)))} at {math.degrees(turn):g} deg"
+                              for turn in procedure_turns(args.procedure))
+        print(f"  device: {', '.join(planning.candidates.device_columns) or 'no parameters'} identified with the "
+              f"machine; procedure {args.procedure}: {mountings} (turn the device about its link axis between "
+              "the groups)")
     if planning.rank < layout.n_parameters:
         print(f"  note: rank {planning.rank} of {layout.n_parameters} with the {args.cost} cost, so every index is 0; "
               "the plan maximises log det(M + delta I), the information on the identifiable part")

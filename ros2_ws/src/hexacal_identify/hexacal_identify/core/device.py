@@ -93,6 +93,22 @@ DEVICE_PARAMETER_UNITS = ("m", "rad", "rad", "rad", "rad")
 N_DEVICE_PARAMETERS = len(DEVICE_PARAMETER_NAMES)
 
 
+# Turning procedures: the device turns (rad) a plan's postures are shared out over (module doc,
+# studies.device_procedure).  One remount per turn.
+TURNING_PROCEDURES: dict[str, tuple[float, ...]] = {
+    "none": (0.0,),
+    "reversal": (0.0, np.pi),  # 0 / 180 deg: alpha0 and beta0 change sign against the geometry
+    "quarter-turns": (0.0, np.pi / 2, np.pi, 3 * np.pi / 2),  # also moves the skew gamma to the other axis
+}
+
+
+def procedure_turns(procedure: str) -> tuple[float, ...]:
+    """The device turns of a turning procedure; ValueError naming the choices for an unknown one."""
+    if procedure not in TURNING_PROCEDURES:
+        raise ValueError(f"unknown procedure {procedure!r}; choose one of {', '.join(TURNING_PROCEDURES)}")
+    return TURNING_PROCEDURES[procedure]
+
+
 class DeviceMountError(CalibrationError, ValueError):
     """A device mount that is neither ``hanging`` nor ``standing``."""
 

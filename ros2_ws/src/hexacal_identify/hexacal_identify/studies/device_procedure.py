@@ -34,14 +34,14 @@ true-frame position error includes every beta0 and phi0 effect there is.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Callable
+from typing import Callable
 
 import numpy as np
 
 from ..core.architectures import KinematicParameters, default_parameters
-from ..core.device import DEVICE_PARAMETER_NAMES, DeviceDefects, DeviceModel, DevicePrior
+from ..core.device import (DEVICE_PARAMETER_NAMES, TURNING_PROCEDURES, DeviceDefects, DeviceModel, DevicePrior,
+                           procedure_turns as turns_of)
 from ..core.errors import CalibrationError
 from ..core.identification import SolverOptions, identify
 from ..core.measurements import FIXED, SPHERE, Measurements, NoiseModel, simulate_measurements
@@ -51,12 +51,7 @@ from ..core.uncertainty import predicted_pose_errors
 from ..core.validation import pose_errors, validation_poses
 from .device import DEFAULT_DEFECTS, device_frame_poses, device_frame_truth
 
-# Device turns of each procedure, rad: the plan's postures are shared out over them in blocks.
-PROCEDURES: dict[str, tuple[float, ...]] = {
-    "none": (0.0,),
-    "reversal": (0.0, math.pi),
-    "quarter-turns": (0.0, math.pi / 2, math.pi, 3 * math.pi / 2),
-}
+PROCEDURES = TURNING_PROCEDURES  # device turns of each procedure, rad (core.device)
 RECOMMENDED_PROCEDURE = "quarter-turns"
 ALL_BUT_PHI0 = ("dL", "alpha0", "beta0", "gamma")
 CALIPER_STD_M = 10e-6
@@ -67,9 +62,7 @@ PLAN_CANDIDATES = 1000  # candidate postures of a planned row, each offered in e
 
 def procedure_turns(procedure: str, postures: int) -> np.ndarray | None:
     """The device turn of each of ``postures`` postures (rad): consecutive blocks per turn; None for 'none'."""
-    if procedure not in PROCEDURES:
-        raise ValueError(f"unknown procedure {procedure!r}; choose one of {', '.join(PROCEDURES)}")
-    turns = PROCEDURES[procedure]
+    turns = turns_of(procedure)
     if len(turns) == 1:
         return None
     blocks = np.array_split(np.arange(postures), len(turns))
@@ -111,7 +104,7 @@ def plan_for(nominal: KinematicParameters, postures: int, noise_um: float, seed:
     return plan_postures(nominal, postures, index=PREDICTION, n_candidates=candidates, seed=seed,
                          noise=NoiseModel.from_microns(noise_um) if noise_um > 0 else None,
                          device_columns=tuple(identify_device),
-                         device_prior=device_prior, device_turns=PROCEDURES[procedure]).plan
+                         device_prior=device_prior, device_turns=turns_of(procedure)).plan
 
 
 def simulate_planned_run(true_params: KinematicParameters, nominal: KinematicParameters, defects: DeviceDefects,
