@@ -48,3 +48,20 @@ def test_bad_device_prior_and_procedure_are_usage_errors():
     assert done.returncode == 2 and "quarter-turns" in done.stderr
     done = hexacal("study", "--json", "--device-prior", "dL=5e-4:1e-5")  # no --weighted: no noise model
     assert done.returncode != 0 and "reading noise" in done.stderr
+
+
+def test_plan_for_a_turning_procedure_groups_the_mountings(tmp_path):
+    from hexacal_identify.core.planning import Plan
+
+    out = tmp_path / "turns.yaml"
+    done = hexacal("plan", "--postures", 24, "--candidates", 200, "--index", "I", "--procedure", "quarter-turns",
+                   "--identify-device", "dL,alpha0,beta0,gamma", "--out", out, "--json")
+    assert done.returncode == 0, done.stderr
+    summary = json.loads(done.stdout)
+    assert summary["procedure"] == "quarter-turns" and summary["device_columns"] == ["dL", "alpha0", "beta0", "gamma"]
+    assert sum(summary["device_turns"].values()) == 24 and summary["rank"] == 54 + 4
+    plan = Plan.load(out)
+    assert len(set(plan.turns.round(9))) >= 2 and all(plan.turns[1:] >= plan.turns[:-1])
+    refused = hexacal("plan", "--postures", 24, "--candidates", 200, "--device-prior", "dL=0:1e-5", "--unweighted",
+                      "--out", tmp_path / "x.yaml")
+    assert refused.returncode == 2 and "noise" in refused.stderr
