@@ -19,7 +19,7 @@ a bag without one is read by the contract's topics and joints, as always.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Sequence
 
@@ -539,7 +539,7 @@ def _redetect(reader, topics: dict[str, str], mapping: InputMapping | None, mode
     convert = {
         SLIDERS_TOPIC: lambda m: joint_state_to_slider_reading(
             m, _model_of(m, models, recorded_model), mapping).slider_positions,
-        INCLINOMETER_TOPIC: lambda m: (lambda r: (r.alpha, r.beta))(
+        INCLINOMETER_TOPIC: lambda m: (lambda r: (r.alpha, r.beta, r.device_turn))(
             imu_to_inclinometer_reading(m, mapping) if imu else joint_state_to_inclinometer_reading(m, mapping)),
         ENCODER_TOPIC: lambda m: (joint_state_to_encoder_reading(m, mapping).phi,),
     }
@@ -568,7 +568,22 @@ def _redetect(reader, topics: dict[str, str], mapping: InputMapping | None, mode
             stamps.append(stamp)
             values.append(value)
     arrays = [(np.array(streams[t][0], dtype=np.int64), np.array(streams[t][1], dtype=float)) for t in RAW_TOPICS]
+    # The inclinometer's device_turn joint (the mounting) rides beside alpha, beta: not a channel to synchronise.
+    inclinometer_stamps, inclinometer = arrays[1]
+    inclinometer = inclinometer.reshape(-1, 3)
     skew = {} if max_skew_s is None else {"max_skew_ns": int(max_skew_s * 1_000_000_000)}
-    stamps, values = synchronize_arrays(arrays[0][0], arrays[0][1], arrays[1][0], arrays[1][1],
+    stamps, values = synchronize_arrays(arrays[0][0], arrays[0][1], inclinometer_stamps, inclinometer[:, :2],
                                         arrays[2][0], arrays[2][1], **skew)
-    return [d.reading for d in detect_postures(stamps, values, **detector_options)], invalid
+    readings = [d.reading for d in detect_postures(stamps, values, **detector_options)]
+    return [_with_turn(r, inclinometer_stamps, inclinometer[:, 2]) for r in readings], invalid
+
+
+def _with_turn(reading: PostureReading, stamps: np.ndarray, turns: np.ndarray) -> PostureReading:
+    """``reading`` with the device turn of the inclinometer message nearest its stamp (the mounting it was in)."""
+    if not len(turns) or not np.any(turns):
+        return reading
+    order = np.argsort(stamps, kind="stable")
+    index = int(np.clip(np.searchsorted(stamps[order], reading.stamp_ns), 0, len(order) - 1))
+    nearest = order[max(index - 1, 0):index + 1]
+    nearest = nearest[np.argmin(np.abs(stamps[nearest] - reading.stamp_ns))]
+    return replace(reading, device_turn=float(turns[nearest])) if turns[nearest] else reading
