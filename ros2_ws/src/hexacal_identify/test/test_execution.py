@@ -260,3 +260,102 @@ def test_the_stroke_defaults_to_the_plans_limits_then_the_models():
         (0.05, 0.8), "the plan's limits")
     assert plan_stroke({}, NOMINAL) == ((0.0, 0.9), "the hexa_slide's default workspace")
     assert plan_stroke({'limits': {'actuator_stroke_m': 'x'}}, nominal_set(2, model=GS))[0] == (0.0, 0.5)
+
+
+# --------------------------------------------------------------------------- turning the device
+
+
+def _turning_execution(turns, sphere=4, **kwargs):
+    poses, kinds = _plan(NOMINAL, sphere, 0)
+    stroke = default_stroke(NOMINAL)
+    settings = ExecutionSettings(max_actuator_speed_m_s=0.5, settle_s=0.2)
+    return PlanExecution(NOMINAL, poses, kinds, check_plan(NOMINAL, poses, kinds, stroke, L),
+                         settings, stroke, L, device_turns=turns, **kwargs)
+
+
+def test_the_execution_pauses_for_the_operator_to_turn_the_device_then_walks_on():
+    execution = _turning_execution([0.0, 0.0, math.pi, math.pi])
+    machine = _Machine(default_parameters(), execution)
+    assert execution.progress(0.0)['device_turn_rad'] == 0.0
+    while execution.state != PAUSED:
+        machine.run(machine.t + 0.1)
+        assert machine.t < 60.0
+    # Both postures of the normal mounting measured; paused before the third, holding.
+    assert execution.measured == 2 and execution.index == 2 and execution.waiting_for_turn
+    assert execution.turn_needed == math.pi and execution.mounted_turn == 0.0
+    assert [c.purpose for c in machine.commands].count(MOVE) == 2
+    assert machine.commands[-1].purpose == HOLD
+    notice = execution.turn_notice
+    assert notice.startswith('posture 3 of 4 needs the device turned to 180 deg (3.14159 rad)')
+    assert 'turn the device to 180 deg about its link axis, then call hexacal/executor/resume' in notice
+    assert ('warn', notice) in execution.messages
+    progress = execution.progress(machine.t)
+    assert progress['state'] == PAUSED and progress['posture'] == 3
+    assert progress['device_turn_rad'] == math.pi and progress['device_turn_needed_rad'] == math.pi
+    commands = len(machine.commands)
+    machine.run(machine.t + 3.0)  # nothing moves while the operator turns the device
+    assert execution.state == PAUSED and len(machine.commands) == commands
+    ok, message, _ = execution.pause(machine.t)
+    assert ok and 'turn the device to 180 deg' in message  # a pause says what it waits for
+    ok, message, commands = execution.resume(machine.t)
+    assert ok and execution.state == RUNNING and execution.mounted_turn == math.pi
+    assert 'resumed at posture 3 of 4 with the device turned to 180 deg' in message
+    assert execution.turn_needed is None and execution.turn_notice == ''
+    assert [c.purpose for c in commands] == [MOVE] and commands[0].posture == 2
+    np.testing.assert_array_equal(commands[0].positions, execution.targets[2])
+    assert 'device_turn_needed_rad' not in execution.progress(machine.t)
+    machine.command(commands)
+    machine.run(machine.t + 60.0)
+    assert execution.state == DONE and execution.measured == 4 and not execution.skipped
+    assert sum(c.purpose == HOLD for c in machine.commands) == 1  # one remount, one pause
+    assert execution.progress(machine.t)['device_turn_rad'] == math.pi
+
+
+def test_a_first_posture_in_another_mounting_pauses_before_anything_moves():
+    execution = _turning_execution([math.pi / 2, math.pi, math.pi, 0.0])
+    machine = _Machine(default_parameters(), execution)
+    machine.run(1.0)
+    assert execution.state == PAUSED and execution.index == 0 and machine.commands == []
+    assert 'posture 1 of 4 needs the device turned to 90 deg' in execution.turn_notice
+    machine.command(execution.resume(machine.t)[2])
+    assert execution.mounted_turn == math.pi / 2
+    while execution.state != PAUSED:
+        machine.run(machine.t + 0.1)
+    assert execution.measured == 1 and execution.turn_needed == math.pi  # quarter turn -> half turn
+    machine.command(execution.resume(machine.t)[2])
+    while execution.state != PAUSED:
+        machine.run(machine.t + 0.1)
+    assert execution.measured == 3 and execution.turn_needed == 0.0
+    assert 'turned to 0 deg (0 rad)' in execution.turn_notice
+    machine.command(execution.resume(machine.t)[2])
+    machine.run(machine.t + 60.0)
+    assert execution.state == DONE and execution.measured == 4
+
+
+def test_no_pause_when_the_device_is_already_in_the_plans_mounting():
+    for turns, mounted in ((None, 0.0), ([0.0] * 3, 0.0), ([math.pi] * 3, math.pi),
+                           ([0.0, 2 * math.pi, -2 * math.pi], 0.0)):
+        execution = _turning_execution(turns, sphere=3, mounted_turn=mounted)
+        machine = _Machine(default_parameters(), execution)
+        machine.run(60.0)
+        assert execution.state == DONE and execution.measured == 3, turns
+        assert not any(c.purpose == HOLD for c in machine.commands)
+        assert execution.turn_notice == '' and execution.mounted_turn == mounted
+
+
+def test_abort_while_waiting_for_a_turn_and_bad_turns():
+    execution = _turning_execution([math.pi] * 4)
+    machine = _Machine(default_parameters(), execution)
+    machine.run(0.5)
+    assert execution.waiting_for_turn
+    ok, message, commands = execution.abort(machine.t)
+    assert ok and execution.state == ABORTED and commands == [] and not execution.waiting_for_turn
+    assert 'device_turn_needed_rad' not in execution.progress(machine.t)
+    with pytest.raises(ValueError, match='one finite angle'):
+        _turning_execution([0.0, 0.0])
+    with pytest.raises(ValueError, match='one finite angle'):
+        _turning_execution([0.0, math.nan, 0.0, 0.0])
+    from hexacal_identify.core.execution import same_turn
+
+    assert same_turn(0.0, 2 * math.pi) and same_turn(-math.pi, math.pi)
+    assert not same_turn(0.0, math.pi) and not same_turn(math.pi / 2, 3 * math.pi / 2)

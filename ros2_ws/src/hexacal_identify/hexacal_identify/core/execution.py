@@ -50,6 +50,25 @@ A posture not done within ``timeout_s`` of its first command is skipped and
 reported with what was missing. Pause holds the machine (a one-point command at
 the measured actuator positions) and restarts the current posture on resume
 (its timeout too); abort holds it and ends the plan.
+
+Turning the device (a turning procedure: ``Plan.turns``, per posture, rad;
+core/device.py "Turning the device about its link axis"; ``hexacal plan``
+orders the postures by turn, one remount per turn).  The execution knows the
+mounting the device is in (``mounted_turn``, from the start 0 = normal unless
+told otherwise).  Before it begins a posture whose turn differs from that
+mounting (compared modulo 2 pi, to within ``TURN_TOLERANCE_RAD``) it pauses
+itself: state PAUSED, the hold command a pause sends, and a warning notice
+(``turn_notice``) naming the posture, the turn it needs in deg and rad and
+what to do ("turn the device to 180 deg about its link axis, then call
+hexacal/executor/resume").  Nothing moves while the operator remounts the
+device.  resume() then records the new mounting and begins that posture from
+its planned pose (its timeout from the resume).  progress() reports the
+current posture's ``device_turn_rad`` and, while waiting for a turn,
+``device_turn_needed_rad``; the state stays one of STATES.  A posture skipped
+after the turn (its path cannot be commanded, its timeout) does not undo the
+turn: the next posture's turn is compared with the mounting the device is in.
+The executor node tells the nodes that stamp or simulate the turn (collector,
+driver) when the operator resumes.
 """
 from __future__ import annotations
 
@@ -58,11 +77,14 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
+from hexacal_msgs_py.names import EXECUTOR_RESUME_SERVICE as RESUME_SERVICE
 
 from .architectures import KinematicParameters
 from .device import DEFAULT_MOUNT, device_position, fixed_point
 from .errors import CalibrationError
 from .measurements import FIXED, POSTURE_KINDS, SPHERE
+
+TURN_TOLERANCE_RAD = 1e-9  # mountings closer than this (modulo 2 pi) are the same
 
 WAITING = 'waiting'  # for the machine (actuator readings, a controller on the command topic)
 RUNNING = 'running'
@@ -388,6 +410,28 @@ def corrected_pose(commanded: np.ndarray, alpha: float, beta: float, link_length
     return pose
 
 
+def same_turn(a: float, b: float) -> bool:
+    """Whether two device turns (rad) are the same mounting (modulo 2 pi)."""
+    difference = math.remainder(float(a) - float(b), 2.0 * math.pi)
+    return abs(difference) <= TURN_TOLERANCE_RAD
+
+
+def check_turns(turns, total: int) -> np.ndarray:
+    """The plan's per-posture device turns as (total,) floats (None: all 0); ValueError if not one
+    finite angle per posture."""
+    if turns is None:
+        return np.zeros(total)
+    values = np.asarray(turns, dtype=float).reshape(-1)
+    if values.shape != (total,) or not np.all(np.isfinite(values)):
+        raise ValueError(f'device turns: one finite angle (rad) per posture ({total}), got {turns!r}')
+    return values
+
+
+def turn_text(turn: float) -> str:
+    """'180 deg (3.14159 rad)'."""
+    return f'{math.degrees(turn):.4g} deg ({turn:.6g} rad)'
+
+
 def joint_positions(names, positions, wanted) -> np.ndarray | None:
     """Positions of the `wanted` joints, in that order, from a JointState's names/positions
     (None if one is missing, repeated or not finite)."""
@@ -433,7 +477,10 @@ class PlanExecution:
 
     def __init__(self, nominal: KinematicParameters, poses: np.ndarray, kinds, targets: np.ndarray,
                  settings: ExecutionSettings, stroke: tuple[float, float], link_length: float,
-                 mount: str = DEFAULT_MOUNT, start_paused: bool = False):
+                 mount: str = DEFAULT_MOUNT, start_paused: bool = False, device_turns=None,
+                 mounted_turn: float = 0.0):
+        """device_turns: the plan's turn of each posture (rad; None: every posture in the normal
+        mounting); mounted_turn: the mounting the device is in at the start (rad)."""
         self.nominal = nominal
         self.poses = np.atleast_2d(np.asarray(poses, dtype=float))
         self.kinds = [str(kind) for kind in kinds]
@@ -442,6 +489,12 @@ class PlanExecution:
         self.stroke = check_stroke(stroke)
         self.link_length = float(link_length)
         self.mount = mount
+        self.turns = check_turns(device_turns, len(self.poses))
+        if isinstance(mounted_turn, bool) or not math.isfinite(float(mounted_turn)):
+            raise ValueError(f'mounted_turn must be a finite angle (rad), got {mounted_turn!r}')
+        self.mounted_turn = float(mounted_turn)  # the mounting the device is in (rad)
+        self.turn_needed: float | None = None  # while paused for the operator to turn the device
+        self.turn_notice = ''  # what the operator is asked to do (while turn_needed is set)
         self.state = WAITING
         self.start_paused = bool(start_paused)
         self.index = 0  # current posture
@@ -514,6 +567,9 @@ class PlanExecution:
             self.start_paused = True
             return True, 'paused: the plan will not start until resumed', []
         if self.state == PAUSED:
+            if self.turn_needed is not None:
+                return True, (f'already paused at posture {self.index + 1} of {self.total}: '
+                              f'{self.turn_notice}'), []
             return True, f'already paused at posture {self.index + 1} of {self.total}', []
         if self.state != RUNNING:
             return False, f'cannot pause: the executor is {self.state}', []
@@ -535,9 +591,15 @@ class PlanExecution:
             self._paused_total += now - self._paused_at
             self._paused_at = None
         self.state = RUNNING
+        fresh = not self._sent_any
         text = f'resumed at posture {self.index + 1} of {self.total}'
+        if self.turn_needed is not None:  # the operator turned the device: begin the posture
+            previous, self.mounted_turn = self.mounted_turn, self.turn_needed
+            self.turn_needed, self.turn_notice, fresh = None, '', True
+            text += (f' with the device turned to {turn_text(self.mounted_turn)} about its link '
+                     f'axis (was {turn_text(previous)})')
         self._say('info', text)
-        return True, text, self._begin(now, fresh=not self._sent_any)
+        return True, text, self._begin(now, fresh=fresh)
 
     def abort(self, now: float) -> tuple[bool, str, list[Command]]:
         if self.state in (ABORTED, DONE, REFUSED):
@@ -549,6 +611,7 @@ class PlanExecution:
         self.state = ABORTED
         self.finished_at = now
         self._phase = None
+        self.turn_needed, self.turn_notice = None, ''
         text = (f'aborted at posture {self.index + 1} of {self.total} ({self.measured} measured, '
                 f'{len(self.skipped)} skipped)')
         self._say('warn', text)
@@ -609,6 +672,10 @@ class PlanExecution:
             values['skipped_postures'] = '; '.join(f'{o.index + 1}: {o.reason}' for o in self.skipped)
         if self.state in (RUNNING, PAUSED) and self.index < self.total:
             values['kind'] = self.kinds[self.index]
+        if self.total:
+            values['device_turn_rad'] = float(self.turns[min(self.index, self.total - 1)])
+        if self.turn_needed is not None:
+            values['device_turn_needed_rad'] = self.turn_needed
         eta = self.eta_s(now)
         if eta is not None:
             values['eta_s'] = round(eta, 1)
@@ -642,6 +709,8 @@ class PlanExecution:
         while True:
             if self.index >= self.total:
                 return self._finish(now)
+            if fresh and not same_turn(self.turns[self.index], self.mounted_turn):
+                return self._wait_for_turn(now)
             if fresh:
                 self._pose_cmd = self.poses[self.index].copy()
                 self._target = self.targets[self.index].copy()
@@ -666,6 +735,26 @@ class PlanExecution:
                 continue
             self._first_move_s = command.duration_s
             return [command]
+
+    @property
+    def waiting_for_turn(self) -> bool:
+        """Paused before a posture until the operator has turned the device (turn_needed)."""
+        return self.state == PAUSED and self.turn_needed is not None
+
+    def _wait_for_turn(self, now: float) -> list[Command]:
+        """Pause before the current posture until the operator has turned the device."""
+        turn = float(self.turns[self.index])
+        self.turn_needed = turn
+        self.state = PAUSED
+        self._paused_at = now
+        self._phase = None
+        self.turn_notice = (
+            f'posture {self.index + 1} of {self.total} needs the device turned to '
+            f'{turn_text(turn)} about its link axis (it is at {turn_text(self.mounted_turn)}): '
+            f'turn the device to {math.degrees(turn):.4g} deg about its link axis, then call '
+            f'{RESUME_SERVICE}')
+        self._say('warn', self.turn_notice)
+        return self._hold()
 
     def _command(self, now: float, purpose: str) -> Command:
         """The command to the current commanded pose: along the link sphere from where the machine

@@ -40,6 +40,27 @@ Fixed-position postures are reached in closed loop on the inclinometer
   and reports the answer (status fields ``calibration``,
   ``calibration_message``).
 
+* Turning procedure (a plan whose postures carry ``device_turn``, rad: the
+  device turned about its link axis; ``hexacal plan`` orders them one remount
+  per turn): the plan starts with the device in its normal mounting (0).
+  Before a posture in another mounting the executor pauses itself (state
+  ``paused``, holding), logs a warning and publishes the notice (status field
+  ``notice``, ``device_turn_needed_rad``): "posture 3 of 4 needs the device
+  turned to 180 deg (3.14159 rad) about its link axis (...): turn the device to
+  180 deg about its link axis, then call hexacal/executor/resume". Every status
+  carries the current posture's ``device_turn_rad``. On that resume the
+  executor sets the ``device_turn`` parameter (rcl_interfaces SetParameters,
+  rclpy's AsyncParameterClient) of each node named in ``device_turn_nodes``
+  (e.g. ``['collector', 'driver']``, resolved in the executor's namespace: the
+  collector stamps its postures with it, the simulated driver turns its
+  device) and begins the posture once they have all answered (or failed, or
+  ``TURN_SET_TIMEOUT_S`` passed), so the postures recorded from then on carry
+  the new turn. The requests never block the node; a node that refuses or does
+  not answer is logged as an error and shown in the status
+  (``device_turn_set``: pending, done or failed; ``device_turn_set_message``;
+  level WARN) and the plan goes on. A pause while the requests are pending
+  cancels the resume (the next resume sends them again).
+
 The machine model is the nominal file's (``model:``; the plan must be for the
 same model, and for the device mount of the nominal file's ``device.mount``
 when it names one). ``actuator_joints`` are the names the controller and the
@@ -49,6 +70,7 @@ chain order; ``inclinometer_joints`` those of the inclinometer input.
 from __future__ import annotations
 
 import math
+import re
 import sys
 import time
 
@@ -62,6 +84,7 @@ from rclpy.exceptions import (
 )
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -104,6 +127,7 @@ from ..core.execution import (
     path_problems,
     plan_targets,
     refusal_message,
+    same_turn,
 )
 from .runtime import run_node
 from .parameters import ParameterSpec as _Spec, parameter_descriptor
@@ -113,6 +137,9 @@ CONTROL_PERIOD_S = 0.05  # the state machine steps this often
 STATUS_PERIOD_S = 1.0  # progress (ETA) is republished at least this often
 SERVICE_WAIT_S = 30.0  # calibrate_when_done: how long hexacal/calibrate may take to appear
 INVALID_LOG_PERIOD_S = 5.0
+TURN_SET_TIMEOUT_S = 10.0  # device_turn_nodes: how long their set_parameters may take (discovery too)
+TURN_PARAMETER = 'device_turn'  # the parameter (rad) of the collector and the driver
+_NODE_NAME_PATTERN = re.compile(r'^/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$')
 SHUTDOWN_LINGER_S = 0.3  # the last status (and hold command) reach their subscribers
 
 
@@ -154,6 +181,11 @@ PARAMETERS: dict[str, _Spec] = {
     'calibrate_when_done': _Spec(False, 'call hexacal/calibrate when the plan is done and report '
                                  'the answer'),
     'start_paused': _Spec(False, 'wait for hexacal/executor/resume before the first move'),
+    'device_turn_nodes': _Spec([], "nodes whose 'device_turn' parameter (rad) the executor sets "
+                               'when the operator resumes after turning the device for a plan '
+                               "posture (e.g. ['collector', 'driver']; names resolved in the "
+                               "executor's namespace); empty: none",
+                               constraints='distinct node names'),
     'shutdown_when_done': _Spec(False, 'stop the node once the plan is done or aborted (and the '
                                 'calibration answered); a refused plan is then a start-up error '
                                 '(exit code 2)'),
@@ -181,6 +213,17 @@ def _names(name: str, value: object, count: int) -> tuple[str, ...]:
     return tuple(value)
 
 
+def _node_names(value: object) -> tuple[str, ...]:
+    """device_turn_nodes: distinct node names (relative or absolute)."""
+    if not isinstance(value, (list, tuple)) or not all(
+            isinstance(item, str) and _NODE_NAME_PATTERN.match(item) for item in value) \
+            or len(set(value)) != len(value):
+        raise ExecutorConfigurationError(
+            f'device_turn_nodes must be distinct node names (e.g. [collector, driver]), got '
+            f'{list(value) if isinstance(value, (list, tuple)) else value!r}')
+    return tuple(value)
+
+
 def _parameter_problem(parameter: Parameter) -> str | None:
     """Checks beyond type and range (which the descriptors enforce)."""
     value = parameter.value
@@ -205,6 +248,11 @@ def _parameter_problem(parameter: Parameter) -> str | None:
         try:
             _names(name, list(value), 2)
         except ExecutorConfigurationError as error:
+            return str(error)
+    if name == 'device_turn_nodes':
+        try:
+            _node_names(list(value))
+        except (ExecutorConfigurationError, TypeError) as error:
             return str(error)
     return None
 
@@ -259,6 +307,7 @@ class ExecutorNode(Node):
                 wait_for_posture=value['wait_for_posture'], path_step_m=value['path_step_m'])
         except ValueError as error:
             raise ExecutorConfigurationError(str(error)) from error
+        self.device_turn_nodes = _node_names(list(value['device_turn_nodes']))
         self.calibrate_when_done = bool(value['calibrate_when_done'])
         self.shutdown_when_done = bool(value['shutdown_when_done'])
 
@@ -272,7 +321,8 @@ class ExecutorNode(Node):
             raise PlanRefusedError(refusal, problems)
         self.execution = PlanExecution(
             self.nominal, self.plan.poses, self.plan.kinds, targets, self.settings, self.stroke,
-            self.plan.link_length, self.plan.mount, start_paused=bool(value['start_paused']))
+            self.plan.link_length, self.plan.mount, start_paused=bool(value['start_paused']),
+            device_turns=self.plan.turns)
         if problems:
             self.execution.state = REFUSED
             self.execution.refusal = refusal
@@ -292,6 +342,12 @@ class ExecutorNode(Node):
         self.create_service(Trigger, EXECUTOR_RESUME_SERVICE, self._on_resume)
         self.create_service(Trigger, EXECUTOR_ABORT_SERVICE, self._on_abort)
         self._calibrate_client = self.create_client(Trigger, CALIBRATE_SERVICE)
+        # Created now, so their services are discovered long before the first turn.
+        self._turn_clients = {name: AsyncParameterClient(self, name)
+                              for name in self.device_turn_nodes}
+        self._turn_setting: dict | None = None  # the requests of a resume after a turn
+        self._turn_set_state = ''  # '', pending, done, failed
+        self._turn_set_message = ''
 
         self.commands_sent = 0
         self.invalid_readings = 0
@@ -311,6 +367,13 @@ class ExecutorNode(Node):
             f'{self._command_pub.topic_name} (joints {", ".join(self.actuator_joints)}), at most '
             f'{self.settings.max_actuator_speed_m_s:g} m/s, stroke [{self.stroke[0]:g}, '
             f'{self.stroke[1]:g}] m ({self.stroke_source})')
+        turns = sorted({float(turn) for turn in self.plan.turns})
+        if any(turns):
+            self.get_logger().info(
+                f'turning procedure: device turns {[round(math.degrees(t), 3) for t in turns]} deg; '
+                + (f"device_turn set on {', '.join(self.device_turn_nodes)} at each remount"
+                   if self.device_turn_nodes else
+                   'device_turn_nodes is empty: no node is told the turn'))
         if problems:
             self.get_logger().error(refusal)
         self._publish_status(force=True)
@@ -386,9 +449,15 @@ class ExecutorNode(Node):
     # ------------------------------------------------------------------ services
 
     def _on_pause(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        if self._turn_setting is not None:  # the resume after a turn is cancelled
+            self._turn_setting = None
+            self._turn_set_state, self._turn_set_message = '', ''
+            self.get_logger().info('pause: the resume after the device turn is cancelled')
         return self._service(response, self.execution.pause)
 
     def _on_resume(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        if self._turn_clients and self.execution.waiting_for_turn:
+            return self._resume_after_turn(response)
         return self._service(response, self.execution.resume)
 
     def _on_abort(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
@@ -405,6 +474,84 @@ class ExecutorNode(Node):
         response.success, response.message = success, message
         return response
 
+    # ------------------------------------------------------------------ turning the device
+
+    def _resume_after_turn(self, response: Trigger.Response) -> Trigger.Response:
+        """Ask device_turn_nodes to set device_turn; the posture begins once they have answered
+        (`_turn_setting_step`)."""
+        execution = self.execution
+        turn = float(execution.turn_needed)
+        names = ', '.join(self.device_turn_nodes)
+        if self._turn_setting is None:
+            self._turn_setting = {'turn': turn, 'started': _now_s(self), 'futures': {},
+                                  'problems': {}, 'done': []}
+            self._turn_set_state, self._turn_set_message = 'pending', ''
+            self.get_logger().info(f'resume after the device turn: setting {TURN_PARAMETER} '
+                                   f'{turn:.6g} rad on {names}')
+            self._turn_setting_step()
+            message = (f'setting {TURN_PARAMETER} {turn:.6g} rad on {names}; posture '
+                       f'{execution.index + 1} of {execution.total} begins once they answer')
+        else:
+            message = f'already resuming: waiting for {names} to set {TURN_PARAMETER}'
+        self._publish_status(force=True)
+        response.success, response.message = True, message
+        return response
+
+    def _turn_setting_step(self) -> None:
+        """Send the requests whose services are there, collect answers; resume when all settled."""
+        setting = self._turn_setting
+        if setting is None:
+            return
+        now = _now_s(self)
+        late = now - setting['started'] > TURN_SET_TIMEOUT_S
+        settled = set(setting['done']) | set(setting['problems'])
+        for name, client in self._turn_clients.items():
+            if name in settled:
+                continue
+            future = setting['futures'].get(name)
+            if future is None:
+                if client.services_are_ready():
+                    setting['futures'][name] = client.set_parameters(
+                        [Parameter(TURN_PARAMETER, Parameter.Type.DOUBLE, setting['turn'])])
+                elif late:
+                    setting['problems'][name] = (f'its parameter services did not appear within '
+                                                 f'{TURN_SET_TIMEOUT_S:g} s')
+                continue
+            if not future.done():
+                if late:
+                    future.cancel()
+                    setting['problems'][name] = f'no answer within {TURN_SET_TIMEOUT_S:g} s'
+                continue
+            try:
+                results = future.result().results
+            except Exception as error:  # noqa: BLE001 - the status must say what happened
+                setting['problems'][name] = f'{type(error).__name__}: {error}'
+                continue
+            if len(results) == 1 and results[0].successful:
+                setting['done'].append(name)
+            else:
+                setting['problems'][name] = ('refused: ' + (results[0].reason if results else
+                                                            'no result'))
+        if len(setting['done']) + len(setting['problems']) < len(self._turn_clients):
+            return
+        self._turn_setting = None
+        turn = setting['turn']
+        if setting['problems']:
+            self._turn_set_state = 'failed'
+            self._turn_set_message = '; '.join(f'{name}: {why}'
+                                               for name, why in setting['problems'].items())
+            self.get_logger().error(f'{TURN_PARAMETER} {turn:.6g} rad not set on every node '
+                                    f'({self._turn_set_message}); the plan goes on')
+        else:
+            self._turn_set_state = 'done'
+            self._turn_set_message = (f"{TURN_PARAMETER} {turn:.6g} rad set on "
+                                      f"{', '.join(setting['done'])}")
+            self.get_logger().info(self._turn_set_message)
+        if self.execution.waiting_for_turn and same_turn(self.execution.turn_needed, turn):
+            self._service(Trigger.Response(), self.execution.resume)
+        else:
+            self._publish_status(force=True)
+
     # ------------------------------------------------------------------ the loop
 
     def _tick(self) -> None:
@@ -414,6 +561,8 @@ class ExecutorNode(Node):
             self._try_start(now)
         elif execution.state == RUNNING:
             self._send(execution.step(now))
+        if self._turn_setting is not None:
+            self._turn_setting_step()
         elif execution.state == DONE and self.calibrate_when_done:
             self._calibrate(now)
         self._drain_messages()
@@ -523,6 +672,12 @@ class ExecutorNode(Node):
             values['calibration'] = self._calibration
             if self._calibration_message:
                 values['calibration_message'] = self._calibration_message
+        if self.execution.waiting_for_turn:
+            values['notice'] = self.execution.turn_notice
+        if self._turn_set_state:
+            values['device_turn_set'] = self._turn_set_state
+            if self._turn_set_message:
+                values['device_turn_set_message'] = self._turn_set_message
         if self.invalid_readings:
             values['invalid_readings'] = self.invalid_readings
         return values
@@ -537,7 +692,7 @@ class ExecutorNode(Node):
         state = self.execution.state
         if state == REFUSED or self._calibration == 'failed':
             level = 'ERROR'
-        elif state == ABORTED or values.get('skipped'):
+        elif state == ABORTED or values.get('skipped') or self._turn_set_state == 'failed':
             level = 'WARN'
         else:
             level = 'OK'
@@ -555,6 +710,10 @@ class ExecutorNode(Node):
                 f"{values['measured']} measured, {values['skipped']} skipped")
         if 'eta_s' in values and state in (RUNNING, PAUSED):
             text += f", ETA {values['eta_s']:.0f} s"
+        if self.execution.waiting_for_turn:
+            text += f'; {self.execution.turn_notice}'
+            if self._turn_set_state == 'pending':
+                text += f" (setting {TURN_PARAMETER} on {', '.join(self.device_turn_nodes)})"
         if self.calibrate_when_done and state == DONE:
             text += f'; calibration {self._calibration}'
             if self._calibration_message:
