@@ -575,15 +575,19 @@ def _redetect(reader, topics: dict[str, str], mapping: InputMapping | None, mode
     stamps, values = synchronize_arrays(arrays[0][0], arrays[0][1], inclinometer_stamps, inclinometer[:, :2],
                                         arrays[2][0], arrays[2][1], **skew)
     readings = [d.reading for d in detect_postures(stamps, values, **detector_options)]
-    return [_with_turn(r, inclinometer_stamps, inclinometer[:, 2]) for r in readings], invalid
+    return _with_turns(readings, inclinometer_stamps, inclinometer[:, 2]), invalid
 
 
-def _with_turn(reading: PostureReading, stamps: np.ndarray, turns: np.ndarray) -> PostureReading:
-    """``reading`` with the device turn of the inclinometer message nearest its stamp (the mounting it was in)."""
+def _with_turns(readings: list[PostureReading], stamps: np.ndarray, turns: np.ndarray) -> list[PostureReading]:
+    """Each reading with the device turn of the inclinometer message nearest its stamp (the mounting it was in)."""
     if not len(turns) or not np.any(turns):
-        return reading
+        return readings
     order = np.argsort(stamps, kind="stable")
-    index = int(np.clip(np.searchsorted(stamps[order], reading.stamp_ns), 0, len(order) - 1))
-    nearest = order[max(index - 1, 0):index + 1]
-    nearest = nearest[np.argmin(np.abs(stamps[nearest] - reading.stamp_ns))]
-    return replace(reading, device_turn=float(turns[nearest])) if turns[nearest] else reading
+    stamps, turns = stamps[order], turns[order]
+    out = []
+    for reading in readings:
+        index = int(np.clip(np.searchsorted(stamps, reading.stamp_ns), 0, len(stamps) - 1))
+        around = np.arange(max(index - 1, 0), index + 1)
+        nearest = around[np.argmin(np.abs(stamps[around] - reading.stamp_ns))]
+        out.append(replace(reading, device_turn=float(turns[nearest])) if turns[nearest] else reading)
+    return out

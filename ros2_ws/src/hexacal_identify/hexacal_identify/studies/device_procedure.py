@@ -44,12 +44,11 @@ from ..core.device import (DEVICE_PARAMETER_NAMES, TURNING_PROCEDURES, DeviceDef
                            procedure_turns as turns_of)
 from ..core.errors import CalibrationError
 from ..core.identification import SolverOptions, identify
-from ..core.measurements import FIXED, SPHERE, Measurements, NoiseModel, simulate_measurements
+from ..core.measurements import Measurements, NoiseModel, simulate_measurements
 from ..core.model import nominal_set
-from ..core.postures import sample_poses
 from ..core.uncertainty import predicted_pose_errors
 from ..core.validation import pose_errors, validation_poses
-from .device import DEFAULT_DEFECTS, device_frame_poses, device_frame_truth
+from .device import DEFAULT_DEFECTS, device_frame_poses, device_frame_truth, simulate_procedure
 
 PROCEDURES = TURNING_PROCEDURES  # device turns of each procedure, rad (core.device)
 RECOMMENDED_PROCEDURE = "quarter-turns"
@@ -75,25 +74,11 @@ def procedure_turns(procedure: str, postures: int) -> np.ndarray | None:
 def simulate_device_run(true_params: KinematicParameters, defects: DeviceDefects, postures: int, noise_um: float,
                         seed: int, procedure: str = "none", fixed: int = 0,
                         device: DeviceModel = DeviceModel()) -> Measurements:
-    """``postures`` sphere postures (their turns from ``procedure``) and ``fixed`` fixed-position ones (normal mounting).
-
-    Sphere postures lie on the true sphere of radius L + dL; each is a distinct
-    pose, as a plan walked once per mounting with different postures would give.
-    """
-    rng = np.random.default_rng([seed, 0xDEF])
-    noise = NoiseModel.from_microns(noise_um)
-    workspace = replace(true_params.architecture.default_workspace(), link_length=device.link_length + defects.dL)
-    parts = []
+    """``postures`` postures: ``fixed`` fixed-position ones (normal mounting), the others sphere postures shared
+    out over the ``procedure``'s turns (``device.simulate_procedure``: the true sphere L + dL, distinct poses)."""
     sphere = postures - fixed
-    if sphere:
-        poses = sample_poses(true_params, sphere, rng, SPHERE, workspace)
-        parts.append(simulate_measurements(true_params, poses, SPHERE, device, noise, rng, defects,
-                                           device_turn=procedure_turns(procedure, sphere)))
-    if fixed:
-        poses = sample_poses(true_params, fixed, rng, FIXED, workspace)
-        poses[:, :3] = device.fixed_position(defects).position[0]
-        parts.append(simulate_measurements(true_params, poses, FIXED, device, noise, rng, defects))
-    return Measurements.concatenate(parts)
+    return simulate_procedure(true_params, defects, sphere, fixed, noise_um, seed, device=device,
+                              device_turn=procedure_turns(procedure, sphere))
 
 
 def plan_for(nominal: KinematicParameters, postures: int, noise_um: float, seed: int, identify_device=(),
