@@ -336,8 +336,8 @@ def inclinometer_readings(position: np.ndarray, defects: DeviceDefects, mount: s
 
     ``device_turn`` (rad, per posture): the device turned about its link axis (module doc)."""
     position = np.atleast_2d(np.asarray(position, dtype=float))
-    # The turned device reads, in its own (turned) frame, what the normal one reads: R_z(turn)^T p.
-    position = np.einsum("nji,nj->ni", turn_rotations(device_turn, len(position)), position)
+    if device_turn is not None:  # the turned device reads, in its own (turned) frame, what the normal one reads
+        position = np.einsum("nji,nj->ni", turn_rotations(device_turn, len(position)), position)  # R_z(turn)^T p
     if _standing(mount):
         position = -position  # the same reading as a hanging link pointing the other way (module doc)
     u = position / np.linalg.norm(position, axis=1, keepdims=True)
