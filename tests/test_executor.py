@@ -126,7 +126,8 @@ def _walk_to_a_calibration(ros_processes, tmp_path, probe, model, postures):
     done = watch.wait(lambda s: s.get('calibration') in ('success', 'failed') and s,
                       30.0 + 4.0 * postures + 60.0, 'the plan walked and calibrated', *nodes)
     assert done['calibration'] == 'success', done
-    assert done['state'] == 'done' and done['measured'] == str(postures) and done['skipped'] == '0'
+    assert done['state'] == 'done' and done['measured'] == str(postures) and done['skipped'] == '0', \
+        {k: v for k, v in done.items() if 'skip' in k or k in ('measured', 'state')}
     assert int(done['corrections']) >= 1  # fixed-position postures were reached in closed loop
     assert watch.statuses[-1][0] == 0  # OK
     assert 'converged' in done['calibration_message']
