@@ -60,17 +60,15 @@ def expected_readings(plan, turns: np.ndarray) -> np.ndarray:
     return np.column_stack([sliders, alpha, beta, rotary])
 
 
-def subscribe_inclinometer(probe) -> list:
-    """(names, positions) of every inclinometer message."""
-    from sensor_msgs.msg import JointState
+def recorded_inclinometer(bag: Path) -> list:
+    """(names, positions) of every inclinometer message the collector recorded. The bag, not a
+    probe subscription: the driver starts walking once the collector is matched, so a probe
+    discovered later (a loaded machine) would miss the first postures' messages."""
+    from hexacal_identify.bag import open_bag
 
-    from hexacal_msgs_py.qos import SENSOR_QOS
-
-    received: list = []
-    probe.node.create_subscription(
-        JointState, 'hexacal/inclinometer',
-        lambda message: received.append((tuple(message.name), tuple(message.position))), SENSOR_QOS)
-    return received
+    with open_bag(bag) as reader:
+        return [(tuple(m.decoded.name), tuple(m.decoded.position))
+                for m in reader.messages(['hexacal/inclinometer'])]
 
 
 def test_driver_with_defects_and_turns_to_the_collectors_bag(ros_processes, tmp_path, probe):
@@ -91,7 +89,6 @@ def test_driver_with_defects_and_turns_to_the_collectors_bag(ros_processes, tmp_
 
     bags = tmp_path / 'bags'
     probe.subscribe_postures()
-    inclinometer = subscribe_inclinometer(probe)
     collector = ros_processes.start(node_argv('collector', fast_collector_parameters(
         bags, bag_name='turned')), name='collector')
     probe.wait_for_node('collector', '/', collector)
@@ -108,7 +105,8 @@ def test_driver_with_defects_and_turns_to_the_collectors_bag(ros_processes, tmp_
     assert 'device turned 3.14159 rad about its link' in driver_log, driver_log
     assert f'{POSTURES} postures published' in collector.log_path.read_text(), collector.describe()
 
-    # The inclinometer stream: the joint exactly when the device is turned, with the turn.
+    # The inclinometer stream as recorded: the joint exactly when the device is turned, with the turn.
+    inclinometer = recorded_inclinometer(bags / 'turned')
     turned = [(names, positions) for names, positions in inclinometer if len(names) == 3]
     normal = [(names, positions) for names, positions in inclinometer if len(names) == 2]
     assert turned and normal and len(turned) + len(normal) == len(inclinometer)
@@ -151,7 +149,6 @@ def test_collector_parameter_turns_postures_without_the_joint(ros_processes, tmp
 
     bags = tmp_path / 'bags'
     probe.subscribe_postures()
-    inclinometer = subscribe_inclinometer(probe)
     collector = ros_processes.start(node_argv('collector', fast_collector_parameters(
         bags, bag_name='operator', device_turn=3.14159)), name='collector')
     probe.wait_for_node('collector', '/', collector)
@@ -183,6 +180,7 @@ def test_collector_parameter_turns_postures_without_the_joint(ros_processes, tmp
     log = collector.log_path.read_text()
     assert 'device_turn 3.14159 -> -1.5 rad' in log, log
 
+    inclinometer = recorded_inclinometer(bags / 'operator')
     assert inclinometer and all(DEVICE_TURN_JOINT not in names for names, _ in inclinometer)
     live = list(probe.postures)
     turns = [p.device_turn for p in live]
