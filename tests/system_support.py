@@ -264,3 +264,25 @@ def pid_alive(pid: int) -> bool:
         return Path(f'/proc/{pid}/stat').read_text().split(') ')[1][0] != 'Z'
     except (OSError, IndexError):
         return True
+
+
+def joint_state_dict(stamp_ns: int, names, positions) -> dict:
+    """A sensor_msgs/JointState as the bag writer takes it."""
+    return {'header': {'stamp': {'sec': stamp_ns // 10**9, 'nanosec': stamp_ns % 10**9},
+                       'frame_id': ''},
+            'name': list(names), 'position': [float(v) for v in positions],
+            'velocity': [], 'effort': []}
+
+
+def posture_bag(directory: Path, rows: list[list[float]]) -> Path:
+    """A bag holding only /hexacal/posture, one message per row (nine values, any floats)."""
+    from hexacal_identify.bag import BagWriter
+    from hexacal_msgs_py.names import JOINT_STATE_TYPE, POSTURE_NAMES, POSTURE_TOPIC
+
+    with BagWriter(directory) as writer:
+        topic = '/' + POSTURE_TOPIC  # as the collector records it
+        writer.add_topic(topic, JOINT_STATE_TYPE)
+        for index, row in enumerate(rows):
+            stamp = (index + 1) * 10**9
+            writer.write(topic, joint_state_dict(stamp, POSTURE_NAMES, row), stamp)
+    return directory

@@ -33,7 +33,9 @@ from hexacal_msgs_py.parameters_file import load_parameters, save_parameters
 from system_support import (
     NODE_START_TIMEOUT_S,
     Probe,
+    joint_state_dict,
     node_argv,
+    posture_bag,
     probe,  # noqa: F401 - fixture
     simulated_postures,
     write_parameter_files,
@@ -45,23 +47,6 @@ DELIMITER = '\n' + '=' * 80 + '\n'
 
 
 # --------------------------------------------------------------------------- helpers
-
-
-def joint_state_dict(stamp_ns: int, names, positions) -> dict:
-    return {'header': {'stamp': {'sec': stamp_ns // 10**9, 'nanosec': stamp_ns % 10**9},
-                       'frame_id': ''},
-            'name': list(names), 'position': [float(v) for v in positions],
-            'velocity': [], 'effort': []}
-
-
-def posture_bag(directory: Path, rows: list[list[float]]) -> Path:
-    """A bag holding only /hexacal/posture, one message per row (nine values, any floats)."""
-    with BagWriter(directory) as writer:
-        writer.add_topic(POSTURE_TOPIC, JOINT_STATE_TYPE)
-        for index, row in enumerate(rows):
-            stamp = (index + 1) * 10**9
-            writer.write(POSTURE_TOPIC, joint_state_dict(stamp, POSTURE_NAMES, row), stamp)
-    return directory
 
 
 def rows(postures) -> list[list[float]]:

@@ -26,7 +26,7 @@ from typing import Sequence
 import numpy as np
 from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
 from hexacal_msgs_py.inputs import IMU_INCLINOMETER, INPUT_NAMES, InputMapping, InputMappingError
-from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
+from hexacal_msgs_py.models import DEFAULT_MODEL, DEVICE_DEFECTS_KEY, MODELS, device_defect_key
 from hexacal_msgs_py.names import (
     ENCODER_TOPIC,
     IMU_TYPE,
@@ -38,7 +38,7 @@ from hexacal_msgs_py.names import (
 from hexacal_msgs_py.readings import PostureReading
 
 from .core.architectures import KinematicParameters, parameters_for
-from .core.device import DEFAULT_MOUNT, DEVICE_PARAMETER_NAMES, DeviceModel, DevicePrior, check_mount
+from .core.device import DEFAULT_MOUNT, DEVICE_PARAMETER_NAMES, DeviceDefects, DeviceModel, DevicePrior, check_mount
 from .core.errors import InvalidMeasurementError
 from .core.identification import IdentificationResult, SolverOptions, identify
 from .core.measurements import FIXED, SPHERE, MeasurementLimits, Measurements, NoiseModel
@@ -82,6 +82,36 @@ def load_machine_and_mount(path: Path | str) -> tuple[KinematicParameters, str]:
     except DeviceMountError as error:
         raise DeviceMountError(f"{path}: {MOUNT_PARAMETER}: {error}") from None
     return parameters_for(loaded.model, loaded.vector), mount
+
+
+def device_defects_extras(result: IdentificationResult) -> dict[str, float]:
+    """The parameters-file keys (`device.defects.<name>`, SI) of the device defects identified
+    with `result`; none identified: {} (the file is exactly as without the device)."""
+    return {device_defect_key(name): float(getattr(result.device, name)) for name in result.free_device}
+
+
+def load_device_defects(path: Path | str) -> tuple[DeviceDefects, tuple[str, ...]]:
+    """(defects, names given) of a calibrated parameters file's `device.defects.<name>` keys: the
+    device it was calibrated with.  Absent keys are 0 (the ideal device); a key naming no defect
+    or a value that is not a small finite number is a ParameterFileError naming file and key."""
+    from hexacal_msgs_py.errors import ParameterFileError
+    from hexacal_msgs_py.parameters_file import read_parameters_file
+
+    prefix = DEVICE_DEFECTS_KEY + "."
+    values: dict[str, float] = {}
+    for key, value in read_parameters_file(path).extras.items():
+        if not key.startswith(prefix):
+            continue
+        name = key[len(prefix):]
+        if name not in DEVICE_PARAMETER_NAMES:
+            raise ParameterFileError(f"{path}: {key}: not a device defect (one of {', '.join(DEVICE_PARAMETER_NAMES)})")
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ParameterFileError(f"{path}: {key}: must be a number in SI units, got {value!r}")
+        values[name] = float(value)
+    try:
+        return DeviceDefects(**values), tuple(values)
+    except ValueError as error:
+        raise ParameterFileError(f"{path}: {DEVICE_DEFECTS_KEY}: {error}") from None
 
 
 def _joints_text(model: str) -> str:

@@ -23,6 +23,19 @@ from hexacal_msgs_py.errors import InvalidParametersError
 N_CHAINS = 6
 MODEL_KEY = 'model'
 DEVICE_MOUNT_KEY = 'device.mount'  # parameters-file key of the device mount: hanging | standing (core/device.py)
+# The measuring device's defects (core/device.py), SI units: link length offset (m), inclinometer
+# zero offsets, axis non-perpendicularity and rotary zero offset (rad).  A calibrated parameters
+# file carries those identified with it as `device.defects.<name>` keys (absent: not identified).
+DEVICE_DEFECT_NAMES: tuple[str, ...] = ('dL', 'alpha0', 'beta0', 'gamma', 'phi0')
+DEVICE_DEFECT_UNITS: tuple[str, ...] = ('m', 'rad', 'rad', 'rad', 'rad')
+DEVICE_DEFECTS_KEY = 'device.defects'
+
+
+def device_defect_key(name: str) -> str:
+    """The parameters-file key of one identified device defect: `device.defects.<name>`."""
+    if name not in DEVICE_DEFECT_NAMES:
+        raise ValueError(f'device defect must be one of {", ".join(DEVICE_DEFECT_NAMES)}, got {name!r}')
+    return f'{DEVICE_DEFECTS_KEY}.{name}'
 HEXA_SLIDE = 'hexa_slide'
 GOUGH_STEWART = 'gough_stewart'
 DEFAULT_MODEL = HEXA_SLIDE

@@ -130,3 +130,15 @@ def test_a_mapped_inclinometer_without_the_joint_reads_turn_zero():
     # The Imu path has no joint: always the normal mounting (the collector's parameter decides).
     imu = conv.inclinometer_angles_to_imu(InclinometerReading(9, 0.01, -0.02))
     assert conv.imu_to_inclinometer_reading(imu).device_turn == 0.0
+
+
+def test_device_defect_keys_of_a_parameters_file():
+    from hexacal_msgs_py.models import DEVICE_DEFECT_NAMES, DEVICE_DEFECT_UNITS, device_defect_key
+
+    assert DEVICE_DEFECT_NAMES == ('dL', 'alpha0', 'beta0', 'gamma', 'phi0')
+    assert DEVICE_DEFECT_UNITS == ('m', 'rad', 'rad', 'rad', 'rad')
+    assert [device_defect_key(n) for n in DEVICE_DEFECT_NAMES] == [
+        'device.defects.dL', 'device.defects.alpha0', 'device.defects.beta0', 'device.defects.gamma',
+        'device.defects.phi0']
+    with pytest.raises(ValueError, match='tilt'):
+        device_defect_key('tilt')

@@ -88,8 +88,8 @@ def run_calibrate(args) -> int:
     from ..core.errors import CalibrationError
     from ..core.identification import CONVERGED
     from ..core.measurements import NoiseModel
-    from ..pipeline import (calibrate, check_model, device_prior_json, load_machine_and_mount,
-                            measurements_from_postures, postures_from_bag)
+    from ..pipeline import (calibrate, check_model, device_defects_extras, device_prior_json,
+                            load_machine_and_mount, measurements_from_postures, postures_from_bag)
 
     nominal, mount = load_machine_and_mount(args.nominal)
     mount = args.mount or mount
@@ -110,7 +110,9 @@ def run_calibrate(args) -> int:
     comment = (f"hexacal calibrate {args.bag} (cost {args.cost}, {len(result.used_postures)} postures, "
                f"{result.reason}), SI units")
     if result.reason == CONVERGED:
-        save_parameters(args.output, result.parameters.vector, model=result.parameters.model, header_comment=comment)
+        # The device defects identified with it go along: `hexacal verify` measures with the same device.
+        save_parameters(args.output, result.parameters.vector, model=result.parameters.model, header_comment=comment,
+                        extras=device_defects_extras(result) or None)
     measurements = measurements_from_postures(bag.postures) if args.save_result or args.report else None
     extras = {"bag": str(args.bag), "nominal": str(args.nominal)}
     if args.save_result:

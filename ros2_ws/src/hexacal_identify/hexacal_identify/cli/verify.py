@@ -4,7 +4,9 @@ The bag holds fresh postures, never used in the fit (a second, verification plan
 walked after the calibration). For each, what the device measured (position by
 eq. 4, the fixed point for a fixed-position posture; phi from the rotary sensor)
 is compared with forward kinematics at the measured actuator readings, once with
-the nominal and once with the calibrated parameters (core/verification.py).
+the nominal and once with the calibrated parameters (core/verification.py). The
+device measures through the defects identified with the calibration (the
+calibrated file's `device.defects.<name>` keys) unless --device-defects names others.
 
 Exit codes: 0 pass (calibrated position rms <= threshold, FK converged on every
 posture), 1 fail, 2 bad input (one line on stderr naming the problem).
@@ -56,6 +58,10 @@ def _verify_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mount", choices=("hanging", "standing"), default=None,
                         help="device mount; default: the nominal (else the calibrated) file's device.mount, "
                         "else hanging")
+    parser.add_argument("--device-defects", default=None, metavar="D",
+                        help="the measuring device's defects, SI ('dL=5e-4,alpha0=2e-4'; 'none': an ideal "
+                        "device); default: those identified with the calibration (the calibrated file's "
+                        "device.defects.* keys), the same device measuring again")
     parser.add_argument("--report", type=Path, default=None, metavar="DIR",
                         help="write an HTML page (index.html + verification.png) into DIR")
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
@@ -80,8 +86,9 @@ def run_verify(args) -> int:
     if not bag.postures:
         raise ValueError(f"bag {args.bag} holds no usable posture to verify on"
                          + (f" ({len(bag.rejected)} set aside beyond a sensor's range)" if bag.rejected else ""))
+    defects, defects_source = _device_defects(args)
     result = verify(nominal, calibrated, measurements_from_postures(bag.postures),
-                    device=DeviceModel(link_length=args.link_length, mount=mount),
+                    device=DeviceModel(link_length=args.link_length, mount=mount), calibrated_defects=defects,
                     threshold_m=None if args.threshold_um is None else args.threshold_um / UM,
                     noise=NoiseModel.from_microns(args.noise_um) if args.noise_um else None,
                     postures_model=bag.model)
@@ -89,6 +96,8 @@ def run_verify(args) -> int:
     payload["bag"] = {"path": str(args.bag), "source": bag.source, "invalid_messages": bag.invalid_messages,
                       "rejected_postures": [{"index": i, "reason": r, "detail": d} for i, r, d in bag.rejected]}
     payload["nominal_file"], payload["calibrated_file"] = str(args.nominal), str(args.calibrated)
+    payload["device_defects"] = {"values": {name: getattr(defects, name) for name in defects_source[1]},
+                                 "source": defects_source[0]}
     if args.report:
         from ..report.page import write_verification_report
 
@@ -104,6 +113,25 @@ def run_verify(args) -> int:
     return EXIT_PASS if result.verdict == PASS else EXIT_FAIL
 
 
+def _device_defects(args):
+    """(defects, (where they come from, names given)) of the device that measured the bag: the
+    --device-defects option, else those identified with the calibration (calibrated file)."""
+    from ..core.device import DeviceDefects
+    from ..pipeline import load_device_defects
+
+    if args.device_defects is None:
+        defects, names = load_device_defects(args.calibrated)
+        return defects, ("calibrated file" if names else "none (ideal device)", names)
+    if args.device_defects.strip().lower() == "none":
+        return DeviceDefects(), ("--device-defects none (ideal device)", ())
+    try:
+        defects = DeviceDefects.parse(args.device_defects)
+    except ValueError as error:
+        raise ValueError(f"--device-defects: {error}") from None
+    names = tuple(name.split("=")[0].strip() for name in args.device_defects.split(",") if name.strip())
+    return defects, ("--device-defects", names)
+
+
 def _print_table(args, bag, payload: dict) -> None:
     def cell(value, scale: float) -> str:
         return "n/a" if value is None else f"{value * scale:.2f}"
@@ -112,6 +140,15 @@ def _print_table(args, bag, payload: dict) -> None:
     if bag.rejected:
         print(f"  {len(bag.rejected)} posture(s) set aside (beyond a sensor's range)")
     nominal, calibrated = payload["nominal"], payload["calibrated"]
+    device = payload["device_defects"]
+    if device["values"]:
+        from ..core.device import DEVICE_PARAMETER_UNITS, DEVICE_PARAMETER_NAMES
+
+        units = dict(zip(DEVICE_PARAMETER_NAMES, DEVICE_PARAMETER_UNITS))
+        print("  measuring device (" + device["source"] + "): " + ", ".join(
+            f"{name} {value * UM:.2f} {'um' if units[name] == 'm' else 'urad'}" for name, value in device["values"].items()))
+    else:
+        print(f"  measuring device: {device['source']}")
     print(f"  {'':22s}{'nominal':>14s}{'calibrated':>14s}")
     for label, key, scale in (("position rms [um]", "position_rms_m", UM), ("position max [um]", "position_max_m", UM),
                               ("rotary rms [urad]", "rotary_rms_rad", UM)):

@@ -81,6 +81,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from hexacal_msgs_py.models import DEVICE_DEFECT_NAMES, DEVICE_DEFECT_UNITS
+
 from .errors import CalibrationError
 
 DEFAULT_LINK_LENGTH_M = 0.750
@@ -88,8 +90,8 @@ HANGING = "hanging"  # platform below the device's base joint: p_z = -L cos(alph
 STANDING = "standing"  # platform above it: p = -p_hanging
 MOUNTS = (HANGING, STANDING)
 DEFAULT_MOUNT = HANGING
-DEVICE_PARAMETER_NAMES = ("dL", "alpha0", "beta0", "gamma", "phi0")
-DEVICE_PARAMETER_UNITS = ("m", "rad", "rad", "rad", "rad")
+DEVICE_PARAMETER_NAMES = DEVICE_DEFECT_NAMES  # ("dL", "alpha0", "beta0", "gamma", "phi0"): the contract's
+DEVICE_PARAMETER_UNITS = DEVICE_DEFECT_UNITS
 N_DEVICE_PARAMETERS = len(DEVICE_PARAMETER_NAMES)
 
 

@@ -38,6 +38,9 @@ logged and counted in the status (`postures_rejected`, `rejected.<reason>`,
 `last_rejection`), and the postures already received are kept. At start-up an
 existing `output` file is republished, and temporary files of a write that a
 crash interrupted are removed (the output itself is only ever replaced whole).
+The output carries the device defects identified with the calibration
+(`device.defects.<name>`, SI; none when only the machine was identified), so a
+republished calibration is verified through the device it was calibrated with.
 
 Prior knowledge of the device (core.device.DevicePrior): `device.link_length` (m, a caliper's measured
 length; 0 = not measured) with `device.link_length_std` (m; > 0 makes a prior on dL =
@@ -593,7 +596,8 @@ class IdentifyNode(Node):
         try:
             save_parameters(target, result.parameters.vector, model=result.parameters.model, header_comment=(
                 f'hexacal calibration {datetime.now(timezone.utc).isoformat(timespec="seconds")}'
-                f'\nfrom {source}: {summary}\nnominal: {nominal_path}; SI units'))
+                f'\nfrom {source}: {summary}\nnominal: {nominal_path}; SI units'),
+                extras=pipeline.device_defects_extras(result) or None)
         except HexacalContractError as error:
             return Outcome(False, f'output-not-written: calibrated ({summary}) but {error}',
                            'WARN', {**values, 'outcome': 'output-not-written'},
@@ -881,13 +885,15 @@ class IdentifyNode(Node):
         self.get_logger().info(f'republished the saved calibration {target}')
         try:
             from ..core.architectures import parameters_for
+            from ..pipeline import load_device_defects
 
             parameters = parameters_for(saved.model, saved.vector)
+            defects, _ = load_device_defects(target)  # the device it was calibrated with
         except ValueError as error:
             self.get_logger().warning(f'the saved calibration cannot be verified: {error}')
             return
         with self._status_lock:  # hexacal/verify verifies it on the postures received from now on
-            self._latest = LatestCalibration(0, parameters, DeviceDefects(),
+            self._latest = LatestCalibration(0, parameters, defects,
                                              f'saved calibration {target}', 0, None, None, None)
 
     def shutdown(self) -> None:
