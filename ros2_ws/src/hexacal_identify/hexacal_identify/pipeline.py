@@ -92,14 +92,21 @@ def device_defects_extras(result: IdentificationResult) -> dict[str, float]:
 
 def load_device_defects(path: Path | str) -> tuple[DeviceDefects, tuple[str, ...]]:
     """(defects, names given) of a calibrated parameters file's `device.defects.<name>` keys: the
-    device it was calibrated with.  Absent keys are 0 (the ideal device); a key naming no defect
-    or a value that is not a small finite number is a ParameterFileError naming file and key."""
-    from hexacal_msgs_py.errors import ParameterFileError
+    device it was calibrated with (device_defects_from_extras)."""
     from hexacal_msgs_py.parameters_file import read_parameters_file
+
+    return device_defects_from_extras(read_parameters_file(path).extras, path)
+
+
+def device_defects_from_extras(extras: dict, path: Path | str) -> tuple[DeviceDefects, tuple[str, ...]]:
+    """(defects, names given) of a parameters file's extras (read_parameters_file).  Absent keys are
+    0 (the ideal device); a key naming no defect or a value that is not a small finite number is a
+    ParameterFileError naming the file (`path`) and the key."""
+    from hexacal_msgs_py.errors import ParameterFileError
 
     prefix = DEVICE_DEFECTS_KEY + "."
     values: dict[str, float] = {}
-    for key, value in read_parameters_file(path).extras.items():
+    for key, value in extras.items():
         if not key.startswith(prefix):
             continue
         name = key[len(prefix):]

@@ -116,7 +116,7 @@ def run_verify(args) -> int:
 def _device_defects(args):
     """(defects, (where they come from, names given)) of the device that measured the bag: the
     --device-defects option, else those identified with the calibration (calibrated file)."""
-    from ..core.device import DeviceDefects
+    from ..core.device import DEVICE_PARAMETER_NAMES, DeviceDefects
     from ..pipeline import load_device_defects
 
     if args.device_defects is None:
@@ -128,8 +128,7 @@ def _device_defects(args):
         defects = DeviceDefects.parse(args.device_defects)
     except ValueError as error:
         raise ValueError(f"--device-defects: {error}") from None
-    names = tuple(name.split("=")[0].strip() for name in args.device_defects.split(",") if name.strip())
-    return defects, ("--device-defects", names)
+    return defects, ("--device-defects", tuple(n for n in DEVICE_PARAMETER_NAMES if getattr(defects, n)))
 
 
 def _print_table(args, bag, payload: dict) -> None:

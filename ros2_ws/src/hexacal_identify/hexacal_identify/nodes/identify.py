@@ -885,10 +885,10 @@ class IdentifyNode(Node):
         self.get_logger().info(f'republished the saved calibration {target}')
         try:
             from ..core.architectures import parameters_for
-            from ..pipeline import load_device_defects
+            from ..pipeline import device_defects_from_extras
 
             parameters = parameters_for(saved.model, saved.vector)
-            defects, _ = load_device_defects(target)  # the device it was calibrated with
+            defects, _ = device_defects_from_extras(saved.extras, target)  # the device it was calibrated with
         except ValueError as error:
             self.get_logger().warning(f'the saved calibration cannot be verified: {error}')
             return
