@@ -3,7 +3,9 @@ nodes named in device_turn_nodes (driver, collector) take the new turn on resume
 real processes).
 
 A plan of four sphere postures, two in the normal mounting and two with the device reversed
-(device_turn pi), as `hexacal plan` orders a turning procedure (one remount per turn).
+(device_turn pi), as `hexacal plan` orders a turning procedure (one remount per turn). The
+collector and the driver start with the turn an earlier plan left them at (STALE_TURN): the
+executor sets them to the mounting at the start (`mounted_turn`, 0) before the first move.
 """
 from __future__ import annotations
 
@@ -28,6 +30,7 @@ from test_executor import ExecutorWatch, _driver, _executor
 
 L = 0.75
 TURNS = [0.0, 0.0, math.pi, math.pi]
+STALE_TURN = 1.0  # rad: what an earlier plan left on the nodes
 MATCH_M = 5e-3  # a posture belongs to the plan posture whose targets its actuators are this close to
 
 
@@ -72,9 +75,9 @@ def test_the_executor_pauses_for_a_device_turn_and_the_nodes_take_it(ros_process
 
     probe.node.create_subscription(JointState, 'hexacal/posture', on_posture, POSTURE_QOS)
     watch = ExecutorWatch(probe)
-    driver = ros_processes.start(_driver(truth))
+    driver = ros_processes.start(_driver(truth, device_turn=STALE_TURN))
     collector = ros_processes.start(node_argv('collector', fast_collector_parameters(
-        tmp_path / 'bags', bag_name='turns', parameters_file=str(nominal))))
+        tmp_path / 'bags', bag_name='turns', parameters_file=str(nominal), device_turn=STALE_TURN)))
     probe.wait_for_node('driver', process=driver)
     probe.wait_for_node('collector', process=collector)
     executor = ros_processes.start(_executor(plan, nominal, 'device_turn_nodes:=[collector, driver]',
@@ -85,6 +88,9 @@ def test_the_executor_pauses_for_a_device_turn_and_the_nodes_take_it(ros_process
     probe.spin_until(lambda: probe.node.count_publishers(DEFAULT_COMMAND_TOPIC) >= 1, 10.0,
                      "the executor's command publisher")
     assert 'device_turn_needed_rad' not in watch.latest  # the first posture is in the normal mounting
+    # Ready only once the nodes have left the stale turn for the mounting at the start.
+    assert watch.latest.get('device_turn_set') == 'done', watch.latest
+    assert 'the mounting at the start: setting device_turn 0 rad on collector, driver' in executor.log_text()
     response = probe.call_trigger('hexacal/executor/resume')
     assert response.success and 'resumed at posture 1' in response.message, response.message
 
@@ -103,8 +109,7 @@ def test_the_executor_pauses_for_a_device_turn_and_the_nodes_take_it(ros_process
                      'the hold command',
                      lambda: f'{[len(c.points) for c in watch.commands]}\n{executor.log_text()}')
     assert len(watch.commands) == 3  # two moves and the hold: nothing else while waiting
-    before_resume = len(postures)
-    assert before_resume >= 2 and all(turn == 0.0 for _, turn in postures)
+    assert len(postures) >= 2  # (one taken standing before the start may carry the stale turn)
 
     response = probe.call_trigger('hexacal/executor/resume')
     assert response.success, response.message
@@ -123,8 +128,9 @@ def test_the_executor_pauses_for_a_device_turn_and_the_nodes_take_it(ros_process
         if distances.min() <= MATCH_M:
             matched.setdefault(int(np.argmin(distances)), []).append(turn)
     assert sorted(matched) == [0, 1, 2, 3], (matched, postures)
-    # The normal mounting's postures were recorded before the turn (a still machine may be
-    # recorded again after it, rightly turned); every one of the turned postures carries pi.
+    # The normal mounting's postures were recorded before the turn, with the mounting at the start,
+    # not the stale turn (a still machine may be recorded again after it, rightly turned); every
+    # one of the turned postures carries pi.
     assert matched[0][0] == 0.0 and matched[1][0] == 0.0, matched
     assert all(turn == math.pi for turn in matched[2] + matched[3]), matched
 
@@ -132,5 +138,19 @@ def test_the_executor_pauses_for_a_device_turn_and_the_nodes_take_it(ros_process
     assert 'WARN' in log and 'turn the device to 180 deg about its link axis' in log, log
     assert 'device_turn 3.14159 rad set on collector, driver' in log
     assert 'Traceback' not in log
-    for process in (executor, driver, collector):
+    assert ros_processes.stop(executor, STOP_TIMEOUT_S) == 0, executor.log_text()
+
+    # Walked again with the device still reversed (mounted_turn pi): the nodes are set to pi, and
+    # the first posture, in the normal mounting, waits for the operator to turn it back.
+    again = ExecutorWatch(probe)
+    second = ros_processes.start(_executor(plan, nominal, 'device_turn_nodes:=[collector, driver]',
+                                           mounted_turn=math.pi), name='executor-again')
+    waiting = again.wait(lambda s: s.get('state') == 'paused' and 'device_turn_needed_rad' in s
+                         and s, 60.0, 'the pause before the first posture', driver, collector, second)
+    assert waiting['posture'] == '1' and waiting['measured'] == '0', waiting
+    assert float(waiting['device_turn_needed_rad']) == 0.0 and waiting['device_turn_set'] == 'done'
+    assert 'needs the device turned to 0 deg' in waiting['notice'], waiting['notice']
+    assert 'device_turn 3.14159 rad set on collector, driver' in second.log_text()
+    assert not again.commands or all(len(c.points) == 1 for c in again.commands)  # holds, no move
+    for process in (second, driver, collector):
         assert ros_processes.stop(process, STOP_TIMEOUT_S) == 0, process.log_text()

@@ -42,7 +42,11 @@ Fixed-position postures are reached in closed loop on the inclinometer
 
 * Turning procedure (a plan whose postures carry ``device_turn``, rad: the
   device turned about its link axis; ``hexacal plan`` orders them one remount
-  per turn): the plan starts with the device in its normal mounting (0).
+  per turn): the plan starts with the device in the mounting ``mounted_turn``
+  (default 0, normal; after a turned plan, the mounting it ended in), and
+  with ``device_turn_nodes`` the executor first sets their ``device_turn`` to
+  it (the first move waits for their answers), so they never carry the turn an
+  earlier plan left them at.
   Before a posture in another mounting the executor pauses itself (state
   ``paused``, holding), logs a warning and publishes the notice (status field
   ``notice``, ``device_turn_needed_rad``): "posture 3 of 4 needs the device
@@ -90,6 +94,7 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
+from hexacal_msgs_py.models import MAX_DEVICE_TURN
 from hexacal_msgs_py.conversions import diagnostic_status
 from hexacal_msgs_py.errors import HexacalContractError
 from hexacal_msgs_py.names import (
@@ -186,6 +191,11 @@ PARAMETERS: dict[str, _Spec] = {
                                "posture (e.g. ['collector', 'driver']; names resolved in the "
                                "executor's namespace); empty: none",
                                constraints='distinct node names'),
+    'mounted_turn': _Spec(0.0, "the device's mounting at the start, rad about its link axis (0: "
+                          'normal; e.g. the last mounting of the plan walked before): a first '
+                          'posture in another mounting waits for the turn; with device_turn_nodes '
+                          "their device_turn is set to it before the first move", -MAX_DEVICE_TURN,
+                          MAX_DEVICE_TURN),
     'shutdown_when_done': _Spec(False, 'stop the node once the plan is done or aborted (and the '
                                 'calibration answered); a refused plan is then a start-up error '
                                 '(exit code 2)'),
@@ -322,7 +332,7 @@ class ExecutorNode(Node):
         self.execution = PlanExecution(
             self.nominal, self.plan.poses, self.plan.kinds, targets, self.settings, self.stroke,
             self.plan.link_length, self.plan.mount, start_paused=bool(value['start_paused']),
-            device_turns=self.plan.turns)
+            device_turns=self.plan.turns, mounted_turn=float(value['mounted_turn']))
         if problems:
             self.execution.state = REFUSED
             self.execution.refusal = refusal
@@ -345,7 +355,9 @@ class ExecutorNode(Node):
         # Created now, so their services are discovered long before the first turn.
         self._turn_clients = {name: AsyncParameterClient(self, name)
                               for name in self.device_turn_nodes}
-        self._turn_setting: dict | None = None  # the requests of a resume after a turn
+        self._turn_setting: dict | None = None  # the requests of a resume after a turn (or of the start)
+        # The nodes start from the mounting the device is in, not from what an earlier plan left them at.
+        self._start_turn_set = not self._turn_clients
         self._turn_set_state = ''  # '', pending, done, failed
         self._turn_set_message = ''
 
@@ -483,12 +495,7 @@ class ExecutorNode(Node):
         turn = float(execution.turn_needed)
         names = ', '.join(self.device_turn_nodes)
         if self._turn_setting is None:
-            self._turn_setting = {'turn': turn, 'started': _now_s(self), 'futures': {},
-                                  'problems': {}, 'done': []}
-            self._turn_set_state, self._turn_set_message = 'pending', ''
-            self.get_logger().info(f'resume after the device turn: setting {TURN_PARAMETER} '
-                                   f'{turn:.6g} rad on {names}')
-            self._turn_setting_step()
+            self._begin_turn_setting(turn, 'resume after the device turn')
             message = (f'setting {TURN_PARAMETER} {turn:.6g} rad on {names}; posture '
                        f'{execution.index + 1} of {execution.total} begins once they answer')
         else:
@@ -496,6 +503,14 @@ class ExecutorNode(Node):
         self._publish_status(force=True)
         response.success, response.message = True, message
         return response
+
+    def _begin_turn_setting(self, turn: float, why: str, start: bool = False) -> None:
+        self._turn_setting = {'turn': turn, 'started': _now_s(self), 'futures': {},
+                              'problems': {}, 'done': [], 'start': start}
+        self._turn_set_state, self._turn_set_message = 'pending', ''
+        self.get_logger().info(f"{why}: setting {TURN_PARAMETER} {turn:.6g} rad on "
+                               f"{', '.join(self.device_turn_nodes)}")
+        self._turn_setting_step()
 
     def _turn_setting_step(self) -> None:
         """Send the requests whose services are there, collect answers; resume when all settled."""
@@ -536,6 +551,7 @@ class ExecutorNode(Node):
             return
         self._turn_setting = None
         turn = setting['turn']
+        self._start_turn_set = self._start_turn_set or setting['start']
         if setting['problems']:
             self._turn_set_state = 'failed'
             self._turn_set_message = '; '.join(f'{name}: {why}'
@@ -586,6 +602,13 @@ class ExecutorNode(Node):
             waiting.append(f'a controller on {self._command_pub.topic_name}')
         if self.settings.wait_for_posture and self.count_publishers(POSTURE_TOPIC) == 0:
             waiting.append(f'a collector on {self.resolve_topic_name(POSTURE_TOPIC)}')
+        if not self._start_turn_set:
+            if self._turn_setting is None:
+                self._begin_turn_setting(self.execution.mounted_turn, 'the mounting at the start',
+                                         start=True)
+            if not self._start_turn_set:
+                waiting.append(f"{', '.join(self.device_turn_nodes)} to set {TURN_PARAMETER} "
+                               f'{self.execution.mounted_turn:.6g} rad (the mounting at the start)')
         if tuple(waiting) != self._waiting_for:
             self._waiting_for = tuple(waiting)
             if waiting:
