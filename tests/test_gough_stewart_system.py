@@ -198,7 +198,9 @@ def test_driver_collector_identify_calibrate_a_gough_stewart(ros_processes, tmp_
     assert np.abs(calibrated - TRUE.vector).max() < 0.5e-3
     after = _pose_errors(calibrated)
     assert after["position_max_m"] < 50e-6 and after["failed_postures"] == 0, after
-    result = [values for _, _, values in probe.statuses if values.get("outcome") == "converged"][-1]
+    # The result status is published beside the answer and the parameters, not before them.
+    result = probe.spin_until(lambda: [values for _, _, values in probe.statuses
+                                       if values.get("outcome") == "converged"], 30.0, "the converged status")[-1]
     assert result["model"] == GS and "std.chain_6.l0" in result
     saved = read_parameters_file(tmp_path / "out" / "hexacal_calibration.yaml")
     assert saved.model == GS and np.array_equal(saved.vector, calibrated)

@@ -78,8 +78,10 @@ def test_fifty_postures_calibrate_the_simulated_machine(ros_processes, tmp_path,
 
     saved = tmp_path / 'out' / 'hexacal_calibration.yaml'
     assert np.array_equal(load_parameters(saved), calibrated)
-    status = [s for s in probe.statuses if s[2].get('outcome') == 'converged']
-    assert status and status[-1][0] == 0  # level OK
+    # The result status is published beside the answer and the parameters, not before them.
+    status = probe.spin_until(lambda: [s for s in probe.statuses if s[2].get('outcome') == 'converged'],
+                              30.0, 'the converged status')
+    assert status[-1][0] == 0  # level OK
     fields = status[-1][2]
     assert fields['identifiable'] == 'true' and fields['rank'] == '54'
     assert 'all 54 parameters identifiable' in fields['identifiability']
