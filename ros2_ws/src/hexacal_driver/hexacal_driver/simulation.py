@@ -39,7 +39,7 @@ from hexacal_identify.core.device import (
     inclinometer_readings,
 )
 from hexacal_identify.core.errors import UnreachablePoseError
-from hexacal_identify.core.kinematics import forward_kinematics, inverse_kinematics
+from hexacal_identify.core.kinematics import forward_kinematics, inverse_kinematics, wrap_angle
 from hexacal_identify.core.measurements import FIXED, NoiseModel
 from hexacal_identify.core.architectures import KinematicParameters
 
@@ -157,11 +157,6 @@ class SensorReadings:
 IDEAL_DEVICE = DeviceDefects()
 
 
-def wrap_angle(angle: float) -> float:
-    """angle wrapped to [-pi, pi) (the rotary sensor's range)."""
-    return (float(angle) + math.pi) % (2.0 * math.pi) - math.pi
-
-
 def exact_readings(pose: np.ndarray, sliders: np.ndarray, mount: str = DEFAULT_MOUNT,
                    defects: DeviceDefects = IDEAL_DEVICE,
                    device_turn: float = 0.0) -> SensorReadings:
@@ -175,7 +170,7 @@ def exact_readings(pose: np.ndarray, sliders: np.ndarray, mount: str = DEFAULT_M
                                         None if turn == 0.0 else turn)
     phi = float(pose[5])
     if turn != 0.0 or defects.phi0 != 0.0:
-        phi = wrap_angle(phi - turn + defects.phi0)
+        phi = float(wrap_angle(phi - turn + defects.phi0))
     return SensorReadings(np.array(sliders, dtype=float), float(alpha[0]), float(beta[0]), phi)
 
 
@@ -304,19 +299,15 @@ def device_constrained_pose(params: KinematicParameters, setpoints: np.ndarray, 
     if cost > STRAIN_RETRY_M ** 2:
         home = np.concatenate([fixed_point(link_length, mount), np.zeros(3)])
         guesses = np.array([start, home])
-        guesses[:, 3:] = _wrap(guesses[:, 3:])
+        guesses[:, 3:] = wrap_angle(guesses[:, 3:])
         free = forward_kinematics(params, np.tile(setpoints, (2, 1)), guesses,
                                   branch_tolerance_m=math.inf, branch_tolerance_rad=math.inf)
         for found in free.poses[free.converged]:
             other = solve(found)
             if other[2] < cost:
                 pose, legs, cost = other
-    pose = np.concatenate([pose[:3], _wrap(pose[3:])])
+    pose = np.concatenate([pose[:3], wrap_angle(np.asarray(pose[3:], dtype=float))])
     return pose, legs.sliders[0].copy()
-
-
-def _wrap(angles: np.ndarray) -> np.ndarray:
-    return (np.asarray(angles, dtype=float) + math.pi) % (2.0 * math.pi) - math.pi
 
 
 @dataclass(frozen=True)

@@ -28,13 +28,11 @@ def add_parsers(subparsers) -> None:
 
 
 def device_prior_argument(text: str):
-    """--device-prior NAME=VALUE:STD,... (SI units) -> DevicePrior; argparse names a bad one (exit code 2)."""
-    from ..core.device import DevicePrior
+    """--device-prior NAME=VALUE:STD,... (SI units) -> DevicePrior, at least one; argparse names a bad one
+    (exit code 2)."""
+    from .study_device import device_prior_argument as parsed_prior
 
-    try:
-        prior = DevicePrior.parse(text)
-    except ValueError as error:
-        raise argparse.ArgumentTypeError(str(error)) from None
+    prior = parsed_prior(text)
     if not prior:
         raise argparse.ArgumentTypeError("no device prior given: expected NAME=VALUE:STD[,...] in SI units, "
                                          "e.g. dL=0:10e-6")

@@ -237,7 +237,7 @@ def _damped_update(arch, chains, poses: np.ndarray, step: np.ndarray, targets: n
 
 def _check_branch(poses, start, converged, failures, tol_m, tol_rad) -> None:
     jump = np.linalg.norm(poses[:, :3] - start[:, :3], axis=1)
-    phi_jump = np.abs(_wrap(poses[:, 5] - start[:, 5]))
+    phi_jump = np.abs(wrap_angle(poses[:, 5] - start[:, 5]))
     wrong = converged & ((jump > tol_m) | (phi_jump > tol_rad))
     for i in np.flatnonzero(wrong):
         failures[int(i)] = (
@@ -247,8 +247,9 @@ def _check_branch(poses, start, converged, failures, tol_m, tol_rad) -> None:
     converged &= ~wrong
 
 
-def _wrap(angle: np.ndarray) -> np.ndarray:
-    return (angle + np.pi) % (2 * np.pi) - np.pi
+def wrap_angle(angle: np.ndarray) -> np.ndarray:
+    """Angles into [-pi, pi) (the rotary sensor's range)."""
+    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 
 
 class PoseSensitivity:

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .device import N_DEVICE_PARAMETERS, DeviceDefects, DeviceModel, device_position, fixed_position
-from .kinematics import PoseSensitivity
+from .kinematics import PoseSensitivity, wrap_angle
 from .errors import InvalidMeasurementError
 from .measurements import FIXED, SPHERE, Measurements
 
@@ -342,11 +342,6 @@ class CostFunction:
                                                    np.zeros((len(earlier), 3)))
         block.partners = earlier
         return block
-
-
-def wrap_angle(angle: np.ndarray) -> np.ndarray:
-    """Angles into [-pi, pi)."""
-    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def _stack(blocks: list[ResidualBlock]) -> ResidualBlock:

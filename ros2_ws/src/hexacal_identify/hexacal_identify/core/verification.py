@@ -56,7 +56,7 @@ import numpy as np
 from .architectures import KinematicParameters
 from .device import DeviceDefects, DeviceModel
 from .errors import InvalidMeasurementError
-from .kinematics import forward_kinematics
+from .kinematics import forward_kinematics, wrap_angle
 from .measurements import MeasurementLimits, Measurements, NoiseModel
 from .residuals import ChannelSigma, CostFunction
 from .jsonsafe import json_safe as _plain
@@ -221,7 +221,7 @@ def set_residuals(params: KinematicParameters, measurements: Measurements, devic
                             branch_tolerance_m=options.branch_tolerance_m,
                             branch_tolerance_rad=options.branch_tolerance_rad, fit_tilt_first=True)
     difference = fk.poses[:, :3] - expected[:, :3]
-    rotary = _wrap(expected[:, 5] - fk.poses[:, 5])
+    rotary = wrap_angle(expected[:, 5] - fk.poses[:, 5])
     failures = {int(i): why for i, why in sorted(fk.failures.items())}
     residuals = SetResiduals(fk.poses, np.linalg.norm(difference, axis=1), difference, rotary, failures)
     return residuals, expected
@@ -289,10 +289,6 @@ def verify(nominal: KinematicParameters, calibrated: KinematicParameters, measur
     return VerificationResult(model, np.asarray(measurements.kinds).astype(str), expected_after[:, :3].copy(),
                               expected_after[:, 5].copy(), before, after, threshold,
                               float(device.link_length), device.mount, source, predicted)
-
-
-def _wrap(angle: np.ndarray) -> np.ndarray:
-    return (angle + np.pi) % (2 * np.pi) - np.pi
 
 
 def _text(value: float) -> str:
