@@ -92,9 +92,11 @@ def test_driver_with_defects_and_turns_to_the_collectors_bag(ros_processes, tmp_
     collector = ros_processes.start(node_argv('collector', fast_collector_parameters(
         bags, bag_name='turned')), name='collector')
     probe.wait_for_node('collector', '/', collector)
+    # The plan is walked once, so every posture must be captured: a dwell of 1.5 s leaves the
+    # collector room to capture again after a stall of the driver's stream (a gap drops a capture).
     driver = ros_processes.start(node_argv('driver', fast_driver_parameters(
         plan=str(plan_path), slider_noise_m=0.0, angle_noise_rad=0.0, device_defects=DEFECTS,
-        device_turn=DRIVER_TURN)), name='driver')
+        device_turn=DRIVER_TURN, dwell_s=1.5)), name='driver')
     nodes = (collector, driver)
     probe.spin_until(lambda: len(probe.postures) >= POSTURES, POSTURES * 1.0 + 60.0,
                      f'{POSTURES} postures', lambda: '\n'.join(p.describe(20) for p in nodes))
