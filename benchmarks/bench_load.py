@@ -23,6 +23,7 @@ per dwell; flat memory (growth after the first minute within a few MiB). CPU
 figures are CPU time from the plan start to its stop over that wall time. A
 short run at a rate with ample headroom is tests/test_load_short.py.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -44,8 +45,8 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / 'tests'))
 
 from hexacal_identify.bag import open_bag  # noqa: E402
-from rosproc import RosProcess, start_node, stop, venv_executable, wait_for  # noqa: E402
 from ros_domain import claim_domain_id  # benchmarks/ros_domain.py (this directory is on sys.path)
+from rosproc import RosProcess, start_node, stop, venv_executable, wait_for  # noqa: E402
 
 STREAMS = ('/hexacal/sliders', '/hexacal/inclinometer', '/hexacal/encoder')
 START_TIMEOUT_S = 60.0
@@ -64,7 +65,9 @@ class LoadResult:
     rate_hz: float
     seconds: float  # from the driver's plan start to its stop
     published: int  # per stream since the plan started (the driver publishes the three together)
-    received: dict[str, int]  # per stream, everything the collector received (also before the plan)
+    received: dict[
+        str, int
+    ]  # per stream, everything the collector received (also before the plan)
     recorded: dict[str, int]  # per stream, bag messages stamped at or after the plan's first stamp
     postures_walked: int  # dwells the driver began
     postures_detected: int  # postures the collector published
@@ -96,19 +99,26 @@ class LoadResult:
             cpu = self.collector_cpu <= COLLECTOR_CPU_TARGET
         return [
             (f'0 messages lost to the collector (lost {lost})', lost == 0),
-            (f'collector <= {100 * COLLECTOR_CPU_TARGET:.0f}% of one core at 3 x '
-             f'{TARGET_RATE_HZ:g} Hz, idle machine ({100 * self.collector_cpu:.0f}%)', cpu),
-            (f'one posture per dwell (dwelt {self.postures_walked}, detected '
-             f'{self.postures_detected}, in bag {self.postures_in_bag})',
-             self.postures_walked - 1 <= self.postures_detected <= self.postures_walked
-             and self.postures_in_bag == self.postures_detected),
+            (
+                f'collector <= {100 * COLLECTOR_CPU_TARGET:.0f}% of one core at 3 x '
+                f'{TARGET_RATE_HZ:g} Hz, idle machine ({100 * self.collector_cpu:.0f}%)',
+                cpu,
+            ),
+            (
+                f'one posture per dwell (dwelt {self.postures_walked}, detected '
+                f'{self.postures_detected}, in bag {self.postures_in_bag})',
+                self.postures_walked - 1 <= self.postures_detected <= self.postures_walked
+                and self.postures_in_bag == self.postures_detected,
+            ),
         ]
 
     @property
     def lost(self) -> dict[str, int]:
         # `published` counts complete ticks; a stop can interrupt the last tick after some of its three
         # publishes, so a stream may hold one message more than that, never fewer if nothing was lost.
-        return {stream: max(self.published - self.recorded.get(stream, 0), 0) for stream in STREAMS}
+        return {
+            stream: max(self.published - self.recorded.get(stream, 0), 0) for stream in STREAMS
+        }
 
     @property
     def achieved_rate_hz(self) -> float:
@@ -132,36 +142,52 @@ class LoadResult:
 
     def to_json(self, warm_up_s: float) -> dict:
         payload = asdict(self)
-        payload.update(lost=self.lost, achieved_rate_hz=self.achieved_rate_hz,
-                       collector_cpu=self.collector_cpu, driver_cpu=self.driver_cpu,
-                       targets={text: met for text, met in self.targets()},
-                       memory_growth_mib=self.memory_growth_mib(warm_up_s),
-                       memory_slope_mib_per_min=self.memory_slope_mib_per_min(warm_up_s),
-                       warm_up_s=warm_up_s)
+        payload.update(
+            lost=self.lost,
+            achieved_rate_hz=self.achieved_rate_hz,
+            collector_cpu=self.collector_cpu,
+            driver_cpu=self.driver_cpu,
+            targets={text: met for text, met in self.targets()},
+            memory_growth_mib=self.memory_growth_mib(warm_up_s),
+            memory_slope_mib_per_min=self.memory_slope_mib_per_min(warm_up_s),
+            warm_up_s=warm_up_s,
+        )
         return payload
 
     def table(self, warm_up_s: float) -> str:
-        lines = [f'driver at {self.rate_hz:g} Hz per stream for {self.seconds:.1f} s '
-                 f'(achieved {self.achieved_rate_hz:.1f} Hz); counts from the plan start, '
-                 'received also before it; '
-                 + ('one core busy with a CPU hog' if self.busy_core else 'no CPU hog'),
-                 f"{'stream':<24}{'published':>11}{'received':>11}{'recorded':>11}{'lost':>7}"]
+        lines = [
+            f'driver at {self.rate_hz:g} Hz per stream for {self.seconds:.1f} s '
+            f'(achieved {self.achieved_rate_hz:.1f} Hz); counts from the plan start, '
+            'received also before it; '
+            + ('one core busy with a CPU hog' if self.busy_core else 'no CPU hog'),
+            f'{"stream":<24}{"published":>11}{"received":>11}{"recorded":>11}{"lost":>7}',
+        ]
         for stream in STREAMS:
-            lines.append(f'{stream:<24}{self.published:>11}{self.received.get(stream, 0):>11}'
-                         f'{self.recorded.get(stream, 0):>11}{self.lost[stream]:>7}')
-        lines.append(f'postures: driver dwelt at {self.postures_walked}, collector detected '
-                     f'{self.postures_detected}, bag holds {self.postures_in_bag}')
-        lines.append(f'CPU (plan start to stop): collector {self.collector_cpu_s:.1f} s '
-                     f'({100 * self.collector_cpu:.0f}% of one core), driver '
-                     f'{self.driver_cpu_s:.1f} s ({100 * self.driver_cpu:.0f}%)'
-                     + (f', CPU hog {self.hog_cpu_s:.1f} s' if self.busy_core else ''))
+            lines.append(
+                f'{stream:<24}{self.published:>11}{self.received.get(stream, 0):>11}'
+                f'{self.recorded.get(stream, 0):>11}{self.lost[stream]:>7}'
+            )
+        lines.append(
+            f'postures: driver dwelt at {self.postures_walked}, collector detected '
+            f'{self.postures_detected}, bag holds {self.postures_in_bag}'
+        )
+        lines.append(
+            f'CPU (plan start to stop): collector {self.collector_cpu_s:.1f} s '
+            f'({100 * self.collector_cpu:.0f}% of one core), driver '
+            f'{self.driver_cpu_s:.1f} s ({100 * self.driver_cpu:.0f}%)'
+            + (f', CPU hog {self.hog_cpu_s:.1f} s' if self.busy_core else '')
+        )
         step = max(1, len(self.memory) // 12)
         shown = self.memory[::step] + ([self.memory[-1]] if (len(self.memory) - 1) % step else [])
-        lines.append('collector VmRSS (MiB): ' + ', '.join(
-            f'{t / 60:.1f} min {rss:.1f}' for t, rss in shown))
-        lines.append(f'memory after {warm_up_s:g} s warm-up: growth '
-                     f'{self.memory_growth_mib(warm_up_s):+.2f} MiB, slope '
-                     f'{self.memory_slope_mib_per_min(warm_up_s):+.3f} MiB/min')
+        lines.append(
+            'collector VmRSS (MiB): '
+            + ', '.join(f'{t / 60:.1f} min {rss:.1f}' for t, rss in shown)
+        )
+        lines.append(
+            f'memory after {warm_up_s:g} s warm-up: growth '
+            f'{self.memory_growth_mib(warm_up_s):+.2f} MiB, slope '
+            f'{self.memory_slope_mib_per_min(warm_up_s):+.3f} MiB/min'
+        )
         lines.append(f'collector: {self.collector_summary}')
         for problem in self.problems:
             lines.append(f'PROBLEM: {problem}')
@@ -208,8 +234,11 @@ def _last_match(pattern: str, text: str) -> re.Match | None:
 
 def start_cpu_hog() -> subprocess.Popen:
     """A process that keeps one core busy until killed (by PID: stop_cpu_hog)."""
-    return subprocess.Popen([sys.executable, '-c', 'while True: pass'],
-                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL)
+    return subprocess.Popen(
+        [sys.executable, '-c', 'while True: pass'],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+    )
 
 
 def stop_cpu_hog(hog: subprocess.Popen) -> float:
@@ -225,9 +254,16 @@ def stop_cpu_hog(hog: subprocess.Popen) -> float:
     return cpu
 
 
-def run_load(seconds: float, work_dir: Path, rate_hz: float = 1000.0, sample_s: float = 5.0,
-             settle_s: float = 1.0, dwell_s: float = 1.5, progress=None,
-             busy_core: bool = False) -> LoadResult:
+def run_load(
+    seconds: float,
+    work_dir: Path,
+    rate_hz: float = 1000.0,
+    sample_s: float = 5.0,
+    settle_s: float = 1.0,
+    dwell_s: float = 1.5,
+    progress=None,
+    busy_core: bool = False,
+) -> LoadResult:
     """Run driver + collector for `seconds` in the current ROS domain; stop both; measure.
 
     With `busy_core`, a CPU hog process runs beside them for the whole run.
@@ -243,18 +279,48 @@ def run_load(seconds: float, work_dir: Path, rate_hz: float = 1000.0, sample_s: 
     return result
 
 
-def _run_load(seconds: float, work_dir: Path, bag: Path, rate_hz: float, sample_s: float,
-              settle_s: float, dwell_s: float, progress) -> LoadResult:
-    collector = start_node([venv_executable('collector'), *_ros_args({
-        'output_dir': str(work_dir / 'bags'), 'bag_name': 'load'})],
-        log_path=work_dir / 'collector.log')
+def _run_load(
+    seconds: float,
+    work_dir: Path,
+    bag: Path,
+    rate_hz: float,
+    sample_s: float,
+    settle_s: float,
+    dwell_s: float,
+    progress,
+) -> LoadResult:
+    collector = start_node(
+        [
+            venv_executable('collector'),
+            *_ros_args({'output_dir': str(work_dir / 'bags'), 'bag_name': 'load'}),
+        ],
+        log_path=work_dir / 'collector.log',
+    )
     driver: RosProcess | None = None
     try:
-        wait_for(lambda: 'recording to' in collector.log_text(), START_TIMEOUT_S,
-                 what='the collector to start recording', details=collector.describe)
-        driver = start_node([venv_executable('driver'), *_ros_args({
-            'plan': 'mixed', 'postures': 50, 'loop': True, 'seed': 3, 'rate_hz': rate_hz,
-            'settle_s': settle_s, 'dwell_s': dwell_s})], log_path=work_dir / 'driver.log')
+        wait_for(
+            lambda: 'recording to' in collector.log_text(),
+            START_TIMEOUT_S,
+            what='the collector to start recording',
+            details=collector.describe,
+        )
+        driver = start_node(
+            [
+                venv_executable('driver'),
+                *_ros_args(
+                    {
+                        'plan': 'mixed',
+                        'postures': 50,
+                        'loop': True,
+                        'seed': 3,
+                        'rate_hz': rate_hz,
+                        'settle_s': settle_s,
+                        'dwell_s': dwell_s,
+                    }
+                ),
+            ],
+            log_path=work_dir / 'driver.log',
+        )
         running = driver
 
         def started() -> bool:
@@ -263,8 +329,12 @@ def _run_load(seconds: float, work_dir: Path, bag: Path, rate_hz: float, sample_
                     raise AssertionError(f'a node exited early\n{process.describe()}')
             return 'starting plan' in running.log_text()
 
-        wait_for(started, START_TIMEOUT_S, what='the driver to start its plan',
-                 details=lambda: collector.describe() + '\n' + running.describe())
+        wait_for(
+            started,
+            START_TIMEOUT_S,
+            what='the driver to start its plan',
+            details=lambda: collector.describe() + '\n' + running.describe(),
+        )
         started_at = time.monotonic()
         collector_cpu_start = proc_status(collector.pid)[1]
         driver_cpu_start = proc_status(driver.pid)[1]
@@ -292,15 +362,22 @@ def _run_load(seconds: float, work_dir: Path, bag: Path, rate_hz: float, sample_
         driver_log = driver.log_path.read_text(errors='replace')
         if stop_code != 0:
             raise AssertionError(f'the driver exited with {stop_code}\n{driver_log[-3000:]}')
-        published_match = _last_match(r'(\d+) of them since the plan started \(first stamp '
-                                      r'(\d+) ns\)', driver_log)
+        published_match = _last_match(
+            r'(\d+) of them since the plan started \(first stamp '
+            r'(\d+) ns\)',
+            driver_log,
+        )
         if published_match is None:
             raise AssertionError(f'the driver did not report its count\n{driver_log[-3000:]}')
         published, first_stamp = int(published_match.group(1)), int(published_match.group(2))
         walked = len(re.findall(r'\] \[driver\]: posture \d+/\d+', driver_log))
         # Stopped = no message for STREAM_STOPPED_S by receipt time: the collector's queue is empty.
-        wait_for(lambda: 'stream(s) stopped' in collector.log_text(), DRAIN_TIMEOUT_S,
-                 what='the collector to see the streams stop', details=collector.describe)
+        wait_for(
+            lambda: 'stream(s) stopped' in collector.log_text(),
+            DRAIN_TIMEOUT_S,
+            what='the collector to see the streams stop',
+            details=collector.describe,
+        )
         code = stop(collector, STOP_TIMEOUT_S)
         collector_log = collector.log_path.read_text(errors='replace')
         if code != 0:
@@ -309,40 +386,70 @@ def _run_load(seconds: float, work_dir: Path, bag: Path, rate_hz: float, sample_
         for process in (driver, collector):
             if process is not None and process.running():
                 stop(process, STOP_TIMEOUT_S)
-    summary = _last_match(r'(\d+) postures published; messages received (\{[^}]*\}).*',
-                          collector_log)
+    summary = _last_match(
+        r'(\d+) postures published; messages received (\{[^}]*\}).*', collector_log
+    )
     if summary is None:
         raise AssertionError(f'no collector summary\n{collector_log[-3000:]}')
     received = {('/' + topic): count for topic, count in yaml.safe_load(summary.group(2)).items()}
     metadata = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
-    in_bag = {t['topic_metadata']['name']: t['message_count']
-              for t in metadata['topics_with_message_count']}
+    in_bag = {
+        t['topic_metadata']['name']: t['message_count']
+        for t in metadata['topics_with_message_count']
+    }
     # Anything the collector did not use, other than the posture the driver's stop cut short.
-    problems = [line for line in collector_log.splitlines()
-                if 'recording stopped' in line or 'not used:' in line
-                or 'ignored an invalid message' in line]
+    problems = [
+        line
+        for line in collector_log.splitlines()
+        if 'recording stopped' in line
+        or 'not used:' in line
+        or 'ignored an invalid message' in line
+    ]
     return LoadResult(
-        rate_hz=rate_hz, seconds=elapsed, published=published, received=received,
-        recorded=recorded_since(bag, first_stamp), postures_walked=walked,
-        postures_detected=int(summary.group(1)), postures_in_bag=in_bag.get('/hexacal/posture', 0),
-        memory=memory, collector_cpu_s=collector_cpu, driver_cpu_s=driver_cpu,
+        rate_hz=rate_hz,
+        seconds=elapsed,
+        published=published,
+        received=received,
+        recorded=recorded_since(bag, first_stamp),
+        postures_walked=walked,
+        postures_detected=int(summary.group(1)),
+        postures_in_bag=in_bag.get('/hexacal/posture', 0),
+        memory=memory,
+        collector_cpu_s=collector_cpu,
+        driver_cpu_s=driver_cpu,
         cpu_window_s=cpu_window,
-        collector_summary=summary.group(0).strip(), bag=str(bag), problems=problems)
+        collector_summary=summary.group(0).strip(),
+        bag=str(bag),
+        problems=problems,
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--minutes', type=float, default=10.0, help='run time (default 10)')
-    parser.add_argument('--rate-hz', type=float, default=1000.0,
-                        help='driver rate per stream (default 1000)')
-    parser.add_argument('--sample-s', type=float, default=10.0,
-                        help='memory sampling period (default 10 s)')
-    parser.add_argument('--warm-up-s', type=float, default=60.0,
-                        help='memory growth is measured after this (default 60 s)')
-    parser.add_argument('--work-dir', type=Path, default=None,
-                        help='keep logs and the bag here (default: a temporary directory, removed)')
-    parser.add_argument('--busy-core', action='store_true',
-                        help='run a CPU hog (busy loop) beside the nodes, killed at the end')
+    parser.add_argument(
+        '--rate-hz', type=float, default=1000.0, help='driver rate per stream (default 1000)'
+    )
+    parser.add_argument(
+        '--sample-s', type=float, default=10.0, help='memory sampling period (default 10 s)'
+    )
+    parser.add_argument(
+        '--warm-up-s',
+        type=float,
+        default=60.0,
+        help='memory growth is measured after this (default 60 s)',
+    )
+    parser.add_argument(
+        '--work-dir',
+        type=Path,
+        default=None,
+        help='keep logs and the bag here (default: a temporary directory, removed)',
+    )
+    parser.add_argument(
+        '--busy-core',
+        action='store_true',
+        help='run a CPU hog (busy loop) beside the nodes, killed at the end',
+    )
     parser.add_argument('--json', action='store_true', help='print one JSON object')
     args = parser.parse_args(argv)
 
@@ -352,8 +459,14 @@ def main(argv: list[str] | None = None) -> int:
     progress = None if args.json else (lambda line: print(line, flush=True))
     with tempfile.TemporaryDirectory(prefix='hexacal-load-') as scratch:
         work_dir = args.work_dir or Path(scratch)
-        result = run_load(args.minutes * 60.0, work_dir, rate_hz=args.rate_hz,
-                          sample_s=args.sample_s, progress=progress, busy_core=args.busy_core)
+        result = run_load(
+            args.minutes * 60.0,
+            work_dir,
+            rate_hz=args.rate_hz,
+            sample_s=args.sample_s,
+            progress=progress,
+            busy_core=args.busy_core,
+        )
     warm_up = min(args.warm_up_s, result.seconds / 4)
     if args.json:
         print(json.dumps(result.to_json(warm_up)))

@@ -26,6 +26,7 @@ time + 50 ms at 50 and 200 postures (medians over the calls). ``--json`` prints
 one row per posture count with ``postures``, ``solve_seconds``,
 ``response_seconds``, ``parameters_seconds`` (medians) plus extras.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -36,6 +37,7 @@ import statistics
 import sys
 import tempfile
 import time
+
 from ros_domain import claim_domain_id  # benchmarks/ros_domain.py (this directory is on sys.path)
 
 REPO = Path(__file__).resolve().parents[1]
@@ -76,11 +78,10 @@ class ServiceClock:
 
     def __init__(self, probe) -> None:
         from diagnostic_msgs.msg import DiagnosticArray
-        from std_msgs.msg import Float64MultiArray
-        from std_srvs.srv import Trigger
-
         from hexacal_msgs_py.conversions import status_values
         from hexacal_msgs_py.qos import PARAMETERS_QOS, STATUS_QOS
+        from std_msgs.msg import Float64MultiArray
+        from std_srvs.srv import Trigger
 
         self.probe = probe
         self.parameters: list[float] = []  # arrival times
@@ -92,10 +93,14 @@ class ServiceClock:
                 self.statuses.append((now, status_values(status)))
 
         probe.node.create_subscription(
-            Float64MultiArray, 'hexacal/parameters',
-            lambda _: self.parameters.append(time.perf_counter()), PARAMETERS_QOS)
-        probe.node.create_subscription(DiagnosticArray, 'hexacal/calibration_status', on_status,
-                                       STATUS_QOS)
+            Float64MultiArray,
+            'hexacal/parameters',
+            lambda _: self.parameters.append(time.perf_counter()),
+            PARAMETERS_QOS,
+        )
+        probe.node.create_subscription(
+            DiagnosticArray, 'hexacal/calibration_status', on_status, STATUS_QOS
+        )
         self.trigger = Trigger
         self.client = probe.node.create_client(Trigger, 'hexacal/calibrate')
 
@@ -103,13 +108,18 @@ class ServiceClock:
         deadline = time.monotonic() + timeout
         while not predicate():
             if time.monotonic() > deadline:
-                raise RuntimeError(f'timed out after {timeout:g} s waiting for {what}'
-                                   + (f'\n{details()}' if details else ''))
+                raise RuntimeError(
+                    f'timed out after {timeout:g} s waiting for {what}'
+                    + (f'\n{details()}' if details else '')
+                )
             self.probe.executor.spin_once(timeout_sec=0.01)
 
     def postures_received(self) -> int:
-        counts = [int(v['postures_received']) for _, v in self.statuses
-                  if v.get('outcome') == 'collecting']
+        counts = [
+            int(v['postures_received'])
+            for _, v in self.statuses
+            if v.get('outcome') == 'collecting'
+        ]
         return counts[-1] if counts else 0
 
     def call(self, details) -> dict:
@@ -119,8 +129,12 @@ class ServiceClock:
         started = time.perf_counter()
         future = self.client.call_async(self.trigger.Request())
         future.add_done_callback(lambda _: answered.append(time.perf_counter()))
-        self.spin_until(lambda: answered and len(self.parameters) > parameters_before,
-                        CALL_TIMEOUT_S, 'the response and the parameters', details)
+        self.spin_until(
+            lambda: answered and len(self.parameters) > parameters_before,
+            CALL_TIMEOUT_S,
+            'the response and the parameters',
+            details,
+        )
         response = future.result()
         if not response.success:
             raise RuntimeError(f'calibrate failed: {response.message}\n{details()}')
@@ -148,7 +162,7 @@ class ServiceClock:
 
 def measure(count: int, calls: int, solve_repeats: int, work_dir: Path, seed: int) -> dict:
     from rosproc import start_node, stop
-    from system_support import Probe, node_argv, simulated_postures, write_parameter_files
+    from system_support import node_argv, Probe, simulated_postures, write_parameter_files
 
     work_dir.mkdir(parents=True, exist_ok=True)
     _, nominal = write_parameter_files(work_dir)
@@ -159,15 +173,21 @@ def measure(count: int, calls: int, solve_repeats: int, work_dir: Path, seed: in
     node = None
     try:
         clock = ServiceClock(probe)
-        node = start_node(node_argv('identify', {'nominal': str(nominal),
-                                                 'output_dir': str(work_dir / 'out')}),
-                          log_path=work_dir / 'identify.log')
+        node = start_node(
+            node_argv('identify', {'nominal': str(nominal), 'output_dir': str(work_dir / 'out')}),
+            log_path=work_dir / 'identify.log',
+        )
         probe.wait_for_node('identify', process=node, timeout=START_TIMEOUT_S)
-        clock.spin_until(clock.client.service_is_ready, START_TIMEOUT_S, 'hexacal/calibrate',
-                         node.describe)
+        clock.spin_until(
+            clock.client.service_is_ready, START_TIMEOUT_S, 'hexacal/calibrate', node.describe
+        )
         probe.publish_postures(postures)
-        clock.spin_until(lambda: clock.postures_received() == count, START_TIMEOUT_S,
-                         f'identify to hold {count} postures', node.describe)
+        clock.spin_until(
+            lambda: clock.postures_received() == count,
+            START_TIMEOUT_S,
+            f'identify to hold {count} postures',
+            node.describe,
+        )
         samples = []
         for _ in range(calls):
             # Interleaved with the calls, so both see the same load of a shared machine.
@@ -192,8 +212,10 @@ def measure(count: int, calls: int, solve_repeats: int, work_dir: Path, seed: in
         'max_response_seconds': max(s['response_seconds'] for s in samples),
         'max_parameters_seconds': max(s['parameters_seconds'] for s in samples),
         'node_solve_seconds': statistics.median(
-            s['node_solve_seconds'] for s in samples if s['node_solve_seconds'] is not None)
-        if any(s['node_solve_seconds'] is not None for s in samples) else None,
+            s['node_solve_seconds'] for s in samples if s['node_solve_seconds'] is not None
+        )
+        if any(s['node_solve_seconds'] is not None for s in samples)
+        else None,
         'report_states': sorted({s['report_state'] for s in samples}),
         'calls_response_seconds': [s['response_seconds'] for s in samples],
         'calls_parameters_seconds': [s['parameters_seconds'] for s in samples],
@@ -206,20 +228,25 @@ def measure(count: int, calls: int, solve_repeats: int, work_dir: Path, seed: in
 
 def table(rows: list[dict]) -> str:
     ms = 1e3
-    lines = [f"{'postures':>8} {'solve':>9} {'node solve':>10} {'response':>10} {'parameters':>10} "
-             f"{'report':>9} {'1st resp':>9} {'max resp':>9}  target (solve + 50 ms)",
-             f"{'':>8} {'(ms)':>9} {'(ms)':>10} {'(ms)':>10} {'(ms)':>10} {'(ms)':>9} {'(ms)':>9} "
-             f"{'(ms)':>9}"]
+    lines = [
+        f'{"postures":>8} {"solve":>9} {"node solve":>10} {"response":>10} {"parameters":>10} '
+        f'{"report":>9} {"1st resp":>9} {"max resp":>9}  target (solve + 50 ms)',
+        f'{"":>8} {"(ms)":>9} {"(ms)":>10} {"(ms)":>10} {"(ms)":>10} {"(ms)":>9} {"(ms)":>9} '
+        f'{"(ms)":>9}',
+    ]
     for row in rows:
         node_solve = row['node_solve_seconds']
         lines.append(
-            f"{row['postures']:>8} {row['solve_seconds'] * ms:>9.1f} "
-            f"{(node_solve * ms if node_solve is not None else float('nan')):>10.1f} "
-            f"{row['response_seconds'] * ms:>10.1f} {row['parameters_seconds'] * ms:>10.1f} "
-            f"{row['report_seconds'] * ms:>9.0f} {row['first_response_seconds'] * ms:>9.1f} "
-            f"{row['max_response_seconds'] * ms:>9.1f}  {'met' if row['met'] else 'NOT met'}")
-    lines.append(f"medians over {rows[0]['calls'] if rows else 0} calls per row; 'report' = call to "
-                 "the status saying the report is written")
+            f'{row["postures"]:>8} {row["solve_seconds"] * ms:>9.1f} '
+            f'{(node_solve * ms if node_solve is not None else float("nan")):>10.1f} '
+            f'{row["response_seconds"] * ms:>10.1f} {row["parameters_seconds"] * ms:>10.1f} '
+            f'{row["report_seconds"] * ms:>9.0f} {row["first_response_seconds"] * ms:>9.1f} '
+            f'{row["max_response_seconds"] * ms:>9.1f}  {"met" if row["met"] else "NOT met"}'
+        )
+    lines.append(
+        f"medians over {rows[0]['calls'] if rows else 0} calls per row; 'report' = call to "
+        'the status saying the report is written'
+    )
     return '\n'.join(lines)
 
 
@@ -228,11 +255,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--json', action='store_true', help='print the rows as a JSON list')
     parser.add_argument('--postures', type=int, nargs='*', default=list(POSTURE_COUNTS))
     parser.add_argument('--calls', type=int, default=5, help='calibrate calls per posture count')
-    parser.add_argument('--solve-repeats', type=int, default=3,
-                        help='bare solves before each call (their median is solve_seconds)')
+    parser.add_argument(
+        '--solve-repeats',
+        type=int,
+        default=3,
+        help='bare solves before each call (their median is solve_seconds)',
+    )
     parser.add_argument('--seed', type=int, default=0)
-    parser.add_argument('--work-dir', type=Path, default=None,
-                        help='keep the outputs and logs here (default: a temporary directory)')
+    parser.add_argument(
+        '--work-dir',
+        type=Path,
+        default=None,
+        help='keep the outputs and logs here (default: a temporary directory)',
+    )
     args = parser.parse_args(argv)
 
     os.environ['ROS_DOMAIN_ID'] = str(claim_domain_id())
@@ -242,8 +277,11 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix='hexacal-bench-service-') as scratch:
         base = args.work_dir or Path(scratch)
         for count in args.postures:
-            rows.append(measure(count, args.calls, args.solve_repeats, base / f'postures_{count}',
-                                args.seed))
+            rows.append(
+                measure(
+                    count, args.calls, args.solve_repeats, base / f'postures_{count}', args.seed
+                )
+            )
             if not args.json:
                 print(f'{count} postures done', file=sys.stderr, flush=True)
     print(json.dumps(rows) if args.json else table(rows))

@@ -27,6 +27,7 @@ Run: ``.venv/bin/python benchmarks/bench_startup.py [--json] [--repeats N]``
 Targets: ``hexacal --help`` within 2x the baseline, ``hexacal calibrate`` of the
 50-posture bag within 3x, every node's first subscription within 1 s.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -40,6 +41,7 @@ import subprocess
 import sys
 import tempfile
 import time
+
 from ros_domain import claim_domain_id  # benchmarks/ros_domain.py (this directory is on sys.path)
 
 REPO = Path(__file__).resolve().parents[1]
@@ -55,19 +57,27 @@ NODE_SIGNS = {
 }
 # What each node logs right after it created that subscription (publisher): the wall-clock stamp of this log line
 # is the node's own start-up, without DDS discovery.
-READY_LINES = {'collector': 'collecting postures on', 'identify': 'collecting postures on',
-               'driver': 'holding the first posture until'}
+READY_LINES = {
+    'collector': 'collecting postures on',
+    'identify': 'collecting postures on',
+    'driver': 'holding the first posture until',
+}
 # What each node logs once its constructor has returned (as tests/test_executables.py waits for): the benchmark
 # waits for it and then SPIN_WAIT_S more, untimed, before the SIGINT. A SIGINT that lands inside the constructor
 # or just before spinning starts (between rclpy.init and rclpy.spin/executor.spin) can end a node with a
 # traceback or hang it (seen here: RCLError 'context is invalid' in create_service, rclpy.spin's executor None,
 # identify not exiting): a shutdown race of the nodes, not what this benchmark measures. Such stops are
 # reported under the table instead of aborting the run.
-STARTED_LINES = {'collector': 'recording to', 'identify': 'collecting postures on',
-                 'driver': 'holding the first posture until'}
+STARTED_LINES = {
+    'collector': 'recording to',
+    'identify': 'collecting postures on',
+    'driver': 'holding the first posture until',
+}
 SPIN_WAIT_S = 0.5
 STOP_PROBLEMS: list[str] = []  # nodes that did not exit 0 on SIGINT (logs kept)
-LOG_FORMAT = '[{severity}] [{time}] [{name}]: {message}'  # rcutils' default, set explicitly: parsed below
+LOG_FORMAT = (
+    '[{severity}] [{time}] [{name}]: {message}'  # rcutils' default, set explicitly: parsed below
+)
 
 
 def time_command(argv: list[str], repeats: int) -> list[float]:
@@ -78,7 +88,9 @@ def time_command(argv: list[str], repeats: int) -> list[float]:
         result = subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         elapsed = time.perf_counter() - started
         if result.returncode != 0:
-            raise RuntimeError(f'{" ".join(argv)} exited with {result.returncode}: {result.stderr}')
+            raise RuntimeError(
+                f'{" ".join(argv)} exited with {result.returncode}: {result.stderr}'
+            )
         if index:
             times.append(elapsed)
     return times
@@ -115,8 +127,15 @@ def _ros_args(parameters: dict[str, str]) -> list[str]:
     return argv
 
 
-def _wait_count(probe: GraphProbe, kind: str, topic: str, wanted, timeout: float,
-                process: subprocess.Popen | None, what: str) -> float:
+def _wait_count(
+    probe: GraphProbe,
+    kind: str,
+    topic: str,
+    wanted,
+    timeout: float,
+    process: subprocess.Popen | None,
+    what: str,
+) -> float:
     deadline = time.monotonic() + timeout
     while True:
         if wanted(probe.count(kind, topic)):
@@ -160,7 +179,9 @@ def _log_stamp(text: str, line: str) -> float:
     return float(match.group(1))
 
 
-def time_node(probe: GraphProbe, name: str, work_dir: Path, repeats: int) -> tuple[list[float], list[float]]:
+def time_node(
+    probe: GraphProbe, name: str, work_dir: Path, repeats: int
+) -> tuple[list[float], list[float]]:
     """Seconds from Popen to the node's first subscription (publisher): (on the probe's graph, in its own log).
 
     The graph time includes DDS discovery of the new participant by the probe; the log time is when the node
@@ -170,8 +191,10 @@ def time_node(probe: GraphProbe, name: str, work_dir: Path, repeats: int) -> tup
     on_graph, in_log = [], []
     env = dict(os.environ, RCUTILS_CONSOLE_OUTPUT_FORMAT=LOG_FORMAT, RCUTILS_COLORIZED_OUTPUT='0')
     for index in range(repeats + 1):
-        parameters = {'collector': {'output_dir': str(work_dir / 'bags'), 'bag_name': f'startup_{index}'},
-                      'identify': {'output_dir': str(work_dir / f'identify_{index}')}}.get(name, {})
+        parameters = {
+            'collector': {'output_dir': str(work_dir / 'bags'), 'bag_name': f'startup_{index}'},
+            'identify': {'output_dir': str(work_dir / f'identify_{index}')},
+        }.get(name, {})
         # A namespace of its own per run: what the probe sees is this node, not a previous run's endpoint that
         # the graph still lists (or another process in the domain).
         namespace = f'/hexacal_bench_startup_{os.getpid()}_{name}_{index}'
@@ -181,11 +204,24 @@ def time_node(probe: GraphProbe, name: str, work_dir: Path, repeats: int) -> tup
         started_wall = time.time()
         started = time.perf_counter()
         argv = [str(BIN / name), *_ros_args(parameters), '-r', f'__ns:={namespace}']
-        process = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT, env=env,
-                                   start_new_session=True)
+        process = subprocess.Popen(
+            argv,
+            stdin=subprocess.DEVNULL,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            env=env,
+            start_new_session=True,
+        )
         try:
-            seen = _wait_count(probe, kind, topic, lambda n: n >= 1, NODE_TIMEOUT_S, process,
-                               f'{name} ({kind} on {topic})')
+            seen = _wait_count(
+                probe,
+                kind,
+                topic,
+                lambda n: n >= 1,
+                NODE_TIMEOUT_S,
+                process,
+                f'{name} ({kind} on {topic})',
+            )
             _wait_log(log_path, STARTED_LINES[name], process, name)
             time.sleep(SPIN_WAIT_S)
         finally:
@@ -194,7 +230,9 @@ def time_node(probe: GraphProbe, name: str, work_dir: Path, repeats: int) -> tup
         text = log_path.read_text(errors='replace')
         if code != 0:
             last = next((line for line in reversed(text.splitlines()) if line.strip()), '')
-            STOP_PROBLEMS.append(f'{name} run {index}: exit code {code} after SIGINT (log {log_path}): {last}')
+            STOP_PROBLEMS.append(
+                f'{name} run {index}: exit code {code} after SIGINT (log {log_path}): {last}'
+            )
         if index:
             on_graph.append(seen - started)
             in_log.append(_log_stamp(text, READY_LINES[name]) - started_wall)
@@ -204,24 +242,55 @@ def time_node(probe: GraphProbe, name: str, work_dir: Path, repeats: int) -> tup
 def measure(repeats: int, nodes: bool = True) -> list[dict]:
     rows = []
 
-    def add(name: str, times: list[float], target_ratio: float | None = None,
-            target_s: float | None = None) -> None:
-        rows.append({'name': name, 'median_s': statistics.median(times), 'min_s': min(times),
-                     'max_s': max(times), 'runs': len(times), 'target_ratio': target_ratio,
-                     'target_s': target_s})
+    def add(
+        name: str,
+        times: list[float],
+        target_ratio: float | None = None,
+        target_s: float | None = None,
+    ) -> None:
+        rows.append(
+            {
+                'name': name,
+                'median_s': statistics.median(times),
+                'min_s': min(times),
+                'max_s': max(times),
+                'runs': len(times),
+                'target_ratio': target_ratio,
+                'target_s': target_s,
+            }
+        )
 
     python = str(BIN / 'python')
     hexacal = str(BIN / 'hexacal')
-    add('python -c "import numpy" (baseline)', time_command([python, '-c', 'import numpy'], repeats))
+    add(
+        'python -c "import numpy" (baseline)',
+        time_command([python, '-c', 'import numpy'], repeats),
+    )
     add('hexacal --help', time_command([hexacal, '--help'], repeats), target_ratio=2.0)
     work = Path(tempfile.mkdtemp(prefix='hexacal-bench-startup-'))
     try:
         nominal = work / 'nominal2.yaml'
-        subprocess.run([hexacal, 'params', 'nominal', '--set', '2', '--seed', '0', '--out', str(nominal)],
-                       check=True, stdout=subprocess.DEVNULL)
-        add(f'hexacal calibrate {BAG.name}',
-            time_command([hexacal, 'calibrate', str(BAG), '--nominal', str(nominal),
-                          '--output', str(work / 'calibrated.yaml')], repeats), target_ratio=3.0)
+        subprocess.run(
+            [hexacal, 'params', 'nominal', '--set', '2', '--seed', '0', '--out', str(nominal)],
+            check=True,
+            stdout=subprocess.DEVNULL,
+        )
+        add(
+            f'hexacal calibrate {BAG.name}',
+            time_command(
+                [
+                    hexacal,
+                    'calibrate',
+                    str(BAG),
+                    '--nominal',
+                    str(nominal),
+                    '--output',
+                    str(work / 'calibrated.yaml'),
+                ],
+                repeats,
+            ),
+            target_ratio=3.0,
+        )
         if nodes:
             os.environ['ROS_DOMAIN_ID'] = str(claim_domain_id())
             os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -250,8 +319,10 @@ def measure(repeats: int, nodes: bool = True) -> list[dict]:
 
 
 def format_table(rows: list[dict]) -> str:
-    lines = [f'{"what":<48} {"median s":>9} {"min s":>7} {"max s":>7} {"x base":>7}  {"target":<10} result',
-             '-' * 100]
+    lines = [
+        f'{"what":<48} {"median s":>9} {"min s":>7} {"max s":>7} {"x base":>7}  {"target":<10} result',
+        '-' * 100,
+    ]
     for row in rows:
         if row['target_ratio'] is not None:
             target = f'<= {row["target_ratio"]:g}x'
@@ -260,14 +331,18 @@ def format_table(rows: list[dict]) -> str:
         else:
             target = ''
         verdict = '' if row['met'] is None else ('met' if row['met'] else 'NOT met')
-        lines.append(f'{row["name"]:<48} {row["median_s"]:>9.3f} {row["min_s"]:>7.3f} {row["max_s"]:>7.3f} '
-                     f'{row["ratio"]:>7.2f}  {target:<10} {verdict}')
+        lines.append(
+            f'{row["name"]:<48} {row["median_s"]:>9.3f} {row["min_s"]:>7.3f} {row["max_s"]:>7.3f} '
+            f'{row["ratio"]:>7.2f}  {target:<10} {verdict}'
+        )
     return '\n'.join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--json', action='store_true', help='print {"rows": [...], "stop_problems": [...]} as JSON')
+    parser.add_argument(
+        '--json', action='store_true', help='print {"rows": [...], "stop_problems": [...]} as JSON'
+    )
     parser.add_argument('--repeats', type=int, default=5, help='measured runs per row (default 5)')
     parser.add_argument('--no-nodes', action='store_true', help='skip the node start-up rows')
     args = parser.parse_args(argv)

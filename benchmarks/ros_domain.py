@@ -3,6 +3,7 @@
 Same lock files as tests/conftest.py and `hexacal demo` (hexacal-test-ros-domain-<id>.lock in the temp
 directory), held for the benchmark's whole run; HEXACAL_TEST_DOMAIN_ID picks one explicitly.
 """
+
 from __future__ import annotations
 
 import fcntl
@@ -17,8 +18,7 @@ def claim_domain_id() -> int:
         return int(os.environ['HEXACAL_TEST_DOMAIN_ID'])
     for offset in range(100):
         domain_id = 1 + (os.getpid() + offset) % 100
-        lock = open(Path(tempfile.gettempdir()) / f'hexacal-test-ros-domain-{domain_id}.lock',
-                    'a')  # noqa: SIM115 (held open for the whole run)
+        lock = open(Path(tempfile.gettempdir()) / f'hexacal-test-ros-domain-{domain_id}.lock', 'a')  # noqa: SIM115 (held open for the whole run)
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:

@@ -14,7 +14,6 @@ import tempfile
 from typing import IO
 
 import pytest
-
 from rosproc import RosProcesses
 
 DOMAIN_ID_RANGE = range(1, 101)  # 0 is ROS's default; 101 is the Linux-safe maximum
@@ -38,7 +37,8 @@ def _claim_domain_id() -> int:
         return domain_id
     raise RuntimeError(
         f'all ROS domain ids {DOMAIN_ID_RANGE.start}..{DOMAIN_ID_RANGE.stop - 1} are in use '
-        'by other test sessions; set HEXACAL_TEST_DOMAIN_ID')
+        'by other test sessions; set HEXACAL_TEST_DOMAIN_ID'
+    )
 
 
 if os.environ.get('HEXACAL_TEST_DOMAIN_ID'):

@@ -12,6 +12,7 @@ arrays. A sample is published once all three streams delivered its stamp (the
 driver stamps the three alike), with that stamp.
 Exits 0 on SIGINT/SIGTERM.
 """
+
 from __future__ import annotations
 
 import math
@@ -20,17 +21,19 @@ import sys
 
 INCLINOMETER_JOINTS = ('tilt_x', 'tilt_y')
 ROTARY_JOINT = 'link_rotary'
-STREAMS = {'sliders': 'machine/sliders', 'inclinometer': 'machine/inclinometer',
-           'encoder': 'machine/encoder'}
+STREAMS = {
+    'sliders': 'machine/sliders',
+    'inclinometer': 'machine/inclinometer',
+    'encoder': 'machine/encoder',
+}
 KEEP_SAMPLES = 200  # incomplete samples kept (a best-effort stream may lose one)
 
 
 def main(argv: list[str]) -> int:
+    from hexacal_msgs_py.qos import SENSOR_QOS
     import rclpy
     from rclpy.executors import ExternalShutdownException
     from sensor_msgs.msg import JointState
-
-    from hexacal_msgs_py.qos import SENSOR_QOS
 
     rclpy.init(args=argv)
     node = rclpy.create_node('joint_state_broadcaster')
@@ -52,8 +55,14 @@ def main(argv: list[str]) -> int:
         names = ['gripper', *reversed(sliders.name), *INCLINOMETER_JOINTS, ROTARY_JOINT, 'spindle']
         angles = dict(zip(inclinometer.name, inclinometer.position))
         rotary = dict(zip(encoder.name, encoder.position))
-        positions = [math.nan, *reversed(sliders.position), angles['inclinometer_x'],
-                     angles['inclinometer_y'], rotary['rotary'], 12.5]
+        positions = [
+            math.nan,
+            *reversed(sliders.position),
+            angles['inclinometer_x'],
+            angles['inclinometer_y'],
+            rotary['rotary'],
+            12.5,
+        ]
         message = JointState(name=names, position=[float(v) for v in positions])
         message.header.stamp = sliders.header.stamp
         message.header.frame_id = ''

@@ -176,8 +176,9 @@ class RosProcesses:
         self.log_dir = log_dir
         self.processes: list[RosProcess] = []
 
-    def start(self, argv: Sequence[str], env: Mapping[str, str] | None = None,
-              name: str | None = None) -> RosProcess:
+    def start(
+        self, argv: Sequence[str], env: Mapping[str, str] | None = None, name: str | None = None
+    ) -> RosProcess:
         """start_node() with the log at log_dir/<name>.log (name defaults to argv[0]'s)."""
         base = name or Path(os.fspath(argv[0])).name
         log_path = self.log_dir / f'{base}.log'

@@ -8,49 +8,74 @@ the offline tools on bags of known content.  ``model`` names the actuator joints
 ``record_model``, is written to the bag's ``hexacal.collector`` metadata as the
 collector does.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from hexacal_identify.bag import BagWriter
 from hexacal_identify.core.measurements import Measurements
 from hexacal_msgs_py.names import (
+    actuator_names,
     ENCODER_NAMES,
     ENCODER_TOPIC,
     INCLINOMETER_NAMES,
     INCLINOMETER_TOPIC,
+    posture_names,
     POSTURE_TOPIC,
     SLIDERS_TOPIC,
-    actuator_names,
-    posture_names,
 )
+import numpy as np
 
-JOINT_STATE = "sensor_msgs/msg/JointState"
+JOINT_STATE = 'sensor_msgs/msg/JointState'
 
 
 def _joint_state(stamp_ns: int, names, values) -> dict:
-    return {"header": {"stamp": {"sec": stamp_ns // 1_000_000_000, "nanosec": stamp_ns % 1_000_000_000},
-                       "frame_id": ""},
-            "name": list(names), "position": [float(v) for v in values], "velocity": [], "effort": []}
+    return {
+        'header': {
+            'stamp': {'sec': stamp_ns // 1_000_000_000, 'nanosec': stamp_ns % 1_000_000_000},
+            'frame_id': '',
+        },
+        'name': list(names),
+        'position': [float(v) for v in values],
+        'velocity': [],
+        'effort': [],
+    }
 
 
-def write_recording(directory: Path, exact: Measurements, *, noise_m: float = 1e-5, noise_rad: float = 1e-5,
-                    rate_hz: float = 100.0, dwell_s: float = 1.0, move_s: float = 0.6, seed: int = 0,
-                    raw: bool = True, postures: bool = True, extra_topic: str | None = None,
-                    drop_topic: str | None = None, namespace: str = "", nan_every: int = 0,
-                    model: str | None = None, record_model: str | None = None) -> Path:
+def write_recording(
+    directory: Path,
+    exact: Measurements,
+    *,
+    noise_m: float = 1e-5,
+    noise_rad: float = 1e-5,
+    rate_hz: float = 100.0,
+    dwell_s: float = 1.0,
+    move_s: float = 0.6,
+    seed: int = 0,
+    raw: bool = True,
+    postures: bool = True,
+    extra_topic: str | None = None,
+    drop_topic: str | None = None,
+    namespace: str = '',
+    nan_every: int = 0,
+    model: str | None = None,
+    record_model: str | None = None,
+) -> Path:
     rng = np.random.default_rng(seed)
     slider_names, names = actuator_names(model), posture_names(model)
     period = int(1e9 / rate_hz)
     values = np.column_stack([exact.slider_positions, exact.inclinometer, exact.rotary])  # (N, 9)
     half_widths = np.array([noise_m] * 6 + [noise_rad] * 3)
-    prefix = f"/{namespace.strip('/')}/" if namespace else "/"
+    prefix = f'/{namespace.strip("/")}/' if namespace else '/'
     with BagWriter(directory) as writer:
         if record_model is not None:
-            writer.write_metadata("hexacal.collector", {"namespace": "/", "model": record_model})
-        topics = {SLIDERS_TOPIC: slider_names, INCLINOMETER_TOPIC: INCLINOMETER_NAMES, ENCODER_TOPIC: ENCODER_NAMES}
+            writer.write_metadata('hexacal.collector', {'namespace': '/', 'model': record_model})
+        topics = {
+            SLIDERS_TOPIC: slider_names,
+            INCLINOMETER_TOPIC: INCLINOMETER_NAMES,
+            ENCODER_TOPIC: ENCODER_NAMES,
+        }
         if raw:
             for topic in topics:
                 if topic != drop_topic:
@@ -58,7 +83,7 @@ def write_recording(directory: Path, exact: Measurements, *, noise_m: float = 1e
         if postures:
             writer.add_topic(prefix + POSTURE_TOPIC, JOINT_STATE)
         if extra_topic:
-            writer.add_topic(extra_topic, "std_msgs/msg/String")
+            writer.add_topic(extra_topic, 'std_msgs/msg/String')
         stamp = 1_700_000_000 * 1_000_000_000
         previous = values[0]
         for target in values:
@@ -68,21 +93,34 @@ def write_recording(directory: Path, exact: Measurements, *, noise_m: float = 1e
             for count, sample in enumerate(samples + list(dwell)):
                 stamp += period
                 if nan_every and count % nan_every == nan_every - 1:
-                    sample = np.where(np.arange(9) == 2, np.nan, sample)  # a glitched slider_3 reading
+                    sample = np.where(
+                        np.arange(9) == 2, np.nan, sample
+                    )  # a glitched slider_3 reading
                 if raw:
                     _write_raw(writer, stamp, sample, drop_topic, prefix, slider_names)
                 if extra_topic and stamp % (10 * period) == 0:
-                    writer.write(extra_topic, {"data": "not hexacal"}, stamp)
+                    writer.write(extra_topic, {'data': 'not hexacal'}, stamp)
             if postures:
-                writer.write(prefix + POSTURE_TOPIC, _joint_state(stamp, names, dwell.mean(axis=0)), stamp)
+                writer.write(
+                    prefix + POSTURE_TOPIC, _joint_state(stamp, names, dwell.mean(axis=0)), stamp
+                )
             previous = target
     return directory
 
 
-def _write_raw(writer: BagWriter, stamp: int, sample: np.ndarray, drop_topic: str | None, prefix: str,
-               slider_names=actuator_names()) -> None:
-    parts = ((SLIDERS_TOPIC, slider_names, sample[:6]), (INCLINOMETER_TOPIC, INCLINOMETER_NAMES, sample[6:8]),
-             (ENCODER_TOPIC, ENCODER_NAMES, sample[8:]))
+def _write_raw(
+    writer: BagWriter,
+    stamp: int,
+    sample: np.ndarray,
+    drop_topic: str | None,
+    prefix: str,
+    slider_names=actuator_names(),
+) -> None:
+    parts = (
+        (SLIDERS_TOPIC, slider_names, sample[:6]),
+        (INCLINOMETER_TOPIC, INCLINOMETER_NAMES, sample[6:8]),
+        (ENCODER_TOPIC, ENCODER_NAMES, sample[8:]),
+    )
     for topic, names, values in parts:
         if topic != drop_topic:
             writer.write(prefix + topic, _joint_state(stamp, names, values), stamp)

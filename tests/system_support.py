@@ -4,6 +4,7 @@ The probe joins the session's ROS domain (set by conftest.py before any context
 exists) and spins only while a test waits on it, so every wait is a bounded
 wait on a condition.
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
@@ -15,7 +16,6 @@ from typing import Any, TypeVar
 
 import numpy as np
 import pytest
-
 from rosproc import RosProcess, venv_executable
 
 T = TypeVar('T')
@@ -46,8 +46,9 @@ class Probe:
 
         self.context = Context()
         rclpy.init(context=self.context, signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node('hexacal_test_probe', namespace=self.namespace or None,
-                                      context=self.context)
+        self.node = rclpy.create_node(
+            'hexacal_test_probe', namespace=self.namespace or None, context=self.context
+        )
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
 
@@ -60,8 +61,13 @@ class Probe:
 
     # ------------------------------------------------------------------ waiting
 
-    def spin_until(self, predicate: Callable[[], T], timeout: float, what: str,
-                   details: Callable[[], str] | None = None) -> T:
+    def spin_until(
+        self,
+        predicate: Callable[[], T],
+        timeout: float,
+        what: str,
+        details: Callable[[], str] | None = None,
+    ) -> T:
         """Spin until predicate() is truthy (returned); AssertionError naming `what` on timeout."""
         deadline = time.monotonic() + timeout
         while True:
@@ -81,25 +87,33 @@ class Probe:
         while time.monotonic() < deadline:
             self.executor.spin_once(timeout_sec=0.05)
 
-    def wait_for_node(self, name: str, namespace: str = '/', process: RosProcess | None = None,
-                      timeout: float = NODE_START_TIMEOUT_S) -> None:
+    def wait_for_node(
+        self,
+        name: str,
+        namespace: str = '/',
+        process: RosProcess | None = None,
+        timeout: float = NODE_START_TIMEOUT_S,
+    ) -> None:
         def present() -> bool:
             if process is not None and not process.running():
                 raise AssertionError(f'{name} exited early\n{process.describe()}')
             return (name, namespace) in self.node.get_node_names_and_namespaces()
 
-        self.spin_until(present, timeout, f'node {namespace.rstrip("/")}/{name} on the graph',
-                        process.describe if process else None)
+        self.spin_until(
+            present,
+            timeout,
+            f'node {namespace.rstrip("/")}/{name} on the graph',
+            process.describe if process else None,
+        )
 
     # ------------------------------------------------------------------ topics
 
     def subscribe_postures(self, topic: str = 'hexacal/posture', model: str | None = None) -> None:
         """Postures of `model` (default: the Hexa Slide's joints) are appended to self.postures;
         the joint names of every message to self.posture_joint_names."""
-        from sensor_msgs.msg import JointState
-
         from hexacal_msgs_py.conversions import joint_state_to_posture_reading
         from hexacal_msgs_py.qos import POSTURE_QOS
+        from sensor_msgs.msg import JointState
 
         def on_posture(message: JointState) -> None:
             self.posture_joint_names.append(tuple(message.name))
@@ -109,10 +123,9 @@ class Probe:
 
     def subscribe_parameters(self, topic: str = 'hexacal/parameters') -> list:
         """A new transient-local subscription; returns the list its vectors are appended to."""
-        from std_msgs.msg import Float64MultiArray
-
         from hexacal_msgs_py.conversions import multiarray_to_parameters
         from hexacal_msgs_py.qos import PARAMETERS_QOS
+        from std_msgs.msg import Float64MultiArray
 
         received: list[np.ndarray] = []
 
@@ -126,37 +139,54 @@ class Probe:
 
     def subscribe_status(self, topic: str = 'hexacal/calibration_status') -> None:
         from diagnostic_msgs.msg import DiagnosticArray
-
         from hexacal_msgs_py.conversions import status_values
         from hexacal_msgs_py.qos import STATUS_QOS
 
         def on_status(message: DiagnosticArray) -> None:
             for status in message.status:
-                self.statuses.append((int.from_bytes(status.level, 'little')
-                                      if isinstance(status.level, bytes) else int(status.level),
-                                      status.message, status_values(status)))
+                self.statuses.append(
+                    (
+                        int.from_bytes(status.level, 'little')
+                        if isinstance(status.level, bytes)
+                        else int(status.level),
+                        status.message,
+                        status_values(status),
+                    )
+                )
 
         self.node.create_subscription(DiagnosticArray, topic, on_status, STATUS_QOS)
 
     def postures_received_by_identify(self) -> int:
         """The count in identify's latest 'collecting' status (0 before any)."""
-        counts = [int(values['postures_received']) for _, _, values in self.statuses
-                  if values.get('outcome') == 'collecting']
+        counts = [
+            int(values['postures_received'])
+            for _, _, values in self.statuses
+            if values.get('outcome') == 'collecting'
+        ]
         return counts[-1] if counts else 0
 
-    def publish_postures(self, postures: Sequence, topic: str = 'hexacal/posture',
-                         subscribers: int = 1, model: str | None = None) -> None:
+    def publish_postures(
+        self,
+        postures: Sequence,
+        topic: str = 'hexacal/posture',
+        subscribers: int = 1,
+        model: str | None = None,
+    ) -> None:
         """Publish postures (with `model`'s joint names, default the Hexa Slide's) once
         `subscribers` subscriptions (besides ours) are matched."""
-        from sensor_msgs.msg import JointState
-
         from hexacal_msgs_py.conversions import posture_reading_to_joint_state
         from hexacal_msgs_py.qos import POSTURE_QOS
+        from sensor_msgs.msg import JointState
 
         publisher = self.node.create_publisher(JointState, topic, POSTURE_QOS)
-        own = 1 if any(s.topic_name == publisher.topic_name for s in self.node.subscriptions) else 0
-        self.spin_until(lambda: publisher.get_subscription_count() >= subscribers + own,
-                        NODE_START_TIMEOUT_S, f'{subscribers} subscriber(s) on {topic}')
+        own = (
+            1 if any(s.topic_name == publisher.topic_name for s in self.node.subscriptions) else 0
+        )
+        self.spin_until(
+            lambda: publisher.get_subscription_count() >= subscribers + own,
+            NODE_START_TIMEOUT_S,
+            f'{subscribers} subscriber(s) on {topic}',
+        )
         for posture in postures:
             publisher.publish(posture_reading_to_joint_state(posture, model=model))
 
@@ -164,8 +194,11 @@ class Probe:
 
     def call_trigger(self, service: str = 'hexacal/calibrate', timeout: float = SERVICE_TIMEOUT_S):
         future = self.trigger_async(service)
-        return self.spin_until(lambda: future.result() if future.done() else None, timeout,
-                               f'the response of {service}')
+        return self.spin_until(
+            lambda: future.result() if future.done() else None,
+            timeout,
+            f'the response of {service}',
+        )
 
     def trigger_async(self, service: str = 'hexacal/calibrate'):
         from std_srvs.srv import Trigger
@@ -208,8 +241,9 @@ def write_parameter_files(directory: Path, model: str | None = None) -> tuple[Pa
     return true_path, nominal_path
 
 
-def simulated_postures(count: int, seed: int = 0, noise_um: float = 10.0,
-                       model: str | None = None) -> list:
+def simulated_postures(
+    count: int, seed: int = 0, noise_um: float = 10.0, model: str | None = None
+) -> list:
     """PostureReadings of sphere postures on the Table 1 machine (or the default machine of
     `model`, in its default workspace) (core simulation)."""
     from hexacal_identify.core.architectures import architecture
@@ -220,10 +254,16 @@ def simulated_postures(count: int, seed: int = 0, noise_um: float = 10.0,
     rng = np.random.default_rng([seed, 42])
     truth = architecture(model).default_parameters()
     poses = sample_poses(truth, count, rng, 'sphere', architecture(model).default_workspace())
-    data = simulate_measurements(truth, poses, 'sphere', noise=NoiseModel.from_microns(noise_um),
-                                 rng=rng)
-    return [PostureReading.from_values(1_000_000_000 * (i + 1), [
-        *data.slider_positions[i], *data.inclinometer[i], data.rotary[i]]) for i in range(count)]
+    data = simulate_measurements(
+        truth, poses, 'sphere', noise=NoiseModel.from_microns(noise_um), rng=rng
+    )
+    return [
+        PostureReading.from_values(
+            1_000_000_000 * (i + 1),
+            [*data.slider_positions[i], *data.inclinometer[i], data.rotary[i]],
+        )
+        for i in range(count)
+    ]
 
 
 def node_argv(executable: str, parameters: dict[str, object], namespace: str = '') -> list[str]:
@@ -238,16 +278,23 @@ def node_argv(executable: str, parameters: dict[str, object], namespace: str = '
 
 def fast_driver_parameters(**overrides: object) -> dict[str, object]:
     """A driver that walks a posture every 1.0 s (collector: fast_collector_parameters)."""
-    parameters: dict[str, object] = {'plan': 'mixed', 'rate_hz': 100.0, 'settle_s': 0.3,
-                                     'dwell_s': 0.7}
+    parameters: dict[str, object] = {
+        'plan': 'mixed',
+        'rate_hz': 100.0,
+        'settle_s': 0.3,
+        'dwell_s': 0.7,
+    }
     parameters.update(overrides)
     return parameters
 
 
 def fast_collector_parameters(output_dir: Path, **overrides: object) -> dict[str, object]:
     """Detector window 0.2 s + capture 0.3 s: fits the fast driver's 0.7 s dwell."""
-    parameters: dict[str, object] = {'output_dir': str(output_dir), 'window_s': 0.2,
-                                     'capture_s': 0.3}
+    parameters: dict[str, object] = {
+        'output_dir': str(output_dir),
+        'window_s': 0.2,
+        'capture_s': 0.3,
+    }
     parameters.update(overrides)
     return parameters
 
@@ -268,10 +315,16 @@ def pid_alive(pid: int) -> bool:
 
 def joint_state_dict(stamp_ns: int, names, positions) -> dict:
     """A sensor_msgs/JointState as the bag writer takes it."""
-    return {'header': {'stamp': {'sec': stamp_ns // 10**9, 'nanosec': stamp_ns % 10**9},
-                       'frame_id': ''},
-            'name': list(names), 'position': [float(v) for v in positions],
-            'velocity': [], 'effort': []}
+    return {
+        'header': {
+            'stamp': {'sec': stamp_ns // 10**9, 'nanosec': stamp_ns % 10**9},
+            'frame_id': '',
+        },
+        'name': list(names),
+        'position': [float(v) for v in positions],
+        'velocity': [],
+        'effort': [],
+    }
 
 
 def posture_bag(directory: Path, rows: list[list[float]]) -> Path:

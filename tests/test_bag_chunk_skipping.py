@@ -6,22 +6,28 @@ topic of a 50-posture bag is in 50 of its 227 chunks).  The messages and their
 order are exactly those of reading everything and filtering; a file without
 a summary (cut short) is still read by the forward scan.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
-
 from hexacal_identify.bag import BagCorruptError, BagWriter, open_bag
 from hexacal_identify.bag import reader as reader_module
 from hexacal_msgs_py.names import INCLINOMETER_NAMES, JOINT_STATE_TYPE, SLIDER_NAMES
+import pytest
 
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
 SLIDERS, INCLINOMETER, POSTURE = '/hexacal/sliders', '/hexacal/inclinometer', '/hexacal/posture'
 
 
 def _key(message):
-    return message.topic, message.type_name, message.log_time_ns, message.publish_time_ns, message.data_bytes
+    return (
+        message.topic,
+        message.type_name,
+        message.log_time_ns,
+        message.publish_time_ns,
+        message.data_bytes,
+    )
 
 
 def _filtered(reader, topics):
@@ -43,7 +49,9 @@ def expanded_chunks(monkeypatch):
     return count
 
 
-@pytest.mark.parametrize('bag', ['sphere30_nonoise', 'sphere50_noise10', 'sphere60_fixed20_noise10'])
+@pytest.mark.parametrize(
+    'bag', ['sphere30_nonoise', 'sphere50_noise10', 'sphere60_fixed20_noise10']
+)
 def test_sample_bags_same_messages_per_topic_fewer_chunks(bag, expanded_chunks):
     reader = open_bag(BAGS / bag)
     topics = sorted(reader.topics())
@@ -57,7 +65,9 @@ def test_sample_bags_same_messages_per_topic_fewer_chunks(bag, expanded_chunks):
         assert selected == [k for k in everything if k[0] == topic], topic
         if topic.endswith('/posture'):
             assert len(selected) == reader.topics()[topic].count
-            assert expanded_chunks[0] <= len(selected) < all_chunks  # only the chunks with a posture
+            assert (
+                expanded_chunks[0] <= len(selected) < all_chunks
+            )  # only the chunks with a posture
     two = [topics[0], topics[-1]]
     assert [_key(m) for m in reader.messages(two)] == _filtered(reader, two)
 
@@ -70,10 +80,15 @@ def _phased_bag(directory: Path) -> Path:
         for i in range(300):
             stamp = 1_000_000_000 + i * 10_000_000
             if i < 200:
-                writer.write(SLIDERS, {'name': list(SLIDER_NAMES), 'position': [0.4 + 1e-4 * i] * 6}, stamp)
+                writer.write(
+                    SLIDERS, {'name': list(SLIDER_NAMES), 'position': [0.4 + 1e-4 * i] * 6}, stamp
+                )
             if i >= 100:
-                writer.write(INCLINOMETER, {'name': list(INCLINOMETER_NAMES), 'position': [1e-5 * i, 0.0]},
-                             stamp + 1)
+                writer.write(
+                    INCLINOMETER,
+                    {'name': list(INCLINOMETER_NAMES), 'position': [1e-5 * i, 0.0]},
+                    stamp + 1,
+                )
     return directory
 
 
@@ -97,14 +112,16 @@ def test_a_file_without_summary_is_scanned_with_the_same_messages(tmp_path):
     mcap = next(bag.glob('*.mcap'))
     complete = open_bag(mcap)
     data = mcap.read_bytes()
-    summary_start = int.from_bytes(data[-8 - 20:-8 - 12], 'little')  # the footer's summary_start
+    summary_start = int.from_bytes(data[-8 - 20 : -8 - 12], 'little')  # the footer's summary_start
     cut = tmp_path / 'no_summary.mcap'
     cut.write_bytes(data[:summary_start])  # data section and DataEnd, no summary, no footer
     scanned = open_bag(cut)
     assert scanned.info().truncated and not complete.info().truncated
     assert scanned._files[0].chunk_channels == {} and complete._files[0].chunk_channels
     for topics in ([SLIDERS], [INCLINOMETER]):
-        assert [_key(m) for m in scanned.messages(topics)] == [_key(m) for m in complete.messages(topics)]
+        assert [_key(m) for m in scanned.messages(topics)] == [
+            _key(m) for m in complete.messages(topics)
+        ]
 
 
 def test_damage_in_a_chunk_that_is_read_is_still_corrupt_error(tmp_path):
@@ -114,7 +131,9 @@ def test_damage_in_a_chunk_that_is_read_is_still_corrupt_error(tmp_path):
     chunk_channels = reader._files[0].chunk_channels
     sliders_only = [offset for offset, ids in sorted(chunk_channels.items()) if len(ids) == 1][0]
     data = bytearray(mcap.read_bytes())
-    data[sliders_only + 200] ^= 0xFF  # inside the first sliders-only chunk: its CRC no longer matches
+    data[sliders_only + 200] ^= (
+        0xFF  # inside the first sliders-only chunk: its CRC no longer matches
+    )
     mcap.write_bytes(bytes(data))
     reader = open_bag(bag)
     with pytest.raises(BagCorruptError):

@@ -8,22 +8,22 @@ identified; a calibration of the machine alone writes none (the file is as befor
 `hexacal verify` takes them from the calibrated file (`--device-defects` overrides,
 `none` = ideal device). Bags are real MCAP files; the CLI runs in this process.
 """
+
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
-import numpy as np
-import pytest
-
 from hexacal_identify.cli import main as hexacal_main
 from hexacal_identify.core.device import DeviceDefects
 from hexacal_identify.core.measurements import NoiseModel, simulate_measurements
 from hexacal_identify.core.model import nominal_set, table1_parameters
-from hexacal_identify.core.postures import Workspace, sample_poses
+from hexacal_identify.core.postures import sample_poses, Workspace
 from hexacal_identify.pipeline import load_device_defects
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.parameters_file import read_parameters_file, save_parameters
+import numpy as np
+import pytest
 from system_support import posture_bag
 
 DEFECTS = DeviceDefects(dL=5e-4, alpha0=2e-4, gamma=1e-4)
@@ -38,7 +38,9 @@ def measured_rows(count: int, seed: int) -> list[list[float]]:
     rng = np.random.default_rng(seed)
     poses = sample_poses(truth, count, rng, 'sphere', Workspace(link_length=0.75 + DEFECTS.dL))
     data = simulate_measurements(truth, poses, 'sphere', noise=NOISE, rng=rng, defects=DEFECTS)
-    return [[*data.slider_positions[i], *data.inclinometer[i], data.rotary[i]] for i in range(count)]
+    return [
+        [*data.slider_positions[i], *data.inclinometer[i], data.rotary[i]] for i in range(count)
+    ]
 
 
 @pytest.fixture(scope='module')
@@ -46,8 +48,11 @@ def files(tmp_path_factory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp('device_file')
     nominal = root / 'nominal.yaml'
     save_parameters(nominal, nominal_set(2, seed=3).vector)
-    return {'nominal': nominal, 'calibration': posture_bag(root / 'calibration', measured_rows(50, 11)),
-            'verification': posture_bag(root / 'verification', measured_rows(30, 12))}
+    return {
+        'nominal': nominal,
+        'calibration': posture_bag(root / 'calibration', measured_rows(50, 11)),
+        'verification': posture_bag(root / 'verification', measured_rows(30, 12)),
+    }
 
 
 def hexacal(capsys, *args) -> tuple[int, str, str]:
@@ -57,8 +62,19 @@ def hexacal(capsys, *args) -> tuple[int, str, str]:
 
 
 def _calibrate_json(capsys, files, output: Path, *extra) -> dict:
-    code, out, err = hexacal(capsys, 'calibrate', files['calibration'], '--nominal', files['nominal'],
-                             '--output', output, '--noise-um', '10', '--json', *extra)
+    code, out, err = hexacal(
+        capsys,
+        'calibrate',
+        files['calibration'],
+        '--nominal',
+        files['nominal'],
+        '--output',
+        output,
+        '--noise-um',
+        '10',
+        '--json',
+        *extra,
+    )
     assert code == 0, err
     return json.loads(out)
 
@@ -89,19 +105,32 @@ def test_a_machine_only_calibration_writes_no_device_key(capsys, files, tmp_path
 def test_verify_measures_with_the_calibrated_device(capsys, files, tmp_path):
     calibrated = tmp_path / 'calibrated.yaml'
     result = _calibrate_json(capsys, files, calibrated, '--identify-device', ','.join(IDENTIFIED))
-    common = ('verify', files['verification'], '--nominal', files['nominal'], '--calibrated', calibrated,
-              '--noise-um', '10')
+    common = (
+        'verify',
+        files['verification'],
+        '--nominal',
+        files['nominal'],
+        '--calibrated',
+        calibrated,
+        '--noise-um',
+        '10',
+    )
 
     code, out, err = hexacal(capsys, *common, '--json')
     assert code in (0, 1), err
     with_device = json.loads(out)
     assert with_device['device_defects'] == {
-        'source': 'calibrated file', 'values': {name: result['device'][name] for name in IDENTIFIED}}
+        'source': 'calibrated file',
+        'values': {name: result['device'][name] for name in IDENTIFIED},
+    }
 
     code, out, err = hexacal(capsys, *common, '--json', '--device-defects', 'none')
     assert code in (0, 1), err
     ideal = json.loads(out)
-    assert ideal['device_defects'] == {'source': '--device-defects none (ideal device)', 'values': {}}
+    assert ideal['device_defects'] == {
+        'source': '--device-defects none (ideal device)',
+        'values': {},
+    }
     # The same device measuring again: its identified defects remove its own share of the error.
     rms_with, rms_ideal = (p['calibrated']['position_rms_m'] for p in (with_device, ideal))
     assert rms_with < 0.5 * rms_ideal, (rms_with, rms_ideal)
@@ -109,7 +138,10 @@ def test_verify_measures_with_the_calibrated_device(capsys, files, tmp_path):
 
     code, out, err = hexacal(capsys, *common, '--device-defects', 'dL=5e-4,alpha0=2e-4,gamma=1e-4')
     assert code in (0, 1), err
-    assert 'measuring device (--device-defects): dL 500.00 um, alpha0 200.00 urad, gamma 100.00 urad' in out
+    assert (
+        'measuring device (--device-defects): dL 500.00 um, alpha0 200.00 urad, gamma 100.00 urad'
+        in out
+    )
 
     code, out, err = hexacal(capsys, *common)
     assert 'measuring device (calibrated file): dL ' in out, out
@@ -120,7 +152,9 @@ def test_verify_names_a_bad_device_key_or_option(capsys, files, tmp_path):
     save_parameters(bad, table1_parameters().vector, extras={'device.defects.tilt': 1e-3})
     common = ('verify', files['verification'], '--nominal', files['nominal'])
     code, out, err = hexacal(capsys, *common, '--calibrated', bad)
-    assert code == 2 and 'device.defects.tilt' in err and str(bad) in err and 'Traceback' not in err, err
+    assert (
+        code == 2 and 'device.defects.tilt' in err and str(bad) in err and 'Traceback' not in err
+    ), err
     with pytest.raises(ParameterFileError, match='device.defects.tilt'):
         load_device_defects(bad)
 

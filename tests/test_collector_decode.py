@@ -4,24 +4,31 @@ Messages laid out like the learned one are read from the bytes; anything else
 (other names, lengths, frame_id, a non-finite value, a negative stamp) is left
 to the full decoding, which reports the problem as before.
 """
+
 from __future__ import annotations
 
 import math
 
+from hexacal_identify.nodes.collector import _FastJointState, _positions_layout, _stamp_of
+from hexacal_msgs_py.conversions import joint_state_to_slider_reading, to_stamp
+from hexacal_msgs_py.names import SLIDER_NAMES
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 
-from hexacal_identify.nodes.collector import _FastJointState, _positions_layout, _stamp_of
-from hexacal_msgs_py.conversions import joint_state_to_slider_reading, to_stamp
-from hexacal_msgs_py.names import SLIDER_NAMES
 
-
-def _message(stamp_ns: int = 1_700_000_000_123_456_789, names=tuple(SLIDER_NAMES),
-             positions=(0.1, 0.2, 0.3, 0.4, 0.5, 0.6), frame_id: str = '',
-             velocity=()) -> bytes:
-    message = JointState(name=list(names), position=[float(p) for p in positions],
-                         velocity=[float(v) for v in velocity])
+def _message(
+    stamp_ns: int = 1_700_000_000_123_456_789,
+    names=tuple(SLIDER_NAMES),
+    positions=(0.1, 0.2, 0.3, 0.4, 0.5, 0.6),
+    frame_id: str = '',
+    velocity=(),
+) -> bytes:
+    message = JointState(
+        name=list(names),
+        position=[float(p) for p in positions],
+        velocity=[float(v) for v in velocity],
+    )
     message.header.stamp = to_stamp(stamp_ns) if stamp_ns >= 0 else message.header.stamp
     if stamp_ns < 0:
         message.header.stamp.sec = -1
@@ -35,8 +42,10 @@ def _learned(data: bytes) -> _FastJointState:
 
 def test_fast_read_equals_rclpy_decoding_for_the_learned_layout():
     fast = _learned(_message())
-    for stamp, positions in ((5, (1.5, -2.25, 3e-9, 0.0, -0.0, 1e300)),
-                             (2**31 * 10**9 - 1, (0.7,) * 6)):
+    for stamp, positions in (
+        (5, (1.5, -2.25, 3e-9, 0.0, -0.0, 1e300)),
+        (2**31 * 10**9 - 1, (0.7,) * 6),
+    ):
         data = _message(stamp, positions=positions)
         reading = joint_state_to_slider_reading(deserialize_message(data, JointState))
         assert fast.read(data) == (reading.stamp_ns, reading.slider_positions)
@@ -47,19 +56,28 @@ def test_joint_order_follows_the_names_of_the_learned_message():
     names = tuple(reversed(SLIDER_NAMES))
     fast = _learned(_message(names=names, positions=(6, 5, 4, 3, 2, 1)))
     assert fast.read(_message(names=names, positions=(60, 50, 40, 30, 20, 10)))[1] == (
-        10.0, 20.0, 30.0, 40.0, 50.0, 60.0)
+        10.0,
+        20.0,
+        30.0,
+        40.0,
+        50.0,
+        60.0,
+    )
 
 
-@pytest.mark.parametrize('other', [
-    dict(names=('elbow', *SLIDER_NAMES[1:])),
-    dict(names=SLIDER_NAMES[:5], positions=(0.1,) * 5),
-    dict(positions=(0.1,) * 7, names=(*SLIDER_NAMES, 'extra')),
-    dict(frame_id='base'),
-    dict(velocity=(1.0,)),
-    dict(positions=(0.1, math.nan, 0.3, 0.4, 0.5, 0.6)),
-    dict(positions=(0.1, 0.2, math.inf, 0.4, 0.5, 0.6)),
-    dict(stamp_ns=-1),
-])
+@pytest.mark.parametrize(
+    'other',
+    [
+        dict(names=('elbow', *SLIDER_NAMES[1:])),
+        dict(names=SLIDER_NAMES[:5], positions=(0.1,) * 5),
+        dict(positions=(0.1,) * 7, names=(*SLIDER_NAMES, 'extra')),
+        dict(frame_id='base'),
+        dict(velocity=(1.0,)),
+        dict(positions=(0.1, math.nan, 0.3, 0.4, 0.5, 0.6)),
+        dict(positions=(0.1, 0.2, math.inf, 0.4, 0.5, 0.6)),
+        dict(stamp_ns=-1),
+    ],
+)
 def test_anything_else_goes_the_full_way(other):
     fast = _learned(_message())
     assert fast.read(_message(**other)) is None
@@ -74,18 +92,38 @@ def test_malformed_bytes_have_no_layout():
 
 # ------------------------------------------------ a user's /joint_states and an Imu (issue #11)
 
-BROADCASTER_NAMES = ('base_yaw', 'act_c', 'act_a', 'incl_b', 'act_b', 'gripper', 'act_d', 'act_e',
-                     'act_f', 'rot', 'incl_a')
+BROADCASTER_NAMES = (
+    'base_yaw',
+    'act_c',
+    'act_a',
+    'incl_b',
+    'act_b',
+    'gripper',
+    'act_d',
+    'act_e',
+    'act_f',
+    'rot',
+    'incl_a',
+)
 WANTED = ('act_a', 'act_b', 'act_c', 'act_d', 'act_e', 'act_f', 'incl_a', 'incl_b', 'rot')
 
 
-def _broadcaster(stamp_ns: int, positions, velocity=None, effort=None, names=BROADCASTER_NAMES,
-                 frame_id: str = '') -> bytes:
+def _broadcaster(
+    stamp_ns: int,
+    positions,
+    velocity=None,
+    effort=None,
+    names=BROADCASTER_NAMES,
+    frame_id: str = '',
+) -> bytes:
     """What ros2_control's joint_state_broadcaster publishes: every joint, with velocity and effort."""
     count = len(names)
-    message = JointState(name=list(names), position=[float(p) for p in positions],
-                         velocity=[float(v) for v in (velocity if velocity is not None else [0.0] * count)],
-                         effort=[float(e) for e in (effort if effort is not None else [0.0] * count)])
+    message = JointState(
+        name=list(names),
+        position=[float(p) for p in positions],
+        velocity=[float(v) for v in (velocity if velocity is not None else [0.0] * count)],
+        effort=[float(e) for e in (effort if effort is not None else [0.0] * count)],
+    )
     message.header.stamp = to_stamp(stamp_ns)
     message.header.frame_id = frame_id
     return serialize_message(message)
@@ -107,37 +145,49 @@ def test_a_broadcaster_message_is_read_in_place_whatever_its_velocity_and_effort
         assert fast.read(data) == (10 * k, expected)
 
 
-@pytest.mark.parametrize('other', [
-    dict(velocity=[0.0] * 10, effort=[0.0] * 12),  # same size, other sequence lengths
-    dict(velocity=[], effort=[0.0] * 11),
-    dict(names=(*BROADCASTER_NAMES[:-1], 'incl_z')),
-    dict(frame_id='x'),
-])
+@pytest.mark.parametrize(
+    'other',
+    [
+        dict(velocity=[0.0] * 10, effort=[0.0] * 12),  # same size, other sequence lengths
+        dict(velocity=[], effort=[0.0] * 11),
+        dict(names=(*BROADCASTER_NAMES[:-1], 'incl_z')),
+        dict(frame_id='x'),
+    ],
+)
 def test_a_broadcaster_message_laid_out_otherwise_goes_the_full_way(other):
     first = _broadcaster(7, _positions(0.1))
     fast = _FastJointState(first, deserialize_message(first, JointState), WANTED)
     assert fast.read(_broadcaster(8, _positions(0.2), **other)) is None
 
 
-def _imu(stamp_ns: int, alpha: float, beta: float, frame_id: str = 'imu_link', yaw: float = 0.4,
-         covariance_0: float = 0.0) -> bytes:
+def _imu(
+    stamp_ns: int,
+    alpha: float,
+    beta: float,
+    frame_id: str = 'imu_link',
+    yaw: float = 0.4,
+    covariance_0: float = 0.0,
+) -> bytes:
     from hexacal_msgs_py.conversions import inclinometer_angles_to_imu
     from hexacal_msgs_py.readings import InclinometerReading
 
-    message = inclinometer_angles_to_imu(InclinometerReading(stamp_ns, alpha, beta), frame_id, yaw=yaw)
+    message = inclinometer_angles_to_imu(
+        InclinometerReading(stamp_ns, alpha, beta), frame_id, yaw=yaw
+    )
     message.orientation_covariance[0] = covariance_0
     return serialize_message(message)
 
 
 def test_an_imu_is_read_in_place_as_the_contract_converts_it():
-    from sensor_msgs.msg import Imu
-
     from hexacal_identify.nodes.collector import _FastImu
     from hexacal_msgs_py.conversions import imu_to_inclinometer_reading
+    from sensor_msgs.msg import Imu
 
     first = _imu(5, 0.01, -0.02)
     fast = _FastImu(first, deserialize_message(first, Imu))
-    for k, (alpha, beta, yaw) in enumerate([(0.1, 0.2, 0.0), (-0.25, 0.05, 2.5), (3e-6, -1e-7, -1.0)]):
+    for k, (alpha, beta, yaw) in enumerate(
+        [(0.1, 0.2, 0.0), (-0.25, 0.05, 2.5), (3e-6, -1e-7, -1.0)]
+    ):
         data = _imu(1_000 + k, alpha, beta, yaw=yaw)
         reading = imu_to_inclinometer_reading(deserialize_message(data, Imu))
         assert fast.read(data) == (reading.stamp_ns, (reading.alpha, reading.beta))
@@ -151,42 +201,80 @@ def test_an_imu_is_read_in_place_as_the_contract_converts_it():
 def test_the_collector_reads_one_joint_states_for_its_three_inputs_once_each():
     """All three inputs remapped to one topic: one subscription, each reading taken once per message,
     the in-place reader learned from the first message, the synchronizer pairing them exactly."""
-    import rclpy
-
     from hexacal_identify.nodes.collector import CollectorNode
     from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, SLIDERS_TOPIC
+    import rclpy
 
-    rclpy.init(args=['--ros-args', '-p', 'record:=false', '-p', 'window_s:=0.2', '-p', 'capture_s:=0.3',
-                     '-p', 'actuator_joints:=[act_a, act_b, act_c, act_d, act_e, act_f]',
-                     '-p', 'inclinometer_joints:=[incl_a, incl_b]', '-p', 'rotary_joint:=rot',
-                     '-p', 'inclinometer_signs:=[1, -1]', '-p', 'inclinometer_offsets_rad:=[0.0, 0.005]',
-                     *[item for topic in ('sliders', 'inclinometer', 'encoder')
-                       for item in ('-r', f'hexacal/{topic}:=/joint_states')]])
+    rclpy.init(
+        args=[
+            '--ros-args',
+            '-p',
+            'record:=false',
+            '-p',
+            'window_s:=0.2',
+            '-p',
+            'capture_s:=0.3',
+            '-p',
+            'actuator_joints:=[act_a, act_b, act_c, act_d, act_e, act_f]',
+            '-p',
+            'inclinometer_joints:=[incl_a, incl_b]',
+            '-p',
+            'rotary_joint:=rot',
+            '-p',
+            'inclinometer_signs:=[1, -1]',
+            '-p',
+            'inclinometer_offsets_rad:=[0.0, 0.005]',
+            *[
+                item
+                for topic in ('sliders', 'inclinometer', 'encoder')
+                for item in ('-r', f'hexacal/{topic}:=/joint_states')
+            ],
+        ]
+    )
     node = None
     try:
         node = CollectorNode()
         (source,) = node._sources
-        assert source.name == '/joint_states' and source.inputs == (SLIDERS_TOPIC, INCLINOMETER_TOPIC,
-                                                                    ENCODER_TOPIC)
+        assert source.name == '/joint_states' and source.inputs == (
+            SLIDERS_TOPIC,
+            INCLINOMETER_TOPIC,
+            ENCODER_TOPIC,
+        )
         published = []
         node._posture_pub.publish = published.append
         positions = _positions(0.1)
         for k in range(60):  # 0.6 s still at 100 Hz
-            node._on_raw(source, _broadcaster(1_000_000_000 + 10_000_000 * k, positions,
-                                              velocity=[0.1 * k] * 11, effort=[0.2 * k] * 11), {})
+            node._on_raw(
+                source,
+                _broadcaster(
+                    1_000_000_000 + 10_000_000 * k,
+                    positions,
+                    velocity=[0.1 * k] * 11,
+                    effort=[0.2 * k] * 11,
+                ),
+                {},
+            )
             assert source.fast is not None  # learned from the first message
             node._detect()
         assert node.received == {SLIDERS_TOPIC: 60, INCLINOMETER_TOPIC: 60, ENCODER_TOPIC: 60}
         assert {name: status.accepted for name, status in node.synchronizer.status(0).items()} == {
-            'sliders': 60, 'inclinometer': 60, 'encoder': 60}
+            'sliders': 60,
+            'inclinometer': 60,
+            'encoder': 60,
+        }
         assert node.invalid == {} and node.synchronizer.unpaired == {}
         (posture,) = published
         value = dict(zip(BROADCASTER_NAMES, positions))
         assert list(posture.name) == [f'slider_{i}' for i in range(1, 7)] + [
-            'inclinometer_x', 'inclinometer_y', 'rotary']
+            'inclinometer_x',
+            'inclinometer_y',
+            'rotary',
+        ]
         assert list(posture.position) == pytest.approx(
-            [value[f'act_{c}'] for c in 'abcdef'] + [value['incl_a'], -(value['incl_b'] - 0.005),
-                                                     value['rot']], abs=1e-15)
+            [value[f'act_{c}'] for c in 'abcdef']
+            + [value['incl_a'], -(value['incl_b'] - 0.005), value['rot']],
+            abs=1e-15,
+        )
     finally:
         if node is not None:
             node.destroy_node()

@@ -15,6 +15,7 @@ Imu postures equal the JointState ones within rounding; each bag records the inp
 received plus the mapping, calibrates offline with `hexacal calibrate`, and re-detected from
 its raw inputs gives the live postures. Bad mapping parameters stop the node with exit 2.
 """
+
 from __future__ import annotations
 
 import json
@@ -24,35 +25,59 @@ import sys
 
 import numpy as np
 import pytest
-import yaml
-
 from system_support import (
-    STOP_TIMEOUT_S,
     fast_collector_parameters,
     node_argv,
     probe,  # noqa: F401 - fixture
+    STOP_TIMEOUT_S,
     write_parameter_files,
 )
+import yaml
 
 POSTURES = 30
 SPEED = 2.5  # stamps advance 10 ms per sample, published 2.5 times faster (stamps drive detection)
-ACTUATORS = ['arm_1_joint', 'arm_2_joint', 'arm_3_joint', 'arm_4_joint', 'arm_5_joint', 'arm_6_joint']
+ACTUATORS = [
+    'arm_1_joint',
+    'arm_2_joint',
+    'arm_3_joint',
+    'arm_4_joint',
+    'arm_5_joint',
+    'arm_6_joint',
+]
 INCLINOMETER = ['tilt_x', 'tilt_y']
 ROTARY = 'platform_roll'
 # The order /joint_states carries them in, with other joints of the machine besides.
-BROADCAST = ['base_lift', 'arm_3_joint', 'tilt_y', 'arm_1_joint', 'gripper', 'arm_2_joint',
-             'platform_roll', 'arm_6_joint', 'arm_5_joint', 'tilt_x', 'arm_4_joint']
+BROADCAST = [
+    'base_lift',
+    'arm_3_joint',
+    'tilt_y',
+    'arm_1_joint',
+    'gripper',
+    'arm_2_joint',
+    'platform_roll',
+    'arm_6_joint',
+    'arm_5_joint',
+    'tilt_x',
+    'arm_4_joint',
+]
 IMU_SIGNS = [-1, 1]
 IMU_OFFSETS = [0.0125, -0.02]
 IMU_NAMESPACE = '/imu_case'
-REMAP_ALL = ['hexacal/sliders:=/joint_states', 'hexacal/inclinometer:=/joint_states',
-             'hexacal/encoder:=/joint_states']
+REMAP_ALL = [
+    'hexacal/sliders:=/joint_states',
+    'hexacal/inclinometer:=/joint_states',
+    'hexacal/encoder:=/joint_states',
+]
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 
 
 def hexacal(*args):
-    return subprocess.run([sys.executable, '-m', 'hexacal_identify.cli', *map(str, args)],
-                          capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, '-m', 'hexacal_identify.cli', *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 def exact_readings(count: int, seed: int = 5) -> np.ndarray:
@@ -67,26 +92,40 @@ def exact_readings(count: int, seed: int = 5) -> np.ndarray:
 def imu_mapping():
     from hexacal_msgs_py.inputs import InputMapping
 
-    return InputMapping(ACTUATORS, INCLINOMETER, ROTARY, 'imu', IMU_SIGNS, IMU_OFFSETS,
-                        ('/joint_states', '/imu', '/joint_states'))
+    return InputMapping(
+        ACTUATORS,
+        INCLINOMETER,
+        ROTARY,
+        'imu',
+        IMU_SIGNS,
+        IMU_OFFSETS,
+        ('/joint_states', '/imu', '/joint_states'),
+    )
 
 
-def collector_argv(bags: Path, bag_name: str, mapping: dict[str, object], remaps: list[str],
-                   namespace: str = '') -> list[str]:
+def collector_argv(
+    bags: Path, bag_name: str, mapping: dict[str, object], remaps: list[str], namespace: str = ''
+) -> list[str]:
     """The collector's argv: fast detector settings, the mapping parameters, the remappings."""
     argv = node_argv('collector', fast_collector_parameters(bags, bag_name=bag_name), namespace)
     extra = [item for remap in remaps for item in ('-r', remap)]
     for name, value in mapping.items():
         # Lists spelled as YAML flow sequences (node_argv would quote them as one string).
-        text = (f"[{', '.join(repr(v) if isinstance(v, float) else str(v) for v in value)}]"
-                if isinstance(value, list) else str(value))
+        text = (
+            f'[{", ".join(repr(v) if isinstance(v, float) else str(v) for v in value)}]'
+            if isinstance(value, list)
+            else str(value)
+        )
         extra += ['-p', f'{name}:={text}']
     return argv + extra if '--ros-args' in argv else argv + ['--ros-args', *extra]
 
 
 def mapping_parameters(**overrides) -> dict[str, object]:
-    parameters: dict[str, object] = {'actuator_joints': ACTUATORS, 'inclinometer_joints': INCLINOMETER,
-                                     'rotary_joint': ROTARY}
+    parameters: dict[str, object] = {
+        'actuator_joints': ACTUATORS,
+        'inclinometer_joints': INCLINOMETER,
+        'rotary_joint': ROTARY,
+    }
     parameters.update(overrides)
     return parameters
 
@@ -100,15 +139,14 @@ def publish_machine(argv: list[str]) -> int:
     import math
     import time
 
-    import rclpy
     from geometry_msgs.msg import PoseStamped
-    from sensor_msgs.msg import Imu, JointState
-    from visualization_msgs.msg import Marker, MarkerArray
-
     from hexacal_msgs_py.conversions import inclinometer_angles_to_imu, to_stamp
     from hexacal_msgs_py.names import MACHINE_MARKERS_TOPIC, PLATFORM_POSE_TOPIC
     from hexacal_msgs_py.qos import MARKERS_QOS, POSE_QOS, SENSOR_QOS
     from hexacal_msgs_py.readings import InclinometerReading
+    import rclpy
+    from sensor_msgs.msg import Imu, JointState
+    from visualization_msgs.msg import Marker, MarkerArray
 
     parser = argparse.ArgumentParser()
     parser.add_argument('--postures', type=int, default=POSTURES)
@@ -124,9 +162,12 @@ def publish_machine(argv: list[str]) -> int:
     pose = node.create_publisher(PoseStamped, PLATFORM_POSE_TOPIC, POSE_QOS)
     markers = node.create_publisher(MarkerArray, MACHINE_MARKERS_TOPIC, MARKERS_QOS)
     deadline = time.monotonic() + 60.0
-    while (joint_states.get_subscription_count() < args.joint_states_subscribers
-           or imu.get_subscription_count() < args.imu_subscribers
-           or pose.get_subscription_count() < 1 or markers.get_subscription_count() < 1):
+    while (
+        joint_states.get_subscription_count() < args.joint_states_subscribers
+        or imu.get_subscription_count() < args.imu_subscribers
+        or pose.get_subscription_count() < 1
+        or markers.get_subscription_count() < 1
+    ):
         if time.monotonic() > deadline:
             print('no subscribers', flush=True)
             return 3
@@ -148,15 +189,23 @@ def publish_machine(argv: list[str]) -> int:
             positions[index['gripper']] = math.nan  # a joint without a position: not ours
             for name, value in zip(ACTUATORS + INCLINOMETER + [ROTARY], values):
                 positions[index[name]] = float(value)
-            message = JointState(name=BROADCAST, position=positions,
-                                 velocity=[0.01 * sample] * len(BROADCAST),
-                                 effort=[-0.02 * sample] * len(BROADCAST))
+            message = JointState(
+                name=BROADCAST,
+                position=positions,
+                velocity=[0.01 * sample] * len(BROADCAST),
+                effort=[-0.02 * sample] * len(BROADCAST),
+            )
             message.header.stamp = to_stamp(stamp)
             message.header.frame_id = 'base_link'
             joint_states.publish(message)
-            imu.publish(inclinometer_angles_to_imu(
-                InclinometerReading(stamp, float(values[6]), float(values[7])), 'imu_link',
-                mapping=mapping, yaw=0.7))
+            imu.publish(
+                inclinometer_angles_to_imu(
+                    InclinometerReading(stamp, float(values[6]), float(values[7])),
+                    'imu_link',
+                    mapping=mapping,
+                    yaw=0.7,
+                )
+            )
             if sample % 10 == 0:
                 pose_message = PoseStamped()
                 pose_message.header.stamp = to_stamp(stamp)
@@ -184,11 +233,10 @@ def publish_machine(argv: list[str]) -> int:
 
 
 def subscribe_postures(probe, topic: str) -> list:
-    from sensor_msgs.msg import JointState
-
     from hexacal_msgs_py.conversions import joint_state_to_posture_reading
     from hexacal_msgs_py.names import POSTURE_NAMES
     from hexacal_msgs_py.qos import POSTURE_QOS
+    from sensor_msgs.msg import JointState
 
     received: list = []
 
@@ -218,8 +266,9 @@ def without_posture_topic(bag: Path, copy: Path) -> Path:
                 writer.add_topic(name, info.type_name, info.qos_profiles)
         for message in reader.messages():
             if not message.topic.endswith('hexacal/posture'):
-                writer.write_raw(message.topic, message.data_bytes, message.log_time_ns,
-                                 message.publish_time_ns)
+                writer.write_raw(
+                    message.topic, message.data_bytes, message.log_time_ns, message.publish_time_ns
+                )
     return copy
 
 
@@ -238,13 +287,27 @@ def test_one_joint_states_and_an_imu_give_the_contracts_postures(ros_processes, 
     bags = tmp_path / 'bags'
     joint_states_postures = subscribe_postures(probe, '/hexacal/posture')
     imu_postures = subscribe_postures(probe, f'{IMU_NAMESPACE}/hexacal/posture')
-    collector = ros_processes.start(collector_argv(
-        bags, 'joint_states', mapping_parameters(), REMAP_ALL), name='collector')
-    imu_collector = ros_processes.start(collector_argv(
-        bags, 'imu', mapping_parameters(inclinometer_type='imu', inclinometer_signs=IMU_SIGNS,
-                                        inclinometer_offsets_rad=IMU_OFFSETS),
-        ['hexacal/sliders:=/joint_states', 'hexacal/inclinometer:=/imu',
-         'hexacal/encoder:=/joint_states'], IMU_NAMESPACE), name='imu_collector')
+    collector = ros_processes.start(
+        collector_argv(bags, 'joint_states', mapping_parameters(), REMAP_ALL), name='collector'
+    )
+    imu_collector = ros_processes.start(
+        collector_argv(
+            bags,
+            'imu',
+            mapping_parameters(
+                inclinometer_type='imu',
+                inclinometer_signs=IMU_SIGNS,
+                inclinometer_offsets_rad=IMU_OFFSETS,
+            ),
+            [
+                'hexacal/sliders:=/joint_states',
+                'hexacal/inclinometer:=/imu',
+                'hexacal/encoder:=/joint_states',
+            ],
+            IMU_NAMESPACE,
+        ),
+        name='imu_collector',
+    )
     probe.wait_for_node('collector', '/', collector)
     probe.wait_for_node('collector', IMU_NAMESPACE, imu_collector)
     machine = ros_processes.start([sys.executable, __file__, '--publish'], name='machine')
@@ -256,17 +319,28 @@ def test_one_joint_states_and_an_imu_give_the_contracts_postures(ros_processes, 
                 raise AssertionError(f'a collector exited early\n{process.describe()}')
         return len(joint_states_postures) >= POSTURES and len(imu_postures) >= POSTURES
 
-    probe.spin_until(done, POSTURES / SPEED + 90.0, f'{POSTURES} postures from each collector',
-                     lambda: '\n'.join(p.describe(15) for p in nodes))
-    probe.spin_until(lambda: not machine.running(), 30.0, 'the publisher to finish', machine.describe)
+    probe.spin_until(
+        done,
+        POSTURES / SPEED + 90.0,
+        f'{POSTURES} postures from each collector',
+        lambda: '\n'.join(p.describe(15) for p in nodes),
+    )
+    probe.spin_until(
+        lambda: not machine.running(), 30.0, 'the publisher to finish', machine.describe
+    )
     assert machine.popen.returncode == 0, machine.describe()
     for process in (collector, imu_collector):
         assert ros_processes.stop(process, STOP_TIMEOUT_S) == 0, process.describe()
         summary = process.log_path.read_text()
-        assert f'{POSTURES} postures published' in summary and 'invalid messages 0; lost 0' in summary
+        assert (
+            f'{POSTURES} postures published' in summary and 'invalid messages 0; lost 0' in summary
+        )
         assert 'unpaired samples 0' in summary, summary[-2000:]
     assert 'inputs: sliders <- /joint_states [arm_1_joint' in collector.log_path.read_text()
-    assert 'inclinometer <- /imu (sensor_msgs/Imu orientation) signs [-1.0, 1.0]' in imu_collector.log_path.read_text()
+    assert (
+        'inclinometer <- /imu (sensor_msgs/Imu orientation) signs [-1.0, 1.0]'
+        in imu_collector.log_path.read_text()
+    )
 
     # Live: the contract's postures, paired from one message (JointState) or two topics (Imu).
     exact = exact_readings(POSTURES)
@@ -279,18 +353,38 @@ def test_one_joint_states_and_an_imu_give_the_contracts_postures(ros_processes, 
 
     # The bags: the inputs as received, under their real topics and types, plus the mapping.
     for name, expected_topics in (
-            ('joint_states', {'/joint_states': JOINT_STATE, '/hexacal/posture': JOINT_STATE,
-                              '/hexacal/platform_pose': 'geometry_msgs/msg/PoseStamped',
-                              '/hexacal/machine_markers': 'visualization_msgs/msg/MarkerArray'}),
-            ('imu', {'/joint_states': JOINT_STATE, '/imu': 'sensor_msgs/msg/Imu',
-                     f'{IMU_NAMESPACE}/hexacal/posture': JOINT_STATE})):
-        metadata = yaml.safe_load((bags / name / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
-        topics = {t['topic_metadata']['name']: (t['topic_metadata']['type'], t['message_count'])
-                  for t in metadata['topics_with_message_count']}
+        (
+            'joint_states',
+            {
+                '/joint_states': JOINT_STATE,
+                '/hexacal/posture': JOINT_STATE,
+                '/hexacal/platform_pose': 'geometry_msgs/msg/PoseStamped',
+                '/hexacal/machine_markers': 'visualization_msgs/msg/MarkerArray',
+            },
+        ),
+        (
+            'imu',
+            {
+                '/joint_states': JOINT_STATE,
+                '/imu': 'sensor_msgs/msg/Imu',
+                f'{IMU_NAMESPACE}/hexacal/posture': JOINT_STATE,
+            },
+        ),
+    ):
+        metadata = yaml.safe_load((bags / name / 'metadata.yaml').read_text())[
+            'rosbag2_bagfile_information'
+        ]
+        topics = {
+            t['topic_metadata']['name']: (t['topic_metadata']['type'], t['message_count'])
+            for t in metadata['topics_with_message_count']
+        }
         assert {topic: kind for topic, (kind, _) in topics.items()} == expected_topics
         assert topics['/joint_states'][1] == POSTURES * 100  # every message recorded once
         recorded = json.loads(metadata['custom_data']['hexacal.inputs'])
-        assert json.loads(recorded['actuator_joints']) == ACTUATORS and recorded['rotary_joint'] == ROTARY
+        assert (
+            json.loads(recorded['actuator_joints']) == ACTUATORS
+            and recorded['rotary_joint'] == ROTARY
+        )
     assert _recorded_pose_and_markers(bags / 'joint_states') == (POSTURES * 10, POSTURES * 10)
 
     # Offline: the posture topic, and re-detection from the raw inputs with the recorded mapping.
@@ -298,29 +392,38 @@ def test_one_joint_states_and_an_imu_give_the_contracts_postures(ros_processes, 
         from_topic = postures_from_bag(bags / name)
         assert from_topic.source == 'posture topic' and from_topic.postures == postures
         assert from_topic.ignored_topics == (
-            ['/hexacal/machine_markers', '/hexacal/platform_pose'] if name == 'joint_states' else [])
+            ['/hexacal/machine_markers', '/hexacal/platform_pose']
+            if name == 'joint_states'
+            else []
+        )
         redetected = postures_from_bag(bags / name, source='raw')
-        assert redetected.source == 'raw streams (re-detected)' and redetected.invalid_messages == 0
+        assert (
+            redetected.source == 'raw streams (re-detected)' and redetected.invalid_messages == 0
+        )
         assert [p.stamp_ns for p in redetected.postures] == [p.stamp_ns for p in postures]
         difference = np.abs(posture_array(redetected.postures) - posture_array(postures)).max()
         assert difference < 1e-12, difference
     mapping = postures_from_bag(bags / 'imu').mapping
     assert mapping == imu_mapping() and not mapping.is_contract()
     assert postures_from_bag(bags / 'joint_states').mapping == InputMapping(
-        ACTUATORS, INCLINOMETER, ROTARY, topics=('/joint_states',) * 3)
+        ACTUATORS, INCLINOMETER, ROTARY, topics=('/joint_states',) * 3
+    )
 
     # hexacal calibrate: from the posture topic, and from the raw inputs of a bag without one.
     truth = table1_parameters().vector
     results = {}
-    for name, bag in (('joint_states', bags / 'joint_states'),
-                      ('imu raw', without_posture_topic(bags / 'imu', tmp_path / 'imu_raw_only'))):
+    for name, bag in (
+        ('joint_states', bags / 'joint_states'),
+        ('imu raw', without_posture_topic(bags / 'imu', tmp_path / 'imu_raw_only')),
+    ):
         output = tmp_path / f'{name.replace(" ", "_")}.yaml'
         completed = hexacal('calibrate', bag, '--nominal', nominal, '--output', output, '--json')
         assert completed.returncode == 0, completed.stderr
         result = json.loads(completed.stdout)
         assert result['rank'] == 54 and result['bag']['postures'] == POSTURES
-        assert result['bag']['source'] == ('posture topic' if name == 'joint_states'
-                                           else 'raw streams (re-detected)')
+        assert result['bag']['source'] == (
+            'posture topic' if name == 'joint_states' else 'raw streams (re-detected)'
+        )
         results[name] = load_parameters(output)
         assert np.abs(results[name] - truth).max() < 1e-6  # exact readings
     assert np.abs(results['joint_states'] - results['imu raw']).max() < 1e-9
@@ -328,10 +431,9 @@ def test_one_joint_states_and_an_imu_give_the_contracts_postures(ros_processes, 
 
 def _recorded_pose_and_markers(bag: Path) -> tuple[int, int]:
     """Counts of decodable platform poses and marker arrays in the bag (read with rosbags too)."""
-    from rosbags.rosbag2 import Reader
-    from rosbags.typesys import Stores, get_typestore
-
     from hexacal_identify.bag import open_bag
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import get_typestore, Stores
 
     counts = {'/hexacal/platform_pose': 0, '/hexacal/machine_markers': 0}
     for message in open_bag(bag).messages(list(counts)):
@@ -349,19 +451,39 @@ def _recorded_pose_and_markers(bag: Path) -> tuple[int, int]:
     return counts['/hexacal/platform_pose'], counts['/hexacal/machine_markers']
 
 
-@pytest.mark.parametrize('parameters, text', [
-    (mapping_parameters(actuator_joints=ACTUATORS[:5]), 'actuator_joints: must name 6 joints, got 5'),
-    (mapping_parameters(inclinometer_type='gyroscope'),
-     "inclinometer_type: must be 'joint_state' or 'imu', got 'gyroscope'"),
-    (mapping_parameters(inclinometer_signs=[1, 2]), 'inclinometer_signs: each sign must be 1 or -1'),
-    (mapping_parameters(rotary_joint='arm_2_joint'),
-     "rotary_joint: joint 'arm_2_joint' is also in actuator_joints"),
-])
-def test_bad_mapping_parameters_are_named_and_exit_2(ros_processes, tmp_path, probe, parameters, text):
-    collector = ros_processes.start(collector_argv(tmp_path / 'bags', 'refused', parameters, REMAP_ALL),
-                                    name='collector')
-    probe.spin_until(lambda: not collector.running(), 60.0, 'the collector to refuse its parameters',
-                     collector.describe)
+@pytest.mark.parametrize(
+    'parameters, text',
+    [
+        (
+            mapping_parameters(actuator_joints=ACTUATORS[:5]),
+            'actuator_joints: must name 6 joints, got 5',
+        ),
+        (
+            mapping_parameters(inclinometer_type='gyroscope'),
+            "inclinometer_type: must be 'joint_state' or 'imu', got 'gyroscope'",
+        ),
+        (
+            mapping_parameters(inclinometer_signs=[1, 2]),
+            'inclinometer_signs: each sign must be 1 or -1',
+        ),
+        (
+            mapping_parameters(rotary_joint='arm_2_joint'),
+            "rotary_joint: joint 'arm_2_joint' is also in actuator_joints",
+        ),
+    ],
+)
+def test_bad_mapping_parameters_are_named_and_exit_2(
+    ros_processes, tmp_path, probe, parameters, text
+):
+    collector = ros_processes.start(
+        collector_argv(tmp_path / 'bags', 'refused', parameters, REMAP_ALL), name='collector'
+    )
+    probe.spin_until(
+        lambda: not collector.running(),
+        60.0,
+        'the collector to refuse its parameters',
+        collector.describe,
+    )
     assert collector.popen.returncode == 2, collector.describe()
     log = collector.log_text()
     assert f'cannot start: {text}' in log, log

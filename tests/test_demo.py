@@ -1,5 +1,6 @@
 """`hexacal demo` end to end (what `make demo` runs), small: plan, executor on the commanded machine,
 calibration, verification plan, verification; everything under --out."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -7,7 +8,6 @@ import re
 import subprocess
 
 import pytest
-
 from rosproc import venv_executable
 
 
@@ -15,15 +15,30 @@ from rosproc import venv_executable
 def test_demo_walks_plans_calibrates_verifies_and_keeps_everything_under_out(tmp_path):
     out = tmp_path / 'out'
     completed = subprocess.run(
-        [venv_executable('hexacal'), 'demo', '--postures', '20', '--verify-postures', '8', '--out', str(out)],
-        capture_output=True, text=True, timeout=600, cwd=tmp_path)
+        [
+            venv_executable('hexacal'),
+            'demo',
+            '--postures',
+            '20',
+            '--verify-postures',
+            '8',
+            '--out',
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=tmp_path,
+    )
     assert completed.returncode == 0, completed.stdout + completed.stderr
     text = completed.stdout
     assert 'the executor walks an O1 plan of 20 postures' in text
     # The calibration beats the nominal model against the simulated truth ...
     after = re.search(r'after \(calibrated\)\s+([\d.]+)', text)
     before = re.search(r'before \(nominal\)\s+([\d.]+)', text)
-    assert after and before and float(after.group(1)) < 50.0 < 1000.0 < float(before.group(1)), text
+    assert after and before and float(after.group(1)) < 50.0 < 1000.0 < float(before.group(1)), (
+        text
+    )
     # ... and verification, without the truth, sees the same: mm before, the noise level after.
     nominal = re.search(r'^nominal\s+([\d.]+)', text, re.M)
     calibrated = re.search(r'^calibrated\s+([\d.]+)', text, re.M)

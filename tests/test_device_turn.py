@@ -10,19 +10,19 @@ postures carrying the turn; the bag read back gives PostureReadings with it.
 A device without the joint (an ideal device in its normal mounting, as a real one that knows
 nothing of turns) takes the collector's `device_turn` parameter, set at start and at run time.
 """
+
 from __future__ import annotations
 
 import math
 from pathlib import Path
 
 import numpy as np
-
 from system_support import (
-    STOP_TIMEOUT_S,
     fast_collector_parameters,
     fast_driver_parameters,
     node_argv,
     probe,  # noqa: F401 - fixture
+    STOP_TIMEOUT_S,
 )
 
 DEFECTS = 'dL=5e-4,alpha0=2e-4,beta0=-1.5e-4,gamma=1e-4,phi0=3e-4'
@@ -67,8 +67,10 @@ def recorded_inclinometer(bag: Path) -> list:
     from hexacal_identify.bag import open_bag
 
     with open_bag(bag) as reader:
-        return [(tuple(m.decoded.name), tuple(m.decoded.position))
-                for m in reader.messages(['hexacal/inclinometer'])]
+        return [
+            (tuple(m.decoded.name), tuple(m.decoded.position))
+            for m in reader.messages(['hexacal/inclinometer'])
+        ]
 
 
 def test_driver_with_defects_and_turns_to_the_collectors_bag(ros_processes, tmp_path, probe):
@@ -79,8 +81,11 @@ def test_driver_with_defects_and_turns_to_the_collectors_bag(ros_processes, tmp_
     from hexacal_identify.pipeline import postures_from_bag
     from hexacal_msgs_py.names import DEVICE_TURN_JOINT, INCLINOMETER_NAMES, POSTURE_NAMES
 
-    plan = replace(generated_plan('mixed', table1_parameters(), POSTURES, seed=4), name='turns',
-                   device_turns=PLAN_TURNS)
+    plan = replace(
+        generated_plan('mixed', table1_parameters(), POSTURES, seed=4),
+        name='turns',
+        device_turns=PLAN_TURNS,
+    )
     assert 'fixed' in plan.kinds
     plan_path = tmp_path / 'turns.yaml'
     save_plan(plan_path, plan)
@@ -89,17 +94,34 @@ def test_driver_with_defects_and_turns_to_the_collectors_bag(ros_processes, tmp_
 
     bags = tmp_path / 'bags'
     probe.subscribe_postures()
-    collector = ros_processes.start(node_argv('collector', fast_collector_parameters(
-        bags, bag_name='turned')), name='collector')
+    collector = ros_processes.start(
+        node_argv('collector', fast_collector_parameters(bags, bag_name='turned')),
+        name='collector',
+    )
     probe.wait_for_node('collector', '/', collector)
     # The plan is walked once, so every posture must be captured: a dwell of 1.5 s leaves the
     # collector room to capture again after a stall of the driver's stream (a gap drops a capture).
-    driver = ros_processes.start(node_argv('driver', fast_driver_parameters(
-        plan=str(plan_path), slider_noise_m=0.0, angle_noise_rad=0.0, device_defects=DEFECTS,
-        device_turn=DRIVER_TURN, dwell_s=1.5)), name='driver')
+    driver = ros_processes.start(
+        node_argv(
+            'driver',
+            fast_driver_parameters(
+                plan=str(plan_path),
+                slider_noise_m=0.0,
+                angle_noise_rad=0.0,
+                device_defects=DEFECTS,
+                device_turn=DRIVER_TURN,
+                dwell_s=1.5,
+            ),
+        ),
+        name='driver',
+    )
     nodes = (collector, driver)
-    probe.spin_until(lambda: len(probe.postures) >= POSTURES, POSTURES * 1.0 + 60.0,
-                     f'{POSTURES} postures', lambda: '\n'.join(p.describe(20) for p in nodes))
+    probe.spin_until(
+        lambda: len(probe.postures) >= POSTURES,
+        POSTURES * 1.0 + 60.0,
+        f'{POSTURES} postures',
+        lambda: '\n'.join(p.describe(20) for p in nodes),
+    )
     assert ros_processes.stop(driver, STOP_TIMEOUT_S) == 0, driver.describe()
     assert ros_processes.stop(collector, STOP_TIMEOUT_S) == 0, collector.describe()
     driver_log = driver.log_path.read_text()
@@ -143,19 +165,29 @@ def test_driver_with_defects_and_turns_to_the_collectors_bag(ros_processes, tmp_
 
 
 def test_collector_parameter_turns_postures_without_the_joint(ros_processes, tmp_path, probe):
+    from hexacal_identify.pipeline import postures_from_bag
+    from hexacal_msgs_py.names import DEVICE_TURN_JOINT, POSTURE_NAMES
     from rcl_interfaces.srv import SetParameters
     from rclpy.parameter import Parameter
 
-    from hexacal_identify.pipeline import postures_from_bag
-    from hexacal_msgs_py.names import DEVICE_TURN_JOINT, POSTURE_NAMES
-
     bags = tmp_path / 'bags'
     probe.subscribe_postures()
-    collector = ros_processes.start(node_argv('collector', fast_collector_parameters(
-        bags, bag_name='operator', device_turn=3.14159)), name='collector')
+    collector = ros_processes.start(
+        node_argv(
+            'collector', fast_collector_parameters(bags, bag_name='operator', device_turn=3.14159)
+        ),
+        name='collector',
+    )
     probe.wait_for_node('collector', '/', collector)
-    driver = ros_processes.start(node_argv('driver', fast_driver_parameters(
-        plan='random', postures=40, slider_noise_m=0.0, angle_noise_rad=0.0)), name='driver')
+    driver = ros_processes.start(
+        node_argv(
+            'driver',
+            fast_driver_parameters(
+                plan='random', postures=40, slider_noise_m=0.0, angle_noise_rad=0.0
+            ),
+        ),
+        name='driver',
+    )
     nodes = (collector, driver)
     details = lambda: '\n'.join(p.describe(20) for p in nodes)  # noqa: E731
     probe.spin_until(lambda: len(probe.postures) >= 2, 60.0, 'two postures', details)
@@ -164,10 +196,13 @@ def test_collector_parameter_turns_postures_without_the_joint(ros_processes, tmp
     probe.spin_until(client.service_is_ready, 30.0, 'the collector parameter service')
 
     def set_turn(value) -> object:
-        request = SetParameters.Request(parameters=[Parameter('device_turn', value=value).to_parameter_msg()])
+        request = SetParameters.Request(
+            parameters=[Parameter('device_turn', value=value).to_parameter_msg()]
+        )
         future = client.call_async(request)
-        return probe.spin_until(lambda: future.result() if future.done() else None, 30.0,
-                                'set_parameters').results[0]
+        return probe.spin_until(
+            lambda: future.result() if future.done() else None, 30.0, 'set_parameters'
+        ).results[0]
 
     for bad in (7.0, float('nan')):
         result = set_turn(bad)
@@ -175,8 +210,12 @@ def test_collector_parameter_turns_postures_without_the_joint(ros_processes, tmp
     result = set_turn(-1.5)
     assert result.successful, result
     changed_at = len(probe.postures)
-    probe.spin_until(lambda: len(probe.postures) >= changed_at + 3, 60.0,
-                     'three postures after the change', details)
+    probe.spin_until(
+        lambda: len(probe.postures) >= changed_at + 3,
+        60.0,
+        'three postures after the change',
+        details,
+    )
     assert ros_processes.stop(driver, STOP_TIMEOUT_S) == 0, driver.describe()
     assert ros_processes.stop(collector, STOP_TIMEOUT_S) == 0, collector.describe()
     log = collector.log_path.read_text()
@@ -189,22 +228,30 @@ def test_collector_parameter_turns_postures_without_the_joint(ros_processes, tmp
     # The first postures the old value, the last ones the new (the change lands between two).
     assert turns[:2] == [3.14159, 3.14159] and turns[-2:] == [-1.5, -1.5], turns
     assert set(turns) == {3.14159, -1.5}
-    assert all(names == POSTURE_NAMES + (DEVICE_TURN_JOINT,) for names in probe.posture_joint_names)
+    assert all(
+        names == POSTURE_NAMES + (DEVICE_TURN_JOINT,) for names in probe.posture_joint_names
+    )
     recorded = postures_from_bag(bags / 'operator', source='posture').postures
     assert len(recorded) >= len(live)  # recorded before it is published
-    assert [p.device_turn for p in recorded[:len(live)]] == turns
+    assert [p.device_turn for p in recorded[: len(live)]] == turns
 
 
 def test_bad_device_parameters_are_refused(ros_processes, tmp_path, probe):
     for argv, text in (
-            (node_argv('driver', fast_driver_parameters(device_defects='dL=oops')),
-             'device_defects'),
-            (node_argv('driver', fast_driver_parameters(device_defects='tilt=1e-3')),
-             'bad device defect'),
-            (node_argv('collector', fast_collector_parameters(tmp_path / 'bags', device_turn=9.0)),
-             'device_turn')):
+        (node_argv('driver', fast_driver_parameters(device_defects='dL=oops')), 'device_defects'),
+        (
+            node_argv('driver', fast_driver_parameters(device_defects='tilt=1e-3')),
+            'bad device defect',
+        ),
+        (
+            node_argv('collector', fast_collector_parameters(tmp_path / 'bags', device_turn=9.0)),
+            'device_turn',
+        ),
+    ):
         process = ros_processes.start(argv, name=argv[0].rsplit('/', 1)[-1])
-        probe.spin_until(lambda: not process.running(), 60.0, f'{argv[0]} to refuse', process.describe)
+        probe.spin_until(
+            lambda: not process.running(), 60.0, f'{argv[0]} to refuse', process.describe
+        )
         assert process.popen.returncode == 2, process.describe()
         log = process.log_text()
         assert text in log and 'Traceback' not in log, log

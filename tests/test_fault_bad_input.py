@@ -7,6 +7,7 @@ calibrates to exactly what the clean data gives. Nodes (real `identify` and
 /hexacal/calibration_status with its reason, and the postures already received
 stay usable. tests/FAULTS.md maps every item of the issue to its test.
 """
+
 from __future__ import annotations
 
 import json
@@ -18,28 +19,27 @@ import subprocess
 import sys
 import time
 
-import numpy as np
-import pytest
-import yaml
-
 from hexacal_identify.bag import BagWriter, message_definition
 from hexacal_identify.cli import main as hexacal_main
 from hexacal_identify.core.model import HexaParameters
-from hexacal_identify.pipeline import calibrate
-from hexacal_msgs_py.readings import PostureReading
 from hexacal_identify.nodes.identify import output_path
+from hexacal_identify.pipeline import calibrate
 from hexacal_msgs_py.names import JOINT_STATE_TYPE, POSTURE_NAMES, SLIDER_NAMES
 from hexacal_msgs_py.parameters_file import load_parameters, save_parameters
+from hexacal_msgs_py.readings import PostureReading
+import numpy as np
+import pytest
 from system_support import (
-    NODE_START_TIMEOUT_S,
-    Probe,
     joint_state_dict,
     node_argv,
+    NODE_START_TIMEOUT_S,
     posture_bag,
+    Probe,
     probe,  # noqa: F401 - fixture
     simulated_postures,
     write_parameter_files,
 )
+import yaml
 
 POSTURE_TOPIC = '/hexacal/posture'
 ERROR, WARN, OK = 2, 1, 0
@@ -88,60 +88,87 @@ def test_nan_and_inf_postures_are_skipped_and_never_reach_the_parameters(capsys,
     bad[2][8] = -math.inf
     dirty = posture_bag(tmp_path / 'dirty', good[:10] + bad + good[10:])
     clean = posture_bag(tmp_path / 'clean', good)
-    code, out, err = hexacal(capsys, 'calibrate', dirty, '--nominal', nominal,
-                             '--output', tmp_path / 'dirty.yaml', '--json')
+    code, out, err = hexacal(
+        capsys,
+        'calibrate',
+        dirty,
+        '--nominal',
+        nominal,
+        '--output',
+        tmp_path / 'dirty.yaml',
+        '--json',
+    )
     assert code == 0, err
     assert json.loads(out)['bag']['invalid_messages'] == 3
-    assert hexacal(capsys, 'calibrate', clean, '--nominal', nominal,
-                   '--output', tmp_path / 'clean.yaml')[0] == 0
+    assert (
+        hexacal(
+            capsys, 'calibrate', clean, '--nominal', nominal, '--output', tmp_path / 'clean.yaml'
+        )[0]
+        == 0
+    )
     # Bit for bit what the clean postures give: the bad ones had no influence at all.
-    assert np.array_equal(load_parameters(tmp_path / 'dirty.yaml'),
-                          load_parameters(tmp_path / 'clean.yaml'))
+    assert np.array_equal(
+        load_parameters(tmp_path / 'dirty.yaml'), load_parameters(tmp_path / 'clean.yaml')
+    )
     assert np.abs(load_parameters(tmp_path / 'dirty.yaml') - load_parameters(truth)).max() < 1e-3
 
     only_bad = posture_bag(tmp_path / 'only_bad', [[math.nan] * 9] * 20)
-    code, _, err = hexacal(capsys, 'calibrate', only_bad, '--nominal', nominal,
-                           '--output', tmp_path / 'none.yaml')
+    code, _, err = hexacal(
+        capsys, 'calibrate', only_bad, '--nominal', nominal, '--output', tmp_path / 'none.yaml'
+    )
     assert_named_error(code, err, '0 usable posture', '20 invalid message(s) skipped')
     assert not (tmp_path / 'none.yaml').exists()
 
 
-@pytest.mark.parametrize('channel, value, reason', [
-    (6, 1.5, 'angle-out-of-range'),  # alpha 86 deg: beyond the inclinometer's +-60 deg
-    (7, -1.2, 'angle-out-of-range'),  # beta
-    (8, 4.0, 'angle-out-of-range'),  # phi beyond +-pi
-    (0, 1.5, 'slider-beyond-stroke'),  # slider_1 at 1.5 m on a 0.9 m rail
-    (4, -0.2, 'slider-beyond-stroke'),
-])
-def test_readings_beyond_a_sensor_range_are_set_aside_with_the_reason(capsys, files, tmp_path,
-                                                                     channel, value, reason):
+@pytest.mark.parametrize(
+    'channel, value, reason',
+    [
+        (6, 1.5, 'angle-out-of-range'),  # alpha 86 deg: beyond the inclinometer's +-60 deg
+        (7, -1.2, 'angle-out-of-range'),  # beta
+        (8, 4.0, 'angle-out-of-range'),  # phi beyond +-pi
+        (0, 1.5, 'slider-beyond-stroke'),  # slider_1 at 1.5 m on a 0.9 m rail
+        (4, -0.2, 'slider-beyond-stroke'),
+    ],
+)
+def test_readings_beyond_a_sensor_range_are_set_aside_with_the_reason(
+    capsys, files, tmp_path, channel, value, reason
+):
     _, nominal = files
     good = rows(simulated_postures(30, seed=12))
     beyond = [list(r) for r in good[:2]]
     for row in beyond:
         row[channel] = value
     bag = posture_bag(tmp_path / 'beyond', good[:5] + beyond + good[5:])
-    code, out, err = hexacal(capsys, 'calibrate', bag, '--nominal', nominal,
-                             '--output', tmp_path / 'out.yaml', '--json')
+    code, out, err = hexacal(
+        capsys, 'calibrate', bag, '--nominal', nominal, '--output', tmp_path / 'out.yaml', '--json'
+    )
     assert code == 0, err
     result = json.loads(out)['bag']
     assert result['postures'] == 30
     assert [(r['index'], r['reason']) for r in result['rejected_postures']] == [
-        (5, reason), (6, reason)]
+        (5, reason),
+        (6, reason),
+    ]
     assert POSTURE_NAMES[channel].split('_')[0] in result['rejected_postures'][0]['detail']
     clean = posture_bag(tmp_path / 'clean', good)
-    assert hexacal(capsys, 'calibrate', clean, '--nominal', nominal,
-                   '--output', tmp_path / 'clean.yaml')[0] == 0
-    assert np.array_equal(load_parameters(tmp_path / 'out.yaml'),
-                          load_parameters(tmp_path / 'clean.yaml'))
+    assert (
+        hexacal(
+            capsys, 'calibrate', clean, '--nominal', nominal, '--output', tmp_path / 'clean.yaml'
+        )[0]
+        == 0
+    )
+    assert np.array_equal(
+        load_parameters(tmp_path / 'out.yaml'), load_parameters(tmp_path / 'clean.yaml')
+    )
 
     # Nothing usable left: a refusal that says what was set aside, and no file.
     all_beyond = [list(r) for r in good]
     for row in all_beyond:
         row[channel] = value
     bag = posture_bag(tmp_path / 'all_beyond', all_beyond)
-    code, _, err = hexacal(capsys, 'calibrate', bag, '--nominal', nominal,
-                           '--output', tmp_path / 'none.yaml')
+    code, _, err = hexacal(
+        capsys, 'calibrate', bag, '--nominal', nominal, '--output', tmp_path / 'none.yaml'
+    )
     assert_named_error(code, err, f'30 posture(s) set aside (30 {reason})')
     assert not (tmp_path / 'none.yaml').exists()
 
@@ -150,20 +177,36 @@ def test_identical_postures_repeated_are_refused_as_rank_deficient(capsys, files
     _, nominal = files
     posture = rows(simulated_postures(1, seed=13))[0]
     bag = posture_bag(tmp_path / 'same', [posture] * 40)
-    completed = subprocess.run(  # the real console entry point: exit code and stderr as a user sees
-        [sys.executable, '-m', 'hexacal_identify.cli', 'calibrate', str(bag), '--nominal',
-         str(nominal), '--output', str(tmp_path / 'out.yaml')],
-        capture_output=True, text=True, timeout=120)
-    assert_named_error(completed.returncode, completed.stderr, 'rank 4 of 54',
-                       'cannot be identified')
+    completed = (
+        subprocess.run(  # the real console entry point: exit code and stderr as a user sees
+            [
+                sys.executable,
+                '-m',
+                'hexacal_identify.cli',
+                'calibrate',
+                str(bag),
+                '--nominal',
+                str(nominal),
+                '--output',
+                str(tmp_path / 'out.yaml'),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+    )
+    assert_named_error(
+        completed.returncode, completed.stderr, 'rank 4 of 54', 'cannot be identified'
+    )
     assert not (tmp_path / 'out.yaml').exists()
 
 
 def test_too_few_postures_are_refused(capsys, files, tmp_path):
     _, nominal = files
     bag = posture_bag(tmp_path / 'few', rows(simulated_postures(5, seed=14)))
-    code, _, err = hexacal(capsys, 'calibrate', bag, '--nominal', nominal,
-                           '--output', tmp_path / 'out.yaml')
+    code, _, err = hexacal(
+        capsys, 'calibrate', bag, '--nominal', nominal, '--output', tmp_path / 'out.yaml'
+    )
     assert_named_error(code, err, '5 usable posture')
     assert not (tmp_path / 'out.yaml').exists()
 
@@ -175,17 +218,31 @@ def _nominal_text(nominal: Path) -> str:
     return nominal.read_text()
 
 
-@pytest.mark.parametrize('edit, needles', [
-    (lambda text: '\n'.join(line for line in text.splitlines() if 'chain_3.l:' not in line),
-     ('missing key chain_3.l',)),
-    (lambda text: text.replace('chain_2.B: [', 'chain_2.B: [0.5, '), ('chain_2.B must have 3 values',)),
-    (lambda text: _replace_value(text, 'chain_4.a', '[0.8, 0.7]'),
-     ('chain_4.a', 'not the x, y components of a unit vector')),
-    (lambda text: _replace_value(text, 'chain_5.a', '[1.0, 0.0]'),
-     ('chain_5.a', 'unit vector')),  # |a_xy| = 1: the rail would lie in the base plane
-    (lambda text: text + '    extra: !!python/object/apply:os.system ["touch PWNED"]\n',
-     ('invalid YAML', 'python/object')),
-])
+@pytest.mark.parametrize(
+    'edit, needles',
+    [
+        (
+            lambda text: '\n'.join(line for line in text.splitlines() if 'chain_3.l:' not in line),
+            ('missing key chain_3.l',),
+        ),
+        (
+            lambda text: text.replace('chain_2.B: [', 'chain_2.B: [0.5, '),
+            ('chain_2.B must have 3 values',),
+        ),
+        (
+            lambda text: _replace_value(text, 'chain_4.a', '[0.8, 0.7]'),
+            ('chain_4.a', 'not the x, y components of a unit vector'),
+        ),
+        (
+            lambda text: _replace_value(text, 'chain_5.a', '[1.0, 0.0]'),
+            ('chain_5.a', 'unit vector'),
+        ),  # |a_xy| = 1: the rail would lie in the base plane
+        (
+            lambda text: text + '    extra: !!python/object/apply:os.system ["touch PWNED"]\n',
+            ('invalid YAML', 'python/object'),
+        ),
+    ],
+)
 def test_bad_parameter_files_are_named_errors(capsys, files, tmp_path, edit, needles):
     _, nominal = files
     bag = posture_bag(tmp_path / 'bag', rows(simulated_postures(20, seed=15)))
@@ -194,8 +251,9 @@ def test_bad_parameter_files_are_named_errors(capsys, files, tmp_path, edit, nee
     cwd = os.getcwd()
     os.chdir(tmp_path)  # where an unsafe loader would have run `touch PWNED`
     try:
-        code, _, err = hexacal(capsys, 'calibrate', bag, '--nominal', bad,
-                               '--output', tmp_path / 'out.yaml')
+        code, _, err = hexacal(
+            capsys, 'calibrate', bag, '--nominal', bad, '--output', tmp_path / 'out.yaml'
+        )
     finally:
         os.chdir(cwd)
     assert_named_error(code, err, str(bad), *needles)
@@ -204,8 +262,10 @@ def test_bad_parameter_files_are_named_errors(capsys, files, tmp_path, edit, nee
 
 
 def _replace_value(text: str, key: str, value: str) -> str:
-    lines = [f'    {key}: {value}' if line.strip().startswith(f'{key}:') else line
-             for line in text.splitlines()]
+    lines = [
+        f'    {key}: {value}' if line.strip().startswith(f'{key}:') else line
+        for line in text.splitlines()
+    ]
     return '\n'.join(lines) + '\n'
 
 
@@ -217,8 +277,15 @@ def test_a_topic_with_the_wrong_type_is_a_named_schema_error(capsys, files, tmp_
     with BagWriter(tmp_path / 'wrong_type') as writer:
         writer.add_topic(POSTURE_TOPIC, 'std_msgs/msg/String')
         writer.write(POSTURE_TOPIC, {'data': 'not a posture'}, 10**9)
-    code, _, err = hexacal(capsys, 'calibrate', tmp_path / 'wrong_type', '--nominal', nominal,
-                           '--output', tmp_path / 'out.yaml')
+    code, _, err = hexacal(
+        capsys,
+        'calibrate',
+        tmp_path / 'wrong_type',
+        '--nominal',
+        nominal,
+        '--output',
+        tmp_path / 'out.yaml',
+    )
     assert_named_error(code, err, '/hexacal/posture', 'std_msgs/msg/String', JOINT_STATE_TYPE)
 
 
@@ -247,17 +314,22 @@ def _other_version_bag(path: Path, variant: str) -> Path:
     return path
 
 
-@pytest.mark.parametrize('variant, needle', [
-    ('extra field', 'extra field float64[] temperature'),
-    ('renamed field', "no field 'position'"),
-    ('retyped field', "field 'position' is float32[], not float64[]"),
-])
-def test_a_bag_from_another_message_version_is_a_named_schema_error(capsys, files, tmp_path,
-                                                                   variant, needle):
+@pytest.mark.parametrize(
+    'variant, needle',
+    [
+        ('extra field', 'extra field float64[] temperature'),
+        ('renamed field', "no field 'position'"),
+        ('retyped field', "field 'position' is float32[], not float64[]"),
+    ],
+)
+def test_a_bag_from_another_message_version_is_a_named_schema_error(
+    capsys, files, tmp_path, variant, needle
+):
     _, nominal = files
     bag = _other_version_bag(tmp_path / 'other.mcap', variant)
-    code, _, err = hexacal(capsys, 'calibrate', bag, '--nominal', nominal,
-                           '--output', tmp_path / 'out.yaml')
+    code, _, err = hexacal(
+        capsys, 'calibrate', bag, '--nominal', nominal, '--output', tmp_path / 'out.yaml'
+    )
     assert_named_error(code, err, 'another version of sensor_msgs/msg/JointState', needle)
 
 
@@ -272,8 +344,16 @@ def test_undecodable_messages_in_a_recorded_stream_are_skipped_not_fatal(capsys,
             writer.write(POSTURE_TOPIC, joint_state_dict(stamp, POSTURE_NAMES, row), stamp)
             if index % 6 == 0:
                 writer.write_raw(POSTURE_TOPIC, b'\x00\x01\x00\x00' + b'\xff' * 11, stamp + 1)
-    code, out, err = hexacal(capsys, 'calibrate', tmp_path / 'garbage', '--nominal', nominal,
-                             '--output', tmp_path / 'out.yaml', '--json')
+    code, out, err = hexacal(
+        capsys,
+        'calibrate',
+        tmp_path / 'garbage',
+        '--nominal',
+        nominal,
+        '--output',
+        tmp_path / 'out.yaml',
+        '--json',
+    )
     assert code == 0, err
     assert json.loads(out)['bag']['invalid_messages'] == 4
     assert json.loads(out)['bag']['postures'] == 24
@@ -281,7 +361,7 @@ def test_undecodable_messages_in_a_recorded_stream_are_skipped_not_fatal(capsys,
 
 def test_yaml_is_loaded_safely_everywhere(tmp_path):
     """Parameters, bag metadata and plan files: a python tag is refused, never run."""
-    from hexacal_driver.plan import PlanError, load_plan
+    from hexacal_driver.plan import load_plan, PlanError
     from hexacal_identify.bag import BagMetadataError, open_bag
     from hexacal_msgs_py.errors import ParameterFileError
 
@@ -311,8 +391,13 @@ def test_output_paths_are_resolved_and_confined_to_the_output_directory(tmp_path
     (out / 'link').symlink_to(tmp_path)  # a way out through a symlink
     assert output_path('calibration.yaml', str(out)) == out / 'calibration.yaml'
     assert output_path('sub/../calibration.yaml', str(out)) == out / 'calibration.yaml'
-    for escape in ('../escape.yaml', str(tmp_path / 'escape.yaml'), 'link/escape.yaml', '.',
-                   'sub/../..'):
+    for escape in (
+        '../escape.yaml',
+        str(tmp_path / 'escape.yaml'),
+        'link/escape.yaml',
+        '.',
+        'sub/../..',
+    ):
         with pytest.raises(ValueError, match='outside output_dir|must name a file'):
             output_path(escape, str(out))
 
@@ -321,22 +406,23 @@ def test_output_paths_are_resolved_and_confined_to_the_output_directory(tmp_path
 
 
 def _publish(probe: Probe, messages: list, topic: str = 'hexacal/posture') -> None:
-    from sensor_msgs.msg import JointState
-
     from hexacal_msgs_py.qos import POSTURE_QOS
+    from sensor_msgs.msg import JointState
 
     publisher = probe.node.create_publisher(JointState, topic, POSTURE_QOS)
     own = 1 if any(s.topic_name == publisher.topic_name for s in probe.node.subscriptions) else 0
-    probe.spin_until(lambda: publisher.get_subscription_count() >= 1 + own, NODE_START_TIMEOUT_S,
-                     f'a subscriber on {topic}')
+    probe.spin_until(
+        lambda: publisher.get_subscription_count() >= 1 + own,
+        NODE_START_TIMEOUT_S,
+        f'a subscriber on {topic}',
+    )
     for message in messages:
         publisher.publish(message)
 
 
 def _joint_state(stamp_ns: int, names, positions):
-    from sensor_msgs.msg import JointState
-
     from hexacal_msgs_py.conversions import to_stamp
+    from sensor_msgs.msg import JointState
 
     message = JointState(name=list(names), position=[float(p) for p in positions])
     message.header.stamp = to_stamp(stamp_ns)
@@ -350,23 +436,31 @@ def _collecting(probe: Probe) -> dict:
 
 def _outcome(probe: Probe, outcome: str, after: int = 0):
     return probe.spin_until(
-        lambda: [s for s in probe.statuses[after:] if s[2].get('outcome') == outcome], 15.0,
-        f'a {outcome!r} status')[-1]
+        lambda: [s for s in probe.statuses[after:] if s[2].get('outcome') == outcome],
+        15.0,
+        f'a {outcome!r} status',
+    )[-1]
 
 
 def _set_parameter(probe: Probe, client, name: str, value):
     from rclpy.parameter import Parameter
 
     future = client.set_parameters([Parameter(name, value=value)])
-    return probe.spin_until(lambda: future.result() if future.done() else None, 15.0,
-                            f'setting {name}').results[0]
+    return probe.spin_until(
+        lambda: future.result() if future.done() else None, 15.0, f'setting {name}'
+    ).results[0]
 
 
 def test_identify_rejects_bad_postures_refuses_repeated_ones_and_loses_nothing(
-        ros_processes, tmp_path, probe):
+    ros_processes, tmp_path, probe
+):
     truth, nominal = write_parameter_files(tmp_path)
-    identify = ros_processes.start(node_argv('identify', {
-        'nominal': str(nominal), 'output_dir': str(tmp_path / 'out'), 'report_dir': ''}))
+    identify = ros_processes.start(
+        node_argv(
+            'identify',
+            {'nominal': str(nominal), 'output_dir': str(tmp_path / 'out'), 'report_dir': ''},
+        )
+    )
     probe.wait_for_node('identify', process=identify)
     probe.subscribe_status()
     received = probe.subscribe_parameters()
@@ -374,10 +468,15 @@ def test_identify_rejects_bad_postures_refuses_repeated_ones_and_loses_nothing(
 
     # The same posture 20 times: enough residuals, no information. A named refusal.
     same = simulated_postures(1, seed=5)[0]
-    _publish(probe, [_joint_state(same.stamp_ns + k, POSTURE_NAMES, same.values())
-                     for k in range(20)])
-    probe.spin_until(lambda: probe.postures_received_by_identify() == 20, 30.0,
-                     'identify to hold 20 postures', identify.describe)
+    _publish(
+        probe, [_joint_state(same.stamp_ns + k, POSTURE_NAMES, same.values()) for k in range(20)]
+    )
+    probe.spin_until(
+        lambda: probe.postures_received_by_identify() == 20,
+        30.0,
+        'identify to hold 20 postures',
+        identify.describe,
+    )
     response = probe.call_trigger()
     assert not response.success and response.message.startswith('rank-deficient: ')
     level, _, values = _outcome(probe, 'rank-deficient')
@@ -397,9 +496,12 @@ def test_identify_rejects_bad_postures_refuses_repeated_ones_and_loses_nothing(
         _joint_state(stamp + 6, POSTURE_NAMES, [1.5, *good[1:]]),  # slider_1 beyond the rail
     ]
     _publish(probe, bad)
-    values = probe.spin_until(lambda: _collecting(probe).get('postures_rejected') == '7'
-                              and _collecting(probe), 15.0, '7 rejections in the status',
-                              identify.describe)
+    values = probe.spin_until(
+        lambda: _collecting(probe).get('postures_rejected') == '7' and _collecting(probe),
+        15.0,
+        '7 rejections in the status',
+        identify.describe,
+    )
     assert values['postures_received'] == '20'
     assert values['rejected.invalid-reading'] == '5'
     assert values['rejected.angle-out-of-range'] == '1'
@@ -412,8 +514,12 @@ def test_identify_rejects_bad_postures_refuses_repeated_ones_and_loses_nothing(
     # Nothing collected was lost: the 20 repeated postures count with 24 new ones.
     new = simulated_postures(24, seed=7)
     probe.publish_postures(new)
-    probe.spin_until(lambda: probe.postures_received_by_identify() == 44, 30.0,
-                     'identify to hold 44 postures', identify.describe)
+    probe.spin_until(
+        lambda: probe.postures_received_by_identify() == 44,
+        30.0,
+        'identify to hold 44 postures',
+        identify.describe,
+    )
     response = probe.call_trigger()
     assert response.success, response.message
     assert '44 of 44 postures' in response.message
@@ -429,20 +535,29 @@ def test_identify_rejects_bad_postures_refuses_repeated_ones_and_loses_nothing(
 
 
 def test_identify_names_bad_files_and_paths_and_writes_only_under_output_dir(
-        ros_processes, tmp_path, probe):
+    ros_processes, tmp_path, probe
+):
     from rclpy.parameter_client import AsyncParameterClient
 
     truth, nominal = write_parameter_files(tmp_path)
     text = nominal.read_text()
     broken = {
-        'missing.yaml': ('\n'.join(l for l in text.splitlines() if 'chain_3.l:' not in l),
-                         'missing key chain_3.l'),
-        'length.yaml': (text.replace('chain_2.B: [', 'chain_2.B: [0.5, '),
-                        'chain_2.B must have 3 values'),
-        'rail.yaml': (_replace_value(text, 'chain_4.a', '[0.8, 0.7]'),
-                      'chain_4.a = [0.8, 0.7] is not the x, y components of a unit vector'),
-        'unsafe.yaml': (text + f'    x: !!python/object/apply:os.system ["touch {tmp_path}/PWNED"]\n',
-                        'invalid YAML'),
+        'missing.yaml': (
+            '\n'.join(l for l in text.splitlines() if 'chain_3.l:' not in l),
+            'missing key chain_3.l',
+        ),
+        'length.yaml': (
+            text.replace('chain_2.B: [', 'chain_2.B: [0.5, '),
+            'chain_2.B must have 3 values',
+        ),
+        'rail.yaml': (
+            _replace_value(text, 'chain_4.a', '[0.8, 0.7]'),
+            'chain_4.a = [0.8, 0.7] is not the x, y components of a unit vector',
+        ),
+        'unsafe.yaml': (
+            text + f'    x: !!python/object/apply:os.system ["touch {tmp_path}/PWNED"]\n',
+            'invalid YAML',
+        ),
     }
     for name, (content, _) in broken.items():
         (tmp_path / name).write_text(content)
@@ -452,13 +567,18 @@ def test_identify_names_bad_files_and_paths_and_writes_only_under_output_dir(
     (out / 'link').symlink_to(tmp_path)
     before = {p for p in tmp_path.rglob('*') if 'logs' not in p.parts}
 
-    identify = ros_processes.start(node_argv('identify', {
-        'nominal': str(tmp_path / 'missing.yaml'), 'output_dir': str(out)}))
+    identify = ros_processes.start(
+        node_argv('identify', {'nominal': str(tmp_path / 'missing.yaml'), 'output_dir': str(out)})
+    )
     probe.wait_for_node('identify', process=identify)
     probe.subscribe_status()
     probe.publish_postures(simulated_postures(20, seed=8))
-    probe.spin_until(lambda: probe.postures_received_by_identify() == 20, 30.0,
-                     'identify to hold 20 postures', identify.describe)
+    probe.spin_until(
+        lambda: probe.postures_received_by_identify() == 20,
+        30.0,
+        'identify to hold 20 postures',
+        identify.describe,
+    )
     client = AsyncParameterClient(probe.node, '/identify')
     probe.spin_until(client.services_are_ready, 15.0, "identify's parameter services")
 
@@ -473,25 +593,38 @@ def test_identify_names_bad_files_and_paths_and_writes_only_under_output_dir(
     assert not (tmp_path / 'PWNED').exists()
     assert _set_parameter(probe, client, 'nominal', str(nominal)).successful
 
-    for bag, needle in ((tmp_path / 'not_a_bag.txt', 'not an MCAP file'),
-                        (tmp_path / 'nowhere', 'does not exist'), (out, 'neither')):
+    for bag, needle in (
+        (tmp_path / 'not_a_bag.txt', 'not an MCAP file'),
+        (tmp_path / 'nowhere', 'does not exist'),
+        (out, 'neither'),
+    ):
         assert _set_parameter(probe, client, 'bag', str(bag)).successful
         response = probe.call_trigger()
         assert response.message.startswith('invalid-bag: ') and needle in response.message
     assert _set_parameter(probe, client, 'bag', '').successful
 
-    for name, value in (('output', '../escape.yaml'), ('output', str(tmp_path / 'x.yaml')),
-                        ('output', 'link/escape.yaml'), ('report_dir', '../report')):
+    for name, value in (
+        ('output', '../escape.yaml'),
+        ('output', str(tmp_path / 'x.yaml')),
+        ('output', 'link/escape.yaml'),
+        ('report_dir', '../report'),
+    ):
         refused = _set_parameter(probe, client, name, value)
         assert not refused.successful and 'outside output_dir' in refused.reason, refused.reason
 
     response = probe.call_trigger()
     assert response.success, response.message
     assert '20 of 20 postures' in response.message  # every refusal kept the postures
-    assert np.abs(load_parameters(out / 'hexacal_calibration.yaml')
-                  - load_parameters(truth)).max() < 1e-3
-    probe.spin_until(lambda: [s for s in probe.statuses if s[2].get('report_state') == 'ready'],
-                     120.0, 'the report (written after the answer)', identify.describe)
+    assert (
+        np.abs(load_parameters(out / 'hexacal_calibration.yaml') - load_parameters(truth)).max()
+        < 1e-3
+    )
+    probe.spin_until(
+        lambda: [s for s in probe.statuses if s[2].get('report_state') == 'ready'],
+        120.0,
+        'the report (written after the answer)',
+        identify.describe,
+    )
     written = {p for p in tmp_path.rglob('*') if 'logs' not in p.parts} - before
     assert written and all(out in p.parents for p in written), sorted(map(str, written))
     assert (out / 'report' / 'index.html') in written
@@ -504,9 +637,8 @@ class SensorFeed:
     """The three sensor streams from the probe, with stamps under the test's control."""
 
     def __init__(self, probe: Probe, posture, period_ns: int = 10_000_000):
-        from sensor_msgs.msg import JointState
-
         from hexacal_msgs_py.qos import SENSOR_QOS
+        from sensor_msgs.msg import JointState
 
         self.probe = probe
         self.values = list(posture.values())
@@ -516,22 +648,30 @@ class SensorFeed:
         self.inclinometer_lag_ns = 0
         self.ticks = 0
         self.stop_encoder_after: int | None = None
-        self.publishers = {name: probe.node.create_publisher(JointState, f'hexacal/{name}',
-                                                             SENSOR_QOS)
-                           for name in ('sliders', 'inclinometer', 'encoder')}
-        probe.spin_until(lambda: all(p.get_subscription_count() >= 1
-                                     for p in self.publishers.values()),
-                         NODE_START_TIMEOUT_S, "the collector's sensor subscriptions")
+        self.publishers = {
+            name: probe.node.create_publisher(JointState, f'hexacal/{name}', SENSOR_QOS)
+            for name in ('sliders', 'inclinometer', 'encoder')
+        }
+        probe.spin_until(
+            lambda: all(p.get_subscription_count() >= 1 for p in self.publishers.values()),
+            NODE_START_TIMEOUT_S,
+            "the collector's sensor subscriptions",
+        )
         self.timer = probe.node.create_timer(period_ns / 1e9, self.tick)
 
     def publish(self, name: str, stamp_ns: int, names=None, values=None) -> None:
         default_names, default_values = {
             'sliders': (SLIDER_NAMES, self.values[:6]),
             'inclinometer': (POSTURE_NAMES[6:8], self.values[6:8]),
-            'encoder': (POSTURE_NAMES[8:], self.values[8:])}[name]
-        self.publishers[name].publish(_joint_state(
-            stamp_ns, default_names if names is None else names,
-            default_values if values is None else values))
+            'encoder': (POSTURE_NAMES[8:], self.values[8:]),
+        }[name]
+        self.publishers[name].publish(
+            _joint_state(
+                stamp_ns,
+                default_names if names is None else names,
+                default_values if values is None else values,
+            )
+        )
 
     def tick(self) -> None:
         if not self.streams:
@@ -539,16 +679,22 @@ class SensorFeed:
         self.stamp_ns += self.period_ns
         self.ticks += 1
         for name in sorted(self.streams):
-            if name == 'encoder' and self.stop_encoder_after is not None \
-                    and self.ticks > self.stop_encoder_after:
+            if (
+                name == 'encoder'
+                and self.stop_encoder_after is not None
+                and self.ticks > self.stop_encoder_after
+            ):
                 continue
             lag = self.inclinometer_lag_ns if name == 'inclinometer' else 0
             self.publish(name, self.stamp_ns - lag)
 
 
 def _collector_status(probe: Probe) -> dict:
-    found = [values for _, _, values in probe.statuses
-             if values.get('outcome') in ('recording', 'not-recording', 'recording-stopped')]
+    found = [
+        values
+        for _, _, values in probe.statuses
+        if values.get('outcome') in ('recording', 'not-recording', 'recording-stopped')
+    ]
     return found[-1] if found else {}
 
 
@@ -557,9 +703,17 @@ def _count(probe: Probe, key: str) -> int:
 
 
 def test_collector_names_bad_stamps_stale_and_stopped_streams(ros_processes, tmp_path, probe):
-    collector = ros_processes.start(node_argv('collector', {
-        'output_dir': str(tmp_path / 'bags'), 'bag_name': 'feed', 'window_s': 0.2,
-        'capture_s': 1.0}))
+    collector = ros_processes.start(
+        node_argv(
+            'collector',
+            {
+                'output_dir': str(tmp_path / 'bags'),
+                'bag_name': 'feed',
+                'window_s': 0.2,
+                'capture_s': 1.0,
+            },
+        )
+    )
     probe.wait_for_node('collector', process=collector)
     probe.subscribe_status()
     probe.subscribe_postures()
@@ -580,12 +734,18 @@ def test_collector_names_bad_stamps_stale_and_stopped_streams(ros_processes, tmp
 
     # Wrong names, missing names, names and positions of different lengths.
     def send_invalid():
-        for names, values in ((['elbow', *SLIDER_NAMES[1:]], [0.3] * 6),
-                              (SLIDER_NAMES[:5], [0.3] * 5), (SLIDER_NAMES, [0.3] * 5)):
+        for names, values in (
+            (['elbow', *SLIDER_NAMES[1:]], [0.3] * 6),
+            (SLIDER_NAMES[:5], [0.3] * 5),
+            (SLIDER_NAMES, [0.3] * 5),
+        ):
             feed.publish('sliders', feed.stamp_ns, names, values)
 
-    status_has(lambda s: int(s.get('invalid.hexacal/sliders', 0)) >= 3,
-               'invalid slider messages counted', send_invalid)
+    status_has(
+        lambda s: int(s.get('invalid.hexacal/sliders', 0)) >= 3,
+        'invalid slider messages counted',
+        send_invalid,
+    )
 
     # Duplicated and out-of-order stamps.
     def send_bad_stamps():
@@ -593,27 +753,39 @@ def test_collector_names_bad_stamps_stale_and_stopped_streams(ros_processes, tmp
         for offset in (0, 0, -5_000_000):
             feed.publish('sliders', feed.stamp_ns + offset)
 
-    status_has(lambda s: int(s.get('rejected.sliders.duplicate_stamp', 0)) >= 1
-               and int(s.get('rejected.sliders.out_of_order', 0)) >= 1, 'the rejected stamps',
-               send_bad_stamps)
+    status_has(
+        lambda s: (
+            int(s.get('rejected.sliders.duplicate_stamp', 0)) >= 1
+            and int(s.get('rejected.sliders.out_of_order', 0)) >= 1
+        ),
+        'the rejected stamps',
+        send_bad_stamps,
+    )
     warned = [level for level, _, v in probe.statuses if 'rejected.sliders.out_of_order' in v]
     assert warned[0] == WARN
     # The collector logs the rejection just after publishing the status that counts it.
-    probe.spin_until(lambda: 'not used: ' in collector.log_text(), 20.0,
-                     'the rejection logged', collector.describe)
+    probe.spin_until(
+        lambda: 'not used: ' in collector.log_text(),
+        20.0,
+        'the rejection logged',
+        collector.describe,
+    )
 
     # Stale inclinometer stamps (5 s behind the sliders): never paired, never a posture.
     feed.inclinometer_lag_ns = 5 * 10**9
     feed.streams = {'sliders', 'inclinometer', 'encoder'}
-    status_has(lambda s: int(s.get('unpaired.no_inclinometer_within_skew', 0)) >= 150,
-               '150 slider readings without a fresh inclinometer reading')
+    status_has(
+        lambda s: int(s.get('unpaired.no_inclinometer_within_skew', 0)) >= 150,
+        '150 slider readings without a fresh inclinometer reading',
+    )
     assert probe.postures == []
 
     # Fresh stamps; the encoder stops in the middle of a capture (0.2 s window + 1 s capture).
     feed.inclinometer_lag_ns = 0
     feed.ticks, feed.stop_encoder_after = 0, 60
-    status = status_has(lambda s: s.get('dropped.stream_stopped') == '1',
-                        'the partial posture dropped')
+    status = status_has(
+        lambda s: s.get('dropped.stream_stopped') == '1', 'the partial posture dropped'
+    )
     assert status['streams_stopped'] == '/hexacal/encoder'
     assert probe.postures == []  # half a capture is never published
     assert 'stream(s) stopped: no message on /hexacal/encoder' in collector.log_text()
@@ -621,8 +793,9 @@ def test_collector_names_bad_stamps_stale_and_stopped_streams(ros_processes, tmp
 
     # The encoder is back: the status clears and the standing posture is measured in full.
     feed.stop_encoder_after = None
-    probe.spin_until(lambda: probe.postures, 20.0, 'a posture after the encoder resumed',
-                     collector.describe)
+    probe.spin_until(
+        lambda: probe.postures, 20.0, 'a posture after the encoder resumed', collector.describe
+    )
     status_has(lambda s: 'streams_stopped' not in s, 'the stopped stream cleared')
     feed.streams = set()
     assert collector.running()

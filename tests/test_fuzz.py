@@ -7,6 +7,7 @@ metadata. Byte-level damage of MCAP files is fuzzed in tests/test_bag_io.py.
 Every property is bounded (max_examples) so the suite stays fast; for a deeper
 search set HEXACAL_FUZZ_SCALE (e.g. 50: fifty times the examples).
 """
+
 from __future__ import annotations
 
 import math
@@ -14,16 +15,11 @@ import os
 from pathlib import Path
 import tempfile
 
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
-import numpy as np
-import yaml
-
 from hexacal_identify.bag import BagError, BagWriter, message_definition, open_bag
 from hexacal_identify.core.errors import CalibrationError
 from hexacal_identify.core.model import nominal_set
-from hexacal_identify.pipeline import postures_from_bag
 from hexacal_identify.core.posture_detector import PostureDetector, StreamSynchronizer
+from hexacal_identify.pipeline import postures_from_bag
 from hexacal_msgs_py.errors import (
     HexacalContractError,
     InvalidParametersError,
@@ -44,19 +40,37 @@ from hexacal_msgs_py.readings import (
     PostureReading,
     SliderReading,
 )
+from hypothesis import given, HealthCheck, settings
+from hypothesis import strategies as st
+import numpy as np
+import yaml
 
 SCALE = max(1, int(os.environ.get('HEXACAL_FUZZ_SCALE', '1')))
-FAST = settings(max_examples=60 * SCALE, deadline=None,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+FAST = settings(
+    max_examples=60 * SCALE,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
 PROJECT_ERRORS = (HexacalContractError, CalibrationError, BagError)
 
 # Any value a YAML document (or a careless caller) can put where a number belongs.
 scalars = st.one_of(
-    st.none(), st.booleans(), st.integers(-2**80, 2**80), st.floats(allow_nan=True),
-    st.text(max_size=8), st.binary(max_size=4), st.just(10**400), st.just(-10**400))
-values = st.recursive(scalars, lambda inner: st.one_of(
-    st.lists(inner, max_size=5), st.dictionaries(st.text(max_size=6), inner, max_size=4)),
-    max_leaves=12)
+    st.none(),
+    st.booleans(),
+    st.integers(-(2**80), 2**80),
+    st.floats(allow_nan=True),
+    st.text(max_size=8),
+    st.binary(max_size=4),
+    st.just(10**400),
+    st.just(-(10**400)),
+)
+values = st.recursive(
+    scalars,
+    lambda inner: st.one_of(
+        st.lists(inner, max_size=5), st.dictionaries(st.text(max_size=6), inner, max_size=4)
+    ),
+    max_leaves=12,
+)
 
 
 def _scratch_file(name: str, data: bytes) -> Path:
@@ -74,8 +88,11 @@ _VALID = parameters_to_chain_dict(nominal_set(1).vector)
 
 def _document(chains: dict, dotted: bool) -> dict:
     if dotted:
-        parameters = {f'{chain}.{key}': value for chain, entry in chains.items()
-                      for key, value in (entry.items() if isinstance(entry, dict) else [('x', entry)])}
+        parameters = {
+            f'{chain}.{key}': value
+            for chain, entry in chains.items()
+            for key, value in (entry.items() if isinstance(entry, dict) else [('x', entry)])
+        }
     else:
         parameters = chains
     return {'/**': {'ros__parameters': parameters}}
@@ -95,7 +112,7 @@ def mutated_parameter_documents(draw) -> str:
             entry[key] = draw(values)
         elif action == 'resize' and isinstance(entry.get(key), list):
             if entry[key] and draw(st.booleans()):
-                entry[key] = entry[key][:draw(st.integers(0, len(entry[key]) - 1))]
+                entry[key] = entry[key][: draw(st.integers(0, len(entry[key]) - 1))]
             else:
                 entry[key] = entry[key] + [0.1] * draw(st.integers(1, 3))
         elif action == 'element' and isinstance(entry.get(key), list) and entry[key]:
@@ -121,9 +138,14 @@ def test_parameter_loader_on_mutated_documents_raises_only_parameter_file_errors
 
 
 @FAST
-@given(st.one_of(st.text(max_size=300), st.binary(max_size=300).map(repr),
-                 st.integers(1, 3000).map(lambda depth: '[' * depth),
-                 st.integers(1, 2000).map(lambda depth: '{a: ' * depth)))
+@given(
+    st.one_of(
+        st.text(max_size=300),
+        st.binary(max_size=300).map(repr),
+        st.integers(1, 3000).map(lambda depth: '[' * depth),
+        st.integers(1, 2000).map(lambda depth: '{a: ' * depth),
+    )
+)
 def test_parameter_loader_on_arbitrary_text_raises_only_parameter_file_errors(text):
     path = _scratch_file('params.yaml', text.encode('utf-8', errors='surrogatepass'))
     try:
@@ -166,11 +188,14 @@ def test_what_save_accepts_loads_back_bit_exact_and_what_it_refuses_is_named(vec
 
 
 @FAST
-@given(st.integers(-2**70, 2**70) | scalars, st.lists(scalars, max_size=8), scalars, scalars)
+@given(st.integers(-(2**70), 2**70) | scalars, st.lists(scalars, max_size=8), scalars, scalars)
 def test_readings_raise_only_invalid_reading_errors(stamp, sliders, alpha, phi):
-    for make in (lambda: SliderReading(stamp, sliders), lambda: InclinometerReading(stamp, alpha, phi),
-                 lambda: EncoderReading(stamp, phi),
-                 lambda: PostureReading(stamp, sliders, alpha, alpha, phi)):
+    for make in (
+        lambda: SliderReading(stamp, sliders),
+        lambda: InclinometerReading(stamp, alpha, phi),
+        lambda: EncoderReading(stamp, phi),
+        lambda: PostureReading(stamp, sliders, alpha, alpha, phi),
+    ):
         try:
             reading = make()
         except InvalidReadingError:
@@ -182,19 +207,24 @@ names_pool = st.sampled_from([*POSTURE_NAMES, 'elbow', '', 'slider_7', 'SLIDER_1
 
 
 @FAST
-@given(st.lists(names_pool, max_size=12), st.lists(st.floats(width=64), max_size=12),
-       st.integers(-2**31, 2**31 - 1), st.integers(0, 2**32 - 1))
+@given(
+    st.lists(names_pool, max_size=12),
+    st.lists(st.floats(width=64), max_size=12),
+    st.integers(-(2**31), 2**31 - 1),
+    st.integers(0, 2**32 - 1),
+)
 def test_joint_state_conversions_raise_only_invalid_reading_errors(names, positions, sec, nanosec):
-    from sensor_msgs.msg import JointState
-
     from hexacal_msgs_py import conversions
+    from sensor_msgs.msg import JointState
 
     message = JointState(name=names, position=positions)
     message.header.stamp.sec, message.header.stamp.nanosec = sec, nanosec
-    for convert in (conversions.joint_state_to_slider_reading,
-                    conversions.joint_state_to_inclinometer_reading,
-                    conversions.joint_state_to_encoder_reading,
-                    conversions.joint_state_to_posture_reading):
+    for convert in (
+        conversions.joint_state_to_slider_reading,
+        conversions.joint_state_to_inclinometer_reading,
+        conversions.joint_state_to_encoder_reading,
+        conversions.joint_state_to_posture_reading,
+    ):
         try:
             convert(message)
         except InvalidReadingError:
@@ -242,7 +272,7 @@ def test_posture_detector_never_raises_and_emits_only_finite_postures_from_its_i
     detector = PostureDetector(window_s=0.05, capture_s=0.1, max_gap_s=0.02)
     postures = []
     for begin in range(0, len(stamps), chunk):
-        postures += detector.update(stamps[begin:begin + chunk], rows[begin:begin + chunk])
+        postures += detector.update(stamps[begin : begin + chunk], rows[begin : begin + chunk])
     detector.finish()
     finite = rows[np.all(np.isfinite(rows), axis=1)]
     emitted = [p.stamp_ns for p in postures]
@@ -254,8 +284,12 @@ def test_posture_detector_never_raises_and_emits_only_finite_postures_from_its_i
 
 
 @FAST
-@given(st.one_of(st.lists(scalars, max_size=5), st.just([2**70]), st.just([-1]),
-                 st.just([[1, 2], [3]])), st.one_of(values, st.just(np.zeros((1, 8)))))
+@given(
+    st.one_of(
+        st.lists(scalars, max_size=5), st.just([2**70]), st.just([-1]), st.just([[1, 2], [3]])
+    ),
+    st.one_of(values, st.just(np.zeros((1, 8)))),
+)
 def test_posture_detector_refuses_malformed_batches_with_a_named_error(stamps, rows):
     try:
         PostureDetector().update(stamps, rows)
@@ -264,8 +298,16 @@ def test_posture_detector_refuses_malformed_batches_with_a_named_error(stamps, r
 
 
 @FAST
-@given(st.lists(st.tuples(st.sampled_from(['sliders', 'inclinometer', 'encoder']),
-                          st.integers(0, 2**62), st.floats(-1.0, 1.0)), max_size=200))
+@given(
+    st.lists(
+        st.tuples(
+            st.sampled_from(['sliders', 'inclinometer', 'encoder']),
+            st.integers(0, 2**62),
+            st.floats(-1.0, 1.0),
+        ),
+        max_size=200,
+    )
+)
 def test_synchronizer_pairs_only_within_the_skew_and_stays_bounded(events):
     synchronizer = StreamSynchronizer(max_skew_ns=20_000_000, history=16)
     paired = []
@@ -290,12 +332,22 @@ def test_synchronizer_pairs_only_within_the_skew_and_stays_bounded(events):
 @st.composite
 def joint_state_dicts(draw, stamp_ns: int) -> dict:
     names = draw(st.one_of(st.just(list(POSTURE_NAMES)), st.lists(names_pool, max_size=11)))
-    positions = draw(st.one_of(
-        st.lists(st.floats(-1.0, 1.0), min_size=len(names), max_size=len(names)),
-        st.lists(st.floats(width=64), max_size=11)))
-    return {'header': {'stamp': {'sec': stamp_ns // 10**9, 'nanosec': stamp_ns % 10**9},
-                       'frame_id': ''}, 'name': names, 'position': positions,
-            'velocity': [], 'effort': []}
+    positions = draw(
+        st.one_of(
+            st.lists(st.floats(-1.0, 1.0), min_size=len(names), max_size=len(names)),
+            st.lists(st.floats(width=64), max_size=11),
+        )
+    )
+    return {
+        'header': {
+            'stamp': {'sec': stamp_ns // 10**9, 'nanosec': stamp_ns % 10**9},
+            'frame_id': '',
+        },
+        'name': names,
+        'position': positions,
+        'velocity': [],
+        'effort': [],
+    }
 
 
 @settings(max_examples=30 * SCALE, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -303,9 +355,23 @@ def joint_state_dicts(draw, stamp_ns: int) -> dict:
 def test_bag_reader_on_malformed_content_raises_only_named_errors(data):
     """Random JointState content, topics, types and raw bytes, through postures_from_bag."""
     directory = Path(tempfile.mkdtemp(prefix='hexacal-fuzz-')) / 'bag'
-    topics = data.draw(st.lists(st.sampled_from(
-        ['/hexacal/posture', '/hexacal/sliders', '/hexacal/inclinometer', '/hexacal/encoder',
-         '/left/hexacal/posture', '/other']), min_size=1, max_size=4, unique=True))
+    topics = data.draw(
+        st.lists(
+            st.sampled_from(
+                [
+                    '/hexacal/posture',
+                    '/hexacal/sliders',
+                    '/hexacal/inclinometer',
+                    '/hexacal/encoder',
+                    '/left/hexacal/posture',
+                    '/other',
+                ]
+            ),
+            min_size=1,
+            max_size=4,
+            unique=True,
+        )
+    )
     try:
         _write_fuzzed_bag(data, directory, topics)
         loaded = postures_from_bag(directory)
@@ -319,13 +385,17 @@ def _write_fuzzed_bag(data, directory: Path, topics: list[str]) -> None:
     with BagWriter(directory) as writer:
         types = {}
         for topic in topics:
-            types[topic] = data.draw(st.sampled_from([JOINT_STATE_TYPE, JOINT_STATE_TYPE,
-                                                      'std_msgs/msg/String']))
+            types[topic] = data.draw(
+                st.sampled_from([JOINT_STATE_TYPE, JOINT_STATE_TYPE, 'std_msgs/msg/String'])
+            )
             writer.add_topic(topic, types[topic])
         for index in range(data.draw(st.integers(0, 40))):
             topic = data.draw(st.sampled_from(topics))
-            stamp = data.draw(st.integers(0, 2**40)) if data.draw(st.booleans()) \
+            stamp = (
+                data.draw(st.integers(0, 2**40))
+                if data.draw(st.booleans())
                 else (index + 1) * 10**7
+            )
             if data.draw(st.integers(0, 9)) == 0:
                 writer.write_raw(topic, data.draw(st.binary(max_size=64)), stamp)
             elif types[topic] == JOINT_STATE_TYPE:
@@ -352,9 +422,20 @@ def test_bag_reader_on_mutated_schemas_raises_only_named_errors(data):
         elif action == 'duplicate':
             lines.insert(index, lines[index])
         else:
-            new = data.draw(st.sampled_from(['float32[] position', 'int32 extra', 'string name',
-                                             'float64[3] position', 'bogus line here', '',
-                                             'std_msgs/Nothing header', 'uint8 X=3']))
+            new = data.draw(
+                st.sampled_from(
+                    [
+                        'float32[] position',
+                        'int32 extra',
+                        'string name',
+                        'float64[3] position',
+                        'bogus line here',
+                        '',
+                        'std_msgs/Nothing header',
+                        'uint8 X=3',
+                    ]
+                )
+            )
             if action == 'replace':
                 lines[index] = new
             else:
@@ -366,7 +447,9 @@ def test_bag_reader_on_mutated_schemas_raises_only_named_errors(data):
         schema_id = writer.register_schema(JOINT_STATE_TYPE, 'ros2msg', '\n'.join(lines).encode())
         channel_id = writer.register_channel('/hexacal/posture', 'cdr', schema_id)
         for index in range(data.draw(st.integers(0, 3))):  # raw CDR bytes under the mutated schema
-            writer.add_message(channel_id, index + 1, data.draw(st.binary(max_size=120)), index + 1)
+            writer.add_message(
+                channel_id, index + 1, data.draw(st.binary(max_size=120)), index + 1
+            )
         writer.finish()
     try:
         loaded = postures_from_bag(path)

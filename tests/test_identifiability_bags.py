@@ -5,18 +5,18 @@ its own column-pivoted QR (unit tests: ros2_ws/src/hexacal_identify/test/test_co
 Here the recorded bags: same rank, pivots, named combinations and suggestions
 as with scipy.linalg.qr(pivoting=True), refused or not.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
-
-import numpy as np
-import pytest
 
 from hexacal_identify.core import identifiability
 from hexacal_identify.core.errors import RankDeficientError, TooFewPosturesError
 from hexacal_identify.core.model import nominal_set
 from hexacal_identify.core.residuals import COSTS
 from hexacal_identify.pipeline import calibrate, postures_from_bag
+import numpy as np
+import pytest
 
 scipy_linalg = pytest.importorskip('scipy.linalg')
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
@@ -33,13 +33,22 @@ def _verdict(postures, cost):
         report = calibrate(nominal_set(2, seed=0), postures, cost=cost).identifiability
     except RankDeficientError as error:
         report = error.report
-    except TooFewPosturesError as error:  # a fixed-position cost of a bag without such postures: named
+    except (
+        TooFewPosturesError
+    ) as error:  # a fixed-position cost of a bag without such postures: named
         return str(error)
-    return (report.rank, report.pivot_order, report.to_json()['unidentifiable_combinations'],
-            report.unidentifiable_parameters, report.verdict())
+    return (
+        report.rank,
+        report.pivot_order,
+        report.to_json()['unidentifiable_combinations'],
+        report.unidentifiable_parameters,
+        report.verdict(),
+    )
 
 
-@pytest.mark.parametrize('bag', ['sphere30_nonoise', 'sphere50_noise10', 'sphere60_fixed20_noise10'])
+@pytest.mark.parametrize(
+    'bag', ['sphere30_nonoise', 'sphere50_noise10', 'sphere60_fixed20_noise10']
+)
 def test_bag_verdicts_match_scipy(monkeypatch, bag):
     postures = postures_from_bag(BAGS / bag).postures
     seen = []

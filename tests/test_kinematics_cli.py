@@ -3,6 +3,7 @@
 In-process through ``hexacal_identify.cli.main`` (what the ``hexacal`` script
 calls); the start-up import check runs a fresh interpreter.
 """
+
 from __future__ import annotations
 
 import json
@@ -10,16 +11,15 @@ import os
 import subprocess
 import sys
 
-import numpy as np
-import pytest
-
 from hexacal_identify import cli
 from hexacal_identify.core.architectures import architecture
 from hexacal_identify.core.kinematics import inverse_kinematics
 from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.postures import Workspace, sample_poses
+from hexacal_identify.core.postures import sample_poses, Workspace
 from hexacal_msgs_py.models import MODELS
 from hexacal_msgs_py.parameters_file import save_parameters
+import numpy as np
+import pytest
 
 POSE_KEYS = ['x', 'y', 'z', 'theta', 'psi', 'phi']
 
@@ -58,7 +58,9 @@ def workspace_poses(model: str, n: int, mount: str = 'hanging') -> np.ndarray:
     workspace = arch.default_workspace()
     if mount != 'hanging':
         workspace = Workspace(**{**workspace.__dict__, 'mount': mount})
-    return sample_poses(arch.default_parameters(), n, np.random.default_rng(11), 'sphere', workspace)
+    return sample_poses(
+        arch.default_parameters(), n, np.random.default_rng(11), 'sphere', workspace
+    )
 
 
 @pytest.mark.parametrize('model', sorted(MODELS))
@@ -111,8 +113,14 @@ def test_text_output_and_guess(capsys, files):
     assert lines['model'] == 'hexa_slide'
     assert lines['theta'].startswith('0.1000') and '(5.729578 deg)' in lines['theta']
     readings = [float(lines[f'slider_{i}'].split()[0]) for i in range(1, 7)]
-    assert np.allclose(readings, inverse_kinematics(architecture().default_parameters(), pose[None])[0], atol=1e-12)
-    code, out, err = run(capsys, 'fk', path, '--actuators', csv(readings), '--guess', csv(pose + 0.01))
+    assert np.allclose(
+        readings,
+        inverse_kinematics(architecture().default_parameters(), pose[None])[0],
+        atol=1e-12,
+    )
+    code, out, err = run(
+        capsys, 'fk', path, '--actuators', csv(readings), '--guess', csv(pose + 0.01)
+    )
     assert code == 0, err
     lines = dict(line.split(None, 1) for line in out.strip().splitlines())
     assert np.allclose([float(lines[k].split()[0]) for k in POSE_KEYS], pose, atol=1e-9)
@@ -121,8 +129,12 @@ def test_text_output_and_guess(capsys, files):
 def test_standing_device_guess_is_above_the_base(capsys, tmp_path):
     path = tmp_path / 'standing.yaml'
     arch = architecture('gough_stewart')
-    save_parameters(path, arch.default_parameters().vector, model='gough_stewart',
-                    extras={'device.mount': 'standing'})
+    save_parameters(
+        path,
+        arch.default_parameters().vector,
+        model='gough_stewart',
+        extras={'device.mount': 'standing'},
+    )
     pose = workspace_poses('gough_stewart', 1, mount='standing')[0]
     assert pose[2] > 0
     readings = inverse_kinematics(arch.default_parameters(), pose[None])[0]
@@ -131,16 +143,25 @@ def test_standing_device_guess_is_above_the_base(capsys, tmp_path):
     assert np.allclose(list(json.loads(out)['pose'].values()), pose, atol=1e-9)
 
 
-@pytest.mark.parametrize('argv, words', [
-    (['ik', '{p}', '--pose', '0,0,-0.7,0,0'], ['--pose', 'six comma-separated numbers', 'got 5']),
-    (['ik', '{p}', '--pose', '0,0,-0.7,0,0,a'], ['--pose', 'six comma-separated numbers']),
-    (['ik', '{p}', '--pose', '0,0,nan,0,0,0'], ['--pose', 'finite']),
-    (['fk', '{p}', '--actuators', '0.1,0.1,0.1,0.1,0.1'], ['--actuators', 'got 5']),
-    (['fk', '{p}', '--actuators', '0.1,0.1,0.1,0.1,0.1,inf'], ['--actuators', 'finite']),
-    (['fk', '{p}', '--actuators', '0.1,0.1,0.1,0.1,0.1,0.1', '--guess', '0,0'], ['--guess', 'got 2']),
-    (['ik', '{missing}', '--pose', '0,0,-0.7,0,0,0'], ['missing.yaml', 'cannot read']),
-    (['fk', '{bad}', '--actuators', '0.1,0.1,0.1,0.1,0.1,0.1'], ['bad.yaml']),
-])
+@pytest.mark.parametrize(
+    'argv, words',
+    [
+        (
+            ['ik', '{p}', '--pose', '0,0,-0.7,0,0'],
+            ['--pose', 'six comma-separated numbers', 'got 5'],
+        ),
+        (['ik', '{p}', '--pose', '0,0,-0.7,0,0,a'], ['--pose', 'six comma-separated numbers']),
+        (['ik', '{p}', '--pose', '0,0,nan,0,0,0'], ['--pose', 'finite']),
+        (['fk', '{p}', '--actuators', '0.1,0.1,0.1,0.1,0.1'], ['--actuators', 'got 5']),
+        (['fk', '{p}', '--actuators', '0.1,0.1,0.1,0.1,0.1,inf'], ['--actuators', 'finite']),
+        (
+            ['fk', '{p}', '--actuators', '0.1,0.1,0.1,0.1,0.1,0.1', '--guess', '0,0'],
+            ['--guess', 'got 2'],
+        ),
+        (['ik', '{missing}', '--pose', '0,0,-0.7,0,0,0'], ['missing.yaml', 'cannot read']),
+        (['fk', '{bad}', '--actuators', '0.1,0.1,0.1,0.1,0.1,0.1'], ['bad.yaml']),
+    ],
+)
 def test_bad_input_is_one_line_and_exit_2(capsys, files, tmp_path, argv, words):
     bad = tmp_path / 'bad.yaml'
     bad.write_text('/**:\n  ros__parameters:\n    model: hexa_slide\n    chain_1.l: 1.0\n')
@@ -168,15 +189,32 @@ def test_unreachable_pose_and_fk_failure_are_named(capsys, files):
 
 def test_the_script_takes_negative_values_and_help_imports_no_numpy(files):
     script = os.path.join(os.path.dirname(sys.executable), 'hexacal')
-    done = subprocess.run([script, 'ik', str(files['hexa_slide'][0]), '--pose', '-0.1,-0.05,-0.7,-0.1,0,0',
-                           '--json'], capture_output=True, text=True, timeout=60)
+    done = subprocess.run(
+        [
+            script,
+            'ik',
+            str(files['hexa_slide'][0]),
+            '--pose',
+            '-0.1,-0.05,-0.7,-0.1,0,0',
+            '--json',
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout)['pose']['x'] == -0.1
-    probe = ('import sys; from hexacal_identify import cli\n'
-             'try:\n    cli.main(sys.argv[1:])\nexcept SystemExit:\n    pass\n'
-             'print(sorted(m for m in sys.modules if m.split(".")[0] in ("numpy", "rclpy", "scipy")))')
+    probe = (
+        'import sys; from hexacal_identify import cli\n'
+        'try:\n    cli.main(sys.argv[1:])\nexcept SystemExit:\n    pass\n'
+        'print(sorted(m for m in sys.modules if m.split(".")[0] in ("numpy", "rclpy", "scipy")))'
+    )
     for command in ('ik', 'fk'):
-        done = subprocess.run([sys.executable, '-c', probe, command, '--help'], capture_output=True, text=True,
-                              timeout=60)
+        done = subprocess.run(
+            [sys.executable, '-c', probe, command, '--help'],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
         assert done.returncode == 0, done.stderr
         assert done.stdout.strip().splitlines()[-1] == '[]', done.stdout

@@ -8,6 +8,7 @@ collector takes ~30% of one core at 1 kHz), so this holds on a loaded CI
 machine; it asserts no rate, time or CPU figure. Throughput at 1 kHz, CPU and
 the busy-core case are the benchmark's (`benchmarks/bench_load.py [--busy-core]`).
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -17,7 +18,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'benchmarks'))
 
-from bench_load import STREAMS, run_load  # noqa: E402
+from bench_load import run_load, STREAMS  # noqa: E402
 
 SECONDS = 20.0
 RATE_HZ = 200.0

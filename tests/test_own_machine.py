@@ -17,6 +17,7 @@ checked to start the same nodes as the bringup line of the same step (there is
 no ros2 launch here). Real processes in their own process groups, this
 session's ROS domain on localhost (conftest.py), waits on conditions.
 """
+
 from __future__ import annotations
 
 import json
@@ -27,15 +28,14 @@ import shutil
 import subprocess
 import sys
 
+from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC
 import numpy as np
 import pytest
-
-from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC
 from rosproc import venv_executable, wait_for
 from system_support import (
-    STOP_TIMEOUT_S,
     node_argv,
     probe,  # noqa: F401 - fixture
+    STOP_TIMEOUT_S,
     write_parameter_files,
 )
 
@@ -45,8 +45,12 @@ LAUNCH_FILE = REPO / 'ros2_ws/src/hexacal_identify/launch/hexacal.launch.py'
 RELAY = Path(__file__).resolve().parent / 'joint_states_relay.py'
 MODEL = 'gough_stewart'
 # The stand-in moves at up to 1 m/s; the executor may go at 0.5 m/s and settle in 0.3 s.
-FAST_EXECUTOR = ['--param', 'executor:max_actuator_speed_m_s=0.5',
-                 '--param', 'executor:settle_s=0.3']
+FAST_EXECUTOR = [
+    '--param',
+    'executor:max_actuator_speed_m_s=0.5',
+    '--param',
+    'executor:settle_s=0.3',
+]
 EXECUTABLES = ('hexacal', 'bringup', 'kinematics')
 
 
@@ -69,16 +73,29 @@ def readme_commands(kind: str = 'sh') -> list[list[str]]:
 
 def _in(directory: Path, argv: list[str]) -> list[str]:
     """The command as written, run in `directory` (exec: the process is the command itself)."""
-    return ['/bin/sh', '-c', 'cd "$0" && exec "$@"', str(directory),
-            venv_executable(argv[0]), *argv[1:]]
+    return [
+        '/bin/sh',
+        '-c',
+        'cd "$0" && exec "$@"',
+        str(directory),
+        venv_executable(argv[0]),
+        *argv[1:],
+    ]
 
 
 def test_readme_section_has_each_step():
     commands = readme_commands()
     steps = [(argv[0], argv[1] if argv[0] == 'hexacal' else '') for argv in commands]
-    assert steps == [('hexacal', 'plan'), ('hexacal', 'plan'), ('bringup', ''),
-                     ('hexacal', 'calibrate'), ('bringup', ''), ('hexacal', 'verify'),
-                     ('kinematics', ''), ('hexacal', 'export')]
+    assert steps == [
+        ('hexacal', 'plan'),
+        ('hexacal', 'plan'),
+        ('bringup', ''),
+        ('hexacal', 'calibrate'),
+        ('bringup', ''),
+        ('hexacal', 'verify'),
+        ('kinematics', ''),
+        ('hexacal', 'export'),
+    ]
     assert all(argv[0] in EXECUTABLES for argv in commands)
     measure = commands[2]
     for option in ('--no-driver', '--executor-plan', '--calibrate-when-done'):
@@ -105,8 +122,10 @@ def test_the_ros2_launch_line_starts_what_the_bringup_line_starts():
     from_launch = module.node_launches(arguments)
 
     def nodes(launches):
-        return {n.executable: ({k: v for k, v in n.parameters.items() if k != 'bag_name'},
-                               n.remaps) for n in launches}
+        return {
+            n.executable: ({k: v for k, v in n.parameters.items() if k != 'bag_name'}, n.remaps)
+            for n in launches
+        }
 
     assert nodes(from_launch) == nodes(from_bringup)
     assert set(nodes(from_launch)) == {'collector', 'identify', 'kinematics', 'executor'}
@@ -114,20 +133,38 @@ def test_the_ros2_launch_line_starts_what_the_bringup_line_starts():
 
 def _standin(ros_processes, probe, truth: Path):
     """The commanded driver behind /joint_trajectory_controller/joint_trajectory + the relay."""
+    from hexacal_msgs_py.qos import SENSOR_QOS
     from sensor_msgs.msg import JointState
 
-    from hexacal_msgs_py.qos import SENSOR_QOS
-
-    driver = ros_processes.start(node_argv('driver', {
-        'command_topic': DEFAULT_COMMAND_TOPIC, 'true_params': str(truth),
-        'max_actuator_speed_m_s': 1.0, 'slider_noise_m': 1e-5, 'angle_noise_rad': 1e-5}) + [
-        '-r', 'hexacal/sliders:=machine/sliders', '-r', 'hexacal/inclinometer:=machine/inclinometer',
-        '-r', 'hexacal/encoder:=machine/encoder'])
+    driver = ros_processes.start(
+        node_argv(
+            'driver',
+            {
+                'command_topic': DEFAULT_COMMAND_TOPIC,
+                'true_params': str(truth),
+                'max_actuator_speed_m_s': 1.0,
+                'slider_noise_m': 1e-5,
+                'angle_noise_rad': 1e-5,
+            },
+        )
+        + [
+            '-r',
+            'hexacal/sliders:=machine/sliders',
+            '-r',
+            'hexacal/inclinometer:=machine/inclinometer',
+            '-r',
+            'hexacal/encoder:=machine/encoder',
+        ]
+    )
     relay = ros_processes.start([sys.executable, str(RELAY)], name='joint_state_broadcaster')
     joint_states: list = []
     probe.node.create_subscription(JointState, '/joint_states', joint_states.append, SENSOR_QOS)
-    probe.spin_until(lambda: joint_states, 60.0, 'the stand-in on /joint_states',
-                     lambda: driver.describe() + '\n' + relay.describe())
+    probe.spin_until(
+        lambda: joint_states,
+        60.0,
+        'the stand-in on /joint_states',
+        lambda: driver.describe() + '\n' + relay.describe(),
+    )
     names = list(joint_states[-1].name)
     assert names[0] == 'gripper' and 'tilt_x' in names and 'link_rotary' in names
     assert names.index('leg_6') < names.index('leg_1')  # not hexacal's order
@@ -141,9 +178,13 @@ def _run(tmp_path: Path, argv: list[str], timeout: float = 300.0) -> subprocess.
 def _walk(ros_processes, tmp_path, argv, postures: int, machine) -> str:
     """A bringup line with --shutdown-when-done: runs until the plan is walked; its log."""
     process = ros_processes.start(_in(tmp_path, argv + FAST_EXECUTOR), name='bringup')
-    wait_for(lambda: not process.running() or any(not p.running() for p in machine),
-             60.0 + 6.0 * postures + 60.0, interval=0.2, what='bringup to finish the plan',
-             details=process.describe)
+    wait_for(
+        lambda: not process.running() or any(not p.running() for p in machine),
+        60.0 + 6.0 * postures + 60.0,
+        interval=0.2,
+        what='bringup to finish the plan',
+        details=process.describe,
+    )
     for p in machine:
         assert p.running(), p.describe()
     code = ros_processes.stop(process, STOP_TIMEOUT_S)
@@ -157,13 +198,12 @@ def _walk(ros_processes, tmp_path, argv, postures: int, machine) -> str:
 @pytest.mark.slow  # about 50 s on 2 cores
 def test_readme_own_machine_commands_on_a_ros2_control_standin(ros_processes, tmp_path, probe):
     from geometry_msgs.msg import PoseStamped
-    from sensor_msgs.msg import JointState
-
     from hexacal_identify.core.architectures import parameters_for
     from hexacal_identify.core.live import solve_pose
     from hexacal_msgs_py.parameters_file import read_parameters_file
     from hexacal_msgs_py.poses import pose_from_message
     from hexacal_msgs_py.qos import POSE_QOS, SENSOR_QOS
+    from sensor_msgs.msg import JointState
 
     truth_path, nominal_set2 = write_parameter_files(tmp_path / 'standin', MODEL)
     shutil.copy(nominal_set2, tmp_path / 'nominal.yaml')
@@ -218,7 +258,8 @@ def test_readme_own_machine_commands_on_a_ros2_control_standin(ros_processes, tm
     def on_joint_states(message) -> None:
         values = dict(zip(message.name, message.position))
         readings[(message.header.stamp.sec, message.header.stamp.nanosec)] = np.array(
-            [values[f'leg_{i}'] for i in range(1, 7)])
+            [values[f'leg_{i}'] for i in range(1, 7)]
+        )
 
     probe.node.create_subscription(JointState, '/joint_states', on_joint_states, SENSOR_QOS)
     kinematics = ros_processes.start(_in(tmp_path, next(commands)), name='kinematics')
@@ -232,8 +273,9 @@ def test_readme_own_machine_commands_on_a_ros2_control_standin(ros_processes, tm
                 return message, readings[stamp]
         return None
 
-    message, reading = probe.spin_until(matched_pose, 60.0, 'a platform pose of a reading',
-                                        kinematics.describe)
+    message, reading = probe.spin_until(
+        matched_pose, 60.0, 'a platform pose of a reading', kinematics.describe
+    )
     assert message.header.frame_id == 'hexacal_base'
     pose = np.array(pose_from_message(message.pose))
     true_pose = solve_pose(truth, reading, pose)

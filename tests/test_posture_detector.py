@@ -1,25 +1,25 @@
 """Stream synchronisation and stationary-posture detection on synthetic sensor streams."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-import pytest
-
 from hexacal_identify.core.posture_detector import (
+    detect_postures,
+    DetectorState,
     DROPPED_AT_END,
     DROPPED_FOR_GAP,
     DROPPED_FOR_MOTION,
     DUPLICATE_STAMP,
     NO_ENCODER_WITHIN_SKEW,
     OUT_OF_ORDER,
-    DetectorState,
     PostureDetector,
     StreamSynchronizer,
-    detect_postures,
     synchronize_arrays,
 )
 from hexacal_msgs_py.readings import EncoderReading, InclinometerReading, SliderReading
+import numpy as np
+import pytest
 
 NOISE = 20e-6  # uniform +-20 um on sliders, +-20 urad on angles
 NOISE_STD = NOISE / np.sqrt(3.0)
@@ -43,9 +43,15 @@ def make_targets(rng: np.random.Generator, count: int) -> np.ndarray:
     return targets
 
 
-def make_session(rng: np.random.Generator, targets: np.ndarray, rate_hz: float = 100.0,
-                 hold_s: float | list[float] = 1.5, move_s: float = 1.0,
-                 settle_amplitude: float = 3e-4, noise: bool = True) -> Session:
+def make_session(
+    rng: np.random.Generator,
+    targets: np.ndarray,
+    rate_hz: float = 100.0,
+    hold_s: float | list[float] = 1.5,
+    move_s: float = 1.0,
+    settle_amplitude: float = 3e-4,
+    noise: bool = True,
+) -> Session:
     """Holds joined by cosine moves; each hold starts with a decaying 8 Hz oscillation."""
     period_ns = int(round(1e9 / rate_hz))
     holds_s = [hold_s] * len(targets) if np.isscalar(hold_s) else list(hold_s)
@@ -128,7 +134,7 @@ def test_partial_period_at_end_is_reported_not_emitted():
     assert detector.dropped == {DROPPED_AT_END: 1}
 
 
-@pytest.mark.parametrize("chunk", [1, 7, 64, 1000])
+@pytest.mark.parametrize('chunk', [1, 7, 64, 1000])
 def test_streaming_in_any_chunks_equals_offline_detection(chunk):
     rng = np.random.default_rng(11)
     session = make_session(rng, make_targets(rng, 5))
@@ -136,8 +142,9 @@ def test_streaming_in_any_chunks_equals_offline_detection(chunk):
     detector = PostureDetector()
     online = []
     for begin in range(0, len(session.stamps_ns), chunk):
-        online += detector.update(session.stamps_ns[begin:begin + chunk],
-                                  session.values[begin:begin + chunk])
+        online += detector.update(
+            session.stamps_ns[begin : begin + chunk], session.values[begin : begin + chunk]
+        )
     assert [p.stamp_ns for p in online] == [p.stamp_ns for p in offline]
     for a, b in zip(online, offline):
         assert a.sample_count == b.sample_count
@@ -153,9 +160,11 @@ def test_gaps_abort_a_capture_but_never_duplicate_a_posture():
     second_hold_start = session.holds[1][0]
     # 0.4 s gap inside the first capture; 0.5 s gap after the second posture was captured.
     in_capture = (stamps > first_hold_start + 500_000_000) & (
-        stamps < first_hold_start + 900_000_000)
+        stamps < first_hold_start + 900_000_000
+    )
     after_capture = (stamps > second_hold_start + 2_000_000_000) & (
-        stamps < second_hold_start + 2_500_000_000)
+        stamps < second_hold_start + 2_500_000_000
+    )
     keep = ~(in_capture | after_capture)
     detector = PostureDetector()
     postures = detector.update(stamps[keep], values[keep])
@@ -165,7 +174,8 @@ def test_gaps_abort_a_capture_but_never_duplicate_a_posture():
     # The machine moved to a new posture during a gap: that posture is still captured.
     moved = make_session(rng, targets[:2], hold_s=[1.5, 3.0], move_s=0.5)
     hidden_move = (moved.stamps_ns >= moved.holds[0][1] - 100_000_000) & (
-        moved.stamps_ns < moved.holds[1][0] + 100_000_000)
+        moved.stamps_ns < moved.holds[1][0] + 100_000_000
+    )
     postures = detect_postures(moved.stamps_ns[~hidden_move], moved.values[~hidden_move])
     assert len(postures) == 2
     assert np.all(np.abs(postures[1].values - targets[1]) < 1e-5)
@@ -183,7 +193,7 @@ def test_out_of_order_duplicate_and_non_finite_samples_are_rejected_and_counted(
     values[300, 2] = np.nan
     detector = PostureDetector()
     postures = detector.update(stamps, values)
-    assert detector.rejected == {OUT_OF_ORDER: 1, DUPLICATE_STAMP: 1, "non_finite": 1}
+    assert detector.rejected == {OUT_OF_ORDER: 1, DUPLICATE_STAMP: 1, 'non_finite': 1}
     assert_matches_holds(postures, session.holds)
 
 
@@ -197,8 +207,9 @@ def test_one_khz_for_ten_minutes_in_constant_memory():
     assert capacity == 602  # 0.3 s at the 2 kHz design rate, plus two
     found = []
     for start in range(0, len(session.stamps_ns), 5000):
-        found += detector.update(session.stamps_ns[start:start + 5000],
-                                 session.values[start:start + 5000])
+        found += detector.update(
+            session.stamps_ns[start : start + 5000], session.values[start : start + 5000]
+        )
         assert detector.buffered_samples <= 301  # the last 0.3 s at 1 kHz
         assert detector.buffer_capacity == capacity
     assert_matches_holds(found, session.holds)
@@ -210,15 +221,21 @@ def test_one_khz_for_ten_minutes_in_constant_memory():
 
 def _streams(rng, session, inclinometer_offset_ns, encoder_offset_ns, jitter_ns=1_000_000):
     """Three independent streams sampling the same motion at their own (jittered) stamps."""
+
     def sample(offset_ns):
-        stamps = session.stamps_ns + offset_ns + rng.integers(-jitter_ns, jitter_ns + 1,
-                                                               len(session.stamps_ns))
-        values = np.array([np.interp(stamps, session.stamps_ns, session.values[:, c])
-                           for c in range(9)]).T
+        stamps = (
+            session.stamps_ns
+            + offset_ns
+            + rng.integers(-jitter_ns, jitter_ns + 1, len(session.stamps_ns))
+        )
+        values = np.array(
+            [np.interp(stamps, session.stamps_ns, session.values[:, c]) for c in range(9)]
+        ).T
         return stamps, values
 
-    sliders = [SliderReading(int(t), tuple(v[:6])) for t, v in zip(session.stamps_ns,
-                                                                    session.values)]
+    sliders = [
+        SliderReading(int(t), tuple(v[:6])) for t, v in zip(session.stamps_ns, session.values)
+    ]
     inc_t, inc_v = sample(inclinometer_offset_ns)
     inclinometer = [InclinometerReading(int(t), v[6], v[7]) for t, v in zip(inc_t, inc_v)]
     enc_t, enc_v = sample(encoder_offset_ns)
@@ -229,15 +246,18 @@ def _streams(rng, session, inclinometer_offset_ns, encoder_offset_ns, jitter_ns=
 def _deliver(rng, synchronizer, sliders, inclinometer, encoder, max_delay_ns=15_000_000):
     """Feed readings in arrival order: each stream in order, streams delayed independently."""
     arrivals = []
-    for kind, readings in (("s", sliders), ("i", inclinometer), ("e", encoder)):
+    for kind, readings in (('s', sliders), ('i', inclinometer), ('e', encoder)):
         # Arrival times follow list order, so readings placed out of order arrive out of order.
         times = np.sort([r.stamp_ns for r in readings]) + rng.integers(0, max_delay_ns + 1)
         times += rng.integers(0, 2_000_000, len(times))
         for position, (time_ns, reading) in enumerate(zip(times.tolist(), readings)):
             arrivals.append((time_ns, kind, position, reading))
     arrivals.sort(key=lambda a: a[:3])
-    add = {"s": synchronizer.add_sliders, "i": synchronizer.add_inclinometer,
-           "e": synchronizer.add_encoder}
+    add = {
+        's': synchronizer.add_sliders,
+        'i': synchronizer.add_inclinometer,
+        'e': synchronizer.add_encoder,
+    }
     samples = []
     for _, kind, _, reading in arrivals:
         samples += add[kind](reading)
@@ -257,12 +277,19 @@ def test_synchronizer_pairs_each_slider_reading_with_the_nearest_readings():
         nearest_inc = inclinometer[int(np.argmin(np.abs(inc_stamps - sample.stamp_ns)))]
         nearest_enc = encoder[int(np.argmin(np.abs(enc_stamps - sample.stamp_ns)))]
         assert (sample.alpha, sample.beta, sample.phi) == (
-            nearest_inc.alpha, nearest_inc.beta, nearest_enc.phi)
+            nearest_inc.alpha,
+            nearest_inc.beta,
+            nearest_enc.phi,
+        )
     # The offline, vectorised pairing agrees.
     stamps, values = synchronize_arrays(
-        [r.stamp_ns for r in sliders], [r.slider_positions for r in sliders],
-        inc_stamps, [(r.alpha, r.beta) for r in inclinometer], enc_stamps,
-        [r.phi for r in encoder])
+        [r.stamp_ns for r in sliders],
+        [r.slider_positions for r in sliders],
+        inc_stamps,
+        [(r.alpha, r.beta) for r in inclinometer],
+        enc_stamps,
+        [r.phi for r in encoder],
+    )
     assert stamps.tolist() == [s.stamp_ns for s in samples]
     assert np.array_equal(values, np.array([s.values() for s in samples]))
 
@@ -277,8 +304,10 @@ def test_synchronizer_rejects_out_of_order_and_duplicates_and_reports_stale_stre
     synchronizer.add_inclinometer(InclinometerReading(T0_NS + 50 * ms, 0.1, 0.2))  # late
     synchronizer.add_encoder(EncoderReading(T0_NS + 5 * ms, 0.3))  # late
     assert synchronizer.rejected == {
-        "sliders": {}, "inclinometer": {DUPLICATE_STAMP: 1, OUT_OF_ORDER: 1},
-        "encoder": {OUT_OF_ORDER: 1}}
+        'sliders': {},
+        'inclinometer': {DUPLICATE_STAMP: 1, OUT_OF_ORDER: 1},
+        'encoder': {OUT_OF_ORDER: 1},
+    }
     out = []
     for k in range(10):
         out += synchronizer.add_sliders(SliderReading(T0_NS + k * 10 * ms + 2 * ms, (0.4,) * 6))
@@ -291,8 +320,8 @@ def test_synchronizer_rejects_out_of_order_and_duplicates_and_reports_stale_stre
         out += synchronizer.add_sliders(SliderReading(T0_NS + k * 10 * ms + 2 * ms, (0.4,) * 6))
         assert synchronizer.pending <= 64
     now = T0_NS + 600 * ms
-    assert synchronizer.stale_streams(now) == ["encoder"]
-    status = synchronizer.status(now)["encoder"]
+    assert synchronizer.stale_streams(now) == ['encoder']
+    status = synchronizer.status(now)['encoder']
     assert status.stale and status.last_stamp_ns == T0_NS + 91 * ms and status.accepted == 10
     # Paired while the last encoder reading (91 ms) was within 20 ms: sliders at 92 and 102 ms.
     assert len(out) == 11

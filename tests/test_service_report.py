@@ -6,16 +6,16 @@ result status says `report_state: writing`, a later one `ready` (with the page's
 path in `report`) or `failed` (with `report_error`), never changing the result.
 No timing assertions: only what arrives, in which order, and what is on disk.
 """
+
 from __future__ import annotations
 
-import numpy as np
-
 from hexacal_msgs_py.parameters_file import load_parameters
+import numpy as np
 from system_support import (
-    STOP_TIMEOUT_S,
     node_argv,
     probe,  # noqa: F401 - fixture
     simulated_postures,
+    STOP_TIMEOUT_S,
     write_parameter_files,
 )
 
@@ -31,15 +31,22 @@ def _start(ros_processes, tmp_path, probe, **parameters):
     probe.subscribe_status()
     received = probe.subscribe_parameters()
     probe.publish_postures(simulated_postures(25, seed=6))
-    probe.spin_until(lambda: probe.postures_received_by_identify() == 25, 30.0,
-                     'identify to hold 25 postures', identify.describe)
+    probe.spin_until(
+        lambda: probe.postures_received_by_identify() == 25,
+        30.0,
+        'identify to hold 25 postures',
+        identify.describe,
+    )
     return identify, received
 
 
 def _report_status(probe, state: str, identify, after: int = 0):
     return probe.spin_until(
         lambda: [s for s in probe.statuses[after:] if s[2].get('report_state') == state],
-        REPORT_TIMEOUT_S, f'a status with report_state {state!r}', identify.describe)[-1]
+        REPORT_TIMEOUT_S,
+        f'a status with report_state {state!r}',
+        identify.describe,
+    )[-1]
 
 
 def _result_statuses(probe, after: int = 0) -> list:
@@ -66,15 +73,19 @@ def test_answer_and_parameters_come_before_the_report_status(ros_processes, tmp_
     # Order on the status topic: running, the result (report writing), then the same result with
     # the report ready; the follow-up keeps every value of the result and adds the report.
     # ('running' may be replaced unseen by the result: the subscription keeps the latest only.)
-    states = [(s[2].get('outcome'), s[2].get('report_state')) for s in probe.statuses
-              if s[2].get('outcome') in ('running', 'converged')]
+    states = [
+        (s[2].get('outcome'), s[2].get('report_state'))
+        for s in probe.statuses
+        if s[2].get('outcome') in ('running', 'converged')
+    ]
     assert states[-2:] == [('converged', 'writing'), ('converged', 'ready')], states
     assert states[:-2] in ([], [('running', None)]), states
     writing = _result_statuses(probe)[0]
     assert writing[0] == level == OK_LEVEL and writing[1] == response.message
     assert 'report' not in writing[2]
-    assert {k: v for k, v in ready.items() if k not in ('report_state', 'report')} == \
-        {k: v for k, v in writing[2].items() if k != 'report_state'}
+    assert {k: v for k, v in ready.items() if k not in ('report_state', 'report')} == {
+        k: v for k, v in writing[2].items() if k != 'report_state'
+    }
     assert ready['output'] == str(out / 'hexacal_calibration.yaml')
     assert 0 < float(ready['std.chain_1.A0x']) < 1e-3
     assert 'calibration report written' in identify.log_text()
@@ -107,8 +118,13 @@ def test_failed_report_leaves_the_result_and_the_parameters(ros_processes, tmp_p
     client = AsyncParameterClient(probe.node, '/identify')
     probe.spin_until(client.services_are_ready, 15.0, "identify's parameter services")
     future = client.set_parameters([Parameter('report_dir', value='')])
-    assert probe.spin_until(lambda: future.result() if future.done() else None, 15.0,
-                            'setting report_dir').results[0].successful
+    assert (
+        probe.spin_until(
+            lambda: future.result() if future.done() else None, 15.0, 'setting report_dir'
+        )
+        .results[0]
+        .successful
+    )
     count = len(probe.statuses)
     again = probe.call_trigger()
     assert again.success, again.message

@@ -6,6 +6,7 @@ shutting down. Either way, and on SIGTERM, a node exits 0 with no traceback and
 leaves its files finished: the bag with metadata.yaml and its MCAP footer
 (readable by rosbags), the parameters file and report complete or untouched.
 """
+
 from __future__ import annotations
 
 import os
@@ -14,17 +15,16 @@ import signal
 import subprocess
 import time
 
-import pytest
-
 from hexacal_identify.bag import open_bag
 from hexacal_msgs_py.parameters_file import load_parameters
+import pytest
 from rosproc import RosProcess, venv_executable
 from system_support import (
-    STOP_TIMEOUT_S,
     fast_collector_parameters,
     fast_driver_parameters,
     node_argv,
     probe,  # noqa: F401 - fixture
+    STOP_TIMEOUT_S,
     write_parameter_files,
 )
 
@@ -69,17 +69,24 @@ def assert_bag_finished(bag: Path) -> None:
 
 @pytest.mark.slow
 @pytest.mark.parametrize('pattern', PATTERNS)
-def test_collector_and_driver_stop_cleanly_while_recording(pattern, ros_processes, tmp_path,
-                                                           probe):
+def test_collector_and_driver_stop_cleanly_while_recording(
+    pattern, ros_processes, tmp_path, probe
+):
     truth, _ = write_parameter_files(tmp_path)
     probe.subscribe_postures()
-    collector = ros_processes.start(node_argv('collector', fast_collector_parameters(
-        tmp_path / 'bags', bag_name='stopped')))
+    collector = ros_processes.start(
+        node_argv('collector', fast_collector_parameters(tmp_path / 'bags', bag_name='stopped'))
+    )
     probe.wait_for_node('collector', process=collector)
-    driver = ros_processes.start(node_argv('driver', fast_driver_parameters(
-        postures=30, seed=4, true_params=str(truth))))
-    probe.spin_until(lambda: len(probe.postures) >= 2, 60.0, 'two postures',
-                     lambda: collector.describe() + '\n' + driver.describe())
+    driver = ros_processes.start(
+        node_argv('driver', fast_driver_parameters(postures=30, seed=4, true_params=str(truth)))
+    )
+    probe.spin_until(
+        lambda: len(probe.postures) >= 2,
+        60.0,
+        'two postures',
+        lambda: collector.describe() + '\n' + driver.describe(),
+    )
 
     # The collector first: it is still receiving all three streams when the signals arrive.
     # (Whatever an assertion leaves running, the fixture's teardown stops.)
@@ -93,12 +100,19 @@ def test_collector_and_driver_stop_cleanly_while_recording(pattern, ros_processe
 def test_identify_stops_cleanly_during_a_calibration(pattern, ros_processes, tmp_path, probe):
     _, nominal = write_parameter_files(tmp_path)
     out = tmp_path / 'out'
-    identify = ros_processes.start(node_argv('identify', {
-        'nominal': str(nominal), 'bag': str(SAMPLE_BAG), 'output_dir': str(out)}))
+    identify = ros_processes.start(
+        node_argv(
+            'identify', {'nominal': str(nominal), 'bag': str(SAMPLE_BAG), 'output_dir': str(out)}
+        )
+    )
     probe.wait_for_node('identify', process=identify)
     probe.trigger_async()
-    probe.spin_until(lambda: 'calibrating from' in identify.log_text(), 60.0,
-                     'the calibration to start', identify.describe)
+    probe.spin_until(
+        lambda: 'calibrating from' in identify.log_text(),
+        60.0,
+        'the calibration to start',
+        identify.describe,
+    )
 
     assert_clean_exit(identify, pattern)
     # Complete or untouched: a parameters file, if there is one, loads whole; no temp files left.
@@ -113,10 +127,15 @@ def test_identify_stops_cleanly_during_a_calibration(pattern, ros_processes, tmp
 @pytest.mark.slow
 @pytest.mark.parametrize('pattern', PATTERNS)
 def test_replay_stops_cleanly_while_publishing(pattern, ros_processes, probe):
-    replay = ros_processes.start([venv_executable('replay'), str(SAMPLE_BAG), '--loop',
-                                  '--rate', '5'])
-    probe.spin_until(lambda: probe.node.count_publishers('/hexacal/sliders') >= 1, 60.0,
-                     'the replay publishers', replay.describe)
+    replay = ros_processes.start(
+        [venv_executable('replay'), str(SAMPLE_BAG), '--loop', '--rate', '5']
+    )
+    probe.spin_until(
+        lambda: probe.node.count_publishers('/hexacal/sliders') >= 1,
+        60.0,
+        'the replay publishers',
+        replay.describe,
+    )
 
     assert_clean_exit(replay, pattern)
 
@@ -124,22 +143,39 @@ def test_replay_stops_cleanly_while_publishing(pattern, ros_processes, probe):
 def _plan(tmp_path: Path, nominal: Path) -> Path:
     out = tmp_path / 'plan.yaml'
     if not out.exists():
-        completed = subprocess.run([venv_executable('hexacal'), 'plan', '--postures', '12', '--candidates', '200',
-                                    '--nominal', str(nominal), '--out', str(out)],
-                                   capture_output=True, text=True, timeout=120)
+        completed = subprocess.run(
+            [
+                venv_executable('hexacal'),
+                'plan',
+                '--postures',
+                '12',
+                '--candidates',
+                '200',
+                '--nominal',
+                str(nominal),
+                '--out',
+                str(out),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert completed.returncode == 0, completed.stderr
     return out
 
 
 @pytest.mark.parametrize('pattern', PATTERNS)
 @pytest.mark.parametrize('executable', ('executor', 'kinematics'))
-def test_executor_and_kinematics_stop_cleanly_while_running(executable, pattern, ros_processes, tmp_path,
-                                                            probe):
+def test_executor_and_kinematics_stop_cleanly_while_running(
+    executable, pattern, ros_processes, tmp_path, probe
+):
     """The executor waiting for its machine and the kinematics node waiting for readings: exit 0 on
     the launch pattern and on SIGTERM."""
     _, nominal = write_parameter_files(tmp_path)
-    parameters = {'executor': {'plan': str(_plan(tmp_path, nominal)), 'nominal': str(nominal)},
-                  'kinematics': {'parameters': str(nominal)}}[executable]
+    parameters = {
+        'executor': {'plan': str(_plan(tmp_path, nominal)), 'nominal': str(nominal)},
+        'kinematics': {'parameters': str(nominal)},
+    }[executable]
     process = ros_processes.start(node_argv(executable, parameters))
     probe.wait_for_node(executable, process=process)
     assert_clean_exit(process, pattern)
@@ -149,15 +185,19 @@ STARTUP_SIGNAL_DELAYS_S = (0.05, 0.3, 0.6, 1.0, 1.5)  # during imports, rclpy.in
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize('executable', ('collector', 'identify', 'driver', 'executor', 'kinematics'))
+@pytest.mark.parametrize(
+    'executable', ('collector', 'identify', 'driver', 'executor', 'kinematics')
+)
 def test_ctrl_c_while_a_node_starts_is_a_clean_stop(executable, ros_processes, tmp_path):
     """A Ctrl-C at any moment of start-up: exit 0, no traceback (the signal is the stimulus)."""
     _, nominal = write_parameter_files(tmp_path)
-    parameters = {'collector': {'output_dir': str(tmp_path / 'bags')},
-                  'identify': {'nominal': str(nominal), 'output_dir': str(tmp_path / 'out')},
-                  'driver': fast_driver_parameters(postures=5),
-                  'executor': {'plan': str(_plan(tmp_path, nominal)), 'nominal': str(nominal)},
-                  'kinematics': {'parameters': str(nominal)}}[executable]
+    parameters = {
+        'collector': {'output_dir': str(tmp_path / 'bags')},
+        'identify': {'nominal': str(nominal), 'output_dir': str(tmp_path / 'out')},
+        'driver': fast_driver_parameters(postures=5),
+        'executor': {'plan': str(_plan(tmp_path, nominal)), 'nominal': str(nominal)},
+        'kinematics': {'parameters': str(nominal)},
+    }[executable]
     for delay in STARTUP_SIGNAL_DELAYS_S:
         process = ros_processes.start(node_argv(executable, parameters))
         time.sleep(delay)  # when the signal arrives is what this test varies

@@ -6,6 +6,7 @@ what the ``hexacal`` script calls) and reads ``sys.modules`` afterwards:
 matplotlib, scipy (not even scipy.linalg: core.identifiability has its own
 pivoted QR) nor the studies, and the node modules no scipy.
 """
+
 from __future__ import annotations
 
 import json
@@ -21,12 +22,16 @@ BAG = REPO / 'bags' / 'sphere50_noise10'
 
 # Modules of the simulation studies and their figures: only `hexacal study` (and `plan`, `report`) need them.
 STUDY_MODULES = (
-    'hexacal_identify.studies.accuracy', 'hexacal_identify.studies.device', 'hexacal_identify.core.uncertainty',
-    'hexacal_identify.core.baseline', 'hexacal_identify.studies.planning', 'hexacal_identify.report.figures',
+    'hexacal_identify.studies.accuracy',
+    'hexacal_identify.studies.device',
+    'hexacal_identify.core.uncertainty',
+    'hexacal_identify.core.baseline',
+    'hexacal_identify.studies.planning',
+    'hexacal_identify.report.figures',
 )
 HEAVY = ('matplotlib', 'scipy.optimize', *STUDY_MODULES)
 
-_SCRIPT = r'''
+_SCRIPT = r"""
 import json, os, sys
 from hexacal_identify import cli
 try:
@@ -35,14 +40,19 @@ except SystemExit as exit:
     code = exit.code
 with open(os.environ["HEXACAL_TEST_MODULES_OUT"], "w") as out:
     json.dump({"code": code, "modules": sorted(sys.modules)}, out)
-'''
+"""
 
 
 def modules_after(tmp_path: Path, *argv: str) -> tuple[int, list[str], str]:
     """(exit code, sys.modules after the command, its stdout + stderr)."""
     out = tmp_path / 'modules.json'
-    completed = subprocess.run([sys.executable, '-c', _SCRIPT, *argv], capture_output=True, text=True,
-                               timeout=120, env=dict(os.environ, HEXACAL_TEST_MODULES_OUT=str(out)))
+    completed = subprocess.run(
+        [sys.executable, '-c', _SCRIPT, *argv],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=dict(os.environ, HEXACAL_TEST_MODULES_OUT=str(out)),
+    )
     assert out.exists(), completed.stdout + completed.stderr
     payload = json.loads(out.read_text())
     return payload['code'], payload['modules'], completed.stdout + completed.stderr
@@ -73,8 +83,9 @@ def test_calibrate_imports_no_matplotlib_scipy_or_studies(tmp_path):
 
     nominal, output_file = tmp_path / 'nominal2.yaml', tmp_path / 'calibrated.yaml'
     save_parameters(nominal, nominal_set(2, seed=0).vector)
-    code, modules, output = modules_after(tmp_path, 'calibrate', str(BAG), '--nominal', str(nominal),
-                                          '--output', str(output_file))
+    code, modules, output = modules_after(
+        tmp_path, 'calibrate', str(BAG), '--nominal', str(nominal), '--output', str(output_file)
+    )
     assert code == 0, output
     assert output_file.exists(), output  # it did calibrate
     assert 'hexacal_identify.core.identification' in modules
@@ -89,8 +100,17 @@ def test_refused_calibration_imports_no_scipy(tmp_path):
 
     nominal = tmp_path / 'nominal2.yaml'
     save_parameters(nominal, nominal_set(2, seed=0).vector)
-    code, modules, output = modules_after(tmp_path, 'calibrate', str(BAG), '--nominal', str(nominal),
-                                          '--output', str(tmp_path / 'calibrated.yaml'), '--cost', 'sphere')
+    code, modules, output = modules_after(
+        tmp_path,
+        'calibrate',
+        str(BAG),
+        '--nominal',
+        str(nominal),
+        '--output',
+        str(tmp_path / 'calibrated.yaml'),
+        '--cost',
+        'sphere',
+    )
     assert code == 2, output
     assert 'rank 53 of 54' in output and 'A0z' in output
     assert imported(modules, ('scipy', *HEAVY)) == []
@@ -105,10 +125,14 @@ def test_the_check_sees_lazily_imported_modules(tmp_path):
 
 
 def test_node_modules_import_no_scipy_matplotlib_or_studies():
-    script = ('import json, sys\n'
-              'import hexacal_identify.nodes.collector, hexacal_identify.nodes.identify, hexacal_driver.driver_node\n'
-              'print(json.dumps(sorted(sys.modules)))\n')
-    completed = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True, timeout=120)
+    script = (
+        'import json, sys\n'
+        'import hexacal_identify.nodes.collector, hexacal_identify.nodes.identify, hexacal_driver.driver_node\n'
+        'print(json.dumps(sorted(sys.modules)))\n'
+    )
+    completed = subprocess.run(
+        [sys.executable, '-c', script], capture_output=True, text=True, timeout=120
+    )
     assert completed.returncode == 0, completed.stderr
     modules = json.loads(completed.stdout)
     assert 'rclpy' in modules

@@ -4,27 +4,27 @@ A mixed plan of 50 postures at 1 s per posture (settle 0.3 s, dwell 0.7 s,
 detector window 0.2 s + capture 0.3 s), 10 um / 10 urad noise, nominal set 2.
 The bag is read back by two independent readers (mcap + mcap_ros2, rosbags).
 """
+
 from __future__ import annotations
 
 from pathlib import Path
-
-import numpy as np
-import pytest
-import yaml
 
 from hexacal_identify.core.model import HexaParameters
 from hexacal_identify.core.validation import pose_errors, validation_poses
 from hexacal_identify.pipeline import postures_from_bag
 from hexacal_msgs_py.parameters_file import load_parameters
 from hexacal_msgs_py.readings import PostureReading
+import numpy as np
+import pytest
 from system_support import (
-    STOP_TIMEOUT_S,
     fast_collector_parameters,
     fast_driver_parameters,
     node_argv,
     probe,  # noqa: F401 - fixture
+    STOP_TIMEOUT_S,
     write_parameter_files,
 )
+import yaml
 
 POSTURES = 50
 TOPICS = ('/hexacal/sliders', '/hexacal/inclinometer', '/hexacal/encoder', '/hexacal/posture')
@@ -37,18 +37,33 @@ def test_fifty_postures_calibrate_the_simulated_machine(ros_processes, tmp_path,
     probe.subscribe_postures()
     probe.subscribe_status()
     published = probe.subscribe_parameters()
-    collector = ros_processes.start(node_argv('collector', fast_collector_parameters(
-        tmp_path / 'bags', bag_name='e2e')))
-    identify = ros_processes.start(node_argv('identify', {
-        'nominal': str(nominal_path), 'output_dir': str(tmp_path / 'out')}))
+    collector = ros_processes.start(
+        node_argv('collector', fast_collector_parameters(tmp_path / 'bags', bag_name='e2e'))
+    )
+    identify = ros_processes.start(
+        node_argv('identify', {'nominal': str(nominal_path), 'output_dir': str(tmp_path / 'out')})
+    )
     probe.wait_for_node('collector', process=collector)
     probe.wait_for_node('identify', process=identify)
-    probe.spin_until(lambda: probe.node.count_publishers('/hexacal/posture') >= 1
-                     and probe.node.count_subscribers('/hexacal/posture') >= 2, 30.0,
-                     'collector -> identify on /hexacal/posture')
-    driver = ros_processes.start(node_argv('driver', fast_driver_parameters(
-        postures=POSTURES, true_params=str(truth_path), slider_noise_m=1e-5,
-        angle_noise_rad=1e-5)))
+    probe.spin_until(
+        lambda: (
+            probe.node.count_publishers('/hexacal/posture') >= 1
+            and probe.node.count_subscribers('/hexacal/posture') >= 2
+        ),
+        30.0,
+        'collector -> identify on /hexacal/posture',
+    )
+    driver = ros_processes.start(
+        node_argv(
+            'driver',
+            fast_driver_parameters(
+                postures=POSTURES,
+                true_params=str(truth_path),
+                slider_noise_m=1e-5,
+                angle_noise_rad=1e-5,
+            ),
+        )
+    )
     nodes = (driver, collector, identify)
 
     def collected() -> bool:
@@ -57,8 +72,12 @@ def test_fifty_postures_calibrate_the_simulated_machine(ros_processes, tmp_path,
                 raise AssertionError(f'a node exited early\n{process.describe()}')
         return probe.postures_received_by_identify() >= POSTURES
 
-    probe.spin_until(collected, 2.0 * POSTURES + 60.0, f'identify to receive {POSTURES} postures',
-                     lambda: '\n'.join(p.describe(10) for p in nodes))
+    probe.spin_until(
+        collected,
+        2.0 * POSTURES + 60.0,
+        f'identify to receive {POSTURES} postures',
+        lambda: '\n'.join(p.describe(10) for p in nodes),
+    )
     assert len(probe.postures) == POSTURES
 
     response = probe.call_trigger(timeout=120.0)
@@ -79,16 +98,23 @@ def test_fifty_postures_calibrate_the_simulated_machine(ros_processes, tmp_path,
     saved = tmp_path / 'out' / 'hexacal_calibration.yaml'
     assert np.array_equal(load_parameters(saved), calibrated)
     # The result status is published beside the answer and the parameters, not before them.
-    status = probe.spin_until(lambda: [s for s in probe.statuses if s[2].get('outcome') == 'converged'],
-                              30.0, 'the converged status')
+    status = probe.spin_until(
+        lambda: [s for s in probe.statuses if s[2].get('outcome') == 'converged'],
+        30.0,
+        'the converged status',
+    )
     assert status[-1][0] == 0  # level OK
     fields = status[-1][2]
     assert fields['identifiable'] == 'true' and fields['rank'] == '54'
     assert 'all 54 parameters identifiable' in fields['identifiability']
     assert 0 < float(fields['std.chain_1.A0x']) < 1e-3  # per-parameter std, m
     # The identify node's report is written after the answer; a later status says it is ready.
-    ready = probe.spin_until(lambda: [s for s in probe.statuses if s[2].get('report_state') == 'ready'],
-                             120.0, 'the report', identify.describe)[-1][2]
+    ready = probe.spin_until(
+        lambda: [s for s in probe.statuses if s[2].get('report_state') == 'ready'],
+        120.0,
+        'the report',
+        identify.describe,
+    )[-1][2]
     report = tmp_path / 'out' / 'report' / 'index.html'
     assert ready['outcome'] == 'converged'
     assert ready['report'] == str(report) and 'converged' in report.read_text()
@@ -97,8 +123,10 @@ def test_fifty_postures_calibrate_the_simulated_machine(ros_processes, tmp_path,
         assert ros_processes.stop(process, STOP_TIMEOUT_S) == 0, process.log_path.read_text()
     bag = tmp_path / 'bags' / 'e2e'
     metadata = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
-    expected = {t['topic_metadata']['name']: t['message_count']
-                for t in metadata['topics_with_message_count']}
+    expected = {
+        t['topic_metadata']['name']: t['message_count']
+        for t in metadata['topics_with_message_count']
+    }
     assert set(expected) == set(TOPICS)
     assert expected['/hexacal/posture'] == POSTURES
     assert metadata['message_count'] == sum(expected.values())
@@ -118,8 +146,9 @@ def test_fifty_postures_calibrate_the_simulated_machine(ros_processes, tmp_path,
 def _posture(stamp, names, positions) -> PostureReading:
     values = dict(zip(names, positions))
     order = [f'slider_{i}' for i in range(1, 7)] + ['inclinometer_x', 'inclinometer_y', 'rotary']
-    return PostureReading.from_values(stamp.sec * 1_000_000_000 + stamp.nanosec,
-                                      [values[name] for name in order])
+    return PostureReading.from_values(
+        stamp.sec * 1_000_000_000 + stamp.nanosec, [values[name] for name in order]
+    )
 
 
 def _read_with_mcap(bag: Path) -> tuple[dict[str, int], list[PostureReading]]:
@@ -140,7 +169,7 @@ def _read_with_mcap(bag: Path) -> tuple[dict[str, int], list[PostureReading]]:
 
 def _read_with_rosbags(bag: Path) -> tuple[dict[str, int], list[PostureReading]]:
     from rosbags.rosbag2 import Reader
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import get_typestore, Stores
 
     typestore = get_typestore(Stores.ROS2_JAZZY)
     counts: dict[str, int] = {}

@@ -16,7 +16,7 @@ setup(
     maintainer='hexacal developers',
     maintainer_email='hexacal@example.com',
     description='Interface contract of hexacal (names, QoS, readings, conversions, '
-                'parameter files).',
+    'parameter files).',
     license='Apache-2.0',
     python_requires='>=3.10',
 )

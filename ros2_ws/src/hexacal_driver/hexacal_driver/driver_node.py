@@ -52,44 +52,38 @@ parameter.
 
 The math lives in `simulation.py` and `plan.py`; this node keeps time and publishes.
 """
+
 from __future__ import annotations
 
 import math
 import sys
 import time
 
-import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-from rclpy.exceptions import InvalidParameterValueException, InvalidTopicNameException
-from rclpy.node import Node
-from rclpy.parameter import Parameter
-from sensor_msgs.msg import JointState
-from trajectory_msgs.msg import JointTrajectory
-
-from hexacal_driver.plan import GENERATED_PLANS, PlanError, PosturePlan, load_plan, resolve_plan
+from hexacal_driver.plan import GENERATED_PLANS, load_plan, PlanError, PosturePlan, resolve_plan
 from hexacal_driver.simulation import (
+    check_trajectory,
+    CommandFollower,
+    ConstraintError,
+    device_true_poses,
     DONE,
     DWELLING,
     MOVING,
-    CommandFollower,
-    ConstraintError,
     PlanWalker,
     SensorSimulator,
-    check_trajectory,
-    device_true_poses,
 )
-from hexacal_identify.core.architectures import KinematicParameters, architecture, parameters_for
+from hexacal_identify.core.architectures import architecture, KinematicParameters, parameters_for
 from hexacal_identify.core.device import (
+    check_mount,
     DEFAULT_MOUNT,
     DeviceDefects,
     DeviceMountError,
-    check_mount,
     fixed_point,
 )
 from hexacal_identify.core.errors import UnreachablePoseError
 from hexacal_identify.core.measurements import NoiseModel
+from hexacal_identify.nodes.parameters import parameter_descriptor
+from hexacal_identify.nodes.parameters import ParameterSpec as _Spec
 from hexacal_identify.nodes.runtime import run_node
-from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
 from hexacal_msgs_py.conversions import (
     encoder_reading_to_joint_state,
     inclinometer_reading_to_joint_state,
@@ -97,6 +91,7 @@ from hexacal_msgs_py.conversions import (
 )
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.models import DEFAULT_MODEL, HEXA_SLIDE, MODELS
+from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
 from hexacal_msgs_py.names import (
     ENCODER_TOPIC,
     INCLINOMETER_TOPIC,
@@ -106,7 +101,13 @@ from hexacal_msgs_py.names import (
 from hexacal_msgs_py.parameters_file import load_parameters, read_parameters_file
 from hexacal_msgs_py.qos import COMMAND_QOS, SENSOR_QOS
 from hexacal_msgs_py.readings import EncoderReading, InclinometerReading, SliderReading
-from hexacal_identify.nodes.parameters import ParameterSpec as _Spec, parameter_descriptor
+import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import InvalidParameterValueException, InvalidTopicNameException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
 
 NODE_NAME = 'driver'
 # The timer wakes at most this often and publishes rate_hz / MAX_WAKE_HZ samples per wake-up,
@@ -124,47 +125,73 @@ RUNTIME_PARAMETERS = ('slider_noise_m', 'angle_noise_rad', 'device_turn')
 MODEL_CHOICES = ('', *MODELS)
 
 PARAMETERS: dict[str, _Spec] = {
-    'true_params': _Spec('', 'parameters YAML (SI) of the simulated true machine, of any model '
-                         "(its 'model' key; 'device.mount: standing' for an upright device, "
-                         'default hanging); empty: the default machine of `model` (Hexa Slide: '
-                         'Table 1 of the paper)'),
-    'model': _Spec('', "machine model: 'hexa_slide' or 'gough_stewart'; '' = the model of "
-                   'true_params, else hexa_slide. Without true_params the default machine of '
-                   'the model is simulated; with it, the two must agree',
-                   constraints="'', " + ', '.join(repr(name) for name in MODELS)),
-    'link_length': _Spec(0.75, 'measuring link length L between the U-joint centres (m)',
-                         0.1, 5.0),
+    'true_params': _Spec(
+        '',
+        'parameters YAML (SI) of the simulated true machine, of any model '
+        "(its 'model' key; 'device.mount: standing' for an upright device, "
+        'default hanging); empty: the default machine of `model` (Hexa Slide: '
+        'Table 1 of the paper)',
+    ),
+    'model': _Spec(
+        '',
+        "machine model: 'hexa_slide' or 'gough_stewart'; '' = the model of "
+        'true_params, else hexa_slide. Without true_params the default machine of '
+        'the model is simulated; with it, the two must agree',
+        constraints="'', " + ', '.join(repr(name) for name in MODELS),
+    ),
+    'link_length': _Spec(
+        0.75, 'measuring link length L between the U-joint centres (m)', 0.1, 5.0
+    ),
     'slider_noise_m': _Spec(1e-5, 'half-width of the uniform slider noise (m)', 0.0, 0.01),
-    'angle_noise_rad': _Spec(1e-5, 'half-width of the uniform inclinometer and rotary noise '
-                             '(rad)', 0.0, 0.1),
+    'angle_noise_rad': _Spec(
+        1e-5, 'half-width of the uniform inclinometer and rotary noise (rad)', 0.0, 0.1
+    ),
     'seed': _Spec(0, 'seed of the random plan and of the noise', 0, 2**31 - 1),
     'rate_hz': _Spec(100.0, 'publishing rate of every sensor stream (Hz)', 1.0, 1000.0),
     'settle_s': _Spec(1.0, 'time to move from one posture to the next (s)', 0.05, 600.0),
     'dwell_s': _Spec(1.5, 'time standing still at each posture (s)', 0.1, 3600.0),
-    'plan': _Spec('random', 'posture plan: random (sphere postures), fixed (fixed-position '
-                  'postures), mixed (3 sphere : 1 fixed) or the path of a plan YAML',
-                  constraints="'random', 'fixed', 'mixed' or an existing plan file"),
+    'plan': _Spec(
+        'random',
+        'posture plan: random (sphere postures), fixed (fixed-position '
+        'postures), mixed (3 sphere : 1 fixed) or the path of a plan YAML',
+        constraints="'random', 'fixed', 'mixed' or an existing plan file",
+    ),
     'postures': _Spec(50, 'number of postures of a random, fixed or mixed plan', 1, 100000),
     'loop': _Spec(False, 'walk the plan again when done (else stand at the last posture)'),
-    'wait_for_subscriber': _Spec(True, 'hold the first posture until the three sensor streams '
-                                 'have a matched subscriber'),
-    'command_topic': _Spec('', "'' (default): walk the plan; else follow trajectory_msgs/"
-                           'JointTrajectory commands on this topic (e.g. /joint_trajectory_'
-                           'controller/joint_trajectory) like a trajectory controller with mock '
-                           'hardware, instead of walking a plan'),
-    'device_defects': _Spec('', "the simulated device's errors, 'NAME=VALUE,...' with NAME one "
-                            'of dL (link length offset, m: the true link is link_length + dL), '
-                            'alpha0, beta0 (inclinometer zero offsets, rad), gamma (skew of the '
-                            "inclinometer axes, rad), phi0 (rotary zero offset, rad); '' = an "
-                            'ideal device', constraints="'' or NAME=VALUE pairs (core.device."
-                            'DeviceDefects.parse)'),
-    'device_turn': _Spec(0.0, "the device's rotation about its link axis from its normal "
-                         'mounting (rad; 0 normal, pi reversed, pi/2 a quarter turn), for the '
-                         'postures whose plan entry names none; settable at run time',
-                         -MAX_DEVICE_TURN, MAX_DEVICE_TURN),
-    'max_actuator_speed_m_s': _Spec(0.1, 'commanded mode: the fastest an actuator moves (m/s); '
-                                    'slower when a point\'s time_from_start asks for it',
-                                    1e-6, 10.0),
+    'wait_for_subscriber': _Spec(
+        True, 'hold the first posture until the three sensor streams have a matched subscriber'
+    ),
+    'command_topic': _Spec(
+        '',
+        "'' (default): walk the plan; else follow trajectory_msgs/"
+        'JointTrajectory commands on this topic (e.g. /joint_trajectory_'
+        'controller/joint_trajectory) like a trajectory controller with mock '
+        'hardware, instead of walking a plan',
+    ),
+    'device_defects': _Spec(
+        '',
+        "the simulated device's errors, 'NAME=VALUE,...' with NAME one "
+        'of dL (link length offset, m: the true link is link_length + dL), '
+        'alpha0, beta0 (inclinometer zero offsets, rad), gamma (skew of the '
+        "inclinometer axes, rad), phi0 (rotary zero offset, rad); '' = an "
+        'ideal device',
+        constraints="'' or NAME=VALUE pairs (core.device.DeviceDefects.parse)",
+    ),
+    'device_turn': _Spec(
+        0.0,
+        "the device's rotation about its link axis from its normal "
+        'mounting (rad; 0 normal, pi reversed, pi/2 a quarter turn), for the '
+        'postures whose plan entry names none; settable at run time',
+        -MAX_DEVICE_TURN,
+        MAX_DEVICE_TURN,
+    ),
+    'max_actuator_speed_m_s': _Spec(
+        0.1,
+        'commanded mode: the fastest an actuator moves (m/s); '
+        "slower when a point's time_from_start asks for it",
+        1e-6,
+        10.0,
+    ),
 }
 
 
@@ -183,8 +210,10 @@ def _parameter_problem(parameter: Parameter) -> str | None:
         try:
             load_plan(value)
         except PlanError as error:
-            return (f'plan {value!r} is neither one of {list(GENERATED_PLANS)} nor a valid '
-                    f'plan file: {error}')
+            return (
+                f'plan {value!r} is neither one of {list(GENERATED_PLANS)} nor a valid '
+                f'plan file: {error}'
+            )
     elif parameter.name == 'true_params' and value:
         try:
             load_parameters(value)
@@ -195,13 +224,21 @@ def _parameter_problem(parameter: Parameter) -> str | None:
             DeviceDefects.parse(value)
         except ValueError as error:
             return f'device_defects {value!r}: {error}'
-    elif parameter.name == 'device_turn' and not (math.isfinite(value)
-                                                  and abs(value) <= MAX_DEVICE_TURN):
+    elif parameter.name == 'device_turn' and not (
+        math.isfinite(value) and abs(value) <= MAX_DEVICE_TURN
+    ):
         return f'device_turn must be a finite angle within +-2 pi rad, got {value!r}'
     elif parameter.name == 'model' and value not in MODEL_CHOICES:
-        return (f"model must be '' or one of {', '.join(MODELS)}, got {value!r}")
-    elif parameter.name in ('link_length', 'rate_hz', 'settle_s', 'dwell_s', 'slider_noise_m',
-                            'angle_noise_rad', 'max_actuator_speed_m_s') and not math.isfinite(value):
+        return f"model must be '' or one of {', '.join(MODELS)}, got {value!r}"
+    elif parameter.name in (
+        'link_length',
+        'rate_hz',
+        'settle_s',
+        'dwell_s',
+        'slider_noise_m',
+        'angle_noise_rad',
+        'max_actuator_speed_m_s',
+    ) and not math.isfinite(value):
         return f'{parameter.name} must be finite, got {value}'
     return None
 
@@ -214,7 +251,11 @@ class DriverNode(Node):
         # Registered before declaring, so command-line overrides are validated too.
         self.add_on_set_parameters_callback(self._validate_parameters)
         for name, spec in PARAMETERS.items():
-            self.declare_parameter(name, spec.default, parameter_descriptor(name, spec, read_only=name not in RUNTIME_PARAMETERS))
+            self.declare_parameter(
+                name,
+                spec.default,
+                parameter_descriptor(name, spec, read_only=name not in RUNTIME_PARAMETERS),
+            )
         self.add_post_set_parameters_callback(self._apply_parameters)
         value = {name: self.get_parameter(name).value for name in PARAMETERS}
 
@@ -227,7 +268,8 @@ class DriverNode(Node):
         if not self.true_link_length > 0:
             raise DriverConfigurationError(
                 f'device_defects dL {self.defects.dL:g} m leaves no link of link_length '
-                f'{self.link_length:g} m')
+                f'{self.link_length:g} m'
+            )
         self.device_turn = float(value['device_turn'])
         self.plan: PosturePlan | None = None
         self.walker: PlanWalker | None = None
@@ -237,19 +279,33 @@ class DriverNode(Node):
             plan_name = f'commanded on {self.command_topic}'
         else:
             try:
-                self.plan = resolve_plan(value['plan'], self.true_params, value['postures'],
-                                         value['seed'], value['link_length'], self.mount)
+                self.plan = resolve_plan(
+                    value['plan'],
+                    self.true_params,
+                    value['postures'],
+                    value['seed'],
+                    value['link_length'],
+                    self.mount,
+                )
             except PlanError as error:
                 raise DriverConfigurationError(str(error)) from error
             self.walker = self._plan_walker(value['settle_s'], value['dwell_s'], value['loop'])
             plan_name = self.plan.name
-        self.declare_parameter('plan_name', plan_name, ParameterDescriptor(
-            description='name of the plan being walked (set by the node)', read_only=True),
-            ignore_override=True)
+        self.declare_parameter(
+            'plan_name',
+            plan_name,
+            ParameterDescriptor(
+                description='name of the plan being walked (set by the node)', read_only=True
+            ),
+            ignore_override=True,
+        )
         # Noise draws from their own stream: the same seed gives the same plan whatever the noise.
         self.sensors = SensorSimulator(
             NoiseModel(value['slider_noise_m'], value['angle_noise_rad']),
-            np.random.default_rng([value['seed'], 0x5E45]), self.mount, self.defects)
+            np.random.default_rng([value['seed'], 0x5E45]),
+            self.mount,
+            self.defects,
+        )
         self.rate_hz = float(value['rate_hz'])
         self.wait_for_subscriber = bool(value['wait_for_subscriber'])
 
@@ -269,19 +325,23 @@ class DriverNode(Node):
         self._last_stamp_ns = -1
         # Preallocated messages: each tick sets the stamps and positions only.
         self._messages = {
-            'sliders': slider_reading_to_joint_state(SliderReading(0, (0.0,) * 6),
-                                                     model=self.model),
+            'sliders': slider_reading_to_joint_state(
+                SliderReading(0, (0.0,) * 6), model=self.model
+            ),
             'inclinometer': inclinometer_reading_to_joint_state(InclinometerReading(0, 0.0, 0.0)),
-            'encoder': encoder_reading_to_joint_state(EncoderReading(0, 0.0))}
+            'encoder': encoder_reading_to_joint_state(EncoderReading(0, 0.0)),
+        }
         # The inclinometer message of a turned device: the device_turn joint too.
         self._turned_inclinometer = inclinometer_reading_to_joint_state(
-            InclinometerReading(0, 0.0, 0.0, math.pi))
+            InclinometerReading(0, 0.0, 0.0, math.pi)
+        )
         self.commands_accepted = 0
         self.commands_rejected = 0
         if self.follower is not None:
             try:
-                self.create_subscription(JointTrajectory, self.command_topic, self._on_command,
-                                         COMMAND_QOS)
+                self.create_subscription(
+                    JointTrajectory, self.command_topic, self._on_command, COMMAND_QOS
+                )
             except InvalidTopicNameException as error:
                 raise DriverConfigurationError(f'command_topic: {error}') from error
         self._timer = self.create_timer(self._per_wake / self.rate_hz, self._wake)
@@ -308,16 +368,19 @@ class DriverNode(Node):
                 f'{", ".join(MODELS[self.model].actuator_names)}, at most '
                 f'{self.follower.max_speed_m_s:g} m/s, stroke [{low:g}, {high:g}] m); true machine: '
                 f'{source}; {self.rate_hz:g} Hz, noise +-{self.sensors.noise.slider_m:g} m / '
-                f'+-{self.sensors.noise.angle_rad:g} rad; standing at the fixed-position point')
+                f'+-{self.sensors.noise.angle_rad:g} rad; standing at the fixed-position point'
+            )
             return
         self.get_logger().info(
             f'{self.plan.describe()}; true machine: {source}; {self.rate_hz:g} Hz, settle '
-            f"{self.walker.settle_s:g} s, dwell {self.walker.dwell_s:g} s (one pass "
+            f'{self.walker.settle_s:g} s, dwell {self.walker.dwell_s:g} s (one pass '
             f'{self.walker.lap_duration_s:.1f} s), noise +-{self.sensors.noise.slider_m:g} m / '
-            f"+-{self.sensors.noise.angle_rad:g} rad{', looping' if self.walker.loop else ''}")
+            f'+-{self.sensors.noise.angle_rad:g} rad{", looping" if self.walker.loop else ""}'
+        )
         if self.wait_for_subscriber:
             self.get_logger().info(
-                f'holding the first posture until {self._sliders_pub.topic_name} has a subscriber')
+                f'holding the first posture until {self._sliders_pub.topic_name} has a subscriber'
+            )
 
     # ------------------------------------------------------------------ parameters
 
@@ -334,7 +397,8 @@ class DriverNode(Node):
         if model and model != loaded.model:
             raise DriverConfigurationError(
                 f'model {model!r} contradicts true_params {path}, a {loaded.model} parameters '
-                f"file: leave model '' or name the file's model")
+                f"file: leave model '' or name the file's model"
+            )
         return params, mount
 
     def _plan_walker(self, settle_s: float, dwell_s: float, loop: bool) -> PlanWalker:
@@ -342,18 +406,22 @@ class DriverNode(Node):
         (simulation.device_true_poses: on the sphere L + dL, fixed ones where the turned device
         reads zero)."""
         turns = self._posture_turns()
-        poses = device_true_poses(self.plan.poses, self.plan.kinds, self.link_length,
-                                  self.defects, self.mount, turns)
+        poses = device_true_poses(
+            self.plan.poses, self.plan.kinds, self.link_length, self.defects, self.mount, turns
+        )
         try:
             return PlanWalker(self.true_params, poses, settle_s, dwell_s, loop)
         except UnreachablePoseError as error:
             raise DriverConfigurationError(
                 f"plan '{self.plan.name}' with the device's true link length "
-                f'{self.true_link_length!r} m (device_defects): {error}') from error
+                f'{self.true_link_length!r} m (device_defects): {error}'
+            ) from error
 
     def _posture_turns(self) -> np.ndarray:
         """The device turn of every plan posture (rad): the plan's, else the parameter."""
-        return np.array([self.plan.device_turn(i, self.device_turn) for i in range(len(self.plan))])
+        return np.array(
+            [self.plan.device_turn(i, self.device_turn) for i in range(len(self.plan))]
+        )
 
     def _sample_turn(self, sample) -> float:
         """The device turn while `sample` is measured: the posture's (plan mode), else the parameter."""
@@ -365,47 +433,65 @@ class DriverNode(Node):
         """Commanded mode: the machine stands at the fixed-position point with zero angles."""
         from hexacal_driver.plan import machine_workspace
 
-        self.stroke = tuple(float(v) for v in machine_workspace(
-            self.true_params, self.link_length, self.mount).slider_stroke_m)
+        self.stroke = tuple(
+            float(v)
+            for v in machine_workspace(
+                self.true_params, self.link_length, self.mount
+            ).slider_stroke_m
+        )
         # The link holds the platform on the true sphere (link_length + dL).
         home = np.concatenate([fixed_point(self.true_link_length, self.mount), np.zeros(3)])
         try:
-            follower = CommandFollower(self.true_params, home, max_speed, self.true_link_length,
-                                       self.mount)
+            follower = CommandFollower(
+                self.true_params, home, max_speed, self.true_link_length, self.mount
+            )
         except (UnreachablePoseError, ConstraintError) as error:
             raise DriverConfigurationError(
                 f'commanded mode: the machine cannot stand at the fixed-position point {home[:3]} '
-                f'with zero angles: {error}') from error
+                f'with zero angles: {error}'
+            ) from error
         low, high = self.stroke
         if np.any((follower.sliders < low) | (follower.sliders > high)):
             raise DriverConfigurationError(
                 f'commanded mode: at the fixed-position point the actuators '
                 f'{np.round(follower.sliders, 4).tolist()} m are outside the stroke [{low:g}, '
-                f'{high:g}] m')
+                f'{high:g}] m'
+            )
         return follower
 
     def _on_command(self, message: JointTrajectory) -> None:
         """A JointTrajectory command: follow it, or reject it with the reason."""
-        points = [(list(point.positions),
-                   point.time_from_start.sec + point.time_from_start.nanosec * 1e-9)
-                  for point in message.points]
-        checked, problem = check_trajectory(list(message.joint_names), points,
-                                            MODELS[self.model].actuator_names, self.stroke)
+        points = [
+            (
+                list(point.positions),
+                point.time_from_start.sec + point.time_from_start.nanosec * 1e-9,
+            )
+            for point in message.points
+        ]
+        checked, problem = check_trajectory(
+            list(message.joint_names), points, MODELS[self.model].actuator_names, self.stroke
+        )
         now_ns = self.get_clock().now().nanoseconds
         start_ns = message.header.stamp.sec * NS_PER_S + message.header.stamp.nanosec
-        if problem is None and start_ns and start_ns + int(checked[-1].time_from_start_s * 1e9) < now_ns:
+        if (
+            problem is None
+            and start_ns
+            and start_ns + int(checked[-1].time_from_start_s * 1e9) < now_ns
+        ):
             problem = 'it ends in the past (header.stamp + time_from_start)'
         if problem is not None:
             self.commands_rejected += 1
             self.get_logger().warning(f'rejected a JointTrajectory command: {problem}')
             return
         self.commands_accepted += 1
-        end_s = self.follower.command(now_ns / NS_PER_S, checked,
-                                      start_ns / NS_PER_S if start_ns else None)
+        end_s = self.follower.command(
+            now_ns / NS_PER_S, checked, start_ns / NS_PER_S if start_ns else None
+        )
         target = checked[-1].positions
         self.get_logger().info(
             f'command {self.commands_accepted}: to [{", ".join(f"{v * 1e3:.3f}" for v in target)}] '
-            f'mm in {end_s - now_ns / NS_PER_S:.2f} s')
+            f'mm in {end_s - now_ns / NS_PER_S:.2f} s'
+        )
 
     def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for parameter in parameters:
@@ -425,8 +511,7 @@ class DriverNode(Node):
                 noise = NoiseModel(noise.slider_m, parameter.value)
         if noise != self.sensors.noise:
             self.sensors.noise = noise
-            self.get_logger().info(
-                f'noise now +-{noise.slider_m:g} m / +-{noise.angle_rad:g} rad')
+            self.get_logger().info(f'noise now +-{noise.slider_m:g} m / +-{noise.angle_rad:g} rad')
         for parameter in parameters:
             if parameter.name == 'device_turn' and float(parameter.value) != self.device_turn:
                 previous, self.device_turn = self.device_turn, float(parameter.value)
@@ -438,8 +523,12 @@ class DriverNode(Node):
                 self.get_logger().info(
                     f'device_turn {previous:.6g} -> {self.device_turn:.6g} rad: the device is '
                     'turned about its link axis'
-                    + (' (for the postures whose plan names no turn)'
-                       if self.plan is not None and self.plan.device_turns else ''))
+                    + (
+                        ' (for the postures whose plan names no turn)'
+                        if self.plan is not None and self.plan.device_turns
+                        else ''
+                    )
+                )
 
     # ------------------------------------------------------------------ publishing
 
@@ -463,9 +552,14 @@ class DriverNode(Node):
             return
         if not self._started:
             # Matched (DDS), not just on the graph, on all three: no plan sample goes to nobody.
-            if self.wait_for_subscriber and min(
-                    publisher.get_subscription_count() for publisher in (
-                        self._sliders_pub, self._inclinometer_pub, self._encoder_pub)) == 0:
+            if (
+                self.wait_for_subscriber
+                and min(
+                    publisher.get_subscription_count()
+                    for publisher in (self._sliders_pub, self._inclinometer_pub, self._encoder_pub)
+                )
+                == 0
+            ):
                 self._publish(self.walker.sample(0.0), stamp)
                 return
             self._started = True
@@ -501,7 +595,9 @@ class DriverNode(Node):
         self._sliders_pub.publish(messages['sliders'])
         self._inclinometer_pub.publish(inclinometer)
         self._encoder_pub.publish(messages['encoder'])
-        self.published += 1  # complete ticks: Ctrl-C may cut the last one after some of its publishes
+        self.published += (
+            1  # complete ticks: Ctrl-C may cut the last one after some of its publishes
+        )
 
     def _report_motion(self, phase: str) -> None:
         """Commanded mode: one line when a commanded motion ends (with the link's strain); a
@@ -511,7 +607,8 @@ class DriverNode(Node):
             self.get_logger().warning(
                 f'the measuring link strains the machine: actuators {strain * 1e3:.1f} mm from '
                 'their setpoints (commanded positions off the link sphere: move along it)',
-                throttle_duration_sec=STRAIN_WARNING_PERIOD_S)
+                throttle_duration_sec=STRAIN_WARNING_PERIOD_S,
+            )
         if phase == self._last_phase:
             return
         self._last_phase = phase
@@ -519,8 +616,10 @@ class DriverNode(Node):
             strain = self.follower.strain_m
             self.get_logger().info(
                 f'standing at the commanded position (actuators {strain * 1e6:.0f} um from the '
-                'setpoints: the strain of the measuring link)' if strain > 1e-6 else
-                'standing at the commanded position')
+                'setpoints: the strain of the measuring link)'
+                if strain > 1e-6
+                else 'standing at the commanded position'
+            )
 
     def _report(self, index: int, lap: int, phase: str) -> None:
         state = (index, lap, phase)
@@ -531,7 +630,8 @@ class DriverNode(Node):
         if phase == DONE:
             self.get_logger().info(
                 f"end of plan '{self.plan.name}': {len(self.plan)} postures in {elapsed:.1f} s; "
-                'standing at the last posture')
+                'standing at the last posture'
+            )
             return
         pose = self.plan.poses[index]
         lap_text = f' (lap {lap + 1})' if self.walker.loop else ''
@@ -540,30 +640,43 @@ class DriverNode(Node):
             f'position [{pose[0] * 1e3:.1f}, {pose[1] * 1e3:.1f}, {pose[2] * 1e3:.1f}] mm, '
             f'angles [{math.degrees(pose[3]):.1f}, {math.degrees(pose[4]):.1f}, '
             f'{math.degrees(pose[5]):.1f}] deg'
-            + (f', device turned {turn:.6g} rad' if (turn := self.plan.device_turn(
-                index, self.device_turn)) != 0.0 else ''))
+            + (
+                f', device turned {turn:.6g} rad'
+                if (turn := self.plan.device_turn(index, self.device_turn)) != 0.0
+                else ''
+            )
+        )
         if self.walker.loop and index == len(self.plan) - 1:
             self.get_logger().info(f"end of plan '{self.plan.name}' lap {lap + 1}: looping")
 
 
 SHUTDOWN_LINGER_S = 0.3
 
+
 def _finish(node: DriverNode) -> list[str]:
     # Best-effort samples of the last ticks may still sit in Fast DDS's writer queues: give its
     # send threads a moment before the publishers are destroyed, so a stop loses nothing in flight.
     time.sleep(SHUTDOWN_LINGER_S)
-    lines = [f'published {node.published} messages on each sensor stream, '
-             f'{node.published - node.published_before_plan} of them since the plan '
-             f'started (first stamp {node.plan_start_stamp_ns} ns)']
+    lines = [
+        f'published {node.published} messages on each sensor stream, '
+        f'{node.published - node.published_before_plan} of them since the plan '
+        f'started (first stamp {node.plan_start_stamp_ns} ns)'
+    ]
     if node.follower is not None:
-        lines.append(f'commands: {node.commands_accepted} followed, {node.commands_rejected} '
-                     'rejected')
+        lines.append(
+            f'commands: {node.commands_accepted} followed, {node.commands_rejected} rejected'
+        )
     return lines
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_node(NODE_NAME, DriverNode, args=args, finish=_finish,
-                    startup_errors=(DriverConfigurationError, InvalidParameterValueException))
+    return run_node(
+        NODE_NAME,
+        DriverNode,
+        args=args,
+        finish=_finish,
+        startup_errors=(DriverConfigurationError, InvalidParameterValueException),
+    )
 
 
 if __name__ == '__main__':

@@ -3,6 +3,7 @@
 SIGINT/SIGTERM are remembered before the node module's imports, as for every
 hexacal node (see hexacal_identify.nodes.entry).
 """
+
 from __future__ import annotations
 
 import sys

@@ -39,6 +39,7 @@ architecture's default workspace (Hexa Slide: the paper's; Gough-Stewart: a
 smaller one, legs within their stroke) and a plan is reachable when every
 actuator of that machine stays within the workspace's stroke.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -47,23 +48,22 @@ import math
 import os
 from typing import Any
 
-import numpy as np
-
+from hexacal_identify.core.architectures import KinematicParameters
 from hexacal_identify.core.device import (
     DEFAULT_LINK_LENGTH_M,
     DEFAULT_MOUNT,
-    MOUNTS,
     fixed_point,
     inclinometer_angles,
+    MOUNTS,
 )
 from hexacal_identify.core.errors import UnreachablePoseError
 from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.measurements import FIXED, POSTURE_KINDS, SPHERE, MeasurementLimits
-from hexacal_identify.core.architectures import KinematicParameters
-from hexacal_identify.core.postures import Workspace, sample_poses
+from hexacal_identify.core.measurements import FIXED, MeasurementLimits, POSTURE_KINDS, SPHERE
+from hexacal_identify.core.postures import sample_poses, Workspace
 from hexacal_msgs_py.files import atomic_write
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 from hexacal_msgs_py.parameters_file import read_yaml_document
+import numpy as np
 
 RANDOM_PLAN = 'random'  # sphere postures only
 FIXED_PLAN = 'fixed'  # fixed-position postures only
@@ -77,7 +77,10 @@ POSITION_TOLERANCE_M = 1e-6
 MAX_TILT_RAD = math.pi / 2  # |theta|, |psi|: beyond this the Euler angles are ambiguous
 
 _PLAN_KEYS = {'name', 'link_length'}  # required
-_OPTIONAL_PLAN_KEYS = {'model', 'mount'}  # absent: the Hexa Slide, hanging (written only otherwise)
+_OPTIONAL_PLAN_KEYS = {
+    'model',
+    'mount',
+}  # absent: the Hexa Slide, hanging (written only otherwise)
 _POSTURE_KEYS = {'kind', 'pose'}
 _OPTIONAL_POSTURE_KEYS = {'device_turn'}  # rad; absent: the driver's device_turn parameter
 MAX_DEVICE_TURN_RAD = 2.0 * math.pi
@@ -135,9 +138,11 @@ class PosturePlan:
         mount = '' if self.mount == DEFAULT_MOUNT else f', {self.mount} device'
         given = sum(t is not None for t in self.device_turns)
         turns = f', {given} with a device turn' if given else ''
-        return (f"plan '{self.name}': {len(self)} postures ({counts[SPHERE]} sphere, "
-                f'{counts[FIXED]} fixed), link length {self.link_length:g} m{machine}{mount}'
-                f'{turns}')
+        return (
+            f"plan '{self.name}': {len(self)} postures ({counts[SPHERE]} sphere, "
+            f'{counts[FIXED]} fixed), link length {self.link_length:g} m{machine}{mount}'
+            f'{turns}'
+        )
 
 
 def _plan_problem(plan: PosturePlan) -> str | None:
@@ -145,17 +150,21 @@ def _plan_problem(plan: PosturePlan) -> str | None:
     if not isinstance(plan.name, str) or not plan.name.strip():
         return 'name must be a non-empty string'
     length = plan.link_length
-    if isinstance(length, bool) or not isinstance(length, (int, float, np.floating)) \
-            or not math.isfinite(length) or length <= 0:
+    if (
+        isinstance(length, bool)
+        or not isinstance(length, (int, float, np.floating))
+        or not math.isfinite(length)
+        or length <= 0
+    ):
         return f'link_length must be a positive number of m, got {length!r}'
     if len(plan.poses) == 0:
         return 'has no postures'
     if len(plan.kinds) != len(plan.poses):
         return f'{len(plan.poses)} poses but {len(plan.kinds)} kinds'
     if plan.model not in MODELS:
-        return f"model must be one of {', '.join(MODELS)}, got {plan.model!r}"
+        return f'model must be one of {", ".join(MODELS)}, got {plan.model!r}'
     if plan.mount not in MOUNTS:
-        return f"mount must be one of {', '.join(MOUNTS)}, got {plan.mount!r}"
+        return f'mount must be one of {", ".join(MOUNTS)}, got {plan.mount!r}'
     if plan.device_turns:
         if len(plan.device_turns) != len(plan.poses):
             return f'{len(plan.poses)} poses but {len(plan.device_turns)} device turns'
@@ -182,8 +191,13 @@ def _turn_problem(turn: object) -> str | None:
     return None
 
 
-def _posture_problem(pose: np.ndarray, kind: str, link_length: float,
-                     limits: MeasurementLimits, mount: str = DEFAULT_MOUNT) -> str | None:
+def _posture_problem(
+    pose: np.ndarray,
+    kind: str,
+    link_length: float,
+    limits: MeasurementLimits,
+    mount: str = DEFAULT_MOUNT,
+) -> str | None:
     if kind not in POSTURE_KINDS:
         return f'kind must be one of {list(POSTURE_KINDS)}, got {kind!r}'
     if not np.all(np.isfinite(pose)):
@@ -194,22 +208,31 @@ def _posture_problem(pose: np.ndarray, kind: str, link_length: float,
         offset = float(np.linalg.norm(position - fixed_point(link_length, mount)))
         if offset > POSITION_TOLERANCE_M:
             sign = '-' if side > 0 else ''
-            return (f'a fixed posture must be at [0, 0, {sign}{link_length:g}] m, got '
-                    f'{position.tolist()} ({offset:.3g} m away)')
+            return (
+                f'a fixed posture must be at [0, 0, {sign}{link_length:g}] m, got '
+                f'{position.tolist()} ({offset:.3g} m away)'
+            )
     else:
         radius = float(np.linalg.norm(position))
         if side * position[2] >= 0 or abs(radius - link_length) > POSITION_TOLERANCE_M:
             horizontal = float(position[0] ** 2 + position[1] ** 2)
-            expected = (f'z = {-side * math.sqrt(link_length ** 2 - horizontal)!r} for this x, y'
-                        if horizontal < link_length ** 2 else 'x^2 + y^2 < L^2')
+            expected = (
+                f'z = {-side * math.sqrt(link_length**2 - horizontal)!r} for this x, y'
+                if horizontal < link_length**2
+                else 'x^2 + y^2 < L^2'
+            )
             where = 'below' if side > 0 else 'above'
-            return (f'a sphere posture must lie on the link sphere |p| = {link_length:g} m '
-                    f'{where} O ({expected}), got |p| = {radius!r} m, z = {position[2]!r} m')
+            return (
+                f'a sphere posture must lie on the link sphere |p| = {link_length:g} m '
+                f'{where} O ({expected}), got |p| = {radius!r} m, z = {position[2]!r} m'
+            )
         alpha, beta = inclinometer_angles(position[None], mount)
         tilt = max(abs(float(alpha[0])), abs(float(beta[0])))
         if tilt > limits.inclinometer_range_rad:
-            return (f'inclinometer angle {math.degrees(tilt):.1f} deg is beyond its range of '
-                    f'+-{math.degrees(limits.inclinometer_range_rad):.0f} deg')
+            return (
+                f'inclinometer angle {math.degrees(tilt):.1f} deg is beyond its range of '
+                f'+-{math.degrees(limits.inclinometer_range_rad):.0f} deg'
+            )
     theta, psi, phi = pose[3:]
     if max(abs(theta), abs(psi)) >= MAX_TILT_RAD:
         return f'theta and psi must be within +-pi/2 rad, got {theta!r}, {psi!r}'
@@ -221,8 +244,11 @@ def _posture_problem(pose: np.ndarray, kind: str, link_length: float,
 # --------------------------------------------------------------------------- generated plans
 
 
-def machine_workspace(params: KinematicParameters, link_length: float = DEFAULT_LINK_LENGTH_M,
-                      mount: str = DEFAULT_MOUNT) -> Workspace:
+def machine_workspace(
+    params: KinematicParameters,
+    link_length: float = DEFAULT_LINK_LENGTH_M,
+    mount: str = DEFAULT_MOUNT,
+) -> Workspace:
     """The workspace plans are drawn and checked in: the architecture's default, with this link
     length (and device mount; the Workspace's default, hanging, is left as it is)."""
     workspace = replace(params.architecture.default_workspace(), link_length=float(link_length))
@@ -231,9 +257,14 @@ def machine_workspace(params: KinematicParameters, link_length: float = DEFAULT_
     return workspace
 
 
-def generated_plan(which: str, params: KinematicParameters, count: int, seed: int,
-                   link_length: float = DEFAULT_LINK_LENGTH_M,
-                   mount: str = DEFAULT_MOUNT) -> PosturePlan:
+def generated_plan(
+    which: str,
+    params: KinematicParameters,
+    count: int,
+    seed: int,
+    link_length: float = DEFAULT_LINK_LENGTH_M,
+    mount: str = DEFAULT_MOUNT,
+) -> PosturePlan:
     """'random' (sphere), 'fixed' or 'mixed' (3 sphere : 1 fixed) postures drawn with `seed`.
 
     Poses come from the architecture's default workspace (machine_workspace) on the
@@ -241,20 +272,25 @@ def generated_plan(which: str, params: KinematicParameters, count: int, seed: in
     """
     if which not in GENERATED_PLANS:
         raise PlanError(
-            f'plan must be one of {list(GENERATED_PLANS)} or a plan file, got {which!r}')
+            f'plan must be one of {list(GENERATED_PLANS)} or a plan file, got {which!r}'
+        )
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
         raise PlanError(f'the number of postures must be a positive integer, got {count!r}')
     if which == MIXED_PLAN:
         fixed_count = count // 4
         counts = {SPHERE: count - fixed_count, FIXED: fixed_count}
     else:
-        counts = {SPHERE: count if which == RANDOM_PLAN else 0,
-                  FIXED: count if which == FIXED_PLAN else 0}
+        counts = {
+            SPHERE: count if which == RANDOM_PLAN else 0,
+            FIXED: count if which == FIXED_PLAN else 0,
+        }
     rng = np.random.default_rng([int(seed), 0x9A7])
     workspace = machine_workspace(params, link_length, mount)
     try:
-        drawn = {kind: list(sample_poses(params, n, rng, kind, workspace)) if n else []
-                 for kind, n in counts.items()}
+        drawn = {
+            kind: list(sample_poses(params, n, rng, kind, workspace)) if n else []
+            for kind, n in counts.items()
+        }
     except RuntimeError as error:  # sample_poses: this machine has too few acceptable poses
         raise PlanError(f'cannot draw a {which} plan of {count} postures: {error}') from error
     poses, kinds = [], []
@@ -263,8 +299,14 @@ def generated_plan(which: str, params: KinematicParameters, count: int, seed: in
         kind = FIXED if (index % 4 == 3 and drawn[FIXED]) or not drawn[SPHERE] else SPHERE
         poses.append(drawn[kind].pop(0))
         kinds.append(kind)
-    return PosturePlan(f'{which}-{count}-seed{seed}', float(link_length), np.array(poses),
-                       tuple(kinds), params.model, mount)
+    return PosturePlan(
+        f'{which}-{count}-seed{seed}',
+        float(link_length),
+        np.array(poses),
+        tuple(kinds),
+        params.model,
+        mount,
+    )
 
 
 # --------------------------------------------------------------------------- plan files
@@ -288,8 +330,10 @@ def load_plan(path: str | os.PathLike[str]) -> PosturePlan:
         raise fail("'plan' must be a mapping with 'name' and 'link_length'")
     unknown = sorted(set(map(str, header)) - _PLAN_KEYS - _OPTIONAL_PLAN_KEYS)
     if unknown:
-        raise fail(f'unknown key(s) {unknown} in plan; expected {sorted(_PLAN_KEYS)} '
-                   f'(optional {sorted(_OPTIONAL_PLAN_KEYS)})')
+        raise fail(
+            f'unknown key(s) {unknown} in plan; expected {sorted(_PLAN_KEYS)} '
+            f'(optional {sorted(_OPTIONAL_PLAN_KEYS)})'
+        )
     for key in sorted(_PLAN_KEYS):
         if key not in header:
             raise fail(f'plan.{key} is missing')
@@ -306,10 +350,12 @@ def load_plan(path: str | os.PathLike[str]) -> PosturePlan:
         unknown = sorted(set(map(str, entry)) - _POSTURE_KEYS - _OPTIONAL_POSTURE_KEYS)
         missing = sorted(_POSTURE_KEYS - set(entry))
         if unknown or missing:
-            raise fail(f'posture {index}: keys must be {sorted(_POSTURE_KEYS)}'
-                       + (f', unknown {unknown}' if unknown else '')
-                       + (f', missing {missing}' if missing else '')
-                       + f' (optional {sorted(_OPTIONAL_POSTURE_KEYS)})')
+            raise fail(
+                f'posture {index}: keys must be {sorted(_POSTURE_KEYS)}'
+                + (f', unknown {unknown}' if unknown else '')
+                + (f', missing {missing}' if missing else '')
+                + f' (optional {sorted(_OPTIONAL_POSTURE_KEYS)})'
+            )
         turn = entry.get('device_turn')
         problem = _turn_problem(turn) if 'device_turn' in entry else None
         if 'device_turn' in entry and turn is None:
@@ -318,21 +364,33 @@ def load_plan(path: str | os.PathLike[str]) -> PosturePlan:
             raise fail(f'posture {index}: {problem}')
         turns.append(None if turn is None else float(turn))
         pose = entry['pose']
-        if not isinstance(pose, list) or len(pose) != 6 or not all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) for v in pose):
-            raise fail(f'posture {index}: pose must be 6 numbers [x, y, z, theta, psi, phi] '
-                       f'(m, rad), got {pose!r}')
+        if (
+            not isinstance(pose, list)
+            or len(pose) != 6
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in pose)
+        ):
+            raise fail(
+                f'posture {index}: pose must be 6 numbers [x, y, z, theta, psi, phi] '
+                f'(m, rad), got {pose!r}'
+            )
         poses.append([float(v) for v in pose])
         kinds.append(entry['kind'])
     model = header.get('model', DEFAULT_MODEL)
     if not isinstance(model, str) or model not in MODELS:
-        raise fail(f"plan.model must be one of {', '.join(MODELS)}, got {model!r}")
+        raise fail(f'plan.model must be one of {", ".join(MODELS)}, got {model!r}')
     mount = header.get('mount', DEFAULT_MOUNT)
     if not isinstance(mount, str) or mount not in MOUNTS:
-        raise fail(f"plan.mount must be one of {', '.join(MOUNTS)}, got {mount!r}")
+        raise fail(f'plan.mount must be one of {", ".join(MOUNTS)}, got {mount!r}')
     try:
-        return PosturePlan(header['name'], float(length), np.array(poses), tuple(kinds), model,
-                           mount, tuple(turns))
+        return PosturePlan(
+            header['name'],
+            float(length),
+            np.array(poses),
+            tuple(kinds),
+            model,
+            mount,
+            tuple(turns),
+        )
     except PlanError as error:
         raise fail(str(error)) from None
 
@@ -355,8 +413,11 @@ def plan_document(plan: PosturePlan) -> dict[str, Any]:
 
 def save_plan(path: str | os.PathLike[str], plan: PosturePlan) -> None:
     """Write a plan file that load_plan reads back exactly (repr floats)."""
-    lines = ['plan:', f'  name: {json.dumps(plan.name)}',
-             f'  link_length: {float(plan.link_length)!r}']
+    lines = [
+        'plan:',
+        f'  name: {json.dumps(plan.name)}',
+        f'  link_length: {float(plan.link_length)!r}',
+    ]
     if plan.model != DEFAULT_MODEL:  # Hexa Slide plan files stay as they were
         lines.append(f'  model: {plan.model}')
     if plan.mount != DEFAULT_MOUNT:
@@ -364,8 +425,11 @@ def save_plan(path: str | os.PathLike[str], plan: PosturePlan) -> None:
     lines.append('postures:')
     for index, (kind, pose) in enumerate(zip(plan.kinds, plan.poses)):
         values = ', '.join(repr(float(v)) for v in pose)
-        turn = (f', device_turn: {float(plan.device_turns[index])!r}'
-                if plan.device_turns and plan.device_turns[index] is not None else '')
+        turn = (
+            f', device_turn: {float(plan.device_turns[index])!r}'
+            if plan.device_turns and plan.device_turns[index] is not None
+            else ''
+        )
         lines.append(f'  - {{kind: {kind}, pose: [{values}]{turn}}}')
     atomic_write(path, '\n'.join(lines) + '\n')
 
@@ -373,8 +437,9 @@ def save_plan(path: str | os.PathLike[str], plan: PosturePlan) -> None:
 # --------------------------------------------------------------------------- against a machine
 
 
-def check_reachable(plan: PosturePlan, params: KinematicParameters,
-                    workspace: Workspace | None = None) -> np.ndarray:
+def check_reachable(
+    plan: PosturePlan, params: KinematicParameters, workspace: Workspace | None = None
+) -> np.ndarray:
     """Actuator readings (N, 6) of every posture on `params`; PlanError if a posture is out of reach.
 
     Out of reach: a chain cannot close (Hexa Slide: a leg cannot reach its rail), or an
@@ -388,20 +453,29 @@ def check_reachable(plan: PosturePlan, params: KinematicParameters,
         sliders = inverse_kinematics(params, plan.poses)
     except UnreachablePoseError as error:
         indices = [int(i) for i in error.indices[:10]]
-        raise PlanError(f"plan '{plan.name}': posture(s) {indices} cannot be reached by this "
-                        f'machine ({architecture.unreachable_reason})') from error
+        raise PlanError(
+            f"plan '{plan.name}': posture(s) {indices} cannot be reached by this "
+            f'machine ({architecture.unreachable_reason})'
+        ) from error
     low, high = workspace.slider_stroke_m
     outside = np.flatnonzero(np.any((sliders < low) | (sliders > high), axis=1))
     if outside.size:
         actuator = architecture.layout.actuator_prefix
-        raise PlanError(f"plan '{plan.name}': posture(s) {outside[:10].tolist()} need a {actuator} "
-                        f'outside the stroke [{low:g}, {high:g}] m')
+        raise PlanError(
+            f"plan '{plan.name}': posture(s) {outside[:10].tolist()} need a {actuator} "
+            f'outside the stroke [{low:g}, {high:g}] m'
+        )
     return sliders
 
 
-def resolve_plan(spec: str, params: KinematicParameters, count: int, seed: int,
-                 link_length: float = DEFAULT_LINK_LENGTH_M,
-                 mount: str = DEFAULT_MOUNT) -> PosturePlan:
+def resolve_plan(
+    spec: str,
+    params: KinematicParameters,
+    count: int,
+    seed: int,
+    link_length: float = DEFAULT_LINK_LENGTH_M,
+    mount: str = DEFAULT_MOUNT,
+) -> PosturePlan:
     """A plan from the driver's `plan` parameter: a generated plan's name or a plan-file path.
 
     A plan file's link length must match the device's, its model the machine's and its
@@ -414,13 +488,19 @@ def resolve_plan(spec: str, params: KinematicParameters, count: int, seed: int,
             raise PlanError(f'plan must be one of {list(GENERATED_PLANS)} or a plan file path')
         plan = load_plan(spec)
         if not math.isclose(plan.link_length, link_length, rel_tol=0.0, abs_tol=1e-9):
-            raise PlanError(f'{spec}: plan.link_length {plan.link_length!r} m differs from the '
-                            f"device's link length {link_length!r} m")
+            raise PlanError(
+                f'{spec}: plan.link_length {plan.link_length!r} m differs from the '
+                f"device's link length {link_length!r} m"
+            )
         if plan.model != params.model:
-            raise PlanError(f'{spec}: the plan was made for a {plan.model} (plan.model; absent: '
-                            f'hexa_slide) but the machine is a {params.model}')
+            raise PlanError(
+                f'{spec}: the plan was made for a {plan.model} (plan.model; absent: '
+                f'hexa_slide) but the machine is a {params.model}'
+            )
         if plan.mount != mount:
-            raise PlanError(f'{spec}: the plan is for a {plan.mount} device (plan.mount) but the '
-                            f'device is {mount}')
+            raise PlanError(
+                f'{spec}: the plan is for a {plan.mount} device (plan.mount) but the '
+                f'device is {mount}'
+            )
     check_reachable(plan, params, machine_workspace(params, link_length, mount))
     return plan

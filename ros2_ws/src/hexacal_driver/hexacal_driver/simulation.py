@@ -22,26 +22,26 @@ reads wrap(phi - turn + phi0). Its link is L + dL long, so the platform stands
 on that true sphere (`device_true_poses`): sphere postures radially on it,
 fixed postures where the defective, turned inclinometer reads zero.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 import math
 
-import numpy as np
-
+from hexacal_identify.core.architectures import KinematicParameters
 from hexacal_identify.core.device import (
     DEFAULT_MOUNT,
-    STANDING,
-    DeviceDefects,
     device_position,
+    DeviceDefects,
     fixed_point,
     inclinometer_angles,
     inclinometer_readings,
+    STANDING,
 )
 from hexacal_identify.core.errors import UnreachablePoseError
 from hexacal_identify.core.kinematics import forward_kinematics, inverse_kinematics, wrap_angle
 from hexacal_identify.core.measurements import FIXED, NoiseModel
-from hexacal_identify.core.architectures import KinematicParameters
+import numpy as np
 
 SETTLING = 'settling'  # moving to the posture (or, at the start, standing at it)
 DWELLING = 'dwelling'  # standing still at the posture: what the collector measures
@@ -90,8 +90,14 @@ class WalkSample:
 class PlanWalker:
     """Time since the plan started -> pose and slider positions of the true machine."""
 
-    def __init__(self, params: KinematicParameters, poses: np.ndarray, settle_s: float,
-                 dwell_s: float, loop: bool = False):
+    def __init__(
+        self,
+        params: KinematicParameters,
+        poses: np.ndarray,
+        settle_s: float,
+        dwell_s: float,
+        loop: bool = False,
+    ):
         poses = np.atleast_2d(np.asarray(poses, dtype=float))
         if poses.ndim != 2 or poses.shape[1] != 6 or len(poses) == 0:
             raise ValueError(f'poses must be (N >= 1, 6), got {poses.shape}')
@@ -122,13 +128,15 @@ class PlanWalker:
         lap = int(lap)
         if lap >= 1 and not self.loop:
             last = n - 1
-            return WalkSample(self.poses[last].copy(), self.posture_sliders[last].copy(), last,
-                              DONE, 0)
+            return WalkSample(
+                self.poses[last].copy(), self.posture_sliders[last].copy(), last, DONE, 0
+            )
         index = min(int(in_lap // self.posture_period_s), n - 1)
         into = in_lap - index * self.posture_period_s
         if into >= self.settle_s:
-            return WalkSample(self.poses[index].copy(), self.posture_sliders[index].copy(), index,
-                              DWELLING, lap)
+            return WalkSample(
+                self.poses[index].copy(), self.posture_sliders[index].copy(), index, DWELLING, lap
+            )
         if index == 0 and lap == 0:  # the machine starts at the first posture
             return WalkSample(self.poses[0].copy(), self.posture_sliders[0].copy(), 0, SETTLING, 0)
         previous = (index - 1) % n
@@ -157,26 +165,36 @@ class SensorReadings:
 IDEAL_DEVICE = DeviceDefects()
 
 
-def exact_readings(pose: np.ndarray, sliders: np.ndarray, mount: str = DEFAULT_MOUNT,
-                   defects: DeviceDefects = IDEAL_DEVICE,
-                   device_turn: float = 0.0) -> SensorReadings:
+def exact_readings(
+    pose: np.ndarray,
+    sliders: np.ndarray,
+    mount: str = DEFAULT_MOUNT,
+    defects: DeviceDefects = IDEAL_DEVICE,
+    device_turn: float = 0.0,
+) -> SensorReadings:
     """What noise-free sensors read: the sliders, the inclinometer's alpha/beta through the core's
     defect model (core.device.inclinometer_readings, for the device mount and `device_turn` rad
     about the link axis), and the rotary phi - turn + phi0 wrapped to [-pi, pi) (phi as it is for
     an ideal device in its normal mounting)."""
     pose = np.asarray(pose, dtype=float)
     turn = float(device_turn)
-    alpha, beta = inclinometer_readings(pose[None, :3], defects, mount,
-                                        None if turn == 0.0 else turn)
+    alpha, beta = inclinometer_readings(
+        pose[None, :3], defects, mount, None if turn == 0.0 else turn
+    )
     phi = float(pose[5])
     if turn != 0.0 or defects.phi0 != 0.0:
         phi = float(wrap_angle(phi - turn + defects.phi0))
     return SensorReadings(np.array(sliders, dtype=float), float(alpha[0]), float(beta[0]), phi)
 
 
-def device_true_poses(poses: np.ndarray, kinds, link_length: float,
-                      defects: DeviceDefects = IDEAL_DEVICE, mount: str = DEFAULT_MOUNT,
-                      device_turns: np.ndarray | float | None = None) -> np.ndarray:
+def device_true_poses(
+    poses: np.ndarray,
+    kinds,
+    link_length: float,
+    defects: DeviceDefects = IDEAL_DEVICE,
+    mount: str = DEFAULT_MOUNT,
+    device_turns: np.ndarray | float | None = None,
+) -> np.ndarray:
     """Where the platform stands for plan `poses` (planned on the nominal sphere of radius
     `link_length`) with the true device attached: sphere postures moved radially onto the true
     sphere of radius L + dL, fixed postures (kind 'fixed') where the defective inclinometer,
@@ -186,8 +204,11 @@ def device_true_poses(poses: np.ndarray, kinds, link_length: float,
     if defects == IDEAL_DEVICE:
         return poses
     n = len(poses)
-    turns = np.zeros(n) if device_turns is None else np.broadcast_to(
-        np.asarray(device_turns, dtype=float), (n,))
+    turns = (
+        np.zeros(n)
+        if device_turns is None
+        else np.broadcast_to(np.asarray(device_turns, dtype=float), (n,))
+    )
     true_length = float(link_length) + defects.dL
     radius = np.linalg.norm(poses[:, :3], axis=1)
     fixed = np.array([str(kind) == FIXED for kind in kinds])
@@ -201,8 +222,13 @@ class SensorSimulator:
     """Adds fresh uniform noise (NoiseModel half-widths) to every reading of a device with
     `defects`; read() takes the device's turn about its link axis (rad)."""
 
-    def __init__(self, noise: NoiseModel, rng: np.random.Generator, mount: str = DEFAULT_MOUNT,
-                 defects: DeviceDefects = IDEAL_DEVICE):
+    def __init__(
+        self,
+        noise: NoiseModel,
+        rng: np.random.Generator,
+        mount: str = DEFAULT_MOUNT,
+        defects: DeviceDefects = IDEAL_DEVICE,
+    ):
         self.noise = noise
         self.rng = rng
         self.mount = mount
@@ -212,8 +238,12 @@ class SensorSimulator:
         exact = exact_readings(sample.pose, sample.sliders, self.mount, self.defects, device_turn)
         slider_noise = self.rng.uniform(-1.0, 1.0, 6) * self.noise.slider_m
         angle_noise = self.rng.uniform(-1.0, 1.0, 3) * self.noise.angle_rad
-        return SensorReadings(exact.sliders_m + slider_noise, exact.alpha_rad + angle_noise[0],
-                              exact.beta_rad + angle_noise[1], exact.phi_rad + angle_noise[2])
+        return SensorReadings(
+            exact.sliders_m + slider_noise,
+            exact.alpha_rad + angle_noise[0],
+            exact.beta_rad + angle_noise[1],
+            exact.phi_rad + angle_noise[2],
+        )
 
 
 # --------------------------------------------------------------------------- commanded mode
@@ -223,15 +253,22 @@ STILL = 'still'  # commanded mode: the setpoints stand still
 
 _CONSTRAINT_ITERATIONS = 30
 _CONSTRAINT_STEP_M = 1e-11  # Gauss-Newton stops when its step is below this (rad)
-STRAIN_RETRY_M = 1e-3  # a strain above this is checked from a second start (device_constrained_pose)
+STRAIN_RETRY_M = (
+    1e-3  # a strain above this is checked from a second start (device_constrained_pose)
+)
 
 
 class ConstraintError(RuntimeError):
     """No platform pose on the link sphere near the previous one fits the actuator setpoints."""
 
 
-def device_constrained_pose(params: KinematicParameters, setpoints: np.ndarray, start: np.ndarray,
-                            link_length: float, mount: str = DEFAULT_MOUNT) -> tuple[np.ndarray, np.ndarray]:
+def device_constrained_pose(
+    params: KinematicParameters,
+    setpoints: np.ndarray,
+    start: np.ndarray,
+    link_length: float,
+    mount: str = DEFAULT_MOUNT,
+) -> tuple[np.ndarray, np.ndarray]:
     """Where the machine stands with its actuators commanded to `setpoints` and the measuring link attached.
 
     The link (U joints at both ends, fixed length L) holds the platform on the sphere of radius
@@ -296,12 +333,17 @@ def device_constrained_pose(params: KinematicParameters, setpoints: np.ndarray, 
     pose, legs, cost = solve(start)
     if not math.isfinite(cost):
         raise ConstraintError('the previous pose is out of reach of the true machine')
-    if cost > STRAIN_RETRY_M ** 2:
+    if cost > STRAIN_RETRY_M**2:
         home = np.concatenate([fixed_point(link_length, mount), np.zeros(3)])
         guesses = np.array([start, home])
         guesses[:, 3:] = wrap_angle(guesses[:, 3:])
-        free = forward_kinematics(params, np.tile(setpoints, (2, 1)), guesses,
-                                  branch_tolerance_m=math.inf, branch_tolerance_rad=math.inf)
+        free = forward_kinematics(
+            params,
+            np.tile(setpoints, (2, 1)),
+            guesses,
+            branch_tolerance_m=math.inf,
+            branch_tolerance_rad=math.inf,
+        )
         for found in free.poses[free.converged]:
             other = solve(found)
             if other[2] < cost:
@@ -318,9 +360,12 @@ class TrajectoryPoint:
     time_from_start_s: float
 
 
-def check_trajectory(joint_names: list[str], points: list[tuple[list[float], float]],
-                     expected_names: tuple[str, ...],
-                     stroke_m: tuple[float, float]) -> tuple[list[TrajectoryPoint], str | None]:
+def check_trajectory(
+    joint_names: list[str],
+    points: list[tuple[list[float], float]],
+    expected_names: tuple[str, ...],
+    stroke_m: tuple[float, float],
+) -> tuple[list[TrajectoryPoint], str | None]:
     """A JointTrajectory's joints and points in the machine's order, or the reason it is rejected.
 
     Like ros2_control's joint_trajectory_controller (without partial joint goals): the joint
@@ -337,9 +382,12 @@ def check_trajectory(joint_names: list[str], points: list[tuple[list[float], flo
     if set(names) != set(expected_names):
         unknown = sorted(set(names) - set(expected_names))
         missing = sorted(set(expected_names) - set(names))
-        return [], (f"joint names {names} are not this machine's actuators "
-                    f"{list(expected_names)}" + (f': unknown {unknown}' if unknown else '')
-                    + (f', missing {missing}' if missing else ''))
+        return [], (
+            f"joint names {names} are not this machine's actuators "
+            f'{list(expected_names)}'
+            + (f': unknown {unknown}' if unknown else '')
+            + (f', missing {missing}' if missing else '')
+        )
     if not points:
         return [], 'empty trajectory (no points)'
     order = [names.index(name) for name in expected_names]
@@ -355,13 +403,20 @@ def check_trajectory(joint_names: list[str], points: list[tuple[list[float], flo
         if not math.isfinite(time_s) or time_s < 0.0:
             return [], f'point {index} time_from_start {time_s!r} s is negative or not finite'
         if time_s <= previous:
-            return [], (f'time_from_start of point {index} ({time_s:g} s) is not after that of '
-                        f'point {index - 1} ({previous:g} s)')
-        outside = [f'{expected_names[i]} {values[i]:.6g} m' for i in range(len(values))
-                   if not low <= values[i] <= high]
+            return [], (
+                f'time_from_start of point {index} ({time_s:g} s) is not after that of '
+                f'point {index - 1} ({previous:g} s)'
+            )
+        outside = [
+            f'{expected_names[i]} {values[i]:.6g} m'
+            for i in range(len(values))
+            if not low <= values[i] <= high
+        ]
         if outside:
-            return [], (f'point {index} is outside the actuator stroke [{low:g}, {high:g}] m: '
-                        + ', '.join(outside))
+            return [], (
+                f'point {index} is outside the actuator stroke [{low:g}, {high:g}] m: '
+                + ', '.join(outside)
+            )
         previous = time_s
         checked.append(TrajectoryPoint(values, float(time_s)))
     return checked, None
@@ -378,8 +433,14 @@ class CommandFollower:
     (`device_constrained_pose`); `sample` gives it with the true actuator readings.
     """
 
-    def __init__(self, params: KinematicParameters, start_pose: np.ndarray, max_speed_m_s: float,
-                 link_length: float, mount: str = DEFAULT_MOUNT):
+    def __init__(
+        self,
+        params: KinematicParameters,
+        start_pose: np.ndarray,
+        max_speed_m_s: float,
+        link_length: float,
+        mount: str = DEFAULT_MOUNT,
+    ):
         if not (max_speed_m_s > 0 and math.isfinite(max_speed_m_s)):
             raise ValueError(f'max_speed_m_s must be > 0, got {max_speed_m_s}')
         self.params = params
@@ -389,8 +450,9 @@ class CommandFollower:
         self.pose = np.array(start_pose, dtype=float)
         self.setpoints = inverse_kinematics(params, self.pose[None])[0]
         self.sliders = self.setpoints.copy()
-        self.pose, self.sliders = device_constrained_pose(params, self.setpoints, self.pose,
-                                                          self.link_length, mount)
+        self.pose, self.sliders = device_constrained_pose(
+            params, self.setpoints, self.pose, self.link_length, mount
+        )
         # Segments (start time s, end time s, start setpoints, end setpoints) of the trajectory.
         self._segments: list[tuple[float, float, np.ndarray, np.ndarray]] = []
         self._solved_for = self.setpoints.copy()
@@ -411,7 +473,9 @@ class CommandFollower:
                 return begin + s * (end - begin)
         return self._segments[-1][3].copy() if self._segments else self.setpoints.copy()
 
-    def command(self, now_s: float, points: list[TrajectoryPoint], start_s: float | None = None) -> float:
+    def command(
+        self, now_s: float, points: list[TrajectoryPoint], start_s: float | None = None
+    ) -> float:
         """Follow `points` (checked, model order) from now (or from start_s if later); returns
         the time the last point is reached, s."""
         current = self.setpoints_at(now_s)
@@ -423,7 +487,11 @@ class CommandFollower:
             largest = float(np.max(np.abs(point.positions - previous_positions)))
             duration = max(point.time_from_start_s - previous_time, largest / self.max_speed_m_s)
             segments.append((t, t + duration, previous_positions, point.positions.copy()))
-            previous_positions, previous_time, t = point.positions, point.time_from_start_s, t + duration
+            previous_positions, previous_time, t = (
+                point.positions,
+                point.time_from_start_s,
+                t + duration,
+            )
         self._segments = segments
         self.commands += 1
         return t
@@ -434,7 +502,8 @@ class CommandFollower:
         if not np.array_equal(self.setpoints, self._solved_for):
             try:
                 self.pose, self.sliders = device_constrained_pose(
-                    self.params, self.setpoints, self.pose, self.link_length, self.mount)
+                    self.params, self.setpoints, self.pose, self.link_length, self.mount
+                )
             except (ConstraintError, UnreachablePoseError):
                 pass  # stays where it was (a setpoint path the link does not allow)
             self._solved_for = self.setpoints.copy()

@@ -1,37 +1,37 @@
 """The driver's commanded mode, ROS-free: trajectory checks, bounded-speed following, the link's
 constraint, and the executor's rules (core/execution.py) walking a plan on it to a calibration."""
+
 from __future__ import annotations
 
 import math
 
-import numpy as np
-import pytest
-
 from hexacal_driver.plan import machine_workspace
 from hexacal_driver.simulation import (
-    MOVING,
-    STILL,
-    CommandFollower,
-    SensorSimulator,
-    TrajectoryPoint,
     check_trajectory,
+    CommandFollower,
     device_constrained_pose,
+    MOVING,
+    SensorSimulator,
+    STILL,
+    TrajectoryPoint,
 )
 from hexacal_identify.core.architectures import default_parameters
 from hexacal_identify.core.device import fixed_point
 from hexacal_identify.core.execution import (
     ABORTED,
-    DONE,
-    WAITING,
-    ExecutionSettings,
-    PlanExecution,
     check_plan,
     default_stroke,
+    DONE,
+    ExecutionSettings,
+    PlanExecution,
+    WAITING,
 )
 from hexacal_identify.core.kinematics import inverse_kinematics
 from hexacal_identify.core.measurements import NoiseModel
 from hexacal_identify.core.model import nominal_set
 from hexacal_identify.core.planning import plan_postures
+import numpy as np
+import pytest
 
 L = 0.75
 GS = 'gough_stewart'
@@ -49,25 +49,37 @@ def _points(*points):
 
 def test_a_trajectory_is_reordered_to_the_machine_joints():
     names = list(reversed(SLIDERS))
-    checked, problem = check_trajectory(names, _points(([0.1, 0.2, 0.3, 0.4, 0.5, 0.6], 1.0)),
-                                        SLIDERS, (0.0, 0.9))
+    checked, problem = check_trajectory(
+        names, _points(([0.1, 0.2, 0.3, 0.4, 0.5, 0.6], 1.0)), SLIDERS, (0.0, 0.9)
+    )
     assert problem is None
     np.testing.assert_array_equal(checked[0].positions, [0.6, 0.5, 0.4, 0.3, 0.2, 0.1])
     assert checked[0].time_from_start_s == 1.0
 
 
-@pytest.mark.parametrize('names, points, problem', [
-    ([f'leg_{i}' for i in range(1, 7)], [([0.1] * 6, 1.0)], "are not this machine's actuators"),
-    (list(SLIDERS[:5]), [([0.1] * 5, 1.0)], 'missing'),
-    ([*SLIDERS[:5], 'slider_1'], [([0.1] * 6, 1.0)], 'joint names repeat'),
-    ([], [], 'no joint names'),
-    (list(SLIDERS), [], 'empty trajectory'),
-    (list(SLIDERS), [([0.1] * 5, 1.0)], 'point 0 has 5 positions for 6 joints'),
-    (list(SLIDERS), [([0.1] * 5 + [math.nan], 1.0)], 'non-finite'),
-    (list(SLIDERS), [([0.1] * 6, 1.0), ([0.2] * 6, 1.0)], 'is not after that of point 0'),
-    (list(SLIDERS), [([0.1] * 6, -1.0)], 'negative'),
-    (list(SLIDERS), [([0.1] * 5 + [0.95], 1.0)], 'outside the actuator stroke [0, 0.9] m: slider_6 0.95 m'),
-])
+@pytest.mark.parametrize(
+    'names, points, problem',
+    [
+        (
+            [f'leg_{i}' for i in range(1, 7)],
+            [([0.1] * 6, 1.0)],
+            "are not this machine's actuators",
+        ),
+        (list(SLIDERS[:5]), [([0.1] * 5, 1.0)], 'missing'),
+        ([*SLIDERS[:5], 'slider_1'], [([0.1] * 6, 1.0)], 'joint names repeat'),
+        ([], [], 'no joint names'),
+        (list(SLIDERS), [], 'empty trajectory'),
+        (list(SLIDERS), [([0.1] * 5, 1.0)], 'point 0 has 5 positions for 6 joints'),
+        (list(SLIDERS), [([0.1] * 5 + [math.nan], 1.0)], 'non-finite'),
+        (list(SLIDERS), [([0.1] * 6, 1.0), ([0.2] * 6, 1.0)], 'is not after that of point 0'),
+        (list(SLIDERS), [([0.1] * 6, -1.0)], 'negative'),
+        (
+            list(SLIDERS),
+            [([0.1] * 5 + [0.95], 1.0)],
+            'outside the actuator stroke [0, 0.9] m: slider_6 0.95 m',
+        ),
+    ],
+)
 def test_bad_commands_are_rejected_with_the_reason(names, points, problem):
     checked, reason = check_trajectory(names, _points(*points), SLIDERS, (0.0, 0.9))
     assert checked == [] and problem in reason
@@ -108,18 +120,23 @@ def _upright(params):
     from hexacal_identify.core.architectures.gough_stewart import GoughStewartParameters
 
     mirror = np.diag([1.0, 1.0, -1.0])
-    return GoughStewartParameters.from_parts(params.base_points @ mirror,
-                                             params.platform_points @ mirror, params.leg_offsets)
+    return GoughStewartParameters.from_parts(
+        params.base_points @ mirror, params.platform_points @ mirror, params.leg_offsets
+    )
 
 
 @pytest.mark.parametrize('model, mount', [(None, 'hanging'), (GS, 'hanging'), (GS, 'standing')])
-def test_the_link_holds_the_platform_on_its_sphere_and_the_readings_are_the_true_machine(model, mount):
+def test_the_link_holds_the_platform_on_its_sphere_and_the_readings_are_the_true_machine(
+    model, mount
+):
     from hexacal_identify.core.postures import sample_poses
 
     truth = default_parameters(model)
     nominal = nominal_set(2, seed=0, model=model)
     poses = sample_poses(truth, 5, np.random.default_rng(1), 'sphere', machine_workspace(truth, L))
-    if mount == 'standing':  # the same machine and postures reflected: (x, y, -z, -theta, -psi, phi)
+    if (
+        mount == 'standing'
+    ):  # the same machine and postures reflected: (x, y, -z, -theta, -psi, phi)
         truth, nominal = _upright(truth), _upright(nominal)
         poses[:, [2, 3, 4]] *= -1.0
     exact = inverse_kinematics(truth, poses)
@@ -147,8 +164,15 @@ def _walk(model, postures, noise=1e-5, seed=0, **settings):
     plan = plan_postures(nominal, postures, n_candidates=400, cost='sphere-fixed', seed=seed).plan
     stroke = default_stroke(nominal)
     targets = check_plan(nominal, plan.poses, plan.kinds, stroke, L, path_step_m=0.02)
-    execution = PlanExecution(nominal, plan.poses, plan.kinds, targets, ExecutionSettings(
-        max_actuator_speed_m_s=0.5, settle_s=0.3, **settings), stroke, L)
+    execution = PlanExecution(
+        nominal,
+        plan.poses,
+        plan.kinds,
+        targets,
+        ExecutionSettings(max_actuator_speed_m_s=0.5, settle_s=0.3, **settings),
+        stroke,
+        L,
+    )
     follower = CommandFollower(truth, np.concatenate([fixed_point(L), np.zeros(3)]), 1.0, L)
     sensors = SensorSimulator(NoiseModel(noise, noise), np.random.default_rng(seed))
     t, still_since, samples, postures_seen = 0.0, None, [], []
@@ -160,7 +184,9 @@ def _walk(model, postures, noise=1e-5, seed=0, **settings):
         if sample.phase == STILL:
             if still_since is None:
                 still_since, samples = t, []
-            samples.append([*reading.sliders_m, reading.alpha_rad, reading.beta_rad, reading.phi_rad])
+            samples.append(
+                [*reading.sliders_m, reading.alpha_rad, reading.beta_rad, reading.phi_rad]
+            )
             if t - still_since >= 0.5 and len(samples) > 0:
                 posture = np.mean(samples[-30:], axis=0)
                 postures_seen.append(posture)
@@ -170,8 +196,13 @@ def _walk(model, postures, noise=1e-5, seed=0, **settings):
             still_since = None
         commands = execution.start(t) if execution.state == WAITING else execution.step(t)
         for command in commands:
-            follower.command(t, [TrajectoryPoint(point, time_s)
-                                 for point, time_s in zip(command.points, command.times)])
+            follower.command(
+                t,
+                [
+                    TrajectoryPoint(point, time_s)
+                    for point, time_s in zip(command.points, command.times)
+                ],
+            )
         t += 0.01
     return execution, postures_seen, truth, nominal, plan
 
@@ -199,5 +230,7 @@ def test_fixed_positions_that_never_converge_are_skipped_after_max_corrections()
     execution, *_ = _walk(None, 8, fixed_tolerance_rad=1e-7, max_corrections=1)
     skipped = execution.skipped
     assert skipped and all(o.kind == 'fixed' for o in skipped)
-    assert all(o.reason.startswith('fixed position not reached after 1 corrections') for o in skipped)
+    assert all(
+        o.reason.startswith('fixed position not reached after 1 corrections') for o in skipped
+    )
     assert execution.measured == 8 - len(skipped)

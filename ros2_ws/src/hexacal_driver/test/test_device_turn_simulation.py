@@ -1,24 +1,24 @@
 """The driver's simulated device with defects and a turn about its link axis (ROS-free)."""
+
 from __future__ import annotations
 
 from dataclasses import replace
 import math
 
-import numpy as np
-import pytest
-
-from hexacal_driver.plan import PlanError, generated_plan, load_plan, plan_document, save_plan
+from hexacal_driver.plan import generated_plan, load_plan, plan_document, PlanError, save_plan
 from hexacal_driver.simulation import (
+    device_true_poses,
+    DWELLING,
+    exact_readings,
     PlanWalker,
     SensorSimulator,
     WalkSample,
-    DWELLING,
-    device_true_poses,
-    exact_readings,
 )
 from hexacal_identify.core import table1_parameters
-from hexacal_identify.core.device import DeviceDefects, DeviceModel, device_position
+from hexacal_identify.core.device import device_position, DeviceDefects, DeviceModel
 from hexacal_identify.core.measurements import NoiseModel, simulate_measurements
+import numpy as np
+import pytest
 
 DEFECTS = DeviceDefects.parse('dL=5e-4,alpha0=2e-4,beta0=-1e-4,gamma=1e-4,phi0=3e-4')
 L = 0.75
@@ -36,8 +36,15 @@ def test_readings_are_the_cores_simulated_measurements(plan, turn, mount):
     if mount == 'standing':
         plan = replace(plan, poses=plan.poses * np.array([1, 1, -1, 1, 1, 1]), mount=mount)
     poses = device_true_poses(plan.poses, plan.kinds, L, DEFECTS, mount, turn)
-    core = simulate_measurements(params, poses, np.array(plan.kinds), DeviceModel(L, mount),
-                                 NoiseModel(0.0, 0.0), defects=DEFECTS, device_turn=turn)
+    core = simulate_measurements(
+        params,
+        poses,
+        np.array(plan.kinds),
+        DeviceModel(L, mount),
+        NoiseModel(0.0, 0.0),
+        defects=DEFECTS,
+        device_turn=turn,
+    )
     walker = PlanWalker(params, poses, 1.0, 1.0) if mount == 'hanging' else None
     for i in range(len(poses)):
         sliders = walker.posture_sliders[i] if walker else core.slider_positions[i]
@@ -47,8 +54,14 @@ def test_readings_are_the_cores_simulated_measurements(plan, turn, mount):
         assert read.phi_rad == pytest.approx(core.rotary[i], abs=1e-14)
         np.testing.assert_allclose(read.sliders_m, core.slider_positions[i], rtol=0, atol=1e-12)
     # The link fits: the readings give the platform position back through the defect model.
-    back = device_position(core.inclinometer[:, 0], core.inclinometer[:, 1], L, DEFECTS, mount,
-                           np.full(len(poses), turn)).position
+    back = device_position(
+        core.inclinometer[:, 0],
+        core.inclinometer[:, 1],
+        L,
+        DEFECTS,
+        mount,
+        np.full(len(poses), turn),
+    ).position
     np.testing.assert_allclose(back, poses[:, :3], rtol=0, atol=1e-12)
 
 
@@ -91,7 +104,9 @@ def test_plan_files_keep_per_posture_turns(plan, tmp_path):
     assert back.device_turn(6, 0.5) == 0.0  # the plan's own 0 wins over the parameter
     assert plan_document(back)['postures'][1]['device_turn'] == math.pi
     assert 'device_turn' not in plan_document(back)['postures'][0]
-    assert '1 with a device turn' not in back.describe() and '3 with a device turn' in back.describe()
+    assert (
+        '1 with a device turn' not in back.describe() and '3 with a device turn' in back.describe()
+    )
     # A plan without turns is written as before and has none.
     save_plan(tmp_path / 'plain.yaml', plan)
     assert 'device_turn' not in (tmp_path / 'plain.yaml').read_text()
@@ -99,13 +114,16 @@ def test_plan_files_keep_per_posture_turns(plan, tmp_path):
     assert replace(plan, device_turns=(None,) * len(plan)).device_turns == ()
 
 
-@pytest.mark.parametrize('value, text', [
-    ('7.0', 'device_turn must be a finite angle within +-2 pi rad'),
-    ('.nan', 'device_turn must be a finite angle'),
-    ('pi', 'device_turn must be a number of rad'),
-    ('null', 'device_turn must be a number of rad, got null'),
-    ('true', 'device_turn must be a number of rad'),
-])
+@pytest.mark.parametrize(
+    'value, text',
+    [
+        ('7.0', 'device_turn must be a finite angle within +-2 pi rad'),
+        ('.nan', 'device_turn must be a finite angle'),
+        ('pi', 'device_turn must be a number of rad'),
+        ('null', 'device_turn must be a number of rad, got null'),
+        ('true', 'device_turn must be a number of rad'),
+    ],
+)
 def test_bad_turns_in_plan_files_are_named(plan, tmp_path, value, text):
     path = tmp_path / 'bad.yaml'
     save_plan(path, plan)

@@ -1,38 +1,38 @@
 """Unit tests of the driver's ROS-free parts: plan walking, sensor readings, posture plans."""
+
 from __future__ import annotations
 
 import math
 from pathlib import Path
 
-import numpy as np
-import pytest
-
 from hexacal_driver.plan import (
+    check_reachable,
     FIXED_PLAN,
+    generated_plan,
+    load_plan,
     MIXED_PLAN,
     PlanError,
     PosturePlan,
     RANDOM_PLAN,
-    check_reachable,
-    generated_plan,
-    load_plan,
     resolve_plan,
     save_plan,
 )
 from hexacal_driver.simulation import (
     DONE,
     DWELLING,
-    SETTLING,
-    PlanWalker,
-    SensorSimulator,
     exact_readings,
     interpolate_pose,
+    PlanWalker,
+    SensorSimulator,
+    SETTLING,
     smooth_step,
 )
-from hexacal_identify.core.measurements import FIXED, SPHERE, NoiseModel, simulate_measurements
+from hexacal_identify.core.measurements import FIXED, NoiseModel, simulate_measurements, SPHERE
 from hexacal_identify.core.model import nominal_set, table1_parameters
-from hexacal_identify.pipeline import calibrate
 from hexacal_identify.core.posture_detector import PostureDetector
+from hexacal_identify.pipeline import calibrate
+import numpy as np
+import pytest
 
 TRUE = table1_parameters()
 L = 0.75
@@ -133,7 +133,8 @@ def test_exact_readings_match_the_core_measurement_model(mixed_plan):
         reading = exact_readings(pose, sliders[i])
         assert reading.sliders_m == pytest.approx(expected.slider_positions[i], abs=1e-15)
         assert [reading.alpha_rad, reading.beta_rad] == pytest.approx(
-            expected.inclinometer[i], abs=1e-15)
+            expected.inclinometer[i], abs=1e-15
+        )
         assert reading.phi_rad == pytest.approx(expected.rotary[i], abs=1e-15)
     fixed = [i for i, kind in enumerate(mixed_plan.kinds) if kind == FIXED]
     assert fixed
@@ -149,8 +150,12 @@ def test_noise_is_fresh_uniform_and_within_its_half_widths(mixed_plan):
     sensors = SensorSimulator(NoiseModel(slider_m=1e-5, angle_rad=2e-5), np.random.default_rng(1))
     readings = [sensors.read(sample) for _ in range(4000)]
     slider_errors = np.array([r.sliders_m - exact.sliders_m for r in readings])
-    angle_errors = np.array([[r.alpha_rad - exact.alpha_rad, r.beta_rad - exact.beta_rad,
-                              r.phi_rad - exact.phi_rad] for r in readings])
+    angle_errors = np.array(
+        [
+            [r.alpha_rad - exact.alpha_rad, r.beta_rad - exact.beta_rad, r.phi_rad - exact.phi_rad]
+            for r in readings
+        ]
+    )
     assert np.abs(slider_errors).max() <= 1e-5 and np.abs(angle_errors).max() <= 2e-5
     assert np.abs(slider_errors).max() > 0.95e-5  # uniform: the edges are reached
     assert np.abs(slider_errors.mean(axis=0)).max() < 1e-6
@@ -224,31 +229,54 @@ def _write(tmp_path: Path, text: str) -> Path:
 ON_SPHERE_Z = -math.sqrt(L**2 - 0.1**2 - 0.2**2)
 
 
-@pytest.mark.parametrize('text, message', [
-    ('plan: [1, 2\n', 'invalid YAML'),
-    ('- 1\n', "keys 'plan' and 'postures'"),
-    ('plan: {name: p, link_length: 0.75}\n', "'postures' must be a non-empty list"),
-    ('plan: {name: p}\npostures: [{kind: fixed, pose: [0, 0, -0.75, 0, 0, 0]}]\n',
-     'plan.link_length is missing'),
-    ('plan: {name: p, link_length: 0.75, speed: 2}\npostures: []\n', "unknown key(s) ['speed']"),
-    ('plan: {name: p, link_length: -1}\npostures: [{kind: fixed, pose: [0, 0, 1, 0, 0, 0]}]\n',
-     'link_length must be a positive number'),
-    ('plan: {name: p, link_length: 0.75}\npostures: [{kind: fixed, pose: [0, 0, -0.75]}]\n',
-     'posture 0: pose must be 6 numbers'),
-    ('plan: {name: p, link_length: 0.75}\npostures: [{kind: flat, pose: [0, 0, -0.75, 0, 0, 0]}]\n',
-     "posture 0: kind must be one of ['sphere', 'fixed']"),
-    ('plan: {name: p, link_length: 0.75}\npostures:\n'
-     '  - {kind: fixed, pose: [0, 0, -0.75, 0, 0, 0]}\n'
-     '  - {kind: sphere, pose: [0.1, 0.2, -0.7, 0, 0, 0]}\n',
-     f'posture 1: a sphere posture must lie on the link sphere |p| = 0.75 m below O '
-     f'(z = {ON_SPHERE_Z!r}'),
-    ('plan: {name: p, link_length: 0.75}\npostures: [{kind: fixed, pose: [0.1, 0, -0.75, 0, 0, 0]}]\n',
-     'posture 0: a fixed posture must be at [0, 0, -0.75] m'),
-    ('plan: {name: p, link_length: 0.75}\npostures: [{kind: fixed, pose: [0, 0, -0.75, 0, 0, 4]}]\n',
-     'posture 0: phi must be within +-pi rad'),
-    ('plan: {name: p, link_length: 0.75}\npostures: [{kind: fixed, pose: [0, 0, -0.75, 0, 0, 0], '
-     'speed: 1}]\n', "posture 0: keys must be ['kind', 'pose'], unknown ['speed']"),
-])
+@pytest.mark.parametrize(
+    'text, message',
+    [
+        ('plan: [1, 2\n', 'invalid YAML'),
+        ('- 1\n', "keys 'plan' and 'postures'"),
+        ('plan: {name: p, link_length: 0.75}\n', "'postures' must be a non-empty list"),
+        (
+            'plan: {name: p}\npostures: [{kind: fixed, pose: [0, 0, -0.75, 0, 0, 0]}]\n',
+            'plan.link_length is missing',
+        ),
+        (
+            'plan: {name: p, link_length: 0.75, speed: 2}\npostures: []\n',
+            "unknown key(s) ['speed']",
+        ),
+        (
+            'plan: {name: p, link_length: -1}\npostures: [{kind: fixed, pose: [0, 0, 1, 0, 0, 0]}]\n',
+            'link_length must be a positive number',
+        ),
+        (
+            'plan: {name: p, link_length: 0.75}\npostures: [{kind: fixed, pose: [0, 0, -0.75]}]\n',
+            'posture 0: pose must be 6 numbers',
+        ),
+        (
+            'plan: {name: p, link_length: 0.75}\npostures: [{kind: flat, pose: [0, 0, -0.75, 0, 0, 0]}]\n',
+            "posture 0: kind must be one of ['sphere', 'fixed']",
+        ),
+        (
+            'plan: {name: p, link_length: 0.75}\npostures:\n'
+            '  - {kind: fixed, pose: [0, 0, -0.75, 0, 0, 0]}\n'
+            '  - {kind: sphere, pose: [0.1, 0.2, -0.7, 0, 0, 0]}\n',
+            f'posture 1: a sphere posture must lie on the link sphere |p| = 0.75 m below O '
+            f'(z = {ON_SPHERE_Z!r}',
+        ),
+        (
+            'plan: {name: p, link_length: 0.75}\npostures: [{kind: fixed, pose: [0.1, 0, -0.75, 0, 0, 0]}]\n',
+            'posture 0: a fixed posture must be at [0, 0, -0.75] m',
+        ),
+        (
+            'plan: {name: p, link_length: 0.75}\npostures: [{kind: fixed, pose: [0, 0, -0.75, 0, 0, 4]}]\n',
+            'posture 0: phi must be within +-pi rad',
+        ),
+        (
+            'plan: {name: p, link_length: 0.75}\npostures: [{kind: fixed, pose: [0, 0, -0.75, 0, 0, 0], '
+            'speed: 1}]\n',
+            "posture 0: keys must be ['kind', 'pose'], unknown ['speed']",
+        ),
+    ],
+)
 def test_bad_plan_files_name_the_problem(tmp_path, text, message):
     path = _write(tmp_path, text)
     with pytest.raises(PlanError) as error:
@@ -263,19 +291,24 @@ def test_missing_plan_file_is_a_plan_error(tmp_path):
 
 
 def test_plans_are_checked_against_the_machine(tmp_path):
-    good = f'plan: {{name: p, link_length: 0.75}}\npostures:\n' \
-           f'  - {{kind: sphere, pose: [0.1, 0.2, {ON_SPHERE_Z!r}, 0.1, -0.1, 0.2]}}\n'
+    good = (
+        f'plan: {{name: p, link_length: 0.75}}\npostures:\n'
+        f'  - {{kind: sphere, pose: [0.1, 0.2, {ON_SPHERE_Z!r}, 0.1, -0.1, 0.2]}}\n'
+    )
     path = _write(tmp_path, good)
     assert check_reachable(load_plan(path), TRUE).shape == (1, 6)
     with pytest.raises(PlanError, match='differs from the device'):
         resolve_plan(str(path), TRUE, 1, 0, link_length=0.8)
     # A 2 m link puts the platform below where the legs reach (or beyond the slider stroke).
-    path.write_text('plan: {name: p, link_length: 2.0}\npostures:\n'
-                    '  - {kind: fixed, pose: [0.0, 0.0, -0.75, 0.0, 0.0, 0.0]}\n')
+    path.write_text(
+        'plan: {name: p, link_length: 2.0}\npostures:\n'
+        '  - {kind: fixed, pose: [0.0, 0.0, -0.75, 0.0, 0.0, 0.0]}\n'
+    )
     with pytest.raises(PlanError, match='a fixed posture must be at'):
         load_plan(path)
-    path.write_text('plan: {name: p, link_length: 2.0}\npostures:\n'
-                    '  - {kind: fixed, pose: [0.0, 0.0, -0.75, 0.0, 0.0, 0.0]}\n'.replace(
-                        '-0.75', '-2.0'))
+    path.write_text(
+        'plan: {name: p, link_length: 2.0}\npostures:\n'
+        '  - {kind: fixed, pose: [0.0, 0.0, -0.75, 0.0, 0.0, 0.0]}\n'.replace('-0.75', '-2.0')
+    )
     with pytest.raises(PlanError, match=r"plan 'p': posture\(s\) \[0\]"):
         resolve_plan(str(path), TRUE, 1, 0, link_length=2.0)

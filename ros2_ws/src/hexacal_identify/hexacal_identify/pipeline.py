@@ -17,16 +17,16 @@ recorded topics (e.g. one /joint_states for all three, an Imu inclinometer)
 read by that mapping, through the same contract conversions the collector uses;
 a bag without one is read by the contract's topics and joints, as always.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Sequence
 
-import numpy as np
-from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
 from hexacal_msgs_py.inputs import IMU_INCLINOMETER, INPUT_NAMES, InputMapping, InputMappingError
-from hexacal_msgs_py.models import DEFAULT_MODEL, DEVICE_DEFECTS_KEY, MODELS, device_defect_key
+from hexacal_msgs_py.models import DEFAULT_MODEL, device_defect_key, DEVICE_DEFECTS_KEY, MODELS
+from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
 from hexacal_msgs_py.names import (
     ENCODER_TOPIC,
     IMU_TYPE,
@@ -36,12 +36,20 @@ from hexacal_msgs_py.names import (
     SLIDERS_TOPIC,
 )
 from hexacal_msgs_py.readings import PostureReading
+import numpy as np
 
 from .core.architectures import KinematicParameters, parameters_for
-from .core.device import DEFAULT_MOUNT, DEVICE_PARAMETER_NAMES, DeviceDefects, DeviceModel, DevicePrior, check_mount
+from .core.device import (
+    check_mount,
+    DEFAULT_MOUNT,
+    DEVICE_PARAMETER_NAMES,
+    DeviceDefects,
+    DeviceModel,
+    DevicePrior,
+)
 from .core.errors import InvalidMeasurementError
-from .core.identification import IdentificationResult, SolverOptions, identify
-from .core.measurements import FIXED, SPHERE, MeasurementLimits, Measurements, NoiseModel
+from .core.identification import IdentificationResult, identify, SolverOptions
+from .core.measurements import FIXED, MeasurementLimits, Measurements, NoiseModel, SPHERE
 from .core.model import parameter_names
 
 # A posture whose inclinometer reads zero on both axes (within this, rad) was taken at the fixed
@@ -49,19 +57,17 @@ from .core.model import parameter_names
 # the noise of an averaged reading, far below the spread of sphere postures.
 FIXED_POSITION_TOLERANCE_RAD = 5e-5
 RAW_TOPICS = (SLIDERS_TOPIC, INCLINOMETER_TOPIC, ENCODER_TOPIC)
-TABLE1_FILE = Path(__file__).parent / "data" / "table1_exact.yaml"  # the default "exact" machine
+TABLE1_FILE = Path(__file__).parent / 'data' / 'table1_exact.yaml'  # the default "exact" machine
 # Reasons a received posture is rejected before it is stored (posture_problem).
-SLIDER_BEYOND_STROKE = "slider-beyond-stroke"  # (any model's actuator: a leg on a Gough-Stewart)
-ANGLE_OUT_OF_RANGE = "angle-out-of-range"
-MODEL_MISMATCH = "model-mismatch"
+SLIDER_BEYOND_STROKE = 'slider-beyond-stroke'  # (any model's actuator: a leg on a Gough-Stewart)
+ANGLE_OUT_OF_RANGE = 'angle-out-of-range'
+MODEL_MISMATCH = 'model-mismatch'
 
 
 class ModelMismatchError(InvalidMeasurementError):
     """Postures of one machine model, nominal parameters of another: nothing to calibrate."""
 
     reason = MODEL_MISMATCH
-
-
 
 
 def load_machine(path: Path | str) -> KinematicParameters:
@@ -80,14 +86,16 @@ def load_machine_and_mount(path: Path | str) -> tuple[KinematicParameters, str]:
     try:
         mount = check_mount(loaded.extras.get(MOUNT_PARAMETER, DEFAULT_MOUNT))
     except DeviceMountError as error:
-        raise DeviceMountError(f"{path}: {MOUNT_PARAMETER}: {error}") from None
+        raise DeviceMountError(f'{path}: {MOUNT_PARAMETER}: {error}') from None
     return parameters_for(loaded.model, loaded.vector), mount
 
 
 def device_defects_extras(result: IdentificationResult) -> dict[str, float]:
     """The parameters-file keys (`device.defects.<name>`, SI) of the device defects identified
     with `result`; none identified: {} (the file is exactly as without the device)."""
-    return {device_defect_key(name): float(getattr(result.device, name)) for name in result.free_device}
+    return {
+        device_defect_key(name): float(getattr(result.device, name)) for name in result.free_device
+    }
 
 
 def load_device_defects(path: Path | str) -> tuple[DeviceDefects, tuple[str, ...]]:
@@ -98,47 +106,57 @@ def load_device_defects(path: Path | str) -> tuple[DeviceDefects, tuple[str, ...
     return device_defects_from_extras(read_parameters_file(path).extras, path)
 
 
-def device_defects_from_extras(extras: dict, path: Path | str) -> tuple[DeviceDefects, tuple[str, ...]]:
+def device_defects_from_extras(
+    extras: dict, path: Path | str
+) -> tuple[DeviceDefects, tuple[str, ...]]:
     """(defects, names given) of a parameters file's extras (read_parameters_file).  Absent keys are
     0 (the ideal device); a key naming no defect or a value that is not a small finite number is a
     ParameterFileError naming the file (`path`) and the key."""
     from hexacal_msgs_py.errors import ParameterFileError
 
-    prefix = DEVICE_DEFECTS_KEY + "."
+    prefix = DEVICE_DEFECTS_KEY + '.'
     values: dict[str, float] = {}
     for key, value in extras.items():
         if not key.startswith(prefix):
             continue
-        name = key[len(prefix):]
+        name = key[len(prefix) :]
         if name not in DEVICE_PARAMETER_NAMES:
-            raise ParameterFileError(f"{path}: {key}: not a device defect (one of {', '.join(DEVICE_PARAMETER_NAMES)})")
+            raise ParameterFileError(
+                f'{path}: {key}: not a device defect (one of {", ".join(DEVICE_PARAMETER_NAMES)})'
+            )
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ParameterFileError(f"{path}: {key}: must be a number in SI units, got {value!r}")
+            raise ParameterFileError(f'{path}: {key}: must be a number in SI units, got {value!r}')
         values[name] = float(value)
     try:
         return DeviceDefects(**values), tuple(values)
     except ValueError as error:
-        raise ParameterFileError(f"{path}: {DEVICE_DEFECTS_KEY}: {error}") from None
+        raise ParameterFileError(f'{path}: {DEVICE_DEFECTS_KEY}: {error}') from None
 
 
 def _joints_text(model: str) -> str:
     names = MODELS[model].actuator_names
-    return f"{names[0]}..{names[-1]}"
+    return f'{names[0]}..{names[-1]}'
 
 
-def check_model(postures_model: str | None, nominal: KinematicParameters, what: str, nominal_source: str = "") -> None:
+def check_model(
+    postures_model: str | None, nominal: KinematicParameters, what: str, nominal_source: str = ''
+) -> None:
     """ModelMismatchError if postures of `postures_model` (None: unknown, not checked) meet a nominal of another."""
     if postures_model is None or postures_model == nominal.model:
         return
-    source = f" {nominal_source}" if nominal_source else ""
+    source = f' {nominal_source}' if nominal_source else ''
     raise ModelMismatchError(
-        f"{what} holds {postures_model} postures (actuator joints {_joints_text(postures_model)}) but the nominal "
+        f'{what} holds {postures_model} postures (actuator joints {_joints_text(postures_model)}) but the nominal '
         f"parameters{source} are a {nominal.model}'s (joints {_joints_text(nominal.model)}): give a {postures_model} "
-        "nominal parameters file")
+        'nominal parameters file'
+    )
 
 
-def posture_problem(posture: PostureReading, limits: MeasurementLimits = MeasurementLimits(),
-                    model: str | None = None) -> tuple[str, str] | None:
+def posture_problem(
+    posture: PostureReading,
+    limits: MeasurementLimits = MeasurementLimits(),
+    model: str | None = None,
+) -> tuple[str, str] | None:
     """(reason, description) if a (finite) posture reads beyond a sensor's range, else None.
 
     The same limits as the core's Measurements.validate: a posture outside them
@@ -150,18 +168,25 @@ def posture_problem(posture: PostureReading, limits: MeasurementLimits = Measure
     for name, value in zip(names, posture.slider_positions):
         if not limits.slider_min_m <= value <= limits.slider_max_m:
             return SLIDER_BEYOND_STROKE, (
-                f"{name} = {value!r} m is beyond the stroke "
-                f"[{limits.slider_min_m:g}, {limits.slider_max_m:g}] m")
-    for name, value, limit in (("inclinometer_x (alpha)", posture.alpha, limits.inclinometer_range_rad),
-                               ("inclinometer_y (beta)", posture.beta, limits.inclinometer_range_rad),
-                               ("rotary (phi)", posture.phi, limits.rotary_range_rad)):
+                f'{name} = {value!r} m is beyond the stroke '
+                f'[{limits.slider_min_m:g}, {limits.slider_max_m:g}] m'
+            )
+    for name, value, limit in (
+        ('inclinometer_x (alpha)', posture.alpha, limits.inclinometer_range_rad),
+        ('inclinometer_y (beta)', posture.beta, limits.inclinometer_range_rad),
+        ('rotary (phi)', posture.phi, limits.rotary_range_rad),
+    ):
         if abs(value) > limit:
-            return ANGLE_OUT_OF_RANGE, f"{name} = {value!r} rad is beyond the sensor's range +-{limit:.4g} rad"
+            return (
+                ANGLE_OUT_OF_RANGE,
+                f"{name} = {value!r} rad is beyond the sensor's range +-{limit:.4g} rad",
+            )
     return None
 
 
-def measurements_from_postures(postures: Sequence[PostureReading],
-                               fixed_tolerance_rad: float = FIXED_POSITION_TOLERANCE_RAD) -> Measurements:
+def measurements_from_postures(
+    postures: Sequence[PostureReading], fixed_tolerance_rad: float = FIXED_POSITION_TOLERANCE_RAD
+) -> Measurements:
     """Stack posture readings into Measurements; kinds from the inclinometer reading.
 
     Each posture's ``device_turn`` (rad: the device turned about its link axis, e.g. pi for a
@@ -173,15 +198,28 @@ def measurements_from_postures(postures: Sequence[PostureReading],
     angles = np.array([[p.alpha, p.beta] for p in postures], dtype=float)
     rotary = np.array([p.phi for p in postures], dtype=float)
     fixed = np.all(np.abs(angles) <= fixed_tolerance_rad, axis=1)
-    return Measurements(sliders, angles, rotary, np.where(fixed, FIXED, SPHERE),
-                        device_turn=[p.device_turn for p in postures])
+    return Measurements(
+        sliders,
+        angles,
+        rotary,
+        np.where(fixed, FIXED, SPHERE),
+        device_turn=[p.device_turn for p in postures],
+    )
 
 
-def calibrate(nominal: KinematicParameters, postures: Sequence[PostureReading], *, cost: str = "absolute",
-              link_length: float = DeviceModel().link_length, allow_rank_deficient: bool = False,
-              identify_device: Sequence[str] = (), noise: NoiseModel | None = None,
-              robust_loss: str | None = None, mount: str = DEFAULT_MOUNT,
-              device_prior: DevicePrior | None = None) -> IdentificationResult:
+def calibrate(
+    nominal: KinematicParameters,
+    postures: Sequence[PostureReading],
+    *,
+    cost: str = 'absolute',
+    link_length: float = DeviceModel().link_length,
+    allow_rank_deficient: bool = False,
+    identify_device: Sequence[str] = (),
+    noise: NoiseModel | None = None,
+    robust_loss: str | None = None,
+    mount: str = DEFAULT_MOUNT,
+    device_prior: DevicePrior | None = None,
+) -> IdentificationResult:
     """Identify the parameters from received postures: the one call behind the node and the CLI.
 
     ``nominal`` is the starting parameter set of any architecture (its model is the
@@ -194,10 +232,15 @@ def calibrate(nominal: KinematicParameters, postures: Sequence[PostureReading], 
     A problem the postures do not determine raises RankDeficientError (never a
     number that means nothing) unless ``allow_rank_deficient``.
     """
-    options = SolverOptions(cost=cost, device=DeviceModel(link_length=link_length, mount=mount),
-                            allow_rank_deficient=allow_rank_deficient, free_device=tuple(identify_device),
-                            noise=noise, robust_loss=robust_loss,
-                            device_prior=device_prior if device_prior is not None else DevicePrior())
+    options = SolverOptions(
+        cost=cost,
+        device=DeviceModel(link_length=link_length, mount=mount),
+        allow_rank_deficient=allow_rank_deficient,
+        free_device=tuple(identify_device),
+        noise=noise,
+        robust_loss=robust_loss,
+        device_prior=device_prior if device_prior is not None else DevicePrior(),
+    )
     return identify(nominal, measurements_from_postures(postures), options)
 
 
@@ -205,40 +248,44 @@ def device_prior_json(prior: DevicePrior | None) -> dict[str, dict[str, float]]:
     """{name: {"value", "std"}} (SI units) of a device prior: what ``calibrate --json`` and the report carry."""
     if prior is None:
         return {}
-    return {name: {"value": float(value), "std": float(std)} for name, value, std in prior.entries}
+    return {name: {'value': float(value), 'std': float(std)} for name, value, std in prior.entries}
 
 
-def status_fields(result: IdentificationResult, device_prior: DevicePrior | None = None) -> dict[str, str]:
+def status_fields(
+    result: IdentificationResult, device_prior: DevicePrior | None = None
+) -> dict[str, str]:
     """Key/values for /hexacal/calibration_status (SI units, machine-readable).
 
     Identified device parameters: posterior ``device.<name>`` / ``std.device.<name>``; with a prior on
     one, also ``prior.device.<name>`` / ``prior_std.device.<name>``."""
     model = result.parameters.model
     fields = {
-        "outcome": result.reason,
-        "model": model,
-        "cost": result.cost,
-        "rank": str(result.rank),
-        "condition_number": f"{result.condition_number:.6g}",
-        "iterations": str(result.iterations),
-        "postures_used": str(len(result.used_postures)),
-        "postures_rejected": str(len(result.rejected_postures)),
-        "solve_seconds": f"{result.solve_seconds:.6f}",
-        "identifiable": str(result.identifiability.identifiable).lower(),
+        'outcome': result.reason,
+        'model': model,
+        'cost': result.cost,
+        'rank': str(result.rank),
+        'condition_number': f'{result.condition_number:.6g}',
+        'iterations': str(result.iterations),
+        'postures_used': str(len(result.used_postures)),
+        'postures_rejected': str(len(result.rejected_postures)),
+        'solve_seconds': f'{result.solve_seconds:.6f}',
+        'identifiable': str(result.identifiability.identifiable).lower(),
     }
-    fields["identifiability"] = result.identifiability.verdict().replace("\n", " ")
-    fields.update({f"rms_residual.{k}": f"{v:.6g}" for k, v in result.rms_residual.items()})
+    fields['identifiability'] = result.identifiability.verdict().replace('\n', ' ')
+    fields.update({f'rms_residual.{k}': f'{v:.6g}' for k, v in result.rms_residual.items()})
     for index, name in enumerate(DEVICE_PARAMETER_NAMES):
         if name in result.free_device:
-            fields[f"device.{name}"] = f"{result.device.vector[index]:.6g}"
-            fields[f"std.device.{name}"] = f"{result.device_std[index]:.6g}"
+            fields[f'device.{name}'] = f'{result.device.vector[index]:.6g}'
+            fields[f'std.device.{name}'] = f'{result.device_std[index]:.6g}'
         prior = device_prior.get(name) if device_prior is not None else None
         if prior is not None:
-            fields[f"prior.device.{name}"] = f"{prior[0]:.6g}"
-            fields[f"prior_std.device.{name}"] = f"{prior[1]:.6g}"
-    fields.update({f"std.{name}": f"{s:.6g}" for name, s in zip(parameter_names(model), result.std)})
+            fields[f'prior.device.{name}'] = f'{prior[0]:.6g}'
+            fields[f'prior_std.device.{name}'] = f'{prior[1]:.6g}'
+    fields.update(
+        {f'std.{name}': f'{s:.6g}' for name, s in zip(parameter_names(model), result.std)}
+    )
     for index, why in sorted(result.rejected_postures.items())[:20]:
-        fields[f"rejected.{index}"] = why
+        fields[f'rejected.{index}'] = why
     return fields
 
 
@@ -259,8 +306,9 @@ class BagPostures:
     mapping: InputMapping | None = None
 
 
-def _screened(postures: list[PostureReading],
-              model: str | None = None) -> tuple[list[PostureReading], list[tuple[int, str, str]]]:
+def _screened(
+    postures: list[PostureReading], model: str | None = None
+) -> tuple[list[PostureReading], list[tuple[int, str, str]]]:
     kept, rejected = [], []
     for index, posture in enumerate(postures):
         problem = posture_problem(posture, model=model)
@@ -273,20 +321,32 @@ def _screened(postures: list[PostureReading],
 
 def _topic_key(topic: str) -> str:
     """'hexacal/posture' for '/hexacal/posture' and for a namespaced '/left/hexacal/posture'."""
-    parts = topic.strip("/").split("/")
-    return "/".join(parts[-2:]) if len(parts) >= 2 and parts[-2] == "hexacal" else topic.lstrip("/")
+    parts = topic.strip('/').split('/')
+    return (
+        '/'.join(parts[-2:]) if len(parts) >= 2 and parts[-2] == 'hexacal' else topic.lstrip('/')
+    )
 
 
-COLLECTOR_METADATA = "hexacal.collector"  # the collector's metadata record (model, detector, mapping)
+COLLECTOR_METADATA = (
+    'hexacal.collector'  # the collector's metadata record (model, detector, mapping)
+)
 # Where postures come from: the posture topic if the bag has one, else the raw inputs ("auto");
 # only the posture topic; or always re-detected from the raw inputs.
-POSTURE_SOURCES = ("auto", "posture", "raw")
+POSTURE_SOURCES = ('auto', 'posture', 'raw')
 # The collector's detector settings in its metadata record: re-detection uses them.
-_DETECTOR_SETTINGS = ("window_s", "capture_s", "slider_tolerance_m", "angle_tolerance_rad", "max_gap_s",
-                      "max_skew_s")
+_DETECTOR_SETTINGS = (
+    'window_s',
+    'capture_s',
+    'slider_tolerance_m',
+    'angle_tolerance_rad',
+    'max_gap_s',
+    'max_skew_s',
+)
 
 
-def postures_from_bag(path: Path | str, *, source: str = "auto", **detector_options) -> BagPostures:
+def postures_from_bag(
+    path: Path | str, *, source: str = 'auto', **detector_options
+) -> BagPostures:
     """Postures of a bag: its posture topic, else re-detected from the raw inputs.
 
     ``source``: "auto" (the posture topic if there is one, else the raw inputs), "posture"
@@ -317,59 +377,73 @@ def postures_from_bag(path: Path | str, *, source: str = "auto", **detector_opti
     from .bag import open_bag
 
     if source not in POSTURE_SOURCES:
-        raise ValueError(f"source must be one of {', '.join(POSTURE_SOURCES)}, got {source!r}")
+        raise ValueError(f'source must be one of {", ".join(POSTURE_SOURCES)}, got {source!r}')
     reader = open_bag(path)
     topics: dict[str, str] = {}
     for topic in reader.topics():
         key = _topic_key(topic)
         if key in topics and key in (POSTURE_TOPIC, *RAW_TOPICS):
             raise InvalidMeasurementError(
-                f"bag {path} holds {key} from several namespaces ({topics[key]}, {topic}): "
-                "calibrate one machine at a time")
+                f'bag {path} holds {key} from several namespaces ({topics[key]}, {topic}): '
+                'calibrate one machine at a time'
+            )
         topics[key] = topic
     plan: dict[str, str] = {}
     collector: dict[str, str] = {}
     for record in reader.metadata():
-        if record.name.startswith("hexacal"):
-            plan.update({f"{record.name}.{k}": v for k, v in record.data.items()})
+        if record.name.startswith('hexacal'):
+            plan.update({f'{record.name}.{k}': v for k, v in record.data.items()})
         if record.name == COLLECTOR_METADATA:
             collector.update(record.data)
     recorded_model = plan.get(RECORDED_MODEL_KEY) or None
     if recorded_model is not None and recorded_model not in MODELS:
-        raise InvalidMeasurementError(f"bag {path}: its metadata names an unknown model {recorded_model!r} "
-                                      f"({RECORDED_MODEL_KEY}); hexacal knows {', '.join(MODELS)}")
+        raise InvalidMeasurementError(
+            f'bag {path}: its metadata names an unknown model {recorded_model!r} '
+            f'({RECORDED_MODEL_KEY}); hexacal knows {", ".join(MODELS)}'
+        )
     try:
         mapping = InputMapping.from_metadata(collector, recorded_model)
     except InputMappingError as error:
-        raise InvalidMeasurementError(f"bag {path}: the input mapping its collector recorded "
-                                      f"({COLLECTOR_METADATA}) is invalid: {error}") from None
+        raise InvalidMeasurementError(
+            f'bag {path}: the input mapping its collector recorded '
+            f'({COLLECTOR_METADATA}) is invalid: {error}'
+        ) from None
     raw = _raw_topics(reader.topics(), topics, mapping)
     ours = {topics[POSTURE_TOPIC]} if POSTURE_TOPIC in topics else set()
     ours.update(raw.values())
     ignored = sorted(t for t in reader.topics() if t not in ours)
     _check_types(reader, _expected_types(topics, raw, mapping))
-    if POSTURE_TOPIC in topics and source != "raw":
+    if POSTURE_TOPIC in topics and source != 'raw':
         models: set[str] = set()
-        postures, invalid = _valid(reader.messages([topics[POSTURE_TOPIC]]),
-                                   lambda m: _posture(m, models, recorded_model))
+        postures, invalid = _valid(
+            reader.messages([topics[POSTURE_TOPIC]]), lambda m: _posture(m, models, recorded_model)
+        )
         model = _bag_model(path, models, recorded_model)
         kept, rejected = _screened(postures, model)
-        return BagPostures(kept, "posture topic", plan, ignored, invalid, rejected, model, mapping)
-    if source == "posture":
-        raise InvalidMeasurementError(f"bag {path} has no {POSTURE_TOPIC} topic")
+        return BagPostures(kept, 'posture topic', plan, ignored, invalid, rejected, model, mapping)
+    if source == 'posture':
+        raise InvalidMeasurementError(f'bag {path} has no {POSTURE_TOPIC} topic')
     missing = [_input_text(t, mapping) for t in RAW_TOPICS if t not in raw]
     if missing:
         raise InvalidMeasurementError(
-            f"bag {path} has no {POSTURE_TOPIC} topic and lacks the raw stream(s) "
-            f"{', '.join(missing)} needed to re-detect postures" if POSTURE_TOPIC not in topics else
-            f"bag {path} lacks the raw stream(s) {', '.join(missing)} needed to re-detect postures")
-    options = {name: float(collector[name]) for name in _DETECTOR_SETTINGS if _is_number(collector.get(name))}
+            f'bag {path} has no {POSTURE_TOPIC} topic and lacks the raw stream(s) '
+            f'{", ".join(missing)} needed to re-detect postures'
+            if POSTURE_TOPIC not in topics
+            else f'bag {path} lacks the raw stream(s) {", ".join(missing)} needed to re-detect postures'
+        )
+    options = {
+        name: float(collector[name])
+        for name in _DETECTOR_SETTINGS
+        if _is_number(collector.get(name))
+    }
     options.update(detector_options)
     models = set()
     postures, invalid = _redetect(reader, raw, mapping, models, recorded_model, **options)
     model = _bag_model(path, models, recorded_model)
     kept, rejected = _screened(postures, model)
-    return BagPostures(kept, "raw streams (re-detected)", plan, ignored, invalid, rejected, model, mapping)
+    return BagPostures(
+        kept, 'raw streams (re-detected)', plan, ignored, invalid, rejected, model, mapping
+    )
 
 
 def _is_number(text: str | None) -> bool:
@@ -380,52 +454,58 @@ def _is_number(text: str | None) -> bool:
 
 
 def _input_text(input_topic: str, mapping: InputMapping | None) -> str:
-    recorded = mapping.input_topic(input_topic) if mapping is not None else ""
-    if recorded and recorded.lstrip("/") != input_topic:
-        return f"{recorded} (the {INPUT_NAMES[input_topic]} input)"
-    return "/" + input_topic
+    recorded = mapping.input_topic(input_topic) if mapping is not None else ''
+    if recorded and recorded.lstrip('/') != input_topic:
+        return f'{recorded} (the {INPUT_NAMES[input_topic]} input)'
+    return '/' + input_topic
 
 
 def _raw_topics(infos, topics: dict[str, str], mapping: InputMapping | None) -> dict[str, str]:
     """The bag topic of each raw input that the bag has: the recorded mapping's, else the contract's."""
     raw: dict[str, str] = {}
-    by_name = {name.lstrip("/"): name for name in infos}
+    by_name = {name.lstrip('/'): name for name in infos}
     for input_topic in RAW_TOPICS:
-        recorded = mapping.input_topic(input_topic) if mapping is not None else ""
+        recorded = mapping.input_topic(input_topic) if mapping is not None else ''
         if recorded:
-            if recorded.lstrip("/") in by_name:
-                raw[input_topic] = by_name[recorded.lstrip("/")]
+            if recorded.lstrip('/') in by_name:
+                raw[input_topic] = by_name[recorded.lstrip('/')]
         elif input_topic in topics:
             raw[input_topic] = topics[input_topic]
     return raw
 
 
-def _expected_types(topics: dict[str, str], raw: dict[str, str],
-                    mapping: InputMapping | None) -> dict[str, str]:
+def _expected_types(
+    topics: dict[str, str], raw: dict[str, str], mapping: InputMapping | None
+) -> dict[str, str]:
     """The message type each of the bag's posture and input topics must have."""
     expected = {topics[POSTURE_TOPIC]: JOINT_STATE_TYPE} if POSTURE_TOPIC in topics else {}
     for input_topic, name in raw.items():
-        imu = (input_topic == INCLINOMETER_TOPIC and mapping is not None
-               and mapping.inclinometer_type == IMU_INCLINOMETER)
+        imu = (
+            input_topic == INCLINOMETER_TOPIC
+            and mapping is not None
+            and mapping.inclinometer_type == IMU_INCLINOMETER
+        )
         expected[name] = IMU_TYPE if imu else JOINT_STATE_TYPE
     return expected
 
 
-RECORDED_MODEL_KEY = "hexacal.collector.model"  # the collector's metadata record, key 'model'
+RECORDED_MODEL_KEY = 'hexacal.collector.model'  # the collector's metadata record, key 'model'
 
 
 def _bag_model(path, models: set[str], recorded_model: str | None) -> str | None:
     """The one model of a bag's actuator joints (else the recorded one); two models or a contradiction raise."""
     if len(models) > 1:
         raise InvalidMeasurementError(
-            f"bag {path} holds the actuator joints of several models ({', '.join(sorted(models))}): "
-            "calibrate one machine at a time")
+            f'bag {path} holds the actuator joints of several models ({", ".join(sorted(models))}): '
+            'calibrate one machine at a time'
+        )
     if models:
         (model,) = models
         if recorded_model is not None and recorded_model != model:
             raise InvalidMeasurementError(
-                f"bag {path}: its messages carry {model} joints ({_joints_text(model)}) but its collector "
-                f"recorded a {recorded_model} ({RECORDED_MODEL_KEY})")
+                f'bag {path}: its messages carry {model} joints ({_joints_text(model)}) but its collector '
+                f'recorded a {recorded_model} ({RECORDED_MODEL_KEY})'
+            )
         return model
     return recorded_model
 
@@ -461,41 +541,63 @@ def _valid(messages, convert) -> tuple[list, int]:
 
 def _check_types(reader, expected: dict[str, str]) -> None:
     """Each topic of `expected` (bag topic -> type) has that type, in the installed version."""
-    from .bag import BagSchemaError, MessageDefinitionNotFoundError, message_definition
-    from .bag.schemas import SCHEMA_ENCODING, field_signature
+    from .bag import BagSchemaError, message_definition, MessageDefinitionNotFoundError
+    from .bag.schemas import field_signature, SCHEMA_ENCODING
 
     infos = reader.topics()
     installed: dict[str, object] = {}
     for topic, type_name in expected.items():
         if infos[topic].type_name != type_name:
-            shown = _topic_key(topic) if _topic_key(topic).startswith("hexacal/") else topic.lstrip("/")
+            shown = (
+                _topic_key(topic)
+                if _topic_key(topic).startswith('hexacal/')
+                else topic.lstrip('/')
+            )
             raise BagSchemaError(
-                f"topic /{shown} has type {infos[topic].type_name}, expected {type_name}",
-                topic=topic, expected=type_name, found=infos[topic].type_name)
+                f'topic /{shown} has type {infos[topic].type_name}, expected {type_name}',
+                topic=topic,
+                expected=type_name,
+                found=infos[topic].type_name,
+            )
         if type_name not in installed:
             try:
                 installed[type_name] = field_signature(message_definition(type_name))
             except MessageDefinitionNotFoundError:
-                installed[type_name] = None  # no .msg files to compare with: the bag's own schema decodes it
+                installed[type_name] = (
+                    None  # no .msg files to compare with: the bag's own schema decodes it
+                )
         signature = installed[type_name]
         for encoding, text in reader.schemas(topic) if signature is not None else ():
             found = field_signature(text) if encoding == SCHEMA_ENCODING else signature
             if found != signature:
                 raise BagSchemaError(
-                    f"topic {topic} was recorded with another version of {type_name}: "
-                    f"{_signature_difference(found, signature)}", topic=topic,
-                    expected=type_name, found=infos[topic].type_name)
+                    f'topic {topic} was recorded with another version of {type_name}: '
+                    f'{_signature_difference(found, signature)}',
+                    topic=topic,
+                    expected=type_name,
+                    found=infos[topic].type_name,
+                )
 
 
 def _signature_difference(found, installed) -> str:
-    found_fields, installed_fields = dict((n, t) for t, n in found), dict((n, t) for t, n in installed)
-    parts = [f"no field {name!r}" for name in installed_fields if name not in found_fields]
-    parts += [f"extra field {found_fields[name]} {name}" for name in found_fields if name not in installed_fields]
-    parts += [f"field {name!r} is {found_fields[name]}, not {installed_fields[name]}"
-              for name in installed_fields if name in found_fields and found_fields[name] != installed_fields[name]]
+    found_fields, installed_fields = (
+        dict((n, t) for t, n in found),
+        dict((n, t) for t, n in installed),
+    )
+    parts = [f'no field {name!r}' for name in installed_fields if name not in found_fields]
+    parts += [
+        f'extra field {found_fields[name]} {name}'
+        for name in found_fields
+        if name not in installed_fields
+    ]
+    parts += [
+        f'field {name!r} is {found_fields[name]}, not {installed_fields[name]}'
+        for name in installed_fields
+        if name in found_fields and found_fields[name] != installed_fields[name]
+    ]
     if not parts:
-        parts = [f"fields in another order ({', '.join(found_fields)})"]
-    return "; ".join(parts) + " (installed: " + ", ".join(f"{t} {n}" for t, n in installed) + ")"
+        parts = [f'fields in another order ({", ".join(found_fields)})']
+    return '; '.join(parts) + ' (installed: ' + ', '.join(f'{t} {n}' for t, n in installed) + ')'
 
 
 def _joint_state(message, checked: set[str]):
@@ -508,18 +610,24 @@ def _joint_state(message, checked: set[str]):
     if message.topic not in checked:
         try:
             stamp = decoded.header.stamp
-            usable = (isinstance(stamp.sec, int) and isinstance(stamp.nanosec, int)
-                      and all(isinstance(name, str) for name in decoded.name)
-                      and all(isinstance(value, float) for value in decoded.position))
+            usable = (
+                isinstance(stamp.sec, int)
+                and isinstance(stamp.nanosec, int)
+                and all(isinstance(name, str) for name in decoded.name)
+                and all(isinstance(value, float) for value in decoded.position)
+            )
         except (AttributeError, TypeError):
             usable = False
         if not usable:
             from .bag import BagSchemaError
 
             raise BagSchemaError(
-                f"topic {message.topic}: its schema does not decode to a {JOINT_STATE_TYPE} "
-                f"(header.stamp, name: string[], position: float64[]); got {decoded!r:.200}",
-                topic=message.topic, expected=JOINT_STATE_TYPE, found=message.type_name)
+                f'topic {message.topic}: its schema does not decode to a {JOINT_STATE_TYPE} '
+                f'(header.stamp, name: string[], position: float64[]); got {decoded!r:.200}',
+                topic=message.topic,
+                expected=JOINT_STATE_TYPE,
+                found=message.type_name,
+            )
         checked.add(message.topic)
     return decoded
 
@@ -536,37 +644,49 @@ def _imu(message, checked: set[str]):
     if message.topic not in checked:
         try:
             stamp, orientation = decoded.header.stamp, decoded.orientation
-            usable = (isinstance(stamp.sec, int) and isinstance(stamp.nanosec, int)
-                      and all(isinstance(getattr(orientation, axis), float) for axis in "xyzw")
-                      and len(decoded.orientation_covariance) == 9)
+            usable = (
+                isinstance(stamp.sec, int)
+                and isinstance(stamp.nanosec, int)
+                and all(isinstance(getattr(orientation, axis), float) for axis in 'xyzw')
+                and len(decoded.orientation_covariance) == 9
+            )
         except (AttributeError, TypeError):
             usable = False
         if not usable:
             from .bag import BagSchemaError
 
             raise BagSchemaError(
-                f"topic {message.topic}: its schema does not decode to a {IMU_TYPE} "
-                f"(header.stamp, orientation, orientation_covariance); got {decoded!r:.200}",
-                topic=message.topic, expected=IMU_TYPE, found=message.type_name)
+                f'topic {message.topic}: its schema does not decode to a {IMU_TYPE} '
+                f'(header.stamp, orientation, orientation_covariance); got {decoded!r:.200}',
+                topic=message.topic,
+                expected=IMU_TYPE,
+                found=message.type_name,
+            )
         checked.add(message.topic)
     return decoded
 
 
-def _redetect(reader, topics: dict[str, str], mapping: InputMapping | None, models: set[str],
-              recorded_model: str | None, max_skew_s: float | None = None,
-              **detector_options) -> tuple[list[PostureReading], int]:
+def _redetect(
+    reader,
+    topics: dict[str, str],
+    mapping: InputMapping | None,
+    models: set[str],
+    recorded_model: str | None,
+    max_skew_s: float | None = None,
+    **detector_options,
+) -> tuple[list[PostureReading], int]:
     """Re-detect the postures of the raw inputs (`topics`: input -> bag topic), read by `mapping`.
 
     Inputs that share a topic (one /joint_states) are read from each of its messages once;
     a reading that is not valid counts once in the returned number of invalid readings.
     """
-    from hexacal_msgs_py.errors import InvalidReadingError
     from hexacal_msgs_py.conversions import (
         imu_to_inclinometer_reading,
         joint_state_to_encoder_reading,
         joint_state_to_inclinometer_reading,
         joint_state_to_slider_reading,
     )
+    from hexacal_msgs_py.errors import InvalidReadingError
 
     from .bag import BagDecodeError
     from .core.posture_detector import detect_postures, synchronize_arrays
@@ -574,10 +694,16 @@ def _redetect(reader, topics: dict[str, str], mapping: InputMapping | None, mode
     imu = mapping is not None and mapping.inclinometer_type == IMU_INCLINOMETER
     streams: dict[str, tuple[list[int], list]] = {t: ([], []) for t in RAW_TOPICS}
     convert = {
-        SLIDERS_TOPIC: lambda m: joint_state_to_slider_reading(
-            m, _model_of(m, models, recorded_model), mapping).slider_positions,
+        SLIDERS_TOPIC: lambda m: (
+            joint_state_to_slider_reading(
+                m, _model_of(m, models, recorded_model), mapping
+            ).slider_positions
+        ),
         INCLINOMETER_TOPIC: lambda m: (lambda r: (r.alpha, r.beta, r.device_turn))(
-            imu_to_inclinometer_reading(m, mapping) if imu else joint_state_to_inclinometer_reading(m, mapping)),
+            imu_to_inclinometer_reading(m, mapping)
+            if imu
+            else joint_state_to_inclinometer_reading(m, mapping)
+        ),
         ENCODER_TOPIC: lambda m: (joint_state_to_encoder_reading(m, mapping).phi,),
     }
     inputs_of: dict[str, list[str]] = {}
@@ -588,7 +714,11 @@ def _redetect(reader, topics: dict[str, str], mapping: InputMapping | None, mode
     for message in reader.messages(list(inputs_of)):
         inputs = inputs_of[message.topic]
         try:
-            decoded = _imu(message, checked) if message.topic == imu_topic else _joint_state(message, checked)
+            decoded = (
+                _imu(message, checked)
+                if message.topic == imu_topic
+                else _joint_state(message, checked)
+            )
         except BagDecodeError:
             invalid += len(inputs)  # bytes that are no message: not used, counted
             continue
@@ -604,27 +734,41 @@ def _redetect(reader, topics: dict[str, str], mapping: InputMapping | None, mode
             stamps, values = streams[key]
             stamps.append(stamp)
             values.append(value)
-    arrays = [(np.array(streams[t][0], dtype=np.int64), np.array(streams[t][1], dtype=float)) for t in RAW_TOPICS]
+    arrays = [
+        (np.array(streams[t][0], dtype=np.int64), np.array(streams[t][1], dtype=float))
+        for t in RAW_TOPICS
+    ]
     # The inclinometer's device_turn joint (the mounting) rides beside alpha, beta: not a channel to synchronise.
     inclinometer_stamps, inclinometer = arrays[1]
     inclinometer = inclinometer.reshape(-1, 3)
-    skew = {} if max_skew_s is None else {"max_skew_ns": int(max_skew_s * 1_000_000_000)}
-    stamps, values = synchronize_arrays(arrays[0][0], arrays[0][1], inclinometer_stamps, inclinometer[:, :2],
-                                        arrays[2][0], arrays[2][1], **skew)
+    skew = {} if max_skew_s is None else {'max_skew_ns': int(max_skew_s * 1_000_000_000)}
+    stamps, values = synchronize_arrays(
+        arrays[0][0],
+        arrays[0][1],
+        inclinometer_stamps,
+        inclinometer[:, :2],
+        arrays[2][0],
+        arrays[2][1],
+        **skew,
+    )
     readings = [d.reading for d in detect_postures(stamps, values, **detector_options)]
     return _with_turns(readings, inclinometer_stamps, inclinometer[:, 2]), invalid
 
 
-def _with_turns(readings: list[PostureReading], stamps: np.ndarray, turns: np.ndarray) -> list[PostureReading]:
+def _with_turns(
+    readings: list[PostureReading], stamps: np.ndarray, turns: np.ndarray
+) -> list[PostureReading]:
     """Each reading with the device turn of the inclinometer message nearest its stamp (the mounting it was in)."""
     if not len(turns) or not np.any(turns):
         return readings
-    order = np.argsort(stamps, kind="stable")
+    order = np.argsort(stamps, kind='stable')
     stamps, turns = stamps[order], turns[order]
     out = []
     for reading in readings:
         index = int(np.clip(np.searchsorted(stamps, reading.stamp_ns), 0, len(stamps) - 1))
         around = np.arange(max(index - 1, 0), index + 1)
         nearest = around[np.argmin(np.abs(stamps[around] - reading.stamp_ns))]
-        out.append(replace(reading, device_turn=float(turns[nearest])) if turns[nearest] else reading)
+        out.append(
+            replace(reading, device_turn=float(turns[nearest])) if turns[nearest] else reading
+        )
     return out

@@ -1,8 +1,4 @@
 """Kinematics: IK at home, IK/FK round trips over the workspace, analytic Jacobians vs finite differences."""
-import numpy as np
-import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from hexacal_identify.core.errors import InvalidMeasurementError, UnreachablePoseError
 from hexacal_identify.core.kinematics import (
@@ -14,7 +10,11 @@ from hexacal_identify.core.kinematics import (
     rotation_matrices,
 )
 from hexacal_identify.core.model import HexaParameters, nominal_set, table1_parameters
-from hexacal_identify.core.postures import Workspace, acceptable_poses, sample_poses
+from hexacal_identify.core.postures import acceptable_poses, sample_poses, Workspace
+from hypothesis import given, settings
+from hypothesis import strategies as st
+import numpy as np
+import pytest
 
 TRUE = table1_parameters()
 HOME = np.array([[0.0, 0.0, -0.75, 0.0, 0.0, 0.0]])
@@ -27,15 +27,22 @@ def test_home_slider_positions_are_about_315_mm():
 
 def test_rotation_matches_eq2_composition():
     theta, psi, phi = 0.3, -0.2, 0.5
-    ry = np.array([[np.cos(theta), 0, np.sin(theta)], [0, 1, 0], [-np.sin(theta), 0, np.cos(theta)]])
+    ry = np.array(
+        [[np.cos(theta), 0, np.sin(theta)], [0, 1, 0], [-np.sin(theta), 0, np.cos(theta)]]
+    )
     rx = np.array([[1, 0, 0], [0, np.cos(psi), -np.sin(psi)], [0, np.sin(psi), np.cos(psi)]])
     rz = np.array([[np.cos(phi), -np.sin(phi), 0], [np.sin(phi), np.cos(phi), 0], [0, 0, 1]])
-    np.testing.assert_allclose(rotation_matrices(np.array([[theta, psi, phi]]))[0], ry @ rx @ rz, atol=1e-15)
+    np.testing.assert_allclose(
+        rotation_matrices(np.array([[theta, psi, phi]]))[0], ry @ rx @ rz, atol=1e-15
+    )
 
 
 pose_strategy = st.tuples(
-    st.floats(-0.4, 0.4), st.floats(-0.4, 0.4),
-    st.floats(-0.61, 0.61), st.floats(-0.61, 0.61), st.floats(-0.61, 0.61),
+    st.floats(-0.4, 0.4),
+    st.floats(-0.4, 0.4),
+    st.floats(-0.61, 0.61),
+    st.floats(-0.61, 0.61),
+    st.floats(-0.61, 0.61),
 )
 
 
@@ -68,11 +75,15 @@ def test_fk_reports_failures_by_index_and_reason():
     sliders = inverse_kinematics(TRUE, poses)
     sliders[2] = np.nan
     start = poses.copy()
-    start[4, :3] += [0.3, 0.0, 0.0]  # expected posture 300 mm off: the solution is "another branch"
+    start[4, :3] += [
+        0.3,
+        0.0,
+        0.0,
+    ]  # expected posture 300 mm off: the solution is "another branch"
     result = forward_kinematics(TRUE, sliders, start)
     assert set(result.failures) == {2, 4}
-    assert "non-finite" in result.failures[2]
-    assert "branch" in result.failures[4]
+    assert 'non-finite' in result.failures[2]
+    assert 'branch' in result.failures[4]
     assert np.isnan(result.poses[[2, 4]]).all() and result.converged[[0, 1, 3]].all()
 
 
@@ -112,7 +123,9 @@ def test_parameter_jacobian_matches_finite_differences():
             h[chain * 9 + field] = 1e-7
             plus = inverse_kinematics(HexaParameters(params.vector + h), poses)[:, chain]
             minus = inverse_kinematics(HexaParameters(params.vector - h), poses)[:, chain]
-            np.testing.assert_allclose(blocks[:, chain, field], (plus - minus) / 2e-7, atol=1e-7, rtol=1e-6)
+            np.testing.assert_allclose(
+                blocks[:, chain, field], (plus - minus) / 2e-7, atol=1e-7, rtol=1e-6
+            )
 
 
 def test_fk_internal_jacobians_match_finite_differences_and_the_public_ones():
@@ -133,14 +146,18 @@ def test_fk_internal_jacobians_match_finite_differences_and_the_public_ones():
         numeric = _central(lambda p: inverse_kinematics(params, p), poses, h)
         np.testing.assert_allclose(jac[:, :, k], numeric, atol=1e-8, rtol=1e-6)
     blocks = legs.parameter_blocks(chains)
-    np.testing.assert_allclose(blocks, parameter_jacobian_blocks(params, geometry), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(
+        blocks, parameter_jacobian_blocks(params, geometry), rtol=1e-12, atol=1e-12
+    )
     for chain in range(6):
         for field in range(9):
             h = np.zeros(54)
             h[chain * 9 + field] = 1e-7
             plus = inverse_kinematics(HexaParameters(params.vector + h), poses)[:, chain]
             minus = inverse_kinematics(HexaParameters(params.vector - h), poses)[:, chain]
-            np.testing.assert_allclose(blocks[:, chain, field], (plus - minus) / 2e-7, atol=1e-7, rtol=1e-6)
+            np.testing.assert_allclose(
+                blocks[:, chain, field], (plus - minus) / 2e-7, atol=1e-7, rtol=1e-6
+            )
 
 
 def test_factored_pose_sensitivity_rows_equal_the_full_array():
@@ -153,7 +170,13 @@ def test_factored_pose_sensitivity_rows_equal_the_full_array():
     assert full.shape == (9, 6, 54)
     index = np.array([0, 3, 8])
     np.testing.assert_array_equal(sensitivity.rows(None, slice(5, 6), -1.0), -full[:, 5:6, :])
-    np.testing.assert_allclose(sensitivity.rows(index, slice(0, 3), 2.5), 2.5 * full[index, :3, :], rtol=1e-15, atol=0)
+    np.testing.assert_allclose(
+        sensitivity.rows(index, slice(0, 3), 2.5), 2.5 * full[index, :3, :], rtol=1e-15, atol=0
+    )
     weights = np.random.default_rng(11).normal(size=(3, 6))
-    np.testing.assert_allclose(sensitivity.combined(index, weights), np.einsum("nk,nkp->np", weights, full[index]),
-                               rtol=1e-12, atol=1e-14 * np.abs(full).max())
+    np.testing.assert_allclose(
+        sensitivity.combined(index, weights),
+        np.einsum('nk,nkp->np', weights, full[index]),
+        rtol=1e-12,
+        atol=1e-14 * np.abs(full).max(),
+    )

@@ -1,12 +1,18 @@
 """core/live.py: the pose of live readings (FK on the guess's branch) and actuator targets with the stroke check."""
-import numpy as np
-import pytest
 
-from hexacal_identify.core.architectures import ARCHITECTURES, architecture
+from hexacal_identify.core.architectures import architecture, ARCHITECTURES
 from hexacal_identify.core.errors import ForwardKinematicsError, UnreachablePoseError
 from hexacal_identify.core.kinematics import forward_kinematics, inverse_kinematics
-from hexacal_identify.core.live import OutOfStrokeError, actuator_targets, default_stroke, home_pose, solve_pose
+from hexacal_identify.core.live import (
+    actuator_targets,
+    default_stroke,
+    home_pose,
+    OutOfStrokeError,
+    solve_pose,
+)
 from hexacal_identify.core.postures import sample_poses
+import numpy as np
+import pytest
 
 
 def test_home_pose_is_the_fixed_point_level():

@@ -7,22 +7,26 @@ of the column norms: so the pivots must be scipy's exactly, on random matrices
 and on real identification problems, including the rank-deficient ones (the
 sphere, fixed and relative costs are rank 53 of 54).
 """
-import numpy as np
-import pytest
 
 from hexacal_identify.core import identifiability
 from hexacal_identify.core.errors import RankDeficientError
 from hexacal_identify.core.identifiability import pivoted_qr
-from hexacal_identify.core.identification import SolverOptions, identify
+from hexacal_identify.core.identification import identify, SolverOptions
 from hexacal_identify.core.model import nominal_set
 from hexacal_identify.core.residuals import COSTS
-from hexacal_identify.studies.accuracy import StudyRun, identifiability_by_cost, simulate_run_measurements
+from hexacal_identify.studies.accuracy import (
+    identifiability_by_cost,
+    simulate_run_measurements,
+    StudyRun,
+)
+import numpy as np
+import pytest
 
-scipy_linalg = pytest.importorskip("scipy.linalg")
+scipy_linalg = pytest.importorskip('scipy.linalg')
 
 
 def scipy_pivoted_qr(matrix):
-    r, pivots = scipy_linalg.qr(matrix, mode="r", pivoting=True)
+    r, pivots = scipy_linalg.qr(matrix, mode='r', pivoting=True)
     return r[: min(matrix.shape)], pivots
 
 
@@ -34,15 +38,33 @@ def assert_same_factorization(matrix, steps=None):
     assert r.shape == expected_r.shape
     np.testing.assert_array_equal(pivots[:steps], expected_pivots[:steps])
     scale = max(abs(expected_r[0, 0]), 1.0) if expected_r.size else 1.0
-    np.testing.assert_allclose(np.abs(np.diag(r))[:steps], np.abs(np.diag(expected_r))[:steps],
-                               rtol=1e-10, atol=1e-12 * scale)
+    np.testing.assert_allclose(
+        np.abs(np.diag(r))[:steps],
+        np.abs(np.diag(expected_r))[:steps],
+        rtol=1e-10,
+        atol=1e-12 * scale,
+    )
     if steps == min(matrix.shape) and np.array_equal(pivots, expected_pivots):
         np.testing.assert_allclose(np.abs(r), np.abs(expected_r), rtol=0, atol=1e-10 * scale)
         np.testing.assert_array_equal(np.tril(r, -1), 0.0)
 
 
-@pytest.mark.parametrize("shape", [(1, 1), (1, 5), (5, 1), (7, 3), (3, 7), (54, 54), (59, 59), (200, 54),
-                                   (9, 9), (16, 12), (17, 12)])
+@pytest.mark.parametrize(
+    'shape',
+    [
+        (1, 1),
+        (1, 5),
+        (5, 1),
+        (7, 3),
+        (3, 7),
+        (54, 54),
+        (59, 59),
+        (200, 54),
+        (9, 9),
+        (16, 12),
+        (17, 12),
+    ],
+)
 def test_random_matrices_match_scipy(shape):
     rng = np.random.default_rng(sum(shape))
     for _ in range(20):
@@ -98,20 +120,27 @@ def _report_text(report):
 def test_identifiability_by_cost_matches_scipy(monkeypatch):
     """The study's analysis of the tall Jacobian of each cost (rank 53 for sphere, fixed and relative)."""
     both = _Both()
-    monkeypatch.setattr(identifiability, "pivoted_qr", both)
+    monkeypatch.setattr(identifiability, 'pivoted_qr', both)
     ours = identifiability_by_cost(postures=30)
     assert {row.cost: row.report.rank for row in ours} == {
-        "absolute": 54, "sphere": 53, "fixed": 53, "sphere-fixed": 54, "relative": 53}
+        'absolute': 54,
+        'sphere': 53,
+        'fixed': 53,
+        'sphere-fixed': 54,
+        'relative': 53,
+    }
     for matrix in both.matrices:
         assert_same_factorization(matrix)
-    monkeypatch.setattr(identifiability, "pivoted_qr", scipy_pivoted_qr)
+    monkeypatch.setattr(identifiability, 'pivoted_qr', scipy_pivoted_qr)
     theirs = identifiability_by_cost(postures=30)
     for a, b in zip(ours, theirs):
         assert _report_text(a.report) == _report_text(b.report), a.cost
 
 
 def _identify_report(cost, free_device=()):
-    measurements = simulate_run_measurements(StudyRun(postures=40, noise_um=10.0, seed=4, cost=cost))
+    measurements = simulate_run_measurements(
+        StudyRun(postures=40, noise_um=10.0, seed=4, cost=cost)
+    )
     options = SolverOptions(cost=cost, free_device=free_device)
     try:
         return identify(nominal_set(2, seed=0), measurements, options).identifiability
@@ -119,17 +148,20 @@ def _identify_report(cost, free_device=()):
         return error.report
 
 
-@pytest.mark.parametrize("cost, free_device", [(cost, ()) for cost in COSTS] + [("relative", ("phi0",)),
-                                                                              ("absolute", ("dL", "alpha0", "gamma"))])
+@pytest.mark.parametrize(
+    'cost, free_device',
+    [(cost, ()) for cost in COSTS]
+    + [('relative', ('phi0',)), ('absolute', ('dL', 'alpha0', 'gamma'))],
+)
 def test_identification_refusals_match_scipy(monkeypatch, cost, free_device):
     """The solver's analysis (on the square root of J^T J): same rank, combinations and suggestions."""
     both = _Both()
-    monkeypatch.setattr(identifiability, "pivoted_qr", both)
+    monkeypatch.setattr(identifiability, 'pivoted_qr', both)
     ours = _identify_report(cost, free_device)
     assert both.matrices
     for matrix in both.matrices:
         assert_same_factorization(matrix)
-    monkeypatch.setattr(identifiability, "pivoted_qr", scipy_pivoted_qr)
+    monkeypatch.setattr(identifiability, 'pivoted_qr', scipy_pivoted_qr)
     assert _report_text(ours) == _report_text(_identify_report(cost, free_device))
-    if cost in ("sphere", "fixed", "relative"):
+    if cost in ('sphere', 'fixed', 'relative'):
         assert ours.rank == 53 and ours.unidentifiable_parameters

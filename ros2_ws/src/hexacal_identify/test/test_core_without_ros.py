@@ -1,4 +1,5 @@
 """The core must import and run where rclpy and the ROS message packages are absent."""
+
 import subprocess
 import sys
 import textwrap
@@ -17,7 +18,9 @@ def test_core_runs_with_rclpy_unimportable():
         print(result.reason, float(np.abs(result.parameters.vector - true.vector).max()))
         assert not any(name.startswith("rclpy") for name in sys.modules if sys.modules[name] is not None)
     """)
-    completed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    completed = subprocess.run(
+        [sys.executable, '-c', script], capture_output=True, text=True, timeout=120
+    )
     assert completed.returncode == 0, completed.stderr
     reason, error = completed.stdout.split()
-    assert reason == "converged" and float(error) < 1e-9
+    assert reason == 'converged' and float(error) < 1e-9

@@ -1,38 +1,38 @@
 """core/execution.py: targets, stroke check, time_from_start, the fixed-position correction, the state machine."""
+
 from __future__ import annotations
 
 import math
-
-import numpy as np
-import pytest
 
 from hexacal_identify.core.architectures import default_parameters
 from hexacal_identify.core.device import fixed_point, inclinometer_angles, measured_position
 from hexacal_identify.core.execution import (
     ABORTED,
-    CORRECT,
-    DONE,
-    HOLD,
-    MIN_MOVE_S,
-    MOVE,
-    PAUSED,
-    RUNNING,
-    WAITING,
-    ExecutionSettings,
-    PlanExecution,
-    PlanRefusedError,
     check_plan,
     check_stroke,
+    CORRECT,
     corrected_pose,
     default_stroke,
+    DONE,
+    ExecutionSettings,
     fixed_position_correction,
+    HOLD,
     joint_positions,
+    MIN_MOVE_S,
+    MOVE,
     move_duration,
+    PAUSED,
     plan_targets,
+    PlanExecution,
+    PlanRefusedError,
+    RUNNING,
+    WAITING,
 )
 from hexacal_identify.core.kinematics import inverse_kinematics
 from hexacal_identify.core.model import nominal_set, table1_parameters
 from hexacal_identify.core.postures import sample_poses
+import numpy as np
+import pytest
 
 L = 0.75
 NOMINAL = nominal_set(2, seed=0)
@@ -42,8 +42,13 @@ GS = 'gough_stewart'
 def _plan(params=NOMINAL, sphere=4, fixed=2, seed=0):
     rng = np.random.default_rng(seed)
     workspace = params.architecture.default_workspace()
-    poses = np.concatenate([sample_poses(params, n, rng, kind, workspace)
-                            for kind, n in (('sphere', sphere), ('fixed', fixed)) if n])
+    poses = np.concatenate(
+        [
+            sample_poses(params, n, rng, kind, workspace)
+            for kind, n in (('sphere', sphere), ('fixed', fixed))
+            if n
+        ]
+    )
     return poses, ['sphere'] * sphere + ['fixed'] * fixed
 
 
@@ -56,7 +61,9 @@ def test_targets_are_the_nominal_inverse_kinematics(model):
     poses, kinds = _plan(nominal)
     targets = check_plan(nominal, poses, kinds, default_stroke(nominal), L)
     np.testing.assert_array_equal(targets, inverse_kinematics(nominal, poses))
-    assert default_stroke(nominal) == tuple(nominal.architecture.default_workspace().slider_stroke_m)
+    assert default_stroke(nominal) == tuple(
+        nominal.architecture.default_workspace().slider_stroke_m
+    )
 
 
 def test_a_target_outside_the_stroke_refuses_the_whole_plan_naming_each_posture():
@@ -94,7 +101,9 @@ def test_stroke_limits_must_be_two_increasing_numbers(stroke):
 
 
 def test_time_from_start_is_the_largest_move_at_the_maximum_speed():
-    assert move_duration(np.zeros(6), np.array([0.0, 0.1, -0.3, 0, 0, 0]), 0.1) == pytest.approx(3.0)
+    assert move_duration(np.zeros(6), np.array([0.0, 0.1, -0.3, 0, 0, 0]), 0.1) == pytest.approx(
+        3.0
+    )
     assert move_duration(np.zeros(6), np.full(6, 1e-6), 0.1) == MIN_MOVE_S
 
 
@@ -164,7 +173,9 @@ class _Machine:
             execution.on_actuators(self.t, q)
             if self.t >= self.t1:
                 if self.measured_at is None:
-                    pose = forward_kinematics(self.truth, q[None], np.array([[0, 0, -L, 0, 0, 0.0]]))
+                    pose = forward_kinematics(
+                        self.truth, q[None], np.array([[0, 0, -L, 0, 0, 0.0]])
+                    )
                     angles = inclinometer_angles(pose.poses[:, :3])
                     self.angles = (float(angles[0][0]), float(angles[1][0]))
                     self.measured_at = self.t + 0.4
@@ -174,8 +185,9 @@ class _Machine:
                     self.measured_at = math.inf
             else:
                 self.measured_at = None
-            self.command(execution.start(self.t) if execution.state == WAITING
-                         else execution.step(self.t))
+            self.command(
+                execution.start(self.t) if execution.state == WAITING else execution.step(self.t)
+            )
             self.t += dt
 
 
@@ -183,8 +195,15 @@ def _execution(nominal=NOMINAL, sphere=3, fixed=1, **settings):
     poses, kinds = _plan(nominal, sphere, fixed)
     stroke = default_stroke(nominal)
     settings = {'max_actuator_speed_m_s': 0.5, 'settle_s': 0.2, **settings}
-    return PlanExecution(nominal, poses, kinds, check_plan(nominal, poses, kinds, stroke, L),
-                         ExecutionSettings(**settings), stroke, L)
+    return PlanExecution(
+        nominal,
+        poses,
+        kinds,
+        check_plan(nominal, poses, kinds, stroke, L),
+        ExecutionSettings(**settings),
+        stroke,
+        L,
+    )
 
 
 def test_a_plan_is_walked_to_the_end_with_the_fixed_posture_in_closed_loop():
@@ -236,7 +255,9 @@ def test_a_posture_not_reached_in_time_is_skipped_and_reported():
     reason = execution.skipped[0].reason
     assert reason.startswith('not at the target and still within 0.5 s (actuators up to')
     progress = execution.progress(machine.t)
-    assert progress['skipped'] == 2 and progress['skipped_postures'].startswith('1: not at the target')
+    assert progress['skipped'] == 2 and progress['skipped_postures'].startswith(
+        '1: not at the target'
+    )
 
 
 def test_start_paused_waits_for_resume_and_eta_counts_down():
@@ -257,9 +278,14 @@ def test_the_stroke_defaults_to_the_plans_limits_then_the_models():
     from hexacal_identify.core.execution import plan_stroke
 
     assert plan_stroke({'limits': {'actuator_stroke_m': [0.05, 0.8]}}, NOMINAL) == (
-        (0.05, 0.8), "the plan's limits")
+        (0.05, 0.8),
+        "the plan's limits",
+    )
     assert plan_stroke({}, NOMINAL) == ((0.0, 0.9), "the hexa_slide's default workspace")
-    assert plan_stroke({'limits': {'actuator_stroke_m': 'x'}}, nominal_set(2, model=GS))[0] == (0.0, 0.5)
+    assert plan_stroke({'limits': {'actuator_stroke_m': 'x'}}, nominal_set(2, model=GS))[0] == (
+        0.0,
+        0.5,
+    )
 
 
 # --------------------------------------------------------------------------- turning the device
@@ -269,8 +295,17 @@ def _turning_execution(turns, sphere=4, **kwargs):
     poses, kinds = _plan(NOMINAL, sphere, 0)
     stroke = default_stroke(NOMINAL)
     settings = ExecutionSettings(max_actuator_speed_m_s=0.5, settle_s=0.2)
-    return PlanExecution(NOMINAL, poses, kinds, check_plan(NOMINAL, poses, kinds, stroke, L),
-                         settings, stroke, L, device_turns=turns, **kwargs)
+    return PlanExecution(
+        NOMINAL,
+        poses,
+        kinds,
+        check_plan(NOMINAL, poses, kinds, stroke, L),
+        settings,
+        stroke,
+        L,
+        device_turns=turns,
+        **kwargs,
+    )
 
 
 def test_the_execution_pauses_for_the_operator_to_turn_the_device_then_walks_on():
@@ -287,7 +322,10 @@ def test_the_execution_pauses_for_the_operator_to_turn_the_device_then_walks_on(
     assert machine.commands[-1].purpose == HOLD
     notice = execution.turn_notice
     assert notice.startswith('posture 3 of 4 needs the device turned to 180 deg (3.14159 rad)')
-    assert 'turn the device to 180 deg about its link axis, then call hexacal/executor/resume' in notice
+    assert (
+        'turn the device to 180 deg about its link axis, then call hexacal/executor/resume'
+        in notice
+    )
     assert ('warn', notice) in execution.messages
     progress = execution.progress(machine.t)
     assert progress['state'] == PAUSED and progress['posture'] == 3
@@ -321,7 +359,9 @@ def test_a_first_posture_in_another_mounting_pauses_before_anything_moves():
     assert execution.mounted_turn == math.pi / 2
     while execution.state != PAUSED:
         machine.run(machine.t + 0.1)
-    assert execution.measured == 1 and execution.turn_needed == math.pi  # quarter turn -> half turn
+    assert (
+        execution.measured == 1 and execution.turn_needed == math.pi
+    )  # quarter turn -> half turn
     machine.command(execution.resume(machine.t)[2])
     while execution.state != PAUSED:
         machine.run(machine.t + 0.1)
@@ -333,8 +373,12 @@ def test_a_first_posture_in_another_mounting_pauses_before_anything_moves():
 
 
 def test_no_pause_when_the_device_is_already_in_the_plans_mounting():
-    for turns, mounted in ((None, 0.0), ([0.0] * 3, 0.0), ([math.pi] * 3, math.pi),
-                           ([0.0, 2 * math.pi, -2 * math.pi], 0.0)):
+    for turns, mounted in (
+        (None, 0.0),
+        ([0.0] * 3, 0.0),
+        ([math.pi] * 3, math.pi),
+        ([0.0, 2 * math.pi, -2 * math.pi], 0.0),
+    ):
         execution = _turning_execution(turns, sphere=3, mounted_turn=mounted)
         machine = _Machine(default_parameters(), execution)
         machine.run(60.0)

@@ -7,16 +7,22 @@ link-fixed axis is X, so its orientation for a platform at p is built here from 
 world frame, must give device.inclinometer_angles(p), and device.measured_position of
 those angles must give p back, on either mount.
 """
+
+from hexacal_identify.core.device import (
+    HANGING,
+    inclinometer_angles,
+    measured_position,
+    MOUNTS,
+    sphere_z,
+)
+from hexacal_msgs_py.inputs import (
+    inclinometer_angles_to_quaternion,
+    InputMapping,
+    quaternion_to_inclinometer_angles,
+)
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-
-from hexacal_identify.core.device import HANGING, MOUNTS, inclinometer_angles, measured_position, sphere_z
-from hexacal_msgs_py.inputs import (
-    InputMapping,
-    inclinometer_angles_to_quaternion,
-    quaternion_to_inclinometer_angles,
-)
 
 LINK = 0.75
 
@@ -25,21 +31,23 @@ def link_orientation(position: np.ndarray, mount: str) -> Rotation:
     """The U-joint link turned to point from O to `position`: R_Y(t1) R_X(t2) (0, 0, -1 or +1) = u."""
     u = position / np.linalg.norm(position)
     axis = -1.0 if mount == HANGING else 1.0  # the link's direction in its own frame
-    t2 = np.arcsin(-axis * u[1])  # R_Y(t1) R_X(t2) (0, 0, s) = s (cos t2 sin t1, -sin t2, cos t2 cos t1)
+    t2 = np.arcsin(
+        -axis * u[1]
+    )  # R_Y(t1) R_X(t2) (0, 0, s) = s (cos t2 sin t1, -sin t2, cos t2 cos t1)
     t1 = np.arctan2(axis * u[0], axis * u[2])
-    rotation = Rotation.from_euler("YX", [t1, t2])  # intrinsic: R_Y(t1) R_X(t2)
+    rotation = Rotation.from_euler('YX', [t1, t2])  # intrinsic: R_Y(t1) R_X(t2)
     assert rotation.apply([0.0, 0.0, axis]) == pytest.approx(u, abs=1e-14)
     return rotation
 
 
-@pytest.mark.parametrize("mount", MOUNTS)
+@pytest.mark.parametrize('mount', MOUNTS)
 def test_an_imu_on_the_link_reads_device_readings(mount):
     rng = np.random.default_rng(7)
     xy = rng.uniform(-0.3, 0.3, (100, 2))
     positions = np.column_stack([xy, sphere_z(xy, LINK, mount)])
     alphas, betas = inclinometer_angles(positions, mount)
     for position, alpha, beta in zip(positions, alphas, betas):
-        heading = Rotation.from_euler("z", rng.uniform(-np.pi, np.pi))
+        heading = Rotation.from_euler('z', rng.uniform(-np.pi, np.pi))
         quaternion = (heading * link_orientation(position, mount)).as_quat()  # x, y, z, w
         read = quaternion_to_inclinometer_angles(*quaternion)
         assert read == pytest.approx((alpha, beta), abs=1e-13)
@@ -58,9 +66,14 @@ def test_the_inverse_is_the_links_orientation():
 def test_signs_and_offsets_undo_a_sensor_mounted_otherwise():
     # An IMU turned by 180 deg about the link (Z): both axes reversed; and tilted by 10 mrad about its
     # X: it reads -alpha - 0.01 and -beta, which signs (-1, -1) and offsets (-0.01, 0) turn back.
-    mapping = InputMapping(InputMapping.default().actuator_joints, inclinometer_signs=(-1, -1),
-                           inclinometer_offsets_rad=(-0.01, 0.0))
-    turned = Rotation.from_euler("z", np.pi) * Rotation.from_euler("x", 0.01)  # sensor frame in link frame
+    mapping = InputMapping(
+        InputMapping.default().actuator_joints,
+        inclinometer_signs=(-1, -1),
+        inclinometer_offsets_rad=(-0.01, 0.0),
+    )
+    turned = Rotation.from_euler('z', np.pi) * Rotation.from_euler(
+        'x', 0.01
+    )  # sensor frame in link frame
     for alpha, beta in [(0.1, -0.05), (-0.2, 0.15), (0.0, 0.0)]:
         position = measured_position(alpha, beta, LINK)
         sensor = link_orientation(position, HANGING) * turned

@@ -32,23 +32,19 @@ import numbers
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-import numpy as np
-from sensor_msgs.msg import Imu, JointState
-from std_msgs.msg import Float64MultiArray, Header, MultiArrayDimension, MultiArrayLayout
-
 from hexacal_msgs_py.errors import InvalidParametersError, InvalidReadingError
 from hexacal_msgs_py.inputs import (
-    InputMapping,
     imu_inclinometer_angles,
     inclinometer_angles_to_quaternion,
+    InputMapping,
 )
 from hexacal_msgs_py.models import (
     DEFAULT_MODEL,
-    MODELS,
-    ModelLayout,
     model_for_actuator_names,
     model_for_vector_size,
     model_layout,
+    ModelLayout,
+    MODELS,
 )
 from hexacal_msgs_py.names import DEVICE_TURN_JOINT, ENCODER_NAMES, INCLINOMETER_NAMES
 from hexacal_msgs_py.parameters_file import validate_parameters
@@ -58,6 +54,9 @@ from hexacal_msgs_py.readings import (
     PostureReading,
     SliderReading,
 )
+import numpy as np
+from sensor_msgs.msg import Imu, JointState
+from std_msgs.msg import Float64MultiArray, Header, MultiArrayDimension, MultiArrayLayout
 
 NS_PER_S = 1_000_000_000
 
@@ -74,8 +73,10 @@ def layout_of(model: ModelArgument = None) -> ModelLayout:
 def parameters_layout(model: ModelArgument = None) -> tuple[tuple[str, int, int], ...]:
     """Float64MultiArray layout (label, size, stride) of a model's parameters: chains x fields."""
     layout = layout_of(model)
-    return (('chain', layout.n_chains, layout.n_parameters),
-            (','.join(layout.fields), layout.fields_per_chain, layout.fields_per_chain))
+    return (
+        ('chain', layout.n_chains, layout.n_parameters),
+        (','.join(layout.fields), layout.fields_per_chain, layout.fields_per_chain),
+    )
 
 
 # Float64MultiArray layout of the parameters topic for the Hexa Slide: 6 chains x 9 fields
@@ -105,7 +106,8 @@ def to_stamp(ns: int) -> Time:
 def _joint_positions(msg: JointState, names: Sequence[str], what: str) -> list[float]:
     if len(msg.name) != len(msg.position):
         raise InvalidReadingError(
-            f'{what}: JointState has {len(msg.name)} names but {len(msg.position)} positions')
+            f'{what}: JointState has {len(msg.name)} names but {len(msg.position)} positions'
+        )
     index: dict[str, int] = {}
     for i, name in enumerate(msg.name):
         if name in index and name in names:
@@ -114,15 +116,16 @@ def _joint_positions(msg: JointState, names: Sequence[str], what: str) -> list[f
     missing = [name for name in names if name not in index]
     if missing:
         raise InvalidReadingError(
-            f"{what}: JointState lacks joint(s) {', '.join(missing)} "
-            f'(names: {list(msg.name)})')
+            f'{what}: JointState lacks joint(s) {", ".join(missing)} (names: {list(msg.name)})'
+        )
     positions = []
     for name in names:
         try:
             value = float(msg.position[index[name]])
         except (TypeError, ValueError, IndexError) as error:
-            raise InvalidReadingError(f"{what}: joint '{name}' position is not a number: "
-                                      f'{error}') from None
+            raise InvalidReadingError(
+                f"{what}: joint '{name}' position is not a number: {error}"
+            ) from None
         if not math.isfinite(value):
             raise InvalidReadingError(f"{what}: joint '{name}' position is {value!r}")
         positions.append(value)
@@ -138,16 +141,18 @@ def _device_turn(msg: JointState, what: str) -> float:
     return turn
 
 
-def _with_turn(names: Sequence[str], values: Sequence[float],
-               turn: float) -> tuple[tuple[str, ...], tuple[float, ...]]:
+def _with_turn(
+    names: Sequence[str], values: Sequence[float], turn: float
+) -> tuple[tuple[str, ...], tuple[float, ...]]:
     """Names and values with the device_turn joint appended when `turn` is non-zero."""
     if turn == 0.0:
         return tuple(names), tuple(values)
     return tuple(names) + (DEVICE_TURN_JOINT,), tuple(values) + (turn,)
 
 
-def _joint_state(stamp: int, names: Sequence[str], positions: Sequence[float],
-                 frame_id: str) -> JointState:
+def _joint_state(
+    stamp: int, names: Sequence[str], positions: Sequence[float], frame_id: str
+) -> JointState:
     return JointState(
         header=Header(stamp=to_stamp(stamp), frame_id=frame_id),
         name=list(names),
@@ -160,8 +165,9 @@ def actuator_model(names: Sequence[str]) -> ModelLayout | None:
     return model_for_actuator_names(names)
 
 
-def joint_state_to_slider_reading(msg: JointState, model: ModelArgument = None,
-                                  mapping: InputMapping | None = None) -> SliderReading:
+def joint_state_to_slider_reading(
+    msg: JointState, model: ModelArgument = None, mapping: InputMapping | None = None
+) -> SliderReading:
     """JointState with the model's actuator joints (m) -> SliderReading.
 
     Hexa Slide (default): slider_1..slider_6; Gough-Stewart: leg_1..leg_6; with a
@@ -172,8 +178,9 @@ def joint_state_to_slider_reading(msg: JointState, model: ModelArgument = None,
     return SliderReading(stamp_ns(msg.header.stamp), tuple(positions))
 
 
-def joint_state_to_inclinometer_reading(msg: JointState,
-                                        mapping: InputMapping | None = None) -> InclinometerReading:
+def joint_state_to_inclinometer_reading(
+    msg: JointState, mapping: InputMapping | None = None
+) -> InclinometerReading:
     """JointState with joints inclinometer_x (alpha), inclinometer_y (beta) (rad).
 
     With a `mapping`: its inclinometer_joints, then its signs and offsets
@@ -184,12 +191,15 @@ def joint_state_to_inclinometer_reading(msg: JointState,
         alpha, beta = _joint_positions(msg, INCLINOMETER_NAMES, 'inclinometer')
     else:
         alpha, beta = mapping.inclinometer_angles(
-            *_joint_positions(msg, mapping.inclinometer_joints, 'inclinometer'))
+            *_joint_positions(msg, mapping.inclinometer_joints, 'inclinometer')
+        )
     turn = _device_turn(msg, 'inclinometer')
     return InclinometerReading(stamp_ns(msg.header.stamp), alpha, beta, turn)
 
 
-def imu_to_inclinometer_reading(msg: Imu, mapping: InputMapping | None = None) -> InclinometerReading:
+def imu_to_inclinometer_reading(
+    msg: Imu, mapping: InputMapping | None = None
+) -> InclinometerReading:
     """sensor_msgs/Imu -> InclinometerReading: alpha, beta from the orientation (inputs.py's
     convention), then the mapping's signs and offsets.
 
@@ -197,19 +207,28 @@ def imu_to_inclinometer_reading(msg: Imu, mapping: InputMapping | None = None) -
     orientation is not a finite unit quaternion raises InvalidReadingError.
     """
     orientation = msg.orientation
-    raw = imu_inclinometer_angles((orientation.x, orientation.y, orientation.z, orientation.w),
-                                  float(msg.orientation_covariance[0]))
+    raw = imu_inclinometer_angles(
+        (orientation.x, orientation.y, orientation.z, orientation.w),
+        float(msg.orientation_covariance[0]),
+    )
     alpha, beta = mapping.inclinometer_angles(*raw) if mapping is not None else raw
     return InclinometerReading(stamp_ns(msg.header.stamp), alpha, beta)
 
 
-def inclinometer_angles_to_imu(reading: InclinometerReading, frame_id: str = '',
-                               mapping: InputMapping | None = None, yaw: float = 0.0) -> Imu:
+def inclinometer_angles_to_imu(
+    reading: InclinometerReading,
+    frame_id: str = '',
+    mapping: InputMapping | None = None,
+    yaw: float = 0.0,
+) -> Imu:
     """An Imu whose orientation reads as `reading` (after the mapping's signs and offsets), with
     heading `yaw`: what a simulated IMU on the link publishes. Only the orientation is filled;
     angular velocity and linear acceleration are marked unknown (covariance[0] = -1)."""
-    raw = (mapping.raw_inclinometer(reading.alpha, reading.beta) if mapping is not None
-           else (reading.alpha, reading.beta))
+    raw = (
+        mapping.raw_inclinometer(reading.alpha, reading.beta)
+        if mapping is not None
+        else (reading.alpha, reading.beta)
+    )
     x, y, z, w = inclinometer_angles_to_quaternion(*raw, yaw=yaw)
     message = Imu(header=Header(stamp=to_stamp(reading.stamp_ns), frame_id=frame_id))
     message.orientation.x, message.orientation.y = x, y
@@ -219,8 +238,9 @@ def inclinometer_angles_to_imu(reading: InclinometerReading, frame_id: str = '',
     return message
 
 
-def joint_state_to_encoder_reading(msg: JointState,
-                                   mapping: InputMapping | None = None) -> EncoderReading:
+def joint_state_to_encoder_reading(
+    msg: JointState, mapping: InputMapping | None = None
+) -> EncoderReading:
     """JointState with joint rotary (phi, rad) -> EncoderReading (the mapping's rotary_joint)."""
     names = ENCODER_NAMES if mapping is None else (mapping.rotary_joint,)
     (phi,) = _joint_positions(msg, names, 'encoder')
@@ -240,18 +260,22 @@ def joint_state_to_posture_reading(msg: JointState, model: ModelArgument = None)
     return PostureReading.from_values(stamp_ns(msg.header.stamp), values, device_turn=turn)
 
 
-def slider_reading_to_joint_state(reading: SliderReading, frame_id: str = '',
-                                  model: ModelArgument = None) -> JointState:
+def slider_reading_to_joint_state(
+    reading: SliderReading, frame_id: str = '', model: ModelArgument = None
+) -> JointState:
     """SliderReading -> JointState with the model's actuator joints (default slider_1..6)."""
-    return _joint_state(reading.stamp_ns, layout_of(model).actuator_names,
-                        reading.slider_positions, frame_id)
+    return _joint_state(
+        reading.stamp_ns, layout_of(model).actuator_names, reading.slider_positions, frame_id
+    )
 
 
 def inclinometer_reading_to_joint_state(
-        reading: InclinometerReading, frame_id: str = '') -> JointState:
+    reading: InclinometerReading, frame_id: str = ''
+) -> JointState:
     """InclinometerReading -> JointState inclinometer_x, inclinometer_y (and device_turn if non-zero)."""
-    names, values = _with_turn(INCLINOMETER_NAMES, (reading.alpha, reading.beta),
-                               reading.device_turn)
+    names, values = _with_turn(
+        INCLINOMETER_NAMES, (reading.alpha, reading.beta), reading.device_turn
+    )
     return _joint_state(reading.stamp_ns, names, values, frame_id)
 
 
@@ -259,12 +283,14 @@ def encoder_reading_to_joint_state(reading: EncoderReading, frame_id: str = '') 
     return _joint_state(reading.stamp_ns, ENCODER_NAMES, (reading.phi,), frame_id)
 
 
-def posture_reading_to_joint_state(reading: PostureReading, frame_id: str = '',
-                                   model: ModelArgument = None) -> JointState:
+def posture_reading_to_joint_state(
+    reading: PostureReading, frame_id: str = '', model: ModelArgument = None
+) -> JointState:
     """PostureReading -> JointState with the model's posture joints (default: the Hexa Slide's),
     then device_turn when the reading's device_turn is non-zero."""
-    names, values = _with_turn(layout_of(model).posture_names, reading.values(),
-                               reading.device_turn)
+    names, values = _with_turn(
+        layout_of(model).posture_names, reading.values(), reading.device_turn
+    )
     return _joint_state(reading.stamp_ns, names, values, frame_id)
 
 
@@ -278,8 +304,10 @@ def parameters_to_multiarray(vector: object, model: ModelArgument = None) -> Flo
     if model is None:
         model = model_for_vector_size(array.size)
     layout = MultiArrayLayout(
-        dim=[MultiArrayDimension(label=label, size=size, stride=stride)
-             for label, size, stride in parameters_layout(model)],
+        dim=[
+            MultiArrayDimension(label=label, size=size, stride=stride)
+            for label, size, stride in parameters_layout(model)
+        ],
         data_offset=0,
     )
     return Float64MultiArray(layout=layout, data=array.tolist())
@@ -291,7 +319,8 @@ def multiarray_model(msg: Float64MultiArray) -> ModelLayout:
     if layout not in _MODEL_OF_PARAMETERS_LAYOUT:
         expected = ' or '.join(f'{parameters_layout(m)} ({m.name})' for m in MODELS.values())
         raise InvalidParametersError(
-            f'parameters message layout must be {expected} (label, size, stride), got {layout}')
+            f'parameters message layout must be {expected} (label, size, stride), got {layout}'
+        )
     return _MODEL_OF_PARAMETERS_LAYOUT[layout]
 
 
@@ -305,14 +334,17 @@ def multiarray_to_parameters(msg: Float64MultiArray, model: ModelArgument = None
     if model is not None and layout != parameters_layout(model):
         raise InvalidParametersError(
             f'parameters message layout must be {parameters_layout(model)} (label, size, stride) '
-            f'for a {layout_of(model).name}, got {layout}')
+            f'for a {layout_of(model).name}, got {layout}'
+        )
     found = multiarray_model(msg)
     if msg.layout.data_offset != 0:
         raise InvalidParametersError(
-            f'parameters message data_offset must be 0, got {msg.layout.data_offset}')
+            f'parameters message data_offset must be 0, got {msg.layout.data_offset}'
+        )
     if len(msg.data) != found.n_parameters:
         raise InvalidParametersError(
-            f'parameters message must hold {found.n_parameters} values, got {len(msg.data)}')
+            f'parameters message must hold {found.n_parameters} values, got {len(msg.data)}'
+        )
     return validate_parameters(np.asarray(msg.data, dtype=np.float64), found.name)
 
 
@@ -360,8 +392,10 @@ def diagnostic_status(
         name=name,
         message=message,
         hardware_id=hardware_id,
-        values=[KeyValue(key=str(key), value=_value_text(value))
-                for key, value in (values or {}).items()],
+        values=[
+            KeyValue(key=str(key), value=_value_text(value))
+            for key, value in (values or {}).items()
+        ],
     )
     header = Header(stamp=to_stamp(stamp)) if stamp is not None else Header()
     return DiagnosticArray(header=header, status=[status])

@@ -3,6 +3,7 @@
 Also the one YAML text loader (parameters files, posture plans, bag metadata):
 libyaml's parser when PyYAML has it, else PyYAML's pure-Python one.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -33,7 +34,10 @@ def load_yaml_text(text: str, loader: type | None = None, fast_loader: type | No
 
     if loader is None:
         loader, fast_loader = yaml.SafeLoader, getattr(yaml, 'CSafeLoader', None)
-    if fast_loader is not None and sum(text.count(c) for c in _NESTING_INDICATORS) < MAX_LIBYAML_INDICATORS:
+    if (
+        fast_loader is not None
+        and sum(text.count(c) for c in _NESTING_INDICATORS) < MAX_LIBYAML_INDICATORS
+    ):
         loader = fast_loader
     return yaml.load(text, Loader=loader)  # noqa: S506 - a safe loader (SafeLoader, CSafeLoader or subclasses)
 
@@ -50,7 +54,9 @@ def atomic_write(target: Path | str, content: str | bytes) -> Path:
         mode = stat.S_IMODE(target.stat().st_mode)
     except FileNotFoundError:
         mode = DEFAULT_FILE_MODE
-    descriptor, temp_name = tempfile.mkstemp(prefix=f'.{target.name}.', suffix='.tmp', dir=target.parent)
+    descriptor, temp_name = tempfile.mkstemp(
+        prefix=f'.{target.name}.', suffix='.tmp', dir=target.parent
+    )
     try:
         with os.fdopen(descriptor, 'wb') as stream:
             stream.write(content.encode('utf-8') if isinstance(content, str) else content)

@@ -70,7 +70,11 @@ IMU_INCLINOMETER = 'imu'
 INCLINOMETER_TYPES = (JOINT_STATE_INCLINOMETER, IMU_INCLINOMETER)
 # The three inputs, by their contract topic (what a remapping renames), in this order everywhere.
 INPUT_TOPICS = (SLIDERS_TOPIC, INCLINOMETER_TOPIC, ENCODER_TOPIC)
-INPUT_NAMES = {SLIDERS_TOPIC: 'sliders', INCLINOMETER_TOPIC: 'inclinometer', ENCODER_TOPIC: 'encoder'}
+INPUT_NAMES = {
+    SLIDERS_TOPIC: 'sliders',
+    INCLINOMETER_TOPIC: 'inclinometer',
+    ENCODER_TOPIC: 'encoder',
+}
 DEFAULT_INCLINOMETER_JOINTS: tuple[str, str] = tuple(INCLINOMETER_NAMES)  # type: ignore[assignment]
 DEFAULT_ROTARY_JOINT: str = ENCODER_NAMES[0]
 DEFAULT_SIGNS = (1.0, 1.0)
@@ -79,11 +83,22 @@ DEFAULT_OFFSETS_RAD = (0.0, 0.0)
 QUATERNION_NORM_TOLERANCE = 1e-3
 
 # Keys of the mapping in the collector's bag metadata record (hexacal.collector): lists as JSON.
-MAPPING_KEYS = ('actuator_joints', 'inclinometer_joints', 'rotary_joint', 'inclinometer_type',
-                'inclinometer_signs', 'inclinometer_offsets_rad', 'sliders_topic',
-                'inclinometer_topic', 'encoder_topic')
-_TOPIC_KEYS = {SLIDERS_TOPIC: 'sliders_topic', INCLINOMETER_TOPIC: 'inclinometer_topic',
-               ENCODER_TOPIC: 'encoder_topic'}
+MAPPING_KEYS = (
+    'actuator_joints',
+    'inclinometer_joints',
+    'rotary_joint',
+    'inclinometer_type',
+    'inclinometer_signs',
+    'inclinometer_offsets_rad',
+    'sliders_topic',
+    'inclinometer_topic',
+    'encoder_topic',
+)
+_TOPIC_KEYS = {
+    SLIDERS_TOPIC: 'sliders_topic',
+    INCLINOMETER_TOPIC: 'inclinometer_topic',
+    ENCODER_TOPIC: 'encoder_topic',
+}
 
 
 class InputMappingError(HexacalContractError, ValueError):
@@ -103,13 +118,17 @@ def _finite(name: str, value: object) -> float:
     try:
         number = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
-        raise InvalidReadingError(f'inclinometer: {name} must be a number, got {value!r}') from None
+        raise InvalidReadingError(
+            f'inclinometer: {name} must be a number, got {value!r}'
+        ) from None
     if not math.isfinite(number):
         raise InvalidReadingError(f'inclinometer: {name} is {number!r}')
     return number
 
 
-def quaternion_to_inclinometer_angles(x: float, y: float, z: float, w: float) -> tuple[float, float]:
+def quaternion_to_inclinometer_angles(
+    x: float, y: float, z: float, w: float
+) -> tuple[float, float]:
     """(alpha, beta) in rad of an orientation quaternion (x, y, z, w), by the module's convention.
 
     The quaternion must be finite and of unit norm (within QUATERNION_NORM_TOLERANCE; it is
@@ -121,7 +140,8 @@ def quaternion_to_inclinometer_angles(x: float, y: float, z: float, w: float) ->
     if not abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE:
         raise InvalidReadingError(
             f'inclinometer: orientation ({x!r}, {y!r}, {z!r}, {w!r}) is not a unit quaternion '
-            f'(norm {norm:.6g})')
+            f'(norm {norm:.6g})'
+        )
     x, y, z, w = x / norm, y / norm, z / norm, w / norm
     # The third row of the rotation matrix: the world's up axis in the sensor frame.
     up_x = 2.0 * (x * z - w * y)
@@ -130,20 +150,24 @@ def quaternion_to_inclinometer_angles(x: float, y: float, z: float, w: float) ->
     return math.atan2(-up_y, up_z), math.atan2(up_x, math.hypot(up_y, up_z))
 
 
-def inclinometer_angles_to_quaternion(alpha: float, beta: float,
-                                      yaw: float = 0.0) -> tuple[float, float, float, float]:
+def inclinometer_angles_to_quaternion(
+    alpha: float, beta: float, yaw: float = 0.0
+) -> tuple[float, float, float, float]:
     """The orientation (x, y, z, w) of an IMU on the link that reads (alpha, beta): R_Z(yaw) R_Y(-beta) R_X(-alpha).
 
     The inverse of `quaternion_to_inclinometer_angles` for |alpha| < pi, |beta| < pi/2 (any yaw):
     what a simulated or test IMU publishes.
     """
+
     def product(a, b):
         ax, ay, az, aw = a
         bx, by, bz, bw = b
-        return (aw * bx + ax * bw + ay * bz - az * by,
-                aw * by - ax * bz + ay * bw + az * bx,
-                aw * bz + ax * by - ay * bx + az * bw,
-                aw * bw - ax * bx - ay * by - az * bz)
+        return (
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        )
 
     about_x = (math.sin(-alpha / 2.0), 0.0, 0.0, math.cos(-alpha / 2.0))
     about_y = (0.0, math.sin(-beta / 2.0), 0.0, math.cos(-beta / 2.0))
@@ -151,16 +175,18 @@ def inclinometer_angles_to_quaternion(alpha: float, beta: float,
     return product(about_z, product(about_y, about_x))
 
 
-def imu_inclinometer_angles(orientation: Sequence[float],
-                            orientation_covariance_0: float = 0.0) -> tuple[float, float]:
+def imu_inclinometer_angles(
+    orientation: Sequence[float], orientation_covariance_0: float = 0.0
+) -> tuple[float, float]:
     """(alpha, beta) of an Imu's orientation (x, y, z, w) before signs and offsets.
 
     sensor_msgs/Imu marks "no orientation estimate" with orientation_covariance[0] = -1:
     InvalidReadingError, as for a quaternion that is not a finite unit one.
     """
     if orientation_covariance_0 == -1.0:
-        raise InvalidReadingError('inclinometer: the Imu has no orientation estimate '
-                                  '(orientation_covariance[0] = -1)')
+        raise InvalidReadingError(
+            'inclinometer: the Imu has no orientation estimate (orientation_covariance[0] = -1)'
+        )
     return quaternion_to_inclinometer_angles(*orientation)
 
 
@@ -172,14 +198,17 @@ def _names(parameter: str, value: object, count: int) -> tuple[str, ...]:
         raise InputMappingError(parameter, f'must be a list of {count} joint names, got {value!r}')
     names = tuple(value)
     if len(names) != count:
-        raise InputMappingError(parameter, f'must name {count} joints, got {len(names)}: '
-                                f'{list(names)}')
+        raise InputMappingError(
+            parameter, f'must name {count} joints, got {len(names)}: {list(names)}'
+        )
     for name in names:
         if not isinstance(name, str) or not name:
-            raise InputMappingError(parameter, f'joint names must be non-empty strings, got {name!r}')
+            raise InputMappingError(
+                parameter, f'joint names must be non-empty strings, got {name!r}'
+            )
     repeated = sorted({name for name in names if names.count(name) > 1})
     if repeated:
-        raise InputMappingError(parameter, f"names joint(s) {', '.join(repeated)} more than once")
+        raise InputMappingError(parameter, f'names joint(s) {", ".join(repeated)} more than once')
     return names
 
 
@@ -214,30 +243,44 @@ class InputMapping:
     def __post_init__(self) -> None:
         set_ = object.__setattr__
         set_(self, 'actuator_joints', _names('actuator_joints', self.actuator_joints, 6))
-        set_(self, 'inclinometer_joints', _names('inclinometer_joints', self.inclinometer_joints, 2))
+        set_(
+            self, 'inclinometer_joints', _names('inclinometer_joints', self.inclinometer_joints, 2)
+        )
         if not isinstance(self.rotary_joint, str) or not self.rotary_joint:
-            raise InputMappingError('rotary_joint', f'must be a joint name, got {self.rotary_joint!r}')
+            raise InputMappingError(
+                'rotary_joint', f'must be a joint name, got {self.rotary_joint!r}'
+            )
         if self.inclinometer_type not in INCLINOMETER_TYPES:
-            raise InputMappingError('inclinometer_type', "must be 'joint_state' or 'imu', got "
-                                    f'{self.inclinometer_type!r}')
+            raise InputMappingError(
+                'inclinometer_type',
+                f"must be 'joint_state' or 'imu', got {self.inclinometer_type!r}",
+            )
         signs = _numbers('inclinometer_signs', self.inclinometer_signs)
         if any(sign not in (1.0, -1.0) for sign in signs):
-            raise InputMappingError('inclinometer_signs', f'each sign must be 1 or -1, got {list(signs)}')
+            raise InputMappingError(
+                'inclinometer_signs', f'each sign must be 1 or -1, got {list(signs)}'
+            )
         set_(self, 'inclinometer_signs', signs)
         offsets = _numbers('inclinometer_offsets_rad', self.inclinometer_offsets_rad)
         if not all(math.isfinite(offset) and abs(offset) <= math.pi for offset in offsets):
-            raise InputMappingError('inclinometer_offsets_rad',
-                                    f'each offset must be finite, within +-pi rad, got {list(offsets)}')
+            raise InputMappingError(
+                'inclinometer_offsets_rad',
+                f'each offset must be finite, within +-pi rad, got {list(offsets)}',
+            )
         set_(self, 'inclinometer_offsets_rad', offsets)
         topics = tuple(self.topics)
         if len(topics) != 3 or not all(isinstance(topic, str) for topic in topics):
-            raise InputMappingError('topics', f'must be 3 topic names (sliders, inclinometer, encoder), '
-                                    f'got {self.topics!r}')
+            raise InputMappingError(
+                'topics',
+                f'must be 3 topic names (sliders, inclinometer, encoder), got {self.topics!r}',
+            )
         set_(self, 'topics', topics)
         self._check_shared_topics()
 
     @classmethod
-    def default(cls, model: str | None = None, topics: Sequence[str] = ('', '', '')) -> InputMapping:
+    def default(
+        cls, model: str | None = None, topics: Sequence[str] = ('', '', '')
+    ) -> InputMapping:
         """The contract's joints: `model`'s actuators, inclinometer_x/_y, rotary."""
         return cls(model_layout(model or DEFAULT_MODEL).actuator_names, topics=tuple(topics))
 
@@ -248,13 +291,16 @@ class InputMapping:
         if imu and inclinometer and inclinometer in (sliders, encoder):
             other = 'sliders' if inclinometer == sliders else 'encoder'
             raise InputMappingError(
-                'inclinometer_type', f"'imu' needs a topic of its own: {inclinometer} is also the "
-                f'{other} input, a sensor_msgs/JointState')
+                'inclinometer_type',
+                f"'imu' needs a topic of its own: {inclinometer} is also the "
+                f'{other} input, a sensor_msgs/JointState',
+            )
         joints: dict[str, list[tuple[str, str]]] = {}
-        for topic, what, names in ((sliders, 'actuator_joints', self.actuator_joints),
-                                   (inclinometer, 'inclinometer_joints',
-                                    () if imu else self.inclinometer_joints),
-                                   (encoder, 'rotary_joint', (self.rotary_joint,))):
+        for topic, what, names in (
+            (sliders, 'actuator_joints', self.actuator_joints),
+            (inclinometer, 'inclinometer_joints', () if imu else self.inclinometer_joints),
+            (encoder, 'rotary_joint', (self.rotary_joint,)),
+        ):
             if topic:
                 for name in names:
                     joints.setdefault(topic, []).append((name, what))
@@ -263,8 +309,10 @@ class InputMapping:
             for name, what in named:
                 if name in seen and seen[name] != what:
                     raise InputMappingError(
-                        what, f"joint {name!r} is also in {seen[name]}, and both are read from "
-                        f'{topic}: every reading needs its own joint')
+                        what,
+                        f'joint {name!r} is also in {seen[name]}, and both are read from '
+                        f'{topic}: every reading needs its own joint',
+                    )
                 seen[name] = what
 
     # ------------------------------------------------------------------ reading
@@ -285,12 +333,18 @@ class InputMapping:
 
     def inclinometer_angles(self, raw_alpha: float, raw_beta: float) -> tuple[float, float]:
         """hexacal's (alpha, beta) from the sensor's raw angles: sign * (raw - offset) per channel."""
-        (sign_a, sign_b), (offset_a, offset_b) = self.inclinometer_signs, self.inclinometer_offsets_rad
+        (sign_a, sign_b), (offset_a, offset_b) = (
+            self.inclinometer_signs,
+            self.inclinometer_offsets_rad,
+        )
         return sign_a * (raw_alpha - offset_a), sign_b * (raw_beta - offset_b)
 
     def raw_inclinometer(self, alpha: float, beta: float) -> tuple[float, float]:
         """The sensor's raw angles that read as hexacal's (alpha, beta) (the inverse, for simulators)."""
-        (sign_a, sign_b), (offset_a, offset_b) = self.inclinometer_signs, self.inclinometer_offsets_rad
+        (sign_a, sign_b), (offset_a, offset_b) = (
+            self.inclinometer_signs,
+            self.inclinometer_offsets_rad,
+        )
         return sign_a * alpha + offset_a, sign_b * beta + offset_b
 
     def is_contract(self, model: str | None = None) -> bool:
@@ -312,7 +366,9 @@ class InputMapping:
         }
 
     @classmethod
-    def from_metadata(cls, record: Mapping[str, str], model: str | None = None) -> InputMapping | None:
+    def from_metadata(
+        cls, record: Mapping[str, str], model: str | None = None
+    ) -> InputMapping | None:
         """The mapping a bag metadata record holds, None if it holds none (a bag recorded before
         mappings existed: read as the contract's names and topics). Missing keys take the
         defaults; a value that does not parse is an InputMappingError naming its key."""
@@ -325,8 +381,9 @@ class InputMapping:
             try:
                 value = json.loads(record[key])
             except (TypeError, ValueError) as error:
-                raise InputMappingError(key, f'recorded value {record[key]!r} is not a JSON list: '
-                                        f'{error}') from None
+                raise InputMappingError(
+                    key, f'recorded value {record[key]!r} is not a JSON list: {error}'
+                ) from None
             if not isinstance(value, list):
                 raise InputMappingError(key, f'recorded value {record[key]!r} is not a list')
             return tuple(value)
@@ -338,24 +395,34 @@ class InputMapping:
             rotary_joint=record.get('rotary_joint', default.rotary_joint),
             inclinometer_type=record.get('inclinometer_type', default.inclinometer_type),
             inclinometer_signs=listed('inclinometer_signs', default.inclinometer_signs),  # type: ignore[arg-type]
-            inclinometer_offsets_rad=listed('inclinometer_offsets_rad',  # type: ignore[arg-type]
-                                            default.inclinometer_offsets_rad),
+            inclinometer_offsets_rad=listed(
+                'inclinometer_offsets_rad',  # type: ignore[arg-type]
+                default.inclinometer_offsets_rad,
+            ),
             topics=tuple(record.get(_TOPIC_KEYS[topic], '') for topic in INPUT_TOPICS),  # type: ignore[arg-type]
         )
 
     def describe(self) -> str:
         """One line: which topic and joints each reading comes from."""
+
         def where(topic: str) -> str:
             return self.input_topic(topic) or topic
 
         joints = self.actuator_joints
-        text = (f'sliders <- {where(SLIDERS_TOPIC)} [{", ".join(joints)}]; inclinometer <- '
-                f'{where(INCLINOMETER_TOPIC)} ')
+        text = (
+            f'sliders <- {where(SLIDERS_TOPIC)} [{", ".join(joints)}]; inclinometer <- '
+            f'{where(INCLINOMETER_TOPIC)} '
+        )
         if self.inclinometer_type == IMU_INCLINOMETER:
             text += '(sensor_msgs/Imu orientation)'
         else:
             text += f'[{", ".join(self.inclinometer_joints)}]'
-        if (self.inclinometer_signs, self.inclinometer_offsets_rad) != (DEFAULT_SIGNS, DEFAULT_OFFSETS_RAD):
-            text += (f' signs {list(self.inclinometer_signs)}, offsets '
-                     f'{list(self.inclinometer_offsets_rad)} rad')
+        if (self.inclinometer_signs, self.inclinometer_offsets_rad) != (
+            DEFAULT_SIGNS,
+            DEFAULT_OFFSETS_RAD,
+        ):
+            text += (
+                f' signs {list(self.inclinometer_signs)}, offsets '
+                f'{list(self.inclinometer_offsets_rad)} rad'
+            )
         return text + f'; encoder <- {where(ENCODER_TOPIC)} [{self.rotary_joint}]'

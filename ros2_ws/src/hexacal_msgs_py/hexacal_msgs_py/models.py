@@ -12,17 +12,18 @@ layout live in ``hexacal_identify.core.architectures``.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-
-import numpy as np
+import math
 
 from hexacal_msgs_py.errors import InvalidParametersError
+import numpy as np
 
 N_CHAINS = 6
 MODEL_KEY = 'model'
-DEVICE_MOUNT_KEY = 'device.mount'  # parameters-file key of the device mount: hanging | standing (core/device.py)
+DEVICE_MOUNT_KEY = (
+    'device.mount'  # parameters-file key of the device mount: hanging | standing (core/device.py)
+)
 # The measuring device's defects (core/device.py), SI units: link length offset (m), inclinometer
 # zero offsets, axis non-perpendicularity and rotary zero offset (rad).  A calibrated parameters
 # file carries those identified with it as `device.defects.<name>` keys (absent: not identified).
@@ -34,8 +35,12 @@ DEVICE_DEFECTS_KEY = 'device.defects'
 def device_defect_key(name: str) -> str:
     """The parameters-file key of one identified device defect: `device.defects.<name>`."""
     if name not in DEVICE_DEFECT_NAMES:
-        raise ValueError(f'device defect must be one of {", ".join(DEVICE_DEFECT_NAMES)}, got {name!r}')
+        raise ValueError(
+            f'device defect must be one of {", ".join(DEVICE_DEFECT_NAMES)}, got {name!r}'
+        )
     return f'{DEVICE_DEFECTS_KEY}.{name}'
+
+
 HEXA_SLIDE = 'hexa_slide'
 GOUGH_STEWART = 'gough_stewart'
 DEFAULT_MODEL = HEXA_SLIDE
@@ -62,7 +67,9 @@ class ModelLayout:
     chain_keys: tuple[ChainKey, ...]  # file keys, in the order files are written
     actuator_prefix: str  # joint names are <prefix>_1 .. <prefix>_6
     actuator_description: str
-    physical_problem: Callable[[np.ndarray], str | None]  # the vector's physical checks (None: fine)
+    physical_problem: Callable[
+        [np.ndarray], str | None
+    ]  # the vector's physical checks (None: fine)
     n_chains: int = N_CHAINS
 
     @property
@@ -84,7 +91,9 @@ class ModelLayout:
 
     @property
     def chain_key_names(self) -> frozenset[str]:
-        return frozenset(f'chain_{c}.{k.name}' for c in range(1, self.n_chains + 1) for k in self.chain_keys)
+        return frozenset(
+            f'chain_{c}.{k.name}' for c in range(1, self.n_chains + 1) for k in self.chain_keys
+        )
 
     @property
     def actuator_names(self) -> tuple[str, ...]:
@@ -100,7 +109,9 @@ class ModelLayout:
         if not 1 <= chain <= self.n_chains:
             raise ValueError(f'chain must be in 1..{self.n_chains}, got {chain}')
         if field not in self.fields:
-            raise ValueError(f'field of a {self.name} chain must be one of {self.fields}, got {field!r}')
+            raise ValueError(
+                f'field of a {self.name} chain must be one of {self.fields}, got {field!r}'
+            )
         return (chain - 1) * len(self.fields) + self.fields.index(field)
 
 
@@ -121,8 +132,10 @@ def _hexa_slide_problem(vector: np.ndarray) -> str | None:
         ax, ay = float(vector[base + 7]), float(vector[base + 8])
         norm_xy = ax * ax + ay * ay
         if norm_xy >= 1.0:
-            return (f'chain_{chain}.a = [{ax!r}, {ay!r}] is not the x, y components of a '
-                    f'unit vector (ax^2 + ay^2 = {norm_xy!r} >= 1)')
+            return (
+                f'chain_{chain}.a = [{ax!r}, {ay!r}] is not the x, y components of a '
+                f'unit vector (ax^2 + ay^2 = {norm_xy!r} >= 1)'
+            )
         length = float(vector[base + 6])
         if length <= 0.0:
             return f'chain_{chain}.l must be > 0 m, got {length!r}'
@@ -178,7 +191,8 @@ def model_layout(name: object) -> ModelLayout:
     """The layout of model `name`; an unknown name is an InvalidParametersError listing the known ones."""
     if not isinstance(name, str) or name not in MODELS:
         raise InvalidParametersError(
-            f'unknown model {name!r}; hexacal knows {", ".join(sorted(MODELS))}')
+            f'unknown model {name!r}; hexacal knows {", ".join(sorted(MODELS))}'
+        )
     return MODELS[name]
 
 
@@ -188,7 +202,8 @@ def model_for_vector_size(size: int) -> ModelLayout:
     if len(matches) != 1:
         sizes = ', '.join(f'{layout.name} {layout.n_parameters}' for layout in MODELS.values())
         raise InvalidParametersError(
-            f'a parameter vector of {size} values names no single model ({sizes}); give the model')
+            f'a parameter vector of {size} values names no single model ({sizes}); give the model'
+        )
     return matches[0]
 
 

@@ -7,11 +7,11 @@ from hexacal_msgs_py.models import (
     DEFAULT_MODEL,
     DEVICE_JOINT_NAMES,
     DEVICE_TURN_JOINT,
-    MAX_DEVICE_TURN,
     GOUGH_STEWART,
     HEXA_SLIDE,
-    MODELS,
+    MAX_DEVICE_TURN,
     model_layout,
+    MODELS,
 )
 
 _HEXA = MODELS[HEXA_SLIDE]
@@ -23,7 +23,9 @@ POSTURE_TOPIC = 'hexacal/posture'
 PARAMETERS_TOPIC = 'hexacal/parameters'
 CALIBRATION_STATUS_TOPIC = 'hexacal/calibration_status'
 CALIBRATE_SERVICE = 'hexacal/calibrate'
-VERIFY_SERVICE = 'hexacal/verify'  # identify: verify the latest calibration on the postures received since
+VERIFY_SERVICE = (
+    'hexacal/verify'  # identify: verify the latest calibration on the postures received since
+)
 
 # The executor walks a plan on the machine through its trajectory controller.
 EXECUTOR_PAUSE_SERVICE = 'hexacal/executor/pause'
@@ -34,7 +36,9 @@ DEFAULT_COMMAND_TOPIC = '/joint_trajectory_controller/joint_trajectory'
 
 # The kinematics node: the calibrated model at work.
 PLATFORM_POSE_TOPIC = 'hexacal/platform_pose'  # FK of the live actuator readings
-TARGET_POSE_TOPIC = 'hexacal/target_pose'  # commanded platform pose -> compensated actuator command
+TARGET_POSE_TOPIC = (
+    'hexacal/target_pose'  # commanded platform pose -> compensated actuator command
+)
 MACHINE_MARKERS_TOPIC = 'hexacal/machine_markers'  # base joints, rails/legs, platform, device link
 
 # Status names on CALIBRATION_STATUS_TOPIC (one DiagnosticArray topic for every node's status).

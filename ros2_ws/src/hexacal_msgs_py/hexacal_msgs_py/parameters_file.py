@@ -44,21 +44,20 @@ from pathlib import Path
 import re
 from typing import Any, Union
 
-import numpy as np
-import yaml
-
 from hexacal_msgs_py.errors import InvalidParametersError, ParameterFileError
 from hexacal_msgs_py.files import atomic_write, load_yaml_text
 from hexacal_msgs_py.models import (
     DEFAULT_MODEL,
     HEXA_SLIDE,
-    MODEL_KEY,
-    MODELS,
-    ModelLayout,
     model_for_vector_size,
+    MODEL_KEY,
     model_layout,
+    ModelLayout,
+    MODELS,
 )
 from hexacal_msgs_py.names import N_CHAINS
+import numpy as np
+import yaml
 
 PathLike = Union[str, os.PathLike]
 ChainDict = dict[str, dict[str, Any]]
@@ -67,7 +66,8 @@ ChainDict = dict[str, dict[str, Any]]
 # values); None marks a scalar. Written in this order. (Every model's keys:
 # models.MODELS[name].chain_keys.)
 CHAIN_KEYS: dict[str, tuple[int, int | None]] = {
-    key.name: (key.offset, key.count) for key in MODELS[HEXA_SLIDE].chain_keys}
+    key.name: (key.offset, key.count) for key in MODELS[HEXA_SLIDE].chain_keys
+}
 _CHAIN_KEY = re.compile(r'^chain_[0-9]+\.')
 _PARAMETER_NAME = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$')
 _MAX_NAMESPACE_DEPTH = 8
@@ -98,7 +98,9 @@ if getattr(yaml, 'CSafeLoader', None) is not None:
         """_RosParametersLoader with libyaml's parser (same resolvers and constructors)."""
 
     _read_exponent_floats(_RosParametersCLoader)
-    _FAST_LOADERS.update({yaml.SafeLoader: yaml.CSafeLoader, _RosParametersLoader: _RosParametersCLoader})
+    _FAST_LOADERS.update(
+        {yaml.SafeLoader: yaml.CSafeLoader, _RosParametersLoader: _RosParametersCLoader}
+    )
 
 
 def _layout_of(model: str | ModelLayout | None, size: int | None = None) -> ModelLayout:
@@ -119,25 +121,29 @@ def as_parameter_vector(vector: object, model: str | ModelLayout | None = None) 
     try:
         array = np.array(vector, dtype=np.float64)
     except (TypeError, ValueError) as error:
-        expected = _layout_of(model).n_parameters if model is not None else 'the model\'s'
+        expected = _layout_of(model).n_parameters if model is not None else "the model's"
         raise InvalidParametersError(
-            f'parameter vector must be {expected} numbers: {error}') from None
+            f'parameter vector must be {expected} numbers: {error}'
+        ) from None
     if model is None:
         sizes = sorted({layout.n_parameters for layout in MODELS.values()})
         if array.ndim != 1 or array.size not in sizes:
             raise InvalidParametersError(
                 f'parameter vector must have shape ({sizes[-1]},) (a Hexa Slide) or one of '
-                f'{[(n,) for n in sizes]} (see models.MODELS), got {array.shape}')
+                f'{[(n,) for n in sizes]} (see models.MODELS), got {array.shape}'
+            )
     layout = _layout_of(model, array.size)
     if array.shape != (layout.n_parameters,):
         raise InvalidParametersError(
-            f'parameter vector must have shape ({layout.n_parameters},) for a {layout.name}, got {array.shape}')
+            f'parameter vector must have shape ({layout.n_parameters},) for a {layout.name}, got {array.shape}'
+        )
     bad = np.flatnonzero(~np.isfinite(array))
     if bad.size:
         index = int(bad[0])
         raise InvalidParametersError(
             f'parameter vector must be finite, got {array[index]!r} at '
-            f'{layout.parameter_names[index]} (index {index})')
+            f'{layout.parameter_names[index]} (index {index})'
+        )
     return array
 
 
@@ -173,8 +179,7 @@ def load_model(path: PathLike) -> str:
     return read_parameters_file(path).model
 
 
-def read_yaml_document(path: PathLike, fail: _Fail,
-                       loader: type = yaml.SafeLoader) -> Any:
+def read_yaml_document(path: PathLike, fail: _Fail, loader: type = yaml.SafeLoader) -> Any:
     """A YAML file's document with a safe loader; every failure becomes fail(message), raised.
 
     Shared by the loaders of YAML files (parameters here, posture plans in the
@@ -215,7 +220,9 @@ def read_parameters_file(path: PathLike) -> ParametersFile:
     layout = _model_from_flat(flat, fail)
     vector = _vector_from_flat(flat, fail, layout)
     chain_keys = layout.chain_key_names
-    extras = {key: value for key, value in flat.items() if key not in chain_keys and key != MODEL_KEY}
+    extras = {
+        key: value for key, value in flat.items() if key not in chain_keys and key != MODEL_KEY
+    }
     return ParametersFile(layout.name, vector, extras)
 
 
@@ -271,7 +278,9 @@ def save_parameters(
     for key, value in flat_extras.items():
         if key == MODEL_KEY:
             if value != layout.name:
-                raise fail(f'extra parameter {MODEL_KEY}={value!r} contradicts the vector\'s model {layout.name}')
+                raise fail(
+                    f"extra parameter {MODEL_KEY}={value!r} contradicts the vector's model {layout.name}"
+                )
             continue
         if key in chain_keys or _CHAIN_KEY.match(key):
             raise fail(f'extra parameter {key} collides with a kinematic parameter')
@@ -285,13 +294,13 @@ def _chain_entries(array: np.ndarray, layout: ModelLayout):
     """(chain number, {key: value or list}) per chain, keys in the model's file order."""
     width = layout.fields_per_chain
     for chain in range(1, layout.n_chains + 1):
-        fields = array[(chain - 1) * width:chain * width]
+        fields = array[(chain - 1) * width : chain * width]
         entry: dict[str, Any] = {}
         for key in layout.chain_keys:
             if key.count is None:
                 entry[key.name] = float(fields[key.offset])
             else:
-                entry[key.name] = [float(v) for v in fields[key.offset:key.offset + key.count]]
+                entry[key.name] = [float(v) for v in fields[key.offset : key.offset + key.count]]
         yield chain, entry
 
 
@@ -311,6 +320,7 @@ def chain_dict_to_parameters(chains: Mapping[str, Any], model: str | None = None
 
     `model` defaults to the Hexa Slide.
     """
+
     def fail(message: str) -> InvalidParametersError:
         return InvalidParametersError(message)
 
@@ -419,7 +429,9 @@ def _yaml_value(value: object, name: str, fail: _Fail) -> str:
     if isinstance(value, numbers.Real):
         return _format_float(float(value))
     if isinstance(value, str):
-        return json.dumps(value, ensure_ascii=False)  # a JSON string is a YAML double-quoted scalar
+        return json.dumps(
+            value, ensure_ascii=False
+        )  # a JSON string is a YAML double-quoted scalar
     if isinstance(value, (list, tuple)):
         items = []
         for item in value:

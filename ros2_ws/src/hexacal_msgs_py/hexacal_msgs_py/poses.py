@@ -35,6 +35,7 @@ The message functions read and write the fields of any object shaped like
 ``geometry_msgs/msg/Pose`` (or ``PoseStamped``: its ``pose``) without
 importing it.
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -53,10 +54,12 @@ def _product(a: Quaternion, b: Quaternion) -> Quaternion:
     """Hamilton product a * b of quaternions in (x, y, z, w) order."""
     ax, ay, az, aw = a
     bx, by, bz, bw = b
-    return (aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz)
+    return (
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    )
 
 
 def quaternion_from_angles(theta: float, psi: float, phi: float) -> Quaternion:
@@ -71,9 +74,11 @@ def quaternion_from_angles(theta: float, psi: float, phi: float) -> Quaternion:
 def rotation_from_quaternion(quaternion: Sequence[float]) -> Matrix:
     """The rotation matrix (rows) of a unit quaternion (x, y, z, w), checked and normalised."""
     x, y, z, w = _unit(quaternion)
-    return ((1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)),
-            (2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)),
-            (2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)))
+    return (
+        (1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)),
+        (2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)),
+        (2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)),
+    )
 
 
 def angles_from_rotation(rotation: Sequence[Sequence[float]]) -> tuple[float, float, float]:
@@ -89,14 +94,19 @@ def angles_from_quaternion(quaternion: Sequence[float]) -> tuple[float, float, f
     return angles_from_rotation(rotation_from_quaternion(quaternion))
 
 
-def pose_to_position_quaternion(pose: Sequence[float]) -> tuple[tuple[float, float, float], Quaternion]:
+def pose_to_position_quaternion(
+    pose: Sequence[float],
+) -> tuple[tuple[float, float, float], Quaternion]:
     """[x, y, z, theta, psi, phi] -> ((x, y, z), (qx, qy, qz, qw))."""
     values = _finite(pose, 6, 'pose [x, y, z, theta, psi, phi]')
-    return (values[0], values[1], values[2]), quaternion_from_angles(values[3], values[4], values[5])
+    return (values[0], values[1], values[2]), quaternion_from_angles(
+        values[3], values[4], values[5]
+    )
 
 
-def pose_from_position_quaternion(position: Sequence[float],
-                                  quaternion: Sequence[float]) -> tuple[float, ...]:
+def pose_from_position_quaternion(
+    position: Sequence[float], quaternion: Sequence[float]
+) -> tuple[float, ...]:
     """((x, y, z), (qx, qy, qz, qw)) -> [x, y, z, theta, psi, phi] (InvalidReadingError naming a problem)."""
     x, y, z = _finite(position, 3, 'position')
     return (x, y, z, *angles_from_quaternion(quaternion))
@@ -137,5 +147,7 @@ def _unit(quaternion: Sequence[float]) -> Quaternion:
     if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
         raise InvalidReadingError(
             f'orientation quaternion (x, y, z, w) = ({x:g}, {y:g}, {z:g}, {w:g}) has norm {norm:g}, '
-            'not 1: not an orientation' + (' (all zeros; the identity is w = 1)' if norm == 0.0 else ''))
+            'not 1: not an orientation'
+            + (' (all zeros; the identity is w = 1)' if norm == 0.0 else '')
+        )
     return x / norm, y / norm, z / norm, w / norm

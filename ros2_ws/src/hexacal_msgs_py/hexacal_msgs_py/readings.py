@@ -25,7 +25,8 @@ def _check_stamp(kind: str, stamp_ns: object) -> int:
         value = operator.index(stamp_ns)  # accepts numpy integers, rejects floats
     except TypeError:
         raise InvalidReadingError(
-            f'{kind}: stamp_ns must be an integer, got {stamp_ns!r}') from None
+            f'{kind}: stamp_ns must be an integer, got {stamp_ns!r}'
+        ) from None
     if value < 0:
         raise InvalidReadingError(f'{kind}: stamp_ns must be >= 0, got {value}')
     return value
@@ -49,21 +50,24 @@ def _check_turn(kind: str, value: object) -> float:
     turn = _check_value(kind, DEVICE_TURN_JOINT, value)
     if abs(turn) > MAX_DEVICE_TURN:
         raise InvalidReadingError(
-            f'{kind}: {DEVICE_TURN_JOINT} must be within +-2 pi rad, got {turn!r}')
+            f'{kind}: {DEVICE_TURN_JOINT} must be within +-2 pi rad, got {turn!r}'
+        )
     return turn
 
 
 def _check_sliders(kind: str, positions: object) -> tuple[float, ...]:
     if isinstance(positions, (str, bytes)) or not isinstance(positions, Iterable):
         raise InvalidReadingError(
-            f'{kind}: slider_positions must be a sequence of {N_CHAINS} numbers, '
-            f'got {positions!r}')
+            f'{kind}: slider_positions must be a sequence of {N_CHAINS} numbers, got {positions!r}'
+        )
     values = tuple(positions)
     if len(values) != N_CHAINS:
         raise InvalidReadingError(
-            f'{kind}: slider_positions must have {N_CHAINS} values, got {len(values)}')
+            f'{kind}: slider_positions must have {N_CHAINS} values, got {len(values)}'
+        )
     return tuple(
-        _check_value(kind, f'slider_{i}', value) for i, value in enumerate(values, start=1))
+        _check_value(kind, f'slider_{i}', value) for i, value in enumerate(values, start=1)
+    )
 
 
 @dataclass(frozen=True)
@@ -76,8 +80,7 @@ class SliderReading:
     def __post_init__(self) -> None:
         kind = type(self).__name__
         object.__setattr__(self, 'stamp_ns', _check_stamp(kind, self.stamp_ns))
-        object.__setattr__(
-            self, 'slider_positions', _check_sliders(kind, self.slider_positions))
+        object.__setattr__(self, 'slider_positions', _check_sliders(kind, self.slider_positions))
 
 
 @dataclass(frozen=True)
@@ -135,8 +138,7 @@ class PostureReading:
     def __post_init__(self) -> None:
         kind = type(self).__name__
         object.__setattr__(self, 'stamp_ns', _check_stamp(kind, self.stamp_ns))
-        object.__setattr__(
-            self, 'slider_positions', _check_sliders(kind, self.slider_positions))
+        object.__setattr__(self, 'slider_positions', _check_sliders(kind, self.slider_positions))
         object.__setattr__(self, 'alpha', _check_value(kind, 'alpha', self.alpha))
         object.__setattr__(self, 'beta', _check_value(kind, 'beta', self.beta))
         object.__setattr__(self, 'phi', _check_value(kind, 'phi', self.phi))
@@ -169,12 +171,16 @@ class PostureReading:
 
     @classmethod
     def from_values(
-        cls, stamp_ns: int, values: Iterable[float], device_turn: float = 0.0,
+        cls,
+        stamp_ns: int,
+        values: Iterable[float],
+        device_turn: float = 0.0,
     ) -> PostureReading:
         """Inverse of values(): nine numbers in POSTURE_NAMES order (and the device turn, rad)."""
         numbers = tuple(values)
         if len(numbers) != len(POSTURE_NAMES):
             raise InvalidReadingError(
                 f'{cls.__name__}: expected {len(POSTURE_NAMES)} values '
-                f'{POSTURE_NAMES}, got {len(numbers)}')
+                f'{POSTURE_NAMES}, got {len(numbers)}'
+            )
         return cls(stamp_ns, numbers[:N_CHAINS], *numbers[N_CHAINS:], device_turn=device_turn)

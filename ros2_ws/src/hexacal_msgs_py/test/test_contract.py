@@ -8,10 +8,6 @@ import subprocess
 import sys
 import textwrap
 
-from hypothesis import given, settings, strategies as st
-import numpy as np
-import pytest
-
 from hexacal_msgs_py import conversions as conv
 from hexacal_msgs_py import names
 from hexacal_msgs_py.errors import (
@@ -33,6 +29,10 @@ from hexacal_msgs_py.readings import (
     PostureReading,
     SliderReading,
 )
+from hypothesis import given, settings
+from hypothesis import strategies as st
+import numpy as np
+import pytest
 
 SLIDERS = (0.11, 0.12, 0.13, 0.14, 0.15, 0.16)
 
@@ -63,10 +63,14 @@ def dotted_yaml(vector: np.ndarray, node: str = '/**') -> str:
 
 # --- names ------------------------------------------------------------------
 
+
 def test_names_layout():
     assert names.SLIDER_NAMES == tuple(f'slider_{i}' for i in range(1, 7))
     assert names.POSTURE_NAMES == names.SLIDER_NAMES + (
-        'inclinometer_x', 'inclinometer_y', 'rotary')
+        'inclinometer_x',
+        'inclinometer_y',
+        'rotary',
+    )
     assert names.N_PARAMETERS == 54 == len(names.PARAMETER_NAMES)
     assert names.PARAMETER_NAMES[names.parameter_index(3, 'ax')] == 'chain_3.ax'
     assert names.parameter_index(1, 'A0x') == 0
@@ -78,14 +82,14 @@ def test_names_layout():
 
 
 def test_ros_free_modules_do_not_import_ros():
-    code = textwrap.dedent('''
+    code = textwrap.dedent("""
         import sys
         import hexacal_msgs_py, hexacal_msgs_py.names, hexacal_msgs_py.readings
         import hexacal_msgs_py.errors, hexacal_msgs_py.parameters_file
         loaded = [m for m in ('rclpy', 'sensor_msgs', 'std_msgs', 'diagnostic_msgs')
                   if m in sys.modules]
         assert not loaded, loaded
-    ''')
+    """)
     subprocess.run([sys.executable, '-c', code], check=True)
 
 
@@ -98,6 +102,7 @@ def test_error_hierarchy():
 
 # --- readings ---------------------------------------------------------------
 
+
 def test_readings_normalise_to_float_tuples_and_are_frozen():
     reading = SliderReading(np.int64(3), [1, 2, 3, 4, 5, np.float32(6)])
     assert reading.slider_positions == (1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
@@ -106,18 +111,21 @@ def test_readings_normalise_to_float_tuples_and_are_frozen():
         reading.stamp_ns = 4
 
 
-@pytest.mark.parametrize('make, expected', [
-    (lambda: SliderReading(0, SLIDERS[:5]), 'must have 6 values, got 5'),
-    (lambda: SliderReading(0, SLIDERS[:5] + (math.nan,)), 'slider_6 must be finite'),
-    (lambda: SliderReading(0, 0.1), 'must be a sequence'),
-    (lambda: SliderReading(-1, SLIDERS), 'stamp_ns must be >= 0'),
-    (lambda: SliderReading(1.5, SLIDERS), 'stamp_ns must be an integer'),
-    (lambda: InclinometerReading(0, math.inf, 0.0), 'alpha must be finite'),
-    (lambda: InclinometerReading(0, 0.0, 'x'), 'beta must be a number'),
-    (lambda: EncoderReading(0, -math.inf), 'phi must be finite'),
-    (lambda: PostureReading(0, SLIDERS, 0.0, 0.0, math.nan), 'phi must be finite'),
-    (lambda: PostureReading.from_values(0, range(8)), 'expected 9 values'),
-])
+@pytest.mark.parametrize(
+    'make, expected',
+    [
+        (lambda: SliderReading(0, SLIDERS[:5]), 'must have 6 values, got 5'),
+        (lambda: SliderReading(0, SLIDERS[:5] + (math.nan,)), 'slider_6 must be finite'),
+        (lambda: SliderReading(0, 0.1), 'must be a sequence'),
+        (lambda: SliderReading(-1, SLIDERS), 'stamp_ns must be >= 0'),
+        (lambda: SliderReading(1.5, SLIDERS), 'stamp_ns must be an integer'),
+        (lambda: InclinometerReading(0, math.inf, 0.0), 'alpha must be finite'),
+        (lambda: InclinometerReading(0, 0.0, 'x'), 'beta must be a number'),
+        (lambda: EncoderReading(0, -math.inf), 'phi must be finite'),
+        (lambda: PostureReading(0, SLIDERS, 0.0, 0.0, math.nan), 'phi must be finite'),
+        (lambda: PostureReading.from_values(0, range(8)), 'expected 9 values'),
+    ],
+)
 def test_readings_reject_invalid_values(make, expected):
     with pytest.raises(InvalidReadingError, match=expected):
         make()
@@ -125,13 +133,15 @@ def test_readings_reject_invalid_values(make, expected):
 
 def test_posture_from_parts_and_values():
     posture = PostureReading.from_parts(
-        SliderReading(10, SLIDERS), InclinometerReading(11, 0.1, -0.2), EncoderReading(12, 1.5))
+        SliderReading(10, SLIDERS), InclinometerReading(11, 0.1, -0.2), EncoderReading(12, 1.5)
+    )
     assert posture == PostureReading(10, SLIDERS, 0.1, -0.2, 1.5)
     assert posture.values() == SLIDERS + (0.1, -0.2, 1.5)
     assert PostureReading.from_values(10, posture.values()) == posture
 
 
 # --- message conversions ----------------------------------------------------
+
 
 @pytest.mark.parametrize('ns', [0, 1, 999_999_999, 1_000_000_000, 1_732_000_000_123_456_789])
 def test_stamp_round_trip(ns):
@@ -141,14 +151,26 @@ def test_stamp_round_trip(ns):
 
 
 READINGS = [
-    (SliderReading(1_500_000_001, SLIDERS),
-     conv.slider_reading_to_joint_state, conv.joint_state_to_slider_reading),
-    (InclinometerReading(2, 0.0123, -0.0456),
-     conv.inclinometer_reading_to_joint_state, conv.joint_state_to_inclinometer_reading),
-    (EncoderReading(3, -2.5),
-     conv.encoder_reading_to_joint_state, conv.joint_state_to_encoder_reading),
-    (PostureReading(4, SLIDERS, 0.01, 0.02, 0.03),
-     conv.posture_reading_to_joint_state, conv.joint_state_to_posture_reading),
+    (
+        SliderReading(1_500_000_001, SLIDERS),
+        conv.slider_reading_to_joint_state,
+        conv.joint_state_to_slider_reading,
+    ),
+    (
+        InclinometerReading(2, 0.0123, -0.0456),
+        conv.inclinometer_reading_to_joint_state,
+        conv.joint_state_to_inclinometer_reading,
+    ),
+    (
+        EncoderReading(3, -2.5),
+        conv.encoder_reading_to_joint_state,
+        conv.joint_state_to_encoder_reading,
+    ),
+    (
+        PostureReading(4, SLIDERS, 0.01, 0.02, 0.03),
+        conv.posture_reading_to_joint_state,
+        conv.joint_state_to_posture_reading,
+    ),
 ]
 
 
@@ -204,7 +226,9 @@ def test_parameters_multiarray_round_trip_is_bit_exact():
     vector = example_vector()
     msg = conv.parameters_to_multiarray(vector)
     assert [(d.label, d.size, d.stride) for d in msg.layout.dim] == [
-        ('chain', 6, 54), ('A0x,A0y,A0z,Bx,By,Bz,l,ax,ay', 9, 9)]
+        ('chain', 6, 54),
+        ('A0x,A0y,A0z,Bx,By,Bz,l,ax,ay', 9, 9),
+    ]
     back = conv.multiarray_to_parameters(msg)
     assert back.shape == (54,)
     assert back.tobytes() == vector.tobytes()
@@ -241,16 +265,26 @@ def test_diagnostic_status_builder():
     from diagnostic_msgs.msg import DiagnosticStatus
 
     array = conv.diagnostic_status(
-        DiagnosticStatus.WARN, 'hexacal/identify', 'converging',
+        DiagnosticStatus.WARN,
+        'hexacal/identify',
+        'converging',
         {'iterations': 12, 'rms_residual_m': np.float64(1.25e-05), 'converged': False},
-        hardware_id='hsm', stamp=3_000_000_007)
+        hardware_id='hsm',
+        stamp=3_000_000_007,
+    )
     assert conv.stamp_ns(array.header.stamp) == 3_000_000_007
     (status,) = array.status
     assert status.level == DiagnosticStatus.WARN
     assert (status.name, status.message, status.hardware_id) == (
-        'hexacal/identify', 'converging', 'hsm')
+        'hexacal/identify',
+        'converging',
+        'hsm',
+    )
     assert conv.status_values(status) == {
-        'iterations': '12', 'rms_residual_m': '1.25e-05', 'converged': 'false'}
+        'iterations': '12',
+        'rms_residual_m': '1.25e-05',
+        'converged': 'false',
+    }
     assert conv.diagnostic_status(2, 'n', 'm').status[0].level == DiagnosticStatus.ERROR
     assert conv.diagnostic_status('stale', 'n', 'm').status[0].level == DiagnosticStatus.STALE
     with pytest.raises(ValueError):
@@ -258,9 +292,8 @@ def test_diagnostic_status_builder():
 
 
 def test_qos_profiles():
-    from rclpy.qos import DurabilityPolicy, qos_profile_sensor_data, ReliabilityPolicy
-
     from hexacal_msgs_py import qos
+    from rclpy.qos import DurabilityPolicy, qos_profile_sensor_data, ReliabilityPolicy
 
     assert qos.SENSOR_QOS == qos_profile_sensor_data
     assert qos.POSTURE_QOS.reliability == ReliabilityPolicy.RELIABLE
@@ -273,13 +306,18 @@ def test_qos_profiles():
 
 # --- parameters YAML ----------------------------------------------------------
 
+
 def test_yaml_round_trip_is_bit_exact_and_keeps_extras(tmp_path):
     vector = example_vector()
     vector[0] = 1e-5  # repr '1e-05' would read back as a string in YAML 1.1
     vector[1] = -1e16
     vector[2] = -0.0
-    extras = {'device': {'link_length': 0.51, 'serial': 'HX-7 "b"'}, 'iterations': 12,
-              'converged': True, 'weights': [1.0, 2.5e-07]}
+    extras = {
+        'device': {'link_length': 0.51, 'serial': 'HX-7 "b"'},
+        'iterations': 12,
+        'converged': True,
+        'weights': [1.0, 2.5e-07],
+    }
     path = tmp_path / 'params.yaml'
     save_parameters(path, vector, extras=extras, header_comment='identified\nby hexacal')
     text = path.read_text()
@@ -287,14 +325,22 @@ def test_yaml_round_trip_is_bit_exact_and_keeps_extras(tmp_path):
     assert '    chain_3.a: [' in text
     loaded, loaded_extras = load_parameters_file(path)
     assert loaded.tobytes() == vector.tobytes()
-    assert loaded_extras == {'device.link_length': 0.51, 'device.serial': 'HX-7 "b"',
-                             'iterations': 12, 'converged': True, 'weights': [1.0, 2.5e-07]}
+    assert loaded_extras == {
+        'device.link_length': 0.51,
+        'device.serial': 'HX-7 "b"',
+        'iterations': 12,
+        'converged': True,
+        'weights': [1.0, 2.5e-07],
+    }
     assert load_parameters(path).tobytes() == vector.tobytes()
 
 
 @settings(max_examples=50, deadline=None)
-@given(st.lists(st.floats(min_value=-1e6, max_value=1e6, allow_subnormal=True),
-                min_size=54, max_size=54))
+@given(
+    st.lists(
+        st.floats(min_value=-1e6, max_value=1e6, allow_subnormal=True), min_size=54, max_size=54
+    )
+)
 def test_yaml_round_trip_bit_exact_for_any_floats(tmp_path_factory, values):
     vector = np.array(values)
     fields = vector.reshape(6, 9)
@@ -323,7 +369,8 @@ def test_nested_and_dotted_forms_load_the_same(tmp_path):
             nested_lines.append(
                 f'    chain_{chain}: {{A0: [{fields[0]!r}, {fields[1]!r}, {fields[2]!r}], '
                 f'B: [{fields[3]!r}, {fields[4]!r}, {fields[5]!r}], l: {fields[6]!r}, '
-                f'a: [{fields[7]!r}, {fields[8]!r}]}}')
+                f'a: [{fields[7]!r}, {fields[8]!r}]}}'
+            )
     nested_lines += ['    device:', '      link_length: 0.5']
     nested = tmp_path / 'nested.yaml'
     nested.write_text('\n'.join(nested_lines) + '\n')
@@ -345,8 +392,9 @@ def test_named_and_namespaced_nodes_load(tmp_path):
 
 def test_scientific_notation_without_dot_is_a_number(tmp_path):
     path = tmp_path / 'sci.yaml'
-    path.write_text(dotted_yaml(example_vector()).replace(
-        'chain_2.A0: [', 'chain_2.A0: [1e-3, 2E+2, 3e0] #'))
+    path.write_text(
+        dotted_yaml(example_vector()).replace('chain_2.A0: [', 'chain_2.A0: [1e-3, 2E+2, 3e0] #')
+    )
     vector = load_parameters(path)
     assert vector[9:12].tolist() == [1e-3, 200.0, 3.0]
 
@@ -358,19 +406,22 @@ def _replace_line(text: str, key: str, new_value: str) -> str:
     return '\n'.join(lines) + '\n'
 
 
-@pytest.mark.parametrize('key, value, expected', [
-    ('chain_3.a', '[0.1, 0.2, 0.3]', 'chain_3.a must have 2 values, got 3'),
-    ('chain_2.A0', '[0.1, 0.2]', 'chain_2.A0 must have 3 values, got 2'),
-    ('chain_4.B', '0.5', 'chain_4.B must be a list of 3 values'),
-    ('chain_5.l', 'abc', "chain_5.l must be numeric, got 'abc'"),
-    ('chain_5.l', 'true', 'chain_5.l must be numeric, got True'),
-    ('chain_1.B', '[0.1, .nan, 0.2]', 'chain_1.B must be finite, got nan'),
-    ('chain_6.l', '.inf', 'chain_6.l must be finite, got inf'),
-    ('chain_2.a', '[0.8, 0.6]', r'chain_2.a = \[0.8, 0.6\] is not the x, y components'),
-    ('chain_2.a', '[0.9, 0.9]', 'chain_2.a .* >= 1'),
-    ('chain_6.l', '0.0', 'chain_6.l must be > 0 m, got 0.0'),
-    ('chain_1.l', '-0.99', 'chain_1.l must be > 0 m'),
-])
+@pytest.mark.parametrize(
+    'key, value, expected',
+    [
+        ('chain_3.a', '[0.1, 0.2, 0.3]', 'chain_3.a must have 2 values, got 3'),
+        ('chain_2.A0', '[0.1, 0.2]', 'chain_2.A0 must have 3 values, got 2'),
+        ('chain_4.B', '0.5', 'chain_4.B must be a list of 3 values'),
+        ('chain_5.l', 'abc', "chain_5.l must be numeric, got 'abc'"),
+        ('chain_5.l', 'true', 'chain_5.l must be numeric, got True'),
+        ('chain_1.B', '[0.1, .nan, 0.2]', 'chain_1.B must be finite, got nan'),
+        ('chain_6.l', '.inf', 'chain_6.l must be finite, got inf'),
+        ('chain_2.a', '[0.8, 0.6]', r'chain_2.a = \[0.8, 0.6\] is not the x, y components'),
+        ('chain_2.a', '[0.9, 0.9]', 'chain_2.a .* >= 1'),
+        ('chain_6.l', '0.0', 'chain_6.l must be > 0 m, got 0.0'),
+        ('chain_1.l', '-0.99', 'chain_1.l must be > 0 m'),
+    ],
+)
 def test_each_validation_error_names_file_and_key(tmp_path, key, value, expected):
     path = tmp_path / 'params.yaml'
     path.write_text(_replace_line(dotted_yaml(example_vector()), key, value))
@@ -380,8 +431,11 @@ def test_each_validation_error_names_file_and_key(tmp_path, key, value, expected
 
 def test_missing_key_is_named(tmp_path):
     path = tmp_path / 'params.yaml'
-    text = ''.join(line + '\n' for line in dotted_yaml(example_vector()).splitlines()
-                   if 'chain_4.B:' not in line)
+    text = ''.join(
+        line + '\n'
+        for line in dotted_yaml(example_vector()).splitlines()
+        if 'chain_4.B:' not in line
+    )
     path.write_text(text)
     with pytest.raises(ParameterFileError, match='params.yaml: missing key chain_4.B'):
         load_parameters(path)
@@ -394,12 +448,15 @@ def test_key_given_nested_and_dotted_is_rejected(tmp_path):
         load_parameters(path)
 
 
-@pytest.mark.parametrize('content, expected', [
-    ('/**:\n  ros__parameters: [1, 2]\n', "ros__parameters of node '/.*' must be a mapping"),
-    ('just a string\n', 'expected a mapping'),
-    ('/**:\n  ros__parameters: {chain_1.A0: [1, 2\n', 'invalid YAML'),
-    ('', 'expected a mapping'),
-])
+@pytest.mark.parametrize(
+    'content, expected',
+    [
+        ('/**:\n  ros__parameters: [1, 2]\n', "ros__parameters of node '/.*' must be a mapping"),
+        ('just a string\n', 'expected a mapping'),
+        ('/**:\n  ros__parameters: {chain_1.A0: [1, 2\n', 'invalid YAML'),
+        ('', 'expected a mapping'),
+    ],
+)
 def test_malformed_files_are_reported(tmp_path, content, expected):
     path = tmp_path / 'bad.yaml'
     path.write_text(content)
@@ -477,6 +534,7 @@ def test_paths_may_be_strings(tmp_path):
 
 # --- models (models.py) and Gough-Stewart parameters files ---------------------
 
+
 def gs_example_vector() -> np.ndarray:
     """A valid Gough-Stewart 42-vector with distinct, non-round values."""
     rng = np.random.default_rng(11)
@@ -484,7 +542,9 @@ def gs_example_vector() -> np.ndarray:
     for chain in range(6):
         angle = chain * math.pi / 3
         base = [0.5 * math.cos(angle), 0.5 * math.sin(angle), 0.0] + rng.uniform(-1e-3, 1e-3, 3)
-        platform = [0.2 * math.cos(angle + 0.5), 0.2 * math.sin(angle + 0.5), 0.015] + rng.uniform(-1e-3, 1e-3, 3)
+        platform = [0.2 * math.cos(angle + 0.5), 0.2 * math.sin(angle + 0.5), 0.015] + rng.uniform(
+            -1e-3, 1e-3, 3
+        )
         chains.append(np.concatenate([base, platform, [0.6 + rng.uniform(-1e-3, 1e-3)]]))
     return np.concatenate(chains)
 
@@ -505,17 +565,29 @@ def test_model_layouts():
     assert models.DEFAULT_MODEL == 'hexa_slide' and models.MODEL_KEY == 'model'
     slide, gs = models.MODELS['hexa_slide'], models.MODELS['gough_stewart']
     assert slide.n_parameters == 54 and slide.parameter_names == names.PARAMETER_NAMES
-    assert slide.actuator_names == names.SLIDER_NAMES and slide.posture_names == names.POSTURE_NAMES
+    assert (
+        slide.actuator_names == names.SLIDER_NAMES and slide.posture_names == names.POSTURE_NAMES
+    )
     assert gs.n_parameters == 42 and gs.fields_per_chain == 7
     assert gs.fields == ('Ax', 'Ay', 'Az', 'Bx', 'By', 'Bz', 'l0')
     assert gs.parameter_units == ('m',) * 42
-    assert gs.parameter_names[:8] == ('chain_1.Ax', 'chain_1.Ay', 'chain_1.Az', 'chain_1.Bx', 'chain_1.By',
-                                      'chain_1.Bz', 'chain_1.l0', 'chain_2.Ax')
+    assert gs.parameter_names[:8] == (
+        'chain_1.Ax',
+        'chain_1.Ay',
+        'chain_1.Az',
+        'chain_1.Bx',
+        'chain_1.By',
+        'chain_1.Bz',
+        'chain_1.l0',
+        'chain_2.Ax',
+    )
     assert gs.parameter_index(6, 'l0') == 41 and gs.parameter_index(3, 'By') == 18
     assert gs.parameter_names[gs.parameter_index(4, 'Az')] == 'chain_4.Az'
     assert gs.actuator_names == tuple(f'leg_{i}' for i in range(1, 7))
     assert gs.posture_names == gs.actuator_names + ('inclinometer_x', 'inclinometer_y', 'rotary')
-    assert gs.chain_key_names == frozenset(f'chain_{c}.{k}' for c in range(1, 7) for k in ('A', 'B', 'l0'))
+    assert gs.chain_key_names == frozenset(
+        f'chain_{c}.{k}' for c in range(1, 7) for k in ('A', 'B', 'l0')
+    )
     with pytest.raises(ValueError, match='l0'):
         gs.parameter_index(1, 'A0x')
     with pytest.raises(ValueError, match='1..6'):
@@ -533,8 +605,10 @@ def test_model_lookups_name_the_problem():
     assert models.model_for_vector_size(42).name == 'gough_stewart'
     with pytest.raises(InvalidParametersError, match='43 values'):
         models.model_for_vector_size(43)
-    assert models.model_for_actuator_names(['leg_%d' % i for i in range(6, 0, -1)] + ['rotary']).name == \
-        'gough_stewart'
+    assert (
+        models.model_for_actuator_names(['leg_%d' % i for i in range(6, 0, -1)] + ['rotary']).name
+        == 'gough_stewart'
+    )
     assert models.model_for_actuator_names(names.POSTURE_NAMES).name == 'hexa_slide'
     assert models.model_for_actuator_names(['leg_1', 'leg_2', 'slider_3']) is None
 
@@ -548,8 +622,9 @@ def test_gough_stewart_file_round_trips_bit_exact_with_model_and_extras(tmp_path
     path = tmp_path / 'gs.yaml'
     save_parameters(path, vector, extras={'bag': 'bags/gs', 'rank': 42}, header_comment='hexapod')
     text = path.read_text()
-    assert text.startswith('# hexapod\n/**:\n  ros__parameters:\n    model: gough_stewart\n'
-                           '    chain_1.A: [')
+    assert text.startswith(
+        '# hexapod\n/**:\n  ros__parameters:\n    model: gough_stewart\n    chain_1.A: ['
+    )
     assert '    chain_6.l0: ' in text and 'A0' not in text
     contents = read_parameters_file(path)
     assert contents.model == 'gough_stewart' and contents.layout.n_parameters == 42
@@ -557,8 +632,13 @@ def test_gough_stewart_file_round_trips_bit_exact_with_model_and_extras(tmp_path
     assert contents.extras == {'bag': 'bags/gs', 'rank': 42}
     # Written explicitly as a Gough-Stewart: the same file.
     again = tmp_path / 'again.yaml'
-    save_parameters(again, vector, extras={'bag': 'bags/gs', 'rank': 42}, header_comment='hexapod',
-                    model='gough_stewart')
+    save_parameters(
+        again,
+        vector,
+        extras={'bag': 'bags/gs', 'rank': 42},
+        header_comment='hexapod',
+        model='gough_stewart',
+    )
     assert again.read_bytes() == path.read_bytes()
 
 
@@ -568,8 +648,10 @@ def test_gough_stewart_nested_form_and_hexa_slide_defaults(tmp_path):
     vector = gs_example_vector()
     nested = ['/**:', '  ros__parameters:', '    model: gough_stewart']
     for chain, f in enumerate(vector.reshape(6, 7).tolist(), start=1):
-        nested.append(f'    chain_{chain}: {{A: [{f[0]!r}, {f[1]!r}, {f[2]!r}], '
-                      f'B: [{f[3]!r}, {f[4]!r}, {f[5]!r}], l0: {f[6]!r}}}')
+        nested.append(
+            f'    chain_{chain}: {{A: [{f[0]!r}, {f[1]!r}, {f[2]!r}], '
+            f'B: [{f[3]!r}, {f[4]!r}, {f[5]!r}], l0: {f[6]!r}}}'
+        )
     path = tmp_path / 'nested.yaml'
     path.write_text('\n'.join(nested) + '\n')
     assert read_parameters_file(path).vector.tobytes() == vector.tobytes()
@@ -578,19 +660,31 @@ def test_gough_stewart_nested_form_and_hexa_slide_defaults(tmp_path):
     save_parameters(slide, example_vector())
     assert 'model' not in slide.read_text() and load_model(slide) == 'hexa_slide'
     explicit = tmp_path / 'explicit.yaml'
-    explicit.write_text(dotted_yaml(example_vector()).replace(
-        '  ros__parameters:\n', '  ros__parameters:\n    model: hexa_slide\n'))
+    explicit.write_text(
+        dotted_yaml(example_vector()).replace(
+            '  ros__parameters:\n', '  ros__parameters:\n    model: hexa_slide\n'
+        )
+    )
     assert load_model(explicit) == 'hexa_slide'
     assert load_parameters(explicit).tobytes() == example_vector().tobytes()
 
 
-@pytest.mark.parametrize('text_change, expected', [
-    (('chain_3.A:', 'chain_3.A0:'), 'gs.yaml: chain_3.A0 is not a gough_stewart parameter .*A, B, l0'),
-    (('    chain_2.l0: ', '    chain_2.l: '), 'gs.yaml: chain_2.l is not a gough_stewart parameter'),
-    (('model: gough_stewart', 'model: stewart'), "gs.yaml: model: unknown model 'stewart'"),
-    (('model: gough_stewart', 'model: 7'), 'gs.yaml: model: unknown model 7'),
-    (('    model: gough_stewart\n', ''), 'gs.yaml: chain_1.A is not a hexa_slide parameter'),
-])
+@pytest.mark.parametrize(
+    'text_change, expected',
+    [
+        (
+            ('chain_3.A:', 'chain_3.A0:'),
+            'gs.yaml: chain_3.A0 is not a gough_stewart parameter .*A, B, l0',
+        ),
+        (
+            ('    chain_2.l0: ', '    chain_2.l: '),
+            'gs.yaml: chain_2.l is not a gough_stewart parameter',
+        ),
+        (('model: gough_stewart', 'model: stewart'), "gs.yaml: model: unknown model 'stewart'"),
+        (('model: gough_stewart', 'model: 7'), 'gs.yaml: model: unknown model 7'),
+        (('    model: gough_stewart\n', ''), 'gs.yaml: chain_1.A is not a hexa_slide parameter'),
+    ],
+)
 def test_gough_stewart_file_errors_name_file_and_key(tmp_path, text_change, expected):
     path = tmp_path / 'gs.yaml'
     path.write_text(gs_dotted_yaml(gs_example_vector()).replace(*text_change, 1))
@@ -598,13 +692,16 @@ def test_gough_stewart_file_errors_name_file_and_key(tmp_path, text_change, expe
         load_parameters(path)
 
 
-@pytest.mark.parametrize('key, value, expected', [
-    ('chain_4.l0', '0.0', 'chain_4.l0 must be > 0 m'),
-    ('chain_1.l0', '-0.6', 'chain_1.l0 must be > 0 m'),
-    ('chain_2.A', '[0.1, 0.2]', 'chain_2.A must have 3 values, got 2'),
-    ('chain_5.B', '[0.1, .nan, 0.2]', 'chain_5.B must be finite'),
-    ('chain_6.l0', '[0.6]', 'chain_6.l0 must be numeric'),
-])
+@pytest.mark.parametrize(
+    'key, value, expected',
+    [
+        ('chain_4.l0', '0.0', 'chain_4.l0 must be > 0 m'),
+        ('chain_1.l0', '-0.6', 'chain_1.l0 must be > 0 m'),
+        ('chain_2.A', '[0.1, 0.2]', 'chain_2.A must have 3 values, got 2'),
+        ('chain_5.B', '[0.1, .nan, 0.2]', 'chain_5.B must be finite'),
+        ('chain_6.l0', '[0.6]', 'chain_6.l0 must be numeric'),
+    ],
+)
 def test_gough_stewart_validation_errors(tmp_path, key, value, expected):
     path = tmp_path / 'gs.yaml'
     path.write_text(_replace_line(gs_dotted_yaml(gs_example_vector()), key, value))
@@ -614,8 +711,13 @@ def test_gough_stewart_validation_errors(tmp_path, key, value, expected):
 
 def test_gough_stewart_missing_key_is_named(tmp_path):
     path = tmp_path / 'gs.yaml'
-    path.write_text(''.join(line + '\n' for line in gs_dotted_yaml(gs_example_vector()).splitlines()
-                            if 'chain_5.l0' not in line))
+    path.write_text(
+        ''.join(
+            line + '\n'
+            for line in gs_dotted_yaml(gs_example_vector()).splitlines()
+            if 'chain_5.l0' not in line
+        )
+    )
     with pytest.raises(ParameterFileError, match='gs.yaml: missing key chain_5.l0'):
         load_parameters(path)
 
@@ -648,7 +750,11 @@ def test_gough_stewart_chain_dict_round_trip():
     vector = gs_example_vector()
     chains = parameters_to_chain_dict(vector)
     assert list(chains) == [f'chain_{i}' for i in range(1, 7)]
-    assert chains['chain_2'] == {'A': vector[7:10].tolist(), 'B': vector[10:13].tolist(), 'l0': vector[13]}
+    assert chains['chain_2'] == {
+        'A': vector[7:10].tolist(),
+        'B': vector[10:13].tolist(),
+        'l0': vector[13],
+    }
     assert parameters_to_chain_dict(vector, 'gough_stewart') == chains
     decoded = json.loads(json.dumps(chains))
     assert chain_dict_to_parameters(decoded, model='gough_stewart').tobytes() == vector.tobytes()

@@ -1,12 +1,12 @@
 """Message conversions for every machine model: actuator joint names and parameter layouts."""
-import numpy as np
-import pytest
 
 from hexacal_msgs_py import conversions as conv
 from hexacal_msgs_py.errors import InvalidParametersError, InvalidReadingError
 from hexacal_msgs_py.models import GOUGH_STEWART, HEXA_SLIDE, MODELS
-from hexacal_msgs_py.names import POSTURE_NAMES, SLIDER_NAMES, actuator_names, posture_names
+from hexacal_msgs_py.names import actuator_names, POSTURE_NAMES, posture_names, SLIDER_NAMES
 from hexacal_msgs_py.readings import PostureReading, SliderReading
+import numpy as np
+import pytest
 
 POSTURE = PostureReading(1_234_567_890, (0.1, 0.2, 0.3, 0.4, 0.5, 0.6), 0.01, -0.02, 0.03)
 LEGS = ('leg_1', 'leg_2', 'leg_3', 'leg_4', 'leg_5', 'leg_6')
@@ -54,18 +54,23 @@ def test_other_models_names_are_a_missing_joint():
 
 
 def test_slider_readings_with_leg_names():
-    message = conv.slider_reading_to_joint_state(SliderReading(7, POSTURE.slider_positions),
-                                                 model=GOUGH_STEWART)
+    message = conv.slider_reading_to_joint_state(
+        SliderReading(7, POSTURE.slider_positions), model=GOUGH_STEWART
+    )
     assert tuple(message.name) == LEGS
-    assert conv.joint_state_to_slider_reading(message, GOUGH_STEWART).slider_positions == \
-        POSTURE.slider_positions
+    assert (
+        conv.joint_state_to_slider_reading(message, GOUGH_STEWART).slider_positions
+        == POSTURE.slider_positions
+    )
 
 
 def test_gough_stewart_parameters_message():
     vector = gough_stewart_vector()
     message = conv.parameters_to_multiarray(vector)  # 42 values: the Gough-Stewart layout
     assert [(d.label, d.size, d.stride) for d in message.layout.dim] == [
-        ('chain', 6, 42), ('Ax,Ay,Az,Bx,By,Bz,l0', 7, 7)]
+        ('chain', 6, 42),
+        ('Ax,Ay,Az,Bx,By,Bz,l0', 7, 7),
+    ]
     assert conv.multiarray_model(message).name == GOUGH_STEWART
     assert conv.multiarray_to_parameters(message).tobytes() == vector.tobytes()
     assert conv.multiarray_to_parameters(message, GOUGH_STEWART).tobytes() == vector.tobytes()

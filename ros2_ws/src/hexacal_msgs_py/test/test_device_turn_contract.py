@@ -1,11 +1,8 @@
 """The device turn in the contract: the optional 'device_turn' joint of postures and inclinometer messages."""
+
 import math
 
-import pytest
 from builtin_interfaces.msg import Time
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Header
-
 from hexacal_msgs_py import conversions as conv
 from hexacal_msgs_py.errors import InvalidReadingError
 from hexacal_msgs_py.inputs import InputMapping
@@ -16,7 +13,15 @@ from hexacal_msgs_py.names import (
     POSTURE_NAMES,
     posture_names,
 )
-from hexacal_msgs_py.readings import EncoderReading, InclinometerReading, PostureReading, SliderReading
+from hexacal_msgs_py.readings import (
+    EncoderReading,
+    InclinometerReading,
+    PostureReading,
+    SliderReading,
+)
+import pytest
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Header
 
 SLIDERS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6)
 
@@ -27,8 +32,11 @@ def posture(turn: float = 0.0) -> PostureReading:
 
 def joint_state(names, positions, stamp_ns: int = 5) -> JointState:
     seconds, nanoseconds = divmod(stamp_ns, 1_000_000_000)
-    return JointState(header=Header(stamp=Time(sec=seconds, nanosec=nanoseconds)),
-                      name=list(names), position=[float(p) for p in positions])
+    return JointState(
+        header=Header(stamp=Time(sec=seconds, nanosec=nanoseconds)),
+        name=list(names),
+        position=[float(p) for p in positions],
+    )
 
 
 def test_the_joint_name_and_defaults():
@@ -78,8 +86,11 @@ def test_inclinometer_round_trip(turn):
 
 
 def test_from_parts_takes_the_turn_of_the_inclinometer():
-    parts = PostureReading.from_parts(SliderReading(3, SLIDERS), InclinometerReading(4, 0.1, 0.2, math.pi),
-                                      EncoderReading(5, 0.3))
+    parts = PostureReading.from_parts(
+        SliderReading(3, SLIDERS),
+        InclinometerReading(4, 0.1, 0.2, math.pi),
+        EncoderReading(5, 0.3),
+    )
     assert parts.device_turn == math.pi
     assert parts.stamp_ns == 3
 
@@ -109,8 +120,9 @@ def test_an_invalid_turn_joint_is_an_invalid_reading(bad):
 
 
 def test_a_repeated_turn_joint_is_an_invalid_reading():
-    message = joint_state(INCLINOMETER_NAMES + (DEVICE_TURN_JOINT, DEVICE_TURN_JOINT),
-                          (0.01, -0.02, 1.0, 2.0))
+    message = joint_state(
+        INCLINOMETER_NAMES + (DEVICE_TURN_JOINT, DEVICE_TURN_JOINT), (0.01, -0.02, 1.0, 2.0)
+    )
     with pytest.raises(InvalidReadingError, match='device_turn'):
         conv.joint_state_to_inclinometer_reading(message)
 
@@ -118,9 +130,12 @@ def test_a_repeated_turn_joint_is_an_invalid_reading():
 def test_a_mapped_inclinometer_without_the_joint_reads_turn_zero():
     """A user's /joint_states (mapped joint names, signs) without the joint: the normal mounting;
     with it, its value."""
-    mapping = InputMapping(actuator_joints=tuple(f'axis_{i}' for i in range(1, 7)),
-                           inclinometer_joints=('tilt_x', 'tilt_y'), rotary_joint='yaw',
-                           inclinometer_signs=(-1, 1))
+    mapping = InputMapping(
+        actuator_joints=tuple(f'axis_{i}' for i in range(1, 7)),
+        inclinometer_joints=('tilt_x', 'tilt_y'),
+        rotary_joint='yaw',
+        inclinometer_signs=(-1, 1),
+    )
     names = tuple(f'axis_{i}' for i in range(1, 7)) + ('tilt_x', 'tilt_y', 'yaw')
     message = joint_state(names, SLIDERS + (0.01, -0.02, 0.03))
     reading = conv.joint_state_to_inclinometer_reading(message, mapping)
@@ -133,12 +148,16 @@ def test_a_mapped_inclinometer_without_the_joint_reads_turn_zero():
 
 
 def test_device_defect_keys_of_a_parameters_file():
-    from hexacal_msgs_py.models import DEVICE_DEFECT_NAMES, DEVICE_DEFECT_UNITS, device_defect_key
+    from hexacal_msgs_py.models import device_defect_key, DEVICE_DEFECT_NAMES, DEVICE_DEFECT_UNITS
 
     assert DEVICE_DEFECT_NAMES == ('dL', 'alpha0', 'beta0', 'gamma', 'phi0')
     assert DEVICE_DEFECT_UNITS == ('m', 'rad', 'rad', 'rad', 'rad')
     assert [device_defect_key(n) for n in DEVICE_DEFECT_NAMES] == [
-        'device.defects.dL', 'device.defects.alpha0', 'device.defects.beta0', 'device.defects.gamma',
-        'device.defects.phi0']
+        'device.defects.dL',
+        'device.defects.alpha0',
+        'device.defects.beta0',
+        'device.defects.gamma',
+        'device.defects.phi0',
+    ]
     with pytest.raises(ValueError, match='tilt'):
         device_defect_key('tilt')

@@ -1,20 +1,26 @@
 """The pose <-> geometry_msgs/Pose convention (poses.py): eq. 2's rotation as a quaternion and back."""
+
 import math
 
 from geometry_msgs.msg import Pose, PoseStamped
-import numpy as np
-import pytest
-
 from hexacal_msgs_py import poses
 from hexacal_msgs_py.errors import InvalidReadingError
+import numpy as np
+import pytest
 
 WORKSPACE_ANGLE = math.radians(35.0)  # the Hexa Slide's rotation range; the hexapod's is 20 deg
 
 
 def eq2(theta: float, psi: float, phi: float) -> np.ndarray:
     """R = R_Y(theta) R_X(psi) R_z(phi), written out from the elementary rotations."""
-    ct, st, cp, sp, cf, sf = (math.cos(theta), math.sin(theta), math.cos(psi), math.sin(psi),
-                              math.cos(phi), math.sin(phi))
+    ct, st, cp, sp, cf, sf = (
+        math.cos(theta),
+        math.sin(theta),
+        math.cos(psi),
+        math.sin(psi),
+        math.cos(phi),
+        math.sin(phi),
+    )
     r_y = np.array([[ct, 0, st], [0, 1, 0], [-st, 0, ct]])
     r_x = np.array([[1, 0, 0], [0, cp, -sp], [0, sp, cp]])
     r_z = np.array([[cf, -sf, 0], [sf, cf, 0], [0, 0, 1]])
@@ -77,12 +83,15 @@ def test_messages_round_trip():
     assert np.allclose(poses.pose_from_message(bare), pose, atol=1e-3)
 
 
-@pytest.mark.parametrize('quaternion, words', [
-    ((0.0, 0.0, 0.0, 0.0), 'all zeros'),
-    ((0.0, 0.0, 0.0, 2.0), 'norm 2'),
-    ((math.nan, 0.0, 0.0, 1.0), 'non-finite'),
-    ((0.0, 0.0, 1.0), 'expected 4'),
-])
+@pytest.mark.parametrize(
+    'quaternion, words',
+    [
+        ((0.0, 0.0, 0.0, 0.0), 'all zeros'),
+        ((0.0, 0.0, 0.0, 2.0), 'norm 2'),
+        ((math.nan, 0.0, 0.0, 1.0), 'non-finite'),
+        ((0.0, 0.0, 1.0), 'expected 4'),
+    ],
+)
 def test_bad_quaternions_are_refused(quaternion, words):
     with pytest.raises(InvalidReadingError, match=words):
         poses.pose_from_position_quaternion((0.0, 0.0, 0.0), quaternion)

@@ -3,37 +3,82 @@
 The names below are imported from their submodules on first use (PEP 562): the
 errors alone do not load the MCAP reader and writer.
 """
+
 from __future__ import annotations
 
 import importlib
 from typing import TYPE_CHECKING
 
 _EXPORTS = {
-    "errors": ("BagCorruptError", "BagDecodeError", "BagEmptyError", "BagEncodeError", "BagError",
-               "BagFormatError", "BagMetadataError", "BagMissingFileError", "BagNotFoundError", "BagSchemaError",
-               "BagWriteError", "MessageDefinitionNotFoundError"),
-    "reader": ("BagInfo", "BagMessage", "BagReader", "FileInfo", "MetadataRecord", "TopicInfo", "open_bag"),
-    "reindex": ("reindex",),
-    "schemas": ("message_definition", "normalize_type_name"),
-    "writer": ("DEFAULT_QOS_PROFILES_YAML", "ROSBAG2_METADATA_VERSION", "STORAGE_PRESETS", "BagWriter"),
+    'errors': (
+        'BagCorruptError',
+        'BagDecodeError',
+        'BagEmptyError',
+        'BagEncodeError',
+        'BagError',
+        'BagFormatError',
+        'BagMetadataError',
+        'BagMissingFileError',
+        'BagNotFoundError',
+        'BagSchemaError',
+        'BagWriteError',
+        'MessageDefinitionNotFoundError',
+    ),
+    'reader': (
+        'BagInfo',
+        'BagMessage',
+        'BagReader',
+        'FileInfo',
+        'MetadataRecord',
+        'TopicInfo',
+        'open_bag',
+    ),
+    'reindex': ('reindex',),
+    'schemas': ('message_definition', 'normalize_type_name'),
+    'writer': (
+        'DEFAULT_QOS_PROFILES_YAML',
+        'ROSBAG2_METADATA_VERSION',
+        'STORAGE_PRESETS',
+        'BagWriter',
+    ),
 }
 _MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
 
 __all__ = [
-    "BagCorruptError", "BagDecodeError", "BagEmptyError", "BagEncodeError", "BagError",
-    "BagFormatError", "BagInfo", "BagMessage", "BagMetadataError", "BagMissingFileError",
-    "BagNotFoundError", "BagReader", "BagSchemaError", "BagWriteError", "BagWriter",
-    "DEFAULT_QOS_PROFILES_YAML", "FileInfo", "MessageDefinitionNotFoundError", "MetadataRecord",
-    "ROSBAG2_METADATA_VERSION", "STORAGE_PRESETS", "TopicInfo", "message_definition",
-    "normalize_type_name", "open_bag", "reindex",
+    'BagCorruptError',
+    'BagDecodeError',
+    'BagEmptyError',
+    'BagEncodeError',
+    'BagError',
+    'BagFormatError',
+    'BagInfo',
+    'BagMessage',
+    'BagMetadataError',
+    'BagMissingFileError',
+    'BagNotFoundError',
+    'BagReader',
+    'BagSchemaError',
+    'BagWriteError',
+    'BagWriter',
+    'DEFAULT_QOS_PROFILES_YAML',
+    'FileInfo',
+    'MessageDefinitionNotFoundError',
+    'MetadataRecord',
+    'ROSBAG2_METADATA_VERSION',
+    'STORAGE_PRESETS',
+    'TopicInfo',
+    'message_definition',
+    'normalize_type_name',
+    'open_bag',
+    'reindex',
 ]
 
 
 def __getattr__(name: str):
     module = _MODULE_OF.get(name)
     if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    value = getattr(importlib.import_module(f'{__name__}.{module}'), name)
     globals()[name] = value
     return value
 
@@ -57,7 +102,20 @@ if TYPE_CHECKING:
         BagWriteError,
         MessageDefinitionNotFoundError,
     )
-    from .reader import BagInfo, BagMessage, BagReader, FileInfo, MetadataRecord, TopicInfo, open_bag
+    from .reader import (
+        BagInfo,
+        BagMessage,
+        BagReader,
+        FileInfo,
+        MetadataRecord,
+        open_bag,
+        TopicInfo,
+    )
     from .reindex import reindex
     from .schemas import message_definition, normalize_type_name
-    from .writer import DEFAULT_QOS_PROFILES_YAML, ROSBAG2_METADATA_VERSION, STORAGE_PRESETS, BagWriter
+    from .writer import (
+        BagWriter,
+        DEFAULT_QOS_PROFILES_YAML,
+        ROSBAG2_METADATA_VERSION,
+        STORAGE_PRESETS,
+    )

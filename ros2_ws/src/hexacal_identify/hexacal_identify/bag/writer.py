@@ -9,61 +9,80 @@ chunk, writes everything and fsyncs, so a SIGKILL loses at most what was
 written after the last flush. On an OSError the writer stops, and `close()`
 cuts the file back to the last flush so it stays readable (see reader.py).
 """
+
 from __future__ import annotations
 
-import os
-import time
 from dataclasses import dataclass, field
+import os
 from pathlib import Path
+import time
 from typing import Any, Callable, Mapping
 
-import yaml
 from hexacal_msgs_py.files import atomic_write
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
+import yaml
 
 from .errors import BagEncodeError, BagError, BagSchemaError, BagWriteError
-from .reader import METADATA_FILE_NAME, STORAGE_IDENTIFIER, BagInfo, FileInfo, TopicInfo
+from .reader import BagInfo, FileInfo, METADATA_FILE_NAME, STORAGE_IDENTIFIER, TopicInfo
 from .schemas import (
-    MESSAGE_ENCODING,
-    SCHEMA_ENCODING,
     field_names,
     message_definition,
+    MESSAGE_ENCODING,
     normalize_type_name,
+    SCHEMA_ENCODING,
 )
 
 # Jazzy's rosbag2_storage writes version 9: offered_qos_profiles is a YAML list
 # with policies as strings ('reliable'), not the integer enums of version 8.
 ROSBAG2_METADATA_VERSION = 9
-ROS_DISTRO = "jazzy"
-MCAP_PROFILE = "ros2"
-LIBRARY_IDENTIFIER = "hexacal_identify.bag"
+ROS_DISTRO = 'jazzy'
+MCAP_PROFILE = 'ros2'
+LIBRARY_IDENTIFIER = 'hexacal_identify.bag'
 # rosbag2's MCAP storage stores its BagMetadata in a metadata record of this name.
-ROSBAG2_METADATA_RECORD = "rosbag2"
+ROSBAG2_METADATA_RECORD = 'rosbag2'
 
-_INFINITE_DURATION = {"sec": 9223372036, "nsec": 854775807}  # RMW_DURATION_INFINITE
-DEFAULT_QOS_PROFILES: list[dict[str, Any]] = [{
-    "history": "keep_last",
-    "depth": 10,
-    "reliability": "reliable",
-    "durability": "volatile",
-    "deadline": dict(_INFINITE_DURATION),
-    "lifespan": dict(_INFINITE_DURATION),
-    "liveliness": "automatic",
-    "liveliness_lease_duration": dict(_INFINITE_DURATION),
-    "avoid_ros_namespace_conventions": False,
-}]
+_INFINITE_DURATION = {'sec': 9223372036, 'nsec': 854775807}  # RMW_DURATION_INFINITE
+DEFAULT_QOS_PROFILES: list[dict[str, Any]] = [
+    {
+        'history': 'keep_last',
+        'depth': 10,
+        'reliability': 'reliable',
+        'durability': 'volatile',
+        'deadline': dict(_INFINITE_DURATION),
+        'lifespan': dict(_INFINITE_DURATION),
+        'liveliness': 'automatic',
+        'liveliness_lease_duration': dict(_INFINITE_DURATION),
+        'avoid_ros_namespace_conventions': False,
+    }
+]
 DEFAULT_QOS_PROFILES_YAML = yaml.safe_dump(DEFAULT_QOS_PROFILES, sort_keys=False)
 
 # Integer enums of metadata version <= 8 (rmw_qos_*_policy_t) -> version 9 names.
 _QOS_POLICY_NAMES: dict[str, dict[int, str]] = {
-    "history": {0: "system_default", 1: "keep_last", 2: "keep_all", 3: "unknown"},
-    "reliability": {0: "system_default", 1: "reliable", 2: "best_effort", 3: "unknown",
-                    4: "best_available"},
-    "durability": {0: "system_default", 1: "transient_local", 2: "volatile", 3: "unknown",
-                   4: "best_available"},
-    "liveliness": {0: "system_default", 1: "automatic", 2: "manual_by_node",
-                   3: "manual_by_topic", 4: "unknown", 5: "best_available"},
+    'history': {0: 'system_default', 1: 'keep_last', 2: 'keep_all', 3: 'unknown'},
+    'reliability': {
+        0: 'system_default',
+        1: 'reliable',
+        2: 'best_effort',
+        3: 'unknown',
+        4: 'best_available',
+    },
+    'durability': {
+        0: 'system_default',
+        1: 'transient_local',
+        2: 'volatile',
+        3: 'unknown',
+        4: 'best_available',
+    },
+    'liveliness': {
+        0: 'system_default',
+        1: 'automatic',
+        2: 'manual_by_node',
+        3: 'manual_by_topic',
+        4: 'unknown',
+        5: 'best_available',
+    },
 }
 
 
@@ -77,10 +96,10 @@ class _StoragePreset:
 # Names of rosbag2's MCAP storage presets. Chunks are smaller than rosbag2's
 # (768 KiB) because a chunk is the unit that a crash without flush loses.
 STORAGE_PRESETS: dict[str, _StoragePreset] = {
-    "none": _StoragePreset(True, 256 * 1024, CompressionType.NONE),
-    "fastwrite": _StoragePreset(False, 0, CompressionType.NONE),
-    "zstd_fast": _StoragePreset(True, 256 * 1024, CompressionType.ZSTD),
-    "zstd_small": _StoragePreset(True, 4 * 1024 * 1024, CompressionType.ZSTD),
+    'none': _StoragePreset(True, 256 * 1024, CompressionType.NONE),
+    'fastwrite': _StoragePreset(False, 0, CompressionType.NONE),
+    'zstd_fast': _StoragePreset(True, 256 * 1024, CompressionType.ZSTD),
+    'zstd_small': _StoragePreset(True, 4 * 1024 * 1024, CompressionType.ZSTD),
 }
 
 
@@ -94,13 +113,13 @@ def qos_profiles_for_metadata(qos_profiles_yaml: str, *, strict: bool = False) -
         profiles = yaml.safe_load(qos_profiles_yaml) if qos_profiles_yaml else []
     except yaml.YAMLError as error:
         if strict:
-            raise BagError(f"QoS profiles are not valid YAML: {error}") from error
+            raise BagError(f'QoS profiles are not valid YAML: {error}') from error
         return []
     if profiles is None:
         profiles = []
     if not isinstance(profiles, list) or not all(isinstance(p, dict) for p in profiles):
         if strict:
-            raise BagError(f"QoS profiles must be a YAML list of mappings, got {profiles!r}")
+            raise BagError(f'QoS profiles must be a YAML list of mappings, got {profiles!r}')
         return []
     converted = []
     for profile in profiles:
@@ -108,55 +127,58 @@ def qos_profiles_for_metadata(qos_profiles_yaml: str, *, strict: bool = False) -
         for policy, names in _QOS_POLICY_NAMES.items():
             value = profile.get(policy)
             if isinstance(value, int) and not isinstance(value, bool):
-                profile[policy] = names.get(value, "unknown")
+                profile[policy] = names.get(value, 'unknown')
         converted.append(profile)
     return converted
 
 
-def metadata_document(info: BagInfo, *, custom_data: Mapping[str, str] | None = None,
-                      ros_distro: str = ROS_DISTRO) -> dict[str, Any]:
+def metadata_document(
+    info: BagInfo, *, custom_data: Mapping[str, str] | None = None, ros_distro: str = ROS_DISTRO
+) -> dict[str, Any]:
     """The rosbag2_bagfile_information mapping (version 9) describing `info`."""
     start_ns = info.start_time_ns if info.start_time_ns is not None else 0
     return {
-        "version": ROSBAG2_METADATA_VERSION,
-        "storage_identifier": STORAGE_IDENTIFIER,
-        "duration": {"nanoseconds": info.duration_ns},
-        "starting_time": {"nanoseconds_since_epoch": start_ns},
-        "message_count": info.message_count,
-        "topics_with_message_count": [
+        'version': ROSBAG2_METADATA_VERSION,
+        'storage_identifier': STORAGE_IDENTIFIER,
+        'duration': {'nanoseconds': info.duration_ns},
+        'starting_time': {'nanoseconds_since_epoch': start_ns},
+        'message_count': info.message_count,
+        'topics_with_message_count': [
             {
-                "topic_metadata": {
-                    "name": name,
-                    "type": topic.type_name,
-                    "serialization_format": MESSAGE_ENCODING,
-                    "offered_qos_profiles": qos_profiles_for_metadata(topic.qos_profiles),
-                    "type_description_hash": "",
+                'topic_metadata': {
+                    'name': name,
+                    'type': topic.type_name,
+                    'serialization_format': MESSAGE_ENCODING,
+                    'offered_qos_profiles': qos_profiles_for_metadata(topic.qos_profiles),
+                    'type_description_hash': '',
                 },
-                "message_count": topic.count,
+                'message_count': topic.count,
             }
             for name, topic in info.topics.items()
         ],
-        "compression_format": "",
-        "compression_mode": "",
-        "relative_file_paths": [Path(f.path).name for f in info.files],
-        "files": [
+        'compression_format': '',
+        'compression_mode': '',
+        'relative_file_paths': [Path(f.path).name for f in info.files],
+        'files': [
             {
-                "path": Path(f.path).name,
-                "starting_time": {"nanoseconds_since_epoch": f.start_time_ns or 0},
-                "duration": {"nanoseconds": (f.end_time_ns or 0) - (f.start_time_ns or 0)},
-                "message_count": f.message_count,
+                'path': Path(f.path).name,
+                'starting_time': {'nanoseconds_since_epoch': f.start_time_ns or 0},
+                'duration': {'nanoseconds': (f.end_time_ns or 0) - (f.start_time_ns or 0)},
+                'message_count': f.message_count,
             }
             for f in info.files
         ],
-        "custom_data": dict(custom_data or {}),
-        "ros_distro": ros_distro,
+        'custom_data': dict(custom_data or {}),
+        'ros_distro': ros_distro,
     }
 
 
 def write_metadata_yaml(directory: Path, document: Mapping[str, Any]) -> Path:
     """Write <directory>/metadata.yaml atomically (temp file, fsync, rename, fsync dir)."""
-    text = yaml.safe_dump({"rosbag2_bagfile_information": dict(document)}, sort_keys=False)
-    return atomic_write(directory / METADATA_FILE_NAME, text)  # e.g. disk full: no half-written file
+    text = yaml.safe_dump({'rosbag2_bagfile_information': dict(document)}, sort_keys=False)
+    return atomic_write(
+        directory / METADATA_FILE_NAME, text
+    )  # e.g. disk full: no half-written file
 
 
 class _DurableFile:
@@ -169,8 +191,9 @@ class _DurableFile:
 
     def __init__(self, path: Path, spill_bytes: int = 1 << 20):
         self.path = path
-        self._descriptor = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC,
-                                   0o644)
+        self._descriptor = os.open(
+            path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o644
+        )
         self._buffer = bytearray()
         self._in_file = 0
         self._spill_bytes = spill_bytes
@@ -243,15 +266,23 @@ class _DurableState:
 class BagWriter:
     """Writes one rosbag2 MCAP bag directory; use as a context manager or call close()."""
 
-    def __init__(self, directory: str | os.PathLike[str], *, storage_preset: str = "none",
-                 chunk_size_bytes: int | None = None, flush_period_s: float | None = None,
-                 custom_data: Mapping[str, str] | None = None, ros_distro: str = ROS_DISTRO):
+    def __init__(
+        self,
+        directory: str | os.PathLike[str],
+        *,
+        storage_preset: str = 'none',
+        chunk_size_bytes: int | None = None,
+        flush_period_s: float | None = None,
+        custom_data: Mapping[str, str] | None = None,
+        ros_distro: str = ROS_DISTRO,
+    ):
         if storage_preset not in STORAGE_PRESETS:
-            raise BagError(f"unknown storage preset {storage_preset!r}; "
-                           f"valid: {sorted(STORAGE_PRESETS)}")
+            raise BagError(
+                f'unknown storage preset {storage_preset!r}; valid: {sorted(STORAGE_PRESETS)}'
+            )
         preset = STORAGE_PRESETS[storage_preset]
         self.directory = Path(directory)
-        self.mcap_path = self.directory / f"{self.directory.resolve().name}_0.mcap"
+        self.mcap_path = self.directory / f'{self.directory.resolve().name}_0.mcap'
         self._custom_data = dict(custom_data or {})
         self._ros_distro = ros_distro
         self._flush_period_s = flush_period_s
@@ -266,15 +297,23 @@ class BagWriter:
         try:
             self._file = _DurableFile(self.mcap_path)
         except OSError as error:
-            raise BagWriteError(f"cannot create {self.mcap_path}: {error}",
-                                path=str(self.mcap_path), os_error=error) from error
+            raise BagWriteError(
+                f'cannot create {self.mcap_path}: {error}',
+                path=str(self.mcap_path),
+                os_error=error,
+            ) from error
         self._mcap = McapWriter(
-            self._file, chunk_size=chunk_size_bytes or preset.chunk_size_bytes or 1,
-            compression=preset.compression, use_chunking=preset.chunked, enable_crcs=True)
+            self._file,
+            chunk_size=chunk_size_bytes or preset.chunk_size_bytes or 1,
+            compression=preset.compression,
+            use_chunking=preset.chunked,
+            enable_crcs=True,
+        )
         self._last_flush = time.monotonic()
         try:
-            self._guarded("start the MCAP file", self._mcap.start, MCAP_PROFILE,
-                          LIBRARY_IDENTIFIER)
+            self._guarded(
+                'start the MCAP file', self._mcap.start, MCAP_PROFILE, LIBRARY_IDENTIFIER
+            )
             # Early rosbag2 record: a file cut short still says its QoS text is version 9.
             self._add_rosbag2_record()
             self.flush()
@@ -284,56 +323,86 @@ class BagWriter:
 
     # ------------------------------------------------------------------ public API
 
-    def add_topic(self, topic: str, type_name: str,
-                  qos_profiles_yaml: str = DEFAULT_QOS_PROFILES_YAML) -> None:
+    def add_topic(
+        self, topic: str, type_name: str, qos_profiles_yaml: str = DEFAULT_QOS_PROFILES_YAML
+    ) -> None:
         """Register a topic (schema from the installed .msg files, channel with its QoS)."""
         self._check_open()
         if not isinstance(topic, str) or not topic:
-            raise BagError(f"topic name must be a non-empty string, got {topic!r}")
+            raise BagError(f'topic name must be a non-empty string, got {topic!r}')
         normalized = normalize_type_name(type_name)
         qos_profiles_for_metadata(qos_profiles_yaml, strict=True)
         known = self._topics.get(topic)
         if known is not None:
             if known.type_name != normalized:
-                raise BagError(f"topic {topic!r} was added as {known.type_name}, "
-                               f"cannot add it again as {normalized}")
+                raise BagError(
+                    f'topic {topic!r} was added as {known.type_name}, '
+                    f'cannot add it again as {normalized}'
+                )
             return
         schema_id = self._schema_ids.get(normalized)
         if schema_id is None:
             text = message_definition(normalized)
-            schema_id = self._guarded("register a schema", self._mcap.register_schema,
-                                      normalized, SCHEMA_ENCODING, text.encode("utf-8"))
+            schema_id = self._guarded(
+                'register a schema',
+                self._mcap.register_schema,
+                normalized,
+                SCHEMA_ENCODING,
+                text.encode('utf-8'),
+            )
             self._schema_ids[normalized] = schema_id
         channel_id = self._guarded(
-            "register a channel", self._mcap.register_channel, topic, MESSAGE_ENCODING,
-            schema_id, {"offered_qos_profiles": qos_profiles_yaml, "topic_type_hash": ""})
+            'register a channel',
+            self._mcap.register_channel,
+            topic,
+            MESSAGE_ENCODING,
+            schema_id,
+            {'offered_qos_profiles': qos_profiles_yaml, 'topic_type_hash': ''},
+        )
         self._topics[topic] = _TopicState(normalized, qos_profiles_yaml, channel_id)
 
-    def write_raw(self, topic: str, cdr_bytes: bytes | bytearray | memoryview,
-                  log_time_ns: int, publish_time_ns: int | None = None) -> None:
+    def write_raw(
+        self,
+        topic: str,
+        cdr_bytes: bytes | bytearray | memoryview,
+        log_time_ns: int,
+        publish_time_ns: int | None = None,
+    ) -> None:
         """Write CDR bytes (from rclpy serialize_message or a raw subscription)."""
         self._check_open()
         state = self._topics.get(topic)
         if state is None:
-            raise BagError(f"topic {topic!r} was not added with add_topic")
-        log_time = _stamp(log_time_ns, "log_time_ns")
-        publish_time = log_time if publish_time_ns is None else _stamp(publish_time_ns,
-                                                                       "publish_time_ns")
+            raise BagError(f'topic {topic!r} was not added with add_topic')
+        log_time = _stamp(log_time_ns, 'log_time_ns')
+        publish_time = (
+            log_time if publish_time_ns is None else _stamp(publish_time_ns, 'publish_time_ns')
+        )
         try:
             data = bytes(cdr_bytes)
         except TypeError as error:
-            raise BagEncodeError(f"topic {topic!r}: message data must be bytes, "
-                                 f"got {type(cdr_bytes).__name__}") from error
-        self._guarded("write a message", self._mcap.add_message, state.channel_id, log_time,
-                      data, publish_time, state.count % 2**32)
+            raise BagEncodeError(
+                f'topic {topic!r}: message data must be bytes, got {type(cdr_bytes).__name__}'
+            ) from error
+        self._guarded(
+            'write a message',
+            self._mcap.add_message,
+            state.channel_id,
+            log_time,
+            data,
+            publish_time,
+            state.count % 2**32,
+        )
         state.count += 1
         self._stamps.add(log_time)
-        if (self._flush_period_s is not None
-                and time.monotonic() - self._last_flush >= self._flush_period_s):
+        if (
+            self._flush_period_s is not None
+            and time.monotonic() - self._last_flush >= self._flush_period_s
+        ):
             self.flush()
 
-    def write(self, topic: str, message: Any, log_time_ns: int,
-              publish_time_ns: int | None = None) -> None:
+    def write(
+        self, topic: str, message: Any, log_time_ns: int, publish_time_ns: int | None = None
+    ) -> None:
         """Encode a dict (or a message object) with the topic's schema and write it.
 
         A topic not added yet is added when `message` is a generated ROS
@@ -344,7 +413,7 @@ class BagWriter:
         if state is None:
             type_name = _type_name_of(message)
             if type_name is None:
-                raise BagError(f"topic {topic!r} was not added with add_topic")
+                raise BagError(f'topic {topic!r} was not added with add_topic')
             self.add_topic(topic, type_name)
             state = self._topics[topic]
         encoder = self._encoder(state.type_name)
@@ -352,30 +421,34 @@ class BagWriter:
             # The encoder silently ignores unknown keys: a typo would record default values.
             unknown = sorted(set(message) - set(field_names(state.type_name)))
             if unknown:
-                raise BagEncodeError(f"cannot encode a dict for topic {topic!r}: "
-                                     f"{state.type_name} has no field(s) {unknown}")
+                raise BagEncodeError(
+                    f'cannot encode a dict for topic {topic!r}: '
+                    f'{state.type_name} has no field(s) {unknown}'
+                )
         try:
             data = encoder(message)
         except Exception as error:  # noqa: BLE001 - the encoder raises many types
-            raise BagEncodeError(f"cannot encode a {type(message).__name__} for topic {topic!r} "
-                                 f"as {state.type_name}: {type(error).__name__}: {error}"
-                                 ) from error
+            raise BagEncodeError(
+                f'cannot encode a {type(message).__name__} for topic {topic!r} '
+                f'as {state.type_name}: {type(error).__name__}: {error}'
+            ) from error
         self.write_raw(topic, data, log_time_ns, publish_time_ns)
 
     def write_metadata(self, key: str, data: Mapping[str, str]) -> None:
         """Write an MCAP metadata record (e.g. the posture plan followed) and flush it."""
         self._check_open()
         if not isinstance(key, str) or not all(
-                isinstance(k, str) and isinstance(v, str) for k, v in data.items()):
-            raise BagError(f"metadata {key!r} must map str to str")
-        self._guarded("write metadata", self._mcap.add_metadata, key, dict(data))
+            isinstance(k, str) and isinstance(v, str) for k, v in data.items()
+        ):
+            raise BagError(f'metadata {key!r} must map str to str')
+        self._guarded('write metadata', self._mcap.add_metadata, key, dict(data))
         self.flush()
 
     def flush(self) -> None:
         """Close the open chunk, write everything so far and fsync it."""
         self._check_open()
-        self._guarded("close the current chunk", self._mcap.flush)
-        size = self._guarded("fsync the bag file", self._file.sync)
+        self._guarded('close the current chunk', self._mcap.flush)
+        size = self._guarded('fsync the bag file', self._file.sync)
         self._durable = _DurableState(size, _Stamps(self._stamps.start_ns, self._stamps.end_ns))
         for state in self._topics.values():
             state.durable_count = state.count
@@ -395,8 +468,8 @@ class BagWriter:
             return
         try:
             self._add_rosbag2_record()
-            self._guarded("finish the MCAP file", self._mcap.finish)
-            size = self._guarded("fsync the bag file", self._file.sync)
+            self._guarded('finish the MCAP file', self._mcap.finish)
+            size = self._guarded('fsync the bag file', self._file.sync)
         except BagWriteError:
             self._close_after_failure()
             raise
@@ -408,9 +481,11 @@ class BagWriter:
         try:
             write_metadata_yaml(self.directory, self._metadata_document())
         except OSError as error:
-            raise BagWriteError(f"cannot write {self.directory / METADATA_FILE_NAME}: {error}",
-                                path=str(self.directory / METADATA_FILE_NAME),
-                                os_error=error) from error
+            raise BagWriteError(
+                f'cannot write {self.directory / METADATA_FILE_NAME}: {error}',
+                path=str(self.directory / METADATA_FILE_NAME),
+                os_error=error,
+            ) from error
 
     def __enter__(self) -> BagWriter:
         return self
@@ -447,30 +522,38 @@ class BagWriter:
     def _prepare_directory(self) -> None:
         if self.directory.exists():
             if not self.directory.is_dir():
-                raise BagError(f"bag path {self.directory} exists and is not a directory")
+                raise BagError(f'bag path {self.directory} exists and is not a directory')
             if any(self.directory.iterdir()):
-                raise BagError(f"bag directory {self.directory} already exists and is not empty")
+                raise BagError(f'bag directory {self.directory} already exists and is not empty')
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
         except OSError as error:
-            raise BagWriteError(f"cannot create bag directory {self.directory}: {error}",
-                                path=str(self.directory), os_error=error) from error
+            raise BagWriteError(
+                f'cannot create bag directory {self.directory}: {error}',
+                path=str(self.directory),
+                os_error=error,
+            ) from error
 
     def _check_open(self) -> None:
         if self._failure is not None:
-            raise BagWriteError(f"bag writer for {self.mcap_path} stopped after an earlier "
-                                f"error: {self._failure}", path=str(self.mcap_path),
-                                os_error=self._failure.os_error)
+            raise BagWriteError(
+                f'bag writer for {self.mcap_path} stopped after an earlier error: {self._failure}',
+                path=str(self.mcap_path),
+                os_error=self._failure.os_error,
+            )
         if self._closed:
-            raise BagError(f"bag writer for {self.mcap_path} is closed")
+            raise BagError(f'bag writer for {self.mcap_path} is closed')
 
     def _guarded(self, action: str, function: Callable[..., Any], *args: Any) -> Any:
         try:
             return function(*args)
         except OSError as error:
             self._failure = BagWriteError(
-                f"cannot {action} in {self.mcap_path}: {error}; the bag keeps what was written "
-                f"up to the last flush", path=str(self.mcap_path), os_error=error)
+                f'cannot {action} in {self.mcap_path}: {error}; the bag keeps what was written '
+                f'up to the last flush',
+                path=str(self.mcap_path),
+                os_error=error,
+            )
             raise self._failure from error
 
     def _close_after_failure(self) -> None:
@@ -490,24 +573,41 @@ class BagWriter:
 
     def _info(self) -> BagInfo:
         counts = sum(state.count for state in self._topics.values())
-        file_info = FileInfo(str(self.mcap_path), self._durable.size_bytes, counts,
-                             self._stamps.start_ns, self._stamps.end_ns,
-                             truncated=self._failure is not None)
+        file_info = FileInfo(
+            str(self.mcap_path),
+            self._durable.size_bytes,
+            counts,
+            self._stamps.start_ns,
+            self._stamps.end_ns,
+            truncated=self._failure is not None,
+        )
         return BagInfo(
-            path=str(self.directory), storage_identifier=STORAGE_IDENTIFIER, files=(file_info,),
-            topics={name: TopicInfo(state.type_name, state.count, state.qos_profiles_yaml)
-                    for name, state in self._topics.items()},
-            message_count=counts, start_time_ns=self._stamps.start_ns,
-            end_time_ns=self._stamps.end_ns, size_bytes=self._durable.size_bytes)
+            path=str(self.directory),
+            storage_identifier=STORAGE_IDENTIFIER,
+            files=(file_info,),
+            topics={
+                name: TopicInfo(state.type_name, state.count, state.qos_profiles_yaml)
+                for name, state in self._topics.items()
+            },
+            message_count=counts,
+            start_time_ns=self._stamps.start_ns,
+            end_time_ns=self._stamps.end_ns,
+            size_bytes=self._durable.size_bytes,
+        )
 
     def _metadata_document(self) -> dict[str, Any]:
-        return metadata_document(self._info(), custom_data=self._custom_data,
-                                 ros_distro=self._ros_distro)
+        return metadata_document(
+            self._info(), custom_data=self._custom_data, ros_distro=self._ros_distro
+        )
 
     def _add_rosbag2_record(self) -> None:
         serialized = yaml.safe_dump(self._metadata_document(), sort_keys=False)
-        self._guarded("write metadata", self._mcap.add_metadata, ROSBAG2_METADATA_RECORD,
-                      {"serialized_metadata": serialized})
+        self._guarded(
+            'write metadata',
+            self._mcap.add_metadata,
+            ROSBAG2_METADATA_RECORD,
+            {'serialized_metadata': serialized},
+        )
 
     def _encoder(self, type_name: str) -> Callable[[Any], bytes]:
         encoder = self._encoders.get(type_name)
@@ -519,8 +619,9 @@ class BagWriter:
             except BagError:
                 raise
             except Exception as error:  # noqa: BLE001 - schema parser errors have many types
-                raise BagSchemaError(f"cannot build a CDR encoder for {type_name}: {error}",
-                                     found=type_name) from error
+                raise BagSchemaError(
+                    f'cannot build a CDR encoder for {type_name}: {error}', found=type_name
+                ) from error
             self._encoders[type_name] = encoder
         return encoder
 
@@ -529,9 +630,9 @@ def _stamp(value: Any, name: str) -> int:
     try:
         stamp = int(value.__index__())
     except (AttributeError, TypeError) as error:
-        raise BagError(f"{name} must be an integer number of ns, got {value!r}") from error
+        raise BagError(f'{name} must be an integer number of ns, got {value!r}') from error
     if not 0 <= stamp < 2**64:
-        raise BagError(f"{name} must be in [0, 2**64) ns, got {stamp}")
+        raise BagError(f'{name} must be in [0, 2**64) ns, got {stamp}')
     return stamp
 
 
@@ -539,7 +640,7 @@ def _type_name_of(message: Any) -> str | None:
     """'sensor_msgs/msg/JointState' for a generated ROS message object, else None."""
     if isinstance(message, Mapping):
         return None
-    module = type(message).__module__.split(".")
-    if len(module) >= 2 and module[1] == "msg":
-        return f"{module[0]}/msg/{type(message).__name__}"
+    module = type(message).__module__.split('.')
+    if len(module) >= 2 and module[1] == 'msg':
+        return f'{module[0]}/msg/{type(message).__name__}'
     return None

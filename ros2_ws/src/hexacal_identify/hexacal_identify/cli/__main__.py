@@ -1,4 +1,5 @@
 """`python -m hexacal_identify.cli`: the hexacal command."""
+
 import sys
 
 from .commands import main

@@ -1,10 +1,11 @@
 """``hexacal calibrate BAG`` and ``hexacal bag-info BAG``: everything the nodes do, offline from a bag."""
+
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
+import sys
 
 # The solver, the bag reader and the report are imported where they run: this module is imported by every `hexacal`
 # start-up to register the commands.
@@ -13,18 +14,22 @@ UM, MM = 1e6, 1e3
 
 def add_parsers(subparsers) -> None:
     subparsers.add_parser(
-        "calibrate",
-        help="calibrate from a recorded bag (no ROS graph needed)",
-        description="Identify the kinematic parameters (54 of a Hexa Slide, 42 of a Gough-Stewart platform: the "
-        "model the --nominal file names) from a rosbag2 bag (directory with metadata.yaml + .mcap, or a "
+        'calibrate',
+        help='calibrate from a recorded bag (no ROS graph needed)',
+        description='Identify the kinematic parameters (54 of a Hexa Slide, 42 of a Gough-Stewart platform: the '
+        'model the --nominal file names) from a rosbag2 bag (directory with metadata.yaml + .mcap, or a '
         "single .mcap file) with the same core call the identify node uses. Postures come from the bag's "
-        "/hexacal/posture topic, or are re-detected from its raw sensor streams; their actuator joints "
+        '/hexacal/posture topic, or are re-detected from its raw sensor streams; their actuator joints '
         "(slider_1..6 or leg_1..6) must be the nominal model's.",
         fill=_calibrate_arguments,
     )
-    subparsers.add_parser("bag-info", help="describe a bag (like `ros2 bag info`) and its postures",
-                          description="Print a bag's files, duration, topics with types and counts, "
-                          "and the postures it holds.", fill=_bag_info_arguments)
+    subparsers.add_parser(
+        'bag-info',
+        help='describe a bag (like `ros2 bag info`) and its postures',
+        description="Print a bag's files, duration, topics with types and counts, "
+        'and the postures it holds.',
+        fill=_bag_info_arguments,
+    )
 
 
 def device_prior_argument(text: str):
@@ -34,49 +39,93 @@ def device_prior_argument(text: str):
 
     prior = parsed_prior(text)
     if not prior:
-        raise argparse.ArgumentTypeError("no device prior given: expected NAME=VALUE:STD[,...] in SI units, "
-                                         "e.g. dL=0:10e-6")
+        raise argparse.ArgumentTypeError(
+            'no device prior given: expected NAME=VALUE:STD[,...] in SI units, e.g. dL=0:10e-6'
+        )
     return prior
 
 
 def _calibrate_arguments(calibrate: argparse.ArgumentParser) -> None:
-    from .study_device import device_names_argument
     from ..core.device import DEFAULT_LINK_LENGTH_M
     from ..core.identification import ROBUST_LOSSES
     from ..core.residuals import COSTS
+    from .study_device import device_names_argument
 
-    calibrate.add_argument("bag", type=Path, help="bag directory or .mcap file")
-    calibrate.add_argument("--nominal", type=Path, required=True,
-                           help="parameters YAML to start from; its model (key model, none: hexa_slide) is the "
-                           "machine's")
-    calibrate.add_argument("--output", type=Path, required=True, help="parameters YAML to write (atomically)")
-    calibrate.add_argument("--cost", choices=COSTS, default="absolute", help="cost function (default absolute)")
-    calibrate.add_argument("--link-length", type=float, default=DEFAULT_LINK_LENGTH_M,
-                           help=f"device link length L in m (default {DEFAULT_LINK_LENGTH_M})")
-    calibrate.add_argument("--mount", choices=("hanging", "standing"), default=None,
-                           help="device mount: hanging (platform below the device's base joint) or standing (an "
-                           "upright machine); default: the nominal file's device.mount, else hanging")
-    calibrate.add_argument("--identify-device", type=device_names_argument, default=(),
-                           help="device defects to identify jointly, e.g. dL,alpha0,gamma (beta0 and phi0 are "
-                           "frame definitions: eq. 7 cannot see them)")
-    calibrate.add_argument("--device-prior", type=device_prior_argument, default=None, metavar="NAME=VALUE:STD,...",
-                           help="prior knowledge of device parameters in SI units (m, rad), e.g. "
-                           "dL=0:10e-6,alpha0=0:50e-6 (link length offset 0 +- 10 um from a caliper, inclinometer "
-                           "zero 0 +- 50 urad from its certificate): each is identified, weighed against the data "
-                           "by the reading noise (needs --noise-um)")
-    calibrate.add_argument("--noise-um", type=float, default=None,
-                           help="known reading noise half-width (um on sliders, urad on angles): weight residuals by it")
-    calibrate.add_argument("--robust", choices=ROBUST_LOSSES, default=None, help="robust loss (huber or soft_l1)")
-    calibrate.add_argument("--save-result", type=Path, default=None, metavar="FILE",
-                           help="write the full result (what `hexacal report` reads) as JSON")
-    calibrate.add_argument("--report", type=Path, default=None, metavar="DIR",
-                           help="write the HTML calibration report (index.html + PNG figures) into DIR")
-    calibrate.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    calibrate.add_argument('bag', type=Path, help='bag directory or .mcap file')
+    calibrate.add_argument(
+        '--nominal',
+        type=Path,
+        required=True,
+        help='parameters YAML to start from; its model (key model, none: hexa_slide) is the '
+        "machine's",
+    )
+    calibrate.add_argument(
+        '--output', type=Path, required=True, help='parameters YAML to write (atomically)'
+    )
+    calibrate.add_argument(
+        '--cost', choices=COSTS, default='absolute', help='cost function (default absolute)'
+    )
+    calibrate.add_argument(
+        '--link-length',
+        type=float,
+        default=DEFAULT_LINK_LENGTH_M,
+        help=f'device link length L in m (default {DEFAULT_LINK_LENGTH_M})',
+    )
+    calibrate.add_argument(
+        '--mount',
+        choices=('hanging', 'standing'),
+        default=None,
+        help="device mount: hanging (platform below the device's base joint) or standing (an "
+        "upright machine); default: the nominal file's device.mount, else hanging",
+    )
+    calibrate.add_argument(
+        '--identify-device',
+        type=device_names_argument,
+        default=(),
+        help='device defects to identify jointly, e.g. dL,alpha0,gamma (beta0 and phi0 are '
+        'frame definitions: eq. 7 cannot see them)',
+    )
+    calibrate.add_argument(
+        '--device-prior',
+        type=device_prior_argument,
+        default=None,
+        metavar='NAME=VALUE:STD,...',
+        help='prior knowledge of device parameters in SI units (m, rad), e.g. '
+        'dL=0:10e-6,alpha0=0:50e-6 (link length offset 0 +- 10 um from a caliper, inclinometer '
+        'zero 0 +- 50 urad from its certificate): each is identified, weighed against the data '
+        'by the reading noise (needs --noise-um)',
+    )
+    calibrate.add_argument(
+        '--noise-um',
+        type=float,
+        default=None,
+        help='known reading noise half-width (um on sliders, urad on angles): weight residuals by it',
+    )
+    calibrate.add_argument(
+        '--robust', choices=ROBUST_LOSSES, default=None, help='robust loss (huber or soft_l1)'
+    )
+    calibrate.add_argument(
+        '--save-result',
+        type=Path,
+        default=None,
+        metavar='FILE',
+        help='write the full result (what `hexacal report` reads) as JSON',
+    )
+    calibrate.add_argument(
+        '--report',
+        type=Path,
+        default=None,
+        metavar='DIR',
+        help='write the HTML calibration report (index.html + PNG figures) into DIR',
+    )
+    calibrate.add_argument(
+        '--json', action='store_true', help='print the result as one JSON object'
+    )
     calibrate.set_defaults(handler=run_calibrate)
 
 
 def _bag_info_arguments(info: argparse.ArgumentParser) -> None:
-    info.add_argument("bag", type=Path, help="bag directory or .mcap file")
+    info.add_argument('bag', type=Path, help='bag directory or .mcap file')
     info.set_defaults(handler=run_bag_info)
 
 
@@ -86,51 +135,99 @@ def run_calibrate(args) -> int:
     from ..core.errors import CalibrationError
     from ..core.identification import CONVERGED
     from ..core.measurements import NoiseModel
-    from ..pipeline import (calibrate, check_model, device_defects_extras, device_prior_json,
-                            load_machine_and_mount, measurements_from_postures, postures_from_bag)
+    from ..pipeline import (
+        calibrate,
+        check_model,
+        device_defects_extras,
+        device_prior_json,
+        load_machine_and_mount,
+        measurements_from_postures,
+        postures_from_bag,
+    )
 
     nominal, mount = load_machine_and_mount(args.nominal)
     mount = args.mount or mount
-    mount_option = {} if mount == "hanging" else {"mount": mount}
+    mount_option = {} if mount == 'hanging' else {'mount': mount}
     if args.output.exists() and args.output.is_dir():
-        raise IsADirectoryError(f"--output {args.output} is a directory; name a YAML file")
+        raise IsADirectoryError(f'--output {args.output} is a directory; name a YAML file')
     bag = postures_from_bag(args.bag)
-    check_model(bag.model, nominal, f"bag {args.bag}", str(args.nominal))
+    check_model(bag.model, nominal, f'bag {args.bag}', str(args.nominal))
     noise = NoiseModel.from_microns(args.noise_um) if args.noise_um else None
     try:
-        result = calibrate(nominal, bag.postures, cost=args.cost, link_length=args.link_length,
-                           identify_device=args.identify_device, noise=noise, robust_loss=args.robust, mount=mount,
-                           device_prior=args.device_prior)
+        result = calibrate(
+            nominal,
+            bag.postures,
+            cost=args.cost,
+            link_length=args.link_length,
+            identify_device=args.identify_device,
+            noise=noise,
+            robust_loss=args.robust,
+            mount=mount,
+            device_prior=args.device_prior,
+        )
     except CalibrationError as error:
         if bag.rejected or bag.invalid_messages:  # say what of the bag was not used
-            error.args = (f"{error} [bag {args.bag}: {_not_used(bag)}]",)
+            error.args = (f'{error} [bag {args.bag}: {_not_used(bag)}]',)
         raise
-    comment = (f"hexacal calibrate {args.bag} (cost {args.cost}, {len(result.used_postures)} postures, "
-               f"{result.reason}), SI units")
+    comment = (
+        f'hexacal calibrate {args.bag} (cost {args.cost}, {len(result.used_postures)} postures, '
+        f'{result.reason}), SI units'
+    )
     if result.reason == CONVERGED:
         # The device defects identified with it go along: `hexacal verify` measures with the same device.
-        save_parameters(args.output, result.parameters.vector, model=result.parameters.model, header_comment=comment,
-                        extras=device_defects_extras(result) or None)
-    measurements = measurements_from_postures(bag.postures) if args.save_result or args.report else None
-    extras = {"bag": str(args.bag), "nominal": str(args.nominal)}
+        save_parameters(
+            args.output,
+            result.parameters.vector,
+            model=result.parameters.model,
+            header_comment=comment,
+            extras=device_defects_extras(result) or None,
+        )
+    measurements = (
+        measurements_from_postures(bag.postures) if args.save_result or args.report else None
+    )
+    extras = {'bag': str(args.bag), 'nominal': str(args.nominal)}
     if args.save_result:
         from ..report.page import save_result
 
-        save_result(args.save_result, result, extras, measurements=measurements, link_length=args.link_length,
-                    device_prior=args.device_prior, **mount_option)
+        save_result(
+            args.save_result,
+            result,
+            extras,
+            measurements=measurements,
+            link_length=args.link_length,
+            device_prior=args.device_prior,
+            **mount_option,
+        )
     if args.report:
         from ..report.page import write_report
 
-        write_report(result, args.report, title=f"hexacal calibration report: {args.bag}", extras=extras,
-                     measurements=measurements, link_length=args.link_length, device_prior=args.device_prior,
-                     **mount_option)
+        write_report(
+            result,
+            args.report,
+            title=f'hexacal calibration report: {args.bag}',
+            extras=extras,
+            measurements=measurements,
+            link_length=args.link_length,
+            device_prior=args.device_prior,
+            **mount_option,
+        )
     if args.json:
         payload = result.to_json()
-        payload["device_prior"] = device_prior_json(args.device_prior)  # beside device / device_std, SI units
-        payload["bag"] = {"path": str(args.bag), "model": bag.model, "postures": len(bag.postures), "source": bag.source,
-                          "ignored_topics": bag.ignored_topics, "invalid_messages": bag.invalid_messages,
-                          "rejected_postures": [{"index": i, "reason": r, "detail": d} for i, r, d in bag.rejected]}
-        payload["output"] = str(args.output) if result.reason == CONVERGED else None
+        payload['device_prior'] = device_prior_json(
+            args.device_prior
+        )  # beside device / device_std, SI units
+        payload['bag'] = {
+            'path': str(args.bag),
+            'model': bag.model,
+            'postures': len(bag.postures),
+            'source': bag.source,
+            'ignored_topics': bag.ignored_topics,
+            'invalid_messages': bag.invalid_messages,
+            'rejected_postures': [
+                {'index': i, 'reason': r, 'detail': d} for i, r, d in bag.rejected
+            ],
+        }
+        payload['output'] = str(args.output) if result.reason == CONVERGED else None
         print(json.dumps(payload))
     else:
         _print_summary(args, bag, result)
@@ -143,30 +240,42 @@ def _print_summary(args, bag, result) -> None:
     from ..core.identification import CONVERGED
 
     model = result.parameters.model
-    model_text = "" if model == "hexa_slide" else f" ({model})"
-    print(f"bag {args.bag}{model_text}: {len(bag.postures)} postures from the {bag.source}")
+    model_text = '' if model == 'hexa_slide' else f' ({model})'
+    print(f'bag {args.bag}{model_text}: {len(bag.postures)} postures from the {bag.source}')
     if bag.ignored_topics:
-        print(f"  ignored topics: {', '.join(bag.ignored_topics)}")
+        print(f'  ignored topics: {", ".join(bag.ignored_topics)}')
     if bag.invalid_messages:
-        print(f"  {bag.invalid_messages} invalid message(s) skipped (NaN/inf, missing joints, mismatched lengths)")
+        print(
+            f'  {bag.invalid_messages} invalid message(s) skipped (NaN/inf, missing joints, mismatched lengths)'
+        )
     if bag.rejected:
         print(f"  {len(bag.rejected)} posture(s) set aside (beyond a sensor's range):")
         for index, reason, detail in bag.rejected[:20]:
-            print(f"    posture {index}: {reason}: {detail}")
-    print(f"{result.reason} in {result.iterations} iterations ({result.solve_seconds * 1e3:.1f} ms), "
-          f"cost {result.cost}, rank {result.rank}, condition number {result.condition_number:.3g}")
-    print(f"postures used {len(result.used_postures)}, rejected {len(result.rejected_postures)}")
+            print(f'    posture {index}: {reason}: {detail}')
+    print(
+        f'{result.reason} in {result.iterations} iterations ({result.solve_seconds * 1e3:.1f} ms), '
+        f'cost {result.cost}, rank {result.rank}, condition number {result.condition_number:.3g}'
+    )
+    print(f'postures used {len(result.used_postures)}, rejected {len(result.rejected_postures)}')
     for index, why in sorted(result.rejected_postures.items()):
-        print(f"  posture {index}: {why}")
-    print("RMS residual: " + ", ".join(
-        f"{k} {v * UM:.2f} {'urad' if k.startswith('phi') else 'um'}" for k, v in result.rms_residual.items()))
+        print(f'  posture {index}: {why}')
+    print(
+        'RMS residual: '
+        + ', '.join(
+            f'{k} {v * UM:.2f} {"urad" if k.startswith("phi") else "um"}'
+            for k, v in result.rms_residual.items()
+        )
+    )
     correction = (result.parameters.vector - result.initial_parameters.vector) * MM
-    print(f"largest correction {np.max(np.abs(correction)):.3f} mm, largest std "
-          f"{np.nanmax(result.std) * UM:.2f} um" + (" (rail components x1e-6)" if model == "hexa_slide" else ""))
+    print(
+        f'largest correction {np.max(np.abs(correction)):.3f} mm, largest std '
+        f'{np.nanmax(result.std) * UM:.2f} um'
+        + (' (rail components x1e-6)' if model == 'hexa_slide' else '')
+    )
     for line in device_prior_lines(result, args.device_prior):
         print(line)
     if result.reason == CONVERGED:
-        print(f"wrote {args.output}")
+        print(f'wrote {args.output}')
     else:
         print(f"not written: the solver stopped with '{result.reason}'", file=sys.stderr)
 
@@ -179,31 +288,38 @@ def device_prior_lines(result, prior) -> list[str]:
 
     if not result.free_device:
         return []
-    lines = ["device parameters (prior -> identified; dL in um, angles in urad):"]
+    lines = ['device parameters (prior -> identified; dL in um, angles in urad):']
     for index, name in enumerate(DEVICE_PARAMETER_NAMES):
         if name not in result.free_device:
             continue
-        unit = "um" if name == "dL" else "urad"
+        unit = 'um' if name == 'dL' else 'urad'
         given = prior.get(name) if prior is not None else None
-        prior_text = "none" if given is None else f"{given[0] * UM:.3f} +- {given[1] * UM:.3f} {unit}"
+        prior_text = (
+            'none' if given is None else f'{given[0] * UM:.3f} +- {given[1] * UM:.3f} {unit}'
+        )
         std = result.device_std[index]
-        std_text = f"{std * UM:.3f}" if np.isfinite(std) else "n/a"
-        lines.append(f"  {name}: prior {prior_text}, identified {result.device.vector[index] * UM:.3f} +- "
-                     f"{std_text} {unit}")
+        std_text = f'{std * UM:.3f}' if np.isfinite(std) else 'n/a'
+        lines.append(
+            f'  {name}: prior {prior_text}, identified {result.device.vector[index] * UM:.3f} +- '
+            f'{std_text} {unit}'
+        )
     return lines
 
 
 def _not_used(bag) -> str:
     parts = []
     if bag.invalid_messages:
-        parts.append(f"{bag.invalid_messages} invalid message(s) skipped")
+        parts.append(f'{bag.invalid_messages} invalid message(s) skipped')
     if bag.rejected:
         reasons: dict[str, int] = {}
         for _, reason, _ in bag.rejected:
             reasons[reason] = reasons.get(reason, 0) + 1
-        parts.append(f"{len(bag.rejected)} posture(s) set aside ("
-                     + ", ".join(f"{n} {r}" for r, n in sorted(reasons.items())) + ")")
-    return "; ".join(parts)
+        parts.append(
+            f'{len(bag.rejected)} posture(s) set aside ('
+            + ', '.join(f'{n} {r}' for r, n in sorted(reasons.items()))
+            + ')'
+        )
+    return '; '.join(parts)
 
 
 def run_bag_info(args) -> int:
@@ -215,9 +331,9 @@ def run_bag_info(args) -> int:
     try:
         bag = postures_from_bag(args.bag)
     except Exception as error:  # the bag is readable but holds no usable postures: say why
-        print(f"Postures:          none usable ({error})")
+        print(f'Postures:          none usable ({error})')
         return 0
-    print(f"Postures:          {len(bag.postures)} (from the {bag.source})")
+    print(f'Postures:          {len(bag.postures)} (from the {bag.source})')
     for key, value in sorted(bag.plan.items()):
-        print(f"Recorded:          {key} = {value}")
+        print(f'Recorded:          {key} = {value}')
     return 0

@@ -3,11 +3,12 @@
 Exit codes: 0 success; 1 the calibration ran but did not converge; 2 bad input
 or a refused calibration (one line on stderr naming the problem, no traceback).
 """
+
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
+import sys
 
 from . import study as cli_study
 from .common import LazySubcommands
@@ -17,10 +18,10 @@ EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
 
 def _add_params_parser(subparsers) -> None:
     subparsers.add_parser(
-        "params",
+        'params',
         help="write a parameters YAML: a model's default machine (Table 1) or a nominal set 1-3",
-        description="Write a ROS 2 parameters YAML (SI units) for the default machine of a model (the Hexa "
-        "Slide of Table 1, or the default Gough-Stewart platform) or one of its nominal sets (the default "
+        description='Write a ROS 2 parameters YAML (SI units) for the default machine of a model (the Hexa '
+        'Slide of Table 1, or the default Gough-Stewart platform) or one of its nominal sets (the default '
         "machine + seeded errors with Table 2's statistics).",
         fill=_params_arguments,
     )
@@ -29,18 +30,29 @@ def _add_params_parser(subparsers) -> None:
 def _params_arguments(parser: argparse.ArgumentParser) -> None:
     from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 
-    parser.add_argument("which", choices=("table1", "default", "nominal"),
-                        help="table1: the exact Table 1 Hexa Slide; default: the model's default machine "
-                        "(Table 1 for hexa_slide); nominal: a nominal set")
-    parser.add_argument("--model", choices=tuple(MODELS), default=DEFAULT_MODEL,
-                        help=f"machine model (default {DEFAULT_MODEL})")
-    parser.add_argument("--set", type=int, choices=(1, 2, 3), default=2, help="nominal set (default 2)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the nominal errors (default 0)")
-    parser.add_argument("--out", type=Path, required=True, help="output YAML file")
+    parser.add_argument(
+        'which',
+        choices=('table1', 'default', 'nominal'),
+        help="table1: the exact Table 1 Hexa Slide; default: the model's default machine "
+        '(Table 1 for hexa_slide); nominal: a nominal set',
+    )
+    parser.add_argument(
+        '--model',
+        choices=tuple(MODELS),
+        default=DEFAULT_MODEL,
+        help=f'machine model (default {DEFAULT_MODEL})',
+    )
+    parser.add_argument(
+        '--set', type=int, choices=(1, 2, 3), default=2, help='nominal set (default 2)'
+    )
+    parser.add_argument(
+        '--seed', type=int, default=0, help='seed of the nominal errors (default 0)'
+    )
+    parser.add_argument('--out', type=Path, required=True, help='output YAML file')
     parser.set_defaults(handler=_write_params)
 
 
-TABLE1_COMMENT = "Table 1 of Rauf, Kim, Ryu (exact machine), SI units"
+TABLE1_COMMENT = 'Table 1 of Rauf, Kim, Ryu (exact machine), SI units'
 
 
 def _write_params(args) -> int:
@@ -50,26 +62,27 @@ def _write_params(args) -> int:
     from ..core.architectures import default_parameters
     from ..core.model import nominal_set
 
-    if args.which == "table1" and args.model != HEXA_SLIDE:
-        raise ValueError(f"table1 is the Hexa Slide of Rauf, Kim, Ryu's Table 1, not a {args.model}; "
-                         f"write `default` for the default {args.model} machine")
-    if args.which in ("table1", "default"):
+    if args.which == 'table1' and args.model != HEXA_SLIDE:
+        raise ValueError(
+            f"table1 is the Hexa Slide of Rauf, Kim, Ryu's Table 1, not a {args.model}; "
+            f'write `default` for the default {args.model} machine'
+        )
+    if args.which in ('table1', 'default'):
         params = default_parameters(args.model)
         comment = default_machine_comment(args.model, params.vector)
     else:
         params = nominal_set(args.set, seed=args.seed, model=args.model)
-        machine = "Table 1" if args.model == HEXA_SLIDE else f"the default {args.model} machine"
-        comment = f"nominal set {args.set} ({machine} + errors with Table 2 statistics, seed {args.seed}), SI units"
+        machine = 'Table 1' if args.model == HEXA_SLIDE else f'the default {args.model} machine'
+        comment = f'nominal set {args.set} ({machine} + errors with Table 2 statistics, seed {args.seed}), SI units'
     save_parameters(args.out, params.vector, header_comment=comment, model=args.model)
-    print(f"wrote {args.out}")
+    print(f'wrote {args.out}')
     return EXIT_OK
 
 
 def default_machine_comment(model: str, vector) -> str:
     """Header comment of the default-machine file of `model` (what hexacal_identify/data/ ships)."""
-    import numpy as np
-
     from hexacal_msgs_py.models import HEXA_SLIDE, MODELS
+    import numpy as np
 
     from ..core.architectures import architecture
 
@@ -80,12 +93,14 @@ def default_machine_comment(model: str, vector) -> str:
     chains = np.asarray(vector, dtype=float).reshape(6, -1)
     base_radius = float(np.mean(np.hypot(chains[:, 0], chains[:, 1])))
     platform_radius = float(np.mean(np.hypot(chains[:, 3], chains[:, 4])))
-    offsets = chains[:, MODELS[model].fields.index("l0")]
-    return (f"Default {MODELS[model].title} of hexacal (SI units): base joints on a {base_radius:.2f} m circle,\n"
-            f"platform joints on a {platform_radius:.2f} m circle, with mm-level as-built irregularity.\n"
-            f"Stroke limits ({low:g}, {high:g}) m of the actuator reading lambda; l0 {offsets.min():.4f}-"
-            f"{offsets.max():.4f} m, so legs {offsets.min() + low:.2f}-{offsets.max() + high:.2f} m.\n"
-            f"Written by `hexacal params default --model {model}`.")
+    offsets = chains[:, MODELS[model].fields.index('l0')]
+    return (
+        f'Default {MODELS[model].title} of hexacal (SI units): base joints on a {base_radius:.2f} m circle,\n'
+        f'platform joints on a {platform_radius:.2f} m circle, with mm-level as-built irregularity.\n'
+        f'Stroke limits ({low:g}, {high:g}) m of the actuator reading lambda; l0 {offsets.min():.4f}-'
+        f'{offsets.max():.4f} m, so legs {offsets.min() + low:.2f}-{offsets.max() + high:.2f} m.\n'
+        f'Written by `hexacal params default --model {model}`.'
+    )
 
 
 def build_parser(fill: bool = True) -> argparse.ArgumentParser:
@@ -95,12 +110,15 @@ def build_parser(fill: bool = True) -> argparse.ArgumentParser:
     need (see cli.common.LazySubcommands) and `hexacal --help` imports none of them.
     """
     parser = argparse.ArgumentParser(
-        prog="hexacal", description="Kinematic calibration of six-leg parallel manipulators: Hexa Slide, Gough-Stewart (ROS 2)."
+        prog='hexacal',
+        description='Kinematic calibration of six-leg parallel manipulators: Hexa Slide, Gough-Stewart (ROS 2).',
     )
-    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", action=LazySubcommands)
+    subparsers = parser.add_subparsers(
+        dest='command', required=True, metavar='COMMAND', action=LazySubcommands
+    )
     cli_study.add_parser(subparsers)
     _add_params_parser(subparsers)
-    for module_name in ("calibrate", "demo", "plan_report", "export", "verify", "kinematics"):
+    for module_name in ('calibrate', 'demo', 'plan_report', 'export', 'verify', 'kinematics'):
         module = _optional_module(module_name)
         if module is not None:
             module.add_parsers(subparsers)
@@ -110,7 +128,7 @@ def build_parser(fill: bool = True) -> argparse.ArgumentParser:
 
 
 def _full(name: str) -> str:
-    return name if name.startswith("hexacal_identify.") else f"{__package__}.{name}"
+    return name if name.startswith('hexacal_identify.') else f'{__package__}.{name}'
 
 
 def _optional_module(name: str):
@@ -130,10 +148,17 @@ def _named_errors() -> tuple[type[BaseException], ...]:
 
     from ..core.errors import CalibrationError
 
-    errors: list[type[BaseException]] = [HexacalContractError, CalibrationError, FileNotFoundError,
-                                         NotADirectoryError, IsADirectoryError, PermissionError, ValueError]
-    bag = _optional_module("hexacal_identify.bag")
-    if bag is not None and hasattr(bag, "BagError"):
+    errors: list[type[BaseException]] = [
+        HexacalContractError,
+        CalibrationError,
+        FileNotFoundError,
+        NotADirectoryError,
+        IsADirectoryError,
+        PermissionError,
+        ValueError,
+    ]
+    bag = _optional_module('hexacal_identify.bag')
+    if bag is not None and hasattr(bag, 'BagError'):
         errors.append(bag.BagError)
     return tuple(errors)
 
@@ -143,17 +168,17 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.handler(args))
     except _named_errors() as error:
-        print(f"hexacal {args.command}: error: {_one_line(error)}", file=sys.stderr)
+        print(f'hexacal {args.command}: error: {_one_line(error)}', file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
-        print(f"hexacal {args.command}: interrupted", file=sys.stderr)
+        print(f'hexacal {args.command}: interrupted', file=sys.stderr)
         return 130
 
 
 def _one_line(error: BaseException) -> str:
     text = str(error) or type(error).__name__
-    return " | ".join(line.strip() for line in text.splitlines() if line.strip())
+    return ' | '.join(line.strip() for line in text.splitlines() if line.strip())
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

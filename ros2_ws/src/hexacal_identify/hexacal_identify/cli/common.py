@@ -2,12 +2,13 @@
 
 Imported by every ``hexacal`` start-up: keep its imports to the standard library.
 """
+
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable
+import sys
+from typing import Callable, TYPE_CHECKING
 
 if TYPE_CHECKING:
     from ..core.architectures import KinematicParameters
@@ -28,8 +29,9 @@ class LazySubcommands(argparse._SubParsersAction):
         super().__init__(*args, **kwargs)
         self._fills: dict[str, Callable[[argparse.ArgumentParser], None]] = {}
 
-    def add_parser(self, name: str, *, fill: Callable[[argparse.ArgumentParser], None] | None = None,
-                   **kwargs) -> argparse.ArgumentParser:
+    def add_parser(
+        self, name: str, *, fill: Callable[[argparse.ArgumentParser], None] | None = None, **kwargs
+    ) -> argparse.ArgumentParser:
         parser = super().add_parser(name, **kwargs)
         if fill is not None:
             self._fills[name] = fill
@@ -61,7 +63,9 @@ class Progress:
         if enabled and sys.stderr.isatty():
             from tqdm import tqdm
 
-            self._bar = tqdm(total=total, file=sys.stderr, leave=False, bar_format="{desc} {n_fmt} [{elapsed}]")
+            self._bar = tqdm(
+                total=total, file=sys.stderr, leave=False, bar_format='{desc} {n_fmt} [{elapsed}]'
+            )
 
     def step(self, description: str) -> None:
         if self._bar is not None:
@@ -73,7 +77,7 @@ class Progress:
             self._bar.close()
 
 
-def load_params_arg(path: Path) -> "KinematicParameters":
+def load_params_arg(path: Path) -> 'KinematicParameters':
     """A parameters YAML named on the command line, of the model it names, validated
     (ParameterFileError names the file and the bad key)."""
     from hexacal_msgs_py.parameters_file import read_parameters_file

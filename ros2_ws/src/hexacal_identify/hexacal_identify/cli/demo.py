@@ -13,6 +13,7 @@ errors before and after calibration (against the simulated truth), the
 verification table (no truth needed) and the path of the HTML report.
 Everything it writes lands under ``out/demo_<timestamp>/`` (the bag in ``bag/``).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -25,9 +26,11 @@ import signal
 import sys
 import tempfile
 import time
-from typing import IO, TYPE_CHECKING, Callable
+from typing import Callable, IO, TYPE_CHECKING
 
-if TYPE_CHECKING:  # numpy and the process launcher are imported where the demo runs, not at `hexacal` start-up
+if (
+    TYPE_CHECKING
+):  # numpy and the process launcher are imported where the demo runs, not at `hexacal` start-up
     import numpy as np
 
     from ..nodes.bringup import NodeGroup, RunningNode
@@ -53,38 +56,77 @@ class DemoError(RuntimeError):
 
 def add_parsers(subparsers) -> None:
     parser = subparsers.add_parser(
-        'demo', help='simulate a machine, collect postures over ROS 2, calibrate, print the errors',
+        'demo',
+        help='simulate a machine, collect postures over ROS 2, calibrate, print the errors',
         description='Plan postures (O1), walk them with the executor on a simulated Table 1 machine '
         '(or, with --model gough_stewart, the default Gough-Stewart platform) driven through its '
         'trajectory-controller interface, collect, calibrate nominal set 2, walk a verification plan '
         'and verify; print parameter and pose errors before and after, the verification table and '
         'the HTML report path. Takes about 2-3 minutes with the defaults; everything lands under '
-        'out/demo_<timestamp>.')
-    parser.add_argument('--model', choices=MODEL_CHOICES, default='hexa_slide',
-                        help='machine model: hexa_slide (Table 1, default) or gough_stewart '
-                        '(the default 6-UPS hexapod)')
-    parser.add_argument('--postures', type=int, default=50, help='postures to collect (default 50)')
-    parser.add_argument('--noise-um', type=float, default=10.0,
-                        help='uniform noise half-width: um on sliders, urad on angles (default 10)')
-    parser.add_argument('--out', type=Path, default=None,
-                        help='work directory for the parameter YAMLs and logs '
-                        '(default out/demo_<timestamp>)')
-    parser.add_argument('--bag-dir', type=Path, default=None,
-                        help='record the bag to <bag-dir>/demo_<timestamp> (default: <out>/bag)')
-    parser.add_argument('--plan', choices=('mixed', 'random'), default='mixed',
-                        help='mixed: 3 sphere : 1 fixed-position postures, O1-planned for eqs. 8 + 10 '
-                        '(default); random: sphere postures, O1-planned for eq. 7')
-    parser.add_argument('--verify-postures', type=int, default=20,
-                        help='fresh postures of the verification plan (default 20; 0: no verification)')
-    parser.add_argument('--settle-s', type=float, default=0.3,
-                        help='how long the machine stands still at a target before its posture is taken')
-    parser.add_argument('--dwell-s', type=float, default=1.2,
-                        help='longest wait for the collector at a standing posture beyond --settle-s '
-                        '(the executor moves on as soon as the posture is measured)')
+        'out/demo_<timestamp>.',
+    )
+    parser.add_argument(
+        '--model',
+        choices=MODEL_CHOICES,
+        default='hexa_slide',
+        help='machine model: hexa_slide (Table 1, default) or gough_stewart '
+        '(the default 6-UPS hexapod)',
+    )
+    parser.add_argument(
+        '--postures', type=int, default=50, help='postures to collect (default 50)'
+    )
+    parser.add_argument(
+        '--noise-um',
+        type=float,
+        default=10.0,
+        help='uniform noise half-width: um on sliders, urad on angles (default 10)',
+    )
+    parser.add_argument(
+        '--out',
+        type=Path,
+        default=None,
+        help='work directory for the parameter YAMLs and logs (default out/demo_<timestamp>)',
+    )
+    parser.add_argument(
+        '--bag-dir',
+        type=Path,
+        default=None,
+        help='record the bag to <bag-dir>/demo_<timestamp> (default: <out>/bag)',
+    )
+    parser.add_argument(
+        '--plan',
+        choices=('mixed', 'random'),
+        default='mixed',
+        help='mixed: 3 sphere : 1 fixed-position postures, O1-planned for eqs. 8 + 10 '
+        '(default); random: sphere postures, O1-planned for eq. 7',
+    )
+    parser.add_argument(
+        '--verify-postures',
+        type=int,
+        default=20,
+        help='fresh postures of the verification plan (default 20; 0: no verification)',
+    )
+    parser.add_argument(
+        '--settle-s',
+        type=float,
+        default=0.3,
+        help='how long the machine stands still at a target before its posture is taken',
+    )
+    parser.add_argument(
+        '--dwell-s',
+        type=float,
+        default=1.2,
+        help='longest wait for the collector at a standing posture beyond --settle-s '
+        '(the executor moves on as soon as the posture is measured)',
+    )
     parser.add_argument('--rate-hz', type=float, default=100.0, help='sensor rate (default 100)')
     parser.add_argument('--seed', type=int, default=0, help='seed of plan, noise and nominal set')
-    parser.add_argument('--validation-postures', type=int, default=50,
-                        help='fresh postures for the pose errors (default 50)')
+    parser.add_argument(
+        '--validation-postures',
+        type=int,
+        default=50,
+        help='fresh postures for the pose errors (default 50)',
+    )
     parser.set_defaults(handler=run)
 
 
@@ -138,8 +180,17 @@ def _paths(args) -> DemoPaths:
     work = (args.out or Path('out') / f'demo_{stamp}').resolve()
     truth = 'true_table1.yaml' if _model(args) == 'hexa_slide' else f'true_{_model(args)}.yaml'
     bag = (args.bag_dir / f'demo_{stamp}').resolve() if args.bag_dir is not None else work / 'bag'
-    return DemoPaths(work, bag, work / truth, work / 'nominal_set2.yaml', work / 'calibration.yaml',
-                     work / 'logs', work / 'plan.yaml', work / 'verification_plan.yaml', work / 'report')
+    return DemoPaths(
+        work,
+        bag,
+        work / truth,
+        work / 'nominal_set2.yaml',
+        work / 'calibration.yaml',
+        work / 'logs',
+        work / 'plan.yaml',
+        work / 'verification_plan.yaml',
+        work / 'report',
+    )
 
 
 def _check_args(args) -> None:
@@ -148,12 +199,14 @@ def _check_args(args) -> None:
     count = model_layout(_model(args)).n_parameters
     minimum = math.ceil(count / 4)
     if args.postures < minimum:
-        raise ValueError(f'--postures must be at least {minimum} ({count} parameters, 4 residuals '
-                         f'per posture), got {args.postures}')
+        raise ValueError(
+            f'--postures must be at least {minimum} ({count} parameters, 4 residuals '
+            f'per posture), got {args.postures}'
+        )
     for name in ('noise_um', 'settle_s', 'dwell_s', 'rate_hz'):
         value = getattr(args, name)
         if not math.isfinite(value) or value < 0 or (name != 'noise_um' and value == 0):
-            raise ValueError(f"--{name.replace('_', '-')} must be positive, got {value}")
+            raise ValueError(f'--{name.replace("_", "-")} must be positive, got {value}')
     if args.verify_postures < 0:
         raise ValueError(f'--verify-postures must be 0 or more, got {args.verify_postures}')
 
@@ -186,13 +239,28 @@ def _plans(args, nominal, paths: DemoPaths) -> None:
 
     noise = NoiseModel.from_microns(args.noise_um) if args.noise_um > 0 else None
     mixed = args.plan == 'mixed'
-    plan_postures(nominal, args.postures, index='O1', cost='sphere-fixed' if mixed else 'absolute',
-                  fixed_fraction=0.25 if mixed else None, n_candidates=PLAN_CANDIDATES, seed=args.seed,
-                  noise=noise, name='demo-calibration').plan.save(paths.plan)
+    plan_postures(
+        nominal,
+        args.postures,
+        index='O1',
+        cost='sphere-fixed' if mixed else 'absolute',
+        fixed_fraction=0.25 if mixed else None,
+        n_candidates=PLAN_CANDIDATES,
+        seed=args.seed,
+        noise=noise,
+        name='demo-calibration',
+    ).plan.save(paths.plan)
     if args.verify_postures:
-        plan_postures(nominal, args.verify_postures, index='O1', cost='absolute',
-                      n_candidates=PLAN_CANDIDATES, seed=args.seed + 1000, noise=noise,
-                      name='demo-verification').plan.save(paths.verification_plan)
+        plan_postures(
+            nominal,
+            args.verify_postures,
+            index='O1',
+            cost='absolute',
+            n_candidates=PLAN_CANDIDATES,
+            seed=args.seed + 1000,
+            noise=noise,
+            name='demo-verification',
+        ).plan.save(paths.verification_plan)
 
 
 def _run(args) -> int:
@@ -201,22 +269,34 @@ def _run(args) -> int:
     from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC
     from hexacal_msgs_py.parameters_file import save_parameters
 
-    from ..nodes.bringup import NodeGroup, NodeLaunch
     from ..core.architectures import architecture
     from ..core.model import nominal_set
+    from ..nodes.bringup import NodeGroup, NodeLaunch
 
     model = _model(args)
-    true_params, nominal = architecture(model).default_parameters(), nominal_set(2, seed=args.seed,
-                                                                                 model=model)
+    true_params, nominal = (
+        architecture(model).default_parameters(),
+        nominal_set(2, seed=args.seed, model=model),
+    )
     if model == 'hexa_slide':
         truth_text, nominal_text = 'Table 1', 'Table 1 + Table 2 errors'
     else:
         truth_text = f'the default {model} machine'
         nominal_text = f'the default {model} machine + errors with Table 2-like statistics'
-    save_parameters(paths.true_params, true_params.vector, model=model,
-                    header_comment=f'hexacal demo: the simulated true machine ({truth_text}), SI units')
-    save_parameters(paths.nominal, nominal.vector, model=model, header_comment=(
-        f'hexacal demo: nominal set 2 ({nominal_text}, seed {args.seed}), SI units'))
+    save_parameters(
+        paths.true_params,
+        true_params.vector,
+        model=model,
+        header_comment=f'hexacal demo: the simulated true machine ({truth_text}), SI units',
+    )
+    save_parameters(
+        paths.nominal,
+        nominal.vector,
+        model=model,
+        header_comment=(
+            f'hexacal demo: nominal set 2 ({nominal_text}, seed {args.seed}), SI units'
+        ),
+    )
     _plans(args, nominal, paths)
     domain_id = claim_domain_id()
     env = {'ROS_DOMAIN_ID': str(domain_id), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
@@ -228,45 +308,111 @@ def _run(args) -> int:
     session = None
     verification = None
     try:
-        group.start(NodeLaunch('collector', {
-            'output_dir': str(paths.bag.parent), 'bag_name': paths.bag.name,
-            'parameters_file': str(paths.nominal), **COLLECTOR_WINDOWS}), env, paths.logs / 'collector.log')
-        group.start(NodeLaunch('identify', {
-            'nominal': str(paths.nominal), 'output_dir': str(paths.work),
-            'output': paths.calibration.name, 'report_dir': str(paths.report),
-            'noise_slider_m': args.noise_um * 1e-6, 'noise_angle_rad': args.noise_um * 1e-6}),
-            env, paths.logs / 'identify.log')
+        group.start(
+            NodeLaunch(
+                'collector',
+                {
+                    'output_dir': str(paths.bag.parent),
+                    'bag_name': paths.bag.name,
+                    'parameters_file': str(paths.nominal),
+                    **COLLECTOR_WINDOWS,
+                },
+            ),
+            env,
+            paths.logs / 'collector.log',
+        )
+        group.start(
+            NodeLaunch(
+                'identify',
+                {
+                    'nominal': str(paths.nominal),
+                    'output_dir': str(paths.work),
+                    'output': paths.calibration.name,
+                    'report_dir': str(paths.report),
+                    'noise_slider_m': args.noise_um * 1e-6,
+                    'noise_angle_rad': args.noise_um * 1e-6,
+                },
+            ),
+            env,
+            paths.logs / 'identify.log',
+        )
         session = _RosSession()
-        session.wait('the collector and identify nodes to come up', GRAPH_TIMEOUT_S, group,
-                     session.graph_ready)
-        group.start(NodeLaunch('driver', {
-            'true_params': str(paths.true_params), 'command_topic': DEFAULT_COMMAND_TOPIC,
-            'max_actuator_speed_m_s': DRIVER_SPEED_M_S, 'rate_hz': float(args.rate_hz), 'seed': args.seed,
-            'slider_noise_m': args.noise_um * 1e-6, 'angle_noise_rad': args.noise_um * 1e-6}),
-            env, paths.logs / 'driver.log')
+        session.wait(
+            'the collector and identify nodes to come up',
+            GRAPH_TIMEOUT_S,
+            group,
+            session.graph_ready,
+        )
+        group.start(
+            NodeLaunch(
+                'driver',
+                {
+                    'true_params': str(paths.true_params),
+                    'command_topic': DEFAULT_COMMAND_TOPIC,
+                    'max_actuator_speed_m_s': DRIVER_SPEED_M_S,
+                    'rate_hz': float(args.rate_hz),
+                    'seed': args.seed,
+                    'slider_noise_m': args.noise_um * 1e-6,
+                    'angle_noise_rad': args.noise_um * 1e-6,
+                },
+            ),
+            env,
+            paths.logs / 'driver.log',
+        )
         machine = '' if model == 'hexa_slide' else f' of a {model}'
-        print(f'hexacal demo: the executor walks an O1 plan of {args.postures} postures ({args.plan}) on '
-              f'the simulated machine{machine} through its trajectory-controller interface, '
-              f'+-{args.noise_um:g} um / +-{args.noise_um:g} urad noise, {args.rate_hz:g} Hz', flush=True)
-        walked = _walk(session, group, args, paths.plan, paths.nominal, 'calibration', env,
-                       paths.logs / 'executor.log')
-        session.wait(f'identify to hold the {walked} postures', 30.0, group,
-                     lambda: session.identify_postures >= walked)
+        print(
+            f'hexacal demo: the executor walks an O1 plan of {args.postures} postures ({args.plan}) on '
+            f'the simulated machine{machine} through its trajectory-controller interface, '
+            f'+-{args.noise_um:g} um / +-{args.noise_um:g} urad noise, {args.rate_hz:g} Hz',
+            flush=True,
+        )
+        walked = _walk(
+            session,
+            group,
+            args,
+            paths.plan,
+            paths.nominal,
+            'calibration',
+            env,
+            paths.logs / 'executor.log',
+        )
+        session.wait(
+            f'identify to hold the {walked} postures',
+            30.0,
+            group,
+            lambda: session.identify_postures >= walked,
+        )
         calibrate_started = time.monotonic()
         success, message = session.calibrate(group)
         if not success:
             raise DemoError(f'hexacal/calibrate refused: {message}')
-        calibrated = session.wait('the published parameters', 30.0, group,
-                                  lambda: session.parameters)
+        calibrated = session.wait(
+            'the published parameters', 30.0, group, lambda: session.parameters
+        )
         calibrate_s = time.monotonic() - calibrate_started
         print(f'hexacal demo: calibrated in {calibrate_s:.1f} s: {message}', flush=True)
         if args.verify_postures:
-            print(f'hexacal demo: the executor walks a verification plan of {args.verify_postures} fresh '
-                  'postures', flush=True)
-            walked = _walk(session, group, args, paths.verification_plan, paths.nominal, 'verification', env,
-                           paths.logs / 'executor_verification.log')
-            session.wait('identify to hold the verification postures', 30.0, group,
-                         lambda: session.verification_postures >= walked)
+            print(
+                f'hexacal demo: the executor walks a verification plan of {args.verify_postures} fresh '
+                'postures',
+                flush=True,
+            )
+            walked = _walk(
+                session,
+                group,
+                args,
+                paths.verification_plan,
+                paths.nominal,
+                'verification',
+                env,
+                paths.logs / 'executor_verification.log',
+            )
+            session.wait(
+                'identify to hold the verification postures',
+                30.0,
+                group,
+                lambda: session.verification_postures >= walked,
+            )
             verification = session.verify(group)
     except DemoError as error:
         print(f'hexacal demo: error: {error}', file=sys.stderr, flush=True)
@@ -279,19 +425,40 @@ def _run(args) -> int:
         codes = group.stop(order=('executor', 'driver', 'collector', 'identify'))
     unclean = {name: code for name, code in codes.items() if code != 0}
     if unclean:
-        print(f'hexacal demo: warning: nodes exited with {unclean} (logs in {paths.logs})',
-              file=sys.stderr)
-    print(report(true_params, nominal, true_params.with_vector(calibrated), args, paths,
-                 time.monotonic() - started, verification))
+        print(
+            f'hexacal demo: warning: nodes exited with {unclean} (logs in {paths.logs})',
+            file=sys.stderr,
+        )
+    print(
+        report(
+            true_params,
+            nominal,
+            true_params.with_vector(calibrated),
+            args,
+            paths,
+            time.monotonic() - started,
+            verification,
+        )
+    )
     if not (paths.bag / 'metadata.yaml').exists():
-        print(f'hexacal demo: error: the bag {paths.bag} was not closed (no metadata.yaml)',
-              file=sys.stderr)
+        print(
+            f'hexacal demo: error: the bag {paths.bag} was not closed (no metadata.yaml)',
+            file=sys.stderr,
+        )
         return EXIT_FAILED
     return EXIT_OK
 
 
-def _walk(session: '_RosSession', group: NodeGroup, args, plan: Path, nominal: Path, label: str, env: dict,
-          log: Path) -> int:
+def _walk(
+    session: '_RosSession',
+    group: NodeGroup,
+    args,
+    plan: Path,
+    nominal: Path,
+    label: str,
+    env: dict,
+    log: Path,
+) -> int:
     """Start an executor on ``plan``, show its progress, wait until it is done; the postures measured."""
     from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC
     from tqdm import tqdm
@@ -301,18 +468,37 @@ def _walk(session: '_RosSession', group: NodeGroup, args, plan: Path, nominal: P
 
     total = len(Plan.load(plan))
     session.executor_values = {}
-    executor = group.start(NodeLaunch('executor', {
-        'plan': str(plan), 'nominal': str(nominal), 'command_topic': DEFAULT_COMMAND_TOPIC,
-        'max_actuator_speed_m_s': EXECUTOR_SPEED_M_S, 'settle_s': float(args.settle_s),
-        'timeout_s': 30.0 + float(args.dwell_s)}), env, log)
+    executor = group.start(
+        NodeLaunch(
+            'executor',
+            {
+                'plan': str(plan),
+                'nominal': str(nominal),
+                'command_topic': DEFAULT_COMMAND_TOPIC,
+                'max_actuator_speed_m_s': EXECUTOR_SPEED_M_S,
+                'settle_s': float(args.settle_s),
+                'timeout_s': 30.0 + float(args.dwell_s),
+            },
+        ),
+        env,
+        log,
+    )
     interactive = sys.stderr.isatty()
-    bar = tqdm(total=total, desc=f'{label} postures', unit='posture', file=sys.stderr, disable=not interactive)
+    bar = tqdm(
+        total=total,
+        desc=f'{label} postures',
+        unit='posture',
+        file=sys.stderr,
+        disable=not interactive,
+    )
     shown = 0
 
     def progress():
         nonlocal shown
         values = session.executor_values
-        count = min(int(values.get('measured', 0) or 0) + int(values.get('skipped', 0) or 0), total)
+        count = min(
+            int(values.get('measured', 0) or 0) + int(values.get('skipped', 0) or 0), total
+        )
         if count > shown:
             bar.update(count - shown)
             if not interactive and (count % 10 == 0 or count == total):
@@ -324,7 +510,9 @@ def _walk(session: '_RosSession', group: NodeGroup, args, plan: Path, nominal: P
         return values if state == 'done' else None
 
     try:
-        done = session.wait(f'the executor to walk the {label} plan', 60.0 + 10.0 * total, group, progress)
+        done = session.wait(
+            f'the executor to walk the {label} plan', 60.0 + 10.0 * total, group, progress
+        )
     finally:
         bar.close()
     _stop(group, executor)  # the next plan gets an executor of its own
@@ -349,15 +537,22 @@ def _log_tail(node: RunningNode, lines: int = 15) -> str:
     return f'--- {node.name} ({path}) ---\n' + '\n'.join(text)
 
 
-def _follow_postures(session: '_RosSession', group: NodeGroup, total: int,
-                     timeout_s: float) -> None:
+def _follow_postures(
+    session: '_RosSession', group: NodeGroup, total: int, timeout_s: float
+) -> None:
     from tqdm import tqdm
 
     interactive = sys.stderr.isatty()
-    bar = tqdm(total=total, desc='postures collected', unit='posture', file=sys.stderr,
-               disable=not interactive)
+    bar = tqdm(
+        total=total,
+        desc='postures collected',
+        unit='posture',
+        file=sys.stderr,
+        disable=not interactive,
+    )
     shown = 0
     try:
+
         def progress() -> bool:
             nonlocal shown
             count = min(session.postures, total)
@@ -377,16 +572,7 @@ class _RosSession:
     """An in-process node that watches postures, calls the service and receives the result."""
 
     def __init__(self) -> None:
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.signals import SignalHandlerOptions
-        from sensor_msgs.msg import JointState
-        from std_msgs.msg import Float64MultiArray
-        from std_srvs.srv import Trigger
-
         from diagnostic_msgs.msg import DiagnosticArray
-
         from hexacal_msgs_py.names import (
             CALIBRATE_SERVICE,
             CALIBRATION_STATUS_TOPIC,
@@ -395,6 +581,13 @@ class _RosSession:
             VERIFY_SERVICE,
         )
         from hexacal_msgs_py.qos import PARAMETERS_QOS, POSTURE_QOS, STATUS_QOS
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.signals import SignalHandlerOptions
+        from sensor_msgs.msg import JointState
+        from std_msgs.msg import Float64MultiArray
+        from std_srvs.srv import Trigger
 
         self.context = Context()
         # Python keeps SIGINT: Ctrl-C raises KeyboardInterrupt and the children are stopped.
@@ -404,16 +597,20 @@ class _RosSession:
         self.executor.add_node(self.node)
         self.postures = 0  # seen here
         self.identify_postures = 0  # received by identify, from its status
-        self.verification_postures = 0  # received by identify since the calibration, from its status
+        self.verification_postures = (
+            0  # received by identify since the calibration, from its status
+        )
         self.executor_values: dict[str, str] = {}  # the executor's latest status
         self.verification_values: dict[str, str] = {}  # identify's latest verification status
         self.parameters: np.ndarray | None = None
         self._trigger = Trigger
         self.node.create_subscription(JointState, POSTURE_TOPIC, self._on_posture, POSTURE_QOS)
-        self.node.create_subscription(Float64MultiArray, PARAMETERS_TOPIC, self._on_parameters,
-                                      PARAMETERS_QOS)
-        self.node.create_subscription(DiagnosticArray, CALIBRATION_STATUS_TOPIC, self._on_status,
-                                      STATUS_QOS)
+        self.node.create_subscription(
+            Float64MultiArray, PARAMETERS_TOPIC, self._on_parameters, PARAMETERS_QOS
+        )
+        self.node.create_subscription(
+            DiagnosticArray, CALIBRATION_STATUS_TOPIC, self._on_status, STATUS_QOS
+        )
         self.client = self.node.create_client(Trigger, CALIBRATE_SERVICE)
         self.verify_client = self.node.create_client(Trigger, VERIFY_SERVICE)
         self.posture_topic = self.node.resolve_topic_name(POSTURE_TOPIC)
@@ -442,9 +639,11 @@ class _RosSession:
 
     def graph_ready(self) -> bool:
         # The collector publishes postures and identify receives them (as this node does).
-        return (self.node.count_publishers(self.posture_topic) >= 1
-                and self.node.count_subscribers(self.posture_topic) >= 2
-                and self.client.service_is_ready())
+        return (
+            self.node.count_publishers(self.posture_topic) >= 1
+            and self.node.count_subscribers(self.posture_topic) >= 2
+            and self.client.service_is_ready()
+        )
 
     def wait(self, what: str, timeout_s: float, group: NodeGroup, condition: Callable[[], object]):
         deadline = time.monotonic() + timeout_s
@@ -455,24 +654,35 @@ class _RosSession:
             exited = group.exited()
             if exited:
                 node = exited[0]
-                raise DemoError(f'{node.name} exited with {node.popen.returncode} while waiting '
-                                f'for {what}\n{_log_tail(node)}')
+                raise DemoError(
+                    f'{node.name} exited with {node.popen.returncode} while waiting '
+                    f'for {what}\n{_log_tail(node)}'
+                )
             if time.monotonic() > deadline:
                 raise DemoError(f'timed out after {timeout_s:.0f} s waiting for {what}')
             self.executor.spin_once(timeout_sec=0.1)
 
     def calibrate(self, group: NodeGroup) -> tuple[bool, str]:
         future = self.client.call_async(self._trigger.Request())
-        response = self.wait('the hexacal/calibrate response', CALIBRATE_TIMEOUT_S, group,
-                             lambda: future.result() if future.done() else None)
+        response = self.wait(
+            'the hexacal/calibrate response',
+            CALIBRATE_TIMEOUT_S,
+            group,
+            lambda: future.result() if future.done() else None,
+        )
         return bool(response.success), str(response.message)
 
     def verify(self, group: NodeGroup) -> dict[str, str]:
         """Call hexacal/verify; the verification status once its report section is written."""
         self.verification_values = {}
         future = self.verify_client.call_async(self._trigger.Request())
-        response = self.wait('the hexacal/verify response', CALIBRATE_TIMEOUT_S, group,
-                             lambda: future.result() if future.done() else None)
+        response = self.wait(
+            'the hexacal/verify response',
+            CALIBRATE_TIMEOUT_S,
+            group,
+            lambda: future.result() if future.done() else None,
+        )
+
         def figures():
             values = self.verification_values
             if values.get('outcome') == 'verified':
@@ -494,8 +704,9 @@ class _RosSession:
 # --------------------------------------------------------------------------- the report
 
 
-def parameter_error_rows(true_vector: np.ndarray, vector: np.ndarray,
-                         model: str = 'hexa_slide') -> dict[str, tuple[float, float]]:
+def parameter_error_rows(
+    true_vector: np.ndarray, vector: np.ndarray, model: str = 'hexa_slide'
+) -> dict[str, tuple[float, float]]:
     """Per group (Hexa Slide: A0, B, l, a; Gough-Stewart: A, B, l0): (max, mean) |error| in mm
     (a: unit-vector components x 1000)."""
     import numpy as np
@@ -503,33 +714,50 @@ def parameter_error_rows(true_vector: np.ndarray, vector: np.ndarray,
     groups = MODEL_GROUPS[model]
     fields = max(columns.stop for columns in groups.values())
     errors = np.abs(np.asarray(vector) - np.asarray(true_vector)).reshape(6, fields) * 1e3
-    return {name: (float(errors[:, columns].max()), float(errors[:, columns].mean()))
-            for name, columns in groups.items()}
+    return {
+        name: (float(errors[:, columns].max()), float(errors[:, columns].mean()))
+        for name, columns in groups.items()
+    }
 
 
 def verification_table(values: dict[str, str]) -> list[str]:
     """The verification figures (identify's status values) as a table, um / urad."""
+
     def number(key: str) -> float:
         try:
             return float(values.get(key, 'nan'))
         except ValueError:
             return float('nan')
 
-    lines = ['', f"Verification on {values.get('postures', '?')} fresh postures: what the device measured "
-             '(eq. 4, rotary) vs forward kinematics at the measured actuators - no ground truth',
-             f"{'':<20}{'position rms':>14}{'position max':>14}{'rotary rms':>12}",
-             f"{'':<20}{'(um)':>14}{'(um)':>14}{'(urad)':>12}"]
+    lines = [
+        '',
+        f'Verification on {values.get("postures", "?")} fresh postures: what the device measured '
+        '(eq. 4, rotary) vs forward kinematics at the measured actuators - no ground truth',
+        f'{"":<20}{"position rms":>14}{"position max":>14}{"rotary rms":>12}',
+        f'{"":<20}{"(um)":>14}{"(um)":>14}{"(urad)":>12}',
+    ]
     for label, name in (('nominal', 'nominal'), ('calibrated', 'calibrated')):
-        lines.append(f"{label:<20}{number(name + '.position_rms_m') * 1e6:>14.1f}"
-                     f"{number(name + '.position_max_m') * 1e6:>14.1f}"
-                     f"{number(name + '.rotary_rms_rad') * 1e6:>12.1f}")
-    lines.append(f"improvement {number('improvement'):.0f}x, threshold {number('threshold_m') * 1e6:.1f} um: "
-                 f"{values.get('verdict', '?')}")
+        lines.append(
+            f'{label:<20}{number(name + ".position_rms_m") * 1e6:>14.1f}'
+            f'{number(name + ".position_max_m") * 1e6:>14.1f}'
+            f'{number(name + ".rotary_rms_rad") * 1e6:>12.1f}'
+        )
+    lines.append(
+        f'improvement {number("improvement"):.0f}x, threshold {number("threshold_m") * 1e6:.1f} um: '
+        f'{values.get("verdict", "?")}'
+    )
     return lines
 
 
-def report(true_params, nominal, calibrated, args, paths: DemoPaths, wall_s: float,
-           verification: dict[str, str] | None = None) -> str:
+def report(
+    true_params,
+    nominal,
+    calibrated,
+    args,
+    paths: DemoPaths,
+    wall_s: float,
+    verification: dict[str, str] | None = None,
+) -> str:
     from ..bag import open_bag
     from ..core.validation import pose_errors, validation_poses
 
@@ -538,32 +766,52 @@ def report(true_params, nominal, calibrated, args, paths: DemoPaths, wall_s: flo
     before = parameter_error_rows(true_params.vector, nominal.vector, model)
     after = parameter_error_rows(true_params.vector, calibrated.vector, model)
     if model == 'hexa_slide':
-        title = ('Parameter errors vs the simulated truth (Table 1), |error| in mm '
-                 '(a: unit-vector components x 1000, as in Table 1)')
+        title = (
+            'Parameter errors vs the simulated truth (Table 1), |error| in mm '
+            '(a: unit-vector components x 1000, as in Table 1)'
+        )
     else:
-        title = (f'Parameter errors vs the simulated truth (the default {model} machine), '
-                 '|error| in mm')
-    lines = ['', title,
-             f"{'group':<6}{'count':>6}{'before max':>13}{'before mean':>13}"
-             f"{'after max':>12}{'after mean':>12}"]
+        title = (
+            f'Parameter errors vs the simulated truth (the default {model} machine), |error| in mm'
+        )
+    lines = [
+        '',
+        title,
+        f'{"group":<6}{"count":>6}{"before max":>13}{"before mean":>13}'
+        f'{"after max":>12}{"after mean":>12}',
+    ]
     for name, columns in groups.items():
         count = 6 * (columns.stop - columns.start)
-        lines.append(f'{name:<6}{count:>6}{before[name][0]:>13.3f}{before[name][1]:>13.3f}'
-                     f'{after[name][0]:>12.4f}{after[name][1]:>12.4f}')
-    poses = validation_poses(true_params, args.validation_postures, args.seed,
-                             true_params.architecture.default_workspace())
-    lines += ['', f'Pose errors over {len(poses)} validation postures',
-              f"{'':<20}{'position mean':>15}{'position max':>14}{'orientation mean':>18}"
-              f"{'orientation max':>17}",
-              f"{'':<20}{'(um)':>15}{'(um)':>14}{'(deg)':>18}{'(deg)':>17}"]
+        lines.append(
+            f'{name:<6}{count:>6}{before[name][0]:>13.3f}{before[name][1]:>13.3f}'
+            f'{after[name][0]:>12.4f}{after[name][1]:>12.4f}'
+        )
+    poses = validation_poses(
+        true_params,
+        args.validation_postures,
+        args.seed,
+        true_params.architecture.default_workspace(),
+    )
+    lines += [
+        '',
+        f'Pose errors over {len(poses)} validation postures',
+        f'{"":<20}{"position mean":>15}{"position max":>14}{"orientation mean":>18}'
+        f'{"orientation max":>17}',
+        f'{"":<20}{"(um)":>15}{"(um)":>14}{"(deg)":>18}{"(deg)":>17}',
+    ]
     for label, model in (('before (nominal)', nominal), ('after (calibrated)', calibrated)):
         summary = pose_errors(true_params, model, poses).summary()
-        lines.append(f"{label:<20}{summary['position_mean_m'] * 1e6:>15.1f}"
-                     f"{summary['position_max_m'] * 1e6:>14.1f}"
-                     f"{math.degrees(summary['orientation_mean_rad']):>18.5f}"
-                     f"{math.degrees(summary['orientation_max_rad']):>17.5f}"
-                     + (f"  ({summary['failed_postures']} FK failures)"
-                        if summary['failed_postures'] else ''))
+        lines.append(
+            f'{label:<20}{summary["position_mean_m"] * 1e6:>15.1f}'
+            f'{summary["position_max_m"] * 1e6:>14.1f}'
+            f'{math.degrees(summary["orientation_mean_rad"]):>18.5f}'
+            f'{math.degrees(summary["orientation_max_rad"]):>17.5f}'
+            + (
+                f'  ({summary["failed_postures"]} FK failures)'
+                if summary['failed_postures']
+                else ''
+            )
+        )
     bag_text = str(paths.bag)
     try:
         info = open_bag(paths.bag).info()
@@ -574,9 +822,16 @@ def report(true_params, nominal, calibrated, args, paths: DemoPaths, wall_s: flo
     if verification:
         lines += verification_table(verification)
     page = _report_page(paths, verification)
-    lines += ['', f'bag:        {bag_text}', f'report:     {page}', f'calibrated: {paths.calibration}',
-              f'nominal:    {paths.nominal}', f'truth:      {paths.true_params}',
-              f'logs:       {paths.logs}', f'wall time:  {wall_s:.0f} s']
+    lines += [
+        '',
+        f'bag:        {bag_text}',
+        f'report:     {page}',
+        f'calibrated: {paths.calibration}',
+        f'nominal:    {paths.nominal}',
+        f'truth:      {paths.true_params}',
+        f'logs:       {paths.logs}',
+        f'wall time:  {wall_s:.0f} s',
+    ]
     return '\n'.join(lines)
 
 

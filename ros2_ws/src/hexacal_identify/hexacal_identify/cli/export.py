@@ -22,6 +22,7 @@ Every write is atomic; bad input writes nothing.
 This module is imported by every ``hexacal`` start-up to register the command:
 its top level uses the standard library only.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -29,33 +30,43 @@ import json
 import os
 from pathlib import Path
 
-FORMATS = ("linuxcnc", "yaml", "json")
-LENGTH_UNITS = {"mm": 1e3, "m": 1.0}
+FORMATS = ('linuxcnc', 'yaml', 'json')
+LENGTH_UNITS = {'mm': 1e3, 'm': 1.0}
 # Decimals written per unit: 1 nm either way, far below what a calibration resolves.
-_DECIMALS = {"mm": 6, "m": 9}
-AXES = ("x", "y", "z")
+_DECIMALS = {'mm': 6, 'm': 9}
+AXES = ('x', 'y', 'z')
 
 
 def add_parsers(subparsers) -> None:
     subparsers.add_parser(
-        "export",
-        help="write a parameters file for a controller (LinuxCNC genhexkins HAL) or as YAML / JSON",
-        description="Read a parameters YAML (e.g. the output of `hexacal calibrate`) and write it as LinuxCNC "
-        "genhexkins settings (HAL setp lines of the base and platform joints, Gough-Stewart platforms only), "
-        "as a parameters YAML, or as JSON {\"model\", \"parameters\"}. The file is written atomically.",
+        'export',
+        help='write a parameters file for a controller (LinuxCNC genhexkins HAL) or as YAML / JSON',
+        description='Read a parameters YAML (e.g. the output of `hexacal calibrate`) and write it as LinuxCNC '
+        'genhexkins settings (HAL setp lines of the base and platform joints, Gough-Stewart platforms only), '
+        'as a parameters YAML, or as JSON {"model", "parameters"}. The file is written atomically.',
         fill=_export_arguments,
     )
 
 
 def _export_arguments(parser: argparse.ArgumentParser) -> None:
     # Formats and units are checked by the handler, so that a wrong one is a one-line error (exit 2).
-    parser.add_argument("parameters", type=Path, metavar="CALIBRATED.yaml", help="parameters YAML to export")
-    parser.add_argument("--format", required=True, metavar="{" + ",".join(FORMATS) + "}",
-                        help="linuxcnc: genhexkins HAL file (Gough-Stewart only); yaml: parameters file (SI); "
-                        "json: {\"model\", \"parameters\"} (SI)")
-    parser.add_argument("--out", type=Path, required=True, help="file to write (atomically)")
-    parser.add_argument("--length-unit", metavar="{" + ",".join(LENGTH_UNITS) + "}", default=None,
-                        help="length unit of the linuxcnc file (default mm; yaml and json are always SI)")
+    parser.add_argument(
+        'parameters', type=Path, metavar='CALIBRATED.yaml', help='parameters YAML to export'
+    )
+    parser.add_argument(
+        '--format',
+        required=True,
+        metavar='{' + ','.join(FORMATS) + '}',
+        help='linuxcnc: genhexkins HAL file (Gough-Stewart only); yaml: parameters file (SI); '
+        'json: {"model", "parameters"} (SI)',
+    )
+    parser.add_argument('--out', type=Path, required=True, help='file to write (atomically)')
+    parser.add_argument(
+        '--length-unit',
+        metavar='{' + ','.join(LENGTH_UNITS) + '}',
+        default=None,
+        help='length unit of the linuxcnc file (default mm; yaml and json are always SI)',
+    )
     parser.set_defaults(handler=run_export)
 
 
@@ -63,23 +74,27 @@ def run_export(args) -> int:
     from hexacal_msgs_py.parameters_file import read_parameters_file
 
     if args.format not in FORMATS:
-        raise ValueError(f"unknown --format {args.format!r}; choose one of {', '.join(FORMATS)}")
+        raise ValueError(f'unknown --format {args.format!r}; choose one of {", ".join(FORMATS)}')
     if args.length_unit is not None:
-        if args.format != "linuxcnc":
-            raise ValueError(f"--length-unit applies to --format linuxcnc only ({args.format} is in SI units, m)")
+        if args.format != 'linuxcnc':
+            raise ValueError(
+                f'--length-unit applies to --format linuxcnc only ({args.format} is in SI units, m)'
+            )
         if args.length_unit not in LENGTH_UNITS:
-            raise ValueError(f"unknown --length-unit {args.length_unit!r}; choose one of {', '.join(LENGTH_UNITS)}")
+            raise ValueError(
+                f'unknown --length-unit {args.length_unit!r}; choose one of {", ".join(LENGTH_UNITS)}'
+            )
     if args.out.is_dir():
-        raise IsADirectoryError(f"--out {args.out} is a directory; name a file")
+        raise IsADirectoryError(f'--out {args.out} is a directory; name a file')
     contents = read_parameters_file(args.parameters)
-    if args.format == "linuxcnc":
-        text = linuxcnc_hal(contents, source=args.parameters, unit=args.length_unit or "mm")
+    if args.format == 'linuxcnc':
+        text = linuxcnc_hal(contents, source=args.parameters, unit=args.length_unit or 'mm')
         _write(args.out, text)
-    elif args.format == "json":
+    elif args.format == 'json':
         _write(args.out, json_text(contents))
     else:
         _save_yaml(args.out, contents, source=args.parameters)
-    print(f"wrote {args.out}")
+    print(f'wrote {args.out}')
     return 0
 
 
@@ -87,61 +102,73 @@ def json_text(contents) -> str:
     """``{"model": ..., "parameters": chain dict}`` (SI units; floats round-trip bit for bit)."""
     from hexacal_msgs_py.parameters_file import parameters_to_chain_dict
 
-    payload = {"model": contents.model, "parameters": parameters_to_chain_dict(contents.vector, contents.model)}
-    return json.dumps(payload, indent=2) + "\n"
+    payload = {
+        'model': contents.model,
+        'parameters': parameters_to_chain_dict(contents.vector, contents.model),
+    }
+    return json.dumps(payload, indent=2) + '\n'
 
 
 def _save_yaml(out: Path, contents, source: Path) -> None:
     from hexacal_msgs_py.parameters_file import save_parameters
 
-    comment = f"{contents.layout.title} parameters exported by hexacal export from {os.fspath(source)}, SI units"
-    save_parameters(out, contents.vector, extras=contents.extras or None, header_comment=comment,
-                    model=contents.model)
+    comment = f'{contents.layout.title} parameters exported by hexacal export from {os.fspath(source)}, SI units'
+    save_parameters(
+        out,
+        contents.vector,
+        extras=contents.extras or None,
+        header_comment=comment,
+        model=contents.model,
+    )
 
 
-def linuxcnc_hal(contents, source: Path, unit: str = "mm") -> str:
+def linuxcnc_hal(contents, source: Path, unit: str = 'mm') -> str:
     """The genhexkins HAL settings of a Gough-Stewart parameters file (ValueError for another model)."""
     from hexacal_msgs_py.models import GOUGH_STEWART
 
     if contents.model != GOUGH_STEWART:
-        raise ValueError(f"{os.fspath(source)} is a {contents.model} parameters file: LinuxCNC's genhexkins "
-                         f"describes a {GOUGH_STEWART} platform (6-UPS) only; use --format yaml or json")
+        raise ValueError(
+            f"{os.fspath(source)} is a {contents.model} parameters file: LinuxCNC's genhexkins "
+            f'describes a {GOUGH_STEWART} platform (6-UPS) only; use --format yaml or json'
+        )
     layout = contents.layout
     scale, decimals = LENGTH_UNITS[unit], _DECIMALS[unit]
     chains = contents.vector.reshape(layout.n_chains, layout.fields_per_chain)
-    a_first, b_first, l0_index = (layout.fields.index(name) for name in ("Ax", "Bx", "l0"))
+    a_first, b_first, l0_index = (layout.fields.index(name) for name in ('Ax', 'Bx', 'l0'))
 
     def number(value: float) -> str:
-        text = f"{value * scale:.{decimals}f}"
-        return "0." + "0" * decimals if float(text) == 0.0 else text  # no "-0.000000"
+        text = f'{value * scale:.{decimals}f}'
+        return '0.' + '0' * decimals if float(text) == 0.0 else text  # no "-0.000000"
 
     def setp_block(name: str, first: int) -> list[str]:
         lines = []
         for leg in range(layout.n_chains):
             for k, axis in enumerate(AXES):
-                lines.append(f"setp genhexkins.{name}.{leg}.{axis} {number(chains[leg, first + k]):>16}")
-            lines.append("")
+                lines.append(
+                    f'setp genhexkins.{name}.{leg}.{axis} {number(chains[leg, first + k]):>16}'
+                )
+            lines.append('')
         return lines
 
     lines = [
-        f"# LinuxCNC genhexkins geometry of a {layout.title}, from hexacal",
-        f"# Written by hexacal export from {os.fspath(source)}",
+        f'# LinuxCNC genhexkins geometry of a {layout.title}, from hexacal',
+        f'# Written by hexacal export from {os.fspath(source)}',
         f"# Lengths in {unit} ([TRAJ] LINEAR_UNITS = {unit} in the INI file). hexacal's leg N is strut (joint) N-1.",
-        "# Load it after the kinematics module (loadrt genhexkins, or [KINS] KINEMATICS = genhexkins),",
+        '# Load it after the kinematics module (loadrt genhexkins, or [KINS] KINEMATICS = genhexkins),',
         "# e.g. as a [HAL] HALFILE. Strut length = |p + R platform.N - base.N| (genhexkins, hexacal's",
-        "# |p + R B - A|); the pose X Y Z A B C LinuxCNC reports is the platform frame in the base frame,",
+        '# |p + R B - A|); the pose X Y Z A B C LinuxCNC reports is the platform frame in the base frame,',
         "# its A B C the roll-pitch-yaw angles of genhexkins (not hexacal's theta, psi, phi).",
-        "",
-        f"# Base joint centres in base (world) coordinates (hexacal chain_N.A), {unit}",
-        *setp_block("base", a_first),
-        f"# Platform joint centres in platform coordinates (hexacal chain_N.B), {unit}",
-        *setp_block("platform", b_first),
-        f"# Leg offsets l0 = strut length at actuator reading zero (hexacal chain_N.l0), {unit}. genhexkins joints",
-        "# are strut lengths: for a joint homed where its actuator reads zero, put in the INI file",
+        '',
+        f'# Base joint centres in base (world) coordinates (hexacal chain_N.A), {unit}',
+        *setp_block('base', a_first),
+        f'# Platform joint centres in platform coordinates (hexacal chain_N.B), {unit}',
+        *setp_block('platform', b_first),
+        f'# Leg offsets l0 = strut length at actuator reading zero (hexacal chain_N.l0), {unit}. genhexkins joints',
+        '# are strut lengths: for a joint homed where its actuator reads zero, put in the INI file',
     ]
     for leg in range(layout.n_chains):
-        lines.append(f"# [JOINT_{leg}] HOME_OFFSET = {number(chains[leg, l0_index])}")
-    return "\n".join(lines) + "\n"
+        lines.append(f'# [JOINT_{leg}] HOME_OFFSET = {number(chains[leg, l0_index])}')
+    return '\n'.join(lines) + '\n'
 
 
 def _write(out: Path, text: str) -> None:
@@ -150,4 +177,4 @@ def _write(out: Path, text: str) -> None:
     try:
         atomic_write(out, text)
     except OSError as error:
-        raise ValueError(f"{os.fspath(out)}: cannot write: {error.strerror or error}") from None
+        raise ValueError(f'{os.fspath(out)}: cannot write: {error.strerror or error}') from None

@@ -23,70 +23,96 @@ Exit codes: 0; 1 forward kinematics found no pose (``forward-kinematics-failed: 
 This module is imported by every ``hexacal`` start-up to register the commands: its top level uses the
 standard library only.
 """
+
 from __future__ import annotations
 
 import argparse
 import json
 import math
+from pathlib import Path
 import re
 import sys
-from pathlib import Path
 
-POSE_FIELDS = ("x", "y", "z", "theta", "psi", "phi")
-POSE_UNITS = ("m", "m", "m", "rad", "rad", "rad")
+POSE_FIELDS = ('x', 'y', 'z', 'theta', 'psi', 'phi')
+POSE_UNITS = ('m', 'm', 'm', 'rad', 'rad', 'rad')
 EXIT_OK, EXIT_NO_POSE, EXIT_BAD_INPUT = 0, 1, 2
 # Let "--pose -0.1,0,-0.7,0,0,0" be a value, not an unknown option (argparse takes plain negative
 # numbers only).
-_NEGATIVE_LIST = re.compile(r"^-[\d.]")
+_NEGATIVE_LIST = re.compile(r'^-[\d.]')
 
 
 def add_parsers(subparsers) -> None:
     subparsers.add_parser(
-        "ik", help="actuator readings of a platform pose (inverse kinematics of a parameters file)",
-        description="Print the six actuator readings (m) that put the platform at a pose, by the inverse "
-        "kinematics of the machine in a parameters YAML (either model).",
-        fill=_ik_arguments)
+        'ik',
+        help='actuator readings of a platform pose (inverse kinematics of a parameters file)',
+        description='Print the six actuator readings (m) that put the platform at a pose, by the inverse '
+        'kinematics of the machine in a parameters YAML (either model).',
+        fill=_ik_arguments,
+    )
     subparsers.add_parser(
-        "fk", help="platform pose of actuator readings (forward kinematics of a parameters file)",
-        description="Print the platform pose [x, y, z (m), theta, psi, phi (rad)] of six actuator readings "
-        "(m), by the forward kinematics of the machine in a parameters YAML (either model).",
-        fill=_fk_arguments)
+        'fk',
+        help='platform pose of actuator readings (forward kinematics of a parameters file)',
+        description='Print the platform pose [x, y, z (m), theta, psi, phi (rad)] of six actuator readings '
+        '(m), by the forward kinematics of the machine in a parameters YAML (either model).',
+        fill=_fk_arguments,
+    )
 
 
 def _common(parser: argparse.ArgumentParser) -> None:
     parser._negative_number_matcher = _NEGATIVE_LIST  # values like -0.1,0,... are not options
-    parser.add_argument("parameters", type=Path, metavar="PARAMS", help="parameters YAML (its model: key)")
-    parser.add_argument("--json", action="store_true",
-                        help='print {"model", "pose": {x, y, z, theta, psi, phi}, "actuators": {name: value}}')
+    parser.add_argument(
+        'parameters', type=Path, metavar='PARAMS', help='parameters YAML (its model: key)'
+    )
+    parser.add_argument(
+        '--json',
+        action='store_true',
+        help='print {"model", "pose": {x, y, z, theta, psi, phi}, "actuators": {name: value}}',
+    )
 
 
 def _ik_arguments(parser: argparse.ArgumentParser) -> None:
     _common(parser)
-    parser.add_argument("--pose", required=True, metavar="x,y,z,theta,psi,phi",
-                        help="platform pose: position (m) and eq. 2 angles (rad), comma-separated")
+    parser.add_argument(
+        '--pose',
+        required=True,
+        metavar='x,y,z,theta,psi,phi',
+        help='platform pose: position (m) and eq. 2 angles (rad), comma-separated',
+    )
     parser.set_defaults(handler=run_ik)
 
 
 def _fk_arguments(parser: argparse.ArgumentParser) -> None:
     _common(parser)
-    parser.add_argument("--actuators", required=True, metavar="l1,l2,l3,l4,l5,l6",
-                        help="the six actuator readings (m) in chain order, comma-separated")
-    parser.add_argument("--guess", metavar="x,y,z,theta,psi,phi", default=None,
-                        help="where the solve starts (default: the workspace centre, [0, 0, -L] hanging)")
+    parser.add_argument(
+        '--actuators',
+        required=True,
+        metavar='l1,l2,l3,l4,l5,l6',
+        help='the six actuator readings (m) in chain order, comma-separated',
+    )
+    parser.add_argument(
+        '--guess',
+        metavar='x,y,z,theta,psi,phi',
+        default=None,
+        help='where the solve starts (default: the workspace centre, [0, 0, -L] hanging)',
+    )
     parser.set_defaults(handler=run_fk)
 
 
 def parse_values(text: str, option: str, what: str) -> list[float]:
     """Six comma-separated finite numbers (ValueError naming the option otherwise)."""
-    parts = [part.strip() for part in text.split(",")]
+    parts = [part.strip() for part in text.split(',')]
     try:
         values = [float(part) for part in parts]
     except ValueError:
-        raise ValueError(f"{option} {text!r}: expected six comma-separated numbers ({what})") from None
+        raise ValueError(
+            f'{option} {text!r}: expected six comma-separated numbers ({what})'
+        ) from None
     if len(values) != 6:
-        raise ValueError(f"{option} {text!r}: expected six comma-separated numbers ({what}), got {len(values)}")
+        raise ValueError(
+            f'{option} {text!r}: expected six comma-separated numbers ({what}), got {len(values)}'
+        )
     if not all(math.isfinite(value) for value in values):
-        raise ValueError(f"{option} {text!r}: every value must be finite")
+        raise ValueError(f'{option} {text!r}: every value must be finite')
     return values
 
 
@@ -96,7 +122,7 @@ def _load(path: Path):
     from hexacal_msgs_py.parameters_file import read_parameters_file
 
     from ..core.architectures import parameters_for
-    from ..core.device import DEFAULT_MOUNT, check_mount
+    from ..core.device import check_mount, DEFAULT_MOUNT
 
     contents = read_parameters_file(path)
     mount = check_mount(contents.extras.get(DEVICE_MOUNT_KEY, DEFAULT_MOUNT))
@@ -106,29 +132,38 @@ def _load(path: Path):
 def _print(params, pose, actuators, as_json: bool) -> None:
     names = params.layout.actuator_names
     if as_json:
-        print(json.dumps({"model": params.model,
-                          "pose": {field: float(value) for field, value in zip(POSE_FIELDS, pose)},
-                          "actuators": {name: float(value) for name, value in zip(names, actuators)}}))
+        print(
+            json.dumps(
+                {
+                    'model': params.model,
+                    'pose': {field: float(value) for field, value in zip(POSE_FIELDS, pose)},
+                    'actuators': {name: float(value) for name, value in zip(names, actuators)},
+                }
+            )
+        )
         return
-    print(f"model {params.model}")
+    print(f'model {params.model}')
     for field, value, unit in zip(POSE_FIELDS, pose, POSE_UNITS):
-        extra = f"  ({math.degrees(value):.6f} deg)" if unit == "rad" else ""
-        print(f"{field:<8} {value: .12f} {unit}{extra}")
+        extra = f'  ({math.degrees(value):.6f} deg)' if unit == 'rad' else ''
+        print(f'{field:<8} {value: .12f} {unit}{extra}')
     for name, value in zip(names, actuators):
-        print(f"{name:<8} {value: .12f} m")
+        print(f'{name:<8} {value: .12f} m')
 
 
 def run_ik(args) -> int:
     from ..core.errors import UnreachablePoseError
     from ..core.kinematics import inverse_kinematics
 
-    pose = parse_values(args.pose, "--pose", "x,y,z in m, theta,psi,phi in rad")
+    pose = parse_values(args.pose, '--pose', 'x,y,z in m, theta,psi,phi in rad')
     params, _ = _load(args.parameters)
     try:
         actuators = inverse_kinematics(params, [pose])[0]
     except UnreachablePoseError as error:
-        print(f"hexacal ik: error: {error.reason}: pose {pose} is unreachable: "
-              f"{params.architecture.unreachable_reason}", file=sys.stderr)
+        print(
+            f'hexacal ik: error: {error.reason}: pose {pose} is unreachable: '
+            f'{params.architecture.unreachable_reason}',
+            file=sys.stderr,
+        )
         return EXIT_BAD_INPUT
     _print(params, pose, actuators, args.json)
     return EXIT_OK
@@ -139,19 +174,26 @@ def run_fk(args) -> int:
     from ..core.live import home_pose, solve_pose
     from ..core.postures import Workspace
 
-    actuators = parse_values(args.actuators, "--actuators", "the six readings in m")
-    guess = None if args.guess is None else parse_values(args.guess, "--guess", "x,y,z in m, theta,psi,phi in rad")
+    actuators = parse_values(args.actuators, '--actuators', 'the six readings in m')
+    guess = (
+        None
+        if args.guess is None
+        else parse_values(args.guess, '--guess', 'x,y,z in m, theta,psi,phi in rad')
+    )
     params, mount = _load(args.parameters)
     if guess is None:
         guess = home_pose(Workspace().link_length, mount)
     try:
         pose = solve_pose(params, actuators, guess)
     except ForwardKinematicsError as error:
-        print(f"hexacal fk: error: {error.reason}: readings {actuators}: {_one_line(error)}", file=sys.stderr)
+        print(
+            f'hexacal fk: error: {error.reason}: readings {actuators}: {_one_line(error)}',
+            file=sys.stderr,
+        )
         return EXIT_NO_POSE
     _print(params, pose, actuators, args.json)
     return EXIT_OK
 
 
 def _one_line(error: BaseException) -> str:
-    return " | ".join(line.strip() for line in str(error).splitlines() if line.strip())
+    return ' | '.join(line.strip() for line in str(error).splitlines() if line.strip())

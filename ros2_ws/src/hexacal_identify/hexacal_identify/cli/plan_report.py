@@ -1,10 +1,10 @@
 """``hexacal plan`` (choose measuring postures) and ``hexacal report`` (HTML page of a calibration result)."""
+
 from __future__ import annotations
 
 import json
 import math
 from pathlib import Path
-
 from typing import TYPE_CHECKING
 
 from .common import Progress
@@ -12,7 +12,7 @@ from .common import Progress
 if TYPE_CHECKING:
     from ..core.planning import PostureLimits
 
-MOUNT_PARAMETER = "device.mount"  # = hexacal_msgs_py.models.DEVICE_MOUNT_KEY (not imported: `hexacal --help` stays light)
+MOUNT_PARAMETER = 'device.mount'  # = hexacal_msgs_py.models.DEVICE_MOUNT_KEY (not imported: `hexacal --help` stays light)
 
 # The planner and the report are imported where they run: this module is imported by every `hexacal` start-up to
 # register the commands.
@@ -20,21 +20,21 @@ MOUNT_PARAMETER = "device.mount"  # = hexacal_msgs_py.models.DEVICE_MOUNT_KEY (n
 
 def add_parsers(subparsers) -> None:
     subparsers.add_parser(
-        "plan",
-        help="choose K measuring postures that maximise an observability index; write a plan file",
-        description="Draw feasible candidate postures (sphere and fixed-position, within the inclinometer range, "
-        "actuator stroke, U/S-joint limits, away from singularities), score them with the identification Jacobian "
-        "at the nominal parameters and choose K that maximise the observability index. The machine model (Hexa "
+        'plan',
+        help='choose K measuring postures that maximise an observability index; write a plan file',
+        description='Draw feasible candidate postures (sphere and fixed-position, within the inclinometer range, '
+        'actuator stroke, U/S-joint limits, away from singularities), score them with the identification Jacobian '
+        'at the nominal parameters and choose K that maximise the observability index. The machine model (Hexa '
         "Slide, Gough-Stewart platform) is the nominal parameters file's; workspace limits not given default to "
         "that model's workspace. Writes the driver's plan-file format (YAML, SI units, the model under "
-        "plan.model) atomically.",
+        'plan.model) atomically.',
         fill=_plan_arguments,
     )
     subparsers.add_parser(
-        "report",
-        help="write a self-contained HTML report (PNG figures) of a calibration result",
-        description="Read a result JSON (from report.save_result, or the output of `hexacal calibrate --json` / "
-        "`hexacal study --json`, which gives fewer figures) and write DIR/index.html with its figures.",
+        'report',
+        help='write a self-contained HTML report (PNG figures) of a calibration result',
+        description='Read a result JSON (from report.save_result, or the output of `hexacal calibrate --json` / '
+        '`hexacal study --json`, which gives fewer figures) and write DIR/index.html with its figures.',
         fill=_report_arguments,
     )
 
@@ -44,71 +44,153 @@ def _plan_arguments(plan) -> None:
     from ..core.residuals import COSTS
     from .study_device import device_names_argument, device_prior_argument
 
-    plan.add_argument("--postures", type=int, required=True, help="number of postures K to choose")
-    plan.add_argument("--index", choices=CRITERIA, default="O1",
-                      help="O1 D-optimal (default), O2 inverse condition number, O3 smallest singular value, "
-                      "O4 noise amplification index, I least predicted position error over the workspace")
-    plan.add_argument("--method", choices=METHODS, default="greedy",
-                      help="greedy (default), or exchange: greedy followed by Fedorov-style swaps")
-    plan.add_argument("--candidates", type=int, default=2000, help="candidate postures to choose from (default 2000)")
-    plan.add_argument("--cost", choices=COSTS, default="absolute", help="cost function to plan for (default absolute)")
-    plan.add_argument("--nominal", type=Path, help="parameters YAML of the nominal machine, of any model (its "
-                      "'model' key; default: the Table 1 Hexa Slide)")
-    plan.add_argument("--seed", type=int, default=0, help="seed of the candidate draw (default 0)")
-    plan.add_argument("--name", help="plan name (default: method-index-K-fingerprint)")
-    plan.add_argument("--noise-um", type=float, default=10.0,
-                      help="weight rows by the reading noise: +-X um actuators, +-X urad angles (default 10; only "
-                      "the actuator/angle ratio matters)")
-    plan.add_argument("--unweighted", action="store_true",
-                      help="plan on the plain (unweighted) identification Jacobian")
-    plan.add_argument("--fixed-fraction", type=float,
-                      help="share of fixed-position candidates (default: 0.25 for sphere-fixed/relative, 1 for "
-                      "fixed, else 0)")
+    plan.add_argument('--postures', type=int, required=True, help='number of postures K to choose')
+    plan.add_argument(
+        '--index',
+        choices=CRITERIA,
+        default='O1',
+        help='O1 D-optimal (default), O2 inverse condition number, O3 smallest singular value, '
+        'O4 noise amplification index, I least predicted position error over the workspace',
+    )
+    plan.add_argument(
+        '--method',
+        choices=METHODS,
+        default='greedy',
+        help='greedy (default), or exchange: greedy followed by Fedorov-style swaps',
+    )
+    plan.add_argument(
+        '--candidates',
+        type=int,
+        default=2000,
+        help='candidate postures to choose from (default 2000)',
+    )
+    plan.add_argument(
+        '--cost',
+        choices=COSTS,
+        default='absolute',
+        help='cost function to plan for (default absolute)',
+    )
+    plan.add_argument(
+        '--nominal',
+        type=Path,
+        help='parameters YAML of the nominal machine, of any model (its '
+        "'model' key; default: the Table 1 Hexa Slide)",
+    )
+    plan.add_argument('--seed', type=int, default=0, help='seed of the candidate draw (default 0)')
+    plan.add_argument('--name', help='plan name (default: method-index-K-fingerprint)')
+    plan.add_argument(
+        '--noise-um',
+        type=float,
+        default=10.0,
+        help='weight rows by the reading noise: +-X um actuators, +-X urad angles (default 10; only '
+        'the actuator/angle ratio matters)',
+    )
+    plan.add_argument(
+        '--unweighted',
+        action='store_true',
+        help='plan on the plain (unweighted) identification Jacobian',
+    )
+    plan.add_argument(
+        '--fixed-fraction',
+        type=float,
+        help='share of fixed-position candidates (default: 0.25 for sphere-fixed/relative, 1 for '
+        'fixed, else 0)',
+    )
     # Workspace limits default (None) to the nominal model's workspace: the Hexa Slide's values in brackets.
     defaults = PostureLimits()
-    plan.add_argument("--link-length", type=float, help=f"device link length L, m (default "
-                      f"{defaults.link_length:g})")
-    plan.add_argument("--xy-range-mm", type=float,
-                      help=f"|x|, |y| limit (default: the model's workspace; Hexa Slide {defaults.xy_range_m * 1e3:g}, "
-                      "Gough-Stewart 250)")
-    plan.add_argument("--rotation-range-deg", type=float,
-                      help=f"|theta|, |psi|, |phi| limit (default: the model's workspace; Hexa Slide "
-                      f"{math.degrees(defaults.rotation_range_rad):g}, Gough-Stewart 20)")
-    plan.add_argument("--inclinometer-range-deg", type=float, default=math.degrees(defaults.inclinometer_range_rad),
-                      help="inclinometer range (default 45)")
-    plan.add_argument("--stroke-m", "--slider-stroke-m", dest="stroke_m", type=float, nargs=2,
-                      metavar=("MIN", "MAX"), help="actuator stroke: the reading lambda's range (default: the "
-                      "model's; Hexa Slide slider 0 0.9, Gough-Stewart leg extension 0 0.5)")
-    plan.add_argument("--max-u-joint-deg", type=float, default=math.degrees(defaults.max_u_joint_angle_rad),
-                      help="max angle of the base-side U joint: leg to rail (Hexa Slide), leg to the base normal "
-                      "(Gough-Stewart) (default 60)")
-    plan.add_argument("--max-s-joint-deg", type=float, default=math.degrees(defaults.max_s_joint_angle_rad),
-                      help="max angle between leg and platform normal at the S joint (default 90)")
-    plan.add_argument("--max-condition", type=float,
-                      help=f"max pose-Jacobian condition number, angles scaled by L (default: the model's "
-                      f"workspace, {defaults.max_condition:g} for both)")
-    plan.add_argument("--mount", choices=("hanging", "standing"),
-                      help="device mount: hanging (platform below the device's base joint) or standing (above it; "
-                      "an upright machine); default: the nominal file's device.mount, else hanging")
-    plan.add_argument("--procedure", choices=("none", "reversal", "quarter-turns"), default="none",
-                      help="turning procedure: offer every candidate with the device turned about its link axis by "
-                      "0/180 deg (reversal) or 0/90/180/270 deg (quarter-turns); the plan says which posture is "
-                      "taken in which mounting (device_turn) and groups them, one remount per turn (absolute cost)")
-    plan.add_argument("--identify-device", type=device_names_argument, default=(), metavar="NAMES",
-                      help="device parameters identified with the machine, e.g. dL,alpha0,beta0,gamma: the plan "
-                      "also informs them (absolute cost)")
-    plan.add_argument("--device-prior", type=device_prior_argument, default=None, metavar="NAME=VALUE:STD",
-                      help="prior knowledge of the device, SI units, e.g. dL=0:10e-6 (a caliper's +-10 um): the plan "
-                      "starts from its information (needs the noise weighting)")
-    plan.add_argument("--out", type=Path, required=True, help="plan file to write (YAML)")
-    plan.add_argument("--json", action="store_true", help="print one JSON object (no progress display)")
+    plan.add_argument(
+        '--link-length',
+        type=float,
+        help=f'device link length L, m (default {defaults.link_length:g})',
+    )
+    plan.add_argument(
+        '--xy-range-mm',
+        type=float,
+        help=f"|x|, |y| limit (default: the model's workspace; Hexa Slide {defaults.xy_range_m * 1e3:g}, "
+        'Gough-Stewart 250)',
+    )
+    plan.add_argument(
+        '--rotation-range-deg',
+        type=float,
+        help=f"|theta|, |psi|, |phi| limit (default: the model's workspace; Hexa Slide "
+        f'{math.degrees(defaults.rotation_range_rad):g}, Gough-Stewart 20)',
+    )
+    plan.add_argument(
+        '--inclinometer-range-deg',
+        type=float,
+        default=math.degrees(defaults.inclinometer_range_rad),
+        help='inclinometer range (default 45)',
+    )
+    plan.add_argument(
+        '--stroke-m',
+        '--slider-stroke-m',
+        dest='stroke_m',
+        type=float,
+        nargs=2,
+        metavar=('MIN', 'MAX'),
+        help="actuator stroke: the reading lambda's range (default: the "
+        "model's; Hexa Slide slider 0 0.9, Gough-Stewart leg extension 0 0.5)",
+    )
+    plan.add_argument(
+        '--max-u-joint-deg',
+        type=float,
+        default=math.degrees(defaults.max_u_joint_angle_rad),
+        help='max angle of the base-side U joint: leg to rail (Hexa Slide), leg to the base normal '
+        '(Gough-Stewart) (default 60)',
+    )
+    plan.add_argument(
+        '--max-s-joint-deg',
+        type=float,
+        default=math.degrees(defaults.max_s_joint_angle_rad),
+        help='max angle between leg and platform normal at the S joint (default 90)',
+    )
+    plan.add_argument(
+        '--max-condition',
+        type=float,
+        help=f"max pose-Jacobian condition number, angles scaled by L (default: the model's "
+        f'workspace, {defaults.max_condition:g} for both)',
+    )
+    plan.add_argument(
+        '--mount',
+        choices=('hanging', 'standing'),
+        help="device mount: hanging (platform below the device's base joint) or standing (above it; "
+        "an upright machine); default: the nominal file's device.mount, else hanging",
+    )
+    plan.add_argument(
+        '--procedure',
+        choices=('none', 'reversal', 'quarter-turns'),
+        default='none',
+        help='turning procedure: offer every candidate with the device turned about its link axis by '
+        '0/180 deg (reversal) or 0/90/180/270 deg (quarter-turns); the plan says which posture is '
+        'taken in which mounting (device_turn) and groups them, one remount per turn (absolute cost)',
+    )
+    plan.add_argument(
+        '--identify-device',
+        type=device_names_argument,
+        default=(),
+        metavar='NAMES',
+        help='device parameters identified with the machine, e.g. dL,alpha0,beta0,gamma: the plan '
+        'also informs them (absolute cost)',
+    )
+    plan.add_argument(
+        '--device-prior',
+        type=device_prior_argument,
+        default=None,
+        metavar='NAME=VALUE:STD',
+        help="prior knowledge of the device, SI units, e.g. dL=0:10e-6 (a caliper's +-10 um): the plan "
+        'starts from its information (needs the noise weighting)',
+    )
+    plan.add_argument('--out', type=Path, required=True, help='plan file to write (YAML)')
+    plan.add_argument(
+        '--json', action='store_true', help='print one JSON object (no progress display)'
+    )
     plan.set_defaults(handler=run_plan)
 
 
 def _report_arguments(report) -> None:
-    report.add_argument("result", type=Path, help="result JSON file")
-    report.add_argument("--out", type=Path, required=True, help="output directory")
-    report.add_argument("--title", help="page title")
+    report.add_argument('result', type=Path, help='result JSON file')
+    report.add_argument('--out', type=Path, required=True, help='output directory')
+    report.add_argument('--title', help='page title')
     report.set_defaults(handler=run_report)
 
 
@@ -120,17 +202,21 @@ def _limits(args, nominal, extras: dict) -> PostureLimits:
     from ..core.planning import PostureLimits
 
     given = {
-        "mount": args.mount or extras.get(MOUNT_PARAMETER),
-        "link_length": args.link_length,
-        "xy_range_m": None if args.xy_range_mm is None else args.xy_range_mm / 1e3,
-        "rotation_range_rad": None if args.rotation_range_deg is None else math.radians(args.rotation_range_deg),
-        "actuator_stroke_m": None if args.stroke_m is None else tuple(args.stroke_m),
-        "max_condition": args.max_condition,
-        "inclinometer_range_rad": math.radians(args.inclinometer_range_deg),
-        "max_u_joint_angle_rad": math.radians(args.max_u_joint_deg),
-        "max_s_joint_angle_rad": math.radians(args.max_s_joint_deg),
+        'mount': args.mount or extras.get(MOUNT_PARAMETER),
+        'link_length': args.link_length,
+        'xy_range_m': None if args.xy_range_mm is None else args.xy_range_mm / 1e3,
+        'rotation_range_rad': None
+        if args.rotation_range_deg is None
+        else math.radians(args.rotation_range_deg),
+        'actuator_stroke_m': None if args.stroke_m is None else tuple(args.stroke_m),
+        'max_condition': args.max_condition,
+        'inclinometer_range_rad': math.radians(args.inclinometer_range_deg),
+        'max_u_joint_angle_rad': math.radians(args.max_u_joint_deg),
+        'max_s_joint_angle_rad': math.radians(args.max_s_joint_deg),
     }
-    return PostureLimits.for_machine(nominal, **{name: value for name, value in given.items() if value is not None})
+    return PostureLimits.for_machine(
+        nominal, **{name: value for name, value in given.items() if value is not None}
+    )
 
 
 def load_nominal(path: Path | None) -> tuple:
@@ -146,7 +232,7 @@ def load_nominal(path: Path | None) -> tuple:
     try:
         return parameters_for(contents.model, contents.vector), dict(contents.extras)
     except ValueError as error:  # the architecture's own checks: name the file, as the loader does
-        raise ValueError(f"{path}: {error}") from None
+        raise ValueError(f'{path}: {error}') from None
 
 
 def run_plan(args) -> int:
@@ -154,66 +240,111 @@ def run_plan(args) -> int:
 
     from ..core.device import DevicePrior, procedure_turns
     from ..core.measurements import NoiseModel
-    from ..core.planning import INDICES, PREDICTION, plan_postures
+    from ..core.planning import INDICES, plan_postures, PREDICTION
 
     nominal, extras = load_nominal(args.nominal)
     layout = nominal.layout
     limits = _limits(args, nominal, extras)
     if args.out.is_dir():
-        raise IsADirectoryError(f"--out {args.out} is a directory; name a YAML file")
-    weighted = not args.unweighted and args.cost != "relative" and args.noise_um > 0
+        raise IsADirectoryError(f'--out {args.out} is a directory; name a YAML file')
+    weighted = not args.unweighted and args.cost != 'relative' and args.noise_um > 0
     noise = NoiseModel.from_microns(args.noise_um) if weighted else None
-    steps = args.postures * (2 if args.method == "exchange" else 1) + 1
+    steps = args.postures * (2 if args.method == 'exchange' else 1) + 1
     progress = Progress(enabled=not args.json, total=steps)
     try:
-        planning = plan_postures(nominal, args.postures, index=args.index, method=args.method,
-                                 n_candidates=args.candidates, cost=args.cost, limits=limits,
-                                 fixed_fraction=args.fixed_fraction, seed=args.seed, noise=noise, name=args.name,
-                                 progress=progress.step, device_columns=args.identify_device,
-                                 device_prior=args.device_prior or DevicePrior(),
-                                 device_turns=procedure_turns(args.procedure))
+        planning = plan_postures(
+            nominal,
+            args.postures,
+            index=args.index,
+            method=args.method,
+            n_candidates=args.candidates,
+            cost=args.cost,
+            limits=limits,
+            fixed_fraction=args.fixed_fraction,
+            seed=args.seed,
+            noise=noise,
+            name=args.name,
+            progress=progress.step,
+            device_columns=args.identify_device,
+            device_prior=args.device_prior or DevicePrior(),
+            device_turns=procedure_turns(args.procedure),
+        )
     finally:
         progress.close()
     random = planning.random_indices()
-    planning.plan.metadata["random_mean_indices"] = random
+    planning.plan.metadata['random_mean_indices'] = random
     planning.plan.save(args.out)
     plan = planning.plan
-    counts = {kind: int((plan.kinds == kind).sum()) for kind in ("sphere", "fixed")}
+    counts = {kind: int((plan.kinds == kind).sum()) for kind in ('sphere', 'fixed')}
     if args.json:
-        print(json.dumps({
-            "out": str(args.out), "name": plan.name, "model": plan.model, "mount": plan.mount, "postures": len(plan),
-            "kinds": counts,
-            "index": args.index, "method": args.method, "cost": args.cost, "weighted": weighted,
-            "candidates": len(planning.candidates), "rank": planning.rank, "indices": planning.indices, "random_mean_indices": random,
-            "candidate_seconds": planning.candidate_seconds, "selection_seconds": planning.selection_seconds,
-            "exchange_swaps": max(len(planning.exchange_history) - 1, 0),
-            "procedure": args.procedure, "device_columns": list(planning.candidates.device_columns),
-            "device_turns": {f"{turn:.6f}": int(np.sum(np.isclose(plan.turns, turn))) for turn in
-                             procedure_turns(args.procedure)},
-        }))
+        print(
+            json.dumps(
+                {
+                    'out': str(args.out),
+                    'name': plan.name,
+                    'model': plan.model,
+                    'mount': plan.mount,
+                    'postures': len(plan),
+                    'kinds': counts,
+                    'index': args.index,
+                    'method': args.method,
+                    'cost': args.cost,
+                    'weighted': weighted,
+                    'candidates': len(planning.candidates),
+                    'rank': planning.rank,
+                    'indices': planning.indices,
+                    'random_mean_indices': random,
+                    'candidate_seconds': planning.candidate_seconds,
+                    'selection_seconds': planning.selection_seconds,
+                    'exchange_swaps': max(len(planning.exchange_history) - 1, 0),
+                    'procedure': args.procedure,
+                    'device_columns': list(planning.candidates.device_columns),
+                    'device_turns': {
+                        f'{turn:.6f}': int(np.sum(np.isclose(plan.turns, turn)))
+                        for turn in procedure_turns(args.procedure)
+                    },
+                }
+            )
+        )
         return 0
-    print(f"plan '{plan.name}' for the {layout.title} ({plan.mount} device): {len(plan)} postures ({counts['sphere']} sphere, "
-          f"{counts['fixed']} fixed) chosen from {len(planning.candidates)} candidates by {args.method} on {args.index} "
-          f"({'noise-weighted' if weighted else 'unweighted'}, cost {args.cost})")
-    print(f"  candidates {planning.candidate_seconds:.2f} s, selection {planning.selection_seconds:.2f} s"
-          + (f", {len(planning.exchange_history) - 1} exchange swaps" if args.method == "exchange" else ""))
-    print("  index       " + "  ".join(f"{name:>10}" for name in INDICES))
-    print("  planned     " + "  ".join(f"{planning.indices[name]:>10.4g}" for name in INDICES))
-    print("  random mean " + "  ".join(f"{random[name]:>10.4g}" for name in INDICES))
+    print(
+        f"plan '{plan.name}' for the {layout.title} ({plan.mount} device): {len(plan)} postures ({counts['sphere']} sphere, "
+        f'{counts["fixed"]} fixed) chosen from {len(planning.candidates)} candidates by {args.method} on {args.index} '
+        f'({"noise-weighted" if weighted else "unweighted"}, cost {args.cost})'
+    )
+    print(
+        f'  candidates {planning.candidate_seconds:.2f} s, selection {planning.selection_seconds:.2f} s'
+        + (
+            f', {len(planning.exchange_history) - 1} exchange swaps'
+            if args.method == 'exchange'
+            else ''
+        )
+    )
+    print('  index       ' + '  '.join(f'{name:>10}' for name in INDICES))
+    print('  planned     ' + '  '.join(f'{planning.indices[name]:>10.4g}' for name in INDICES))
+    print('  random mean ' + '  '.join(f'{random[name]:>10.4g}' for name in INDICES))
     error = planning.indices[PREDICTION]
     if weighted and math.isfinite(error):
-        print(f"  predicted RMS position error over the workspace (linearised, noise-weighted fit): "
-              f"{error * 1e6:.1f} um planned, {random[PREDICTION] * 1e6:.1f} um random")
-    if args.procedure != "none" or planning.candidates.device_columns:
-        mountings = ", ".join(f"{int(np.sum(np.isclose(plan.turns, turn)))} at {math.degrees(turn):g} deg"
-                              for turn in procedure_turns(args.procedure))
-        print(f"  device: {', '.join(planning.candidates.device_columns) or 'no parameters'} identified with the "
-              f"machine; procedure {args.procedure}: {mountings} (turn the device about its link axis between "
-              "the groups)")
+        print(
+            f'  predicted RMS position error over the workspace (linearised, noise-weighted fit): '
+            f'{error * 1e6:.1f} um planned, {random[PREDICTION] * 1e6:.1f} um random'
+        )
+    if args.procedure != 'none' or planning.candidates.device_columns:
+        mountings = ', '.join(
+            f'{int(np.sum(np.isclose(plan.turns, turn)))} at {math.degrees(turn):g} deg'
+            for turn in procedure_turns(args.procedure)
+        )
+        print(
+            f'  device: {", ".join(planning.candidates.device_columns) or "no parameters"} identified with the '
+            f'machine; procedure {args.procedure}: {mountings} (turn the device about its link axis between '
+            'the groups)'
+        )
     if planning.rank < layout.n_parameters:
-        print(f"  note: rank {planning.rank} of {layout.n_parameters} with the {args.cost} cost, so every index is 0; "
-              "the plan maximises log det(M + delta I), the information on the identifiable part")
-    print(f"wrote {args.out}")
+        print(
+            f'  note: rank {planning.rank} of {layout.n_parameters} with the {args.cost} cost, so every index is 0; '
+            'the plan maximises log det(M + delta I), the information on the identifiable part'
+        )
+    print(f'wrote {args.out}')
     return 0
 
 
@@ -221,5 +352,5 @@ def run_report(args) -> int:
     from ..report.page import write_report
 
     page = write_report(args.result, args.out, title=args.title)
-    print(f"wrote {page}")
+    print(f'wrote {page}')
     return 0

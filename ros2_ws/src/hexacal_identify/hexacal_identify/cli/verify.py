@@ -11,6 +11,7 @@ calibrated file's `device.defects.<name>` keys) unless --device-defects names ot
 Exit codes: 0 pass (calibrated position rms <= threshold, FK converged on every
 posture), 1 fail, 2 bad input (one line on stderr naming the problem).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -26,13 +27,13 @@ EXIT_PASS, EXIT_FAIL = 0, 1
 
 def add_parsers(subparsers) -> None:
     subparsers.add_parser(
-        "verify",
-        help="verify a calibration on fresh postures of a bag, without ground truth",
-        description="Compare what the measuring device measured at fresh postures (not used in the fit) with "
-        "forward kinematics at the measured actuator readings, for the nominal and the calibrated parameters: "
-        "position error rms/max (m) and rotary error rms (rad), the improvement (nominal rms / calibrated rms) "
-        "and a verdict: pass when the calibrated position rms is within the threshold and forward kinematics "
-        "converged on every posture. Exit code 0 pass, 1 fail, 2 bad input.",
+        'verify',
+        help='verify a calibration on fresh postures of a bag, without ground truth',
+        description='Compare what the measuring device measured at fresh postures (not used in the fit) with '
+        'forward kinematics at the measured actuator readings, for the nominal and the calibrated parameters: '
+        'position error rms/max (m) and rotary error rms (rad), the improvement (nominal rms / calibrated rms) '
+        'and a verdict: pass when the calibrated position rms is within the threshold and forward kinematics '
+        'converged on every posture. Exit code 0 pass, 1 fail, 2 bad input.',
         fill=_verify_arguments,
     )
 
@@ -41,30 +42,65 @@ def _verify_arguments(parser: argparse.ArgumentParser) -> None:
     from ..core.device import DEFAULT_LINK_LENGTH_M
     from ..core.verification import DEFAULT_THRESHOLD_M, NOISE_THRESHOLD_FACTOR
 
-    parser.add_argument("bag", type=Path, help="bag directory or .mcap file with the verification postures")
-    parser.add_argument("--nominal", type=Path, required=True,
-                        help="nominal parameters YAML (what the machine was believed to be before calibrating)")
-    parser.add_argument("--calibrated", type=Path, required=True,
-                        help="calibrated parameters YAML (hexacal calibrate --output, identify's output)")
-    parser.add_argument("--threshold-um", type=float, default=None,
-                        help="pass when the calibrated position rms is at most this (um); default "
-                        f"{NOISE_THRESHOLD_FACTOR:g} x the rms the reading noise alone gives with --noise-um, else "
-                        f"{DEFAULT_THRESHOLD_M * UM:g} um")
-    parser.add_argument("--noise-um", type=float, default=None,
-                        help="reading noise half-width (um on actuators, urad on angles): report the residual it "
-                        "alone gives, and set the default threshold from it")
-    parser.add_argument("--link-length", type=float, default=DEFAULT_LINK_LENGTH_M,
-                        help=f"device link length L in m (default {DEFAULT_LINK_LENGTH_M})")
-    parser.add_argument("--mount", choices=("hanging", "standing"), default=None,
-                        help="device mount; default: the nominal (else the calibrated) file's device.mount, "
-                        "else hanging")
-    parser.add_argument("--device-defects", default=None, metavar="D",
-                        help="the measuring device's defects, SI ('dL=5e-4,alpha0=2e-4'; 'none': an ideal "
-                        "device); default: those identified with the calibration (the calibrated file's "
-                        "device.defects.* keys), the same device measuring again")
-    parser.add_argument("--report", type=Path, default=None, metavar="DIR",
-                        help="write an HTML page (index.html + verification.png) into DIR")
-    parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    parser.add_argument(
+        'bag', type=Path, help='bag directory or .mcap file with the verification postures'
+    )
+    parser.add_argument(
+        '--nominal',
+        type=Path,
+        required=True,
+        help='nominal parameters YAML (what the machine was believed to be before calibrating)',
+    )
+    parser.add_argument(
+        '--calibrated',
+        type=Path,
+        required=True,
+        help="calibrated parameters YAML (hexacal calibrate --output, identify's output)",
+    )
+    parser.add_argument(
+        '--threshold-um',
+        type=float,
+        default=None,
+        help='pass when the calibrated position rms is at most this (um); default '
+        f'{NOISE_THRESHOLD_FACTOR:g} x the rms the reading noise alone gives with --noise-um, else '
+        f'{DEFAULT_THRESHOLD_M * UM:g} um',
+    )
+    parser.add_argument(
+        '--noise-um',
+        type=float,
+        default=None,
+        help='reading noise half-width (um on actuators, urad on angles): report the residual it '
+        'alone gives, and set the default threshold from it',
+    )
+    parser.add_argument(
+        '--link-length',
+        type=float,
+        default=DEFAULT_LINK_LENGTH_M,
+        help=f'device link length L in m (default {DEFAULT_LINK_LENGTH_M})',
+    )
+    parser.add_argument(
+        '--mount',
+        choices=('hanging', 'standing'),
+        default=None,
+        help="device mount; default: the nominal (else the calibrated) file's device.mount, "
+        'else hanging',
+    )
+    parser.add_argument(
+        '--device-defects',
+        default=None,
+        metavar='D',
+        help="the measuring device's defects, SI ('dL=5e-4,alpha0=2e-4'; 'none': an ideal "
+        "device); default: those identified with the calibration (the calibrated file's "
+        'device.defects.* keys), the same device measuring again',
+    )
+    parser.add_argument(
+        '--report',
+        type=Path,
+        default=None,
+        metavar='DIR',
+        help='write an HTML page (index.html + verification.png) into DIR',
+    )
+    parser.add_argument('--json', action='store_true', help='print the result as one JSON object')
     parser.set_defaults(handler=run_verify)
 
 
@@ -72,40 +108,68 @@ def run_verify(args) -> int:
     from ..core.device import DeviceModel
     from ..core.measurements import NoiseModel
     from ..core.verification import PASS, verify
-    from ..pipeline import check_model, load_machine_and_mount, measurements_from_postures, postures_from_bag
+    from ..pipeline import (
+        check_model,
+        load_machine_and_mount,
+        measurements_from_postures,
+        postures_from_bag,
+    )
 
-    if args.threshold_um is not None and not (math.isfinite(args.threshold_um) and args.threshold_um > 0):
-        raise ValueError(f"--threshold-um must be a positive number of um, got {args.threshold_um}")
+    if args.threshold_um is not None and not (
+        math.isfinite(args.threshold_um) and args.threshold_um > 0
+    ):
+        raise ValueError(
+            f'--threshold-um must be a positive number of um, got {args.threshold_um}'
+        )
     if args.noise_um is not None and not (math.isfinite(args.noise_um) and args.noise_um > 0):
-        raise ValueError(f"--noise-um must be a positive number of um, got {args.noise_um}")
+        raise ValueError(f'--noise-um must be a positive number of um, got {args.noise_um}')
     nominal, nominal_mount = load_machine_and_mount(args.nominal)
     calibrated, calibrated_mount = load_machine_and_mount(args.calibrated)
-    mount = args.mount or (nominal_mount if nominal_mount != "hanging" else calibrated_mount)
+    mount = args.mount or (nominal_mount if nominal_mount != 'hanging' else calibrated_mount)
     bag = postures_from_bag(args.bag)
-    check_model(bag.model, nominal, f"bag {args.bag}", str(args.nominal))
+    check_model(bag.model, nominal, f'bag {args.bag}', str(args.nominal))
     if not bag.postures:
-        raise ValueError(f"bag {args.bag} holds no usable posture to verify on"
-                         + (f" ({len(bag.rejected)} set aside beyond a sensor's range)" if bag.rejected else ""))
+        raise ValueError(
+            f'bag {args.bag} holds no usable posture to verify on'
+            + (f" ({len(bag.rejected)} set aside beyond a sensor's range)" if bag.rejected else '')
+        )
     defects, defects_source = _device_defects(args)
-    result = verify(nominal, calibrated, measurements_from_postures(bag.postures),
-                    device=DeviceModel(link_length=args.link_length, mount=mount), calibrated_defects=defects,
-                    threshold_m=None if args.threshold_um is None else args.threshold_um / UM,
-                    noise=NoiseModel.from_microns(args.noise_um) if args.noise_um else None,
-                    postures_model=bag.model)
+    result = verify(
+        nominal,
+        calibrated,
+        measurements_from_postures(bag.postures),
+        device=DeviceModel(link_length=args.link_length, mount=mount),
+        calibrated_defects=defects,
+        threshold_m=None if args.threshold_um is None else args.threshold_um / UM,
+        noise=NoiseModel.from_microns(args.noise_um) if args.noise_um else None,
+        postures_model=bag.model,
+    )
     payload = result.to_json()
-    payload["bag"] = {"path": str(args.bag), "source": bag.source, "invalid_messages": bag.invalid_messages,
-                      "rejected_postures": [{"index": i, "reason": r, "detail": d} for i, r, d in bag.rejected]}
-    payload["nominal_file"], payload["calibrated_file"] = str(args.nominal), str(args.calibrated)
-    payload["device_defects"] = {"values": {name: getattr(defects, name) for name in defects_source[1]},
-                                 "source": defects_source[0]}
+    payload['bag'] = {
+        'path': str(args.bag),
+        'source': bag.source,
+        'invalid_messages': bag.invalid_messages,
+        'rejected_postures': [{'index': i, 'reason': r, 'detail': d} for i, r, d in bag.rejected],
+    }
+    payload['nominal_file'], payload['calibrated_file'] = str(args.nominal), str(args.calibrated)
+    payload['device_defects'] = {
+        'values': {name: getattr(defects, name) for name in defects_source[1]},
+        'source': defects_source[0],
+    }
     if args.report:
         from ..report.page import write_verification_report
 
         page = write_verification_report(
-            {**result.to_json(per_posture=True), "source": f"bag {args.bag} ({bag.source})",
-             "nominal_file": str(args.nominal), "calibrated_file": str(args.calibrated)},
-            args.report, title=f"hexacal verification report: {args.bag}")
-        payload["report"] = str(page)
+            {
+                **result.to_json(per_posture=True),
+                'source': f'bag {args.bag} ({bag.source})',
+                'nominal_file': str(args.nominal),
+                'calibrated_file': str(args.calibrated),
+            },
+            args.report,
+            title=f'hexacal verification report: {args.bag}',
+        )
+        payload['report'] = str(page)
     if args.json:
         print(json.dumps(payload, allow_nan=False))
     else:
@@ -121,48 +185,67 @@ def _device_defects(args):
 
     if args.device_defects is None:
         defects, names = load_device_defects(args.calibrated)
-        return defects, ("calibrated file" if names else "none (ideal device)", names)
-    if args.device_defects.strip().lower() == "none":
-        return DeviceDefects(), ("--device-defects none (ideal device)", ())
+        return defects, ('calibrated file' if names else 'none (ideal device)', names)
+    if args.device_defects.strip().lower() == 'none':
+        return DeviceDefects(), ('--device-defects none (ideal device)', ())
     try:
         defects = DeviceDefects.parse(args.device_defects)
     except ValueError as error:
-        raise ValueError(f"--device-defects: {error}") from None
-    return defects, ("--device-defects", tuple(n for n in DEVICE_PARAMETER_NAMES if getattr(defects, n)))
+        raise ValueError(f'--device-defects: {error}') from None
+    return defects, (
+        '--device-defects',
+        tuple(n for n in DEVICE_PARAMETER_NAMES if getattr(defects, n)),
+    )
 
 
 def _print_table(args, bag, payload: dict) -> None:
     def cell(value, scale: float) -> str:
-        return "n/a" if value is None else f"{value * scale:.2f}"
+        return 'n/a' if value is None else f'{value * scale:.2f}'
 
-    print(f"verification of {args.bag} ({payload['model']}, {payload['postures']} postures from the {bag.source})")
+    print(
+        f'verification of {args.bag} ({payload["model"]}, {payload["postures"]} postures from the {bag.source})'
+    )
     if bag.rejected:
         print(f"  {len(bag.rejected)} posture(s) set aside (beyond a sensor's range)")
-    nominal, calibrated = payload["nominal"], payload["calibrated"]
-    device = payload["device_defects"]
-    if device["values"]:
-        from ..core.device import DEVICE_PARAMETER_UNITS, DEVICE_PARAMETER_NAMES
+    nominal, calibrated = payload['nominal'], payload['calibrated']
+    device = payload['device_defects']
+    if device['values']:
+        from ..core.device import DEVICE_PARAMETER_NAMES, DEVICE_PARAMETER_UNITS
 
         units = dict(zip(DEVICE_PARAMETER_NAMES, DEVICE_PARAMETER_UNITS))
-        print("  measuring device (" + device["source"] + "): " + ", ".join(
-            f"{name} {value * UM:.2f} {'um' if units[name] == 'm' else 'urad'}" for name, value in device["values"].items()))
+        print(
+            '  measuring device ('
+            + device['source']
+            + '): '
+            + ', '.join(
+                f'{name} {value * UM:.2f} {"um" if units[name] == "m" else "urad"}'
+                for name, value in device['values'].items()
+            )
+        )
     else:
-        print(f"  measuring device: {device['source']}")
-    print(f"  {'':22s}{'nominal':>14s}{'calibrated':>14s}")
-    for label, key, scale in (("position rms [um]", "position_rms_m", UM), ("position max [um]", "position_max_m", UM),
-                              ("rotary rms [urad]", "rotary_rms_rad", UM)):
-        print(f"  {label:22s}{cell(nominal[key], scale):>14s}{cell(calibrated[key], scale):>14s}")
-    print(f"  {'FK failures':22s}{nominal['fk_failures']:>14d}{calibrated['fk_failures']:>14d}")
-    for name, figures in (("nominal", nominal), ("calibrated", calibrated)):
-        for failure in figures["failed_postures"][:10]:
-            print(f"    {name}: posture {failure['index']}: {failure['reason']}")
-    improvement = payload["improvement"]
-    print(f"improvement: {'n/a' if improvement is None else f'{improvement:.1f}x'} (nominal rms / calibrated rms)")
-    noise = payload.get("expected_noise")
-    if noise and noise.get("position_rms_m") is not None:
-        print(f"expected from the reading noise alone: {noise['position_rms_m'] * UM:.2f} um, "
-              f"{noise['rotary_rms_rad'] * UM:.2f} urad")
-    print(f"threshold: {payload['threshold_m'] * UM:.2f} um ({payload['threshold_source']})")
-    print(f"verdict: {payload['verdict_reason']}")
-    if payload.get("report"):
-        print(f"wrote {payload['report']}")
+        print(f'  measuring device: {device["source"]}')
+    print(f'  {"":22s}{"nominal":>14s}{"calibrated":>14s}')
+    for label, key, scale in (
+        ('position rms [um]', 'position_rms_m', UM),
+        ('position max [um]', 'position_max_m', UM),
+        ('rotary rms [urad]', 'rotary_rms_rad', UM),
+    ):
+        print(f'  {label:22s}{cell(nominal[key], scale):>14s}{cell(calibrated[key], scale):>14s}')
+    print(f'  {"FK failures":22s}{nominal["fk_failures"]:>14d}{calibrated["fk_failures"]:>14d}')
+    for name, figures in (('nominal', nominal), ('calibrated', calibrated)):
+        for failure in figures['failed_postures'][:10]:
+            print(f'    {name}: posture {failure["index"]}: {failure["reason"]}')
+    improvement = payload['improvement']
+    print(
+        f'improvement: {"n/a" if improvement is None else f"{improvement:.1f}x"} (nominal rms / calibrated rms)'
+    )
+    noise = payload.get('expected_noise')
+    if noise and noise.get('position_rms_m') is not None:
+        print(
+            f'expected from the reading noise alone: {noise["position_rms_m"] * UM:.2f} um, '
+            f'{noise["rotary_rms_rad"] * UM:.2f} urad'
+        )
+    print(f'threshold: {payload["threshold_m"] * UM:.2f} um ({payload["threshold_source"]})')
+    print(f'verdict: {payload["verdict_reason"]}')
+    if payload.get('report'):
+        print(f'wrote {payload["report"]}')

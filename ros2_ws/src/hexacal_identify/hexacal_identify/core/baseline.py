@@ -9,10 +9,11 @@ general least-squares solver (scipy's ``least_squares``).  It is correct but slo
 ``identification.identify`` is the method.  Any architecture: FK is Newton on the
 architecture's IK and its pose Jacobian d lambda / d X (``legs.pose_jacobian``).
 """
+
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
+import time
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -22,8 +23,13 @@ from .device import DeviceModel, measured_position
 from .measurements import Measurements
 
 
-def forward_kinematics_one(params: KinematicParameters, sliders: np.ndarray, guess: np.ndarray,
-                           tolerance: float = 1e-12, max_iterations: int = 50) -> np.ndarray:
+def forward_kinematics_one(
+    params: KinematicParameters,
+    sliders: np.ndarray,
+    guess: np.ndarray,
+    tolerance: float = 1e-12,
+    max_iterations: int = 50,
+) -> np.ndarray:
     """Section 2.2 for a single posture: X <- X - J_inv^-1 (IK(X) - Q_d) until |IK(X) - Q_d| < tolerance."""
     arch = params.architecture
     chains = arch.chains(params)
@@ -39,8 +45,12 @@ def forward_kinematics_one(params: KinematicParameters, sliders: np.ndarray, gue
     return np.full(6, np.nan)
 
 
-def absolute_residuals(vector: np.ndarray, measurements: Measurements, device: DeviceModel = DeviceModel(),
-                       model: str | None = None) -> np.ndarray:
+def absolute_residuals(
+    vector: np.ndarray,
+    measurements: Measurements,
+    device: DeviceModel = DeviceModel(),
+    model: str | None = None,
+) -> np.ndarray:
     """Eq. 7 residuals, FK posture by posture (what the paper's numerical Jacobian differentiates).
 
     ``vector`` holds the parameters of ``model`` (default: the Hexa Slide).
@@ -57,13 +67,17 @@ def absolute_residuals(vector: np.ndarray, measurements: Measurements, device: D
     return rows.reshape(-1)
 
 
-def finite_difference_jacobian(residual_function, vector: np.ndarray, step: float = 1e-7) -> np.ndarray:
+def finite_difference_jacobian(
+    residual_function, vector: np.ndarray, step: float = 1e-7
+) -> np.ndarray:
     """Central differences, one column per parameter (each re-solving FK for every posture)."""
     columns = []
     for k in range(len(vector)):
         delta = np.zeros_like(vector)
         delta[k] = step
-        columns.append((residual_function(vector + delta) - residual_function(vector - delta)) / (2 * step))
+        columns.append(
+            (residual_function(vector + delta) - residual_function(vector - delta)) / (2 * step)
+        )
     return np.column_stack(columns)
 
 
@@ -75,13 +89,23 @@ class BaselineResult:
     status: str
 
 
-def identify_baseline(nominal: KinematicParameters, measurements: Measurements,
-                      device: DeviceModel = DeviceModel()) -> BaselineResult:
+def identify_baseline(
+    nominal: KinematicParameters, measurements: Measurements, device: DeviceModel = DeviceModel()
+) -> BaselineResult:
     """Paper-style identification: per-posture FK, forward-difference Jacobian, scipy least_squares."""
     started = time.perf_counter()
     solution = least_squares(
-        absolute_residuals, nominal.vector, jac="2-point", method="lm", args=(measurements, device, nominal.model),
-        xtol=1e-12, ftol=1e-12,
+        absolute_residuals,
+        nominal.vector,
+        jac='2-point',
+        method='lm',
+        args=(measurements, device, nominal.model),
+        xtol=1e-12,
+        ftol=1e-12,
     )
-    return BaselineResult(nominal.with_vector(solution.x), time.perf_counter() - started, int(solution.nfev),
-                          solution.message)
+    return BaselineResult(
+        nominal.with_vector(solution.x),
+        time.perf_counter() - started,
+        int(solution.nfev),
+        solution.message,
+    )

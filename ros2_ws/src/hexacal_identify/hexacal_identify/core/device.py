@@ -75,22 +75,24 @@ Mounting (``DeviceModel.mount``, the parameter ``device.mount``):
   The rotary sensor is unchanged: it reads phi, the rotation of the platform
   about its own z axis (eq. 2), on either mount.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
 
-import numpy as np
-
 from hexacal_msgs_py.models import DEVICE_DEFECT_NAMES, DEVICE_DEFECT_UNITS
+import numpy as np
 
 from .errors import CalibrationError
 
 DEFAULT_LINK_LENGTH_M = 0.750
-HANGING = "hanging"  # platform below the device's base joint: p_z = -L cos(alpha) cos(beta)
-STANDING = "standing"  # platform above it: p = -p_hanging
+HANGING = 'hanging'  # platform below the device's base joint: p_z = -L cos(alpha) cos(beta)
+STANDING = 'standing'  # platform above it: p = -p_hanging
 MOUNTS = (HANGING, STANDING)
 DEFAULT_MOUNT = HANGING
-DEVICE_PARAMETER_NAMES = DEVICE_DEFECT_NAMES  # ("dL", "alpha0", "beta0", "gamma", "phi0"): the contract's
+DEVICE_PARAMETER_NAMES = (
+    DEVICE_DEFECT_NAMES  # ("dL", "alpha0", "beta0", "gamma", "phi0"): the contract's
+)
 DEVICE_PARAMETER_UNITS = DEVICE_DEFECT_UNITS
 N_DEVICE_PARAMETERS = len(DEVICE_PARAMETER_NAMES)
 
@@ -98,30 +100,39 @@ N_DEVICE_PARAMETERS = len(DEVICE_PARAMETER_NAMES)
 # Turning procedures: the device turns (rad) a plan's postures are shared out over (module doc,
 # studies.device_procedure).  One remount per turn.
 TURNING_PROCEDURES: dict[str, tuple[float, ...]] = {
-    "none": (0.0,),
-    "reversal": (0.0, np.pi),  # 0 / 180 deg: alpha0 and beta0 change sign against the geometry
-    "quarter-turns": (0.0, np.pi / 2, np.pi, 3 * np.pi / 2),  # also moves the skew gamma to the other axis
+    'none': (0.0,),
+    'reversal': (0.0, np.pi),  # 0 / 180 deg: alpha0 and beta0 change sign against the geometry
+    'quarter-turns': (
+        0.0,
+        np.pi / 2,
+        np.pi,
+        3 * np.pi / 2,
+    ),  # also moves the skew gamma to the other axis
 }
 
 
 def procedure_turns(procedure: str) -> tuple[float, ...]:
     """The device turns of a turning procedure; ValueError naming the choices for an unknown one."""
     if procedure not in TURNING_PROCEDURES:
-        raise ValueError(f"unknown procedure {procedure!r}; choose one of {', '.join(TURNING_PROCEDURES)}")
+        raise ValueError(
+            f'unknown procedure {procedure!r}; choose one of {", ".join(TURNING_PROCEDURES)}'
+        )
     return TURNING_PROCEDURES[procedure]
 
 
 class DeviceMountError(CalibrationError, ValueError):
     """A device mount that is neither ``hanging`` nor ``standing``."""
 
-    reason = "invalid-device-mount"
+    reason = 'invalid-device-mount'
 
 
 def check_mount(mount: str) -> str:
     """``mount`` if it is one of MOUNTS, else a DeviceMountError naming the allowed values."""
     if not (isinstance(mount, str) and mount in MOUNTS):
-        raise DeviceMountError(f"device mount must be one of {', '.join(MOUNTS)} (default {DEFAULT_MOUNT}), "
-                               f"got {mount!r}")
+        raise DeviceMountError(
+            f'device mount must be one of {", ".join(MOUNTS)} (default {DEFAULT_MOUNT}), '
+            f'got {mount!r}'
+        )
     return mount
 
 
@@ -143,32 +154,54 @@ class DeviceModel:
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.link_length) and self.link_length > 0):
-            raise ValueError(f"link_length must be a positive length in m, got {self.link_length}")
+            raise ValueError(f'link_length must be a positive length in m, got {self.link_length}')
         check_mount(self.mount)
 
-    def position(self, alpha: np.ndarray, beta: np.ndarray, defects: "DeviceDefects | None" = None,
-                 link_length: float | np.ndarray | None = None,
-                 device_turn: np.ndarray | float | None = None) -> "DevicePosition":
+    def position(
+        self,
+        alpha: np.ndarray,
+        beta: np.ndarray,
+        defects: 'DeviceDefects | None' = None,
+        link_length: float | np.ndarray | None = None,
+        device_turn: np.ndarray | float | None = None,
+    ) -> 'DevicePosition':
         """Platform positions (and derivatives) from readings; ``link_length`` per posture for an LVDT,
         ``device_turn`` (rad) per posture for a device turned about its link (module doc)."""
         length = self.link_length if link_length is None else link_length
-        return device_position(alpha, beta, length, defects if defects is not None else DeviceDefects(), self.mount,
-                               device_turn)
+        return device_position(
+            alpha,
+            beta,
+            length,
+            defects if defects is not None else DeviceDefects(),
+            self.mount,
+            device_turn,
+        )
 
-    def readings(self, position: np.ndarray, defects: "DeviceDefects | None" = None,
-                 device_turn: np.ndarray | float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def readings(
+        self,
+        position: np.ndarray,
+        defects: 'DeviceDefects | None' = None,
+        device_turn: np.ndarray | float | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
         """What the (defective, possibly turned) inclinometer reads with the platform at ``position`` (N, 3)."""
-        return inclinometer_readings(position, defects if defects is not None else DeviceDefects(), self.mount,
-                                     device_turn)
+        return inclinometer_readings(
+            position, defects if defects is not None else DeviceDefects(), self.mount, device_turn
+        )
 
     def angles(self, position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(alpha, beta) of an ideal inclinometer with the platform at ``position`` (N, 3)."""
         return inclinometer_angles(position, self.mount)
 
-    def fixed_position(self, defects: "DeviceDefects | None" = None, device_turn: float = 0.0) -> "DevicePosition":
+    def fixed_position(
+        self, defects: 'DeviceDefects | None' = None, device_turn: float = 0.0
+    ) -> 'DevicePosition':
         """Where the (defective, possibly turned) inclinometer reads zero, (1, 3), with its derivatives."""
-        return fixed_position(self.link_length, defects if defects is not None else DeviceDefects(), self.mount,
-                              device_turn)
+        return fixed_position(
+            self.link_length,
+            defects if defects is not None else DeviceDefects(),
+            self.mount,
+            device_turn,
+        )
 
     @property
     def fixed_point(self) -> np.ndarray:
@@ -194,37 +227,42 @@ class DeviceDefects:
         for f in fields(self):
             value = getattr(self, f.name)
             if not np.isfinite(value):
-                raise ValueError(f"device defect {f.name} must be finite, got {value}")
+                raise ValueError(f'device defect {f.name} must be finite, got {value}')
         if abs(self.gamma) >= 0.5 or abs(self.alpha0) >= 0.5 or abs(self.beta0) >= 0.5:
-            raise ValueError("device angle defects must be small (|value| < 0.5 rad)")
+            raise ValueError('device angle defects must be small (|value| < 0.5 rad)')
 
     @property
     def vector(self) -> np.ndarray:
         return np.array([getattr(self, name) for name in DEVICE_PARAMETER_NAMES])
 
     @classmethod
-    def from_vector(cls, vector: np.ndarray) -> "DeviceDefects":
+    def from_vector(cls, vector: np.ndarray) -> 'DeviceDefects':
         return cls(*(float(v) for v in vector))
 
     @classmethod
-    def parse(cls, text: str) -> "DeviceDefects":
+    def parse(cls, text: str) -> 'DeviceDefects':
         """'dL=0.0005,alpha0=2e-4,...' (SI units) -> DeviceDefects; names as DEVICE_PARAMETER_NAMES."""
         values: dict[str, float] = {}
-        for item in filter(None, (part.strip() for part in text.split(","))):
-            name, sep, value = item.partition("=")
+        for item in filter(None, (part.strip() for part in text.split(','))):
+            name, sep, value = item.partition('=')
             name = name.strip()
             if not sep or name not in DEVICE_PARAMETER_NAMES:
                 raise ValueError(
-                    f"bad device defect {item!r}: expected NAME=VALUE with NAME one of {', '.join(DEVICE_PARAMETER_NAMES)}"
+                    f'bad device defect {item!r}: expected NAME=VALUE with NAME one of {", ".join(DEVICE_PARAMETER_NAMES)}'
                 )
             try:
                 values[name] = float(value)
             except ValueError:
-                raise ValueError(f"device defect {name} must be a number in SI units, got {value!r}") from None
+                raise ValueError(
+                    f'device defect {name} must be a number in SI units, got {value!r}'
+                ) from None
         return cls(**values)
 
     def describe(self) -> str:
-        return ", ".join(f"{n}={getattr(self, n):g} {u}" for n, u in zip(DEVICE_PARAMETER_NAMES, DEVICE_PARAMETER_UNITS))
+        return ', '.join(
+            f'{n}={getattr(self, n):g} {u}'
+            for n, u in zip(DEVICE_PARAMETER_NAMES, DEVICE_PARAMETER_UNITS)
+        )
 
 
 @dataclass(frozen=True)
@@ -245,17 +283,21 @@ class DevicePrior:
         seen = set()
         for entry in self.entries:
             if len(entry) != 3:
-                raise ValueError(f"a device prior is (name, value, std), got {entry!r}")
+                raise ValueError(f'a device prior is (name, value, std), got {entry!r}')
             name, value, std = entry
             if name not in DEVICE_PARAMETER_NAMES:
-                raise ValueError(f"device prior on unknown parameter {name!r}; choose from "
-                                 f"{', '.join(DEVICE_PARAMETER_NAMES)}")
+                raise ValueError(
+                    f'device prior on unknown parameter {name!r}; choose from '
+                    f'{", ".join(DEVICE_PARAMETER_NAMES)}'
+                )
             if name in seen:
-                raise ValueError(f"device prior on {name} given twice")
+                raise ValueError(f'device prior on {name} given twice')
             seen.add(name)
             if not (np.isfinite(value) and np.isfinite(std) and std > 0):
-                raise ValueError(f"device prior on {name}: value must be finite and std positive (SI units), "
-                                 f"got {value!r} +- {std!r}")
+                raise ValueError(
+                    f'device prior on {name}: value must be finite and std positive (SI units), '
+                    f'got {value!r} +- {std!r}'
+                )
 
     def __bool__(self) -> bool:
         return bool(self.entries)
@@ -282,49 +324,69 @@ class DevicePrior:
         return next(((value, std) for n, value, std in self.entries if n == name), None)
 
     @classmethod
-    def parse(cls, text: str) -> "DevicePrior":
+    def parse(cls, text: str) -> 'DevicePrior':
         """'dL=0:10e-6,alpha0=0:50e-6' (NAME=VALUE:STD, SI units) -> DevicePrior."""
         entries = []
-        for item in filter(None, (part.strip() for part in text.split(","))):
-            name, sep, rest = item.partition("=")
-            value, colon, std = rest.partition(":")
+        for item in filter(None, (part.strip() for part in text.split(','))):
+            name, sep, rest = item.partition('=')
+            value, colon, std = rest.partition(':')
             name = name.strip()
             if not sep or not colon:
-                raise ValueError(f"bad device prior {item!r}: expected NAME=VALUE:STD in SI units, "
-                                 "e.g. dL=0:10e-6 (link length offset 0 +- 10 um)")
+                raise ValueError(
+                    f'bad device prior {item!r}: expected NAME=VALUE:STD in SI units, '
+                    'e.g. dL=0:10e-6 (link length offset 0 +- 10 um)'
+                )
             try:
                 entries.append((name, float(value), float(std)))
             except ValueError:
-                raise ValueError(f"device prior {item!r}: VALUE and STD must be numbers in SI units") from None
+                raise ValueError(
+                    f'device prior {item!r}: VALUE and STD must be numbers in SI units'
+                ) from None
         return cls(tuple(entries))
 
     def describe(self) -> str:
         units = dict(zip(DEVICE_PARAMETER_NAMES, DEVICE_PARAMETER_UNITS))
-        return ", ".join(f"{name}={value:g} +- {std:g} {units[name]}" for name, value, std in self.entries)
+        return ', '.join(
+            f'{name}={value:g} +- {std:g} {units[name]}' for name, value, std in self.entries
+        )
 
 
-def measured_position(alpha: np.ndarray, beta: np.ndarray, link_length: float | np.ndarray,
-                      mount: str = DEFAULT_MOUNT) -> np.ndarray:
+def measured_position(
+    alpha: np.ndarray,
+    beta: np.ndarray,
+    link_length: float | np.ndarray,
+    mount: str = DEFAULT_MOUNT,
+) -> np.ndarray:
     """Platform position from the inclinometer (eq. 4, sign of z as in the module doc), (N, 3)."""
     standing = _standing(mount)
     alpha = np.asarray(alpha, dtype=float)
     beta = np.asarray(beta, dtype=float)
     length = np.asarray(link_length, dtype=float)
     position = np.stack(
-        [length * np.cos(alpha) * np.sin(beta), -length * np.sin(alpha), -length * np.cos(alpha) * np.cos(beta)],
+        [
+            length * np.cos(alpha) * np.sin(beta),
+            -length * np.sin(alpha),
+            -length * np.cos(alpha) * np.cos(beta),
+        ],
         axis=-1,
     )
     return -position if standing else position
 
 
-def inclinometer_angles(position: np.ndarray, mount: str = DEFAULT_MOUNT) -> tuple[np.ndarray, np.ndarray]:
+def inclinometer_angles(
+    position: np.ndarray, mount: str = DEFAULT_MOUNT
+) -> tuple[np.ndarray, np.ndarray]:
     """Inverse of eq. 4: (alpha, beta) of the link pointing from O to ``position``."""
     return inclinometer_readings(position, DeviceDefects(), mount)
 
 
 def turn_rotations(device_turn: np.ndarray | float | None, n: int) -> np.ndarray:
     """R_z(turn) per posture, (n, 3, 3): the frame of a device turned by ``turn`` about its link axis."""
-    turn = np.zeros(n) if device_turn is None else np.broadcast_to(np.asarray(device_turn, dtype=float), (n,))
+    turn = (
+        np.zeros(n)
+        if device_turn is None
+        else np.broadcast_to(np.asarray(device_turn, dtype=float), (n,))
+    )
     c, s = np.cos(turn), np.sin(turn)
     rotation = np.zeros((n, 3, 3))
     rotation[:, 0, 0], rotation[:, 0, 1], rotation[:, 1, 0], rotation[:, 1, 1] = c, -s, s, c
@@ -332,16 +394,26 @@ def turn_rotations(device_turn: np.ndarray | float | None, n: int) -> np.ndarray
     return rotation
 
 
-def inclinometer_readings(position: np.ndarray, defects: DeviceDefects, mount: str = DEFAULT_MOUNT,
-                          device_turn: np.ndarray | float | None = None) -> tuple[np.ndarray, np.ndarray]:
+def inclinometer_readings(
+    position: np.ndarray,
+    defects: DeviceDefects,
+    mount: str = DEFAULT_MOUNT,
+    device_turn: np.ndarray | float | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """What a defective inclinometer reads for the link pointing from O to ``position`` (no noise).
 
     ``device_turn`` (rad, per posture): the device turned about its link axis (module doc)."""
     position = np.atleast_2d(np.asarray(position, dtype=float))
-    if device_turn is not None:  # the turned device reads, in its own (turned) frame, what the normal one reads
-        position = np.einsum("nji,nj->ni", turn_rotations(device_turn, len(position)), position)  # R_z(turn)^T p
+    if (
+        device_turn is not None
+    ):  # the turned device reads, in its own (turned) frame, what the normal one reads
+        position = np.einsum(
+            'nji,nj->ni', turn_rotations(device_turn, len(position)), position
+        )  # R_z(turn)^T p
     if _standing(mount):
-        position = -position  # the same reading as a hanging link pointing the other way (module doc)
+        position = (
+            -position
+        )  # the same reading as a hanging link pointing the other way (module doc)
     u = position / np.linalg.norm(position, axis=1, keepdims=True)
     b = np.arctan2(u[:, 0], -u[:, 2])
     sin_s, cos_s = u[:, 1], np.hypot(u[:, 0], u[:, 2])
@@ -376,9 +448,14 @@ class DevicePosition:
     d_readings: np.ndarray  # (N, 3, 2): columns alpha, beta (for noise propagation)
 
 
-def device_position(alpha: np.ndarray, beta: np.ndarray, link_length: float | np.ndarray,
-                    defects: DeviceDefects = DeviceDefects(), mount: str = DEFAULT_MOUNT,
-                    device_turn: np.ndarray | float | None = None) -> DevicePosition:
+def device_position(
+    alpha: np.ndarray,
+    beta: np.ndarray,
+    link_length: float | np.ndarray,
+    defects: DeviceDefects = DeviceDefects(),
+    mount: str = DEFAULT_MOUNT,
+    device_turn: np.ndarray | float | None = None,
+) -> DevicePosition:
     """Platform position from inclinometer readings through the defect model (module doc).
 
     Standing: the hanging result negated (position and both derivative arrays).
@@ -403,25 +480,34 @@ def device_position(alpha: np.ndarray, beta: np.ndarray, link_length: float | np
     ds_db = (-big_c * (big_b * db_b / radius) / radius**2) / cos_sd - big_a * db_b / radius**2
     da_g, db_g = -sg, -cg * np.sin(b)  # dA/dgamma, dB/dgamma
     ds_dg = (-big_c * ((big_a * da_g + big_b * db_g) / radius) / radius**2) / cos_sd - (
-        big_a * db_g - big_b * da_g) / radius**2
+        big_a * db_g - big_b * da_g
+    ) / radius**2
     scale = length[:, None]
     du_dbeta = du_db + du_ds * ds_db[:, None]
-    d_defects = np.stack([u, -scale * du_ds * ds_da[:, None], -scale * du_dbeta, scale * du_ds * ds_dg[:, None]],
-                         axis=-1)
+    d_defects = np.stack(
+        [u, -scale * du_ds * ds_da[:, None], -scale * du_dbeta, scale * du_ds * ds_dg[:, None]],
+        axis=-1,
+    )
     d_readings = np.stack([scale * du_ds * ds_da[:, None], scale * du_dbeta], axis=-1)
     position = scale * u
     if device_turn is not None:  # the turned device's frame is R_z(turn) of the normal one
         rotation = turn_rotations(device_turn, len(alpha))
-        position = np.einsum("nij,nj->ni", rotation, position)
-        d_defects = np.einsum("nij,njk->nik", rotation, d_defects)
-        d_readings = np.einsum("nij,njk->nik", rotation, d_readings)
+        position = np.einsum('nij,nj->ni', rotation, position)
+        d_defects = np.einsum('nij,njk->nik', rotation, d_defects)
+        d_readings = np.einsum('nij,njk->nik', rotation, d_readings)
     if standing:
         return DevicePosition(-position, -d_defects, -d_readings)
     return DevicePosition(position, d_defects, d_readings)
 
 
-def fixed_position(link_length: float, defects: DeviceDefects = DeviceDefects(),
-                   mount: str = DEFAULT_MOUNT, device_turn: float = 0.0) -> DevicePosition:
+def fixed_position(
+    link_length: float,
+    defects: DeviceDefects = DeviceDefects(),
+    mount: str = DEFAULT_MOUNT,
+    device_turn: float = 0.0,
+) -> DevicePosition:
     """Where the (defective, possibly turned) inclinometer reads zero: the fixed position of eq. 10,
     (1, 3), with derivatives."""
-    return device_position(np.zeros(1), np.zeros(1), link_length, defects, mount, np.array([device_turn]))
+    return device_position(
+        np.zeros(1), np.zeros(1), link_length, defects, mount, np.array([device_turn])
+    )

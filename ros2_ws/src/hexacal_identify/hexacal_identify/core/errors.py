@@ -1,4 +1,5 @@
 """Named errors of the calibration core: each says what is wrong and with what."""
+
 from __future__ import annotations
 
 from typing import Sequence
@@ -7,13 +8,13 @@ from typing import Sequence
 class CalibrationError(Exception):
     """Base class of every error the core raises on bad input or a failed solve."""
 
-    reason = "error"
+    reason = 'error'
 
 
 class InvalidMeasurementError(CalibrationError, ValueError):
     """A reading is NaN/inf, out of range, or arrays have inconsistent shapes."""
 
-    reason = "invalid-measurement"
+    reason = 'invalid-measurement'
 
     def __init__(self, message: str, indices: Sequence[int] = ()):
         super().__init__(message)
@@ -23,7 +24,7 @@ class InvalidMeasurementError(CalibrationError, ValueError):
 class UnreachablePoseError(CalibrationError, ValueError):
     """Inverse kinematics has no real solution (a leg cannot reach its joint)."""
 
-    reason = "unreachable-pose"
+    reason = 'unreachable-pose'
 
     def __init__(self, message: str, indices: Sequence[int] = ()):
         super().__init__(message)
@@ -33,7 +34,7 @@ class UnreachablePoseError(CalibrationError, ValueError):
 class ForwardKinematicsError(CalibrationError):
     """Forward kinematics did not converge, or converged to another branch."""
 
-    reason = "forward-kinematics-failed"
+    reason = 'forward-kinematics-failed'
 
     def __init__(self, message: str, indices: Sequence[int] = ()):
         super().__init__(message)
@@ -43,13 +44,13 @@ class ForwardKinematicsError(CalibrationError):
 class TooFewPosturesError(CalibrationError, ValueError):
     """Fewer residuals than parameters to identify."""
 
-    reason = "too-few-postures"
+    reason = 'too-few-postures'
 
 
 class RankDeficientError(CalibrationError):
     """The identification Jacobian does not determine every requested parameter."""
 
-    reason = "rank-deficient"
+    reason = 'rank-deficient'
 
     def __init__(self, message: str, report=None):
         super().__init__(message)

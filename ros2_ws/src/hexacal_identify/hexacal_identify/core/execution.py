@@ -70,14 +70,15 @@ turn: the next posture's turn is compared with the mounting the device is in.
 The executor node tells the nodes that stamp or simulate the turn (collector,
 driver) when the operator resumes.
 """
+
 from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
 import math
 
-import numpy as np
 from hexacal_msgs_py.names import EXECUTOR_RESUME_SERVICE as RESUME_SERVICE
+import numpy as np
 
 from .architectures import KinematicParameters
 from .device import DEFAULT_MOUNT, device_position, fixed_point
@@ -102,7 +103,9 @@ SAME_SPHERE = 1e-3  # positions within this fraction of L of the link sphere mov
 HOLD_S = 0.2  # time_from_start of a hold command
 POSITION_CHECK_M = 1e-6  # a plan posture's position must be where its kind says, to within this
 MIN_WINDOW_READINGS = 3  # readings a still window needs
-DEFAULT_OVERHEAD_S = 1.0  # ETA before any posture is done: per posture, besides moving and settle_s
+DEFAULT_OVERHEAD_S = (
+    1.0  # ETA before any posture is done: per posture, besides moving and settle_s
+)
 
 
 class PlanRefusedError(CalibrationError, ValueError):
@@ -131,18 +134,37 @@ class ExecutionSettings:
 
     def __post_init__(self) -> None:
         problems = []
-        if isinstance(self.path_step_m, bool) or not isinstance(self.path_step_m, (int, float)) \
-                or not math.isfinite(self.path_step_m) or self.path_step_m < 0:
+        if (
+            isinstance(self.path_step_m, bool)
+            or not isinstance(self.path_step_m, (int, float))
+            or not math.isfinite(self.path_step_m)
+            or self.path_step_m < 0
+        ):
             problems.append(f'path_step_m must be a finite number >= 0, got {self.path_step_m!r}')
-        for name in ('max_actuator_speed_m_s', 'position_tolerance_m', 'still_tolerance_m', 'settle_s',
-                     'timeout_s', 'fixed_tolerance_rad'):
+        for name in (
+            'max_actuator_speed_m_s',
+            'position_tolerance_m',
+            'still_tolerance_m',
+            'settle_s',
+            'timeout_s',
+            'fixed_tolerance_rad',
+        ):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                    or not math.isfinite(value) or value <= 0:
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float))
+                or not math.isfinite(value)
+                or value <= 0
+            ):
                 problems.append(f'{name} must be a positive finite number, got {value!r}')
-        if isinstance(self.max_corrections, bool) or not isinstance(self.max_corrections, int) \
-                or self.max_corrections < 0:
-            problems.append(f'max_corrections must be an integer >= 0, got {self.max_corrections!r}')
+        if (
+            isinstance(self.max_corrections, bool)
+            or not isinstance(self.max_corrections, int)
+            or self.max_corrections < 0
+        ):
+            problems.append(
+                f'max_corrections must be an integer >= 0, got {self.max_corrections!r}'
+            )
         if problems:
             raise ValueError('; '.join(problems))
 
@@ -203,15 +225,29 @@ def plan_stroke(metadata: dict, nominal: KinematicParameters) -> tuple[tuple[flo
 def check_stroke(stroke: tuple[float, float] | list[float]) -> tuple[float, float]:
     """(low, high) with low < high, both finite; ValueError naming the problem."""
     values = list(stroke)
-    if len(values) != 2 or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                                   and math.isfinite(v) for v in values) or values[0] >= values[1]:
-        raise ValueError(f'stroke limits must be two finite numbers [low, high] with low < high (m), '
-                         f'got {values!r}')
+    if (
+        len(values) != 2
+        or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+            for v in values
+        )
+        or values[0] >= values[1]
+    ):
+        raise ValueError(
+            f'stroke limits must be two finite numbers [low, high] with low < high (m), '
+            f'got {values!r}'
+        )
     return float(values[0]), float(values[1])
 
 
-def plan_targets(nominal: KinematicParameters, poses: np.ndarray, kinds, stroke: tuple[float, float],
-                 link_length: float, mount: str = DEFAULT_MOUNT) -> tuple[np.ndarray, dict[int, str]]:
+def plan_targets(
+    nominal: KinematicParameters,
+    poses: np.ndarray,
+    kinds,
+    stroke: tuple[float, float],
+    link_length: float,
+    mount: str = DEFAULT_MOUNT,
+) -> tuple[np.ndarray, dict[int, str]]:
     """Nominal actuator targets (N, 6) of every planned pose, and the problem of each posture that
     cannot be commanded (index -> reason; its row is NaN where it has no targets)."""
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
@@ -229,8 +265,9 @@ def plan_targets(nominal: KinematicParameters, poses: np.ndarray, kinds, stroke:
         reachable = legs.reachable() & finite
         targets[reachable] = legs.sliders[reachable]
         for index in np.flatnonzero(finite & ~reachable):
-            problems[int(index)] = (f'the nominal machine cannot reach it '
-                                    f'({arch.unreachable_reason})')
+            problems[int(index)] = (
+                f'the nominal machine cannot reach it ({arch.unreachable_reason})'
+            )
     point = fixed_point(link_length, mount)
     for index, (pose, kind) in enumerate(zip(poses, kinds)):
         if index in problems:
@@ -238,23 +275,36 @@ def plan_targets(nominal: KinematicParameters, poses: np.ndarray, kinds, stroke:
         if kind not in POSTURE_KINDS:
             problems[index] = f'kind {kind!r} is not one of {list(POSTURE_KINDS)}'
         elif kind == FIXED and np.linalg.norm(pose[:3] - point) > POSITION_CHECK_M:
-            problems[index] = (f'a fixed-position posture must be at {point.tolist()} m, got '
-                               f'{pose[:3].tolist()}')
+            problems[index] = (
+                f'a fixed-position posture must be at {point.tolist()} m, got {pose[:3].tolist()}'
+            )
         elif kind == SPHERE and abs(np.linalg.norm(pose[:3]) - link_length) > POSITION_CHECK_M:
-            problems[index] = (f'a sphere posture must be on the link sphere |p| = {link_length:g} m, '
-                               f'got |p| = {np.linalg.norm(pose[:3]):.9g} m')
+            problems[index] = (
+                f'a sphere posture must be on the link sphere |p| = {link_length:g} m, '
+                f'got |p| = {np.linalg.norm(pose[:3]):.9g} m'
+            )
         else:
-            outside = [f'{names[c]} {targets[index, c]:.4f} m' for c in range(6)
-                       if not low <= targets[index, c] <= high]
+            outside = [
+                f'{names[c]} {targets[index, c]:.4f} m'
+                for c in range(6)
+                if not low <= targets[index, c] <= high
+            ]
             if outside:
-                problems[index] = (f'target outside the stroke [{low:g}, {high:g}] m: '
-                                   + ', '.join(outside))
+                problems[index] = f'target outside the stroke [{low:g}, {high:g}] m: ' + ', '.join(
+                    outside
+                )
     return targets, problems
 
 
-def path_problems(nominal: KinematicParameters, poses: np.ndarray, stroke: tuple[float, float],
-                  link_length: float, step_m: float, skip: set[int] = frozenset(),
-                  mount: str = DEFAULT_MOUNT) -> dict[int, str]:
+def path_problems(
+    nominal: KinematicParameters,
+    poses: np.ndarray,
+    stroke: tuple[float, float],
+    link_length: float,
+    step_m: float,
+    skip: set[int] = frozenset(),
+    mount: str = DEFAULT_MOUNT,
+) -> dict[int, str]:
     """Postures whose path from the previous posture (along the link sphere, directly or by way of
     the centre: `route_command`) cannot be commanded."""
     problems: dict[int, str] = {}
@@ -265,8 +315,17 @@ def path_problems(nominal: KinematicParameters, poses: np.ndarray, stroke: tuple
         if index in skip or index - 1 in skip:
             continue
         try:
-            route_command(nominal, np.zeros(6), poses[index - 1], poses[index], stroke, 1.0,
-                          link_length, step_m, mount)
+            route_command(
+                nominal,
+                np.zeros(6),
+                poses[index - 1],
+                poses[index],
+                stroke,
+                1.0,
+                link_length,
+                step_m,
+                mount,
+            )
         except PathError as error:
             problems[index] = f'the path from posture {index}: {error}'
     return problems
@@ -277,37 +336,54 @@ def refusal_message(problems: dict[int, str], total: int, shown: int = 10) -> st
     items = sorted(problems.items())
     listed = '; '.join(f'posture {index + 1}: {why}' for index, why in items[:shown])
     more = f'; ... and {len(items) - shown} more' if len(items) > shown else ''
-    return (f'plan refused before anything moved: {len(items)} of {total} postures cannot be '
-            f'commanded (postures {[index + 1 for index, _ in items]}): {listed}{more}')
+    return (
+        f'plan refused before anything moved: {len(items)} of {total} postures cannot be '
+        f'commanded (postures {[index + 1 for index, _ in items]}): {listed}{more}'
+    )
 
 
-def check_plan(nominal: KinematicParameters, poses: np.ndarray, kinds, stroke: tuple[float, float],
-               link_length: float, mount: str = DEFAULT_MOUNT, path_step_m: float = 0.0) -> np.ndarray:
+def check_plan(
+    nominal: KinematicParameters,
+    poses: np.ndarray,
+    kinds,
+    stroke: tuple[float, float],
+    link_length: float,
+    mount: str = DEFAULT_MOUNT,
+    path_step_m: float = 0.0,
+) -> np.ndarray:
     """The targets of every posture, or PlanRefusedError listing each one that cannot be commanded
     (with path_step_m > 0, also each whose path from the previous posture cannot)."""
     targets, problems = plan_targets(nominal, poses, kinds, stroke, link_length, mount)
-    problems.update(path_problems(nominal, poses, stroke, link_length, path_step_m, set(problems),
-                                  mount))
+    problems.update(
+        path_problems(nominal, poses, stroke, link_length, path_step_m, set(problems), mount)
+    )
     if problems:
         raise PlanRefusedError(refusal_message(problems, len(targets)), problems)
     return targets
 
 
-def move_duration(current: np.ndarray, target: np.ndarray, max_speed_m_s: float,
-                  minimum_s: float = MIN_MOVE_S) -> float:
+def move_duration(
+    current: np.ndarray, target: np.ndarray, max_speed_m_s: float, minimum_s: float = MIN_MOVE_S
+) -> float:
     """time_from_start of a move: the largest actuator move at max_speed_m_s, at least minimum_s."""
-    largest = float(np.max(np.abs(np.asarray(target, dtype=float) - np.asarray(current, dtype=float))))
+    largest = float(
+        np.max(np.abs(np.asarray(target, dtype=float) - np.asarray(current, dtype=float)))
+    )
     return max(largest / max_speed_m_s, minimum_s)
 
 
-def interpolate_pose(start: np.ndarray, end: np.ndarray, s: float, link_length: float) -> np.ndarray:
+def interpolate_pose(
+    start: np.ndarray, end: np.ndarray, s: float, link_length: float
+) -> np.ndarray:
     """The pose a fraction s of the way from start to end: on the link sphere (great circle about
     O) when both positions are on it, else a straight line; Euler angles linear."""
     start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
     p0, p1 = start[:3], end[:3]
     r0, r1 = float(np.linalg.norm(p0)), float(np.linalg.norm(p1))
     on_sphere = max(abs(r0 - link_length), abs(r1 - link_length)) <= SAME_SPHERE * link_length
-    angle = math.acos(min(max(float(p0 @ p1) / (r0 * r1), -1.0), 1.0)) if r0 > 0 and r1 > 0 else 0.0
+    angle = (
+        math.acos(min(max(float(p0 @ p1) / (r0 * r1), -1.0), 1.0)) if r0 > 0 and r1 > 0 else 0.0
+    )
     if on_sphere and 1e-12 < angle < math.pi - 1e-6:
         position = (math.sin((1 - s) * angle) * p0 + math.sin(s * angle) * p1) / math.sin(angle)
         position *= ((1 - s) * r0 + s * r1) / float(np.linalg.norm(position))
@@ -316,7 +392,9 @@ def interpolate_pose(start: np.ndarray, end: np.ndarray, s: float, link_length: 
     return np.concatenate([position, start[3:] + s * (end[3:] - start[3:])])
 
 
-def sphere_path(start: np.ndarray, end: np.ndarray, link_length: float, step_m: float) -> np.ndarray:
+def sphere_path(
+    start: np.ndarray, end: np.ndarray, link_length: float, step_m: float
+) -> np.ndarray:
     """Poses (n, 6) from start (excluded) to end (included) along the link sphere, at most step_m
     apart in position and step_m / L in each angle; just [end] for step_m = 0."""
     start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
@@ -324,17 +402,26 @@ def sphere_path(start: np.ndarray, end: np.ndarray, link_length: float, step_m: 
         return end[None].copy()
     p0, p1 = start[:3], end[:3]
     r0, r1 = float(np.linalg.norm(p0)), float(np.linalg.norm(p1))
-    angle = math.acos(min(max(float(p0 @ p1) / (r0 * r1), -1.0), 1.0)) if r0 > 0 and r1 > 0 else 0.0
+    angle = (
+        math.acos(min(max(float(p0 @ p1) / (r0 * r1), -1.0), 1.0)) if r0 > 0 and r1 > 0 else 0.0
+    )
     length = max(angle * max(r0, r1), float(np.linalg.norm(p1 - p0)))
     turn = float(np.max(np.abs(end[3:] - start[3:]))) * link_length
     count = max(1, math.ceil(max(length, turn) / step_m - 1e-9))
-    return np.array([interpolate_pose(start, end, (k + 1) / count, link_length)
-                     for k in range(count)])
+    return np.array(
+        [interpolate_pose(start, end, (k + 1) / count, link_length) for k in range(count)]
+    )
 
 
-def path_command(nominal: KinematicParameters, current: np.ndarray, poses: np.ndarray,
-                 stroke: tuple[float, float], max_speed_m_s: float, purpose: str = 'move',
-                 posture: int = -1) -> Command:
+def path_command(
+    nominal: KinematicParameters,
+    current: np.ndarray,
+    poses: np.ndarray,
+    stroke: tuple[float, float],
+    max_speed_m_s: float,
+    purpose: str = 'move',
+    posture: int = -1,
+) -> Command:
     """The command through `poses` (nominal inverse kinematics) from the actuators at `current`:
     each point timed from its largest actuator move at max_speed_m_s (the whole at least
     MIN_MOVE_S); PathError if a pose is out of the nominal machine's reach or the stroke."""
@@ -343,18 +430,23 @@ def path_command(nominal: KinematicParameters, current: np.ndarray, poses: np.nd
     legs = arch.legs(arch.chains(nominal), poses)
     reachable = legs.reachable()
     if not np.all(reachable):
-        raise PathError(f'{int(np.sum(~reachable))} of its {len(poses)} points are out of the '
-                        f"nominal machine's reach ({arch.unreachable_reason})")
+        raise PathError(
+            f'{int(np.sum(~reachable))} of its {len(poses)} points are out of the '
+            f"nominal machine's reach ({arch.unreachable_reason})"
+        )
     points = legs.sliders
     low, high = stroke
     outside = np.any((points < low) | (points > high), axis=1)
     if np.any(outside):
         names = nominal.layout.actuator_names
         worst = points[np.flatnonzero(outside)[0]]
-        which = ', '.join(f'{names[c]} {worst[c]:.4f} m' for c in range(6)
-                          if not low <= worst[c] <= high)
-        raise PathError(f'{int(np.sum(outside))} of its {len(poses)} points are outside the stroke '
-                        f'[{low:g}, {high:g}] m ({which})')
+        which = ', '.join(
+            f'{names[c]} {worst[c]:.4f} m' for c in range(6) if not low <= worst[c] <= high
+        )
+        raise PathError(
+            f'{int(np.sum(outside))} of its {len(poses)} points are outside the stroke '
+            f'[{low:g}, {high:g}] m ({which})'
+        )
     previous = np.concatenate([np.asarray(current, dtype=float)[None], points[:-1]])
     segments = np.maximum(np.max(np.abs(points - previous), axis=1) / max_speed_m_s, MIN_SEGMENT_S)
     times = np.cumsum(segments)
@@ -363,20 +455,41 @@ def path_command(nominal: KinematicParameters, current: np.ndarray, poses: np.nd
     return Command(points.copy(), times, purpose, posture)
 
 
-def route_command(nominal: KinematicParameters, current: np.ndarray, start: np.ndarray, end: np.ndarray,
-                  stroke: tuple[float, float], max_speed_m_s: float, link_length: float, step_m: float,
-                  mount: str = DEFAULT_MOUNT, purpose: str = 'move', posture: int = -1) -> Command:
+def route_command(
+    nominal: KinematicParameters,
+    current: np.ndarray,
+    start: np.ndarray,
+    end: np.ndarray,
+    stroke: tuple[float, float],
+    max_speed_m_s: float,
+    link_length: float,
+    step_m: float,
+    mount: str = DEFAULT_MOUNT,
+    purpose: str = 'move',
+    posture: int = -1,
+) -> Command:
     """The command along the link sphere from pose `start` to `end` (`sphere_path`); if that path
     leaves the stroke or the nominal workspace, by way of the centre (the fixed-position point,
     zero angles: the middle of the workspace); PathError (the direct path's) if neither can be
     commanded."""
     try:
-        return path_command(nominal, current, sphere_path(start, end, link_length, step_m), stroke,
-                            max_speed_m_s, purpose, posture)
+        return path_command(
+            nominal,
+            current,
+            sphere_path(start, end, link_length, step_m),
+            stroke,
+            max_speed_m_s,
+            purpose,
+            posture,
+        )
     except PathError as error:
         centre = np.concatenate([fixed_point(link_length, mount), np.zeros(3)])
-        via = np.concatenate([sphere_path(start, centre, link_length, step_m),
-                              sphere_path(centre, end, link_length, step_m)])
+        via = np.concatenate(
+            [
+                sphere_path(start, centre, link_length, step_m),
+                sphere_path(centre, end, link_length, step_m),
+            ]
+        )
         try:
             return path_command(nominal, current, via, stroke, max_speed_m_s, purpose, posture)
         except PathError:
@@ -394,16 +507,22 @@ def on_sphere(pose: np.ndarray, link_length: float, mount: str = DEFAULT_MOUNT) 
     return pose
 
 
-def fixed_position_correction(alpha: float, beta: float, link_length: float,
-                              mount: str = DEFAULT_MOUNT) -> np.ndarray:
+def fixed_position_correction(
+    alpha: float, beta: float, link_length: float, mount: str = DEFAULT_MOUNT
+) -> np.ndarray:
     """Platform position change (3,) that brings the inclinometer from (alpha, beta) to zero:
     ``-dp/d(alpha, beta) [alpha, beta]`` with eq. 4's derivative at the reading (first order)."""
     placed = device_position(np.array([alpha]), np.array([beta]), link_length, mount=mount)
     return -placed.d_readings[0] @ np.array([alpha, beta])
 
 
-def corrected_pose(commanded: np.ndarray, alpha: float, beta: float, link_length: float,
-                   mount: str = DEFAULT_MOUNT) -> np.ndarray:
+def corrected_pose(
+    commanded: np.ndarray,
+    alpha: float,
+    beta: float,
+    link_length: float,
+    mount: str = DEFAULT_MOUNT,
+) -> np.ndarray:
     """The commanded pose with its position corrected for the inclinometer reading (orientation kept)."""
     pose = np.array(commanded, dtype=float)
     pose[:3] += fixed_position_correction(alpha, beta, link_length, mount)
@@ -423,7 +542,9 @@ def check_turns(turns, total: int) -> np.ndarray:
         return np.zeros(total)
     values = np.asarray(turns, dtype=float).reshape(-1)
     if values.shape != (total,) or not np.all(np.isfinite(values)):
-        raise ValueError(f'device turns: one finite angle (rad) per posture ({total}), got {turns!r}')
+        raise ValueError(
+            f'device turns: one finite angle (rad) per posture ({total}), got {turns!r}'
+        )
     return values
 
 
@@ -475,10 +596,20 @@ class ReadingWindow:
 class PlanExecution:
     """The executor's state machine: feed it readings, postures and time; send its commands."""
 
-    def __init__(self, nominal: KinematicParameters, poses: np.ndarray, kinds, targets: np.ndarray,
-                 settings: ExecutionSettings, stroke: tuple[float, float], link_length: float,
-                 mount: str = DEFAULT_MOUNT, start_paused: bool = False, device_turns=None,
-                 mounted_turn: float = 0.0):
+    def __init__(
+        self,
+        nominal: KinematicParameters,
+        poses: np.ndarray,
+        kinds,
+        targets: np.ndarray,
+        settings: ExecutionSettings,
+        stroke: tuple[float, float],
+        link_length: float,
+        mount: str = DEFAULT_MOUNT,
+        start_paused: bool = False,
+        device_turns=None,
+        mounted_turn: float = 0.0,
+    ):
         """device_turns: the plan's turn of each posture (rad; None: every posture in the normal
         mounting); mounted_turn: the mounting the device is in at the start (rad)."""
         self.nominal = nominal
@@ -508,7 +639,9 @@ class PlanExecution:
         self.finished_at: float | None = None
         self._paused_total = 0.0
         self._paused_at: float | None = None
-        self._phase: str | None = None  # 'moving' (arriving) or 'posture' (waiting for the collector)
+        self._phase: str | None = (
+            None  # 'moving' (arriving) or 'posture' (waiting for the collector)
+        )
         self._pose_cmd = np.zeros(6)
         self._target = np.zeros(6)
         self._corrections = 0
@@ -517,10 +650,14 @@ class PlanExecution:
         self._command_time = 0.0
         self._arrive_after = 0.0
         self._still_mean: np.ndarray | None = None
-        self._postures: list[tuple[float, np.ndarray]] = []  # (received, actuators) since the last command
+        self._postures: list[
+            tuple[float, np.ndarray]
+        ] = []  # (received, actuators) since the last command
         self._sent_any = False
         self._where: np.ndarray | None = None  # the pose the last move went to
-        self._at_where = False  # the machine stood still there since (so the next path starts there)
+        self._at_where = (
+            False  # the machine stood still there since (so the next path starts there)
+        )
         self.refusal = ''  # why the plan was refused (state REFUSED)
 
     # ------------------------------------------------------------------ inputs
@@ -568,16 +705,24 @@ class PlanExecution:
             return True, 'paused: the plan will not start until resumed', []
         if self.state == PAUSED:
             if self.turn_needed is not None:
-                return True, (f'already paused at posture {self.index + 1} of {self.total}: '
-                              f'{self.turn_notice}'), []
+                return (
+                    True,
+                    (
+                        f'already paused at posture {self.index + 1} of {self.total}: '
+                        f'{self.turn_notice}'
+                    ),
+                    [],
+                )
             return True, f'already paused at posture {self.index + 1} of {self.total}', []
         if self.state != RUNNING:
             return False, f'cannot pause: the executor is {self.state}', []
         self.state = PAUSED
         self._paused_at = now
         self._phase = None
-        text = (f'paused at posture {self.index + 1} of {self.total}: holding; resume restarts '
-                'this posture')
+        text = (
+            f'paused at posture {self.index + 1} of {self.total}: holding; resume restarts '
+            'this posture'
+        )
         self._say('info', text)
         return True, text, self._hold()
 
@@ -596,8 +741,10 @@ class PlanExecution:
         if self.turn_needed is not None:  # the operator turned the device: begin the posture
             previous, self.mounted_turn = self.mounted_turn, self.turn_needed
             self.turn_needed, self.turn_notice, fresh = None, '', True
-            text += (f' with the device turned to {turn_text(self.mounted_turn)} about its link '
-                     f'axis (was {turn_text(previous)})')
+            text += (
+                f' with the device turned to {turn_text(self.mounted_turn)} about its link '
+                f'axis (was {turn_text(previous)})'
+            )
         self._say('info', text)
         return True, text, self._begin(now, fresh=fresh)
 
@@ -612,8 +759,10 @@ class PlanExecution:
         self.finished_at = now
         self._phase = None
         self.turn_needed, self.turn_notice = None, ''
-        text = (f'aborted at posture {self.index + 1} of {self.total} ({self.measured} measured, '
-                f'{len(self.skipped)} skipped)')
+        text = (
+            f'aborted at posture {self.index + 1} of {self.total} ({self.measured} measured, '
+            f'{len(self.skipped)} skipped)'
+        )
         self._say('warn', text)
         return True, text, self._hold() if was == RUNNING else []
 
@@ -649,13 +798,17 @@ class PlanExecution:
         if self.state not in (RUNNING, PAUSED, WAITING):
             return None
         done = [o for o in self.outcomes if o.measured]
-        overhead = (float(np.mean([o.duration_s - o.move_s for o in done])) if done
-                    else self.settings.settle_s + DEFAULT_OVERHEAD_S)
+        overhead = (
+            float(np.mean([o.duration_s - o.move_s for o in done]))
+            if done
+            else self.settings.settle_s + DEFAULT_OVERHEAD_S
+        )
         remaining = 0.0
         previous = self.actuators.latest if self.actuators.latest is not None else self.targets[0]
         for index in range(self.index, self.total):
-            remaining += move_duration(previous, self.targets[index],
-                                       self.settings.max_actuator_speed_m_s) + max(overhead, 0.0)
+            remaining += move_duration(
+                previous, self.targets[index], self.settings.max_actuator_speed_m_s
+            ) + max(overhead, 0.0)
             previous = self.targets[index]
         if self.state == RUNNING and self._phase is not None:
             remaining -= min(now - self._posture_start, remaining)
@@ -665,11 +818,17 @@ class PlanExecution:
         """The status fields: state, posture k of K, measured, skipped (which and why), ETA."""
         current = min(self.index + 1, self.total)
         values: dict[str, object] = {
-            'state': self.state, 'posture': current if self.state != DONE else self.total,
-            'postures': self.total, 'measured': self.measured, 'skipped': len(self.skipped),
-            'corrections': self.total_corrections}
+            'state': self.state,
+            'posture': current if self.state != DONE else self.total,
+            'postures': self.total,
+            'measured': self.measured,
+            'skipped': len(self.skipped),
+            'corrections': self.total_corrections,
+        }
         if self.skipped:
-            values['skipped_postures'] = '; '.join(f'{o.index + 1}: {o.reason}' for o in self.skipped)
+            values['skipped_postures'] = '; '.join(
+                f'{o.index + 1}: {o.reason}' for o in self.skipped
+            )
         if self.state in (RUNNING, PAUSED) and self.index < self.total:
             values['kind'] = self.kinds[self.index]
         if self.total:
@@ -682,15 +841,22 @@ class PlanExecution:
         if self.started_at is not None:
             end = self.finished_at if self.finished_at is not None else now
             values['elapsed_s'] = round(end - self.started_at, 1)
-            paused = self._paused_total + (now - self._paused_at if self._paused_at is not None else 0.0)
+            paused = self._paused_total + (
+                now - self._paused_at if self._paused_at is not None else 0.0
+            )
             if paused > 0:
                 values['paused_s'] = round(paused, 1)
         return values
 
     def summary(self) -> str:
-        return (f'{self.measured} of {self.total} postures measured, {len(self.skipped)} skipped'
-                + (f" ({'; '.join(f'{o.index + 1}: {o.reason}' for o in self.skipped)})"
-                   if self.skipped else ''))
+        return (
+            f'{self.measured} of {self.total} postures measured, {len(self.skipped)} skipped'
+            + (
+                f' ({"; ".join(f"{o.index + 1}: {o.reason}" for o in self.skipped)})'
+                if self.skipped
+                else ''
+            )
+        )
 
     # ------------------------------------------------------------------ internals
 
@@ -723,13 +889,18 @@ class PlanExecution:
                     self.state = REFUSED
                     self.finished_at = now
                     self._phase = None
-                    self.refusal = (f'plan refused before anything moved: the path from where the '
-                                    f'machine stands to posture {self.index + 1}: {error}')
+                    self.refusal = (
+                        f'plan refused before anything moved: the path from where the '
+                        f'machine stands to posture {self.index + 1}: {error}'
+                    )
                     self._say('error', self.refusal)
                     return []
                 self._record(now, False, f'its path cannot be commanded: {error}')
-                self._say('warn', f'posture {self.index + 1} of {self.total} skipped: its path '
-                                  f'cannot be commanded: {error}')
+                self._say(
+                    'warn',
+                    f'posture {self.index + 1} of {self.total} skipped: its path '
+                    f'cannot be commanded: {error}',
+                )
                 self.index += 1
                 fresh = True
                 continue
@@ -752,7 +923,8 @@ class PlanExecution:
             f'posture {self.index + 1} of {self.total} needs the device turned to '
             f'{turn_text(turn)} about its link axis (it is at {turn_text(self.mounted_turn)}): '
             f'turn the device to {math.degrees(turn):.4g} deg about its link axis, then call '
-            f'{RESUME_SERVICE}')
+            f'{RESUME_SERVICE}'
+        )
         self._say('warn', self.turn_notice)
         return self._hold()
 
@@ -765,12 +937,29 @@ class PlanExecution:
         if purpose != CORRECT and step > 0:
             start = self._where if self._at_where else self._estimate()
         if start is None:
-            command = path_command(self.nominal, current, self._pose_cmd[None], self.stroke,
-                                   self.settings.max_actuator_speed_m_s, purpose, self.index)
+            command = path_command(
+                self.nominal,
+                current,
+                self._pose_cmd[None],
+                self.stroke,
+                self.settings.max_actuator_speed_m_s,
+                purpose,
+                self.index,
+            )
         else:
-            command = route_command(self.nominal, current, start, self._pose_cmd, self.stroke,
-                                    self.settings.max_actuator_speed_m_s, self.link_length, step,
-                                    self.mount, purpose, self.index)
+            command = route_command(
+                self.nominal,
+                current,
+                start,
+                self._pose_cmd,
+                self.stroke,
+                self.settings.max_actuator_speed_m_s,
+                self.link_length,
+                step,
+                self.mount,
+                purpose,
+                self.index,
+            )
         self._target = command.positions.copy()
         self._where, self._at_where = self._pose_cmd.copy(), False
         self._command_time = now
@@ -789,16 +978,26 @@ class PlanExecution:
         latest = self.actuators.latest
         if latest is None:
             return None
-        guesses = [pose for pose in (self._where, self.poses[min(self.index, self.total - 1)],
-                                     np.concatenate([fixed_point(self.link_length, self.mount),
-                                                     np.zeros(3)])) if pose is not None]
-        found = forward_kinematics(self.nominal, np.tile(latest, (len(guesses), 1)),
-                                   np.array(guesses))
+        guesses = [
+            pose
+            for pose in (
+                self._where,
+                self.poses[min(self.index, self.total - 1)],
+                np.concatenate([fixed_point(self.link_length, self.mount), np.zeros(3)]),
+            )
+            if pose is not None
+        ]
+        found = forward_kinematics(
+            self.nominal, np.tile(latest, (len(guesses), 1)), np.array(guesses)
+        )
         for pose, converged in zip(found.poses, found.converged):
             if converged:
                 return on_sphere(pose, self.link_length, self.mount)
-        self._say('warn', 'cannot tell where the platform stands (nominal forward kinematics of '
-                          'the measured actuators failed): one-point command')
+        self._say(
+            'warn',
+            'cannot tell where the platform stands (nominal forward kinematics of '
+            'the measured actuators failed): one-point command',
+        )
         return None
 
     def _still_mean_at(self, now: float) -> np.ndarray | None:
@@ -816,7 +1015,9 @@ class PlanExecution:
         return mean
 
     def _mean_angles(self, now: float) -> tuple[float, float] | None:
-        window = self.inclinometer.between(max(now - self.settings.settle_s, self._arrive_after), now)
+        window = self.inclinometer.between(
+            max(now - self.settings.settle_s, self._arrive_after), now
+        )
         if len(window) < MIN_WINDOW_READINGS:
             return None
         alpha, beta = window.mean(axis=0)
@@ -826,15 +1027,21 @@ class PlanExecution:
         if self._still_mean is None:
             return False
         tolerance = self.settings.still_tolerance_m
-        return any(float(np.max(np.abs(actuators - self._still_mean))) <= tolerance
-                   for _, actuators in self._postures)
+        return any(
+            float(np.max(np.abs(actuators - self._still_mean))) <= tolerance
+            for _, actuators in self._postures
+        )
 
     def _correct(self, now: float, alpha: float, beta: float) -> list[Command]:
         index = self.index
         if self._corrections >= self.settings.max_corrections:
-            return self._skip(now, (
-                f'fixed position not reached after {self._corrections} corrections (inclinometer '
-                f'{alpha:.3g}, {beta:.3g} rad; tolerance {self.settings.fixed_tolerance_rad:g} rad)'))
+            return self._skip(
+                now,
+                (
+                    f'fixed position not reached after {self._corrections} corrections (inclinometer '
+                    f'{alpha:.3g}, {beta:.3g} rad; tolerance {self.settings.fixed_tolerance_rad:g} rad)'
+                ),
+            )
         previous = self._pose_cmd
         self._pose_cmd = corrected_pose(previous, alpha, beta, self.link_length, self.mount)
         try:
@@ -845,8 +1052,11 @@ class PlanExecution:
         self._corrections += 1
         self.total_corrections += 1
         moved = np.linalg.norm(self._pose_cmd[:3] - previous[:3])
-        self._say('info', f'posture {index + 1}: inclinometer {alpha:.3g}, {beta:.3g} rad; correction '
-                          f'{self._corrections} moves the platform by {moved * 1e6:.0f} um')
+        self._say(
+            'info',
+            f'posture {index + 1}: inclinometer {alpha:.3g}, {beta:.3g} rad; correction '
+            f'{self._corrections} moves the platform by {moved * 1e6:.0f} um',
+        )
         return [command]
 
     def _timeout_reason(self, now: float) -> str:
@@ -857,31 +1067,52 @@ class PlanExecution:
         if latest is None or self.actuators.between(now - self.settings.settle_s, now).size == 0:
             return f'no actuator readings (timeout {timeout:g} s)'
         away = float(np.max(np.abs(latest - self._target)))
-        if self.kinds[self.index] == FIXED and away <= self.settings.position_tolerance_m \
-                and self._corrections:
-            return (f'fixed position not reached within {timeout:g} s '
-                    f'({self._corrections} corrections)')
-        return (f'not at the target and still within {timeout:g} s (actuators up to '
-                f'{away * 1e3:.3f} mm from it)')
+        if (
+            self.kinds[self.index] == FIXED
+            and away <= self.settings.position_tolerance_m
+            and self._corrections
+        ):
+            return (
+                f'fixed position not reached within {timeout:g} s '
+                f'({self._corrections} corrections)'
+            )
+        return (
+            f'not at the target and still within {timeout:g} s (actuators up to '
+            f'{away * 1e3:.3f} mm from it)'
+        )
 
     def _skip(self, now: float, reason: str) -> list[Command]:
         self._record(now, False, reason)
-        self._say('warn', f'posture {self.index + 1} of {self.total} ({self.kinds[self.index]}) '
-                          f'skipped: {reason}')
+        self._say(
+            'warn',
+            f'posture {self.index + 1} of {self.total} ({self.kinds[self.index]}) '
+            f'skipped: {reason}',
+        )
         return self._advance(now)
 
     def _complete(self, now: float) -> list[Command]:
         self._at_where = True  # it stood still at the commanded pose: the next path starts there
         self._record(now, True, '')
         corrections = f', {self._corrections} corrections' if self._corrections else ''
-        self._say('info', f'posture {self.index + 1} of {self.total} ({self.kinds[self.index]}) '
-                          f'measured in {now - self._posture_start:.1f} s{corrections}')
+        self._say(
+            'info',
+            f'posture {self.index + 1} of {self.total} ({self.kinds[self.index]}) '
+            f'measured in {now - self._posture_start:.1f} s{corrections}',
+        )
         return self._advance(now)
 
     def _record(self, now: float, measured: bool, reason: str) -> None:
-        self.outcomes.append(PostureOutcome(self.index, self.kinds[self.index], measured, reason,
-                                            now - self._posture_start, self._first_move_s,
-                                            self._corrections))
+        self.outcomes.append(
+            PostureOutcome(
+                self.index,
+                self.kinds[self.index],
+                measured,
+                reason,
+                now - self._posture_start,
+                self._first_move_s,
+                self._corrections,
+            )
+        )
 
     def _advance(self, now: float) -> list[Command]:
         self.index += 1

@@ -9,14 +9,15 @@ motions of a frame or a slider zero that leave every measurement unchanged
 parameters it mixes.  Column-pivoted QR orders the parameters from best to
 worst determined; its last ``n - rank`` columns are those a user would fix.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, fixed_point
 from .architectures import KinematicParameters
+from .device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, fixed_point
 from .model import N_PARAMETERS, parameter_names
 
 DEFAULT_RANK_TOLERANCE = 1e-6
@@ -28,7 +29,9 @@ class NullDirection:
 
     description: str
     coefficients: dict[str, float]  # parameter name -> component (unit-norm, scaled units)
-    fix: str | None = None  # the unknown to hold fixed for this direction, when the explanation names one
+    fix: str | None = (
+        None  # the unknown to hold fixed for this direction, when the explanation names one
+    )
 
 
 @dataclass
@@ -60,26 +63,28 @@ class IdentifiabilityReport:
     def verdict(self) -> str:
         if self.identifiable:
             return (
-                f"all {self.n_parameters} parameters identifiable "
-                f"(rank {self.rank}, condition number {self.condition_number:.3g})"
+                f'all {self.n_parameters} parameters identifiable '
+                f'(rank {self.rank}, condition number {self.condition_number:.3g})'
             )
         lines = [
-            f"rank {self.rank} of {self.n_parameters}: {self.n_parameters - self.rank} combination(s) "
-            "of parameters cannot be identified from these measurements"
+            f'rank {self.rank} of {self.n_parameters}: {self.n_parameters - self.rank} combination(s) '
+            'of parameters cannot be identified from these measurements'
         ]
-        lines += [f"  - {d.description}" for d in self.null_directions]
-        lines.append("  fix e.g. " + ", ".join(self.unidentifiable_parameters) + " to identify the rest")
-        return "\n".join(lines)
+        lines += [f'  - {d.description}' for d in self.null_directions]
+        lines.append(
+            '  fix e.g. ' + ', '.join(self.unidentifiable_parameters) + ' to identify the rest'
+        )
+        return '\n'.join(lines)
 
     def to_json(self) -> dict:
         return {
-            "rank": self.rank,
-            "n_parameters": self.n_parameters,
-            "identifiable": self.identifiable,
-            "condition_number": self.condition_number,
-            "singular_values": self.singular_values.tolist(),
-            "unidentifiable_combinations": [d.description for d in self.null_directions],
-            "suggest_fixing": self.unidentifiable_parameters,
+            'rank': self.rank,
+            'n_parameters': self.n_parameters,
+            'identifiable': self.identifiable,
+            'condition_number': self.condition_number,
+            'singular_values': self.singular_values.tolist(),
+            'unidentifiable_combinations': [d.description for d in self.null_directions],
+            'suggest_fixing': self.unidentifiable_parameters,
         }
 
 
@@ -106,8 +111,12 @@ def _column_norms(block: np.ndarray) -> np.ndarray:
     squares *= squares
     rows = block.shape[0]
     whole = rows // 8 * 8
-    partial = [np.add.accumulate(squares[k:whole:4], axis=0)[-1] if whole else
-               np.zeros(block.shape[1], np.longdouble) for k in range(4)]
+    partial = [
+        np.add.accumulate(squares[k:whole:4], axis=0)[-1]
+        if whole
+        else np.zeros(block.shape[1], np.longdouble)
+        for k in range(4)
+    ]
     first = partial[0]
     for row in range(whole, rows):
         first = first + squares[row]
@@ -126,7 +135,7 @@ def pivoted_qr(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     without importing scipy (~0.2 s of every calibration's start-up).  R is
     min(m, n) x n, its diagonal real with LAPACK's signs.
     """
-    a = np.array(matrix, dtype=float, order="F")  # a copy, worked in place
+    a = np.array(matrix, dtype=float, order='F')  # a copy, worked in place
     m, n = a.shape
     pivots = np.arange(n)
     norms = _column_norms(a)  # vn1: downdated partial column norms
@@ -139,18 +148,18 @@ def pivoted_qr(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             norms[p], exact[p] = norms[i], exact[i]
         # dlarfg: the reflector H = I - tau v v^T with H^T a[i:, i] = (beta, 0, ...), v[0] = 1
         alpha = a[i, i]
-        x_norm = float(_column_norms(a[i + 1:, i:i + 1])[0]) if i < m - 1 else 0.0
+        x_norm = float(_column_norms(a[i + 1 :, i : i + 1])[0]) if i < m - 1 else 0.0
         if x_norm == 0.0:
             tau = 0.0
         else:
             big, small = max(abs(alpha), x_norm), min(abs(alpha), x_norm)
             beta = -np.copysign(big * np.sqrt(1.0 + (small / big) ** 2), alpha)  # dlapy2
             tau = (beta - alpha) / beta
-            a[i + 1:, i] *= 1.0 / (alpha - beta)
+            a[i + 1 :, i] *= 1.0 / (alpha - beta)
             a[i, i] = beta
         if i < n - 1 and tau != 0.0:  # dlarf: apply H^T to the columns right of i
-            v = np.concatenate(([1.0], a[i + 1:, i]))
-            rest = a[i:, i + 1:]
+            v = np.concatenate(([1.0], a[i + 1 :, i]))
+            rest = a[i:, i + 1 :]
             rest -= np.outer(v, tau * (v @ rest))
         # Downdate the remaining norms by the row just finished.
         j = np.arange(i + 1, n)
@@ -162,7 +171,7 @@ def pivoted_qr(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             norms[keep] *= np.sqrt(ratio[~stale])
             recompute = j[stale]
             if len(recompute):
-                fresh = _column_norms(a[i + 1:, recompute]) if i < m - 1 else 0.0
+                fresh = _column_norms(a[i + 1 :, recompute]) if i < m - 1 else 0.0
                 norms[recompute] = fresh
                 exact[recompute] = fresh
     k = min(m, n)
@@ -198,12 +207,16 @@ def analyze(
     _, singular, vt = np.linalg.svd(scaled, full_matrices=scaled.shape[0] < scaled.shape[1])
     singular = np.concatenate([singular, np.zeros(jacobian.shape[1] - len(singular))])
     rank = int(np.sum(singular > rank_tolerance * singular[0])) if singular[0] > 0 else 0
-    condition = float(singular[0] / singular[rank - 1]) if rank else float("inf")
+    condition = float(singular[0] / singular[rank - 1]) if rank else float('inf')
     _, pivots = pivoted_qr(scaled)
     null_space = vt[rank:].T
-    gauges = _gauge_directions(params, free, scales, link_length, mount) if params is not None else []
+    gauges = (
+        _gauge_directions(params, free, scales, link_length, mount) if params is not None else []
+    )
     n_parameters = params.layout.n_parameters if params is not None else N_PARAMETERS
-    directions = _describe(null_space, names, gauges, _device_directions(free, scales, n_parameters))
+    directions = _describe(
+        null_space, names, gauges, _device_directions(free, scales, n_parameters)
+    )
     return IdentifiabilityReport(
         rank=rank,
         n_parameters=jacobian.shape[1],
@@ -215,15 +228,20 @@ def analyze(
     )
 
 
-def _gauge_directions(params: KinematicParameters, free: np.ndarray | None, scales: np.ndarray,
-                      link_length: float, mount: str = DEFAULT_MOUNT) -> list[tuple[str, np.ndarray]]:
+def _gauge_directions(
+    params: KinematicParameters,
+    free: np.ndarray | None,
+    scales: np.ndarray,
+    link_length: float,
+    mount: str = DEFAULT_MOUNT,
+) -> list[tuple[str, np.ndarray]]:
     """Parameter changes that move a frame (or one actuator's zero), in scaled free coordinates.
 
     The architecture says what each motion does to its parameters (``frame_motion``,
     ``actuator_zero_shift``); the names are the same for every architecture.
     """
     arch = params.architecture
-    axis_names = "XYZ"
+    axis_names = 'XYZ'
 
     def direction(delta: np.ndarray) -> np.ndarray:
         vector = delta
@@ -238,28 +256,49 @@ def _gauge_directions(params: KinematicParameters, free: np.ndarray | None, scal
     for k, axis in enumerate(np.eye(3)):
         gauges.append(
             (
-                f"a rotation of the base frame about the {axis_names[k]} axis through the fixed-position point "
-                f"[0, 0, {fixed[2]:g}] m",
-                direction(arch.frame_motion(params, base_rotation=axis, base_translation=-np.cross(axis, fixed))),
+                f'a rotation of the base frame about the {axis_names[k]} axis through the fixed-position point '
+                f'[0, 0, {fixed[2]:g}] m',
+                direction(
+                    arch.frame_motion(
+                        params, base_rotation=axis, base_translation=-np.cross(axis, fixed)
+                    )
+                ),
             )
         )
     for k, axis in enumerate(np.eye(3)):
-        gauges.append((f"a translation of the base frame along {axis_names[k]}",
-                       direction(arch.frame_motion(params, base_translation=axis))))
-        gauges.append((f"a rotation of the base frame about {axis_names[k]}",
-                       direction(arch.frame_motion(params, base_rotation=axis))))
-        gauges.append((f"a translation of the platform frame along {axis_names[k].lower()}'",
-                       direction(arch.frame_motion(params, platform_translation=axis))))
-        gauges.append((f"a rotation of the platform frame about {axis_names[k].lower()}'",
-                       direction(arch.frame_motion(params, platform_rotation=axis))))
+        gauges.append(
+            (
+                f'a translation of the base frame along {axis_names[k]}',
+                direction(arch.frame_motion(params, base_translation=axis)),
+            )
+        )
+        gauges.append(
+            (
+                f'a rotation of the base frame about {axis_names[k]}',
+                direction(arch.frame_motion(params, base_rotation=axis)),
+            )
+        )
+        gauges.append(
+            (
+                f"a translation of the platform frame along {axis_names[k].lower()}'",
+                direction(arch.frame_motion(params, platform_translation=axis)),
+            )
+        )
+        gauges.append(
+            (
+                f"a rotation of the platform frame about {axis_names[k].lower()}'",
+                direction(arch.frame_motion(params, platform_rotation=axis)),
+            )
+        )
     for chain in range(params.layout.n_chains):
         name, delta = arch.actuator_zero_shift(params, chain)
         gauges.append((name, direction(delta)))
     return [(name, vec) for name, vec in gauges if np.linalg.norm(vec) > 0]
 
 
-def _device_directions(free: np.ndarray | None, scales: np.ndarray,
-                       n_parameters: int = N_PARAMETERS) -> list[tuple[str, np.ndarray]]:
+def _device_directions(
+    free: np.ndarray | None, scales: np.ndarray, n_parameters: int = N_PARAMETERS
+) -> list[tuple[str, np.ndarray]]:
     """Unit changes of each identified device defect, in scaled free coordinates."""
     from .device import DEVICE_PARAMETER_NAMES
 
@@ -275,13 +314,20 @@ def _device_directions(free: np.ndarray | None, scales: np.ndarray,
     return directions
 
 
-def _describe(null_space: np.ndarray, names: list[str], gauges: list[tuple[str, np.ndarray]],
-              device: list[tuple[str, np.ndarray]] = ()) -> list[NullDirection]:
+def _describe(
+    null_space: np.ndarray,
+    names: list[str],
+    gauges: list[tuple[str, np.ndarray]],
+    device: list[tuple[str, np.ndarray]] = (),
+) -> list[NullDirection]:
     """One entry per null dimension: a named explanation where one fits, else the parameters it mixes."""
     if null_space.shape[1] == 0:
         return []
     explained = _explanations(null_space, gauges, list(device))
-    described = [NullDirection(text, _top_coefficients(vector, names), fix) for text, vector, fix in explained]
+    described = [
+        NullDirection(text, _top_coefficients(vector, names), fix)
+        for text, vector, fix in explained
+    ]
     # Whatever the named motions do not cover: list the parameters of the remaining null directions.
     if explained:
         covered, _ = np.linalg.qr(np.column_stack([vector for _, vector, _ in explained]))
@@ -292,19 +338,30 @@ def _describe(null_space: np.ndarray, names: list[str], gauges: list[tuple[str, 
         rest_basis = null_space
     for column in rest_basis.T:
         coefficients = _top_coefficients(column, names)
-        mix = ", ".join(f"{name} ({value:+.2f})" for name, value in coefficients.items())
-        described.append(NullDirection(f"parameters that move together without changing any measurement: {mix}",
-                                       coefficients))
+        mix = ', '.join(f'{name} ({value:+.2f})' for name, value in coefficients.items())
+        described.append(
+            NullDirection(
+                f'parameters that move together without changing any measurement: {mix}',
+                coefficients,
+            )
+        )
     return described
 
 
 def _top_coefficients(vector: np.ndarray, names: list[str]) -> dict[str, float]:
     order = np.argsort(-np.abs(vector))
-    return {names[i]: float(vector[i]) for i in order[:6] if abs(vector[i]) > 0.15 * abs(vector[order[0]])}
+    return {
+        names[i]: float(vector[i])
+        for i in order[:6]
+        if abs(vector[i]) > 0.15 * abs(vector[order[0]])
+    }
 
 
-def _explanations(null_space: np.ndarray, gauges: list[tuple[str, np.ndarray]],
-                  device: list[tuple[str, np.ndarray]]) -> list[tuple[str, np.ndarray, str | None]]:
+def _explanations(
+    null_space: np.ndarray,
+    gauges: list[tuple[str, np.ndarray]],
+    device: list[tuple[str, np.ndarray]],
+) -> list[tuple[str, np.ndarray, str | None]]:
     """Named motions that lie in the null space, most specific first, none repeating another.
 
     Candidates: a frame motion alone; a device defect alone (no effect at all);
@@ -314,10 +371,15 @@ def _explanations(null_space: np.ndarray, gauges: list[tuple[str, np.ndarray]],
     space (largest principal cosine > 0.999).
     """
     candidates = [(name, [vector], None) for name, vector in gauges]
-    candidates += [(f"the device's {name} has no effect on these measurements", [vector], name)
-                   for name, vector in device]
-    candidates += [(f"the device's {d_name} cannot be told apart from {g_name}", [d_vector, g_vector], d_name)
-                   for d_name, d_vector in device for g_name, g_vector in gauges]
+    candidates += [
+        (f"the device's {name} has no effect on these measurements", [vector], name)
+        for name, vector in device
+    ]
+    candidates += [
+        (f"the device's {d_name} cannot be told apart from {g_name}", [d_vector, g_vector], d_name)
+        for d_name, d_vector in device
+        for g_name, g_vector in gauges
+    ]
     found: list[tuple[str, np.ndarray, str | None]] = []
     for text, vectors, fix in candidates:
         basis, _ = np.linalg.qr(np.column_stack(vectors))
@@ -329,10 +391,10 @@ def _explanations(null_space: np.ndarray, gauges: list[tuple[str, np.ndarray]],
             previous, _ = np.linalg.qr(np.column_stack([v for _, v, _ in found]))
             if np.linalg.norm(previous.T @ member) > 0.99:
                 continue  # already explained
-        found.append((text, member, f"device.{fix}" if fix else None))
+        found.append((text, member, f'device.{fix}' if fix else None))
         if len(found) == null_space.shape[1]:
             break
     return found
 
 
-__all__ = ["IdentifiabilityReport", "NullDirection", "analyze", "column_scales", "N_PARAMETERS"]
+__all__ = ['IdentifiabilityReport', 'NullDirection', 'analyze', 'column_scales', 'N_PARAMETERS']

@@ -22,29 +22,38 @@ Beyond the paper:
   reading, a wrong FK branch) is excluded and reported; a Huber or soft-L1 loss
   (iteratively reweighted) is available as well.
 """
+
 from __future__ import annotations
 
+from dataclasses import dataclass, field, replace
 import functools
 import time
-from dataclasses import dataclass, field, replace
 
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from .device import DEVICE_PARAMETER_NAMES, N_DEVICE_PARAMETERS, DeviceDefects, DeviceModel, DevicePrior
+from .architectures import Architecture, KinematicParameters
+from .device import (
+    DEVICE_PARAMETER_NAMES,
+    DeviceDefects,
+    DeviceModel,
+    DevicePrior,
+    N_DEVICE_PARAMETERS,
+)
 from .errors import InvalidMeasurementError, RankDeficientError, TooFewPosturesError
-from .identifiability import DEFAULT_RANK_TOLERANCE, IdentifiabilityReport, analyze, column_scales
+from .identifiability import analyze, column_scales, DEFAULT_RANK_TOLERANCE, IdentifiabilityReport
 from .kinematics import forward_kinematics, pose_sensitivities
 from .measurements import MeasurementLimits, Measurements, NoiseModel
-from .architectures import Architecture, KinematicParameters
 from .model import N_PARAMETERS, parameter_names
-from .residuals import COSTS, N_NOISE_SOURCES, ChannelSigma, CostFunction, ResidualBlock
+from .residuals import ChannelSigma, CostFunction, COSTS, N_NOISE_SOURCES, ResidualBlock
 
-CONVERGED = "converged"
-ITERATION_LIMIT = "iteration-limit"
-DIVERGED = "diverged"
-FLOOR_STEP_M = 1e-9  # a Gauss-Newton step below this (m) is at the rounding floor of FK and residuals
-ROBUST_LOSSES = ("huber", "soft_l1")
+CONVERGED = 'converged'
+ITERATION_LIMIT = 'iteration-limit'
+DIVERGED = 'diverged'
+FLOOR_STEP_M = (
+    1e-9  # a Gauss-Newton step below this (m) is at the rounding floor of FK and residuals
+)
+ROBUST_LOSSES = ('huber', 'soft_l1')
 MAX_ROUNDS = 20  # outer rounds: re-admitting postures, screening outliers, refitting weights
 IRLS_TOLERANCE = 1e-9  # robust reweighting stops when no unknown moves more than this (m)
 N_UNKNOWNS = N_PARAMETERS + N_DEVICE_PARAMETERS  # of a Hexa Slide; any model: n_parameters + 5
@@ -58,28 +67,42 @@ def _blas_controller() -> ThreadpoolController:
 
 def unknown_names(model: str | None = None) -> list[str]:
     """Names of the model's kinematic parameters (default: the Hexa Slide's 54) followed by the 5 device defects."""
-    return parameter_names(model) + [f"device.{name}" for name in DEVICE_PARAMETER_NAMES]
+    return parameter_names(model) + [f'device.{name}' for name in DEVICE_PARAMETER_NAMES]
 
 
 @dataclass(frozen=True)
 class SolverOptions:
-    cost: str = "absolute"
+    cost: str = 'absolute'
     device: DeviceModel = DeviceModel()
     sigma: ChannelSigma = ChannelSigma()
     limits: MeasurementLimits = MeasurementLimits()
-    free_parameters: tuple[bool, ...] | None = None  # mask over the kinematic parameters; None = all
+    free_parameters: tuple[bool, ...] | None = (
+        None  # mask over the kinematic parameters; None = all
+    )
     device_defects: DeviceDefects = DeviceDefects()  # assumed (and starting) device defects
-    free_device: tuple[str, ...] = ()  # device defects to identify, names from DEVICE_PARAMETER_NAMES
-    device_prior: DevicePrior = DevicePrior()  # prior value +- std per device defect (identified, MAP rows)
+    free_device: tuple[
+        str, ...
+    ] = ()  # device defects to identify, names from DEVICE_PARAMETER_NAMES
+    device_prior: DevicePrior = (
+        DevicePrior()
+    )  # prior value +- std per device defect (identified, MAP rows)
     noise: NoiseModel | None = None  # known reading noise: whiten the residuals by it
     robust_loss: str | None = None  # None, 'huber' or 'soft_l1'
-    outlier_threshold: float | None = 6.0  # a posture whose RMS residual exceeds this x the median is excluded
-    outlier_floor: float = 1e-7  # ... and exceeds this (m or rad, unweighted): below, it is rounding, not a glitch
+    outlier_threshold: float | None = (
+        6.0  # a posture whose RMS residual exceeds this x the median is excluded
+    )
+    outlier_floor: float = (
+        1e-7  # ... and exceeds this (m or rad, unweighted): below, it is rounding, not a glitch
+    )
     max_iterations: int = 100
     step_tolerance: float = 1e-12  # converged when max |du| (m or unit-vector component) is below
-    relative_cost_tolerance: float = 1e-9  # ... or an accepted step lowers the cost by less than this
+    relative_cost_tolerance: float = (
+        1e-9  # ... or an accepted step lowers the cost by less than this
+    )
     rank_tolerance: float = DEFAULT_RANK_TOLERANCE
-    allow_rank_deficient: bool = False  # hold the unidentifiable unknowns fixed instead of refusing
+    allow_rank_deficient: bool = (
+        False  # hold the unidentifiable unknowns fixed instead of refusing
+    )
     fk_tolerance: float = 1e-12
     # Branch check (section 3.3): a nominal model with Table 2's set-3 errors already moves FK
     # solutions ~70 mm from the measured position, another FK branch moves them much further.
@@ -88,28 +111,39 @@ class SolverOptions:
 
     def free_mask(self, n_parameters: int = N_PARAMETERS) -> np.ndarray:
         """Mask over the unknowns: n_parameters kinematic (54 for a Hexa Slide) + 5 device."""
-        kinematic = (np.ones(n_parameters, bool) if self.free_parameters is None
-                     else np.asarray(self.free_parameters, bool))
+        kinematic = (
+            np.ones(n_parameters, bool)
+            if self.free_parameters is None
+            else np.asarray(self.free_parameters, bool)
+        )
         if kinematic.shape != (n_parameters,):
-            raise ValueError(f"free_parameters must be a mask of {n_parameters} booleans")
+            raise ValueError(f'free_parameters must be a mask of {n_parameters} booleans')
         unknown = sorted(set(self.free_device) - set(DEVICE_PARAMETER_NAMES))
         if unknown:
-            raise ValueError(f"unknown device parameter(s) {unknown}; choose from {', '.join(DEVICE_PARAMETER_NAMES)}")
+            raise ValueError(
+                f'unknown device parameter(s) {unknown}; choose from {", ".join(DEVICE_PARAMETER_NAMES)}'
+            )
         identified = set(self.free_device) | set(self.device_prior.names)
         device = np.array([name in identified for name in DEVICE_PARAMETER_NAMES])
         return np.concatenate([kinematic, device])
 
     def validate(self, n_parameters: int = N_PARAMETERS) -> None:
         if self.cost not in COSTS:
-            raise ValueError(f"unknown cost function {self.cost!r}; choose one of {', '.join(COSTS)}")
+            raise ValueError(
+                f'unknown cost function {self.cost!r}; choose one of {", ".join(COSTS)}'
+            )
         if self.robust_loss not in (None, *ROBUST_LOSSES):
-            raise ValueError(f"unknown robust loss {self.robust_loss!r}; choose one of {', '.join(ROBUST_LOSSES)}")
+            raise ValueError(
+                f'unknown robust loss {self.robust_loss!r}; choose one of {", ".join(ROBUST_LOSSES)}'
+            )
         if self.noise is not None and not self.noise.known:
-            raise ValueError("a noise model for weighting needs positive slider and angle noise")
+            raise ValueError('a noise model for weighting needs positive slider and angle noise')
         if self.device_prior and self.noise is None:
-            raise ValueError(f"a device prior ({self.device_prior.describe()}) is weighed against the data by the "
-                             "reading noise: give the noise model too (noise_slider_m and noise_angle_rad, "
-                             "--noise-um / --weighted)")
+            raise ValueError(
+                f'a device prior ({self.device_prior.describe()}) is weighed against the data by the '
+                'reading noise: give the noise model too (noise_slider_m and noise_angle_rad, '
+                '--noise-um / --weighted)'
+            )
         self.free_mask(n_parameters)
 
 
@@ -137,7 +171,9 @@ class IdentificationResult:
     device: DeviceDefects = field(default_factory=DeviceDefects)
     device_std: np.ndarray = field(default_factory=lambda: np.full(N_DEVICE_PARAMETERS, np.nan))
     free_device: tuple[str, ...] = ()
-    variance_factor: float = float("nan")  # residual variance / expected: ~1 when the noise model fits
+    variance_factor: float = float(
+        'nan'
+    )  # residual variance / expected: ~1 when the noise model fits
     weighted: bool = False
     robust_loss: str | None = None
     held_for_identifiability: list[str] = field(default_factory=list)  # held at their start values
@@ -145,7 +181,7 @@ class IdentificationResult:
     @property
     def correlation(self) -> np.ndarray:
         std = np.sqrt(np.diag(self.covariance))
-        with np.errstate(invalid="ignore", divide="ignore"):
+        with np.errstate(invalid='ignore', divide='ignore'):
             return self.covariance / np.outer(std, std)
 
     def to_json(self) -> dict:
@@ -154,29 +190,33 @@ class IdentificationResult:
 
         model = self.parameters.model
         payload = {
-            "model": model,
-            "parameters": parameters_to_chain_dict(self.parameters.vector, model),
-            "std": parameters_to_chain_dict(np.nan_to_num(self.std, nan=-1.0), model),
-            "rank": self.rank,
-            "condition_number": self.condition_number,
-            "solve_seconds": self.solve_seconds,
-            "iterations": self.iterations,
-            "reason": self.reason,
-            "cost": self.cost,
-            "postures_used": len(self.used_postures),
-            "postures_rejected": [{"index": i, "reason": r} for i, r in sorted(self.rejected_postures.items())],
-            "rms_residual": self.rms_residual,
-            "identifiability": self.identifiability.to_json(),
-            "device": {n: float(v) for n, v in zip(DEVICE_PARAMETER_NAMES, self.device.vector)},
-            "device_identified": list(self.free_device),
-            "device_std": {n: (None if not np.isfinite(s) else float(s))
-                           for n, s in zip(DEVICE_PARAMETER_NAMES, self.device_std)},
-            "weighted_by_noise_model": self.weighted,
-            "variance_factor": self.variance_factor,
-            "robust_loss": self.robust_loss,
-            "held_for_identifiability": self.held_for_identifiability,
+            'model': model,
+            'parameters': parameters_to_chain_dict(self.parameters.vector, model),
+            'std': parameters_to_chain_dict(np.nan_to_num(self.std, nan=-1.0), model),
+            'rank': self.rank,
+            'condition_number': self.condition_number,
+            'solve_seconds': self.solve_seconds,
+            'iterations': self.iterations,
+            'reason': self.reason,
+            'cost': self.cost,
+            'postures_used': len(self.used_postures),
+            'postures_rejected': [
+                {'index': i, 'reason': r} for i, r in sorted(self.rejected_postures.items())
+            ],
+            'rms_residual': self.rms_residual,
+            'identifiability': self.identifiability.to_json(),
+            'device': {n: float(v) for n, v in zip(DEVICE_PARAMETER_NAMES, self.device.vector)},
+            'device_identified': list(self.free_device),
+            'device_std': {
+                n: (None if not np.isfinite(s) else float(s))
+                for n, s in zip(DEVICE_PARAMETER_NAMES, self.device_std)
+            },
+            'weighted_by_noise_model': self.weighted,
+            'variance_factor': self.variance_factor,
+            'robust_loss': self.robust_loss,
+            'held_for_identifiability': self.held_for_identifiability,
         }
-        payload["std_note"] = "-1 marks a parameter that was held fixed or is not identifiable"
+        payload['std_note'] = '-1 marks a parameter that was held fixed or is not identifiable'
         return payload
 
 
@@ -189,23 +229,35 @@ def _split(vector: np.ndarray, arch: Architecture) -> tuple[KinematicParameters,
 class _Problem:
     """The postures in use, their cost function, and FK + residuals for an unknown vector."""
 
-    def __init__(self, measurements: Measurements, used: np.ndarray, options: SolverOptions, free: np.ndarray,
-                 arch: Architecture):
+    def __init__(
+        self,
+        measurements: Measurements,
+        used: np.ndarray,
+        options: SolverOptions,
+        free: np.ndarray,
+        arch: Architecture,
+    ):
         self.arch = arch
         self.n_parameters = arch.layout.n_parameters
         self.measurements = measurements
         self.used = np.asarray(used, dtype=int)
         self.options = options
         self.free = free
-        self.cost = CostFunction(options.cost, measurements.subset(self.used), options.device, options.sigma)
+        self.cost = CostFunction(
+            options.cost, measurements.subset(self.used), options.device, options.sigma
+        )
 
-    def without(self, local_indices) -> "_Problem":
+    def without(self, local_indices) -> '_Problem':
         keep = np.setdiff1d(np.arange(len(self.used)), list(local_indices))
         return _Problem(self.measurements, self.used[keep], self.options, self.free, self.arch)
 
-    def solve_fk(self, params: KinematicParameters, start: np.ndarray, fit_tilt_first: bool = False):
+    def solve_fk(
+        self, params: KinematicParameters, start: np.ndarray, fit_tilt_first: bool = False
+    ):
         return forward_kinematics(
-            params, self.cost.measurements.slider_positions, start,
+            params,
+            self.cost.measurements.slider_positions,
+            start,
             tolerance=self.options.fk_tolerance,
             branch_tolerance_m=self.options.branch_tolerance_m,
             branch_tolerance_rad=self.options.branch_tolerance_rad,
@@ -221,10 +273,15 @@ class _Problem:
     def jacobian(self, vector: np.ndarray, poses: np.ndarray) -> ResidualBlock:
         params, defects = _split(vector, self.arch)
         # The 5 device columns are only formed when a device defect is identified.
-        with_device = bool(self.free[self.n_parameters:].any())
-        block = self.cost.residuals(poses, pose_sensitivities(params, poses), defects, with_device=with_device,
-                                    with_noise=False)  # noise derivatives: only row_transform's block needs them
-        columns = self.free if with_device else self.free[:self.n_parameters]
+        with_device = bool(self.free[self.n_parameters :].any())
+        block = self.cost.residuals(
+            poses,
+            pose_sensitivities(params, poses),
+            defects,
+            with_device=with_device,
+            with_noise=False,
+        )  # noise derivatives: only row_transform's block needs them
+        columns = self.free if with_device else self.free[: self.n_parameters]
         if not columns.all():
             block.jacobian = block.jacobian[:, columns]
         return block
@@ -238,44 +295,63 @@ class _Problem:
         values = (vector[unknowns] - prior.values) / prior.stds
         jacobian = None
         if block.jacobian is not None:
-            column = np.cumsum(self.free) - 1  # the prior's parameters are free: their device columns exist
+            column = (
+                np.cumsum(self.free) - 1
+            )  # the prior's parameters are free: their device columns exist
             jacobian = np.zeros((len(values), block.jacobian.shape[1]))
             jacobian[np.arange(len(values)), column[unknowns]] = 1.0 / prior.stds
             jacobian = np.vstack([block.jacobian, jacobian])
-        channels = np.array([f"prior.{name}" for name in prior.names])
-        return ResidualBlock(np.concatenate([block.values, values]), jacobian,
-                             np.concatenate([block.channels, channels]),
-                             np.concatenate([block.postures, np.full(len(values), -1)]))
+        channels = np.array([f'prior.{name}' for name in prior.names])
+        return ResidualBlock(
+            np.concatenate([block.values, values]),
+            jacobian,
+            np.concatenate([block.channels, channels]),
+            np.concatenate([block.postures, np.full(len(values), -1)]),
+        )
 
-    def row_transform(self, vector: np.ndarray, poses: np.ndarray, robust: bool = True) -> "_RowTransform":
+    def row_transform(
+        self, vector: np.ndarray, poses: np.ndarray, robust: bool = True
+    ) -> '_RowTransform':
         """Row weights at this solution: whitening by the noise model and/or robust weights (none if neither)."""
         loss = self.options.robust_loss if robust else None
         if self.options.noise is None and loss is None:
             return _RowTransform()
         params, defects = _split(vector, self.arch)
-        raw = self.cost.residuals(poses, pose_sensitivities(params, poses), defects, with_device=True)
+        raw = self.cost.residuals(
+            poses, pose_sensitivities(params, poses), defects, with_device=True
+        )
         return _RowTransform(raw, self.options.noise, loss)
 
     def row_count(self, defects: DeviceDefects) -> int:
-        return len(self.cost.residuals(self.expected_poses(defects), None, defects).values) if len(self.used) else 0
+        return (
+            len(self.cost.residuals(self.expected_poses(defects), None, defects).values)
+            if len(self.used)
+            else 0
+        )
 
     def check_enough(self, set_aside: dict[int, str]) -> None:
         n_free = int(self.free.sum())
         rows = self.row_count(self.options.device_defects)
         if rows < n_free:
             raise TooFewPosturesError(
-                f"{len(self.used)} usable posture(s) give {rows} residuals for {n_free} unknowns "
-                f"with the {self.options.cost} cost function ({len(set_aside)} posture(s) set aside); "
-                "measure more postures"
+                f'{len(self.used)} usable posture(s) give {rows} residuals for {n_free} unknowns '
+                f'with the {self.options.cost} cost function ({len(set_aside)} posture(s) set aside); '
+                'measure more postures'
             )
 
 
 class _RowTransform:
     """Fixed row weighting for one LM run: whitening by the noise model, then robust weights."""
 
-    def __init__(self, block: ResidualBlock | None = None, noise: NoiseModel | None = None,
-                 robust_loss: str | None = None):
-        self.whitener = _Whitener(block, noise) if (noise is not None and block is not None) else None
+    def __init__(
+        self,
+        block: ResidualBlock | None = None,
+        noise: NoiseModel | None = None,
+        robust_loss: str | None = None,
+    ):
+        self.whitener = (
+            _Whitener(block, noise) if (noise is not None and block is not None) else None
+        )
         self.robust = None
         if robust_loss is not None and block is not None:
             values = self.whitener.apply_values(block.values) if self.whitener else block.values
@@ -305,43 +381,55 @@ class _Whitener:
         variances = noise.standard_deviations() ** 2
         if block.noise_jacobian is None:
             raise InvalidMeasurementError("noise weighting needs the rows' noise derivatives")
-        paired = block.partners >= 0 if block.partners is not None else np.zeros(len(block.values), bool)
+        paired = (
+            block.partners >= 0
+            if block.partners is not None
+            else np.zeros(len(block.values), bool)
+        )
         self.scales = np.ones(len(block.values))
         if np.any(paired):
-            own = np.einsum("rk,k,rk->r", block.noise_jacobian[paired], variances, block.noise_jacobian[paired])
-            partner = np.einsum("rk,k,rk->r", block.partner_noise_jacobian[paired], variances,
-                                block.partner_noise_jacobian[paired])
+            own = np.einsum(
+                'rk,k,rk->r', block.noise_jacobian[paired], variances, block.noise_jacobian[paired]
+            )
+            partner = np.einsum(
+                'rk,k,rk->r',
+                block.partner_noise_jacobian[paired],
+                variances,
+                block.partner_noise_jacobian[paired],
+            )
             self.scales[paired] = 1.0 / np.sqrt(own + partner)
-        self.groups: list[tuple[np.ndarray, np.ndarray]] = []  # (row indices (P, k), inverse factors (P, k, k))
+        self.groups: list[
+            tuple[np.ndarray, np.ndarray]
+        ] = []  # (row indices (P, k), inverse factors (P, k, k))
         single = np.flatnonzero(~paired)
         postures = block.postures[single]
-        order = np.argsort(postures, kind="stable")
+        order = np.argsort(postures, kind='stable')
         single, postures = single[order], postures[order]
         _, starts, counts = np.unique(postures, return_index=True, return_counts=True)
         for size in np.unique(counts):
-            rows = np.stack([single[s:s + size] for s, c in zip(starts, counts) if c == size])
+            rows = np.stack([single[s : s + size] for s, c in zip(starts, counts) if c == size])
             g = block.noise_jacobian[rows]  # (P, k, 9)
-            covariance = np.einsum("pik,k,pjk->pij", g, variances, g)
+            covariance = np.einsum('pik,k,pjk->pij', g, variances, g)
             covariance += np.eye(size) * 1e-30  # rows with no noise at all would be singular
             self.groups.append((rows, np.linalg.inv(np.linalg.cholesky(covariance))))
 
     def apply_values(self, values: np.ndarray) -> np.ndarray:
         out = values * self.scales
         for rows, factor in self.groups:
-            out[rows] = np.einsum("pij,pj->pi", factor, values[rows])
+            out[rows] = np.einsum('pij,pj->pi', factor, values[rows])
         return out
 
     def apply_matrix(self, matrix: np.ndarray) -> np.ndarray:
         out = matrix * self.scales[:, None]
         for rows, factor in self.groups:
-            out[rows] = np.einsum("pij,pjc->pic", factor, matrix[rows])
+            out[rows] = np.einsum('pij,pjc->pic', factor, matrix[rows])
         return out
 
 
 def _robust_weights(values: np.ndarray, loss: str) -> np.ndarray:
     """sqrt of IRLS weights; the scale is a MAD estimate of the inlier residual spread."""
     scale = 1.4826 * np.median(np.abs(values)) + 1e-300
-    if loss == "huber":
+    if loss == 'huber':
         z = np.abs(values) / (1.345 * scale)
         weights = np.where(z <= 1.0, 1.0, 1.0 / np.maximum(z, 1e-300))
     else:
@@ -350,7 +438,9 @@ def _robust_weights(values: np.ndarray, loss: str) -> np.ndarray:
     return np.sqrt(weights)
 
 
-def _identify_once(nominal: KinematicParameters, measurements: Measurements, options: SolverOptions) -> IdentificationResult:
+def _identify_once(
+    nominal: KinematicParameters, measurements: Measurements, options: SolverOptions
+) -> IdentificationResult:
     """Identify the parameters (and chosen device defects) from measured postures, starting from ``nominal``.
 
     Postures whose forward kinematics fails (with the nominal parameters, or at
@@ -368,18 +458,24 @@ def _identify_once(nominal: KinematicParameters, measurements: Measurements, opt
     measurements.validate(options.limits)
     free = options.free_mask(n_parameters)
     start = np.concatenate([nominal.vector, options.device_defects.vector])
-    start[n_parameters + options.device_prior.indices] = options.device_prior.values  # start at the prior
+    start[n_parameters + options.device_prior.indices] = (
+        options.device_prior.values
+    )  # start at the prior
     cost = CostFunction(options.cost, measurements, options.device, options.sigma)
     missing = cost.missing_postures()
     if missing is not None:
         raise TooFewPosturesError(missing)
     usable = cost.usable()
-    unused = {int(i): f"not used by the {options.cost} cost function" for i in np.flatnonzero(~usable)}
+    unused = {
+        int(i): f'not used by the {options.cost} cost function' for i in np.flatnonzero(~usable)
+    }
     # Small dense problems run fastest on one BLAS thread; more threads only add contention.
-    with _blas_controller().limit(limits=1, user_api="blas"):
-        problem, poses, set_aside = _admit(start, _Problem(measurements, np.flatnonzero(usable), options, free,
-                                                                 nominal.architecture),
-                                           "with the nominal parameters")
+    with _blas_controller().limit(limits=1, user_api='blas'):
+        problem, poses, set_aside = _admit(
+            start,
+            _Problem(measurements, np.flatnonzero(usable), options, free, nominal.architecture),
+            'with the nominal parameters',
+        )
         problem.check_enough({**unused, **set_aside})
         solver = _run(problem, start, poses, options)
         initial_block, iterations = solver.initial_block, solver.iterations
@@ -401,7 +497,8 @@ def _identify_once(nominal: KinematicParameters, measurements: Measurements, opt
             # the residuals: iterate (IRLS) until the solution stops moving.
             moved = float(np.max(np.abs(vector - previous)))
             reweight = (round_number == 0 and options.noise is not None) or (
-                options.robust_loss is not None and moved > IRLS_TOLERANCE)
+                options.robust_loss is not None and moved > IRLS_TOLERANCE
+            )
             if not changed and not reweight:
                 break
             previous = vector
@@ -413,13 +510,18 @@ def _identify_once(nominal: KinematicParameters, measurements: Measurements, opt
         # Identifiable at the start but not at the solution: the apparent information came from the
         # nominal model's errors, not from the data. Refuse rather than return a number that means nothing.
         raise RankDeficientError(
-            "at the identified parameters the measurements do not determine every parameter: "
-            + result.identifiability.verdict(), result.identifiability,
+            'at the identified parameters the measurements do not determine every parameter: '
+            + result.identifiability.verdict(),
+            result.identifiability,
         )
     return result
 
 
-def identify(nominal: KinematicParameters, measurements: Measurements, options: SolverOptions = SolverOptions()) -> IdentificationResult:
+def identify(
+    nominal: KinematicParameters,
+    measurements: Measurements,
+    options: SolverOptions = SolverOptions(),
+) -> IdentificationResult:
     """Identify the parameters (and chosen device defects) from measured postures, starting from ``nominal``.
 
     See ``_identify_once`` for the procedure.  With ``allow_rank_deficient`` a
@@ -435,8 +537,11 @@ def identify(nominal: KinematicParameters, measurements: Measurements, options: 
     held = result.identifiability.unidentifiable_parameters
     n = nominal.layout.n_parameters
     free = options.free_mask(n) & ~np.isin(unknown_names(nominal.model), held)
-    reduced = replace(options, free_parameters=tuple(bool(f) for f in free[:n]),
-                      free_device=tuple(name for name, f in zip(DEVICE_PARAMETER_NAMES, free[n:]) if f))
+    reduced = replace(
+        options,
+        free_parameters=tuple(bool(f) for f in free[:n]),
+        free_device=tuple(name for name, f in zip(DEVICE_PARAMETER_NAMES, free[n:]) if f),
+    )
     again = _identify_once(nominal, measurements, reduced)
     again.identifiability, again.rank = result.identifiability, result.rank
     again.held_for_identifiability = held
@@ -444,29 +549,40 @@ def identify(nominal: KinematicParameters, measurements: Measurements, options: 
     return again
 
 
-def _run(problem: "_Problem", vector: np.ndarray, poses: np.ndarray, options: SolverOptions) -> "_LevenbergMarquardt":
+def _run(
+    problem: '_Problem', vector: np.ndarray, poses: np.ndarray, options: SolverOptions
+) -> '_LevenbergMarquardt':
     solver = _LevenbergMarquardt(problem, vector, poses, problem.row_transform(vector, poses))
     solver.run()
     return solver
 
 
-def _admit(vector: np.ndarray, problem: "_Problem", context: str):
+def _admit(vector: np.ndarray, problem: '_Problem', context: str):
     """FK from the expected postures; keep those that converge, set the others aside with the reason."""
     params, defects = _split(vector, problem.arch)
     fk = problem.solve_fk(params, problem.expected_poses(defects), fit_tilt_first=True)
     failed = sorted(fk.failures)
-    set_aside = {int(problem.used[i]): f"forward kinematics {context}: {fk.failures[i]}" for i in failed}
+    set_aside = {
+        int(problem.used[i]): f'forward kinematics {context}: {fk.failures[i]}' for i in failed
+    }
     return problem.without(failed), fk.poses[fk.converged], set_aside
 
 
-def _readmit(problem: "_Problem", vector: np.ndarray, poses: np.ndarray, set_aside: dict[int, str],
-             options: SolverOptions) -> tuple["_Problem", np.ndarray, bool]:
+def _readmit(
+    problem: '_Problem',
+    vector: np.ndarray,
+    poses: np.ndarray,
+    set_aside: dict[int, str],
+    options: SolverOptions,
+) -> tuple['_Problem', np.ndarray, bool]:
     """Retry set-aside FK failures with the identified parameters; keep those that now pass."""
-    retry_indices = np.array(sorted(i for i, why in set_aside.items() if why.startswith("forward kinematics")))
+    retry_indices = np.array(
+        sorted(i for i, why in set_aside.items() if why.startswith('forward kinematics'))
+    )
     if retry_indices.size == 0:
         return problem, poses, False
     retry = _Problem(problem.measurements, retry_indices, options, problem.free, problem.arch)
-    readmitted, readmitted_poses, still = _admit(vector, retry, "with the identified parameters")
+    readmitted, readmitted_poses, still = _admit(vector, retry, 'with the identified parameters')
     for index in retry_indices:
         set_aside.pop(int(index), None)
     set_aside.update(still)
@@ -475,10 +591,16 @@ def _readmit(problem: "_Problem", vector: np.ndarray, poses: np.ndarray, set_asi
     merged = np.concatenate([problem.used, readmitted.used])
     order = np.argsort(merged)
     merged_poses = np.concatenate([poses, readmitted_poses])[order]
-    return _Problem(problem.measurements, merged[order], options, problem.free, problem.arch), merged_poses, True
+    return (
+        _Problem(problem.measurements, merged[order], options, problem.free, problem.arch),
+        merged_poses,
+        True,
+    )
 
 
-def _outliers(problem: "_Problem", vector: np.ndarray, poses: np.ndarray, options: SolverOptions) -> dict[int, str]:
+def _outliers(
+    problem: '_Problem', vector: np.ndarray, poses: np.ndarray, options: SolverOptions
+) -> dict[int, str]:
     """Postures whose residual stands far above the others': a glitched reading or a wrong FK branch."""
     if options.outlier_threshold is None or len(poses) < 3:
         return {}
@@ -488,16 +610,20 @@ def _outliers(problem: "_Problem", vector: np.ndarray, poses: np.ndarray, option
     if whitened:
         values = problem.row_transform(vector, poses, robust=False).values(block)
     count = np.bincount(block.postures, minlength=len(poses))
-    rms = np.sqrt(np.bincount(block.postures, weights=values**2, minlength=len(poses)) / np.maximum(count, 1))
+    rms = np.sqrt(
+        np.bincount(block.postures, weights=values**2, minlength=len(poses)) / np.maximum(count, 1)
+    )
     typical = np.median(rms) + 1e-300
     if whitened:
-        typical = max(typical, 1.0)  # whitened rows are ~1 by construction; exact data must not make 1e-12 "big"
+        typical = max(
+            typical, 1.0
+        )  # whitened rows are ~1 by construction; exact data must not make 1e-12 "big"
     floor = 0.0 if whitened else options.outlier_floor
     flagged = np.flatnonzero((rms > options.outlier_threshold * typical) & (rms > floor))
     return {
         int(problem.used[i]): (
             f"outlier: residual {rms[i] / typical:.0f} x the median posture's "
-            "(glitched reading or wrong forward-kinematics branch)"
+            '(glitched reading or wrong forward-kinematics branch)'
         )
         for i in flagged
     }
@@ -506,7 +632,13 @@ def _outliers(problem: "_Problem", vector: np.ndarray, poses: np.ndarray, option
 class _LevenbergMarquardt:
     """Damped Gauss-Newton in column-scaled coordinates; the (weighted) cost never increases."""
 
-    def __init__(self, problem: _Problem, start: np.ndarray, poses: np.ndarray, transform: _RowTransform | None = None):
+    def __init__(
+        self,
+        problem: _Problem,
+        start: np.ndarray,
+        poses: np.ndarray,
+        transform: _RowTransform | None = None,
+    ):
         self.problem = problem
         self.options = problem.options
         self.free = problem.free
@@ -536,9 +668,16 @@ class _LevenbergMarquardt:
 
     def analyze(self) -> IdentifiabilityReport:
         # The normal equations already hold J^T J: its n x n square root spares analyze() a tall SVD.
-        return analyze(self.block.jacobian, self.free_names(), self.params, self.free, self.options.rank_tolerance,
-                       self.options.device.link_length, self.options.device.mount,
-                       gram_root=self.normal.square_root() * self.scales)
+        return analyze(
+            self.block.jacobian,
+            self.free_names(),
+            self.params,
+            self.free,
+            self.options.rank_tolerance,
+            self.options.device.link_length,
+            self.options.device.mount,
+            gram_root=self.normal.square_root() * self.scales,
+        )
 
     def run(self) -> None:
         cost = float(self.block.values @ self.block.values)
@@ -554,13 +693,17 @@ class _LevenbergMarquardt:
             # The full Gauss-Newton step would lower the cost by |U_k^T r|^2: when that is negligible
             # (or the step itself is), the minimum is reached to working precision.
             predicted_decrease = normal.predicted_decrease()
-            if (np.max(np.abs(gauss_newton)) < self.options.step_tolerance
-                    or predicted_decrease <= self.options.relative_cost_tolerance * cost):
+            if (
+                np.max(np.abs(gauss_newton)) < self.options.step_tolerance
+                or predicted_decrease <= self.options.relative_cost_tolerance * cost
+            ):
                 self.reason = CONVERGED
                 return
             # FK stops at fk_tolerance, so the cost is only known to ~1e-9 of itself: below that, a step
             # that fails to lower it says nothing about the model.
-            at_floor = np.max(np.abs(gauss_newton)) < FLOOR_STEP_M or predicted_decrease < 1e-6 * cost
+            at_floor = (
+                np.max(np.abs(gauss_newton)) < FLOOR_STEP_M or predicted_decrease < 1e-6 * cost
+            )
             trial = None
             while damping < 1e12:
                 trial = self._try(self._step(normal, damping))
@@ -587,7 +730,7 @@ class _LevenbergMarquardt:
                 self.reason = CONVERGED
                 return
 
-    def _step(self, normal: "_NormalEquations", damping: float) -> np.ndarray:
+    def _step(self, normal: '_NormalEquations', damping: float) -> np.ndarray:
         """LM step over all unknowns for one damping value (zero along unidentifiable directions)."""
         step = np.zeros(len(self.free))
         step[self.free] = normal.scaled_step(damping) / self.scales
@@ -598,7 +741,9 @@ class _LevenbergMarquardt:
         vector = self.vector + step
         try:
             params, _ = _split(vector, self.problem.arch)
-        except ValueError:  # the step left the valid parameter set (|a_xy| >= 1, absurd device defects)
+        except (
+            ValueError
+        ):  # the step left the valid parameter set (|a_xy| >= 1, absurd device defects)
             return None
         fk = self.problem.solve_fk(params, self.poses)
         if fk.failures:
@@ -607,14 +752,18 @@ class _LevenbergMarquardt:
             few = len(fk.failures) <= max(1, len(self.poses) // 20)
             return dict(fk.failures) if few else None
         block = self.problem.residuals(vector, fk.poses)
-        values = self.problem.with_prior(ResidualBlock(self.transform.values(block), None, block.channels,
-                                                       block.postures), vector).values
+        values = self.problem.with_prior(
+            ResidualBlock(self.transform.values(block), None, block.channels, block.postures),
+            vector,
+        ).values
         return vector, fk.poses, float(values @ values)
 
     def _drop(self, failures: dict[int, str]) -> None:
         local = sorted(failures)
         for i in local:
-            self.dropped[int(self.problem.used[i])] = f"forward kinematics failed during identification: {failures[i]}"
+            self.dropped[int(self.problem.used[i])] = (
+                f'forward kinematics failed during identification: {failures[i]}'
+            )
         keep = np.setdiff1d(np.arange(len(self.poses)), local)
         self.problem = self.problem.without(local)
         self.problem.check_enough(self.dropped)
@@ -623,12 +772,15 @@ class _LevenbergMarquardt:
         self.transform = self.problem.row_transform(self.vector, self.poses)
         self._set_block(self.problem.jacobian(self.vector, self.poses))
 
-    def result(self, nominal: KinematicParameters, rejected: dict[int, str], started: float) -> IdentificationResult:
+    def result(
+        self, nominal: KinematicParameters, rejected: dict[int, str], started: float
+    ) -> IdentificationResult:
         used = self.problem.used
         report = self.analyze()
         weighted = self.transform.whitener is not None
-        covariance, variance_factor = _covariance(self.normal, len(self.block.values), self.scales, self.free,
-                                                  known_noise=weighted)
+        covariance, variance_factor = _covariance(
+            self.normal, len(self.block.values), self.scales, self.free, known_noise=weighted
+        )
         std_all = np.sqrt(np.diag(covariance))
         std_all[~self.free] = np.nan
         std_all[np.isinf(std_all)] = np.nan
@@ -683,14 +835,21 @@ class _NormalEquations:
     keep: np.ndarray  # identifiable directions: lam > tol^2 lam_max
 
     @classmethod
-    def of(cls, block: ResidualBlock, scales: np.ndarray, rank_tolerance: float) -> "_NormalEquations":
+    def of(
+        cls, block: ResidualBlock, scales: np.ndarray, rank_tolerance: float
+    ) -> '_NormalEquations':
         jacobian = block.jacobian
         gram = (jacobian.T @ jacobian) / np.outer(scales, scales)  # numpy uses BLAS syrk for J^T J
         eigenvalues, eigenvectors = np.linalg.eigh(gram)
         eigenvalues, eigenvectors = np.maximum(eigenvalues[::-1], 0.0), eigenvectors[:, ::-1]
         keep = eigenvalues > rank_tolerance**2 * eigenvalues[0]
-        return cls(eigenvalues, eigenvectors, (jacobian.T @ block.values) / scales,
-                   float(block.values @ block.values), keep)
+        return cls(
+            eigenvalues,
+            eigenvectors,
+            (jacobian.T @ block.values) / scales,
+            float(block.values @ block.values),
+            keep,
+        )
 
     @property
     def rank(self) -> int:
@@ -720,8 +879,13 @@ class _NormalEquations:
         return np.sqrt(self.eigenvalues)[:, None] * self.eigenvectors.T
 
 
-def _covariance(normal: _NormalEquations, rows: int, scales: np.ndarray, free: np.ndarray,
-                known_noise: bool = False) -> tuple[np.ndarray, float]:
+def _covariance(
+    normal: _NormalEquations,
+    rows: int,
+    scales: np.ndarray,
+    free: np.ndarray,
+    known_noise: bool = False,
+) -> tuple[np.ndarray, float]:
     """Parameter covariance over the identifiable subspace, and the variance factor s^2.
 
     s^2 = |r|^2 / (rows - rank).  With rows whitened by a known noise model the
@@ -741,7 +905,7 @@ def _covariance(normal: _NormalEquations, rows: int, scales: np.ndarray, free: n
 
 
 def _unweighted(block: ResidualBlock, sigma: ChannelSigma) -> np.ndarray:
-    angular = np.char.startswith(block.channels.astype(str), "phi")
+    angular = np.char.startswith(block.channels.astype(str), 'phi')
     return block.values * np.where(angular, sigma.angle_rad, sigma.position_m)
 
 
@@ -754,13 +918,13 @@ def _rms_by_channel(block: ResidualBlock, sigma: ChannelSigma) -> dict[str, floa
 
 
 __all__ = [
-    "CONVERGED",
-    "DIVERGED",
-    "ITERATION_LIMIT",
-    "N_NOISE_SOURCES",
-    "IdentificationResult",
-    "InvalidMeasurementError",
-    "SolverOptions",
-    "identify",
-    "unknown_names",
+    'CONVERGED',
+    'DIVERGED',
+    'ITERATION_LIMIT',
+    'N_NOISE_SOURCES',
+    'IdentificationResult',
+    'InvalidMeasurementError',
+    'SolverOptions',
+    'identify',
+    'unknown_names',
 ]

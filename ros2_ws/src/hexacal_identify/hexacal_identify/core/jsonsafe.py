@@ -1,4 +1,5 @@
 """JSON-safe builtins from results (numpy arrays and scalars, NaN) for files and reports."""
+
 from __future__ import annotations
 
 import math

@@ -11,6 +11,7 @@ kinematics (Newton with the branch check of section 3.3) and the
 identification Jacobian (implicit differentiation) are written once here.
 The parameters object says which architecture it belongs to.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -19,11 +20,13 @@ import numpy as np
 
 from .architectures import KinematicParameters
 from .architectures.common import cross_last as _cross  # noqa: F401
-from .architectures.common import euler_rate_axes, rotation_from_trig as _rotation_from_trig
+from .architectures.common import euler_rate_axes
+from .architectures.common import rotation_from_trig as _rotation_from_trig
+
 # The Hexa Slide's posture-major reference path, under the names it has always had here.
 from .architectures.hexa_slide import (  # noqa: F401
-    LegGeometry,
     leg_geometry,
+    LegGeometry,
     parameter_jacobian_blocks,
     pose_jacobian,
     rail_xy_slice,
@@ -31,14 +34,22 @@ from .architectures.hexa_slide import (  # noqa: F401
 from .architectures.hexa_slide import subset_geometry as _subset  # noqa: F401
 from .errors import ForwardKinematicsError, InvalidMeasurementError, UnreachablePoseError
 
-POSE_LABELS = ("x", "y", "z", "theta", "psi", "phi")
+POSE_LABELS = ('x', 'y', 'z', 'theta', 'psi', 'phi')
 MAX_HALVINGS = 10  # a Newton step is halved at most this often to reduce the slider error
 # A posture whose Newton step fails to reduce the error at every step length this often has no
 # solution near its start: stop there rather than spend every remaining iteration on it (Newton's
 # direction is a descent direction wherever the pose Jacobian is regular, so a solvable one never stalls).
 MAX_STALLS = 3
-__all__ = ["POSE_LABELS", "ForwardKinematicsResult", "PoseSensitivity", "euler_rate_axes", "forward_kinematics",
-           "inverse_kinematics", "pose_sensitivities", "rotation_matrices"]
+__all__ = [
+    'POSE_LABELS',
+    'ForwardKinematicsResult',
+    'PoseSensitivity',
+    'euler_rate_axes',
+    'forward_kinematics',
+    'inverse_kinematics',
+    'pose_sensitivities',
+    'rotation_matrices',
+]
 
 
 def rotation_matrices(angles: np.ndarray) -> np.ndarray:
@@ -59,17 +70,19 @@ def inverse_kinematics(params: KinematicParameters, poses: np.ndarray) -> np.nda
     """
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
     if poses.shape[-1] != 6:
-        raise InvalidMeasurementError(f"poses must have 6 columns [x y z theta psi phi], got {poses.shape}")
+        raise InvalidMeasurementError(
+            f'poses must have 6 columns [x y z theta psi phi], got {poses.shape}'
+        )
     if not np.all(np.isfinite(poses)):
         bad = np.flatnonzero(~np.all(np.isfinite(poses), axis=1))
-        raise InvalidMeasurementError(f"non-finite pose(s) at index {bad.tolist()}", bad)
+        raise InvalidMeasurementError(f'non-finite pose(s) at index {bad.tolist()}', bad)
     legs = _legs(params, poses)
     unreachable = ~legs.reachable()
     if np.any(unreachable):
         bad = np.flatnonzero(unreachable)
         raise UnreachablePoseError(
-            f"{bad.size} pose(s) unreachable ({params.architecture.unreachable_reason}), "
-            f"indices {bad[:10].tolist()}{' ...' if bad.size > 10 else ''}",
+            f'{bad.size} pose(s) unreachable ({params.architecture.unreachable_reason}), '
+            f'indices {bad[:10].tolist()}{" ..." if bad.size > 10 else ""}',
             bad,
         )
     return legs.sliders
@@ -87,9 +100,10 @@ class ForwardKinematicsResult:
     def raise_if_failed(self) -> None:
         if self.failures:
             first = sorted(self.failures.items())[:5]
-            detail = "; ".join(f"#{i}: {why}" for i, why in first)
+            detail = '; '.join(f'#{i}: {why}' for i, why in first)
             raise ForwardKinematicsError(
-                f"forward kinematics failed for {len(self.failures)} posture(s): {detail}", sorted(self.failures)
+                f'forward kinematics failed for {len(self.failures)} posture(s): {detail}',
+                sorted(self.failures),
             )
 
 
@@ -126,7 +140,7 @@ def forward_kinematics(
     failures: dict[int, str] = {}
     finite = np.all(np.isfinite(targets), axis=1) & np.all(np.isfinite(start), axis=1)
     for i in np.flatnonzero(~finite):
-        failures[int(i)] = "non-finite slider positions or initial pose"
+        failures[int(i)] = 'non-finite slider positions or initial pose'
     active = np.flatnonzero(finite)
     target = targets[active]
     legs = arch.legs(chains, poses[active])
@@ -136,8 +150,10 @@ def forward_kinematics(
         done = error < tolerance
         stuck = stalls >= MAX_STALLS
         for i in active[stuck & ~done]:
-            failures[int(i)] = (f"no convergence: {MAX_STALLS} Newton steps did not reduce the slider error "
-                                "at any step length (no solution near the expected posture)")
+            failures[int(i)] = (
+                f'no convergence: {MAX_STALLS} Newton steps did not reduce the slider error '
+                'at any step length (no solution near the expected posture)'
+            )
         if done.any() or stuck.any():
             converged[active[done]] = True
             keep = ~done & ~stuck
@@ -150,19 +166,28 @@ def forward_kinematics(
         step, solvable = _solve_batched(legs.pose_jacobian(), legs.sliders - target)
         if not solvable.all():
             for i in active[~solvable]:
-                failures[int(i)] = "singular pose Jacobian (the platform is at a singularity)"
-            active, error, step, target = active[solvable], error[solvable], step[solvable], target[solvable]
+                failures[int(i)] = 'singular pose Jacobian (the platform is at a singularity)'
+            active, error, step, target = (
+                active[solvable],
+                error[solvable],
+                step[solvable],
+                target[solvable],
+            )
             stalls = stalls[solvable]
-        poses[active], legs, error, stalled = _damped_update(arch, chains, poses[active], step, target, error)
+        poses[active], legs, error, stalled = _damped_update(
+            arch, chains, poses[active], step, target, error
+        )
         stalls += stalled
     for i in active:
-        failures.setdefault(int(i), f"no convergence in {max_iterations} Newton iterations")
+        failures.setdefault(int(i), f'no convergence in {max_iterations} Newton iterations')
     _check_branch(poses, start, converged, failures, branch_tolerance_m, branch_tolerance_rad)
     poses[~converged] = np.nan
     return ForwardKinematicsResult(poses, converged, iterations, failures)
 
 
-def _fit_tilt(arch, chains, targets: np.ndarray, start: np.ndarray, iterations: int = 4) -> np.ndarray:
+def _fit_tilt(
+    arch, chains, targets: np.ndarray, start: np.ndarray, iterations: int = 4
+) -> np.ndarray:
     """Gauss-Newton on (theta, psi) alone: least squares over the 6 sliders, 2 unknowns."""
     poses = start.copy()
     finite = np.all(np.isfinite(targets), axis=1) & np.all(np.isfinite(start), axis=1)
@@ -178,7 +203,10 @@ def _fit_tilt(arch, chains, targets: np.ndarray, start: np.ndarray, iterations: 
         b = np.sum(jac[:, :, 0] * jac[:, :, 1], axis=1)
         c = np.sum(jac[:, :, 1] * jac[:, :, 1], axis=1)
         normal = np.stack([a, b, b, c], axis=1).reshape(-1, 2, 2)
-        rhs = np.stack([np.sum(jac[:, :, 0] * residual, axis=1), np.sum(jac[:, :, 1] * residual, axis=1)], axis=1)
+        rhs = np.stack(
+            [np.sum(jac[:, :, 0] * residual, axis=1), np.sum(jac[:, :, 1] * residual, axis=1)],
+            axis=1,
+        )
         try:
             step = np.linalg.solve(normal, rhs[..., None])[..., 0]
         except np.linalg.LinAlgError:
@@ -210,7 +238,9 @@ def _solve_batched(jac: np.ndarray, residual: np.ndarray) -> tuple[np.ndarray, n
     return step, solvable
 
 
-def _damped_update(arch, chains, poses: np.ndarray, step: np.ndarray, targets: np.ndarray, error: np.ndarray):
+def _damped_update(
+    arch, chains, poses: np.ndarray, step: np.ndarray, targets: np.ndarray, error: np.ndarray
+):
     """Take X - step, halving the step where it does not reduce the slider error.
 
     Also returns the mask of postures where even the smallest step did not reduce it (stalled)."""
@@ -241,8 +271,8 @@ def _check_branch(poses, start, converged, failures, tol_m, tol_rad) -> None:
     wrong = converged & ((jump > tol_m) | (phi_jump > tol_rad))
     for i in np.flatnonzero(wrong):
         failures[int(i)] = (
-            f"converged to another branch: {jump[i] * 1e3:.1f} mm / {np.degrees(phi_jump[i]):.1f} deg "
-            "from the expected posture"
+            f'converged to another branch: {jump[i] * 1e3:.1f} mm / {np.degrees(phi_jump[i]):.1f} deg '
+            'from the expected posture'
         )
     converged &= ~wrong
 
@@ -299,7 +329,6 @@ class PoseSensitivity:
         return out.reshape(len(out), self.n_parameters)
 
 
-
 def pose_sensitivities(params: KinematicParameters, poses: np.ndarray) -> PoseSensitivity:
     """dX/du and dX/d lambda at FK solutions, by implicit differentiation of IK(X, u) = lambda.
 
@@ -312,9 +341,13 @@ def pose_sensitivities(params: KinematicParameters, poses: np.ndarray) -> PoseSe
     chains = arch.chains(params)
     legs = arch.legs(chains, np.asarray(poses, dtype=float))
     unit = legs.unit_legs()
-    return PoseSensitivity(np.linalg.inv(legs.pose_jacobian(unit)), legs.parameter_blocks(chains, unit))
+    return PoseSensitivity(
+        np.linalg.inv(legs.pose_jacobian(unit)), legs.parameter_blocks(chains, unit)
+    )
 
 
 def pose_parameter_sensitivity(params: KinematicParameters, poses: np.ndarray):
     """dX/du (N, 6, n) at FK solutions (see ``pose_sensitivities``) and the legs (IK intermediates) there."""
-    return pose_sensitivities(params, poses).wrt_parameters, _legs(params, np.asarray(poses, dtype=float))
+    return pose_sensitivities(params, poses).wrt_parameters, _legs(
+        params, np.asarray(poses, dtype=float)
+    )

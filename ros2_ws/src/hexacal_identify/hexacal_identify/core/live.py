@@ -15,6 +15,7 @@ What the ``kinematics`` node and ``hexacal ik`` / ``hexacal fk`` share (ROS-free
   leg cannot reach it (``UnreachablePoseError``) or a reading would leave the
   stroke (``OutOfStrokeError``, naming the actuators).
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -32,10 +33,12 @@ MIN_CONTINUATION_STEP = 1.0 / 512  # of the way from the guess's readings to the
 class OutOfStrokeError(UnreachablePoseError):
     """A commanded pose needs an actuator reading outside the stroke limits."""
 
-    reason = "outside-stroke"
+    reason = 'outside-stroke'
 
 
-def home_pose(link_length: float = DEFAULT_LINK_LENGTH_M, mount: str = DEFAULT_MOUNT) -> np.ndarray:
+def home_pose(
+    link_length: float = DEFAULT_LINK_LENGTH_M, mount: str = DEFAULT_MOUNT
+) -> np.ndarray:
     """The workspace centre [x, y, z, theta, psi, phi]: the device's fixed point, platform level, phi 0."""
     return np.concatenate([fixed_point(link_length, mount), np.zeros(3)])
 
@@ -46,8 +49,9 @@ def default_stroke(params: KinematicParameters) -> tuple[float, float]:
     return float(low), float(high)
 
 
-def actuator_targets(params: KinematicParameters, pose: Sequence[float],
-                     stroke: tuple[float, float] | None = None) -> np.ndarray:
+def actuator_targets(
+    params: KinematicParameters, pose: Sequence[float], stroke: tuple[float, float] | None = None
+) -> np.ndarray:
     """The six actuator readings (m) that put the platform at ``pose``, inside ``stroke`` (None: the
     architecture's default).  UnreachablePoseError / OutOfStrokeError say why a pose is refused."""
     pose = np.asarray(pose, dtype=float).reshape(1, 6)
@@ -56,12 +60,16 @@ def actuator_targets(params: KinematicParameters, pose: Sequence[float],
     outside = np.flatnonzero((targets < low) | (targets > high))
     if outside.size:
         names = params.layout.actuator_names
-        detail = ", ".join(f"{names[i]} {targets[i]:.6f} m" for i in outside)
-        raise OutOfStrokeError(f"outside the stroke [{low:g}, {high:g}] m: {detail}", outside.tolist())
+        detail = ', '.join(f'{names[i]} {targets[i]:.6f} m' for i in outside)
+        raise OutOfStrokeError(
+            f'outside the stroke [{low:g}, {high:g}] m: {detail}', outside.tolist()
+        )
     return targets
 
 
-def solve_pose(params: KinematicParameters, actuators: Sequence[float], guess: Sequence[float]) -> np.ndarray:
+def solve_pose(
+    params: KinematicParameters, actuators: Sequence[float], guess: Sequence[float]
+) -> np.ndarray:
     """The pose (6,) of the readings ``actuators`` (6,), on the branch of ``guess`` (see the module doc).
 
     ForwardKinematicsError when neither Newton from the guess nor the continuation converges."""
@@ -70,13 +78,15 @@ def solve_pose(params: KinematicParameters, actuators: Sequence[float], guess: S
     result = forward_kinematics(params, target[None], start[None])
     if result.converged[0]:
         return result.poses[0]
-    direct = result.failures.get(0, "no convergence")
+    direct = result.failures.get(0, 'no convergence')
     if not np.all(np.isfinite(target)):
-        raise ForwardKinematicsError(f"non-finite actuator readings {target.tolist()}", [0])
+        raise ForwardKinematicsError(f'non-finite actuator readings {target.tolist()}', [0])
     try:
         start_readings = inverse_kinematics(params, start[None])[0]
     except UnreachablePoseError as error:
-        raise ForwardKinematicsError(f"{direct}; the guess itself is unreachable ({error})", [0]) from None
+        raise ForwardKinematicsError(
+            f'{direct}; the guess itself is unreachable ({error})', [0]
+        ) from None
     pose, done, step = start, 0.0, 1.0
     while done < 1.0:
         step = min(step, 1.0 - done)
@@ -89,5 +99,7 @@ def solve_pose(params: KinematicParameters, actuators: Sequence[float], guess: S
         if step < MIN_CONTINUATION_STEP:
             raise ForwardKinematicsError(
                 f"no pose on the guess's branch: Newton from the guess: {direct}; the continuation from the "
-                f"guess's readings stopped {100.0 * done:.1f}% of the way ({result.failures.get(0, '')})", [0])
+                f"guess's readings stopped {100.0 * done:.1f}% of the way ({result.failures.get(0, '')})",
+                [0],
+            )
     return pose

@@ -3,19 +3,20 @@
 The six actuator readings are ``slider_positions`` whatever the architecture
 (Hexa Slide: slider positions along the rails; Gough-Stewart: leg extensions).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .architectures import KinematicParameters
 from .device import DeviceDefects, DeviceModel, inclinometer_readings
 from .errors import InvalidMeasurementError
 from .kinematics import inverse_kinematics
-from .architectures import KinematicParameters
 
-SPHERE = "sphere"  # platform anywhere on the L-sphere (eqs. 7, 8, 12)
-FIXED = "fixed"  # inclinometer reads zero: position [0, 0, -L] (eqs. 10, 13)
+SPHERE = 'sphere'  # platform anywhere on the L-sphere (eqs. 7, 8, 12)
+FIXED = 'fixed'  # inclinometer reads zero: position [0, 0, -L] (eqs. 10, 13)
 POSTURE_KINDS = (SPHERE, FIXED)
 
 
@@ -52,7 +53,9 @@ class Measurements:
     def __post_init__(self) -> None:
         self.slider_positions = np.atleast_2d(np.asarray(self.slider_positions, dtype=float))
         n = len(self.slider_positions)
-        self.inclinometer = np.asarray(self.inclinometer, dtype=float).reshape(-1, 2) if n else np.zeros((0, 2))
+        self.inclinometer = (
+            np.asarray(self.inclinometer, dtype=float).reshape(-1, 2) if n else np.zeros((0, 2))
+        )
         self.rotary = np.asarray(self.rotary, dtype=float).reshape(-1)
         if self.kinds is None:
             self.kinds = np.full(n, SPHERE)
@@ -72,21 +75,27 @@ class Measurements:
     def __len__(self) -> int:
         return len(self.slider_positions)
 
-    def subset(self, indices: np.ndarray) -> "Measurements":
+    def subset(self, indices: np.ndarray) -> 'Measurements':
         indices = np.asarray(indices, dtype=int)
         lengths = None if self.link_lengths is None else self.link_lengths[indices]
         turns = None if self.device_turn is None else self.device_turn[indices]
         return Measurements(
-            self.slider_positions[indices], self.inclinometer[indices], self.rotary[indices], self.kinds[indices],
-            lengths, turns,
+            self.slider_positions[indices],
+            self.inclinometer[indices],
+            self.rotary[indices],
+            self.kinds[indices],
+            lengths,
+            turns,
         )
 
     @staticmethod
-    def concatenate(parts: list["Measurements"]) -> "Measurements":
+    def concatenate(parts: list['Measurements']) -> 'Measurements':
         lengths = None
         if any(p.link_lengths is not None for p in parts):
             if not all(p.link_lengths is not None for p in parts):
-                raise InvalidMeasurementError("cannot mix postures with and without measured link lengths")
+                raise InvalidMeasurementError(
+                    'cannot mix postures with and without measured link lengths'
+                )
             lengths = np.concatenate([p.link_lengths for p in parts])
         turns = None
         if any(p.device_turn is not None for p in parts):
@@ -96,61 +105,83 @@ class Measurements:
             np.concatenate([p.inclinometer for p in parts]),
             np.concatenate([p.rotary for p in parts]),
             np.concatenate([p.kinds for p in parts]),
-            lengths, turns,
+            lengths,
+            turns,
         )
 
     def validate(self, limits: MeasurementLimits = MeasurementLimits()) -> None:
         """Raise InvalidMeasurementError naming the first problem and the posture indices."""
         n = len(self)
         if self.slider_positions.shape != (n, 6):
-            raise InvalidMeasurementError(f"slider_positions must be (N, 6), got {self.slider_positions.shape}")
-        if self.inclinometer.shape != (n, 2) or self.rotary.shape != (n,) or self.kinds.shape != (n,):
             raise InvalidMeasurementError(
-                f"inconsistent lengths: {n} slider rows, {len(self.inclinometer)} inclinometer rows, "
-                f"{len(self.rotary)} rotary values, {len(self.kinds)} kinds"
+                f'slider_positions must be (N, 6), got {self.slider_positions.shape}'
+            )
+        if (
+            self.inclinometer.shape != (n, 2)
+            or self.rotary.shape != (n,)
+            or self.kinds.shape != (n,)
+        ):
+            raise InvalidMeasurementError(
+                f'inconsistent lengths: {n} slider rows, {len(self.inclinometer)} inclinometer rows, '
+                f'{len(self.rotary)} rotary values, {len(self.kinds)} kinds'
             )
         channels = {
-            "slider_positions": self.slider_positions,
-            "inclinometer": self.inclinometer,
-            "rotary": self.rotary[:, None],
+            'slider_positions': self.slider_positions,
+            'inclinometer': self.inclinometer,
+            'rotary': self.rotary[:, None],
         }
         if self.link_lengths is not None:
             if self.link_lengths.shape != (n,):
-                raise InvalidMeasurementError(f"link_lengths must have one value per posture, got {self.link_lengths.shape}")
-            channels["link_lengths"] = self.link_lengths[:, None]
+                raise InvalidMeasurementError(
+                    f'link_lengths must have one value per posture, got {self.link_lengths.shape}'
+                )
+            channels['link_lengths'] = self.link_lengths[:, None]
         if self.device_turn is not None:
             if self.device_turn.shape != (n,):
-                raise InvalidMeasurementError(f"device_turn must have one angle per posture, got {self.device_turn.shape}")
-            channels["device_turn"] = self.device_turn[:, None]
+                raise InvalidMeasurementError(
+                    f'device_turn must have one angle per posture, got {self.device_turn.shape}'
+                )
+            channels['device_turn'] = self.device_turn[:, None]
         for name, values in channels.items():
             bad = np.flatnonzero(~np.all(np.isfinite(values), axis=1))
             if bad.size:
-                raise InvalidMeasurementError(f"non-finite {name} (NaN or inf) at posture(s) {bad.tolist()}", bad)
+                raise InvalidMeasurementError(
+                    f'non-finite {name} (NaN or inf) at posture(s) {bad.tolist()}', bad
+                )
         self._check_range(
-            "inclinometer angle", np.abs(self.inclinometer).max(axis=1) if n else np.zeros(0),
-            limits.inclinometer_range_rad, "rad",
+            'inclinometer angle',
+            np.abs(self.inclinometer).max(axis=1) if n else np.zeros(0),
+            limits.inclinometer_range_rad,
+            'rad',
         )
-        self._check_range("rotary angle", np.abs(self.rotary), limits.rotary_range_rad, "rad")
-        low = np.flatnonzero(np.any(self.slider_positions < limits.slider_min_m, axis=1)
-                             | np.any(self.slider_positions > limits.slider_max_m, axis=1))
+        self._check_range('rotary angle', np.abs(self.rotary), limits.rotary_range_rad, 'rad')
+        low = np.flatnonzero(
+            np.any(self.slider_positions < limits.slider_min_m, axis=1)
+            | np.any(self.slider_positions > limits.slider_max_m, axis=1)
+        )
         if low.size:
             raise InvalidMeasurementError(
-                f"slider position outside [{limits.slider_min_m}, {limits.slider_max_m}] m at posture(s) {low.tolist()}",
+                f'slider position outside [{limits.slider_min_m}, {limits.slider_max_m}] m at posture(s) {low.tolist()}',
                 low,
             )
         if self.link_lengths is not None and np.any(self.link_lengths <= 0):
             bad = np.flatnonzero(self.link_lengths <= 0)
-            raise InvalidMeasurementError(f"measured link length must be positive at posture(s) {bad.tolist()}", bad)
+            raise InvalidMeasurementError(
+                f'measured link length must be positive at posture(s) {bad.tolist()}', bad
+            )
         unknown = sorted(set(self.kinds) - set(POSTURE_KINDS))
         if unknown:
-            raise InvalidMeasurementError(f"unknown posture kind(s) {unknown}; expected one of {POSTURE_KINDS}")
+            raise InvalidMeasurementError(
+                f'unknown posture kind(s) {unknown}; expected one of {POSTURE_KINDS}'
+            )
 
     @staticmethod
     def _check_range(name: str, magnitude: np.ndarray, limit: float, unit: str) -> None:
         bad = np.flatnonzero(magnitude > limit)
         if bad.size:
             raise InvalidMeasurementError(
-                f"{name} beyond its range of +-{limit:.4g} {unit} at posture(s) {bad.tolist()}", bad
+                f'{name} beyond its range of +-{limit:.4g} {unit} at posture(s) {bad.tolist()}',
+                bad,
             )
 
 
@@ -162,7 +193,7 @@ class NoiseModel:
     angle_rad: float = 0.0
 
     @classmethod
-    def from_microns(cls, microns: float) -> "NoiseModel":
+    def from_microns(cls, microns: float) -> 'NoiseModel':
         """'X um' noise as in Table 3: +-X um on sliders and +-X urad on every angle."""
         return cls(slider_m=microns * 1e-6, angle_rad=microns * 1e-6)
 
@@ -200,7 +231,11 @@ def simulate_measurements(
     rng = rng if rng is not None else np.random.default_rng(0)
     sliders = inverse_kinematics(params, poses)
     n = len(poses)
-    turns = None if device_turn is None else np.broadcast_to(np.asarray(device_turn, float), (n,)).copy()
+    turns = (
+        None
+        if device_turn is None
+        else np.broadcast_to(np.asarray(device_turn, float), (n,)).copy()
+    )
     alpha, beta = inclinometer_readings(poses[:, :3], defects, device.mount, turns)
     angles = np.column_stack([alpha, beta])
     rotary = poses[:, 5] + defects.phi0 - (0.0 if turns is None else turns)

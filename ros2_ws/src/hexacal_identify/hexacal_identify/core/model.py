@@ -5,23 +5,24 @@ The architectures own their parameters (``architectures/hexa_slide.py``,
 has always been imported by (``HexaParameters``, ``table1_parameters``,
 ``N_PARAMETERS`` = 54, ...) and the nominal-set generator every architecture shares.
 """
+
 from __future__ import annotations
 
 import numpy as np
 
-from .architectures import KinematicParameters, architecture
+from .architectures import architecture, KinematicParameters
 from .architectures.hexa_slide import (  # noqa: F401  (the Hexa Slide's long-standing names)
     A0_SLICE,
     AXY_SLICE,
     B_SLICE,
     FIELDS_PER_CHAIN,
+    HexaParameters,
     L_INDEX,
     N_CHAINS,
     N_PARAMETERS,
     PARAMETER_FIELDS,
-    TABLE2_ERROR_STATS_MM,
-    HexaParameters,
     table1_parameters,
+    TABLE2_ERROR_STATS_MM,
 )
 
 
@@ -35,8 +36,9 @@ def parameter_units(model: str | None = None) -> list[str]:
     return list(architecture(model).layout.parameter_units)
 
 
-def error_vector_with_stats(rng: np.random.Generator, max_mm: float, mean_mm: float, sigma_mm: float,
-                            n: int = N_PARAMETERS) -> np.ndarray:
+def error_vector_with_stats(
+    rng: np.random.Generator, max_mm: float, mean_mm: float, sigma_mm: float, n: int = N_PARAMETERS
+) -> np.ndarray:
     """n (default 54) signed errors (m) with the statistics of one row of Table 2.
 
     Table 2's sigma exceeds its mean in every row, so it is read as the RMS of the
@@ -58,15 +60,19 @@ def error_vector_with_stats(rng: np.random.Generator, max_mm: float, mean_mm: fl
         if magnitudes.min() >= 0.0 and magnitudes.max() <= max_mm:
             break
     else:  # pragma: no cover - the Table 2 rows always succeed quickly
-        raise RuntimeError("could not draw errors with the requested statistics")
+        raise RuntimeError('could not draw errors with the requested statistics')
     magnitudes = np.concatenate([[max_mm], magnitudes])
     rng.shuffle(magnitudes)
     signs = rng.choice([-1.0, 1.0], size=n)
     return signs * magnitudes * 1e-3
 
 
-def nominal_set(set_number: int, seed: int = 0, exact: KinematicParameters | None = None,
-                model: str | None = None) -> KinematicParameters:
+def nominal_set(
+    set_number: int,
+    seed: int = 0,
+    exact: KinematicParameters | None = None,
+    model: str | None = None,
+) -> KinematicParameters:
     """Nominal parameter set 1, 2 or 3: exact + seeded errors with the architecture's Table 2-like statistics.
 
     ``exact`` defaults to the default machine of ``model`` (default: the Table 1 Hexa Slide).
@@ -74,7 +80,7 @@ def nominal_set(set_number: int, seed: int = 0, exact: KinematicParameters | Non
     arch = exact.architecture if exact is not None else architecture(model)
     stats = arch.nominal_error_stats_mm
     if set_number not in stats:
-        raise ValueError(f"nominal set must be one of {sorted(stats)}, got {set_number}")
+        raise ValueError(f'nominal set must be one of {sorted(stats)}, got {set_number}')
     exact = exact if exact is not None else arch.default_parameters()
     rng = np.random.default_rng([seed, set_number])
     errors = error_vector_with_stats(rng, *stats[set_number], n=arch.layout.n_parameters)
@@ -84,4 +90,8 @@ def nominal_set(set_number: int, seed: int = 0, exact: KinematicParameters | Non
 def error_stats_mm(errors_m: np.ndarray) -> tuple[float, float, float]:
     """(max, mean, sigma) of parameter errors in mm, read as in Table 2."""
     magnitudes = np.abs(np.asarray(errors_m)) * 1e3
-    return float(magnitudes.max()), float(magnitudes.mean()), float(np.sqrt(np.mean(magnitudes**2)))
+    return (
+        float(magnitudes.max()),
+        float(magnitudes.mean()),
+        float(np.sqrt(np.mean(magnitudes**2))),
+    )

@@ -84,33 +84,46 @@ device parameters' uncertainty marginalised: W weighs the kinematic columns
 only.  The plan's postures carry their ``device_turn`` and are ordered by turn
 (one remount per turn), each turn's postures in a travel tour.
 """
+
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass, field
 import hashlib
 import json
-import time
-from dataclasses import asdict, dataclass, field
 from pathlib import Path
+import time
 from typing import Callable
 
+from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 import numpy as np
 import yaml
-from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 
 from .architectures import KinematicParameters
-from .device import (DEFAULT_MOUNT, DEVICE_PARAMETER_NAMES, STANDING, DeviceDefects, DeviceModel, DevicePrior,
-                     check_mount, fixed_point, inclinometer_angles, sphere_z)
+from .device import (
+    check_mount,
+    DEFAULT_MOUNT,
+    DEVICE_PARAMETER_NAMES,
+    DeviceDefects,
+    DeviceModel,
+    DevicePrior,
+    fixed_point,
+    inclinometer_angles,
+    sphere_z,
+    STANDING,
+)
 from .kinematics import pose_parameter_sensitivity, pose_sensitivities
-from .measurements import FIXED, POSTURE_KINDS, SPHERE, NoiseModel, simulate_measurements
+from .measurements import FIXED, NoiseModel, POSTURE_KINDS, simulate_measurements, SPHERE
 from .postures import Workspace
-from .residuals import COSTS, ChannelSigma, CostFunction
+from .residuals import ChannelSigma, CostFunction, COSTS
 
-INDICES = ("O1", "O2", "O3", "O4")
-PREDICTION = "I"  # I-optimal: least predicted mean squared position error over the workspace
+INDICES = ('O1', 'O2', 'O3', 'O4')
+PREDICTION = 'I'  # I-optimal: least predicted mean squared position error over the workspace
 CRITERIA = INDICES + (PREDICTION,)
-METHODS = ("greedy", "exchange")
+METHODS = ('greedy', 'exchange')
 RIDGE = 1e-8  # delta of log det(M + delta I), relative to the mean per-posture information
-RANK_TOLERANCE = 1e-9  # eigenvalue of M (= sigma^2) relative to the largest: below counts as missing
+RANK_TOLERANCE = (
+    1e-9  # eigenvalue of M (= sigma^2) relative to the largest: below counts as missing
+)
 Progress = Callable[[str], None]
 
 
@@ -119,7 +132,9 @@ def _quiet(_: str) -> None:
 
 
 # --------------------------------------------------------------------------- limits and candidates
-_PAPER_WORKSPACE = Workspace()  # the dataclass defaults: section 4's workspace (the Hexa Slide's default)
+_PAPER_WORKSPACE = (
+    Workspace()
+)  # the dataclass defaults: section 4's workspace (the Hexa Slide's default)
 
 
 @dataclass(frozen=True)
@@ -136,29 +151,39 @@ class PostureLimits:
     xy_range_m: float = float(_PAPER_WORKSPACE.xy_range_m)
     rotation_range_rad: float = float(_PAPER_WORKSPACE.rotation_range_rad)
     inclinometer_range_rad: float = float(np.radians(45.0))
-    actuator_stroke_m: tuple[float, float] = tuple(_PAPER_WORKSPACE.slider_stroke_m)  # Workspace's name for it
+    actuator_stroke_m: tuple[float, float] = tuple(
+        _PAPER_WORKSPACE.slider_stroke_m
+    )  # Workspace's name for it
     max_u_joint_angle_rad: float = float(np.radians(60.0))  # base-side passive joint
     max_s_joint_angle_rad: float = float(np.radians(90.0))  # platform-side spherical joint
     max_condition: float = float(_PAPER_WORKSPACE.max_condition)
-    min_leg_cosine: float = float(_PAPER_WORKSPACE.min_leg_rail_cosine)  # away from singular legs (architecture's)
-    mount: str = _PAPER_WORKSPACE.mount  # the device's (device.py): hanging = postures below O, standing = above
+    min_leg_cosine: float = float(
+        _PAPER_WORKSPACE.min_leg_rail_cosine
+    )  # away from singular legs (architecture's)
+    mount: str = (
+        _PAPER_WORKSPACE.mount
+    )  # the device's (device.py): hanging = postures below O, standing = above
 
     def __post_init__(self) -> None:
         check_mount(self.mount)
 
     @classmethod
-    def from_workspace(cls, workspace: Workspace, **overrides) -> "PostureLimits":
+    def from_workspace(cls, workspace: Workspace, **overrides) -> 'PostureLimits':
         """A workspace's limits, the device and joint limits at their defaults; ``overrides`` replace fields."""
-        values = dict(link_length=float(workspace.link_length), xy_range_m=float(workspace.xy_range_m),
-                      rotation_range_rad=float(workspace.rotation_range_rad),
-                      actuator_stroke_m=tuple(float(v) for v in workspace.slider_stroke_m),
-                      max_condition=float(workspace.max_condition),
-                      min_leg_cosine=float(workspace.min_leg_rail_cosine), mount=workspace.mount)
+        values = dict(
+            link_length=float(workspace.link_length),
+            xy_range_m=float(workspace.xy_range_m),
+            rotation_range_rad=float(workspace.rotation_range_rad),
+            actuator_stroke_m=tuple(float(v) for v in workspace.slider_stroke_m),
+            max_condition=float(workspace.max_condition),
+            min_leg_cosine=float(workspace.min_leg_rail_cosine),
+            mount=workspace.mount,
+        )
         values.update(overrides)
         return cls(**values)
 
     @classmethod
-    def for_machine(cls, params: KinematicParameters, **overrides) -> "PostureLimits":
+    def for_machine(cls, params: KinematicParameters, **overrides) -> 'PostureLimits':
         """The default limits for planning on ``params``: its architecture's default workspace."""
         return cls.from_workspace(params.architecture.default_workspace(), **overrides)
 
@@ -166,12 +191,19 @@ class PostureLimits:
         return DeviceModel(self.link_length, self.mount)
 
     def workspace(self) -> Workspace:
-        return Workspace(self.link_length, self.xy_range_m, self.rotation_range_rad, tuple(self.actuator_stroke_m),
-                         self.max_condition, self.min_leg_cosine, self.mount)
+        return Workspace(
+            self.link_length,
+            self.xy_range_m,
+            self.rotation_range_rad,
+            tuple(self.actuator_stroke_m),
+            self.max_condition,
+            self.min_leg_cosine,
+            self.mount,
+        )
 
     def to_json(self) -> dict:
         payload = asdict(self)
-        payload["actuator_stroke_m"] = list(self.actuator_stroke_m)
+        payload['actuator_stroke_m'] = list(self.actuator_stroke_m)
         return payload
 
     def check(self, params: KinematicParameters, poses: np.ndarray) -> dict[str, np.ndarray]:
@@ -180,19 +212,24 @@ class PostureLimits:
         arch = params.architecture
         reachable = arch.legs(arch.chains(params), poses).reachable()
         alpha, beta = inclinometer_angles(poses[:, :3], self.mount)
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid='ignore'):
             u_cos, s_cos = arch.joint_cosines(params, poses)
         tolerance = 1e-9  # the sphere radius is recomputed from x, y; allow its rounding
         on_sphere = np.abs(np.linalg.norm(poses[:, :3], axis=1) - self.link_length) < tolerance
         return {
-            "on_link_sphere": on_sphere,
-            "xy_range": np.all(np.abs(poses[:, :2]) <= self.xy_range_m + tolerance, axis=1),
-            "rotation_range": np.all(np.abs(poses[:, 3:6]) <= self.rotation_range_rad + tolerance, axis=1),
-            "inclinometer_range": np.maximum(np.abs(alpha), np.abs(beta)) <= self.inclinometer_range_rad,
+            'on_link_sphere': on_sphere,
+            'xy_range': np.all(np.abs(poses[:, :2]) <= self.xy_range_m + tolerance, axis=1),
+            'rotation_range': np.all(
+                np.abs(poses[:, 3:6]) <= self.rotation_range_rad + tolerance, axis=1
+            ),
+            'inclinometer_range': np.maximum(np.abs(alpha), np.abs(beta))
+            <= self.inclinometer_range_rad,
             # reachable, actuator stroke, singular legs and condition number, as the architecture defines them
-            "workspace": arch.acceptable_poses(params, poses, self.workspace()),
-            "u_joint_angle": reachable & np.all(u_cos >= np.cos(self.max_u_joint_angle_rad), axis=1),
-            "s_joint_angle": reachable & np.all(s_cos >= np.cos(self.max_s_joint_angle_rad), axis=1),
+            'workspace': arch.acceptable_poses(params, poses, self.workspace()),
+            'u_joint_angle': reachable
+            & np.all(u_cos >= np.cos(self.max_u_joint_angle_rad), axis=1),
+            's_joint_angle': reachable
+            & np.all(s_cos >= np.cos(self.max_s_joint_angle_rad), axis=1),
         }
 
     def feasible(self, params: KinematicParameters, poses: np.ndarray) -> np.ndarray:
@@ -210,12 +247,16 @@ def default_fixed_fraction(cost: str) -> float:
     Fixed-position postures cost more to take (the actuators are adjusted until the
     inclinometer reads zero, section 3.2), so costs that gain nothing from them get none.
     """
-    return {"fixed": 1.0, "sphere-fixed": 0.25, "relative": 0.25}.get(cost, 0.0)
+    return {'fixed': 1.0, 'sphere-fixed': 0.25, 'relative': 0.25}.get(cost, 0.0)
 
 
-def generate_candidates(params: KinematicParameters, n: int, rng: np.random.Generator,
-                        limits: PostureLimits | None = None, fixed_fraction: float = 0.0
-                        ) -> tuple[np.ndarray, np.ndarray]:
+def generate_candidates(
+    params: KinematicParameters,
+    n: int,
+    rng: np.random.Generator,
+    limits: PostureLimits | None = None,
+    fixed_fraction: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray]:
     """n feasible candidate postures (poses (n, 6), kinds (n,)): sphere ones first, then fixed.
 
     ``limits`` None = ``PostureLimits.for_machine(params)``.
@@ -236,9 +277,10 @@ def generate_candidates(params: KinematicParameters, n: int, rng: np.random.Gene
             drawn += len(draws)
         else:  # bad input (limits that exclude the machine's workspace), not a failure: a ValueError
             raise InfeasibleLimitsError(
-                f"could not find {count} feasible {kind} postures within the limits: {found} of {drawn} drawn "
-                f"were feasible for the {params.layout.title} with a {limits.mount} device (check the "
-                "workspace, stroke and joint limits against the nominal machine)")
+                f'could not find {count} feasible {kind} postures within the limits: {found} of {drawn} drawn '
+                f'were feasible for the {params.layout.title} with a {limits.mount} device (check the '
+                'workspace, stroke and joint limits against the nominal machine)'
+            )
         if count:
             parts.append(np.concatenate(accepted)[:count])
             kinds.append(np.full(count, kind))
@@ -249,8 +291,12 @@ def generate_candidates(params: KinematicParameters, n: int, rng: np.random.Gene
 
 def _draw(kind: str, rng: np.random.Generator, n: int, limits: PostureLimits) -> np.ndarray:
     angles = rng.uniform(-limits.rotation_range_rad, limits.rotation_range_rad, (n, 3))
-    if kind == FIXED:  # inclinometer at zero: the platform sits at [0, 0, -L] ([0, 0, +L] standing)
-        return np.column_stack([np.tile(fixed_point(limits.link_length, limits.mount), (n, 1)), angles])
+    if (
+        kind == FIXED
+    ):  # inclinometer at zero: the platform sits at [0, 0, -L] ([0, 0, +L] standing)
+        return np.column_stack(
+            [np.tile(fixed_point(limits.link_length, limits.mount), (n, 1)), angles]
+        )
     xy = rng.uniform(-limits.xy_range_m, limits.xy_range_m, (n, 2))
     return np.column_stack([xy, sphere_z(xy, limits.link_length, limits.mount), angles])
 
@@ -261,20 +307,23 @@ def observability_indices(singular_values: np.ndarray, n_postures: int) -> dict[
     sigma = np.sort(np.asarray(singular_values, dtype=float))[::-1]
     largest, smallest = float(sigma[0]), float(sigma[-1])
     if smallest <= 0.0:
-        return {"O1": 0.0, "O2": 0.0, "O3": 0.0, "O4": 0.0}
+        return {'O1': 0.0, 'O2': 0.0, 'O3': 0.0, 'O4': 0.0}
     return {
-        "O1": float(np.exp(np.mean(np.log(sigma))) / np.sqrt(n_postures)),
-        "O2": smallest / largest,
-        "O3": smallest,
-        "O4": smallest**2 / largest,
+        'O1': float(np.exp(np.mean(np.log(sigma))) / np.sqrt(n_postures)),
+        'O2': smallest / largest,
+        'O3': smallest,
+        'O4': smallest**2 / largest,
     }
 
 
-def observability_index(jacobian: np.ndarray, n_postures: int, index: str = "O1",
-                        scales: np.ndarray | None = None) -> float:
+def observability_index(
+    jacobian: np.ndarray, n_postures: int, index: str = 'O1', scales: np.ndarray | None = None
+) -> float:
     """One index of a Jacobian (rows x n parameters); ``scales`` None = unit-norm columns (as identifiability.analyze)."""
     if index not in INDICES:
-        raise ValueError(f"unknown observability index {index!r}; choose one of {', '.join(INDICES)}")
+        raise ValueError(
+            f'unknown observability index {index!r}; choose one of {", ".join(INDICES)}'
+        )
     if scales is None:
         norms = np.linalg.norm(jacobian, axis=0)
         scales = np.where(norms > 0, norms, 1.0)
@@ -288,12 +337,12 @@ def _index_from_eigenvalues(eigenvalues: np.ndarray, n_postures: int, index: str
     sigma = np.sqrt(np.maximum(eigenvalues, 0.0))
     smallest, largest = sigma[..., 0], sigma[..., -1]
     deficient = eigenvalues[..., 0] <= RANK_TOLERANCE * eigenvalues[..., -1]
-    if index == "O1":
-        with np.errstate(divide="ignore"):
+    if index == 'O1':
+        with np.errstate(divide='ignore'):
             value = np.exp(np.mean(np.log(sigma), axis=-1)) / np.sqrt(n_postures)
-    elif index == "O2":
+    elif index == 'O2':
         value = smallest / largest
-    elif index == "O3":
+    elif index == 'O3':
         value = smallest
     else:
         value = smallest**2 / largest
@@ -319,9 +368,13 @@ class CandidateSet:
     difference_rows: np.ndarray | None = None  # (N, r', n), relative cost only
     # mean of dP/du^T dP/du over the sphere candidates (column-scaled): what the position error weighs
     position_weight: np.ndarray | None = None
-    prior_information: np.ndarray | None = None  # (n, n) information of the device priors (column-scaled)
+    prior_information: np.ndarray | None = (
+        None  # (n, n) information of the device priors (column-scaled)
+    )
     turns: np.ndarray | None = None  # (N,) device turn of each candidate, rad (None: all normal)
-    device_columns: tuple[str, ...] = ()  # device parameters after the model's, in DEVICE_PARAMETER_NAMES order
+    device_columns: tuple[
+        str, ...
+    ] = ()  # device parameters after the model's, in DEVICE_PARAMETER_NAMES order
 
     def __len__(self) -> int:
         return len(self.poses)
@@ -334,7 +387,9 @@ class CandidateSet:
     def relative(self) -> bool:
         return self.difference_rows is not None
 
-    def slot_rows(self, candidates: np.ndarray, previous: np.ndarray, following: np.ndarray) -> np.ndarray:
+    def slot_rows(
+        self, candidates: np.ndarray, previous: np.ndarray, following: np.ndarray
+    ) -> np.ndarray:
         """Rows candidate c adds in a plan slot between ``previous`` and ``following`` (same kind; -1 = none)."""
         candidates = np.asarray(candidates, dtype=int)
         own = self.rows[candidates]
@@ -343,8 +398,12 @@ class CandidateSet:
         previous = np.broadcast_to(previous, candidates.shape)
         following = np.broadcast_to(following, candidates.shape)
         diff = self.difference_rows
-        before = np.where((previous >= 0)[:, None, None], diff[candidates] - diff[np.maximum(previous, 0)], 0.0)
-        after = np.where((following >= 0)[:, None, None], diff[np.maximum(following, 0)] - diff[candidates], 0.0)
+        before = np.where(
+            (previous >= 0)[:, None, None], diff[candidates] - diff[np.maximum(previous, 0)], 0.0
+        )
+        after = np.where(
+            (following >= 0)[:, None, None], diff[np.maximum(following, 0)] - diff[candidates], 0.0
+        )
         return np.concatenate([own, before, after], axis=1)
 
     def design_jacobian(self, design: np.ndarray) -> np.ndarray:
@@ -375,7 +434,10 @@ class CandidateSet:
     def indices(self, design: np.ndarray) -> dict[str, float]:
         """O1..O4 of a plan (on this set's column scales)."""
         eigenvalues = np.linalg.eigvalsh(self.information(design))
-        return {name: float(_index_from_eigenvalues(eigenvalues, len(design), name)) for name in INDICES}
+        return {
+            name: float(_index_from_eigenvalues(eigenvalues, len(design), name))
+            for name in INDICES
+        }
 
     def predicted_position_error(self, design: np.ndarray) -> float:
         """sqrt(trace(W M^-1)): predicted RMS position error over the workspace, linearised.
@@ -385,7 +447,7 @@ class CandidateSet:
         """
         information = self.information(design)
         if not _full_rank(information):
-            return float("inf")
+            return float('inf')
         return float(np.sqrt(np.trace(self.position_weight @ np.linalg.inv(information))))
 
 
@@ -393,14 +455,22 @@ def _neighbours(kinds: np.ndarray, design: np.ndarray, slot: int) -> tuple[int, 
     """Previous and next design entries of the same kind as design[slot] (-1 = none)."""
     kind = kinds[design[slot]]
     same_before = [c for c in design[:slot] if kinds[c] == kind]
-    same_after = [c for c in design[slot + 1:] if kinds[c] == kind]
+    same_after = [c for c in design[slot + 1 :] if kinds[c] == kind]
     return (int(same_before[-1]) if same_before else -1, int(same_after[0]) if same_after else -1)
 
 
-def build_candidate_set(nominal: KinematicParameters, poses: np.ndarray, kinds: np.ndarray, cost: str = "absolute",
-                        device: DeviceModel = DeviceModel(), sigma: ChannelSigma = ChannelSigma(),
-                        noise: NoiseModel | None = None, device_columns: tuple[str, ...] = (),
-                        device_prior: DevicePrior = DevicePrior(), turns: np.ndarray | None = None) -> CandidateSet:
+def build_candidate_set(
+    nominal: KinematicParameters,
+    poses: np.ndarray,
+    kinds: np.ndarray,
+    cost: str = 'absolute',
+    device: DeviceModel = DeviceModel(),
+    sigma: ChannelSigma = ChannelSigma(),
+    noise: NoiseModel | None = None,
+    device_columns: tuple[str, ...] = (),
+    device_prior: DevicePrior = DevicePrior(),
+    turns: np.ndarray | None = None,
+) -> CandidateSet:
     """Analytic identification-Jacobian rows of every candidate (pose_parameter_sensitivity + CostFunction).
 
     With ``noise``, each posture's rows are whitened by the covariance the reading
@@ -410,21 +480,22 @@ def build_candidate_set(nominal: KinematicParameters, poses: np.ndarray, kinds: 
     Not for the relative cost (its rows mix two postures' noise).
     """
     if cost not in COSTS:
-        raise ValueError(f"unknown cost function {cost!r}; choose one of {', '.join(COSTS)}")
-    if noise is not None and cost == "relative":
-        raise ValueError("noise weighting of the plan is not available for the relative cost")
+        raise ValueError(f'unknown cost function {cost!r}; choose one of {", ".join(COSTS)}')
+    if noise is not None and cost == 'relative':
+        raise ValueError('noise weighting of the plan is not available for the relative cost')
     if device_columns or device_prior or turns is not None:
-        return _device_candidate_set(nominal, poses, kinds, cost, device, sigma, noise, device_columns,
-                                     device_prior, turns)
+        return _device_candidate_set(
+            nominal, poses, kinds, cost, device, sigma, noise, device_columns, device_prior, turns
+        )
     # At the nominal parameters the commanded pose is where the model puts the platform,
     # so noise-free simulated readings there are the expected measurements.
     measurements = simulate_measurements(nominal, poses, kinds, device)
     sensitivity, legs = pose_parameter_sensitivity(nominal, poses)
-    own_cost = "sphere-fixed" if cost == "relative" else cost
+    own_cost = 'sphere-fixed' if cost == 'relative' else cost
     function = CostFunction(own_cost, measurements, device, sigma)
     block = function.residuals(poses, sensitivity)
-    phi = block.channels == "phi"
-    if cost == "relative":
+    phi = block.channels == 'phi'
+    if cost == 'relative':
         rows = _rows_per_posture(block.jacobian[phi], block.postures[phi], len(poses))
         difference = _rows_per_posture(block.jacobian[~phi], block.postures[~phi], len(poses))
         stacked = np.concatenate([rows, difference], axis=1)
@@ -435,26 +506,49 @@ def build_candidate_set(nominal: KinematicParameters, poses: np.ndarray, kinds: 
             rows = _whiten(rows, _noise_rows(function, poses, legs, block, sigma, device), noise)
         stacked = rows
     # RMS per-posture column norm over all candidates: one yardstick for every design.
-    norms = np.sqrt(np.einsum("nrk,nrk->k", stacked, stacked) / max(len(poses), 1))
+    norms = np.sqrt(np.einsum('nrk,nrk->k', stacked, stacked) / max(len(poses), 1))
     scales = np.where(norms > 0, norms, 1.0)
     # Validation postures are drawn like the sphere candidates: their mean dP/du^T dP/du weighs the error.
     sphere = np.asarray(kinds) == SPHERE
     position = sensitivity[sphere if np.any(sphere) else slice(None), :3, :]
-    weight = np.einsum("nik,nil->kl", position, position) / max(len(position), 1)
-    return CandidateSet(poses, np.asarray(kinds).astype(str), cost, scales, rows / scales,
-                        None if difference is None else difference / scales, weight / np.outer(scales, scales))
+    weight = np.einsum('nik,nil->kl', position, position) / max(len(position), 1)
+    return CandidateSet(
+        poses,
+        np.asarray(kinds).astype(str),
+        cost,
+        scales,
+        rows / scales,
+        None if difference is None else difference / scales,
+        weight / np.outer(scales, scales),
+    )
 
 
-def _device_candidate_set(nominal: KinematicParameters, poses: np.ndarray, kinds: np.ndarray, cost: str,
-                          device: DeviceModel, sigma: ChannelSigma, noise: NoiseModel | None,
-                          device_columns: tuple[str, ...], device_prior: DevicePrior,
-                          turns: np.ndarray | None) -> CandidateSet:
+def _device_candidate_set(
+    nominal: KinematicParameters,
+    poses: np.ndarray,
+    kinds: np.ndarray,
+    cost: str,
+    device: DeviceModel,
+    sigma: ChannelSigma,
+    noise: NoiseModel | None,
+    device_columns: tuple[str, ...],
+    device_prior: DevicePrior,
+    turns: np.ndarray | None,
+) -> CandidateSet:
     """Candidates with device columns, priors and device turns (module doc): rows of the absolute cost."""
-    if cost != "absolute":
-        raise ValueError(f"planning for device parameters or device turns needs the absolute cost (eq. 7), got {cost}")
+    if cost != 'absolute':
+        raise ValueError(
+            f'planning for device parameters or device turns needs the absolute cost (eq. 7), got {cost}'
+        )
     if device_prior and noise is None:
-        raise ValueError("a device prior is weighed against the reading noise: plan with the noise model")
-    columns = tuple(name for name in DEVICE_PARAMETER_NAMES if name in set(device_columns) | set(device_prior.names))
+        raise ValueError(
+            'a device prior is weighed against the reading noise: plan with the noise model'
+        )
+    columns = tuple(
+        name
+        for name in DEVICE_PARAMETER_NAMES
+        if name in set(device_columns) | set(device_prior.names)
+    )
     measurements = simulate_measurements(nominal, poses, kinds, device, device_turn=turns)
     sensitivity = pose_sensitivities(nominal, poses)
     function = CostFunction(cost, measurements, device, sigma)
@@ -463,61 +557,92 @@ def _device_candidate_set(nominal: KinematicParameters, poses: np.ndarray, kinds
     keep = np.concatenate([np.ones(n, bool), np.isin(DEVICE_PARAMETER_NAMES, columns)])
     rows = _rows_per_posture(block.jacobian[:, keep], block.postures, len(poses))
     if noise is not None:
-        rows = _whiten(rows, _rows_per_posture(block.noise_jacobian, block.postures, len(poses)), noise)
-    norms = np.sqrt(np.einsum("nrk,nrk->k", rows, rows) / max(len(poses), 1))
+        rows = _whiten(
+            rows, _rows_per_posture(block.noise_jacobian, block.postures, len(poses)), noise
+        )
+    norms = np.sqrt(np.einsum('nrk,nrk->k', rows, rows) / max(len(poses), 1))
     scales = np.where(norms > 0, norms, 1.0)
     sphere = np.asarray(kinds) == SPHERE
     position = sensitivity.wrt_parameters[sphere if np.any(sphere) else slice(None), :3, :]
     weight = np.zeros((len(scales), len(scales)))
-    weight[:n, :n] = np.einsum("nik,nil->kl", position, position) / max(len(position), 1)
+    weight[:n, :n] = np.einsum('nik,nil->kl', position, position) / max(len(position), 1)
     prior = np.zeros_like(weight)
     for name, _, std in device_prior.entries:
         column = n + columns.index(name)
         prior[column, column] = 1.0 / std**2
     scale_square = np.outer(scales, scales)
-    return CandidateSet(poses, np.asarray(kinds).astype(str), cost, scales, rows / scales, None,
-                        weight / scale_square, prior / scale_square if device_prior else None,
-                        None if turns is None else np.asarray(turns, dtype=float), columns)
+    return CandidateSet(
+        poses,
+        np.asarray(kinds).astype(str),
+        cost,
+        scales,
+        rows / scales,
+        None,
+        weight / scale_square,
+        prior / scale_square if device_prior else None,
+        None if turns is None else np.asarray(turns, dtype=float),
+        columns,
+    )
 
 
-def _noise_rows(function: CostFunction, poses: np.ndarray, legs, block, sigma: ChannelSigma,
-                device: DeviceModel) -> np.ndarray:
+def _noise_rows(
+    function: CostFunction,
+    poses: np.ndarray,
+    legs,
+    block,
+    sigma: ChannelSigma,
+    device: DeviceModel,
+) -> np.ndarray:
     """d residual / d readings (rows, 9): 6 actuators, alpha, beta, phi, in the order of ``block``'s rows."""
     actuator_sensitivity = np.linalg.inv(legs.pose_jacobian())  # dX / d lambda
     wrt_actuators = function.residuals(poses, actuator_sensitivity).jacobian
     wrt_readings = np.zeros((len(block.channels), 3))
-    is_phi = block.channels == "phi"
+    is_phi = block.channels == 'phi'
     wrt_readings[is_phi, 2] = 1.0 / sigma.angle_rad  # r = phi_m - phi_c
-    measured_xyz = np.isin(block.channels, ("x", "y", "z")) & (function.cost == "absolute")
+    measured_xyz = np.isin(block.channels, ('x', 'y', 'z')) & (function.cost == 'absolute')
     if np.any(measured_xyz):  # eq. 4: the measured position moves with alpha and beta
         alpha, beta = inclinometer_angles(poses[:, :3], device.mount)
         # eq. 4's derivatives; a standing link's end is p = -p_hanging(alpha, beta) (device.py)
         length = -device.link_length if device.mount == STANDING else device.link_length
-        d_alpha = np.column_stack([-length * np.sin(alpha) * np.sin(beta), -length * np.cos(alpha),
-                                   length * np.sin(alpha) * np.cos(beta)])
-        d_beta = np.column_stack([length * np.cos(alpha) * np.cos(beta), np.zeros_like(alpha),
-                                  length * np.cos(alpha) * np.sin(beta)])
-        axis = np.searchsorted(["x", "y", "z"], block.channels[measured_xyz])
+        d_alpha = np.column_stack(
+            [
+                -length * np.sin(alpha) * np.sin(beta),
+                -length * np.cos(alpha),
+                length * np.sin(alpha) * np.cos(beta),
+            ]
+        )
+        d_beta = np.column_stack(
+            [
+                length * np.cos(alpha) * np.cos(beta),
+                np.zeros_like(alpha),
+                length * np.cos(alpha) * np.sin(beta),
+            ]
+        )
+        axis = np.searchsorted(['x', 'y', 'z'], block.channels[measured_xyz])
         posture = block.postures[measured_xyz]
         wrt_readings[measured_xyz, 0] = d_alpha[posture, axis] / sigma.position_m
         wrt_readings[measured_xyz, 1] = d_beta[posture, axis] / sigma.position_m
-    return _rows_per_posture(np.column_stack([wrt_actuators, wrt_readings]), block.postures, len(poses))
+    return _rows_per_posture(
+        np.column_stack([wrt_actuators, wrt_readings]), block.postures, len(poses)
+    )
 
 
 def _whiten(rows: np.ndarray, noise_rows: np.ndarray, noise: NoiseModel) -> np.ndarray:
     """L^-1 rows per posture, with L L^T the residual covariance (padding rows keep unit variance)."""
     actuators = noise_rows.shape[2] - 3  # the readings: one per actuator, then alpha, beta, phi
-    std = np.array([noise.slider_m] * actuators + [noise.angle_rad] * 3) / np.sqrt(3.0)  # +-a uniform
+    std = np.array([noise.slider_m] * actuators + [noise.angle_rad] * 3) / np.sqrt(
+        3.0
+    )  # +-a uniform
     weighted = noise_rows * std
     covariance = weighted @ weighted.transpose(0, 2, 1)
     padding = ~np.any(rows != 0.0, axis=2) & ~np.any(noise_rows != 0.0, axis=2)
-    covariance += np.einsum("nr,rs->nrs", padding.astype(float), np.eye(rows.shape[1]))
+    covariance += np.einsum('nr,rs->nrs', padding.astype(float), np.eye(rows.shape[1]))
     return np.linalg.solve(np.linalg.cholesky(covariance), rows)
 
 
 def _rows_per_posture(jacobian: np.ndarray, postures: np.ndarray, n: int) -> np.ndarray:
     """Scatter Jacobian rows into (n, max rows per posture, columns), zero-padded."""
-    order = np.argsort(postures, kind="stable")
+    order = np.argsort(postures, kind='stable')
     postures = postures[order]
     counts = np.bincount(postures, minlength=n)
     width = int(counts.max()) if len(counts) else 0
@@ -529,8 +654,15 @@ def _rows_per_posture(jacobian: np.ndarray, postures: np.ndarray, n: int) -> np.
 
 
 # --------------------------------------------------------------------------- scoring
-def _score(base: np.ndarray, added: np.ndarray, n_postures: int, index: str, ridge: float,
-           use_d_criterion: bool, weight: np.ndarray | None = None) -> np.ndarray:
+def _score(
+    base: np.ndarray,
+    added: np.ndarray,
+    n_postures: int,
+    index: str,
+    ridge: float,
+    use_d_criterion: bool,
+    weight: np.ndarray | None = None,
+) -> np.ndarray:
     """Criterion of base + A_c^T A_c for every candidate c (higher is better)."""
     if index == PREDICTION and not use_d_criterion:
         # -trace(W (B + A^T A)^-1) by Woodbury: trace(W B^-1) - trace(S^-1 A B^-1 W B^-1 A^T), S = I + A B^-1 A^T.
@@ -540,7 +672,7 @@ def _score(base: np.ndarray, added: np.ndarray, n_postures: int, index: str, rid
         weighted = projected @ weight @ projected.transpose(0, 2, 1)
         reduction = np.trace(np.linalg.solve(inner, weighted), axis1=1, axis2=2)
         return reduction - np.trace(weight @ inverse)
-    if use_d_criterion or index == "O1":
+    if use_d_criterion or index == 'O1':
         # log det(B + A^T A) = log det B + log det(I + A B^-1 A^T): r x r determinants per candidate.
         regularised = base + ridge * np.eye(len(base))
         inverse = np.linalg.inv(regularised)
@@ -555,8 +687,14 @@ def _full_rank(information: np.ndarray) -> bool:
     return bool(eigenvalues[0] > RANK_TOLERANCE * eigenvalues[-1])
 
 
-def greedy_design(candidates: CandidateSet, n_postures: int, index: str = "O1", progress: Progress = _quiet,
-                  kind_counts: dict[str, int] | None = None, screen: int = 300) -> tuple[np.ndarray, list[float]]:
+def greedy_design(
+    candidates: CandidateSet,
+    n_postures: int,
+    index: str = 'O1',
+    progress: Progress = _quiet,
+    kind_counts: dict[str, int] | None = None,
+    screen: int = 300,
+) -> tuple[np.ndarray, list[float]]:
     """Add, one at a time, the candidate that maximises the index; returns (design, D-criterion history).
 
     The history holds log det(M + delta I) after each pick: it never decreases.
@@ -569,7 +707,7 @@ def greedy_design(candidates: CandidateSet, n_postures: int, index: str = "O1", 
     _check_index(index)
     n = len(candidates)
     if n_postures > n:
-        raise ValueError(f"cannot choose {n_postures} postures from {n} candidates")
+        raise ValueError(f'cannot choose {n_postures} postures from {n} candidates')
     available = np.ones(n, bool)
     remaining = dict(kind_counts) if kind_counts is not None else None
     ridge = RIDGE * _mean_posture_information(candidates)
@@ -579,19 +717,21 @@ def greedy_design(candidates: CandidateSet, n_postures: int, index: str = "O1", 
     history = []
     if remaining is not None:
         if sum(remaining.values()) < n_postures:
-            raise ValueError(f"kind_counts {remaining} allow fewer than {n_postures} postures")
+            raise ValueError(f'kind_counts {remaining} allow fewer than {n_postures} postures')
         available &= np.isin(candidates.kinds, [k for k, count in remaining.items() if count > 0])
     for step in range(n_postures):
         pool = np.flatnonzero(available)
         if not len(pool):
-            raise ValueError(f"only {step} candidates fit the kind counts; {n_postures} requested")
+            raise ValueError(f'only {step} candidates fit the kind counts; {n_postures} requested')
         previous = np.array([last_of_kind[k] for k in candidates.kinds[pool]])
         added = candidates.slot_rows(pool, previous, np.full(len(pool), -1))
         d_phase = not _full_rank(information)
-        if not (d_phase or index in ("O1", PREDICTION)) and len(pool) > screen:
+        if not (d_phase or index in ('O1', PREDICTION)) and len(pool) > screen:
             keep = np.argsort(_score(information, added, step + 1, index, ridge, True))[-screen:]
             pool, added = pool[keep], added[keep]
-        scores = _score(information, added, step + 1, index, ridge, d_phase, candidates.position_weight)
+        scores = _score(
+            information, added, step + 1, index, ridge, d_phase, candidates.position_weight
+        )
         best = int(np.argmax(scores))
         choice = int(pool[best])
         design.append(choice)
@@ -603,13 +743,21 @@ def greedy_design(candidates: CandidateSet, n_postures: int, index: str = "O1", 
                 available &= candidates.kinds != kind
         last_of_kind[candidates.kinds[choice]] = choice
         information = information + added[best].T @ added[best]
-        history.append(float(np.linalg.slogdet(information + ridge * np.eye(candidates.n_parameters))[1]))
-        progress(f"greedy {index}: {step + 1}/{n_postures} postures")
+        history.append(
+            float(np.linalg.slogdet(information + ridge * np.eye(candidates.n_parameters))[1])
+        )
+        progress(f'greedy {index}: {step + 1}/{n_postures} postures')
     return np.array(design, dtype=int), history
 
 
-def exchange_design(candidates: CandidateSet, start: np.ndarray, index: str = "O1", max_passes: int = 10,
-                    progress: Progress = _quiet, screen: int = 300) -> tuple[np.ndarray, list[float]]:
+def exchange_design(
+    candidates: CandidateSet,
+    start: np.ndarray,
+    index: str = 'O1',
+    max_passes: int = 10,
+    progress: Progress = _quiet,
+    screen: int = 300,
+) -> tuple[np.ndarray, list[float]]:
     """Fedorov-style exchange from ``start``: swap a plan posture for the best candidate while the index improves.
 
     Returns (design, criterion after each accepted swap), strictly increasing.  For
@@ -622,25 +770,35 @@ def exchange_design(candidates: CandidateSet, start: np.ndarray, index: str = "O
     ridge = RIDGE * _mean_posture_information(candidates)
     information = candidates.information(design)
     use_d = not _full_rank(information)
-    current = _design_criterion(information, len(design), index, ridge, use_d, candidates.position_weight)
+    current = _design_criterion(
+        information, len(design), index, ridge, use_d, candidates.position_weight
+    )
     history = [current]
     for sweep in range(max_passes):
         swapped = False
         for slot in range(len(design)):
             previous, following = _neighbours(candidates.kinds, design, slot)
-            old = candidates.slot_rows(design[slot:slot + 1], np.array([previous]), np.array([following]))[0]
+            old = candidates.slot_rows(
+                design[slot : slot + 1], np.array([previous]), np.array([following])
+            )[0]
             base = information - old.T @ old
             pool = np.setdiff1d(np.arange(len(candidates)), design)
-            if candidates.relative:  # keep the kind sequence: the differences stay between the same slots
+            if (
+                candidates.relative
+            ):  # keep the kind sequence: the differences stay between the same slots
                 pool = pool[candidates.kinds[pool] == candidates.kinds[design[slot]]]
             if not len(pool):
                 continue
-            added = candidates.slot_rows(pool, np.full(len(pool), previous), np.full(len(pool), following))
-            if not (use_d or index in ("O1", PREDICTION)) and len(pool) > screen:
+            added = candidates.slot_rows(
+                pool, np.full(len(pool), previous), np.full(len(pool), following)
+            )
+            if not (use_d or index in ('O1', PREDICTION)) and len(pool) > screen:
                 d_gain = _score(base, added, len(design), index, ridge, True)
                 keep = np.argsort(d_gain)[-screen:]
                 pool, added = pool[keep], added[keep]
-            scores = _score(base, added, len(design), index, ridge, use_d, candidates.position_weight)
+            scores = _score(
+                base, added, len(design), index, ridge, use_d, candidates.position_weight
+            )
             best = int(np.argmax(scores))
             if scores[best] > current + 1e-12 * max(abs(current), 1.0):
                 design[slot] = pool[best]
@@ -648,41 +806,58 @@ def exchange_design(candidates: CandidateSet, start: np.ndarray, index: str = "O
                 current = float(scores[best])
                 history.append(current)
                 swapped = True
-        progress(f"exchange {index}: pass {sweep + 1}, {len(history) - 1} swaps")
+        progress(f'exchange {index}: pass {sweep + 1}, {len(history) - 1} swaps')
         if not swapped:
             break
     return design, history
 
 
-def _design_criterion(information: np.ndarray, n_postures: int, index: str, ridge: float, use_d: bool,
-                      weight: np.ndarray | None = None) -> float:
+def _design_criterion(
+    information: np.ndarray,
+    n_postures: int,
+    index: str,
+    ridge: float,
+    use_d: bool,
+    weight: np.ndarray | None = None,
+) -> float:
     if index == PREDICTION and not use_d:
-        return -float(np.trace(weight @ np.linalg.inv(information + ridge * np.eye(len(information)))))
-    if use_d or index == "O1":
+        return -float(
+            np.trace(weight @ np.linalg.inv(information + ridge * np.eye(len(information))))
+        )
+    if use_d or index == 'O1':
         return float(np.linalg.slogdet(information + ridge * np.eye(len(information)))[1])
     return float(_index_from_eigenvalues(np.linalg.eigvalsh(information), n_postures, index))
 
 
 def _mean_posture_information(candidates: CandidateSet) -> float:
     """Mean eigenvalue of one posture's information: the unit of the ridge."""
-    stacked = candidates.rows if not candidates.relative else np.concatenate(
-        [candidates.rows, candidates.difference_rows], axis=1)
-    return float(np.einsum("nrk,nrk->", stacked, stacked) / (len(candidates) * candidates.n_parameters))
+    stacked = (
+        candidates.rows
+        if not candidates.relative
+        else np.concatenate([candidates.rows, candidates.difference_rows], axis=1)
+    )
+    return float(
+        np.einsum('nrk,nrk->', stacked, stacked) / (len(candidates) * candidates.n_parameters)
+    )
 
 
 def _check_index(index: str) -> None:
     if index not in CRITERIA:
-        raise ValueError(f"unknown observability index {index!r}; choose one of {', '.join(CRITERIA)}")
+        raise ValueError(
+            f'unknown observability index {index!r}; choose one of {", ".join(CRITERIA)}'
+        )
 
 
 def _turn_order(turns: np.ndarray | None, design: np.ndarray, order: np.ndarray) -> np.ndarray:
     """``order`` (a travel order of ``design``) regrouped by device turn, stably: one remount per turn."""
     if turns is None:
         return order
-    return order[np.argsort(turns[design][order], kind="stable")]
+    return order[np.argsort(turns[design][order], kind='stable')]
 
 
-def travel_order(poses: np.ndarray, kinds: np.ndarray, link_length: float, keep_order_within_kind: bool) -> np.ndarray:
+def travel_order(
+    poses: np.ndarray, kinds: np.ndarray, link_length: float, keep_order_within_kind: bool
+) -> np.ndarray:
     """Plan order: sphere postures first, then fixed ones (section 3.2's procedure); within a kind a
     nearest-neighbour tour (angles weighted by L) to shorten the moves, unless the order must stay."""
     order = []
@@ -706,9 +881,15 @@ def travel_order(poses: np.ndarray, kinds: np.ndarray, link_length: float, keep_
 
 
 # --------------------------------------------------------------------------- the plan
-METADATA_PREFIX = "# hexacal-plan: "  # one comment line of JSON: strict plan loaders skip it, Plan.load reads it
-PLAN_MODEL_KEY = "model"  # in the plan mapping: the machine model (absent = the Hexa Slide, DEFAULT_MODEL)
-PLAN_MOUNT_KEY = "mount"  # in the plan mapping: the device mount (absent = hanging, device.DEFAULT_MOUNT)
+METADATA_PREFIX = (
+    '# hexacal-plan: '  # one comment line of JSON: strict plan loaders skip it, Plan.load reads it
+)
+PLAN_MODEL_KEY = (
+    'model'  # in the plan mapping: the machine model (absent = the Hexa Slide, DEFAULT_MODEL)
+)
+PLAN_MOUNT_KEY = (
+    'mount'  # in the plan mapping: the device mount (absent = hanging, device.DEFAULT_MOUNT)
+)
 
 
 @dataclass
@@ -750,31 +931,43 @@ class Plan:
     metadata: dict = field(default_factory=dict)
     model: str = DEFAULT_MODEL
     mount: str = DEFAULT_MOUNT
-    device_turns: np.ndarray | None = None  # (K,) rad per posture; None = every posture in the normal mounting
+    device_turns: np.ndarray | None = (
+        None  # (K,) rad per posture; None = every posture in the normal mounting
+    )
 
     def __post_init__(self) -> None:
         self.poses = np.atleast_2d(np.asarray(self.poses, dtype=float)).reshape(-1, 6)
         if self.device_turns is not None:
             self.device_turns = np.asarray(self.device_turns, dtype=float).reshape(-1)
-            if self.device_turns.shape != (len(self.poses),) or not np.all(np.isfinite(self.device_turns)):
-                raise ValueError(f"plan device_turn: one finite angle (rad) per posture, got {self.device_turns!r}")
+            if self.device_turns.shape != (len(self.poses),) or not np.all(
+                np.isfinite(self.device_turns)
+            ):
+                raise ValueError(
+                    f'plan device_turn: one finite angle (rad) per posture, got {self.device_turns!r}'
+                )
             if not np.any(self.device_turns):
                 self.device_turns = None
         self.kinds = np.asarray(self.kinds).astype(str).reshape(-1)
         if not isinstance(self.name, str) or not self.name.strip():
-            raise ValueError("plan name must be a non-empty string")
+            raise ValueError('plan name must be a non-empty string')
         if len(self.kinds) != len(self.poses) or not len(self.poses):
-            raise ValueError(f"plan needs postures and one kind each: {len(self.poses)} poses, {len(self.kinds)} kinds")
+            raise ValueError(
+                f'plan needs postures and one kind each: {len(self.poses)} poses, {len(self.kinds)} kinds'
+            )
         unknown = sorted(set(self.kinds) - set(POSTURE_KINDS))
         if unknown:
-            raise ValueError(f"unknown posture kind(s) {unknown}; expected one of {POSTURE_KINDS}")
+            raise ValueError(f'unknown posture kind(s) {unknown}; expected one of {POSTURE_KINDS}')
         if not np.all(np.isfinite(self.poses)):
-            raise ValueError("plan poses must be finite numbers")
+            raise ValueError('plan poses must be finite numbers')
         if not (np.isfinite(self.link_length) and self.link_length > 0):
-            raise ValueError(f"plan link_length must be a positive length in m, got {self.link_length}")
+            raise ValueError(
+                f'plan link_length must be a positive length in m, got {self.link_length}'
+            )
         if self.model not in MODELS:
-            raise ValueError(f"plan model {self.model!r} is not a machine model hexacal knows "
-                             f"({', '.join(sorted(MODELS))})")
+            raise ValueError(
+                f'plan model {self.model!r} is not a machine model hexacal knows '
+                f'({", ".join(sorted(MODELS))})'
+            )
         check_mount(self.mount)
 
     def __len__(self) -> int:
@@ -787,23 +980,31 @@ class Plan:
 
     def fingerprint(self) -> str:
         """First 8 hex digits of the sha256 of kinds, poses (to 1e-12) and device turns: names the postures."""
-        text = ";".join(f"{k}:" + ",".join(f"{v:.12e}" for v in pose) + (f"@{turn:.12e}" if turn else "")
-                        for k, pose, turn in zip(self.kinds, self.poses, self.turns))
+        text = ';'.join(
+            f'{k}:' + ','.join(f'{v:.12e}' for v in pose) + (f'@{turn:.12e}' if turn else '')
+            for k, pose, turn in zip(self.kinds, self.poses, self.turns)
+        )
         return hashlib.sha256(text.encode()).hexdigest()[:8]
 
     def to_text(self) -> str:
         metadata = dict(_plain(self.metadata), fingerprint=self.fingerprint())
-        lines = [METADATA_PREFIX + json.dumps(metadata, sort_keys=True),
-                 "plan:", f"  name: {json.dumps(self.name)}", f"  link_length: {float(self.link_length)!r}"]
+        lines = [
+            METADATA_PREFIX + json.dumps(metadata, sort_keys=True),
+            'plan:',
+            f'  name: {json.dumps(self.name)}',
+            f'  link_length: {float(self.link_length)!r}',
+        ]
         if self.model != DEFAULT_MODEL:  # as parameters files: no model = a Hexa Slide
-            lines.append(f"  {PLAN_MODEL_KEY}: {self.model}")
+            lines.append(f'  {PLAN_MODEL_KEY}: {self.model}')
         if self.mount != DEFAULT_MOUNT:  # no mount = hanging
-            lines.append(f"  {PLAN_MOUNT_KEY}: {self.mount}")
-        lines.append("postures:")
+            lines.append(f'  {PLAN_MOUNT_KEY}: {self.mount}')
+        lines.append('postures:')
         for kind, pose, turn in zip(self.kinds, self.poses, self.turns):
-            turned = f", device_turn: {float(turn)!r}" if turn else ""
-            lines.append(f"  - {{kind: {kind}, pose: [{', '.join(repr(float(v)) for v in pose)}]{turned}}}")
-        return "\n".join(lines) + "\n"
+            turned = f', device_turn: {float(turn)!r}' if turn else ''
+            lines.append(
+                f'  - {{kind: {kind}, pose: [{", ".join(repr(float(v)) for v in pose)}]{turned}}}'
+            )
+        return '\n'.join(lines) + '\n'
 
     def save(self, path: Path | str) -> Path:
         """Write atomically (temporary file in the same directory, fsync, rename)."""
@@ -812,47 +1013,63 @@ class Plan:
         return atomic_write(path, self.to_text())
 
     @classmethod
-    def load(cls, path: Path | str) -> "Plan":
+    def load(cls, path: Path | str) -> 'Plan':
         try:
-            text = Path(path).read_text(encoding="utf-8")
+            text = Path(path).read_text(encoding='utf-8')
             document = yaml.safe_load(text)
         except (yaml.YAMLError, UnicodeDecodeError, RecursionError) as error:
-            raise ValueError(f"{path}: not readable as a plan file: {str(error).splitlines()[0]}") from None
-        if not isinstance(document, dict) or not isinstance(document.get("plan"), dict):
+            raise ValueError(
+                f'{path}: not readable as a plan file: {str(error).splitlines()[0]}'
+            ) from None
+        if not isinstance(document, dict) or not isinstance(document.get('plan'), dict):
             raise ValueError(f"{path}: not a plan file (no 'plan' mapping)")
-        header = dict(document["plan"])
-        postures = document.get("postures")
+        header = dict(document['plan'])
+        postures = document.get('postures')
         if not isinstance(postures, list) or not postures:
             raise ValueError(f"{path}: 'postures' must be a non-empty list")
         try:
-            kinds = [str(p["kind"]) for p in postures]
-            poses = np.array([[float(v) for v in p["pose"]] for p in postures])
-            turns = np.array([float(p.get("device_turn", 0.0)) for p in postures])
+            kinds = [str(p['kind']) for p in postures]
+            poses = np.array([[float(v) for v in p['pose']] for p in postures])
+            turns = np.array([float(p.get('device_turn', 0.0)) for p in postures])
         except (KeyError, TypeError, ValueError) as error:
-            raise ValueError(f"{path}: every posture needs 'kind' and a 6-number 'pose' ({error})") from None
+            raise ValueError(
+                f"{path}: every posture needs 'kind' and a 6-number 'pose' ({error})"
+            ) from None
         if poses.ndim != 2 or poses.shape[1] != 6:
-            raise ValueError(f"{path}: every pose must have 6 numbers [x, y, z, theta, psi, phi]")
-        if "name" not in header or "link_length" not in header:
+            raise ValueError(f'{path}: every pose must have 6 numbers [x, y, z, theta, psi, phi]')
+        if 'name' not in header or 'link_length' not in header:
             raise ValueError(f"{path}: 'plan' needs 'name' and 'link_length' (m)")
         metadata = {}
         for line in text.splitlines():
             if line.startswith(METADATA_PREFIX):
                 try:
-                    metadata = dict(json.loads(line[len(METADATA_PREFIX):]))
+                    metadata = dict(json.loads(line[len(METADATA_PREFIX) :]))
                 except (ValueError, TypeError):
-                    raise ValueError(f"{path}: its '{METADATA_PREFIX.strip()}' comment is not a JSON object") from None
-                metadata.pop("fingerprint", None)
+                    raise ValueError(
+                        f"{path}: its '{METADATA_PREFIX.strip()}' comment is not a JSON object"
+                    ) from None
+                metadata.pop('fingerprint', None)
         model = header.get(PLAN_MODEL_KEY, DEFAULT_MODEL)
         if not isinstance(model, str) or model not in MODELS:
-            raise ValueError(f"{path}: plan.{PLAN_MODEL_KEY} {model!r} is not a machine model hexacal knows "
-                             f"({', '.join(sorted(MODELS))})")
+            raise ValueError(
+                f'{path}: plan.{PLAN_MODEL_KEY} {model!r} is not a machine model hexacal knows '
+                f'({", ".join(sorted(MODELS))})'
+            )
         mount = header.get(PLAN_MOUNT_KEY, DEFAULT_MOUNT)
         try:
             check_mount(mount)
         except ValueError as error:
-            raise ValueError(f"{path}: plan.{PLAN_MOUNT_KEY}: {error}") from None
-        return cls(str(header["name"]), float(header["link_length"]), poses, np.array(kinds), metadata, model, mount,
-                   turns)
+            raise ValueError(f'{path}: plan.{PLAN_MOUNT_KEY}: {error}') from None
+        return cls(
+            str(header['name']),
+            float(header['link_length']),
+            poses,
+            np.array(kinds),
+            metadata,
+            model,
+            mount,
+            turns,
+        )
 
 
 def _plain(value):
@@ -872,7 +1089,9 @@ class PlanningResult:
     candidates: CandidateSet
     design: np.ndarray  # candidate indices, in plan order
     selection_order: np.ndarray  # the same indices in the order greedy / exchange chose them
-    indices: dict[str, float]  # O1..O4 of the plan, and I: its predicted RMS position error (see CandidateSet)
+    indices: dict[
+        str, float
+    ]  # O1..O4 of the plan, and I: its predicted RMS position error (see CandidateSet)
     rank: int  # of its identification Jacobian: below the model's parameter count every index is 0
     greedy_history: list[float]
     exchange_history: list[float]
@@ -884,8 +1103,16 @@ class PlanningResult:
         rng = np.random.default_rng(seed)
         kinds = self.candidates.kinds
         counts = {k: int(np.sum(self.plan.kinds == k)) for k in POSTURE_KINDS}
-        designs = [np.concatenate([rng.choice(np.flatnonzero(kinds == k), c, replace=False)
-                                   for k, c in counts.items() if c]) for _ in range(draws)]
+        designs = [
+            np.concatenate(
+                [
+                    rng.choice(np.flatnonzero(kinds == k), c, replace=False)
+                    for k, c in counts.items()
+                    if c
+                ]
+            )
+            for _ in range(draws)
+        ]
         values = [self.candidates.indices(design) for design in designs]
         errors = [self.candidates.predicted_position_error(d) for d in designs]
         means = {name: float(np.mean([v[name] for v in values])) for name in INDICES}
@@ -893,13 +1120,25 @@ class PlanningResult:
         return means
 
 
-def plan_postures(nominal: KinematicParameters, n_postures: int, *, index: str = "O1", method: str = "greedy",
-                  n_candidates: int = 2000, cost: str = "absolute", limits: PostureLimits | None = None,
-                  fixed_fraction: float | None = None, seed: int = 0, sigma: ChannelSigma = ChannelSigma(),
-                  noise: NoiseModel | None = None, name: str | None = None,
-                  progress: Progress = _quiet, device_columns: tuple[str, ...] = (),
-                  device_prior: DevicePrior = DevicePrior(), device_turns: tuple[float, ...] = (0.0,)
-                  ) -> PlanningResult:
+def plan_postures(
+    nominal: KinematicParameters,
+    n_postures: int,
+    *,
+    index: str = 'O1',
+    method: str = 'greedy',
+    n_candidates: int = 2000,
+    cost: str = 'absolute',
+    limits: PostureLimits | None = None,
+    fixed_fraction: float | None = None,
+    seed: int = 0,
+    sigma: ChannelSigma = ChannelSigma(),
+    noise: NoiseModel | None = None,
+    name: str | None = None,
+    progress: Progress = _quiet,
+    device_columns: tuple[str, ...] = (),
+    device_prior: DevicePrior = DevicePrior(),
+    device_turns: tuple[float, ...] = (0.0,),
+) -> PlanningResult:
     """Candidates -> Jacobian rows at ``nominal`` -> greedy (and exchange) selection -> ordered Plan.
 
     ``nominal`` names its architecture; ``limits`` None = ``PostureLimits.for_machine(nominal)``.
@@ -910,11 +1149,13 @@ def plan_postures(nominal: KinematicParameters, n_postures: int, *, index: str =
     if limits is None:
         limits = PostureLimits.for_machine(nominal)
     if method not in METHODS:
-        raise ValueError(f"unknown planning method {method!r}; choose one of {', '.join(METHODS)}")
+        raise ValueError(f'unknown planning method {method!r}; choose one of {", ".join(METHODS)}')
     if n_postures < 1:
-        raise ValueError(f"--postures must be positive, got {n_postures}")
+        raise ValueError(f'--postures must be positive, got {n_postures}')
     if n_candidates < n_postures:
-        raise ValueError(f"need at least as many candidates ({n_candidates}) as postures ({n_postures})")
+        raise ValueError(
+            f'need at least as many candidates ({n_candidates}) as postures ({n_postures})'
+        )
     started = time.perf_counter()
     fraction = default_fixed_fraction(cost) if fixed_fraction is None else fixed_fraction
     device = limits.device()
@@ -923,60 +1164,128 @@ def plan_postures(nominal: KinematicParameters, n_postures: int, *, index: str =
     turns = None
     if len(device_turns) > 1 or any(device_turns):  # every sphere candidate in every mounting
         sphere = kinds == SPHERE
-        turns = np.concatenate([np.repeat(np.asarray(device_turns, float), int(sphere.sum())),
-                                np.zeros(int((~sphere).sum()))])
+        turns = np.concatenate(
+            [
+                np.repeat(np.asarray(device_turns, float), int(sphere.sum())),
+                np.zeros(int((~sphere).sum())),
+            ]
+        )
         poses = np.concatenate([np.tile(poses[sphere], (len(device_turns), 1)), poses[~sphere]])
         kinds = np.concatenate([np.tile(kinds[sphere], len(device_turns)), kinds[~sphere]])
-    progress(f"{len(poses)} candidates")
-    candidates = build_candidate_set(nominal, poses, kinds, cost, device, sigma, noise, tuple(device_columns),
-                                     device_prior, turns)
+    progress(f'{len(poses)} candidates')
+    candidates = build_candidate_set(
+        nominal,
+        poses,
+        kinds,
+        cost,
+        device,
+        sigma,
+        noise,
+        tuple(device_columns),
+        device_prior,
+        turns,
+    )
     candidate_seconds = time.perf_counter() - started
     started = time.perf_counter()
     kind_counts = None
-    if cost == "relative":  # the paper's 3 sphere : 1 fixed (60 + 20, 30 + 10), as study.posture_split
+    if (
+        cost == 'relative'
+    ):  # the paper's 3 sphere : 1 fixed (60 + 20, 30 + 10), as study.posture_split
         fixed = max(n_postures // 4, 1) if np.any(kinds == FIXED) else 0
         kind_counts = {SPHERE: n_postures - fixed, FIXED: fixed}
     design, greedy_history = greedy_design(candidates, n_postures, index, progress, kind_counts)
     exchange_history: list[float] = []
-    if method == "exchange":
+    if method == 'exchange':
         design, exchange_history = exchange_design(candidates, design, index, progress=progress)
     selection_seconds = time.perf_counter() - started
     selection_order = design.copy()
-    order = _turn_order(turns, design, travel_order(poses[design], kinds[design], limits.link_length,
-                                                    keep_order_within_kind=cost == "relative"))
+    order = _turn_order(
+        turns,
+        design,
+        travel_order(
+            poses[design],
+            kinds[design],
+            limits.link_length,
+            keep_order_within_kind=cost == 'relative',
+        ),
+    )
     design = design[order]
     indices = candidates.indices(design)
     indices[PREDICTION] = candidates.predicted_position_error(design)
     rank = candidates.rank(design)
     actuator = nominal.layout.actuator_prefix
-    weighting = "none" if noise is None else f"noise {actuator} {noise.slider_m:g} m, angles {noise.angle_rad:g} rad"
+    weighting = (
+        'none'
+        if noise is None
+        else f'noise {actuator} {noise.slider_m:g} m, angles {noise.angle_rad:g} rad'
+    )
     metadata = {
-        "planner": "hexacal plan",
-        "model": nominal.model,
-        "index": index,
-        "index_value": indices[index],
-        "rank": rank,
-        "method": method,
-        "cost": cost,
-        "weighting": weighting,
-        "candidates": int(len(poses)),
-        "seed": int(seed),
-        "nominal_fingerprint": hashlib.sha256(np.round(nominal.vector, 12).tobytes()).hexdigest()[:16],
-        "limits": limits.to_json(),
+        'planner': 'hexacal plan',
+        'model': nominal.model,
+        'index': index,
+        'index_value': indices[index],
+        'rank': rank,
+        'method': method,
+        'cost': cost,
+        'weighting': weighting,
+        'candidates': int(len(poses)),
+        'seed': int(seed),
+        'nominal_fingerprint': hashlib.sha256(np.round(nominal.vector, 12).tobytes()).hexdigest()[
+            :16
+        ],
+        'limits': limits.to_json(),
     }
     if turns is not None or candidates.device_columns:
-        metadata.update(device_columns=list(candidates.device_columns), device_turns=list(device_turns),
-                        device_prior={n: {"value": v, "std": sd} for n, v, sd in device_prior.entries})
-    plan = Plan(name or "plan", limits.link_length, poses[design], kinds[design], metadata, nominal.model,
-                limits.mount, None if turns is None else turns[design])
+        metadata.update(
+            device_columns=list(candidates.device_columns),
+            device_turns=list(device_turns),
+            device_prior={n: {'value': v, 'std': sd} for n, v, sd in device_prior.entries},
+        )
+    plan = Plan(
+        name or 'plan',
+        limits.link_length,
+        poses[design],
+        kinds[design],
+        metadata,
+        nominal.model,
+        limits.mount,
+        None if turns is None else turns[design],
+    )
     if name is None:  # default name: what it is and which postures
-        plan.name = f"{method}-{index}-{n_postures}-{plan.fingerprint()}"
-    return PlanningResult(plan, candidates, design, selection_order, indices, rank, greedy_history, exchange_history,
-                          candidate_seconds, selection_seconds)
+        plan.name = f'{method}-{index}-{n_postures}-{plan.fingerprint()}'
+    return PlanningResult(
+        plan,
+        candidates,
+        design,
+        selection_order,
+        indices,
+        rank,
+        greedy_history,
+        exchange_history,
+        candidate_seconds,
+        selection_seconds,
+    )
 
 
 __all__ = [
-    "CRITERIA", "INDICES", "InfeasibleLimitsError", "METHODS", "PLAN_MODEL_KEY", "PLAN_MOUNT_KEY", "PREDICTION", "CandidateSet", "Plan", "PlanningResult", "PostureLimits", "build_candidate_set",
-    "default_fixed_fraction", "exchange_design", "generate_candidates", "greedy_design", "observability_index",
-    "observability_indices", "plan_postures", "travel_order",
+    'CRITERIA',
+    'INDICES',
+    'InfeasibleLimitsError',
+    'METHODS',
+    'PLAN_MODEL_KEY',
+    'PLAN_MOUNT_KEY',
+    'PREDICTION',
+    'CandidateSet',
+    'Plan',
+    'PlanningResult',
+    'PostureLimits',
+    'build_candidate_set',
+    'default_fixed_fraction',
+    'exchange_design',
+    'generate_candidates',
+    'greedy_design',
+    'observability_index',
+    'observability_indices',
+    'plan_postures',
+    'travel_order',
 ]

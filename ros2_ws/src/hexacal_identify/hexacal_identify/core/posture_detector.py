@@ -9,17 +9,15 @@ the paired samples and emits one averaged posture per period.
 Channels are in `POSTURE_NAMES` order: six slider positions (m), alpha, beta,
 phi (rad). Stamps are integer ns.
 """
+
 from __future__ import annotations
 
-import math
 from bisect import bisect_left
 from collections import deque
 from dataclasses import dataclass
 from enum import Enum
+import math
 from typing import Any
-
-import numpy as np
-from numpy.typing import ArrayLike
 
 from hexacal_msgs_py.errors import InvalidReadingError
 from hexacal_msgs_py.names import N_CHAINS, POSTURE_NAMES
@@ -29,25 +27,27 @@ from hexacal_msgs_py.readings import (
     PostureReading,
     SliderReading,
 )
+import numpy as np
+from numpy.typing import ArrayLike
 
 N_CHANNELS = len(POSTURE_NAMES)
-SLIDERS_STREAM = "sliders"
-INCLINOMETER_STREAM = "inclinometer"
-ENCODER_STREAM = "encoder"
+SLIDERS_STREAM = 'sliders'
+INCLINOMETER_STREAM = 'inclinometer'
+ENCODER_STREAM = 'encoder'
 STREAMS = (SLIDERS_STREAM, INCLINOMETER_STREAM, ENCODER_STREAM)
 
 # Reasons a reading or a slider sample is not used.
-DUPLICATE_STAMP = "duplicate_stamp"
-OUT_OF_ORDER = "out_of_order"
-NON_FINITE = "non_finite"
-NO_INCLINOMETER_WITHIN_SKEW = "no_inclinometer_within_skew"
-NO_ENCODER_WITHIN_SKEW = "no_encoder_within_skew"
+DUPLICATE_STAMP = 'duplicate_stamp'
+OUT_OF_ORDER = 'out_of_order'
+NON_FINITE = 'non_finite'
+NO_INCLINOMETER_WITHIN_SKEW = 'no_inclinometer_within_skew'
+NO_ENCODER_WITHIN_SKEW = 'no_encoder_within_skew'
 
 # Reasons a partial stationary period is dropped.
-DROPPED_FOR_MOTION = "motion"
-DROPPED_FOR_GAP = "gap"
-DROPPED_AT_END = "end_of_stream"
-DROPPED_FOR_STREAM_STOP = "stream_stopped"  # a sensor stream went silent (e.g. the driver died)
+DROPPED_FOR_MOTION = 'motion'
+DROPPED_FOR_GAP = 'gap'
+DROPPED_AT_END = 'end_of_stream'
+DROPPED_FOR_STREAM_STOP = 'stream_stopped'  # a sensor stream went silent (e.g. the driver died)
 
 _NS_PER_S = 1_000_000_000
 # Largest stamp the detector takes (year 2116): stamp arithmetic stays within int64.
@@ -113,10 +113,11 @@ class StreamSynchronizer:
     counted if one stream has none. Memory is bounded by `history` per stream.
     """
 
-    def __init__(self, max_skew_ns: int = 20_000_000, stale_after_ns: int = 200_000_000,
-                 history: int = 64):
+    def __init__(
+        self, max_skew_ns: int = 20_000_000, stale_after_ns: int = 200_000_000, history: int = 64
+    ):
         if max_skew_ns < 0 or stale_after_ns <= 0 or history < 2:
-            raise ValueError("max_skew_ns must be >= 0, stale_after_ns > 0, history >= 2")
+            raise ValueError('max_skew_ns must be >= 0, stale_after_ns > 0, history >= 2')
         self.max_skew_ns = int(max_skew_ns)
         self.stale_after_ns = int(stale_after_ns)
         self._streams = {name: _StreamState(name, history) for name in STREAMS}
@@ -126,18 +127,21 @@ class StreamSynchronizer:
         self.emitted = 0
 
     def add_sliders(self, reading: SliderReading) -> list[PostureReading]:
-        return _readings(self.add_values(SLIDERS_STREAM, reading.stamp_ns,
-                                         reading.slider_positions))
+        return _readings(
+            self.add_values(SLIDERS_STREAM, reading.stamp_ns, reading.slider_positions)
+        )
 
     def add_inclinometer(self, reading: InclinometerReading) -> list[PostureReading]:
-        return _readings(self.add_values(INCLINOMETER_STREAM, reading.stamp_ns,
-                                         (reading.alpha, reading.beta)))
+        return _readings(
+            self.add_values(INCLINOMETER_STREAM, reading.stamp_ns, (reading.alpha, reading.beta))
+        )
 
     def add_encoder(self, reading: EncoderReading) -> list[PostureReading]:
         return _readings(self.add_values(ENCODER_STREAM, reading.stamp_ns, (reading.phi,)))
 
-    def add_values(self, stream: str, stamp_ns: int,
-                   values: tuple[float, ...]) -> list[tuple[int, tuple[float, ...]]]:
+    def add_values(
+        self, stream: str, stamp_ns: int, values: tuple[float, ...]
+    ) -> list[tuple[int, tuple[float, ...]]]:
         """add_sliders/add_inclinometer/add_encoder for already validated readings.
 
         `values` are the reading's numbers as a tuple of finite floats (six slider
@@ -159,9 +163,14 @@ class StreamSynchronizer:
     def status(self, now_ns: int) -> dict[str, StreamStatus]:
         return {
             name: StreamStatus(
-                name, state.last_stamp_ns, state.accepted, dict(state.rejected),
-                state.last_stamp_ns is None or now_ns - state.last_stamp_ns > self.stale_after_ns)
-            for name, state in self._streams.items()}
+                name,
+                state.last_stamp_ns,
+                state.accepted,
+                dict(state.rejected),
+                state.last_stamp_ns is None or now_ns - state.last_stamp_ns > self.stale_after_ns,
+            )
+            for name, state in self._streams.items()
+        }
 
     def stale_streams(self, now_ns: int) -> list[str]:
         """Streams with no reading within stale_after_ns before now_ns."""
@@ -186,12 +195,16 @@ class StreamSynchronizer:
         newest_slider_ns = self._streams[SLIDERS_STREAM].last_stamp_ns
         while self._pending:
             stamp, sliders = self._pending[0]
-            ready = (force_count > 0
-                     or newest_slider_ns - stamp > self.max_skew_ns
-                     or (inclinometer.last_stamp_ns is not None
-                         and inclinometer.last_stamp_ns >= stamp
-                         and encoder.last_stamp_ns is not None
-                         and encoder.last_stamp_ns >= stamp))
+            ready = (
+                force_count > 0
+                or newest_slider_ns - stamp > self.max_skew_ns
+                or (
+                    inclinometer.last_stamp_ns is not None
+                    and inclinometer.last_stamp_ns >= stamp
+                    and encoder.last_stamp_ns is not None
+                    and encoder.last_stamp_ns >= stamp
+                )
+            )
             if not ready:
                 break
             self._pending.popleft()
@@ -211,10 +224,15 @@ def _readings(samples: list[tuple[int, tuple[float, ...]]]) -> list[PostureReadi
     return [PostureReading.from_values(stamp, values) for stamp, values in samples]
 
 
-def synchronize_arrays(slider_stamps_ns: ArrayLike, slider_positions_m: ArrayLike,
-                       inclinometer_stamps_ns: ArrayLike, inclinometer_angles_rad: ArrayLike,
-                       encoder_stamps_ns: ArrayLike, encoder_angles_rad: ArrayLike,
-                       max_skew_ns: int = 20_000_000) -> tuple[np.ndarray, np.ndarray]:
+def synchronize_arrays(
+    slider_stamps_ns: ArrayLike,
+    slider_positions_m: ArrayLike,
+    inclinometer_stamps_ns: ArrayLike,
+    inclinometer_angles_rad: ArrayLike,
+    encoder_stamps_ns: ArrayLike,
+    encoder_angles_rad: ArrayLike,
+    max_skew_ns: int = 20_000_000,
+) -> tuple[np.ndarray, np.ndarray]:
     """Offline, vectorised pairing (same rule as StreamSynchronizer) for recorded streams.
 
     Returns (stamps_ns (n,), values (n, 9)) for the slider samples that have an
@@ -224,12 +242,13 @@ def synchronize_arrays(slider_stamps_ns: ArrayLike, slider_positions_m: ArrayLik
     keep = np.ones(len(stamps), dtype=bool)
     columns = [sliders]
     for aux_stamps, aux_values, width in (
-            (inclinometer_stamps_ns, inclinometer_angles_rad, 2),
-            (encoder_stamps_ns, encoder_angles_rad, 1)):
+        (inclinometer_stamps_ns, inclinometer_angles_rad, 2),
+        (encoder_stamps_ns, encoder_angles_rad, 1),
+    ):
         aux_t, aux_v = _sorted_unique(aux_stamps, aux_values, width)
         if len(aux_t) == 0:
             return np.empty(0, dtype=np.int64), np.empty((0, N_CHANNELS))
-        after = np.clip(np.searchsorted(aux_t, stamps, side="left"), 0, len(aux_t) - 1)
+        after = np.clip(np.searchsorted(aux_t, stamps, side='left'), 0, len(aux_t) - 1)
         before = np.clip(after - 1, 0, len(aux_t) - 1)
         skew_after = np.abs(aux_t[after] - stamps)
         skew_before = np.abs(aux_t[before] - stamps)
@@ -240,13 +259,14 @@ def synchronize_arrays(slider_stamps_ns: ArrayLike, slider_positions_m: ArrayLik
     return stamps[keep], values[keep]
 
 
-def _sorted_unique(stamps_ns: ArrayLike, values: ArrayLike,
-                   width: int) -> tuple[np.ndarray, np.ndarray]:
+def _sorted_unique(
+    stamps_ns: ArrayLike, values: ArrayLike, width: int
+) -> tuple[np.ndarray, np.ndarray]:
     stamps = np.asarray(stamps_ns, dtype=np.int64).ravel()
     array = np.asarray(values, dtype=np.float64).reshape(len(stamps), width)
     finite = np.all(np.isfinite(array), axis=1)
     stamps, array = stamps[finite], array[finite]
-    order = np.argsort(stamps, kind="stable")
+    order = np.argsort(stamps, kind='stable')
     stamps, array = stamps[order], array[order]
     first = np.ones(len(stamps), dtype=bool)
     first[1:] = stamps[1:] != stamps[:-1]  # keep the first of duplicated stamps
@@ -285,9 +305,9 @@ class DroppedPeriod:
 
 
 class DetectorState(Enum):
-    ARMED = "armed"  # waiting for a stationary period
-    CAPTURING = "capturing"  # stationary; averaging until capture_s
-    CAPTURED = "captured"  # posture emitted; waiting for motion
+    ARMED = 'armed'  # waiting for a stationary period
+    CAPTURING = 'capturing'  # stationary; averaging until capture_s
+    CAPTURED = 'captured'  # posture emitted; waiting for motion
 
 
 _UNKNOWN, _MOVING, _STILL = 0, 1, 2  # per-sample window verdicts
@@ -312,19 +332,20 @@ class _WindowBuffer:
             self.values = np.empty((2 * self.capacity, N_CHANNELS), dtype=np.float64)
             self.growths += 1
         self.count = len(stamps)
-        self.stamps[:self.count] = stamps
-        self.values[:self.count] = values
+        self.stamps[: self.count] = stamps
+        self.values[: self.count] = values
 
     def clear(self) -> None:
         self.count = 0
 
 
-def _window_extrema(values: np.ndarray, starts: np.ndarray,
-                    ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _window_extrema(
+    values: np.ndarray, starts: np.ndarray, ends: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Per-row max and min of values[starts[i]:ends[i] + 1] (exact, vectorised)."""
     if len(starts) <= 16:  # online use: one or a few samples per call
-        maxima = np.array([values[s:e + 1].max(axis=0) for s, e in zip(starts, ends)])
-        minima = np.array([values[s:e + 1].min(axis=0) for s, e in zip(starts, ends)])
+        maxima = np.array([values[s : e + 1].max(axis=0) for s, e in zip(starts, ends)])
+        minima = np.array([values[s : e + 1].min(axis=0) for s, e in zip(starts, ends)])
         return maxima.reshape(-1, N_CHANNELS), minima.reshape(-1, N_CHANNELS)
     # Sparse table: level k holds max/min over 2**k rows; each window is two overlapping blocks.
     lengths = ends - starts + 1
@@ -360,18 +381,26 @@ class PostureDetector:
 
     # Default tolerances: 0.2 mm / 0.2 mrad is 5x the 40 um / 40 urad peak-to-peak of the
     # +-20 um / +-20 urad noise, yet a move of tens of mm in ~1 s covers mm within one window.
-    def __init__(self, window_s: float = 0.3, slider_tolerance_m: float = 2e-4,
-                 angle_tolerance_rad: float = 2e-4, capture_s: float = 0.5,
-                 max_gap_s: float = 0.1, max_rate_hz: float = 2000.0, batch_size: int = 4096):
+    def __init__(
+        self,
+        window_s: float = 0.3,
+        slider_tolerance_m: float = 2e-4,
+        angle_tolerance_rad: float = 2e-4,
+        capture_s: float = 0.5,
+        max_gap_s: float = 0.1,
+        max_rate_hz: float = 2000.0,
+        batch_size: int = 4096,
+    ):
         if not (window_s > 0 and capture_s > 0 and max_gap_s > 0 and max_rate_hz > 0):
-            raise ValueError("window_s, capture_s, max_gap_s and max_rate_hz must be > 0")
+            raise ValueError('window_s, capture_s, max_gap_s and max_rate_hz must be > 0')
         if not (slider_tolerance_m > 0 and angle_tolerance_rad > 0):
-            raise ValueError("tolerances must be > 0")
+            raise ValueError('tolerances must be > 0')
         self.window_ns = int(round(window_s * _NS_PER_S))
         self.capture_ns = int(round(capture_s * _NS_PER_S))
         self.max_gap_ns = int(round(max_gap_s * _NS_PER_S))
-        self.tolerances = np.array([slider_tolerance_m] * N_CHAINS
-                                   + [angle_tolerance_rad] * (N_CHANNELS - N_CHAINS))
+        self.tolerances = np.array(
+            [slider_tolerance_m] * N_CHAINS + [angle_tolerance_rad] * (N_CHANNELS - N_CHAINS)
+        )
         self._batch_size = int(batch_size)
         self._window = _WindowBuffer(int(math.ceil(window_s * max_rate_hz)) + 2)
         self._segment_start_ns: int | None = None
@@ -402,8 +431,10 @@ class PostureDetector:
 
     def add(self, sample: PostureReading) -> list[DetectedPosture]:
         """Feed one synchronised sample (e.g. from StreamSynchronizer)."""
-        return self.update(np.array([sample.stamp_ns], dtype=np.int64),
-                           np.array([sample.values()], dtype=np.float64))
+        return self.update(
+            np.array([sample.stamp_ns], dtype=np.int64),
+            np.array([sample.values()], dtype=np.float64),
+        )
 
     def update(self, stamps_ns: ArrayLike, values: ArrayLike) -> list[DetectedPosture]:
         """Feed N samples: stamps (N,) in ns, values (N, 9); returns the postures completed."""
@@ -412,17 +443,22 @@ class PostureDetector:
             array = np.asarray(values, dtype=np.float64)
         except (TypeError, ValueError, OverflowError) as error:
             raise InvalidReadingError(
-                f"stamps must be integer ns and values numbers: {error}") from None
+                f'stamps must be integer ns and values numbers: {error}'
+            ) from None
         if stamps.size and (stamps.min() < 0 or stamps.max() > MAX_STAMP_NS):
-            raise InvalidReadingError(f"stamps must be in [0, {MAX_STAMP_NS}] ns, got "
-                                      f"[{stamps.min()}, {stamps.max()}]")
+            raise InvalidReadingError(
+                f'stamps must be in [0, {MAX_STAMP_NS}] ns, got [{stamps.min()}, {stamps.max()}]'
+            )
         if array.shape != (len(stamps), N_CHANNELS):
-            raise InvalidReadingError(f"values must have shape ({len(stamps)}, {N_CHANNELS}) "
-                                      f"for {len(stamps)} stamps, got {array.shape}")
+            raise InvalidReadingError(
+                f'values must have shape ({len(stamps)}, {N_CHANNELS}) '
+                f'for {len(stamps)} stamps, got {array.shape}'
+            )
         postures: list[DetectedPosture] = []
         for begin in range(0, len(stamps), self._batch_size):
-            chunk_stamps, chunk_values = self._accepted(stamps[begin:begin + self._batch_size],
-                                                        array[begin:begin + self._batch_size])
+            chunk_stamps, chunk_values = self._accepted(
+                stamps[begin : begin + self._batch_size], array[begin : begin + self._batch_size]
+            )
             if len(chunk_stamps):
                 postures.extend(self._process(chunk_stamps, chunk_values))
         return postures
@@ -447,8 +483,7 @@ class PostureDetector:
         if n:
             counter[reason] = counter.get(reason, 0) + int(n)
 
-    def _accepted(self, stamps: np.ndarray,
-                  values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _accepted(self, stamps: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Drop non-finite samples and stamps that do not increase (counted)."""
         finite = np.all(np.isfinite(values), axis=1)
         self._count(self.rejected, NON_FINITE, np.count_nonzero(~finite))
@@ -458,8 +493,9 @@ class PostureDetector:
         previous = np.iinfo(np.int64).min if self._last_stamp_ns is None else self._last_stamp_ns
         running_max = np.maximum.accumulate(np.concatenate(([previous], stamps[:-1])))
         increasing = stamps > running_max
-        self._count(self.rejected, DUPLICATE_STAMP,
-                    np.count_nonzero(~increasing & (stamps == running_max)))
+        self._count(
+            self.rejected, DUPLICATE_STAMP, np.count_nonzero(~increasing & (stamps == running_max))
+        )
         self._count(self.rejected, OUT_OF_ORDER, np.count_nonzero(stamps < running_max))
         return stamps[increasing], values[increasing]
 
@@ -469,22 +505,26 @@ class PostureDetector:
         all_values = np.concatenate((self._window.values[:history], values))
         indices = np.arange(history, history + len(stamps))
         previous = np.concatenate(
-            ([stamps[0] if self._last_stamp_ns is None else self._last_stamp_ns], stamps[:-1]))
+            ([stamps[0] if self._last_stamp_ns is None else self._last_stamp_ns], stamps[:-1])
+        )
         gap = stamps - previous > self.max_gap_ns
         if self._last_stamp_ns is None:
             gap[0] = True
         # Index (into all_*) of the first sample of each sample's contiguous segment;
         # the window buffer only ever holds the current segment, so -1 means index 0.
         segment_index = np.maximum.accumulate(np.where(gap, indices, -1))
-        segment_start_ns = np.where(segment_index >= 0, all_stamps[np.maximum(segment_index, 0)],
-                                    self._segment_start_ns if self._segment_start_ns is not None
-                                    else stamps[0])
+        segment_start_ns = np.where(
+            segment_index >= 0,
+            all_stamps[np.maximum(segment_index, 0)],
+            self._segment_start_ns if self._segment_start_ns is not None else stamps[0],
+        )
         window_start = np.maximum(
-            np.searchsorted(all_stamps, stamps - self.window_ns, side="left"),
-            np.maximum(segment_index, 0))
+            np.searchsorted(all_stamps, stamps - self.window_ns, side='left'),
+            np.maximum(segment_index, 0),
+        )
         maxima, minima = _window_extrema(all_values, window_start, indices)
         full = stamps - self.window_ns >= segment_start_ns
-        with np.errstate(over="ignore"):  # readings near the float range: inf spread = moving
+        with np.errstate(over='ignore'):  # readings near the float range: inf spread = moving
             still = np.all(maxima - minima <= self.tolerances, axis=1)
             window_mid = (maxima + minima) / 2
         verdicts = np.where(full, np.where(still, _STILL, _MOVING), _UNKNOWN)
@@ -493,13 +533,16 @@ class PostureDetector:
         # Keep the samples a later window can reach: same segment, within window_ns of the last.
         self._last_stamp_ns = int(stamps[-1])
         self._segment_start_ns = int(segment_start_ns[-1])
-        keep_from = max(int(np.searchsorted(all_stamps, stamps[-1] - self.window_ns, "left")),
-                        int(max(segment_index[-1], 0)))
+        keep_from = max(
+            int(np.searchsorted(all_stamps, stamps[-1] - self.window_ns, 'left')),
+            int(max(segment_index[-1], 0)),
+        )
         self._window.replace(all_stamps[keep_from:], all_values[keep_from:])
         return postures
 
-    def _run_states(self, stamps: np.ndarray, values: np.ndarray, verdicts: np.ndarray,
-                    window_mid: np.ndarray) -> list[DetectedPosture]:
+    def _run_states(
+        self, stamps: np.ndarray, values: np.ndarray, verdicts: np.ndarray, window_mid: np.ndarray
+    ) -> list[DetectedPosture]:
         """Advance the state machine over runs of equal verdicts (few runs per batch)."""
         postures: list[DetectedPosture] = []
         boundaries = np.flatnonzero(np.diff(verdicts)) + 1
@@ -524,15 +567,16 @@ class PostureDetector:
                     continue
                 # Still again after a gap: a new posture only if it moved during the gap.
                 self._recheck_after_gap = False
-                if np.all(np.abs(window_mid[begin] - self._last_posture_values)
-                          <= self.tolerances):
+                if np.all(
+                    np.abs(window_mid[begin] - self._last_posture_values) <= self.tolerances
+                ):
                     continue
                 self.state = DetectorState.ARMED
             position = begin
             if self.state is DetectorState.ARMED:
                 self._start_period(int(stamps[begin]), values[begin])
             target_ns = self._period_first_ns + self.capture_ns
-            last = begin + int(np.searchsorted(stamps[begin:end], target_ns, side="left"))
+            last = begin + int(np.searchsorted(stamps[begin:end], target_ns, side='left'))
             if last < end:
                 self._accumulate(stamps, values, position, last + 1)
                 postures.append(self._emit())
@@ -569,20 +613,26 @@ class PostureDetector:
         self._recheck_after_gap = False
         self._last_posture_values = mean
         self.emitted += 1
-        return DetectedPosture(PostureReading.from_values(self._period_last_ns, mean.tolist()),
-                               self._period_first_ns, count, tuple(std.tolist()))
+        return DetectedPosture(
+            PostureReading.from_values(self._period_last_ns, mean.tolist()),
+            self._period_first_ns,
+            count,
+            tuple(std.tolist()),
+        )
 
     def _drop(self, reason: str) -> DroppedPeriod:
-        dropped = DroppedPeriod(self._period_first_ns, self._period_last_ns, self._period_count,
-                                reason)
+        dropped = DroppedPeriod(
+            self._period_first_ns, self._period_last_ns, self._period_count, reason
+        )
         self._count(self.dropped, reason, 1)
         self.recent_dropped.append(dropped)
         self.state = DetectorState.ARMED
         return dropped
 
 
-def detect_postures(stamps_ns: ArrayLike, values: ArrayLike,
-                    **detector_options: Any) -> list[DetectedPosture]:
+def detect_postures(
+    stamps_ns: ArrayLike, values: ArrayLike, **detector_options: Any
+) -> list[DetectedPosture]:
     """Offline detection over recorded samples: stamps (N,) ns, values (N, 9).
 
     Uses PostureDetector (same results as feeding the samples one by one),

@@ -8,14 +8,15 @@ Infeasible postures (a leg cannot reach, a slider outside its stroke) and
 ill-conditioned ones (pose Jacobian condition number too large) are rejected
 and redrawn.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from .device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, fixed_point, sphere_z
 from .architectures import KinematicParameters
+from .device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, fixed_point, sphere_z
 
 
 @dataclass(frozen=True)
@@ -26,11 +27,15 @@ class Workspace:
     xy_range_m: float = 0.400
     rotation_range_rad: float = np.radians(35.0)
     slider_stroke_m: tuple[float, float] = (0.0, 0.9)
-    max_condition: float = 80.0  # of the pose Jacobian with angles scaled by link_length; rejects ~4%
+    max_condition: float = (
+        80.0  # of the pose Jacobian with angles scaled by link_length; rejects ~4%
+    )
     # Hexa Slide: w / l, legs far from perpendicular to their rail; Gough-Stewart: the least cosine of a
     # passive joint's angle (architectures/*.acceptable_poses).
     min_leg_rail_cosine: float = 0.2
-    mount: str = DEFAULT_MOUNT  # the device's: the link sphere lies below (hanging) or above (standing) O
+    mount: str = (
+        DEFAULT_MOUNT  # the device's: the link sphere lies below (hanging) or above (standing) O
+    )
 
 
 def _sphere_candidates(rng: np.random.Generator, n: int, workspace: Workspace) -> np.ndarray:
@@ -46,7 +51,9 @@ def _fixed_candidates(rng: np.random.Generator, n: int, workspace: Workspace) ->
     return np.column_stack([position, angles])
 
 
-def acceptable_poses(params: KinematicParameters, poses: np.ndarray, workspace: Workspace = Workspace()) -> np.ndarray:
+def acceptable_poses(
+    params: KinematicParameters, poses: np.ndarray, workspace: Workspace = Workspace()
+) -> np.ndarray:
     """Mask of poses that are reachable, inside the stroke and well conditioned (the architecture decides how)."""
     return params.architecture.acceptable_poses(params, np.asarray(poses, dtype=float), workspace)
 
@@ -55,11 +62,11 @@ def sample_poses(
     params: KinematicParameters,
     n: int,
     rng: np.random.Generator,
-    kind: str = "sphere",
+    kind: str = 'sphere',
     workspace: Workspace = Workspace(),
 ) -> np.ndarray:
     """n acceptable poses of the given kind ('sphere' or 'fixed'), (n, 6)."""
-    draw = {"sphere": _sphere_candidates, "fixed": _fixed_candidates}[kind]
+    draw = {'sphere': _sphere_candidates, 'fixed': _fixed_candidates}[kind]
     accepted: list[np.ndarray] = []
     count = 0
     for _ in range(1000):
@@ -70,5 +77,5 @@ def sample_poses(
         accepted.append(good)
         count += len(good)
     else:
-        raise RuntimeError(f"could not find {n} acceptable {kind} postures in the workspace")
+        raise RuntimeError(f'could not find {n} acceptable {kind} postures in the workspace')
     return np.concatenate(accepted)[:n]

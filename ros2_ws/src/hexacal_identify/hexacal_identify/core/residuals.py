@@ -32,24 +32,31 @@ For weighting by known sensor noise, each row also carries its derivatives
 w.r.t. its posture's 9 noise sources (6 slider readings, alpha, beta, phi):
 ``noise_jacobian``; rows of the relative cost also depend on the partner posture.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from .device import N_DEVICE_PARAMETERS, DeviceDefects, DeviceModel, device_position, fixed_position
-from .kinematics import PoseSensitivity, wrap_angle
+from .device import (
+    device_position,
+    DeviceDefects,
+    DeviceModel,
+    fixed_position,
+    N_DEVICE_PARAMETERS,
+)
 from .errors import InvalidMeasurementError
-from .measurements import FIXED, SPHERE, Measurements
+from .kinematics import PoseSensitivity, wrap_angle
+from .measurements import FIXED, Measurements, SPHERE
 
-COSTS = ("absolute", "sphere", "fixed", "sphere-fixed", "relative")
+COSTS = ('absolute', 'sphere', 'fixed', 'sphere-fixed', 'relative')
 COST_EQUATIONS = {
-    "absolute": "eq. 7",
-    "sphere": "eq. 8",
-    "fixed": "eq. 10",
-    "sphere-fixed": "eqs. 8 + 10",
-    "relative": "eqs. 12 + 13",
+    'absolute': 'eq. 7',
+    'sphere': 'eq. 8',
+    'fixed': 'eq. 10',
+    'sphere-fixed': 'eqs. 8 + 10',
+    'relative': 'eqs. 12 + 13',
 }
 N_NOISE_SOURCES = 9  # per posture: 6 sliders, alpha, beta, phi
 DL, ALPHA0, BETA0, GAMMA, PHI0 = range(N_DEVICE_PARAMETERS)
@@ -103,35 +110,41 @@ class _Pieces:
             full = np.zeros((len(index), 6))
             full[:, :3] = weights
             return self.factored.combined(index, full)
-        return np.einsum("ni,nik->nk", weights, self.d_params[index, :3, :])
+        return np.einsum('ni,nik->nk', weights, self.d_params[index, :3, :])
 
 
 class CostFunction:
     """Residuals of one cost function over a fixed set of measured postures."""
 
-    def __init__(self, cost: str, measurements: Measurements, device: DeviceModel, sigma: ChannelSigma):
+    def __init__(
+        self, cost: str, measurements: Measurements, device: DeviceModel, sigma: ChannelSigma
+    ):
         if cost not in COSTS:
-            raise ValueError(f"unknown cost function {cost!r}; choose one of {', '.join(COSTS)}")
+            raise ValueError(f'unknown cost function {cost!r}; choose one of {", ".join(COSTS)}')
         self.cost = cost
         self.measurements = measurements
         self.link_length = device.link_length
         self.mount = device.mount
         # LVDT variant (section 4): a measured link length per posture replaces the constant L.
-        self.link_lengths = (measurements.link_lengths if measurements.link_lengths is not None
-                             else np.full(len(measurements), device.link_length))
+        self.link_lengths = (
+            measurements.link_lengths
+            if measurements.link_lengths is not None
+            else np.full(len(measurements), device.link_length)
+        )
         self.sigma = sigma
-        if cost == "relative" and measurements.device_turn is not None:
+        if cost == 'relative' and measurements.device_turn is not None:
             raise InvalidMeasurementError(
-                "the relative cost function (eqs. 12 + 13) pairs consecutive postures and cancels offsets "
-                f"itself; {int(np.count_nonzero(measurements.device_turn))} posture(s) were taken with the device "
-                "turned about its link: use the absolute cost (eq. 7), which identifies the offsets from them")
+                'the relative cost function (eqs. 12 + 13) pairs consecutive postures and cancels offsets '
+                f'itself; {int(np.count_nonzero(measurements.device_turn))} posture(s) were taken with the device '
+                'turned about its link: use the absolute cost (eq. 7), which identifies the offsets from them'
+            )
         self.is_fixed = measurements.kinds == FIXED
         self.is_sphere = measurements.kinds == SPHERE
         self._measured_cache = None
 
     def usable(self) -> np.ndarray:
         """Mask of postures this cost function uses."""
-        if self.cost == "fixed":
+        if self.cost == 'fixed':
             return self.is_fixed.copy()
         return np.ones(len(self.measurements), bool)
 
@@ -141,22 +154,35 @@ class CostFunction:
         Eqs. 10 and 13 compare fixed-position postures and eq. 12 compares sphere postures: a
         cost that needs a kind the measurement set lacks is a named error, not an empty block."""
         n_fixed, n_sphere = int(self.is_fixed.sum()), int(self.is_sphere.sum())
-        needs = {"fixed": (("fixed-position", n_fixed, 1),),
-                 "sphere-fixed": (("fixed-position", n_fixed, 1),),
-                 "relative": (("fixed-position", n_fixed, 2), ("sphere", n_sphere, 2))}.get(self.cost, ())
+        needs = {
+            'fixed': (('fixed-position', n_fixed, 1),),
+            'sphere-fixed': (('fixed-position', n_fixed, 1),),
+            'relative': (('fixed-position', n_fixed, 2), ('sphere', n_sphere, 2)),
+        }.get(self.cost, ())
         for kind, have, least in needs:
             if have < least:
-                return (f"the {self.cost} cost function needs at least {least} {kind} posture(s) and the "
-                        f"measurements hold {have} ({n_sphere} sphere, {n_fixed} fixed-position); "
-                        "record postures of that kind or choose another cost function")
+                return (
+                    f'the {self.cost} cost function needs at least {least} {kind} posture(s) and the '
+                    f'measurements hold {have} ({n_sphere} sphere, {n_fixed} fixed-position); '
+                    'record postures of that kind or choose another cost function'
+                )
         return None
 
     def measured(self, defects: DeviceDefects = DeviceDefects()):
         """Positions from the readings through the defect model; the last result is kept (defects rarely change)."""
         if self._measured_cache is None or self._measured_cache[0] != defects:
             alpha, beta = self.measurements.inclinometer.T
-            self._measured_cache = (defects, device_position(alpha, beta, self.link_lengths, defects, self.mount,
-                                                             self.measurements.device_turn))
+            self._measured_cache = (
+                defects,
+                device_position(
+                    alpha,
+                    beta,
+                    self.link_lengths,
+                    defects,
+                    self.mount,
+                    self.measurements.device_turn,
+                ),
+            )
         return self._measured_cache[1]
 
     def fixed_position(self, defects: DeviceDefects = DeviceDefects(), device_turn: float = 0.0):
@@ -168,8 +194,9 @@ class CostFunction:
         device reads zero elsewhere (its offsets turn with it)."""
         turns = self.measurements.turns[index]
         zeros = np.zeros(len(index))
-        fixed = device_position(zeros, zeros, self.link_length, defects, self.mount,
-                                turns if np.any(turns) else None)
+        fixed = device_position(
+            zeros, zeros, self.link_length, defects, self.mount, turns if np.any(turns) else None
+        )
         return fixed.position, fixed.d_defects
 
     def initial_poses(self, defects: DeviceDefects = DeviceDefects()) -> np.ndarray:
@@ -183,24 +210,35 @@ class CostFunction:
         """phi from the rotary readings: a device turned about its link reads phi - turn + phi0, wrapped."""
         return wrap_angle(self.measurements.rotary + self.measurements.turns - defects.phi0)
 
-    def residuals(self, poses: np.ndarray, sensitivity: np.ndarray | PoseSensitivity | None,
-                  defects: DeviceDefects = DeviceDefects(), with_device: bool = False,
-                  with_noise: bool = True) -> ResidualBlock:
+    def residuals(
+        self,
+        poses: np.ndarray,
+        sensitivity: np.ndarray | PoseSensitivity | None,
+        defects: DeviceDefects = DeviceDefects(),
+        with_device: bool = False,
+        with_noise: bool = True,
+    ) -> ResidualBlock:
         """Stacked residuals; with ``sensitivity`` also the Jacobian (54 columns, + 5 device columns
         if ``with_device``) and, for a PoseSensitivity and ``with_noise``, each row's noise derivatives."""
         if isinstance(sensitivity, PoseSensitivity):
-            pieces = _Pieces(poses, None, sensitivity.wrt_sliders if with_noise else None, with_device, sensitivity)
+            pieces = _Pieces(
+                poses,
+                None,
+                sensitivity.wrt_sliders if with_noise else None,
+                with_device,
+                sensitivity,
+            )
         else:
             pieces = _Pieces(poses, sensitivity, None, with_device)
         blocks = [self._phi_block(pieces, defects)]
         everyone = np.ones(len(poses), bool)
-        if self.cost == "absolute":
+        if self.cost == 'absolute':
             blocks.append(self._measured_position_block(pieces, defects))
-        elif self.cost == "fixed":
+        elif self.cost == 'fixed':
             blocks.append(self._fixed_block(pieces, defects, everyone))
-        elif self.cost == "sphere":
+        elif self.cost == 'sphere':
             blocks.append(self._length_block(pieces, defects, everyone))
-        elif self.cost == "sphere-fixed":
+        elif self.cost == 'sphere-fixed':
             blocks.append(self._length_block(pieces, defects, self.is_sphere))
             blocks.append(self._fixed_block(pieces, defects, self.is_fixed))
         else:
@@ -209,19 +247,26 @@ class CostFunction:
         return _stack(blocks)
 
     # -- helpers ------------------------------------------------------------------
-    def _jacobian(self, pieces: _Pieces, rows_from_pose: np.ndarray | None, device_rows: np.ndarray) -> np.ndarray | None:
+    def _jacobian(
+        self, pieces: _Pieces, rows_from_pose: np.ndarray | None, device_rows: np.ndarray
+    ) -> np.ndarray | None:
         """[d r/d u | d r/d device] from rows_from_pose (rows, n) and device_rows (rows, 5)."""
         if not pieces.has_jacobian:
             return None
         return np.hstack([rows_from_pose, device_rows]) if pieces.with_device else rows_from_pose
 
     @staticmethod
-    def _noise(pieces: _Pieces, index: np.ndarray, d_row_d_pose: np.ndarray, d_row_d_readings: np.ndarray | None):
+    def _noise(
+        pieces: _Pieces,
+        index: np.ndarray,
+        d_row_d_pose: np.ndarray,
+        d_row_d_readings: np.ndarray | None,
+    ):
         """Row derivatives w.r.t. [6 sliders, alpha, beta, phi]: d_row_d_pose (rows, 6) through FK."""
         if pieces.d_sliders is None:
             return None
         noise = np.zeros((len(index), N_NOISE_SOURCES))
-        noise[:, :6] = np.einsum("ri,rij->rj", d_row_d_pose, pieces.d_sliders[index])
+        noise[:, :6] = np.einsum('ri,rij->rj', d_row_d_pose, pieces.d_sliders[index])
         if d_row_d_readings is not None:
             noise[:, 6:] = d_row_d_readings
         return noise
@@ -236,15 +281,25 @@ class CostFunction:
         if pieces.has_jacobian:
             device_rows = np.zeros((n, N_DEVICE_PARAMETERS))
             device_rows[:, PHI0] = -scale
-            jac = self._jacobian(pieces, pieces.pose_rows(None, slice(5, 6), -scale)[:, 0, :], device_rows)
+            jac = self._jacobian(
+                pieces, pieces.pose_rows(None, slice(5, 6), -scale)[:, 0, :], device_rows
+            )
         d_pose = np.zeros((n, 6))
         d_pose[:, 5] = -scale
         readings = np.zeros((n, 3))
         readings[:, 2] = scale
-        return ResidualBlock(values, jac, np.full(n, "phi"), index, self._noise(pieces, index, d_pose, readings))
+        return ResidualBlock(
+            values, jac, np.full(n, 'phi'), index, self._noise(pieces, index, d_pose, readings)
+        )
 
-    def _position_rows(self, pieces: _Pieces, index: np.ndarray, targets: np.ndarray,
-                       d_targets_d_device: np.ndarray, d_targets_d_readings: np.ndarray | None) -> ResidualBlock:
+    def _position_rows(
+        self,
+        pieces: _Pieces,
+        index: np.ndarray,
+        targets: np.ndarray,
+        d_targets_d_device: np.ndarray,
+        d_targets_d_readings: np.ndarray | None,
+    ) -> ResidualBlock:
         """Rows target - P_c for postures ``index``; targets (k, 3), derivatives (k, 3, 4) and (k, 3, 2)."""
         scale = 1.0 / self.sigma.position_m
         k = len(index)
@@ -265,15 +320,19 @@ class CostFunction:
             readings = readings.reshape(3 * k, 3)
         rows = np.repeat(index, 3)
         noise = self._noise(pieces, rows, d_pose.reshape(3 * k, 6), readings)
-        channels = np.tile(np.array(["x", "y", "z"]), k)
+        channels = np.tile(np.array(['x', 'y', 'z']), k)
         return ResidualBlock(values, jac, channels, rows, noise)
 
     def _measured_position_block(self, pieces: _Pieces, defects: DeviceDefects) -> ResidualBlock:
         measured = self.measured(defects)
         index = np.arange(len(pieces.poses))
-        return self._position_rows(pieces, index, measured.position, measured.d_defects, measured.d_readings)
+        return self._position_rows(
+            pieces, index, measured.position, measured.d_defects, measured.d_readings
+        )
 
-    def _fixed_block(self, pieces: _Pieces, defects: DeviceDefects, mask: np.ndarray) -> ResidualBlock:
+    def _fixed_block(
+        self, pieces: _Pieces, defects: DeviceDefects, mask: np.ndarray
+    ) -> ResidualBlock:
         index = np.flatnonzero(mask)
         targets, d_device = self.fixed_positions(defects, index)
         return self._position_rows(pieces, index, targets, d_device, None)
@@ -289,7 +348,9 @@ class CostFunction:
         d_pose[:, :3] = direction
         return length, d_params, d_pose
 
-    def _length_block(self, pieces: _Pieces, defects: DeviceDefects, mask: np.ndarray) -> ResidualBlock:
+    def _length_block(
+        self, pieces: _Pieces, defects: DeviceDefects, mask: np.ndarray
+    ) -> ResidualBlock:
         index = np.flatnonzero(mask)
         scale = 1.0 / self.sigma.position_m
         length, d_params, d_pose = self._lengths(pieces, index)
@@ -300,7 +361,7 @@ class CostFunction:
             device_rows[:, DL] = scale
             jac = self._jacobian(pieces, -d_params * scale, device_rows)
         noise = self._noise(pieces, index, -d_pose * scale, np.zeros((len(index), 3)))
-        return ResidualBlock(values, jac, np.full(len(index), "link_length"), index, noise)
+        return ResidualBlock(values, jac, np.full(len(index), 'link_length'), index, noise)
 
     def _relative_length_block(self, pieces: _Pieces) -> ResidualBlock:
         index = np.flatnonzero(self.is_sphere)
@@ -309,9 +370,14 @@ class CostFunction:
         values = np.diff(length) * scale
         jac = None
         if d_params is not None:
-            jac = self._jacobian(pieces, np.diff(d_params, axis=0) * scale,
-                                 np.zeros((len(values), N_DEVICE_PARAMETERS)))
-        block = ResidualBlock(values, jac, np.full(len(values), "link_length_difference"), index[1:])
+            jac = self._jacobian(
+                pieces,
+                np.diff(d_params, axis=0) * scale,
+                np.zeros((len(values), N_DEVICE_PARAMETERS)),
+            )
+        block = ResidualBlock(
+            values, jac, np.full(len(values), 'link_length_difference'), index[1:]
+        )
         return self._with_partner_noise(block, pieces, index, d_pose * scale)
 
     def _relative_position_block(self, pieces: _Pieces) -> ResidualBlock:
@@ -322,24 +388,35 @@ class CostFunction:
         jac = None
         if pieces.has_jacobian:
             diff = np.diff(pieces.pose_rows(index, slice(0, 3), 1.0), axis=0) * scale
-            jac = self._jacobian(pieces, diff.reshape(3 * pairs, -1), np.zeros((3 * pairs, N_DEVICE_PARAMETERS)))
-        channels = np.tile(np.array(["x_difference", "y_difference", "z_difference"]), pairs)
+            jac = self._jacobian(
+                pieces, diff.reshape(3 * pairs, -1), np.zeros((3 * pairs, N_DEVICE_PARAMETERS))
+            )
+        channels = np.tile(np.array(['x_difference', 'y_difference', 'z_difference']), pairs)
         block = ResidualBlock(values, jac, channels, np.repeat(index[1:], 3))
         d_pose = np.zeros((len(index), 3, 6))
         d_pose[:, [0, 1, 2], [0, 1, 2]] = scale
         return self._with_partner_noise(block, pieces, index, d_pose, rows_per_pair=3)
 
-    def _with_partner_noise(self, block: ResidualBlock, pieces: _Pieces, index: np.ndarray,
-                            d_value_d_pose: np.ndarray, rows_per_pair: int = 1) -> ResidualBlock:
+    def _with_partner_noise(
+        self,
+        block: ResidualBlock,
+        pieces: _Pieces,
+        index: np.ndarray,
+        d_value_d_pose: np.ndarray,
+        rows_per_pair: int = 1,
+    ) -> ResidualBlock:
         """Rows value_j - value_k: noise derivatives from posture j (+) and its partner k (-)."""
         if pieces.d_sliders is None or len(index) < 2:
             return block
         d_pose = d_value_d_pose.reshape(len(index), rows_per_pair, 6)
         later = np.repeat(index[1:], rows_per_pair)
         earlier = np.repeat(index[:-1], rows_per_pair)
-        block.noise_jacobian = self._noise(pieces, later, d_pose[1:].reshape(-1, 6), np.zeros((len(later), 3)))
-        block.partner_noise_jacobian = self._noise(pieces, earlier, -d_pose[:-1].reshape(-1, 6),
-                                                   np.zeros((len(earlier), 3)))
+        block.noise_jacobian = self._noise(
+            pieces, later, d_pose[1:].reshape(-1, 6), np.zeros((len(later), 3))
+        )
+        block.partner_noise_jacobian = self._noise(
+            pieces, earlier, -d_pose[:-1].reshape(-1, 6), np.zeros((len(earlier), 3))
+        )
         block.partners = earlier
         return block
 
@@ -352,18 +429,39 @@ def _stack(blocks: list[ResidualBlock]) -> ResidualBlock:
         return np.concatenate(parts)
 
     partners = None
-    if any(b.partners is not None for b in blocks) and all(b.noise_jacobian is not None for b in blocks):
-        partners = np.concatenate([b.partners if b.partners is not None else np.full(len(b.values), -1)
-                                   for b in blocks])
-        partner_noise = np.concatenate([
-            b.partner_noise_jacobian if b.partner_noise_jacobian is not None
-            else np.zeros((len(b.values), N_NOISE_SOURCES)) for b in blocks])
+    if any(b.partners is not None for b in blocks) and all(
+        b.noise_jacobian is not None for b in blocks
+    ):
+        partners = np.concatenate(
+            [b.partners if b.partners is not None else np.full(len(b.values), -1) for b in blocks]
+        )
+        partner_noise = np.concatenate(
+            [
+                b.partner_noise_jacobian
+                if b.partner_noise_jacobian is not None
+                else np.zeros((len(b.values), N_NOISE_SOURCES))
+                for b in blocks
+            ]
+        )
     else:
         partner_noise = None
-    width = next((b.jacobian.shape[1] for b in blocks if b.jacobian is not None and b.jacobian.size), 0)
+    width = next(
+        (b.jacobian.shape[1] for b in blocks if b.jacobian is not None and b.jacobian.size), 0
+    )
     jacobian = None
     if blocks[0].jacobian is not None:
-        jacobian = np.concatenate([b.jacobian.reshape(-1, width) if b.jacobian.size else np.zeros((0, width))
-                                   for b in blocks])
-    return ResidualBlock(join("values"), jacobian, join("channels"), join("postures"), join("noise_jacobian"),
-                         partners, partner_noise)
+        jacobian = np.concatenate(
+            [
+                b.jacobian.reshape(-1, width) if b.jacobian.size else np.zeros((0, width))
+                for b in blocks
+            ]
+        )
+    return ResidualBlock(
+        join('values'),
+        jacobian,
+        join('channels'),
+        join('postures'),
+        join('noise_jacobian'),
+        partners,
+        partner_noise,
+    )

@@ -13,6 +13,7 @@ many noise seeds (same machine, same postures) and compares:
 
 Written against the parameters object: any architecture, n = its number of parameters.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -20,10 +21,10 @@ from typing import Callable
 
 import numpy as np
 
-from .identification import SolverOptions, identify
+from .architectures import default_parameters, KinematicParameters
+from .identification import identify, SolverOptions
 from .kinematics import euler_rate_axes, pose_sensitivities
 from .measurements import NoiseModel, simulate_measurements
-from .architectures import KinematicParameters, default_parameters
 from .model import nominal_set
 from .postures import sample_poses
 from .validation import pose_errors, validation_poses
@@ -36,8 +37,13 @@ class PredictedPoseErrors:
     position_std_m: np.ndarray  # (N, 3) std of x, y, z
 
 
-def predicted_pose_errors(params: KinematicParameters, covariance: np.ndarray, poses: np.ndarray,
-                          samples: int = 4000, seed: int = 0) -> PredictedPoseErrors:
+def predicted_pose_errors(
+    params: KinematicParameters,
+    covariance: np.ndarray,
+    poses: np.ndarray,
+    samples: int = 4000,
+    seed: int = 0,
+) -> PredictedPoseErrors:
     """Pose errors the parameter covariance predicts at ``poses`` (linearised: dX = dX/du du).
 
     ``covariance`` may carry the device defects after the n kinematic parameters: only the
@@ -50,24 +56,30 @@ def predicted_pose_errors(params: KinematicParameters, covariance: np.ndarray, p
     eigenvalues, eigenvectors = np.linalg.eigh((covariance + covariance.T) / 2)
     root = eigenvectors * np.sqrt(np.clip(eigenvalues, 0.0, None))
     draws = np.random.default_rng(seed).standard_normal((samples, n)) @ root.T
-    d_pose = np.einsum("nik,sk->nsi", sensitivity, draws)  # (N, samples, 6)
+    d_pose = np.einsum('nik,sk->nsi', sensitivity, draws)  # (N, samples, 6)
     rotation_axes = euler_rate_axes(poses[:, 3:6])  # angle rates -> rotation vector
-    rotation = np.einsum("nij,nsj->nsi", rotation_axes, d_pose[:, :, 3:6])
-    position_covariance = np.einsum("nik,kl,njl->nij", sensitivity[:, :3], covariance, sensitivity[:, :3])
+    rotation = np.einsum('nij,nsj->nsi', rotation_axes, d_pose[:, :, 3:6])
+    position_covariance = np.einsum(
+        'nik,kl,njl->nij', sensitivity[:, :3], covariance, sensitivity[:, :3]
+    )
     return PredictedPoseErrors(
         position_mean_m=np.linalg.norm(d_pose[:, :, :3], axis=2).mean(axis=1),
         orientation_mean_rad=np.linalg.norm(rotation, axis=2).mean(axis=1),
-        position_std_m=np.sqrt(np.einsum("nii->ni", position_covariance)),
+        position_std_m=np.sqrt(np.einsum('nii->ni', position_covariance)),
     )
 
 
 @dataclass
 class MonteCarloSummary:
     seeds: int
-    predicted_std: np.ndarray  # (n,) from the covariance (mean over seeds); n = 54 for a Hexa Slide
+    predicted_std: (
+        np.ndarray
+    )  # (n,) from the covariance (mean over seeds); n = 54 for a Hexa Slide
     empirical_std: np.ndarray  # (n,) spread of the estimates over seeds
     empirical_rmse: np.ndarray  # (n,) root mean squared error vs the truth
-    crb_std: np.ndarray  # (n,) Cramer-Rao bound for Gaussian noise of the same variance, at the truth
+    crb_std: (
+        np.ndarray
+    )  # (n,) Cramer-Rao bound for Gaussian noise of the same variance, at the truth
     pose_error_mean_m: float  # measured, mean over seeds and validation postures
     predicted_pose_error_mean_m: float  # linearised prediction from the covariance
     orientation_error_mean_rad: float
@@ -84,10 +96,17 @@ class MonteCarloSummary:
         return self.crb_std**2 / self.empirical_rmse**2
 
 
-def monte_carlo(seeds: int = 200, postures: int = 50, noise_um: float = 10.0, nominal_set_number: int = 2,
-                validation_count: int = 50, weighted: bool = True,
-                progress: Callable[[str], None] = lambda _: None,
-                true_params: KinematicParameters | None = None, model: str | None = None) -> MonteCarloSummary:
+def monte_carlo(
+    seeds: int = 200,
+    postures: int = 50,
+    noise_um: float = 10.0,
+    nominal_set_number: int = 2,
+    validation_count: int = 50,
+    weighted: bool = True,
+    progress: Callable[[str], None] = lambda _: None,
+    true_params: KinematicParameters | None = None,
+    model: str | None = None,
+) -> MonteCarloSummary:
     """One calibration (same machine, same postures) repeated over noise seeds.
 
     The machine is ``true_params``, else the default machine of ``model`` (default: the Table 1
@@ -96,7 +115,7 @@ def monte_carlo(seeds: int = 200, postures: int = 50, noise_um: float = 10.0, no
     if true_params is None:
         true_params = default_parameters(model)
     workspace = true_params.architecture.default_workspace()
-    poses = sample_poses(true_params, postures, np.random.default_rng(12345), "sphere", workspace)
+    poses = sample_poses(true_params, postures, np.random.default_rng(12345), 'sphere', workspace)
     noise = NoiseModel.from_microns(noise_um)
     options = SolverOptions(noise=noise if weighted else None)
     nominal = nominal_set(nominal_set_number, seed=0, exact=true_params)
@@ -104,8 +123,10 @@ def monte_carlo(seeds: int = 200, postures: int = 50, noise_um: float = 10.0, no
     estimates, stds, position, orientation, factors = [], [], [], [], []
     first_covariance = None
     for seed in range(seeds):
-        progress(f"Monte Carlo seed {seed + 1}/{seeds}")
-        measurements = simulate_measurements(true_params, poses, noise=noise, rng=np.random.default_rng([seed, 77]))
+        progress(f'Monte Carlo seed {seed + 1}/{seeds}')
+        measurements = simulate_measurements(
+            true_params, poses, noise=noise, rng=np.random.default_rng([seed, 77])
+        )
         result = identify(nominal, measurements, options)
         estimates.append(result.parameters.vector)
         stds.append(result.std)
@@ -113,8 +134,8 @@ def monte_carlo(seeds: int = 200, postures: int = 50, noise_um: float = 10.0, no
         if first_covariance is None:
             first_covariance = result.covariance
         errors = pose_errors(true_params, result.parameters, validation).summary()
-        position.append(errors["position_mean_m"])
-        orientation.append(errors["orientation_mean_rad"])
+        position.append(errors['position_mean_m'])
+        orientation.append(errors['orientation_mean_rad'])
     estimates = np.array(estimates)
     predicted = predicted_pose_errors(true_params, first_covariance, validation)
     return MonteCarloSummary(
@@ -131,12 +152,14 @@ def monte_carlo(seeds: int = 200, postures: int = 50, noise_um: float = 10.0, no
     )
 
 
-def _crb_std(true_params: KinematicParameters, poses: np.ndarray, noise: NoiseModel, options: SolverOptions) -> np.ndarray:
+def _crb_std(
+    true_params: KinematicParameters, poses: np.ndarray, noise: NoiseModel, options: SolverOptions
+) -> np.ndarray:
     """Std of the Cramer-Rao bound at the truth: exact readings, residuals whitened by the noise covariance."""
     exact = simulate_measurements(true_params, poses)
     crb_options = SolverOptions(noise=noise, cost=options.cost)
     result = identify(true_params, exact, crb_options)
-    return np.sqrt(np.diag(result.covariance)[:true_params.layout.n_parameters])
+    return np.sqrt(np.diag(result.covariance)[: true_params.layout.n_parameters])
 
 
-__all__ = ["MonteCarloSummary", "PredictedPoseErrors", "monte_carlo", "predicted_pose_errors"]
+__all__ = ['MonteCarloSummary', 'PredictedPoseErrors', 'monte_carlo', 'predicted_pose_errors']

@@ -1,13 +1,14 @@
 """Pose accuracy of a parameter set, judged against the true machine (simulation only), any architecture."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from .kinematics import forward_kinematics, inverse_kinematics, rotation_matrices
 from .architectures import KinematicParameters
-from .postures import Workspace, sample_poses
+from .kinematics import forward_kinematics, inverse_kinematics, rotation_matrices
+from .postures import sample_poses, Workspace
 
 
 @dataclass
@@ -19,27 +20,35 @@ class PoseErrors:
 
     def summary(self) -> dict[str, float]:
         return {
-            "position_mean_m": float(np.nanmean(self.position_m)),
-            "position_max_m": float(np.nanmax(self.position_m)),
-            "orientation_mean_rad": float(np.nanmean(self.orientation_rad)),
-            "orientation_max_rad": float(np.nanmax(self.orientation_rad)),
-            "failed_postures": int(np.sum(np.isnan(self.position_m))),
+            'position_mean_m': float(np.nanmean(self.position_m)),
+            'position_max_m': float(np.nanmax(self.position_m)),
+            'orientation_mean_rad': float(np.nanmean(self.orientation_rad)),
+            'orientation_max_rad': float(np.nanmax(self.orientation_rad)),
+            'failed_postures': int(np.sum(np.isnan(self.position_m))),
         }
 
 
-def validation_poses(true_params: KinematicParameters, n: int, seed: int,
-                     workspace: Workspace | None = None) -> np.ndarray:
+def validation_poses(
+    true_params: KinematicParameters, n: int, seed: int, workspace: Workspace | None = None
+) -> np.ndarray:
     """Fresh postures, drawn like the measurement postures but from their own seed.
 
     ``workspace`` defaults to the architecture's default workspace.
     """
     if workspace is None:
         workspace = true_params.architecture.default_workspace()
-    return sample_poses(true_params, n, np.random.default_rng([seed, 0x7A11D]), "sphere", workspace)
+    return sample_poses(
+        true_params, n, np.random.default_rng([seed, 0x7A11D]), 'sphere', workspace
+    )
 
 
-def pose_errors(true_params: KinematicParameters, model_params: KinematicParameters, poses: np.ndarray,
-                align_base_rotation_y: bool = False, align_origin: bool = False) -> PoseErrors:
+def pose_errors(
+    true_params: KinematicParameters,
+    model_params: KinematicParameters,
+    poses: np.ndarray,
+    align_base_rotation_y: bool = False,
+    align_origin: bool = False,
+) -> PoseErrors:
     """Command the true machine's actuator readings for ``poses``; where does ``model_params`` put it?
 
     The controller's view: FK with the model parameters at the actuator readings
@@ -52,7 +61,9 @@ def pose_errors(true_params: KinematicParameters, model_params: KinematicParamet
     once the base frame's origin (the device's joint O) is re-referenced.
     """
     sliders = inverse_kinematics(true_params, poses)
-    fk = forward_kinematics(model_params, sliders, poses, branch_tolerance_m=0.2, branch_tolerance_rad=0.5)
+    fk = forward_kinematics(
+        model_params, sliders, poses, branch_tolerance_m=0.2, branch_tolerance_rad=0.5
+    )
     if align_base_rotation_y:
         fk.poses[:] = _rotate_about_y(fk.poses, _best_angle_about_y(fk.poses[:, :3], poses[:, :3]))
     offsets = fk.poses[:, :3] - poses[:, :3]
@@ -69,7 +80,12 @@ def _best_angle_about_y(model_positions: np.ndarray, true_positions: np.ndarray)
     """Angle of R_Y that best maps model positions onto true ones (least squares, closed form)."""
     ok = np.all(np.isfinite(model_positions), axis=1)
     p, q = model_positions[ok], true_positions[ok]
-    return float(np.arctan2(np.sum(p[:, 2] * q[:, 0] - p[:, 0] * q[:, 2]), np.sum(p[:, 0] * q[:, 0] + p[:, 2] * q[:, 2])))
+    return float(
+        np.arctan2(
+            np.sum(p[:, 2] * q[:, 0] - p[:, 0] * q[:, 2]),
+            np.sum(p[:, 0] * q[:, 0] + p[:, 2] * q[:, 2]),
+        )
+    )
 
 
 def _rotate_about_y(poses: np.ndarray, angle: float) -> np.ndarray:

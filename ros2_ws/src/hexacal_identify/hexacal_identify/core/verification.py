@@ -47,6 +47,7 @@ identify's ``verify_threshold_m``).
 Both parameter sets, and the postures when their model is known, must be of the
 same machine model: ``VerificationModelError`` (reason ``model-mismatch``) otherwise.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -56,22 +57,24 @@ import numpy as np
 from .architectures import KinematicParameters
 from .device import DeviceDefects, DeviceModel
 from .errors import InvalidMeasurementError
+from .jsonsafe import json_safe as _plain
 from .kinematics import forward_kinematics, wrap_angle
 from .measurements import MeasurementLimits, Measurements, NoiseModel
 from .residuals import ChannelSigma, CostFunction
-from .jsonsafe import json_safe as _plain
 
 DEFAULT_THRESHOLD_M = 50e-6
-NOISE_THRESHOLD_FACTOR = 3.0  # threshold = this x the predicted noise rms, when the reading noise is known
-PASS, FAIL = "pass", "fail"
-FIGURE_KEYS = ("position_rms_m", "position_max_m", "rotary_rms_rad")
-SET_NAMES = ("nominal", "calibrated")
+NOISE_THRESHOLD_FACTOR = (
+    3.0  # threshold = this x the predicted noise rms, when the reading noise is known
+)
+PASS, FAIL = 'pass', 'fail'
+FIGURE_KEYS = ('position_rms_m', 'position_max_m', 'rotary_rms_rad')
+SET_NAMES = ('nominal', 'calibrated')
 
 
 class VerificationModelError(InvalidMeasurementError):
     """The nominal set, the calibrated set and the postures are not all of one machine model."""
 
-    reason = "model-mismatch"
+    reason = 'model-mismatch'
 
 
 @dataclass
@@ -94,14 +97,20 @@ class SetResiduals:
         ok = self.converged
         position, rotary = self.position_error_m[ok], self.rotary_error_rad[ok]
         if not ok.any():
-            rms = peak = mean = rotary_rms = float("nan")
+            rms = peak = mean = rotary_rms = float('nan')
         else:
             rms = float(np.sqrt(np.mean(position**2)))
             peak = float(np.max(position))
             mean = float(np.mean(position))
             rotary_rms = float(np.sqrt(np.mean(rotary**2)))
-        return {"position_rms_m": rms, "position_max_m": peak, "rotary_rms_rad": rotary_rms,
-                "position_mean_m": mean, "postures_converged": int(ok.sum()), "fk_failures": len(self.failures)}
+        return {
+            'position_rms_m': rms,
+            'position_max_m': peak,
+            'rotary_rms_rad': rotary_rms,
+            'position_mean_m': mean,
+            'postures_converged': int(ok.sum()),
+            'fk_failures': len(self.failures),
+        }
 
 
 @dataclass
@@ -110,15 +119,19 @@ class VerificationResult:
 
     model: str
     kinds: np.ndarray  # (N,) 'sphere' or 'fixed'
-    measured_position_m: np.ndarray  # (N, 3) device position (eq. 4; the fixed point for fixed postures)
+    measured_position_m: (
+        np.ndarray
+    )  # (N, 3) device position (eq. 4; the fixed point for fixed postures)
     measured_phi_rad: np.ndarray  # (N,) rotary reading minus phi0
     nominal: SetResiduals
     calibrated: SetResiduals
     threshold_m: float
     link_length: float
     mount: str
-    threshold_source: str = "default"  # 'given', 'default' or '3x expected noise'
-    expected_noise: dict[str, float] | None = None  # position_rms_m, rotary_rms_rad predicted from the noise
+    threshold_source: str = 'default'  # 'given', 'default' or '3x expected noise'
+    expected_noise: dict[str, float] | None = (
+        None  # position_rms_m, rotary_rms_rad predicted from the noise
+    )
 
     @property
     def postures(self) -> int:
@@ -127,11 +140,11 @@ class VerificationResult:
     @property
     def improvement(self) -> float:
         """Nominal position rms / calibrated position rms (NaN when either is unknown, inf for an exact fit)."""
-        before = self.nominal.figures()["position_rms_m"]
-        after = self.calibrated.figures()["position_rms_m"]
+        before = self.nominal.figures()['position_rms_m']
+        after = self.calibrated.figures()['position_rms_m']
         if not (np.isfinite(before) and np.isfinite(after)):
-            return float("nan")
-        return float(before / after) if after > 0 else float("inf")
+            return float('nan')
+        return float(before / after) if after > 0 else float('inf')
 
     @property
     def verdict(self) -> str:
@@ -139,97 +152,148 @@ class VerificationResult:
 
     def verdict_reason(self) -> str:
         figures = self.calibrated.figures()
-        rms, threshold = figures["position_rms_m"], self.threshold_m
-        if figures["fk_failures"]:
-            return (f"{FAIL}: forward kinematics with the calibrated parameters failed on "
-                    f"{figures['fk_failures']} of {self.postures} posture(s)")
+        rms, threshold = figures['position_rms_m'], self.threshold_m
+        if figures['fk_failures']:
+            return (
+                f'{FAIL}: forward kinematics with the calibrated parameters failed on '
+                f'{figures["fk_failures"]} of {self.postures} posture(s)'
+            )
         if not np.isfinite(rms):
-            return f"{FAIL}: no posture to judge"
-        comparison = "<=" if rms <= threshold else ">"
+            return f'{FAIL}: no posture to judge'
+        comparison = '<=' if rms <= threshold else '>'
         verdict = PASS if rms <= threshold else FAIL
-        return (f"{verdict}: calibrated position rms {rms * 1e6:.2f} um {comparison} threshold "
-                f"{threshold * 1e6:.2f} um")
+        return (
+            f'{verdict}: calibrated position rms {rms * 1e6:.2f} um {comparison} threshold '
+            f'{threshold * 1e6:.2f} um'
+        )
 
     def to_json(self, per_posture: bool = False) -> dict:
         """{"model", "postures", "nominal": {figures}, "calibrated": {figures}, "improvement", "threshold_m",
         "verdict"} plus "verdict_reason", "link_length_m", "mount", per set its FK failures
         (``failed_postures``: index, reason) and with ``per_posture`` the per-posture arrays
         (``per_posture``: kinds, measured positions, both sets' errors).  NaN and inf are null."""
-        payload: dict = {"model": self.model, "postures": self.postures}
+        payload: dict = {'model': self.model, 'postures': self.postures}
         for name in SET_NAMES:
             residuals: SetResiduals = getattr(self, name)
             figures = residuals.figures()
-            figures["failed_postures"] = [{"index": int(i), "reason": why} for i, why in sorted(residuals.failures.items())]
+            figures['failed_postures'] = [
+                {'index': int(i), 'reason': why} for i, why in sorted(residuals.failures.items())
+            ]
             payload[name] = figures
-        payload.update({"improvement": self.improvement, "threshold_m": self.threshold_m, "verdict": self.verdict,
-                        "verdict_reason": self.verdict_reason(), "threshold_source": self.threshold_source,
-                        "expected_noise": self.expected_noise, "link_length_m": self.link_length,
-                        "mount": self.mount})
+        payload.update(
+            {
+                'improvement': self.improvement,
+                'threshold_m': self.threshold_m,
+                'verdict': self.verdict,
+                'verdict_reason': self.verdict_reason(),
+                'threshold_source': self.threshold_source,
+                'expected_noise': self.expected_noise,
+                'link_length_m': self.link_length,
+                'mount': self.mount,
+            }
+        )
         if per_posture:
-            payload["per_posture"] = {
-                "kinds": [str(k) for k in self.kinds],
-                "measured_position_m": self.measured_position_m,
-                "measured_phi_rad": self.measured_phi_rad,
-                **{f"{name}_position_error_m": getattr(self, name).position_error_m for name in SET_NAMES},
-                **{f"{name}_rotary_error_rad": getattr(self, name).rotary_error_rad for name in SET_NAMES},
+            payload['per_posture'] = {
+                'kinds': [str(k) for k in self.kinds],
+                'measured_position_m': self.measured_position_m,
+                'measured_phi_rad': self.measured_phi_rad,
+                **{
+                    f'{name}_position_error_m': getattr(self, name).position_error_m
+                    for name in SET_NAMES
+                },
+                **{
+                    f'{name}_rotary_error_rad': getattr(self, name).rotary_error_rad
+                    for name in SET_NAMES
+                },
             }
         return _plain(payload)
 
     def status_values(self) -> dict[str, str]:
         """The JSON keys flattened for a status topic ('nominal.position_rms_m', ...), as strings."""
-        values: dict[str, str] = {"model": self.model, "postures": str(self.postures)}
+        values: dict[str, str] = {'model': self.model, 'postures': str(self.postures)}
         for name in SET_NAMES:
             for key, value in getattr(self, name).figures().items():
-                values[f"{name}.{key}"] = _text(value)
-        values.update({"improvement": _text(self.improvement), "threshold_m": _text(self.threshold_m),
-                       "verdict": self.verdict, "verdict_reason": self.verdict_reason(),
-                       "threshold_source": self.threshold_source})
+                values[f'{name}.{key}'] = _text(value)
+        values.update(
+            {
+                'improvement': _text(self.improvement),
+                'threshold_m': _text(self.threshold_m),
+                'verdict': self.verdict,
+                'verdict_reason': self.verdict_reason(),
+                'threshold_source': self.threshold_source,
+            }
+        )
         for key, value in (self.expected_noise or {}).items():
-            values[f"expected_noise.{key}"] = _text(value)
+            values[f'expected_noise.{key}'] = _text(value)
         for index, why in sorted(self.calibrated.failures.items())[:20]:
-            values[f"calibrated.failed.{index}"] = why
+            values[f'calibrated.failed.{index}'] = why
         for index, why in sorted(self.nominal.failures.items())[:20]:
-            values[f"nominal.failed.{index}"] = why
+            values[f'nominal.failed.{index}'] = why
         return values
 
 
-def check_models(nominal: KinematicParameters, calibrated: KinematicParameters,
-                 postures_model: str | None = None, names: tuple[str, str] = ("nominal", "calibrated")) -> str:
+def check_models(
+    nominal: KinematicParameters,
+    calibrated: KinematicParameters,
+    postures_model: str | None = None,
+    names: tuple[str, str] = ('nominal', 'calibrated'),
+) -> str:
     """The one model of both parameter sets (and of the postures, when known); VerificationModelError if not."""
     if nominal.model != calibrated.model:
         raise VerificationModelError(
             f"the {names[0]} parameters are a {nominal.model}'s and the {names[1]} parameters a "
-            f"{calibrated.model}'s: verify two parameter sets of the same machine model")
+            f"{calibrated.model}'s: verify two parameter sets of the same machine model"
+        )
     if postures_model is not None and postures_model != nominal.model:
         raise VerificationModelError(
-            f"the postures are of a {postures_model} but the {names[0]} and {names[1]} parameters are a "
-            f"{nominal.model}'s: verify with the parameters of the machine that measured them")
+            f'the postures are of a {postures_model} but the {names[0]} and {names[1]} parameters are a '
+            f"{nominal.model}'s: verify with the parameters of the machine that measured them"
+        )
     return nominal.model
 
 
-def set_residuals(params: KinematicParameters, measurements: Measurements, device: DeviceModel = DeviceModel(),
-                  defects: DeviceDefects = DeviceDefects()) -> tuple[SetResiduals, np.ndarray]:
+def set_residuals(
+    params: KinematicParameters,
+    measurements: Measurements,
+    device: DeviceModel = DeviceModel(),
+    defects: DeviceDefects = DeviceDefects(),
+) -> tuple[SetResiduals, np.ndarray]:
     """(residuals of ``params``, the expected poses FK started from) at the measured postures.
 
     ``defects``: the device defects this parameter set assumes (identified jointly, or none)."""
-    from .identification import SolverOptions  # the identification's FK tolerances and branch check
+    from .identification import (
+        SolverOptions,
+    )  # the identification's FK tolerances and branch check
 
     options = SolverOptions()
-    cost = CostFunction("absolute", measurements, device, ChannelSigma())
+    cost = CostFunction('absolute', measurements, device, ChannelSigma())
     expected = cost.initial_poses(defects)
-    fk = forward_kinematics(params, measurements.slider_positions, expected, tolerance=options.fk_tolerance,
-                            branch_tolerance_m=options.branch_tolerance_m,
-                            branch_tolerance_rad=options.branch_tolerance_rad, fit_tilt_first=True)
+    fk = forward_kinematics(
+        params,
+        measurements.slider_positions,
+        expected,
+        tolerance=options.fk_tolerance,
+        branch_tolerance_m=options.branch_tolerance_m,
+        branch_tolerance_rad=options.branch_tolerance_rad,
+        fit_tilt_first=True,
+    )
     difference = fk.poses[:, :3] - expected[:, :3]
     rotary = wrap_angle(expected[:, 5] - fk.poses[:, 5])
     failures = {int(i): why for i, why in sorted(fk.failures.items())}
-    residuals = SetResiduals(fk.poses, np.linalg.norm(difference, axis=1), difference, rotary, failures)
+    residuals = SetResiduals(
+        fk.poses, np.linalg.norm(difference, axis=1), difference, rotary, failures
+    )
     return residuals, expected
 
 
-def expected_noise(params: KinematicParameters, residuals: SetResiduals, measurements: Measurements,
-                   noise: NoiseModel, device: DeviceModel = DeviceModel(),
-                   defects: DeviceDefects = DeviceDefects()) -> dict[str, float]:
+def expected_noise(
+    params: KinematicParameters,
+    residuals: SetResiduals,
+    measurements: Measurements,
+    noise: NoiseModel,
+    device: DeviceModel = DeviceModel(),
+    defects: DeviceDefects = DeviceDefects(),
+) -> dict[str, float]:
     """The residual rms that reading noise alone gives (module doc), at the converged FK poses.
 
     position: sqrt(mean_n E|r_n|^2), E|r_n|^2 = sum_k |dP/d lambda_k|^2 a_s^2/3 + sum_j |dP_meas/d angle_j|^2
@@ -240,23 +304,42 @@ def expected_noise(params: KinematicParameters, residuals: SetResiduals, measure
 
     ok = residuals.converged
     if not ok.any():
-        return {"position_rms_m": float("nan"), "rotary_rms_rad": float("nan")}
+        return {'position_rms_m': float('nan'), 'rotary_rms_rad': float('nan')}
     slider_var, angle_var = noise.slider_m**2 / 3.0, noise.angle_rad**2 / 3.0
-    sensitivity = pose_sensitivities(params, residuals.poses[ok]).wrt_sliders  # dX/d lambda (k, 6, 6)
+    sensitivity = pose_sensitivities(
+        params, residuals.poses[ok]
+    ).wrt_sliders  # dX/d lambda (k, 6, 6)
     alpha, beta = measurements.inclinometer[ok].T
-    lengths = (measurements.link_lengths[ok] if measurements.link_lengths is not None
-               else device.link_length)
+    lengths = (
+        measurements.link_lengths[ok]
+        if measurements.link_lengths is not None
+        else device.link_length
+    )
     readings = device_position(alpha, beta, lengths, defects, device.mount).d_readings  # (k, 3, 2)
-    position = np.sum(sensitivity[:, :3, :]**2, axis=(1, 2)) * slider_var + np.sum(readings**2, axis=(1, 2)) * angle_var
-    rotary = np.sum(sensitivity[:, 5, :]**2, axis=1) * slider_var + angle_var
-    return {"position_rms_m": float(np.sqrt(np.mean(position))), "rotary_rms_rad": float(np.sqrt(np.mean(rotary)))}
+    position = (
+        np.sum(sensitivity[:, :3, :] ** 2, axis=(1, 2)) * slider_var
+        + np.sum(readings**2, axis=(1, 2)) * angle_var
+    )
+    rotary = np.sum(sensitivity[:, 5, :] ** 2, axis=1) * slider_var + angle_var
+    return {
+        'position_rms_m': float(np.sqrt(np.mean(position))),
+        'rotary_rms_rad': float(np.sqrt(np.mean(rotary))),
+    }
 
 
-def verify(nominal: KinematicParameters, calibrated: KinematicParameters, measurements: Measurements, *,
-           device: DeviceModel = DeviceModel(), threshold_m: float | None = None, noise: NoiseModel | None = None,
-           postures_model: str | None = None, nominal_defects: DeviceDefects = DeviceDefects(),
-           calibrated_defects: DeviceDefects = DeviceDefects(),
-           limits: MeasurementLimits = MeasurementLimits()) -> VerificationResult:
+def verify(
+    nominal: KinematicParameters,
+    calibrated: KinematicParameters,
+    measurements: Measurements,
+    *,
+    device: DeviceModel = DeviceModel(),
+    threshold_m: float | None = None,
+    noise: NoiseModel | None = None,
+    postures_model: str | None = None,
+    nominal_defects: DeviceDefects = DeviceDefects(),
+    calibrated_defects: DeviceDefects = DeviceDefects(),
+    limits: MeasurementLimits = MeasurementLimits(),
+) -> VerificationResult:
     """Residuals of the nominal and the calibrated parameters at fresh measured postures (module doc).
 
     ``threshold_m``: the verdict's threshold (None: 3x the expected noise rms with a known ``noise``,
@@ -268,36 +351,73 @@ def verify(nominal: KinematicParameters, calibrated: KinematicParameters, measur
     """
     model = check_models(nominal, calibrated, postures_model)
     if threshold_m is not None and not (np.isfinite(threshold_m) and threshold_m > 0):
-        raise ValueError(f"the verification threshold must be a positive length in m, got {threshold_m}")
+        raise ValueError(
+            f'the verification threshold must be a positive length in m, got {threshold_m}'
+        )
     if noise is not None and not noise.known:
-        raise ValueError("the reading noise for the expected residual needs positive actuator and angle noise")
+        raise ValueError(
+            'the reading noise for the expected residual needs positive actuator and angle noise'
+        )
     if len(measurements) == 0:
-        raise InvalidMeasurementError("no postures to verify on: measure fresh postures (not used in the fit)")
+        raise InvalidMeasurementError(
+            'no postures to verify on: measure fresh postures (not used in the fit)'
+        )
     measurements.validate(limits)
     before, _ = set_residuals(nominal, measurements, device, nominal_defects)
     after, expected_after = set_residuals(calibrated, measurements, device, calibrated_defects)
     predicted = None
     if noise is not None:
-        predicted = expected_noise(calibrated, after, measurements, noise, device, calibrated_defects)
+        predicted = expected_noise(
+            calibrated, after, measurements, noise, device, calibrated_defects
+        )
     if threshold_m is not None:
-        threshold, source = float(threshold_m), "given"
-    elif predicted is not None and np.isfinite(predicted["position_rms_m"]) and predicted["position_rms_m"] > 0:
-        threshold, source = NOISE_THRESHOLD_FACTOR * predicted["position_rms_m"], "3x expected noise"
+        threshold, source = float(threshold_m), 'given'
+    elif (
+        predicted is not None
+        and np.isfinite(predicted['position_rms_m'])
+        and predicted['position_rms_m'] > 0
+    ):
+        threshold, source = (
+            NOISE_THRESHOLD_FACTOR * predicted['position_rms_m'],
+            '3x expected noise',
+        )
     else:
-        threshold, source = DEFAULT_THRESHOLD_M, "default"
+        threshold, source = DEFAULT_THRESHOLD_M, 'default'
     # The measured side is the calibrated device's (identical to the nominal's without identified defects).
-    return VerificationResult(model, np.asarray(measurements.kinds).astype(str), expected_after[:, :3].copy(),
-                              expected_after[:, 5].copy(), before, after, threshold,
-                              float(device.link_length), device.mount, source, predicted)
+    return VerificationResult(
+        model,
+        np.asarray(measurements.kinds).astype(str),
+        expected_after[:, :3].copy(),
+        expected_after[:, 5].copy(),
+        before,
+        after,
+        threshold,
+        float(device.link_length),
+        device.mount,
+        source,
+        predicted,
+    )
 
 
 def _text(value: float) -> str:
     if isinstance(value, (int, np.integer)):
         return str(int(value))
     if not np.isfinite(value):
-        return "nan" if np.isnan(value) else "inf"
-    return f"{value:.6g}"
+        return 'nan' if np.isnan(value) else 'inf'
+    return f'{value:.6g}'
 
 
-__all__ = ["DEFAULT_THRESHOLD_M", "FAIL", "FIGURE_KEYS", "NOISE_THRESHOLD_FACTOR", "PASS", "SetResiduals", "VerificationModelError",
-           "VerificationResult", "check_models", "expected_noise", "set_residuals", "verify"]
+__all__ = [
+    'DEFAULT_THRESHOLD_M',
+    'FAIL',
+    'FIGURE_KEYS',
+    'NOISE_THRESHOLD_FACTOR',
+    'PASS',
+    'SetResiduals',
+    'VerificationModelError',
+    'VerificationResult',
+    'check_models',
+    'expected_noise',
+    'set_residuals',
+    'verify',
+]

@@ -27,6 +27,7 @@ arguments go through `launches_from_arguments`, so both build the same nodes.
 With --shutdown-when-done the executor stops once the plan is walked (and the
 calibration answered): bringup then stops the other nodes and exits 0.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -51,9 +52,13 @@ EXECUTABLE_MODULES = {
     'executor': 'hexacal_identify.nodes.executor',
     'kinematics': 'hexacal_identify.nodes.kinematics',
 }
-PACKAGES = {'driver': 'hexacal_driver', 'collector': 'hexacal_identify',
-            'identify': 'hexacal_identify', 'executor': 'hexacal_identify',
-            'kinematics': 'hexacal_identify'}
+PACKAGES = {
+    'driver': 'hexacal_driver',
+    'collector': 'hexacal_identify',
+    'identify': 'hexacal_identify',
+    'executor': 'hexacal_identify',
+    'kinematics': 'hexacal_identify',
+}
 # The contract's names (hexacal_msgs_py.names and .inputs, spelled here: importing them costs
 # numpy): the machine's three sensor inputs as the nodes name them, the command topic of
 # ros2_control's joint_trajectory_controller, the inclinometer types.
@@ -161,8 +166,12 @@ class NodeGroup:
         self.nodes: list[RunningNode] = []
         self._preexec = _parent_death_signal() if die_with_parent else None
 
-    def start(self, launch: NodeLaunch, env: Mapping[str, str] | None = None,
-              log_path: str | os.PathLike[str] | None = None) -> RunningNode:
+    def start(
+        self,
+        launch: NodeLaunch,
+        env: Mapping[str, str] | None = None,
+        log_path: str | os.PathLike[str] | None = None,
+    ) -> RunningNode:
         """Start a node; its output goes to log_path, else to this process's stdout/stderr."""
         log_file = None
         if log_path is not None:
@@ -173,9 +182,14 @@ class NodeGroup:
         child_env.setdefault('PYTHONUNBUFFERED', '1')
         try:
             popen = subprocess.Popen(
-                launch.command(), env=child_env, stdin=subprocess.DEVNULL,
-                stdout=log_file, stderr=subprocess.STDOUT if log_file else None,
-                start_new_session=True, preexec_fn=self._preexec)
+                launch.command(),
+                env=child_env,
+                stdin=subprocess.DEVNULL,
+                stdout=log_file,
+                stderr=subprocess.STDOUT if log_file else None,
+                start_new_session=True,
+                preexec_fn=self._preexec,
+            )
         except BaseException:
             if log_file:
                 log_file.close()
@@ -195,12 +209,14 @@ class NodeGroup:
     def exited(self) -> list[RunningNode]:
         return [node for node in self.nodes if not node.running()]
 
-    def stop(self, timeout: float = DEFAULT_STOP_TIMEOUT_S,
-             order: Sequence[str] | None = None) -> dict[str, int]:
+    def stop(
+        self, timeout: float = DEFAULT_STOP_TIMEOUT_S, order: Sequence[str] | None = None
+    ) -> dict[str, int]:
         """SIGINT every node (in `order` of executables first), escalate; name -> exit code."""
         first = list(order or ())
-        ranked = sorted(self.nodes, key=lambda n: first.index(n.name) if n.name in first
-                        else len(first))
+        ranked = sorted(
+            self.nodes, key=lambda n: first.index(n.name) if n.name in first else len(first)
+        )
         for node in ranked:
             self._stop_one(node, timeout)
         codes = {}
@@ -255,17 +271,22 @@ class MachineInputs:
 
     def remaps(self, *inputs: str) -> dict[str, str]:
         """`-r` remaps of the given inputs (those set and not the contract's name)."""
-        topics = {SLIDERS: self.sliders_topic, INCLINOMETER: self.inclinometer_topic,
-                  ENCODER: self.encoder_topic}
-        return {name: topics[name] for name in inputs
-                if topics[name] and topics[name] != name}
+        topics = {
+            SLIDERS: self.sliders_topic,
+            INCLINOMETER: self.inclinometer_topic,
+            ENCODER: self.encoder_topic,
+        }
+        return {name: topics[name] for name in inputs if topics[name] and topics[name] != name}
 
     def collector_parameters(self) -> dict[str, object]:
-        values = {'actuator_joints': list(self.actuator_joints),
-                  'inclinometer_joints': list(self.inclinometer_joints),
-                  'rotary_joint': self.rotary_joint, 'inclinometer_type': self.inclinometer_type,
-                  'inclinometer_signs': [int(v) for v in self.inclinometer_signs],
-                  'inclinometer_offsets_rad': [float(v) for v in self.inclinometer_offsets_rad]}
+        values = {
+            'actuator_joints': list(self.actuator_joints),
+            'inclinometer_joints': list(self.inclinometer_joints),
+            'rotary_joint': self.rotary_joint,
+            'inclinometer_type': self.inclinometer_type,
+            'inclinometer_signs': [int(v) for v in self.inclinometer_signs],
+            'inclinometer_offsets_rad': [float(v) for v in self.inclinometer_offsets_rad],
+        }
         return {name: value for name, value in values.items() if value}
 
     @property
@@ -273,17 +294,30 @@ class MachineInputs:
         return self.inclinometer_type == 'imu'
 
 
-def launches(namespace: str = '', nominal: str = '', output_dir: str = '', bag_dir: str = '',
-             plan: str = '', postures: int | None = None, record: bool = True,
-             driver: Mapping[str, object] | None = None,
-             collector: Mapping[str, object] | None = None,
-             identify: Mapping[str, object] | None = None,
-             with_driver: bool = True, model: str = '', *,
-             executor_plan: str = '', command_topic: str = '', calibrate_when_done: bool = False,
-             shutdown_when_done: bool = False, executor: Mapping[str, object] | None = None,
-             with_kinematics: bool = False, kinematics_parameters: str = '',
-             kinematics: Mapping[str, object] | None = None,
-             inputs: MachineInputs | None = None) -> list[NodeLaunch]:
+def launches(
+    namespace: str = '',
+    nominal: str = '',
+    output_dir: str = '',
+    bag_dir: str = '',
+    plan: str = '',
+    postures: int | None = None,
+    record: bool = True,
+    driver: Mapping[str, object] | None = None,
+    collector: Mapping[str, object] | None = None,
+    identify: Mapping[str, object] | None = None,
+    with_driver: bool = True,
+    model: str = '',
+    *,
+    executor_plan: str = '',
+    command_topic: str = '',
+    calibrate_when_done: bool = False,
+    shutdown_when_done: bool = False,
+    executor: Mapping[str, object] | None = None,
+    with_kinematics: bool = False,
+    kinematics_parameters: str = '',
+    kinematics: Mapping[str, object] | None = None,
+    inputs: MachineInputs | None = None,
+) -> list[NodeLaunch]:
     """The NodeLaunch of each node; empty options keep the nodes' defaults.
 
     `model` (hexa_slide or gough_stewart) goes to the driver and the collector;
@@ -317,19 +351,28 @@ def launches(namespace: str = '', nominal: str = '', output_dir: str = '', bag_d
     if output_dir:
         identify_parameters['output_dir'] = str(Path(output_dir).resolve())
     identify_parameters.update(identify or {})
-    nodes = [NodeLaunch('collector', collector_parameters, namespace,
-                        inputs.remaps(SLIDERS, INCLINOMETER, ENCODER)),
-             NodeLaunch('identify', identify_parameters, namespace)]
+    nodes = [
+        NodeLaunch(
+            'collector',
+            collector_parameters,
+            namespace,
+            inputs.remaps(SLIDERS, INCLINOMETER, ENCODER),
+        ),
+        NodeLaunch('identify', identify_parameters, namespace),
+    ]
     if with_kinematics:
         kinematics_parameters_ = {'command_topic': command_topic}
         if kinematics_parameters:
             kinematics_parameters_['parameters'] = str(Path(kinematics_parameters).resolve())
         kinematics_parameters_.update(kinematics or {})
-        nodes.append(NodeLaunch('kinematics', kinematics_parameters_, namespace,
-                                inputs.remaps(SLIDERS)))
+        nodes.append(
+            NodeLaunch('kinematics', kinematics_parameters_, namespace, inputs.remaps(SLIDERS))
+        )
     if executor_plan:
         executor_parameters: dict[str, object] = {
-            'plan': str(Path(executor_plan).resolve()), 'command_topic': command_topic}
+            'plan': str(Path(executor_plan).resolve()),
+            'command_topic': command_topic,
+        }
         if nominal:
             executor_parameters['nominal'] = str(Path(nominal).resolve())
         if inputs.actuator_joints:
@@ -346,8 +389,14 @@ def launches(namespace: str = '', nominal: str = '', output_dir: str = '', bag_d
         read = (SLIDERS,) if inputs.imu else (SLIDERS, INCLINOMETER)
         nodes.append(NodeLaunch('executor', executor_parameters, namespace, inputs.remaps(*read)))
     if with_driver:
-        nodes.append(NodeLaunch('driver', driver_parameters, namespace,
-                                inputs.remaps(SLIDERS, INCLINOMETER, ENCODER)))
+        nodes.append(
+            NodeLaunch(
+                'driver',
+                driver_parameters,
+                namespace,
+                inputs.remaps(SLIDERS, INCLINOMETER, ENCODER),
+            )
+        )
     return nodes
 
 
@@ -386,30 +435,43 @@ def launches_from_arguments(values: Mapping[str, str]) -> list[NodeLaunch]:
     '' keeps a node's default; the plan walked by the executor is `executor_plan`
     (`plan` stays the simulated driver's own plan when there is none).
     """
+
     def get(name: str, default: str = '') -> str:
         return str(values.get(name, default) or '').strip()
 
     inputs = MachineInputs(
-        sliders_topic=get('sliders_topic'), inclinometer_topic=get('inclinometer_topic'),
-        encoder_topic=get('encoder_topic'), inclinometer_type=get('inclinometer_type'),
+        sliders_topic=get('sliders_topic'),
+        inclinometer_topic=get('inclinometer_topic'),
+        encoder_topic=get('encoder_topic'),
+        inclinometer_type=get('inclinometer_type'),
         actuator_joints=name_list(get('actuator_joints')),
         inclinometer_joints=name_list(get('inclinometer_joints')),
         rotary_joint=get('rotary_joint'),
         inclinometer_signs=number_list(get('inclinometer_signs'), int),
-        inclinometer_offsets_rad=number_list(get('inclinometer_offsets_rad')))
+        inclinometer_offsets_rad=number_list(get('inclinometer_offsets_rad')),
+    )
     nominal, true_params = get('nominal'), get('true_params')
     driver = {'true_params': str(Path(true_params).resolve())} if true_params else {}
     postures = get('postures')
     return launches(
-        get('namespace'), nominal, get('output_dir'), get('bag_dir'), get('plan'),
-        int(postures) if postures else None, _truthy(get('record', 'true')), driver,
+        get('namespace'),
+        nominal,
+        get('output_dir'),
+        get('bag_dir'),
+        get('plan'),
+        int(postures) if postures else None,
+        _truthy(get('record', 'true')),
+        driver,
         with_driver=_truthy(get('use_driver', 'true')),
         model=get('model') or _file_model(nominal) or _file_model(true_params),
-        executor_plan=get('executor_plan'), command_topic=get('command_topic'),
+        executor_plan=get('executor_plan'),
+        command_topic=get('command_topic'),
         calibrate_when_done=_truthy(get('calibrate_when_done')),
         shutdown_when_done=_truthy(get('shutdown_when_done')),
         with_kinematics=_truthy(get('use_kinematics', 'true')),
-        kinematics_parameters=get('kinematics_parameters'), inputs=inputs)
+        kinematics_parameters=get('kinematics_parameters'),
+        inputs=inputs,
+    )
 
 
 def _file_model(path: str) -> str:
@@ -438,10 +500,12 @@ def _parse_param(text: str) -> tuple[str, str, object]:
         name, value = rest.split('=', 1)
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f'--param must look like NODE:NAME=VALUE, got {text!r}') from None
+            f'--param must look like NODE:NAME=VALUE, got {text!r}'
+        ) from None
     if node not in EXECUTABLE_MODULES:
         raise argparse.ArgumentTypeError(
-            f'--param node must be one of {sorted(EXECUTABLE_MODULES)}, got {node!r}')
+            f'--param node must be one of {sorted(EXECUTABLE_MODULES)}, got {node!r}'
+        )
     try:
         parsed = yaml.safe_load(value) if value else ''
     except yaml.YAMLError:
@@ -454,84 +518,166 @@ def _parse_param(text: str) -> tuple[str, str, object]:
 
 def _argument_list(kind: type | None = None):
     """argparse type of a list option: 'a,b' or '[a, b]' (numbers of `kind` when given)."""
+
     def parse(text: str) -> tuple:
         try:
             return number_list(text, kind) if kind else name_list(text)
         except ValueError as error:
             raise argparse.ArgumentTypeError(str(error)) from None
+
     parse.__name__ = 'list'
     return parse
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog='bringup', description='Start the hexacal nodes (collector, identify, kinematics; '
+        prog='bringup',
+        description='Start the hexacal nodes (collector, identify, kinematics; '
         'the simulated driver unless --no-driver; the executor with --executor-plan) as child '
-        'processes; Ctrl-C (or SIGTERM) stops them all cleanly.')
+        'processes; Ctrl-C (or SIGTERM) stops them all cleanly.',
+    )
     parser.add_argument('--namespace', default='', help='ROS namespace of all nodes (e.g. left)')
-    parser.add_argument('--nominal', default='', help='nominal parameters YAML for identify and '
-                        'the executor')
-    parser.add_argument('--output-dir', default='', help='directory identify writes its '
-                        'calibration YAML under (default: the current directory)')
-    parser.add_argument('--bag-dir', default='', help='directory the collector records bags '
-                        'into (default: bags)')
-    parser.add_argument('--no-record', action='store_true',
-                        help='do not record until hexacal/start_recording is called')
-    parser.add_argument('--plan', default='', help="driver plan: random, fixed, mixed or a plan "
-                        "YAML (default: the driver's); the driver walks it when there is no "
-                        '--executor-plan')
+    parser.add_argument(
+        '--nominal', default='', help='nominal parameters YAML for identify and the executor'
+    )
+    parser.add_argument(
+        '--output-dir',
+        default='',
+        help='directory identify writes its '
+        'calibration YAML under (default: the current directory)',
+    )
+    parser.add_argument(
+        '--bag-dir', default='', help='directory the collector records bags into (default: bags)'
+    )
+    parser.add_argument(
+        '--no-record',
+        action='store_true',
+        help='do not record until hexacal/start_recording is called',
+    )
+    parser.add_argument(
+        '--plan',
+        default='',
+        help='driver plan: random, fixed, mixed or a plan '
+        "YAML (default: the driver's); the driver walks it when there is no "
+        '--executor-plan',
+    )
     parser.add_argument('--postures', type=int, default=None, help='postures of a generated plan')
-    parser.add_argument('--true-params', default='', help='parameters YAML of the simulated '
-                        'machine, of either model (default: the default machine of --model)')
-    parser.add_argument('--model', default='', choices=('', 'hexa_slide', 'gough_stewart'),
-                        help='machine model of the driver and the collector (default: the model '
-                        '--nominal, else --true-params names, else hexa_slide)')
-    parser.add_argument('--no-driver', action='store_true',
-                        help='no simulated driver: a real machine publishes (use_driver:=false)')
+    parser.add_argument(
+        '--true-params',
+        default='',
+        help='parameters YAML of the simulated '
+        'machine, of either model (default: the default machine of --model)',
+    )
+    parser.add_argument(
+        '--model',
+        default='',
+        choices=('', 'hexa_slide', 'gough_stewart'),
+        help='machine model of the driver and the collector (default: the model '
+        '--nominal, else --true-params names, else hexa_slide)',
+    )
+    parser.add_argument(
+        '--no-driver',
+        action='store_true',
+        help='no simulated driver: a real machine publishes (use_driver:=false)',
+    )
     machine = parser.add_argument_group(
         'plan execution and the calibrated model',
         'the executor walks a plan through the trajectory controller; kinematics publishes '
-        'hexacal/platform_pose and turns hexacal/target_pose into compensated commands')
-    machine.add_argument('--executor-plan', default='', metavar='PLAN',
-                         help='plan YAML from `hexacal plan`: start the executor walking it (with '
-                         '--nominal); the simulated driver then follows --command-topic')
-    machine.add_argument('--command-topic', default='', help='JointTrajectory command topic of '
-                         f'the executor and kinematics (default {DEFAULT_COMMAND_TOPIC})')
-    machine.add_argument('--calibrate-when-done', action='store_true',
-                         help='the executor calls hexacal/calibrate when the plan is walked')
-    machine.add_argument('--shutdown-when-done', action='store_true',
-                         help='stop everything (exit 0) once the executor is done (and the '
-                         'calibration answered)')
-    machine.add_argument('--kinematics-parameters', default='', metavar='FILE',
-                         help='calibrated parameters YAML kinematics starts from (default: it '
-                         'waits for hexacal/parameters)')
-    machine.add_argument('--no-kinematics', action='store_true',
-                         help='do not start the kinematics node')
+        'hexacal/platform_pose and turns hexacal/target_pose into compensated commands',
+    )
+    machine.add_argument(
+        '--executor-plan',
+        default='',
+        metavar='PLAN',
+        help='plan YAML from `hexacal plan`: start the executor walking it (with '
+        '--nominal); the simulated driver then follows --command-topic',
+    )
+    machine.add_argument(
+        '--command-topic',
+        default='',
+        help='JointTrajectory command topic of '
+        f'the executor and kinematics (default {DEFAULT_COMMAND_TOPIC})',
+    )
+    machine.add_argument(
+        '--calibrate-when-done',
+        action='store_true',
+        help='the executor calls hexacal/calibrate when the plan is walked',
+    )
+    machine.add_argument(
+        '--shutdown-when-done',
+        action='store_true',
+        help='stop everything (exit 0) once the executor is done (and the calibration answered)',
+    )
+    machine.add_argument(
+        '--kinematics-parameters',
+        default='',
+        metavar='FILE',
+        help='calibrated parameters YAML kinematics starts from (default: it '
+        'waits for hexacal/parameters)',
+    )
+    machine.add_argument(
+        '--no-kinematics', action='store_true', help='do not start the kinematics node'
+    )
     inputs = parser.add_argument_group(
-        'machine inputs', "where a real machine's readings come from (default: the contract's "
-        'topics and joints); e.g. all three topics /joint_states for ros2_control')
+        'machine inputs',
+        "where a real machine's readings come from (default: the contract's "
+        'topics and joints); e.g. all three topics /joint_states for ros2_control',
+    )
     inputs.add_argument('--sliders-topic', default='', help=f'actuator readings ({SLIDERS})')
-    inputs.add_argument('--inclinometer-topic', default='',
-                        help=f'inclinometer readings ({INCLINOMETER})')
+    inputs.add_argument(
+        '--inclinometer-topic', default='', help=f'inclinometer readings ({INCLINOMETER})'
+    )
     inputs.add_argument('--encoder-topic', default='', help=f'rotary readings ({ENCODER})')
-    inputs.add_argument('--inclinometer-type', default='', choices=('', *INCLINOMETER_TYPES),
-                        help='joint_state (default) or imu (sensor_msgs/Imu)')
-    inputs.add_argument('--actuator-joints', type=_argument_list(), default=(),
-                        metavar='A,B,C,D,E,F', help="the six actuator joints in chain order "
-                        "(default: the model's)")
-    inputs.add_argument('--inclinometer-joints', type=_argument_list(), default=(),
-                        metavar='X,Y', help='the inclinometer joints alpha, beta')
+    inputs.add_argument(
+        '--inclinometer-type',
+        default='',
+        choices=('', *INCLINOMETER_TYPES),
+        help='joint_state (default) or imu (sensor_msgs/Imu)',
+    )
+    inputs.add_argument(
+        '--actuator-joints',
+        type=_argument_list(),
+        default=(),
+        metavar='A,B,C,D,E,F',
+        help="the six actuator joints in chain order (default: the model's)",
+    )
+    inputs.add_argument(
+        '--inclinometer-joints',
+        type=_argument_list(),
+        default=(),
+        metavar='X,Y',
+        help='the inclinometer joints alpha, beta',
+    )
     inputs.add_argument('--rotary-joint', default='', help='the rotary sensor joint (phi)')
-    inputs.add_argument('--inclinometer-signs', type=_argument_list(int), default=(),
-                        metavar='SX,SY', help='per channel 1 or -1')
-    inputs.add_argument('--inclinometer-offsets-rad', type=_argument_list(float), default=(),
-                        metavar='OX,OY', help='per channel, the raw reading with the link level')
-    parser.add_argument('--param', action='append', type=_parse_param, default=[],
-                        metavar='NODE:NAME=VALUE',
-                        help='any other node parameter, e.g. driver:settle_s=0.5 (repeatable; '
-                        f"NODE one of {', '.join(EXECUTABLE_MODULES)})")
-    parser.add_argument('--stop-timeout', type=float, default=DEFAULT_STOP_TIMEOUT_S,
-                        help='seconds a node gets to exit after SIGINT before escalation')
+    inputs.add_argument(
+        '--inclinometer-signs',
+        type=_argument_list(int),
+        default=(),
+        metavar='SX,SY',
+        help='per channel 1 or -1',
+    )
+    inputs.add_argument(
+        '--inclinometer-offsets-rad',
+        type=_argument_list(float),
+        default=(),
+        metavar='OX,OY',
+        help='per channel, the raw reading with the link level',
+    )
+    parser.add_argument(
+        '--param',
+        action='append',
+        type=_parse_param,
+        default=[],
+        metavar='NODE:NAME=VALUE',
+        help='any other node parameter, e.g. driver:settle_s=0.5 (repeatable; '
+        f'NODE one of {", ".join(EXECUTABLE_MODULES)})',
+    )
+    parser.add_argument(
+        '--stop-timeout',
+        type=float,
+        default=DEFAULT_STOP_TIMEOUT_S,
+        help='seconds a node gets to exit after SIGINT before escalation',
+    )
     return parser
 
 
@@ -543,19 +689,39 @@ def node_launches(args: argparse.Namespace) -> list[NodeLaunch]:
     if args.true_params:
         extra['driver'].setdefault('true_params', str(Path(args.true_params).resolve()))
     inputs = MachineInputs(
-        args.sliders_topic, args.inclinometer_topic, args.encoder_topic, args.inclinometer_type,
-        args.actuator_joints, args.inclinometer_joints, args.rotary_joint,
-        args.inclinometer_signs, args.inclinometer_offsets_rad)
-    nodes = launches(args.namespace, args.nominal, args.output_dir, args.bag_dir, args.plan,
-                     args.postures, not args.no_record, extra['driver'], extra['collector'],
-                     extra['identify'], with_driver=not args.no_driver,
-                     model=args.model or _file_model(args.nominal) or _file_model(args.true_params),
-                     executor_plan=args.executor_plan, command_topic=args.command_topic,
-                     calibrate_when_done=args.calibrate_when_done,
-                     shutdown_when_done=args.shutdown_when_done, executor=extra['executor'],
-                     with_kinematics=not args.no_kinematics,
-                     kinematics_parameters=args.kinematics_parameters,
-                     kinematics=extra['kinematics'], inputs=inputs)
+        args.sliders_topic,
+        args.inclinometer_topic,
+        args.encoder_topic,
+        args.inclinometer_type,
+        args.actuator_joints,
+        args.inclinometer_joints,
+        args.rotary_joint,
+        args.inclinometer_signs,
+        args.inclinometer_offsets_rad,
+    )
+    nodes = launches(
+        args.namespace,
+        args.nominal,
+        args.output_dir,
+        args.bag_dir,
+        args.plan,
+        args.postures,
+        not args.no_record,
+        extra['driver'],
+        extra['collector'],
+        extra['identify'],
+        with_driver=not args.no_driver,
+        model=args.model or _file_model(args.nominal) or _file_model(args.true_params),
+        executor_plan=args.executor_plan,
+        command_topic=args.command_topic,
+        calibrate_when_done=args.calibrate_when_done,
+        shutdown_when_done=args.shutdown_when_done,
+        executor=extra['executor'],
+        with_kinematics=not args.no_kinematics,
+        kinematics_parameters=args.kinematics_parameters,
+        kinematics=extra['kinematics'],
+        inputs=inputs,
+    )
     return nodes
 
 
@@ -573,28 +739,43 @@ def main(argv: list[str] | None = None) -> int:
     def forward(signum: int, frame: object) -> None:
         received.append(signum)
 
-    previous = {signum: signal.signal(signum, forward) for signum in (signal.SIGINT,
-                                                                       signal.SIGTERM)}
+    previous = {
+        signum: signal.signal(signum, forward) for signum in (signal.SIGINT, signal.SIGTERM)
+    }
     exit_code = 0
     done = False  # the executor finished its plan (shutdown_when_done) and exited 0
     try:
         for launch in nodes:
             node = group.start(launch)
-            print(f'bringup: started {launch.executable} (pid {node.popen.pid}): '
-                  f"{' '.join(launch.command())}", file=sys.stderr, flush=True)
+            print(
+                f'bringup: started {launch.executable} (pid {node.popen.pid}): '
+                f'{" ".join(launch.command())}',
+                file=sys.stderr,
+                flush=True,
+            )
         while not received:
             finished = group.exited()
             if finished:
                 node = finished[0]
-                if node.name == 'executor' and args.shutdown_when_done \
-                        and node.popen.returncode == 0:
+                if (
+                    node.name == 'executor'
+                    and args.shutdown_when_done
+                    and node.popen.returncode == 0
+                ):
                     done = True
-                    print('bringup: the executor is done; stopping the others', file=sys.stderr,
-                          flush=True)
+                    print(
+                        'bringup: the executor is done; stopping the others',
+                        file=sys.stderr,
+                        flush=True,
+                    )
                     break
                 exit_code = node.popen.returncode or 1
-                print(f'bringup: {node.name} exited with {node.popen.returncode}; stopping the '
-                      'others', file=sys.stderr, flush=True)
+                print(
+                    f'bringup: {node.name} exited with {node.popen.returncode}; stopping the '
+                    'others',
+                    file=sys.stderr,
+                    flush=True,
+                )
                 break
             time.sleep(0.1)
     finally:
@@ -608,6 +789,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f'bringup: exit codes {failed}', file=sys.stderr, flush=True)
         exit_code = exit_code or 1
     return exit_code
+
 
 if __name__ == '__main__':
     sys.exit(main())

@@ -66,6 +66,7 @@ the parameter `device_turn` (rad, -2 pi..2 pi, default 0, settable at run
 time: an operator who turned a real device sets `ros2 param set /collector
 device_turn 3.14159` before its postures).
 """
+
 from __future__ import annotations
 
 import bisect
@@ -80,8 +81,46 @@ import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from geometry_msgs.msg import PoseStamped
+from hexacal_msgs_py.conversions import (
+    actuator_model,
+    diagnostic_status,
+    imu_to_inclinometer_reading,
+    joint_state_to_encoder_reading,
+    joint_state_to_inclinometer_reading,
+    joint_state_to_slider_reading,
+    posture_reading_to_joint_state,
+)
+from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError
+from hexacal_msgs_py.inputs import (
+    DEFAULT_INCLINOMETER_JOINTS,
+    DEFAULT_OFFSETS_RAD,
+    DEFAULT_ROTARY_JOINT,
+    DEFAULT_SIGNS,
+    IMU_INCLINOMETER,
+    imu_inclinometer_angles,
+    INCLINOMETER_TYPES,
+    InputMapping,
+)
+from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
+from hexacal_msgs_py.names import (
+    CALIBRATION_STATUS_TOPIC,
+    DEVICE_TURN_JOINT,
+    ENCODER_TOPIC,
+    IMU_TYPE,
+    INCLINOMETER_TOPIC,
+    JOINT_STATE_TYPE,
+    MACHINE_MARKERS_TOPIC,
+    MARKER_ARRAY_TYPE,
+    MAX_DEVICE_TURN,
+    PLATFORM_POSE_TOPIC,
+    POSE_STAMPED_TYPE,
+    POSTURE_TOPIC,
+    SLIDERS_TOPIC,
+)
+from hexacal_msgs_py.parameters_file import read_parameters_file
+from hexacal_msgs_py.qos import MARKERS_QOS, POSE_QOS, POSTURE_QOS, SENSOR_QOS, STATUS_QOS
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import CallbackGroup
 from rclpy.event_handler import QoSSubscriptionEventType, SubscriptionEventCallbacks
 from rclpy.exceptions import (
@@ -99,57 +138,18 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 import yaml
 
-from hexacal_msgs_py.conversions import (
-    actuator_model,
-    diagnostic_status,
-    imu_to_inclinometer_reading,
-    joint_state_to_encoder_reading,
-    joint_state_to_inclinometer_reading,
-    joint_state_to_slider_reading,
-    posture_reading_to_joint_state,
-)
-from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError
-from hexacal_msgs_py.inputs import (
-    DEFAULT_INCLINOMETER_JOINTS,
-    DEFAULT_OFFSETS_RAD,
-    DEFAULT_ROTARY_JOINT,
-    DEFAULT_SIGNS,
-    IMU_INCLINOMETER,
-    INCLINOMETER_TYPES,
-    InputMapping,
-    imu_inclinometer_angles,
-)
-from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
-from hexacal_msgs_py.names import (
-    CALIBRATION_STATUS_TOPIC,
-    DEVICE_TURN_JOINT,
-    ENCODER_TOPIC,
-    IMU_TYPE,
-    INCLINOMETER_TOPIC,
-    JOINT_STATE_TYPE,
-    MACHINE_MARKERS_TOPIC,
-    MAX_DEVICE_TURN,
-    MARKER_ARRAY_TYPE,
-    PLATFORM_POSE_TOPIC,
-    POSE_STAMPED_TYPE,
-    POSTURE_TOPIC,
-    SLIDERS_TOPIC,
-)
-from hexacal_msgs_py.parameters_file import read_parameters_file
-from hexacal_msgs_py.qos import MARKERS_QOS, POSE_QOS, POSTURE_QOS, SENSOR_QOS, STATUS_QOS
-
 from ..bag import BagError, BagWriter
-from .runtime import run_node
 from ..core.posture_detector import (
+    DetectedPosture,
     DROPPED_AT_END,
     DROPPED_FOR_STREAM_STOP,
     ENCODER_STREAM,
     INCLINOMETER_STREAM,
-    SLIDERS_STREAM,
-    DetectedPosture,
     PostureDetector,
+    SLIDERS_STREAM,
     StreamSynchronizer,
 )
+from .runtime import run_node
 
 NODE_NAME = 'collector'
 START_RECORDING_SERVICE = 'hexacal/start_recording'
@@ -160,9 +160,20 @@ MODEL_CUSTOM_DATA = 'hexacal.model'  # metadata.yaml custom_data key naming the 
 INPUTS_CUSTOM_DATA = 'hexacal.inputs'  # metadata.yaml custom_data: the input mapping as JSON
 MODEL_CHOICES = ('', *MODELS)
 # Driver parameters that describe the plan it walks (see hexacal_driver.driver_node).
-DRIVER_PLAN_PARAMETERS = ('plan', 'plan_name', 'postures', 'seed', 'link_length', 'settle_s',
-                          'dwell_s', 'rate_hz', 'slider_noise_m', 'angle_noise_rad',
-                          'device_defects', 'device_turn')
+DRIVER_PLAN_PARAMETERS = (
+    'plan',
+    'plan_name',
+    'postures',
+    'seed',
+    'link_length',
+    'settle_s',
+    'dwell_s',
+    'rate_hz',
+    'slider_noise_m',
+    'angle_noise_rad',
+    'device_defects',
+    'device_turn',
+)
 # Device turns carried by inclinometer messages, kept for looking up a posture's turn.
 MAX_TURN_CHANGES = 1000
 INVALID_LOG_PERIOD_S = 5.0
@@ -175,25 +186,35 @@ STREAM_STOPPED_S = 1.0
 # The sensor publishers are best effort (SENSOR_QOS); a deep reader queue absorbs executor
 # pauses (bag flushes, GC) at 1 kHz instead of overwriting samples.
 SENSOR_SUBSCRIPTION_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=SENSOR_QOS.reliability,
-    durability=SENSOR_QOS.durability)
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1000,
+    reliability=SENSOR_QOS.reliability,
+    durability=SENSOR_QOS.durability,
+)
 # The sensor streams are not executor callbacks: a timer takes everything queued every
 # POLL_PERIOD_S (30 messages at 3 x 1 kHz; the reader queues hold 1 s) and handles it in one go,
 # so the executor wakes 100 times a second instead of 3000. Messages are handled in stamp order
 # across the streams (each stream in arrival order) and the detector gets them as one batch.
 POLL_PERIOD_S = 0.01
-_STREAM_OF_TOPIC = {SLIDERS_TOPIC: SLIDERS_STREAM, INCLINOMETER_TOPIC: INCLINOMETER_STREAM,
-                    ENCODER_TOPIC: ENCODER_STREAM}
+_STREAM_OF_TOPIC = {
+    SLIDERS_TOPIC: SLIDERS_STREAM,
+    INCLINOMETER_TOPIC: INCLINOMETER_STREAM,
+    ENCODER_TOPIC: ENCODER_STREAM,
+}
 # Recorded as received when published (the kinematics node), not used by the calibration:
 # (topic, message class, type name, QoS).
-RECORDED_ONLY_TOPICS = ((PLATFORM_POSE_TOPIC, PoseStamped, POSE_STAMPED_TYPE, POSE_QOS),
-                        (MACHINE_MARKERS_TOPIC, MarkerArray, MARKER_ARRAY_TYPE, MARKERS_QOS))
+RECORDED_ONLY_TOPICS = (
+    (PLATFORM_POSE_TOPIC, PoseStamped, POSE_STAMPED_TYPE, POSE_QOS),
+    (MACHINE_MARKERS_TOPIC, MarkerArray, MARKER_ARRAY_TYPE, MARKERS_QOS),
+)
 _CDR_HEADER = b'\x00\x01\x00\x00'  # XCDR1 little endian, what Fast DDS sends
 _STAMP = struct.Struct('<iI')
 _UINT32 = struct.Struct('<I')
 _DOUBLE = struct.Struct('<d')
 _QUATERNION = struct.Struct('<4d')
-_IMU_DOUBLES = 4 + 9 + 3 + 9 + 3 + 9  # orientation, its covariance, angular velocity, ..., all float64
+_IMU_DOUBLES = (
+    4 + 9 + 3 + 9 + 3 + 9
+)  # orientation, its covariance, angular velocity, ..., all float64
 
 
 class CollectorConfigurationError(Exception):
@@ -211,8 +232,9 @@ def resolve_model(model: str, parameters_file: str) -> str:
     named = read_parameters_file(parameters_file).model
     if model and model != named:
         raise CollectorConfigurationError(
-            f"model {model!r} contradicts parameters_file {parameters_file}, a {named} parameters "
-            "file: leave model '' or name the file's model")
+            f'model {model!r} contradicts parameters_file {parameters_file}, a {named} parameters '
+            "file: leave model '' or name the file's model"
+        )
     return named
 
 
@@ -313,7 +335,9 @@ class _FastJointState:
             efforts, end = _skip_doubles(data, after)
         except struct.error:
             raise ValueError('no velocity and effort sequences') from None
-        if (velocities, efforts) != (len(message.velocity), len(message.effort)) or end > len(data):
+        if (velocities, efforts) != (len(message.velocity), len(message.effort)) or end > len(
+            data
+        ):
             raise ValueError('layout does not match the decoded message')
         # The two sequence lengths, read with one unpack (the velocities between them skipped).
         self.counts_offset = _align(suffix_start, 4)
@@ -324,8 +348,11 @@ class _FastJointState:
 
     def read(self, data: bytes) -> tuple[int, tuple[float, ...]] | None:
         """(stamp_ns, wanted positions), or None: decode this message the full way."""
-        if (len(data) != self.size or data[12:self.offset] != self.prefix
-                or data[:4] != _CDR_HEADER):
+        if (
+            len(data) != self.size
+            or data[12 : self.offset] != self.prefix
+            or data[:4] != _CDR_HEADER
+        ):
             return None
         if self.counts.unpack_from(data, self.counts_offset) != self.expected_counts:
             return None
@@ -369,25 +396,31 @@ class _FastImu:
         self.size = len(data)
         if self.offset + 8 * _IMU_DOUBLES > self.size:
             raise ValueError('not an Imu')
-        self.prefix = bytes(data[12:self.offset])
+        self.prefix = bytes(data[12 : self.offset])
         orientation = message.orientation
-        if (_QUATERNION.unpack_from(data, self.offset)
-                != (orientation.x, orientation.y, orientation.z, orientation.w)
-                or _DOUBLE.unpack_from(data, self.offset + 32)[0]
-                != message.orientation_covariance[0]):
+        if (
+            _QUATERNION.unpack_from(data, self.offset)
+            != (orientation.x, orientation.y, orientation.z, orientation.w)
+            or _DOUBLE.unpack_from(data, self.offset + 32)[0] != message.orientation_covariance[0]
+        ):
             raise ValueError('layout does not match the decoded message')
 
     def read(self, data: bytes) -> tuple[int, tuple[float, ...]] | None:
         """(stamp_ns, (raw alpha, raw beta)), or None: decode this message the full way."""
-        if (len(data) != self.size or data[12:self.offset] != self.prefix
-                or data[:4] != _CDR_HEADER):
+        if (
+            len(data) != self.size
+            or data[12 : self.offset] != self.prefix
+            or data[:4] != _CDR_HEADER
+        ):
             return None
         seconds, nanoseconds = _STAMP.unpack_from(data, 4)
         if seconds < 0:
             return None
         try:
-            angles = imu_inclinometer_angles(_QUATERNION.unpack_from(data, self.offset),
-                                             _DOUBLE.unpack_from(data, self.offset + 32)[0])
+            angles = imu_inclinometer_angles(
+                _QUATERNION.unpack_from(data, self.offset),
+                _DOUBLE.unpack_from(data, self.offset + 32)[0],
+            )
         except InvalidReadingError:
             return None
         return seconds * NS_PER_S + nanoseconds, angles
@@ -396,8 +429,15 @@ class _FastImu:
 class _Source:
     """One subscribed topic and the inputs read from it (several when remapped to one topic)."""
 
-    def __init__(self, name: str, inputs: tuple[str, ...], message_type: type, type_name: str,
-                 qos: QoSProfile, mapping: InputMapping) -> None:
+    def __init__(
+        self,
+        name: str,
+        inputs: tuple[str, ...],
+        message_type: type,
+        type_name: str,
+        qos: QoSProfile,
+        mapping: InputMapping,
+    ) -> None:
         self.name = name  # resolved topic name, as recorded
         self.inputs = inputs  # contract input topics, in RAW_TOPICS order
         self.message_type = message_type
@@ -419,43 +459,69 @@ class _Source:
 
 _DETECTOR_PARAMETERS = {
     # name: (default, description, low, high); defaults are PostureDetector's.
-    'window_s': (0.3, 'a sample is stationary when every channel stayed within its tolerance '
-                 'over this window (s)', 0.02, 10.0),
+    'window_s': (
+        0.3,
+        'a sample is stationary when every channel stayed within its tolerance '
+        'over this window (s)',
+        0.02,
+        10.0,
+    ),
     'capture_s': (0.5, 'stationary time averaged into one posture (s)', 0.02, 60.0),
-    'slider_tolerance_m': (2e-4, 'peak-to-peak slider motion still counted as stationary (m)',
-                           1e-7, 0.1),
-    'angle_tolerance_rad': (2e-4, 'peak-to-peak angle motion still counted as stationary (rad)',
-                            1e-7, 0.1),
-    'max_gap_s': (0.1, 'a longer gap in the data drops the posture being captured (s)',
-                  0.001, 10.0),
+    'slider_tolerance_m': (
+        2e-4,
+        'peak-to-peak slider motion still counted as stationary (m)',
+        1e-7,
+        0.1,
+    ),
+    'angle_tolerance_rad': (
+        2e-4,
+        'peak-to-peak angle motion still counted as stationary (rad)',
+        1e-7,
+        0.1,
+    ),
+    'max_gap_s': (
+        0.1,
+        'a longer gap in the data drops the posture being captured (s)',
+        0.001,
+        10.0,
+    ),
     'max_skew_s': (0.02, 'largest stamp difference of paired sensor readings (s)', 0.0, 1.0),
 }
 
 
 def qos_profiles_yaml(profile: QoSProfile) -> str:
     """offered_qos_profiles text of a topic (rosbag2 metadata version 9 spelling)."""
+
     def duration(value) -> dict[str, int]:
         seconds, nanoseconds = divmod(int(value.nanoseconds), NS_PER_S)
         return {'sec': seconds, 'nsec': nanoseconds}
 
-    return yaml.safe_dump([{
-        'history': profile.history.name.lower(),
-        'depth': int(profile.depth),
-        'reliability': profile.reliability.name.lower(),
-        'durability': profile.durability.name.lower(),
-        'deadline': duration(profile.deadline),
-        'lifespan': duration(profile.lifespan),
-        'liveliness': profile.liveliness.name.lower(),
-        'liveliness_lease_duration': duration(profile.liveliness_lease_duration),
-        'avoid_ros_namespace_conventions': bool(profile.avoid_ros_namespace_conventions),
-    }], sort_keys=False)
+    return yaml.safe_dump(
+        [
+            {
+                'history': profile.history.name.lower(),
+                'depth': int(profile.depth),
+                'reliability': profile.reliability.name.lower(),
+                'durability': profile.durability.name.lower(),
+                'deadline': duration(profile.deadline),
+                'lifespan': duration(profile.lifespan),
+                'liveliness': profile.liveliness.name.lower(),
+                'liveliness_lease_duration': duration(profile.liveliness_lease_duration),
+                'avoid_ros_namespace_conventions': bool(profile.avoid_ros_namespace_conventions),
+            }
+        ],
+        sort_keys=False,
+    )
 
 
-def _float_descriptor(description: str, low: float, high: float,
-                      read_only: bool = True) -> ParameterDescriptor:
+def _float_descriptor(
+    description: str, low: float, high: float, read_only: bool = True
+) -> ParameterDescriptor:
     return ParameterDescriptor(
-        description=description, read_only=read_only,
-        floating_point_range=[FloatingPointRange(from_value=low, to_value=high, step=0.0)])
+        description=description,
+        read_only=read_only,
+        floating_point_range=[FloatingPointRange(from_value=low, to_value=high, step=0.0)],
+    )
 
 
 class CollectorNode(Node):
@@ -464,49 +530,103 @@ class CollectorNode(Node):
     def __init__(self) -> None:
         super().__init__(NODE_NAME)
         self.add_on_set_parameters_callback(self._validate_parameters)
-        self.declare_parameter('output_dir', 'bags', ParameterDescriptor(
-            description='directory that receives the bag directories'))
-        self.declare_parameter('bag_name', '', ParameterDescriptor(
-            description='bag directory name; empty: hexacal_<date>_<time>'))
-        self.declare_parameter('record', True, ParameterDescriptor(
-            description='record from the start (else only after hexacal/start_recording)',
-            read_only=True))
-        self.declare_parameter('flush_every_s', 0.5, _float_descriptor(
-            'period of making the bag durable on disk (s); it is also flushed after every '
-            'posture', 0.05, 60.0, read_only=False))
-        self.declare_parameter('driver_node', 'driver', ParameterDescriptor(
-            description='node (relative to this namespace) whose plan parameters are recorded',
-            read_only=True))
-        self.declare_parameter('model', '', ParameterDescriptor(
-            description="machine model, which names the actuator joints: 'hexa_slide' "
-            "(slider_1..6) or 'gough_stewart' (leg_1..6); '' = the model of parameters_file, "
-            'else hexa_slide', read_only=True,
-            additional_constraints="'', " + ', '.join(repr(name) for name in MODELS)))
-        self.declare_parameter('parameters_file', '', ParameterDescriptor(
-            description="a parameters YAML of the machine (e.g. identify's nominal file) whose "
-            "'model' key gives the model; '' = none", read_only=True))
+        self.declare_parameter(
+            'output_dir',
+            'bags',
+            ParameterDescriptor(description='directory that receives the bag directories'),
+        )
+        self.declare_parameter(
+            'bag_name',
+            '',
+            ParameterDescriptor(description='bag directory name; empty: hexacal_<date>_<time>'),
+        )
+        self.declare_parameter(
+            'record',
+            True,
+            ParameterDescriptor(
+                description='record from the start (else only after hexacal/start_recording)',
+                read_only=True,
+            ),
+        )
+        self.declare_parameter(
+            'flush_every_s',
+            0.5,
+            _float_descriptor(
+                'period of making the bag durable on disk (s); it is also flushed after every '
+                'posture',
+                0.05,
+                60.0,
+                read_only=False,
+            ),
+        )
+        self.declare_parameter(
+            'driver_node',
+            'driver',
+            ParameterDescriptor(
+                description='node (relative to this namespace) whose plan parameters are recorded',
+                read_only=True,
+            ),
+        )
+        self.declare_parameter(
+            'model',
+            '',
+            ParameterDescriptor(
+                description="machine model, which names the actuator joints: 'hexa_slide' "
+                "(slider_1..6) or 'gough_stewart' (leg_1..6); '' = the model of parameters_file, "
+                'else hexa_slide',
+                read_only=True,
+                additional_constraints="'', " + ', '.join(repr(name) for name in MODELS),
+            ),
+        )
+        self.declare_parameter(
+            'parameters_file',
+            '',
+            ParameterDescriptor(
+                description="a parameters YAML of the machine (e.g. identify's nominal file) whose "
+                "'model' key gives the model; '' = none",
+                read_only=True,
+            ),
+        )
         for name, (default, description, low, high) in _DETECTOR_PARAMETERS.items():
             self.declare_parameter(name, default, _float_descriptor(description, low, high))
-        self.declare_parameter('device_turn', 0.0, _float_descriptor(
-            "the device's rotation about its link axis from its normal mounting (rad; 0 normal, "
-            'pi reversed, pi/2 a quarter turn) for postures whose inclinometer message has no '
-            f"'{DEVICE_TURN_JOINT}' joint (a message that has it wins); settable at run time",
-            -MAX_DEVICE_TURN, MAX_DEVICE_TURN, read_only=False))
+        self.declare_parameter(
+            'device_turn',
+            0.0,
+            _float_descriptor(
+                "the device's rotation about its link axis from its normal mounting (rad; 0 normal, "
+                'pi reversed, pi/2 a quarter turn) for postures whose inclinometer message has no '
+                f"'{DEVICE_TURN_JOINT}' joint (a message that has it wins); settable at run time",
+                -MAX_DEVICE_TURN,
+                MAX_DEVICE_TURN,
+                read_only=False,
+            ),
+        )
         self.device_turn = self._checked_turn(self.get_parameter('device_turn').value)
         # (inclinometer stamp, turn carried from then on, None: not carried), in stamp order.
         self._turn_changes: list[tuple[int, float | None]] = []
-        value = {name: self.get_parameter(name).value
-                 for name in ('record', 'flush_every_s', 'driver_node', 'model', 'parameters_file',
-                              *_DETECTOR_PARAMETERS)}
+        value = {
+            name: self.get_parameter(name).value
+            for name in (
+                'record',
+                'flush_every_s',
+                'driver_node',
+                'model',
+                'parameters_file',
+                *_DETECTOR_PARAMETERS,
+            )
+        }
         self.model = resolve_model(value['model'], value['parameters_file'])
         self.actuator_names = MODELS[self.model].actuator_names
         self.mapping = self._declare_inputs()
 
         self.synchronizer = StreamSynchronizer(max_skew_ns=int(value['max_skew_s'] * NS_PER_S))
         self.detector = PostureDetector(
-            window_s=value['window_s'], capture_s=value['capture_s'],
+            window_s=value['window_s'],
+            capture_s=value['capture_s'],
             slider_tolerance_m=value['slider_tolerance_m'],
-            angle_tolerance_rad=value['angle_tolerance_rad'], max_gap_s=value['max_gap_s'])
+            angle_tolerance_rad=value['angle_tolerance_rad'],
+            max_gap_s=value['max_gap_s'],
+        )
         self.detector_settings = {name: repr(value[name]) for name in _DETECTOR_PARAMETERS}
         self.postures_published = 0
         self.invalid: dict[str, int] = {}
@@ -524,8 +644,11 @@ class CollectorNode(Node):
 
         self._posture_pub = self.create_publisher(JointState, POSTURE_TOPIC, POSTURE_QOS)
         self._status_pub = self.create_publisher(
-            DiagnosticArray, CALIBRATION_STATUS_TOPIC, STATUS_QOS)
-        self.topic_names = {topic: resolved for topic, resolved in zip(RAW_TOPICS, self.mapping.topics)}
+            DiagnosticArray, CALIBRATION_STATUS_TOPIC, STATUS_QOS
+        )
+        self.topic_names = {
+            topic: resolved for topic, resolved in zip(RAW_TOPICS, self.mapping.topics)
+        }
         self.topic_names[POSTURE_TOPIC] = self.resolve_topic_name(POSTURE_TOPIC)
         self._qos_yaml = {POSTURE_TOPIC: qos_profiles_yaml(POSTURE_QOS)}
         polled = _PolledGroup()
@@ -533,23 +656,40 @@ class CollectorNode(Node):
         self._sources: list[_Source] = []
         for name in dict.fromkeys(self.mapping.topics):
             inputs = tuple(topic for topic in RAW_TOPICS if self.topic_names[topic] == name)
-            imu = inputs == (INCLINOMETER_TOPIC,) and self.mapping.inclinometer_type == IMU_INCLINOMETER
-            source = _Source(name, inputs, Imu if imu else JointState,
-                             IMU_TYPE if imu else JOINT_STATE_TYPE, SENSOR_QOS, self.mapping)
+            imu = (
+                inputs == (INCLINOMETER_TOPIC,)
+                and self.mapping.inclinometer_type == IMU_INCLINOMETER
+            )
+            source = _Source(
+                name,
+                inputs,
+                Imu if imu else JointState,
+                IMU_TYPE if imu else JOINT_STATE_TYPE,
+                SENSOR_QOS,
+                self.mapping,
+            )
             source.subscription = self.create_subscription(
-                source.message_type, name,
+                source.message_type,
+                name,
                 lambda data, info, source=source: self._on_raw(source, data, info),
-                SENSOR_SUBSCRIPTION_QOS, raw=True, callback_group=polled,
+                SENSOR_SUBSCRIPTION_QOS,
+                raw=True,
+                callback_group=polled,
                 event_callbacks=SubscriptionEventCallbacks(
-                    message_lost=lambda status, key=source.key: self._on_lost(key, status)))
+                    message_lost=lambda status, key=source.key: self._on_lost(key, status)
+                ),
+            )
             self._sources.append(source)
         # Their QoS event handlers are in the polled group too: in the wait set, a subscription's
         # events wake the executor on every message. The loss count is read by housekeeping.
         self._lost_handlers = {
-            source.key: [handler for handler in source.subscription.event_handlers
-                         if handler.event_type
-                         == QoSSubscriptionEventType.RCL_SUBSCRIPTION_MESSAGE_LOST]
-            for source in self._sources}
+            source.key: [
+                handler
+                for handler in source.subscription.event_handlers
+                if handler.event_type == QoSSubscriptionEventType.RCL_SUBSCRIPTION_MESSAGE_LOST
+            ]
+            for source in self._sources
+        }
         # Recorded as received, when published; taken by the same poll (no executor wake-ups).
         self._recorded_only: list[_Source] = []
         for topic, message_type, type_name, qos in RECORDED_ONLY_TOPICS:
@@ -559,17 +699,26 @@ class CollectorNode(Node):
             source = _Source(name, (), message_type, type_name, qos, self.mapping)
             # The publisher's QoS is what the bag records (replay offers it again); the reader's
             # queue is deep, as for the sensors: a pose stream at the sensor rate between polls.
-            reader_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST,
-                                    depth=SENSOR_SUBSCRIPTION_QOS.depth,
-                                    reliability=qos.reliability, durability=qos.durability)
+            reader_qos = QoSProfile(
+                history=HistoryPolicy.KEEP_LAST,
+                depth=SENSOR_SUBSCRIPTION_QOS.depth,
+                reliability=qos.reliability,
+                durability=qos.durability,
+            )
             source.subscription = self.create_subscription(
-                message_type, name, lambda data, info, source=source: self._record_only(
-                    source, data, info), reader_qos, raw=True, callback_group=polled)
+                message_type,
+                name,
+                lambda data, info, source=source: self._record_only(source, data, info),
+                reader_qos,
+                raw=True,
+                callback_group=polled,
+            )
             self._recorded_only.append(source)
         self._recorded_only_added: set[str] = set()  # registered in the current bag
         self._transform_inclinometer = (
-            (self.mapping.inclinometer_signs, self.mapping.inclinometer_offsets_rad)
-            != (DEFAULT_SIGNS, DEFAULT_OFFSETS_RAD))
+            self.mapping.inclinometer_signs,
+            self.mapping.inclinometer_offsets_rad,
+        ) != (DEFAULT_SIGNS, DEFAULT_OFFSETS_RAD)
         for source in self._sources:
             # A source of one input whose in-place values are its reading as they are.
             (topic, *others) = source.inputs
@@ -585,14 +734,16 @@ class CollectorNode(Node):
         self.add_post_set_parameters_callback(self._apply_parameters)
 
         self.get_logger().info(
-            f"collecting postures on {self.topic_names[POSTURE_TOPIC]} (window "
-            f"{value['window_s']:g} s, capture {value['capture_s']:g} s); model {self.model}, "
-            f"actuator joints {self.actuator_names[0]}..{self.actuator_names[-1]}")
+            f'collecting postures on {self.topic_names[POSTURE_TOPIC]} (window '
+            f'{value["window_s"]:g} s, capture {value["capture_s"]:g} s); model {self.model}, '
+            f'actuator joints {self.actuator_names[0]}..{self.actuator_names[-1]}'
+        )
         self.get_logger().info(f'inputs: {self.mapping.describe()}')
         if self.device_turn != 0.0:
             self.get_logger().info(
                 f'device_turn {self.device_turn:.6g} rad for postures whose inclinometer '
-                f'message has no {DEVICE_TURN_JOINT} joint')
+                f'message has no {DEVICE_TURN_JOINT} joint'
+            )
         if value['record']:
             self.open_bag()
 
@@ -600,38 +751,70 @@ class CollectorNode(Node):
 
     def _declare_inputs(self) -> InputMapping:
         """The input mapping parameters (read only), validated: InputMappingError names the problem."""
+
         def declare(name: str, default, description: str, constraints: str = ''):
             # Dynamic typing: [1, -1] (integers) is as good as [1.0, -1.0]; InputMapping checks types.
-            return self.declare_parameter(name, default, ParameterDescriptor(
-                description=description, read_only=True, dynamic_typing=True,
-                additional_constraints=constraints)).value
+            return self.declare_parameter(
+                name,
+                default,
+                ParameterDescriptor(
+                    description=description,
+                    read_only=True,
+                    dynamic_typing=True,
+                    additional_constraints=constraints,
+                ),
+            ).value
 
         actuators = declare(
-            'actuator_joints', list(self.actuator_names),
+            'actuator_joints',
+            list(self.actuator_names),
             'the six actuator joints in chain order, as the sliders input (hexacal/sliders, or '
             'the topic it is remapped to, e.g. /joint_states) names them; default: the '
-            "model's (slider_1..6 or leg_1..6)", 'six distinct names')
+            "model's (slider_1..6 or leg_1..6)",
+            'six distinct names',
+        )
         inclinometer = declare(
-            'inclinometer_joints', list(DEFAULT_INCLINOMETER_JOINTS),
+            'inclinometer_joints',
+            list(DEFAULT_INCLINOMETER_JOINTS),
             'the inclinometer joints alpha (about X), beta (about Y) of a JointState '
-            'inclinometer input (rad)', 'two distinct names')
-        rotary = declare('rotary_joint', DEFAULT_ROTARY_JOINT,
-                         'the rotary sensor joint (phi, rad) of the encoder input')
+            'inclinometer input (rad)',
+            'two distinct names',
+        )
+        rotary = declare(
+            'rotary_joint',
+            DEFAULT_ROTARY_JOINT,
+            'the rotary sensor joint (phi, rad) of the encoder input',
+        )
         kind = declare(
-            'inclinometer_type', 'joint_state',
+            'inclinometer_type',
+            'joint_state',
             "'joint_state': the inclinometer input is a sensor_msgs/JointState with "
             "inclinometer_joints; 'imu': a sensor_msgs/Imu whose orientation gives alpha and beta "
-            '(hexacal_msgs_py.inputs)', ', '.join(repr(t) for t in INCLINOMETER_TYPES))
-        signs = declare('inclinometer_signs', list(DEFAULT_SIGNS),
-                        'per channel (alpha, beta): 1 or -1; angle = sign * (raw - offset)',
-                        'two values, each 1 or -1')
-        offsets = declare('inclinometer_offsets_rad', list(DEFAULT_OFFSETS_RAD),
-                          'per channel (alpha, beta): the raw reading with the link level (rad); '
-                          'angle = sign * (raw - offset)', 'two finite values within +-pi')
+            '(hexacal_msgs_py.inputs)',
+            ', '.join(repr(t) for t in INCLINOMETER_TYPES),
+        )
+        signs = declare(
+            'inclinometer_signs',
+            list(DEFAULT_SIGNS),
+            'per channel (alpha, beta): 1 or -1; angle = sign * (raw - offset)',
+            'two values, each 1 or -1',
+        )
+        offsets = declare(
+            'inclinometer_offsets_rad',
+            list(DEFAULT_OFFSETS_RAD),
+            'per channel (alpha, beta): the raw reading with the link level (rad); '
+            'angle = sign * (raw - offset)',
+            'two finite values within +-pi',
+        )
         return InputMapping(
-            actuator_joints=actuators, inclinometer_joints=inclinometer, rotary_joint=rotary,
-            inclinometer_type=kind, inclinometer_signs=signs, inclinometer_offsets_rad=offsets,
-            topics=tuple(self.resolve_topic_name(topic) for topic in RAW_TOPICS))
+            actuator_joints=actuators,
+            inclinometer_joints=inclinometer,
+            rotary_joint=rotary,
+            inclinometer_type=kind,
+            inclinometer_signs=signs,
+            inclinometer_offsets_rad=offsets,
+            topics=tuple(self.resolve_topic_name(topic) for topic in RAW_TOPICS),
+        )
 
     @staticmethod
     def _checked_turn(value: object) -> float:
@@ -656,22 +839,29 @@ class CollectorNode(Node):
                 problem = self._turn_problem(parameter.value)
                 if problem is not None:
                     return SetParametersResult(successful=False, reason=problem)
-            if parameter.name == 'bag_name' and ('/' in parameter.value
-                                                 or parameter.value in ('.', '..')):
-                return SetParametersResult(successful=False, reason=(
-                    f'bag_name must be a plain directory name, got {parameter.value!r}'))
+            if parameter.name == 'bag_name' and (
+                '/' in parameter.value or parameter.value in ('.', '..')
+            ):
+                return SetParametersResult(
+                    successful=False,
+                    reason=(f'bag_name must be a plain directory name, got {parameter.value!r}'),
+                )
             if parameter.name == 'output_dir' and not parameter.value:
-                return SetParametersResult(successful=False,
-                                           reason='output_dir must not be empty')
+                return SetParametersResult(successful=False, reason='output_dir must not be empty')
             if parameter.name == 'model' and parameter.value not in MODEL_CHOICES:
-                return SetParametersResult(successful=False, reason=(
-                    f"model must be '' or one of {', '.join(MODELS)}, got {parameter.value!r}"))
+                return SetParametersResult(
+                    successful=False,
+                    reason=(
+                        f"model must be '' or one of {', '.join(MODELS)}, got {parameter.value!r}"
+                    ),
+                )
             if parameter.name == 'parameters_file' and parameter.value:
                 try:
                     read_parameters_file(parameter.value)
                 except HexacalContractError as error:
-                    return SetParametersResult(successful=False,
-                                               reason=f'parameters_file: {error}')
+                    return SetParametersResult(
+                        successful=False, reason=f'parameters_file: {error}'
+                    )
         return SetParametersResult(successful=True)
 
     def _apply_parameters(self, parameters: list[Parameter]) -> None:
@@ -684,7 +874,8 @@ class CollectorNode(Node):
                     self.get_logger().info(
                         f'device_turn {previous:.6g} -> {self.device_turn:.6g} rad: postures '
                         f'from now on whose inclinometer message has no {DEVICE_TURN_JOINT} '
-                        'joint carry it')
+                        'joint carry it'
+                    )
 
     # ------------------------------------------------------------------ streams
 
@@ -748,8 +939,9 @@ class CollectorNode(Node):
     def _split(self, source: _Source, stamp: int, raw: tuple[float, ...]):
         """(stamp, [(input, values)]) of a fast read: each input's slice, the inclinometer corrected."""
         if source.message_type is Imu:
-            angles = (self.mapping.inclinometer_angles(*raw) if self._transform_inclinometer
-                      else raw)
+            angles = (
+                self.mapping.inclinometer_angles(*raw) if self._transform_inclinometer else raw
+            )
             return stamp, [(INCLINOMETER_TOPIC, angles)]
         values = []
         for topic, start, end in source.slices:
@@ -777,8 +969,11 @@ class CollectorNode(Node):
                     stamp, reading = sliders.stamp_ns, sliders.slider_positions
                 elif topic == INCLINOMETER_TOPIC:
                     imu = source.message_type is Imu
-                    angles = (imu_to_inclinometer_reading(message, self.mapping) if imu
-                              else joint_state_to_inclinometer_reading(message, self.mapping))
+                    angles = (
+                        imu_to_inclinometer_reading(message, self.mapping)
+                        if imu
+                        else joint_state_to_inclinometer_reading(message, self.mapping)
+                    )
                     stamp, reading = angles.stamp_ns, (angles.alpha, angles.beta)
                     carried = not imu and DEVICE_TURN_JOINT in message.name
                     self._note_turn(stamp, angles.device_turn if carried else None)
@@ -793,8 +988,11 @@ class CollectorNode(Node):
             return None
         if len(values) == len(source.inputs):
             try:
-                fast = (_FastImu(data, message) if source.message_type is Imu
-                        else _FastJointState(data, message, source.wanted))
+                fast = (
+                    _FastImu(data, message)
+                    if source.message_type is Imu
+                    else _FastJointState(data, message, source.wanted)
+                )
             except (ValueError, KeyError, struct.error):
                 pass  # decoded the full way every time
             else:
@@ -848,8 +1046,9 @@ class CollectorNode(Node):
         if not self._samples:
             return
         samples, self._samples = self._samples, []
-        for posture in self.detector.update([stamp for stamp, _ in samples],
-                                            [values for _, values in samples]):
+        for posture in self.detector.update(
+            [stamp for stamp, _ in samples], [values for _, values in samples]
+        ):
             self._on_posture(posture)
 
     def _poll_lost(self) -> None:
@@ -873,7 +1072,8 @@ class CollectorNode(Node):
         self.get_logger().warning(
             f'ignored an invalid message on {self.topic_names[topic]} '
             f'({self.invalid[topic]} so far): {problem}',
-            throttle_duration_sec=INVALID_LOG_PERIOD_S)
+            throttle_duration_sec=INVALID_LOG_PERIOD_S,
+        )
 
     def _note_turn(self, stamp_ns: int, turn: float | None) -> None:
         """The device turn an inclinometer message stamped `stamp_ns` carries (None: none)."""
@@ -885,7 +1085,7 @@ class CollectorNode(Node):
             return  # nothing carried yet: the parameter
         changes.append((stamp_ns, turn))
         if len(changes) > MAX_TURN_CHANGES:
-            del changes[:len(changes) - MAX_TURN_CHANGES]
+            del changes[: len(changes) - MAX_TURN_CHANGES]
 
     def _turn_at(self, stamp_ns: int) -> float:
         """The device turn of a posture stamped `stamp_ns` (its last sample): the one the
@@ -895,7 +1095,7 @@ class CollectorNode(Node):
         at = bisect.bisect_right(changes, limit, key=lambda change: change[0])
         turn = changes[at - 1][1] if at else None
         if at > 1:
-            del changes[:at - 1]  # later postures are later
+            del changes[: at - 1]  # later postures are later
         return self.device_turn if turn is None else turn
 
     def _on_posture(self, posture: DetectedPosture) -> None:
@@ -906,8 +1106,9 @@ class CollectorNode(Node):
             # Durable before it is published: whoever received a posture finds it in the bag.
             # BagWriter.write encodes the exact wire CDR; rclpy's serialize_message appends
             # padding bytes that strict readers (rosbags) reject.
-            self._record(self.topic_names[POSTURE_TOPIC], message,
-                         self.get_clock().now().nanoseconds)
+            self._record(
+                self.topic_names[POSTURE_TOPIC], message, self.get_clock().now().nanoseconds
+            )
             if self.writer is not None:
                 self.bag_postures += 1
                 self._flush()
@@ -918,12 +1119,18 @@ class CollectorNode(Node):
         turned = f', device turn {turn:.6g} rad' if turn != 0.0 else ''
         self.get_logger().info(
             f'posture {self.postures_published}: {posture.sample_count} samples, '
-            f'std <= {spread_um:.1f} um (sliders) / {spread_urad:.1f} urad (angles){turned}')
+            f'std <= {spread_um:.1f} um (sliders) / {spread_urad:.1f} urad (angles){turned}'
+        )
 
     # ------------------------------------------------------------------ recording
 
-    def _record(self, name: str, data: bytes | JointState, log_time_ns: int,
-                publish_time_ns: int | None = None) -> None:
+    def _record(
+        self,
+        name: str,
+        data: bytes | JointState,
+        log_time_ns: int,
+        publish_time_ns: int | None = None,
+    ) -> None:
         """Write CDR bytes as received, or encode a message, on the bag topic `name`; a bag error
         stops recording."""
         if self.writer is None:
@@ -954,7 +1161,8 @@ class CollectorNode(Node):
     def _next_bag_directory(self) -> Path:
         output_dir = Path(self.get_parameter('output_dir').value)
         base = self.get_parameter('bag_name').value or datetime.now().strftime(
-            'hexacal_%Y%m%d_%H%M%S')
+            'hexacal_%Y%m%d_%H%M%S'
+        )
         self._bag_counter += 1
         candidate = output_dir / base
         if self.get_parameter('bag_name').value and self._bag_counter == 1:
@@ -971,10 +1179,14 @@ class CollectorNode(Node):
             return str(self.writer.directory)
         directory = self._next_bag_directory()
         try:
-            writer = BagWriter(directory, custom_data={
-                'hexacal.recorded_by': self.get_fully_qualified_name(),
-                MODEL_CUSTOM_DATA: self.model,
-                INPUTS_CUSTOM_DATA: json.dumps(self.mapping.to_metadata())})
+            writer = BagWriter(
+                directory,
+                custom_data={
+                    'hexacal.recorded_by': self.get_fully_qualified_name(),
+                    MODEL_CUSTOM_DATA: self.model,
+                    INPUTS_CUSTOM_DATA: json.dumps(self.mapping.to_metadata()),
+                },
+            )
         except BagError as error:
             self.get_logger().error(f'cannot record to {directory}: {error}')
             raise
@@ -982,11 +1194,18 @@ class CollectorNode(Node):
             # The inputs under their real topics and types (e.g. /joint_states once for all three).
             for source in self._sources:
                 writer.add_topic(source.name, source.type_name, source.qos_yaml)
-            writer.add_topic(self.topic_names[POSTURE_TOPIC], JOINT_STATE_TYPE,
-                             self._qos_yaml[POSTURE_TOPIC])
-            writer.write_metadata(COLLECTOR_METADATA, {
-                'namespace': self.get_namespace(), 'model': self.model,
-                **self.detector_settings, **self.mapping.to_metadata()})
+            writer.add_topic(
+                self.topic_names[POSTURE_TOPIC], JOINT_STATE_TYPE, self._qos_yaml[POSTURE_TOPIC]
+            )
+            writer.write_metadata(
+                COLLECTOR_METADATA,
+                {
+                    'namespace': self.get_namespace(),
+                    'model': self.model,
+                    **self.detector_settings,
+                    **self.mapping.to_metadata(),
+                },
+            )
         except BagError as error:
             self.get_logger().error(f'cannot record to {directory}: {error}')
             try:
@@ -1008,16 +1227,19 @@ class CollectorNode(Node):
             return None
         try:
             writer.close()
-            text = (f'closed bag {writer.directory}: {writer.message_count} messages, '
-                    f'{self.bag_postures} postures')
+            text = (
+                f'closed bag {writer.directory}: {writer.message_count} messages, '
+                f'{self.bag_postures} postures'
+            )
         except BagError as error:
             text = f'closing {writer.directory}: {error}'
         if log:
             self.get_logger().info(text)
         return text
 
-    def _start_recording(self, request: Trigger.Request,
-                         response: Trigger.Response) -> Trigger.Response:
+    def _start_recording(
+        self, request: Trigger.Request, response: Trigger.Response
+    ) -> Trigger.Response:
         if self.writer is not None:
             response.success = True
             response.message = f'already recording to {self.writer.directory}'
@@ -1029,8 +1251,9 @@ class CollectorNode(Node):
             response.success, response.message = False, f'cannot record: {error}'
         return response
 
-    def _stop_recording(self, request: Trigger.Request,
-                        response: Trigger.Response) -> Trigger.Response:
+    def _stop_recording(
+        self, request: Trigger.Request, response: Trigger.Response
+    ) -> Trigger.Response:
         text = self.close_bag()
         response.success = text is not None
         response.message = text or 'not recording'
@@ -1042,13 +1265,21 @@ class CollectorNode(Node):
         self._poll_lost()
         now_ns = self.get_clock().now().nanoseconds
         status = self.synchronizer.status(now_ns)
-        silent = list(dict.fromkeys(self.topic_names[topic] for topic, name in (
-            (SLIDERS_TOPIC, 'sliders'), (INCLINOMETER_TOPIC, 'inclinometer'),
-            (ENCODER_TOPIC, 'encoder')) if status[name].last_stamp_ns is not None
-            and status[name].stale))
+        silent = list(
+            dict.fromkeys(
+                self.topic_names[topic]
+                for topic, name in (
+                    (SLIDERS_TOPIC, 'sliders'),
+                    (INCLINOMETER_TOPIC, 'inclinometer'),
+                    (ENCODER_TOPIC, 'encoder'),
+                )
+                if status[name].last_stamp_ns is not None and status[name].stale
+            )
+        )
         if silent:
-            self.get_logger().warning(f"no recent data on {', '.join(silent)}",
-                                      throttle_duration_sec=STALE_LOG_PERIOD_S)
+            self.get_logger().warning(
+                f'no recent data on {", ".join(silent)}', throttle_duration_sec=STALE_LOG_PERIOD_S
+            )
         self._check_streams()
         self._publish_status()
         self._request_plan()
@@ -1057,17 +1288,22 @@ class CollectorNode(Node):
         """Report streams that stopped (receipt time) and drop a posture they leave half-captured."""
         now_ns = time.monotonic_ns()
         # Inputs remapped to one topic stop together: the topic is named once.
-        stopped = tuple(dict.fromkeys(
-            self.topic_names[topic] for topic in RAW_TOPICS if topic in self._last_receipt_ns
-            and now_ns - self._last_receipt_ns[topic] > STREAM_STOPPED_S * NS_PER_S))
+        stopped = tuple(
+            dict.fromkeys(
+                self.topic_names[topic]
+                for topic in RAW_TOPICS
+                if topic in self._last_receipt_ns
+                and now_ns - self._last_receipt_ns[topic] > STREAM_STOPPED_S * NS_PER_S
+            )
+        )
         if stopped != self.stopped_streams:
             if stopped:
                 self.get_logger().warning(
-                    f"stream(s) stopped: no message on {', '.join(stopped)} for "
-                    f'{STREAM_STOPPED_S:g} s')
+                    f'stream(s) stopped: no message on {", ".join(stopped)} for '
+                    f'{STREAM_STOPPED_S:g} s'
+                )
             else:
-                self.get_logger().info(
-                    f"stream(s) resumed: {', '.join(self.stopped_streams)}")
+                self.get_logger().info(f'stream(s) resumed: {", ".join(self.stopped_streams)}')
             self.stopped_streams = stopped
         if stopped:
             self._detect()  # normally nothing left: _poll runs the detector after each batch
@@ -1076,7 +1312,8 @@ class CollectorNode(Node):
                 self.get_logger().warning(
                     f'dropped a partial posture ({dropped.sample_count} samples over '
                     f'{(dropped.last_stamp_ns - dropped.first_stamp_ns) / NS_PER_S:.2f} s, '
-                    f"never published): {', '.join(stopped)} stopped")
+                    f'never published): {", ".join(stopped)} stopped'
+                )
 
     def problems(self) -> dict[str, object]:
         """Counters of everything not used, by stream and reason (what the status reports)."""
@@ -1115,24 +1352,47 @@ class CollectorNode(Node):
         else:
             level = 'WARN' if changed else 'OK'  # a new or grown problem; 'OK' once all clear
             outcome = 'recording' if self.writer is not None else 'not-recording'
-            message = ('; '.join(f'{key}: {problems[key]}' for key in changed)
-                       if changed else 'no new problems')
+            message = (
+                '; '.join(f'{key}: {problems[key]}' for key in changed)
+                if changed
+                else 'no new problems'
+            )
         values: dict[str, object] = {
-            'outcome': outcome, 'postures_published': self.postures_published,
+            'outcome': outcome,
+            'postures_published': self.postures_published,
             'bag': str(self.writer.directory) if self.writer is not None else '',
             **{f'received.{topic}': count for topic, count in self.received.items()},
-            **problems}
-        self._status_pub.publish(diagnostic_status(
-            level, STATUS_NAME, message, values, hardware_id=self.get_fully_qualified_name(),
-            stamp=self.get_clock().now().nanoseconds))
+            **problems,
+        }
+        self._status_pub.publish(
+            diagnostic_status(
+                level,
+                STATUS_NAME,
+                message,
+                values,
+                hardware_id=self.get_fully_qualified_name(),
+                stamp=self.get_clock().now().nanoseconds,
+            )
+        )
         # Invalid messages, stopped streams, their dropped postures and recording errors are
         # logged where they happen.
-        counters = [key for key in changed if not key.startswith((
-            'invalid.', 'streams_stopped', 'recording_error', f'dropped.{DROPPED_FOR_STREAM_STOP}'))]
+        counters = [
+            key
+            for key in changed
+            if not key.startswith(
+                (
+                    'invalid.',
+                    'streams_stopped',
+                    'recording_error',
+                    f'dropped.{DROPPED_FOR_STREAM_STOP}',
+                )
+            )
+        ]
         if counters:
             self.get_logger().warning(
                 'not used: ' + '; '.join(f'{key}: {problems[key]}' for key in counters),
-                throttle_duration_sec=INVALID_LOG_PERIOD_S)
+                throttle_duration_sec=INVALID_LOG_PERIOD_S,
+            )
 
     def _request_plan(self) -> None:
         """Ask the driver for its plan once per bag (optional: the bag is fine without it)."""
@@ -1166,12 +1426,15 @@ class CollectorNode(Node):
     def summary(self) -> str:
         self.detector.abort(DROPPED_AT_END)  # a posture still being captured is never published
         dropped = self.detector.dropped
-        rejected = {stream: reasons for stream, reasons in self.synchronizer.rejected.items()
-                    if reasons}
-        return (f'{self.postures_published} postures published; messages received '
-                f'{self.received}; invalid messages {self.invalid or 0}; lost {self.lost or 0}; '
-                f'stamps rejected {rejected or 0}; periods dropped {dropped or 0}; '
-                f'unpaired samples {self.synchronizer.unpaired or 0}')
+        rejected = {
+            stream: reasons for stream, reasons in self.synchronizer.rejected.items() if reasons
+        }
+        return (
+            f'{self.postures_published} postures published; messages received '
+            f'{self.received}; invalid messages {self.invalid or 0}; lost {self.lost or 0}; '
+            f'stamps rejected {rejected or 0}; periods dropped {dropped or 0}; '
+            f'unpaired samples {self.synchronizer.unpaired or 0}'
+        )
 
 
 def _finish(node: CollectorNode) -> list[str]:
@@ -1180,9 +1443,19 @@ def _finish(node: CollectorNode) -> list[str]:
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_node(NODE_NAME, CollectorNode, args=args, finish=_finish,
-                    startup_errors=(InvalidParameterValueException, InvalidParameterTypeException,
-                                    BagError, CollectorConfigurationError, HexacalContractError))
+    return run_node(
+        NODE_NAME,
+        CollectorNode,
+        args=args,
+        finish=_finish,
+        startup_errors=(
+            InvalidParameterValueException,
+            InvalidParameterTypeException,
+            BagError,
+            CollectorConfigurationError,
+            HexacalContractError,
+        ),
+    )
 
 
 if __name__ == '__main__':

@@ -8,6 +8,7 @@ Ctrl-C in that time must stop the node cleanly (`nodes.runtime.run_node` acts on
 the remembered signal once rclpy is up) instead of raising KeyboardInterrupt
 out of an import.
 """
+
 from __future__ import annotations
 
 import sys

@@ -71,6 +71,7 @@ when it names one). ``actuator_joints`` are the names the controller and the
 sliders input use (default: the model's ``slider_1..6`` / ``leg_1..6``), in
 chain order; ``inclinometer_joints`` those of the inclinometer input.
 """
+
 from __future__ import annotations
 
 import math
@@ -80,23 +81,10 @@ import time
 
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticArray
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-from rclpy.exceptions import (
-    InvalidParameterTypeException,
-    InvalidParameterValueException,
-    InvalidTopicNameException,
-)
-from rclpy.node import Node
-from rclpy.parameter import Parameter
-from rclpy.parameter_client import AsyncParameterClient
-from sensor_msgs.msg import JointState
-from std_srvs.srv import Trigger
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
-
-from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
-from hexacal_msgs_py.models import MAX_DEVICE_TURN
 from hexacal_msgs_py.conversions import diagnostic_status
 from hexacal_msgs_py.errors import HexacalContractError
+from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
+from hexacal_msgs_py.models import MAX_DEVICE_TURN
 from hexacal_msgs_py.names import (
     CALIBRATE_SERVICE,
     CALIBRATION_STATUS_TOPIC,
@@ -112,37 +100,52 @@ from hexacal_msgs_py.names import (
 )
 from hexacal_msgs_py.parameters_file import read_parameters_file
 from hexacal_msgs_py.qos import COMMAND_QOS, POSTURE_QOS, SENSOR_QOS, STATUS_QOS
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import (
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    InvalidTopicNameException,
+)
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ..core.architectures import KinematicParameters, parameters_for
-from ..core.device import DEFAULT_MOUNT, DeviceMountError, check_mount
+from ..core.device import check_mount, DEFAULT_MOUNT, DeviceMountError
 from ..core.execution import (
     ABORTED,
-    DONE,
-    PAUSED,
-    REFUSED,
-    RUNNING,
-    WAITING,
-    Command,
-    ExecutionSettings,
-    PlanExecution,
-    PlanRefusedError,
     check_stroke,
-    plan_stroke,
+    Command,
+    DONE,
+    ExecutionSettings,
     joint_positions,
     path_problems,
+    PAUSED,
+    plan_stroke,
     plan_targets,
+    PlanExecution,
+    PlanRefusedError,
     refusal_message,
+    REFUSED,
+    RUNNING,
     same_turn,
+    WAITING,
 )
+from .parameters import parameter_descriptor
+from .parameters import ParameterSpec as _Spec
 from .runtime import run_node
-from .parameters import ParameterSpec as _Spec, parameter_descriptor
 
 NODE_NAME = 'executor'
 CONTROL_PERIOD_S = 0.05  # the state machine steps this often
 STATUS_PERIOD_S = 1.0  # progress (ETA) is republished at least this often
 SERVICE_WAIT_S = 30.0  # calibrate_when_done: how long hexacal/calibrate may take to appear
 INVALID_LOG_PERIOD_S = 5.0
-TURN_SET_TIMEOUT_S = 10.0  # device_turn_nodes: how long their set_parameters may take (discovery too)
+TURN_SET_TIMEOUT_S = (
+    10.0  # device_turn_nodes: how long their set_parameters may take (discovery too)
+)
 TURN_PARAMETER = 'device_turn'  # the parameter (rad) of the collector and the driver
 _NODE_NAME_PATTERN = re.compile(r'^/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$')
 SHUTDOWN_LINGER_S = 0.3  # the last status (and hold command) reach their subscribers
@@ -151,64 +154,126 @@ SHUTDOWN_LINGER_S = 0.3  # the last status (and hold command) reach their subscr
 SETTINGS = ExecutionSettings()
 PARAMETERS: dict[str, _Spec] = {
     'plan': _Spec('', 'plan YAML written by `hexacal plan` (required)'),
-    'nominal': _Spec('', "nominal parameters YAML of the machine (required); its 'model' (none: "
-                     "hexa_slide) is the machine model and its 'device.mount' the device mount"),
-    'command_topic': _Spec(DEFAULT_COMMAND_TOPIC, 'trajectory_msgs/JointTrajectory commands go '
-                           "here: the topic of ros2_control's joint_trajectory_controller"),
-    'max_actuator_speed_m_s': _Spec(SETTINGS.max_actuator_speed_m_s, 'time_from_start of a move '
-                                    'is its largest actuator move at this speed (m/s)', 1e-6, 10.0),
-    'position_tolerance_m': _Spec(SETTINGS.position_tolerance_m, 'the machine is at the target '
-                                  'when every measured actuator is within this of it (m); it '
-                                  'allows for the strain of the measuring link with a nominal '
-                                  'model millimetres off', 1e-7, 0.1),
-    'still_tolerance_m': _Spec(SETTINGS.still_tolerance_m, 'the machine is still when no measured '
-                               'actuator moves more than this (peak to peak, m) over settle_s: '
-                               'above the reading noise', 1e-7, 0.01),
-    'settle_s': _Spec(SETTINGS.settle_s, 'how long the machine must stand still at a target (s)',
-                      0.01, 60.0),
-    'timeout_s': _Spec(SETTINGS.timeout_s, 'a posture not reached, still and measured within this '
-                       'of its first command is skipped and reported (s)', 0.1, 3600.0),
-    'fixed_tolerance_rad': _Spec(SETTINGS.fixed_tolerance_rad, 'a fixed-position posture is '
-                                 'reached when both inclinometer angles are within this (rad); '
-                                 'keep it below the 5e-5 rad at which identify counts a posture '
-                                 'as fixed', 1e-7, 0.01),
-    'max_corrections': _Spec(SETTINGS.max_corrections, 'closed-loop corrections of a '
-                             'fixed-position posture before it is skipped', 0, 100),
-    'path_step_m': _Spec(SETTINGS.path_step_m, 'a move goes along the link sphere through '
-                         'points at most this far apart (m; also this / L rad in each angle), so '
-                         'the platform stays where the measuring link lets it; 0: one-point '
-                         'commands (joint-space moves)', 0.0, 1.0),
-    'inclinometer_joints': _Spec(list(INCLINOMETER_NAMES), 'the inclinometer joints alpha (about '
-                                 'X), beta (about Y) of the inclinometer input (rad)',
-                                 constraints='two distinct names'),
-    'wait_for_posture': _Spec(True, "wait for the collector's posture at each stop (false: move "
-                              'on once the machine is still)'),
-    'calibrate_when_done': _Spec(False, 'call hexacal/calibrate when the plan is done and report '
-                                 'the answer'),
+    'nominal': _Spec(
+        '',
+        "nominal parameters YAML of the machine (required); its 'model' (none: "
+        "hexa_slide) is the machine model and its 'device.mount' the device mount",
+    ),
+    'command_topic': _Spec(
+        DEFAULT_COMMAND_TOPIC,
+        'trajectory_msgs/JointTrajectory commands go '
+        "here: the topic of ros2_control's joint_trajectory_controller",
+    ),
+    'max_actuator_speed_m_s': _Spec(
+        SETTINGS.max_actuator_speed_m_s,
+        'time_from_start of a move is its largest actuator move at this speed (m/s)',
+        1e-6,
+        10.0,
+    ),
+    'position_tolerance_m': _Spec(
+        SETTINGS.position_tolerance_m,
+        'the machine is at the target '
+        'when every measured actuator is within this of it (m); it '
+        'allows for the strain of the measuring link with a nominal '
+        'model millimetres off',
+        1e-7,
+        0.1,
+    ),
+    'still_tolerance_m': _Spec(
+        SETTINGS.still_tolerance_m,
+        'the machine is still when no measured '
+        'actuator moves more than this (peak to peak, m) over settle_s: '
+        'above the reading noise',
+        1e-7,
+        0.01,
+    ),
+    'settle_s': _Spec(
+        SETTINGS.settle_s, 'how long the machine must stand still at a target (s)', 0.01, 60.0
+    ),
+    'timeout_s': _Spec(
+        SETTINGS.timeout_s,
+        'a posture not reached, still and measured within this '
+        'of its first command is skipped and reported (s)',
+        0.1,
+        3600.0,
+    ),
+    'fixed_tolerance_rad': _Spec(
+        SETTINGS.fixed_tolerance_rad,
+        'a fixed-position posture is '
+        'reached when both inclinometer angles are within this (rad); '
+        'keep it below the 5e-5 rad at which identify counts a posture '
+        'as fixed',
+        1e-7,
+        0.01,
+    ),
+    'max_corrections': _Spec(
+        SETTINGS.max_corrections,
+        'closed-loop corrections of a fixed-position posture before it is skipped',
+        0,
+        100,
+    ),
+    'path_step_m': _Spec(
+        SETTINGS.path_step_m,
+        'a move goes along the link sphere through '
+        'points at most this far apart (m; also this / L rad in each angle), so '
+        'the platform stays where the measuring link lets it; 0: one-point '
+        'commands (joint-space moves)',
+        0.0,
+        1.0,
+    ),
+    'inclinometer_joints': _Spec(
+        list(INCLINOMETER_NAMES),
+        'the inclinometer joints alpha (about X), beta (about Y) of the inclinometer input (rad)',
+        constraints='two distinct names',
+    ),
+    'wait_for_posture': _Spec(
+        True,
+        "wait for the collector's posture at each stop (false: move on once the machine is still)",
+    ),
+    'calibrate_when_done': _Spec(
+        False, 'call hexacal/calibrate when the plan is done and report the answer'
+    ),
     'start_paused': _Spec(False, 'wait for hexacal/executor/resume before the first move'),
-    'device_turn_nodes': _Spec([], "nodes whose 'device_turn' parameter (rad) the executor sets "
-                               'when the operator resumes after turning the device for a plan '
-                               "posture (e.g. ['collector', 'driver']; names resolved in the "
-                               "executor's namespace); empty: none",
-                               constraints='distinct node names'),
-    'mounted_turn': _Spec(0.0, "the device's mounting at the start, rad about its link axis (0: "
-                          'normal; e.g. the last mounting of the plan walked before): a first '
-                          'posture in another mounting waits for the turn; with device_turn_nodes '
-                          "their device_turn is set to it before the first move", -MAX_DEVICE_TURN,
-                          MAX_DEVICE_TURN),
-    'shutdown_when_done': _Spec(False, 'stop the node once the plan is done or aborted (and the '
-                                'calibration answered); a refused plan is then a start-up error '
-                                '(exit code 2)'),
+    'device_turn_nodes': _Spec(
+        [],
+        "nodes whose 'device_turn' parameter (rad) the executor sets "
+        'when the operator resumes after turning the device for a plan '
+        "posture (e.g. ['collector', 'driver']; names resolved in the "
+        "executor's namespace); empty: none",
+        constraints='distinct node names',
+    ),
+    'mounted_turn': _Spec(
+        0.0,
+        "the device's mounting at the start, rad about its link axis (0: "
+        'normal; e.g. the last mounting of the plan walked before): a first '
+        'posture in another mounting waits for the turn; with device_turn_nodes '
+        'their device_turn is set to it before the first move',
+        -MAX_DEVICE_TURN,
+        MAX_DEVICE_TURN,
+    ),
+    'shutdown_when_done': _Spec(
+        False,
+        'stop the node once the plan is done or aborted (and the '
+        'calibration answered); a refused plan is then a start-up error '
+        '(exit code 2)',
+    ),
 }
 # Declared once the nominal file is read: their defaults are the model's.
 MODEL_PARAMETERS: dict[str, _Spec] = {
-    'stroke_limits_m': _Spec([0.0, 1.0], '[low, high] actuator stroke (m) every target must lie '
-                             "in; default: the plan's (hexacal plan's --stroke-m, recorded "
-                             "in the plan file), else the model's (its default workspace)",
-                             constraints='two finite numbers, low < high'),
-    'actuator_joints': _Spec(['slider_1'], 'the six actuator joints in chain order, as the '
-                             'controller and the sliders input name them; default: the '
-                             "model's (slider_1..6 or leg_1..6)", constraints='six distinct names'),
+    'stroke_limits_m': _Spec(
+        [0.0, 1.0],
+        '[low, high] actuator stroke (m) every target must lie '
+        "in; default: the plan's (hexacal plan's --stroke-m, recorded "
+        "in the plan file), else the model's (its default workspace)",
+        constraints='two finite numbers, low < high',
+    ),
+    'actuator_joints': _Spec(
+        ['slider_1'],
+        'the six actuator joints in chain order, as the '
+        'controller and the sliders input name them; default: the '
+        "model's (slider_1..6 or leg_1..6)",
+        constraints='six distinct names',
+    ),
 }
 
 
@@ -217,20 +282,29 @@ class ExecutorConfigurationError(Exception):
 
 
 def _names(name: str, value: object, count: int) -> tuple[str, ...]:
-    if not isinstance(value, (list, tuple)) or len(value) != count or not all(
-            isinstance(item, str) and item for item in value) or len(set(value)) != count:
-        raise ExecutorConfigurationError(f'{name} must be {count} distinct joint names, got {value!r}')
+    if (
+        not isinstance(value, (list, tuple))
+        or len(value) != count
+        or not all(isinstance(item, str) and item for item in value)
+        or len(set(value)) != count
+    ):
+        raise ExecutorConfigurationError(
+            f'{name} must be {count} distinct joint names, got {value!r}'
+        )
     return tuple(value)
 
 
 def _node_names(value: object) -> tuple[str, ...]:
     """device_turn_nodes: distinct node names (relative or absolute)."""
-    if not isinstance(value, (list, tuple)) or not all(
-            isinstance(item, str) and _NODE_NAME_PATTERN.match(item) for item in value) \
-            or len(set(value)) != len(value):
+    if (
+        not isinstance(value, (list, tuple))
+        or not all(isinstance(item, str) and _NODE_NAME_PATTERN.match(item) for item in value)
+        or len(set(value)) != len(value)
+    ):
         raise ExecutorConfigurationError(
             f'device_turn_nodes must be distinct node names (e.g. [collector, driver]), got '
-            f'{list(value) if isinstance(value, (list, tuple)) else value!r}')
+            f'{list(value) if isinstance(value, (list, tuple)) else value!r}'
+        )
     return tuple(value)
 
 
@@ -290,17 +364,30 @@ class ExecutorNode(Node):
         self.model = self.nominal.model
         self.plan = self._load_plan(value['plan'], nominal_mount)
         # As the driver's: a collector with driver_node:=executor records the plan in its bag.
-        self.declare_parameter('plan_name', self.plan.name, ParameterDescriptor(
-            description='name of the plan being walked (set by the node)', read_only=True),
-            ignore_override=True)
+        self.declare_parameter(
+            'plan_name',
+            self.plan.name,
+            ParameterDescriptor(
+                description='name of the plan being walked (set by the node)', read_only=True
+            ),
+            ignore_override=True,
+        )
         stroke, self.stroke_source = plan_stroke(self.plan.metadata, self.nominal)
-        defaults = {'stroke_limits_m': list(stroke),
-                    'actuator_joints': list(self.nominal.layout.actuator_names)}
+        defaults = {
+            'stroke_limits_m': list(stroke),
+            'actuator_joints': list(self.nominal.layout.actuator_names),
+        }
         for name, spec in MODEL_PARAMETERS.items():
-            value[name] = self.declare_parameter(name, defaults[name], parameter_descriptor(name, spec)).value
+            value[name] = self.declare_parameter(
+                name, defaults[name], parameter_descriptor(name, spec)
+            ).value
         self.actuator_joints = _names('actuator_joints', list(value['actuator_joints']), 6)
-        self.posture_joints = self.nominal.layout.actuator_names  # the collector's (contract) names
-        self.inclinometer_joints = _names('inclinometer_joints', list(value['inclinometer_joints']), 2)
+        self.posture_joints = (
+            self.nominal.layout.actuator_names
+        )  # the collector's (contract) names
+        self.inclinometer_joints = _names(
+            'inclinometer_joints', list(value['inclinometer_joints']), 2
+        )
         if list(value['stroke_limits_m']) != list(stroke):
             self.stroke_source = 'stroke_limits_m'
         try:
@@ -311,40 +398,69 @@ class ExecutorNode(Node):
             self.settings = ExecutionSettings(
                 max_actuator_speed_m_s=value['max_actuator_speed_m_s'],
                 position_tolerance_m=value['position_tolerance_m'],
-                still_tolerance_m=value['still_tolerance_m'], settle_s=value['settle_s'],
-                timeout_s=value['timeout_s'], fixed_tolerance_rad=value['fixed_tolerance_rad'],
+                still_tolerance_m=value['still_tolerance_m'],
+                settle_s=value['settle_s'],
+                timeout_s=value['timeout_s'],
+                fixed_tolerance_rad=value['fixed_tolerance_rad'],
                 max_corrections=value['max_corrections'],
-                wait_for_posture=value['wait_for_posture'], path_step_m=value['path_step_m'])
+                wait_for_posture=value['wait_for_posture'],
+                path_step_m=value['path_step_m'],
+            )
         except ValueError as error:
             raise ExecutorConfigurationError(str(error)) from error
         self.device_turn_nodes = _node_names(list(value['device_turn_nodes']))
         self.calibrate_when_done = bool(value['calibrate_when_done'])
         self.shutdown_when_done = bool(value['shutdown_when_done'])
 
-        targets, problems = plan_targets(self.nominal, self.plan.poses, self.plan.kinds, self.stroke,
-                                         self.plan.link_length, self.plan.mount)
-        problems.update(path_problems(self.nominal, self.plan.poses, self.stroke,
-                                      self.plan.link_length, self.settings.path_step_m,
-                                      set(problems), self.plan.mount))
+        targets, problems = plan_targets(
+            self.nominal,
+            self.plan.poses,
+            self.plan.kinds,
+            self.stroke,
+            self.plan.link_length,
+            self.plan.mount,
+        )
+        problems.update(
+            path_problems(
+                self.nominal,
+                self.plan.poses,
+                self.stroke,
+                self.plan.link_length,
+                self.settings.path_step_m,
+                set(problems),
+                self.plan.mount,
+            )
+        )
         refusal = refusal_message(problems, len(targets)) if problems else ''
         if problems and self.shutdown_when_done:
             raise PlanRefusedError(refusal, problems)
         self.execution = PlanExecution(
-            self.nominal, self.plan.poses, self.plan.kinds, targets, self.settings, self.stroke,
-            self.plan.link_length, self.plan.mount, start_paused=bool(value['start_paused']),
-            device_turns=self.plan.turns, mounted_turn=float(value['mounted_turn']))
+            self.nominal,
+            self.plan.poses,
+            self.plan.kinds,
+            targets,
+            self.settings,
+            self.stroke,
+            self.plan.link_length,
+            self.plan.mount,
+            start_paused=bool(value['start_paused']),
+            device_turns=self.plan.turns,
+            mounted_turn=float(value['mounted_turn']),
+        )
         if problems:
             self.execution.state = REFUSED
             self.execution.refusal = refusal
         self.refused_postures = sorted(problems)
 
         try:
-            self._command_pub = self.create_publisher(JointTrajectory, value['command_topic'],
-                                                      COMMAND_QOS)
+            self._command_pub = self.create_publisher(
+                JointTrajectory, value['command_topic'], COMMAND_QOS
+            )
         except InvalidTopicNameException as error:
             raise ExecutorConfigurationError(f'command_topic: {error}') from error
-        self._status_pub = self.create_publisher(DiagnosticArray, CALIBRATION_STATUS_TOPIC,
-                                                 STATUS_QOS)
+        self._status_pub = self.create_publisher(
+            DiagnosticArray, CALIBRATION_STATUS_TOPIC, STATUS_QOS
+        )
         self.create_subscription(JointState, SLIDERS_TOPIC, self._on_sliders, SENSOR_QOS)
         self.create_subscription(JointState, INCLINOMETER_TOPIC, self._on_inclinometer, SENSOR_QOS)
         self.create_subscription(JointState, POSTURE_TOPIC, self._on_posture, POSTURE_QOS)
@@ -353,9 +469,12 @@ class ExecutorNode(Node):
         self.create_service(Trigger, EXECUTOR_ABORT_SERVICE, self._on_abort)
         self._calibrate_client = self.create_client(Trigger, CALIBRATE_SERVICE)
         # Created now, so their services are discovered long before the first turn.
-        self._turn_clients = {name: AsyncParameterClient(self, name)
-                              for name in self.device_turn_nodes}
-        self._turn_setting: dict | None = None  # the requests of a resume after a turn (or of the start)
+        self._turn_clients = {
+            name: AsyncParameterClient(self, name) for name in self.device_turn_nodes
+        }
+        self._turn_setting: dict | None = (
+            None  # the requests of a resume after a turn (or of the start)
+        )
         # The nodes start from the mounting the device is in, not from what an earlier plan left them at.
         self._start_turn_set = not self._turn_clients
         self._turn_set_state = ''  # '', pending, done, failed
@@ -375,17 +494,21 @@ class ExecutorNode(Node):
         counts = self.plan_counts()
         self.get_logger().info(
             f"plan '{self.plan.name}': {len(self.plan.poses)} postures ({counts['sphere']} sphere, "
-            f"{counts['fixed']} fixed) for a {self.model}; commands on "
+            f'{counts["fixed"]} fixed) for a {self.model}; commands on '
             f'{self._command_pub.topic_name} (joints {", ".join(self.actuator_joints)}), at most '
             f'{self.settings.max_actuator_speed_m_s:g} m/s, stroke [{self.stroke[0]:g}, '
-            f'{self.stroke[1]:g}] m ({self.stroke_source})')
+            f'{self.stroke[1]:g}] m ({self.stroke_source})'
+        )
         turns = sorted({float(turn) for turn in self.plan.turns})
         if any(turns):
             self.get_logger().info(
                 f'turning procedure: device turns {[round(math.degrees(t), 3) for t in turns]} deg; '
-                + (f"device_turn set on {', '.join(self.device_turn_nodes)} at each remount"
-                   if self.device_turn_nodes else
-                   'device_turn_nodes is empty: no node is told the turn'))
+                + (
+                    f'device_turn set on {", ".join(self.device_turn_nodes)} at each remount'
+                    if self.device_turn_nodes
+                    else 'device_turn_nodes is empty: no node is told the turn'
+                )
+            )
         if problems:
             self.get_logger().error(refusal)
         self._publish_status(force=True)
@@ -414,11 +537,13 @@ class ExecutorNode(Node):
         if plan.model != self.model:
             raise ExecutorConfigurationError(
                 f'plan {path} was made for a {plan.model} (plan.model; absent: hexa_slide) but the '
-                f'nominal machine is a {self.model}')
+                f'nominal machine is a {self.model}'
+            )
         if nominal_mount is not None and plan.mount != nominal_mount:
             raise ExecutorConfigurationError(
                 f'plan {path} is for a {plan.mount} device (plan.mount; absent: {DEFAULT_MOUNT}) but '
-                f'the nominal file says {MOUNT_PARAMETER}: {nominal_mount}')
+                f'the nominal file says {MOUNT_PARAMETER}: {nominal_mount}'
+            )
         return plan
 
     def plan_counts(self) -> dict[str, int]:
@@ -436,13 +561,17 @@ class ExecutorNode(Node):
 
     def _invalid(self, what: str) -> None:
         self.invalid_readings += 1
-        self.get_logger().warning(f'ignored an invalid {what} message ({self.invalid_readings} so far)',
-                                  throttle_duration_sec=INVALID_LOG_PERIOD_S)
+        self.get_logger().warning(
+            f'ignored an invalid {what} message ({self.invalid_readings} so far)',
+            throttle_duration_sec=INVALID_LOG_PERIOD_S,
+        )
 
     def _on_sliders(self, message: JointState) -> None:
         positions = joint_positions(message.name, message.position, self.actuator_joints)
         if positions is None:
-            self._invalid(f'sliders (joints {list(message.name)}, expected {list(self.actuator_joints)})')
+            self._invalid(
+                f'sliders (joints {list(message.name)}, expected {list(self.actuator_joints)})'
+            )
             return
         self.execution.on_actuators(_now_s(self), positions)
 
@@ -496,8 +625,10 @@ class ExecutorNode(Node):
         names = ', '.join(self.device_turn_nodes)
         if self._turn_setting is None:
             self._begin_turn_setting(turn, 'resume after the device turn')
-            message = (f'setting {TURN_PARAMETER} {turn:.6g} rad on {names}; posture '
-                       f'{execution.index + 1} of {execution.total} begins once they answer')
+            message = (
+                f'setting {TURN_PARAMETER} {turn:.6g} rad on {names}; posture '
+                f'{execution.index + 1} of {execution.total} begins once they answer'
+            )
         else:
             message = f'already resuming: waiting for {names} to set {TURN_PARAMETER}'
         self._publish_status(force=True)
@@ -505,11 +636,19 @@ class ExecutorNode(Node):
         return response
 
     def _begin_turn_setting(self, turn: float, why: str, start: bool = False) -> None:
-        self._turn_setting = {'turn': turn, 'started': _now_s(self), 'futures': {},
-                              'problems': {}, 'done': [], 'start': start}
+        self._turn_setting = {
+            'turn': turn,
+            'started': _now_s(self),
+            'futures': {},
+            'problems': {},
+            'done': [],
+            'start': start,
+        }
         self._turn_set_state, self._turn_set_message = 'pending', ''
-        self.get_logger().info(f"{why}: setting {TURN_PARAMETER} {turn:.6g} rad on "
-                               f"{', '.join(self.device_turn_nodes)}")
+        self.get_logger().info(
+            f'{why}: setting {TURN_PARAMETER} {turn:.6g} rad on '
+            f'{", ".join(self.device_turn_nodes)}'
+        )
         self._turn_setting_step()
 
     def _turn_setting_step(self) -> None:
@@ -527,10 +666,12 @@ class ExecutorNode(Node):
             if future is None:
                 if client.services_are_ready():
                     setting['futures'][name] = client.set_parameters(
-                        [Parameter(TURN_PARAMETER, Parameter.Type.DOUBLE, setting['turn'])])
+                        [Parameter(TURN_PARAMETER, Parameter.Type.DOUBLE, setting['turn'])]
+                    )
                 elif late:
-                    setting['problems'][name] = (f'its parameter services did not appear within '
-                                                 f'{TURN_SET_TIMEOUT_S:g} s')
+                    setting['problems'][name] = (
+                        f'its parameter services did not appear within {TURN_SET_TIMEOUT_S:g} s'
+                    )
                 continue
             if not future.done():
                 if late:
@@ -545,8 +686,9 @@ class ExecutorNode(Node):
             if len(results) == 1 and results[0].successful:
                 setting['done'].append(name)
             else:
-                setting['problems'][name] = ('refused: ' + (results[0].reason if results else
-                                                            'no result'))
+                setting['problems'][name] = 'refused: ' + (
+                    results[0].reason if results else 'no result'
+                )
         if len(setting['done']) + len(setting['problems']) < len(self._turn_clients):
             return
         self._turn_setting = None
@@ -554,14 +696,18 @@ class ExecutorNode(Node):
         self._start_turn_set = self._start_turn_set or setting['start']
         if setting['problems']:
             self._turn_set_state = 'failed'
-            self._turn_set_message = '; '.join(f'{name}: {why}'
-                                               for name, why in setting['problems'].items())
-            self.get_logger().error(f'{TURN_PARAMETER} {turn:.6g} rad not set on every node '
-                                    f'({self._turn_set_message}); the plan goes on')
+            self._turn_set_message = '; '.join(
+                f'{name}: {why}' for name, why in setting['problems'].items()
+            )
+            self.get_logger().error(
+                f'{TURN_PARAMETER} {turn:.6g} rad not set on every node '
+                f'({self._turn_set_message}); the plan goes on'
+            )
         else:
             self._turn_set_state = 'done'
-            self._turn_set_message = (f"{TURN_PARAMETER} {turn:.6g} rad set on "
-                                      f"{', '.join(setting['done'])}")
+            self._turn_set_message = (
+                f'{TURN_PARAMETER} {turn:.6g} rad set on {", ".join(setting["done"])}'
+            )
             self.get_logger().info(self._turn_set_message)
         if self.execution.waiting_for_turn and same_turn(self.execution.turn_needed, turn):
             self._service(Trigger.Response(), self.execution.resume)
@@ -604,11 +750,14 @@ class ExecutorNode(Node):
             waiting.append(f'a collector on {self.resolve_topic_name(POSTURE_TOPIC)}')
         if not self._start_turn_set:
             if self._turn_setting is None:
-                self._begin_turn_setting(self.execution.mounted_turn, 'the mounting at the start',
-                                         start=True)
+                self._begin_turn_setting(
+                    self.execution.mounted_turn, 'the mounting at the start', start=True
+                )
             if not self._start_turn_set:
-                waiting.append(f"{', '.join(self.device_turn_nodes)} to set {TURN_PARAMETER} "
-                               f'{self.execution.mounted_turn:.6g} rad (the mounting at the start)')
+                waiting.append(
+                    f'{", ".join(self.device_turn_nodes)} to set {TURN_PARAMETER} '
+                    f'{self.execution.mounted_turn:.6g} rad (the mounting at the start)'
+                )
         if tuple(waiting) != self._waiting_for:
             self._waiting_for = tuple(waiting)
             if waiting:
@@ -625,17 +774,24 @@ class ExecutorNode(Node):
         for command in commands:
             message = JointTrajectory()  # header.stamp zero: the controller starts it on receipt
             message.joint_names = list(self.actuator_joints)
-            message.points = [JointTrajectoryPoint(positions=[float(p) for p in point],
-                                                   time_from_start=_duration(seconds))
-                              for point, seconds in zip(command.points, command.times)]
+            message.points = [
+                JointTrajectoryPoint(
+                    positions=[float(p) for p in point], time_from_start=_duration(seconds)
+                )
+                for point, seconds in zip(command.points, command.times)
+            ]
             self._command_pub.publish(message)
             self.commands_sent += 1
-            what = (f'posture {command.posture + 1} of {self.execution.total}' if command.posture >= 0
-                    else 'hold')
+            what = (
+                f'posture {command.posture + 1} of {self.execution.total}'
+                if command.posture >= 0
+                else 'hold'
+            )
             self.get_logger().debug(
                 f'{command.purpose} ({what}): {len(command.points)} points to '
                 f'[{", ".join(f"{p * 1e3:.3f}" for p in command.positions)}] mm in '
-                f'{command.duration_s:.2f} s')
+                f'{command.duration_s:.2f} s'
+            )
 
     def _drain_messages(self) -> None:
         messages, self.execution.messages = self.execution.messages, []
@@ -655,8 +811,10 @@ class ExecutorNode(Node):
             if not self._calibrate_client.service_is_ready():
                 if now - self._calibration_requested_at > SERVICE_WAIT_S:
                     self._calibration = 'failed'
-                    self._calibration_message = (f'{self._calibrate_client.srv_name} did not appear '
-                                                 f'within {SERVICE_WAIT_S:g} s')
+                    self._calibration_message = (
+                        f'{self._calibrate_client.srv_name} did not appear '
+                        f'within {SERVICE_WAIT_S:g} s'
+                    )
                     self.get_logger().error(f'calibration not run: {self._calibration_message}')
                     self._publish_status(force=True)
                 return
@@ -669,7 +827,10 @@ class ExecutorNode(Node):
         try:
             answer = future.result()
         except Exception as error:  # noqa: BLE001 - the status must say what happened
-            self._calibration, self._calibration_message = 'failed', f'{type(error).__name__}: {error}'
+            self._calibration, self._calibration_message = (
+                'failed',
+                f'{type(error).__name__}: {error}',
+            )
         else:
             self._calibration = 'success' if answer.success else 'failed'
             self._calibration_message = answer.message
@@ -708,7 +869,9 @@ class ExecutorNode(Node):
     def _publish_status(self, force: bool = False) -> None:
         now = _now_s(self)
         values = self.status_values(now)
-        key = tuple((k, v) for k, v in values.items() if k not in ('eta_s', 'elapsed_s', 'paused_s'))
+        key = tuple(
+            (k, v) for k, v in values.items() if k not in ('eta_s', 'elapsed_s', 'paused_s')
+        )
         if not force and key == self._last_published and now - self._last_status < STATUS_PERIOD_S:
             return
         self._last_published, self._last_status = key, now
@@ -719,24 +882,35 @@ class ExecutorNode(Node):
             level = 'WARN'
         else:
             level = 'OK'
-        self._status_pub.publish(diagnostic_status(
-            level, EXECUTOR_STATUS_NAME, self._status_text(values), values,
-            hardware_id=self.get_fully_qualified_name(), stamp=self.get_clock().now().nanoseconds))
+        self._status_pub.publish(
+            diagnostic_status(
+                level,
+                EXECUTOR_STATUS_NAME,
+                self._status_text(values),
+                values,
+                hardware_id=self.get_fully_qualified_name(),
+                stamp=self.get_clock().now().nanoseconds,
+            )
+        )
 
     def _status_text(self, values: dict[str, object]) -> str:
         state = self.execution.state
         if state == REFUSED:
             return self.execution.refusal
         if state == WAITING:
-            return 'waiting for ' + ', '.join(self._waiting_for) if self._waiting_for else 'starting'
-        text = (f"{state}: posture {values['posture']} of {values['postures']}, "
-                f"{values['measured']} measured, {values['skipped']} skipped")
+            return (
+                'waiting for ' + ', '.join(self._waiting_for) if self._waiting_for else 'starting'
+            )
+        text = (
+            f'{state}: posture {values["posture"]} of {values["postures"]}, '
+            f'{values["measured"]} measured, {values["skipped"]} skipped'
+        )
         if 'eta_s' in values and state in (RUNNING, PAUSED):
-            text += f", ETA {values['eta_s']:.0f} s"
+            text += f', ETA {values["eta_s"]:.0f} s'
         if self.execution.waiting_for_turn:
             text += f'; {self.execution.turn_notice}'
             if self._turn_set_state == 'pending':
-                text += f" (setting {TURN_PARAMETER} on {', '.join(self.device_turn_nodes)})"
+                text += f' (setting {TURN_PARAMETER} on {", ".join(self.device_turn_nodes)})'
         if self.calibrate_when_done and state == DONE:
             text += f'; calibration {self._calibration}'
             if self._calibration_message:
@@ -744,8 +918,10 @@ class ExecutorNode(Node):
         return text
 
     def summary(self) -> str:
-        return (f"plan '{self.plan.name}' {self.execution.state}: {self.execution.summary()}; "
-                f'{self.commands_sent} commands sent')
+        return (
+            f"plan '{self.plan.name}' {self.execution.state}: {self.execution.summary()}; "
+            f'{self.commands_sent} commands sent'
+        )
 
 
 def _finish(node: ExecutorNode) -> list[str]:
@@ -754,9 +930,18 @@ def _finish(node: ExecutorNode) -> list[str]:
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_node(NODE_NAME, ExecutorNode, args=args, finish=_finish,
-                    startup_errors=(ExecutorConfigurationError, PlanRefusedError,
-                                    InvalidParameterValueException, InvalidParameterTypeException))
+    return run_node(
+        NODE_NAME,
+        ExecutorNode,
+        args=args,
+        finish=_finish,
+        startup_errors=(
+            ExecutorConfigurationError,
+            PlanRefusedError,
+            InvalidParameterValueException,
+            InvalidParameterTypeException,
+        ),
+    )
 
 
 if __name__ == '__main__':

@@ -44,6 +44,7 @@ its `reason`, pose-failed, invalid-reading, invalid-parameters,
 model-mismatch) and the figures of the event; repeated reading problems are
 logged and published at most every LOG_PERIOD_S.
 """
+
 from __future__ import annotations
 
 import math
@@ -52,6 +53,35 @@ import sys
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, PoseStamped
+from hexacal_msgs_py.conversions import (
+    diagnostic_status,
+    joint_state_to_slider_reading,
+    multiarray_model,
+    multiarray_to_parameters,
+    stamp_ns,
+)
+from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError
+from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
+from hexacal_msgs_py.names import (
+    CALIBRATION_STATUS_TOPIC,
+    DEFAULT_COMMAND_TOPIC,
+    KINEMATICS_STATUS_NAME,
+    MACHINE_MARKERS_TOPIC,
+    PARAMETERS_TOPIC,
+    PLATFORM_POSE_TOPIC,
+    SLIDERS_TOPIC,
+    TARGET_POSE_TOPIC,
+)
+from hexacal_msgs_py.parameters_file import read_parameters_file
+from hexacal_msgs_py.poses import fill_pose_message, pose_from_message
+from hexacal_msgs_py.qos import (
+    COMMAND_QOS,
+    MARKERS_QOS,
+    PARAMETERS_QOS,
+    POSE_QOS,
+    SENSOR_QOS,
+    STATUS_QOS,
+)
 import numpy as np
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import (
@@ -66,33 +96,10 @@ from std_msgs.msg import ColorRGBA, Float64MultiArray, Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
-from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
-from hexacal_msgs_py.conversions import (
-    diagnostic_status,
-    joint_state_to_slider_reading,
-    multiarray_model,
-    multiarray_to_parameters,
-    stamp_ns,
-)
-from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError
-from hexacal_msgs_py.names import (
-    CALIBRATION_STATUS_TOPIC,
-    DEFAULT_COMMAND_TOPIC,
-    KINEMATICS_STATUS_NAME,
-    MACHINE_MARKERS_TOPIC,
-    PARAMETERS_TOPIC,
-    PLATFORM_POSE_TOPIC,
-    SLIDERS_TOPIC,
-    TARGET_POSE_TOPIC,
-)
-from hexacal_msgs_py.parameters_file import read_parameters_file
-from hexacal_msgs_py.poses import fill_pose_message, pose_from_message
-from hexacal_msgs_py.qos import COMMAND_QOS, MARKERS_QOS, PARAMETERS_QOS, POSE_QOS, SENSOR_QOS, STATUS_QOS
-
 from ..core.architectures import KinematicParameters, parameters_for
-from ..core.device import DEFAULT_MOUNT, MOUNTS, DeviceMountError, check_mount
+from ..core.device import check_mount, DEFAULT_MOUNT, DeviceMountError, MOUNTS
 from ..core.errors import ForwardKinematicsError, UnreachablePoseError
-from ..core.live import OutOfStrokeError, actuator_targets, default_stroke, home_pose, solve_pose
+from ..core.live import actuator_targets, default_stroke, home_pose, OutOfStrokeError, solve_pose
 from .runtime import run_node
 
 NODE_NAME = 'kinematics'
@@ -131,12 +138,19 @@ def machine_markers(drawing: dict[str, np.ndarray], frame_id: str, stamp) -> Mar
     for name in sorted(drawing):
         array = np.asarray(drawing[name], dtype=float)
         (r, g, b, a), size = MARKER_STYLES.get(name, DEFAULT_STYLE)
-        marker = Marker(header=header, ns=name, id=0, action=Marker.ADD,
-                        type=Marker.SPHERE_LIST if array.ndim == 2 else Marker.LINE_LIST,
-                        color=ColorRGBA(r=r, g=g, b=b, a=a))
+        marker = Marker(
+            header=header,
+            ns=name,
+            id=0,
+            action=Marker.ADD,
+            type=Marker.SPHERE_LIST if array.ndim == 2 else Marker.LINE_LIST,
+            color=ColorRGBA(r=r, g=g, b=b, a=a),
+        )
         marker.pose.orientation.w = 1.0
         marker.scale.x = marker.scale.y = marker.scale.z = size
-        marker.points = [Point(x=float(x), y=float(y), z=float(z)) for x, y, z in array.reshape(-1, 3)]
+        marker.points = [
+            Point(x=float(x), y=float(y), z=float(z)) for x, y, z in array.reshape(-1, 3)
+        ]
         markers.append(marker)
     return MarkerArray(markers=markers)
 
@@ -152,43 +166,110 @@ class KinematicsNode(Node):
     def __init__(self) -> None:
         super().__init__(NODE_NAME)
         self.add_on_set_parameters_callback(self._validate_parameters)
-        self.declare_parameter('parameters', '', ParameterDescriptor(
-            description="parameters YAML (either model) to start from; '' = wait for the first "
-            'calibration on hexacal/parameters', read_only=True))
-        self.declare_parameter('follow_calibrations', True, ParameterDescriptor(
-            description='take every calibration published on hexacal/parameters (latched) over the '
-            'parameters in use; false: keep the parameters file', read_only=True))
-        self.declare_parameter('base_frame', DEFAULT_BASE_FRAME, ParameterDescriptor(
-            description='frame_id of the platform pose and the markers (the base frame OXYZ); target '
-            "poses must be in it (or have an empty frame_id)"))
-        self.declare_parameter('command_topic', DEFAULT_COMMAND_TOPIC, ParameterDescriptor(
-            description='topic of the compensated actuator commands (trajectory_msgs/JointTrajectory; '
-            "ros2_control's joint_trajectory_controller listens on <controller>/joint_trajectory)",
-            read_only=True))
-        self.declare_parameter('max_actuator_speed', 0.02, ParameterDescriptor(
-            description='actuator speed (m/s) that sets a command\'s time_from_start: the largest '
-            f'travel from the current readings / this speed (at least {MIN_MOVE_TIME_S:g} s)',
-            floating_point_range=_range(1e-6, 10.0)))
-        self.declare_parameter('stroke_limits', Parameter.Type.DOUBLE_ARRAY, ParameterDescriptor(
-            description='[low, high] actuator readings (m) a command may ask for; unset = the '
-            "architecture's workspace stroke (Hexa Slide 0-0.9 m, Gough-Stewart 0-0.5 m)"))
-        self.declare_parameter('link_length', 0.75, ParameterDescriptor(
-            description='measuring link length L (m): the first pose solve starts at the workspace '
-            'centre, the fixed point [0, 0, -L] (standing: +L)', floating_point_range=_range(0.1, 5.0),
-            read_only=True))
-        self.declare_parameter('mount', '', ParameterDescriptor(
-            description="device mount, which side of the base the workspace centre is: 'hanging' or "
-            "'standing'; '' = the parameters file's device.mount, else hanging", read_only=True,
-            additional_constraints="'', " + ', '.join(repr(m) for m in MOUNTS)))
-        self.declare_parameter('max_pose_rate_hz', 200.0, ParameterDescriptor(
-            description='actuator readings solved per second at most (by their stamps); the others '
-            'are skipped', floating_point_range=_range(0.1, 10000.0), read_only=True))
-        self.declare_parameter('markers_rate_hz', 10.0, ParameterDescriptor(
-            description='machine markers published per second at most (when the pose changed); '
-            '0 = no markers', floating_point_range=_range(0.0, 100.0), read_only=True))
-        value = {name: self.get_parameter(name).value for name in (
-            'parameters', 'follow_calibrations', 'link_length', 'mount', 'max_pose_rate_hz',
-            'markers_rate_hz', 'command_topic')}
+        self.declare_parameter(
+            'parameters',
+            '',
+            ParameterDescriptor(
+                description="parameters YAML (either model) to start from; '' = wait for the first "
+                'calibration on hexacal/parameters',
+                read_only=True,
+            ),
+        )
+        self.declare_parameter(
+            'follow_calibrations',
+            True,
+            ParameterDescriptor(
+                description='take every calibration published on hexacal/parameters (latched) over the '
+                'parameters in use; false: keep the parameters file',
+                read_only=True,
+            ),
+        )
+        self.declare_parameter(
+            'base_frame',
+            DEFAULT_BASE_FRAME,
+            ParameterDescriptor(
+                description='frame_id of the platform pose and the markers (the base frame OXYZ); target '
+                'poses must be in it (or have an empty frame_id)'
+            ),
+        )
+        self.declare_parameter(
+            'command_topic',
+            DEFAULT_COMMAND_TOPIC,
+            ParameterDescriptor(
+                description='topic of the compensated actuator commands (trajectory_msgs/JointTrajectory; '
+                "ros2_control's joint_trajectory_controller listens on <controller>/joint_trajectory)",
+                read_only=True,
+            ),
+        )
+        self.declare_parameter(
+            'max_actuator_speed',
+            0.02,
+            ParameterDescriptor(
+                description="actuator speed (m/s) that sets a command's time_from_start: the largest "
+                f'travel from the current readings / this speed (at least {MIN_MOVE_TIME_S:g} s)',
+                floating_point_range=_range(1e-6, 10.0),
+            ),
+        )
+        self.declare_parameter(
+            'stroke_limits',
+            Parameter.Type.DOUBLE_ARRAY,
+            ParameterDescriptor(
+                description='[low, high] actuator readings (m) a command may ask for; unset = the '
+                "architecture's workspace stroke (Hexa Slide 0-0.9 m, Gough-Stewart 0-0.5 m)"
+            ),
+        )
+        self.declare_parameter(
+            'link_length',
+            0.75,
+            ParameterDescriptor(
+                description='measuring link length L (m): the first pose solve starts at the workspace '
+                'centre, the fixed point [0, 0, -L] (standing: +L)',
+                floating_point_range=_range(0.1, 5.0),
+                read_only=True,
+            ),
+        )
+        self.declare_parameter(
+            'mount',
+            '',
+            ParameterDescriptor(
+                description="device mount, which side of the base the workspace centre is: 'hanging' or "
+                "'standing'; '' = the parameters file's device.mount, else hanging",
+                read_only=True,
+                additional_constraints="'', " + ', '.join(repr(m) for m in MOUNTS),
+            ),
+        )
+        self.declare_parameter(
+            'max_pose_rate_hz',
+            200.0,
+            ParameterDescriptor(
+                description='actuator readings solved per second at most (by their stamps); the others '
+                'are skipped',
+                floating_point_range=_range(0.1, 10000.0),
+                read_only=True,
+            ),
+        )
+        self.declare_parameter(
+            'markers_rate_hz',
+            10.0,
+            ParameterDescriptor(
+                description='machine markers published per second at most (when the pose changed); '
+                '0 = no markers',
+                floating_point_range=_range(0.0, 100.0),
+                read_only=True,
+            ),
+        )
+        value = {
+            name: self.get_parameter(name).value
+            for name in (
+                'parameters',
+                'follow_calibrations',
+                'link_length',
+                'mount',
+                'max_pose_rate_hz',
+                'markers_rate_hz',
+                'command_topic',
+            )
+        }
 
         self.params: KinematicParameters | None = None
         self.parameters_source = ''
@@ -218,29 +299,43 @@ class KinematicsNode(Node):
         self._last_log: dict[str, float] = {}
 
         self._pose_pub = self.create_publisher(PoseStamped, PLATFORM_POSE_TOPIC, POSE_QOS)
-        self._command_pub = self.create_publisher(JointTrajectory, value['command_topic'], COMMAND_QOS)
-        self._status_pub = self.create_publisher(DiagnosticArray, CALIBRATION_STATUS_TOPIC, STATUS_QOS)
+        self._command_pub = self.create_publisher(
+            JointTrajectory, value['command_topic'], COMMAND_QOS
+        )
+        self._status_pub = self.create_publisher(
+            DiagnosticArray, CALIBRATION_STATUS_TOPIC, STATUS_QOS
+        )
         self._markers_pub = None
         if value['markers_rate_hz'] > 0.0:
-            self._markers_pub = self.create_publisher(MarkerArray, MACHINE_MARKERS_TOPIC, MARKERS_QOS)
+            self._markers_pub = self.create_publisher(
+                MarkerArray, MACHINE_MARKERS_TOPIC, MARKERS_QOS
+            )
             self.create_timer(1.0 / value['markers_rate_hz'], self._publish_markers)
         self.create_subscription(JointState, SLIDERS_TOPIC, self._on_readings, SENSOR_QOS)
         self.create_subscription(PoseStamped, TARGET_POSE_TOPIC, self._on_target, COMMAND_QOS)
         if value['follow_calibrations']:
-            self.create_subscription(Float64MultiArray, PARAMETERS_TOPIC, self._on_parameters, PARAMETERS_QOS)
+            self.create_subscription(
+                Float64MultiArray, PARAMETERS_TOPIC, self._on_parameters, PARAMETERS_QOS
+            )
 
         command_topic = self._command_pub.topic_name
         if self.params is not None:
             self.get_logger().info(
-                f"{self.params.model} parameters from {self.parameters_source}; "
-                f"{'following calibrations on ' + self.resolve_topic_name(PARAMETERS_TOPIC) if value['follow_calibrations'] else 'calibrations on hexacal/parameters ignored'}; "
-                f'commands on {command_topic}')
-            self._status('OK', 'parameters', f'{self.params.model} parameters from {self.parameters_source}')
+                f'{self.params.model} parameters from {self.parameters_source}; '
+                f'{"following calibrations on " + self.resolve_topic_name(PARAMETERS_TOPIC) if value["follow_calibrations"] else "calibrations on hexacal/parameters ignored"}; '
+                f'commands on {command_topic}'
+            )
+            self._status(
+                'OK', 'parameters', f'{self.params.model} parameters from {self.parameters_source}'
+            )
         else:
             self.get_logger().info(
                 f'waiting for calibrated parameters on {self.resolve_topic_name(PARAMETERS_TOPIC)}; '
-                f'commands on {command_topic}')
-            self._status('WARN', 'waiting', 'waiting for calibrated parameters on hexacal/parameters')
+                f'commands on {command_topic}'
+            )
+            self._status(
+                'WARN', 'waiting', 'waiting for calibrated parameters on hexacal/parameters'
+            )
 
     # ------------------------------------------------------------------ parameters
 
@@ -259,8 +354,14 @@ class KinematicsNode(Node):
             problem = None
             if name == 'stroke_limits' and value is not None:
                 limits = list(value)
-                if len(limits) != 2 or not all(math.isfinite(v) for v in limits) or limits[0] >= limits[1]:
-                    problem = f'stroke_limits must be [low, high] (m) with low < high, got {limits}'
+                if (
+                    len(limits) != 2
+                    or not all(math.isfinite(v) for v in limits)
+                    or limits[0] >= limits[1]
+                ):
+                    problem = (
+                        f'stroke_limits must be [low, high] (m) with low < high, got {limits}'
+                    )
             elif name == 'mount' and value not in ('', *MOUNTS):
                 problem = f"mount must be '' or one of {', '.join(MOUNTS)}, got {value!r}"
             elif name in ('base_frame', 'command_topic') and not value:
@@ -296,8 +397,10 @@ class KinematicsNode(Node):
             return
         previous = self.params
         if previous is not None and model != previous.model:
-            text = (f'a {model} calibration on {PARAMETERS_TOPIC} does not fit this {previous.model} machine '
-                    f'({self.parameters_source}); keeping its parameters')
+            text = (
+                f'a {model} calibration on {PARAMETERS_TOPIC} does not fit this {previous.model} machine '
+                f'({self.parameters_source}); keeping its parameters'
+            )
             self.get_logger().error(text)
             self._status('ERROR', 'model-mismatch', text)
             return
@@ -311,11 +414,21 @@ class KinematicsNode(Node):
             text = f'calibrated {model} parameters received on {self.parameters_source}'
         else:
             change = np.abs(params.vector - previous.vector).max()
-            text = (f'new calibration on {self.parameters_source}: {model} parameters updated '
-                    f'(largest change {change * 1e3:.4f} mm)')
+            text = (
+                f'new calibration on {self.parameters_source}: {model} parameters updated '
+                f'(largest change {change * 1e3:.4f} mm)'
+            )
         self.get_logger().info(text)
-        self._status('OK', 'parameters', text, largest_change_m=(
-            float(np.abs(params.vector - previous.vector).max()) if previous is not None else ''))
+        self._status(
+            'OK',
+            'parameters',
+            text,
+            largest_change_m=(
+                float(np.abs(params.vector - previous.vector).max())
+                if previous is not None
+                else ''
+            ),
+        )
 
     # ------------------------------------------------------------------ pose
 
@@ -323,20 +436,29 @@ class KinematicsNode(Node):
         if self.params is None:
             return
         stamp = stamp_ns(message.header.stamp)
-        if self._last_solved_ns is not None and 0 <= stamp - self._last_solved_ns < self.min_period_ns:
+        if (
+            self._last_solved_ns is not None
+            and 0 <= stamp - self._last_solved_ns < self.min_period_ns
+        ):
             return
         try:
-            readings = np.array(joint_state_to_slider_reading(message, self.params.model).slider_positions)
+            readings = np.array(
+                joint_state_to_slider_reading(message, self.params.model).slider_positions
+            )
         except InvalidReadingError as error:
             self.invalid_readings += 1
-            self._throttled('invalid', f'invalid actuator reading on {SLIDERS_TOPIC} ({self.params.model} '
-                            f'joints {", ".join(self.params.layout.actuator_names)}): {error}',
-                            'invalid-reading', count=self.invalid_readings)
+            self._throttled(
+                'invalid',
+                f'invalid actuator reading on {SLIDERS_TOPIC} ({self.params.model} '
+                f'joints {", ".join(self.params.layout.actuator_names)}): {error}',
+                'invalid-reading',
+                count=self.invalid_readings,
+            )
             return
         self._last_solved_ns = stamp
         pose = None
         problems = []
-        for guess in ((self.pose, self.home) if self.pose is not None else (self.home,)):
+        for guess in (self.pose, self.home) if self.pose is not None else (self.home,):
             try:
                 pose = solve_pose(self.params, readings, guess)
                 break
@@ -346,27 +468,40 @@ class KinematicsNode(Node):
             self.pose_failures += 1
             self.pose = None
             self._tracking = False
-            self._throttled('pose', f'no platform pose for the readings {readings.tolist()}: {problems[-1]}',
-                            'pose-failed', count=self.pose_failures)
+            self._throttled(
+                'pose',
+                f'no platform pose for the readings {readings.tolist()}: {problems[-1]}',
+                'pose-failed',
+                count=self.pose_failures,
+            )
             return
         self.pose, self.readings, self.pose_stamp = pose, readings, message.header.stamp
-        out = PoseStamped(header=Header(stamp=message.header.stamp,
-                                        frame_id=self.get_parameter('base_frame').value))
+        out = PoseStamped(
+            header=Header(
+                stamp=message.header.stamp, frame_id=self.get_parameter('base_frame').value
+            )
+        )
         self._pose_pub.publish(fill_pose_message(out, pose))
         self.poses_published += 1
         if not self._tracking:
             self._tracking = True
-            text = (f'tracking the platform: pose [{pose[0] * 1e3:.3f}, {pose[1] * 1e3:.3f}, '
-                    f'{pose[2] * 1e3:.3f}] mm, [{math.degrees(pose[3]):.3f}, {math.degrees(pose[4]):.3f}, '
-                    f'{math.degrees(pose[5]):.3f}] deg on {self._pose_pub.topic_name}')
+            text = (
+                f'tracking the platform: pose [{pose[0] * 1e3:.3f}, {pose[1] * 1e3:.3f}, '
+                f'{pose[2] * 1e3:.3f}] mm, [{math.degrees(pose[3]):.3f}, {math.degrees(pose[4]):.3f}, '
+                f'{math.degrees(pose[5]):.3f}] deg on {self._pose_pub.topic_name}'
+            )
             self.get_logger().info(text)
             self._status('OK', 'tracking', text)
 
     def _publish_markers(self) -> None:
         if self.pose is None or self.params is None:
             return
-        key = (self.pose_stamp.sec, self.pose_stamp.nanosec, id(self.params),
-               self.get_parameter('base_frame').value)
+        key = (
+            self.pose_stamp.sec,
+            self.pose_stamp.nanosec,
+            id(self.params),
+            self.get_parameter('base_frame').value,
+        )
         if key == self._drawn:
             return
         self._drawn = key
@@ -379,8 +514,11 @@ class KinematicsNode(Node):
         base_frame = self.get_parameter('base_frame').value
         frame = message.header.frame_id
         if frame not in ('', base_frame):
-            return self._refuse('wrong-frame', f'target pose in frame {frame!r}; commands are poses in '
-                                f'{base_frame!r} (base_frame)')
+            return self._refuse(
+                'wrong-frame',
+                f'target pose in frame {frame!r}; commands are poses in '
+                f'{base_frame!r} (base_frame)',
+            )
         if self.params is None:
             return self._refuse('no-parameters', 'no calibrated parameters yet')
         try:
@@ -393,41 +531,71 @@ class KinematicsNode(Node):
         except OutOfStrokeError as error:
             return self._refuse(error.reason, f'target {self._pose_text(pose)} {error}', pose)
         except UnreachablePoseError:
-            return self._refuse('unreachable-pose', f'target {self._pose_text(pose)} is unreachable: '
-                                f'{self.params.architecture.unreachable_reason}', pose)
+            return self._refuse(
+                'unreachable-pose',
+                f'target {self._pose_text(pose)} is unreachable: '
+                f'{self.params.architecture.unreachable_reason}',
+                pose,
+            )
         if self.readings is None:
-            return self._refuse('no-actuator-readings', f'no actuator reading on {SLIDERS_TOPIC} yet: the '
-                                'move time needs the current position', pose)
+            return self._refuse(
+                'no-actuator-readings',
+                f'no actuator reading on {SLIDERS_TOPIC} yet: the '
+                'move time needs the current position',
+                pose,
+            )
         speed = self.get_parameter('max_actuator_speed').value
         travel = float(np.abs(targets - self.readings).max())
         move_s = max(MIN_MOVE_TIME_S, travel / speed)
         names = list(self.params.layout.actuator_names)
-        command = JointTrajectory(joint_names=names, points=[JointTrajectoryPoint(
-            positions=targets.tolist(), time_from_start=_duration(move_s))])
+        command = JointTrajectory(
+            joint_names=names,
+            points=[
+                JointTrajectoryPoint(positions=targets.tolist(), time_from_start=_duration(move_s))
+            ],
+        )
         self._command_pub.publish(command)
         self.commands_sent += 1
-        text = (f'command {self.commands_sent}: target {self._pose_text(pose)} -> '
-                f'{", ".join(f"{n} {t:.6f}" for n, t in zip(names, targets))} m in {move_s:.2f} s')
+        text = (
+            f'command {self.commands_sent}: target {self._pose_text(pose)} -> '
+            f'{", ".join(f"{n} {t:.6f}" for n, t in zip(names, targets))} m in {move_s:.2f} s'
+        )
         self.get_logger().info(text)
-        self._status('OK', 'sent', text, commands_sent=self.commands_sent, move_time_s=move_s,
-                     **self._pose_values('target', pose),
-                     **{f'target.{n}': float(t) for n, t in zip(names, targets)})
+        self._status(
+            'OK',
+            'sent',
+            text,
+            commands_sent=self.commands_sent,
+            move_time_s=move_s,
+            **self._pose_values('target', pose),
+            **{f'target.{n}': float(t) for n, t in zip(names, targets)},
+        )
 
     def _refuse(self, reason: str, text: str, pose: np.ndarray | None = None) -> None:
         self.commands_refused += 1
         text = f'refused: {reason}: {text}; nothing sent'
         self.get_logger().warning(text)
-        self._status('WARN', 'refused', text, reason=reason, commands_refused=self.commands_refused,
-                     **(self._pose_values('target', pose) if pose is not None else {}))
+        self._status(
+            'WARN',
+            'refused',
+            text,
+            reason=reason,
+            commands_refused=self.commands_refused,
+            **(self._pose_values('target', pose) if pose is not None else {}),
+        )
 
     @staticmethod
     def _pose_text(pose: np.ndarray) -> str:
-        return (f'[{pose[0]:.6f}, {pose[1]:.6f}, {pose[2]:.6f}] m, '
-                f'[{pose[3]:.6f}, {pose[4]:.6f}, {pose[5]:.6f}] rad')
+        return (
+            f'[{pose[0]:.6f}, {pose[1]:.6f}, {pose[2]:.6f}] m, '
+            f'[{pose[3]:.6f}, {pose[4]:.6f}, {pose[5]:.6f}] rad'
+        )
 
     @staticmethod
     def _pose_values(prefix: str, pose: np.ndarray) -> dict[str, float]:
-        return {f'{prefix}.{k}': float(v) for k, v in zip(('x', 'y', 'z', 'theta', 'psi', 'phi'), pose)}
+        return {
+            f'{prefix}.{k}': float(v) for k, v in zip(('x', 'y', 'z', 'theta', 'psi', 'phi'), pose)
+        }
 
     # ------------------------------------------------------------------ status
 
@@ -440,17 +608,32 @@ class KinematicsNode(Node):
         self._status('WARN', outcome, text, **values)
 
     def _status(self, level: str, outcome: str, message: str, **values: object) -> None:
-        fields = {'outcome': outcome, 'model': self.params.model if self.params is not None else '',
-                  'parameters_source': self.parameters_source, 'parameters_updates': self.parameters_updates,
-                  'poses_published': self.poses_published, 'commands_sent': self.commands_sent,
-                  'commands_refused': self.commands_refused, **values}
-        self._status_pub.publish(diagnostic_status(
-            level, KINEMATICS_STATUS_NAME, message, fields, stamp=self.get_clock().now().nanoseconds))
+        fields = {
+            'outcome': outcome,
+            'model': self.params.model if self.params is not None else '',
+            'parameters_source': self.parameters_source,
+            'parameters_updates': self.parameters_updates,
+            'poses_published': self.poses_published,
+            'commands_sent': self.commands_sent,
+            'commands_refused': self.commands_refused,
+            **values,
+        }
+        self._status_pub.publish(
+            diagnostic_status(
+                level,
+                KINEMATICS_STATUS_NAME,
+                message,
+                fields,
+                stamp=self.get_clock().now().nanoseconds,
+            )
+        )
 
     def summary(self) -> str:
-        return (f'{self.poses_published} platform poses published ({self.pose_failures} readings without a '
-                f'pose, {self.invalid_readings} invalid), {self.commands_sent} commands sent, '
-                f'{self.commands_refused} refused, {self.parameters_updates} calibrations taken')
+        return (
+            f'{self.poses_published} platform poses published ({self.pose_failures} readings without a '
+            f'pose, {self.invalid_readings} invalid), {self.commands_sent} commands sent, '
+            f'{self.commands_refused} refused, {self.parameters_updates} calibrations taken'
+        )
 
 
 def _finish(node: KinematicsNode) -> list[str]:
@@ -458,9 +641,17 @@ def _finish(node: KinematicsNode) -> list[str]:
 
 
 def main(args: list[str] | None = None) -> int:
-    return run_node(NODE_NAME, KinematicsNode, args=args, finish=_finish,
-                    startup_errors=(KinematicsConfigurationError, InvalidParameterValueException,
-                                    InvalidParameterTypeException))
+    return run_node(
+        NODE_NAME,
+        KinematicsNode,
+        args=args,
+        finish=_finish,
+        startup_errors=(
+            KinematicsConfigurationError,
+            InvalidParameterValueException,
+            InvalidParameterTypeException,
+        ),
+    )
 
 
 if __name__ == '__main__':

@@ -3,6 +3,7 @@
 Kept apart from nodes/runtime.py, which entry points import before anything else (its imports must
 stay minimal so a Ctrl-C during start-up finds the signal handlers in place).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -21,16 +22,26 @@ class ParameterSpec:
     constraints: str = ''
 
 
-def parameter_descriptor(name: str, spec: ParameterSpec, read_only: bool = True) -> ParameterDescriptor:
+def parameter_descriptor(
+    name: str, spec: ParameterSpec, read_only: bool = True
+) -> ParameterDescriptor:
     """The descriptor rcl enforces: type from the default, range for numbers, lists of either number type."""
-    descriptor = ParameterDescriptor(name=name, description=spec.description, read_only=read_only,
-                                     additional_constraints=spec.constraints)
+    descriptor = ParameterDescriptor(
+        name=name,
+        description=spec.description,
+        read_only=read_only,
+        additional_constraints=spec.constraints,
+    )
     if isinstance(spec.default, list):
-        descriptor.dynamic_typing = True  # [0, 1] is as good as [0.0, 1.0]; the node checks the items
+        descriptor.dynamic_typing = (
+            True  # [0, 1] is as good as [0.0, 1.0]; the node checks the items
+        )
     elif isinstance(spec.default, float):
-        descriptor.floating_point_range = [FloatingPointRange(
-            from_value=float(spec.low), to_value=float(spec.high), step=0.0)]
+        descriptor.floating_point_range = [
+            FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high), step=0.0)
+        ]
     elif isinstance(spec.default, int) and not isinstance(spec.default, bool):
-        descriptor.integer_range = [IntegerRange(
-            from_value=int(spec.low), to_value=int(spec.high), step=1)]
+        descriptor.integer_range = [
+            IntegerRange(from_value=int(spec.low), to_value=int(spec.high), step=1)
+        ]
     return descriptor

@@ -11,13 +11,14 @@ visualization_msgs/MarkerArray, transient local as recorded), so a bag replays
 as a moving machine in RViz or Foxglove.  The tool exits when the bag is done
 (or loops with ``--loop``); Ctrl-C stops it cleanly.
 """
+
 from __future__ import annotations
 
 import argparse
 import importlib
+from pathlib import Path
 import sys
 import time
-from pathlib import Path
 
 import rclpy
 from rclpy.duration import Duration
@@ -29,48 +30,66 @@ from ..bag import BagError, open_bag
 from ..bag.writer import qos_profiles_for_metadata
 from .runtime import hold_termination_signals
 
-_RELIABILITY = {"reliable": ReliabilityPolicy.RELIABLE, "best_effort": ReliabilityPolicy.BEST_EFFORT}
-_DURABILITY = {"transient_local": DurabilityPolicy.TRANSIENT_LOCAL, "volatile": DurabilityPolicy.VOLATILE}
+_RELIABILITY = {
+    'reliable': ReliabilityPolicy.RELIABLE,
+    'best_effort': ReliabilityPolicy.BEST_EFFORT,
+}
+_DURABILITY = {
+    'transient_local': DurabilityPolicy.TRANSIENT_LOCAL,
+    'volatile': DurabilityPolicy.VOLATILE,
+}
 
 
 def qos_from_recorded(qos_profiles_yaml: str) -> QoSProfile:
     """The QoS a topic was recorded with (first offered profile); reliable/volatile/depth 10 if unknown."""
     profiles = qos_profiles_for_metadata(qos_profiles_yaml)
     profile = profiles[0] if profiles else {}
-    depth = int(profile.get("depth") or 10)
-    history = HistoryPolicy.KEEP_ALL if profile.get("history") == "keep_all" else HistoryPolicy.KEEP_LAST
+    depth = int(profile.get('depth') or 10)
+    history = (
+        HistoryPolicy.KEEP_ALL if profile.get('history') == 'keep_all' else HistoryPolicy.KEEP_LAST
+    )
     return QoSProfile(
         history=history,
         depth=max(depth, 1),
-        reliability=_RELIABILITY.get(profile.get("reliability"), ReliabilityPolicy.RELIABLE),
-        durability=_DURABILITY.get(profile.get("durability"), DurabilityPolicy.VOLATILE),
+        reliability=_RELIABILITY.get(profile.get('reliability'), ReliabilityPolicy.RELIABLE),
+        durability=_DURABILITY.get(profile.get('durability'), DurabilityPolicy.VOLATILE),
     )
 
 
 def message_class(type_name: str):
     """'sensor_msgs/msg/JointState' -> the Python message class."""
-    package, _, name = type_name.replace("/msg/", "/").partition("/")
+    package, _, name = type_name.replace('/msg/', '/').partition('/')
     try:
-        return getattr(importlib.import_module(f"{package}.msg"), name)
+        return getattr(importlib.import_module(f'{package}.msg'), name)
     except (ImportError, AttributeError) as error:
-        raise BagError(f"message type {type_name} is not installed: {error}") from error
+        raise BagError(f'message type {type_name} is not installed: {error}') from error
 
 
 class BagPlayer(Node):
     """Publishers for the chosen topics; the timing loop lives in ``play``."""
 
     def __init__(self, bag: Path, topics: list[str] | None):
-        super().__init__("hexacal_replay")
+        super().__init__('hexacal_replay')
         self.reader = open_bag(bag)
         available = self.reader.topics()
-        wanted = available if not topics else {t: available[t] for t in available if t.lstrip("/") in
-                                              {x.lstrip("/") for x in topics}}
-        missing = sorted({x.lstrip("/") for x in topics or []} - {t.lstrip("/") for t in wanted})
+        wanted = (
+            available
+            if not topics
+            else {
+                t: available[t]
+                for t in available
+                if t.lstrip('/') in {x.lstrip('/') for x in topics}
+            }
+        )
+        missing = sorted({x.lstrip('/') for x in topics or []} - {t.lstrip('/') for t in wanted})
         if missing:
-            raise BagError(f"bag {bag} has no topic(s) {', '.join('/' + m for m in missing)}")
+            raise BagError(f'bag {bag} has no topic(s) {", ".join("/" + m for m in missing)}')
         self.publishers_by_topic = {
-            topic: self.create_publisher(message_class(info.type_name), "/" + topic.lstrip("/"),
-                                         qos_from_recorded(info.qos_profiles))
+            topic: self.create_publisher(
+                message_class(info.type_name),
+                '/' + topic.lstrip('/'),
+                qos_from_recorded(info.qos_profiles),
+            )
             for topic, info in wanted.items()
         }
 
@@ -81,12 +100,14 @@ class BagPlayer(Node):
             if all(p.get_subscription_count() > 0 for p in self.publishers_by_topic.values()):
                 return
             rclpy.spin_once(self, timeout_sec=0.05)
-        self.get_logger().warn("not every topic has a subscriber; replaying anyway")
+        self.get_logger().warn('not every topic has a subscriber; replaying anyway')
 
     def play(self, rate: float) -> int:
         """Publish once through the bag; returns the number of messages sent."""
-        messages = sorted((m for m in self.reader.messages(list(self.publishers_by_topic))),
-                          key=lambda m: m.log_time_ns)
+        messages = sorted(
+            (m for m in self.reader.messages(list(self.publishers_by_topic))),
+            key=lambda m: m.log_time_ns,
+        )
         if not messages:
             return 0
         first = messages[0].log_time_ns
@@ -107,7 +128,7 @@ class BagPlayer(Node):
                     raise
                 return count - 1
             if count % 2000 == 0:
-                self.get_logger().info(f"{count}/{len(messages)} messages replayed")
+                self.get_logger().info(f'{count}/{len(messages)} messages replayed')
         for publisher in self.publishers_by_topic.values():
             # Reliable messages still in flight would die with the publisher: let them arrive.
             try:
@@ -120,21 +141,32 @@ class BagPlayer(Node):
 
 
 def parse_arguments(argv: list[str] | None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="replay", description="Publish a rosbag2 MCAP bag on its recorded topics.")
-    parser.add_argument("bag", type=Path, help="bag directory (metadata.yaml + .mcap) or .mcap file")
-    parser.add_argument("--rate", type=float, default=1.0, help="playback speed factor (default 1.0)")
-    parser.add_argument("--topics", nargs="+", help="only these topics")
-    parser.add_argument("--loop", action="store_true", help="start again at the end")
-    parser.add_argument("--wait-for-subscribers", type=float, default=0.0, metavar="SECONDS",
-                        help="wait up to this long for every topic to have a subscriber before starting")
+    parser = argparse.ArgumentParser(
+        prog='replay', description='Publish a rosbag2 MCAP bag on its recorded topics.'
+    )
+    parser.add_argument(
+        'bag', type=Path, help='bag directory (metadata.yaml + .mcap) or .mcap file'
+    )
+    parser.add_argument(
+        '--rate', type=float, default=1.0, help='playback speed factor (default 1.0)'
+    )
+    parser.add_argument('--topics', nargs='+', help='only these topics')
+    parser.add_argument('--loop', action='store_true', help='start again at the end')
+    parser.add_argument(
+        '--wait-for-subscribers',
+        type=float,
+        default=0.0,
+        metavar='SECONDS',
+        help='wait up to this long for every topic to have a subscriber before starting',
+    )
     args = parser.parse_args(argv)
     if not args.rate > 0:
-        parser.error(f"--rate must be positive, got {args.rate}")
+        parser.error(f'--rate must be positive, got {args.rate}')
     return args
 
 
 def main(argv: list[str] | None = None) -> int:
-    ros_args = rclpy.utilities.remove_ros_args(sys.argv if argv is None else ["replay", *argv])
+    ros_args = rclpy.utilities.remove_ros_args(sys.argv if argv is None else ['replay', *argv])
     args = parse_arguments(ros_args[1:])
     rclpy.init(args=sys.argv if argv is None else None)
     player = None
@@ -145,12 +177,12 @@ def main(argv: list[str] | None = None) -> int:
             sent = player.play(args.rate)
             if not player.context.ok():  # stopped by a signal
                 return 0
-            player.get_logger().info(f"replayed {sent} messages from {args.bag}")
+            player.get_logger().info(f'replayed {sent} messages from {args.bag}')
             if not args.loop:
                 break
         return 0
     except BagError as error:
-        print(f"replay: error: {error}", file=sys.stderr)
+        print(f'replay: error: {error}', file=sys.stderr)
         return 2
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
@@ -167,5 +199,5 @@ def main(argv: list[str] | None = None) -> int:
         rclpy.try_shutdown()
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     sys.exit(main())

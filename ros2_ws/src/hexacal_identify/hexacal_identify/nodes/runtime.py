@@ -15,6 +15,7 @@ so a Ctrl-C while the node is still starting is remembered and the node stops
 as soon as it exists, instead of a KeyboardInterrupt traceback from an import.
 This module imports rclpy only inside `run_node` for the same reason.
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable

@@ -12,6 +12,7 @@ the device defines (``device_frame_truth``) - the frames the calibrated
 controller works in.  All of it holds for any architecture: the frames are the
 device's, and the architecture re-expresses its parameters in them (``in_frames``).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -19,18 +20,21 @@ from typing import Callable
 
 import numpy as np
 
-from ..core.device import DeviceDefects, DeviceModel, device_position
+from ..core.architectures import default_parameters, KinematicParameters
+from ..core.device import device_position, DeviceDefects, DeviceModel
 from ..core.errors import CalibrationError
-from ..core.identification import SolverOptions, identify
-from ..core.measurements import FIXED, SPHERE, Measurements, NoiseModel, simulate_measurements
-from ..core.architectures import KinematicParameters, default_parameters
+from ..core.identification import identify, SolverOptions
+from ..core.measurements import FIXED, Measurements, NoiseModel, simulate_measurements, SPHERE
 from ..core.model import nominal_set
-from ..core.postures import Workspace, sample_poses
+from ..core.postures import sample_poses, Workspace
 from ..core.validation import pose_errors, validation_poses
 
 DEFAULT_DEFECTS = DeviceDefects(dL=5e-4, alpha0=2e-4, beta0=-1.5e-4, gamma=1e-4, phi0=1e-4)
-FRAME_DEFINING = ("beta0", "phi0")  # imitated exactly by a base rotation about Y / platform rotation about z'
-IDENTIFIED_WITH_EQ7 = ("dL", "alpha0", "gamma")
+FRAME_DEFINING = (
+    'beta0',
+    'phi0',
+)  # imitated exactly by a base rotation about Y / platform rotation about z'
+IDENTIFIED_WITH_EQ7 = ('dL', 'alpha0', 'gamma')
 
 
 def _rotation_y(angle: float) -> np.ndarray:
@@ -43,7 +47,9 @@ def _rotation_z(angle: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def device_frame_truth(true_params: KinematicParameters, defects: DeviceDefects) -> KinematicParameters:
+def device_frame_truth(
+    true_params: KinematicParameters, defects: DeviceDefects
+) -> KinematicParameters:
     """The true machine in the device-defined frames: base turned by -beta0 about Y, platform by phi0 about z'.
 
     A reading beta + beta0 puts the measured position at R_Y(-beta0) p (eq. 4), so
@@ -51,13 +57,17 @@ def device_frame_truth(true_params: KinematicParameters, defects: DeviceDefects)
     reading phi + phi0 makes the platform frame R R_z(phi0), so B' = R_z(-phi0) B.
     The architecture turns every base-frame and platform-frame quantity of its parameters.
     """
-    return true_params.architecture.in_frames(true_params, _rotation_y(-defects.beta0), _rotation_z(-defects.phi0))
+    return true_params.architecture.in_frames(
+        true_params, _rotation_y(-defects.beta0), _rotation_z(-defects.phi0)
+    )
 
 
 def calibrated_frames(defects: DeviceDefects, identified: tuple[str, ...]) -> DeviceDefects:
     """The frame-defining defects a calibration leaves in its frames: beta0 and phi0 unless it identified them."""
-    return DeviceDefects(beta0=0.0 if "beta0" in identified else defects.beta0,
-                         phi0=0.0 if "phi0" in identified else defects.phi0)
+    return DeviceDefects(
+        beta0=0.0 if 'beta0' in identified else defects.beta0,
+        phi0=0.0 if 'phi0' in identified else defects.phi0,
+    )
 
 
 def device_frame_poses(poses: np.ndarray, defects: DeviceDefects) -> np.ndarray:
@@ -69,10 +79,18 @@ def device_frame_poses(poses: np.ndarray, defects: DeviceDefects) -> np.ndarray:
     return converted
 
 
-def simulate_procedure(true_params: KinematicParameters, defects: DeviceDefects, sphere: int, fixed: int,
-                       noise_um: float, seed: int, lvdt: bool = False,
-                       device: DeviceModel = DeviceModel(), workspace: Workspace | None = None,
-                       device_turn: np.ndarray | None = None) -> Measurements:
+def simulate_procedure(
+    true_params: KinematicParameters,
+    defects: DeviceDefects,
+    sphere: int,
+    fixed: int,
+    noise_um: float,
+    seed: int,
+    lvdt: bool = False,
+    device: DeviceModel = DeviceModel(),
+    workspace: Workspace | None = None,
+    device_turn: np.ndarray | None = None,
+) -> Measurements:
     """Readings of the paper's two-step procedure with a defective device.
 
     Sphere postures lie on the true sphere of radius L + dL (with an LVDT the link
@@ -84,7 +102,9 @@ def simulate_procedure(true_params: KinematicParameters, defects: DeviceDefects,
     rng = np.random.default_rng([seed, 0xDEF])
     noise = NoiseModel.from_microns(noise_um)
     true_length = device.link_length + defects.dL
-    base_workspace = workspace if workspace is not None else true_params.architecture.default_workspace()
+    base_workspace = (
+        workspace if workspace is not None else true_params.architecture.default_workspace()
+    )
     workspace = replace(base_workspace, link_length=true_length)
     parts = []
     if sphere:
@@ -92,12 +112,19 @@ def simulate_procedure(true_params: KinematicParameters, defects: DeviceDefects,
         if lvdt:
             radius = rng.uniform(true_length - 0.05, true_length + 0.05, sphere)
             poses[:, :3] *= (radius / true_length)[:, None]
-        parts.append(simulate_measurements(true_params, poses, SPHERE, device, noise, rng, defects, lvdt,
-                                           device_turn))
+        parts.append(
+            simulate_measurements(
+                true_params, poses, SPHERE, device, noise, rng, defects, lvdt, device_turn
+            )
+        )
     if fixed:
         poses = sample_poses(true_params, fixed, rng, FIXED, workspace)
-        poses[:, :3] = device_position(np.zeros(1), np.zeros(1), device.link_length, defects).position[0]
-        parts.append(simulate_measurements(true_params, poses, FIXED, device, noise, rng, defects, lvdt))
+        poses[:, :3] = device_position(
+            np.zeros(1), np.zeros(1), device.link_length, defects
+        ).position[0]
+        parts.append(
+            simulate_measurements(true_params, poses, FIXED, device, noise, rng, defects, lvdt)
+        )
     return Measurements.concatenate(parts)
 
 
@@ -112,15 +139,30 @@ class Method:
 
 
 METHODS = (
-    Method("ideal device, eq. 7 (reference)", "absolute", defective=False),
-    Method("defects ignored, eq. 7", "absolute"),
-    Method("defects ignored, eqs. 8 + 10", "sphere-fixed"),
-    Method("relative, eqs. 12 + 13", "relative"),
-    Method("joint: eq. 7 + dL, alpha0, gamma", "absolute", IDENTIFIED_WITH_EQ7),
-    Method("ideal device, eq. 7, noise-weighted (reference)", "absolute", defective=False, weighted=True),
-    Method("joint: eq. 7 + dL, alpha0, gamma, noise-weighted", "absolute", IDENTIFIED_WITH_EQ7, weighted=True),
-    Method("joint, LVDT link: eq. 7 + dL, alpha0, gamma, weighted", "absolute", IDENTIFIED_WITH_EQ7, lvdt=True,
-           weighted=True),
+    Method('ideal device, eq. 7 (reference)', 'absolute', defective=False),
+    Method('defects ignored, eq. 7', 'absolute'),
+    Method('defects ignored, eqs. 8 + 10', 'sphere-fixed'),
+    Method('relative, eqs. 12 + 13', 'relative'),
+    Method('joint: eq. 7 + dL, alpha0, gamma', 'absolute', IDENTIFIED_WITH_EQ7),
+    Method(
+        'ideal device, eq. 7, noise-weighted (reference)',
+        'absolute',
+        defective=False,
+        weighted=True,
+    ),
+    Method(
+        'joint: eq. 7 + dL, alpha0, gamma, noise-weighted',
+        'absolute',
+        IDENTIFIED_WITH_EQ7,
+        weighted=True,
+    ),
+    Method(
+        'joint, LVDT link: eq. 7 + dL, alpha0, gamma, weighted',
+        'absolute',
+        IDENTIFIED_WITH_EQ7,
+        lvdt=True,
+        weighted=True,
+    ),
 )
 
 
@@ -134,17 +176,24 @@ class MethodOutcome:
     n_unknowns: int
     device: list[np.ndarray]
     failures: list[str]
-    verdict: str = ""
+    verdict: str = ''
 
     @staticmethod
     def mean(values: list[float]) -> float:
-        return float(np.mean(values)) if values else float("nan")
+        return float(np.mean(values)) if values else float('nan')
 
 
-def compare_methods(defects: DeviceDefects = DEFAULT_DEFECTS, noise_um: float = 10.0, seeds=range(3),
-                    sphere: int = 60, fixed: int = 20, nominal_set_number: int = 2,
-                    progress: Callable[[str], None] = lambda _: None,
-                    true_params: KinematicParameters | None = None, model: str | None = None) -> list[MethodOutcome]:
+def compare_methods(
+    defects: DeviceDefects = DEFAULT_DEFECTS,
+    noise_um: float = 10.0,
+    seeds=range(3),
+    sphere: int = 60,
+    fixed: int = 20,
+    nominal_set_number: int = 2,
+    progress: Callable[[str], None] = lambda _: None,
+    true_params: KinematicParameters | None = None,
+    model: str | None = None,
+) -> list[MethodOutcome]:
     """Every method of METHODS on the same machine, procedure and seeds; pose errors in the device frames.
 
     The machine is ``true_params``, else the default machine of ``model`` (default: the Table 1 Hexa Slide).
@@ -157,22 +206,33 @@ def compare_methods(defects: DeviceDefects = DEFAULT_DEFECTS, noise_um: float = 
         truth = device_frame_truth(true_params, used_defects)
         outcome = MethodOutcome(method, [], [], [], [], 0, [], [])
         for seed in seeds:
-            progress(f"{method.label}, seed {seed}")
-            measurements = simulate_procedure(true_params, used_defects, sphere, fixed, noise_um, seed, method.lvdt)
-            options = SolverOptions(cost=method.cost, free_device=method.free_device,
-                                    noise=NoiseModel.from_microns(noise_um) if method.weighted else None,
-                                    allow_rank_deficient=method.cost == "relative")
+            progress(f'{method.label}, seed {seed}')
+            measurements = simulate_procedure(
+                true_params, used_defects, sphere, fixed, noise_um, seed, method.lvdt
+            )
+            options = SolverOptions(
+                cost=method.cost,
+                free_device=method.free_device,
+                noise=NoiseModel.from_microns(noise_um) if method.weighted else None,
+                allow_rank_deficient=method.cost == 'relative',
+            )
             try:
-                result = identify(nominal_set(nominal_set_number, seed=seed, exact=true_params), measurements, options)
+                result = identify(
+                    nominal_set(nominal_set_number, seed=seed, exact=true_params),
+                    measurements,
+                    options,
+                )
             except CalibrationError as error:
-                outcome.failures.append(f"seed {seed}: {error.reason}")
+                outcome.failures.append(f'seed {seed}: {error.reason}')
                 continue
             poses = device_frame_poses(validation_poses(true_params, 50, seed), used_defects)
             errors = pose_errors(truth, result.parameters, poses).summary()
-            aligned = pose_errors(truth, result.parameters, poses, align_base_rotation_y=True).summary()
-            outcome.position_mean_m.append(errors["position_mean_m"])
-            outcome.orientation_mean_rad.append(errors["orientation_mean_rad"])
-            outcome.aligned_position_mean_m.append(aligned["position_mean_m"])
+            aligned = pose_errors(
+                truth, result.parameters, poses, align_base_rotation_y=True
+            ).summary()
+            outcome.position_mean_m.append(errors['position_mean_m'])
+            outcome.orientation_mean_rad.append(errors['orientation_mean_rad'])
+            outcome.aligned_position_mean_m.append(aligned['position_mean_m'])
             outcome.ranks.append(result.rank)
             outcome.n_unknowns = result.identifiability.n_parameters
             outcome.device.append(result.device.vector)
@@ -181,5 +241,11 @@ def compare_methods(defects: DeviceDefects = DEFAULT_DEFECTS, noise_um: float = 
     return outcomes
 
 
-__all__ = ["DEFAULT_DEFECTS", "METHODS", "compare_methods", "device_frame_poses", "device_frame_truth",
-           "simulate_procedure"]
+__all__ = [
+    'DEFAULT_DEFECTS',
+    'METHODS',
+    'compare_methods',
+    'device_frame_poses',
+    'device_frame_truth',
+    'simulate_procedure',
+]

@@ -32,6 +32,7 @@ gravity-aligned base frame with its origin at O and the platform's own frame;
 positions of the platform origin do not depend on the platform frame, so the
 true-frame position error includes every beta0 and phi0 effect there is.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -39,11 +40,19 @@ from typing import Callable
 
 import numpy as np
 
-from ..core.architectures import KinematicParameters, default_parameters
-from ..core.device import (DEVICE_PARAMETER_NAMES, TURNING_PROCEDURES, DeviceDefects, DeviceModel, DevicePrior,
-                           procedure_turns as turns_of)
+from ..core.architectures import default_parameters, KinematicParameters
+from ..core.device import (
+    DEVICE_PARAMETER_NAMES,
+    DeviceDefects,
+    DeviceModel,
+    DevicePrior,
+    TURNING_PROCEDURES,
+)
+from ..core.device import (
+    procedure_turns as turns_of,
+)
 from ..core.errors import CalibrationError
-from ..core.identification import SolverOptions, identify
+from ..core.identification import identify, SolverOptions
 from ..core.measurements import Measurements, NoiseModel, simulate_measurements
 from ..core.model import nominal_set
 from ..core.uncertainty import predicted_pose_errors
@@ -51,8 +60,8 @@ from ..core.validation import pose_errors, validation_poses
 from .device import DEFAULT_DEFECTS, device_frame_poses, device_frame_truth, simulate_procedure
 
 PROCEDURES = TURNING_PROCEDURES  # device turns of each procedure, rad (core.device)
-RECOMMENDED_PROCEDURE = "quarter-turns"
-ALL_BUT_PHI0 = ("dL", "alpha0", "beta0", "gamma")
+RECOMMENDED_PROCEDURE = 'quarter-turns'
+ALL_BUT_PHI0 = ('dL', 'alpha0', 'beta0', 'gamma')
 CALIPER_STD_M = 10e-6
 CLAIM_RATIO = 1.5
 CLAIM_EFFICIENCY = 0.9
@@ -71,30 +80,68 @@ def procedure_turns(procedure: str, postures: int) -> np.ndarray | None:
     return out
 
 
-def simulate_device_run(true_params: KinematicParameters, defects: DeviceDefects, postures: int, noise_um: float,
-                        seed: int, procedure: str = "none", fixed: int = 0,
-                        device: DeviceModel = DeviceModel()) -> Measurements:
+def simulate_device_run(
+    true_params: KinematicParameters,
+    defects: DeviceDefects,
+    postures: int,
+    noise_um: float,
+    seed: int,
+    procedure: str = 'none',
+    fixed: int = 0,
+    device: DeviceModel = DeviceModel(),
+) -> Measurements:
     """``postures`` postures: ``fixed`` fixed-position ones (normal mounting), the others sphere postures shared
     out over the ``procedure``'s turns (``device.simulate_procedure``: the true sphere L + dL, distinct poses)."""
     sphere = postures - fixed
-    return simulate_procedure(true_params, defects, sphere, fixed, noise_um, seed, device=device,
-                              device_turn=procedure_turns(procedure, sphere))
+    return simulate_procedure(
+        true_params,
+        defects,
+        sphere,
+        fixed,
+        noise_um,
+        seed,
+        device=device,
+        device_turn=procedure_turns(procedure, sphere),
+    )
 
 
-def plan_for(nominal: KinematicParameters, postures: int, noise_um: float, seed: int, identify_device=(),
-             procedure: str = "none", device_prior: DevicePrior = DevicePrior(), candidates: int = PLAN_CANDIDATES):
+def plan_for(
+    nominal: KinematicParameters,
+    postures: int,
+    noise_um: float,
+    seed: int,
+    identify_device=(),
+    procedure: str = 'none',
+    device_prior: DevicePrior = DevicePrior(),
+    candidates: int = PLAN_CANDIDATES,
+):
     """The planner's choice on the nominal machine: I-optimal with the device columns, priors and turns."""
-    from ..core.planning import PREDICTION, plan_postures
+    from ..core.planning import plan_postures, PREDICTION
 
-    return plan_postures(nominal, postures, index=PREDICTION, n_candidates=candidates, seed=seed,
-                         noise=NoiseModel.from_microns(noise_um) if noise_um > 0 else None,
-                         device_columns=tuple(identify_device),
-                         device_prior=device_prior, device_turns=turns_of(procedure)).plan
+    return plan_postures(
+        nominal,
+        postures,
+        index=PREDICTION,
+        n_candidates=candidates,
+        seed=seed,
+        noise=NoiseModel.from_microns(noise_um) if noise_um > 0 else None,
+        device_columns=tuple(identify_device),
+        device_prior=device_prior,
+        device_turns=turns_of(procedure),
+    ).plan
 
 
-def simulate_planned_run(true_params: KinematicParameters, nominal: KinematicParameters, defects: DeviceDefects,
-                         postures: int, noise_um: float, seed: int, row: "DeviceRow",
-                         prior: DevicePrior, device: DeviceModel = DeviceModel()) -> Measurements:
+def simulate_planned_run(
+    true_params: KinematicParameters,
+    nominal: KinematicParameters,
+    defects: DeviceDefects,
+    postures: int,
+    noise_um: float,
+    seed: int,
+    row: 'DeviceRow',
+    prior: DevicePrior,
+    device: DeviceModel = DeviceModel(),
+) -> Measurements:
     """The planned postures on the true machine: the link of true length L + dL puts each planned position on
     its own sphere (radially scaled), the device turned as the plan says."""
     # The planner knows the prior's std but not the instrument's reading: plan with the nominal value.
@@ -103,14 +150,26 @@ def simulate_planned_run(true_params: KinematicParameters, nominal: KinematicPar
     poses = plan.poses.copy()
     poses[:, :3] *= (device.link_length + defects.dL) / device.link_length
     rng = np.random.default_rng([seed, 0x91A5])
-    return simulate_measurements(true_params, poses, plan.kinds, device, NoiseModel.from_microns(noise_um), rng,
-                                 defects, device_turn=plan.device_turns)
+    return simulate_measurements(
+        true_params,
+        poses,
+        plan.kinds,
+        device,
+        NoiseModel.from_microns(noise_um),
+        rng,
+        defects,
+        device_turn=plan.device_turns,
+    )
 
 
-def caliper_prior(defects: DeviceDefects, caliper: tuple[tuple[str, float], ...], seed: int) -> DevicePrior:
+def caliper_prior(
+    defects: DeviceDefects, caliper: tuple[tuple[str, float], ...], seed: int
+) -> DevicePrior:
     """Priors as a user would have them: each instrument reads the true value with its own N(0, std) error."""
     rng = np.random.default_rng([seed, 0xCA1])
-    return DevicePrior(tuple((name, getattr(defects, name) + rng.normal(0.0, std), std) for name, std in caliper))
+    return DevicePrior(
+        tuple((name, getattr(defects, name) + rng.normal(0.0, std), std) for name, std in caliper)
+    )
 
 
 @dataclass(frozen=True)
@@ -119,34 +178,62 @@ class DeviceRow:
 
     label: str
     identify: tuple[str, ...] = ()
-    procedure: str = "none"
+    procedure: str = 'none'
     caliper: tuple[tuple[str, float], ...] = ()  # (name, std) of each prior measurement
-    cost: str = "absolute"
+    cost: str = 'absolute'
     fixed: int = 0  # fixed-position postures among the total (the relative cost needs them)
-    weighted: bool = True  # residuals whitened by the known noise (the paper's relative cost: unweighted)
+    weighted: bool = (
+        True  # residuals whitened by the known noise (the paper's relative cost: unweighted)
+    )
     planned: bool = False  # postures (and their turns) chosen by the planner (I-optimal, device columns) per seed
     defective: bool = True
-    claim: str = ""  # "prior" or "procedure": the issue's claim this row is judged on
+    claim: str = ''  # "prior" or "procedure": the issue's claim this row is judged on
 
 
 ROWS = (
-    DeviceRow("ideal device, eq. 7 (reference)", defective=False),
-    DeviceRow("defects ignored, eq. 7"),
-    DeviceRow("paper's remedy: relative cost, eqs. 12 + 13", cost="relative", fixed=12, weighted=False),
-    DeviceRow("joint: dL, alpha0, gamma", ("dL", "alpha0", "gamma")),
-    DeviceRow("caliper prior on L (+-10 um) + alpha0, gamma", ("alpha0", "gamma"),
-              caliper=(("dL", CALIPER_STD_M),)),
-    DeviceRow("reversal (0/180 deg): dL, alpha0, beta0, gamma", ALL_BUT_PHI0, "reversal"),
-    DeviceRow("quarter turns (0/90/180/270): dL, alpha0, beta0, gamma", ALL_BUT_PHI0, "quarter-turns"),
-    DeviceRow("quarter turns + caliper prior on L", ("alpha0", "beta0", "gamma"), "quarter-turns",
-              caliper=(("dL", CALIPER_STD_M),)),
-    DeviceRow("ideal device, planned postures (I-optimal)", defective=False, planned=True),
-    DeviceRow("caliper prior + alpha0, gamma, planned", ("alpha0", "gamma"), caliper=(("dL", CALIPER_STD_M),),
-              planned=True, claim="prior"),
-    DeviceRow("quarter turns, planned: dL, alpha0, beta0, gamma", ALL_BUT_PHI0, "quarter-turns", planned=True,
-              claim="procedure"),
-    DeviceRow("quarter turns + caliper prior, planned", ("alpha0", "beta0", "gamma"), "quarter-turns",
-              caliper=(("dL", CALIPER_STD_M),), planned=True),
+    DeviceRow('ideal device, eq. 7 (reference)', defective=False),
+    DeviceRow('defects ignored, eq. 7'),
+    DeviceRow(
+        "paper's remedy: relative cost, eqs. 12 + 13", cost='relative', fixed=12, weighted=False
+    ),
+    DeviceRow('joint: dL, alpha0, gamma', ('dL', 'alpha0', 'gamma')),
+    DeviceRow(
+        'caliper prior on L (+-10 um) + alpha0, gamma',
+        ('alpha0', 'gamma'),
+        caliper=(('dL', CALIPER_STD_M),),
+    ),
+    DeviceRow('reversal (0/180 deg): dL, alpha0, beta0, gamma', ALL_BUT_PHI0, 'reversal'),
+    DeviceRow(
+        'quarter turns (0/90/180/270): dL, alpha0, beta0, gamma', ALL_BUT_PHI0, 'quarter-turns'
+    ),
+    DeviceRow(
+        'quarter turns + caliper prior on L',
+        ('alpha0', 'beta0', 'gamma'),
+        'quarter-turns',
+        caliper=(('dL', CALIPER_STD_M),),
+    ),
+    DeviceRow('ideal device, planned postures (I-optimal)', defective=False, planned=True),
+    DeviceRow(
+        'caliper prior + alpha0, gamma, planned',
+        ('alpha0', 'gamma'),
+        caliper=(('dL', CALIPER_STD_M),),
+        planned=True,
+        claim='prior',
+    ),
+    DeviceRow(
+        'quarter turns, planned: dL, alpha0, beta0, gamma',
+        ALL_BUT_PHI0,
+        'quarter-turns',
+        planned=True,
+        claim='procedure',
+    ),
+    DeviceRow(
+        'quarter turns + caliper prior, planned',
+        ('alpha0', 'beta0', 'gamma'),
+        'quarter-turns',
+        caliper=(('dL', CALIPER_STD_M),),
+        planned=True,
+    ),
 )
 
 
@@ -156,49 +243,76 @@ class RowOutcome:
     device_frame_position_m: list[float] = field(default_factory=list)
     true_frame_position_m: list[float] = field(default_factory=list)
     true_frame_orientation_rad: list[float] = field(default_factory=list)
-    origin_aligned_position_m: list[float] = field(default_factory=list)  # true frames, origin re-referenced
+    origin_aligned_position_m: list[float] = field(
+        default_factory=list
+    )  # true frames, origin re-referenced
     device_errors: list[np.ndarray] = field(default_factory=list)  # identified - true, per seed
     failures: list[str] = field(default_factory=list)
 
     @staticmethod
     def mean(values: list[float]) -> float:
-        return float(np.mean(values)) if values else float("nan")
+        return float(np.mean(values)) if values else float('nan')
 
     def device_rmse(self) -> np.ndarray:
-        return np.sqrt(np.mean(np.square(self.device_errors), axis=0)) if self.device_errors else \
-            np.full(len(DEVICE_PARAMETER_NAMES), np.nan)
+        return (
+            np.sqrt(np.mean(np.square(self.device_errors), axis=0))
+            if self.device_errors
+            else np.full(len(DEVICE_PARAMETER_NAMES), np.nan)
+        )
 
 
-def run_row(row: DeviceRow, true_params: KinematicParameters, defects: DeviceDefects, seeds, postures: int = 50,
-            noise_um: float = 10.0, progress: Callable[[str], None] = lambda _: None) -> RowOutcome:
+def run_row(
+    row: DeviceRow,
+    true_params: KinematicParameters,
+    defects: DeviceDefects,
+    seeds,
+    postures: int = 50,
+    noise_um: float = 10.0,
+    progress: Callable[[str], None] = lambda _: None,
+) -> RowOutcome:
     """``row`` over ``seeds``: weighted by the known noise, validated on 50 fresh postures in both frames."""
     used = defects if row.defective else DeviceDefects()
     outcome = RowOutcome(row)
     noise = NoiseModel.from_microns(noise_um)
     for seed in seeds:
-        progress(f"{row.label}, seed {seed}")
+        progress(f'{row.label}, seed {seed}')
         nominal = nominal_set(2, seed=seed, exact=true_params)
         prior = caliper_prior(used, row.caliper, seed)
         if row.planned:
-            measurements = simulate_planned_run(true_params, nominal, used, postures, noise_um, seed, row, prior)
+            measurements = simulate_planned_run(
+                true_params, nominal, used, postures, noise_um, seed, row, prior
+            )
         else:
-            measurements = simulate_device_run(true_params, used, postures, noise_um, seed, row.procedure, row.fixed)
-        options = SolverOptions(cost=row.cost, free_device=row.identify, noise=noise if row.weighted else None,
-                                device_prior=prior, allow_rank_deficient=row.cost == "relative")
+            measurements = simulate_device_run(
+                true_params, used, postures, noise_um, seed, row.procedure, row.fixed
+            )
+        options = SolverOptions(
+            cost=row.cost,
+            free_device=row.identify,
+            noise=noise if row.weighted else None,
+            device_prior=prior,
+            allow_rank_deficient=row.cost == 'relative',
+        )
         try:
             result = identify(nominal, measurements, options)
         except CalibrationError as error:
-            outcome.failures.append(f"seed {seed}: {error.reason}")
+            outcome.failures.append(f'seed {seed}: {error.reason}')
             continue
         poses = validation_poses(true_params, 50, seed)
-        in_device = pose_errors(device_frame_truth(true_params, used), result.parameters,
-                                device_frame_poses(poses, used)).summary()
+        in_device = pose_errors(
+            device_frame_truth(true_params, used),
+            result.parameters,
+            device_frame_poses(poses, used),
+        ).summary()
         in_truth = pose_errors(true_params, result.parameters, poses).summary()
-        outcome.device_frame_position_m.append(in_device["position_mean_m"])
-        outcome.true_frame_position_m.append(in_truth["position_mean_m"])
-        outcome.true_frame_orientation_rad.append(in_truth["orientation_mean_rad"])
+        outcome.device_frame_position_m.append(in_device['position_mean_m'])
+        outcome.true_frame_position_m.append(in_truth['position_mean_m'])
+        outcome.true_frame_orientation_rad.append(in_truth['orientation_mean_rad'])
         outcome.origin_aligned_position_m.append(
-            pose_errors(true_params, result.parameters, poses, align_origin=True).summary()["position_mean_m"])
+            pose_errors(true_params, result.parameters, poses, align_origin=True).summary()[
+                'position_mean_m'
+            ]
+        )
         outcome.device_errors.append(result.device.vector - used.vector)
     return outcome
 
@@ -224,31 +338,45 @@ class Claim:
 
 def claims(outcomes: list[RowOutcome]) -> list[Claim]:
     """The issue's claims on the table: caliper prior within 1.5x (device frames), procedure within 1.5x (true frames)."""
-    references = {o.row.planned: o.mean(o.true_frame_position_m) for o in outcomes if not o.row.defective}
+    references = {
+        o.row.planned: o.mean(o.true_frame_position_m) for o in outcomes if not o.row.defective
+    }
     random_reference = references[False]
     found = []
     for outcome in outcomes:
         own = references.get(outcome.row.planned, random_reference)
-        if outcome.row.claim == "prior":
+        if outcome.row.claim == 'prior':
             error = outcome.mean(outcome.device_frame_position_m)
-            text = (f"{outcome.row.label}, no procedure: position within {CLAIM_RATIO}x the defect-free one "
-                    "(device frames: without a procedure beta0 is a frame definition)")
-        elif outcome.row.claim == "procedure":
+            text = (
+                f'{outcome.row.label}, no procedure: position within {CLAIM_RATIO}x the defect-free one '
+                '(device frames: without a procedure beta0 is a frame definition)'
+            )
+        elif outcome.row.claim == 'procedure':
             error = outcome.mean(outcome.true_frame_position_m)
-            text = (f"{outcome.row.label}, no prior: position within {CLAIM_RATIO}x the defect-free one "
-                    "(true frames, every beta0 and phi0 effect included)")
+            text = (
+                f'{outcome.row.label}, no prior: position within {CLAIM_RATIO}x the defect-free one '
+                '(true frames, every beta0 and phi0 effect included)'
+            )
         else:
             continue
         found.append(Claim(text, error / random_reference, error / own))
     return found
 
 
-def device_table(defects: DeviceDefects = DEFAULT_DEFECTS, seeds=range(10), postures: int = 50,
-                 noise_um: float = 10.0, true_params: KinematicParameters | None = None,
-                 progress: Callable[[str], None] = lambda _: None, rows=ROWS) -> list[RowOutcome]:
+def device_table(
+    defects: DeviceDefects = DEFAULT_DEFECTS,
+    seeds=range(10),
+    postures: int = 50,
+    noise_um: float = 10.0,
+    true_params: KinematicParameters | None = None,
+    progress: Callable[[str], None] = lambda _: None,
+    rows=ROWS,
+) -> list[RowOutcome]:
     """Every row of ``rows`` on the same machine, noise and seeds."""
     true_params = true_params if true_params is not None else default_parameters()
-    return [run_row(row, true_params, defects, seeds, postures, noise_um, progress) for row in rows]
+    return [
+        run_row(row, true_params, defects, seeds, postures, noise_um, progress) for row in rows
+    ]
 
 
 @dataclass
@@ -275,10 +403,16 @@ class EfficiencySummary:
         return self.predicted_position_ms_m2 / self.position_ms_m2
 
 
-def estimator_efficiency(seeds: int = 100, procedure: str = RECOMMENDED_PROCEDURE,
-                         identified: tuple[str, ...] = ALL_BUT_PHI0, defects: DeviceDefects = DEFAULT_DEFECTS,
-                         postures: int = 50, noise_um: float = 10.0, true_params: KinematicParameters | None = None,
-                         progress: Callable[[str], None] = lambda _: None) -> EfficiencySummary:
+def estimator_efficiency(
+    seeds: int = 100,
+    procedure: str = RECOMMENDED_PROCEDURE,
+    identified: tuple[str, ...] = ALL_BUT_PHI0,
+    defects: DeviceDefects = DEFAULT_DEFECTS,
+    postures: int = 50,
+    noise_um: float = 10.0,
+    true_params: KinematicParameters | None = None,
+    progress: Callable[[str], None] = lambda _: None,
+) -> EfficiencySummary:
     """The joint problem (``procedure``, ``identified`` device parameters) repeated over noise seeds.
 
     The estimator's target is the true machine in the frames it calibrates in (the
@@ -286,23 +420,32 @@ def estimator_efficiency(seeds: int = 100, procedure: str = RECOMMENDED_PROCEDUR
     weighted solve on exact readings at that target, device parameters included.
     """
     true_params = true_params if true_params is not None else default_parameters()
-    frames = DeviceDefects(beta0=0.0 if "beta0" in identified else defects.beta0,
-                           phi0=0.0 if "phi0" in identified else defects.phi0)
+    frames = DeviceDefects(
+        beta0=0.0 if 'beta0' in identified else defects.beta0,
+        phi0=0.0 if 'phi0' in identified else defects.phi0,
+    )
     target = device_frame_truth(true_params, frames)
     exact = simulate_device_run(true_params, defects, postures, 0.0, 0, procedure)
     noise = NoiseModel.from_microns(noise_um)
-    held = replace(defects, phi0=defects.phi0 if "phi0" in identified else 0.0,
-                   beta0=defects.beta0 if "beta0" in identified else 0.0)
+    held = replace(
+        defects,
+        phi0=defects.phi0 if 'phi0' in identified else 0.0,
+        beta0=defects.beta0 if 'beta0' in identified else 0.0,
+    )
     index = [DEVICE_PARAMETER_NAMES.index(name) for name in identified]
-    crb = identify(target, exact, SolverOptions(free_device=identified, noise=noise, device_defects=held))
-    crb_std = np.sqrt(np.diag(crb.covariance)[target.layout.n_parameters:][index])
+    crb = identify(
+        target, exact, SolverOptions(free_device=identified, noise=noise, device_defects=held)
+    )
+    crb_std = np.sqrt(np.diag(crb.covariance)[target.layout.n_parameters :][index])
     validation = device_frame_poses(validation_poses(true_params, 50, 0), frames)
     predicted = predicted_pose_errors(target, crb.covariance, validation)
     predicted_ms = float(np.mean(np.sum(predicted.position_std_m**2, axis=1)))
-    rng_poses = simulate_device_run(true_params, defects, postures, 0.0, 0, procedure)  # the same postures
+    rng_poses = simulate_device_run(
+        true_params, defects, postures, 0.0, 0, procedure
+    )  # the same postures
     errors, squared, failures = [], [], 0
     for seed in range(seeds):
-        progress(f"efficiency, noise seed {seed + 1}/{seeds}")
+        progress(f'efficiency, noise seed {seed + 1}/{seeds}')
         measurements = _with_noise(rng_poses, noise, seed)
         options = SolverOptions(free_device=identified, noise=noise)
         try:
@@ -314,8 +457,17 @@ def estimator_efficiency(seeds: int = 100, procedure: str = RECOMMENDED_PROCEDUR
         sliders_truth = pose_errors(target, result.parameters, validation)
         squared.append(float(np.nanmean(sliders_truth.position_m**2)))
     errors = np.array(errors)
-    return EfficiencySummary(seeds, procedure, identified, crb_std, np.sqrt(np.mean(errors**2, axis=0)),
-                             errors.mean(axis=0), predicted_ms, float(np.mean(squared)), failures)
+    return EfficiencySummary(
+        seeds,
+        procedure,
+        identified,
+        crb_std,
+        np.sqrt(np.mean(errors**2, axis=0)),
+        errors.mean(axis=0),
+        predicted_ms,
+        float(np.mean(squared)),
+        failures,
+    )
 
 
 def _with_noise(exact: Measurements, noise: NoiseModel, seed: int) -> Measurements:
@@ -325,9 +477,23 @@ def _with_noise(exact: Measurements, noise: NoiseModel, seed: int) -> Measuremen
     sliders = exact.slider_positions + rng.uniform(-noise.slider_m, noise.slider_m, (n, 6))
     angles = exact.inclinometer + rng.uniform(-noise.angle_rad, noise.angle_rad, (n, 2))
     rotary = exact.rotary + rng.uniform(-noise.angle_rad, noise.angle_rad, n)
-    return Measurements(sliders, angles, rotary, exact.kinds, exact.link_lengths, exact.device_turn)
+    return Measurements(
+        sliders, angles, rotary, exact.kinds, exact.link_lengths, exact.device_turn
+    )
 
 
-__all__ = ["PROCEDURES", "RECOMMENDED_PROCEDURE", "ROWS", "Claim", "DeviceRow", "EfficiencySummary", "RowOutcome",
-           "caliper_prior", "claims", "device_table", "estimator_efficiency", "procedure_turns",
-           "simulate_device_run"]
+__all__ = [
+    'PROCEDURES',
+    'RECOMMENDED_PROCEDURE',
+    'ROWS',
+    'Claim',
+    'DeviceRow',
+    'EfficiencySummary',
+    'RowOutcome',
+    'caliper_prior',
+    'claims',
+    'device_table',
+    'estimator_efficiency',
+    'procedure_turns',
+    'simulate_device_run',
+]

@@ -12,41 +12,66 @@ and validated on the same postures.
 Claim checked: planned postures reach the mean validation position error of
 50 random postures with at most half as many (K <= 25).
 """
+
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
+import json
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
 from hexacal_msgs_py.models import DEFAULT_MODEL
+import numpy as np
 
 from ..core.errors import CalibrationError
-from ..core.identification import SolverOptions, identify
+from ..core.identification import identify, SolverOptions
 from ..core.measurements import NoiseModel, simulate_measurements
-from ..core.planning import CRITERIA, METHODS, PREDICTION, PostureLimits, exchange_design, plan_postures
-from .accuracy import StudyOutcome, StudyRun, run_calibration, study_truth
+from ..core.planning import (
+    CRITERIA,
+    exchange_design,
+    METHODS,
+    plan_postures,
+    PostureLimits,
+    PREDICTION,
+)
 from ..core.validation import pose_errors, validation_poses
+from .accuracy import run_calibration, study_truth, StudyOutcome, StudyRun
 
 DEFAULT_KS = (15, 20, 25, 30, 40, 50)
 REFERENCE_RANDOM_POSTURES = 50
-RANDOM = "random"
+RANDOM = 'random'
 UM = 1e6
 
 
 def add_arguments(parser) -> None:
     """Options of ``hexacal study --plan`` (it also uses --seed, --noise-um, --cost, --nominal-set, --out, --json)."""
-    group = parser.add_argument_group("posture planning study (--plan)")
-    group.add_argument("--plan", action="store_true",
-                       help="compare planned and random postures: validation error vs number of postures")
-    group.add_argument("--plan-ks", type=lambda text: [int(v) for v in text.split(",")], default=list(DEFAULT_KS),
-                       help="numbers of postures to compare, comma-separated (default 15,20,25,30,40,50)")
-    group.add_argument("--index", choices=CRITERIA, default="O1",
-                       help="index to plan for (default O1); the I-optimal plan is always compared as well")
-    group.add_argument("--method", choices=METHODS, default="greedy", help="selection method (default greedy)")
-    group.add_argument("--candidates", type=int, default=2000, help="candidate postures per plan (default 2000)")
-    group.add_argument("--plan-seeds", type=int, default=30, help="seeds, from --seed on (default 30)")
+    group = parser.add_argument_group('posture planning study (--plan)')
+    group.add_argument(
+        '--plan',
+        action='store_true',
+        help='compare planned and random postures: validation error vs number of postures',
+    )
+    group.add_argument(
+        '--plan-ks',
+        type=lambda text: [int(v) for v in text.split(',')],
+        default=list(DEFAULT_KS),
+        help='numbers of postures to compare, comma-separated (default 15,20,25,30,40,50)',
+    )
+    group.add_argument(
+        '--index',
+        choices=CRITERIA,
+        default='O1',
+        help='index to plan for (default O1); the I-optimal plan is always compared as well',
+    )
+    group.add_argument(
+        '--method', choices=METHODS, default='greedy', help='selection method (default greedy)'
+    )
+    group.add_argument(
+        '--candidates', type=int, default=2000, help='candidate postures per plan (default 2000)'
+    )
+    group.add_argument(
+        '--plan-seeds', type=int, default=30, help='seeds, from --seed on (default 30)'
+    )
 
 
 @dataclass
@@ -64,13 +89,21 @@ class PlanningStudy:
     failures: dict[str, list[str]] = field(default_factory=dict)
 
     def mean(self, variant: str) -> np.ndarray:
-        with np.errstate(all="ignore"):
-            return np.array([np.nanmean(row) if np.any(np.isfinite(row)) else np.nan
-                             for row in self.position_error_m[variant]])
+        with np.errstate(all='ignore'):
+            return np.array(
+                [
+                    np.nanmean(row) if np.any(np.isfinite(row)) else np.nan
+                    for row in self.position_error_m[variant]
+                ]
+            )
 
     def spread(self, variant: str) -> np.ndarray:
-        return np.array([np.nanstd(row, ddof=1) if np.sum(np.isfinite(row)) > 1 else 0.0
-                         for row in self.position_error_m[variant]])
+        return np.array(
+            [
+                np.nanstd(row, ddof=1) if np.sum(np.isfinite(row)) > 1 else 0.0
+                for row in self.position_error_m[variant]
+            ]
+        )
 
     def failed(self, variant: str) -> np.ndarray:
         return np.sum(~np.isfinite(self.position_error_m[variant]), axis=1)
@@ -81,30 +114,48 @@ class PlanningStudy:
 
     def smallest_k_reaching(self, variant: str) -> int | None:
         # A K where some seed failed does not count: the claim is about dependable calibrations.
-        reached = [k for k, mean, failed in zip(self.ks, self.mean(variant), self.failed(variant))
-                   if failed == 0 and mean <= self.reference_m()]
+        reached = [
+            k
+            for k, mean, failed in zip(self.ks, self.mean(variant), self.failed(variant))
+            if failed == 0 and mean <= self.reference_m()
+        ]
         return min(reached) if reached else None
 
     def claim(self, variant: str) -> dict:
         k = self.smallest_k_reaching(variant)
         limit = REFERENCE_RANDOM_POSTURES // 2
-        return {"variant": variant, "reference_random_postures": REFERENCE_RANDOM_POSTURES,
-                "reference_position_mean_m": self.reference_m(), "smallest_k": k,
-                "holds": k is not None and k <= limit, "limit_k": limit}
+        return {
+            'variant': variant,
+            'reference_random_postures': REFERENCE_RANDOM_POSTURES,
+            'reference_position_mean_m': self.reference_m(),
+            'smallest_k': k,
+            'holds': k is not None and k <= limit,
+            'limit_k': limit,
+        }
 
     def to_json(self) -> dict:
         variants = {}
         for name in self.position_error_m:
             variants[name] = {
-                "position_mean_m": _nan_to_none(self.mean(name)),
-                "position_spread_m": _nan_to_none(self.spread(name)),
-                "failed_seeds": self.failed(name).tolist(),
-                "per_seed_position_mean_m": [_nan_to_none(row) for row in self.position_error_m[name]],
-                "failures": self.failures.get(name, []),
+                'position_mean_m': _nan_to_none(self.mean(name)),
+                'position_spread_m': _nan_to_none(self.spread(name)),
+                'failed_seeds': self.failed(name).tolist(),
+                'per_seed_position_mean_m': [
+                    _nan_to_none(row) for row in self.position_error_m[name]
+                ],
+                'failures': self.failures.get(name, []),
             }
-        return {"model": self.model, "ks": self.ks, "seeds": self.seeds, "noise_um": self.noise_um, "cost": self.cost,
-                "index": self.index, "method": self.method, "variants": variants,
-                "claims": {name: self.claim(name) for name in variants if name != RANDOM}}
+        return {
+            'model': self.model,
+            'ks': self.ks,
+            'seeds': self.seeds,
+            'noise_um': self.noise_um,
+            'cost': self.cost,
+            'index': self.index,
+            'method': self.method,
+            'variants': variants,
+            'claims': {name: self.claim(name) for name in variants if name != RANDOM},
+        }
 
 
 def _nan_to_none(values) -> list:
@@ -114,31 +165,50 @@ def _nan_to_none(values) -> list:
 def calibrate_at(run: StudyRun, poses: np.ndarray, kinds: np.ndarray) -> StudyOutcome:
     """``run_calibration`` with given postures instead of random ones (same noise model, solver, validation)."""
     rng = np.random.default_rng([run.seed, len(poses), 0x9EA5])
-    measurements = simulate_measurements(run.true_params, poses, kinds, run.device,
-                                         NoiseModel.from_microns(run.noise_um), rng)
+    measurements = simulate_measurements(
+        run.true_params, poses, kinds, run.device, NoiseModel.from_microns(run.noise_um), rng
+    )
     result = identify(run.nominal(), measurements, SolverOptions(cost=run.cost, device=run.device))
-    validation = validation_poses(run.true_params, run.validation_postures, run.seed, run.resolved_workspace)
+    validation = validation_poses(
+        run.true_params, run.validation_postures, run.seed, run.resolved_workspace
+    )
     before = pose_errors(run.true_params, run.nominal(), validation)
     after = pose_errors(run.true_params, result.parameters, validation)
     return StudyOutcome(run, result, before, after)
 
 
-def planned_variants(index: str, cost: str, noise_um: float) -> dict[str, tuple[str, NoiseModel | None]]:
+def planned_variants(
+    index: str, cost: str, noise_um: float
+) -> dict[str, tuple[str, NoiseModel | None]]:
     """name -> (index, noise weighting): the index asked for, weighted and not, and the I-optimal plan."""
-    noise = NoiseModel.from_microns(noise_um if noise_um > 0 else 1.0)  # only the actuator/angle ratio matters
-    if cost == "relative":  # no noise weighting for the relative cost
-        return {f"planned-{name}-unweighted": (name, None) for name in dict.fromkeys([index, PREDICTION])}
-    variants = {f"planned-{index}": (index, noise)}
+    noise = NoiseModel.from_microns(
+        noise_um if noise_um > 0 else 1.0
+    )  # only the actuator/angle ratio matters
+    if cost == 'relative':  # no noise weighting for the relative cost
+        return {
+            f'planned-{name}-unweighted': (name, None)
+            for name in dict.fromkeys([index, PREDICTION])
+        }
+    variants = {f'planned-{index}': (index, noise)}
     if index != PREDICTION:
-        variants[f"planned-{PREDICTION}"] = (PREDICTION, noise)
-    variants[f"planned-{index}-unweighted"] = (index, None)
+        variants[f'planned-{PREDICTION}'] = (PREDICTION, noise)
+    variants[f'planned-{index}-unweighted'] = (index, None)
     return variants
 
 
-def planned_vs_random(ks=DEFAULT_KS, seeds=range(10), noise_um: float = 10.0, cost: str = "absolute",
-                      nominal_set_number: int = 2, index: str = "O1", method: str = "greedy",
-                      candidates: int = 2000, progress: Callable[[str], None] = lambda _: None,
-                      model: str | None = None, true_params=None) -> PlanningStudy:
+def planned_vs_random(
+    ks=DEFAULT_KS,
+    seeds=range(10),
+    noise_um: float = 10.0,
+    cost: str = 'absolute',
+    nominal_set_number: int = 2,
+    index: str = 'O1',
+    method: str = 'greedy',
+    candidates: int = 2000,
+    progress: Callable[[str], None] = lambda _: None,
+    model: str | None = None,
+    true_params=None,
+) -> PlanningStudy:
     """Validation error vs K for random postures and the planned variants (``planned_variants``).
 
     The machine: ``true_params``, else the default machine of ``model`` (default: the Table 1 Hexa Slide).
@@ -154,52 +224,102 @@ def planned_vs_random(ks=DEFAULT_KS, seeds=range(10), noise_um: float = 10.0, co
         study.orientation_error_rad[name] = np.full((len(ks), len(seeds)), np.nan)
         study.failures[name] = []
     for column, seed in enumerate(seeds):
-        base = StudyRun(true_params=truth, nominal_set_number=nominal_set_number, noise_um=noise_um, seed=seed,
-                        cost=cost)
+        base = StudyRun(
+            true_params=truth,
+            nominal_set_number=nominal_set_number,
+            noise_um=noise_um,
+            seed=seed,
+            cost=cost,
+        )
         # Candidates where the study draws its random postures: its workspace, on its device.
         limits = PostureLimits.from_workspace(base.resolved_workspace, mount=base.device.mount)
         for name, (variant_index, noise) in weighting.items():
-            progress(f"seed {seed}: planning {name}")
-            planning = plan_postures(base.nominal(), max(ks), index=variant_index, method="greedy",
-                                     n_candidates=candidates, cost=cost, limits=limits, seed=seed, noise=noise)
+            progress(f'seed {seed}: planning {name}')
+            planning = plan_postures(
+                base.nominal(),
+                max(ks),
+                index=variant_index,
+                method='greedy',
+                n_candidates=candidates,
+                cost=cost,
+                limits=limits,
+                seed=seed,
+                noise=noise,
+            )
             for row, k in enumerate(ks):
                 # Greedy is prefix-consistent: its first K picks are its K-posture plan.
                 design = planning.selection_order[:k]
-                if method == "exchange":
+                if method == 'exchange':
                     design, _ = exchange_design(planning.candidates, design, variant_index)
-                run = StudyRun(true_params=truth, nominal_set_number=nominal_set_number, noise_um=noise_um,
-                               seed=seed, cost=cost, postures=k)
-                _record(study, name, row, column, k, seed, progress,
-                        lambda: calibrate_at(run, planning.candidates.poses[design], planning.candidates.kinds[design]))
+                run = StudyRun(
+                    true_params=truth,
+                    nominal_set_number=nominal_set_number,
+                    noise_um=noise_um,
+                    seed=seed,
+                    cost=cost,
+                    postures=k,
+                )
+                _record(
+                    study,
+                    name,
+                    row,
+                    column,
+                    k,
+                    seed,
+                    progress,
+                    lambda: calibrate_at(
+                        run, planning.candidates.poses[design], planning.candidates.kinds[design]
+                    ),
+                )
         for row, k in enumerate(ks):
-            run = StudyRun(true_params=truth, nominal_set_number=nominal_set_number, noise_um=noise_um, seed=seed,
-                           cost=cost, postures=k)
+            run = StudyRun(
+                true_params=truth,
+                nominal_set_number=nominal_set_number,
+                noise_um=noise_um,
+                seed=seed,
+                cost=cost,
+                postures=k,
+            )
             _record(study, RANDOM, row, column, k, seed, progress, lambda: run_calibration(run))
     return study
 
 
-def _record(study: PlanningStudy, name: str, row: int, column: int, k: int, seed: int, progress, calibrate) -> None:
-    progress(f"seed {seed}: {name} K={k}")
+def _record(
+    study: PlanningStudy, name: str, row: int, column: int, k: int, seed: int, progress, calibrate
+) -> None:
+    progress(f'seed {seed}: {name} K={k}')
     try:
         outcome = calibrate()
     except CalibrationError as error:  # counted and reported: a failed calibration is a finding
-        study.failures[name].append(f"K={k} seed {seed}: {getattr(error, 'reason', 'error')}: {error}")
+        study.failures[name].append(
+            f'K={k} seed {seed}: {getattr(error, "reason", "error")}: {error}'
+        )
         return
     after = outcome.after.summary()
-    study.position_error_m[name][row, column] = after["position_mean_m"]
-    study.orientation_error_rad[name][row, column] = after["orientation_mean_rad"]
+    study.position_error_m[name][row, column] = after['position_mean_m']
+    study.orientation_error_rad[name][row, column] = after['orientation_mean_rad']
 
 
 def run(args) -> int:
     """Handler of ``hexacal study --plan``."""
-    from ..report import figures
     from ..cli.common import Progress
+    from ..report import figures
 
     seeds = list(range(args.seed, args.seed + args.plan_seeds))
     progress = Progress(enabled=not args.json)
     try:
-        study = planned_vs_random(args.plan_ks, seeds, args.noise_um, args.cost, args.nominal_set, args.index,
-                                  args.method, args.candidates, progress.step, model=getattr(args, "model", None))
+        study = planned_vs_random(
+            args.plan_ks,
+            seeds,
+            args.noise_um,
+            args.cost,
+            args.nominal_set,
+            args.index,
+            args.method,
+            args.candidates,
+            progress.step,
+            model=getattr(args, 'model', None),
+        )
     finally:
         progress.close()
     if args.json:
@@ -208,13 +328,23 @@ def run(args) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     _print_table(study)
     # Error bars: standard error of the mean over the seeds that calibrated.
-    curves = {name: (study.mean(name) * UM,
-                     study.spread(name) * UM / np.sqrt(np.maximum(len(study.seeds) - study.failed(name), 1)))
-              for name in study.position_error_m}
-    path = figures.planning_accuracy(study.ks, curves, study.reference_m() * UM,
-                                     f"{REFERENCE_RANDOM_POSTURES} random postures",
-                                     Path(args.out) / "plan_accuracy_vs_postures.png")
-    print(f"\nfigure written to {path}")
+    curves = {
+        name: (
+            study.mean(name) * UM,
+            study.spread(name)
+            * UM
+            / np.sqrt(np.maximum(len(study.seeds) - study.failed(name), 1)),
+        )
+        for name in study.position_error_m
+    }
+    path = figures.planning_accuracy(
+        study.ks,
+        curves,
+        study.reference_m() * UM,
+        f'{REFERENCE_RANDOM_POSTURES} random postures',
+        Path(args.out) / 'plan_accuracy_vs_postures.png',
+    )
+    print(f'\nfigure written to {path}')
     return 0
 
 
@@ -222,22 +352,33 @@ def _print_table(study: PlanningStudy) -> None:
     names = list(study.position_error_m)
     from ..core.architectures import architecture
 
-    print(f"Planned vs random postures, {architecture(study.model).layout.title}: mean validation position error "
-          f"[um] over {len(study.seeds)} seeds "
-          f"(mean +- std; failed calibrations in brackets), +-{study.noise_um:g} um noise, cost {study.cost}, "
-          f"index {study.index}, {study.method}:")
-    print(f"  {'K':>3} " + " ".join(f"{name:>26}" for name in names))
+    print(
+        f'Planned vs random postures, {architecture(study.model).layout.title}: mean validation position error '
+        f'[um] over {len(study.seeds)} seeds '
+        f'(mean +- std; failed calibrations in brackets), +-{study.noise_um:g} um noise, cost {study.cost}, '
+        f'index {study.index}, {study.method}:'
+    )
+    print(f'  {"K":>3} ' + ' '.join(f'{name:>26}' for name in names))
     for row, k in enumerate(study.ks):
         cells = []
         for name in names:
-            mean, spread, failed = study.mean(name)[row], study.spread(name)[row], study.failed(name)[row]
-            text = f"{mean * UM:.1f} +- {spread * UM:.1f}" if np.isfinite(mean) else "failed"
-            cells.append(f"{text + (f' [{failed}]' if failed else ''):>26}")
-        print(f"  {k:>3} " + " ".join(cells))
+            mean, spread, failed = (
+                study.mean(name)[row],
+                study.spread(name)[row],
+                study.failed(name)[row],
+            )
+            text = f'{mean * UM:.1f} +- {spread * UM:.1f}' if np.isfinite(mean) else 'failed'
+            cells.append(f'{text + (f" [{failed}]" if failed else ""):>26}')
+        print(f'  {k:>3} ' + ' '.join(cells))
     for name in names[1:]:
         claim = study.claim(name)
-        verdict = "holds" if claim["holds"] else "does NOT hold"
-        reached = (f"reached at K = {claim['smallest_k']}" if claim["smallest_k"] is not None
-                   else "not reached at any K tried")
-        print(f"  claim ({name}): {REFERENCE_RANDOM_POSTURES} random postures give "
-              f"{claim['reference_position_mean_m'] * UM:.1f} um; {reached} -> K <= {claim['limit_k']} {verdict}")
+        verdict = 'holds' if claim['holds'] else 'does NOT hold'
+        reached = (
+            f'reached at K = {claim["smallest_k"]}'
+            if claim['smallest_k'] is not None
+            else 'not reached at any K tried'
+        )
+        print(
+            f'  claim ({name}): {REFERENCE_RANDOM_POSTURES} random postures give '
+            f'{claim["reference_position_mean_m"] * UM:.1f} um; {reached} -> K <= {claim["limit_k"]} {verdict}'
+        )

@@ -6,25 +6,29 @@ default machine and workspace - registered below, plus its layout in
 ``hexacal_msgs_py.models`` (names, units, file keys, actuator joints) and its
 tests; nothing else in the core names an architecture.
 """
+
 from __future__ import annotations
 
-import numpy as np
-
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
+import numpy as np
 
 from .base import Architecture, KinematicParameters, Legs
 from .gough_stewart import ARCHITECTURE as _GOUGH_STEWART
 from .hexa_slide import ARCHITECTURE as _HEXA_SLIDE
 
-ARCHITECTURES: dict[str, Architecture] = {arch.name: arch for arch in (_HEXA_SLIDE, _GOUGH_STEWART)}
-assert set(ARCHITECTURES) == set(MODELS), "every model of the contract has an architecture"
+ARCHITECTURES: dict[str, Architecture] = {
+    arch.name: arch for arch in (_HEXA_SLIDE, _GOUGH_STEWART)
+}
+assert set(ARCHITECTURES) == set(MODELS), 'every model of the contract has an architecture'
 
 
 def architecture(model: str | None = None) -> Architecture:
     """The architecture of `model` (None: the default, the Hexa Slide)."""
     name = DEFAULT_MODEL if model is None else model
     if name not in ARCHITECTURES:
-        raise ValueError(f"unknown model {name!r}; hexacal knows {', '.join(sorted(ARCHITECTURES))}")
+        raise ValueError(
+            f'unknown model {name!r}; hexacal knows {", ".join(sorted(ARCHITECTURES))}'
+        )
     return ARCHITECTURES[name]
 
 
@@ -37,5 +41,12 @@ def default_parameters(model: str | None = None) -> KinematicParameters:
     return architecture(model).default_parameters()
 
 
-__all__ = ["ARCHITECTURES", "Architecture", "KinematicParameters", "Legs", "architecture", "default_parameters",
-           "parameters_for"]
+__all__ = [
+    'ARCHITECTURES',
+    'Architecture',
+    'KinematicParameters',
+    'Legs',
+    'architecture',
+    'default_parameters',
+    'parameters_for',
+]

@@ -22,15 +22,15 @@ against this interface:
 Poses are ``X = [x, y, z, theta, psi, phi]`` with R = R_Y(theta) R_X(psi)
 R_z(phi) (eq. 2) for every architecture.
 """
+
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol
 
-import numpy as np
-
 from hexacal_msgs_py.models import ModelLayout
+import numpy as np
 
 from .common import rotation_from_trig
 
@@ -44,13 +44,15 @@ class Legs(Protocol):
 
     def pose_jacobian(self, unit: np.ndarray | None = None) -> np.ndarray: ...  # (N, 6, 6)
 
-    def parameter_blocks(self, chains: Any, unit: np.ndarray | None = None) -> np.ndarray: ...  # (N, 6, F)
+    def parameter_blocks(
+        self, chains: Any, unit: np.ndarray | None = None
+    ) -> np.ndarray: ...  # (N, 6, F)
 
     def unit_legs(self) -> np.ndarray: ...  # the shared factor of both Jacobians
 
-    def subset(self, mask: np.ndarray) -> "Legs": ...
+    def subset(self, mask: np.ndarray) -> 'Legs': ...
 
-    def replace_rows(self, mask: np.ndarray, rows: "Legs") -> None: ...
+    def replace_rows(self, mask: np.ndarray, rows: 'Legs') -> None: ...
 
 
 @dataclass(frozen=True)
@@ -58,21 +60,23 @@ class KinematicParameters:
     """A parameter vector of one architecture, chain-major in its layout's field order (SI units)."""
 
     vector: np.ndarray
-    architecture: ClassVar["Architecture"]
+    architecture: ClassVar['Architecture']
 
     def __post_init__(self) -> None:
         layout = self.architecture.layout
         vector = np.array(self.vector, dtype=float).reshape(-1)
         if vector.shape != (layout.n_parameters,):
-            raise ValueError(f"expected {layout.n_parameters} parameters for a {layout.name}, got {vector.size}")
+            raise ValueError(
+                f'expected {layout.n_parameters} parameters for a {layout.name}, got {vector.size}'
+            )
         if not np.all(np.isfinite(vector)):
             bad = [layout.parameter_names[i] for i in np.flatnonzero(~np.isfinite(vector))]
-            raise ValueError(f"non-finite parameter(s): {', '.join(bad)}")
+            raise ValueError(f'non-finite parameter(s): {", ".join(bad)}')
         problem = self.architecture.vector_problem(vector)
         if problem:
             raise ValueError(problem)
         vector.setflags(write=False)
-        object.__setattr__(self, "vector", vector)
+        object.__setattr__(self, 'vector', vector)
 
     @property
     def model(self) -> str:
@@ -97,7 +101,7 @@ class KinematicParameters:
         """Platform joint centres B in the platform frame, (6, 3)."""
         return self.per_chain[:, 3:6]
 
-    def with_vector(self, vector: np.ndarray) -> "KinematicParameters":
+    def with_vector(self, vector: np.ndarray) -> 'KinematicParameters':
         return type(self)(vector)
 
 
@@ -135,34 +139,48 @@ class Architecture(ABC):
         """IK for poses (N, 6) with the intermediates both Jacobians reuse."""
 
     @abstractmethod
-    def acceptable_poses(self, params: KinematicParameters, poses: np.ndarray, workspace: Any) -> np.ndarray:
+    def acceptable_poses(
+        self, params: KinematicParameters, poses: np.ndarray, workspace: Any
+    ) -> np.ndarray:
         """Mask of poses that are reachable, inside the actuator stroke, away from singular legs
         and well conditioned (postures.Workspace's limits)."""
 
     @abstractmethod
-    def joint_cosines(self, params: KinematicParameters, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def joint_cosines(
+        self, params: KinematicParameters, poses: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Cosines of the base-side and platform-side passive joint angles, each (N, 6) (planning limits)."""
 
     @abstractmethod
-    def frame_motion(self, params: KinematicParameters, base_translation=None, base_rotation=None,
-                     platform_translation=None, platform_rotation=None) -> np.ndarray:
+    def frame_motion(
+        self,
+        params: KinematicParameters,
+        base_translation=None,
+        base_rotation=None,
+        platform_translation=None,
+        platform_rotation=None,
+    ) -> np.ndarray:
         """First-order parameter change (vector) that re-expresses the machine in a base frame moved by
         (translation, small rotation vector) and a platform frame moved likewise: the measurements
         cannot see it.  Arguments are 3-vectors (None: no motion); rotations about the frame origins."""
 
     @abstractmethod
-    def actuator_zero_shift(self, params: KinematicParameters, chain: int) -> tuple[str, np.ndarray]:
+    def actuator_zero_shift(
+        self, params: KinematicParameters, chain: int
+    ) -> tuple[str, np.ndarray]:
         """(description, parameter change) equivalent to an offset of chain's actuator zero (0-based)."""
 
     @abstractmethod
-    def in_frames(self, params: KinematicParameters, base_rotation: np.ndarray,
-                  platform_rotation: np.ndarray) -> KinematicParameters:
+    def in_frames(
+        self, params: KinematicParameters, base_rotation: np.ndarray, platform_rotation: np.ndarray
+    ) -> KinematicParameters:
         """The same machine in a base frame rotated by base_rotation^T and a platform frame rotated by
         platform_rotation^T about their origins (exact, not first order): points p -> rotation @ p."""
 
     @abstractmethod
-    def drawing(self, params: KinematicParameters, pose: np.ndarray,
-                actuators: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    def drawing(
+        self, params: KinematicParameters, pose: np.ndarray, actuators: np.ndarray | None = None
+    ) -> dict[str, np.ndarray]:
         """The machine at ``pose`` (6,) as named point sets and line segments in the base frame (m).
 
         A (k, 3) array is a set of points (joint centres), a (k, 2, 3) array k segments (start, end).
@@ -179,7 +197,7 @@ class Architecture(ABC):
         order = np.argsort(np.arctan2(local[:, 1], local[:, 0]))
         outline = np.stack([joints[order], joints[np.roll(order, -1)]], axis=1)
         return {
-            "platform_joints": joints,
-            "platform": outline,
-            "device_link": np.array([[np.zeros(3), pose[:3]]]),
+            'platform_joints': joints,
+            'platform': outline,
+            'device_link': np.array([[np.zeros(3), pose[:3]]]),
         }

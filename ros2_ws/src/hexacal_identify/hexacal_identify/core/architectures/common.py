@@ -4,6 +4,7 @@ Written per coordinate ((3, N, 6) arrays, one (N, 6) array per axis; no small
 einsums) because forward kinematics evaluates it several times per
 identification iteration.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -29,16 +30,20 @@ def rotation_from_trig(cosines: np.ndarray, sines: np.ndarray) -> np.ndarray:
 class PlatformPoints:
     """R and R B for N poses: what every chain closure starts from (coordinate-major)."""
 
-    __slots__ = ("tilt_trig", "rotations", "rotated", "offsets")
+    __slots__ = ('tilt_trig', 'rotations', 'rotated', 'offsets')
 
     def __init__(self, platform: np.ndarray, base: np.ndarray, poses: np.ndarray):
         """platform, base: (3, 6) joint centres (platform frame, base frame); poses (N, 6)."""
         angles = poses[:, 3:6].T
         cosines, sines = np.cos(angles), np.sin(angles)
-        self.tilt_trig = np.stack([cosines[0], sines[0], cosines[1], sines[1]])  # ct, st, cp, sp: (4, N)
+        self.tilt_trig = np.stack(
+            [cosines[0], sines[0], cosines[1], sines[1]]
+        )  # ct, st, cp, sp: (4, N)
         self.rotations = rotation_from_trig(cosines, sines)  # (N, 3, 3)
         self.rotated = np.matmul(self.rotations, platform).transpose(1, 0, 2)  # R B, (3, N, 6)
-        self.offsets = self.rotated + (poses[:, :3].T[:, :, None] - base[:, None, :])  # P + R B - A, (3, N, 6)
+        self.offsets = self.rotated + (
+            poses[:, :3].T[:, :, None] - base[:, None, :]
+        )  # P + R B - A, (3, N, 6)
 
 
 def euler_rate_axes(angles: np.ndarray) -> np.ndarray:
@@ -74,7 +79,7 @@ def pose_jacobian_rows(rotated: np.ndarray, unit: np.ndarray, tilt_trig: np.ndar
     d phi are e_Y, (ct, 0, -st), (st cp, -sp, ct cp) (euler_rate_axes).
     """
     rb = rotated
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid='ignore'):
         mx = rb[1] * unit[2] - rb[2] * unit[1]  # (R B) x unit, per coordinate
         my = rb[2] * unit[0] - rb[0] * unit[2]
         mz = rb[0] * unit[1] - rb[1] * unit[0]
@@ -99,9 +104,15 @@ def condition_ok(jac: np.ndarray, link_length: float, max_condition: float) -> n
     return np.linalg.cond(jac) < max_condition
 
 
-def move_joint_points(delta: np.ndarray, base_points: np.ndarray, platform_points: np.ndarray,
-                      base_translation=None, base_rotation=None, platform_translation=None,
-                      platform_rotation=None) -> None:
+def move_joint_points(
+    delta: np.ndarray,
+    base_points: np.ndarray,
+    platform_points: np.ndarray,
+    base_translation=None,
+    base_rotation=None,
+    platform_translation=None,
+    platform_rotation=None,
+) -> None:
     """Add to ``delta`` (6, fields) the first-order change of the joint points of a frame motion.
 
     Every architecture keeps the base-side points in fields 0:3 and the platform points in 3:6

@@ -24,16 +24,22 @@ of as-built irregularity so that no symmetry hides a parameter; legs 0.60 m at
 reading zero with 0.5 m of stroke (0.60-1.10 m).  Its nominal sets add errors
 with Table 2's statistics (the same three rows), drawn over 42 parameters.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from hexacal_msgs_py.models import GOUGH_STEWART, MODELS
 import numpy as np
 
-from hexacal_msgs_py.models import GOUGH_STEWART, MODELS
-
 from .base import Architecture, KinematicParameters
-from .common import PlatformPoints, condition_ok, move_joint_points, platform_point_derivatives, pose_jacobian_rows
+from .common import (
+    condition_ok,
+    move_joint_points,
+    platform_point_derivatives,
+    PlatformPoints,
+    pose_jacobian_rows,
+)
 
 LAYOUT = MODELS[GOUGH_STEWART]
 N_CHAINS = LAYOUT.n_chains
@@ -53,14 +59,16 @@ STROKE_M = (0.0, 0.5)
 _BASE_ANGLES_DEG = (-15.0, 15.0, 105.0, 135.0, 225.0, 255.0)
 _PLATFORM_ANGLES_DEG = (-45.0, 45.0, 75.0, 165.0, 195.0, 285.0)
 # As-built irregularity (mm), per leg: base x, y, z, platform x, y, z, l0.
-_AS_BUILT_MM = np.array([
-    [1.2, -0.8, 0.5, -0.4, 0.3, 0.2, 0.7],
-    [-0.9, 1.1, -0.3, 0.5, -0.2, -0.1, -0.4],
-    [0.6, 0.4, 0.9, -0.3, -0.5, 0.3, 0.2],
-    [-1.1, -0.6, -0.7, 0.2, 0.4, -0.2, -0.6],
-    [0.8, -1.2, 0.2, -0.5, 0.1, 0.1, 0.5],
-    [-0.5, 0.9, -0.6, 0.4, -0.3, -0.3, -0.3],
-])
+_AS_BUILT_MM = np.array(
+    [
+        [1.2, -0.8, 0.5, -0.4, 0.3, 0.2, 0.7],
+        [-0.9, 1.1, -0.3, 0.5, -0.2, -0.1, -0.4],
+        [0.6, 0.4, 0.9, -0.3, -0.5, 0.3, 0.2],
+        [-1.1, -0.6, -0.7, 0.2, 0.4, -0.2, -0.6],
+        [0.8, -1.2, 0.2, -0.5, 0.1, 0.1, 0.5],
+        [-0.5, 0.9, -0.6, 0.4, -0.3, -0.3, -0.3],
+    ]
+)
 
 
 @dataclass(frozen=True)
@@ -73,28 +81,42 @@ class GoughStewartParameters(KinematicParameters):
         return self.per_chain[:, L0_INDEX]
 
     @classmethod
-    def from_parts(cls, base_points: np.ndarray, platform_points: np.ndarray,
-                   leg_offsets: np.ndarray) -> "GoughStewartParameters":
-        blocks = np.column_stack([np.asarray(base_points), np.asarray(platform_points), np.asarray(leg_offsets)])
+    def from_parts(
+        cls, base_points: np.ndarray, platform_points: np.ndarray, leg_offsets: np.ndarray
+    ) -> 'GoughStewartParameters':
+        blocks = np.column_stack(
+            [np.asarray(base_points), np.asarray(platform_points), np.asarray(leg_offsets)]
+        )
         return cls(blocks.reshape(-1))
 
 
 def default_gough_stewart() -> GoughStewartParameters:
     """The shipped default hexapod (module doc), rounded to 1e-10 m like the Table 1 file."""
     base_angles, platform_angles = np.radians(_BASE_ANGLES_DEG), np.radians(_PLATFORM_ANGLES_DEG)
-    base = np.column_stack([BASE_RADIUS_M * np.cos(base_angles), BASE_RADIUS_M * np.sin(base_angles),
-                            np.zeros(N_CHAINS)])
-    platform = np.column_stack([PLATFORM_RADIUS_M * np.cos(platform_angles),
-                                PLATFORM_RADIUS_M * np.sin(platform_angles),
-                                np.full(N_CHAINS, PLATFORM_JOINT_HEIGHT_M)])
-    exact = np.column_stack([base, platform, np.full(N_CHAINS, LEG_OFFSET_M)]) + _AS_BUILT_MM / 1000.0
+    base = np.column_stack(
+        [
+            BASE_RADIUS_M * np.cos(base_angles),
+            BASE_RADIUS_M * np.sin(base_angles),
+            np.zeros(N_CHAINS),
+        ]
+    )
+    platform = np.column_stack(
+        [
+            PLATFORM_RADIUS_M * np.cos(platform_angles),
+            PLATFORM_RADIUS_M * np.sin(platform_angles),
+            np.full(N_CHAINS, PLATFORM_JOINT_HEIGHT_M),
+        ]
+    )
+    exact = (
+        np.column_stack([base, platform, np.full(N_CHAINS, LEG_OFFSET_M)]) + _AS_BUILT_MM / 1000.0
+    )
     return GoughStewartParameters(np.round(exact, 10).reshape(-1))
 
 
 class _Chains:
     """Per-chain constants, coordinate-major ((3, 6) arrays)."""
 
-    __slots__ = ("base", "platform", "offsets")
+    __slots__ = ('base', 'platform', 'offsets')
 
     def __init__(self, params: GoughStewartParameters):
         per_chain = params.per_chain
@@ -106,25 +128,29 @@ class _Chains:
 class _Legs:
     """lambda = |P + R B - A| - l0 for N postures x 6 legs, coordinate-major ((3, N, 6) vectors)."""
 
-    __slots__ = ("tilt_trig", "rotations", "rotated", "sliders", "legs", "lengths")
+    __slots__ = ('tilt_trig', 'rotations', 'rotated', 'sliders', 'legs', 'lengths')
 
     def __init__(self, chains: _Chains, poses: np.ndarray):
         points = PlatformPoints(chains.platform, chains.base, poses)
-        self.tilt_trig, self.rotations, self.rotated = points.tilt_trig, points.rotations, points.rotated
+        self.tilt_trig, self.rotations, self.rotated = (
+            points.tilt_trig,
+            points.rotations,
+            points.rotated,
+        )
         d = points.offsets  # A -> B
         self.legs = d
         self.lengths = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
         self.sliders = self.lengths - chains.offsets
 
-    def subset(self, mask: np.ndarray) -> "_Legs":
+    def subset(self, mask: np.ndarray) -> '_Legs':
         out = object.__new__(_Legs)
         out.tilt_trig, out.rotations = self.tilt_trig[:, mask], self.rotations[mask]
         out.rotated, out.legs = self.rotated[:, mask], self.legs[:, mask]
         out.sliders, out.lengths = self.sliders[mask], self.lengths[mask]
         return out
 
-    def replace_rows(self, mask: np.ndarray, rows: "_Legs") -> None:
-        for name in ("rotations", "sliders", "lengths"):
+    def replace_rows(self, mask: np.ndarray, rows: '_Legs') -> None:
+        for name in ('rotations', 'sliders', 'lengths'):
             getattr(self, name)[mask] = getattr(rows, name)
         self.tilt_trig[:, mask] = rows.tilt_trig
         self.rotated[:, mask] = rows.rotated
@@ -137,7 +163,7 @@ class _Legs:
 
     def unit_legs(self) -> np.ndarray:
         """n = d / |d|, (3, N, 6)."""
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide='ignore', invalid='ignore'):
             return self.legs / self.lengths
 
     def pose_jacobian(self, unit: np.ndarray | None = None) -> np.ndarray:
@@ -160,7 +186,7 @@ class GoughStewart(Architecture):
 
     name = GOUGH_STEWART
     layout = LAYOUT
-    unreachable_reason = "a leg of zero length"
+    unreachable_reason = 'a leg of zero length'
     parameters_type = GoughStewartParameters
     nominal_error_stats_mm = {1: (1.8, 0.80, 0.87), 2: (2.8, 1.33, 1.45), 3: (9.2, 4.99, 5.28)}
 
@@ -170,7 +196,9 @@ class GoughStewart(Architecture):
     def default_workspace(self):
         from ..postures import Workspace
 
-        return Workspace(xy_range_m=0.25, rotation_range_rad=float(np.radians(20.0)), slider_stroke_m=STROKE_M)
+        return Workspace(
+            xy_range_m=0.25, rotation_range_rad=float(np.radians(20.0)), slider_stroke_m=STROKE_M
+        )
 
     def chains(self, params: GoughStewartParameters) -> _Chains:
         return _Chains(params)
@@ -178,7 +206,9 @@ class GoughStewart(Architecture):
     def legs(self, chains: _Chains, poses: np.ndarray) -> _Legs:
         return _Legs(chains, poses)
 
-    def acceptable_poses(self, params: GoughStewartParameters, poses: np.ndarray, workspace) -> np.ndarray:
+    def acceptable_poses(
+        self, params: GoughStewartParameters, poses: np.ndarray, workspace
+    ) -> np.ndarray:
         legs = _Legs(_Chains(params), np.asarray(poses, dtype=float))
         low, high = workspace.slider_stroke_m
         ok = legs.reachable() & np.all((legs.sliders >= low) & (legs.sliders <= high), axis=1)
@@ -188,8 +218,9 @@ class GoughStewart(Architecture):
         ok &= np.all(platform_cos > workspace.min_leg_rail_cosine, axis=1)
         conditioned = np.zeros(len(poses), bool)
         if np.any(ok):
-            conditioned[ok] = condition_ok(legs.subset(ok).pose_jacobian(), workspace.link_length,
-                                           workspace.max_condition)
+            conditioned[ok] = condition_ok(
+                legs.subset(ok).pose_jacobian(), workspace.link_length, workspace.max_condition
+            )
         return ok & conditioned
 
     @staticmethod
@@ -199,42 +230,71 @@ class GoughStewart(Architecture):
         # down from a ceiling-mounted base, up from an upright one; |cos| serves both mounts.
         base_cos = np.abs(unit[2])
         normal = legs.rotations[:, :, 2]  # z' in the base frame, (N, 3)
-        platform_cos = np.abs(unit[0] * normal[:, 0:1] + unit[1] * normal[:, 1:2] + unit[2] * normal[:, 2:3])
+        platform_cos = np.abs(
+            unit[0] * normal[:, 0:1] + unit[1] * normal[:, 1:2] + unit[2] * normal[:, 2:3]
+        )
         return base_cos, platform_cos
 
-    def joint_cosines(self, params: GoughStewartParameters, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def joint_cosines(
+        self, params: GoughStewartParameters, poses: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         return self._cosines(_Legs(_Chains(params), np.asarray(poses, dtype=float)))
 
-    def frame_motion(self, params: GoughStewartParameters, base_translation=None, base_rotation=None,
-                     platform_translation=None, platform_rotation=None) -> np.ndarray:
+    def frame_motion(
+        self,
+        params: GoughStewartParameters,
+        base_translation=None,
+        base_rotation=None,
+        platform_translation=None,
+        platform_rotation=None,
+    ) -> np.ndarray:
         delta = np.zeros((N_CHAINS, FIELDS_PER_CHAIN))
-        move_joint_points(delta, params.base_points, params.platform_points, base_translation, base_rotation,
-                          platform_translation, platform_rotation)
+        move_joint_points(
+            delta,
+            params.base_points,
+            params.platform_points,
+            base_translation,
+            base_rotation,
+            platform_translation,
+            platform_rotation,
+        )
         return delta.reshape(-1)
 
-    def actuator_zero_shift(self, params: GoughStewartParameters, chain: int) -> tuple[str, np.ndarray]:
+    def actuator_zero_shift(
+        self, params: GoughStewartParameters, chain: int
+    ) -> tuple[str, np.ndarray]:
         delta = np.zeros((N_CHAINS, FIELDS_PER_CHAIN))
         delta[chain, L0_INDEX] = 1.0
         return f"chain_{chain + 1}'s leg offset l0 (a leg-length zero offset)", delta.reshape(-1)
 
-    def in_frames(self, params: GoughStewartParameters, base_rotation: np.ndarray,
-                  platform_rotation: np.ndarray) -> GoughStewartParameters:
-        return GoughStewartParameters.from_parts(params.base_points @ base_rotation.T,
-                                                 params.platform_points @ platform_rotation.T,
-                                                 params.leg_offsets)
+    def in_frames(
+        self,
+        params: GoughStewartParameters,
+        base_rotation: np.ndarray,
+        platform_rotation: np.ndarray,
+    ) -> GoughStewartParameters:
+        return GoughStewartParameters.from_parts(
+            params.base_points @ base_rotation.T,
+            params.platform_points @ platform_rotation.T,
+            params.leg_offsets,
+        )
 
-    def drawing(self, params: GoughStewartParameters, pose: np.ndarray,
-                actuators: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    def drawing(
+        self, params: GoughStewartParameters, pose: np.ndarray, actuators: np.ndarray | None = None
+    ) -> dict[str, np.ndarray]:
         """Base.drawing plus the legs: ``base_joints`` A, ``legs`` (6, 2, 3) A -> platform joint, and
         ``cylinders`` (6, 2, 3), the part of each leg from A as long as the leg at reading zero (l0), the
         rest being the extended rod (the pose decides the drawing; ``actuators`` are not needed)."""
         drawn = super().drawing(params, pose, actuators)
-        base, joints = params.base_points, drawn["platform_joints"]
+        base, joints = params.base_points, drawn['platform_joints']
         legs = joints - base
         lengths = np.linalg.norm(legs, axis=1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            housing = np.where(lengths[:, None] > 0, legs * (np.minimum(params.leg_offsets, lengths)
-                                                             / lengths)[:, None], 0.0)
+        with np.errstate(divide='ignore', invalid='ignore'):
+            housing = np.where(
+                lengths[:, None] > 0,
+                legs * (np.minimum(params.leg_offsets, lengths) / lengths)[:, None],
+                0.0,
+            )
         drawn.update(
             base_joints=base.copy(),
             legs=np.stack([base, joints], axis=1),

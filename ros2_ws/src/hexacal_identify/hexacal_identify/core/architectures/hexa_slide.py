@@ -24,21 +24,21 @@ vector is ``e = d - lambda a`` (slider joint A -> spherical joint B) and
 * d lambda / d A0 = -e / w,  d lambda / d B = R^T e / w
 * d lambda / d l  = -l / w,  d lambda / d a = -lambda e / w
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from hexacal_msgs_py.models import HEXA_SLIDE, MODELS
+import numpy as np
 
 from .base import Architecture, KinematicParameters
 from .common import (
-    PlatformPoints,
     cross_last,
     euler_rate_axes,
     move_joint_points,
     platform_point_derivatives,
+    PlatformPoints,
     pose_jacobian_rows,
 )
 
@@ -91,10 +91,19 @@ class HexaParameters(KinematicParameters):
 
     @classmethod
     def from_parts(
-        cls, base_points: np.ndarray, platform_points: np.ndarray, leg_lengths: np.ndarray, rail_xy: np.ndarray
-    ) -> "HexaParameters":
+        cls,
+        base_points: np.ndarray,
+        platform_points: np.ndarray,
+        leg_lengths: np.ndarray,
+        rail_xy: np.ndarray,
+    ) -> 'HexaParameters':
         blocks = np.column_stack(
-            [np.asarray(base_points), np.asarray(platform_points), np.asarray(leg_lengths), np.asarray(rail_xy)]
+            [
+                np.asarray(base_points),
+                np.asarray(platform_points),
+                np.asarray(leg_lengths),
+                np.asarray(rail_xy),
+            ]
         )
         return cls(blocks.reshape(-1))
 
@@ -114,7 +123,7 @@ def table1_parameters() -> HexaParameters:
 class _Chains:
     """One parameter set's per-chain constants, coordinate-major ((3, 6) arrays: row = x, y, z)."""
 
-    __slots__ = ("base", "platform", "rails", "lengths", "lengths_squared", "rail_z_slope")
+    __slots__ = ('base', 'platform', 'rails', 'lengths', 'lengths_squared', 'rail_z_slope')
 
     def __init__(self, params: HexaParameters):
         per_chain = params.per_chain
@@ -134,15 +143,29 @@ class _Legs:
     evaluates this several times per identification iteration.
     """
 
-    __slots__ = ("tilt_trig", "rotations", "rotated", "sliders", "legs", "rail_dot", "discriminant")
+    __slots__ = (
+        'tilt_trig',
+        'rotations',
+        'rotated',
+        'sliders',
+        'legs',
+        'rail_dot',
+        'discriminant',
+    )
 
     def __init__(self, chains: _Chains, poses: np.ndarray):
         points = PlatformPoints(chains.platform, chains.base, poses)
-        self.tilt_trig, self.rotations, rotated = points.tilt_trig, points.rotations, points.rotated
+        self.tilt_trig, self.rotations, rotated = (
+            points.tilt_trig,
+            points.rotations,
+            points.rotated,
+        )
         d = points.offsets  # A0 -> B
         rails = chains.rails
         a_dot_d = rails[0] * d[0] + rails[1] * d[1] + rails[2] * d[2]
-        discriminant = chains.lengths_squared - (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) + a_dot_d * a_dot_d
+        discriminant = (
+            chains.lengths_squared - (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) + a_dot_d * a_dot_d
+        )
         root = np.sqrt(np.maximum(discriminant, 0.0))
         sliders = a_dot_d - root
         self.rotated = rotated
@@ -151,15 +174,19 @@ class _Legs:
         self.rail_dot = root
         self.discriminant = discriminant
 
-    def subset(self, mask: np.ndarray) -> "_Legs":
+    def subset(self, mask: np.ndarray) -> '_Legs':
         out = object.__new__(_Legs)
         out.tilt_trig, out.rotations = self.tilt_trig[:, mask], self.rotations[mask]
         out.rotated, out.legs = self.rotated[:, mask], self.legs[:, mask]
-        out.sliders, out.rail_dot, out.discriminant = self.sliders[mask], self.rail_dot[mask], self.discriminant[mask]
+        out.sliders, out.rail_dot, out.discriminant = (
+            self.sliders[mask],
+            self.rail_dot[mask],
+            self.discriminant[mask],
+        )
         return out
 
-    def replace_rows(self, mask: np.ndarray, rows: "_Legs") -> None:
-        for name in ("rotations", "sliders", "rail_dot", "discriminant"):
+    def replace_rows(self, mask: np.ndarray, rows: '_Legs') -> None:
+        for name in ('rotations', 'sliders', 'rail_dot', 'discriminant'):
             getattr(self, name)[mask] = getattr(rows, name)
         self.tilt_trig[:, mask] = rows.tilt_trig
         self.rotated[:, mask] = rows.rotated
@@ -170,7 +197,7 @@ class _Legs:
 
     def unit_legs(self) -> np.ndarray:
         """e / w, (3, N, 6) (inf/NaN at a singular leg, which FK flags)."""
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide='ignore', invalid='ignore'):
             return self.legs / self.rail_dot
 
     def pose_jacobian(self, unit: np.ndarray | None = None) -> np.ndarray:
@@ -190,9 +217,15 @@ class _Legs:
         blocks[..., 8] = d_rail[1] + d_rail[2] * chains.rail_z_slope[1]
         return blocks
 
-    def as_geometry(self) -> "LegGeometry":
-        return LegGeometry(self.rotations, self.rotated.transpose(1, 2, 0), self.sliders,
-                           self.legs.transpose(1, 2, 0), self.rail_dot, self.discriminant)
+    def as_geometry(self) -> 'LegGeometry':
+        return LegGeometry(
+            self.rotations,
+            self.rotated.transpose(1, 2, 0),
+            self.sliders,
+            self.legs.transpose(1, 2, 0),
+            self.rail_dot,
+            self.discriminant,
+        )
 
 
 # -- the same, posture-major: the reference path (tests, workspace checks, the baseline) ----------
@@ -225,7 +258,9 @@ def pose_jacobian(geometry: LegGeometry, angles: np.ndarray) -> np.ndarray:
     Position columns: e / w.  Angle column k: axis_k . (R B x e) / w, since
     d(R B) = axis_k x R B for a rate about axis_k.
     """
-    with np.errstate(divide="ignore", invalid="ignore"):  # w = 0 only where a leg cannot reach: flagged by FK
+    with np.errstate(
+        divide='ignore', invalid='ignore'
+    ):  # w = 0 only where a leg cannot reach: flagged by FK
         unit = geometry.leg_vectors / geometry.rail_leg_dot[..., None]
         moment = cross_last(geometry.rotated_platform_points, unit)
         return np.concatenate([unit, np.matmul(moment, euler_rate_axes(angles))], axis=2)
@@ -262,7 +297,7 @@ class HexaSlide(Architecture):
 
     name = HEXA_SLIDE
     layout = LAYOUT
-    unreachable_reason = "a leg is shorter than its distance to the rail"
+    unreachable_reason = 'a leg is shorter than its distance to the rail'
     parameters_type = HexaParameters
     nominal_error_stats_mm = TABLE2_ERROR_STATS_MM
 
@@ -272,7 +307,7 @@ class HexaSlide(Architecture):
         norm2 = np.sum(axy**2, axis=1)
         if np.any(norm2 >= 1.0):
             chain = int(np.argmax(norm2 >= 1.0)) + 1
-            return f"chain_{chain}.a = {axy[chain - 1].tolist()} is not the x, y part of a unit vector"
+            return f'chain_{chain}.a = {axy[chain - 1].tolist()} is not the x, y part of a unit vector'
         return None
 
     def default_parameters(self) -> HexaParameters:
@@ -293,31 +328,54 @@ class HexaSlide(Architecture):
         geometry = leg_geometry(params, poses)
         reachable = np.all(geometry.discriminant > 0.0, axis=1)
         low, high = workspace.slider_stroke_m
-        in_stroke = np.all((geometry.slider_positions >= low) & (geometry.slider_positions <= high), axis=1)
-        away_from_rail = np.all(geometry.rail_leg_dot > workspace.min_leg_rail_cosine * params.leg_lengths, axis=1)
+        in_stroke = np.all(
+            (geometry.slider_positions >= low) & (geometry.slider_positions <= high), axis=1
+        )
+        away_from_rail = np.all(
+            geometry.rail_leg_dot > workspace.min_leg_rail_cosine * params.leg_lengths, axis=1
+        )
         ok = reachable & in_stroke & away_from_rail
         conditioned = np.zeros(len(poses), bool)
         if np.any(ok):
             jac = pose_jacobian(subset_geometry(geometry, ok), poses[ok, 3:6])
-            jac[:, :, 3:] /= workspace.link_length  # angles -> lengths, so the condition number is unit-free
+            jac[:, :, 3:] /= (
+                workspace.link_length
+            )  # angles -> lengths, so the condition number is unit-free
             conditioned[ok] = np.linalg.cond(jac) < workspace.max_condition
         return ok & conditioned
 
-    def joint_cosines(self, params: HexaParameters, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def joint_cosines(
+        self, params: HexaParameters, poses: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         # U joint at the slider: angle between leg and rail; S joint: between leg and the platform normal.
         geometry = leg_geometry(params, poses)
-        with np.errstate(invalid="ignore"):
-            leg_direction = geometry.leg_vectors / np.linalg.norm(geometry.leg_vectors, axis=2, keepdims=True)
-        u_cos = np.einsum("nci,ci->nc", leg_direction, params.rail_directions)
+        with np.errstate(invalid='ignore'):
+            leg_direction = geometry.leg_vectors / np.linalg.norm(
+                geometry.leg_vectors, axis=2, keepdims=True
+            )
+        u_cos = np.einsum('nci,ci->nc', leg_direction, params.rail_directions)
         platform_normal = geometry.rotations[:, :, 2]  # z' in the base frame
-        s_cos = np.einsum("nci,ni->nc", -leg_direction, platform_normal)
+        s_cos = np.einsum('nci,ni->nc', -leg_direction, platform_normal)
         return u_cos, s_cos
 
-    def frame_motion(self, params: HexaParameters, base_translation=None, base_rotation=None,
-                     platform_translation=None, platform_rotation=None) -> np.ndarray:
+    def frame_motion(
+        self,
+        params: HexaParameters,
+        base_translation=None,
+        base_rotation=None,
+        platform_translation=None,
+        platform_rotation=None,
+    ) -> np.ndarray:
         delta = np.zeros((N_CHAINS, FIELDS_PER_CHAIN))
-        move_joint_points(delta, params.base_points, params.platform_points, base_translation, base_rotation,
-                          platform_translation, platform_rotation)
+        move_joint_points(
+            delta,
+            params.base_points,
+            params.platform_points,
+            base_translation,
+            base_rotation,
+            platform_translation,
+            platform_rotation,
+        )
         if base_rotation is not None:
             # the rails turn with the base; keep a a unit vector with a_z < 0: d ax, d ay are the x, y parts of d a.
             delta[:, AXY_SLICE] += np.cross(base_rotation, params.rail_directions)[:, :2]
@@ -326,24 +384,33 @@ class HexaSlide(Architecture):
     def actuator_zero_shift(self, params: HexaParameters, chain: int) -> tuple[str, np.ndarray]:
         delta = np.zeros((N_CHAINS, FIELDS_PER_CHAIN))
         delta[chain, A0_SLICE] = params.rail_directions[chain]
-        return (f"a shift of chain_{chain + 1}'s rail start A0 along its rail (a slider zero offset)",
-                delta.reshape(-1))
+        return (
+            f"a shift of chain_{chain + 1}'s rail start A0 along its rail (a slider zero offset)",
+            delta.reshape(-1),
+        )
 
-    def in_frames(self, params: HexaParameters, base_rotation: np.ndarray,
-                  platform_rotation: np.ndarray) -> HexaParameters:
+    def in_frames(
+        self, params: HexaParameters, base_rotation: np.ndarray, platform_rotation: np.ndarray
+    ) -> HexaParameters:
         rails = params.rail_directions @ base_rotation.T
-        return HexaParameters.from_parts(params.base_points @ base_rotation.T,
-                                         params.platform_points @ platform_rotation.T,
-                                         params.leg_lengths, rails[:, :2])
+        return HexaParameters.from_parts(
+            params.base_points @ base_rotation.T,
+            params.platform_points @ platform_rotation.T,
+            params.leg_lengths,
+            rails[:, :2],
+        )
 
-    def drawing(self, params: HexaParameters, pose: np.ndarray,
-                actuators: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    def drawing(
+        self, params: HexaParameters, pose: np.ndarray, actuators: np.ndarray | None = None
+    ) -> dict[str, np.ndarray]:
         """Base.drawing plus the chains: ``base_joints`` the rail starts A0, ``rails`` (6, 2, 3) over the
         default workspace's stroke (extended to reach the slider), ``sliders`` A0 + lambda a and ``legs``
         (6, 2, 3) slider -> platform joint."""
         drawn = super().drawing(params, pose, actuators)
         if actuators is None:
-            sliders = leg_geometry(params, np.asarray(pose, dtype=float).reshape(1, 6)).slider_positions[0]
+            sliders = leg_geometry(
+                params, np.asarray(pose, dtype=float).reshape(1, 6)
+            ).slider_positions[0]
         else:
             sliders = np.asarray(actuators, dtype=float).reshape(N_CHAINS)
         rails, starts = params.rail_directions, params.base_points
@@ -354,7 +421,7 @@ class HexaSlide(Architecture):
             base_joints=starts.copy(),
             rails=starts[:, None, :] + rail_ends[:, :, None] * rails[:, None, :],
             sliders=slider_points,
-            legs=np.stack([slider_points, drawn["platform_joints"]], axis=1),
+            legs=np.stack([slider_points, drawn['platform_joints']], axis=1),
         )
         return drawn
 
