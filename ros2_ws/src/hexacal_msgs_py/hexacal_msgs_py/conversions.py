@@ -161,7 +161,9 @@ def _joint_state(
 
 
 def actuator_model(names: Sequence[str]) -> ModelLayout | None:
-    """The model whose six actuator joints all appear in `names` (a JointState's name list), or None."""
+    """The model whose six actuator joints all appear in `names` (a JointState's name list), or
+    None.
+    """
     return model_for_actuator_names(names)
 
 
@@ -223,7 +225,8 @@ def inclinometer_angles_to_imu(
 ) -> Imu:
     """An Imu whose orientation reads as `reading` (after the mapping's signs and offsets), with
     heading `yaw`: what a simulated IMU on the link publishes. Only the orientation is filled;
-    angular velocity and linear acceleration are marked unknown (covariance[0] = -1)."""
+    angular velocity and linear acceleration are marked unknown (covariance[0] = -1).
+    """
     raw = (
         mapping.raw_inclinometer(reading.alpha, reading.beta)
         if mapping is not None
@@ -272,7 +275,9 @@ def slider_reading_to_joint_state(
 def inclinometer_reading_to_joint_state(
     reading: InclinometerReading, frame_id: str = ''
 ) -> JointState:
-    """InclinometerReading -> JointState inclinometer_x, inclinometer_y (and device_turn if non-zero)."""
+    """InclinometerReading -> JointState inclinometer_x, inclinometer_y (and device_turn if
+    non-zero).
+    """
     names, values = _with_turn(
         INCLINOMETER_NAMES, (reading.alpha, reading.beta), reading.device_turn
     )
@@ -287,7 +292,8 @@ def posture_reading_to_joint_state(
     reading: PostureReading, frame_id: str = '', model: ModelArgument = None
 ) -> JointState:
     """PostureReading -> JointState with the model's posture joints (default: the Hexa Slide's),
-    then device_turn when the reading's device_turn is non-zero."""
+    then device_turn when the reading's device_turn is non-zero.
+    """
     names, values = _with_turn(
         layout_of(model).posture_names, reading.values(), reading.device_turn
     )

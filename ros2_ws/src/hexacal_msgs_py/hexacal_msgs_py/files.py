@@ -14,15 +14,16 @@ import tempfile
 from typing import Any
 
 DEFAULT_FILE_MODE = 0o644
-# libyaml's parser composes nested collections by C recursion: tens of thousands of levels crash the
-# interpreter, where the pure-Python parser raises RecursionError at about a thousand.  Nesting needs
-# one indicator character per level, so text with fewer of them than this goes to libyaml.
+# libyaml's parser composes nested collections by C recursion: tens of thousands of levels crash
+# the interpreter, where the pure-Python parser raises RecursionError at about a thousand.  Nesting
+# needs one indicator character per level, so text with fewer of them than this goes to libyaml.
 MAX_LIBYAML_INDICATORS = 1000
 _NESTING_INDICATORS = '[{-:?'
 
 
 def load_yaml_text(text: str, loader: type | None = None, fast_loader: type | None = None) -> Any:
-    """``yaml.load(text, Loader=loader)``, through ``fast_loader`` (a libyaml twin of it) when safe.
+    """``yaml.load(text, Loader=loader)``, through ``fast_loader`` (a libyaml twin of it) when
+    safe.
 
     Default: ``yaml.SafeLoader`` and ``yaml.CSafeLoader``.  The fast loader is
     used when PyYAML has libyaml and the text cannot nest more than about

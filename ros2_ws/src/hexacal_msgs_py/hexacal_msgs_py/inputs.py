@@ -1,4 +1,5 @@
-"""Where the collector's readings come from: topics, joint names, the inclinometer convention (ROS-free).
+"""Where the collector's readings come from: topics, joint names, the inclinometer convention
+(ROS-free).
 
 A real machine's drivers publish under their own names. The collector reads the
 six actuator values, the two inclinometer angles and the rotary angle from any
@@ -75,7 +76,8 @@ INPUT_NAMES = {
     INCLINOMETER_TOPIC: 'inclinometer',
     ENCODER_TOPIC: 'encoder',
 }
-DEFAULT_INCLINOMETER_JOINTS: tuple[str, str] = tuple(INCLINOMETER_NAMES)  # type: ignore[assignment]
+# type: ignore[assignment]
+DEFAULT_INCLINOMETER_JOINTS: tuple[str, str] = tuple(INCLINOMETER_NAMES)
 DEFAULT_ROTARY_JOINT: str = ENCODER_NAMES[0]
 DEFAULT_SIGNS = (1.0, 1.0)
 DEFAULT_OFFSETS_RAD = (0.0, 0.0)
@@ -153,7 +155,8 @@ def quaternion_to_inclinometer_angles(
 def inclinometer_angles_to_quaternion(
     alpha: float, beta: float, yaw: float = 0.0
 ) -> tuple[float, float, float, float]:
-    """The orientation (x, y, z, w) of an IMU on the link that reads (alpha, beta): R_Z(yaw) R_Y(-beta) R_X(-alpha).
+    """The orientation (x, y, z, w) of an IMU on the link that reads (alpha, beta): R_Z(yaw)
+    R_Y(-beta) R_X(-alpha).
 
     The inverse of `quaternion_to_inclinometer_angles` for |alpha| < pi, |beta| < pi/2 (any yaw):
     what a simulated or test IMU publishes.
@@ -340,7 +343,9 @@ class InputMapping:
         return sign_a * (raw_alpha - offset_a), sign_b * (raw_beta - offset_b)
 
     def raw_inclinometer(self, alpha: float, beta: float) -> tuple[float, float]:
-        """The sensor's raw angles that read as hexacal's (alpha, beta) (the inverse, for simulators)."""
+        """The sensor's raw angles that read as hexacal's (alpha, beta) (the inverse, for
+        simulators).
+        """
         (sign_a, sign_b), (offset_a, offset_b) = (
             self.inclinometer_signs,
             self.inclinometer_offsets_rad,
@@ -371,7 +376,8 @@ class InputMapping:
     ) -> InputMapping | None:
         """The mapping a bag metadata record holds, None if it holds none (a bag recorded before
         mappings existed: read as the contract's names and topics). Missing keys take the
-        defaults; a value that does not parse is an InputMappingError naming its key."""
+        defaults; a value that does not parse is an InputMappingError naming its key.
+        """
         if not any(key in record for key in MAPPING_KEYS):
             return None
 
@@ -390,16 +396,20 @@ class InputMapping:
 
         default = cls.default(model)
         return cls(
-            actuator_joints=listed('actuator_joints', default.actuator_joints),  # type: ignore[arg-type]
-            inclinometer_joints=listed('inclinometer_joints', default.inclinometer_joints),  # type: ignore[arg-type]
+            # type: ignore[arg-type]
+            actuator_joints=listed('actuator_joints', default.actuator_joints),
+            # type: ignore[arg-type]
+            inclinometer_joints=listed('inclinometer_joints', default.inclinometer_joints),
             rotary_joint=record.get('rotary_joint', default.rotary_joint),
             inclinometer_type=record.get('inclinometer_type', default.inclinometer_type),
-            inclinometer_signs=listed('inclinometer_signs', default.inclinometer_signs),  # type: ignore[arg-type]
+            # type: ignore[arg-type]
+            inclinometer_signs=listed('inclinometer_signs', default.inclinometer_signs),
             inclinometer_offsets_rad=listed(
                 'inclinometer_offsets_rad',  # type: ignore[arg-type]
                 default.inclinometer_offsets_rad,
             ),
-            topics=tuple(record.get(_TOPIC_KEYS[topic], '') for topic in INPUT_TOPICS),  # type: ignore[arg-type]
+            # type: ignore[arg-type]
+            topics=tuple(record.get(_TOPIC_KEYS[topic], '') for topic in INPUT_TOPICS),
         )
 
     def describe(self) -> str:

@@ -31,7 +31,8 @@ VERIFY_SERVICE = (
 EXECUTOR_PAUSE_SERVICE = 'hexacal/executor/pause'
 EXECUTOR_RESUME_SERVICE = 'hexacal/executor/resume'
 EXECUTOR_ABORT_SERVICE = 'hexacal/executor/abort'
-# ros2_control's joint_trajectory_controller listens here (absolute: the controller's own namespace).
+# ros2_control's joint_trajectory_controller listens here (absolute: the controller's own
+# namespace).
 DEFAULT_COMMAND_TOPIC = '/joint_trajectory_controller/joint_trajectory'
 
 # The kinematics node: the calibrated model at work.
@@ -111,7 +112,9 @@ def actuator_names(model: str | None = None) -> tuple[str, ...]:
 
 
 def posture_names(model: str | None = None) -> tuple[str, ...]:
-    """Joint names of a posture of `model`: its six actuators, inclinometer_x, inclinometer_y, rotary."""
+    """Joint names of a posture of `model`: its six actuators, inclinometer_x, inclinometer_y,
+    rotary.
+    """
     return model_layout(DEFAULT_MODEL if model is None else model).posture_names
 
 

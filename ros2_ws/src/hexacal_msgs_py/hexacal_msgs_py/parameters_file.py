@@ -135,7 +135,8 @@ def as_parameter_vector(vector: object, model: str | ModelLayout | None = None) 
     layout = _layout_of(model, array.size)
     if array.shape != (layout.n_parameters,):
         raise InvalidParametersError(
-            f'parameter vector must have shape ({layout.n_parameters},) for a {layout.name}, got {array.shape}'
+            f'parameter vector must have shape ({layout.n_parameters},) for a {layout.name}, got '
+            f'{array.shape}'
         )
     bad = np.flatnonzero(~np.isfinite(array))
     if bad.size:
@@ -148,7 +149,9 @@ def as_parameter_vector(vector: object, model: str | ModelLayout | None = None) 
 
 
 def validate_parameters(vector: object, model: str | ModelLayout | None = None) -> np.ndarray:
-    """as_parameter_vector() plus the model's physical checks (Hexa Slide: ax^2+ay^2 < 1 and l > 0)."""
+    """as_parameter_vector() plus the model's physical checks (Hexa Slide: ax^2+ay^2 < 1 and l >
+    0).
+    """
     array = as_parameter_vector(vector, model)
     problem = _layout_of(model, array.size).physical_problem(array)
     if problem:
@@ -279,7 +282,8 @@ def save_parameters(
         if key == MODEL_KEY:
             if value != layout.name:
                 raise fail(
-                    f"extra parameter {MODEL_KEY}={value!r} contradicts the vector's model {layout.name}"
+                    f"extra parameter {MODEL_KEY}={value!r} contradicts the vector's model "
+                    f'{layout.name}'
                 )
             continue
         if key in chain_keys or _CHAIN_KEY.match(key):
@@ -406,7 +410,7 @@ def _vector_from_flat(flat: Mapping[str, Any], fail: _Fail, layout: ModelLayout)
 
 
 def _format_float(value: float) -> str:
-    """repr() that YAML 1.1 reads back as the same float ('1e-05' would be a string)."""
+    """Repr() that YAML 1.1 reads back as the same float ('1e-05' would be a string)."""
     number = float(value)
     if math.isnan(number):
         return '.nan'
@@ -443,7 +447,7 @@ def _yaml_value(value: object, name: str, fail: _Fail) -> str:
 
 
 def _atomic_write(target: Path, text: str, fail: _Fail) -> None:
-    """files.atomic_write, with a failure named as this file's ParameterFileError."""
+    """Files.atomic_write, with a failure named as this file's ParameterFileError."""
     try:
         atomic_write(target, text)
     except OSError as error:

@@ -107,7 +107,9 @@ def pose_to_position_quaternion(
 def pose_from_position_quaternion(
     position: Sequence[float], quaternion: Sequence[float]
 ) -> tuple[float, ...]:
-    """((x, y, z), (qx, qy, qz, qw)) -> [x, y, z, theta, psi, phi] (InvalidReadingError naming a problem)."""
+    """((x, y, z), (qx, qy, qz, qw)) -> [x, y, z, theta, psi, phi] (InvalidReadingError naming a
+    problem).
+    """
     x, y, z = _finite(position, 3, 'position')
     return (x, y, z, *angles_from_quaternion(quaternion))
 
@@ -120,7 +122,9 @@ def pose_from_message(message: object) -> tuple[float, ...]:
 
 
 def fill_pose_message(message: object, pose: Sequence[float]) -> object:
-    """Write [x, y, z, theta, psi, phi] into a geometry_msgs Pose (or a PoseStamped's pose); returns it."""
+    """Write [x, y, z, theta, psi, phi] into a geometry_msgs Pose (or a PoseStamped's pose);
+    returns it.
+    """
     target = getattr(message, 'pose', message)
     (x, y, z), (qx, qy, qz, qw) = pose_to_position_quaternion(pose)
     target.position.x, target.position.y, target.position.z = x, y, z
@@ -146,7 +150,8 @@ def _unit(quaternion: Sequence[float]) -> Quaternion:
     norm = math.sqrt(x * x + y * y + z * z + w * w)
     if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
         raise InvalidReadingError(
-            f'orientation quaternion (x, y, z, w) = ({x:g}, {y:g}, {z:g}, {w:g}) has norm {norm:g}, '
+            f'orientation quaternion (x, y, z, w) = ({x:g}, {y:g}, {z:g}, {w:g}) has norm '
+            f'{norm:g}, '
             'not 1: not an orientation'
             + (' (all zeros; the identity is w = 1)' if norm == 0.0 else '')
         )

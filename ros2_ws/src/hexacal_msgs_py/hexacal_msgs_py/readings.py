@@ -119,7 +119,8 @@ class EncoderReading:
 
 @dataclass(frozen=True)
 class PostureReading:
-    """One measured posture: the six actuator readings (m) with the device's alpha, beta, phi (rad).
+    """One measured posture: the six actuator readings (m) with the device's alpha, beta, phi
+    (rad).
 
     device_turn: the mounting the posture was measured in, the device's
     rotation about its link axis from its normal mounting (rad; 0 normal, pi

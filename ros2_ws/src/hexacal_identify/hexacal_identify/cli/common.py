@@ -1,4 +1,5 @@
-"""Shared pieces of the ``hexacal`` command line: lazy subcommands, progress display, parameter-file arguments.
+"""Shared pieces of the ``hexacal`` command line: lazy subcommands, progress display,
+parameter-file arguments.
 
 Imported by every ``hexacal`` start-up: keep its imports to the standard library.
 """
@@ -79,7 +80,8 @@ class Progress:
 
 def load_params_arg(path: Path) -> 'KinematicParameters':
     """A parameters YAML named on the command line, of the model it names, validated
-    (ParameterFileError names the file and the bad key)."""
+    (ParameterFileError names the file and the bad key).
+    """
     from hexacal_msgs_py.parameters_file import read_parameters_file
 
     from ..core.architectures import parameters_for

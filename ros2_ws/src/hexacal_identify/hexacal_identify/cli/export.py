@@ -1,4 +1,5 @@
-"""``hexacal export``: a parameters file in a controller's format (LinuxCNC genhexkins) or as YAML / JSON.
+"""``hexacal export``: a parameters file in a controller's format (LinuxCNC genhexkins) or as YAML
+/ JSON.
 
 ``--format linuxcnc`` writes the HAL ``setp`` lines of LinuxCNC's generalised
 hexapod kinematics (``genhexkins``) for a Gough-Stewart result::
@@ -49,7 +50,8 @@ def add_parsers(subparsers) -> None:
 
 
 def _export_arguments(parser: argparse.ArgumentParser) -> None:
-    # Formats and units are checked by the handler, so that a wrong one is a one-line error (exit 2).
+    # Formats and units are checked by the handler, so that a wrong one is a one-line error (exit
+    # 2).
     parser.add_argument(
         'parameters', type=Path, metavar='CALIBRATED.yaml', help='parameters YAML to export'
     )
@@ -123,7 +125,9 @@ def _save_yaml(out: Path, contents, source: Path) -> None:
 
 
 def linuxcnc_hal(contents, source: Path, unit: str = 'mm') -> str:
-    """The genhexkins HAL settings of a Gough-Stewart parameters file (ValueError for another model)."""
+    """The genhexkins HAL settings of a Gough-Stewart parameters file (ValueError for another
+    model).
+    """
     from hexacal_msgs_py.models import GOUGH_STEWART
 
     if contents.model != GOUGH_STEWART:

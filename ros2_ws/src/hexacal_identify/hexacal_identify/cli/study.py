@@ -14,8 +14,9 @@ if TYPE_CHECKING:
     from ..core.architectures import KinematicParameters
     from ..studies.accuracy import StudyRun
 
-# The studies (studies.accuracy, studies.planning, studies.device, figures with matplotlib) are imported where they run:
-# this module is imported by every `hexacal` start-up to register the command.
+# The studies (studies.accuracy, studies.planning, studies.device, figures with matplotlib) are
+# imported where they run: this module is imported by every `hexacal` start-up to register the
+# command.
 UM, DEG = 1e6, math.degrees(1.0)
 
 
@@ -23,8 +24,10 @@ def add_parser(subparsers) -> None:
     subparsers.add_parser(
         'study',
         help="reproduce the paper's simulation study (section 4)",
-        description="Reproduce section 4 of the paper on the simulated Table 1 machine, print the paper's numbers "
-        'side by side and write PNG figures (--model gough_stewart: the same study of the default Gough-Stewart '
+        description='Reproduce section 4 of the paper on the simulated Table 1 machine, print the '
+        "paper's numbers "
+        'side by side and write PNG figures (--model gough_stewart: the same study of the default '
+        'Gough-Stewart '
         'platform). With --json, run only the configured calibration and print its result.',
         fill=add_arguments,
     )
@@ -33,9 +36,9 @@ def add_parser(subparsers) -> None:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from hexacal_msgs_py.models import MODELS
 
+    from . import study_device as cli_study_device
     from ..core.residuals import COSTS
     from ..studies import planning as planning_study
-    from . import study_device as cli_study_device
 
     parser.add_argument(
         '--model',
@@ -102,7 +105,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _load_params(path: Path) -> KinematicParameters:
-    """A parameters YAML of any model, validated (ParameterFileError names the file and the bad key)."""
+    """A parameters YAML of any model, validated (ParameterFileError names the file and the bad
+    key).
+    """
     from hexacal_msgs_py.parameters_file import read_parameters_file
 
     from ..core.architectures import parameters_for
@@ -112,7 +117,8 @@ def _load_params(path: Path) -> KinematicParameters:
 
 
 def study_model(args) -> str:
-    """The model studied: --model, else the model of the parameters files given, else the Hexa Slide.
+    """The model studied: --model, else the model of the parameters files given, else the Hexa
+    Slide.
 
     Every model named (option and files) must be the same one: a mismatch is a named error.
     """
@@ -167,9 +173,9 @@ def configured_run(args) -> StudyRun:
 
 
 def run(args) -> int:
+    from . import study_device as cli_study_device
     from ..studies import planning as planning_study
     from ..studies.accuracy import run_calibration
-    from . import study_device as cli_study_device
 
     args.model = study_model(args)  # resolved once: the files' model when --model is not given
     if args.plan:
@@ -180,8 +186,8 @@ def run(args) -> int:
         return 0
     from ..core.architectures import default_parameters
 
-    # The study's sections run on the model's default machine (the paper's: Table 1); the configured run on
-    # --true-params when given.
+    # The study's sections run on the model's default machine (the paper's: Table 1); the
+    # configured run on --true-params when given.
     truth = default_parameters(configured.model)
     progress = Progress(enabled=True)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -205,14 +211,17 @@ def _paper(truth: KinematicParameters, text: str) -> str:
 
 
 def _print_model(truth: KinematicParameters) -> None:
-    """A line naming the machine where it is not the paper's (the paper's study prints as it always has)."""
+    """A line naming the machine where it is not the paper's (the paper's study prints as it always
+    has).
+    """
     from ..studies.accuracy import paper_reference
 
     if paper_reference(truth.model) is None:
         layout = truth.layout
         print(
             f'Model {layout.name}: {layout.title}, {layout.n_parameters} parameters per machine '
-            f"({' '.join(layout.fields)} per chain), its default machine and workspace; the paper's "
+            f'({" ".join(layout.fields)} per chain), its default machine and workspace; the '
+            "paper's "
             'numbers are for another machine and are not printed.\n'
         )
 
@@ -259,10 +268,12 @@ def _print_noise_free(out: Path, progress: Progress, truth: KinematicParameters)
     from ..report import figures
     from ..studies.accuracy import noise_free_recovery
 
-    # The nominal sets' target statistics: Table 2's rows (every shipped architecture draws its sets with them).
+    # The nominal sets' target statistics: Table 2's rows (every shipped architecture draws its
+    # sets with them).
     target_stats = truth.architecture.nominal_error_stats_mm
     print(
-        f'\nNo noise, 25 postures, eq. 7 ({_paper(truth, "paper Figs. 4-6: ")}every parameter identified):'
+        f'\nNo noise, 25 postures, eq. 7 ({_paper(truth, "paper Figs. 4-6: ")}every parameter '
+        'identified):'
     )
     print(
         f'  {"set":>3} {"Table 2 max/mean/sigma mm":>27} {"ours max/mean/sigma mm":>25} '
@@ -293,7 +304,8 @@ def _print_noise_table(
 
     paper_table = paper_reference(truth.model)
     print(
-        f'\nMeasurement noise, 50 postures, nominal set 2, eq. 7; mean over 50 validation postures, '
+        '\nMeasurement noise, 50 postures, nominal set 2, eq. 7; mean over 50 validation '
+        'postures, '
         f'{seeds} seeds (mean +- spread){_paper(truth, " [paper Table 3]")}:'
     )
     summaries = noise_study(seeds=range(seeds), progress=progress.step, true_params=truth)
@@ -354,10 +366,12 @@ def _print_procedures(progress: Progress, truth: KinematicParameters) -> None:
 
     claim = _paper(truth, " (paper: 'of the same order as the noise')")
     print(
-        f'\nSphere + fixed-position procedure, 60 sphere + 20 fixed postures, +-10 um noise, nominal set 2{claim}:'
+        '\nSphere + fixed-position procedure, 60 sphere + 20 fixed postures, +-10 um noise, '
+        f'nominal set 2{claim}:'
     )
     print(
-        f'  {"cost":<13} {"equations":<12} {"outcome":<16} {"position um":>12} {"orient. deg":>12} {"solve ms":>9}'
+        f'  {"cost":<13} {"equations":<12} {"outcome":<16} {"position um":>12} {"orient. deg":>12} '
+        f'{"solve ms":>9}'
     )
     for cost in COSTS:
         progress.step(f'procedure {cost}')
@@ -384,25 +398,30 @@ def _print_configured(run: StudyRun) -> None:
     result = outcome.result
     before, after = outcome.before.summary(), outcome.after.summary()
     print(
-        f'\nConfigured run: {run.postures} postures, +-{run.noise_um:g} um, seed {run.seed}, cost {run.cost}: '
+        f'\nConfigured run: {run.postures} postures, +-{run.noise_um:g} um, seed {run.seed}, cost '
+        f'{run.cost}: '
         f'{result.reason} in {result.iterations} iterations, {result.solve_seconds * 1e3:.1f} ms, '
         f'rank {result.rank}, condition {result.condition_number:.3g}'
     )
     print(
-        f'  pose error before: {before["position_mean_m"] * UM:.1f} um, {before["orientation_mean_rad"] * DEG:.4f} deg; '
-        f'after: {after["position_mean_m"] * UM:.2f} um, {after["orientation_mean_rad"] * DEG:.5f} deg'
+        f'  pose error before: {before["position_mean_m"] * UM:.1f} um, '
+        f'{before["orientation_mean_rad"] * DEG:.4f} deg; '
+        f'after: {after["position_mean_m"] * UM:.2f} um, {after["orientation_mean_rad"] * DEG:.5f} '
+        'deg'
         + (' (frames the calibration works in)' if run.defects != type(run.defects)() else '')
     )
     if run.defects != type(run.defects)() and outcome.after_true_frames is not None:
         true_frames = outcome.after_true_frames.summary()
         print(
-            f'  after, in the true frames (gravity base frame, origin at O): {true_frames["position_mean_m"] * UM:.2f} um, '
+            '  after, in the true frames (gravity base frame, origin at O): '
+            f'{true_frames["position_mean_m"] * UM:.2f} um, '
             f'{true_frames["orientation_mean_rad"] * DEG:.5f} deg; procedure {run.procedure}'
             + (f', device prior {run.device_prior.describe()}' if run.device_prior else '')
         )
         for name, value, std in zip(result.free_device, *_device_values(result)):
             print(
-                f'  device {name}: identified {value:.4g} +- {std:.2g} (SI), true {getattr(run.defects, name):.4g}'
+                f'  device {name}: identified {value:.4g} +- {std:.2g} (SI), true '
+                f'{getattr(run.defects, name):.4g}'
             )
     if result.rejected_postures:
         print(

@@ -1,4 +1,6 @@
-"""``hexacal study`` sections beyond the paper: device defects and the Monte Carlo check of the uncertainty."""
+"""``hexacal study`` sections beyond the paper: device defects and the Monte Carlo check of the
+uncertainty.
+"""
 
 from __future__ import annotations
 
@@ -6,18 +8,19 @@ import argparse
 import math
 from typing import TYPE_CHECKING
 
-from ..core.device import DEVICE_PARAMETER_NAMES, DeviceDefects, DevicePrior
 from .common import Progress
+from ..core.device import DEVICE_PARAMETER_NAMES, DeviceDefects, DevicePrior
 
 if TYPE_CHECKING:
     from ..core.architectures import KinematicParameters
 
-# The device study and the Monte Carlo check are imported where they run: `hexacal calibrate` imports this module
-# for device_names_argument.
+# The device study and the Monte Carlo check are imported where they run: `hexacal calibrate`
+# imports this module for device_names_argument.
 UM, DEG, URAD = 1e6, math.degrees(1.0), 1e6
 DEFECTS_HELP = (
     'device defects of the simulated device, SI units, e.g. dL=0.0005,alpha0=2e-4,beta0=-1.5e-4,'
-    'gamma=1e-4,phi0=1e-4 (dL link-length offset m; alpha0/beta0 inclinometer zero offsets about X/Y rad; '
+    'gamma=1e-4,phi0=1e-4 (dL link-length offset m; alpha0/beta0 inclinometer zero offsets about '
+    'X/Y rad; '
     'gamma non-perpendicularity of the inclinometer axes rad; phi0 rotary zero offset rad)'
 )
 
@@ -30,7 +33,9 @@ def _defects(text: str) -> DeviceDefects:
 
 
 def device_prior_argument(text: str) -> DevicePrior:
-    """--device-prior NAME=VALUE:STD[,...] (SI units) -> DevicePrior; a bad text is an argparse error."""
+    """--device-prior NAME=VALUE:STD[,...] (SI units) -> DevicePrior; a bad text is an argparse
+    error.
+    """
     try:
         return DevicePrior.parse(text)
     except ValueError as error:
@@ -94,13 +99,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=device_prior_argument,
         default=DevicePrior(),
         metavar='NAME=VALUE:STD',
-        help='configured run: prior knowledge of the device, SI units, e.g. dL=5e-4:10e-6 (a caliper '
+        help='configured run: prior knowledge of the device, SI units, e.g. dL=5e-4:10e-6 (a '
+        'caliper '
         'reading of the link, +-10 um); needs --weighted',
     )
 
 
 def print_sections(args, progress: Progress, truth: KinematicParameters | None = None) -> None:
-    """The device-defect table and the Monte Carlo check on ``truth`` (default: the Table 1 Hexa Slide)."""
+    """The device-defect table and the Monte Carlo check on ``truth`` (default: the Table 1 Hexa
+    Slide).
+    """
     from ..studies.device import DEFAULT_DEFECTS
 
     print_device_defects(
@@ -123,7 +131,9 @@ def print_device_defects(
     truth: KinematicParameters | None = None,
     efficiency_seeds: int = 100,
 ) -> None:
-    """The device table: every remedy on the same seeds, the issue's claims met / NOT met, the estimator's efficiency."""
+    """The device table: every remedy on the same seeds, the issue's claims met / NOT met, the
+    estimator's efficiency.
+    """
     import numpy as np
 
     from ..studies.device_procedure import (
@@ -135,16 +145,21 @@ def print_device_defects(
     )
 
     print(
-        f'\nDevice defects ({defects.describe()}), 50 postures (random, or planned per seed: I-optimal on the '
-        f'nominal machine with the device columns, priors and turns), +-{noise_um:g} um / urad noise, weighted by it, '
-        f'nominal set 2, {seeds} seeds; mean position error over 50 validation postures (um) in the device frames '
-        "(base frame of the inclinometer's zero, platform frame of the rotary zero) and in the true frames "
+        f'\nDevice defects ({defects.describe()}), 50 postures (random, or planned per seed: '
+        'I-optimal on the '
+        f'nominal machine with the device columns, priors and turns), +-{noise_um:g} um / urad '
+        'noise, weighted by it, '
+        f'nominal set 2, {seeds} seeds; mean position error over 50 validation postures (um) in '
+        'the device frames '
+        "(base frame of the inclinometer's zero, platform frame of the rotary zero) and in the "
+        'true frames '
         "(gravity-aligned base frame, origin at the device's joint O):"
     )
     outcomes = device_table(defects, range(seeds), 50, noise_um, truth, progress.step)
     reference = outcomes[0].mean(outcomes[0].true_frame_position_m)
     print(
-        f'  {"method":<56} {"device fr.":>10} {"true fr.":>9} {"x ref":>6} {"origin-al.":>10} {"orient. urad":>12}'
+        f'  {"method":<56} {"device fr.":>10} {"true fr.":>9} {"x ref":>6} {"origin-al.":>10} '
+        f'{"orient. urad":>12}'
         '  device errors rms (um, urad)'
     )
     for outcome in outcomes:
@@ -161,21 +176,27 @@ def print_device_defects(
         )
         failures = f'  failed: {"; ".join(outcome.failures)}' if outcome.failures else ''
         print(
-            f'  {outcome.row.label:<56} {outcome.mean(outcome.device_frame_position_m) * UM:>10.1f} '
+            f'  {outcome.row.label:<56} '
+            f'{outcome.mean(outcome.device_frame_position_m) * UM:>10.1f} '
             f'{true_frames * UM:>9.1f} {true_frames / reference:>6.2f} '
             f'{outcome.mean(outcome.origin_aligned_position_m) * UM:>10.1f} '
             f'{outcome.mean(outcome.true_frame_orientation_rad) * URAD:>12.1f}  {errors}{failures}'
         )
     print(
-        "  x ref: true-frame position error / the ideal device's with random postures.  origin-al.: true frames after removing the "
-        "mean position error, i.e. with the base frame's origin O re-referenced.  beta0 and phi0 are held at 0 "
-        "unless identified: without a turning procedure beta0 is the device base frame's tilt about Y, phi0 is "
+        "  x ref: true-frame position error / the ideal device's with random postures.  "
+        'origin-al.: true frames after removing the '
+        "mean position error, i.e. with the base frame's origin O re-referenced.  beta0 and phi0 "
+        'are held at 0 '
+        "unless identified: without a turning procedure beta0 is the device base frame's tilt "
+        'about Y, phi0 is '
         "always the platform frame's zero yaw (it moves no position)."
     )
     for claim in claims(outcomes):
         print(
-            f'  claim: {claim.text}: {claim.value:.2f}x the ideal device with random postures, the baseline '
-            f'({"met" if claim.met else "NOT met"}); {claim.like_for_like:.2f}x an ideal device calibrated the '
+            f'  claim: {claim.text}: {claim.value:.2f}x the ideal device with random postures, the '
+            'baseline '
+            f'({"met" if claim.met else "NOT met"}); {claim.like_for_like:.2f}x an ideal device '
+            'calibrated the '
             f'same way ({"met" if claim.met_like_for_like else "NOT met"})'
         )
     if efficiency_seeds > 1:
@@ -189,20 +210,24 @@ def print_device_defects(
         )
         print(
             f'  joint estimator ({RECOMMENDED_PROCEDURE}, {", ".join(summary.identified)}) over '
-            f'{summary.seeds} noise seeds, same postures: CRB std / RMS error / bias per device parameter (um, urad):'
+            f'{summary.seeds} noise seeds, same postures: CRB std / RMS error / bias per device '
+            'parameter (um, urad):'
         )
         for name, crb, rmse, bias, eff in zip(
             summary.identified, summary.crb_std, summary.rmse, summary.bias, summary.efficiency
         ):
             print(
-                f'    {name:<7} {crb * URAD:8.2f} {rmse * URAD:8.2f} {bias * URAD:+8.2f}  efficiency {eff:.2f} '
+                f'    {name:<7} {crb * URAD:8.2f} {rmse * URAD:8.2f} {bias * URAD:+8.2f}  '
+                f'efficiency {eff:.2f} '
                 f'({"met" if eff >= CLAIM_EFFICIENCY else "NOT met"})'
             )
         pose = summary.pose_efficiency
         print(
-            f'    validation position: predicted rms {np.sqrt(summary.predicted_position_ms_m2) * UM:.2f} um, '
+            '    validation position: predicted rms '
+            f'{np.sqrt(summary.predicted_position_ms_m2) * UM:.2f} um, '
             f'Monte Carlo {np.sqrt(summary.position_ms_m2) * UM:.2f} um, efficiency {pose:.2f} '
-            f'({"met" if pose >= CLAIM_EFFICIENCY else "NOT met"}); sampling error of an efficiency over '
+            f'({"met" if pose >= CLAIM_EFFICIENCY else "NOT met"}); sampling error of an '
+            'efficiency over '
             f'{summary.seeds} seeds ~{100 * np.sqrt(2 / max(summary.seeds - 1, 1)):.0f}%'
             + (f'; {summary.failures} seed(s) failed' if summary.failures else '')
         )
@@ -216,7 +241,8 @@ def print_monte_carlo(
     from ..core.uncertainty import monte_carlo
 
     print(
-        f'\nUncertainty check: one calibration (50 postures, +-{noise_um:g} um / urad, noise-weighted) repeated over '
+        f'\nUncertainty check: one calibration (50 postures, +-{noise_um:g} um / urad, '
+        'noise-weighted) repeated over '
         f'{seeds} noise seeds:'
     )
     summary = monte_carlo(
@@ -225,18 +251,23 @@ def print_monte_carlo(
     ratio = summary.std_ratio
     within = int(np.sum(np.abs(ratio - 1) <= 0.2))
     print(
-        f'  empirical / predicted std per parameter: median {np.median(ratio):.3f}, range {ratio.min():.3f}-'
-        f'{ratio.max():.3f}, {within}/{len(ratio)} within 20% (sampling error of a std over {seeds} seeds: '
+        f'  empirical / predicted std per parameter: median {np.median(ratio):.3f}, range '
+        f'{ratio.min():.3f}-'
+        f'{ratio.max():.3f}, {within}/{len(ratio)} within 20% (sampling error of a std over '
+        f'{seeds} seeds: '
         f'~{100 / np.sqrt(2 * (seeds - 1)):.0f}%)'
     )
     pose_ratio = summary.pose_error_mean_m / summary.predicted_pose_error_mean_m
     print(
         f'  mean pose error {summary.pose_error_mean_m * UM:.2f} um, linearised prediction '
         f'{summary.predicted_pose_error_mean_m * UM:.2f} um (ratio {pose_ratio:.3f}); orientation '
-        f'{summary.orientation_error_mean_rad * DEG:.5f} vs {summary.predicted_orientation_error_mean_rad * DEG:.5f} deg'
+        f'{summary.orientation_error_mean_rad * DEG:.5f} vs '
+        f'{summary.predicted_orientation_error_mean_rad * DEG:.5f} deg'
     )
     print(
-        f'  efficiency (Cramer-Rao variance for Gaussian noise of the same variance / empirical MSE): median '
-        f'{np.median(summary.efficiency):.3f}, range {summary.efficiency.min():.2f}-{summary.efficiency.max():.2f}; '
+        '  efficiency (Cramer-Rao variance for Gaussian noise of the same variance / empirical '
+        'MSE): median '
+        f'{np.median(summary.efficiency):.3f}, range '
+        f'{summary.efficiency.min():.2f}-{summary.efficiency.max():.2f}; '
         f'variance factor {summary.variance_factor_mean:.3f} (1 = the noise model fits)'
     )

@@ -1,4 +1,5 @@
-"""``hexacal verify BAG --nominal N --calibrated C``: verification without ground truth, offline from a bag.
+"""``hexacal verify BAG --nominal N --calibrated C``: verification without ground truth, offline
+from a bag.
 
 The bag holds fresh postures, never used in the fit (a second, verification plan
 walked after the calibration). For each, what the device measured (position by
@@ -29,10 +30,14 @@ def add_parsers(subparsers) -> None:
     subparsers.add_parser(
         'verify',
         help='verify a calibration on fresh postures of a bag, without ground truth',
-        description='Compare what the measuring device measured at fresh postures (not used in the fit) with '
-        'forward kinematics at the measured actuator readings, for the nominal and the calibrated parameters: '
-        'position error rms/max (m) and rotary error rms (rad), the improvement (nominal rms / calibrated rms) '
-        'and a verdict: pass when the calibrated position rms is within the threshold and forward kinematics '
+        description='Compare what the measuring device measured at fresh postures (not used in the '
+        'fit) with '
+        'forward kinematics at the measured actuator readings, for the nominal and the calibrated '
+        'parameters: '
+        'position error rms/max (m) and rotary error rms (rad), the improvement (nominal rms / '
+        'calibrated rms) '
+        'and a verdict: pass when the calibrated position rms is within the threshold and forward '
+        'kinematics '
         'converged on every posture. Exit code 0 pass, 1 fail, 2 bad input.',
         fill=_verify_arguments,
     )
@@ -179,7 +184,8 @@ def run_verify(args) -> int:
 
 def _device_defects(args):
     """(defects, (where they come from, names given)) of the device that measured the bag: the
-    --device-defects option, else those identified with the calibration (calibrated file)."""
+    --device-defects option, else those identified with the calibration (calibrated file).
+    """
     from ..core.device import DEVICE_PARAMETER_NAMES, DeviceDefects
     from ..pipeline import load_device_defects
 
@@ -203,7 +209,8 @@ def _print_table(args, bag, payload: dict) -> None:
         return 'n/a' if value is None else f'{value * scale:.2f}'
 
     print(
-        f'verification of {args.bag} ({payload["model"]}, {payload["postures"]} postures from the {bag.source})'
+        f'verification of {args.bag} ({payload["model"]}, {payload["postures"]} postures from the '
+        f'{bag.source})'
     )
     if bag.rejected:
         print(f"  {len(bag.rejected)} posture(s) set aside (beyond a sensor's range)")
@@ -237,7 +244,8 @@ def _print_table(args, bag, payload: dict) -> None:
             print(f'    {name}: posture {failure["index"]}: {failure["reason"]}')
     improvement = payload['improvement']
     print(
-        f'improvement: {"n/a" if improvement is None else f"{improvement:.1f}x"} (nominal rms / calibrated rms)'
+        f'improvement: {"n/a" if improvement is None else f"{improvement:.1f}x"} (nominal rms / '
+        'calibrated rms)'
     )
     noise = payload.get('expected_noise')
     if noise and noise.get('position_rms_m') is not None:

@@ -30,7 +30,9 @@ def forward_kinematics_one(
     tolerance: float = 1e-12,
     max_iterations: int = 50,
 ) -> np.ndarray:
-    """Section 2.2 for a single posture: X <- X - J_inv^-1 (IK(X) - Q_d) until |IK(X) - Q_d| < tolerance."""
+    """Section 2.2 for a single posture: X <- X - J_inv^-1 (IK(X) - Q_d) until |IK(X) - Q_d| <
+    tolerance.
+    """
     arch = params.architecture
     chains = arch.chains(params)
     pose = np.array(guess, dtype=float)
@@ -92,7 +94,9 @@ class BaselineResult:
 def identify_baseline(
     nominal: KinematicParameters, measurements: Measurements, device: DeviceModel = DeviceModel()
 ) -> BaselineResult:
-    """Paper-style identification: per-posture FK, forward-difference Jacobian, scipy least_squares."""
+    """Paper-style identification: per-posture FK, forward-difference Jacobian, scipy
+    least_squares.
+    """
     started = time.perf_counter()
     solution = least_squares(
         absolute_residuals,

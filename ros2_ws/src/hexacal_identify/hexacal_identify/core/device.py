@@ -165,8 +165,10 @@ class DeviceModel:
         link_length: float | np.ndarray | None = None,
         device_turn: np.ndarray | float | None = None,
     ) -> 'DevicePosition':
-        """Platform positions (and derivatives) from readings; ``link_length`` per posture for an LVDT,
-        ``device_turn`` (rad) per posture for a device turned about its link (module doc)."""
+        """Platform positions (and derivatives) from readings; ``link_length`` per posture for an
+        LVDT,
+        ``device_turn`` (rad) per posture for a device turned about its link (module doc).
+        """
         length = self.link_length if link_length is None else link_length
         return device_position(
             alpha,
@@ -183,7 +185,9 @@ class DeviceModel:
         defects: 'DeviceDefects | None' = None,
         device_turn: np.ndarray | float | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """What the (defective, possibly turned) inclinometer reads with the platform at ``position`` (N, 3)."""
+        """What the (defective, possibly turned) inclinometer reads with the platform at
+        ``position`` (N, 3).
+        """
         return inclinometer_readings(
             position, defects if defects is not None else DeviceDefects(), self.mount, device_turn
         )
@@ -195,7 +199,9 @@ class DeviceModel:
     def fixed_position(
         self, defects: 'DeviceDefects | None' = None, device_turn: float = 0.0
     ) -> 'DevicePosition':
-        """Where the (defective, possibly turned) inclinometer reads zero, (1, 3), with its derivatives."""
+        """Where the (defective, possibly turned) inclinometer reads zero, (1, 3), with its
+        derivatives.
+        """
         return fixed_position(
             self.link_length,
             defects if defects is not None else DeviceDefects(),
@@ -241,14 +247,17 @@ class DeviceDefects:
 
     @classmethod
     def parse(cls, text: str) -> 'DeviceDefects':
-        """'dL=0.0005,alpha0=2e-4,...' (SI units) -> DeviceDefects; names as DEVICE_PARAMETER_NAMES."""
+        """'dL=0.0005,alpha0=2e-4,...' (SI units) -> DeviceDefects; names as
+        DEVICE_PARAMETER_NAMES.
+        """
         values: dict[str, float] = {}
         for item in filter(None, (part.strip() for part in text.split(','))):
             name, sep, value = item.partition('=')
             name = name.strip()
             if not sep or name not in DEVICE_PARAMETER_NAMES:
                 raise ValueError(
-                    f'bad device defect {item!r}: expected NAME=VALUE with NAME one of {", ".join(DEVICE_PARAMETER_NAMES)}'
+                    f'bad device defect {item!r}: expected NAME=VALUE with NAME one of '
+                    f'{", ".join(DEVICE_PARAMETER_NAMES)}'
                 )
             try:
                 values[name] = float(value)
@@ -381,7 +390,9 @@ def inclinometer_angles(
 
 
 def turn_rotations(device_turn: np.ndarray | float | None, n: int) -> np.ndarray:
-    """R_z(turn) per posture, (n, 3, 3): the frame of a device turned by ``turn`` about its link axis."""
+    """R_z(turn) per posture, (n, 3, 3): the frame of a device turned by ``turn`` about its link
+    axis.
+    """
     turn = (
         np.zeros(n)
         if device_turn is None
@@ -402,7 +413,8 @@ def inclinometer_readings(
 ) -> tuple[np.ndarray, np.ndarray]:
     """What a defective inclinometer reads for the link pointing from O to ``position`` (no noise).
 
-    ``device_turn`` (rad, per posture): the device turned about its link axis (module doc)."""
+    ``device_turn`` (rad, per posture): the device turned about its link axis (module doc).
+    """
     position = np.atleast_2d(np.asarray(position, dtype=float))
     if (
         device_turn is not None
@@ -423,7 +435,9 @@ def inclinometer_readings(
 
 
 def fixed_point(link_length: float, mount: str = DEFAULT_MOUNT) -> np.ndarray:
-    """Where an ideal inclinometer reads zero (eq. 10): [0, 0, -L] hanging, [0, 0, +L] standing, (3,)."""
+    """Where an ideal inclinometer reads zero (eq. 10): [0, 0, -L] hanging, [0, 0, +L] standing,
+    (3,).
+    """
     if _standing(mount):
         return np.array([0.0, 0.0, link_length])
     return np.array([0.0, 0.0, -link_length])
@@ -432,7 +446,8 @@ def fixed_point(link_length: float, mount: str = DEFAULT_MOUNT) -> np.ndarray:
 def sphere_z(xy: np.ndarray, link_length: float, mount: str = DEFAULT_MOUNT) -> np.ndarray:
     """z of the points of the L-sphere about O above (N, 2) ``xy``, on the platform's side of O.
 
-    Hanging: -sqrt(L^2 - x^2 - y^2) (the sphere postures' z until now); standing: +sqrt(...)."""
+    Hanging: -sqrt(L^2 - x^2 - y^2) (the sphere postures' z until now); standing: +sqrt(...).
+    """
     standing = _standing(mount)
     xy = np.asarray(xy, dtype=float)
     z = np.sqrt(link_length**2 - np.sum(xy**2, axis=1))
@@ -458,8 +473,9 @@ def device_position(
 ) -> DevicePosition:
     """Platform position from inclinometer readings through the defect model (module doc).
 
-    Standing: the hanging result negated (position and both derivative arrays).
-    ``device_turn`` (rad, per posture): the device turned about its link axis, p = R_z(turn) p_device."""
+    Standing: the hanging result negated (position and both derivative arrays). ``device_turn``
+    (rad, per posture): the device turned about its link axis, p = R_z(turn) p_device.
+    """
     standing = _standing(mount)
     alpha = np.atleast_1d(np.asarray(alpha, dtype=float))
     beta = np.atleast_1d(np.asarray(beta, dtype=float))
@@ -506,8 +522,10 @@ def fixed_position(
     mount: str = DEFAULT_MOUNT,
     device_turn: float = 0.0,
 ) -> DevicePosition:
-    """Where the (defective, possibly turned) inclinometer reads zero: the fixed position of eq. 10,
-    (1, 3), with derivatives."""
+    """Where the (defective, possibly turned) inclinometer reads zero: the fixed position of eq.
+    10,
+    (1, 3), with derivatives.
+    """
     return device_position(
         np.zeros(1), np.zeros(1), link_length, defects, mount, np.array([device_turn])
     )

@@ -38,7 +38,8 @@ POSE_LABELS = ('x', 'y', 'z', 'theta', 'psi', 'phi')
 MAX_HALVINGS = 10  # a Newton step is halved at most this often to reduce the slider error
 # A posture whose Newton step fails to reduce the error at every step length this often has no
 # solution near its start: stop there rather than spend every remaining iteration on it (Newton's
-# direction is a descent direction wherever the pose Jacobian is regular, so a solvable one never stalls).
+# direction is a descent direction wherever the pose Jacobian is regular, so a solvable one never
+# stalls).
 MAX_STALLS = 3
 __all__ = [
     'POSE_LABELS',
@@ -243,7 +244,8 @@ def _damped_update(
 ):
     """Take X - step, halving the step where it does not reduce the slider error.
 
-    Also returns the mask of postures where even the smallest step did not reduce it (stalled)."""
+    Also returns the mask of postures where even the smallest step did not reduce it (stalled).
+    """
     trial = poses - step
     legs = arch.legs(chains, trial)
     trial_error = _slider_error(legs, targets)
@@ -271,7 +273,8 @@ def _check_branch(poses, start, converged, failures, tol_m, tol_rad) -> None:
     wrong = converged & ((jump > tol_m) | (phi_jump > tol_rad))
     for i in np.flatnonzero(wrong):
         failures[int(i)] = (
-            f'converged to another branch: {jump[i] * 1e3:.1f} mm / {np.degrees(phi_jump[i]):.1f} deg '
+            f'converged to another branch: {jump[i] * 1e3:.1f} mm / {np.degrees(phi_jump[i]):.1f} '
+            'deg '
             'from the expected posture'
         )
     converged &= ~wrong
@@ -283,12 +286,13 @@ def wrap_angle(angle: np.ndarray) -> np.ndarray:
 
 
 class PoseSensitivity:
-    """Derivatives of FK poses: w.r.t. the parameters (54 for a Hexa Slide) and the 6 actuator readings.
+    """Derivatives of FK poses: w.r.t. the parameters (54 for a Hexa Slide) and the 6 actuator
+    readings.
 
-    Kept factored: dX/du[n, k, F c + f] = -wrt_sliders[n, k, c] * slider_blocks[n, c, f] (F fields per chain)
-    (d lambda / d u is block diagonal), so a cost function can form just the rows
-    it needs (``rows``, ``combined``) in one pass; ``wrt_parameters`` is the full
-    (N, 6, 6 F) array, formed on first use.
+    Kept factored: dX/du[n, k, F c + f] = -wrt_sliders[n, k, c] * slider_blocks[n, c, f] (F fields
+    per chain) (d lambda / d u is block diagonal), so a cost function can form just the rows it
+    needs (``rows``, ``combined``) in one pass; ``wrt_parameters`` is the full (N, 6, 6 F) array,
+    formed on first use.
     """
 
     def __init__(self, wrt_sliders: np.ndarray, slider_blocks: np.ndarray):
@@ -314,15 +318,18 @@ class PoseSensitivity:
         return self.wrt_sliders[index], self.slider_blocks[index]
 
     def rows(self, index: np.ndarray | None, coordinates: slice, factor: float) -> np.ndarray:
-        """factor * dX[coordinates]/du for postures ``index`` (None: all), (k, m, 54)."""
+        """Factor * dX[coordinates]/du for postures ``index`` (None: all), (k, m, 54)."""
         inverse, blocks = self._pick(index)
-        # factor * (-M b) = (-factor M) b: the sign is exact, so with factor -1 this is M b bit for bit.
+        # factor * (-M b) = (-factor M) b: the sign is exact, so with factor -1 this is M b bit for
+        # bit.
         weights = inverse[:, coordinates, :] * -factor
         out = weights[:, :, :, None] * blocks[:, None, :, :]
         return out.reshape(len(out), out.shape[1], self.n_parameters)
 
     def combined(self, index: np.ndarray | None, weights: np.ndarray) -> np.ndarray:
-        """sum_k weights[:, k] dX_k/du for postures ``index`` (None: all); weights (k, 6) -> (k, 54)."""
+        """sum_k weights[:, k] dX_k/du for postures ``index`` (None: all); weights (k, 6) -> (k,
+        54).
+        """
         inverse, blocks = self._pick(index)
         mixed = -np.matmul(weights[:, None, :], inverse)  # (k, 1, 6)
         out = mixed[:, 0, :, None] * blocks
@@ -347,7 +354,9 @@ def pose_sensitivities(params: KinematicParameters, poses: np.ndarray) -> PoseSe
 
 
 def pose_parameter_sensitivity(params: KinematicParameters, poses: np.ndarray):
-    """dX/du (N, 6, n) at FK solutions (see ``pose_sensitivities``) and the legs (IK intermediates) there."""
+    """dX/du (N, 6, n) at FK solutions (see ``pose_sensitivities``) and the legs (IK intermediates)
+    there.
+    """
     return pose_sensitivities(params, poses).wrt_parameters, _legs(
         params, np.asarray(poses, dtype=float)
     )

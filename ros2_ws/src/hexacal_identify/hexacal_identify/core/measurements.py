@@ -26,9 +26,10 @@ class MeasurementLimits:
 
     inclinometer_range_rad: float = np.radians(60.0)
     rotary_range_rad: float = np.pi
-    # The actuator stroke postures are planned in (postures.Workspace.slider_stroke_m: 0 .. 0.9 m on
-    # the Hexa Slide's rails, 0 .. 0.5 m of the default Gough-Stewart legs) plus 0.1 m (device defects
-    # move simulated actuators ~20 mm past it): a reading beyond is a sensor fault, not a posture.
+    # The actuator stroke postures are planned in (postures.Workspace.slider_stroke_m: 0 .. 0.9 m
+    # on the Hexa Slide's rails, 0 .. 0.5 m of the default Gough-Stewart legs) plus 0.1 m (device
+    # defects move simulated actuators ~20 mm past it): a reading beyond is a sensor fault, not a
+    # posture.
     slider_min_m: float = -0.1
     slider_max_m: float = 1.0
 
@@ -122,7 +123,8 @@ class Measurements:
             or self.kinds.shape != (n,)
         ):
             raise InvalidMeasurementError(
-                f'inconsistent lengths: {n} slider rows, {len(self.inclinometer)} inclinometer rows, '
+                f'inconsistent lengths: {n} slider rows, {len(self.inclinometer)} inclinometer '
+                'rows, '
                 f'{len(self.rotary)} rotary values, {len(self.kinds)} kinds'
             )
         channels = {
@@ -161,7 +163,8 @@ class Measurements:
         )
         if low.size:
             raise InvalidMeasurementError(
-                f'slider position outside [{limits.slider_min_m}, {limits.slider_max_m}] m at posture(s) {low.tolist()}',
+                f'slider position outside [{limits.slider_min_m}, {limits.slider_max_m}] m at '
+                f'posture(s) {low.tolist()}',
                 low,
             )
         if self.link_lengths is not None and np.any(self.link_lengths <= 0):
@@ -198,7 +201,9 @@ class NoiseModel:
         return cls(slider_m=microns * 1e-6, angle_rad=microns * 1e-6)
 
     def standard_deviations(self) -> np.ndarray:
-        """Std of the 9 readings of a posture (6 sliders, alpha, beta, phi): a / sqrt(3) for +-a uniform."""
+        """Std of the 9 readings of a posture (6 sliders, alpha, beta, phi): a / sqrt(3) for +-a
+        uniform.
+        """
         return np.array([self.slider_m] * 6 + [self.angle_rad] * 3) / np.sqrt(3.0)
 
     @property
@@ -217,7 +222,8 @@ def simulate_measurements(
     lvdt: bool = False,
     device_turn: np.ndarray | float | None = None,
 ) -> Measurements:
-    """What the device and the actuator encoders read at ``poses`` on the machine ``params`` (any architecture).
+    """What the device and the actuator encoders read at ``poses`` on the machine ``params`` (any
+    architecture).
 
     The readings go through the defect model (a defective inclinometer reads the
     true link direction with offsets and a skewed axis, the rotary sensor adds

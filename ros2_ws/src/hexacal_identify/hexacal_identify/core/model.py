@@ -1,4 +1,5 @@
-"""Kinematic parameters: the generic parts (nominal sets, error statistics), and the Hexa Slide's names.
+"""Kinematic parameters: the generic parts (nominal sets, error statistics), and the Hexa Slide's
+names.
 
 The architectures own their parameters (``architectures/hexa_slide.py``,
 ``architectures/gough_stewart.py``); this module keeps the names the Hexa Slide
@@ -27,7 +28,9 @@ from .architectures.hexa_slide import (  # noqa: F401  (the Hexa Slide's long-st
 
 
 def parameter_names(model: str | None = None) -> list[str]:
-    """Names of the parameters in vector order, e.g. ``chain_3.A0z`` (default: the Hexa Slide's 54)."""
+    """Names of the parameters in vector order, e.g. ``chain_3.A0z`` (default: the Hexa Slide's
+    54).
+    """
     return list(architecture(model).layout.parameter_names)
 
 
@@ -73,7 +76,8 @@ def nominal_set(
     exact: KinematicParameters | None = None,
     model: str | None = None,
 ) -> KinematicParameters:
-    """Nominal parameter set 1, 2 or 3: exact + seeded errors with the architecture's Table 2-like statistics.
+    """Nominal parameter set 1, 2 or 3: exact + seeded errors with the architecture's Table 2-like
+    statistics.
 
     ``exact`` defaults to the default machine of ``model`` (default: the Table 1 Hexa Slide).
     """

@@ -30,8 +30,8 @@ class Workspace:
     max_condition: float = (
         80.0  # of the pose Jacobian with angles scaled by link_length; rejects ~4%
     )
-    # Hexa Slide: w / l, legs far from perpendicular to their rail; Gough-Stewart: the least cosine of a
-    # passive joint's angle (architectures/*.acceptable_poses).
+    # Hexa Slide: w / l, legs far from perpendicular to their rail; Gough-Stewart: the least cosine
+    # of a passive joint's angle (architectures/*.acceptable_poses).
     min_leg_rail_cosine: float = 0.2
     mount: str = (
         DEFAULT_MOUNT  # the device's: the link sphere lies below (hanging) or above (standing) O
@@ -54,7 +54,9 @@ def _fixed_candidates(rng: np.random.Generator, n: int, workspace: Workspace) ->
 def acceptable_poses(
     params: KinematicParameters, poses: np.ndarray, workspace: Workspace = Workspace()
 ) -> np.ndarray:
-    """Mask of poses that are reachable, inside the stroke and well conditioned (the architecture decides how)."""
+    """Mask of poses that are reachable, inside the stroke and well conditioned (the architecture
+    decides how).
+    """
     return params.architecture.acceptable_poses(params, np.asarray(poses, dtype=float), workspace)
 
 

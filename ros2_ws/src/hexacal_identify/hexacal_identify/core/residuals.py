@@ -11,7 +11,8 @@ Cost functions (``COSTS``):
                     with the measured position from the inclinometer (eq. 4).
 * ``sphere``        eq. 8, every posture: [L - |P_c|, phi_m - phi_c] (fixed postures lie
                     on the sphere too).
-* ``fixed``         eq. 10, fixed-position postures only: [0 - x_c, 0 - y_c, -L - z_c, phi_m - phi_c]
+* ``fixed``         eq. 10, fixed-position postures only: [0 - x_c, 0 - y_c, -L - z_c, phi_m -
+  phi_c]
                     (+L - z_c for a standing device, ``DeviceModel.mount``).
 * ``sphere-fixed``  eq. 8 on sphere postures and eq. 10 on fixed-position postures.
 * ``relative``      eq. 12 on sphere postures: |P_c^j| - |P_c^k|, and eq. 13 on fixed
@@ -98,7 +99,7 @@ class _Pieces:
         return self.d_params is not None or self.factored is not None
 
     def pose_rows(self, index: np.ndarray | None, coordinates: slice, factor: float) -> np.ndarray:
-        """factor * dX[coordinates]/du for postures ``index`` (None: all), (k, m, n)."""
+        """Factor * dX[coordinates]/du for postures ``index`` (None: all), (k, m, n)."""
         if self.factored is not None:
             return self.factored.rows(index, coordinates, factor)
         d_params = self.d_params if index is None else self.d_params[index]
@@ -134,9 +135,12 @@ class CostFunction:
         self.sigma = sigma
         if cost == 'relative' and measurements.device_turn is not None:
             raise InvalidMeasurementError(
-                'the relative cost function (eqs. 12 + 13) pairs consecutive postures and cancels offsets '
-                f'itself; {int(np.count_nonzero(measurements.device_turn))} posture(s) were taken with the device '
-                'turned about its link: use the absolute cost (eq. 7), which identifies the offsets from them'
+                'the relative cost function (eqs. 12 + 13) pairs consecutive postures and cancels '
+                'offsets '
+                f'itself; {int(np.count_nonzero(measurements.device_turn))} posture(s) were taken '
+                'with the device '
+                'turned about its link: use the absolute cost (eq. 7), which identifies the '
+                'offsets from them'
             )
         self.is_fixed = measurements.kinds == FIXED
         self.is_sphere = measurements.kinds == SPHERE
@@ -152,7 +156,8 @@ class CostFunction:
         """Why these postures cannot feed this cost function at all (None when they can).
 
         Eqs. 10 and 13 compare fixed-position postures and eq. 12 compares sphere postures: a
-        cost that needs a kind the measurement set lacks is a named error, not an empty block."""
+        cost that needs a kind the measurement set lacks is a named error, not an empty block.
+        """
         n_fixed, n_sphere = int(self.is_fixed.sum()), int(self.is_sphere.sum())
         needs = {
             'fixed': (('fixed-position', n_fixed, 1),),
@@ -162,14 +167,17 @@ class CostFunction:
         for kind, have, least in needs:
             if have < least:
                 return (
-                    f'the {self.cost} cost function needs at least {least} {kind} posture(s) and the '
+                    f'the {self.cost} cost function needs at least {least} {kind} posture(s) and '
+                    'the '
                     f'measurements hold {have} ({n_sphere} sphere, {n_fixed} fixed-position); '
                     'record postures of that kind or choose another cost function'
                 )
         return None
 
     def measured(self, defects: DeviceDefects = DeviceDefects()):
-        """Positions from the readings through the defect model; the last result is kept (defects rarely change)."""
+        """Positions from the readings through the defect model; the last result is kept (defects
+        rarely change).
+        """
         if self._measured_cache is None or self._measured_cache[0] != defects:
             alpha, beta = self.measurements.inclinometer.T
             self._measured_cache = (
@@ -186,12 +194,16 @@ class CostFunction:
         return self._measured_cache[1]
 
     def fixed_position(self, defects: DeviceDefects = DeviceDefects(), device_turn: float = 0.0):
-        """Where the (defective, possibly turned) inclinometer reads zero: the fixed position of eq. 10."""
+        """Where the (defective, possibly turned) inclinometer reads zero: the fixed position of
+        eq. 10.
+        """
         return fixed_position(self.link_length, defects, self.mount, device_turn)
 
     def fixed_positions(self, defects: DeviceDefects, index: np.ndarray):
-        """Fixed positions (k, 3) and their device derivatives (k, 3, 4) of postures ``index``: a turned
-        device reads zero elsewhere (its offsets turn with it)."""
+        """Fixed positions (k, 3) and their device derivatives (k, 3, 4) of postures ``index``: a
+        turned
+        device reads zero elsewhere (its offsets turn with it).
+        """
         turns = self.measurements.turns[index]
         zeros = np.zeros(len(index))
         fixed = device_position(
@@ -200,14 +212,18 @@ class CostFunction:
         return fixed.position, fixed.d_defects
 
     def initial_poses(self, defects: DeviceDefects = DeviceDefects()) -> np.ndarray:
-        """Expected postures: measured position and phi, theta = psi = 0 (the FK start and branch reference)."""
+        """Expected postures: measured position and phi, theta = psi = 0 (the FK start and branch
+        reference).
+        """
         n = len(self.measurements)
         fixed, _ = self.fixed_positions(defects, np.arange(n))
         position = np.where(self.is_fixed[:, None], fixed, self.measured(defects).position)
         return np.column_stack([position, np.zeros((n, 2)), self.measured_phi(defects)])
 
     def measured_phi(self, defects: DeviceDefects = DeviceDefects()) -> np.ndarray:
-        """phi from the rotary readings: a device turned about its link reads phi - turn + phi0, wrapped."""
+        """Phi from the rotary readings: a device turned about its link reads phi - turn + phi0,
+        wrapped.
+        """
         return wrap_angle(self.measurements.rotary + self.measurements.turns - defects.phi0)
 
     def residuals(
@@ -218,8 +234,10 @@ class CostFunction:
         with_device: bool = False,
         with_noise: bool = True,
     ) -> ResidualBlock:
-        """Stacked residuals; with ``sensitivity`` also the Jacobian (54 columns, + 5 device columns
-        if ``with_device``) and, for a PoseSensitivity and ``with_noise``, each row's noise derivatives."""
+        """Stacked residuals; with ``sensitivity`` also the Jacobian (54 columns, + 5 device
+        columns if ``with_device``) and, for a PoseSensitivity and ``with_noise``, each row's noise
+        derivatives.
+        """
         if isinstance(sensitivity, PoseSensitivity):
             pieces = _Pieces(
                 poses,
@@ -300,7 +318,9 @@ class CostFunction:
         d_targets_d_device: np.ndarray,
         d_targets_d_readings: np.ndarray | None,
     ) -> ResidualBlock:
-        """Rows target - P_c for postures ``index``; targets (k, 3), derivatives (k, 3, 4) and (k, 3, 2)."""
+        """Rows target - P_c for postures ``index``; targets (k, 3), derivatives (k, 3, 4) and (k,
+        3, 2).
+        """
         scale = 1.0 / self.sigma.position_m
         k = len(index)
         values = ((targets - pieces.poses[index, :3]) * scale).reshape(-1)

@@ -155,7 +155,9 @@ def monte_carlo(
 def _crb_std(
     true_params: KinematicParameters, poses: np.ndarray, noise: NoiseModel, options: SolverOptions
 ) -> np.ndarray:
-    """Std of the Cramer-Rao bound at the truth: exact readings, residuals whitened by the noise covariance."""
+    """Std of the Cramer-Rao bound at the truth: exact readings, residuals whitened by the noise
+    covariance.
+    """
     exact = simulate_measurements(true_params, poses)
     crb_options = SolverOptions(noise=noise, cost=options.cost)
     result = identify(true_params, exact, crb_options)

@@ -1,4 +1,6 @@
-"""Pose accuracy of a parameter set, judged against the true machine (simulation only), any architecture."""
+"""Pose accuracy of a parameter set, judged against the true machine (simulation only), any
+architecture.
+"""
 
 from __future__ import annotations
 
@@ -49,7 +51,8 @@ def pose_errors(
     align_base_rotation_y: bool = False,
     align_origin: bool = False,
 ) -> PoseErrors:
-    """Command the true machine's actuator readings for ``poses``; where does ``model_params`` put it?
+    """Command the true machine's actuator readings for ``poses``; where does ``model_params`` put
+    it?
 
     The controller's view: FK with the model parameters at the actuator readings
     the true machine has at each pose, compared with that pose (Table 3's errors).
@@ -71,7 +74,8 @@ def pose_errors(
         offsets = offsets - np.nanmean(offsets, axis=0)
     position = np.linalg.norm(offsets, axis=1)
     difference = rotation_matrices(fk.poses[:, 3:6]) - rotation_matrices(poses[:, 3:6])
-    # |R1 - R2|_F = 2 sqrt(2) sin(angle / 2): accurate for micro-radian angles, unlike arccos of the trace.
+    # |R1 - R2|_F = 2 sqrt(2) sin(angle / 2): accurate for micro-radian angles, unlike arccos of
+    # the trace.
     chord = np.linalg.norm(difference, axis=(1, 2)) / (2.0 * np.sqrt(2.0))
     return PoseErrors(position, 2.0 * np.arcsin(np.clip(chord, 0.0, 1.0)))
 

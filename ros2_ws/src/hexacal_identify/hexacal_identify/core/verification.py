@@ -1,4 +1,5 @@
-"""Verification without ground truth: how well does a parameter set explain fresh measured postures?
+"""Verification without ground truth: how well does a parameter set explain fresh measured
+postures?
 
 A real machine has no truth to compare with.  What it has is the measuring
 device: for postures that were *not* used in the fit, the device measures the
@@ -92,8 +93,10 @@ class SetResiduals:
         return np.isfinite(self.position_error_m)
 
     def figures(self) -> dict[str, float]:
-        """position_rms_m, position_max_m, rotary_rms_rad over the converged postures (NaN if none),
-        plus position_mean_m, postures_converged and fk_failures."""
+        """position_rms_m, position_max_m, rotary_rms_rad over the converged postures (NaN if
+        none),
+        plus position_mean_m, postures_converged and fk_failures.
+        """
         ok = self.converged
         position, rotary = self.position_error_m[ok], self.rotary_error_rad[ok]
         if not ok.any():
@@ -139,7 +142,9 @@ class VerificationResult:
 
     @property
     def improvement(self) -> float:
-        """Nominal position rms / calibrated position rms (NaN when either is unknown, inf for an exact fit)."""
+        """Nominal position rms / calibrated position rms (NaN when either is unknown, inf for an
+        exact fit).
+        """
         before = self.nominal.figures()['position_rms_m']
         after = self.calibrated.figures()['position_rms_m']
         if not (np.isfinite(before) and np.isfinite(after)):
@@ -168,10 +173,12 @@ class VerificationResult:
         )
 
     def to_json(self, per_posture: bool = False) -> dict:
-        """{"model", "postures", "nominal": {figures}, "calibrated": {figures}, "improvement", "threshold_m",
-        "verdict"} plus "verdict_reason", "link_length_m", "mount", per set its FK failures
-        (``failed_postures``: index, reason) and with ``per_posture`` the per-posture arrays
-        (``per_posture``: kinds, measured positions, both sets' errors).  NaN and inf are null."""
+        """{"model", "postures", "nominal": {figures}, "calibrated": {figures}, "improvement",
+        "threshold_m", "verdict"} plus "verdict_reason", "link_length_m", "mount", per set its FK
+        failures (``failed_postures``: index, reason) and with ``per_posture`` the per-posture
+        arrays
+        (``per_posture``: kinds, measured positions, both sets' errors).  NaN and inf are null.
+        """
         payload: dict = {'model': self.model, 'postures': self.postures}
         for name in SET_NAMES:
             residuals: SetResiduals = getattr(self, name)
@@ -238,7 +245,9 @@ def check_models(
     postures_model: str | None = None,
     names: tuple[str, str] = ('nominal', 'calibrated'),
 ) -> str:
-    """The one model of both parameter sets (and of the postures, when known); VerificationModelError if not."""
+    """The one model of both parameter sets (and of the postures, when known);
+    VerificationModelError if not.
+    """
     if nominal.model != calibrated.model:
         raise VerificationModelError(
             f"the {names[0]} parameters are a {nominal.model}'s and the {names[1]} parameters a "
@@ -246,7 +255,8 @@ def check_models(
         )
     if postures_model is not None and postures_model != nominal.model:
         raise VerificationModelError(
-            f'the postures are of a {postures_model} but the {names[0]} and {names[1]} parameters are a '
+            f'the postures are of a {postures_model} but the {names[0]} and {names[1]} parameters '
+            'are a '
             f"{nominal.model}'s: verify with the parameters of the machine that measured them"
         )
     return nominal.model
@@ -260,7 +270,8 @@ def set_residuals(
 ) -> tuple[SetResiduals, np.ndarray]:
     """(residuals of ``params``, the expected poses FK started from) at the measured postures.
 
-    ``defects``: the device defects this parameter set assumes (identified jointly, or none)."""
+    ``defects``: the device defects this parameter set assumes (identified jointly, or none).
+    """
     from .identification import (
         SolverOptions,
     )  # the identification's FK tolerances and branch check
@@ -296,9 +307,11 @@ def expected_noise(
 ) -> dict[str, float]:
     """The residual rms that reading noise alone gives (module doc), at the converged FK poses.
 
-    position: sqrt(mean_n E|r_n|^2), E|r_n|^2 = sum_k |dP/d lambda_k|^2 a_s^2/3 + sum_j |dP_meas/d angle_j|^2
-    a_a^2/3 (a fixed-position posture is placed at a zero reading, within the same noise); rotary:
-    sqrt(mean_n (sum_k (dphi/d lambda_k)^2 a_s^2/3 + a_a^2/3))."""
+    position: sqrt(mean_n E|r_n|^2), E|r_n|^2 = sum_k |dP/d lambda_k|^2 a_s^2/3 + sum_j |dP_meas/d
+    angle_j|^2 a_a^2/3 (a fixed-position posture is placed at a zero reading, within the same
+    noise); rotary:
+    sqrt(mean_n (sum_k (dphi/d lambda_k)^2 a_s^2/3 + a_a^2/3)).
+    """
     from .device import device_position
     from .kinematics import pose_sensitivities
 
@@ -340,14 +353,16 @@ def verify(
     calibrated_defects: DeviceDefects = DeviceDefects(),
     limits: MeasurementLimits = MeasurementLimits(),
 ) -> VerificationResult:
-    """Residuals of the nominal and the calibrated parameters at fresh measured postures (module doc).
+    """Residuals of the nominal and the calibrated parameters at fresh measured postures (module
+    doc).
 
-    ``threshold_m``: the verdict's threshold (None: 3x the expected noise rms with a known ``noise``,
-    else DEFAULT_THRESHOLD_M).  ``noise``: the reading noise half-widths, for the expected noise figures.
-    ``postures_model``: the model whose actuator joints the postures carry (None: not known, not checked).
-    ``calibrated_defects``: device defects identified with the calibration (its device), if any.
-    Raises VerificationModelError on a model mismatch, InvalidMeasurementError on no or invalid postures,
-    ValueError on a threshold that is not a positive length.
+    ``threshold_m``: the verdict's threshold (None: 3x the expected noise rms with a known
+    ``noise``, else DEFAULT_THRESHOLD_M).  ``noise``: the reading noise half-widths, for the
+    expected noise figures. ``postures_model``: the model whose actuator joints the postures carry
+    (None: not known, not checked). ``calibrated_defects``: device defects identified with the
+    calibration (its device), if any. Raises VerificationModelError on a model mismatch,
+    InvalidMeasurementError on no or invalid postures, ValueError on a threshold that is not a
+    positive length.
     """
     model = check_models(nominal, calibrated, postures_model)
     if threshold_m is not None and not (np.isfinite(threshold_m) and threshold_m > 0):
@@ -383,7 +398,8 @@ def verify(
         )
     else:
         threshold, source = DEFAULT_THRESHOLD_M, 'default'
-    # The measured side is the calibrated device's (identical to the nominal's without identified defects).
+    # The measured side is the calibrated device's (identical to the nominal's without identified
+    # defects).
     return VerificationResult(
         model,
         np.asarray(measurements.kinds).astype(str),

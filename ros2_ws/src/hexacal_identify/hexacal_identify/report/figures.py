@@ -145,14 +145,17 @@ def singular_values(spectra: dict[str, np.ndarray], rank_tolerance: float, path:
     return _save(fig, path)
 
 
-# --------------------------------------------------------------------------- calibration report and planning
+# --------------------------------------------------------------------------- calibration report
+# and planning
 UM = 1e6
 
 
 def parameter_corrections(
     correction_m: np.ndarray, std_m: np.ndarray, path: Path, layout: ModelLayout | None = None
 ) -> Path:
-    """Each parameter's correction (identified - initial) with +-std error bars, and the std alone (log)."""
+    """Each parameter's correction (identified - initial) with +-std error bars, and the std alone
+    (log).
+    """
     layout = _layout(len(correction_m), layout)
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(11, 5.6), sharex=True)
     index = np.arange(1, len(correction_m) + 1)
@@ -187,7 +190,9 @@ def parameter_corrections(
 def residuals_by_posture(
     postures: np.ndarray, values: np.ndarray, channels: np.ndarray, path: Path
 ) -> Path:
-    """Final residuals per posture, one marker per channel: lengths in um (left), angles in urad (right)."""
+    """Final residuals per posture, one marker per channel: lengths in um (left), angles in urad
+    (right).
+    """
     channels = np.asarray(channels).astype(str)
     angular = np.char.startswith(channels, 'phi')
     fig, axes = plt.subplots(1, 2, figsize=(11, 3.6))
@@ -212,7 +217,9 @@ def pose_error_map(
     path: Path,
     postures_xy_m: np.ndarray | None = None,
 ) -> Path:
-    """Predicted std of the position error over the workspace (heat map, um); NaN cells are infeasible."""
+    """Predicted std of the position error over the workspace (heat map, um); NaN cells are
+    infeasible.
+    """
     fig, ax = plt.subplots(figsize=(6.2, 5.0))
     mesh = ax.pcolormesh(x_m * MM, y_m * MM, std_m * UM, shading='auto', cmap='viridis')
     fig.colorbar(mesh, ax=ax, label='predicted position error std [um]')
@@ -235,7 +242,9 @@ def pose_error_map(
 def postures_on_sphere(
     poses: np.ndarray, kinds: np.ndarray, path: Path, xy_range_m: float = 0.4
 ) -> Path:
-    """The postures used, seen from above (x, y on the L-sphere), coloured by kind; arrows show the tilt."""
+    """The postures used, seen from above (x, y on the L-sphere), coloured by kind; arrows show the
+    tilt.
+    """
     fig, ax = plt.subplots(figsize=(5.6, 5.0))
     kinds = np.asarray(kinds).astype(str)
     colours = {'sphere': 'tab:blue', 'fixed': 'tab:orange'}
@@ -283,7 +292,9 @@ def planning_accuracy(
     reference_label: str,
     path: Path,
 ) -> Path:
-    """Validation position error vs number of postures: planned against random (mean +- error bar over seeds)."""
+    """Validation position error vs number of postures: planned against random (mean +- error bar
+    over seeds).
+    """
     fig, ax = plt.subplots(figsize=(7.5, 4.2))
     for label, (mean_um, spread_um) in curves.items():
         mean_um, spread_um = np.asarray(mean_um, float), np.asarray(spread_um, float)
@@ -307,10 +318,13 @@ def verification_errors(
     nominal_rotary_rad: np.ndarray | None = None,
     calibrated_rotary_rad: np.ndarray | None = None,
 ) -> Path:
-    """Verification: per fresh posture, the position error |P_fk - P_measured| of the nominal (square) and the
-    calibrated (circle) parameters, um on a log axis, with the verdict's threshold; below, |rotary error| in urad.
+    """Verification: per fresh posture, the position error |P_fk - P_measured| of the nominal
+    (square) and the calibrated (circle) parameters, um on a log axis, with the verdict's
+    threshold; below, |rotary error| in urad.
 
-    NaN (forward kinematics failed) is drawn as an x on the lower edge; fixed-position postures are filled."""
+    NaN (forward kinematics failed) is drawn as an x on the lower edge; fixed-position postures are
+    filled.
+    """
     nominal_m, calibrated_m = np.asarray(nominal_m, float), np.asarray(calibrated_m, float)
     rotary = nominal_rotary_rad is not None and calibrated_rotary_rad is not None
     fig, axes = plt.subplots(

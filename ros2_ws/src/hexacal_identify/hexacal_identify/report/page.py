@@ -49,10 +49,11 @@ def result_payload(
 ) -> dict:
     """``result.to_json()`` plus the arrays of ``report_data`` (see module doc).
 
-    ``mount``: the device mount (device.py), recorded when given; a report of a file without it takes the
-    side of the device's base joint the poses are on.  ``device_prior``: the DevicePrior the calibration
-    was given (or its ``{name: {value, std}}`` form), recorded as ``device_prior`` beside ``device`` and
-    ``device_std`` (what ``calibrate --json`` prints); the page shows prior and posterior side by side.
+    ``mount``: the device mount (device.py), recorded when given; a report of a file without it
+    takes the side of the device's base joint the poses are on.  ``device_prior``: the DevicePrior
+    the calibration was given (or its ``{name: {value, std}}`` form), recorded as ``device_prior``
+    beside ``device`` and ``device_std`` (what ``calibrate --json`` prints); the page shows prior
+    and posterior side by side.
     """
     payload = result.to_json()
     if device_prior is not None:
@@ -246,12 +247,14 @@ class _Sections:
                 )
         self.link_length = float(data.get('link_length') or DEFAULT_LINK_LENGTH_M)
         self.poses = np.array(data.get('poses') or np.zeros((0, 6)), dtype=float).reshape(-1, 6)
-        # The device mount: recorded, else the side of O the poses are on (standing: the platform above it).
+        # The device mount: recorded, else the side of O the poses are on (standing: the platform
+        # above it).
         self.mount = check_mount(
             data.get('mount')
             or (STANDING if len(self.poses) and np.median(self.poses[:, 2]) > 0 else DEFAULT_MOUNT)
         )
-        # Where the machine works: its architecture's default workspace, on this result's measuring link.
+        # Where the machine works: its architecture's default workspace, on this result's measuring
+        # link.
         self.workspace = replace(
             self.architecture.default_workspace(), link_length=self.link_length
         )
@@ -375,7 +378,9 @@ class _Sections:
         return f"<section><h2>Summary</h2><table class='summary'>{table}</table>{rejected_html}</section>"
 
     def identified(self) -> str:
-        """The identified parameters per chain, in the model's own keys (A0/B/a/l, A/B/l0, ...) and display units."""
+        """The identified parameters per chain, in the model's own keys (A0/B/a/l, A/B/l0, ...) and
+        display units.
+        """
         layout = self.layout
         title = f'Identified parameters: {layout.title}'
         if self.parameters is None:
@@ -406,7 +411,9 @@ class _Sections:
         )
 
     def device_parameters(self) -> str:
-        """Prior (value +- std, or none) and posterior of each identified device parameter, um / urad."""
+        """Prior (value +- std, or none) and posterior of each identified device parameter, um /
+        urad.
+        """
         from ..core.device import DEVICE_PARAMETER_NAMES
 
         title = 'Device parameters: prior and posterior'
@@ -521,8 +528,8 @@ class _Sections:
         verdict = self.data.get('verdict') or _verdict_from_json(identifiability)
         if not singular:
             return self.missing(title, 'the result file has no singular values')
-        from ..core.identifiability import DEFAULT_RANK_TOLERANCE
         from . import figures
+        from ..core.identifiability import DEFAULT_RANK_TOLERANCE
 
         image = self.figure(
             'singular_values.png',
@@ -576,7 +583,8 @@ class _Sections:
         kinds = self.data.get('kinds')
         if (
             kinds is None
-        ):  # not recorded: a posture at [0, 0, -L] ([0, 0, L] standing) within 1 mm was a fixed one
+            # not recorded: a posture at [0, 0, -L] ([0, 0, L] standing) within 1 mm was a fixed one
+        ):
             at_fixed = (
                 np.linalg.norm(poses[:, :3] - fixed_point(self.link_length, self.mount), axis=1)
                 < 1e-3
@@ -592,10 +600,12 @@ class _Sections:
 
 
 def verification_section(verification: dict, figure) -> str:
-    """The verification section: nominal vs calibrated figures, verdict, and the per-posture figure.
+    """The verification section: nominal vs calibrated figures, verdict, and the per-posture
+    figure.
 
     ``verification`` is ``VerificationResult.to_json(per_posture=True)`` (SI units, null for NaN);
-    ``figure(name, draw)`` embeds a PNG (``_Sections.figure``)."""
+    ``figure(name, draw)`` embeds a PNG (``_Sections.figure``).
+    """
     title = 'Verification on fresh postures (no ground truth)'
     sets = {name: verification.get(name) or {} for name in ('nominal', 'calibrated')}
 
@@ -707,7 +717,9 @@ def verification_section(verification: dict, figure) -> str:
 def write_verification_report(
     verification: dict, out_dir: Path | str, *, title: str | None = None
 ) -> Path:
-    """DIR/index.html (+ verification.png) with the verification section alone (``hexacal verify --report``)."""
+    """DIR/index.html (+ verification.png) with the verification section alone (``hexacal verify
+    --report``).
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     verification = _plain(verification)
@@ -755,9 +767,10 @@ def predicted_position_error_map(
 ):
     """(x, y, std) of the linearised position error, sqrt(trace(J_p C J_p^T)), on an x, y grid (m).
 
-    J_p = dP/du at (x, y, -sqrt(L^2 - x^2 - y^2), 0, 0, 0) (+sqrt standing); cells the machine cannot
-    reach (its architecture's default workspace, on this link) are NaN.  Parameters without a
-    variance count as exact.  ``model`` None = the Hexa Slide; ``xy_range_m`` None = the workspace's.
+    J_p = dP/du at (x, y, -sqrt(L^2 - x^2 - y^2), 0, 0, 0) (+sqrt standing); cells the machine
+    cannot reach (its architecture's default workspace, on this link) are NaN.  Parameters without
+    a variance count as exact.  ``model`` None = the Hexa Slide; ``xy_range_m`` None = the
+    workspace's.
     """
     from ..core.kinematics import pose_parameter_sensitivity
     from ..core.postures import acceptable_poses
@@ -819,7 +832,8 @@ figure { margin: 1em 0; } img { max-width: 100%; } figcaption { font-size: 0.8em
 .verdict { font-weight: bold; white-space: pre-wrap; } .note { color: #777; }
 """
 
-# Counts the images that decoded once the page has loaded, for headless checks (works offline: no requests).
+# Counts the images that decoded once the page has loaded, for headless checks (works offline: no
+# requests).
 _IMAGE_CHECK = """
 window.addEventListener('load', function () {
   var images = document.images, loaded = 0;
@@ -831,7 +845,9 @@ window.addEventListener('load', function () {
 
 
 def _dimensionless(layout: ModelLayout) -> list[str]:
-    """Per-chain fields without a unit (the Hexa Slide's rail components ax, ay): shown as 1000 x the value."""
+    """Per-chain fields without a unit (the Hexa Slide's rail components ax, ay): shown as 1000 x
+    the value.
+    """
     return [name for name, unit in zip(layout.fields, layout.field_units) if unit == '1']
 
 

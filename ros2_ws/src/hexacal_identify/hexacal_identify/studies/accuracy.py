@@ -1,6 +1,7 @@
 """The paper's simulation study (section 4), reproduced for any architecture.
 
-* Identifiability of every cost function (the paper claims all 54 parameters of its Hexa Slide for each).
+* Identifiability of every cost function (the paper claims all 54 parameters of its Hexa Slide for
+  each).
 * No noise, 25 postures, nominal sets 1-3: every parameter recovered (Figs. 4-6).
 * Uniform noise of +-5/10/20 um (and urad), 50 postures, nominal set 2: mean pose
   error over 50 fresh validation postures before and after (Table 3, Figs. 7-9),
@@ -42,7 +43,8 @@ PAPER_TABLE3 = {
     10: {'position_m': 12e-6, 'orientation_rad': np.radians(0.005)},
     20: {'position_m': 25e-6, 'orientation_rad': np.radians(0.007)},
 }
-# The paper's numbers belong to the machine it studied: they are printed beside that model's study only.
+# The paper's numbers belong to the machine it studied: they are printed beside that model's study
+# only.
 PAPER_TABLE3_BY_MODEL = {HEXA_SLIDE: PAPER_TABLE3}
 NEEDS_FIXED_POSTURES = ('fixed', 'sphere-fixed', 'relative')
 
@@ -100,7 +102,8 @@ class StudyRun:
     def __post_init__(self) -> None:
         if self.nominal_params is not None and self.nominal_params.model != self.true_params.model:
             raise ValueError(
-                f'the nominal parameters are a {self.nominal_params.model} but the simulated machine '
+                f'the nominal parameters are a {self.nominal_params.model} but the simulated '
+                'machine '
                 f'is a {self.true_params.model}: both must be the same model'
             )
 
@@ -165,7 +168,9 @@ class StudyOutcome:
 
 
 def posture_split(cost: str, total: int) -> tuple[int, int]:
-    """(sphere, fixed) posture counts: the paper's 3:1 split (60 + 20, 30 + 10) where fixed postures are needed."""
+    """(sphere, fixed) posture counts: the paper's 3:1 split (60 + 20, 30 + 10) where fixed
+    postures are needed.
+    """
     if cost == 'fixed':
         return 0, total
     if cost in NEEDS_FIXED_POSTURES:
@@ -219,8 +224,8 @@ def run_calibration(run: StudyRun, options: SolverOptions | None = None) -> Stud
     )
     measurements = simulate_run_measurements(run)
     result = identify(run.nominal(), measurements, options)
-    # Judged in the frames the calibration works in: the device's where it left beta0 / phi0 unidentified
-    # (identical to the true frames for an ideal device), and in the true frames.
+    # Judged in the frames the calibration works in: the device's where it left beta0 / phi0
+    # unidentified (identical to the true frames for an ideal device), and in the true frames.
     frames = calibrated_frames(run.defects, result.free_device)
     validation = validation_poses(
         run.true_params, run.validation_postures, run.seed, run.resolved_workspace
@@ -251,7 +256,8 @@ def identifiability_by_cost(
     device: DeviceModel = DeviceModel(),
     model: str | None = None,
 ) -> list[CostIdentifiability]:
-    """Rank of the identification Jacobian of each cost function at the true parameters, exact data.
+    """Rank of the identification Jacobian of each cost function at the true parameters, exact
+    data.
 
     ``true_params`` defaults to the default machine of ``model`` (default: the Table 1 Hexa Slide).
     """

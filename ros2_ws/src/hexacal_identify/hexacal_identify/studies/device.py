@@ -50,7 +50,8 @@ def _rotation_z(angle: float) -> np.ndarray:
 def device_frame_truth(
     true_params: KinematicParameters, defects: DeviceDefects
 ) -> KinematicParameters:
-    """The true machine in the device-defined frames: base turned by -beta0 about Y, platform by phi0 about z'.
+    """The true machine in the device-defined frames: base turned by -beta0 about Y, platform by
+    phi0 about z'.
 
     A reading beta + beta0 puts the measured position at R_Y(-beta0) p (eq. 4), so
     the device's base frame is the true one turned by -beta0 about Y; a rotary
@@ -63,7 +64,9 @@ def device_frame_truth(
 
 
 def calibrated_frames(defects: DeviceDefects, identified: tuple[str, ...]) -> DeviceDefects:
-    """The frame-defining defects a calibration leaves in its frames: beta0 and phi0 unless it identified them."""
+    """The frame-defining defects a calibration leaves in its frames: beta0 and phi0 unless it
+    identified them.
+    """
     return DeviceDefects(
         beta0=0.0 if 'beta0' in identified else defects.beta0,
         phi0=0.0 if 'phi0' in identified else defects.phi0,
@@ -71,7 +74,9 @@ def calibrated_frames(defects: DeviceDefects, identified: tuple[str, ...]) -> De
 
 
 def device_frame_poses(poses: np.ndarray, defects: DeviceDefects) -> np.ndarray:
-    """Poses in the device frames: R_Y(-beta0) P, and R_Y(-beta0) R R_z(phi0) = angles (theta - beta0, psi, phi + phi0)."""
+    """Poses in the device frames: R_Y(-beta0) P, and R_Y(-beta0) R R_z(phi0) = angles (theta -
+    beta0, psi, phi + phi0).
+    """
     converted = np.array(poses, dtype=float)
     converted[:, :3] = poses[:, :3] @ _rotation_y(-defects.beta0).T
     converted[:, 3] -= defects.beta0
@@ -194,9 +199,11 @@ def compare_methods(
     true_params: KinematicParameters | None = None,
     model: str | None = None,
 ) -> list[MethodOutcome]:
-    """Every method of METHODS on the same machine, procedure and seeds; pose errors in the device frames.
+    """Every method of METHODS on the same machine, procedure and seeds; pose errors in the device
+    frames.
 
-    The machine is ``true_params``, else the default machine of ``model`` (default: the Table 1 Hexa Slide).
+    The machine is ``true_params``, else the default machine of ``model`` (default: the Table 1
+    Hexa Slide).
     """
     if true_params is None:
         true_params = default_parameters(model)

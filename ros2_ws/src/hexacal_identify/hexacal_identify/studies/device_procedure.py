@@ -1,4 +1,5 @@
-"""An imperfect device at no cost: prior knowledge, a turning procedure, and the joint estimator's limit.
+"""An imperfect device at no cost: prior knowledge, a turning procedure, and the joint estimator's
+limit.
 
 Why the defects hurt.  Over the sphere postures a 54-parameter machine can
 imitate any smooth, nearly affine distortion of its workspace, and that is what
@@ -40,6 +41,7 @@ from typing import Callable
 
 import numpy as np
 
+from .device import DEFAULT_DEFECTS, device_frame_poses, device_frame_truth, simulate_procedure
 from ..core.architectures import default_parameters, KinematicParameters
 from ..core.device import (
     DEVICE_PARAMETER_NAMES,
@@ -57,7 +59,6 @@ from ..core.measurements import Measurements, NoiseModel, simulate_measurements
 from ..core.model import nominal_set
 from ..core.uncertainty import predicted_pose_errors
 from ..core.validation import pose_errors, validation_poses
-from .device import DEFAULT_DEFECTS, device_frame_poses, device_frame_truth, simulate_procedure
 
 PROCEDURES = TURNING_PROCEDURES  # device turns of each procedure, rad (core.device)
 RECOMMENDED_PROCEDURE = 'quarter-turns'
@@ -69,7 +70,9 @@ PLAN_CANDIDATES = 1000  # candidate postures of a planned row, each offered in e
 
 
 def procedure_turns(procedure: str, postures: int) -> np.ndarray | None:
-    """The device turn of each of ``postures`` postures (rad): consecutive blocks per turn; None for 'none'."""
+    """The device turn of each of ``postures`` postures (rad): consecutive blocks per turn; None
+    for 'none'.
+    """
     turns = turns_of(procedure)
     if len(turns) == 1:
         return None
@@ -90,8 +93,10 @@ def simulate_device_run(
     fixed: int = 0,
     device: DeviceModel = DeviceModel(),
 ) -> Measurements:
-    """``postures`` postures: ``fixed`` fixed-position ones (normal mounting), the others sphere postures shared
-    out over the ``procedure``'s turns (``device.simulate_procedure``: the true sphere L + dL, distinct poses)."""
+    """``postures`` postures: ``fixed`` fixed-position ones (normal mounting), the others sphere
+    postures shared out over the ``procedure``'s turns (``device.simulate_procedure``: the true
+    sphere L + dL, distinct poses).
+    """
     sphere = postures - fixed
     return simulate_procedure(
         true_params,
@@ -115,7 +120,9 @@ def plan_for(
     device_prior: DevicePrior = DevicePrior(),
     candidates: int = PLAN_CANDIDATES,
 ):
-    """The planner's choice on the nominal machine: I-optimal with the device columns, priors and turns."""
+    """The planner's choice on the nominal machine: I-optimal with the device columns, priors and
+    turns.
+    """
     from ..core.planning import plan_postures, PREDICTION
 
     return plan_postures(
@@ -142,9 +149,12 @@ def simulate_planned_run(
     prior: DevicePrior,
     device: DeviceModel = DeviceModel(),
 ) -> Measurements:
-    """The planned postures on the true machine: the link of true length L + dL puts each planned position on
-    its own sphere (radially scaled), the device turned as the plan says."""
-    # The planner knows the prior's std but not the instrument's reading: plan with the nominal value.
+    """The planned postures on the true machine: the link of true length L + dL puts each planned
+    position on
+    its own sphere (radially scaled), the device turned as the plan says.
+    """
+    # The planner knows the prior's std but not the instrument's reading: plan with the nominal
+    # value.
     planning_prior = DevicePrior(tuple((name, 0.0, std) for name, _, std in prior.entries))
     plan = plan_for(nominal, postures, noise_um, seed, row.identify, row.procedure, planning_prior)
     poses = plan.poses.copy()
@@ -165,7 +175,9 @@ def simulate_planned_run(
 def caliper_prior(
     defects: DeviceDefects, caliper: tuple[tuple[str, float], ...], seed: int
 ) -> DevicePrior:
-    """Priors as a user would have them: each instrument reads the true value with its own N(0, std) error."""
+    """Priors as a user would have them: each instrument reads the true value with its own N(0,
+    std) error.
+    """
     rng = np.random.default_rng([seed, 0xCA1])
     return DevicePrior(
         tuple((name, getattr(defects, name) + rng.normal(0.0, std), std) for name, std in caliper)
@@ -185,7 +197,8 @@ class DeviceRow:
     weighted: bool = (
         True  # residuals whitened by the known noise (the paper's relative cost: unweighted)
     )
-    planned: bool = False  # postures (and their turns) chosen by the planner (I-optimal, device columns) per seed
+    # postures (and their turns) chosen by the planner (I-optimal, device columns) per seed
+    planned: bool = False
     defective: bool = True
     claim: str = ''  # "prior" or "procedure": the issue's claim this row is judged on
 
@@ -270,7 +283,9 @@ def run_row(
     noise_um: float = 10.0,
     progress: Callable[[str], None] = lambda _: None,
 ) -> RowOutcome:
-    """``row`` over ``seeds``: weighted by the known noise, validated on 50 fresh postures in both frames."""
+    """``row`` over ``seeds``: weighted by the known noise, validated on 50 fresh postures in both
+    frames.
+    """
     used = defects if row.defective else DeviceDefects()
     outcome = RowOutcome(row)
     noise = NoiseModel.from_microns(noise_um)
@@ -319,8 +334,10 @@ def run_row(
 
 @dataclass
 class Claim:
-    """One of the issue's claims on a row: its error / the defect-free one of the same seeds (random postures,
-    the baseline the issue measured), and / an ideal device calibrated the same way (its own plan)."""
+    """One of the issue's claims on a row: its error / the defect-free one of the same seeds
+    (random postures, the baseline the issue measured), and / an ideal device calibrated the same
+    way (its own plan).
+    """
 
     text: str
     value: float  # / the ideal device with random postures
@@ -337,7 +354,9 @@ class Claim:
 
 
 def claims(outcomes: list[RowOutcome]) -> list[Claim]:
-    """The issue's claims on the table: caliper prior within 1.5x (device frames), procedure within 1.5x (true frames)."""
+    """The issue's claims on the table: caliper prior within 1.5x (device frames), procedure within
+    1.5x (true frames).
+    """
     references = {
         o.row.planned: o.mean(o.true_frame_position_m) for o in outcomes if not o.row.defective
     }
@@ -348,13 +367,15 @@ def claims(outcomes: list[RowOutcome]) -> list[Claim]:
         if outcome.row.claim == 'prior':
             error = outcome.mean(outcome.device_frame_position_m)
             text = (
-                f'{outcome.row.label}, no procedure: position within {CLAIM_RATIO}x the defect-free one '
+                f'{outcome.row.label}, no procedure: position within {CLAIM_RATIO}x the '
+                'defect-free one '
                 '(device frames: without a procedure beta0 is a frame definition)'
             )
         elif outcome.row.claim == 'procedure':
             error = outcome.mean(outcome.true_frame_position_m)
             text = (
-                f'{outcome.row.label}, no prior: position within {CLAIM_RATIO}x the defect-free one '
+                f'{outcome.row.label}, no prior: position within {CLAIM_RATIO}x the defect-free '
+                'one '
                 '(true frames, every beta0 and phi0 effect included)'
             )
         else:
@@ -381,7 +402,9 @@ def device_table(
 
 @dataclass
 class EfficiencySummary:
-    """Monte Carlo of the joint estimator against its Cramer-Rao bound (same postures, noise seeds vary)."""
+    """Monte Carlo of the joint estimator against its Cramer-Rao bound (same postures, noise seeds
+    vary).
+    """
 
     seeds: int
     procedure: str
@@ -413,7 +436,8 @@ def estimator_efficiency(
     true_params: KinematicParameters | None = None,
     progress: Callable[[str], None] = lambda _: None,
 ) -> EfficiencySummary:
-    """The joint problem (``procedure``, ``identified`` device parameters) repeated over noise seeds.
+    """The joint problem (``procedure``, ``identified`` device parameters) repeated over noise
+    seeds.
 
     The estimator's target is the true machine in the frames it calibrates in (the
     device's where beta0 or phi0 is not identified); the CRB is the covariance of the
@@ -471,7 +495,9 @@ def estimator_efficiency(
 
 
 def _with_noise(exact: Measurements, noise: NoiseModel, seed: int) -> Measurements:
-    """``exact`` readings with fresh uniform noise of ``noise`` (the same postures, another noise draw)."""
+    """``exact`` readings with fresh uniform noise of ``noise`` (the same postures, another noise
+    draw).
+    """
     rng = np.random.default_rng([seed, 0xEFF])
     n = len(exact)
     sliders = exact.slider_positions + rng.uniform(-noise.slider_m, noise.slider_m, (n, 6))

@@ -1,4 +1,5 @@
-"""``hexacal study --plan``: accuracy versus number of postures, planned against random, over seeds.
+"""``hexacal study --plan``: accuracy versus number of postures, planned against random, over
+seeds.
 
 For each seed the machine, its nominal model, the noise and the 50 validation
 postures are those of ``studies.accuracy`` (``StudyRun``, on the default machine of
@@ -23,6 +24,7 @@ from typing import Callable
 from hexacal_msgs_py.models import DEFAULT_MODEL
 import numpy as np
 
+from .accuracy import run_calibration, study_truth, StudyOutcome, StudyRun
 from ..core.errors import CalibrationError
 from ..core.identification import identify, SolverOptions
 from ..core.measurements import NoiseModel, simulate_measurements
@@ -35,7 +37,6 @@ from ..core.planning import (
     PREDICTION,
 )
 from ..core.validation import pose_errors, validation_poses
-from .accuracy import run_calibration, study_truth, StudyOutcome, StudyRun
 
 DEFAULT_KS = (15, 20, 25, 30, 40, 50)
 REFERENCE_RANDOM_POSTURES = 50
@@ -44,7 +45,9 @@ UM = 1e6
 
 
 def add_arguments(parser) -> None:
-    """Options of ``hexacal study --plan`` (it also uses --seed, --noise-um, --cost, --nominal-set, --out, --json)."""
+    """Options of ``hexacal study --plan`` (it also uses --seed, --noise-um, --cost, --nominal-set,
+    --out, --json).
+    """
     group = parser.add_argument_group('posture planning study (--plan)')
     group.add_argument(
         '--plan',
@@ -83,7 +86,8 @@ class PlanningStudy:
     index: str
     method: str
     model: str = DEFAULT_MODEL
-    # variant -> (len(ks), len(seeds)) mean validation position error, m; NaN where the calibration failed
+    # variant -> (len(ks), len(seeds)) mean validation position error, m; NaN where the calibration
+    # failed
     position_error_m: dict[str, np.ndarray] = field(default_factory=dict)
     orientation_error_rad: dict[str, np.ndarray] = field(default_factory=dict)
     failures: dict[str, list[str]] = field(default_factory=dict)
@@ -163,7 +167,9 @@ def _nan_to_none(values) -> list:
 
 
 def calibrate_at(run: StudyRun, poses: np.ndarray, kinds: np.ndarray) -> StudyOutcome:
-    """``run_calibration`` with given postures instead of random ones (same noise model, solver, validation)."""
+    """``run_calibration`` with given postures instead of random ones (same noise model, solver,
+    validation).
+    """
     rng = np.random.default_rng([run.seed, len(poses), 0x9EA5])
     measurements = simulate_measurements(
         run.true_params, poses, kinds, run.device, NoiseModel.from_microns(run.noise_um), rng
@@ -180,7 +186,9 @@ def calibrate_at(run: StudyRun, poses: np.ndarray, kinds: np.ndarray) -> StudyOu
 def planned_variants(
     index: str, cost: str, noise_um: float
 ) -> dict[str, tuple[str, NoiseModel | None]]:
-    """name -> (index, noise weighting): the index asked for, weighted and not, and the I-optimal plan."""
+    """Name -> (index, noise weighting): the index asked for, weighted and not, and the I-optimal
+    plan.
+    """
     noise = NoiseModel.from_microns(
         noise_um if noise_um > 0 else 1.0
     )  # only the actuator/angle ratio matters
@@ -211,7 +219,8 @@ def planned_vs_random(
 ) -> PlanningStudy:
     """Validation error vs K for random postures and the planned variants (``planned_variants``).
 
-    The machine: ``true_params``, else the default machine of ``model`` (default: the Table 1 Hexa Slide).
+    The machine: ``true_params``, else the default machine of ``model`` (default: the Table 1 Hexa
+    Slide).
     """
     truth = study_truth(true_params, model)
     ks = sorted(set(int(k) for k in ks) | {REFERENCE_RANDOM_POSTURES})
@@ -353,9 +362,11 @@ def _print_table(study: PlanningStudy) -> None:
     from ..core.architectures import architecture
 
     print(
-        f'Planned vs random postures, {architecture(study.model).layout.title}: mean validation position error '
+        f'Planned vs random postures, {architecture(study.model).layout.title}: mean validation '
+        'position error '
         f'[um] over {len(study.seeds)} seeds '
-        f'(mean +- std; failed calibrations in brackets), +-{study.noise_um:g} um noise, cost {study.cost}, '
+        f'(mean +- std; failed calibrations in brackets), +-{study.noise_um:g} um noise, cost '
+        f'{study.cost}, '
         f'index {study.index}, {study.method}:'
     )
     print(f'  {"K":>3} ' + ' '.join(f'{name:>26}' for name in names))
@@ -380,5 +391,6 @@ def _print_table(study: PlanningStudy) -> None:
         )
         print(
             f'  claim ({name}): {REFERENCE_RANDOM_POSTURES} random postures give '
-            f'{claim["reference_position_mean_m"] * UM:.1f} um; {reached} -> K <= {claim["limit_k"]} {verdict}'
+            f'{claim["reference_position_mean_m"] * UM:.1f} um; {reached} -> K <= '
+            f'{claim["limit_k"]} {verdict}'
         )
