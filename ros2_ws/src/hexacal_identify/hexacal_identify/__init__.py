@@ -1,3 +1,1 @@
-"""hexacal_identify: the calibration core (``hexacal_identify.core``, ROS-free), bag I/O and the
-nodes.
-"""
+"""The calibration core (``hexacal_identify.core``, ROS-free), bag I/O, the nodes and the CLI."""

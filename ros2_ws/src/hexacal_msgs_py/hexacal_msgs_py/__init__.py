@@ -1,4 +1,5 @@
-"""hexacal interface contract: names, readings, errors, conversions, parameter files.
+"""
+hexacal interface contract: names, readings, errors, conversions, parameter files.
 
 This module and names, readings, errors and parameters_file are ROS-free;
 qos imports rclpy and conversions imports the message packages, so import

@@ -1,4 +1,5 @@
-"""Conversions between ROS messages and hexacal contract types.
+"""
+Conversions between ROS messages and hexacal contract types.
 
 Imports the message packages but not rclpy, so it works in offline tools
 (e.g. bag processing). Joints are looked up by name: order does not matter and
@@ -64,7 +65,11 @@ ModelArgument = str | ModelLayout | None  # a model name or layout; None: the He
 
 
 def layout_of(model: ModelArgument = None) -> ModelLayout:
-    """The layout `model` names (None: the Hexa Slide; an unknown name: InvalidParametersError)."""
+    """
+    Return the layout `model` names.
+
+    The layout `model` names (None: the Hexa Slide; an unknown name: InvalidParametersError).
+    """
     if isinstance(model, ModelLayout):
         return model
     return model_layout(DEFAULT_MODEL if model is None else model)
@@ -133,7 +138,11 @@ def _joint_positions(msg: JointState, names: Sequence[str], what: str) -> list[f
 
 
 def _device_turn(msg: JointState, what: str) -> float:
-    """The optional DEVICE_TURN_JOINT position of `msg` (rad); 0.0 when the joint is absent."""
+    """
+    Return the optional DEVICE_TURN_JOINT position of `msg` (rad).
+
+    The optional DEVICE_TURN_JOINT position of `msg` (rad); 0.0 when the joint is absent.
+    """
     names = list(msg.name)
     if DEVICE_TURN_JOINT not in names:
         return 0.0
@@ -161,8 +170,10 @@ def _joint_state(
 
 
 def actuator_model(names: Sequence[str]) -> ModelLayout | None:
-    """The model whose six actuator joints all appear in `names` (a JointState's name list), or
-    None.
+    """
+    Return the model whose six actuator joints all appear in `names`.
+
+    The model whose six actuator joints all appear in `names` (a JointState's name list), or None.
     """
     return model_for_actuator_names(names)
 
@@ -170,7 +181,10 @@ def actuator_model(names: Sequence[str]) -> ModelLayout | None:
 def joint_state_to_slider_reading(
     msg: JointState, model: ModelArgument = None, mapping: InputMapping | None = None
 ) -> SliderReading:
-    """JointState with the model's actuator joints (m) -> SliderReading.
+    """
+    Convert a JointState with the model's actuator joints (m) to a SliderReading.
+
+    JointState with the model's actuator joints (m) -> SliderReading.
 
     Hexa Slide (default): slider_1..slider_6; Gough-Stewart: leg_1..leg_6; with a
     `mapping`, its actuator_joints (in chain order) instead.
@@ -183,7 +197,10 @@ def joint_state_to_slider_reading(
 def joint_state_to_inclinometer_reading(
     msg: JointState, mapping: InputMapping | None = None
 ) -> InclinometerReading:
-    """JointState with joints inclinometer_x (alpha), inclinometer_y (beta) (rad).
+    """
+    Convert a JointState with the inclinometer joints (rad) to a reading.
+
+    JointState with joints inclinometer_x (alpha), inclinometer_y (beta) (rad).
 
     With a `mapping`: its inclinometer_joints, then its signs and offsets
     (alpha = sign * (position - offset), inputs.py). The optional joint
@@ -202,7 +219,10 @@ def joint_state_to_inclinometer_reading(
 def imu_to_inclinometer_reading(
     msg: Imu, mapping: InputMapping | None = None
 ) -> InclinometerReading:
-    """sensor_msgs/Imu -> InclinometerReading: alpha, beta from the orientation (inputs.py's
+    """
+    Convert a sensor_msgs/Imu to an InclinometerReading.
+
+    sensor_msgs/Imu -> InclinometerReading: alpha, beta from the orientation (inputs.py's
     convention), then the mapping's signs and offsets.
 
     An Imu without an orientation estimate (orientation_covariance[0] = -1) or whose
@@ -223,7 +243,10 @@ def inclinometer_angles_to_imu(
     mapping: InputMapping | None = None,
     yaw: float = 0.0,
 ) -> Imu:
-    """An Imu whose orientation reads as `reading` (after the mapping's signs and offsets), with
+    """
+    Return an Imu whose orientation reads as `reading`.
+
+    An Imu whose orientation reads as `reading` (after the mapping's signs and offsets), with
     heading `yaw`: what a simulated IMU on the link publishes. Only the orientation is filled;
     angular velocity and linear acceleration are marked unknown (covariance[0] = -1).
     """
@@ -244,14 +267,21 @@ def inclinometer_angles_to_imu(
 def joint_state_to_encoder_reading(
     msg: JointState, mapping: InputMapping | None = None
 ) -> EncoderReading:
-    """JointState with joint rotary (phi, rad) -> EncoderReading (the mapping's rotary_joint)."""
+    """
+    Convert a JointState with the rotary joint (rad) to an EncoderReading.
+
+    JointState with joint rotary (phi, rad) -> EncoderReading (the mapping's rotary_joint).
+    """
     names = ENCODER_NAMES if mapping is None else (mapping.rotary_joint,)
     (phi,) = _joint_positions(msg, names, 'encoder')
     return EncoderReading(stamp_ns(msg.header.stamp), phi)
 
 
 def joint_state_to_posture_reading(msg: JointState, model: ModelArgument = None) -> PostureReading:
-    """JointState with all of the model's posture joints -> PostureReading.
+    """
+    Convert a JointState with all of the model's posture joints to a PostureReading.
+
+    JointState with all of the model's posture joints -> PostureReading.
 
     The posture joints are the six actuators of the model (Hexa Slide, the
     default: slider_1..6; Gough-Stewart: leg_1..6), then inclinometer_x,
@@ -266,7 +296,11 @@ def joint_state_to_posture_reading(msg: JointState, model: ModelArgument = None)
 def slider_reading_to_joint_state(
     reading: SliderReading, frame_id: str = '', model: ModelArgument = None
 ) -> JointState:
-    """SliderReading -> JointState with the model's actuator joints (default slider_1..6)."""
+    """
+    Convert a SliderReading to a JointState with the model's actuator joints.
+
+    SliderReading -> JointState with the model's actuator joints (default slider_1..6).
+    """
     return _joint_state(
         reading.stamp_ns, layout_of(model).actuator_names, reading.slider_positions, frame_id
     )
@@ -275,8 +309,10 @@ def slider_reading_to_joint_state(
 def inclinometer_reading_to_joint_state(
     reading: InclinometerReading, frame_id: str = ''
 ) -> JointState:
-    """InclinometerReading -> JointState inclinometer_x, inclinometer_y (and device_turn if
-    non-zero).
+    """
+    Convert an InclinometerReading to a JointState.
+
+    InclinometerReading -> JointState inclinometer_x, inclinometer_y (and device_turn if non-zero).
     """
     names, values = _with_turn(
         INCLINOMETER_NAMES, (reading.alpha, reading.beta), reading.device_turn
@@ -291,8 +327,11 @@ def encoder_reading_to_joint_state(reading: EncoderReading, frame_id: str = '') 
 def posture_reading_to_joint_state(
     reading: PostureReading, frame_id: str = '', model: ModelArgument = None
 ) -> JointState:
-    """PostureReading -> JointState with the model's posture joints (default: the Hexa Slide's),
-    then device_turn when the reading's device_turn is non-zero.
+    """
+    Convert a PostureReading to a JointState with the model's posture joints.
+
+    PostureReading -> JointState with the model's posture joints (default: the Hexa Slide's), then
+    device_turn when the reading's device_turn is non-zero.
     """
     names, values = _with_turn(
         layout_of(model).posture_names, reading.values(), reading.device_turn
@@ -301,7 +340,8 @@ def posture_reading_to_joint_state(
 
 
 def parameters_to_multiarray(vector: object, model: ModelArgument = None) -> Float64MultiArray:
-    """Parameter vector -> Float64MultiArray with a chain x field layout.
+    """
+    Parameter vector -> Float64MultiArray with a chain x field layout.
 
     `model` defaults to the one model of the vector's size (54: Hexa Slide,
     6 x 9; 42: Gough-Stewart, 6 x 7); the dimension labels name the fields.
@@ -320,7 +360,11 @@ def parameters_to_multiarray(vector: object, model: ModelArgument = None) -> Flo
 
 
 def multiarray_model(msg: Float64MultiArray) -> ModelLayout:
-    """The model whose layout a parameters message carries (InvalidParametersError if none)."""
+    """
+    Return the model whose layout a parameters message carries.
+
+    The model whose layout a parameters message carries (InvalidParametersError if none).
+    """
     layout = tuple((d.label, d.size, d.stride) for d in msg.layout.dim)
     if layout not in _MODEL_OF_PARAMETERS_LAYOUT:
         expected = ' or '.join(f'{parameters_layout(m)} ({m.name})' for m in MODELS.values())
@@ -331,7 +375,8 @@ def multiarray_model(msg: Float64MultiArray) -> ModelLayout:
 
 
 def multiarray_to_parameters(msg: Float64MultiArray, model: ModelArgument = None) -> np.ndarray:
-    """Float64MultiArray from parameters_to_multiarray() -> parameter vector (checked).
+    """
+    Float64MultiArray from parameters_to_multiarray() -> parameter vector (checked).
 
     Without `model` the layout of any known model is accepted (multiarray_model
     tells which); with `model`, only that model's.
@@ -388,7 +433,10 @@ def diagnostic_status(
     hardware_id: str = '',
     stamp: int | None = None,
 ) -> DiagnosticArray:
-    """DiagnosticArray holding one DiagnosticStatus; values become KeyValue strings.
+    """
+    Return a DiagnosticArray holding one DiagnosticStatus.
+
+    DiagnosticArray holding one DiagnosticStatus; values become KeyValue strings.
 
     `level` is DiagnosticStatus.OK/WARN/ERROR/STALE, 0..3 or 'OK'..'STALE';
     `stamp` is in ns (the header stamp is left at zero when None).
@@ -408,5 +456,5 @@ def diagnostic_status(
 
 
 def status_values(status: DiagnosticStatus) -> dict[str, str]:
-    """KeyValue list of a DiagnosticStatus -> dict."""
+    """Return the KeyValue list of a DiagnosticStatus as a dict."""
     return {kv.key: kv.value for kv in status.values}

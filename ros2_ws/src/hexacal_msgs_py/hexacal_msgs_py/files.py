@@ -1,4 +1,5 @@
-"""Atomic file writes (ROS-free): readers see the old file or the new one, never a partial one.
+"""
+Atomic file writes (ROS-free): readers see the old file or the new one, never a partial one.
 
 Also the one YAML text loader (parameters files, posture plans, bag metadata):
 libyaml's parser when PyYAML has it, else PyYAML's pure-Python one.
@@ -22,8 +23,10 @@ _NESTING_INDICATORS = '[{-:?'
 
 
 def load_yaml_text(text: str, loader: type | None = None, fast_loader: type | None = None) -> Any:
-    """``yaml.load(text, Loader=loader)``, through ``fast_loader`` (a libyaml twin of it) when
-    safe.
+    """
+    Load YAML text, through libyaml when safe.
+
+    ``yaml.load(text, Loader=loader)``, through ``fast_loader`` (a libyaml twin of it) when safe.
 
     Default: ``yaml.SafeLoader`` and ``yaml.CSafeLoader``.  The fast loader is
     used when PyYAML has libyaml and the text cannot nest more than about
@@ -40,11 +43,13 @@ def load_yaml_text(text: str, loader: type | None = None, fast_loader: type | No
         and sum(text.count(c) for c in _NESTING_INDICATORS) < MAX_LIBYAML_INDICATORS
     ):
         loader = fast_loader
-    return yaml.load(text, Loader=loader)  # noqa: S506 - a safe loader (SafeLoader, CSafeLoader or subclasses)
+    # A safe loader (SafeLoader, CSafeLoader or subclasses).
+    return yaml.load(text, Loader=loader)  # noqa: S506
 
 
 def atomic_write(target: Path | str, content: str | bytes) -> Path:
-    """Write via a temp file in the same directory, fsync, os.replace, fsync of the directory.
+    """
+    Write via a temp file in the same directory, fsync, os.replace, fsync of the directory.
 
     An existing file keeps its permissions; a new one gets DEFAULT_FILE_MODE.
     OSError propagates (the caller names the file in its own error); no temp file is left behind.

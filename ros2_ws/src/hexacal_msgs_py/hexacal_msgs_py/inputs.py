@@ -1,5 +1,7 @@
-"""Where the collector's readings come from: topics, joint names, the inclinometer convention
-(ROS-free).
+"""
+Where the collector's readings come from (ROS-free).
+
+Topics, joint names, the inclinometer convention (ROS-free).
 
 A real machine's drivers publish under their own names. The collector reads the
 six actuator values, the two inclinometer angles and the rotary angle from any
@@ -131,7 +133,8 @@ def _finite(name: str, value: object) -> float:
 def quaternion_to_inclinometer_angles(
     x: float, y: float, z: float, w: float
 ) -> tuple[float, float]:
-    """(alpha, beta) in rad of an orientation quaternion (x, y, z, w), by the module's convention.
+    """
+    (alpha, beta) in rad of an orientation quaternion (x, y, z, w), by the module's convention.
 
     The quaternion must be finite and of unit norm (within QUATERNION_NORM_TOLERANCE; it is
     normalised), else InvalidReadingError, e.g. for the all-zero orientation of an IMU that
@@ -155,8 +158,10 @@ def quaternion_to_inclinometer_angles(
 def inclinometer_angles_to_quaternion(
     alpha: float, beta: float, yaw: float = 0.0
 ) -> tuple[float, float, float, float]:
-    """The orientation (x, y, z, w) of an IMU on the link that reads (alpha, beta): R_Z(yaw)
-    R_Y(-beta) R_X(-alpha).
+    """
+    Return the orientation (x, y, z, w) of an IMU on the link that reads (alpha, beta).
+
+    R_Z(yaw) R_Y(-beta) R_X(-alpha).
 
     The inverse of `quaternion_to_inclinometer_angles` for |alpha| < pi, |beta| < pi/2 (any yaw):
     what a simulated or test IMU publishes.
@@ -181,7 +186,8 @@ def inclinometer_angles_to_quaternion(
 def imu_inclinometer_angles(
     orientation: Sequence[float], orientation_covariance_0: float = 0.0
 ) -> tuple[float, float]:
-    """(alpha, beta) of an Imu's orientation (x, y, z, w) before signs and offsets.
+    """
+    (alpha, beta) of an Imu's orientation (x, y, z, w) before signs and offsets.
 
     sensor_msgs/Imu marks "no orientation estimate" with orientation_covariance[0] = -1:
     InvalidReadingError, as for a quaternion that is not a finite unit one.
@@ -228,7 +234,8 @@ def _numbers(parameter: str, value: object) -> tuple[float, float]:
 
 @dataclass(frozen=True)
 class InputMapping:
-    """Which joints of which topics are the readings, and how the inclinometer is read.
+    """
+    Which joints of which topics are the readings, and how the inclinometer is read.
 
     ``topics`` are the topics the three inputs were taken from (sliders, inclinometer,
     encoder; resolved names as recorded, e.g. all three '/joint_states'), '' where not
@@ -284,11 +291,19 @@ class InputMapping:
     def default(
         cls, model: str | None = None, topics: Sequence[str] = ('', '', '')
     ) -> InputMapping:
-        """The contract's joints: `model`'s actuators, inclinometer_x/_y, rotary."""
+        """
+        Return the contract's joints.
+
+        `model`'s actuators, inclinometer_x/_y, rotary.
+        """
         return cls(model_layout(model or DEFAULT_MODEL).actuator_names, topics=tuple(topics))
 
     def _check_shared_topics(self) -> None:
-        """Inputs read from one topic are one message: one type, every joint named once."""
+        """
+        Check that inputs read from one topic are one message.
+
+        One type, every joint named once.
+        """
         sliders, inclinometer, encoder = self.topics
         imu = self.inclinometer_type == IMU_INCLINOMETER
         if imu and inclinometer and inclinometer in (sliders, encoder):
@@ -321,7 +336,11 @@ class InputMapping:
     # ------------------------------------------------------------------ reading
 
     def input_joints(self, input_topic: str) -> tuple[str, ...]:
-        """The joints a JointState input carries (by contract topic); () for an Imu inclinometer."""
+        """
+        Return the joints a JointState input carries.
+
+        The joints a JointState input carries (by contract topic); () for an Imu inclinometer.
+        """
         if input_topic == SLIDERS_TOPIC:
             return self.actuator_joints
         if input_topic == INCLINOMETER_TOPIC:
@@ -331,11 +350,15 @@ class InputMapping:
         raise KeyError(input_topic)
 
     def input_topic(self, input_topic: str) -> str:
-        """The topic an input was taken from ('' if not known)."""
+        """Return the topic an input was taken from ('' if not known)."""
         return self.topics[INPUT_TOPICS.index(input_topic)]
 
     def inclinometer_angles(self, raw_alpha: float, raw_beta: float) -> tuple[float, float]:
-        """hexacal's (alpha, beta) from the sensor's raw angles: sign * (raw - offset) per channel."""
+        """
+        Return hexacal's (alpha, beta) from the sensor's raw angles.
+
+        Sign * (raw - offset) per channel.
+        """
         (sign_a, sign_b), (offset_a, offset_b) = (
             self.inclinometer_signs,
             self.inclinometer_offsets_rad,
@@ -343,8 +366,10 @@ class InputMapping:
         return sign_a * (raw_alpha - offset_a), sign_b * (raw_beta - offset_b)
 
     def raw_inclinometer(self, alpha: float, beta: float) -> tuple[float, float]:
-        """The sensor's raw angles that read as hexacal's (alpha, beta) (the inverse, for
-        simulators).
+        """
+        Return the sensor's raw angles that read as hexacal's (alpha, beta).
+
+        The sensor's raw angles that read as hexacal's (alpha, beta) (the inverse, for simulators).
         """
         (sign_a, sign_b), (offset_a, offset_b) = (
             self.inclinometer_signs,
@@ -353,13 +378,21 @@ class InputMapping:
         return sign_a * alpha + offset_a, sign_b * beta + offset_b
 
     def is_contract(self, model: str | None = None) -> bool:
-        """True if the joints, type, signs and offsets are the contract's (topics aside)."""
+        """
+        Return True if the joints, type, signs and offsets are the contract's.
+
+        True if the joints, type, signs and offsets are the contract's (topics aside).
+        """
         return self == InputMapping.default(model, self.topics)
 
     # ------------------------------------------------------------------ bag metadata
 
     def to_metadata(self) -> dict[str, str]:
-        """The mapping as the string map of a bag metadata record (MAPPING_KEYS; lists as JSON)."""
+        """
+        Return the mapping as the string map of a bag metadata record.
+
+        The mapping as the string map of a bag metadata record (MAPPING_KEYS; lists as JSON).
+        """
         return {
             'actuator_joints': json.dumps(list(self.actuator_joints)),
             'inclinometer_joints': json.dumps(list(self.inclinometer_joints)),
@@ -374,9 +407,12 @@ class InputMapping:
     def from_metadata(
         cls, record: Mapping[str, str], model: str | None = None
     ) -> InputMapping | None:
-        """The mapping a bag metadata record holds, None if it holds none (a bag recorded before
-        mappings existed: read as the contract's names and topics). Missing keys take the
-        defaults; a value that does not parse is an InputMappingError naming its key.
+        """
+        Return the mapping a bag metadata record holds, None if it holds none.
+
+        The mapping a bag metadata record holds, None if it holds none (a bag recorded before
+        mappings existed: read as the contract's names and topics). Missing keys take the defaults;
+        a value that does not parse is an InputMappingError naming its key.
         """
         if not any(key in record for key in MAPPING_KEYS):
             return None

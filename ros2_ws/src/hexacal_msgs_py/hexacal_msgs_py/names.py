@@ -1,9 +1,10 @@
-"""Topic, service, joint and parameter names of the hexacal contract (ROS-free).
+"""
+Topic, service, joint and parameter names of the hexacal contract (ROS-free).
 
 Topic and service names are relative so that a node's namespace applies.
 """
 
-from hexacal_msgs_py.models import (
+from hexacal_msgs_py.models import (  # noqa: F401 (re-exported contract names)
     DEFAULT_MODEL,
     DEVICE_JOINT_NAMES,
     DEVICE_TURN_JOINT,
@@ -112,8 +113,10 @@ def actuator_names(model: str | None = None) -> tuple[str, ...]:
 
 
 def posture_names(model: str | None = None) -> tuple[str, ...]:
-    """Joint names of a posture of `model`: its six actuators, inclinometer_x, inclinometer_y,
-    rotary.
+    """
+    Return the joint names of a posture of `model`.
+
+    Its six actuators, inclinometer_x, inclinometer_y, rotary.
     """
     return model_layout(DEFAULT_MODEL if model is None else model).posture_names
 

@@ -1,4 +1,5 @@
-"""Kinematic parameters as ROS 2 parameters YAML files and chain dicts (ROS-free).
+"""
+Kinematic parameters as ROS 2 parameters YAML files and chain dicts (ROS-free).
 
 File format (SI units: m; `a` holds the x, y components of the unit rail
 direction vector)::
@@ -76,7 +77,8 @@ _Fail = Callable[[str], Exception]
 
 
 class _RosParametersLoader(yaml.SafeLoader):
-    """SafeLoader that also reads `1e-5` and `1.5e3` as floats, as ROS 2 does.
+    """
+    SafeLoader that also reads `1e-5` and `1.5e3` as floats, as ROS 2 does.
 
     YAML 1.1 (PyYAML) needs a dot and a signed exponent; rcl's parser does not.
     """
@@ -104,7 +106,11 @@ if getattr(yaml, 'CSafeLoader', None) is not None:
 
 
 def _layout_of(model: str | ModelLayout | None, size: int | None = None) -> ModelLayout:
-    """The named model's layout; None: the Hexa Slide, or the one model of a vector of `size`."""
+    """
+    Return the named model's layout.
+
+    The named model's layout; None: the Hexa Slide, or the one model of a vector of `size`.
+    """
     if isinstance(model, ModelLayout):
         return model
     if model is None:
@@ -113,7 +119,8 @@ def _layout_of(model: str | ModelLayout | None, size: int | None = None) -> Mode
 
 
 def as_parameter_vector(vector: object, model: str | ModelLayout | None = None) -> np.ndarray:
-    """Return a float64 copy of `vector`, checked to be the model's number of finite values.
+    """
+    Return a float64 copy of `vector`, checked to be the model's number of finite values.
 
     Without `model`, a vector of 54 values is a Hexa Slide's and one of 42 a
     Gough-Stewart platform's.
@@ -149,8 +156,10 @@ def as_parameter_vector(vector: object, model: str | ModelLayout | None = None) 
 
 
 def validate_parameters(vector: object, model: str | ModelLayout | None = None) -> np.ndarray:
-    """as_parameter_vector() plus the model's physical checks (Hexa Slide: ax^2+ay^2 < 1 and l >
-    0).
+    """
+    Return the parameter vector, physically checked.
+
+    as_parameter_vector() plus the model's physical checks (Hexa Slide: ax^2+ay^2 < 1 and l > 0).
     """
     array = as_parameter_vector(vector, model)
     problem = _layout_of(model, array.size).physical_problem(array)
@@ -178,12 +187,19 @@ def load_parameters(path: PathLike) -> np.ndarray:
 
 
 def load_model(path: PathLike) -> str:
-    """The model a parameters file names (``hexa_slide`` when it names none)."""
+    """
+    Return the model a parameters file names.
+
+    The model a parameters file names (``hexa_slide`` when it names none).
+    """
     return read_parameters_file(path).model
 
 
 def read_yaml_document(path: PathLike, fail: _Fail, loader: type = yaml.SafeLoader) -> Any:
-    """A YAML file's document with a safe loader; every failure becomes fail(message), raised.
+    """
+    Read a YAML file's document with a safe loader.
+
+    A YAML file's document with a safe loader; every failure becomes fail(message), raised.
 
     Shared by the loaders of YAML files (parameters here, posture plans in the
     driver) so a missing file, bad encoding, bad YAML or absurd nesting is always
@@ -245,7 +261,8 @@ def save_parameters(
     header_comment: str | None = None,
     model: str | None = None,
 ) -> None:
-    """Write the parameter vector (and extra parameters) atomically as ROS 2 parameters YAML.
+    """
+    Write the parameter vector (and extra parameters) atomically as ROS 2 parameters YAML.
 
     Floats are written with repr() so that loading gives the same bits back.
     `model` defaults to the one model of the vector's size; a model other than
@@ -298,18 +315,19 @@ def _chain_entries(array: np.ndarray, layout: ModelLayout):
     """(chain number, {key: value or list}) per chain, keys in the model's file order."""
     width = layout.fields_per_chain
     for chain in range(1, layout.n_chains + 1):
-        fields = array[(chain - 1) * width : chain * width]
+        fields = array[(chain - 1) * width:chain * width]
         entry: dict[str, Any] = {}
         for key in layout.chain_keys:
             if key.count is None:
                 entry[key.name] = float(fields[key.offset])
             else:
-                entry[key.name] = [float(v) for v in fields[key.offset : key.offset + key.count]]
+                entry[key.name] = [float(v) for v in fields[key.offset:key.offset + key.count]]
         yield chain, entry
 
 
 def parameters_to_chain_dict(vector: object, model: str | None = None) -> ChainDict:
-    """{'chain_1': {'A0': [3], 'B': [3], 'a': [ax, ay], 'l': l}, ...} (the CLI's JSON shape).
+    """
+    {'chain_1': {'A0': [3], 'B': [3], 'a': [ax, ay], 'l': l}, ...} (the CLI's JSON shape).
 
     Keys are the model's (Gough-Stewart: A, B, l0); `model` defaults to the
     one model of the vector's size.
@@ -320,7 +338,8 @@ def parameters_to_chain_dict(vector: object, model: str | None = None) -> ChainD
 
 
 def chain_dict_to_parameters(chains: Mapping[str, Any], model: str | None = None) -> np.ndarray:
-    """Inverse of parameters_to_chain_dict(), with the same checks as load_parameters().
+    """
+    Inverse of parameters_to_chain_dict(), with the same checks as load_parameters().
 
     `model` defaults to the Hexa Slide.
     """
@@ -337,7 +356,11 @@ def chain_dict_to_parameters(chains: Mapping[str, Any], model: str | None = None
 
 
 def _ros_parameters(document: object, fail: _Fail) -> Mapping[str, Any]:
-    """The first node's ros__parameters, descending through namespaces."""
+    """
+    Return the first node's ros__parameters.
+
+    The first node's ros__parameters, descending through namespaces.
+    """
     node = document
     for _ in range(_MAX_NAMESPACE_DEPTH):
         if not isinstance(node, dict) or not node:

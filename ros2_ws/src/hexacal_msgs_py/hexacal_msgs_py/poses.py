@@ -1,4 +1,5 @@
-"""Platform pose <-> geometry_msgs/Pose convention (ROS-free: the standard library only).
+"""
+Platform pose <-> geometry_msgs/Pose convention (ROS-free: the standard library only).
 
 hexacal's pose is ``X = [x, y, z, theta, psi, phi]`` (eq. 1): the position of
 the platform frame's origin P in the base frame (m) and three angles (rad)
@@ -63,7 +64,11 @@ def _product(a: Quaternion, b: Quaternion) -> Quaternion:
 
 
 def quaternion_from_angles(theta: float, psi: float, phi: float) -> Quaternion:
-    """Unit quaternion (x, y, z, w), w >= 0, of R = R_Y(theta) R_X(psi) R_z(phi) (eq. 2)."""
+    """
+    Return the unit quaternion (x, y, z, w) of R (eq. 2).
+
+    Unit quaternion (x, y, z, w), w >= 0, of R = R_Y(theta) R_X(psi) R_z(phi) (eq. 2).
+    """
     about_y = (0.0, math.sin(theta / 2.0), 0.0, math.cos(theta / 2.0))
     about_x = (math.sin(psi / 2.0), 0.0, 0.0, math.cos(psi / 2.0))
     about_z = (0.0, 0.0, math.sin(phi / 2.0), math.cos(phi / 2.0))
@@ -72,7 +77,11 @@ def quaternion_from_angles(theta: float, psi: float, phi: float) -> Quaternion:
 
 
 def rotation_from_quaternion(quaternion: Sequence[float]) -> Matrix:
-    """The rotation matrix (rows) of a unit quaternion (x, y, z, w), checked and normalised."""
+    """
+    Return the rotation matrix of a unit quaternion (x, y, z, w).
+
+    The rotation matrix (rows) of a unit quaternion (x, y, z, w), checked and normalised.
+    """
     x, y, z, w = _unit(quaternion)
     return (
         (1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)),
@@ -90,7 +99,11 @@ def angles_from_rotation(rotation: Sequence[Sequence[float]]) -> tuple[float, fl
 
 
 def angles_from_quaternion(quaternion: Sequence[float]) -> tuple[float, float, float]:
-    """(theta, psi, phi) of a unit quaternion (x, y, z, w) (InvalidReadingError if it is not one)."""
+    """
+    Return (theta, psi, phi) of a unit quaternion (x, y, z, w).
+
+    InvalidReadingError if it is not one.
+    """
     return angles_from_rotation(rotation_from_quaternion(quaternion))
 
 
@@ -107,7 +120,10 @@ def pose_to_position_quaternion(
 def pose_from_position_quaternion(
     position: Sequence[float], quaternion: Sequence[float]
 ) -> tuple[float, ...]:
-    """((x, y, z), (qx, qy, qz, qw)) -> [x, y, z, theta, psi, phi] (InvalidReadingError naming a
+    """
+    Return [x, y, z, theta, psi, phi] of a position and quaternion.
+
+    ((x, y, z), (qx, qy, qz, qw)) -> [x, y, z, theta, psi, phi] (InvalidReadingError naming a
     problem).
     """
     x, y, z = _finite(position, 3, 'position')
@@ -122,8 +138,11 @@ def pose_from_message(message: object) -> tuple[float, ...]:
 
 
 def fill_pose_message(message: object, pose: Sequence[float]) -> object:
-    """Write [x, y, z, theta, psi, phi] into a geometry_msgs Pose (or a PoseStamped's pose);
-    returns it.
+    """
+    Write [x, y, z, theta, psi, phi] into a geometry_msgs Pose.
+
+    Write [x, y, z, theta, psi, phi] into a geometry_msgs Pose (or a PoseStamped's pose); returns
+    it.
     """
     target = getattr(message, 'pose', message)
     (x, y, z), (qx, qy, qz, qw) = pose_to_position_quaternion(pose)
@@ -151,8 +170,7 @@ def _unit(quaternion: Sequence[float]) -> Quaternion:
     if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
         raise InvalidReadingError(
             f'orientation quaternion (x, y, z, w) = ({x:g}, {y:g}, {z:g}, {w:g}) has norm '
-            f'{norm:g}, '
-            'not 1: not an orientation'
+            f'{norm:g}, not 1: not an orientation'
             + (' (all zeros; the identity is w = 1)' if norm == 0.0 else '')
         )
     return x / norm, y / norm, z / norm, w / norm

@@ -1,4 +1,5 @@
-"""Validated, immutable sensor readings of the hexacal contract (ROS-free).
+"""
+Validated, immutable sensor readings of the hexacal contract (ROS-free).
 
 Units: slider positions (the articular variables lambda_i: slider positions
 along the rails on a Hexa Slide, leg extensions on a Gough-Stewart platform) in
@@ -85,7 +86,8 @@ class SliderReading:
 
 @dataclass(frozen=True)
 class InclinometerReading:
-    """Biaxial inclinometer angles: alpha about X, beta about Y (rad).
+    """
+    Biaxial inclinometer angles: alpha about X, beta about Y (rad).
 
     device_turn: the device's rotation about its link axis from its normal
     mounting (rad; 0 normal, pi reversed, pi/2 quarter turn), |turn| <= 2 pi.
@@ -119,8 +121,10 @@ class EncoderReading:
 
 @dataclass(frozen=True)
 class PostureReading:
-    """One measured posture: the six actuator readings (m) with the device's alpha, beta, phi
-    (rad).
+    """
+    One measured posture.
+
+    The six actuator readings (m) with the device's alpha, beta, phi (rad).
 
     device_turn: the mounting the posture was measured in, the device's
     rotation about its link axis from its normal mounting (rad; 0 normal, pi
@@ -153,7 +157,8 @@ class PostureReading:
         encoder: EncoderReading,
         stamp_ns: int | None = None,
     ) -> PostureReading:
-        """Combine synchronised readings; the stamp defaults to the sliders' stamp.
+        """
+        Combine synchronised readings; the stamp defaults to the sliders' stamp.
 
         The device turn is the inclinometer reading's.
         """
@@ -167,7 +172,11 @@ class PostureReading:
         )
 
     def values(self) -> tuple[float, ...]:
-        """The nine values in posture-joint order: six actuators, alpha, beta, phi (POSTURE_NAMES)."""
+        """
+        Return the nine values in posture-joint order.
+
+        Six actuators, alpha, beta, phi (POSTURE_NAMES).
+        """
         return self.slider_positions + (self.alpha, self.beta, self.phi)
 
     @classmethod

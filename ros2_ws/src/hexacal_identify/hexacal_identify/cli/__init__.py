@@ -1,4 +1,8 @@
-"""The `hexacal` command line: one module per group of subcommands; `main` parses and dispatches."""
+"""
+The `hexacal` command line.
+
+One module per group of subcommands; `main` parses and dispatches.
+"""
 
 from .commands import build_parser, main
 

@@ -1,5 +1,7 @@
-"""Shared pieces of the ``hexacal`` command line: lazy subcommands, progress display,
-parameter-file arguments.
+"""
+Shared pieces of the ``hexacal`` command line.
+
+Lazy subcommands, progress display, parameter-file arguments.
 
 Imported by every ``hexacal`` start-up: keep its imports to the standard library.
 """
@@ -16,7 +18,8 @@ if TYPE_CHECKING:
 
 
 class LazySubcommands(argparse._SubParsersAction):
-    """Subcommand parsers whose arguments are added only when their command is chosen.
+    """
+    Subcommand parsers whose arguments are added only when their command is chosen.
 
     ``add_parser(name, fill=f, help=..., description=...)`` registers the command
     (its name and help are all `hexacal --help` shows); ``f(parser)`` adds the
@@ -39,7 +42,7 @@ class LazySubcommands(argparse._SubParsersAction):
         return parser
 
     def fill(self, name: str) -> argparse.ArgumentParser:
-        """The parser of command `name` with its arguments (added now if they were not yet)."""
+        """Return the parser of command `name`, adding its arguments if they were not yet."""
         parser = self._name_parser_map[name]
         fill = self._fills.pop(name, None)
         if fill is not None:
@@ -79,7 +82,10 @@ class Progress:
 
 
 def load_params_arg(path: Path) -> 'KinematicParameters':
-    """A parameters YAML named on the command line, of the model it names, validated
+    """
+    Load a parameters YAML named on the command line, of the model it names.
+
+    A parameters YAML named on the command line, of the model it names, validated
     (ParameterFileError names the file and the bad key).
     """
     from hexacal_msgs_py.parameters_file import read_parameters_file

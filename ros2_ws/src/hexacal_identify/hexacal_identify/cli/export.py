@@ -1,5 +1,7 @@
-"""``hexacal export``: a parameters file in a controller's format (LinuxCNC genhexkins) or as YAML
-/ JSON.
+"""
+``hexacal export``: write a parameters file for a controller or as YAML / JSON.
+
+A parameters file in a controller's format (LinuxCNC genhexkins) or as YAML / JSON.
 
 ``--format linuxcnc`` writes the HAL ``setp`` lines of LinuxCNC's generalised
 hexapod kinematics (``genhexkins``) for a Gough-Stewart result::
@@ -41,10 +43,12 @@ AXES = ('x', 'y', 'z')
 def add_parsers(subparsers) -> None:
     subparsers.add_parser(
         'export',
-        help='write a parameters file for a controller (LinuxCNC genhexkins HAL) or as YAML / JSON',
-        description='Read a parameters YAML (e.g. the output of `hexacal calibrate`) and write it as LinuxCNC '
-        'genhexkins settings (HAL setp lines of the base and platform joints, Gough-Stewart platforms only), '
-        'as a parameters YAML, or as JSON {"model", "parameters"}. The file is written atomically.',
+        help='write a parameters file for a controller (LinuxCNC genhexkins HAL) or as YAML / '
+        'JSON',
+        description='Read a parameters YAML (e.g. the output of `hexacal calibrate`) and write it '
+        'as LinuxCNC genhexkins settings (HAL setp lines of the base and platform joints, '
+        'Gough-Stewart platforms only), as a parameters YAML, or as JSON {"model", "parameters"}. '
+        'The file is written atomically.',
         fill=_export_arguments,
     )
 
@@ -80,11 +84,13 @@ def run_export(args) -> int:
     if args.length_unit is not None:
         if args.format != 'linuxcnc':
             raise ValueError(
-                f'--length-unit applies to --format linuxcnc only ({args.format} is in SI units, m)'
+                f'--length-unit applies to --format linuxcnc only ({args.format} is in SI units, '
+                'm)'
             )
         if args.length_unit not in LENGTH_UNITS:
             raise ValueError(
-                f'unknown --length-unit {args.length_unit!r}; choose one of {", ".join(LENGTH_UNITS)}'
+                f'unknown --length-unit {args.length_unit!r}; choose one of '
+                f'{", ".join(LENGTH_UNITS)}'
             )
     if args.out.is_dir():
         raise IsADirectoryError(f'--out {args.out} is a directory; name a file')
@@ -114,7 +120,10 @@ def json_text(contents) -> str:
 def _save_yaml(out: Path, contents, source: Path) -> None:
     from hexacal_msgs_py.parameters_file import save_parameters
 
-    comment = f'{contents.layout.title} parameters exported by hexacal export from {os.fspath(source)}, SI units'
+    comment = (
+        f'{contents.layout.title} parameters exported by hexacal export from '
+        f'{os.fspath(source)}, SI units'
+    )
     save_parameters(
         out,
         contents.vector,
@@ -125,8 +134,10 @@ def _save_yaml(out: Path, contents, source: Path) -> None:
 
 
 def linuxcnc_hal(contents, source: Path, unit: str = 'mm') -> str:
-    """The genhexkins HAL settings of a Gough-Stewart parameters file (ValueError for another
-    model).
+    """
+    Return the genhexkins HAL settings of a Gough-Stewart parameters file.
+
+    The genhexkins HAL settings of a Gough-Stewart parameters file (ValueError for another model).
     """
     from hexacal_msgs_py.models import GOUGH_STEWART
 
@@ -157,18 +168,24 @@ def linuxcnc_hal(contents, source: Path, unit: str = 'mm') -> str:
     lines = [
         f'# LinuxCNC genhexkins geometry of a {layout.title}, from hexacal',
         f'# Written by hexacal export from {os.fspath(source)}',
-        f"# Lengths in {unit} ([TRAJ] LINEAR_UNITS = {unit} in the INI file). hexacal's leg N is strut (joint) N-1.",
-        '# Load it after the kinematics module (loadrt genhexkins, or [KINS] KINEMATICS = genhexkins),',
-        "# e.g. as a [HAL] HALFILE. Strut length = |p + R platform.N - base.N| (genhexkins, hexacal's",
-        '# |p + R B - A|); the pose X Y Z A B C LinuxCNC reports is the platform frame in the base frame,',
+        f'# Lengths in {unit} ([TRAJ] LINEAR_UNITS = {unit} in the INI file). '
+        "hexacal's leg N is strut (joint) N-1.",
+        '# Load it after the kinematics module '
+        '(loadrt genhexkins, or [KINS] KINEMATICS = genhexkins),',
+        '# e.g. as a [HAL] HALFILE. '
+        "Strut length = |p + R platform.N - base.N| (genhexkins, hexacal's",
+        '# |p + R B - A|); the pose X Y Z A B C LinuxCNC reports '
+        'is the platform frame in the base frame,',
         "# its A B C the roll-pitch-yaw angles of genhexkins (not hexacal's theta, psi, phi).",
         '',
         f'# Base joint centres in base (world) coordinates (hexacal chain_N.A), {unit}',
         *setp_block('base', a_first),
         f'# Platform joint centres in platform coordinates (hexacal chain_N.B), {unit}',
         *setp_block('platform', b_first),
-        f'# Leg offsets l0 = strut length at actuator reading zero (hexacal chain_N.l0), {unit}. genhexkins joints',
-        '# are strut lengths: for a joint homed where its actuator reads zero, put in the INI file',
+        '# Leg offsets l0 = strut length at actuator reading zero (hexacal chain_N.l0), '
+        f'{unit}. genhexkins joints',
+        '# are strut lengths: for a joint homed where its actuator reads zero, '
+        'put in the INI file',
     ]
     for leg in range(layout.n_chains):
         lines.append(f'# [JOINT_{leg}] HOME_OFFSET = {number(chains[leg, l0_index])}')

@@ -105,8 +105,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _load_params(path: Path) -> KinematicParameters:
-    """A parameters YAML of any model, validated (ParameterFileError names the file and the bad
-    key).
+    """
+    Load a parameters YAML of any model.
+
+    A parameters YAML of any model, validated (ParameterFileError names the file and the bad key).
     """
     from hexacal_msgs_py.parameters_file import read_parameters_file
 
@@ -117,8 +119,10 @@ def _load_params(path: Path) -> KinematicParameters:
 
 
 def study_model(args) -> str:
-    """The model studied: --model, else the model of the parameters files given, else the Hexa
-    Slide.
+    """
+    Return the model studied.
+
+    --model, else the model of the parameters files given, else the Hexa Slide.
 
     Every model named (option and files) must be the same one: a mismatch is a named error.
     """
@@ -211,7 +215,10 @@ def _paper(truth: KinematicParameters, text: str) -> str:
 
 
 def _print_model(truth: KinematicParameters) -> None:
-    """A line naming the machine where it is not the paper's (the paper's study prints as it always
+    """
+    Print a line naming the machine where it is not the paper's.
+
+    A line naming the machine where it is not the paper's (the paper's study prints as it always
     has).
     """
     from ..studies.accuracy import paper_reference
@@ -305,8 +312,7 @@ def _print_noise_table(
     paper_table = paper_reference(truth.model)
     print(
         '\nMeasurement noise, 50 postures, nominal set 2, eq. 7; mean over 50 validation '
-        'postures, '
-        f'{seeds} seeds (mean +- spread){_paper(truth, " [paper Table 3]")}:'
+        f'postures, {seeds} seeds (mean +- spread){_paper(truth, " [paper Table 3]")}:'
     )
     summaries = noise_study(seeds=range(seeds), progress=progress.step, true_params=truth)
     before_pos = summaries[0].mean_and_spread('before', 'position_mean_m')
@@ -370,8 +376,8 @@ def _print_procedures(progress: Progress, truth: KinematicParameters) -> None:
         f'nominal set 2{claim}:'
     )
     print(
-        f'  {"cost":<13} {"equations":<12} {"outcome":<16} {"position um":>12} {"orient. deg":>12} '
-        f'{"solve ms":>9}'
+        f'  {"cost":<13} {"equations":<12} {"outcome":<16} '
+        f'{"position um":>12} {"orient. deg":>12} {"solve ms":>9}'
     )
     for cost in COSTS:
         progress.step(f'procedure {cost}')
@@ -403,14 +409,15 @@ def _print_configured(run: StudyRun) -> None:
         f'{result.reason} in {result.iterations} iterations, {result.solve_seconds * 1e3:.1f} ms, '
         f'rank {result.rank}, condition {result.condition_number:.3g}'
     )
+    no_defects = type(run.defects)  # the defect-free device of the same kind
+    defective = run.defects != no_defects()
     print(
         f'  pose error before: {before["position_mean_m"] * UM:.1f} um, '
-        f'{before["orientation_mean_rad"] * DEG:.4f} deg; '
-        f'after: {after["position_mean_m"] * UM:.2f} um, {after["orientation_mean_rad"] * DEG:.5f} '
-        'deg'
-        + (' (frames the calibration works in)' if run.defects != type(run.defects)() else '')
+        f'{before["orientation_mean_rad"] * DEG:.4f} deg; after: '
+        f'{after["position_mean_m"] * UM:.2f} um, {after["orientation_mean_rad"] * DEG:.5f} deg'
+        + (' (frames the calibration works in)' if defective else '')
     )
-    if run.defects != type(run.defects)() and outcome.after_true_frames is not None:
+    if defective and outcome.after_true_frames is not None:
         true_frames = outcome.after_true_frames.summary()
         print(
             '  after, in the true frames (gravity base frame, origin at O): '

@@ -1,5 +1,7 @@
-"""``hexacal study`` sections beyond the paper: device defects and the Monte Carlo check of the
-uncertainty.
+"""
+``hexacal study`` sections beyond the paper.
+
+Device defects and the Monte Carlo check of the uncertainty.
 """
 
 from __future__ import annotations
@@ -33,8 +35,10 @@ def _defects(text: str) -> DeviceDefects:
 
 
 def device_prior_argument(text: str) -> DevicePrior:
-    """--device-prior NAME=VALUE:STD[,...] (SI units) -> DevicePrior; a bad text is an argparse
-    error.
+    """
+    Parse --device-prior NAME=VALUE:STD[,...] (SI units) into a DevicePrior.
+
+    STD[,...] (SI units) -> DevicePrior; a bad text is an argparse error.
     """
     try:
         return DevicePrior.parse(text)
@@ -100,13 +104,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=DevicePrior(),
         metavar='NAME=VALUE:STD',
         help='configured run: prior knowledge of the device, SI units, e.g. dL=5e-4:10e-6 (a '
-        'caliper '
-        'reading of the link, +-10 um); needs --weighted',
+        'caliper reading of the link, +-10 um); needs --weighted',
     )
 
 
 def print_sections(args, progress: Progress, truth: KinematicParameters | None = None) -> None:
-    """The device-defect table and the Monte Carlo check on ``truth`` (default: the Table 1 Hexa
+    """
+    Print the device-defect table and the Monte Carlo check on ``truth``.
+
+    The device-defect table and the Monte Carlo check on ``truth`` (default: the Table 1 Hexa
     Slide).
     """
     from ..studies.device import DEFAULT_DEFECTS
@@ -131,8 +137,10 @@ def print_device_defects(
     truth: KinematicParameters | None = None,
     efficiency_seeds: int = 100,
 ) -> None:
-    """The device table: every remedy on the same seeds, the issue's claims met / NOT met, the
-    estimator's efficiency.
+    """
+    Print the device table: every remedy on the same seeds.
+
+    Every remedy on the same seeds, the issue's claims met / NOT met, the estimator's efficiency.
     """
     import numpy as np
 
@@ -146,11 +154,9 @@ def print_device_defects(
 
     print(
         f'\nDevice defects ({defects.describe()}), 50 postures (random, or planned per seed: '
-        'I-optimal on the '
-        f'nominal machine with the device columns, priors and turns), +-{noise_um:g} um / urad '
-        'noise, weighted by it, '
-        f'nominal set 2, {seeds} seeds; mean position error over 50 validation postures (um) in '
-        'the device frames '
+        'I-optimal on the nominal machine with the device columns, priors and turns), '
+        f'+-{noise_um:g} um / urad noise, weighted by it, nominal set 2, {seeds} seeds; mean '
+        'position error over 50 validation postures (um) in the device frames '
         "(base frame of the inclinometer's zero, platform frame of the rotary zero) and in the "
         'true frames '
         "(gravity-aligned base frame, origin at the device's joint O):"
@@ -159,8 +165,7 @@ def print_device_defects(
     reference = outcomes[0].mean(outcomes[0].true_frame_position_m)
     print(
         f'  {"method":<56} {"device fr.":>10} {"true fr.":>9} {"x ref":>6} {"origin-al.":>10} '
-        f'{"orient. urad":>12}'
-        '  device errors rms (um, urad)'
+        f'{"orient. urad":>12}  device errors rms (um, urad)'
     )
     for outcome in outcomes:
         true_frames = outcome.mean(outcome.true_frame_position_m)
@@ -193,11 +198,10 @@ def print_device_defects(
     )
     for claim in claims(outcomes):
         print(
-            f'  claim: {claim.text}: {claim.value:.2f}x the ideal device with random postures, the '
-            'baseline '
-            f'({"met" if claim.met else "NOT met"}); {claim.like_for_like:.2f}x an ideal device '
-            'calibrated the '
-            f'same way ({"met" if claim.met_like_for_like else "NOT met"})'
+            f'  claim: {claim.text}: {claim.value:.2f}x the ideal device with random postures, '
+            f'the baseline ({"met" if claim.met else "NOT met"}); {claim.like_for_like:.2f}x an '
+            'ideal device calibrated the same way '
+            f'({"met" if claim.met_like_for_like else "NOT met"})'
         )
     if efficiency_seeds > 1:
         summary = estimator_efficiency(
@@ -218,8 +222,7 @@ def print_device_defects(
         ):
             print(
                 f'    {name:<7} {crb * URAD:8.2f} {rmse * URAD:8.2f} {bias * URAD:+8.2f}  '
-                f'efficiency {eff:.2f} '
-                f'({"met" if eff >= CLAIM_EFFICIENCY else "NOT met"})'
+                f'efficiency {eff:.2f} ({"met" if eff >= CLAIM_EFFICIENCY else "NOT met"})'
             )
         pose = summary.pose_efficiency
         print(
@@ -242,8 +245,7 @@ def print_monte_carlo(
 
     print(
         f'\nUncertainty check: one calibration (50 postures, +-{noise_um:g} um / urad, '
-        'noise-weighted) repeated over '
-        f'{seeds} noise seeds:'
+        f'noise-weighted) repeated over {seeds} noise seeds:'
     )
     summary = monte_carlo(
         seeds=seeds, noise_um=noise_um, progress=progress.step, true_params=truth
@@ -252,10 +254,8 @@ def print_monte_carlo(
     within = int(np.sum(np.abs(ratio - 1) <= 0.2))
     print(
         f'  empirical / predicted std per parameter: median {np.median(ratio):.3f}, range '
-        f'{ratio.min():.3f}-'
-        f'{ratio.max():.3f}, {within}/{len(ratio)} within 20% (sampling error of a std over '
-        f'{seeds} seeds: '
-        f'~{100 / np.sqrt(2 * (seeds - 1)):.0f}%)'
+        f'{ratio.min():.3f}-{ratio.max():.3f}, {within}/{len(ratio)} within 20% (sampling error '
+        f'of a std over {seeds} seeds: ~{100 / np.sqrt(2 * (seeds - 1)):.0f}%)'
     )
     pose_ratio = summary.pose_error_mean_m / summary.predicted_pose_error_mean_m
     print(
@@ -266,8 +266,7 @@ def print_monte_carlo(
     )
     print(
         '  efficiency (Cramer-Rao variance for Gaussian noise of the same variance / empirical '
-        'MSE): median '
-        f'{np.median(summary.efficiency):.3f}, range '
-        f'{summary.efficiency.min():.2f}-{summary.efficiency.max():.2f}; '
-        f'variance factor {summary.variance_factor_mean:.3f} (1 = the noise model fits)'
+        f'MSE): median {np.median(summary.efficiency):.3f}, range '
+        f'{summary.efficiency.min():.2f}-{summary.efficiency.max():.2f}; variance factor '
+        f'{summary.variance_factor_mean:.3f} (1 = the noise model fits)'
     )

@@ -1,5 +1,8 @@
-"""``hexacal verify BAG --nominal N --calibrated C``: verification without ground truth, offline
-from a bag.
+"""
+``hexacal verify``: verification without ground truth, offline from a bag.
+
+``hexacal verify BAG --nominal N --calibrated C``: verification without ground truth, offline from
+a bag.
 
 The bag holds fresh postures, never used in the fit (a second, verification plan
 walked after the calibration). For each, what the device measured (position by
@@ -30,15 +33,14 @@ def add_parsers(subparsers) -> None:
     subparsers.add_parser(
         'verify',
         help='verify a calibration on fresh postures of a bag, without ground truth',
-        description='Compare what the measuring device measured at fresh postures (not used in the '
-        'fit) with '
-        'forward kinematics at the measured actuator readings, for the nominal and the calibrated '
-        'parameters: '
-        'position error rms/max (m) and rotary error rms (rad), the improvement (nominal rms / '
-        'calibrated rms) '
-        'and a verdict: pass when the calibrated position rms is within the threshold and forward '
-        'kinematics '
-        'converged on every posture. Exit code 0 pass, 1 fail, 2 bad input.',
+        description=(
+            'Compare what the measuring device measured at fresh postures '
+            '(not used in the fit) with forward kinematics at the measured actuator readings, '
+            'for the nominal and the calibrated parameters: position error rms/max (m) and '
+            'rotary error rms (rad), the improvement (nominal rms / calibrated rms) and a '
+            'verdict: pass when the calibrated position rms is within the threshold and forward '
+            'kinematics converged on every posture. Exit code 0 pass, 1 fail, 2 bad input.'
+        ),
         fill=_verify_arguments,
     )
 
@@ -67,8 +69,8 @@ def _verify_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         help='pass when the calibrated position rms is at most this (um); default '
-        f'{NOISE_THRESHOLD_FACTOR:g} x the rms the reading noise alone gives with --noise-um, else '
-        f'{DEFAULT_THRESHOLD_M * UM:g} um',
+        f'{NOISE_THRESHOLD_FACTOR:g} x the rms the reading noise alone gives with --noise-um, '
+        f'else {DEFAULT_THRESHOLD_M * UM:g} um',
     )
     parser.add_argument(
         '--noise-um',
@@ -183,7 +185,10 @@ def run_verify(args) -> int:
 
 
 def _device_defects(args):
-    """(defects, (where they come from, names given)) of the device that measured the bag: the
+    """
+    Return the defects of the device that measured the bag, and where they come from.
+
+    (defects, (where they come from, names given)) of the device that measured the bag: the
     --device-defects option, else those identified with the calibration (calibrated file).
     """
     from ..core.device import DEVICE_PARAMETER_NAMES, DeviceDefects

@@ -1,4 +1,5 @@
-"""The ROS-free numerical core of hexacal: model, kinematics, identification, identifiability.
+"""
+The ROS-free numerical core of hexacal: model, kinematics, identification, identifiability.
 
 Nothing in this subpackage imports rclpy or ROS message packages.
 

@@ -1,4 +1,5 @@
-"""The paper-style identification, kept as the baseline to measure against (and for tests).
+"""
+The paper-style identification, kept as the baseline to measure against (and for tests).
 
 Section 3.3: "Effectiveness of the calibration procedure depends on the
 Identification Jacobian that is computed numerically."  Here that is done the
@@ -30,7 +31,10 @@ def forward_kinematics_one(
     tolerance: float = 1e-12,
     max_iterations: int = 50,
 ) -> np.ndarray:
-    """Section 2.2 for a single posture: X <- X - J_inv^-1 (IK(X) - Q_d) until |IK(X) - Q_d| <
+    """
+    Solve the forward kinematics of one posture as section 2.2 does.
+
+    Section 2.2 for a single posture: X <- X - J_inv^-1 (IK(X) - Q_d) until |IK(X) - Q_d| <
     tolerance.
     """
     arch = params.architecture
@@ -53,7 +57,8 @@ def absolute_residuals(
     device: DeviceModel = DeviceModel(),
     model: str | None = None,
 ) -> np.ndarray:
-    """Eq. 7 residuals, FK posture by posture (what the paper's numerical Jacobian differentiates).
+    """
+    Eq. 7 residuals, FK posture by posture (what the paper's numerical Jacobian differentiates).
 
     ``vector`` holds the parameters of ``model`` (default: the Hexa Slide).
     """
@@ -94,8 +99,10 @@ class BaselineResult:
 def identify_baseline(
     nominal: KinematicParameters, measurements: Measurements, device: DeviceModel = DeviceModel()
 ) -> BaselineResult:
-    """Paper-style identification: per-posture FK, forward-difference Jacobian, scipy
-    least_squares.
+    """
+    Identify the parameters the paper's way.
+
+    Paper-style identification: per-posture FK, forward-difference Jacobian, scipy least_squares.
     """
     started = time.perf_counter()
     solution = least_squares(

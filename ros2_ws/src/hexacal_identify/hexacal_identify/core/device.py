@@ -1,4 +1,5 @@
-"""The measuring device: a link with U joints, a biaxial inclinometer and a rotary sensor.
+"""
+The measuring device: a link with U joints, a biaxial inclinometer and a rotary sensor.
 
 Eq. 4 as printed gives ``z = +L cos(alpha) cos(beta)``, but the text fixes the
 inclinometer-zero position at ``[0, 0, -L]`` and the platform hangs below the
@@ -112,7 +113,11 @@ TURNING_PROCEDURES: dict[str, tuple[float, ...]] = {
 
 
 def procedure_turns(procedure: str) -> tuple[float, ...]:
-    """The device turns of a turning procedure; ValueError naming the choices for an unknown one."""
+    """
+    Return the device turns of a turning procedure.
+
+    The device turns of a turning procedure; ValueError naming the choices for an unknown one.
+    """
     if procedure not in TURNING_PROCEDURES:
         raise ValueError(
             f'unknown procedure {procedure!r}; choose one of {", ".join(TURNING_PROCEDURES)}'
@@ -137,13 +142,18 @@ def check_mount(mount: str) -> str:
 
 
 def _standing(mount: str) -> bool:
-    """True for the standing mount (p = -p_hanging); validates ``mount``."""
+    """
+    Return True for the standing mount.
+
+    True for the standing mount (p = -p_hanging); validates ``mount``.
+    """
     return check_mount(mount) == STANDING
 
 
 @dataclass(frozen=True)
 class DeviceModel:
-    """Geometry of the measuring link as the identification assumes it.
+    """
+    Geometry of the measuring link as the identification assumes it.
 
     ``mount``: ``hanging`` (platform below the device's base joint, default) or
     ``standing`` (platform above it); the module doc says what each means.
@@ -165,9 +175,11 @@ class DeviceModel:
         link_length: float | np.ndarray | None = None,
         device_turn: np.ndarray | float | None = None,
     ) -> 'DevicePosition':
-        """Platform positions (and derivatives) from readings; ``link_length`` per posture for an
-        LVDT,
-        ``device_turn`` (rad) per posture for a device turned about its link (module doc).
+        """
+        Return platform positions (and derivatives) from readings.
+
+        Platform positions (and derivatives) from readings; ``link_length`` per posture for an
+        LVDT, ``device_turn`` (rad) per posture for a device turned about its link (module doc).
         """
         length = self.link_length if link_length is None else link_length
         return device_position(
@@ -185,8 +197,11 @@ class DeviceModel:
         defects: 'DeviceDefects | None' = None,
         device_turn: np.ndarray | float | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """What the (defective, possibly turned) inclinometer reads with the platform at
-        ``position`` (N, 3).
+        """
+        Return what the inclinometer reads with the platform at ``position`` (N, 3).
+
+        What the (defective, possibly turned) inclinometer reads with the platform at ``position``
+        (N, 3).
         """
         return inclinometer_readings(
             position, defects if defects is not None else DeviceDefects(), self.mount, device_turn
@@ -199,7 +214,10 @@ class DeviceModel:
     def fixed_position(
         self, defects: 'DeviceDefects | None' = None, device_turn: float = 0.0
     ) -> 'DevicePosition':
-        """Where the (defective, possibly turned) inclinometer reads zero, (1, 3), with its
+        """
+        Return where the inclinometer reads zero, with its derivatives.
+
+        Where the (defective, possibly turned) inclinometer reads zero, (1, 3), with its
         derivatives.
         """
         return fixed_position(
@@ -211,11 +229,15 @@ class DeviceModel:
 
     @property
     def fixed_point(self) -> np.ndarray:
-        """The ideal fixed position (eq. 10): [0, 0, -L] hanging, [0, 0, +L] standing, (3,)."""
+        """Return the ideal fixed position (eq. 10): [0, 0, -L] hanging, [0, 0, +L] standing."""
         return fixed_point(self.link_length, self.mount)
 
     def sphere_z(self, xy: np.ndarray, link_length: float | None = None) -> np.ndarray:
-        """z of the sphere postures above (N, 2) ``xy``: on the link's side of O."""
+        """
+        Return z of the sphere postures above (N, 2) ``xy``.
+
+        On the link's side of O.
+        """
         return sphere_z(xy, self.link_length if link_length is None else link_length, self.mount)
 
 
@@ -247,8 +269,10 @@ class DeviceDefects:
 
     @classmethod
     def parse(cls, text: str) -> 'DeviceDefects':
-        """'dL=0.0005,alpha0=2e-4,...' (SI units) -> DeviceDefects; names as
-        DEVICE_PARAMETER_NAMES.
+        """
+        Parse 'dL=0.0005,alpha0=2e-4,...' (SI units) into DeviceDefects.
+
+        'dL=0.0005,alpha0=2e-4,...' (SI units) -> DeviceDefects; names as DEVICE_PARAMETER_NAMES.
         """
         values: dict[str, float] = {}
         for item in filter(None, (part.strip() for part in text.split(','))):
@@ -276,7 +300,8 @@ class DeviceDefects:
 
 @dataclass(frozen=True)
 class DevicePrior:
-    """Prior knowledge of device parameters: a value and a standard deviation (SI) per defect.
+    """
+    Prior knowledge of device parameters: a value and a standard deviation (SI) per defect.
 
     A caliper measurement of the link (dL = 0 +- 10 um), an inclinometer's
     calibration certificate (alpha0 = 0 +- 50 urad): the solver adds one row
@@ -390,8 +415,10 @@ def inclinometer_angles(
 
 
 def turn_rotations(device_turn: np.ndarray | float | None, n: int) -> np.ndarray:
-    """R_z(turn) per posture, (n, 3, 3): the frame of a device turned by ``turn`` about its link
-    axis.
+    """
+    Return R_z(turn) per posture, (n, 3, 3).
+
+    The frame of a device turned by ``turn`` about its link axis.
     """
     turn = (
         np.zeros(n)
@@ -411,7 +438,10 @@ def inclinometer_readings(
     mount: str = DEFAULT_MOUNT,
     device_turn: np.ndarray | float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """What a defective inclinometer reads for the link pointing from O to ``position`` (no noise).
+    """
+    Return what a defective inclinometer reads for the link pointing at ``position``.
+
+    What a defective inclinometer reads for the link pointing from O to ``position`` (no noise).
 
     ``device_turn`` (rad, per posture): the device turned about its link axis (module doc).
     """
@@ -435,8 +465,10 @@ def inclinometer_readings(
 
 
 def fixed_point(link_length: float, mount: str = DEFAULT_MOUNT) -> np.ndarray:
-    """Where an ideal inclinometer reads zero (eq. 10): [0, 0, -L] hanging, [0, 0, +L] standing,
-    (3,).
+    """
+    Return where an ideal inclinometer reads zero (eq. 10).
+
+    [0, 0, -L] hanging, [0, 0, +L] standing, (3,).
     """
     if _standing(mount):
         return np.array([0.0, 0.0, link_length])
@@ -444,7 +476,10 @@ def fixed_point(link_length: float, mount: str = DEFAULT_MOUNT) -> np.ndarray:
 
 
 def sphere_z(xy: np.ndarray, link_length: float, mount: str = DEFAULT_MOUNT) -> np.ndarray:
-    """z of the points of the L-sphere about O above (N, 2) ``xy``, on the platform's side of O.
+    """
+    Return z of the points of the L-sphere about O above (N, 2) ``xy``.
+
+    z of the points of the L-sphere about O above (N, 2) ``xy``, on the platform's side of O.
 
     Hanging: -sqrt(L^2 - x^2 - y^2) (the sphere postures' z until now); standing: +sqrt(...).
     """
@@ -471,7 +506,8 @@ def device_position(
     mount: str = DEFAULT_MOUNT,
     device_turn: np.ndarray | float | None = None,
 ) -> DevicePosition:
-    """Platform position from inclinometer readings through the defect model (module doc).
+    """
+    Platform position from inclinometer readings through the defect model (module doc).
 
     Standing: the hanging result negated (position and both derivative arrays). ``device_turn``
     (rad, per posture): the device turned about its link axis, p = R_z(turn) p_device.
@@ -522,8 +558,10 @@ def fixed_position(
     mount: str = DEFAULT_MOUNT,
     device_turn: float = 0.0,
 ) -> DevicePosition:
-    """Where the (defective, possibly turned) inclinometer reads zero: the fixed position of eq.
-    10,
+    """
+    Return where the inclinometer reads zero, with derivatives.
+
+    Where the (defective, possibly turned) inclinometer reads zero: the fixed position of eq. 10,
     (1, 3), with derivatives.
     """
     return device_position(

@@ -1,4 +1,5 @@
-"""Inverse and forward kinematics of any architecture, batched over postures.
+"""
+Inverse and forward kinematics of any architecture, batched over postures.
 
 A pose is ``X = [x, y, z, theta, psi, phi]`` (eq. 1): the position of the
 platform frame origin P in the base frame and three Euler angles with
@@ -65,7 +66,8 @@ def _legs(params: KinematicParameters, poses: np.ndarray):
 
 
 def inverse_kinematics(params: KinematicParameters, poses: np.ndarray) -> np.ndarray:
-    """Actuator readings lambda (N, 6) for poses (N, 6) (Hexa Slide: eq. 3's slider positions).
+    """
+    Actuator readings lambda (N, 6) for poses (N, 6) (Hexa Slide: eq. 3's slider positions).
 
     Raises UnreachablePoseError naming the postures whose legs cannot reach.
     """
@@ -119,7 +121,8 @@ def forward_kinematics(
     branch_tolerance_rad: float = 0.35,
     fit_tilt_first: bool = False,
 ) -> ForwardKinematicsResult:
-    """Newton iteration X <- X - J_inv^-1 (IK(X) - lambda) (section 2.2), batched.
+    """
+    Newton iteration X <- X - J_inv^-1 (IK(X) - lambda) (section 2.2), batched.
 
     Converged when every |IK(X) - lambda| < tolerance (m).  A step that leaves
     the reachable set or increases the residual is halved (up to 10 times).  The
@@ -242,7 +245,8 @@ def _solve_batched(jac: np.ndarray, residual: np.ndarray) -> tuple[np.ndarray, n
 def _damped_update(
     arch, chains, poses: np.ndarray, step: np.ndarray, targets: np.ndarray, error: np.ndarray
 ):
-    """Take X - step, halving the step where it does not reduce the slider error.
+    """
+    Take X - step, halving the step where it does not reduce the slider error.
 
     Also returns the mask of postures where even the smallest step did not reduce it (stalled).
     """
@@ -274,8 +278,7 @@ def _check_branch(poses, start, converged, failures, tol_m, tol_rad) -> None:
     for i in np.flatnonzero(wrong):
         failures[int(i)] = (
             f'converged to another branch: {jump[i] * 1e3:.1f} mm / {np.degrees(phi_jump[i]):.1f} '
-            'deg '
-            'from the expected posture'
+            'deg from the expected posture'
         )
     converged &= ~wrong
 
@@ -286,7 +289,10 @@ def wrap_angle(angle: np.ndarray) -> np.ndarray:
 
 
 class PoseSensitivity:
-    """Derivatives of FK poses: w.r.t. the parameters (54 for a Hexa Slide) and the 6 actuator
+    """
+    Derivatives of forward-kinematics poses.
+
+    Derivatives of FK poses: w.r.t. the parameters (54 for a Hexa Slide) and the 6 actuator
     readings.
 
     Kept factored: dX/du[n, k, F c + f] = -wrt_sliders[n, k, c] * slider_blocks[n, c, f] (F fields
@@ -327,8 +333,10 @@ class PoseSensitivity:
         return out.reshape(len(out), out.shape[1], self.n_parameters)
 
     def combined(self, index: np.ndarray | None, weights: np.ndarray) -> np.ndarray:
-        """sum_k weights[:, k] dX_k/du for postures ``index`` (None: all); weights (k, 6) -> (k,
-        54).
+        """
+        Return sum_k weights[:, k] dX_k/du for postures ``index``.
+
+        , k] dX_k/du for postures ``index`` (None: all); weights (k, 6) -> (k, 54).
         """
         inverse, blocks = self._pick(index)
         mixed = -np.matmul(weights[:, None, :], inverse)  # (k, 1, 6)
@@ -337,7 +345,8 @@ class PoseSensitivity:
 
 
 def pose_sensitivities(params: KinematicParameters, poses: np.ndarray) -> PoseSensitivity:
-    """dX/du and dX/d lambda at FK solutions, by implicit differentiation of IK(X, u) = lambda.
+    """
+    dX/du and dX/d lambda at FK solutions, by implicit differentiation of IK(X, u) = lambda.
 
     J_inv dX = d lambda - (d lambda/d u) du, so dX/d lambda = J_inv^-1 and
     dX/du = -J_inv^-1 d lambda/d u.  d lambda/d u is block diagonal, so column
@@ -354,7 +363,10 @@ def pose_sensitivities(params: KinematicParameters, poses: np.ndarray) -> PoseSe
 
 
 def pose_parameter_sensitivity(params: KinematicParameters, poses: np.ndarray):
-    """dX/du (N, 6, n) at FK solutions (see ``pose_sensitivities``) and the legs (IK intermediates)
+    """
+    Return dX/du (N, 6, n) at FK solutions and the legs there.
+
+    dX/du (N, 6, n) at FK solutions (see ``pose_sensitivities``) and the legs (IK intermediates)
     there.
     """
     return pose_sensitivities(params, poses).wrt_parameters, _legs(

@@ -1,5 +1,7 @@
-"""The calibrated model at work: the pose of live actuator readings, actuator targets of a
-commanded pose.
+"""
+The calibrated model at work.
+
+The pose of live actuator readings, actuator targets of a commanded pose.
 
 What the ``kinematics`` node and ``hexacal ik`` / ``hexacal fk`` share (ROS-free):
 
@@ -40,14 +42,16 @@ class OutOfStrokeError(UnreachablePoseError):
 def home_pose(
     link_length: float = DEFAULT_LINK_LENGTH_M, mount: str = DEFAULT_MOUNT
 ) -> np.ndarray:
-    """The workspace centre [x, y, z, theta, psi, phi]: the device's fixed point, platform level,
-    phi 0.
+    """
+    Return the workspace centre [x, y, z, theta, psi, phi].
+
+    The device's fixed point, platform level, phi 0.
     """
     return np.concatenate([fixed_point(link_length, mount), np.zeros(3)])
 
 
 def default_stroke(params: KinematicParameters) -> tuple[float, float]:
-    """The architecture's actuator stroke (m) of its default workspace."""
+    """Return the architecture's actuator stroke (m) of its default workspace."""
     low, high = params.architecture.default_workspace().slider_stroke_m
     return float(low), float(high)
 
@@ -55,9 +59,11 @@ def default_stroke(params: KinematicParameters) -> tuple[float, float]:
 def actuator_targets(
     params: KinematicParameters, pose: Sequence[float], stroke: tuple[float, float] | None = None
 ) -> np.ndarray:
-    """The six actuator readings (m) that put the platform at ``pose``, inside ``stroke`` (None:
-    the
-    architecture's default).  UnreachablePoseError / OutOfStrokeError say why a pose is refused.
+    """
+    Return the six actuator readings (m) that put the platform at ``pose``.
+
+    The six actuator readings (m) that put the platform at ``pose``, inside ``stroke`` (None: the
+    architecture's default). UnreachablePoseError / OutOfStrokeError say why a pose is refused.
     """
     pose = np.asarray(pose, dtype=float).reshape(1, 6)
     targets = inverse_kinematics(params, pose)[0]
@@ -75,7 +81,10 @@ def actuator_targets(
 def solve_pose(
     params: KinematicParameters, actuators: Sequence[float], guess: Sequence[float]
 ) -> np.ndarray:
-    """The pose (6,) of the readings ``actuators`` (6,), on the branch of ``guess`` (see the module
+    """
+    Return the pose (6,) of the readings ``actuators`` (6,).
+
+    The pose (6,) of the readings ``actuators`` (6,), on the branch of ``guess`` (see the module
     doc).
 
     ForwardKinematicsError when neither Newton from the guess nor the continuation converges.
@@ -105,10 +114,9 @@ def solve_pose(
         step /= 2.0
         if step < MIN_CONTINUATION_STEP:
             raise ForwardKinematicsError(
-                f"no pose on the guess's branch: Newton from the guess: {direct}; the continuation "
-                'from the '
-                f"guess's readings stopped {100.0 * done:.1f}% of the way "
-                f'({result.failures.get(0, "")})',
+                f"no pose on the guess's branch: Newton from the guess: {direct}; "
+                f"the continuation from the guess's readings stopped {100.0 * done:.1f}% "
+                f'of the way ({result.failures.get(0, "")})',
                 [0],
             )
     return pose

@@ -1,4 +1,5 @@
-"""Measured postures: actuator readings, inclinometer angles and rotary angle per posture.
+"""
+Measured postures: actuator readings, inclinometer angles and rotary angle per posture.
 
 The six actuator readings are ``slider_positions`` whatever the architecture
 (Hexa Slide: slider positions along the rails; Gough-Stewart: leg extensions).
@@ -36,7 +37,8 @@ class MeasurementLimits:
 
 @dataclass
 class Measurements:
-    """N measured postures (SI units).
+    """
+    N measured postures (SI units).
 
     slider_positions (N, 6) actuator readings lambda, m; inclinometer (N, 2) = [alpha, beta], rad;
     rotary (N,) = phi, rad; kinds (N,) 'sphere' or 'fixed'; device_turn (N,) rad: how far the
@@ -124,8 +126,7 @@ class Measurements:
         ):
             raise InvalidMeasurementError(
                 f'inconsistent lengths: {n} slider rows, {len(self.inclinometer)} inclinometer '
-                'rows, '
-                f'{len(self.rotary)} rotary values, {len(self.kinds)} kinds'
+                f'rows, {len(self.rotary)} rotary values, {len(self.kinds)} kinds'
             )
         channels = {
             'slider_positions': self.slider_positions,
@@ -201,7 +202,10 @@ class NoiseModel:
         return cls(slider_m=microns * 1e-6, angle_rad=microns * 1e-6)
 
     def standard_deviations(self) -> np.ndarray:
-        """Std of the 9 readings of a posture (6 sliders, alpha, beta, phi): a / sqrt(3) for +-a
+        """
+        Return the std of the 9 readings of a posture.
+
+        Std of the 9 readings of a posture (6 sliders, alpha, beta, phi): a / sqrt(3) for +-a
         uniform.
         """
         return np.array([self.slider_m] * 6 + [self.angle_rad] * 3) / np.sqrt(3.0)
@@ -222,7 +226,10 @@ def simulate_measurements(
     lvdt: bool = False,
     device_turn: np.ndarray | float | None = None,
 ) -> Measurements:
-    """What the device and the actuator encoders read at ``poses`` on the machine ``params`` (any
+    """
+    Simulate what the device and the actuator encoders read at ``poses``.
+
+    What the device and the actuator encoders read at ``poses`` on the machine ``params`` (any
     architecture).
 
     The readings go through the defect model (a defective inclinometer reads the

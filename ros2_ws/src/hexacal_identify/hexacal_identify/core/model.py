@@ -1,5 +1,7 @@
-"""Kinematic parameters: the generic parts (nominal sets, error statistics), and the Hexa Slide's
-names.
+"""
+Kinematic parameters: the generic parts and the Hexa Slide's names.
+
+The generic parts (nominal sets, error statistics), and the Hexa Slide's names.
 
 The architectures own their parameters (``architectures/hexa_slide.py``,
 ``architectures/gough_stewart.py``); this module keeps the names the Hexa Slide
@@ -28,21 +30,30 @@ from .architectures.hexa_slide import (  # noqa: F401  (the Hexa Slide's long-st
 
 
 def parameter_names(model: str | None = None) -> list[str]:
-    """Names of the parameters in vector order, e.g. ``chain_3.A0z`` (default: the Hexa Slide's
-    54).
+    """
+    Return the names of the parameters in vector order.
+
+    Names of the parameters in vector order, e.g. ``chain_3.A0z`` (default: the Hexa Slide's 54).
     """
     return list(architecture(model).layout.parameter_names)
 
 
 def parameter_units(model: str | None = None) -> list[str]:
-    """Unit of each parameter: metres, except the Hexa Slide's rail direction components ('1')."""
+    """
+    Return the unit of each parameter.
+
+    Metres, except the Hexa Slide's rail direction components ('1').
+    """
     return list(architecture(model).layout.parameter_units)
 
 
 def error_vector_with_stats(
     rng: np.random.Generator, max_mm: float, mean_mm: float, sigma_mm: float, n: int = N_PARAMETERS
 ) -> np.ndarray:
-    """n (default 54) signed errors (m) with the statistics of one row of Table 2.
+    """
+    Draw n signed errors (m) with the statistics of one row of Table 2.
+
+    n (default 54) signed errors (m) with the statistics of one row of Table 2.
 
     Table 2's sigma exceeds its mean in every row, so it is read as the RMS of the
     errors (equal, up to sampling, to the standard deviation of errors of random
@@ -76,8 +87,10 @@ def nominal_set(
     exact: KinematicParameters | None = None,
     model: str | None = None,
 ) -> KinematicParameters:
-    """Nominal parameter set 1, 2 or 3: exact + seeded errors with the architecture's Table 2-like
-    statistics.
+    """
+    Return nominal parameter set 1, 2 or 3.
+
+    Exact + seeded errors with the architecture's Table 2-like statistics.
 
     ``exact`` defaults to the default machine of ``model`` (default: the Table 1 Hexa Slide).
     """

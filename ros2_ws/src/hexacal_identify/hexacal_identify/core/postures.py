@@ -1,4 +1,5 @@
-"""Measurement postures over the paper's workspace (section 4).
+"""
+Measurement postures over the paper's workspace (section 4).
 
 Sphere postures: x, y uniform within +-400 mm, z on the L-sphere below the base
 joint (z = -sqrt(L^2 - x^2 - y^2)), the three Euler angles uniform within
@@ -54,7 +55,10 @@ def _fixed_candidates(rng: np.random.Generator, n: int, workspace: Workspace) ->
 def acceptable_poses(
     params: KinematicParameters, poses: np.ndarray, workspace: Workspace = Workspace()
 ) -> np.ndarray:
-    """Mask of poses that are reachable, inside the stroke and well conditioned (the architecture
+    """
+    Return the mask of acceptable poses.
+
+    Mask of poses that are reachable, inside the stroke and well conditioned (the architecture
     decides how).
     """
     return params.architecture.acceptable_poses(params, np.asarray(poses, dtype=float), workspace)
@@ -67,7 +71,11 @@ def sample_poses(
     kind: str = 'sphere',
     workspace: Workspace = Workspace(),
 ) -> np.ndarray:
-    """n acceptable poses of the given kind ('sphere' or 'fixed'), (n, 6)."""
+    """
+    Draw n acceptable poses of the given kind.
+
+    n acceptable poses of the given kind ('sphere' or 'fixed'), (n, 6).
+    """
     draw = {'sphere': _sphere_candidates, 'fixed': _fixed_candidates}[kind]
     accepted: list[np.ndarray] = []
     count = 0

@@ -1,4 +1,5 @@
-"""Cost functions of the paper (eqs. 7, 8, 10, 12, 13): residuals and their Jacobians.
+"""
+Cost functions of the paper (eqs. 7, 8, 10, 12, 13): residuals and their Jacobians.
 
 Every residual is written ``r(u)`` with Jacobian ``dr/du``; the solver takes the
 Gauss-Newton step ``du = -J^+ r``.  Computed quantities come from forward
@@ -135,12 +136,10 @@ class CostFunction:
         self.sigma = sigma
         if cost == 'relative' and measurements.device_turn is not None:
             raise InvalidMeasurementError(
-                'the relative cost function (eqs. 12 + 13) pairs consecutive postures and cancels '
-                'offsets '
-                f'itself; {int(np.count_nonzero(measurements.device_turn))} posture(s) were taken '
-                'with the device '
-                'turned about its link: use the absolute cost (eq. 7), which identifies the '
-                'offsets from them'
+                'the relative cost function (eqs. 12 + 13) pairs consecutive postures and '
+                f'cancels offsets itself; {int(np.count_nonzero(measurements.device_turn))} '
+                'posture(s) were taken with the device turned about its link: use the absolute '
+                'cost (eq. 7), which identifies the offsets from them'
             )
         self.is_fixed = measurements.kinds == FIXED
         self.is_sphere = measurements.kinds == SPHERE
@@ -153,7 +152,8 @@ class CostFunction:
         return np.ones(len(self.measurements), bool)
 
     def missing_postures(self) -> str | None:
-        """Why these postures cannot feed this cost function at all (None when they can).
+        """
+        Why these postures cannot feed this cost function at all (None when they can).
 
         Eqs. 10 and 13 compare fixed-position postures and eq. 12 compares sphere postures: a
         cost that needs a kind the measurement set lacks is a named error, not an empty block.
@@ -168,14 +168,16 @@ class CostFunction:
             if have < least:
                 return (
                     f'the {self.cost} cost function needs at least {least} {kind} posture(s) and '
-                    'the '
-                    f'measurements hold {have} ({n_sphere} sphere, {n_fixed} fixed-position); '
+                    f'the measurements hold {have} ({n_sphere} sphere, {n_fixed} fixed-position); '
                     'record postures of that kind or choose another cost function'
                 )
         return None
 
     def measured(self, defects: DeviceDefects = DeviceDefects()):
-        """Positions from the readings through the defect model; the last result is kept (defects
+        """
+        Return positions from the readings through the defect model.
+
+        Positions from the readings through the defect model; the last result is kept (defects
         rarely change).
         """
         if self._measured_cache is None or self._measured_cache[0] != defects:
@@ -194,15 +196,20 @@ class CostFunction:
         return self._measured_cache[1]
 
     def fixed_position(self, defects: DeviceDefects = DeviceDefects(), device_turn: float = 0.0):
-        """Where the (defective, possibly turned) inclinometer reads zero: the fixed position of
-        eq. 10.
+        """
+        Return where the inclinometer reads zero (eq. 10).
+
+        Where the (defective, possibly turned) inclinometer reads zero: the fixed position of eq.
+        10.
         """
         return fixed_position(self.link_length, defects, self.mount, device_turn)
 
     def fixed_positions(self, defects: DeviceDefects, index: np.ndarray):
-        """Fixed positions (k, 3) and their device derivatives (k, 3, 4) of postures ``index``: a
-        turned
-        device reads zero elsewhere (its offsets turn with it).
+        """
+        Return fixed positions and their device derivatives of postures ``index``.
+
+        Fixed positions (k, 3) and their device derivatives (k, 3, 4) of postures ``index``: a
+        turned device reads zero elsewhere (its offsets turn with it).
         """
         turns = self.measurements.turns[index]
         zeros = np.zeros(len(index))
@@ -212,8 +219,10 @@ class CostFunction:
         return fixed.position, fixed.d_defects
 
     def initial_poses(self, defects: DeviceDefects = DeviceDefects()) -> np.ndarray:
-        """Expected postures: measured position and phi, theta = psi = 0 (the FK start and branch
-        reference).
+        """
+        Return the expected postures: the FK start and branch reference.
+
+        Measured position and phi, theta = psi = 0 (the FK start and branch reference).
         """
         n = len(self.measurements)
         fixed, _ = self.fixed_positions(defects, np.arange(n))
@@ -221,8 +230,10 @@ class CostFunction:
         return np.column_stack([position, np.zeros((n, 2)), self.measured_phi(defects)])
 
     def measured_phi(self, defects: DeviceDefects = DeviceDefects()) -> np.ndarray:
-        """Phi from the rotary readings: a device turned about its link reads phi - turn + phi0,
-        wrapped.
+        """
+        Return phi from the rotary readings.
+
+        A device turned about its link reads phi - turn + phi0, wrapped.
         """
         return wrap_angle(self.measurements.rotary + self.measurements.turns - defects.phi0)
 
@@ -234,8 +245,11 @@ class CostFunction:
         with_device: bool = False,
         with_noise: bool = True,
     ) -> ResidualBlock:
-        """Stacked residuals; with ``sensitivity`` also the Jacobian (54 columns, + 5 device
-        columns if ``with_device``) and, for a PoseSensitivity and ``with_noise``, each row's noise
+        """
+        Return the stacked residuals and, with ``sensitivity``, the Jacobian.
+
+        Stacked residuals; with ``sensitivity`` also the Jacobian (54 columns, + 5 device columns
+        if ``with_device``) and, for a PoseSensitivity and ``with_noise``, each row's noise
         derivatives.
         """
         if isinstance(sensitivity, PoseSensitivity):
@@ -280,7 +294,11 @@ class CostFunction:
         d_row_d_pose: np.ndarray,
         d_row_d_readings: np.ndarray | None,
     ):
-        """Row derivatives w.r.t. [6 sliders, alpha, beta, phi]: d_row_d_pose (rows, 6) through FK."""
+        """
+        Return row derivatives w.r.t. [6 actuators, alpha, beta, phi] through FK.
+
+        d_row_d_pose (rows, 6) is carried through forward kinematics.
+        """
         if pieces.d_sliders is None:
             return None
         noise = np.zeros((len(index), N_NOISE_SOURCES))
@@ -318,8 +336,11 @@ class CostFunction:
         d_targets_d_device: np.ndarray,
         d_targets_d_readings: np.ndarray | None,
     ) -> ResidualBlock:
-        """Rows target - P_c for postures ``index``; targets (k, 3), derivatives (k, 3, 4) and (k,
-        3, 2).
+        """
+        Return the rows target - P_c for postures ``index``.
+
+        Rows target - P_c for postures ``index``; targets (k, 3), derivatives (k, 3, 4) and (k, 3,
+        2).
         """
         scale = 1.0 / self.sigma.position_m
         k = len(index)

@@ -1,4 +1,5 @@
-"""Uncertainty a user can trust: predicted pose errors from the covariance, checked by Monte Carlo.
+"""
+Uncertainty a user can trust: predicted pose errors from the covariance, checked by Monte Carlo.
 
 The identification covariance (whitened by the known noise, it is the
 Cramer-Rao bound of Gaussian noise with the same variance) maps to pose errors
@@ -44,7 +45,8 @@ def predicted_pose_errors(
     samples: int = 4000,
     seed: int = 0,
 ) -> PredictedPoseErrors:
-    """Pose errors the parameter covariance predicts at ``poses`` (linearised: dX = dX/du du).
+    """
+    Pose errors the parameter covariance predicts at ``poses`` (linearised: dX = dX/du du).
 
     ``covariance`` may carry the device defects after the n kinematic parameters: only the
     kinematic block is used.
@@ -107,7 +109,8 @@ def monte_carlo(
     true_params: KinematicParameters | None = None,
     model: str | None = None,
 ) -> MonteCarloSummary:
-    """One calibration (same machine, same postures) repeated over noise seeds.
+    """
+    One calibration (same machine, same postures) repeated over noise seeds.
 
     The machine is ``true_params``, else the default machine of ``model`` (default: the Table 1
     Hexa Slide); postures come from its architecture's default workspace.
@@ -155,8 +158,10 @@ def monte_carlo(
 def _crb_std(
     true_params: KinematicParameters, poses: np.ndarray, noise: NoiseModel, options: SolverOptions
 ) -> np.ndarray:
-    """Std of the Cramer-Rao bound at the truth: exact readings, residuals whitened by the noise
-    covariance.
+    """
+    Return the std of the Cramer-Rao bound at the truth.
+
+    Exact readings, residuals whitened by the noise covariance.
     """
     exact = simulate_measurements(true_params, poses)
     crb_options = SolverOptions(noise=noise, cost=options.cost)

@@ -1,4 +1,7 @@
-"""Pose accuracy of a parameter set, judged against the true machine (simulation only), any
+"""
+Pose accuracy of a parameter set, judged against the true machine.
+
+Pose accuracy of a parameter set, judged against the true machine (simulation only), any
 architecture.
 """
 
@@ -33,7 +36,8 @@ class PoseErrors:
 def validation_poses(
     true_params: KinematicParameters, n: int, seed: int, workspace: Workspace | None = None
 ) -> np.ndarray:
-    """Fresh postures, drawn like the measurement postures but from their own seed.
+    """
+    Fresh postures, drawn like the measurement postures but from their own seed.
 
     ``workspace`` defaults to the architecture's default workspace.
     """
@@ -51,8 +55,10 @@ def pose_errors(
     align_base_rotation_y: bool = False,
     align_origin: bool = False,
 ) -> PoseErrors:
-    """Command the true machine's actuator readings for ``poses``; where does ``model_params`` put
-    it?
+    """
+    Return the pose errors of ``model_params`` on the true machine.
+
+    Command the true machine's actuator readings for ``poses``; where does ``model_params`` put it?
 
     The controller's view: FK with the model parameters at the actuator readings
     the true machine has at each pose, compared with that pose (Table 3's errors).
@@ -93,7 +99,7 @@ def _best_angle_about_y(model_positions: np.ndarray, true_positions: np.ndarray)
 
 
 def _rotate_about_y(poses: np.ndarray, angle: float) -> np.ndarray:
-    """R_Y(angle) applied to poses: positions turn, theta grows by angle (eq. 2 starts with R_Y)."""
+    """Apply R_Y(angle) to poses: positions turn, theta grows by angle (eq. 2 starts with R_Y)."""
     c, s = np.cos(angle), np.sin(angle)
     turned = poses.copy()
     turned[:, 0] = c * poses[:, 0] + s * poses[:, 2]

@@ -1,5 +1,7 @@
-"""Verification without ground truth: how well does a parameter set explain fresh measured
-postures?
+"""
+Verification without ground truth.
+
+How well does a parameter set explain fresh measured postures?
 
 A real machine has no truth to compare with.  What it has is the measuring
 device: for postures that were *not* used in the fit, the device measures the
@@ -93,8 +95,10 @@ class SetResiduals:
         return np.isfinite(self.position_error_m)
 
     def figures(self) -> dict[str, float]:
-        """position_rms_m, position_max_m, rotary_rms_rad over the converged postures (NaN if
-        none),
+        """
+        Return the verification figures over the converged postures.
+
+        position_rms_m, position_max_m, rotary_rms_rad over the converged postures (NaN if none),
         plus position_mean_m, postures_converged and fk_failures.
         """
         ok = self.converged
@@ -142,7 +146,10 @@ class VerificationResult:
 
     @property
     def improvement(self) -> float:
-        """Nominal position rms / calibrated position rms (NaN when either is unknown, inf for an
+        """
+        Return nominal position rms / calibrated position rms.
+
+        Nominal position rms / calibrated position rms (NaN when either is unknown, inf for an
         exact fit).
         """
         before = self.nominal.figures()['position_rms_m']
@@ -173,11 +180,14 @@ class VerificationResult:
         )
 
     def to_json(self, per_posture: bool = False) -> dict:
-        """{"model", "postures", "nominal": {figures}, "calibrated": {figures}, "improvement",
+        """
+        Return the result as the JSON object of ``hexacal verify --json``.
+
+        {"model", "postures", "nominal": {figures}, "calibrated": {figures}, "improvement",
         "threshold_m", "verdict"} plus "verdict_reason", "link_length_m", "mount", per set its FK
         failures (``failed_postures``: index, reason) and with ``per_posture`` the per-posture
-        arrays
-        (``per_posture``: kinds, measured positions, both sets' errors).  NaN and inf are null.
+        arrays (``per_posture``: kinds, measured positions, both sets' errors). NaN and inf are
+        null.
         """
         payload: dict = {'model': self.model, 'postures': self.postures}
         for name in SET_NAMES:
@@ -216,7 +226,11 @@ class VerificationResult:
         return _plain(payload)
 
     def status_values(self) -> dict[str, str]:
-        """The JSON keys flattened for a status topic ('nominal.position_rms_m', ...), as strings."""
+        """
+        Return the JSON keys flattened for a status topic, as strings.
+
+        The JSON keys flattened for a status topic ('nominal.position_rms_m', ...), as strings.
+        """
         values: dict[str, str] = {'model': self.model, 'postures': str(self.postures)}
         for name in SET_NAMES:
             for key, value in getattr(self, name).figures().items():
@@ -245,8 +259,11 @@ def check_models(
     postures_model: str | None = None,
     names: tuple[str, str] = ('nominal', 'calibrated'),
 ) -> str:
-    """The one model of both parameter sets (and of the postures, when known);
-    VerificationModelError if not.
+    """
+    Return the one model of both parameter sets.
+
+    The one model of both parameter sets (and of the postures, when known); VerificationModelError
+    if not.
     """
     if nominal.model != calibrated.model:
         raise VerificationModelError(
@@ -268,7 +285,8 @@ def set_residuals(
     device: DeviceModel = DeviceModel(),
     defects: DeviceDefects = DeviceDefects(),
 ) -> tuple[SetResiduals, np.ndarray]:
-    """(residuals of ``params``, the expected poses FK started from) at the measured postures.
+    """
+    (residuals of ``params``, the expected poses FK started from) at the measured postures.
 
     ``defects``: the device defects this parameter set assumes (identified jointly, or none).
     """
@@ -305,7 +323,10 @@ def expected_noise(
     device: DeviceModel = DeviceModel(),
     defects: DeviceDefects = DeviceDefects(),
 ) -> dict[str, float]:
-    """The residual rms that reading noise alone gives (module doc), at the converged FK poses.
+    """
+    Return the residual rms that reading noise alone gives.
+
+    The residual rms that reading noise alone gives (module doc), at the converged FK poses.
 
     position: sqrt(mean_n E|r_n|^2), E|r_n|^2 = sum_k |dP/d lambda_k|^2 a_s^2/3 + sum_j |dP_meas/d
     angle_j|^2 a_a^2/3 (a fixed-position posture is placed at a zero reading, within the same
@@ -353,8 +374,10 @@ def verify(
     calibrated_defects: DeviceDefects = DeviceDefects(),
     limits: MeasurementLimits = MeasurementLimits(),
 ) -> VerificationResult:
-    """Residuals of the nominal and the calibrated parameters at fresh measured postures (module
-    doc).
+    """
+    Verify nominal and calibrated parameters at fresh measured postures.
+
+    Residuals of the nominal and the calibrated parameters at fresh measured postures (module doc).
 
     ``threshold_m``: the verdict's threshold (None: 3x the expected noise rms with a known
     ``noise``, else DEFAULT_THRESHOLD_M).  ``noise``: the reading noise half-widths, for the

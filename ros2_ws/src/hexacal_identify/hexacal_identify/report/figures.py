@@ -1,4 +1,5 @@
-"""PNG figures of the study and the calibration report (matplotlib, headless).
+"""
+PNG figures of the study and the calibration report (matplotlib, headless).
 
 Display units are labelled: parameter errors in mm (a dimensionless parameter,
 such as the Hexa Slide's rail-direction components, as 1000 x its value, like
@@ -14,10 +15,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Sequence
 
+from hexacal_msgs_py.models import model_for_vector_size, ModelLayout
 import matplotlib
 
 matplotlib.use('Agg')  # no display: figures are files
-from hexacal_msgs_py.models import model_for_vector_size, ModelLayout  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
@@ -25,7 +26,11 @@ MM = 1e3
 
 
 def _layout(n_values: int, layout: ModelLayout | None) -> ModelLayout:
-    """The layout of a parameter vector of ``n_values`` entries (``layout`` if given)."""
+    """
+    Return the layout of a parameter vector of ``n_values`` entries.
+
+    The layout of a parameter vector of ``n_values`` entries (``layout`` if given).
+    """
     return layout if layout is not None else model_for_vector_size(n_values)
 
 
@@ -153,7 +158,10 @@ UM = 1e6
 def parameter_corrections(
     correction_m: np.ndarray, std_m: np.ndarray, path: Path, layout: ModelLayout | None = None
 ) -> Path:
-    """Each parameter's correction (identified - initial) with +-std error bars, and the std alone
+    """
+    Draw each parameter's correction with +-std error bars.
+
+    Each parameter's correction (identified - initial) with +-std error bars, and the std alone
     (log).
     """
     layout = _layout(len(correction_m), layout)
@@ -190,7 +198,10 @@ def parameter_corrections(
 def residuals_by_posture(
     postures: np.ndarray, values: np.ndarray, channels: np.ndarray, path: Path
 ) -> Path:
-    """Final residuals per posture, one marker per channel: lengths in um (left), angles in urad
+    """
+    Draw the final residuals per posture.
+
+    Final residuals per posture, one marker per channel: lengths in um (left), angles in urad
     (right).
     """
     channels = np.asarray(channels).astype(str)
@@ -217,7 +228,10 @@ def pose_error_map(
     path: Path,
     postures_xy_m: np.ndarray | None = None,
 ) -> Path:
-    """Predicted std of the position error over the workspace (heat map, um); NaN cells are
+    """
+    Draw the predicted std of the position error over the workspace.
+
+    Predicted std of the position error over the workspace (heat map, um); NaN cells are
     infeasible.
     """
     fig, ax = plt.subplots(figsize=(6.2, 5.0))
@@ -242,7 +256,10 @@ def pose_error_map(
 def postures_on_sphere(
     poses: np.ndarray, kinds: np.ndarray, path: Path, xy_range_m: float = 0.4
 ) -> Path:
-    """The postures used, seen from above (x, y on the L-sphere), coloured by kind; arrows show the
+    """
+    Draw the postures used, seen from above.
+
+    The postures used, seen from above (x, y on the L-sphere), coloured by kind; arrows show the
     tilt.
     """
     fig, ax = plt.subplots(figsize=(5.6, 5.0))
@@ -292,8 +309,10 @@ def planning_accuracy(
     reference_label: str,
     path: Path,
 ) -> Path:
-    """Validation position error vs number of postures: planned against random (mean +- error bar
-    over seeds).
+    """
+    Draw the validation position error vs number of postures.
+
+    Planned against random (mean +- error bar over seeds).
     """
     fig, ax = plt.subplots(figsize=(7.5, 4.2))
     for label, (mean_um, spread_um) in curves.items():
@@ -318,9 +337,12 @@ def verification_errors(
     nominal_rotary_rad: np.ndarray | None = None,
     calibrated_rotary_rad: np.ndarray | None = None,
 ) -> Path:
-    """Verification: per fresh posture, the position error |P_fk - P_measured| of the nominal
-    (square) and the calibrated (circle) parameters, um on a log axis, with the verdict's
-    threshold; below, |rotary error| in urad.
+    """
+    Draw the verification errors per fresh posture.
+
+    Per fresh posture, the position error |P_fk - P_measured| of the nominal (square) and the
+    calibrated (circle) parameters, um on a log axis, with the verdict's threshold; below, |rotary
+    error| in urad.
 
     NaN (forward kinematics failed) is drawn as an x on the lower edge; fixed-position postures are
     filled.

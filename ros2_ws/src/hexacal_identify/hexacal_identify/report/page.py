@@ -1,4 +1,5 @@
-"""The calibration report: a result file with everything, and a self-contained HTML page of it.
+"""
+The calibration report: a result file with everything, and a self-contained HTML page of it.
 
 ``save_result`` writes a JSON file that is a superset of ``IdentificationResult.to_json()``
 (what ``hexacal calibrate --json`` prints): the same keys, plus under
@@ -47,7 +48,8 @@ def result_payload(
     mount: str | None = None,
     device_prior=None,
 ) -> dict:
-    """``result.to_json()`` plus the arrays of ``report_data`` (see module doc).
+    """
+    ``result.to_json()`` plus the arrays of ``report_data`` (see module doc).
 
     ``mount``: the device mount (device.py), recorded when given; a report of a file without it
     takes the side of the device's base joint the poses are on.  ``device_prior``: the DevicePrior
@@ -134,7 +136,11 @@ def save_result(
 
 
 def load_result(path: Path | str) -> dict:
-    """A result file: from save_result, or a plain ``--json`` output (then without report_data)."""
+    """
+    Load a result file.
+
+    From save_result, or a plain ``--json`` output (then without report_data).
+    """
     try:
         payload = json.loads(Path(path).read_text(encoding='utf-8'))
     except json.JSONDecodeError as error:
@@ -160,7 +166,8 @@ def write_report(
     verification: dict | None = None,
     **result_options,
 ) -> Path:
-    """DIR/index.html (+ PNGs) from a result file path, a payload dict, or an IdentificationResult.
+    """
+    DIR/index.html (+ PNGs) from a result file path, a payload dict, or an IdentificationResult.
 
     With an IdentificationResult, ``result_options`` are those of ``result_payload``
     (measurements, true_parameters, link_length, mount, extras): what the identify node passes.
@@ -288,7 +295,10 @@ class _Sections:
 
     @staticmethod
     def missing(title: str, why: str) -> str:
-        return f"<section><h2>{html.escape(title)}</h2><p class='note'>Not shown: {html.escape(why)}.</p></section>"
+        return (
+            f'<section><h2>{html.escape(title)}</h2>'
+            f"<p class='note'>Not shown: {html.escape(why)}.</p></section>"
+        )
 
     # -- sections
     def summary(self) -> str:
@@ -305,7 +315,9 @@ class _Sections:
             (
                 'Rank',
                 f'{p.get("rank")} of '
-                f'{(p.get("identifiability") or {}).get("n_parameters", self.layout.n_parameters)}',
+                + str(
+                    (p.get('identifiability') or {}).get('n_parameters', self.layout.n_parameters)
+                ),
                 'rank',
             ),
             (
@@ -359,7 +371,8 @@ class _Sections:
                     rows.append(
                         (
                             f'Validation pose error {when}',
-                            f'{v["position_mean_m"] * UM:.2f} um, {math.degrees(v["orientation_mean_rad"]):.5f} deg',
+                            f'{v["position_mean_m"] * UM:.2f} um, '
+                            f'{math.degrees(v["orientation_mean_rad"]):.5f} deg',
                             f'validation-{when}',
                         )
                     )
@@ -375,10 +388,16 @@ class _Sections:
                 for r in rejected
             )
             rejected_html = f'<h3>Rejected postures</h3><ul>{items}</ul>'
-        return f"<section><h2>Summary</h2><table class='summary'>{table}</table>{rejected_html}</section>"
+        return (
+            f"<section><h2>Summary</h2><table class='summary'>{table}</table>"
+            f'{rejected_html}</section>'
+        )
 
     def identified(self) -> str:
-        """The identified parameters per chain, in the model's own keys (A0/B/a/l, A/B/l0, ...) and
+        """
+        Return the identified parameters per chain.
+
+        The identified parameters per chain, in the model's own keys (A0/B/a/l, A/B/l0, ...) and
         display units.
         """
         layout = self.layout
@@ -389,30 +408,36 @@ class _Sections:
         dimensionless = set(_dimensionless(layout))
         header, legend = '<th>chain</th><th>actuator</th>', ''
         for key in layout.chain_keys:
-            fields = layout.fields[key.offset : key.offset + (key.count or 1)]
+            fields = layout.fields[key.offset:key.offset + (key.count or 1)]
             unit = 'x1000' if set(fields) <= dimensionless else 'mm'
             header += (
                 f"<th title='{html.escape(key.description)}'>{html.escape(key.name)} [{unit}]</th>"
             )
-            legend += f'<li><b>{html.escape(key.name)}</b> ({", ".join(fields)}): {html.escape(key.description)}</li>'
+            legend += (
+                f'<li><b>{html.escape(key.name)}</b> ({", ".join(fields)}): '
+                f'{html.escape(key.description)}</li>'
+            )
         rows = ''
         for chain in range(layout.n_chains):
             cells = ''
             for key in layout.chain_keys:
-                values = per_chain[chain, key.offset : key.offset + (key.count or 1)] * MM
+                values = per_chain[chain, key.offset:key.offset + (key.count or 1)] * MM
                 cells += f'<td>{", ".join(f"{v:.4f}" for v in values)}</td>'
             rows += (
-                f'<tr><td>chain_{chain + 1}</td><td>{html.escape(layout.actuator_names[chain])}</td>'
-                f'{cells}</tr>'
+                f'<tr><td>chain_{chain + 1}</td>'
+                f'<td>{html.escape(layout.actuator_names[chain])}</td>{cells}</tr>'
             )
         return (
-            f"<section><h2>{html.escape(title)}</h2><table class='data' id='identified-parameters'>"
+            f"<section><h2>{html.escape(title)}</h2><table class='data' "
+            "id='identified-parameters'>"
             f"<tr>{header}</tr>{rows}</table><ul class='note'>{legend}</ul></section>"
         )
 
     def device_parameters(self) -> str:
-        """Prior (value +- std, or none) and posterior of each identified device parameter, um /
-        urad.
+        """
+        Return the prior and posterior of each identified device parameter.
+
+        Prior (value +- std, or none) and posterior of each identified device parameter, um / urad.
         """
         from ..core.device import DEVICE_PARAMETER_NAMES
 
@@ -437,21 +462,24 @@ class _Sections:
                 'n/a'
                 if value is None
                 else (
-                    f'{value * UM:.3f} +- {_fmt(None if std is None else std * UM, "{:.3f}")} {unit}'
+                    f'{value * UM:.3f} +- {_fmt(None if std is None else std * UM, "{:.3f}")} '
+                    f'{unit}'
                 )
             )
             rows += (
                 f"<tr><td>{html.escape(name)}</td><td>{unit}</td><td id='device-prior-{name}'>"
-                f"{html.escape(prior_text)}</td><td id='device-posterior-{name}'>{html.escape(posterior)}</td>"
+                f'{html.escape(prior_text)}</td><td '
+                f"id='device-posterior-{name}'>{html.escape(posterior)}</td>"
                 '</tr>'
             )
         note = (
-            "<p class='note'>dL (link length offset) in um, angles (inclinometer zeros alpha0, beta0, axis skew "
-            'gamma, rotary zero phi0) in urad; +- one standard deviation. A prior enters the fit as one '
-            'weighted row (value - prior) / std.</p>'
+            "<p class='note'>dL (link length offset) in um, angles (inclinometer zeros alpha0, "
+            'beta0, axis skew gamma, rotary zero phi0) in urad; +- one standard deviation. A '
+            'prior enters the fit as one weighted row (value - prior) / std.</p>'
         )
         return (
-            f"<section><h2>{title}</h2><table class='data' id='device-parameters'><tr><th>parameter</th>"
+            f"<section><h2>{title}</h2><table class='data' "
+            "id='device-parameters'><tr><th>parameter</th>"
             '<th>unit</th><th>prior</th><th>identified (posterior)</th></tr>'
             f'{rows}</table>{note}</section>'
         )
@@ -471,11 +499,13 @@ class _Sections:
             lambda path: figures.parameter_corrections(correction, self.std, path, self.layout),
         )
         rows = ''.join(
-            f'<tr><td>{html.escape(n)}</td><td>{c * MM:+.4f}</td><td>{_fmt(s * UM, "{:.3f}")}</td></tr>'
+            f'<tr><td>{html.escape(n)}</td><td>{c * MM:+.4f}</td>'
+            f'<td>{_fmt(s * UM, "{:.3f}")}</td></tr>'
             for n, c, s in zip(self.names, correction, self.std)
         )
         table = (
-            f"<details><summary>All {len(self.names)} parameters</summary><table class='data'><tr><th>parameter</th>"
+            f'<details><summary>All {len(self.names)} parameters</summary><table '
+            "class='data'><tr><th>parameter</th>"
             f'<th>correction [mm]</th><th>std [um]</th></tr>{rows}</table></details>'
         )
         return f'<section><h2>{title}</h2>{image}{table}</section>'
@@ -564,9 +594,10 @@ class _Sections:
         finite = std[np.isfinite(std)]
         numbers = (
             (
-                f'<p>Linearised: std = sqrt(trace(J_p C J_p<sup>T</sup>)), J_p = dP/du at each (x, y) on the '
-                f'L-sphere with zero rotation, C the parameter covariance. Median {np.median(finite) * UM:.2f} um, '
-                f'max {np.max(finite) * UM:.2f} um over the feasible cells.</p>'
+                '<p>Linearised: std = sqrt(trace(J_p C J_p<sup>T</sup>)), J_p = dP/du at each '
+                '(x, y) on the L-sphere with zero rotation, C the parameter covariance. Median '
+                f'{np.median(finite) * UM:.2f} um, max {np.max(finite) * UM:.2f} um over the '
+                'feasible cells.</p>'
             )
             if finite.size
             else ''
@@ -583,7 +614,8 @@ class _Sections:
         kinds = self.data.get('kinds')
         if (
             kinds is None
-            # not recorded: a posture at [0, 0, -L] ([0, 0, L] standing) within 1 mm was a fixed one
+            # not recorded: a posture at [0, 0, -L] ([0, 0, L] standing) within 1 mm was a
+            # fixed one
         ):
             at_fixed = (
                 np.linalg.norm(poses[:, :3] - fixed_point(self.link_length, self.mount), axis=1)
@@ -600,8 +632,10 @@ class _Sections:
 
 
 def verification_section(verification: dict, figure) -> str:
-    """The verification section: nominal vs calibrated figures, verdict, and the per-posture
-    figure.
+    """
+    Return the verification section.
+
+    Nominal vs calibrated figures, verdict, and the per-posture figure.
 
     ``verification`` is ``VerificationResult.to_json(per_posture=True)`` (SI units, null for NaN);
     ``figure(name, draw)`` embeds a PNG (``_Sections.figure``).
@@ -621,13 +655,16 @@ def verification_section(verification: dict, figure) -> str:
     table = '<tr><th></th><th>nominal</th><th>calibrated</th></tr>'
     for label, key, scale, unit in rows:
         table += (
-            f"<tr><th>{label}</th><td id='verification-nominal-{key}'>{cell('nominal', key, scale, unit)}</td>"
-            f"<td id='verification-calibrated-{key}'>{cell('calibrated', key, scale, unit)}</td></tr>"
+            f'<tr><th>{label}</th><td '
+            f"id='verification-nominal-{key}'>{cell('nominal', key, scale, unit)}</td>"
+            f"<td id='verification-calibrated-{key}'>"
+            f'{cell("calibrated", key, scale, unit)}</td></tr>'
         )
     table += (
         '<tr><th>Forward kinematics failed</th>'
         + ''.join(
-            f"<td id='verification-{name}-fk-failures'>{int(sets[name].get('fk_failures') or 0)}</td>"
+            f"<td id='verification-{name}-fk-failures'>"
+            f'{int(sets[name].get("fk_failures") or 0)}</td>'
             for name in sets
         )
         + '</tr>'
@@ -657,7 +694,8 @@ def verification_section(verification: dict, figure) -> str:
         summary_rows.append(
             (
                 'Expected from reading noise alone',
-                f'{noise["position_rms_m"] * UM:.2f} um, {(noise.get("rotary_rms_rad") or 0) * UM:.2f} urad',
+                f'{noise["position_rms_m"] * UM:.2f} um, '
+                f'{(noise.get("rotary_rms_rad") or 0) * UM:.2f} urad',
                 'verification-expected-noise',
             )
         )
@@ -704,12 +742,14 @@ def verification_section(verification: dict, figure) -> str:
             ),
         )
     text = (
-        '<p>Fresh postures, not used in the fit: what the device measured (position by eq. 4, the fixed '
-        'point for fixed-position postures; phi from the rotary sensor) against forward kinematics at the '
-        'measured actuator readings, with the nominal and with the calibrated parameters.</p>'
+        '<p>Fresh postures, not used in the fit: what the device measured (position by eq. 4, the '
+        'fixed point for fixed-position postures; phi from the rotary sensor) against forward '
+        'kinematics at the measured actuator readings, with the nominal and with the calibrated '
+        'parameters.</p>'
     )
     return (
-        f"<section id='verification'><h2>{title}</h2>{text}<table class='data' id='verification-figures'>"
+        f"<section id='verification'><h2>{title}</h2>{text}<table class='data' "
+        "id='verification-figures'>"
         f"{table}</table><table class='summary'>{summary}</table>{failures}{image}</section>"
     )
 
@@ -717,7 +757,10 @@ def verification_section(verification: dict, figure) -> str:
 def write_verification_report(
     verification: dict, out_dir: Path | str, *, title: str | None = None
 ) -> Path:
-    """DIR/index.html (+ verification.png) with the verification section alone (``hexacal verify
+    """
+    Write DIR/index.html with the verification section alone.
+
+    DIR/index.html (+ verification.png) with the verification section alone (``hexacal verify
     --report``).
     """
     out = Path(out_dir)
@@ -765,7 +808,8 @@ def predicted_position_error_map(
     model: str | None = None,
     mount: str = DEFAULT_MOUNT,
 ):
-    """(x, y, std) of the linearised position error, sqrt(trace(J_p C J_p^T)), on an x, y grid (m).
+    """
+    (x, y, std) of the linearised position error, sqrt(trace(J_p C J_p^T)), on an x, y grid (m).
 
     J_p = dP/du at (x, y, -sqrt(L^2 - x^2 - y^2), 0, 0, 0) (+sqrt standing); cells the machine
     cannot reach (its architecture's default workspace, on this link) are NaN.  Parameters without
@@ -810,11 +854,15 @@ def _verdict_from_json(identifiability: dict) -> str:
         return 'unknown'
     if identifiability.get('identifiable'):
         return (
-            f'all {identifiability.get("n_parameters")} parameters identifiable (rank {identifiability.get("rank")}, '
+            f'all {identifiability.get("n_parameters")} parameters identifiable (rank '
+            f'{identifiability.get("rank")}, '
             f'condition number {identifiability.get("condition_number", float("nan")):.3g})'
         )
     combos = '; '.join(identifiability.get('unidentifiable_combinations') or [])
-    return f'rank {identifiability.get("rank")} of {identifiability.get("n_parameters")}: not identifiable: {combos}'
+    return (
+        f'rank {identifiability.get("rank")} of {identifiability.get("n_parameters")}: '
+        f'not identifiable: {combos}'
+    )
 
 
 def _fmt(value, pattern: str) -> str:
@@ -827,7 +875,8 @@ _STYLE = """
 body { font-family: sans-serif; margin: 2em auto; max-width: 1150px; color: #222; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; border-bottom: 1px solid #ccc; margin-top: 2em; }
 table.summary th { text-align: left; padding-right: 2em; font-weight: normal; color: #555; }
-table.data { border-collapse: collapse; font-size: 0.85em; } table.data td, table.data th { padding: 1px 8px; }
+table.data { border-collapse: collapse; font-size: 0.85em; }
+table.data td, table.data th { padding: 1px 8px; }
 figure { margin: 1em 0; } img { max-width: 100%; } figcaption { font-size: 0.8em; color: #777; }
 .verdict { font-weight: bold; white-space: pre-wrap; } .note { color: #777; }
 """
@@ -837,7 +886,9 @@ figure { margin: 1em 0; } img { max-width: 100%; } figcaption { font-size: 0.8em
 _IMAGE_CHECK = """
 window.addEventListener('load', function () {
   var images = document.images, loaded = 0;
-  for (var i = 0; i < images.length; i++) { if (images[i].complete && images[i].naturalWidth > 0) loaded++; }
+  for (var i = 0; i < images.length; i++) {
+    if (images[i].complete && images[i].naturalWidth > 0) loaded++;
+  }
   document.body.setAttribute('data-images-loaded', String(loaded));
   document.body.setAttribute('data-images-total', String(images.length));
 });
@@ -845,8 +896,11 @@ window.addEventListener('load', function () {
 
 
 def _dimensionless(layout: ModelLayout) -> list[str]:
-    """Per-chain fields without a unit (the Hexa Slide's rail components ax, ay): shown as 1000 x
-    the value.
+    """
+    Return the per-chain fields without a unit.
+
+    Per-chain fields without a unit (the Hexa Slide's rail components ax, ay): shown as 1000 x the
+    value.
     """
     return [name for name, unit in zip(layout.fields, layout.field_units) if unit == '1']
 

@@ -1,3 +1,5 @@
-"""Studies built on the core: the paper's section 4 (accuracy), the device-defect study, planning
-studies.
+"""
+Studies built on the core.
+
+The paper's section 4 (accuracy), the device-defect study, planning studies.
 """

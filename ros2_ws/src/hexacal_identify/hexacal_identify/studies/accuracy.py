@@ -1,4 +1,5 @@
-"""The paper's simulation study (section 4), reproduced for any architecture.
+"""
+The paper's simulation study (section 4), reproduced for any architecture.
 
 * Identifiability of every cost function (the paper claims all 54 parameters of its Hexa Slide for
   each).
@@ -56,14 +57,22 @@ def _no_progress(_: str) -> None:
 
 
 def paper_reference(model: str) -> dict | None:
-    """The paper's Table 3 when ``model`` is the architecture the paper studied, else None."""
+    """
+    Return the paper's Table 3 when ``model`` is the paper's architecture.
+
+    The paper's Table 3 when ``model`` is the architecture the paper studied, else None.
+    """
     return PAPER_TABLE3_BY_MODEL.get(model)
 
 
 def study_truth(
     true_params: KinematicParameters | None = None, model: str | None = None
 ) -> KinematicParameters:
-    """The simulated machine of a study: ``true_params``, else the default machine of ``model``."""
+    """
+    Return the simulated machine of a study.
+
+    ``true_params``, else the default machine of ``model``.
+    """
     if true_params is not None:
         if model is not None and true_params.model != model:
             raise ValueError(f'the true parameters are a {true_params.model}, not a {model}')
@@ -103,8 +112,7 @@ class StudyRun:
         if self.nominal_params is not None and self.nominal_params.model != self.true_params.model:
             raise ValueError(
                 f'the nominal parameters are a {self.nominal_params.model} but the simulated '
-                'machine '
-                f'is a {self.true_params.model}: both must be the same model'
+                f'machine is a {self.true_params.model}: both must be the same model'
             )
 
     @property
@@ -168,8 +176,10 @@ class StudyOutcome:
 
 
 def posture_split(cost: str, total: int) -> tuple[int, int]:
-    """(sphere, fixed) posture counts: the paper's 3:1 split (60 + 20, 30 + 10) where fixed
-    postures are needed.
+    """
+    Return the (sphere, fixed) posture counts.
+
+    The paper's 3:1 split (60 + 20, 30 + 10) where fixed postures are needed.
     """
     if cost == 'fixed':
         return 0, total
@@ -256,8 +266,10 @@ def identifiability_by_cost(
     device: DeviceModel = DeviceModel(),
     model: str | None = None,
 ) -> list[CostIdentifiability]:
-    """Rank of the identification Jacobian of each cost function at the true parameters, exact
-    data.
+    """
+    Return the rank of the identification Jacobian of each cost function.
+
+    Rank of the identification Jacobian of each cost function at the true parameters, exact data.
 
     ``true_params`` defaults to the default machine of ``model`` (default: the Table 1 Hexa Slide).
     """
@@ -292,7 +304,7 @@ def identifiability_by_cost(
 
 
 def _true_poses(run: StudyRun, measurements: Measurements) -> np.ndarray:
-    """Exact poses of noise-free simulated measurements: recovered by FK with the true parameters."""
+    """Return the exact poses of noise-free simulated measurements (FK, true parameters)."""
     from ..core.kinematics import forward_kinematics
 
     function = CostFunction(run.cost, measurements, run.device, ChannelSigma())

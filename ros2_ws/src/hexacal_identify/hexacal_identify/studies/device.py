@@ -1,4 +1,5 @@
-"""Calibration with a defective device: ignoring the defects, cancelling them, or identifying them.
+"""
+Calibration with a defective device: ignoring the defects, cancelling them, or identifying them.
 
 Frames.  Section 2.3 defines the base X and Y axes by the inclinometer at zero
 reading, and the platform's phi zero is the rotary sensor's zero.  A zero
@@ -50,8 +51,10 @@ def _rotation_z(angle: float) -> np.ndarray:
 def device_frame_truth(
     true_params: KinematicParameters, defects: DeviceDefects
 ) -> KinematicParameters:
-    """The true machine in the device-defined frames: base turned by -beta0 about Y, platform by
-    phi0 about z'.
+    """
+    Return the true machine in the device-defined frames.
+
+    Base turned by -beta0 about Y, platform by phi0 about z'.
 
     A reading beta + beta0 puts the measured position at R_Y(-beta0) p (eq. 4), so
     the device's base frame is the true one turned by -beta0 about Y; a rotary
@@ -64,8 +67,10 @@ def device_frame_truth(
 
 
 def calibrated_frames(defects: DeviceDefects, identified: tuple[str, ...]) -> DeviceDefects:
-    """The frame-defining defects a calibration leaves in its frames: beta0 and phi0 unless it
-    identified them.
+    """
+    Return the frame-defining defects a calibration leaves in its frames.
+
+    Beta0 and phi0 unless it identified them.
     """
     return DeviceDefects(
         beta0=0.0 if 'beta0' in identified else defects.beta0,
@@ -74,8 +79,10 @@ def calibrated_frames(defects: DeviceDefects, identified: tuple[str, ...]) -> De
 
 
 def device_frame_poses(poses: np.ndarray, defects: DeviceDefects) -> np.ndarray:
-    """Poses in the device frames: R_Y(-beta0) P, and R_Y(-beta0) R R_z(phi0) = angles (theta -
-    beta0, psi, phi + phi0).
+    """
+    Return poses in the device frames.
+
+    R_Y(-beta0) P, and R_Y(-beta0) R R_z(phi0) = angles (theta - beta0, psi, phi + phi0).
     """
     converted = np.array(poses, dtype=float)
     converted[:, :3] = poses[:, :3] @ _rotation_y(-defects.beta0).T
@@ -96,7 +103,8 @@ def simulate_procedure(
     workspace: Workspace | None = None,
     device_turn: np.ndarray | None = None,
 ) -> Measurements:
-    """Readings of the paper's two-step procedure with a defective device.
+    """
+    Simulate the readings of the paper's two-step procedure with a defective device.
 
     Sphere postures lie on the true sphere of radius L + dL (with an LVDT the link
     is prismatic: radii vary by +-50 mm); fixed postures sit where the defective
@@ -199,7 +207,10 @@ def compare_methods(
     true_params: KinematicParameters | None = None,
     model: str | None = None,
 ) -> list[MethodOutcome]:
-    """Every method of METHODS on the same machine, procedure and seeds; pose errors in the device
+    """
+    Compare every method of METHODS on the same machine, procedure and seeds.
+
+    Every method of METHODS on the same machine, procedure and seeds; pose errors in the device
     frames.
 
     The machine is ``true_params``, else the default machine of ``model`` (default: the Table 1

@@ -1,5 +1,7 @@
-"""An imperfect device at no cost: prior knowledge, a turning procedure, and the joint estimator's
-limit.
+"""
+An imperfect device at no cost.
+
+Prior knowledge, a turning procedure, and the joint estimator's limit.
 
 Why the defects hurt.  Over the sphere postures a 54-parameter machine can
 imitate any smooth, nearly affine distortion of its workspace, and that is what
@@ -70,8 +72,10 @@ PLAN_CANDIDATES = 1000  # candidate postures of a planned row, each offered in e
 
 
 def procedure_turns(procedure: str, postures: int) -> np.ndarray | None:
-    """The device turn of each of ``postures`` postures (rad): consecutive blocks per turn; None
-    for 'none'.
+    """
+    Return the device turn of each of ``postures`` postures (rad).
+
+    Consecutive blocks per turn; None for 'none'.
     """
     turns = turns_of(procedure)
     if len(turns) == 1:
@@ -93,9 +97,11 @@ def simulate_device_run(
     fixed: int = 0,
     device: DeviceModel = DeviceModel(),
 ) -> Measurements:
-    """``postures`` postures: ``fixed`` fixed-position ones (normal mounting), the others sphere
-    postures shared out over the ``procedure``'s turns (``device.simulate_procedure``: the true
-    sphere L + dL, distinct poses).
+    """
+    Simulate ``postures`` postures of a turning procedure.
+
+    ``fixed`` fixed-position ones (normal mounting), the others sphere postures shared out over the
+    ``procedure``'s turns (``device.simulate_procedure``: the true sphere L + dL, distinct poses).
     """
     sphere = postures - fixed
     return simulate_procedure(
@@ -120,8 +126,10 @@ def plan_for(
     device_prior: DevicePrior = DevicePrior(),
     candidates: int = PLAN_CANDIDATES,
 ):
-    """The planner's choice on the nominal machine: I-optimal with the device columns, priors and
-    turns.
+    """
+    Return the planner's choice on the nominal machine.
+
+    I-optimal with the device columns, priors and turns.
     """
     from ..core.planning import plan_postures, PREDICTION
 
@@ -149,9 +157,11 @@ def simulate_planned_run(
     prior: DevicePrior,
     device: DeviceModel = DeviceModel(),
 ) -> Measurements:
-    """The planned postures on the true machine: the link of true length L + dL puts each planned
-    position on
-    its own sphere (radially scaled), the device turned as the plan says.
+    """
+    Simulate the planned postures on the true machine.
+
+    The link of true length L + dL puts each planned position on its own sphere (radially scaled),
+    the device turned as the plan says.
     """
     # The planner knows the prior's std but not the instrument's reading: plan with the nominal
     # value.
@@ -175,8 +185,10 @@ def simulate_planned_run(
 def caliper_prior(
     defects: DeviceDefects, caliper: tuple[tuple[str, float], ...], seed: int
 ) -> DevicePrior:
-    """Priors as a user would have them: each instrument reads the true value with its own N(0,
-    std) error.
+    """
+    Return priors as a user would have them.
+
+    Each instrument reads the true value with its own N(0, std) error.
     """
     rng = np.random.default_rng([seed, 0xCA1])
     return DevicePrior(
@@ -283,8 +295,10 @@ def run_row(
     noise_um: float = 10.0,
     progress: Callable[[str], None] = lambda _: None,
 ) -> RowOutcome:
-    """``row`` over ``seeds``: weighted by the known noise, validated on 50 fresh postures in both
-    frames.
+    """
+    Run ``row`` over ``seeds``.
+
+    Weighted by the known noise, validated on 50 fresh postures in both frames.
     """
     used = defects if row.defective else DeviceDefects()
     outcome = RowOutcome(row)
@@ -334,9 +348,11 @@ def run_row(
 
 @dataclass
 class Claim:
-    """One of the issue's claims on a row: its error / the defect-free one of the same seeds
-    (random postures, the baseline the issue measured), and / an ideal device calibrated the same
-    way (its own plan).
+    """
+    One of the issue's claims on a row.
+
+    Its error / the defect-free one of the same seeds (random postures, the baseline the issue
+    measured), and / an ideal device calibrated the same way (its own plan).
     """
 
     text: str
@@ -354,8 +370,10 @@ class Claim:
 
 
 def claims(outcomes: list[RowOutcome]) -> list[Claim]:
-    """The issue's claims on the table: caliper prior within 1.5x (device frames), procedure within
-    1.5x (true frames).
+    """
+    Return the issue's claims on the table.
+
+    Caliper prior within 1.5x (device frames), procedure within 1.5x (true frames).
     """
     references = {
         o.row.planned: o.mean(o.true_frame_position_m) for o in outcomes if not o.row.defective
@@ -368,15 +386,13 @@ def claims(outcomes: list[RowOutcome]) -> list[Claim]:
             error = outcome.mean(outcome.device_frame_position_m)
             text = (
                 f'{outcome.row.label}, no procedure: position within {CLAIM_RATIO}x the '
-                'defect-free one '
-                '(device frames: without a procedure beta0 is a frame definition)'
+                'defect-free one (device frames: without a procedure beta0 is a frame definition)'
             )
         elif outcome.row.claim == 'procedure':
             error = outcome.mean(outcome.true_frame_position_m)
             text = (
                 f'{outcome.row.label}, no prior: position within {CLAIM_RATIO}x the defect-free '
-                'one '
-                '(true frames, every beta0 and phi0 effect included)'
+                'one (true frames, every beta0 and phi0 effect included)'
             )
         else:
             continue
@@ -402,7 +418,10 @@ def device_table(
 
 @dataclass
 class EfficiencySummary:
-    """Monte Carlo of the joint estimator against its Cramer-Rao bound (same postures, noise seeds
+    """
+    Monte Carlo of the joint estimator against its Cramer-Rao bound.
+
+    Monte Carlo of the joint estimator against its Cramer-Rao bound (same postures, noise seeds
     vary).
     """
 
@@ -436,8 +455,10 @@ def estimator_efficiency(
     true_params: KinematicParameters | None = None,
     progress: Callable[[str], None] = lambda _: None,
 ) -> EfficiencySummary:
-    """The joint problem (``procedure``, ``identified`` device parameters) repeated over noise
-    seeds.
+    """
+    Repeat the joint problem over noise seeds.
+
+    The joint problem (``procedure``, ``identified`` device parameters) repeated over noise seeds.
 
     The estimator's target is the true machine in the frames it calibrates in (the
     device's where beta0 or phi0 is not identified); the CRB is the covariance of the
@@ -460,7 +481,7 @@ def estimator_efficiency(
     crb = identify(
         target, exact, SolverOptions(free_device=identified, noise=noise, device_defects=held)
     )
-    crb_std = np.sqrt(np.diag(crb.covariance)[target.layout.n_parameters :][index])
+    crb_std = np.sqrt(np.diag(crb.covariance)[target.layout.n_parameters:][index])
     validation = device_frame_poses(validation_poses(true_params, 50, 0), frames)
     predicted = predicted_pose_errors(target, crb.covariance, validation)
     predicted_ms = float(np.mean(np.sum(predicted.position_std_m**2, axis=1)))
@@ -495,7 +516,10 @@ def estimator_efficiency(
 
 
 def _with_noise(exact: Measurements, noise: NoiseModel, seed: int) -> Measurements:
-    """``exact`` readings with fresh uniform noise of ``noise`` (the same postures, another noise
+    """
+    Return ``exact`` readings with fresh uniform noise of ``noise``.
+
+    ``exact`` readings with fresh uniform noise of ``noise`` (the same postures, another noise
     draw).
     """
     rng = np.random.default_rng([seed, 0xEFF])

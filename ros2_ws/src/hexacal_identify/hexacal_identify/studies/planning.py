@@ -1,5 +1,7 @@
-"""``hexacal study --plan``: accuracy versus number of postures, planned against random, over
-seeds.
+"""
+``hexacal study --plan``: accuracy versus number of postures.
+
+Accuracy versus number of postures, planned against random, over seeds.
 
 For each seed the machine, its nominal model, the noise and the 50 validation
 postures are those of ``studies.accuracy`` (``StudyRun``, on the default machine of
@@ -45,7 +47,10 @@ UM = 1e6
 
 
 def add_arguments(parser) -> None:
-    """Options of ``hexacal study --plan`` (it also uses --seed, --noise-um, --cost, --nominal-set,
+    """
+    Add the options of ``hexacal study --plan``.
+
+    Options of ``hexacal study --plan`` (it also uses --seed, --noise-um, --cost, --nominal-set,
     --out, --json).
     """
     group = parser.add_argument_group('posture planning study (--plan)')
@@ -167,7 +172,10 @@ def _nan_to_none(values) -> list:
 
 
 def calibrate_at(run: StudyRun, poses: np.ndarray, kinds: np.ndarray) -> StudyOutcome:
-    """``run_calibration`` with given postures instead of random ones (same noise model, solver,
+    """
+    Run ``run_calibration`` with given postures instead of random ones.
+
+    ``run_calibration`` with given postures instead of random ones (same noise model, solver,
     validation).
     """
     rng = np.random.default_rng([run.seed, len(poses), 0x9EA5])
@@ -186,8 +194,10 @@ def calibrate_at(run: StudyRun, poses: np.ndarray, kinds: np.ndarray) -> StudyOu
 def planned_variants(
     index: str, cost: str, noise_um: float
 ) -> dict[str, tuple[str, NoiseModel | None]]:
-    """Name -> (index, noise weighting): the index asked for, weighted and not, and the I-optimal
-    plan.
+    """
+    Return name -> (index, noise weighting) of the planned variants.
+
+    The index asked for, weighted and not, and the I-optimal plan.
     """
     noise = NoiseModel.from_microns(
         noise_um if noise_um > 0 else 1.0
@@ -217,13 +227,16 @@ def planned_vs_random(
     model: str | None = None,
     true_params=None,
 ) -> PlanningStudy:
-    """Validation error vs K for random postures and the planned variants (``planned_variants``).
+    """
+    Return the validation error vs K for random and planned postures.
+
+    Validation error vs K for random postures and the planned variants (``planned_variants``).
 
     The machine: ``true_params``, else the default machine of ``model`` (default: the Table 1 Hexa
     Slide).
     """
     truth = study_truth(true_params, model)
-    ks = sorted(set(int(k) for k in ks) | {REFERENCE_RANDOM_POSTURES})
+    ks = sorted({int(k) for k in ks} | {REFERENCE_RANDOM_POSTURES})
     seeds = [int(s) for s in seeds]
     study = PlanningStudy(ks, seeds, noise_um, cost, index, method, truth.model)
     weighting = planned_variants(index, cost, noise_um)
@@ -310,7 +323,7 @@ def _record(
 
 
 def run(args) -> int:
-    """Handler of ``hexacal study --plan``."""
+    """Run ``hexacal study --plan``."""
     from ..cli.common import Progress
     from ..report import figures
 
@@ -363,11 +376,9 @@ def _print_table(study: PlanningStudy) -> None:
 
     print(
         f'Planned vs random postures, {architecture(study.model).layout.title}: mean validation '
-        'position error '
-        f'[um] over {len(study.seeds)} seeds '
-        f'(mean +- std; failed calibrations in brackets), +-{study.noise_um:g} um noise, cost '
-        f'{study.cost}, '
-        f'index {study.index}, {study.method}:'
+        f'position error [um] over {len(study.seeds)} seeds (mean +- std; failed calibrations in '
+        f'brackets), +-{study.noise_um:g} um noise, cost {study.cost}, index {study.index}, '
+        f'{study.method}:'
     )
     print(f'  {"K":>3} ' + ' '.join(f'{name:>26}' for name in names))
     for row, k in enumerate(study.ks):
