@@ -1,5 +1,9 @@
-"""The driver's commanded mode, ROS-free: trajectory checks, bounded-speed following, the link's
-constraint, and the executor's rules (core/execution.py) walking a plan on it to a calibration."""
+"""
+The driver's commanded mode, ROS-free.
+
+Trajectory checks, bounded-speed following, the link's constraint, and the executor's rules
+(core/execution.py) walking a plan on it to a calibration.
+"""
 
 from __future__ import annotations
 
@@ -116,7 +120,11 @@ def test_multi_point_trajectories_go_through_every_point():
 
 
 def _upright(params):
-    """A Gough-Stewart machine reflected z -> -z: upright, for the standing device."""
+    """
+    Return a Gough-Stewart machine reflected z -> -z (upright, for the standing device).
+
+    Upright, for the standing device.
+    """
     from hexacal_identify.core.architectures.gough_stewart import GoughStewartParameters
 
     mirror = np.diag([1.0, 1.0, -1.0])

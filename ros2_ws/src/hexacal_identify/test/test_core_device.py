@@ -1,4 +1,8 @@
-"""Device defects: the measurement model, joint identification, what is (not) identifiable, robustness, uncertainty."""
+"""
+Device defects: measurement model, joint identification, identifiability, uncertainty.
+
+The measurement model, joint identification, what is (not) identifiable, robustness, uncertainty.
+"""
 
 from hexacal_identify.core.device import (
     device_position,
@@ -66,8 +70,8 @@ def test_joint_identification_recovers_defects_and_machine_without_noise(lvdt):
     measurements = simulate_procedure(TRUE, DEFAULT_DEFECTS, 60, 20, 0.0, seed=1, lvdt=lvdt)
     result = identify(nominal_set(2), measurements, SolverOptions(free_device=IDENTIFIED_WITH_EQ7))
     assert result.reason == CONVERGED and result.rank == 57
-    # With gamma != 0 a base rotation about Y imitates beta0 only to first order, so the device frames
-    # (base turned by -beta0) hold the truth to ~1e-8, not to rounding.
+    # With gamma != 0 a base rotation about Y imitates beta0 only to first order, so the device
+    # frames (base turned by -beta0) hold the truth to ~1e-8, not to rounding.
     for name in IDENTIFIED_WITH_EQ7:
         assert getattr(result.device, name) == pytest.approx(
             getattr(DEFAULT_DEFECTS, name), abs=1e-7
@@ -78,7 +82,8 @@ def test_joint_identification_recovers_defects_and_machine_without_noise(lvdt):
 
 
 def test_frame_defining_defects_are_named_and_refused():
-    # gamma = 0: then a base rotation about Y imitates beta0 exactly (with gamma it is only nearly so).
+    # gamma = 0: then a base rotation about Y imitates beta0 exactly (with gamma it is only nearly
+    # so).
     defects = DeviceDefects(dL=5e-4, alpha0=2e-4, beta0=-1.5e-4, phi0=1e-4)
     measurements = simulate_procedure(TRUE, defects, 60, 20, 0.0, seed=2)
     every_defect = ('dL', 'alpha0', 'beta0', 'gamma', 'phi0')

@@ -1,4 +1,8 @@
-"""Device mount (#10): hanging (eq. 4 with z < 0, unchanged) and standing (platform above O: p = -p_hanging)."""
+"""
+Device mount (#10): hanging and standing.
+
+Hanging (eq. 4 with z < 0, unchanged) and standing (platform above O: p = -p_hanging).
+"""
 
 from hexacal_identify.core.architectures.gough_stewart import (
     default_gough_stewart,
@@ -47,7 +51,11 @@ EQ4 = {
 
 
 def _eq4_expression(alpha, beta, length):
-    """Eq. 4 as written in device.py before the mount existed (the hanging arithmetic, bit for bit)."""
+    """
+    Return eq. 4 as written in device.py before the mount existed.
+
+    Eq. 4 as written in device.py before the mount existed (the hanging arithmetic, bit for bit).
+    """
     return np.stack(
         [
             length * np.cos(alpha) * np.sin(beta),
@@ -58,7 +66,8 @@ def _eq4_expression(alpha, beta, length):
     )
 
 
-# -- hanging: unchanged ----------------------------------------------------------------------------
+# -- hanging: unchanged
+# ----------------------------------------------------------------------------
 def test_hanging_is_eq4_at_hand_computed_values():
     alpha, beta = np.array(list(EQ4)).T
     expected = np.array(list(EQ4.values()))
@@ -104,7 +113,8 @@ def test_hanging_fixed_point_and_sphere_are_below_the_base_joint():
     np.testing.assert_array_equal(sphere_z(xy, L), -np.sqrt(L**2 - np.sum(xy**2, axis=1)))
 
 
-# -- standing: the convention ------------------------------------------------------------------------
+# -- standing: the convention
+# ------------------------------------------------------------------------
 def test_standing_formula_is_the_hanging_one_negated():
     alpha, beta = READINGS
     expected = np.column_stack(
@@ -132,11 +142,17 @@ def test_standing_formula_is_the_hanging_one_negated():
 
 
 def test_standing_signs_follow_the_rigid_link_through_its_joint():
-    """A reading that swings a hanging link's lower end to +x (+y) swings an upright link's upper end to -x (-y).
+    """
+    Check that a standing link swings opposite to a hanging one.
 
-    The inclinometer sits upright on the link either way; a reading is one orientation R of the link (the
-    U joint at O allows the same ones whichever way the link leaves it): the platform end is R (0, 0, -L)
-    hanging and R (0, 0, +L) standing."""
+    A reading that swings a hanging link's lower end to +x (+y) swings an upright link's upper end
+    to -x (-y).
+
+    The inclinometer sits upright on the link either way; a reading is one orientation R of the
+    link (the U joint at O allows the same ones whichever way the link leaves it): the platform end
+    is R (0, 0, -L)
+    hanging and R (0, 0, +L) standing.
+    """
     small = 0.05
     assert (
         measured_position(0.0, small, L)[0] > 0
@@ -245,7 +261,8 @@ def test_position_derivatives_wrt_readings_match_finite_differences(mount):
             np.testing.assert_allclose(analytic[:, :, column], numeric, rtol=0, atol=1e-9)
 
 
-# -- bad names -----------------------------------------------------------------------------------------
+# -- bad names
+# -----------------------------------------------------------------------------------------
 @pytest.mark.parametrize('bad', ['upright', 'Standing', '', None, 1])
 def test_unknown_mount_is_a_named_value_error(bad):
     with pytest.raises(
@@ -270,7 +287,8 @@ def test_unknown_mount_is_a_named_value_error(bad):
             call()
 
 
-# -- the cost functions on an upright machine -----------------------------------------------------------
+# -- the cost functions on an upright machine
+# -----------------------------------------------------------
 MIRROR = np.diag([1.0, 1.0, -1.0])  # z -> -z: the default hexapod reflected into an upright one
 
 
@@ -284,7 +302,11 @@ def _upright_machine() -> GoughStewartParameters:
 def _upright_poses(
     n_sphere: int, n_fixed: int, seed: int, length: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Poses of the default (hanging) machine reflected: (x, y, -z, -theta, -psi, phi), leg lengths kept."""
+    """
+    Return poses of the default (hanging) machine reflected.
+
+    (x, y, -z, -theta, -psi, phi), leg lengths kept.
+    """
     hanging = default_gough_stewart()
     workspace = hanging.architecture.default_workspace()
     workspace = Workspace(
@@ -307,7 +329,12 @@ def _upright_poses(
 
 
 def _standing_measurements(params, poses, kinds, defects: DeviceDefects) -> Measurements:
-    """Readings of a standing device (no noise); fixed postures sit where the defective inclinometer reads zero."""
+    """
+    Simulate readings of a standing device (no noise).
+
+    Readings of a standing device (no noise); fixed postures sit where the defective inclinometer
+    reads zero.
+    """
     model = DeviceModel(L, 'standing')
     poses = poses.copy()
     poses[kinds == FIXED, :3] = model.fixed_position(defects).position[0]
@@ -381,7 +408,8 @@ def test_standing_initial_poses_are_the_measured_positions():
     [
         ('absolute', NO_DEFECTS, ()),
         ('sphere-fixed', NO_DEFECTS, ()),
-        # beta0 and phi0 are frame definitions (device.py's module doc): zero here so the frames are the true ones.
+        # beta0 and phi0 are frame definitions (device.py's module doc): zero here so the frames
+        # are the true ones.
         ('absolute', DeviceDefects(dL=5e-4, alpha0=2e-4, gamma=1e-4), ('dL', 'alpha0', 'gamma')),
     ],
     ids=['absolute', 'sphere-fixed', 'absolute-with-defects'],

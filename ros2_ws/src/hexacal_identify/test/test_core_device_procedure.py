@@ -11,7 +11,7 @@ from hexacal_identify.core.device import (
 )
 from hexacal_identify.core.errors import InvalidMeasurementError, RankDeficientError
 from hexacal_identify.core.identification import CONVERGED, identify, SolverOptions
-from hexacal_identify.core.measurements import Measurements, NoiseModel, simulate_measurements
+from hexacal_identify.core.measurements import Measurements, NoiseModel
 from hexacal_identify.core.model import nominal_set, table1_parameters
 from hexacal_identify.core.residuals import ChannelSigma, CostFunction
 from hexacal_identify.studies.device import DEFAULT_DEFECTS
@@ -38,7 +38,8 @@ def test_a_turned_device_reads_the_rotated_direction_and_inverts_exactly():
     position = device_position(*READINGS, 0.75, DEFAULT_DEFECTS, device_turn=TURNS).position
     alpha, beta = inclinometer_readings(position, DEFAULT_DEFECTS, device_turn=TURNS)
     np.testing.assert_allclose(np.vstack([alpha, beta]), READINGS, atol=1e-14)
-    # Without defects, turned by pi, the sensor reads the normal readings negated (its axes are -X, -Y).
+    # Without defects, turned by pi, the sensor reads the normal readings negated (its axes are -X,
+    # -Y).
     normal = inclinometer_readings(position, DeviceDefects())
     reversed_ = inclinometer_readings(position, DeviceDefects(), device_turn=math.pi)
     np.testing.assert_allclose(np.vstack(reversed_), -np.vstack(normal), atol=1e-14)
@@ -93,7 +94,7 @@ def test_turned_rotary_reading_is_wrapped_and_unwrapped_by_the_cost():
 
 
 def test_reversal_separates_the_zero_offsets_exactly():
-    """Without noise, a half turn makes beta0 (a frame definition with one mounting) identifiable."""
+    """Without noise, a half turn makes beta0 (a frame definition alone) identifiable."""
     measurements = simulate_device_run(TRUE, DEFAULT_DEFECTS, 50, 0.0, 1, 'quarter-turns')
     result = identify(nominal_set(2), measurements, SolverOptions(free_device=ALL_BUT_PHI0))
     assert result.reason == CONVERGED
@@ -187,7 +188,8 @@ def test_prior_rows_enter_the_estimate_and_the_covariance():
     )
     assert 'dL' in caliper.free_device
     assert caliper.device_std[0] < 10e-6 < without.device_std[0]
-    # Posterior precision = prior precision + data precision (linear Gaussian MAP), to linearisation accuracy.
+    # Posterior precision = prior precision + data precision (linear Gaussian MAP), to
+    # linearisation accuracy.
     expected = 1.0 / np.sqrt(1.0 / 10e-6**2 + 1.0 / without.device_std[0] ** 2)
     assert caliper.device_std[0] == pytest.approx(expected, rel=0.05)
 
@@ -241,7 +243,8 @@ def test_quarter_turns_bring_the_true_frame_error_down_and_claims_are_judged():
         seeds,
     )
     assert not turned.failures and len(turned.true_frame_position_m) == 3
-    # One mounting leaves the base frame tilted by beta0 (~110 um over the workspace); the turns remove it.
+    # One mounting leaves the base frame tilted by beta0 (~110 um over the workspace); the turns
+    # remove it.
     assert turned.mean(turned.true_frame_position_m) < 0.3 * one_mounting.mean(
         one_mounting.true_frame_position_m
     )

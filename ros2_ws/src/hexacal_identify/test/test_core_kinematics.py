@@ -1,4 +1,8 @@
-"""Kinematics: IK at home, IK/FK round trips over the workspace, analytic Jacobians vs finite differences."""
+"""
+Kinematics: IK at home, IK/FK round trips, analytic Jacobians vs finite differences.
+
+IK at home, IK/FK round trips over the workspace, analytic Jacobians vs finite differences.
+"""
 
 from hexacal_identify.core.errors import InvalidMeasurementError, UnreachablePoseError
 from hexacal_identify.core.kinematics import (
@@ -129,7 +133,12 @@ def test_parameter_jacobian_matches_finite_differences():
 
 
 def test_fk_internal_jacobians_match_finite_differences_and_the_public_ones():
-    """FK's and the sensitivities' coordinate-major path (_Legs) against IK differences and the LegGeometry path."""
+    """
+    Check FK's internal Jacobians against finite differences and the public ones.
+
+    FK's and the sensitivities' coordinate-major path (_Legs) against IK differences and the
+    LegGeometry path.
+    """
     from hexacal_identify.core.architectures.hexa_slide import _Chains, _Legs
 
     params = nominal_set(2, seed=3)

@@ -1,4 +1,8 @@
-"""core/live.py: the pose of live readings (FK on the guess's branch) and actuator targets with the stroke check."""
+"""
+Core/live.py: the pose of live readings and actuator targets with the stroke check.
+
+The pose of live readings (FK on the guess's branch) and actuator targets with the stroke check.
+"""
 
 from hexacal_identify.core.architectures import architecture, ARCHITECTURES
 from hexacal_identify.core.errors import ForwardKinematicsError, UnreachablePoseError
@@ -28,7 +32,8 @@ def test_solve_pose_from_the_workspace_centre_over_the_workspace(model):
     readings = inverse_kinematics(params, poses)
     for pose, reading in zip(poses, readings):
         assert np.allclose(solve_pose(params, reading, home_pose()), pose, atol=1e-10, rtol=0)
-    # Far poses are beyond plain Newton's branch check from the centre: the continuation reaches them.
+    # Far poses are beyond plain Newton's branch check from the centre: the continuation reaches
+    # them.
     far = np.argmax(np.linalg.norm(poses[:, :2], axis=1))
     direct = forward_kinematics(params, readings[far][None], home_pose()[None])
     assert not direct.converged[0] or np.linalg.norm(poses[far, :2]) < 0.05

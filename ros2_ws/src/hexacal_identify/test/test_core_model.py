@@ -1,4 +1,8 @@
-"""Model: Table 1 in SI units, nominal sets with Table 2's statistics, validation of parameter vectors."""
+"""
+Model: Table 1 in SI units, nominal sets, validation of parameter vectors.
+
+Table 1 in SI units, nominal sets with Table 2's statistics, validation of parameter vectors.
+"""
 
 from hexacal_identify.core.model import (
     error_stats_mm,

@@ -1,4 +1,5 @@
-"""identifiability.pivoted_qr (numpy) against scipy.linalg.qr(pivoting=True), which it replaces.
+"""
+Identifiability.pivoted_qr (numpy) against scipy.linalg.qr(pivoting=True), which it replaces.
 
 The identifiability analysis no longer imports scipy (#12 item 2: ~0.2 s of every
 `hexacal calibrate`).  Its pivots decide which parameters a refusal suggests
@@ -31,7 +32,11 @@ def scipy_pivoted_qr(matrix):
 
 
 def assert_same_factorization(matrix, steps=None):
-    """Same pivots (the first ``steps`` of them; all by default) and the same |R|."""
+    """
+    Assert the same pivots and the same |R|.
+
+    Same pivots (the first ``steps`` of them; all by default) and the same |R|.
+    """
     expected_r, expected_pivots = scipy_pivoted_qr(matrix)
     r, pivots = pivoted_qr(matrix)
     steps = min(matrix.shape) if steps is None else steps
@@ -73,7 +78,12 @@ def test_random_matrices_match_scipy(shape):
 
 
 def test_random_unit_norm_columns_match_scipy():
-    """Columns of norm 1 to within rounding (as the scaled Jacobian's): the last bit of the norms decides."""
+    """
+    Check columns of norm 1 to within rounding.
+
+    Columns of norm 1 to within rounding (as the scaled Jacobian's): the last bit of the norms
+    decides.
+    """
     rng = np.random.default_rng(7)
     for _ in range(200):
         m, n = rng.integers(1, 70, size=2)
@@ -83,7 +93,11 @@ def test_random_unit_norm_columns_match_scipy():
 
 
 def test_random_rank_deficient_matrices_match_scipy_up_to_the_rank():
-    """Beyond the rank the remaining columns are rounding noise: the pivots agree where the rank is."""
+    """
+    Check rank-deficient matrices: the pivots agree where the rank is.
+
+    Beyond the rank the remaining columns are rounding noise: the pivots agree where the rank is.
+    """
     rng = np.random.default_rng(3)
     for _ in range(200):
         m, n = rng.integers(2, 70, size=2)
@@ -103,7 +117,11 @@ def test_zero_and_repeated_columns():
 
 
 class _Both:
-    """Stands in for pivoted_qr: returns ours, records whether scipy agrees on each matrix analyzed."""
+    """
+    Stand in for pivoted_qr, recording whether scipy agrees.
+
+    Stands in for pivoted_qr: returns ours, records whether scipy agrees on each matrix analyzed.
+    """
 
     def __init__(self):
         self.matrices = []
@@ -118,7 +136,12 @@ def _report_text(report):
 
 
 def test_identifiability_by_cost_matches_scipy(monkeypatch):
-    """The study's analysis of the tall Jacobian of each cost (rank 53 for sphere, fixed and relative)."""
+    """
+    Check the study's analysis of the tall Jacobian of each cost against scipy.
+
+    The study's analysis of the tall Jacobian of each cost (rank 53 for sphere, fixed and
+    relative).
+    """
     both = _Both()
     monkeypatch.setattr(identifiability, 'pivoted_qr', both)
     ours = identifiability_by_cost(postures=30)
@@ -154,7 +177,11 @@ def _identify_report(cost, free_device=()):
     + [('relative', ('phi0',)), ('absolute', ('dL', 'alpha0', 'gamma'))],
 )
 def test_identification_refusals_match_scipy(monkeypatch, cost, free_device):
-    """The solver's analysis (on the square root of J^T J): same rank, combinations and suggestions."""
+    """
+    Check the solver's rank analysis against scipy.
+
+    The solver's analysis (on the square root of J^T J): same rank, combinations and suggestions.
+    """
     both = _Both()
     monkeypatch.setattr(identifiability, 'pivoted_qr', both)
     ours = _identify_report(cost, free_device)

@@ -1,4 +1,8 @@
-"""Architecture.drawing: the machine at a pose as points and segments in the base frame (machine markers)."""
+"""
+Architecture.drawing: the machine at a pose as points and segments.
+
+The machine at a pose as points and segments in the base frame (machine markers).
+"""
 
 from hexacal_identify.core.architectures import architecture, ARCHITECTURES
 from hexacal_identify.core.kinematics import inverse_kinematics, rotation_matrices

@@ -1,4 +1,8 @@
-"""The Imu inclinometer convention (hexacal_msgs_py.inputs) reads what core/device.py says the inclinometer reads.
+"""
+The Imu inclinometer convention reads what core/device.py says.
+
+The Imu inclinometer convention (hexacal_msgs_py.inputs) reads what core/device.py says the
+inclinometer reads.
 
 An IMU fixed on the measuring link, axes along the base's at zero reading, turns with the
 link. The link hangs (or stands) in a U joint at O whose base-fixed axis is Y and whose
@@ -28,7 +32,11 @@ LINK = 0.75
 
 
 def link_orientation(position: np.ndarray, mount: str) -> Rotation:
-    """The U-joint link turned to point from O to `position`: R_Y(t1) R_X(t2) (0, 0, -1 or +1) = u."""
+    """
+    Return the U-joint link turned to point from O to `position`.
+
+    R_Y(t1) R_X(t2) (0, 0, -1 or +1) = u.
+    """
     u = position / np.linalg.norm(position)
     axis = -1.0 if mount == HANGING else 1.0  # the link's direction in its own frame
     t2 = np.arcsin(
@@ -64,8 +72,9 @@ def test_the_inverse_is_the_links_orientation():
 
 
 def test_signs_and_offsets_undo_a_sensor_mounted_otherwise():
-    # An IMU turned by 180 deg about the link (Z): both axes reversed; and tilted by 10 mrad about its
-    # X: it reads -alpha - 0.01 and -beta, which signs (-1, -1) and offsets (-0.01, 0) turn back.
+    # An IMU turned by 180 deg about the link (Z): both axes reversed; and tilted by 10 mrad about
+    # its X: it reads -alpha - 0.01 and -beta, which signs (-1, -1) and offsets (-0.01, 0) turn
+    # back.
     mapping = InputMapping(
         InputMapping.default().actuator_joints,
         inclinometer_signs=(-1, -1),

@@ -1,4 +1,8 @@
-"""The contract's pose <-> quaternion convention (hexacal_msgs_py.poses) is the core's eq. 2 rotation."""
+"""
+The contract's pose <-> quaternion convention is the core's eq. 2 rotation.
+
+The contract's pose <-> quaternion convention (hexacal_msgs_py.poses) is the core's eq. 2 rotation.
+"""
 
 import math
 

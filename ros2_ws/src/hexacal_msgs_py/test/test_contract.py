@@ -38,7 +38,7 @@ SLIDERS = (0.11, 0.12, 0.13, 0.14, 0.15, 0.16)
 
 
 def example_vector() -> np.ndarray:
-    """A physically valid 54-vector with distinct, non-round values."""
+    """Return a physically valid 54-vector with distinct, non-round values."""
     rng = np.random.default_rng(7)
     chains = []
     for chain in range(6):
@@ -536,7 +536,7 @@ def test_paths_may_be_strings(tmp_path):
 
 
 def gs_example_vector() -> np.ndarray:
-    """A valid Gough-Stewart 42-vector with distinct, non-round values."""
+    """Return a valid Gough-Stewart 42-vector with distinct, non-round values."""
     rng = np.random.default_rng(11)
     chains = []
     for chain in range(6):
@@ -655,7 +655,8 @@ def test_gough_stewart_nested_form_and_hexa_slide_defaults(tmp_path):
     path = tmp_path / 'nested.yaml'
     path.write_text('\n'.join(nested) + '\n')
     assert read_parameters_file(path).vector.tobytes() == vector.tobytes()
-    # No model key: a Hexa Slide, written as before (no model line); an explicit hexa_slide loads too.
+    # No model key: a Hexa Slide, written as before (no model line); an explicit hexa_slide loads
+    # too.
     slide = tmp_path / 'slide.yaml'
     save_parameters(slide, example_vector())
     assert 'model' not in slide.read_text() and load_model(slide) == 'hexa_slide'

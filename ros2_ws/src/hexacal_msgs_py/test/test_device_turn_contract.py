@@ -1,4 +1,8 @@
-"""The device turn in the contract: the optional 'device_turn' joint of postures and inclinometer messages."""
+"""
+The device turn in the contract.
+
+The optional 'device_turn' joint of postures and inclinometer messages.
+"""
 
 import math
 
@@ -128,8 +132,12 @@ def test_a_repeated_turn_joint_is_an_invalid_reading():
 
 
 def test_a_mapped_inclinometer_without_the_joint_reads_turn_zero():
-    """A user's /joint_states (mapped joint names, signs) without the joint: the normal mounting;
-    with it, its value."""
+    """
+    Check a mapped inclinometer without the device_turn joint reads turn zero.
+
+    A user's /joint_states (mapped joint names, signs) without the joint: the normal mounting; with
+    it, its value.
+    """
     mapping = InputMapping(
         actuator_joints=tuple(f'axis_{i}' for i in range(1, 7)),
         inclinometer_joints=('tilt_x', 'tilt_y'),

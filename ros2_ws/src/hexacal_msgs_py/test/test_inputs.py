@@ -1,4 +1,8 @@
-"""Input mappings (issue #11): joints and topics of the user's drivers, the Imu inclinometer convention."""
+"""
+Input mappings (issue #11).
+
+Joints and topics of the user's drivers, the Imu inclinometer convention.
+"""
 
 import math
 
@@ -58,12 +62,12 @@ def broadcaster_message(stamp_ns: int = 1_500_000_000_000_000_123) -> JointState
 
 
 def mapping(**overrides) -> InputMapping:
-    arguments = dict(
-        actuator_joints=ACTUATORS,
-        inclinometer_joints=('incl_a', 'incl_b'),
-        rotary_joint='rot',
-        topics=('/joint_states',) * 3,
-    )
+    arguments = {
+        'actuator_joints': ACTUATORS,
+        'inclinometer_joints': ('incl_a', 'incl_b'),
+        'rotary_joint': 'rot',
+        'topics': ('/joint_states',) * 3,
+    }
     arguments.update(overrides)
     return InputMapping(**arguments)
 
@@ -110,31 +114,31 @@ def test_the_default_mapping_reads_exactly_as_without_one():
 @pytest.mark.parametrize(
     'overrides, parameter, text',
     [
-        (dict(actuator_joints=ACTUATORS[:5]), 'actuator_joints', 'must name 6 joints, got 5'),
-        (dict(actuator_joints='act_a'), 'actuator_joints', 'must be a list of 6 joint names'),
+        ({'actuator_joints': ACTUATORS[:5]}, 'actuator_joints', 'must name 6 joints, got 5'),
+        ({'actuator_joints': 'act_a'}, 'actuator_joints', 'must be a list of 6 joint names'),
         (
-            dict(actuator_joints=(*ACTUATORS[:5], 'act_a')),
+            {'actuator_joints': (*ACTUATORS[:5], 'act_a')},
             'actuator_joints',
             'act_a more than once',
         ),
-        (dict(actuator_joints=(*ACTUATORS[:5], '')), 'actuator_joints', 'non-empty strings'),
+        ({'actuator_joints': (*ACTUATORS[:5], '')}, 'actuator_joints', 'non-empty strings'),
         (
-            dict(inclinometer_joints=('incl_a',)),
+            {'inclinometer_joints': ('incl_a',)},
             'inclinometer_joints',
             'must name 2 joints, got 1',
         ),
-        (dict(rotary_joint=''), 'rotary_joint', 'must be a joint name'),
-        (dict(rotary_joint='act_b'), 'rotary_joint', "'act_b' is also in actuator_joints"),
+        ({'rotary_joint': ''}, 'rotary_joint', 'must be a joint name'),
+        ({'rotary_joint': 'act_b'}, 'rotary_joint', "'act_b' is also in actuator_joints"),
         (
-            dict(inclinometer_type='gyro'),
+            {'inclinometer_type': 'gyro'},
             'inclinometer_type',
             "'joint_state' or 'imu', got 'gyro'",
         ),
-        (dict(inclinometer_type='imu'), 'inclinometer_type', "'imu' needs a topic of its own"),
-        (dict(inclinometer_signs=[1, 0.5]), 'inclinometer_signs', 'each sign must be 1 or -1'),
-        (dict(inclinometer_signs=[1]), 'inclinometer_signs', 'must be 2 numbers'),
-        (dict(inclinometer_offsets_rad=[0.0, math.nan]), 'inclinometer_offsets_rad', 'finite'),
-        (dict(inclinometer_offsets_rad=[4.0, 0.0]), 'inclinometer_offsets_rad', r'within \+-pi'),
+        ({'inclinometer_type': 'imu'}, 'inclinometer_type', "'imu' needs a topic of its own"),
+        ({'inclinometer_signs': [1, 0.5]}, 'inclinometer_signs', 'each sign must be 1 or -1'),
+        ({'inclinometer_signs': [1]}, 'inclinometer_signs', 'must be 2 numbers'),
+        ({'inclinometer_offsets_rad': [0.0, math.nan]}, 'inclinometer_offsets_rad', 'finite'),
+        ({'inclinometer_offsets_rad': [4.0, 0.0]}, 'inclinometer_offsets_rad', r'within \+-pi'),
     ],
 )
 def test_bad_mappings_are_named(overrides, parameter, text):
@@ -197,7 +201,8 @@ def test_the_sensors_up_vector_is_as_documented_whatever_the_heading():
 
 
 def test_small_tilts_read_minus_the_right_handed_rotation():
-    # The sensor turned by +0.01 rad about its X axis (right hand) reads alpha = -0.01; about Y, beta = -0.01.
+    # The sensor turned by +0.01 rad about its X axis (right hand) reads alpha = -0.01; about Y,
+    # beta = -0.01.
     about_x = (math.sin(0.005), 0.0, 0.0, math.cos(0.005))
     about_y = (0.0, math.sin(0.005), 0.0, math.cos(0.005))
     assert quaternion_to_inclinometer_angles(*about_x) == pytest.approx((-0.01, 0.0), abs=1e-15)

@@ -1,4 +1,8 @@
-"""The pose <-> geometry_msgs/Pose convention (poses.py): eq. 2's rotation as a quaternion and back."""
+"""
+The pose <-> geometry_msgs/Pose convention (poses.py).
+
+Eq. 2's rotation as a quaternion and back.
+"""
 
 import math
 
