@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Iterable
 
 
 class CalibrationError(Exception):
@@ -16,7 +16,7 @@ class InvalidMeasurementError(CalibrationError, ValueError):
 
     reason = 'invalid-measurement'
 
-    def __init__(self, message: str, indices: Sequence[int] = ()):
+    def __init__(self, message: str, indices: Iterable[int] = ()):
         super().__init__(message)
         self.indices = list(indices)
 
@@ -26,7 +26,7 @@ class UnreachablePoseError(CalibrationError, ValueError):
 
     reason = 'unreachable-pose'
 
-    def __init__(self, message: str, indices: Sequence[int] = ()):
+    def __init__(self, message: str, indices: Iterable[int] = ()):
         super().__init__(message)
         self.indices = list(indices)
 
@@ -36,7 +36,7 @@ class ForwardKinematicsError(CalibrationError):
 
     reason = 'forward-kinematics-failed'
 
-    def __init__(self, message: str, indices: Sequence[int] = ()):
+    def __init__(self, message: str, indices: Iterable[int] = ()):
         super().__init__(message)
         self.indices = list(indices)
 

@@ -304,7 +304,7 @@ class PoseSensitivity:
     def __init__(self, wrt_sliders: np.ndarray, slider_blocks: np.ndarray):
         self.wrt_sliders = wrt_sliders  # dX/d lambda = J_inv^-1, (N, 6, 6)
         self.slider_blocks = slider_blocks  # d lambda_c / d u_c, (N, 6, F)
-        self._wrt_parameters = None
+        self._wrt_parameters: np.ndarray | None = None
 
     @property
     def n_parameters(self) -> int:

@@ -65,8 +65,8 @@ def actuator_targets(
     The six actuator readings (m) that put the platform at ``pose``, inside ``stroke`` (None: the
     architecture's default). UnreachablePoseError / OutOfStrokeError say why a pose is refused.
     """
-    pose = np.asarray(pose, dtype=float).reshape(1, 6)
-    targets = inverse_kinematics(params, pose)[0]
+    poses = np.asarray(pose, dtype=float).reshape(1, 6)
+    targets = inverse_kinematics(params, poses)[0]
     low, high = default_stroke(params) if stroke is None else stroke
     outside = np.flatnonzero((targets < low) | (targets > high))
     if outside.size:

@@ -49,7 +49,7 @@ class Measurements:
     slider_positions: np.ndarray
     inclinometer: np.ndarray
     rotary: np.ndarray
-    kinds: np.ndarray = field(default=None)  # type: ignore[assignment]
+    kinds: np.ndarray = field(default=None)  # type: ignore[arg-type]
     link_lengths: np.ndarray | None = None  # LVDT variant: measured link length per posture, m
     device_turn: np.ndarray | None = None  # per posture: device turned about its link axis, rad
 

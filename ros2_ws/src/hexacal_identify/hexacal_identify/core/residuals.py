@@ -45,6 +45,7 @@ from .device import (
     device_position,
     DeviceDefects,
     DeviceModel,
+    DevicePosition,
     fixed_position,
     N_DEVICE_PARAMETERS,
 )
@@ -103,6 +104,7 @@ class _Pieces:
         """Factor * dX[coordinates]/du for postures ``index`` (None: all), (k, m, n)."""
         if self.factored is not None:
             return self.factored.rows(index, coordinates, factor)
+        assert self.d_params is not None  # has_jacobian without the factored form
         d_params = self.d_params if index is None else self.d_params[index]
         return factor * d_params[:, coordinates, :]
 
@@ -112,6 +114,7 @@ class _Pieces:
             full = np.zeros((len(index), 6))
             full[:, :3] = weights
             return self.factored.combined(index, full)
+        assert self.d_params is not None
         return np.einsum('ni,nik->nk', weights, self.d_params[index, :3, :])
 
 
@@ -143,7 +146,7 @@ class CostFunction:
             )
         self.is_fixed = measurements.kinds == FIXED
         self.is_sphere = measurements.kinds == SPHERE
-        self._measured_cache = None
+        self._measured_cache: tuple[DeviceDefects, DevicePosition] | None = None
 
     def usable(self) -> np.ndarray:
         """Mask of postures this cost function uses."""
@@ -283,7 +286,7 @@ class CostFunction:
         self, pieces: _Pieces, rows_from_pose: np.ndarray | None, device_rows: np.ndarray
     ) -> np.ndarray | None:
         """[d r/d u | d r/d device] from rows_from_pose (rows, n) and device_rows (rows, 5)."""
-        if not pieces.has_jacobian:
+        if not pieces.has_jacobian or rows_from_pose is None:
             return None
         return np.hstack([rows_from_pose, device_rows]) if pieces.with_device else rows_from_pose
 
@@ -354,11 +357,11 @@ class CostFunction:
             jac = self._jacobian(pieces, rows.reshape(3 * k, -1), device_rows.reshape(3 * k, -1))
         d_pose = np.zeros((k, 3, 6))
         d_pose[:, [0, 1, 2], [0, 1, 2]] = -scale
-        readings = None
+        readings: np.ndarray | None = None
         if d_targets_d_readings is not None:
-            readings = np.zeros((k, 3, 3))
-            readings[:, :, :2] = d_targets_d_readings * scale
-            readings = readings.reshape(3 * k, 3)
+            per_posture = np.zeros((k, 3, 3))
+            per_posture[:, :, :2] = d_targets_d_readings * scale
+            readings = per_posture.reshape(3 * k, 3)
         rows = np.repeat(index, 3)
         noise = self._noise(pieces, rows, d_pose.reshape(3 * k, 6), readings)
         channels = np.tile(np.array(['x', 'y', 'z']), k)
@@ -493,7 +496,9 @@ def _stack(blocks: list[ResidualBlock]) -> ResidualBlock:
     if blocks[0].jacobian is not None:
         jacobian = np.concatenate(
             [
-                b.jacobian.reshape(-1, width) if b.jacobian.size else np.zeros((0, width))
+                b.jacobian.reshape(-1, width)
+                if b.jacobian is not None and b.jacobian.size
+                else np.zeros((0, width))
                 for b in blocks
             ]
         )

@@ -18,7 +18,7 @@ Written against the parameters object: any architecture, n = its number of param
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, cast
 
 import numpy as np
 
@@ -139,13 +139,14 @@ def monte_carlo(
         errors = pose_errors(true_params, result.parameters, validation).summary()
         position.append(errors['position_mean_m'])
         orientation.append(errors['orientation_mean_rad'])
-    estimates = np.array(estimates)
-    predicted = predicted_pose_errors(true_params, first_covariance, validation)
+    estimate_array = np.array(estimates)
+    # None only when no seed gave a covariance (then, as before, predicted_pose_errors fails).
+    predicted = predicted_pose_errors(true_params, cast(np.ndarray, first_covariance), validation)
     return MonteCarloSummary(
         seeds=seeds,
         predicted_std=np.mean(stds, axis=0),
-        empirical_std=estimates.std(axis=0, ddof=1),
-        empirical_rmse=np.sqrt(np.mean((estimates - true_params.vector) ** 2, axis=0)),
+        empirical_std=estimate_array.std(axis=0, ddof=1),
+        empirical_rmse=np.sqrt(np.mean((estimate_array - true_params.vector) ** 2, axis=0)),
         crb_std=_crb_std(true_params, poses, noise, options),
         pose_error_mean_m=float(np.mean(position)),
         predicted_pose_error_mean_m=float(predicted.position_mean_m.mean()),

@@ -192,7 +192,7 @@ class VerificationResult:
         payload: dict = {'model': self.model, 'postures': self.postures}
         for name in SET_NAMES:
             residuals: SetResiduals = getattr(self, name)
-            figures = residuals.figures()
+            figures: dict[str, object] = dict(residuals.figures())
             figures['failed_postures'] = [
                 {'index': int(i), 'reason': why} for i, why in sorted(residuals.failures.items())
             ]
