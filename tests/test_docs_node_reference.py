@@ -1,4 +1,5 @@
-"""docs/nodes.md against the code, and every relative link of the documentation resolves.
+"""
+Check docs/nodes.md against the code, and that every relative link of the docs resolves.
 
 The node reference is checked against the nodes themselves, not against a copy of their
 parameter lists: each node is constructed in-process (rclpy, this session's isolated domain,
@@ -71,7 +72,7 @@ _CODE = re.compile(r'`([^`]+)`')
 
 @dataclass(frozen=True)
 class Declared:
-    """A parameter as the node declares it."""
+    """Hold a parameter as the node declares it."""
 
     type_name: str  # TYPE_NAMES' value, '' when not set, 'dynamic' for dynamic typing
     value: Any
@@ -82,7 +83,7 @@ class Declared:
 
 @dataclass(frozen=True)
 class Documented:
-    """A parameter row of docs/nodes.md, its cells as written."""
+    """Hold a parameter row of docs/nodes.md, its cells as written."""
 
     type_cell: str
     default_cell: str
@@ -102,7 +103,7 @@ def sections(text: str, level: str = '## ') -> dict[str, str]:
         if line.startswith(level):
             if name is not None:
                 found[name] = '\n'.join(lines)
-            name = line[len(level) :].split()[0].strip('`')
+            name = line.removeprefix(level).split()[0].strip('`')
             lines = []
         elif name is not None:
             lines.append(line)
@@ -112,7 +113,7 @@ def sections(text: str, level: str = '## ') -> dict[str, str]:
 
 
 def table_rows(text: str) -> list[list[str]]:
-    """The body rows of the markdown tables in `text`, as lists of stripped cells."""
+    """Return the body rows of the markdown tables in `text`, as lists of stripped cells."""
     rows = []
     for line in text.splitlines():
         line = line.strip()
@@ -124,7 +125,7 @@ def table_rows(text: str) -> list[list[str]]:
 
 
 def documented_parameters(section: str) -> dict[str, Documented]:
-    """Rows of the section's `### Parameters` table: name -> its cells."""
+    """Return the rows of the section's `### Parameters` table: name -> its cells."""
     table = sections(section, '### ').get('Parameters', '')
     documented = {}
     for row in table_rows(table):
@@ -142,7 +143,7 @@ def node_sections() -> dict[str, str]:
 
 
 def _node_classes() -> list[type]:
-    """Every rclpy Node subclass of the node packages that can be built without arguments."""
+    """Return every rclpy Node subclass of the node packages built without arguments."""
     from rclpy.node import Node
 
     classes = {}
@@ -172,7 +173,7 @@ def _node_classes() -> list[type]:
 
 
 def _endpoint_type(message_class: Any) -> str:
-    """'sensor_msgs/msg/JointState' of a message or service class."""
+    """Return the type name of a message or service class: 'sensor_msgs/msg/JointState'."""
     module = message_class.__module__.split('.')  # sensor_msgs.msg._joint_state
     return f'{module[0]}/{module[1]}/{message_class.__name__}'
 
@@ -196,7 +197,8 @@ def _declared(node: Any) -> dict[str, Declared]:
             type_name='dynamic'
             if descriptor.dynamic_typing
             else type_names.get(parameter.type_.value, ''),
-            value=list(value) if isinstance(value, (list, tuple)) or hasattr(value, 'tolist') else value,
+            value=list(value) if isinstance(value, (list, tuple)) or hasattr(value, 'tolist')
+            else value,
             low=ranges[0].from_value if ranges else None,
             high=ranges[0].to_value if ranges else None,
             run_time=not descriptor.read_only,
@@ -205,7 +207,7 @@ def _declared(node: Any) -> dict[str, Declared]:
 
 
 def _endpoints(node: Any) -> set[tuple[str, str, str]]:
-    """(kind, resolved name, type) of every topic and service the node made, rclpy's own aside."""
+    """Return (kind, name, type) of every topic and service the node made but rclpy's own."""
     own = node.get_fully_qualified_name() + '/'
     found = set()
     for publisher in node.publishers:
@@ -223,7 +225,7 @@ def _endpoints(node: Any) -> set[tuple[str, str, str]]:
 
 @pytest.fixture(scope='module')
 def built_nodes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict]:
-    """Each node built once with its defaults: name -> {'parameters': ..., 'endpoints': ...}."""
+    """Build each node once with its defaults: name -> {'parameters', 'endpoints'}."""
     import os
 
     import rclpy
@@ -239,7 +241,9 @@ def built_nodes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict]:
         subprocess.run(argv, check=True, capture_output=True, timeout=120)
     overrides = work / 'overrides.yaml'
     overrides.write_text(
-        yaml.safe_dump({'executor': {'ros__parameters': {'plan': str(plan), 'nominal': str(nominal)}}})
+        yaml.safe_dump(
+            {'executor': {'ros__parameters': {'plan': str(plan), 'nominal': str(nominal)}}}
+        )
     )
     built: dict[str, dict] = {}
     cwd = os.getcwd()
@@ -270,6 +274,7 @@ def test_every_node_and_tool_has_a_section():
     assert set(NODES) | set(TOOLS) <= set(node_sections())
 
 
+@pytest.mark.slow  # builds every node (about 3 s)
 @pytest.mark.parametrize('name', NODES)
 def test_every_declared_parameter_is_documented_and_every_documented_one_declared(
     built_nodes, name
@@ -286,7 +291,7 @@ def _default(cell: str) -> Any:
 
 
 def _range(cell: str) -> tuple[float, float]:
-    """'1e-07 .. 0.1' or '-2 pi .. 2 pi' as two numbers."""
+    """Read '1e-07 .. 0.1' or '-2 pi .. 2 pi' as two numbers."""
 
     def number(text: str) -> float:
         text = text.strip()
@@ -299,6 +304,7 @@ def _range(cell: str) -> tuple[float, float]:
     return number(low), number(high)
 
 
+@pytest.mark.slow  # builds every node (about 3 s)
 @pytest.mark.parametrize('name', NODES)
 def test_documented_types_defaults_ranges_and_run_time_flags_are_the_declared_ones(
     built_nodes, name
@@ -327,13 +333,16 @@ def test_documented_types_defaults_ranges_and_run_time_flags_are_the_declared_on
             assert written == expected, f'{where}: default {row.default_cell} != {expected!r}'
 
 
+@pytest.mark.slow  # builds every node (about 3 s)
 @pytest.mark.parametrize('name', NODES)
 def test_every_topic_and_service_a_node_creates_is_documented_with_its_type(built_nodes, name):
     section = sections(node_sections()[name], '### ').get('Topics', '')
     rows = table_rows(section)
     for kind, resolved, type_name in sorted(built_nodes[name]['endpoints']):
         documented = [
-            row for row in rows if resolved.lstrip('/') in [c.lstrip('/') for c in _CODE.findall(row[1])]
+            row
+            for row in rows
+            if resolved.lstrip('/') in [span.lstrip('/') for span in _CODE.findall(row[1])]
         ]
         assert documented, f'{name}: {kind} {resolved} is not in its section'
         assert any(row[0] == kind and type_name in row[2] for row in documented), (
@@ -373,7 +382,7 @@ def _documents() -> list[Path]:
 
 
 def _anchors(path: Path) -> set[str]:
-    """GitHub's heading anchors of a markdown file."""
+    """Return the heading anchors GitHub gives a markdown file."""
     anchors = set()
     for line in path.read_text().splitlines():
         if line.startswith('#'):
@@ -410,4 +419,3 @@ def test_every_relative_link_resolves(document):
         elif anchor and path.suffix == '.md' and anchor not in _anchors(path):
             broken.append(target)
     assert not broken, f'{document.relative_to(REPO)}: broken links {broken}'
-
