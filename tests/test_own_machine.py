@@ -40,7 +40,7 @@ from system_support import (
 )
 
 REPO = Path(__file__).resolve().parents[1]
-README = REPO / 'README.md'
+README = REPO / 'docs' / 'user-guide.md'  # the user guide's "Your own machine"
 LAUNCH_FILE = REPO / 'ros2_ws/src/hexacal_identify/launch/hexacal.launch.py'
 RELAY = Path(__file__).resolve().parent / 'joint_states_relay.py'
 MODEL = 'gough_stewart'
