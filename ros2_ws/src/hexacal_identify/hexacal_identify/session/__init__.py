@@ -14,8 +14,9 @@ from .paths import DEFAULT_OUTPUT, output_path
 from .postures import PostureStore, Receipt
 from .prior import device_prior, PRIOR_PARAMETERS
 from .reports import ReportJob, ReportQueue, VerificationTask
-from .session import CalibrationSession, LatestCalibration, Log, StatusSink
+from .session import CalibrationSession, Log, StatusSink
 from .settings import parameter_problem, Settings, SETTINGS_PARAMETERS
+from .verification import LatestCalibration
 
 __all__ = [
     'CalibrationSession',

@@ -5,7 +5,12 @@ Prior knowledge of the device from the node's device.* parameters (core.device.D
 `device.link_length_std` (m; > 0 makes a prior on dL = device.link_length - link_length,
 `link_length` being the length the device model assumes), and `device.<defect>` /
 `device.<defect>_std` (rad) for alpha0, beta0, gamma, phi0. A std > 0 makes a prior: that
-parameter is identified, and the prior is weighed against the data by the reading noise.
+parameter is identified, and the prior is weighed against the data by the reading noise, so
+it needs noise_slider_m and noise_angle_rad (else the calibration fails as
+`device-prior-without-noise`). The result status carries each prior
+(`prior.device.<name>`, `prior_std.device.<name>`) beside the posterior (`device.<name>`,
+`std.device.<name>`), and the report shows them side by side. A negative or non-finite std,
+and a link std without the measured length, are refused when set (prior_parameter_problem).
 """
 
 from __future__ import annotations

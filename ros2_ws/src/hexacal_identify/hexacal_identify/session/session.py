@@ -8,33 +8,27 @@ into a Settings, runs these methods on its threads and publishes through a Statu
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
-from datetime import datetime, timezone
 import threading
 from typing import Protocol
 
-from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError, ParameterFileError
+from hexacal_msgs_py.errors import InvalidReadingError, ParameterFileError
 from hexacal_msgs_py.models import DEFAULT_MODEL, model_for_actuator_names, MODELS
 from hexacal_msgs_py.names import (
     CALIBRATE_SERVICE,
     CALIBRATION_STATUS_NAME,
     VERIFICATION_STATUS_NAME,
 )
-from hexacal_msgs_py.parameters_file import read_parameters_file, save_parameters
+from hexacal_msgs_py.parameters_file import read_parameters_file
 from hexacal_msgs_py.readings import PostureReading
 
+from .calibration import Log, run_calibration
 from .nominal import NominalFile
 from .outcome import failure, Level, Outcome, Reason, ReportState
 from .paths import interrupted_writes, output_path
 from .postures import PostureStore, Receipt
-from .prior import device_prior
-from .reports import ReportJob, ReportQueue, VerificationTask, write_page
-from .settings import names, Settings
-# pipeline and core.identification (the solver) are imported where they are used: at the first
-# posture or calibration, not when the node starts.
-from ..core.architectures import KinematicParameters
-from ..core.device import DeviceDefects
-from ..core.errors import CalibrationError
+from .reports import ReportQueue, VerificationTask, write_page
+from .settings import Settings
+from .verification import LatestCalibration, run_verification
 
 
 class StatusSink(Protocol):
@@ -45,37 +39,6 @@ class StatusSink(Protocol):
 
     def parameters(self, vector: Sequence[float], model: str) -> None:
         """Publish a calibrated vector of `model`'s layout."""
-
-
-class Log(Protocol):
-    """The node's logger (rclpy's, or logging.Logger in tests)."""
-
-    def info(self, message: str) -> object:
-        """Log an information."""
-
-    def warning(self, message: str) -> object:
-        """Log a warning."""
-
-    def error(self, message: str) -> object:
-        """Log an error."""
-
-
-def _now() -> str:
-    return datetime.now(timezone.utc).isoformat(timespec='seconds')
-
-
-@dataclass
-class LatestCalibration:
-    """The calibration hexacal/verify verifies: the latest that produced parameters."""
-
-    number: int  # its calibration number (0: the saved output republished at start-up)
-    parameters: KinematicParameters
-    defects: DeviceDefects  # device defects identified with it
-    source: str  # what it was fitted on, for the messages
-    verify_from: int  # live postures received before it took its postures: the later verify it
-    link_length: float | None  # the device it assumed (None: the parameters at verify time)
-    mount: str | None
-    outcome: Outcome | None  # its result (its report job); None when republished from the file
 
 
 class CalibrationSession:
@@ -181,12 +144,22 @@ class CalibrationSession:
     # ------------------------------------------------------------------ calibration
 
     def calibrate(self, settings: Settings) -> Outcome:
-        """Calibrate, publish the result and queue its report; never raise."""
+        """
+        Calibrate, publish the result and queue its report; never raise.
+
+        From the live postures, or the bag `settings.bag` names. On success the parameters are
+        written atomically to the output (with the device defects identified,
+        `device.defects.<name>`), published, then the status; the report follows
+        (`report_state: writing`). A refused or failed calibration publishes an ERROR status
+        naming the reason and no parameters; the postures received are kept either way.
+        """
         with self._status_lock:
             self._calibration_number += 1
             number = self._calibration_number
         try:
-            outcome = self._run_calibration(settings)
+            outcome = run_calibration(
+                settings, self.nominal, self.postures, self._log, self._started
+            )
         except Exception as error:  # noqa: BLE001 - the node must survive and say what happened
             self._log.error(f'calibration failed unexpectedly: {error!r}')
             outcome = failure(Reason.INTERNAL_ERROR, f'{type(error).__name__}: {error}')
@@ -219,171 +192,41 @@ class CalibrationSession:
             self._schedule_report()
         return outcome
 
-    def _run_calibration(self, settings: Settings) -> Outcome:
-        from .. import pipeline
-        from ..core.identification import CONVERGED, ITERATION_LIMIT
-
-        nominal_path, cost, bag = settings.nominal, settings.cost, settings.bag
-        link_length = settings.link_length
-        target = output_path(settings.output, settings.output_dir)
-        if not nominal_path:
-            return failure(
-                Reason.MISSING_PARAMETER,
-                "parameter 'nominal' is not set: give the "
-                'nominal parameters YAML to start from (-p nominal:=<path>)',
-            )
-        try:
-            nominal, mount = self.nominal.load(nominal_path)
-        except (ParameterFileError, ValueError) as error:
-            return failure(Reason.INVALID_NOMINAL, f'nominal: {error}')
-        if bag:
-            try:
-                loaded = pipeline.postures_from_bag(bag)
-            except Exception as error:  # noqa: BLE001 - BagError, CalibrationError, contract
-                return failure(Reason.INVALID_BAG, f'bag {bag}: {error}', bag=bag)
-            postures, source = loaded.postures, f'bag {bag} ({loaded.source})'
-            not_used = {
-                'postures_rejected_on_receipt': len(loaded.rejected),
-                'invalid_messages': loaded.invalid_messages,
-            }
-            postures_models = {loaded.model} if loaded.model else set()
-        else:
-            postures, postures_models = self.postures.since(0)
-            source = 'live postures'
-            not_used = {'postures_rejected_on_receipt': self.postures.rejected}
-        verify_from = len(self.postures)  # the postures after these verify it, never fit it
-        for model in sorted(postures_models):
-            try:
-                pipeline.check_model(
-                    model, nominal, 'the bag' if bag else 'the postures received', nominal_path
-                )
-            except pipeline.ModelMismatchError as error:
-                return failure(
-                    error.reason,
-                    str(error),
-                    postures_received=len(postures),
-                    source=source,
-                    model=nominal.model,
-                )
-        self._log.info(f'calibrating from {len(postures)} {source}, {cost} cost')
+    def _started(self, postures: int, source: str) -> None:
         with self._status_lock:
-            self._calibrating = True
+            self._calibrating = True  # the collecting statuses wait for the result
             self._sink.status(
                 CALIBRATION_STATUS_NAME,
                 Level.OK,
-                f'calibrating from {len(postures)} postures',
-                {'outcome': Reason.RUNNING, 'postures_received': len(postures), 'source': source},
+                f'calibrating from {postures} postures',
+                {'outcome': Reason.RUNNING, 'postures_received': postures, 'source': source},
             )
-        about = {'postures_received': len(postures), 'source': source, **not_used}
-        noise = settings.noise()
-        try:
-            prior = device_prior(settings.device_prior, link_length)
-        except ValueError as error:
-            return failure(Reason.INVALID_DEVICE_PRIOR, str(error), **about)
-        if prior and noise is None:
-            return failure(
-                Reason.DEVICE_PRIOR_WITHOUT_NOISE,
-                f'a device prior ({prior.describe()}) is weighed against the data by the '
-                'reading noise: set noise_slider_m and noise_angle_rad (> 0), or the prior std '
-                'parameters (device.*_std) to 0',
-                **about,
-            )
-        try:
-            result = pipeline.calibrate(
-                nominal,
-                postures,
-                cost=cost,
-                link_length=link_length,
-                identify_device=names(settings.identify_device),
-                noise=noise,
-                robust_loss=settings.robust_loss or None,
-                mount=mount,
-                device_prior=prior,
-            )
-        except CalibrationError as error:
-            return failure(error.reason, str(error), **about)
-        except ValueError as error:  # options the solver refuses (SolverOptions.validate)
-            return failure(Reason.INVALID_OPTIONS, str(error), **about)
-        values: dict[str, object] = {
-            'postures_received': len(postures),
-            'source': source,
-            **pipeline.status_fields(result, prior),
-            **not_used,
-        }
-        summary = (
-            f'{len(result.used_postures)} of {len(postures)} postures, {cost} cost, '
-            f'{result.iterations} iterations, rank {result.rank}, rms residual '
-            + ', '.join(f'{k} {v:.3g}' for k, v in result.rms_residual.items())
-        )
-        if result.reason not in (CONVERGED, ITERATION_LIMIT):
-            return failure(
-                result.reason, f'the identification did not converge ({summary})', **values
-            )
-        calibration = {
-            'verify_from': verify_from,
-            'defects': result.device,
-            'link_length': link_length,
-            'mount': mount,
-            'source': source,
-        }
-        try:
-            save_parameters(
-                target,
-                result.parameters.vector,
-                model=result.parameters.model,
-                header_comment=(
-                    f'hexacal calibration {_now()}'
-                    f'\nfrom {source}: {summary}\nnominal: {nominal_path}; SI units'
-                ),
-                extras=pipeline.device_defects_extras(result) or None,
-            )
-        except HexacalContractError as error:
-            return Outcome(
-                False,
-                f'{Reason.OUTPUT_NOT_WRITTEN}: calibrated ({summary}) but {error}',
-                Level.WARN,
-                {**values, 'outcome': Reason.OUTPUT_NOT_WRITTEN},
-                result.parameters,
-                **calibration,
-            )
-        values['output'] = str(target)
-        # The report (figures, pose-error map, result payload) is written after the answer.
-        report = None
-        if settings.report_dir:
-            report = ReportJob(
-                settings.report_dir,
-                settings.output_dir,
-                result,
-                postures,
-                source,
-                link_length,
-                mount,
-                prior,
-            )
-            values['report_state'] = ReportState.WRITING
-        else:
-            values['report_state'] = ReportState.DISABLED
-        return Outcome(
-            True,
-            f'{result.reason}: {summary}; wrote {target}',
-            Level.OK if result.reason == CONVERGED else Level.WARN,
-            values,
-            result.parameters,
-            report,
-            **calibration,
-        )
 
     # ------------------------------------------------------------------ verification
 
     def verify(self, settings: Settings) -> Outcome:
-        """Verify the latest calibration on the postures after it; publish; queue its report."""
+        """
+        Verify the latest calibration on the postures after it; publish; queue its report.
+
+        The latest calibration that produced parameters (or the output republished at start-up)
+        is verified on the postures that arrived after it took its postures, never one the fit
+        used: the device's measurement against forward kinematics at the measured actuator
+        readings, for the nominal and the calibrated parameters (core/verification.py). The
+        status (VERIFICATION_STATUS_NAME, outcome `verified`) carries the `hexacal verify` JSON
+        keys flattened; success when the verdict is pass. Threshold: `verify_threshold_m`, or
+        (0) 3x the residual the reading noise alone gives when it is set, else 50 um. Refused
+        as `no-calibration` or `no-postures`. The calibration's report is then written again
+        with a verification section. The postures stay: the next calibration fits on all.
+        """
         with self._status_lock:
             self._verification_number += 1
             number = self._verification_number
             latest = self._latest
         task = None
         try:
-            outcome, task = self._run_verification(settings, number, latest)
+            outcome, task = run_verification(
+                settings, number, latest, self.nominal, self.postures, self._calibrate_service
+            )
         except Exception as error:  # noqa: BLE001 - the node must survive and say what happened
             self._log.error(f'verification failed unexpectedly: {error!r}')
             outcome = failure(Reason.INTERNAL_ERROR, f'{type(error).__name__}: {error}')
@@ -395,105 +238,6 @@ class CalibrationSession:
             self.reports.put_verification(task)
             self._schedule_report()
         return outcome
-
-    def _run_verification(
-        self, settings: Settings, number: int, latest: LatestCalibration | None
-    ) -> tuple[Outcome, VerificationTask | None]:
-        from .. import pipeline
-        from ..core.device import DeviceModel
-        from ..core.verification import PASS, verify
-
-        if latest is None:
-            return failure(
-                Reason.NO_CALIBRATION,
-                'no calibration to verify yet: calibrate first '
-                f'({self._calibrate_service}), then measure fresh postures '
-                'and call verify again',
-            ), None
-        postures, postures_models = self.postures.since(latest.verify_from)
-        about = {
-            'calibration': latest.source,
-            'calibration_number': latest.number,
-            'postures_before_calibration': latest.verify_from,
-        }
-        if not postures:
-            return failure(
-                Reason.NO_POSTURES,
-                f'no postures received since the calibration it verifies '
-                f'({latest.source}, calibration {latest.number}): measure fresh postures '
-                '(a verification plan) and call verify again',
-                postures=0,
-                **about,
-            ), None
-        nominal_path = settings.nominal
-        if not nominal_path:
-            return failure(
-                Reason.MISSING_PARAMETER,
-                "parameter 'nominal' is not set: verification compares "
-                'the nominal and the calibrated parameters (-p nominal:=<path>)',
-                **about,
-            ), None
-        try:
-            nominal, mount = self.nominal.load(nominal_path)
-        except (ParameterFileError, ValueError) as error:
-            return failure(Reason.INVALID_NOMINAL, f'nominal: {error}', **about), None
-        link_length = latest.link_length or settings.link_length
-        mount = latest.mount or mount
-        try:
-            for model in sorted(postures_models):
-                pipeline.check_model(
-                    model, nominal, 'the postures received since the calibration', nominal_path
-                )
-            result = verify(
-                nominal,
-                latest.parameters,
-                pipeline.measurements_from_postures(postures),
-                device=DeviceModel(link_length=link_length, mount=mount),
-                threshold_m=settings.verify_threshold_m or None,
-                noise=settings.noise(),
-                postures_model=next(iter(postures_models)) if len(postures_models) == 1 else None,
-                calibrated_defects=latest.defects,
-            )
-        except (CalibrationError, ValueError) as error:
-            reason = getattr(error, 'reason', Reason.INVALID_INPUT)
-            return failure(reason, str(error), postures=len(postures), **about), None
-        values: dict[str, object] = {
-            'outcome': Reason.VERIFIED,
-            **result.status_values(),
-            **about,
-        }
-        before, after = result.nominal.figures(), result.calibrated.figures()
-        message = (
-            f'{result.verdict_reason()}; position rms nominal '
-            f'{before["position_rms_m"] * 1e6:.2f} um, calibrated '
-            f'{after["position_rms_m"] * 1e6:.2f} um ({result.improvement:.1f}x), rotary rms '
-            f'nominal {before["rotary_rms_rad"] * 1e6:.2f} urad, calibrated '
-            f'{after["rotary_rms_rad"] * 1e6:.2f} urad; {result.postures} postures since '
-            f'calibration {latest.number}'
-        )
-        passed = result.verdict == PASS
-        job = latest.outcome.report if latest.outcome is not None else None
-        writing = job is not None or bool(settings.report_dir)
-        values['report_state'] = ReportState.WRITING if writing else ReportState.DISABLED
-        outcome = Outcome(passed, message, Level.OK if passed else Level.WARN, values)
-        if not writing:
-            return outcome, None
-        payload = {
-            **result.to_json(per_posture=True),
-            'source': f'{len(postures)} live postures',
-            'calibration': latest.source,
-            'nominal_file': nominal_path,
-        }
-        task = VerificationTask(
-            number,
-            latest.number,
-            job,
-            settings.report_dir,
-            settings.output_dir,
-            payload,
-            outcome,
-        )
-        return outcome, task
 
     # ------------------------------------------------------------------ reports
 
