@@ -35,6 +35,7 @@ from hexacal_msgs_py.names import (
     VERIFY_SERVICE,
 )
 from hexacal_msgs_py.qos import PARAMETERS_QOS, POSTURE_QOS, STATUS_QOS
+import numpy as np
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.exceptions import InvalidParameterValueException
@@ -78,9 +79,29 @@ def _range(low: float, high: float) -> list[FloatingPointRange]:
     return [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
 
 
+ParameterSpec = tuple[object, str, dict[str, object]]  # default, description, descriptor extras
+
+
+def _angle_priors() -> dict[str, ParameterSpec]:
+    specs: dict[str, ParameterSpec] = {}
+    for name in ANGLE_PRIORS:
+        specs[f'device.{name}'] = (
+            0.0,
+            f'prior value of the device defect {name} (rad), used when device.{name}_std > 0',
+            {},
+        )
+        specs[f'device.{name}_std'] = (
+            0.0,
+            f'standard deviation of the prior on {name} (rad); > 0 makes it a prior (the defect '
+            'is identified; needs noise_slider_m and noise_angle_rad); 0.0 = no prior',
+            {},
+        )
+    return specs
+
+
 # name -> (default, description, extra descriptor fields); declared in this order. The prior
 # values come before their stds: a std given at start-up is checked against its value.
-PARAMETERS: dict[str, tuple[object, str, dict[str, object]]] = {
+PARAMETERS: dict[str, ParameterSpec] = {
     'output_dir': (
         os.getcwd(),
         'directory the node writes under (default: its working directory)',
@@ -139,31 +160,7 @@ PARAMETERS: dict[str, tuple[object, str, dict[str, object]]] = {
         'device.link_length > 0 and noise_slider_m, noise_angle_rad); 0.0 = no prior',
         {},
     ),
-    **{
-        parameter: entry
-        for name in ANGLE_PRIORS
-        for parameter, entry in (
-            (
-                f'device.{name}',
-                (
-                    0.0,
-                    f'prior value of the device defect {name} (rad), used when '
-                    f'device.{name}_std > 0',
-                    {},
-                ),
-            ),
-            (
-                f'device.{name}_std',
-                (
-                    0.0,
-                    f'standard deviation of the prior on {name} (rad); > 0 makes it a prior '
-                    '(the defect is identified; needs noise_slider_m and noise_angle_rad); '
-                    '0.0 = no prior',
-                    {},
-                ),
-            ),
-        )
-    },
+    **_angle_priors(),
     'verify_threshold_m': (
         0.0,
         'hexacal/verify passes when the calibrated position rms is at most this (m); 0 = 3x '
@@ -200,7 +197,7 @@ class _Publishers:
             )
         )
 
-    def parameters(self, vector: Sequence[float], model: str) -> None:
+    def parameters(self, vector: Sequence[float] | np.ndarray, model: str) -> None:
         """Publish a calibrated vector on hexacal/parameters, transient local."""
         self._node.parameters_pub.publish(parameters_to_multiarray(vector, model))
 

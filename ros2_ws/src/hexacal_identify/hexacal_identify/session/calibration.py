@@ -144,13 +144,6 @@ def run_calibration(
         return failure(
             result.reason, f'the identification did not converge ({summary})', **values
         )
-    calibration = {
-        'verify_from': verify_from,
-        'defects': result.device,
-        'link_length': link_length,
-        'mount': mount,
-        'source': source,
-    }
     try:
         save_parameters(
             target,
@@ -169,7 +162,11 @@ def run_calibration(
             Level.WARN,
             {**values, 'outcome': Reason.OUTPUT_NOT_WRITTEN},
             result.parameters,
-            **calibration,
+            verify_from=verify_from,
+            defects=result.device,
+            link_length=link_length,
+            mount=mount,
+            source=source,
         )
     values['output'] = str(target)
     # The report (figures, pose-error map, result payload) is written after the answer.
@@ -195,7 +192,11 @@ def run_calibration(
         values,
         result.parameters,
         report,
-        **calibration,
+        verify_from=verify_from,
+        defects=result.device,
+        link_length=link_length,
+        mount=mount,
+        source=source,
     )
 
 # ------------------------------------------------------------------ verification

@@ -80,6 +80,8 @@ def write_page(job: ReportJob | None, verification: VerificationTask | None) -> 
     from .. import pipeline
 
     if job is None:  # a calibration republished at start-up: no result to show
+        if verification is None:
+            raise ValueError('no report to write: neither a calibration nor a verification')
         directory = output_path(verification.report_dir, verification.output_dir) / 'verification'
         return write_verification_report(
             verification.payload,

@@ -20,6 +20,7 @@ from hexacal_msgs_py.names import (
 )
 from hexacal_msgs_py.parameters_file import read_parameters_file
 from hexacal_msgs_py.readings import PostureReading
+import numpy as np
 
 from .calibration import Log, run_calibration
 from .nominal import NominalFile
@@ -37,7 +38,7 @@ class StatusSink(Protocol):
     def status(self, name: str, level: Level, message: str, values: dict[str, object]) -> None:
         """Publish a status named `name` (calibration or verification)."""
 
-    def parameters(self, vector: Sequence[float], model: str) -> None:
+    def parameters(self, vector: Sequence[float] | np.ndarray, model: str) -> None:
         """Publish a calibrated vector of `model`'s layout."""
 
 
@@ -101,6 +102,7 @@ class CalibrationSession:
         carried = model_for_actuator_names(joint_names)
         model = expected or (carried.name if carried is not None else DEFAULT_MODEL)
         posture = None
+        problem: tuple[str, str] | None
         if (
             expected is not None
             and carried is not None
@@ -267,7 +269,7 @@ class CalibrationSession:
             verification = None
         if pending is not None:
             number, job = pending[0], pending[1].report
-        else:
+        elif verification is not None:
             number, job = verification.calibration_number, verification.job
         try:
             path = write_page(job, verification)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 import math
+from typing import Any
 
 from .paths import DEFAULT_OUTPUT, output_path
 from .prior import LINK_LENGTH_PRIOR, prior_parameter_problem, PRIOR_PARAMETERS
@@ -50,9 +51,7 @@ SETTINGS_PARAMETERS = tuple(
 )
 
 
-def parameter_problem(
-    name: str, value: object, current: Callable[[str, object], object]
-) -> str | None:
+def parameter_problem(name: str, value: Any, current: Callable[[str, Any], Any]) -> str | None:
     """
     Return why setting parameter `name` to `value` is refused, or None to accept it.
 
