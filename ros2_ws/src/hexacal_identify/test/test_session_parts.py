@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+import subprocess
+import sys
 
 from hexacal_identify.core.model import nominal_set
 from hexacal_identify.session import (
@@ -183,3 +185,22 @@ def test_failure_puts_the_reason_first():
     assert (outcome.success, outcome.level) == (False, 'ERROR')
     assert outcome.message == 'no-postures: measure'
     assert outcome.values == {'outcome': 'no-postures', 'postures': 0}
+
+
+def test_the_session_imports_without_ros():
+    script = (
+        'import sys\n'
+        'for name in ("rclpy", "sensor_msgs", "std_msgs", "std_srvs", "diagnostic_msgs",\n'
+        '             "rcl_interfaces", "builtin_interfaces"):\n'
+        '    sys.modules[name] = None  # any import of these now raises ImportError\n'
+        'import hexacal_identify.session\n'
+        'import hexacal_identify.session.calibration, hexacal_identify.session.verification\n'
+        'print(sorted(m for m in sys.modules if m.startswith("hexacal_identify.")))\n'
+    )
+    completed = subprocess.run(
+        [sys.executable, '-c', script], capture_output=True, text=True, timeout=120
+    )
+    assert completed.returncode == 0, completed.stderr
+    assert 'hexacal_identify.session.session' in completed.stdout
+    # The solver and the pipeline wait for the first calibration.
+    assert 'hexacal_identify.pipeline' not in completed.stdout
