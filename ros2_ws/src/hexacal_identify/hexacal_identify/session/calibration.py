@@ -1,0 +1,202 @@
+"""One calibration: from the inputs checked to the parameters file written."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from datetime import datetime, timezone
+from typing import Protocol
+
+from hexacal_msgs_py.errors import HexacalContractError, ParameterFileError
+from hexacal_msgs_py.parameters_file import save_parameters
+
+from .nominal import NominalFile
+from .outcome import failure, Level, Outcome, Reason, ReportState
+from .paths import output_path
+from .postures import PostureStore
+from .prior import device_prior
+from .reports import ReportJob
+from .settings import names, Settings
+# pipeline and core.identification (the solver) are imported where they are used: at the first
+# calibration, not when the node starts.
+from ..core.errors import CalibrationError
+
+
+class Log(Protocol):
+    """The node's logger (rclpy's, or logging.Logger in tests)."""
+
+    def info(self, message: str) -> object:
+        """Log an information."""
+
+    def warning(self, message: str) -> object:
+        """Log a warning."""
+
+    def error(self, message: str) -> object:
+        """Log an error."""
+
+
+def _now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec='seconds')
+
+
+def run_calibration(
+    settings: Settings,
+    nominal_file: NominalFile,
+    store: PostureStore,
+    log: Log,
+    started: Callable[[int, str], None],
+) -> Outcome:
+    """
+    Calibrate as `settings` say, from the live postures in `store` or a bag; return the outcome.
+
+    `started(postures, source)` publishes the 'running' status once the inputs are checked.
+    The output is written (atomically, with the device defects identified); the report is
+    left to do (Outcome.report). Unexpected errors propagate: the session names them.
+    """
+    from .. import pipeline
+    from ..core.identification import CONVERGED, ITERATION_LIMIT
+
+    nominal_path, cost, bag = settings.nominal, settings.cost, settings.bag
+    link_length = settings.link_length
+    target = output_path(settings.output, settings.output_dir)
+    if not nominal_path:
+        return failure(
+            Reason.MISSING_PARAMETER,
+            "parameter 'nominal' is not set: give the "
+            'nominal parameters YAML to start from (-p nominal:=<path>)',
+        )
+    try:
+        nominal, mount = nominal_file.load(nominal_path)
+    except (ParameterFileError, ValueError) as error:
+        return failure(Reason.INVALID_NOMINAL, f'nominal: {error}')
+    if bag:
+        try:
+            loaded = pipeline.postures_from_bag(bag)
+        except Exception as error:  # noqa: BLE001 - BagError, CalibrationError, contract
+            return failure(Reason.INVALID_BAG, f'bag {bag}: {error}', bag=bag)
+        postures, source = loaded.postures, f'bag {bag} ({loaded.source})'
+        not_used = {
+            'postures_rejected_on_receipt': len(loaded.rejected),
+            'invalid_messages': loaded.invalid_messages,
+        }
+        postures_models = {loaded.model} if loaded.model else set()
+    else:
+        postures, postures_models = store.since(0)
+        source = 'live postures'
+        not_used = {'postures_rejected_on_receipt': store.rejected}
+    verify_from = len(store)  # the postures after these verify it, never fit it
+    for model in sorted(postures_models):
+        try:
+            pipeline.check_model(
+                model, nominal, 'the bag' if bag else 'the postures received', nominal_path
+            )
+        except pipeline.ModelMismatchError as error:
+            return failure(
+                error.reason,
+                str(error),
+                postures_received=len(postures),
+                source=source,
+                model=nominal.model,
+            )
+    log.info(f'calibrating from {len(postures)} {source}, {cost} cost')
+    started(len(postures), source)
+    about = {'postures_received': len(postures), 'source': source, **not_used}
+    noise = settings.noise()
+    try:
+        prior = device_prior(settings.device_prior, link_length)
+    except ValueError as error:
+        return failure(Reason.INVALID_DEVICE_PRIOR, str(error), **about)
+    if prior and noise is None:
+        return failure(
+            Reason.DEVICE_PRIOR_WITHOUT_NOISE,
+            f'a device prior ({prior.describe()}) is weighed against the data by the '
+            'reading noise: set noise_slider_m and noise_angle_rad (> 0), or the prior std '
+            'parameters (device.*_std) to 0',
+            **about,
+        )
+    try:
+        result = pipeline.calibrate(
+            nominal,
+            postures,
+            cost=cost,
+            link_length=link_length,
+            identify_device=names(settings.identify_device),
+            noise=noise,
+            robust_loss=settings.robust_loss or None,
+            mount=mount,
+            device_prior=prior,
+        )
+    except CalibrationError as error:
+        return failure(error.reason, str(error), **about)
+    except ValueError as error:  # options the solver refuses (SolverOptions.validate)
+        return failure(Reason.INVALID_OPTIONS, str(error), **about)
+    values: dict[str, object] = {
+        'postures_received': len(postures),
+        'source': source,
+        **pipeline.status_fields(result, prior),
+        **not_used,
+    }
+    summary = (
+        f'{len(result.used_postures)} of {len(postures)} postures, {cost} cost, '
+        f'{result.iterations} iterations, rank {result.rank}, rms residual '
+        + ', '.join(f'{k} {v:.3g}' for k, v in result.rms_residual.items())
+    )
+    if result.reason not in (CONVERGED, ITERATION_LIMIT):
+        return failure(
+            result.reason, f'the identification did not converge ({summary})', **values
+        )
+    try:
+        save_parameters(
+            target,
+            result.parameters.vector,
+            model=result.parameters.model,
+            header_comment=(
+                f'hexacal calibration {_now()}'
+                f'\nfrom {source}: {summary}\nnominal: {nominal_path}; SI units'
+            ),
+            extras=pipeline.device_defects_extras(result) or None,
+        )
+    except HexacalContractError as error:
+        return Outcome(
+            False,
+            f'{Reason.OUTPUT_NOT_WRITTEN}: calibrated ({summary}) but {error}',
+            Level.WARN,
+            {**values, 'outcome': Reason.OUTPUT_NOT_WRITTEN},
+            result.parameters,
+            verify_from=verify_from,
+            defects=result.device,
+            link_length=link_length,
+            mount=mount,
+            source=source,
+        )
+    values['output'] = str(target)
+    # The report (figures, pose-error map, result payload) is written after the answer.
+    report = None
+    if settings.report_dir:
+        report = ReportJob(
+            settings.report_dir,
+            settings.output_dir,
+            result,
+            postures,
+            source,
+            link_length,
+            mount,
+            prior,
+        )
+        values['report_state'] = ReportState.WRITING
+    else:
+        values['report_state'] = ReportState.DISABLED
+    return Outcome(
+        True,
+        f'{result.reason}: {summary}; wrote {target}',
+        Level.OK if result.reason == CONVERGED else Level.WARN,
+        values,
+        result.parameters,
+        report,
+        verify_from=verify_from,
+        defects=result.device,
+        link_length=link_length,
+        mount=mount,
+        source=source,
+    )
+
+# ------------------------------------------------------------------ verification

@@ -1,0 +1,141 @@
+"""One verification of the latest calibration, on the postures received after it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from hexacal_msgs_py.errors import ParameterFileError
+
+from .nominal import NominalFile
+from .outcome import failure, Level, Outcome, Reason, ReportState
+from .postures import PostureStore
+from .reports import VerificationTask
+from .settings import Settings
+from ..core.architectures import KinematicParameters
+from ..core.device import DeviceDefects
+from ..core.errors import CalibrationError
+
+
+@dataclass
+class LatestCalibration:
+    """The calibration hexacal/verify verifies: the latest that produced parameters."""
+
+    number: int  # its calibration number (0: the saved output republished at start-up)
+    parameters: KinematicParameters
+    defects: DeviceDefects  # device defects identified with it
+    source: str  # what it was fitted on, for the messages
+    verify_from: int  # live postures received before it took its postures: the later verify it
+    link_length: float | None  # the device it assumed (None: the parameters at verify time)
+    mount: str | None
+    outcome: Outcome | None  # its result (its report job); None when republished from the file
+
+
+def run_verification(
+    settings: Settings,
+    number: int,
+    latest: LatestCalibration | None,
+    nominal_file: NominalFile,
+    store: PostureStore,
+    calibrate_service: str,
+) -> tuple[Outcome, VerificationTask | None]:
+    """
+    Verify verification `number` of `latest` on the postures in `store` after it.
+
+    Return the outcome, and the report to write (None: no report). Unexpected errors
+    propagate: the session names them.
+    """
+    from .. import pipeline
+    from ..core.device import DeviceModel
+    from ..core.verification import PASS, verify
+
+    if latest is None:
+        return failure(
+            Reason.NO_CALIBRATION,
+            'no calibration to verify yet: calibrate first '
+            f'({calibrate_service}), then measure fresh postures '
+            'and call verify again',
+        ), None
+    postures, postures_models = store.since(latest.verify_from)
+    about = {
+        'calibration': latest.source,
+        'calibration_number': latest.number,
+        'postures_before_calibration': latest.verify_from,
+    }
+    if not postures:
+        return failure(
+            Reason.NO_POSTURES,
+            f'no postures received since the calibration it verifies '
+            f'({latest.source}, calibration {latest.number}): measure fresh postures '
+            '(a verification plan) and call verify again',
+            postures=0,
+            **about,
+        ), None
+    nominal_path = settings.nominal
+    if not nominal_path:
+        return failure(
+            Reason.MISSING_PARAMETER,
+            "parameter 'nominal' is not set: verification compares "
+            'the nominal and the calibrated parameters (-p nominal:=<path>)',
+            **about,
+        ), None
+    try:
+        nominal, mount = nominal_file.load(nominal_path)
+    except (ParameterFileError, ValueError) as error:
+        return failure(Reason.INVALID_NOMINAL, f'nominal: {error}', **about), None
+    link_length = latest.link_length or settings.link_length
+    mount = latest.mount or mount
+    try:
+        for model in sorted(postures_models):
+            pipeline.check_model(
+                model, nominal, 'the postures received since the calibration', nominal_path
+            )
+        result = verify(
+            nominal,
+            latest.parameters,
+            pipeline.measurements_from_postures(postures),
+            device=DeviceModel(link_length=link_length, mount=mount),
+            threshold_m=settings.verify_threshold_m or None,
+            noise=settings.noise(),
+            postures_model=next(iter(postures_models)) if len(postures_models) == 1 else None,
+            calibrated_defects=latest.defects,
+        )
+    except (CalibrationError, ValueError) as error:
+        reason = getattr(error, 'reason', Reason.INVALID_INPUT)
+        return failure(reason, str(error), postures=len(postures), **about), None
+    values: dict[str, object] = {
+        'outcome': Reason.VERIFIED,
+        **result.status_values(),
+        **about,
+    }
+    before, after = result.nominal.figures(), result.calibrated.figures()
+    message = (
+        f'{result.verdict_reason()}; position rms nominal '
+        f'{before["position_rms_m"] * 1e6:.2f} um, calibrated '
+        f'{after["position_rms_m"] * 1e6:.2f} um ({result.improvement:.1f}x), rotary rms '
+        f'nominal {before["rotary_rms_rad"] * 1e6:.2f} urad, calibrated '
+        f'{after["rotary_rms_rad"] * 1e6:.2f} urad; {result.postures} postures since '
+        f'calibration {latest.number}'
+    )
+    passed = result.verdict == PASS
+    job = latest.outcome.report if latest.outcome is not None else None
+    writing = job is not None or bool(settings.report_dir)
+    values['report_state'] = ReportState.WRITING if writing else ReportState.DISABLED
+    outcome = Outcome(passed, message, Level.OK if passed else Level.WARN, values)
+    if not writing:
+        return outcome, None
+    payload = {
+        **result.to_json(per_posture=True),
+        'source': f'{len(postures)} live postures',
+        'calibration': latest.source,
+        'nominal_file': nominal_path,
+    }
+    task = VerificationTask(
+        number,
+        latest.number,
+        job,
+        settings.report_dir,
+        settings.output_dir,
+        payload,
+        outcome,
+    )
+    return outcome, task
