@@ -89,14 +89,22 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 import hashlib
-import json
 from pathlib import Path
 import time
 from typing import Callable
 
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
+from hexacal_msgs_py.plan_file import (
+    json_safe,
+    METADATA_PREFIX,
+    PLAN_MODEL_KEY,
+    PLAN_MOUNT_KEY,
+    plan_file_text,
+    PlanFile,
+    read_plan_file,
+    write_plan_file,
+)
 import numpy as np
-import yaml
 
 from .architectures import KinematicParameters
 from .device import (
@@ -881,47 +889,20 @@ def travel_order(
 
 
 # --------------------------------------------------------------------------- the plan
-METADATA_PREFIX = (
-    '# hexacal-plan: '  # one comment line of JSON: strict plan loaders skip it, Plan.load reads it
-)
-PLAN_MODEL_KEY = (
-    'model'  # in the plan mapping: the machine model (absent = the Hexa Slide, DEFAULT_MODEL)
-)
-PLAN_MOUNT_KEY = (
-    'mount'  # in the plan mapping: the device mount (absent = hanging, device.DEFAULT_MOUNT)
-)
 
 
 @dataclass
 class Plan:
-    """Postures for the driver's plan-file mode; YAML, SI units (m, rad).
+    """Hold the planned postures (m, rad) and the planner's metadata; read and written as a plan file.
 
-    File format (what ``hexacal_driver.plan.load_plan`` reads)::
-
-        # hexacal-plan: {"index": "O1", "model": "gough_stewart", ...}   <- planner metadata, a comment
-        plan:
-          name: greedy-O1-25-3f2a9c1e
-          link_length: 0.75
-          model: gough_stewart
-          mount: standing
-        postures:
-          - {kind: sphere, pose: [x, y, z, theta, psi, phi]}
-          - {kind: sphere, pose: [...], device_turn: 3.141592653589793}
-
-    ``plan.model`` names the machine model the postures were planned for (the
-    nominal parameters' architecture), so the driver can refuse a plan made for
-    another machine.  Like the parameters files, a plan without ``model`` is a
-    Hexa Slide's: the key is written only for other models, so Hexa Slide plan
-    files stay as they were.  ``plan.mount`` likewise names a device mount other
-    than ``hanging`` (``standing``: the postures lie above the device's base
-    joint, the fixed position is [0, 0, +L]).  The metadata (which always names
-    the model, and the mount among the limits) rides in a comment because the
-    driver's loader accepts only ``name``, ``link_length`` (and ``model``,
-    ``mount``) in ``plan``; the name ends with the plan's
-    fingerprint, so a bag that records the plan name says exactly which postures it followed.
-    ``device_turn`` (rad, only where non-zero): the device is turned about its link
-    axis by that much for the posture (a turning procedure, module doc); postures
-    without it are taken in the normal mounting.
+    The file format has one owner, hexacal_msgs_py.plan_file (what the driver and
+    the executor read too).  ``model`` names the machine model the postures were
+    planned for, ``mount`` the device mount; the metadata rides in the file's
+    ``# hexacal-plan:`` comment with the plan's fingerprint, and the default name
+    ends with that fingerprint, so a bag that records the plan name says exactly
+    which postures it followed.  ``device_turns`` (rad, written only where
+    non-zero): the device turned about its link axis for the posture (a turning
+    procedure, module doc); postures without one are taken in the normal mounting.
     """
 
     name: str
@@ -986,101 +967,43 @@ class Plan:
         )
         return hashlib.sha256(text.encode()).hexdigest()[:8]
 
+    def plan_file(self) -> PlanFile:
+        """Return the plan-file contents: the metadata with the fingerprint, turns only where set."""
+        return PlanFile(
+            self.name,
+            float(self.link_length),
+            self.poses,
+            tuple(self.kinds),
+            self.model,
+            self.mount,
+            tuple(float(turn) if turn else None for turn in self.turns),
+            dict(json_safe(self.metadata), fingerprint=self.fingerprint()),
+        )
+
     def to_text(self) -> str:
-        metadata = dict(_plain(self.metadata), fingerprint=self.fingerprint())
-        lines = [
-            METADATA_PREFIX + json.dumps(metadata, sort_keys=True),
-            'plan:',
-            f'  name: {json.dumps(self.name)}',
-            f'  link_length: {float(self.link_length)!r}',
-        ]
-        if self.model != DEFAULT_MODEL:  # as parameters files: no model = a Hexa Slide
-            lines.append(f'  {PLAN_MODEL_KEY}: {self.model}')
-        if self.mount != DEFAULT_MOUNT:  # no mount = hanging
-            lines.append(f'  {PLAN_MOUNT_KEY}: {self.mount}')
-        lines.append('postures:')
-        for kind, pose, turn in zip(self.kinds, self.poses, self.turns):
-            turned = f', device_turn: {float(turn)!r}' if turn else ''
-            lines.append(
-                f'  - {{kind: {kind}, pose: [{", ".join(repr(float(v)) for v in pose)}]{turned}}}'
-            )
-        return '\n'.join(lines) + '\n'
+        """Return the plan file's text (hexacal_msgs_py.plan_file)."""
+        return plan_file_text(self.plan_file())
 
     def save(self, path: Path | str) -> Path:
         """Write atomically (temporary file in the same directory, fsync, rename)."""
-        from hexacal_msgs_py.files import atomic_write
-
-        return atomic_write(path, self.to_text())
+        return write_plan_file(path, self.plan_file())
 
     @classmethod
     def load(cls, path: Path | str) -> 'Plan':
-        try:
-            text = Path(path).read_text(encoding='utf-8')
-            document = yaml.safe_load(text)
-        except (yaml.YAMLError, UnicodeDecodeError, RecursionError) as error:
-            raise ValueError(
-                f'{path}: not readable as a plan file: {str(error).splitlines()[0]}'
-            ) from None
-        if not isinstance(document, dict) or not isinstance(document.get('plan'), dict):
-            raise ValueError(f"{path}: not a plan file (no 'plan' mapping)")
-        header = dict(document['plan'])
-        postures = document.get('postures')
-        if not isinstance(postures, list) or not postures:
-            raise ValueError(f"{path}: 'postures' must be a non-empty list")
-        try:
-            kinds = [str(p['kind']) for p in postures]
-            poses = np.array([[float(v) for v in p['pose']] for p in postures])
-            turns = np.array([float(p.get('device_turn', 0.0)) for p in postures])
-        except (KeyError, TypeError, ValueError) as error:
-            raise ValueError(
-                f"{path}: every posture needs 'kind' and a 6-number 'pose' ({error})"
-            ) from None
-        if poses.ndim != 2 or poses.shape[1] != 6:
-            raise ValueError(f'{path}: every pose must have 6 numbers [x, y, z, theta, psi, phi]')
-        if 'name' not in header or 'link_length' not in header:
-            raise ValueError(f"{path}: 'plan' needs 'name' and 'link_length' (m)")
-        metadata = {}
-        for line in text.splitlines():
-            if line.startswith(METADATA_PREFIX):
-                try:
-                    metadata = dict(json.loads(line[len(METADATA_PREFIX) :]))
-                except (ValueError, TypeError):
-                    raise ValueError(
-                        f"{path}: its '{METADATA_PREFIX.strip()}' comment is not a JSON object"
-                    ) from None
-                metadata.pop('fingerprint', None)
-        model = header.get(PLAN_MODEL_KEY, DEFAULT_MODEL)
-        if not isinstance(model, str) or model not in MODELS:
-            raise ValueError(
-                f'{path}: plan.{PLAN_MODEL_KEY} {model!r} is not a machine model hexacal knows '
-                f'({", ".join(sorted(MODELS))})'
-            )
-        mount = header.get(PLAN_MOUNT_KEY, DEFAULT_MOUNT)
-        try:
-            check_mount(mount)
-        except ValueError as error:
-            raise ValueError(f'{path}: plan.{PLAN_MOUNT_KEY}: {error}') from None
+        """Read a plan file (hexacal_msgs_py.plan_file.read_plan_file; PlanError is a ValueError)."""
+        contents = read_plan_file(path)
+        metadata = dict(contents.metadata or {})
+        metadata.pop('fingerprint', None)
         return cls(
-            str(header['name']),
-            float(header['link_length']),
-            poses,
-            np.array(kinds),
+            contents.name,
+            contents.link_length,
+            contents.poses.copy(),
+            np.array(contents.kinds),
             metadata,
-            model,
-            mount,
-            turns,
+            contents.model,
+            contents.mount,
+            np.array([contents.device_turn(i) for i in range(len(contents))]),
         )
-
-
-def _plain(value):
-    """Metadata as JSON-safe builtins."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple, np.ndarray)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
 
 
 @dataclass
