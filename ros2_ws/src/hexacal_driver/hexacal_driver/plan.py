@@ -1,4 +1,5 @@
-"""Posture plans: which postures the simulated machine visits, in which order (ROS-free).
+"""
+Posture plans: which postures the simulated machine visits, in which order (ROS-free).
 
 A plan is a list of platform poses ``[x, y, z, theta, psi, phi]`` (m, rad, the
 paper's eq. 1), each of one kind:
@@ -81,7 +82,8 @@ __all__ = [
 
 
 class PosturePlan(PlanFile):
-    """A plan file's postures where the device lets the platform stand (hexacal_msgs_py.plan_file).
+    """
+    A plan file's postures where the device lets the platform stand (hexacal_msgs_py.plan_file).
 
     Beyond the format's checks: sphere postures on the link sphere on the mount's side of O
     within the inclinometer's range, fixed ones at the fixed-position point, tilts within
@@ -148,8 +150,12 @@ def machine_workspace(
     link_length: float = DEFAULT_LINK_LENGTH_M,
     mount: str = DEFAULT_MOUNT,
 ) -> Workspace:
-    """The workspace plans are drawn and checked in: the architecture's default, with this link
-    length (and device mount; the Workspace's default, hanging, is left as it is)."""
+    """
+    Return the workspace plans are drawn and checked in.
+
+    The architecture's default, with this link length (and device mount; the Workspace's
+    default, hanging, is left as it is).
+    """
     workspace = replace(params.architecture.default_workspace(), link_length=float(link_length))
     if mount != DEFAULT_MOUNT:
         workspace = replace(workspace, mount=mount)
@@ -164,7 +170,8 @@ def generated_plan(
     link_length: float = DEFAULT_LINK_LENGTH_M,
     mount: str = DEFAULT_MOUNT,
 ) -> PosturePlan:
-    """'random' (sphere), 'fixed' or 'mixed' (3 sphere : 1 fixed) postures drawn with `seed`.
+    """
+    'random' (sphere), 'fixed' or 'mixed' (3 sphere : 1 fixed) postures drawn with `seed`.
 
     Poses come from the architecture's default workspace (machine_workspace) on the
     device mount's side of O.
@@ -227,7 +234,8 @@ def save_plan(path: str | os.PathLike[str], plan: PlanFile) -> None:
 def check_reachable(
     plan: PosturePlan, params: KinematicParameters, workspace: Workspace | None = None
 ) -> np.ndarray:
-    """Actuator readings (N, 6) of every posture on `params`; PlanError if a posture is out of reach.
+    """
+    Return the actuator readings (N, 6) of every posture; PlanError if one is out of reach.
 
     Out of reach: a chain cannot close (Hexa Slide: a leg cannot reach its rail), or an
     actuator is outside the stroke of `workspace` (default: the architecture's default
@@ -263,7 +271,8 @@ def resolve_plan(
     link_length: float = DEFAULT_LINK_LENGTH_M,
     mount: str = DEFAULT_MOUNT,
 ) -> PosturePlan:
-    """A plan from the driver's `plan` parameter: a generated plan's name or a plan-file path.
+    """
+    Return the plan of the driver's `plan` parameter: a generated plan's name or a file path.
 
     A plan file's link length must match the device's, its model the machine's and its
     mount the device's; the plan must be reachable.

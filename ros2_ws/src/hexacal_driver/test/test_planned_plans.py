@@ -1,4 +1,4 @@
-"""Planned files on the driver's machines: model and mount refusals, reach, the executor's stroke."""
+"""Planned files on the driver's machines: model refusals, reach, the executor's stroke."""
 
 from hexacal_driver.plan import check_reachable, load_plan, PlanError, resolve_plan, save_plan
 from hexacal_identify.core.architectures import default_parameters
@@ -23,7 +23,7 @@ def test_a_gough_stewart_plan_names_its_model_and_the_driver_walks_only_that_mac
     assert resolve_plan(str(path), truth, 0, 0).model == GS
     with pytest.raises(PlanError, match='made for a gough_stewart .* machine is a hexa_slide'):
         resolve_plan(str(path), NOMINAL, 0, 0)
-    # A generated plan for the Gough-Stewart machine is drawn in its workspace and written with its model.
+    # A generated Gough-Stewart plan is drawn in its workspace and written with its model.
     generated = resolve_plan('mixed', truth, 12, 3)
     save_plan(tmp_path / 'generated.yaml', generated)
     assert '  model: gough_stewart\n' in (tmp_path / 'generated.yaml').read_text()

@@ -1,4 +1,5 @@
-"""Read and write posture plan files: the one owner of the format (ROS-free, no core imports).
+"""
+Read and write posture plan files: the one owner of the format (ROS-free, no core imports).
 
 The planner (``hexacal plan``, core.planning.Plan), the executor (through
 ``Plan.load``), the simulated driver (hexacal_driver.plan) and the CLI all read
@@ -74,7 +75,8 @@ class PlanError(ValueError):
 
 @dataclass(frozen=True)
 class PlanFile:
-    """Hold a plan file's contents: poses (N, 6) in m and rad, kinds (N,) 'sphere' / 'fixed'.
+    """
+    Hold a plan file's contents: poses (N, 6) in m and rad, kinds (N,) 'sphere' / 'fixed'.
 
     device_turns: per posture the device's turn about its link axis (rad) or None (the
     reader's default); () when no posture names one. metadata: the planner's comment
@@ -132,7 +134,8 @@ class PlanFile:
         )
 
     def posture_problem(self, pose: np.ndarray, kind: str) -> str | None:
-        """Return what is wrong with a finite pose of a known kind, or None.
+        """
+        Return what is wrong with a finite pose of a known kind, or None.
 
         The format knows no machine: subclasses that do (the driver's) check where
         the device lets the platform stand.
@@ -242,7 +245,8 @@ def _read_text(path: PathLike, fail: Callable[[str], PlanError]) -> str:
     try:
         return Path(path).read_text(encoding='utf-8')
     except OSError as error:
-        raise fail(f'not readable as a plan file: cannot read: {error.strerror or error}') from error
+        reason = error.strerror or error
+        raise fail(f'not readable as a plan file: cannot read: {reason}') from error
     except UnicodeDecodeError as error:
         raise fail(f'not readable as a plan file: not UTF-8 text: {error}') from error
 
@@ -315,10 +319,11 @@ def _posture(
 def _metadata(text: str, fail: Callable[[str], PlanError]) -> dict[str, Any] | None:
     """Return the planner's metadata comment (the last one) as a dict, or None if absent."""
     metadata = None
+    start = len(METADATA_PREFIX)
     for line in text.splitlines():
         if line.startswith(METADATA_PREFIX):
             try:
-                metadata = dict(json.loads(line[len(METADATA_PREFIX) :]))
+                metadata = dict(json.loads(line[start:]))
             except (ValueError, TypeError):
                 raise fail(
                     f"its '{METADATA_PREFIX.strip()}' comment is not a JSON object"
