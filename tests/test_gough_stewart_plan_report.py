@@ -1,11 +1,17 @@
-"""Planning and the report on a Gough-Stewart platform (#10): the model comes from the files, names from its layout.
+"""
+Planning and the report on a Gough-Stewart platform (#10): the model comes from the files, names
+from its layout.
 
-* ``hexacal plan --nominal GS.yaml`` plans within the Gough-Stewart workspace (leg extension 0-0.5 m,
-  +-250 mm, +-20 deg), records the model in the plan file and beats random postures of the same count;
+* ``hexacal plan --nominal GS.yaml`` plans within the Gough-Stewart workspace (leg extension 0-0.5
+  m,
+  +-250 mm, +-20 deg), records the model in the plan file and beats random postures of the same
+  count;
   options given replace the architecture's defaults, and the U/S joint limits act through the
   architecture's joint angles.
-* ``hexacal report`` of a Gough-Stewart calibration (a saved result, a plain ``--json`` output, and the
-  result object the calibrate command and the identify node pass) names A, B, l0 and the legs, never
+* ``hexacal report`` of a Gough-Stewart calibration (a saved result, a plain ``--json`` output, and
+  the
+  result object the calibrate command and the identify node pass) names A, B, l0 and the legs,
+  never
   the Hexa Slide's A0, a, l or its sliders.
 """
 
@@ -29,7 +35,8 @@ from hexacal_identify.core.measurements import (
     SPHERE,
 )
 from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.planning import Plan, PostureLimits
+from hexacal_identify.core.planning import Plan
+from hexacal_identify.core.posture_limits import PostureLimits
 from hexacal_identify.core.postures import sample_poses
 from hexacal_msgs_py.models import MODELS
 from hexacal_msgs_py.parameters_file import save_parameters
@@ -273,7 +280,8 @@ def test_hexacal_report_of_a_gough_stewart_result(calibration, tmp_path):
         'postures',
     ):
         assert (out / f'{name}.png').stat().st_size > 1000, name
-    # The workspace map covers the Gough-Stewart workspace (+-250 mm) and finds feasible cells there.
+    # The workspace map covers the Gough-Stewart workspace (+-250 mm) and finds feasible cells
+    # there.
     assert 'Median' in text and 'over the feasible cells' in text
 
 

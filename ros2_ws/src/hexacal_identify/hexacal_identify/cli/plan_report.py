@@ -10,11 +10,13 @@ from typing import TYPE_CHECKING
 from .common import Progress
 
 if TYPE_CHECKING:
-    from ..core.planning import PostureLimits
+    from ..core.posture_limits import PostureLimits
 
-MOUNT_PARAMETER = 'device.mount'  # = hexacal_msgs_py.models.DEVICE_MOUNT_KEY (not imported: `hexacal --help` stays light)
+# = hexacal_msgs_py.models.DEVICE_MOUNT_KEY (not imported: `hexacal --help` stays light)
+MOUNT_PARAMETER = 'device.mount'
 
-# The planner and the report are imported where they run: this module is imported by every `hexacal` start-up to
+# The planner and the report are imported where they run: this module is imported by every
+# `hexacal` start-up to
 # register the commands.
 
 
@@ -40,7 +42,9 @@ def add_parsers(subparsers) -> None:
 
 
 def _plan_arguments(plan) -> None:
-    from ..core.planning import CRITERIA, METHODS, PostureLimits
+    from ..core.observability import CRITERIA
+    from ..core.planning import METHODS
+    from ..core.posture_limits import PostureLimits
     from ..core.residuals import COSTS
     from .study_device import device_names_argument, device_prior_argument
 
@@ -96,7 +100,8 @@ def _plan_arguments(plan) -> None:
         help='share of fixed-position candidates (default: 0.25 for sphere-fixed/relative, 1 for '
         'fixed, else 0)',
     )
-    # Workspace limits default (None) to the nominal model's workspace: the Hexa Slide's values in brackets.
+    # Workspace limits default (None) to the nominal model's workspace: the Hexa Slide's values in
+    # brackets.
     defaults = PostureLimits()
     plan.add_argument(
         '--link-length',
@@ -195,11 +200,13 @@ def _report_arguments(report) -> None:
 
 
 def _limits(args, nominal, extras: dict) -> PostureLimits:
-    """The nominal machine's default limits (its architecture's workspace), with the options given replacing them.
+    """
+    The nominal machine's default limits (its architecture's workspace), with the options given
+    replacing them.
 
     The device mount: --mount, else the nominal file's ``device.mount``, else hanging.
     """
-    from ..core.planning import PostureLimits
+    from ..core.posture_limits import PostureLimits
 
     given = {
         'mount': args.mount or extras.get(MOUNT_PARAMETER),
@@ -220,7 +227,9 @@ def _limits(args, nominal, extras: dict) -> PostureLimits:
 
 
 def load_nominal(path: Path | None) -> tuple:
-    """(parameters, other parameters of the file): a parameters YAML of any model (its ``model`` key), or the
+    """
+    (parameters, other parameters of the file): a parameters YAML of any model (its ``model`` key),
+    or the
     default machine (no other parameters)."""
     from ..core.architectures import default_parameters, parameters_for
 
@@ -240,7 +249,8 @@ def run_plan(args) -> int:
 
     from ..core.device import DevicePrior, procedure_turns
     from ..core.measurements import NoiseModel
-    from ..core.planning import INDICES, plan_postures, PREDICTION
+    from ..core.observability import INDICES, PREDICTION
+    from ..core.planning import plan_postures
 
     nominal, extras = load_nominal(args.nominal)
     layout = nominal.layout

@@ -1,4 +1,7 @@
-"""``hexacal study --plan``: accuracy versus number of postures, planned against random, over seeds.
+"""
+``hexacal study --plan``: accuracy versus number of postures.
+
+Accuracy versus number of postures, planned against random, over seeds.
 
 For each seed the machine, its nominal model, the noise and the 50 validation
 postures are those of ``studies.accuracy`` (``StudyRun``, on the default machine of
@@ -23,19 +26,15 @@ from typing import Callable
 from hexacal_msgs_py.models import DEFAULT_MODEL
 import numpy as np
 
+from .accuracy import run_calibration, study_truth, StudyOutcome, StudyRun
+from ..core.design import exchange_design
 from ..core.errors import CalibrationError
 from ..core.identification import identify, SolverOptions
 from ..core.measurements import NoiseModel, simulate_measurements
-from ..core.planning import (
-    CRITERIA,
-    exchange_design,
-    METHODS,
-    plan_postures,
-    PostureLimits,
-    PREDICTION,
-)
+from ..core.observability import CRITERIA, PREDICTION
+from ..core.planning import METHODS, plan_postures
+from ..core.posture_limits import PostureLimits
 from ..core.validation import pose_errors, validation_poses
-from .accuracy import run_calibration, study_truth, StudyOutcome, StudyRun
 
 DEFAULT_KS = (15, 20, 25, 30, 40, 50)
 REFERENCE_RANDOM_POSTURES = 50
@@ -44,7 +43,12 @@ UM = 1e6
 
 
 def add_arguments(parser) -> None:
-    """Options of ``hexacal study --plan`` (it also uses --seed, --noise-um, --cost, --nominal-set, --out, --json)."""
+    """
+    Add the options of ``hexacal study --plan``.
+
+    Options of ``hexacal study --plan`` (it also uses --seed, --noise-um, --cost, --nominal-set,
+    --out, --json).
+    """
     group = parser.add_argument_group('posture planning study (--plan)')
     group.add_argument(
         '--plan',
@@ -83,7 +87,8 @@ class PlanningStudy:
     index: str
     method: str
     model: str = DEFAULT_MODEL
-    # variant -> (len(ks), len(seeds)) mean validation position error, m; NaN where the calibration failed
+    # variant -> (len(ks), len(seeds)) mean validation position error, m; NaN where the calibration
+    # failed
     position_error_m: dict[str, np.ndarray] = field(default_factory=dict)
     orientation_error_rad: dict[str, np.ndarray] = field(default_factory=dict)
     failures: dict[str, list[str]] = field(default_factory=dict)
@@ -163,7 +168,12 @@ def _nan_to_none(values) -> list:
 
 
 def calibrate_at(run: StudyRun, poses: np.ndarray, kinds: np.ndarray) -> StudyOutcome:
-    """``run_calibration`` with given postures instead of random ones (same noise model, solver, validation)."""
+    """
+    Run ``run_calibration`` with given postures instead of random ones.
+
+    ``run_calibration`` with given postures instead of random ones (same noise model, solver,
+    validation).
+    """
     rng = np.random.default_rng([run.seed, len(poses), 0x9EA5])
     measurements = simulate_measurements(
         run.true_params, poses, kinds, run.device, NoiseModel.from_microns(run.noise_um), rng
@@ -180,7 +190,11 @@ def calibrate_at(run: StudyRun, poses: np.ndarray, kinds: np.ndarray) -> StudyOu
 def planned_variants(
     index: str, cost: str, noise_um: float
 ) -> dict[str, tuple[str, NoiseModel | None]]:
-    """name -> (index, noise weighting): the index asked for, weighted and not, and the I-optimal plan."""
+    """
+    Return name -> (index, noise weighting) of the planned variants.
+
+    The index asked for, weighted and not, and the I-optimal plan.
+    """
     noise = NoiseModel.from_microns(
         noise_um if noise_um > 0 else 1.0
     )  # only the actuator/angle ratio matters
@@ -209,12 +223,16 @@ def planned_vs_random(
     model: str | None = None,
     true_params=None,
 ) -> PlanningStudy:
-    """Validation error vs K for random postures and the planned variants (``planned_variants``).
+    """
+    Return the validation error vs K for random and planned postures.
 
-    The machine: ``true_params``, else the default machine of ``model`` (default: the Table 1 Hexa Slide).
+    Validation error vs K for random postures and the planned variants (``planned_variants``).
+
+    The machine: ``true_params``, else the default machine of ``model`` (default: the Table 1 Hexa
+    Slide).
     """
     truth = study_truth(true_params, model)
-    ks = sorted(set(int(k) for k in ks) | {REFERENCE_RANDOM_POSTURES})
+    ks = sorted({int(k) for k in ks} | {REFERENCE_RANDOM_POSTURES})
     seeds = [int(s) for s in seeds]
     study = PlanningStudy(ks, seeds, noise_um, cost, index, method, truth.model)
     weighting = planned_variants(index, cost, noise_um)
@@ -301,7 +319,7 @@ def _record(
 
 
 def run(args) -> int:
-    """Handler of ``hexacal study --plan``."""
+    """Run ``hexacal study --plan``."""
     from ..cli.common import Progress
     from ..report import figures
 
@@ -353,10 +371,10 @@ def _print_table(study: PlanningStudy) -> None:
     from ..core.architectures import architecture
 
     print(
-        f'Planned vs random postures, {architecture(study.model).layout.title}: mean validation position error '
-        f'[um] over {len(study.seeds)} seeds '
-        f'(mean +- std; failed calibrations in brackets), +-{study.noise_um:g} um noise, cost {study.cost}, '
-        f'index {study.index}, {study.method}:'
+        f'Planned vs random postures, {architecture(study.model).layout.title}: mean validation '
+        f'position error [um] over {len(study.seeds)} seeds (mean +- std; failed calibrations in '
+        f'brackets), +-{study.noise_um:g} um noise, cost {study.cost}, index {study.index}, '
+        f'{study.method}:'
     )
     print(f'  {"K":>3} ' + ' '.join(f'{name:>26}' for name in names))
     for row, k in enumerate(study.ks):
@@ -380,5 +398,6 @@ def _print_table(study: PlanningStudy) -> None:
         )
         print(
             f'  claim ({name}): {REFERENCE_RANDOM_POSTURES} random postures give '
-            f'{claim["reference_position_mean_m"] * UM:.1f} um; {reached} -> K <= {claim["limit_k"]} {verdict}'
+            f'{claim["reference_position_mean_m"] * UM:.1f} um; {reached} -> K <= '
+            f'{claim["limit_k"]} {verdict}'
         )
