@@ -170,7 +170,8 @@ def test_plan_file_round_trip(tmp_path):
 def test_bad_plan_files_are_refused(tmp_path):
     path = tmp_path / 'bad.yaml'
     path.write_text(
-        'plan: {name: x, link_length: 0.75}\npostures: [{kind: wobbly, pose: [0, 0, -0.75, 0, 0, 0]}]\n'
+        'plan: {name: x, link_length: 0.75}\n'
+        'postures: [{kind: wobbly, pose: [0, 0, -0.75, 0, 0, 0]}]\n'
     )
     with pytest.raises(ValueError, match='kind'):
         Plan.load(path)

@@ -1,4 +1,4 @@
-"""``hexacal plan`` (choose measuring postures) and ``hexacal report`` (HTML page of a calibration result)."""
+"""Run ``hexacal plan`` (choose measuring postures) and ``hexacal report`` (HTML of a result)."""
 
 from __future__ import annotations
 
@@ -16,27 +16,28 @@ if TYPE_CHECKING:
 MOUNT_PARAMETER = 'device.mount'
 
 # The planner and the report are imported where they run: this module is imported by every
-# `hexacal` start-up to
-# register the commands.
+# `hexacal` start-up to register the commands.
 
 
 def add_parsers(subparsers) -> None:
     subparsers.add_parser(
         'plan',
         help='choose K measuring postures that maximise an observability index; write a plan file',
-        description='Draw feasible candidate postures (sphere and fixed-position, within the inclinometer range, '
-        'actuator stroke, U/S-joint limits, away from singularities), score them with the identification Jacobian '
-        'at the nominal parameters and choose K that maximise the observability index. The machine model (Hexa '
-        "Slide, Gough-Stewart platform) is the nominal parameters file's; workspace limits not given default to "
-        "that model's workspace. Writes the driver's plan-file format (YAML, SI units, the model under "
+        description='Draw feasible candidate postures (sphere and fixed-position, within the '
+        'inclinometer range, actuator stroke, U/S-joint limits, away from singularities), score '
+        'them with the identification Jacobian at the nominal parameters and choose K that '
+        'maximise the observability index. The machine model (Hexa Slide, Gough-Stewart platform) '
+        "is the nominal parameters file's; workspace limits not given default to that model's "
+        "workspace. Writes the driver's plan-file format (YAML, SI units, the model under "
         'plan.model) atomically.',
         fill=_plan_arguments,
     )
     subparsers.add_parser(
         'report',
         help='write a self-contained HTML report (PNG figures) of a calibration result',
-        description='Read a result JSON (from report.save_result, or the output of `hexacal calibrate --json` / '
-        '`hexacal study --json`, which gives fewer figures) and write DIR/index.html with its figures.',
+        description='Read a result JSON (from report.save_result, or the output of `hexacal '
+        'calibrate --json` / `hexacal study --json`, which gives fewer figures) and write '
+        'DIR/index.html with its figures.',
         fill=_report_arguments,
     )
 
@@ -86,8 +87,8 @@ def _plan_arguments(plan) -> None:
         '--noise-um',
         type=float,
         default=10.0,
-        help='weight rows by the reading noise: +-X um actuators, +-X urad angles (default 10; only '
-        'the actuator/angle ratio matters)',
+        help='weight rows by the reading noise: +-X um actuators, +-X urad angles (default 10; '
+        'only the actuator/angle ratio matters)',
     )
     plan.add_argument(
         '--unweighted',
@@ -111,8 +112,8 @@ def _plan_arguments(plan) -> None:
     plan.add_argument(
         '--xy-range-mm',
         type=float,
-        help=f"|x|, |y| limit (default: the model's workspace; Hexa Slide {defaults.xy_range_m * 1e3:g}, "
-        'Gough-Stewart 250)',
+        help="|x|, |y| limit (default: the model's workspace; Hexa Slide "
+        f'{defaults.xy_range_m * 1e3:g}, Gough-Stewart 250)',
     )
     plan.add_argument(
         '--rotation-range-deg',
@@ -140,8 +141,8 @@ def _plan_arguments(plan) -> None:
         '--max-u-joint-deg',
         type=float,
         default=math.degrees(defaults.max_u_joint_angle_rad),
-        help='max angle of the base-side U joint: leg to rail (Hexa Slide), leg to the base normal '
-        '(Gough-Stewart) (default 60)',
+        help='max angle of the base-side U joint: leg to rail (Hexa Slide), leg to the base '
+        'normal (Gough-Stewart) (default 60)',
     )
     plan.add_argument(
         '--max-s-joint-deg',
@@ -158,16 +159,17 @@ def _plan_arguments(plan) -> None:
     plan.add_argument(
         '--mount',
         choices=('hanging', 'standing'),
-        help="device mount: hanging (platform below the device's base joint) or standing (above it; "
-        "an upright machine); default: the nominal file's device.mount, else hanging",
+        help="device mount: hanging (platform below the device's base joint) or standing (above "
+        "it; an upright machine); default: the nominal file's device.mount, else hanging",
     )
     plan.add_argument(
         '--procedure',
         choices=('none', 'reversal', 'quarter-turns'),
         default='none',
-        help='turning procedure: offer every candidate with the device turned about its link axis by '
-        '0/180 deg (reversal) or 0/90/180/270 deg (quarter-turns); the plan says which posture is '
-        'taken in which mounting (device_turn) and groups them, one remount per turn (absolute cost)',
+        help='turning procedure: offer every candidate with the device turned about its link axis '
+        'by 0/180 deg (reversal) or 0/90/180/270 deg (quarter-turns); the plan says which posture '
+        'is taken in which mounting (device_turn) and groups them, one remount per turn (absolute '
+        'cost)',
     )
     plan.add_argument(
         '--identify-device',
@@ -182,8 +184,8 @@ def _plan_arguments(plan) -> None:
         type=device_prior_argument,
         default=None,
         metavar='NAME=VALUE:STD',
-        help="prior knowledge of the device, SI units, e.g. dL=0:10e-6 (a caliper's +-10 um): the plan "
-        'starts from its information (needs the noise weighting)',
+        help="prior knowledge of the device, SI units, e.g. dL=0:10e-6 (a caliper's +-10 um): the "
+        'plan starts from its information (needs the noise weighting)',
     )
     plan.add_argument('--out', type=Path, required=True, help='plan file to write (YAML)')
     plan.add_argument(
@@ -201,10 +203,10 @@ def _report_arguments(report) -> None:
 
 def _limits(args, nominal, extras: dict) -> PostureLimits:
     """
-    The nominal machine's default limits (its architecture's workspace), with the options given
-    replacing them.
+    Return the nominal machine's default limits (its architecture's workspace) and the options.
 
-    The device mount: --mount, else the nominal file's ``device.mount``, else hanging.
+    The options given replace the defaults. The device mount: --mount, else the nominal file's
+    ``device.mount``, else hanging.
     """
     from ..core.posture_limits import PostureLimits
 
@@ -228,9 +230,10 @@ def _limits(args, nominal, extras: dict) -> PostureLimits:
 
 def load_nominal(path: Path | None) -> tuple:
     """
-    (parameters, other parameters of the file): a parameters YAML of any model (its ``model`` key),
-    or the
-    default machine (no other parameters)."""
+    Return (parameters, other parameters of the file) of a parameters YAML of any model.
+
+    Its ``model`` key names the model; no file: the default machine (no other parameters).
+    """
     from ..core.architectures import default_parameters, parameters_for
 
     if path is None:
@@ -318,12 +321,15 @@ def run_plan(args) -> int:
         )
         return 0
     print(
-        f"plan '{plan.name}' for the {layout.title} ({plan.mount} device): {len(plan)} postures ({counts['sphere']} sphere, "
-        f'{counts["fixed"]} fixed) chosen from {len(planning.candidates)} candidates by {args.method} on {args.index} '
+        f"plan '{plan.name}' for the {layout.title} ({plan.mount} device): {len(plan)} postures "
+        f"({counts['sphere']} sphere, "
+        f'{counts["fixed"]} fixed) chosen from {len(planning.candidates)} candidates by '
+        f'{args.method} on {args.index} '
         f'({"noise-weighted" if weighted else "unweighted"}, cost {args.cost})'
     )
     print(
-        f'  candidates {planning.candidate_seconds:.2f} s, selection {planning.selection_seconds:.2f} s'
+        f'  candidates {planning.candidate_seconds:.2f} s, selection '
+        f'{planning.selection_seconds:.2f} s'
         + (
             f', {len(planning.exchange_history) - 1} exchange swaps'
             if args.method == 'exchange'
@@ -345,14 +351,15 @@ def run_plan(args) -> int:
             for turn in procedure_turns(args.procedure)
         )
         print(
-            f'  device: {", ".join(planning.candidates.device_columns) or "no parameters"} identified with the '
-            f'machine; procedure {args.procedure}: {mountings} (turn the device about its link axis between '
-            'the groups)'
+            f'  device: {", ".join(planning.candidates.device_columns) or "no parameters"} '
+            f'identified with the machine; procedure {args.procedure}: {mountings} (turn the '
+            'device about its link axis between the groups)'
         )
     if planning.rank < layout.n_parameters:
         print(
-            f'  note: rank {planning.rank} of {layout.n_parameters} with the {args.cost} cost, so every index is 0; '
-            'the plan maximises log det(M + delta I), the information on the identifiable part'
+            f'  note: rank {planning.rank} of {layout.n_parameters} with the {args.cost} cost, so '
+            'every index is 0; the plan maximises log det(M + delta I), the information on the '
+            'identifiable part'
         )
     print(f'wrote {args.out}')
     return 0
