@@ -32,6 +32,7 @@ from hexacal_identify.core.device import (
 )
 from hexacal_identify.core.errors import UnreachablePoseError
 from hexacal_identify.core.measurements import NoiseModel
+from hexacal_identify.pipeline import load_machine_and_mount
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 import numpy as np
@@ -47,8 +48,6 @@ def true_machine(path: str, model: str) -> tuple[KinematicParameters, str]:
     """Return the true machine and the device mount (the file's device.mount, else hanging)."""
     if not path:
         return architecture(model or DEFAULT_MODEL).default_parameters(), DEFAULT_MOUNT
-    from hexacal_identify.pipeline import load_machine_and_mount
-
     try:
         params, mount = load_machine_and_mount(path)
     except (ParameterFileError, DeviceMountError, ValueError) as error:
