@@ -38,7 +38,7 @@ import json
 import math
 import os
 from pathlib import Path
-from typing import Any, Callable, TypeVar
+from typing import Any, Callable, overload, TypeVar
 
 from hexacal_msgs_py.files import atomic_write, load_yaml_text
 from hexacal_msgs_py.models import DEFAULT_MODEL, MAX_DEVICE_TURN, MODELS
@@ -112,9 +112,8 @@ class PlanFile:
 
     def device_turn(self, index: int, default: float = 0.0) -> float:
         """Return the device turn of posture `index` (rad): the plan's, else `default`."""
-        if self.device_turns and self.device_turns[index] is not None:
-            return float(self.device_turns[index])
-        return float(default)
+        turn = self.device_turns[index] if self.device_turns else None
+        return float(default if turn is None else turn)
 
     def counts(self) -> dict[str, int]:
         """Return the number of postures of each kind."""
@@ -187,7 +186,8 @@ def turn_problem(turn: object) -> str | None:
         return None
     if isinstance(turn, bool) or not isinstance(turn, (int, float, np.floating, np.integer)):
         return f'device_turn must be a number of rad, got {turn!r}'
-    if not (math.isfinite(turn) and abs(turn) <= MAX_DEVICE_TURN):
+    value = float(turn)
+    if not (math.isfinite(value) and abs(value) <= MAX_DEVICE_TURN):
         return f'device_turn must be a finite angle within +-2 pi rad, got {turn!r}'
     return None
 
@@ -197,7 +197,17 @@ def turn_problem(turn: object) -> str | None:
 PlanType = TypeVar('PlanType', bound=PlanFile)
 
 
-def read_plan_file(path: PathLike, plan_type: type[PlanType] = PlanFile) -> PlanType:
+@overload
+def read_plan_file(path: PathLike) -> PlanFile:
+    ...
+
+
+@overload
+def read_plan_file(path: PathLike, plan_type: type[PlanType]) -> PlanType:
+    ...
+
+
+def read_plan_file(path: PathLike, plan_type: type[PlanFile] = PlanFile) -> PlanFile:
     """Read and check a plan file into a `plan_type`; PlanError names the file and the problem."""
     name = os.fspath(path)
 
@@ -344,8 +354,9 @@ def plan_document(plan: PlanFile) -> dict[str, Any]:
     postures: list[dict[str, Any]] = []
     for index, (kind, pose) in enumerate(zip(plan.kinds, plan.poses)):
         entry: dict[str, Any] = {'kind': kind, 'pose': [float(v) for v in pose]}
-        if plan.device_turns and plan.device_turns[index] is not None:
-            entry[DEVICE_TURN_KEY] = float(plan.device_turns[index])
+        turn = plan.device_turns[index] if plan.device_turns else None
+        if turn is not None:
+            entry[DEVICE_TURN_KEY] = float(turn)
         postures.append(entry)
     return {PLAN_KEY: header, POSTURES_KEY: postures}
 
@@ -367,18 +378,15 @@ def plan_file_text(plan: PlanFile) -> str:
     lines.append(f'{POSTURES_KEY}:')
     for index, (kind, pose) in enumerate(zip(plan.kinds, plan.poses)):
         values = ', '.join(repr(float(v)) for v in pose)
-        turn = (
-            f', {DEVICE_TURN_KEY}: {float(plan.device_turns[index])!r}'
-            if plan.device_turns and plan.device_turns[index] is not None
-            else ''
-        )
-        lines.append(f'  - {{kind: {kind}, pose: [{values}]{turn}}}')
+        turn = plan.device_turns[index] if plan.device_turns else None
+        turned = '' if turn is None else f', {DEVICE_TURN_KEY}: {float(turn)!r}'
+        lines.append(f'  - {{kind: {kind}, pose: [{values}]{turned}}}')
     return '\n'.join(lines) + '\n'
 
 
 def write_plan_file(path: PathLike, plan: PlanFile) -> Path:
     """Write a plan file atomically (temporary file, fsync, rename); return its path."""
-    return atomic_write(path, plan_file_text(plan))
+    return atomic_write(Path(path), plan_file_text(plan))
 
 
 def json_safe(value: Any) -> Any:

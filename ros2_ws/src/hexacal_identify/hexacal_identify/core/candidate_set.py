@@ -96,6 +96,7 @@ class CandidateSet:
         previous = np.broadcast_to(previous, candidates.shape)
         following = np.broadcast_to(following, candidates.shape)
         diff = self.difference_rows
+        assert diff is not None  # relative cost: set by build_candidate_set
         before = np.where(
             (previous >= 0)[:, None, None], diff[candidates] - diff[np.maximum(previous, 0)], 0.0
         )
@@ -197,13 +198,15 @@ def build_candidate_set(
     own_cost = 'sphere-fixed' if cost == 'relative' else cost
     function = CostFunction(own_cost, measurements, device, sigma)
     block = function.residuals(poses, sensitivity)
+    jacobian = block.jacobian
+    assert jacobian is not None  # residuals() computed it from the sensitivity
     phi = block.channels == 'phi'
     if cost == 'relative':
-        rows = _rows_per_posture(block.jacobian[phi], block.postures[phi], len(poses))
-        difference = _rows_per_posture(block.jacobian[~phi], block.postures[~phi], len(poses))
+        rows = _rows_per_posture(jacobian[phi], block.postures[phi], len(poses))
+        difference = _rows_per_posture(jacobian[~phi], block.postures[~phi], len(poses))
         stacked = np.concatenate([rows, difference], axis=1)
     else:
-        rows = _rows_per_posture(block.jacobian, block.postures, len(poses))
+        rows = _rows_per_posture(jacobian, block.postures, len(poses))
         difference = None
         if noise is not None:
             rows = _whiten(rows, _noise_rows(function, poses, legs, block, sigma, device), noise)
@@ -258,10 +261,12 @@ def _device_candidate_set(
     sensitivity = pose_sensitivities(nominal, poses)
     function = CostFunction(cost, measurements, device, sigma)
     block = function.residuals(poses, sensitivity, DeviceDefects(), with_device=True)
+    assert block.jacobian is not None  # residuals() computed it from the sensitivities
     n = nominal.layout.n_parameters
     keep = np.concatenate([np.ones(n, bool), np.isin(DEVICE_PARAMETER_NAMES, columns)])
     rows = _rows_per_posture(block.jacobian[:, keep], block.postures, len(poses))
     if noise is not None:
+        assert block.noise_jacobian is not None  # residuals() computes it with the device
         rows = _whiten(
             rows, _rows_per_posture(block.noise_jacobian, block.postures, len(poses)), noise
         )
@@ -305,6 +310,7 @@ def _noise_rows(
     """
     actuator_sensitivity = np.linalg.inv(legs.pose_jacobian())  # dX / d lambda
     wrt_actuators = function.residuals(poses, actuator_sensitivity).jacobian
+    assert wrt_actuators is not None  # computed from the sensitivity given
     wrt_readings = np.zeros((len(block.channels), 3))
     is_phi = block.channels == 'phi'
     wrt_readings[is_phi, 2] = 1.0 / sigma.angle_rad  # r = phi_m - phi_c

@@ -45,6 +45,7 @@ def _score(
 ) -> np.ndarray:
     """Criterion of base + A_c^T A_c for every candidate c (higher is better)."""
     if index == PREDICTION and not use_d_criterion:
+        assert weight is not None  # CandidateSet.position_weight: set for I
         # -trace(W (B + A^T A)^-1) by Woodbury: trace(W B^-1) - trace(S^-1 A B^-1 W B^-1 A^T), S =
         # I + A B^-1 A^T.
         inverse = np.linalg.inv(base + ridge * np.eye(len(base)))
@@ -204,6 +205,7 @@ def _design_criterion(
     weight: np.ndarray | None = None,
 ) -> float:
     if index == PREDICTION and not use_d:
+        assert weight is not None  # CandidateSet.position_weight: set for I
         return -float(
             np.trace(weight @ np.linalg.inv(information + ridge * np.eye(len(information))))
         )

@@ -31,6 +31,7 @@ The joint angles come from ``Architecture.joint_cosines``.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import Any, cast
 
 import numpy as np
 
@@ -39,10 +40,8 @@ from .device import check_mount, DeviceModel, fixed_point, inclinometer_angles, 
 from .measurements import FIXED, SPHERE
 from .postures import Workspace
 
-# --------------------------------------------------------------------------- limits and candidates
-_PAPER_WORKSPACE = (
-    Workspace()
-)  # the dataclass defaults: section 4's workspace (the Hexa Slide's default)
+# The dataclass defaults: section 4's workspace (the Hexa Slide's default).
+_PAPER_WORKSPACE = Workspace()
 
 
 @dataclass(frozen=True)
@@ -60,9 +59,8 @@ class PostureLimits:
     xy_range_m: float = float(_PAPER_WORKSPACE.xy_range_m)
     rotation_range_rad: float = float(_PAPER_WORKSPACE.rotation_range_rad)
     inclinometer_range_rad: float = float(np.radians(45.0))
-    actuator_stroke_m: tuple[float, float] = tuple(
-        _PAPER_WORKSPACE.slider_stroke_m
-    )  # Workspace's name for it
+    # Workspace's name for it: slider_stroke_m.
+    actuator_stroke_m: tuple[float, float] = _PAPER_WORKSPACE.slider_stroke_m
     max_u_joint_angle_rad: float = float(np.radians(60.0))  # base-side passive joint
     max_s_joint_angle_rad: float = float(np.radians(90.0))  # platform-side spherical joint
     max_condition: float = float(_PAPER_WORKSPACE.max_condition)
@@ -83,7 +81,7 @@ class PostureLimits:
 
         ``overrides`` replace fields.
         """
-        values = {
+        values: dict[str, Any] = {
             'link_length': float(workspace.link_length),
             'xy_range_m': float(workspace.xy_range_m),
             'rotation_range_rad': float(workspace.rotation_range_rad),
@@ -108,7 +106,7 @@ class PostureLimits:
             self.link_length,
             self.xy_range_m,
             self.rotation_range_rad,
-            tuple(self.actuator_stroke_m),
+            cast(tuple[float, float], tuple(self.actuator_stroke_m)),
             self.max_condition,
             self.min_leg_cosine,
             self.mount,
