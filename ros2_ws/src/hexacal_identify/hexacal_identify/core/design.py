@@ -33,7 +33,6 @@ def no_progress(_: str) -> None:
     """Report nothing (the default progress callback)."""
 
 
-# --------------------------------------------------------------------------- scoring
 def _score(
     base: np.ndarray,
     added: np.ndarray,

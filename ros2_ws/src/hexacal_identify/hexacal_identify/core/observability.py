@@ -18,19 +18,15 @@ measures it against O1.
 
 from __future__ import annotations
 
-
 import numpy as np
-
 
 INDICES = ('O1', 'O2', 'O3', 'O4')
 PREDICTION = 'I'  # I-optimal: least predicted mean squared position error over the workspace
 CRITERIA = INDICES + (PREDICTION,)
-RANK_TOLERANCE = (
-    1e-9  # eigenvalue of M (= sigma^2) relative to the largest: below counts as missing
-)
+# Eigenvalue of M (= sigma^2) relative to the largest: below counts as missing.
+RANK_TOLERANCE = 1e-9
 
 
-# --------------------------------------------------------------------------- observability indices
 def observability_indices(singular_values: np.ndarray, n_postures: int) -> dict[str, float]:
     """O1..O4 from the singular values of a column-scaled identification Jacobian (module doc)."""
     sigma = np.sort(np.asarray(singular_values, dtype=float))[::-1]

@@ -94,9 +94,6 @@ def travel_order(
     return np.array(order, dtype=int)
 
 
-# --------------------------------------------------------------------------- the plan
-
-
 @dataclass
 class Plan:
     """
