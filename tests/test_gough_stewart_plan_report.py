@@ -1,12 +1,15 @@
-"""Planning and the report on a Gough-Stewart platform (#10): the model comes from the files, names from its layout.
+"""
+Test planning and the report on a Gough-Stewart platform (#10): the model comes from the files.
 
-* ``hexacal plan --nominal GS.yaml`` plans within the Gough-Stewart workspace (leg extension 0-0.5 m,
-  +-250 mm, +-20 deg), records the model in the plan file and beats random postures of the same count;
-  options given replace the architecture's defaults, and the U/S joint limits act through the
-  architecture's joint angles.
-* ``hexacal report`` of a Gough-Stewart calibration (a saved result, a plain ``--json`` output, and the
-  result object the calibrate command and the identify node pass) names A, B, l0 and the legs, never
-  the Hexa Slide's A0, a, l or its sliders.
+Names come from its layout.
+
+* ``hexacal plan --nominal GS.yaml`` plans within the Gough-Stewart workspace (leg extension
+  0-0.5 m, +-250 mm, +-20 deg), records the model in the plan file and beats random postures of
+  the same count; options given replace the architecture's defaults, and the U/S joint limits act
+  through the architecture's joint angles.
+* ``hexacal report`` of a Gough-Stewart calibration (a saved result, a plain ``--json`` output,
+  and the result object the calibrate command and the identify node pass) names A, B, l0 and the
+  legs, never the Hexa Slide's A0, a, l or its sliders.
 """
 
 from __future__ import annotations
@@ -29,7 +32,8 @@ from hexacal_identify.core.measurements import (
     SPHERE,
 )
 from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.planning import Plan, PostureLimits
+from hexacal_identify.core.planning import Plan
+from hexacal_identify.core.posture_limits import PostureLimits
 from hexacal_identify.core.postures import sample_poses
 from hexacal_msgs_py.models import MODELS
 from hexacal_msgs_py.parameters_file import save_parameters
@@ -194,7 +198,8 @@ def test_plan_loader_refuses_an_unknown_model(tmp_path):
 # --------------------------------------------------------------------------- the report
 @pytest.fixture(scope='module')
 def calibration(tmp_path_factory):
-    """A noisy sphere + fixed-position calibration of the default hexapod from nominal set 1; truth known."""
+    """Calibrate the default hexapod from nominal set 1 with noisy sphere + fixed postures."""
+    # The truth is known.
     rng = np.random.default_rng(5)
     workspace = GS.default_workspace()
     noise = NoiseModel.from_microns(5.0)
@@ -273,7 +278,8 @@ def test_hexacal_report_of_a_gough_stewart_result(calibration, tmp_path):
         'postures',
     ):
         assert (out / f'{name}.png').stat().st_size > 1000, name
-    # The workspace map covers the Gough-Stewart workspace (+-250 mm) and finds feasible cells there.
+    # The workspace map covers the Gough-Stewart workspace (+-250 mm) and finds feasible cells
+    # there.
     assert 'Median' in text and 'over the feasible cells' in text
 
 
@@ -310,7 +316,11 @@ def test_the_report_calibrate_and_identify_write_for_a_gough_stewart_result(cali
 
 
 def test_calibrate_report_of_the_gough_stewart_sample_bag(nominal_file, tmp_path):
-    """`hexacal calibrate BAG --nominal GS.yaml --report DIR` on the recorded hexapod bag: a Gough-Stewart page."""
+    """
+    Run `hexacal calibrate BAG --nominal GS.yaml --report DIR` on the recorded hexapod bag.
+
+    The page is a Gough-Stewart one.
+    """
     from pathlib import Path
 
     bag = Path(__file__).resolve().parents[1] / 'bags' / 'gs_sphere50_noise10'

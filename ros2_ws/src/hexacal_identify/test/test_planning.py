@@ -2,19 +2,16 @@
 
 import time
 
+from hexacal_identify.core.candidate_set import build_candidate_set
+from hexacal_identify.core.design import exchange_design, greedy_design
 from hexacal_identify.core.model import table1_parameters
-from hexacal_identify.core.planning import (
-    build_candidate_set,
-    exchange_design,
-    generate_candidates,
-    greedy_design,
+from hexacal_identify.core.observability import (
     INDICES,
     observability_index,
     observability_indices,
-    Plan,
-    plan_postures,
-    PostureLimits,
 )
+from hexacal_identify.core.planning import Plan, plan_postures
+from hexacal_identify.core.posture_limits import generate_candidates, PostureLimits
 import numpy as np
 import pytest
 
@@ -59,7 +56,8 @@ def test_greedy_picks_the_best_candidate_and_never_lowers_the_criterion(candidat
     design, history = greedy_design(candidates, 24, 'O1')
     assert len(set(design.tolist())) == 24
     assert np.all(np.diff(history) > 0)  # log det(M + delta I) grows with every pick
-    # Once full rank, O1 of every prefix is what greedy maximised: check the last pick by brute force.
+    # Once full rank, O1 of every prefix is what greedy maximised: check the last pick by brute
+    # force.
     prefix = design[:-1]
     best = max(
         candidates.indices(np.append(prefix, c))['O1']
@@ -172,7 +170,8 @@ def test_plan_file_round_trip(tmp_path):
 def test_bad_plan_files_are_refused(tmp_path):
     path = tmp_path / 'bad.yaml'
     path.write_text(
-        'plan: {name: x, link_length: 0.75}\npostures: [{kind: wobbly, pose: [0, 0, -0.75, 0, 0, 0]}]\n'
+        'plan: {name: x, link_length: 0.75}\n'
+        'postures: [{kind: wobbly, pose: [0, 0, -0.75, 0, 0, 0]}]\n'
     )
     with pytest.raises(ValueError, match='kind'):
         Plan.load(path)

@@ -1,4 +1,4 @@
-"""``hexacal plan`` (choose measuring postures) and ``hexacal report`` (HTML page of a calibration result)."""
+"""Run ``hexacal plan`` (choose measuring postures) and ``hexacal report`` (HTML of a result)."""
 
 from __future__ import annotations
 
@@ -10,37 +10,42 @@ from typing import TYPE_CHECKING
 from .common import Progress
 
 if TYPE_CHECKING:
-    from ..core.planning import PostureLimits
+    from ..core.posture_limits import PostureLimits
 
-MOUNT_PARAMETER = 'device.mount'  # = hexacal_msgs_py.models.DEVICE_MOUNT_KEY (not imported: `hexacal --help` stays light)
+# = hexacal_msgs_py.models.DEVICE_MOUNT_KEY (not imported: `hexacal --help` stays light)
+MOUNT_PARAMETER = 'device.mount'
 
-# The planner and the report are imported where they run: this module is imported by every `hexacal` start-up to
-# register the commands.
+# The planner and the report are imported where they run: this module is imported by every
+# `hexacal` start-up to register the commands.
 
 
 def add_parsers(subparsers) -> None:
     subparsers.add_parser(
         'plan',
         help='choose K measuring postures that maximise an observability index; write a plan file',
-        description='Draw feasible candidate postures (sphere and fixed-position, within the inclinometer range, '
-        'actuator stroke, U/S-joint limits, away from singularities), score them with the identification Jacobian '
-        'at the nominal parameters and choose K that maximise the observability index. The machine model (Hexa '
-        "Slide, Gough-Stewart platform) is the nominal parameters file's; workspace limits not given default to "
-        "that model's workspace. Writes the driver's plan-file format (YAML, SI units, the model under "
+        description='Draw feasible candidate postures (sphere and fixed-position, within the '
+        'inclinometer range, actuator stroke, U/S-joint limits, away from singularities), score '
+        'them with the identification Jacobian at the nominal parameters and choose K that '
+        'maximise the observability index. The machine model (Hexa Slide, Gough-Stewart platform) '
+        "is the nominal parameters file's; workspace limits not given default to that model's "
+        "workspace. Writes the driver's plan-file format (YAML, SI units, the model under "
         'plan.model) atomically.',
         fill=_plan_arguments,
     )
     subparsers.add_parser(
         'report',
         help='write a self-contained HTML report (PNG figures) of a calibration result',
-        description='Read a result JSON (from report.save_result, or the output of `hexacal calibrate --json` / '
-        '`hexacal study --json`, which gives fewer figures) and write DIR/index.html with its figures.',
+        description='Read a result JSON (from report.save_result, or the output of `hexacal '
+        'calibrate --json` / `hexacal study --json`, which gives fewer figures) and write '
+        'DIR/index.html with its figures.',
         fill=_report_arguments,
     )
 
 
 def _plan_arguments(plan) -> None:
-    from ..core.planning import CRITERIA, METHODS, PostureLimits
+    from ..core.observability import CRITERIA
+    from ..core.planning import METHODS
+    from ..core.posture_limits import PostureLimits
     from ..core.residuals import COSTS
     from .study_device import device_names_argument, device_prior_argument
 
@@ -82,8 +87,8 @@ def _plan_arguments(plan) -> None:
         '--noise-um',
         type=float,
         default=10.0,
-        help='weight rows by the reading noise: +-X um actuators, +-X urad angles (default 10; only '
-        'the actuator/angle ratio matters)',
+        help='weight rows by the reading noise: +-X um actuators, +-X urad angles (default 10; '
+        'only the actuator/angle ratio matters)',
     )
     plan.add_argument(
         '--unweighted',
@@ -96,7 +101,8 @@ def _plan_arguments(plan) -> None:
         help='share of fixed-position candidates (default: 0.25 for sphere-fixed/relative, 1 for '
         'fixed, else 0)',
     )
-    # Workspace limits default (None) to the nominal model's workspace: the Hexa Slide's values in brackets.
+    # Workspace limits default (None) to the nominal model's workspace: the Hexa Slide's values in
+    # brackets.
     defaults = PostureLimits()
     plan.add_argument(
         '--link-length',
@@ -106,8 +112,8 @@ def _plan_arguments(plan) -> None:
     plan.add_argument(
         '--xy-range-mm',
         type=float,
-        help=f"|x|, |y| limit (default: the model's workspace; Hexa Slide {defaults.xy_range_m * 1e3:g}, "
-        'Gough-Stewart 250)',
+        help="|x|, |y| limit (default: the model's workspace; Hexa Slide "
+        f'{defaults.xy_range_m * 1e3:g}, Gough-Stewart 250)',
     )
     plan.add_argument(
         '--rotation-range-deg',
@@ -135,8 +141,8 @@ def _plan_arguments(plan) -> None:
         '--max-u-joint-deg',
         type=float,
         default=math.degrees(defaults.max_u_joint_angle_rad),
-        help='max angle of the base-side U joint: leg to rail (Hexa Slide), leg to the base normal '
-        '(Gough-Stewart) (default 60)',
+        help='max angle of the base-side U joint: leg to rail (Hexa Slide), leg to the base '
+        'normal (Gough-Stewart) (default 60)',
     )
     plan.add_argument(
         '--max-s-joint-deg',
@@ -153,16 +159,17 @@ def _plan_arguments(plan) -> None:
     plan.add_argument(
         '--mount',
         choices=('hanging', 'standing'),
-        help="device mount: hanging (platform below the device's base joint) or standing (above it; "
-        "an upright machine); default: the nominal file's device.mount, else hanging",
+        help="device mount: hanging (platform below the device's base joint) or standing (above "
+        "it; an upright machine); default: the nominal file's device.mount, else hanging",
     )
     plan.add_argument(
         '--procedure',
         choices=('none', 'reversal', 'quarter-turns'),
         default='none',
-        help='turning procedure: offer every candidate with the device turned about its link axis by '
-        '0/180 deg (reversal) or 0/90/180/270 deg (quarter-turns); the plan says which posture is '
-        'taken in which mounting (device_turn) and groups them, one remount per turn (absolute cost)',
+        help='turning procedure: offer every candidate with the device turned about its link axis '
+        'by 0/180 deg (reversal) or 0/90/180/270 deg (quarter-turns); the plan says which posture '
+        'is taken in which mounting (device_turn) and groups them, one remount per turn (absolute '
+        'cost)',
     )
     plan.add_argument(
         '--identify-device',
@@ -177,8 +184,8 @@ def _plan_arguments(plan) -> None:
         type=device_prior_argument,
         default=None,
         metavar='NAME=VALUE:STD',
-        help="prior knowledge of the device, SI units, e.g. dL=0:10e-6 (a caliper's +-10 um): the plan "
-        'starts from its information (needs the noise weighting)',
+        help="prior knowledge of the device, SI units, e.g. dL=0:10e-6 (a caliper's +-10 um): the "
+        'plan starts from its information (needs the noise weighting)',
     )
     plan.add_argument('--out', type=Path, required=True, help='plan file to write (YAML)')
     plan.add_argument(
@@ -195,11 +202,13 @@ def _report_arguments(report) -> None:
 
 
 def _limits(args, nominal, extras: dict) -> PostureLimits:
-    """The nominal machine's default limits (its architecture's workspace), with the options given replacing them.
-
-    The device mount: --mount, else the nominal file's ``device.mount``, else hanging.
     """
-    from ..core.planning import PostureLimits
+    Return the nominal machine's default limits (its architecture's workspace) and the options.
+
+    The options given replace the defaults. The device mount: --mount, else the nominal file's
+    ``device.mount``, else hanging.
+    """
+    from ..core.posture_limits import PostureLimits
 
     given = {
         'mount': args.mount or extras.get(MOUNT_PARAMETER),
@@ -220,8 +229,11 @@ def _limits(args, nominal, extras: dict) -> PostureLimits:
 
 
 def load_nominal(path: Path | None) -> tuple:
-    """(parameters, other parameters of the file): a parameters YAML of any model (its ``model`` key), or the
-    default machine (no other parameters)."""
+    """
+    Return (parameters, other parameters of the file) of a parameters YAML of any model.
+
+    Its ``model`` key names the model; no file: the default machine (no other parameters).
+    """
     from ..core.architectures import default_parameters, parameters_for
 
     if path is None:
@@ -240,7 +252,8 @@ def run_plan(args) -> int:
 
     from ..core.device import DevicePrior, procedure_turns
     from ..core.measurements import NoiseModel
-    from ..core.planning import INDICES, plan_postures, PREDICTION
+    from ..core.observability import INDICES, PREDICTION
+    from ..core.planning import plan_postures
 
     nominal, extras = load_nominal(args.nominal)
     layout = nominal.layout
@@ -308,12 +321,15 @@ def run_plan(args) -> int:
         )
         return 0
     print(
-        f"plan '{plan.name}' for the {layout.title} ({plan.mount} device): {len(plan)} postures ({counts['sphere']} sphere, "
-        f'{counts["fixed"]} fixed) chosen from {len(planning.candidates)} candidates by {args.method} on {args.index} '
+        f"plan '{plan.name}' for the {layout.title} ({plan.mount} device): {len(plan)} postures "
+        f"({counts['sphere']} sphere, "
+        f'{counts["fixed"]} fixed) chosen from {len(planning.candidates)} candidates by '
+        f'{args.method} on {args.index} '
         f'({"noise-weighted" if weighted else "unweighted"}, cost {args.cost})'
     )
     print(
-        f'  candidates {planning.candidate_seconds:.2f} s, selection {planning.selection_seconds:.2f} s'
+        f'  candidates {planning.candidate_seconds:.2f} s, selection '
+        f'{planning.selection_seconds:.2f} s'
         + (
             f', {len(planning.exchange_history) - 1} exchange swaps'
             if args.method == 'exchange'
@@ -335,14 +351,15 @@ def run_plan(args) -> int:
             for turn in procedure_turns(args.procedure)
         )
         print(
-            f'  device: {", ".join(planning.candidates.device_columns) or "no parameters"} identified with the '
-            f'machine; procedure {args.procedure}: {mountings} (turn the device about its link axis between '
-            'the groups)'
+            f'  device: {", ".join(planning.candidates.device_columns) or "no parameters"} '
+            f'identified with the machine; procedure {args.procedure}: {mountings} (turn the '
+            'device about its link axis between the groups)'
         )
     if planning.rank < layout.n_parameters:
         print(
-            f'  note: rank {planning.rank} of {layout.n_parameters} with the {args.cost} cost, so every index is 0; '
-            'the plan maximises log det(M + delta I), the information on the identifiable part'
+            f'  note: rank {planning.rank} of {layout.n_parameters} with the {args.cost} cost, so '
+            'every index is 0; the plan maximises log det(M + delta I), the information on the '
+            'identifiable part'
         )
     print(f'wrote {args.out}')
     return 0

@@ -27,17 +27,13 @@ from hexacal_msgs_py.models import DEFAULT_MODEL
 import numpy as np
 
 from .accuracy import run_calibration, study_truth, StudyOutcome, StudyRun
+from ..core.design import exchange_design
 from ..core.errors import CalibrationError
 from ..core.identification import identify, SolverOptions
 from ..core.measurements import NoiseModel, simulate_measurements
-from ..core.planning import (
-    CRITERIA,
-    exchange_design,
-    METHODS,
-    plan_postures,
-    PostureLimits,
-    PREDICTION,
-)
+from ..core.observability import CRITERIA, PREDICTION
+from ..core.planning import METHODS, plan_postures
+from ..core.posture_limits import PostureLimits
 from ..core.validation import pose_errors, validation_poses
 
 DEFAULT_KS = (15, 20, 25, 30, 40, 50)

@@ -1,4 +1,4 @@
-"""A plan written by ``hexacal plan`` is what the driver's plan-file mode executes (crosses two packages)."""
+"""Planned files on the driver's machines: model refusals, reach, the executor's stroke."""
 
 from hexacal_driver.plan import check_reachable, load_plan, PlanError, resolve_plan, save_plan
 from hexacal_identify.core.architectures import default_parameters
@@ -9,18 +9,6 @@ import pytest
 
 NOMINAL = table1_parameters()
 GS = 'gough_stewart'
-
-
-def test_the_driver_reads_a_planned_file_exactly(tmp_path):
-    planning = plan_postures(NOMINAL, 16, n_candidates=500, cost='sphere-fixed', seed=7)
-    path = planning.plan.save(tmp_path / 'plan.yaml')
-    driver_plan = load_plan(path)
-    assert driver_plan.name == planning.plan.name
-    np.testing.assert_array_equal(driver_plan.poses, planning.plan.poses)
-    assert list(driver_plan.kinds) == planning.plan.kinds.tolist()
-    check_reachable(
-        driver_plan, NOMINAL
-    )  # raises naming the posture if the driver could not go there
 
 
 def test_a_gough_stewart_plan_names_its_model_and_the_driver_walks_only_that_machine(tmp_path):
@@ -35,7 +23,7 @@ def test_a_gough_stewart_plan_names_its_model_and_the_driver_walks_only_that_mac
     assert resolve_plan(str(path), truth, 0, 0).model == GS
     with pytest.raises(PlanError, match='made for a gough_stewart .* machine is a hexa_slide'):
         resolve_plan(str(path), NOMINAL, 0, 0)
-    # A generated plan for the Gough-Stewart machine is drawn in its workspace and written with its model.
+    # A generated Gough-Stewart plan is drawn in its workspace and written with its model.
     generated = resolve_plan('mixed', truth, 12, 3)
     save_plan(tmp_path / 'generated.yaml', generated)
     assert '  model: gough_stewart\n' in (tmp_path / 'generated.yaml').read_text()

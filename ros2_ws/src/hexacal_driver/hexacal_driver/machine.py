@@ -1,0 +1,217 @@
+"""
+The simulated machine the driver node runs, decided from its parameter values (ROS-free).
+
+`SimulatedMachine` holds the true machine and device mount (`true_params` or the
+model's default machine), the device (defects, turn), and either the plan walker
+(plan mode) or the command follower (commanded mode), and the noisy sensors. The
+node only keeps time, converts messages and publishes.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+from hexacal_driver.plan import machine_workspace, PlanError, PosturePlan, resolve_plan
+from hexacal_driver.simulation import (
+    check_trajectory,
+    CommandFollower,
+    ConstraintError,
+    device_true_poses,
+    PlanWalker,
+    SensorReadings,
+    SensorSimulator,
+    TrajectoryPoint,
+    WalkSample,
+)
+from hexacal_identify.core.architectures import architecture, KinematicParameters
+from hexacal_identify.core.device import (
+    DEFAULT_MOUNT,
+    DeviceDefects,
+    DeviceMountError,
+    fixed_point,
+)
+from hexacal_identify.core.errors import UnreachablePoseError
+from hexacal_identify.core.measurements import NoiseModel
+from hexacal_identify.pipeline import load_machine_and_mount
+from hexacal_msgs_py.errors import ParameterFileError
+from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
+import numpy as np
+
+NOISE_STREAM = 0x5E45  # noise draws from their own stream: the same seed gives the same plan
+
+
+class DriverConfigurationError(Exception):
+    """The node's parameters do not describe a machine and plan it can simulate."""
+
+
+def true_machine(path: str, model: str) -> tuple[KinematicParameters, str]:
+    """Return the true machine and the device mount (the file's device.mount, else hanging)."""
+    if not path:
+        return architecture(model or DEFAULT_MODEL).default_parameters(), DEFAULT_MOUNT
+    try:
+        params, mount = load_machine_and_mount(path)
+    except (ParameterFileError, DeviceMountError, ValueError) as error:
+        raise DriverConfigurationError(f'true_params: {error}') from error
+    if model and model != params.model:
+        raise DriverConfigurationError(
+            f'model {model!r} contradicts true_params {path}, a {params.model} parameters '
+            f"file: leave model '' or name the file's model"
+        )
+    return params, mount
+
+
+class SimulatedMachine:
+    """Decide the true machine, the device, the plan (or commanded mode) and the sensors."""
+
+    def __init__(self, value: Mapping[str, Any]) -> None:
+        """Build from the node's parameter values (name -> value); DriverConfigurationError."""
+        self.true_params, self.mount = true_machine(value['true_params'], value['model'])
+        self.model: str = self.true_params.model
+        self.link_length = float(value['link_length'])
+        self.defects = DeviceDefects.parse(value['device_defects'])  # checked when declared
+        self.true_link_length = self.link_length + self.defects.dL  # the sphere the platform is on
+        if not self.true_link_length > 0:
+            raise DriverConfigurationError(
+                f'device_defects dL {self.defects.dL:g} m leaves no link of link_length '
+                f'{self.link_length:g} m'
+            )
+        self.device_turn = float(value['device_turn'])
+        self.plan: PosturePlan | None = None
+        self.walker: PlanWalker | None = None
+        self.follower: CommandFollower | None = None
+        self.stroke: tuple[float, float] | None = None
+        if value['command_topic']:
+            self.follower = self._start_follower(value['max_actuator_speed_m_s'])
+        else:
+            try:
+                self.plan = resolve_plan(
+                    value['plan'],
+                    self.true_params,
+                    value['postures'],
+                    value['seed'],
+                    value['link_length'],
+                    self.mount,
+                )
+            except PlanError as error:
+                raise DriverConfigurationError(str(error)) from error
+            self.walker = self.plan_walker(value['settle_s'], value['dwell_s'], value['loop'])
+        self.sensors = SensorSimulator(
+            NoiseModel(value['slider_noise_m'], value['angle_noise_rad']),
+            np.random.default_rng([value['seed'], NOISE_STREAM]),
+            self.mount,
+            self.defects,
+        )
+
+    def plan_walker(self, settle_s: float, dwell_s: float, loop: bool) -> PlanWalker:
+        """
+        Return the walker over the plan's postures as the true device lets the platform stand.
+
+        simulation.device_true_poses: on the sphere L + dL, fixed ones where the turned
+        device reads zero.
+        """
+        poses = device_true_poses(
+            self.plan.poses,
+            self.plan.kinds,
+            self.link_length,
+            self.defects,
+            self.mount,
+            self.posture_turns(),
+        )
+        try:
+            return PlanWalker(self.true_params, poses, settle_s, dwell_s, loop)
+        except UnreachablePoseError as error:
+            raise DriverConfigurationError(
+                f"plan '{self.plan.name}' with the device's true link length "
+                f'{self.true_link_length!r} m (device_defects): {error}'
+            ) from error
+
+    def posture_turns(self) -> np.ndarray:
+        """Return the device turn of every plan posture (rad): the plan's, else the parameter."""
+        return np.array(
+            [self.plan.device_turn(i, self.device_turn) for i in range(len(self.plan))]
+        )
+
+    def posture_turn(self, index: int) -> float:
+        """Return the device turn at plan posture `index` (plan mode), else the parameter."""
+        if self.plan is None:
+            return self.device_turn
+        return self.plan.device_turn(index, self.device_turn)
+
+    def read(self, sample: WalkSample) -> tuple[SensorReadings, float]:
+        """Return the noisy readings of `sample` and the device turn they were taken with."""
+        turn = self.posture_turn(sample.posture_index)
+        return self.sensors.read(sample, turn), turn
+
+    def set_noise(self, slider_m: float | None, angle_rad: float | None) -> bool:
+        """Change the noise half-widths given (None: unchanged); return whether it changed."""
+        noise = self.sensors.noise
+        changed = NoiseModel(
+            noise.slider_m if slider_m is None else slider_m,
+            noise.angle_rad if angle_rad is None else angle_rad,
+        )
+        if changed == noise:
+            return False
+        self.sensors.noise = changed
+        return True
+
+    def set_device_turn(self, turn: float) -> float | None:
+        """
+        Turn the device (rad); return the previous turn, or None if it did not change.
+
+        Fixed postures stand where the turned device reads zero: with a defective device
+        the walker is rebuilt (same timing; the walk goes on from where it is).
+        """
+        if float(turn) == self.device_turn:
+            return None
+        previous, self.device_turn = self.device_turn, float(turn)
+        if self.walker is not None and self.defects != DeviceDefects():
+            walker = self.walker
+            self.walker = self.plan_walker(walker.settle_s, walker.dwell_s, walker.loop)
+        return previous
+
+    def check_command(
+        self,
+        joint_names: list[str],
+        points: list[tuple[list[float], float]],
+        start_ns: int,
+        now_ns: int,
+    ) -> tuple[list[TrajectoryPoint] | None, str | None]:
+        """
+        Return a command's checked points and what is wrong with it (None: follow it).
+
+        points: (positions m, time_from_start s); start_ns: header.stamp (0: on arrival).
+        """
+        checked, problem = check_trajectory(
+            joint_names, points, MODELS[self.model].actuator_names, self.stroke
+        )
+        if (
+            problem is None
+            and start_ns
+            and start_ns + int(checked[-1].time_from_start_s * 1e9) < now_ns
+        ):
+            problem = 'it ends in the past (header.stamp + time_from_start)'
+        return checked, problem
+
+    def _start_follower(self, max_speed: float) -> CommandFollower:
+        """Commanded mode: the machine stands at the fixed-position point with zero angles."""
+        workspace = machine_workspace(self.true_params, self.link_length, self.mount)
+        self.stroke = (float(workspace.slider_stroke_m[0]), float(workspace.slider_stroke_m[1]))
+        # The link holds the platform on the true sphere (link_length + dL).
+        home = np.concatenate([fixed_point(self.true_link_length, self.mount), np.zeros(3)])
+        try:
+            follower = CommandFollower(
+                self.true_params, home, max_speed, self.true_link_length, self.mount
+            )
+        except (UnreachablePoseError, ConstraintError) as error:
+            raise DriverConfigurationError(
+                f'commanded mode: the machine cannot stand at the fixed-position point {home[:3]} '
+                f'with zero angles: {error}'
+            ) from error
+        low, high = self.stroke
+        if np.any((follower.sliders < low) | (follower.sliders > high)):
+            raise DriverConfigurationError(
+                f'commanded mode: at the fixed-position point the actuators '
+                f'{np.round(follower.sliders, 4).tolist()} m are outside the stroke [{low:g}, '
+                f'{high:g}] m'
+            )
+        return follower

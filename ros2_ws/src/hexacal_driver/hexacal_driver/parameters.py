@@ -1,0 +1,137 @@
+"""
+Parameters of the driver node (ROS-free): their specs and the checks beyond type and range.
+
+The node declares `PARAMETERS` with descriptors (hexacal_identify.nodes.parameters) and
+refuses a value for which `parameter_problem` names a problem, at start-up and at run time.
+"""
+
+from __future__ import annotations
+
+import math
+
+from hexacal_driver.plan import GENERATED_PLANS, load_plan, PlanError
+from hexacal_identify.core.device import DeviceDefects
+from hexacal_identify.nodes.parameters import ParameterSpec as _Spec
+from hexacal_msgs_py.errors import ParameterFileError
+from hexacal_msgs_py.models import MAX_DEVICE_TURN, MODELS
+from hexacal_msgs_py.parameters_file import load_parameters
+
+# Parameters that may change while the node runs; all others shape the plan and are read-only.
+RUNTIME_PARAMETERS = ('slider_noise_m', 'angle_noise_rad', 'device_turn')
+
+
+MODEL_CHOICES = ('', *MODELS)
+
+PARAMETERS: dict[str, _Spec] = {
+    'true_params': _Spec(
+        '',
+        'parameters YAML (SI) of the simulated true machine, of any model '
+        "(its 'model' key; 'device.mount: standing' for an upright device, "
+        'default hanging); empty: the default machine of `model` (Hexa Slide: '
+        'Table 1 of the paper)',
+    ),
+    'model': _Spec(
+        '',
+        "machine model: 'hexa_slide' or 'gough_stewart'; '' = the model of "
+        'true_params, else hexa_slide. Without true_params the default machine of '
+        'the model is simulated; with it, the two must agree',
+        constraints="'', " + ', '.join(repr(name) for name in MODELS),
+    ),
+    'link_length': _Spec(
+        0.75, 'measuring link length L between the U-joint centres (m)', 0.1, 5.0
+    ),
+    'slider_noise_m': _Spec(1e-5, 'half-width of the uniform slider noise (m)', 0.0, 0.01),
+    'angle_noise_rad': _Spec(
+        1e-5, 'half-width of the uniform inclinometer and rotary noise (rad)', 0.0, 0.1
+    ),
+    'seed': _Spec(0, 'seed of the random plan and of the noise', 0, 2**31 - 1),
+    'rate_hz': _Spec(100.0, 'publishing rate of every sensor stream (Hz)', 1.0, 1000.0),
+    'settle_s': _Spec(1.0, 'time to move from one posture to the next (s)', 0.05, 600.0),
+    'dwell_s': _Spec(1.5, 'time standing still at each posture (s)', 0.1, 3600.0),
+    'plan': _Spec(
+        'random',
+        'posture plan: random (sphere postures), fixed (fixed-position '
+        'postures), mixed (3 sphere : 1 fixed) or the path of a plan YAML',
+        constraints="'random', 'fixed', 'mixed' or an existing plan file",
+    ),
+    'postures': _Spec(50, 'number of postures of a random, fixed or mixed plan', 1, 100000),
+    'loop': _Spec(False, 'walk the plan again when done (else stand at the last posture)'),
+    'wait_for_subscriber': _Spec(
+        True, 'hold the first posture until the three sensor streams have a matched subscriber'
+    ),
+    'command_topic': _Spec(
+        '',
+        "'' (default): walk the plan; else follow trajectory_msgs/"
+        'JointTrajectory commands on this topic (e.g. /joint_trajectory_'
+        'controller/joint_trajectory) like a trajectory controller with mock '
+        'hardware, instead of walking a plan',
+    ),
+    'device_defects': _Spec(
+        '',
+        "the simulated device's errors, 'NAME=VALUE,...' with NAME one "
+        'of dL (link length offset, m: the true link is link_length + dL), '
+        'alpha0, beta0 (inclinometer zero offsets, rad), gamma (skew of the '
+        "inclinometer axes, rad), phi0 (rotary zero offset, rad); '' = an "
+        'ideal device',
+        constraints="'' or NAME=VALUE pairs (core.device.DeviceDefects.parse)",
+    ),
+    'device_turn': _Spec(
+        0.0,
+        "the device's rotation about its link axis from its normal "
+        'mounting (rad; 0 normal, pi reversed, pi/2 a quarter turn), for the '
+        'postures whose plan entry names none; settable at run time',
+        -MAX_DEVICE_TURN,
+        MAX_DEVICE_TURN,
+    ),
+    'max_actuator_speed_m_s': _Spec(
+        0.1,
+        'commanded mode: the fastest an actuator moves (m/s); '
+        "slower when a point's time_from_start asks for it",
+        1e-6,
+        10.0,
+    ),
+}
+
+# Numbers whose descriptors give a range but let inf and nan through.
+FINITE_PARAMETERS = (
+    'link_length',
+    'rate_hz',
+    'settle_s',
+    'dwell_s',
+    'slider_noise_m',
+    'angle_noise_rad',
+    'max_actuator_speed_m_s',
+)
+
+
+def parameter_problem(name: str, value: object) -> str | None:
+    """Return what is wrong with a parameter value beyond type and range (descriptors), or None."""
+    if name == 'plan':
+        if value in GENERATED_PLANS:
+            return None
+        if not value:
+            return f"plan must be one of {list(GENERATED_PLANS)} or a plan file path, got ''"
+        try:
+            load_plan(value)
+        except PlanError as error:
+            return (
+                f'plan {value!r} is neither one of {list(GENERATED_PLANS)} nor a valid '
+                f'plan file: {error}'
+            )
+    elif name == 'true_params' and value:
+        try:
+            load_parameters(value)
+        except ParameterFileError as error:
+            return f'true_params: {error}'
+    elif name == 'device_defects':
+        try:
+            DeviceDefects.parse(value)
+        except ValueError as error:
+            return f'device_defects {value!r}: {error}'
+    elif name == 'device_turn' and not (math.isfinite(value) and abs(value) <= MAX_DEVICE_TURN):
+        return f'device_turn must be a finite angle within +-2 pi rad, got {value!r}'
+    elif name == 'model' and value not in MODEL_CHOICES:
+        return f"model must be '' or one of {', '.join(MODELS)}, got {value!r}"
+    elif name in FINITE_PARAMETERS and not math.isfinite(value):
+        return f'{name} must be finite, got {value}'
+    return None

@@ -1,0 +1,178 @@
+"""
+What the driver node logs, and when (ROS-free): start-up, postures, motions, the end.
+
+The node passes the lines returned here to its logger; the decisions of when a line is
+due (a new posture held, a commanded motion ended) are made here too.
+"""
+
+from __future__ import annotations
+
+import math
+
+from hexacal_driver.machine import SimulatedMachine
+from hexacal_driver.plan import PosturePlan
+from hexacal_driver.simulation import DONE, DWELLING, MOVING
+from hexacal_identify.core.device import DEFAULT_MOUNT, DeviceDefects
+from hexacal_identify.core.measurements import NoiseModel
+from hexacal_msgs_py.models import HEXA_SLIDE, MODELS
+import numpy as np
+
+# Commanded mode: a strain of the measuring link beyond this is logged (at most every period).
+STRAIN_WARNING_M = 0.01
+STRAIN_WARNING_PERIOD_S = 5.0
+
+
+def machine_source(true_params: str, machine: SimulatedMachine) -> str:
+    """Return where the true machine comes from and how the device differs from the default."""
+    model = machine.model
+    if true_params:
+        source = true_params
+    elif model == HEXA_SLIDE:
+        source = 'Table 1'
+    else:
+        source = f'the default {MODELS[model].title}'
+    if model != HEXA_SLIDE:
+        source += f' ({model}, joints {", ".join(MODELS[model].actuator_names)})'
+    if machine.mount != DEFAULT_MOUNT:
+        source += f', {machine.mount} device'
+    if machine.defects != DeviceDefects():
+        source += f'; device defects {machine.defects.describe()}'
+    if machine.device_turn != 0.0:
+        source += f'; device turned {machine.device_turn:.6g} rad about its link'
+    return source
+
+
+def noise_text(noise: NoiseModel) -> str:
+    """Return the noise half-widths as logged."""
+    return f'+-{noise.slider_m:g} m / +-{noise.angle_rad:g} rad'
+
+
+def commanded_start_text(
+    machine: SimulatedMachine, topic: str, source: str, rate_hz: float
+) -> str:
+    """Return the start-up line of commanded mode."""
+    low, high = machine.stroke
+    return (
+        f'following JointTrajectory commands on {topic} (joints '
+        f'{", ".join(MODELS[machine.model].actuator_names)}, at most '
+        f'{machine.follower.max_speed_m_s:g} m/s, stroke [{low:g}, {high:g}] m); true machine: '
+        f'{source}; {rate_hz:g} Hz, noise {noise_text(machine.sensors.noise)}; standing at the '
+        'fixed-position point'
+    )
+
+
+def plan_start_text(machine: SimulatedMachine, source: str, rate_hz: float) -> str:
+    """Return the start-up line of plan mode."""
+    walker = machine.walker
+    return (
+        f'{machine.plan.describe()}; true machine: {source}; {rate_hz:g} Hz, settle '
+        f'{walker.settle_s:g} s, dwell {walker.dwell_s:g} s (one pass '
+        f'{walker.lap_duration_s:.1f} s), noise {noise_text(machine.sensors.noise)}'
+        f'{", looping" if walker.loop else ""}'
+    )
+
+
+def device_turn_text(previous: float, turn: float, plan: PosturePlan | None) -> str:
+    """Return the line logged when the device_turn parameter changes."""
+    return (
+        f'device_turn {previous:.6g} -> {turn:.6g} rad: the device is turned about its link axis'
+        + (
+            ' (for the postures whose plan names no turn)'
+            if plan is not None and plan.device_turns
+            else ''
+        )
+    )
+
+
+def command_text(count: int, target: np.ndarray, duration_s: float) -> str:
+    """Return the line logged for an accepted JointTrajectory command."""
+    return (
+        f'command {count}: to [{", ".join(f"{v * 1e3:.3f}" for v in target)}] '
+        f'mm in {duration_s:.2f} s'
+    )
+
+
+class WalkReport:
+    """Decide the lines of a plan walk: each posture when first held, the end of each lap."""
+
+    def __init__(self, plan: PosturePlan, loop: bool) -> None:
+        """Report on `plan`, walked once or in a loop."""
+        self.plan = plan
+        self.loop = loop
+        self._last: tuple[int, int, str] | None = None
+
+    def lines(
+        self, index: int, lap: int, phase: str, elapsed_s: float, turn: float
+    ) -> list[str]:
+        """Return the lines due at this sample (posture `index` of `lap`, device turn rad)."""
+        state = (index, lap, phase)
+        if phase not in (DWELLING, DONE) or state == self._last:
+            return []
+        self._last = state
+        plan = self.plan
+        if phase == DONE:
+            return [
+                f"end of plan '{plan.name}': {len(plan)} postures in {elapsed_s:.1f} s; "
+                'standing at the last posture'
+            ]
+        pose = plan.poses[index]
+        lap_text = f' (lap {lap + 1})' if self.loop else ''
+        lines = [
+            f'posture {index + 1}/{len(plan)}{lap_text} ({plan.kinds[index]}): '
+            f'position [{pose[0] * 1e3:.1f}, {pose[1] * 1e3:.1f}, {pose[2] * 1e3:.1f}] mm, '
+            f'angles [{math.degrees(pose[3]):.1f}, {math.degrees(pose[4]):.1f}, '
+            f'{math.degrees(pose[5]):.1f}] deg'
+            + (f', device turned {turn:.6g} rad' if turn != 0.0 else '')
+        ]
+        if self.loop and index == len(plan) - 1:
+            lines.append(f"end of plan '{plan.name}' lap {lap + 1}: looping")
+        return lines
+
+
+class MotionReport:
+    """Decide the lines of commanded mode: the link's strain, the end of each motion."""
+
+    def __init__(self) -> None:
+        """Start with no motion seen."""
+        self._last_phase = ''
+
+    @staticmethod
+    def strain_warning(strain_m: float) -> str | None:
+        """Return the warning while the link strains the machine beyond STRAIN_WARNING_M."""
+        if strain_m <= STRAIN_WARNING_M:
+            return None
+        return (
+            f'the measuring link strains the machine: actuators {strain_m * 1e3:.1f} mm from '
+            'their setpoints (commanded positions off the link sphere: move along it)'
+        )
+
+    def motion_line(self, phase: str, strain_m: float, commands_accepted: int) -> str | None:
+        """Return one line when a commanded motion ends (with the link's strain), else None."""
+        if phase == self._last_phase:
+            return None
+        self._last_phase = phase
+        if phase == MOVING or not commands_accepted:
+            return None
+        if strain_m > 1e-6:
+            return (
+                f'standing at the commanded position (actuators {strain_m * 1e6:.0f} um from the '
+                'setpoints: the strain of the measuring link)'
+            )
+        return 'standing at the commanded position'
+
+
+def finish_lines(
+    published: int,
+    published_before_plan: int,
+    plan_start_stamp_ns: int | None,
+    commands: tuple[int, int] | None,
+) -> list[str]:
+    """Return the lines printed when the node stops; commands (followed, rejected) if commanded."""
+    lines = [
+        f'published {published} messages on each sensor stream, '
+        f'{published - published_before_plan} of them since the plan '
+        f'started (first stamp {plan_start_stamp_ns} ns)'
+    ]
+    if commands is not None:
+        lines.append(f'commands: {commands[0]} followed, {commands[1]} rejected')
+    return lines
