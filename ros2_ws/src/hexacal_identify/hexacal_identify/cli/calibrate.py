@@ -235,12 +235,13 @@ def run_calibrate(args) -> int:
 
 
 def _print_summary(args, bag, result) -> None:
+    from hexacal_msgs_py.models import DEFAULT_MODEL
     import numpy as np
 
     from ..core.identification import CONVERGED
 
     model = result.parameters.model
-    model_text = '' if model == 'hexa_slide' else f' ({model})'
+    model_text = '' if model == DEFAULT_MODEL else f' ({model})'  # the default goes unnamed
     print(f'bag {args.bag}{model_text}: {len(bag.postures)} postures from the {bag.source}')
     if bag.ignored_topics:
         print(f'  ignored topics: {", ".join(bag.ignored_topics)}')
@@ -270,7 +271,7 @@ def _print_summary(args, bag, result) -> None:
     print(
         f'largest correction {np.max(np.abs(correction)):.3f} mm, largest std '
         f'{np.nanmax(result.std) * UM:.2f} um'
-        + (' (rail components x1e-6)' if model == 'hexa_slide' else '')
+        + result.parameters.architecture.std_note
     )
     for line in device_prior_lines(result, args.device_prior):
         print(line)

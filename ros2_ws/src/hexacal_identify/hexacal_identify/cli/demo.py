@@ -28,6 +28,8 @@ import tempfile
 import time
 from typing import Callable, IO, TYPE_CHECKING
 
+from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS  # numpy-free: `hexacal --help` stays fast
+
 if (
     TYPE_CHECKING
 ):  # numpy and the process launcher are imported where the demo runs, not at `hexacal` start-up
@@ -40,13 +42,7 @@ DOMAIN_ID_RANGE = range(1, 101)
 DOMAIN_LOCK_PATTERN = 'hexacal-test-ros-domain-{}.lock'
 GRAPH_TIMEOUT_S = 30.0
 CALIBRATE_TIMEOUT_S = 300.0
-GROUPS = {'A0': slice(0, 3), 'B': slice(3, 6), 'l': slice(6, 7), 'a': slice(7, 9)}
-# Parameter groups of the before/after table, per model (chain-major fields, see models.py).
-MODEL_GROUPS = {
-    'hexa_slide': GROUPS,
-    'gough_stewart': {'A': slice(0, 3), 'B': slice(3, 6), 'l0': slice(6, 7)},
-}
-MODEL_CHOICES = tuple(MODEL_GROUPS)
+MODEL_CHOICES = tuple(MODELS)
 EXIT_OK, EXIT_FAILED = 0, 1
 
 
@@ -68,7 +64,7 @@ def add_parsers(subparsers) -> None:
     parser.add_argument(
         '--model',
         choices=MODEL_CHOICES,
-        default='hexa_slide',
+        default=DEFAULT_MODEL,
         help='machine model: hexa_slide (Table 1, default) or gough_stewart '
         '(the default 6-UPS hexapod)',
     )
@@ -172,13 +168,15 @@ class DemoPaths:
 
 
 def _model(args) -> str:
-    return getattr(args, 'model', None) or 'hexa_slide'
+    return getattr(args, 'model', None) or DEFAULT_MODEL
 
 
 def _paths(args) -> DemoPaths:
     stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
     work = (args.out or Path('out') / f'demo_{stamp}').resolve()
-    truth = 'true_table1.yaml' if _model(args) == 'hexa_slide' else f'true_{_model(args)}.yaml'
+    from ..core.architectures import architecture
+
+    truth = architecture(_model(args)).truth_file_name
     bag = (args.bag_dir / f'demo_{stamp}').resolve() if args.bag_dir is not None else work / 'bag'
     return DemoPaths(
         work,
@@ -274,15 +272,12 @@ def _run(args) -> int:
     from ..nodes.bringup import NodeGroup, NodeLaunch
 
     model = _model(args)
+    arch = architecture(model)
     true_params, nominal = (
-        architecture(model).default_parameters(),
+        arch.default_parameters(),
         nominal_set(2, seed=args.seed, model=model),
     )
-    if model == 'hexa_slide':
-        truth_text, nominal_text = 'Table 1', 'Table 1 + Table 2 errors'
-    else:
-        truth_text = f'the default {model} machine'
-        nominal_text = f'the default {model} machine + errors with Table 2-like statistics'
+    truth_text, nominal_text = arch.machine_label, arch.nominal_label
     save_parameters(
         paths.true_params,
         true_params.vector,
@@ -359,7 +354,7 @@ def _run(args) -> int:
             env,
             paths.logs / 'driver.log',
         )
-        machine = '' if model == 'hexa_slide' else f' of a {model}'
+        machine = '' if model == DEFAULT_MODEL else f' of a {model}'  # the default goes unnamed
         print(
             f'hexacal demo: the executor walks an O1 plan of {args.postures} postures ({args.plan}) on '
             f'the simulated machine{machine} through its trajectory-controller interface, '
@@ -705,15 +700,17 @@ class _RosSession:
 
 
 def parameter_error_rows(
-    true_vector: np.ndarray, vector: np.ndarray, model: str = 'hexa_slide'
+    true_vector: np.ndarray, vector: np.ndarray, model: str = DEFAULT_MODEL
 ) -> dict[str, tuple[float, float]]:
-    """Per group (Hexa Slide: A0, B, l, a; Gough-Stewart: A, B, l0): (max, mean) |error| in mm
+    """Per file key of the model (Hexa Slide: A0, B, l, a): (max, mean) |error| in mm
     (a: unit-vector components x 1000)."""
     import numpy as np
 
-    groups = MODEL_GROUPS[model]
-    fields = max(columns.stop for columns in groups.values())
-    errors = np.abs(np.asarray(vector) - np.asarray(true_vector)).reshape(6, fields) * 1e3
+    layout = MODELS[model]
+    groups = layout.key_slices
+    errors = np.abs(np.asarray(vector) - np.asarray(true_vector)).reshape(
+        layout.n_chains, layout.fields_per_chain
+    ) * 1e3
     return {
         name: (float(errors[:, columns].max()), float(errors[:, columns].mean()))
         for name, columns in groups.items()
@@ -762,18 +759,14 @@ def report(
     from ..core.validation import pose_errors, validation_poses
 
     model = true_params.model
-    groups = MODEL_GROUPS[model]
+    arch, layout = true_params.architecture, true_params.layout
+    groups = layout.key_slices
     before = parameter_error_rows(true_params.vector, nominal.vector, model)
     after = parameter_error_rows(true_params.vector, calibrated.vector, model)
-    if model == 'hexa_slide':
-        title = (
-            'Parameter errors vs the simulated truth (Table 1), |error| in mm '
-            '(a: unit-vector components x 1000, as in Table 1)'
-        )
-    else:
-        title = (
-            f'Parameter errors vs the simulated truth (the default {model} machine), |error| in mm'
-        )
+    title = (
+        f'Parameter errors vs the simulated truth ({arch.machine_label}), |error| in mm'
+        f'{arch.error_table_note}'
+    )
     lines = [
         '',
         title,
@@ -781,7 +774,7 @@ def report(
         f'{"after max":>12}{"after mean":>12}',
     ]
     for name, columns in groups.items():
-        count = 6 * (columns.stop - columns.start)
+        count = layout.n_chains * (columns.stop - columns.start)
         lines.append(
             f'{name:<6}{count:>6}{before[name][0]:>13.3f}{before[name][1]:>13.3f}'
             f'{after[name][0]:>12.4f}{after[name][1]:>12.4f}'

@@ -17,8 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .architectures import KinematicParameters
-from .device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, fixed_point
-from .model import N_PARAMETERS, parameter_names
+from .device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, fixed_point, N_DEVICE_PARAMETERS
 
 DEFAULT_RANK_TOLERANCE = 1e-6
 
@@ -197,9 +196,13 @@ def analyze(
     decomposed.  Where several columns are equally good pivots (the A0z of
     different chains for a base rotation), rounding decides which one is
     suggested for fixing, with or without F.
+
+    Without ``params`` (no architecture: no named frame motions) ``names`` is required.
     """
-    model = params.model if params is not None else None
-    names = names if names is not None else parameter_names(model)[: jacobian.shape[1]]
+    if names is None:
+        if params is None:
+            raise ValueError('analyze needs the parameters (params) or the column names (names)')
+        names = list(params.layout.parameter_names)[: jacobian.shape[1]]
     factor = jacobian if gram_root is None else gram_root
     scales = column_scales(factor)
     scaled = factor / scales  # zero columns stay zero (their scale is 1)
@@ -213,7 +216,12 @@ def analyze(
     gauges = (
         _gauge_directions(params, free, scales, link_length, mount) if params is not None else []
     )
-    n_parameters = params.layout.n_parameters if params is not None else N_PARAMETERS
+    # The unknowns are the kinematic parameters followed by the device defects.
+    n_parameters = (
+        params.layout.n_parameters
+        if params is not None
+        else (len(free) if free is not None else len(names)) - N_DEVICE_PARAMETERS
+    )
     directions = _describe(
         null_space, names, gauges, _device_directions(free, scales, n_parameters)
     )
@@ -297,7 +305,7 @@ def _gauge_directions(
 
 
 def _device_directions(
-    free: np.ndarray | None, scales: np.ndarray, n_parameters: int = N_PARAMETERS
+    free: np.ndarray | None, scales: np.ndarray, n_parameters: int
 ) -> list[tuple[str, np.ndarray]]:
     """Unit changes of each identified device defect, in scaled free coordinates."""
     from .device import DEVICE_PARAMETER_NAMES
@@ -397,4 +405,4 @@ def _explanations(
     return found
 
 
-__all__ = ['IdentifiabilityReport', 'NullDirection', 'analyze', 'column_scales', 'N_PARAMETERS']
+__all__ = ['IdentifiabilityReport', 'NullDirection', 'analyze', 'column_scales']

@@ -5,14 +5,16 @@ the previous solution), forms the residuals of the chosen cost function and the
 identification Jacobian (eq. 6) analytically by implicit differentiation of
 IK(X, u) = lambda, and takes a damped Gauss-Newton step ``du`` (eq. 5) in
 column-scaled coordinates.  The tall Jacobian (4 rows per posture) is reduced
-once per iteration to its normal equations (J^T J, J^T r: n x n, n <= 59);
+once per iteration to its normal equations (J^T J, J^T r: n x n, n = the
+architecture's parameters + 5);
 their eigendecomposition serves every damping value tried, the convergence
 test, the covariance and the identifiability analysis, so the per-posture work
 is one pass over J.
 
 Beyond the paper:
 
-* The unknowns are the 54 kinematic parameters followed by the 5 device defects
+* The unknowns are the architecture's kinematic parameters (its layout's
+  ``n_parameters``, 54 for a Hexa Slide) followed by the 5 device defects
   (``device.DEVICE_PARAMETER_NAMES``); masks choose which are identified.
 * With a known noise model the residuals are whitened per posture by the
   covariance the reading noise propagates to them (through eq. 4 and FK), so the
@@ -44,7 +46,7 @@ from .errors import InvalidMeasurementError, RankDeficientError, TooFewPosturesE
 from .identifiability import analyze, column_scales, DEFAULT_RANK_TOLERANCE, IdentifiabilityReport
 from .kinematics import forward_kinematics, pose_sensitivities
 from .measurements import MeasurementLimits, Measurements, NoiseModel
-from .model import N_PARAMETERS, parameter_names
+from .model import parameter_names
 from .residuals import ChannelSigma, CostFunction, COSTS, N_NOISE_SOURCES, ResidualBlock
 
 CONVERGED = 'converged'
@@ -56,7 +58,6 @@ FLOOR_STEP_M = (
 ROBUST_LOSSES = ('huber', 'soft_l1')
 MAX_ROUNDS = 20  # outer rounds: re-admitting postures, screening outliers, refitting weights
 IRLS_TOLERANCE = 1e-9  # robust reweighting stops when no unknown moves more than this (m)
-N_UNKNOWNS = N_PARAMETERS + N_DEVICE_PARAMETERS  # of a Hexa Slide; any model: n_parameters + 5
 
 
 @functools.lru_cache(maxsize=1)
@@ -65,8 +66,8 @@ def _blas_controller() -> ThreadpoolController:
     return ThreadpoolController()
 
 
-def unknown_names(model: str | None = None) -> list[str]:
-    """Names of the model's kinematic parameters (default: the Hexa Slide's 54) followed by the 5 device defects."""
+def unknown_names(model: str) -> list[str]:
+    """Return the names of the model's kinematic parameters followed by the 5 device defects."""
     return parameter_names(model) + [f'device.{name}' for name in DEVICE_PARAMETER_NAMES]
 
 
@@ -109,8 +110,8 @@ class SolverOptions:
     branch_tolerance_m: float = 0.2
     branch_tolerance_rad: float = 0.5
 
-    def free_mask(self, n_parameters: int = N_PARAMETERS) -> np.ndarray:
-        """Mask over the unknowns: n_parameters kinematic (54 for a Hexa Slide) + 5 device."""
+    def free_mask(self, n_parameters: int) -> np.ndarray:
+        """Return the mask over the unknowns: n_parameters kinematic (the layout's) + 5 device."""
         kinematic = (
             np.ones(n_parameters, bool)
             if self.free_parameters is None
@@ -127,7 +128,7 @@ class SolverOptions:
         device = np.array([name in identified for name in DEVICE_PARAMETER_NAMES])
         return np.concatenate([kinematic, device])
 
-    def validate(self, n_parameters: int = N_PARAMETERS) -> None:
+    def validate(self, n_parameters: int) -> None:
         if self.cost not in COSTS:
             raise ValueError(
                 f'unknown cost function {self.cost!r}; choose one of {", ".join(COSTS)}'
@@ -151,7 +152,7 @@ class SolverOptions:
 class IdentificationResult:
     parameters: KinematicParameters
     initial_parameters: KinematicParameters
-    std: np.ndarray  # (n,), n = 54 for a Hexa Slide; NaN for fixed or unidentifiable parameters
+    std: np.ndarray  # (n,), n = the layout's n_parameters; NaN for fixed or unidentifiable ones
     covariance: np.ndarray  # (n + 5, n + 5): kinematic then 5 device; zero rows for fixed ones
     rank: int
     condition_number: float

@@ -4,20 +4,54 @@ An architecture is six chains between base and platform, each driven by one
 actuator whose reading lambda_c is a function of the pose X and the chain's
 own parameters u_c (inverse kinematics).  Everything else in the core (forward
 kinematics, the identification Jacobian by implicit differentiation, every
-cost function, the solver, identifiability, planning, the studies) is written
-against this interface:
+cost function, the solver, identifiability, planning, the studies) and the
+command-line front ends are written against this interface and never name an
+architecture.
 
-* ``layout``: the contract's ``ModelLayout`` (names, units, per-chain fields);
+Adding an architecture is one module in this package and two registrations:
+``hexacal_msgs_py.models.register_model(layout)`` for its contract half and
+``architectures.register_architecture(instance)`` for its kinematics (the
+built-in ones are registered in ``architectures/__init__.py``).  The complete
+list of what a new architecture provides:
+
+In the contract (``hexacal_msgs_py.models``, one declarative ``ModelLayout``):
+
+* ``name`` (the ``model`` key of files, messages and plans) and ``title``;
+* ``fields`` and ``field_units`` of one chain (the vector is chain-major);
+* ``chain_keys``: the parameters-file keys ``chain_N.<key>``, each covering
+  consecutive fields, in the order files are written;
+* ``actuator_prefix`` (joint names ``<prefix>_1..6``, unique among models) and
+  ``actuator_description``;
+* ``physical_checks``: declarative checks naming fields (``PositiveField``,
+  ``UnitVectorXY``) that every parameters file and message must pass.
+
+In the core (a subclass of ``Architecture`` and one of ``KinematicParameters``
+whose ``architecture`` is the instance):
+
+* class attributes ``name`` (= the layout's), ``layout`` (``MODELS[name]``),
+  ``parameters_type``, ``unreachable_reason`` and ``nominal_error_stats_mm``
+  (Table 2-like rows: set number -> (max, mean, RMS) mm);
+* ``default_parameters()`` and ``default_workspace()``: the shipped machine and
+  the postures.Workspace measurement postures are drawn from;
 * ``chains(params)``: the per-chain constants of one parameter set;
-* ``legs(chains, poses)``: IK for N poses with what the derivatives reuse -
-  ``sliders`` (N, 6) actuator readings, ``reachable()``, ``pose_jacobian()``
-  = d lambda / d X (N, 6, 6) and ``parameter_blocks(chains)`` = d lambda_c /
-  d u_c (N, 6, fields per chain), plus ``subset``/``replace_rows`` for the
-  batched Newton iteration;
-* frame motions expressed as parameter changes (identifiability's named
-  combinations, the device-frame study);
-* the default machine, its workspace and nominal error sets;
-* ``drawing(params, pose)``: what a visualiser draws of the machine at a pose.
+* ``legs(chains, poses)``: IK for N poses with what the derivatives reuse (the
+  ``Legs`` protocol) - ``sliders`` (N, 6) actuator readings, ``reachable()``,
+  ``pose_jacobian()`` = d lambda / d X (N, 6, 6), ``parameter_blocks(chains)``
+  = d lambda_c / d u_c (N, 6, fields per chain), ``unit_legs()``, plus
+  ``subset``/``replace_rows`` for the batched Newton iteration;
+* ``acceptable_poses`` and ``joint_cosines``: the workspace and planning limits;
+* ``frame_motion`` and ``actuator_zero_shift``: frame motions and actuator zero
+  offsets expressed as parameter changes (identifiability's named combinations);
+* ``in_frames``: the same machine in rotated frames (the device-frame study);
+* ``drawing(params, pose)``: what a visualiser draws of the machine at a pose;
+* optionally (defaults below): ``vector_problem`` (the solver's own check, the
+  layout's by default), ``default_machine_comment`` (header of the shipped
+  default file), the texts that name the default machine in reports
+  (``machine_label``, ``nominal_label``, ``truth_file_name``), notes on
+  dimensionless fields (``error_table_note``, ``std_note``),
+  ``default_machine_alias`` (a ``hexacal params`` choice naming the default
+  machine) and ``paper_accuracy`` (a published Table 3 to print beside the
+  study of this machine).
 
 Poses are ``X = [x, y, z, theta, psi, phi]`` with R = R_Y(theta) R_X(psi)
 R_z(phi) (eq. 2) for every architecture.
@@ -114,6 +148,31 @@ class Architecture(ABC):
     unreachable_reason: ClassVar[str]  # what makes IK fail, for the error message
     # Table 2-like nominal error sets: set number -> (max, mean, RMS) of the errors, mm.
     nominal_error_stats_mm: ClassVar[dict[int, tuple[float, float, float]]]
+    # Presentation of the default machine and of dimensionless fields (reports, file headers).
+    error_table_note: ClassVar[str] = ''  # after the title of a table of parameter errors in mm
+    std_note: ClassVar[str] = ''  # after the largest standard deviation in um
+    default_machine_alias: ClassVar[str | None] = None  # a `hexacal params` choice for it
+    # A published accuracy table of this machine (Table 3-like), printed beside its study.
+    paper_accuracy: ClassVar[dict[Any, dict[str, float]] | None] = None
+
+    @property
+    def machine_label(self) -> str:
+        """Return how reports name the default machine ("the default <name> machine")."""
+        return f'the default {self.name} machine'
+
+    @property
+    def nominal_label(self) -> str:
+        """Return how reports name the default machine plus nominal errors."""
+        return f'{self.machine_label} + errors with Table 2-like statistics'
+
+    @property
+    def truth_file_name(self) -> str:
+        """Return the file name of the simulated true machine (``hexacal demo``)."""
+        return f'true_{self.name}.yaml'
+
+    def default_machine_comment(self, params: KinematicParameters) -> str:
+        """Return the header comment of the shipped default-machine file of this architecture."""
+        return f'Default {self.layout.title} of hexacal (SI units).'
 
     def vector_problem(self, vector: np.ndarray) -> str | None:
         """Why `vector` is not a parameter set of this architecture (None: it is)."""

@@ -190,6 +190,24 @@ class GoughStewart(Architecture):
     parameters_type = GoughStewartParameters
     nominal_error_stats_mm = {1: (1.8, 0.80, 0.87), 2: (2.8, 1.33, 1.45), 3: (9.2, 4.99, 5.28)}
 
+    def default_machine_comment(self, params: KinematicParameters) -> str:
+        """Return the header of the shipped default file (what hexacal_identify/data/ ships)."""
+        low, high = self.default_workspace().slider_stroke_m
+        chains = params.per_chain
+        base_radius = float(np.mean(np.hypot(chains[:, 0], chains[:, 1])))
+        platform_radius = float(np.mean(np.hypot(chains[:, 3], chains[:, 4])))
+        offsets = chains[:, L0_INDEX]
+        return (
+            f'Default {LAYOUT.title} of hexacal (SI units): base joints on a '
+            f'{base_radius:.2f} m circle,\n'
+            f'platform joints on a {platform_radius:.2f} m circle, with mm-level as-built '
+            'irregularity.\n'
+            f'Stroke limits ({low:g}, {high:g}) m of the actuator reading lambda; l0 '
+            f'{offsets.min():.4f}-{offsets.max():.4f} m, so legs '
+            f'{offsets.min() + low:.2f}-{offsets.max() + high:.2f} m.\n'
+            f'Written by `hexacal params default --model {self.name}`.'
+        )
+
     def default_parameters(self) -> GoughStewartParameters:
         return default_gough_stewart()
 

@@ -72,6 +72,16 @@ _TABLE1_MM = np.array(
 # Table 2 of the paper: (max, mean, sigma) of the nominal-parameter errors, mm.
 TABLE2_ERROR_STATS_MM = {1: (1.8, 0.80, 0.87), 2: (2.8, 1.33, 1.45), 3: (9.2, 4.99, 5.28)}
 
+# Table 3 of the paper: initial error, then after calibration at 5, 10, 20 um noise.
+PAPER_TABLE3 = {
+    'initial': {'position_m': 2.39e-3, 'orientation_rad': np.radians(0.61)},
+    5: {'position_m': 3.5e-6, 'orientation_rad': np.radians(0.0024)},
+    10: {'position_m': 12e-6, 'orientation_rad': np.radians(0.005)},
+    20: {'position_m': 25e-6, 'orientation_rad': np.radians(0.007)},
+}
+# Header of the shipped default file (hexacal_identify/data/table1_exact.yaml).
+TABLE1_COMMENT = 'Table 1 of Rauf, Kim, Ryu (exact machine), SI units'
+
 
 @dataclass(frozen=True)
 class HexaParameters(KinematicParameters):
@@ -300,6 +310,31 @@ class HexaSlide(Architecture):
     unreachable_reason = 'a leg is shorter than its distance to the rail'
     parameters_type = HexaParameters
     nominal_error_stats_mm = TABLE2_ERROR_STATS_MM
+    # The rail components are dimensionless: "1 mm" of them is 1e-3, as Table 1 prints them.
+    error_table_note = ' (a: unit-vector components x 1000, as in Table 1)'
+    std_note = ' (rail components x1e-6)'
+    default_machine_alias = 'table1'
+    # The paper's numbers belong to the machine it studied: printed beside this model's study only.
+    paper_accuracy = PAPER_TABLE3
+
+    @property
+    def machine_label(self) -> str:
+        """Return 'Table 1': the default machine is the paper's."""
+        return 'Table 1'
+
+    @property
+    def nominal_label(self) -> str:
+        """Return 'Table 1 + Table 2 errors'."""
+        return 'Table 1 + Table 2 errors'
+
+    @property
+    def truth_file_name(self) -> str:
+        """Return 'true_table1.yaml'."""
+        return 'true_table1.yaml'
+
+    def default_machine_comment(self, params: KinematicParameters) -> str:
+        """Return the header of table1_exact.yaml."""
+        return TABLE1_COMMENT
 
     def vector_problem(self, vector: np.ndarray) -> str | None:
         # Only the rail direction must be the x, y part of a unit vector (the solver may try any l).
