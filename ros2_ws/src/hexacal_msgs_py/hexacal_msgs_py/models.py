@@ -76,7 +76,8 @@ class PositiveField:
         value = float(vector[layout.parameter_index(chain, self.field)])
         if value <= 0.0:
             unit = layout.field_units[layout.fields.index(self.field)]
-            return f'chain_{chain}.{self.field} must be > 0 {unit}{self.note}, got {value!r}'
+            unit_text = '' if unit == '1' else f' {unit}'  # '1': dimensionless
+            return f'chain_{chain}.{self.field} must be > 0{unit_text}{self.note}, got {value!r}'
         return None
 
 

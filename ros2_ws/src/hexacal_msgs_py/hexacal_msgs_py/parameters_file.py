@@ -265,7 +265,7 @@ def save_parameters(
     if header_comment:
         lines += [f'# {line}'.rstrip() for line in header_comment.splitlines()]
     lines += ['/**:', '  ros__parameters:']
-    if layout.name != DEFAULT_MODEL:  # a file without a model is the default model
+    if layout.name != HEXA_SLIDE:
         lines.append(f'    {MODEL_KEY}: {layout.name}')
     for chain, entry in _chain_entries(array, layout):
         for key, value in entry.items():
