@@ -1,4 +1,5 @@
-"""A third architecture plugs in through its module and two registrations only.
+"""
+A third architecture plugs in through its module and two registrations only.
 
 The architecture below is defined here and nowhere else: a 6-SPS whose strut
 encoders read the leg length through an affine map, ``|P + R B - A| = g lambda

@@ -1,4 +1,5 @@
-"""The machine models hexacal knows: each one's parameter layout and actuator joint names (ROS-free).
+"""
+The machine models hexacal knows: each one's parameter layout and actuator joint names (ROS-free).
 
 A model (kinematic architecture) is six chains between the base and the
 platform.  Its parameter vector is chain-major: chain 1's fields, then chain
@@ -36,7 +37,7 @@ DEVICE_DEFECTS_KEY = 'device.defects'
 
 
 def device_defect_key(name: str) -> str:
-    """The parameters-file key of one identified device defect: `device.defects.<name>`."""
+    """Return the parameters-file key of one identified device defect: `device.defects.<name>`."""
     if name not in DEVICE_DEFECT_NAMES:
         raise ValueError(
             f'device defect must be one of {", ".join(DEVICE_DEFECT_NAMES)}, got {name!r}'
@@ -231,7 +232,8 @@ MODELS: dict[str, ModelLayout] = {}
 
 
 def register_model(layout: ModelLayout) -> ModelLayout:
-    """Add a model's layout to MODELS (a new architecture's contract half); return it.
+    """
+    Add a model's layout to MODELS (a new architecture's contract half); return it.
 
     The layout must be consistent (one unit per field, file keys that cover every
     field once, checks that name its fields) and its name and actuator joints new.
@@ -264,7 +266,7 @@ register_model(GOUGH_STEWART_LAYOUT)
 
 
 def model_layout(name: object) -> ModelLayout:
-    """The layout of model `name`; an unknown name is an InvalidParametersError listing the known ones."""
+    """Return the layout of model `name` (unknown: InvalidParametersError listing the known)."""
     if not isinstance(name, str) or name not in MODELS:
         raise InvalidParametersError(
             f'unknown model {name!r}; hexacal knows {", ".join(sorted(MODELS))}'
@@ -273,7 +275,7 @@ def model_layout(name: object) -> ModelLayout:
 
 
 def model_for_vector_size(size: int) -> ModelLayout:
-    """The one model whose vector has `size` entries (files and messages without a model name)."""
+    """Return the one model whose vector has `size` entries (files, messages without a model)."""
     matches = [layout for layout in MODELS.values() if layout.n_parameters == size]
     if len(matches) != 1:
         sizes = ', '.join(f'{layout.name} {layout.n_parameters}' for layout in MODELS.values())
@@ -284,7 +286,7 @@ def model_for_vector_size(size: int) -> ModelLayout:
 
 
 def model_for_actuator_names(names: Sequence[str]) -> ModelLayout | None:
-    """The model whose six actuator joints all appear in `names` (None if none does)."""
+    """Return the model whose six actuator joints all appear in `names` (None if none does)."""
     present = set(names)
     for layout in MODELS.values():
         if present.issuperset(layout.actuator_names):

@@ -1,4 +1,5 @@
-"""``hexacal``: the command-line tool (study, parameter files, offline calibration from bags).
+"""
+``hexacal``: the command-line tool (study, parameter files, offline calibration from bags).
 
 Exit codes: 0 success; 1 the calibration ran but did not converge; 2 bad input
 or a refused calibration (one line on stderr naming the problem, no traceback).
@@ -20,9 +21,9 @@ def _add_params_parser(subparsers) -> None:
     subparsers.add_parser(
         'params',
         help="write a parameters YAML: a model's default machine (Table 1) or a nominal set 1-3",
-        description='Write a ROS 2 parameters YAML (SI units) for the default machine of a model (the Hexa '
-        'Slide of Table 1, or the default Gough-Stewart platform) or one of its nominal sets (the default '
-        "machine + seeded errors with Table 2's statistics).",
+        description='Write a ROS 2 parameters YAML (SI units) for the default machine of a '
+        'model (the Hexa Slide of Table 1, or the default Gough-Stewart platform) or one of '
+        "its nominal sets (the default machine + seeded errors with Table 2's statistics).",
         fill=_params_arguments,
     )
 
@@ -80,7 +81,7 @@ def _write_params(args) -> int:
 
 
 def default_machine_comment(model: str, vector) -> str:
-    """Return the header comment of the default-machine file of `model` (hexacal_identify/data/)."""
+    """Return the header comment of the default-machine file of `model` (as data/ ships it)."""
     from ..core.architectures import architecture
 
     arch = architecture(model)
@@ -88,14 +89,18 @@ def default_machine_comment(model: str, vector) -> str:
 
 
 def build_parser(fill: bool = True) -> argparse.ArgumentParser:
-    """The whole ``hexacal`` parser; with fill=False a command's arguments are added when it is chosen.
+    """
+    Build the whole ``hexacal`` parser.
 
-    main() parses with fill=False, so a command imports only the modules its own options and handler
-    need (see cli.common.LazySubcommands) and `hexacal --help` imports none of them.
+    With fill=False a command's arguments are added when it is chosen.
+
+    main() parses with fill=False, so a command imports only the modules its own options and
+    handler need (see cli.common.LazySubcommands) and `hexacal --help` imports none of them.
     """
     parser = argparse.ArgumentParser(
         prog='hexacal',
-        description='Kinematic calibration of six-leg parallel manipulators: Hexa Slide, Gough-Stewart (ROS 2).',
+        description='Kinematic calibration of six-leg parallel manipulators: Hexa Slide, '
+        'Gough-Stewart (ROS 2).',
     )
     subparsers = parser.add_subparsers(
         dest='command', required=True, metavar='COMMAND', action=LazySubcommands

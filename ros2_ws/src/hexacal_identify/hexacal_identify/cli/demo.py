@@ -1,4 +1,5 @@
-"""``hexacal demo``: the whole system on a simulated machine, end to end (what `make demo` runs).
+"""
+``hexacal demo``: the whole system on a simulated machine, end to end (what `make demo` runs).
 
 The way a real machine is calibrated, with the simulated machine standing in
 for it through the interfaces a real one offers: writes the true machine
@@ -54,12 +55,12 @@ def add_parsers(subparsers) -> None:
     parser = subparsers.add_parser(
         'demo',
         help='simulate a machine, collect postures over ROS 2, calibrate, print the errors',
-        description='Plan postures (O1), walk them with the executor on a simulated Table 1 machine '
-        '(or, with --model gough_stewart, the default Gough-Stewart platform) driven through its '
-        'trajectory-controller interface, collect, calibrate nominal set 2, walk a verification plan '
-        'and verify; print parameter and pose errors before and after, the verification table and '
-        'the HTML report path. Takes about 2-3 minutes with the defaults; everything lands under '
-        'out/demo_<timestamp>.',
+        description='Plan postures (O1), walk them with the executor on a simulated Table 1 '
+        'machine (or, with --model gough_stewart, the default Gough-Stewart platform) driven '
+        'through its trajectory-controller interface, collect, calibrate nominal set 2, walk a '
+        'verification plan and verify; print parameter and pose errors before and after, the '
+        'verification table and the HTML report path. Takes about 2-3 minutes with the '
+        'defaults; everything lands under out/demo_<timestamp>.',
     )
     parser.add_argument(
         '--model',
@@ -133,7 +134,7 @@ _domain_lock: IO[str] | None = None
 
 
 def claim_domain_id() -> int:
-    """A ROS domain id no test session or other demo uses (held until this process exits)."""
+    """Return a ROS domain id no test session or other demo uses (held until the process exits)."""
     global _domain_lock
     if os.environ.get('HEXACAL_DEMO_DOMAIN_ID'):
         return int(os.environ['HEXACAL_DEMO_DOMAIN_ID'])
@@ -222,8 +223,8 @@ def run(args) -> int:
         signal.signal(signal.SIGTERM, previous)
 
 
-# Executor and commanded driver: moves at up to 0.5 m/s (executor) on a machine that follows at 1 m/s;
-# the collector's detector window 0.2 s + capture 0.3 s (the executor waits for each posture).
+# Executor and commanded driver: moves at up to 0.5 m/s (executor) on a machine that follows at 1
+# m/s; the collector's detector window 0.2 s + capture 0.3 s (the executor waits for each posture).
 EXECUTOR_SPEED_M_S = 0.5
 DRIVER_SPEED_M_S = 1.0
 COLLECTOR_WINDOWS = {'window_s': 0.2, 'capture_s': 0.3}
@@ -231,7 +232,7 @@ PLAN_CANDIDATES = 1000
 
 
 def _plans(args, nominal, paths: DemoPaths) -> None:
-    """The calibration plan (O1) and the verification plan (fresh postures, another candidate draw)."""
+    """Write the calibration plan (O1) and the verification plan (fresh postures, another draw)."""
     from ..core.measurements import NoiseModel
     from ..core.planning import plan_postures
 
@@ -356,9 +357,10 @@ def _run(args) -> int:
         )
         machine = '' if model == DEFAULT_MODEL else f' of a {model}'  # the default goes unnamed
         print(
-            f'hexacal demo: the executor walks an O1 plan of {args.postures} postures ({args.plan}) on '
-            f'the simulated machine{machine} through its trajectory-controller interface, '
-            f'+-{args.noise_um:g} um / +-{args.noise_um:g} urad noise, {args.rate_hz:g} Hz',
+            f'hexacal demo: the executor walks an O1 plan of {args.postures} postures '
+            f'({args.plan}) on the simulated machine{machine} through its trajectory-controller '
+            f'interface, +-{args.noise_um:g} um / +-{args.noise_um:g} urad noise, '
+            f'{args.rate_hz:g} Hz',
             flush=True,
         )
         walked = _walk(
@@ -388,8 +390,8 @@ def _run(args) -> int:
         print(f'hexacal demo: calibrated in {calibrate_s:.1f} s: {message}', flush=True)
         if args.verify_postures:
             print(
-                f'hexacal demo: the executor walks a verification plan of {args.verify_postures} fresh '
-                'postures',
+                'hexacal demo: the executor walks a verification plan of '
+                f'{args.verify_postures} fresh postures',
                 flush=True,
             )
             walked = _walk(
@@ -454,7 +456,7 @@ def _walk(
     env: dict,
     log: Path,
 ) -> int:
-    """Start an executor on ``plan``, show its progress, wait until it is done; the postures measured."""
+    """Start an executor on ``plan``, show its progress, wait until done; return the postures."""
     from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC
     from tqdm import tqdm
 
@@ -702,8 +704,11 @@ class _RosSession:
 def parameter_error_rows(
     true_vector: np.ndarray, vector: np.ndarray, model: str = DEFAULT_MODEL
 ) -> dict[str, tuple[float, float]]:
-    """Per file key of the model (Hexa Slide: A0, B, l, a): (max, mean) |error| in mm
-    (a: unit-vector components x 1000)."""
+    """
+    Return per file key of the model (Hexa Slide: A0, B, l, a) the (max, mean) |error| in mm.
+
+    The Hexa Slide's a: unit-vector components x 1000.
+    """
     import numpy as np
 
     layout = MODELS[model]
@@ -718,7 +723,7 @@ def parameter_error_rows(
 
 
 def verification_table(values: dict[str, str]) -> list[str]:
-    """The verification figures (identify's status values) as a table, um / urad."""
+    """Return the verification figures (identify's status values) as a table, um / urad."""
 
     def number(key: str) -> float:
         try:
@@ -740,8 +745,8 @@ def verification_table(values: dict[str, str]) -> list[str]:
             f'{number(name + ".rotary_rms_rad") * 1e6:>12.1f}'
         )
     lines.append(
-        f'improvement {number("improvement"):.0f}x, threshold {number("threshold_m") * 1e6:.1f} um: '
-        f'{values.get("verdict", "?")}'
+        f'improvement {number("improvement"):.0f}x, threshold {number("threshold_m") * 1e6:.1f} '
+        f'um: {values.get("verdict", "?")}'
     )
     return lines
 
@@ -829,7 +834,7 @@ def report(
 
 
 def _report_page(paths: DemoPaths, verification: dict[str, str] | None) -> str:
-    """The HTML report identify wrote (the verification's page when it has one)."""
+    """Return the HTML report identify wrote (the verification's page when it has one)."""
     if verification and verification.get('report'):
         return verification['report']
     pages = sorted(paths.report.rglob('index.html')) if paths.report.exists() else []

@@ -1,6 +1,8 @@
-"""The paper's simulation study (section 4), reproduced for any architecture.
+"""
+The paper's simulation study (section 4), reproduced for any architecture.
 
-* Identifiability of every cost function (the paper claims all 54 parameters of its Hexa Slide for each).
+* Identifiability of every cost function (the paper claims all 54 parameters of its Hexa Slide for
+  each).
 * No noise, 25 postures, nominal sets 1-3: every parameter recovered (Figs. 4-6).
 * Uniform noise of +-5/10/20 um (and urad), 50 postures, nominal set 2: mean pose
   error over 50 fresh validation postures before and after (Table 3, Figs. 7-9),
@@ -44,7 +46,7 @@ def _no_progress(_: str) -> None:
 
 
 def paper_reference(model: str) -> dict | None:
-    """The paper's Table 3 when ``model`` is the architecture the paper studied, else None."""
+    """Return the paper's Table 3 when ``model`` is the architecture it studied, else None."""
     # The paper's numbers belong to the machine it studied (Architecture.paper_accuracy).
     arch = ARCHITECTURES.get(model)
     return arch.paper_accuracy if arch is not None else None
@@ -53,7 +55,7 @@ def paper_reference(model: str) -> dict | None:
 def study_truth(
     true_params: KinematicParameters | None = None, model: str | None = None
 ) -> KinematicParameters:
-    """The simulated machine of a study: ``true_params``, else the default machine of ``model``."""
+    """Return the simulated machine of a study: ``true_params``, else ``model``'s default."""
     if true_params is not None:
         if model is not None and true_params.model != model:
             raise ValueError(f'the true parameters are a {true_params.model}, not a {model}')
@@ -92,8 +94,8 @@ class StudyRun:
     def __post_init__(self) -> None:
         if self.nominal_params is not None and self.nominal_params.model != self.true_params.model:
             raise ValueError(
-                f'the nominal parameters are a {self.nominal_params.model} but the simulated machine '
-                f'is a {self.true_params.model}: both must be the same model'
+                f'the nominal parameters are a {self.nominal_params.model} but the simulated '
+                f'machine is a {self.true_params.model}: both must be the same model'
             )
 
     @property
@@ -157,7 +159,7 @@ class StudyOutcome:
 
 
 def posture_split(cost: str, total: int) -> tuple[int, int]:
-    """(sphere, fixed) posture counts: the paper's 3:1 split (60 + 20, 30 + 10) where fixed postures are needed."""
+    """Return (sphere, fixed) posture counts: the paper's 3:1 split where fixed ones are needed."""
     if cost == 'fixed':
         return 0, total
     if cost in NEEDS_FIXED_POSTURES:
@@ -211,8 +213,8 @@ def run_calibration(run: StudyRun, options: SolverOptions | None = None) -> Stud
     )
     measurements = simulate_run_measurements(run)
     result = identify(run.nominal(), measurements, options)
-    # Judged in the frames the calibration works in: the device's where it left beta0 / phi0 unidentified
-    # (identical to the true frames for an ideal device), and in the true frames.
+    # Judged in the frames the calibration works in: the device's where it left beta0 / phi0
+    # unidentified (identical to the true frames for an ideal device), and in the true frames.
     frames = calibrated_frames(run.defects, result.free_device)
     validation = validation_poses(
         run.true_params, run.validation_postures, run.seed, run.resolved_workspace
@@ -243,7 +245,8 @@ def identifiability_by_cost(
     device: DeviceModel = DeviceModel(),
     model: str | None = None,
 ) -> list[CostIdentifiability]:
-    """Rank of the identification Jacobian of each cost function at the true parameters, exact data.
+    """
+    Rank of the identification Jacobian of each cost function at the true parameters, exact data.
 
     ``true_params`` defaults to the default machine of ``model`` (default: the Table 1 Hexa Slide).
     """
@@ -278,7 +281,7 @@ def identifiability_by_cost(
 
 
 def _true_poses(run: StudyRun, measurements: Measurements) -> np.ndarray:
-    """Exact poses of noise-free simulated measurements: recovered by FK with the true parameters."""
+    """Return the exact poses of noise-free simulated measurements (FK, true parameters)."""
     from ..core.kinematics import forward_kinematics
 
     function = CostFunction(run.cost, measurements, run.device, ChannelSigma())

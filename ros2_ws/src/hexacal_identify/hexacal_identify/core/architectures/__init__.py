@@ -1,4 +1,5 @@
-"""Kinematic architectures: one module per machine model, each implementing base.Architecture.
+"""
+Kinematic architectures: one module per machine model, each implementing base.Architecture.
 
 Adding an architecture (say a rotary-actuated 6-RUS) is one module here - its
 parameters class, chain constants, IK with its two Jacobians, frame motions,
@@ -23,7 +24,8 @@ ARCHITECTURES: dict[str, Architecture] = {}
 
 
 def register_architecture(arch: Architecture) -> Architecture:
-    """Make `arch` known to the core under its model name; return it.
+    """
+    Make `arch` known to the core under its model name; return it.
 
     Its layout must already be the contract's (``hexacal_msgs_py.models.register_model``)
     and its parameters class must belong to it.
@@ -49,7 +51,7 @@ assert set(ARCHITECTURES) == set(MODELS), 'every model of the contract has an ar
 
 
 def architecture(model: str | None = None) -> Architecture:
-    """The architecture of `model` (None: the default, the Hexa Slide)."""
+    """Return the architecture of `model` (None: the default model's)."""
     name = DEFAULT_MODEL if model is None else model
     if name not in ARCHITECTURES:
         raise ValueError(
@@ -59,7 +61,7 @@ def architecture(model: str | None = None) -> Architecture:
 
 
 def parameters_for(model: str | None, vector: np.ndarray) -> KinematicParameters:
-    """The parameters object of `model` holding `vector`."""
+    """Return the parameters object of `model` holding `vector`."""
     return architecture(model).parameters(vector)
 
 

@@ -1,4 +1,5 @@
-"""The interface a kinematic architecture implements, and the parameters it owns.
+"""
+The interface a kinematic architecture implements, and the parameters it owns.
 
 An architecture is six chains between base and platform, each driven by one
 actuator whose reading lambda_c is a function of the pose X and the chain's
@@ -91,7 +92,7 @@ class Legs(Protocol):
 
 @dataclass(frozen=True)
 class KinematicParameters:
-    """A parameter vector of one architecture, chain-major in its layout's field order (SI units)."""
+    """A parameter vector of one architecture, chain-major in its layout's field order (SI)."""
 
     vector: np.ndarray
     architecture: ClassVar['Architecture']
@@ -127,7 +128,7 @@ class KinematicParameters:
 
     @property
     def base_points(self) -> np.ndarray:
-        """Base-side joint of each chain in the base frame, (6, 3) (Hexa Slide: rail start A0; UPS: A)."""
+        """Return the base-side joint of each chain, base frame, (6, 3) (rail start A0; UPS: A)."""
         return self.per_chain[:, 0:3]
 
     @property
@@ -183,11 +184,11 @@ class Architecture(ABC):
 
     @abstractmethod
     def default_parameters(self) -> KinematicParameters:
-        """The shipped default machine ("exact" parameters of the studies and the driver)."""
+        """Return the shipped default machine (the "exact" parameters of studies and driver)."""
 
     @abstractmethod
     def default_workspace(self) -> Any:
-        """The postures.Workspace measurement postures are drawn from on the default machine."""
+        """Return the postures.Workspace postures are drawn from on the default machine."""
 
     @abstractmethod
     def chains(self, params: KinematicParameters) -> Any:
@@ -201,14 +202,18 @@ class Architecture(ABC):
     def acceptable_poses(
         self, params: KinematicParameters, poses: np.ndarray, workspace: Any
     ) -> np.ndarray:
-        """Mask of poses that are reachable, inside the actuator stroke, away from singular legs
-        and well conditioned (postures.Workspace's limits)."""
+        """
+        Return the mask of acceptable poses (postures.Workspace's limits).
+
+        Acceptable: reachable, inside the actuator stroke, away from singular legs and well
+        conditioned.
+        """
 
     @abstractmethod
     def joint_cosines(
         self, params: KinematicParameters, poses: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Cosines of the base-side and platform-side passive joint angles, each (N, 6) (planning limits)."""
+        """Return cosines of the base- and platform-side passive joint angles, each (N, 6)."""
 
     @abstractmethod
     def frame_motion(
@@ -219,35 +224,45 @@ class Architecture(ABC):
         platform_translation=None,
         platform_rotation=None,
     ) -> np.ndarray:
-        """First-order parameter change (vector) that re-expresses the machine in a base frame moved by
-        (translation, small rotation vector) and a platform frame moved likewise: the measurements
-        cannot see it.  Arguments are 3-vectors (None: no motion); rotations about the frame origins."""
+        """
+        Return the first-order parameter change (vector) of a frame motion.
+
+        The change re-expresses the machine in a base frame moved by (translation, small rotation
+        vector) and a platform frame moved likewise: the measurements cannot see it.  Arguments
+        are 3-vectors (None: no motion); rotations about the frame origins.
+        """
 
     @abstractmethod
     def actuator_zero_shift(
         self, params: KinematicParameters, chain: int
     ) -> tuple[str, np.ndarray]:
-        """(description, parameter change) equivalent to an offset of chain's actuator zero (0-based)."""
+        """Return (description, parameter change) of an actuator zero offset (chain 0-based)."""
 
     @abstractmethod
     def in_frames(
         self, params: KinematicParameters, base_rotation: np.ndarray, platform_rotation: np.ndarray
     ) -> KinematicParameters:
-        """The same machine in a base frame rotated by base_rotation^T and a platform frame rotated by
-        platform_rotation^T about their origins (exact, not first order): points p -> rotation @ p."""
+        """
+        Return the same machine in rotated frames (exact, not first order).
+
+        The base frame is rotated by base_rotation^T and the platform frame by
+        platform_rotation^T about their origins: points p -> rotation @ p.
+        """
 
     @abstractmethod
     def drawing(
         self, params: KinematicParameters, pose: np.ndarray, actuators: np.ndarray | None = None
     ) -> dict[str, np.ndarray]:
-        """The machine at ``pose`` (6,) as named point sets and line segments in the base frame (m).
+        """
+        Return the machine at ``pose`` (6,) as named point sets and segments (base frame, m).
 
-        A (k, 3) array is a set of points (joint centres), a (k, 2, 3) array k segments (start, end).
-        ``actuators`` are the readings lambda (6,) at that pose (None: IK of ``pose``).  Every
-        architecture draws ``base_joints`` (6, 3), ``platform_joints`` (6, 3) = P + R B, ``platform``
-        (6, 2, 3), the outline through the platform joints, and ``device_link`` (1, 2, 3), base origin O
-        to P; this body gives the last three, and each architecture adds its chains (``rails``,
-        ``sliders``, ``legs``, ...)."""
+        A (k, 3) array is a set of points (joint centres), a (k, 2, 3) array k segments (start,
+        end). ``actuators`` are the readings lambda (6,) at that pose (None: IK of ``pose``).
+        Every architecture draws ``base_joints`` (6, 3), ``platform_joints`` (6, 3) = P + R B,
+        ``platform`` (6, 2, 3), the outline through the platform joints, and ``device_link`` (1, 2,
+        3), base origin O to P; this body gives the last three, and each architecture adds its
+        chains (``rails``, ``sliders``, ``legs``, ...).
+        """
         pose = np.asarray(pose, dtype=float).reshape(6)
         rotation = rotation_from_trig(np.cos(pose[3:6]), np.sin(pose[3:6]))
         joints = pose[:3] + params.platform_points @ rotation.T
