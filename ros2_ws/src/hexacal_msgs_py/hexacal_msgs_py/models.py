@@ -20,6 +20,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 import math
+from typing import Any, Protocol
 
 from hexacal_msgs_py.errors import InvalidParametersError
 
@@ -43,6 +44,13 @@ def device_defect_key(name: str) -> str:
             f'device defect must be one of {", ".join(DEVICE_DEFECT_NAMES)}, got {name!r}'
         )
     return f'{DEVICE_DEFECTS_KEY}.{name}'
+
+
+class FloatVector(Protocol):
+    """A parameter vector as the checks read it: a numpy array or a sequence of floats."""
+
+    def __getitem__(self, index: int) -> Any:
+        """Return entry `index`."""
 
 
 HEXA_SLIDE = 'hexa_slide'
@@ -72,7 +80,7 @@ class PositiveField:
     field: str
     note: str = ''
 
-    def problem(self, layout: ModelLayout, chain: int, vector: Sequence[float]) -> str | None:
+    def problem(self, layout: ModelLayout, chain: int, vector: FloatVector) -> str | None:
         """Return why chain's field is not positive (None: it is)."""
         value = float(vector[layout.parameter_index(chain, self.field)])
         if value <= 0.0:
@@ -90,7 +98,7 @@ class UnitVectorXY:
     x: str
     y: str
 
-    def problem(self, layout: ModelLayout, chain: int, vector: Sequence[float]) -> str | None:
+    def problem(self, layout: ModelLayout, chain: int, vector: FloatVector) -> str | None:
         """Return why chain's (x, y) is not inside the unit circle (None: it is)."""
         x = float(vector[layout.parameter_index(chain, self.x)])
         y = float(vector[layout.parameter_index(chain, self.y)])
@@ -122,7 +130,7 @@ class ModelLayout:
     physical_checks: tuple[PhysicalCheck, ...] = ()
     n_chains: int = N_CHAINS
 
-    def physical_problem(self, vector: Sequence[float]) -> str | None:
+    def physical_problem(self, vector: FloatVector) -> str | None:
         """Return why `vector` is not a physical machine of this model (None: it is)."""
         for chain in range(1, self.n_chains + 1):
             for check in self.physical_checks:
