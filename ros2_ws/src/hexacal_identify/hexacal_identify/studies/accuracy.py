@@ -46,7 +46,11 @@ def _no_progress(_: str) -> None:
 
 
 def paper_reference(model: str) -> dict | None:
-    """Return the paper's Table 3 when ``model`` is the architecture it studied, else None."""
+    """
+    Return the paper's Table 3 when ``model`` is the paper's architecture.
+
+    The paper's Table 3 when ``model`` is the architecture the paper studied, else None.
+    """
     # The paper's numbers belong to the machine it studied (Architecture.paper_accuracy).
     arch = ARCHITECTURES.get(model)
     return arch.paper_accuracy if arch is not None else None
@@ -55,7 +59,11 @@ def paper_reference(model: str) -> dict | None:
 def study_truth(
     true_params: KinematicParameters | None = None, model: str | None = None
 ) -> KinematicParameters:
-    """Return the simulated machine of a study: ``true_params``, else ``model``'s default."""
+    """
+    Return the simulated machine of a study.
+
+    ``true_params``, else the default machine of ``model``.
+    """
     if true_params is not None:
         if model is not None and true_params.model != model:
             raise ValueError(f'the true parameters are a {true_params.model}, not a {model}')
@@ -159,7 +167,11 @@ class StudyOutcome:
 
 
 def posture_split(cost: str, total: int) -> tuple[int, int]:
-    """Return (sphere, fixed) posture counts: the paper's 3:1 split where fixed ones are needed."""
+    """
+    Return the (sphere, fixed) posture counts.
+
+    The paper's 3:1 split (60 + 20, 30 + 10) where fixed postures are needed.
+    """
     if cost == 'fixed':
         return 0, total
     if cost in NEEDS_FIXED_POSTURES:
@@ -246,6 +258,8 @@ def identifiability_by_cost(
     model: str | None = None,
 ) -> list[CostIdentifiability]:
     """
+    Return the rank of the identification Jacobian of each cost function.
+
     Rank of the identification Jacobian of each cost function at the true parameters, exact data.
 
     ``true_params`` defaults to the default machine of ``model`` (default: the Table 1 Hexa Slide).
