@@ -1,4 +1,5 @@
-"""The machine models hexacal knows: each one's parameter layout and actuator joint names (ROS-free).
+"""
+The machine models hexacal knows: each one's parameter layout and actuator joint names (ROS-free).
 
 A model (kinematic architecture) is six chains between the base and the
 platform.  Its parameter vector is chain-major: chain 1's fields, then chain
@@ -7,17 +8,21 @@ platform.  Its parameter vector is chain-major: chain 1's fields, then chain
 file written before other models existed keeps loading.
 
 This module owns the names and layouts only; the kinematics written against a
-layout live in ``hexacal_identify.core.architectures``.
+layout live in ``hexacal_identify.core.architectures``.  Each model is one
+declarative ``ModelLayout`` (fields, units, file keys, actuator joints and the
+physical checks of its vector, which name fields, never indices); a new model
+is one more layout passed to ``register_model``.  The module imports no numpy,
+so command-line front ends can list the models without loading it.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 import math
+from typing import Any, Protocol
 
 from hexacal_msgs_py.errors import InvalidParametersError
-import numpy as np
 
 N_CHAINS = 6
 MODEL_KEY = 'model'
@@ -33,12 +38,19 @@ DEVICE_DEFECTS_KEY = 'device.defects'
 
 
 def device_defect_key(name: str) -> str:
-    """The parameters-file key of one identified device defect: `device.defects.<name>`."""
+    """Return the parameters-file key of one identified device defect: `device.defects.<name>`."""
     if name not in DEVICE_DEFECT_NAMES:
         raise ValueError(
             f'device defect must be one of {", ".join(DEVICE_DEFECT_NAMES)}, got {name!r}'
         )
     return f'{DEVICE_DEFECTS_KEY}.{name}'
+
+
+class FloatVector(Protocol):
+    """A parameter vector as the checks read it: a numpy array or a sequence of floats."""
+
+    def __getitem__(self, index: int) -> Any:
+        """Return entry `index`."""
 
 
 HEXA_SLIDE = 'hexa_slide'
@@ -55,6 +67,52 @@ class ChainKey:
     count: int | None  # number of values; None for a scalar
     description: str
 
+    @property
+    def width(self) -> int:
+        """Return the number of fields the key covers (1 for a scalar)."""
+        return 1 if self.count is None else self.count
+
+
+@dataclass(frozen=True)
+class PositiveField:
+    """Physical check: the per-chain field ``field`` must be > 0 (``note`` explains it)."""
+
+    field: str
+    note: str = ''
+
+    def problem(self, layout: ModelLayout, chain: int, vector: FloatVector) -> str | None:
+        """Return why chain's field is not positive (None: it is)."""
+        value = float(vector[layout.parameter_index(chain, self.field)])
+        if value <= 0.0:
+            unit = layout.field_units[layout.fields.index(self.field)]
+            unit_text = '' if unit == '1' else f' {unit}'  # '1': dimensionless
+            return f'chain_{chain}.{self.field} must be > 0{unit_text}{self.note}, got {value!r}'
+        return None
+
+
+@dataclass(frozen=True)
+class UnitVectorXY:
+    """Physical check: fields ``x``, ``y`` (file key ``key``) are the x, y of a unit vector."""
+
+    key: str
+    x: str
+    y: str
+
+    def problem(self, layout: ModelLayout, chain: int, vector: FloatVector) -> str | None:
+        """Return why chain's (x, y) is not inside the unit circle (None: it is)."""
+        x = float(vector[layout.parameter_index(chain, self.x)])
+        y = float(vector[layout.parameter_index(chain, self.y)])
+        norm_xy = x * x + y * y
+        if norm_xy >= 1.0:
+            return (
+                f'chain_{chain}.{self.key} = [{x!r}, {y!r}] is not the x, y components of a '
+                f'unit vector ({self.x}^2 + {self.y}^2 = {norm_xy!r} >= 1)'
+            )
+        return None
+
+
+PhysicalCheck = PositiveField | UnitVectorXY
+
 
 @dataclass(frozen=True)
 class ModelLayout:
@@ -67,10 +125,19 @@ class ModelLayout:
     chain_keys: tuple[ChainKey, ...]  # file keys, in the order files are written
     actuator_prefix: str  # joint names are <prefix>_1 .. <prefix>_6
     actuator_description: str
-    physical_problem: Callable[
-        [np.ndarray], str | None
-    ]  # the vector's physical checks (None: fine)
+    # Checked per chain, chain 1 first, each chain's checks in this order; the first failure is
+    # the problem reported.
+    physical_checks: tuple[PhysicalCheck, ...] = ()
     n_chains: int = N_CHAINS
+
+    def physical_problem(self, vector: FloatVector) -> str | None:
+        """Return why `vector` is not a physical machine of this model (None: it is)."""
+        for chain in range(1, self.n_chains + 1):
+            for check in self.physical_checks:
+                problem = check.problem(self, chain, vector)
+                if problem:
+                    return problem
+        return None
 
     @property
     def fields_per_chain(self) -> int:
@@ -94,6 +161,12 @@ class ModelLayout:
         return frozenset(
             f'chain_{c}.{k.name}' for c in range(1, self.n_chains + 1) for k in self.chain_keys
         )
+
+    @property
+    def key_slices(self) -> dict[str, slice]:
+        """Return each file key's fields inside a chain's block, in field order (A0, B, l, a)."""
+        keys = sorted(self.chain_keys, key=lambda key: key.offset)
+        return {key.name: slice(key.offset, key.offset + key.width) for key in keys}
 
     @property
     def actuator_names(self) -> tuple[str, ...]:
@@ -125,70 +198,83 @@ DEVICE_TURN_JOINT = 'device_turn'
 # |device_turn| may not exceed one full turn.
 MAX_DEVICE_TURN = 2.0 * math.pi
 
+# --- the models: one declarative layout each ----------------------------------------------------
 
-def _hexa_slide_problem(vector: np.ndarray) -> str | None:
-    for chain in range(1, N_CHAINS + 1):
-        base = (chain - 1) * 9
-        ax, ay = float(vector[base + 7]), float(vector[base + 8])
-        norm_xy = ax * ax + ay * ay
-        if norm_xy >= 1.0:
-            return (
-                f'chain_{chain}.a = [{ax!r}, {ay!r}] is not the x, y components of a '
-                f'unit vector (ax^2 + ay^2 = {norm_xy!r} >= 1)'
+HEXA_SLIDE_LAYOUT = ModelLayout(
+    name=HEXA_SLIDE,
+    title='Hexa Slide (6-PRRS)',
+    # A0 rail start (base frame), B spherical joint (platform frame), l leg length,
+    # ax, ay: x, y components of the unit rail direction a (a_z < 0).
+    fields=('A0x', 'A0y', 'A0z', 'Bx', 'By', 'Bz', 'l', 'ax', 'ay'),
+    field_units=('m', 'm', 'm', 'm', 'm', 'm', 'm', '1', '1'),
+    chain_keys=(
+        ChainKey('A0', 0, 3, 'rail start point, base frame (m)'),
+        ChainKey('B', 3, 3, 'spherical joint centre, platform frame (m)'),
+        ChainKey('a', 7, 2, 'x, y components of the unit rail direction'),
+        ChainKey('l', 6, None, 'leg length (m)'),
+    ),
+    actuator_prefix='slider',
+    actuator_description='slider position lambda along the rail (m)',
+    physical_checks=(UnitVectorXY('a', 'ax', 'ay'), PositiveField('l')),
+)
+
+GOUGH_STEWART_LAYOUT = ModelLayout(
+    name=GOUGH_STEWART,
+    title='Gough-Stewart platform (6-UPS)',
+    # A base joint (base frame), B platform joint (platform frame), l0 leg length
+    # at actuator reading zero: |p + R B - A| = lambda + l0.
+    fields=('Ax', 'Ay', 'Az', 'Bx', 'By', 'Bz', 'l0'),
+    field_units=('m',) * 7,
+    chain_keys=(
+        ChainKey('A', 0, 3, 'base joint centre, base frame (m)'),
+        ChainKey('B', 3, 3, 'platform joint centre, platform frame (m)'),
+        ChainKey('l0', 6, None, 'leg length at actuator reading zero (m)'),
+    ),
+    actuator_prefix='leg',
+    actuator_description='leg extension lambda = leg length - l0 (m)',
+    physical_checks=(PositiveField('l0', ' (the leg length at actuator reading zero)'),),
+)
+
+# Every model hexacal knows, by name (register_model adds one).
+MODELS: dict[str, ModelLayout] = {}
+
+
+def register_model(layout: ModelLayout) -> ModelLayout:
+    """
+    Add a model's layout to MODELS (a new architecture's contract half); return it.
+
+    The layout must be consistent (one unit per field, file keys that cover every
+    field once, checks that name its fields) and its name and actuator joints new.
+    """
+    if layout.name in MODELS:
+        raise ValueError(f'model {layout.name!r} is already registered')
+    if len(layout.field_units) != len(layout.fields):
+        raise ValueError(f'{layout.name}: one unit per field, got {layout.field_units}')
+    covered = sorted(
+        i for key in layout.chain_keys for i in range(key.offset, key.offset + key.width)
+    )
+    if covered != list(range(len(layout.fields))):
+        raise ValueError(f'{layout.name}: the chain keys must cover every field once')
+    for check in layout.physical_checks:
+        named = (check.field,) if isinstance(check, PositiveField) else (check.x, check.y)
+        unknown = [field for field in named if field not in layout.fields]
+        if unknown:
+            raise ValueError(f'{layout.name}: a physical check names unknown field(s) {unknown}')
+    for other in MODELS.values():
+        if other.actuator_prefix == layout.actuator_prefix:
+            raise ValueError(
+                f"{layout.name}: actuator joints {layout.actuator_prefix}_N are {other.name}'s"
             )
-        length = float(vector[base + 6])
-        if length <= 0.0:
-            return f'chain_{chain}.l must be > 0 m, got {length!r}'
-    return None
+    MODELS[layout.name] = layout
+    return layout
 
 
-def _gough_stewart_problem(vector: np.ndarray) -> str | None:
-    for chain in range(1, N_CHAINS + 1):
-        offset = float(vector[(chain - 1) * 7 + 6])
-        if offset <= 0.0:
-            return f'chain_{chain}.l0 must be > 0 m (the leg length at actuator reading zero), got {offset!r}'
-    return None
-
-
-MODELS: dict[str, ModelLayout] = {
-    HEXA_SLIDE: ModelLayout(
-        name=HEXA_SLIDE,
-        title='Hexa Slide (6-PRRS)',
-        # A0 rail start (base frame), B spherical joint (platform frame), l leg length,
-        # ax, ay: x, y components of the unit rail direction a (a_z < 0).
-        fields=('A0x', 'A0y', 'A0z', 'Bx', 'By', 'Bz', 'l', 'ax', 'ay'),
-        field_units=('m', 'm', 'm', 'm', 'm', 'm', 'm', '1', '1'),
-        chain_keys=(
-            ChainKey('A0', 0, 3, 'rail start point, base frame (m)'),
-            ChainKey('B', 3, 3, 'spherical joint centre, platform frame (m)'),
-            ChainKey('a', 7, 2, 'x, y components of the unit rail direction'),
-            ChainKey('l', 6, None, 'leg length (m)'),
-        ),
-        actuator_prefix='slider',
-        actuator_description='slider position lambda along the rail (m)',
-        physical_problem=_hexa_slide_problem,
-    ),
-    GOUGH_STEWART: ModelLayout(
-        name=GOUGH_STEWART,
-        title='Gough-Stewart platform (6-UPS)',
-        # A base joint (base frame), B platform joint (platform frame), l0 leg length
-        # at actuator reading zero: |p + R B - A| = lambda + l0.
-        fields=('Ax', 'Ay', 'Az', 'Bx', 'By', 'Bz', 'l0'),
-        field_units=('m',) * 7,
-        chain_keys=(
-            ChainKey('A', 0, 3, 'base joint centre, base frame (m)'),
-            ChainKey('B', 3, 3, 'platform joint centre, platform frame (m)'),
-            ChainKey('l0', 6, None, 'leg length at actuator reading zero (m)'),
-        ),
-        actuator_prefix='leg',
-        actuator_description='leg extension lambda = leg length - l0 (m)',
-        physical_problem=_gough_stewart_problem,
-    ),
-}
+register_model(HEXA_SLIDE_LAYOUT)
+register_model(GOUGH_STEWART_LAYOUT)
 
 
 def model_layout(name: object) -> ModelLayout:
-    """The layout of model `name`; an unknown name is an InvalidParametersError listing the known ones."""
+    """Return the layout of model `name` (unknown: InvalidParametersError listing the known)."""
     if not isinstance(name, str) or name not in MODELS:
         raise InvalidParametersError(
             f'unknown model {name!r}; hexacal knows {", ".join(sorted(MODELS))}'
@@ -197,7 +283,7 @@ def model_layout(name: object) -> ModelLayout:
 
 
 def model_for_vector_size(size: int) -> ModelLayout:
-    """The one model whose vector has `size` entries (files and messages without a model name)."""
+    """Return the one model whose vector has `size` entries (files, messages without a model)."""
     matches = [layout for layout in MODELS.values() if layout.n_parameters == size]
     if len(matches) != 1:
         sizes = ', '.join(f'{layout.name} {layout.n_parameters}' for layout in MODELS.values())
@@ -208,7 +294,7 @@ def model_for_vector_size(size: int) -> ModelLayout:
 
 
 def model_for_actuator_names(names: Sequence[str]) -> ModelLayout | None:
-    """The model whose six actuator joints all appear in `names` (None if none does)."""
+    """Return the model whose six actuator joints all appear in `names` (None if none does)."""
     present = set(names)
     for layout in MODELS.values():
         if present.issuperset(layout.actuator_names):

@@ -1,4 +1,4 @@
-"""``hexacal calibrate BAG`` and ``hexacal bag-info BAG``: everything the nodes do, offline from a bag."""
+"""``hexacal calibrate BAG`` and ``hexacal bag-info BAG``: the nodes' work, offline from a bag."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import json
 from pathlib import Path
 import sys
 
-# The solver, the bag reader and the report are imported where they run: this module is imported by every `hexacal`
-# start-up to register the commands.
+# The solver, the bag reader and the report are imported where they run: this module is imported by
+# every `hexacal` start-up to register the commands.
 UM, MM = 1e6, 1e3
 
 
@@ -16,11 +16,12 @@ def add_parsers(subparsers) -> None:
     subparsers.add_parser(
         'calibrate',
         help='calibrate from a recorded bag (no ROS graph needed)',
-        description='Identify the kinematic parameters (54 of a Hexa Slide, 42 of a Gough-Stewart platform: the '
-        'model the --nominal file names) from a rosbag2 bag (directory with metadata.yaml + .mcap, or a '
-        "single .mcap file) with the same core call the identify node uses. Postures come from the bag's "
-        '/hexacal/posture topic, or are re-detected from its raw sensor streams; their actuator joints '
-        "(slider_1..6 or leg_1..6) must be the nominal model's.",
+        description='Identify the kinematic parameters (54 of a Hexa Slide, 42 of a '
+        'Gough-Stewart platform: the model the --nominal file names) from a rosbag2 bag '
+        '(directory with metadata.yaml + .mcap, or a single .mcap file) with the same core '
+        "call the identify node uses. Postures come from the bag's /hexacal/posture topic, or "
+        'are re-detected from its raw sensor streams; their actuator joints (slider_1..6 or '
+        "leg_1..6) must be the nominal model's.",
         fill=_calibrate_arguments,
     )
     subparsers.add_parser(
@@ -33,8 +34,11 @@ def add_parsers(subparsers) -> None:
 
 
 def device_prior_argument(text: str):
-    """--device-prior NAME=VALUE:STD,... (SI units) -> DevicePrior, at least one; argparse names a bad one
-    (exit code 2)."""
+    """
+    Parse --device-prior NAME=VALUE:STD,... (SI units) into a DevicePrior of at least one.
+
+    argparse names a bad one (exit code 2).
+    """
     from .study_device import device_prior_argument as parsed_prior
 
     prior = parsed_prior(text)
@@ -99,7 +103,8 @@ def _calibrate_arguments(calibrate: argparse.ArgumentParser) -> None:
         '--noise-um',
         type=float,
         default=None,
-        help='known reading noise half-width (um on sliders, urad on angles): weight residuals by it',
+        help='known reading noise half-width (um on sliders, urad on angles): weight residuals '
+        'by it',
     )
     calibrate.add_argument(
         '--robust', choices=ROBUST_LOSSES, default=None, help='robust loss (huber or soft_l1)'
@@ -174,7 +179,8 @@ def run_calibrate(args) -> int:
         f'{result.reason}), SI units'
     )
     if result.reason == CONVERGED:
-        # The device defects identified with it go along: `hexacal verify` measures with the same device.
+        # The device defects identified with it go along: `hexacal verify` measures with the same
+        # device.
         save_parameters(
             args.output,
             result.parameters.vector,
@@ -235,26 +241,29 @@ def run_calibrate(args) -> int:
 
 
 def _print_summary(args, bag, result) -> None:
+    from hexacal_msgs_py.models import DEFAULT_MODEL
     import numpy as np
 
     from ..core.identification import CONVERGED
 
     model = result.parameters.model
-    model_text = '' if model == 'hexa_slide' else f' ({model})'
+    model_text = '' if model == DEFAULT_MODEL else f' ({model})'  # the default goes unnamed
     print(f'bag {args.bag}{model_text}: {len(bag.postures)} postures from the {bag.source}')
     if bag.ignored_topics:
         print(f'  ignored topics: {", ".join(bag.ignored_topics)}')
     if bag.invalid_messages:
         print(
-            f'  {bag.invalid_messages} invalid message(s) skipped (NaN/inf, missing joints, mismatched lengths)'
+            f'  {bag.invalid_messages} invalid message(s) skipped (NaN/inf, missing joints, '
+            'mismatched lengths)'
         )
     if bag.rejected:
         print(f"  {len(bag.rejected)} posture(s) set aside (beyond a sensor's range):")
         for index, reason, detail in bag.rejected[:20]:
             print(f'    posture {index}: {reason}: {detail}')
     print(
-        f'{result.reason} in {result.iterations} iterations ({result.solve_seconds * 1e3:.1f} ms), '
-        f'cost {result.cost}, rank {result.rank}, condition number {result.condition_number:.3g}'
+        f'{result.reason} in {result.iterations} iterations ({result.solve_seconds * 1e3:.1f} '
+        f'ms), cost {result.cost}, rank {result.rank}, condition number '
+        f'{result.condition_number:.3g}'
     )
     print(f'postures used {len(result.used_postures)}, rejected {len(result.rejected_postures)}')
     for index, why in sorted(result.rejected_postures.items()):
@@ -270,7 +279,7 @@ def _print_summary(args, bag, result) -> None:
     print(
         f'largest correction {np.max(np.abs(correction)):.3f} mm, largest std '
         f'{np.nanmax(result.std) * UM:.2f} um'
-        + (' (rail components x1e-6)' if model == 'hexa_slide' else '')
+        + result.parameters.architecture.std_note
     )
     for line in device_prior_lines(result, args.device_prior):
         print(line)
@@ -281,7 +290,7 @@ def _print_summary(args, bag, result) -> None:
 
 
 def device_prior_lines(result, prior) -> list[str]:
-    """Prior vs identified value of each identified device parameter, in um (dL) and urad (angles)."""
+    """Return prior vs identified value of each identified device defect (um / urad lines)."""
     import numpy as np
 
     from ..core.device import DEVICE_PARAMETER_NAMES

@@ -1,4 +1,5 @@
-"""``hexacal``: the command-line tool (study, parameter files, offline calibration from bags).
+"""
+``hexacal``: the command-line tool (study, parameter files, offline calibration from bags).
 
 Exit codes: 0 success; 1 the calibration ran but did not converge; 2 bad input
 or a refused calibration (one line on stderr naming the problem, no traceback).
@@ -20,9 +21,9 @@ def _add_params_parser(subparsers) -> None:
     subparsers.add_parser(
         'params',
         help="write a parameters YAML: a model's default machine (Table 1) or a nominal set 1-3",
-        description='Write a ROS 2 parameters YAML (SI units) for the default machine of a model (the Hexa '
-        'Slide of Table 1, or the default Gough-Stewart platform) or one of its nominal sets (the default '
-        "machine + seeded errors with Table 2's statistics).",
+        description='Write a ROS 2 parameters YAML (SI units) for the default machine of a '
+        'model (the Hexa Slide of Table 1, or the default Gough-Stewart platform) or one of '
+        "its nominal sets (the default machine + seeded errors with Table 2's statistics).",
         fill=_params_arguments,
     )
 
@@ -52,66 +53,54 @@ def _params_arguments(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(handler=_write_params)
 
 
-TABLE1_COMMENT = 'Table 1 of Rauf, Kim, Ryu (exact machine), SI units'
-
-
 def _write_params(args) -> int:
-    from hexacal_msgs_py.models import HEXA_SLIDE
     from hexacal_msgs_py.parameters_file import save_parameters
 
-    from ..core.architectures import default_parameters
+    from ..core.architectures import architecture
     from ..core.model import nominal_set
 
-    if args.which == 'table1' and args.model != HEXA_SLIDE:
+    arch = architecture(args.model)
+    # `table1` names the Hexa Slide's default machine (its default_machine_alias) only.
+    if args.which == 'table1' and arch.default_machine_alias != args.which:
         raise ValueError(
             f"table1 is the Hexa Slide of Rauf, Kim, Ryu's Table 1, not a {args.model}; "
             f'write `default` for the default {args.model} machine'
         )
     if args.which in ('table1', 'default'):
-        params = default_parameters(args.model)
+        params = arch.default_parameters()
         comment = default_machine_comment(args.model, params.vector)
     else:
         params = nominal_set(args.set, seed=args.seed, model=args.model)
-        machine = 'Table 1' if args.model == HEXA_SLIDE else f'the default {args.model} machine'
-        comment = f'nominal set {args.set} ({machine} + errors with Table 2 statistics, seed {args.seed}), SI units'
+        comment = (
+            f'nominal set {args.set} ({arch.machine_label} + errors with Table 2 statistics, '
+            f'seed {args.seed}), SI units'
+        )
     save_parameters(args.out, params.vector, header_comment=comment, model=args.model)
     print(f'wrote {args.out}')
     return EXIT_OK
 
 
 def default_machine_comment(model: str, vector) -> str:
-    """Header comment of the default-machine file of `model` (what hexacal_identify/data/ ships)."""
-    from hexacal_msgs_py.models import HEXA_SLIDE, MODELS
-    import numpy as np
-
+    """Return the header comment of the default-machine file of `model` (as data/ ships it)."""
     from ..core.architectures import architecture
 
-    if model == HEXA_SLIDE:
-        return TABLE1_COMMENT
     arch = architecture(model)
-    low, high = arch.default_workspace().slider_stroke_m
-    chains = np.asarray(vector, dtype=float).reshape(6, -1)
-    base_radius = float(np.mean(np.hypot(chains[:, 0], chains[:, 1])))
-    platform_radius = float(np.mean(np.hypot(chains[:, 3], chains[:, 4])))
-    offsets = chains[:, MODELS[model].fields.index('l0')]
-    return (
-        f'Default {MODELS[model].title} of hexacal (SI units): base joints on a {base_radius:.2f} m circle,\n'
-        f'platform joints on a {platform_radius:.2f} m circle, with mm-level as-built irregularity.\n'
-        f'Stroke limits ({low:g}, {high:g}) m of the actuator reading lambda; l0 {offsets.min():.4f}-'
-        f'{offsets.max():.4f} m, so legs {offsets.min() + low:.2f}-{offsets.max() + high:.2f} m.\n'
-        f'Written by `hexacal params default --model {model}`.'
-    )
+    return arch.default_machine_comment(arch.parameters(vector))
 
 
 def build_parser(fill: bool = True) -> argparse.ArgumentParser:
-    """The whole ``hexacal`` parser; with fill=False a command's arguments are added when it is chosen.
+    """
+    Build the whole ``hexacal`` parser.
 
-    main() parses with fill=False, so a command imports only the modules its own options and handler
-    need (see cli.common.LazySubcommands) and `hexacal --help` imports none of them.
+    With fill=False a command's arguments are added when it is chosen.
+
+    main() parses with fill=False, so a command imports only the modules its own options and
+    handler need (see cli.common.LazySubcommands) and `hexacal --help` imports none of them.
     """
     parser = argparse.ArgumentParser(
         prog='hexacal',
-        description='Kinematic calibration of six-leg parallel manipulators: Hexa Slide, Gough-Stewart (ROS 2).',
+        description='Kinematic calibration of six-leg parallel manipulators: Hexa Slide, '
+        'Gough-Stewart (ROS 2).',
     )
     subparsers = parser.add_subparsers(
         dest='command', required=True, metavar='COMMAND', action=LazySubcommands

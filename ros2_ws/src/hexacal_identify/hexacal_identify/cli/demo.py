@@ -1,4 +1,5 @@
-"""``hexacal demo``: the whole system on a simulated machine, end to end (what `make demo` runs).
+"""
+``hexacal demo``: the whole system on a simulated machine, end to end (what `make demo` runs).
 
 The way a real machine is calibrated, with the simulated machine standing in
 for it through the interfaces a real one offers: writes the true machine
@@ -28,6 +29,8 @@ import tempfile
 import time
 from typing import Callable, IO, TYPE_CHECKING
 
+from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS  # numpy-free: `hexacal --help` stays fast
+
 if (
     TYPE_CHECKING
 ):  # numpy and the process launcher are imported where the demo runs, not at `hexacal` start-up
@@ -40,13 +43,7 @@ DOMAIN_ID_RANGE = range(1, 101)
 DOMAIN_LOCK_PATTERN = 'hexacal-test-ros-domain-{}.lock'
 GRAPH_TIMEOUT_S = 30.0
 CALIBRATE_TIMEOUT_S = 300.0
-GROUPS = {'A0': slice(0, 3), 'B': slice(3, 6), 'l': slice(6, 7), 'a': slice(7, 9)}
-# Parameter groups of the before/after table, per model (chain-major fields, see models.py).
-MODEL_GROUPS = {
-    'hexa_slide': GROUPS,
-    'gough_stewart': {'A': slice(0, 3), 'B': slice(3, 6), 'l0': slice(6, 7)},
-}
-MODEL_CHOICES = tuple(MODEL_GROUPS)
+MODEL_CHOICES = tuple(MODELS)
 EXIT_OK, EXIT_FAILED = 0, 1
 
 
@@ -58,17 +55,17 @@ def add_parsers(subparsers) -> None:
     parser = subparsers.add_parser(
         'demo',
         help='simulate a machine, collect postures over ROS 2, calibrate, print the errors',
-        description='Plan postures (O1), walk them with the executor on a simulated Table 1 machine '
-        '(or, with --model gough_stewart, the default Gough-Stewart platform) driven through its '
-        'trajectory-controller interface, collect, calibrate nominal set 2, walk a verification plan '
-        'and verify; print parameter and pose errors before and after, the verification table and '
-        'the HTML report path. Takes about 2-3 minutes with the defaults; everything lands under '
-        'out/demo_<timestamp>.',
+        description='Plan postures (O1), walk them with the executor on a simulated Table 1 '
+        'machine (or, with --model gough_stewart, the default Gough-Stewart platform) driven '
+        'through its trajectory-controller interface, collect, calibrate nominal set 2, walk a '
+        'verification plan and verify; print parameter and pose errors before and after, the '
+        'verification table and the HTML report path. Takes about 2-3 minutes with the '
+        'defaults; everything lands under out/demo_<timestamp>.',
     )
     parser.add_argument(
         '--model',
         choices=MODEL_CHOICES,
-        default='hexa_slide',
+        default=DEFAULT_MODEL,
         help='machine model: hexa_slide (Table 1, default) or gough_stewart '
         '(the default 6-UPS hexapod)',
     )
@@ -137,7 +134,7 @@ _domain_lock: IO[str] | None = None
 
 
 def claim_domain_id() -> int:
-    """A ROS domain id no test session or other demo uses (held until this process exits)."""
+    """Return a ROS domain id no test session or other demo uses (held until the process exits)."""
     global _domain_lock
     if os.environ.get('HEXACAL_DEMO_DOMAIN_ID'):
         return int(os.environ['HEXACAL_DEMO_DOMAIN_ID'])
@@ -172,13 +169,15 @@ class DemoPaths:
 
 
 def _model(args) -> str:
-    return getattr(args, 'model', None) or 'hexa_slide'
+    return getattr(args, 'model', None) or DEFAULT_MODEL
 
 
 def _paths(args) -> DemoPaths:
     stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
     work = (args.out or Path('out') / f'demo_{stamp}').resolve()
-    truth = 'true_table1.yaml' if _model(args) == 'hexa_slide' else f'true_{_model(args)}.yaml'
+    from ..core.architectures import architecture
+
+    truth = architecture(_model(args)).truth_file_name
     bag = (args.bag_dir / f'demo_{stamp}').resolve() if args.bag_dir is not None else work / 'bag'
     return DemoPaths(
         work,
@@ -224,8 +223,8 @@ def run(args) -> int:
         signal.signal(signal.SIGTERM, previous)
 
 
-# Executor and commanded driver: moves at up to 0.5 m/s (executor) on a machine that follows at 1 m/s;
-# the collector's detector window 0.2 s + capture 0.3 s (the executor waits for each posture).
+# Executor and commanded driver: moves at up to 0.5 m/s (executor) on a machine that follows at 1
+# m/s; the collector's detector window 0.2 s + capture 0.3 s (the executor waits for each posture).
 EXECUTOR_SPEED_M_S = 0.5
 DRIVER_SPEED_M_S = 1.0
 COLLECTOR_WINDOWS = {'window_s': 0.2, 'capture_s': 0.3}
@@ -233,7 +232,7 @@ PLAN_CANDIDATES = 1000
 
 
 def _plans(args, nominal, paths: DemoPaths) -> None:
-    """The calibration plan (O1) and the verification plan (fresh postures, another candidate draw)."""
+    """Write the calibration plan (O1) and the verification plan (fresh postures, another draw)."""
     from ..core.measurements import NoiseModel
     from ..core.planning import plan_postures
 
@@ -274,15 +273,12 @@ def _run(args) -> int:
     from ..nodes.bringup import NodeGroup, NodeLaunch
 
     model = _model(args)
+    arch = architecture(model)
     true_params, nominal = (
-        architecture(model).default_parameters(),
+        arch.default_parameters(),
         nominal_set(2, seed=args.seed, model=model),
     )
-    if model == 'hexa_slide':
-        truth_text, nominal_text = 'Table 1', 'Table 1 + Table 2 errors'
-    else:
-        truth_text = f'the default {model} machine'
-        nominal_text = f'the default {model} machine + errors with Table 2-like statistics'
+    truth_text, nominal_text = arch.machine_label, arch.nominal_label
     save_parameters(
         paths.true_params,
         true_params.vector,
@@ -359,11 +355,12 @@ def _run(args) -> int:
             env,
             paths.logs / 'driver.log',
         )
-        machine = '' if model == 'hexa_slide' else f' of a {model}'
+        machine = '' if model == DEFAULT_MODEL else f' of a {model}'  # the default goes unnamed
         print(
-            f'hexacal demo: the executor walks an O1 plan of {args.postures} postures ({args.plan}) on '
-            f'the simulated machine{machine} through its trajectory-controller interface, '
-            f'+-{args.noise_um:g} um / +-{args.noise_um:g} urad noise, {args.rate_hz:g} Hz',
+            f'hexacal demo: the executor walks an O1 plan of {args.postures} postures '
+            f'({args.plan}) on the simulated machine{machine} through its trajectory-controller '
+            f'interface, +-{args.noise_um:g} um / +-{args.noise_um:g} urad noise, '
+            f'{args.rate_hz:g} Hz',
             flush=True,
         )
         walked = _walk(
@@ -393,8 +390,8 @@ def _run(args) -> int:
         print(f'hexacal demo: calibrated in {calibrate_s:.1f} s: {message}', flush=True)
         if args.verify_postures:
             print(
-                f'hexacal demo: the executor walks a verification plan of {args.verify_postures} fresh '
-                'postures',
+                'hexacal demo: the executor walks a verification plan of '
+                f'{args.verify_postures} fresh postures',
                 flush=True,
             )
             walked = _walk(
@@ -459,7 +456,7 @@ def _walk(
     env: dict,
     log: Path,
 ) -> int:
-    """Start an executor on ``plan``, show its progress, wait until it is done; the postures measured."""
+    """Start an executor on ``plan``, show its progress, wait until done; return the postures."""
     from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC
     from tqdm import tqdm
 
@@ -705,15 +702,20 @@ class _RosSession:
 
 
 def parameter_error_rows(
-    true_vector: np.ndarray, vector: np.ndarray, model: str = 'hexa_slide'
+    true_vector: np.ndarray, vector: np.ndarray, model: str = DEFAULT_MODEL
 ) -> dict[str, tuple[float, float]]:
-    """Per group (Hexa Slide: A0, B, l, a; Gough-Stewart: A, B, l0): (max, mean) |error| in mm
-    (a: unit-vector components x 1000)."""
+    """
+    Return per file key of the model (Hexa Slide: A0, B, l, a) the (max, mean) |error| in mm.
+
+    The Hexa Slide's a: unit-vector components x 1000.
+    """
     import numpy as np
 
-    groups = MODEL_GROUPS[model]
-    fields = max(columns.stop for columns in groups.values())
-    errors = np.abs(np.asarray(vector) - np.asarray(true_vector)).reshape(6, fields) * 1e3
+    layout = MODELS[model]
+    groups = layout.key_slices
+    errors = np.abs(np.asarray(vector) - np.asarray(true_vector)).reshape(
+        layout.n_chains, layout.fields_per_chain
+    ) * 1e3
     return {
         name: (float(errors[:, columns].max()), float(errors[:, columns].mean()))
         for name, columns in groups.items()
@@ -721,7 +723,7 @@ def parameter_error_rows(
 
 
 def verification_table(values: dict[str, str]) -> list[str]:
-    """The verification figures (identify's status values) as a table, um / urad."""
+    """Return the verification figures (identify's status values) as a table, um / urad."""
 
     def number(key: str) -> float:
         try:
@@ -743,8 +745,8 @@ def verification_table(values: dict[str, str]) -> list[str]:
             f'{number(name + ".rotary_rms_rad") * 1e6:>12.1f}'
         )
     lines.append(
-        f'improvement {number("improvement"):.0f}x, threshold {number("threshold_m") * 1e6:.1f} um: '
-        f'{values.get("verdict", "?")}'
+        f'improvement {number("improvement"):.0f}x, threshold {number("threshold_m") * 1e6:.1f} '
+        f'um: {values.get("verdict", "?")}'
     )
     return lines
 
@@ -762,18 +764,14 @@ def report(
     from ..core.validation import pose_errors, validation_poses
 
     model = true_params.model
-    groups = MODEL_GROUPS[model]
+    arch, layout = true_params.architecture, true_params.layout
+    groups = layout.key_slices
     before = parameter_error_rows(true_params.vector, nominal.vector, model)
     after = parameter_error_rows(true_params.vector, calibrated.vector, model)
-    if model == 'hexa_slide':
-        title = (
-            'Parameter errors vs the simulated truth (Table 1), |error| in mm '
-            '(a: unit-vector components x 1000, as in Table 1)'
-        )
-    else:
-        title = (
-            f'Parameter errors vs the simulated truth (the default {model} machine), |error| in mm'
-        )
+    title = (
+        f'Parameter errors vs the simulated truth ({arch.machine_label}), |error| in mm'
+        f'{arch.error_table_note}'
+    )
     lines = [
         '',
         title,
@@ -781,7 +779,7 @@ def report(
         f'{"after max":>12}{"after mean":>12}',
     ]
     for name, columns in groups.items():
-        count = 6 * (columns.stop - columns.start)
+        count = layout.n_chains * (columns.stop - columns.start)
         lines.append(
             f'{name:<6}{count:>6}{before[name][0]:>13.3f}{before[name][1]:>13.3f}'
             f'{after[name][0]:>12.4f}{after[name][1]:>12.4f}'
@@ -836,7 +834,7 @@ def report(
 
 
 def _report_page(paths: DemoPaths, verification: dict[str, str] | None) -> str:
-    """The HTML report identify wrote (the verification's page when it has one)."""
+    """Return the HTML report identify wrote (the verification's page when it has one)."""
     if verification and verification.get('report'):
         return verification['report']
     pages = sorted(paths.report.rglob('index.html')) if paths.report.exists() else []

@@ -1,4 +1,5 @@
-"""Identifiability of the parameters from an identification Jacobian.
+"""
+Identifiability of the parameters from an identification Jacobian.
 
 The Jacobian's columns are scaled to unit norm first (parameters have different
 units and sensitivities; an unscaled SVD would mostly measure that).  The
@@ -17,8 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .architectures import KinematicParameters
-from .device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, fixed_point
-from .model import N_PARAMETERS, parameter_names
+from .device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, fixed_point, N_DEVICE_PARAMETERS
 
 DEFAULT_RANK_TOLERANCE = 1e-6
 
@@ -50,7 +50,8 @@ class IdentifiabilityReport:
 
     @property
     def unidentifiable_parameters(self) -> list[str]:
-        """The unknowns a user would fix to make the rest identifiable.
+        """
+        Return the unknowns a user would fix to make the rest identifiable.
 
         A device defect that a frame motion imitates is named first (fixing it is
         choosing the frame, which the device defines anyway); the rest are the last
@@ -67,8 +68,8 @@ class IdentifiabilityReport:
                 f'(rank {self.rank}, condition number {self.condition_number:.3g})'
             )
         lines = [
-            f'rank {self.rank} of {self.n_parameters}: {self.n_parameters - self.rank} combination(s) '
-            'of parameters cannot be identified from these measurements'
+            f'rank {self.rank} of {self.n_parameters}: {self.n_parameters - self.rank} '
+            'combination(s) of parameters cannot be identified from these measurements'
         ]
         lines += [f'  - {d.description}' for d in self.null_directions]
         lines.append(
@@ -97,7 +98,8 @@ _SQRT_EPS = float(np.sqrt(np.finfo(float).eps))  # LAPACK's tol3z
 
 
 def _column_norms(block: np.ndarray) -> np.ndarray:
-    """Euclidean norms of the columns, rounded as OpenBLAS's x86-64 dnrm2 kernel rounds them.
+    """
+    Euclidean norms of the columns, rounded as OpenBLAS's x86-64 dnrm2 kernel rounds them.
 
     Scaled Jacobian columns all have norm 1 to within rounding, so the first pivot
     (and with it the rest) depends on the last bit of these norms.  The kernel
@@ -124,7 +126,10 @@ def _column_norms(block: np.ndarray) -> np.ndarray:
 
 
 def pivoted_qr(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Householder QR with column pivoting: (R, pivots) as ``scipy.linalg.qr(matrix, mode="r", pivoting=True)``.
+    """
+    Return Householder QR with column pivoting: (R, pivots).
+
+    As ``scipy.linalg.qr(matrix, mode="r", pivoting=True)``.
 
     The steps of LAPACK's unblocked dgeqp2/dlaqp2, which dgeqp3 (what scipy calls)
     runs for fewer than 128 columns: at each step the remaining column of
@@ -148,18 +153,18 @@ def pivoted_qr(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             norms[p], exact[p] = norms[i], exact[i]
         # dlarfg: the reflector H = I - tau v v^T with H^T a[i:, i] = (beta, 0, ...), v[0] = 1
         alpha = a[i, i]
-        x_norm = float(_column_norms(a[i + 1 :, i : i + 1])[0]) if i < m - 1 else 0.0
+        x_norm = float(_column_norms(a[i + 1:, i:i + 1])[0]) if i < m - 1 else 0.0
         if x_norm == 0.0:
             tau = 0.0
         else:
             big, small = max(abs(alpha), x_norm), min(abs(alpha), x_norm)
             beta = -np.copysign(big * np.sqrt(1.0 + (small / big) ** 2), alpha)  # dlapy2
             tau = (beta - alpha) / beta
-            a[i + 1 :, i] *= 1.0 / (alpha - beta)
+            a[i + 1:, i] *= 1.0 / (alpha - beta)
             a[i, i] = beta
         if i < n - 1 and tau != 0.0:  # dlarf: apply H^T to the columns right of i
-            v = np.concatenate(([1.0], a[i + 1 :, i]))
-            rest = a[i:, i + 1 :]
+            v = np.concatenate(([1.0], a[i + 1:, i]))
+            rest = a[i:, i + 1:]
             rest -= np.outer(v, tau * (v @ rest))
         # Downdate the remaining norms by the row just finished.
         j = np.arange(i + 1, n)
@@ -171,7 +176,7 @@ def pivoted_qr(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             norms[keep] *= np.sqrt(ratio[~stale])
             recompute = j[stale]
             if len(recompute):
-                fresh = _column_norms(a[i + 1 :, recompute]) if i < m - 1 else 0.0
+                fresh = _column_norms(a[i + 1:, recompute]) if i < m - 1 else 0.0
                 norms[recompute] = fresh
                 exact[recompute] = fresh
     k = min(m, n)
@@ -188,7 +193,8 @@ def analyze(
     mount: str = DEFAULT_MOUNT,
     gram_root: np.ndarray | None = None,
 ) -> IdentifiabilityReport:
-    """Rank, conditioning and unidentifiable combinations of a (rows x free params) Jacobian.
+    """
+    Rank, conditioning and unidentifiable combinations of a (rows x free params) Jacobian.
 
     ``gram_root``, if given, is an n x n F with F^T F = J^T J (the solver has it
     from its normal equations).  Everything here depends on J only through
@@ -197,9 +203,13 @@ def analyze(
     decomposed.  Where several columns are equally good pivots (the A0z of
     different chains for a base rotation), rounding decides which one is
     suggested for fixing, with or without F.
+
+    Without ``params`` (no architecture: no named frame motions) ``names`` is required.
     """
-    model = params.model if params is not None else None
-    names = names if names is not None else parameter_names(model)[: jacobian.shape[1]]
+    if names is None:
+        if params is None:
+            raise ValueError('analyze needs the parameters (params) or the column names (names)')
+        names = list(params.layout.parameter_names)[: jacobian.shape[1]]
     factor = jacobian if gram_root is None else gram_root
     scales = column_scales(factor)
     scaled = factor / scales  # zero columns stay zero (their scale is 1)
@@ -213,7 +223,12 @@ def analyze(
     gauges = (
         _gauge_directions(params, free, scales, link_length, mount) if params is not None else []
     )
-    n_parameters = params.layout.n_parameters if params is not None else N_PARAMETERS
+    # The unknowns are the kinematic parameters followed by the device defects.
+    n_parameters = (
+        params.layout.n_parameters
+        if params is not None
+        else (len(free) if free is not None else len(names)) - N_DEVICE_PARAMETERS
+    )
     directions = _describe(
         null_space, names, gauges, _device_directions(free, scales, n_parameters)
     )
@@ -235,7 +250,8 @@ def _gauge_directions(
     link_length: float,
     mount: str = DEFAULT_MOUNT,
 ) -> list[tuple[str, np.ndarray]]:
-    """Parameter changes that move a frame (or one actuator's zero), in scaled free coordinates.
+    """
+    Parameter changes that move a frame (or one actuator's zero), in scaled free coordinates.
 
     The architecture says what each motion does to its parameters (``frame_motion``,
     ``actuator_zero_shift``); the names are the same for every architecture.
@@ -250,14 +266,15 @@ def _gauge_directions(
         return vector * scales
 
     gauges = []
-    # The fixed-position procedure pins the platform at [0, 0, -L] ([0, 0, +L] standing): a rotation of the base frame about
-    # that point leaves it pinned, so name rotations about it as well as about O.
+    # The fixed-position procedure pins the platform at [0, 0, -L] ([0, 0, +L] standing): a
+    # rotation of the base frame about that point leaves it pinned, so name rotations about it as
+    # well as about O.
     fixed = fixed_point(link_length, mount)
     for k, axis in enumerate(np.eye(3)):
         gauges.append(
             (
-                f'a rotation of the base frame about the {axis_names[k]} axis through the fixed-position point '
-                f'[0, 0, {fixed[2]:g}] m',
+                f'a rotation of the base frame about the {axis_names[k]} axis through the '
+                f'fixed-position point [0, 0, {fixed[2]:g}] m',
                 direction(
                     arch.frame_motion(
                         params, base_rotation=axis, base_translation=-np.cross(axis, fixed)
@@ -297,9 +314,9 @@ def _gauge_directions(
 
 
 def _device_directions(
-    free: np.ndarray | None, scales: np.ndarray, n_parameters: int = N_PARAMETERS
+    free: np.ndarray | None, scales: np.ndarray, n_parameters: int
 ) -> list[tuple[str, np.ndarray]]:
-    """Unit changes of each identified device defect, in scaled free coordinates."""
+    """Return unit changes of each identified device defect, in scaled free coordinates."""
     from .device import DEVICE_PARAMETER_NAMES
 
     if free is None or len(free) <= n_parameters:
@@ -320,7 +337,7 @@ def _describe(
     gauges: list[tuple[str, np.ndarray]],
     device: list[tuple[str, np.ndarray]] = (),
 ) -> list[NullDirection]:
-    """One entry per null dimension: a named explanation where one fits, else the parameters it mixes."""
+    """Describe each null dimension: a named explanation if one fits, else the mixed parameters."""
     if null_space.shape[1] == 0:
         return []
     explained = _explanations(null_space, gauges, list(device))
@@ -328,7 +345,8 @@ def _describe(
         NullDirection(text, _top_coefficients(vector, names), fix)
         for text, vector, fix in explained
     ]
-    # Whatever the named motions do not cover: list the parameters of the remaining null directions.
+    # Whatever the named motions do not cover: list the parameters of the remaining null
+    # directions.
     if explained:
         covered, _ = np.linalg.qr(np.column_stack([vector for _, vector, _ in explained]))
         rest = null_space - covered @ (covered.T @ null_space)
@@ -362,7 +380,8 @@ def _explanations(
     gauges: list[tuple[str, np.ndarray]],
     device: list[tuple[str, np.ndarray]],
 ) -> list[tuple[str, np.ndarray, str | None]]:
-    """Named motions that lie in the null space, most specific first, none repeating another.
+    """
+    Named motions that lie in the null space, most specific first, none repeating another.
 
     Candidates: a frame motion alone; a device defect alone (no effect at all);
     a device defect together with a frame motion (the motion imitates the
@@ -397,4 +416,4 @@ def _explanations(
     return found
 
 
-__all__ = ['IdentifiabilityReport', 'NullDirection', 'analyze', 'column_scales', 'N_PARAMETERS']
+__all__ = ['IdentifiabilityReport', 'NullDirection', 'analyze', 'column_scales']

@@ -1,18 +1,21 @@
-"""Parameter identification by Levenberg-Marquardt on forward-kinematics residuals (eqs. 5-13).
+"""
+Parameter identification by Levenberg-Marquardt on forward-kinematics residuals (eqs. 5-13).
 
 Each iteration solves forward kinematics for every posture (warm-started from
 the previous solution), forms the residuals of the chosen cost function and the
 identification Jacobian (eq. 6) analytically by implicit differentiation of
 IK(X, u) = lambda, and takes a damped Gauss-Newton step ``du`` (eq. 5) in
 column-scaled coordinates.  The tall Jacobian (4 rows per posture) is reduced
-once per iteration to its normal equations (J^T J, J^T r: n x n, n <= 59);
+once per iteration to its normal equations (J^T J, J^T r: n x n, n = the
+architecture's parameters + 5);
 their eigendecomposition serves every damping value tried, the convergence
 test, the covariance and the identifiability analysis, so the per-posture work
 is one pass over J.
 
 Beyond the paper:
 
-* The unknowns are the 54 kinematic parameters followed by the 5 device defects
+* The unknowns are the architecture's kinematic parameters (its layout's
+  ``n_parameters``, 54 for a Hexa Slide) followed by the 5 device defects
   (``device.DEVICE_PARAMETER_NAMES``); masks choose which are identified.
 * With a known noise model the residuals are whitened per posture by the
   covariance the reading noise propagates to them (through eq. 4 and FK), so the
@@ -44,7 +47,7 @@ from .errors import InvalidMeasurementError, RankDeficientError, TooFewPosturesE
 from .identifiability import analyze, column_scales, DEFAULT_RANK_TOLERANCE, IdentifiabilityReport
 from .kinematics import forward_kinematics, pose_sensitivities
 from .measurements import MeasurementLimits, Measurements, NoiseModel
-from .model import N_PARAMETERS, parameter_names
+from .model import parameter_names
 from .residuals import ChannelSigma, CostFunction, COSTS, N_NOISE_SOURCES, ResidualBlock
 
 CONVERGED = 'converged'
@@ -56,7 +59,6 @@ FLOOR_STEP_M = (
 ROBUST_LOSSES = ('huber', 'soft_l1')
 MAX_ROUNDS = 20  # outer rounds: re-admitting postures, screening outliers, refitting weights
 IRLS_TOLERANCE = 1e-9  # robust reweighting stops when no unknown moves more than this (m)
-N_UNKNOWNS = N_PARAMETERS + N_DEVICE_PARAMETERS  # of a Hexa Slide; any model: n_parameters + 5
 
 
 @functools.lru_cache(maxsize=1)
@@ -65,8 +67,8 @@ def _blas_controller() -> ThreadpoolController:
     return ThreadpoolController()
 
 
-def unknown_names(model: str | None = None) -> list[str]:
-    """Names of the model's kinematic parameters (default: the Hexa Slide's 54) followed by the 5 device defects."""
+def unknown_names(model: str) -> list[str]:
+    """Return the names of the model's kinematic parameters followed by the 5 device defects."""
     return parameter_names(model) + [f'device.{name}' for name in DEVICE_PARAMETER_NAMES]
 
 
@@ -109,8 +111,8 @@ class SolverOptions:
     branch_tolerance_m: float = 0.2
     branch_tolerance_rad: float = 0.5
 
-    def free_mask(self, n_parameters: int = N_PARAMETERS) -> np.ndarray:
-        """Mask over the unknowns: n_parameters kinematic (54 for a Hexa Slide) + 5 device."""
+    def free_mask(self, n_parameters: int) -> np.ndarray:
+        """Return the mask over the unknowns: n_parameters kinematic (the layout's) + 5 device."""
         kinematic = (
             np.ones(n_parameters, bool)
             if self.free_parameters is None
@@ -121,28 +123,30 @@ class SolverOptions:
         unknown = sorted(set(self.free_device) - set(DEVICE_PARAMETER_NAMES))
         if unknown:
             raise ValueError(
-                f'unknown device parameter(s) {unknown}; choose from {", ".join(DEVICE_PARAMETER_NAMES)}'
+                f'unknown device parameter(s) {unknown}; choose from '
+                f'{", ".join(DEVICE_PARAMETER_NAMES)}'
             )
         identified = set(self.free_device) | set(self.device_prior.names)
         device = np.array([name in identified for name in DEVICE_PARAMETER_NAMES])
         return np.concatenate([kinematic, device])
 
-    def validate(self, n_parameters: int = N_PARAMETERS) -> None:
+    def validate(self, n_parameters: int) -> None:
         if self.cost not in COSTS:
             raise ValueError(
                 f'unknown cost function {self.cost!r}; choose one of {", ".join(COSTS)}'
             )
         if self.robust_loss not in (None, *ROBUST_LOSSES):
             raise ValueError(
-                f'unknown robust loss {self.robust_loss!r}; choose one of {", ".join(ROBUST_LOSSES)}'
+                f'unknown robust loss {self.robust_loss!r}; choose one of '
+                f'{", ".join(ROBUST_LOSSES)}'
             )
         if self.noise is not None and not self.noise.known:
             raise ValueError('a noise model for weighting needs positive slider and angle noise')
         if self.device_prior and self.noise is None:
             raise ValueError(
-                f'a device prior ({self.device_prior.describe()}) is weighed against the data by the '
-                'reading noise: give the noise model too (noise_slider_m and noise_angle_rad, '
-                '--noise-um / --weighted)'
+                f'a device prior ({self.device_prior.describe()}) is weighed against the data by '
+                'the reading noise: give the noise model too (noise_slider_m and '
+                'noise_angle_rad, --noise-um / --weighted)'
             )
         self.free_mask(n_parameters)
 
@@ -151,7 +155,7 @@ class SolverOptions:
 class IdentificationResult:
     parameters: KinematicParameters
     initial_parameters: KinematicParameters
-    std: np.ndarray  # (n,), n = 54 for a Hexa Slide; NaN for fixed or unidentifiable parameters
+    std: np.ndarray  # (n,), n = the layout's n_parameters; NaN for fixed or unidentifiable ones
     covariance: np.ndarray  # (n + 5, n + 5): kinematic then 5 device; zero rows for fixed ones
     rank: int
     condition_number: float
@@ -185,7 +189,7 @@ class IdentificationResult:
             return self.covariance / np.outer(std, std)
 
     def to_json(self) -> dict:
-        """The JSON object printed by ``hexacal study --json`` and ``hexacal calibrate --json``."""
+        """Return the JSON object that ``hexacal study/calibrate --json`` print."""
         from hexacal_msgs_py.parameters_file import parameters_to_chain_dict
 
         model = self.parameters.model
@@ -221,7 +225,7 @@ class IdentificationResult:
 
 
 def _split(vector: np.ndarray, arch: Architecture) -> tuple[KinematicParameters, DeviceDefects]:
-    """The unknown vector's kinematic parameters (the architecture's) and the 5 device defects after them."""
+    """Split the unknown vector into the architecture's parameters and the 5 device defects."""
     n = arch.layout.n_parameters
     return arch.parameters(vector[:n]), DeviceDefects.from_vector(vector[n:])
 
@@ -273,7 +277,7 @@ class _Problem:
     def jacobian(self, vector: np.ndarray, poses: np.ndarray) -> ResidualBlock:
         params, defects = _split(vector, self.arch)
         # The 5 device columns are only formed when a device defect is identified.
-        with_device = bool(self.free[self.n_parameters :].any())
+        with_device = bool(self.free[self.n_parameters:].any())
         block = self.cost.residuals(
             poses,
             pose_sensitivities(params, poses),
@@ -287,7 +291,7 @@ class _Problem:
         return block
 
     def with_prior(self, block: ResidualBlock, vector: np.ndarray) -> ResidualBlock:
-        """``block`` (weighted rows) with one row (value - prior) / std per device prior appended."""
+        """Return ``block`` (weighted) plus one row (value - prior) / std per device prior."""
         prior = self.options.device_prior
         if not prior:
             return block
@@ -312,7 +316,7 @@ class _Problem:
     def row_transform(
         self, vector: np.ndarray, poses: np.ndarray, robust: bool = True
     ) -> '_RowTransform':
-        """Row weights at this solution: whitening by the noise model and/or robust weights (none if neither)."""
+        """Return row weights here: noise whitening and/or robust weights (None if neither)."""
         loss = self.options.robust_loss if robust else None
         if self.options.noise is None and loss is None:
             return _RowTransform()
@@ -335,8 +339,8 @@ class _Problem:
         if rows < n_free:
             raise TooFewPosturesError(
                 f'{len(self.used)} usable posture(s) give {rows} residuals for {n_free} unknowns '
-                f'with the {self.options.cost} cost function ({len(set_aside)} posture(s) set aside); '
-                'measure more postures'
+                f'with the {self.options.cost} cost function ({len(set_aside)} posture(s) set '
+                'aside); measure more postures'
             )
 
 
@@ -369,7 +373,8 @@ class _RowTransform:
 
 
 class _Whitener:
-    """Per-posture inverse Cholesky factors of the covariance that reading noise gives the rows.
+    """
+    Per-posture inverse Cholesky factors of the covariance that reading noise gives the rows.
 
     Rows of one posture (phi and position, or phi and link length) share its
     slider noise through FK, so they are whitened together; rows of the relative
@@ -407,7 +412,7 @@ class _Whitener:
         single, postures = single[order], postures[order]
         _, starts, counts = np.unique(postures, return_index=True, return_counts=True)
         for size in np.unique(counts):
-            rows = np.stack([single[s : s + size] for s, c in zip(starts, counts) if c == size])
+            rows = np.stack([single[s:s + size] for s, c in zip(starts, counts) if c == size])
             g = block.noise_jacobian[rows]  # (P, k, 9)
             covariance = np.einsum('pik,k,pjk->pij', g, variances, g)
             covariance += np.eye(size) * 1e-30  # rows with no noise at all would be singular
@@ -427,7 +432,7 @@ class _Whitener:
 
 
 def _robust_weights(values: np.ndarray, loss: str) -> np.ndarray:
-    """sqrt of IRLS weights; the scale is a MAD estimate of the inlier residual spread."""
+    """Return square roots of IRLS weights; the scale is a MAD estimate of the inlier spread."""
     scale = 1.4826 * np.median(np.abs(values)) + 1e-300
     if loss == 'huber':
         z = np.abs(values) / (1.345 * scale)
@@ -441,16 +446,16 @@ def _robust_weights(values: np.ndarray, loss: str) -> np.ndarray:
 def _identify_once(
     nominal: KinematicParameters, measurements: Measurements, options: SolverOptions
 ) -> IdentificationResult:
-    """Identify the parameters (and chosen device defects) from measured postures, starting from ``nominal``.
+    """
+    Identify the parameters (and chosen device defects) from measured postures.
 
-    Postures whose forward kinematics fails (with the nominal parameters, or at
-    a trial step near a singularity of the current model) are set aside; once
-    the parameters have converged they are tried again and, where FK now
-    succeeds, the solve continues with them.  Postures whose residual stands out
-    (``outlier_threshold``) are excluded and reported.  Raises
-    InvalidMeasurementError, TooFewPosturesError or RankDeficientError (each with
-    a ``reason``); otherwise returns a result whose ``reason`` is 'converged',
-    'iteration-limit' or 'diverged'.
+    The solve starts from ``nominal``.  Postures whose forward kinematics fails (with the nominal
+    parameters, or at a trial step near a singularity of the current model) are set aside; once the
+    parameters have converged they are tried again and, where FK now succeeds, the solve continues
+    with them.  Postures whose residual stands out (``outlier_threshold``) are excluded and
+    reported.  Raises InvalidMeasurementError, TooFewPosturesError or RankDeficientError (each with
+    a ``reason``); otherwise returns a result whose ``reason`` is 'converged', 'iteration-limit' or
+    'diverged'.
     """
     started = time.perf_counter()
     n_parameters = nominal.layout.n_parameters
@@ -493,8 +498,8 @@ def _identify_once(
                 problem, poses = problem.without(np.flatnonzero(outlying)), poses[~outlying]
                 problem.check_enough({**unused, **set_aside})
                 changed = True
-            # Noise weights depend on the poses: refit them once at the solution. Robust weights depend on
-            # the residuals: iterate (IRLS) until the solution stops moving.
+            # Noise weights depend on the poses: refit them once at the solution. Robust weights
+            # depend on the residuals: iterate (IRLS) until the solution stops moving.
             moved = float(np.max(np.abs(vector - previous)))
             reweight = (round_number == 0 and options.noise is not None) or (
                 options.robust_loss is not None and moved > IRLS_TOLERANCE
@@ -508,7 +513,8 @@ def _identify_once(
         result = solver.result(nominal, {**unused, **set_aside}, started)
     if not result.identifiability.identifiable and not options.allow_rank_deficient:
         # Identifiable at the start but not at the solution: the apparent information came from the
-        # nominal model's errors, not from the data. Refuse rather than return a number that means nothing.
+        # nominal model's errors, not from the data. Refuse rather than return a number that means
+        # nothing.
         raise RankDeficientError(
             'at the identified parameters the measurements do not determine every parameter: '
             + result.identifiability.verdict(),
@@ -522,14 +528,15 @@ def identify(
     measurements: Measurements,
     options: SolverOptions = SolverOptions(),
 ) -> IdentificationResult:
-    """Identify the parameters (and chosen device defects) from measured postures, starting from ``nominal``.
+    """
+    Identify the parameters (and chosen device defects) from measured postures.
 
-    See ``_identify_once`` for the procedure.  With ``allow_rank_deficient`` a
-    problem found rank-deficient is solved again from the start with the unknowns
-    the analysis names held at their start values (fixing the gauge: a
-    minimum-norm step would still drift along the unseen directions); the result
-    reports them in ``held_for_identifiability`` and its identifiability analysis
-    covers everything that was asked for.
+    The solve starts from ``nominal``.  See ``_identify_once`` for the procedure.  With
+    ``allow_rank_deficient`` a problem found rank-deficient is solved again from the start with the
+    unknowns the analysis names held at their start values (fixing the gauge: a minimum-norm step
+    would still drift along the unseen directions); the result reports them in
+    ``held_for_identifiability`` and its identifiability analysis covers everything that was asked
+    for.
     """
     result = _identify_once(nominal, measurements, options)
     if result.identifiability.identifiable or not options.allow_rank_deficient:
@@ -558,7 +565,7 @@ def _run(
 
 
 def _admit(vector: np.ndarray, problem: '_Problem', context: str):
-    """FK from the expected postures; keep those that converge, set the others aside with the reason."""
+    """Solve FK from the expected postures; keep those that converge, set the others aside."""
     params, defects = _split(vector, problem.arch)
     fk = problem.solve_fk(params, problem.expected_poses(defects), fit_tilt_first=True)
     failed = sorted(fk.failures)
@@ -601,7 +608,7 @@ def _readmit(
 def _outliers(
     problem: '_Problem', vector: np.ndarray, poses: np.ndarray, options: SolverOptions
 ) -> dict[int, str]:
-    """Postures whose residual stands far above the others': a glitched reading or a wrong FK branch."""
+    """Return postures whose residual stands far above the others' (glitch or wrong FK branch)."""
     if options.outlier_threshold is None or len(poses) < 3:
         return {}
     block = problem.residuals(vector, poses)
@@ -659,7 +666,7 @@ class _LevenbergMarquardt:
         return [n for n, f in zip(unknown_names(self.problem.arch.name), self.free) if f]
 
     def _set_block(self, raw_block: ResidualBlock, first: bool = False) -> None:
-        """Take the (unweighted) residuals and Jacobian at the current vector; reduce them to normal equations."""
+        """Take residuals and Jacobian (unweighted) here; reduce them to normal equations."""
         self.raw_block = raw_block
         self.block = self.problem.with_prior(self.transform.apply(raw_block), self.vector)
         if first:  # columns are scaled by their norms at the start of the run, fixed for the run
@@ -667,7 +674,8 @@ class _LevenbergMarquardt:
         self.normal = _NormalEquations.of(self.block, self.scales, self.options.rank_tolerance)
 
     def analyze(self) -> IdentifiabilityReport:
-        # The normal equations already hold J^T J: its n x n square root spares analyze() a tall SVD.
+        # The normal equations already hold J^T J: its n x n square root spares analyze() a tall
+        # SVD.
         return analyze(
             self.block.jacobian,
             self.free_names(),
@@ -686,12 +694,12 @@ class _LevenbergMarquardt:
         while self.iterations < self.options.max_iterations:
             self.iterations += 1
             # Rank deficiency is judged once, at the solution (identify): at the nominal parameters
-            # residual-sized terms can make a gauge direction look weakly determined. Steps here simply
-            # stay out of directions the data do not determine.
+            # residual-sized terms can make a gauge direction look weakly determined. Steps here
+            # simply stay out of directions the data do not determine.
             normal = self.normal
             gauss_newton = self._step(normal, 0.0)
-            # The full Gauss-Newton step would lower the cost by |U_k^T r|^2: when that is negligible
-            # (or the step itself is), the minimum is reached to working precision.
+            # The full Gauss-Newton step would lower the cost by |U_k^T r|^2: when that is
+            # negligible (or the step itself is), the minimum is reached to working precision.
             predicted_decrease = normal.predicted_decrease()
             if (
                 np.max(np.abs(gauss_newton)) < self.options.step_tolerance
@@ -699,8 +707,8 @@ class _LevenbergMarquardt:
             ):
                 self.reason = CONVERGED
                 return
-            # FK stops at fk_tolerance, so the cost is only known to ~1e-9 of itself: below that, a step
-            # that fails to lower it says nothing about the model.
+            # FK stops at fk_tolerance, so the cost is only known to ~1e-9 of itself: below that, a
+            # step that fails to lower it says nothing about the model.
             at_floor = (
                 np.max(np.abs(gauss_newton)) < FLOOR_STEP_M or predicted_decrease < 1e-6 * cost
             )
@@ -711,15 +719,17 @@ class _LevenbergMarquardt:
                     break
                 trial = None
                 if at_floor:
-                    break  # a sub-nanometre step that does not lower the cost: rounding error, done
+                    # a sub-nanometre step that does not lower the cost: rounding error, done
+                    break
                 damping *= 10.0
             if isinstance(trial, dict):
                 self._drop(trial)
                 cost = float(self.block.values @ self.block.values)
                 continue
             if trial is None:
-                # No step lowers the cost: converged at the floor of rounding error if the Gauss-Newton
-                # step is negligible, otherwise the model cannot follow the data from here.
+                # No step lowers the cost: converged at the floor of rounding error if the
+                # Gauss-Newton step is negligible, otherwise the model cannot follow the data from
+                # here.
                 self.reason = CONVERGED if at_floor else DIVERGED
                 return
             self.vector, self.poses, trial_cost = trial
@@ -731,13 +741,13 @@ class _LevenbergMarquardt:
                 return
 
     def _step(self, normal: '_NormalEquations', damping: float) -> np.ndarray:
-        """LM step over all unknowns for one damping value (zero along unidentifiable directions)."""
+        """Return the LM step for one damping value (zero along unidentifiable directions)."""
         step = np.zeros(len(self.free))
         step[self.free] = normal.scaled_step(damping) / self.scales
         return step
 
     def _try(self, step: np.ndarray):
-        """(vector, poses, cost) of a trial step; None if it fails; {index: why} for a few FK failures."""
+        """Return (vector, poses, cost) of a trial step or None, and {index: why} of failed FK."""
         vector = self.vector + step
         try:
             params, _ = _split(vector, self.problem.arch)
@@ -818,7 +828,8 @@ class _LevenbergMarquardt:
 
 @dataclass(frozen=True)
 class _NormalEquations:
-    """Column-scaled normal equations of one Jacobian: J_s^T J_s = V diag(lam) V^T, J_s^T r and |r|^2.
+    """
+    Column-scaled normal equations of one Jacobian: J_s^T J_s = V diag(lam) V^T, J_s^T r and |r|^2.
 
     J_s = J / scales.  lam are the squared singular values of J_s and V its right
     singular vectors, so everything the SVD of the tall J_s gave is here at n x n
@@ -860,7 +871,7 @@ class _NormalEquations:
         return np.where(self.keep, self.eigenvectors.T @ self.gradient, 0.0)
 
     def scaled_step(self, damping: float) -> np.ndarray:
-        """-(J_s^T J_s + damping lam_max I)^+ g on the identifiable subspace (damping 0: Gauss-Newton)."""
+        """Return -(J_s^T J_s + damping lam_max I)^+ g on the identifiable subspace (0: GN)."""
         denominator = np.where(self.keep, self.eigenvalues + damping * self.eigenvalues[0], 1.0)
         return -self.eigenvectors @ (self._projected_gradient() / denominator)
 
@@ -886,7 +897,8 @@ def _covariance(
     free: np.ndarray,
     known_noise: bool = False,
 ) -> tuple[np.ndarray, float]:
-    """Parameter covariance over the identifiable subspace, and the variance factor s^2.
+    """
+    Parameter covariance over the identifiable subspace, and the variance factor s^2.
 
     s^2 = |r|^2 / (rows - rank).  With rows whitened by a known noise model the
     covariance is (J^T J)^-1 itself (the Cramer-Rao bound of that noise) and s^2

@@ -22,10 +22,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable, Iterable
 
-from hexacal_msgs_py.models import HEXA_SLIDE
 import numpy as np
 
-from ..core.architectures import default_parameters, KinematicParameters
+from ..core.architectures import ARCHITECTURES, default_parameters, KinematicParameters
 from ..core.device import DeviceDefects, DeviceModel, DevicePrior
 from ..core.errors import CalibrationError
 from ..core.identifiability import analyze, IdentifiabilityReport
@@ -37,16 +36,6 @@ from ..core.postures import sample_poses, Workspace
 from ..core.residuals import ChannelSigma, CostFunction, COSTS
 from ..core.validation import pose_errors, PoseErrors, validation_poses
 
-# Table 3 of the paper: initial error, then after calibration at 5, 10, 20 um noise.
-PAPER_TABLE3 = {
-    'initial': {'position_m': 2.39e-3, 'orientation_rad': np.radians(0.61)},
-    5: {'position_m': 3.5e-6, 'orientation_rad': np.radians(0.0024)},
-    10: {'position_m': 12e-6, 'orientation_rad': np.radians(0.005)},
-    20: {'position_m': 25e-6, 'orientation_rad': np.radians(0.007)},
-}
-# The paper's numbers belong to the machine it studied: they are printed beside that model's study
-# only.
-PAPER_TABLE3_BY_MODEL = {HEXA_SLIDE: PAPER_TABLE3}
 NEEDS_FIXED_POSTURES = ('fixed', 'sphere-fixed', 'relative')
 
 Progress = Callable[[str], None]
@@ -62,7 +51,9 @@ def paper_reference(model: str) -> dict | None:
 
     The paper's Table 3 when ``model`` is the architecture the paper studied, else None.
     """
-    return PAPER_TABLE3_BY_MODEL.get(model)
+    # The paper's numbers belong to the machine it studied (Architecture.paper_accuracy).
+    arch = ARCHITECTURES.get(model)
+    return arch.paper_accuracy if arch is not None else None
 
 
 def study_truth(
@@ -388,8 +379,6 @@ def noise_study(
 
 __all__ = [
     'COSTS',
-    'PAPER_TABLE3',
-    'PAPER_TABLE3_BY_MODEL',
     'StudyOutcome',
     'StudyRun',
     'identifiability_by_cost',

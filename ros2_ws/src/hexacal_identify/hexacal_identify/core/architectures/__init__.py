@@ -1,10 +1,13 @@
-"""Kinematic architectures: one module per machine model, each implementing base.Architecture.
+"""
+Kinematic architectures: one module per machine model, each implementing base.Architecture.
 
 Adding an architecture (say a rotary-actuated 6-RUS) is one module here - its
 parameters class, chain constants, IK with its two Jacobians, frame motions,
-default machine and workspace - registered below, plus its layout in
-``hexacal_msgs_py.models`` (names, units, file keys, actuator joints) and its
-tests; nothing else in the core names an architecture.
+default machine and workspace (the full list: ``base``'s docstring) - whose
+declarative layout is registered in the contract
+(``hexacal_msgs_py.models.register_model``) and whose instance is registered
+here (``register_architecture``), plus its tests; nothing else in the core or
+the command line names an architecture.
 """
 
 from __future__ import annotations
@@ -16,14 +19,39 @@ from .base import Architecture, KinematicParameters, Legs
 from .gough_stewart import ARCHITECTURE as _GOUGH_STEWART
 from .hexa_slide import ARCHITECTURE as _HEXA_SLIDE
 
-ARCHITECTURES: dict[str, Architecture] = {
-    arch.name: arch for arch in (_HEXA_SLIDE, _GOUGH_STEWART)
-}
+# Every architecture hexacal knows, by model name (register_architecture adds one).
+ARCHITECTURES: dict[str, Architecture] = {}
+
+
+def register_architecture(arch: Architecture) -> Architecture:
+    """
+    Make `arch` known to the core under its model name; return it.
+
+    Its layout must already be the contract's (``hexacal_msgs_py.models.register_model``)
+    and its parameters class must belong to it.
+    """
+    if arch.name in ARCHITECTURES:
+        raise ValueError(f'architecture {arch.name!r} is already registered')
+    if MODELS.get(arch.name) is not arch.layout:
+        raise ValueError(
+            f'architecture {arch.name!r}: register its layout with '
+            'hexacal_msgs_py.models.register_model and use MODELS[name] as its layout'
+        )
+    if getattr(arch.parameters_type, 'architecture', None) is not arch:
+        raise ValueError(
+            f'architecture {arch.name!r}: set {arch.parameters_type.__name__}.architecture to it'
+        )
+    ARCHITECTURES[arch.name] = arch
+    return arch
+
+
+register_architecture(_HEXA_SLIDE)
+register_architecture(_GOUGH_STEWART)
 assert set(ARCHITECTURES) == set(MODELS), 'every model of the contract has an architecture'
 
 
 def architecture(model: str | None = None) -> Architecture:
-    """The architecture of `model` (None: the default, the Hexa Slide)."""
+    """Return the architecture of `model` (None: the default model's)."""
     name = DEFAULT_MODEL if model is None else model
     if name not in ARCHITECTURES:
         raise ValueError(
@@ -33,7 +61,7 @@ def architecture(model: str | None = None) -> Architecture:
 
 
 def parameters_for(model: str | None, vector: np.ndarray) -> KinematicParameters:
-    """The parameters object of `model` holding `vector`."""
+    """Return the parameters object of `model` holding `vector`."""
     return architecture(model).parameters(vector)
 
 
@@ -49,4 +77,5 @@ __all__ = [
     'architecture',
     'default_parameters',
     'parameters_for',
+    'register_architecture',
 ]

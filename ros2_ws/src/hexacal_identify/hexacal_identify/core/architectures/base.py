@@ -1,23 +1,58 @@
-"""The interface a kinematic architecture implements, and the parameters it owns.
+"""
+The interface a kinematic architecture implements, and the parameters it owns.
 
 An architecture is six chains between base and platform, each driven by one
 actuator whose reading lambda_c is a function of the pose X and the chain's
 own parameters u_c (inverse kinematics).  Everything else in the core (forward
 kinematics, the identification Jacobian by implicit differentiation, every
-cost function, the solver, identifiability, planning, the studies) is written
-against this interface:
+cost function, the solver, identifiability, planning, the studies) and the
+command-line front ends are written against this interface and never name an
+architecture.
 
-* ``layout``: the contract's ``ModelLayout`` (names, units, per-chain fields);
+Adding an architecture is one module in this package and two registrations:
+``hexacal_msgs_py.models.register_model(layout)`` for its contract half and
+``architectures.register_architecture(instance)`` for its kinematics (the
+built-in ones are registered in ``architectures/__init__.py``).  The complete
+list of what a new architecture provides:
+
+In the contract (``hexacal_msgs_py.models``, one declarative ``ModelLayout``):
+
+* ``name`` (the ``model`` key of files, messages and plans) and ``title``;
+* ``fields`` and ``field_units`` of one chain (the vector is chain-major);
+* ``chain_keys``: the parameters-file keys ``chain_N.<key>``, each covering
+  consecutive fields, in the order files are written;
+* ``actuator_prefix`` (joint names ``<prefix>_1..6``, unique among models) and
+  ``actuator_description``;
+* ``physical_checks``: declarative checks naming fields (``PositiveField``,
+  ``UnitVectorXY``) that every parameters file and message must pass.
+
+In the core (a subclass of ``Architecture`` and one of ``KinematicParameters``
+whose ``architecture`` is the instance):
+
+* class attributes ``name`` (= the layout's), ``layout`` (``MODELS[name]``),
+  ``parameters_type``, ``unreachable_reason`` and ``nominal_error_stats_mm``
+  (Table 2-like rows: set number -> (max, mean, RMS) mm);
+* ``default_parameters()`` and ``default_workspace()``: the shipped machine and
+  the postures.Workspace measurement postures are drawn from;
 * ``chains(params)``: the per-chain constants of one parameter set;
-* ``legs(chains, poses)``: IK for N poses with what the derivatives reuse -
-  ``sliders`` (N, 6) actuator readings, ``reachable()``, ``pose_jacobian()``
-  = d lambda / d X (N, 6, 6) and ``parameter_blocks(chains)`` = d lambda_c /
-  d u_c (N, 6, fields per chain), plus ``subset``/``replace_rows`` for the
-  batched Newton iteration;
-* frame motions expressed as parameter changes (identifiability's named
-  combinations, the device-frame study);
-* the default machine, its workspace and nominal error sets;
-* ``drawing(params, pose)``: what a visualiser draws of the machine at a pose.
+* ``legs(chains, poses)``: IK for N poses with what the derivatives reuse (the
+  ``Legs`` protocol) - ``sliders`` (N, 6) actuator readings, ``reachable()``,
+  ``pose_jacobian()`` = d lambda / d X (N, 6, 6), ``parameter_blocks(chains)``
+  = d lambda_c / d u_c (N, 6, fields per chain), ``unit_legs()``, plus
+  ``subset``/``replace_rows`` for the batched Newton iteration;
+* ``acceptable_poses`` and ``joint_cosines``: the workspace and planning limits;
+* ``frame_motion`` and ``actuator_zero_shift``: frame motions and actuator zero
+  offsets expressed as parameter changes (identifiability's named combinations);
+* ``in_frames``: the same machine in rotated frames (the device-frame study);
+* ``drawing(params, pose)``: what a visualiser draws of the machine at a pose;
+* optionally (defaults below): ``vector_problem`` (the solver's own check, the
+  layout's by default), ``default_machine_comment`` (header of the shipped
+  default file), the texts that name the default machine in reports
+  (``machine_label``, ``nominal_label``, ``truth_file_name``), notes on
+  dimensionless fields (``error_table_note``, ``std_note``),
+  ``default_machine_alias`` (a ``hexacal params`` choice naming the default
+  machine) and ``paper_accuracy`` (a published Table 3 to print beside the
+  study of this machine).
 
 Poses are ``X = [x, y, z, theta, psi, phi]`` with R = R_Y(theta) R_X(psi)
 R_z(phi) (eq. 2) for every architecture.
@@ -57,7 +92,7 @@ class Legs(Protocol):
 
 @dataclass(frozen=True)
 class KinematicParameters:
-    """A parameter vector of one architecture, chain-major in its layout's field order (SI units)."""
+    """A parameter vector of one architecture, chain-major in its layout's field order (SI)."""
 
     vector: np.ndarray
     architecture: ClassVar['Architecture']
@@ -93,7 +128,7 @@ class KinematicParameters:
 
     @property
     def base_points(self) -> np.ndarray:
-        """Base-side joint of each chain in the base frame, (6, 3) (Hexa Slide: rail start A0; UPS: A)."""
+        """Return the base-side joint of each chain, base frame, (6, 3) (rail start A0; UPS: A)."""
         return self.per_chain[:, 0:3]
 
     @property
@@ -114,6 +149,31 @@ class Architecture(ABC):
     unreachable_reason: ClassVar[str]  # what makes IK fail, for the error message
     # Table 2-like nominal error sets: set number -> (max, mean, RMS) of the errors, mm.
     nominal_error_stats_mm: ClassVar[dict[int, tuple[float, float, float]]]
+    # Presentation of the default machine and of dimensionless fields (reports, file headers).
+    error_table_note: ClassVar[str] = ''  # after the title of a table of parameter errors in mm
+    std_note: ClassVar[str] = ''  # after the largest standard deviation in um
+    default_machine_alias: ClassVar[str | None] = None  # a `hexacal params` choice for it
+    # A published accuracy table of this machine (Table 3-like), printed beside its study.
+    paper_accuracy: ClassVar[dict[Any, dict[str, float]] | None] = None
+
+    @property
+    def machine_label(self) -> str:
+        """Return how reports name the default machine ("the default <name> machine")."""
+        return f'the default {self.name} machine'
+
+    @property
+    def nominal_label(self) -> str:
+        """Return how reports name the default machine plus nominal errors."""
+        return f'{self.machine_label} + errors with Table 2-like statistics'
+
+    @property
+    def truth_file_name(self) -> str:
+        """Return the file name of the simulated true machine (``hexacal demo``)."""
+        return f'true_{self.name}.yaml'
+
+    def default_machine_comment(self, params: KinematicParameters) -> str:
+        """Return the header comment of the shipped default-machine file of this architecture."""
+        return f'Default {self.layout.title} of hexacal (SI units).'
 
     def vector_problem(self, vector: np.ndarray) -> str | None:
         """Why `vector` is not a parameter set of this architecture (None: it is)."""
@@ -124,11 +184,11 @@ class Architecture(ABC):
 
     @abstractmethod
     def default_parameters(self) -> KinematicParameters:
-        """The shipped default machine ("exact" parameters of the studies and the driver)."""
+        """Return the shipped default machine (the "exact" parameters of studies and driver)."""
 
     @abstractmethod
     def default_workspace(self) -> Any:
-        """The postures.Workspace measurement postures are drawn from on the default machine."""
+        """Return the postures.Workspace postures are drawn from on the default machine."""
 
     @abstractmethod
     def chains(self, params: KinematicParameters) -> Any:
@@ -142,14 +202,18 @@ class Architecture(ABC):
     def acceptable_poses(
         self, params: KinematicParameters, poses: np.ndarray, workspace: Any
     ) -> np.ndarray:
-        """Mask of poses that are reachable, inside the actuator stroke, away from singular legs
-        and well conditioned (postures.Workspace's limits)."""
+        """
+        Return the mask of acceptable poses (postures.Workspace's limits).
+
+        Acceptable: reachable, inside the actuator stroke, away from singular legs and well
+        conditioned.
+        """
 
     @abstractmethod
     def joint_cosines(
         self, params: KinematicParameters, poses: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Cosines of the base-side and platform-side passive joint angles, each (N, 6) (planning limits)."""
+        """Return cosines of the base- and platform-side passive joint angles, each (N, 6)."""
 
     @abstractmethod
     def frame_motion(
@@ -160,35 +224,45 @@ class Architecture(ABC):
         platform_translation=None,
         platform_rotation=None,
     ) -> np.ndarray:
-        """First-order parameter change (vector) that re-expresses the machine in a base frame moved by
-        (translation, small rotation vector) and a platform frame moved likewise: the measurements
-        cannot see it.  Arguments are 3-vectors (None: no motion); rotations about the frame origins."""
+        """
+        Return the first-order parameter change (vector) of a frame motion.
+
+        The change re-expresses the machine in a base frame moved by (translation, small rotation
+        vector) and a platform frame moved likewise: the measurements cannot see it.  Arguments
+        are 3-vectors (None: no motion); rotations about the frame origins.
+        """
 
     @abstractmethod
     def actuator_zero_shift(
         self, params: KinematicParameters, chain: int
     ) -> tuple[str, np.ndarray]:
-        """(description, parameter change) equivalent to an offset of chain's actuator zero (0-based)."""
+        """Return (description, parameter change) of an actuator zero offset (chain 0-based)."""
 
     @abstractmethod
     def in_frames(
         self, params: KinematicParameters, base_rotation: np.ndarray, platform_rotation: np.ndarray
     ) -> KinematicParameters:
-        """The same machine in a base frame rotated by base_rotation^T and a platform frame rotated by
-        platform_rotation^T about their origins (exact, not first order): points p -> rotation @ p."""
+        """
+        Return the same machine in rotated frames (exact, not first order).
+
+        The base frame is rotated by base_rotation^T and the platform frame by
+        platform_rotation^T about their origins: points p -> rotation @ p.
+        """
 
     @abstractmethod
     def drawing(
         self, params: KinematicParameters, pose: np.ndarray, actuators: np.ndarray | None = None
     ) -> dict[str, np.ndarray]:
-        """The machine at ``pose`` (6,) as named point sets and line segments in the base frame (m).
+        """
+        Return the machine at ``pose`` (6,) as named point sets and segments (base frame, m).
 
-        A (k, 3) array is a set of points (joint centres), a (k, 2, 3) array k segments (start, end).
-        ``actuators`` are the readings lambda (6,) at that pose (None: IK of ``pose``).  Every
-        architecture draws ``base_joints`` (6, 3), ``platform_joints`` (6, 3) = P + R B, ``platform``
-        (6, 2, 3), the outline through the platform joints, and ``device_link`` (1, 2, 3), base origin O
-        to P; this body gives the last three, and each architecture adds its chains (``rails``,
-        ``sliders``, ``legs``, ...)."""
+        A (k, 3) array is a set of points (joint centres), a (k, 2, 3) array k segments (start,
+        end). ``actuators`` are the readings lambda (6,) at that pose (None: IK of ``pose``).
+        Every architecture draws ``base_joints`` (6, 3), ``platform_joints`` (6, 3) = P + R B,
+        ``platform`` (6, 2, 3), the outline through the platform joints, and ``device_link`` (1, 2,
+        3), base origin O to P; this body gives the last three, and each architecture adds its
+        chains (``rails``, ``sliders``, ``legs``, ...).
+        """
         pose = np.asarray(pose, dtype=float).reshape(6)
         rotation = rotation_from_trig(np.cos(pose[3:6]), np.sin(pose[3:6]))
         joints = pose[:3] + params.platform_points @ rotation.T

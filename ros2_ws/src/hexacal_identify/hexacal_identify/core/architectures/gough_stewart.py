@@ -1,4 +1,7 @@
-"""The Gough-Stewart platform (6-UPS): 42 parameters, six extensible legs between base and platform joints.
+"""
+The Gough-Stewart platform (6-UPS): 42 parameters, six extensible legs.
+
+Each leg joins a base joint to a platform joint.
 
 Per chain (leg), chain-major: ``Ax Ay Az`` the base joint centre in the base
 frame, ``Bx By Bz`` the platform joint centre in the platform frame, ``l0`` the
@@ -73,7 +76,7 @@ _AS_BUILT_MM = np.array(
 
 @dataclass(frozen=True)
 class GoughStewartParameters(KinematicParameters):
-    """The 42 kinematic parameters of a 6-UPS platform; ``vector`` is chain-major (see module doc)."""
+    """The 42 kinematic parameters of a 6-UPS platform; ``vector`` is chain-major (module doc)."""
 
     @property
     def leg_offsets(self) -> np.ndarray:
@@ -91,7 +94,7 @@ class GoughStewartParameters(KinematicParameters):
 
 
 def default_gough_stewart() -> GoughStewartParameters:
-    """The shipped default hexapod (module doc), rounded to 1e-10 m like the Table 1 file."""
+    """Return the shipped default hexapod (module doc), rounded to 1e-10 m like Table 1's file."""
     base_angles, platform_angles = np.radians(_BASE_ANGLES_DEG), np.radians(_PLATFORM_ANGLES_DEG)
     base = np.column_stack(
         [
@@ -126,7 +129,7 @@ class _Chains:
 
 
 class _Legs:
-    """lambda = |P + R B - A| - l0 for N postures x 6 legs, coordinate-major ((3, N, 6) vectors)."""
+    """IK lambda = |P + R B - A| - l0 for N postures x 6 legs, coordinate-major ((3, N, 6))."""
 
     __slots__ = ('tilt_trig', 'rotations', 'rotated', 'sliders', 'legs', 'lengths')
 
@@ -162,17 +165,17 @@ class _Legs:
         return np.all(self.lengths > 0.0, axis=1)
 
     def unit_legs(self) -> np.ndarray:
-        """n = d / |d|, (3, N, 6)."""
+        """Return n = d / |d|, (3, N, 6)."""
         with np.errstate(divide='ignore', invalid='ignore'):
             return self.legs / self.lengths
 
     def pose_jacobian(self, unit: np.ndarray | None = None) -> np.ndarray:
-        """d lambda / d X, (N, 6, 6): rows (n, (R B x n) on the Euler-rate axes)."""
+        """Return d lambda / d X, (N, 6, 6): rows (n, (R B x n) on the Euler-rate axes)."""
         unit = self.unit_legs() if unit is None else unit
         return pose_jacobian_rows(self.rotated, unit, self.tilt_trig)
 
     def parameter_blocks(self, chains: _Chains, unit: np.ndarray | None = None) -> np.ndarray:
-        """d lambda_c / d u_c, (N, 6, 7): -n, R^T n, -1."""
+        """Return d lambda_c / d u_c, (N, 6, 7): -n, R^T n, -1."""
         unit = self.unit_legs() if unit is None else unit
         blocks = np.empty(unit.shape[1:] + (FIELDS_PER_CHAIN,))
         blocks[..., 0:3] = -unit.transpose(1, 2, 0)
@@ -189,6 +192,24 @@ class GoughStewart(Architecture):
     unreachable_reason = 'a leg of zero length'
     parameters_type = GoughStewartParameters
     nominal_error_stats_mm = {1: (1.8, 0.80, 0.87), 2: (2.8, 1.33, 1.45), 3: (9.2, 4.99, 5.28)}
+
+    def default_machine_comment(self, params: KinematicParameters) -> str:
+        """Return the header of the shipped default file (what hexacal_identify/data/ ships)."""
+        low, high = self.default_workspace().slider_stroke_m
+        chains = params.per_chain
+        base_radius = float(np.mean(np.hypot(chains[:, 0], chains[:, 1])))
+        platform_radius = float(np.mean(np.hypot(chains[:, 3], chains[:, 4])))
+        offsets = chains[:, L0_INDEX]
+        return (
+            f'Default {LAYOUT.title} of hexacal (SI units): base joints on a '
+            f'{base_radius:.2f} m circle,\n'
+            f'platform joints on a {platform_radius:.2f} m circle, with mm-level as-built '
+            'irregularity.\n'
+            f'Stroke limits ({low:g}, {high:g}) m of the actuator reading lambda; l0 '
+            f'{offsets.min():.4f}-{offsets.max():.4f} m, so legs '
+            f'{offsets.min() + low:.2f}-{offsets.max() + high:.2f} m.\n'
+            f'Written by `hexacal params default --model {self.name}`.'
+        )
 
     def default_parameters(self) -> GoughStewartParameters:
         return default_gough_stewart()
@@ -212,7 +233,8 @@ class GoughStewart(Architecture):
         legs = _Legs(_Chains(params), np.asarray(poses, dtype=float))
         low, high = workspace.slider_stroke_m
         ok = legs.reachable() & np.all((legs.sliders >= low) & (legs.sliders <= high), axis=1)
-        # Joints away from their limits (min_leg_rail_cosine reads as the least joint-angle cosine).
+        # Joints away from their limits (min_leg_rail_cosine reads as the least joint-angle
+        # cosine).
         base_cos, platform_cos = self._cosines(legs)
         ok &= np.all(base_cos > workspace.min_leg_rail_cosine, axis=1)
         ok &= np.all(platform_cos > workspace.min_leg_rail_cosine, axis=1)
@@ -226,8 +248,8 @@ class GoughStewart(Architecture):
     @staticmethod
     def _cosines(legs: _Legs) -> tuple[np.ndarray, np.ndarray]:
         unit = legs.unit_legs()  # (3, N, 6), A -> B
-        # The joints' neutral axes are normal to the base and platform planes, pointing along the legs:
-        # down from a ceiling-mounted base, up from an upright one; |cos| serves both mounts.
+        # The joints' neutral axes are normal to the base and platform planes, pointing along the
+        # legs: down from a ceiling-mounted base, up from an upright one; |cos| serves both mounts.
         base_cos = np.abs(unit[2])
         normal = legs.rotations[:, :, 2]  # z' in the base frame, (N, 3)
         platform_cos = np.abs(
@@ -282,9 +304,13 @@ class GoughStewart(Architecture):
     def drawing(
         self, params: GoughStewartParameters, pose: np.ndarray, actuators: np.ndarray | None = None
     ) -> dict[str, np.ndarray]:
-        """Base.drawing plus the legs: ``base_joints`` A, ``legs`` (6, 2, 3) A -> platform joint, and
-        ``cylinders`` (6, 2, 3), the part of each leg from A as long as the leg at reading zero (l0), the
-        rest being the extended rod (the pose decides the drawing; ``actuators`` are not needed)."""
+        """
+        Return Base.drawing plus the legs.
+
+        ``base_joints`` A, ``legs`` (6, 2, 3) A -> platform joint, and ``cylinders`` (6, 2, 3),
+        the part of each leg from A as long as the leg at reading zero (l0), the rest being the
+        extended rod (the pose decides the drawing; ``actuators`` are not needed).
+        """
         drawn = super().drawing(params, pose, actuators)
         base, joints = params.base_points, drawn['platform_joints']
         legs = joints - base

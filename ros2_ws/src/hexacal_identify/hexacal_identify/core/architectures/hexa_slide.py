@@ -1,4 +1,5 @@
-"""The Hexa Slide (6-PRRS, paper section 2): 54 parameters, Table 1 default, Table 2 nominal sets.
+"""
+The Hexa Slide (6-PRRS, paper section 2): 54 parameters, Table 1 default, Table 2 nominal sets.
 
 The 54 identification parameters are stored chain-major; per chain, in the row
 order of Table 1: ``A0x A0y A0z Bx By Bz l ax ay`` (SI units, metres).
@@ -72,6 +73,16 @@ _TABLE1_MM = np.array(
 # Table 2 of the paper: (max, mean, sigma) of the nominal-parameter errors, mm.
 TABLE2_ERROR_STATS_MM = {1: (1.8, 0.80, 0.87), 2: (2.8, 1.33, 1.45), 3: (9.2, 4.99, 5.28)}
 
+# Table 3 of the paper: initial error, then after calibration at 5, 10, 20 um noise.
+PAPER_TABLE3 = {
+    'initial': {'position_m': 2.39e-3, 'orientation_rad': np.radians(0.61)},
+    5: {'position_m': 3.5e-6, 'orientation_rad': np.radians(0.0024)},
+    10: {'position_m': 12e-6, 'orientation_rad': np.radians(0.005)},
+    20: {'position_m': 25e-6, 'orientation_rad': np.radians(0.007)},
+}
+# Header of the shipped default file (hexacal_identify/data/table1_exact.yaml).
+TABLE1_COMMENT = 'Table 1 of Rauf, Kim, Ryu (exact machine), SI units'
+
 
 @dataclass(frozen=True)
 class HexaParameters(KinematicParameters):
@@ -84,7 +95,7 @@ class HexaParameters(KinematicParameters):
 
     @property
     def rail_directions(self) -> np.ndarray:
-        """a, unit rail directions (6, 3) with az = -sqrt(1 - ax^2 - ay^2): rails descend."""
+        """Return the unit rail directions a (6, 3), az = -sqrt(1 - ax^2 - ay^2): rails descend."""
         axy = self.per_chain[:, AXY_SLICE]
         az = -np.sqrt(1.0 - np.sum(axy**2, axis=1))
         return np.column_stack([axy, az])
@@ -109,7 +120,8 @@ class HexaParameters(KinematicParameters):
 
 
 def table1_parameters() -> HexaParameters:
-    """The paper's exact machine (Table 1), converted from mm to SI.
+    """
+    Return the paper's exact machine (Table 1), converted from mm to SI.
 
     Shipped as the default "exact" parameter file ``hexacal_identify/data/table1_exact.yaml``.
     Rounded to 1e-10 m so the file reads like the table (0.2614, not 0.26139999999999997).
@@ -117,7 +129,8 @@ def table1_parameters() -> HexaParameters:
     return HexaParameters(np.round(_TABLE1_MM.T / 1000.0, 10).reshape(-1))
 
 
-# -- inverse kinematics, coordinate-major (FK and the identification Jacobian) ---------------------
+# -- inverse kinematics, coordinate-major (FK and the identification Jacobian)
+# ---------------------
 
 
 class _Chains:
@@ -137,7 +150,10 @@ class _Chains:
 
 
 class _Legs:
-    """Eq. 3 for N postures x 6 chains, coordinate-major: vectors are (3, N, 6), one (N, 6) array per axis.
+    """
+    Solve eq. 3 for N postures x 6 chains, coordinate-major.
+
+    Vectors are (3, N, 6), one (N, 6) array per axis.
 
     The arithmetic is written out per coordinate (no small-dimension einsums): FK
     evaluates this several times per identification iteration.
@@ -196,7 +212,7 @@ class _Legs:
         return np.all(self.discriminant >= 0.0, axis=1)
 
     def unit_legs(self) -> np.ndarray:
-        """e / w, (3, N, 6) (inf/NaN at a singular leg, which FK flags)."""
+        """Return e / w, (3, N, 6) (inf/NaN at a singular leg, which FK flags)."""
         with np.errstate(divide='ignore', invalid='ignore'):
             return self.legs / self.rail_dot
 
@@ -206,7 +222,7 @@ class _Legs:
         return pose_jacobian_rows(self.rotated, unit, self.tilt_trig)
 
     def parameter_blocks(self, chains: _Chains, unit: np.ndarray | None = None) -> np.ndarray:
-        """d lambda_c / d u_c, (N, 6, 9); see ``parameter_jacobian_blocks``."""
+        """Return d lambda_c / d u_c, (N, 6, 9); see ``parameter_jacobian_blocks``."""
         unit = self.unit_legs() if unit is None else unit
         blocks = np.empty(unit.shape[1:] + (FIELDS_PER_CHAIN,))
         blocks[..., 0:3] = -unit.transpose(1, 2, 0)
@@ -253,7 +269,8 @@ def subset_geometry(geometry: LegGeometry, mask: np.ndarray) -> LegGeometry:
 
 
 def pose_jacobian(geometry: LegGeometry, angles: np.ndarray) -> np.ndarray:
-    """J_inv = d lambda / d X, (N, 6 chains, 6 pose coordinates).
+    """
+    J_inv = d lambda / d X, (N, 6 chains, 6 pose coordinates).
 
     Position columns: e / w.  Angle column k: axis_k . (R B x e) / w, since
     d(R B) = axis_k x R B for a rate about axis_k.
@@ -267,7 +284,8 @@ def pose_jacobian(geometry: LegGeometry, angles: np.ndarray) -> np.ndarray:
 
 
 def parameter_jacobian_blocks(params: HexaParameters, geometry: LegGeometry) -> np.ndarray:
-    """d lambda_c / d u_c for each chain's own 9 parameters, (N, 6, 9).
+    """
+    Return d lambda_c / d u_c for each chain's own 9 parameters, (N, 6, 9).
 
     lambda_c depends only on chain c's parameters, so the full (N, 6, 54)
     matrix is block diagonal; these are its blocks, in PARAMETER_FIELDS order.
@@ -293,21 +311,50 @@ def rail_xy_slice(chain: int) -> slice:
 
 
 class HexaSlide(Architecture):
-    """6-PRRS: a slider on an inclined rail, a fixed-length leg, a spherical joint at the platform."""
+    """6-PRRS: a slider on an inclined rail, a fixed-length leg, a spherical platform joint."""
 
     name = HEXA_SLIDE
     layout = LAYOUT
     unreachable_reason = 'a leg is shorter than its distance to the rail'
     parameters_type = HexaParameters
     nominal_error_stats_mm = TABLE2_ERROR_STATS_MM
+    # The rail components are dimensionless: "1 mm" of them is 1e-3, as Table 1 prints them.
+    error_table_note = ' (a: unit-vector components x 1000, as in Table 1)'
+    std_note = ' (rail components x1e-6)'
+    default_machine_alias = 'table1'
+    # The paper's numbers belong to the machine it studied: printed beside this model's study only.
+    paper_accuracy = PAPER_TABLE3
+
+    @property
+    def machine_label(self) -> str:
+        """Return 'Table 1': the default machine is the paper's."""
+        return 'Table 1'
+
+    @property
+    def nominal_label(self) -> str:
+        """Return 'Table 1 + Table 2 errors'."""
+        return 'Table 1 + Table 2 errors'
+
+    @property
+    def truth_file_name(self) -> str:
+        """Return 'true_table1.yaml'."""
+        return 'true_table1.yaml'
+
+    def default_machine_comment(self, params: KinematicParameters) -> str:
+        """Return the header of table1_exact.yaml."""
+        return TABLE1_COMMENT
 
     def vector_problem(self, vector: np.ndarray) -> str | None:
-        # Only the rail direction must be the x, y part of a unit vector (the solver may try any l).
+        # Only the rail direction must be the x, y part of a unit vector (the solver may try any
+        # l).
         axy = vector.reshape(N_CHAINS, FIELDS_PER_CHAIN)[:, AXY_SLICE]
         norm2 = np.sum(axy**2, axis=1)
         if np.any(norm2 >= 1.0):
             chain = int(np.argmax(norm2 >= 1.0)) + 1
-            return f'chain_{chain}.a = {axy[chain - 1].tolist()} is not the x, y part of a unit vector'
+            return (
+                f'chain_{chain}.a = {axy[chain - 1].tolist()} is not the x, y part of a unit '
+                'vector'
+            )
         return None
 
     def default_parameters(self) -> HexaParameters:
@@ -347,7 +394,8 @@ class HexaSlide(Architecture):
     def joint_cosines(
         self, params: HexaParameters, poses: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        # U joint at the slider: angle between leg and rail; S joint: between leg and the platform normal.
+        # U joint at the slider: angle between leg and rail; S joint: between leg and the platform
+        # normal.
         geometry = leg_geometry(params, poses)
         with np.errstate(invalid='ignore'):
             leg_direction = geometry.leg_vectors / np.linalg.norm(
@@ -377,7 +425,8 @@ class HexaSlide(Architecture):
             platform_rotation,
         )
         if base_rotation is not None:
-            # the rails turn with the base; keep a a unit vector with a_z < 0: d ax, d ay are the x, y parts of d a.
+            # the rails turn with the base; keep a a unit vector with a_z < 0: d ax, d ay are the
+            # x, y parts of d a.
             delta[:, AXY_SLICE] += np.cross(base_rotation, params.rail_directions)[:, :2]
         return delta.reshape(-1)
 
@@ -403,9 +452,13 @@ class HexaSlide(Architecture):
     def drawing(
         self, params: HexaParameters, pose: np.ndarray, actuators: np.ndarray | None = None
     ) -> dict[str, np.ndarray]:
-        """Base.drawing plus the chains: ``base_joints`` the rail starts A0, ``rails`` (6, 2, 3) over the
-        default workspace's stroke (extended to reach the slider), ``sliders`` A0 + lambda a and ``legs``
-        (6, 2, 3) slider -> platform joint."""
+        """
+        Return Base.drawing plus the chains.
+
+        ``base_joints`` the rail starts A0, ``rails`` (6, 2, 3) over the default workspace's
+        stroke (extended to reach the slider), ``sliders`` A0 + lambda a and ``legs`` (6, 2, 3)
+        slider -> platform joint.
+        """
         drawn = super().drawing(params, pose, actuators)
         if actuators is None:
             sliders = leg_geometry(
