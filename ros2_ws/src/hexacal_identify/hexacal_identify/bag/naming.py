@@ -13,8 +13,23 @@ from pathlib import Path
 
 # MCAP metadata record of the collector: namespace, model, detector settings, input mapping.
 COLLECTOR_METADATA = 'hexacal.collector'
-# MCAP metadata record of the plan the driver walked (its plan parameters, as strings).
+# MCAP metadata record of the plan the driver walked: these driver parameters (see
+# hexacal_driver.driver_node), as strings.
 PLAN_METADATA = 'hexacal.plan'
+PLAN_PARAMETERS = (
+    'plan',
+    'plan_name',
+    'postures',
+    'seed',
+    'link_length',
+    'settle_s',
+    'dwell_s',
+    'rate_hz',
+    'slider_noise_m',
+    'angle_noise_rad',
+    'device_defects',
+    'device_turn',
+)
 # metadata.yaml custom_data: the recording node's name, its model, the input mapping (JSON).
 RECORDED_BY_CUSTOM_DATA = 'hexacal.recorded_by'
 MODEL_CUSTOM_DATA = 'hexacal.model'

@@ -31,7 +31,17 @@ from rclpy.callback_groups import CallbackGroup
 from rclpy.event_handler import QoSSubscriptionEventType, SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidHandle
 from rclpy.node import Node
-from rclpy.qos import QoSProfile
+from rclpy.qos import HistoryPolicy, QoSProfile
+
+
+def deep_reader_qos(offered: QoSProfile, depth: int) -> QoSProfile:
+    """Return a reader QoS matching `offered` whose queue holds `depth` messages between polls."""
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=offered.reliability,
+        durability=offered.durability,
+    )
 
 
 class PolledGroup(CallbackGroup):
