@@ -10,6 +10,7 @@ reports its problems on hexacal/calibration_status. Full reference: docs/nodes.m
 from __future__ import annotations
 
 from dataclasses import replace
+from functools import partial
 import heapq
 import json
 import sys
@@ -17,19 +18,12 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from hexacal_msgs_py.cdr import header_stamp_ns
-from hexacal_msgs_py.conversions import (
-    diagnostic_status,
-    NS_PER_S,
-    posture_reading_to_joint_state,
-)
+from hexacal_msgs_py.conversions import diagnostic_status, NS_PER_S
+from hexacal_msgs_py.conversions import posture_reading_to_joint_state
 from hexacal_msgs_py.errors import HexacalContractError
 from hexacal_msgs_py.models import MODELS
-from hexacal_msgs_py.names import (
-    CALIBRATION_STATUS_TOPIC,
-    DEVICE_TURN_JOINT,
-    JOINT_STATE_TYPE,
-    POSTURE_TOPIC,
-)
+from hexacal_msgs_py.names import CALIBRATION_STATUS_TOPIC, DEVICE_TURN_JOINT, JOINT_STATE_TYPE
+from hexacal_msgs_py.names import POSTURE_TOPIC
 from hexacal_msgs_py.qos import POSTURE_QOS, SENSOR_QOS, STATUS_QOS
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
@@ -39,48 +33,19 @@ from rclpy.parameter_client import AsyncParameterClient
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
-from .collector_inputs import (
-    input_sources,
-    InputReader,
-    InputSource,
-    RAW_TOPICS,
-    recorded_only_sources,
-    STREAM_OF_TOPIC,
-)
-from .collector_parameters import (
-    checked_turn,
-    CollectorConfigurationError,
-    declare_inputs,
-    declare_parameters,
-    DETECTOR_PARAMETERS,
-    parameter_problem,
-    resolve_model,
-)
+from . import collector_parameters as params
+from .collector_inputs import input_sources, recorded_only_sources
+from .collector_inputs import InputReader, InputSource, RAW_TOPICS, STREAM_OF_TOPIC
+from .collector_parameters import CollectorConfigurationError, resolve_model
 from .polled_subscriptions import deep_reader_qos, PolledGroup, PolledSubscription
 from .runtime import run_node
 from ..bag import BagError, BagWriter
-from ..bag.naming import (
-    COLLECTOR_METADATA,
-    INPUTS_CUSTOM_DATA,
-    MODEL_CUSTOM_DATA,
-    next_bag_directory,
-    PLAN_METADATA,
-    PLAN_PARAMETERS,
-    RECORDED_BY_CUSTOM_DATA,
-)
+from ..bag import naming
 from ..bag.qos_yaml import qos_profiles_yaml
 from ..bag.recording import Recording
 from ..core import collector_health as health
-from ..core.posture_detector import (
-    DetectedPosture,
-    DROPPED_AT_END,
-    DROPPED_FOR_STREAM_STOP,
-    PostureDetector,
-    StreamSynchronizer,
-)
+from ..core import posture_detector as detection
 from ..core.turn_history import TurnHistory
-
-__all__ = ['CollectorConfigurationError', 'CollectorNode', 'main', 'resolve_model']
 
 NODE_NAME = 'collector'
 START_RECORDING_SERVICE = 'hexacal/start_recording'
@@ -107,18 +72,19 @@ class CollectorNode(Node):
     def __init__(self) -> None:
         super().__init__(NODE_NAME)
         self.add_on_set_parameters_callback(self._validate_parameters)
-        value = declare_parameters(self)
-        self.device_turn = checked_turn(value['device_turn'])
+        value = params.declare_parameters(self)
+        self.device_turn = params.checked_turn(value['device_turn'])
         self.turns = TurnHistory()  # the turns inclinometer messages carried
         self.model = resolve_model(value['model'], value['parameters_file'])
         self.actuator_names = MODELS[self.model].actuator_names
-        self.mapping = declare_inputs(self, self.actuator_names)
+        self.mapping = params.declare_inputs(self, self.actuator_names)
 
-        self.synchronizer = StreamSynchronizer(max_skew_ns=int(value['max_skew_s'] * NS_PER_S))
-        self.detector = PostureDetector(
-            **{name: value[name] for name in DETECTOR_PARAMETERS if name != 'max_skew_s'}
-        )
-        self.detector_settings = {name: repr(value[name]) for name in DETECTOR_PARAMETERS}
+        skew_ns = int(value['max_skew_s'] * NS_PER_S)
+        self.synchronizer = detection.StreamSynchronizer(max_skew_ns=skew_ns)
+        settings = {name: value[name] for name in params.DETECTOR_PARAMETERS}
+        self.detector_settings = {name: repr(setting) for name, setting in settings.items()}
+        del settings['max_skew_s']  # the synchronizer's
+        self.detector = detection.PostureDetector(**settings)
         self.postures_published = 0
         self.counters = health.InputCounters(RAW_TOPICS)
         self.stopped_streams: tuple[str, ...] = ()
@@ -138,25 +104,20 @@ class CollectorNode(Node):
         self.reader = InputReader(
             self.mapping, self.model, self.synchronizer, self.turns, self._invalid
         )
-        polled = PolledGroup()
+        group = PolledGroup()
         # One subscription per distinct input topic: inputs remapped to one topic share it.
         self._sources = input_sources(self.mapping, self.topic_names, SENSOR_QOS)
         for source in self._sources:
+            on_lost = partial(self._on_lost, source.key)
+            qos = SENSOR_SUBSCRIPTION_QOS
             source.polled = PolledSubscription(
-                self,
-                source.message_type,
-                source.name,
-                SENSOR_SUBSCRIPTION_QOS,
-                polled,
-                on_lost=lambda status, key=source.key: self._on_lost(key, status),
+                self, source.message_type, source.name, qos, group, on_lost=on_lost
             )
         # Recorded as received, when published; the reader's queue is deep, as for the sensors.
         self._recorded_only = recorded_only_sources(self.resolve_topic_name, self.mapping)
         for source in self._recorded_only:
-            reader_qos = deep_reader_qos(source.qos, SENSOR_SUBSCRIPTION_QOS.depth)
-            source.polled = PolledSubscription(
-                self, source.message_type, source.name, reader_qos, polled
-            )
+            qos = deep_reader_qos(source.qos, SENSOR_SUBSCRIPTION_QOS.depth)
+            source.polled = PolledSubscription(self, source.message_type, source.name, qos, group)
         self._poll_timer = self.create_timer(POLL_PERIOD_S, self._poll)
         self.create_service(Trigger, START_RECORDING_SERVICE, self._start_recording)
         self.create_service(Trigger, STOP_RECORDING_SERVICE, self._stop_recording)
@@ -184,7 +145,7 @@ class CollectorNode(Node):
 
     def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for parameter in parameters:
-            problem = parameter_problem(parameter.name, parameter.value)
+            problem = params.parameter_problem(parameter.name, parameter.value)
             if problem is not None:
                 return SetParametersResult(successful=False, reason=problem)
         return SetParametersResult(successful=True)
@@ -221,21 +182,22 @@ class CollectorNode(Node):
         self._detect()
         for source in self._recorded_only:
             for data, info in source.polled.take(limit):
-                self._record_only(source, data, info)
+                self._record_received(source, data, info)
 
     def _on_raw(self, source: InputSource, data: bytes, info: dict) -> None:
         """Handle one message of an input topic: recorded once, each reading taken once."""
         self.counters.count_received(source.inputs, time.monotonic_ns())
-        received_ns = info.get('received_timestamp') or self.get_clock().now().nanoseconds
-        self._record(source.name, data, received_ns, info.get('source_timestamp') or None)
+        self._record_received(source, data, info)
         self.reader.read(source, data)
 
-    def _record_only(self, source: InputSource, data: bytes, info: dict) -> None:
-        """Record what arrived on a recorded-only topic (platform pose, machine markers)."""
-        if not self.recording.add_topic_once(source.name, source.type_name, source.qos_yaml):
+    def _record_received(self, source: InputSource, data: bytes, info: dict) -> None:
+        """Record a message as received (recorded-only topics register on their first)."""
+        if not source.inputs and not self.recording.add_topic_once(
+            source.name, source.type_name, source.qos_yaml
+        ):
             return
         received_ns = info.get('received_timestamp') or self.get_clock().now().nanoseconds
-        self._record(source.name, data, received_ns, info.get('source_timestamp') or None)
+        self.recording.write(source.name, data, received_ns, info.get('source_timestamp') or None)
 
     def _detect(self) -> None:
         """Run the posture detector over the samples paired since the last call."""
@@ -258,7 +220,7 @@ class CollectorNode(Node):
             throttle_duration_sec=INVALID_LOG_PERIOD_S,
         )
 
-    def _on_posture(self, posture: DetectedPosture) -> None:
+    def _on_posture(self, posture: detection.DetectedPosture) -> None:
         # The turn of the inclinometer messages paired with its last sample, else the setting.
         turn = self.turns.turn_at(
             posture.reading.stamp_ns, self.synchronizer.max_skew_ns, self.device_turn
@@ -269,9 +231,8 @@ class CollectorNode(Node):
             # Durable before it is published: whoever received a posture finds it in the bag.
             # BagWriter.write encodes the exact wire CDR; rclpy's serialize_message appends
             # padding bytes that strict readers (rosbags) reject.
-            self._record(
-                self.topic_names[POSTURE_TOPIC], message, self.get_clock().now().nanoseconds
-            )
+            now_ns = self.get_clock().now().nanoseconds
+            self.recording.write(self.topic_names[POSTURE_TOPIC], message, now_ns)
             if self.recording.writer is not None:
                 self.recording.postures += 1
                 self.recording.flush()
@@ -287,11 +248,6 @@ class CollectorNode(Node):
 
     # ------------------------------------------------------------------ recording
 
-    def _record(
-        self, name: str, data: bytes | JointState, log_ns: int, publish_ns: int | None = None
-    ) -> None:
-        self.recording.write(name, data, log_ns, publish_ns)
-
     def _recording_failed(self, error: BagError) -> None:
         """Report a bag error (e.g. disk full) that stopped recording; the bag stays readable."""
         self.get_logger().error(f'recording stopped: {error}')
@@ -303,7 +259,7 @@ class CollectorNode(Node):
         if self.recording.writer is not None:
             return str(self.recording.directory)
         self._bag_counter += 1
-        directory = next_bag_directory(
+        directory = naming.next_bag_directory(
             self.get_parameter('output_dir').value,
             self.get_parameter('bag_name').value,
             first=self._bag_counter == 1,
@@ -313,22 +269,20 @@ class CollectorNode(Node):
         topics.append(
             (self.topic_names[POSTURE_TOPIC], JOINT_STATE_TYPE, qos_profiles_yaml(POSTURE_QOS))
         )
-        collector = {
-            'namespace': self.get_namespace(),
-            'model': self.model,
-            **self.detector_settings,
-            **self.mapping.to_metadata(),
-        }
+        mapping = self.mapping.to_metadata()
+        collector = {'namespace': self.get_namespace(), 'model': self.model}
         try:
             self.recording.start(
                 directory,
                 custom_data={
-                    RECORDED_BY_CUSTOM_DATA: self.get_fully_qualified_name(),
-                    MODEL_CUSTOM_DATA: self.model,
-                    INPUTS_CUSTOM_DATA: json.dumps(self.mapping.to_metadata()),
+                    naming.RECORDED_BY_CUSTOM_DATA: self.get_fully_qualified_name(),
+                    naming.MODEL_CUSTOM_DATA: self.model,
+                    naming.INPUTS_CUSTOM_DATA: json.dumps(mapping),
                 },
                 topics=topics,
-                metadata={COLLECTOR_METADATA: collector},
+                metadata={
+                    naming.COLLECTOR_METADATA: {**collector, **self.detector_settings, **mapping}
+                },
             )
         except BagError as error:
             self.get_logger().error(f'cannot record to {directory}: {error}')
@@ -348,12 +302,11 @@ class CollectorNode(Node):
         self, request: Trigger.Request, response: Trigger.Response
     ) -> Trigger.Response:
         if self.recording.writer is not None:
-            response.success = True
             response.message = f'already recording to {self.recording.directory}'
+            response.success = True
             return response
         try:
-            response.message = f'recording to {self.open_bag()}'
-            response.success = True
+            response.message, response.success = f'recording to {self.open_bag()}', True
         except BagError as error:
             response.success, response.message = False, f'cannot record: {error}'
         return response
@@ -373,21 +326,20 @@ class CollectorNode(Node):
             return
         if not self._driver_parameters.services_are_ready():
             return
-        self._plan_request = self._driver_parameters.get_parameters(list(PLAN_PARAMETERS))
+        self._plan_request = self._driver_parameters.get_parameters(list(naming.PLAN_PARAMETERS))
         self._plan_request.add_done_callback(lambda future: self._record_plan(writer, future))
 
     def _record_plan(self, writer: BagWriter, future) -> None:
         self._plan_request = None
         if writer is not self.recording.writer or future.exception() is not None:
             return
-        plan = {}
-        for name, value in zip(PLAN_PARAMETERS, future.result().values):
-            python_value = parameter_value_to_python(value)
-            if python_value is not None:
-                plan[name] = str(python_value)
-        if not plan:
-            return
-        if not self.recording.write_metadata(writer, PLAN_METADATA, plan):
+        values = map(parameter_value_to_python, future.result().values)
+        plan = {
+            name: str(value)
+            for name, value in zip(naming.PLAN_PARAMETERS, values)
+            if value is not None
+        }
+        if not plan or not self.recording.write_metadata(writer, naming.PLAN_METADATA, plan):
             return
         self._plan_recorded = True
         self.get_logger().info(f"recorded the driver's plan {plan.get('plan_name', plan)}")
@@ -421,7 +373,7 @@ class CollectorNode(Node):
             self.stopped_streams = stopped
         if stopped:
             self._detect()  # normally nothing left: _poll runs the detector after each batch
-            dropped = self.detector.abort(DROPPED_FOR_STREAM_STOP)
+            dropped = self.detector.abort(detection.DROPPED_FOR_STREAM_STOP)
             if dropped is not None:
                 self.get_logger().warning(
                     f'dropped a partial posture ({dropped.sample_count} samples over '
@@ -431,13 +383,8 @@ class CollectorNode(Node):
 
     def problems(self) -> dict[str, object]:
         """Return the counters of everything not used, by stream and reason (the status's)."""
-        return health.problems(
-            self.counters,
-            self.synchronizer,
-            self.detector,
-            self.stopped_streams,
-            self.recording.error,
-        )
+        counts = (self.counters, self.synchronizer, self.detector)
+        return health.problems(*counts, self.stopped_streams, self.recording.error)
 
     def _publish_status(self) -> None:
         """Publish on hexacal/calibration_status when a problem counter or state changed."""
@@ -473,10 +420,9 @@ class CollectorNode(Node):
 
     def summary(self) -> str:
         """Return the closing summary; a posture still being captured is never published."""
-        self.detector.abort(DROPPED_AT_END)
-        return health.summary(
-            self.postures_published, self.counters, self.synchronizer, self.detector
-        )
+        self.detector.abort(detection.DROPPED_AT_END)
+        counts = (self.counters, self.synchronizer, self.detector)
+        return health.summary(self.postures_published, *counts)
 
 
 def _finish(node: CollectorNode) -> list[str]:
