@@ -1,96 +1,18 @@
-"""The collector's in-place CDR reading (issue #12 item 4) gives exactly what rclpy decoding gives.
+"""
+The collector reads one /joint_states for its three inputs, each reading once (issue #11).
 
-Messages laid out like the learned one are read from the bytes; anything else
-(other names, lengths, frame_id, a non-finite value, a negative stamp) is left
-to the full decoding, which reports the problem as before.
+The in-place CDR readers themselves (hexacal_msgs_py.cdr) are tested against rclpy's
+decoding in the contract's tests (test_cdr.py).
 """
 
 from __future__ import annotations
 
-import math
-
-from hexacal_identify.nodes.collector import _FastJointState, _positions_layout, _stamp_of
-from hexacal_msgs_py.conversions import joint_state_to_slider_reading, to_stamp
-from hexacal_msgs_py.names import SLIDER_NAMES
+from hexacal_msgs_py.conversions import to_stamp
 import pytest
-from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
-
-def _message(
-    stamp_ns: int = 1_700_000_000_123_456_789,
-    names=tuple(SLIDER_NAMES),
-    positions=(0.1, 0.2, 0.3, 0.4, 0.5, 0.6),
-    frame_id: str = '',
-    velocity=(),
-) -> bytes:
-    message = JointState(
-        name=list(names),
-        position=[float(p) for p in positions],
-        velocity=[float(v) for v in velocity],
-    )
-    message.header.stamp = to_stamp(stamp_ns) if stamp_ns >= 0 else message.header.stamp
-    if stamp_ns < 0:
-        message.header.stamp.sec = -1
-    message.header.frame_id = frame_id
-    return serialize_message(message)
-
-
-def _learned(data: bytes) -> _FastJointState:
-    return _FastJointState(data, deserialize_message(data, JointState), tuple(SLIDER_NAMES))
-
-
-def test_fast_read_equals_rclpy_decoding_for_the_learned_layout():
-    fast = _learned(_message())
-    for stamp, positions in (
-        (5, (1.5, -2.25, 3e-9, 0.0, -0.0, 1e300)),
-        (2**31 * 10**9 - 1, (0.7,) * 6),
-    ):
-        data = _message(stamp, positions=positions)
-        reading = joint_state_to_slider_reading(deserialize_message(data, JointState))
-        assert fast.read(data) == (reading.stamp_ns, reading.slider_positions)
-        assert _stamp_of(data) == reading.stamp_ns
-
-
-def test_joint_order_follows_the_names_of_the_learned_message():
-    names = tuple(reversed(SLIDER_NAMES))
-    fast = _learned(_message(names=names, positions=(6, 5, 4, 3, 2, 1)))
-    assert fast.read(_message(names=names, positions=(60, 50, 40, 30, 20, 10)))[1] == (
-        10.0,
-        20.0,
-        30.0,
-        40.0,
-        50.0,
-        60.0,
-    )
-
-
-@pytest.mark.parametrize(
-    'other',
-    [
-        dict(names=('elbow', *SLIDER_NAMES[1:])),
-        dict(names=SLIDER_NAMES[:5], positions=(0.1,) * 5),
-        dict(positions=(0.1,) * 7, names=(*SLIDER_NAMES, 'extra')),
-        dict(frame_id='base'),
-        dict(velocity=(1.0,)),
-        dict(positions=(0.1, math.nan, 0.3, 0.4, 0.5, 0.6)),
-        dict(positions=(0.1, 0.2, math.inf, 0.4, 0.5, 0.6)),
-        dict(stamp_ns=-1),
-    ],
-)
-def test_anything_else_goes_the_full_way(other):
-    fast = _learned(_message())
-    assert fast.read(_message(**other)) is None
-
-
-def test_malformed_bytes_have_no_layout():
-    data = _message()
-    assert _positions_layout(data[:20]) is None
-    assert _positions_layout(b'\x00\x00\x00\x00' + data[4:]) is None  # big endian
-    assert _learned(data).read(data[:-8]) is None
-
-
-# ------------------------------------------------ a user's /joint_states and an Imu (issue #11)
+# ------------------------------------------------ a user's /joint_states (issue #11)
 
 BROADCASTER_NAMES = (
     'base_yaw',
@@ -116,7 +38,7 @@ def _broadcaster(
     names=BROADCASTER_NAMES,
     frame_id: str = '',
 ) -> bytes:
-    """What ros2_control's joint_state_broadcaster publishes: every joint, with velocity and effort."""
+    """Serialise a joint_state_broadcaster message: every joint, with velocity and effort."""
     count = len(names)
     message = JointState(
         name=list(names),
@@ -133,74 +55,13 @@ def _positions(seed: float) -> list[float]:
     return [seed + 0.01 * i for i in range(len(BROADCASTER_NAMES))]
 
 
-def test_a_broadcaster_message_is_read_in_place_whatever_its_velocity_and_effort():
-    first = _broadcaster(7, _positions(0.1))
-    fast = _FastJointState(first, deserialize_message(first, JointState), WANTED)
-    for k in range(1, 5):
-        positions = _positions(0.1 * k)
-        positions[BROADCASTER_NAMES.index('gripper')] = math.nan  # an extra joint: not read
-        data = _broadcaster(10 * k, positions, velocity=[k * 0.5] * 11, effort=[-k * 1.5] * 11)
-        decoded = deserialize_message(data, JointState)
-        expected = tuple(decoded.position[list(decoded.name).index(name)] for name in WANTED)
-        assert fast.read(data) == (10 * k, expected)
-
-
-@pytest.mark.parametrize(
-    'other',
-    [
-        dict(velocity=[0.0] * 10, effort=[0.0] * 12),  # same size, other sequence lengths
-        dict(velocity=[], effort=[0.0] * 11),
-        dict(names=(*BROADCASTER_NAMES[:-1], 'incl_z')),
-        dict(frame_id='x'),
-    ],
-)
-def test_a_broadcaster_message_laid_out_otherwise_goes_the_full_way(other):
-    first = _broadcaster(7, _positions(0.1))
-    fast = _FastJointState(first, deserialize_message(first, JointState), WANTED)
-    assert fast.read(_broadcaster(8, _positions(0.2), **other)) is None
-
-
-def _imu(
-    stamp_ns: int,
-    alpha: float,
-    beta: float,
-    frame_id: str = 'imu_link',
-    yaw: float = 0.4,
-    covariance_0: float = 0.0,
-) -> bytes:
-    from hexacal_msgs_py.conversions import inclinometer_angles_to_imu
-    from hexacal_msgs_py.readings import InclinometerReading
-
-    message = inclinometer_angles_to_imu(
-        InclinometerReading(stamp_ns, alpha, beta), frame_id, yaw=yaw
-    )
-    message.orientation_covariance[0] = covariance_0
-    return serialize_message(message)
-
-
-def test_an_imu_is_read_in_place_as_the_contract_converts_it():
-    from hexacal_identify.nodes.collector import _FastImu
-    from hexacal_msgs_py.conversions import imu_to_inclinometer_reading
-    from sensor_msgs.msg import Imu
-
-    first = _imu(5, 0.01, -0.02)
-    fast = _FastImu(first, deserialize_message(first, Imu))
-    for k, (alpha, beta, yaw) in enumerate(
-        [(0.1, 0.2, 0.0), (-0.25, 0.05, 2.5), (3e-6, -1e-7, -1.0)]
-    ):
-        data = _imu(1_000 + k, alpha, beta, yaw=yaw)
-        reading = imu_to_inclinometer_reading(deserialize_message(data, Imu))
-        assert fast.read(data) == (reading.stamp_ns, (reading.alpha, reading.beta))
-        assert reading.alpha == pytest.approx(alpha, abs=1e-15)
-        assert reading.beta == pytest.approx(beta, abs=1e-15)
-    assert fast.read(_imu(9, 0.1, 0.1, frame_id='other')) is None
-    assert fast.read(_imu(9, 0.1, 0.1, covariance_0=-1.0)) is None  # no orientation: full way
-    assert fast.read(first[:-8]) is None
-
-
 def test_the_collector_reads_one_joint_states_for_its_three_inputs_once_each():
-    """All three inputs remapped to one topic: one subscription, each reading taken once per message,
-    the in-place reader learned from the first message, the synchronizer pairing them exactly."""
+    """
+    Read all three inputs remapped to one topic, each reading once per message.
+
+    One subscription, the in-place reader learned from the first message, the
+    synchronizer pairing them exactly.
+    """
     from hexacal_identify.nodes.collector import CollectorNode
     from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, SLIDERS_TOPIC
     import rclpy
@@ -256,13 +117,17 @@ def test_the_collector_reads_one_joint_states_for_its_three_inputs_once_each():
             )
             assert source.fast is not None  # learned from the first message
             node._detect()
-        assert node.received == {SLIDERS_TOPIC: 60, INCLINOMETER_TOPIC: 60, ENCODER_TOPIC: 60}
+        assert node.counters.received == {
+            SLIDERS_TOPIC: 60,
+            INCLINOMETER_TOPIC: 60,
+            ENCODER_TOPIC: 60,
+        }
         assert {name: status.accepted for name, status in node.synchronizer.status(0).items()} == {
             'sliders': 60,
             'inclinometer': 60,
             'encoder': 60,
         }
-        assert node.invalid == {} and node.synchronizer.unpaired == {}
+        assert node.counters.invalid == {} and node.synchronizer.unpaired == {}
         (posture,) = published
         value = dict(zip(BROADCASTER_NAMES, positions))
         assert list(posture.name) == [f'slider_{i}' for i in range(1, 7)] + [

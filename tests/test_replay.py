@@ -230,7 +230,7 @@ def _machine_bag(directory: Path, count: int) -> tuple[list, list]:
     from builtin_interfaces.msg import Time
     from geometry_msgs.msg import PoseStamped
     from hexacal_identify.bag import BagWriter
-    from hexacal_identify.nodes.collector import qos_profiles_yaml
+    from hexacal_identify.bag.qos_yaml import qos_profiles_yaml
     from hexacal_msgs_py.qos import MARKERS_QOS, POSE_QOS
     from rclpy.serialization import serialize_message
     from std_msgs.msg import Header

@@ -38,6 +38,7 @@ from hexacal_msgs_py.names import (
 from hexacal_msgs_py.readings import PostureReading
 import numpy as np
 
+from .bag.naming import COLLECTOR_METADATA  # the collector's record: model, detector, mapping
 from .core.architectures import KinematicParameters, parameters_for
 from .core.device import (
     check_mount,
@@ -327,9 +328,6 @@ def _topic_key(topic: str) -> str:
     )
 
 
-COLLECTOR_METADATA = (
-    'hexacal.collector'  # the collector's metadata record (model, detector, mapping)
-)
 # Where postures come from: the posture topic if the bag has one, else the raw inputs ("auto");
 # only the posture topic; or always re-detected from the raw inputs.
 POSTURE_SOURCES = ('auto', 'posture', 'raw')

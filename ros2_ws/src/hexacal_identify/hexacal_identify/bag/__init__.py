@@ -1,4 +1,5 @@
-"""ROS-free rosbag2 (MCAP storage) bag layer: write, read, recover and describe bags.
+"""
+ROS-free rosbag2 (MCAP storage) bag layer: write, read, recover and describe bags.
 
 The names below are imported from their submodules on first use (PEP 562): the
 errors alone do not load the MCAP reader and writer.
@@ -33,10 +34,10 @@ _EXPORTS = {
         'TopicInfo',
         'open_bag',
     ),
+    'qos_yaml': ('DEFAULT_QOS_PROFILES_YAML', 'qos_profiles_yaml', 'read_qos_profiles'),
     'reindex': ('reindex',),
     'schemas': ('message_definition', 'normalize_type_name'),
     'writer': (
-        'DEFAULT_QOS_PROFILES_YAML',
         'ROSBAG2_METADATA_VERSION',
         'STORAGE_PRESETS',
         'BagWriter',
@@ -70,6 +71,8 @@ __all__ = [
     'message_definition',
     'normalize_type_name',
     'open_bag',
+    'qos_profiles_yaml',
+    'read_qos_profiles',
     'reindex',
 ]
 
@@ -111,11 +114,11 @@ if TYPE_CHECKING:
         open_bag,
         TopicInfo,
     )
+    from .qos_yaml import DEFAULT_QOS_PROFILES_YAML, qos_profiles_yaml, read_qos_profiles
     from .reindex import reindex
     from .schemas import message_definition, normalize_type_name
     from .writer import (
         BagWriter,
-        DEFAULT_QOS_PROFILES_YAML,
         ROSBAG2_METADATA_VERSION,
         STORAGE_PRESETS,
     )

@@ -1,4 +1,5 @@
-"""Write rosbag2-compatible MCAP bags (ROS 2 Jazzy layout, metadata version 9) without ROS.
+"""
+Write rosbag2-compatible MCAP bags (ROS 2 Jazzy layout, metadata version 9) without ROS.
 
 Layout: ``<dir>/<dirname>_0.mcap`` (MCAP profile ``ros2``, schemas ``ros2msg``,
 messages ``cdr``, channel metadata ``offered_qos_profiles``) and, on close,
@@ -24,6 +25,7 @@ from mcap.writer import Writer as McapWriter
 import yaml
 
 from .errors import BagEncodeError, BagError, BagSchemaError, BagWriteError
+from .qos_yaml import DEFAULT_QOS_PROFILES_YAML, read_qos_profiles
 from .reader import BagInfo, FileInfo, METADATA_FILE_NAME, STORAGE_IDENTIFIER, TopicInfo
 from .schemas import (
     field_names,
@@ -41,49 +43,6 @@ MCAP_PROFILE = 'ros2'
 LIBRARY_IDENTIFIER = 'hexacal_identify.bag'
 # rosbag2's MCAP storage stores its BagMetadata in a metadata record of this name.
 ROSBAG2_METADATA_RECORD = 'rosbag2'
-
-_INFINITE_DURATION = {'sec': 9223372036, 'nsec': 854775807}  # RMW_DURATION_INFINITE
-DEFAULT_QOS_PROFILES: list[dict[str, Any]] = [
-    {
-        'history': 'keep_last',
-        'depth': 10,
-        'reliability': 'reliable',
-        'durability': 'volatile',
-        'deadline': dict(_INFINITE_DURATION),
-        'lifespan': dict(_INFINITE_DURATION),
-        'liveliness': 'automatic',
-        'liveliness_lease_duration': dict(_INFINITE_DURATION),
-        'avoid_ros_namespace_conventions': False,
-    }
-]
-DEFAULT_QOS_PROFILES_YAML = yaml.safe_dump(DEFAULT_QOS_PROFILES, sort_keys=False)
-
-# Integer enums of metadata version <= 8 (rmw_qos_*_policy_t) -> version 9 names.
-_QOS_POLICY_NAMES: dict[str, dict[int, str]] = {
-    'history': {0: 'system_default', 1: 'keep_last', 2: 'keep_all', 3: 'unknown'},
-    'reliability': {
-        0: 'system_default',
-        1: 'reliable',
-        2: 'best_effort',
-        3: 'unknown',
-        4: 'best_available',
-    },
-    'durability': {
-        0: 'system_default',
-        1: 'transient_local',
-        2: 'volatile',
-        3: 'unknown',
-        4: 'best_available',
-    },
-    'liveliness': {
-        0: 'system_default',
-        1: 'automatic',
-        2: 'manual_by_node',
-        3: 'manual_by_topic',
-        4: 'unknown',
-        5: 'best_available',
-    },
-}
 
 
 @dataclass(frozen=True)
@@ -103,39 +62,10 @@ STORAGE_PRESETS: dict[str, _StoragePreset] = {
 }
 
 
-def qos_profiles_for_metadata(qos_profiles_yaml: str, *, strict: bool = False) -> list[dict]:
-    """offered_qos_profiles YAML text -> list for metadata.yaml v9 (integer enums renamed).
-
-    With `strict`, text that is not a YAML list of mappings raises BagError;
-    otherwise it yields [] (reindexing foreign files must not fail on QoS).
-    """
-    try:
-        profiles = yaml.safe_load(qos_profiles_yaml) if qos_profiles_yaml else []
-    except yaml.YAMLError as error:
-        if strict:
-            raise BagError(f'QoS profiles are not valid YAML: {error}') from error
-        return []
-    if profiles is None:
-        profiles = []
-    if not isinstance(profiles, list) or not all(isinstance(p, dict) for p in profiles):
-        if strict:
-            raise BagError(f'QoS profiles must be a YAML list of mappings, got {profiles!r}')
-        return []
-    converted = []
-    for profile in profiles:
-        profile = dict(profile)
-        for policy, names in _QOS_POLICY_NAMES.items():
-            value = profile.get(policy)
-            if isinstance(value, int) and not isinstance(value, bool):
-                profile[policy] = names.get(value, 'unknown')
-        converted.append(profile)
-    return converted
-
-
 def metadata_document(
     info: BagInfo, *, custom_data: Mapping[str, str] | None = None, ros_distro: str = ROS_DISTRO
 ) -> dict[str, Any]:
-    """The rosbag2_bagfile_information mapping (version 9) describing `info`."""
+    """Return the rosbag2_bagfile_information mapping (version 9) describing `info`."""
     start_ns = info.start_time_ns if info.start_time_ns is not None else 0
     return {
         'version': ROSBAG2_METADATA_VERSION,
@@ -149,7 +79,7 @@ def metadata_document(
                     'name': name,
                     'type': topic.type_name,
                     'serialization_format': MESSAGE_ENCODING,
-                    'offered_qos_profiles': qos_profiles_for_metadata(topic.qos_profiles),
+                    'offered_qos_profiles': read_qos_profiles(topic.qos_profiles),
                     'type_description_hash': '',
                 },
                 'message_count': topic.count,
@@ -182,7 +112,8 @@ def write_metadata_yaml(directory: Path, document: Mapping[str, Any]) -> Path:
 
 
 class _DurableFile:
-    """Write-behind buffer over a file descriptor that knows exactly which bytes are on disk.
+    """
+    Write-behind buffer over a file descriptor that knows exactly which bytes are on disk.
 
     The mcap Writer only needs write/tell/flush. A Python BufferedWriter would
     retry its buffer on close after an ENOSPC and append garbage; here a failed
@@ -331,7 +262,7 @@ class BagWriter:
         if not isinstance(topic, str) or not topic:
             raise BagError(f'topic name must be a non-empty string, got {topic!r}')
         normalized = normalize_type_name(type_name)
-        qos_profiles_for_metadata(qos_profiles_yaml, strict=True)
+        read_qos_profiles(qos_profiles_yaml, strict=True)
         known = self._topics.get(topic)
         if known is not None:
             if known.type_name != normalized:
@@ -403,7 +334,8 @@ class BagWriter:
     def write(
         self, topic: str, message: Any, log_time_ns: int, publish_time_ns: int | None = None
     ) -> None:
-        """Encode a dict (or a message object) with the topic's schema and write it.
+        """
+        Encode a dict (or a message object) with the topic's schema and write it.
 
         A topic not added yet is added when `message` is a generated ROS
         message object (its type is read from its class); dicts need add_topic.
@@ -455,7 +387,8 @@ class BagWriter:
         self._last_flush = time.monotonic()
 
     def close(self) -> None:
-        """Finish the MCAP (summary, footer) and write metadata.yaml atomically.
+        """
+        Finish the MCAP (summary, footer) and write metadata.yaml atomically.
 
         After a BagWriteError, close() cuts the file back to the last flush and
         writes metadata.yaml for that part if the disk lets it; it does not
@@ -505,7 +438,7 @@ class BagWriter:
 
     @property
     def failure(self) -> BagWriteError | None:
-        """The write error that stopped this writer, if any."""
+        """Return the write error that stopped this writer, if any."""
         return self._failure
 
     @property

@@ -1,4 +1,5 @@
-"""Synchronise the sensor streams and detect stationary postures (ROS-free, numpy only).
+"""
+Synchronise the sensor streams and detect stationary postures (ROS-free, numpy only).
 
 The measurement procedure (paper section 3) takes one reading per posture while
 the manipulator stands still. Three ~100 Hz streams (slider positions,
@@ -19,6 +20,7 @@ from enum import Enum
 import math
 from typing import Any
 
+from hexacal_msgs_py.conversions import NS_PER_S
 from hexacal_msgs_py.errors import InvalidReadingError
 from hexacal_msgs_py.names import N_CHAINS, POSTURE_NAMES
 from hexacal_msgs_py.readings import (
@@ -49,7 +51,6 @@ DROPPED_FOR_GAP = 'gap'
 DROPPED_AT_END = 'end_of_stream'
 DROPPED_FOR_STREAM_STOP = 'stream_stopped'  # a sensor stream went silent (e.g. the driver died)
 
-_NS_PER_S = 1_000_000_000
 # Largest stamp the detector takes (year 2116): stamp arithmetic stays within int64.
 MAX_STAMP_NS = 2**62
 
@@ -69,6 +70,8 @@ class StreamStatus:
 
 
 class _StreamState:
+    """Keep one stream's recent readings for pairing."""
+
     def __init__(self, name: str, history: int):
         self.name = name
         self.last_stamp_ns: int | None = None
@@ -92,7 +95,7 @@ class _StreamState:
         return True
 
     def nearest(self, stamp_ns: int, max_skew_ns: int) -> tuple[float, ...] | None:
-        """The kept values closest to stamp_ns (earlier wins a tie) within max_skew_ns."""
+        """Return the kept values closest to stamp_ns (earlier wins a tie) within max_skew_ns."""
         stamps = self.stamps
         after = bisect_left(stamps, stamp_ns)
         best, best_skew = None, max_skew_ns + 1
@@ -104,7 +107,8 @@ class _StreamState:
 
 
 class StreamSynchronizer:
-    """Pairs each slider reading with the nearest inclinometer and encoder readings.
+    """
+    Pairs each slider reading with the nearest inclinometer and encoder readings.
 
     The slider stamp is the reference. A slider reading waits until both other
     streams have a reading at or after its stamp (so the nearest one is known)
@@ -142,7 +146,8 @@ class StreamSynchronizer:
     def add_values(
         self, stream: str, stamp_ns: int, values: tuple[float, ...]
     ) -> list[tuple[int, tuple[float, ...]]]:
-        """add_sliders/add_inclinometer/add_encoder for already validated readings.
+        """
+        add_sliders/add_inclinometer/add_encoder for already validated readings.
 
         `values` are the reading's numbers as a tuple of finite floats (six slider
         positions; alpha, beta; phi), `stamp_ns` a non-negative int. Returns the
@@ -233,7 +238,8 @@ def synchronize_arrays(
     encoder_angles_rad: ArrayLike,
     max_skew_ns: int = 20_000_000,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Offline, vectorised pairing (same rule as StreamSynchronizer) for recorded streams.
+    """
+    Offline, vectorised pairing (same rule as StreamSynchronizer) for recorded streams.
 
     Returns (stamps_ns (n,), values (n, 9)) for the slider samples that have an
     inclinometer and an encoder reading within max_skew_ns.
@@ -344,8 +350,8 @@ def _window_extrema(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per-row max and min of values[starts[i]:ends[i] + 1] (exact, vectorised)."""
     if len(starts) <= 16:  # online use: one or a few samples per call
-        maxima = np.array([values[s : e + 1].max(axis=0) for s, e in zip(starts, ends)])
-        minima = np.array([values[s : e + 1].min(axis=0) for s, e in zip(starts, ends)])
+        maxima = np.array([values[s:e + 1].max(axis=0) for s, e in zip(starts, ends)])
+        minima = np.array([values[s:e + 1].min(axis=0) for s, e in zip(starts, ends)])
         return maxima.reshape(-1, N_CHANNELS), minima.reshape(-1, N_CHANNELS)
     # Sparse table: level k holds max/min over 2**k rows; each window is two overlapping blocks.
     lengths = ends - starts + 1
@@ -368,7 +374,8 @@ def _window_extrema(
 
 
 class PostureDetector:
-    """Detects stationary periods in synchronised samples and emits one posture per period.
+    """
+    Detects stationary periods in synchronised samples and emits one posture per period.
 
     A sample is stationary when, over the `window_s` before it, the peak-to-peak
     of every channel is within its tolerance. The first stationary sample starts
@@ -395,9 +402,9 @@ class PostureDetector:
             raise ValueError('window_s, capture_s, max_gap_s and max_rate_hz must be > 0')
         if not (slider_tolerance_m > 0 and angle_tolerance_rad > 0):
             raise ValueError('tolerances must be > 0')
-        self.window_ns = int(round(window_s * _NS_PER_S))
-        self.capture_ns = int(round(capture_s * _NS_PER_S))
-        self.max_gap_ns = int(round(max_gap_s * _NS_PER_S))
+        self.window_ns = int(round(window_s * NS_PER_S))
+        self.capture_ns = int(round(capture_s * NS_PER_S))
+        self.max_gap_ns = int(round(max_gap_s * NS_PER_S))
         self.tolerances = np.array(
             [slider_tolerance_m] * N_CHAINS + [angle_tolerance_rad] * (N_CHANNELS - N_CHAINS)
         )
@@ -457,7 +464,7 @@ class PostureDetector:
         postures: list[DetectedPosture] = []
         for begin in range(0, len(stamps), self._batch_size):
             chunk_stamps, chunk_values = self._accepted(
-                stamps[begin : begin + self._batch_size], array[begin : begin + self._batch_size]
+                stamps[begin:begin + self._batch_size], array[begin:begin + self._batch_size]
             )
             if len(chunk_stamps):
                 postures.extend(self._process(chunk_stamps, chunk_values))
@@ -468,7 +475,8 @@ class PostureDetector:
         return self.abort(DROPPED_AT_END)
 
     def abort(self, reason: str) -> DroppedPeriod | None:
-        """Drop (count, never emit) a period being captured, e.g. when a stream stopped.
+        """
+        Drop (count, never emit) a period being captured, e.g. when a stream stopped.
 
         Returns the dropped period, or None if nothing was being captured. Samples
         that arrive later start a new period after the usual window.
@@ -633,7 +641,8 @@ class PostureDetector:
 def detect_postures(
     stamps_ns: ArrayLike, values: ArrayLike, **detector_options: Any
 ) -> list[DetectedPosture]:
-    """Offline detection over recorded samples: stamps (N,) ns, values (N, 9).
+    """
+    Offline detection over recorded samples: stamps (N,) ns, values (N, 9).
 
     Uses PostureDetector (same results as feeding the samples one by one),
     in batches, so memory stays bounded for long recordings.

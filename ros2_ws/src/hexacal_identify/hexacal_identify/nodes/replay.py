@@ -1,4 +1,5 @@
-"""``replay BAG``: publish a bag's messages on their recorded topics, like ``ros2 bag play``.
+"""
+``replay BAG``: publish a bag's messages on their recorded topics, like ``ros2 bag play``.
 
 Messages go out as the recorded CDR bytes (no decode/encode), in log-time order,
 with the recorded spacing divided by ``--rate``, on publishers whose QoS is the
@@ -26,9 +27,9 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from ..bag import BagError, open_bag
-from ..bag.writer import qos_profiles_for_metadata
 from .runtime import hold_termination_signals
+from ..bag import BagError, open_bag
+from ..bag.qos_yaml import first_offered_profile
 
 _RELIABILITY = {
     'reliable': ReliabilityPolicy.RELIABLE,
@@ -41,9 +42,8 @@ _DURABILITY = {
 
 
 def qos_from_recorded(qos_profiles_yaml: str) -> QoSProfile:
-    """The QoS a topic was recorded with (first offered profile); reliable/volatile/depth 10 if unknown."""
-    profiles = qos_profiles_for_metadata(qos_profiles_yaml)
-    profile = profiles[0] if profiles else {}
+    """Return a topic's recorded QoS (first offered); reliable, volatile, depth 10 if unknown."""
+    profile = first_offered_profile(qos_profiles_yaml)
     depth = int(profile.get('depth') or 10)
     history = (
         HistoryPolicy.KEEP_ALL if profile.get('history') == 'keep_all' else HistoryPolicy.KEEP_LAST
@@ -94,7 +94,7 @@ class BagPlayer(Node):
         }
 
     def wait_for_subscribers(self, timeout_s: float) -> None:
-        """Give DDS discovery a chance: wait until every publisher has a subscriber, or the timeout."""
+        """Wait until every publisher has a subscriber or time is up (DDS discovery)."""
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             if all(p.get_subscription_count() > 0 for p in self.publishers_by_topic.values()):
@@ -122,8 +122,8 @@ class BagPlayer(Node):
             try:
                 self.publishers_by_topic[message.topic].publish(message.data_bytes)
             except Exception:
-                # A signal between the check above and this publish shuts the context down under it:
-                # rcl reports "publisher's context is invalid". That is a stop, not a crash.
+                # A signal between the check above and this publish shuts the context down under
+                # it: rcl reports "publisher's context is invalid". That is a stop, not a crash.
                 if self.context.ok():
                     raise
                 return count - 1
