@@ -19,10 +19,10 @@ import math
 import struct
 from typing import Any
 
-from hexacal_msgs_py.conversions import NS_PER_S
 from hexacal_msgs_py.errors import InvalidReadingError
 from hexacal_msgs_py.inputs import imu_inclinometer_angles
 from hexacal_msgs_py.names import DEVICE_TURN_JOINT, MAX_DEVICE_TURN
+from hexacal_msgs_py.readings import NS_PER_S
 
 CDR_HEADER = b'\x00\x01\x00\x00'  # XCDR1 little endian, what Fast DDS sends
 _STAMP = struct.Struct('<iI')

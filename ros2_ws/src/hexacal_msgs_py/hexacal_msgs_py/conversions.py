@@ -52,6 +52,7 @@ from hexacal_msgs_py.parameters_file import validate_parameters
 from hexacal_msgs_py.readings import (
     EncoderReading,
     InclinometerReading,
+    NS_PER_S,
     PostureReading,
     SliderReading,
 )
@@ -59,7 +60,6 @@ import numpy as np
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64MultiArray, Header, MultiArrayDimension, MultiArrayLayout
 
-NS_PER_S = 1_000_000_000
 
 ModelArgument = str | ModelLayout | None  # a model name or layout; None: the Hexa Slide
 

@@ -18,6 +18,8 @@ import operator
 from hexacal_msgs_py.errors import InvalidReadingError
 from hexacal_msgs_py.names import DEVICE_TURN_JOINT, MAX_DEVICE_TURN, N_CHAINS, POSTURE_NAMES
 
+NS_PER_S = 1_000_000_000  # stamps are integer nanoseconds
+
 
 def _check_stamp(kind: str, stamp_ns: object) -> int:
     if isinstance(stamp_ns, bool):

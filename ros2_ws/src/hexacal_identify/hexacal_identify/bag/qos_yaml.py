@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from hexacal_msgs_py.conversions import NS_PER_S
+from hexacal_msgs_py.readings import NS_PER_S
 import yaml
 
 from .errors import BagError

@@ -13,7 +13,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from hexacal_msgs_py.conversions import NS_PER_S
+from hexacal_msgs_py.readings import NS_PER_S
 
 from .posture_detector import DROPPED_FOR_STREAM_STOP, PostureDetector, StreamSynchronizer
 
