@@ -29,6 +29,7 @@ from hexacal_msgs_py.models import DEVICE_MOUNT_KEY
 
 from .architectures import KinematicParameters
 from .device import DEFAULT_MOUNT
+from .measurements import FIXED, SPHERE
 from .plan_check import check_stroke, plan_problems, plan_stroke, refusal_message
 from .turns import DeviceTurnSetter, TURN_PARAMETER, TurnSetState
 from .walk import ExecutionSettings, ExecutionState, PlanExecution
@@ -129,6 +130,30 @@ class WalkSetup:
     problems: dict[int, str]  # posture index -> why it cannot be commanded (refused)
     refusal: str  # '' unless refused
     execution: PlanExecution
+
+    def start_lines(self, plan: Plan, model: str, command_topic: str) -> list[str]:
+        """Return what the node logs at the start: the plan, the commands, the turns."""
+        kinds, stroke = [str(kind) for kind in plan.kinds], self.stroke
+        counts = {kind: kinds.count(kind) for kind in (SPHERE, FIXED)}
+        lines = [
+            f"plan '{plan.name}': {len(plan.poses)} postures ({counts[SPHERE]} sphere, "
+            f'{counts[FIXED]} fixed) for a {model}; commands on {command_topic} (joints '
+            f'{", ".join(self.actuator_joints)}), at most '
+            f'{self.settings.max_actuator_speed_m_s:g} m/s, stroke [{stroke[0]:g}, '
+            f'{stroke[1]:g}] m ({self.stroke_source})'
+        ]
+        turns = sorted({float(turn) for turn in plan.turns})
+        if any(turns):
+            degrees = [round(math.degrees(t), 3) for t in turns]
+            lines.append(
+                f'turning procedure: device turns {degrees} deg; '
+                + (
+                    f'device_turn set on {", ".join(self.device_turn_nodes)} at each remount'
+                    if self.device_turn_nodes
+                    else 'device_turn_nodes is empty: no node is told the turn'
+                )
+            )
+        return lines
 
 
 def model_defaults(

@@ -15,7 +15,6 @@ Full reference: docs/nodes.md
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 
@@ -172,7 +171,8 @@ class ExecutorNode(Node):
             self.turns,
         )
         self._stopping = False
-        self._log_plan()
+        for line in setup.start_lines(self.plan, self.model, self._command_pub.topic_name):
+            self.get_logger().info(line)
         if setup.problems:
             self.get_logger().error(setup.refusal)
         self._publish_status(force=True)
@@ -207,28 +207,6 @@ class ExecutorNode(Node):
         if problem:
             raise ExecutorConfigurationError(problem)
         return plan
-
-    def _log_plan(self) -> None:
-        kinds, stroke = [str(kind) for kind in self.plan.kinds], self.stroke
-        counts = {kind: kinds.count(kind) for kind in ('sphere', 'fixed')}
-        self.get_logger().info(
-            f"plan '{self.plan.name}': {len(self.plan.poses)} postures ({counts['sphere']} "
-            f'sphere, {counts["fixed"]} fixed) for a {self.model}; commands on '
-            f'{self._command_pub.topic_name} (joints {", ".join(self.actuator_joints)}), at most '
-            f'{self.settings.max_actuator_speed_m_s:g} m/s, stroke [{stroke[0]:g}, '
-            f'{stroke[1]:g}] m ({self.stroke_source})'
-        )
-        turns = sorted({float(turn) for turn in self.plan.turns})
-        if any(turns):
-            degrees = [round(math.degrees(t), 3) for t in turns]
-            self.get_logger().info(
-                f'turning procedure: device turns {degrees} deg; '
-                + (
-                    f'device_turn set on {", ".join(self.device_turn_nodes)} at each remount'
-                    if self.device_turn_nodes
-                    else 'device_turn_nodes is empty: no node is told the turn'
-                )
-            )
 
     def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for parameter in parameters:
