@@ -101,14 +101,14 @@ def plan_targets(
     problems: dict[int, str] = {}
     targets = np.full((len(poses), 6), np.nan)
     finite = np.all(np.isfinite(poses), axis=1)
-    for index in np.flatnonzero(~finite):
-        problems[int(index)] = 'the pose is not finite'
+    for bad in np.flatnonzero(~finite):
+        problems[int(bad)] = 'the pose is not finite'
     if finite.any():
         legs = arch.legs(arch.chains(nominal), np.where(finite[:, None], poses, 0.0))
         reachable = legs.reachable() & finite
         targets[reachable] = legs.sliders[reachable]
-        for index in np.flatnonzero(finite & ~reachable):
-            problems[int(index)] = (
+        for unreachable in np.flatnonzero(finite & ~reachable):
+            problems[int(unreachable)] = (
                 f'the nominal machine cannot reach it ({arch.unreachable_reason})'
             )
     point = fixed_point(link_length, mount)

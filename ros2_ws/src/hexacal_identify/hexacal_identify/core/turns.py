@@ -72,19 +72,19 @@ class TurnSetState(enum.StrEnum):
 class AnswerFuture(Protocol):
     """A pending answer (rclpy's Future); its result has ``results`` (SetParametersResult)."""
 
-    def done(self) -> bool: ...  # noqa: D102
+    def done(self) -> bool: ...
 
-    def result(self) -> Any: ...  # noqa: D102
+    def result(self) -> Any: ...
 
-    def cancel(self) -> Any: ...  # noqa: D102
+    def cancel(self) -> Any: ...
 
 
 class TurnClient(Protocol):
     """One node's device_turn parameter, as the executor node reaches it."""
 
-    def ready(self) -> bool: ...  # noqa: D102 - its parameter services are there
+    def ready(self) -> bool: ...  # its parameter services are there
 
-    def request(self, turn: float) -> AnswerFuture: ...  # noqa: D102 - set device_turn
+    def request(self, turn: float) -> AnswerFuture: ...  # set device_turn
 
 
 @dataclass

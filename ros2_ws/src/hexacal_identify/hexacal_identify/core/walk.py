@@ -440,7 +440,7 @@ class PlanExecution:
 
     # ------------------------------------------------------------------ internals
 
-    def _say(self, level: str, text: str) -> None:
+    def _say(self, level: LogLevel, text: str) -> None:
         self.messages.append((level, text))
 
     def _hold(self) -> list[Command]:

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import enum
 import math
 import re
-from typing import TYPE_CHECKING
+from typing import Any, TYPE_CHECKING
 
 from hexacal_msgs_py.models import DEVICE_MOUNT_KEY
 
@@ -70,7 +70,7 @@ def node_names(value: object) -> tuple[str, ...]:
     return tuple(value)
 
 
-def parameter_problem(name: str, value: object) -> str | None:
+def parameter_problem(name: str, value: Any) -> str | None:
     """Return what is wrong with the executor's parameter `name` set to `value` (None: fine)."""
     if name in ('plan', 'nominal') and not value:
         return f"parameter '{name}' is required (-p {name}:=<path>)"
@@ -168,7 +168,7 @@ def model_defaults(
 
 
 def setup_walk(
-    values: Mapping[str, object],
+    values: Mapping[str, Any],
     nominal: KinematicParameters,
     plan: Plan,
     stroke_source: str,
