@@ -73,13 +73,14 @@ def test_the_start_waits_until_every_node_has_set_the_mounting():
     ]
     assert [turn for turn, _ in collector.requests] == [math.pi] and driver.requests == []
     assert setter.state == TurnSetState.PENDING
-    collector.answer()
     driver.is_ready = True
     assert setter.step(1.0) is None  # the driver's request only now goes out
     assert setter.start_waiting(math.pi, 1.0) is not None  # one round at a time
     driver.answer()
+    assert setter.step(1.5) is None  # the driver answered first
+    collector.answer()
     settled = setter.step(2.0)
-    assert settled is not None and settled.at_start and settled.done == ['collector', 'driver']
+    assert settled is not None and settled.at_start and settled.done == ['driver', 'collector']
     assert setter.start_done and setter.start_waiting(math.pi, 2.0) is None
     assert setter.state == TurnSetState.DONE
     assert setter.message == 'device_turn 3.14159 rad set on collector, driver'

@@ -204,7 +204,8 @@ class DeviceTurnSetter:
             )
         else:
             self.state = TurnSetState.DONE
-            self.message = f'{turn} set on {", ".join(setting.done)}'
+            # In device_turn_nodes' order, not the answers': the same line however they race.
+            self.message = f'{turn} set on {self.names}'
             self._say(LogLevel.INFO, self.message)
         return setting
 
