@@ -1,5 +1,5 @@
 """The driver's commanded mode, ROS-free: trajectory checks, bounded-speed following, the link's
-constraint, and the executor's rules (core/walk.py) walking a plan on it to a calibration."""
+constraint, and the executor's rules (core/execution.py) walking a plan on it to a calibration."""
 
 from __future__ import annotations
 
@@ -19,7 +19,6 @@ from hexacal_identify.core.architectures import default_parameters
 from hexacal_identify.core.device import fixed_point
 from hexacal_identify.core.kinematics import inverse_kinematics
 from hexacal_identify.core.measurements import NoiseModel
-from hexacal_identify.core.model import nominal_set
 from hexacal_identify.core.model import nominal_set
 from hexacal_identify.core.plan_check import check_plan, default_stroke
 from hexacal_identify.core.planning import plan_postures
