@@ -8,7 +8,6 @@ from hexacal_identify.core.architectures import default_parameters
 from hexacal_identify.core.planning import Plan
 from hexacal_identify.core.postures import sample_poses
 from hexacal_identify.core.turns import DeviceTurnSetter
-from hexacal_identify.core.walk import ExecutionState
 from hexacal_identify.core.walk_io import LogLevel
 from hexacal_identify.core.walk_session import (
     CalibrationCall,
@@ -21,6 +20,7 @@ from hexacal_identify.core.walk_session import (
     setup_walk,
     STATUS_PERIOD_S,
 )
+from hexacal_identify.core.walk_settings import ExecutionState
 from hexacal_identify.nodes.executor_parameters import MODEL_PARAMETERS, PARAMETERS
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""core/plan_check.py, paths.py, walk.py: targets, strokes, moves, corrections, the walk."""
+"""core/plan_check.py, paths.py, walk*.py: targets, strokes, moves, corrections, the walk."""
 
 from __future__ import annotations
 
@@ -23,9 +23,10 @@ from hexacal_identify.core.plan_check import (
     PlanRefusedError,
 )
 from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.walk import ExecutionSettings, PlanExecution
-from hexacal_identify.core.walk import ExecutionState as State
+from hexacal_identify.core.walk import PlanExecution
 from hexacal_identify.core.walk_io import joint_positions
+from hexacal_identify.core.walk_settings import ExecutionSettings
+from hexacal_identify.core.walk_settings import ExecutionState as State
 import numpy as np
 import pytest
 

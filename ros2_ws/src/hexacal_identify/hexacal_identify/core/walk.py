@@ -3,8 +3,9 @@ Walking a posture plan on a machine through its trajectory controller (ROS-free)
 
 The executor node (nodes/executor.py) feeds `PlanExecution` what it hears and
 publishes what it answers; everything that decides is here, unit-tested
-without ROS.  The plan was checked before (core/plan_check.py); the moves are
-core/paths.py's.  For each posture:
+without ROS (its states and settings: core/walk_settings.py).  The plan was
+checked before (core/plan_check.py); the moves are core/paths.py's.  For each
+posture:
 
 1. Move: one command to the nominal targets, with intermediate points along
    the link sphere when ``path_step_m`` > 0 (core/paths.py), each timed at
@@ -51,7 +52,6 @@ compared with the mounting the device is in.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass
 import enum
 import math
 
@@ -74,23 +74,11 @@ from .paths import (
 from .plan_check import check_stroke
 from .turns import check_turns, same_turn, turn_text
 from .walk_io import LogLevel, Messages, ReadingWindow
+from .walk_settings import ExecutionSettings, ExecutionState, PostureOutcome
 
 HOLD_S = 0.2  # time_from_start of a hold command
 MIN_WINDOW_READINGS = 3  # readings a still window needs
 DEFAULT_OVERHEAD_S = 1.0  # ETA before any posture is done: per posture, besides moving, settle_s
-
-
-class ExecutionState(enum.StrEnum):
-    """The state of a plan's walk (status field ``state``: the values)."""
-
-    WAITING = 'waiting'  # for the machine (actuator readings, a controller on the command topic)
-    RUNNING = 'running'
-    PAUSED = 'paused'
-    ABORTED = 'aborted'
-    DONE = 'done'
-    REFUSED = 'refused'  # the plan was refused before anything moved
-
-
 _UNDER_WAY = (ExecutionState.RUNNING, ExecutionState.PAUSED)  # started, not over
 
 
@@ -99,68 +87,6 @@ class Phase(enum.Enum):
 
     MOVING = 'moving'  # commanded: arriving, settling, correcting
     POSTURE = 'posture'  # still at the target: waiting for the collector's posture
-
-
-@dataclass(frozen=True)
-class ExecutionSettings:
-    """The executor's tolerances and limits (SI units)."""
-
-    max_actuator_speed_m_s: float = 0.05
-    position_tolerance_m: float = 5e-3
-    still_tolerance_m: float = 1e-4
-    settle_s: float = 0.5
-    timeout_s: float = 60.0
-    fixed_tolerance_rad: float = 2e-5
-    max_corrections: int = 5
-    wait_for_posture: bool = True
-    path_step_m: float = 0.02  # 0: one-point commands
-
-    def __post_init__(self) -> None:
-        problems = []
-        if not _finite_number(self.path_step_m) or self.path_step_m < 0:
-            problems.append(f'path_step_m must be a finite number >= 0, got {self.path_step_m!r}')
-        for name in (
-            'max_actuator_speed_m_s',
-            'position_tolerance_m',
-            'still_tolerance_m',
-            'settle_s',
-            'timeout_s',
-            'fixed_tolerance_rad',
-        ):
-            value = getattr(self, name)
-            if not _finite_number(value) or value <= 0:
-                problems.append(f'{name} must be a positive finite number, got {value!r}')
-        if (
-            isinstance(self.max_corrections, bool)
-            or not isinstance(self.max_corrections, int)
-            or self.max_corrections < 0
-        ):
-            problems.append(
-                f'max_corrections must be an integer >= 0, got {self.max_corrections!r}'
-            )
-        if problems:
-            raise ValueError('; '.join(problems))
-
-
-def _finite_number(value: object) -> bool:
-    return (
-        not isinstance(value, bool)
-        and isinstance(value, (int, float))
-        and math.isfinite(value)
-    )
-
-
-@dataclass
-class PostureOutcome:
-    """What became of one posture of the plan."""
-
-    index: int
-    kind: str
-    measured: bool
-    reason: str  # why it was skipped ('' when measured)
-    duration_s: float
-    move_s: float  # the planned move time of its first command
-    corrections: int
 
 
 class PlanExecution:

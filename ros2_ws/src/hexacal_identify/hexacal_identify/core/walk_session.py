@@ -32,8 +32,9 @@ from .device import DEFAULT_MOUNT
 from .measurements import FIXED, SPHERE
 from .plan_check import check_stroke, plan_problems, plan_stroke, refusal_message
 from .turns import DeviceTurnSetter, TURN_PARAMETER, TurnSetState
-from .walk import ExecutionSettings, ExecutionState, PlanExecution
+from .walk import PlanExecution
 from .walk_io import LogLevel, Messages
+from .walk_settings import ExecutionSettings, ExecutionState
 
 if TYPE_CHECKING:
     from .planning import Plan

@@ -56,10 +56,10 @@ from ..core.device import DEFAULT_MOUNT, DeviceMountError
 from ..core.paths import Command
 from ..core.plan_check import PlanRefusedError
 from ..core.turns import DeviceTurnSetter, same_turn, TURN_PARAMETER
-from ..core.walk import ExecutionState
 from ..core.walk_io import joint_positions, LogLevel, Messages
 from ..core.walk_session import CalibrationCall, ExecutorStatus, model_defaults
 from ..core.walk_session import parameter_problem, plan_mismatch, setup_walk
+from ..core.walk_settings import ExecutionState
 
 NODE_NAME = 'executor'
 CONTROL_PERIOD_S = 0.05  # the state machine steps this often

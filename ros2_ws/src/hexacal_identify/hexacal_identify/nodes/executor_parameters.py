@@ -11,7 +11,7 @@ from hexacal_msgs_py.models import MAX_DEVICE_TURN
 from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC, INCLINOMETER_NAMES
 
 from .parameters import ParameterSpec as _Spec
-from ..core.walk import ExecutionSettings
+from ..core.walk_settings import ExecutionSettings
 
 SETTINGS = ExecutionSettings()
 PARAMETERS: dict[str, _Spec] = {
