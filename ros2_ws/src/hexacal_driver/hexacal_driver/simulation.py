@@ -41,39 +41,19 @@ from hexacal_identify.core.device import (
 from hexacal_identify.core.errors import UnreachablePoseError
 from hexacal_identify.core.kinematics import forward_kinematics, inverse_kinematics, wrap_angle
 from hexacal_identify.core.measurements import FIXED, NoiseModel
+# The executor's interpolation; without a link length: the great circle of the true sphere.
+from hexacal_identify.core.paths import interpolate_pose
 import numpy as np
 
 SETTLING = 'settling'  # moving to the posture (or, at the start, standing at it)
 DWELLING = 'dwelling'  # standing still at the posture: what the collector measures
 DONE = 'done'  # the plan is finished: standing still at its last posture
 
-_SAME_RADIUS_M = 1e-9
-
 
 def smooth_step(s: float) -> float:
     """Quintic time law on [0, 1]: zero velocity and acceleration at both ends."""
     s = min(max(float(s), 0.0), 1.0)
     return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
-
-
-def interpolate_pose(start: np.ndarray, end: np.ndarray, s: float) -> np.ndarray:
-    """Pose at fraction s in [0, 1] of the way from start to end.
-
-    Positions at the same distance from O move along the great circle (the
-    link sphere); otherwise linearly. Euler angles move linearly.
-    """
-    start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
-    p0, p1 = start[:3], end[:3]
-    r0, r1 = float(np.linalg.norm(p0)), float(np.linalg.norm(p1))
-    angle = 0.0
-    if r0 > 0 and abs(r0 - r1) <= _SAME_RADIUS_M:
-        angle = math.acos(min(max(float(np.dot(p0, p1)) / (r0 * r1), -1.0), 1.0))
-    if angle > 1e-12 and math.pi - angle > 1e-6:  # slerp; antipodes are never in a workspace
-        sin_angle = math.sin(angle)
-        position = (math.sin((1 - s) * angle) * p0 + math.sin(s * angle) * p1) / sin_angle
-    else:
-        position = p0 + s * (p1 - p0)
-    return np.concatenate([position, start[3:] + s * (end[3:] - start[3:])])
 
 
 @dataclass(frozen=True)

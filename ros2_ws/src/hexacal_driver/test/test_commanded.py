@@ -21,19 +21,13 @@ from hexacal_driver.simulation import (
 )
 from hexacal_identify.core.architectures import default_parameters
 from hexacal_identify.core.device import fixed_point
-from hexacal_identify.core.execution import (
-    ABORTED,
-    check_plan,
-    default_stroke,
-    DONE,
-    ExecutionSettings,
-    PlanExecution,
-    WAITING,
-)
 from hexacal_identify.core.kinematics import inverse_kinematics
 from hexacal_identify.core.measurements import NoiseModel
 from hexacal_identify.core.model import nominal_set
+from hexacal_identify.core.plan_check import check_plan, default_stroke
 from hexacal_identify.core.planning import plan_postures
+from hexacal_identify.core.walk import ExecutionSettings, PlanExecution
+from hexacal_identify.core.walk import ExecutionState as State
 import numpy as np
 import pytest
 
@@ -184,7 +178,7 @@ def _walk(model, postures, noise=1e-5, seed=0, **settings):
     follower = CommandFollower(truth, np.concatenate([fixed_point(L), np.zeros(3)]), 1.0, L)
     sensors = SensorSimulator(NoiseModel(noise, noise), np.random.default_rng(seed))
     t, still_since, samples, postures_seen = 0.0, None, [], []
-    while execution.state not in (DONE, ABORTED) and t < 300.0:
+    while execution.state not in (State.DONE, State.ABORTED) and t < 300.0:
         sample = follower.sample(t)
         reading = sensors.read(sample)
         execution.on_actuators(t, reading.sliders_m)
@@ -202,7 +196,7 @@ def _walk(model, postures, noise=1e-5, seed=0, **settings):
                 still_since = math.inf  # one posture per stop
         else:
             still_since = None
-        commands = execution.start(t) if execution.state == WAITING else execution.step(t)
+        commands = execution.start(t) if execution.state == State.WAITING else execution.step(t)
         for command in commands:
             follower.command(
                 t,
@@ -221,7 +215,7 @@ def test_the_executor_walks_a_plan_on_the_commanded_machine_to_a_good_calibratio
     from hexacal_msgs_py.readings import PostureReading
 
     execution, seen, truth, nominal, plan = _walk(model, 16)
-    assert execution.state == DONE and execution.measured == 16 and not execution.skipped
+    assert execution.state == State.DONE and execution.measured == 16 and not execution.skipped
     fixed = [i for i, kind in enumerate(plan.kinds) if kind == 'fixed']
     assert fixed and all(execution.outcomes[i].corrections >= 1 for i in fixed)
     angles = np.array(seen)[:, 6:8]

@@ -43,7 +43,7 @@ def test_a_planned_file_is_what_the_executor_commands_within_the_commanded_drive
     tmp_path, model
 ):
     from hexacal_driver.plan import machine_workspace
-    from hexacal_identify.core.execution import check_plan, default_stroke
+    from hexacal_identify.core.plan_check import check_plan, default_stroke
     from hexacal_identify.core.kinematics import inverse_kinematics
     from hexacal_identify.core.planning import Plan
 

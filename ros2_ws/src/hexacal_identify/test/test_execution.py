@@ -1,4 +1,4 @@
-"""core/execution.py: targets, stroke check, time_from_start, the fixed-position correction, the state machine."""
+"""core/plan_check.py, paths.py, walk*.py: targets, strokes, moves, corrections, the walk."""
 
 from __future__ import annotations
 
@@ -6,31 +6,27 @@ import math
 
 from hexacal_identify.core.architectures import default_parameters
 from hexacal_identify.core.device import fixed_point, inclinometer_angles, measured_position
-from hexacal_identify.core.execution import (
-    ABORTED,
-    check_plan,
-    check_stroke,
-    CORRECT,
-    corrected_pose,
-    default_stroke,
-    DONE,
-    ExecutionSettings,
-    fixed_position_correction,
-    HOLD,
-    joint_positions,
-    MIN_MOVE_S,
-    MOVE,
-    move_duration,
-    PAUSED,
-    plan_targets,
-    PlanExecution,
-    PlanRefusedError,
-    RUNNING,
-    WAITING,
-)
 from hexacal_identify.core.kinematics import inverse_kinematics
 from hexacal_identify.core.model import nominal_set, table1_parameters
+from hexacal_identify.core.paths import CommandPurpose as Purpose
+from hexacal_identify.core.paths import (
+    corrected_pose,
+    fixed_position_correction,
+    MIN_MOVE_S,
+    move_duration,
+)
+from hexacal_identify.core.plan_check import (
+    check_plan,
+    check_stroke,
+    default_stroke,
+    plan_targets,
+    PlanRefusedError,
+)
 from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.walk import PlanExecution
+from hexacal_identify.core.walk_io import joint_positions
+from hexacal_identify.core.walk_settings import ExecutionSettings
+from hexacal_identify.core.walk_settings import ExecutionState as State
 import numpy as np
 import pytest
 
@@ -52,7 +48,7 @@ def _plan(params=NOMINAL, sphere=4, fixed=2, seed=0):
     return poses, ['sphere'] * sphere + ['fixed'] * fixed
 
 
-# --------------------------------------------------------------------------- targets and the stroke
+# ------------------------------------------------------------------------ targets and the stroke
 
 
 @pytest.mark.parametrize('model', [None, GS])
@@ -137,9 +133,12 @@ def test_settings_name_every_bad_value():
 
 
 class _Machine:
-    """A machine that reaches every command exactly after its time_from_start (no link strain),
-    and a collector that measures after 0.4 s of stillness; the inclinometer reads its true
-    platform position."""
+    """
+    Reach every command exactly after its time_from_start (no link strain).
+
+    A collector measures after 0.4 s of stillness; the inclinometer reads the
+    true platform position.
+    """
 
     def __init__(self, truth, execution: PlanExecution, speed_factor: float = 1.0):
         self.truth = truth
@@ -168,7 +167,7 @@ class _Machine:
         from hexacal_identify.core.kinematics import forward_kinematics
 
         execution = self.execution
-        while self.t < until and execution.state not in (DONE, ABORTED):
+        while self.t < until and execution.state not in (State.DONE, State.ABORTED):
             q = self.at(self.t)
             execution.on_actuators(self.t, q)
             if self.t >= self.t1:
@@ -186,7 +185,9 @@ class _Machine:
             else:
                 self.measured_at = None
             self.command(
-                execution.start(self.t) if execution.state == WAITING else execution.step(self.t)
+                execution.start(self.t)
+                if execution.state == State.WAITING
+                else execution.step(self.t)
             )
             self.t += dt
 
@@ -210,9 +211,10 @@ def test_a_plan_is_walked_to_the_end_with_the_fixed_posture_in_closed_loop():
     execution = _execution(NOMINAL)
     machine = _Machine(table1_parameters(), execution)
     machine.run(60.0)
-    assert execution.state == DONE and execution.measured == 4 and not execution.skipped
+    assert execution.state == State.DONE and execution.measured == 4 and not execution.skipped
     purposes = [c.purpose for c in machine.commands]
-    assert purposes[:4] == [MOVE] * 4 and CORRECT in purposes  # the fixed one was corrected
+    # The fixed one was corrected.
+    assert purposes[:4] == [Purpose.MOVE] * 4 and Purpose.CORRECT in purposes
     assert max(map(abs, machine.angles)) <= execution.settings.fixed_tolerance_rad
     assert execution.outcomes[-1].corrections >= 1
     progress = execution.progress(machine.t)
@@ -224,25 +226,27 @@ def test_pause_holds_and_resume_restarts_the_posture_abort_ends_the_plan():
     execution = _execution(NOMINAL, sphere=4, fixed=0)
     machine = _Machine(default_parameters(), execution)
     machine.run(0.05)
-    assert execution.state == RUNNING and len(machine.commands) == 1
+    assert execution.state == State.RUNNING and len(machine.commands) == 1
     ok, message, commands = execution.pause(machine.t)
-    assert ok and execution.state == PAUSED and 'paused at posture 1 of 4' in message
-    assert [c.purpose for c in commands] == [HOLD]
+    assert ok and execution.state == State.PAUSED and 'paused at posture 1 of 4' in message
+    assert [c.purpose for c in commands] == [Purpose.HOLD]
     np.testing.assert_array_equal(commands[0].positions, execution.actuators.latest)
     machine.command(commands)
     machine.run(machine.t + 3.0)  # paused: nothing moves on
-    assert execution.state == PAUSED and execution.measured == 0
+    assert execution.state == State.PAUSED and execution.measured == 0
     assert execution.progress(machine.t)['state'] == 'paused'
     assert execution.progress(machine.t)['paused_s'] >= 2.9
     ok, message, commands = execution.resume(machine.t)
-    assert ok and execution.state == RUNNING and [c.purpose for c in commands] == [MOVE]
+    assert ok and execution.state == State.RUNNING
+    assert [c.purpose for c in commands] == [Purpose.MOVE]
     np.testing.assert_array_equal(commands[0].positions, execution.targets[0])
     machine.command(commands)
     while execution.measured < 2:
         machine.run(machine.t + 0.1)
     ok, message, commands = execution.abort(machine.t)
-    assert ok and execution.state == ABORTED and 'aborted at posture 3 of 4 (2 measured' in message
-    assert [c.purpose for c in commands] == [HOLD]
+    assert ok and execution.state == State.ABORTED
+    assert 'aborted at posture 3 of 4 (2 measured' in message
+    assert [c.purpose for c in commands] == [Purpose.HOLD]
     assert not execution.abort(machine.t)[0] and not execution.resume(machine.t)[0]
     assert execution.step(machine.t + 100.0) == []  # nothing more is ever commanded
 
@@ -251,7 +255,8 @@ def test_a_posture_not_reached_in_time_is_skipped_and_reported():
     execution = _execution(NOMINAL, sphere=2, fixed=0, timeout_s=0.5)
     machine = _Machine(default_parameters(), execution, speed_factor=0.01)  # 100x too slow
     machine.run(10.0)
-    assert execution.state == DONE and execution.measured == 0 and len(execution.skipped) == 2
+    assert execution.state == State.DONE
+    assert execution.measured == 0 and len(execution.skipped) == 2
     reason = execution.skipped[0].reason
     assert reason.startswith('not at the target and still within 0.5 s (actuators up to')
     progress = execution.progress(machine.t)
@@ -265,7 +270,7 @@ def test_start_paused_waits_for_resume_and_eta_counts_down():
     execution.start_paused = True
     machine = _Machine(default_parameters(), execution)
     machine.run(1.0)
-    assert execution.state == PAUSED and machine.commands == []
+    assert execution.state == State.PAUSED and machine.commands == []
     eta_before = execution.eta_s(machine.t)
     assert eta_before > 0
     machine.command(execution.resume(machine.t)[2])
@@ -275,7 +280,7 @@ def test_start_paused_waits_for_resume_and_eta_counts_down():
 
 
 def test_the_stroke_defaults_to_the_plans_limits_then_the_models():
-    from hexacal_identify.core.execution import plan_stroke
+    from hexacal_identify.core.plan_check import plan_stroke
 
     assert plan_stroke({'limits': {'actuator_stroke_m': [0.05, 0.8]}}, NOMINAL) == (
         (0.05, 0.8),
@@ -312,14 +317,14 @@ def test_the_execution_pauses_for_the_operator_to_turn_the_device_then_walks_on(
     execution = _turning_execution([0.0, 0.0, math.pi, math.pi])
     machine = _Machine(default_parameters(), execution)
     assert execution.progress(0.0)['device_turn_rad'] == 0.0
-    while execution.state != PAUSED:
+    while execution.state != State.PAUSED:
         machine.run(machine.t + 0.1)
         assert machine.t < 60.0
     # Both postures of the normal mounting measured; paused before the third, holding.
     assert execution.measured == 2 and execution.index == 2 and execution.waiting_for_turn
     assert execution.turn_needed == math.pi and execution.mounted_turn == 0.0
-    assert [c.purpose for c in machine.commands].count(MOVE) == 2
-    assert machine.commands[-1].purpose == HOLD
+    assert [c.purpose for c in machine.commands].count(Purpose.MOVE) == 2
+    assert machine.commands[-1].purpose == Purpose.HOLD
     notice = execution.turn_notice
     assert notice.startswith('posture 3 of 4 needs the device turned to 180 deg (3.14159 rad)')
     assert (
@@ -328,24 +333,24 @@ def test_the_execution_pauses_for_the_operator_to_turn_the_device_then_walks_on(
     )
     assert ('warn', notice) in execution.messages
     progress = execution.progress(machine.t)
-    assert progress['state'] == PAUSED and progress['posture'] == 3
+    assert progress['state'] == State.PAUSED and progress['posture'] == 3
     assert progress['device_turn_rad'] == math.pi and progress['device_turn_needed_rad'] == math.pi
     commands = len(machine.commands)
     machine.run(machine.t + 3.0)  # nothing moves while the operator turns the device
-    assert execution.state == PAUSED and len(machine.commands) == commands
+    assert execution.state == State.PAUSED and len(machine.commands) == commands
     ok, message, _ = execution.pause(machine.t)
     assert ok and 'turn the device to 180 deg' in message  # a pause says what it waits for
     ok, message, commands = execution.resume(machine.t)
-    assert ok and execution.state == RUNNING and execution.mounted_turn == math.pi
+    assert ok and execution.state == State.RUNNING and execution.mounted_turn == math.pi
     assert 'resumed at posture 3 of 4 with the device turned to 180 deg' in message
     assert execution.turn_needed is None and execution.turn_notice == ''
-    assert [c.purpose for c in commands] == [MOVE] and commands[0].posture == 2
+    assert [c.purpose for c in commands] == [Purpose.MOVE] and commands[0].posture == 2
     np.testing.assert_array_equal(commands[0].positions, execution.targets[2])
     assert 'device_turn_needed_rad' not in execution.progress(machine.t)
     machine.command(commands)
     machine.run(machine.t + 60.0)
-    assert execution.state == DONE and execution.measured == 4 and not execution.skipped
-    assert sum(c.purpose == HOLD for c in machine.commands) == 1  # one remount, one pause
+    assert execution.state == State.DONE and execution.measured == 4 and not execution.skipped
+    assert sum(c.purpose == Purpose.HOLD for c in machine.commands) == 1  # one remount, one pause
     assert execution.progress(machine.t)['device_turn_rad'] == math.pi
 
 
@@ -353,23 +358,23 @@ def test_a_first_posture_in_another_mounting_pauses_before_anything_moves():
     execution = _turning_execution([math.pi / 2, math.pi, math.pi, 0.0])
     machine = _Machine(default_parameters(), execution)
     machine.run(1.0)
-    assert execution.state == PAUSED and execution.index == 0 and machine.commands == []
+    assert execution.state == State.PAUSED and execution.index == 0 and machine.commands == []
     assert 'posture 1 of 4 needs the device turned to 90 deg' in execution.turn_notice
     machine.command(execution.resume(machine.t)[2])
     assert execution.mounted_turn == math.pi / 2
-    while execution.state != PAUSED:
+    while execution.state != State.PAUSED:
         machine.run(machine.t + 0.1)
     assert (
         execution.measured == 1 and execution.turn_needed == math.pi
     )  # quarter turn -> half turn
     machine.command(execution.resume(machine.t)[2])
-    while execution.state != PAUSED:
+    while execution.state != State.PAUSED:
         machine.run(machine.t + 0.1)
     assert execution.measured == 3 and execution.turn_needed == 0.0
     assert 'turned to 0 deg (0 rad)' in execution.turn_notice
     machine.command(execution.resume(machine.t)[2])
     machine.run(machine.t + 60.0)
-    assert execution.state == DONE and execution.measured == 4
+    assert execution.state == State.DONE and execution.measured == 4
 
 
 def test_no_pause_when_the_device_is_already_in_the_plans_mounting():
@@ -382,8 +387,8 @@ def test_no_pause_when_the_device_is_already_in_the_plans_mounting():
         execution = _turning_execution(turns, sphere=3, mounted_turn=mounted)
         machine = _Machine(default_parameters(), execution)
         machine.run(60.0)
-        assert execution.state == DONE and execution.measured == 3, turns
-        assert not any(c.purpose == HOLD for c in machine.commands)
+        assert execution.state == State.DONE and execution.measured == 3, turns
+        assert not any(c.purpose == Purpose.HOLD for c in machine.commands)
         assert execution.turn_notice == '' and execution.mounted_turn == mounted
 
 
@@ -393,13 +398,14 @@ def test_abort_while_waiting_for_a_turn_and_bad_turns():
     machine.run(0.5)
     assert execution.waiting_for_turn
     ok, message, commands = execution.abort(machine.t)
-    assert ok and execution.state == ABORTED and commands == [] and not execution.waiting_for_turn
+    assert ok and execution.state == State.ABORTED
+    assert commands == [] and not execution.waiting_for_turn
     assert 'device_turn_needed_rad' not in execution.progress(machine.t)
     with pytest.raises(ValueError, match='one finite angle'):
         _turning_execution([0.0, 0.0])
     with pytest.raises(ValueError, match='one finite angle'):
         _turning_execution([0.0, math.nan, 0.0, 0.0])
-    from hexacal_identify.core.execution import same_turn
+    from hexacal_identify.core.turns import same_turn
 
     assert same_turn(0.0, 2 * math.pi) and same_turn(-math.pi, math.pi)
     assert not same_turn(0.0, math.pi) and not same_turn(math.pi / 2, 3 * math.pi / 2)

@@ -1,0 +1,644 @@
+"""
+Walking a posture plan on a machine through its trajectory controller (ROS-free).
+
+The executor node (nodes/executor.py) feeds `PlanExecution` what it hears and
+publishes what it answers; everything that decides is here, unit-tested
+without ROS (its states and settings: core/walk_settings.py).  The plan was
+checked before (core/plan_check.py); the moves are core/paths.py's.  For each
+posture:
+
+1. Move: one command to the nominal targets, with intermediate points along
+   the link sphere when ``path_step_m`` > 0 (core/paths.py), each timed at
+   ``max_actuator_speed_m_s``; the first path, from where the machine stands,
+   is checked when it starts (it cannot be commanded: the plan is refused).
+2. Arrive: the measured actuators are at the target (within
+   ``position_tolerance_m``) and still (peak-to-peak within
+   ``still_tolerance_m``) over the last ``settle_s``, counted from when the
+   command's own time has passed.  The tolerance allows for the strain of the
+   measuring link: the link holds the platform on its sphere, so where the
+   nominal model is millimetres off, the actuators stop up to millimetres away
+   from targets the true machine cannot reach on that sphere.
+3. Fixed-position postures (eq. 10) are reached in closed loop: with the
+   machine still, the mean inclinometer reading (alpha, beta) over ``settle_s``
+   gives the platform's position by eq. 4; the commanded pose's position is
+   moved by ``-dp/d(alpha, beta) [alpha, beta]`` (`fixed_position_correction`)
+   and new targets come from the nominal inverse kinematics, until both angles
+   are within ``fixed_tolerance_rad``; after ``max_corrections`` the posture is
+   skipped and reported.  Intermediate stops are valid sphere postures if the
+   collector measures them.
+4. Measured: the collector's posture of this stop (received after the last
+   command, its actuators within ``still_tolerance_m`` of the still mean).
+   Then the next posture.
+
+A posture not done within ``timeout_s`` of its first command is skipped and
+reported with what was missing. Pause holds the machine (a one-point command at
+the measured actuator positions) and restarts the current posture on resume
+(its timeout too); abort holds it and ends the plan.
+
+Turning the device (core/turns.py): the execution knows the mounting the
+device is in (``mounted_turn``, 0 = normal unless told otherwise).  Before it
+begins a posture whose turn differs from that mounting (modulo 2 pi) it pauses
+itself: state PAUSED, the hold command a pause sends, and a warning notice
+(``turn_notice``) naming the posture, the turn it needs and what to do ("turn
+the device to 180 deg about its link axis, then call hexacal/executor/resume").
+Nothing moves while the operator remounts the device.  resume() then records
+the new mounting and begins that posture from its planned pose (its timeout
+from the resume).  progress() reports the current posture's
+``device_turn_rad`` and, while waiting for a turn, ``device_turn_needed_rad``.
+A posture skipped after the turn does not undo it: the next posture's turn is
+compared with the mounting the device is in.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+import enum
+import math
+
+from hexacal_msgs_py.names import EXECUTOR_RESUME_SERVICE as RESUME_SERVICE
+import numpy as np
+
+from .architectures import KinematicParameters
+from .device import DEFAULT_MOUNT, fixed_point
+from .measurements import FIXED
+from .paths import (
+    Command,
+    CommandPurpose,
+    corrected_pose,
+    move_duration,
+    on_sphere,
+    path_command,
+    PathError,
+    route_command,
+)
+from .plan_check import check_stroke
+from .turns import check_turns, same_turn, turn_text
+from .walk_io import LogLevel, Messages, ReadingWindow
+from .walk_settings import ExecutionSettings, ExecutionState, PostureOutcome
+
+HOLD_S = 0.2  # time_from_start of a hold command
+MIN_WINDOW_READINGS = 3  # readings a still window needs
+DEFAULT_OVERHEAD_S = 1.0  # ETA before any posture is done: per posture, besides moving, settle_s
+_UNDER_WAY = (ExecutionState.RUNNING, ExecutionState.PAUSED)  # started, not over
+
+
+class Phase(enum.Enum):
+    """Where the current posture stands while RUNNING."""
+
+    MOVING = 'moving'  # commanded: arriving, settling, correcting
+    POSTURE = 'posture'  # still at the target: waiting for the collector's posture
+
+
+class PlanExecution:
+    """The executor's state machine: feed it readings, postures and time; send its commands."""
+
+    def __init__(
+        self,
+        nominal: KinematicParameters,
+        poses: np.ndarray,
+        kinds: Iterable[str],
+        targets: np.ndarray,
+        settings: ExecutionSettings,
+        stroke: tuple[float, float],
+        link_length: float,
+        mount: str = DEFAULT_MOUNT,
+        start_paused: bool = False,
+        device_turns: Iterable[float] | None = None,
+        mounted_turn: float = 0.0,
+    ):
+        """
+        Walk `poses` (their nominal `targets` from core/plan_check.py) on `nominal`.
+
+        device_turns: the plan's turn of each posture (rad; None: every posture
+        in the normal mounting); mounted_turn: the mounting the device is in at
+        the start (rad).
+        """
+        self.nominal = nominal
+        self.poses = np.atleast_2d(np.asarray(poses, dtype=float))
+        self.kinds = [str(kind) for kind in kinds]
+        self.targets = np.asarray(targets, dtype=float)
+        self.settings = settings
+        self.stroke = check_stroke(stroke)
+        self.link_length = float(link_length)
+        self.mount = mount
+        self.turns = check_turns(device_turns, len(self.poses))
+        if isinstance(mounted_turn, bool) or not math.isfinite(float(mounted_turn)):
+            raise ValueError(f'mounted_turn must be a finite angle (rad), got {mounted_turn!r}')
+        self.mounted_turn = float(mounted_turn)  # the mounting the device is in (rad)
+        self.turn_needed: float | None = None  # while paused for the operator to turn the device
+        self.turn_notice = ''  # what the operator is asked to do (while turn_needed is set)
+        self.state = ExecutionState.WAITING
+        self.start_paused = bool(start_paused)
+        self.index = 0  # current posture
+        self.outcomes: list[PostureOutcome] = []
+        keep = 4.0 * settings.settle_s + 2.0
+        self.actuators = ReadingWindow(keep)
+        self.inclinometer = ReadingWindow(keep)
+        self.messages: Messages = []  # for the node to log
+        self.total_corrections = 0
+        self.started_at: float | None = None
+        self.finished_at: float | None = None
+        self._paused_total = 0.0
+        self._paused_at: float | None = None
+        self._phase: Phase | None = None  # None: not commanding (waiting, paused, over)
+        self._pose_cmd = np.zeros(6)
+        self._target = np.zeros(6)
+        self._corrections = 0
+        self._posture_start = 0.0
+        self._first_move_s = 0.0
+        self._command_time = 0.0
+        self._arrive_after = 0.0
+        self._still_mean: np.ndarray | None = None
+        # (received, actuators) since the last command
+        self._postures: list[tuple[float, np.ndarray]] = []
+        self._sent_any = False
+        self._where: np.ndarray | None = None  # the pose the last move went to
+        self._at_where = False  # it stood still there since (so the next path starts there)
+        self.refusal = ''  # why the plan was refused (state REFUSED)
+
+    # ------------------------------------------------------------------ inputs
+
+    def on_actuators(self, now: float, positions: np.ndarray) -> None:
+        """Hear the measured actuator positions (model order, m) at `now` (s)."""
+        self.actuators.add(now, positions)
+
+    def on_inclinometer(self, now: float, alpha: float, beta: float) -> None:
+        """Hear the inclinometer angles (rad) at `now` (s)."""
+        self.inclinometer.add(now, np.array([alpha, beta]))
+
+    def on_posture(self, now: float, actuators: np.ndarray) -> None:
+        """Hear a posture the collector measured (its actuators, m) at `now` (s)."""
+        if self.state in _UNDER_WAY and self._phase is not None:
+            self._postures.append((now, np.asarray(actuators, dtype=float)))
+
+    # ------------------------------------------------------------------ control
+
+    @property
+    def total(self) -> int:
+        """Return the number of postures of the plan."""
+        return len(self.poses)
+
+    @property
+    def measured(self) -> int:
+        """Return the number of postures measured so far."""
+        return sum(outcome.measured for outcome in self.outcomes)
+
+    @property
+    def skipped(self) -> list[PostureOutcome]:
+        """Return the outcomes of the postures skipped so far."""
+        return [outcome for outcome in self.outcomes if not outcome.measured]
+
+    def start(self, now: float) -> list[Command]:
+        """Begin now the machine is there (readings, a controller), or wait paused."""
+        if self.state != ExecutionState.WAITING or self.actuators.latest is None:
+            return []
+        self.started_at = now
+        if self.start_paused:
+            self.state = ExecutionState.PAUSED
+            self._paused_at = now
+            self._say(LogLevel.INFO, f'ready to walk {self.total} postures; paused until resumed')
+            return []
+        self.state = ExecutionState.RUNNING
+        return self._begin(now, fresh=True)
+
+    def pause(self, now: float) -> tuple[bool, str, list[Command]]:
+        """Pause (hold the machine): (success, the service's answer, commands to send)."""
+        if self.state == ExecutionState.WAITING:
+            self.start_paused = True
+            return True, 'paused: the plan will not start until resumed', []
+        if self.state == ExecutionState.PAUSED:
+            if self.turn_needed is not None:
+                return (
+                    True,
+                    (
+                        f'already paused at posture {self.index + 1} of {self.total}: '
+                        f'{self.turn_notice}'
+                    ),
+                    [],
+                )
+            return True, f'already paused at posture {self.index + 1} of {self.total}', []
+        if self.state != ExecutionState.RUNNING:
+            return False, f'cannot pause: the executor is {self.state}', []
+        self.state = ExecutionState.PAUSED
+        self._paused_at = now
+        self._phase = None
+        text = (
+            f'paused at posture {self.index + 1} of {self.total}: holding; resume restarts '
+            'this posture'
+        )
+        self._say(LogLevel.INFO, text)
+        return True, text, self._hold()
+
+    def resume(self, now: float) -> tuple[bool, str, list[Command]]:
+        """Resume (after a turn: in the new mounting): (success, answer, commands)."""
+        if self.state == ExecutionState.WAITING:
+            self.start_paused = False
+            return True, 'resumed: the plan starts when the machine is ready', []
+        if self.state != ExecutionState.PAUSED:
+            return False, f'cannot resume: the executor is {self.state}', []
+        if self._paused_at is not None:
+            self._paused_total += now - self._paused_at
+            self._paused_at = None
+        self.state = ExecutionState.RUNNING
+        fresh = not self._sent_any
+        text = f'resumed at posture {self.index + 1} of {self.total}'
+        if self.turn_needed is not None:  # the operator turned the device: begin the posture
+            previous, self.mounted_turn = self.mounted_turn, self.turn_needed
+            self.turn_needed, self.turn_notice, fresh = None, '', True
+            text += (
+                f' with the device turned to {turn_text(self.mounted_turn)} about its link '
+                f'axis (was {turn_text(previous)})'
+            )
+        self._say(LogLevel.INFO, text)
+        return True, text, self._begin(now, fresh=fresh)
+
+    def abort(self, now: float) -> tuple[bool, str, list[Command]]:
+        """End the plan (hold the machine): (success, answer, commands)."""
+        if self.state in (ExecutionState.ABORTED, ExecutionState.DONE, ExecutionState.REFUSED):
+            return False, f'cannot abort: the executor is already {self.state}', []
+        was = self.state
+        if self._paused_at is not None:
+            self._paused_total += now - self._paused_at
+            self._paused_at = None
+        self.state = ExecutionState.ABORTED
+        self.finished_at = now
+        self._phase = None
+        self.turn_needed, self.turn_notice = None, ''
+        text = (
+            f'aborted at posture {self.index + 1} of {self.total} ({self.measured} measured, '
+            f'{len(self.skipped)} skipped)'
+        )
+        self._say(LogLevel.WARN, text)
+        return True, text, self._hold() if was == ExecutionState.RUNNING else []
+
+    def step(self, now: float) -> list[Command]:
+        """Advance on the readings so far; return the commands to publish now."""
+        if self.state != ExecutionState.RUNNING or self._phase is None:
+            return []
+        settings = self.settings
+        if now - self._posture_start > settings.timeout_s:
+            return self._skip(now, self._timeout_reason(now))
+        if self._phase == Phase.MOVING:
+            still = self._still_mean_at(now)
+            if still is None:
+                return []
+            if self.kinds[self.index] == FIXED:
+                angles = self._mean_angles(now)
+                if angles is None:
+                    return []
+                alpha, beta = angles
+                if max(abs(alpha), abs(beta)) > settings.fixed_tolerance_rad:
+                    return self._correct(now, alpha, beta)
+            self._still_mean = still
+            self._phase = Phase.POSTURE
+        if self._phase == Phase.POSTURE:
+            if not settings.wait_for_posture or self._posture_matched():
+                return self._complete(now)
+        return []
+
+    # ------------------------------------------------------------------ progress
+
+    def eta_s(self, now: float) -> float | None:
+        """Return seconds until the plan is done at the pace so far (None when over)."""
+        if self.state not in (*_UNDER_WAY, ExecutionState.WAITING):
+            return None
+        done = [o for o in self.outcomes if o.measured]
+        overhead = (
+            float(np.mean([o.duration_s - o.move_s for o in done]))
+            if done
+            else self.settings.settle_s + DEFAULT_OVERHEAD_S
+        )
+        remaining = 0.0
+        previous = self.actuators.latest if self.actuators.latest is not None else self.targets[0]
+        for index in range(self.index, self.total):
+            remaining += move_duration(
+                previous, self.targets[index], self.settings.max_actuator_speed_m_s
+            ) + max(overhead, 0.0)
+            previous = self.targets[index]
+        if self.state == ExecutionState.RUNNING and self._phase is not None:
+            remaining -= min(now - self._posture_start, remaining)
+        return max(remaining, 0.0)
+
+    def progress(self, now: float) -> dict[str, object]:
+        """Return the status fields: state, posture k of K, measured, skipped, ETA."""
+        current = min(self.index + 1, self.total)
+        values: dict[str, object] = {
+            'state': self.state,
+            'posture': current if self.state != ExecutionState.DONE else self.total,
+            'postures': self.total,
+            'measured': self.measured,
+            'skipped': len(self.skipped),
+            'corrections': self.total_corrections,
+        }
+        if self.skipped:
+            values['skipped_postures'] = '; '.join(
+                f'{o.index + 1}: {o.reason}' for o in self.skipped
+            )
+        if self.state in _UNDER_WAY and self.index < self.total:
+            values['kind'] = self.kinds[self.index]
+        if self.total:
+            values['device_turn_rad'] = float(self.turns[min(self.index, self.total - 1)])
+        if self.turn_needed is not None:
+            values['device_turn_needed_rad'] = self.turn_needed
+        eta = self.eta_s(now)
+        if eta is not None:
+            values['eta_s'] = round(eta, 1)
+        if self.started_at is not None:
+            end = self.finished_at if self.finished_at is not None else now
+            values['elapsed_s'] = round(end - self.started_at, 1)
+            paused = self._paused_total + (
+                now - self._paused_at if self._paused_at is not None else 0.0
+            )
+            if paused > 0:
+                values['paused_s'] = round(paused, 1)
+        return values
+
+    def summary(self) -> str:
+        """Return one line: postures measured and skipped (which and why)."""
+        return (
+            f'{self.measured} of {self.total} postures measured, {len(self.skipped)} skipped'
+            + (
+                f' ({"; ".join(f"{o.index + 1}: {o.reason}" for o in self.skipped)})'
+                if self.skipped
+                else ''
+            )
+        )
+
+    # ------------------------------------------------------------------ internals
+
+    def _say(self, level: LogLevel, text: str) -> None:
+        self.messages.append((level, text))
+
+    def _hold(self) -> list[Command]:
+        latest = self.actuators.latest
+        self._at_where = False
+        if latest is None or not self._sent_any:
+            return []
+        return [Command(latest.copy()[None], np.array([HOLD_S]), CommandPurpose.HOLD, -1)]
+
+    def _begin(self, now: float, fresh: bool) -> list[Command]:
+        """Command the current posture (fresh: from its planned pose; else go on correcting)."""
+        while True:
+            if self.index >= self.total:
+                return self._finish(now)
+            if fresh and not same_turn(self.turns[self.index], self.mounted_turn):
+                return self._wait_for_turn(now)
+            if fresh:
+                self._pose_cmd = self.poses[self.index].copy()
+                self._target = self.targets[self.index].copy()
+                self._corrections = 0
+            self._posture_start = now
+            try:
+                command = self._command(now, CommandPurpose.MOVE)
+            except PathError as error:
+                if not self._sent_any:  # nothing has moved yet: the plan is refused
+                    self.state = ExecutionState.REFUSED
+                    self.finished_at = now
+                    self._phase = None
+                    self.refusal = (
+                        f'plan refused before anything moved: the path from where the '
+                        f'machine stands to posture {self.index + 1}: {error}'
+                    )
+                    self._say(LogLevel.ERROR, self.refusal)
+                    return []
+                self._record(now, False, f'its path cannot be commanded: {error}')
+                self._say(
+                    LogLevel.WARN,
+                    f'posture {self.index + 1} of {self.total} skipped: its path '
+                    f'cannot be commanded: {error}',
+                )
+                self.index += 1
+                fresh = True
+                continue
+            self._first_move_s = command.duration_s
+            return [command]
+
+    @property
+    def waiting_for_turn(self) -> bool:
+        """Return whether it is paused before a posture for the operator to turn the device."""
+        return self.state == ExecutionState.PAUSED and self.turn_needed is not None
+
+    def _wait_for_turn(self, now: float) -> list[Command]:
+        """Pause before the current posture until the operator has turned the device."""
+        turn = float(self.turns[self.index])
+        self.turn_needed = turn
+        self.state = ExecutionState.PAUSED
+        self._paused_at = now
+        self._phase = None
+        self.turn_notice = (
+            f'posture {self.index + 1} of {self.total} needs the device turned to '
+            f'{turn_text(turn)} about its link axis (it is at {turn_text(self.mounted_turn)}): '
+            f'turn the device to {math.degrees(turn):.4g} deg about its link axis, then call '
+            f'{RESUME_SERVICE}'
+        )
+        self._say(LogLevel.WARN, self.turn_notice)
+        return self._hold()
+
+    def _command(self, now: float, purpose: CommandPurpose) -> Command:
+        """
+        Return the command to the current commanded pose (PathError if it cannot be commanded).
+
+        Along the link sphere from where the machine is (MOVE), or one point
+        (CORRECT: a small correction from a standstill).
+        """
+        current = self.actuators.latest if self.actuators.latest is not None else self._target
+        step = self.settings.path_step_m
+        start = None
+        if purpose != CommandPurpose.CORRECT and step > 0:
+            start = self._where if self._at_where else self._estimate()
+        if start is None:
+            command = path_command(
+                self.nominal,
+                current,
+                self._pose_cmd[None],
+                self.stroke,
+                self.settings.max_actuator_speed_m_s,
+                purpose,
+                self.index,
+            )
+        else:
+            command = route_command(
+                self.nominal,
+                current,
+                start,
+                self._pose_cmd,
+                self.stroke,
+                self.settings.max_actuator_speed_m_s,
+                self.link_length,
+                step,
+                self.mount,
+                purpose,
+                self.index,
+            )
+        self._target = command.positions.copy()
+        self._where, self._at_where = self._pose_cmd.copy(), False
+        self._command_time = now
+        self._arrive_after = now + command.duration_s
+        self._phase = Phase.MOVING
+        self._postures = []
+        self._still_mean = None
+        self._sent_any = True
+        return command
+
+    def _estimate(self) -> np.ndarray | None:
+        """
+        Return where the platform stands: nominal forward kinematics of the measured actuators.
+
+        Moved onto the link sphere; None (one-point command) if that fails.
+        """
+        from .kinematics import forward_kinematics
+
+        latest = self.actuators.latest
+        if latest is None:
+            return None
+        guesses = [
+            pose
+            for pose in (
+                self._where,
+                self.poses[min(self.index, self.total - 1)],
+                np.concatenate([fixed_point(self.link_length, self.mount), np.zeros(3)]),
+            )
+            if pose is not None
+        ]
+        found = forward_kinematics(
+            self.nominal, np.tile(latest, (len(guesses), 1)), np.array(guesses)
+        )
+        for pose, converged in zip(found.poses, found.converged):
+            if converged:
+                return on_sphere(pose, self.link_length, self.mount)
+        self._say(
+            LogLevel.WARN,
+            'cannot tell where the platform stands (nominal forward kinematics of '
+            'the measured actuators failed): one-point command',
+        )
+        return None
+
+    def _still_mean_at(self, now: float) -> np.ndarray | None:
+        settle = self.settings.settle_s
+        if now < self._arrive_after + settle:
+            return None
+        window = self.actuators.between(now - settle, now)
+        if len(window) < MIN_WINDOW_READINGS:
+            return None
+        if float(np.max(np.ptp(window, axis=0))) > self.settings.still_tolerance_m:
+            return None
+        mean = window.mean(axis=0)
+        if float(np.max(np.abs(mean - self._target))) > self.settings.position_tolerance_m:
+            return None
+        return mean
+
+    def _mean_angles(self, now: float) -> tuple[float, float] | None:
+        window = self.inclinometer.between(
+            max(now - self.settings.settle_s, self._arrive_after), now
+        )
+        if len(window) < MIN_WINDOW_READINGS:
+            return None
+        alpha, beta = window.mean(axis=0)
+        return float(alpha), float(beta)
+
+    def _posture_matched(self) -> bool:
+        if self._still_mean is None:
+            return False
+        tolerance = self.settings.still_tolerance_m
+        return any(
+            float(np.max(np.abs(actuators - self._still_mean))) <= tolerance
+            for _, actuators in self._postures
+        )
+
+    def _correct(self, now: float, alpha: float, beta: float) -> list[Command]:
+        index = self.index
+        if self._corrections >= self.settings.max_corrections:
+            return self._skip(
+                now,
+                (
+                    f'fixed position not reached after {self._corrections} corrections '
+                    f'(inclinometer {alpha:.3g}, {beta:.3g} rad; tolerance '
+                    f'{self.settings.fixed_tolerance_rad:g} rad)'
+                ),
+            )
+        previous = self._pose_cmd
+        self._pose_cmd = corrected_pose(previous, alpha, beta, self.link_length, self.mount)
+        try:
+            command = self._command(now, CommandPurpose.CORRECT)
+        except PathError as error:
+            self._pose_cmd = previous
+            return self._skip(now, f'the fixed-position correction cannot be commanded: {error}')
+        self._corrections += 1
+        self.total_corrections += 1
+        moved = np.linalg.norm(self._pose_cmd[:3] - previous[:3])
+        self._say(
+            LogLevel.INFO,
+            f'posture {index + 1}: inclinometer {alpha:.3g}, {beta:.3g} rad; correction '
+            f'{self._corrections} moves the platform by {moved * 1e6:.0f} um',
+        )
+        return [command]
+
+    def _timeout_reason(self, now: float) -> str:
+        timeout = self.settings.timeout_s
+        if self._phase == Phase.POSTURE:
+            return f'no posture from the collector within {timeout:g} s'
+        latest = self.actuators.latest
+        if latest is None or self.actuators.between(now - self.settings.settle_s, now).size == 0:
+            return f'no actuator readings (timeout {timeout:g} s)'
+        away = float(np.max(np.abs(latest - self._target)))
+        if (
+            self.kinds[self.index] == FIXED
+            and away <= self.settings.position_tolerance_m
+            and self._corrections
+        ):
+            return (
+                f'fixed position not reached within {timeout:g} s '
+                f'({self._corrections} corrections)'
+            )
+        return (
+            f'not at the target and still within {timeout:g} s (actuators up to '
+            f'{away * 1e3:.3f} mm from it)'
+        )
+
+    def _skip(self, now: float, reason: str) -> list[Command]:
+        self._record(now, False, reason)
+        self._say(
+            LogLevel.WARN,
+            f'posture {self.index + 1} of {self.total} ({self.kinds[self.index]}) '
+            f'skipped: {reason}',
+        )
+        return self._advance(now)
+
+    def _complete(self, now: float) -> list[Command]:
+        self._at_where = True  # it stood still at the commanded pose: the next path starts there
+        self._record(now, True, '')
+        corrections = f', {self._corrections} corrections' if self._corrections else ''
+        self._say(
+            LogLevel.INFO,
+            f'posture {self.index + 1} of {self.total} ({self.kinds[self.index]}) '
+            f'measured in {now - self._posture_start:.1f} s{corrections}',
+        )
+        return self._advance(now)
+
+    def _record(self, now: float, measured: bool, reason: str) -> None:
+        self.outcomes.append(
+            PostureOutcome(
+                self.index,
+                self.kinds[self.index],
+                measured,
+                reason,
+                now - self._posture_start,
+                self._first_move_s,
+                self._corrections,
+            )
+        )
+
+    def _advance(self, now: float) -> list[Command]:
+        self.index += 1
+        self._phase = None
+        self._corrections = 0
+        return self._begin(now, fresh=True)
+
+    def _finish(self, now: float) -> list[Command]:
+        self.state = ExecutionState.DONE
+        self.finished_at = now
+        self._phase = None
+        self.index = self.total
+        elapsed = now - (self.started_at or now)
+        self._say(LogLevel.INFO, f'plan done in {elapsed:.1f} s: {self.summary()}')
+        return []

@@ -1,0 +1,139 @@
+"""
+The executor node's ROS parameters: names, defaults, ranges and descriptions.
+
+Kept apart from nodes/executor.py so the node module holds only the glue; the
+checks beyond type and range are core/walk_status.py's `parameter_problem`.
+"""
+
+from __future__ import annotations
+
+from hexacal_msgs_py.models import MAX_DEVICE_TURN
+from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC, INCLINOMETER_NAMES
+
+from .parameters import ParameterSpec as _Spec
+from ..core.walk_settings import ExecutionSettings
+
+SETTINGS = ExecutionSettings()
+PARAMETERS: dict[str, _Spec] = {
+    'plan': _Spec('', 'plan YAML written by `hexacal plan` (required)'),
+    'nominal': _Spec(
+        '',
+        "nominal parameters YAML of the machine (required); its 'model' (none: "
+        "hexa_slide) is the machine model and its 'device.mount' the device mount",
+    ),
+    'command_topic': _Spec(
+        DEFAULT_COMMAND_TOPIC,
+        'trajectory_msgs/JointTrajectory commands go '
+        "here: the topic of ros2_control's joint_trajectory_controller",
+    ),
+    'max_actuator_speed_m_s': _Spec(
+        SETTINGS.max_actuator_speed_m_s,
+        'time_from_start of a move is its largest actuator move at this speed (m/s)',
+        1e-6,
+        10.0,
+    ),
+    'position_tolerance_m': _Spec(
+        SETTINGS.position_tolerance_m,
+        'the machine is at the target '
+        'when every measured actuator is within this of it (m); it '
+        'allows for the strain of the measuring link with a nominal '
+        'model millimetres off',
+        1e-7,
+        0.1,
+    ),
+    'still_tolerance_m': _Spec(
+        SETTINGS.still_tolerance_m,
+        'the machine is still when no measured '
+        'actuator moves more than this (peak to peak, m) over settle_s: '
+        'above the reading noise',
+        1e-7,
+        0.01,
+    ),
+    'settle_s': _Spec(
+        SETTINGS.settle_s, 'how long the machine must stand still at a target (s)', 0.01, 60.0
+    ),
+    'timeout_s': _Spec(
+        SETTINGS.timeout_s,
+        'a posture not reached, still and measured within this '
+        'of its first command is skipped and reported (s)',
+        0.1,
+        3600.0,
+    ),
+    'fixed_tolerance_rad': _Spec(
+        SETTINGS.fixed_tolerance_rad,
+        'a fixed-position posture is '
+        'reached when both inclinometer angles are within this (rad); '
+        'keep it below the 5e-5 rad at which identify counts a posture '
+        'as fixed',
+        1e-7,
+        0.01,
+    ),
+    'max_corrections': _Spec(
+        SETTINGS.max_corrections,
+        'closed-loop corrections of a fixed-position posture before it is skipped',
+        0,
+        100,
+    ),
+    'path_step_m': _Spec(
+        SETTINGS.path_step_m,
+        'a move goes along the link sphere through '
+        'points at most this far apart (m; also this / L rad in each angle), so '
+        'the platform stays where the measuring link lets it; 0: one-point '
+        'commands (joint-space moves)',
+        0.0,
+        1.0,
+    ),
+    'inclinometer_joints': _Spec(
+        list(INCLINOMETER_NAMES),
+        'the inclinometer joints alpha (about X), beta (about Y) of the inclinometer input (rad)',
+        constraints='two distinct names',
+    ),
+    'wait_for_posture': _Spec(
+        True,
+        "wait for the collector's posture at each stop (false: move on once the machine is still)",
+    ),
+    'calibrate_when_done': _Spec(
+        False, 'call hexacal/calibrate when the plan is done and report the answer'
+    ),
+    'start_paused': _Spec(False, 'wait for hexacal/executor/resume before the first move'),
+    'device_turn_nodes': _Spec(
+        [],
+        "nodes whose 'device_turn' parameter (rad) the executor sets "
+        'when the operator resumes after turning the device for a plan '
+        "posture (e.g. ['collector', 'driver']; names resolved in the "
+        "executor's namespace); empty: none",
+        constraints='distinct node names',
+    ),
+    'mounted_turn': _Spec(
+        0.0,
+        "the device's mounting at the start, rad about its link axis (0: "
+        'normal; e.g. the last mounting of the plan walked before): a first '
+        'posture in another mounting waits for the turn; with device_turn_nodes '
+        'their device_turn is set to it before the first move',
+        -MAX_DEVICE_TURN,
+        MAX_DEVICE_TURN,
+    ),
+    'shutdown_when_done': _Spec(
+        False,
+        'stop the node once the plan is done or aborted (and the '
+        'calibration answered); a refused plan is then a start-up error '
+        '(exit code 2)',
+    ),
+}
+# Declared once the nominal file is read: their defaults are the model's.
+MODEL_PARAMETERS: dict[str, _Spec] = {
+    'stroke_limits_m': _Spec(
+        [0.0, 1.0],
+        '[low, high] actuator stroke (m) every target must lie '
+        "in; default: the plan's (hexacal plan's --stroke-m, recorded "
+        "in the plan file), else the model's (its default workspace)",
+        constraints='two finite numbers, low < high',
+    ),
+    'actuator_joints': _Spec(
+        ['slider_1'],
+        'the six actuator joints in chain order, as the '
+        'controller and the sliders input name them; default: the '
+        "model's (slider_1..6 or leg_1..6)",
+        constraints='six distinct names',
+    ),
+}
