@@ -2,7 +2,7 @@
 The driver's commanded mode, ROS-free.
 
 Trajectory checks, bounded-speed following, the link's constraint, and the executor's rules
-(core/execution.py) walking a plan on it to a calibration.
+(core/walk.py) walking a plan on it to a calibration.
 """
 
 from __future__ import annotations
