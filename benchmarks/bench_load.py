@@ -45,7 +45,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / 'tests'))
 
 from hexacal_identify.bag import open_bag  # noqa: E402
-from ros_domain import claim_domain_id  # benchmarks/ros_domain.py (this directory is on sys.path)
+from hexacal_identify.ros_domain import claim_domain_id  # noqa: E402
 from rosproc import RosProcess, start_node, stop, venv_executable, wait_for  # noqa: E402
 
 STREAMS = ('/hexacal/sliders', '/hexacal/inclinometer', '/hexacal/encoder')
@@ -453,7 +453,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--json', action='store_true', help='print one JSON object')
     args = parser.parse_args(argv)
 
-    os.environ['ROS_DOMAIN_ID'] = str(claim_domain_id())
+    os.environ['ROS_DOMAIN_ID'] = str(claim_domain_id('HEXACAL_TEST_DOMAIN_ID'))
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ.pop('ROS_STATIC_PEERS', None)
     progress = None if args.json else (lambda line: print(line, flush=True))

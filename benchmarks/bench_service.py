@@ -38,7 +38,7 @@ import sys
 import tempfile
 import time
 
-from ros_domain import claim_domain_id  # benchmarks/ros_domain.py (this directory is on sys.path)
+from hexacal_identify.ros_domain import claim_domain_id
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / 'tests'))
@@ -270,7 +270,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
 
-    os.environ['ROS_DOMAIN_ID'] = str(claim_domain_id())
+    os.environ['ROS_DOMAIN_ID'] = str(claim_domain_id('HEXACAL_TEST_DOMAIN_ID'))
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ.pop('ROS_STATIC_PEERS', None)
     rows = []

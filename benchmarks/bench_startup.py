@@ -42,7 +42,7 @@ import sys
 import tempfile
 import time
 
-from ros_domain import claim_domain_id  # benchmarks/ros_domain.py (this directory is on sys.path)
+from hexacal_identify.ros_domain import claim_domain_id
 
 REPO = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
@@ -292,7 +292,7 @@ def measure(repeats: int, nodes: bool = True) -> list[dict]:
             target_ratio=3.0,
         )
         if nodes:
-            os.environ['ROS_DOMAIN_ID'] = str(claim_domain_id())
+            os.environ['ROS_DOMAIN_ID'] = str(claim_domain_id('HEXACAL_TEST_DOMAIN_ID'))
             os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
             probe = GraphProbe()
             try:

@@ -18,15 +18,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from datetime import datetime
-import fcntl
 import math
 import os
 from pathlib import Path
 import signal
 import sys
-import tempfile
 import time
-from typing import Callable, IO, TYPE_CHECKING
+from typing import Callable, TYPE_CHECKING
 
 if (
     TYPE_CHECKING
@@ -35,9 +33,6 @@ if (
 
     from ..nodes.bringup import NodeGroup, RunningNode
 
-DOMAIN_ID_RANGE = range(1, 101)
-# Shared with tests/conftest.py: a demo and a test session never pick the same domain.
-DOMAIN_LOCK_PATTERN = 'hexacal-test-ros-domain-{}.lock'
 GRAPH_TIMEOUT_S = 30.0
 CALIBRATE_TIMEOUT_S = 300.0
 GROUPS = {'A0': slice(0, 3), 'B': slice(3, 6), 'l': slice(6, 7), 'a': slice(7, 9)}
@@ -133,26 +128,14 @@ def add_parsers(subparsers) -> None:
 # --------------------------------------------------------------------------- ROS domain
 
 
-_domain_lock: IO[str] | None = None
-
-
 def claim_domain_id() -> int:
     """A ROS domain id no test session or other demo uses (held until this process exits)."""
-    global _domain_lock
-    if os.environ.get('HEXACAL_DEMO_DOMAIN_ID'):
-        return int(os.environ['HEXACAL_DEMO_DOMAIN_ID'])
-    start = (os.getpid() * 7) % len(DOMAIN_ID_RANGE)
-    for offset in range(len(DOMAIN_ID_RANGE)):
-        domain_id = DOMAIN_ID_RANGE[(start + offset) % len(DOMAIN_ID_RANGE)]
-        lock = open(Path(tempfile.gettempdir()) / DOMAIN_LOCK_PATTERN.format(domain_id), 'a')
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            lock.close()
-            continue
-        _domain_lock = lock
-        return domain_id
-    raise DemoError('every ROS domain id 1..100 is in use; set HEXACAL_DEMO_DOMAIN_ID')
+    from ..ros_domain import claim_domain_id as claim, NoFreeDomainError
+
+    try:  # from pid * 7: away from the test sessions, which start at their pid
+        return claim('HEXACAL_DEMO_DOMAIN_ID', start=os.getpid() * 7)
+    except NoFreeDomainError as error:
+        raise DemoError(str(error)) from None
 
 
 # --------------------------------------------------------------------------- the run
