@@ -1,4 +1,5 @@
-"""System-test configuration: isolate this test session's ROS graph.
+"""
+System-test configuration: isolate this test session's ROS graph.
 
 Runs at import time, before any test creates a ROS context, so that every
 node of this session (in-process or started with rosproc) shares a DDS domain
@@ -27,7 +28,7 @@ def pytest_report_header(config: pytest.Config) -> str:
 
 @pytest.fixture(scope='session')
 def ros_domain_id() -> int:
-    """The DDS domain of this test session (also in os.environ['ROS_DOMAIN_ID'])."""
+    """Return the DDS domain of this test session (also in os.environ['ROS_DOMAIN_ID'])."""
     return ROS_DOMAIN_ID
 
 

@@ -6,6 +6,7 @@ import importlib.util
 from pathlib import Path
 import re
 import subprocess
+import sys
 
 import pytest
 from rosproc import venv_executable
@@ -377,7 +378,7 @@ def _nodes(nodes) -> dict[str, tuple]:
 def test_launch_file_and_bringup_start_the_same_nodes(launch_arguments, bringup_options):
     """The launch file's nodes (through launches_from_arguments) are bringup's, argument for
     option: the same executables, parameters and remaps."""
-    from hexacal_identify.nodes import bringup
+    from hexacal_identify.bringup import cli as bringup
 
     from_launch = _nodes(_launch_module().node_launches(launch_arguments))
     from_bringup = _nodes(
@@ -453,7 +454,8 @@ def test_launch_nodes_of_a_real_ros2_control_machine():
 
 
 def test_bringup_spells_the_contract_names():
-    from hexacal_identify.nodes import bringup
+    from hexacal_identify.bringup import cli as bringup
+    from hexacal_identify.bringup.launch_spec import ros_parameter_text
     from hexacal_msgs_py import inputs, names
 
     assert (bringup.SLIDERS, bringup.INCLINOMETER, bringup.ENCODER) == (
@@ -463,7 +465,18 @@ def test_bringup_spells_the_contract_names():
     )
     assert bringup.DEFAULT_COMMAND_TOPIC == names.DEFAULT_COMMAND_TOPIC
     assert bringup.INCLINOMETER_TYPES == inputs.INCLINOMETER_TYPES
-    assert bringup.ros_parameter_text(['leg_a', 'true', 1, 0.0]) == '[leg_a, "true", 1, 0.0]'
+    assert ros_parameter_text(['leg_a', 'true', 1, 0.0]) == '[leg_a, "true", 1, 0.0]'
+
+
+def test_bringup_and_the_launch_file_import_no_numpy():
+    """`bringup --help` and the launch file stay quick: the contract names they use are light."""
+    code = (
+        'import sys\n'
+        'import hexacal_identify.bringup.cli, hexacal_identify.bringup.system\n'
+        'assert "numpy" not in sys.modules, sorted(m for m in sys.modules if "numpy" in m)\n'
+    )
+    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
 
 
 def test_bringup_refuses_an_executor_plan_without_nominal():

@@ -51,7 +51,7 @@ setup(
             'kinematics = hexacal_identify.nodes.entry:kinematics',
             'replay = hexacal_identify.nodes.replay:main',
             'hexacal = hexacal_identify.cli:main',
-            'bringup = hexacal_identify.nodes.bringup:main',
+            'bringup = hexacal_identify.bringup.cli:main',
         ],
     },
 )

@@ -31,7 +31,7 @@ if (
 ):  # numpy and the process launcher are imported where the demo runs, not at `hexacal` start-up
     import numpy as np
 
-    from ..nodes.bringup import NodeGroup, RunningNode
+    from ..bringup.supervisor import NodeGroup, RunningNode
 
 GRAPH_TIMEOUT_S = 30.0
 CALIBRATE_TIMEOUT_S = 300.0
@@ -254,7 +254,8 @@ def _run(args) -> int:
 
     from ..core.architectures import architecture
     from ..core.model import nominal_set
-    from ..nodes.bringup import NodeGroup, NodeLaunch
+    from ..bringup.launch_spec import NodeLaunch
+    from ..bringup.supervisor import NodeGroup
 
     model = _model(args)
     true_params, nominal = (
@@ -447,7 +448,7 @@ def _walk(
     from tqdm import tqdm
 
     from ..core.planning import Plan
-    from ..nodes.bringup import NodeLaunch
+    from ..bringup.launch_spec import NodeLaunch
 
     total = len(Plan.load(plan))
     session.executor_values = {}
