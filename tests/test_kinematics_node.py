@@ -53,6 +53,7 @@ DRIVER = {
     'wait_for_subscriber': False,
 }
 SPEED = 0.05  # max_actuator_speed of the nodes, m/s
+MARKERS_RATE_HZ = 10.0  # the nodes' default markers_rate_hz
 NAMESPACES = ('true', 'nominal')
 STATUS_NAME = 'hexacal kinematics'
 
@@ -67,6 +68,7 @@ class Listener:
     )  # ns -> stamp -> (6,)
     frames: dict = field(default_factory=lambda: {ns: set() for ns in NAMESPACES})
     markers: list = field(default_factory=list)  # MarkerArray of the true node
+    markers_sent: list = field(default_factory=list)  # and when the node published each (s)
     commands: dict = field(default_factory=lambda: {ns: [] for ns in NAMESPACES})
     statuses: dict = field(
         default_factory=lambda: {ns: [] for ns in NAMESPACES}
@@ -126,8 +128,12 @@ def listen(probe, model: str) -> Listener:
         node.create_subscription(
             DiagnosticArray, f'/{ns}/hexacal/calibration_status', on_status, status_qos
         )
+    def on_markers(message, info):
+        heard.markers.append(message)
+        heard.markers_sent.append(info['source_timestamp'] * 1e-9)
+
     node.create_subscription(
-        MarkerArray, '/true/hexacal/machine_markers', heard.markers.append, MARKERS_QOS
+        MarkerArray, '/true/hexacal/machine_markers', on_markers, MARKERS_QOS
     )
     return heard
 
@@ -285,15 +291,19 @@ def test_kinematics_node_tracks_commands_and_draws(ros_processes, tmp_path, prob
         drawn, 10.0, 'machine markers of a received pose', details
     )
     markers = {m.ns: m for m in marker_array.markers}
-    # At most markers_rate_hz (10 Hz) while the readings come at 50 Hz: each drawing is of a newer pose,
-    # and they are about 0.1 s apart.
+    # At most markers_rate_hz (10 Hz) while the readings come at 50 Hz, each drawing of a newer pose.
+    # The node draws on a timer, which keeps its grid: a late tick shortens the next interval (down
+    # to 0.06 s seen with both cores busy). What holds is the count over time, by the node's publish
+    # times: no minimum spacing, and none in the poses' stamps, which lag by a varying delay.
     stamps = np.array(
         [
             a.markers[0].header.stamp.sec + a.markers[0].header.stamp.nanosec * 1e-9
             for a in heard.markers
         ]
     )
-    assert len(stamps) >= 2 and np.all(np.diff(stamps) > 0.05), np.diff(stamps)
+    assert len(stamps) >= 2 and np.all(np.diff(stamps) > 0), np.diff(stamps)
+    sent = np.array(heard.markers_sent)
+    assert len(sent) <= (sent[-1] - sent[0]) * MARKERS_RATE_HZ + 2, np.diff(sent)
     drawing = arch.drawing(truth, drawn_pose)
     assert (
         set(markers)
