@@ -1,4 +1,4 @@
-"""Each console script starts, shows a sign of life and exits 0 on Ctrl-C; the launch file compiles."""
+"""Each console script starts, shows a sign of life, exits 0 on Ctrl-C; the launch file loads."""
 
 from __future__ import annotations
 
@@ -10,13 +10,10 @@ import sys
 
 import pytest
 from rosproc import venv_executable
-from system_support import (  # noqa: F401 - probe is a fixture
-    node_argv,
-    pid_alive,
-    probe,
-    STOP_TIMEOUT_S,
-    write_parameter_files,
-)
+import system_support
+from system_support import node_argv, pid_alive, STOP_TIMEOUT_S, write_parameter_files
+
+probe = system_support.probe  # the probe fixture, for this module's tests
 
 REPO = Path(__file__).resolve().parents[1]
 LAUNCH_FILE = REPO / 'ros2_ws/src/hexacal_identify/launch/hexacal.launch.py'
@@ -76,7 +73,7 @@ def test_bad_parameters_stop_a_node_with_the_reason(tmp_path, executable, parame
 
 
 def _executor_files(directory: Path, model: str | None = None) -> dict[str, str]:
-    """plan and nominal parameters of an executor: a generated mixed plan of 8 postures."""
+    """Return the plan and nominal parameters of an executor: a generated 8-posture mixed plan."""
     from hexacal_driver.plan import generated_plan, save_plan
     from hexacal_identify.core.architectures import default_parameters
 
@@ -233,7 +230,7 @@ def test_bringup_with_an_executor_plan_commands_the_simulated_driver(
         'the executor commanding the simulated machine',
         bringup.describe,
     )
-    assert [n for n in commands[0].joint_names] == [f'slider_{i}' for i in range(1, 7)]
+    assert list(commands[0].joint_names) == [f'slider_{i}' for i in range(1, 7)]
     code = ros_processes.stop(bringup, STOP_TIMEOUT_S)
     log = bringup.log_path.read_text(errors='replace')
     assert code == 0, log
@@ -275,7 +272,7 @@ LAUNCH_DEFAULTS = {
 
 
 def _nodes(nodes) -> dict[str, tuple]:
-    """executable -> (namespace, parameters without the launch defaults, remaps)."""
+    """Return executable -> (namespace, parameters without the launch defaults, remaps)."""
     return {
         node.executable: (
             node.namespace,
@@ -376,8 +373,11 @@ def _nodes(nodes) -> dict[str, tuple]:
     ],
 )
 def test_launch_file_and_bringup_start_the_same_nodes(launch_arguments, bringup_options):
-    """The launch file's nodes (through launches_from_arguments) are bringup's, argument for
-    option: the same executables, parameters and remaps."""
+    """
+    Check that the launch file's nodes (through launches_from_arguments) are bringup's.
+
+    Argument for option: the same executables, parameters and remaps.
+    """
     from hexacal_identify.bringup import cli as bringup
 
     from_launch = _nodes(_launch_module().node_launches(launch_arguments))
@@ -388,8 +388,12 @@ def test_launch_file_and_bringup_start_the_same_nodes(launch_arguments, bringup_
 
 
 def test_launch_nodes_of_a_real_ros2_control_machine():
-    """use_driver:=false with everything on /joint_states: no driver; each reader remapped; the
-    mapping to the collector (joints to the executor too); commands on the controller's topic."""
+    """
+    Check the nodes of use_driver:=false with everything on /joint_states.
+
+    No driver; each reader remapped; the mapping to the collector (joints to the executor too);
+    commands on the controller's topic.
+    """
     nodes = {
         node.executable: node
         for node in _launch_module().node_launches(
