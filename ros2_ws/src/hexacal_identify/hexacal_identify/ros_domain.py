@@ -1,4 +1,5 @@
-"""Claim a ROS domain id that no other hexacal test session, demo or benchmark uses (ROS-free).
+"""
+Claim a ROS domain id that no other hexacal test session, demo or benchmark uses (ROS-free).
 
 A claim is an exclusive ``flock`` on ``hexacal-test-ros-domain-<id>.lock`` in the temp
 directory, held until the process exits (the lock files are shared by tests/conftest.py,
@@ -35,7 +36,8 @@ def claim_domain_id(
     start: int | None = None,
     directory: str | os.PathLike[str] | None = None,
 ) -> int:
-    """Return a domain id locked for this process, trying ids from `start` (default: the pid).
+    """
+    Return a domain id locked for this process, trying ids from `start` (default: the pid).
 
     A non-empty environment variable `override_env` names the id instead (nothing is locked).
     Raise NoFreeDomainError naming `override_env` when every id is taken.

@@ -60,12 +60,11 @@ from visualization_msgs.msg import Marker, MarkerArray
 from .runtime import run_node
 from ..core.architectures import KinematicParameters, parameters_for
 from ..core.device import check_mount, DEFAULT_MOUNT, DeviceMountError, MOUNTS
-from ..core.live_session import (  # noqa: F401 - MIN_MOVE_TIME_S, LOG_PERIOD_S: the node's
+from ..core.live_session import (
     check_parameter,
     KinematicsConfigurationError,
     Level,
     LiveSession,
-    LOG_PERIOD_S,
     MIN_MOVE_TIME_S,
     Report,
 )
