@@ -71,6 +71,9 @@ class Listener:
     statuses: dict = field(
         default_factory=lambda: {ns: [] for ns in NAMESPACES}
     )  # (level, message, values)
+    status_stamps: dict = field(
+        default_factory=lambda: {ns: [] for ns in NAMESPACES}
+    )  # the header stamp (ns) of each of statuses
 
 
 def listen(probe, model: str) -> Listener:
@@ -120,6 +123,7 @@ def listen(probe, model: str) -> Listener:
                             status_values(status),
                         )
                     )
+                    heard.status_stamps[ns].append(stamp_ns(message.header.stamp))
 
         node.create_subscription(PoseStamped, f'/{ns}/hexacal/platform_pose', on_pose, POSE_QOS)
         node.create_subscription(JointTrajectory, f'/{ns}/command', on_command, COMMAND_QOS)
@@ -460,10 +464,10 @@ def test_kinematics_node_tracks_commands_and_draws(ros_processes, tmp_path, prob
         details,
     )
     calibrations.publish(parameters_to_multiarray(truth.vector, model))
-    update = probe.spin_until(
+    index = probe.spin_until(
         lambda: [
-            (level, m, v)
-            for level, m, v in heard.statuses['nominal']
+            i
+            for i, (_, _, v) in enumerate(heard.statuses['nominal'])
             if v.get('outcome') == 'parameters'
             and v.get('parameters_source') == '/nominal/hexacal/parameters'
         ],
@@ -471,12 +475,16 @@ def test_kinematics_node_tracks_commands_and_draws(ros_processes, tmp_path, prob
         'the calibration taken',
         details,
     )[-1]
+    update = heard.statuses['nominal'][index]
     assert (
         update[0] == 0
         and 'new calibration' in update[1]
         and float(update[2]['largest_change_m']) > 1e-4
     )
-    taken = max(heard.readings)  # readings after this are posed with the new parameters
+    # Readings stamped after the node's status of the update were published after it (the driver
+    # stamps a sample at or before publishing it), so the node posed them with the new parameters.
+    # Not the latest reading the probe has: one in flight to the probe may be posed already.
+    taken = heard.status_stamps['nominal'][index]
 
     def tracks_the_truth() -> bool:
         alive()

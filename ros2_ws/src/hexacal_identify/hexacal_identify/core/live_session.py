@@ -19,6 +19,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 import math
+from typing import cast
 
 from hexacal_msgs_py.errors import InvalidReadingError
 from hexacal_msgs_py.interface_names import SLIDERS_TOPIC
@@ -78,7 +79,7 @@ class Report:
     level: Level
     outcome: Outcome
     message: str
-    values: dict[str, object] = field(default_factory=dict)  # status values after the counters
+    values: Mapping[str, object] = field(default_factory=dict)  # status values after the counters
     log: str = ''  # the log line when it is not the message
     log_level: Level | None = None  # the log's severity when it is not the status level
 
@@ -301,9 +302,11 @@ class LiveSession:
         self._last_solved_ns = stamp_ns
         pose = None
         problems = []
-        for guess in (self.pose, self.home) if self.pose is not None else (self.home,):
+        guesses = (self.pose, self.home) if self.pose is not None else (self.home,)
+        for guess in cast(tuple[Sequence[float], ...], guesses):
             try:
-                pose = solve_pose(self.params, readings, guess)
+                # live.py takes sequences; the arrays are read as such (np.asarray).
+                pose = solve_pose(self.params, cast(Sequence[float], readings), guess)
                 break
             except ForwardKinematicsError as error:
                 problems.append(str(error))
@@ -365,7 +368,8 @@ class LiveSession:
             text = f'target is not a pose: {error}'
             return None, self._refuse(RefusalReason.INVALID_TARGET, text)
         try:
-            targets = actuator_targets(self.params, pose, stroke(self.params, limits))
+            limit = stroke(self.params, limits)
+            targets = actuator_targets(self.params, cast(Sequence[float], pose), limit)
         except OutOfStrokeError as error:
             reason = RefusalReason(error.reason)
             return None, self._refuse(reason, f'target {pose_text(pose)} {error}', pose)
