@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Load benchmark: the driver at 1 kHz per stream into the collector, for minutes.
+"""
+Load benchmark: the driver at 1 kHz per stream into the collector, for minutes.
 
 Starts a real `collector` (recording a bag) and a real `driver` (plan 'mixed',
 looping) publishing each of its three sensor streams at ``--rate-hz``, lets them
@@ -44,8 +45,8 @@ import yaml
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / 'tests'))
 
-from hexacal_identify.bag import open_bag  # noqa: E402
-from ros_domain import claim_domain_id  # benchmarks/ros_domain.py (this directory is on sys.path)
+from hexacal_identify.bag import open_bag  # noqa: E402, I100 - after the sys.path entry
+from hexacal_identify.ros_domain import claim_domain_id  # noqa: E402
 from rosproc import RosProcess, start_node, stop, venv_executable, wait_for  # noqa: E402
 
 STREAMS = ('/hexacal/sliders', '/hexacal/inclinometer', '/hexacal/encoder')
@@ -114,8 +115,9 @@ class LoadResult:
 
     @property
     def lost(self) -> dict[str, int]:
-        # `published` counts complete ticks; a stop can interrupt the last tick after some of its three
-        # publishes, so a stream may hold one message more than that, never fewer if nothing was lost.
+        # `published` counts complete ticks; a stop can interrupt the last tick after some of its
+        # three publishes, so a stream may hold one message more than that, never fewer if nothing
+        # was lost.
         return {
             stream: max(self.published - self.recorded.get(stream, 0), 0) for stream in STREAMS
         }
@@ -125,7 +127,7 @@ class LoadResult:
         return self.published / self.seconds if self.seconds else 0.0
 
     def memory_growth_mib(self, warm_up_s: float) -> float:
-        """VmRSS at the end minus the first sample after warm_up_s (MiB)."""
+        """Return VmRSS at the end minus the first sample after warm_up_s (MiB)."""
         after = [rss for t, rss in self.memory if t >= warm_up_s] or [r for _, r in self.memory]
         return after[-1] - after[0] if after else 0.0
 
@@ -147,7 +149,7 @@ class LoadResult:
             achieved_rate_hz=self.achieved_rate_hz,
             collector_cpu=self.collector_cpu,
             driver_cpu=self.driver_cpu,
-            targets={text: met for text, met in self.targets()},
+            targets=dict(self.targets()),
             memory_growth_mib=self.memory_growth_mib(warm_up_s),
             memory_slope_mib_per_min=self.memory_slope_mib_per_min(warm_up_s),
             warm_up_s=warm_up_s,
@@ -233,7 +235,7 @@ def _last_match(pattern: str, text: str) -> re.Match | None:
 
 
 def start_cpu_hog() -> subprocess.Popen:
-    """A process that keeps one core busy until killed (by PID: stop_cpu_hog)."""
+    """Start a process that keeps one core busy until killed (by PID: stop_cpu_hog)."""
     return subprocess.Popen(
         [sys.executable, '-c', 'while True: pass'],
         stdin=subprocess.DEVNULL,
@@ -264,7 +266,8 @@ def run_load(
     progress=None,
     busy_core: bool = False,
 ) -> LoadResult:
-    """Run driver + collector for `seconds` in the current ROS domain; stop both; measure.
+    """
+    Run driver + collector for `seconds` in the current ROS domain; stop both; measure.
 
     With `busy_core`, a CPU hog process runs beside them for the whole run.
     """
@@ -371,7 +374,8 @@ def _run_load(
             raise AssertionError(f'the driver did not report its count\n{driver_log[-3000:]}')
         published, first_stamp = int(published_match.group(1)), int(published_match.group(2))
         walked = len(re.findall(r'\] \[driver\]: posture \d+/\d+', driver_log))
-        # Stopped = no message for STREAM_STOPPED_S by receipt time: the collector's queue is empty.
+        # Stopped = no message for STREAM_STOPPED_S by receipt time: the collector's queue is
+        # empty.
         wait_for(
             lambda: 'stream(s) stopped' in collector.log_text(),
             DRAIN_TIMEOUT_S,
@@ -453,7 +457,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--json', action='store_true', help='print one JSON object')
     args = parser.parse_args(argv)
 
-    os.environ['ROS_DOMAIN_ID'] = str(claim_domain_id())
+    os.environ['ROS_DOMAIN_ID'] = str(claim_domain_id('HEXACAL_TEST_DOMAIN_ID'))
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ.pop('ROS_STATIC_PEERS', None)
     progress = None if args.json else (lambda line: print(line, flush=True))

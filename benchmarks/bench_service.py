@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Calibrate-service latency of a real identify node beside the bare solve time.
+"""
+Calibrate-service latency of a real identify node beside the bare solve time.
 
 For each posture count: start a real ``identify`` node (own process group, a ROS
 domain of its own - same lock files as tests/conftest.py -,
@@ -38,7 +39,7 @@ import sys
 import tempfile
 import time
 
-from ros_domain import claim_domain_id  # benchmarks/ros_domain.py (this directory is on sys.path)
+from hexacal_identify.ros_domain import claim_domain_id
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / 'tests'))
@@ -53,7 +54,7 @@ REPORT_DONE = ('ready', 'failed')
 
 
 class BareSolve:
-    """Wall times of pipeline.calibrate (the node's solve call) in this process, after a warm-up."""
+    """Return wall times of pipeline.calibrate (the node's solve call) here, after a warm-up."""
 
     def __init__(self, nominal_path: Path, postures: list) -> None:
         from hexacal_identify import pipeline
@@ -74,7 +75,7 @@ class BareSolve:
 
 
 class ServiceClock:
-    """The probe's subscriptions and client, each arrival stamped with perf_counter in its callback."""
+    """The probe's subscriptions and client, each arrival stamped with perf_counter."""
 
     def __init__(self, probe) -> None:
         from diagnostic_msgs.msg import DiagnosticArray
@@ -270,7 +271,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
 
-    os.environ['ROS_DOMAIN_ID'] = str(claim_domain_id())
+    os.environ['ROS_DOMAIN_ID'] = str(claim_domain_id('HEXACAL_TEST_DOMAIN_ID'))
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     os.environ.pop('ROS_STATIC_PEERS', None)
     rows = []

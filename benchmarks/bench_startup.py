@@ -1,12 +1,14 @@
 #!/usr/bin/env python3
-"""Start-up wall time of the command line and the nodes, against `python -c "import numpy"`.
+"""
+Start-up wall time of the command line and the nodes, against `python -c "import numpy"`.
 
 Measures, median of ``--repeats`` runs each (after one unmeasured warm-up run
 that fills the page cache and the __pycache__ files):
 
 - baseline: ``.venv/bin/python -c "import numpy"``;
 - ``.venv/bin/hexacal --help``;
-- ``.venv/bin/hexacal calibrate bags/sphere50_noise10 --nominal <nominal set 2, seed 0> --output <tmp>``
+- ``.venv/bin/hexacal calibrate bags/sphere50_noise10 --nominal <nominal set 2, seed 0>
+  --output <tmp>``
   (the whole command: start-up, bag reading, identification, writing the YAML);
 - node start-up to first subscription (publisher for the driver, which has no
   subscription): ``.venv/bin/collector`` until its subscription on
@@ -42,32 +44,34 @@ import sys
 import tempfile
 import time
 
-from ros_domain import claim_domain_id  # benchmarks/ros_domain.py (this directory is on sys.path)
+from hexacal_identify.ros_domain import claim_domain_id
 
 REPO = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
 BAG = REPO / 'bags' / 'sphere50_noise10'
 NODE_TIMEOUT_S = 60.0
 STOP_TIMEOUT_S = 15.0
-# name -> (graph query, topic relative to the run's namespace) whose count >= 1 marks the node as started.
+# name -> (graph query, topic relative to the run's namespace) whose count >= 1 marks the node as
+# started.
 NODE_SIGNS = {
     'collector': ('subscriptions', 'hexacal/sliders'),
     'identify': ('subscriptions', 'hexacal/posture'),
     'driver': ('publishers', 'hexacal/sliders'),
 }
-# What each node logs right after it created that subscription (publisher): the wall-clock stamp of this log line
-# is the node's own start-up, without DDS discovery.
+# What each node logs right after it created that subscription (publisher): the wall-clock stamp of
+# this log line is the node's own start-up, without DDS discovery.
 READY_LINES = {
     'collector': 'collecting postures on',
     'identify': 'collecting postures on',
     'driver': 'holding the first posture until',
 }
-# What each node logs once its constructor has returned (as tests/test_executables.py waits for): the benchmark
-# waits for it and then SPIN_WAIT_S more, untimed, before the SIGINT. A SIGINT that lands inside the constructor
-# or just before spinning starts (between rclpy.init and rclpy.spin/executor.spin) can end a node with a
-# traceback or hang it (seen here: RCLError 'context is invalid' in create_service, rclpy.spin's executor None,
-# identify not exiting): a shutdown race of the nodes, not what this benchmark measures. Such stops are
-# reported under the table instead of aborting the run.
+# What each node logs once its constructor has returned (as tests/test_executables.py waits for):
+# the benchmark waits for it and then SPIN_WAIT_S more, untimed, before the SIGINT. A SIGINT that
+# lands inside the constructor or just before spinning starts (between rclpy.init and
+# rclpy.spin/executor.spin) can end a node with a traceback or hang it (seen here: RCLError
+# 'context is invalid' in create_service, rclpy.spin's executor None, identify not exiting): a
+# shutdown race of the nodes, not what this benchmark measures. Such stops are reported under the
+# table instead of aborting the run.
 STARTED_LINES = {
     'collector': 'recording to',
     'identify': 'collecting postures on',
@@ -172,7 +176,7 @@ def _stop(process: subprocess.Popen) -> int:
 
 
 def _log_stamp(text: str, line: str) -> float:
-    """Wall-clock time (s since the epoch) of the first log line whose message starts with `line`."""
+    """Return when (s since the epoch) the first log line starting with `line` was logged."""
     match = re.search(r'\[(\d+\.\d+)\] \[[^\]]*\]: ' + re.escape(line), text)
     if match is None:
         raise RuntimeError(f'no log line {line!r} in:\n{text}')
@@ -182,10 +186,12 @@ def _log_stamp(text: str, line: str) -> float:
 def time_node(
     probe: GraphProbe, name: str, work_dir: Path, repeats: int
 ) -> tuple[list[float], list[float]]:
-    """Seconds from Popen to the node's first subscription (publisher): (on the probe's graph, in its own log).
+    """
+    Return the seconds from Popen to the node's first subscription (publisher).
 
-    The graph time includes DDS discovery of the new participant by the probe; the log time is when the node
-    logged the line it logs right after creating the subscription (publisher).
+    (on the probe's graph, in its own log): the graph time includes DDS discovery of the new
+    participant by the probe; the log time is when the node logged the line it logs right after
+    creating the subscription (publisher).
     """
     kind, relative_topic = NODE_SIGNS[name]
     on_graph, in_log = [], []
@@ -195,8 +201,8 @@ def time_node(
             'collector': {'output_dir': str(work_dir / 'bags'), 'bag_name': f'startup_{index}'},
             'identify': {'output_dir': str(work_dir / f'identify_{index}')},
         }.get(name, {})
-        # A namespace of its own per run: what the probe sees is this node, not a previous run's endpoint that
-        # the graph still lists (or another process in the domain).
+        # A namespace of its own per run: what the probe sees is this node, not a previous run's
+        # endpoint that the graph still lists (or another process in the domain).
         namespace = f'/hexacal_bench_startup_{os.getpid()}_{name}_{index}'
         topic = f'{namespace}/{relative_topic}'
         log_path = work_dir / f'{name}_{index}.log'
@@ -292,7 +298,7 @@ def measure(repeats: int, nodes: bool = True) -> list[dict]:
             target_ratio=3.0,
         )
         if nodes:
-            os.environ['ROS_DOMAIN_ID'] = str(claim_domain_id())
+            os.environ['ROS_DOMAIN_ID'] = str(claim_domain_id('HEXACAL_TEST_DOMAIN_ID'))
             os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
             probe = GraphProbe()
             try:
@@ -320,7 +326,8 @@ def measure(repeats: int, nodes: bool = True) -> list[dict]:
 
 def format_table(rows: list[dict]) -> str:
     lines = [
-        f'{"what":<48} {"median s":>9} {"min s":>7} {"max s":>7} {"x base":>7}  {"target":<10} result',
+        f'{"what":<48} {"median s":>9} {"min s":>7} {"max s":>7} {"x base":>7}  '
+        f'{"target":<10} result',
         '-' * 100,
     ]
     for row in rows:

@@ -268,7 +268,7 @@ def simulated_postures(
 
 def node_argv(executable: str, parameters: dict[str, object], namespace: str = '') -> list[str]:
     """argv of a console script with --ros-args, as bringup builds it."""
-    from hexacal_identify.nodes.bringup import NodeLaunch
+    from hexacal_identify.bringup.launch_spec import NodeLaunch
 
     launch = NodeLaunch(executable, parameters, namespace)
     argv = launch.command()

@@ -1,4 +1,4 @@
-"""Each console script starts, shows a sign of life and exits 0 on Ctrl-C; the launch file compiles."""
+"""Each console script starts, shows a sign of life, exits 0 on Ctrl-C; the launch file loads."""
 
 from __future__ import annotations
 
@@ -6,16 +6,14 @@ import importlib.util
 from pathlib import Path
 import re
 import subprocess
+import sys
 
 import pytest
 from rosproc import venv_executable
-from system_support import (  # noqa: F401 - probe is a fixture
-    node_argv,
-    pid_alive,
-    probe,
-    STOP_TIMEOUT_S,
-    write_parameter_files,
-)
+import system_support
+from system_support import node_argv, pid_alive, STOP_TIMEOUT_S, write_parameter_files
+
+probe = system_support.probe  # the probe fixture, for this module's tests
 
 REPO = Path(__file__).resolve().parents[1]
 LAUNCH_FILE = REPO / 'ros2_ws/src/hexacal_identify/launch/hexacal.launch.py'
@@ -75,7 +73,7 @@ def test_bad_parameters_stop_a_node_with_the_reason(tmp_path, executable, parame
 
 
 def _executor_files(directory: Path, model: str | None = None) -> dict[str, str]:
-    """plan and nominal parameters of an executor: a generated mixed plan of 8 postures."""
+    """Return the plan and nominal parameters of an executor: a generated 8-posture mixed plan."""
     from hexacal_driver.plan import generated_plan, save_plan
     from hexacal_identify.core.architectures import default_parameters
 
@@ -232,7 +230,7 @@ def test_bringup_with_an_executor_plan_commands_the_simulated_driver(
         'the executor commanding the simulated machine',
         bringup.describe,
     )
-    assert [n for n in commands[0].joint_names] == [f'slider_{i}' for i in range(1, 7)]
+    assert list(commands[0].joint_names) == [f'slider_{i}' for i in range(1, 7)]
     code = ros_processes.stop(bringup, STOP_TIMEOUT_S)
     log = bringup.log_path.read_text(errors='replace')
     assert code == 0, log
@@ -274,7 +272,7 @@ LAUNCH_DEFAULTS = {
 
 
 def _nodes(nodes) -> dict[str, tuple]:
-    """executable -> (namespace, parameters without the launch defaults, remaps)."""
+    """Return executable -> (namespace, parameters without the launch defaults, remaps)."""
     return {
         node.executable: (
             node.namespace,
@@ -375,9 +373,12 @@ def _nodes(nodes) -> dict[str, tuple]:
     ],
 )
 def test_launch_file_and_bringup_start_the_same_nodes(launch_arguments, bringup_options):
-    """The launch file's nodes (through launches_from_arguments) are bringup's, argument for
-    option: the same executables, parameters and remaps."""
-    from hexacal_identify.nodes import bringup
+    """
+    Check that the launch file's nodes (through launches_from_arguments) are bringup's.
+
+    Argument for option: the same executables, parameters and remaps.
+    """
+    from hexacal_identify.bringup import cli as bringup
 
     from_launch = _nodes(_launch_module().node_launches(launch_arguments))
     from_bringup = _nodes(
@@ -387,8 +388,12 @@ def test_launch_file_and_bringup_start_the_same_nodes(launch_arguments, bringup_
 
 
 def test_launch_nodes_of_a_real_ros2_control_machine():
-    """use_driver:=false with everything on /joint_states: no driver; each reader remapped; the
-    mapping to the collector (joints to the executor too); commands on the controller's topic."""
+    """
+    Check the nodes of use_driver:=false with everything on /joint_states.
+
+    No driver; each reader remapped; the mapping to the collector (joints to the executor too);
+    commands on the controller's topic.
+    """
     nodes = {
         node.executable: node
         for node in _launch_module().node_launches(
@@ -453,7 +458,8 @@ def test_launch_nodes_of_a_real_ros2_control_machine():
 
 
 def test_bringup_spells_the_contract_names():
-    from hexacal_identify.nodes import bringup
+    from hexacal_identify.bringup import cli as bringup
+    from hexacal_identify.bringup.launch_spec import ros_parameter_text
     from hexacal_msgs_py import inputs, names
 
     assert (bringup.SLIDERS, bringup.INCLINOMETER, bringup.ENCODER) == (
@@ -463,7 +469,18 @@ def test_bringup_spells_the_contract_names():
     )
     assert bringup.DEFAULT_COMMAND_TOPIC == names.DEFAULT_COMMAND_TOPIC
     assert bringup.INCLINOMETER_TYPES == inputs.INCLINOMETER_TYPES
-    assert bringup.ros_parameter_text(['leg_a', 'true', 1, 0.0]) == '[leg_a, "true", 1, 0.0]'
+    assert ros_parameter_text(['leg_a', 'true', 1, 0.0]) == '[leg_a, "true", 1, 0.0]'
+
+
+def test_bringup_and_the_launch_file_import_no_numpy():
+    """`bringup --help` and the launch file stay quick: the contract names they use are light."""
+    code = (
+        'import sys\n'
+        'import hexacal_identify.bringup.cli, hexacal_identify.bringup.system\n'
+        'assert "numpy" not in sys.modules, sorted(m for m in sys.modules if "numpy" in m)\n'
+    )
+    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
 
 
 def test_bringup_refuses_an_executor_plan_without_nominal():

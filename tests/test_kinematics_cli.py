@@ -1,4 +1,5 @@
-"""``hexacal ik`` / ``hexacal fk`` for either model, as a script runs them (#11 section 4).
+"""
+``hexacal ik`` / ``hexacal fk`` for either model, as a script runs them (#11 section 4).
 
 In-process through ``hexacal_identify.cli.main`` (what the ``hexacal`` script
 calls); the start-up import check runs a fresh interpreter.
@@ -42,7 +43,7 @@ def one_line(err: str) -> str:
 
 @pytest.fixture
 def files(tmp_path):
-    """model -> (true file, nominal set 2 file)."""
+    """Return model -> (true file, nominal set 2 file)."""
     out = {}
     for model in MODELS:
         arch = architecture(model)

@@ -109,7 +109,7 @@ def test_readme_section_has_each_step():
 def test_the_ros2_launch_line_starts_what_the_bringup_line_starts():
     import importlib.util
 
-    from hexacal_identify.nodes import bringup
+    from hexacal_identify.bringup import cli as bringup
 
     spec = importlib.util.spec_from_file_location('hexacal_launch', LAUNCH_FILE)
     module = importlib.util.module_from_spec(spec)

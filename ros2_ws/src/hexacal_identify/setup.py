@@ -40,7 +40,8 @@ setup(
     zip_safe=True,
     maintainer='hexacal developers',
     maintainer_email='hexacal@example.com',
-    description='Kinematic calibration of six-leg parallel manipulators (Hexa Slide, Gough-Stewart): identification core, nodes and CLI.',
+    description='Kinematic calibration of six-leg parallel manipulators (Hexa Slide, '
+    'Gough-Stewart): identification core, nodes and CLI.',
     license='Apache-2.0',
     python_requires='>=3.10',
     entry_points={
@@ -51,7 +52,7 @@ setup(
             'kinematics = hexacal_identify.nodes.entry:kinematics',
             'replay = hexacal_identify.nodes.replay:main',
             'hexacal = hexacal_identify.cli:main',
-            'bringup = hexacal_identify.nodes.bringup:main',
+            'bringup = hexacal_identify.bringup.cli:main',
         ],
     },
 )

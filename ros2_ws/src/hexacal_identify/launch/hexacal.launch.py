@@ -1,4 +1,5 @@
-"""Start the hexacal nodes (ROS 2 Jazzy install).
+r"""
+Start the hexacal nodes (ROS 2 Jazzy install).
 
     ros2 launch hexacal_identify hexacal.launch.py nominal:=/path/nominal.yaml plan:=mixed
 
@@ -9,13 +10,13 @@ trajectory controller on command_topic; the simulated driver then runs in
 commanded mode on that topic, else it walks its own `plan` as before).
 A real ros2_control machine:
 
-    ros2 launch hexacal_identify hexacal.launch.py use_driver:=false nominal:=nominal.yaml \\
-        executor_plan:=plan.yaml calibrate_when_done:=true sliders_topic:=/joint_states \\
-        inclinometer_topic:=/joint_states encoder_topic:=/joint_states \\
+    ros2 launch hexacal_identify hexacal.launch.py use_driver:=false nominal:=nominal.yaml \
+        executor_plan:=plan.yaml calibrate_when_done:=true sliders_topic:=/joint_states \
+        inclinometer_topic:=/joint_states encoder_topic:=/joint_states \
         inclinometer_joints:=tilt_x,tilt_y rotary_joint:=link_rotary
 
 Without a ROS install (the PyPI venv has no `launch`), `bringup` does the same:
-the arguments go through hexacal_identify.nodes.bringup.launches_from_arguments,
+the arguments go through hexacal_identify.bringup.system.launches_from_arguments,
 which builds the nodes (parameters and remaps) of both. The launch imports are
 inside generate_launch_description() so this file still compiles and imports
 where `launch` is missing.
@@ -88,14 +89,16 @@ ARGUMENTS = {
 
 
 def node_launches(values):
-    """The nodes (hexacal_identify.nodes.bringup.NodeLaunch) of these argument values."""
-    from hexacal_identify.nodes.bringup import launches_from_arguments
+    """Return the nodes (hexacal_identify.bringup.launch_spec.NodeLaunch) of argument values."""
+    from hexacal_identify.bringup.system import launches_from_arguments
 
     return launches_from_arguments({**{n: d for n, (d, _) in ARGUMENTS.items()}, **values})
 
 
 def generate_launch_description():
-    from hexacal_identify.nodes.bringup import normalize_namespace, PACKAGES
+    """Return the launch description: the declared arguments and their nodes."""
+    from hexacal_identify.bringup.launch_spec import normalize_namespace, PACKAGES
+    from hexacal_identify.bringup.system import truthy
     from launch import LaunchDescription
     from launch.actions import DeclareLaunchArgument, OpaqueFunction, Shutdown
     from launch.substitutions import LaunchConfiguration
@@ -108,7 +111,7 @@ def generate_launch_description():
 
     def nodes(context):
         values = {name: LaunchConfiguration(name).perform(context) for name in ARGUMENTS}
-        shutdown = values['shutdown_when_done'].strip().lower() in ('true', '1', 'yes', 'on')
+        shutdown = truthy(values['shutdown_when_done'])
         actions = []
         for launch in node_launches(values):
             actions.append(

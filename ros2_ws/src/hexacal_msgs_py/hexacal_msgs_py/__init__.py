@@ -3,29 +3,36 @@ hexacal interface contract: names, readings, errors, conversions, parameter file
 
 This module and names, readings, errors and parameters_file are ROS-free;
 qos imports rclpy and conversions imports the message packages, so import
-those explicitly where ROS is available.
+those explicitly where ROS is available. The names below are imported on first
+use, so that importing interface_names (launch tooling) does not import numpy.
 """
 
-from hexacal_msgs_py.errors import (
-    HexacalContractError,
-    InvalidParametersError,
-    InvalidReadingError,
-    ParameterFileError,
-)
-from hexacal_msgs_py.readings import (
-    EncoderReading,
-    InclinometerReading,
-    PostureReading,
-    SliderReading,
-)
+from importlib import import_module
 
-__all__ = [
-    'EncoderReading',
-    'HexacalContractError',
-    'InclinometerReading',
-    'InvalidParametersError',
-    'InvalidReadingError',
-    'ParameterFileError',
-    'PostureReading',
-    'SliderReading',
-]
+# Public name -> the module that defines it.
+_EXPORTS = {
+    'EncoderReading': 'hexacal_msgs_py.readings',
+    'HexacalContractError': 'hexacal_msgs_py.errors',
+    'InclinometerReading': 'hexacal_msgs_py.readings',
+    'InvalidParametersError': 'hexacal_msgs_py.errors',
+    'InvalidReadingError': 'hexacal_msgs_py.errors',
+    'ParameterFileError': 'hexacal_msgs_py.errors',
+    'PostureReading': 'hexacal_msgs_py.readings',
+    'SliderReading': 'hexacal_msgs_py.readings',
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> object:
+    """Return an exported name, importing its module on first use (PEP 562)."""
+    if name not in _EXPORTS:
+        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    value = getattr(import_module(_EXPORTS[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    """Return the module's names with the lazily imported exports."""
+    return sorted({*globals(), *__all__})

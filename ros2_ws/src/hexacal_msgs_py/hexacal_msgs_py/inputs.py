@@ -59,6 +59,11 @@ import math
 import numbers
 
 from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError
+from hexacal_msgs_py.interface_names import (  # noqa: F401 - re-exported
+    IMU_INCLINOMETER,
+    INCLINOMETER_TYPES,
+    JOINT_STATE_INCLINOMETER,
+)
 from hexacal_msgs_py.models import DEFAULT_MODEL, model_layout
 from hexacal_msgs_py.names import (
     ENCODER_NAMES,
@@ -68,9 +73,6 @@ from hexacal_msgs_py.names import (
     SLIDERS_TOPIC,
 )
 
-JOINT_STATE_INCLINOMETER = 'joint_state'
-IMU_INCLINOMETER = 'imu'
-INCLINOMETER_TYPES = (JOINT_STATE_INCLINOMETER, IMU_INCLINOMETER)
 # The three inputs, by their contract topic (what a remapping renames), in this order everywhere.
 INPUT_TOPICS = (SLIDERS_TOPIC, INCLINOMETER_TOPIC, ENCODER_TOPIC)
 INPUT_NAMES = {

@@ -19,15 +19,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from datetime import datetime
-import fcntl
 import math
 import os
 from pathlib import Path
 import signal
 import sys
-import tempfile
 import time
-from typing import Callable, IO, TYPE_CHECKING
+from typing import Callable, TYPE_CHECKING
 
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS  # numpy-free: `hexacal --help` stays fast
 
@@ -36,11 +34,8 @@ if (
 ):  # numpy and the process launcher are imported where the demo runs, not at `hexacal` start-up
     import numpy as np
 
-    from ..nodes.bringup import NodeGroup, RunningNode
+    from ..bringup.supervisor import NodeGroup, RunningNode
 
-DOMAIN_ID_RANGE = range(1, 101)
-# Shared with tests/conftest.py: a demo and a test session never pick the same domain.
-DOMAIN_LOCK_PATTERN = 'hexacal-test-ros-domain-{}.lock'
 GRAPH_TIMEOUT_S = 30.0
 CALIBRATE_TIMEOUT_S = 300.0
 MODEL_CHOICES = tuple(MODELS)
@@ -130,26 +125,14 @@ def add_parsers(subparsers) -> None:
 # --------------------------------------------------------------------------- ROS domain
 
 
-_domain_lock: IO[str] | None = None
-
-
 def claim_domain_id() -> int:
-    """Return a ROS domain id no test session or other demo uses (held until the process exits)."""
-    global _domain_lock
-    if os.environ.get('HEXACAL_DEMO_DOMAIN_ID'):
-        return int(os.environ['HEXACAL_DEMO_DOMAIN_ID'])
-    start = (os.getpid() * 7) % len(DOMAIN_ID_RANGE)
-    for offset in range(len(DOMAIN_ID_RANGE)):
-        domain_id = DOMAIN_ID_RANGE[(start + offset) % len(DOMAIN_ID_RANGE)]
-        lock = open(Path(tempfile.gettempdir()) / DOMAIN_LOCK_PATTERN.format(domain_id), 'a')
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            lock.close()
-            continue
-        _domain_lock = lock
-        return domain_id
-    raise DemoError('every ROS domain id 1..100 is in use; set HEXACAL_DEMO_DOMAIN_ID')
+    """Return a ROS domain id no test session or other demo uses (held until exit)."""
+    from ..ros_domain import claim_domain_id as claim, NoFreeDomainError
+
+    try:  # from pid * 7: away from the test sessions, which start at their pid
+        return claim('HEXACAL_DEMO_DOMAIN_ID', start=os.getpid() * 7)
+    except NoFreeDomainError as error:
+        raise DemoError(str(error)) from None
 
 
 # --------------------------------------------------------------------------- the run
@@ -270,7 +253,8 @@ def _run(args) -> int:
 
     from ..core.architectures import architecture
     from ..core.model import nominal_set
-    from ..nodes.bringup import NodeGroup, NodeLaunch
+    from ..bringup.launch_spec import NodeLaunch
+    from ..bringup.supervisor import NodeGroup
 
     model = _model(args)
     arch = architecture(model)
@@ -461,7 +445,7 @@ def _walk(
     from tqdm import tqdm
 
     from ..core.planning import Plan
-    from ..nodes.bringup import NodeLaunch
+    from ..bringup.launch_spec import NodeLaunch
 
     total = len(Plan.load(plan))
     session.executor_values = {}

@@ -1,2 +1,5 @@
-"""The ROS 2 nodes (collector, identify, replay, bringup): thin wrappers that declare parameters,
-convert messages and call the core."""
+"""
+The ROS 2 nodes (collector, identify, executor, kinematics, replay): thin ROS wrappers.
+
+They declare parameters, convert messages and call the core; hexacal_identify.bringup starts them.
+"""

@@ -1,53 +1,15 @@
-"""Node `kinematics`: the calibrated model at work - live platform pose, compensated commands, machine markers.
+"""
+Node `kinematics`: the calibrated model at work - platform pose, compensated commands, markers.
 
-The model is the calibrated one: the `parameters` file at start (a parameters
-YAML of either model, e.g. the output of identify or ``hexacal calibrate``),
-then every calibration published on the latched `hexacal/parameters`
-(PARAMETERS_QOS; with `follow_calibrations`, the default), each logged and
-reported on the status topic.  Without a file the first message on
-`hexacal/parameters` decides the model; a later calibration of another model
-is refused (`model-mismatch`) and the model in use is kept.
-
-* Pose: the live actuator readings on `hexacal/sliders` (SENSOR_QOS;
-  JointState with the model's actuator joints slider_1..6 or leg_1..6, other
-  joints ignored) -> forward kinematics with the calibrated parameters ->
-  `hexacal/platform_pose` (geometry_msgs/PoseStamped, POSE_QOS), header
-  stamp = the reading's stamp, frame_id = `base_frame`.  Each solve starts
-  from the previous pose; the first (and one after a failure) from the
-  workspace centre (the device's fixed point [0, 0, -L], or [0, 0, +L] for a
-  standing mount, platform level), following the readings from there
-  (core/live.py) so the pose is the working mode's.  At most
-  `max_pose_rate_hz` readings per second are solved (by their stamps).
-* Command: a platform pose on `hexacal/target_pose` (PoseStamped, COMMAND_QOS,
-  frame_id `base_frame` or empty) -> inverse kinematics with the calibrated
-  parameters -> a trajectory_msgs/JointTrajectory on `command_topic`
-  (COMMAND_QOS; ros2_control's joint_trajectory_controller interface): the
-  model's actuator joint names, one point with the six targets (m) and
-  time_from_start = the largest actuator travel from the current readings /
-  `max_actuator_speed` (at least MIN_MOVE_TIME_S), header stamp zero (start
-  now).  A target that no leg configuration reaches, that needs a reading
-  outside `stroke_limits` (default: the architecture's workspace stroke), in
-  another frame, not a pose (e.g. a zero quaternion), before any parameters or
-  before any actuator reading is refused: a WARN status naming the reason, and
-  nothing is published.
-* Markers: `hexacal/machine_markers` (visualization_msgs/MarkerArray,
-  MARKERS_QOS), the architecture's drawing of the machine at the latest pose
-  (base joints, rails and sliders or legs, platform, device link O -> P), in
-  `base_frame`, at most `markers_rate_hz` times a second and only when the
-  pose changed.
-
-Pose <-> PoseStamped: hexacal_msgs_py.poses (position m; orientation the
-quaternion of R = R_Y(theta) R_X(psi) R_z(phi), eq. 2).  Status: DiagnosticArray
-on `hexacal/calibration_status` (STATUS_QOS), status name 'hexacal
-kinematics', with `outcome` (waiting, parameters, tracking, sent, refused with
-its `reason`, pose-failed, invalid-reading, invalid-parameters,
-model-mismatch) and the figures of the event; repeated reading problems are
-logged and published at most every LOG_PERIOD_S.
+Live actuator readings (hexacal/sliders) -> forward kinematics -> hexacal/platform_pose; a target
+pose (hexacal/target_pose) -> inverse kinematics -> a JointTrajectory on `command_topic`, or a
+refusal with its reason; the machine's drawing on hexacal/machine_markers; the parameters from
+the `parameters` file, then every calibration on hexacal/parameters. What it decides lives in
+core/live_session.py; this module is the ROS glue. Full reference: docs/nodes.md.
 """
 
 from __future__ import annotations
 
-import math
 import sys
 
 from builtin_interfaces.msg import Duration
@@ -58,10 +20,10 @@ from hexacal_msgs_py.conversions import (
     joint_state_to_slider_reading,
     multiarray_model,
     multiarray_to_parameters,
+    NS_PER_S,
     stamp_ns,
 )
 from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError
-from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
 from hexacal_msgs_py.names import (
     CALIBRATION_STATUS_TOPIC,
     DEFAULT_COMMAND_TOPIC,
@@ -72,7 +34,6 @@ from hexacal_msgs_py.names import (
     SLIDERS_TOPIC,
     TARGET_POSE_TOPIC,
 )
-from hexacal_msgs_py.parameters_file import read_parameters_file
 from hexacal_msgs_py.poses import fill_pose_message, pose_from_message
 from hexacal_msgs_py.qos import (
     COMMAND_QOS,
@@ -96,19 +57,23 @@ from std_msgs.msg import ColorRGBA, Float64MultiArray, Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
+from .runtime import run_node
 from ..core.architectures import KinematicParameters, parameters_for
 from ..core.device import check_mount, DEFAULT_MOUNT, DeviceMountError, MOUNTS
-from ..core.errors import ForwardKinematicsError, UnreachablePoseError
-from ..core.live import actuator_targets, default_stroke, home_pose, OutOfStrokeError, solve_pose
-from .runtime import run_node
+from ..core.live_session import (
+    check_parameter,
+    KinematicsConfigurationError,
+    Level,
+    LiveSession,
+    MIN_MOVE_TIME_S,
+    Report,
+)
+from ..pipeline import load_machine_and_mount
 
 NODE_NAME = 'kinematics'
 DEFAULT_BASE_FRAME = 'hexacal_base'
-MIN_MOVE_TIME_S = 0.1  # a command's time_from_start is never shorter
-LOG_PERIOD_S = 5.0  # repeated problems (bad readings, failed solves) are logged at most this often
-NS_PER_S = 1_000_000_000
 
-# Marker style per drawing name: RGBA and size (m; sphere diameter or line width). Others: DEFAULT_STYLE.
+# Marker style per drawing name: RGBA and size (m; sphere diameter or line width).
 MARKER_STYLES: dict[str, tuple[tuple[float, float, float, float], float]] = {
     'base_joints': ((0.35, 0.35, 0.35, 1.0), 0.04),
     'rails': ((0.55, 0.55, 0.55, 1.0), 0.012),
@@ -119,11 +84,7 @@ MARKER_STYLES: dict[str, tuple[tuple[float, float, float, float], float]] = {
     'platform': ((0.95, 0.55, 0.10, 1.0), 0.016),
     'device_link': ((0.15, 0.80, 0.25, 1.0), 0.008),
 }
-DEFAULT_STYLE = ((0.8, 0.8, 0.8, 1.0), 0.01)
-
-
-class KinematicsConfigurationError(Exception):
-    """The node's parameters do not describe a machine it can work with."""
+DEFAULT_STYLE = ((0.8, 0.8, 0.8, 1.0), 0.01)  # of any other drawing name
 
 
 def _range(low: float, high: float) -> list[FloatingPointRange]:
@@ -131,8 +92,12 @@ def _range(low: float, high: float) -> list[FloatingPointRange]:
 
 
 def machine_markers(drawing: dict[str, np.ndarray], frame_id: str, stamp) -> MarkerArray:
-    """MarkerArray of an Architecture.drawing: one marker per name (namespace = the name, id 0),
-    points as a SPHERE_LIST, segments as a LINE_LIST."""
+    """
+    Return the MarkerArray of an Architecture.drawing.
+
+    One marker per name (namespace = the name, id 0): points as a SPHERE_LIST, segments as a
+    LINE_LIST.
+    """
     header = Header(stamp=stamp, frame_id=frame_id)
     markers = []
     for name in sorted(drawing):
@@ -160,8 +125,16 @@ def _duration(seconds: float) -> Duration:
     return Duration(sec=whole, nanosec=fraction)
 
 
+def load_parameters_file(path: str) -> tuple[KinematicParameters, str]:
+    """Return (parameters, device mount) of a parameters file; errors as configuration errors."""
+    try:
+        return load_machine_and_mount(path)
+    except (HexacalContractError, DeviceMountError, ValueError) as error:
+        raise KinematicsConfigurationError(f'parameters: {error}') from error
+
+
 class KinematicsNode(Node):
-    """FK of the live readings, IK of commanded poses, markers: with the latest calibrated parameters."""
+    """FK of the live readings, IK of commanded poses, markers: with the calibrated parameters."""
 
     def __init__(self) -> None:
         super().__init__(NODE_NAME)
@@ -170,8 +143,8 @@ class KinematicsNode(Node):
             'parameters',
             '',
             ParameterDescriptor(
-                description="parameters YAML (either model) to start from; '' = wait for the first "
-                'calibration on hexacal/parameters',
+                description="parameters YAML (either model) to start from; '' = wait for the "
+                'first calibration on hexacal/parameters',
                 read_only=True,
             ),
         )
@@ -179,8 +152,8 @@ class KinematicsNode(Node):
             'follow_calibrations',
             True,
             ParameterDescriptor(
-                description='take every calibration published on hexacal/parameters (latched) over the '
-                'parameters in use; false: keep the parameters file',
+                description='take every calibration published on hexacal/parameters (latched) '
+                'over the parameters in use; false: keep the parameters file',
                 read_only=True,
             ),
         )
@@ -188,16 +161,17 @@ class KinematicsNode(Node):
             'base_frame',
             DEFAULT_BASE_FRAME,
             ParameterDescriptor(
-                description='frame_id of the platform pose and the markers (the base frame OXYZ); target '
-                'poses must be in it (or have an empty frame_id)'
+                description='frame_id of the platform pose and the markers (the base frame '
+                'OXYZ); target poses must be in it (or have an empty frame_id)'
             ),
         )
         self.declare_parameter(
             'command_topic',
             DEFAULT_COMMAND_TOPIC,
             ParameterDescriptor(
-                description='topic of the compensated actuator commands (trajectory_msgs/JointTrajectory; '
-                "ros2_control's joint_trajectory_controller listens on <controller>/joint_trajectory)",
+                description='topic of the compensated actuator commands '
+                "(trajectory_msgs/JointTrajectory; ros2_control's joint_trajectory_controller "
+                'listens on <controller>/joint_trajectory)',
                 read_only=True,
             ),
         )
@@ -205,8 +179,9 @@ class KinematicsNode(Node):
             'max_actuator_speed',
             0.02,
             ParameterDescriptor(
-                description="actuator speed (m/s) that sets a command's time_from_start: the largest "
-                f'travel from the current readings / this speed (at least {MIN_MOVE_TIME_S:g} s)',
+                description="actuator speed (m/s) that sets a command's time_from_start: the "
+                'largest travel from the current readings / this speed (at least '
+                f'{MIN_MOVE_TIME_S:g} s)',
                 floating_point_range=_range(1e-6, 10.0),
             ),
         )
@@ -214,16 +189,16 @@ class KinematicsNode(Node):
             'stroke_limits',
             Parameter.Type.DOUBLE_ARRAY,
             ParameterDescriptor(
-                description='[low, high] actuator readings (m) a command may ask for; unset = the '
-                "architecture's workspace stroke (Hexa Slide 0-0.9 m, Gough-Stewart 0-0.5 m)"
+                description='[low, high] actuator readings (m) a command may ask for; unset = '
+                "the architecture's workspace stroke (Hexa Slide 0-0.9 m, Gough-Stewart 0-0.5 m)"
             ),
         )
         self.declare_parameter(
             'link_length',
             0.75,
             ParameterDescriptor(
-                description='measuring link length L (m): the first pose solve starts at the workspace '
-                'centre, the fixed point [0, 0, -L] (standing: +L)',
+                description='measuring link length L (m): the first pose solve starts at the '
+                'workspace centre, the fixed point [0, 0, -L] (standing: +L)',
                 floating_point_range=_range(0.1, 5.0),
                 read_only=True,
             ),
@@ -232,8 +207,8 @@ class KinematicsNode(Node):
             'mount',
             '',
             ParameterDescriptor(
-                description="device mount, which side of the base the workspace centre is: 'hanging' or "
-                "'standing'; '' = the parameters file's device.mount, else hanging",
+                description='device mount, which side of the base the workspace centre is: '
+                "'hanging' or 'standing'; '' = the parameters file's device.mount, else hanging",
                 read_only=True,
                 additional_constraints="'', " + ', '.join(repr(m) for m in MOUNTS),
             ),
@@ -242,8 +217,8 @@ class KinematicsNode(Node):
             'max_pose_rate_hz',
             200.0,
             ParameterDescriptor(
-                description='actuator readings solved per second at most (by their stamps); the others '
-                'are skipped',
+                description='actuator readings solved per second at most (by their stamps); the '
+                'others are skipped',
                 floating_point_range=_range(0.1, 10000.0),
                 read_only=True,
             ),
@@ -252,8 +227,8 @@ class KinematicsNode(Node):
             'markers_rate_hz',
             10.0,
             ParameterDescriptor(
-                description='machine markers published per second at most (when the pose changed); '
-                '0 = no markers',
+                description='machine markers published per second at most (when the pose '
+                'changed); 0 = no markers',
                 floating_point_range=_range(0.0, 100.0),
                 read_only=True,
             ),
@@ -270,33 +245,20 @@ class KinematicsNode(Node):
                 'command_topic',
             )
         }
-
-        self.params: KinematicParameters | None = None
-        self.parameters_source = ''
-        self.parameters_updates = 0
-        file_mount = DEFAULT_MOUNT
+        params, file_mount = None, DEFAULT_MOUNT
         if value['parameters']:
-            self.params, file_mount = self._load_file(value['parameters'])
-            self.parameters_source = value['parameters']
+            params, file_mount = load_parameters_file(value['parameters'])
         try:
-            self.mount = check_mount(value['mount'] or file_mount)
+            mount = check_mount(value['mount'] or file_mount)
         except DeviceMountError as error:
             raise KinematicsConfigurationError(str(error)) from error
-        self.home = home_pose(value['link_length'], self.mount)
-        self.min_period_ns = int(NS_PER_S / value['max_pose_rate_hz'])
-
-        self.pose: np.ndarray | None = None  # latest solved pose and its readings
-        self.readings: np.ndarray | None = None
-        self.pose_stamp = None  # builtin_interfaces/Time of the reading
-        self._last_solved_ns: int | None = None
-        self._drawn = None  # the (pose stamp, parameters) last drawn
-        self.poses_published = 0
-        self.pose_failures = 0
-        self.invalid_readings = 0
-        self.commands_sent = 0
-        self.commands_refused = 0
-        self._tracking = False
-        self._last_log: dict[str, float] = {}
+        self.session = LiveSession.start(
+            params,
+            value['parameters'] if params is not None else '',
+            value['link_length'],
+            mount,
+            int(NS_PER_S / value['max_pose_rate_hz']),
+        )
 
         self._pose_pub = self.create_publisher(PoseStamped, PLATFORM_POSE_TOPIC, POSE_QOS)
         self._command_pub = self.create_publisher(
@@ -317,323 +279,111 @@ class KinematicsNode(Node):
             self.create_subscription(
                 Float64MultiArray, PARAMETERS_TOPIC, self._on_parameters, PARAMETERS_QOS
             )
+        # Where calibrations are taken from ('' ignored), or awaited without a parameters file.
+        following = ''
+        if value['follow_calibrations'] or params is None:
+            following = self.resolve_topic_name(PARAMETERS_TOPIC)
+        self._report(self.session.start_report(following, self._command_pub.topic_name))
 
-        command_topic = self._command_pub.topic_name
-        if self.params is not None:
-            self.get_logger().info(
-                f'{self.params.model} parameters from {self.parameters_source}; '
-                f'{"following calibrations on " + self.resolve_topic_name(PARAMETERS_TOPIC) if value["follow_calibrations"] else "calibrations on hexacal/parameters ignored"}; '
-                f'commands on {command_topic}'
-            )
-            self._status(
-                'OK', 'parameters', f'{self.params.model} parameters from {self.parameters_source}'
-            )
-        else:
-            self.get_logger().info(
-                f'waiting for calibrated parameters on {self.resolve_topic_name(PARAMETERS_TOPIC)}; '
-                f'commands on {command_topic}'
-            )
-            self._status(
-                'WARN', 'waiting', 'waiting for calibrated parameters on hexacal/parameters'
-            )
-
-    # ------------------------------------------------------------------ parameters
-
-    def _load_file(self, path: str) -> tuple[KinematicParameters, str]:
-        try:
-            contents = read_parameters_file(path)
-            params = parameters_for(contents.model, contents.vector)
-            mount = check_mount(contents.extras.get(MOUNT_PARAMETER, DEFAULT_MOUNT))
-        except (HexacalContractError, DeviceMountError, ValueError) as error:
-            raise KinematicsConfigurationError(f'parameters: {error}') from error
-        return params, mount
+    @property
+    def params(self) -> KinematicParameters | None:
+        """Return the parameters in use (None before any)."""
+        return self.session.params
 
     def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for parameter in parameters:
-            name, value = parameter.name, parameter.value
-            problem = None
-            if name == 'stroke_limits' and value is not None:
-                limits = list(value)
-                if (
-                    len(limits) != 2
-                    or not all(math.isfinite(v) for v in limits)
-                    or limits[0] >= limits[1]
-                ):
-                    problem = (
-                        f'stroke_limits must be [low, high] (m) with low < high, got {limits}'
-                    )
-            elif name == 'mount' and value not in ('', *MOUNTS):
-                problem = f"mount must be '' or one of {', '.join(MOUNTS)}, got {value!r}"
-            elif name in ('base_frame', 'command_topic') and not value:
-                problem = f'{name} must not be empty'
-            elif name == 'parameters' and value:
-                try:
-                    self._load_file(value)
-                except KinematicsConfigurationError as error:
-                    problem = str(error)
-            elif isinstance(value, float) and not math.isfinite(value):
-                problem = f'{name} must be finite, got {value}'
+            problem = check_parameter(parameter.name, parameter.value, load_parameters_file)
             if problem:
                 return SetParametersResult(successful=False, reason=problem)
         return SetParametersResult(successful=True)
 
-    def stroke(self) -> tuple[float, float]:
-        """The stroke limits commands must respect (m)."""
+    def _stroke_limits(self) -> list[float] | None:
         try:
-            limits = self.get_parameter('stroke_limits').value
+            return self.get_parameter('stroke_limits').value
         except ParameterUninitializedException:
-            limits = None
-        if limits is None:
-            return default_stroke(self.params)
-        return float(limits[0]), float(limits[1])
+            return None
+
+    def _now_s(self) -> float:
+        return self.get_clock().now().nanoseconds / NS_PER_S
 
     def _on_parameters(self, message: Float64MultiArray) -> None:
         try:
             model = multiarray_model(message).name
             params = parameters_for(model, multiarray_to_parameters(message))
         except (HexacalContractError, ValueError) as error:
-            self.get_logger().error(f'ignoring a message on {PARAMETERS_TOPIC}: {error}')
-            self._status('ERROR', 'invalid-parameters', f'invalid parameters message: {error}')
+            self._report(self.session.invalid_calibration(PARAMETERS_TOPIC, error))
             return
-        previous = self.params
-        if previous is not None and model != previous.model:
-            text = (
-                f'a {model} calibration on {PARAMETERS_TOPIC} does not fit this {previous.model} machine '
-                f'({self.parameters_source}); keeping its parameters'
-            )
-            self.get_logger().error(text)
-            self._status('ERROR', 'model-mismatch', text)
-            return
-        if previous is not None and np.array_equal(params.vector, previous.vector):
-            return  # the same calibration again (e.g. republished at identify's start)
-        self.params = params
-        self.parameters_source = self.resolve_topic_name(PARAMETERS_TOPIC)
-        self.parameters_updates += 1
-        self._drawn = None
-        if previous is None:
-            text = f'calibrated {model} parameters received on {self.parameters_source}'
-        else:
-            change = np.abs(params.vector - previous.vector).max()
-            text = (
-                f'new calibration on {self.parameters_source}: {model} parameters updated '
-                f'(largest change {change * 1e3:.4f} mm)'
-            )
-        self.get_logger().info(text)
-        self._status(
-            'OK',
-            'parameters',
-            text,
-            largest_change_m=(
-                float(np.abs(params.vector - previous.vector).max())
-                if previous is not None
-                else ''
-            ),
-        )
-
-    # ------------------------------------------------------------------ pose
+        source = self.resolve_topic_name(PARAMETERS_TOPIC)
+        self._report(self.session.take_calibration(params, PARAMETERS_TOPIC, source))
 
     def _on_readings(self, message: JointState) -> None:
-        if self.params is None:
-            return
         stamp = stamp_ns(message.header.stamp)
-        if (
-            self._last_solved_ns is not None
-            and 0 <= stamp - self._last_solved_ns < self.min_period_ns
-        ):
+        if not self.session.wants_reading(stamp):
             return
         try:
-            readings = np.array(
-                joint_state_to_slider_reading(message, self.params.model).slider_positions
-            )
+            reading = joint_state_to_slider_reading(message, self.session.params.model)
         except InvalidReadingError as error:
-            self.invalid_readings += 1
-            self._throttled(
-                'invalid',
-                f'invalid actuator reading on {SLIDERS_TOPIC} ({self.params.model} '
-                f'joints {", ".join(self.params.layout.actuator_names)}): {error}',
-                'invalid-reading',
-                count=self.invalid_readings,
-            )
+            self._report(self.session.invalid_reading(error, self._now_s()))
             return
-        self._last_solved_ns = stamp
-        pose = None
-        problems = []
-        for guess in (self.pose, self.home) if self.pose is not None else (self.home,):
-            try:
-                pose = solve_pose(self.params, readings, guess)
-                break
-            except ForwardKinematicsError as error:
-                problems.append(str(error))
+        readings = np.array(reading.slider_positions)
+        pose, report = self.session.solve(stamp, readings, message.header.stamp, self._now_s())
         if pose is None:
-            self.pose_failures += 1
-            self.pose = None
-            self._tracking = False
-            self._throttled(
-                'pose',
-                f'no platform pose for the readings {readings.tolist()}: {problems[-1]}',
-                'pose-failed',
-                count=self.pose_failures,
-            )
+            self._report(report)
             return
-        self.pose, self.readings, self.pose_stamp = pose, readings, message.header.stamp
-        out = PoseStamped(
-            header=Header(
-                stamp=message.header.stamp, frame_id=self.get_parameter('base_frame').value
-            )
-        )
+        frame = self.get_parameter('base_frame').value
+        out = PoseStamped(header=Header(stamp=message.header.stamp, frame_id=frame))
         self._pose_pub.publish(fill_pose_message(out, pose))
-        self.poses_published += 1
-        if not self._tracking:
-            self._tracking = True
-            text = (
-                f'tracking the platform: pose [{pose[0] * 1e3:.3f}, {pose[1] * 1e3:.3f}, '
-                f'{pose[2] * 1e3:.3f}] mm, [{math.degrees(pose[3]):.3f}, {math.degrees(pose[4]):.3f}, '
-                f'{math.degrees(pose[5]):.3f}] deg on {self._pose_pub.topic_name}'
-            )
-            self.get_logger().info(text)
-            self._status('OK', 'tracking', text)
+        self._report(self.session.published(pose, self._pose_pub.topic_name))
 
     def _publish_markers(self) -> None:
-        if self.pose is None or self.params is None:
-            return
-        key = (
-            self.pose_stamp.sec,
-            self.pose_stamp.nanosec,
-            id(self.params),
-            self.get_parameter('base_frame').value,
-        )
-        if key == self._drawn:
-            return
-        self._drawn = key
-        drawing = self.params.architecture.drawing(self.params, self.pose, self.readings)
-        self._markers_pub.publish(machine_markers(drawing, key[3], self.pose_stamp))
-
-    # ------------------------------------------------------------------ commands
+        stamp = self.session.pose_stamp
+        frame = self.get_parameter('base_frame').value
+        key = (stamp.sec, stamp.nanosec) if stamp is not None else ()
+        drawing = self.session.drawing(key, frame)
+        if drawing is not None:
+            self._markers_pub.publish(machine_markers(drawing, frame, stamp))
 
     def _on_target(self, message: PoseStamped) -> None:
-        base_frame = self.get_parameter('base_frame').value
-        frame = message.header.frame_id
-        if frame not in ('', base_frame):
-            return self._refuse(
-                'wrong-frame',
-                f'target pose in frame {frame!r}; commands are poses in '
-                f'{base_frame!r} (base_frame)',
+        command, report = self.session.command(
+            message.header.frame_id,
+            self.get_parameter('base_frame').value,
+            lambda: pose_from_message(message),
+            self._stroke_limits(),
+            self.get_parameter('max_actuator_speed').value,
+        )
+        if command is not None:
+            point = JointTrajectoryPoint(
+                positions=command.targets.tolist(), time_from_start=_duration(command.move_s)
             )
-        if self.params is None:
-            return self._refuse('no-parameters', 'no calibrated parameters yet')
-        try:
-            pose = np.array(pose_from_message(message))
-        except InvalidReadingError as error:
-            return self._refuse('invalid-target', f'target is not a pose: {error}')
-        low, high = self.stroke()
-        try:
-            targets = actuator_targets(self.params, pose, (low, high))
-        except OutOfStrokeError as error:
-            return self._refuse(error.reason, f'target {self._pose_text(pose)} {error}', pose)
-        except UnreachablePoseError:
-            return self._refuse(
-                'unreachable-pose',
-                f'target {self._pose_text(pose)} is unreachable: '
-                f'{self.params.architecture.unreachable_reason}',
-                pose,
-            )
-        if self.readings is None:
-            return self._refuse(
-                'no-actuator-readings',
-                f'no actuator reading on {SLIDERS_TOPIC} yet: the '
-                'move time needs the current position',
-                pose,
-            )
-        speed = self.get_parameter('max_actuator_speed').value
-        travel = float(np.abs(targets - self.readings).max())
-        move_s = max(MIN_MOVE_TIME_S, travel / speed)
-        names = list(self.params.layout.actuator_names)
-        command = JointTrajectory(
-            joint_names=names,
-            points=[
-                JointTrajectoryPoint(positions=targets.tolist(), time_from_start=_duration(move_s))
-            ],
-        )
-        self._command_pub.publish(command)
-        self.commands_sent += 1
-        text = (
-            f'command {self.commands_sent}: target {self._pose_text(pose)} -> '
-            f'{", ".join(f"{n} {t:.6f}" for n, t in zip(names, targets))} m in {move_s:.2f} s'
-        )
-        self.get_logger().info(text)
-        self._status(
-            'OK',
-            'sent',
-            text,
-            commands_sent=self.commands_sent,
-            move_time_s=move_s,
-            **self._pose_values('target', pose),
-            **{f'target.{n}': float(t) for n, t in zip(names, targets)},
-        )
+            names = list(command.names)
+            self._command_pub.publish(JointTrajectory(joint_names=names, points=[point]))
+        self._report(report)
 
-    def _refuse(self, reason: str, text: str, pose: np.ndarray | None = None) -> None:
-        self.commands_refused += 1
-        text = f'refused: {reason}: {text}; nothing sent'
-        self.get_logger().warning(text)
-        self._status(
-            'WARN',
-            'refused',
-            text,
-            reason=reason,
-            commands_refused=self.commands_refused,
-            **(self._pose_values('target', pose) if pose is not None else {}),
-        )
-
-    @staticmethod
-    def _pose_text(pose: np.ndarray) -> str:
-        return (
-            f'[{pose[0]:.6f}, {pose[1]:.6f}, {pose[2]:.6f}] m, '
-            f'[{pose[3]:.6f}, {pose[4]:.6f}, {pose[5]:.6f}] rad'
-        )
-
-    @staticmethod
-    def _pose_values(prefix: str, pose: np.ndarray) -> dict[str, float]:
-        return {
-            f'{prefix}.{k}': float(v) for k, v in zip(('x', 'y', 'z', 'theta', 'psi', 'phi'), pose)
-        }
-
-    # ------------------------------------------------------------------ status
-
-    def _throttled(self, key: str, text: str, outcome: str, **values: object) -> None:
-        now = self.get_clock().now().nanoseconds / NS_PER_S
-        if now - self._last_log.get(key, -math.inf) < LOG_PERIOD_S:
+    def _report(self, report: Report | None) -> None:
+        """Log a session's report at its level's severity and publish its status."""
+        if report is None:
             return
-        self._last_log[key] = now
-        self.get_logger().warning(text)
-        self._status('WARN', outcome, text, **values)
-
-    def _status(self, level: str, outcome: str, message: str, **values: object) -> None:
-        fields = {
-            'outcome': outcome,
-            'model': self.params.model if self.params is not None else '',
-            'parameters_source': self.parameters_source,
-            'parameters_updates': self.parameters_updates,
-            'poses_published': self.poses_published,
-            'commands_sent': self.commands_sent,
-            'commands_refused': self.commands_refused,
-            **values,
-        }
+        # One call site per severity: rclpy refuses another severity from the same line.
+        level, logger = report.log_level or report.level, self.get_logger()
+        if level == Level.OK:
+            logger.info(report.log_line)
+        elif level == Level.WARN:
+            logger.warning(report.log_line)
+        else:
+            logger.error(report.log_line)
         self._status_pub.publish(
             diagnostic_status(
-                level,
+                report.level,
                 KINEMATICS_STATUS_NAME,
-                message,
-                fields,
+                report.message,
+                self.session.status_values(report),
                 stamp=self.get_clock().now().nanoseconds,
             )
         )
 
     def summary(self) -> str:
-        return (
-            f'{self.poses_published} platform poses published ({self.pose_failures} readings without a '
-            f'pose, {self.invalid_readings} invalid), {self.commands_sent} commands sent, '
-            f'{self.commands_refused} refused, {self.parameters_updates} calibrations taken'
-        )
+        """Return the counts logged at shutdown."""
+        return self.session.summary()
 
 
 def _finish(node: KinematicsNode) -> list[str]:
@@ -641,6 +391,7 @@ def _finish(node: KinematicsNode) -> list[str]:
 
 
 def main(args: list[str] | None = None) -> int:
+    """Run the node until shutdown; the exit code (2: a configuration error at start)."""
     return run_node(
         NODE_NAME,
         KinematicsNode,
