@@ -1,4 +1,5 @@
-"""Console-script entry point of the driver (`ros2 run hexacal_driver driver`).
+"""
+Console-script entry point of the driver (`ros2 run hexacal_driver driver`).
 
 SIGINT/SIGTERM are remembered before the node module's imports, as for every
 hexacal node (see hexacal_identify.nodes.entry).

@@ -1,4 +1,5 @@
-"""Simulation math of the driver (ROS-free): walk a posture plan in time, read the sensors.
+"""
+Simulation math of the driver (ROS-free): walk a posture plan in time, read the sensors.
 
 The driver node only keeps time and publishes; everything here is plain numpy
 on the core's model, so it is unit-tested without ROS.
@@ -41,6 +42,7 @@ from hexacal_identify.core.device import (
 from hexacal_identify.core.errors import UnreachablePoseError
 from hexacal_identify.core.kinematics import forward_kinematics, inverse_kinematics, wrap_angle
 from hexacal_identify.core.measurements import FIXED, NoiseModel
+
 # The executor's interpolation; without a link length: the great circle of the true sphere.
 from hexacal_identify.core.paths import interpolate_pose
 import numpy as np
@@ -101,7 +103,7 @@ class PlanWalker:
         return len(self.poses) * self.posture_period_s
 
     def sample(self, t: float) -> WalkSample:
-        """The machine at t s after the plan started (t < 0 counts as 0)."""
+        """Return the machine at t s after the plan started (t < 0 counts as 0)."""
         t = max(float(t), 0.0)
         n = len(self.poses)
         lap, in_lap = divmod(t, self.lap_duration_s)
@@ -152,10 +154,14 @@ def exact_readings(
     defects: DeviceDefects = IDEAL_DEVICE,
     device_turn: float = 0.0,
 ) -> SensorReadings:
-    """What noise-free sensors read: the sliders, the inclinometer's alpha/beta through the core's
-    defect model (core.device.inclinometer_readings, for the device mount and `device_turn` rad
-    about the link axis), and the rotary phi - turn + phi0 wrapped to [-pi, pi) (phi as it is for
-    an ideal device in its normal mounting)."""
+    """
+    Return what noise-free sensors read.
+
+    The sliders, the inclinometer's alpha/beta through the core's defect model
+    (core.device.inclinometer_readings, for the device mount and `device_turn` rad about the link
+    axis), and the rotary phi - turn + phi0 wrapped to [-pi, pi) (phi as it is for an ideal device
+    in its normal mounting).
+    """
     pose = np.asarray(pose, dtype=float)
     turn = float(device_turn)
     alpha, beta = inclinometer_readings(
@@ -175,11 +181,15 @@ def device_true_poses(
     mount: str = DEFAULT_MOUNT,
     device_turns: np.ndarray | float | None = None,
 ) -> np.ndarray:
-    """Where the platform stands for plan `poses` (planned on the nominal sphere of radius
+    """
+    Return where the platform stands for plan `poses` with the true device attached.
+
+    Where the platform stands for plan `poses` (planned on the nominal sphere of radius
     `link_length`) with the true device attached: sphere postures moved radially onto the true
-    sphere of radius L + dL, fixed postures (kind 'fixed') where the defective inclinometer,
-    turned by the posture's `device_turns` (rad), reads zero (core.device.device_position).
-    Orientations are kept. An ideal device changes nothing (the poses are returned as given)."""
+    sphere of radius L + dL, fixed postures (kind 'fixed') where the defective inclinometer, turned
+    by the posture's `device_turns` (rad), reads zero (core.device.device_position). Orientations
+    are kept. An ideal device changes nothing (the poses are returned as given).
+    """
     poses = np.array(poses, dtype=float).reshape(-1, 6)
     if defects == IDEAL_DEVICE:
         return poses
@@ -199,8 +209,12 @@ def device_true_poses(
 
 
 class SensorSimulator:
-    """Adds fresh uniform noise (NoiseModel half-widths) to every reading of a device with
-    `defects`; read() takes the device's turn about its link axis (rad)."""
+    """
+    Add fresh uniform noise to every reading of a device with `defects`.
+
+    Adds fresh uniform noise (NoiseModel half-widths) to every reading of a device with `defects`;
+    read() takes the device's turn about its link axis (rad).
+    """
 
     def __init__(
         self,
@@ -249,7 +263,11 @@ def device_constrained_pose(
     link_length: float,
     mount: str = DEFAULT_MOUNT,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Where the machine stands with its actuators commanded to `setpoints` and the measuring link attached.
+    """
+    Return where the machine stands with its actuators at `setpoints` and the link attached.
+
+    Where the machine stands with its actuators commanded to `setpoints` and the measuring link
+    attached.
 
     The link (U joints at both ends, fixed length L) holds the platform on the sphere of radius
     L about O: 5 DOF for 6 position-controlled actuators. Setpoints that the true machine cannot
@@ -334,7 +352,7 @@ def device_constrained_pose(
 
 @dataclass(frozen=True)
 class TrajectoryPoint:
-    """One point of a commanded trajectory: actuator positions in model order, m; s from its start."""
+    """One point of a commanded trajectory: actuator positions (model order, m), time (s)."""
 
     positions: np.ndarray
     time_from_start_s: float
@@ -346,7 +364,10 @@ def check_trajectory(
     expected_names: tuple[str, ...],
     stroke_m: tuple[float, float],
 ) -> tuple[list[TrajectoryPoint], str | None]:
-    """A JointTrajectory's joints and points in the machine's order, or the reason it is rejected.
+    """
+    Return a JointTrajectory's joints and points in the machine's order, or the reason.
+
+    A JointTrajectory's joints and points in the machine's order, or the reason it is rejected.
 
     Like ros2_control's joint_trajectory_controller (without partial joint goals): the joint
     names must be exactly the machine's actuators (any order, each once), every point needs one
@@ -403,7 +424,8 @@ def check_trajectory(
 
 
 class CommandFollower:
-    """A trajectory controller with mock hardware, on the true machine with the device attached.
+    """
+    A trajectory controller with mock hardware, on the true machine with the device attached.
 
     Each accepted trajectory replaces the one being followed and starts from the current
     setpoints (as joint_trajectory_controller does on its topic interface). The setpoints move
@@ -456,8 +478,12 @@ class CommandFollower:
     def command(
         self, now_s: float, points: list[TrajectoryPoint], start_s: float | None = None
     ) -> float:
-        """Follow `points` (checked, model order) from now (or from start_s if later); returns
-        the time the last point is reached, s."""
+        """
+        Follow `points` (checked, model order) from now; return when the last one is reached.
+
+        Follow `points` (checked, model order) from now (or from start_s if later); returns the
+        time the last point is reached, s.
+        """
         current = self.setpoints_at(now_s)
         self.setpoints = current
         begin_s = max(now_s, start_s) if start_s is not None else now_s
@@ -477,7 +503,7 @@ class CommandFollower:
         return t
 
     def sample(self, now_s: float) -> WalkSample:
-        """The machine at now_s (node clock, s): pose, true actuator readings, MOVING or STILL."""
+        """Return the machine at now_s (node clock, s): pose, true readings, MOVING or STILL."""
         self.setpoints = self.setpoints_at(now_s)
         if not np.array_equal(self.setpoints, self._solved_for):
             try:

@@ -244,7 +244,8 @@ ON_SPHERE_Z = -math.sqrt(L**2 - 0.1**2 - 0.2**2)
             "unknown key(s) ['speed']",
         ),
         (
-            'plan: {name: p, link_length: -1}\npostures: [{kind: fixed, pose: [0, 0, 1, 0, 0, 0]}]\n',
+            'plan: {name: p, link_length: -1}\npostures: [{kind: fixed, pose: [0, 0, 1, 0, 0, '
+            '0]}]\n',
             'link_length must be a positive number',
         ),
         (
@@ -252,27 +253,29 @@ ON_SPHERE_Z = -math.sqrt(L**2 - 0.1**2 - 0.2**2)
             'posture 0: pose must be 6 numbers',
         ),
         (
-            'plan: {name: p, link_length: 0.75}\npostures: [{kind: flat, pose: [0, 0, -0.75, 0, 0, 0]}]\n',
+            'plan: {name: p, link_length: 0.75}\n'
+            'postures: [{kind: flat, pose: [0, 0, -0.75, 0, 0, 0]}]\n',
             "posture 0: kind must be one of ['sphere', 'fixed']",
         ),
         (
-            'plan: {name: p, link_length: 0.75}\npostures:\n'
-            '  - {kind: fixed, pose: [0, 0, -0.75, 0, 0, 0]}\n'
-            '  - {kind: sphere, pose: [0.1, 0.2, -0.7, 0, 0, 0]}\n',
+            'plan: {name: p, link_length: 0.75}\npostures:\n  - {kind: fixed, pose: [0, 0, -0.75, '
+            '0, 0, 0]}\n  - {kind: sphere, pose: [0.1, 0.2, -0.7, 0, 0, 0]}\n',
             f'posture 1: a sphere posture must lie on the link sphere |p| = 0.75 m below O '
             f'(z = {ON_SPHERE_Z!r}',
         ),
         (
-            'plan: {name: p, link_length: 0.75}\npostures: [{kind: fixed, pose: [0.1, 0, -0.75, 0, 0, 0]}]\n',
+            'plan: {name: p, link_length: 0.75}\n'
+            'postures: [{kind: fixed, pose: [0.1, 0, -0.75, 0, 0, 0]}]\n',
             'posture 0: a fixed posture must be at [0, 0, -0.75] m',
         ),
         (
-            'plan: {name: p, link_length: 0.75}\npostures: [{kind: fixed, pose: [0, 0, -0.75, 0, 0, 4]}]\n',
+            'plan: {name: p, link_length: 0.75}\npostures: [{kind: fixed, pose: [0, 0, -0.75, 0, '
+            '0, 4]}]\n',
             'posture 0: phi must be within +-pi rad',
         ),
         (
-            'plan: {name: p, link_length: 0.75}\npostures: [{kind: fixed, pose: [0, 0, -0.75, 0, 0, 0], '
-            'speed: 1}]\n',
+            'plan: {name: p, link_length: 0.75}\npostures: [{kind: fixed, pose: [0, 0, -0.75, 0, '
+            '0, 0], speed: 1}]\n',
             "posture 0: keys must be ['kind', 'pose'], unknown ['speed']",
         ),
     ],

@@ -1,4 +1,5 @@
-"""The calibration call shared by the identify node and ``hexacal calibrate``, and bag -> postures.
+"""
+The calibration call shared by the identify node and ``hexacal calibrate``, and bag -> postures.
 
 The node and the CLI both go through :func:`calibrate`, so a bag calibrated
 offline gives the same parameters as the node that received the same postures.
@@ -72,13 +73,22 @@ class ModelMismatchError(InvalidMeasurementError):
 
 
 def load_machine(path: Path | str) -> KinematicParameters:
-    """The parameters of a parameters YAML, of the model it names (ParameterFileError names the file and key)."""
+    """
+    Load the parameters of a parameters YAML, of the model it names.
+
+    The parameters of a parameters YAML, of the model it names (ParameterFileError names the file
+    and key).
+    """
     return load_machine_and_mount(path)[0]
 
 
 def load_machine_and_mount(path: Path | str) -> tuple[KinematicParameters, str]:
-    """(parameters, device mount) of a parameters YAML: its model's parameters and its ``device.mount``
-    (default hanging; another value is a DeviceMountError naming the file)."""
+    """
+    Load (parameters, device mount) of a parameters YAML.
+
+    Its model's parameters and its ``device.mount`` (default hanging; another value is a
+    DeviceMountError naming the file).
+    """
     from hexacal_msgs_py.parameters_file import read_parameters_file
 
     from .core.device import DeviceMountError
@@ -92,16 +102,24 @@ def load_machine_and_mount(path: Path | str) -> tuple[KinematicParameters, str]:
 
 
 def device_defects_extras(result: IdentificationResult) -> dict[str, float]:
-    """The parameters-file keys (`device.defects.<name>`, SI) of the device defects identified
-    with `result`; none identified: {} (the file is exactly as without the device)."""
+    """
+    Return the parameters-file keys of the device defects identified with `result`.
+
+    The parameters-file keys (`device.defects.<name>`, SI) of the device defects identified with
+    `result`; none identified: {} (the file is exactly as without the device).
+    """
     return {
         device_defect_key(name): float(getattr(result.device, name)) for name in result.free_device
     }
 
 
 def load_device_defects(path: Path | str) -> tuple[DeviceDefects, tuple[str, ...]]:
-    """(defects, names given) of a calibrated parameters file's `device.defects.<name>` keys: the
-    device it was calibrated with (device_defects_from_extras)."""
+    """
+    Load the device defects a calibrated parameters file was calibrated with.
+
+    (defects, names given) of a calibrated parameters file's `device.defects.<name>` keys: the
+    device it was calibrated with (device_defects_from_extras).
+    """
     from hexacal_msgs_py.parameters_file import read_parameters_file
 
     return device_defects_from_extras(read_parameters_file(path).extras, path)
@@ -110,9 +128,13 @@ def load_device_defects(path: Path | str) -> tuple[DeviceDefects, tuple[str, ...
 def device_defects_from_extras(
     extras: dict, path: Path | str
 ) -> tuple[DeviceDefects, tuple[str, ...]]:
-    """(defects, names given) of a parameters file's extras (read_parameters_file).  Absent keys are
-    0 (the ideal device); a key naming no defect or a value that is not a small finite number is a
-    ParameterFileError naming the file (`path`) and the key."""
+    """
+    Return (defects, names given) of a parameters file's extras.
+
+    (defects, names given) of a parameters file's extras (read_parameters_file). Absent keys are 0
+    (the ideal device); a key naming no defect or a value that is not a small finite number is a
+    ParameterFileError naming the file (`path`) and the key.
+    """
     from hexacal_msgs_py.errors import ParameterFileError
 
     prefix = DEVICE_DEFECTS_KEY + '.'
@@ -120,7 +142,7 @@ def device_defects_from_extras(
     for key, value in extras.items():
         if not key.startswith(prefix):
             continue
-        name = key[len(prefix) :]
+        name = key[len(prefix):]
         if name not in DEVICE_PARAMETER_NAMES:
             raise ParameterFileError(
                 f'{path}: {key}: not a device defect (one of {", ".join(DEVICE_PARAMETER_NAMES)})'
@@ -142,13 +164,20 @@ def _joints_text(model: str) -> str:
 def check_model(
     postures_model: str | None, nominal: KinematicParameters, what: str, nominal_source: str = ''
 ) -> None:
-    """ModelMismatchError if postures of `postures_model` (None: unknown, not checked) meet a nominal of another."""
+    """
+    Raise ModelMismatchError if postures of one model meet a nominal of another.
+
+    ModelMismatchError if postures of `postures_model` (None: unknown, not checked) meet a nominal
+    of another.
+    """
     if postures_model is None or postures_model == nominal.model:
         return
     source = f' {nominal_source}' if nominal_source else ''
     raise ModelMismatchError(
-        f'{what} holds {postures_model} postures (actuator joints {_joints_text(postures_model)}) but the nominal '
-        f"parameters{source} are a {nominal.model}'s (joints {_joints_text(nominal.model)}): give a {postures_model} "
+        f'{what} holds {postures_model} postures (actuator joints {_joints_text(postures_model)}) '
+        'but the nominal '
+        f"parameters{source} are a {nominal.model}'s (joints {_joints_text(nominal.model)}): give "
+        f'a {postures_model} '
         'nominal parameters file'
     )
 
@@ -158,7 +187,8 @@ def posture_problem(
     limits: MeasurementLimits = MeasurementLimits(),
     model: str | None = None,
 ) -> tuple[str, str] | None:
-    """(reason, description) if a (finite) posture reads beyond a sensor's range, else None.
+    """
+    (reason, description) if a (finite) posture reads beyond a sensor's range, else None.
 
     The same limits as the core's Measurements.validate: a posture outside them
     would make the whole identification refuse, so the node and the bag reader
@@ -188,11 +218,13 @@ def posture_problem(
 def measurements_from_postures(
     postures: Sequence[PostureReading], fixed_tolerance_rad: float = FIXED_POSITION_TOLERANCE_RAD
 ) -> Measurements:
-    """Stack posture readings into Measurements; kinds from the inclinometer reading.
+    """
+    Stack posture readings into Measurements; kinds from the inclinometer reading.
 
     Each posture's ``device_turn`` (rad: the device turned about its link axis, e.g. pi for a
     reversal) goes with it; a turned device reads zero at the same fixed position, so the kinds
-    are told apart the same way."""
+    are told apart the same way.
+    """
     if not postures:
         return Measurements(np.zeros((0, 6)), np.zeros((0, 2)), np.zeros(0), np.zeros(0, str))
     sliders = np.array([p.slider_positions for p in postures], dtype=float)
@@ -221,7 +253,8 @@ def calibrate(
     mount: str = DEFAULT_MOUNT,
     device_prior: DevicePrior | None = None,
 ) -> IdentificationResult:
-    """Identify the parameters from received postures: the one call behind the node and the CLI.
+    """
+    Identify the parameters from received postures: the one call behind the node and the CLI.
 
     ``nominal`` is the starting parameter set of any architecture (its model is the
     result's). ``identify_device`` names device defects to identify jointly (e.g. dL,
@@ -246,7 +279,11 @@ def calibrate(
 
 
 def device_prior_json(prior: DevicePrior | None) -> dict[str, dict[str, float]]:
-    """{name: {"value", "std"}} (SI units) of a device prior: what ``calibrate --json`` and the report carry."""
+    """
+    Return {name: {"value", "std"}} (SI units) of a device prior.
+
+    {"value", "std"}} (SI units) of a device prior: what ``calibrate --json`` and the report carry.
+    """
     if prior is None:
         return {}
     return {name: {'value': float(value), 'std': float(std)} for name, value, std in prior.entries}
@@ -255,10 +292,13 @@ def device_prior_json(prior: DevicePrior | None) -> dict[str, dict[str, float]]:
 def status_fields(
     result: IdentificationResult, device_prior: DevicePrior | None = None
 ) -> dict[str, str]:
-    """Key/values for /hexacal/calibration_status (SI units, machine-readable).
+    """
+    Key/values for /hexacal/calibration_status (SI units, machine-readable).
 
-    Identified device parameters: posterior ``device.<name>`` / ``std.device.<name>``; with a prior on
-    one, also ``prior.device.<name>`` / ``prior_std.device.<name>``."""
+    Identified device parameters: posterior ``device.<name>`` / ``std.device.<name>``; with a prior
+    on
+    one, also ``prior.device.<name>`` / ``prior_std.device.<name>``.
+    """
     model = result.parameters.model
     fields = {
         'outcome': result.reason,
@@ -299,8 +339,8 @@ class BagPostures:
     invalid_messages: int = 0  # readings of hexacal's inputs that were not valid (skipped)
     # Postures set aside (posture_problem): (index among the bag's postures, reason, description).
     rejected: list[tuple[int, str, str]] = field(default_factory=list)
-    # The machine model that recorded the bag: its actuator joint names (else the collector's metadata);
-    # None when the bag holds neither.
+    # The machine model that recorded the bag: its actuator joint names (else the collector's
+    # metadata); None when the bag holds neither.
     model: str | None = None
     # The input mapping the collector recorded (topics and joints of the raw inputs); None: a bag
     # without one, whose raw inputs are the contract's topics and joints.
@@ -345,7 +385,8 @@ _DETECTOR_SETTINGS = (
 def postures_from_bag(
     path: Path | str, *, source: str = 'auto', **detector_options
 ) -> BagPostures:
-    """Postures of a bag: its posture topic, else re-detected from the raw inputs.
+    """
+    Postures of a bag: its posture topic, else re-detected from the raw inputs.
 
     ``source``: "auto" (the posture topic if there is one, else the raw inputs), "posture"
     (the posture topic only) or "raw" (re-detect even when there is a posture topic).
@@ -427,7 +468,8 @@ def postures_from_bag(
             f'bag {path} has no {POSTURE_TOPIC} topic and lacks the raw stream(s) '
             f'{", ".join(missing)} needed to re-detect postures'
             if POSTURE_TOPIC not in topics
-            else f'bag {path} lacks the raw stream(s) {", ".join(missing)} needed to re-detect postures'
+            else f'bag {path} lacks the raw stream(s) {", ".join(missing)} needed to re-detect '
+            'postures'
         )
     options = {
         name: float(collector[name])
@@ -459,7 +501,11 @@ def _input_text(input_topic: str, mapping: InputMapping | None) -> str:
 
 
 def _raw_topics(infos, topics: dict[str, str], mapping: InputMapping | None) -> dict[str, str]:
-    """The bag topic of each raw input that the bag has: the recorded mapping's, else the contract's."""
+    """
+    Return the bag topic of each raw input that the bag has.
+
+    The recorded mapping's, else the contract's.
+    """
     raw: dict[str, str] = {}
     by_name = {name.lstrip('/'): name for name in infos}
     for input_topic in RAW_TOPICS:
@@ -475,7 +521,7 @@ def _raw_topics(infos, topics: dict[str, str], mapping: InputMapping | None) -> 
 def _expected_types(
     topics: dict[str, str], raw: dict[str, str], mapping: InputMapping | None
 ) -> dict[str, str]:
-    """The message type each of the bag's posture and input topics must have."""
+    """Return the message type each of the bag's posture and input topics must have."""
     expected = {topics[POSTURE_TOPIC]: JOINT_STATE_TYPE} if POSTURE_TOPIC in topics else {}
     for input_topic, name in raw.items():
         imu = (
@@ -491,26 +537,35 @@ RECORDED_MODEL_KEY = 'hexacal.collector.model'  # the collector's metadata recor
 
 
 def _bag_model(path, models: set[str], recorded_model: str | None) -> str | None:
-    """The one model of a bag's actuator joints (else the recorded one); two models or a contradiction raise."""
+    """
+    Return the one model of a bag's actuator joints.
+
+    The one model of a bag's actuator joints (else the recorded one); two models or a contradiction
+    raise.
+    """
     if len(models) > 1:
         raise InvalidMeasurementError(
-            f'bag {path} holds the actuator joints of several models ({", ".join(sorted(models))}): '
-            'calibrate one machine at a time'
+            f'bag {path} holds the actuator joints of several models '
+            f'({", ".join(sorted(models))}): calibrate one machine at a time'
         )
     if models:
         (model,) = models
         if recorded_model is not None and recorded_model != model:
             raise InvalidMeasurementError(
-                f'bag {path}: its messages carry {model} joints ({_joints_text(model)}) but its collector '
-                f'recorded a {recorded_model} ({RECORDED_MODEL_KEY})'
+                f'bag {path}: its messages carry {model} joints ({_joints_text(model)}) but its '
+                f'collector recorded a {recorded_model} ({RECORDED_MODEL_KEY})'
             )
         return model
     return recorded_model
 
 
 def _model_of(decoded, models: set[str], recorded_model: str | None) -> str:
-    """The model whose actuator joints a message carries (noted in `models`); else the expected one,
-    whose conversion then names the missing joints."""
+    """
+    Return the model whose actuator joints a message carries.
+
+    The model whose actuator joints a message carries (noted in `models`); else the expected one,
+    whose conversion then names the missing joints.
+    """
     from hexacal_msgs_py.conversions import actuator_model
 
     carried = actuator_model(decoded.name)
@@ -579,8 +634,8 @@ def _check_types(reader, expected: dict[str, str]) -> None:
 
 def _signature_difference(found, installed) -> str:
     found_fields, installed_fields = (
-        dict((n, t) for t, n in found),
-        dict((n, t) for t, n in installed),
+        {n: t for t, n in found},
+        {n: t for t, n in installed},
     )
     parts = [f'no field {name!r}' for name in installed_fields if name not in found_fields]
     parts += [
@@ -599,7 +654,8 @@ def _signature_difference(found, installed) -> str:
 
 
 def _joint_state(message, checked: set[str]):
-    """message.decoded, checked once per topic to have JointState's fields and types.
+    """
+    Message.decoded, checked once per topic to have JointState's fields and types.
 
     The schema check (_check_types) compares the definition text; this catches a
     text the decoder reads differently (e.g. a malformed dependency section).
@@ -637,7 +693,12 @@ def _posture(message, models: set[str], recorded_model: str | None) -> PostureRe
 
 
 def _imu(message, checked: set[str]):
-    """message.decoded of an Imu topic, checked once per topic to have the fields the inclinometer reads."""
+    """
+    Return Message.decoded of an Imu topic, checked once per topic.
+
+    Message.decoded of an Imu topic, checked once per topic to have the fields the inclinometer
+    reads.
+    """
     decoded = message.decoded
     if message.topic not in checked:
         try:
@@ -673,7 +734,8 @@ def _redetect(
     max_skew_s: float | None = None,
     **detector_options,
 ) -> tuple[list[PostureReading], int]:
-    """Re-detect the postures of the raw inputs (`topics`: input -> bag topic), read by `mapping`.
+    """
+    Re-detect the postures of the raw inputs (`topics`: input -> bag topic), read by `mapping`.
 
     Inputs that share a topic (one /joint_states) are read from each of its messages once;
     a reading that is not valid counts once in the returned number of invalid readings.
@@ -736,7 +798,8 @@ def _redetect(
         (np.array(streams[t][0], dtype=np.int64), np.array(streams[t][1], dtype=float))
         for t in RAW_TOPICS
     ]
-    # The inclinometer's device_turn joint (the mounting) rides beside alpha, beta: not a channel to synchronise.
+    # The inclinometer's device_turn joint (the mounting) rides beside alpha, beta: not a channel
+    # to synchronise.
     inclinometer_stamps, inclinometer = arrays[1]
     inclinometer = inclinometer.reshape(-1, 3)
     skew = {} if max_skew_s is None else {'max_skew_ns': int(max_skew_s * 1_000_000_000)}
@@ -756,7 +819,12 @@ def _redetect(
 def _with_turns(
     readings: list[PostureReading], stamps: np.ndarray, turns: np.ndarray
 ) -> list[PostureReading]:
-    """Each reading with the device turn of the inclinometer message nearest its stamp (the mounting it was in)."""
+    """
+    Return each reading with the device turn of the nearest inclinometer message.
+
+    Each reading with the device turn of the inclinometer message nearest its stamp (the mounting
+    it was in).
+    """
     if not len(turns) or not np.any(turns):
         return readings
     order = np.argsort(stamps, kind='stable')

@@ -1,4 +1,8 @@
-"""Property tests of the Gough-Stewart platform (6-UPS, 42 parameters) through the generic core and the study.
+"""
+Property tests of the Gough-Stewart platform through the generic core and the study.
+
+Property tests of the Gough-Stewart platform (6-UPS, 42 parameters) through the generic core and
+the study.
 
 IK/FK round trip over its workspace; analytic vs finite-difference d lambda / d X,
 d lambda / d u and identification Jacobian; noise-free recovery from every
@@ -161,8 +165,9 @@ def test_rank_table_of_every_cost_function():
         assert rows[cost].n_parameters == N and rows[cost].rank == N and rows[cost].identifiable, (
             cost
         )
-    # Without an absolute position in every posture, a base rotation about the vertical Y axis of eq. 2 is
-    # invisible (about the base origin for eqs. 8 and 12 + 13, about the fixed point for eq. 10).
+    # Without an absolute position in every posture, a base rotation about the vertical Y axis of
+    # eq. 2 is invisible (about the base origin for eqs. 8 and 12 + 13, about the fixed point for
+    # eq. 10).
     for cost in ('sphere', 'fixed', 'relative'):
         report = rows[cost]
         assert report.rank == N - 1 and len(report.null_directions) == 1, cost
@@ -215,7 +220,12 @@ def test_paper_style_baseline_residuals_equal_the_batched_ones():
 
 
 def test_device_frames_reproduce_the_defective_readings():
-    """The frame-defining defects (beta0, phi0) equal the same machine in the device's frames (device study)."""
+    """
+    Check the frame-defining defects equal the same machine in the device's frames.
+
+    The frame-defining defects (beta0, phi0) equal the same machine in the device's frames (device
+    study).
+    """
     defects = DeviceDefects(beta0=-1.5e-4, phi0=1e-4)
     poses = _poses(20, 8)
     defective = simulate_measurements(TRUE, poses, defects=defects)

@@ -1,4 +1,8 @@
-"""Identification: analytic vs finite-difference Jacobian, exact recovery, identifiability, named errors."""
+"""
+Identification: Jacobians, exact recovery, identifiability, named errors.
+
+Analytic vs finite-difference Jacobian, exact recovery, identifiability, named errors.
+"""
 
 from hexacal_identify.core.baseline import absolute_residuals, finite_difference_jacobian
 from hexacal_identify.core.device import DeviceModel
@@ -68,7 +72,12 @@ def test_analytic_identification_jacobian_matches_finite_differences(cost):
 
 @pytest.mark.parametrize('cost', COSTS)
 def test_factored_sensitivity_gives_the_same_jacobian_and_noise_rows(cost):
-    """CostFunction.residuals with a PoseSensitivity (rows formed from the factored dX/du) equals the full-array path."""
+    """
+    Check the factored sensitivity gives the same Jacobian and noise rows.
+
+    CostFunction.residuals with a PoseSensitivity (rows formed from the factored dX/du) equals the
+    full-array path.
+    """
     from hexacal_identify.core.kinematics import pose_sensitivities
 
     params = nominal_set(1, seed=1)
@@ -126,7 +135,8 @@ def test_exact_parameters_recovered_without_noise(number):
 def test_eq7_has_full_rank_and_the_other_costs_are_reported_honestly():
     rows = {row.cost: row.report for row in identifiability_by_cost()}
     assert rows['absolute'].rank == 54 and rows['sphere-fixed'].rank == 54
-    # eq. 8 alone cannot see a base rotation about the vertical Y axis of eq. 2 (absorbed by theta).
+    # eq. 8 alone cannot see a base rotation about the vertical Y axis of eq. 2 (absorbed by
+    # theta).
     assert rows['sphere'].rank == 53
     assert 'rotation of the base frame about Y' in rows['sphere'].null_directions[0].description
     assert rows['fixed'].rank == 53 and rows['relative'].rank == 53
@@ -200,7 +210,11 @@ def test_measurements_with_inconsistent_lengths_are_rejected():
 
 
 def _svd_reference(jacobian, values, scales, rank_tolerance, damping):
-    """What the solver computed before the normal equations: QR + SVD of the tall column-scaled Jacobian."""
+    """
+    Return what the solver computed before the normal equations.
+
+    QR + SVD of the tall column-scaled Jacobian.
+    """
     q, r = np.linalg.qr(jacobian / scales)
     u_r, s, vt = np.linalg.svd(r)
     projected = u_r.T @ (q.T @ values)
@@ -237,7 +251,8 @@ def _scaled_problem(cost):
 def test_normal_equations_give_the_steps_and_covariance_of_the_tall_svd(cost):
     block, scales = _scaled_problem(cost)
     normal = _NormalEquations.of(block, scales, DEFAULT_RANK_TOLERANCE)
-    # J^T J squares the condition number (~2e3-5e3 here): ~1e-8 relative agreement is what rounding allows.
+    # J^T J squares the condition number (~2e3-5e3 here): ~1e-8 relative agreement is what rounding
+    # allows.
     tolerance = 1e-7
     for damping in (0.0, 1e-6, 1e-3, 1.0):
         step, decrease, inverse, keep = _svd_reference(

@@ -35,8 +35,9 @@ STATUS_QOS = QoSProfile(
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 
-# Commands: reliable, volatile (a stale command must not replay on a late joiner); what ros2_control's
-# joint_trajectory_controller subscribes with (system default QoS: reliable, volatile).
+# Commands: reliable, volatile (a stale command must not replay on a late joiner); what
+# ros2_control's joint_trajectory_controller subscribes with (system default QoS: reliable,
+# volatile).
 COMMAND_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=10,

@@ -1,4 +1,5 @@
-"""Named errors of the bag layer: each says what is wrong and with which file or topic.
+"""
+Named errors of the bag layer: each says what is wrong and with which file or topic.
 
 Every failure on malformed input surfaces as a `BagError` subclass, so callers
 (the bag-info command, the offline identification) can catch one base class.
@@ -38,7 +39,7 @@ class BagMissingFileError(BagError):
 
 
 class BagMetadataError(BagError):
-    """metadata.yaml cannot be parsed; `reindex` can rebuild it from the MCAP files."""
+    """Metadata.yaml cannot be parsed; `reindex` can rebuild it from the MCAP files."""
 
     reason = 'bad-metadata'
 

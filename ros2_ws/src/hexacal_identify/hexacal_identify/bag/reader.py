@@ -1,4 +1,5 @@
-"""Read rosbag2 MCAP bags (a bag directory or a single .mcap file) without ROS.
+"""
+Read rosbag2 MCAP bags (a bag directory or a single .mcap file) without ROS.
 
 A complete MCAP file (valid footer and summary CRC) is indexed from its
 summary; any damaged record in it raises `BagCorruptError`. A file without a
@@ -115,7 +116,7 @@ class BagInfo:
     def truncated(self) -> bool:
         return any(f.truncated for f in self.files)
 
-    def format(self) -> str:
+    def format(self) -> str:  # noqa: A003 (the method name users call)
         """Human-readable text in the layout of `ros2 bag info`."""
         lines = [
             f'Files:             {", ".join(Path(f.path).name for f in self.files)}',
@@ -216,7 +217,7 @@ def _parse_record(opcode: int, body: bytes) -> Any:
     if opcode == Opcode.MESSAGE:
         if len(body) < _MESSAGE_PREFIX.size:
             raise _Damage(f'message record of {len(body)} bytes is too short')
-        return _RawMessage(*_MESSAGE_PREFIX.unpack_from(body), body[_MESSAGE_PREFIX.size :])
+        return _RawMessage(*_MESSAGE_PREFIX.unpack_from(body), body[_MESSAGE_PREFIX.size:])
     parser = _PARSERS.get(opcode)
     if parser is None:
         return None
@@ -260,7 +261,8 @@ def _decompress(chunk: Chunk) -> bytes:
 
 
 def _chunk_records(chunk: Chunk, ignore_channels: frozenset[int] = frozenset()) -> list[Any]:
-    """All schema, channel and message records of a chunk (all or nothing).
+    """
+    All schema, channel and message records of a chunk (all or nothing).
 
     Messages on ``ignore_channels`` are left out (not unpacked; still checked for length).
     """
@@ -282,13 +284,17 @@ def _chunk_records(chunk: Chunk, ignore_channels: frozenset[int] = frozenset()) 
         ):
             pass
         elif opcode in (Opcode.MESSAGE, Opcode.SCHEMA, Opcode.CHANNEL):
-            records.append(_parse_record(opcode, data[position : position + length]))
+            records.append(_parse_record(opcode, data[position:position + length]))
         position += length
     return records
 
 
 def _chunk_index_channels(body: bytes) -> tuple[int, frozenset[int]]:
-    """(chunk_start_offset, ids of the channels with messages in the chunk) of a chunk index record."""
+    """
+    Return the chunk start offset and channel ids of a chunk index record.
+
+    (chunk_start_offset, ids of the channels with messages in the chunk) of a chunk index record.
+    """
     if len(body) < _CHUNK_INDEX_PREFIX.size:
         raise _Damage(f'chunk index record of {len(body)} bytes is too short')
     _, _, chunk_offset, _, map_length = _CHUNK_INDEX_PREFIX.unpack_from(body)
@@ -302,7 +308,8 @@ def _chunk_index_channels(body: bytes) -> tuple[int, frozenset[int]]:
 
 
 class _Scan:
-    """Forward scan of an MCAP data section, expanding chunks.
+    """
+    Forward scan of an MCAP data section, expanding chunks.
 
     With `strict` (the file has a valid footer) damage raises BagCorruptError;
     otherwise the scan stops at the first incomplete or damaged record and
@@ -335,7 +342,11 @@ class _Scan:
         skip_chunks: frozenset[int] = frozenset(),
         ignore_channels: frozenset[int] = frozenset(),
     ) -> Iterator[Any]:
-        """Records in file order; chunks expanded except those starting at an offset in ``skip_chunks``.
+        """
+        Yield records in file order.
+
+        Records in file order; chunks expanded except those starting at an offset in
+        ``skip_chunks``.
 
         Messages on ``ignore_channels`` are left out of the expanded chunks.
         """
@@ -451,7 +462,11 @@ class _McapFile:
         )
 
     def _read_footer(self, handle: Any) -> Footer | None:
-        """The footer if the file ends with a valid one (summary CRC checked), else None."""
+        """
+        Return the footer if the file ends with a valid one, else None.
+
+        The footer if the file ends with a valid one (summary CRC checked), else None.
+        """
         tail_size = _FOOTER_RECORD_SIZE + len(MCAP_MAGIC)
         size = os.fstat(handle.fileno()).st_size
         if size < 2 * len(MCAP_MAGIC) + _FOOTER_RECORD_SIZE:
@@ -462,7 +477,7 @@ class _McapFile:
         if (
             opcode != Opcode.FOOTER
             or length != _FOOTER_BODY.size
-            or tail[-len(MCAP_MAGIC) :] != MCAP_MAGIC
+            or tail[-len(MCAP_MAGIC):] != MCAP_MAGIC
         ):
             return None
         summary_start, summary_offset_start, summary_crc = _FOOTER_BODY.unpack_from(
@@ -507,14 +522,14 @@ class _McapFile:
                         if chunk_channels is not None:
                             try:
                                 offset, channel_ids = _chunk_index_channels(
-                                    data[position : position + length]
+                                    data[position:position + length]
                                 )
                                 chunk_channels[offset] = channel_ids
                             except _Damage:
                                 chunk_channels = None  # not used: every chunk is read
                         position += length
                         continue
-                    record = _parse_record(opcode, data[position : position + length])
+                    record = _parse_record(opcode, data[position:position + length])
                     position += length
                     if isinstance(record, Schema):
                         self.schemas[record.id] = record
@@ -536,7 +551,7 @@ class _McapFile:
                     opcode, length = _RECORD_HEADER.unpack_from(raw)
                     if opcode != Opcode.METADATA or length != index.length - _RECORD_HEADER.size:
                         raise _Damage('metadata index points at a non-metadata record')
-                    record = _parse_record(opcode, raw[_RECORD_HEADER.size :])
+                    record = _parse_record(opcode, raw[_RECORD_HEADER.size:])
                     self.metadata.append(MetadataRecord(record.name, dict(record.metadata)))
             except _Damage as damage:
                 raise BagCorruptError(
@@ -683,7 +698,7 @@ class BagReader:
         }
 
     def schemas(self, topic_name: str) -> list[tuple[str, str]]:
-        """(encoding, text) of the schema of `topic_name` in each file that has the topic."""
+        """Return (encoding, text) of the schema of `topic_name` in each file having the topic."""
         found = []
         for mcap_file, channel_topics in zip(self._files, self._channel_topics):
             for channel_id, topic in channel_topics.items():
@@ -725,9 +740,9 @@ class BagReader:
             if not selected:
                 continue
             scan = mcap_file.scan()
-            # A complete file's summary says which channels each chunk holds: chunks with none of the
-            # selected ones (and no unknown channel, which the scan would report) are not read, and
-            # messages of known unselected channels are not unpacked.
+            # A complete file's summary says which channels each chunk holds: chunks with none of
+            # the selected ones (and no unknown channel, which the scan would report) are not read,
+            # and messages of known unselected channels are not unpacked.
             skip_chunks = frozenset(
                 offset
                 for offset, ids in mcap_file.chunk_channels.items()
@@ -755,7 +770,7 @@ class BagReader:
     def _lazy_decoder(
         self, file_index: int, mcap_file: _McapFile, channel_id: int
     ) -> Callable[[bytes], Any]:
-        """A decode function per schema that parses the schema on its first call only."""
+        """Return a decode function per schema that parses the schema on its first call only."""
         channel = mcap_file.channels[channel_id]
         key = (file_index, channel.schema_id)
         decode = self._decoders.get(key)
@@ -815,12 +830,12 @@ def _file_order(path: Path) -> tuple[int, str]:
 
 
 def mcap_files_in(directory: Path) -> list[Path]:
-    """The .mcap files of a bag directory in split order."""
+    """Return the .mcap files of a bag directory in split order."""
     return sorted((p for p in directory.glob('*.mcap') if p.is_file()), key=_file_order)
 
 
 def load_metadata_yaml(path: Path) -> dict[str, Any]:
-    """The rosbag2_bagfile_information mapping of a metadata.yaml."""
+    """Return the rosbag2_bagfile_information mapping of a metadata.yaml."""
     from hexacal_msgs_py.files import load_yaml_text
     import yaml
 
@@ -878,7 +893,8 @@ def _bag_files(directory: Path) -> list[Path]:
 def open_bag(
     path: str | os.PathLike[str], *, expect_types: Mapping[str, str] | None = None
 ) -> BagReader:
-    """Open a rosbag2 MCAP bag directory or a single .mcap file.
+    """
+    Open a rosbag2 MCAP bag directory or a single .mcap file.
 
     `expect_types` maps topic -> type name; a topic present with another type
     raises BagSchemaError naming topic, expected and found type.

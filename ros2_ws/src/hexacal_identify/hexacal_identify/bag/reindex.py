@@ -1,4 +1,5 @@
-"""Rebuild a bag directory's metadata.yaml from its MCAP files, like `ros2 bag reindex`.
+"""
+Rebuild a bag directory's metadata.yaml from its MCAP files, like `ros2 bag reindex`.
 
 Files without a valid footer (recorder killed, disk full) are read up to the
 last complete record, so a crashed recording becomes an ordinary bag again.
@@ -26,7 +27,8 @@ from .writer import metadata_document, ROS_DISTRO, write_metadata_yaml
 def reindex(
     directory: str | os.PathLike[str], *, custom_data: Mapping[str, str] | None = None
 ) -> BagInfo:
-    """Write <directory>/metadata.yaml describing the directory's .mcap files; return it.
+    """
+    Write <directory>/metadata.yaml describing the directory's .mcap files; return it.
 
     custom_data and ros_distro of an existing readable metadata.yaml are kept
     unless `custom_data` is given.

@@ -1,4 +1,5 @@
-"""ros2msg schema text for MCAP files, built from the installed .msg files.
+"""
+ros2msg schema text for MCAP files, built from the installed .msg files.
 
 rosbag2's MCAP storage stores, per message type, the type's own .msg text
 followed by every (transitive) dependency, each introduced by a line of 80
@@ -149,7 +150,8 @@ def field_names(type_name: str) -> tuple[str, ...]:
 
 
 def field_signature(definition: str) -> tuple[tuple[str, str], ...]:
-    """(type, name) of each field (not constant) of the top-level message of a ros2msg text.
+    """
+    (type, name) of each field (not constant) of the top-level message of a ros2msg text.
 
     Comments, blank lines, default values and the spelling 'pkg/msg/Type' versus
     'pkg/Type' do not matter; a field added, removed, renamed or retyped does:

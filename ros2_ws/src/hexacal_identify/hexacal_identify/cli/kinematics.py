@@ -1,4 +1,5 @@
-"""``hexacal ik`` and ``hexacal fk``: the kinematics of a parameters file, for scripts (SI units).
+"""
+``hexacal ik`` and ``hexacal fk``: the kinematics of a parameters file, for scripts (SI units).
 
     hexacal ik PARAMS --pose x,y,z,theta,psi,phi [--json]
     hexacal fk PARAMS --actuators l1,l2,l3,l4,l5,l6 [--guess x,y,z,theta,psi,phi] [--json]
@@ -20,8 +21,8 @@ pose printed is on the guess's branch.
 Exit codes: 0; 1 forward kinematics found no pose (``forward-kinematics-failed: ...``);
 2 bad input or a pose no leg configuration reaches (``unreachable-pose: ...``), one line on stderr.
 
-This module is imported by every ``hexacal`` start-up to register the commands: its top level uses the
-standard library only.
+This module is imported by every ``hexacal`` start-up to register the commands: its top level uses
+the standard library only.
 """
 
 from __future__ import annotations
@@ -45,14 +46,16 @@ def add_parsers(subparsers) -> None:
     subparsers.add_parser(
         'ik',
         help='actuator readings of a platform pose (inverse kinematics of a parameters file)',
-        description='Print the six actuator readings (m) that put the platform at a pose, by the inverse '
+        description='Print the six actuator readings (m) that put the platform at a pose, by the '
+        'inverse '
         'kinematics of the machine in a parameters YAML (either model).',
         fill=_ik_arguments,
     )
     subparsers.add_parser(
         'fk',
         help='platform pose of actuator readings (forward kinematics of a parameters file)',
-        description='Print the platform pose [x, y, z (m), theta, psi, phi (rad)] of six actuator readings '
+        description='Print the platform pose [x, y, z (m), theta, psi, phi (rad)] of six actuator '
+        'readings '
         '(m), by the forward kinematics of the machine in a parameters YAML (either model).',
         fill=_fk_arguments,
     )

@@ -20,12 +20,12 @@ from enum import Enum
 import math
 from typing import Any
 
-from hexacal_msgs_py.readings import NS_PER_S
 from hexacal_msgs_py.errors import InvalidReadingError
 from hexacal_msgs_py.names import N_CHAINS, POSTURE_NAMES
 from hexacal_msgs_py.readings import (
     EncoderReading,
     InclinometerReading,
+    NS_PER_S,
     PostureReading,
     SliderReading,
 )

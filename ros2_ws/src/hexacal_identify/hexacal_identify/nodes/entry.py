@@ -1,4 +1,5 @@
-"""Console-script entry points of the nodes (`ros2 run hexacal_identify collector`, ...).
+"""
+Console-script entry points of the nodes (`ros2 run hexacal_identify collector`, ...).
 
 The driver's is `hexacal_driver.entry:driver`, written the same way.
 

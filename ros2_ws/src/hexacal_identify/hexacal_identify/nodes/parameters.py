@@ -1,4 +1,7 @@
-"""Node parameters declared with descriptors: one spec type and one descriptor builder for every node.
+"""
+Node parameters declared with descriptors.
+
+One spec type and one descriptor builder for every node.
 
 Kept apart from nodes/runtime.py, which entry points import before anything else (its imports must
 stay minimal so a Ctrl-C during start-up finds the signal handlers in place).
@@ -13,7 +16,11 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 
 @dataclass(frozen=True)
 class ParameterSpec:
-    """A node parameter: default (its type), description, range (numbers), further constraints (text)."""
+    """
+    A node parameter: default (its type), description, range, further constraints.
+
+    Default (its type), description, range (numbers), further constraints (text).
+    """
 
     default: object
     description: str
@@ -25,7 +32,11 @@ class ParameterSpec:
 def parameter_descriptor(
     name: str, spec: ParameterSpec, read_only: bool = True
 ) -> ParameterDescriptor:
-    """The descriptor rcl enforces: type from the default, range for numbers, lists of either number type."""
+    """
+    Return the descriptor rcl enforces.
+
+    Type from the default, range for numbers, lists of either number type.
+    """
     descriptor = ParameterDescriptor(
         name=name,
         description=spec.description,

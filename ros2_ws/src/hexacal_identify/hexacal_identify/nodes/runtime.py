@@ -1,4 +1,5 @@
-"""How every hexacal node starts, spins and stops: one place for the shutdown rules.
+"""
+How every hexacal node starts, spins and stops: one place for the shutdown rules.
 
 A terminal's Ctrl-C reaches a node twice under `ros2 launch`: the terminal sends
 SIGINT to the whole process group, then launch forwards another SIGINT to each
@@ -33,7 +34,8 @@ _received: list[int] = []  # signals seen by the Python-level handler
 
 
 def _noted(signum: int, frame: object) -> None:
-    """Python-level handler under rclpy's: the context shutdown already ends spinning.
+    """
+    Python-level handler under rclpy's: the context shutdown already ends spinning.
 
     Remembered, for a signal that arrives before rclpy.init has installed rclpy's handlers.
     """
@@ -69,7 +71,8 @@ def run_node(
     make_executor: Callable[[], 'Executor'] | None = None,
     finish: Callable[[NodeT], Iterable[str]] | None = None,
 ) -> int:
-    """Run one node until a signal or an external shutdown; return the exit code.
+    """
+    Run one node until a signal or an external shutdown; return the exit code.
 
     ``startup_errors`` raised by ``create`` are a bad configuration: logged as
     fatal, exit code 2. ``finish`` runs after spinning with the termination

@@ -1,4 +1,7 @@
-"""Pose geometry every architecture shares: eq. 2's rotation and the pose Jacobian of a chain closure.
+"""
+Pose geometry every architecture shares.
+
+Eq. 2's rotation and the pose Jacobian of a chain closure.
 
 Written per coordinate ((3, N, 6) arrays, one (N, 6) array per axis; no small
 einsums) because forward kinematics evaluates it several times per
@@ -11,7 +14,11 @@ import numpy as np
 
 
 def rotation_from_trig(cosines: np.ndarray, sines: np.ndarray) -> np.ndarray:
-    """R = R_Y(theta) R_X(psi) R_z(phi) (eq. 2) from cos and sin of [theta, psi, phi] (each (3, ...))."""
+    """
+    Return R = R_Y(theta) R_X(psi) R_z(phi) (eq. 2) from cos and sin of the angles.
+
+    R = R_Y(theta) R_X(psi) R_z(phi) (eq. 2) from cos and sin of [theta, psi, phi] (each (3, ...)).
+    """
     ct, cp, cf = cosines
     st, sp, sf = sines
     rot = np.empty(cosines.shape[1:] + (3, 3))
@@ -33,7 +40,7 @@ class PlatformPoints:
     __slots__ = ('tilt_trig', 'rotations', 'rotated', 'offsets')
 
     def __init__(self, platform: np.ndarray, base: np.ndarray, poses: np.ndarray):
-        """platform, base: (3, 6) joint centres (platform frame, base frame); poses (N, 6)."""
+        """Platform, base: (3, 6) joint centres (platform frame, base frame); poses (N, 6)."""
         angles = poses[:, 3:6].T
         cosines, sines = np.cos(angles), np.sin(angles)
         self.tilt_trig = np.stack(
@@ -47,7 +54,10 @@ class PlatformPoints:
 
 
 def euler_rate_axes(angles: np.ndarray) -> np.ndarray:
-    """Unit axes (N, 3, 3), columns = rotation axes of d theta, d psi, d phi in the base frame.
+    """
+    Return the unit rotation axes (N, 3, 3) of d theta, d psi, d phi in the base frame.
+
+    Unit axes (N, 3, 3), columns = rotation axes of d theta, d psi, d phi in the base frame.
 
     omega = e_Y dtheta + R_Y(theta) e_X dpsi + R_Y(theta) R_X(psi) e_z dphi.
     """
@@ -65,14 +75,19 @@ def euler_rate_axes(angles: np.ndarray) -> np.ndarray:
 
 
 def cross_last(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b over the last axis: np.cross's products, without its per-call axis handling (FK calls this often)."""
+    """
+    Return a x b over the last axis.
+
+    Np.cross's products, without its per-call axis handling (FK calls this often).
+    """
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def pose_jacobian_rows(rotated: np.ndarray, unit: np.ndarray, tilt_trig: np.ndarray) -> np.ndarray:
-    """d lambda / d X (N, 6, 6) of chains whose d lambda = unit . d(P + R B).
+    """
+    Return d lambda / d X (N, 6, 6) of chains whose d lambda = unit . d(P + R B).
 
     Position columns: unit.  Angle column k: axis_k . ((R B) x unit), since
     d(R B) = axis_k x R B for a rate about axis_k; the axes of d theta, d psi,
@@ -98,7 +113,7 @@ def platform_point_derivatives(rotations: np.ndarray, unit: np.ndarray) -> np.nd
 
 
 def condition_ok(jac: np.ndarray, link_length: float, max_condition: float) -> np.ndarray:
-    """Pose-Jacobian condition number below max_condition, angles scaled to lengths by link_length."""
+    """Return the mask of pose Jacobians conditioned below max_condition (angles scaled by L)."""
     jac = jac.copy()
     jac[:, :, 3:] /= link_length  # angles -> lengths, so the condition number is unit-free
     return np.linalg.cond(jac) < max_condition
@@ -113,7 +128,8 @@ def move_joint_points(
     platform_translation=None,
     platform_rotation=None,
 ) -> None:
-    """Add to ``delta`` (6, fields) the first-order change of the joint points of a frame motion.
+    """
+    Add to ``delta`` (6, fields) the first-order change of the joint points of a frame motion.
 
     Every architecture keeps the base-side points in fields 0:3 and the platform points in 3:6
     (KinematicParameters.base_points / platform_points); a point p moves by t + w x p.
