@@ -21,6 +21,7 @@ REPO = Path(__file__).resolve().parents[1]
 LAUNCH_FILE = REPO / 'ros2_ws/src/hexacal_identify/launch/hexacal.launch.py'
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     'executable, startup_line',
     [
@@ -54,6 +55,7 @@ def test_node_starts_and_exits_0_on_ctrl_c(
         assert (tmp_path / 'bags' / 'smoke' / 'metadata.yaml').exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     'executable, parameters, problem',
     [
@@ -85,6 +87,7 @@ def _executor_files(directory: Path, model: str | None = None) -> dict[str, str]
     return {'plan': str(plan), 'nominal': str(nominal)}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     'parameters, problem',
     [

@@ -228,6 +228,7 @@ def test_executor_calibrates_a_gough_stewart_platform(ros_processes, tmp_path, p
 # --------------------------------------------------------------------------- (b) pause, resume, abort
 
 
+@pytest.mark.slow
 def test_pause_resume_and_abort_through_the_services(ros_processes, tmp_path, probe):
     truth, nominal = write_parameter_files(tmp_path)
     plan = _plan(tmp_path, nominal, 12)
@@ -285,6 +286,7 @@ def test_pause_resume_and_abort_through_the_services(ros_processes, tmp_path, pr
 # --------------------------------------------------------------------------- (c) stroke refused
 
 
+@pytest.mark.slow
 def test_a_plan_outside_the_stroke_is_refused_and_nothing_is_published(
     ros_processes, tmp_path, probe
 ):
@@ -332,6 +334,7 @@ def test_a_refused_plan_exits_2_with_shutdown_when_done(tmp_path):
 # --------------------------------------------------------------------------- (d) not reached
 
 
+@pytest.mark.slow
 def test_a_posture_the_machine_never_reaches_is_skipped_and_reported(
     ros_processes, tmp_path, probe
 ):

@@ -170,6 +170,7 @@ def _plan(tmp_path: Path, nominal: Path) -> Path:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('pattern', PATTERNS)
 @pytest.mark.parametrize('executable', ('executor', 'kinematics'))
 def test_executor_and_kinematics_stop_cleanly_while_running(

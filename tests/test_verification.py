@@ -501,6 +501,7 @@ def _named_statuses(probe) -> list:
     return received
 
 
+@pytest.mark.slow
 def test_identify_verifies_the_latest_calibration_on_the_postures_received_after_it(
     ros_processes, tmp_path, probe
 ):
@@ -634,6 +635,7 @@ def _publish_after_restart(probe, postures: list, restarted) -> None:
     )
 
 
+@pytest.mark.slow
 def test_restarted_identify_verifies_the_saved_calibration(ros_processes, tmp_path, probe):
     from hexacal_msgs_py.names import VERIFICATION_STATUS_NAME, VERIFY_SERVICE
     from system_support import STOP_TIMEOUT_S
