@@ -186,7 +186,7 @@ def test_bringup_with_an_executor_plan_commands_the_simulated_driver(
     from diagnostic_msgs.msg import DiagnosticArray
     from hexacal_msgs_py.conversions import status_values
     from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC, EXECUTOR_STATUS_NAME
-    from hexacal_msgs_py.qos import COMMAND_QOS, STATUS_QOS
+    from hexacal_msgs_py.qos import COMMAND_QOS, STATUS_MONITOR_QOS
     from trajectory_msgs.msg import JointTrajectory
 
     files = _executor_files(tmp_path)
@@ -202,7 +202,7 @@ def test_bringup_with_an_executor_plan_commands_the_simulated_driver(
             for s in m.status
             if s.name == EXECUTOR_STATUS_NAME
         ],
-        STATUS_QOS,
+        STATUS_MONITOR_QOS,
     )
     bringup = ros_processes.start(
         [

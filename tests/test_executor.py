@@ -85,7 +85,7 @@ class ExecutorWatch:
     def __init__(self, probe) -> None:
         from diagnostic_msgs.msg import DiagnosticArray
         from hexacal_msgs_py.conversions import status_values
-        from hexacal_msgs_py.qos import COMMAND_QOS, STATUS_QOS
+        from hexacal_msgs_py.qos import COMMAND_QOS, STATUS_MONITOR_QOS
         from trajectory_msgs.msg import JointTrajectory
 
         self.probe = probe
@@ -101,7 +101,7 @@ class ExecutorWatch:
                     self.statuses.append((level, status.message, status_values(status)))
 
         probe.node.create_subscription(
-            DiagnosticArray, 'hexacal/calibration_status', on_status, STATUS_QOS
+            DiagnosticArray, 'hexacal/calibration_status', on_status, STATUS_MONITOR_QOS
         )
         probe.node.create_subscription(
             JointTrajectory, COMMAND_TOPIC, self.commands.append, COMMAND_QOS

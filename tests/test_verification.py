@@ -482,7 +482,7 @@ def _named_statuses(probe) -> list:
     """(name, level, message, values) of every status on hexacal/calibration_status, appended as they arrive."""
     from diagnostic_msgs.msg import DiagnosticArray
     from hexacal_msgs_py.conversions import status_values
-    from hexacal_msgs_py.qos import STATUS_QOS
+    from hexacal_msgs_py.qos import STATUS_MONITOR_QOS
 
     received: list = []
 
@@ -496,7 +496,7 @@ def _named_statuses(probe) -> list:
             received.append((status.name, level, status.message, status_values(status)))
 
     probe.node.create_subscription(
-        DiagnosticArray, 'hexacal/calibration_status', on_status, STATUS_QOS
+        DiagnosticArray, 'hexacal/calibration_status', on_status, STATUS_MONITOR_QOS
     )
     return received
 
