@@ -6,6 +6,8 @@ SRC := ros2_ws/src
 PACKAGES := hexacal_msgs_py hexacal_identify hexacal_driver
 # Extra pytest arguments, e.g. make test PYTEST_ARGS="-m 'not slow'"
 PYTEST_ARGS ?=
+# The unit tier: the packages' own tests (no DDS, no processes).
+UNIT_TESTS := $(foreach p,$(PACKAGES),$(SRC)/$(p)/test)
 
 STAMP := $(VENV)/.hexacal-setup.stamp
 # Anything that changes what `make setup` installs re-runs it.
@@ -46,7 +48,7 @@ for source in (Path(arg).resolve() for arg in sys.argv[1:]):
 endef
 export LINK_DATA_FILES
 
-.PHONY: setup test demo bench clean
+.PHONY: setup test test-fast lint demo bench clean
 
 setup: $(STAMP)
 
@@ -59,9 +61,18 @@ $(STAMP): $(SETUP_INPUTS) | $(VENV_PY)
 	$(VENV_PY) -c "$$LINK_DATA_FILES" $(addprefix $(SRC)/,$(PACKAGES))
 	touch $@
 
+# Everything, the lint set included (tests marked linter): the CI command (.ci/run).
 test: setup
 	sh scripts/ensure_chromium.sh
 	$(VENV_PY) -m pytest $(PYTEST_ARGS)
+
+# The fast loop: the unit tier without the tests marked slow (about a minute on 2 cores).
+test-fast: setup
+	$(VENV_PY) -m pytest $(UNIT_TESTS) -m 'not slow' $(PYTEST_ARGS)
+
+# ament_flake8 and ament_pep257 on each package, mypy on core/: the tests marked linter.
+lint: setup
+	$(VENV_PY) -m pytest $(UNIT_TESTS) tests/test_mypy_core.py -m linter $(PYTEST_ARGS)
 
 demo: setup
 	$(VENV)/bin/hexacal demo
@@ -75,6 +86,6 @@ bench: setup
 
 clean:
 	rm -rf $(VENV) build install log ros2_ws/build ros2_ws/install ros2_ws/log \
-		out .pytest_cache .hypothesis
+		out .pytest_cache .hypothesis .mypy_cache
 	find . -path ./.git -prune -o \( -name __pycache__ -o -name '*.egg-info' \
 		-o -name .pytest_cache -o -name .hypothesis \) -prune -exec rm -rf {} +

@@ -140,7 +140,7 @@ class Probe:
     def subscribe_status(self, topic: str = 'hexacal/calibration_status') -> None:
         from diagnostic_msgs.msg import DiagnosticArray
         from hexacal_msgs_py.conversions import status_values
-        from hexacal_msgs_py.qos import STATUS_QOS
+        from hexacal_msgs_py.qos import STATUS_MONITOR_QOS
 
         def on_status(message: DiagnosticArray) -> None:
             for status in message.status:
@@ -154,7 +154,7 @@ class Probe:
                     )
                 )
 
-        self.node.create_subscription(DiagnosticArray, topic, on_status, STATUS_QOS)
+        self.node.create_subscription(DiagnosticArray, topic, on_status, STATUS_MONITOR_QOS)
 
     def postures_received_by_identify(self) -> int:
         """The count in identify's latest 'collecting' status (0 before any)."""

@@ -43,6 +43,7 @@ def recorded(tmp_path_factory, exact_postures):
     return write_recording(tmp_path_factory.mktemp('bags') / 'recorded', exact_postures, seed=1)
 
 
+@pytest.mark.slow
 def test_calibrate_from_the_posture_topic(recorded, nominal_file, tmp_path):
     output = tmp_path / 'calibrated.yaml'
     completed = hexacal(
@@ -70,6 +71,7 @@ def test_calibrate_from_the_posture_topic(recorded, nominal_file, tmp_path):
     )  # it did move from the nominal
 
 
+@pytest.mark.slow
 def test_raw_streams_only_are_redetected_and_foreign_topics_ignored(
     exact_postures, nominal_file, tmp_path
 ):
@@ -147,6 +149,7 @@ def test_bag_info_lists_topics_counts_and_postures(recorded):
     assert 'Postures:          40 (from the posture topic)' in text
 
 
+@pytest.mark.slow
 def test_calibrate_writes_a_report_and_a_result_the_report_command_reads(
     recorded, nominal_file, tmp_path
 ):
@@ -178,6 +181,7 @@ def test_calibrate_writes_a_report_and_a_result_the_report_command_reads(
     assert (tmp_path / 'again' / 'index.html').exists()
 
 
+@pytest.mark.slow
 def test_namespaced_bag_with_glitched_readings_is_redetected(
     exact_postures, nominal_file, tmp_path
 ):
@@ -307,6 +311,7 @@ def write_mapped_recording(
     return directory
 
 
+@pytest.mark.slow
 def test_a_mapped_bag_of_joint_states_and_an_imu_calibrates(
     exact_postures, nominal_file, tmp_path
 ):
@@ -326,6 +331,7 @@ def test_a_mapped_bag_of_joint_states_and_an_imu_calibrates(
     assert 'hexacal.collector.actuator_joints = ["lift_1"' in info.stdout
 
 
+@pytest.mark.slow
 def test_a_mapped_bag_reads_as_the_contracts_recording_of_the_same_readings(
     exact_postures, tmp_path
 ):

@@ -100,6 +100,7 @@ def test_measurements_carry_each_postures_device_turn():
     )  # all normal: as without turns
 
 
+@pytest.mark.slow
 def test_the_report_shows_prior_and_posterior(long_link_postures, tmp_path):
     from hexacal_identify.pipeline import calibrate
     from hexacal_identify.report.page import save_result, write_report
@@ -135,6 +136,7 @@ def nominal_file(tmp_path_factory) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_cli_prints_prior_and_posterior(nominal_file, tmp_path):
     common = (
         SAMPLE_BAG,
@@ -229,6 +231,7 @@ def _calibration_status(probe, outcome_check, what):
     )[-1]
 
 
+@pytest.mark.slow
 def test_identify_publishes_prior_and_posterior(
     ros_processes, tmp_path, probe, long_link_postures
 ):
@@ -273,6 +276,7 @@ def test_identify_publishes_prior_and_posterior(
     )
 
 
+@pytest.mark.slow
 def test_identify_prior_without_noise_is_a_named_failure(
     ros_processes, tmp_path, probe, long_link_postures
 ):

@@ -17,6 +17,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 from system_support import (
     fast_collector_parameters,
     fast_driver_parameters,
@@ -73,6 +74,7 @@ def recorded_inclinometer(bag: Path) -> list:
         ]
 
 
+@pytest.mark.slow
 def test_driver_with_defects_and_turns_to_the_collectors_bag(ros_processes, tmp_path, probe):
     from dataclasses import replace
 
@@ -164,6 +166,7 @@ def test_driver_with_defects_and_turns_to_the_collectors_bag(ros_processes, tmp_
     assert sorted(set(p.device_turn for p in redetected)) == sorted(set(turns.tolist()))
 
 
+@pytest.mark.slow
 def test_collector_parameter_turns_postures_without_the_joint(ros_processes, tmp_path, probe):
     from hexacal_identify.pipeline import postures_from_bag
     from hexacal_msgs_py.names import DEVICE_TURN_JOINT, POSTURE_NAMES
@@ -236,6 +239,7 @@ def test_collector_parameter_turns_postures_without_the_joint(ros_processes, tmp
     assert [p.device_turn for p in recorded[: len(live)]] == turns
 
 
+@pytest.mark.slow
 def test_bad_device_parameters_are_refused(ros_processes, tmp_path, probe):
     for argv, text in (
         (node_argv('driver', fast_driver_parameters(device_defects='dL=oops')), 'device_defects'),

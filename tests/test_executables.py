@@ -19,6 +19,7 @@ REPO = Path(__file__).resolve().parents[1]
 LAUNCH_FILE = REPO / 'ros2_ws/src/hexacal_identify/launch/hexacal.launch.py'
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     'executable, startup_line',
     [
@@ -52,6 +53,7 @@ def test_node_starts_and_exits_0_on_ctrl_c(
         assert (tmp_path / 'bags' / 'smoke' / 'metadata.yaml').exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     'executable, parameters, problem',
     [
@@ -83,6 +85,7 @@ def _executor_files(directory: Path, model: str | None = None) -> dict[str, str]
     return {'plan': str(plan), 'nominal': str(nominal)}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     'parameters, problem',
     [
@@ -181,7 +184,7 @@ def test_bringup_with_an_executor_plan_commands_the_simulated_driver(
     from diagnostic_msgs.msg import DiagnosticArray
     from hexacal_msgs_py.conversions import status_values
     from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC, EXECUTOR_STATUS_NAME
-    from hexacal_msgs_py.qos import COMMAND_QOS, STATUS_QOS
+    from hexacal_msgs_py.qos import COMMAND_QOS, STATUS_MONITOR_QOS
     from trajectory_msgs.msg import JointTrajectory
 
     files = _executor_files(tmp_path)
@@ -197,7 +200,7 @@ def test_bringup_with_an_executor_plan_commands_the_simulated_driver(
             for s in m.status
             if s.name == EXECUTOR_STATUS_NAME
         ],
-        STATUS_QOS,
+        STATUS_MONITOR_QOS,
     )
     bringup = ros_processes.start(
         [

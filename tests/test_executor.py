@@ -85,7 +85,7 @@ class ExecutorWatch:
     def __init__(self, probe) -> None:
         from diagnostic_msgs.msg import DiagnosticArray
         from hexacal_msgs_py.conversions import status_values
-        from hexacal_msgs_py.qos import COMMAND_QOS, STATUS_QOS
+        from hexacal_msgs_py.qos import COMMAND_QOS, STATUS_MONITOR_QOS
         from trajectory_msgs.msg import JointTrajectory
 
         self.probe = probe
@@ -101,7 +101,7 @@ class ExecutorWatch:
                     self.statuses.append((level, status.message, status_values(status)))
 
         probe.node.create_subscription(
-            DiagnosticArray, 'hexacal/calibration_status', on_status, STATUS_QOS
+            DiagnosticArray, 'hexacal/calibration_status', on_status, STATUS_MONITOR_QOS
         )
         probe.node.create_subscription(
             JointTrajectory, COMMAND_TOPIC, self.commands.append, COMMAND_QOS
@@ -228,6 +228,7 @@ def test_executor_calibrates_a_gough_stewart_platform(ros_processes, tmp_path, p
 # --------------------------------------------------------------------------- (b) pause, resume, abort
 
 
+@pytest.mark.slow
 def test_pause_resume_and_abort_through_the_services(ros_processes, tmp_path, probe):
     truth, nominal = write_parameter_files(tmp_path)
     plan = _plan(tmp_path, nominal, 12)
@@ -285,6 +286,7 @@ def test_pause_resume_and_abort_through_the_services(ros_processes, tmp_path, pr
 # --------------------------------------------------------------------------- (c) stroke refused
 
 
+@pytest.mark.slow
 def test_a_plan_outside_the_stroke_is_refused_and_nothing_is_published(
     ros_processes, tmp_path, probe
 ):
@@ -332,6 +334,7 @@ def test_a_refused_plan_exits_2_with_shutdown_when_done(tmp_path):
 # --------------------------------------------------------------------------- (d) not reached
 
 
+@pytest.mark.slow
 def test_a_posture_the_machine_never_reaches_is_skipped_and_reported(
     ros_processes, tmp_path, probe
 ):

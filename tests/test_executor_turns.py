@@ -19,6 +19,7 @@ from hexacal_identify.core.planning import Plan
 from hexacal_identify.core.postures import sample_poses
 from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC, DEVICE_TURN_JOINT
 import numpy as np
+import pytest
 from system_support import (
     fast_collector_parameters,
     node_argv,
@@ -61,6 +62,7 @@ def _turning_plan(tmp_path: Path) -> tuple[Path, np.ndarray]:
     return path, targets
 
 
+@pytest.mark.slow
 def test_the_executor_pauses_for_a_device_turn_and_the_nodes_take_it(
     ros_processes, tmp_path, probe
 ):  # noqa: F811

@@ -451,6 +451,7 @@ def _set_parameter(probe: Probe, client, name: str, value):
     ).results[0]
 
 
+@pytest.mark.slow
 def test_identify_rejects_bad_postures_refuses_repeated_ones_and_loses_nothing(
     ros_processes, tmp_path, probe
 ):
@@ -534,6 +535,7 @@ def test_identify_rejects_bad_postures_refuses_repeated_ones_and_loses_nothing(
     assert identify.running()
 
 
+@pytest.mark.slow
 def test_identify_names_bad_files_and_paths_and_writes_only_under_output_dir(
     ros_processes, tmp_path, probe
 ):
@@ -702,6 +704,7 @@ def _count(probe: Probe, key: str) -> int:
     return int(_collector_status(probe).get(key, 0))
 
 
+@pytest.mark.slow
 def test_collector_names_bad_stamps_stale_and_stopped_streams(ros_processes, tmp_path, probe):
     collector = ros_processes.start(
         node_argv(

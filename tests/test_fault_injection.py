@@ -61,6 +61,7 @@ def _dwell_start_ns(log: str, posture: int) -> int | None:
 # --------------------------------------------------------------------------- driver
 
 
+@pytest.mark.slow
 def test_driver_killed_mid_posture_drops_the_partial_posture_and_reports_it(
     ros_processes, tmp_path, probe
 ):
@@ -154,6 +155,7 @@ def test_driver_killed_mid_posture_drops_the_partial_posture_and_reports_it(
 # --------------------------------------------------------------------------- identify
 
 
+@pytest.mark.slow
 def test_identify_killed_during_a_calibration_keeps_the_last_good_one(
     ros_processes, tmp_path, probe
 ):
@@ -235,6 +237,7 @@ _WRITER = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow
 def test_a_parameters_file_killed_mid_write_is_old_or_new_never_partial(
     ros_processes, tmp_path, probe
 ):
@@ -303,6 +306,7 @@ def small_tmpfs():
         mount_point.rmdir()
 
 
+@pytest.mark.slow
 def test_disk_full_stops_recording_with_a_clear_error_and_a_readable_bag(
     small_tmpfs, ros_processes, tmp_path, probe
 ):

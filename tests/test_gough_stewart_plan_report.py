@@ -245,6 +245,7 @@ def _assert_gough_stewart_page(text: str, all_parameters: bool = True) -> None:
         assert word not in text, word
 
 
+@pytest.mark.slow
 def test_hexacal_report_of_a_gough_stewart_result(calibration, tmp_path):
     result, _, path = calibration
     out = tmp_path / 'report'
@@ -315,6 +316,7 @@ def test_the_report_calibrate_and_identify_write_for_a_gough_stewart_result(cali
     assert 'after calibration' in text and 'Not shown: the true parameters are not known' in text
 
 
+@pytest.mark.slow
 def test_calibrate_report_of_the_gough_stewart_sample_bag(nominal_file, tmp_path):
     """
     Run `hexacal calibrate BAG --nominal GS.yaml --report DIR` on the recorded hexapod bag.

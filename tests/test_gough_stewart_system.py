@@ -151,6 +151,7 @@ def test_a_nominal_file_of_the_other_model_is_a_named_error(files, tmp_path, bag
     assert not (tmp_path / 'out.yaml').exists()
 
 
+@pytest.mark.slow
 def test_raw_streams_of_a_gough_stewart_bag_are_redetected(files, exact, tmp_path):
     _, nominal, hexa_nominal = files
     bag = write_recording(

@@ -265,6 +265,7 @@ def _machine_bag(directory: Path, count: int) -> tuple[list, list]:
     return poses, markers
 
 
+@pytest.mark.slow
 def test_platform_pose_and_markers_replay_as_a_moving_machine(ros_processes, tmp_path, probe):
     from geometry_msgs.msg import PoseStamped
     from hexacal_msgs_py.qos import MARKERS_QOS, POSE_QOS

@@ -105,6 +105,7 @@ def test_write_report_takes_a_result_directly(calibration, tmp_path):
     assert 'Not shown: the true parameters are not known' in text
 
 
+@pytest.mark.slow
 def test_report_loads_in_headless_chromium_with_every_image_and_the_key_numbers(
     calibration, tmp_path
 ):
@@ -218,6 +219,7 @@ def test_report_of_a_plain_json_output_says_what_is_missing(calibration, tmp_pat
     assert completed.returncode == 2 and 'not a hexacal result' in completed.stderr
 
 
+@pytest.mark.slow
 def test_report_with_a_verification_section_loads_in_headless_chromium(calibration, tmp_path):
     """What identify writes after hexacal/verify: the calibration's page with the verification section and its
     figure; every image decodes and the verification figures are on the page in um / urad."""

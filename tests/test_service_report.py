@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from hexacal_msgs_py.parameters_file import load_parameters
 import numpy as np
+import pytest
 from system_support import (
     node_argv,
     probe,  # noqa: F401 - fixture
@@ -53,6 +54,7 @@ def _result_statuses(probe, after: int = 0) -> list:
     return [s for s in probe.statuses[after:] if s[2].get('outcome') == 'converged']
 
 
+@pytest.mark.slow
 def test_answer_and_parameters_come_before_the_report_status(ros_processes, tmp_path, probe):
     identify, received = _start(ros_processes, tmp_path, probe)
     out = tmp_path / 'out'
@@ -92,6 +94,7 @@ def test_answer_and_parameters_come_before_the_report_status(ros_processes, tmp_
     assert len(received) == 1  # the report published no parameters
 
 
+@pytest.mark.slow
 def test_failed_report_leaves_the_result_and_the_parameters(ros_processes, tmp_path, probe):
     from rclpy.parameter import Parameter
     from rclpy.parameter_client import AsyncParameterClient
@@ -133,6 +136,7 @@ def test_failed_report_leaves_the_result_and_the_parameters(ros_processes, tmp_p
     assert [s[2]['report_state'] for s in result] == ['disabled']
 
 
+@pytest.mark.slow
 def test_stopping_right_after_the_answer_finishes_the_report(ros_processes, tmp_path, probe):
     identify, received = _start(ros_processes, tmp_path, probe)
     out = tmp_path / 'out'

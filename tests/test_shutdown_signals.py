@@ -1,14 +1,18 @@
-"""Every node stops cleanly on Ctrl-C as a terminal and `ros2 launch` send it, and on SIGTERM.
+"""
+Test that every node stops cleanly on Ctrl-C as a terminal and `ros2 launch` send it, and SIGTERM.
 
 Ctrl-C under `ros2 launch`: the terminal sends SIGINT to the process group, then
 launch forwards another SIGINT to each node ~50 ms later, while the node is
 shutting down. Either way, and on SIGTERM, a node exits 0 with no traceback and
 leaves its files finished: the bag with metadata.yaml and its MCAP footer
 (readable by rosbags), the parameters file and report complete or untouched.
+During start-up the same holds from the moment the entry point has installed its
+handlers (nodes.entry), observed in /proc, not guessed with a delay.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 import os
 from pathlib import Path
 import signal
@@ -18,15 +22,17 @@ import time
 from hexacal_identify.bag import open_bag
 from hexacal_msgs_py.parameters_file import load_parameters
 import pytest
-from rosproc import RosProcess, venv_executable
+from rosproc import RosProcess, venv_executable, wait_for
+import system_support
 from system_support import (
     fast_collector_parameters,
     fast_driver_parameters,
     node_argv,
-    probe,  # noqa: F401 - fixture
     STOP_TIMEOUT_S,
     write_parameter_files,
 )
+
+probe = system_support.probe  # the fixture, for this module's tests
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 SAMPLE_BAG = REPOSITORY / 'bags' / 'sphere60_fixed20_noise10'
@@ -164,13 +170,17 @@ def _plan(tmp_path: Path, nominal: Path) -> Path:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('pattern', PATTERNS)
 @pytest.mark.parametrize('executable', ('executor', 'kinematics'))
 def test_executor_and_kinematics_stop_cleanly_while_running(
     executable, pattern, ros_processes, tmp_path, probe
 ):
-    """The executor waiting for its machine and the kinematics node waiting for readings: exit 0 on
-    the launch pattern and on SIGTERM."""
+    """
+    Stop the executor waiting for its machine and the kinematics node waiting for readings.
+
+    Both exit 0 on the launch pattern and on SIGTERM.
+    """
     _, nominal = write_parameter_files(tmp_path)
     parameters = {
         'executor': {'plan': str(_plan(tmp_path, nominal)), 'nominal': str(nominal)},
@@ -181,7 +191,43 @@ def test_executor_and_kinematics_stop_cleanly_while_running(
     assert_clean_exit(process, pattern)
 
 
-STARTUP_SIGNAL_DELAYS_S = (0.05, 0.3, 0.6, 1.0, 1.5)  # during imports, rclpy.init, the constructor
+def _proc(process: RosProcess, name: str) -> str:
+    """Return /proc/<pid>/<name> of a running process; fail with its log if it has exited."""
+    if not process.running():
+        raise AssertionError(f'exited during start-up\n{process.describe()}')
+    try:
+        return (Path('/proc') / str(process.pid) / name).read_text()
+    except (FileNotFoundError, ProcessLookupError):  # exited since running() looked
+        raise AssertionError(f'exited during start-up\n{process.describe()}') from None
+
+
+def _catches_sigterm(process: RosProcess) -> bool:
+    """
+    Tell whether the entry point's remember_termination_signals() has run.
+
+    The interpreter catches SIGINT from its own start (default_int_handler), but not SIGTERM:
+    a caught SIGTERM in SigCgt shows the node's handlers are in place.
+    """
+    for line in _proc(process, 'status').splitlines():
+        if line.startswith('SigCgt:'):
+            return bool(int(line.split()[1], 16) & (1 << (signal.SIGTERM - 1)))
+    return False
+
+
+def _maps(fragment: str) -> Callable[[RosProcess], bool]:
+    return lambda process: fragment in _proc(process, 'maps')
+
+
+# What a process can promise starts where its handlers exist: before that (the interpreter's own
+# start-up, importing `signal`) a SIGINT is the interpreter's KeyboardInterrupt, which no Python
+# code can catch. From there on, observable moments of start-up, in order:
+STARTUP_STAGES = {
+    'handlers installed, importing the node module': _catches_sigterm,
+    'rclpy loaded': _maps('_rclpy_pybind11'),
+    # rclpy.init has created the DDS participant (Fast DDS maps its shared-memory segments): the
+    # signal lands in rclpy.init or the node's constructor.
+    'participant created': _maps('/dev/shm/'),
+}
 
 
 @pytest.mark.slow
@@ -189,7 +235,11 @@ STARTUP_SIGNAL_DELAYS_S = (0.05, 0.3, 0.6, 1.0, 1.5)  # during imports, rclpy.in
     'executable', ('collector', 'identify', 'driver', 'executor', 'kinematics')
 )
 def test_ctrl_c_while_a_node_starts_is_a_clean_stop(executable, ros_processes, tmp_path):
-    """A Ctrl-C at any moment of start-up: exit 0, no traceback (the signal is the stimulus)."""
+    """
+    Stop cleanly on a Ctrl-C during start-up, once the entry point has installed its handlers.
+
+    Exit 0, no traceback, no 'cannot start', bags finished, at each stage of STARTUP_STAGES.
+    """
     _, nominal = write_parameter_files(tmp_path)
     parameters = {
         'collector': {'output_dir': str(tmp_path / 'bags')},
@@ -198,11 +248,12 @@ def test_ctrl_c_while_a_node_starts_is_a_clean_stop(executable, ros_processes, t
         'executor': {'plan': str(_plan(tmp_path, nominal)), 'nominal': str(nominal)},
         'kinematics': {'parameters': str(nominal)},
     }[executable]
-    for delay in STARTUP_SIGNAL_DELAYS_S:
+    for stage, reached in STARTUP_STAGES.items():
         process = ros_processes.start(node_argv(executable, parameters))
-        time.sleep(delay)  # when the signal arrives is what this test varies
+        # Polled every millisecond: the signal lands at this stage or a few ms after it.
+        wait_for(lambda: reached(process), 60.0, 0.001, stage, process.describe)
         log = assert_clean_exit(process, 'ctrl-c-under-launch')
-        assert 'cannot start' not in log, log
+        assert 'cannot start' not in log, f'{stage}:\n{log}'
     for bag in (tmp_path / 'bags').glob('*') if executable == 'collector' else ():
         if any(bag.glob('*.mcap')):  # a bag that was opened is finished
             assert (bag / 'metadata.yaml').exists(), sorted(p.name for p in bag.iterdir())

@@ -34,6 +34,7 @@ def start_identify(ros_processes, tmp_path, probe, namespace='', name='identify'
     return process
 
 
+@pytest.mark.slow
 def test_second_call_while_calibrating_is_answered_busy_at_once(ros_processes, tmp_path, probe):
     # Nominal set 3 and 600 postures: a solve of ~0.5 s, far longer than a busy answer takes.
     nominal = tmp_path / 'nominal_set3.yaml'
@@ -104,6 +105,7 @@ def test_calibrate_without_nominal_names_the_missing_parameter(ros_processes, tm
     assert not (tmp_path / 'out' / 'hexacal_calibration.yaml').exists()
 
 
+@pytest.mark.slow
 def test_too_few_postures_is_refused_and_publishes_nothing(ros_processes, tmp_path, probe):
     _, nominal = write_parameter_files(tmp_path)
     identify = start_identify(ros_processes, tmp_path, probe, nominal=str(nominal))
@@ -146,6 +148,7 @@ def test_too_few_postures_is_refused_and_publishes_nothing(ros_processes, tmp_pa
     assert '30 of 30 postures' in response.message
 
 
+@pytest.mark.slow
 def test_restarted_identify_republishes_the_saved_calibration(ros_processes, tmp_path, probe):
     truth, nominal = write_parameter_files(tmp_path)
     identify = start_identify(ros_processes, tmp_path, probe, nominal=str(nominal))

@@ -482,7 +482,7 @@ def _named_statuses(probe) -> list:
     """(name, level, message, values) of every status on hexacal/calibration_status, appended as they arrive."""
     from diagnostic_msgs.msg import DiagnosticArray
     from hexacal_msgs_py.conversions import status_values
-    from hexacal_msgs_py.qos import STATUS_QOS
+    from hexacal_msgs_py.qos import STATUS_MONITOR_QOS
 
     received: list = []
 
@@ -496,11 +496,12 @@ def _named_statuses(probe) -> list:
             received.append((status.name, level, status.message, status_values(status)))
 
     probe.node.create_subscription(
-        DiagnosticArray, 'hexacal/calibration_status', on_status, STATUS_QOS
+        DiagnosticArray, 'hexacal/calibration_status', on_status, STATUS_MONITOR_QOS
     )
     return received
 
 
+@pytest.mark.slow
 def test_identify_verifies_the_latest_calibration_on_the_postures_received_after_it(
     ros_processes, tmp_path, probe
 ):
@@ -634,6 +635,7 @@ def _publish_after_restart(probe, postures: list, restarted) -> None:
     )
 
 
+@pytest.mark.slow
 def test_restarted_identify_verifies_the_saved_calibration(ros_processes, tmp_path, probe):
     from hexacal_msgs_py.names import VERIFICATION_STATUS_NAME, VERIFY_SERVICE
     from system_support import STOP_TIMEOUT_S

@@ -209,6 +209,7 @@ def _walk(model, postures, noise=1e-5, seed=0, **settings):
     return execution, postures_seen, truth, nominal, plan
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('model', [None, GS])
 def test_the_executor_walks_a_plan_on_the_commanded_machine_to_a_good_calibration(model):
     from hexacal_identify.pipeline import calibrate
@@ -228,6 +229,7 @@ def test_the_executor_walks_a_plan_on_the_commanded_machine_to_a_good_calibratio
     assert np.abs(nominal.vector - truth.vector).max() > 1e-3
 
 
+@pytest.mark.slow
 def test_fixed_positions_that_never_converge_are_skipped_after_max_corrections():
     execution, *_ = _walk(None, 8, fixed_tolerance_rad=1e-7, max_corrections=1)
     skipped = execution.skipped

@@ -287,6 +287,7 @@ def test_study_json_on_the_default_gough_stewart():
     assert validation['after']['position_mean_m'] < 1e-4 < validation['before']['position_mean_m']
 
 
+@pytest.mark.slow
 def test_study_takes_the_model_from_the_files_and_refuses_a_mismatch(tmp_path):
     truth, nominal, hexa = (
         tmp_path / 'gs_true.yaml',

@@ -133,6 +133,7 @@ def test_glitched_postures_are_excluded_and_the_result_stays_within_the_noise():
     )
 
 
+@pytest.mark.slow
 def test_covariance_predicts_the_monte_carlo_spread():
     summary = monte_carlo(seeds=60, postures=50, noise_um=10.0)
     assert 0.9 < np.median(summary.std_ratio) < 1.1

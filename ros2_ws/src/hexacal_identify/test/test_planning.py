@@ -68,6 +68,7 @@ def test_greedy_picks_the_best_candidate_and_never_lowers_the_criterion(candidat
     assert ranks == sorted(ranks) and ranks[-1] == 54
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('index', ['O1', 'O3', 'I'])
 def test_exchange_improves_on_greedy_monotonically(candidates, index):
     start, _ = greedy_design(candidates, 20, index)
@@ -228,6 +229,7 @@ def test_plan_command_writes_a_plan(tmp_path, capsys):
     )
 
 
+@pytest.mark.slow
 def test_study_plan_mode_prints_a_table_and_checks_the_claim(tmp_path, capsys):
     import json
 

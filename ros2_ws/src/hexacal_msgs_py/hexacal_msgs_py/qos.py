@@ -35,6 +35,19 @@ STATUS_QOS = QoSProfile(
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 
+# A subscriber that acts on the statuses of several nodes (a monitor: the demo, a test probe).
+# hexacal/calibration_status has four publishers (identify, executor, collector, kinematics) and
+# a reader of depth 1 keeps one sample for all of them: a status followed by another node's before
+# the reader takes it is overwritten, e.g. identify's last 'collecting' count by the executor's
+# 'done' 10 ms later. Deep enough for every status between two spins; compatible with STATUS_QOS
+# (reliable, transient local: the latched ones still arrive).
+STATUS_MONITOR_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
 # Commands: reliable, volatile (a stale command must not replay on a late joiner); what
 # ros2_control's joint_trajectory_controller subscribes with (system default QoS: reliable,
 # volatile).

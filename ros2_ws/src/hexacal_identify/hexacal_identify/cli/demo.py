@@ -561,7 +561,7 @@ class _RosSession:
             POSTURE_TOPIC,
             VERIFY_SERVICE,
         )
-        from hexacal_msgs_py.qos import PARAMETERS_QOS, POSTURE_QOS, STATUS_QOS
+        from hexacal_msgs_py.qos import PARAMETERS_QOS, POSTURE_QOS, STATUS_MONITOR_QOS
         import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
@@ -590,7 +590,7 @@ class _RosSession:
             Float64MultiArray, PARAMETERS_TOPIC, self._on_parameters, PARAMETERS_QOS
         )
         self.node.create_subscription(
-            DiagnosticArray, CALIBRATION_STATUS_TOPIC, self._on_status, STATUS_QOS
+            DiagnosticArray, CALIBRATION_STATUS_TOPIC, self._on_status, STATUS_MONITOR_QOS
         )
         self.client = self.node.create_client(Trigger, CALIBRATE_SERVICE)
         self.verify_client = self.node.create_client(Trigger, VERIFY_SERVICE)

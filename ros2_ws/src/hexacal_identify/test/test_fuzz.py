@@ -1,4 +1,5 @@
-"""Property-based fuzzing (issue #7): malformed input raises only the project's named errors.
+"""
+Test by property-based fuzzing (issue #7): malformed input raises only named errors.
 
 Targets: the parameter-file loader, sensor readings and JointState conversions,
 the stream synchroniser and posture detector, and the bag reader behind
@@ -43,6 +44,7 @@ from hexacal_msgs_py.readings import (
 from hypothesis import given, HealthCheck, settings
 from hypothesis import strategies as st
 import numpy as np
+import pytest
 import yaml
 
 SCALE = max(1, int(os.environ.get('HEXACAL_FUZZ_SCALE', '1')))
@@ -125,6 +127,7 @@ def mutated_parameter_documents(draw) -> str:
         return draw(st.text(max_size=200))
 
 
+@pytest.mark.slow
 @FAST
 @given(mutated_parameter_documents())
 def test_parameter_loader_on_mutated_documents_raises_only_parameter_file_errors(text):
@@ -137,6 +140,7 @@ def test_parameter_loader_on_mutated_documents_raises_only_parameter_file_errors
     validate_parameters(vector)  # what loads is a usable parameter set
 
 
+@pytest.mark.slow
 @FAST
 @given(
     st.one_of(
@@ -239,7 +243,7 @@ sample_values = st.floats(allow_nan=True, allow_infinity=True, width=64) | st.fl
 
 @st.composite
 def sample_streams(draw):
-    """Samples in bursts: still, moving, NaN, repeated and backwards stamps, gaps."""
+    """Draw samples in bursts: still, moving, NaN, repeated and backwards stamps, gaps."""
     count = draw(st.integers(0, 400))
     step = draw(st.sampled_from([1_000_000, 10_000_000, 50_000_000]))
     stamps, rows = [], []
@@ -272,7 +276,7 @@ def test_posture_detector_never_raises_and_emits_only_finite_postures_from_its_i
     detector = PostureDetector(window_s=0.05, capture_s=0.1, max_gap_s=0.02)
     postures = []
     for begin in range(0, len(stamps), chunk):
-        postures += detector.update(stamps[begin : begin + chunk], rows[begin : begin + chunk])
+        postures += detector.update(stamps[begin:begin + chunk], rows[begin:begin + chunk])
     detector.finish()
     finite = rows[np.all(np.isfinite(rows), axis=1)]
     emitted = [p.stamp_ns for p in postures]
@@ -350,6 +354,7 @@ def joint_state_dicts(draw, stamp_ns: int) -> dict:
     }
 
 
+@pytest.mark.slow
 @settings(max_examples=30 * SCALE, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.data())
 def test_bag_reader_on_malformed_content_raises_only_named_errors(data):
@@ -458,6 +463,7 @@ def test_bag_reader_on_mutated_schemas_raises_only_named_errors(data):
     assert all(math.isfinite(v) for p in loaded.postures for v in p.values())
 
 
+@pytest.mark.slow
 @FAST
 @given(values)
 def test_bag_metadata_yaml_of_any_shape_raises_only_bag_errors(document):

@@ -1,4 +1,5 @@
-"""BagReader.messages(topics) reads only the chunks that hold those topics (#12 item 2).
+"""
+Test that BagReader.messages(topics) reads only the chunks holding those topics (#12 item 2).
 
 A complete MCAP file's summary lists, per chunk, the channels it holds messages
 of; messages() of some topics leaves the other chunks unread (the posture
@@ -16,7 +17,7 @@ from hexacal_identify.bag import reader as reader_module
 from hexacal_msgs_py.names import INCLINOMETER_NAMES, JOINT_STATE_TYPE, SLIDER_NAMES
 import pytest
 
-BAGS = Path(__file__).resolve().parents[1] / 'bags'
+BAGS = Path(__file__).resolve().parents[4] / 'bags'  # the repository's sample bags
 SLIDERS, INCLINOMETER, POSTURE = '/hexacal/sliders', '/hexacal/inclinometer', '/hexacal/posture'
 
 
@@ -37,7 +38,7 @@ def _filtered(reader, topics):
 
 @pytest.fixture
 def expanded_chunks(monkeypatch):
-    """Counts the chunks messages() decompresses and unpacks."""
+    """Count the chunks messages() decompresses and unpacks."""
     count = [0]
     original = reader_module._chunk_records
 
@@ -73,7 +74,11 @@ def test_sample_bags_same_messages_per_topic_fewer_chunks(bag, expanded_chunks):
 
 
 def _phased_bag(directory: Path) -> Path:
-    """Sliders alone, then sliders and inclinometer, then the inclinometer alone: chunks of either or both."""
+    """
+    Record sliders alone, then sliders and inclinometer, then the inclinometer alone.
+
+    The chunks hold either topic or both.
+    """
     with BagWriter(directory, chunk_size_bytes=1024) as writer:
         writer.add_topic(SLIDERS, JOINT_STATE_TYPE)
         writer.add_topic(INCLINOMETER, JOINT_STATE_TYPE)
@@ -112,7 +117,7 @@ def test_a_file_without_summary_is_scanned_with_the_same_messages(tmp_path):
     mcap = next(bag.glob('*.mcap'))
     complete = open_bag(mcap)
     data = mcap.read_bytes()
-    summary_start = int.from_bytes(data[-8 - 20 : -8 - 12], 'little')  # the footer's summary_start
+    summary_start = int.from_bytes(data[-8 - 20:-8 - 12], 'little')  # the footer's summary_start
     cut = tmp_path / 'no_summary.mcap'
     cut.write_bytes(data[:summary_start])  # data section and DataEnd, no summary, no footer
     scanned = open_bag(cut)

@@ -52,7 +52,7 @@ def make_session(
     settle_amplitude: float = 3e-4,
     noise: bool = True,
 ) -> Session:
-    """Holds joined by cosine moves; each hold starts with a decaying 8 Hz oscillation."""
+    """Make holds joined by cosine moves; each hold starts with a decaying 8 Hz oscillation."""
     period_ns = int(round(1e9 / rate_hz))
     holds_s = [hold_s] * len(targets) if np.isscalar(hold_s) else list(hold_s)
     stamps, rows, holds = [], [], []
@@ -143,7 +143,7 @@ def test_streaming_in_any_chunks_equals_offline_detection(chunk):
     online = []
     for begin in range(0, len(session.stamps_ns), chunk):
         online += detector.update(
-            session.stamps_ns[begin : begin + chunk], session.values[begin : begin + chunk]
+            session.stamps_ns[begin:begin + chunk], session.values[begin:begin + chunk]
         )
     assert [p.stamp_ns for p in online] == [p.stamp_ns for p in offline]
     for a, b in zip(online, offline):
@@ -208,7 +208,7 @@ def test_one_khz_for_ten_minutes_in_constant_memory():
     found = []
     for start in range(0, len(session.stamps_ns), 5000):
         found += detector.update(
-            session.stamps_ns[start : start + 5000], session.values[start : start + 5000]
+            session.stamps_ns[start:start + 5000], session.values[start:start + 5000]
         )
         assert detector.buffered_samples <= 301  # the last 0.3 s at 1 kHz
         assert detector.buffer_capacity == capacity

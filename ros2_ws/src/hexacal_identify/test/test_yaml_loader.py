@@ -1,4 +1,7 @@
-"""The one YAML text loader (hexacal_msgs_py.files.load_yaml_text): libyaml's parser, same documents (#12 item 2).
+"""
+Test the one YAML text loader (hexacal_msgs_py.files.load_yaml_text) (#12 item 2).
+
+libyaml's parser, the same documents.
 
 Parameters files, posture plans and bag metadata parse with yaml.CSafeLoader
 (or the parameters loader's libyaml twin) when PyYAML has libyaml: the same
@@ -20,7 +23,7 @@ from hexacal_msgs_py.parameters_file import load_parameters_file, save_parameter
 import pytest
 import yaml
 
-BAGS = Path(__file__).resolve().parents[1] / 'bags'
+BAGS = Path(__file__).resolve().parents[4] / 'bags'  # the repository's sample bags
 needs_libyaml = pytest.mark.skipif(
     getattr(yaml, 'CSafeLoader', None) is None, reason='PyYAML without libyaml'
 )
@@ -71,7 +74,8 @@ def test_parameters_files_same_as_pure_python(tmp_path):
         path = tmp_path / f'p{index}.yaml'
         save_parameters(path, params.vector)
         texts.append(path.read_text())
-    # ROS-style exponents without a dot or a signed exponent, which plain YAML 1.1 reads as strings.
+    # ROS-style exponents without a dot or a signed exponent, which plain YAML 1.1 reads as
+    # strings.
     texts.append(
         '/**:\n  ros__parameters:\n    x: 1e-5\n    y: 1.5e3\n    z: -2E+2\n    w: .5e1\n'
         '    s: "1e-5"\n    n: [1, 2.0, -3e2, ~, true, 0x10, 1_000]\n'
@@ -86,6 +90,7 @@ def test_parameters_files_same_as_pure_python(tmp_path):
     assert (vector == nominal_set(2, seed=0).vector).all() and extras == {}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     'text', ['[' * 60_000, '[' * 60_000 + ']' * 60_000, '{a: ' * 60_000, '- ' * 60_000 + 'x']
 )
