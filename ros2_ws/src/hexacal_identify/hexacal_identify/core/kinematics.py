@@ -312,7 +312,7 @@ class PoseSensitivity:
 
     @property
     def wrt_parameters(self) -> np.ndarray:
-        """dX/du, (N, 6, 54)."""
+        """dX/du, (N, 6, n)."""
         if self._wrt_parameters is None:
             full = -self.wrt_sliders[:, :, :, None] * self.slider_blocks[:, None, :, :]
             self._wrt_parameters = full.reshape(len(full), 6, self.n_parameters)
@@ -324,7 +324,7 @@ class PoseSensitivity:
         return self.wrt_sliders[index], self.slider_blocks[index]
 
     def rows(self, index: np.ndarray | None, coordinates: slice, factor: float) -> np.ndarray:
-        """Factor * dX[coordinates]/du for postures ``index`` (None: all), (k, m, 54)."""
+        """Factor * dX[coordinates]/du for postures ``index`` (None: all), (k, m, n)."""
         inverse, blocks = self._pick(index)
         # factor * (-M b) = (-factor M) b: the sign is exact, so with factor -1 this is M b bit for
         # bit.
@@ -336,7 +336,7 @@ class PoseSensitivity:
         """
         Return sum_k weights[:, k] dX_k/du for postures ``index``.
 
-        , k] dX_k/du for postures ``index`` (None: all); weights (k, 6) -> (k, 54).
+        , k] dX_k/du for postures ``index`` (None: all); weights (k, 6) -> (k, n).
         """
         inverse, blocks = self._pick(index)
         mixed = -np.matmul(weights[:, None, :], inverse)  # (k, 1, 6)

@@ -33,7 +33,7 @@ def parameter_names(model: str | None = None) -> list[str]:
     """
     Return the names of the parameters in vector order.
 
-    Names of the parameters in vector order, e.g. ``chain_3.A0z`` (default: the Hexa Slide's 54).
+    E.g. ``chain_3.A0z``; ``model`` None is the default model.
     """
     return list(architecture(model).layout.parameter_names)
 
@@ -48,12 +48,10 @@ def parameter_units(model: str | None = None) -> list[str]:
 
 
 def error_vector_with_stats(
-    rng: np.random.Generator, max_mm: float, mean_mm: float, sigma_mm: float, n: int = N_PARAMETERS
+    rng: np.random.Generator, max_mm: float, mean_mm: float, sigma_mm: float, n: int
 ) -> np.ndarray:
     """
     Draw n signed errors (m) with the statistics of one row of Table 2.
-
-    n (default 54) signed errors (m) with the statistics of one row of Table 2.
 
     Table 2's sigma exceeds its mean in every row, so it is read as the RMS of the
     errors (equal, up to sampling, to the standard deviation of errors of random
