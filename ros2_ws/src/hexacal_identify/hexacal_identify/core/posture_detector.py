@@ -236,6 +236,7 @@ class StreamSynchronizer:
         inclinometer = self._streams[Stream.INCLINOMETER]
         encoder = self._streams[Stream.ENCODER]
         newest_slider_ns = self._streams[Stream.SLIDERS].last_stamp_ns
+        assert newest_slider_ns is not None  # a pending slider reading was accepted
         while self._pending:
             stamp, sliders = self._pending[0]
             ready = (
@@ -531,7 +532,7 @@ class PostureDetector:
 
     # ------------------------------------------------------------------ internals
 
-    def _count(self, counter: dict[str, int], reason: StrEnum, n: int) -> None:
+    def _count(self, counter: dict[str, int], reason: StrEnum, n: int | np.integer[Any]) -> None:
         if n:
             # The plain string as the key: the counters are logged and published as before.
             counter[reason.value] = counter.get(reason.value, 0) + int(n)
