@@ -15,7 +15,7 @@ from enum import StrEnum
 
 from hexacal_msgs_py.readings import NS_PER_S
 
-from .posture_detector import DROPPED_FOR_STREAM_STOP, PostureDetector, StreamSynchronizer
+from .posture_detector import DropReason, PostureDetector, StreamSynchronizer
 
 
 class Outcome(StrEnum):
@@ -52,7 +52,7 @@ _LOGGED_WHERE_THEY_HAPPEN = (
     f'{ProblemKey.INVALID}.',
     str(ProblemKey.STREAMS_STOPPED),
     str(ProblemKey.RECORDING_ERROR),
-    f'{ProblemKey.DROPPED}.{DROPPED_FOR_STREAM_STOP}',
+    f'{ProblemKey.DROPPED}.{DropReason.STREAM_STOPPED}',
 )
 
 

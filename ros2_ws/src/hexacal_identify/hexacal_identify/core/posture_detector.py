@@ -16,7 +16,7 @@ from __future__ import annotations
 from bisect import bisect_left
 from collections import deque
 from dataclasses import dataclass
-from enum import Enum
+from enum import StrEnum
 import math
 from typing import Any
 
@@ -33,23 +33,57 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 N_CHANNELS = len(POSTURE_NAMES)
-SLIDERS_STREAM = 'sliders'
-INCLINOMETER_STREAM = 'inclinometer'
-ENCODER_STREAM = 'encoder'
-STREAMS = (SLIDERS_STREAM, INCLINOMETER_STREAM, ENCODER_STREAM)
 
-# Reasons a reading or a slider sample is not used.
-DUPLICATE_STAMP = 'duplicate_stamp'
-OUT_OF_ORDER = 'out_of_order'
-NON_FINITE = 'non_finite'
-NO_INCLINOMETER_WITHIN_SKEW = 'no_inclinometer_within_skew'
-NO_ENCODER_WITHIN_SKEW = 'no_encoder_within_skew'
 
-# Reasons a partial stationary period is dropped.
-DROPPED_FOR_MOTION = 'motion'
-DROPPED_FOR_GAP = 'gap'
-DROPPED_AT_END = 'end_of_stream'
-DROPPED_FOR_STREAM_STOP = 'stream_stopped'  # a sensor stream went silent (e.g. the driver died)
+# The values are the keys of the collector's status counters and summaries: StrEnum members
+# equal and hash as their strings, and the counters store the plain values (.value) so their
+# repr in logs and their JSON stay as before.
+class Stream(StrEnum):
+    """An input stream of the synchronizer."""
+
+    SLIDERS = 'sliders'
+    INCLINOMETER = 'inclinometer'
+    ENCODER = 'encoder'
+
+
+class RejectReason(StrEnum):
+    """Why a reading (synchronizer) or a paired sample (detector) is not used."""
+
+    DUPLICATE_STAMP = 'duplicate_stamp'
+    OUT_OF_ORDER = 'out_of_order'
+    NON_FINITE = 'non_finite'
+
+
+class UnpairedReason(StrEnum):
+    """Why a slider reading found no partner to be paired with."""
+
+    NO_INCLINOMETER_WITHIN_SKEW = 'no_inclinometer_within_skew'
+    NO_ENCODER_WITHIN_SKEW = 'no_encoder_within_skew'
+
+
+class DropReason(StrEnum):
+    """Why a partial stationary period is dropped (counted, never emitted)."""
+
+    MOTION = 'motion'
+    GAP = 'gap'
+    END_OF_STREAM = 'end_of_stream'
+    STREAM_STOPPED = 'stream_stopped'  # a sensor stream went silent (e.g. the driver died)
+
+
+# The names the collector, its health module and the tests import.
+SLIDERS_STREAM = Stream.SLIDERS
+INCLINOMETER_STREAM = Stream.INCLINOMETER
+ENCODER_STREAM = Stream.ENCODER
+STREAMS = tuple(Stream)
+DUPLICATE_STAMP = RejectReason.DUPLICATE_STAMP
+OUT_OF_ORDER = RejectReason.OUT_OF_ORDER
+NON_FINITE = RejectReason.NON_FINITE
+NO_INCLINOMETER_WITHIN_SKEW = UnpairedReason.NO_INCLINOMETER_WITHIN_SKEW
+NO_ENCODER_WITHIN_SKEW = UnpairedReason.NO_ENCODER_WITHIN_SKEW
+DROPPED_FOR_MOTION = DropReason.MOTION
+DROPPED_FOR_GAP = DropReason.GAP
+DROPPED_AT_END = DropReason.END_OF_STREAM
+DROPPED_FOR_STREAM_STOP = DropReason.STREAM_STOPPED
 
 # Largest stamp the detector takes (year 2116): stamp arithmetic stays within int64.
 MAX_STAMP_NS = 2**62
@@ -85,7 +119,11 @@ class _StreamState:
     def accept(self, stamp_ns: int, values: tuple[float, ...]) -> bool:
         """Keep a reading unless its stamp repeats or goes back in time (counted)."""
         if self.last_stamp_ns is not None and stamp_ns <= self.last_stamp_ns:
-            reason = DUPLICATE_STAMP if stamp_ns == self.last_stamp_ns else OUT_OF_ORDER
+            reason = (
+                RejectReason.DUPLICATE_STAMP
+                if stamp_ns == self.last_stamp_ns
+                else RejectReason.OUT_OF_ORDER
+            ).value
             self.rejected[reason] = self.rejected.get(reason, 0) + 1
             return False
         self.last_stamp_ns = stamp_ns
@@ -124,7 +162,7 @@ class StreamSynchronizer:
             raise ValueError('max_skew_ns must be >= 0, stale_after_ns > 0, history >= 2')
         self.max_skew_ns = int(max_skew_ns)
         self.stale_after_ns = int(stale_after_ns)
-        self._streams = {name: _StreamState(name, history) for name in STREAMS}
+        self._streams = {stream.value: _StreamState(stream.value, history) for stream in Stream}
         self._pending: deque[tuple[int, tuple[float, ...]]] = deque()  # slider (stamp, values)
         self._history = history
         self.unpaired: dict[str, int] = {}
@@ -132,19 +170,19 @@ class StreamSynchronizer:
 
     def add_sliders(self, reading: SliderReading) -> list[PostureReading]:
         return _readings(
-            self.add_values(SLIDERS_STREAM, reading.stamp_ns, reading.slider_positions)
+            self.add_values(Stream.SLIDERS, reading.stamp_ns, reading.slider_positions)
         )
 
     def add_inclinometer(self, reading: InclinometerReading) -> list[PostureReading]:
         return _readings(
-            self.add_values(INCLINOMETER_STREAM, reading.stamp_ns, (reading.alpha, reading.beta))
+            self.add_values(Stream.INCLINOMETER, reading.stamp_ns, (reading.alpha, reading.beta))
         )
 
     def add_encoder(self, reading: EncoderReading) -> list[PostureReading]:
-        return _readings(self.add_values(ENCODER_STREAM, reading.stamp_ns, (reading.phi,)))
+        return _readings(self.add_values(Stream.ENCODER, reading.stamp_ns, (reading.phi,)))
 
     def add_values(
-        self, stream: str, stamp_ns: int, values: tuple[float, ...]
+        self, stream: Stream, stamp_ns: int, values: tuple[float, ...]
     ) -> list[tuple[int, tuple[float, ...]]]:
         """
         add_sliders/add_inclinometer/add_encoder for already validated readings.
@@ -154,8 +192,8 @@ class StreamSynchronizer:
         paired samples as (stamp_ns, nine values in POSTURE_NAMES order): the
         collector's per-message path, without building reading objects.
         """
-        if stream == SLIDERS_STREAM:
-            if self._streams[SLIDERS_STREAM].accept(stamp_ns, values):
+        if stream == Stream.SLIDERS:
+            if self._streams[Stream.SLIDERS].accept(stamp_ns, values):
                 self._pending.append((stamp_ns, values))
             return self._resolve(force_count=max(0, len(self._pending) - self._history))
         self._streams[stream].accept(stamp_ns, values)
@@ -195,9 +233,10 @@ class StreamSynchronizer:
         emitted: list[tuple[int, tuple[float, ...]]] = []
         if not self._pending:
             return emitted
-        inclinometer = self._streams[INCLINOMETER_STREAM]
-        encoder = self._streams[ENCODER_STREAM]
-        newest_slider_ns = self._streams[SLIDERS_STREAM].last_stamp_ns
+        inclinometer = self._streams[Stream.INCLINOMETER]
+        encoder = self._streams[Stream.ENCODER]
+        newest_slider_ns = self._streams[Stream.SLIDERS].last_stamp_ns
+        assert newest_slider_ns is not None  # a pending slider reading was accepted
         while self._pending:
             stamp, sliders = self._pending[0]
             ready = (
@@ -217,7 +256,11 @@ class StreamSynchronizer:
             angles = inclinometer.nearest(stamp, self.max_skew_ns)
             rotary = encoder.nearest(stamp, self.max_skew_ns)
             if angles is None or rotary is None:
-                reason = NO_INCLINOMETER_WITHIN_SKEW if angles is None else NO_ENCODER_WITHIN_SKEW
+                reason = (
+                    UnpairedReason.NO_INCLINOMETER_WITHIN_SKEW
+                    if angles is None
+                    else UnpairedReason.NO_ENCODER_WITHIN_SKEW
+                ).value
                 self.unpaired[reason] = self.unpaired.get(reason, 0) + 1
                 continue
             emitted.append((stamp, sliders + angles + rotary))
@@ -307,10 +350,12 @@ class DroppedPeriod:
     first_stamp_ns: int
     last_stamp_ns: int
     sample_count: int
-    reason: str  # DROPPED_FOR_MOTION, DROPPED_FOR_GAP or DROPPED_AT_END
+    reason: DropReason
 
 
-class DetectorState(Enum):
+class DetectorState(StrEnum):
+    """Where the detector is in its capture cycle."""
+
     ARMED = 'armed'  # waiting for a stationary period
     CAPTURING = 'capturing'  # stationary; averaging until capture_s
     CAPTURED = 'captured'  # posture emitted; waiting for motion
@@ -472,9 +517,9 @@ class PostureDetector:
 
     def finish(self) -> DroppedPeriod | None:
         """End of data: report (never emit) a period still being captured."""
-        return self.abort(DROPPED_AT_END)
+        return self.abort(DropReason.END_OF_STREAM)
 
-    def abort(self, reason: str) -> DroppedPeriod | None:
+    def abort(self, reason: DropReason) -> DroppedPeriod | None:
         """
         Drop (count, never emit) a period being captured, e.g. when a stream stopped.
 
@@ -487,14 +532,15 @@ class PostureDetector:
 
     # ------------------------------------------------------------------ internals
 
-    def _count(self, counter: dict[str, int], reason: str, n: int) -> None:
+    def _count(self, counter: dict[str, int], reason: StrEnum, n: int | np.integer[Any]) -> None:
         if n:
-            counter[reason] = counter.get(reason, 0) + int(n)
+            # The plain string as the key: the counters are logged and published as before.
+            counter[reason.value] = counter.get(reason.value, 0) + int(n)
 
     def _accepted(self, stamps: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Drop non-finite samples and stamps that do not increase (counted)."""
         finite = np.all(np.isfinite(values), axis=1)
-        self._count(self.rejected, NON_FINITE, np.count_nonzero(~finite))
+        self._count(self.rejected, RejectReason.NON_FINITE, np.count_nonzero(~finite))
         stamps, values = stamps[finite], values[finite]
         if not len(stamps):
             return stamps, values
@@ -502,9 +548,13 @@ class PostureDetector:
         running_max = np.maximum.accumulate(np.concatenate(([previous], stamps[:-1])))
         increasing = stamps > running_max
         self._count(
-            self.rejected, DUPLICATE_STAMP, np.count_nonzero(~increasing & (stamps == running_max))
+            self.rejected,
+            RejectReason.DUPLICATE_STAMP,
+            np.count_nonzero(~increasing & (stamps == running_max)),
         )
-        self._count(self.rejected, OUT_OF_ORDER, np.count_nonzero(stamps < running_max))
+        self._count(
+            self.rejected, RejectReason.OUT_OF_ORDER, np.count_nonzero(stamps < running_max)
+        )
         return stamps[increasing], values[increasing]
 
     def _process(self, stamps: np.ndarray, values: np.ndarray) -> list[DetectedPosture]:
@@ -560,13 +610,13 @@ class PostureDetector:
             verdict = verdicts[begin]
             if verdict == _UNKNOWN:  # window not full: just after the start or a gap
                 if self.state is DetectorState.CAPTURING:
-                    self._drop(DROPPED_FOR_GAP)
+                    self._drop(DropReason.GAP)
                 elif self.state is DetectorState.CAPTURED:
                     self._recheck_after_gap = True
                 continue
             if verdict == _MOVING:
                 if self.state is DetectorState.CAPTURING:
-                    self._drop(DROPPED_FOR_MOTION)
+                    self._drop(DropReason.MOTION)
                 self.state = DetectorState.ARMED
                 self._recheck_after_gap = False
                 continue
@@ -628,7 +678,8 @@ class PostureDetector:
             tuple(std.tolist()),
         )
 
-    def _drop(self, reason: str) -> DroppedPeriod:
+    def _drop(self, reason: DropReason) -> DroppedPeriod:
+        reason = DropReason(reason)  # a caller's plain string too, if it names a reason
         dropped = DroppedPeriod(
             self._period_first_ns, self._period_last_ns, self._period_count, reason
         )

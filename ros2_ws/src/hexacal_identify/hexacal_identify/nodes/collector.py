@@ -373,7 +373,7 @@ class CollectorNode(Node):
             self.stopped_streams = stopped
         if stopped:
             self._detect()  # normally nothing left: _poll runs the detector after each batch
-            dropped = self.detector.abort(detection.DROPPED_FOR_STREAM_STOP)
+            dropped = self.detector.abort(detection.DropReason.STREAM_STOPPED)
             if dropped is not None:
                 self.get_logger().warning(
                     f'dropped a partial posture ({dropped.sample_count} samples over '
@@ -420,7 +420,7 @@ class CollectorNode(Node):
 
     def summary(self) -> str:
         """Return the closing summary; a posture still being captured is never published."""
-        self.detector.abort(detection.DROPPED_AT_END)
+        self.detector.abort(detection.DropReason.END_OF_STREAM)
         counts = (self.counters, self.synchronizer, self.detector)
         return health.summary(self.postures_published, *counts)
 

@@ -48,19 +48,14 @@ from sensor_msgs.msg import Imu, JointState
 from visualization_msgs.msg import MarkerArray
 
 from ..bag.qos_yaml import qos_profiles_yaml
-from ..core.posture_detector import (
-    ENCODER_STREAM,
-    INCLINOMETER_STREAM,
-    SLIDERS_STREAM,
-    StreamSynchronizer,
-)
+from ..core.posture_detector import Stream, StreamSynchronizer
 from ..core.turn_history import TurnHistory
 
 RAW_TOPICS = (SLIDERS_TOPIC, INCLINOMETER_TOPIC, ENCODER_TOPIC)
 STREAM_OF_TOPIC = {
-    SLIDERS_TOPIC: SLIDERS_STREAM,
-    INCLINOMETER_TOPIC: INCLINOMETER_STREAM,
-    ENCODER_TOPIC: ENCODER_STREAM,
+    SLIDERS_TOPIC: Stream.SLIDERS,
+    INCLINOMETER_TOPIC: Stream.INCLINOMETER,
+    ENCODER_TOPIC: Stream.ENCODER,
 }
 # Recorded as received when published (the kinematics node), not used by the calibration:
 # (topic, message class, type name, the publishers' QoS).
@@ -93,7 +88,7 @@ class InputSource:
         self.fast: JointStateReader | ImuReader | None = None
         self.key = '+'.join(inputs)  # the loss counter's name: lost.<inputs>
         self.has_inclinometer = INCLINOMETER_TOPIC in inputs  # may carry the device turn
-        self.stream: str | None = None  # set when the in-place values are the one reading
+        self.stream: Stream | None = None  # set when the in-place values are the one reading
         # Where each input's values are in the wanted joints' values of a JointState source.
         self.wanted: tuple[str, ...] = ()
         self.slices: list[tuple[str, int, int]] = []
