@@ -198,6 +198,8 @@ class StreamSynchronizer:
         inclinometer = self._streams[INCLINOMETER_STREAM]
         encoder = self._streams[ENCODER_STREAM]
         newest_slider_ns = self._streams[SLIDERS_STREAM].last_stamp_ns
+        # A slider reading is pending only once the sliders' stream has accepted it.
+        assert newest_slider_ns is not None
         while self._pending:
             stamp, sliders = self._pending[0]
             ready = (
@@ -487,7 +489,7 @@ class PostureDetector:
 
     # ------------------------------------------------------------------ internals
 
-    def _count(self, counter: dict[str, int], reason: str, n: int) -> None:
+    def _count(self, counter: dict[str, int], reason: str, n: int | np.integer) -> None:
         if n:
             counter[reason] = counter.get(reason, 0) + int(n)
 
