@@ -84,7 +84,7 @@ class _RosParametersLoader(yaml.SafeLoader):
     """
 
 
-def _read_exponent_floats(loader: type) -> None:
+def _read_exponent_floats(loader: type[yaml.resolver.BaseResolver]) -> None:
     loader.add_implicit_resolver(
         'tag:yaml.org,2002:float',
         re.compile(r'^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$'),

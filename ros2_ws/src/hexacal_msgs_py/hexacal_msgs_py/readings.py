@@ -14,6 +14,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 import math
 import operator
+from typing import SupportsIndex
 
 from hexacal_msgs_py.errors import InvalidReadingError
 from hexacal_msgs_py.names import DEVICE_TURN_JOINT, MAX_DEVICE_TURN, N_CHAINS, POSTURE_NAMES
@@ -22,7 +23,8 @@ NS_PER_S = 1_000_000_000  # stamps are integer nanoseconds
 
 
 def _check_stamp(kind: str, stamp_ns: object) -> int:
-    if isinstance(stamp_ns, bool):
+    # SupportsIndex: numpy integers are, floats are not (as operator.index decides).
+    if isinstance(stamp_ns, bool) or not isinstance(stamp_ns, SupportsIndex):
         raise InvalidReadingError(f'{kind}: stamp_ns must be an integer, got {stamp_ns!r}')
     try:
         value = operator.index(stamp_ns)  # accepts numpy integers, rejects floats
@@ -195,4 +197,5 @@ class PostureReading:
                 f'{cls.__name__}: expected {len(POSTURE_NAMES)} values '
                 f'{POSTURE_NAMES}, got {len(numbers)}'
             )
-        return cls(stamp_ns, numbers[:N_CHAINS], *numbers[N_CHAINS:], device_turn=device_turn)
+        alpha, beta, phi = numbers[N_CHAINS:]
+        return cls(stamp_ns, numbers[:N_CHAINS], alpha, beta, phi, device_turn=device_turn)

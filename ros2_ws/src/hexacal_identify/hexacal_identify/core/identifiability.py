@@ -13,6 +13,7 @@ worst determined; its last ``n - rank`` columns are those a user would fix.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -335,7 +336,7 @@ def _describe(
     null_space: np.ndarray,
     names: list[str],
     gauges: list[tuple[str, np.ndarray]],
-    device: list[tuple[str, np.ndarray]] = (),
+    device: Sequence[tuple[str, np.ndarray]] = (),
 ) -> list[NullDirection]:
     """Describe each null dimension: a named explanation if one fits, else the mixed parameters."""
     if null_space.shape[1] == 0:
@@ -389,7 +390,9 @@ def _explanations(
     explains a null direction when some vector of its span lies in the null
     space (largest principal cosine > 0.999).
     """
-    candidates = [(name, [vector], None) for name, vector in gauges]
+    candidates: list[tuple[str, list[np.ndarray], str | None]] = [
+        (name, [vector], None) for name, vector in gauges
+    ]
     candidates += [
         (f"the device's {name} has no effect on these measurements", [vector], name)
         for name, vector in device

@@ -171,7 +171,7 @@ class IdentificationResult:
     residual_channels: np.ndarray
     residual_postures: np.ndarray  # original posture index of each row
     identifiability: IdentifiabilityReport
-    poses: np.ndarray = field(repr=False, default=None)  # FK poses of the used postures
+    poses: np.ndarray | None = field(repr=False, default=None)  # FK poses of the used postures
     device: DeviceDefects = field(default_factory=DeviceDefects)
     device_std: np.ndarray = field(default_factory=lambda: np.full(N_DEVICE_PARAMETERS, np.nan))
     free_device: tuple[str, ...] = ()
@@ -287,6 +287,7 @@ class _Problem:
         )  # noise derivatives: only row_transform's block needs them
         columns = self.free if with_device else self.free[: self.n_parameters]
         if not columns.all():
+            assert block.jacobian is not None  # a sensitivity was given: the rows have one
             block.jacobian = block.jacobian[:, columns]
         return block
 
@@ -366,6 +367,7 @@ class _RowTransform:
         return values * self.robust if self.robust is not None else values
 
     def apply(self, block: ResidualBlock) -> ResidualBlock:
+        assert block.jacobian is not None  # only blocks with a Jacobian are weighted whole
         jacobian = self.whitener.apply_matrix(block.jacobian) if self.whitener else block.jacobian
         if self.robust is not None:
             jacobian = jacobian * self.robust[:, None]
@@ -393,6 +395,8 @@ class _Whitener:
         )
         self.scales = np.ones(len(block.values))
         if np.any(paired):
+            # Rows get partners together with their partners' noise derivatives (residuals.py).
+            assert block.partner_noise_jacobian is not None
             own = np.einsum(
                 'rk,k,rk->r', block.noise_jacobian[paired], variances, block.noise_jacobian[paired]
             )
@@ -669,6 +673,7 @@ class _LevenbergMarquardt:
         """Take residuals and Jacobian (unweighted) here; reduce them to normal equations."""
         self.raw_block = raw_block
         self.block = self.problem.with_prior(self.transform.apply(raw_block), self.vector)
+        assert self.block.jacobian is not None  # problem.jacobian's rows, plus the prior's
         if first:  # columns are scaled by their norms at the start of the run, fixed for the run
             self.scales = column_scales(self.block.jacobian)
         self.normal = _NormalEquations.of(self.block, self.scales, self.options.rank_tolerance)
@@ -676,6 +681,7 @@ class _LevenbergMarquardt:
     def analyze(self) -> IdentifiabilityReport:
         # The normal equations already hold J^T J: its n x n square root spares analyze() a tall
         # SVD.
+        assert self.block.jacobian is not None  # _set_block keeps only blocks with one
         return analyze(
             self.block.jacobian,
             self.free_names(),
@@ -850,6 +856,7 @@ class _NormalEquations:
         cls, block: ResidualBlock, scales: np.ndarray, rank_tolerance: float
     ) -> '_NormalEquations':
         jacobian = block.jacobian
+        assert jacobian is not None  # normal equations are formed from a Jacobian
         gram = (jacobian.T @ jacobian) / np.outer(scales, scales)  # numpy uses BLAS syrk for J^T J
         eigenvalues, eigenvectors = np.linalg.eigh(gram)
         eigenvalues, eigenvectors = np.maximum(eigenvalues[::-1], 0.0), eigenvectors[:, ::-1]

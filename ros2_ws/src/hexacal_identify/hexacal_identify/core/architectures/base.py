@@ -62,7 +62,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol
+from typing import Any, ClassVar, Generic, Protocol, Self, TypeVar
 
 from hexacal_msgs_py.models import ModelLayout
 import numpy as np
@@ -85,9 +85,10 @@ class Legs(Protocol):
 
     def unit_legs(self) -> np.ndarray: ...  # the shared factor of both Jacobians
 
-    def subset(self, mask: np.ndarray) -> 'Legs': ...
+    # Self: an architecture's legs combine only with legs of the same architecture.
+    def subset(self, mask: np.ndarray) -> Self: ...
 
-    def replace_rows(self, mask: np.ndarray, rows: 'Legs') -> None: ...
+    def replace_rows(self, mask: np.ndarray, rows: Self) -> None: ...
 
 
 @dataclass(frozen=True)
@@ -140,7 +141,11 @@ class KinematicParameters:
         return type(self)(vector)
 
 
-class Architecture(ABC):
+# The parameter class of one architecture: its methods take only its own parameter sets.
+P = TypeVar('P', bound=KinematicParameters)
+
+
+class Architecture(ABC, Generic[P]):
     """One kinematic architecture (see the module docstring)."""
 
     name: ClassVar[str]
@@ -171,7 +176,7 @@ class Architecture(ABC):
         """Return the file name of the simulated true machine (``hexacal demo``)."""
         return f'true_{self.name}.yaml'
 
-    def default_machine_comment(self, params: KinematicParameters) -> str:
+    def default_machine_comment(self, params: P) -> str:
         """Return the header comment of the shipped default-machine file of this architecture."""
         return f'Default {self.layout.title} of hexacal (SI units).'
 
@@ -183,7 +188,7 @@ class Architecture(ABC):
         return self.parameters_type(vector)
 
     @abstractmethod
-    def default_parameters(self) -> KinematicParameters:
+    def default_parameters(self) -> P:
         """Return the shipped default machine (the "exact" parameters of studies and driver)."""
 
     @abstractmethod
@@ -191,7 +196,7 @@ class Architecture(ABC):
         """Return the postures.Workspace postures are drawn from on the default machine."""
 
     @abstractmethod
-    def chains(self, params: KinematicParameters) -> Any:
+    def chains(self, params: P) -> Any:
         """Per-chain constants of one parameter set, reused by every ``legs`` call."""
 
     @abstractmethod
@@ -200,7 +205,7 @@ class Architecture(ABC):
 
     @abstractmethod
     def acceptable_poses(
-        self, params: KinematicParameters, poses: np.ndarray, workspace: Any
+        self, params: P, poses: np.ndarray, workspace: Any
     ) -> np.ndarray:
         """
         Return the mask of acceptable poses (postures.Workspace's limits).
@@ -211,14 +216,14 @@ class Architecture(ABC):
 
     @abstractmethod
     def joint_cosines(
-        self, params: KinematicParameters, poses: np.ndarray
+        self, params: P, poses: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """Return cosines of the base- and platform-side passive joint angles, each (N, 6)."""
 
     @abstractmethod
     def frame_motion(
         self,
-        params: KinematicParameters,
+        params: P,
         base_translation=None,
         base_rotation=None,
         platform_translation=None,
@@ -234,14 +239,14 @@ class Architecture(ABC):
 
     @abstractmethod
     def actuator_zero_shift(
-        self, params: KinematicParameters, chain: int
+        self, params: P, chain: int
     ) -> tuple[str, np.ndarray]:
         """Return (description, parameter change) of an actuator zero offset (chain 0-based)."""
 
     @abstractmethod
     def in_frames(
-        self, params: KinematicParameters, base_rotation: np.ndarray, platform_rotation: np.ndarray
-    ) -> KinematicParameters:
+        self, params: P, base_rotation: np.ndarray, platform_rotation: np.ndarray
+    ) -> P:
         """
         Return the same machine in rotated frames (exact, not first order).
 
@@ -251,7 +256,7 @@ class Architecture(ABC):
 
     @abstractmethod
     def drawing(
-        self, params: KinematicParameters, pose: np.ndarray, actuators: np.ndarray | None = None
+        self, params: P, pose: np.ndarray, actuators: np.ndarray | None = None
     ) -> dict[str, np.ndarray]:
         """
         Return the machine at ``pose`` (6,) as named point sets and segments (base frame, m).

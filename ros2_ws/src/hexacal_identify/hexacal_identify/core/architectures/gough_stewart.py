@@ -184,7 +184,7 @@ class _Legs:
         return blocks
 
 
-class GoughStewart(Architecture):
+class GoughStewart(Architecture[GoughStewartParameters]):
     """6-UPS: universal joint on the base, prismatic leg, spherical joint on the platform."""
 
     name = GOUGH_STEWART

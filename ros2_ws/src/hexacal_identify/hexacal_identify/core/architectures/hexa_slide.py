@@ -310,7 +310,7 @@ def rail_xy_slice(chain: int) -> slice:
     return slice(start + AXY_SLICE.start, start + AXY_SLICE.stop)
 
 
-class HexaSlide(Architecture):
+class HexaSlide(Architecture[HexaParameters]):
     """6-PRRS: a slider on an inclined rail, a fixed-length leg, a spherical platform joint."""
 
     name = HEXA_SLIDE
