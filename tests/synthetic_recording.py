@@ -65,7 +65,8 @@ def write_recording(
     rng = np.random.default_rng(seed)
     slider_names, names = actuator_names(model), posture_names(model)
     period = int(1e9 / rate_hz)
-    values = np.column_stack([exact.slider_positions, exact.inclinometer, exact.rotary])  # (N, 9)
+    # (N, 9)
+    values = np.column_stack([exact.actuator_positions, exact.inclinometer, exact.rotary])
     half_widths = np.array([noise_m] * 6 + [noise_rad] * 3)
     prefix = f'/{namespace.strip("/")}/' if namespace else '/'
     with BagWriter(directory) as writer:

@@ -260,7 +260,7 @@ def simulated_postures(
     return [
         PostureReading.from_values(
             1_000_000_000 * (i + 1),
-            [*data.slider_positions[i], *data.inclinometer[i], data.rotary[i]],
+            [*data.actuator_positions[i], *data.inclinometer[i], data.rotary[i]],
         )
         for i in range(count)
     ]

@@ -39,7 +39,7 @@ def measured_rows(count: int, seed: int) -> list[list[float]]:
     poses = sample_poses(truth, count, rng, 'sphere', Workspace(link_length=0.75 + DEFECTS.dL))
     data = simulate_measurements(truth, poses, 'sphere', noise=NOISE, rng=rng, defects=DEFECTS)
     return [
-        [*data.slider_positions[i], *data.inclinometer[i], data.rotary[i]] for i in range(count)
+        [*data.actuator_positions[i], *data.inclinometer[i], data.rotary[i]] for i in range(count)
     ]
 
 

@@ -252,7 +252,7 @@ def write_mapped_recording(
     record = {'namespace': '/', 'model': 'hexa_slide', 'window_s': '0.3', **mapping.to_metadata()}
     record.update(mapping_overrides or {})
     rng = np.random.default_rng(seed)
-    values = np.column_stack([exact.slider_positions, exact.inclinometer, exact.rotary])
+    values = np.column_stack([exact.actuator_positions, exact.inclinometer, exact.rotary])
     period = int(1e9 / rate_hz)
     stamp = 1_700_000_000 * 1_000_000_000
     with BagWriter(directory) as writer:
@@ -382,7 +382,7 @@ def test_mapped_bag_problems_are_named(exact_postures, nominal_file, tmp_path, c
         'bad mapping': dict(mapping_overrides={'inclinometer_signs': '[1, 3]'}),
     }[case]
     few = type(exact_postures)(
-        exact_postures.slider_positions[:3],
+        exact_postures.actuator_positions[:3],
         exact_postures.inclinometer[:3],
         exact_postures.rotary[:3],
         exact_postures.kinds[:3],

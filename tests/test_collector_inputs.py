@@ -86,7 +86,7 @@ def exact_readings(count: int, seed: int = 5) -> np.ndarray:
 
     truth = table1_parameters()
     data = simulate_measurements(truth, sample_poses(truth, count, np.random.default_rng(seed)))
-    return np.column_stack([data.slider_positions, data.inclinometer, data.rotary])
+    return np.column_stack([data.actuator_positions, data.inclinometer, data.rotary])
 
 
 def imu_mapping():

@@ -160,9 +160,9 @@ def test_driver_with_defects_and_turns_to_the_collectors_bag(ros_processes, tmp_
     # Re-detected from the raw streams, each posture takes the turn of the inclinometer messages around it.
     redetected = postures_from_bag(bags / 'turned', source='raw').postures
     assert len(redetected) >= POSTURES
-    by_sliders = {tuple(np.round(p.slider_positions, 6)): p.device_turn for p in redetected}
+    by_sliders = {tuple(np.round(p.actuator_positions, 6)): p.device_turn for p in redetected}
     for posture, turn in zip(live, turns):
-        assert by_sliders.get(tuple(np.round(posture.slider_positions, 6)), turn) == turn
+        assert by_sliders.get(tuple(np.round(posture.actuator_positions, 6)), turn) == turn
     assert sorted(set(p.device_turn for p in redetected)) == sorted(set(turns.tolist()))
 
 

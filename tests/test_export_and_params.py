@@ -192,7 +192,7 @@ def test_shipped_gough_stewart_file_is_the_default_machine(capsys, tmp_path):
     )
     assert '0.50 m circle' in text and '0.20 m circle' in text
     # The header's leg range is the shipped l0 plus the stroke.
-    low, high = architecture('gough_stewart').default_workspace().slider_stroke_m
+    low, high = architecture('gough_stewart').default_workspace().actuator_stroke_m
     offsets = contents.vector.reshape(6, 7)[:, 6]
     assert f'{offsets.min() + low:.2f}-{offsets.max() + high:.2f}' == '0.60-1.10'
 

@@ -71,12 +71,12 @@ def test_driver_killed_mid_posture_drops_the_partial_posture_and_reports_it(
     truth, nominal = write_parameter_files(tmp_path)
     probe.subscribe_postures()
     probe.subscribe_status()
-    newest_slider_ns = [0]
+    newest_actuator_ns = [0]
     probe.node.create_subscription(
         JointState,
         'hexacal/sliders',
-        lambda m: newest_slider_ns.__setitem__(
-            0, max(newest_slider_ns[0], stamp_ns(m.header.stamp))
+        lambda m: newest_actuator_ns.__setitem__(
+            0, max(newest_actuator_ns[0], stamp_ns(m.header.stamp))
         ),
         SENSOR_QOS,
     )
@@ -103,7 +103,7 @@ def test_driver_killed_mid_posture_drops_the_partial_posture_and_reports_it(
         lambda: _dwell_start_ns(driver.log_text(), 2), 30.0, 'the dwell at posture 2', nodes
     )
     probe.spin_until(
-        lambda: newest_slider_ns[0] >= dwell + 600_000_000,
+        lambda: newest_actuator_ns[0] >= dwell + 600_000_000,
         10.0,
         '0.6 s of the dwell at posture 2',
         nodes,

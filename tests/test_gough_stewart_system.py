@@ -89,7 +89,7 @@ def exact():
     sphere = simulate_measurements(TRUE, sample_poses(TRUE, 36, rng, SPHERE, WORKSPACE))
     fixed = simulate_measurements(TRUE, sample_poses(TRUE, 12, rng, FIXED, WORKSPACE), FIXED)
     return Measurements(
-        np.concatenate([sphere.slider_positions, fixed.slider_positions]),
+        np.concatenate([sphere.actuator_positions, fixed.actuator_positions]),
         np.concatenate([sphere.inclinometer, fixed.inclinometer]),
         np.concatenate([sphere.rotary, fixed.rotary]),
         np.concatenate([sphere.kinds, fixed.kinds]),

@@ -79,7 +79,11 @@ class Listener:
 def listen(probe, model: str) -> Listener:
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import PoseStamped
-    from hexacal_msgs_py.conversions import joint_state_to_slider_reading, stamp_ns, status_values
+    from hexacal_msgs_py.conversions import (
+        joint_state_to_actuator_reading,
+        stamp_ns,
+        status_values,
+    )
     from hexacal_msgs_py.poses import pose_from_message
     from hexacal_msgs_py.qos import COMMAND_QOS, MARKERS_QOS, POSE_QOS, SENSOR_QOS
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -98,7 +102,7 @@ def listen(probe, model: str) -> Listener:
 
     def on_readings(message):
         heard.readings[stamp_ns(message.header.stamp)] = np.array(
-            joint_state_to_slider_reading(message, model).slider_positions
+            joint_state_to_actuator_reading(message, model).actuator_positions
         )
 
     node.create_subscription(JointState, '/hexacal/sliders', on_readings, SENSOR_QOS)
@@ -364,7 +368,7 @@ def test_kinematics_node_tracks_commands_and_draws(ros_processes, tmp_path, prob
     target = plan.poses[1] + np.array([0.004, -0.003, 0.002, 0.01, -0.01, 0.02])
     # First the refused ones: a pose no leg configuration reaches, one outside the stroke, a wrong
     # frame.
-    low, high = arch.default_workspace().slider_stroke_m
+    low, high = arch.default_workspace().actuator_stroke_m
     outside = np.array(
         [0.0, 0.0, home_pose()[2] - 0.5, 0.0, 0.0, 0.0]
     )  # half a metre below the centre
@@ -573,7 +577,7 @@ def test_compensation_reaches_the_true_pose(ros_processes, tmp_path, probe, mode
     """
     from geometry_msgs.msg import PoseStamped
     from hexacal_identify.core.postures import sample_poses
-    from hexacal_msgs_py.conversions import joint_state_to_slider_reading
+    from hexacal_msgs_py.conversions import joint_state_to_actuator_reading
     from hexacal_msgs_py.poses import fill_pose_message
     from hexacal_msgs_py.qos import COMMAND_QOS, SENSOR_QOS
     from sensor_msgs.msg import JointState
@@ -587,7 +591,7 @@ def test_compensation_reaches_the_true_pose(ros_processes, tmp_path, probe, mode
     files = {'calibrated': calibrated_path, 'nominal': nominal_path}
     models = {'calibrated': calibrated, 'nominal': nominal}
     # Sphere targets every model of the machine can command inside the stroke.
-    low, high = arch.default_workspace().slider_stroke_m
+    low, high = arch.default_workspace().actuator_stroke_m
     candidates = sample_poses(
         truth, 20, np.random.default_rng(23), 'sphere', arch.default_workspace()
     )
@@ -604,7 +608,7 @@ def test_compensation_reaches_the_true_pose(ros_processes, tmp_path, probe, mode
             JointState,
             f'/{ns}/hexacal/sliders',
             lambda message, ns=ns: readings[ns].append(
-                np.array(joint_state_to_slider_reading(message, model).slider_positions)
+                np.array(joint_state_to_actuator_reading(message, model).actuator_positions)
             ),
             SENSOR_QOS,
         )

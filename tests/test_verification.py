@@ -168,7 +168,7 @@ def test_fixed_position_postures_are_compared_with_the_fixed_point():
 
 def test_forward_kinematics_failures_are_reported_per_posture_not_dropped():
     exact = _postures(TRUTH, 5, 12)
-    exact.slider_positions[7] += np.array(
+    exact.actuator_positions[7] += np.array(
         [0.08, -0.08, 0.08, -0.08, 0.08, -0.08]
     )  # no pose near the measured one
     result = verify(nominal_set(2, seed=0), TRUTH, exact)
@@ -229,7 +229,7 @@ def test_bad_input_is_refused():
         verify(TRUTH, TRUTH, exact.subset(np.array([], dtype=int)))
     with pytest.raises(ValueError, match='positive length'):
         verify(TRUTH, TRUTH, exact, threshold_m=-1.0)
-    exact.slider_positions[2, 0] = np.nan
+    exact.actuator_positions[2, 0] = np.nan
     with pytest.raises(InvalidMeasurementError, match='non-finite'):
         verify(TRUTH, TRUTH, exact)
 
@@ -730,7 +730,8 @@ def test_restarted_identify_verifies_through_the_device_it_calibrated_with(
         )
         return [
             PostureReading.from_values(
-                10**9 * (i + 1), [*data.slider_positions[i], *data.inclinometer[i], data.rotary[i]]
+                10**9 * (i + 1),
+                [*data.actuator_positions[i], *data.inclinometer[i], data.rotary[i]],
             )
             for i in range(count)
         ]

@@ -38,14 +38,14 @@ from hexacal_driver.simulation import WalkSample
 from hexacal_identify.nodes.parameters import parameter_descriptor
 from hexacal_identify.nodes.runtime import run_node
 from hexacal_msgs_py.conversions import (
+    actuator_reading_to_joint_state,
     encoder_reading_to_joint_state,
     inclinometer_reading_to_joint_state,
     NS_PER_S,
-    slider_reading_to_joint_state,
 )
 from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, SLIDERS_TOPIC
 from hexacal_msgs_py.qos import COMMAND_QOS, SENSOR_QOS
-from hexacal_msgs_py.readings import EncoderReading, InclinometerReading, SliderReading
+from hexacal_msgs_py.readings import ActuatorReading, EncoderReading, InclinometerReading
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import InvalidParameterValueException, InvalidTopicNameException
 from rclpy.node import Node
@@ -123,8 +123,8 @@ class DriverNode(Node):
         self._last_stamp_ns = -1
         # Preallocated messages: each tick sets the stamps and positions only.
         self._messages = {
-            'sliders': slider_reading_to_joint_state(
-                SliderReading(0, (0.0,) * 6), model=self.machine.model
+            'sliders': actuator_reading_to_joint_state(
+                ActuatorReading(0, (0.0,) * 6), model=self.machine.model
             ),
             'inclinometer': inclinometer_reading_to_joint_state(InclinometerReading(0, 0.0, 0.0)),
             'encoder': encoder_reading_to_joint_state(EncoderReading(0, 0.0)),
@@ -264,7 +264,7 @@ class DriverNode(Node):
         for message in messages.values():
             message.header.stamp.sec = seconds
             message.header.stamp.nanosec = nanoseconds
-        messages['sliders'].position = readings.sliders_m.tolist()
+        messages['sliders'].position = readings.actuators_m.tolist()
         if turn == 0.0:  # the normal mounting: the message as it always was
             inclinometer = messages['inclinometer']
             inclinometer.position = [readings.alpha_rad, readings.beta_rad]

@@ -142,11 +142,11 @@ class SimulatedMachine:
         turn = self.posture_turn(sample.posture_index)
         return self.sensors.read(sample, turn), turn
 
-    def set_noise(self, slider_m: float | None, angle_rad: float | None) -> bool:
+    def set_noise(self, actuator_m: float | None, angle_rad: float | None) -> bool:
         """Change the noise half-widths given (None: unchanged); return whether it changed."""
         noise = self.sensors.noise
         changed = NoiseModel(
-            noise.slider_m if slider_m is None else slider_m,
+            noise.actuator_m if actuator_m is None else actuator_m,
             noise.angle_rad if angle_rad is None else angle_rad,
         )
         if changed == noise:
@@ -192,15 +192,18 @@ class SimulatedMachine:
             problem = 'it ends in the past (header.stamp + time_from_start)'
         return checked, problem
 
-    def _start_follower(self, max_speed: float) -> CommandFollower:
+    def _start_follower(self, max_speed_m_s: float) -> CommandFollower:
         """Commanded mode: the machine stands at the fixed-position point with zero angles."""
         workspace = machine_workspace(self.true_params, self.link_length, self.mount)
-        self.stroke = (float(workspace.slider_stroke_m[0]), float(workspace.slider_stroke_m[1]))
+        self.stroke = (
+            float(workspace.actuator_stroke_m[0]),
+            float(workspace.actuator_stroke_m[1]),
+        )
         # The link holds the platform on the true sphere (link_length + dL).
         home = np.concatenate([fixed_point(self.true_link_length, self.mount), np.zeros(3)])
         try:
             follower = CommandFollower(
-                self.true_params, home, max_speed, self.true_link_length, self.mount
+                self.true_params, home, max_speed_m_s, self.true_link_length, self.mount
             )
         except (UnreachablePoseError, ConstraintError) as error:
             raise DriverConfigurationError(
@@ -208,10 +211,10 @@ class SimulatedMachine:
                 f'with zero angles: {error}'
             ) from error
         low, high = self.stroke
-        if np.any((follower.sliders < low) | (follower.sliders > high)):
+        if np.any((follower.actuators < low) | (follower.actuators > high)):
             raise DriverConfigurationError(
                 f'commanded mode: at the fixed-position point the actuators '
-                f'{np.round(follower.sliders, 4).tolist()} m are outside the stroke [{low:g}, '
+                f'{np.round(follower.actuators, 4).tolist()} m are outside the stroke [{low:g}, '
                 f'{high:g}] m'
             )
         return follower

@@ -245,22 +245,22 @@ def check_reachable(
     if workspace is None:
         workspace = architecture.default_workspace()
     try:
-        sliders = inverse_kinematics(params, plan.poses)
+        actuators = inverse_kinematics(params, plan.poses)
     except UnreachablePoseError as error:
         indices = [int(i) for i in error.indices[:10]]
         raise PlanError(
             f"plan '{plan.name}': posture(s) {indices} cannot be reached by this "
             f'machine ({architecture.unreachable_reason})'
         ) from error
-    low, high = workspace.slider_stroke_m
-    outside = np.flatnonzero(np.any((sliders < low) | (sliders > high), axis=1))
+    low, high = workspace.actuator_stroke_m
+    outside = np.flatnonzero(np.any((actuators < low) | (actuators > high), axis=1))
     if outside.size:
         actuator = architecture.layout.actuator_prefix
         raise PlanError(
             f"plan '{plan.name}': posture(s) {outside[:10].tolist()} need a {actuator} "
             f'outside the stroke [{low:g}, {high:g}] m'
         )
-    return sliders
+    return actuators
 
 
 def resolve_plan(

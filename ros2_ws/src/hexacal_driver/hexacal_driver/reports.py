@@ -44,7 +44,7 @@ def machine_source(true_params: str, machine: SimulatedMachine) -> str:
 
 def noise_text(noise: NoiseModel) -> str:
     """Return the noise half-widths as logged."""
-    return f'+-{noise.slider_m:g} m / +-{noise.angle_rad:g} rad'
+    return f'+-{noise.actuator_m:g} m / +-{noise.angle_rad:g} rad'
 
 
 def commanded_start_text(

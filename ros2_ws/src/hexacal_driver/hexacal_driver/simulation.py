@@ -63,7 +63,8 @@ class WalkSample:
     """Where the machine is at one instant of the plan."""
 
     pose: np.ndarray  # [x y z theta psi phi], m and rad
-    sliders: np.ndarray  # (6,) actuator readings lambda of the true machine (slider positions), m
+    # (6,) actuator readings lambda of the true machine (slider positions), m
+    actuators: np.ndarray
     posture_index: int  # the posture being approached or held
     phase: str  # SETTLING, DWELLING or DONE
     lap: int  # 0 for the first pass over the plan; counts up when looping
@@ -91,7 +92,7 @@ class PlanWalker:
         self.dwell_s = float(dwell_s)
         self.loop = bool(loop)
         # Raises UnreachablePoseError for an unreachable plan posture: check plans first.
-        self.posture_sliders = inverse_kinematics(params, poses)
+        self.posture_actuators = inverse_kinematics(params, poses)
 
     @property
     def posture_period_s(self) -> float:
@@ -111,34 +112,40 @@ class PlanWalker:
         if lap >= 1 and not self.loop:
             last = n - 1
             return WalkSample(
-                self.poses[last].copy(), self.posture_sliders[last].copy(), last, DONE, 0
+                self.poses[last].copy(), self.posture_actuators[last].copy(), last, DONE, 0
             )
         index = min(int(in_lap // self.posture_period_s), n - 1)
         into = in_lap - index * self.posture_period_s
         if into >= self.settle_s:
             return WalkSample(
-                self.poses[index].copy(), self.posture_sliders[index].copy(), index, DWELLING, lap
+                self.poses[index].copy(),
+                self.posture_actuators[index].copy(),
+                index,
+                DWELLING,
+                lap,
             )
         if index == 0 and lap == 0:  # the machine starts at the first posture
-            return WalkSample(self.poses[0].copy(), self.posture_sliders[0].copy(), 0, SETTLING, 0)
+            return WalkSample(
+                self.poses[0].copy(), self.posture_actuators[0].copy(), 0, SETTLING, 0
+            )
         previous = (index - 1) % n
         s = smooth_step(into / self.settle_s)
         pose = interpolate_pose(self.poses[previous], self.poses[index], s)
         try:
-            sliders = inverse_kinematics(self.params, pose[None])[0]
+            actuators = inverse_kinematics(self.params, pose[None])[0]
         except UnreachablePoseError:
             # The straight path leaves the workspace: move the sliders directly instead.
             # Readings in motion are never measured, so consistency there does not matter.
-            start, end = self.posture_sliders[previous], self.posture_sliders[index]
-            sliders = start + s * (end - start)
-        return WalkSample(pose, sliders, index, SETTLING, lap)
+            start, end = self.posture_actuators[previous], self.posture_actuators[index]
+            actuators = start + s * (end - start)
+        return WalkSample(pose, actuators, index, SETTLING, lap)
 
 
 @dataclass(frozen=True)
 class SensorReadings:
     """One reading of every sensor: sliders (m), inclinometer alpha/beta and rotary phi (rad)."""
 
-    sliders_m: np.ndarray
+    actuators_m: np.ndarray
     alpha_rad: float
     beta_rad: float
     phi_rad: float
@@ -149,7 +156,7 @@ IDEAL_DEVICE = DeviceDefects()
 
 def exact_readings(
     pose: np.ndarray,
-    sliders: np.ndarray,
+    actuators: np.ndarray,
     mount: str = DEFAULT_MOUNT,
     defects: DeviceDefects = IDEAL_DEVICE,
     device_turn: float = 0.0,
@@ -170,7 +177,7 @@ def exact_readings(
     phi = float(pose[5])
     if turn != 0.0 or defects.phi0 != 0.0:
         phi = float(wrap_angle(phi - turn + defects.phi0))
-    return SensorReadings(np.array(sliders, dtype=float), float(alpha[0]), float(beta[0]), phi)
+    return SensorReadings(np.array(actuators, dtype=float), float(alpha[0]), float(beta[0]), phi)
 
 
 def device_true_poses(
@@ -229,11 +236,13 @@ class SensorSimulator:
         self.defects = defects
 
     def read(self, sample: WalkSample, device_turn: float = 0.0) -> SensorReadings:
-        exact = exact_readings(sample.pose, sample.sliders, self.mount, self.defects, device_turn)
-        slider_noise = self.rng.uniform(-1.0, 1.0, 6) * self.noise.slider_m
+        exact = exact_readings(
+            sample.pose, sample.actuators, self.mount, self.defects, device_turn
+        )
+        actuator_noise = self.rng.uniform(-1.0, 1.0, 6) * self.noise.actuator_m
         angle_noise = self.rng.uniform(-1.0, 1.0, 3) * self.noise.angle_rad
         return SensorReadings(
-            exact.sliders_m + slider_noise,
+            exact.actuators_m + actuator_noise,
             exact.alpha_rad + angle_noise[0],
             exact.beta_rad + angle_noise[1],
             exact.phi_rad + angle_noise[2],
@@ -302,7 +311,7 @@ def device_constrained_pose(
         tangent[:3, 0] = sign * link_length * np.array([-sa * sb, -ca, sa * cb])
         tangent[:3, 1] = sign * link_length * np.array([ca * cb, 0.0, ca * sb])
         tangent[3:, 2:] = np.eye(3)
-        residual = legs.sliders[0] - setpoints
+        residual = legs.actuators[0] - setpoints
         return pose, legs, tangent, float(residual @ residual)
 
     def solve(near: np.ndarray):
@@ -313,7 +322,7 @@ def device_constrained_pose(
             return pose, legs, cost
         for _ in range(_CONSTRAINT_ITERATIONS):
             jacobian = legs.pose_jacobian()[0] @ tangent
-            step = np.linalg.lstsq(jacobian, legs.sliders[0] - setpoints, rcond=None)[0]
+            step = np.linalg.lstsq(jacobian, legs.actuators[0] - setpoints, rcond=None)[0]
             if float(np.max(np.abs(step))) < _CONSTRAINT_STEP_M:
                 break
             scale = 1.0
@@ -347,7 +356,7 @@ def device_constrained_pose(
             if other[2] < cost:
                 pose, legs, cost = other
     pose = np.concatenate([pose[:3], wrap_angle(np.asarray(pose[3:], dtype=float))])
-    return pose, legs.sliders[0].copy()
+    return pose, legs.actuators[0].copy()
 
 
 @dataclass(frozen=True)
@@ -451,15 +460,15 @@ class CommandFollower:
         self.mount = mount
         self.pose = np.array(start_pose, dtype=float)
         self.setpoints = inverse_kinematics(params, self.pose[None])[0]
-        self.sliders = self.setpoints.copy()
-        self.pose, self.sliders = device_constrained_pose(
+        self.actuators = self.setpoints.copy()
+        self.pose, self.actuators = device_constrained_pose(
             params, self.setpoints, self.pose, self.link_length, mount
         )
         # Segments (start time s, end time s, start setpoints, end setpoints) of the trajectory.
         self._segments: list[tuple[float, float, np.ndarray, np.ndarray]] = []
         self._solved_for = self.setpoints.copy()
         self.commands = 0
-        self.strain_m = float(np.max(np.abs(self.sliders - self.setpoints)))
+        self.strain_m = float(np.max(np.abs(self.actuators - self.setpoints)))
 
     @property
     def end_time_s(self) -> float:
@@ -507,12 +516,12 @@ class CommandFollower:
         self.setpoints = self.setpoints_at(now_s)
         if not np.array_equal(self.setpoints, self._solved_for):
             try:
-                self.pose, self.sliders = device_constrained_pose(
+                self.pose, self.actuators = device_constrained_pose(
                     self.params, self.setpoints, self.pose, self.link_length, self.mount
                 )
             except (ConstraintError, UnreachablePoseError):
                 pass  # stays where it was (a setpoint path the link does not allow)
             self._solved_for = self.setpoints.copy()
-            self.strain_m = float(np.max(np.abs(self.sliders - self.setpoints)))
+            self.strain_m = float(np.max(np.abs(self.actuators - self.setpoints)))
         phase = MOVING if now_s < self.end_time_s else STILL
-        return WalkSample(self.pose.copy(), self.sliders.copy(), 0, phase, 0)
+        return WalkSample(self.pose.copy(), self.actuators.copy(), 0, phase, 0)

@@ -181,13 +181,13 @@ def _walk(model, postures, noise=1e-5, seed=0, **settings):
     while execution.state not in (State.DONE, State.ABORTED) and t < 300.0:
         sample = follower.sample(t)
         reading = sensors.read(sample)
-        execution.on_actuators(t, reading.sliders_m)
+        execution.on_actuators(t, reading.actuators_m)
         execution.on_inclinometer(t, reading.alpha_rad, reading.beta_rad)
         if sample.phase == STILL:
             if still_since is None:
                 still_since, samples = t, []
             samples.append(
-                [*reading.sliders_m, reading.alpha_rad, reading.beta_rad, reading.phi_rad]
+                [*reading.actuators_m, reading.alpha_rad, reading.beta_rad, reading.phi_rad]
             )
             if t - still_since >= 0.5 and len(samples) > 0:
                 posture = np.mean(samples[-30:], axis=0)

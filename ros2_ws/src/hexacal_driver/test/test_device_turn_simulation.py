@@ -47,12 +47,14 @@ def test_readings_are_the_cores_simulated_measurements(plan, turn, mount):
     )
     walker = PlanWalker(params, poses, 1.0, 1.0) if mount == 'hanging' else None
     for i in range(len(poses)):
-        sliders = walker.posture_sliders[i] if walker else core.slider_positions[i]
+        sliders = walker.posture_actuators[i] if walker else core.actuator_positions[i]
         read = exact_readings(poses[i], sliders, mount, DEFECTS, turn)
         assert read.alpha_rad == pytest.approx(core.inclinometer[i, 0], abs=1e-14)
         assert read.beta_rad == pytest.approx(core.inclinometer[i, 1], abs=1e-14)
         assert read.phi_rad == pytest.approx(core.rotary[i], abs=1e-14)
-        np.testing.assert_allclose(read.sliders_m, core.slider_positions[i], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(
+            read.actuators_m, core.actuator_positions[i], rtol=0, atol=1e-12
+        )
     # The link fits: the readings give the platform position back through the defect model.
     back = device_position(
         core.inclinometer[:, 0],

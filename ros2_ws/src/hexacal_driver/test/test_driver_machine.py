@@ -90,7 +90,7 @@ def test_the_default_machine_walks_a_generated_plan():
     assert machine.walker.settle_s == 1.0 and machine.walker.dwell_s == 1.5
     np.testing.assert_array_equal(machine.posture_turns(), np.zeros(6))
     readings, turn = machine.read(machine.walker.sample(0.0))
-    assert turn == 0.0 and readings.sliders_m.shape == (6,)
+    assert turn == 0.0 and readings.actuators_m.shape == (6,)
 
 
 def test_true_params_name_the_model_and_the_mount(tmp_path):
@@ -128,7 +128,7 @@ def test_turns_and_noise_change_at_run_time():
     assert machine.walker is not walker  # a defective device re-places the fixed postures
     assert not machine.set_noise(None, None)
     assert machine.set_noise(2e-5, None)
-    assert (machine.sensors.noise.slider_m, machine.sensors.noise.angle_rad) == (2e-5, 1e-5)
+    assert (machine.sensors.noise.actuator_m, machine.sensors.noise.angle_rad) == (2e-5, 1e-5)
 
 
 def test_commanded_mode_stands_at_the_fixed_point_and_checks_commands():
@@ -139,7 +139,7 @@ def test_commanded_mode_stands_at_the_fixed_point_and_checks_commands():
     sample = machine.follower.sample(0.0)
     np.testing.assert_allclose(sample.pose, [0, 0, -0.75, 0, 0, 0], atol=1e-9)
     names = [f'slider_{i}' for i in range(1, 7)]
-    target = [float(v) for v in sample.sliders]
+    target = [float(v) for v in sample.actuators]
     checked, problem = machine.check_command(names, [(target, 1.0)], 0, 10**9)
     assert problem is None and checked[-1].positions == pytest.approx(target)
     _, problem = machine.check_command(names, [(target, 1.0)], 1, 3 * 10**9)

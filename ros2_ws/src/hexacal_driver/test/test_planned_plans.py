@@ -66,5 +66,5 @@ def test_a_planned_file_is_what_the_executor_commands_within_the_commanded_drive
     # The stroke the executor checks is the one the commanded driver enforces.
     truth = default_parameters(model)
     assert default_stroke(nominal) == tuple(
-        machine_workspace(truth, plan.link_length).slider_stroke_m
+        machine_workspace(truth, plan.link_length).actuator_stroke_m
     )

@@ -81,11 +81,11 @@ def test_walker_timeline_holds_each_posture_for_dwell_s(mixed_plan):
             sample = walker.sample(index * 1.4 + into)
             assert sample.phase == DWELLING and sample.posture_index == index
             assert sample.pose == pytest.approx(mixed_plan.poses[index])
-            assert sample.sliders == pytest.approx(walker.posture_sliders[index])
+            assert sample.actuators == pytest.approx(walker.posture_actuators[index])
     moving = walker.sample(1.4 + 0.2)
     assert moving.phase == SETTLING and moving.posture_index == 1
-    assert not np.allclose(moving.sliders, walker.posture_sliders[0])
-    assert not np.allclose(moving.sliders, walker.posture_sliders[1])
+    assert not np.allclose(moving.actuators, walker.posture_actuators[0])
+    assert not np.allclose(moving.actuators, walker.posture_actuators[1])
     done = walker.sample(walker.lap_duration_s + 5.0)
     assert done.phase == DONE and done.posture_index == 19
     assert done.pose == pytest.approx(mixed_plan.poses[19])
@@ -106,9 +106,9 @@ def test_walker_sliders_move_smoothly(mixed_plan):
     rate_hz = 100.0
     walker = PlanWalker(TRUE, mixed_plan.poses[:6], settle_s=0.5, dwell_s=1.0)
     times = np.arange(0.0, walker.lap_duration_s, 1.0 / rate_hz)
-    sliders = np.array([walker.sample(t).sliders for t in times])
+    sliders = np.array([walker.sample(t).actuators for t in times])
     steps = np.abs(np.diff(sliders, axis=0)).max(axis=1)
-    distances = np.abs(np.diff(walker.posture_sliders, axis=0)).max(axis=1)
+    distances = np.abs(np.diff(walker.posture_actuators, axis=0)).max(axis=1)
     # Peak quintic speed is 1.875 x the mean: a step is at most ~2 x (distance / samples).
     assert steps.max() <= 2.2 * distances.max() / (0.5 * rate_hz)
     dwelling = np.array([walker.sample(t).phase == DWELLING for t in times])
@@ -131,7 +131,7 @@ def test_exact_readings_match_the_core_measurement_model(mixed_plan):
     expected = simulate_measurements(TRUE, mixed_plan.poses, np.array(mixed_plan.kinds))
     for i, pose in enumerate(mixed_plan.poses):
         reading = exact_readings(pose, sliders[i])
-        assert reading.sliders_m == pytest.approx(expected.slider_positions[i], abs=1e-15)
+        assert reading.actuators_m == pytest.approx(expected.actuator_positions[i], abs=1e-15)
         assert [reading.alpha_rad, reading.beta_rad] == pytest.approx(
             expected.inclinometer[i], abs=1e-15
         )
@@ -146,24 +146,26 @@ def test_exact_readings_match_the_core_measurement_model(mixed_plan):
 def test_noise_is_fresh_uniform_and_within_its_half_widths(mixed_plan):
     walker = PlanWalker(TRUE, mixed_plan.poses[:1], settle_s=0.5, dwell_s=1.0)
     sample = walker.sample(1.0)
-    exact = exact_readings(sample.pose, sample.sliders)
-    sensors = SensorSimulator(NoiseModel(slider_m=1e-5, angle_rad=2e-5), np.random.default_rng(1))
+    exact = exact_readings(sample.pose, sample.actuators)
+    sensors = SensorSimulator(
+        NoiseModel(actuator_m=1e-5, angle_rad=2e-5), np.random.default_rng(1)
+    )
     readings = [sensors.read(sample) for _ in range(4000)]
-    slider_errors = np.array([r.sliders_m - exact.sliders_m for r in readings])
+    actuator_errors = np.array([r.actuators_m - exact.actuators_m for r in readings])
     angle_errors = np.array(
         [
             [r.alpha_rad - exact.alpha_rad, r.beta_rad - exact.beta_rad, r.phi_rad - exact.phi_rad]
             for r in readings
         ]
     )
-    assert np.abs(slider_errors).max() <= 1e-5 and np.abs(angle_errors).max() <= 2e-5
-    assert np.abs(slider_errors).max() > 0.95e-5  # uniform: the edges are reached
-    assert np.abs(slider_errors.mean(axis=0)).max() < 1e-6
+    assert np.abs(actuator_errors).max() <= 1e-5 and np.abs(angle_errors).max() <= 2e-5
+    assert np.abs(actuator_errors).max() > 0.95e-5  # uniform: the edges are reached
+    assert np.abs(actuator_errors.mean(axis=0)).max() < 1e-6
     # Uniform on [-h, h] has standard deviation h / sqrt(3).
-    assert slider_errors.std() == pytest.approx(1e-5 / math.sqrt(3), rel=0.05)
-    assert len({tuple(e) for e in slider_errors}) == len(readings)
+    assert actuator_errors.std() == pytest.approx(1e-5 / math.sqrt(3), rel=0.05)
+    assert len({tuple(e) for e in actuator_errors}) == len(readings)
     quiet = SensorSimulator(NoiseModel(), np.random.default_rng(1)).read(sample)
-    assert quiet.sliders_m == pytest.approx(exact.sliders_m, abs=0.0)
+    assert quiet.actuators_m == pytest.approx(exact.actuators_m, abs=0.0)
 
 
 def test_walked_plan_gives_postures_that_calibrate_the_machine():
@@ -176,13 +178,13 @@ def test_walked_plan_gives_postures_that_calibrate_the_machine():
     values = []
     for t in times:
         reading = sensors.read(walker.sample(t))
-        values.append([*reading.sliders_m, reading.alpha_rad, reading.beta_rad, reading.phi_rad])
+        values.append([*reading.actuators_m, reading.alpha_rad, reading.beta_rad, reading.phi_rad])
     detector = PostureDetector()
     postures = detector.update((times * 1e9).astype(np.int64), np.array(values))
     assert len(postures) == len(plan), detector.dropped
     exact = simulate_measurements(TRUE, plan.poses, np.array(plan.kinds))
     measured = np.array([p.values for p in postures])
-    assert np.abs(measured[:, :6] - exact.slider_positions).max() < 1e-5
+    assert np.abs(measured[:, :6] - exact.actuator_positions).max() < 1e-5
     assert np.abs(measured[:, 6:8] - exact.inclinometer).max() < 1e-5
     result = calibrate(nominal_set(2, seed=0), [p.reading for p in postures])
     assert result.reason == 'converged'

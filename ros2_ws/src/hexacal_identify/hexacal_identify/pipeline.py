@@ -61,7 +61,7 @@ FIXED_POSITION_TOLERANCE_RAD = 5e-5
 RAW_TOPICS = (SLIDERS_TOPIC, INCLINOMETER_TOPIC, ENCODER_TOPIC)
 TABLE1_FILE = Path(__file__).parent / 'data' / 'table1_exact.yaml'  # the default "exact" machine
 # Reasons a received posture is rejected before it is stored (posture_problem).
-SLIDER_BEYOND_STROKE = 'slider-beyond-stroke'  # (any model's actuator: a leg on a Gough-Stewart)
+ACTUATOR_BEYOND_STROKE = 'slider-beyond-stroke'  # (any model's actuator: a leg on a Gough-Stewart)
 ANGLE_OUT_OF_RANGE = 'angle-out-of-range'
 MODEL_MISMATCH = 'model-mismatch'
 
@@ -196,11 +196,11 @@ def posture_problem(
     the actuators in the description (default: the Hexa Slide's sliders).
     """
     names = MODELS[model or DEFAULT_MODEL].actuator_names
-    for name, value in zip(names, posture.slider_positions):
-        if not limits.slider_min_m <= value <= limits.slider_max_m:
-            return SLIDER_BEYOND_STROKE, (
+    for name, value in zip(names, posture.actuator_positions):
+        if not limits.actuator_min_m <= value <= limits.actuator_max_m:
+            return ACTUATOR_BEYOND_STROKE, (
                 f'{name} = {value!r} m is beyond the stroke '
-                f'[{limits.slider_min_m:g}, {limits.slider_max_m:g}] m'
+                f'[{limits.actuator_min_m:g}, {limits.actuator_max_m:g}] m'
             )
     for name, value, limit in (
         ('inclinometer_x (alpha)', posture.alpha, limits.inclinometer_range_rad),
@@ -227,12 +227,12 @@ def measurements_from_postures(
     """
     if not postures:
         return Measurements(np.zeros((0, 6)), np.zeros((0, 2)), np.zeros(0), np.zeros(0, str))
-    sliders = np.array([p.slider_positions for p in postures], dtype=float)
+    actuators = np.array([p.actuator_positions for p in postures], dtype=float)
     angles = np.array([[p.alpha, p.beta] for p in postures], dtype=float)
     rotary = np.array([p.phi for p in postures], dtype=float)
     fixed = np.all(np.abs(angles) <= fixed_tolerance_rad, axis=1)
     return Measurements(
-        sliders,
+        actuators,
         angles,
         rotary,
         np.where(fixed, FIXED, SPHERE),
@@ -742,9 +742,9 @@ def _redetect(
     """
     from hexacal_msgs_py.conversions import (
         imu_to_inclinometer_reading,
+        joint_state_to_actuator_reading,
         joint_state_to_encoder_reading,
         joint_state_to_inclinometer_reading,
-        joint_state_to_slider_reading,
     )
     from hexacal_msgs_py.errors import InvalidReadingError
 
@@ -755,9 +755,9 @@ def _redetect(
     streams: dict[str, tuple[list[int], list]] = {t: ([], []) for t in RAW_TOPICS}
     convert = {
         SLIDERS_TOPIC: lambda m: (
-            joint_state_to_slider_reading(
+            joint_state_to_actuator_reading(
                 m, _model_of(m, models, recorded_model), mapping
-            ).slider_positions
+            ).actuator_positions
         ),
         INCLINOMETER_TOPIC: lambda m: (lambda r: (r.alpha, r.beta, r.device_turn))(
             imu_to_inclinometer_reading(m, mapping)

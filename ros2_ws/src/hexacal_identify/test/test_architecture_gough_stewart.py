@@ -61,7 +61,7 @@ def test_the_default_machine_is_a_42_parameter_gough_stewart():
 def test_ik_fk_round_trip_over_the_workspace():
     poses = np.concatenate([_poses(300, 1), _poses(100, 2, FIXED)])
     legs = inverse_kinematics(TRUE, poses)
-    low, high = WORKSPACE.slider_stroke_m
+    low, high = WORKSPACE.actuator_stroke_m
     assert np.all((legs >= low) & (legs <= high)), 'sample_poses keeps every leg inside its stroke'
     lengths = legs + TRUE.per_chain[:, 6]
     assert 0.55 < lengths.min() and lengths.max() < 1.15  # legs ~0.6-1.1 m
@@ -77,7 +77,7 @@ def test_ik_fk_round_trip_over_the_workspace():
 
 
 def _sliders(params, poses):
-    return ARCH.legs(ARCH.chains(params), poses).sliders
+    return ARCH.legs(ARCH.chains(params), poses).actuators
 
 
 def test_pose_jacobian_matches_finite_differences():
@@ -138,7 +138,7 @@ def test_identification_jacobian_matches_forward_kinematics_finite_differences()
         delta[chain] = step
         numeric = (fk(TRUE, legs + delta) - fk(TRUE, legs - delta)) / (2 * step)
         np.testing.assert_allclose(
-            sensitivity.wrt_sliders[:, :, chain], numeric, rtol=0, atol=1e-7
+            sensitivity.wrt_actuators[:, :, chain], numeric, rtol=0, atol=1e-7
         )
 
 
@@ -208,7 +208,7 @@ def test_paper_style_baseline_residuals_equal_the_batched_ones():
     measurements = simulate_measurements(TRUE, poses)
     function = CostFunction('absolute', measurements, DeviceModel(), ChannelSigma())
     fk = forward_kinematics(
-        params, measurements.slider_positions, function.initial_poses(), fit_tilt_first=True
+        params, measurements.actuator_positions, function.initial_poses(), fit_tilt_first=True
     )
     batched = function.residuals(fk.poses, None).values.reshape(2, -1)  # [phi rows], [x y z rows]
     per_posture = absolute_residuals(params.vector, measurements, model=MODEL).reshape(-1, 4)
@@ -234,7 +234,7 @@ def test_device_frames_reproduce_the_defective_readings():
     )
     assert device_frame_truth(TRUE, defects).model == MODEL
     np.testing.assert_allclose(
-        in_frames.slider_positions, defective.slider_positions, rtol=0, atol=1e-12
+        in_frames.actuator_positions, defective.actuator_positions, rtol=0, atol=1e-12
     )
     np.testing.assert_allclose(in_frames.inclinometer, defective.inclinometer, rtol=0, atol=1e-12)
     np.testing.assert_allclose(in_frames.rotary, defective.rotary, rtol=0, atol=1e-15)

@@ -75,7 +75,7 @@ class _Chains:
         self.offsets, self.gains = per_chain[:, 6].copy(), per_chain[:, 7].copy()
 
 
-class _Legs:
+class _ChainIK:
     """lambda = (|P + R B - A| - r0) / g for N poses x 6 struts."""
 
     def __init__(self, chains: _Chains, poses: np.ndarray):
@@ -88,18 +88,22 @@ class _Legs:
         self.legs = points.offsets
         self.lengths = np.sqrt(np.sum(self.legs * self.legs, axis=0))
         self.gains = chains.gains
-        self.sliders = (self.lengths - chains.offsets) / chains.gains
+        self.actuators = (self.lengths - chains.offsets) / chains.gains
 
-    def subset(self, mask: np.ndarray) -> '_Legs':
-        out = object.__new__(_Legs)
+    def subset(self, mask: np.ndarray) -> '_ChainIK':
+        out = object.__new__(_ChainIK)
         out.tilt_trig, out.rotations = self.tilt_trig[:, mask], self.rotations[mask]
         out.rotated, out.legs = self.rotated[:, mask], self.legs[:, mask]
-        out.lengths, out.sliders, out.gains = self.lengths[mask], self.sliders[mask], self.gains
+        out.lengths, out.actuators, out.gains = (
+            self.lengths[mask],
+            self.actuators[mask],
+            self.gains,
+        )
         return out
 
-    def replace_rows(self, mask: np.ndarray, rows: '_Legs') -> None:
+    def replace_rows(self, mask: np.ndarray, rows: '_ChainIK') -> None:
         self.rotations[mask], self.lengths[mask] = rows.rotations, rows.lengths
-        self.sliders[mask] = rows.sliders
+        self.actuators[mask] = rows.actuators
         self.tilt_trig[:, mask], self.rotated[:, mask] = rows.tilt_trig, rows.rotated
         self.legs[:, mask] = rows.legs
 
@@ -120,7 +124,7 @@ class _Legs:
         blocks[..., 0:3] = -unit.transpose(1, 2, 0)
         blocks[..., 3:6] = platform_point_derivatives(self.rotations, unit)
         blocks[..., 6] = -1.0
-        blocks[..., 7] = -self.sliders
+        blocks[..., 7] = -self.actuators
         return blocks / self.gains[None, :, None]
 
 
@@ -145,15 +149,15 @@ class GainSps(Architecture):
     def chains(self, params: KinematicParameters) -> _Chains:
         return _Chains(params)
 
-    def legs(self, chains: _Chains, poses: np.ndarray) -> _Legs:
-        return _Legs(chains, poses)
+    def legs(self, chains: _Chains, poses: np.ndarray) -> _ChainIK:
+        return _ChainIK(chains, poses)
 
     def acceptable_poses(
         self, params: KinematicParameters, poses: np.ndarray, workspace: Workspace
     ) -> np.ndarray:
-        legs = _Legs(_Chains(params), np.asarray(poses, dtype=float))
-        low, high = workspace.slider_stroke_m
-        ok = legs.reachable() & np.all((legs.sliders >= low) & (legs.sliders <= high), axis=1)
+        legs = _ChainIK(_Chains(params), np.asarray(poses, dtype=float))
+        low, high = workspace.actuator_stroke_m
+        ok = legs.reachable() & np.all((legs.actuators >= low) & (legs.actuators <= high), axis=1)
         conditioned = np.zeros(len(poses), bool)
         if np.any(ok):
             conditioned[ok] = condition_ok(
@@ -164,7 +168,7 @@ class GainSps(Architecture):
     def joint_cosines(
         self, params: KinematicParameters, poses: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        legs = _Legs(_Chains(params), np.asarray(poses, dtype=float))
+        legs = _ChainIK(_Chains(params), np.asarray(poses, dtype=float))
         unit = legs.unit_legs()
         normal = legs.rotations[:, :, 2]
         return np.abs(unit[2]), np.abs(np.einsum('inc,ni->nc', unit, normal))

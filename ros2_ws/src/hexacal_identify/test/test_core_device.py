@@ -115,7 +115,7 @@ def test_glitched_postures_are_excluded_and_the_result_stays_within_the_noise():
     poses = sample_poses(TRUE, 60, rng)
     clean = simulate_measurements(TRUE, poses, noise=NoiseModel.from_microns(10), rng=rng)
     corrupted = clean.subset(np.arange(60))
-    corrupted.slider_positions[5, 2] += 0.005
+    corrupted.actuator_positions[5, 2] += 0.005
     corrupted.inclinometer[17, 0] += 0.02
     corrupted.rotary[33] += 0.05
     reference = identify(nominal_set(2), clean)

@@ -313,9 +313,9 @@ def _upright_poses(
         length,
         workspace.xy_range_m,
         workspace.rotation_range_rad,
-        workspace.slider_stroke_m,
+        workspace.actuator_stroke_m,
         workspace.max_condition,
-        workspace.min_leg_rail_cosine,
+        workspace.min_joint_cosine,
     )
     rng = np.random.default_rng(seed)
     poses = np.concatenate(

@@ -118,12 +118,12 @@ def test_device_turns_survive_subset_and_concatenate():
     assert measurements.subset([0, 1]).device_turn is None  # all normal: the same as no turns
     np.testing.assert_array_equal(measurements.subset([5, 0]).turns, [math.pi, 0])
     plain = Measurements(
-        measurements.slider_positions[:2], measurements.inclinometer[:2], measurements.rotary[:2]
+        measurements.actuator_positions[:2], measurements.inclinometer[:2], measurements.rotary[:2]
     )
     joined = Measurements.concatenate([plain, measurements.subset([6])])
     np.testing.assert_array_equal(joined.turns, [0, 0, math.pi])
     bad = Measurements(
-        measurements.slider_positions,
+        measurements.actuator_positions,
         measurements.inclinometer,
         measurements.rotary,
         device_turn=np.full(8, np.nan),

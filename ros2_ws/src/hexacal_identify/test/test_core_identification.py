@@ -53,7 +53,7 @@ def test_analytic_identification_jacobian_matches_finite_differences(cost):
     def solve(vector):
         fk = forward_kinematics(
             HexaParameters(vector),
-            function.measurements.slider_positions,
+            function.measurements.actuator_positions,
             function.initial_poses(),
             tolerance=1e-13,
             fit_tilt_first=True,
@@ -88,7 +88,7 @@ def test_factored_sensitivity_gives_the_same_jacobian_and_noise_rows(cost):
         cost, measurements, DeviceModel(), ChannelSigma(position_m=1e-5, angle_rad=2e-5)
     )
     fk = forward_kinematics(
-        params, measurements.slider_positions, function.initial_poses(), fit_tilt_first=True
+        params, measurements.actuator_positions, function.initial_poses(), fit_tilt_first=True
     )
     assert not fk.failures
     sensitivity = pose_sensitivities(params, fk.poses)
@@ -113,7 +113,7 @@ def test_paper_style_residuals_equal_the_batched_ones():
     measurements = _measurements(10, 3, noise_um=5)
     function = CostFunction('absolute', measurements, DeviceModel(), ChannelSigma())
     fk = forward_kinematics(
-        params, measurements.slider_positions, function.initial_poses(), fit_tilt_first=True
+        params, measurements.actuator_positions, function.initial_poses(), fit_tilt_first=True
     )
     batched = function.residuals(fk.poses, None).values.reshape(2, -1)  # [phi rows], [x y z rows]
     per_posture = absolute_residuals(params.vector, measurements).reshape(-1, 4)
@@ -236,7 +236,7 @@ def _scaled_problem(cost):
     params = nominal_set(2, seed=0)
     fk = forward_kinematics(
         params,
-        function.measurements.slider_positions,
+        function.measurements.actuator_positions,
         function.initial_poses(),
         fit_tilt_first=True,
     )

@@ -55,7 +55,7 @@ pose_strategy = st.tuples(
 def test_ik_fk_round_trip_over_the_workspace(sample):
     x, y, theta, psi, phi = sample
     pose = np.array([[x, y, -np.sqrt(0.75**2 - x**2 - y**2), theta, psi, phi]])
-    if not acceptable_poses(TRUE, pose, Workspace(slider_stroke_m=(-1.0, 2.0)))[0]:
+    if not acceptable_poses(TRUE, pose, Workspace(actuator_stroke_m=(-1.0, 2.0)))[0]:
         return  # outside the usable workspace: nothing to round-trip
     sliders = inverse_kinematics(TRUE, pose)
     guess = pose.copy()
@@ -139,14 +139,16 @@ def test_fk_internal_jacobians_match_finite_differences_and_the_public_ones():
     FK's and the sensitivities' coordinate-major path (_Legs) against IK differences and the
     LegGeometry path.
     """
-    from hexacal_identify.core.architectures.hexa_slide import _Chains, _Legs
+    from hexacal_identify.core.architectures.hexa_slide import _ChainIK, _Chains
 
     params = nominal_set(2, seed=3)
     poses = sample_poses(TRUE, 12, np.random.default_rng(9))
     chains = _Chains(params)
-    legs = _Legs(chains, poses)
+    legs = _ChainIK(chains, poses)
     geometry = leg_geometry(params, poses)
-    np.testing.assert_allclose(legs.sliders, inverse_kinematics(params, poses), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        legs.actuators, inverse_kinematics(params, poses), rtol=0, atol=1e-15
+    )
     jac = legs.pose_jacobian()
     np.testing.assert_allclose(jac, pose_jacobian(geometry, poses[:, 3:6]), rtol=1e-12, atol=1e-12)
     for k in range(6):

@@ -60,7 +60,7 @@ def test_solve_pose_failure_is_named():
 def test_actuator_targets_and_the_stroke(model):
     arch = architecture(model)
     params = arch.default_parameters()
-    assert default_stroke(params) == tuple(arch.default_workspace().slider_stroke_m)
+    assert default_stroke(params) == tuple(arch.default_workspace().actuator_stroke_m)
     pose = sample_poses(params, 1, np.random.default_rng(2), 'sphere', arch.default_workspace())[0]
     expected = inverse_kinematics(params, pose[None])[0]
     assert np.array_equal(actuator_targets(params, pose), expected)

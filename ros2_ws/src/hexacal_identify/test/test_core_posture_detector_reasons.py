@@ -19,7 +19,7 @@ from hexacal_identify.core.posture_detector import (
     StreamSynchronizer,
     UnpairedReason,
 )
-from hexacal_msgs_py.readings import EncoderReading, InclinometerReading, SliderReading
+from hexacal_msgs_py.readings import ActuatorReading, EncoderReading, InclinometerReading
 import numpy as np
 
 MS = 1_000_000  # ns
@@ -102,9 +102,9 @@ def test_abort_takes_the_plain_string_of_a_reason_and_refuses_an_unknown_one():
 
 def test_synchronizer_counters_and_statuses_keep_plain_string_keys():
     synchronizer = StreamSynchronizer(max_skew_ns=5 * MS)
-    slider = SliderReading(100 * MS, (0.1,) * 6)
-    synchronizer.add_sliders(slider)
-    synchronizer.add_sliders(slider)  # the same stamp again
+    slider = ActuatorReading(100 * MS, (0.1,) * 6)
+    synchronizer.add_actuators(slider)
+    synchronizer.add_actuators(slider)  # the same stamp again
     synchronizer.add_encoder(EncoderReading(100 * MS, 0.0))
     synchronizer.add_inclinometer(InclinometerReading(200 * MS, 0.0, 0.0))
     assert synchronizer.flush() == []  # the inclinometer is 100 ms away

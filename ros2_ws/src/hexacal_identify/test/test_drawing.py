@@ -51,7 +51,7 @@ def test_every_architecture_draws_the_common_parts(model):
 def test_hexa_slide_chains_close():
     arch = architecture(HEXA_SLIDE)
     params = arch.default_parameters()
-    low, high = arch.default_workspace().slider_stroke_m
+    low, high = arch.default_workspace().actuator_stroke_m
     for pose in poses_of(HEXA_SLIDE):
         drawn = arch.drawing(params, pose)
         sliders = inverse_kinematics(params, pose[None])[0]

@@ -58,7 +58,7 @@ def test_targets_are_the_nominal_inverse_kinematics(model):
     targets = check_plan(nominal, poses, kinds, default_stroke(nominal), L)
     np.testing.assert_array_equal(targets, inverse_kinematics(nominal, poses))
     assert default_stroke(nominal) == tuple(
-        nominal.architecture.default_workspace().slider_stroke_m
+        nominal.architecture.default_workspace().actuator_stroke_m
     )
 
 

@@ -36,10 +36,10 @@ from hexacal_msgs_py.parameters_file import (
     validate_parameters,
 )
 from hexacal_msgs_py.readings import (
+    ActuatorReading,
     EncoderReading,
     InclinometerReading,
     PostureReading,
-    SliderReading,
 )
 from hypothesis import given, HealthCheck, settings
 from hypothesis import strategies as st
@@ -195,7 +195,7 @@ def test_what_save_accepts_loads_back_bit_exact_and_what_it_refuses_is_named(vec
 @given(st.integers(-(2**70), 2**70) | scalars, st.lists(scalars, max_size=8), scalars, scalars)
 def test_readings_raise_only_invalid_reading_errors(stamp, sliders, alpha, phi):
     for make in (
-        lambda: SliderReading(stamp, sliders),
+        lambda: ActuatorReading(stamp, sliders),
         lambda: InclinometerReading(stamp, alpha, phi),
         lambda: EncoderReading(stamp, phi),
         lambda: PostureReading(stamp, sliders, alpha, alpha, phi),
@@ -204,7 +204,7 @@ def test_readings_raise_only_invalid_reading_errors(stamp, sliders, alpha, phi):
             reading = make()
         except InvalidReadingError:
             continue
-        assert all(math.isfinite(v) for v in getattr(reading, 'slider_positions', ()))
+        assert all(math.isfinite(v) for v in getattr(reading, 'actuator_positions', ()))
 
 
 names_pool = st.sampled_from([*POSTURE_NAMES, 'elbow', '', 'slider_7', 'SLIDER_1'])
@@ -224,7 +224,7 @@ def test_joint_state_conversions_raise_only_invalid_reading_errors(names, positi
     message = JointState(name=names, position=positions)
     message.header.stamp.sec, message.header.stamp.nanosec = sec, nanosec
     for convert in (
-        conversions.joint_state_to_slider_reading,
+        conversions.joint_state_to_actuator_reading,
         conversions.joint_state_to_inclinometer_reading,
         conversions.joint_state_to_encoder_reading,
         conversions.joint_state_to_posture_reading,
@@ -317,7 +317,7 @@ def test_synchronizer_pairs_only_within_the_skew_and_stays_bounded(events):
     paired = []
     for stream, stamp, value in events:
         if stream == 'sliders':
-            paired += synchronizer.add_sliders(SliderReading(stamp, [value] * 6))
+            paired += synchronizer.add_actuators(ActuatorReading(stamp, [value] * 6))
         elif stream == 'inclinometer':
             paired += synchronizer.add_inclinometer(InclinometerReading(stamp, value, value))
         else:

@@ -17,7 +17,7 @@ from hexacal_identify.core.posture_detector import (
     StreamSynchronizer,
     synchronize_arrays,
 )
-from hexacal_msgs_py.readings import EncoderReading, InclinometerReading, SliderReading
+from hexacal_msgs_py.readings import ActuatorReading, EncoderReading, InclinometerReading
 import numpy as np
 import pytest
 
@@ -234,7 +234,7 @@ def _streams(rng, session, inclinometer_offset_ns, encoder_offset_ns, jitter_ns=
         return stamps, values
 
     sliders = [
-        SliderReading(int(t), tuple(v[:6])) for t, v in zip(session.stamps_ns, session.values)
+        ActuatorReading(int(t), tuple(v[:6])) for t, v in zip(session.stamps_ns, session.values)
     ]
     inc_t, inc_v = sample(inclinometer_offset_ns)
     inclinometer = [InclinometerReading(int(t), v[6], v[7]) for t, v in zip(inc_t, inc_v)]
@@ -254,7 +254,7 @@ def _deliver(rng, synchronizer, sliders, inclinometer, encoder, max_delay_ns=15_
             arrivals.append((time_ns, kind, position, reading))
     arrivals.sort(key=lambda a: a[:3])
     add = {
-        's': synchronizer.add_sliders,
+        's': synchronizer.add_actuators,
         'i': synchronizer.add_inclinometer,
         'e': synchronizer.add_encoder,
     }
@@ -284,7 +284,7 @@ def test_synchronizer_pairs_each_slider_reading_with_the_nearest_readings():
     # The offline, vectorised pairing agrees.
     stamps, values = synchronize_arrays(
         [r.stamp_ns for r in sliders],
-        [r.slider_positions for r in sliders],
+        [r.actuator_positions for r in sliders],
         inc_stamps,
         [(r.alpha, r.beta) for r in inclinometer],
         enc_stamps,
@@ -310,14 +310,18 @@ def test_synchronizer_rejects_out_of_order_and_duplicates_and_reports_stale_stre
     }
     out = []
     for k in range(10):
-        out += synchronizer.add_sliders(SliderReading(T0_NS + k * 10 * ms + 2 * ms, (0.4,) * 6))
+        out += synchronizer.add_actuators(
+            ActuatorReading(T0_NS + k * 10 * ms + 2 * ms, (0.4,) * 6)
+        )
     assert len(out) == 9  # the last waits for a later inclinometer/encoder reading
     assert all(s.values()[6:] == (0.1, 0.2, 0.3) for s in out)
 
     # The encoder stops; sliders and inclinometer go on for 0.5 s.
     for k in range(10, 60):
         synchronizer.add_inclinometer(InclinometerReading(T0_NS + k * 10 * ms, 0.1, 0.2))
-        out += synchronizer.add_sliders(SliderReading(T0_NS + k * 10 * ms + 2 * ms, (0.4,) * 6))
+        out += synchronizer.add_actuators(
+            ActuatorReading(T0_NS + k * 10 * ms + 2 * ms, (0.4,) * 6)
+        )
         assert synchronizer.pending <= 64
     now = T0_NS + 600 * ms
     assert synchronizer.stale_streams(now) == ['encoder']

@@ -48,7 +48,7 @@ def test_settings_fields_are_the_node_parameters():
     assert Settings().output == DEFAULT_OUTPUT == 'hexacal_calibration.yaml'
     assert Settings(noise_slider_m=1e-5).noise() is None
     noise = Settings(noise_slider_m=1e-5, noise_angle_rad=2e-5).noise()
-    assert (noise.slider_m, noise.angle_rad) == (1e-5, 2e-5)
+    assert (noise.actuator_m, noise.angle_rad) == (1e-5, 2e-5)
 
 
 @pytest.mark.parametrize(

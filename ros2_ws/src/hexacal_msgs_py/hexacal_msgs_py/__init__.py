@@ -11,6 +11,7 @@ from importlib import import_module
 
 # Public name -> the module that defines it.
 _EXPORTS = {
+    'ActuatorReading': 'hexacal_msgs_py.readings',
     'EncoderReading': 'hexacal_msgs_py.readings',
     'HexacalContractError': 'hexacal_msgs_py.errors',
     'InclinometerReading': 'hexacal_msgs_py.readings',

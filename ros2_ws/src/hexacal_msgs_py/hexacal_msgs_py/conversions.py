@@ -50,11 +50,11 @@ from hexacal_msgs_py.models import (
 from hexacal_msgs_py.names import DEVICE_TURN_JOINT, ENCODER_NAMES, INCLINOMETER_NAMES
 from hexacal_msgs_py.parameters_file import validate_parameters
 from hexacal_msgs_py.readings import (
+    ActuatorReading,
     EncoderReading,
     InclinometerReading,
     NS_PER_S,
     PostureReading,
-    SliderReading,
 )
 import numpy as np
 from sensor_msgs.msg import Imu, JointState
@@ -178,20 +178,20 @@ def actuator_model(names: Sequence[str]) -> ModelLayout | None:
     return model_for_actuator_names(names)
 
 
-def joint_state_to_slider_reading(
+def joint_state_to_actuator_reading(
     msg: JointState, model: ModelArgument = None, mapping: InputMapping | None = None
-) -> SliderReading:
+) -> ActuatorReading:
     """
-    Convert a JointState with the model's actuator joints (m) to a SliderReading.
+    Convert a JointState with the model's actuator joints (m) to a ActuatorReading.
 
-    JointState with the model's actuator joints (m) -> SliderReading.
+    JointState with the model's actuator joints (m) -> ActuatorReading.
 
     Hexa Slide (default): slider_1..slider_6; Gough-Stewart: leg_1..leg_6; with a
     `mapping`, its actuator_joints (in chain order) instead.
     """
     names = mapping.actuator_joints if mapping is not None else layout_of(model).actuator_names
     positions = _joint_positions(msg, names, 'sliders')
-    return SliderReading(stamp_ns(msg.header.stamp), tuple(positions))
+    return ActuatorReading(stamp_ns(msg.header.stamp), tuple(positions))
 
 
 def joint_state_to_inclinometer_reading(
@@ -293,16 +293,16 @@ def joint_state_to_posture_reading(msg: JointState, model: ModelArgument = None)
     return PostureReading.from_values(stamp_ns(msg.header.stamp), values, device_turn=turn)
 
 
-def slider_reading_to_joint_state(
-    reading: SliderReading, frame_id: str = '', model: ModelArgument = None
+def actuator_reading_to_joint_state(
+    reading: ActuatorReading, frame_id: str = '', model: ModelArgument = None
 ) -> JointState:
     """
-    Convert a SliderReading to a JointState with the model's actuator joints.
+    Convert a ActuatorReading to a JointState with the model's actuator joints.
 
-    SliderReading -> JointState with the model's actuator joints (default slider_1..6).
+    ActuatorReading -> JointState with the model's actuator joints (default slider_1..6).
     """
     return _joint_state(
-        reading.stamp_ns, layout_of(model).actuator_names, reading.slider_positions, frame_id
+        reading.stamp_ns, layout_of(model).actuator_names, reading.actuator_positions, frame_id
     )
 
 
@@ -458,3 +458,8 @@ def diagnostic_status(
 def status_values(status: DiagnosticStatus) -> dict[str, str]:
     """Return the KeyValue list of a DiagnosticStatus as a dict."""
     return {kv.key: kv.value for kv in status.values}
+
+
+# Deprecated names (issue #17): the old spellings stay importable for users' scripts.
+joint_state_to_slider_reading = joint_state_to_actuator_reading  # deprecated
+slider_reading_to_joint_state = actuator_reading_to_joint_state  # deprecated

@@ -60,7 +60,7 @@ def _check_turn(kind: str, value: object) -> float:
     return turn
 
 
-def _check_sliders(kind: str, positions: object) -> tuple[float, ...]:
+def _check_actuators(kind: str, positions: object) -> tuple[float, ...]:
     if isinstance(positions, (str, bytes)) or not isinstance(positions, Iterable):
         raise InvalidReadingError(
             f'{kind}: slider_positions must be a sequence of {N_CHAINS} numbers, got {positions!r}'
@@ -76,16 +76,23 @@ def _check_sliders(kind: str, positions: object) -> tuple[float, ...]:
 
 
 @dataclass(frozen=True)
-class SliderReading:
+class ActuatorReading:
     """The six actuator readings lambda (m): slider positions (Hexa Slide) or leg extensions."""
 
     stamp_ns: int
-    slider_positions: tuple[float, ...]
+    actuator_positions: tuple[float, ...]
 
     def __post_init__(self) -> None:
         kind = type(self).__name__
         object.__setattr__(self, 'stamp_ns', _check_stamp(kind, self.stamp_ns))
-        object.__setattr__(self, 'slider_positions', _check_sliders(kind, self.slider_positions))
+        object.__setattr__(
+            self, 'actuator_positions', _check_actuators(kind, self.actuator_positions)
+        )
+
+    @property
+    def slider_positions(self) -> tuple[float, ...]:
+        """Return actuator_positions (deprecated name, issue #17)."""
+        return self.actuator_positions
 
 
 @dataclass(frozen=True)
@@ -138,7 +145,7 @@ class PostureReading:
     """
 
     stamp_ns: int
-    slider_positions: tuple[float, ...]
+    actuator_positions: tuple[float, ...]
     alpha: float
     beta: float
     phi: float
@@ -147,16 +154,23 @@ class PostureReading:
     def __post_init__(self) -> None:
         kind = type(self).__name__
         object.__setattr__(self, 'stamp_ns', _check_stamp(kind, self.stamp_ns))
-        object.__setattr__(self, 'slider_positions', _check_sliders(kind, self.slider_positions))
+        object.__setattr__(
+            self, 'actuator_positions', _check_actuators(kind, self.actuator_positions)
+        )
         object.__setattr__(self, 'alpha', _check_value(kind, 'alpha', self.alpha))
         object.__setattr__(self, 'beta', _check_value(kind, 'beta', self.beta))
         object.__setattr__(self, 'phi', _check_value(kind, 'phi', self.phi))
         object.__setattr__(self, 'device_turn', _check_turn(kind, self.device_turn))
 
+    @property
+    def slider_positions(self) -> tuple[float, ...]:
+        """Return actuator_positions (deprecated name, issue #17)."""
+        return self.actuator_positions
+
     @classmethod
     def from_parts(
         cls,
-        sliders: SliderReading,
+        sliders: ActuatorReading,
         inclinometer: InclinometerReading,
         encoder: EncoderReading,
         stamp_ns: int | None = None,
@@ -168,7 +182,7 @@ class PostureReading:
         """
         return cls(
             stamp_ns=sliders.stamp_ns if stamp_ns is None else stamp_ns,
-            slider_positions=sliders.slider_positions,
+            actuator_positions=sliders.actuator_positions,
             alpha=inclinometer.alpha,
             beta=inclinometer.beta,
             phi=encoder.phi,
@@ -181,7 +195,7 @@ class PostureReading:
 
         Six actuators, alpha, beta, phi (POSTURE_NAMES).
         """
-        return self.slider_positions + (self.alpha, self.beta, self.phi)
+        return self.actuator_positions + (self.alpha, self.beta, self.phi)
 
     @classmethod
     def from_values(
@@ -199,3 +213,7 @@ class PostureReading:
             )
         alpha, beta, phi = numbers[N_CHAINS:]
         return cls(stamp_ns, numbers[:N_CHAINS], alpha, beta, phi, device_turn=device_turn)
+
+
+# Deprecated names (issue #17): the old spellings stay importable for users' scripts.
+SliderReading = ActuatorReading  # deprecated

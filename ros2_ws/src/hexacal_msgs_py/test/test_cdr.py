@@ -16,7 +16,7 @@ from hexacal_msgs_py.cdr import (
     joint_state_positions_layout,
     JointStateReader,
 )
-from hexacal_msgs_py.conversions import joint_state_to_slider_reading, to_stamp
+from hexacal_msgs_py.conversions import joint_state_to_actuator_reading, to_stamp
 from hexacal_msgs_py.names import SLIDER_NAMES
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
@@ -53,8 +53,8 @@ def test_fast_read_equals_rclpy_decoding_for_the_learned_layout():
         (2**31 * 10**9 - 1, (0.7,) * 6),
     ):
         data = _message(stamp, positions=positions)
-        reading = joint_state_to_slider_reading(deserialize_message(data, JointState))
-        assert fast.read(data) == (reading.stamp_ns, reading.slider_positions)
+        reading = joint_state_to_actuator_reading(deserialize_message(data, JointState))
+        assert fast.read(data) == (reading.stamp_ns, reading.actuator_positions)
         assert header_stamp_ns(data) == reading.stamp_ns
 
 

@@ -24,10 +24,10 @@ from hexacal_msgs_py.parameters_file import (
     save_parameters,
 )
 from hexacal_msgs_py.readings import (
+    ActuatorReading,
     EncoderReading,
     InclinometerReading,
     PostureReading,
-    SliderReading,
 )
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -104,8 +104,8 @@ def test_error_hierarchy():
 
 
 def test_readings_normalise_to_float_tuples_and_are_frozen():
-    reading = SliderReading(np.int64(3), [1, 2, 3, 4, 5, np.float32(6)])
-    assert reading.slider_positions == (1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
+    reading = ActuatorReading(np.int64(3), [1, 2, 3, 4, 5, np.float32(6)])
+    assert reading.actuator_positions == (1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
     assert type(reading.stamp_ns) is int
     with pytest.raises(dataclasses.FrozenInstanceError):
         reading.stamp_ns = 4
@@ -114,11 +114,11 @@ def test_readings_normalise_to_float_tuples_and_are_frozen():
 @pytest.mark.parametrize(
     'make, expected',
     [
-        (lambda: SliderReading(0, SLIDERS[:5]), 'must have 6 values, got 5'),
-        (lambda: SliderReading(0, SLIDERS[:5] + (math.nan,)), 'slider_6 must be finite'),
-        (lambda: SliderReading(0, 0.1), 'must be a sequence'),
-        (lambda: SliderReading(-1, SLIDERS), 'stamp_ns must be >= 0'),
-        (lambda: SliderReading(1.5, SLIDERS), 'stamp_ns must be an integer'),
+        (lambda: ActuatorReading(0, SLIDERS[:5]), 'must have 6 values, got 5'),
+        (lambda: ActuatorReading(0, SLIDERS[:5] + (math.nan,)), 'slider_6 must be finite'),
+        (lambda: ActuatorReading(0, 0.1), 'must be a sequence'),
+        (lambda: ActuatorReading(-1, SLIDERS), 'stamp_ns must be >= 0'),
+        (lambda: ActuatorReading(1.5, SLIDERS), 'stamp_ns must be an integer'),
         (lambda: InclinometerReading(0, math.inf, 0.0), 'alpha must be finite'),
         (lambda: InclinometerReading(0, 0.0, 'x'), 'beta must be a number'),
         (lambda: EncoderReading(0, -math.inf), 'phi must be finite'),
@@ -133,7 +133,7 @@ def test_readings_reject_invalid_values(make, expected):
 
 def test_posture_from_parts_and_values():
     posture = PostureReading.from_parts(
-        SliderReading(10, SLIDERS), InclinometerReading(11, 0.1, -0.2), EncoderReading(12, 1.5)
+        ActuatorReading(10, SLIDERS), InclinometerReading(11, 0.1, -0.2), EncoderReading(12, 1.5)
     )
     assert posture == PostureReading(10, SLIDERS, 0.1, -0.2, 1.5)
     assert posture.values() == SLIDERS + (0.1, -0.2, 1.5)
@@ -152,9 +152,9 @@ def test_stamp_round_trip(ns):
 
 READINGS = [
     (
-        SliderReading(1_500_000_001, SLIDERS),
-        conv.slider_reading_to_joint_state,
-        conv.joint_state_to_slider_reading,
+        ActuatorReading(1_500_000_001, SLIDERS),
+        conv.actuator_reading_to_joint_state,
+        conv.joint_state_to_actuator_reading,
     ),
     (
         InclinometerReading(2, 0.0123, -0.0456),
@@ -215,11 +215,11 @@ def test_joint_state_errors_name_the_problem(reading, to_msg, from_msg):
 
 
 def test_joint_state_duplicate_joint_is_rejected():
-    msg = conv.slider_reading_to_joint_state(SliderReading(0, SLIDERS))
+    msg = conv.actuator_reading_to_joint_state(ActuatorReading(0, SLIDERS))
     msg.name = list(msg.name) + ['slider_2']
     msg.position = list(msg.position) + [9.0]
     with pytest.raises(InvalidReadingError, match="'slider_2' appears more than once"):
-        conv.joint_state_to_slider_reading(msg)
+        conv.joint_state_to_actuator_reading(msg)
 
 
 def test_parameters_multiarray_round_trip_is_bit_exact():

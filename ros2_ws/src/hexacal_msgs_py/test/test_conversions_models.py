@@ -4,7 +4,7 @@ from hexacal_msgs_py import conversions as conv
 from hexacal_msgs_py.errors import InvalidParametersError, InvalidReadingError
 from hexacal_msgs_py.models import GOUGH_STEWART, HEXA_SLIDE, MODELS
 from hexacal_msgs_py.names import actuator_names, POSTURE_NAMES, posture_names, SLIDER_NAMES
-from hexacal_msgs_py.readings import PostureReading, SliderReading
+from hexacal_msgs_py.readings import ActuatorReading, PostureReading
 import numpy as np
 import pytest
 
@@ -39,7 +39,7 @@ def test_default_model_is_the_hexa_slide():
     message = conv.posture_reading_to_joint_state(POSTURE)
     assert tuple(message.name) == POSTURE_NAMES
     assert conv.joint_state_to_posture_reading(message) == POSTURE
-    sliders = conv.slider_reading_to_joint_state(SliderReading(5, POSTURE.slider_positions))
+    sliders = conv.actuator_reading_to_joint_state(ActuatorReading(5, POSTURE.actuator_positions))
     assert tuple(sliders.name) == SLIDER_NAMES
 
 
@@ -47,20 +47,20 @@ def test_other_models_names_are_a_missing_joint():
     legs = conv.posture_reading_to_joint_state(POSTURE, model=GOUGH_STEWART)
     with pytest.raises(InvalidReadingError, match='lacks joint.*slider_1'):
         conv.joint_state_to_posture_reading(legs)
-    sliders = conv.slider_reading_to_joint_state(SliderReading(5, POSTURE.slider_positions))
+    sliders = conv.actuator_reading_to_joint_state(ActuatorReading(5, POSTURE.actuator_positions))
     with pytest.raises(InvalidReadingError, match='lacks joint.*leg_1'):
-        conv.joint_state_to_slider_reading(sliders, GOUGH_STEWART)
+        conv.joint_state_to_actuator_reading(sliders, GOUGH_STEWART)
     assert conv.actuator_model(['inclinometer_x', 'slider_1']) is None
 
 
 def test_slider_readings_with_leg_names():
-    message = conv.slider_reading_to_joint_state(
-        SliderReading(7, POSTURE.slider_positions), model=GOUGH_STEWART
+    message = conv.actuator_reading_to_joint_state(
+        ActuatorReading(7, POSTURE.actuator_positions), model=GOUGH_STEWART
     )
     assert tuple(message.name) == LEGS
     assert (
-        conv.joint_state_to_slider_reading(message, GOUGH_STEWART).slider_positions
-        == POSTURE.slider_positions
+        conv.joint_state_to_actuator_reading(message, GOUGH_STEWART).actuator_positions
+        == POSTURE.actuator_positions
     )
 
 

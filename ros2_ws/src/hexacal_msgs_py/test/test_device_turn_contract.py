@@ -18,10 +18,10 @@ from hexacal_msgs_py.names import (
     posture_names,
 )
 from hexacal_msgs_py.readings import (
+    ActuatorReading,
     EncoderReading,
     InclinometerReading,
     PostureReading,
-    SliderReading,
 )
 import pytest
 from sensor_msgs.msg import JointState
@@ -91,7 +91,7 @@ def test_inclinometer_round_trip(turn):
 
 def test_from_parts_takes_the_turn_of_the_inclinometer():
     parts = PostureReading.from_parts(
-        SliderReading(3, SLIDERS),
+        ActuatorReading(3, SLIDERS),
         InclinometerReading(4, 0.1, 0.2, math.pi),
         EncoderReading(5, 0.3),
     )

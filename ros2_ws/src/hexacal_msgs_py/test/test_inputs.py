@@ -74,7 +74,7 @@ def mapping(**overrides) -> InputMapping:
 
 def test_one_joint_states_message_gives_every_reading_by_the_mapping():
     message, m = broadcaster_message(), mapping()
-    assert conv.joint_state_to_slider_reading(message, mapping=m).slider_positions == (
+    assert conv.joint_state_to_actuator_reading(message, mapping=m).actuator_positions == (
         0.1,
         0.2,
         0.3,
@@ -88,7 +88,7 @@ def test_one_joint_states_message_gives_every_reading_by_the_mapping():
     with pytest.raises(
         InvalidReadingError, match='lacks joint'
     ):  # the contract's names are not there
-        conv.joint_state_to_slider_reading(message)
+        conv.joint_state_to_actuator_reading(message)
 
 
 def test_signs_and_offsets_apply_to_a_joint_state_inclinometer():

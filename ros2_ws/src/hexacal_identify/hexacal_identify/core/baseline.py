@@ -26,7 +26,7 @@ from .measurements import Measurements
 
 def forward_kinematics_one(
     params: KinematicParameters,
-    sliders: np.ndarray,
+    actuators: np.ndarray,
     guess: np.ndarray,
     tolerance: float = 1e-12,
     max_iterations: int = 50,
@@ -44,7 +44,7 @@ def forward_kinematics_one(
         legs = arch.legs(chains, pose[None])
         if not legs.reachable()[0]:
             break
-        residual = legs.sliders[0] - sliders
+        residual = legs.actuators[0] - actuators
         if np.max(np.abs(residual)) < tolerance:
             return pose
         pose = pose - np.linalg.solve(legs.pose_jacobian()[0], residual)
@@ -68,7 +68,7 @@ def absolute_residuals(
     rows = np.empty((len(measurements), 4))
     for i in range(len(measurements)):
         guess = np.concatenate([measured[i], [0.0, 0.0, measurements.rotary[i]]])
-        pose = forward_kinematics_one(params, measurements.slider_positions[i], guess)
+        pose = forward_kinematics_one(params, measurements.actuator_positions[i], guess)
         rows[i, :3] = measured[i] - pose[:3]
         rows[i, 3] = measurements.rotary[i] - pose[5]
     return rows.reshape(-1)

@@ -345,7 +345,7 @@ def _noise_rows(
 def _whiten(rows: np.ndarray, noise_rows: np.ndarray, noise: NoiseModel) -> np.ndarray:
     """Return L^-1 rows per posture, L L^T the residual covariance (padding: unit variance)."""
     actuators = noise_rows.shape[2] - 3  # the readings: one per actuator, then alpha, beta, phi
-    std = np.array([noise.slider_m] * actuators + [noise.angle_rad] * 3) / np.sqrt(
+    std = np.array([noise.actuator_m] * actuators + [noise.angle_rad] * 3) / np.sqrt(
         3.0
     )  # +-a uniform
     weighted = noise_rows * std

@@ -260,7 +260,7 @@ class _Problem:
     ):
         return forward_kinematics(
             params,
-            self.cost.measurements.slider_positions,
+            self.cost.measurements.actuator_positions,
             start,
             tolerance=self.options.fk_tolerance,
             branch_tolerance_m=self.options.branch_tolerance_m,

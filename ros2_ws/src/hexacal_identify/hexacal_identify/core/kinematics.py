@@ -88,7 +88,7 @@ def inverse_kinematics(params: KinematicParameters, poses: np.ndarray) -> np.nda
             f'indices {bad[:10].tolist()}{" ..." if bad.size > 10 else ""}',
             bad,
         )
-    return legs.sliders
+    return legs.actuators
 
 
 @dataclass
@@ -112,7 +112,7 @@ class ForwardKinematicsResult:
 
 def forward_kinematics(
     params: KinematicParameters,
-    slider_positions: np.ndarray,
+    actuator_positions: np.ndarray,
     initial_poses: np.ndarray,
     *,
     tolerance: float = 1e-12,
@@ -133,7 +133,7 @@ def forward_kinematics(
     fitted with position and phi held at the guess, which brings Newton's start
     close to the solution when only position and phi are known (the device's case).
     """
-    targets = np.atleast_2d(np.asarray(slider_positions, dtype=float))
+    targets = np.atleast_2d(np.asarray(actuator_positions, dtype=float))
     start = np.atleast_2d(np.asarray(initial_poses, dtype=float))
     arch = params.architecture
     chains = arch.chains(params)
@@ -148,7 +148,7 @@ def forward_kinematics(
     active = np.flatnonzero(finite)
     target = targets[active]
     legs = arch.legs(chains, poses[active])
-    error = _slider_error(legs, target)
+    error = _actuator_error(legs, target)
     stalls = np.zeros(len(active), int)  # Newton steps that no halving made better
     for iteration in range(max_iterations + 1):
         done = error < tolerance
@@ -167,7 +167,7 @@ def forward_kinematics(
         if active.size == 0 or iteration == max_iterations:
             break
         iterations[active] += 1
-        step, solvable = _solve_batched(legs.pose_jacobian(), legs.sliders - target)
+        step, solvable = _solve_batched(legs.pose_jacobian(), legs.actuators - target)
         if not solvable.all():
             for i in active[~solvable]:
                 failures[int(i)] = 'singular pose Jacobian (the platform is at a singularity)'
@@ -201,7 +201,7 @@ def _fit_tilt(
         if not np.all(legs.reachable()):
             break
         jac = legs.pose_jacobian()[:, :, 3:5]
-        residual = legs.sliders - target
+        residual = legs.actuators - target
         # 2 x 2 normal equations per posture, written out.
         a = np.sum(jac[:, :, 0] * jac[:, :, 0], axis=1)
         b = np.sum(jac[:, :, 0] * jac[:, :, 1], axis=1)
@@ -220,8 +220,8 @@ def _fit_tilt(
     return np.where(np.isfinite(poses), poses, start)
 
 
-def _slider_error(legs, targets: np.ndarray) -> np.ndarray:
-    error = np.max(np.abs(legs.sliders - targets), axis=1)
+def _actuator_error(legs, targets: np.ndarray) -> np.ndarray:
+    error = np.max(np.abs(legs.actuators - targets), axis=1)
     return np.where(legs.reachable(), error, np.inf)
 
 
@@ -252,7 +252,7 @@ def _damped_update(
     """
     trial = poses - step
     legs = arch.legs(chains, trial)
-    trial_error = _slider_error(legs, targets)
+    trial_error = _actuator_error(legs, targets)
     scale = None
     worse = np.zeros(len(poses), bool)
     for _ in range(MAX_HALVINGS):
@@ -265,7 +265,7 @@ def _damped_update(
         trial[worse] = poses[worse] - scale[worse, None] * step[worse]
         sub = arch.legs(chains, trial[worse])
         legs.replace_rows(worse, sub)
-        trial_error[worse] = _slider_error(sub, targets[worse])
+        trial_error[worse] = _actuator_error(sub, targets[worse])
     else:
         worse = ~(trial_error < error) & (error > 0)
     return trial, legs, trial_error, worse
@@ -295,33 +295,33 @@ class PoseSensitivity:
     Derivatives of FK poses: w.r.t. the parameters (54 for a Hexa Slide) and the 6 actuator
     readings.
 
-    Kept factored: dX/du[n, k, F c + f] = -wrt_sliders[n, k, c] * slider_blocks[n, c, f] (F fields
-    per chain) (d lambda / d u is block diagonal), so a cost function can form just the rows it
-    needs (``rows``, ``combined``) in one pass; ``wrt_parameters`` is the full (N, 6, 6 F) array,
-    formed on first use.
+    Kept factored: dX/du[n, k, F c + f] = -wrt_actuators[n, k, c] * actuator_blocks[n, c, f] (F
+    fields per chain) (d lambda / d u is block diagonal), so a cost function can form just the rows
+    it needs (``rows``, ``combined``) in one pass; ``wrt_parameters`` is the full (N, 6, 6 F)
+    array, formed on first use.
     """
 
-    def __init__(self, wrt_sliders: np.ndarray, slider_blocks: np.ndarray):
-        self.wrt_sliders = wrt_sliders  # dX/d lambda = J_inv^-1, (N, 6, 6)
-        self.slider_blocks = slider_blocks  # d lambda_c / d u_c, (N, 6, F)
+    def __init__(self, wrt_actuators: np.ndarray, actuator_blocks: np.ndarray):
+        self.wrt_actuators = wrt_actuators  # dX/d lambda = J_inv^-1, (N, 6, 6)
+        self.actuator_blocks = actuator_blocks  # d lambda_c / d u_c, (N, 6, F)
         self._wrt_parameters: np.ndarray | None = None
 
     @property
     def n_parameters(self) -> int:
-        return self.slider_blocks.shape[1] * self.slider_blocks.shape[2]
+        return self.actuator_blocks.shape[1] * self.actuator_blocks.shape[2]
 
     @property
     def wrt_parameters(self) -> np.ndarray:
         """dX/du, (N, 6, n)."""
         if self._wrt_parameters is None:
-            full = -self.wrt_sliders[:, :, :, None] * self.slider_blocks[:, None, :, :]
+            full = -self.wrt_actuators[:, :, :, None] * self.actuator_blocks[:, None, :, :]
             self._wrt_parameters = full.reshape(len(full), 6, self.n_parameters)
         return self._wrt_parameters
 
     def _pick(self, index: np.ndarray | None):
         if index is None:
-            return self.wrt_sliders, self.slider_blocks
-        return self.wrt_sliders[index], self.slider_blocks[index]
+            return self.wrt_actuators, self.actuator_blocks
+        return self.wrt_actuators[index], self.actuator_blocks[index]
 
     def rows(self, index: np.ndarray | None, coordinates: slice, factor: float) -> np.ndarray:
         """Factor * dX[coordinates]/du for postures ``index`` (None: all), (k, m, n)."""

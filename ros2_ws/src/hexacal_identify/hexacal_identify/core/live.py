@@ -52,7 +52,7 @@ def home_pose(
 
 def default_stroke(params: KinematicParameters) -> tuple[float, float]:
     """Return the architecture's actuator stroke (m) of its default workspace."""
-    low, high = params.architecture.default_workspace().slider_stroke_m
+    low, high = params.architecture.default_workspace().actuator_stroke_m
     return float(low), float(high)
 
 

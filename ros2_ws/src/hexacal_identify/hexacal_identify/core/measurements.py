@@ -1,7 +1,7 @@
 """
 Measured postures: actuator readings, inclinometer angles and rotary angle per posture.
 
-The six actuator readings are ``slider_positions`` whatever the architecture
+The six actuator readings are ``actuator_positions`` whatever the architecture
 (Hexa Slide: slider positions along the rails; Gough-Stewart: leg extensions).
 """
 
@@ -27,12 +27,12 @@ class MeasurementLimits:
 
     inclinometer_range_rad: float = np.radians(60.0)
     rotary_range_rad: float = np.pi
-    # The actuator stroke postures are planned in (postures.Workspace.slider_stroke_m: 0 .. 0.9 m
+    # The actuator stroke postures are planned in (postures.Workspace.actuator_stroke_m: 0 .. 0.9 m
     # on the Hexa Slide's rails, 0 .. 0.5 m of the default Gough-Stewart legs) plus 0.1 m (device
     # defects move simulated actuators ~20 mm past it): a reading beyond is a sensor fault, not a
     # posture.
-    slider_min_m: float = -0.1
-    slider_max_m: float = 1.0
+    actuator_min_m: float = -0.1
+    actuator_max_m: float = 1.0
 
 
 @dataclass
@@ -40,13 +40,13 @@ class Measurements:
     """
     N measured postures (SI units).
 
-    slider_positions (N, 6) actuator readings lambda, m; inclinometer (N, 2) = [alpha, beta], rad;
-    rotary (N,) = phi, rad; kinds (N,) 'sphere' or 'fixed'; device_turn (N,) rad: how far the
+    actuator_positions (N, 6) actuator readings lambda, m; inclinometer (N, 2) = [alpha, beta],
+    rad; rotary (N,) = phi, rad; kinds (N,) 'sphere' or 'fixed'; device_turn (N,) rad: how far the
     device was turned about its link axis from its normal mounting for that posture (pi: the
     reversal procedure, device.py), readings as the sensors gave them; None = all normal.
     """
 
-    slider_positions: np.ndarray
+    actuator_positions: np.ndarray
     inclinometer: np.ndarray
     rotary: np.ndarray
     kinds: np.ndarray = field(default=None)  # type: ignore[arg-type]
@@ -54,8 +54,8 @@ class Measurements:
     device_turn: np.ndarray | None = None  # per posture: device turned about its link axis, rad
 
     def __post_init__(self) -> None:
-        self.slider_positions = np.atleast_2d(np.asarray(self.slider_positions, dtype=float))
-        n = len(self.slider_positions)
+        self.actuator_positions = np.atleast_2d(np.asarray(self.actuator_positions, dtype=float))
+        n = len(self.actuator_positions)
         self.inclinometer = (
             np.asarray(self.inclinometer, dtype=float).reshape(-1, 2) if n else np.zeros((0, 2))
         )
@@ -76,14 +76,14 @@ class Measurements:
         return self.device_turn if self.device_turn is not None else np.zeros(len(self))
 
     def __len__(self) -> int:
-        return len(self.slider_positions)
+        return len(self.actuator_positions)
 
     def subset(self, indices: np.ndarray) -> 'Measurements':
         indices = np.asarray(indices, dtype=int)
         lengths = None if self.link_lengths is None else self.link_lengths[indices]
         turns = None if self.device_turn is None else self.device_turn[indices]
         return Measurements(
-            self.slider_positions[indices],
+            self.actuator_positions[indices],
             self.inclinometer[indices],
             self.rotary[indices],
             self.kinds[indices],
@@ -104,7 +104,7 @@ class Measurements:
         if any(p.device_turn is not None for p in parts):
             turns = np.concatenate([p.turns for p in parts])
         return Measurements(
-            np.concatenate([p.slider_positions for p in parts]),
+            np.concatenate([p.actuator_positions for p in parts]),
             np.concatenate([p.inclinometer for p in parts]),
             np.concatenate([p.rotary for p in parts]),
             np.concatenate([p.kinds for p in parts]),
@@ -115,9 +115,9 @@ class Measurements:
     def validate(self, limits: MeasurementLimits = MeasurementLimits()) -> None:
         """Raise InvalidMeasurementError naming the first problem and the posture indices."""
         n = len(self)
-        if self.slider_positions.shape != (n, 6):
+        if self.actuator_positions.shape != (n, 6):
             raise InvalidMeasurementError(
-                f'slider_positions must be (N, 6), got {self.slider_positions.shape}'
+                f'slider_positions must be (N, 6), got {self.actuator_positions.shape}'
             )
         if (
             self.inclinometer.shape != (n, 2)
@@ -129,7 +129,7 @@ class Measurements:
                 f'rows, {len(self.rotary)} rotary values, {len(self.kinds)} kinds'
             )
         channels = {
-            'slider_positions': self.slider_positions,
+            'slider_positions': self.actuator_positions,
             'inclinometer': self.inclinometer,
             'rotary': self.rotary[:, None],
         }
@@ -159,12 +159,12 @@ class Measurements:
         )
         self._check_range('rotary angle', np.abs(self.rotary), limits.rotary_range_rad, 'rad')
         low = np.flatnonzero(
-            np.any(self.slider_positions < limits.slider_min_m, axis=1)
-            | np.any(self.slider_positions > limits.slider_max_m, axis=1)
+            np.any(self.actuator_positions < limits.actuator_min_m, axis=1)
+            | np.any(self.actuator_positions > limits.actuator_max_m, axis=1)
         )
         if low.size:
             raise InvalidMeasurementError(
-                f'slider position outside [{limits.slider_min_m}, {limits.slider_max_m}] m at '
+                f'slider position outside [{limits.actuator_min_m}, {limits.actuator_max_m}] m at '
                 f'posture(s) {low.tolist()}',
                 low,
             )
@@ -193,13 +193,13 @@ class Measurements:
 class NoiseModel:
     """Uniform measurement noise, half-widths in SI units (the paper's section 4 model)."""
 
-    slider_m: float = 0.0
+    actuator_m: float = 0.0
     angle_rad: float = 0.0
 
     @classmethod
     def from_microns(cls, microns: float) -> 'NoiseModel':
         """'X um' noise as in Table 3: +-X um on sliders and +-X urad on every angle."""
-        return cls(slider_m=microns * 1e-6, angle_rad=microns * 1e-6)
+        return cls(actuator_m=microns * 1e-6, angle_rad=microns * 1e-6)
 
     def standard_deviations(self) -> np.ndarray:
         """
@@ -208,11 +208,11 @@ class NoiseModel:
         Std of the 9 readings of a posture (6 sliders, alpha, beta, phi): a / sqrt(3) for +-a
         uniform.
         """
-        return np.array([self.slider_m] * 6 + [self.angle_rad] * 3) / np.sqrt(3.0)
+        return np.array([self.actuator_m] * 6 + [self.angle_rad] * 3) / np.sqrt(3.0)
 
     @property
     def known(self) -> bool:
-        return self.slider_m > 0 and self.angle_rad > 0
+        return self.actuator_m > 0 and self.angle_rad > 0
 
 
 def simulate_measurements(
@@ -242,7 +242,7 @@ def simulate_measurements(
     """
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
     rng = rng if rng is not None else np.random.default_rng(0)
-    sliders = inverse_kinematics(params, poses)
+    actuators = inverse_kinematics(params, poses)
     n = len(poses)
     turns = (
         None
@@ -253,15 +253,15 @@ def simulate_measurements(
     angles = np.column_stack([alpha, beta])
     rotary = poses[:, 5] + defects.phi0 - (0.0 if turns is None else turns)
     rotary = (rotary + np.pi) % (2.0 * np.pi) - np.pi  # the sensor's range
-    if noise.slider_m:
-        sliders = sliders + rng.uniform(-noise.slider_m, noise.slider_m, sliders.shape)
+    if noise.actuator_m:
+        actuators = actuators + rng.uniform(-noise.actuator_m, noise.actuator_m, actuators.shape)
     if noise.angle_rad:
         angles = angles + rng.uniform(-noise.angle_rad, noise.angle_rad, angles.shape)
         rotary = rotary + rng.uniform(-noise.angle_rad, noise.angle_rad, n)
     lengths = None
     if lvdt:
         lengths = np.linalg.norm(poses[:, :3], axis=1) - defects.dL
-        if noise.slider_m:
-            lengths = lengths + rng.uniform(-noise.slider_m, noise.slider_m, n)
+        if noise.actuator_m:
+            lengths = lengths + rng.uniform(-noise.actuator_m, noise.actuator_m, n)
     kinds_array = np.full(n, kinds) if isinstance(kinds, str) else np.asarray(kinds)
-    return Measurements(sliders, angles, rotary, kinds_array, lengths, turns)
+    return Measurements(actuators, angles, rotary, kinds_array, lengths, turns)

@@ -172,7 +172,7 @@ def path_command(
             f'{int(np.sum(~reachable))} of its {len(poses)} points are out of the '
             f"nominal machine's reach ({arch.unreachable_reason})"
         )
-    points = legs.sliders
+    points = legs.actuators
     low, high = stroke
     outside = np.any((points < low) | (points > high), axis=1)
     if np.any(outside):

@@ -41,7 +41,7 @@ class PlanRefusedError(CalibrationError, ValueError):
 
 def default_stroke(nominal: KinematicParameters) -> tuple[float, float]:
     """Return the actuator stroke of the nominal model's architecture (default workspace), m."""
-    low, high = nominal.architecture.default_workspace().slider_stroke_m
+    low, high = nominal.architecture.default_workspace().actuator_stroke_m
     return float(low), float(high)
 
 
@@ -106,7 +106,7 @@ def plan_targets(
     if finite.any():
         legs = arch.legs(arch.chains(nominal), np.where(finite[:, None], poses, 0.0))
         reachable = legs.reachable() & finite
-        targets[reachable] = legs.sliders[reachable]
+        targets[reachable] = legs.actuators[reachable]
         for unreachable in np.flatnonzero(finite & ~reachable):
             problems[int(unreachable)] = (
                 f'the nominal machine cannot reach it ({arch.unreachable_reason})'

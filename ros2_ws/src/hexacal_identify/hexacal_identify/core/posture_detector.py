@@ -23,11 +23,11 @@ from typing import Any
 from hexacal_msgs_py.errors import InvalidReadingError
 from hexacal_msgs_py.names import N_CHAINS, POSTURE_NAMES
 from hexacal_msgs_py.readings import (
+    ActuatorReading,
     EncoderReading,
     InclinometerReading,
     NS_PER_S,
     PostureReading,
-    SliderReading,
 )
 import numpy as np
 from numpy.typing import ArrayLike
@@ -168,9 +168,9 @@ class StreamSynchronizer:
         self.unpaired: dict[str, int] = {}
         self.emitted = 0
 
-    def add_sliders(self, reading: SliderReading) -> list[PostureReading]:
+    def add_actuators(self, reading: ActuatorReading) -> list[PostureReading]:
         return _readings(
-            self.add_values(Stream.SLIDERS, reading.stamp_ns, reading.slider_positions)
+            self.add_values(Stream.SLIDERS, reading.stamp_ns, reading.actuator_positions)
         )
 
     def add_inclinometer(self, reading: InclinometerReading) -> list[PostureReading]:
@@ -185,7 +185,7 @@ class StreamSynchronizer:
         self, stream: Stream, stamp_ns: int, values: tuple[float, ...]
     ) -> list[tuple[int, tuple[float, ...]]]:
         """
-        add_sliders/add_inclinometer/add_encoder for already validated readings.
+        add_actuators/add_inclinometer/add_encoder for already validated readings.
 
         `values` are the reading's numbers as a tuple of finite floats (six slider
         positions; alpha, beta; phi), `stamp_ns` a non-negative int. Returns the
@@ -235,13 +235,13 @@ class StreamSynchronizer:
             return emitted
         inclinometer = self._streams[Stream.INCLINOMETER]
         encoder = self._streams[Stream.ENCODER]
-        newest_slider_ns = self._streams[Stream.SLIDERS].last_stamp_ns
-        assert newest_slider_ns is not None  # a pending slider reading was accepted
+        newest_actuator_ns = self._streams[Stream.SLIDERS].last_stamp_ns
+        assert newest_actuator_ns is not None  # a pending slider reading was accepted
         while self._pending:
-            stamp, sliders = self._pending[0]
+            stamp, actuators = self._pending[0]
             ready = (
                 force_count > 0
-                or newest_slider_ns - stamp > self.max_skew_ns
+                or newest_actuator_ns - stamp > self.max_skew_ns
                 or (
                     inclinometer.last_stamp_ns is not None
                     and inclinometer.last_stamp_ns >= stamp
@@ -263,7 +263,7 @@ class StreamSynchronizer:
                 ).value
                 self.unpaired[reason] = self.unpaired.get(reason, 0) + 1
                 continue
-            emitted.append((stamp, sliders + angles + rotary))
+            emitted.append((stamp, actuators + angles + rotary))
         self.emitted += len(emitted)
         return emitted
 
@@ -273,8 +273,8 @@ def _readings(samples: list[tuple[int, tuple[float, ...]]]) -> list[PostureReadi
 
 
 def synchronize_arrays(
-    slider_stamps_ns: ArrayLike,
-    slider_positions_m: ArrayLike,
+    actuator_stamps_ns: ArrayLike,
+    actuator_positions_m: ArrayLike,
     inclinometer_stamps_ns: ArrayLike,
     inclinometer_angles_rad: ArrayLike,
     encoder_stamps_ns: ArrayLike,
@@ -287,9 +287,9 @@ def synchronize_arrays(
     Returns (stamps_ns (n,), values (n, 9)) for the slider samples that have an
     inclinometer and an encoder reading within max_skew_ns.
     """
-    stamps, sliders = _sorted_unique(slider_stamps_ns, slider_positions_m, N_CHAINS)
+    stamps, actuators = _sorted_unique(actuator_stamps_ns, actuator_positions_m, N_CHAINS)
     keep = np.ones(len(stamps), dtype=bool)
-    columns = [sliders]
+    columns = [actuators]
     for aux_stamps, aux_values, width in (
         (inclinometer_stamps_ns, inclinometer_angles_rad, 2),
         (encoder_stamps_ns, encoder_angles_rad, 1),

@@ -59,13 +59,13 @@ class PostureLimits:
     xy_range_m: float = float(_PAPER_WORKSPACE.xy_range_m)
     rotation_range_rad: float = float(_PAPER_WORKSPACE.rotation_range_rad)
     inclinometer_range_rad: float = float(np.radians(45.0))
-    # Workspace's name for it: slider_stroke_m.
-    actuator_stroke_m: tuple[float, float] = _PAPER_WORKSPACE.slider_stroke_m
+    # Workspace's name for it: actuator_stroke_m.
+    actuator_stroke_m: tuple[float, float] = _PAPER_WORKSPACE.actuator_stroke_m
     max_u_joint_angle_rad: float = float(np.radians(60.0))  # base-side passive joint
     max_s_joint_angle_rad: float = float(np.radians(90.0))  # platform-side spherical joint
     max_condition: float = float(_PAPER_WORKSPACE.max_condition)
     min_leg_cosine: float = float(
-        _PAPER_WORKSPACE.min_leg_rail_cosine
+        _PAPER_WORKSPACE.min_joint_cosine
     )  # away from singular legs (architecture's)
     mount: str = (
         _PAPER_WORKSPACE.mount
@@ -85,9 +85,9 @@ class PostureLimits:
             'link_length': float(workspace.link_length),
             'xy_range_m': float(workspace.xy_range_m),
             'rotation_range_rad': float(workspace.rotation_range_rad),
-            'actuator_stroke_m': tuple(float(v) for v in workspace.slider_stroke_m),
+            'actuator_stroke_m': tuple(float(v) for v in workspace.actuator_stroke_m),
             'max_condition': float(workspace.max_condition),
-            'min_leg_cosine': float(workspace.min_leg_rail_cosine),
+            'min_leg_cosine': float(workspace.min_joint_cosine),
             'mount': workspace.mount,
         }
         values.update(overrides)

@@ -27,13 +27,13 @@ class Workspace:
     link_length: float = DEFAULT_LINK_LENGTH_M
     xy_range_m: float = 0.400
     rotation_range_rad: float = np.radians(35.0)
-    slider_stroke_m: tuple[float, float] = (0.0, 0.9)
+    actuator_stroke_m: tuple[float, float] = (0.0, 0.9)
     max_condition: float = (
         80.0  # of the pose Jacobian with angles scaled by link_length; rejects ~4%
     )
     # Hexa Slide: w / l, legs far from perpendicular to their rail; Gough-Stewart: the least cosine
     # of a passive joint's angle (architectures/*.acceptable_poses).
-    min_leg_rail_cosine: float = 0.2
+    min_joint_cosine: float = 0.2
     mount: str = (
         DEFAULT_MOUNT  # the device's: the link sphere lies below (hanging) or above (standing) O
     )

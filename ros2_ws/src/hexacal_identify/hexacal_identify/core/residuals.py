@@ -92,7 +92,7 @@ class _Pieces:
 
     poses: np.ndarray
     d_params: np.ndarray | None  # dX/du (N, 6, n), or None when only the factored form is given
-    d_sliders: np.ndarray | None  # dX/d lambda (N, 6, 6)
+    d_actuators: np.ndarray | None  # dX/d lambda (N, 6, 6)
     with_device: bool
     factored: PoseSensitivity | None = None  # dX/du kept factored: rows formed in one pass each
 
@@ -259,7 +259,7 @@ class CostFunction:
             pieces = _Pieces(
                 poses,
                 None,
-                sensitivity.wrt_sliders if with_noise else None,
+                sensitivity.wrt_actuators if with_noise else None,
                 with_device,
                 sensitivity,
             )
@@ -302,10 +302,10 @@ class CostFunction:
 
         d_row_d_pose (rows, 6) is carried through forward kinematics.
         """
-        if pieces.d_sliders is None:
+        if pieces.d_actuators is None:
             return None
         noise = np.zeros((len(index), N_NOISE_SOURCES))
-        noise[:, :6] = np.einsum('ri,rij->rj', d_row_d_pose, pieces.d_sliders[index])
+        noise[:, :6] = np.einsum('ri,rij->rj', d_row_d_pose, pieces.d_actuators[index])
         if d_row_d_readings is not None:
             noise[:, 6:] = d_row_d_readings
         return noise
@@ -450,7 +450,7 @@ class CostFunction:
         rows_per_pair: int = 1,
     ) -> ResidualBlock:
         """Rows value_j - value_k: noise derivatives from posture j (+) and its partner k (-)."""
-        if pieces.d_sliders is None or len(index) < 2:
+        if pieces.d_actuators is None or len(index) < 2:
             return block
         d_pose = d_value_d_pose.reshape(len(index), rows_per_pair, 6)
         later = np.repeat(index[1:], rows_per_pair)

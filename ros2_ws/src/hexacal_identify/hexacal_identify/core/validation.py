@@ -69,9 +69,9 @@ def pose_errors(
     With ``align_origin`` the mean position error is removed first: what is left
     once the base frame's origin (the device's joint O) is re-referenced.
     """
-    sliders = inverse_kinematics(true_params, poses)
+    actuators = inverse_kinematics(true_params, poses)
     fk = forward_kinematics(
-        model_params, sliders, poses, branch_tolerance_m=0.2, branch_tolerance_rad=0.5
+        model_params, actuators, poses, branch_tolerance_m=0.2, branch_tolerance_rad=0.5
     )
     if align_base_rotation_y:
         fk.poses[:] = _rotate_about_y(fk.poses, _best_angle_about_y(fk.poses[:, :3], poses[:, :3]))

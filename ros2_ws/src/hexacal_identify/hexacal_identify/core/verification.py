@@ -299,7 +299,7 @@ def set_residuals(
     expected = cost.initial_poses(defects)
     fk = forward_kinematics(
         params,
-        measurements.slider_positions,
+        measurements.actuator_positions,
         expected,
         tolerance=options.fk_tolerance,
         branch_tolerance_m=options.branch_tolerance_m,
@@ -339,10 +339,10 @@ def expected_noise(
     ok = residuals.converged
     if not ok.any():
         return {'position_rms_m': float('nan'), 'rotary_rms_rad': float('nan')}
-    slider_var, angle_var = noise.slider_m**2 / 3.0, noise.angle_rad**2 / 3.0
+    actuator_var, angle_var = noise.actuator_m**2 / 3.0, noise.angle_rad**2 / 3.0
     sensitivity = pose_sensitivities(
         params, residuals.poses[ok]
-    ).wrt_sliders  # dX/d lambda (k, 6, 6)
+    ).wrt_actuators  # dX/d lambda (k, 6, 6)
     alpha, beta = measurements.inclinometer[ok].T
     lengths = (
         measurements.link_lengths[ok]
@@ -351,10 +351,10 @@ def expected_noise(
     )
     readings = device_position(alpha, beta, lengths, defects, device.mount).d_readings  # (k, 3, 2)
     position = (
-        np.sum(sensitivity[:, :3, :] ** 2, axis=(1, 2)) * slider_var
+        np.sum(sensitivity[:, :3, :] ** 2, axis=(1, 2)) * actuator_var
         + np.sum(readings**2, axis=(1, 2)) * angle_var
     )
-    rotary = np.sum(sensitivity[:, 5, :] ** 2, axis=1) * slider_var + angle_var
+    rotary = np.sum(sensitivity[:, 5, :] ** 2, axis=1) * actuator_var + angle_var
     return {
         'position_rms_m': float(np.sqrt(np.mean(position))),
         'rotary_rms_rad': float(np.sqrt(np.mean(rotary))),

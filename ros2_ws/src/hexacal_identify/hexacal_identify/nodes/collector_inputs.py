@@ -19,9 +19,9 @@ from hexacal_msgs_py.cdr import ImuReader, JointStateReader
 from hexacal_msgs_py.conversions import (
     actuator_model,
     imu_to_inclinometer_reading,
+    joint_state_to_actuator_reading,
     joint_state_to_encoder_reading,
     joint_state_to_inclinometer_reading,
-    joint_state_to_slider_reading,
 )
 from hexacal_msgs_py.errors import InvalidReadingError
 from hexacal_msgs_py.inputs import (
@@ -246,8 +246,8 @@ class InputReader:
     ) -> tuple[int, tuple[float, ...]]:
         """Return (stamp_ns, values) of one input of a decoded message (InvalidReadingError)."""
         if topic == SLIDERS_TOPIC:
-            sliders = self._slider_reading(message)
-            return sliders.stamp_ns, sliders.slider_positions
+            sliders = self._actuator_reading(message)
+            return sliders.stamp_ns, sliders.actuator_positions
         if topic == INCLINOMETER_TOPIC:
             imu = source.message_type is Imu
             angles = (
@@ -261,10 +261,10 @@ class InputReader:
         rotary = joint_state_to_encoder_reading(message, self.mapping)
         return rotary.stamp_ns, (rotary.phi,)
 
-    def _slider_reading(self, message: JointState) -> Any:
+    def _actuator_reading(self, message: JointState) -> Any:
         """Return the actuator joints of a sliders message; another model's joints are named."""
         try:
-            return joint_state_to_slider_reading(message, self.model, self.mapping)
+            return joint_state_to_actuator_reading(message, self.model, self.mapping)
         except InvalidReadingError as error:
             carried = actuator_model(message.name)
             if carried is not None and carried.name != self.model:

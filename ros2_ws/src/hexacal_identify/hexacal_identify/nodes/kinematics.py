@@ -17,7 +17,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point, PoseStamped
 from hexacal_msgs_py.conversions import (
     diagnostic_status,
-    joint_state_to_slider_reading,
+    joint_state_to_actuator_reading,
     multiarray_model,
     multiarray_to_parameters,
     NS_PER_S,
@@ -321,11 +321,11 @@ class KinematicsNode(Node):
         if not self.session.wants_reading(stamp):
             return
         try:
-            reading = joint_state_to_slider_reading(message, self.session.params.model)
+            reading = joint_state_to_actuator_reading(message, self.session.params.model)
         except InvalidReadingError as error:
             self._report(self.session.invalid_reading(error, self._now_s()))
             return
-        readings = np.array(reading.slider_positions)
+        readings = np.array(reading.actuator_positions)
         pose, report = self.session.solve(stamp, readings, message.header.stamp, self._now_s())
         if pose is None:
             self._report(report)

@@ -301,7 +301,7 @@ def _true_poses(run: StudyRun, measurements: Measurements) -> np.ndarray:
     function = CostFunction(run.cost, measurements, run.device, ChannelSigma())
     fk = forward_kinematics(
         run.true_params,
-        measurements.slider_positions,
+        measurements.actuator_positions,
         function.initial_poses(),
         fit_tilt_first=True,
     )

@@ -524,11 +524,11 @@ def _with_noise(exact: Measurements, noise: NoiseModel, seed: int) -> Measuremen
     """
     rng = np.random.default_rng([seed, 0xEFF])
     n = len(exact)
-    sliders = exact.slider_positions + rng.uniform(-noise.slider_m, noise.slider_m, (n, 6))
+    actuators = exact.actuator_positions + rng.uniform(-noise.actuator_m, noise.actuator_m, (n, 6))
     angles = exact.inclinometer + rng.uniform(-noise.angle_rad, noise.angle_rad, (n, 2))
     rotary = exact.rotary + rng.uniform(-noise.angle_rad, noise.angle_rad, n)
     return Measurements(
-        sliders, angles, rotary, exact.kinds, exact.link_lengths, exact.device_turn
+        actuators, angles, rotary, exact.kinds, exact.link_lengths, exact.device_turn
     )
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 import numpy as np
 
-from .base import Architecture, KinematicParameters, Legs
+from .base import Architecture, ChainIK, KinematicParameters
 from .gough_stewart import ARCHITECTURE as _GOUGH_STEWART
 from .hexa_slide import ARCHITECTURE as _HEXA_SLIDE
 
@@ -73,7 +73,7 @@ __all__ = [
     'ARCHITECTURES',
     'Architecture',
     'KinematicParameters',
-    'Legs',
+    'ChainIK',
     'architecture',
     'default_parameters',
     'parameters_for',

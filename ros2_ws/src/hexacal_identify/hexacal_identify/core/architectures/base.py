@@ -70,10 +70,10 @@ import numpy as np
 from .common import rotation_from_trig
 
 
-class Legs(Protocol):
+class ChainIK(Protocol):
     """IK of N poses x 6 chains (see the module docstring)."""
 
-    sliders: np.ndarray  # actuator readings lambda, (N, 6)
+    actuators: np.ndarray  # actuator readings lambda, (N, 6)
 
     def reachable(self) -> np.ndarray: ...  # (N,) every chain can reach
 
@@ -200,7 +200,7 @@ class Architecture(ABC, Generic[P]):
         """Per-chain constants of one parameter set, reused by every ``legs`` call."""
 
     @abstractmethod
-    def legs(self, chains: Any, poses: np.ndarray) -> Legs:
+    def legs(self, chains: Any, poses: np.ndarray) -> ChainIK:
         """IK for poses (N, 6) with the intermediates both Jacobians reuse."""
 
     @abstractmethod

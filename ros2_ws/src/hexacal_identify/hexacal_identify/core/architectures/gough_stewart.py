@@ -128,10 +128,10 @@ class _Chains:
         self.offsets = per_chain[:, L0_INDEX].copy()
 
 
-class _Legs:
+class _ChainIK:
     """IK lambda = |P + R B - A| - l0 for N postures x 6 legs, coordinate-major ((3, N, 6))."""
 
-    __slots__ = ('tilt_trig', 'rotations', 'rotated', 'sliders', 'legs', 'lengths')
+    __slots__ = ('tilt_trig', 'rotations', 'rotated', 'actuators', 'legs', 'lengths')
 
     def __init__(self, chains: _Chains, poses: np.ndarray):
         points = PlatformPoints(chains.platform, chains.base, poses)
@@ -143,17 +143,17 @@ class _Legs:
         d = points.offsets  # A -> B
         self.legs = d
         self.lengths = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-        self.sliders = self.lengths - chains.offsets
+        self.actuators = self.lengths - chains.offsets
 
-    def subset(self, mask: np.ndarray) -> '_Legs':
-        out = object.__new__(_Legs)
+    def subset(self, mask: np.ndarray) -> '_ChainIK':
+        out = object.__new__(_ChainIK)
         out.tilt_trig, out.rotations = self.tilt_trig[:, mask], self.rotations[mask]
         out.rotated, out.legs = self.rotated[:, mask], self.legs[:, mask]
-        out.sliders, out.lengths = self.sliders[mask], self.lengths[mask]
+        out.actuators, out.lengths = self.actuators[mask], self.lengths[mask]
         return out
 
-    def replace_rows(self, mask: np.ndarray, rows: '_Legs') -> None:
-        for name in ('rotations', 'sliders', 'lengths'):
+    def replace_rows(self, mask: np.ndarray, rows: '_ChainIK') -> None:
+        for name in ('rotations', 'actuators', 'lengths'):
             getattr(self, name)[mask] = getattr(rows, name)
         self.tilt_trig[:, mask] = rows.tilt_trig
         self.rotated[:, mask] = rows.rotated
@@ -195,7 +195,7 @@ class GoughStewart(Architecture[GoughStewartParameters]):
 
     def default_machine_comment(self, params: KinematicParameters) -> str:
         """Return the header of the shipped default file (what hexacal_identify/data/ ships)."""
-        low, high = self.default_workspace().slider_stroke_m
+        low, high = self.default_workspace().actuator_stroke_m
         chains = params.per_chain
         base_radius = float(np.mean(np.hypot(chains[:, 0], chains[:, 1])))
         platform_radius = float(np.mean(np.hypot(chains[:, 3], chains[:, 4])))
@@ -218,26 +218,26 @@ class GoughStewart(Architecture[GoughStewartParameters]):
         from ..postures import Workspace
 
         return Workspace(
-            xy_range_m=0.25, rotation_range_rad=float(np.radians(20.0)), slider_stroke_m=STROKE_M
+            xy_range_m=0.25, rotation_range_rad=float(np.radians(20.0)), actuator_stroke_m=STROKE_M
         )
 
     def chains(self, params: GoughStewartParameters) -> _Chains:
         return _Chains(params)
 
-    def legs(self, chains: _Chains, poses: np.ndarray) -> _Legs:
-        return _Legs(chains, poses)
+    def legs(self, chains: _Chains, poses: np.ndarray) -> _ChainIK:
+        return _ChainIK(chains, poses)
 
     def acceptable_poses(
         self, params: GoughStewartParameters, poses: np.ndarray, workspace
     ) -> np.ndarray:
-        legs = _Legs(_Chains(params), np.asarray(poses, dtype=float))
-        low, high = workspace.slider_stroke_m
-        ok = legs.reachable() & np.all((legs.sliders >= low) & (legs.sliders <= high), axis=1)
-        # Joints away from their limits (min_leg_rail_cosine reads as the least joint-angle
+        legs = _ChainIK(_Chains(params), np.asarray(poses, dtype=float))
+        low, high = workspace.actuator_stroke_m
+        ok = legs.reachable() & np.all((legs.actuators >= low) & (legs.actuators <= high), axis=1)
+        # Joints away from their limits (min_joint_cosine reads as the least joint-angle
         # cosine).
         base_cos, platform_cos = self._cosines(legs)
-        ok &= np.all(base_cos > workspace.min_leg_rail_cosine, axis=1)
-        ok &= np.all(platform_cos > workspace.min_leg_rail_cosine, axis=1)
+        ok &= np.all(base_cos > workspace.min_joint_cosine, axis=1)
+        ok &= np.all(platform_cos > workspace.min_joint_cosine, axis=1)
         conditioned = np.zeros(len(poses), bool)
         if np.any(ok):
             conditioned[ok] = condition_ok(
@@ -246,7 +246,7 @@ class GoughStewart(Architecture[GoughStewartParameters]):
         return ok & conditioned
 
     @staticmethod
-    def _cosines(legs: _Legs) -> tuple[np.ndarray, np.ndarray]:
+    def _cosines(legs: _ChainIK) -> tuple[np.ndarray, np.ndarray]:
         unit = legs.unit_legs()  # (3, N, 6), A -> B
         # The joints' neutral axes are normal to the base and platform planes, pointing along the
         # legs: down from a ceiling-mounted base, up from an upright one; |cos| serves both mounts.
@@ -260,7 +260,7 @@ class GoughStewart(Architecture[GoughStewartParameters]):
     def joint_cosines(
         self, params: GoughStewartParameters, poses: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        return self._cosines(_Legs(_Chains(params), np.asarray(poses, dtype=float)))
+        return self._cosines(_ChainIK(_Chains(params), np.asarray(poses, dtype=float)))
 
     def frame_motion(
         self,

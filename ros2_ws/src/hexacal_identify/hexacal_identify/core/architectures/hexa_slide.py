@@ -149,7 +149,7 @@ class _Chains:
         self.rail_z_slope = -self.rails[:2] / self.rails[2]
 
 
-class _Legs:
+class _ChainIK:
     """
     Solve eq. 3 for N postures x 6 chains, coordinate-major.
 
@@ -163,7 +163,7 @@ class _Legs:
         'tilt_trig',
         'rotations',
         'rotated',
-        'sliders',
+        'actuators',
         'legs',
         'rail_dot',
         'discriminant',
@@ -185,24 +185,24 @@ class _Legs:
         root = np.sqrt(np.maximum(discriminant, 0.0))
         sliders = a_dot_d - root
         self.rotated = rotated
-        self.sliders = sliders
+        self.actuators = sliders
         self.legs = d - sliders * rails[:, None, :]
         self.rail_dot = root
         self.discriminant = discriminant
 
-    def subset(self, mask: np.ndarray) -> '_Legs':
-        out = object.__new__(_Legs)
+    def subset(self, mask: np.ndarray) -> '_ChainIK':
+        out = object.__new__(_ChainIK)
         out.tilt_trig, out.rotations = self.tilt_trig[:, mask], self.rotations[mask]
         out.rotated, out.legs = self.rotated[:, mask], self.legs[:, mask]
-        out.sliders, out.rail_dot, out.discriminant = (
-            self.sliders[mask],
+        out.actuators, out.rail_dot, out.discriminant = (
+            self.actuators[mask],
             self.rail_dot[mask],
             self.discriminant[mask],
         )
         return out
 
-    def replace_rows(self, mask: np.ndarray, rows: '_Legs') -> None:
-        for name in ('rotations', 'sliders', 'rail_dot', 'discriminant'):
+    def replace_rows(self, mask: np.ndarray, rows: '_ChainIK') -> None:
+        for name in ('rotations', 'actuators', 'rail_dot', 'discriminant'):
             getattr(self, name)[mask] = getattr(rows, name)
         self.tilt_trig[:, mask] = rows.tilt_trig
         self.rotated[:, mask] = rows.rotated
@@ -228,7 +228,7 @@ class _Legs:
         blocks[..., 0:3] = -unit.transpose(1, 2, 0)
         blocks[..., 3:6] = platform_point_derivatives(self.rotations, unit)
         blocks[..., 6] = -chains.lengths / self.rail_dot
-        d_rail = -self.sliders * unit  # d lambda / d a (full vector), (3, N, 6)
+        d_rail = -self.actuators * unit  # d lambda / d a (full vector), (3, N, 6)
         blocks[..., 7] = d_rail[0] + d_rail[2] * chains.rail_z_slope[0]
         blocks[..., 8] = d_rail[1] + d_rail[2] * chains.rail_z_slope[1]
         return blocks
@@ -237,7 +237,7 @@ class _Legs:
         return LegGeometry(
             self.rotations,
             self.rotated.transpose(1, 2, 0),
-            self.sliders,
+            self.actuators,
             self.legs.transpose(1, 2, 0),
             self.rail_dot,
             self.discriminant,
@@ -253,7 +253,7 @@ class LegGeometry:
 
     rotations: np.ndarray  # (N, 3, 3)
     rotated_platform_points: np.ndarray  # R B, (N, 6, 3)
-    slider_positions: np.ndarray  # lambda, (N, 6)
+    actuator_positions: np.ndarray  # lambda, (N, 6)
     leg_vectors: np.ndarray  # e = B - A, (N, 6, 3)
     rail_leg_dot: np.ndarray  # w = a.e, (N, 6); zero at a singular leg
     discriminant: np.ndarray  # l^2 - |d|^2 + (a.d)^2, (N, 6); negative = unreachable
@@ -261,7 +261,7 @@ class LegGeometry:
 
 def leg_geometry(params: HexaParameters, poses: np.ndarray) -> LegGeometry:
     """Eq. 3 for every chain and posture, keeping the intermediate vectors."""
-    return _Legs(_Chains(params), np.asarray(poses, dtype=float)).as_geometry()
+    return _ChainIK(_Chains(params), np.asarray(poses, dtype=float)).as_geometry()
 
 
 def subset_geometry(geometry: LegGeometry, mask: np.ndarray) -> LegGeometry:
@@ -299,7 +299,7 @@ def parameter_jacobian_blocks(params: HexaParameters, geometry: LegGeometry) -> 
     # a_z = -sqrt(1 - ax^2 - ay^2) => d a_z / d a_x = -a_x / a_z (and likewise for y).
     rails = params.rail_directions
     dz_dxy = -rails[:, :2] / rails[:, 2:3]
-    d_rail = -geometry.slider_positions[..., None] * unit  # d lambda / d a (full vector)
+    d_rail = -geometry.actuator_positions[..., None] * unit  # d lambda / d a (full vector)
     blocks[..., 7:9] = d_rail[..., :2] + d_rail[..., 2:3] * dz_dxy[None]
     return blocks
 
@@ -368,18 +368,18 @@ class HexaSlide(Architecture[HexaParameters]):
     def chains(self, params: HexaParameters) -> _Chains:
         return _Chains(params)
 
-    def legs(self, chains: _Chains, poses: np.ndarray) -> _Legs:
-        return _Legs(chains, poses)
+    def legs(self, chains: _Chains, poses: np.ndarray) -> _ChainIK:
+        return _ChainIK(chains, poses)
 
     def acceptable_poses(self, params: HexaParameters, poses: np.ndarray, workspace) -> np.ndarray:
         geometry = leg_geometry(params, poses)
         reachable = np.all(geometry.discriminant > 0.0, axis=1)
-        low, high = workspace.slider_stroke_m
+        low, high = workspace.actuator_stroke_m
         in_stroke = np.all(
-            (geometry.slider_positions >= low) & (geometry.slider_positions <= high), axis=1
+            (geometry.actuator_positions >= low) & (geometry.actuator_positions <= high), axis=1
         )
         away_from_rail = np.all(
-            geometry.rail_leg_dot > workspace.min_leg_rail_cosine * params.leg_lengths, axis=1
+            geometry.rail_leg_dot > workspace.min_joint_cosine * params.leg_lengths, axis=1
         )
         ok = reachable & in_stroke & away_from_rail
         conditioned = np.zeros(len(poses), bool)
@@ -463,11 +463,11 @@ class HexaSlide(Architecture[HexaParameters]):
         if actuators is None:
             sliders = leg_geometry(
                 params, np.asarray(pose, dtype=float).reshape(1, 6)
-            ).slider_positions[0]
+            ).actuator_positions[0]
         else:
             sliders = np.asarray(actuators, dtype=float).reshape(N_CHAINS)
         rails, starts = params.rail_directions, params.base_points
-        low, high = self.default_workspace().slider_stroke_m
+        low, high = self.default_workspace().actuator_stroke_m
         rail_ends = np.column_stack([np.minimum(low, sliders), np.maximum(high, sliders)])
         slider_points = starts + sliders[:, None] * rails
         drawn.update(
