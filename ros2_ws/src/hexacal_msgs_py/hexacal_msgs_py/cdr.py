@@ -83,7 +83,23 @@ def joint_state_positions_layout(data: bytes) -> tuple[int, int] | None:
     return offset, count
 
 
-class JointStateReader:
+class _LearnedLayout:
+    """The bytes a message must share with the learned one to be read in place."""
+
+    size: int  # the learned message's length
+    offset: int  # where the values read in place start
+    prefix: bytes  # the learned bytes from after the stamp to ``offset``
+
+    def fits(self, data: bytes) -> bool:
+        """Return True if ``data`` has the learned size, CDR header and bytes up to ``offset``."""
+        return (
+            len(data) == self.size
+            and data[12:self.offset] == self.prefix
+            and data[:4] == CDR_HEADER
+        )
+
+
+class JointStateReader(_LearnedLayout):
     """
     Read the wanted positions straight from CDR bytes laid out like a known good message.
 
@@ -131,11 +147,7 @@ class JointStateReader:
 
     def read(self, data: bytes) -> tuple[int, tuple[float, ...]] | None:
         """Return (stamp_ns, wanted positions), or None: decode this message the full way."""
-        if (
-            len(data) != self.size
-            or data[12:self.offset] != self.prefix
-            or data[:4] != CDR_HEADER
-        ):
+        if not self.fits(data):
             return None
         if self.counts.unpack_from(data, self.counts_offset) != self.expected_counts:
             return None
@@ -155,7 +167,7 @@ class JointStateReader:
         return seconds * NS_PER_S + nanoseconds, values
 
 
-class ImuReader:
+class ImuReader(_LearnedLayout):
     """
     Read an Imu's orientation from CDR bytes laid out like a known good message.
 
@@ -191,11 +203,7 @@ class ImuReader:
 
     def read(self, data: bytes) -> tuple[int, tuple[float, ...]] | None:
         """Return (stamp_ns, (raw alpha, raw beta)), or None: decode this message the full way."""
-        if (
-            len(data) != self.size
-            or data[12:self.offset] != self.prefix
-            or data[:4] != CDR_HEADER
-        ):
+        if not self.fits(data):
             return None
         seconds, nanoseconds = _STAMP.unpack_from(data, 4)
         if seconds < 0:
