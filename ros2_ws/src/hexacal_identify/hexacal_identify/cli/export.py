@@ -14,8 +14,16 @@ six leg offsets l0 as commented ``[JOINT_N] HOME_OFFSET`` lines: genhexkins'
 joints are strut lengths, so a joint homed where its actuator reads zero has
 position l0.  genhexkins computes the strut as ``|p + R a - b|`` with a the
 platform and b the base joint, the same closure as hexacal's
-``|p + R B - A| = lambda + l0``, so the points carry over unchanged.  A Hexa
+``|p + R B - A| = lambda + l0``, so the points carry over unchanged.  Beside
+the HAL file (``NAME.hal``) it writes the INI fragment ``NAME.ini``
+(export_linuxcnc.py): ``[KINS]``, ``[TRAJ] HOME`` (a start of genhexkins'
+forward kinematics on the working branch) and per joint the limits and homes
+as strut lengths (``--home-pose``, ``--home-actuators``, ``--stroke``).  A Hexa
 Slide has no genhexkins description and is refused.
+
+``--format controller`` writes a self-describing JSON a custom controller
+reads, ``--format kinematics-node`` the kinematics node's parameters file and
+the parameters it names (export_controller.py); either model.
 
 ``--format yaml`` writes the parameters file format (SI units, its model, its
 other parameters); ``--format json`` writes ``{"model": ..., "parameters":
@@ -30,10 +38,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 from pathlib import Path
 
-FORMATS = ('linuxcnc', 'yaml', 'json')
+FORMATS = ('linuxcnc', 'yaml', 'json', 'controller', 'kinematics-node')
 LENGTH_UNITS = {'mm': 1e3, 'm': 1.0}
 # Decimals written per unit: 1 nm either way, far below what a calibration resolves.
 _DECIMALS = {'mm': 6, 'm': 9}
@@ -63,8 +72,10 @@ def _export_arguments(parser: argparse.ArgumentParser) -> None:
         '--format',
         required=True,
         metavar='{' + ','.join(FORMATS) + '}',
-        help='linuxcnc: genhexkins HAL file (Gough-Stewart only); yaml: parameters file (SI); '
-        'json: {"model", "parameters"} (SI)',
+        help='linuxcnc: genhexkins HAL file and the INI fragment NAME.ini beside it '
+        '(Gough-Stewart only); yaml: parameters file (SI); json: {"model", "parameters"} (SI); '
+        'controller: JSON for a custom controller (geometry, conventions, check poses; SI); '
+        'kinematics-node: the kinematics node\'s ROS parameters file and NAME.parameters.yaml',
     )
     parser.add_argument('--out', type=Path, required=True, help='file to write (atomically)')
     parser.add_argument(
@@ -72,6 +83,27 @@ def _export_arguments(parser: argparse.ArgumentParser) -> None:
         metavar='{' + ','.join(LENGTH_UNITS) + '}',
         default=None,
         help='length unit of the linuxcnc file (default mm; yaml and json are always SI)',
+    )
+    parser.add_argument(
+        '--home-pose',
+        metavar='x,y,z,theta,psi,phi',
+        default=None,
+        help='linuxcnc: the pose a homed machine goes to, [TRAJ] HOME and the joints\' HOME (m, '
+        'eq. 2 angles in rad; default: the workspace centre, [0, 0, -L] hanging)',
+    )
+    parser.add_argument(
+        '--home-actuators',
+        metavar='l1,l2,l3,l4,l5,l6',
+        default=None,
+        help='linuxcnc: the actuator readings (m) where the home switches trip, the joints\' '
+        'HOME_OFFSET (default: 0 each, i.e. HOME_OFFSET = l0)',
+    )
+    parser.add_argument(
+        '--stroke',
+        metavar='LOW,HIGH',
+        default=None,
+        help="linuxcnc: the actuator readings (m) of the joints' MIN_LIMIT and MAX_LIMIT "
+        "(default: the architecture's stroke, Gough-Stewart 0,0.5)",
     )
     parser.set_defaults(handler=run_export)
 
@@ -92,18 +124,89 @@ def run_export(args) -> int:
                 f'unknown --length-unit {args.length_unit!r}; choose one of '
                 f'{", ".join(LENGTH_UNITS)}'
             )
+    linuxcnc_options = [
+        option
+        for option, value in (
+            ('--home-pose', args.home_pose),
+            ('--home-actuators', args.home_actuators),
+            ('--stroke', args.stroke),
+        )
+        if value is not None
+    ]
+    if linuxcnc_options and args.format != 'linuxcnc':
+        raise ValueError(f'{linuxcnc_options[0]} applies to --format linuxcnc only')
     if args.out.is_dir():
         raise IsADirectoryError(f'--out {args.out} is a directory; name a file')
     contents = read_parameters_file(args.parameters)
     if args.format == 'linuxcnc':
         text = linuxcnc_hal(contents, source=args.parameters, unit=args.length_unit or 'mm')
+        ini_path = ini_path_beside(args.out)
+        ini_text = _linuxcnc_ini_text(args, contents)  # both made before either is written
         _write(args.out, text)
-    elif args.format == 'json':
+        _write(ini_path, ini_text)
+        print(f'wrote {args.out}')
+        print(f'wrote {ini_path}')
+        return 0
+    if args.format == 'json':
         _write(args.out, json_text(contents))
+    elif args.format == 'controller':
+        from .export_controller import controller_json
+
+        _write(args.out, controller_json(contents, args.parameters))
+    elif args.format == 'kinematics-node':
+        from .export_controller import kinematics_node_yaml, parameters_path_beside
+
+        parameters_out = parameters_path_beside(args.out)
+        node_text = kinematics_node_yaml(contents, args.parameters, parameters_out)
+        _save_yaml(parameters_out, contents, source=args.parameters)
+        _write(args.out, node_text)
+        print(f'wrote {parameters_out}')
     else:
         _save_yaml(args.out, contents, source=args.parameters)
     print(f'wrote {args.out}')
     return 0
+
+
+def ini_path_beside(out: Path) -> Path:
+    """Return where the INI fragment of a HAL file ``out`` goes: NAME.ini beside NAME.hal."""
+    ini = out.with_suffix('.ini')
+    if ini == out:
+        raise ValueError(
+            f'--out {os.fspath(out)}: name the HAL file (NAME.hal); NAME.ini is the INI beside it'
+        )
+    return ini
+
+
+def _linuxcnc_ini_text(args, contents) -> str:
+    from .export_linuxcnc import linuxcnc_homing, linuxcnc_ini
+    from .kinematics import parse_values
+
+    home = (
+        None
+        if args.home_pose is None
+        else parse_values(args.home_pose, '--home-pose', 'x,y,z in m, theta,psi,phi in rad')
+    )
+    switches = (
+        None
+        if args.home_actuators is None
+        else parse_values(args.home_actuators, '--home-actuators', 'the six readings in m')
+    )
+    stroke = None if args.stroke is None else _stroke(args.stroke)
+    homing = linuxcnc_homing(contents, home, switches, stroke)
+    return linuxcnc_ini(
+        contents, args.parameters, args.out.name, homing, unit=args.length_unit or 'mm'
+    )
+
+
+def _stroke(text: str) -> tuple[float, float]:
+    parts = text.split(',')
+    try:
+        low, high = (float(part) for part in parts)
+    except ValueError:
+        raise ValueError(f'--stroke {text!r}: expected LOW,HIGH in m') from None
+    if not (math.isfinite(low) and math.isfinite(high)):
+        raise ValueError(f'--stroke {text!r}: both ends must be finite')
+    return low, high
 
 
 def json_text(contents) -> str:
