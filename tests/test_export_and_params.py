@@ -390,3 +390,149 @@ def test_export_help_is_fast_and_imports_no_numerics():
     assert [
         m for m in payload['modules'] if any(m == h or m.startswith(h + '.') for h in heavy)
     ] == []
+
+
+# --- issue #20: the INI beside the HAL file, controller files ------------------------------------
+
+
+def read_ini(path: Path):
+    import configparser
+
+    ini = configparser.ConfigParser(comment_prefixes=('#',), inline_comment_prefixes=None)
+    ini.optionxform = str
+    ini.read_string(path.read_text())
+    return ini
+
+
+def test_linuxcnc_export_writes_the_ini_beside_the_hal(capsys, tmp_path, gs_calibrated):
+    out = tmp_path / 'machine.hal'
+    code, stdout, err = run(capsys, 'export', gs_calibrated, '--format', 'linuxcnc', '--out', out)
+    assert code == 0, err
+    assert stdout.splitlines() == [f'wrote {out}', f'wrote {tmp_path / "machine.ini"}']
+    ini = read_ini(tmp_path / 'machine.ini')
+    assert ini['KINS']['KINEMATICS'] == 'genhexkins'
+    text = (tmp_path / 'machine.ini').read_text()
+    assert 'Rz(C) Ry(B) Rx(A)' in text and 'R_Y(theta) R_X(psi) R_z(phi)' in text
+    assert 'machine.hal' in text and str(gs_calibrated) in text
+    offsets = read_parameters_file(gs_calibrated).vector.reshape(6, 7)[:, 6]
+    for n in range(6):
+        assert float(ini[f'JOINT_{n}']['HOME_OFFSET']) == pytest.approx(offsets[n] * 1e3, abs=5e-7)
+
+
+def test_linuxcnc_home_options_move_the_homes(capsys, tmp_path, gs_calibrated):
+    from hexacal_identify.core.angle_conventions import linuxcnc_from_pose
+
+    out = tmp_path / 'machine.hal'
+    pose = [0.01, -0.02, -0.8, 0.05, 0.02, -0.1]
+    switches = [0.01, 0.02, 0.03, 0.04, 0.05, 0.06]
+    argv = ['export', gs_calibrated, '--format', 'linuxcnc', '--out', out, '--length-unit', 'm']
+    argv += ['--home-pose', ','.join(map(str, pose))]
+    argv += ['--home-actuators', ','.join(map(str, switches)), '--stroke', '0.005,0.45']
+    code, _, err = run(capsys, *argv)
+    assert code == 0, err
+    ini = read_ini(tmp_path / 'machine.ini')
+    assert 'LINEAR_UNITS' not in ini['TRAJ']  # LinuxCNC has no metre unit: said in a comment
+    home = [float(word) for word in ini['TRAJ']['HOME'].split()]
+    np.testing.assert_allclose(home, linuxcnc_from_pose(np.array(pose)), atol=1e-9)
+    params = architecture('gough_stewart').parameters(read_parameters_file(gs_calibrated).vector)
+    offsets = params.leg_offsets
+    struts = inverse_kinematics(params, [pose])[0] + offsets
+    for n in range(6):
+        joint = ini[f'JOINT_{n}']
+        assert float(joint['HOME']) == pytest.approx(struts[n], abs=5e-10)
+        assert float(joint['HOME_OFFSET']) == pytest.approx(offsets[n] + switches[n], abs=5e-10)
+        assert float(joint['MIN_LIMIT']) == pytest.approx(offsets[n] + 0.005, abs=5e-10)
+        assert float(joint['MAX_LIMIT']) == pytest.approx(offsets[n] + 0.45, abs=5e-10)
+
+
+@pytest.mark.parametrize(
+    'extra, fragment',
+    [
+        (['--home-pose', '0,0,-0.45,0,0,0'], 'outside the stroke'),
+        (['--home-pose', '0,0,-0.8,0,0'], '--home-pose'),
+        (['--home-actuators', '0,0,0,0,0,0.7'], '--home-actuators'),
+        (['--stroke', '0.4,0.1'], '--stroke'),
+        (['--stroke', 'a,b'], '--stroke'),
+        (['--format', 'json', '--home-pose', '0,0,-0.8,0,0,0'], 'linuxcnc only'),
+    ],
+)
+def test_bad_linuxcnc_home_options_write_nothing(capsys, tmp_path, gs_calibrated, extra, fragment):
+    out = tmp_path / 'machine.hal'
+    fmt = [] if '--format' in extra else ['--format', 'linuxcnc']
+    code, _, err = run(capsys, 'export', gs_calibrated, *fmt, '--out', out, *extra)
+    assert_one_line_error(code, err, 'hexacal export: error:', fragment)
+    assert sorted(tmp_path.iterdir()) == [gs_calibrated]
+
+
+def test_linuxcnc_out_must_not_be_the_ini(capsys, tmp_path, gs_calibrated):
+    out = tmp_path / 'machine.ini'
+    code, _, err = run(capsys, 'export', gs_calibrated, '--format', 'linuxcnc', '--out', out)
+    assert_one_line_error(code, err, 'NAME.hal')
+    assert not out.exists()
+
+
+def _ik_from_description(payload: dict, pose: dict) -> np.ndarray:
+    """Actuator readings by the formula the controller JSON states, from its chains alone."""
+    p = np.array([pose['x'], pose['y'], pose['z']])
+    rotation = rotation_matrices(np.array([[pose['theta'], pose['psi'], pose['phi']]]))[0]
+    readings = []
+    for chain in payload['chains']:
+        if payload['model'] == 'hexa_slide':
+            d = p + rotation @ np.array(chain['B']) - np.array(chain['A0'])
+            a = np.array(chain['a'])
+            readings.append(a @ d - np.sqrt(chain['l'] ** 2 - d @ d + (a @ d) ** 2))
+        else:
+            d = p + rotation @ np.array(chain['B']) - np.array(chain['A'])
+            readings.append(np.linalg.norm(d) - chain['l0'])
+    return np.array(readings)
+
+
+@pytest.mark.parametrize('model', MODELS)
+def test_controller_json_describes_the_machine(capsys, tmp_path, model):
+    source = tmp_path / 'calibrated.yaml'
+    vector = nominal_set(2, seed=5, model=model).vector
+    save_parameters(source, vector, model=model)
+    out = tmp_path / 'controller.json'
+    code, _, err = run(capsys, 'export', source, '--format', 'controller', '--out', out)
+    assert code == 0, err
+    payload = json.loads(out.read_text())
+    assert payload['format'] == 'hexacal-controller' and payload['version'] == 1
+    assert payload['model'] == model and payload['units'] == {'length': 'm', 'angle': 'rad'}
+    assert 'R_Y(theta) R_X(psi) R_z(phi)' in payload['pose']['rotation']
+    np.testing.assert_array_equal(
+        chain_dict_to_parameters(payload['parameters'], model=model), vector
+    )
+    if model == 'hexa_slide':
+        rails = np.array([chain['a'] for chain in payload['chains']])
+        np.testing.assert_allclose(np.linalg.norm(rails, axis=1), 1.0, atol=1e-15)
+        assert np.all(rails[:, 2] < 0)  # the sign a controller could not guess
+    low, high = payload['stroke']
+    assert low <= min(payload['home']['actuators']) and max(payload['home']['actuators']) <= high
+    assert len(payload['checks']) >= 5
+    for check in [payload['home'], *payload['checks']]:
+        np.testing.assert_allclose(
+            _ik_from_description(payload, check['pose']), check['actuators'], atol=1e-12
+        )
+
+
+def test_kinematics_node_file_names_a_copy_of_the_parameters(capsys, tmp_path):
+    import yaml
+
+    from hexacal_identify.pipeline import load_machine_and_mount
+
+    source = tmp_path / 'calibrated.yaml'
+    vector = nominal_set(1, seed=6).vector
+    save_parameters(source, vector, extras={'device.mount': 'standing'})
+    out = tmp_path / 'node.yaml'
+    code, stdout, err = run(capsys, 'export', source, '--format', 'kinematics-node', '--out', out)
+    assert code == 0, err
+    copy = tmp_path / 'node.parameters.yaml'
+    assert stdout.splitlines() == [f'wrote {copy}', f'wrote {out}']
+    settings = yaml.safe_load(out.read_text())['kinematics']['ros__parameters']
+    assert settings['parameters'] == str(copy.resolve())
+    assert settings['follow_calibrations'] is False
+    assert settings['stroke_limits'] == [0.0, 0.9] and settings['mount'] == 'standing'
+    assert settings['link_length'] == 0.75
+    params, mount = load_machine_and_mount(settings['parameters'])
+    np.testing.assert_array_equal(params.vector, vector)
+    assert mount == 'standing'

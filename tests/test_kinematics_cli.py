@@ -219,3 +219,54 @@ def test_the_script_takes_negative_values_and_help_imports_no_numpy(files):
         )
         assert done.returncode == 0, done.stderr
         assert done.stdout.strip().splitlines()[-1] == '[]', done.stdout
+
+
+# --- --angles linuxcnc (issue #20): genhexkins' A, B, C on both sides ---------------------------
+
+
+def test_linuxcnc_angles_agree_with_hexacals(capsys, files):
+    """ik with a,b,c (deg) = ik with the same R in theta,psi,phi; fk prints that a,b,c back."""
+    from hexacal_identify.core.angle_conventions import linuxcnc_from_pose
+
+    true_path, _ = files['gough_stewart']
+    pose = np.array([0.03, -0.02, -0.8, 0.15, -0.1, 0.2])
+    abc = linuxcnc_from_pose(pose)[3:]
+    assert not np.allclose(abc, np.degrees(pose[3:]), atol=1e-3)  # two conventions, two sets
+    code, out, err = run(capsys, 'ik', true_path, '--pose', csv(pose), '--json')
+    assert code == 0, err
+    hexacal = json.loads(out)
+    linuxcnc_pose = csv([*pose[:3], *abc])
+    argv = ['ik', true_path, '--pose', linuxcnc_pose, '--angles', 'linuxcnc', '--json']
+    code, out, err = run(capsys, *argv)
+    assert code == 0, err
+    payload = json.loads(out)
+    assert list(payload['pose']) == ['x', 'y', 'z', 'a', 'b', 'c']
+    np.testing.assert_allclose(
+        list(payload['actuators'].values()), list(hexacal['actuators'].values()), atol=1e-12
+    )
+    readings = csv(payload['actuators'].values())
+    argv = ['fk', true_path, '--actuators', readings, '--angles', 'linuxcnc', '--json']
+    code, out, err = run(capsys, *argv)
+    assert code == 0, err
+    back = json.loads(out)['pose']
+    np.testing.assert_allclose([back[k] for k in 'xyz'], pose[:3], atol=1e-10)
+    np.testing.assert_allclose([back[k] for k in 'abc'], abc, atol=1e-8)
+    code, out, err = run(capsys, 'fk', true_path, '--actuators', readings, '--angles', 'linuxcnc')
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[4].startswith('a ') and lines[4].endswith(' deg') and 'theta' not in out
+
+
+def test_default_angles_print_as_before(capsys, files):
+    true_path, _ = files['gough_stewart']
+    argv = ['ik', true_path, '--pose', '0.01,0.02,-0.8,0.1,0.2,0.3']
+    code, default_out, _ = run(capsys, *argv)
+    assert code == 0
+    assert run(capsys, *argv, '--angles', 'hexacal')[1] == default_out
+    assert default_out.splitlines()[4] == 'theta     0.100000000000 rad  (5.729578 deg)'
+
+
+def test_unknown_angles_is_one_line(capsys, files):
+    true_path, _ = files['gough_stewart']
+    code, _, err = run(capsys, 'ik', true_path, '--pose', '0,0,-0.8,0,0,0', '--angles', 'zyx')
+    assert code == 2 and 'zyx' in one_line(err) and 'linuxcnc' in err

@@ -159,9 +159,11 @@ def linuxcnc_ini(
         'hexacal writes',
         '# the same matrix R as R_Y(theta) R_X(psi) R_z(phi): theta about the base Y axis, psi '
         'about the base',
-        "# X axis, phi about the platform's own z axis. A single non-zero angle is the same "
-        'number on both',
-        '# sides (B = theta, A = psi, C = phi); with two or more the numbers differ. '
+        "# X axis, phi about the platform's own z axis. With phi = C = 0 the numbers are the "
+        'same (B = theta,',
+        '# A = psi), and a turn about z alone is too (C = phi); a turn about z together with '
+        'a tilt is not:',
+        "# hexacal turns about the platform's tilted z axis, genhexkins about the base Z axis. "
         '`hexacal ik` and',
         '# `hexacal fk` take and print A B C with --angles linuxcnc, so a pose can be '
         'checked on both sides.',

@@ -11,6 +11,13 @@ slider_1..6, Gough-Stewart leg_1..6).  ``--json`` prints one object
 ``{"model", "pose": {"x", "y", "z", "theta", "psi", "phi"}, "actuators": {name: value}}``
 (floats at full precision); without it, one ``name value unit`` line each.
 
+``--angles linuxcnc`` reads and prints the angles as LinuxCNC's genhexkins
+A, B, C in degrees instead (R = Rz(C) Ry(B) Rx(A), core/angle_conventions.py):
+``--pose`` / ``--guess`` are ``x,y,z,a,b,c`` (m, deg) and the pose printed is
+``x y z a b c`` (``--json``: ``"pose": {"x", "y", "z", "a", "b", "c"}``), so a
+pose can be checked on both sides.  The default (``--angles hexacal``) prints
+exactly what it always did.
+
 ``ik`` does not limit the stroke (it prints what the pose needs; the
 kinematics node refuses commands outside the stroke).  ``fk`` starts Newton
 from ``--guess`` (default: the workspace centre, the device's fixed point
@@ -36,6 +43,9 @@ import sys
 
 POSE_FIELDS = ('x', 'y', 'z', 'theta', 'psi', 'phi')
 POSE_UNITS = ('m', 'm', 'm', 'rad', 'rad', 'rad')
+LINUXCNC_POSE_FIELDS = ('x', 'y', 'z', 'a', 'b', 'c')
+LINUXCNC_POSE_UNITS = ('m', 'm', 'm', 'deg', 'deg', 'deg')
+ANGLES = ('hexacal', 'linuxcnc')
 EXIT_OK, EXIT_NO_POSE, EXIT_BAD_INPUT = 0, 1, 2
 # Let "--pose -0.1,0,-0.7,0,0,0" be a value, not an unknown option (argparse takes plain negative
 # numbers only).
@@ -70,6 +80,13 @@ def _common(parser: argparse.ArgumentParser) -> None:
         '--json',
         action='store_true',
         help='print {"model", "pose": {x, y, z, theta, psi, phi}, "actuators": {name: value}}',
+    )
+    parser.add_argument(
+        '--angles',
+        metavar='{' + ','.join(ANGLES) + '}',
+        default='hexacal',
+        help="hexacal: theta,psi,phi (rad) of R = R_Y(theta) R_X(psi) R_z(phi); linuxcnc: "
+        "genhexkins' a,b,c (deg) of R = Rz(c) Ry(b) Rx(a), in --pose, --guess and the output",
     )
 
 
@@ -132,7 +149,27 @@ def _load(path: Path):
     return parameters_for(contents.model, contents.vector), mount
 
 
-def _print(params, pose, actuators, as_json: bool) -> None:
+def _pose_values(text: str, option: str, angles: str) -> list[float]:
+    """Return a hexacal pose of an option's six values in the chosen angle convention."""
+    _check_angles(angles)
+    if angles == 'hexacal':
+        return parse_values(text, option, 'x,y,z in m, theta,psi,phi in rad')
+    from ..core.angle_conventions import pose_from_linuxcnc
+
+    values = parse_values(text, option, "x,y,z in m, LinuxCNC's a,b,c in deg")
+    return [float(value) for value in pose_from_linuxcnc(values)]
+
+
+def _check_angles(angles: str) -> None:
+    # Checked here, not by argparse choices, so that a wrong one is a one-line error (exit 2).
+    if angles not in ANGLES:
+        raise ValueError(f'unknown --angles {angles!r}; choose one of {", ".join(ANGLES)}')
+
+
+def _print(params, pose, actuators, as_json: bool, angles: str = 'hexacal') -> None:
+    if angles == 'linuxcnc':
+        _print_linuxcnc(params, pose, actuators, as_json)
+        return
     names = params.layout.actuator_names
     if as_json:
         print(
@@ -157,7 +194,7 @@ def run_ik(args) -> int:
     from ..core.errors import UnreachablePoseError
     from ..core.kinematics import inverse_kinematics
 
-    pose = parse_values(args.pose, '--pose', 'x,y,z in m, theta,psi,phi in rad')
+    pose = _pose_values(args.pose, '--pose', args.angles)
     params, _ = _load(args.parameters)
     try:
         actuators = inverse_kinematics(params, [pose])[0]
@@ -168,7 +205,7 @@ def run_ik(args) -> int:
             file=sys.stderr,
         )
         return EXIT_BAD_INPUT
-    _print(params, pose, actuators, args.json)
+    _print(params, pose, actuators, args.json, args.angles)
     return EXIT_OK
 
 
@@ -177,12 +214,9 @@ def run_fk(args) -> int:
     from ..core.live import home_pose, solve_pose
     from ..core.postures import Workspace
 
+    _check_angles(args.angles)
     actuators = parse_values(args.actuators, '--actuators', 'the six readings in m')
-    guess = (
-        None
-        if args.guess is None
-        else parse_values(args.guess, '--guess', 'x,y,z in m, theta,psi,phi in rad')
-    )
+    guess = None if args.guess is None else _pose_values(args.guess, '--guess', args.angles)
     params, mount = _load(args.parameters)
     if guess is None:
         guess = home_pose(Workspace().link_length, mount)
@@ -194,8 +228,31 @@ def run_fk(args) -> int:
             file=sys.stderr,
         )
         return EXIT_NO_POSE
-    _print(params, pose, actuators, args.json)
+    _print(params, pose, actuators, args.json, args.angles)
     return EXIT_OK
+
+
+def _print_linuxcnc(params, pose, actuators, as_json: bool) -> None:
+    from ..core.angle_conventions import linuxcnc_from_pose
+
+    values = [float(value) for value in linuxcnc_from_pose(pose)]
+    names = params.layout.actuator_names
+    if as_json:
+        print(
+            json.dumps(
+                {
+                    'model': params.model,
+                    'pose': dict(zip(LINUXCNC_POSE_FIELDS, values)),
+                    'actuators': {name: float(value) for name, value in zip(names, actuators)},
+                }
+            )
+        )
+        return
+    print(f'model {params.model}')
+    for field, value, unit in zip(LINUXCNC_POSE_FIELDS, values, LINUXCNC_POSE_UNITS):
+        print(f'{field:<8} {value: .12f} {unit}')
+    for name, value in zip(names, actuators):
+        print(f'{name:<8} {value: .12f} m')
 
 
 def _one_line(error: BaseException) -> str:

@@ -9,9 +9,11 @@ axis, then pitch B about the base Y axis, then yaw C about the base Z axis
 (fixed axes; ROS's roll-pitch-yaw is the same product).  Both describe the
 platform frame in the base frame, so a pose converts by its angles alone.
 
-The two sets are different numbers for one orientation as soon as two angles
-are non-zero (a single non-zero angle is the same number: theta = B,
-psi = A, phi = C).  Each set is unique with its middle angle inside
+Without a turn about z the numbers are the same (phi = C = 0: theta = B,
+psi = A, both products being R_Y R_X), and so is a turn about z alone
+(phi = C).  They differ when a turn about z comes with a tilt: hexacal turns
+the platform about its own, tilted z axis, genhexkins about the base Z axis
+before tilting.  Each set is unique with its middle angle inside
 (-90, 90) deg and the others in (-180, 180] deg; at a middle angle of +-90 deg
 (gimbal lock) only a sum or difference of the outer angles is defined, and
 this module sets the last one (phi, or C) to zero.
