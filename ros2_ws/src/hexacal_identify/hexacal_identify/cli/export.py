@@ -75,7 +75,7 @@ def _export_arguments(parser: argparse.ArgumentParser) -> None:
         help='linuxcnc: genhexkins HAL file and the INI fragment NAME.ini beside it '
         '(Gough-Stewart only); yaml: parameters file (SI); json: {"model", "parameters"} (SI); '
         'controller: JSON for a custom controller (geometry, conventions, check poses; SI); '
-        'kinematics-node: the kinematics node\'s ROS parameters file and NAME.parameters.yaml',
+        "kinematics-node: the kinematics node's ROS parameters file and NAME.parameters.yaml",
     )
     parser.add_argument('--out', type=Path, required=True, help='file to write (atomically)')
     parser.add_argument(
@@ -88,14 +88,14 @@ def _export_arguments(parser: argparse.ArgumentParser) -> None:
         '--home-pose',
         metavar='x,y,z,theta,psi,phi',
         default=None,
-        help='linuxcnc: the pose a homed machine goes to, [TRAJ] HOME and the joints\' HOME (m, '
+        help="linuxcnc: the pose a homed machine goes to, [TRAJ] HOME and the joints' HOME (m, "
         'eq. 2 angles in rad; default: the workspace centre, [0, 0, -L] hanging)',
     )
     parser.add_argument(
         '--home-actuators',
         metavar='l1,l2,l3,l4,l5,l6',
         default=None,
-        help='linuxcnc: the actuator readings (m) where the home switches trip, the joints\' '
+        help="linuxcnc: the actuator readings (m) where the home switches trip, the joints' "
         'HOME_OFFSET (default: 0 each, i.e. HOME_OFFSET = l0)',
     )
     parser.add_argument(

@@ -134,7 +134,7 @@ def controller_json(contents, source: Path) -> str:
 
 
 def parameters_path_beside(out: Path) -> Path:
-    """Return where ``--format kinematics-node`` puts the parameters it names: NAME.parameters.yaml."""
+    """Return where ``--format kinematics-node`` puts the parameters: NAME.parameters.yaml."""
     return out.with_name(out.stem + '.parameters.yaml')
 
 

@@ -147,7 +147,7 @@ def linuxcnc_ini(
         "joint's position is",
         '# its strut length |p + R platform.N - base.N| (hexacal: lambda + l0), so the limits '
         'and homes below',
-        "# are the calibrated l0 plus actuator readings. Keep genhexkins.spindle-offset and "
+        '# are the calibrated l0 plus actuator readings. Keep genhexkins.spindle-offset and '
         'tool-offset at 0',
         '# (they shift the z of every joint), or move [TRAJ] HOME by the same amount.',
         '#',

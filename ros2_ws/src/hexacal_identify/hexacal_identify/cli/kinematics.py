@@ -85,7 +85,7 @@ def _common(parser: argparse.ArgumentParser) -> None:
         '--angles',
         metavar='{' + ','.join(ANGLES) + '}',
         default='hexacal',
-        help="hexacal: theta,psi,phi (rad) of R = R_Y(theta) R_X(psi) R_z(phi); linuxcnc: "
+        help='hexacal: theta,psi,phi (rad) of R = R_Y(theta) R_X(psi) R_z(phi); linuxcnc: '
         "genhexkins' a,b,c (deg) of R = Rz(c) Ry(b) Rx(a), in --pose, --guess and the output",
     )
 
