@@ -225,7 +225,7 @@ def test_the_script_takes_negative_values_and_help_imports_no_numpy(files):
 
 
 def test_linuxcnc_angles_agree_with_hexacals(capsys, files):
-    """ik with a,b,c (deg) = ik with the same R in theta,psi,phi; fk prints that a,b,c back."""
+    """The same R as a,b,c (deg) or theta,psi,phi gives the same ik; fk prints a,b,c back."""
     from hexacal_identify.core.angle_conventions import linuxcnc_from_pose
 
     true_path, _ = files['gough_stewart']

@@ -192,7 +192,7 @@ def test_traj_home_leads_genhexkins_to_hexacals_pose(tmp_path, capsys, default_m
 
 
 def test_all_zero_start_misses_the_hanging_machine(tmp_path, capsys, default_machine):
-    """LinuxCNC's default start (all zeros) does not find the working pose; [TRAJ] HOME does."""
+    """From all zeros (LinuxCNC's default) genhexkins misses the working pose; from HOME not."""
     setps, ini = export_pair(tmp_path)
     base, platform = joint_points(setps)
     params = default_machine
