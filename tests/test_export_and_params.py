@@ -528,7 +528,7 @@ def test_kinematics_node_file_names_a_copy_of_the_parameters(capsys, tmp_path):
     assert code == 0, err
     copy = tmp_path / 'node.parameters.yaml'
     assert stdout.splitlines() == [f'wrote {copy}', f'wrote {out}']
-    settings = yaml.safe_load(out.read_text())['kinematics']['ros__parameters']
+    settings = yaml.safe_load(out.read_text())['/**/kinematics']['ros__parameters']
     assert settings['parameters'] == str(copy.resolve())
     assert settings['follow_calibrations'] is False
     assert settings['stroke_limits'] == [0.0, 0.9] and settings['mount'] == 'standing'
@@ -536,3 +536,32 @@ def test_kinematics_node_file_names_a_copy_of_the_parameters(capsys, tmp_path):
     params, mount = load_machine_and_mount(settings['parameters'])
     np.testing.assert_array_equal(params.vector, vector)
     assert mount == 'standing'
+
+
+def test_kinematics_node_file_reaches_the_node_in_any_namespace(capsys, tmp_path):
+    """Rcl gives the file's settings to a node named kinematics, namespaced or not."""
+    import rclpy
+    from rclpy.node import Node
+
+    source = tmp_path / 'calibrated.yaml'
+    save_parameters(source, nominal_set(1, seed=7).vector)
+    out = tmp_path / 'node.yaml'
+    assert run(capsys, 'export', source, '--format', 'kinematics-node', '--out', out)[0] == 0
+    for namespace in ('', 'cell_2'):
+        context = rclpy.Context()
+        rclpy.init(args=['--ros-args', '--params-file', str(out)], context=context)
+        try:
+            node = Node(
+                'kinematics',
+                namespace=namespace,
+                context=context,
+                automatically_declare_parameters_from_overrides=True,
+            )
+            values = {name: node.get_parameter(name).value for name in ('parameters', 'mount')}
+            node.destroy_node()
+        finally:
+            rclpy.shutdown(context=context)
+        assert values == {
+            'parameters': str((tmp_path / 'node.parameters.yaml').resolve()),
+            'mount': 'hanging',
+        }

@@ -12,7 +12,8 @@ tested against hexacal's before it moves a machine.  docs/formats.md is its
 reference.
 
 ``--format kinematics-node`` writes the ROS 2 parameters file of hexacal's own
-``kinematics`` node (``--ros-args --params-file NAME.yaml``) and, beside it,
+``kinematics`` node (``--ros-args --params-file NAME.yaml``; its key
+``/**/kinematics`` matches the node in any namespace) and, beside it,
 the parameters it names (``NAME.parameters.yaml``, a copy in the parameters
 file format): the node starts on this calibration, with the stroke and mount
 written out, and keeps it (``follow_calibrations: false``).
@@ -30,6 +31,7 @@ import numpy as np
 
 from ..core.architectures import parameters_for
 from ..core.device import check_mount, DEFAULT_MOUNT
+from ..core.errors import UnreachablePoseError
 from ..core.kinematics import inverse_kinematics
 from ..core.live import home_pose
 
@@ -100,8 +102,18 @@ def controller_payload(contents, source: Path) -> dict:
     workspace = params.architecture.default_workspace()
     mount = check_mount(contents.extras.get(DEVICE_MOUNT_KEY, DEFAULT_MOUNT))
     home = home_pose(workspace.link_length, mount)
-    checks = home + _CHECK_OFFSETS
-    readings = inverse_kinematics(params, checks)
+    try:
+        home_readings = inverse_kinematics(params, home[None])[0]
+    except UnreachablePoseError as error:
+        raise ValueError(
+            f'{os.fspath(source)}: the workspace centre is unreachable: {error}'
+        ) from None
+    checks = []
+    for pose in home + _CHECK_OFFSETS:
+        try:  # a check pose this machine cannot reach is left out, not an error
+            checks.append((pose, inverse_kinematics(params, pose[None])[0]))
+        except UnreachablePoseError:
+            continue
     low, high = workspace.actuator_stroke_m
     return {
         'format': CONTROLLER_FORMAT,
@@ -120,10 +132,9 @@ def controller_payload(contents, source: Path) -> dict:
         'parameters': parameters_to_chain_dict(contents.vector, model),
         'stroke': [float(low), float(high)],
         'mount': mount,
-        'home': {'pose': _pose_dict(home), 'actuators': readings[0].tolist()},
+        'home': {'pose': _pose_dict(home), 'actuators': home_readings.tolist()},
         'checks': [
-            {'pose': _pose_dict(pose), 'actuators': values.tolist()}
-            for pose, values in zip(checks, readings)
+            {'pose': _pose_dict(pose), 'actuators': values.tolist()} for pose, values in checks
         ],
     }
 
@@ -150,7 +161,7 @@ def kinematics_node_yaml(contents, source: Path, parameters_file: Path) -> str:
             f'hexacal export from {os.fspath(source)}',
             '# ros2 run hexacal_identify kinematics --ros-args --params-file THIS_FILE; the '
             'parameters file it names was written with it.',
-            f'{KINEMATICS_NODE}:',
+            f'/**/{KINEMATICS_NODE}:  # the kinematics node, in any namespace',
             '  ros__parameters:',
             f'    parameters: {json.dumps(os.fspath(parameters_file.resolve()))}',
             '    # keep this calibration: calibrations published on hexacal/parameters do not '
