@@ -423,7 +423,7 @@ def test_linuxcnc_home_options_move_the_homes(capsys, tmp_path, gs_calibrated):
     from hexacal_identify.core.angle_conventions import linuxcnc_from_pose
 
     out = tmp_path / 'machine.hal'
-    pose = [0.01, -0.02, -0.8, 0.05, 0.02, -0.1]
+    pose = [-0.01, -0.02, -0.8, 0.05, 0.02, -0.1]  # a negative first value is a value
     switches = [0.01, 0.02, 0.03, 0.04, 0.05, 0.06]
     argv = ['export', gs_calibrated, '--format', 'linuxcnc', '--out', out, '--length-unit', 'm']
     argv += ['--home-pose', ','.join(map(str, pose))]

@@ -63,8 +63,11 @@ def add_parsers(subparsers) -> None:
 
 
 def _export_arguments(parser: argparse.ArgumentParser) -> None:
+    from .kinematics import NEGATIVE_LIST
+
     # Formats and units are checked by the handler, so that a wrong one is a one-line error (exit
     # 2).
+    parser._negative_number_matcher = NEGATIVE_LIST  # --home-pose -0.01,0,-0.8,... is a value
     parser.add_argument(
         'parameters', type=Path, metavar='CALIBRATED.yaml', help='parameters YAML to export'
     )

@@ -49,7 +49,7 @@ ANGLES = ('hexacal', 'linuxcnc')
 EXIT_OK, EXIT_NO_POSE, EXIT_BAD_INPUT = 0, 1, 2
 # Let "--pose -0.1,0,-0.7,0,0,0" be a value, not an unknown option (argparse takes plain negative
 # numbers only).
-_NEGATIVE_LIST = re.compile(r'^-[\d.]')
+NEGATIVE_LIST = re.compile(r'^-[\d.]')
 
 
 def add_parsers(subparsers) -> None:
@@ -72,7 +72,7 @@ def add_parsers(subparsers) -> None:
 
 
 def _common(parser: argparse.ArgumentParser) -> None:
-    parser._negative_number_matcher = _NEGATIVE_LIST  # values like -0.1,0,... are not options
+    parser._negative_number_matcher = NEGATIVE_LIST  # values like -0.1,0,... are not options
     parser.add_argument(
         'parameters', type=Path, metavar='PARAMS', help='parameters YAML (its model: key)'
     )
