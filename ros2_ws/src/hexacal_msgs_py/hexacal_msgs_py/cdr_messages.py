@@ -20,7 +20,7 @@ from __future__ import annotations
 import struct
 from typing import Any, Callable
 
-from hexacal_msgs_py.cdr import _STAMP, align, CDR_HEADER, joint_state_positions_layout
+from hexacal_msgs_py.cdr import align, CDR_HEADER, joint_state_positions_layout, STAMP
 
 JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
 IMU_TYPE = 'sensor_msgs/msg/Imu'
@@ -124,7 +124,7 @@ class _JointStateLayout:
         velocity_at, effort_at = self.lengths
         if values[velocity_at] != self.velocity_count or values[effort_at] != self.effort_count:
             return None
-        sec, nanosec = _STAMP.unpack_from(data, 4)
+        sec, nanosec = STAMP.unpack_from(data, 4)
         stamp = self.time_class()
         stamp.sec = sec
         stamp.nanosec = nanosec
@@ -177,7 +177,7 @@ class _ImuLayout:
         if data[12:self.offset] != self.prefix or data[:4] != CDR_HEADER:
             return None
         values = _IMU_VALUES.unpack_from(data, self.offset)
-        sec, nanosec = _STAMP.unpack_from(data, 4)
+        sec, nanosec = STAMP.unpack_from(data, 4)
         stamp = self.time_class()
         stamp.sec = sec
         stamp.nanosec = nanosec
