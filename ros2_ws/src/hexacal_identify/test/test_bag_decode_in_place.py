@@ -136,7 +136,8 @@ def test_imu_decodes_as_the_generic_decoder(tmp_path):
         writer.add_topic('/imu', IMU_TYPE)
         for index in range(50):
             angle = 0.01 * index
-            quaternion = (math.sin(angle), 0.0, 0.0, math.cos(angle))
+            sign = -1.0 if index % 7 == 3 else 1.0  # -q is the same orientation
+            quaternion = (sign * math.sin(angle), -0.0, 0.0, sign * math.cos(angle))
             frame = 'imu' if index % 10 else 'imu_link_odd'
             writer.write('/imu', _imu(1_700_000_000_000_000_000 + index, quaternion, frame), index)
     fast = _assert_same(tmp_path / 'bag', '/imu')
@@ -212,9 +213,15 @@ def test_only_the_known_definitions_are_read_in_place(tmp_path):
 # --------------------------------------------------------------------------- re-detection
 
 
-def _turn_recording(directory: Path) -> Path:
-    """Write raw streams of a few dwells, the inclinometer with device_turn on every other."""
+def _recording(directory: Path, imu: bool = False) -> Path:
+    """
+    Write raw streams of a few dwells.
+
+    The inclinometer with device_turn on every other dwell, or (``imu``) as an Imu on /imu
+    with the collector's input mapping saying so.
+    """
     from hexacal_identify.core import sample_poses, simulate_measurements, table1_parameters
+    from hexacal_msgs_py.inputs import inclinometer_angles_to_quaternion, InputMapping
     from hexacal_msgs_py.names import ENCODER_NAMES, SLIDER_NAMES
     import numpy as np
 
@@ -222,42 +229,50 @@ def _turn_recording(directory: Path) -> Path:
     exact = simulate_measurements(true, sample_poses(true, 6, np.random.default_rng(3)))
     values = np.column_stack([exact.actuator_positions, exact.inclinometer, exact.rotary])
     rng = np.random.default_rng(4)
-    topics = ('/hexacal/sliders', '/hexacal/inclinometer', '/hexacal/encoder')
+    topics = ['/hexacal/sliders', '/imu' if imu else '/hexacal/inclinometer', '/hexacal/encoder']
     stamp, previous = 1_700_000_000 * 1_000_000_000, values[0]
     with BagWriter(directory) as writer:
+        if imu:
+            mapping = InputMapping(
+                SLIDER_NAMES, inclinometer_type='imu', topics=(topics[0], '/imu', topics[2])
+            )
+            writer.write_metadata('hexacal.collector', mapping.to_metadata())
         for topic in topics:
-            writer.add_topic(topic, JOINT_STATE_TYPE)
+            writer.add_topic(topic, IMU_TYPE if topic == '/imu' else JOINT_STATE_TYPE)
         for index, target in enumerate(values):
             moving = [previous + (target - previous) * (k + 1) / 60 for k in range(60)]
             dwell = target + rng.uniform(-1e-5, 1e-5, (100, 9))
             turn = math.pi if index % 2 else 0.0
             for sample in moving + list(dwell):
                 stamp += 10_000_000
-                parts = (
-                    (SLIDER_NAMES, sample[:6]),
-                    ((*INCLINOMETER_NAMES, DEVICE_TURN_JOINT), [*sample[6:8], turn]),
-                    (ENCODER_NAMES, sample[8:]),
+                writer.write(topics[0], _joint_state(stamp, SLIDER_NAMES, sample[:6]), stamp)
+                inclinometer = (
+                    _imu(stamp, inclinometer_angles_to_quaternion(*sample[6:8]))
+                    if imu
+                    else _joint_state(
+                        stamp, (*INCLINOMETER_NAMES, DEVICE_TURN_JOINT), [*sample[6:8], turn]
+                    )
                 )
-                for topic, (names, positions) in zip(topics, parts):
-                    writer.write(topic, _joint_state(stamp, names, positions), stamp)
+                writer.write(topics[1], inclinometer, stamp)
+                writer.write(topics[2], _joint_state(stamp, ENCODER_NAMES, sample[8:]), stamp)
             previous = target
     return directory
 
 
-def test_device_turn_recording_decodes_and_redetects_as_the_generic_decoder(
-    tmp_path, monkeypatch
-):
+@pytest.mark.parametrize('imu', (False, True), ids=('device_turn', 'imu'))
+def test_recordings_decode_and_redetect_as_with_the_generic_decoder(tmp_path, monkeypatch, imu):
     from hexacal_identify.pipeline import postures_from_bag
 
-    bag = _turn_recording(tmp_path / 'turns')
-    fast = _assert_same(bag, '/hexacal/inclinometer')
-    assert fast.in_place >= open_bag(bag).topics()['/hexacal/inclinometer'].count - 3
+    bag = _recording(tmp_path / 'raw', imu)
+    inclinometer = '/imu' if imu else '/hexacal/inclinometer'
+    fast = _assert_same(bag, inclinometer)
+    assert fast.in_place >= open_bag(bag).topics()[inclinometer].count - 3
     in_place = postures_from_bag(bag)
     monkeypatch.setattr(BagReader, 'fast_decoding', False)
     generic = postures_from_bag(bag)
     assert in_place.source == 'raw streams (re-detected)' and len(in_place.postures) == 6
     assert in_place.postures == generic.postures
-    assert {p.device_turn for p in in_place.postures} == {0.0, math.pi}
+    assert {p.device_turn for p in in_place.postures} == ({0.0} if imu else {0.0, math.pi})
 
 
 def test_sample_bag_redetects_the_same_postures(monkeypatch):
