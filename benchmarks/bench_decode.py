@@ -12,6 +12,8 @@ topic: `hexacal calibrate` re-detects the postures) with the project's bag write
   (hexacal_msgs_py.cdr_messages.MessageDecoder), best of ``--repeats``;
 - reader: reading the bag and ``BagMessage.decoded`` of every message, as re-detection does
   (MCAP scanning included), with ``BagReader.fast_decoding`` off and on;
+- reference: rclpy's compiled deserializer on the JointStates (not used: its sequences are
+  array.array where the generic decoder gives lists, and the bag layer is ROS-free);
 - end to end: the wall time of ``hexacal calibrate`` on the recording (a new process each, the
   re-detection path), generic then in place; their parameter files must be byte-identical.
 
@@ -137,6 +139,18 @@ def decoder_rates(bag: Path, repeats: int) -> dict[str, float]:
     return {name: total / s for name, s in seconds.items()} | {'messages': total}
 
 
+def rclpy_rate(bag: Path, repeats: int) -> float | None:
+    """Return messages/s of rclpy's compiled deserializer on the JointStates (None: no rclpy)."""
+    try:
+        from rclpy.serialization import deserialize_message
+        from sensor_msgs.msg import JointState
+    except ImportError:
+        return None
+    datas = [data for _, stream in _by_schema(bag) for data in stream]
+    best = min(_timed(lambda d: deserialize_message(d, JointState), datas) for _ in range(repeats))
+    return len(datas) / best
+
+
 def reader_rates(bag: Path, repeats: int) -> dict[str, float]:
     """Return messages/s of reading a bag and decoding each message, as re-detection does."""
     rates = {}
@@ -209,6 +223,7 @@ def main() -> int:
             'decoder_joint_state': joint_states,
             'decoder_imu': decoder_rates(imu, args.repeats),
             'reader': reader_rates(bag, args.repeats),
+            'rclpy_joint_state': rclpy_rate(bag, args.repeats),
             'calibrate': calibrate_seconds(bag, nominal, directory),
         }
     verdicts = {
@@ -234,6 +249,11 @@ def main() -> int:
             f'{label:22s} generic {rates["generic"]:>10,.0f} msg/s   in place '
             f'{rates["in_place"]:>10,.0f} msg/s   x{rates["in_place"] / rates["generic"]:.1f}   '
             f'{"met" if verdicts[key] else "NOT met"} (>= {TARGET_PER_S:,} msg/s)'
+        )
+    if results['rclpy_joint_state'] is not None:
+        print(
+            f'{"rclpy, JointState":22s} deserialize_message {results["rclpy_joint_state"]:>10,.0f}'
+            ' msg/s (reference, not used: array.array sequences, not the generic lists)'
         )
     calibrate = results['calibrate']
     print(

@@ -88,8 +88,7 @@ class _JointStateLayout:
         self.prefix = bytes(data[12:self.offset])
         end = self.offset + 8 * self.count
         formats = [f'<{self.count}d']
-        self.lengths: list[int] = []
-        self.starts: list[int] = []
+        self.lengths: list[int] = []  # index of each sequence length among the values
         index = self.count
         for _ in ('velocity', 'effort'):  # each: uint32 length (4-aligned), float64s (8-aligned)
             length_at = align(end, 4)
@@ -97,7 +96,6 @@ class _JointStateLayout:
             start = align(length_at + 4, 8) if length else length_at + 4
             formats.append(f'{length_at - end}xI{start - length_at - 4}x{length}d')
             self.lengths.append(index)
-            self.starts.append(index + 1)
             index += 1 + length
             end = start + 8 * length
         if end > len(data):

@@ -840,7 +840,7 @@ class BagReader:
 
 
 def _definition_fields(text: str) -> dict[str, tuple[tuple[str, str], ...]] | None:
-    """Return the fields of each message of a ros2msg definition (top level under ''); None."""
+    """Return each message's fields in a ros2msg definition ('': the top level); None: unnamed."""
     sections = re.split(r'^={80}\s*$', text, flags=re.MULTILINE)
     fields = {'': field_signature(sections[0])}
     for section in sections[1:]:
