@@ -81,6 +81,7 @@ bench: setup
 	$(VENV_PY) benchmarks/bench_identification.py
 	$(VENV_PY) benchmarks/bench_startup.py
 	$(VENV_PY) benchmarks/bench_service.py
+	$(VENV_PY) benchmarks/bench_decode.py
 	$(VENV_PY) benchmarks/bench_load.py --minutes 1
 	$(VENV_PY) benchmarks/bench_load.py --minutes 1 --busy-core
 

@@ -25,7 +25,7 @@ from hexacal_msgs_py.names import DEVICE_TURN_JOINT, MAX_DEVICE_TURN
 from hexacal_msgs_py.readings import NS_PER_S
 
 CDR_HEADER = b'\x00\x01\x00\x00'  # XCDR1 little endian, what Fast DDS sends
-_STAMP = struct.Struct('<iI')
+STAMP = struct.Struct('<iI')  # builtin_interfaces/Time (sec, nanosec) at byte 4
 _UINT32 = struct.Struct('<I')
 _DOUBLE = struct.Struct('<d')
 _QUATERNION = struct.Struct('<4d')
@@ -37,7 +37,7 @@ def header_stamp_ns(data: bytes) -> int:
     """Return the header stamp (ns) of stamped-message CDR bytes; 0 if there is none."""
     if len(data) < 12:
         return 0
-    seconds, nanoseconds = _STAMP.unpack_from(data, 4)
+    seconds, nanoseconds = STAMP.unpack_from(data, 4)
     return seconds * NS_PER_S + nanoseconds
 
 
@@ -151,7 +151,7 @@ class JointStateReader(_LearnedLayout):
             return None
         if self.counts.unpack_from(data, self.counts_offset) != self.expected_counts:
             return None
-        seconds, nanoseconds = _STAMP.unpack_from(data, 4)
+        seconds, nanoseconds = STAMP.unpack_from(data, 4)
         if seconds < 0:
             return None
         positions = self.positions.unpack_from(data, self.offset)
@@ -205,7 +205,7 @@ class ImuReader(_LearnedLayout):
         """Return (stamp_ns, (raw alpha, raw beta)), or None: decode this message the full way."""
         if not self.fits(data):
             return None
-        seconds, nanoseconds = _STAMP.unpack_from(data, 4)
+        seconds, nanoseconds = STAMP.unpack_from(data, 4)
         if seconds < 0:
             return None
         try:

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import contextlib
 from dataclasses import dataclass, field
-from functools import cached_property
 import io
 from io import BytesIO
 import os
@@ -48,7 +47,7 @@ from .errors import (
     BagNotFoundError,
     BagSchemaError,
 )
-from .schemas import MESSAGE_ENCODING, normalize_type_name, SCHEMA_ENCODING
+from .schemas import field_signature, MESSAGE_ENCODING, normalize_type_name, SCHEMA_ENCODING
 
 MCAP_MAGIC = b'\x89MCAP0\r\n'
 METADATA_FILE_NAME = 'metadata.yaml'
@@ -149,6 +148,9 @@ class MetadataRecord:
     data: dict[str, str]
 
 
+_UNDECODED = object()  # BagMessage._decoded before the first decoding
+
+
 @dataclass
 class BagMessage:
     """One message of a bag; `decoded` decodes the CDR bytes on first access."""
@@ -159,11 +161,17 @@ class BagMessage:
     publish_time_ns: int
     data_bytes: bytes
     _decode: Callable[[bytes], Any] = field(repr=False, compare=False)
+    # Cached here rather than by functools.cached_property, whose lock (Python 3.11) costs as
+    # much as decoding a message in place.
+    _decoded: Any = field(default=_UNDECODED, init=False, repr=False, compare=False)
 
-    @cached_property
+    @property
     def decoded(self) -> Any:
+        decoded = self._decoded
+        if decoded is not _UNDECODED:
+            return decoded
         try:
-            return self._decode(self.data_bytes)
+            decoded = self._decode(self.data_bytes)
         except BagError:
             raise
         except Exception as error:  # noqa: BLE001 - any decoder failure is a named error here
@@ -173,6 +181,8 @@ class BagMessage:
                 topic=self.topic,
                 log_time_ns=self.log_time_ns,
             ) from error
+        self._decoded = decoded
+        return decoded
 
 
 # --------------------------------------------------------------------------- record parsing
@@ -606,7 +616,15 @@ class _Topic(NamedTuple):
 
 
 class BagReader:
-    """Reads the messages, topics and metadata of a bag opened with `open_bag`."""
+    """
+    Read the messages, topics and metadata of a bag opened with `open_bag`.
+
+    JointState and Imu messages are decoded in place where their layout repeats
+    (hexacal_msgs_py.cdr_messages), giving exactly the generic decoder's messages; with
+    ``fast_decoding`` False (benchmarks, comparisons) every message takes the generic decoder.
+    """
+
+    fast_decoding = True
 
     def __init__(
         self, path: Path, files: list[_McapFile], expect_types: Mapping[str, str] | None = None
@@ -780,7 +798,8 @@ class BagReader:
 
             def decode(data: bytes) -> Any:
                 if not built:
-                    built.append(self._build_decoder(schema, channel.topic))
+                    generic = self._build_decoder(schema, channel.topic)
+                    built.append(_in_place(schema, generic) if self.fast_decoding else generic)
                 return built[0](data)
 
             self._decoders[key] = decode
@@ -818,6 +837,41 @@ class BagReader:
                 found=schema.name,
             )
         return decoder
+
+
+def _definition_fields(text: str) -> dict[str, tuple[tuple[str, str], ...]] | None:
+    """Return each message's fields in a ros2msg definition ('': the top level); None: unnamed."""
+    sections = re.split(r'^={80}\s*$', text, flags=re.MULTILINE)
+    fields = {'': field_signature(sections[0])}
+    for section in sections[1:]:
+        match = re.match(r'\s*MSG: (\S+)\s*\n', section)
+        if match is None:
+            return None
+        fields[match.group(1).replace('/msg/', '/')] = field_signature(section[match.end():])
+    return fields
+
+
+def _in_place(schema: Schema, generic: Callable[[bytes], Any]) -> Callable[[bytes], Any]:
+    """
+    Return a decoder that reads ``schema``'s messages in place where it can, else ``generic``.
+
+    Only for the JointState and Imu definitions whose every message has exactly the fields of
+    the layouts read in place (hexacal_msgs_py.cdr_messages.DEFINITIONS).
+    """
+    from hexacal_msgs_py.cdr_messages import DEFINITIONS, MessageDecoder
+
+    try:
+        type_name = normalize_type_name(schema.name)
+    except BagSchemaError:
+        return generic
+    known = DEFINITIONS.get(type_name)
+    if known is None or schema.encoding != SCHEMA_ENCODING:
+        return generic
+    fields = _definition_fields(schema.data.decode('utf-8', errors='replace'))
+    top = type_name.replace('/msg/', '/')
+    if fields is None or {top if k == '' else k: v for k, v in fields.items()} != known:
+        return generic
+    return MessageDecoder(type_name, generic)
 
 
 # --------------------------------------------------------------------------- opening
