@@ -326,7 +326,9 @@ class CalibrationStore:
                     fmt.RECORD_FILE: files.json_text(full).encode('utf-8'),
                 },
             )
-            return self.get(entry_id)
+            entries, history = self._read()
+            self._update_marker(entries, history)
+            return self._find(entries, entry_id)
 
     def _append(self, history: _History, kind: EventType, entry_id: str, **fields: Any) -> int:
         """Write the next event file; return its sequence number."""
@@ -380,7 +382,9 @@ class CalibrationStore:
             self._append(
                 history, EventType.VERIFIED, entry.id, verdict=verdict, figures=figures
             )
-            return self.get(entry.id)
+            entries, history = self._read()
+            self._update_marker(entries, history)
+            return self._find(entries, entry.id)
 
     def deploy(
         self,
