@@ -71,7 +71,7 @@ def _killed_at(root: Path, stage: str, action: str, argument: str) -> None:
 
 
 def _leftovers(root: Path) -> list[Path]:
-    return [p for p in root.rglob(f'{fmt.TEMP_PREFIX}*')]
+    return list(root.rglob(f'{fmt.TEMP_PREFIX}*'))
 
 
 @pytest.mark.parametrize('stage', ['wrote parameters.yaml', 'wrote record.json', 'before rename'])
