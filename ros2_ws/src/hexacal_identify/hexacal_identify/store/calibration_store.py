@@ -231,8 +231,17 @@ class CalibrationStore:
         return matches[0]
 
     def find_digest(self, digest: str) -> StoreEntry | None:
-        """Return the entry whose parameters file has this sha256: the active one, else newest."""
-        matches = [e for e in self.entries() if e.digest == digest]
+        """
+        Return the entry whose parameters have this digest: the active one, else the newest.
+
+        The sha256 of the parameters file, or the ``vector_digest`` of its parameter vector
+        (what a parameters message is matched by).
+        """
+        matches = [
+            e
+            for e in self.entries()
+            if digest in (e.digest, e.record.get(fmt.RECORD_VECTOR_DIGEST))
+        ]
         if not matches:
             return None
         active = [e for e in matches if e.active]
@@ -263,16 +272,15 @@ class CalibrationStore:
 
     # ----- writing -----------------------------------------------------------------------
     def _prepare(self) -> None:
-        """Create the store if new (its header last: a store without it is empty)."""
-        exists = self._check_root()
-        self.root.mkdir(parents=True, exist_ok=True)
-        self.entries_dir.mkdir(exist_ok=True)
-        self.events_dir.mkdir(exist_ok=True)
-        if not exists:
+        """Create the store if new: its header first, so no reader sees a store without one."""
+        if not self._check_root():
+            self.root.mkdir(parents=True, exist_ok=True)
             header = {'format': fmt.STORE_FORMAT, 'version': fmt.STORE_FORMAT_VERSION}
-            files.write_new_file(
+            files.write_new_file(  # False: another writer made it just now, the same header
                 self.root / fmt.FORMAT_FILE, files.json_text(header).encode('utf-8')
             )
+        self.entries_dir.mkdir(exist_ok=True)
+        self.events_dir.mkdir(exist_ok=True)
 
     def _writing(self):
         self._prepare()
@@ -294,7 +302,7 @@ class CalibrationStore:
         path = Path(parameters_file)
         try:
             data = path.read_bytes()
-            model = read_parameters_file(path).model
+            contents = read_parameters_file(path)
         except OSError as error:
             raise StoreError(f'cannot read parameters file {path}: {error}') from None
         except ParameterFileError as error:
@@ -308,7 +316,7 @@ class CalibrationStore:
                 f'{digest} {time} {secrets.token_hex(8)}'.encode()
             ).hexdigest()[:ID_HEX_DIGITS]
             full = json_safe(dict(record))
-            full.setdefault(fmt.RECORD_MODEL, model)
+            full.setdefault(fmt.RECORD_MODEL, contents.model)
             full.setdefault(fmt.RECORD_VERSION, hexacal_version())
             full.update(
                 {
@@ -316,6 +324,9 @@ class CalibrationStore:
                     fmt.RECORD_ID: entry_id,
                     fmt.RECORD_TIME: time,
                     fmt.RECORD_DIGEST: digest,
+                    fmt.RECORD_VECTOR_DIGEST: fmt.vector_digest(
+                        contents.model, contents.vector.tolist()
+                    ),
                     fmt.RECORD_NUMBER: number,
                 }
             )
