@@ -106,8 +106,17 @@ def test_calibrate_verify_deploy_rollback_and_a_refused_jump(tmp_path, nominal):
 
     # verified on another bag -> verified -> deploy -> active
     completed = _ok(
-        'verify', VERIFY_BAG, '--nominal', nominal, '--calibrated', first_file,
-        '--store', store, '--id', first['id'][:6], '--json',
+        'verify',
+        VERIFY_BAG,
+        '--nominal',
+        nominal,
+        '--calibrated',
+        first_file,
+        '--store',
+        store,
+        '--id',
+        first['id'][:6],
+        '--json',
     )
     payload = json.loads(completed.stdout)
     assert payload['verdict'] == 'pass' and payload['store']['id'] == first['id']
@@ -137,8 +146,7 @@ def test_calibrate_verify_deploy_rollback_and_a_refused_jump(tmp_path, nominal):
     other_file = tmp_path / 'other.yaml'
     _ok('calibrate', other_fit, '--nominal', nominal, '--output', other_file, '--store', store)
     other = _history(store)[2]
-    _ok('verify', other_verify, '--nominal', nominal, '--calibrated', other_file,
-        '--store', store)
+    _ok('verify', other_verify, '--nominal', nominal, '--calibrated', other_file, '--store', store)
     assert _states(store)[other['id']] == 'verified'
     refused = _hexacal('deploy', other['id'], '--store', store)
     assert refused.returncode == 1, refused.stdout + refused.stderr
@@ -160,8 +168,16 @@ def test_a_failed_verification_is_attached_and_exits_1(tmp_path, nominal):
     _ok('calibrate', FIT_BAG, '--nominal', nominal, '--output', calibrated, '--store', store)
     # a threshold of 1 nm: no calibration passes it
     bad = _hexacal(
-        'verify', VERIFY_BAG, '--nominal', nominal, '--calibrated', calibrated,
-        '--store', store, '--threshold-um', '0.001',
+        'verify',
+        VERIFY_BAG,
+        '--nominal',
+        nominal,
+        '--calibrated',
+        calibrated,
+        '--store',
+        store,
+        '--threshold-um',
+        '0.001',
     )
     assert bad.returncode == 1, bad.stderr
     (entry,) = _history(store)
@@ -178,13 +194,31 @@ def test_bad_input_exits_2_with_one_line(tmp_path, nominal):
         (('deploy', 'abcdef12', '--store', store), "no entry 'abcdef12'"),
         (('rollback', '--store', store), 'nothing to roll back to'),
         (
-            ('verify', VERIFY_BAG, '--nominal', nominal, '--calibrated', nominal,
-             '--store', store),
+            (
+                'verify',
+                VERIFY_BAG,
+                '--nominal',
+                nominal,
+                '--calibrated',
+                nominal,
+                '--store',
+                store,
+            ),
             'no entry of calibration store',
         ),
         (
-            ('verify', VERIFY_BAG, '--nominal', nominal, '--calibrated', nominal,
-             '--store', store, '--id', _history(store)[0]['id']),
+            (
+                'verify',
+                VERIFY_BAG,
+                '--nominal',
+                nominal,
+                '--calibrated',
+                nominal,
+                '--store',
+                store,
+                '--id',
+                _history(store)[0]['id'],
+            ),
             'another parameters file',
         ),
         (('history', '--store', nominal), 'is not a directory'),

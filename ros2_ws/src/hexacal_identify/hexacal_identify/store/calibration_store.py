@@ -203,7 +203,9 @@ class CalibrationStore:
         ordered = sorted(
             records.values(),
             key=lambda r: (
-                r.get(fmt.RECORD_NUMBER, 0), r.get(fmt.RECORD_TIME, ''), r[fmt.RECORD_ID]
+                r.get(fmt.RECORD_NUMBER, 0),
+                r.get(fmt.RECORD_TIME, ''),
+                r[fmt.RECORD_ID],
             ),
         )
         return [self._entry(record, history) for record in ordered], history
@@ -390,9 +392,7 @@ class CalibrationStore:
                     f'the verification is of another parameters file (sha256 {calibrated[:12]}) '
                     f'than entry {entry.short_id} (sha256 {entry.digest[:12]})'
                 )
-            self._append(
-                history, EventType.VERIFIED, entry.id, verdict=verdict, figures=figures
-            )
+            self._append(history, EventType.VERIFIED, entry.id, verdict=verdict, figures=figures)
             entries, history = self._read()
             self._update_marker(entries, history)
             return self._find(entries, entry.id)
