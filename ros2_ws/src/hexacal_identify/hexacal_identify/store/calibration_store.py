@@ -135,17 +135,22 @@ class CalibrationStore:
             records[directory.name] = record
         return records
 
-    def _history(self, known: dict[str, dict[str, Any]]) -> _History:
-        history = _History()
-        if not self.events_dir.is_dir():
-            return history
+    def _events(self) -> list[tuple[int, Path, Any]]:
+        """Return (number, path, contents) of every event, in order."""
+        if not self._check_root() or not self.events_dir.is_dir():
+            return []
         numbered = sorted(
             (sequence, path)
             for path in self.events_dir.iterdir()
             if (sequence := fmt.event_sequence(path.name)) is not None
         )
-        for sequence, path in numbered:
-            event = files.read_json(path)
+        return [(sequence, path, files.read_json(path)) for sequence, path in numbered]
+
+    def _history(
+        self, events: list[tuple[int, Path, Any]], known: dict[str, dict[str, Any]]
+    ) -> _History:
+        history = _History()
+        for sequence, path, event in events:
             entry_id = event.get(fmt.EVENT_ID) if isinstance(event, dict) else None
             if entry_id not in known:
                 raise StoreError(f'{path}: names no entry of the store ({entry_id!r})')
@@ -198,8 +203,11 @@ class CalibrationStore:
         )
 
     def _read(self) -> tuple[list[StoreEntry], _History]:
+        # Events first: an event's entry was renamed into place before the event was written,
+        # so it is among the records listed after, even while a writer works.
+        events = self._events()
         records = self._records()
-        history = self._history(records)
+        history = self._history(events, records)
         ordered = sorted(
             records.values(),
             key=lambda r: (
