@@ -93,8 +93,11 @@ class CalibrationStore:
         if not self.root.is_dir():
             raise StoreError(f'calibration store {self.root} is not a directory')
         marker = self.root / fmt.FORMAT_FILE
-        if not marker.exists():
-            if any(not p.name.startswith('.') for p in self.root.iterdir()):
+        # The header is made before anything else: a name listed without it means no store,
+        # unless the header appeared during the listing (looked for again after it).
+        names = {path.name for path in self.root.iterdir()}
+        if fmt.FORMAT_FILE not in names and not marker.exists():
+            if any(not name.startswith('.') for name in names):
                 raise StoreError(
                     f'{self.root} is not a calibration store (no {fmt.FORMAT_FILE}); name an '
                     'empty or new directory'
