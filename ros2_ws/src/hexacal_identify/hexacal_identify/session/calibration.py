@@ -9,6 +9,7 @@ from typing import Protocol
 from hexacal_msgs_py.errors import HexacalContractError, ParameterFileError
 from hexacal_msgs_py.parameters_file import save_parameters
 
+from .history import calibration_record, fit_figures
 from .nominal import NominalFile
 from .outcome import failure, Level, Outcome, Reason, ReportState
 from .paths import output_path
@@ -169,6 +170,19 @@ def run_calibration(
             source=source,
         )
     values['output'] = str(target)
+    record = calibration_record(
+        bag=bag,
+        postures=postures,
+        nominal_path=nominal_path,
+        cost=cost,
+        noise=noise,
+        robust_loss=settings.robust_loss,
+        link_length=link_length,
+        mount=mount,
+        device_defects=pipeline.device_defects_extras(result),
+        device_prior=prior,
+        fit=fit_figures(result),
+    )
     # The report (figures, pose-error map, result payload) is written after the answer.
     report = None
     if settings.report_dir:
@@ -197,6 +211,7 @@ def run_calibration(
         link_length=link_length,
         mount=mount,
         source=source,
+        record=record,
     )
 
 # ------------------------------------------------------------------ verification
