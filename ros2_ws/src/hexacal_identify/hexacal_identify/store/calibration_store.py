@@ -1,0 +1,557 @@
+"""
+The calibration store: entries with provenance, verification, deploy and rollback.
+
+The layout and keys are the contract's (hexacal_msgs_py.store_format, docs/formats.md).
+States are derived by replaying the event files in order: a deploy pushes an entry on the
+activation stack, a rollback pops it; the top is the active calibration.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+import hashlib
+import math
+from pathlib import Path
+import secrets
+from typing import Any
+
+from hexacal_msgs_py import store_format as fmt
+from hexacal_msgs_py.store_format import ActivationReason, EventType, StoreState
+
+from . import files
+from .entry import Activation, DeployRefused, Refusal, StoreEntry, StoreError
+from .plausibility import DEFAULT_MAX_PARAMETER_CHANGE_M, DEFAULT_MAX_POSE_CHANGE_M
+
+ID_HEX_DIGITS = 12
+MIN_PREFIX = 4
+
+
+def utc_now() -> str:
+    """Return the time now as ISO 8601 UTC with microseconds ('2026-11-24T01:02:03.456789Z')."""
+    return datetime.now(timezone.utc).strftime('%Y-%m-%dT%H:%M:%S.%fZ')
+
+
+def json_safe(value: Any) -> Any:
+    """Return plain JSON values (numpy values as Python's; NaN and inf as null)."""
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if hasattr(value, 'tolist'):  # numpy arrays and scalars, without importing numpy
+        return json_safe(value.tolist())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+@dataclass
+class _Activated:
+    id: str  # noqa: A003 (the entry id, as StoreEntry.id)
+    forced: bool
+    since: str
+    reason: ActivationReason
+    event: int
+
+
+@dataclass
+class _History:
+    """What the events say, replayed in order."""
+
+    last_sequence: int = 0
+    verifications: dict[str, dict[str, Any]] = field(default_factory=dict)
+    stack: list[_Activated] = field(default_factory=list)
+    rolled_back: set[str] = field(default_factory=set)
+
+    @property
+    def active(self) -> _Activated | None:
+        return self.stack[-1] if self.stack else None
+
+
+class CalibrationStore:
+    """A calibration store directory (created by the first write)."""
+
+    def __init__(self, root: Path | str) -> None:
+        self.root = Path(root)
+        self.entries_dir = self.root / fmt.ENTRIES_DIR
+        self.events_dir = self.root / fmt.EVENTS_DIR
+
+    def __repr__(self) -> str:
+        return f'CalibrationStore({str(self.root)!r})'
+
+    # ----- reading -----------------------------------------------------------------------
+    def _check_root(self) -> bool:
+        """Return whether the store exists; StoreError if `root` is something else."""
+        if not self.root.exists():
+            return False
+        if not self.root.is_dir():
+            raise StoreError(f'calibration store {self.root} is not a directory')
+        marker = self.root / fmt.FORMAT_FILE
+        if not marker.exists():
+            if any(not p.name.startswith('.') for p in self.root.iterdir()):
+                raise StoreError(
+                    f'{self.root} is not a calibration store (no {fmt.FORMAT_FILE}); name an '
+                    'empty or new directory'
+                )
+            return False
+        header = files.read_json(marker)
+        if not isinstance(header, dict) or header.get('format') != fmt.STORE_FORMAT:
+            raise StoreError(f'{marker}: not a {fmt.STORE_FORMAT} header')
+        if header.get('version') != fmt.STORE_FORMAT_VERSION:
+            raise StoreError(
+                f'{marker}: store format version {header.get("version")!r}; this hexacal reads '
+                f'version {fmt.STORE_FORMAT_VERSION}'
+            )
+        return True
+
+    def _records(self) -> dict[str, dict[str, Any]]:
+        """Return id -> record of every whole entry (temporary names ignored)."""
+        if not self._check_root() or not self.entries_dir.is_dir():
+            return {}
+        records = {}
+        for directory in self.entries_dir.iterdir():
+            if directory.name.startswith(fmt.TEMP_PREFIX):
+                continue
+            record = files.read_json(directory / fmt.RECORD_FILE)
+            if not isinstance(record, dict) or record.get(fmt.RECORD_ID) != directory.name:
+                raise StoreError(f'{directory}: its {fmt.RECORD_FILE} is not its entry record')
+            parameters = directory / fmt.PARAMETERS_FILE
+            try:
+                digest = fmt.file_digest(parameters)
+            except OSError as error:
+                raise StoreError(f'{parameters}: unreadable ({error})') from None
+            if digest != record.get(fmt.RECORD_DIGEST):
+                # Edited in place: what was verified is not what would be deployed.
+                raise StoreError(
+                    f'{parameters} was modified after it was stored (sha256 {digest[:12]}, '
+                    f'recorded {str(record.get(fmt.RECORD_DIGEST))[:12]})'
+                )
+            records[directory.name] = record
+        return records
+
+    def _history(self, known: dict[str, dict[str, Any]]) -> _History:
+        history = _History()
+        if not self.events_dir.is_dir():
+            return history
+        numbered = sorted(
+            (sequence, path)
+            for path in self.events_dir.iterdir()
+            if (sequence := fmt.event_sequence(path.name)) is not None
+        )
+        for sequence, path in numbered:
+            event = files.read_json(path)
+            entry_id = event.get(fmt.EVENT_ID) if isinstance(event, dict) else None
+            if entry_id not in known:
+                raise StoreError(f'{path}: names no entry of the store ({entry_id!r})')
+            history.last_sequence = sequence
+            kind = event.get(fmt.EVENT_TYPE)
+            time = event.get(fmt.EVENT_TIME, '')
+            if kind == EventType.VERIFIED:
+                history.verifications[entry_id] = event.get(fmt.EVENT_FIGURES) or {}
+            elif kind == EventType.DEPLOYED:
+                forced = bool(event.get(fmt.EVENT_FORCED))
+                reason = ActivationReason.FORCED if forced else ActivationReason.VERIFIED
+                history.stack.append(_Activated(entry_id, forced, time, reason, sequence))
+                history.rolled_back.discard(entry_id)
+            elif kind == EventType.ROLLED_BACK:
+                if len(history.stack) < 2 or history.stack[-2].id != entry_id:
+                    raise StoreError(f'{path}: a rollback to {entry_id} that no deploy explains')
+                history.rolled_back.add(history.stack.pop().id)
+                restored = history.stack[-1]
+                restored.since, restored.event = time, sequence
+                restored.reason = ActivationReason.ROLLED_BACK
+            else:
+                raise StoreError(f'{path}: unknown event {kind!r}')
+        return history
+
+    def _entry(self, record: dict[str, Any], history: _History) -> StoreEntry:
+        entry_id = record[fmt.RECORD_ID]
+        directory = self.entries_dir / entry_id
+        verification = history.verifications.get(entry_id)
+        verdict = verification.get(fmt.VERIFICATION_VERDICT) if verification else None
+        active = history.active
+        if active is not None and active.id == entry_id:
+            state = StoreState.FORCED if active.forced else StoreState.ACTIVE
+        elif entry_id in history.rolled_back:
+            state = StoreState.ROLLED_BACK
+        elif verdict == fmt.VERDICT_PASS:
+            state = StoreState.VERIFIED
+        else:
+            state = StoreState.STORED
+        full = dict(record)
+        if verification is not None:
+            full[fmt.RECORD_VERIFICATION] = verification
+        return StoreEntry(
+            id=entry_id,
+            time=record.get(fmt.RECORD_TIME, ''),
+            state=state,
+            verdict=verdict,
+            parameters_path=directory / fmt.PARAMETERS_FILE,
+            record=full,
+            digest=record.get(fmt.RECORD_DIGEST, ''),
+        )
+
+    def _read(self) -> tuple[list[StoreEntry], _History]:
+        records = self._records()
+        history = self._history(records)
+        ordered = sorted(
+            records.values(),
+            key=lambda r: (
+                r.get(fmt.RECORD_NUMBER, 0), r.get(fmt.RECORD_TIME, ''), r[fmt.RECORD_ID]
+            ),
+        )
+        return [self._entry(record, history) for record in ordered], history
+
+    def entries(self) -> list[StoreEntry]:
+        """Return every entry, oldest first."""
+        return self._read()[0]
+
+    def get(self, id_or_prefix: str) -> StoreEntry:
+        """Return the entry of an id or a unique prefix of one (at least 4 characters)."""
+        return self._find(self._read()[0], id_or_prefix)
+
+    def _find(self, entries: list[StoreEntry], id_or_prefix: str) -> StoreEntry:
+        key = id_or_prefix.strip().lower()
+        if len(key) < MIN_PREFIX:
+            raise StoreError(f'id {id_or_prefix!r} is too short: give at least {MIN_PREFIX} hex')
+        matches = [e for e in entries if e.id.startswith(key)]
+        if not matches:
+            raise StoreError(f'no entry {id_or_prefix!r} in calibration store {self.root}')
+        if len(matches) > 1:
+            raise StoreError(
+                f'id {id_or_prefix!r} is ambiguous in {self.root}: '
+                + ', '.join(e.id for e in matches)
+            )
+        return matches[0]
+
+    def find_digest(self, digest: str) -> StoreEntry | None:
+        """Return the entry whose parameters file has this sha256: the active one, else newest."""
+        matches = [e for e in self.entries() if e.digest == digest]
+        if not matches:
+            return None
+        active = [e for e in matches if e.active]
+        return active[0] if active else matches[-1]
+
+    def active(self) -> StoreEntry | None:
+        """Return the active calibration, None before the first deploy."""
+        activation = self.activation()
+        return None if activation is None else activation.entry
+
+    def activation(self) -> Activation | None:
+        """Return the active calibration with since when and why, None before the first deploy."""
+        entries, history = self._read()
+        top = history.active
+        if top is None:
+            return None
+        entry = next(e for e in entries if e.id == top.id)
+        return Activation(entry, top.since, top.reason, top.event)
+
+    def active_marker(self) -> Path:
+        """
+        Return the file replaced on every deploy and rollback (watch its inode and mtime).
+
+        It holds the active id, since when and why (fmt.ACTIVE_* keys); it does not exist
+        before the first deploy.  The events are the truth: active() reads them.
+        """
+        return self.root / fmt.ACTIVE_FILE
+
+    # ----- writing -----------------------------------------------------------------------
+    def _prepare(self) -> None:
+        """Create the store if new (its header last: a store without it is empty)."""
+        exists = self._check_root()
+        self.root.mkdir(parents=True, exist_ok=True)
+        self.entries_dir.mkdir(exist_ok=True)
+        self.events_dir.mkdir(exist_ok=True)
+        if not exists:
+            header = {'format': fmt.STORE_FORMAT, 'version': fmt.STORE_FORMAT_VERSION}
+            files.write_new_file(
+                self.root / fmt.FORMAT_FILE, files.json_text(header).encode('utf-8')
+            )
+
+    def _writing(self):
+        self._prepare()
+        return files.writer_lock(self.root)
+
+    def _clean(self) -> None:
+        files.remove_leftovers(self.root, self.entries_dir, self.events_dir)
+
+    def add(self, parameters_file: Path | str, record: dict[str, Any]) -> StoreEntry:
+        """
+        Copy a parameters file into a new entry with its provenance record; atomic.
+
+        The store sets the record's id, time, digest and format (and model and hexacal
+        version when not given).  StoreError if the file is not a parameters file.
+        """
+        from hexacal_msgs_py.errors import ParameterFileError
+        from hexacal_msgs_py.parameters_file import read_parameters_file
+
+        path = Path(parameters_file)
+        try:
+            data = path.read_bytes()
+            model = read_parameters_file(path).model
+        except OSError as error:
+            raise StoreError(f'cannot read parameters file {path}: {error}') from None
+        except ParameterFileError as error:
+            raise StoreError(f'not stored: {error}') from None
+        digest = fmt.bytes_digest(data)
+        with self._writing():
+            self._clean()
+            number = len(self._records()) + 1
+            time = utc_now()
+            entry_id = hashlib.sha256(
+                f'{digest} {time} {secrets.token_hex(8)}'.encode()
+            ).hexdigest()[:ID_HEX_DIGITS]
+            full = json_safe(dict(record))
+            full.setdefault(fmt.RECORD_MODEL, model)
+            full.setdefault(fmt.RECORD_VERSION, hexacal_version())
+            full.update(
+                {
+                    fmt.RECORD_FORMAT: fmt.STORE_FORMAT_VERSION,
+                    fmt.RECORD_ID: entry_id,
+                    fmt.RECORD_TIME: time,
+                    fmt.RECORD_DIGEST: digest,
+                    fmt.RECORD_NUMBER: number,
+                }
+            )
+            files.write_directory(
+                self.entries_dir / entry_id,
+                {
+                    fmt.PARAMETERS_FILE: data,
+                    fmt.RECORD_FILE: files.json_text(full).encode('utf-8'),
+                },
+            )
+            return self.get(entry_id)
+
+    def _append(self, history: _History, kind: EventType, entry_id: str, **fields: Any) -> int:
+        """Write the next event file; return its sequence number."""
+        sequence = history.last_sequence + 1
+        while True:
+            payload = {
+                fmt.EVENT_SEQUENCE: sequence,
+                fmt.EVENT_TIME: utc_now(),
+                fmt.EVENT_TYPE: str(kind),
+                fmt.EVENT_ID: entry_id,
+                **json_safe(fields),
+            }
+            name = fmt.event_file_name(sequence, kind, entry_id)
+            if files.write_new_file(
+                self.events_dir / name, files.json_text(payload).encode('utf-8')
+            ):
+                return sequence
+            sequence += 1  # taken by a writer that ignored the lock: never overwrite
+
+    def attach_verification(
+        self,
+        id: str,  # noqa: A002 (the shared API's name)
+        figures: dict[str, Any],
+        postures_digest: str | None = None,
+    ) -> StoreEntry:
+        """
+        Attach a verification's figures (``hexacal verify --json``) to an entry.
+
+        The figures must hold ``verdict`` ('pass'/'fail'); ``postures_digest`` (here or in the
+        figures) is the digest of the postures verified on, which deploy compares with the
+        fit's.  A ``calibrated_digest`` in the figures must be the entry's.
+        """
+        figures = json_safe(dict(figures))
+        if postures_digest is not None:
+            figures[fmt.VERIFICATION_POSTURES_DIGEST] = postures_digest
+        verdict = figures.get(fmt.VERIFICATION_VERDICT)
+        if verdict not in (fmt.VERDICT_PASS, fmt.VERDICT_FAIL):
+            raise StoreError(
+                f"verification figures need a verdict 'pass' or 'fail', got {verdict!r}"
+            )
+        with self._writing():
+            self._clean()
+            entries, history = self._read()
+            entry = self._find(entries, id)
+            calibrated = figures.get(fmt.VERIFICATION_CALIBRATED_DIGEST)
+            if calibrated is not None and calibrated != entry.digest:
+                raise StoreError(
+                    f'the verification is of another parameters file (sha256 {calibrated[:12]}) '
+                    f'than entry {entry.short_id} (sha256 {entry.digest[:12]})'
+                )
+            self._append(
+                history, EventType.VERIFIED, entry.id, verdict=verdict, figures=figures
+            )
+            return self.get(entry.id)
+
+    def deploy(
+        self,
+        id: str,  # noqa: A002 (the shared API's name)
+        force: bool = False,
+        max_parameter_change_m: float = DEFAULT_MAX_PARAMETER_CHANGE_M,
+        max_pose_change_m: float = DEFAULT_MAX_POSE_CHANGE_M,
+    ) -> StoreEntry:
+        """
+        Make an entry the active calibration.
+
+        Refused (DeployRefused) unless its latest verification passed on postures other than
+        the fit's and it is within the thresholds of the active calibration (largest length
+        parameter change, largest platform position change over the default workspace), or
+        with force=True: then recorded as forced (state FORCED) with what would have refused it.
+        Deploying the active entry again changes nothing.
+        """
+        with self._writing():
+            self._clean()
+            entries, history = self._read()
+            entry = self._find(entries, id)
+            active = history.active
+            if active is not None and active.id == entry.id:
+                self._update_marker(entries, history)
+                return entry
+            refusals = list(verification_refusals(entry))
+            checks = None
+            if active is not None:
+                previous = self._find(entries, active.id)
+                found, checks = plausibility_refusals(
+                    previous, entry, max_parameter_change_m, max_pose_change_m
+                )
+                refusals.extend(found)
+            if refusals and not force:
+                raise DeployRefused(entry.id, tuple(refusals))
+            self._append(
+                history,
+                EventType.DEPLOYED,
+                entry.id,
+                forced=bool(refusals),
+                refusals=[{'reason': r.reason, 'detail': r.detail} for r in refusals],
+                checks=checks,
+                previous=None if active is None else active.id,
+            )
+            entries, history = self._read()
+            self._update_marker(entries, history)
+            return self._find(entries, entry.id)
+
+    def rollback(self) -> StoreEntry:
+        """Return to the calibration active before the current one (StoreError if none)."""
+        with self._writing():
+            self._clean()
+            entries, history = self._read()
+            if len(history.stack) < 2:
+                raise StoreError(
+                    f'nothing to roll back to in {self.root}: '
+                    + (
+                        'no calibration was deployed'
+                        if not history.stack
+                        else f'{history.stack[-1].id[:8]} is the first deployed calibration'
+                    )
+                )
+            left, restored = history.stack[-1], history.stack[-2]
+            self._append(history, EventType.ROLLED_BACK, restored.id, previous=left.id)
+            entries, history = self._read()
+            self._update_marker(entries, history)
+            return self._find(entries, restored.id)
+
+    def _update_marker(self, entries: list[StoreEntry], history: _History) -> None:
+        """Replace active.json when it does not say what the events say (e.g. after a crash)."""
+        top = history.active
+        if top is None:
+            return
+        entry = next(e for e in entries if e.id == top.id)
+        payload = {
+            fmt.ACTIVE_ID: top.id,
+            fmt.ACTIVE_SINCE: top.since,
+            fmt.ACTIVE_REASON: str(top.reason),
+            fmt.ACTIVE_EVENT: top.event,
+            fmt.ACTIVE_DIGEST: entry.digest,
+        }
+        marker = self.active_marker()
+        try:
+            if files.read_json(marker) == payload:
+                return
+        except (StoreError, FileNotFoundError):
+            pass
+        files.replace_file(marker, files.json_text(payload).encode('utf-8'))
+
+
+def verification_refusals(entry: StoreEntry) -> list[Refusal]:
+    """Return why an entry's verification does not allow a deploy (empty: it does)."""
+    verification = entry.record.get(fmt.RECORD_VERIFICATION)
+    if verification is None:
+        return [Refusal('unverified', f'{entry.short_id} has no verification')]
+    if entry.verdict != fmt.VERDICT_PASS:
+        return [
+            Refusal(
+                'verification-failed',
+                f'the verification of {entry.short_id} says {entry.verdict!r}, not pass',
+            )
+        ]
+    verified_on = verification.get(fmt.VERIFICATION_POSTURES_DIGEST)
+    fitted_on = entry.record.get(fmt.RECORD_POSTURES_DIGEST)
+    if not verified_on or not fitted_on:
+        unknown = 'verified' if not verified_on else 'fitted'
+        return [
+            Refusal(
+                'postures-unknown',
+                f'the store cannot tell whether {entry.short_id} was verified on postures '
+                f"other than its fit's (no digest of the {unknown} postures)",
+            )
+        ]
+    if verified_on == fitted_on:
+        return [
+            Refusal(
+                'verified-on-fit-postures',
+                f'{entry.short_id} was verified on the postures it was fitted to',
+            )
+        ]
+    return []
+
+
+def plausibility_refusals(
+    previous: StoreEntry,
+    entry: StoreEntry,
+    max_parameter_change_m: float,
+    max_pose_change_m: float,
+) -> tuple[list[Refusal], dict[str, Any]]:
+    """Return why `entry` is a surprising jump from `previous` (empty: it is not), and figures."""
+    from .plausibility import compare
+
+    change = compare(previous.id, previous.parameters_path, entry.parameters_path)
+    checks = change.to_json()
+    checks['max_parameter_change_m'] = max_parameter_change_m
+    checks['max_pose_change_m'] = max_pose_change_m
+    if not change.same_model:
+        return [
+            Refusal(
+                'model-changed',
+                f'{entry.short_id} is a {entry.record.get(fmt.RECORD_MODEL)}, the active '
+                f'{previous.short_id} a {previous.record.get(fmt.RECORD_MODEL)}',
+            )
+        ], checks
+    refusals = []
+    assert change.parameter_change_m is not None and change.pose_change_m is not None
+    if change.parameter_change_m > max_parameter_change_m:
+        refusals.append(
+            Refusal(
+                'parameter-jump',
+                f'{change.parameter_name} changes by {change.parameter_change_m * 1e3:.3f} mm '
+                f'from the active {previous.short_id} (limit {max_parameter_change_m * 1e3:g} mm)',
+            )
+        )
+    if change.pose_change_m > max_pose_change_m:
+        moved = (
+            f'{change.fk_failures} of {change.poses} poses not reached'
+            if change.fk_failures
+            else f'the platform moves by up to {change.pose_change_m * 1e3:.3f} mm'
+        )
+        refusals.append(
+            Refusal(
+                'pose-jump',
+                f'{moved} at the same actuator readings as with the active {previous.short_id} '
+                f'(limit {max_pose_change_m * 1e3:g} mm)',
+            )
+        )
+    return refusals, checks
+
+
+def hexacal_version() -> str:
+    """Return the installed hexacal_identify version ('unknown' outside an install)."""
+    from importlib import metadata
+
+    try:
+        return metadata.version('hexacal_identify')
+    except metadata.PackageNotFoundError:
+        return 'unknown'
