@@ -175,15 +175,13 @@ class DeployFollower:
 
     def poll(self) -> Deployed | None:
         """Return the active calibration when it changed since the last poll, else None."""
-        if not self.watch.look():
-            return None
+        self.watch.look()  # one stat; the store is read again only when the marker changed
         active = self.watch.active
         if active is None:
             self.problem = self.watch.error
             return None  # nothing deployed (or the store unreadable): keep what is in use
-        if self.deployed is not None and self.deployed.active.entry.id == active.entry.id:
-            if self.deployed.active == active:
-                return None
+        if self.deployed is not None and self.deployed.active == active:
+            return None
         try:
             saved = read_parameters_file(active.entry.parameters_path)
         except (ParameterFileError, OSError) as error:

@@ -188,9 +188,10 @@ class History:
             with self._lock:
                 store.deploy(entry_id, force=force)
         except DeployRefused as error:
-            return failure(
-                DEPLOY_REFUSED, str(error), reason=error.reason, calibration_id=entry_id, **where
-            )
+            refused = failure(DEPLOY_REFUSED, str(error), calibration_id=entry_id, **where)
+            refused.values['reason'] = error.reason  # the first check that refused
+            refused.values['refusals'] = ', '.join(r.reason for r in error.refusals)
+            return refused
         except (StoreError, OSError) as error:
             return failure(STORE_ERROR, str(error), calibration_id=entry_id, **where)
         values = self.active_values(configured, model)
