@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-import tempfile
 
 from hexacal_identify.ros_domain import claim_domain_id
 import pytest
@@ -21,9 +20,6 @@ ROS_DOMAIN_ID = claim_domain_id('HEXACAL_TEST_DOMAIN_ID')
 os.environ['ROS_DOMAIN_ID'] = str(ROS_DOMAIN_ID)
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.pop('ROS_STATIC_PEERS', None)
-# Calibration stores (identify, kinematics, the CLI) default under $HEXACAL_STORE: a temporary
-# directory, never the user's; node processes inherit it.
-os.environ['HEXACAL_STORE'] = tempfile.mkdtemp(prefix='hexacal-test-store-')
 
 
 def pytest_report_header(config: pytest.Config) -> str:

@@ -108,8 +108,8 @@ class KinematicsNode(Node):
             'parameters',
             '',
             ParameterDescriptor(
-                description="parameters YAML (either model) to start from; '' = wait for the "
-                'first calibration on hexacal/parameters',
+                description="parameters YAML (either model) to start from when the calibration "
+                "store has no active calibration; '' = wait for a deploy",
                 read_only=True,
             ),
         )
