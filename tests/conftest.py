@@ -8,8 +8,11 @@ that no other session on the machine uses, and discovery stays on localhost.
 
 from __future__ import annotations
 
+import atexit
 import os
 from pathlib import Path
+import shutil
+import tempfile
 
 from hexacal_identify.ros_domain import claim_domain_id
 import pytest
@@ -20,6 +23,11 @@ ROS_DOMAIN_ID = claim_domain_id('HEXACAL_TEST_DOMAIN_ID')
 os.environ['ROS_DOMAIN_ID'] = str(ROS_DOMAIN_ID)
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.pop('ROS_STATIC_PEERS', None)
+# Calibrations of this session (`hexacal calibrate`, identify nodes) go to a temporary store
+# directory, never the user's (hexacal_identify.store.default_store_dir).
+_STORES = tempfile.mkdtemp(prefix='hexacal-test-stores-')
+os.environ['HEXACAL_STORE'] = _STORES
+atexit.register(shutil.rmtree, _STORES, True)
 
 
 def pytest_report_header(config: pytest.Config) -> str:

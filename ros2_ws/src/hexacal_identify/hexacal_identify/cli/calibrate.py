@@ -7,6 +7,8 @@ import json
 from pathlib import Path
 import sys
 
+from .store import add_calibrate_arguments, store_calibration
+
 # The solver, the bag reader and the report are imported where they run: this module is imported by
 # every `hexacal` start-up to register the commands.
 UM, MM = 1e6, 1e3
@@ -126,6 +128,7 @@ def _calibrate_arguments(calibrate: argparse.ArgumentParser) -> None:
     calibrate.add_argument(
         '--json', action='store_true', help='print the result as one JSON object'
     )
+    add_calibrate_arguments(calibrate)
     calibrate.set_defaults(handler=run_calibrate)
 
 
@@ -188,6 +191,9 @@ def run_calibrate(args) -> int:
             header_comment=comment,
             extras=device_defects_extras(result) or None,
         )
+        stored = store_calibration(args, result, bag, mount)
+    else:
+        stored = None
     measurements = (
         measurements_from_postures(bag.postures) if args.save_result or args.report else None
     )
@@ -234,9 +240,13 @@ def run_calibrate(args) -> int:
             ],
         }
         payload['output'] = str(args.output) if result.reason == CONVERGED else None
+        if stored is not None and args.store is not None:  # the default store goes unsaid
+            payload['store'] = {'dir': str(args.store), 'id': stored.id}
         print(json.dumps(payload))
     else:
         _print_summary(args, bag, result)
+        if stored is not None and args.store is not None:
+            print(f'stored as {stored.short_id} ({stored.state}) in {args.store}')
     return 0 if result.reason == CONVERGED else 1
 
 

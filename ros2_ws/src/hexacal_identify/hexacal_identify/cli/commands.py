@@ -1,8 +1,9 @@
 """
 ``hexacal``: the command-line tool (study, parameter files, offline calibration from bags).
 
-Exit codes: 0 success; 1 the calibration ran but did not converge; 2 bad input
-or a refused calibration (one line on stderr naming the problem, no traceback).
+Exit codes: 0 success; 1 the calibration ran but did not converge (verify: fail; deploy:
+refused by a check); 2 bad input or a refused calibration (one line on stderr naming the
+problem, no traceback).
 """
 
 from __future__ import annotations
@@ -107,7 +108,15 @@ def build_parser(fill: bool = True) -> argparse.ArgumentParser:
     )
     cli_study.add_parser(subparsers)
     _add_params_parser(subparsers)
-    for module_name in ('calibrate', 'demo', 'plan_report', 'export', 'verify', 'kinematics'):
+    for module_name in (
+        'calibrate',
+        'demo',
+        'plan_report',
+        'export',
+        'verify',
+        'kinematics',
+        'store',
+    ):
         module = _optional_module(module_name)
         if module is not None:
             module.add_parsers(subparsers)
@@ -149,6 +158,9 @@ def _named_errors() -> tuple[type[BaseException], ...]:
     bag = _optional_module('hexacal_identify.bag')
     if bag is not None and hasattr(bag, 'BagError'):
         errors.append(bag.BagError)
+    store = _optional_module('hexacal_identify.store')
+    if store is not None:  # a bad store, an unknown id, nothing to roll back to
+        errors.append(store.StoreError)
     return tuple(errors)
 
 

@@ -280,6 +280,8 @@ def _run(args) -> int:
     _plans(args, nominal, paths)
     domain_id = claim_domain_id()
     env = {'ROS_DOMAIN_ID': str(domain_id), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
+    # The simulated machine's calibrations are kept in the work directory, not the user's store.
+    env['HEXACAL_STORE'] = str(paths.work / 'store')
     os.environ.update(env)  # the in-process node below joins the same domain
     os.environ.pop('ROS_STATIC_PEERS', None)
     print(f'hexacal demo: work directory {paths.work}, ROS domain {domain_id}', flush=True)

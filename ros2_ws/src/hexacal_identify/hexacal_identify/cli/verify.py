@@ -23,6 +23,8 @@ import json
 import math
 from pathlib import Path
 
+from .store import add_verify_arguments, attach_verification
+
 # numpy, the bag reader and the core are imported where they run: this module is imported by every
 # `hexacal` start-up to register the command.
 UM = 1e6
@@ -108,6 +110,7 @@ def _verify_arguments(parser: argparse.ArgumentParser) -> None:
         help='write an HTML page (index.html + verification.png) into DIR',
     )
     parser.add_argument('--json', action='store_true', help='print the result as one JSON object')
+    add_verify_arguments(parser)
     parser.set_defaults(handler=run_verify)
 
 
@@ -177,10 +180,15 @@ def run_verify(args) -> int:
             title=f'hexacal verification report: {args.bag}',
         )
         payload['report'] = str(page)
+    stored = attach_verification(args, payload, bag, calibrated.model)
+    if stored is not None:
+        payload['store'] = stored
     if args.json:
         print(json.dumps(payload, allow_nan=False))
     else:
         _print_table(args, bag, payload)
+        if stored is not None:
+            print(f'attached to {stored["id"][:8]} ({stored["state"]}) in {stored["dir"]}')
     return EXIT_PASS if result.verdict == PASS else EXIT_FAIL
 
 

@@ -30,7 +30,11 @@ from hexacal_msgs_py.store_format import (
 
 from .calibration_store import CalibrationStore, hexacal_version, utc_now
 from .entry import Activation, DeployRefused, Refusal, StoreEntry, StoreError
-from .plausibility import DEFAULT_MAX_PARAMETER_CHANGE_M, DEFAULT_MAX_POSE_CHANGE_M
+from .plausibility import (
+    DEFAULT_MAX_PARAMETER_CHANGE_M,
+    DEFAULT_MAX_POSE_CHANGE_M,
+    DEFAULT_MAX_ROTATION_CHANGE_RAD,
+)
 
 
 def default_store_dir(model: str) -> Path:
@@ -54,6 +58,7 @@ __all__ = [
     'CalibrationStore',
     'DEFAULT_MAX_PARAMETER_CHANGE_M',
     'DEFAULT_MAX_POSE_CHANGE_M',
+    'DEFAULT_MAX_ROTATION_CHANGE_RAD',
     'DeployRefused',
     'Refusal',
     'StoreEntry',

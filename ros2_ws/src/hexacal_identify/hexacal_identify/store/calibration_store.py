@@ -21,7 +21,11 @@ from hexacal_msgs_py.store_format import ActivationReason, EventType, StoreState
 
 from . import files
 from .entry import Activation, DeployRefused, Refusal, StoreEntry, StoreError
-from .plausibility import DEFAULT_MAX_PARAMETER_CHANGE_M, DEFAULT_MAX_POSE_CHANGE_M
+from .plausibility import (
+    DEFAULT_MAX_PARAMETER_CHANGE_M,
+    DEFAULT_MAX_POSE_CHANGE_M,
+    DEFAULT_MAX_ROTATION_CHANGE_RAD,
+)
 
 ID_HEX_DIGITS = 12
 MIN_PREFIX = 4
@@ -176,7 +180,7 @@ class CalibrationStore:
             state = StoreState.FORCED if active.forced else StoreState.ACTIVE
         elif entry_id in history.rolled_back:
             state = StoreState.ROLLED_BACK
-        elif verdict == fmt.VERDICT_PASS:
+        elif verdict == fmt.VERDICT_PASS and _on_other_postures(record, verification):
             state = StoreState.VERIFIED
         else:
             state = StoreState.STORED
@@ -322,7 +326,9 @@ class CalibrationStore:
                     fmt.RECORD_FILE: files.json_text(full).encode('utf-8'),
                 },
             )
-            return self.get(entry_id)
+            entries, history = self._read()
+            self._update_marker(entries, history)
+            return self._find(entries, entry_id)
 
     def _append(self, history: _History, kind: EventType, entry_id: str, **fields: Any) -> int:
         """Write the next event file; return its sequence number."""
@@ -376,7 +382,9 @@ class CalibrationStore:
             self._append(
                 history, EventType.VERIFIED, entry.id, verdict=verdict, figures=figures
             )
-            return self.get(entry.id)
+            entries, history = self._read()
+            self._update_marker(entries, history)
+            return self._find(entries, entry.id)
 
     def deploy(
         self,
@@ -384,13 +392,16 @@ class CalibrationStore:
         force: bool = False,
         max_parameter_change_m: float = DEFAULT_MAX_PARAMETER_CHANGE_M,
         max_pose_change_m: float = DEFAULT_MAX_POSE_CHANGE_M,
+        *,
+        max_rotation_change_rad: float = DEFAULT_MAX_ROTATION_CHANGE_RAD,
     ) -> StoreEntry:
         """
         Make an entry the active calibration.
 
         Refused (DeployRefused) unless its latest verification passed on postures other than
         the fit's and it is within the thresholds of the active calibration (largest length
-        parameter change, largest platform position change over the default workspace), or
+        parameter change, largest platform position and rotation change over the default
+        workspace), or
         with force=True: then recorded as forced (state FORCED) with what would have refused it.
         Deploying the active entry again changes nothing.
         """
@@ -407,7 +418,11 @@ class CalibrationStore:
             if active is not None:
                 previous = self._find(entries, active.id)
                 found, checks = plausibility_refusals(
-                    previous, entry, max_parameter_change_m, max_pose_change_m
+                    previous,
+                    entry,
+                    max_parameter_change_m,
+                    max_pose_change_m,
+                    max_rotation_change_rad,
                 )
                 refusals.extend(found)
             if refusals and not force:
@@ -467,6 +482,13 @@ class CalibrationStore:
         files.replace_file(marker, files.json_text(payload).encode('utf-8'))
 
 
+def _on_other_postures(record: dict[str, Any], verification: dict[str, Any] | None) -> bool:
+    """Return whether a verification was on known postures other than the fit's."""
+    verified_on = (verification or {}).get(fmt.VERIFICATION_POSTURES_DIGEST)
+    fitted_on = record.get(fmt.RECORD_POSTURES_DIGEST)
+    return bool(verified_on) and bool(fitted_on) and verified_on != fitted_on
+
+
 def verification_refusals(entry: StoreEntry) -> list[Refusal]:
     """Return why an entry's verification does not allow a deploy (empty: it does)."""
     verification = entry.record.get(fmt.RECORD_VERIFICATION)
@@ -505,6 +527,7 @@ def plausibility_refusals(
     entry: StoreEntry,
     max_parameter_change_m: float,
     max_pose_change_m: float,
+    max_rotation_change_rad: float = DEFAULT_MAX_ROTATION_CHANGE_RAD,
 ) -> tuple[list[Refusal], dict[str, Any]]:
     """Return why `entry` is a surprising jump from `previous` (empty: it is not), and figures."""
     from .plausibility import compare
@@ -513,6 +536,7 @@ def plausibility_refusals(
     checks = change.to_json()
     checks['max_parameter_change_m'] = max_parameter_change_m
     checks['max_pose_change_m'] = max_pose_change_m
+    checks['max_rotation_change_rad'] = max_rotation_change_rad
     if not change.same_model:
         return [
             Refusal(
@@ -542,6 +566,16 @@ def plausibility_refusals(
                 'pose-jump',
                 f'{moved} at the same actuator readings as with the active {previous.short_id} '
                 f'(limit {max_pose_change_m * 1e3:g} mm)',
+            )
+        )
+    rotation = change.rotation_change_rad
+    if not change.fk_failures and rotation is not None and rotation > max_rotation_change_rad:
+        refusals.append(
+            Refusal(
+                'rotation-jump',
+                f'the platform turns by up to {rotation * 1e3:.3f} mrad at the same actuator '
+                f'readings as with the active {previous.short_id} (limit '
+                f'{max_rotation_change_rad * 1e3:g} mrad)',
             )
         )
     return refusals, checks

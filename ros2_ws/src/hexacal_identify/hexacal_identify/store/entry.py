@@ -34,9 +34,9 @@ class DeployRefused(StoreError):
         self.refusals = refusals
         self.reason = refusals[0].reason if refusals else 'refused'
         super().__init__(
-            f'deploy of {entry_id} refused: '
+            f'refused to deploy {entry_id[:8]}: '
             + '; '.join(f'{r.detail} ({r.reason})' for r in refusals)
-            + ' - deploy with --force to override (recorded as forced)'
+            + '; --force deploys it anyway (recorded as forced)'
         )
 
 

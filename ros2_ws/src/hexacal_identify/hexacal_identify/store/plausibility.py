@@ -21,6 +21,8 @@ POSE_SEED = 20
 # another machine or a nominal set moves them by millimetres.
 DEFAULT_MAX_PARAMETER_CHANGE_M = 1e-3
 DEFAULT_MAX_POSE_CHANGE_M = 0.5e-3
+# The platform's orientation at the same readings: a recalibration turns it by ~0.1 mrad.
+DEFAULT_MAX_ROTATION_CHANGE_RAD = 2e-3
 
 
 @dataclass(frozen=True)
