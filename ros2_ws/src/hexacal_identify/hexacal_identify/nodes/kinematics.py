@@ -108,7 +108,7 @@ class KinematicsNode(Node):
             'parameters',
             '',
             ParameterDescriptor(
-                description="parameters YAML (either model) to start from when the calibration "
+                description='parameters YAML (either model) to start from when the calibration '
                 "store has no active calibration; '' = wait for a deploy",
                 read_only=True,
             ),

@@ -9,7 +9,6 @@ from typing import Protocol
 from hexacal_msgs_py.errors import HexacalContractError, ParameterFileError
 from hexacal_msgs_py.parameters_file import save_parameters
 
-from .history import calibration_record, fit_figures
 from .nominal import NominalFile
 from .outcome import failure, Level, Outcome, Reason, ReportState
 from .paths import output_path
@@ -20,6 +19,7 @@ from .settings import names, Settings
 # pipeline and core.identification (the solver) are imported where they are used: at the first
 # calibration, not when the node starts.
 from ..core.errors import CalibrationError
+from ..store.provenance import calibration_record
 
 
 class Log(Protocol):
@@ -171,17 +171,16 @@ def run_calibration(
         )
     values['output'] = str(target)
     record = calibration_record(
-        bag=bag,
+        result,
+        source='identify node',
         postures=postures,
-        nominal_path=nominal_path,
-        cost=cost,
+        nominal_file=nominal_path,
         noise=noise,
-        robust_loss=settings.robust_loss,
+        robust_loss=settings.robust_loss or None,
         link_length=link_length,
         mount=mount,
-        device_defects=pipeline.device_defects_extras(result),
-        device_prior=prior,
-        fit=fit_figures(result),
+        device_prior=pipeline.device_prior_json(prior),
+        bag=bag or None,
     )
     # The report (figures, pose-error map, result payload) is written after the answer.
     report = None

@@ -2,35 +2,22 @@
 The identify node's calibration store: every calibration kept, verified, deployed on request.
 
 What the node decides about the store, without ROS: which store (the `calibration_store`
-parameter, else the machine model's default store), the provenance record of a calibration,
-the status values and answers of deploy and rollback. The store's own rules (what is
-deployable, the plausibility check, nothing overwritten) are the store's.
+parameter, else the machine model's default store), the status values and answers of adding,
+verifying, deploy and rollback. The provenance record is store.provenance's (the CLI's too);
+the store's own rules (what is deployable, the plausibility check, nothing overwritten) are
+the store's.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
 import hashlib
 from pathlib import Path
 import threading
-from typing import Any, TYPE_CHECKING
-
-from hexacal_msgs_py import store_format as fmt
 
 from .deployment import ActiveWatch, NO_ACTIVE, store_dir
 from .outcome import failure, Level, Outcome
 from ..core.jsonsafe import json_safe
-from ..store import (
-    CalibrationStore,
-    DeployRefused,
-    file_digest,
-    postures_digest,
-    StoreEntry,
-    StoreError,
-)
-
-if TYPE_CHECKING:
-    from ..core.measurements import NoiseModel
+from ..store import CalibrationStore, DeployRefused, StoreEntry, StoreError
 
 DEPLOYED = 'deployed'
 ROLLED_BACK = 'rolled-back'
@@ -38,69 +25,6 @@ DEPLOY_REFUSED = 'deploy-refused'
 ROLLBACK_REFUSED = 'rollback-refused'
 NO_CALIBRATION = 'no-calibration'
 STORE_ERROR = 'store-error'
-
-
-def fit_figures(result: Any) -> dict[str, object]:
-    """Return the fit's figures of an IdentificationResult (store FIT_* keys, SI)."""
-    figures: dict[str, object] = {
-        fmt.FIT_REASON: result.reason,
-        fmt.FIT_RANK: result.rank,
-        fmt.FIT_PARAMETERS: int(len(result.parameters.vector)),
-        fmt.FIT_CONDITION: result.condition_number,
-        fmt.FIT_COST: result.cost,
-        fmt.FIT_ITERATIONS: result.iterations,
-        fmt.FIT_RMS_RESIDUAL: dict(result.rms_residual),
-        fmt.FIT_POSTURES_USED: len(result.used_postures),
-        fmt.FIT_POSTURES_REJECTED: len(result.rejected_postures),
-    }
-    if result.weighted:  # the residual variance over the noise model's: ~1 when it fits
-        figures[fmt.FIT_ADEQUACY] = {'variance_factor': result.variance_factor}
-    return figures
-
-
-def calibration_record(
-    *,
-    bag: str,
-    postures: Sequence[Any],
-    nominal_path: str,
-    cost: str,
-    noise: NoiseModel | None,
-    robust_loss: str,
-    link_length: float,
-    mount: str | None,
-    device_defects: Mapping[str, object] | None,
-    device_prior: object,
-    fit: Mapping[str, object],
-) -> dict[str, object]:
-    """Return the provenance record of a calibration made by the identify node (store keys)."""
-    record: dict[str, object] = {
-        fmt.RECORD_SOURCE: 'identify node',
-        fmt.RECORD_POSTURES_COUNT: len(postures),
-        fmt.RECORD_POSTURES_DIGEST: postures_digest(postures),
-        fmt.RECORD_NOMINAL_FILE: str(nominal_path),
-        fmt.RECORD_NOMINAL_DIGEST: _digest(nominal_path),
-        fmt.RECORD_COST: cost,
-        fmt.RECORD_NOISE: None
-        if noise is None
-        else {'actuator_m': noise.actuator_m, 'angle_rad': noise.angle_rad},
-        fmt.RECORD_ROBUST_LOSS: robust_loss or None,
-        fmt.RECORD_LINK_LENGTH: link_length,
-        fmt.RECORD_MOUNT: mount,
-        fmt.RECORD_DEVICE_DEFECTS: dict(device_defects or {}),
-        fmt.RECORD_DEVICE_PRIOR: str(device_prior.describe()) if device_prior else None,
-        fmt.RECORD_FIT: dict(fit),
-    }
-    if bag:
-        record[fmt.RECORD_BAG] = {'path': bag, 'digest': _digest(bag)}
-    return json_safe(record)
-
-
-def _digest(path: str) -> str | None:
-    """Return the sha256 of a file, None when it cannot be read (e.g. a bag directory)."""
-    try:
-        return file_digest(path)
-    except OSError:
-        return None
 
 
 class History:
