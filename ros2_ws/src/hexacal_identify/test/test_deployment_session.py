@@ -130,6 +130,9 @@ def test_the_session_keeps_verifies_and_deploys_its_calibration(tmp_path, nomina
         calibration_store=str(store),
         verify_threshold_m=5e-4,
     )
+    session.announce_active(settings)
+    announced = recorder.statuses(DEPLOYMENT_STATUS_NAME)[-1][4]
+    assert announced['outcome'] == 'none-deployed' and announced['active_calibration'] == ''
     receive(session, simulated(40, 0), nominal)
     outcome = session.calibrate(settings)
     assert outcome.success, outcome.message
@@ -154,3 +157,31 @@ def test_the_session_keeps_verifies_and_deploys_its_calibration(tmp_path, nomina
         read_parameters_file(entry.parameters_path).vector
     )
     assert recorder.statuses(DEPLOYMENT_STATUS_NAME)[-1][4]['outcome'] == 'deployed'
+    # A restarted session says what is active, since when and why.
+    restarted = CalibrationSession(recorder, logging.getLogger('test_deployment'), lambda: None)
+    restarted.announce_active(settings)
+    announced = recorder.statuses(DEPLOYMENT_STATUS_NAME)[-1]
+    assert announced[4]['outcome'] == 'active' and announced[4]['active_calibration'] == entry.id
+    assert announced[4]['active_reason'] == 'verified' and 'since' in announced[3]
+
+
+def test_the_report_names_the_store_entry_and_the_active_calibration(
+    tmp_path, nominal  # noqa: F811
+):
+    session = CalibrationSession(Recorder(), logging.getLogger('test_deployment'), lambda: None)
+    store = CalibrationStore(tmp_path / 'store')
+    active = store.add(parameters_file(tmp_path, 'a.yaml'), {})
+    store.deploy(active.id, force=True)
+    settings = Settings(
+        nominal=str(nominal),
+        output_dir=str(tmp_path),
+        report_dir='report',
+        calibration_store=str(tmp_path / 'store'),
+    )
+    receive(session, simulated(40, 0), nominal)
+    outcome = session.calibrate(settings)
+    assert outcome.success, outcome.message
+    session.write_reports()
+    page = (tmp_path / 'report' / 'index.html').read_text()
+    assert f'{outcome.values["calibration_id"]} in {tmp_path / "store"}' in page
+    assert f'{active.id} (forced since ' in page

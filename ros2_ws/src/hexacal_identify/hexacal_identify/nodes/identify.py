@@ -274,6 +274,7 @@ class IdentifyNode(Node):
                 callback_group=ReentrantCallbackGroup(),
             )
         self.session.republish_saved(self.settings())
+        self.session.announce_active(self.settings())
         self.get_logger().info(
             f'collecting postures on {self.resolve_topic_name(POSTURE_TOPIC)}; calibrate with '
             f'{self.resolve_service_name(CALIBRATE_SERVICE)}, verify with '

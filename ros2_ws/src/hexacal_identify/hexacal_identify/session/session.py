@@ -26,6 +26,7 @@ from hexacal_msgs_py.readings import PostureReading
 import numpy as np
 
 from .calibration import Log, run_calibration
+from .deployment import ACTIVE_KEYS
 from .history import History
 from .nominal import NominalFile
 from .outcome import failure, Level, Outcome, Reason, ReportState
@@ -219,6 +220,9 @@ class CalibrationSession:
             self._log.warning(f'calibration not kept in the store: {values["store_error"]}')
         outcome.values.update(values)
         outcome.values.update(self.history.active_values(settings.calibration_store, model))
+        if outcome.report is not None:  # the report says which entry, and what is active
+            keys = ('calibration_id', 'calibration_store', *ACTIVE_KEYS)
+            outcome.report.store = {k: outcome.values[k] for k in keys if k in outcome.values}
         return entry.id if entry is not None else None
 
     def _started(self, postures: int, source: str) -> None:
@@ -309,6 +313,23 @@ class CalibrationSession:
         return self._deployed(
             settings, model, self.history.rollback(settings.calibration_store, model)
         )
+
+    def announce_active(self, settings: Settings) -> None:
+        """Publish which calibration of the store is active (at start-up)."""
+        model = self._model(settings)
+        values = self.history.active_values(settings.calibration_store, model)
+        root = self.history.root(settings.calibration_store, model)
+        if values['active_calibration']:
+            text = (
+                f'active: calibration {values["active_calibration"]} '
+                f'({values["active_reason"]} since {values["active_since"]}), store {root}'
+            )
+        else:
+            text = f'none-deployed: no calibration deployed in store {root}'
+        outcome = text.split(':', 1)[0]
+        values = {'outcome': outcome, 'calibration_store': str(root), **values}
+        with self._status_lock:
+            self._sink.status(DEPLOYMENT_STATUS_NAME, Level.OK, text, values)
 
     def _deployed(self, settings: Settings, model: str, outcome: Outcome) -> Outcome:
         active = None
