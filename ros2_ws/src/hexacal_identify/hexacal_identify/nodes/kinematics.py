@@ -264,8 +264,10 @@ class KinematicsNode(Node):
             Float64MultiArray, PARAMETERS_TOPIC, self._on_parameters, PARAMETERS_QOS
         )
         self._follow_any = bool(value['follow_calibrations'])
-        if self.deploys.deployed is not None and source != value['parameters']:
-            self.session.deployment = self.deploys.values()
+        taken = self.deploys.deployed is not None and source != value['parameters']
+        self.session.deployment = self.deploys.values() if taken else dict(NO_ACTIVE)
+        if self.deploys.watch.error:  # e.g. a directory that is not a store: said, not fatal
+            self.get_logger().warning(f'calibration store: {self.deploys.watch.error}')
         self.create_timer(STORE_POLL_PERIOD_S, self._follow_store)
         # Where every calibration is taken from ('' = only the deployed ones).
         following = self.resolve_topic_name(PARAMETERS_TOPIC) if self._follow_any else ''
