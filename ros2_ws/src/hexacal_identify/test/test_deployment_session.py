@@ -15,7 +15,6 @@ from hexacal_identify.core.architectures import architecture
 from hexacal_identify.session import CalibrationSession, Settings
 from hexacal_identify.session.deployment import (
     ActiveWatch,
-    calibration_digest,
     DeployFollower,
     NO_ACTIVE,
     store_dir,
@@ -24,6 +23,7 @@ from hexacal_identify.session.history import History
 from hexacal_identify.store import CalibrationStore
 from hexacal_msgs_py.names import DEPLOYMENT_STATUS_NAME
 from hexacal_msgs_py.parameters_file import read_parameters_file, save_parameters
+from hexacal_msgs_py.store_format import vector_digest
 import numpy as np
 from test_calibration_session import nominal, receive, Recorder, simulated  # noqa: F401
 
@@ -45,15 +45,15 @@ def test_store_dir_is_the_configured_one_else_the_models_default(tmp_path, monke
     assert store_dir('', MODEL) == tmp_path / 'default' / MODEL
 
 
-def test_the_digest_of_a_file_round_trip_is_the_messages_and_one_bit_changes_it(tmp_path):
+def test_the_vector_digest_of_a_file_is_the_messages_and_one_bit_changes_it(tmp_path):
     path = parameters_file(tmp_path, 'p.yaml')
     saved = read_parameters_file(path)
     vector = architecture(MODEL).default_parameters().vector
-    assert calibration_digest(saved.model, saved.vector) == calibration_digest(MODEL, vector)
+    assert vector_digest(saved.model, saved.vector) == vector_digest(MODEL, vector)
     nudged = vector.copy()
     nudged[3] = np.nextafter(nudged[3], np.inf)
-    assert calibration_digest(MODEL, nudged) != calibration_digest(MODEL, vector)
-    assert calibration_digest('gough_stewart', vector) != calibration_digest(MODEL, vector)
+    assert vector_digest(MODEL, nudged) != vector_digest(MODEL, vector)
+    assert vector_digest('gough_stewart', vector) != vector_digest(MODEL, vector)
 
 
 def test_the_follower_takes_deploys_and_rollbacks_and_only_the_deployed_message(tmp_path):

@@ -79,6 +79,10 @@ def test_entries_are_oldest_first_and_found_by_prefix_or_digest(tmp_path, machin
     assert store.get(second.id[:6]).id == second.id
     assert store.find_digest(first.digest).id == again.id  # the newest, none being active
     assert store.find_digest('0' * 64) is None
+    # A parameters message is a vector: matched by the digest of the vector and its model.
+    vector = default_parameters().vector
+    assert store.find_digest(fmt.vector_digest('hexa_slide', vector)).id == again.id
+    assert store.find_digest(fmt.vector_digest('gough_stewart', vector)) is None
     with pytest.raises(StoreError, match='no entry'):
         store.get('abcdef0123')
     with pytest.raises(StoreError, match='too short'):

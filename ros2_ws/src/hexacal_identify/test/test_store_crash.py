@@ -71,7 +71,7 @@ def _killed_at(root: Path, stage: str, action: str, argument: str) -> None:
 
 
 def _leftovers(root: Path) -> list[Path]:
-    return [p for p in root.rglob(f'{fmt.TEMP_PREFIX}*')]
+    return list(root.rglob(f'{fmt.TEMP_PREFIX}*'))
 
 
 @pytest.mark.parametrize('stage', ['wrote parameters.yaml', 'wrote record.json', 'before rename'])
@@ -153,3 +153,36 @@ def test_an_event_never_replaces_another(tmp_path, parameters):
     store.attach_verification(entry.id, {'verdict': 'pass'}, postures_digest='e' * 64)
     assert sorted(fmt.event_sequence(p.name) for p in events.iterdir()) == [1, 2, 3]
     assert store.get(entry.id).verdict == 'pass'
+
+
+def test_readers_never_see_a_half_written_store_while_writers_work(tmp_path, parameters):
+    """A reader polling while entries and their verifications are written sees whole states."""
+    import threading
+
+    store = CalibrationStore(tmp_path / 'store')
+    done, problems, seen = threading.Event(), [], []
+
+    def read() -> None:
+        reader = CalibrationStore(tmp_path / 'store')
+        while not done.is_set():
+            try:
+                entries = reader.entries()
+            except Exception as error:  # noqa: B902 (anything a reader hits is the failure)
+                problems.append(error)
+                return
+            seen.append(len(entries))
+            for entry in entries:
+                if entry.verdict is not None and entry.state != StoreState.VERIFIED:
+                    problems.append(f'{entry.id}: verdict {entry.verdict}, state {entry.state}')
+
+    thread = threading.Thread(target=read)
+    thread.start()
+    try:
+        for _ in range(12):
+            entry = store.add(parameters, {fmt.RECORD_POSTURES_DIGEST: 'f' * 64})
+            store.attach_verification(entry.id, {'verdict': 'pass'}, postures_digest='e' * 64)
+    finally:
+        done.set()
+        thread.join(timeout=30)
+    assert problems == []
+    assert seen and max(seen) <= 12 and len(store.entries()) == 12

@@ -84,6 +84,7 @@ RECORD_ID = 'id'
 RECORD_TIME = 'time'  # ISO 8601 UTC, when the entry was added
 RECORD_NUMBER = 'number'  # 1, 2, ...: the order entries were added in
 RECORD_DIGEST = 'digest'  # sha256 of parameters.yaml
+RECORD_VECTOR_DIGEST = 'vector_digest'  # vector_digest() of its parameter vector
 RECORD_MODEL = 'model'  # the machine model the parameters are of
 RECORD_SOURCE = 'source'  # what made it: 'hexacal calibrate', 'identify node', ...
 RECORD_POSTURES_DIGEST = 'postures_digest'  # postures_digest() of the postures fitted
@@ -181,6 +182,18 @@ def postures_digest(postures: Iterable[_Posture]) -> str:
             getattr(posture, 'device_turn', 0.0),
         ]
         digest.update(struct.pack(f'<I{len(values)}d', len(values), *map(float, values)))
+    return digest.hexdigest()
+
+
+def vector_digest(model: str, values: Iterable[float]) -> str:
+    """
+    Return the sha256 (hex) of a parameter vector: the model name and little-endian float64s.
+
+    What a parameters message (a vector, not a file) is matched to store entries by.
+    """
+    numbers = [float(v) for v in values]
+    digest = hashlib.sha256(b'hexacal-vector-v1\0' + model.encode('utf-8') + b'\0')
+    digest.update(struct.pack(f'<{len(numbers)}d', *numbers))
     return digest.hexdigest()
 
 

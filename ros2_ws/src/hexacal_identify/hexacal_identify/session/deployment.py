@@ -7,19 +7,21 @@ store again only when the store's active marker changes identity (one stat per l
 busy loop). The identify node adds its calibrations, attaches its verifications and deploys
 or rolls back on request (History); the kinematics node follows the deploys (DeployFollower):
 the store's active entry at start and after every change of the marker, and a parameters
-message only when its digest is the active calibration's.
+message only when its vector_digest (model name and float64 vector) is the active
+calibration's. A parameters file keeps every bit of its floats, so the digest of a store
+entry's file and that of the message publishing it are the same; any other vector differs.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-import hashlib
 from pathlib import Path
 
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.models import MODELS
 from hexacal_msgs_py.parameters_file import read_parameters_file
+from hexacal_msgs_py.store_format import vector_digest
 import numpy as np
 
 from .nominal import file_identity, FileIdentity
@@ -41,19 +43,6 @@ def store_dir(configured: str, model: str) -> Path:
     if configured:
         return Path(configured).expanduser().resolve()
     return default_store_dir(model)
-
-
-def calibration_digest(model: str, vector: Sequence[float] | np.ndarray) -> str:
-    """
-    Return the digest of a calibration: sha256 of its model name and float64 vector.
-
-    A parameters file keeps every bit of its floats (repr), so the digest of a store entry's
-    file and that of the message publishing it are the same; any other vector differs.
-    """
-    digest = hashlib.sha256(model.encode())
-    digest.update(b'\0')
-    digest.update(np.asarray(vector, dtype='<f8').tobytes())
-    return digest.hexdigest()
 
 
 @dataclass(frozen=True)
@@ -189,7 +178,7 @@ class DeployFollower:
             return None
         vector = np.asarray(saved.vector, dtype=float)
         self.problem = ''
-        digest = calibration_digest(saved.model, vector)
+        digest = vector_digest(saved.model, vector)
         self.deployed = Deployed(active, saved.model, vector, digest)
         return self.deployed
 
@@ -198,6 +187,6 @@ class DeployFollower:
         self.poll()  # a message may announce a deploy before the timer sees it
         if self.deployed is None:
             return None
-        if calibration_digest(model, vector) != self.deployed.digest:
+        if vector_digest(model, vector) != self.deployed.digest:
             return None
         return self.deployed

@@ -135,17 +135,22 @@ class CalibrationStore:
             records[directory.name] = record
         return records
 
-    def _history(self, known: dict[str, dict[str, Any]]) -> _History:
-        history = _History()
-        if not self.events_dir.is_dir():
-            return history
+    def _events(self) -> list[tuple[int, Path, Any]]:
+        """Return (number, path, contents) of every event, in order."""
+        if not self._check_root() or not self.events_dir.is_dir():
+            return []
         numbered = sorted(
             (sequence, path)
             for path in self.events_dir.iterdir()
             if (sequence := fmt.event_sequence(path.name)) is not None
         )
-        for sequence, path in numbered:
-            event = files.read_json(path)
+        return [(sequence, path, files.read_json(path)) for sequence, path in numbered]
+
+    def _history(
+        self, events: list[tuple[int, Path, Any]], known: dict[str, dict[str, Any]]
+    ) -> _History:
+        history = _History()
+        for sequence, path, event in events:
             entry_id = event.get(fmt.EVENT_ID) if isinstance(event, dict) else None
             if entry_id not in known:
                 raise StoreError(f'{path}: names no entry of the store ({entry_id!r})')
@@ -198,12 +203,17 @@ class CalibrationStore:
         )
 
     def _read(self) -> tuple[list[StoreEntry], _History]:
+        # Events first: an event's entry was renamed into place before the event was written,
+        # so it is among the records listed after, even while a writer works.
+        events = self._events()
         records = self._records()
-        history = self._history(records)
+        history = self._history(events, records)
         ordered = sorted(
             records.values(),
             key=lambda r: (
-                r.get(fmt.RECORD_NUMBER, 0), r.get(fmt.RECORD_TIME, ''), r[fmt.RECORD_ID]
+                r.get(fmt.RECORD_NUMBER, 0),
+                r.get(fmt.RECORD_TIME, ''),
+                r[fmt.RECORD_ID],
             ),
         )
         return [self._entry(record, history) for record in ordered], history
@@ -231,8 +241,17 @@ class CalibrationStore:
         return matches[0]
 
     def find_digest(self, digest: str) -> StoreEntry | None:
-        """Return the entry whose parameters file has this sha256: the active one, else newest."""
-        matches = [e for e in self.entries() if e.digest == digest]
+        """
+        Return the entry whose parameters have this digest: the active one, else the newest.
+
+        The sha256 of the parameters file, or the ``vector_digest`` of its parameter vector
+        (what a parameters message is matched by).
+        """
+        matches = [
+            e
+            for e in self.entries()
+            if digest in (e.digest, e.record.get(fmt.RECORD_VECTOR_DIGEST))
+        ]
         if not matches:
             return None
         active = [e for e in matches if e.active]
@@ -263,16 +282,15 @@ class CalibrationStore:
 
     # ----- writing -----------------------------------------------------------------------
     def _prepare(self) -> None:
-        """Create the store if new (its header last: a store without it is empty)."""
-        exists = self._check_root()
-        self.root.mkdir(parents=True, exist_ok=True)
-        self.entries_dir.mkdir(exist_ok=True)
-        self.events_dir.mkdir(exist_ok=True)
-        if not exists:
+        """Create the store if new: its header first, so no reader sees a store without one."""
+        if not self._check_root():
+            self.root.mkdir(parents=True, exist_ok=True)
             header = {'format': fmt.STORE_FORMAT, 'version': fmt.STORE_FORMAT_VERSION}
-            files.write_new_file(
+            files.write_new_file(  # False: another writer made it just now, the same header
                 self.root / fmt.FORMAT_FILE, files.json_text(header).encode('utf-8')
             )
+        self.entries_dir.mkdir(exist_ok=True)
+        self.events_dir.mkdir(exist_ok=True)
 
     def _writing(self):
         self._prepare()
@@ -294,7 +312,7 @@ class CalibrationStore:
         path = Path(parameters_file)
         try:
             data = path.read_bytes()
-            model = read_parameters_file(path).model
+            contents = read_parameters_file(path)
         except OSError as error:
             raise StoreError(f'cannot read parameters file {path}: {error}') from None
         except ParameterFileError as error:
@@ -308,7 +326,7 @@ class CalibrationStore:
                 f'{digest} {time} {secrets.token_hex(8)}'.encode()
             ).hexdigest()[:ID_HEX_DIGITS]
             full = json_safe(dict(record))
-            full.setdefault(fmt.RECORD_MODEL, model)
+            full.setdefault(fmt.RECORD_MODEL, contents.model)
             full.setdefault(fmt.RECORD_VERSION, hexacal_version())
             full.update(
                 {
@@ -316,6 +334,9 @@ class CalibrationStore:
                     fmt.RECORD_ID: entry_id,
                     fmt.RECORD_TIME: time,
                     fmt.RECORD_DIGEST: digest,
+                    fmt.RECORD_VECTOR_DIGEST: fmt.vector_digest(
+                        contents.model, contents.vector.tolist()
+                    ),
                     fmt.RECORD_NUMBER: number,
                 }
             )
@@ -379,9 +400,7 @@ class CalibrationStore:
                     f'the verification is of another parameters file (sha256 {calibrated[:12]}) '
                     f'than entry {entry.short_id} (sha256 {entry.digest[:12]})'
                 )
-            self._append(
-                history, EventType.VERIFIED, entry.id, verdict=verdict, figures=figures
-            )
+            self._append(history, EventType.VERIFIED, entry.id, verdict=verdict, figures=figures)
             entries, history = self._read()
             self._update_marker(entries, history)
             return self._find(entries, entry.id)

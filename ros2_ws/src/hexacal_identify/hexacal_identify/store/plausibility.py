@@ -73,11 +73,15 @@ def compare(previous_id: str, previous_file: Path, new_file: Path) -> Change:
     difference = np.abs(new.vector - old.vector) * lengths
     largest = int(np.argmax(difference))
     arch = architecture(old.model)
-    old_params, new_params = parameters_for(old.model, old.vector), parameters_for(
-        new.model, new.vector
+    old_params, new_params = (
+        parameters_for(old.model, old.vector),
+        parameters_for(new.model, new.vector),
     )
     poses = sample_poses(
-        old_params, POSE_SAMPLES, np.random.default_rng(POSE_SEED), 'sphere',
+        old_params,
+        POSE_SAMPLES,
+        np.random.default_rng(POSE_SEED),
+        'sphere',
         arch.default_workspace(),
     )
     try:
