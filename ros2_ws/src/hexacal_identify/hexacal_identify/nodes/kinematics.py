@@ -312,9 +312,11 @@ class KinematicsNode(Node):
         except KinematicsConfigurationError as error:
             self._report(self.session.invalid_calibration(str(self.deploys.root), error))
             return
-        self.session.deployment = self.deploys.values()
         source = self._deployed_source(deployed)
-        self._report(self.session.take_calibration(params, 'the calibration store', source))
+        report = self.session.take_calibration(params, 'the calibration store', source)
+        if report is None or report.outcome == Outcome.PARAMETERS:  # else the model in use stays
+            self.session.deployment = self.deploys.values()
+        self._report(report)
 
     def _on_parameters(self, message: Float64MultiArray) -> None:
         try:
