@@ -185,3 +185,18 @@ def test_the_report_names_the_store_entry_and_the_active_calibration(
     page = (tmp_path / 'report' / 'index.html').read_text()
     assert f'{outcome.values["calibration_id"]} in {tmp_path / "store"}' in page
     assert f'{active.id} (forced since ' in page
+
+
+def test_the_live_session_reports_a_message_not_deployed_and_the_active_keys():
+    from hexacal_identify.core.live_session import LiveSession
+
+    params = architecture(MODEL).default_parameters()
+    session = LiveSession.start(params, 'file.yaml', 0.75, 'hanging', 0)
+    start = session.start_report('', '/command', '/stores/hexa_slide')
+    assert 'ignored unless deployed' in start.log_line and '/stores/hexa_slide' in start.log_line
+    report = session.not_deployed('hexacal/parameters', '/stores/hexa_slide')
+    assert report.outcome == 'not-deployed' and report.level == 'WARN'
+    session.deployment = {'active_calibration': 'abc', 'active_since': 't', 'active_reason': 'x'}
+    assert session.status_values(report)['active_calibration'] == 'abc'
+    waiting = LiveSession.start(None, '', 0.75, 'hanging', 0).start_report('', '/c', '/s')
+    assert waiting.outcome == 'waiting' and 'deployed in /s' in waiting.log_line
