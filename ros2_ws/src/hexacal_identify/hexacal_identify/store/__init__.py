@@ -10,6 +10,16 @@ active one.  Nothing is overwritten: entries are written whole under a temporary
 renamed, state changes are new event files, and the states are derived from them.  The layout
 and keys are the contract's (``hexacal_msgs_py.store_format``; docs/formats.md).
 
+For the nodes:
+
+* keep a calibration: ``store.add(output_file, calibration_record(result, source='identify
+  node', postures=postures, nominal_file=nominal_path, ...))``;
+* attach a verification: ``store.attach_verification(entry.id, figures,
+  postures_digest=postures_digest(postures))`` (``figures['verdict']`` 'pass'/'fail');
+* follow deploys: stat ``store.active_marker()`` (a new inode and mtime on every deploy and
+  rollback; absent before the first), then ``store.activation()`` (entry, since, reason);
+* match a parameters message: ``store.find_digest(vector_digest(model, vector))``.
+
 Importing this package imports neither numpy nor the core; the plausibility check does when it
 runs.
 """
@@ -26,6 +36,7 @@ from hexacal_msgs_py.store_format import (
     postures_digest,
     STORE_ENV,
     StoreState,
+    vector_digest,
 )
 
 from .calibration_store import CalibrationStore, hexacal_version, utc_now
@@ -35,6 +46,7 @@ from .plausibility import (
     DEFAULT_MAX_POSE_CHANGE_M,
     DEFAULT_MAX_ROTATION_CHANGE_RAD,
 )
+from .provenance import bag_digest, calibration_record, fit_figures
 
 
 def default_store_dir(model: str) -> Path:
@@ -64,10 +76,14 @@ __all__ = [
     'StoreEntry',
     'StoreError',
     'StoreState',
+    'bag_digest',
     'bytes_digest',
+    'calibration_record',
     'default_store_dir',
     'file_digest',
+    'fit_figures',
     'hexacal_version',
     'postures_digest',
+    'vector_digest',
     'utc_now',
 ]

@@ -8,7 +8,6 @@ activation stack, a rollback pops it; the top is the active calibration.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from datetime import datetime, timezone
 import hashlib
 import math
@@ -17,10 +16,12 @@ import secrets
 from typing import Any
 
 from hexacal_msgs_py import store_format as fmt
-from hexacal_msgs_py.store_format import ActivationReason, EventType, StoreState
+from hexacal_msgs_py.store_format import EventType, StoreState
 
 from . import files
-from .entry import Activation, DeployRefused, Refusal, StoreEntry, StoreError
+from .checks import on_other_postures, plausibility_refusals, verification_refusals
+from .entry import Activation, DeployRefused, StoreEntry, StoreError
+from .events import History, replay
 from .plausibility import (
     DEFAULT_MAX_PARAMETER_CHANGE_M,
     DEFAULT_MAX_POSE_CHANGE_M,
@@ -51,29 +52,6 @@ def json_safe(value: Any) -> Any:
     return value
 
 
-@dataclass
-class _Activated:
-    id: str  # noqa: A003 (the entry id, as StoreEntry.id)
-    forced: bool
-    since: str
-    reason: ActivationReason
-    event: int
-
-
-@dataclass
-class _History:
-    """What the events say, replayed in order."""
-
-    last_sequence: int = 0
-    verifications: dict[str, dict[str, Any]] = field(default_factory=dict)
-    stack: list[_Activated] = field(default_factory=list)
-    rolled_back: set[str] = field(default_factory=set)
-
-    @property
-    def active(self) -> _Activated | None:
-        return self.stack[-1] if self.stack else None
-
-
 class CalibrationStore:
     """A calibration store directory (created by the first write)."""
 
@@ -93,8 +71,11 @@ class CalibrationStore:
         if not self.root.is_dir():
             raise StoreError(f'calibration store {self.root} is not a directory')
         marker = self.root / fmt.FORMAT_FILE
-        if not marker.exists():
-            if any(not p.name.startswith('.') for p in self.root.iterdir()):
+        # The header is made before anything else: a name listed without it means no store,
+        # unless the header appeared during the listing (looked for again after it).
+        names = {path.name for path in self.root.iterdir()}
+        if fmt.FORMAT_FILE not in names and not marker.exists():
+            if any(not name.startswith('.') for name in names):
                 raise StoreError(
                     f'{self.root} is not a calibration store (no {fmt.FORMAT_FILE}); name an '
                     'empty or new directory'
@@ -146,36 +127,7 @@ class CalibrationStore:
         )
         return [(sequence, path, files.read_json(path)) for sequence, path in numbered]
 
-    def _history(
-        self, events: list[tuple[int, Path, Any]], known: dict[str, dict[str, Any]]
-    ) -> _History:
-        history = _History()
-        for sequence, path, event in events:
-            entry_id = event.get(fmt.EVENT_ID) if isinstance(event, dict) else None
-            if entry_id not in known:
-                raise StoreError(f'{path}: names no entry of the store ({entry_id!r})')
-            history.last_sequence = sequence
-            kind = event.get(fmt.EVENT_TYPE)
-            time = event.get(fmt.EVENT_TIME, '')
-            if kind == EventType.VERIFIED:
-                history.verifications[entry_id] = event.get(fmt.EVENT_FIGURES) or {}
-            elif kind == EventType.DEPLOYED:
-                forced = bool(event.get(fmt.EVENT_FORCED))
-                reason = ActivationReason.FORCED if forced else ActivationReason.VERIFIED
-                history.stack.append(_Activated(entry_id, forced, time, reason, sequence))
-                history.rolled_back.discard(entry_id)
-            elif kind == EventType.ROLLED_BACK:
-                if len(history.stack) < 2 or history.stack[-2].id != entry_id:
-                    raise StoreError(f'{path}: a rollback to {entry_id} that no deploy explains')
-                history.rolled_back.add(history.stack.pop().id)
-                restored = history.stack[-1]
-                restored.since, restored.event = time, sequence
-                restored.reason = ActivationReason.ROLLED_BACK
-            else:
-                raise StoreError(f'{path}: unknown event {kind!r}')
-        return history
-
-    def _entry(self, record: dict[str, Any], history: _History) -> StoreEntry:
+    def _entry(self, record: dict[str, Any], history: History) -> StoreEntry:
         entry_id = record[fmt.RECORD_ID]
         directory = self.entries_dir / entry_id
         verification = history.verifications.get(entry_id)
@@ -185,7 +137,7 @@ class CalibrationStore:
             state = StoreState.FORCED if active.forced else StoreState.ACTIVE
         elif entry_id in history.rolled_back:
             state = StoreState.ROLLED_BACK
-        elif verdict == fmt.VERDICT_PASS and _on_other_postures(record, verification):
+        elif verdict == fmt.VERDICT_PASS and on_other_postures(record, verification):
             state = StoreState.VERIFIED
         else:
             state = StoreState.STORED
@@ -202,12 +154,12 @@ class CalibrationStore:
             digest=record.get(fmt.RECORD_DIGEST, ''),
         )
 
-    def _read(self) -> tuple[list[StoreEntry], _History]:
+    def _read(self) -> tuple[list[StoreEntry], History]:
         # Events first: an event's entry was renamed into place before the event was written,
         # so it is among the records listed after, even while a writer works.
         events = self._events()
         records = self._records()
-        history = self._history(events, records)
+        history = replay(events, records)
         ordered = sorted(
             records.values(),
             key=lambda r: (
@@ -351,7 +303,7 @@ class CalibrationStore:
             self._update_marker(entries, history)
             return self._find(entries, entry_id)
 
-    def _append(self, history: _History, kind: EventType, entry_id: str, **fields: Any) -> int:
+    def _append(self, history: History, kind: EventType, entry_id: str, **fields: Any) -> int:
         """Write the next event file; return its sequence number."""
         sequence = history.last_sequence + 1
         while True:
@@ -479,7 +431,7 @@ class CalibrationStore:
             self._update_marker(entries, history)
             return self._find(entries, restored.id)
 
-    def _update_marker(self, entries: list[StoreEntry], history: _History) -> None:
+    def _update_marker(self, entries: list[StoreEntry], history: History) -> None:
         """Replace active.json when it does not say what the events say (e.g. after a crash)."""
         top = history.active
         if top is None:
@@ -499,105 +451,6 @@ class CalibrationStore:
         except (StoreError, FileNotFoundError):
             pass
         files.replace_file(marker, files.json_text(payload).encode('utf-8'))
-
-
-def _on_other_postures(record: dict[str, Any], verification: dict[str, Any] | None) -> bool:
-    """Return whether a verification was on known postures other than the fit's."""
-    verified_on = (verification or {}).get(fmt.VERIFICATION_POSTURES_DIGEST)
-    fitted_on = record.get(fmt.RECORD_POSTURES_DIGEST)
-    return bool(verified_on) and bool(fitted_on) and verified_on != fitted_on
-
-
-def verification_refusals(entry: StoreEntry) -> list[Refusal]:
-    """Return why an entry's verification does not allow a deploy (empty: it does)."""
-    verification = entry.record.get(fmt.RECORD_VERIFICATION)
-    if verification is None:
-        return [Refusal('unverified', f'{entry.short_id} has no verification')]
-    if entry.verdict != fmt.VERDICT_PASS:
-        return [
-            Refusal(
-                'verification-failed',
-                f'the verification of {entry.short_id} says {entry.verdict!r}, not pass',
-            )
-        ]
-    verified_on = verification.get(fmt.VERIFICATION_POSTURES_DIGEST)
-    fitted_on = entry.record.get(fmt.RECORD_POSTURES_DIGEST)
-    if not verified_on or not fitted_on:
-        unknown = 'verified' if not verified_on else 'fitted'
-        return [
-            Refusal(
-                'postures-unknown',
-                f'the store cannot tell whether {entry.short_id} was verified on postures '
-                f"other than its fit's (no digest of the {unknown} postures)",
-            )
-        ]
-    if verified_on == fitted_on:
-        return [
-            Refusal(
-                'verified-on-fit-postures',
-                f'{entry.short_id} was verified on the postures it was fitted to',
-            )
-        ]
-    return []
-
-
-def plausibility_refusals(
-    previous: StoreEntry,
-    entry: StoreEntry,
-    max_parameter_change_m: float,
-    max_pose_change_m: float,
-    max_rotation_change_rad: float = DEFAULT_MAX_ROTATION_CHANGE_RAD,
-) -> tuple[list[Refusal], dict[str, Any]]:
-    """Return why `entry` is a surprising jump from `previous` (empty: it is not), and figures."""
-    from .plausibility import compare
-
-    change = compare(previous.id, previous.parameters_path, entry.parameters_path)
-    checks = change.to_json()
-    checks['max_parameter_change_m'] = max_parameter_change_m
-    checks['max_pose_change_m'] = max_pose_change_m
-    checks['max_rotation_change_rad'] = max_rotation_change_rad
-    if not change.same_model:
-        return [
-            Refusal(
-                'model-changed',
-                f'{entry.short_id} is a {entry.record.get(fmt.RECORD_MODEL)}, the active '
-                f'{previous.short_id} a {previous.record.get(fmt.RECORD_MODEL)}',
-            )
-        ], checks
-    refusals = []
-    assert change.parameter_change_m is not None and change.pose_change_m is not None
-    if change.parameter_change_m > max_parameter_change_m:
-        refusals.append(
-            Refusal(
-                'parameter-jump',
-                f'{change.parameter_name} changes by {change.parameter_change_m * 1e3:.3f} mm '
-                f'from the active {previous.short_id} (limit {max_parameter_change_m * 1e3:g} mm)',
-            )
-        )
-    if change.pose_change_m > max_pose_change_m:
-        moved = (
-            f'{change.fk_failures} of {change.poses} poses not reached'
-            if change.fk_failures
-            else f'the platform moves by up to {change.pose_change_m * 1e3:.3f} mm'
-        )
-        refusals.append(
-            Refusal(
-                'pose-jump',
-                f'{moved} at the same actuator readings as with the active {previous.short_id} '
-                f'(limit {max_pose_change_m * 1e3:g} mm)',
-            )
-        )
-    rotation = change.rotation_change_rad
-    if not change.fk_failures and rotation is not None and rotation > max_rotation_change_rad:
-        refusals.append(
-            Refusal(
-                'rotation-jump',
-                f'the platform turns by up to {rotation * 1e3:.3f} mrad at the same actuator '
-                f'readings as with the active {previous.short_id} (limit '
-                f'{max_rotation_change_rad * 1e3:g} mrad)',
-            )
-        )
-    return refusals, checks
 
 
 def hexacal_version() -> str:
