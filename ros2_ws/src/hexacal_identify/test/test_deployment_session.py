@@ -109,6 +109,7 @@ def test_history_refuses_an_unverified_deploy_and_forces_it_on_request(tmp_path)
     refused = history.deploy(root, MODEL, entry.id, False, '/hexacal/deploy')
     assert not refused.success and refused.values['outcome'] == 'deploy-refused'
     assert refused.values['reason'] == 'unverified' and '--force' in refused.message
+    assert 'hexacal/deploy_force' in refused.message
     assert history.active_values(root, MODEL) == NO_ACTIVE
     forced = history.deploy(root, MODEL, entry.id, True, '/hexacal/deploy')
     assert forced.success and forced.values['active_reason'] == 'forced'

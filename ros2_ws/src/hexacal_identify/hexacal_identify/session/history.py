@@ -14,6 +14,8 @@ import hashlib
 from pathlib import Path
 import threading
 
+from hexacal_msgs_py.names import DEPLOY_FORCE_SERVICE
+
 from .deployment import ActiveWatch, NO_ACTIVE, store_dir
 from .outcome import failure, Level, Outcome
 from ..core.jsonsafe import json_safe
@@ -112,7 +114,8 @@ class History:
             with self._lock:
                 store.deploy(entry_id, force=force)
         except DeployRefused as error:
-            refused = failure(DEPLOY_REFUSED, str(error), calibration_id=entry_id, **where)
+            text = f'{error} (here: {DEPLOY_FORCE_SERVICE})'  # the node's way to force it
+            refused = failure(DEPLOY_REFUSED, text, calibration_id=entry_id, **where)
             refused.values['reason'] = error.reason  # the first check that refused
             refused.values['refusals'] = ', '.join(r.reason for r in error.refusals)
             return refused
