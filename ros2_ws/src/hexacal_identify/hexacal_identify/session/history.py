@@ -15,6 +15,7 @@ from pathlib import Path
 import threading
 
 from hexacal_msgs_py.names import DEPLOY_FORCE_SERVICE
+from hexacal_msgs_py.parameters_file import ParametersFile, read_parameters_file
 
 from .deployment import ActiveWatch, NO_ACTIVE, store_dir
 from .outcome import failure, Level, Outcome
@@ -27,6 +28,8 @@ DEPLOY_REFUSED = 'deploy-refused'
 ROLLBACK_REFUSED = 'rollback-refused'
 NO_CALIBRATION = 'no-calibration'
 STORE_ERROR = 'store-error'
+ACTIVE = 'active'  # the start-up status: a calibration is active
+NONE_DEPLOYED = 'none-deployed'
 
 
 class History:
@@ -59,6 +62,26 @@ class History:
                 return self._watch(configured, model).values()
         except (StoreError, OSError):
             return dict(NO_ACTIVE)
+
+    def active_status(self, configured: str, model: str) -> tuple[str, dict[str, object]]:
+        """Return the message and values of a status saying what is active (outcome first)."""
+        values = self.active_values(configured, model)
+        root = self.root(configured, model)
+        if values['active_calibration']:
+            outcome = ACTIVE
+            message = (
+                f'{ACTIVE}: calibration {values["active_calibration"]} '
+                f'({values["active_reason"]} since {values["active_since"]}), store {root}'
+            )
+        else:
+            outcome = NONE_DEPLOYED
+            message = f'{NONE_DEPLOYED}: no calibration deployed in store {root}'
+        return message, {'outcome': outcome, 'calibration_store': str(root), **values}
+
+    def active_parameters(self, configured: str, model: str) -> ParametersFile | None:
+        """Return the active calibration's parameters file, read (None: none deployed)."""
+        entry = self.store(configured, model).active()
+        return None if entry is None else read_parameters_file(entry.parameters_path)
 
     def add(
         self, configured: str, model: str, parameters_file: Path, record: dict[str, object]

@@ -317,27 +317,15 @@ class CalibrationSession:
     def announce_active(self, settings: Settings) -> None:
         """Publish which calibration of the store is active (at start-up)."""
         model = self._model(settings)
-        values = self.history.active_values(settings.calibration_store, model)
-        root = self.history.root(settings.calibration_store, model)
-        if values['active_calibration']:
-            text = (
-                f'active: calibration {values["active_calibration"]} '
-                f'({values["active_reason"]} since {values["active_since"]}), store {root}'
-            )
-        else:
-            text = f'none-deployed: no calibration deployed in store {root}'
-        outcome = text.split(':', 1)[0]
-        values = {'outcome': outcome, 'calibration_store': str(root), **values}
+        message, values = self.history.active_status(settings.calibration_store, model)
         with self._status_lock:
-            self._sink.status(DEPLOYMENT_STATUS_NAME, Level.OK, text, values)
+            self._sink.status(DEPLOYMENT_STATUS_NAME, Level.OK, message, values)
 
     def _deployed(self, settings: Settings, model: str, outcome: Outcome) -> Outcome:
         active = None
         if outcome.success:
             try:
-                entry = self.history.store(settings.calibration_store, model).active()
-                if entry is not None:
-                    active = read_parameters_file(entry.parameters_path)
+                active = self.history.active_parameters(settings.calibration_store, model)
             except (ParameterFileError, OSError, StoreError) as error:
                 self._log.warning(f'the active calibration is not published: {error}')
         with self._status_lock:
