@@ -147,9 +147,12 @@ def listen(probe, model: str) -> Listener:
 
 def kinematics_argv(namespace: str, parameters_file, **extra) -> list[str]:
     files = {'parameters': str(parameters_file)} if parameters_file else {}
+    # follow_calibrations: these nodes take any calibration published on their topic (the
+    # pre-store behaviour, set explicitly; tests/test_deploy.py tests the default).
+    settings = {'command_topic': 'command', 'max_actuator_speed': SPEED}
     argv = node_argv(
         'kinematics',
-        {**files, 'command_topic': 'command', 'max_actuator_speed': SPEED, **extra},
+        {**files, **settings, 'follow_calibrations': True, **extra},
         namespace,
     )
     return argv + [

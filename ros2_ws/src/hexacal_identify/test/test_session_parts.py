@@ -44,6 +44,7 @@ def test_settings_fields_are_the_node_parameters():
         'robust_loss',
         'verify_threshold_m',
         'report_dir',
+        'calibration_store',
     )
     assert Settings().output == DEFAULT_OUTPUT == 'hexacal_calibration.yaml'
     assert Settings(noise_slider_m=1e-5).noise() is None

@@ -16,6 +16,10 @@ CALIBRATE_SERVICE = 'hexacal/calibrate'
 VERIFY_SERVICE = (
     'hexacal/verify'  # identify: verify the latest calibration on the postures received since
 )
+# identify: the calibration store's deploys (the kinematics node follows the active one).
+DEPLOY_SERVICE = 'hexacal/deploy'  # deploy the latest calibration (verified, plausible)
+DEPLOY_FORCE_SERVICE = 'hexacal/deploy_force'  # deploy it without those checks (recorded)
+ROLLBACK_SERVICE = 'hexacal/rollback'  # back to the previously active calibration
 
 # The executor walks a plan on the machine through its trajectory controller.
 EXECUTOR_PAUSE_SERVICE = 'hexacal/executor/pause'
@@ -35,6 +39,7 @@ MACHINE_MARKERS_TOPIC = 'hexacal/machine_markers'  # base joints, rails/legs, pl
 # Status names on CALIBRATION_STATUS_TOPIC (one DiagnosticArray topic for every node's status).
 CALIBRATION_STATUS_NAME = 'hexacal calibration'
 COLLECTOR_STATUS_NAME = 'hexacal collector'
+DEPLOYMENT_STATUS_NAME = 'hexacal deployment'
 EXECUTOR_STATUS_NAME = 'hexacal executor'
 KINEMATICS_STATUS_NAME = 'hexacal kinematics'
 VERIFICATION_STATUS_NAME = 'hexacal verification'

@@ -59,6 +59,7 @@ class Outcome(StrEnum):
     INVALID_READING = 'invalid-reading'
     INVALID_PARAMETERS = 'invalid-parameters'
     MODEL_MISMATCH = 'model-mismatch'
+    NOT_DEPLOYED = 'not-deployed'  # a parameters message that is not the deployed calibration
 
 
 class RefusalReason(StrEnum):
@@ -169,6 +170,9 @@ class LiveSession:
         self._drawn: tuple | None = None  # the (stamp, parameters, frame) last drawn
         self._tracking = False
         self._last_report_s: dict[str, float] = {}
+        # Which deployed calibration is in use: the status keys active_calibration,
+        # active_since, active_reason ('' = none; the node sets them from the store).
+        self.deployment: Mapping[str, object] = {}
 
     @classmethod
     def start(
@@ -194,11 +198,26 @@ class LiveSession:
             'poses_published': self.poses_published,
             'commands_sent': self.commands_sent,
             'commands_refused': self.commands_refused,
+            **self.deployment,
             **report.values,
         }
 
-    def start_report(self, following: str, command_topic: str) -> Report:
-        """Return the report at start: the parameters in use, or waiting for a calibration."""
+    def start_report(self, following: str, command_topic: str, store: str = '') -> Report:
+        """
+        Return the report at start: the parameters in use, or waiting for a calibration.
+
+        `following`: the topic whose every calibration is taken ('' = only deployed ones);
+        `store`: the calibration store whose deploys are followed.
+        """
+        deploys = f'deploys of the calibration store {store}' if store else ''
+        if self.params is None and not following:
+            return Report(
+                Level.WARN,
+                Outcome.WAITING,
+                'waiting for a deployed calibration',
+                log=f'waiting for a calibration deployed in {store}; commands on {command_topic}',
+                log_level=Level.OK,
+            )
         if self.params is None:
             return Report(
                 Level.WARN,
@@ -212,7 +231,9 @@ class LiveSession:
         if following:
             calibrations = f'following calibrations on {following}'
         else:
-            calibrations = 'calibrations on hexacal/parameters ignored'
+            calibrations = 'calibrations on hexacal/parameters ignored unless deployed'
+        if deploys:
+            calibrations = f'{calibrations}; following {deploys}'
         log = f'{text}; {calibrations}; commands on {command_topic}'
         return Report(Level.OK, Outcome.PARAMETERS, text, log=log)
 
@@ -240,6 +261,15 @@ class LiveSession:
             Outcome.INVALID_PARAMETERS,
             f'invalid parameters message: {error}',
             log=f'ignoring a message on {topic}: {error}',
+        )
+
+    def not_deployed(self, topic: str, store: str) -> Report:
+        """Return the report of a calibration message that is not the deployed calibration."""
+        return Report(
+            Level.WARN,
+            Outcome.NOT_DEPLOYED,
+            f'a calibration on {topic} is not the one deployed in {store}; keeping the '
+            'parameters in use (deploy it, or set follow_calibrations to follow any)',
         )
 
     def take_calibration(

@@ -7,8 +7,11 @@ file's machine model (others are counted as rejected on the status). Service
 parameter, writes `output` under `output_dir` and publishes the result on
 `hexacal/parameters` (transient local) with the outcome on `hexacal/calibration_status`;
 the HTML report (`report_dir`) follows in the background (`report_state`). Service
-`hexacal/verify` verifies the latest calibration on the postures received after it. The
-decisions live in the ROS-free hexacal_identify.session; this module is the ROS glue.
+`hexacal/verify` verifies the latest calibration on the postures received after it. Every
+calibration is kept in the calibration store (`calibration_store`) with its verifications;
+`hexacal/deploy` makes the latest one active (refused unless verified and plausible;
+`hexacal/deploy_force` deploys it anyway, recorded as forced), `hexacal/rollback` goes back.
+The decisions live in the ROS-free hexacal_identify.session; this module is the ROS glue.
 
 Full reference: docs/nodes.md
 """
@@ -30,8 +33,11 @@ from hexacal_msgs_py.conversions import (
 from hexacal_msgs_py.names import (
     CALIBRATE_SERVICE,
     CALIBRATION_STATUS_TOPIC,
+    DEPLOY_FORCE_SERVICE,
+    DEPLOY_SERVICE,
     PARAMETERS_TOPIC,
     POSTURE_TOPIC,
+    ROLLBACK_SERVICE,
     VERIFY_SERVICE,
 )
 from hexacal_msgs_py.qos import PARAMETERS_QOS, POSTURE_QOS, STATUS_QOS
@@ -68,6 +74,7 @@ __all__ = ['IdentifyNode', 'main', 'NODE_NAME', 'output_path']
 NODE_NAME = 'identify'
 BUSY_MESSAGE = 'busy: a calibration is running'
 BUSY_VERIFYING_MESSAGE = 'busy: a verification is running'
+BUSY_DEPLOYING_MESSAGE = 'busy: a deploy or rollback is running'
 INVALID_LOG_PERIOD_S = 5.0
 PROGRESS_LOG_PERIOD_S = 5.0
 # The report task lets the answer go out first: rendering holds the GIL in long stretches, and
@@ -174,6 +181,14 @@ PARAMETERS: dict[str, ParameterSpec] = {
         "'' = none",
         {},
     ),
+    'calibration_store': (
+        '',
+        'calibration store directory: every calibration is kept there with its provenance and '
+        "verifications, and deployed from there; '' = the machine model's default store "
+        '(as `hexacal history`: $HEXACAL_STORE, else a directory per model under the user '
+        'data directory)',
+        {},
+    ),
 }
 
 
@@ -244,7 +259,22 @@ class IdentifyNode(Node):
         self.create_service(
             Trigger, VERIFY_SERVICE, self._on_verify, callback_group=ReentrantCallbackGroup()
         )
+        deployments = {
+            DEPLOY_SERVICE: lambda settings: self._deploy(settings, False),
+            DEPLOY_FORCE_SERVICE: lambda settings: self._deploy(settings, True),
+            ROLLBACK_SERVICE: self._rollback,
+        }
+        for service, run in deployments.items():
+            self.create_service(
+                Trigger,
+                service,
+                lambda request, response, run=run: self._serve(
+                    response, run, BUSY_DEPLOYING_MESSAGE
+                ),
+                callback_group=ReentrantCallbackGroup(),
+            )
         self.session.republish_saved(self.settings())
+        self.session.announce_active(self.settings())
         self.get_logger().info(
             f'collecting postures on {self.resolve_topic_name(POSTURE_TOPIC)}; calibrate with '
             f'{self.resolve_service_name(CALIBRATE_SERVICE)}, verify with '
@@ -345,6 +375,19 @@ class IdentifyNode(Node):
             self.get_logger().info(f'verification: {outcome.message}')
         else:
             self.get_logger().warning(f'verification: {outcome.message}')
+        return outcome
+
+    def _deploy(self, settings: Settings, force: bool) -> Outcome:
+        return self._logged('deploy', self.session.deploy(settings, force))
+
+    def _rollback(self, settings: Settings) -> Outcome:
+        return self._logged('rollback', self.session.rollback(settings))
+
+    def _logged(self, what: str, outcome: Outcome) -> Outcome:
+        if outcome.success:
+            self.get_logger().info(f'{what}: {outcome.message}')
+        else:
+            self.get_logger().warning(f'{what}: {outcome.message}')
         return outcome
 
     def _write_reports(self) -> None:

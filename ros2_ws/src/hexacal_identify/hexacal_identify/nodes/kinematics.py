@@ -4,8 +4,11 @@ Node `kinematics`: the calibrated model at work - platform pose, compensated com
 Live actuator readings (hexacal/sliders) -> forward kinematics -> hexacal/platform_pose; a target
 pose (hexacal/target_pose) -> inverse kinematics -> a JointTrajectory on `command_topic`, or a
 refusal with its reason; the machine's drawing on hexacal/machine_markers; the parameters from
-the `parameters` file, then every calibration on hexacal/parameters. What it decides lives in
-core/live_session.py; this module is the ROS glue. Full reference: docs/nodes.md.
+the calibration store's active calibration (else the `parameters` file), then every deploy and
+rollback in the store (a timer watches its active marker); a message on hexacal/parameters only
+when it is the deployed calibration (any, with follow_calibrations). What it decides lives in
+core/live_session.py and session/deployment.py; this module is the ROS glue.
+Full reference: docs/nodes.md.
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ import sys
 
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Point, PoseStamped
+from geometry_msgs.msg import PoseStamped
 from hexacal_msgs_py.conversions import (
     diagnostic_status,
     joint_state_to_actuator_reading,
@@ -53,10 +56,11 @@ from rclpy.exceptions import (
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
-from std_msgs.msg import ColorRGBA, Float64MultiArray, Header
+from std_msgs.msg import Float64MultiArray, Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
-from visualization_msgs.msg import Marker, MarkerArray
+from visualization_msgs.msg import MarkerArray
 
+from .markers import machine_markers  # noqa: F401 - also imported from here
 from .runtime import run_node
 from ..core.architectures import KinematicParameters, parameters_for
 from ..core.device import check_mount, DEFAULT_MOUNT, DeviceMountError, MOUNTS
@@ -66,58 +70,19 @@ from ..core.live_session import (
     Level,
     LiveSession,
     MIN_MOVE_TIME_S,
+    Outcome,
     Report,
 )
 from ..pipeline import load_machine_and_mount
+from ..session.deployment import Deployed, DeployFollower, NO_ACTIVE
 
 NODE_NAME = 'kinematics'
 DEFAULT_BASE_FRAME = 'hexacal_base'
-
-# Marker style per drawing name: RGBA and size (m; sphere diameter or line width).
-MARKER_STYLES: dict[str, tuple[tuple[float, float, float, float], float]] = {
-    'base_joints': ((0.35, 0.35, 0.35, 1.0), 0.04),
-    'rails': ((0.55, 0.55, 0.55, 1.0), 0.012),
-    'sliders': ((0.10, 0.40, 0.90, 1.0), 0.045),
-    'cylinders': ((0.15, 0.25, 0.70, 1.0), 0.035),
-    'legs': ((0.20, 0.60, 0.95, 1.0), 0.014),
-    'platform_joints': ((0.95, 0.55, 0.10, 1.0), 0.03),
-    'platform': ((0.95, 0.55, 0.10, 1.0), 0.016),
-    'device_link': ((0.15, 0.80, 0.25, 1.0), 0.008),
-}
-DEFAULT_STYLE = ((0.8, 0.8, 0.8, 1.0), 0.01)  # of any other drawing name
+STORE_POLL_PERIOD_S = 0.5  # how often the store's active marker is looked at (one stat)
 
 
 def _range(low: float, high: float) -> list[FloatingPointRange]:
     return [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
-
-
-def machine_markers(drawing: dict[str, np.ndarray], frame_id: str, stamp) -> MarkerArray:
-    """
-    Return the MarkerArray of an Architecture.drawing.
-
-    One marker per name (namespace = the name, id 0): points as a SPHERE_LIST, segments as a
-    LINE_LIST.
-    """
-    header = Header(stamp=stamp, frame_id=frame_id)
-    markers = []
-    for name in sorted(drawing):
-        array = np.asarray(drawing[name], dtype=float)
-        (r, g, b, a), size = MARKER_STYLES.get(name, DEFAULT_STYLE)
-        marker = Marker(
-            header=header,
-            ns=name,
-            id=0,
-            action=Marker.ADD,
-            type=Marker.SPHERE_LIST if array.ndim == 2 else Marker.LINE_LIST,
-            color=ColorRGBA(r=r, g=g, b=b, a=a),
-        )
-        marker.pose.orientation.w = 1.0
-        marker.scale.x = marker.scale.y = marker.scale.z = size
-        marker.points = [
-            Point(x=float(x), y=float(y), z=float(z)) for x, y, z in array.reshape(-1, 3)
-        ]
-        markers.append(marker)
-    return MarkerArray(markers=markers)
 
 
 def _duration(seconds: float) -> Duration:
@@ -143,17 +108,27 @@ class KinematicsNode(Node):
             'parameters',
             '',
             ParameterDescriptor(
-                description="parameters YAML (either model) to start from; '' = wait for the "
-                'first calibration on hexacal/parameters',
+                description='parameters YAML (either model) to start from when the calibration '
+                "store has no active calibration; '' = wait for a deploy",
                 read_only=True,
             ),
         )
         self.declare_parameter(
             'follow_calibrations',
-            True,
+            False,
             ParameterDescriptor(
-                description='take every calibration published on hexacal/parameters (latched) '
-                'over the parameters in use; false: keep the parameters file',
+                description='true: take every calibration published on hexacal/parameters '
+                '(latched), verified or not, from any process on the ROS domain (RISK: an '
+                'unverified calibration moves the machine); false: only the deployed one',
+                read_only=True,
+            ),
+        )
+        self.declare_parameter(
+            'calibration_store',
+            '',
+            ParameterDescriptor(
+                description='calibration store whose active calibration is used and whose '
+                "deploys and rollbacks are followed; '' = the machine model's default store",
                 read_only=True,
             ),
         )
@@ -238,6 +213,7 @@ class KinematicsNode(Node):
             for name in (
                 'parameters',
                 'follow_calibrations',
+                'calibration_store',
                 'link_length',
                 'mount',
                 'max_pose_rate_hz',
@@ -245,16 +221,25 @@ class KinematicsNode(Node):
                 'command_topic',
             )
         }
-        params, file_mount = None, DEFAULT_MOUNT
+        params, file_mount, source = None, DEFAULT_MOUNT, ''
         if value['parameters']:
             params, file_mount = load_parameters_file(value['parameters'])
+            source = value['parameters']
+        self.deploys = DeployFollower.start(
+            value['calibration_store'], params.model if params is not None else None
+        )
+        if self.deploys.deployed is not None:  # the active calibration comes first
+            deployed, mount_of = load_parameters_file(str(self.deploys.deployed.path))
+            if params is None or deployed.model == params.model:
+                params, source = deployed, self._deployed_source(self.deploys.deployed)
+                file_mount = file_mount if value['parameters'] else mount_of
         try:
             mount = check_mount(value['mount'] or file_mount)
         except DeviceMountError as error:
             raise KinematicsConfigurationError(str(error)) from error
         self.session = LiveSession.start(
             params,
-            value['parameters'] if params is not None else '',
+            source,
             value['link_length'],
             mount,
             int(NS_PER_S / value['max_pose_rate_hz']),
@@ -275,15 +260,22 @@ class KinematicsNode(Node):
             self.create_timer(1.0 / value['markers_rate_hz'], self._publish_markers)
         self.create_subscription(JointState, SLIDERS_TOPIC, self._on_readings, SENSOR_QOS)
         self.create_subscription(PoseStamped, TARGET_POSE_TOPIC, self._on_target, COMMAND_QOS)
-        if value['follow_calibrations']:
-            self.create_subscription(
-                Float64MultiArray, PARAMETERS_TOPIC, self._on_parameters, PARAMETERS_QOS
+        self.create_subscription(
+            Float64MultiArray, PARAMETERS_TOPIC, self._on_parameters, PARAMETERS_QOS
+        )
+        self._follow_any = bool(value['follow_calibrations'])
+        taken = self.deploys.deployed is not None and source != value['parameters']
+        self.session.deployment = self.deploys.values() if taken else dict(NO_ACTIVE)
+        if self.deploys.watch.error:  # e.g. a directory that is not a store: said, not fatal
+            self.get_logger().warning(f'calibration store: {self.deploys.watch.error}')
+        self.create_timer(STORE_POLL_PERIOD_S, self._follow_store)
+        # Where every calibration is taken from ('' = only the deployed ones).
+        following = self.resolve_topic_name(PARAMETERS_TOPIC) if self._follow_any else ''
+        self._report(
+            self.session.start_report(
+                following, self._command_pub.topic_name, str(self.deploys.root)
             )
-        # Where calibrations are taken from ('' ignored), or awaited without a parameters file.
-        following = ''
-        if value['follow_calibrations'] or params is None:
-            following = self.resolve_topic_name(PARAMETERS_TOPIC)
-        self._report(self.session.start_report(following, self._command_pub.topic_name))
+        )
 
     @property
     def params(self) -> KinematicParameters | None:
@@ -306,6 +298,26 @@ class KinematicsNode(Node):
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds / NS_PER_S
 
+    @staticmethod
+    def _deployed_source(deployed: Deployed) -> str:
+        return f'{deployed.path} ({deployed.active.describe()})'
+
+    def _follow_store(self) -> None:
+        """Take the store's active calibration when a deploy or rollback changed it."""
+        deployed = self.deploys.poll()
+        if deployed is None:
+            return
+        try:
+            params, _ = load_parameters_file(str(deployed.path))
+        except KinematicsConfigurationError as error:
+            self._report(self.session.invalid_calibration(str(self.deploys.root), error))
+            return
+        source = self._deployed_source(deployed)
+        report = self.session.take_calibration(params, 'the calibration store', source)
+        if report is None or report.outcome == Outcome.PARAMETERS:  # else the model in use stays
+            self.session.deployment = self.deploys.values()
+        self._report(report)
+
     def _on_parameters(self, message: Float64MultiArray) -> None:
         try:
             model = multiarray_model(message).name
@@ -314,7 +326,18 @@ class KinematicsNode(Node):
             self._report(self.session.invalid_calibration(PARAMETERS_TOPIC, error))
             return
         source = self.resolve_topic_name(PARAMETERS_TOPIC)
-        self._report(self.session.take_calibration(params, PARAMETERS_TOPIC, source))
+        self._follow_store()  # a deploy's message may arrive before the timer sees the store
+        if self.deploys.deployed_match(model, params.vector) is not None:
+            deployment = self.deploys.values()
+        elif self._follow_any:
+            deployment = dict(NO_ACTIVE)  # taken from the topic, not from the store
+        else:
+            self._report(self.session.not_deployed(PARAMETERS_TOPIC, str(self.deploys.root)))
+            return
+        report = self.session.take_calibration(params, PARAMETERS_TOPIC, source)
+        if report is not None and report.outcome == Outcome.PARAMETERS:
+            self.session.deployment = deployment
+        self._report(report)
 
     def _on_readings(self, message: JointState) -> None:
         stamp = stamp_ns(message.header.stamp)

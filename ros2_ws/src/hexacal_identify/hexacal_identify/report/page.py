@@ -363,7 +363,19 @@ class _Sections:
                     'truth-error',
                 )
             )
-        validation = (self.data.get('extras') or {}).get('validation') or p.get('validation')
+        extras = self.data.get('extras') or {}
+        if extras.get('calibration_id'):  # the identify node's: its calibration store entry
+            where = f'{extras["calibration_id"]} in {extras.get("calibration_store", "")}'
+            rows.append(('Calibration store entry', where, 'store-entry'))
+        if 'active_calibration' in extras:  # which calibration the machine used when written
+            active = extras['active_calibration']
+            text = (
+                f'{active} ({extras.get("active_reason")} since {extras.get("active_since")})'
+                if active
+                else 'none deployed'
+            )
+            rows.append(('Active calibration', text, 'active-calibration'))
+        validation = extras.get('validation') or p.get('validation')
         if validation:
             for when in ('before', 'after'):
                 v = validation.get(when) or {}

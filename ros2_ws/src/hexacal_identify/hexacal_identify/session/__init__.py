@@ -4,8 +4,11 @@ The identify node's calibration session without ROS (no rclpy, no message packag
 session.CalibrationSession holds what the node decides: the postures received and rejected
 (postures), the nominal file read once per version (nominal), calibrations and verifications
 on request with their outcomes (outcome), the latest calibration, and the HTML reports written
-after the answer (reports). The node reads its parameters into a settings.Settings, converts
-messages, runs the session's methods on its threads and publishes through a StatusSink.
+after the answer (reports), the calibration store's side of the node (history: every
+calibration kept, its verifications attached, deploy and rollback) and of the kinematics node
+(deployment: the active calibration, followed through the store's marker). The node reads its
+parameters into a settings.Settings, converts messages, runs the session's methods on its
+threads and publishes through a StatusSink.
 """
 
 from .nominal import file_identity, NominalFile

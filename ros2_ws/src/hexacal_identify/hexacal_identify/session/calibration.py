@@ -19,6 +19,7 @@ from .settings import names, Settings
 # pipeline and core.identification (the solver) are imported where they are used: at the first
 # calibration, not when the node starts.
 from ..core.errors import CalibrationError
+from ..store.provenance import calibration_record
 
 
 class Log(Protocol):
@@ -169,6 +170,18 @@ def run_calibration(
             source=source,
         )
     values['output'] = str(target)
+    record = calibration_record(
+        result,
+        source='identify node',
+        postures=postures,
+        nominal_file=nominal_path,
+        noise=noise,
+        robust_loss=settings.robust_loss or None,
+        link_length=link_length,
+        mount=mount,
+        device_prior=pipeline.device_prior_json(prior),
+        bag=bag or None,
+    )
     # The report (figures, pose-error map, result payload) is written after the answer.
     report = None
     if settings.report_dir:
@@ -197,6 +210,7 @@ def run_calibration(
         link_length=link_length,
         mount=mount,
         source=source,
+        record=record,
     )
 
 # ------------------------------------------------------------------ verification

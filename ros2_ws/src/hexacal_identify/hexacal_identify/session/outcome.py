@@ -73,6 +73,10 @@ class Outcome:
     link_length: float | None = None
     mount: str | None = None
     source: str = ''
+    # A calibration's provenance record for the store; a verification's `hexacal verify --json`
+    # figures, attached to the calibration's store entry.
+    record: dict[str, object] | None = None
+    figures: dict[str, object] | None = None
 
 
 def failure(reason: str, message: str, **values: object) -> Outcome:

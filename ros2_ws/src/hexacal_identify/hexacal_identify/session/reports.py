@@ -8,7 +8,7 @@ start-up, a verification page alone under `<report_dir>/verification/`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 import threading
 
@@ -32,6 +32,8 @@ class ReportJob:
     link_length: float
     mount: str = 'hanging'
     device_prior: DevicePrior | None = None  # shown beside the identified device parameters
+    # Its calibration store entry and the active calibration (calibration_id, active_*).
+    store: dict[str, object] = field(default_factory=dict)
 
 
 @dataclass
@@ -96,7 +98,7 @@ def write_page(job: ReportJob | None, verification: VerificationTask | None) -> 
         title=f'hexacal calibration ({job.source})',
         measurements=pipeline.measurements_from_postures(job.postures),
         link_length=job.link_length,
-        extras={'source': job.source},
+        extras={'source': job.source, **job.store},
         device_prior=job.device_prior,
         verification=None if verification is None else verification.payload,
         **mount,

@@ -8,6 +8,7 @@ into a Settings, runs these methods on its threads and publishes through a Statu
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from pathlib import Path
 import threading
 from typing import Protocol
 
@@ -16,6 +17,8 @@ from hexacal_msgs_py.models import DEFAULT_MODEL, model_for_actuator_names, MODE
 from hexacal_msgs_py.names import (
     CALIBRATE_SERVICE,
     CALIBRATION_STATUS_NAME,
+    DEPLOY_SERVICE,
+    DEPLOYMENT_STATUS_NAME,
     VERIFICATION_STATUS_NAME,
 )
 from hexacal_msgs_py.parameters_file import read_parameters_file
@@ -23,6 +26,8 @@ from hexacal_msgs_py.readings import PostureReading
 import numpy as np
 
 from .calibration import Log, run_calibration
+from .deployment import ACTIVE_KEYS
+from .history import History
 from .nominal import NominalFile
 from .outcome import failure, Level, Outcome, Reason, ReportState
 from .paths import interrupted_writes, output_path
@@ -30,6 +35,7 @@ from .postures import PostureStore, Receipt
 from .reports import ReportQueue, VerificationTask, write_page
 from .settings import Settings
 from .verification import LatestCalibration, run_verification
+from ..store import StoreError
 
 
 class StatusSink(Protocol):
@@ -75,6 +81,7 @@ class CalibrationSession:
         self._calibration_number = 0
         self._verification_number = 0
         self._latest: LatestCalibration | None = None
+        self.history = History()  # the calibration store: every calibration kept, deploys
 
     @property
     def latest(self) -> LatestCalibration | None:
@@ -165,6 +172,12 @@ class CalibrationSession:
         except Exception as error:  # noqa: BLE001 - the node must survive and say what happened
             self._log.error(f'calibration failed unexpectedly: {error!r}')
             outcome = failure(Reason.INTERNAL_ERROR, f'{type(error).__name__}: {error}')
+        try:
+            store_id = self._keep(settings, outcome)
+        except Exception as error:  # noqa: BLE001 - the calibration is written: say, go on
+            self._log.error(f'calibration not kept in the store: {error!r}')
+            outcome.values['store_error'] = f'{type(error).__name__}: {error}'
+            store_id = None
         with self._status_lock:
             if outcome.parameters is not None:
                 self._sink.parameters(outcome.parameters.vector, outcome.parameters.model)
@@ -183,6 +196,7 @@ class CalibrationSession:
                     outcome.link_length,
                     outcome.mount,
                     outcome,
+                    store_id,
                 )
         if outcome.report is not None:
             replaced = self.reports.put_calibration(number, outcome)
@@ -193,6 +207,23 @@ class CalibrationSession:
                 )
             self._schedule_report()
         return outcome
+
+    def _keep(self, settings: Settings, outcome: Outcome) -> str | None:
+        """Add a written calibration to the store; its status values say which entry."""
+        if outcome.record is None or outcome.parameters is None:
+            return None
+        model = outcome.parameters.model
+        entry, values = self.history.add(
+            settings.calibration_store, model, Path(str(outcome.values['output'])), outcome.record
+        )
+        if entry is None:
+            self._log.warning(f'calibration not kept in the store: {values["store_error"]}')
+        outcome.values.update(values)
+        outcome.values.update(self.history.active_values(settings.calibration_store, model))
+        if outcome.report is not None:  # the report says which entry, and what is active
+            keys = ('calibration_id', 'calibration_store', *ACTIVE_KEYS)
+            outcome.report.store = {k: outcome.values[k] for k in keys if k in outcome.values}
+        return entry.id if entry is not None else None
 
     def _started(self, postures: int, source: str) -> None:
         with self._status_lock:
@@ -232,6 +263,14 @@ class CalibrationSession:
         except Exception as error:  # noqa: BLE001 - the node must survive and say what happened
             self._log.error(f'verification failed unexpectedly: {error!r}')
             outcome = failure(Reason.INTERNAL_ERROR, f'{type(error).__name__}: {error}')
+        if outcome.figures is not None and latest is not None and latest.store_id is not None:
+            model = latest.parameters.model
+            outcome.values.update(
+                self.history.attach(
+                    settings.calibration_store, model, latest.store_id, outcome.figures
+                )
+            )
+            outcome.values.update(self.history.active_values(settings.calibration_store, model))
         with self._status_lock:
             self._sink.status(
                 VERIFICATION_STATUS_NAME, outcome.level, outcome.message, outcome.values
@@ -239,6 +278,62 @@ class CalibrationSession:
         if task is not None:
             self.reports.put_verification(task)
             self._schedule_report()
+        return outcome
+
+    # ------------------------------------------------------------------ deployment
+
+    def _model(self, settings: Settings) -> str:
+        latest = self.latest
+        if latest is not None:
+            return latest.parameters.model
+        return self.nominal.model(settings.nominal) or DEFAULT_MODEL
+
+    def deploy(self, settings: Settings, force: bool = False) -> Outcome:
+        """
+        Deploy the latest calibration (kept in the store); publish; never raise.
+
+        The store refuses one without a verification verdict pass, or a surprising jump from
+        the active calibration, unless `force` (recorded as forced). The now-active calibration
+        is published on hexacal/parameters (what a kinematics node following the store takes).
+        """
+        latest = self.latest
+        store_id = latest.store_id if latest is not None else None
+        model = self._model(settings)
+        return self._deployed(
+            settings,
+            model,
+            self.history.deploy(
+                settings.calibration_store, model, store_id, force, DEPLOY_SERVICE
+            ),
+        )
+
+    def rollback(self, settings: Settings) -> Outcome:
+        """Return to the previously active calibration of the store; publish; never raise."""
+        model = self._model(settings)
+        return self._deployed(
+            settings, model, self.history.rollback(settings.calibration_store, model)
+        )
+
+    def announce_active(self, settings: Settings) -> None:
+        """Publish which calibration of the store is active (at start-up)."""
+        model = self._model(settings)
+        message, values = self.history.active_status(settings.calibration_store, model)
+        with self._status_lock:
+            self._sink.status(DEPLOYMENT_STATUS_NAME, Level.OK, message, values)
+
+    def _deployed(self, settings: Settings, model: str, outcome: Outcome) -> Outcome:
+        active = None
+        if outcome.success:
+            try:
+                active = self.history.active_parameters(settings.calibration_store, model)
+            except (ParameterFileError, OSError, StoreError) as error:
+                self._log.warning(f'the active calibration is not published: {error}')
+        with self._status_lock:
+            if active is not None:
+                self._sink.parameters(active.vector, active.model)
+            self._sink.status(
+                DEPLOYMENT_STATUS_NAME, outcome.level, outcome.message, outcome.values
+            )
         return outcome
 
     # ------------------------------------------------------------------ reports
@@ -351,7 +446,16 @@ class CalibrationSession:
         except ValueError as error:
             self._log.warning(f'the saved calibration cannot be verified: {error}')
             return
+        entry = self.history.find(settings.calibration_store, saved.model, target)
         with self._status_lock:  # verify verifies it on the postures received from now on
             self._latest = LatestCalibration(
-                0, parameters, defects, f'saved calibration {target}', 0, None, None, None
+                0,
+                parameters,
+                defects,
+                f'saved calibration {target}',
+                0,
+                None,
+                None,
+                None,
+                entry.id if entry is not None else None,
             )

@@ -35,6 +35,7 @@ class Settings:
     robust_loss: str = ''
     verify_threshold_m: float = 0.0
     report_dir: str = 'report'
+    calibration_store: str = ''  # '' = the machine model's default store (store.default_store_dir)
     # device.* parameters by name (prior.PRIOR_PARAMETERS); missing = 0 (no prior)
     device_prior: Mapping[str, float] = field(default_factory=dict)
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from hexacal_msgs_py import store_format as fmt
 from hexacal_msgs_py.errors import ParameterFileError
 
 from .nominal import NominalFile
@@ -14,6 +15,7 @@ from .settings import Settings
 from ..core.architectures import KinematicParameters
 from ..core.device import DeviceDefects
 from ..core.errors import CalibrationError
+from ..store import postures_digest
 
 
 @dataclass
@@ -28,6 +30,7 @@ class LatestCalibration:
     link_length: float | None  # the device it assumed (None: the parameters at verify time)
     mount: str | None
     outcome: Outcome | None  # its result (its report job); None when republished from the file
+    store_id: str | None = None  # its calibration store entry (None: not kept in the store)
 
 
 def run_verification(
@@ -121,6 +124,13 @@ def run_verification(
     writing = job is not None or bool(settings.report_dir)
     values['report_state'] = ReportState.WRITING if writing else ReportState.DISABLED
     outcome = Outcome(passed, message, Level.OK if passed else Level.WARN, values)
+    outcome.figures = {  # as `hexacal verify --json` gives them, for the calibration store
+        **result.to_json(),
+        'source': f'{len(postures)} live postures',
+        'calibration': latest.source,
+        'nominal_file': nominal_path,
+        fmt.VERIFICATION_POSTURES_DIGEST: postures_digest(postures),  # other than the fit's
+    }
     if not writing:
         return outcome, None
     payload = {
