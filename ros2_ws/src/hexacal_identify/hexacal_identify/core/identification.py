@@ -35,6 +35,7 @@ import time
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
+from .adequacy import WhitenedResiduals
 from .architectures import Architecture, KinematicParameters
 from .device import (
     DEVICE_PARAMETER_NAMES,
@@ -181,6 +182,8 @@ class IdentificationResult:
     weighted: bool = False
     robust_loss: str | None = None
     held_for_identifiability: list[str] = field(default_factory=list)  # held at their start values
+    # The rows whitened by the noise model, prior rows included (None without one): adequacy.py.
+    whitened: WhitenedResiduals | None = field(repr=False, default=None)
 
     @property
     def correlation(self) -> np.ndarray:
@@ -829,7 +832,22 @@ class _LevenbergMarquardt:
             variance_factor=variance_factor,
             weighted=weighted,
             robust_loss=self.options.robust_loss,
+            whitened=self._whitened() if weighted else None,
         )
+
+    def _whitened(self) -> WhitenedResiduals:
+        """Return the final rows whitened by the noise model alone (no robust weights)."""
+        assert self.transform.whitener is not None  # only called for a weighted fit
+        raw = self.raw_block
+        block = self.problem.with_prior(
+            ResidualBlock(
+                self.transform.whitener.apply_values(raw.values), None, raw.channels, raw.postures
+            ),
+            self.vector,
+        )
+        local = block.postures
+        postures = np.where(local >= 0, self.problem.used[np.maximum(local, 0)], -1)
+        return WhitenedResiduals(block.values, block.channels, postures)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,129 @@
+"""The fit's adequacy: residuals against what the noise model predicts."""
+
+import json
+
+from hexacal_identify.core.adequacy import (
+    assess,
+    CAUSES,
+    chi2_quantile,
+    expected_range,
+    Verdict,
+    WhitenedResiduals,
+)
+from hexacal_identify.core.identification import identify, SolverOptions
+from hexacal_identify.core.measurements import NoiseModel, simulate_measurements
+from hexacal_identify.core.model import nominal_set, table1_parameters
+from hexacal_identify.core.postures import sample_poses
+import numpy as np
+import pytest
+
+TRUE = table1_parameters()
+POSTURES = 50
+
+
+@pytest.fixture(scope='module')
+def measured():
+    rng = np.random.default_rng(1)
+    poses = sample_poses(TRUE, POSTURES, rng)
+    return simulate_measurements(TRUE, poses, noise=NoiseModel.from_microns(10), rng=rng)
+
+
+def _adequacy(measurements, noise_um=10.0):
+    result = identify(
+        nominal_set(2), measurements, SolverOptions(noise=NoiseModel.from_microns(noise_um))
+    )
+    return result, assess(result.whitened, result.rank)
+
+
+def test_quantiles_match_the_chi_square_distribution():
+    stats = pytest.importorskip('scipy.stats')
+    for dof in (30, 146, 1000):
+        for probability in (1e-3, 1 - 1e-3, 0.5, 0.05):
+            exact = stats.chi2.ppf(probability, dof)
+            assert chi2_quantile(probability, dof) == pytest.approx(exact, rel=1e-2)
+    low, high = expected_range(146)
+    assert 0.67 < low < 0.68 and 1.40 < high < 1.41
+
+
+def test_the_true_noise_passes(measured):
+    result, adequacy = _adequacy(measured)
+    assert adequacy.verdict == Verdict.PASS
+    # The same r^T W r / (rows - rank) as the solver's own variance factor (no prior, no robust).
+    assert adequacy.variance_factor == pytest.approx(result.variance_factor, rel=1e-9)
+    assert adequacy.dof == len(result.residuals) - result.rank
+    assert adequacy.lines() == [f'adequacy: pass: {adequacy.reason}']
+    payload = json.loads(json.dumps(adequacy.to_json()))
+    assert set(payload) == {
+        'variance_factor',
+        'expected_range',
+        'dof',
+        'verdict',
+        'reason',
+        'worst_postures',
+        'worst_channels',
+    }
+    assert payload['verdict'] == 'pass'
+
+
+def test_noise_understated_tenfold_fails_in_plain_words(measured):
+    _, adequacy = _adequacy(measured, noise_um=1.0)
+    assert adequacy.verdict == Verdict.FAIL
+    assert 50 < adequacy.variance_factor < 200
+    assert 'cannot be explained by the reading noise' in adequacy.reason
+    assert CAUSES in adequacy.reason
+    assert len(adequacy.worst_postures) == 5
+    assert {c.name for c in adequacy.worst_channels} == {'x', 'y', 'z', 'phi'}
+    fields = adequacy.status_fields()
+    assert fields['adequacy.verdict'] == 'fail'
+    assert fields['adequacy.worst_postures'].count(',') == 4
+    assert any(line.startswith('  largest contributions') for line in adequacy.lines())
+
+
+def test_a_biased_posture_fails_and_is_named_first(measured):
+    # 80 um on one slider: below the outlier screening, far above the 10 um noise.
+    biased = measured.subset(np.arange(POSTURES))
+    biased.actuator_positions[7, 2] += 80e-6
+    result, adequacy = _adequacy(biased)
+    assert result.rejected_postures == {}
+    assert adequacy.verdict == Verdict.FAIL
+    assert adequacy.worst_postures[0].name == '7'
+    assert adequacy.worst_postures[0].share > 0.3
+
+
+def test_an_error_the_model_cannot_absorb_fails(measured):
+    # A periodic slider error (e.g. a ball screw's pitch error): no kinematic parameter takes it.
+    deformed = measured.subset(np.arange(POSTURES))
+    deformed.actuator_positions[:] += 40e-6 * np.sin(deformed.actuator_positions / 0.01)
+    _, adequacy = _adequacy(deformed)
+    assert adequacy.verdict == Verdict.FAIL
+    assert adequacy.variance_factor > 4 * adequacy.expected_range[1]
+
+
+def test_without_a_noise_model_the_verdict_is_unknown(measured):
+    result = identify(nominal_set(2), measured)
+    assert result.whitened is None
+    adequacy = assess(result.whitened, result.rank)
+    assert adequacy.verdict == Verdict.UNKNOWN
+    assert 'no noise model' in adequacy.reason
+    assert adequacy.lines() == []
+    assert adequacy.to_json()['variance_factor'] is None
+    assert adequacy.status_fields() == {
+        'adequacy.verdict': 'unknown',
+        'adequacy.reason': adequacy.reason,
+    }
+
+
+def test_no_degrees_of_freedom_is_unknown():
+    whitened = WhitenedResiduals(np.ones(4), np.array(['x'] * 4), np.arange(4))
+    adequacy = assess(whitened, 4)
+    assert adequacy.verdict == Verdict.UNKNOWN
+    assert 'no degrees of freedom' in adequacy.reason
+
+
+def test_over_stated_noise_passes_and_says_so():
+    rng = np.random.default_rng(0)
+    values = 0.1 * rng.standard_normal(200)
+    whitened = WhitenedResiduals(values, np.array(['x'] * 200), np.arange(200))
+    adequacy = assess(whitened, 10)
+    assert adequacy.verdict == Verdict.PASS
+    assert 'over-state' in adequacy.reason
