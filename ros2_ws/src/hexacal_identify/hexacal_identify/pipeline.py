@@ -40,6 +40,7 @@ from hexacal_msgs_py.readings import PostureReading
 import numpy as np
 
 from .bag.naming import COLLECTOR_METADATA  # the collector's record: model, detector, mapping
+from .core.adequacy import assess
 from .core.architectures import KinematicParameters, parameters_for
 from .core.device import (
     check_mount,
@@ -297,7 +298,10 @@ def status_fields(
 
     Identified device parameters: posterior ``device.<name>`` / ``std.device.<name>``; with a prior
     on
-    one, also ``prior.device.<name>`` / ``prior_std.device.<name>``.
+    one, also ``prior.device.<name>`` / ``prior_std.device.<name>``. The fit's adequacy
+    (core.adequacy): ``adequacy.verdict`` / ``adequacy.reason`` always, the figures
+    (``adequacy.variance_factor``, ``adequacy.expected_low`` / ``_high``, ``adequacy.dof``) and
+    the worst ``adequacy.worst_postures`` / ``adequacy.worst_channels`` with a noise model.
     """
     model = result.parameters.model
     fields = {
@@ -327,6 +331,8 @@ def status_fields(
     )
     for index, why in sorted(result.rejected_postures.items())[:20]:
         fields[f'rejected.{index}'] = why
+    # The fit against its noise model (adequacy.verdict unknown without one).
+    fields.update(assess(result.whitened, result.rank).status_fields())
     return fields
 
 

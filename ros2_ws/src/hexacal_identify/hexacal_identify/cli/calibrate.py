@@ -140,6 +140,7 @@ def _bag_info_arguments(info: argparse.ArgumentParser) -> None:
 def run_calibrate(args) -> int:
     from hexacal_msgs_py.parameters_file import save_parameters
 
+    from ..core.adequacy import assess
     from ..core.errors import CalibrationError
     from ..core.identification import CONVERGED
     from ..core.measurements import NoiseModel
@@ -177,6 +178,7 @@ def run_calibrate(args) -> int:
         if bag.rejected or bag.invalid_messages:  # say what of the bag was not used
             error.args = (f'{error} [bag {args.bag}: {_not_used(bag)}]',)
         raise
+    adequacy = assess(result.whitened, result.rank)
     comment = (
         f'hexacal calibrate {args.bag} (cost {args.cost}, {len(result.used_postures)} postures, '
         f'{result.reason}), SI units'
@@ -239,18 +241,19 @@ def run_calibrate(args) -> int:
                 {'index': i, 'reason': r, 'detail': d} for i, r, d in bag.rejected
             ],
         }
+        payload['adequacy'] = adequacy.to_json()
         payload['output'] = str(args.output) if result.reason == CONVERGED else None
         if stored is not None and args.store is not None:  # the default store goes unsaid
             payload['store'] = {'dir': str(args.store), 'id': stored.id}
         print(json.dumps(payload))
     else:
-        _print_summary(args, bag, result)
+        _print_summary(args, bag, result, adequacy)
         if stored is not None and args.store is not None:
             print(f'stored as {stored.short_id} ({stored.state}) in {args.store}')
     return 0 if result.reason == CONVERGED else 1
 
 
-def _print_summary(args, bag, result) -> None:
+def _print_summary(args, bag, result, adequacy) -> None:
     from hexacal_msgs_py.models import DEFAULT_MODEL
     import numpy as np
 
@@ -270,10 +273,18 @@ def _print_summary(args, bag, result) -> None:
         print(f"  {len(bag.rejected)} posture(s) set aside (beyond a sensor's range):")
         for index, reason, detail in bag.rejected[:20]:
             print(f'    posture {index}: {reason}: {detail}')
+    # A fit the noise cannot explain is never reported as simply "converged".
+    solver = f'{result.reason} in'
+    if adequacy.failed:
+        solver = (
+            f'{result.reason}, but the fit is inadequate: the residuals are '
+            f'{adequacy.variance_factor**0.5:.3g} times what the reading noise predicts (see '
+            'adequacy below);'
+        )
     print(
-        f'{result.reason} in {result.iterations} iterations ({result.solve_seconds * 1e3:.1f} '
-        f'ms), cost {result.cost}, rank {result.rank}, condition number '
-        f'{result.condition_number:.3g}'
+        f'{solver} {result.iterations} iterations '
+        f'({result.solve_seconds * 1e3:.1f} ms), cost {result.cost}, rank {result.rank}, '
+        f'condition number {result.condition_number:.3g}'
     )
     print(f'postures used {len(result.used_postures)}, rejected {len(result.rejected_postures)}')
     for index, why in sorted(result.rejected_postures.items()):
@@ -292,6 +303,8 @@ def _print_summary(args, bag, result) -> None:
         + result.parameters.architecture.std_note
     )
     for line in device_prior_lines(result, args.device_prior):
+        print(line)
+    for line in adequacy.lines():
         print(line)
     if result.reason == CONVERGED:
         print(f'wrote {args.output}')

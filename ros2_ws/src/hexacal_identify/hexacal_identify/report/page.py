@@ -57,7 +57,10 @@ def result_payload(
     beside ``device`` and ``device_std`` (what ``calibrate --json`` prints); the page shows prior
     and posterior side by side.
     """
+    from ..core.adequacy import assess
+
     payload = result.to_json()
+    payload['adequacy'] = assess(result.whitened, result.rank).to_json()
     if device_prior is not None:
         payload['device_prior'] = _device_prior_dict(device_prior)
     layout = result.parameters.layout
@@ -270,6 +273,8 @@ class _Sections:
         parts = [self.summary()]
         if self.payload.get('verification'):
             parts.append(verification_section(self.payload['verification'], self.figure))
+        if self.payload.get('adequacy'):
+            parts.append(self.adequacy())
         parts.append(self.identified())
         if self.payload.get('device_identified'):
             parts.append(self.device_parameters())
@@ -303,8 +308,11 @@ class _Sections:
     # -- sections
     def summary(self) -> str:
         p = self.payload
+        outcome = p.get('reason')
+        if (p.get('adequacy') or {}).get('verdict') == 'fail':  # never simply "converged"
+            outcome = f'{outcome}, but the fit is inadequate (see Adequacy)'
         rows = [
-            ('Outcome', p.get('reason'), 'outcome'),
+            ('Outcome', outcome, 'outcome'),
             ('Cost function', p.get('cost'), 'cost'),
             (
                 'Machine model',
@@ -404,6 +412,46 @@ class _Sections:
             f"<section><h2>Summary</h2><table class='summary'>{table}</table>"
             f'{rejected_html}</section>'
         )
+
+    def adequacy(self) -> str:
+        """Return the fit against its noise model: verdict, figures, worst postures/channels."""
+        a = self.payload['adequacy']
+        verdict = str(a.get('verdict'))
+        rows = [
+            ('Verdict', verdict, 'adequacy-verdict'),
+            ('Why', a.get('reason'), 'adequacy-reason'),
+        ]
+        if a.get('variance_factor') is not None:
+            low, high = a.get('expected_range') or (None, None)
+            rows.append(
+                (
+                    'Variance factor',
+                    f'{_fmt(a["variance_factor"], "{:.4g}")} (expected {_fmt(low, "{:.3g}")}'
+                    f'..{_fmt(high, "{:.3g}")} for {a.get("dof")} degrees of freedom)',
+                    'adequacy-variance-factor',
+                )
+            )
+        for title, key, name in (
+            ('Largest contributions: postures', 'worst_postures', 'index'),
+            ('Largest contributions: channels', 'worst_channels', 'channel'),
+        ):
+            if a.get(key):
+                text = ', '.join(
+                    f'{c.get(name)} ({c.get("share", 0.0):.0%} of the sum, '
+                    f'{_fmt(c.get("rms_whitened"), "{:.2g}")} x the noise)'
+                    for c in a[key]
+                )
+                rows.append((title, text, f'adequacy-{key.replace("_", "-")}'))
+        table = ''.join(
+            f"<tr><th>{html.escape(k)}</th><td id='{i}'>{html.escape(str(v))}</td></tr>"
+            for k, v, i in rows
+        )
+        note = (
+            "<p class='note'>The residuals whitened by the noise model: their sum of squares over "
+            'the degrees of freedom (residuals - rank) is ~1 when the noise explains them; the '
+            'range is chi-square&#39;s 0.1 % .. 99.9 %.</p>'
+        )
+        return f"<section><h2>Adequacy</h2><table class='summary'>{table}</table>{note}</section>"
 
     def identified(self) -> str:
         """
