@@ -40,7 +40,6 @@ from hexacal_msgs_py.readings import PostureReading
 import numpy as np
 
 from .bag.naming import COLLECTOR_METADATA  # the collector's record: model, detector, mapping
-from .core.adequacy import assess
 from .core.architectures import KinematicParameters, parameters_for
 from .core.device import (
     check_mount,
@@ -332,7 +331,7 @@ def status_fields(
     for index, why in sorted(result.rejected_postures.items())[:20]:
         fields[f'rejected.{index}'] = why
     # The fit against its noise model (adequacy.verdict unknown without one).
-    fields.update(assess(result.whitened, result.rank).status_fields())
+    fields.update(result.adequacy.status_fields())
     return fields
 
 

@@ -140,7 +140,6 @@ def _bag_info_arguments(info: argparse.ArgumentParser) -> None:
 def run_calibrate(args) -> int:
     from hexacal_msgs_py.parameters_file import save_parameters
 
-    from ..core.adequacy import assess
     from ..core.errors import CalibrationError
     from ..core.identification import CONVERGED
     from ..core.measurements import NoiseModel
@@ -178,7 +177,7 @@ def run_calibrate(args) -> int:
         if bag.rejected or bag.invalid_messages:  # say what of the bag was not used
             error.args = (f'{error} [bag {args.bag}: {_not_used(bag)}]',)
         raise
-    adequacy = assess(result.whitened, result.rank)
+    adequacy = result.adequacy
     comment = (
         f'hexacal calibrate {args.bag} (cost {args.cost}, {len(result.used_postures)} postures, '
         f'{result.reason}), SI units'

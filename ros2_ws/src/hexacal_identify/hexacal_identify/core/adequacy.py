@@ -112,7 +112,7 @@ class Adequacy:
         return fields
 
     def lines(self) -> list[str]:
-        """Return the text the CLI prints (none without a noise model: that output is unchanged)."""
+        """Return the text the CLI prints (none without a noise model: that text is unchanged)."""
         if self.verdict == Verdict.UNKNOWN:
             return []
         lines = [f'adequacy: {self.verdict.value}: {self.reason}']

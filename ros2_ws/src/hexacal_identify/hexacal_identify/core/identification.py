@@ -35,7 +35,7 @@ import time
 import numpy as np
 from threadpoolctl import ThreadpoolController
 
-from .adequacy import WhitenedResiduals
+from .adequacy import Adequacy, assess, WhitenedResiduals
 from .architectures import Architecture, KinematicParameters
 from .device import (
     DEVICE_PARAMETER_NAMES,
@@ -184,6 +184,11 @@ class IdentificationResult:
     held_for_identifiability: list[str] = field(default_factory=list)  # held at their start values
     # The rows whitened by the noise model, prior rows included (None without one): adequacy.py.
     whitened: WhitenedResiduals | None = field(repr=False, default=None)
+
+    @property
+    def adequacy(self) -> Adequacy:
+        """Return the fit against its noise model (verdict unknown without one)."""
+        return assess(self.whitened, self.rank)
 
     @property
     def correlation(self) -> np.ndarray:

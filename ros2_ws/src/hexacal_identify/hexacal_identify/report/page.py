@@ -57,10 +57,8 @@ def result_payload(
     beside ``device`` and ``device_std`` (what ``calibrate --json`` prints); the page shows prior
     and posterior side by side.
     """
-    from ..core.adequacy import assess
-
     payload = result.to_json()
-    payload['adequacy'] = assess(result.whitened, result.rank).to_json()
+    payload['adequacy'] = result.adequacy.to_json()
     if device_prior is not None:
         payload['device_prior'] = _device_prior_dict(device_prior)
     layout = result.parameters.layout
