@@ -33,8 +33,8 @@ TAIL_Z = 3.090232306167813  # the standard normal's 99.9 % quantile
 FAR_ABOVE_FACTOR = 4.0
 WORST_COUNT = 5  # postures and channels named
 NO_NOISE_MODEL = (
-    'no noise model to judge by: give the reading noise (--noise-um, or noise_slider_m and '
-    'noise_angle_rad of the identify node) to compare the residuals with it'
+    'no noise model to judge by: give the reading noise (--noise-um, or the noise parameters '
+    'of the identify node) to compare the residuals with it'
 )
 CAUSES = 'a detector problem, a defective device, or a machine the model does not describe'
 
