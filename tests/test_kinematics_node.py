@@ -582,7 +582,7 @@ def test_compensation_reaches_the_true_pose(ros_processes, tmp_path, probe, mode
     from hexacal_identify.core.postures import sample_poses
     from hexacal_msgs_py.conversions import joint_state_to_actuator_reading
     from hexacal_msgs_py.poses import fill_pose_message
-    from hexacal_msgs_py.qos import COMMAND_QOS, SENSOR_QOS
+    from hexacal_msgs_py.qos import COMMAND_QOS, POSE_QOS, SENSOR_QOS
     from sensor_msgs.msg import JointState
 
     truth_path, nominal_path = write_parameter_files(tmp_path, model)
@@ -656,6 +656,16 @@ def test_compensation_reaches_the_true_pose(ros_processes, tmp_path, probe, mode
         ns: probe.node.create_publisher(PoseStamped, f'/{ns}/hexacal/target_pose', COMMAND_QOS)
         for ns in MACHINES
     }
+    # A kinematics node refuses a target until it has an actuator reading of its own (the move
+    # time needs the current position): its first platform pose says it has one.
+    tracked: dict[str, int] = {ns: 0 for ns in MACHINES}
+    for ns in MACHINES:
+        probe.node.create_subscription(
+            PoseStamped,
+            f'/{ns}/hexacal/platform_pose',
+            lambda message, ns=ns: tracked.__setitem__(ns, tracked[ns] + 1),
+            POSE_QOS,
+        )
     for ns in MACHINES:
         probe.spin_until(
             lambda ns=ns: (
@@ -663,6 +673,7 @@ def test_compensation_reaches_the_true_pose(ros_processes, tmp_path, probe, mode
                 and probe.node.count_subscribers(f'/{ns}/command') >= 1
                 and probe.node.count_publishers(f'/{ns}/command') >= 1
                 and len(readings[ns]) > 5
+                and tracked[ns] > 0
             ),
             NODE_START_TIMEOUT_S,
             f'the {ns} machine and its kinematics node',
