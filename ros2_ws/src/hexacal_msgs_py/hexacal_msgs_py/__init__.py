@@ -19,6 +19,7 @@ _EXPORTS = {
     'InvalidReadingError': 'hexacal_msgs_py.errors',
     'ParameterFileError': 'hexacal_msgs_py.errors',
     'PostureReading': 'hexacal_msgs_py.readings',
+    'PostureScatter': 'hexacal_msgs_py.readings',
     'SliderReading': 'hexacal_msgs_py.readings',
 }
 

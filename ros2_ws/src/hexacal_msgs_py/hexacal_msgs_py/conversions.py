@@ -55,6 +55,7 @@ from hexacal_msgs_py.readings import (
     InclinometerReading,
     NS_PER_S,
     PostureReading,
+    PostureScatter,
 )
 import numpy as np
 from sensor_msgs.msg import Imu, JointState
@@ -286,11 +287,29 @@ def joint_state_to_posture_reading(msg: JointState, model: ModelArgument = None)
     The posture joints are the six actuators of the model (Hexa Slide, the
     default: slider_1..6; Gough-Stewart: leg_1..6), then inclinometer_x,
     inclinometer_y, rotary; the optional joint device_turn (rad, absent: 0)
-    gives the reading's device_turn.
+    gives the reading's device_turn.  Where the message carries one value per joint in
+    `velocity` and `effort`, they are the posture's scatter (PostureScatter: the standard errors
+    of the means and the sample counts); else the reading has none.
     """
-    values = _joint_positions(msg, layout_of(model).posture_names, 'posture')
+    names = layout_of(model).posture_names
+    values = _joint_positions(msg, names, 'posture')
     turn = _device_turn(msg, 'posture')
-    return PostureReading.from_values(stamp_ns(msg.header.stamp), values, device_turn=turn)
+    scatter = _posture_scatter(msg, names)
+    return PostureReading.from_values(
+        stamp_ns(msg.header.stamp), values, device_turn=turn, scatter=scatter
+    )
+
+
+def _posture_scatter(msg: JointState, names: Sequence[str]) -> PostureScatter | None:
+    """Return the scatter a posture JointState carries in velocity/effort, or None."""
+    count = len(msg.name)
+    if count == 0 or len(msg.velocity) != count or len(msg.effort) != count:
+        return None
+    index = {name: i for i, name in enumerate(msg.name)}
+    return PostureScatter(
+        tuple(msg.velocity[index[name]] for name in names),
+        tuple(msg.effort[index[name]] for name in names),
+    )
 
 
 def actuator_reading_to_joint_state(
@@ -331,12 +350,20 @@ def posture_reading_to_joint_state(
     Convert a PostureReading to a JointState with the model's posture joints.
 
     PostureReading -> JointState with the model's posture joints (default: the Hexa Slide's), then
-    device_turn when the reading's device_turn is non-zero.
+    device_turn when the reading's device_turn is non-zero.  A reading's scatter goes into
+    `velocity` (standard errors of the means, m or rad) and `effort` (sample counts); the
+    device_turn joint, set and not measured, gets 0 and 1.
     """
     names, values = _with_turn(
         layout_of(model).posture_names, reading.values(), reading.device_turn
     )
-    return _joint_state(reading.stamp_ns, names, values, frame_id)
+    message = _joint_state(reading.stamp_ns, names, values, frame_id)
+    scatter = reading.scatter
+    if scatter is not None:
+        extra = len(names) - len(scatter.standard_errors)
+        message.velocity = [float(v) for v in scatter.standard_errors] + [0.0] * extra
+        message.effort = [float(n) for n in scatter.sample_counts] + [1.0] * extra
+    return message
 
 
 def parameters_to_multiarray(vector: object, model: ModelArgument = None) -> Float64MultiArray:

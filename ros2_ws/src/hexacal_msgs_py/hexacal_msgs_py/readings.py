@@ -132,6 +132,48 @@ class EncoderReading:
 
 
 @dataclass(frozen=True)
+class PostureScatter:
+    """
+    How well a posture's nine values are known from the samples averaged into them.
+
+    Per channel in POSTURE_NAMES order (six actuators, alpha, beta, phi):
+    `standard_errors` is the standard error of the channel's mean (m or rad, the channel's
+    unit: its samples' scatter over the square root of their number) and `sample_counts` the
+    number of samples averaged (>= 1).  On a posture JointState the standard errors travel in
+    `velocity` and the counts in `effort` (docs/formats.md).
+    """
+
+    standard_errors: tuple[float, ...]
+    sample_counts: tuple[int, ...]
+
+    def __post_init__(self) -> None:
+        kind = type(self).__name__
+        errors = tuple(self.standard_errors)
+        counts = tuple(self.sample_counts)
+        if len(errors) != len(POSTURE_NAMES) or len(counts) != len(POSTURE_NAMES):
+            raise InvalidReadingError(
+                f'{kind}: expected {len(POSTURE_NAMES)} standard errors and sample counts, '
+                f'got {len(errors)} and {len(counts)}'
+            )
+        checked = tuple(
+            _check_value(kind, f'standard error of {name}', value)
+            for name, value in zip(POSTURE_NAMES, errors)
+        )
+        if min(checked) < 0.0:
+            raise InvalidReadingError(f'{kind}: standard errors must be >= 0, got {checked}')
+        whole = []
+        for name, count in zip(POSTURE_NAMES, counts):
+            number = _check_value(kind, f'sample count of {name}', count)
+            if number < 1 or number != int(number):
+                raise InvalidReadingError(
+                    f'{kind}: sample count of {name} must be a whole number >= 1, got {count!r}'
+                )
+            whole.append(int(number))
+        object.__setattr__(self, 'standard_errors', checked)
+        object.__setattr__(self, 'sample_counts', tuple(whole))
+
+
+@dataclass(frozen=True)
 class PostureReading:
     """
     One measured posture.
@@ -143,6 +185,9 @@ class PostureReading:
     reversed, pi/2 quarter turn), |turn| <= 2 pi.  It is not one of the nine
     values() (POSTURE_NAMES); on a JointState it is the optional joint
     DEVICE_TURN_JOINT, absent when 0.
+
+    scatter: the readings' scatter behind the nine values (PostureScatter), or None where it is
+    not known (a posture given by hand, a bag recorded before it existed).
     """
 
     stamp_ns: int
@@ -151,6 +196,7 @@ class PostureReading:
     beta: float
     phi: float
     device_turn: float = 0.0
+    scatter: PostureScatter | None = None
 
     def __post_init__(self) -> None:
         kind = type(self).__name__
@@ -204,6 +250,7 @@ class PostureReading:
         stamp_ns: int,
         values: Iterable[float],
         device_turn: float = 0.0,
+        scatter: PostureScatter | None = None,
     ) -> PostureReading:
         """Inverse of values(): nine numbers in POSTURE_NAMES order (and the device turn, rad)."""
         numbers = tuple(values)
@@ -213,7 +260,15 @@ class PostureReading:
                 f'{POSTURE_NAMES}, got {len(numbers)}'
             )
         alpha, beta, phi = numbers[N_CHAINS:]
-        return cls(stamp_ns, numbers[:N_CHAINS], alpha, beta, phi, device_turn=device_turn)
+        return cls(
+            stamp_ns,
+            numbers[:N_CHAINS],
+            alpha,
+            beta,
+            phi,
+            device_turn=device_turn,
+            scatter=scatter,
+        )
 
 
 # Deprecated names (issue #17): the old spellings stay importable for users' scripts.

@@ -28,6 +28,7 @@ from hexacal_msgs_py.readings import (
     InclinometerReading,
     NS_PER_S,
     PostureReading,
+    PostureScatter,
 )
 import numpy as np
 from numpy.typing import ArrayLike
@@ -341,6 +342,14 @@ class DetectedPosture:
     @property
     def values(self) -> np.ndarray:
         return np.asarray(self.reading.values())
+
+    @property
+    def scatter(self) -> PostureScatter:
+        """Per channel, the standard error of the mean (std / sqrt(n)) and the sample count."""
+        count = max(self.sample_count, 1)
+        return PostureScatter(
+            tuple(float(s) / math.sqrt(count) for s in self.std), (count,) * N_CHANNELS
+        )
 
 
 @dataclass(frozen=True)
