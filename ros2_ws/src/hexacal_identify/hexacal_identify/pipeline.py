@@ -51,8 +51,17 @@ from .core.device import (
 )
 from .core.errors import InvalidMeasurementError
 from .core.identification import IdentificationResult, identify, SolverOptions
-from .core.measurements import FIXED, MeasurementLimits, Measurements, NoiseModel, SPHERE
+from .core.measurements import (
+    FIXED,
+    MeasurementLimits,
+    Measurements,
+    NoiseModel,
+    ScatterFloor,
+    SPHERE,
+    Weights,
+)
 from .core.model import parameter_names
+from .core.weighting import AUTO, choose_weights, WeightChoice
 
 # A posture whose inclinometer reads zero on both axes (within this, rad) was taken at the fixed
 # position [0, 0, -L] (section 3.2's second procedure). 5e-5 rad is 37 um at L = 0.75 m: above
@@ -223,7 +232,9 @@ def measurements_from_postures(
 
     Each posture's ``device_turn`` (rad: the device turned about its link axis, e.g. pi for a
     reversal) goes with it; a turned device reads zero at the same fixed position, so the kinds
-    are told apart the same way.
+    are told apart the same way.  The postures' scatter becomes the measurements'
+    ``standard_errors`` when every posture carries it (else none: ``scatter_count`` says how
+    many do).
     """
     if not postures:
         return Measurements(np.zeros((0, 6)), np.zeros((0, 2)), np.zeros(0), np.zeros(0, str))
@@ -231,13 +242,34 @@ def measurements_from_postures(
     angles = np.array([[p.alpha, p.beta] for p in postures], dtype=float)
     rotary = np.array([p.phi for p in postures], dtype=float)
     fixed = np.all(np.abs(angles) <= fixed_tolerance_rad, axis=1)
+    errors = None
+    if scatter_count(postures) == len(postures):
+        errors = np.array(
+            [p.scatter.standard_errors for p in postures if p.scatter is not None], dtype=float
+        )
     return Measurements(
         actuators,
         angles,
         rotary,
         np.where(fixed, FIXED, SPHERE),
         device_turn=[p.device_turn for p in postures],
+        standard_errors=errors,
     )
+
+
+def scatter_count(postures: Sequence[PostureReading]) -> int:
+    """Return how many of the postures carry their readings' scatter."""
+    return sum(p.scatter is not None for p in postures)
+
+
+def weight_choice(
+    postures: Sequence[PostureReading],
+    weights: str = AUTO,
+    noise: NoiseModel | None = None,
+    scatter_floor: ScatterFloor = ScatterFloor(),
+) -> WeightChoice:
+    """Return what weighs a calibration of `postures` (core.weighting.choose_weights)."""
+    return choose_weights(weights, scatter_count(postures), len(postures), noise, scatter_floor)
 
 
 def calibrate(
@@ -252,13 +284,18 @@ def calibrate(
     robust_loss: str | None = None,
     mount: str = DEFAULT_MOUNT,
     device_prior: DevicePrior | None = None,
+    weights: str = AUTO,
+    scatter_floor: ScatterFloor = ScatterFloor(),
 ) -> IdentificationResult:
     """
     Identify the parameters from received postures: the one call behind the node and the CLI.
 
     ``nominal`` is the starting parameter set of any architecture (its model is the
     result's). ``identify_device`` names device defects to identify jointly (e.g. dL,
-    alpha0, gamma); ``noise`` (reading noise half-widths) weights the residuals by it.
+    alpha0, gamma).  ``weights`` (core.weighting: auto, scatter, noise-model, none) says what
+    weighs the residuals: by default the postures' scatter where every posture carries it
+    (each standard error raised to ``scatter_floor``), else ``noise`` (reading noise
+    half-widths) when given; the result's ``weights`` / ``weights_note`` say which.
     ``mount`` is the device's (hanging, or standing for an upright machine).
     ``device_prior``: prior knowledge of device parameters (a caliper's dL = 0 +- 10 um, a
     certificate's alpha0 = 0 +- 50 urad; SI units): each such parameter is identified, its prior
@@ -266,16 +303,21 @@ def calibrate(
     A problem the postures do not determine raises RankDeficientError (never a
     number that means nothing) unless ``allow_rank_deficient``.
     """
+    choice = weight_choice(postures, weights, noise, scatter_floor)
     options = SolverOptions(
         cost=cost,
         device=DeviceModel(link_length=link_length, mount=mount),
         allow_rank_deficient=allow_rank_deficient,
         free_device=tuple(identify_device),
-        noise=noise,
+        noise=noise if choice.weights == Weights.NOISE_MODEL else None,
         robust_loss=robust_loss,
         device_prior=device_prior if device_prior is not None else DevicePrior(),
+        scatter_weights=choice.weights == Weights.SCATTER,
+        scatter_floor=scatter_floor,
     )
-    return identify(nominal, measurements_from_postures(postures), options)
+    result = identify(nominal, measurements_from_postures(postures), options)
+    result.weights_note = choice.note
+    return result
 
 
 def device_prior_json(prior: DevicePrior | None) -> dict[str, dict[str, float]]:
@@ -301,6 +343,7 @@ def status_fields(
     (core.adequacy): ``adequacy.verdict`` / ``adequacy.reason`` always, the figures
     (``adequacy.variance_factor``, ``adequacy.expected_low`` / ``_high``, ``adequacy.dof``) and
     the worst ``adequacy.worst_postures`` / ``adequacy.worst_channels`` with a noise model.
+    ``weights`` (scatter, noise_model, none) and ``weights_note``: what weighed the fit.
     """
     model = result.parameters.model
     fields = {
@@ -332,6 +375,9 @@ def status_fields(
         fields[f'rejected.{index}'] = why
     # The fit against its noise model (adequacy.verdict unknown without one).
     fields.update(result.adequacy.status_fields())
+    fields['weights'] = result.weights
+    if result.weights_note:
+        fields['weights_note'] = result.weights_note
     return fields
 
 

@@ -55,6 +55,7 @@ def _calibrate_arguments(calibrate: argparse.ArgumentParser) -> None:
     from ..core.device import DEFAULT_LINK_LENGTH_M
     from ..core.identification import ROBUST_LOSSES
     from ..core.residuals import COSTS
+    from ..core.weighting import WEIGHT_MODES
     from .study_device import device_names_argument
 
     calibrate.add_argument('bag', type=Path, help='bag directory or .mcap file')
@@ -99,7 +100,7 @@ def _calibrate_arguments(calibrate: argparse.ArgumentParser) -> None:
         help='prior knowledge of device parameters in SI units (m, rad), e.g. '
         'dL=0:10e-6,alpha0=0:50e-6 (link length offset 0 +- 10 um from a caliper, inclinometer '
         'zero 0 +- 50 urad from its certificate): each is identified, weighed against the data '
-        'by the reading noise (needs --noise-um)',
+        'by the reading noise (needs --noise-um, or postures that carry their scatter)',
     )
     calibrate.add_argument(
         '--noise-um',
@@ -107,6 +108,21 @@ def _calibrate_arguments(calibrate: argparse.ArgumentParser) -> None:
         default=None,
         help='known reading noise half-width (um on sliders, urad on angles): weight residuals '
         'by it',
+    )
+    calibrate.add_argument(
+        '--weights',
+        choices=WEIGHT_MODES,
+        default='auto',
+        help="what weighs the residuals: each posture's measured scatter (scatter), the "
+        '--noise-um model (noise-model) or nothing (none); default auto: scatter when every '
+        'posture carries it, else the noise model when given, else none',
+    )
+    calibrate.add_argument(
+        '--scatter-floor-um',
+        type=float,
+        default=0.1,
+        help='smallest standard error a posture is credited with when weighed by its scatter '
+        '(um on actuators, urad on angles; default 0.1)',
     )
     calibrate.add_argument(
         '--robust', choices=ROBUST_LOSSES, default=None, help='robust loss (huber or soft_l1)'
@@ -142,7 +158,7 @@ def run_calibrate(args) -> int:
 
     from ..core.errors import CalibrationError
     from ..core.identification import CONVERGED
-    from ..core.measurements import NoiseModel
+    from ..core.measurements import NoiseModel, ScatterFloor
     from ..pipeline import (
         calibrate,
         check_model,
@@ -172,6 +188,8 @@ def run_calibrate(args) -> int:
             robust_loss=args.robust,
             mount=mount,
             device_prior=args.device_prior,
+            weights=args.weights,
+            scatter_floor=ScatterFloor.from_microns(args.scatter_floor_um),
         )
     except CalibrationError as error:
         if bag.rejected or bag.invalid_messages:  # say what of the bag was not used
@@ -303,6 +321,7 @@ def _print_summary(args, bag, result, adequacy) -> None:
     )
     for line in device_prior_lines(result, args.device_prior):
         print(line)
+    print(f'weights: {result.weights_note or result.weights}')
     for line in adequacy.lines():
         print(line)
     if result.reason == CONVERGED:

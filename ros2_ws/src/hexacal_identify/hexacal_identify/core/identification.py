@@ -20,7 +20,10 @@ Beyond the paper:
 * With a known noise model the residuals are whitened per posture by the
   covariance the reading noise propagates to them (through eq. 4 and FK), so the
   fit is weighted by what each row really knows and the covariance is the
-  Cramer-Rao bound of that noise.
+  Cramer-Rao bound of that noise.  With ``scatter_weights`` the reading noise is
+  each posture's own measured scatter (``Measurements.standard_errors``, the
+  standard errors of its means, raised to ``scatter_floor``): a posture whose
+  channels scattered more weighs less, channel by channel.
 * Postures are screened: one whose residual is far above the others' (a glitched
   reading, a wrong FK branch) is excluded and reported; a Huber or soft-L1 loss
   (iteratively reweighted) is available as well.
@@ -47,7 +50,7 @@ from .device import (
 from .errors import InvalidMeasurementError, RankDeficientError, TooFewPosturesError
 from .identifiability import analyze, column_scales, DEFAULT_RANK_TOLERANCE, IdentifiabilityReport
 from .kinematics import forward_kinematics, pose_sensitivities
-from .measurements import MeasurementLimits, Measurements, NoiseModel
+from .measurements import MeasurementLimits, Measurements, NoiseModel, ScatterFloor, Weights
 from .model import parameter_names
 from .residuals import ChannelSigma, CostFunction, COSTS, N_NOISE_SOURCES, ResidualBlock
 
@@ -90,6 +93,10 @@ class SolverOptions:
         DevicePrior()
     )  # prior value +- std per device defect (identified, MAP rows)
     noise: NoiseModel | None = None  # known reading noise: whiten the residuals by it
+    # Whiten by each posture's measured scatter (Measurements.standard_errors, every posture)
+    # raised to scatter_floor, instead of one noise model shared by every posture.
+    scatter_weights: bool = False
+    scatter_floor: ScatterFloor = ScatterFloor()
     robust_loss: str | None = None  # None, 'huber' or 'soft_l1'
     outlier_threshold: float | None = (
         6.0  # a posture whose RMS residual exceeds this x the median is excluded
@@ -143,13 +150,24 @@ class SolverOptions:
             )
         if self.noise is not None and not self.noise.known:
             raise ValueError('a noise model for weighting needs positive slider and angle noise')
-        if self.device_prior and self.noise is None:
+        if self.noise is not None and self.scatter_weights:
+            raise ValueError(
+                "weigh by the postures' scatter or by a noise model, not both: give one"
+            )
+        if self.device_prior and self.weights == Weights.NONE:
             raise ValueError(
                 f'a device prior ({self.device_prior.describe()}) is weighed against the data by '
                 'the reading noise: give the noise model too (noise_slider_m and '
-                'noise_angle_rad, --noise-um / --weighted)'
+                'noise_angle_rad, --noise-um / --weighted), or postures that carry their scatter'
             )
         self.free_mask(n_parameters)
+
+    @property
+    def weights(self) -> Weights:
+        """Return what whitens the residuals: the postures' scatter, the noise model, or none."""
+        if self.scatter_weights:
+            return Weights.SCATTER
+        return Weights.NOISE_MODEL if self.noise is not None else Weights.NONE
 
 
 @dataclass
@@ -179,11 +197,14 @@ class IdentificationResult:
     variance_factor: float = float(
         'nan'
     )  # residual variance / expected: ~1 when the noise model fits
-    weighted: bool = False
+    weighted: bool = False  # whitened by the noise model (JSON weighted_by_noise_model)
     robust_loss: str | None = None
     held_for_identifiability: list[str] = field(default_factory=list)  # held at their start values
     # The rows whitened by the noise model, prior rows included (None without one): adequacy.py.
     whitened: WhitenedResiduals | None = field(repr=False, default=None)
+    # What whitened the rows (the std, covariance and adequacy are under it), and why (one line).
+    weights: str = Weights.NONE.value
+    weights_note: str = ''
 
     @property
     def adequacy(self) -> Adequacy:
@@ -224,6 +245,8 @@ class IdentificationResult:
                 for n, s in zip(DEVICE_PARAMETER_NAMES, self.device_std)
             },
             'weighted_by_noise_model': self.weighted,
+            'weights': self.weights,
+            'weights_note': self.weights_note,
             'variance_factor': self.variance_factor,
             'robust_loss': self.robust_loss,
             'held_for_identifiability': self.held_for_identifiability,
@@ -327,13 +350,29 @@ class _Problem:
     ) -> '_RowTransform':
         """Return row weights here: noise whitening and/or robust weights (None if neither)."""
         loss = self.options.robust_loss if robust else None
-        if self.options.noise is None and loss is None:
+        variances = self.variances()
+        if variances is None and loss is None:
             return _RowTransform()
         params, defects = _split(vector, self.arch)
         raw = self.cost.residuals(
             poses, pose_sensitivities(params, poses), defects, with_device=True
         )
-        return _RowTransform(raw, self.options.noise, loss)
+        return _RowTransform(raw, variances, loss)
+
+    def variances(self) -> np.ndarray | None:
+        """
+        Return the variances of the 9 readings: (9,) shared, (P, 9) per posture, or None.
+
+        The noise model's are shared by every posture; the postures' scatter gives each used
+        posture its own (standard errors raised to the floor, squared).
+        """
+        if self.options.scatter_weights:
+            errors = self.cost.measurements.standard_errors
+            assert errors is not None  # _identify_once refuses scatter weights without them
+            return self.options.scatter_floor.apply(errors) ** 2
+        if self.options.noise is not None:
+            return self.options.noise.standard_deviations() ** 2
+        return None
 
     def row_count(self, defects: DeviceDefects) -> int:
         return (
@@ -354,16 +393,16 @@ class _Problem:
 
 
 class _RowTransform:
-    """Fixed row weighting for one LM run: whitening by the noise model, then robust weights."""
+    """Fixed row weighting for one LM run: whitening by the reading noise, then robust weights."""
 
     def __init__(
         self,
         block: ResidualBlock | None = None,
-        noise: NoiseModel | None = None,
+        variances: np.ndarray | None = None,
         robust_loss: str | None = None,
     ):
         self.whitener = (
-            _Whitener(block, noise) if (noise is not None and block is not None) else None
+            _Whitener(block, variances) if (variances is not None and block is not None) else None
         )
         self.robust = None
         if robust_loss is not None and block is not None:
@@ -389,11 +428,15 @@ class _Whitener:
     Rows of one posture (phi and position, or phi and link length) share its
     slider noise through FK, so they are whitened together; rows of the relative
     cost pair two postures and are scaled by their own standard deviation (the
-    correlation between consecutive differences is left out).
+    correlation between consecutive differences is left out).  ``variances``: of
+    the 9 readings, (9,) shared by every posture (a noise model) or (P, 9) per
+    posture of the problem (its measured scatter), indexed by the rows' postures.
     """
 
-    def __init__(self, block: ResidualBlock, noise: NoiseModel):
-        variances = noise.standard_deviations() ** 2
+    def __init__(self, block: ResidualBlock, variances: np.ndarray):
+        if variances.ndim == 2:
+            self._init_per_posture(block, variances)
+            return
         if block.noise_jacobian is None:
             raise InvalidMeasurementError("noise weighting needs the rows' noise derivatives")
         paired = (
@@ -427,6 +470,47 @@ class _Whitener:
             rows = np.stack([single[s:s + size] for s, c in zip(starts, counts) if c == size])
             g = block.noise_jacobian[rows]  # (P, k, 9)
             covariance = np.einsum('pik,k,pjk->pij', g, variances, g)
+            covariance += np.eye(size) * 1e-30  # rows with no noise at all would be singular
+            self.groups.append((rows, np.linalg.inv(np.linalg.cholesky(covariance))))
+
+    def _init_per_posture(self, block: ResidualBlock, variances: np.ndarray) -> None:
+        """Whiten with each posture's own variances (P, 9): the same algebra, per posture."""
+        # The shared-noise path above stays as it was: its results are bit-for-bit those of
+        # earlier releases.
+        if block.noise_jacobian is None:
+            raise InvalidMeasurementError("noise weighting needs the rows' noise derivatives")
+        paired = (
+            block.partners >= 0
+            if block.partners is not None
+            else np.zeros(len(block.values), bool)
+        )
+        self.scales = np.ones(len(block.values))
+        if np.any(paired):
+            assert block.partner_noise_jacobian is not None and block.partners is not None
+            own = np.einsum(
+                'rk,rk,rk->r',
+                block.noise_jacobian[paired],
+                variances[block.postures[paired]],
+                block.noise_jacobian[paired],
+            )
+            partner = np.einsum(
+                'rk,rk,rk->r',
+                block.partner_noise_jacobian[paired],
+                variances[block.partners[paired]],
+                block.partner_noise_jacobian[paired],
+            )
+            self.scales[paired] = 1.0 / np.sqrt(own + partner)
+        self.groups = []
+        single = np.flatnonzero(~paired)
+        postures = block.postures[single]
+        order = np.argsort(postures, kind='stable')
+        single, postures = single[order], postures[order]
+        _, starts, counts = np.unique(postures, return_index=True, return_counts=True)
+        for size in np.unique(counts):
+            rows = np.stack([single[s:s + size] for s, c in zip(starts, counts) if c == size])
+            g = block.noise_jacobian[rows]  # (P, k, 9)
+            own_variances = variances[block.postures[rows[:, 0]]]  # (P, 9)
+            covariance = np.einsum('pik,pk,pjk->pij', g, own_variances, g)
             covariance += np.eye(size) * 1e-30  # rows with no noise at all would be singular
             self.groups.append((rows, np.linalg.inv(np.linalg.cholesky(covariance))))
 
@@ -473,6 +557,11 @@ def _identify_once(
     n_parameters = nominal.layout.n_parameters
     options.validate(n_parameters)
     measurements.validate(options.limits)
+    if options.scatter_weights and measurements.standard_errors is None:
+        raise InvalidMeasurementError(
+            "weighing by the postures' scatter needs the standard errors of every posture; "
+            'these postures carry none: weigh by a noise model, or not at all'
+        )
     free = options.free_mask(n_parameters)
     start = np.concatenate([nominal.vector, options.device_defects.vector])
     start[n_parameters + options.device_prior.indices] = (
@@ -513,7 +602,7 @@ def _identify_once(
             # Noise weights depend on the poses: refit them once at the solution. Robust weights
             # depend on the residuals: iterate (IRLS) until the solution stops moving.
             moved = float(np.max(np.abs(vector - previous)))
-            reweight = (round_number == 0 and options.noise is not None) or (
+            reweight = (round_number == 0 and options.weights != Weights.NONE) or (
                 options.robust_loss is not None and moved > IRLS_TOLERANCE
             )
             if not changed and not reweight:
@@ -624,7 +713,7 @@ def _outliers(
     if options.outlier_threshold is None or len(poses) < 3:
         return {}
     block = problem.residuals(vector, poses)
-    whitened = options.noise is not None
+    whitened = options.weights != Weights.NONE
     values = block.values
     if whitened:
         values = problem.row_transform(vector, poses, robust=False).values(block)
@@ -801,9 +890,10 @@ class _LevenbergMarquardt:
     ) -> IdentificationResult:
         used = self.problem.used
         report = self.analyze()
-        weighted = self.transform.whitener is not None
+        whitened = self.transform.whitener is not None
+        weights = self.options.weights if whitened else Weights.NONE
         covariance, variance_factor = _covariance(
-            self.normal, len(self.block.values), self.scales, self.free, known_noise=weighted
+            self.normal, len(self.block.values), self.scales, self.free, known_noise=whitened
         )
         std_all = np.sqrt(np.diag(covariance))
         std_all[~self.free] = np.nan
@@ -835,13 +925,14 @@ class _LevenbergMarquardt:
             device_std=std_all[n:],
             free_device=tuple(name for name, f in zip(DEVICE_PARAMETER_NAMES, self.free[n:]) if f),
             variance_factor=variance_factor,
-            weighted=weighted,
+            weighted=weights == Weights.NOISE_MODEL,
             robust_loss=self.options.robust_loss,
-            whitened=self._whitened() if weighted else None,
+            whitened=self._whitened() if whitened else None,
+            weights=weights.value,
         )
 
     def _whitened(self) -> WhitenedResiduals:
-        """Return the final rows whitened by the noise model alone (no robust weights)."""
+        """Return the final rows whitened by the reading noise alone (no robust weights)."""
         assert self.transform.whitener is not None  # only called for a weighted fit
         raw = self.raw_block
         block = self.problem.with_prior(

@@ -8,6 +8,7 @@ The six actuator readings are ``actuator_positions`` whatever the architecture
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import enum
 
 import numpy as np
 
@@ -16,6 +17,7 @@ from .device import DeviceDefects, DeviceModel, inclinometer_readings
 from .errors import InvalidMeasurementError
 from .kinematics import inverse_kinematics
 
+N_CHANNELS = 9  # values per posture: 6 actuators, alpha, beta, phi
 SPHERE = 'sphere'  # platform anywhere on the L-sphere (eqs. 7, 8, 12)
 FIXED = 'fixed'  # inclinometer reads zero: position [0, 0, -L] (eqs. 10, 13)
 POSTURE_KINDS = (SPHERE, FIXED)
@@ -44,6 +46,10 @@ class Measurements:
     rad; rotary (N,) = phi, rad; kinds (N,) 'sphere' or 'fixed'; device_turn (N,) rad: how far the
     device was turned about its link axis from its normal mounting for that posture (pi: the
     reversal procedure, device.py), readings as the sensors gave them; None = all normal.
+    standard_errors (N, 9): how well each posture's nine values (6 actuators m, alpha, beta,
+    phi rad; N_CHANNELS order) are known, the standard deviation of each value (the standard
+    error of the mean of the samples averaged into it, PostureScatter); None = not known for
+    every posture.
     """
 
     actuator_positions: np.ndarray
@@ -52,6 +58,7 @@ class Measurements:
     kinds: np.ndarray = field(default=None)  # type: ignore[arg-type]
     link_lengths: np.ndarray | None = None  # LVDT variant: measured link length per posture, m
     device_turn: np.ndarray | None = None  # per posture: device turned about its link axis, rad
+    standard_errors: np.ndarray | None = None  # (N, 9) std of each value (m, rad); None: unknown
 
     def __post_init__(self) -> None:
         self.actuator_positions = np.atleast_2d(np.asarray(self.actuator_positions, dtype=float))
@@ -69,6 +76,8 @@ class Measurements:
             self.device_turn = np.asarray(self.device_turn, dtype=float).reshape(-1)
             if not np.any(self.device_turn):
                 self.device_turn = None  # all in the normal mounting: the same as no turns
+        if self.standard_errors is not None:
+            self.standard_errors = np.asarray(self.standard_errors, dtype=float)
 
     @property
     def turns(self) -> np.ndarray:
@@ -82,6 +91,7 @@ class Measurements:
         indices = np.asarray(indices, dtype=int)
         lengths = None if self.link_lengths is None else self.link_lengths[indices]
         turns = None if self.device_turn is None else self.device_turn[indices]
+        errors = None if self.standard_errors is None else self.standard_errors[indices]
         return Measurements(
             self.actuator_positions[indices],
             self.inclinometer[indices],
@@ -89,6 +99,7 @@ class Measurements:
             self.kinds[indices],
             lengths,
             turns,
+            errors,
         )
 
     @staticmethod
@@ -103,6 +114,10 @@ class Measurements:
         turns = None
         if any(p.device_turn is not None for p in parts):
             turns = np.concatenate([p.turns for p in parts])
+        # The scatter is known for the whole only when it is known for every part.
+        errors = None
+        if parts and all(p.standard_errors is not None for p in parts):
+            errors = np.concatenate([p.standard_errors for p in parts])
         return Measurements(
             np.concatenate([p.actuator_positions for p in parts]),
             np.concatenate([p.inclinometer for p in parts]),
@@ -110,6 +125,7 @@ class Measurements:
             np.concatenate([p.kinds for p in parts]),
             lengths,
             turns,
+            errors,
         )
 
     def validate(self, limits: MeasurementLimits = MeasurementLimits()) -> None:
@@ -145,6 +161,13 @@ class Measurements:
                     f'device_turn must have one angle per posture, got {self.device_turn.shape}'
                 )
             channels['device_turn'] = self.device_turn[:, None]
+        if self.standard_errors is not None:
+            if self.standard_errors.shape != (n, N_CHANNELS):
+                raise InvalidMeasurementError(
+                    f'standard_errors must be (N, {N_CHANNELS}) with N = {n}, got '
+                    f'{self.standard_errors.shape}'
+                )
+            channels['standard_errors'] = self.standard_errors
         for name, values in channels.items():
             bad = np.flatnonzero(~np.all(np.isfinite(values), axis=1))
             if bad.size:
@@ -167,6 +190,11 @@ class Measurements:
                 f'slider position outside [{limits.actuator_min_m}, {limits.actuator_max_m}] m at '
                 f'posture(s) {low.tolist()}',
                 low,
+            )
+        if self.standard_errors is not None and np.any(self.standard_errors < 0):
+            bad = np.flatnonzero(np.any(self.standard_errors < 0, axis=1))
+            raise InvalidMeasurementError(
+                f'negative standard error at posture(s) {bad.tolist()}', bad
             )
         if self.link_lengths is not None and np.any(self.link_lengths <= 0):
             bad = np.flatnonzero(self.link_lengths <= 0)
@@ -213,6 +241,57 @@ class NoiseModel:
     @property
     def known(self) -> bool:
         return self.actuator_m > 0 and self.angle_rad > 0
+
+
+class Weights(enum.StrEnum):
+    """What weighed a fit's residuals: its JSON's ``weights`` values."""
+
+    SCATTER = 'scatter'  # each posture's measured scatter (Measurements.standard_errors)
+    NOISE_MODEL = 'noise_model'  # one NoiseModel shared by every posture
+    NONE = 'none'  # unweighted (the channels' fixed scales only)
+
+
+@dataclass(frozen=True)
+class ScatterFloor:
+    """
+    The smallest standard deviation a posture's value is credited with when weighed by scatter.
+
+    A posture's measured scatter (the standard error of each channel's mean) can under-state
+    what the value is really known to: a quantised channel that did not move reads the same
+    count in every sample (zero scatter, while the true value lies anywhere within one
+    resolution step), a channel with one sample has no scatter at all, and a short dwell of
+    correlated samples under-estimates it.  Weighing by such a figure would give one posture's
+    channel an unbounded weight (a zero standard error: an infinite one), so each standard
+    error is raised to at least this floor.  The defaults, 0.1 um on the actuators and 0.1 urad
+    on the angles, are below what the averaged readings of today's encoders and inclinometers
+    reach (their resolution over the square root of ~100 samples, and the repeatability of the
+    machine itself is larger still) and far above rounding, so they only act where the scatter
+    says nothing.  SI units: standard deviations, m and rad.
+    """
+
+    actuator_m: float = 1e-7
+    angle_rad: float = 1e-7
+
+    def __post_init__(self) -> None:
+        for name in ('actuator_m', 'angle_rad'):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(
+                    f'the scatter floor {name} must be positive and finite, got {value!r}'
+                )
+
+    @classmethod
+    def from_microns(cls, microns: float) -> 'ScatterFloor':
+        """Return X um on the actuators and X urad on every angle."""
+        return cls(actuator_m=microns * 1e-6, angle_rad=microns * 1e-6)
+
+    def standard_deviations(self) -> np.ndarray:
+        """Return the floor of the 9 values of a posture (6 actuators, alpha, beta, phi)."""
+        return np.array([self.actuator_m] * 6 + [self.angle_rad] * 3)
+
+    def apply(self, standard_errors: np.ndarray) -> np.ndarray:
+        """Return (N, 9) standard errors raised to at least the floor, channel by channel."""
+        return np.maximum(np.asarray(standard_errors, dtype=float), self.standard_deviations())
 
 
 def simulate_measurements(

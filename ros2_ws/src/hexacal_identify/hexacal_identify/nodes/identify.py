@@ -54,7 +54,9 @@ from std_srvs.srv import Trigger
 
 from .runtime import run_node
 from ..core.device import DEVICE_PARAMETER_NAMES
+from ..core.measurements import ScatterFloor
 from ..core.residuals import COSTS
+from ..core.weighting import WEIGHT_MODES
 from ..session import (
     CalibrationSession,
     DEFAULT_OUTPUT,
@@ -100,7 +102,8 @@ def _angle_priors() -> dict[str, ParameterSpec]:
         specs[f'device.{name}_std'] = (
             0.0,
             f'standard deviation of the prior on {name} (rad); > 0 makes it a prior (the defect '
-            'is identified; needs noise_slider_m and noise_angle_rad); 0.0 = no prior',
+            'is identified; needs noise_slider_m and noise_angle_rad, or postures with scatter); '
+            '0.0 = no prior',
             {},
         )
     return specs
@@ -152,6 +155,23 @@ PARAMETERS: dict[str, ParameterSpec] = {
         0.0,
         'known angle noise half-width (rad), see noise_slider_m',
         {'floating_point_range': _range(0.0, 0.01)},
+    ),
+    'weights': (
+        'auto',
+        "what weighs the residuals: 'scatter' (each posture's measured scatter, carried in the "
+        "posture's velocity/effort), 'noise-model' (noise_slider_m, noise_angle_rad) or 'none'; "
+        "'auto': scatter when every posture carries it, else the noise model when set, else none",
+        {'additional_constraints': 'one of ' + ', '.join(WEIGHT_MODES)},
+    ),
+    'scatter_floor_actuator_m': (
+        ScatterFloor().actuator_m,
+        'smallest standard error (m) an actuator value is credited with when weighed by scatter',
+        {'floating_point_range': _range(1e-9, 0.01)},
+    ),
+    'scatter_floor_angle_rad': (
+        ScatterFloor().angle_rad,
+        'smallest standard error (rad) an angle is credited with when weighed by scatter',
+        {'floating_point_range': _range(1e-9, 0.01)},
     ),
     'robust_loss': ('', "'' (least squares), 'huber' or 'soft_l1'", {}),
     LINK_LENGTH_PRIOR: (

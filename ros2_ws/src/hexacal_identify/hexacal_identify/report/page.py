@@ -336,6 +336,8 @@ class _Sections:
             ('Postures used', p.get('postures_used'), 'postures-used'),
             ('Postures rejected', len(p.get('postures_rejected') or []), 'postures-rejected'),
         ]
+        if p.get('weights'):  # what weighed the fit (a result file of before issue 19: unsaid)
+            rows.append(('Weights', p.get('weights_note') or p['weights'], 'weights'))
         initial_rms = self.data.get('initial_rms_residual') or {}
         for channel, value in (p.get('rms_residual') or {}).items():
             scale, unit = (UM, 'urad') if channel.startswith('phi') else (UM, 'um')
@@ -445,7 +447,8 @@ class _Sections:
             for k, v, i in rows
         )
         note = (
-            "<p class='note'>The residuals whitened by the noise model: their sum of squares over "
+            "<p class='note'>The residuals whitened by the reading noise (the postures' scatter "
+            'or the noise model: see Weights): their sum of squares over '
             'the degrees of freedom (residuals - rank) is ~1 when the noise explains them; the '
             'range is chi-square&#39;s 0.1 % .. 99.9 %.</p>'
         )

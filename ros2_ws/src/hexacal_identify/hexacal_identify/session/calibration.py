@@ -19,6 +19,7 @@ from .settings import names, Settings
 # pipeline and core.identification (the solver) are imported where they are used: at the first
 # calibration, not when the node starts.
 from ..core.errors import CalibrationError
+from ..core.measurements import Weights
 from ..store.provenance import calibration_record
 
 
@@ -106,12 +107,19 @@ def run_calibration(
         prior = device_prior(settings.device_prior, link_length)
     except ValueError as error:
         return failure(Reason.INVALID_DEVICE_PRIOR, str(error), **about)
-    if prior and noise is None:
+    try:
+        choice = pipeline.weight_choice(
+            postures, settings.weights, noise, settings.scatter_floor()
+        )
+    except ValueError as error:  # scatter asked for but missing, a noise model asked for but unset
+        return failure(Reason.INVALID_OPTIONS, str(error), **about)
+    log.info(f'weights: {choice.note}')
+    if prior and choice.weights == Weights.NONE:
         return failure(
             Reason.DEVICE_PRIOR_WITHOUT_NOISE,
             f'a device prior ({prior.describe()}) is weighed against the data by the '
-            'reading noise: set noise_slider_m and noise_angle_rad (> 0), or the prior std '
-            'parameters (device.*_std) to 0',
+            'reading noise: set noise_slider_m and noise_angle_rad (> 0) or calibrate postures '
+            'that carry their scatter, or set the prior std parameters (device.*_std) to 0',
             **about,
         )
     try:
@@ -125,6 +133,8 @@ def run_calibration(
             robust_loss=settings.robust_loss or None,
             mount=mount,
             device_prior=prior,
+            weights=settings.weights,
+            scatter_floor=settings.scatter_floor(),
         )
     except CalibrationError as error:
         return failure(error.reason, str(error), **about)

@@ -10,8 +10,9 @@ from typing import Any
 from .paths import DEFAULT_OUTPUT, output_path
 from .prior import LINK_LENGTH_PRIOR, prior_parameter_problem, PRIOR_PARAMETERS
 from ..core.device import DEVICE_PARAMETER_NAMES
-from ..core.measurements import NoiseModel
+from ..core.measurements import NoiseModel, ScatterFloor
 from ..core.residuals import COSTS
+from ..core.weighting import weight_mode
 
 
 def names(text: str) -> tuple[str, ...]:
@@ -32,6 +33,9 @@ class Settings:
     identify_device: str = ''
     noise_slider_m: float = 0.0
     noise_angle_rad: float = 0.0
+    weights: str = 'auto'  # core.weighting: auto, scatter, noise-model, none
+    scatter_floor_actuator_m: float = ScatterFloor().actuator_m
+    scatter_floor_angle_rad: float = ScatterFloor().angle_rad
     robust_loss: str = ''
     verify_threshold_m: float = 0.0
     report_dir: str = 'report'
@@ -44,6 +48,10 @@ class Settings:
         if self.noise_slider_m > 0 and self.noise_angle_rad > 0:
             return NoiseModel(self.noise_slider_m, self.noise_angle_rad)
         return None
+
+    def scatter_floor(self) -> ScatterFloor:
+        """Return the smallest standard errors a posture is credited with (ScatterFloor)."""
+        return ScatterFloor(self.scatter_floor_actuator_m, self.scatter_floor_angle_rad)
 
 
 # The parameters a Settings holds one field each of (device_prior holds PRIOR_PARAMETERS).
@@ -76,6 +84,15 @@ def parameter_problem(name: str, value: Any, current: Callable[[str, Any], Any])
             output_path(value, current('output_dir', ''))
         except ValueError as error:
             return f'report_dir: {error}'
+    if name == 'weights':
+        try:
+            weight_mode(value)
+        except ValueError as error:
+            return str(error)
+    if name in ('scatter_floor_actuator_m', 'scatter_floor_angle_rad') and not (
+        math.isfinite(value) and value > 0
+    ):
+        return f'{name} must be a positive standard deviation (SI), got {value!r}'
     if name == 'cost' and value not in COSTS:
         return f'cost must be one of {", ".join(COSTS)}, got {value!r}'
     if name == 'link_length' and not math.isfinite(value):
