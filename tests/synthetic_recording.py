@@ -6,7 +6,9 @@ posture topic carries the mean of each dwell, stamped at its end.  Used to test
 the offline tools on bags of known content.  ``model`` names the actuator joints
 (Hexa Slide: slider_1..6, the default; Gough-Stewart: leg_1..6) and, with
 ``record_model``, is written to the bag's ``hexacal.collector`` metadata as the
-collector does.
+collector does.  With ``scatter`` each posture message also carries the dwell's scatter as
+the collector records it: the standard error of each channel's mean in ``velocity``, the
+number of samples in ``effort``.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ import numpy as np
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 
 
-def _joint_state(stamp_ns: int, names, values) -> dict:
+def _joint_state(stamp_ns: int, names, values, velocity=(), effort=()) -> dict:
     return {
         'header': {
             'stamp': {'sec': stamp_ns // 1_000_000_000, 'nanosec': stamp_ns % 1_000_000_000},
@@ -38,8 +40,8 @@ def _joint_state(stamp_ns: int, names, values) -> dict:
         },
         'name': list(names),
         'position': [float(v) for v in values],
-        'velocity': [],
-        'effort': [],
+        'velocity': [float(v) for v in velocity],
+        'effort': [float(v) for v in effort],
     }
 
 
@@ -61,6 +63,7 @@ def write_recording(
     nan_every: int = 0,
     model: str | None = None,
     record_model: str | None = None,
+    scatter: bool = False,
 ) -> Path:
     rng = np.random.default_rng(seed)
     slider_names, names = actuator_names(model), posture_names(model)
@@ -102,8 +105,16 @@ def write_recording(
                 if extra_topic and stamp % (10 * period) == 0:
                     writer.write(extra_topic, {'data': 'not hexacal'}, stamp)
             if postures:
+                spread = {}
+                if scatter:  # standard errors of the means, and the samples averaged
+                    spread = {
+                        'velocity': dwell.std(axis=0, ddof=1) / np.sqrt(len(dwell)),
+                        'effort': [len(dwell)] * len(names),
+                    }
                 writer.write(
-                    prefix + POSTURE_TOPIC, _joint_state(stamp, names, dwell.mean(axis=0)), stamp
+                    prefix + POSTURE_TOPIC,
+                    _joint_state(stamp, names, dwell.mean(axis=0), **spread),
+                    stamp,
                 )
             previous = target
     return directory
