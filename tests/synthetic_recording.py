@@ -1,4 +1,7 @@
-"""Write rosbag2 bags that look like the collector's, straight from the core simulation (no ROS graph).
+"""
+Write rosbag2 bags that look like the collector's, straight from the core simulation.
+
+No ROS graph.
 
 Raw streams at ``rate_hz``: each posture is held for ``dwell_s`` (readings with fresh
 noise) and reached by a ``move_s`` linear move of the sliders and angles; the

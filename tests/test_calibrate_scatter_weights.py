@@ -26,7 +26,7 @@ def hexacal(*args):
 
 @pytest.fixture(scope='module')
 def bags(tmp_path_factory):
-    """The same recording (same readings) with and without the scatter on its posture topic."""
+    """Return the same recording (same readings) with and without scatter on its postures."""
     exact = simulate_measurements(TRUE, sample_poses(TRUE, 40, np.random.default_rng(19)))
     root = tmp_path_factory.mktemp('bags')
     return {

@@ -60,7 +60,7 @@ def test_live_postures_with_scatter_are_weighed_by_it(tmp_path):
     outcome = _calibrate(tmp_path, _postures(40, scatter=True))
     assert outcome.success, outcome.message
     assert outcome.values['weights'] == 'scatter'
-    assert "measured scatter" in outcome.values['weights_note']
+    assert 'measured scatter' in outcome.values['weights_note']
     assert outcome.values['adequacy.verdict'] == 'pass'
 
 
