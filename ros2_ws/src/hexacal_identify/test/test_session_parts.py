@@ -45,6 +45,9 @@ def test_settings_fields_are_the_node_parameters():
         'verify_threshold_m',
         'report_dir',
         'calibration_store',
+        'weights',
+        'scatter_floor_actuator_m',
+        'scatter_floor_angle_rad',
     )
     assert Settings().output == DEFAULT_OUTPUT == 'hexacal_calibration.yaml'
     assert Settings(noise_slider_m=1e-5).noise() is None

@@ -33,13 +33,13 @@ class Settings:
     identify_device: str = ''
     noise_slider_m: float = 0.0
     noise_angle_rad: float = 0.0
-    weights: str = 'auto'  # core.weighting: auto, scatter, noise-model, none
-    scatter_floor_actuator_m: float = ScatterFloor().actuator_m
-    scatter_floor_angle_rad: float = ScatterFloor().angle_rad
     robust_loss: str = ''
     verify_threshold_m: float = 0.0
     report_dir: str = 'report'
     calibration_store: str = ''  # '' = the machine model's default store (store.default_store_dir)
+    weights: str = 'auto'  # core.weighting: auto, scatter, noise-model, none
+    scatter_floor_actuator_m: float = ScatterFloor().actuator_m
+    scatter_floor_angle_rad: float = ScatterFloor().angle_rad
     # device.* parameters by name (prior.PRIOR_PARAMETERS); missing = 0 (no prior)
     device_prior: Mapping[str, float] = field(default_factory=dict)
 
