@@ -62,10 +62,15 @@ def test_a_bag_with_scatter_is_weighed_by_it(bags, nominal_file, tmp_path):
     assert low <= adequacy['variance_factor'] <= high
     identified = load_parameters(tmp_path / 'cal.yaml')
     assert np.max(np.abs(identified - TRUE.vector)) < 5e-4
-    text = _calibrate(bags['scatter'], nominal_file, tmp_path / 'text.yaml')['text']
+    report = tmp_path / 'report'
+    text = _calibrate(
+        bags['scatter'], nominal_file, tmp_path / 'text.yaml', '--report', report
+    )['text']
     assert [line for line in text.splitlines() if line.startswith('weights: ')] == [
         f'weights: {result["weights_note"]}'
     ]
+    page = (report / 'index.html').read_text()
+    assert "<th>Weights</th><td id='weights'>each posture&#x27;s measured scatter" in page
 
 
 @pytest.mark.slow
