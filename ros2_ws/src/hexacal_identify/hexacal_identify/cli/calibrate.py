@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 import sys
 
@@ -169,6 +170,10 @@ def run_calibrate(args) -> int:
         postures_from_bag,
     )
 
+    if not (math.isfinite(args.scatter_floor_um) and args.scatter_floor_um > 0):
+        raise ValueError(
+            f'--scatter-floor-um must be a positive number of um, got {args.scatter_floor_um}'
+        )
     nominal, mount = load_machine_and_mount(args.nominal)
     mount = args.mount or mount
     mount_option = {} if mount == 'hanging' else {'mount': mount}

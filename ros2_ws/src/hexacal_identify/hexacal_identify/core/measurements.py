@@ -266,7 +266,9 @@ class ScatterFloor:
     on the angles, are below what the averaged readings of today's encoders and inclinometers
     reach (their resolution over the square root of ~100 samples, and the repeatability of the
     machine itself is larger still) and far above rounding, so they only act where the scatter
-    says nothing.  SI units: standard deviations, m and rad.
+    says nothing.  The noise model (``--noise-um``) is no floor: it states one spread for every
+    posture, and raising each posture's scatter to it would undo what the scatter tells apart.
+    SI units: standard deviations, m and rad.
     """
 
     actuator_m: float = 1e-7
