@@ -106,7 +106,7 @@ def test_zero_standard_errors_are_floored():
     at_floor = replace(measured, standard_errors=np.tile(floor.standard_deviations(), (30, 1)))
     same = identify(NOMINAL, at_floor, SolverOptions(scatter_weights=True))
     np.testing.assert_array_equal(result.parameters.vector, same.parameters.vector)
-    # A larger floor is a different weighting: the floor is what the zeros were raised to.
+    # The zeros were raised to the floor, channel by channel.
     assert floor.apply(np.zeros((1, 9))).tolist() == [floor.standard_deviations().tolist()]
     with pytest.raises(ValueError, match='positive'):
         ScatterFloor(actuator_m=0.0)
