@@ -1,8 +1,8 @@
 """
 Write rosbag2 bags that look like the collector's, straight from the core simulation.
 
-No ROS graph.  Raw streams at ``rate_hz``: each posture is held for ``dwell_s`` (readings with fresh
-noise) and reached by a ``move_s`` linear move of the sliders and angles; the
+No ROS graph.  Raw streams at ``rate_hz``: each posture is held for ``dwell_s`` (readings
+with fresh noise) and reached by a ``move_s`` linear move of the sliders and angles; the
 posture topic carries the mean of each dwell, stamped at its end.  Used to test
 the offline tools on bags of known content.  ``model`` names the actuator joints
 (Hexa Slide: slider_1..6, the default; Gough-Stewart: leg_1..6) and, with
