@@ -149,8 +149,8 @@ def choose_released_actuators(
         raise ReleaseError(
             f'posture {posture}: no actuator can be released - every one of '
             f'{", ".join(names)} leaves the stroke [{low + margin_m:g}, {high - margin_m:g}] m '
-            f'(stroke less the {margin_m:g} m margin) on the move from the previous posture '
-            f'or makes the five commanded plus the link singular',
+            f'(stroke less the {margin_m:g} m margin) at the posture or on the move to it, or '
+            'makes the five commanded plus the link singular',
             posture,
         )
     return ReleaseChoice(released, conditions, inside, travel)
