@@ -198,9 +198,9 @@ def _plan_arguments(plan) -> None:
         choices=MEASURING_MODES,
         default=DEFAULT_MEASURING_MODE.value,
         help='how the machine is driven while the link is attached (issue #18): '
-        'passive_actuator (default; the paper\'s: one actuator released per posture, the plan '
+        "passive_actuator (default; the paper's: one actuator released per posture, the plan "
         'chooses which and writes it as released_actuator), lvdt (all six commanded, a '
-        'telescopic link: the plan reports each posture\'s predicted extension) or compliant '
+        "telescopic link: the plan reports each posture's predicted extension) or compliant "
         '(all six commanded against the rigid link, torque-limited drives); written into the '
         'plan as measuring_mode',
     )
@@ -208,7 +208,7 @@ def _plan_arguments(plan) -> None:
         '--lvdt-stroke-m',
         type=float,
         default=DEFAULT_LVDT_STROKE_M,
-        help=f'lvdt mode: the LVDT link\'s stroke about its nominal length, +- m (default '
+        help="lvdt mode: the LVDT link's stroke about its nominal length, +- m (default "
         f'{DEFAULT_LVDT_STROKE_M:g})',
     )
     plan.add_argument('--out', type=Path, required=True, help='plan file to write (YAML)')

@@ -29,7 +29,7 @@ from .released_actuator import choose_released_actuators, ReleaseChoice
 
 @dataclass(frozen=True)
 class LvdtCheck:
-    """Predicted extensions (K,) m and gains (K,) m/m of a plan's postures, and the stroke (+-m)."""
+    """Hold a plan's predicted extensions (K,) m, gains (K,) m/m and the stroke (+- m)."""
 
     extensions: np.ndarray
     gains: np.ndarray
@@ -97,7 +97,9 @@ def check_measuring_mode(
         return MeasuringCheck(chosen, release=release)
     if chosen == MeasuringMode.LVDT:
         if not (np.isfinite(lvdt_stroke_m) and lvdt_stroke_m > 0):
-            raise ValueError(f'the LVDT stroke must be a positive length in m, got {lvdt_stroke_m}')
+            raise ValueError(
+                f'the LVDT stroke must be a positive length in m, got {lvdt_stroke_m}'
+            )
         commanded = inverse_kinematics(nominal, poses)
         extensions = lvdt_extensions(nominal, commanded, poses, link_length)
         check = LvdtCheck(extensions, extension_gains(nominal, poses), float(lvdt_stroke_m))
