@@ -45,35 +45,65 @@ def test_with_a_wide_stroke_the_best_conditioned_actuator_is_released(model):
 
 
 def _leaving_case():
-    """Return a Hexa Slide move whose best release stays in stroke at both ends, not between."""
-    params, poses, workspace = _poses('hexa_slide', 40, 3)
+    """
+    Return a Hexa Slide move whose best release leaves its stroke (less the margin) mid-move.
+
+    The stroke is set so that the executor takes the direct path (all six inside) and the
+    margin so that the best release is inside it at both ends of the move but not in the
+    middle, while another chain stays inside all along.  Both stroke ends are tried (the
+    actuators mirrored for the low one).
+    """
+    params, poses, workspace = _poses('hexa_slide', 60, 3)
     length = workspace.link_length
     for i in range(len(poses) - 1):
         pair = poses[i:i + 2]
-        samples, owners = move_samples(pair, length, 0.005)
-        along = inverse_kinematics(params, samples[owners == 1])
+        along, owners, _ = move_samples(params, pair, length, (-10.0, 10.0), 0.005)
+        along = along[owners == 1]
         ends = inverse_kinematics(params, pair)
         best = int(np.argmin(release_conditions(params, pair, length)[1]))
-        excess = along[:, best].max() - ends[:, best].max()
-        if excess > 2e-3:
-            high = ends[:, best].max() + excess / 2  # both ends inside, the middle not
-            if any(c != best and along[:, c].max() < high for c in range(6)):
-                return params, pair, length, best, (float(along.min()) - 1.0, float(high))
+        for sign in (1.0, -1.0):  # the high end, then the low one
+            values, at_ends = sign * along, sign * ends
+            peak, end = values[:, best].max(), at_ends[:, best].max()
+            lowest_other = min(values[:, c].max() for c in range(6) if c != best)
+            threshold = (peak + max(end, lowest_other)) / 2
+            if peak > max(end, lowest_other) + 2e-4:
+                far, near = values.min() - 1.0, values.max() + 5e-4  # all six inside
+                stroke = (far, near) if sign > 0 else (-near, -far)
+                return params, pair, length, best, stroke, near - threshold
     raise AssertionError('no such move among the drawn postures')
 
 
 def test_an_actuator_that_leaves_its_stroke_along_the_move_is_not_released():
-    params, pair, length, best, stroke = _leaving_case()
+    params, pair, length, best, stroke, margin = _leaving_case()
     wide = choose_released_actuators(params, pair, length, (-10.0, 10.0))
     assert wide.released[1] == best
-    narrow = choose_released_actuators(params, pair, length, stroke)
+    narrow = choose_released_actuators(params, pair, length, stroke, margin_m=margin)
+    assert not narrow.via_centre[1]  # the direct move, as the executor would take it
     assert narrow.released[1] != best and not narrow.inside[1, best]
     assert narrow.inside[1, narrow.released[1]]
     assert narrow.chosen_conditions[1] > wide.chosen_conditions[1]  # the price of the stroke
     with pytest.raises(ReleaseError, match='no actuator can be released') as error:
-        choose_released_actuators(params, pair, length, (stroke[0], stroke[0] + 1e-3))
+        choose_released_actuators(params, pair, length, stroke, margin_m=0.45)
     assert str(error.value).startswith(f'posture {error.value.posture}: ')
     assert 'slider_1, slider_2, slider_3, slider_4, slider_5, slider_6 leaves' in str(error.value)
+
+
+def test_a_move_that_leaves_the_stroke_goes_by_way_of_the_centre():
+    params, poses, workspace = _poses('hexa_slide', 12, 5)
+    length = workspace.link_length
+    wide = choose_released_actuators(params, poses, length, (-10.0, 10.0), margin_m=0.0)
+    assert not np.any(wide.via_centre)
+    # A stroke that the highest posture's top actuator overshoots by 0.1 mm: the moves into
+    # and out of it leave the stroke on the direct path, so the executor goes by the centre.
+    tops = np.sort(inverse_kinematics(params, poses).max(axis=1))
+    stroke = (-10.0, float(tops[-1]) - 1e-4)
+    along, owners, _ = move_samples(params, poses, length, (-10.0, 10.0))
+    leaves = np.array([np.any(along[owners == k] > stroke[1]) for k in range(12)])
+    leaves[0] = False  # posture 0 has no move: where the machine starts is unknown
+    assert np.any(leaves)
+    choice = choose_released_actuators(params, poses, length, stroke, margin_m=0.0)
+    np.testing.assert_array_equal(choice.via_centre, leaves)
+    assert np.all(choice.inside[np.arange(12), choice.released])
 
 
 @pytest.mark.parametrize('model', MODELS)

@@ -397,6 +397,8 @@ def _print_measuring(measuring, actuator_names: tuple[str, ...]) -> None:
     """Print what the plan's measuring mode adds: released actuators, or LVDT extensions."""
     import numpy as np
 
+    from ..core.released_actuator import DEFAULT_MARGIN_M
+
     print(f'  measuring mode {measuring.mode.value}')
     release = measuring.release
     if release is not None:
@@ -416,6 +418,12 @@ def _print_measuring(measuring, actuator_names: tuple[str, ...]) -> None:
             f'{np.median(chosen):.3g}); the worst actuator to release would give max '
             f'{np.max(worst):.3g} (median {np.median(worst):.3g}); the released actuator travels '
             f'up to {np.max(release.released_travel) * 1e3:.1f} mm on a move, inside its stroke'
+            f' less {DEFAULT_MARGIN_M * 1e3:g} mm'
+            + (
+                f'; {int(np.sum(release.via_centre))} move(s) by way of the centre'
+                if np.any(release.via_centre)
+                else ''
+            )
         )
     lvdt = measuring.lvdt
     if lvdt is not None:

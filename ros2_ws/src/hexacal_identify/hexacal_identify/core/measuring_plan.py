@@ -22,6 +22,7 @@ from hexacal_msgs_py.measuring_modes import (
 import numpy as np
 
 from .architectures import KinematicParameters
+from .device import DEFAULT_MOUNT
 from .kinematics import inverse_kinematics
 from .lvdt import extension_gains, lvdt_extensions
 from .released_actuator import choose_released_actuators, ReleaseChoice
@@ -65,6 +66,7 @@ class MeasuringCheck:
                 released_condition_max=float(np.max(chosen)),
                 worst_condition_max=float(np.max(worst)),
                 released_travel_max_m=float(np.max(self.release.released_travel)),
+                moves_via_centre=int(np.sum(self.release.via_centre)),
             )
         if self.lvdt is not None:
             out.update(
@@ -85,6 +87,7 @@ def check_measuring_mode(
     stroke_m: tuple[float, float],
     mode: str,
     lvdt_stroke_m: float = DEFAULT_LVDT_STROKE_M,
+    mount: str = DEFAULT_MOUNT,
 ) -> MeasuringCheck:
     """
     Return what plan `poses` (K, 6, plan order) need in measuring mode `mode` (module doc).
@@ -93,7 +96,7 @@ def check_measuring_mode(
     """
     chosen = measuring_mode(mode)
     if chosen == MeasuringMode.PASSIVE_ACTUATOR:
-        release = choose_released_actuators(nominal, poses, link_length, stroke_m)
+        release = choose_released_actuators(nominal, poses, link_length, stroke_m, mount=mount)
         return MeasuringCheck(chosen, release=release)
     if chosen == MeasuringMode.LVDT:
         if not (np.isfinite(lvdt_stroke_m) and lvdt_stroke_m > 0):

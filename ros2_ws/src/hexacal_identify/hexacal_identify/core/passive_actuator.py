@@ -239,6 +239,8 @@ def solve_passive(
 
 def _damped_update(params, poses, error, stalls, active, step, used, index, link_length) -> None:
     """Take X - step on the `active` rows, halving it where it does not reduce the residual."""
+    if not active.size:
+        return
     base, current = poses[active], error[active]
     scale = np.ones(len(active))
     trial, trial_error = base, current

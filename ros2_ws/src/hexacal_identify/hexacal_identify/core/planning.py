@@ -417,6 +417,7 @@ def plan_postures(
             limits.actuator_stroke_m,
             measuring_mode,
             lvdt_stroke_m,
+            limits.mount,
         )
         plan.measuring_mode = measuring.mode.value
         if measuring.release is not None:
