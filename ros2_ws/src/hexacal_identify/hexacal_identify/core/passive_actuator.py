@@ -149,16 +149,20 @@ def _errors(params, poses, commanded, released, link_length) -> np.ndarray:
 
 
 def _solve(jacobian: np.ndarray, residual: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Solve J step = residual per posture; flag the singular ones."""
-    step = np.zeros_like(residual)
-    solvable = np.zeros(len(jacobian), bool)
-    for i in range(len(jacobian)):  # one at a time: a singular one must not fail the batch
-        try:
-            step[i] = np.linalg.solve(jacobian[i], residual[i])
-            solvable[i] = bool(np.all(np.isfinite(step[i])))
-        except np.linalg.LinAlgError:
-            pass
-    return step, solvable
+    """Solve J step = residual per posture, batched; flag the singular ones."""
+    try:
+        step = np.linalg.solve(jacobian, residual[..., None])[..., 0]
+        return step, np.all(np.isfinite(step), axis=1)
+    except np.linalg.LinAlgError:  # rare: one at a time, so a singular one fails alone
+        step = np.zeros_like(residual)
+        solvable = np.zeros(len(jacobian), bool)
+        for i in range(len(jacobian)):
+            try:
+                step[i] = np.linalg.solve(jacobian[i], residual[i])
+                solvable[i] = bool(np.all(np.isfinite(step[i])))
+            except np.linalg.LinAlgError:
+                pass
+        return step, solvable
 
 
 def solve_passive(
