@@ -17,6 +17,7 @@ _EXPORTS = {
     'InclinometerReading': 'hexacal_msgs_py.readings',
     'InvalidParametersError': 'hexacal_msgs_py.errors',
     'InvalidReadingError': 'hexacal_msgs_py.errors',
+    'MeasuringMode': 'hexacal_msgs_py.measuring_modes',
     'ParameterFileError': 'hexacal_msgs_py.errors',
     'PostureReading': 'hexacal_msgs_py.readings',
     'PostureScatter': 'hexacal_msgs_py.readings',

@@ -197,6 +197,10 @@ DEVICE_JOINT_NAMES: tuple[str, ...] = ('inclinometer_x', 'inclinometer_y', 'rota
 DEVICE_TURN_JOINT = 'device_turn'
 # |device_turn| may not exceed one full turn.
 MAX_DEVICE_TURN = 2.0 * math.pi
+# The fourth device reading, reserved for the ``lvdt`` measuring mode (measuring_modes.py): the
+# measured length L_m of a telescopic link, m, which replaces L in eq. 4 for that posture.  Not one
+# of DEVICE_JOINT_NAMES (every posture would change): an optional joint where the mode has it.
+LINK_LENGTH_JOINT = 'link_length'
 
 # --- the models: one declarative layout each ----------------------------------------------------
 

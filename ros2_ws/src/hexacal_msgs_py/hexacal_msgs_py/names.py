@@ -52,6 +52,7 @@ from hexacal_msgs_py.models import (  # noqa: F401 - DEVICE_TURN_JOINT, MAX_DEVI
     DEVICE_TURN_JOINT,
     GOUGH_STEWART,
     HEXA_SLIDE,
+    LINK_LENGTH_JOINT,
     MAX_DEVICE_TURN,
     model_layout,
     MODELS,
@@ -74,6 +75,9 @@ POSTURE_NAMES: tuple[str, ...] = _HEXA.posture_names
 # posture and inclinometer JointStates (not in POSTURE_NAMES / INCLINOMETER_NAMES):
 # the device's rotation about its link axis from its normal mounting (0 normal,
 # pi reversed, pi/2 quarter turn); absent means 0.  |turn| <= MAX_DEVICE_TURN (2 pi).
+# LINK_LENGTH_JOINT ('link_length', m) is reserved for the lvdt measuring mode
+# (measuring_modes.py): the measured length of a telescopic link, the fourth
+# device reading; like device_turn it is not in POSTURE_NAMES.
 
 # The Hexa Slide's 54-vector is chain-major: for each chain A0 (3, base frame,
 # m), B (3, platform frame, m), link length l (m), rail direction a_x, a_y

@@ -15,13 +15,29 @@ units::
       link_length: 0.75
       model: gough_stewart   # optional: absent = hexa_slide (written only otherwise)
       mount: standing        # optional: absent = hanging (written only otherwise)
+      measuring_mode: passive_actuator   # optional: absent = the reader's default
     postures:
-      - {kind: sphere, pose: [x, y, z, theta, psi, phi]}
+      - {kind: sphere, pose: [x, y, z, theta, psi, phi], released_actuator: slider_3}
       - {kind: fixed, pose: [...], device_turn: 3.141592653589793}
 
 ``device_turn`` (rad, |turn| <= 2 pi) turns the device about its link axis for
 that posture; a posture without one takes the reader's default (the driver's
 ``device_turn`` parameter, the normal mounting for the executor).
+
+``measuring_mode`` (issue #18, hexacal_msgs_py.measuring_modes: ``passive_actuator``,
+``lvdt`` or ``compliant``) says how the machine is driven while the link is
+attached; a plan without it takes the reader's default.  ``released_actuator``
+(one of the plan model's actuator joint names, e.g. ``slider_3`` / ``leg_3``)
+names the actuator released for that posture - the one not commanded, whose
+encoder reads where the link put it; it is only meaningful with ``measuring_mode:
+passive_actuator`` and a posture without one leaves the choice to the reader.
+The actuator is named by its joint rather than its chain index because the
+joint name is what every consumer uses (the commanded trajectory names the five
+other joints, the release interface is per joint, the bag's JointStates name
+it), it carries no 0/1-based ambiguity, and it is checked against the plan's
+model (a Hexa Slide plan cannot release ``leg_2``).  Both keys are written only
+when given, so every earlier plan file reads, and is written, byte for byte as
+before.
 
 The planner's metadata rides in the ``# hexacal-plan:`` comment line (one JSON
 object) so that files written before this module existed, and readers that know
@@ -41,6 +57,12 @@ from pathlib import Path
 from typing import Any, Callable, overload, TypeVar
 
 from hexacal_msgs_py.files import atomic_write, load_yaml_text
+from hexacal_msgs_py.measuring_modes import (
+    MEASURING_MODE_KEY,
+    MEASURING_MODES,
+    MeasuringMode,
+    RELEASED_ACTUATOR_KEY,
+)
 from hexacal_msgs_py.models import DEFAULT_MODEL, MAX_DEVICE_TURN, MODELS
 import numpy as np
 import yaml
@@ -65,6 +87,9 @@ REQUIRED_PLAN_KEYS = frozenset({'name', 'link_length'})
 OPTIONAL_PLAN_KEYS = frozenset({PLAN_MODEL_KEY, PLAN_MOUNT_KEY})
 POSTURE_KEYS = frozenset({'kind', 'pose'})
 OPTIONAL_POSTURE_KEYS = frozenset({DEVICE_TURN_KEY})
+# The measuring-mode keys (issue #18), optional too; listed apart in the refusals.
+MODE_PLAN_KEYS = frozenset({MEASURING_MODE_KEY})
+MODE_POSTURE_KEYS = frozenset({RELEASED_ACTUATOR_KEY})
 
 PathLike = str | os.PathLike[str]
 
@@ -91,6 +116,10 @@ class PlanFile:
     mount: str = DEFAULT_MOUNT  # the device mount: hanging (platform below O) or standing
     device_turns: tuple[float | None, ...] = ()  # per posture, rad; None: the reader's default
     metadata: dict[str, Any] | None = field(default=None, compare=False)
+    measuring_mode: str | None = None  # MeasuringMode value; None: the reader's default
+    # Per posture the released actuator's joint name (passive_actuator mode) or None (the
+    # reader chooses); () when no posture names one.
+    released_actuators: tuple[str | None, ...] = ()
 
     def __post_init__(self) -> None:
         """Normalise the fields and refuse a plan with a problem (PlanError)."""
@@ -102,6 +131,10 @@ class PlanFile:
         if all(t is None for t in turns):
             turns = ()  # no posture names a turn: the same plan as one without turns
         object.__setattr__(self, 'device_turns', turns)
+        released = tuple(self.released_actuators)
+        if all(r is None for r in released):
+            released = ()  # no posture names one: the same plan as one without
+        object.__setattr__(self, 'released_actuators', released)
         problem = self.problem()
         if problem:
             raise PlanError(f'plan {self.name!r}: {problem}')
@@ -115,6 +148,10 @@ class PlanFile:
         turn = self.device_turns[index] if self.device_turns else None
         return float(default if turn is None else turn)
 
+    def released_actuator(self, index: int) -> str | None:
+        """Return the joint name of the actuator posture `index` releases, or None (not given)."""
+        return self.released_actuators[index] if self.released_actuators else None
+
     def counts(self) -> dict[str, int]:
         """Return the number of postures of each kind."""
         return {kind: self.kinds.count(kind) for kind in POSTURE_KINDS}
@@ -126,10 +163,13 @@ class PlanFile:
         mount = '' if self.mount == DEFAULT_MOUNT else f', {self.mount} device'
         given = sum(t is not None for t in self.device_turns)
         turns = f', {given} with a device turn' if given else ''
+        mode = '' if self.measuring_mode is None else f', measuring mode {self.measuring_mode}'
+        released = sum(r is not None for r in self.released_actuators)
+        mode += f', {released} with a released actuator' if released else ''
         return (
             f"plan '{self.name}': {len(self)} postures ({counts[SPHERE]} sphere, "
             f'{counts[FIXED]} fixed), link length {self.link_length:g} m{machine}{mount}'
-            f'{turns}'
+            f'{turns}{mode}'
         )
 
     def posture_problem(self, pose: np.ndarray, kind: str) -> str | None:
@@ -168,6 +208,9 @@ class PlanFile:
                 problem = turn_problem(turn)
                 if problem:
                     return f'posture {index}: {problem}'
+        problem = self._mode_problem()
+        if problem:
+            return problem
         for index, (pose, kind) in enumerate(zip(self.poses, self.kinds)):
             if kind not in POSTURE_KINDS:
                 problem = f'kind must be one of {list(POSTURE_KINDS)}, got {kind!r}'
@@ -177,6 +220,36 @@ class PlanFile:
                 problem = self.posture_problem(pose, kind)
             if problem:
                 return f'posture {index}: {problem}'
+        return None
+
+    def _mode_problem(self) -> str | None:
+        """Return what is wrong with the measuring mode or a released actuator, or None."""
+        mode = self.measuring_mode
+        if mode is not None and (not isinstance(mode, str) or mode not in MEASURING_MODES):
+            allowed = ', '.join(MEASURING_MODES)
+            return f'{MEASURING_MODE_KEY} must be one of {allowed}, got {mode!r}'
+        if not self.released_actuators:
+            return None
+        if len(self.released_actuators) != len(self.poses):
+            return (
+                f'{len(self.poses)} poses but {len(self.released_actuators)} released actuators'
+            )
+        names = MODELS[self.model].actuator_names
+        for index, name in enumerate(self.released_actuators):
+            if name is None:
+                continue
+            if mode != MeasuringMode.PASSIVE_ACTUATOR:
+                given = 'names none' if mode is None else f'is {mode}'
+                return (
+                    f'posture {index}: {RELEASED_ACTUATOR_KEY} is only meaningful with '
+                    f'{MEASURING_MODE_KEY} {MeasuringMode.PASSIVE_ACTUATOR.value} (the plan '
+                    f'{given}), got {name!r}'
+                )
+            if not isinstance(name, str) or name not in names:
+                return (
+                    f'posture {index}: {RELEASED_ACTUATOR_KEY} must be one of the {self.model} '
+                    f'actuators {", ".join(names)}, got {name!r}'
+                )
         return None
 
 
@@ -222,18 +295,25 @@ def read_plan_file(path: PathLike, plan_type: type[PlanFile] = PlanFile) -> Plan
     except RecursionError:  # PyYAML composes recursively: '[[[[...' thousands deep
         raise fail('not readable as a plan file: invalid YAML: nested too deeply') from None
     header, entries = _plan_sections(document, fail)
-    poses, kinds, turns = [], [], []
+    poses, kinds, turns, released = [], [], [], []
     for index, entry in enumerate(entries):
         pose, kind, turn = _posture(index, entry, fail)
         poses.append(pose)
         kinds.append(kind)
         turns.append(turn)
+        released.append(_released_actuator(index, entry, fail))
     model = header.get(PLAN_MODEL_KEY, DEFAULT_MODEL)
     if not isinstance(model, str) or model not in MODELS:
         raise fail(f'plan.model must be one of {", ".join(MODELS)}, got {model!r}')
     mount = header.get(PLAN_MOUNT_KEY, DEFAULT_MOUNT)
     if not isinstance(mount, str) or mount not in MOUNTS:
         raise fail(f'plan.mount must be one of {", ".join(MOUNTS)}, got {mount!r}')
+    mode = header.get(MEASURING_MODE_KEY)
+    if MEASURING_MODE_KEY in header and (not isinstance(mode, str) or mode not in MEASURING_MODES):
+        raise fail(
+            f'plan.{MEASURING_MODE_KEY} must be one of {", ".join(MEASURING_MODES)} (absent: '
+            f"the reader's default), got {mode!r}"
+        )
     metadata = _metadata(text, fail)
     try:
         return plan_type(
@@ -245,6 +325,8 @@ def read_plan_file(path: PathLike, plan_type: type[PlanFile] = PlanFile) -> Plan
             mount,
             tuple(turns),
             metadata,
+            measuring_mode=mode,
+            released_actuators=tuple(released),
         )
     except PlanError as error:
         raise fail(str(error)) from None
@@ -273,11 +355,12 @@ def _plan_sections(
     header = document.get(PLAN_KEY)
     if not isinstance(header, dict):
         raise fail("not a plan file: 'plan' must be a mapping with 'name' and 'link_length'")
-    unknown = sorted(set(map(str, header)) - REQUIRED_PLAN_KEYS - OPTIONAL_PLAN_KEYS)
+    known = REQUIRED_PLAN_KEYS | OPTIONAL_PLAN_KEYS | MODE_PLAN_KEYS
+    unknown = sorted(set(map(str, header)) - known)
     if unknown:
         raise fail(
             f'unknown key(s) {unknown} in plan; expected {sorted(REQUIRED_PLAN_KEYS)} '
-            f'(optional {sorted(OPTIONAL_PLAN_KEYS)})'
+            f'(optional {sorted(OPTIONAL_PLAN_KEYS)}), measuring mode {sorted(MODE_PLAN_KEYS)}'
         )
     for key in sorted(REQUIRED_PLAN_KEYS):
         if key not in header:
@@ -297,14 +380,17 @@ def _posture(
     """Return (pose, kind, device turn or None) of one posture entry, checked."""
     if not isinstance(entry, dict):
         raise fail(f'posture {index}: expected a mapping with kind and pose, got {entry!r}')
-    unknown = sorted(set(map(str, entry)) - POSTURE_KEYS - OPTIONAL_POSTURE_KEYS)
+    unknown = sorted(
+        set(map(str, entry)) - POSTURE_KEYS - OPTIONAL_POSTURE_KEYS - MODE_POSTURE_KEYS
+    )
     missing = sorted(POSTURE_KEYS - set(entry))
     if unknown or missing:
         raise fail(
             f'posture {index}: keys must be {sorted(POSTURE_KEYS)}'
             + (f', unknown {unknown}' if unknown else '')
             + (f', missing {missing}' if missing else '')
-            + f' (optional {sorted(OPTIONAL_POSTURE_KEYS)})'
+            + f' (optional {sorted(OPTIONAL_POSTURE_KEYS)}), measuring mode '
+            + f'{sorted(MODE_POSTURE_KEYS)}'
         )
     turn = entry.get(DEVICE_TURN_KEY)
     if DEVICE_TURN_KEY in entry:
@@ -324,6 +410,21 @@ def _posture(
             f'(m, rad), got {pose!r}'
         )
     return [float(v) for v in pose], entry['kind'], None if turn is None else float(turn)
+
+
+def _released_actuator(
+    index: int, entry: dict[Any, Any], fail: Callable[[str], PlanError]
+) -> str | None:
+    """Return a posture's released actuator (a joint name) or None; the rest: PlanFile."""
+    if RELEASED_ACTUATOR_KEY not in entry:
+        return None
+    name = entry[RELEASED_ACTUATOR_KEY]
+    if not isinstance(name, str):
+        raise fail(
+            f'posture {index}: {RELEASED_ACTUATOR_KEY} must be an actuator joint name, '
+            f'got {name!r}'
+        )
+    return name
 
 
 def _metadata(text: str, fail: Callable[[str], PlanError]) -> dict[str, Any] | None:
@@ -351,12 +452,17 @@ def plan_document(plan: PlanFile) -> dict[str, Any]:
         header[PLAN_MODEL_KEY] = plan.model
     if plan.mount != DEFAULT_MOUNT:
         header[PLAN_MOUNT_KEY] = plan.mount
+    if plan.measuring_mode is not None:
+        header[MEASURING_MODE_KEY] = str(plan.measuring_mode)
     postures: list[dict[str, Any]] = []
     for index, (kind, pose) in enumerate(zip(plan.kinds, plan.poses)):
         entry: dict[str, Any] = {'kind': kind, 'pose': [float(v) for v in pose]}
         turn = plan.device_turns[index] if plan.device_turns else None
         if turn is not None:
             entry[DEVICE_TURN_KEY] = float(turn)
+        released = plan.released_actuator(index)
+        if released is not None:
+            entry[RELEASED_ACTUATOR_KEY] = released
         postures.append(entry)
     return {PLAN_KEY: header, POSTURES_KEY: postures}
 
@@ -375,11 +481,16 @@ def plan_file_text(plan: PlanFile) -> str:
         lines.append(f'  {PLAN_MODEL_KEY}: {plan.model}')
     if plan.mount != DEFAULT_MOUNT:  # no mount = hanging
         lines.append(f'  {PLAN_MOUNT_KEY}: {plan.mount}')
+    if plan.measuring_mode is not None:  # written only when given: earlier files stay as they were
+        lines.append(f'  {MEASURING_MODE_KEY}: {plan.measuring_mode}')
     lines.append(f'{POSTURES_KEY}:')
     for index, (kind, pose) in enumerate(zip(plan.kinds, plan.poses)):
         values = ', '.join(repr(float(v)) for v in pose)
         turn = plan.device_turns[index] if plan.device_turns else None
         turned = '' if turn is None else f', {DEVICE_TURN_KEY}: {float(turn)!r}'
+        released = plan.released_actuator(index)
+        if released is not None:
+            turned += f', {RELEASED_ACTUATOR_KEY}: {released}'
         lines.append(f'  - {{kind: {kind}, pose: [{values}]{turned}}}')
     return '\n'.join(lines) + '\n'
 

@@ -5,6 +5,12 @@ from __future__ import annotations
 from dataclasses import replace
 import math
 
+from hexacal_msgs_py.measuring_modes import (
+    DEFAULT_MEASURING_MODE,
+    measuring_mode,
+    MeasuringMode,
+)
+from hexacal_msgs_py.names import DEVICE_JOINT_NAMES, LINK_LENGTH_JOINT, POSTURE_NAMES
 from hexacal_msgs_py.plan_file import (
     METADATA_PREFIX,
     plan_document,
@@ -206,3 +212,138 @@ def test_the_last_metadata_comment_counts_and_other_comments_are_ignored(tmp_pat
         f'# a hand-written note\n{METADATA_PREFIX}{{"a": 1}}\n{METADATA_PREFIX}{{"b": 2}}\n{GOOD}'
     )
     assert read_plan_file(path).metadata == {'b': 2}
+
+
+# --------------------------------------------------------------------------- measuring modes
+
+
+def test_measuring_mode_and_released_actuators_round_trip(tmp_path):
+    plan = _plan(measuring_mode='passive_actuator', released_actuators=('slider_3', None))
+    text = plan_file_text(plan)
+    assert '  link_length: 0.75\n  measuring_mode: passive_actuator\npostures:\n' in text
+    assert text.splitlines()[-2].endswith(', released_actuator: slider_3}')
+    assert 'released_actuator' not in text.splitlines()[-1]
+    back = read_plan_file(write_plan_file(tmp_path / 'plan.yaml', plan))
+    assert back.measuring_mode == plan.measuring_mode
+    assert back.released_actuators == plan.released_actuators
+    assert back.measuring_mode == MeasuringMode.PASSIVE_ACTUATOR
+    assert back.released_actuators == ('slider_3', None)
+    assert (back.released_actuator(0), back.released_actuator(1)) == ('slider_3', None)
+    assert plan_file_text(back) == text
+    document = plan_document(back)
+    assert document['plan']['measuring_mode'] == 'passive_actuator'
+    assert document['postures'][0]['released_actuator'] == 'slider_3'
+    assert 'released_actuator' not in document['postures'][1]
+    assert back.describe().endswith(
+        ', measuring mode passive_actuator, 1 with a released actuator'
+    )
+
+
+def test_a_plan_without_the_new_keys_is_written_byte_for_byte_as_before(tmp_path):
+    before = plan_file_text(_plan(model='gough_stewart', device_turns=(None, math.pi)))
+    after = plan_file_text(
+        _plan(model='gough_stewart', device_turns=(None, math.pi), released_actuators=(None, None))
+    )
+    assert after == before and 'measuring' not in before and 'released' not in before
+    path = tmp_path / 'old.yaml'
+    path.write_text(before)
+    back = read_plan_file(path)
+    assert back.measuring_mode is None and back.released_actuators == ()
+    assert plan_file_text(back) == before
+
+
+@pytest.mark.parametrize('mode', ['lvdt', 'compliant'])
+def test_other_modes_round_trip_without_released_actuators(tmp_path, mode):
+    back = read_plan_file(write_plan_file(tmp_path / 'p.yaml', _plan(measuring_mode=mode)))
+    assert back.measuring_mode == mode and back.released_actuators == ()
+
+
+@pytest.mark.parametrize(
+    'changes, message',
+    [
+        ({'measuring_mode': 'rigid'}, 'measuring_mode must be one of passive_actuator, lvdt, '),
+        (
+            {'measuring_mode': 'passive_actuator', 'released_actuators': ('slider_1',)},
+            '2 poses but 1 released actuators',
+        ),
+        (
+            {'measuring_mode': 'passive_actuator', 'released_actuators': (None, 'leg_2')},
+            'posture 1: released_actuator must be one of the hexa_slide actuators slider_1, '
+            "slider_2, slider_3, slider_4, slider_5, slider_6, got 'leg_2'",
+        ),
+        (
+            {'measuring_mode': 'lvdt', 'released_actuators': ('slider_1', None)},
+            'posture 0: released_actuator is only meaningful with measuring_mode '
+            "passive_actuator (the plan is lvdt), got 'slider_1'",
+        ),
+        (
+            {'released_actuators': (None, 'slider_6')},
+            'posture 1: released_actuator is only meaningful with measuring_mode '
+            "passive_actuator (the plan names none), got 'slider_6'",
+        ),
+    ],
+)
+def test_a_bad_measuring_mode_or_released_actuator_is_refused(changes, message):
+    with pytest.raises(PlanError, match="^plan 'my-plan': ") as error:
+        _plan(**changes)
+    assert message in str(error.value)
+
+
+def _mode_text(header: str = '', posture: str = '') -> str:
+    return (
+        f'plan: {{name: p, link_length: 0.75{header}}}\n'
+        f'postures: [{{kind: fixed, pose: [0, 0, -0.75, 0, 0, 0]{posture}}}]\n'
+    )
+
+
+@pytest.mark.parametrize(
+    'text, message',
+    [
+        (_mode_text(', measuring_mode: null'), 'plan.measuring_mode must be one of'),
+        (_mode_text(', measuring_mode: LVDT'), 'passive_actuator, lvdt, compliant (absent: the '),
+        (
+            _mode_text(', measuring_mode: passive_actuator', ', released_actuator: 3'),
+            'posture 0: released_actuator must be an actuator joint name, got 3',
+        ),
+        (
+            _mode_text(', measuring_mode: passive_actuator', ', released_actuator: slider_7'),
+            'posture 0: released_actuator must be one of the hexa_slide actuators',
+        ),
+        (
+            _mode_text(', measuring_mode: compliant', ', released_actuator: slider_2'),
+            "plan 'p': posture 0: released_actuator is only meaningful with measuring_mode",
+        ),
+        (
+            _mode_text(', measuring_mode: passive_actuator, model: gough_stewart',
+                       ', released_actuator: slider_2'),
+            'posture 0: released_actuator must be one of the gough_stewart actuators leg_1',
+        ),
+        (
+            _mode_text(', speed: 2'),
+            "(optional ['model', 'mount']), measuring mode ['measuring_mode']",
+        ),
+        (
+            _mode_text(posture=', speed: 2'),
+            "(optional ['device_turn']), measuring mode ['released_actuator']",
+        ),
+    ],
+)
+def test_a_file_with_a_bad_mode_key_names_the_file_the_posture_and_the_problem(
+    tmp_path, text, message
+):
+    path = tmp_path / 'modes.yaml'
+    path.write_text(text)
+    with pytest.raises(PlanError) as error:
+        read_plan_file(path)
+    assert str(error.value).startswith(f'{path}: ')
+    assert message in str(error.value)
+
+
+def test_the_contract_names_the_modes_and_reserves_the_link_length_joint():
+    assert [mode.value for mode in MeasuringMode] == ['passive_actuator', 'lvdt', 'compliant']
+    assert DEFAULT_MEASURING_MODE == 'passive_actuator'
+    assert measuring_mode('lvdt') is MeasuringMode.LVDT
+    with pytest.raises(ValueError, match="got 'rigid'"):
+        measuring_mode('rigid')
+    assert LINK_LENGTH_JOINT == 'link_length'
+    assert LINK_LENGTH_JOINT not in POSTURE_NAMES and LINK_LENGTH_JOINT not in DEVICE_JOINT_NAMES

@@ -43,6 +43,12 @@ def add_parsers(subparsers) -> None:
 
 
 def _plan_arguments(plan) -> None:
+    from hexacal_msgs_py.measuring_modes import (
+        DEFAULT_LVDT_STROKE_M,
+        DEFAULT_MEASURING_MODE,
+        MEASURING_MODES,
+    )
+
     from ..core.observability import CRITERIA
     from ..core.planning import METHODS
     from ..core.posture_limits import PostureLimits
@@ -187,6 +193,24 @@ def _plan_arguments(plan) -> None:
         help="prior knowledge of the device, SI units, e.g. dL=0:10e-6 (a caliper's +-10 um): the "
         'plan starts from its information (needs the noise weighting)',
     )
+    plan.add_argument(
+        '--measuring-mode',
+        choices=MEASURING_MODES,
+        default=DEFAULT_MEASURING_MODE.value,
+        help='how the machine is driven while the link is attached (issue #18): '
+        "passive_actuator (default; the paper's: one actuator released per posture, the plan "
+        'chooses which and writes it as released_actuator), lvdt (all six commanded, a '
+        "telescopic link: the plan reports each posture's predicted extension) or compliant "
+        '(all six commanded against the rigid link, torque-limited drives); written into the '
+        'plan as measuring_mode',
+    )
+    plan.add_argument(
+        '--lvdt-stroke-m',
+        type=float,
+        default=DEFAULT_LVDT_STROKE_M,
+        help="lvdt mode: the LVDT link's stroke about its nominal length, +- m (default "
+        f'{DEFAULT_LVDT_STROKE_M:g})',
+    )
     plan.add_argument('--out', type=Path, required=True, help='plan file to write (YAML)')
     plan.add_argument(
         '--json', action='store_true', help='print one JSON object (no progress display)'
@@ -281,6 +305,8 @@ def run_plan(args) -> int:
             device_columns=args.identify_device,
             device_prior=args.device_prior or DevicePrior(),
             device_turns=procedure_turns(args.procedure),
+            measuring_mode=args.measuring_mode,
+            lvdt_stroke_m=args.lvdt_stroke_m,
         )
     finally:
         progress.close()
@@ -316,6 +342,7 @@ def run_plan(args) -> int:
                         f'{turn:.6f}': int(np.sum(np.isclose(plan.turns, turn)))
                         for turn in procedure_turns(args.procedure)
                     },
+                    **planning.measuring.to_json(layout.actuator_names),
                 }
             )
         )
@@ -355,6 +382,7 @@ def run_plan(args) -> int:
             f'identified with the machine; procedure {args.procedure}: {mountings} (turn the '
             'device about its link axis between the groups)'
         )
+    _print_measuring(planning.measuring, layout.actuator_names)
     if planning.rank < layout.n_parameters:
         print(
             f'  note: rank {planning.rank} of {layout.n_parameters} with the {args.cost} cost, so '
@@ -363,6 +391,49 @@ def run_plan(args) -> int:
         )
     print(f'wrote {args.out}')
     return 0
+
+
+def _print_measuring(measuring, actuator_names: tuple[str, ...]) -> None:
+    """Print what the plan's measuring mode adds: released actuators, or LVDT extensions."""
+    import numpy as np
+
+    from ..core.released_actuator import DEFAULT_MARGIN_M
+
+    print(f'  measuring mode {measuring.mode.value}')
+    release = measuring.release
+    if release is not None:
+        names = release.names(actuator_names)
+        chosen, worst = release.chosen_conditions, release.worst_conditions
+        print('  released actuator per posture (condition number of the five commanded + link):')
+        for start in range(0, len(names), 5):
+            print(
+                '   '
+                + ''.join(
+                    f' {i:>3} {names[i]} ({chosen[i]:.3g})'
+                    for i in range(start, min(start + 5, len(names)))
+                )
+            )
+        print(
+            f'  conditioning, angles scaled by L: chosen max {np.max(chosen):.3g} (median '
+            f'{np.median(chosen):.3g}); the worst actuator to release would give max '
+            f'{np.max(worst):.3g} (median {np.median(worst):.3g}); the released actuator travels '
+            f'up to {np.max(release.released_travel) * 1e3:.1f} mm on a move, inside its stroke'
+            f' less {DEFAULT_MARGIN_M * 1e3:g} mm'
+            + (
+                f'; {int(np.sum(release.via_centre))} move(s) by way of the centre'
+                if np.any(release.via_centre)
+                else ''
+            )
+        )
+    lvdt = measuring.lvdt
+    if lvdt is not None:
+        print(
+            f'  LVDT link: predicted extension on the nominal machine max '
+            f'{np.max(np.abs(lvdt.extensions)) * 1e6:.3g} um over {len(lvdt.extensions)} postures '
+            f"({'inside' if lvdt.inside else 'OUTSIDE'} the +-{lvdt.stroke_m * 1e3:g} mm stroke); "
+            f'an actuator error of d makes up to {np.max(lvdt.gains):.3g} d of extension, so the '
+            f'stroke absorbs model errors up to {lvdt.tolerated_error_m * 1e3:.3g} mm'
+        )
 
 
 def run_report(args) -> int:

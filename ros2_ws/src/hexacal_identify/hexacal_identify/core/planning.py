@@ -26,6 +26,13 @@ to measure in which mounting.  I then predicts the position error with the
 device parameters' uncertainty marginalised: W weighs the kinematic columns
 only.  The plan's postures carry their ``device_turn`` and are ordered by turn
 (one remount per turn), each turn's postures in a travel tour.
+
+Planning for a measuring mode (``measuring_mode``, issue #18; measuring_plan.py).
+``passive_actuator`` chooses each posture's released actuator (released_actuator.py)
+and writes it into the plan; ``lvdt`` checks every posture's predicted link
+extension; ``compliant`` adds nothing.  The plan's fingerprint (and so its default
+name) stays that of its postures and turns: the mode and the released actuators
+are how they are measured, recorded with the measurements.
 """
 
 from __future__ import annotations
@@ -35,6 +42,7 @@ import hashlib
 from pathlib import Path
 import time
 
+from hexacal_msgs_py.measuring_modes import DEFAULT_LVDT_STROKE_M
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 from hexacal_msgs_py.plan_file import (
     json_safe,
@@ -50,6 +58,7 @@ from .candidate_set import build_candidate_set, CandidateSet
 from .design import exchange_design, greedy_design, no_progress, Progress
 from .device import check_mount, DEFAULT_MOUNT, DevicePrior
 from .measurements import FIXED, NoiseModel, POSTURE_KINDS, SPHERE
+from .measuring_plan import check_measuring_mode, MeasuringCheck
 from .observability import check_index, INDICES, PREDICTION
 from .posture_limits import default_fixed_fraction, generate_candidates, PostureLimits
 from .residuals import ChannelSigma
@@ -119,6 +128,9 @@ class Plan:
     device_turns: np.ndarray | None = (
         None  # (K,) rad per posture; None = every posture in the normal mounting
     )
+    measuring_mode: str | None = None  # None: not written (the reader's default)
+    # (K,) actuator joint names (passive_actuator mode) or None per posture; None: not written.
+    released_actuators: tuple[str | None, ...] | None = None
 
     def __post_init__(self) -> None:
         self.poses = np.atleast_2d(np.asarray(self.poses, dtype=float)).reshape(-1, 6)
@@ -188,6 +200,8 @@ class Plan:
             self.mount,
             tuple(float(turn) if turn else None for turn in self.turns),
             dict(json_safe(self.metadata), fingerprint=self.fingerprint()),
+            measuring_mode=self.measuring_mode,
+            released_actuators=tuple(self.released_actuators or ()),
         )
 
     def to_text(self) -> str:
@@ -213,6 +227,8 @@ class Plan:
             contents.model,
             contents.mount,
             np.array([contents.device_turn(i) for i in range(len(contents))]),
+            contents.measuring_mode,
+            contents.released_actuators or None,
         )
 
 
@@ -230,6 +246,7 @@ class PlanningResult:
     exchange_history: list[float]
     candidate_seconds: float
     selection_seconds: float
+    measuring: MeasuringCheck | None = None  # the measuring mode's additions (None: no mode)
 
     def random_indices(self, draws: int = 20, seed: int = 0) -> dict[str, float]:
         """Return the mean O1..O4 and I of random plans of this size and kind mix."""
@@ -271,6 +288,8 @@ def plan_postures(
     device_columns: tuple[str, ...] = (),
     device_prior: DevicePrior = DevicePrior(),
     device_turns: tuple[float, ...] = (0.0,),
+    measuring_mode: str | None = None,
+    lvdt_stroke_m: float = DEFAULT_LVDT_STROKE_M,
 ) -> PlanningResult:
     """
     Candidates -> Jacobian rows at ``nominal`` -> greedy (and exchange) selection -> ordered Plan.
@@ -279,6 +298,7 @@ def plan_postures(
     ``device_columns`` / ``device_prior``: device parameters identified with the machine (module
     doc);
     ``device_turns``: the mountings of a turning procedure, each sphere candidate offered in each.
+    ``measuring_mode``: written into the plan with what it adds (module doc); None: neither.
     """
     check_index(index)
     if limits is None:
@@ -388,6 +408,20 @@ def plan_postures(
     )
     if name is None:  # default name: what it is and which postures
         plan.name = f'{method}-{index}-{n_postures}-{plan.fingerprint()}'
+    measuring = None
+    if measuring_mode is not None:
+        measuring = check_measuring_mode(
+            nominal,
+            plan.poses,
+            limits.link_length,
+            limits.actuator_stroke_m,
+            measuring_mode,
+            lvdt_stroke_m,
+            limits.mount,
+        )
+        plan.measuring_mode = measuring.mode.value
+        if measuring.release is not None:
+            plan.released_actuators = measuring.release.names(nominal.layout.actuator_names)
     return PlanningResult(
         plan,
         candidates,
@@ -399,6 +433,7 @@ def plan_postures(
         exchange_history,
         candidate_seconds,
         selection_seconds,
+        measuring,
     )
 
 

@@ -1,0 +1,74 @@
+"""``hexacal plan --measuring-mode M`` as a user runs it (a subprocess), on both models (#18)."""
+
+import json
+from pathlib import Path
+import subprocess
+import sys
+
+from hexacal_identify.core.planning import Plan
+from hexacal_msgs_py.plan_file import read_plan_file
+import pytest
+
+
+def hexacal(*args):
+    return subprocess.run(
+        [sys.executable, '-m', 'hexacal_identify.cli', *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+
+
+def _nominal(tmp_path: Path, model: str) -> Path:
+    path = tmp_path / f'{model}.yaml'
+    done = hexacal('params', 'default', '--model', model, '--out', path)
+    assert done.returncode == 0, done.stderr
+    return path
+
+
+@pytest.mark.parametrize('model', ['hexa_slide', 'gough_stewart'])
+def test_plan_in_passive_actuator_mode_writes_and_names_the_released_actuators(tmp_path, model):
+    out = tmp_path / 'passive.yaml'
+    common = ('--postures', 10, '--candidates', 200, '--nominal', _nominal(tmp_path, model))
+    done = hexacal('plan', *common, '--measuring-mode', 'passive_actuator', '--out', out)
+    assert done.returncode == 0, done.stderr
+    contents = read_plan_file(out)
+    assert contents.measuring_mode == 'passive_actuator'
+    released = contents.released_actuators
+    prefix = 'slider' if model == 'hexa_slide' else 'leg'
+    assert len(released) == 10 and all(name.startswith(f'{prefix}_') for name in released)
+    assert 'measuring mode passive_actuator' in done.stdout
+    for index, name in enumerate(released):  # the text names each posture's released actuator
+        assert f' {index:>3} {name} (' in done.stdout
+    assert 'chosen max' in done.stdout and 'the worst actuator to release' in done.stdout
+    assert Plan.load(out).released_actuators == released
+    summary = hexacal('plan', *common, '--out', tmp_path / 'j.yaml', '--json')
+    assert summary.returncode == 0, summary.stderr
+    data = json.loads(summary.stdout)
+    assert data['measuring_mode'] == 'passive_actuator'  # the default
+    assert data['released_actuators'] == list(released)
+    assert data['released_condition_max'] < data['worst_condition_max']
+
+
+def test_plan_in_lvdt_and_compliant_modes(tmp_path):
+    lvdt = hexacal(
+        'plan', '--postures', 8, '--candidates', 200, '--measuring-mode', 'lvdt',
+        '--lvdt-stroke-m', 0.004, '--out', tmp_path / 'lvdt.yaml', '--json',
+    )
+    assert lvdt.returncode == 0, lvdt.stderr
+    data = json.loads(lvdt.stdout)
+    assert data['measuring_mode'] == 'lvdt' and data['lvdt_stroke_m'] == 0.004
+    assert len(data['lvdt_extension_m']) == 8 and data['lvdt_inside']
+    plan = read_plan_file(tmp_path / 'lvdt.yaml')
+    assert plan.measuring_mode == 'lvdt' and plan.released_actuators == ()
+    text = hexacal(
+        'plan', '--postures', 8, '--candidates', 200, '--measuring-mode', 'compliant',
+        '--out', tmp_path / 'compliant.yaml',
+    )
+    assert text.returncode == 0, text.stderr
+    assert 'measuring mode compliant' in text.stdout and 'released' not in text.stdout
+    assert read_plan_file(tmp_path / 'compliant.yaml').measuring_mode == 'compliant'
+    refused = hexacal(
+        'plan', '--postures', 8, '--measuring-mode', 'rigid', '--out', tmp_path / 'x.yaml'
+    )
+    assert refused.returncode == 2 and "invalid choice: 'rigid'" in refused.stderr
