@@ -25,7 +25,7 @@ from hexacal_driver.machine import SimulatedMachine
 from hexacal_driver.parameters import parameter_problem, PARAMETERS
 from hexacal_driver.plan import PosturePlan
 from hexacal_driver.sensor_models import NS_PER_S, SENSOR_DEFAULTS, SensorSettings
-from hexacal_driver.simulation import exact_readings
+from hexacal_driver.simulation import exact_readings, SETTLING
 from hexacal_identify.core.architectures import KinematicParameters
 from hexacal_identify.core.device import DEFAULT_MOUNT
 from hexacal_identify.core.measurements import NoiseModel
@@ -48,8 +48,8 @@ class Recording:
     recorder receiving them would log). Dropped messages are absent. Per posture (plan order):
     `poses` the true platform pose, `settled_readings` what ideal noise-free sensors read there
     at rest (POSTURE_NAMES order: six actuators, alpha, beta, phi), `device_turns` the device's
-    turn (rad), and `still_from_ns` .. `still_until_ns` (reference clock) when the machine stood
-    still there.
+    turn (rad), and `still_from_ns` .. `still_until_ns` the first and the last sample time
+    (reference clock) at which the machine stood still there (both included).
     """
 
     model: str
@@ -84,7 +84,7 @@ class Recording:
         )
 
     def settled_postures(self) -> list[PostureReading]:
-        """Return the settled truth as PostureReadings, stamped at the end of each stillness."""
+        """Return the settled truth as PostureReadings, stamped at the last still sample."""
         return [
             PostureReading.from_values(int(stamp), values.tolist(), float(turn))
             for stamp, values, turn in zip(
@@ -188,9 +188,19 @@ def _walk(
     ticks = math.ceil((walker.lap_duration_s + tail_s) * rate_hz - 1e-9)
     streams: list[tuple[list[int], list[int], list[Any]]] = [([], [], []) for _ in range(3)]
     turns: list[float] = []
+    n = len(walker.poses)
+    still_from = np.full(n, -1, dtype=np.int64)
+    still_until = np.full(n, -1, dtype=np.int64)
     for tick in range(ticks):
         stamp = start_ns + tick * period_ns
-        output, turn = machine.read_streams(walker.sample(tick / rate_hz), stamp)
+        sample = walker.sample(tick / rate_hz)
+        # Standing at its posture: dwelling, done, or at the start (already at the first one).
+        if sample.phase != SETTLING or sample.posture_index == 0:
+            index = sample.posture_index
+            if still_from[index] < 0:
+                still_from[index] = stamp
+            still_until[index] = stamp
+        output, turn = machine.read_streams(sample, stamp)
         readings = output.readings
         channels = (
             readings.actuators_m,
@@ -214,7 +224,6 @@ def _walk(
     for index, (_, _, data) in enumerate(arrays):
         arrays[index] = (arrays[index][0], arrays[index][1], data.reshape(-1, width[index]))
     poses, settled, posture_turns = _settled_truth(machine)
-    still_from, still_until = _stillness(machine, ticks, period_ns, start_ns)
     return Recording(
         model=machine.model,
         rate_hz=rate_hz,
@@ -251,23 +260,6 @@ def _settled_truth(machine: SimulatedMachine) -> tuple[np.ndarray, np.ndarray, n
         exact = exact_readings(pose, actuators, machine.mount, machine.defects, float(turn))
         settled.append([*exact.actuators_m, exact.alpha_rad, exact.beta_rad, exact.phi_rad])
     return walker.poses.copy(), np.array(settled), np.asarray(turns, dtype=float)
-
-
-def _stillness(
-    machine: SimulatedMachine, ticks: int, period_ns: int, start_ns: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """Return when the machine stood still at each posture (reference clock, ns)."""
-    walker = machine.walker
-    n = len(walker.poses)
-    starts = np.arange(n) * walker.posture_period_s + walker.settle_s
-    starts[0] = 0.0  # the machine starts at the first posture
-    ends = (np.arange(n) + 1) * walker.posture_period_s
-    # Plan time t is sample t * rate_hz, stamped start_ns + that many periods.
-    ticks_per_s = 1.0 / machine.streams.period_s
-    from_ns = start_ns + np.round(starts * ticks_per_s * period_ns).astype(np.int64)
-    until_ns = start_ns + np.round(ends * ticks_per_s * period_ns).astype(np.int64)
-    until_ns[-1] = start_ns + (ticks - 1) * period_ns  # it stays at the last one
-    return from_ns, until_ns
 
 
 def write_recording_bag(
