@@ -186,43 +186,40 @@ def _walk(
     rate_hz = float(values['rate_hz'])
     period_ns = int(round(NS_PER_S / rate_hz))  # as the node's
     ticks = math.ceil((walker.lap_duration_s + tail_s) * rate_hz - 1e-9)
-    streams: list[tuple[list[int], list[int], list[Any]]] = [([], [], []) for _ in range(3)]
+    # Per stream: header stamps, sample times, values; and the inclinometer's device turns.
+    stamps: tuple[list[int], ...] = ([], [], [])
+    samples: tuple[list[int], ...] = ([], [], [])
+    data: tuple[list[Any], ...] = ([], [], [])
     turns: list[float] = []
-    n = len(walker.poses)
-    still_from = np.full(n, -1, dtype=np.int64)
-    still_until = np.full(n, -1, dtype=np.int64)
+    still_from = np.full(len(walker.poses), -1, dtype=np.int64)
+    still_until = still_from.copy()
     for tick in range(ticks):
-        stamp = start_ns + tick * period_ns
+        sample_ns = start_ns + tick * period_ns
         sample = walker.sample(tick / rate_hz)
         # Standing at its posture: dwelling, done, or at the start (already at the first one).
         if sample.phase != SETTLING or sample.posture_index == 0:
-            index = sample.posture_index
-            if still_from[index] < 0:
-                still_from[index] = stamp
-            still_until[index] = stamp
-        output, turn = machine.read_streams(sample, stamp)
+            if still_from[sample.posture_index] < 0:
+                still_from[sample.posture_index] = sample_ns
+            still_until[sample.posture_index] = sample_ns
+        output, turn = machine.read_streams(sample, sample_ns)
         readings = output.readings
         channels = (
             readings.actuators_m,
             (readings.alpha_rad, readings.beta_rad),
             (readings.phi_rad,),
         )
-        for index, (message_stamp, value) in enumerate(zip(output.stamps_ns, channels)):
-            if message_stamp is None:
-                continue
-            stamps, samples, data = streams[index]
-            stamps.append(message_stamp)
-            samples.append(stamp)
-            data.append(value)
-            if index == 1:
-                turns.append(turn)
-    arrays = [
-        (np.array(s, dtype=np.int64), np.array(t, dtype=np.int64), np.array(d, dtype=float))
-        for s, t, d in streams
+        for stream, (stamp, value) in enumerate(zip(output.stamps_ns, channels)):
+            if stamp is not None:  # else the sensor effect `drops` lost it
+                stamps[stream].append(stamp)
+                samples[stream].append(sample_ns)
+                data[stream].append(value)
+        if output.stamps_ns[1] is not None:
+            turns.append(turn)
+    stamp_arrays = [np.array(s, dtype=np.int64) for s in stamps]
+    sample_arrays = [np.array(s, dtype=np.int64) for s in samples]
+    value_arrays = [
+        np.array(d, dtype=float).reshape(-1, width) for d, width in zip(data, (6, 2, 1))
     ]
-    width = (6, 2, 1)
-    for index, (_, _, data) in enumerate(arrays):
-        arrays[index] = (arrays[index][0], arrays[index][1], data.reshape(-1, width[index]))
     poses, settled, posture_turns = _settled_truth(machine)
     return Recording(
         model=machine.model,
@@ -233,16 +230,16 @@ def _walk(
         true_params=machine.true_params,
         mount=machine.mount,
         plan=machine.plan,
-        actuator_stamps_ns=arrays[0][0],
-        actuator_sample_ns=arrays[0][1],
-        actuator_positions=arrays[0][2],
-        inclinometer_stamps_ns=arrays[1][0],
-        inclinometer_sample_ns=arrays[1][1],
-        inclinometer_angles=arrays[1][2],
+        actuator_stamps_ns=stamp_arrays[0],
+        actuator_sample_ns=sample_arrays[0],
+        actuator_positions=value_arrays[0],
+        inclinometer_stamps_ns=stamp_arrays[1],
+        inclinometer_sample_ns=sample_arrays[1],
+        inclinometer_angles=value_arrays[1],
         inclinometer_turns=np.array(turns, dtype=float),
-        encoder_stamps_ns=arrays[2][0],
-        encoder_sample_ns=arrays[2][1],
-        encoder_angles=arrays[2][2],
+        encoder_stamps_ns=stamp_arrays[2],
+        encoder_sample_ns=sample_arrays[2],
+        encoder_angles=value_arrays[2],
         poses=poses,
         settled_readings=settled,
         device_turns=posture_turns,

@@ -152,3 +152,12 @@ def test_a_turned_device_writes_its_joint_and_a_namespace_its_topics(tmp_path):
         }
         first = next(iter(reader.messages(['/cell_2/hexacal/inclinometer']))).decoded
     assert list(first.name)[-1] == 'device_turn' and first.position[-1] == math.pi
+
+
+def test_a_tail_stands_at_the_last_posture():
+    recording = simulate_recording(**SHORT, tail_s=0.5, noise=QUIET)
+    assert len(recording.actuator_stamps_ns) == TICKS + 50
+    assert recording.still_until_ns[-1] == recording.actuator_stamps_ns[-1]
+    last = recording.actuator_stamps_ns >= recording.still_from_ns[-1]
+    assert last.sum() == 100 + 50  # its dwell, then the tail
+    assert (recording.actuator_positions[last] == recording.settled_readings[-1, :6]).all()
