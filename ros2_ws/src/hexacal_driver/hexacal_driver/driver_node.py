@@ -254,29 +254,32 @@ class DriverNode(Node):
             self.get_logger().info(line)
 
     def _publish(self, sample: WalkSample, stamp: int) -> None:
-        """Publish the three sensor messages of `sample`, stamped `stamp` (ns)."""
-        readings, turn = self.machine.read(sample)
-        # One stamp for the three: the sensors are sampled together.
+        """Publish the three sensor messages of `sample`, sampled at `stamp` (ns)."""
+        output, turn = self.machine.read_streams(sample, stamp)
+        readings = output.readings
         if self._started and self.plan_start_stamp_ns is None:
             self.plan_start_stamp_ns = stamp
-        seconds, nanoseconds = divmod(stamp, NS_PER_S)
         messages = self._messages
-        for message in messages.values():
-            message.header.stamp.sec = seconds
-            message.header.stamp.nanosec = nanoseconds
         messages['sliders'].position = readings.actuators_m.tolist()
         if turn == 0.0:  # the normal mounting: the message as it always was
             inclinometer = messages['inclinometer']
             inclinometer.position = [readings.alpha_rad, readings.beta_rad]
         else:
             inclinometer = self._turned_inclinometer
-            inclinometer.header.stamp.sec = seconds
-            inclinometer.header.stamp.nanosec = nanoseconds
             inclinometer.position = [readings.alpha_rad, readings.beta_rad, turn]
         messages['encoder'].position = [readings.phi_rad]
-        self._sliders_pub.publish(messages['sliders'])
-        self._inclinometer_pub.publish(inclinometer)
-        self._encoder_pub.publish(messages['encoder'])
+        # One stamp for the three (the sensors are sampled together) unless the sensor effect
+        # `clock` stamps each by its own clock; None: `drops` lost the message.
+        for publisher, message, message_stamp in zip(
+            (self._sliders_pub, self._inclinometer_pub, self._encoder_pub),
+            (messages['sliders'], inclinometer, messages['encoder']),
+            output.stamps_ns,
+        ):
+            if message_stamp is not None:
+                message.header.stamp.sec, message.header.stamp.nanosec = divmod(
+                    message_stamp, NS_PER_S
+                )
+                publisher.publish(message)
         # Complete ticks: Ctrl-C may cut the last one after some of its publishes.
         self.published += 1
 
@@ -302,6 +305,7 @@ def _finish(node: DriverNode) -> list[str]:
         node.published_before_plan,
         node.plan_start_stamp_ns,
         (node.commands_accepted, node.commands_rejected) if commanded else None,
+        tuple(node.machine.streams.dropped),
     )
 
 

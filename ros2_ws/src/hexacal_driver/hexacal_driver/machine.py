@@ -3,8 +3,8 @@ The simulated machine the driver node runs, decided from its parameter values (R
 
 `SimulatedMachine` holds the true machine and device mount (`true_params` or the
 model's default machine), the device (defects, turn), and either the plan walker
-(plan mode) or the command follower (commanded mode), and the noisy sensors. The
-node only keeps time, converts messages and publishes.
+(plan mode) or the command follower (commanded mode), and the noisy sensors with their
+models (sensor_models.py). The node only keeps time, converts messages and publishes.
 """
 
 from __future__ import annotations
@@ -12,6 +12,12 @@ from __future__ import annotations
 from typing import Any, Mapping
 
 from hexacal_driver.plan import machine_workspace, PlanError, PosturePlan, resolve_plan
+from hexacal_driver.sensor_models import (
+    EFFECTS_STREAM,
+    SensorOutput,
+    SensorSettings,
+    SensorStreams,
+)
 from hexacal_driver.simulation import (
     check_trajectory,
     CommandFollower,
@@ -63,9 +69,18 @@ def true_machine(path: str, model: str) -> tuple[KinematicParameters, str]:
 class SimulatedMachine:
     """Decide the true machine, the device, the plan (or commanded mode) and the sensors."""
 
-    def __init__(self, value: Mapping[str, Any]) -> None:
-        """Build from the node's parameter values (name -> value); DriverConfigurationError."""
-        self.true_params, self.mount = true_machine(value['true_params'], value['model'])
+    def __init__(
+        self,
+        value: Mapping[str, Any],
+        truth: tuple[KinematicParameters, str] | None = None,
+    ) -> None:
+        """
+        Build from the node's parameter values (name -> value); DriverConfigurationError.
+
+        `truth`: the true machine and device mount in memory instead of `true_params`
+        (recording.simulate_recording).
+        """
+        self.true_params, self.mount = truth or true_machine(value['true_params'], value['model'])
         self.model: str = self.true_params.model
         self.link_length = float(value['link_length'])
         self.defects = DeviceDefects.parse(value['device_defects'])  # checked when declared
@@ -100,6 +115,13 @@ class SimulatedMachine:
             np.random.default_rng([value['seed'], NOISE_STREAM]),
             self.mount,
             self.defects,
+        )
+        # The sensor models (sensor_effects), drawing from a random stream of their own.
+        self.streams = SensorStreams(
+            self.sensors,
+            SensorSettings.from_values(value),
+            np.random.default_rng([value['seed'], EFFECTS_STREAM]),
+            1.0 / float(value['rate_hz']),
         )
 
     def plan_walker(self, settle_s: float, dwell_s: float, loop: bool) -> PlanWalker:
@@ -138,9 +160,14 @@ class SimulatedMachine:
         return self.plan.device_turn(index, self.device_turn)
 
     def read(self, sample: WalkSample) -> tuple[SensorReadings, float]:
-        """Return the noisy readings of `sample` and the device turn they were taken with."""
+        """Return the noisy readings of `sample` (no sensor effects) and the device turn."""
         turn = self.posture_turn(sample.posture_index)
         return self.sensors.read(sample, turn), turn
+
+    def read_streams(self, sample: WalkSample, stamp_ns: int) -> tuple[SensorOutput, float]:
+        """Return the three streams' output for `sample` at `stamp_ns` and the device turn."""
+        turn = self.posture_turn(sample.posture_index)
+        return self.streams.read(sample, turn, stamp_ns), turn
 
     def set_noise(self, actuator_m: float | None, angle_rad: float | None) -> bool:
         """Change the noise half-widths given (None: unchanged); return whether it changed."""

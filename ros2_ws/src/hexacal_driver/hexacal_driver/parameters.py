@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 from hexacal_driver.plan import GENERATED_PLANS, load_plan, PlanError
+from hexacal_driver.sensor_parameters import sensor_parameter_problem, SENSOR_PARAMETERS
 from hexacal_identify.core.device import DeviceDefects
 from hexacal_identify.nodes.parameters import ParameterSpec as _Spec
 from hexacal_msgs_py.errors import ParameterFileError
@@ -90,6 +91,7 @@ PARAMETERS: dict[str, _Spec] = {
         1e-6,
         10.0,
     ),
+    **SENSOR_PARAMETERS,  # sensor_effects and the sensor models' parameters (read-only)
 }
 
 # Numbers whose descriptors give a range but let inf and nan through.
@@ -132,6 +134,8 @@ def parameter_problem(name: str, value: object) -> str | None:
         return f'device_turn must be a finite angle within +-2 pi rad, got {value!r}'
     elif name == 'model' and value not in MODEL_CHOICES:
         return f"model must be '' or one of {', '.join(MODELS)}, got {value!r}"
+    elif name in SENSOR_PARAMETERS:
+        return sensor_parameter_problem(name, value)
     elif name in FINITE_PARAMETERS and not math.isfinite(value):
         return f'{name} must be finite, got {value}'
     return None

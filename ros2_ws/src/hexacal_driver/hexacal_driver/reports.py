@@ -47,6 +47,13 @@ def noise_text(noise: NoiseModel) -> str:
     return f'+-{noise.actuator_m:g} m / +-{noise.angle_rad:g} rad'
 
 
+def sensors_text(machine: SimulatedMachine) -> str:
+    """Return the noise as logged at start-up, with the active sensor effects if any."""
+    settings = machine.streams.settings
+    effects = f'; {settings.describe()}' if settings.effects else ''
+    return f'noise {noise_text(machine.sensors.noise)}{effects}'
+
+
 def commanded_start_text(
     machine: SimulatedMachine, topic: str, source: str, rate_hz: float
 ) -> str:
@@ -56,7 +63,7 @@ def commanded_start_text(
         f'following JointTrajectory commands on {topic} (joints '
         f'{", ".join(MODELS[machine.model].actuator_names)}, at most '
         f'{machine.follower.max_speed_m_s:g} m/s, stroke [{low:g}, {high:g}] m); true machine: '
-        f'{source}; {rate_hz:g} Hz, noise {noise_text(machine.sensors.noise)}; standing at the '
+        f'{source}; {rate_hz:g} Hz, {sensors_text(machine)}; standing at the '
         'fixed-position point'
     )
 
@@ -67,7 +74,7 @@ def plan_start_text(machine: SimulatedMachine, source: str, rate_hz: float) -> s
     return (
         f'{machine.plan.describe()}; true machine: {source}; {rate_hz:g} Hz, settle '
         f'{walker.settle_s:g} s, dwell {walker.dwell_s:g} s (one pass '
-        f'{walker.lap_duration_s:.1f} s), noise {noise_text(machine.sensors.noise)}'
+        f'{walker.lap_duration_s:.1f} s), {sensors_text(machine)}'
         f'{", looping" if walker.loop else ""}'
     )
 
@@ -166,13 +173,24 @@ def finish_lines(
     published_before_plan: int,
     plan_start_stamp_ns: int | None,
     commands: tuple[int, int] | None,
+    dropped: tuple[int, ...] = (),
 ) -> list[str]:
-    """Return the lines printed when the node stops; commands (followed, rejected) if commanded."""
+    """
+    Return the lines printed when the node stops; commands (followed, rejected) if commanded.
+
+    `dropped`: the messages the sensor effect `drops` lost per stream (sliders, inclinometer,
+    encoder), named when there were any.
+    """
     lines = [
         f'published {published} messages on each sensor stream, '
         f'{published - published_before_plan} of them since the plan '
         f'started (first stamp {plan_start_stamp_ns} ns)'
     ]
+    if any(dropped):
+        lines[0] += (
+            f'; the sensor model dropped {", ".join(str(count) for count in dropped)} of them '
+            '(sliders, inclinometer, encoder)'
+        )
     if commands is not None:
         lines.append(f'commands: {commands[0]} followed, {commands[1]} rejected')
     return lines

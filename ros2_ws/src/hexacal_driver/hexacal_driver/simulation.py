@@ -236,9 +236,12 @@ class SensorSimulator:
         self.defects = defects
 
     def read(self, sample: WalkSample, device_turn: float = 0.0) -> SensorReadings:
-        exact = exact_readings(
-            sample.pose, sample.actuators, self.mount, self.defects, device_turn
+        return self.add_noise(
+            exact_readings(sample.pose, sample.actuators, self.mount, self.defects, device_turn)
         )
+
+    def add_noise(self, exact: SensorReadings) -> SensorReadings:
+        """Return `exact` plus fresh noise (six actuator draws, then three angle draws)."""
         actuator_noise = self.rng.uniform(-1.0, 1.0, 6) * self.noise.actuator_m
         angle_noise = self.rng.uniform(-1.0, 1.0, 3) * self.noise.angle_rad
         return SensorReadings(

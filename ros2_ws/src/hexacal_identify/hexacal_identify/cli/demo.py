@@ -112,6 +112,14 @@ def add_parsers(subparsers) -> None:
         '(the executor moves on as soon as the posture is measured)',
     )
     parser.add_argument('--rate-hz', type=float, default=100.0, help='sensor rate (default 100)')
+    parser.add_argument(
+        '--sensor-effects',
+        default='',
+        metavar='TEXT',
+        help="the simulated sensors' departures from ideal, the driver's sensor_effects: '' "
+        "(default: ideal sensors), 'all', or a comma list of lag, quantisation, clock, drops, "
+        'spikes, drift (docs/user-guide.md, Sensor models)',
+    )
     parser.add_argument('--seed', type=int, default=0, help='seed of plan, noise and nominal set')
     parser.add_argument(
         '--validation-postures',
@@ -336,6 +344,7 @@ def _run(args) -> int:
                     'seed': args.seed,
                     'slider_noise_m': args.noise_um * 1e-6,
                     'angle_noise_rad': args.noise_um * 1e-6,
+                    'sensor_effects': getattr(args, 'sensor_effects', ''),
                 },
             ),
             env,
@@ -346,7 +355,12 @@ def _run(args) -> int:
             f'hexacal demo: the executor walks an O1 plan of {args.postures} postures '
             f'({args.plan}) on the simulated machine{machine} through its trajectory-controller '
             f'interface, +-{args.noise_um:g} um / +-{args.noise_um:g} urad noise, '
-            f'{args.rate_hz:g} Hz',
+            f'{args.rate_hz:g} Hz'
+            + (
+                f', sensor effects {args.sensor_effects}'
+                if getattr(args, 'sensor_effects', '')
+                else ''
+            ),
             flush=True,
         )
         walked = _walk(
