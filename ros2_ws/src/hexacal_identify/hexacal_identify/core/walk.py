@@ -19,8 +19,12 @@ posture:
    nominal model is millimetres off, the actuators stop up to millimetres away
    from targets the true machine cannot reach on that sphere.
 3. Fixed-position postures (eq. 10) are reached in closed loop: with the
-   machine still, the mean inclinometer reading (alpha, beta) over ``settle_s``
-   gives the platform's position by eq. 4; the commanded pose's position is
+   machine still and the inclinometer settled after the move (its readings no
+   longer trend: two consecutive ``inclinometer_settle_s`` windows agree,
+   core/walk_inclinometer.py; a real inclinometer lags through its filter),
+   the average of the settled readings (alpha, beta) (with
+   ``inclinometer_settle_s`` 0: the mean over ``settle_s`` as soon as the
+   actuators are still) gives the platform's position by eq. 4; the commanded pose's position is
    moved by ``-dp/d(alpha, beta) [alpha, beta]`` (`fixed_position_correction`)
    and new targets come from the nominal inverse kinematics, until both angles
    are within ``fixed_tolerance_rad``; after ``max_corrections`` the posture is
@@ -73,6 +77,7 @@ from .paths import (
 )
 from .plan_check import check_stroke
 from .turns import check_turns, same_turn, turn_text
+from .walk_inclinometer import InclinometerJudgement, InclinometerState, judge_inclinometer
 from .walk_io import LogLevel, Messages, ReadingWindow
 from .walk_settings import ExecutionSettings, ExecutionState, PostureOutcome
 
@@ -131,7 +136,7 @@ class PlanExecution:
         self.start_paused = bool(start_paused)
         self.index = 0  # current posture
         self.outcomes: list[PostureOutcome] = []
-        keep = 4.0 * settings.settle_s + 2.0
+        keep = 4.0 * max(settings.settle_s, 2.0 * settings.inclinometer_settle_s) + 2.0
         self.actuators = ReadingWindow(keep)
         self.inclinometer = ReadingWindow(keep)
         self.messages: Messages = []  # for the node to log
@@ -149,6 +154,8 @@ class PlanExecution:
         self._command_time = 0.0
         self._arrive_after = 0.0
         self._still_mean: np.ndarray | None = None
+        # The inclinometer since the last command (fixed positions; None: not judged yet).
+        self.inclinometer_judgement: InclinometerJudgement | None = None
         # (received, actuators) since the last command
         self._postures: list[tuple[float, np.ndarray]] = []
         self._sent_any = False
@@ -283,7 +290,7 @@ class PlanExecution:
             if still is None:
                 return []
             if self.kinds[self.index] == FIXED:
-                angles = self._mean_angles(now)
+                angles = self._judged_angles(now)
                 if angles is None:
                     return []
                 alpha, beta = angles
@@ -336,6 +343,9 @@ class PlanExecution:
             )
         if self.state in _UNDER_WAY and self.index < self.total:
             values['kind'] = self.kinds[self.index]
+        judgement = self.inclinometer_judgement
+        if self._phase is not None and judgement is not None:
+            values['inclinometer'] = judgement.state  # fixed position: since the last move
         if self.total:
             values['device_turn_rad'] = float(self.turns[min(self.index, self.total - 1)])
         if self.turn_needed is not None:
@@ -477,6 +487,7 @@ class PlanExecution:
         self._phase = Phase.MOVING
         self._postures = []
         self._still_mean = None
+        self.inclinometer_judgement = None
         self._sent_any = True
         return command
 
@@ -527,14 +538,33 @@ class PlanExecution:
             return None
         return mean
 
-    def _mean_angles(self, now: float) -> tuple[float, float] | None:
-        window = self.inclinometer.between(
-            max(now - self.settings.settle_s, self._arrive_after), now
+    def _judged_angles(self, now: float) -> tuple[float, float] | None:
+        """Return the inclinometer reading to judge the position on, None: not yet."""
+        settings = self.settings
+        window_s = settings.inclinometer_settle_s
+        if window_s == 0:  # the mean over settle_s, as soon as the actuators are still
+            start = max(now - settings.settle_s, self._arrive_after)
+            window = self.inclinometer.between(start, now)
+            if len(window) < MIN_WINDOW_READINGS:
+                return None
+            alpha, beta = window.mean(axis=0)
+            return float(alpha), float(beta)
+        times, readings = self.inclinometer.timed(now - 2.0 * window_s, now)
+        judgement = judge_inclinometer(
+            times, readings, now, self._arrive_after, window_s, settings.fixed_tolerance_rad
         )
-        if len(window) < MIN_WINDOW_READINGS:
+        self.inclinometer_judgement = judgement
+        return judgement.angles
+
+    def _unsettled_reason(self) -> str | None:
+        """Return why a fixed position was not judged (the inclinometer), None if it was."""
+        judgement = self.inclinometer_judgement
+        if judgement is None or judgement.settled:
             return None
-        alpha, beta = window.mean(axis=0)
-        return float(alpha), float(beta)
+        described = judgement.describe(self.settings.inclinometer_settle_s)
+        if judgement.state == InclinometerState.NO_READINGS:
+            return f'no inclinometer readings ({described})'
+        return f'the inclinometer did not settle ({described})'
 
     def _posture_matched(self) -> bool:
         if self._still_mean is None:
@@ -556,6 +586,11 @@ class PlanExecution:
                     f'{self.settings.fixed_tolerance_rad:g} rad)'
                 ),
             )
+        judged = (
+            f' (settled {now - self._arrive_after:.1f} s after the move)'
+            if self.inclinometer_judgement is not None
+            else ''
+        )
         previous = self._pose_cmd
         self._pose_cmd = corrected_pose(previous, alpha, beta, self.link_length, self.mount)
         try:
@@ -568,7 +603,7 @@ class PlanExecution:
         moved = np.linalg.norm(self._pose_cmd[:3] - previous[:3])
         self._say(
             LogLevel.INFO,
-            f'posture {index + 1}: inclinometer {alpha:.3g}, {beta:.3g} rad; correction '
+            f'posture {index + 1}: inclinometer {alpha:.3g}, {beta:.3g} rad{judged}; correction '
             f'{self._corrections} moves the platform by {moved * 1e6:.0f} um',
         )
         return [command]
@@ -581,6 +616,14 @@ class PlanExecution:
         if latest is None or self.actuators.between(now - self.settings.settle_s, now).size == 0:
             return f'no actuator readings (timeout {timeout:g} s)'
         away = float(np.max(np.abs(latest - self._target)))
+        unsettled = self._unsettled_reason()
+        if (
+            self.kinds[self.index] == FIXED
+            and away <= self.settings.position_tolerance_m
+            and unsettled
+        ):
+            corrections = f', {self._corrections} corrections' if self._corrections else ''
+            return f'{unsettled} within {timeout:g} s{corrections}'
         if (
             self.kinds[self.index] == FIXED
             and away <= self.settings.position_tolerance_m
