@@ -154,6 +154,7 @@ class PlanExecution:
         self._command_time = 0.0
         self._arrive_after = 0.0
         self._still_mean: np.ndarray | None = None
+        self._posture_before = False  # see _command
         # The inclinometer since the last command (fixed positions; None: not judged yet).
         self.inclinometer_judgement: InclinometerJudgement | None = None
         # (received, actuators) since the last command
@@ -481,6 +482,9 @@ class PlanExecution:
                 self.index,
             )
         self._target = command.positions.copy()
+        # The collector's posture of this stop came before this correction: a correction below
+        # its motion tolerances begins no new stationary period, so no posture may follow.
+        self._posture_before = bool(self._postures) and purpose == CommandPurpose.CORRECT
         self._where, self._at_where = self._pose_cmd.copy(), False
         self._command_time = now
         self._arrive_after = now + command.duration_s
@@ -611,6 +615,11 @@ class PlanExecution:
     def _timeout_reason(self, now: float) -> str:
         timeout = self.settings.timeout_s
         if self._phase == Phase.POSTURE:
+            if self._posture_before:
+                return (
+                    f'no posture from the collector within {timeout:g} s (its posture of this '
+                    'stop came before the last correction, too small to be a move for it)'
+                )
             return f'no posture from the collector within {timeout:g} s'
         latest = self.actuators.latest
         if latest is None or self.actuators.between(now - self.settings.settle_s, now).size == 0:
