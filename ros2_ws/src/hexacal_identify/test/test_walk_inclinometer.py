@@ -113,8 +113,10 @@ class _LaggingMachine:
 
     The inclinometer reads the true platform position through a first-order filter (time
     constant TAU_S) plus uniform noise, 100 readings a second, also while moving; a collector
-    measures after 0.4 s of stillness. Before each correction the true angles are kept, with
-    what the execution judged (its log line), to compare.
+    measures after 0.4 s of stillness (with `collector_motion_m`, as the real one: only if the
+    actuators moved more than that since its last posture, one posture per stationary period).
+    Before each correction the true angles are kept, with what the execution judged (its log
+    line), to compare.
     """
 
     def __init__(
@@ -124,7 +126,11 @@ class _LaggingMachine:
         seed: int = 0,
         drift_rad_s: float = 0.0,
         silent: bool = False,
+        collector_motion_m: float = 0.0,
     ):
+        self.collector_motion_m = collector_motion_m
+        self.last_posture = None  # the actuators of the collector's last posture
+        self.moved = True  # since that posture
         self.truth = truth
         self.drift_rad_s = drift_rad_s  # added to both angles' readings, per second
         self.silent = silent  # no inclinometer readings at all
@@ -139,6 +145,7 @@ class _LaggingMachine:
         self.measured_at = None
         self.t = 0.0
         self.corrections = []  # (posture, true angles, judged angles) at each correction
+        self.postures = []  # (time, true angles) of the collector's postures
 
     def command(self, commands):
         for command in commands:
@@ -177,6 +184,8 @@ class _LaggingMachine:
         while self.t < until and execution.state not in (State.DONE, State.ABORTED):
             q = self.at(self.t)
             execution.on_actuators(self.t, q)
+            if self.last_posture is not None:
+                self.moved |= np.abs(q - self.last_posture).max() > self.collector_motion_m
             self.filtered += gain * (self.true_angles(q) - self.filtered)
             noisy = self.filtered + self.rng.uniform(-NOISE_RAD, NOISE_RAD, 2)
             noisy += self.drift_rad_s * self.t
@@ -186,9 +195,11 @@ class _LaggingMachine:
             if self.t >= self.t1:
                 if self.measured_at is None:
                     self.measured_at = self.t + 0.4
-                if self.t >= self.measured_at:
+                if self.t >= self.measured_at and self.moved:
                     execution.on_posture(self.t, q)
                     self.measured_at = math.inf
+                    self.last_posture, self.moved = q.copy(), False
+                    self.postures.append((self.t, self.true_angles(q)))
             else:
                 self.measured_at = None
             self.command(
@@ -200,7 +211,7 @@ class _LaggingMachine:
 
 
 def _walk(
-    inclinometer_settle_s: float, timeout_s: float = 30.0, **machine
+    inclinometer_settle_s: float, timeout_s: float = 30.0, nudge_m: float = 1e-3, **machine
 ) -> tuple[PlanExecution, _LaggingMachine]:
     """Walk a sphere posture then two fixed-position ones on the Table 1 machine."""
     nominal = nominal_set(2, seed=0)
@@ -218,6 +229,7 @@ def _walk(
         timeout_s=timeout_s,
         max_corrections=5,
         inclinometer_settle_s=inclinometer_settle_s,
+        correction_nudge_m=nudge_m,
     )
     execution = PlanExecution(
         nominal, poses, kinds, check_plan(nominal, poses, kinds, stroke, L), settings, stroke, L
@@ -276,3 +288,25 @@ def test_an_inclinometer_that_never_settles_or_is_silent_skips_the_posture_sayin
     assert execution.measured == 1, execution.summary()
     assert execution.skipped[0].reason.startswith('no inclinometer readings (fewer than 3')
     assert 'no-readings' in machine.states
+
+
+def test_a_small_correction_nudges_so_a_one_posture_per_stop_collector_measures_it():
+    # A collector that takes one posture per stationary period (0.2 mm: the detector's
+    # default tolerance) measured each stop before the settled inclinometer asked for the
+    # last, small correction: without the nudge no posture follows it.
+    execution, machine = _walk(0.25, timeout_s=6.0, nudge_m=0.0, collector_motion_m=2e-4)
+    assert execution.measured < 3 and execution.skipped, execution.summary()
+    assert 'came before the last correction' in execution.skipped[0].reason
+    # With it, the collector sees a move after every correction and measures the position
+    # reached: every fixed posture is measured at the fixed position.
+    execution, machine = _walk(0.25, collector_motion_m=2e-4)
+    assert execution.state == State.DONE and execution.measured == 3, execution.summary()
+    corrections = [c for c in machine.commands if c.purpose == Purpose.CORRECT]
+    nudged = [c for c in corrections if len(c.points) == 2]
+    assert nudged and all(len(c.points) in (1, 2) for c in corrections)
+    for command in nudged:  # 1 mm beyond along the sphere, then the target
+        assert 2e-4 < np.abs(command.points[0] - command.points[1]).max() < 5e-3
+    at_fixed = [angles for _, angles in machine.postures if np.abs(angles).max() <= TOLERANCE]
+    assert len(at_fixed) >= 2, machine.postures
+    assert np.abs(machine.postures[-1][1]).max() <= TOLERANCE  # the last, a fixed posture's
+    assert any('nudge beyond it' in text for _, text in execution.messages)

@@ -27,7 +27,10 @@ posture:
    actuators are still) gives the platform's position by eq. 4; the commanded pose's position is
    moved by ``-dp/d(alpha, beta) [alpha, beta]`` (`fixed_position_correction`)
    and new targets come from the nominal inverse kinematics, until both angles
-   are within ``fixed_tolerance_rad``; after ``max_corrections`` the posture is
+   are within ``fixed_tolerance_rad``; a correction smaller than
+   ``correction_nudge_m`` goes that far beyond its target and back, so the
+   collector (one posture per stationary period) sees a move and measures the
+   corrected position; after ``max_corrections`` the posture is
    skipped and reported.  Intermediate stops are valid sphere postures if the
    collector measures them.
 4. Measured: the collector's posture of this stop (received after the last
@@ -445,12 +448,15 @@ class PlanExecution:
         self._say(LogLevel.WARN, self.turn_notice)
         return self._hold()
 
-    def _command(self, now: float, purpose: CommandPurpose) -> Command:
+    def _command(
+        self, now: float, purpose: CommandPurpose, via: np.ndarray | None = None
+    ) -> Command:
         """
         Return the command to the current commanded pose (PathError if it cannot be commanded).
 
         Along the link sphere from where the machine is (MOVE), or one point
-        (CORRECT: a small correction from a standstill).
+        (CORRECT: a small correction from a standstill; through the pose `via` first
+        when given).
         """
         current = self.actuators.latest if self.actuators.latest is not None else self._target
         step = self.settings.path_step_m
@@ -461,7 +467,7 @@ class PlanExecution:
             command = path_command(
                 self.nominal,
                 current,
-                self._pose_cmd[None],
+                self._pose_cmd[None] if via is None else np.stack([via, self._pose_cmd]),
                 self.stroke,
                 self.settings.max_actuator_speed_m_s,
                 purpose,
@@ -597,8 +603,15 @@ class PlanExecution:
         )
         previous = self._pose_cmd
         self._pose_cmd = corrected_pose(previous, alpha, beta, self.link_length, self.mount)
+        via = self._nudge(previous)
         try:
-            command = self._command(now, CommandPurpose.CORRECT)
+            try:
+                command = self._command(now, CommandPurpose.CORRECT, via)
+            except PathError:
+                if via is None:
+                    raise
+                via = None  # the nudge cannot be commanded (e.g. at the stroke's end)
+                command = self._command(now, CommandPurpose.CORRECT)
         except PathError as error:
             self._pose_cmd = previous
             return self._skip(now, f'the fixed-position correction cannot be commanded: {error}')
@@ -608,9 +621,34 @@ class PlanExecution:
         self._say(
             LogLevel.INFO,
             f'posture {index + 1}: inclinometer {alpha:.3g}, {beta:.3g} rad{judged}; correction '
-            f'{self._corrections} moves the platform by {moved * 1e6:.0f} um',
+            f'{self._corrections} moves the platform by {moved * 1e6:.0f} um'
+            + (
+                f' (through a {self.settings.correction_nudge_m * 1e6:.0f} um nudge beyond it, '
+                'so the collector sees a move)'
+                if via is not None
+                else ''
+            ),
         )
         return [command]
+
+    def _nudge(self, previous: np.ndarray) -> np.ndarray | None:
+        """
+        Return the pose a correction from `previous` passes through first; None: none.
+
+        A correction smaller than ``correction_nudge_m`` goes that far beyond its target
+        along its own direction (tangent to the link sphere) and back: a collector that
+        already measured this stop sees a move and measures the corrected position,
+        where it would take a smaller correction for the same stop and measure nothing
+        more (one posture per stationary period).
+        """
+        nudge = self.settings.correction_nudge_m
+        step = self._pose_cmd[:3] - previous[:3]
+        size = float(np.linalg.norm(step))
+        if nudge == 0 or size == 0 or size >= nudge:
+            return None
+        via = self._pose_cmd.copy()
+        via[:3] += step / size * nudge
+        return via
 
     def _timeout_reason(self, now: float) -> str:
         timeout = self.settings.timeout_s

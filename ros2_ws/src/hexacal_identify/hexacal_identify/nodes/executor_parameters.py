@@ -95,6 +95,15 @@ PARAMETERS: dict[str, _Spec] = {
         0.0,
         60.0,
     ),
+    'correction_nudge_m': _Spec(
+        SETTINGS.correction_nudge_m,
+        'a fixed-position correction smaller than this goes this far beyond its target and '
+        'back (m), so the collector, which takes one posture per stationary period, sees a '
+        'move and measures the corrected position; above its slider_tolerance_m; 0: '
+        'one-point corrections',
+        0.0,
+        0.01,
+    ),
     'inclinometer_joints': _Spec(
         list(INCLINOMETER_NAMES),
         'the inclinometer joints alpha (about X), beta (about Y) of the inclinometer input (rad)',
