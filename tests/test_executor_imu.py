@@ -63,7 +63,32 @@ def test_the_executor_reaches_fixed_positions_on_an_imu_inclinometer(
     ros_processes, tmp_path, probe
 ):  # noqa: F811
     from hexacal_identify.pipeline import postures_from_bag
+    from hexacal_msgs_py.conversions import (
+        imu_to_inclinometer_reading,
+        joint_state_to_inclinometer_reading,
+    )
+    from hexacal_msgs_py.qos import SENSOR_QOS
+    from sensor_msgs.msg import Imu, JointState
 
+    # The driver's two inclinometer messages, as the probe receives them (stamp ns -> angles).
+    heard: dict[str, dict[int, tuple[float, float]]] = {'imu': {}, 'joint_state': {}}
+
+    def keep(kind: str, convert):
+        def on_message(message) -> None:
+            reading = convert(message)
+            heard[kind][reading.stamp_ns] = (reading.alpha, reading.beta)
+
+        return on_message
+
+    probe.node.create_subscription(
+        Imu, IMU_TOPIC, keep('imu', imu_to_inclinometer_reading), SENSOR_QOS
+    )
+    probe.node.create_subscription(
+        JointState,
+        'hexacal/inclinometer',
+        keep('joint_state', joint_state_to_inclinometer_reading),
+        SENSOR_QOS,
+    )
     truth, nominal = write_parameter_files(tmp_path)
     plan = _plan(tmp_path)
     inputs = tmp_path / 'inputs.yaml'  # one file for both nodes
@@ -99,6 +124,13 @@ def test_the_executor_reaches_fixed_positions_on_an_imu_inclinometer(
     log = executor.log_text()
     assert f'fixed positions: inclinometer <- {IMU_TOPIC} (sensor_msgs/Imu orientation)' in log
     assert 'settled' in log and 'Traceback' not in log and 'invalid' not in log
+    # The Imu is the JointState inclinometer message's reading: same stamps, same angles.
+    common = sorted(set(heard['imu']) & set(heard['joint_state']))
+    assert len(common) >= 100, {kind: len(values) for kind, values in heard.items()}
+    imu = np.array([heard['imu'][stamp] for stamp in common])
+    joint_state = np.array([heard['joint_state'][stamp] for stamp in common])
+    assert np.abs(imu - joint_state).max() < 1e-12
+    assert np.abs(joint_state).max() > 1e-3  # sphere postures among them: tilted readings
     for process in (executor, collector, driver):
         assert ros_processes.stop(process, STOP_TIMEOUT_S) == 0, process.log_text()
     # The collector's postures, read from the Imu too: the fixed positions were reached.
