@@ -120,6 +120,7 @@ class DriverNode(Node):
             )
         except InvalidTopicNameException as error:
             raise DriverConfigurationError(f'imu_topic: {error}') from error
+        self._imu_stamp_ns = -1  # of the last Imu published
         self._ticks = 0  # plan time is ticks / rate_hz: every posture gets its samples under load
         self.published = 0  # messages published on each of the three streams (load accounting)
         self.published_before_plan = 0  # ... of which while holding for a subscriber
@@ -279,10 +280,11 @@ class DriverNode(Node):
         messages['encoder'].position = [readings.phi_rad]
         self._sliders_pub.publish(messages['sliders'])
         self._inclinometer_pub.publish(inclinometer)
-        self._publish_imu(inclinometer)
         self._encoder_pub.publish(messages['encoder'])
         # Complete ticks: Ctrl-C may cut the last one after some of its publishes.
         self.published += 1
+
+        self._publish_imu(inclinometer)
 
     def _subscription_counts(self) -> tuple[int, int, int]:
         """Return the matched subscriptions of the three streams (inclinometer: either type)."""
@@ -295,9 +297,12 @@ class DriverNode(Node):
 
     def _publish_imu(self, inclinometer: JointState) -> None:
         """Publish the inclinometer message's angles as an Imu on imu_topic, same stamp."""
-        if self._imu_pub is not None:
+        stamp = stamp_ns(inclinometer.header.stamp)
+        # A message not published this tick (lost) kept the stamp of the last one: no Imu.
+        if self._imu_pub is not None and stamp != self._imu_stamp_ns:
+            self._imu_stamp_ns = stamp
             alpha, beta = inclinometer.position[:2]
-            reading = InclinometerReading(stamp_ns(inclinometer.header.stamp), alpha, beta)
+            reading = InclinometerReading(stamp, alpha, beta)
             self._imu_pub.publish(inclinometer_angles_to_imu(reading))
 
     def _report_motion(self, phase: str) -> None:

@@ -636,10 +636,10 @@ class PlanExecution:
         Return the pose a correction from `previous` passes through first; None: none.
 
         A correction smaller than ``correction_nudge_m`` goes that far beyond its target
-        along its own direction (tangent to the link sphere) and back: a collector that
-        already measured this stop sees a move and measures the corrected position,
-        where it would take a smaller correction for the same stop and measure nothing
-        more (one posture per stationary period).
+        along its own direction (tangent to the link sphere) and back, so the collector
+        sees a move and measures the corrected position: a smaller move would continue
+        its stationary period, of which it takes one posture (perhaps before the
+        correction, or averaged across it).
         """
         nudge = self.settings.correction_nudge_m
         step = self._pose_cmd[:3] - previous[:3]
