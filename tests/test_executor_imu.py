@@ -137,3 +137,18 @@ def test_the_executor_reaches_fixed_positions_on_an_imu_inclinometer(
     recorded = postures_from_bag(tmp_path / 'bags' / 'imu').postures
     fixed = [p for p in recorded if max(abs(p.alpha), abs(p.beta)) < FIXED_RAD]
     assert len(fixed) >= 2, [(p.alpha, p.beta) for p in recorded]
+
+
+def test_a_bad_inclinometer_mapping_is_a_named_start_up_error(tmp_path):
+    import subprocess
+
+    truth, nominal = write_parameter_files(tmp_path)
+    plan = _plan(tmp_path)
+    result = subprocess.run(
+        _executor(plan, nominal, 'inclinometer_signs:=[1, 2]', inclinometer_type='imu'),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert 'inclinometer_signs: each sign must be 1 or -1' in result.stdout + result.stderr
