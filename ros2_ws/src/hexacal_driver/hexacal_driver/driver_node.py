@@ -40,8 +40,10 @@ from hexacal_identify.nodes.runtime import run_node
 from hexacal_msgs_py.conversions import (
     actuator_reading_to_joint_state,
     encoder_reading_to_joint_state,
+    inclinometer_angles_to_imu,
     inclinometer_reading_to_joint_state,
     NS_PER_S,
+    stamp_ns,
 )
 from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, SLIDERS_TOPIC
 from hexacal_msgs_py.qos import COMMAND_QOS, SENSOR_QOS
@@ -50,7 +52,7 @@ from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import InvalidParameterValueException, InvalidTopicNameException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import Imu, JointState
 from trajectory_msgs.msg import JointTrajectory
 
 NODE_NAME = 'driver'
@@ -110,6 +112,15 @@ class DriverNode(Node):
         self._sliders_pub = self.create_publisher(JointState, SLIDERS_TOPIC, SENSOR_QOS)
         self._inclinometer_pub = self.create_publisher(JointState, INCLINOMETER_TOPIC, SENSOR_QOS)
         self._encoder_pub = self.create_publisher(JointState, ENCODER_TOPIC, SENSOR_QOS)
+        try:  # the inclinometer as an Imu too (imu_topic): what a real Imu inclinometer sends
+            self._imu_pub = (
+                self.create_publisher(Imu, value['imu_topic'], SENSOR_QOS)
+                if value['imu_topic']
+                else None
+            )
+        except InvalidTopicNameException as error:
+            raise DriverConfigurationError(f'imu_topic: {error}') from error
+        self._imu_stamp_ns = -1  # of the last Imu published
         self._ticks = 0  # plan time is ticks / rate_hz: every posture gets its samples under load
         self.published = 0  # messages published on each of the three streams (load accounting)
         self.published_before_plan = 0  # ... of which while holding for a subscriber
@@ -229,14 +240,7 @@ class DriverNode(Node):
             return
         if not self._started:
             # Matched (DDS), not just on the graph, on all three: no plan sample goes to nobody.
-            if (
-                self.wait_for_subscriber
-                and min(
-                    publisher.get_subscription_count()
-                    for publisher in (self._sliders_pub, self._inclinometer_pub, self._encoder_pub)
-                )
-                == 0
-            ):
+            if self.wait_for_subscriber and min(self._subscription_counts()) == 0:
                 self._publish(machine.walker.sample(0.0), stamp)
                 return
             self._started = True
@@ -282,6 +286,27 @@ class DriverNode(Node):
                 publisher.publish(message)
         # Complete ticks: Ctrl-C may cut the last one after some of its publishes.
         self.published += 1
+
+        self._publish_imu(inclinometer)
+
+    def _subscription_counts(self) -> tuple[int, int, int]:
+        """Return the matched subscriptions of the three streams (inclinometer: either type)."""
+        imu = self._imu_pub.get_subscription_count() if self._imu_pub is not None else 0
+        return (
+            self._sliders_pub.get_subscription_count(),
+            self._inclinometer_pub.get_subscription_count() + imu,
+            self._encoder_pub.get_subscription_count(),
+        )
+
+    def _publish_imu(self, inclinometer: JointState) -> None:
+        """Publish the inclinometer message's angles as an Imu on imu_topic, same stamp."""
+        stamp = stamp_ns(inclinometer.header.stamp)
+        # A message not published this tick (lost) kept the stamp of the last one: no Imu.
+        if self._imu_pub is not None and stamp != self._imu_stamp_ns:
+            self._imu_stamp_ns = stamp
+            alpha, beta = inclinometer.position[:2]
+            reading = InclinometerReading(stamp, alpha, beta)
+            self._imu_pub.publish(inclinometer_angles_to_imu(reading))
 
     def _report_motion(self, phase: str) -> None:
         """Log the link's strain (throttled) and the end of each commanded motion."""

@@ -60,6 +60,12 @@ PARAMETERS: dict[str, _Spec] = {
     'wait_for_subscriber': _Spec(
         True, 'hold the first posture until the three sensor streams have a matched subscriber'
     ),
+    'imu_topic': _Spec(
+        '',
+        'also publish the inclinometer reading as a sensor_msgs/Imu on this topic '
+        "(orientation by hexacal_msgs_py.inputs' convention, stamped as the inclinometer "
+        "JointState message), as a real Imu inclinometer would; '' = none",
+    ),
     'command_topic': _Spec(
         '',
         "'' (default): walk the plan; else follow trajectory_msgs/"

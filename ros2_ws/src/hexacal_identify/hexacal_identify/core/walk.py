@@ -19,11 +19,18 @@ posture:
    nominal model is millimetres off, the actuators stop up to millimetres away
    from targets the true machine cannot reach on that sphere.
 3. Fixed-position postures (eq. 10) are reached in closed loop: with the
-   machine still, the mean inclinometer reading (alpha, beta) over ``settle_s``
-   gives the platform's position by eq. 4; the commanded pose's position is
+   machine still and the inclinometer settled after the move (its readings no
+   longer trend: two consecutive ``inclinometer_settle_s`` windows agree,
+   core/walk_inclinometer.py; a real inclinometer lags through its filter),
+   the average of the settled readings (alpha, beta) (with
+   ``inclinometer_settle_s`` 0: the mean over ``settle_s`` as soon as the
+   actuators are still) gives the platform's position by eq. 4; the commanded pose's position is
    moved by ``-dp/d(alpha, beta) [alpha, beta]`` (`fixed_position_correction`)
    and new targets come from the nominal inverse kinematics, until both angles
-   are within ``fixed_tolerance_rad``; after ``max_corrections`` the posture is
+   are within ``fixed_tolerance_rad``; a correction smaller than
+   ``correction_nudge_m`` goes that far beyond its target and back, so the
+   collector (one posture per stationary period) sees a move and measures the
+   corrected position; after ``max_corrections`` the posture is
    skipped and reported.  Intermediate stops are valid sphere postures if the
    collector measures them.
 4. Measured: the collector's posture of this stop (received after the last
@@ -73,6 +80,7 @@ from .paths import (
 )
 from .plan_check import check_stroke
 from .turns import check_turns, same_turn, turn_text
+from .walk_inclinometer import InclinometerJudgement, InclinometerState, judge_inclinometer
 from .walk_io import LogLevel, Messages, ReadingWindow
 from .walk_settings import ExecutionSettings, ExecutionState, PostureOutcome
 
@@ -131,7 +139,7 @@ class PlanExecution:
         self.start_paused = bool(start_paused)
         self.index = 0  # current posture
         self.outcomes: list[PostureOutcome] = []
-        keep = 4.0 * settings.settle_s + 2.0
+        keep = 4.0 * max(settings.settle_s, 2.0 * settings.inclinometer_settle_s) + 2.0
         self.actuators = ReadingWindow(keep)
         self.inclinometer = ReadingWindow(keep)
         self.messages: Messages = []  # for the node to log
@@ -149,6 +157,9 @@ class PlanExecution:
         self._command_time = 0.0
         self._arrive_after = 0.0
         self._still_mean: np.ndarray | None = None
+        self._posture_before = False  # see _command
+        # The inclinometer since the last command (fixed positions; None: not judged yet).
+        self.inclinometer_judgement: InclinometerJudgement | None = None
         # (received, actuators) since the last command
         self._postures: list[tuple[float, np.ndarray]] = []
         self._sent_any = False
@@ -283,7 +294,7 @@ class PlanExecution:
             if still is None:
                 return []
             if self.kinds[self.index] == FIXED:
-                angles = self._mean_angles(now)
+                angles = self._judged_angles(now)
                 if angles is None:
                     return []
                 alpha, beta = angles
@@ -336,6 +347,9 @@ class PlanExecution:
             )
         if self.state in _UNDER_WAY and self.index < self.total:
             values['kind'] = self.kinds[self.index]
+        judgement = self.inclinometer_judgement
+        if self._phase is not None and judgement is not None:
+            values['inclinometer'] = judgement.state  # fixed position: since the last move
         if self.total:
             values['device_turn_rad'] = float(self.turns[min(self.index, self.total - 1)])
         if self.turn_needed is not None:
@@ -434,12 +448,15 @@ class PlanExecution:
         self._say(LogLevel.WARN, self.turn_notice)
         return self._hold()
 
-    def _command(self, now: float, purpose: CommandPurpose) -> Command:
+    def _command(
+        self, now: float, purpose: CommandPurpose, via: np.ndarray | None = None
+    ) -> Command:
         """
         Return the command to the current commanded pose (PathError if it cannot be commanded).
 
         Along the link sphere from where the machine is (MOVE), or one point
-        (CORRECT: a small correction from a standstill).
+        (CORRECT: a small correction from a standstill; through the pose `via` first
+        when given).
         """
         current = self.actuators.latest if self.actuators.latest is not None else self._target
         step = self.settings.path_step_m
@@ -450,7 +467,7 @@ class PlanExecution:
             command = path_command(
                 self.nominal,
                 current,
-                self._pose_cmd[None],
+                self._pose_cmd[None] if via is None else np.stack([via, self._pose_cmd]),
                 self.stroke,
                 self.settings.max_actuator_speed_m_s,
                 purpose,
@@ -471,12 +488,16 @@ class PlanExecution:
                 self.index,
             )
         self._target = command.positions.copy()
+        # The collector's posture of this stop came before this correction: a correction below
+        # its motion tolerances begins no new stationary period, so no posture may follow.
+        self._posture_before = bool(self._postures) and purpose == CommandPurpose.CORRECT
         self._where, self._at_where = self._pose_cmd.copy(), False
         self._command_time = now
         self._arrive_after = now + command.duration_s
         self._phase = Phase.MOVING
         self._postures = []
         self._still_mean = None
+        self.inclinometer_judgement = None
         self._sent_any = True
         return command
 
@@ -527,14 +548,33 @@ class PlanExecution:
             return None
         return mean
 
-    def _mean_angles(self, now: float) -> tuple[float, float] | None:
-        window = self.inclinometer.between(
-            max(now - self.settings.settle_s, self._arrive_after), now
+    def _judged_angles(self, now: float) -> tuple[float, float] | None:
+        """Return the inclinometer reading to judge the position on, None: not yet."""
+        settings = self.settings
+        window_s = settings.inclinometer_settle_s
+        if window_s == 0:  # the mean over settle_s, as soon as the actuators are still
+            start = max(now - settings.settle_s, self._arrive_after)
+            window = self.inclinometer.between(start, now)
+            if len(window) < MIN_WINDOW_READINGS:
+                return None
+            alpha, beta = window.mean(axis=0)
+            return float(alpha), float(beta)
+        times, readings = self.inclinometer.timed(now - 2.0 * window_s, now)
+        judgement = judge_inclinometer(
+            times, readings, now, self._arrive_after, window_s, settings.fixed_tolerance_rad
         )
-        if len(window) < MIN_WINDOW_READINGS:
+        self.inclinometer_judgement = judgement
+        return judgement.angles
+
+    def _unsettled_reason(self) -> str | None:
+        """Return why a fixed position was not judged (the inclinometer), None if it was."""
+        judgement = self.inclinometer_judgement
+        if judgement is None or judgement.settled:
             return None
-        alpha, beta = window.mean(axis=0)
-        return float(alpha), float(beta)
+        described = judgement.describe(self.settings.inclinometer_settle_s)
+        if judgement.state == InclinometerState.NO_READINGS:
+            return f'no inclinometer readings ({described})'
+        return f'the inclinometer did not settle ({described})'
 
     def _posture_matched(self) -> bool:
         if self._still_mean is None:
@@ -556,10 +596,22 @@ class PlanExecution:
                     f'{self.settings.fixed_tolerance_rad:g} rad)'
                 ),
             )
+        judged = (
+            f' (settled {now - self._arrive_after:.1f} s after the move)'
+            if self.inclinometer_judgement is not None
+            else ''
+        )
         previous = self._pose_cmd
         self._pose_cmd = corrected_pose(previous, alpha, beta, self.link_length, self.mount)
+        via = self._nudge(previous)
         try:
-            command = self._command(now, CommandPurpose.CORRECT)
+            try:
+                command = self._command(now, CommandPurpose.CORRECT, via)
+            except PathError:
+                if via is None:
+                    raise
+                via = None  # the nudge cannot be commanded (e.g. at the stroke's end)
+                command = self._command(now, CommandPurpose.CORRECT)
         except PathError as error:
             self._pose_cmd = previous
             return self._skip(now, f'the fixed-position correction cannot be commanded: {error}')
@@ -568,19 +620,57 @@ class PlanExecution:
         moved = np.linalg.norm(self._pose_cmd[:3] - previous[:3])
         self._say(
             LogLevel.INFO,
-            f'posture {index + 1}: inclinometer {alpha:.3g}, {beta:.3g} rad; correction '
-            f'{self._corrections} moves the platform by {moved * 1e6:.0f} um',
+            f'posture {index + 1}: inclinometer {alpha:.3g}, {beta:.3g} rad{judged}; correction '
+            f'{self._corrections} moves the platform by {moved * 1e6:.0f} um'
+            + (
+                f' (through a {self.settings.correction_nudge_m * 1e6:.0f} um nudge beyond it, '
+                'so the collector sees a move)'
+                if via is not None
+                else ''
+            ),
         )
         return [command]
+
+    def _nudge(self, previous: np.ndarray) -> np.ndarray | None:
+        """
+        Return the pose a correction from `previous` passes through first; None: none.
+
+        A correction smaller than ``correction_nudge_m`` goes that far beyond its target
+        along its own direction (tangent to the link sphere) and back, so the collector
+        sees a move and measures the corrected position: a smaller move would continue
+        its stationary period, of which it takes one posture (perhaps before the
+        correction, or averaged across it).
+        """
+        nudge = self.settings.correction_nudge_m
+        step = self._pose_cmd[:3] - previous[:3]
+        size = float(np.linalg.norm(step))
+        if nudge == 0 or size == 0 or size >= nudge:
+            return None
+        via = self._pose_cmd.copy()
+        via[:3] += step / size * nudge
+        return via
 
     def _timeout_reason(self, now: float) -> str:
         timeout = self.settings.timeout_s
         if self._phase == Phase.POSTURE:
+            if self._posture_before:
+                return (
+                    f'no posture from the collector within {timeout:g} s (its posture of this '
+                    'stop came before the last correction, too small to be a move for it)'
+                )
             return f'no posture from the collector within {timeout:g} s'
         latest = self.actuators.latest
         if latest is None or self.actuators.between(now - self.settings.settle_s, now).size == 0:
             return f'no actuator readings (timeout {timeout:g} s)'
         away = float(np.max(np.abs(latest - self._target)))
+        unsettled = self._unsettled_reason()
+        if (
+            self.kinds[self.index] == FIXED
+            and away <= self.settings.position_tolerance_m
+            and unsettled
+        ):
+            corrections = f', {self._corrections} corrections' if self._corrections else ''
+            return f'{unsettled} within {timeout:g} s{corrections}'
         if (
             self.kinds[self.index] == FIXED
             and away <= self.settings.position_tolerance_m

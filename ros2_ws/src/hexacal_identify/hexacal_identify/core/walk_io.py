@@ -66,6 +66,14 @@ class ReadingWindow:
         """Return the newest reading (None before the first)."""
         return self._values[-1] if self._values else None
 
+    def timed(self, start: float, end: float) -> tuple[np.ndarray, np.ndarray]:
+        """Return the times (n,) and readings (n, channels) received in [start, end]."""
+        times = np.fromiter(self._times, dtype=float, count=len(self._times))
+        chosen = (times >= start) & (times <= end)
+        if not chosen.any():
+            return np.empty(0), np.empty((0, 0))
+        return times[chosen], np.array([v for v, keep in zip(self._values, chosen) if keep])
+
     def between(self, start: float, end: float) -> np.ndarray:
         """Return the readings received in [start, end], (n, channels)."""
         chosen = [v for t, v in zip(self._times, self._values) if start <= t <= end]

@@ -191,8 +191,8 @@ def setup_walk(
         stroke = check_stroke(list(values['stroke_limits_m']))
     except ValueError as error:
         raise ValueError(f'stroke_limits_m: {error}') from error
-    settings = ExecutionSettings(
-        **{name: values[name] for name in ExecutionSettings.__dataclass_fields__}
+    settings = ExecutionSettings(  # a setting not given keeps its default
+        **{name: values[name] for name in ExecutionSettings.__dataclass_fields__ if name in values}
     )
     turn_nodes = node_names(list(values['device_turn_nodes']))
     poses, link_length, mount = plan.poses, plan.link_length, plan.mount

@@ -37,11 +37,19 @@ class ExecutionSettings:
     max_corrections: int = 5
     wait_for_posture: bool = True
     path_step_m: float = 0.02  # 0: one-point commands
+    # Fixed-position loop: the two windows in which the inclinometer must have settled (s);
+    # 0: judge the mean over settle_s once the actuators are still (core/walk_inclinometer.py).
+    inclinometer_settle_s: float = 0.25
+    # A correction smaller than this goes this far beyond its target and back (m; 0: never),
+    # so the collector sees a move (core/walk.py's _nudge).
+    correction_nudge_m: float = 1e-3
 
     def __post_init__(self) -> None:
         problems = []
-        if not _finite_number(self.path_step_m) or self.path_step_m < 0:
-            problems.append(f'path_step_m must be a finite number >= 0, got {self.path_step_m!r}')
+        for name in ('path_step_m', 'inclinometer_settle_s', 'correction_nudge_m'):
+            value = getattr(self, name)
+            if not _finite_number(value) or value < 0:
+                problems.append(f'{name} must be a finite number >= 0, got {value!r}')
         for name in (
             'max_actuator_speed_m_s',
             'position_tolerance_m',

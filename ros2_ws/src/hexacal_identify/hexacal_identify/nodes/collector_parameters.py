@@ -13,10 +13,7 @@ from typing import Any
 from hexacal_msgs_py.errors import HexacalContractError
 from hexacal_msgs_py.inputs import (
     DEFAULT_INCLINOMETER_JOINTS,
-    DEFAULT_OFFSETS_RAD,
     DEFAULT_ROTARY_JOINT,
-    DEFAULT_SIGNS,
-    INCLINOMETER_TYPES,
     InputMapping,
 )
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
@@ -26,6 +23,7 @@ from rclpy.exceptions import InvalidParameterValueException
 from rclpy.node import Node
 
 from .collector_inputs import RAW_TOPICS
+from .input_parameters import declare_mapping_parameters, INCLINOMETER_READING_PARAMETERS
 from .parameters import parameter_descriptor, ParameterSpec
 from ..bag.naming import bag_name_problem
 from ..core.turn_history import turn_problem
@@ -160,30 +158,9 @@ def declare_inputs(node: Node, actuator_names: tuple[str, ...]) -> InputMapping:
         'rotary_joint': ParameterSpec(
             DEFAULT_ROTARY_JOINT, 'the rotary sensor joint (phi, rad) of the encoder input'
         ),
-        'inclinometer_type': ParameterSpec(
-            'joint_state',
-            "'joint_state': the inclinometer input is a sensor_msgs/JointState with "
-            "inclinometer_joints; 'imu': a sensor_msgs/Imu whose orientation gives alpha and "
-            'beta (hexacal_msgs_py.inputs)',
-            constraints=', '.join(repr(t) for t in INCLINOMETER_TYPES),
-        ),
-        'inclinometer_signs': ParameterSpec(
-            list(DEFAULT_SIGNS),
-            'per channel (alpha, beta): 1 or -1; angle = sign * (raw - offset)',
-            constraints='two values, each 1 or -1',
-        ),
-        'inclinometer_offsets_rad': ParameterSpec(
-            list(DEFAULT_OFFSETS_RAD),
-            'per channel (alpha, beta): the raw reading with the link level (rad); '
-            'angle = sign * (raw - offset)',
-            constraints='two finite values within +-pi',
-        ),
+        **INCLINOMETER_READING_PARAMETERS,  # the executor's too
     }
-    value = {}
-    for name, spec in specs.items():
-        descriptor = parameter_descriptor(name, spec)
-        descriptor.dynamic_typing = True  # InputMapping checks the types
-        value[name] = node.declare_parameter(name, spec.default, descriptor).value
+    value = declare_mapping_parameters(node, specs)
     return InputMapping(
         actuator_joints=value['actuator_joints'],
         inclinometer_joints=value['inclinometer_joints'],

@@ -4,7 +4,9 @@ Node `executor`: walk a plan from `hexacal plan` on the machine through its traj
     ros2 run hexacal_identify executor --ros-args -p plan:=plan.yaml -p nominal:=nominal.yaml
 
 Commands (trajectory_msgs/JointTrajectory) on ``command_topic``; actuators,
-inclinometer and the collector's postures in; pause/resume/abort services;
+inclinometer (a JointState or an Imu, read as the collector reads it: the InputMapping
+parameters of nodes/input_parameters.py) and the collector's postures in;
+pause/resume/abort services;
 progress on ``hexacal/calibration_status``.  What decides is ROS-free:
 core/plan_check.py (the plan is checked before anything moves), core/walk.py
 (the walk), core/turns.py (device turns), core/walk_session.py (set-up,
@@ -20,8 +22,20 @@ import time
 
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticArray
-from hexacal_msgs_py.conversions import diagnostic_status, NS_PER_S
-from hexacal_msgs_py.errors import HexacalContractError
+from hexacal_msgs_py.conversions import (
+    diagnostic_status,
+    imu_to_inclinometer_reading,
+    joint_state_to_inclinometer_reading,
+    NS_PER_S,
+)
+from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError
+from hexacal_msgs_py.inputs import (
+    DEFAULT_OFFSETS_RAD,
+    DEFAULT_SIGNS,
+    IMU_INCLINOMETER,
+    InputMapping,
+    InputMappingError,
+)
 from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
 from hexacal_msgs_py.names import (
     CALIBRATE_SERVICE,
@@ -45,14 +59,16 @@ from rclpy.exceptions import (
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import Imu, JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from .executor_parameters import MODEL_PARAMETERS, PARAMETERS
+from .input_parameters import declare_mapping_parameters, INCLINOMETER_READING_PARAMETERS
 from .parameters import parameter_descriptor
 from .runtime import run_node
 from ..core.device import DEFAULT_MOUNT, DeviceMountError
+from ..core.measurements import FIXED
 from ..core.paths import Command
 from ..core.plan_check import PlanRefusedError
 from ..core.turns import DeviceTurnSetter, same_turn, TURN_PARAMETER
@@ -105,6 +121,7 @@ class ExecutorNode(Node):
         for name, spec in PARAMETERS.items():
             self.declare_parameter(name, spec.default, parameter_descriptor(name, spec))
         value = {name: self.get_parameter(name).value for name in PARAMETERS}
+        value.update(declare_mapping_parameters(self, INCLINOMETER_READING_PARAMETERS))
         self.nominal, nominal_mount = self._load_nominal(value['nominal'])
         self.model = self.nominal.model
         self.plan = self._load_plan(value['plan'], value['nominal'], nominal_mount)
@@ -139,6 +156,8 @@ class ExecutorNode(Node):
         self.stroke, self.stroke_source = setup.stroke, setup.stroke_source
         self.settings, self.device_turn_nodes = setup.settings, setup.device_turn_nodes
         self.execution = setup.execution
+        self.mapping = self._input_mapping(value)
+        self.imu = self.mapping.inclinometer_type == IMU_INCLINOMETER
 
         try:
             self._command_pub = self.create_publisher(
@@ -150,7 +169,9 @@ class ExecutorNode(Node):
             DiagnosticArray, CALIBRATION_STATUS_TOPIC, STATUS_QOS
         )
         self.create_subscription(JointState, SLIDERS_TOPIC, self._on_sliders, SENSOR_QOS)
-        self.create_subscription(JointState, INCLINOMETER_TOPIC, self._on_inclinometer, SENSOR_QOS)
+        self.create_subscription(
+            Imu if self.imu else JointState, INCLINOMETER_TOPIC, self._on_inclinometer, SENSOR_QOS
+        )
         self.create_subscription(JointState, POSTURE_TOPIC, self._on_posture, POSTURE_QOS)
         self.create_service(Trigger, EXECUTOR_PAUSE_SERVICE, self._on_pause)
         self.create_service(Trigger, EXECUTOR_RESUME_SERVICE, self._on_resume)
@@ -173,6 +194,8 @@ class ExecutorNode(Node):
         self._stopping = False
         for line in setup.start_lines(self.plan, self.model, self._command_pub.topic_name):
             self.get_logger().info(line)
+        if FIXED in setup.execution.kinds:
+            self.get_logger().info(self._inclinometer_line())
         if setup.problems:
             self.get_logger().error(setup.refusal)
         self._publish_status(force=True)
@@ -208,6 +231,48 @@ class ExecutorNode(Node):
             raise ExecutorConfigurationError(problem)
         return plan
 
+    def _input_mapping(self, value: dict) -> InputMapping:
+        """Return how the inputs are read, as the collector reads them (InputMapping)."""
+        try:
+            return InputMapping(
+                actuator_joints=self.actuator_joints,
+                inclinometer_joints=self.inclinometer_joints,
+                inclinometer_type=value['inclinometer_type'],
+                inclinometer_signs=value['inclinometer_signs'],
+                inclinometer_offsets_rad=value['inclinometer_offsets_rad'],
+                topics=(
+                    self.resolve_topic_name(SLIDERS_TOPIC),
+                    self.resolve_topic_name(INCLINOMETER_TOPIC),
+                    '',  # the executor does not read the encoder
+                ),
+            )
+        except InputMappingError as error:
+            raise ExecutorConfigurationError(str(error)) from error
+
+    def _inclinometer_line(self) -> str:
+        """Return the log line on how fixed positions are judged."""
+        mapping = self.mapping
+        what = (
+            'sensor_msgs/Imu orientation'
+            if self.imu
+            else f'JointState {", ".join(mapping.inclinometer_joints)}'
+        )
+        window = self.settings.inclinometer_settle_s
+        text = (
+            f'fixed positions: inclinometer <- {mapping.input_topic(INCLINOMETER_TOPIC)} ({what})'
+        )
+        corrections = (mapping.inclinometer_signs, mapping.inclinometer_offsets_rad)
+        if corrections != (DEFAULT_SIGNS, DEFAULT_OFFSETS_RAD):
+            text += (
+                f', signs {list(mapping.inclinometer_signs)}, offsets '
+                f'{list(mapping.inclinometer_offsets_rad)} rad'
+            )
+        return text + (
+            f'; judged once settled over two {window:g} s windows'
+            if window
+            else f'; judged on the mean over settle_s ({self.settings.settle_s:g} s)'
+        )
+
     def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for parameter in parameters:
             problem = parameter_problem(parameter.name, parameter.value)
@@ -233,12 +298,18 @@ class ExecutorNode(Node):
             return
         self.execution.on_actuators(_now_s(self), positions)
 
-    def _on_inclinometer(self, message: JointState) -> None:
-        angles = joint_positions(message.name, message.position, self.inclinometer_joints)
-        if angles is None:
-            self._invalid(f'inclinometer (joints {list(message.name)})')
+    def _on_inclinometer(self, message: JointState | Imu) -> None:
+        # The collector's conversions: the same joints, Imu convention, signs and offsets.
+        try:
+            reading = (
+                imu_to_inclinometer_reading(message, self.mapping)
+                if self.imu
+                else joint_state_to_inclinometer_reading(message, self.mapping)
+            )
+        except InvalidReadingError as error:
+            self._invalid(f'inclinometer ({error})')
             return
-        self.execution.on_inclinometer(_now_s(self), float(angles[0]), float(angles[1]))
+        self.execution.on_inclinometer(_now_s(self), reading.alpha, reading.beta)
 
     def _on_posture(self, message: JointState) -> None:
         positions = joint_positions(message.name, message.position, self.posture_joints)

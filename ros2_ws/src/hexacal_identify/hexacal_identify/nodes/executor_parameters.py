@@ -2,7 +2,9 @@
 The executor node's ROS parameters: names, defaults, ranges and descriptions.
 
 Kept apart from nodes/executor.py so the node module holds only the glue; the
-checks beyond type and range are core/walk_status.py's `parameter_problem`.
+checks beyond type and range are core/walk_session.py's `parameter_problem`. How the
+inclinometer input is read (inclinometer_type, signs, offsets) is declared as the
+collector declares it (nodes/input_parameters.py).
 """
 
 from __future__ import annotations
@@ -82,6 +84,25 @@ PARAMETERS: dict[str, _Spec] = {
         'commands (joint-space moves)',
         0.0,
         1.0,
+    ),
+    'inclinometer_settle_s': _Spec(
+        SETTINGS.inclinometer_settle_s,
+        'a fixed-position posture is judged on the inclinometer only once it has settled '
+        'after a move (a real one lags through its filter): the medians of two consecutive '
+        'windows of this length (s) agree within the noise, and the later window is averaged; '
+        "about the inclinometer's time constant or longer; 0: the mean over settle_s as soon "
+        'as the actuators are still (an inclinometer that does not lag)',
+        0.0,
+        60.0,
+    ),
+    'correction_nudge_m': _Spec(
+        SETTINGS.correction_nudge_m,
+        'a fixed-position correction smaller than this goes this far beyond its target and '
+        'back (m), so the collector, which takes one posture per stationary period, sees a '
+        'move and measures the corrected position; above its slider_tolerance_m; 0: '
+        'one-point corrections',
+        0.0,
+        0.01,
     ),
     'inclinometer_joints': _Spec(
         list(INCLINOMETER_NAMES),
