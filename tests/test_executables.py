@@ -442,7 +442,7 @@ def test_launch_nodes_of_a_real_ros2_control_machine():
     assert Path(executor['plan']).is_absolute() and Path(executor['nominal']).is_absolute()
     argv = nodes['collector'].command()
     assert argv[argv.index('-p', argv.index('inclinometer_signs:=[1, -1]') - 1)] == '-p'
-    # An Imu inclinometer: the executor (a JointState reader) keeps its own inclinometer input.
+    # An Imu inclinometer: the executor reads it as the collector does (same type and topic).
     imu = {
         node.executable: node
         for node in _launch_module().node_launches(
@@ -457,7 +457,9 @@ def test_launch_nodes_of_a_real_ros2_control_machine():
     }
     assert imu['collector'].remaps == {'hexacal/inclinometer': '/imu'}
     assert imu['collector'].parameters['inclinometer_type'] == 'imu'
-    assert imu['executor'].remaps == {}
+    assert imu['executor'].remaps == {'hexacal/inclinometer': '/imu'}
+    assert imu['executor'].parameters['inclinometer_type'] == 'imu'
+    assert 'inclinometer_joints' not in imu['executor'].parameters
 
 
 def test_bringup_spells_the_contract_names():

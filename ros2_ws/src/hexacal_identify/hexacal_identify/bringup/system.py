@@ -64,6 +64,15 @@ class MachineInputs:
         }
         return {name: value for name, value in values.items() if value}
 
+    def executor_parameters(self) -> dict[str, object]:
+        """Return the executor's mapping parameters that are set (it reads the inclinometer too)."""
+        names = ('actuator_joints', 'inclinometer_type', 'inclinometer_signs')
+        names += ('inclinometer_offsets_rad',)
+        if not self.imu:
+            names += ('inclinometer_joints',)
+        collector = self.collector_parameters()
+        return {name: collector[name] for name in names if name in collector}
+
     @property
     def imu(self) -> bool:
         """Return whether the inclinometer is a sensor_msgs/Imu."""
@@ -152,19 +161,19 @@ def launches(
         }
         if nominal:
             executor_parameters['nominal'] = str(Path(nominal).resolve())
-        if inputs.actuator_joints:
-            executor_parameters['actuator_joints'] = list(inputs.actuator_joints)
-        if inputs.inclinometer_joints and not inputs.imu:
-            executor_parameters['inclinometer_joints'] = list(inputs.inclinometer_joints)
+        executor_parameters.update(inputs.executor_parameters())
         if calibrate_when_done:
             executor_parameters['calibrate_when_done'] = True
         if shutdown_when_done:
             executor_parameters['shutdown_when_done'] = True
         executor_parameters.update(executor or {})
-        # The executor reads a JointState inclinometer (fixed-position postures); an Imu one
-        # stays unmapped for it.
-        read = (SLIDERS,) if inputs.imu else (SLIDERS, INCLINOMETER)
-        nodes.append(NodeLaunch('executor', executor_parameters, namespace, inputs.remaps(*read)))
+        # The executor reads the inclinometer as the collector does (a JointState or an Imu) for
+        # its fixed-position closed loop.
+        nodes.append(
+            NodeLaunch(
+                'executor', executor_parameters, namespace, inputs.remaps(SLIDERS, INCLINOMETER)
+            )
+        )
     if with_driver:
         nodes.append(
             NodeLaunch(
