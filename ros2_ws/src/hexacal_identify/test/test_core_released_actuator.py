@@ -143,3 +143,13 @@ def test_an_lvdt_plan_reports_its_extensions_and_gains(model):
     assert compliant.release is None and compliant.lvdt is None
     with pytest.raises(ValueError, match='measuring_mode must be one of'):
         check_measuring_mode(params, poses, 0.75, workspace.actuator_stroke_m, 'rigid')
+
+
+def test_the_executor_warns_before_walking_a_plan_it_cannot_measure_as_made():
+    from hexacal_identify.core.measuring_plan import walking_notice
+
+    assert walking_notice(None) is None
+    assert walking_notice('compliant') is None
+    for mode in ('passive_actuator', 'lvdt'):
+        notice = walking_notice(mode)
+        assert mode in notice and 'all six actuators' in notice and 'torque-limited' in notice

@@ -65,7 +65,7 @@ class MachineInputs:
         return {name: value for name, value in values.items() if value}
 
     def executor_parameters(self) -> dict[str, object]:
-        """Return the executor's mapping parameters that are set (it reads the inclinometer too)."""
+        """Return the executor's mapping parameters that are set (inclinometer included)."""
         names = ('actuator_joints', 'inclinometer_type', 'inclinometer_signs')
         names += ('inclinometer_offsets_rad',)
         if not self.imu:

@@ -111,3 +111,21 @@ def check_measuring_mode(
 
 
 __all__ = ['LvdtCheck', 'MeasuringCheck', 'check_measuring_mode']
+
+
+def walking_notice(mode: str | None) -> str | None:
+    """
+    Return what the executor must tell the operator before walking a plan of `mode`, or None.
+
+    The executor drives the compliant mode only (issue #18 is in progress): it commands all six
+    actuators whatever the plan says, so a plan made for a released actuator or an LVDT link is
+    walked over-constrained. The operator hears it before anything moves.
+    """
+    if mode is None or measuring_mode(mode) is MeasuringMode.COMPLIANT:
+        return None
+    return (
+        f"the plan is made for measuring_mode '{measuring_mode(mode).value}', but this executor "
+        'commands all six actuators (the compliant mode): no actuator is released and no LVDT '
+        'length is read. Walk it only on a machine whose drives are torque-limited while the '
+        'measuring link is attached'
+    )

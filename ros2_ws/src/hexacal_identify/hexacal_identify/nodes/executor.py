@@ -69,6 +69,7 @@ from .parameters import parameter_descriptor
 from .runtime import run_node
 from ..core.device import DEFAULT_MOUNT, DeviceMountError
 from ..core.measurements import FIXED
+from ..core.measuring_plan import walking_notice
 from ..core.paths import Command
 from ..core.plan_check import PlanRefusedError
 from ..core.turns import DeviceTurnSetter, same_turn, TURN_PARAMETER
@@ -125,6 +126,9 @@ class ExecutorNode(Node):
         self.nominal, nominal_mount = self._load_nominal(value['nominal'])
         self.model = self.nominal.model
         self.plan = self._load_plan(value['plan'], value['nominal'], nominal_mount)
+        notice = walking_notice(self.plan.measuring_mode)
+        if notice is not None:
+            self.get_logger().warning(notice)
         # As the driver's: a collector with driver_node:=executor records the plan in its bag.
         self.declare_parameter(
             'plan_name',
