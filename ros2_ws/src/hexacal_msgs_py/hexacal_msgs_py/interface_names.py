@@ -29,6 +29,14 @@ EXECUTOR_ABORT_SERVICE = 'hexacal/executor/abort'
 # own namespace).
 DEFAULT_COMMAND_TOPIC = '/joint_trajectory_controller/joint_trajectory'
 
+# Measuring modes (issue #18, hexacal_msgs_py.measuring_modes). The LVDT link's length
+# (joint 'link_length', m) is a fourth device reading on its own sensor stream; a machine whose
+# actuators can be released offers one std_srvs/SetBool service per actuator joint
+# (release_service(joint)): data true releases the joint (it follows the link, its encoder still
+# reads), false locks it where it stands; the machine refuses either while moving.
+LINK_TOPIC = 'hexacal/link'
+RELEASE_SERVICE_PREFIX = 'hexacal/release/'
+
 # The kinematics node: the calibrated model at work.
 PLATFORM_POSE_TOPIC = 'hexacal/platform_pose'  # FK of the live actuator readings
 TARGET_POSE_TOPIC = (
@@ -43,11 +51,13 @@ DEPLOYMENT_STATUS_NAME = 'hexacal deployment'
 EXECUTOR_STATUS_NAME = 'hexacal executor'
 KINEMATICS_STATUS_NAME = 'hexacal kinematics'
 VERIFICATION_STATUS_NAME = 'hexacal verification'
+DRIVER_STATUS_NAME = 'hexacal driver'  # the machine's drives: mode, released joint, faults
 
 JOINT_STATE_TYPE = 'sensor_msgs/msg/JointState'
 FLOAT64_MULTI_ARRAY_TYPE = 'std_msgs/msg/Float64MultiArray'
 DIAGNOSTIC_ARRAY_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
 TRIGGER_TYPE = 'std_srvs/srv/Trigger'
+SET_BOOL_TYPE = 'std_srvs/srv/SetBool'
 IMU_TYPE = 'sensor_msgs/msg/Imu'
 POSE_STAMPED_TYPE = 'geometry_msgs/msg/PoseStamped'
 MARKER_ARRAY_TYPE = 'visualization_msgs/msg/MarkerArray'
@@ -60,6 +70,8 @@ POSTURE_TYPE = JOINT_STATE_TYPE
 PARAMETERS_TYPE = FLOAT64_MULTI_ARRAY_TYPE
 CALIBRATION_STATUS_TYPE = DIAGNOSTIC_ARRAY_TYPE
 CALIBRATE_SERVICE_TYPE = TRIGGER_TYPE
+LINK_TYPE = JOINT_STATE_TYPE
+RELEASE_SERVICE_TYPE = SET_BOOL_TYPE
 
 # Message type string of every topic, e.g. for recording and replaying bags.
 TOPIC_TYPES: dict[str, str] = {
@@ -67,12 +79,19 @@ TOPIC_TYPES: dict[str, str] = {
     INCLINOMETER_TOPIC: INCLINOMETER_TYPE,
     ENCODER_TOPIC: ENCODER_TYPE,
     POSTURE_TOPIC: POSTURE_TYPE,
+    LINK_TOPIC: LINK_TYPE,
     PARAMETERS_TOPIC: PARAMETERS_TYPE,
     CALIBRATION_STATUS_TOPIC: CALIBRATION_STATUS_TYPE,
     PLATFORM_POSE_TOPIC: POSE_STAMPED_TYPE,
     TARGET_POSE_TOPIC: POSE_STAMPED_TYPE,
     MACHINE_MARKERS_TOPIC: MARKER_ARRAY_TYPE,
 }
+
+
+def release_service(joint: str) -> str:
+    """Return the release/lock service of an actuator joint, e.g. hexacal/release/slider_3."""
+    return RELEASE_SERVICE_PREFIX + joint
+
 
 # The inclinometer input types (hexacal_msgs_py.inputs): a JointState or a sensor_msgs/Imu.
 JOINT_STATE_INCLINOMETER = 'joint_state'
