@@ -76,7 +76,7 @@ def _row(recording, bag: Path, variant: str, args) -> dict:
 
     options = VARIANTS[variant]
     started = time.perf_counter()
-    found = postures_from_bag(bag).postures
+    found = postures_from_bag(bag, detector=options['detector']).postures
     matched, actuator_m, angle_rad = _posture_deviation(found, recording.settled_readings)
     truth = recording.true_params
     nominal = nominal_set(2, seed=0, exact=truth)
