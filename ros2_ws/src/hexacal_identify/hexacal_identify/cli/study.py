@@ -101,7 +101,61 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     planning_study.add_arguments(parser)
     cli_study_device.add_arguments(parser)
+    add_mode_arguments(parser)
     parser.set_defaults(handler=run)
+
+
+def add_mode_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the options of the measuring-mode study (issue #18; absent: today's study)."""
+    from hexacal_msgs_py.measuring_modes import DEFAULT_LVDT_STROKE_M, MEASURING_MODES
+
+    group = parser.add_argument_group(
+        'measuring modes (--measuring-mode: compare the accuracy of the procedures instead)'
+    )
+    group.add_argument(
+        '--measuring-mode',
+        choices=(*MEASURING_MODES, 'all'),
+        default=None,
+        help='simulate the measuring procedure of this mode (all: the three, and the compliant '
+        'mode without refinement, the demo of today, as the baseline) on the true machine with '
+        'targets from the nominal model, calibrate and print its accuracy; --postures, '
+        '--noise-um, --seed, --nominal-set, --cost, --validation-postures and --json apply',
+    )
+    group.add_argument(
+        '--refine',
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help='with --measuring-mode: compute the remaining targets from an intermediate '
+        'calibration once the postures so far give one of full rank, and again later (default '
+        'on)',
+    )
+    group.add_argument(
+        '--first-calibration',
+        type=int,
+        default=None,
+        help='with --refine: postures measured before the first intermediate calibration '
+        '(default: 2 x parameters / 5)',
+    )
+    group.add_argument(
+        '--lvdt-stroke-m',
+        type=float,
+        default=DEFAULT_LVDT_STROKE_M,
+        help='lvdt mode: the stroke of the link about its length, +- m (default '
+        f'{DEFAULT_LVDT_STROKE_M:g})',
+    )
+    group.add_argument(
+        '--lvdt-noise-m',
+        type=float,
+        default=1e-6,
+        help='lvdt mode: uniform noise half-width of the LVDT reading, m (default 1e-6)',
+    )
+    group.add_argument(
+        '--servo-stiffness-n-per-m',
+        type=float,
+        default=2e6,
+        help='compliant mode: the stiffness of the servos, N/m, for the force they carry '
+        '(default 2e6)',
+    )
 
 
 def _load_params(path: Path) -> KinematicParameters:
@@ -184,6 +238,10 @@ def run(args) -> int:
     args.model = study_model(args)  # resolved once: the files' model when --model is not given
     if args.plan:
         return planning_study.run(args)
+    if args.measuring_mode is not None:
+        from . import study_modes
+
+        return study_modes.run(args, _load_params)
     configured = configured_run(args)
     if args.json:
         print(json.dumps(run_calibration(configured).to_json()))
