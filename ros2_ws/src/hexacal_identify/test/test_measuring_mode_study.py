@@ -27,11 +27,11 @@ def _nominal_batch(run: ModeStudyRun):
 def test_passive_five_stand_at_their_setpoints_and_the_released_one_follows_the_link():
     outcome, batch = _nominal_batch(ModeStudyRun(mode='passive_actuator', postures=20,
                                                  noise_um=0.0))
-    readings = batch.exact.actuator_positions
-    rows, chosen = np.arange(len(readings)), batch.released
-    assert chosen is not None and len(set(chosen.tolist())) > 1  # chosen per posture
+    assert batch.released is not None and np.all(batch.measured)
+    readings, chosen = batch.exact.actuator_positions, batch.released
+    assert len(set(chosen.tolist())) > 1  # chosen per posture
     commanded = np.ones_like(readings, bool)
-    commanded[rows, chosen] = False
+    commanded[np.arange(len(readings)), chosen] = False
     assert np.max(np.abs(readings - batch.setpoints)[commanded]) < 1e-9
     # The released one is where the true machine's constraint put it: mm from the nominal
     # prediction, exactly the true IK of a pose on the true link sphere.
@@ -104,6 +104,15 @@ def test_checkpoints_grow_geometrically_and_the_walk_retargets_after_each_calibr
     assert walk.calibrated_at == [6, 8] and walk.stages.tolist() == [0] * 6 + [1] * 2 + [2] * 2
 
 
+def test_a_posture_the_true_machine_cannot_assemble_is_skipped_and_counted():
+    # Seed 3, posture 16: chain 0 released (best conditioned on the nominal model), the five
+    # nominal setpoints and the link have no assembly near the plan on the true machine.
+    outcome = run_mode(ModeStudyRun(mode='passive_actuator', seed=3, refine=False))
+    assert outcome.failed_postures == 1 and not outcome.walk.batches[0].measured[16]
+    assert len(outcome.walk.batches[0].measurements) == 49
+    assert outcome.to_json()['failed_postures'] == 1
+
+
 def test_study_cli_compares_all_modes_as_json():
     done = subprocess.run(
         [sys.executable, '-m', 'hexacal_identify.cli', 'study', '--measuring-mode', 'all',
@@ -117,7 +126,8 @@ def test_study_cli_compares_all_modes_as_json():
         ('passive_actuator', True), ('lvdt', True), ('compliant', True), ('compliant', False),
     ]
     for row in rows:
-        assert row['postures'] == 30 and 0 < row['pose_error_mean_m'] <= row['pose_error_max_m']
+        assert row['postures'] == 30 and row['failed_postures'] == 0
+        assert 0 < row['pose_error_mean_m'] <= row['pose_error_max_m']
         assert (row['max_link_extension_m'] is None) == (row['measuring_mode'] != 'lvdt')
         assert (row['max_force_n'] is None) == (row['measuring_mode'] != 'compliant')
     assert rows[1]['lvdt_inside_stroke'] is True

@@ -81,7 +81,7 @@ def print_table(payloads: list[dict]) -> None:
     print(
         f'  {"mode":<30} {"postures":>8} {"deviation um":>18} {"force N":>14} '
         f'{"extension um":>18} {"released um":>18} {"pose err mean/max um":>21} '
-        f'{"rms xyz um":>11} {"rank":>5}'
+        f'{"rms xyz um":>11} {"rank":>5} {"failed":>6}'
     )
     for payload in payloads:
         before, after = payload['before_refinement'], payload['after_refinement']
@@ -96,13 +96,14 @@ def print_table(payloads: list[dict]) -> None:
             f'  {_label(payload):<30} {payload["postures"]:>8} '
             f'{pair("max_actuator_deviation_m"):>18} {pair("max_force_n", _kn):>14} '
             f'{pair("max_link_extension_m"):>18} {pair("max_released_offset_m"):>18} '
-            f'{accuracy:>21} {_um(rms):>11} {payload["rank"]:>5}'
+            f'{accuracy:>21} {_um(rms):>11} {payload["rank"]:>5} {payload["failed_postures"]:>6}'
         )
     print(
         '  deviation: the largest |true position - setpoint| of a commanded actuator at rest; '
         "released: the released actuator's\n  largest |reading - the model's prediction|; "
         'before -> after refinement (- where none); pose error on fresh validation poses\n'
-        '  against the truth.'
+        '  against the truth; failed: postures the procedure could not measure on the true '
+        'machine (skipped).'
     )
     for payload in payloads:
         if payload['lvdt_inside_stroke'] is not None:

@@ -16,7 +16,11 @@ the truth on fresh validation poses:
   platform on the true sphere (core/compliant.py, the simulated driver's model); the encoders
   read where the actuators stand; the force is the servo stiffness times the deviation.
 
-The readings carry the study's uniform noise.  With refinement (core/refinement.py) the
+A posture the procedure cannot measure on the true machine is skipped and counted
+(``failed_postures``), as an executor would have to: in ``passive_actuator`` the five nominal
+setpoints and the link may have no assembly near the planned pose (a fold of the passive system
+the nominal model does not see), in ``lvdt`` the forward kinematics may fail.  The readings
+carry the study's uniform noise.  With refinement (core/refinement.py) the
 remaining targets come from an intermediate calibration once the postures measured so far give
 one of full rank; the deviations before (nominal targets) and after (refined targets) are
 reported apart.  SI units throughout (um only for display, by the CLI).
@@ -114,7 +118,10 @@ class ModeBatch:
     ``deviation_m`` the largest |true position - setpoint| of a commanded actuator at rest;
     ``extension_m`` the LVDT link's |P| - L (lvdt, else None); ``released_offset_m`` the
     released actuator's |reading - the model's prediction| (passive_actuator, else None);
-    ``true_poses`` where the platform stood; ``exact`` the noise-free readings; ``released``
+    ``true_poses`` where the platform stood (NaN rows where the procedure failed: no pose
+    closes the five commanded legs and the link, or no forward kinematics); ``measured`` (k,)
+    the postures measured (``measurements`` and ``exact`` hold those rows only; the per-posture
+    figures are NaN elsewhere); ``exact`` the noise-free readings; ``released``
     the released chain per posture (passive_actuator, else None).
     """
 
@@ -122,6 +129,7 @@ class ModeBatch:
     exact: Measurements
     true_poses: np.ndarray
     setpoints: np.ndarray
+    measured: np.ndarray
     deviation_m: np.ndarray
     extension_m: np.ndarray | None = None
     released_offset_m: np.ndarray | None = None
@@ -151,18 +159,16 @@ def measuring_function(
 
     def measure(indices: np.ndarray, setpoints: np.ndarray) -> ModeBatch:
         start = planned[indices]
-        extension = offset = None
+        extension = offset = chosen = None
         if mode is MeasuringMode.PASSIVE_ACTUATOR:
             assert released is not None
-            solution = solve_passive(truth, setpoints, released[indices], start, length, mount)
-            solution.raise_if_failed()
-            poses = solution.poses
-            rows = np.arange(len(indices))
-            offset = np.abs(solution.released_positions - setpoints[rows, released[indices]])
+            chosen = released[indices]
+            solution = solve_passive(truth, setpoints, chosen, start, length, mount)
+            poses, measured = solution.poses, solution.converged
+            offset = np.abs(solution.released_positions - setpoints[np.arange(len(chosen)), chosen])
         elif mode is MeasuringMode.LVDT:
             solved = forward_kinematics(truth, setpoints, start)
-            solved.raise_if_failed()
-            poses = solved.poses
+            poses, measured = solved.poses, solved.converged
             extension = np.linalg.norm(poses[:, :3], axis=1) - length
         else:
             poses = np.array(
@@ -171,13 +177,15 @@ def measuring_function(
                     for target, near in zip(setpoints, start)
                 ]
             )
-        noisy, exact = _readings(run, poses, rng, mode is MeasuringMode.LVDT)
-        commanded = np.abs(exact.actuator_positions - setpoints)
-        if released is not None:
-            commanded[np.arange(len(indices)), released[indices]] = 0.0  # not commanded
-        chosen = None if released is None else released[indices]
+            measured = np.ones(len(indices), bool)
+        noisy, exact = _readings(run, poses[measured], rng, mode is MeasuringMode.LVDT)
+        deviation = np.full(len(indices), np.nan)
+        commanded = np.abs(exact.actuator_positions - setpoints[measured])
+        if chosen is not None:
+            commanded[np.arange(len(commanded)), chosen[measured]] = 0.0  # not commanded
+        deviation[measured] = commanded.max(axis=1, initial=0.0)
         return ModeBatch(
-            noisy, exact, poses, setpoints, commanded.max(axis=1), extension, offset, chosen
+            noisy, exact, poses, setpoints, measured, deviation, extension, offset, chosen
         )
 
     return measure
@@ -221,7 +229,13 @@ class ModeOutcome:
             return None
         if refined is not None:
             values = values[self.walk.refined == refined]
-        return float(np.max(values)) if values.size else None
+        values = values[np.isfinite(values)]
+        return float(np.max(np.abs(values))) if values.size else None
+
+    @property
+    def failed_postures(self) -> int:
+        """Return how many postures the procedure could not measure (module doc)."""
+        return int(sum(np.sum(~batch.measured) for batch in self.walk.batches))
 
     def figures(self, refined: bool | None = None) -> dict:
         """
@@ -255,6 +269,7 @@ class ModeOutcome:
             'measuring_mode': mode.value,
             'postures': overall['postures'],
             **{key: value for key, value in overall.items() if key != 'postures'},
+            'failed_postures': self.failed_postures,
             'released_travel_max_m': self.released_travel_m,
             'lvdt_stroke_m': self.run.lvdt_stroke_m if mode is MeasuringMode.LVDT else None,
             'lvdt_inside_stroke': (
