@@ -165,7 +165,8 @@ def measuring_function(
             chosen = released[indices]
             solution = solve_passive(truth, setpoints, chosen, start, length, mount)
             poses, measured = solution.poses, solution.converged
-            offset = np.abs(solution.released_positions - setpoints[np.arange(len(chosen)), chosen])
+            predicted = setpoints[np.arange(len(chosen)), chosen]
+            offset = np.abs(solution.released_positions - predicted)
         elif mode is MeasuringMode.LVDT:
             solved = forward_kinematics(truth, setpoints, start)
             poses, measured = solved.poses, solved.converged
