@@ -5,6 +5,7 @@ import json
 import subprocess
 import sys
 
+from hexacal_identify.core.architectures import default_parameters
 from hexacal_identify.core.kinematics import inverse_kinematics
 from hexacal_identify.core.refinement import refinement_checkpoints, walk_refined
 from hexacal_identify.studies.measuring_modes import (
@@ -86,6 +87,31 @@ def test_refinement_shrinks_the_strain_ten_fold_on_nominal_set_2(mode, key):
     before, after = outcome.figures(False)[key], outcome.figures(True)[key]
     assert before > 1e-3 and after * 10 <= before
     assert outcome.result.rank == outcome.run.true_params.layout.n_parameters
+
+
+@pytest.mark.parametrize('mode', ['passive_actuator', 'lvdt', 'compliant'])
+def test_gough_stewart_modes_read_the_truth_and_refine(mode):
+    run = ModeStudyRun(mode=mode, true_params=default_parameters('gough_stewart'), postures=25,
+                       first_calibration=17, noise_um=0.0, lvdt_noise_m=0.0)
+    outcome = run_mode(run)
+    for batch in outcome.walk.batches:
+        np.testing.assert_allclose(
+            batch.exact.actuator_positions,
+            inverse_kinematics(run.true_params, batch.true_poses[batch.measured]),
+            atol=1e-12,
+        )
+    key = {'passive_actuator': 'max_released_offset_m', 'lvdt': 'max_link_extension_m',
+           'compliant': 'max_actuator_deviation_m'}[mode]
+    assert outcome.figures(True)[key] * 10 <= outcome.figures(False)[key]
+    assert outcome.after.summary()['position_max_m'] < 1e-8  # exact data: the truth
+
+
+def test_an_lvdt_stroke_too_short_is_reported():
+    outcome = run_mode(ModeStudyRun(mode='lvdt', postures=25, lvdt_stroke_m=1e-3, refine=False))
+    data = outcome.to_json()
+    assert data['lvdt_inside_stroke'] is False and data['lvdt_postures_outside_stroke'] > 0
+    with pytest.raises(ValueError, match='first calibration'):
+        ModeStudyRun(first_calibration=0)
 
 
 def test_checkpoints_grow_geometrically_and_the_walk_retargets_after_each_calibration():

@@ -110,7 +110,8 @@ def print_table(payloads: list[dict]) -> None:
             print(
                 f'  lvdt: largest extension {_um(payload["max_link_extension_m"])} um, stroke '
                 f'+-{payload["lvdt_stroke_m"] * UM:.0f} um: '
-                + ('inside' if payload['lvdt_inside_stroke'] else 'OUTSIDE the stroke')
+                + ('inside' if payload['lvdt_inside_stroke'] else
+                   f'OUTSIDE the stroke at {payload["lvdt_postures_outside_stroke"]} posture(s)')
             )
         if payload['released_travel_max_m'] is not None:
             print(

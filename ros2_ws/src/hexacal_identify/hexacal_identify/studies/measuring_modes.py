@@ -81,6 +81,10 @@ class ModeStudyRun:
         measuring_mode(self.mode)  # ValueError naming the modes
         if self.postures < 1:
             raise ValueError(f'postures must be positive, got {self.postures}')
+        if self.first_calibration is not None and self.first_calibration < 1:
+            raise ValueError(
+                f'the first calibration needs at least 1 posture, got {self.first_calibration}'
+            )
         if not (math.isfinite(self.lvdt_stroke_m) and self.lvdt_stroke_m > 0):
             raise ValueError(f'the LVDT stroke must be positive, got {self.lvdt_stroke_m} m')
         if not (math.isfinite(self.servo_stiffness_n_per_m) and self.servo_stiffness_n_per_m > 0):
@@ -260,6 +264,13 @@ class ModeOutcome:
             'max_released_offset_m': self._largest('released_offset_m', refined),
         }
 
+    def _outside_stroke(self) -> int | None:
+        """Return how many postures stretched the LVDT link beyond its stroke (lvdt, else None)."""
+        extensions = self._per_posture('extension_m')
+        if extensions is None:
+            return None
+        return int(np.sum(np.abs(extensions[np.isfinite(extensions)]) > self.run.lvdt_stroke_m))
+
     def to_json(self) -> dict:
         """Return the outcome as JSON-safe builtins, snake_case SI keys (issue #18 section 4)."""
         summary = self.after.summary()
@@ -273,6 +284,7 @@ class ModeOutcome:
             'failed_postures': self.failed_postures,
             'released_travel_max_m': self.released_travel_m,
             'lvdt_stroke_m': self.run.lvdt_stroke_m if mode is MeasuringMode.LVDT else None,
+            'lvdt_postures_outside_stroke': self._outside_stroke(),
             'lvdt_inside_stroke': (
                 bool(extension is not None and abs(extension) <= self.run.lvdt_stroke_m)
                 if mode is MeasuringMode.LVDT else None
