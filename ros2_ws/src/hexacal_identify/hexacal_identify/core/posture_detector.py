@@ -345,7 +345,14 @@ class DetectedPosture:
 
     @property
     def scatter(self) -> PostureScatter:
-        """Per channel, the standard error of the mean (std / sqrt(n)) and the sample count."""
+        """
+        Per channel, the standard error of the mean and the sample count.
+
+        The reading's own scatter where the detector set it (DwellDetector: per channel,
+        spikes rejected), else std / sqrt(n) of the n paired samples (PostureDetector).
+        """
+        if self.reading.scatter is not None:
+            return self.reading.scatter
         count = max(self.sample_count, 1)
         return PostureScatter(
             tuple(float(s) / math.sqrt(count) for s in self.std), (count,) * N_CHANNELS
