@@ -15,6 +15,7 @@ from enum import StrEnum
 
 from hexacal_msgs_py.readings import NS_PER_S
 
+from .dwell_detector import DwellDetector
 from .posture_detector import DropReason, PostureDetector, StreamSynchronizer
 
 
@@ -102,7 +103,7 @@ class InputCounters:
 def problems(
     counters: InputCounters,
     synchronizer: StreamSynchronizer,
-    detector: PostureDetector,
+    detector: PostureDetector | DwellDetector,
     stopped_streams: tuple[str, ...],
     recording_error: str | None,
 ) -> dict[str, object]:
@@ -145,9 +146,15 @@ def decide_status(
     previous: dict[str, object] | None,
     recording_error: str | None,
     recording: bool,
+    statistics_changed: bool = False,
 ) -> StatusDecision | None:
-    """Return the status to publish for these problems, None if they did not change."""
-    if found == previous:
+    """
+    Return the status to publish for these problems, None if they did not change.
+
+    A change of the streams' statistics alone (`statistics_changed`) publishes too, but is no
+    problem (level OK unless a problem is new).
+    """
+    if found == previous and not statistics_changed:
         return None
     before = previous or {}
     changed = tuple(key for key, value in found.items() if before.get(key) != value)
@@ -182,7 +189,7 @@ def summary(
     postures_published: int,
     counters: InputCounters,
     synchronizer: StreamSynchronizer,
-    detector: PostureDetector,
+    detector: PostureDetector | DwellDetector,
 ) -> str:
     """Return the collector's closing summary line."""
     rejected = {stream: reasons for stream, reasons in synchronizer.rejected.items() if reasons}
@@ -193,3 +200,36 @@ def summary(
         f'periods dropped {detector.dropped or 0}; '
         f'unpaired samples {synchronizer.unpaired or 0}'
     )
+
+
+# Resolution of the stream statistics in the status: finer changes do not publish a new one.
+STATISTICS_DIGITS = {'rate_hz': 1, 'largest_gap_s': 3, 'clock_offset_s': 4}
+
+
+def stream_statistics(
+    detector: DwellDetector, topic_names: Mapping[str, str]
+) -> dict[str, object]:
+    """
+    Return per stream its rate, gaps, clock offset and spikes rejected (the status's values).
+
+    Keys `stream.<stream>.rate_hz` (Hz), `.gaps` (intervals between readings longer than
+    max_gap_s), `.largest_gap_s` (s, the longest of them, 0 if none), `.clock_offset_s` (its
+    stamps minus the actuators', s: estimated or given) and `.spikes_rejected` (readings left
+    out of posture means); `stream.<stream>.topic` names its topic.
+    """
+    values: dict[str, object] = {}
+    offsets = detector.offsets_s
+    for stream, lane in detector.lanes.items():
+        health = lane.health
+        key = f'stream.{stream}'
+        values[f'{key}.topic'] = topic_names.get(stream, '')
+        values[f'{key}.rate_hz'] = round(health.rate_hz, STATISTICS_DIGITS['rate_hz'])
+        values[f'{key}.gaps'] = health.gaps
+        values[f'{key}.largest_gap_s'] = round(
+            health.largest_gap_ns / NS_PER_S, STATISTICS_DIGITS['largest_gap_s']
+        )
+        values[f'{key}.clock_offset_s'] = round(
+            offsets[stream], STATISTICS_DIGITS['clock_offset_s']
+        )
+        values[f'{key}.spikes_rejected'] = health.spikes_rejected
+    return values

@@ -182,6 +182,14 @@ class StreamSynchronizer:
     def add_encoder(self, reading: EncoderReading) -> list[PostureReading]:
         return _readings(self.add_values(Stream.ENCODER, reading.stamp_ns, (reading.phi,)))
 
+    def accept(self, stream: Stream, stamp_ns: int, values: tuple[float, ...]) -> bool:
+        """
+        Take a reading for the stream's health only (no pairing): the DwellDetector's path.
+
+        Returns False for a stamp that repeats or goes back in time (counted in `rejected`).
+        """
+        return self._streams[stream].accept(stamp_ns, values)
+
     def add_values(
         self, stream: Stream, stamp_ns: int, values: tuple[float, ...]
     ) -> list[tuple[int, tuple[float, ...]]]:
