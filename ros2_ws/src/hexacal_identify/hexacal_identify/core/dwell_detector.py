@@ -6,16 +6,16 @@ own stamps - no pairing of readings - and judges each on its own readings:
 
 * Time is cut into a grid of blocks of window_s / 4 (stamps corrected by each stream's clock
   offset). At the end of every block each stream's last window_s (four blocks) is judged:
-  moving when a channel's spread without spikes or the change of its median between the
+  moving when a channel's spread without spikes or the change of its level between the
   window's two halves exceeds the channel's tolerance (slider_tolerance_m,
-  angle_tolerance_rad); settled when no channel's median changes significantly between the
-  halves (more than SETTLED_SIGMAS standard errors from the channel's robust scatter, or
-  one quantisation step); settling in between. A channel still creeping towards its level
+  angle_tolerance_rad); settled when no channel's level (mean without spikes) changes
+  significantly between the halves (more than SETTLED_SIGMAS standard errors, or one
+  quantisation step); settling in between. A channel still creeping towards its level
   (an inclinometer lagging through its filter) is settling, so it is waited for.
 * A posture is taken from the capture_s (rounded up to whole blocks) that follow a moment
   at which every stream was settled, once every stream's readings over it are in: each
   stream's capture must hold at least two readings, no interval longer than max_gap_s,
-  no spread beyond the tolerance, and its median must equal the one of the settled window
+  no spread beyond the tolerance, and its level must equal the one of the settled window
   before it and the one of its own first half (same significance test). Otherwise the
   capture slides on by a block - the machine still stands (the executor waits for this
   posture), so a channel that is still creeping only delays the posture.
@@ -67,7 +67,9 @@ from .stream_lane import StreamLane
 STREAM_WIDTHS = {Stream.SLIDERS: N_CHAINS, Stream.INCLINOMETER: 2, Stream.ENCODER: 1}
 REFERENCE = Stream.SLIDERS  # offsets are against the actuator stream's clock
 BLOCKS_PER_WINDOW = 4
-SETTLED_SIGMAS = 3.0
+# Levels differ significantly beyond 4 standard errors: with 9 channels judged at every block,
+# 3 would call noise 'settling' every few blocks (Student t of ~30 samples), delaying postures.
+SETTLED_SIGMAS = 4.0
 # A stream this far (or the window and capture, if longer) behind the others is given up on
 # for the blocks it misses: memory stays bounded when a stream stops.
 HORIZON_S = 1.0

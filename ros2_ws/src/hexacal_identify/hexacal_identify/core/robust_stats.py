@@ -2,8 +2,9 @@
 Robust per-channel statistics of a few hundred sensor samples (ROS-free, numpy only).
 
 The dwell detector (core.dwell_detector) judges and averages each stream on its own samples
-with these: the median and the median absolute deviation (MAD) are not moved by a spike,
-and the quantisation step read from the data is the floor of every threshold, so a noise-free
+with these: a spike is a sample beyond SPIKE_SIGMAS robust sigmas (median absolute
+deviation, MAD) from the median; levels are means of the samples without spikes; and the
+quantisation step read from the data is the floor of every threshold, so a noise-free
 quantised channel (MAD 0) is neither 'trending' at one step nor rejected as spikes.
 All functions take an (n, channels) array and work per column.
 """
@@ -16,8 +17,6 @@ import numpy as np
 
 # sigma = MAD_TO_SIGMA * MAD for Gaussian noise (1 / Phi^-1(3/4)).
 MAD_TO_SIGMA = 1.482602218505602
-# The standard error of a median is about sqrt(pi / 2) times that of a mean (Gaussian noise).
-MEDIAN_EFFICIENCY = 1.2533141373155001
 # A sample further than this many robust sigmas (or quantisation steps) from the median is
 # a spike: 5 sigma is never reached by uniform noise and once in 1.7 million by Gaussian noise.
 SPIKE_SIGMAS = 5.0
@@ -64,18 +63,24 @@ def level_shift(
     before: np.ndarray, after: np.ndarray, sigmas: float, floor: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """
-    Return per channel |median(after) - median(before)| and the threshold it is judged by.
+    Return per channel how far the level moved from `before` to `after`, and its threshold.
 
-    The threshold is `sigmas` standard errors of that difference (the pooled robust sigma of
-    both parts about their own medians, so a trend does not inflate it) or the floor (e.g.
-    the quantisation step: a median can move by one step on noise alone), whichever is larger.
+    The level of each part is the mean of its samples without spikes (more efficient than a
+    median, and as robust once spikes are out); the threshold is `sigmas` standard errors of
+    the difference (the pooled scatter of both parts about their own means, so a trend does
+    not inflate it) or the floor (e.g. the quantisation step: a level can move by one step on
+    noise alone), whichever is larger.
     """
-    median_before = np.median(before, axis=0)
-    median_after = np.median(after, axis=0)
-    deviations = np.concatenate((before - median_before, after - median_after))
-    sigma = MAD_TO_SIGMA * np.median(np.abs(deviations), axis=0)
-    error = MEDIAN_EFFICIENCY * sigma * np.sqrt(1.0 / len(before) + 1.0 / len(after))
-    return np.abs(median_after - median_before), np.maximum(sigmas * error, floor)
+    first = robust_mean(before, floor)
+    second = robust_mean(after, floor)
+    squares = first.std**2 * np.maximum(first.count - 1, 0) + second.std**2 * np.maximum(
+        second.count - 1, 0
+    )
+    pooled = np.sqrt(squares / np.maximum(first.count + second.count - 2, 1))
+    error = pooled * np.sqrt(
+        1.0 / np.maximum(first.count, 1) + 1.0 / np.maximum(second.count, 1)
+    )
+    return np.abs(second.mean - first.mean), np.maximum(sigmas * error, floor)
 
 
 @dataclass(frozen=True)
