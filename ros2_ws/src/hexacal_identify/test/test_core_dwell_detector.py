@@ -126,3 +126,157 @@ def bias(postures, truth: Truth) -> float:
         nearest = [k for k, (a, b) in enumerate(truth.holds) if a <= posture.stamp_ns <= b][0]
         errors.append(np.max(np.abs(posture.values - truth.targets[nearest])))
     return float(max(errors))
+
+
+def feed_online(truth: Truth, chunk_s: float, **options):
+    """Feed the streams as the collector does: every chunk_s, what each stream stamped."""
+    detector = DwellDetector(**options)
+    postures = []
+    end = max(stamps[-1] for stamps, _ in truth.streams.values())
+    step = int(chunk_s * 1e9)
+    for begin in range(T0_NS - step, int(end) + step, step):
+        batch = {}
+        for name, (stamps, values) in truth.streams.items():
+            inside = (stamps >= begin) & (stamps < begin + step)
+            if inside.any():
+                batch[name] = (stamps[inside], values[inside])
+        postures += detector.update(batch)
+    postures += detector.finish()[0]
+    return postures, detector
+
+
+# --------------------------------------------------------------------------- per effect
+
+
+def test_ideal_streams_give_one_posture_per_dwell_within_noise():
+    truth = make_streams(seed=3)
+    postures, detector = detect_dwell_postures(truth.streams)
+    assert len(postures) == len(truth.targets) == len(old_detector(truth))
+    assert np.all(errors_in_se(postures, truth) < 4.0)
+    for posture in postures:
+        scatter = posture.scatter
+        assert posture.reading.scatter == scatter
+        # ~0.5 s at 100 Hz per stream; standard error of uniform +-10 um noise over ~50.
+        assert all(45 <= n <= 60 for n in scatter.sample_counts)
+        expected = NOISE / np.sqrt(3) / np.sqrt(np.array(scatter.sample_counts))
+        assert np.allclose(scatter.standard_errors, expected, rtol=0.4)
+        assert posture.first_stamp_ns < posture.stamp_ns
+    assert detector.dropped == {} and detector.rejected == {}
+
+
+def test_a_lagging_inclinometer_is_waited_for_where_the_old_detector_is_biased():
+    truth = make_streams(seed=5, lag_s=0.2, hold_s=3.0)
+    postures, _ = detect_dwell_postures(truth.streams)
+    old = old_detector(truth)
+    assert len(postures) == len(truth.targets) == len(old)
+    errors = errors_in_se(postures, truth)
+    assert np.all(errors < 4.0), errors.max(axis=0)
+    # The old detector averages the inclinometer while it still creeps: tens of urad off,
+    # tens of its own standard errors.
+    old_errors = errors_in_se(old, truth)[:, 6:8]
+    assert bias(old, truth) > 10e-6 and np.median(old_errors.max(axis=1)) > 5.0
+    assert bias(postures, truth) < 4e-6
+
+
+def test_a_spike_neither_splits_nor_biases_a_dwell():
+    truth = make_streams(seed=7, spikes=30)
+    postures, detector = detect_dwell_postures(truth.streams)
+    old = old_detector(truth)
+    assert len(old) != len(truth.targets)  # spikes split (or break) the old one's dwells
+    assert len(postures) == len(truth.targets)
+    assert np.all(errors_in_se(postures, truth) < 4.0)
+    spikes = sum(lane.health.spikes_rejected for lane in detector.lanes.values())
+    assert spikes >= 1
+
+
+def test_a_30_ms_clock_offset_is_estimated_and_the_postures_are_right():
+    truth = make_streams(seed=9, offsets_s=(0.03, -0.02), count=16)
+    postures, detector = detect_dwell_postures(truth.streams)
+    assert detector.offsets_s['inclinometer'] == pytest.approx(0.03, abs=0.003)
+    assert detector.offsets_s['encoder'] == pytest.approx(-0.02, abs=0.003)
+    assert len(postures) == len(truth.targets)
+    assert np.all(errors_in_se(postures, truth) < 4.0)
+    # Stated offsets are used as they are.
+    stated, fixed = detect_dwell_postures(
+        truth.streams, clock_offsets_s={'inclinometer': 0.03, 'encoder': -0.02}, estimate_offsets=()
+    )
+    assert fixed.offsets_s == {'sliders': 0.0, 'inclinometer': 0.03, 'encoder': -0.02}
+    assert len(stated) == len(truth.targets)
+
+
+def test_drops_and_different_rates_give_per_channel_counts():
+    truth = make_streams(seed=11, rates=(100.0, 50.0, 200.0), drop=0.1)
+    postures, detector = detect_dwell_postures(truth.streams)
+    assert len(postures) == len(truth.targets)
+    assert np.all(errors_in_se(postures, truth) < 4.0)
+    counts = np.array([p.scatter.sample_counts for p in postures])
+    # About 0.525 s of each stream, 10 % dropped: ~47, ~24 and ~95 readings.
+    assert np.all((counts[:, :6] > 35) & (counts[:, :6] < 60))
+    assert np.all((counts[:, 6:8] > 15) & (counts[:, 6:8] < 30))
+    assert np.all((counts[:, 8] > 75) & (counts[:, 8] < 115))
+    rates = {lane.name: lane.health.rate_hz for lane in detector.lanes.values()}
+    assert rates['sliders'] == pytest.approx(90, rel=0.05)
+    assert rates['inclinometer'] == pytest.approx(45, rel=0.05)
+    assert rates['encoder'] == pytest.approx(180, rel=0.05)
+
+
+def test_quantised_noise_free_channels_give_finite_non_negative_standard_errors():
+    truth = make_streams(seed=13, noise=0.0, quantum_m=1e-6, quantum_rad=2e-5)
+    postures, _ = detect_dwell_postures(truth.streams)
+    assert len(postures) == len(truth.targets)
+    for posture in postures:
+        errors = np.array(posture.scatter.standard_errors)
+        assert np.all(np.isfinite(errors)) and np.all(errors >= 0.0)
+    # Within half a resolution step of the truth.
+    assert bias(postures, truth) <= 1e-5 + 1e-12
+    assert np.array_equal(quantum(np.array([[0.0], [0.0], [2e-5], [2e-5], [4e-5]])), [2e-5])
+    mean = robust_mean(np.full((10, 1), 3e-5), np.zeros(1))
+    assert mean.standard_error[0] == 0.0 and mean.count[0] == 10
+
+
+def test_gaps_drop_a_capture_and_the_end_of_data_drops_a_partial_one():
+    truth = make_streams(seed=15, count=3, hold_s=3.0)
+    stamps, values = truth.streams['encoder']
+    start = truth.holds[1][0]
+    hole = (stamps > start + 700_000_000) & (stamps < start + 1_000_000_000)
+    truth.streams['encoder'] = (stamps[~hole], values[~hole])
+    postures, detector = detect_dwell_postures(truth.streams)
+    assert len(postures) == 3  # the dwell is still captured after the gap
+    assert detector.lanes['encoder'].health.gaps == 1
+    assert detector.lanes['encoder'].health.largest_gap_ns >= 300_000_000
+    short = make_streams(seed=15, count=2, hold_s=0.7)
+    _, ended = detect_dwell_postures(short.streams)
+    assert sum(ended.dropped.values()) >= 1
+
+
+# --------------------------------------------------------------------------- online, memory
+
+
+@pytest.mark.parametrize('chunk_s', [0.01, 0.037, 0.5])
+def test_online_in_chunks_equals_offline_exactly(chunk_s):
+    truth = make_streams(seed=17, count=8, lag_s=0.1, spikes=10, offsets_s=(0.03, -0.01))
+    offline, _ = detect_dwell_postures(truth.streams)
+    online, _ = feed_online(truth, chunk_s)
+    assert len(online) == len(offline) == 8
+    for a, b in zip(online, offline):
+        assert a.reading == b.reading and a.first_stamp_ns == b.first_stamp_ns
+
+
+def test_memory_is_bounded_over_a_long_run():
+    truth = make_streams(seed=19, count=40, hold_s=2.0, move_s=0.5)
+    detector = DwellDetector()
+    found = []
+    step = 10_000_000
+    end = max(stamps[-1] for stamps, _ in truth.streams.values())
+    held = []
+    for begin in range(T0_NS, int(end) + step, step):
+        batch = {
+            name: (stamps[(stamps >= begin) & (stamps < begin + step)],
+                   values[(stamps >= begin) & (stamps < begin + step)])
+            for name, (stamps, values) in truth.streams.items()
+        }
+        found += detector.update(batch)
+        held.append(detector.held_samples)
+    assert len(found) == 40
+    # Window, capture and a block of each stream at 100 Hz: never more than ~1.2 s x 3 streams.
+    assert max(held) <= 400 and max(held[len(held) // 2:]) <= max(held[: len(held) // 2]) + 10

@@ -228,7 +228,9 @@ class DwellDetector:
     def _run(self) -> list[DetectedPosture]:
         postures: list[DetectedPosture] = []
         while True:
-            block = self._start_block() if self._next_block is None else self._next_block
+            if self._next_block is None:
+                self._next_block = self._start_block()  # fixed once chosen
+            block = self._next_block
             if block is None or not self._complete(block) or self._past_the_end(block):
                 return postures
             posture = self._at_block(block)
