@@ -85,6 +85,15 @@ def test_fifty_postures_calibrate_the_simulated_machine(ros_processes, tmp_path,
         assert all(20 <= n <= 40 for n in posture.scatter.sample_counts), posture.scatter
         assert all(0 < e < 3e-6 for e in posture.scatter.standard_errors), posture.scatter
 
+    # The collector's status names each stream's rate, gaps, clock offset and spikes rejected.
+    streams = [v for _, _, v in probe.statuses if 'stream.sliders.rate_hz' in v][-1]
+    for stream in ('sliders', 'inclinometer', 'encoder'):
+        assert float(streams[f'stream.{stream}.rate_hz']) == pytest.approx(100.0, rel=0.05)
+        assert abs(float(streams[f'stream.{stream}.clock_offset_s'])) < 0.005  # one clock
+        assert int(streams[f'stream.{stream}.spikes_rejected']) >= 0
+        assert int(streams[f'stream.{stream}.gaps']) >= 0
+        assert streams[f'stream.{stream}.topic'] == f'/hexacal/{stream}'
+
     response = probe.call_trigger(timeout=120.0)
     assert response.success, response.message
     assert f'{POSTURES} of {POSTURES} postures' in response.message
