@@ -85,14 +85,17 @@ def make_streams(
             for i in range(1, len(truth)):
                 truth[i] = decay * truth[i - 1] + (1 - decay) * truth[i]
         times = np.arange(0.0, end_s, 1.0 / rate)
-        values = np.column_stack([np.interp(times, fine, truth[:, c]) for c in range(truth.shape[1])])
+        values = np.column_stack(
+            [np.interp(times, fine, truth[:, c]) for c in range(truth.shape[1])]
+        )
         values += rng.uniform(-noise, noise, values.shape)
         step = quantum_m if name == 'sliders' else quantum_rad
         if step:
             values = np.round(values / step) * step
         if spikes:
             where = rng.choice(len(values), spikes, replace=False)
-            values[where, rng.integers(0, values.shape[1], spikes)] += rng.choice([-1, 1], spikes) * 3e-3
+            channels = rng.integers(0, values.shape[1], spikes)
+            values[where, channels] += rng.choice([-1, 1], spikes) * 3e-3  # 3 mm / mrad
         keep = rng.random(len(times)) >= drop
         stamps = T0_NS + np.round((times + offset) * 1e9).astype(np.int64)
         streams[name] = (stamps[keep], values[keep])
@@ -198,7 +201,9 @@ def test_a_30_ms_clock_offset_is_estimated_and_the_postures_are_right():
     assert np.all(errors_in_se(postures, truth) < 4.0)
     # Stated offsets are used as they are.
     stated, fixed = detect_dwell_postures(
-        truth.streams, clock_offsets_s={'inclinometer': 0.03, 'encoder': -0.02}, estimate_offsets=()
+        truth.streams,
+        clock_offsets_s={'inclinometer': 0.03, 'encoder': -0.02},
+        estimate_offsets=(),
     )
     assert fixed.offsets_s == {'sliders': 0.0, 'inclinometer': 0.03, 'encoder': -0.02}
     assert len(stated) == len(truth.targets)
@@ -270,11 +275,10 @@ def test_memory_is_bounded_over_a_long_run():
     end = max(stamps[-1] for stamps, _ in truth.streams.values())
     held = []
     for begin in range(T0_NS, int(end) + step, step):
-        batch = {
-            name: (stamps[(stamps >= begin) & (stamps < begin + step)],
-                   values[(stamps >= begin) & (stamps < begin + step)])
-            for name, (stamps, values) in truth.streams.items()
-        }
+        batch = {}
+        for name, (stamps, values) in truth.streams.items():
+            inside = (stamps >= begin) & (stamps < begin + step)
+            batch[name] = (stamps[inside], values[inside])
         found += detector.update(batch)
         held.append(detector.held_samples)
     assert len(found) == 40

@@ -186,7 +186,7 @@ class DwellDetector:
 
     @property
     def held_samples(self) -> int:
-        """Readings in memory over all streams (bounded)."""
+        """Return the number of readings in memory over all streams (bounded)."""
         return sum(lane.held for lane in self.lanes.values())
 
     def _queue(self, stream: Stream, stamps_ns: ArrayLike, values: ArrayLike) -> None:

@@ -90,7 +90,7 @@ class StreamLane:
 
     @property
     def held(self) -> int:
-        """Readings in memory: queued and in the kept blocks."""
+        """Return the number of readings in memory: queued and in the kept blocks."""
         return self.queued + sum(len(block.stamps) for block in self._blocks.values())
 
     def newest_corrected_ns(self) -> int | None:
