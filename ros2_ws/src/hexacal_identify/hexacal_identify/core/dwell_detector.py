@@ -315,8 +315,14 @@ class DwellDetector:
         both = np.concatenate(halves)
         floor = robust.quantum(both)
         tolerance = self.tolerances[stream]
+        if np.any(robust.robust_spread(both, floor) > tolerance):
+            return Verdict.MOVING
+        if self.state is DetectorState.CAPTURED:
+            # Waiting for motion only: settled or settling makes no difference (cheaper).
+            moved = np.abs(np.median(second, axis=0) - np.median(first, axis=0)) > tolerance
+            return Verdict.MOVING if np.any(moved) else Verdict.SETTLED
         shift, threshold = robust.level_shift(first, second, SETTLED_SIGMAS, floor)
-        if np.any(shift > tolerance) or np.any(robust.robust_spread(both, floor) > tolerance):
+        if np.any(shift > tolerance):
             return Verdict.MOVING
         return Verdict.SETTLED if np.all(shift <= threshold) else Verdict.SETTLING
 
