@@ -319,7 +319,7 @@ class DwellDetector:
             return Verdict.MOVING
         if self.state is DetectorState.CAPTURED:
             # Waiting for motion only: settled or settling makes no difference (cheaper).
-            moved = np.abs(np.median(second, axis=0) - np.median(first, axis=0)) > tolerance
+            moved = np.abs(robust.median(second) - robust.median(first)) > tolerance
             return Verdict.MOVING if np.any(moved) else Verdict.SETTLED
         shift, threshold = robust.level_shift(first, second, SETTLED_SIGMAS, floor)
         if np.any(shift > tolerance):
@@ -332,7 +332,7 @@ class DwellDetector:
             halves = self._window(stream, block)
             if halves is None:
                 continue  # a gap: judged when data is back
-            level = np.median(halves[1], axis=0)
+            level = robust.median(halves[1])
             if np.any(np.abs(level - values) > self.tolerances[stream]):
                 return True
         return False
