@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from hexacal_identify.core.dwell_detector import detect_dwell_postures, DwellDetector
 from hexacal_identify.core.posture_detector import detect_postures, synchronize_arrays
 from hexacal_identify.core.robust_stats import quantum, robust_mean
+from hexacal_msgs_py.errors import InvalidReadingError
 import numpy as np
 import pytest
 
@@ -284,3 +285,31 @@ def test_memory_is_bounded_over_a_long_run():
     assert len(found) == 40
     # Window, capture and a block of each stream at 100 Hz: never more than ~1.2 s x 3 streams.
     assert max(held) <= 400 and max(held[len(held) // 2:]) <= max(held[: len(held) // 2]) + 10
+
+
+@pytest.mark.parametrize('seed', range(5))
+def test_disordered_repeated_and_non_finite_readings_are_counted_never_fatal(seed):
+    rng = np.random.default_rng(seed)
+    truth = make_streams(seed=seed, count=4)
+    detector = DwellDetector()
+    postures = []
+    for name, (stamps, values) in truth.streams.items():
+        stamps, values = stamps.copy(), values.copy()
+        swap = rng.choice(len(stamps) - 1, 20, replace=False)
+        stamps[swap], stamps[swap + 1] = stamps[swap + 1], stamps[swap].copy()
+        values[rng.choice(len(values), 10, replace=False), 0] = np.nan
+        stamps[rng.choice(len(stamps), 5, replace=False)] = stamps[0]
+        for begin in range(0, len(stamps), 37):
+            postures += detector.add(name, stamps[begin:begin + 37], values[begin:begin + 37])
+    postures += detector.finish()[0]
+    assert detector.rejected['non_finite'] == 30
+    assert detector.rejected.get('out_of_order', 0) + detector.rejected.get(
+        'duplicate_stamp', 0
+    ) >= 3 * 20
+    for posture in postures:
+        assert np.all(np.isfinite(posture.values))
+        assert np.all(np.isfinite(posture.scatter.standard_errors))
+    with pytest.raises(InvalidReadingError):
+        detector.add('sliders', [1, 2], [[0.0] * 5, [0.0] * 5])
+    with pytest.raises(ValueError):
+        DwellDetector(clock_offsets_s={'sliders': 0.1})
