@@ -156,9 +156,16 @@ class StreamLane:
             self._blocks[key] = block
 
     def gap_after_ns(self) -> float:
-        """Return the interval from the last reading taken to the next queued one (inf: none)."""
-        if self._previous_ns is None or not len(self._queue_stamps):
+        """
+        Return the interval from the last reading taken to the next queued one.
+
+        Infinite while none is queued; 0 once the lane ended with its last reading taken (the
+        data ended, no gap: a posture captured up to the end of a recording counts).
+        """
+        if self._previous_ns is None:
             return np.inf
+        if not len(self._queue_stamps):
+            return 0.0 if self.ended else np.inf
         return float(int(self._queue_stamps[0]) - self.offset_ns - self._previous_ns)
 
     def samples(self, first: int, last: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
