@@ -250,9 +250,13 @@ def test_gaps_drop_a_capture_and_the_end_of_data_drops_a_partial_one():
     assert len(postures) == 3  # the dwell is still captured after the gap
     assert detector.lanes['encoder'].health.gaps == 1
     assert detector.lanes['encoder'].health.largest_gap_ns >= 300_000_000
-    short = make_streams(seed=15, count=2, hold_s=0.7)
-    _, ended = detect_dwell_postures(short.streams)
-    assert sum(ended.dropped.values()) >= 1
+    # The data ends 0.55 s into the second dwell: settled, but too short to capture.
+    short = make_streams(seed=15, count=2, hold_s=2.0)
+    end = short.holds[1][0] + 550_000_000
+    for name, (stamps, values) in short.streams.items():
+        short.streams[name] = (stamps[stamps <= end], values[stamps <= end])
+    found, ended = detect_dwell_postures(short.streams)
+    assert len(found) == 1 and ended.dropped == {'end_of_stream': 1}
 
 
 # --------------------------------------------------------------------------- online, memory

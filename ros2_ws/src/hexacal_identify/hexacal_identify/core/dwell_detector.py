@@ -19,6 +19,7 @@ own stamps - no pairing of readings - and judges each on its own readings:
   before it and the one of its own first half (same significance test). Otherwise the
   capture slides on by a block - the machine still stands (the executor waits for this
   posture), so a channel that is still creeping only delays the posture.
+  At the end of a recording the last block may be partial (the data ended; no gap).
 * Each channel of the posture is the mean of its readings in the capture without spikes
   (beyond SPIKE_SIGMAS robust sigmas from the median, counted per stream), with its own
   count and standard error (std / sqrt(n)): streams differ in rate and drops.
