@@ -39,7 +39,7 @@ def quantum(values: np.ndarray) -> np.ndarray:
 
 
 def median(values: np.ndarray) -> np.ndarray:
-    """Return per channel the median (np.median's value; a sort is cheaper for few samples)."""
+    """Return per channel the median, as numpy's (one sort is cheaper for few samples)."""
     ordered = np.sort(values, axis=0)
     middle = len(values) // 2
     if len(values) % 2:
