@@ -3,7 +3,8 @@ What the collector reports about its inputs: counters, stopped streams, status d
 
 Everything not used is counted by stream and reason (`problems`): invalid messages, messages
 DDS reports lost, readings whose stamps repeat or go back, slider readings without a
-partner, samples and periods the detector rejects or drops, the streams that stopped and a
+partner (window detector), time the settled detector judged without a stream stamped too
+far behind, samples and periods the detector rejects or drops, the streams that stopped and a
 recording error. The status is published when that changes (`decide_status`).
 """
 
@@ -42,6 +43,7 @@ class ProblemKey(StrEnum):
     LOST = 'lost'
     REJECTED = 'rejected'
     UNPAIRED = 'unpaired'
+    BEHIND = 'behind'  # settled detector: blocks judged without a stream stamped too far behind
     REJECTED_SAMPLES = 'rejected.samples'
     DROPPED = 'dropped'
     STREAMS_STOPPED = 'streams_stopped'
@@ -81,6 +83,14 @@ class InputCounters:
         self.invalid[topic] = self.invalid.get(topic, 0) + 1
         return self.invalid[topic]
 
+    def all_stopped(self, now_ns: int, stopped_after_s: float) -> bool:
+        """Return True if every input received and then went silent for `stopped_after_s`."""
+        return all(
+            topic in self.last_receipt_ns
+            and now_ns - self.last_receipt_ns[topic] > stopped_after_s * NS_PER_S
+            for topic in self.topics
+        )
+
     def stopped(
         self, now_ns: int, stopped_after_s: float, topic_names: Mapping[str, str]
     ) -> tuple[str, ...]:
@@ -119,6 +129,8 @@ def problems(
             found[f'{ProblemKey.REJECTED}.{stream}.{reason}'] = count
     for reason, count in sorted(synchronizer.unpaired.items()):
         found[f'{ProblemKey.UNPAIRED}.{reason}'] = count
+    for stream, count in sorted(getattr(detector, 'behind', {}).items()):
+        found[f'{ProblemKey.BEHIND}.{stream}'] = count
     for reason, count in sorted(detector.rejected.items()):
         found[f'{ProblemKey.REJECTED_SAMPLES}.{reason}'] = count
     for reason, count in sorted(detector.dropped.items()):

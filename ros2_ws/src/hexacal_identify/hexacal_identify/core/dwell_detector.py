@@ -72,8 +72,10 @@ BLOCKS_PER_WINDOW = 4
 # 3 would call noise 'settling' every few blocks (Student t of ~30 samples), delaying postures.
 SETTLED_SIGMAS = 4.0
 # A stream this far (or the window and capture, if longer) behind the others is given up on
-# for the blocks it misses: memory stays bounded when a stream stops.
-HORIZON_S = 1.0
+# for the blocks it misses (counted in `behind`): memory stays bounded when a stream stops or
+# is stamped far off. Longer than the collector takes to call a stream stopped (1-2 s), so a
+# capture a stopped stream leaves half done is dropped as such, not as a gap.
+HORIZON_S = 3.0
 # Blocks after a stream is first judged moving at which its start of motion is timed.
 DEPARTURE_DELAY_BLOCKS = 2
 
@@ -149,6 +151,7 @@ class DwellDetector:
         self.rejected: dict[str, int] = {}
         self.dropped: dict[str, int] = {}
         self.recent_dropped: deque[DroppedPeriod] = deque(maxlen=16)
+        self.behind: dict[str, int] = {}  # per stream, blocks judged without it (too late)
         self.emitted = 0
         self.slid = 0  # captures slid on because a stream was still settling
 
@@ -173,6 +176,21 @@ class DwellDetector:
             lane.ended = True
         postures = self._run()
         return postures, self.abort(DropReason.END_OF_STREAM)
+
+    def flush(self) -> list[DetectedPosture]:
+        """
+        Judge the readings in hand as if the data ended (every stream stopped); go on after.
+
+        A posture whose capture the last readings complete is emitted; readings that come
+        later are judged as usual.
+        """
+        for lane in self.lanes.values():
+            lane.ended = True
+        try:
+            return self._run()
+        finally:
+            for lane in self.lanes.values():
+                lane.ended = False
 
     def abort(self, reason: DropReason) -> DroppedPeriod | None:
         """Drop (count, never emit) a capture in progress, e.g. when a stream stopped."""
@@ -268,9 +286,14 @@ class DwellDetector:
         if all(complete):
             return True
         # Ended streams are complete; the data of the others will come unless one is too late.
-        return all(c or lane.ended for c, lane in zip(complete, self.lanes.values())) or (
-            self._given_up(block)
-        )
+        if all(c or lane.ended for c, lane in zip(complete, self.lanes.values())):
+            return True
+        if not self._given_up(block):
+            return False
+        for done, lane in zip(complete, self.lanes.values()):
+            if not done and not lane.ended:
+                self.behind[lane.name] = self.behind.get(lane.name, 0) + 1
+        return True
 
     def _at_block(self, block: int) -> DetectedPosture | None:
         verdicts = {stream: self._verdict(stream, block) for stream in self.lanes}

@@ -400,6 +400,13 @@ class CollectorNode(Node):
             self.stopped_streams = stopped
         if stopped:
             self._detect()  # normally nothing left: _poll runs the detector after each batch
+            if isinstance(self.detector, DwellDetector) and self.counters.all_stopped(
+                time.monotonic_ns(), STREAM_STOPPED_S
+            ):
+                # Every stream stopped: the data ended, so a capture the last readings
+                # complete is a posture (its last block needs no later reading).
+                for posture in self.detector.flush():
+                    self._on_posture(posture)
             dropped = self.detector.abort(detection.DropReason.STREAM_STOPPED)
             if dropped is not None:
                 self.get_logger().warning(
