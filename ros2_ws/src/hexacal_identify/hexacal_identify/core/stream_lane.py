@@ -111,8 +111,12 @@ class StreamLane:
 
         Complete: a reading beyond it was received, or the lane ended.
         """
-        stamps = self._queue_stamps
-        if len(stamps):
+        queued = self._queue_stamps
+        if len(queued):
+            # Only the readings up to the first beyond the block (the queue may hold a whole
+            # recording): the clamp below only moves readings later, never earlier.
+            end_ns = (block + 1) * self.block_ns + self.offset_ns
+            stamps = queued[: int(np.searchsorted(queued, end_ns, side='left')) + 1]
             corrected = stamps - self.offset_ns
             if self._previous_ns is not None:
                 # An offset that grew must not move a reading before the one taken last.
@@ -123,7 +127,7 @@ class StreamLane:
             count = int(np.searchsorted(ids, block, side='right'))
             if count:
                 self._take(corrected[:count], ids[:count], count)
-            if count < len(stamps):
+            if count < len(queued):
                 return True
         return self.ended
 
