@@ -90,6 +90,39 @@ def test_raw_streams_only_are_redetected_and_foreign_topics_ignored(
     assert np.max(np.abs(load_parameters(tmp_path / 'out.yaml') - TRUE.vector)) < 5e-4
 
 
+def test_redetection_detectors_agree_on_ideal_streams_and_the_new_one_gives_scatter(
+    exact_postures, nominal_file, tmp_path
+):
+    from hexacal_identify.pipeline import postures_from_bag
+
+    bag = write_recording(tmp_path / 'raw', exact_postures, seed=5, postures=False)
+    truth = np.column_stack(
+        [exact_postures.actuator_positions, exact_postures.inclinometer, exact_postures.rotary]
+    )
+    settled = postures_from_bag(bag).postures
+    window = postures_from_bag(bag, detector='window').postures
+    assert len(settled) == len(window) == 40
+    assert all(new.scatter is not None for new in settled)
+    assert all(old.scatter is None for old in window)
+    # (The recording opens with 0.6 s of the first posture without noise: from the second on.)
+    for new, exact in zip(settled[1:], truth[1:]):
+        errors = np.array(new.scatter.standard_errors)
+        # Uniform +-10 um noise: ~1 um standard errors; the means within 5 of them.
+        assert np.all((errors > 2e-7) & (errors < 2e-6))
+        assert np.all(np.abs(np.array(new.values()) - exact) < 5 * errors)
+    completed = hexacal(
+        'calibrate', bag, '--nominal', nominal_file, '--output', tmp_path / 'out.yaml',
+        '--json', '--detector', 'window', '--clock-offset', 'inclinometer=0.0',
+    )
+    assert completed.returncode == 0, completed.stderr
+    assert json.loads(completed.stdout)['bag']['postures'] == 40
+    refused = hexacal(
+        'calibrate', bag, '--nominal', nominal_file, '--output', tmp_path / 'out.yaml',
+        '--clock-offset', 'sliders=0.1',
+    )
+    assert refused.returncode == 2 and 'inclinometer=S or encoder=S' in refused.stderr
+
+
 def test_a_missing_stream_is_named(exact_postures, nominal_file, tmp_path):
     bag = write_recording(
         tmp_path / 'no_encoder',

@@ -55,12 +55,14 @@ def _positions(seed: float) -> list[float]:
     return [seed + 0.01 * i for i in range(len(BROADCASTER_NAMES))]
 
 
-def test_the_collector_reads_one_joint_states_for_its_three_inputs_once_each():
+@pytest.mark.parametrize('detector', ['settled', 'window'])
+def test_the_collector_reads_one_joint_states_for_its_three_inputs_once_each(detector):
     """
     Read all three inputs remapped to one topic, each reading once per message.
 
     One subscription, the in-place reader learned from the first message, the
-    synchronizer pairing them exactly.
+    synchronizer pairing them exactly (window detector) or taking each stream as it is
+    (settled detector).
     """
     from hexacal_identify.nodes.collector import CollectorNode
     from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, SLIDERS_TOPIC
@@ -71,6 +73,8 @@ def test_the_collector_reads_one_joint_states_for_its_three_inputs_once_each():
             '--ros-args',
             '-p',
             'record:=false',
+            '-p',
+            f'detector:={detector}',
             '-p',
             'window_s:=0.2',
             '-p',
@@ -129,6 +133,11 @@ def test_the_collector_reads_one_joint_states_for_its_three_inputs_once_each():
         }
         assert node.counters.invalid == {} and node.synchronizer.unpaired == {}
         (posture,) = published
+        # The settled detector sends the posture's scatter (noise-free: 0, 30 readings each).
+        if detector == 'settled':
+            assert list(posture.velocity) == [0.0] * 9 and list(posture.effort) == [30.0] * 9
+        else:
+            assert list(posture.velocity) == [] and list(posture.effort) == []
         value = dict(zip(BROADCASTER_NAMES, positions))
         assert list(posture.name) == [f'slider_{i}' for i in range(1, 7)] + [
             'inclinometer_x',

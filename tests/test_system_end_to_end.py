@@ -13,7 +13,7 @@ from hexacal_identify.core.model import HexaParameters
 from hexacal_identify.core.validation import pose_errors, validation_poses
 from hexacal_identify.pipeline import postures_from_bag
 from hexacal_msgs_py.parameters_file import load_parameters
-from hexacal_msgs_py.readings import PostureReading
+from hexacal_msgs_py.readings import PostureReading, PostureScatter
 import numpy as np
 import pytest
 from system_support import (
@@ -79,6 +79,20 @@ def test_fifty_postures_calibrate_the_simulated_machine(ros_processes, tmp_path,
         lambda: '\n'.join(p.describe(10) for p in nodes),
     )
     assert len(probe.postures) == POSTURES
+    # Each posture carries its scatter: ~0.3 s of 100 Hz readings, uniform +-10 um noise.
+    for posture in probe.postures:
+        assert posture.scatter is not None
+        assert all(20 <= n <= 40 for n in posture.scatter.sample_counts), posture.scatter
+        assert all(0 < e < 3e-6 for e in posture.scatter.standard_errors), posture.scatter
+
+    # The collector's status names each stream's rate, gaps, clock offset and spikes rejected.
+    streams = [v for _, _, v in probe.statuses if 'stream.sliders.rate_hz' in v][-1]
+    for stream in ('sliders', 'inclinometer', 'encoder'):
+        assert float(streams[f'stream.{stream}.rate_hz']) == pytest.approx(100.0, rel=0.05)
+        assert abs(float(streams[f'stream.{stream}.clock_offset_s'])) < 0.005  # one clock
+        assert int(streams[f'stream.{stream}.spikes_rejected']) >= 0
+        assert int(streams[f'stream.{stream}.gaps']) >= 0
+        assert streams[f'stream.{stream}.topic'] == f'/hexacal/{stream}'
 
     response = probe.call_trigger(timeout=120.0)
     assert response.success, response.message
@@ -143,11 +157,19 @@ def test_fifty_postures_calibrate_the_simulated_machine(ros_processes, tmp_path,
     assert from_bag.plan.get('hexacal.plan.plan_name') == f'mixed-{POSTURES}-seed0'
 
 
-def _posture(stamp, names, positions) -> PostureReading:
+def _posture(stamp, names, positions, errors, counts) -> PostureReading:
     values = dict(zip(names, positions))
     order = [f'slider_{i}' for i in range(1, 7)] + ['inclinometer_x', 'inclinometer_y', 'rotary']
+    # The collector's settled detector sends each posture's scatter in velocity and effort.
+    assert len(errors) == len(counts) == len(names), (names, errors, counts)
+    scatter = PostureScatter(
+        tuple(dict(zip(names, errors))[name] for name in order),
+        tuple(int(dict(zip(names, counts))[name]) for name in order),
+    )
     return PostureReading.from_values(
-        stamp.sec * 1_000_000_000 + stamp.nanosec, [values[name] for name in order]
+        stamp.sec * 1_000_000_000 + stamp.nanosec,
+        [values[name] for name in order],
+        scatter=scatter,
     )
 
 
@@ -163,7 +185,15 @@ def _read_with_mcap(bag: Path) -> tuple[dict[str, int], list[PostureReading]]:
         for _, channel, _, message in reader.iter_decoded_messages():
             counts[channel.topic] = counts.get(channel.topic, 0) + 1
             if channel.topic == '/hexacal/posture':
-                postures.append(_posture(message.header.stamp, message.name, message.position))
+                postures.append(
+                    _posture(
+                        message.header.stamp,
+                        message.name,
+                        message.position,
+                        message.velocity,
+                        message.effort,
+                    )
+                )
     return counts, postures
 
 
@@ -179,5 +209,13 @@ def _read_with_rosbags(bag: Path) -> tuple[dict[str, int], list[PostureReading]]
             counts[connection.topic] = counts.get(connection.topic, 0) + 1
             if connection.topic == '/hexacal/posture':
                 message = typestore.deserialize_cdr(raw, connection.msgtype)
-                postures.append(_posture(message.header.stamp, message.name, message.position))
+                postures.append(
+                    _posture(
+                        message.header.stamp,
+                        message.name,
+                        message.position,
+                        message.velocity,
+                        message.effort,
+                    )
+                )
     return counts, postures

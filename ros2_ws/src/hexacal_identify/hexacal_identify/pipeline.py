@@ -422,6 +422,8 @@ def _topic_key(topic: str) -> str:
 # Where postures come from: the posture topic if the bag has one, else the raw inputs ("auto");
 # only the posture topic; or always re-detected from the raw inputs.
 POSTURE_SOURCES = ('auto', 'posture', 'raw')
+# Re-detection's detectors: the settled-streams detector (default) and the old window one.
+DETECTORS = ('settled', 'window')
 # The collector's detector settings in its metadata record: re-detection uses them.
 _DETECTOR_SETTINGS = (
     'window_s',
@@ -431,6 +433,8 @@ _DETECTOR_SETTINGS = (
     'max_gap_s',
     'max_skew_s',
 )
+
+CLOCK_OFFSET_SETTINGS = ('inclinometer_clock_offset_s', 'encoder_clock_offset_s')
 
 
 def postures_from_bag(
@@ -443,7 +447,9 @@ def postures_from_bag(
     (the posture topic only) or "raw" (re-detect even when there is a posture topic).
     Re-detection uses the detector settings the collector recorded (``hexacal.collector``;
     the detector's defaults where none), ``detector_options`` override them (window_s,
-    capture_s, slider_tolerance_m, angle_tolerance_rad, max_gap_s, max_skew_s).
+    capture_s, slider_tolerance_m, angle_tolerance_rad, max_gap_s, max_skew_s; ``detector``
+    'settled' (default) or 'window', ``inclinometer_clock_offset_s``/``encoder_clock_offset_s``
+    (s; None: estimated, or the collector's when it was told them), see `_redetect`).
 
     The raw inputs are the contract's topics (hexacal/sliders, hexacal/inclinometer,
     hexacal/encoder, any namespace) and joints, or, when the collector recorded an input
@@ -527,6 +533,10 @@ def postures_from_bag(
         for name in _DETECTOR_SETTINGS
         if _is_number(collector.get(name))
     }
+    if collector.get('estimate_clock_offsets') == 'False':  # offsets the collector was told
+        for name in CLOCK_OFFSET_SETTINGS:
+            if _is_number(collector.get(name)):
+                options[name] = float(collector[name])
     options.update(detector_options)
     models = set()
     postures, invalid = _redetect(reader, raw, mapping, models, recorded_model, **options)
@@ -783,6 +793,9 @@ def _redetect(
     models: set[str],
     recorded_model: str | None,
     max_skew_s: float | None = None,
+    detector: str = 'settled',
+    inclinometer_clock_offset_s: float | None = None,
+    encoder_clock_offset_s: float | None = None,
     **detector_options,
 ) -> tuple[list[PostureReading], int]:
     """
@@ -790,7 +803,12 @@ def _redetect(
 
     Inputs that share a topic (one /joint_states) are read from each of its messages once;
     a reading that is not valid counts once in the returned number of invalid readings.
+    ``detector``: 'settled' (core.dwell_detector, each stream judged on its own readings,
+    postures with their scatter; a clock offset given is used, None: estimated) or 'window'
+    (the paired StreamSynchronizer + PostureDetector of before, for comparison).
     """
+    if detector not in DETECTORS:
+        raise ValueError(f'detector must be one of {", ".join(DETECTORS)}, got {detector!r}')
     from hexacal_msgs_py.conversions import (
         imu_to_inclinometer_reading,
         joint_state_to_actuator_reading,
@@ -853,6 +871,24 @@ def _redetect(
     # to synchronise.
     inclinometer_stamps, inclinometer = arrays[1]
     inclinometer = inclinometer.reshape(-1, 3)
+    if detector == 'settled':
+        from .core.dwell_detector import detect_dwell_postures
+
+        given = {'inclinometer': inclinometer_clock_offset_s, 'encoder': encoder_clock_offset_s}
+        found, dwell = detect_dwell_postures(
+            {
+                'sliders': arrays[0],
+                'inclinometer': (inclinometer_stamps, inclinometer[:, :2]),
+                'encoder': arrays[2],
+            },
+            clock_offsets_s={k: v for k, v in given.items() if v is not None},
+            estimate_offsets=tuple(k for k, v in given.items() if v is None),
+            **detector_options,
+        )
+        # The turn of the inclinometer message at the posture's time, in the inclinometer's clock.
+        shift = int(round(dwell.offsets_s['inclinometer'] * 1_000_000_000))
+        readings = [d.reading for d in found]
+        return _with_turns(readings, inclinometer_stamps - shift, inclinometer[:, 2]), invalid
     skew = {} if max_skew_s is None else {'max_skew_ns': int(max_skew_s * 1_000_000_000)}
     stamps, values = synchronize_arrays(
         arrays[0][0],

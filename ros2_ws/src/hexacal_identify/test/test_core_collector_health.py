@@ -87,3 +87,33 @@ def test_silent_streams_and_the_summary():
     assert text.endswith(
         'invalid messages 0; lost 0; stamps rejected 0; periods dropped 0; unpaired samples 0'
     )
+
+
+def test_stream_statistics_name_rate_gaps_offset_and_spikes_and_publish_on_change():
+    from hexacal_identify.core.collector_health import stream_statistics
+    from hexacal_identify.core.dwell_detector import DwellDetector
+    import numpy as np
+
+    detector = DwellDetector(clock_offsets_s={'encoder': 0.03}, estimate_offsets=())
+    stamps = S + np.arange(0, 200, dtype=np.int64) * 10_000_000
+    stamps = np.delete(stamps, np.arange(50, 70))  # one 0.21 s gap
+    detector.update(
+        {
+            'sliders': (stamps, np.zeros((len(stamps), 6))),
+            'inclinometer': (stamps, np.zeros((len(stamps), 2))),
+            'encoder': (stamps + 30_000_000, np.zeros((len(stamps), 1))),
+        }
+    )
+    names = {'sliders': '/a', 'inclinometer': '/b', 'encoder': '/c'}
+    values = stream_statistics(detector, names)
+    assert values['stream.sliders.topic'] == '/a'
+    assert abs(values['stream.sliders.rate_hz'] - 90.0) <= 0.1  # 180 readings over 1.99 s
+    assert values['stream.encoder.gaps'] == 1
+    assert values['stream.encoder.largest_gap_s'] == 0.21
+    assert values['stream.encoder.clock_offset_s'] == 0.03
+    assert values['stream.sliders.clock_offset_s'] == 0.0
+    assert values['stream.inclinometer.spikes_rejected'] == 0
+    # Statistics alone publish a status, level OK; unchanged problems and statistics do not.
+    decision = decide_status({}, {}, None, recording=True, statistics_changed=True)
+    assert decision is not None and decision.level is Level.OK and decision.to_log == ()
+    assert decide_status({}, {}, None, recording=True, statistics_changed=False) is None

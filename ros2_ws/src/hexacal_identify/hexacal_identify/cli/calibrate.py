@@ -145,8 +145,50 @@ def _calibrate_arguments(calibrate: argparse.ArgumentParser) -> None:
     calibrate.add_argument(
         '--json', action='store_true', help='print the result as one JSON object'
     )
+    _redetection_arguments(calibrate)
     add_calibrate_arguments(calibrate)
     calibrate.set_defaults(handler=run_calibrate)
+
+
+def clock_offset_argument(text: str) -> tuple[str, float]:
+    """Parse --clock-offset STREAM=SECONDS (STREAM inclinometer or encoder)."""
+    stream, _, seconds = text.partition('=')
+    try:
+        value = float(seconds)
+    except ValueError:
+        value = float('nan')
+    if stream not in ('inclinometer', 'encoder') or not abs(value) <= 1.0:
+        raise argparse.ArgumentTypeError(
+            f'expected inclinometer=S or encoder=S (s, within +-1), got {text!r}'
+        )
+    return stream, value
+
+
+def _redetection_arguments(calibrate: argparse.ArgumentParser) -> None:
+    calibrate.add_argument(
+        '--detector',
+        choices=('settled', 'window'),
+        default='settled',
+        help='when postures are re-detected from raw streams: settled (each stream judged on '
+        'its own readings, postures with their scatter) or window (the paired detector of '
+        'before, for comparison); default settled',
+    )
+    calibrate.add_argument(
+        '--clock-offset',
+        type=clock_offset_argument,
+        action='append',
+        default=[],
+        metavar='STREAM=S',
+        help="re-detection: a stream's clock offset against the actuators' (its stamps minus "
+        'theirs, s), e.g. inclinometer=0.03 (repeatable); default: estimated from the data',
+    )
+
+
+def redetection_options(args) -> dict:
+    """Return postures_from_bag's re-detection options from the calibrate arguments."""
+    options: dict = {'detector': args.detector}
+    options.update({f'{stream}_clock_offset_s': value for stream, value in args.clock_offset})
+    return options
 
 
 def _bag_info_arguments(info: argparse.ArgumentParser) -> None:
@@ -179,7 +221,7 @@ def run_calibrate(args) -> int:
     mount_option = {} if mount == 'hanging' else {'mount': mount}
     if args.output.exists() and args.output.is_dir():
         raise IsADirectoryError(f'--output {args.output} is a directory; name a YAML file')
-    bag = postures_from_bag(args.bag)
+    bag = postures_from_bag(args.bag, **redetection_options(args))
     check_model(bag.model, nominal, f'bag {args.bag}', str(args.nominal))
     noise = NoiseModel.from_microns(args.noise_um) if args.noise_um else None
     try:

@@ -3,7 +3,8 @@ What the collector reports about its inputs: counters, stopped streams, status d
 
 Everything not used is counted by stream and reason (`problems`): invalid messages, messages
 DDS reports lost, readings whose stamps repeat or go back, slider readings without a
-partner, samples and periods the detector rejects or drops, the streams that stopped and a
+partner (window detector), time the settled detector judged without a stream stamped too
+far behind, samples and periods the detector rejects or drops, the streams that stopped and a
 recording error. The status is published when that changes (`decide_status`).
 """
 
@@ -15,6 +16,7 @@ from enum import StrEnum
 
 from hexacal_msgs_py.readings import NS_PER_S
 
+from .dwell_detector import DwellDetector
 from .posture_detector import DropReason, PostureDetector, StreamSynchronizer
 
 
@@ -41,6 +43,7 @@ class ProblemKey(StrEnum):
     LOST = 'lost'
     REJECTED = 'rejected'
     UNPAIRED = 'unpaired'
+    BEHIND = 'behind'  # settled detector: blocks judged without a stream stamped too far behind
     REJECTED_SAMPLES = 'rejected.samples'
     DROPPED = 'dropped'
     STREAMS_STOPPED = 'streams_stopped'
@@ -80,6 +83,14 @@ class InputCounters:
         self.invalid[topic] = self.invalid.get(topic, 0) + 1
         return self.invalid[topic]
 
+    def all_stopped(self, now_ns: int, stopped_after_s: float) -> bool:
+        """Return True if every input received and then went silent for `stopped_after_s`."""
+        return all(
+            topic in self.last_receipt_ns
+            and now_ns - self.last_receipt_ns[topic] > stopped_after_s * NS_PER_S
+            for topic in self.topics
+        )
+
     def stopped(
         self, now_ns: int, stopped_after_s: float, topic_names: Mapping[str, str]
     ) -> tuple[str, ...]:
@@ -102,7 +113,7 @@ class InputCounters:
 def problems(
     counters: InputCounters,
     synchronizer: StreamSynchronizer,
-    detector: PostureDetector,
+    detector: PostureDetector | DwellDetector,
     stopped_streams: tuple[str, ...],
     recording_error: str | None,
 ) -> dict[str, object]:
@@ -118,6 +129,8 @@ def problems(
             found[f'{ProblemKey.REJECTED}.{stream}.{reason}'] = count
     for reason, count in sorted(synchronizer.unpaired.items()):
         found[f'{ProblemKey.UNPAIRED}.{reason}'] = count
+    for stream, count in sorted(getattr(detector, 'behind', {}).items()):
+        found[f'{ProblemKey.BEHIND}.{stream}'] = count
     for reason, count in sorted(detector.rejected.items()):
         found[f'{ProblemKey.REJECTED_SAMPLES}.{reason}'] = count
     for reason, count in sorted(detector.dropped.items()):
@@ -145,9 +158,15 @@ def decide_status(
     previous: dict[str, object] | None,
     recording_error: str | None,
     recording: bool,
+    statistics_changed: bool = False,
 ) -> StatusDecision | None:
-    """Return the status to publish for these problems, None if they did not change."""
-    if found == previous:
+    """
+    Return the status to publish for these problems, None if they did not change.
+
+    A change of the streams' statistics alone (`statistics_changed`) publishes too, but is no
+    problem (level OK unless a problem is new).
+    """
+    if found == previous and not statistics_changed:
         return None
     before = previous or {}
     changed = tuple(key for key, value in found.items() if before.get(key) != value)
@@ -182,7 +201,7 @@ def summary(
     postures_published: int,
     counters: InputCounters,
     synchronizer: StreamSynchronizer,
-    detector: PostureDetector,
+    detector: PostureDetector | DwellDetector,
 ) -> str:
     """Return the collector's closing summary line."""
     rejected = {stream: reasons for stream, reasons in synchronizer.rejected.items() if reasons}
@@ -193,3 +212,36 @@ def summary(
         f'periods dropped {detector.dropped or 0}; '
         f'unpaired samples {synchronizer.unpaired or 0}'
     )
+
+
+# Resolution of the stream statistics in the status: finer changes do not publish a new one.
+STATISTICS_DIGITS = {'rate_hz': 1, 'largest_gap_s': 3, 'clock_offset_s': 4}
+
+
+def stream_statistics(
+    detector: DwellDetector, topic_names: Mapping[str, str]
+) -> dict[str, object]:
+    """
+    Return per stream its rate, gaps, clock offset and spikes rejected (the status's values).
+
+    Keys `stream.<stream>.rate_hz` (Hz), `.gaps` (intervals between readings longer than
+    max_gap_s), `.largest_gap_s` (s, the longest of them, 0 if none), `.clock_offset_s` (its
+    stamps minus the actuators', s: estimated or given) and `.spikes_rejected` (readings left
+    out of posture means); `stream.<stream>.topic` names its topic.
+    """
+    values: dict[str, object] = {}
+    offsets = detector.offsets_s
+    for stream, lane in detector.lanes.items():
+        health = lane.health
+        key = f'stream.{stream}'
+        values[f'{key}.topic'] = topic_names.get(stream, '')
+        values[f'{key}.rate_hz'] = round(health.rate_hz, STATISTICS_DIGITS['rate_hz'])
+        values[f'{key}.gaps'] = health.gaps
+        values[f'{key}.largest_gap_s'] = round(
+            health.largest_gap_ns / NS_PER_S, STATISTICS_DIGITS['largest_gap_s']
+        )
+        values[f'{key}.clock_offset_s'] = round(
+            offsets[stream], STATISTICS_DIGITS['clock_offset_s']
+        )
+        values[f'{key}.spikes_rejected'] = health.spikes_rejected
+    return values

@@ -182,6 +182,14 @@ class StreamSynchronizer:
     def add_encoder(self, reading: EncoderReading) -> list[PostureReading]:
         return _readings(self.add_values(Stream.ENCODER, reading.stamp_ns, (reading.phi,)))
 
+    def accept(self, stream: Stream, stamp_ns: int, values: tuple[float, ...]) -> bool:
+        """
+        Take a reading for the stream's health only (no pairing): the DwellDetector's path.
+
+        Returns False for a stamp that repeats or goes back in time (counted in `rejected`).
+        """
+        return self._streams[stream].accept(stamp_ns, values)
+
     def add_values(
         self, stream: Stream, stamp_ns: int, values: tuple[float, ...]
     ) -> list[tuple[int, tuple[float, ...]]]:
@@ -345,7 +353,14 @@ class DetectedPosture:
 
     @property
     def scatter(self) -> PostureScatter:
-        """Per channel, the standard error of the mean (std / sqrt(n)) and the sample count."""
+        """
+        Per channel, the standard error of the mean and the sample count.
+
+        The reading's own scatter where the detector set it (DwellDetector: per channel,
+        spikes rejected), else std / sqrt(n) of the n paired samples (PostureDetector).
+        """
+        if self.reading.scatter is not None:
+            return self.reading.scatter
         count = max(self.sample_count, 1)
         return PostureScatter(
             tuple(float(s) / math.sqrt(count) for s in self.std), (count,) * N_CHANNELS

@@ -45,6 +45,7 @@ from ..bag.qos_yaml import qos_profiles_yaml
 from ..bag.recording import Recording
 from ..core import collector_health as health
 from ..core import posture_detector as detection
+from ..core.dwell_detector import DwellDetector
 from ..core.turn_history import TurnHistory
 
 NODE_NAME = 'collector'
@@ -82,13 +83,25 @@ class CollectorNode(Node):
         skew_ns = int(value['max_skew_s'] * NS_PER_S)
         self.synchronizer = detection.StreamSynchronizer(max_skew_ns=skew_ns)
         settings = {name: value[name] for name in params.DETECTOR_PARAMETERS}
-        self.detector_settings = {name: repr(setting) for name, setting in settings.items()}
+        self.detector_settings = {
+            name: repr(setting)
+            for name, setting in {
+                **settings,
+                **{name: value[name] for name in params.DWELL_PARAMETERS},
+            }.items()
+        }
         del settings['max_skew_s']  # the synchronizer's
-        self.detector = detection.PostureDetector(**settings)
+        self.settled = value['detector'] == 'settled'
+        self.detector: detection.PostureDetector | DwellDetector
+        if self.settled:
+            self.detector = dwell_detector(value, settings)
+        else:
+            self.detector = detection.PostureDetector(**settings)
         self.postures_published = 0
         self.counters = health.InputCounters(RAW_TOPICS)
         self.stopped_streams: tuple[str, ...] = ()
         self._reported: dict[str, object] | None = None  # problems in the last status
+        self._reported_streams: dict[str, object] = {}  # stream statistics in the last status
         self.recording = Recording(on_failure=self._recording_failed)
         self._bag_counter = 0
         self._plan_recorded = False
@@ -104,6 +117,8 @@ class CollectorNode(Node):
         self.reader = InputReader(
             self.mapping, self.model, self.synchronizer, self.turns, self._invalid
         )
+        if self.settled:
+            self.reader.keep_readings()  # each stream as it is: no pairing
         group = PolledGroup()
         # One subscription per distinct input topic: inputs remapped to one topic share it.
         self._sources = input_sources(self.mapping, self.topic_names, SENSOR_QOS)
@@ -201,6 +216,12 @@ class CollectorNode(Node):
 
     def _detect(self) -> None:
         """Run the posture detector over the samples paired since the last call."""
+        if isinstance(self.detector, DwellDetector):
+            readings = self.reader.take_readings()
+            if readings:
+                for posture in self.detector.update(readings):
+                    self._on_posture(posture)
+            return
         samples = self.reader.take_samples()
         if not samples:
             return
@@ -222,8 +243,14 @@ class CollectorNode(Node):
 
     def _on_posture(self, posture: detection.DetectedPosture) -> None:
         # The turn of the inclinometer messages paired with its last sample, else the setting.
+        # The posture's stamp is the actuators'; the inclinometer messages are in their clock.
+        offset_ns = (
+            int(self.detector.offsets_s[detection.Stream.INCLINOMETER] * NS_PER_S)
+            if isinstance(self.detector, DwellDetector)
+            else 0
+        )
         turn = self.turns.turn_at(
-            posture.reading.stamp_ns, self.synchronizer.max_skew_ns, self.device_turn
+            posture.reading.stamp_ns + offset_ns, self.synchronizer.max_skew_ns, self.device_turn
         )
         reading = posture.reading if turn == 0.0 else replace(posture.reading, device_turn=turn)
         message = posture_reading_to_joint_state(reading, model=self.model)
@@ -373,6 +400,13 @@ class CollectorNode(Node):
             self.stopped_streams = stopped
         if stopped:
             self._detect()  # normally nothing left: _poll runs the detector after each batch
+            if isinstance(self.detector, DwellDetector) and self.counters.all_stopped(
+                time.monotonic_ns(), STREAM_STOPPED_S
+            ):
+                # Every stream stopped: the data ended, so a capture the last readings
+                # complete is a posture (its last block needs no later reading).
+                for posture in self.detector.flush():
+                    self._on_posture(posture)
             dropped = self.detector.abort(detection.DropReason.STREAM_STOPPED)
             if dropped is not None:
                 self.get_logger().warning(
@@ -389,18 +423,28 @@ class CollectorNode(Node):
     def _publish_status(self) -> None:
         """Publish on hexacal/calibration_status when a problem counter or state changed."""
         problems = self.problems()
+        streams = (
+            health.stream_statistics(self.detector, self._stream_names)
+            if isinstance(self.detector, DwellDetector)
+            else {}
+        )
         decision = health.decide_status(
-            problems, self._reported, self.recording.error, self.recording.writer is not None
+            problems,
+            self._reported,
+            self.recording.error,
+            self.recording.writer is not None,
+            statistics_changed=streams != self._reported_streams,
         )
         if decision is None:
             return
-        self._reported = problems
+        self._reported, self._reported_streams = problems, streams
         values: dict[str, object] = {
             'outcome': decision.outcome,
             'postures_published': self.postures_published,
             'bag': str(self.recording.directory or ''),
             **{f'received.{topic}': count for topic, count in self.counters.received.items()},
             **problems,
+            **streams,
         }
         self._status_pub.publish(
             diagnostic_status(
@@ -423,6 +467,23 @@ class CollectorNode(Node):
         self.detector.abort(detection.DropReason.END_OF_STREAM)
         counts = (self.counters, self.synchronizer, self.detector)
         return health.summary(self.postures_published, *counts)
+
+
+def dwell_detector(value: dict, settings: dict) -> DwellDetector:
+    """Return the settled-streams detector of the collector's parameters."""
+    offsets = {
+        detection.Stream.INCLINOMETER: value['inclinometer_clock_offset_s'],
+        detection.Stream.ENCODER: value['encoder_clock_offset_s'],
+    }
+    return DwellDetector(
+        window_s=settings['window_s'],
+        slider_tolerance_m=settings['slider_tolerance_m'],
+        angle_tolerance_rad=settings['angle_tolerance_rad'],
+        capture_s=settings['capture_s'],
+        max_gap_s=settings['max_gap_s'],
+        clock_offsets_s=offsets,
+        estimate_offsets=tuple(offsets) if value['estimate_clock_offsets'] else (),
+    )
 
 
 def _finish(node: CollectorNode) -> list[str]:

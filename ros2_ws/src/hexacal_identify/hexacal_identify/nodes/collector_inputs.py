@@ -159,6 +159,30 @@ class InputReader:
         self.on_invalid = on_invalid  # (input topic, problem)
         self.transform_inclinometer = mapping_transforms_inclinometer(mapping)
         self.samples: list[tuple[int, tuple[float, ...]]] = []  # paired, for the detector
+        # Per stream, the accepted readings (stamps, values) for a detector that takes the
+        # streams as they are (DwellDetector); None: readings are paired (PostureDetector).
+        self.readings: dict[Stream, tuple[list[int], list[tuple[float, ...]]]] | None = None
+
+    def keep_readings(self) -> None:
+        """Collect each stream's readings instead of pairing them."""
+        self.readings = {stream: ([], []) for stream in Stream}
+
+    def take_readings(self) -> dict[Stream, tuple[list[int], list[tuple[float, ...]]]]:
+        """Return each stream's readings accepted since the last call."""
+        readings = self.readings or {}
+        self.readings = {stream: ([], []) for stream in Stream}
+        return {stream: lists for stream, lists in readings.items() if lists[0]}
+
+    def _add(self, stream: Stream, stamp: int, values: tuple[float, ...]) -> None:
+        if self.readings is not None:
+            if self.synchronizer.accept(stream, stamp, values):
+                stamps, rows = self.readings[stream]
+                stamps.append(stamp)
+                rows.append(values)
+            return
+        samples = self.synchronizer.add_values(stream, stamp, values)
+        if samples:
+            self.samples += samples
 
     def take_samples(self) -> list[tuple[int, tuple[float, ...]]]:
         """Return the samples paired since the last call."""
@@ -174,9 +198,7 @@ class InputReader:
                 if source.has_inclinometer:
                     self.turns.note(raw[0], source.fast.last_turn)
                 if source.stream is not None:  # one input, its values as read: the 1 kHz path
-                    samples = self.synchronizer.add_values(source.stream, *raw)
-                    if samples:
-                        self.samples += samples
+                    self._add(source.stream, *raw)
                     return
                 readings = self._split(source, *raw)
         if readings is None:
@@ -185,9 +207,7 @@ class InputReader:
                 return
         stamp, values = readings
         for topic, reading in values:
-            samples = self.synchronizer.add_values(STREAM_OF_TOPIC[topic], stamp, reading)
-            if samples:
-                self.samples += samples
+            self._add(STREAM_OF_TOPIC[topic], stamp, reading)
 
     def _split(self, source: InputSource, stamp: int, raw: tuple[float, ...]) -> Readings:
         """Return each input's slice of a fast read, the inclinometer corrected."""

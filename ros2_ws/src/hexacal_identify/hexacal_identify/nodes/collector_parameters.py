@@ -52,6 +52,36 @@ DETECTOR_PARAMETERS = {
         0.02, 'largest stamp difference of paired sensor readings (s)', 0.0, 1.0
     ),
 }
+DETECTORS = ('settled', 'window')
+# The settled-streams detector's own settings (core.dwell_detector); recorded with the others.
+DWELL_PARAMETERS = {
+    'detector': ParameterSpec(
+        'settled',
+        "'settled': each stream judged on its own readings, a posture once every stream has "
+        'settled (a lagging channel is waited for), spikes rejected, each posture with its '
+        "scatter; 'window': the paired window detector of before (for comparison)",
+        constraints=', '.join(repr(name) for name in DETECTORS),
+    ),
+    'inclinometer_clock_offset_s': ParameterSpec(
+        0.0,
+        "the inclinometer stamps' clock offset against the actuator stamps (its stamp minus "
+        "theirs for one instant, s); with estimate_clock_offsets the estimate's start",
+        -1.0,
+        1.0,
+    ),
+    'encoder_clock_offset_s': ParameterSpec(
+        0.0,
+        "the encoder stamps' clock offset against the actuator stamps (s); with "
+        "estimate_clock_offsets the estimate's start",
+        -1.0,
+        1.0,
+    ),
+    'estimate_clock_offsets': ParameterSpec(
+        True,
+        'estimate the inclinometer and encoder clock offsets from the starts of motion '
+        '(detector settled; the status reports them); false: use the two offsets as given',
+    ),
+}
 # name: (spec, read only), declared in this order before the model is known.
 PARAMETERS = {
     'output_dir': (ParameterSpec('bags', 'directory that receives the bag directories'), False),
@@ -95,6 +125,7 @@ PARAMETERS = {
         True,
     ),
     **{name: (spec, True) for name, spec in DETECTOR_PARAMETERS.items()},
+    **{name: (spec, True) for name, spec in DWELL_PARAMETERS.items()},
     'device_turn': (
         ParameterSpec(
             0.0,
@@ -186,6 +217,8 @@ def parameter_problem(name: str, value: Any) -> str | None:
         return turn_problem(value)
     if name == 'bag_name':
         return bag_name_problem(value)
+    if name == 'detector' and value not in DETECTORS:
+        return f"detector must be one of {', '.join(DETECTORS)}, got {value!r}"
     if name == 'output_dir' and not value:
         return 'output_dir must not be empty'
     if name == 'model' and value not in MODEL_CHOICES:

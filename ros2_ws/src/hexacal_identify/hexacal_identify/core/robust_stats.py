@@ -1,0 +1,123 @@
+"""
+Robust per-channel statistics of a few hundred sensor samples (ROS-free, numpy only).
+
+The dwell detector (core.dwell_detector) judges and averages each stream on its own samples
+with these: a spike is a sample beyond SPIKE_SIGMAS robust sigmas (median absolute
+deviation, MAD) from the median; levels are means of the samples without spikes; and the
+quantisation step read from the data is the floor of every threshold, so a noise-free
+quantised channel (MAD 0) is neither 'trending' at one step nor rejected as spikes.
+All functions take an (n, channels) array and work per column.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# sigma = MAD_TO_SIGMA * MAD for Gaussian noise (1 / Phi^-1(3/4)).
+MAD_TO_SIGMA = 1.482602218505602
+# A sample further than this many robust sigmas (or quantisation steps) from the median is
+# a spike: 5 sigma is never reached by uniform noise and once in 1.7 million by Gaussian noise.
+SPIKE_SIGMAS = 5.0
+
+
+def quantum(values: np.ndarray) -> np.ndarray:
+    """
+    Return per channel the smallest non-zero step between the sorted samples (0 if none).
+
+    Of quantised readings this is the resolution (or a multiple of it); of continuous
+    noise it is tiny and so harmless as a floor. Steps to the smallest or largest sample are
+    left out: a lone spike on a noise-free channel is no resolution step.
+    """
+    if len(values) < 4:
+        return np.zeros(values.shape[1])
+    steps = np.diff(np.sort(values, axis=0), axis=0)[1:-1]
+    steps = np.where(steps > 0.0, steps, np.inf)
+    smallest = steps.min(axis=0)
+    return np.where(np.isfinite(smallest), smallest, 0.0)
+
+
+def median(values: np.ndarray) -> np.ndarray:
+    """Return per channel the median, as numpy's (one sort is cheaper for few samples)."""
+    ordered = np.sort(values, axis=0)
+    middle = len(values) // 2
+    if len(values) % 2:
+        return ordered[middle]
+    return (ordered[middle - 1] + ordered[middle]) / 2.0
+
+
+def median_and_sigma(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return per channel the median and the robust sigma (MAD_TO_SIGMA * MAD)."""
+    center = median(values)
+    return center, MAD_TO_SIGMA * median(np.abs(values - center))
+
+
+def spike_mask(values: np.ndarray, floor: np.ndarray) -> np.ndarray:
+    """Return the (n, channels) mask of samples that are not spikes (floor: e.g. quantum)."""
+    return _spike_mask(values, floor)[0]
+
+
+def _spike_mask(values: np.ndarray, floor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    center, sigma = median_and_sigma(values)
+    limit = SPIKE_SIGMAS * np.maximum(sigma, floor)
+    return np.abs(values - center) <= limit, center
+
+
+def robust_spread(values: np.ndarray, floor: np.ndarray) -> np.ndarray:
+    """Return per channel the peak-to-peak of the samples that are not spikes."""
+    kept = spike_mask(values, floor)
+    high = np.where(kept, values, -np.inf).max(axis=0)
+    low = np.where(kept, values, np.inf).min(axis=0)
+    return np.where(kept.any(axis=0), high - low, 0.0)
+
+
+def level_shift(
+    before: np.ndarray, after: np.ndarray, sigmas: float, floor: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return per channel how far the level moved from `before` to `after`, and its threshold.
+
+    The level of each part is the mean of its samples without spikes (more efficient than a
+    median, and as robust once spikes are out); the threshold is `sigmas` standard errors of
+    the difference (the pooled scatter of both parts about their own means, so a trend does
+    not inflate it) or the floor (e.g. the quantisation step: a level can move by one step on
+    noise alone), whichever is larger.
+    """
+    first = robust_mean(before, floor)
+    second = robust_mean(after, floor)
+    squares = first.std**2 * np.maximum(first.count - 1, 0) + second.std**2 * np.maximum(
+        second.count - 1, 0
+    )
+    pooled = np.sqrt(squares / np.maximum(first.count + second.count - 2, 1))
+    error = pooled * np.sqrt(
+        1.0 / np.maximum(first.count, 1) + 1.0 / np.maximum(second.count, 1)
+    )
+    return np.abs(second.mean - first.mean), np.maximum(sigmas * error, floor)
+
+
+@dataclass(frozen=True)
+class RobustMean:
+    """Per channel: the mean of the samples that are not spikes, its scatter and counts."""
+
+    mean: np.ndarray
+    std: np.ndarray  # sample standard deviation of the kept samples (0 with one sample)
+    standard_error: np.ndarray  # std / sqrt(count)
+    count: np.ndarray  # samples kept (int)
+    rejected: np.ndarray  # spikes rejected (int)
+
+
+def robust_mean(values: np.ndarray, floor: np.ndarray) -> RobustMean:
+    """Return the spike-rejected mean of each channel with its standard error and counts."""
+    kept, center = _spike_mask(values, floor)
+    count = kept.sum(axis=0)
+    safe = np.maximum(count, 1)
+    # Deviations from the median: no cancellation for readings far from zero.
+    deviation = np.where(kept, values - center, 0.0)
+    mean_deviation = deviation.sum(axis=0) / safe
+    squares = np.where(kept, (values - center - mean_deviation) ** 2, 0.0).sum(axis=0)
+    std = np.sqrt(squares / np.maximum(count - 1, 1))
+    std = np.where(count > 1, std, 0.0)
+    return RobustMean(
+        center + mean_deviation, std, std / np.sqrt(safe), count, len(values) - count
+    )
