@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
+from hexacal_driver.drives import DriveFollower, DriveSettings
 from hexacal_driver.plan import machine_workspace, PlanError, PosturePlan, resolve_plan
 from hexacal_driver.sensor_models import (
     EFFECTS_STREAM,
@@ -20,7 +21,6 @@ from hexacal_driver.sensor_models import (
 )
 from hexacal_driver.simulation import (
     check_trajectory,
-    CommandFollower,
     ConstraintError,
     device_true_poses,
     PlanWalker,
@@ -93,7 +93,8 @@ class SimulatedMachine:
         self.device_turn = float(value['device_turn'])
         self.plan: PosturePlan | None = None
         self.walker: PlanWalker | None = None
-        self.follower: CommandFollower | None = None
+        self.follower: DriveFollower | None = None
+        self.drive_settings = DriveSettings.from_values(value)
         self.stroke: tuple[float, float] | None = None
         if value['command_topic']:
             self.follower = self._start_follower(value['max_actuator_speed_m_s'])
@@ -208,16 +209,44 @@ class SimulatedMachine:
 
         points: (positions m, time_from_start s); start_ns: header.stamp (0: on arrival).
         """
+        follower = self.follower
+        if follower.fault is not None:
+            return None, (
+                f'the drives are in fault ({follower.fault.text}): reset them first '
+                '(the driver reset service)'
+            )
+        released = follower.released_joint
+        if released and released in joint_names:
+            return None, (
+                f'it names {released}, which is released (passive_actuator): command the five '
+                f'others {list(follower.commanded_names())} only'
+            )
         checked, problem = check_trajectory(
-            joint_names, points, MODELS[self.model].actuator_names, self.stroke
+            joint_names, points, follower.commanded_names(), self.stroke
         )
+        if problem is not None and self.drive_settings.mode == 'passive_actuator' and not released:
+            problem += (
+                ' (no joint is released: release one first, or command all six, which the '
+                'rigid link over-constrains)'
+            )
         if (
             problem is None
             and start_ns
             and start_ns + int(checked[-1].time_from_start_s * 1e9) < now_ns
         ):
             problem = 'it ends in the past (header.stamp + time_from_start)'
+        if problem is None and released:
+            checked = self._with_released(checked)
         return checked, problem
+
+    def _with_released(self, points: list[TrajectoryPoint]) -> list[TrajectoryPoint]:
+        """Return five-joint points with the released joint's column (its position) inserted."""
+        index = self.follower.released
+        position = float(self.follower.actuators[index])
+        return [
+            TrajectoryPoint(np.insert(point.positions, index, position), point.time_from_start_s)
+            for point in points
+        ]
 
     def _start_follower(self, max_speed_m_s: float) -> CommandFollower:
         """Commanded mode: the machine stands at the fixed-position point with zero angles."""
@@ -229,8 +258,16 @@ class SimulatedMachine:
         # The link holds the platform on the true sphere (link_length + dL).
         home = np.concatenate([fixed_point(self.true_link_length, self.mount), np.zeros(3)])
         try:
-            follower = CommandFollower(
-                self.true_params, home, max_speed_m_s, self.true_link_length, self.mount
+            follower = DriveFollower(
+                self.true_params,
+                home,
+                max_speed_m_s,
+                self.true_link_length,
+                self.mount,
+                settings=self.drive_settings,
+                joint_names=MODELS[self.model].actuator_names,
+                nominal_link_m=self.link_length,
+                stroke_m=self.stroke,
             )
         except (UnreachablePoseError, ConstraintError) as error:
             raise DriverConfigurationError(
