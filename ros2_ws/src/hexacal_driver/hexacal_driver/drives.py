@@ -135,6 +135,7 @@ class DriveFollower(CommandFollower):
         self.peaks = {'following_error_m': 0.0, 'force_n': 0.0, 'link_extension_m': 0.0,
                       'actuator_deviation_m': 0.0}
         self.rest_deviation_m = 0.0
+        self.last_refusal = ''  # why the last trajectory was refused ('' none yet)
         self._update_measures()
 
     # ------------------------------------------------------------------ what the drives show
@@ -206,6 +207,7 @@ class DriveFollower(CommandFollower):
             'max_force_n': self.peaks['force_n'] if forces is not None else '',
             'actuator_deviation_m': self.rest_deviation_m,
             'max_actuator_deviation_m': self.peaks['actuator_deviation_m'],
+            'refused_command': self.last_refusal,
         }
 
     # ------------------------------------------------------------------ release, lock, reset
@@ -229,6 +231,7 @@ class DriveFollower(CommandFollower):
                     f'{self.released_joint} is released: lock it first (one joint at a time)'
                 )
             self.released = index
+            self._segments = []  # at rest: the setpoints are self.setpoints from now on
             self._update_measures()
             return True, f'{joint} released: it follows the link, its encoder reads'
         if self.released != index:
@@ -236,6 +239,7 @@ class DriveFollower(CommandFollower):
         # Locked where it stands: its setpoint becomes its position, no jump.
         self.setpoints[index] = self.actuators[index]
         self._solved_for = self.setpoints.copy()
+        self._segments = []
         self.released = None
         self._update_measures()
         return True, f'{joint} locked at {self.actuators[index]:.6f} m'

@@ -15,6 +15,7 @@ from hexacal_driver.drives import DriveFollower, DriveSettings
 from hexacal_driver.plan import machine_workspace, PlanError, PosturePlan, resolve_plan
 from hexacal_driver.sensor_models import (
     EFFECTS_STREAM,
+    SensorEffect,
     SensorOutput,
     SensorSettings,
     SensorStreams,
@@ -44,6 +45,7 @@ from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 import numpy as np
 
 NOISE_STREAM = 0x5E45  # noise draws from their own stream: the same seed gives the same plan
+LINK_STREAM = 0x11D7  # the LVDT's noise: its own stream, so the other streams draw as before
 
 
 class DriverConfigurationError(Exception):
@@ -117,6 +119,7 @@ class SimulatedMachine:
             self.mount,
             self.defects,
         )
+        self._link_rng = np.random.default_rng([value['seed'], LINK_STREAM])
         # The sensor models (sensor_effects), drawing from a random stream of their own.
         self.streams = SensorStreams(
             self.sensors,
@@ -124,6 +127,22 @@ class SimulatedMachine:
             np.random.default_rng([value['seed'], EFFECTS_STREAM]),
             1.0 / float(value['rate_hz']),
         )
+
+    def read_link(self, sliders_stamp_ns: int | None) -> tuple[float, int | None]:
+        """
+        Return the LVDT's reading (m) and its stamp (None: dropped), lvdt commanded mode.
+
+        The link length on the nominal scale (link_length + extension) plus uniform noise of the
+        actuators' half-width (slider_noise_m); with sensor_effects `quantisation` rounded to
+        actuator_resolution_m. The LVDT is read with the actuators (their stamp, their drop).
+        """
+        value = self.follower.link_reading_m
+        value += float(self._link_rng.uniform(-1.0, 1.0)) * self.sensors.noise.actuator_m
+        settings = self.streams.settings
+        resolution = settings.actuator_resolution_m
+        if SensorEffect.QUANTISATION in settings.effects and resolution > 0.0:
+            value = round(value / resolution) * resolution
+        return value, sliders_stamp_ns
 
     def plan_walker(self, settle_s: float, dwell_s: float, loop: bool) -> PlanWalker:
         """
@@ -248,7 +267,7 @@ class SimulatedMachine:
             for point in points
         ]
 
-    def _start_follower(self, max_speed_m_s: float) -> CommandFollower:
+    def _start_follower(self, max_speed_m_s: float) -> DriveFollower:
         """Commanded mode: the machine stands at the fixed-position point with zero angles."""
         workspace = machine_workspace(self.true_params, self.link_length, self.mount)
         self.stroke = (

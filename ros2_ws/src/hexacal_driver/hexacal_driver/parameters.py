@@ -122,21 +122,21 @@ PARAMETERS: dict[str, _Spec] = {
     ),
     'servo_stiffness_n_per_m': _Spec(
         2e6,
-        'commanded mode, compliant: each servo\'s stiffness (N/m); its force (the sliders\' '
-        'effort, N) = stiffness x (position - setpoint)',
+        'commanded mode, compliant: the stiffness of each servo (N/m); its force (effort of '
+        'the sliders message, N) = stiffness x (position - setpoint)',
         1.0,
         1e12,
     ),
     'max_force_n': _Spec(
         1e4,
-        'commanded mode, compliant: the servos fault when an actuator\'s force would exceed '
+        'commanded mode, compliant: the servos fault when the force of an actuator would exceed '
         'this (N; 1e4 N at 2e6 N/m is 5 mm of deviation)',
         1e-6,
         1e9,
     ),
     'lvdt_stroke_m': _Spec(
         DEFAULT_LVDT_STROKE_M,
-        'commanded mode, lvdt: the link\'s stroke, +- this about its rest length (m); beyond '
+        'commanded mode, lvdt: the stroke of the link, +- this about its rest length (m); beyond '
         'it the link is at its end stop and the drives fault (max_following_error_m)',
         1e-6,
         1.0,
