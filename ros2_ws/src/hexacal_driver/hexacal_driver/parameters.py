@@ -109,8 +109,8 @@ PARAMETERS: dict[str, _Spec] = {
         MeasuringMode.COMPLIANT.value,
         'commanded mode: how the drives meet the measuring link: passive_actuator (stiff '
         'drives, one joint released through hexacal/release/<joint>), lvdt (stiff drives, a '
-        'telescopic link measured on hexacal/link) or compliant (six compliant servos, '
-        "today's behaviour); the plan walker ignores it",
+        'telescopic link measured on hexacal/link) or compliant (six compliant servos as '
+        'before the modes had names, the default for now); the plan walker ignores it',
         constraints=', '.join(repr(mode) for mode in MEASURING_MODES),
     ),
     'max_following_error_m': _Spec(
