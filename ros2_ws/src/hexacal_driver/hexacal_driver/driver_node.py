@@ -216,8 +216,12 @@ class DriverNode(Node):
         response.success, response.message = self.machine.follower.release(
             joint, bool(request.data), now_s
         )
-        log = self.get_logger().info if response.success else self.get_logger().warning
-        log(f'{"release" if request.data else "lock"} {joint}: {response.message}')
+        text = f'{"release" if request.data else "lock"} {joint}: {response.message}'
+        # One call site per severity: rclpy refuses a severity change at a call site.
+        if response.success:
+            self.get_logger().info(text)
+        else:
+            self.get_logger().warning(text)
         self._publish_drive_status(force=True)
         return response
 
