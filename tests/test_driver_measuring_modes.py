@@ -26,7 +26,7 @@ def start_driver(ros_processes, **overrides):
 class Machine:
     """The probe's view of the driver: sliders, statuses, commands, services."""
 
-    def __init__(self, probe, driver) -> None:
+    def __init__(self, probe, driver) -> None:  # noqa: F811 - the fixture
         from hexacal_msgs_py.qos import COMMAND_QOS, SENSOR_QOS
         from sensor_msgs.msg import JointState
         from trajectory_msgs.msg import JointTrajectory
