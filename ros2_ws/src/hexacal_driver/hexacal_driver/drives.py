@@ -65,7 +65,7 @@ class DriveSettings:
     mode: MeasuringMode = MeasuringMode.COMPLIANT
     max_following_error_m: float = 5e-4
     servo_stiffness_n_per_m: float = 2e6
-    max_force_n: float = 1e4
+    max_force_n: float = 1e5
     lvdt_stroke_m: float = 0.005
 
     @classmethod
@@ -275,7 +275,7 @@ class DriveFollower(CommandFollower):
             standing = self._solve(setpoints)
         except (ConstraintError, UnreachablePoseError, ForwardKinematicsError) as error:
             if self.mode != MeasuringMode.COMPLIANT:
-                self._trip(DriveFault(f'no standing for the setpoints: {error}'))
+                self._trip(self._jam(error))
                 return
             # Compliant servos (as before the modes had names): it stays where it was.
             standing = Standing(self.pose, self.actuators, self.link_m)
@@ -288,6 +288,17 @@ class DriveFollower(CommandFollower):
         self.pose, self.actuators = standing.pose, standing.actuators
         self.link_m, self.end_stop = standing.link_m, standing.end_stop
         self._update_measures()
+
+    def _jam(self, error: Exception) -> DriveFault:
+        """Return the fault of setpoints no standing of the true machine fits (it jams)."""
+        if self.released is not None:
+            return DriveFault(
+                f'the five commanded actuators and the link jam (released {self.released_joint}: '
+                f'a singularity of the passive system on the way, no pose near the previous '
+                f'one): {error}',
+                self.released_joint,
+            )
+        return DriveFault(f'no pose of the true machine fits the setpoints: {error}')
 
     def _solve(self, setpoints: np.ndarray) -> Standing:
         """Return where the true machine stands with these setpoints in this mode."""

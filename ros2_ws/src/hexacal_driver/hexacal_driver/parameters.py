@@ -128,9 +128,10 @@ PARAMETERS: dict[str, _Spec] = {
         1e12,
     ),
     'max_force_n': _Spec(
-        1e4,
+        1e5,
         'commanded mode, compliant: the servos fault when the force of an actuator would exceed '
-        'this (N; 1e4 N at 2e6 N/m is 5 mm of deviation)',
+        'this (N; 1e5 N at 2e6 N/m is 50 mm of deviation: straight moves between the targets '
+        'of a nominal model strain the link up to about 26 mm, which must not fault)',
         1e-6,
         1e9,
     ),
