@@ -33,11 +33,15 @@ class Machine:
 
         self.probe, self.driver = probe, driver
         self.sliders: list[tuple[list[str], np.ndarray]] = []
+        self.efforts: list[np.ndarray] = []
         probe.subscribe_status()
         probe.node.create_subscription(
             JointState,
             'hexacal/sliders',
-            lambda m: self.sliders.append((list(m.name), np.array(m.position))),
+            lambda m: (
+                self.sliders.append((list(m.name), np.array(m.position))),
+                self.efforts.append(np.array(m.effort)),
+            ),
             SENSOR_QOS,
         )
         self.commands = probe.node.create_publisher(JointTrajectory, 'command', COMMAND_QOS)
@@ -134,6 +138,7 @@ def test_a_released_joint_follows_the_link_and_five_stand_at_their_setpoints(
         'the refusal of a command naming the released joint in the status',
     )
     assert status['state'] == 'ok'
+    assert machine.efforts[-1].size == 0  # effort only in compliant mode
 
 
 def test_six_stiff_drives_against_the_link_fault_and_hold(
@@ -172,3 +177,63 @@ def test_six_stiff_drives_against_the_link_fault_and_hold(
         'the drives re-enabled where they stand',
     )
     assert status['fault'] == ''
+
+
+def test_lvdt_link_length_is_published_and_six_stand_at_their_setpoints(
+    ros_processes, probe  # noqa: F811 - fixture
+):
+    from hexacal_msgs_py.qos import SENSOR_QOS
+    from sensor_msgs.msg import JointState
+
+    links: list[tuple[list[str], float]] = []
+    probe.node.create_subscription(
+        JointState,
+        'hexacal/link',
+        lambda m: links.append((list(m.name), float(m.position[0]))),
+        SENSOR_QOS,
+    )
+    machine = Machine(probe, start_driver(ros_processes, measuring_mode='lvdt'))
+    machine.wait(lambda: links, 'the LVDT link length on hexacal/link')
+    assert links[-1][0] == ['link_length'] and abs(links[-1][1] - 0.75) < 2e-6
+    names = machine.sliders[-1][0]
+    target = machine.positions() + np.array([1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3])
+    machine.command(names, target, 1.0)
+    machine.wait(
+        lambda: np.max(np.abs(machine.positions() - target)) < 3e-6,
+        'the six commanded actuators at their setpoints',
+    )
+    # At rest the latest status (every second) and the LVDT agree on the extension.
+
+    def consistent():
+        status = machine.driver_status()
+        extension = float(status['link_extension_m'])
+        return abs(extension) > 1e-4 and abs(links[-1][1] - (0.75 + extension)) < 2e-6
+
+    machine.wait(consistent, 'the LVDT reading the extended link (noise +-1e-6 m)')
+    status = machine.driver_status()
+    assert status['state'] == 'ok' and float(status['actuator_deviation_m']) == 0.0
+    assert sorted(machine.sliders[-1][0]) == sorted(names)
+
+
+def test_compliant_servos_publish_their_force_as_effort(
+    ros_processes, probe  # noqa: F811 - fixture
+):
+    machine = Machine(probe, start_driver(ros_processes, measuring_mode='compliant'))
+    names = machine.sliders[-1][0]
+    target = machine.positions() + np.array([1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3])
+    machine.command(names, target, 1.0)
+    status = machine.wait(
+        lambda: machine.driver_status(
+            lambda v: float(v['actuator_deviation_m']) > 1e-4 and float(v['force_n']) > 100.0
+        ),
+        'the status at rest with the servos strained by the link',
+    )
+    force = float(status['force_n'])
+    machine.wait(
+        lambda: machine.efforts[-1].size == 6
+        and abs(np.max(np.abs(machine.efforts[-1])) - force) < 1e-6 * force,
+        'the efforts of the strained servos',
+    )
+    # effort = stiffness x (true position - setpoint); the readings carry +-1e-6 m of noise.
+    expected = 2e6 * (machine.positions() - target)
+    assert np.max(np.abs(machine.efforts[-1] - expected)) < 2e6 * 1.5e-6

@@ -26,6 +26,7 @@ from hexacal_driver.reports import (
     command_text,
     commanded_start_text,
     device_turn_text,
+    drives_start_text,
     finish_lines,
     machine_source,
     MotionReport,
@@ -175,6 +176,7 @@ class DriverNode(Node):
         if plan is None:
             topic = self.resolve_topic_name(self.command_topic)
             self.get_logger().info(commanded_start_text(self.machine, topic, source, self.rate_hz))
+            self.get_logger().info(drives_start_text(self.machine.follower))
             return
         self.get_logger().info(plan_start_text(self.machine, source, self.rate_hz))
         if self.wait_for_subscriber:

@@ -3,6 +3,7 @@
 from hexacal_driver.drives import DriveState
 from hexacal_driver.machine import SimulatedMachine
 from hexacal_driver.parameters import parameter_problem, PARAMETERS
+from hexacal_driver.reports import drives_start_text
 from hexacal_driver.simulation import CommandFollower
 from hexacal_identify.core.lvdt import lvdt_extensions
 from hexacal_identify.core.passive_actuator import solve_passive
@@ -180,3 +181,9 @@ def test_measuring_mode_parameter_is_checked():
     assert parameter_problem('measuring_mode', 'passive_actuator') is None
     assert 'lvdt' in parameter_problem('measuring_mode', 'rigid')
     assert PARAMETERS['measuring_mode'].default == 'compliant'
+
+
+def test_the_start_line_names_the_mode_and_its_guard():
+    assert 'fault above 100000 N' in drives_start_text(machine().follower)
+    text = drives_start_text(machine(measuring_mode='lvdt', lvdt_stroke_m=0.002).follower)
+    assert 'lvdt' in text and '+-0.002 m' in text and '0.0005 m following error' in text
