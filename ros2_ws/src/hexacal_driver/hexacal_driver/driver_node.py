@@ -14,6 +14,7 @@ import math
 import sys
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from hexacal_driver.machine import DriverConfigurationError, SimulatedMachine
 from hexacal_driver.parameters import (
     MODEL_CHOICES,
@@ -25,6 +26,7 @@ from hexacal_driver.reports import (
     command_text,
     commanded_start_text,
     device_turn_text,
+    drives_start_text,
     finish_lines,
     machine_source,
     MotionReport,
@@ -39,20 +41,33 @@ from hexacal_identify.nodes.parameters import parameter_descriptor
 from hexacal_identify.nodes.runtime import run_node
 from hexacal_msgs_py.conversions import (
     actuator_reading_to_joint_state,
+    diagnostic_status,
     encoder_reading_to_joint_state,
     inclinometer_angles_to_imu,
     inclinometer_reading_to_joint_state,
     NS_PER_S,
     stamp_ns,
 )
-from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, SLIDERS_TOPIC
-from hexacal_msgs_py.qos import COMMAND_QOS, SENSOR_QOS
+from hexacal_msgs_py.measuring_modes import LINK_LENGTH_JOINT, MeasuringMode
+from hexacal_msgs_py.models import MODELS
+from hexacal_msgs_py.names import (
+    CALIBRATION_STATUS_TOPIC,
+    DRIVER_RESET_SERVICE,
+    DRIVER_STATUS_NAME,
+    ENCODER_TOPIC,
+    INCLINOMETER_TOPIC,
+    LINK_TOPIC,
+    release_service,
+    SLIDERS_TOPIC,
+)
+from hexacal_msgs_py.qos import COMMAND_QOS, SENSOR_QOS, STATUS_QOS
 from hexacal_msgs_py.readings import ActuatorReading, EncoderReading, InclinometerReading
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import InvalidParameterValueException, InvalidTopicNameException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu, JointState
+from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 NODE_NAME = 'driver'
@@ -61,6 +76,7 @@ NODE_NAME = 'driver'
 # wake-up costs more than the publishing, so 1 kHz costs 200 wake-ups per second, not 1000.
 MAX_WAKE_HZ = 200.0
 SHUTDOWN_LINGER_S = 0.3
+DRIVER_STATUS_PERIOD_S = 1.0  # commanded mode: the drives' status at least this often
 
 __all__ = [
     'DriverConfigurationError',
@@ -153,18 +169,102 @@ class DriverNode(Node):
                 )
             except InvalidTopicNameException as error:
                 raise DriverConfigurationError(f'command_topic: {error}') from error
+            self._create_drive_interfaces()
         self._timer = self.create_timer(self._per_wake / self.rate_hz, self._wake)
 
         source = machine_source(value['true_params'], self.machine)
         if plan is None:
             topic = self.resolve_topic_name(self.command_topic)
             self.get_logger().info(commanded_start_text(self.machine, topic, source, self.rate_hz))
+            self.get_logger().info(drives_start_text(self.machine.follower))
             return
         self.get_logger().info(plan_start_text(self.machine, source, self.rate_hz))
         if self.wait_for_subscriber:
             self.get_logger().info(
                 f'holding the first posture until {self._sliders_pub.topic_name} has a subscriber'
             )
+
+    # ------------------------------------------------------------------ the drives (commanded)
+
+    def _create_drive_interfaces(self) -> None:
+        """Create the drives' status, reset, release services (passive) and link stream (lvdt)."""
+        mode = self.machine.drive_settings.mode
+        self._status_pub = self.create_publisher(
+            DiagnosticArray, CALIBRATION_STATUS_TOPIC, STATUS_QOS
+        )
+        self._status_key: tuple | None = None
+        self._status_due_ns = 0
+        self.create_service(Trigger, DRIVER_RESET_SERVICE, self._on_reset)
+        if mode == MeasuringMode.PASSIVE_ACTUATOR:
+            for joint in MODELS[self.machine.model].actuator_names:
+                self.create_service(
+                    SetBool,
+                    release_service(joint),
+                    lambda request, response, joint=joint: self._on_release(
+                        joint, request, response
+                    ),
+                )
+        self._link_pub = None
+        if mode == MeasuringMode.LVDT:
+            self._link_pub = self.create_publisher(JointState, LINK_TOPIC, SENSOR_QOS)
+            self._link_message = JointState(name=[LINK_LENGTH_JOINT], position=[0.0])
+        self._compliant = mode == MeasuringMode.COMPLIANT
+
+    def _on_release(
+        self, joint: str, request: SetBool.Request, response: SetBool.Response
+    ) -> SetBool.Response:
+        """Release (data true) or lock (false) `joint`, at rest only."""
+        now_s = self.get_clock().now().nanoseconds / NS_PER_S
+        response.success, response.message = self.machine.follower.release(
+            joint, bool(request.data), now_s
+        )
+        text = f'{"release" if request.data else "lock"} {joint}: {response.message}'
+        # One call site per severity: rclpy refuses a severity change at a call site.
+        if response.success:
+            self.get_logger().info(text)
+        else:
+            self.get_logger().warning(text)
+        self._publish_drive_status(force=True)
+        return response
+
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        """Clear a fault: the drives are re-enabled where they stand."""
+        response.success, response.message = self.machine.follower.reset()
+        self.get_logger().info(f'reset: {response.message}')
+        self._publish_drive_status(force=True)
+        return response
+
+    def _publish_drive_status(self, force: bool = False) -> None:
+        """Publish 'hexacal driver' on a change of state, release or fault, else periodically."""
+        follower = self.machine.follower
+        now_ns = self.get_clock().now().nanoseconds
+        key = (follower.state, follower.released_joint, follower.fault)
+        if not force and key == self._status_key and now_ns < self._status_due_ns:
+            return
+        if follower.fault is not None and key != self._status_key:
+            self.get_logger().error(
+                f'drive fault: {follower.fault.text}; holding, trajectories refused until '
+                f'{self.resolve_service_name(DRIVER_RESET_SERVICE)} is called'
+            )
+        self._status_key = key
+        self._status_due_ns = now_ns + int(DRIVER_STATUS_PERIOD_S * NS_PER_S)
+        values = follower.status_values()
+        released = follower.released_joint
+        if follower.fault is not None:
+            level, message = DiagnosticStatus.ERROR, f'fault: {follower.fault.text}'
+        else:
+            level = DiagnosticStatus.OK
+            message = f'{follower.mode.value}' + (f', {released} released' if released else '')
+        self._status_pub.publish(
+            diagnostic_status(
+                level,
+                DRIVER_STATUS_NAME,
+                message,
+                values,
+                hardware_id=self.get_fully_qualified_name(),
+                stamp=now_ns,
+            )
+        )
 
     # ------------------------------------------------------------------ parameters and commands
 
@@ -185,6 +285,8 @@ class DriverNode(Node):
         if problem is not None:
             self.commands_rejected += 1
             self.get_logger().warning(f'rejected a JointTrajectory command: {problem}')
+            self.machine.follower.last_refusal = problem
+            self._publish_drive_status(force=True)
             return
         self.commands_accepted += 1
         end_s = self.machine.follower.command(
@@ -237,6 +339,7 @@ class DriverNode(Node):
             sample = machine.follower.sample(stamp / NS_PER_S)
             self._publish(sample, stamp)
             self._report_motion(sample.phase)
+            self._publish_drive_status()
             return
         if not self._started:
             # Matched (DDS), not just on the graph, on all three: no plan sample goes to nobody.
@@ -265,6 +368,9 @@ class DriverNode(Node):
             self.plan_start_stamp_ns = stamp
         messages = self._messages
         messages['sliders'].position = readings.actuators_m.tolist()
+        if self.machine.follower is not None and self._compliant:
+            # Compliant servos: the force each carries (N), stiffness x deviation.
+            messages['sliders'].effort = self.machine.follower.forces().tolist()
         if turn == 0.0:  # the normal mounting: the message as it always was
             inclinometer = messages['inclinometer']
             inclinometer.position = [readings.alpha_rad, readings.beta_rad]
@@ -284,10 +390,22 @@ class DriverNode(Node):
                     message_stamp, NS_PER_S
                 )
                 publisher.publish(message)
+        if self.machine.follower is not None and self._link_pub is not None:
+            self._publish_link(output.stamps_ns[0])
         # Complete ticks: Ctrl-C may cut the last one after some of its publishes.
         self.published += 1
 
         self._publish_imu(inclinometer)
+
+    def _publish_link(self, sliders_stamp_ns: int | None) -> None:
+        """Publish the LVDT's link length (lvdt mode), read with the actuators."""
+        value, stamp = self.machine.read_link(sliders_stamp_ns)
+        if stamp is None:
+            return
+        message = self._link_message
+        message.position = [value]
+        message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, NS_PER_S)
+        self._link_pub.publish(message)
 
     def _subscription_counts(self) -> tuple[int, int, int]:
         """Return the matched subscriptions of the three streams (inclinometer: either type)."""

@@ -11,16 +11,17 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
+from hexacal_driver.drives import DriveFollower, DriveSettings
 from hexacal_driver.plan import machine_workspace, PlanError, PosturePlan, resolve_plan
 from hexacal_driver.sensor_models import (
     EFFECTS_STREAM,
+    SensorEffect,
     SensorOutput,
     SensorSettings,
     SensorStreams,
 )
 from hexacal_driver.simulation import (
     check_trajectory,
-    CommandFollower,
     ConstraintError,
     device_true_poses,
     PlanWalker,
@@ -44,6 +45,7 @@ from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 import numpy as np
 
 NOISE_STREAM = 0x5E45  # noise draws from their own stream: the same seed gives the same plan
+LINK_STREAM = 0x11D7  # the LVDT's noise: its own stream, so the other streams draw as before
 
 
 class DriverConfigurationError(Exception):
@@ -93,7 +95,8 @@ class SimulatedMachine:
         self.device_turn = float(value['device_turn'])
         self.plan: PosturePlan | None = None
         self.walker: PlanWalker | None = None
-        self.follower: CommandFollower | None = None
+        self.follower: DriveFollower | None = None
+        self.drive_settings = DriveSettings.from_values(value)
         self.stroke: tuple[float, float] | None = None
         if value['command_topic']:
             self.follower = self._start_follower(value['max_actuator_speed_m_s'])
@@ -116,6 +119,7 @@ class SimulatedMachine:
             self.mount,
             self.defects,
         )
+        self._link_rng = np.random.default_rng([value['seed'], LINK_STREAM])
         # The sensor models (sensor_effects), drawing from a random stream of their own.
         self.streams = SensorStreams(
             self.sensors,
@@ -123,6 +127,22 @@ class SimulatedMachine:
             np.random.default_rng([value['seed'], EFFECTS_STREAM]),
             1.0 / float(value['rate_hz']),
         )
+
+    def read_link(self, sliders_stamp_ns: int | None) -> tuple[float, int | None]:
+        """
+        Return the LVDT's reading (m) and its stamp (None: dropped), lvdt commanded mode.
+
+        The link length on the nominal scale (link_length + extension) plus uniform noise of the
+        actuators' half-width (slider_noise_m); with sensor_effects `quantisation` rounded to
+        actuator_resolution_m. The LVDT is read with the actuators (their stamp, their drop).
+        """
+        value = self.follower.link_reading_m
+        value += float(self._link_rng.uniform(-1.0, 1.0)) * self.sensors.noise.actuator_m
+        settings = self.streams.settings
+        resolution = settings.actuator_resolution_m
+        if SensorEffect.QUANTISATION in settings.effects and resolution > 0.0:
+            value = round(value / resolution) * resolution
+        return value, sliders_stamp_ns
 
     def plan_walker(self, settle_s: float, dwell_s: float, loop: bool) -> PlanWalker:
         """
@@ -208,18 +228,46 @@ class SimulatedMachine:
 
         points: (positions m, time_from_start s); start_ns: header.stamp (0: on arrival).
         """
+        follower = self.follower
+        if follower.fault is not None:
+            return None, (
+                f'the drives are in fault ({follower.fault.text}): reset them first '
+                '(the driver reset service)'
+            )
+        released = follower.released_joint
+        if released and released in joint_names:
+            return None, (
+                f'it names {released}, which is released (passive_actuator): command the five '
+                f'others {list(follower.commanded_names())} only'
+            )
         checked, problem = check_trajectory(
-            joint_names, points, MODELS[self.model].actuator_names, self.stroke
+            joint_names, points, follower.commanded_names(), self.stroke
         )
+        if problem is not None and self.drive_settings.mode == 'passive_actuator' and not released:
+            problem += (
+                ' (no joint is released: release one first, or command all six, which the '
+                'rigid link over-constrains)'
+            )
         if (
             problem is None
             and start_ns
             and start_ns + int(checked[-1].time_from_start_s * 1e9) < now_ns
         ):
             problem = 'it ends in the past (header.stamp + time_from_start)'
+        if problem is None and released:
+            checked = self._with_released(checked)
         return checked, problem
 
-    def _start_follower(self, max_speed_m_s: float) -> CommandFollower:
+    def _with_released(self, points: list[TrajectoryPoint]) -> list[TrajectoryPoint]:
+        """Return five-joint points with the released joint's column (its position) inserted."""
+        index = self.follower.released
+        position = float(self.follower.actuators[index])
+        return [
+            TrajectoryPoint(np.insert(point.positions, index, position), point.time_from_start_s)
+            for point in points
+        ]
+
+    def _start_follower(self, max_speed_m_s: float) -> DriveFollower:
         """Commanded mode: the machine stands at the fixed-position point with zero angles."""
         workspace = machine_workspace(self.true_params, self.link_length, self.mount)
         self.stroke = (
@@ -229,8 +277,16 @@ class SimulatedMachine:
         # The link holds the platform on the true sphere (link_length + dL).
         home = np.concatenate([fixed_point(self.true_link_length, self.mount), np.zeros(3)])
         try:
-            follower = CommandFollower(
-                self.true_params, home, max_speed_m_s, self.true_link_length, self.mount
+            follower = DriveFollower(
+                self.true_params,
+                home,
+                max_speed_m_s,
+                self.true_link_length,
+                self.mount,
+                settings=self.drive_settings,
+                joint_names=MODELS[self.model].actuator_names,
+                nominal_link_m=self.link_length,
+                stroke_m=self.stroke,
             )
         except (UnreachablePoseError, ConstraintError) as error:
             raise DriverConfigurationError(

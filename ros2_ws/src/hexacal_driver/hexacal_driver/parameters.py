@@ -14,6 +14,12 @@ from hexacal_driver.sensor_parameters import sensor_parameter_problem, SENSOR_PA
 from hexacal_identify.core.device import DeviceDefects
 from hexacal_identify.nodes.parameters import ParameterSpec as _Spec
 from hexacal_msgs_py.errors import ParameterFileError
+from hexacal_msgs_py.measuring_modes import (
+    DEFAULT_LVDT_STROKE_M,
+    measuring_mode,
+    MEASURING_MODES,
+    MeasuringMode,
+)
 from hexacal_msgs_py.models import MAX_DEVICE_TURN, MODELS
 from hexacal_msgs_py.parameters_file import load_parameters
 
@@ -97,6 +103,45 @@ PARAMETERS: dict[str, _Spec] = {
         1e-6,
         10.0,
     ),
+    # The drives in commanded mode (drives.py): the measuring mode and a real drive's guards.
+    # 'compliant' (today's behaviour) stays the default until the executor drives the others.
+    'measuring_mode': _Spec(
+        MeasuringMode.COMPLIANT.value,
+        'commanded mode: how the drives meet the measuring link: passive_actuator (stiff '
+        'drives, one joint released through hexacal/release/<joint>), lvdt (stiff drives, a '
+        'telescopic link measured on hexacal/link) or compliant (six compliant servos as '
+        'before the modes had names, the default for now); the plan walker ignores it',
+        constraints=', '.join(repr(mode) for mode in MEASURING_MODES),
+    ),
+    'max_following_error_m': _Spec(
+        5e-4,
+        'commanded mode, passive_actuator and lvdt: the stiff drives fault when a commanded '
+        'actuator would stand farther than this from its setpoint (m)',
+        1e-9,
+        1.0,
+    ),
+    'servo_stiffness_n_per_m': _Spec(
+        2e6,
+        'commanded mode, compliant: the stiffness of each servo (N/m); its force (effort of '
+        'the sliders message, N) = stiffness x (position - setpoint)',
+        1.0,
+        1e12,
+    ),
+    'max_force_n': _Spec(
+        1e5,
+        'commanded mode, compliant: the servos fault when the force of an actuator would exceed '
+        'this (N; 1e5 N at 2e6 N/m is 50 mm of deviation: straight moves between the targets '
+        'of a nominal model strain the link up to about 26 mm, which must not fault)',
+        1e-6,
+        1e9,
+    ),
+    'lvdt_stroke_m': _Spec(
+        DEFAULT_LVDT_STROKE_M,
+        'commanded mode, lvdt: the stroke of the link, +- this about its rest length (m); beyond '
+        'it the link is at its end stop and the drives fault (max_following_error_m)',
+        1e-6,
+        1.0,
+    ),
     **SENSOR_PARAMETERS,  # sensor_effects and the sensor models' parameters (read-only)
 }
 
@@ -109,6 +154,10 @@ FINITE_PARAMETERS = (
     'slider_noise_m',
     'angle_noise_rad',
     'max_actuator_speed_m_s',
+    'max_following_error_m',
+    'servo_stiffness_n_per_m',
+    'max_force_n',
+    'lvdt_stroke_m',
 )
 
 
@@ -138,6 +187,11 @@ def parameter_problem(name: str, value: object) -> str | None:
             return f'device_defects {value!r}: {error}'
     elif name == 'device_turn' and not (math.isfinite(value) and abs(value) <= MAX_DEVICE_TURN):
         return f'device_turn must be a finite angle within +-2 pi rad, got {value!r}'
+    elif name == 'measuring_mode':
+        try:
+            measuring_mode(value)
+        except ValueError:
+            return f'measuring_mode must be one of {", ".join(MEASURING_MODES)}, got {value!r}'
     elif name == 'model' and value not in MODEL_CHOICES:
         return f"model must be '' or one of {', '.join(MODELS)}, got {value!r}"
     elif name in SENSOR_PARAMETERS:

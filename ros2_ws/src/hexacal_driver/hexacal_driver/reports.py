@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import math
 
+from hexacal_driver.drives import DriveFollower
 from hexacal_driver.machine import SimulatedMachine
 from hexacal_driver.plan import PosturePlan
 from hexacal_driver.simulation import DONE, DWELLING, MOVING
 from hexacal_identify.core.device import DEFAULT_MOUNT, DeviceDefects
 from hexacal_identify.core.measurements import NoiseModel
+from hexacal_msgs_py.measuring_modes import MeasuringMode
 from hexacal_msgs_py.models import HEXA_SLIDE, MODELS
 import numpy as np
 
@@ -66,6 +68,23 @@ def commanded_start_text(
         f'{source}; {rate_hz:g} Hz, {sensors_text(machine)}; standing at the '
         'fixed-position point'
     )
+
+
+def drives_start_text(follower: DriveFollower) -> str:
+    """Return the start-up line of the drives in commanded mode: the mode and its guard."""
+    settings = follower.settings
+    if settings.mode == MeasuringMode.COMPLIANT:
+        guard = (
+            f'compliant servos of {settings.servo_stiffness_n_per_m:g} N/m, fault above '
+            f'{settings.max_force_n:g} N'
+        )
+    else:
+        guard = f'stiff drives, fault above {settings.max_following_error_m:g} m following error'
+        if settings.mode == MeasuringMode.LVDT:
+            guard += f'; LVDT link stroke +-{settings.lvdt_stroke_m:g} m'
+        else:
+            guard += '; no joint released (release one through hexacal/release/<joint>)'
+    return f'measuring_mode {settings.mode.value}: {guard}'
 
 
 def plan_start_text(machine: SimulatedMachine, source: str, rate_hz: float) -> str:

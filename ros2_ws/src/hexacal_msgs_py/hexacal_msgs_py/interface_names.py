@@ -36,6 +36,9 @@ DEFAULT_COMMAND_TOPIC = '/joint_trajectory_controller/joint_trajectory'
 # reads), false locks it where it stands; the machine refuses either while moving.
 LINK_TOPIC = 'hexacal/link'
 RELEASE_SERVICE_PREFIX = 'hexacal/release/'
+# The driver's drives fault at their limits (following error, force, link stroke) and hold until
+# reset through this std_srvs/Trigger service (re-enabled where they stand).
+DRIVER_RESET_SERVICE = 'hexacal/driver/reset'
 
 # The kinematics node: the calibrated model at work.
 PLATFORM_POSE_TOPIC = 'hexacal/platform_pose'  # FK of the live actuator readings

@@ -17,6 +17,7 @@ from hexacal_msgs_py.interface_names import (  # noqa: F401 - re-exported
     DEPLOY_SERVICE,
     DEPLOYMENT_STATUS_NAME,
     DIAGNOSTIC_ARRAY_TYPE,
+    DRIVER_RESET_SERVICE,
     DRIVER_STATUS_NAME,
     ENCODER_TOPIC,
     ENCODER_TYPE,

@@ -1,0 +1,394 @@
+"""
+The simulated machine's drives in commanded mode, per measuring mode, with a guard (ROS-free).
+
+`DriveFollower` is the CommandFollower (a trajectory controller with mock hardware) whose
+drives behave as the measuring mode (hexacal_msgs_py.measuring_modes) says, on the TRUE machine
+with the true link (link_length + dL):
+
+* ``compliant`` (today's behaviour, the default for now): six equally compliant servos; the
+  platform stands on the link sphere where the elastic energy is least
+  (simulation.device_constrained_pose). Each actuator carries the force
+  ``servo_stiffness_n_per_m * (position - setpoint)`` (N, positive when the link pushes it
+  past its setpoint). The drive faults when a force would exceed ``max_force_n``.
+* ``passive_actuator``: stiff drives. With one joint released (`release`) the five commanded
+  actuators stand exactly at their setpoints and the released one is where the link puts it
+  (core.passive_actuator.solve_passive from the previous pose); it faults at its stroke's end.
+  With no joint released the six stiff drives fight the rigid link: the actuators stand where
+  the least-squares pose on the sphere puts them, off their setpoints by the following error,
+  and the drive faults when that would exceed ``max_following_error_m``.
+* ``lvdt``: stiff drives, six commanded, all at their setpoints; the telescopic link extends to
+  ``|P|`` (forward kinematics of the setpoints, core.lvdt.lvdt_extensions). Beyond
+  ``+-lvdt_stroke_m`` about the true link's rest length it stands at its end stop (a rigid
+  link of that length): the drives build up following error and fault as above.
+
+The guard checks every new standing BEFORE it is taken: a motion that would cross a limit
+faults, stops (the trajectory is dropped) and holds the last standing inside the limits, as a
+real drive does. Nothing moves and trajectories are refused until `reset`, which re-enables the
+drives where they stand (setpoints := the true positions, so no following error is left).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import StrEnum
+import math
+from typing import Any, Mapping
+
+from hexacal_driver.simulation import (
+    CommandFollower,
+    ConstraintError,
+    device_constrained_pose,
+    MOVING,
+    STILL,
+    WalkSample,
+)
+from hexacal_identify.core.architectures import KinematicParameters
+from hexacal_identify.core.device import DEFAULT_MOUNT
+from hexacal_identify.core.errors import ForwardKinematicsError, UnreachablePoseError
+from hexacal_identify.core.kinematics import forward_kinematics
+from hexacal_identify.core.passive_actuator import solve_passive
+from hexacal_msgs_py.measuring_modes import measuring_mode, MeasuringMode
+import numpy as np
+
+
+class DriveState(StrEnum):
+    """The drives' state, as the status says it."""
+
+    OK = 'ok'
+    FAULT = 'fault'
+
+
+@dataclass(frozen=True)
+class DriveSettings:
+    """The measuring mode and the drives' limits (the node's parameters of the same names)."""
+
+    mode: MeasuringMode = MeasuringMode.COMPLIANT
+    max_following_error_m: float = 5e-4
+    servo_stiffness_n_per_m: float = 2e6
+    max_force_n: float = 1e5
+    lvdt_stroke_m: float = 0.005
+
+    @classmethod
+    def from_values(cls, values: Mapping[str, Any]) -> DriveSettings:
+        """Return the settings from the node's parameter values (name -> value)."""
+        return cls(
+            measuring_mode(values['measuring_mode']),
+            float(values['max_following_error_m']),
+            float(values['servo_stiffness_n_per_m']),
+            float(values['max_force_n']),
+            float(values['lvdt_stroke_m']),
+        )
+
+
+@dataclass(frozen=True)
+class DriveFault:
+    """Why the drives stopped: the quantity, the joint, its value and the limit (SI)."""
+
+    text: str
+    joint: str = ''
+    value: float = math.nan
+    limit: float = math.nan
+
+
+@dataclass(frozen=True)
+class Standing:
+    """A candidate standing of the machine: pose, true actuators, link length |P| (m)."""
+
+    pose: np.ndarray
+    actuators: np.ndarray
+    link_m: float
+    end_stop: bool = False  # lvdt: the link is at its end stop
+
+
+class DriveFollower(CommandFollower):
+    """CommandFollower whose drives follow the measuring mode and fault at their limits."""
+
+    def __init__(
+        self,
+        params: KinematicParameters,
+        start_pose: np.ndarray,
+        max_speed_m_s: float,
+        link_length: float,
+        mount: str = DEFAULT_MOUNT,
+        *,
+        settings: DriveSettings = DriveSettings(),
+        joint_names: tuple[str, ...] = (),
+        nominal_link_m: float | None = None,
+        stroke_m: tuple[float, float] = (-math.inf, math.inf),
+    ) -> None:
+        """
+        Stand at `start_pose` (the true link `link_length` long) with all six joints locked.
+
+        `joint_names`: the actuators' joint names (model order) for messages; `nominal_link_m`:
+        the link's nominal length (the LVDT reads on that scale; default `link_length`);
+        `stroke_m`: the actuators' stroke (low, high), m: a released actuator faults outside it.
+        """
+        super().__init__(params, start_pose, max_speed_m_s, link_length, mount)
+        self.settings = settings
+        self.joint_names = tuple(joint_names) or tuple(f'actuator_{i + 1}' for i in range(6))
+        self.nominal_link_m = float(link_length if nominal_link_m is None else nominal_link_m)
+        self.actuator_stroke_m = stroke_m
+        self.released: int | None = None
+        self.fault: DriveFault | None = None
+        self.link_m = float(np.linalg.norm(self.pose[:3]))
+        self.end_stop = False
+        self.peaks = {'following_error_m': 0.0, 'force_n': 0.0, 'link_extension_m': 0.0,
+                      'actuator_deviation_m': 0.0}
+        self.rest_deviation_m = 0.0
+        self.last_refusal = ''  # why the last trajectory was refused ('' none yet)
+        self._update_measures()
+
+    # ------------------------------------------------------------------ what the drives show
+
+    @property
+    def mode(self) -> MeasuringMode:
+        """Return the measuring mode."""
+        return self.settings.mode
+
+    @property
+    def state(self) -> DriveState:
+        """Return ok or fault."""
+        return DriveState.OK if self.fault is None else DriveState.FAULT
+
+    @property
+    def released_joint(self) -> str:
+        """Return the released joint's name ('' none)."""
+        return '' if self.released is None else self.joint_names[self.released]
+
+    def commanded_mask(self) -> np.ndarray:
+        """Return which actuators are commanded (6,) bool: all but the released one."""
+        mask = np.ones(6, bool)
+        if self.released is not None:
+            mask[self.released] = False
+        return mask
+
+    def commanded_names(self) -> tuple[str, ...]:
+        """Return the joints a trajectory must name: all but the released one."""
+        return tuple(n for n, c in zip(self.joint_names, self.commanded_mask()) if c)
+
+    def deviations(self) -> np.ndarray:
+        """Return true position - setpoint of each actuator (6,), m; 0 for the released one."""
+        return np.where(self.commanded_mask(), self.actuators - self.setpoints, 0.0)
+
+    def forces(self) -> np.ndarray | None:
+        """Return each actuator's force (6,), N (compliant: stiffness x deviation), else None."""
+        if self.mode != MeasuringMode.COMPLIANT:
+            return None
+        return self.settings.servo_stiffness_n_per_m * (self.actuators - self.setpoints)
+
+    @property
+    def link_extension_m(self) -> float:
+        """Return the link's extension from its rest length (m): lvdt, else 0."""
+        return self.link_m - self.link_length if self.mode == MeasuringMode.LVDT else 0.0
+
+    @property
+    def link_reading_m(self) -> float:
+        """Return what a noise-free LVDT reads (m): nominal length + extension."""
+        return self.nominal_link_m + self.link_extension_m
+
+    def status_values(self) -> dict[str, object]:
+        """Return the status keys (docs/nodes.md, driver) with their values, SI."""
+        fault = self.fault or DriveFault('')
+        forces = self.forces()
+        lvdt = self.mode == MeasuringMode.LVDT
+        return {
+            'measuring_mode': self.mode.value,
+            'released_joint': self.released_joint,
+            'state': self.state.value,
+            'fault': fault.text,
+            'fault_joint': fault.joint,
+            'fault_value': '' if math.isnan(fault.value) else fault.value,
+            'fault_limit': '' if math.isnan(fault.limit) else fault.limit,
+            'following_error_m': self.following_error_m,
+            'max_following_error_m': self.peaks['following_error_m'],
+            'link_extension_m': self.link_extension_m if lvdt else '',
+            'max_link_extension_m': self.peaks['link_extension_m'] if lvdt else '',
+            'force_n': float(np.max(np.abs(forces))) if forces is not None else '',
+            'max_force_n': self.peaks['force_n'] if forces is not None else '',
+            'actuator_deviation_m': self.rest_deviation_m,
+            'max_actuator_deviation_m': self.peaks['actuator_deviation_m'],
+            'refused_command': self.last_refusal,
+        }
+
+    # ------------------------------------------------------------------ release, lock, reset
+
+    def release(self, joint: str, release: bool, now_s: float) -> tuple[bool, str]:
+        """Release (True) or lock (False) `joint`; return (done, what happened or why not)."""
+        if self.mode != MeasuringMode.PASSIVE_ACTUATOR:
+            return False, f'measuring_mode is {self.mode.value}: no joint can be released'
+        if joint not in self.joint_names:
+            return False, f'unknown joint {joint!r} (joints {", ".join(self.joint_names)})'
+        if self.fault is not None:
+            return False, f'the drives are in fault ({self.fault.text}): reset first'
+        if now_s < self.end_time_s:
+            return False, 'refused while moving: release and lock only at rest'
+        index = self.joint_names.index(joint)
+        if release:
+            if self.released == index:
+                return True, f'{joint} is already released'
+            if self.released is not None:
+                return False, (
+                    f'{self.released_joint} is released: lock it first (one joint at a time)'
+                )
+            self.released = index
+            self._segments = []  # at rest: the setpoints are self.setpoints from now on
+            self._update_measures()
+            return True, f'{joint} released: it follows the link, its encoder reads'
+        if self.released != index:
+            return True, f'{joint} is already locked'
+        # Locked where it stands: its setpoint becomes its position, no jump.
+        self.setpoints[index] = self.actuators[index]
+        self._solved_for = self.setpoints.copy()
+        self._segments = []
+        self.released = None
+        self._update_measures()
+        return True, f'{joint} locked at {self.actuators[index]:.6f} m'
+
+    def reset(self) -> tuple[bool, str]:
+        """Clear a fault: re-enable the drives where they stand; return (done, message)."""
+        if self.fault is None:
+            return True, 'no fault to reset'
+        text = self.fault.text
+        self.fault = None
+        mask = self.commanded_mask()
+        self.setpoints[mask] = self.actuators[mask]
+        self._solved_for = self.setpoints.copy()
+        self._segments = []
+        self._update_measures()
+        return True, f'fault reset ({text}): the drives hold where they stand'
+
+    # ------------------------------------------------------------------ motion
+
+    def sample(self, now_s: float) -> WalkSample:
+        """Return the machine at now_s (s): moved as the mode says, unless the guard faults."""
+        setpoints = self.setpoints_at(now_s)
+        if self.fault is None and not np.array_equal(setpoints, self._solved_for):
+            self._move(setpoints)
+        phase = MOVING if now_s < self.end_time_s else STILL
+        if phase == STILL:
+            self._at_rest()
+        return WalkSample(self.pose.copy(), self.actuators.copy(), 0, phase, 0)
+
+    def _move(self, setpoints: np.ndarray) -> None:
+        """Take the standing for `setpoints`, or fault and hold if it crosses a limit."""
+        try:
+            standing = self._solve(setpoints)
+        except (ConstraintError, UnreachablePoseError, ForwardKinematicsError) as error:
+            if self.mode != MeasuringMode.COMPLIANT:
+                self._trip(self._jam(error))
+                return
+            # Compliant servos (as before the modes had names): it stays where it was.
+            standing = Standing(self.pose, self.actuators, self.link_m)
+        fault = self._check(standing, setpoints)
+        if fault is not None:
+            self._trip(fault)
+            return
+        self.setpoints = setpoints
+        self._solved_for = setpoints.copy()
+        self.pose, self.actuators = standing.pose, standing.actuators
+        self.link_m, self.end_stop = standing.link_m, standing.end_stop
+        self._update_measures()
+
+    def _jam(self, error: Exception) -> DriveFault:
+        """Return the fault of setpoints no standing of the true machine fits (it jams)."""
+        if self.released is not None:
+            return DriveFault(
+                f'the five commanded actuators and the link jam (released {self.released_joint}: '
+                f'a singularity of the passive system on the way, no pose near the previous '
+                f'one): {error}',
+                self.released_joint,
+            )
+        return DriveFault(f'no pose of the true machine fits the setpoints: {error}')
+
+    def _solve(self, setpoints: np.ndarray) -> Standing:
+        """Return where the true machine stands with these setpoints in this mode."""
+        if self.released is not None:
+            solved = solve_passive(
+                self.params, setpoints[None], self.released, self.pose[None],
+                self.link_length, self.mount,
+            )
+            solved.raise_if_failed()
+            return Standing(solved.poses[0], solved.actuators[0], self.link_length)
+        if self.mode == MeasuringMode.LVDT:
+            # core.lvdt.lvdt_extensions: forward kinematics of the six setpoints -> |P| - L.
+            free = forward_kinematics(self.params, setpoints[None], self.pose[None])
+            free.raise_if_failed()
+            pose = free.poses[0]
+            extension = float(np.linalg.norm(pose[:3])) - self.link_length
+            stroke = self.settings.lvdt_stroke_m
+            if abs(extension) <= stroke:  # stiff drives: the six stand at their setpoints
+                return Standing(pose, setpoints.copy(), self.link_length + extension)
+            # At its end stop the link is rigid, stroke longer or shorter than at rest.
+            length = self.link_length + math.copysign(stroke, extension)
+            pose, actuators = device_constrained_pose(
+                self.params, setpoints, self.pose, length, self.mount
+            )
+            return Standing(pose, actuators, length, end_stop=True)
+        pose, actuators = device_constrained_pose(
+            self.params, setpoints, self.pose, self.link_length, self.mount
+        )
+        return Standing(pose, actuators, self.link_length)
+
+    def _check(self, standing: Standing, setpoints: np.ndarray) -> DriveFault | None:
+        """Return the fault this standing would cause (a limit crossed), else None."""
+        if self.mode == MeasuringMode.COMPLIANT:
+            return self.compliant_fault(setpoints, standing.actuators)
+        mask = self.commanded_mask()
+        deviation = np.where(mask, np.abs(standing.actuators - setpoints), 0.0)
+        worst = int(np.argmax(deviation))
+        limit = self.settings.max_following_error_m
+        if deviation[worst] > limit:
+            why = ('the link at its end stop' if standing.end_stop
+                   else 'six stiff drives against the rigid link: over-constrained')
+            return DriveFault(
+                f'following error of {self.joint_names[worst]} {deviation[worst]:.3g} m '
+                f'beyond the limit {limit:g} m ({why})',
+                self.joint_names[worst], float(deviation[worst]), limit,
+            )
+        if self.released is not None:
+            position = float(standing.actuators[self.released])
+            low, high = self.actuator_stroke_m
+            if not low <= position <= high:
+                joint = self.joint_names[self.released]
+                bound = low if position < low else high
+                return DriveFault(
+                    f'released {joint} at {position:.6g} m would pass its end of stroke '
+                    f'{bound:g} m', joint, position, bound,
+                )
+        return None
+
+    def compliant_fault(self, setpoints: np.ndarray, actuators: np.ndarray) -> DriveFault | None:
+        """Return the compliant drives' fault for a standing (a force beyond max_force_n)."""
+        forces = np.abs(self.settings.servo_stiffness_n_per_m * (actuators - setpoints))
+        worst = int(np.argmax(forces))
+        limit = self.settings.max_force_n
+        if forces[worst] <= limit:
+            return None
+        return DriveFault(
+            f'force on {self.joint_names[worst]} {forces[worst]:.4g} N beyond the limit '
+            f'{limit:g} N (compliant servos against the link)',
+            self.joint_names[worst], float(forces[worst]), limit,
+        )
+
+    def _trip(self, fault: DriveFault) -> None:
+        """Fault: drop the trajectory, hold the last standing (setpoints where they were)."""
+        self.fault = fault
+        self._segments = []
+        self._solved_for = self.setpoints.copy()
+
+    def _update_measures(self) -> None:
+        """Recompute the following error, force and extension of the standing; keep peaks."""
+        self.following_error_m = float(np.max(np.abs(self.deviations())))
+        self.strain_m = float(np.max(np.abs(self.actuators - self.setpoints)))
+        peaks = self.peaks
+        peaks['following_error_m'] = max(peaks['following_error_m'], self.following_error_m)
+        forces = self.forces()
+        if forces is not None:
+            peaks['force_n'] = max(peaks['force_n'], float(np.max(np.abs(forces))))
+        peaks['link_extension_m'] = max(peaks['link_extension_m'], abs(self.link_extension_m))
+
+    def _at_rest(self) -> None:
+        """Record the commanded actuators' true deviation from their setpoints at rest."""
+        self.rest_deviation_m = self.following_error_m
+        peaks = self.peaks
+        peaks['actuator_deviation_m'] = max(peaks['actuator_deviation_m'], self.rest_deviation_m)
