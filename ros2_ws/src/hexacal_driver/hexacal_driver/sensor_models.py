@@ -115,7 +115,7 @@ class SensorSettings:
     drop_probability: float = 0.01
     spike_rate_hz: float = 0.5
     spike_size_rad: float = 5e-4
-    inclinometer_drift_rad_per_s: float = 2e-8
+    inclinometer_drift_rad_per_s: float = 5e-9
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> SensorSettings:
