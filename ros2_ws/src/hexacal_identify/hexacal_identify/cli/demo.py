@@ -114,11 +114,11 @@ def add_parsers(subparsers) -> None:
     parser.add_argument('--rate-hz', type=float, default=100.0, help='sensor rate (default 100)')
     parser.add_argument(
         '--sensor-effects',
-        default='',
+        default='all',
         metavar='TEXT',
-        help="the simulated sensors' departures from ideal, the driver's sensor_effects: '' "
-        "(default: ideal sensors), 'all', or a comma list of lag, quantisation, clock, drops, "
-        'spikes, drift (docs/user-guide.md, Sensor models)',
+        help="the simulated sensors' departures from ideal, the driver's sensor_effects: 'all' "
+        "(default: every effect at its realistic default), '' (ideal sensors), or a comma list "
+        'of lag, quantisation, clock, drops, spikes, drift (docs/user-guide.md, Sensor models)',
     )
     parser.add_argument('--seed', type=int, default=0, help='seed of plan, noise and nominal set')
     parser.add_argument(
