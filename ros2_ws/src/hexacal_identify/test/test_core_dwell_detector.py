@@ -317,3 +317,34 @@ def test_disordered_repeated_and_non_finite_readings_are_counted_never_fatal(see
         detector.add('sliders', [1, 2], [[0.0] * 5, [0.0] * 5])
     with pytest.raises(ValueError):
         DwellDetector(clock_offsets_s={'sliders': 0.1})
+
+
+def test_a_dwell_too_short_for_a_lagging_channel_is_counted_and_names_the_stream():
+    """A first-order lag of 0.5 s cannot settle in a 1.5 s dwell: no posture, the stream named."""
+    from hexacal_identify.core.dwell_detector import detect_dwell_postures
+
+    rate, tau, dwell, move = 100.0, 0.5, 1.5, 0.5
+    period = dwell + move
+    t = np.arange(0.0, 8 * period, 1.0 / rate)
+    phase = np.clip((t % period - dwell) / move, 0.0, 1.0)  # still, then a 0.5 s ramp
+    level = (np.floor(t / period) + phase) * 0.005  # 5 mm / 5 mrad per move
+    rng = np.random.default_rng(1)
+    lagged = np.empty_like(level)
+    lagged[0] = level[0]
+    for k in range(1, len(t)):
+        gain = 1.0 - np.exp(-1.0 / (rate * tau))
+        lagged[k] = lagged[k - 1] + gain * (level[k] - lagged[k - 1])
+    stamps = (t * 1e9).astype(np.int64) + 1_000_000_000
+    noise = rng.uniform(-1e-5, 1e-5, (len(t), 9))
+    found, detector = detect_dwell_postures(
+        {
+            'sliders': (stamps, level[:, None] + noise[:, :6]),
+            'inclinometer': (stamps, lagged[:, None] + noise[:, 6:8]),
+            'encoder': (stamps, level[:, None] + noise[:, 8:]),
+        },
+        estimate_offsets=(),
+    )
+    assert detector.unsettled.get('inclinometer', 0) >= 5
+    assert set(detector.unsettled) == {'inclinometer'}
+    assert detector.dropped.get('unsettled', 0) == detector.unsettled['inclinometer']
+    assert len(found) <= 2  # no biased posture of a still-creeping channel

@@ -44,6 +44,7 @@ class ProblemKey(StrEnum):
     REJECTED = 'rejected'
     UNPAIRED = 'unpaired'
     BEHIND = 'behind'  # settled detector: blocks judged without a stream stamped too far behind
+    UNSETTLED = 'unsettled'  # settled detector: still periods a stream never settled in
     REJECTED_SAMPLES = 'rejected.samples'
     DROPPED = 'dropped'
     STREAMS_STOPPED = 'streams_stopped'
@@ -131,6 +132,8 @@ def problems(
         found[f'{ProblemKey.UNPAIRED}.{reason}'] = count
     for stream, count in sorted(getattr(detector, 'behind', {}).items()):
         found[f'{ProblemKey.BEHIND}.{stream}'] = count
+    for stream, count in sorted(getattr(detector, 'unsettled', {}).items()):
+        found[f'{ProblemKey.UNSETTLED}.{stream}'] = count
     for reason, count in sorted(detector.rejected.items()):
         found[f'{ProblemKey.REJECTED_SAMPLES}.{reason}'] = count
     for reason, count in sorted(detector.dropped.items()):

@@ -154,6 +154,10 @@ class DwellDetector:
         self.behind: dict[str, int] = {}  # per stream, blocks judged without it (too late)
         self.emitted = 0
         self.slid = 0  # captures slid on because a stream was still settling
+        # Still periods that ended with no posture because these streams never settled.
+        self.unsettled: dict[str, int] = {}
+        self._still_blocks = 0  # blocks with no stream moving since the last motion
+        self._settling: set[Stream] = set()  # streams last seen settling in this still period
 
     # ------------------------------------------------------------------ input
 
@@ -302,6 +306,7 @@ class DwellDetector:
         values = set(verdicts.values())
         if values == {Verdict.SETTLED}:
             self._settled_at.append(block)
+        unsettled = self._note_settling(verdicts, values)
         if self.state is DetectorState.CAPTURED:
             if Verdict.MOVING in values or self._left_posture(block):
                 self.state = DetectorState.ARMED
@@ -309,7 +314,9 @@ class DwellDetector:
         if Verdict.MOVING in values or Verdict.UNKNOWN in values:
             if self.state is DetectorState.CAPTURING:
                 reason = DropReason.MOTION if Verdict.MOVING in values else DropReason.GAP
-                self._drop(reason, block)
+                self._drop(DropReason.UNSETTLED if unsettled else reason, block, count=False)
+                if not unsettled:
+                    self._count(self.dropped, reason, 1)
             return None
         if self.state is DetectorState.ARMED:
             if values == {Verdict.SETTLED}:
@@ -317,6 +324,42 @@ class DwellDetector:
                 self._capture_start = block
             return None
         return self._try_capture(block)
+
+    def _note_settling(self, verdicts: dict[Stream, Verdict], values: set[Verdict]) -> bool:
+        """
+        Count a still period of the actuators that ends before every stream settled.
+
+        The actuators stand still (not moving, not unknown) while another stream is still
+        settling or moving (a lagging inclinometer): that stream is remembered; when the
+        actuators move on with no posture taken, the period is counted in `unsettled` under the
+        streams that held it up. Returns True if this block ended such a period.
+        """
+        if self.state is DetectorState.CAPTURED:
+            self._still_blocks, self._settling = 0, set()
+            return False
+        reference = verdicts[REFERENCE]
+        if reference not in (Verdict.MOVING, Verdict.UNKNOWN):
+            self._still_blocks += 1
+            holding = {
+                stream
+                for stream, verdict in verdicts.items()
+                if verdict is Verdict.SETTLING
+                or (verdict is Verdict.MOVING and stream != REFERENCE)
+            }
+            if holding:
+                self._settling = holding
+            return False
+        counted = bool(
+            reference is Verdict.MOVING
+            and self._settling
+            and self._still_blocks >= BLOCKS_PER_WINDOW
+        )
+        if counted:
+            self._count(self.dropped, DropReason.UNSETTLED, 1)
+            for stream in self._settling:
+                self.unsettled[stream.value] = self.unsettled.get(stream.value, 0) + 1
+        self._still_blocks, self._settling = 0, set()
+        return counted
 
     # ------------------------------------------------------------------ judging
 
@@ -374,6 +417,7 @@ class DwellDetector:
             capture = self._capture(stream, pre_end, start, block)
             if capture is None:
                 self.slid += 1
+                self._settling.add(stream)  # it held the capture up
                 return None
             captures[stream] = capture
         return self._emit(captures, start, block)
@@ -416,13 +460,14 @@ class DwellDetector:
         self.emitted += 1
         return DetectedPosture(reading, int(reference[0]), len(reference), tuple(std.tolist()))
 
-    def _drop(self, reason: DropReason, block: int) -> DroppedPeriod:
+    def _drop(self, reason: DropReason, block: int, count: bool = True) -> DroppedPeriod:
         start = self._capture_start if self._capture_start is not None else block
         stamps = self.lanes[REFERENCE].samples(start + 1, block)[0]
         first = int(stamps[0]) if len(stamps) else (start + 1) * self.block_ns
         last = int(stamps[-1]) if len(stamps) else first
         dropped = DroppedPeriod(first, last, len(stamps), reason)
-        self._count(self.dropped, reason, 1)
+        if count:
+            self._count(self.dropped, reason, 1)
         self.recent_dropped.append(dropped)
         self.state = DetectorState.ARMED
         self._capture_start = None

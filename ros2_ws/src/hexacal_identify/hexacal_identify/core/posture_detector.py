@@ -69,6 +69,9 @@ class DropReason(StrEnum):
     GAP = 'gap'
     END_OF_STREAM = 'end_of_stream'
     STREAM_STOPPED = 'stream_stopped'  # a sensor stream went silent (e.g. the driver died)
+    # settled detector: the machine stood still, but a stream (e.g. a lagging inclinometer)
+    # was still creeping towards its level when it moved on: no posture, and the stream named.
+    UNSETTLED = 'unsettled'
 
 
 # The names the collector, its health module and the tests import.
