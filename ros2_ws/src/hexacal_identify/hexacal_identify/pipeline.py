@@ -225,7 +225,9 @@ def posture_problem(
 
 
 def measurements_from_postures(
-    postures: Sequence[PostureReading], fixed_tolerance_rad: float = FIXED_POSITION_TOLERANCE_RAD
+    postures: Sequence[PostureReading],
+    fixed_tolerance_rad: float = FIXED_POSITION_TOLERANCE_RAD,
+    nominal_link_length: float | None = None,
 ) -> Measurements:
     """
     Stack posture readings into Measurements; kinds from the inclinometer reading.
@@ -234,7 +236,10 @@ def measurements_from_postures(
     reversal) goes with it; a turned device reads zero at the same fixed position, so the kinds
     are told apart the same way.  The postures' scatter becomes the measurements'
     ``standard_errors`` when every posture carries it (else none: ``scatter_count`` says how
-    many do).
+    many do).  Postures with a measured ``link_length`` (the lvdt measuring mode, m) give the
+    measurements' ``link_lengths`` (L_m of eq. 4 per posture); a posture without one then
+    stands at ``nominal_link_length`` (ValueError when that is not given).  When no posture has
+    one the measurements have none and the device's L holds, as before.
     """
     if not postures:
         return Measurements(np.zeros((0, 6)), np.zeros((0, 2)), np.zeros(0), np.zeros(0, str))
@@ -254,7 +259,28 @@ def measurements_from_postures(
         np.where(fixed, FIXED, SPHERE),
         device_turn=[p.device_turn for p in postures],
         standard_errors=errors,
+        link_lengths=_link_lengths(postures, nominal_link_length),
     )
+
+
+def _link_lengths(
+    postures: Sequence[PostureReading], nominal: float | None
+) -> np.ndarray | None:
+    """Return each posture's measured link length (m), the nominal where it has none."""
+    measured = [p.link_length for p in postures]
+    if all(length is None for length in measured):
+        return None
+    if nominal is None and any(length is None for length in measured):
+        raise ValueError(
+            'some postures have a measured link_length and some do not: '
+            'give the nominal link length for the others'
+        )
+    return np.array([nominal if m is None else m for m in measured], dtype=float)
+
+
+def link_length_count(postures: Sequence[PostureReading]) -> int:
+    """Return how many of the postures carry a measured link length (lvdt measuring mode)."""
+    return sum(p.link_length is not None for p in postures)
 
 
 def scatter_count(postures: Sequence[PostureReading]) -> int:
@@ -315,7 +341,8 @@ def calibrate(
         scatter_weights=choice.weights == Weights.SCATTER,
         scatter_floor=scatter_floor,
     )
-    result = identify(nominal, measurements_from_postures(postures), options)
+    measurements = measurements_from_postures(postures, nominal_link_length=link_length)
+    result = identify(nominal, measurements, options)
     result.weights_note = choice.note
     return result
 
