@@ -80,6 +80,15 @@ def test_calibrate_uses_the_measured_link_lengths(bags, nominal_file, tmp_path):
     assert result['measuring_mode'] == 'lvdt'
     assert result['bag']['postures_with_link_length'] == POSTURES
     assert errors['position_mean_m'] < 20e-6, errors
+    # hexacal verify measures with the same L_m: the calibration passes on the bag's postures.
+    verified = hexacal(
+        'verify', bags['link'], '--nominal', nominal_file, '--calibrated', tmp_path / 'link.yaml',
+        '--json',
+    )
+    assert verified.returncode == 0, verified.stderr
+    verification = json.loads(verified.stdout)
+    assert verification['verdict'] == 'pass'
+    assert verification['calibrated']['position_rms_m'] < 10e-6
     # The same readings with L in place of L_m: the millimetres of extension become model error.
     ignored, ignored_errors = _calibrate(bags['without'], nominal_file, tmp_path / 'no.yaml')
     assert ignored['measuring_mode'] is None
