@@ -64,6 +64,9 @@ def test_collector_records_the_link_and_postures_carry_it(
         assert 0.0 < posture.scatter.link_length_standard_error < 1e-6
         assert np.max(np.abs(np.array(posture.actuator_positions) - target)) < 3e-6
     assert len(set(extensions)) == len(STEPS)
+    # The collector's status names the link as one of its streams, with its topic and rate.
+    link = [v for _, _, v in probe.statuses if v.get('stream.link.topic') == '/hexacal/link']
+    assert link and float(link[-1]['stream.link.rate_hz']) > 50.0
     assert ros_processes.stop(driver, STOP_TIMEOUT_S) == 0, driver.describe()
     assert ros_processes.stop(collector, STOP_TIMEOUT_S) == 0, collector.describe()
 

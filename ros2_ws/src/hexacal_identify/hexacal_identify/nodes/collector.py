@@ -499,7 +499,9 @@ class CollectorNode(Node):
         """Publish on hexacal/calibration_status when a problem counter or state changed."""
         problems = self.problems()
         streams = (
-            health.stream_statistics(self.detector, self._stream_names)
+            health.stream_statistics(
+                self.detector, {**self._stream_names, LINK_STREAM: self._link.name}
+            )
             if isinstance(self.detector, DwellDetector)
             else {}
         )
