@@ -1,13 +1,17 @@
 """
-The collector with the real driver in measuring_mode lvdt (real processes).
+The collector with the real driver in measuring_mode lvdt and passive_actuator (real processes).
 
-The driver publishes the LVDT's link length on hexacal/link and its measuring mode on its
-status; the collector records both, treats the link as one more stream of the settled
-detector and publishes postures with link_length - the length the driver's machine stands
-at (its status's extension), within the noise.
+The driver publishes the LVDT's link length on hexacal/link and its measuring mode (and, in
+passive_actuator mode, the released joint) on its status; the collector records them, treats
+the link as one more stream of the settled detector and publishes postures with link_length -
+the length the driver's machine stands at (its status's extension), within the noise - and
+records each posture's released actuator in the bag.
 """
 
 from __future__ import annotations
+
+import subprocess
+import sys
 
 import numpy as np
 from system_support import (  # noqa: F401 - probe: a fixture
@@ -83,3 +87,50 @@ def test_collector_records_the_link_and_postures_carry_it(
     assert all(length is not None for length in lengths)
     for extension in extensions:  # each commanded posture found again offline
         assert min(abs(length - LINK_LENGTH_M - extension) for length in lengths) < 3e-6
+
+
+def test_collector_records_each_postures_released_actuator(
+    ros_processes, tmp_path, probe  # noqa: F811 - fixture
+):
+    released = 'slider_3'
+    bags = tmp_path / 'bags'
+    probe.subscribe_postures()
+    collector = ros_processes.start(
+        node_argv('collector', fast_collector_parameters(bags, bag_name='passive')),
+        name='collector',
+    )
+    probe.wait_for_node('collector', '/', collector)
+    driver = start_driver(ros_processes, measuring_mode='passive_actuator', rate_hz=100.0)
+    machine = Machine(probe, driver)
+    names = machine.sliders[-1][0]
+    answer = machine.set_bool(f'/hexacal/release/{released}', True)
+    assert answer.success, answer.message
+    machine.wait(
+        lambda: machine.driver_status(lambda v: v['released_joint'] == released),
+        'the status naming the released joint',
+    )
+    index = names.index(released)
+    five = [name for name in names if name != released]
+    count = len(probe.postures)
+    targets = np.delete(machine.positions(), index) + np.array([2e-3, -1e-3, 1.5e-3, 0.0, -2e-3])
+    machine.command(five, targets, 0.5)
+    machine.wait(lambda: len(probe.postures) > count, 'a posture with slider_3 released')
+    posture = probe.postures[-1]
+    assert posture.link_length is None  # no LVDT in this mode
+    assert ros_processes.stop(driver, STOP_TIMEOUT_S) == 0, driver.describe()
+    assert ros_processes.stop(collector, STOP_TIMEOUT_S) == 0, collector.describe()
+
+    from hexacal_identify.pipeline import postures_from_bag
+
+    recorded = postures_from_bag(bags / 'passive')
+    assert recorded.measuring_mode == 'passive_actuator'
+    assert recorded.measuring.released_at(recorded.postures[-1].stamp_ns) == released
+    completed = subprocess.run(
+        [sys.executable, '-m', 'hexacal_identify.cli', 'bag-info', str(bags / 'passive')],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert completed.returncode == 0, completed.stderr
+    lines = [line for line in completed.stdout.splitlines() if line.startswith('Posture ')]
+    assert lines and lines[-1].endswith(f'released actuator {released}')
