@@ -867,10 +867,16 @@ def _redetect(
     postures with their scatter; a clock offset given is used, None: estimated) or 'window'
     (the paired StreamSynchronizer + PostureDetector of before, for comparison).
     ``link_topic``: the recorded lvdt link length stream (hexacal/link), one more stream of the
-    settled detector (the postures get their link_length); the window detector ignores it.
+    settled detector (the postures get their link_length); the window detector refuses it.
     """
     if detector not in DETECTORS:
         raise ValueError(f'detector must be one of {", ".join(DETECTORS)}, got {detector!r}')
+    if link_topic is not None and detector != 'settled':
+        # Postures without their L_m would be calibrated against the nominal L: millimetres off.
+        raise InvalidMeasurementError(
+            f'the bag records the measured link length ({link_topic}), which only the settled '
+            f'detector reads; re-detect with it, not {detector!r}'
+        )
     from hexacal_msgs_py.conversions import (
         imu_to_inclinometer_reading,
         joint_state_to_actuator_reading,

@@ -249,6 +249,12 @@ class CollectorNode(Node):
         if self.settled:
             self._link_readings[0].append(stamp_ns(message.header.stamp))
             self._link_readings[1].append(value)
+        else:
+            self.get_logger().warning(
+                f'{self._link.name}: the window detector does not read the link length, so '
+                'its postures carry none (recorded only); use detector settled',
+                once=True,
+            )
 
     def _link_problem(self, problem: str) -> None:
         self.link_invalid += 1
