@@ -9,7 +9,10 @@ the offline tools on bags of known content.  ``model`` names the actuator joints
 ``record_model``, is written to the bag's ``hexacal.collector`` metadata as the
 collector does.  With ``scatter`` each posture message also carries the dwell's scatter as
 the collector records it: the standard error of each channel's mean in ``velocity``, the
-number of samples in ``effort``.
+number of samples in ``effort``.  When ``exact`` has ``link_lengths`` (the lvdt measuring
+mode) the link length is a fourth raw stream (hexacal/link, joint link_length) and each
+posture carries its mean as the optional joint link_length; ``measuring`` is written as the
+``hexacal.measuring`` metadata record.
 """
 
 from __future__ import annotations
@@ -24,6 +27,8 @@ from hexacal_msgs_py.names import (
     ENCODER_TOPIC,
     INCLINOMETER_NAMES,
     INCLINOMETER_TOPIC,
+    LINK_LENGTH_JOINT,
+    LINK_TOPIC,
     posture_names,
     POSTURE_TOPIC,
     SLIDERS_TOPIC,
@@ -65,6 +70,7 @@ def write_recording(
     model: str | None = None,
     record_model: str | None = None,
     scatter: bool = False,
+    measuring: dict | None = None,
 ) -> Path:
     rng = np.random.default_rng(seed)
     slider_names, names = actuator_names(model), posture_names(model)
@@ -72,10 +78,16 @@ def write_recording(
     # (N, 9)
     values = np.column_stack([exact.actuator_positions, exact.inclinometer, exact.rotary])
     half_widths = np.array([noise_m] * 6 + [noise_rad] * 3)
+    link = exact.link_lengths is not None
+    if link:  # the link length rides as a tenth column, with the actuators' noise
+        values = np.column_stack([values, exact.link_lengths])
+        half_widths = np.append(half_widths, noise_m)
     prefix = f'/{namespace.strip("/")}/' if namespace else '/'
     with BagWriter(directory) as writer:
         if record_model is not None:
             writer.write_metadata('hexacal.collector', {'namespace': '/', 'model': record_model})
+        if measuring is not None:
+            writer.write_metadata('hexacal.measuring', measuring)
         topics = {
             SLIDERS_TOPIC: slider_names,
             INCLINOMETER_TOPIC: INCLINOMETER_NAMES,
@@ -85,6 +97,8 @@ def write_recording(
             for topic in topics:
                 if topic != drop_topic:
                     writer.add_topic(prefix + topic, JOINT_STATE)
+            if link:
+                writer.add_topic(prefix + LINK_TOPIC, JOINT_STATE)
         if postures:
             writer.add_topic(prefix + POSTURE_TOPIC, JOINT_STATE)
         if extra_topic:
@@ -94,27 +108,35 @@ def write_recording(
         for target in values:
             moving = int(move_s * rate_hz)
             samples = [previous + (target - previous) * (k + 1) / moving for k in range(moving)]
-            dwell = target + rng.uniform(-1, 1, (int(dwell_s * rate_hz), 9)) * half_widths
+            shape = (int(dwell_s * rate_hz), len(target))
+            dwell = target + rng.uniform(-1, 1, shape) * half_widths
             for count, sample in enumerate(samples + list(dwell)):
                 stamp += period
                 if nan_every and count % nan_every == nan_every - 1:
                     sample = np.where(
-                        np.arange(9) == 2, np.nan, sample
+                        np.arange(len(sample)) == 2, np.nan, sample
                     )  # a glitched slider_3 reading
                 if raw:
-                    _write_raw(writer, stamp, sample, drop_topic, prefix, slider_names)
+                    _write_raw(writer, stamp, sample[:9], drop_topic, prefix, slider_names)
+                    if link:
+                        writer.write(
+                            prefix + LINK_TOPIC,
+                            _joint_state(stamp, [LINK_LENGTH_JOINT], sample[9:]),
+                            stamp,
+                        )
                 if extra_topic and stamp % (10 * period) == 0:
                     writer.write(extra_topic, {'data': 'not hexacal'}, stamp)
             if postures:
                 spread = {}
+                joints = list(names) + ([LINK_LENGTH_JOINT] if link else [])
                 if scatter:  # standard errors of the means, and the samples averaged
                     spread = {
                         'velocity': dwell.std(axis=0, ddof=1) / np.sqrt(len(dwell)),
-                        'effort': [len(dwell)] * len(names),
+                        'effort': [len(dwell)] * len(joints),
                     }
                 writer.write(
                     prefix + POSTURE_TOPIC,
-                    _joint_state(stamp, names, dwell.mean(axis=0), **spread),
+                    _joint_state(stamp, joints, dwell.mean(axis=0), **spread),
                     stamp,
                 )
             previous = target

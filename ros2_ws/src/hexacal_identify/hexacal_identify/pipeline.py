@@ -33,12 +33,15 @@ from hexacal_msgs_py.names import (
     IMU_TYPE,
     INCLINOMETER_TOPIC,
     JOINT_STATE_TYPE,
+    LINK_LENGTH_JOINT,
+    LINK_TOPIC,
     POSTURE_TOPIC,
     SLIDERS_TOPIC,
 )
 from hexacal_msgs_py.readings import PostureReading
 import numpy as np
 
+from .bag.measuring import MEASURING_METADATA, MeasuringRecord
 from .bag.naming import COLLECTOR_METADATA  # the collector's record: model, detector, mapping
 from .core.architectures import KinematicParameters, parameters_for
 from .core.device import (
@@ -225,7 +228,9 @@ def posture_problem(
 
 
 def measurements_from_postures(
-    postures: Sequence[PostureReading], fixed_tolerance_rad: float = FIXED_POSITION_TOLERANCE_RAD
+    postures: Sequence[PostureReading],
+    fixed_tolerance_rad: float = FIXED_POSITION_TOLERANCE_RAD,
+    nominal_link_length: float | None = None,
 ) -> Measurements:
     """
     Stack posture readings into Measurements; kinds from the inclinometer reading.
@@ -234,7 +239,10 @@ def measurements_from_postures(
     reversal) goes with it; a turned device reads zero at the same fixed position, so the kinds
     are told apart the same way.  The postures' scatter becomes the measurements'
     ``standard_errors`` when every posture carries it (else none: ``scatter_count`` says how
-    many do).
+    many do).  Postures with a measured ``link_length`` (the lvdt measuring mode, m) give the
+    measurements' ``link_lengths`` (L_m of eq. 4 per posture); a posture without one then
+    stands at ``nominal_link_length`` (ValueError when that is not given).  When no posture has
+    one the measurements have none and the device's L holds, as before.
     """
     if not postures:
         return Measurements(np.zeros((0, 6)), np.zeros((0, 2)), np.zeros(0), np.zeros(0, str))
@@ -254,7 +262,28 @@ def measurements_from_postures(
         np.where(fixed, FIXED, SPHERE),
         device_turn=[p.device_turn for p in postures],
         standard_errors=errors,
+        link_lengths=_link_lengths(postures, nominal_link_length),
     )
+
+
+def _link_lengths(
+    postures: Sequence[PostureReading], nominal: float | None
+) -> np.ndarray | None:
+    """Return each posture's measured link length (m), the nominal where it has none."""
+    measured = [p.link_length for p in postures]
+    if all(length is None for length in measured):
+        return None
+    if nominal is None and any(length is None for length in measured):
+        raise ValueError(
+            'some postures have a measured link_length and some do not: '
+            'give the nominal link length for the others'
+        )
+    return np.array([nominal if m is None else m for m in measured], dtype=float)
+
+
+def link_length_count(postures: Sequence[PostureReading]) -> int:
+    """Return how many of the postures carry a measured link length (lvdt measuring mode)."""
+    return sum(p.link_length is not None for p in postures)
 
 
 def scatter_count(postures: Sequence[PostureReading]) -> int:
@@ -315,7 +344,8 @@ def calibrate(
         scatter_weights=choice.weights == Weights.SCATTER,
         scatter_floor=scatter_floor,
     )
-    result = identify(nominal, measurements_from_postures(postures), options)
+    measurements = measurements_from_postures(postures, nominal_link_length=link_length)
+    result = identify(nominal, measurements, options)
     result.weights_note = choice.note
     return result
 
@@ -396,6 +426,14 @@ class BagPostures:
     # The input mapping the collector recorded (topics and joints of the raw inputs); None: a bag
     # without one, whose raw inputs are the contract's topics and joints.
     mapping: InputMapping | None = None
+    # The measuring mode and released actuators the collector recorded (bag.measuring); an empty
+    # record (mode None) for a bag without one.
+    measuring: MeasuringRecord = field(default_factory=MeasuringRecord)
+
+    @property
+    def measuring_mode(self) -> str | None:
+        """Return the measuring mode the bag was recorded in, None when it does not say."""
+        return self.measuring.mode
 
 
 def _screened(
@@ -486,11 +524,14 @@ def postures_from_bag(
         topics[key] = topic
     plan: dict[str, str] = {}
     collector: dict[str, str] = {}
+    measuring = MeasuringRecord()
     for record in reader.metadata():
         if record.name.startswith('hexacal'):
             plan.update({f'{record.name}.{k}': v for k, v in record.data.items()})
         if record.name == COLLECTOR_METADATA:
             collector.update(record.data)
+        if record.name == MEASURING_METADATA:  # rewritten as it changes: the last one holds
+            measuring = MeasuringRecord.from_metadata(record.data)
     recorded_model = plan.get(RECORDED_MODEL_KEY) or None
     if recorded_model is not None and recorded_model not in MODELS:
         raise InvalidMeasurementError(
@@ -507,8 +548,14 @@ def postures_from_bag(
     raw = _raw_topics(reader.topics(), topics, mapping)
     ours = {topics[POSTURE_TOPIC]} if POSTURE_TOPIC in topics else set()
     ours.update(raw.values())
+    link_topic = topics.get(LINK_TOPIC)  # the lvdt's link length, when the machine has one
+    if link_topic is not None:
+        ours.add(link_topic)
     ignored = sorted(t for t in reader.topics() if t not in ours)
-    _check_types(reader, _expected_types(topics, raw, mapping))
+    expected = _expected_types(topics, raw, mapping)
+    if link_topic is not None:
+        expected[link_topic] = JOINT_STATE_TYPE
+    _check_types(reader, expected)
     if POSTURE_TOPIC in topics and source != 'raw':
         models: set[str] = set()
         postures, invalid = _valid(
@@ -516,7 +563,9 @@ def postures_from_bag(
         )
         model = _bag_model(path, models, recorded_model)
         kept, rejected = _screened(postures, model)
-        return BagPostures(kept, 'posture topic', plan, ignored, invalid, rejected, model, mapping)
+        return BagPostures(
+            kept, 'posture topic', plan, ignored, invalid, rejected, model, mapping, measuring
+        )
     if source == 'posture':
         raise InvalidMeasurementError(f'bag {path} has no {POSTURE_TOPIC} topic')
     missing = [_input_text(t, mapping) for t in RAW_TOPICS if t not in raw]
@@ -539,11 +588,21 @@ def postures_from_bag(
                 options[name] = float(collector[name])
     options.update(detector_options)
     models = set()
+    if link_topic is not None:
+        options['link_topic'] = link_topic
     postures, invalid = _redetect(reader, raw, mapping, models, recorded_model, **options)
     model = _bag_model(path, models, recorded_model)
     kept, rejected = _screened(postures, model)
     return BagPostures(
-        kept, 'raw streams (re-detected)', plan, ignored, invalid, rejected, model, mapping
+        kept,
+        'raw streams (re-detected)',
+        plan,
+        ignored,
+        invalid,
+        rejected,
+        model,
+        mapping,
+        measuring,
     )
 
 
@@ -796,6 +855,7 @@ def _redetect(
     detector: str = 'settled',
     inclinometer_clock_offset_s: float | None = None,
     encoder_clock_offset_s: float | None = None,
+    link_topic: str | None = None,
     **detector_options,
 ) -> tuple[list[PostureReading], int]:
     """
@@ -806,9 +866,17 @@ def _redetect(
     ``detector``: 'settled' (core.dwell_detector, each stream judged on its own readings,
     postures with their scatter; a clock offset given is used, None: estimated) or 'window'
     (the paired StreamSynchronizer + PostureDetector of before, for comparison).
+    ``link_topic``: the recorded lvdt link length stream (hexacal/link), one more stream of the
+    settled detector (the postures get their link_length); the window detector refuses it.
     """
     if detector not in DETECTORS:
         raise ValueError(f'detector must be one of {", ".join(DETECTORS)}, got {detector!r}')
+    if link_topic is not None and detector != 'settled':
+        # Postures without their L_m would be calibrated against the nominal L: millimetres off.
+        raise InvalidMeasurementError(
+            f'the bag records the measured link length ({link_topic}), which only the settled '
+            f'detector reads; re-detect with it, not {detector!r}'
+        )
     from hexacal_msgs_py.conversions import (
         imu_to_inclinometer_reading,
         joint_state_to_actuator_reading,
@@ -818,6 +886,7 @@ def _redetect(
     from hexacal_msgs_py.errors import InvalidReadingError
 
     from .bag import BagDecodeError
+    from .core.dwell_detector import LINK_STREAM
     from .core.posture_detector import detect_postures, synchronize_arrays
 
     imu = mapping is not None and mapping.inclinometer_type == IMU_INCLINOMETER
@@ -875,12 +944,18 @@ def _redetect(
         from .core.dwell_detector import detect_dwell_postures
 
         given = {'inclinometer': inclinometer_clock_offset_s, 'encoder': encoder_clock_offset_s}
+        streams_in = {
+            'sliders': arrays[0],
+            'inclinometer': (inclinometer_stamps, inclinometer[:, :2]),
+            'encoder': arrays[2],
+        }
+        if link_topic is not None:
+            link, bad = _link_stream(reader, link_topic)
+            invalid += bad
+            if len(link[0]):
+                streams_in[LINK_STREAM] = link
         found, dwell = detect_dwell_postures(
-            {
-                'sliders': arrays[0],
-                'inclinometer': (inclinometer_stamps, inclinometer[:, :2]),
-                'encoder': arrays[2],
-            },
+            streams_in,
             clock_offsets_s={k: v for k, v in given.items() if v is not None},
             estimate_offsets=tuple(k for k, v in given.items() if v is None),
             **detector_options,
@@ -901,6 +976,30 @@ def _redetect(
     )
     readings = [d.reading for d in detect_postures(stamps, values, **detector_options)]
     return _with_turns(readings, inclinometer_stamps, inclinometer[:, 2]), invalid
+
+
+def _link_stream(reader, topic: str) -> tuple[tuple[np.ndarray, np.ndarray], int]:
+    """Return the recorded link lengths ((stamps ns, values (N, 1) m)) and the invalid count."""
+    from .bag import BagDecodeError
+
+    stamps: list[int] = []
+    values: list[float] = []
+    invalid, checked = 0, set()
+    for message in reader.messages([topic]):
+        try:
+            decoded = _joint_state(message, checked)
+            names = list(decoded.name)
+            value = float(decoded.position[names.index(LINK_LENGTH_JOINT)])
+        except (BagDecodeError, ValueError, IndexError):
+            invalid += 1  # not a message, or without the link_length joint: not used, counted
+            continue
+        if not np.isfinite(value) or value <= 0.0:
+            invalid += 1
+            continue
+        stamps.append(decoded.header.stamp.sec * 1_000_000_000 + decoded.header.stamp.nanosec)
+        values.append(value)
+    arrays = (np.array(stamps, dtype=np.int64), np.array(values, dtype=float).reshape(-1, 1))
+    return arrays, invalid
 
 
 def _with_turns(

@@ -47,7 +47,12 @@ from hexacal_msgs_py.models import (
     ModelLayout,
     MODELS,
 )
-from hexacal_msgs_py.names import DEVICE_TURN_JOINT, ENCODER_NAMES, INCLINOMETER_NAMES
+from hexacal_msgs_py.names import (
+    DEVICE_TURN_JOINT,
+    ENCODER_NAMES,
+    INCLINOMETER_NAMES,
+    LINK_LENGTH_JOINT,
+)
 from hexacal_msgs_py.parameters_file import validate_parameters
 from hexacal_msgs_py.readings import (
     ActuatorReading,
@@ -294,21 +299,42 @@ def joint_state_to_posture_reading(msg: JointState, model: ModelArgument = None)
     names = layout_of(model).posture_names
     values = _joint_positions(msg, names, 'posture')
     turn = _device_turn(msg, 'posture')
-    scatter = _posture_scatter(msg, names)
+    link_length = _link_length(msg)
+    scatter = _posture_scatter(msg, names, link_length is not None)
     return PostureReading.from_values(
-        stamp_ns(msg.header.stamp), values, device_turn=turn, scatter=scatter
+        stamp_ns(msg.header.stamp),
+        values,
+        device_turn=turn,
+        scatter=scatter,
+        link_length=link_length,
     )
 
 
-def _posture_scatter(msg: JointState, names: Sequence[str]) -> PostureScatter | None:
+def _link_length(msg: JointState) -> float | None:
+    """Return the optional LINK_LENGTH_JOINT position of a posture (m), None when absent."""
+    if LINK_LENGTH_JOINT not in msg.name:
+        return None
+    (length,) = _joint_positions(msg, (LINK_LENGTH_JOINT,), 'posture')
+    return length
+
+
+def _posture_scatter(
+    msg: JointState, names: Sequence[str], with_link: bool = False
+) -> PostureScatter | None:
     """Return the scatter a posture JointState carries in velocity/effort, or None."""
     count = len(msg.name)
     if count == 0 or len(msg.velocity) != count or len(msg.effort) != count:
         return None
     index = {name: i for i, name in enumerate(msg.name)}
+    link_error = link_count = None
+    if with_link:
+        link_error = msg.velocity[index[LINK_LENGTH_JOINT]]
+        link_count = msg.effort[index[LINK_LENGTH_JOINT]]
     return PostureScatter(
         tuple(msg.velocity[index[name]] for name in names),
         tuple(msg.effort[index[name]] for name in names),
+        link_length_standard_error=link_error,
+        link_length_sample_count=link_count,
     )
 
 
@@ -350,20 +376,37 @@ def posture_reading_to_joint_state(
     Convert a PostureReading to a JointState with the model's posture joints.
 
     PostureReading -> JointState with the model's posture joints (default: the Hexa Slide's), then
-    device_turn when the reading's device_turn is non-zero.  A reading's scatter goes into
-    `velocity` (standard errors of the means, m or rad) and `effort` (sample counts); the
-    device_turn joint, set and not measured, gets 0 and 1.
+    device_turn when the reading's device_turn is non-zero, then link_length (m) when the reading
+    has a measured link length.  A reading's scatter goes into `velocity` (standard errors of
+    the means, m or rad) and `effort` (sample counts); the device_turn joint, set and not
+    measured, gets 0 and 1, and so does link_length when the scatter does not know its own.
     """
     names, values = _with_turn(
         layout_of(model).posture_names, reading.values(), reading.device_turn
     )
+    if reading.link_length is not None:
+        names, values = names + (LINK_LENGTH_JOINT,), values + (reading.link_length,)
     message = _joint_state(reading.stamp_ns, names, values, frame_id)
     scatter = reading.scatter
     if scatter is not None:
-        extra = len(names) - len(scatter.standard_errors)
-        message.velocity = [float(v) for v in scatter.standard_errors] + [0.0] * extra
-        message.effort = [float(n) for n in scatter.sample_counts] + [1.0] * extra
+        turn = [DEVICE_TURN_JOINT] if DEVICE_TURN_JOINT in names else []
+        errors = [float(v) for v in scatter.standard_errors] + [0.0] * len(turn)
+        counts = [float(n) for n in scatter.sample_counts] + [1.0] * len(turn)
+        if reading.link_length is not None:
+            link_error, link_count = _link_scatter(scatter)
+            errors.append(link_error)
+            counts.append(link_count)
+        message.velocity = errors
+        message.effort = counts
     return message
+
+
+def _link_scatter(scatter: PostureScatter) -> tuple[float, float]:
+    """Return the link length's standard error and count for velocity/effort (0, 1: unknown)."""
+    error, count = scatter.link_length_standard_error, scatter.link_length_sample_count
+    if error is None or count is None:
+        return 0.0, 1.0
+    return float(error), float(count)
 
 
 def parameters_to_multiarray(vector: object, model: ModelArgument = None) -> Float64MultiArray:

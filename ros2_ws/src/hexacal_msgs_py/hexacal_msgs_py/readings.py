@@ -17,7 +17,13 @@ import operator
 from typing import cast, SupportsIndex
 
 from hexacal_msgs_py.errors import InvalidReadingError
-from hexacal_msgs_py.names import DEVICE_TURN_JOINT, MAX_DEVICE_TURN, N_CHAINS, POSTURE_NAMES
+from hexacal_msgs_py.names import (
+    DEVICE_TURN_JOINT,
+    LINK_LENGTH_JOINT,
+    MAX_DEVICE_TURN,
+    N_CHAINS,
+    POSTURE_NAMES,
+)
 
 NS_PER_S = 1_000_000_000  # stamps are integer nanoseconds
 
@@ -59,6 +65,16 @@ def _check_turn(kind: str, value: object) -> float:
             f'{kind}: {DEVICE_TURN_JOINT} must be within +-2 pi rad, got {turn!r}'
         )
     return turn
+
+
+def _check_link_length(kind: str, value: object) -> float | None:
+    """Return the measured link length (m, finite > 0), or None (the device's nominal L)."""
+    if value is None:
+        return None
+    length = _check_value(kind, LINK_LENGTH_JOINT, value)
+    if length <= 0.0:
+        raise InvalidReadingError(f'{kind}: {LINK_LENGTH_JOINT} must be > 0 m, got {length!r}')
+    return length
 
 
 def _check_actuators(kind: str, positions: object) -> tuple[float, ...]:
@@ -141,10 +157,15 @@ class PostureScatter:
     unit: its samples' scatter over the square root of their number) and `sample_counts` the
     number of samples averaged (>= 1).  On a posture JointState the standard errors travel in
     `velocity` and the counts in `effort` (docs/formats.md).
+
+    link_length_standard_error / link_length_sample_count: the same for the posture's measured
+    link length (lvdt measuring mode, m), None where the posture has no measured length.
     """
 
     standard_errors: tuple[float, ...]
     sample_counts: tuple[int, ...]
+    link_length_standard_error: float | None = None
+    link_length_sample_count: int | None = None
 
     def __post_init__(self) -> None:
         kind = type(self).__name__
@@ -171,6 +192,26 @@ class PostureScatter:
             whole.append(int(number))
         object.__setattr__(self, 'standard_errors', checked)
         object.__setattr__(self, 'sample_counts', tuple(whole))
+        self._check_link()
+
+    def _check_link(self) -> None:
+        kind = type(self).__name__
+        error, count = self.link_length_standard_error, self.link_length_sample_count
+        if (error is None) != (count is None):
+            raise InvalidReadingError(
+                f'{kind}: the link length needs both a standard error and a sample count'
+            )
+        if error is None or count is None:
+            return
+        checked = _check_value(kind, f'standard error of {LINK_LENGTH_JOINT}', error)
+        number = _check_value(kind, f'sample count of {LINK_LENGTH_JOINT}', count)
+        if checked < 0.0 or number < 1 or number != int(number):
+            raise InvalidReadingError(
+                f'{kind}: {LINK_LENGTH_JOINT} needs a standard error >= 0 and a whole sample '
+                f'count >= 1, got {error!r} and {count!r}'
+            )
+        object.__setattr__(self, 'link_length_standard_error', checked)
+        object.__setattr__(self, 'link_length_sample_count', int(number))
 
 
 @dataclass(frozen=True)
@@ -188,6 +229,11 @@ class PostureReading:
 
     scatter: the readings' scatter behind the nine values (PostureScatter), or None where it is
     not known (a posture given by hand, a bag recorded before it existed).
+
+    link_length: the measuring link's length L_m measured at this posture (m, finite > 0; the
+    lvdt measuring mode), which replaces the device's nominal L in eq. 4; None (the default)
+    means the nominal L.  Not one of the nine values(); on a JointState it is the optional joint
+    LINK_LENGTH_JOINT, absent when None.
     """
 
     stamp_ns: int
@@ -197,6 +243,7 @@ class PostureReading:
     phi: float
     device_turn: float = 0.0
     scatter: PostureScatter | None = None
+    link_length: float | None = None
 
     def __post_init__(self) -> None:
         kind = type(self).__name__
@@ -208,6 +255,7 @@ class PostureReading:
         object.__setattr__(self, 'beta', _check_value(kind, 'beta', self.beta))
         object.__setattr__(self, 'phi', _check_value(kind, 'phi', self.phi))
         object.__setattr__(self, 'device_turn', _check_turn(kind, self.device_turn))
+        object.__setattr__(self, 'link_length', _check_link_length(kind, self.link_length))
 
     @property
     def slider_positions(self) -> tuple[float, ...]:
@@ -251,8 +299,9 @@ class PostureReading:
         values: Iterable[float],
         device_turn: float = 0.0,
         scatter: PostureScatter | None = None,
+        link_length: float | None = None,
     ) -> PostureReading:
-        """Inverse of values(): nine numbers in POSTURE_NAMES order (and the device turn, rad)."""
+        """Inverse of values(): nine numbers in POSTURE_NAMES order (turn rad, link length m)."""
         numbers = tuple(values)
         if len(numbers) != len(POSTURE_NAMES):
             raise InvalidReadingError(
@@ -268,6 +317,7 @@ class PostureReading:
             phi,
             device_turn=device_turn,
             scatter=scatter,
+            link_length=link_length,
         )
 
 

@@ -207,6 +207,7 @@ def run_calibrate(args) -> int:
         check_model,
         device_defects_extras,
         device_prior_json,
+        link_length_count,
         load_machine_and_mount,
         measurements_from_postures,
         postures_from_bag,
@@ -261,7 +262,9 @@ def run_calibrate(args) -> int:
     else:
         stored = None
     measurements = (
-        measurements_from_postures(bag.postures) if args.save_result or args.report else None
+        measurements_from_postures(bag.postures, nominal_link_length=args.link_length)
+        if args.save_result or args.report
+        else None
     )
     extras = {'bag': str(args.bag), 'nominal': str(args.nominal)}
     if args.save_result:
@@ -304,7 +307,10 @@ def run_calibrate(args) -> int:
             'rejected_postures': [
                 {'index': i, 'reason': r, 'detail': d} for i, r, d in bag.rejected
             ],
+            # Postures with a measured link length L_m (lvdt), which replaced L in eq. 4.
+            'postures_with_link_length': link_length_count(bag.postures),
         }
+        payload['measuring_mode'] = bag.measuring_mode  # the bag's; None: it does not say
         payload['adequacy'] = adequacy.to_json()
         payload['output'] = str(args.output) if result.reason == CONVERGED else None
         if stored is not None and args.store is not None:  # the default store goes unsaid
@@ -326,6 +332,9 @@ def _print_summary(args, bag, result, adequacy) -> None:
     model = result.parameters.model
     model_text = '' if model == DEFAULT_MODEL else f' ({model})'  # the default goes unnamed
     print(f'bag {args.bag}{model_text}: {len(bag.postures)} postures from the {bag.source}')
+    measuring = _measuring_line(bag)
+    if measuring:
+        print(measuring)
     if bag.ignored_topics:
         print(f'  ignored topics: {", ".join(bag.ignored_topics)}')
     if bag.invalid_messages:
@@ -403,6 +412,23 @@ def device_prior_lines(result, prior) -> list[str]:
     return lines
 
 
+def _measuring_line(bag) -> str:
+    """Return the measuring mode line ('' when the bag says nothing of it: as before)."""
+    from ..pipeline import link_length_count
+
+    measured = link_length_count(bag.postures)
+    if bag.measuring_mode is None and not measured:
+        return ''
+    mode = bag.measuring_mode or 'not recorded'
+    lengths = (
+        f', {measured} of {len(bag.postures)} postures with a measured link length L_m '
+        '(used in eq. 4)'
+        if measured
+        else ''
+    )
+    return f'  measuring mode: {mode}{lengths}'
+
+
 def _not_used(bag) -> str:
     parts = []
     if bag.invalid_messages:
@@ -433,4 +459,23 @@ def run_bag_info(args) -> int:
     print(f'Postures:          {len(bag.postures)} (from the {bag.source})')
     for key, value in sorted(bag.plan.items()):
         print(f'Recorded:          {key} = {value}')
+    for line in _posture_lines(bag):
+        print(line)
     return 0
+
+
+def _posture_lines(bag) -> list[str]:
+    """Return per posture its released actuator and measured link length, where recorded."""
+    measuring = bag.measuring
+    if measuring.mode is None and not measuring.released and not any(
+        p.link_length is not None for p in bag.postures
+    ):
+        return []  # a bag of before the measuring modes: nothing to say
+    lines = [f'Measuring mode:    {measuring.mode or "not recorded"}']
+    for index, posture in enumerate(bag.postures, start=1):
+        released = measuring.released_at(posture.stamp_ns) or 'none'
+        length = (
+            f', link_length {posture.link_length:.6f} m' if posture.link_length is not None else ''
+        )
+        lines.append(f'Posture {index:<10} released actuator {released}{length}')
+    return lines

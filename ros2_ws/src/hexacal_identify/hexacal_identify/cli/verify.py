@@ -147,7 +147,7 @@ def run_verify(args) -> int:
     result = verify(
         nominal,
         calibrated,
-        measurements_from_postures(bag.postures),
+        measurements_from_postures(bag.postures, nominal_link_length=args.link_length),
         device=DeviceModel(link_length=args.link_length, mount=mount),
         calibrated_defects=defects,
         threshold_m=None if args.threshold_um is None else args.threshold_um / UM,

@@ -28,6 +28,11 @@ own stamps - no pairing of readings - and judges each on its own readings:
   neither splits a dwell nor moves its mean; one dwell gives one posture.
 * Clock offsets (stream stamps - actuator stamps) are given, or estimated from the starts of
   motion (core.clock_offset) when the stream is in `estimate_offsets`.
+* The measured link length (LINK_STREAM: an LVDT in a telescopic link, the lvdt measuring
+  mode, m) is one more stream when its readings arrive: judged, captured and averaged as the
+  others (tolerance link_tolerance_m), stamped in the actuators' clock; the posture gets its
+  mean as `link_length` and its standard error and count in the scatter.  Without link
+  readings nothing changes.
 
 Online (readings fed one by one or in chunks, as the collector does) and offline (whole
 arrays) give exactly the same postures: the readings are cut into blocks only when the grid
@@ -67,6 +72,9 @@ from .stream_lane import StreamLane
 # Channels of each stream, in POSTURE_NAMES order.
 STREAM_WIDTHS = {Stream.SLIDERS: N_CHAINS, Stream.INCLINOMETER: 2, Stream.ENCODER: 1}
 REFERENCE = Stream.SLIDERS  # offsets are against the actuator stream's clock
+# The optional fourth stream: the link length an LVDT measures (m), published with the
+# actuators' stamps.  Not a Stream (the window detector's synchronizer pairs three streams).
+LINK_STREAM = 'link'
 BLOCKS_PER_WINDOW = 4
 # Levels differ significantly beyond 4 standard errors: with 9 channels judged at every block,
 # 3 would call noise 'settling' every few blocks (Student t of ~30 samples), delaying postures.
@@ -109,6 +117,7 @@ class DwellDetector:
         max_gap_s: float = 0.1,
         clock_offsets_s: Mapping[str, float] | None = None,
         estimate_offsets: tuple[str, ...] = (Stream.INCLINOMETER, Stream.ENCODER),
+        link_tolerance_m: float | None = None,
     ) -> None:
         if not (window_s > 0 and capture_s > 0 and max_gap_s > 0):
             raise ValueError('window_s, capture_s and max_gap_s must be > 0')
@@ -125,29 +134,34 @@ class DwellDetector:
         self.max_gap_ns = int(round(max_gap_s * NS_PER_S))
         keep = self.capture_blocks + 2 * BLOCKS_PER_WINDOW
         self.horizon_ns = max(int(HORIZON_S * NS_PER_S), keep * self.block_ns)
-        self.lanes = {
+        self._keep = keep
+        self.lanes: dict[str, StreamLane] = {
             stream: StreamLane(stream.value, width, self.block_ns, keep, self.max_gap_ns)
             for stream, width in STREAM_WIDTHS.items()
         }
         for stream, offset in offsets.items():
             self.lanes[Stream(stream)].offset_ns = int(round(offset * NS_PER_S))
         self.estimate_offsets = tuple(Stream(stream) for stream in estimate_offsets)
-        self._estimators = {
+        self._estimators: dict[str, OffsetEstimator] = {
             stream: OffsetEstimator(BLOCKS_PER_WINDOW * self.block_ns)
             for stream in self.estimate_offsets
         }
-        self.tolerances = {
+        link_tolerance = slider_tolerance_m if link_tolerance_m is None else link_tolerance_m
+        if not link_tolerance > 0:
+            raise ValueError('tolerances must be > 0')
+        self.tolerances: dict[str, np.ndarray] = {
             Stream.SLIDERS: np.full(N_CHAINS, slider_tolerance_m),
             Stream.INCLINOMETER: np.full(2, angle_tolerance_rad),
             Stream.ENCODER: np.full(1, angle_tolerance_rad),
+            LINK_STREAM: np.full(1, link_tolerance),
         }
         self.state = DetectorState.ARMED
         self._next_block: int | None = None
         self._settled_at: deque[int] = deque(maxlen=self.capture_blocks + 2)
-        self._verdicts: dict[Stream, Verdict] = dict.fromkeys(self.lanes, Verdict.UNKNOWN)
+        self._verdicts: dict[str, Verdict] = dict.fromkeys(self.lanes, Verdict.UNKNOWN)
         self._capture_start: int | None = None
-        self._moves_seen: dict[Stream, int] = {}
-        self._posture_values: dict[Stream, np.ndarray] = {}
+        self._moves_seen: dict[str, int] = {}
+        self._posture_values: dict[str, np.ndarray] = {}
         self.rejected: dict[str, int] = {}
         self.dropped: dict[str, int] = {}
         self.recent_dropped: deque[DroppedPeriod] = deque(maxlen=16)
@@ -163,7 +177,7 @@ class DwellDetector:
 
     def add(self, stream: str, stamps_ns: ArrayLike, values: ArrayLike) -> list[DetectedPosture]:
         """Feed readings of one stream (stamps (N,) ns, values (N, width)); return postures."""
-        self._queue(Stream(stream), stamps_ns, values)
+        self._queue(self._stream(stream), stamps_ns, values)
         return self._run()
 
     def update(
@@ -171,8 +185,23 @@ class DwellDetector:
     ) -> list[DetectedPosture]:
         """Feed readings of several streams at once ({stream: (stamps, values)})."""
         for stream, (stamps, values) in readings.items():
-            self._queue(Stream(stream), stamps, values)
+            self._queue(self._stream(stream), stamps, values)
         return self._run()
+
+    @property
+    def has_link(self) -> bool:
+        """Return True once link length readings arrived (the posture carries link_length)."""
+        return LINK_STREAM in self.lanes
+
+    def _stream(self, stream: str) -> str:
+        """Return the stream's key; the link stream's lane is made when its readings come."""
+        if stream == LINK_STREAM:
+            if LINK_STREAM not in self.lanes:
+                self.lanes[LINK_STREAM] = StreamLane(
+                    LINK_STREAM, 1, self.block_ns, self._keep, self.max_gap_ns
+                )
+            return LINK_STREAM
+        return Stream(stream)
 
     def finish(self) -> tuple[list[DetectedPosture], DroppedPeriod | None]:
         """End of data: detect what the last readings complete, then drop a partial capture."""
@@ -212,7 +241,7 @@ class DwellDetector:
         """Return the number of readings in memory over all streams (bounded)."""
         return sum(lane.held for lane in self.lanes.values())
 
-    def _queue(self, stream: Stream, stamps_ns: ArrayLike, values: ArrayLike) -> None:
+    def _queue(self, stream: str, stamps_ns: ArrayLike, values: ArrayLike) -> None:
         lane = self.lanes[stream]
         try:
             stamps = np.asarray(stamps_ns, dtype=np.int64).ravel()
@@ -363,7 +392,7 @@ class DwellDetector:
 
     # ------------------------------------------------------------------ judging
 
-    def _window(self, stream: Stream, block: int) -> tuple[np.ndarray, np.ndarray] | None:
+    def _window(self, stream: str, block: int) -> tuple[np.ndarray, np.ndarray] | None:
         lane = self.lanes[stream]
         half = BLOCKS_PER_WINDOW // 2
         first = lane.samples(block - BLOCKS_PER_WINDOW + 1, block - half)[2]
@@ -374,7 +403,7 @@ class DwellDetector:
             return None
         return first, second
 
-    def _verdict(self, stream: Stream, block: int) -> Verdict:
+    def _verdict(self, stream: str, block: int) -> Verdict:
         halves = self._window(stream, block)
         if halves is None:
             return Verdict.UNKNOWN
@@ -423,7 +452,7 @@ class DwellDetector:
         return self._emit(captures, start, block)
 
     def _capture(
-        self, stream: Stream, pre_end: int, start: int, block: int
+        self, stream: str, pre_end: int, start: int, block: int
     ) -> _Capture | None:
         lane = self.lanes[stream]
         pre = lane.samples(pre_end - BLOCKS_PER_WINDOW + 1, pre_end)[2]
@@ -443,8 +472,8 @@ class DwellDetector:
                 return None
         return _Capture(robust.robust_mean(values, floor), stamps)
 
-    def _emit(self, captures: dict[Stream, _Capture], start: int, block: int) -> DetectedPosture:
-        means = [captures[stream].mean for stream in self.lanes]
+    def _emit(self, captures: dict[str, _Capture], start: int, block: int) -> DetectedPosture:
+        means = [captures[stream].mean for stream in STREAM_WIDTHS]
         values = np.concatenate([m.mean for m in means])
         errors = np.concatenate([m.standard_error for m in means])
         counts = np.concatenate([m.count for m in means])
@@ -453,8 +482,19 @@ class DwellDetector:
             self.lanes[stream].health.spikes_rejected += int(capture.mean.rejected.sum())
             self._posture_values[stream] = capture.mean.mean
         reference = captures[REFERENCE].stamps
-        scatter = PostureScatter(tuple(errors.tolist()), tuple(int(c) for c in counts))
-        reading = PostureReading.from_values(int(reference[-1]), values.tolist(), scatter=scatter)
+        link = captures[LINK_STREAM].mean if LINK_STREAM in captures else None
+        scatter = PostureScatter(
+            tuple(errors.tolist()),
+            tuple(int(c) for c in counts),
+            link_length_standard_error=None if link is None else float(link.standard_error[0]),
+            link_length_sample_count=None if link is None else int(link.count[0]),
+        )
+        reading = PostureReading.from_values(
+            int(reference[-1]),
+            values.tolist(),
+            scatter=scatter,
+            link_length=None if link is None else float(link.mean[0]),
+        )
         self.state = DetectorState.CAPTURED
         self._capture_start = None
         self.emitted += 1
@@ -475,12 +515,12 @@ class DwellDetector:
 
     # ------------------------------------------------------------------ clock offsets
 
-    def _note_departures(self, verdicts: dict[Stream, Verdict], block: int) -> None:
+    def _note_departures(self, verdicts: dict[str, Verdict], block: int) -> None:
         """Feed the starts of motion to the offset estimators; apply their estimates."""
         if not self._estimators:
             return
         for stream, verdict in verdicts.items():
-            still = self._verdicts[stream] in (Verdict.SETTLED, Verdict.SETTLING)
+            still = self._verdicts.get(stream) in (Verdict.SETTLED, Verdict.SETTLING)
             if verdict is Verdict.MOVING and still:
                 self._moves_seen[stream] = block
             seen = self._moves_seen.get(stream)
@@ -501,7 +541,7 @@ class DwellDetector:
             if estimate is not None:
                 self.lanes[stream].offset_ns = estimate
 
-    def _departure(self, stream: Stream, seen: int, block: int) -> float | None:
+    def _departure(self, stream: str, seen: int, block: int) -> float | None:
         """Return when (raw stamps) the move first judged moving at block `seen` started."""
         lane = self.lanes[stream]
         first = seen - BLOCKS_PER_WINDOW + 1

@@ -4,7 +4,10 @@ Node `collector`: turn the three sensor streams into postures, and record everyt
 Subscribes the inputs hexacal/sliders, hexacal/inclinometer, hexacal/encoder (remappable,
 e.g. all to /joint_states; Imu inclinometer) as raw CDR, pairs them, publishes one
 averaged posture per stationary period on hexacal/posture, records a rosbag2 MCAP bag and
-reports its problems on hexacal/calibration_status. Full reference: docs/nodes.md.
+reports its problems on hexacal/calibration_status.  Where the machine measures its link
+(lvdt mode) hexacal/link is recorded and is one more stream of the settled detector (the
+postures carry link_length); the driver's status gives the measuring mode and released
+actuator, recorded as the bag's hexacal.measuring record. Full reference: docs/nodes.md.
 """
 
 from __future__ import annotations
@@ -19,33 +22,36 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 from hexacal_msgs_py.cdr import header_stamp_ns
 from hexacal_msgs_py.conversions import diagnostic_status, NS_PER_S
-from hexacal_msgs_py.conversions import posture_reading_to_joint_state
+from hexacal_msgs_py.conversions import posture_reading_to_joint_state, stamp_ns, status_values
 from hexacal_msgs_py.errors import HexacalContractError
 from hexacal_msgs_py.models import MODELS
 from hexacal_msgs_py.names import CALIBRATION_STATUS_TOPIC, DEVICE_TURN_JOINT, JOINT_STATE_TYPE
-from hexacal_msgs_py.names import POSTURE_TOPIC
+from hexacal_msgs_py.names import DRIVER_STATUS_NAME, LINK_LENGTH_JOINT, LINK_TOPIC, POSTURE_TOPIC
 from hexacal_msgs_py.qos import POSTURE_QOS, SENSOR_QOS, STATUS_QOS
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from . import collector_parameters as params
 from .collector_inputs import input_sources, recorded_only_sources
-from .collector_inputs import InputReader, InputSource, RAW_TOPICS, STREAM_OF_TOPIC
+from .collector_inputs import InputReader, InputSource, link_source, RAW_TOPICS
+from .collector_inputs import STREAM_OF_TOPIC
 from .collector_parameters import CollectorConfigurationError, resolve_model
 from .polled_subscriptions import deep_reader_qos, PolledGroup, PolledSubscription
 from .runtime import run_node
 from ..bag import BagError, BagWriter
 from ..bag import naming
+from ..bag.measuring import MEASURING_METADATA, MeasuringRecord
 from ..bag.qos_yaml import qos_profiles_yaml
 from ..bag.recording import Recording
 from ..core import collector_health as health
 from ..core import posture_detector as detection
-from ..core.dwell_detector import DwellDetector
+from ..core.dwell_detector import DwellDetector, LINK_STREAM
 from ..core.turn_history import TurnHistory
 
 NODE_NAME = 'collector'
@@ -106,6 +112,10 @@ class CollectorNode(Node):
         self._bag_counter = 0
         self._plan_recorded = False
         self._plan_request = None
+        self.measuring = MeasuringRecord()  # from the driver's status, recorded per bag
+        self._driver_status: tuple[str | None, str | None, int] | None = None  # its last
+        self._link_readings: tuple[list[int], list[float]] = ([], [])  # for the detector
+        self.link_invalid = 0
 
         self._posture_pub = self.create_publisher(JointState, POSTURE_TOPIC, POSTURE_QOS)
         self._status_pub = self.create_publisher(
@@ -133,6 +143,14 @@ class CollectorNode(Node):
         for source in self._recorded_only:
             qos = deep_reader_qos(source.qos, SENSOR_SUBSCRIPTION_QOS.depth)
             source.polled = PolledSubscription(self, source.message_type, source.name, qos, group)
+        # The lvdt's link length (hexacal/link): recorded and, settled, a detector stream.
+        self._link = link_source(self.resolve_topic_name(LINK_TOPIC), self.mapping, SENSOR_QOS)
+        self._link.polled = PolledSubscription(
+            self, JointState, self._link.name, SENSOR_SUBSCRIPTION_QOS, group
+        )
+        self.create_subscription(
+            DiagnosticArray, CALIBRATION_STATUS_TOPIC, self._on_status, STATUS_QOS
+        )
         self._poll_timer = self.create_timer(POLL_PERIOD_S, self._poll)
         self.create_service(Trigger, START_RECORDING_SERVICE, self._start_recording)
         self.create_service(Trigger, STOP_RECORDING_SERVICE, self._stop_recording)
@@ -194,6 +212,8 @@ class CollectorNode(Node):
             messages = batches[0] if batches else ()
         for _, source, data, info in messages:
             self._on_raw(source, data, info)
+        for data, info in self._link.polled.take(limit):
+            self._on_link(data, info)
         self._detect()
         for source in self._recorded_only:
             for data, info in source.polled.take(limit):
@@ -214,10 +234,66 @@ class CollectorNode(Node):
         received_ns = info.get('received_timestamp') or self.get_clock().now().nanoseconds
         self.recording.write(source.name, data, received_ns, info.get('source_timestamp') or None)
 
+    def _on_link(self, data: bytes, info: dict) -> None:
+        """Record one link length message; keep its reading for the settled detector."""
+        self._record_received(self._link, data, info)
+        try:
+            message = deserialize_message(data, JointState)
+            value = float(message.position[list(message.name).index(LINK_LENGTH_JOINT)])
+        except (ValueError, IndexError, TypeError) as error:
+            self._link_problem(f'no {LINK_LENGTH_JOINT} position ({error})')
+            return
+        if not (value > 0.0 and value < float('inf')):
+            self._link_problem(f'{LINK_LENGTH_JOINT} {value!r} m is not a length')
+            return
+        if self.settled:
+            self._link_readings[0].append(stamp_ns(message.header.stamp))
+            self._link_readings[1].append(value)
+        else:
+            self.get_logger().warning(
+                f'{self._link.name}: the window detector does not read the link length, so '
+                'its postures carry none (recorded only); use detector settled',
+                once=True,
+            )
+
+    def _link_problem(self, problem: str) -> None:
+        self.link_invalid += 1
+        self.get_logger().warning(
+            f'ignored an invalid message on {self._link.name} ({self.link_invalid} so far): '
+            f'{problem}',
+            throttle_duration_sec=INVALID_LOG_PERIOD_S,
+        )
+
+    def _take_link(self) -> dict:
+        """Return the link readings since the last call, as a detector stream (or nothing)."""
+        stamps, values = self._link_readings
+        if not stamps:
+            return {}
+        self._link_readings = ([], [])
+        return {LINK_STREAM: (stamps, [[value] for value in values])}
+
+    def _on_status(self, message: DiagnosticArray) -> None:
+        """Note the driver's measuring mode and released actuator (hexacal.measuring)."""
+        for status in message.status:
+            if status.name != DRIVER_STATUS_NAME:
+                continue
+            values = status_values(status)
+            stamp = stamp_ns(message.header.stamp) or self.get_clock().now().nanoseconds
+            self._driver_status = (
+                values.get('measuring_mode'), values.get('released_joint'), stamp
+            )
+            if self.measuring.note(*self._driver_status):
+                self._record_measuring()
+
+    def _record_measuring(self) -> None:
+        writer = self.recording.writer
+        if writer is not None:
+            self.recording.write_metadata(writer, MEASURING_METADATA, self.measuring.to_metadata())
+
     def _detect(self) -> None:
         """Run the posture detector over the samples paired since the last call."""
         if isinstance(self.detector, DwellDetector):
-            readings = self.reader.take_readings()
+            readings = {**self.reader.take_readings(), **self._take_link()}
             if readings:
                 for posture in self.detector.update(readings):
                     self._on_posture(posture)
@@ -315,6 +391,11 @@ class CollectorNode(Node):
             self.get_logger().error(f'cannot record to {directory}: {error}')
             raise
         self._plan_recorded, self._plan_request = False, None
+        # Each bag's record starts from what the driver last said.
+        self.measuring = MeasuringRecord()
+        if self._driver_status is not None:
+            self.measuring.note(*self._driver_status)
+            self._record_measuring()
         self.get_logger().info(f'recording to {directory}')
         return str(directory)
 
@@ -424,7 +505,9 @@ class CollectorNode(Node):
         """Publish on hexacal/calibration_status when a problem counter or state changed."""
         problems = self.problems()
         streams = (
-            health.stream_statistics(self.detector, self._stream_names)
+            health.stream_statistics(
+                self.detector, {**self._stream_names, LINK_STREAM: self._link.name}
+            )
             if isinstance(self.detector, DwellDetector)
             else {}
         )

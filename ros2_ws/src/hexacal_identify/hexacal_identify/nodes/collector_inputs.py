@@ -135,6 +135,11 @@ def recorded_only_sources(
     return sources
 
 
+def link_source(name: str, mapping: InputMapping, qos: Any) -> InputSource:
+    """Return the lvdt link length topic's source (recorded when published; not an input)."""
+    return InputSource(name, (), JointState, JOINT_STATE_TYPE, qos, mapping)
+
+
 def mapping_transforms_inclinometer(mapping: InputMapping) -> bool:
     """Return True if the mapping corrects the inclinometer (signs or offsets not default)."""
     corrections = (mapping.inclinometer_signs, mapping.inclinometer_offsets_rad)

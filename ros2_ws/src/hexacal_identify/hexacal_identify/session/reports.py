@@ -96,7 +96,9 @@ def write_page(job: ReportJob | None, verification: VerificationTask | None) -> 
         job.result,
         directory,
         title=f'hexacal calibration ({job.source})',
-        measurements=pipeline.measurements_from_postures(job.postures),
+        measurements=pipeline.measurements_from_postures(
+            job.postures, nominal_link_length=job.link_length
+        ),
         link_length=job.link_length,
         extras={'source': job.source, **job.store},
         device_prior=job.device_prior,

@@ -95,7 +95,7 @@ def run_verification(
         result = verify(
             nominal,
             latest.parameters,
-            pipeline.measurements_from_postures(postures),
+            pipeline.measurements_from_postures(postures, nominal_link_length=link_length),
             device=DeviceModel(link_length=link_length, mount=mount),
             threshold_m=settings.verify_threshold_m or None,
             noise=settings.noise(),
