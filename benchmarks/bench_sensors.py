@@ -30,7 +30,20 @@ import sys
 import tempfile
 import time
 
-EFFECTS = ('', 'lag', 'quantisation', 'clock', 'drops', 'spikes', 'drift', 'all')
+# (label, sensor_effects, sensor parameters): each effect alone at its default, none, all; then
+# a slower inclinometer filter (0.3 s, still settled within the 2.5 s dwell) alone and with all.
+EFFECTS = (
+    ('ideal', '', {}),
+    ('lag', 'lag', {}),
+    ('quantisation', 'quantisation', {}),
+    ('clock', 'clock', {}),
+    ('drops', 'drops', {}),
+    ('spikes', 'spikes', {}),
+    ('drift', 'drift', {}),
+    ('all', 'all', {}),
+    ('lag 0.3 s', 'lag', {'inclinometer_time_constant_s': 0.3}),
+    ('all, lag 0.3 s', 'all', {'inclinometer_time_constant_s': 0.3}),
+)
 UM = 1e6
 MATCH_M = 2e-4  # a found posture belongs to the settled posture within 0.2 mm on every actuator
 VARIANTS = {
@@ -112,14 +125,13 @@ def _row(recording, bag: Path, variant: str, args) -> dict:
     return row
 
 
-def _line(effect: str, row: dict) -> str:
-    name = effect or 'ideal'
+def _line(name: str, row: dict) -> str:
     if 'error' in row:
-        return f'{name:13s} {row["variant"]:6s} {row["postures_found"]:4d}  fit failed: {row["error"]}'
+        return f'{name:15s} {row["variant"]:6s} {row["postures_found"]:4d}  fit failed: {row["error"]}'
     factor = row['variance_factor']
     factor_text = '-' if factor is None or not math.isfinite(factor) else f'{factor:9.2f}'
     return (
-        f'{name:13s} {row["variant"]:6s} {row["postures_found"]:4d} {row["postures_matched"]:4d} '
+        f'{name:15s} {row["variant"]:6s} {row["postures_found"]:4d} {row["postures_matched"]:4d} '
         f'{row["max_actuator_deviation_um"]:9.2f} {row["max_angle_deviation_urad"]:9.2f} '
         f'{row["pose_error_mean_um"]:9.2f} {row["pose_error_max_um"]:9.2f} '
         f'{factor_text} {row["verdict"]:7s} {row["weights"]}'
@@ -135,26 +147,27 @@ def main() -> int:
         print(
             f'{args.postures} planned postures, dwell {args.dwell_s:g} s, seed {args.seed}, '
             f'{args.model}; pose errors on {args.validation} validation postures\n'
-            'effects       detector found match  act[um] angle[urad] mean[um]  max[um]'
+            'effects         detector found match  act[um] angle[urad] mean[um]  max[um]'
             '  s0^2/dof verdict weights'
         )
     with tempfile.TemporaryDirectory() as work:
-        for effect in EFFECTS:
+        for number, (label, effects, sensor_parameters) in enumerate(EFFECTS):
             recording = simulate_recording(
                 model=args.model,
                 postures=args.postures,
                 dwell_s=args.dwell_s,
                 settle_s=args.settle_s,
                 seed=args.seed,
-                sensor_effects=effect,
+                sensor_effects=effects,
+                **sensor_parameters,
             )
-            bag = write_recording_bag(Path(work) / (effect or 'ideal'), recording)
+            bag = write_recording_bag(Path(work) / f'recording_{number}', recording)
             for variant in VARIANTS:
                 row = _row(recording, bag, variant, args)
-                row['effects'] = effect or 'ideal'
+                row['effects'] = label
                 rows.append(row)
                 if not args.json:
-                    print(_line(effect, row), flush=True)
+                    print(_line(label, row), flush=True)
     if args.json:
         print(json.dumps(rows, indent=1))
     return 0

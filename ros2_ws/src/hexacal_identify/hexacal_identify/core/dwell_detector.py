@@ -171,7 +171,7 @@ class DwellDetector:
         # Still periods that ended with no posture because these streams never settled.
         self.unsettled: dict[str, int] = {}
         self._still_blocks = 0  # blocks with no stream moving since the last motion
-        self._settling: set[Stream] = set()  # streams last seen settling in this still period
+        self._settling: set[str] = set()  # streams last seen settling in this still period
 
     # ------------------------------------------------------------------ input
 
@@ -354,7 +354,7 @@ class DwellDetector:
             return None
         return self._try_capture(block)
 
-    def _note_settling(self, verdicts: dict[Stream, Verdict], values: set[Verdict]) -> bool:
+    def _note_settling(self, verdicts: dict[str, Verdict], values: set[Verdict]) -> bool:
         """
         Count a still period of the actuators that ends before every stream settled.
 
@@ -386,7 +386,7 @@ class DwellDetector:
         if counted:
             self._count(self.dropped, DropReason.UNSETTLED, 1)
             for stream in self._settling:
-                self.unsettled[stream.value] = self.unsettled.get(stream.value, 0) + 1
+                self.unsettled[str(stream)] = self.unsettled.get(str(stream), 0) + 1
         self._still_blocks, self._settling = 0, set()
         return counted
 
