@@ -140,6 +140,34 @@ def test_hexacal_calibrate_on_the_raw_recording_with_every_effect(recordings, tm
     assert result['adequacy']['verdict'] == 'pass'
 
 
+def test_an_inclinometer_slower_than_the_dwell_is_named_not_averaged(tmp_path):
+    """A 0.6 s filter never settles in a 2 s dwell: no biased postures, and the tool says why."""
+    recording = simulate_recording(
+        sensor_effects='lag', inclinometer_time_constant_s=0.6, **{**WALK, 'postures': 16}
+    )
+    bag = write_recording_bag(tmp_path / 'slow', recording)
+    _, nominal = write_parameter_files(tmp_path)
+    run = subprocess.run(
+        [
+            str(venv_executable('hexacal')),
+            'calibrate',
+            str(bag),
+            '--nominal',
+            str(nominal),
+            '--output',
+            str(tmp_path / 'calibrated.yaml'),
+            '--no-store',
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert run.returncode != 0
+    assert 'before the inclinometer readings settled' in run.stderr, run.stderr
+    assert 'hold each posture longer' in run.stderr
+    assert not (tmp_path / 'calibrated.yaml').exists()
+
+
 REAL_NODE_WALK = {'postures': 8, 'dwell_s': 2.0, 'settle_s': 0.6, 'seed': 5, 'plan': 'mixed'}
 
 

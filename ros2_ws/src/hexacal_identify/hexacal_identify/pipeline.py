@@ -429,6 +429,8 @@ class BagPostures:
     # The measuring mode and released actuators the collector recorded (bag.measuring); an empty
     # record (mode None) for a bag without one.
     measuring: MeasuringRecord = field(default_factory=MeasuringRecord)
+    # What re-detection noticed in words, e.g. still periods a lagging stream never settled in.
+    notes: list[str] = field(default_factory=list)
 
     @property
     def measuring_mode(self) -> str | None:
@@ -590,7 +592,10 @@ def postures_from_bag(
     models = set()
     if link_topic is not None:
         options['link_topic'] = link_topic
-    postures, invalid = _redetect(reader, raw, mapping, models, recorded_model, **options)
+    notes: list[str] = []
+    postures, invalid = _redetect(
+        reader, raw, mapping, models, recorded_model, notes=notes, **options
+    )
     model = _bag_model(path, models, recorded_model)
     kept, rejected = _screened(postures, model)
     return BagPostures(
@@ -603,6 +608,7 @@ def postures_from_bag(
         model,
         mapping,
         measuring,
+        notes,
     )
 
 
@@ -856,10 +862,13 @@ def _redetect(
     inclinometer_clock_offset_s: float | None = None,
     encoder_clock_offset_s: float | None = None,
     link_topic: str | None = None,
+    notes: list[str] | None = None,
     **detector_options,
 ) -> tuple[list[PostureReading], int]:
     """
     Re-detect the postures of the raw inputs (`topics`: input -> bag topic), read by `mapping`.
+
+    `notes` receives what the settled detector noticed in words (unsettled_notes).
 
     Inputs that share a topic (one /joint_states) are read from each of its messages once;
     a reading that is not valid counts once in the returned number of invalid readings.
@@ -960,6 +969,8 @@ def _redetect(
             estimate_offsets=tuple(k for k, v in given.items() if v is None),
             **detector_options,
         )
+        if notes is not None:
+            notes.extend(unsettled_notes(dwell.unsettled))
         # The turn of the inclinometer message at the posture's time, in the inclinometer's clock.
         shift = int(round(dwell.offsets_s['inclinometer'] * 1_000_000_000))
         readings = [d.reading for d in found]
@@ -1000,6 +1011,22 @@ def _link_stream(reader, topic: str) -> tuple[tuple[np.ndarray, np.ndarray], int
         values.append(value)
     arrays = (np.array(stamps, dtype=np.int64), np.array(values, dtype=float).reshape(-1, 1))
     return arrays, invalid
+
+
+def unsettled_notes(unsettled: dict[str, int]) -> list[str]:
+    """
+    Say in words which still periods gave no posture because a stream never settled in them.
+
+    `unsettled` is the settled detector's count per stream (DwellDetector.unsettled).
+    """
+    return [
+        f'{count} still period(s) ended before the {stream} readings settled, so no posture was '
+        'taken there (readings still creeping towards their level, e.g. an inclinometer lagging '
+        'through its own filter for longer than the machine stands still): hold each posture '
+        'longer'
+        for stream, count in sorted(unsettled.items())
+        if count
+    ]
 
 
 def _with_turns(

@@ -240,7 +240,7 @@ def run_calibrate(args) -> int:
             scatter_floor=ScatterFloor.from_microns(args.scatter_floor_um),
         )
     except CalibrationError as error:
-        if bag.rejected or bag.invalid_messages:  # say what of the bag was not used
+        if bag.rejected or bag.invalid_messages or bag.notes:  # say what of the bag was not used
             error.args = (f'{error} [bag {args.bag}: {_not_used(bag)}]',)
         raise
     adequacy = result.adequacy
@@ -307,6 +307,7 @@ def run_calibrate(args) -> int:
             'rejected_postures': [
                 {'index': i, 'reason': r, 'detail': d} for i, r, d in bag.rejected
             ],
+            'notes': list(bag.notes),  # what re-detection noticed, in words
             # Postures with a measured link length L_m (lvdt), which replaced L in eq. 4.
             'postures_with_link_length': link_length_count(bag.postures),
         }
@@ -346,6 +347,8 @@ def _print_summary(args, bag, result, adequacy) -> None:
         print(f"  {len(bag.rejected)} posture(s) set aside (beyond a sensor's range):")
         for index, reason, detail in bag.rejected[:20]:
             print(f'    posture {index}: {reason}: {detail}')
+    for note in bag.notes:
+        print(f'  {note}')
     # A fit the noise cannot explain is never reported as simply "converged".
     solver = f'{result.reason} in'
     if adequacy.failed:
@@ -442,6 +445,7 @@ def _not_used(bag) -> str:
             + ', '.join(f'{n} {r}' for r, n in sorted(reasons.items()))
             + ')'
         )
+    parts.extend(bag.notes)
     return '; '.join(parts)
 
 

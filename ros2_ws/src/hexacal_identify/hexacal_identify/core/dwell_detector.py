@@ -171,7 +171,8 @@ class DwellDetector:
         # Still periods that ended with no posture because these streams never settled.
         self.unsettled: dict[str, int] = {}
         self._still_blocks = 0  # blocks with no stream moving since the last motion
-        self._settling: set[str] = set()  # streams last seen settling in this still period
+        # Per stream, the blocks of this still period it held a posture up (settling, moving).
+        self._settling: dict[str, int] = {}
 
     # ------------------------------------------------------------------ input
 
@@ -364,7 +365,7 @@ class DwellDetector:
         streams that held it up. Returns True if this block ended such a period.
         """
         if self.state is DetectorState.CAPTURED:
-            self._still_blocks, self._settling = 0, set()
+            self._still_blocks, self._settling = 0, {}
             return False
         reference = verdicts[REFERENCE]
         if reference not in (Verdict.MOVING, Verdict.UNKNOWN):
@@ -375,8 +376,8 @@ class DwellDetector:
                 if verdict is Verdict.SETTLING
                 or (verdict is Verdict.MOVING and stream != REFERENCE)
             }
-            if holding:
-                self._settling = holding
+            for stream in holding:
+                self._settling[stream] = self._settling.get(stream, 0) + 1
             return False
         counted = bool(
             reference is Verdict.MOVING
@@ -385,9 +386,10 @@ class DwellDetector:
         )
         if counted:
             self._count(self.dropped, DropReason.UNSETTLED, 1)
-            for stream in self._settling:
-                self.unsettled[str(stream)] = self.unsettled.get(str(stream), 0) + 1
-        self._still_blocks, self._settling = 0, set()
+            # The stream that held the period up longest (noise makes others flicker).
+            stream = str(max(self._settling, key=self._settling.__getitem__))
+            self.unsettled[stream] = self.unsettled.get(stream, 0) + 1
+        self._still_blocks, self._settling = 0, {}
         return counted
 
     # ------------------------------------------------------------------ judging
@@ -446,7 +448,7 @@ class DwellDetector:
             capture = self._capture(stream, pre_end, start, block)
             if capture is None:
                 self.slid += 1
-                self._settling.add(stream)  # it held the capture up
+                self._settling[stream] = self._settling.get(stream, 0) + 1  # held it up
                 return None
             captures[stream] = capture
         return self._emit(captures, start, block)
