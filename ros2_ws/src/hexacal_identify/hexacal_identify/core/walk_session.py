@@ -25,6 +25,7 @@ import math
 import re
 from typing import Any, TYPE_CHECKING
 
+from hexacal_msgs_py.measuring_modes import measuring_mode
 from hexacal_msgs_py.models import DEVICE_MOUNT_KEY
 
 from .architectures import KinematicParameters
@@ -34,6 +35,7 @@ from .plan_check import check_stroke, plan_problems, plan_stroke, refusal_messag
 from .turns import DeviceTurnSetter, TURN_PARAMETER, TurnSetState
 from .walk import PlanExecution
 from .walk_io import LogLevel, Messages
+from .walk_modes import walk_mode, WalkMode
 from .walk_settings import ExecutionSettings, ExecutionState
 
 if TYPE_CHECKING:
@@ -91,6 +93,8 @@ def parameter_problem(name: str, value: Any) -> str | None:
             joint_names(name, list(value), 2)
         elif name == 'device_turn_nodes':
             node_names(list(value))
+        elif name == 'measuring_mode' and value:
+            measuring_mode(value)
     except (TypeError, ValueError) as error:
         return str(error)
     return None
@@ -131,6 +135,7 @@ class WalkSetup:
     problems: dict[int, str]  # posture index -> why it cannot be commanded (refused)
     refusal: str  # '' unless refused
     execution: PlanExecution
+    mode: WalkMode
 
     def start_lines(self, plan: Plan, model: str, command_topic: str) -> list[str]:
         """Return what the node logs at the start: the plan, the commands, the turns."""
@@ -154,6 +159,8 @@ class WalkSetup:
                     else 'device_turn_nodes is empty: no node is told the turn'
                 )
             )
+        if self.mode.source != 'default':  # a plan without a mode walks as it always did
+            lines.append(self.mode.describe(self.actuator_joints))
         return lines
 
 
@@ -199,6 +206,19 @@ def setup_walk(
     targets, problems = plan_problems(
         nominal, poses, plan.kinds, stroke, link_length, mount, settings.path_step_m
     )
+    try:
+        mode = walk_mode(
+            str(values.get('measuring_mode', '')),
+            plan.measuring_mode,
+            plan.released_actuators,
+            nominal,
+            poses,
+            link_length,
+            stroke,
+            mount,
+        )
+    except ValueError as error:
+        raise ValueError(f'measuring_mode: {error}') from error
     execution = PlanExecution(
         nominal,
         poses,
@@ -211,6 +231,7 @@ def setup_walk(
         start_paused=bool(values['start_paused']),
         device_turns=plan.turns,
         mounted_turn=float(values['mounted_turn']),
+        released=mode.released,
     )
     refusal = refusal_message(problems, len(targets)) if problems else ''
     if problems:  # nothing is ever commanded
@@ -226,6 +247,7 @@ def setup_walk(
         problems,
         refusal,
         execution,
+        mode,
     )
 
 
@@ -304,6 +326,9 @@ class ExecutorStatus:
         self.waiting_for: tuple[str, ...] = ()  # what the start waits for
         self._last_key: tuple | None = None
         self._last_s = 0.0
+        # Set by the node (issue #18): the mode walked and the controller's joint names.
+        self.measuring_mode = ''
+        self.joint_names: tuple[str, ...] = ()
 
     def values(self, now: float) -> dict[str, object]:
         """Return the status fields (KeyValues) at `now` (s)."""
@@ -323,6 +348,13 @@ class ExecutorStatus:
                 values['calibration_message'] = self.calibration.message
         if execution.waiting_for_turn:
             values['notice'] = execution.turn_notice
+        elif execution.notice:
+            values['notice'] = execution.notice
+        if self.measuring_mode:
+            values['measuring_mode'] = self.measuring_mode
+        if self.measuring_mode == 'passive_actuator':
+            released = execution.released_now
+            values['released_joint'] = '' if released is None else self.joint_names[released]
         if self.turns.state is not None:
             values['device_turn_set'] = self.turns.state
             if self.turns.message:
@@ -348,6 +380,7 @@ class ExecutorStatus:
             state == ExecutionState.ABORTED
             or values.get('skipped')
             or self.turns.state == TurnSetState.FAILED
+            or (state == ExecutionState.PAUSED and self.execution.notice)
         ):
             return 'WARN'
         return 'OK'
@@ -366,6 +399,8 @@ class ExecutorStatus:
         )
         if 'eta_s' in values and state in (ExecutionState.RUNNING, ExecutionState.PAUSED):
             text += f', ETA {values["eta_s"]:.0f} s'
+        if execution.notice and state == ExecutionState.PAUSED:
+            text += f'; {execution.notice}'
         if execution.waiting_for_turn:
             text += f'; {execution.turn_notice}'
             if self.turns.state == TurnSetState.PENDING:

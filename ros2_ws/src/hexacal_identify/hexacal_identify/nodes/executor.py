@@ -17,8 +17,10 @@ Full reference: docs/nodes.md
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 import sys
 import time
+from typing import Any
 
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticArray
@@ -46,6 +48,7 @@ from hexacal_msgs_py.names import (
     EXECUTOR_STATUS_NAME,
     INCLINOMETER_TOPIC,
     POSTURE_TOPIC,
+    release_service,
     SLIDERS_TOPIC,
 )
 from hexacal_msgs_py.parameters_file import read_parameters_file
@@ -60,7 +63,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from sensor_msgs.msg import Imu, JointState
-from std_srvs.srv import Trigger
+from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from .executor_parameters import MODEL_PARAMETERS, PARAMETERS
@@ -69,7 +72,6 @@ from .parameters import parameter_descriptor
 from .runtime import run_node
 from ..core.device import DEFAULT_MOUNT, DeviceMountError
 from ..core.measurements import FIXED
-from ..core.measuring_plan import walking_notice
 from ..core.paths import Command
 from ..core.plan_check import PlanRefusedError
 from ..core.turns import DeviceTurnSetter, same_turn, TURN_PARAMETER
@@ -86,6 +88,16 @@ SHUTDOWN_LINGER_S = 0.3  # the last status (and hold command) reach their subscr
 
 class ExecutorConfigurationError(Exception):
     """The node's parameters do not describe a plan it can walk on this machine."""
+
+
+@dataclass
+class _ReleaseCalls:
+    """The SetBool calls carrying out one release request, one at a time (lock, release)."""
+
+    steps: list[tuple[int, bool]]  # (chain, release?) still to call
+    released: int | None  # the chain released now, as the drive has answered so far
+    since: float  # when the current step began waiting (s)
+    future: Any = field(default=None)
 
 
 class _TurnClient:
@@ -126,9 +138,6 @@ class ExecutorNode(Node):
         self.nominal, nominal_mount = self._load_nominal(value['nominal'])
         self.model = self.nominal.model
         self.plan = self._load_plan(value['plan'], value['nominal'], nominal_mount)
-        notice = walking_notice(self.plan.measuring_mode)
-        if notice is not None:
-            self.get_logger().warning(notice)
         # As the driver's: a collector with driver_node:=executor records the plan in its bag.
         self.declare_parameter(
             'plan_name',
@@ -160,6 +169,14 @@ class ExecutorNode(Node):
         self.stroke, self.stroke_source = setup.stroke, setup.stroke_source
         self.settings, self.device_turn_nodes = setup.settings, setup.device_turn_nodes
         self.execution = setup.execution
+        self.mode = setup.mode
+        self.release_wait_s = float(value['release_wait_s'])
+        self._release_clients = (
+            [self.create_client(SetBool, release_service(j)) for j in self.actuator_joints]
+            if any(chain is not None for chain in self.mode.released)
+            else []
+        )
+        self._release: _ReleaseCalls | None = None
         self.mapping = self._input_mapping(value)
         self.imu = self.mapping.inclinometer_type == IMU_INCLINOMETER
 
@@ -195,6 +212,8 @@ class ExecutorNode(Node):
             self.calibration,
             self.turns,
         )
+        self.status.measuring_mode = self.mode.mode.value
+        self.status.joint_names = self.actuator_joints
         self._stopping = False
         for line in setup.start_lines(self.plan, self.model, self._command_pub.topic_name):
             self.get_logger().info(line)
@@ -376,6 +395,10 @@ class ExecutorNode(Node):
             self._try_start(now)
         elif execution.state == ExecutionState.RUNNING:
             self._send(execution.step(now))
+        if self._release is not None or (
+            execution.release_request is not None and execution.state == ExecutionState.RUNNING
+        ):
+            self._step_release(now)
         if self.turns.setting is not None:
             self._step_turns(now)
         elif execution.state == ExecutionState.DONE:
@@ -413,13 +436,73 @@ class ExecutorNode(Node):
         if self.execution.state == ExecutionState.REFUSED:
             self._publish_status(force=True)
 
+    def _step_release(self, now: float) -> None:
+        """Carry the execution's release request out through the drive's SetBool services."""
+        execution, calls = self.execution, self._release
+        if calls is None:
+            request = execution.release_request
+            assert request is not None
+            steps = [(request.lock, False)] if request.lock is not None else []
+            steps += [(request.release, True)] if request.release is not None else []
+            calls = self._release = _ReleaseCalls(steps, request.lock, now)  # type: ignore
+        if not calls.steps:
+            return self._released(now, '')
+        chain, release = calls.steps[0]
+        client = self._release_clients[chain]
+        what = f'{"release" if release else "lock"} {self.actuator_joints[chain]}'
+        if calls.future is None:
+            if client.service_is_ready():
+                calls.future = client.call_async(SetBool.Request(data=release))
+                calls.since = now
+            elif now - calls.since > self.release_wait_s:
+                self._released(
+                    now,
+                    f'cannot {what}: no service {client.srv_name} (waited '
+                    f'{self.release_wait_s:g} s)',
+                )
+            return None
+        if not calls.future.done():
+            if now - calls.since > self.release_wait_s:
+                self._released(
+                    now, f'cannot {what}: {client.srv_name} did not answer within '
+                    f'{self.release_wait_s:g} s'
+                )
+            return None
+        try:
+            answer = calls.future.result()
+        except Exception as error:  # noqa: B902 - the status must say what happened
+            return self._released(now, f'cannot {what}: {type(error).__name__}: {error}')
+        if not answer.success:
+            return self._released(now, f'the drive refused to {what}: {answer.message}')
+        self.get_logger().info(f'{what}: {answer.message}')
+        calls.released = chain if release else None
+        calls.steps.pop(0)
+        calls.future, calls.since = None, now
+        if not calls.steps:
+            self._released(now, '')
+        return None
+
+    def _released(self, now: float, problem: str) -> None:
+        calls, self._release = self._release, None
+        assert calls is not None
+        self._send(self.execution.on_release(now, calls.released, problem))
+        self._drain_messages()
+        self._publish_status(force=True)
+
     def _send(self, commands: list[Command]) -> None:
+        released = self.execution.released_now
+        joints = list(self.actuator_joints)
+        if released is not None:  # the released joint is not commanded
+            del joints[released]
         for command in commands:
             message = JointTrajectory()  # header.stamp zero: the controller starts it on receipt
-            message.joint_names = list(self.actuator_joints)
+            message.joint_names = joints
             message.points = [
                 JointTrajectoryPoint(
-                    positions=[float(p) for p in point], time_from_start=_duration(seconds)
+                    positions=[
+                        float(p) for i, p in enumerate(point) if i != released
+                    ],
+                    time_from_start=_duration(seconds),
                 )
                 for point, seconds in zip(command.points, command.times)
             ]

@@ -134,6 +134,21 @@ PARAMETERS: dict[str, _Spec] = {
         -MAX_DEVICE_TURN,
         MAX_DEVICE_TURN,
     ),
+    'measuring_mode': _Spec(
+        '',
+        "how the machine is driven while the link is attached: '' the plan's mode (a plan "
+        'without one: compliant, all six commanded), passive_actuator (per posture the '
+        "plan's released actuator is released through hexacal/release/<joint> at rest and the "
+        'five others commanded), lvdt or compliant (all six commanded)',
+        constraints="'', passive_actuator, lvdt or compliant",
+    ),
+    'release_wait_s': _Spec(
+        10.0,
+        'passive_actuator: how long to wait for a release service (std_srvs/SetBool '
+        'hexacal/release/<joint>) and its answer before the plan pauses (s)',
+        0.1,
+        600.0,
+    ),
     'shutdown_when_done': _Spec(
         False,
         'stop the node once the plan is done or aborted (and the '
