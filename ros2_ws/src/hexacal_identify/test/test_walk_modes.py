@@ -104,3 +104,42 @@ def test_a_refused_release_pauses_with_the_drives_answer_and_resume_asks_again()
     assert success and commands == [] and execution.notice == ''
     assert execution.release_request == ReleaseRequest(0, None, 1)
     assert len(execution.on_release(2.1, 1, '')) == 1
+
+
+def test_a_move_the_guard_refuses_is_not_sent_and_the_plan_pauses():
+    targets, _ = plan_targets(NOMINAL, POSES, ['sphere'] * 3, STROKE, L)
+    asked = []
+
+    def guard(current, start, points, released):
+        asked.append((current.copy(), start.copy(), points.copy(), released))
+        return 'the link would be stretched by 9 mm' if len(asked) == 2 else ''
+
+    settings = ExecutionSettings(settle_s=0.2, wait_for_posture=False, path_step_m=0.0)
+    execution = PlanExecution(
+        NOMINAL, POSES, ['sphere'] * 3, targets, settings, STROKE, L, guard=guard
+    )
+    execution.on_actuators(0.0, targets[0])
+    assert len(execution.start(0.0)) == 1 and len(asked) == 1
+    np.testing.assert_allclose(asked[0][2][-1], targets[0])  # the points it was asked about
+    after = _stand(execution, 0.1, targets[0])
+    assert [c.purpose for c in after] == ['hold']  # where it stands: the move is not sent
+    assert execution.state == State.PAUSED and execution.measured == 1
+    assert execution.notice.startswith(
+        'posture 2 of 3: the move was not sent: the link would be stretched by 9 mm'
+    )
+    success, _, commands = execution.resume(5.0)  # asks the guard again: now fine
+    assert success and len(commands) == 1 and len(asked) == 3
+
+
+def test_a_drive_fault_pauses_the_plan_without_a_command():
+    execution, targets = _execution([None, None, None])
+    assert len(execution.start(0.0)) == 1
+    assert execution.on_drive_fault(0.5, 'following error 0.8 mm') == []
+    assert execution.state == State.PAUSED
+    assert execution.notice.startswith(
+        'the drive faulted: following error 0.8 mm; reset the drive (hexacal/driver/reset) and '
+        'resume'
+    )
+    assert execution.on_drive_fault(0.6, 'again') == []  # paused: said once
+    assert 'again' not in execution.notice
+    assert execution.on_link(0.7, 9e-3, 4e-3) == []  # paused: nothing more

@@ -65,11 +65,17 @@ the drive has done both.  A refusal or a missing service pauses the plan with
 the drive's answer in ``notice``; resume asks again.  The released chain is
 never commanded (the node leaves it out of the trajectory) and is not judged
 against its target: the link puts it where the constraint says.
+
+The guard (core/walk_guard.py): with ``guard`` given, every move and correction
+is predicted on the model before it is sent; one that would cross a limit is not
+sent: the plan pauses (holding) with the prediction in ``notice``.  A drive
+fault (`on_drive_fault`) or a measured LVDT length beyond its stroke less the
+margin (`on_link`) pauses it too.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 import enum
 import math
@@ -96,6 +102,8 @@ from .walk_inclinometer import InclinometerJudgement, InclinometerState, judge_i
 from .walk_io import LogLevel, Messages, ReadingWindow
 from .walk_settings import ExecutionSettings, ExecutionState, PostureOutcome
 
+# The guard: (current actuators, start pose, command points, released chain) -> problem ('': ok).
+Guard = Callable[[np.ndarray, np.ndarray, np.ndarray, int | None], str]
 HOLD_S = 0.2  # time_from_start of a hold command
 MIN_WINDOW_READINGS = 3  # readings a still window needs
 DEFAULT_OVERHEAD_S = 1.0  # ETA before any posture is done: per posture, besides moving, settle_s
@@ -108,6 +116,10 @@ class Phase(enum.Enum):
     MOVING = 'moving'  # commanded: arriving, settling, correcting
     POSTURE = 'posture'  # still at the target: waiting for the collector's posture
     RELEASING = 'releasing'  # at rest: waiting for the drive to lock/release a chain
+
+
+class GuardStop(Exception):
+    """The guard refuses a command: it would cross a limit (the message says which)."""
 
 
 @dataclass(frozen=True)
@@ -136,6 +148,7 @@ class PlanExecution:
         device_turns: Iterable[float] | None = None,
         mounted_turn: float = 0.0,
         released: Sequence[int | None] | None = None,
+        guard: Guard | None = None,
     ):
         """
         Walk `poses` (their nominal `targets` from core/plan_check.py) on `nominal`.
@@ -200,6 +213,7 @@ class PlanExecution:
         self.released_now: int | None = None  # the chain the drive has released
         self.release_request: ReleaseRequest | None = None  # for the node to carry out
         self.notice = ''  # why the plan paused itself (a drive's refusal); '' otherwise
+        self.guard = guard
 
     # ------------------------------------------------------------------ inputs
 
@@ -215,6 +229,35 @@ class PlanExecution:
         """Hear a posture the collector measured (its actuators, m) at `now` (s)."""
         if self.state in _UNDER_WAY and self._phase is not None:
             self._postures.append((now, np.asarray(actuators, dtype=float)))
+
+    def on_drive_fault(self, now: float, fault: str) -> list[Command]:
+        """Hear the drive's fault: pause (the drive holds itself; resume once it is reset)."""
+        if self.state != ExecutionState.RUNNING:
+            return []
+        return self._stop(
+            now,
+            f'the drive faulted: {fault}; reset the drive (hexacal/driver/reset) and resume',
+            hold=False,
+        )
+
+    def on_link(self, now: float, extension: float, limit: float) -> list[Command]:
+        """Hear the LVDT link's extension (m): beyond `limit` the plan pauses, holding."""
+        if self.state != ExecutionState.RUNNING or abs(extension) <= limit:
+            return []
+        return self._stop(
+            now,
+            f'posture {self.index + 1} of {self.total}: the LVDT link measures '
+            f'{extension * 1e3:+.3f} mm, beyond +-{limit * 1e3:g} mm (its stroke less the margin)',
+        )
+
+    def _stop(self, now: float, text: str, hold: bool = True) -> list[Command]:
+        """Pause the plan by itself with `text` in ``notice`` (holding unless told not to)."""
+        self.state = ExecutionState.PAUSED
+        self._paused_at = now
+        self._phase = None
+        self.notice = f'{text}; paused: call {RESUME_SERVICE} once safe'
+        self._say(LogLevel.ERROR, self.notice)
+        return self._hold() if hold else []
 
     def on_release(self, now: float, released: int | None, problem: str) -> list[Command]:
         """
@@ -471,6 +514,8 @@ class PlanExecution:
                 return []
             try:
                 command = self._command(now, CommandPurpose.MOVE)
+            except GuardStop as stop:
+                return self._stop(now, str(stop))
             except PathError as error:
                 if not self._sent_any:  # nothing has moved yet: the plan is refused
                     self.state = ExecutionState.REFUSED
@@ -554,6 +599,20 @@ class PlanExecution:
                 purpose,
                 self.index,
             )
+        if self.guard is not None:
+            # Where the machine stands: the path's start, else nominal forward kinematics.
+            guess = start if start is not None else self._estimate()
+            problem = self.guard(
+                current,
+                self.poses[self.index] if guess is None else guess,
+                command.points,
+                self.released_now,
+            )
+            if problem:
+                raise GuardStop(
+                    f'posture {self.index + 1} of {self.total}: the {purpose} was not sent: '
+                    f'{problem}'
+                )
         self._target = command.positions.copy()
         # The collector's posture of this stop came before this correction: a correction below
         # its motion tolerances begins no new stationary period, so no posture may follow.
@@ -678,6 +737,13 @@ class PlanExecution:
         previous = self._pose_cmd
         self._pose_cmd = corrected_pose(previous, alpha, beta, self.link_length, self.mount)
         via = self._nudge(previous)
+        try:
+            return self._send_correction(now, previous, via, index, alpha, beta, judged)
+        except GuardStop as stop:
+            self._pose_cmd = previous
+            return self._stop(now, str(stop))
+
+    def _send_correction(self, now, previous, via, index, alpha, beta, judged) -> list[Command]:
         try:
             try:
                 command = self._command(now, CommandPurpose.CORRECT, via)

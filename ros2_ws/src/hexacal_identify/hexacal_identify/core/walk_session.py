@@ -34,6 +34,7 @@ from .measurements import FIXED, SPHERE
 from .plan_check import check_stroke, plan_problems, plan_stroke, refusal_message
 from .turns import DeviceTurnSetter, TURN_PARAMETER, TurnSetState
 from .walk import PlanExecution
+from .walk_guard import GuardSettings, move_guard
 from .walk_io import LogLevel, Messages
 from .walk_modes import walk_mode, WalkMode
 from .walk_settings import ExecutionSettings, ExecutionState
@@ -136,6 +137,7 @@ class WalkSetup:
     refusal: str  # '' unless refused
     execution: PlanExecution
     mode: WalkMode
+    guard: GuardSettings
 
     def start_lines(self, plan: Plan, model: str, command_topic: str) -> list[str]:
         """Return what the node logs at the start: the plan, the commands, the turns."""
@@ -219,6 +221,15 @@ def setup_walk(
         )
     except ValueError as error:
         raise ValueError(f'measuring_mode: {error}') from error
+    guard_settings = GuardSettings(  # a setting not given keeps its default
+        **{name: values[name] for name in GuardSettings.__dataclass_fields__ if name in values}
+    )
+    # A plan without a mode walks as it always did: no prediction in the default compliant mode.
+    guard = (
+        move_guard(nominal, mode.mode, link_length, stroke, guard_settings, mount)
+        if mode.source != 'default'
+        else None
+    )
     execution = PlanExecution(
         nominal,
         poses,
@@ -232,6 +243,7 @@ def setup_walk(
         device_turns=plan.turns,
         mounted_turn=float(values['mounted_turn']),
         released=mode.released,
+        guard=guard,
     )
     refusal = refusal_message(problems, len(targets)) if problems else ''
     if problems:  # nothing is ever commanded
@@ -248,6 +260,7 @@ def setup_walk(
         refusal,
         execution,
         mode,
+        guard_settings,
     )
 
 

@@ -29,6 +29,7 @@ from hexacal_msgs_py.conversions import (
     imu_to_inclinometer_reading,
     joint_state_to_inclinometer_reading,
     NS_PER_S,
+    status_values,
 )
 from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError
 from hexacal_msgs_py.inputs import (
@@ -42,17 +43,26 @@ from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
 from hexacal_msgs_py.names import (
     CALIBRATE_SERVICE,
     CALIBRATION_STATUS_TOPIC,
+    DRIVER_STATUS_NAME,
     EXECUTOR_ABORT_SERVICE,
     EXECUTOR_PAUSE_SERVICE,
     EXECUTOR_RESUME_SERVICE,
     EXECUTOR_STATUS_NAME,
     INCLINOMETER_TOPIC,
+    LINK_LENGTH_JOINT,
+    LINK_TOPIC,
     POSTURE_TOPIC,
     release_service,
     SLIDERS_TOPIC,
 )
 from hexacal_msgs_py.parameters_file import read_parameters_file
-from hexacal_msgs_py.qos import COMMAND_QOS, POSTURE_QOS, SENSOR_QOS, STATUS_QOS
+from hexacal_msgs_py.qos import (
+    COMMAND_QOS,
+    POSTURE_QOS,
+    SENSOR_QOS,
+    STATUS_MONITOR_QOS,
+    STATUS_QOS,
+)
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import (
     InvalidParameterTypeException,
@@ -170,6 +180,7 @@ class ExecutorNode(Node):
         self.settings, self.device_turn_nodes = setup.settings, setup.device_turn_nodes
         self.execution = setup.execution
         self.mode = setup.mode
+        self.guard_settings = setup.guard
         self.release_wait_s = float(value['release_wait_s'])
         self._release_clients = (
             [self.create_client(SetBool, release_service(j)) for j in self.actuator_joints]
@@ -194,6 +205,12 @@ class ExecutorNode(Node):
             Imu if self.imu else JointState, INCLINOMETER_TOPIC, self._on_inclinometer, SENSOR_QOS
         )
         self.create_subscription(JointState, POSTURE_TOPIC, self._on_posture, POSTURE_QOS)
+        # The guard on what the machine measures: the drive's status, the LVDT link's length.
+        self.create_subscription(
+            DiagnosticArray, CALIBRATION_STATUS_TOPIC, self._on_status, STATUS_MONITOR_QOS
+        )
+        if self.mode.mode.value == 'lvdt':
+            self.create_subscription(JointState, LINK_TOPIC, self._on_link, SENSOR_QOS)
         self.create_service(Trigger, EXECUTOR_PAUSE_SERVICE, self._on_pause)
         self.create_service(Trigger, EXECUTOR_RESUME_SERVICE, self._on_resume)
         self.create_service(Trigger, EXECUTOR_ABORT_SERVICE, self._on_abort)
@@ -338,6 +355,31 @@ class ExecutorNode(Node):
         positions = joint_positions(message.name, message.position, self.posture_joints)
         if positions is not None:
             self.execution.on_posture(_now_s(self), positions)
+
+    def _on_status(self, message: DiagnosticArray) -> None:
+        for status in message.status:
+            if status.name != DRIVER_STATUS_NAME:
+                continue
+            values = status_values(status)
+            if values.get('state') == 'fault':
+                self._send(self.execution.on_drive_fault(_now_s(self), values.get('fault', '')))
+                self._drain_messages()
+                self._publish_status(force=True)
+
+    def _on_link(self, message: JointState) -> None:
+        names = list(message.name)
+        if LINK_LENGTH_JOINT not in names or len(message.position) != len(names):
+            return
+        extension = float(message.position[names.index(LINK_LENGTH_JOINT)]) - float(
+            self.plan.link_length
+        )
+        guard = self.guard_settings
+        commands = self.execution.on_link(
+            _now_s(self), extension, guard.lvdt_stroke_m - guard.lvdt_margin_m
+        )
+        if commands or self.execution.notice:
+            self._send(commands)
+            self._drain_messages()
 
     # ------------------------------------------------------------------ services
 
