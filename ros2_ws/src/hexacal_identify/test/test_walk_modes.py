@@ -143,3 +143,26 @@ def test_a_drive_fault_pauses_the_plan_without_a_command():
     assert execution.on_drive_fault(0.6, 'again') == []  # paused: said once
     assert 'again' not in execution.notice
     assert execution.on_link(0.7, 9e-3, 4e-3) == []  # paused: nothing more
+
+
+def test_the_status_names_the_mode_the_released_joint_and_the_notice():
+    from hexacal_identify.core.turns import DeviceTurnSetter
+    from hexacal_identify.core.walk_session import CalibrationCall, ExecutorStatus
+
+    execution, _ = _execution([2, 2, 4])
+    status = ExecutorStatus(
+        execution, 'p', GS, [], CalibrationCall(False, '/hexacal/calibrate'), DeviceTurnSetter({})
+    )
+    assert 'measuring_mode' not in status.values(0.0)  # unset: as before the modes had names
+    status.measuring_mode, status.joint_names = 'passive_actuator', tuple(NAMES)
+    execution.start(0.0)
+    assert status.values(0.1)['released_joint'] == ''
+    execution.on_release(0.2, 2, '')
+    values = status.values(0.3)
+    assert values['released_joint'] == NAMES[2] and values['measuring_mode'] == 'passive_actuator'
+    execution.on_drive_fault(0.4, 'jam')
+    values = status.values(0.5)
+    assert values['notice'].startswith('the drive faulted: jam') and status.level(values) == 'WARN'
+    assert 'the drive faulted: jam' in status.text(values)
+    compliant = _mode('', 'passive_actuator', [NAMES[1]] * 3).all_six('no release service')
+    assert compliant.mode == 'compliant' and compliant.released == (None, None, None)

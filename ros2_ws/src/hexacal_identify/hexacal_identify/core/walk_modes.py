@@ -44,6 +44,10 @@ class WalkMode:
             text += f'; {self.chosen} releases chosen here (the plan names none)'
         return text
 
+    def all_six(self, source: str) -> WalkMode:
+        """Return the compliant walk of the same postures (all six commanded), from `source`."""
+        return WalkMode(MeasuringMode.COMPLIANT, source, (None,) * len(self.released), 0)
+
 
 def walk_mode(
     parameter: str,

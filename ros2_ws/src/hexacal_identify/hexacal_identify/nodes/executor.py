@@ -17,7 +17,7 @@ Full reference: docs/nodes.md
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import sys
 import time
 from typing import Any
@@ -53,6 +53,7 @@ from hexacal_msgs_py.names import (
     LINK_TOPIC,
     POSTURE_TOPIC,
     release_service,
+    RELEASE_SERVICE_PREFIX,
     SLIDERS_TOPIC,
 )
 from hexacal_msgs_py.parameters_file import read_parameters_file
@@ -82,6 +83,7 @@ from .parameters import parameter_descriptor
 from .runtime import run_node
 from ..core.device import DEFAULT_MOUNT, DeviceMountError
 from ..core.measurements import FIXED
+from ..core.measuring_plan import walking_notice
 from ..core.paths import Command
 from ..core.plan_check import PlanRefusedError
 from ..core.turns import DeviceTurnSetter, same_turn, TURN_PARAMETER
@@ -93,7 +95,10 @@ from ..core.walk_settings import ExecutionState
 NODE_NAME = 'executor'
 CONTROL_PERIOD_S = 0.05  # the state machine steps this often
 INVALID_LOG_PERIOD_S = 5.0
-SHUTDOWN_LINGER_S = 0.3  # the last status (and hold command) reach their subscribers
+SHUTDOWN_LINGER_S = 0.3
+# A plan made for passive_actuator (not the parameter) on a drive without release services
+# walks as before the modes had names (compliant, with a warning) once this has passed.
+RELEASE_DISCOVERY_S = 3.0  # the last status (and hold command) reach their subscribers
 
 
 class ExecutorConfigurationError(Exception):
@@ -188,6 +193,8 @@ class ExecutorNode(Node):
             else []
         )
         self._release: _ReleaseCalls | None = None
+        self._drive_mode: str | None = None  # the driver's status says its measuring_mode
+        self._mode_since: float | None = None  # when the start began to wait for the services
         self.mapping = self._input_mapping(value)
         self.imu = self.mapping.inclinometer_type == IMU_INCLINOMETER
 
@@ -361,6 +368,7 @@ class ExecutorNode(Node):
             if status.name != DRIVER_STATUS_NAME:
                 continue
             values = status_values(status)
+            self._drive_mode = values.get('measuring_mode', self._drive_mode)
             if values.get('state') == 'fault':
                 self._send(self.execution.on_drive_fault(_now_s(self), values.get('fault', '')))
                 self._drain_messages()
@@ -471,6 +479,8 @@ class ExecutorNode(Node):
             if waiting:
                 self.get_logger().info('waiting for ' + ', '.join(waiting))
             self._publish_status(force=True)
+        if not waiting:
+            waiting += self._confirm_mode(now)
         if waiting:
             return
         self.get_logger().info(f'starting: {len(self.plan.poses)} postures')
@@ -530,6 +540,43 @@ class ExecutorNode(Node):
         self._send(self.execution.on_release(now, calls.released, problem))
         self._drain_messages()
         self._publish_status(force=True)
+
+    def _confirm_mode(self, now: float) -> list[str]:
+        """
+        Return what the start waits for to drive the plan's passive_actuator mode.
+
+        Only a plan's mode (not the parameter) is confirmed: on a drive that offers no release
+        service (its status names another mode, or none appears within RELEASE_DISCOVERY_S)
+        the plan walks as before the modes had names, all six commanded, with a warning.
+        """
+        mode = self.mode
+        if mode.mode.value != 'passive_actuator' or mode.source != 'plan':
+            return []
+        if self._drive_mode == 'passive_actuator' or any(
+            client.service_is_ready() for client in self._release_clients
+        ):
+            self.mode = replace(mode, source='plan, confirmed')
+            return []
+        if self._mode_since is None:
+            self._mode_since = now
+        if self._drive_mode is None and now - self._mode_since < RELEASE_DISCOVERY_S:
+            return [
+                f'the release services {RELEASE_SERVICE_PREFIX}<joint> (a passive_actuator plan)'
+            ]
+        why = (
+            f"the drive's measuring_mode is {self._drive_mode}"
+            if self._drive_mode is not None
+            else f'no release service {RELEASE_SERVICE_PREFIX}<joint> within '
+            f'{RELEASE_DISCOVERY_S:g} s'
+        )
+        self.get_logger().warning(
+            f'{why}: {walking_notice(mode.mode.value)} (set measuring_mode to drive it)'
+        )
+        self.mode = mode.all_six('the plan is passive_actuator, the drive is not')
+        self.execution.released = list(self.mode.released)
+        self.execution.guard = None  # as before the modes had names
+        self.status.measuring_mode = self.mode.mode.value
+        return []
 
     def _send(self, commands: list[Command]) -> None:
         released = self.execution.released_now
