@@ -27,14 +27,15 @@ GS = 'gough_stewart'
 POSTURES = 6
 
 
-def _passive_plan(tmp_path: Path, nominal: Path) -> Path:
+def _passive_plan(tmp_path: Path, nominal: Path, seed: int = 1) -> Path:
     # Seed 1: with seed 0 the planner's release of posture 4 jams the passive system at the
-    # start of its move on the nominal model as on the true one (the executor's guard pauses).
-    out = tmp_path / 'passive.yaml'
+    # start of its move (test_a_drive_that_jams_pauses_the_plan_with_the_drives_fault).
+    out = tmp_path / f'passive-{seed}.yaml'
     result = subprocess.run(
         [
             venv_executable('hexacal'), 'plan', '--postures', str(POSTURES), '--candidates',
-            '200', '--seed', '1', '--fixed-fraction', '0', '--measuring-mode', 'passive_actuator',
+            '200', '--seed', str(seed), '--fixed-fraction', '0', '--measuring-mode',
+            'passive_actuator',
             '--nominal', str(nominal), '--out', str(out),
         ],
         capture_output=True,
@@ -169,3 +170,84 @@ def test_a_move_that_would_cross_the_lvdt_stroke_is_paused_before_it_is_sent(
         "\nlvdt guard: paused before posture 2; the driver's largest link extension "
         f'{extension * 1e6:.1f} um (stroke +-2 mm); {notice}'
     )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('mode', ['lvdt', 'compliant'])
+def test_the_same_plan_walks_with_six_commanded_in_the_other_modes(
+    ros_processes, tmp_path, probe, mode  # noqa: F811 - fixture
+):
+    truth, nominal = write_parameter_files(tmp_path, GS)
+    plan_path = _passive_plan(tmp_path, nominal)  # its releases are ignored: measuring_mode
+    probe.subscribe_status()
+    watch = ExecutorWatch(probe)
+    driver = ros_processes.start(_driver(truth, measuring_mode=mode))
+    collector = ros_processes.start(
+        node_argv(
+            'collector',
+            fast_collector_parameters(
+                tmp_path / 'bags', bag_name=mode, parameters_file=str(nominal)
+            ),
+        )
+    )
+    probe.wait_for_node('driver', process=driver)
+    probe.wait_for_node('collector', process=collector)
+    executor = ros_processes.start(_executor(plan_path, nominal, measuring_mode=mode))
+    nodes = (driver, collector, executor)
+    finished = watch.wait(
+        lambda s: s.get('state') in ('done', 'paused', 'aborted') and s,
+        60.0 + 15.0 * POSTURES,
+        f'the plan walked in {mode}',
+        *nodes,
+    )
+    assert finished['state'] == 'done' and finished['measured'] == str(POSTURES), finished
+    assert finished['measuring_mode'] == mode and 'released_joint' not in finished
+    assert all(len(c.joint_names) == 6 for c in watch.commands)
+    drive = probe.spin_until(
+        lambda: (s := _driver_statuses(probe)) and s[-1], 10.0, "the driver's status"
+    )
+    assert all(s['state'] == 'ok' for s in _driver_statuses(probe))
+    for process in nodes:
+        assert ros_processes.stop(process, STOP_TIMEOUT_S) == 0, process.log_path.read_text()
+    figure = (
+        f'largest link extension {float(drive["max_link_extension_m"]) * 1e6:.1f} um'
+        if mode == 'lvdt'
+        else f'largest servo force {float(drive["max_force_n"]):.4g} N'
+    )
+    print(
+        f'\n{mode}, Gough-Stewart, {POSTURES} postures (nominal targets): {figure}; largest '
+        f'actuator deviation at rest {float(drive["max_actuator_deviation_m"]) * 1e6:.1f} um'
+    )
+
+
+@pytest.mark.slow
+def test_a_drive_that_jams_pauses_the_plan_with_the_drives_fault(
+    ros_processes, tmp_path, probe  # noqa: F811 - fixture
+):
+    # Seed 0: the planner releases leg_4 for posture 4, and the five commanded plus the link
+    # jam at the start of that move on the true machine (the prediction on the nominal model,
+    # from the planned pose, misses it): the drive faults and holds, and the executor pauses
+    # with the drive's fault and what to do, sending nothing more.
+    truth, nominal = write_parameter_files(tmp_path, GS)
+    plan_path = _passive_plan(tmp_path, nominal, seed=0)
+    probe.subscribe_status()
+    watch = ExecutorWatch(probe)
+    driver = ros_processes.start(_driver(truth, measuring_mode='passive_actuator'))
+    probe.wait_for_node('driver', process=driver)
+    executor = ros_processes.start(_executor(plan_path, nominal, wait_for_posture=False))
+    nodes = (driver, executor)
+    paused = watch.wait(
+        lambda s: s.get('state') in ('paused', 'done') and s, 90.0, 'the pause', *nodes
+    )
+    assert paused['state'] == 'paused' and paused['measured'] == '3', paused
+    notice = paused['notice']
+    assert notice.startswith(
+        'the drive faulted: the five commanded actuators and the link jam (released leg_4'
+    ), notice
+    assert 'reset the drive (hexacal/driver/reset) and resume' in notice
+    assert paused['released_joint'] == 'leg_4' and watch.statuses[-1][0] == 1  # WARN
+    sent = len(watch.commands)
+    probe.spin_for(1.0)
+    assert len(watch.commands) == sent  # the drive holds itself: nothing more is sent
+    for process in nodes:
+        assert ros_processes.stop(process, STOP_TIMEOUT_S) == 0, process.log_path.read_text()
