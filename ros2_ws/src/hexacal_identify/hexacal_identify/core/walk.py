@@ -54,11 +54,29 @@ from the resume).  progress() reports the current posture's
 ``device_turn_rad`` and, while waiting for a turn, ``device_turn_needed_rad``.
 A posture skipped after the turn does not undo it: the next posture's turn is
 compared with the mounting the device is in.
+
+Releasing an actuator (measuring_mode ``passive_actuator``, issue #18): with
+``released`` given, each posture names the chain released while it is moved to
+and measured (None: all six commanded).  Before a posture whose released chain
+is not the one released now, at rest, the execution asks the node to lock the
+one released now and release the posture's (`release_request`; the node calls
+the drive's services and answers with `on_release`); it moves on only once
+the drive has done both.  A refusal or a missing service pauses the plan with
+the drive's answer in ``notice``; resume asks again.  The released chain is
+never commanded (the node leaves it out of the trajectory) and is not judged
+against its target: the link puts it where the constraint says.
+
+The guard (core/walk_guard.py): with ``guard`` given, every move and correction
+is predicted on the model before it is sent; one that would cross a limit is not
+sent: the plan pauses (holding) with the prediction in ``notice``.  A drive
+fault (`on_drive_fault`) or a measured LVDT length beyond its stroke less the
+margin (`on_link`) pauses it too.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
 import enum
 import math
 
@@ -84,6 +102,8 @@ from .walk_inclinometer import InclinometerJudgement, InclinometerState, judge_i
 from .walk_io import LogLevel, Messages, ReadingWindow
 from .walk_settings import ExecutionSettings, ExecutionState, PostureOutcome
 
+# The guard: (current actuators, start pose, command points, released chain) -> problem ('': ok).
+Guard = Callable[[np.ndarray, np.ndarray, np.ndarray, int | None], str]
 HOLD_S = 0.2  # time_from_start of a hold command
 MIN_WINDOW_READINGS = 3  # readings a still window needs
 DEFAULT_OVERHEAD_S = 1.0  # ETA before any posture is done: per posture, besides moving, settle_s
@@ -95,6 +115,20 @@ class Phase(enum.Enum):
 
     MOVING = 'moving'  # commanded: arriving, settling, correcting
     POSTURE = 'posture'  # still at the target: waiting for the collector's posture
+    RELEASING = 'releasing'  # at rest: waiting for the drive to lock/release a chain
+
+
+class GuardStop(Exception):
+    """The guard refuses a command: it would cross a limit (the message says which)."""
+
+
+@dataclass(frozen=True)
+class ReleaseRequest:
+    """Lock chain `lock` then release chain `release` (0-based; None: nothing) before `posture`."""
+
+    posture: int
+    lock: int | None
+    release: int | None
 
 
 class PlanExecution:
@@ -113,13 +147,16 @@ class PlanExecution:
         start_paused: bool = False,
         device_turns: Iterable[float] | None = None,
         mounted_turn: float = 0.0,
+        released: Sequence[int | None] | None = None,
+        guard: Guard | None = None,
     ):
         """
         Walk `poses` (their nominal `targets` from core/plan_check.py) on `nominal`.
 
         device_turns: the plan's turn of each posture (rad; None: every posture
         in the normal mounting); mounted_turn: the mounting the device is in at
-        the start (rad).
+        the start (rad); released: the chain released at each posture
+        (None: all six commanded, the compliant and lvdt modes).
         """
         self.nominal = nominal
         self.poses = np.atleast_2d(np.asarray(poses, dtype=float))
@@ -166,6 +203,17 @@ class PlanExecution:
         self._where: np.ndarray | None = None  # the pose the last move went to
         self._at_where = False  # it stood still there since (so the next path starts there)
         self.refusal = ''  # why the plan was refused (state REFUSED)
+        self.released: list[int | None] = (
+            [None] * len(self.poses) if released is None else list(released)
+        )
+        if len(self.released) != len(self.poses):
+            raise ValueError(
+                f'released names {len(self.released)} chains for {len(self.poses)} postures'
+            )
+        self.released_now: int | None = None  # the chain the drive has released
+        self.release_request: ReleaseRequest | None = None  # for the node to carry out
+        self.notice = ''  # why the plan paused itself (a drive's refusal); '' otherwise
+        self.guard = guard
 
     # ------------------------------------------------------------------ inputs
 
@@ -181,6 +229,58 @@ class PlanExecution:
         """Hear a posture the collector measured (its actuators, m) at `now` (s)."""
         if self.state in _UNDER_WAY and self._phase is not None:
             self._postures.append((now, np.asarray(actuators, dtype=float)))
+
+    def on_drive_fault(self, now: float, fault: str) -> list[Command]:
+        """Hear the drive's fault: pause (the drive holds itself; resume once it is reset)."""
+        if self.state != ExecutionState.RUNNING:
+            return []
+        return self._stop(
+            now,
+            f'the drive faulted: {fault}; reset the drive (hexacal/driver/reset) and resume',
+            hold=False,
+        )
+
+    def on_link(self, now: float, extension: float, limit: float) -> list[Command]:
+        """Hear the LVDT link's extension (m): beyond `limit` the plan pauses, holding."""
+        if self.state != ExecutionState.RUNNING or abs(extension) <= limit:
+            return []
+        return self._stop(
+            now,
+            f'posture {self.index + 1} of {self.total}: the LVDT link measures '
+            f'{extension * 1e3:+.3f} mm, beyond +-{limit * 1e3:g} mm (its stroke less the margin)',
+        )
+
+    def _stop(self, now: float, text: str, hold: bool = True) -> list[Command]:
+        """Pause the plan by itself with `text` in ``notice`` (holding unless told not to)."""
+        self.state = ExecutionState.PAUSED
+        self._paused_at = now
+        self._phase = None
+        self.notice = f'{text}; paused: call {RESUME_SERVICE} once safe'
+        self._say(LogLevel.ERROR, self.notice)
+        return self._hold() if hold else []
+
+    def on_release(self, now: float, released: int | None, problem: str) -> list[Command]:
+        """
+        Hear the drive's answer to `release_request`: the chain released now, what went wrong.
+
+        problem '': done, the posture is commanded; else the plan pauses (holding) with
+        `problem` in ``notice`` until resumed.
+        """
+        request, self.release_request = self.release_request, None
+        self.released_now = released
+        if request is None or self._phase != Phase.RELEASING:
+            return []  # paused or aborted meanwhile: resume asks again if need be
+        if problem:
+            self.state = ExecutionState.PAUSED
+            self._paused_at = now
+            self._phase = None
+            self.notice = (
+                f'posture {request.posture + 1} of {self.total}: {problem}; paused: fix the '
+                f'drive, then call {RESUME_SERVICE}'
+            )
+            self._say(LogLevel.ERROR, self.notice)
+            return self._hold()
+        return self._begin(now, fresh=False)
 
     # ------------------------------------------------------------------ control
 
@@ -251,6 +351,7 @@ class PlanExecution:
             self._paused_total += now - self._paused_at
             self._paused_at = None
         self.state = ExecutionState.RUNNING
+        self.notice = ''
         fresh = not self._sent_any
         text = f'resumed at posture {self.index + 1} of {self.total}'
         if self.turn_needed is not None:  # the operator turned the device: begin the posture
@@ -284,7 +385,11 @@ class PlanExecution:
 
     def step(self, now: float) -> list[Command]:
         """Advance on the readings so far; return the commands to publish now."""
-        if self.state != ExecutionState.RUNNING or self._phase is None:
+        if (
+            self.state != ExecutionState.RUNNING
+            or self._phase is None
+            or self._phase == Phase.RELEASING
+        ):
             return []
         settings = self.settings
         if now - self._posture_start > settings.timeout_s:
@@ -402,8 +507,15 @@ class PlanExecution:
                 self._target = self.targets[self.index].copy()
                 self._corrections = 0
             self._posture_start = now
+            wanted = self.released[self.index]
+            if wanted != self.released_now:  # at rest: swap the released chain first
+                self.release_request = ReleaseRequest(self.index, self.released_now, wanted)
+                self._phase = Phase.RELEASING
+                return []
             try:
                 command = self._command(now, CommandPurpose.MOVE)
+            except GuardStop as stop:
+                return self._stop(now, str(stop))
             except PathError as error:
                 if not self._sent_any:  # nothing has moved yet: the plan is refused
                     self.state = ExecutionState.REFUSED
@@ -487,6 +599,20 @@ class PlanExecution:
                 purpose,
                 self.index,
             )
+        if self.guard is not None:
+            # Where the machine stands: the path's start, else nominal forward kinematics.
+            guess = start if start is not None else self._estimate()
+            problem = self.guard(
+                current,
+                self.poses[self.index] if guess is None else guess,
+                command.points,
+                self.released_now,
+            )
+            if problem:
+                raise GuardStop(
+                    f'posture {self.index + 1} of {self.total}: the {purpose} was not sent: '
+                    f'{problem}'
+                )
         self._target = command.positions.copy()
         # The collector's posture of this stop came before this correction: a correction below
         # its motion tolerances begins no new stationary period, so no posture may follow.
@@ -544,9 +670,16 @@ class PlanExecution:
         if float(np.max(np.ptp(window, axis=0))) > self.settings.still_tolerance_m:
             return None
         mean = window.mean(axis=0)
-        if float(np.max(np.abs(mean - self._target))) > self.settings.position_tolerance_m:
+        if self._commanded_away(mean) > self.settings.position_tolerance_m:
             return None
         return mean
+
+    def _commanded_away(self, actuators: np.ndarray) -> float:
+        """Return the largest distance (m) of a commanded chain from its target."""
+        away = np.abs(actuators - self._target)
+        if self.released_now is not None:  # the link puts the released chain where it goes
+            away = np.delete(away, self.released_now)
+        return float(np.max(away))
 
     def _judged_angles(self, now: float) -> tuple[float, float] | None:
         """Return the inclinometer reading to judge the position on, None: not yet."""
@@ -605,6 +738,13 @@ class PlanExecution:
         self._pose_cmd = corrected_pose(previous, alpha, beta, self.link_length, self.mount)
         via = self._nudge(previous)
         try:
+            return self._send_correction(now, previous, via, index, alpha, beta, judged)
+        except GuardStop as stop:
+            self._pose_cmd = previous
+            return self._stop(now, str(stop))
+
+    def _send_correction(self, now, previous, via, index, alpha, beta, judged) -> list[Command]:
+        try:
             try:
                 command = self._command(now, CommandPurpose.CORRECT, via)
             except PathError:
@@ -662,7 +802,7 @@ class PlanExecution:
         latest = self.actuators.latest
         if latest is None or self.actuators.between(now - self.settings.settle_s, now).size == 0:
             return f'no actuator readings (timeout {timeout:g} s)'
-        away = float(np.max(np.abs(latest - self._target)))
+        away = self._commanded_away(latest)
         unsettled = self._unsettled_reason()
         if (
             self.kinds[self.index] == FIXED

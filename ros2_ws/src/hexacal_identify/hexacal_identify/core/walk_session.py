@@ -25,6 +25,7 @@ import math
 import re
 from typing import Any, TYPE_CHECKING
 
+from hexacal_msgs_py.measuring_modes import measuring_mode
 from hexacal_msgs_py.models import DEVICE_MOUNT_KEY
 
 from .architectures import KinematicParameters
@@ -33,7 +34,9 @@ from .measurements import FIXED, SPHERE
 from .plan_check import check_stroke, plan_problems, plan_stroke, refusal_message
 from .turns import DeviceTurnSetter, TURN_PARAMETER, TurnSetState
 from .walk import PlanExecution
+from .walk_guard import GuardSettings, move_guard
 from .walk_io import LogLevel, Messages
+from .walk_modes import walk_mode, WalkMode
 from .walk_settings import ExecutionSettings, ExecutionState
 
 if TYPE_CHECKING:
@@ -91,6 +94,8 @@ def parameter_problem(name: str, value: Any) -> str | None:
             joint_names(name, list(value), 2)
         elif name == 'device_turn_nodes':
             node_names(list(value))
+        elif name == 'measuring_mode' and value:
+            measuring_mode(value)
     except (TypeError, ValueError) as error:
         return str(error)
     return None
@@ -131,6 +136,8 @@ class WalkSetup:
     problems: dict[int, str]  # posture index -> why it cannot be commanded (refused)
     refusal: str  # '' unless refused
     execution: PlanExecution
+    mode: WalkMode
+    guard: GuardSettings
 
     def start_lines(self, plan: Plan, model: str, command_topic: str) -> list[str]:
         """Return what the node logs at the start: the plan, the commands, the turns."""
@@ -154,6 +161,8 @@ class WalkSetup:
                     else 'device_turn_nodes is empty: no node is told the turn'
                 )
             )
+        if self.mode.source != 'default':  # a plan without a mode walks as it always did
+            lines.append(self.mode.describe(self.actuator_joints))
         return lines
 
 
@@ -199,6 +208,28 @@ def setup_walk(
     targets, problems = plan_problems(
         nominal, poses, plan.kinds, stroke, link_length, mount, settings.path_step_m
     )
+    try:
+        mode = walk_mode(
+            str(values.get('measuring_mode', '')),
+            plan.measuring_mode,
+            plan.released_actuators,
+            nominal,
+            poses,
+            link_length,
+            stroke,
+            mount,
+        )
+    except ValueError as error:
+        raise ValueError(f'measuring_mode: {error}') from error
+    guard_settings = GuardSettings(  # a setting not given keeps its default
+        **{name: values[name] for name in GuardSettings.__dataclass_fields__ if name in values}
+    )
+    # A plan without a mode walks as it always did: no prediction in the default compliant mode.
+    guard = (
+        move_guard(nominal, mode.mode, link_length, stroke, guard_settings, mount)
+        if mode.source != 'default'
+        else None
+    )
     execution = PlanExecution(
         nominal,
         poses,
@@ -211,6 +242,8 @@ def setup_walk(
         start_paused=bool(values['start_paused']),
         device_turns=plan.turns,
         mounted_turn=float(values['mounted_turn']),
+        released=mode.released,
+        guard=guard,
     )
     refusal = refusal_message(problems, len(targets)) if problems else ''
     if problems:  # nothing is ever commanded
@@ -226,6 +259,8 @@ def setup_walk(
         problems,
         refusal,
         execution,
+        mode,
+        guard_settings,
     )
 
 
@@ -304,6 +339,9 @@ class ExecutorStatus:
         self.waiting_for: tuple[str, ...] = ()  # what the start waits for
         self._last_key: tuple | None = None
         self._last_s = 0.0
+        # Set by the node (issue #18): the mode walked and the controller's joint names.
+        self.measuring_mode = ''
+        self.joint_names: tuple[str, ...] = ()
 
     def values(self, now: float) -> dict[str, object]:
         """Return the status fields (KeyValues) at `now` (s)."""
@@ -323,6 +361,13 @@ class ExecutorStatus:
                 values['calibration_message'] = self.calibration.message
         if execution.waiting_for_turn:
             values['notice'] = execution.turn_notice
+        elif execution.notice:
+            values['notice'] = execution.notice
+        if self.measuring_mode:
+            values['measuring_mode'] = self.measuring_mode
+        if self.measuring_mode == 'passive_actuator':
+            released = execution.released_now
+            values['released_joint'] = '' if released is None else self.joint_names[released]
         if self.turns.state is not None:
             values['device_turn_set'] = self.turns.state
             if self.turns.message:
@@ -348,6 +393,7 @@ class ExecutorStatus:
             state == ExecutionState.ABORTED
             or values.get('skipped')
             or self.turns.state == TurnSetState.FAILED
+            or (state == ExecutionState.PAUSED and self.execution.notice)
         ):
             return 'WARN'
         return 'OK'
@@ -366,6 +412,8 @@ class ExecutorStatus:
         )
         if 'eta_s' in values and state in (ExecutionState.RUNNING, ExecutionState.PAUSED):
             text += f', ETA {values["eta_s"]:.0f} s'
+        if execution.notice and state == ExecutionState.PAUSED:
+            text += f'; {execution.notice}'
         if execution.waiting_for_turn:
             text += f'; {execution.turn_notice}'
             if self.turns.state == TurnSetState.PENDING:

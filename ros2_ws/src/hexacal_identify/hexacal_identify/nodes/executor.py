@@ -17,8 +17,10 @@ Full reference: docs/nodes.md
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field, replace
 import sys
 import time
+from typing import Any
 
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticArray
@@ -27,6 +29,7 @@ from hexacal_msgs_py.conversions import (
     imu_to_inclinometer_reading,
     joint_state_to_inclinometer_reading,
     NS_PER_S,
+    status_values,
 )
 from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError
 from hexacal_msgs_py.inputs import (
@@ -40,16 +43,27 @@ from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
 from hexacal_msgs_py.names import (
     CALIBRATE_SERVICE,
     CALIBRATION_STATUS_TOPIC,
+    DRIVER_STATUS_NAME,
     EXECUTOR_ABORT_SERVICE,
     EXECUTOR_PAUSE_SERVICE,
     EXECUTOR_RESUME_SERVICE,
     EXECUTOR_STATUS_NAME,
     INCLINOMETER_TOPIC,
+    LINK_LENGTH_JOINT,
+    LINK_TOPIC,
     POSTURE_TOPIC,
+    release_service,
+    RELEASE_SERVICE_PREFIX,
     SLIDERS_TOPIC,
 )
 from hexacal_msgs_py.parameters_file import read_parameters_file
-from hexacal_msgs_py.qos import COMMAND_QOS, POSTURE_QOS, SENSOR_QOS, STATUS_QOS
+from hexacal_msgs_py.qos import (
+    COMMAND_QOS,
+    POSTURE_QOS,
+    SENSOR_QOS,
+    STATUS_MONITOR_QOS,
+    STATUS_QOS,
+)
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import (
     InvalidParameterTypeException,
@@ -60,7 +74,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from sensor_msgs.msg import Imu, JointState
-from std_srvs.srv import Trigger
+from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from .executor_parameters import MODEL_PARAMETERS, PARAMETERS
@@ -81,11 +95,24 @@ from ..core.walk_settings import ExecutionState
 NODE_NAME = 'executor'
 CONTROL_PERIOD_S = 0.05  # the state machine steps this often
 INVALID_LOG_PERIOD_S = 5.0
-SHUTDOWN_LINGER_S = 0.3  # the last status (and hold command) reach their subscribers
+SHUTDOWN_LINGER_S = 0.3
+# A plan made for passive_actuator (not the parameter) on a drive without release services
+# walks as before the modes had names (compliant, with a warning) once this has passed.
+RELEASE_DISCOVERY_S = 3.0  # the last status (and hold command) reach their subscribers
 
 
 class ExecutorConfigurationError(Exception):
     """The node's parameters do not describe a plan it can walk on this machine."""
+
+
+@dataclass
+class _ReleaseCalls:
+    """The SetBool calls carrying out one release request, one at a time (lock, release)."""
+
+    steps: list[tuple[int, bool]]  # (chain, release?) still to call
+    released: int | None  # the chain released now, as the drive has answered so far
+    since: float  # when the current step began waiting (s)
+    future: Any = field(default=None)
 
 
 class _TurnClient:
@@ -126,9 +153,6 @@ class ExecutorNode(Node):
         self.nominal, nominal_mount = self._load_nominal(value['nominal'])
         self.model = self.nominal.model
         self.plan = self._load_plan(value['plan'], value['nominal'], nominal_mount)
-        notice = walking_notice(self.plan.measuring_mode)
-        if notice is not None:
-            self.get_logger().warning(notice)
         # As the driver's: a collector with driver_node:=executor records the plan in its bag.
         self.declare_parameter(
             'plan_name',
@@ -160,6 +184,17 @@ class ExecutorNode(Node):
         self.stroke, self.stroke_source = setup.stroke, setup.stroke_source
         self.settings, self.device_turn_nodes = setup.settings, setup.device_turn_nodes
         self.execution = setup.execution
+        self.mode = setup.mode
+        self.guard_settings = setup.guard
+        self.release_wait_s = float(value['release_wait_s'])
+        self._release_clients = (
+            [self.create_client(SetBool, release_service(j)) for j in self.actuator_joints]
+            if any(chain is not None for chain in self.mode.released)
+            else []
+        )
+        self._release: _ReleaseCalls | None = None
+        self._drive_mode: str | None = None  # the driver's status says its measuring_mode
+        self._mode_since: float | None = None  # when the start began to wait for the services
         self.mapping = self._input_mapping(value)
         self.imu = self.mapping.inclinometer_type == IMU_INCLINOMETER
 
@@ -177,6 +212,12 @@ class ExecutorNode(Node):
             Imu if self.imu else JointState, INCLINOMETER_TOPIC, self._on_inclinometer, SENSOR_QOS
         )
         self.create_subscription(JointState, POSTURE_TOPIC, self._on_posture, POSTURE_QOS)
+        # The guard on what the machine measures: the drive's status, the LVDT link's length.
+        self.create_subscription(
+            DiagnosticArray, CALIBRATION_STATUS_TOPIC, self._on_status, STATUS_MONITOR_QOS
+        )
+        if self.mode.mode.value == 'lvdt':
+            self.create_subscription(JointState, LINK_TOPIC, self._on_link, SENSOR_QOS)
         self.create_service(Trigger, EXECUTOR_PAUSE_SERVICE, self._on_pause)
         self.create_service(Trigger, EXECUTOR_RESUME_SERVICE, self._on_resume)
         self.create_service(Trigger, EXECUTOR_ABORT_SERVICE, self._on_abort)
@@ -195,6 +236,8 @@ class ExecutorNode(Node):
             self.calibration,
             self.turns,
         )
+        self.status.measuring_mode = self.mode.mode.value
+        self.status.joint_names = self.actuator_joints
         self._stopping = False
         for line in setup.start_lines(self.plan, self.model, self._command_pub.topic_name):
             self.get_logger().info(line)
@@ -320,6 +363,32 @@ class ExecutorNode(Node):
         if positions is not None:
             self.execution.on_posture(_now_s(self), positions)
 
+    def _on_status(self, message: DiagnosticArray) -> None:
+        for status in message.status:
+            if status.name != DRIVER_STATUS_NAME:
+                continue
+            values = status_values(status)
+            self._drive_mode = values.get('measuring_mode', self._drive_mode)
+            if values.get('state') == 'fault':
+                self._send(self.execution.on_drive_fault(_now_s(self), values.get('fault', '')))
+                self._drain_messages()
+                self._publish_status(force=True)
+
+    def _on_link(self, message: JointState) -> None:
+        names = list(message.name)
+        if LINK_LENGTH_JOINT not in names or len(message.position) != len(names):
+            return
+        extension = float(message.position[names.index(LINK_LENGTH_JOINT)]) - float(
+            self.plan.link_length
+        )
+        guard = self.guard_settings
+        commands = self.execution.on_link(
+            _now_s(self), extension, guard.lvdt_stroke_m - guard.lvdt_margin_m
+        )
+        if commands or self.execution.notice:
+            self._send(commands)
+            self._drain_messages()
+
     # ------------------------------------------------------------------ services
 
     def _on_pause(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
@@ -376,6 +445,10 @@ class ExecutorNode(Node):
             self._try_start(now)
         elif execution.state == ExecutionState.RUNNING:
             self._send(execution.step(now))
+        if self._release is not None or (
+            execution.release_request is not None and execution.state == ExecutionState.RUNNING
+        ):
+            self._step_release(now)
         if self.turns.setting is not None:
             self._step_turns(now)
         elif execution.state == ExecutionState.DONE:
@@ -406,6 +479,8 @@ class ExecutorNode(Node):
             if waiting:
                 self.get_logger().info('waiting for ' + ', '.join(waiting))
             self._publish_status(force=True)
+        if not waiting:
+            waiting += self._confirm_mode(now)
         if waiting:
             return
         self.get_logger().info(f'starting: {len(self.plan.poses)} postures')
@@ -413,13 +488,110 @@ class ExecutorNode(Node):
         if self.execution.state == ExecutionState.REFUSED:
             self._publish_status(force=True)
 
+    def _step_release(self, now: float) -> None:
+        """Carry the execution's release request out through the drive's SetBool services."""
+        execution, calls = self.execution, self._release
+        if calls is None:
+            request = execution.release_request
+            assert request is not None
+            steps = [(request.lock, False)] if request.lock is not None else []
+            steps += [(request.release, True)] if request.release is not None else []
+            calls = self._release = _ReleaseCalls(steps, request.lock, now)  # type: ignore
+        if not calls.steps:
+            return self._released(now, '')
+        chain, release = calls.steps[0]
+        client = self._release_clients[chain]
+        what = f'{"release" if release else "lock"} {self.actuator_joints[chain]}'
+        if calls.future is None:
+            if client.service_is_ready():
+                calls.future = client.call_async(SetBool.Request(data=release))
+                calls.since = now
+            elif now - calls.since > self.release_wait_s:
+                self._released(
+                    now,
+                    f'cannot {what}: no service {client.srv_name} (waited '
+                    f'{self.release_wait_s:g} s)',
+                )
+            return None
+        if not calls.future.done():
+            if now - calls.since > self.release_wait_s:
+                self._released(
+                    now, f'cannot {what}: {client.srv_name} did not answer within '
+                    f'{self.release_wait_s:g} s'
+                )
+            return None
+        try:
+            answer = calls.future.result()
+        except Exception as error:  # noqa: B902 - the status must say what happened
+            return self._released(now, f'cannot {what}: {type(error).__name__}: {error}')
+        if not answer.success:
+            return self._released(now, f'the drive refused to {what}: {answer.message}')
+        self.get_logger().info(f'{what}: {answer.message}')
+        calls.released = chain if release else None
+        calls.steps.pop(0)
+        calls.future, calls.since = None, now
+        if not calls.steps:
+            self._released(now, '')
+        return None
+
+    def _released(self, now: float, problem: str) -> None:
+        calls, self._release = self._release, None
+        assert calls is not None
+        self._send(self.execution.on_release(now, calls.released, problem))
+        self._drain_messages()
+        self._publish_status(force=True)
+
+    def _confirm_mode(self, now: float) -> list[str]:
+        """
+        Return what the start waits for to drive the plan's passive_actuator mode.
+
+        Only a plan's mode (not the parameter) is confirmed: on a drive that offers no release
+        service (its status names another mode, or none appears within RELEASE_DISCOVERY_S)
+        the plan walks as before the modes had names, all six commanded, with a warning.
+        """
+        mode = self.mode
+        if mode.mode.value != 'passive_actuator' or mode.source != 'plan':
+            return []
+        if self._drive_mode == 'passive_actuator' or any(
+            client.service_is_ready() for client in self._release_clients
+        ):
+            self.mode = replace(mode, source='plan, confirmed')
+            return []
+        if self._mode_since is None:
+            self._mode_since = now
+        if self._drive_mode is None and now - self._mode_since < RELEASE_DISCOVERY_S:
+            return [
+                f'the release services {RELEASE_SERVICE_PREFIX}<joint> (a passive_actuator plan)'
+            ]
+        why = (
+            f"the drive's measuring_mode is {self._drive_mode}"
+            if self._drive_mode is not None
+            else f'no release service {RELEASE_SERVICE_PREFIX}<joint> within '
+            f'{RELEASE_DISCOVERY_S:g} s'
+        )
+        self.get_logger().warning(
+            f'{why}: {walking_notice(mode.mode.value)} (set measuring_mode to drive it)'
+        )
+        self.mode = mode.all_six('the plan is passive_actuator, the drive is not')
+        self.execution.released = list(self.mode.released)
+        self.execution.guard = None  # as before the modes had names
+        self.status.measuring_mode = self.mode.mode.value
+        return []
+
     def _send(self, commands: list[Command]) -> None:
+        released = self.execution.released_now
+        joints = list(self.actuator_joints)
+        if released is not None:  # the released joint is not commanded
+            del joints[released]
         for command in commands:
             message = JointTrajectory()  # header.stamp zero: the controller starts it on receipt
-            message.joint_names = list(self.actuator_joints)
+            message.joint_names = joints
             message.points = [
                 JointTrajectoryPoint(
-                    positions=[float(p) for p in point], time_from_start=_duration(seconds)
+                    positions=[
+                        float(p) for i, p in enumerate(point) if i != released
+                    ],
+                    time_from_start=_duration(seconds),
                 )
                 for point, seconds in zip(command.points, command.times)
             ]

@@ -13,9 +13,11 @@ from hexacal_msgs_py.models import MAX_DEVICE_TURN
 from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC, INCLINOMETER_NAMES
 
 from .parameters import ParameterSpec as _Spec
+from ..core.walk_guard import GuardSettings
 from ..core.walk_settings import ExecutionSettings
 
 SETTINGS = ExecutionSettings()
+GUARD = GuardSettings()
 PARAMETERS: dict[str, _Spec] = {
     'plan': _Spec('', 'plan YAML written by `hexacal plan` (required)'),
     'nominal': _Spec(
@@ -133,6 +135,55 @@ PARAMETERS: dict[str, _Spec] = {
         'their device_turn is set to it before the first move',
         -MAX_DEVICE_TURN,
         MAX_DEVICE_TURN,
+    ),
+    'measuring_mode': _Spec(
+        '',
+        "how the machine is driven while the link is attached: '' the plan's mode (a plan "
+        'without one: compliant, all six commanded), passive_actuator (per posture the '
+        "plan's released actuator is released through hexacal/release/<joint> at rest and the "
+        'five others commanded), lvdt or compliant (all six commanded)',
+        constraints="'', passive_actuator, lvdt or compliant",
+    ),
+    'lvdt_stroke_m': _Spec(
+        GUARD.lvdt_stroke_m,
+        "lvdt: the stroke of the link, +- this about its rest length (m; the driver's "
+        'lvdt_stroke_m); a move whose predicted extension (on the model, every path point and '
+        'the joint-space way between) or a measured length (hexacal/link) leaves it less '
+        'lvdt_margin_m pauses the plan',
+        1e-6,
+        1.0,
+    ),
+    'lvdt_margin_m': _Spec(
+        GUARD.lvdt_margin_m, 'lvdt: kept inside the LVDT stroke by every move (m)', 0.0, 1.0
+    ),
+    'servo_stiffness_n_per_m': _Spec(
+        GUARD.servo_stiffness_n_per_m,
+        "compliant (named): each servo's stiffness (N/m; the driver's); a move's predicted force "
+        'is this x the predicted strain of the machine against the link',
+        1.0,
+        1e12,
+    ),
+    'max_force_n': _Spec(
+        GUARD.max_force_n,
+        'compliant (named): a move whose predicted force on a servo exceeds this (N) is not sent: '
+        'the plan pauses',
+        1e-6,
+        1e9,
+    ),
+    'released_margin_m': _Spec(
+        GUARD.released_margin_m,
+        'passive_actuator: the released actuator is kept this far inside the actuator stroke '
+        '(stroke_limits_m) along every move (predicted on the model, m); a move that would jam '
+        'the passive system or leave it pauses the plan',
+        0.0,
+        1.0,
+    ),
+    'release_wait_s': _Spec(
+        10.0,
+        'passive_actuator: how long to wait for a release service (std_srvs/SetBool '
+        'hexacal/release/<joint>) and its answer before the plan pauses (s)',
+        0.1,
+        600.0,
     ),
     'shutdown_when_done': _Spec(
         False,
