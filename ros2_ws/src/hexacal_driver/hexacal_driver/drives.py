@@ -379,7 +379,8 @@ class DriveFollower(CommandFollower):
     def _update_measures(self) -> None:
         """Recompute the following error, force and extension of the standing; keep peaks."""
         self.following_error_m = float(np.max(np.abs(self.deviations())))
-        self.strain_m = float(np.max(np.abs(self.actuators - self.setpoints)))
+        # Of the commanded actuators only: a released one has no setpoint to be strained from.
+        self.strain_m = self.following_error_m
         peaks = self.peaks
         peaks['following_error_m'] = max(peaks['following_error_m'], self.following_error_m)
         forces = self.forces()
