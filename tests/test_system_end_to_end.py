@@ -89,7 +89,8 @@ def test_fifty_postures_calibrate_the_simulated_machine(ros_processes, tmp_path,
     streams = [v for _, _, v in probe.statuses if 'stream.sliders.rate_hz' in v][-1]
     for stream in ('sliders', 'inclinometer', 'encoder'):
         assert float(streams[f'stream.{stream}.rate_hz']) == pytest.approx(100.0, rel=0.05)
-        assert abs(float(streams[f'stream.{stream}.clock_offset_s'])) < 0.005  # one clock
+        # One clock: the estimate (from the starts of moves) within one sample period, 10 ms.
+        assert abs(float(streams[f'stream.{stream}.clock_offset_s'])) < 0.01
         assert int(streams[f'stream.{stream}.spikes_rejected']) >= 0
         assert int(streams[f'stream.{stream}.gaps']) >= 0
         assert streams[f'stream.{stream}.topic'] == f'/hexacal/{stream}'

@@ -6,7 +6,6 @@ the move, says so when none is left; planning writes the mode and the released a
 the plan, which every reader reads back, and a plan without a mode is written as before.
 """
 
-from hexacal_driver.plan import load_plan
 from hexacal_identify.core.architectures import default_parameters
 from hexacal_identify.core.kinematics import inverse_kinematics
 from hexacal_identify.core.measuring_plan import check_measuring_mode
@@ -18,6 +17,7 @@ from hexacal_identify.core.released_actuator import (
     move_samples,
     ReleaseError,
 )
+from hexacal_msgs_py.plan_file import read_plan_file
 import numpy as np
 import pytest
 
@@ -121,8 +121,8 @@ def test_a_passive_plan_carries_its_released_actuators_through_every_reader(tmp_
     assert back.measuring_mode == 'passive_actuator'
     assert back.released_actuators == plan.released_actuators
     assert back.to_text() == path.read_text()
-    driver = load_plan(path)  # the simulated driver's reader (its own machine checks)
-    assert driver.released_actuators == plan.released_actuators
+    contract = read_plan_file(path)  # the format's owner, which the driver's reader extends
+    assert contract.released_actuators == plan.released_actuators
     text = plain.to_text()
     assert 'measuring_mode' not in text and 'released_actuator' not in text
 
