@@ -11,8 +11,13 @@ trajectory controller) in a ROS domain of its own (localhost discovery),
 walks the plan with the executor, calls `hexacal/calibrate`, walks the
 verification plan, calls `hexacal/verify`, and prints the parameter and pose
 errors before and after calibration (against the simulated truth), the
-verification table (no truth needed) and the path of the HTML report.
-Everything it writes lands under ``out/demo_<timestamp>/`` (the bag in ``bag/``).
+verification table (no truth needed), what the drives went through (the driver's
+status: the largest deviation of a commanded actuator from its setpoint at rest, force
+or link extension) and the path of the HTML report.
+``--measuring-mode`` (passive_actuator, the default; lvdt; compliant) plans for the mode
+and runs the driver (and an executor that declares the parameter) in it; a drive fault
+stops the demo at once, naming it. Everything it writes lands under
+``out/demo_<timestamp>/`` (the bag in ``bag/``), with ``summary.json`` (demo_summary.py).
 """
 
 from __future__ import annotations
@@ -58,8 +63,9 @@ def add_parsers(subparsers) -> None:
         'machine (or, with --model gough_stewart, the default Gough-Stewart platform) driven '
         'through its trajectory-controller interface, collect, calibrate nominal set 2, walk a '
         'verification plan and verify; print parameter and pose errors before and after, the '
-        'verification table and the HTML report path. Takes about 2-3 minutes with the '
-        'defaults; everything lands under out/demo_<timestamp>.',
+        "verification table, the drives' largest deviation and force or extension, and the "
+        'HTML report path. Takes about 2-3 minutes with the defaults; everything lands under '
+        'out/demo_<timestamp>, with summary.json.',
     )
     parser.add_argument(
         '--model',
