@@ -1,4 +1,4 @@
-"""The demo's summary.json: the drives' figures per measuring mode, null where they do not apply."""
+"""The demo's summary.json: the drives' figures per measuring mode, null where not applicable."""
 
 import json
 

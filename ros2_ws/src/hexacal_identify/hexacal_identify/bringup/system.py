@@ -21,7 +21,7 @@ from hexacal_msgs_py.interface_names import (
     SLIDERS_TOPIC as SLIDERS,
 )
 
-from hexacal_msgs_py.measuring_modes import MEASURING_MODE_KEY, measuring_mode as check_mode
+from hexacal_msgs_py.measuring_modes import measuring_mode as check_mode, MEASURING_MODE_KEY
 
 from .launch_spec import NodeLaunch
 
