@@ -96,7 +96,7 @@ def test_demo_stops_on_a_drive_fault_naming_it(tmp_path):
     from hexacal_identify.bringup.system import executor_takes_measuring_mode
 
     if executor_takes_measuring_mode():
-        pytest.skip('this executor drives passive_actuator: six stiff drives no longer fight the link')
+        pytest.skip('this executor drives passive_actuator: no six stiff drives fight the link')
     out = tmp_path / 'out'
     completed = subprocess.run(
         [
