@@ -1,8 +1,13 @@
-"""`hexacal demo` end to end (what `make demo` runs), small: plan, executor on the commanded machine,
-calibration, verification plan, verification; everything under --out."""
+"""
+`hexacal demo` end to end (what `make demo` runs), small.
+
+Plan, executor on the commanded machine, calibration, verification plan, verification, the
+summary; everything under --out.
+"""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 import re
 import subprocess
@@ -22,6 +27,9 @@ def test_demo_walks_plans_calibrates_verifies_and_keeps_everything_under_out(tmp
             '20',
             '--verify-postures',
             '8',
+            # passive_actuator (the default) needs an executor that releases actuators (#18).
+            '--measuring-mode',
+            'compliant',
             '--out',
             str(out),
         ],
@@ -45,7 +53,8 @@ def test_demo_walks_plans_calibrates_verifies_and_keeps_everything_under_out(tmp
     assert nominal and calibrated, text
     assert float(nominal.group(1)) > 1000.0 and float(calibrated.group(1)) < 50.0, text
     assert re.search(r'threshold [\d.]+ um: pass', text), text
-    # Everything under --out: the bag (closed), plans, parameters, the report; nothing in the cwd's bags/.
+    # Everything under --out: the bag (closed), plans, parameters, the report; nothing in the
+    # cwd's bags/.
     assert (out / 'bag' / 'metadata.yaml').exists()
     assert (out / 'plan.yaml').exists() and (out / 'verification_plan.yaml').exists()
     assert (out / 'calibration.yaml').exists()
@@ -53,3 +62,65 @@ def test_demo_walks_plans_calibrates_verifies_and_keeps_everything_under_out(tmp
     assert page.exists() and str(page).startswith(str(out)), page
     assert 'erification' in page.read_text()
     assert not (tmp_path / 'bags').exists()
+    _check_summary(out / 'summary.json', text)
+
+
+def _check_summary(path: Path, text: str) -> None:
+    """summary.json holds what the demo printed, in SI units, with the figures of its mode."""
+    summary = json.loads(path.read_text())
+    assert summary['measuring_mode'] == 'compliant' and summary['postures'] == 20, summary
+    after = re.search(r'after \(calibrated\)\s+([\d.]+)\s+([\d.]+)', text)
+    assert abs(summary['pose_error_mean_m'] * 1e6 - float(after.group(1))) <= 0.051, summary
+    assert abs(summary['pose_error_max_m'] * 1e6 - float(after.group(2))) <= 0.051, summary
+    # Compliant servos carry a force; there is no LVDT link to extend.
+    assert summary['max_force_n'] > 0 and summary['max_link_extension_m'] is None, summary
+    deviation = re.search(r'from its setpoint: ([\d.]+) um', text)
+    assert deviation, text
+    assert abs(summary['max_actuator_deviation_m'] * 1e6 - float(deviation.group(1))) <= 0.051
+    assert summary['max_actuator_deviation_m'] > 0  # the rigid link strains compliant servos
+    force = re.search(r'largest actuator force: ([\d.]+) N', text)
+    assert force and abs(summary['max_force_n'] - float(force.group(1))) <= 0.051, text
+    # The verification as `hexacal verify --json` gives it, and as the table printed it.
+    verification = summary['verification']
+    assert {'model', 'postures', 'nominal', 'calibrated', 'improvement', 'threshold_m',
+            'verdict'} <= set(verification), verification
+    assert verification['postures'] == 8 and verification['verdict'] == 'pass', verification
+    calibrated = re.search(r'^calibrated\s+([\d.]+)', text, re.M)
+    rms = verification['calibrated']['position_rms_m'] * 1e6
+    assert abs(rms - float(calibrated.group(1))) <= 0.051, (verification, text)
+
+
+@pytest.mark.slow
+def test_demo_stops_on_a_drive_fault_naming_it(tmp_path):
+    """Six stiff drives against the rigid link fault: the demo says so at once, never hangs."""
+    from hexacal_identify.bringup.system import executor_takes_measuring_mode
+
+    if executor_takes_measuring_mode():
+        pytest.skip('this executor drives passive_actuator: no six stiff drives fight the link')
+    out = tmp_path / 'out'
+    completed = subprocess.run(
+        [
+            venv_executable('hexacal'),
+            'demo',
+            '--measuring-mode',
+            'passive_actuator',
+            '--postures',
+            '20',
+            '--verify-postures',
+            '0',
+            '--out',
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
+    )
+    assert completed.returncode == 1, completed.stdout + completed.stderr
+    assert re.search(
+        r'the simulated drives faulted \(passive_actuator\) while waiting for the executor to '
+        r'walk the calibration plan: following error of slider_\d [\d.e-]+ m beyond the limit',
+        completed.stderr,
+    ), completed.stderr
+    assert '--measuring-mode compliant' in completed.stderr
+    assert not (out / 'summary.json').exists()  # no summary of a run that did not calibrate

@@ -264,6 +264,7 @@ def test_launch_file_compiles():
         'actuator_joints',
         'inclinometer_joints',
         'rotary_joint',
+        'measuring_mode',
     } <= set(module.ARGUMENTS)
 
 
@@ -375,6 +376,10 @@ def _nodes(nodes) -> dict[str, tuple]:
                 '--shutdown-when-done',
             ],
         ),
+        (
+            {'nominal': 'n.yaml', 'executor_plan': 'p.yaml', 'measuring_mode': 'lvdt'},
+            ['--nominal', 'n.yaml', '--executor-plan', 'p.yaml', '--measuring-mode', 'lvdt'],
+        ),
     ],
 )
 def test_launch_file_and_bringup_start_the_same_nodes(launch_arguments, bringup_options):
@@ -390,6 +395,41 @@ def test_launch_file_and_bringup_start_the_same_nodes(launch_arguments, bringup_
         bringup.node_launches(bringup.build_parser().parse_args(bringup_options))
     )
     assert from_launch == from_bringup
+
+
+@pytest.mark.parametrize('mode', ['passive_actuator', 'lvdt', 'compliant'])
+def test_measuring_mode_goes_to_the_driver_and_an_executor_that_declares_it(mode):
+    """One name, `measuring_mode`, from bringup and the launch file to the nodes."""
+    from hexacal_identify.bringup import cli as bringup
+    from hexacal_identify.bringup.system import executor_takes_measuring_mode
+
+    options = ['--nominal', 'n.yaml', '--executor-plan', 'p.yaml', '--measuring-mode', mode]
+    for nodes in (
+        _nodes(bringup.node_launches(bringup.build_parser().parse_args(options))),
+        _nodes(
+            _launch_module().node_launches(
+                {'nominal': 'n.yaml', 'executor_plan': 'p.yaml', 'measuring_mode': mode}
+            )
+        ),
+    ):
+        assert nodes['driver'][1]['measuring_mode'] == mode
+        # Until the executor declares it, it follows the mode its plan carries.
+        declared = executor_takes_measuring_mode()
+        assert ('measuring_mode' in nodes['executor'][1]) == declared
+        if declared:
+            assert nodes['executor'][1]['measuring_mode'] == mode
+        assert 'measuring_mode' not in nodes['collector'][1]
+
+
+def test_without_a_measuring_mode_the_nodes_keep_their_defaults_and_a_wrong_one_is_refused():
+    from hexacal_identify.bringup import cli as bringup
+
+    nodes = _nodes(_launch_module().node_launches({'nominal': 'n.yaml', 'executor_plan': 'p'}))
+    assert all('measuring_mode' not in parameters for _, parameters, _ in nodes.values())
+    with pytest.raises(ValueError, match='measuring_mode must be one of'):
+        _launch_module().node_launches({'measuring_mode': 'rigid'})
+    with pytest.raises(SystemExit):
+        bringup.build_parser().parse_args(['--measuring-mode', 'rigid'])
 
 
 def test_launch_nodes_of_a_real_ros2_control_machine():

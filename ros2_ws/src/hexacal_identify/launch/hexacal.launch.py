@@ -49,6 +49,12 @@ ARGUMENTS = {
         'it from the nominal file',
     ),
     'use_driver': ('true', 'start the simulated machine (false with a real one)'),
+    'measuring_mode': (
+        '',
+        'how the drives meet the measuring link: passive_actuator, lvdt or compliant, for the '
+        "simulated driver and an executor that takes it ('' = the driver's default; the "
+        "executor follows the plan's mode)",
+    ),
     # Plan execution and the calibrated model.
     'executor_plan': (
         '',

@@ -47,6 +47,7 @@ from hexacal_msgs_py.interface_names import (
     INCLINOMETER_TYPES,
     SLIDERS_TOPIC as SLIDERS,
 )
+from hexacal_msgs_py.measuring_modes import MEASURING_MODES
 import yaml
 
 from .launch_spec import EXECUTABLE_MODULES, NodeLaunch
@@ -143,6 +144,14 @@ def build_parser() -> argparse.ArgumentParser:
         choices=('', 'hexa_slide', 'gough_stewart'),
         help='machine model of the driver and the collector (default: the model '
         '--nominal, else --true-params names, else hexa_slide)',
+    )
+    parser.add_argument(
+        '--measuring-mode',
+        default='',
+        choices=('', *MEASURING_MODES),
+        help='how the drives meet the measuring link: passive_actuator, lvdt or compliant, '
+        "for the simulated driver and an executor that takes it (default '': the driver's "
+        "default; the executor follows the plan's mode)",
     )
     parser.add_argument(
         '--no-driver',
@@ -290,6 +299,7 @@ def node_launches(args: argparse.Namespace) -> list[NodeLaunch]:
         kinematics_parameters=args.kinematics_parameters,
         kinematics=extra['kinematics'],
         inputs=inputs,
+        measuring_mode=args.measuring_mode,
     )
     return nodes
 

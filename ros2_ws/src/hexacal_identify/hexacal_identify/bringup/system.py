@@ -21,6 +21,8 @@ from hexacal_msgs_py.interface_names import (
     SLIDERS_TOPIC as SLIDERS,
 )
 
+from hexacal_msgs_py.measuring_modes import measuring_mode as check_mode, MEASURING_MODE_KEY
+
 from .launch_spec import NodeLaunch
 
 
@@ -102,6 +104,7 @@ def launches(
     kinematics_parameters: str = '',
     kinematics: Mapping[str, object] | None = None,
     inputs: MachineInputs | None = None,
+    measuring_mode: str = '',
 ) -> list[NodeLaunch]:
     """
     Return the NodeLaunch of each node; empty options keep the nodes' defaults.
@@ -113,8 +116,11 @@ def launches(
     puts the driver in commanded mode on the same command topic; `with_kinematics` adds
     the kinematics node (its `parameters` file, commands on command_topic). `inputs`
     remaps the sensor topics of every node that reads (or, the driver, publishes) them.
+    `measuring_mode` ('' keeps the nodes' defaults) goes to the driver and, when it declares
+    the parameter, the executor (else the executor follows the plan's mode).
     """
     inputs = inputs or MachineInputs()
+    mode = {MEASURING_MODE_KEY: check_mode(measuring_mode).value} if measuring_mode else {}
     command_topic = command_topic or DEFAULT_COMMAND_TOPIC
     driver_parameters: dict[str, object] = {}
     collector_model: dict[str, object] = {'model': model} if model else {}
@@ -125,6 +131,7 @@ def launches(
         driver_parameters['postures'] = int(postures)
     if executor_plan:  # the simulated machine takes the real one's interface
         driver_parameters['command_topic'] = command_topic
+    driver_parameters.update(mode)
     driver_parameters.update(driver or {})
     collector_parameters: dict[str, object] = {'record': bool(record), **collector_model}
     if bag_dir:
@@ -162,6 +169,8 @@ def launches(
         if nominal:
             executor_parameters['nominal'] = str(Path(nominal).resolve())
         executor_parameters.update(inputs.executor_parameters())
+        if mode and executor_takes_measuring_mode():
+            executor_parameters.update(mode)
         if calibrate_when_done:
             executor_parameters['calibrate_when_done'] = True
         if shutdown_when_done:
@@ -184,6 +193,14 @@ def launches(
             )
         )
     return nodes
+
+
+def executor_takes_measuring_mode() -> bool:
+    """Return whether this install's executor declares the parameter measuring_mode."""
+    # Imported here: the node's parameter table is not needed to start bringup (numpy-free).
+    from ..nodes.executor_parameters import PARAMETERS
+
+    return MEASURING_MODE_KEY in PARAMETERS
 
 
 def name_list(text: str | Sequence[str]) -> tuple[str, ...]:
@@ -259,6 +276,7 @@ def launches_from_arguments(values: Mapping[str, str]) -> list[NodeLaunch]:
         with_kinematics=truthy(get('use_kinematics', 'true')),
         kinematics_parameters=get('kinematics_parameters'),
         inputs=inputs,
+        measuring_mode=get('measuring_mode'),
     )
 
 

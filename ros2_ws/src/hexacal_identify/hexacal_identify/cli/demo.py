@@ -11,8 +11,13 @@ trajectory controller) in a ROS domain of its own (localhost discovery),
 walks the plan with the executor, calls `hexacal/calibrate`, walks the
 verification plan, calls `hexacal/verify`, and prints the parameter and pose
 errors before and after calibration (against the simulated truth), the
-verification table (no truth needed) and the path of the HTML report.
-Everything it writes lands under ``out/demo_<timestamp>/`` (the bag in ``bag/``).
+verification table (no truth needed), what the drives went through (the driver's
+status: the largest deviation of a commanded actuator from its setpoint at rest, force
+or link extension) and the path of the HTML report.
+``--measuring-mode`` (passive_actuator, the default; lvdt; compliant) plans for the mode
+and runs the driver (and an executor that declares the parameter) in it; a drive fault
+stops the demo at once, naming it. Everything it writes lands under
+``out/demo_<timestamp>/`` (the bag in ``bag/``), with ``summary.json`` (demo_summary.py).
 """
 
 from __future__ import annotations
@@ -27,7 +32,11 @@ import sys
 import time
 from typing import Callable, TYPE_CHECKING
 
+from hexacal_msgs_py.measuring_modes import DEFAULT_MEASURING_MODE, MEASURING_MODES
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS  # numpy-free: `hexacal --help` stays fast
+
+from .demo_summary import build_summary, SUMMARY_FILE, summary_lines, write_summary
+from ..bringup.system import executor_takes_measuring_mode
 
 if (
     TYPE_CHECKING
@@ -54,8 +63,9 @@ def add_parsers(subparsers) -> None:
         'machine (or, with --model gough_stewart, the default Gough-Stewart platform) driven '
         'through its trajectory-controller interface, collect, calibrate nominal set 2, walk a '
         'verification plan and verify; print parameter and pose errors before and after, the '
-        'verification table and the HTML report path. Takes about 2-3 minutes with the '
-        'defaults; everything lands under out/demo_<timestamp>.',
+        "verification table, the drives' largest deviation and force or extension, and the "
+        'HTML report path. Takes about 2-3 minutes with the defaults; everything lands under '
+        'out/demo_<timestamp>, with summary.json.',
     )
     parser.add_argument(
         '--model',
@@ -66,6 +76,14 @@ def add_parsers(subparsers) -> None:
     )
     parser.add_argument(
         '--postures', type=int, default=50, help='postures to collect (default 50)'
+    )
+    parser.add_argument(
+        '--measuring-mode',
+        choices=MEASURING_MODES,
+        default=DEFAULT_MEASURING_MODE.value,
+        help="how the drives meet the measuring link: passive_actuator (the paper's procedure, "
+        'default), lvdt or compliant; the plans are made for it and the driver (and an executor '
+        'that takes it) runs it',
     )
     parser.add_argument(
         '--noise-um',
@@ -157,10 +175,15 @@ class DemoPaths:
     plan: Path
     verification_plan: Path
     report: Path
+    summary: Path
 
 
 def _model(args) -> str:
     return getattr(args, 'model', None) or DEFAULT_MODEL
+
+
+def _mode(args) -> str:
+    return getattr(args, 'measuring_mode', None) or DEFAULT_MEASURING_MODE.value
 
 
 def _paths(args) -> DemoPaths:
@@ -180,6 +203,7 @@ def _paths(args) -> DemoPaths:
         work / 'plan.yaml',
         work / 'verification_plan.yaml',
         work / 'report',
+        work / SUMMARY_FILE,
     )
 
 
@@ -239,6 +263,7 @@ def _plans(args, nominal, paths: DemoPaths) -> None:
         seed=args.seed,
         noise=noise,
         name='demo-calibration',
+        measuring_mode=_mode(args),
     ).plan.save(paths.plan)
     if args.verify_postures:
         plan_postures(
@@ -250,6 +275,7 @@ def _plans(args, nominal, paths: DemoPaths) -> None:
             seed=args.seed + 1000,
             noise=noise,
             name='demo-verification',
+            measuring_mode=_mode(args),
         ).plan.save(paths.verification_plan)
 
 
@@ -297,6 +323,8 @@ def _run(args) -> int:
     group = NodeGroup()
     session = None
     verification = None
+    stored_verification = None
+    driver_values: dict[str, str] = {}
     try:
         group.start(
             NodeLaunch(
@@ -345,6 +373,7 @@ def _run(args) -> int:
                     'slider_noise_m': args.noise_um * 1e-6,
                     'angle_noise_rad': args.noise_um * 1e-6,
                     'sensor_effects': getattr(args, 'sensor_effects', ''),
+                    'measuring_mode': _mode(args),
                 },
             ),
             env,
@@ -353,8 +382,9 @@ def _run(args) -> int:
         machine = '' if model == DEFAULT_MODEL else f' of a {model}'  # the default goes unnamed
         print(
             f'hexacal demo: the executor walks an O1 plan of {args.postures} postures '
-            f'({args.plan}) on the simulated machine{machine} through its trajectory-controller '
-            f'interface, +-{args.noise_um:g} um / +-{args.noise_um:g} urad noise, '
+            f'({args.plan}, {_mode(args)}) on the simulated machine{machine} through its '
+            f'trajectory-controller interface, +-{args.noise_um:g} um / +-{args.noise_um:g} urad '
+            'noise, '
             f'{args.rate_hz:g} Hz'
             + (
                 f', sensor effects {args.sensor_effects}'
@@ -379,6 +409,7 @@ def _run(args) -> int:
             group,
             lambda: session.identify_postures >= walked,
         )
+        calibration_postures = walked
         calibrate_started = time.monotonic()
         success, message = session.calibrate(group)
         if not success:
@@ -411,6 +442,8 @@ def _run(args) -> int:
                 lambda: session.verification_postures >= walked,
             )
             verification = session.verify(group)
+            stored_verification = _stored_verification(verification, model)
+        driver_values = session.fresh_driver_values(group)  # its peaks over both plans
     except DemoError as error:
         print(f'hexacal demo: error: {error}', file=sys.stderr, flush=True)
         for node in group.nodes:
@@ -426,15 +459,28 @@ def _run(args) -> int:
             f'hexacal demo: warning: nodes exited with {unclean} (logs in {paths.logs})',
             file=sys.stderr,
         )
+    calibrated_params = true_params.with_vector(calibrated)
+    poses = pose_summaries(true_params, nominal, calibrated_params, args)
+    summary = build_summary(
+        model=model,
+        measuring_mode=_mode(args),
+        postures=calibration_postures,
+        driver_values=driver_values,
+        pose_errors=poses['after (calibrated)'],
+        verification=stored_verification,
+    )
+    write_summary(paths.summary, summary)
     print(
         report(
             true_params,
             nominal,
-            true_params.with_vector(calibrated),
+            calibrated_params,
             args,
             paths,
             time.monotonic() - started,
             verification,
+            poses=poses,
+            summary=summary,
         )
     )
     if not (paths.bag / 'metadata.yaml').exists():
@@ -444,6 +490,29 @@ def _run(args) -> int:
         )
         return EXIT_FAILED
     return EXIT_OK
+
+
+def _stored_verification(values: dict[str, str], model: str) -> dict | None:
+    """
+    Return the verification identify attached to its calibration in the store.
+
+    The object of ``hexacal verify --json`` (VerificationResult.to_json, the one owner of its
+    keys) with identify's provenance keys; None (with a warning) when it is not there.
+    """
+    from ..store import CalibrationStore, default_store_dir, StoreError
+
+    entry_id = values.get('calibration_id')
+    if not entry_id:
+        print('hexacal demo: warning: the verification is not in the calibration store: '
+              f'{values.get("store_error", "no calibration_id")}', file=sys.stderr)
+        return None
+    root = values.get('calibration_store') or default_store_dir(model)
+    try:
+        figures = CalibrationStore(root).get(entry_id).record.get('verification')
+    except (StoreError, OSError) as error:
+        print(f'hexacal demo: warning: calibration store {root}: {error}', file=sys.stderr)
+        return None
+    return dict(figures) if figures else None
 
 
 def _walk(
@@ -475,6 +544,8 @@ def _walk(
                 'max_actuator_speed_m_s': EXECUTOR_SPEED_M_S,
                 'settle_s': float(args.settle_s),
                 'timeout_s': 30.0 + float(args.dwell_s),
+                # Until the executor takes the mode the plan carries it (the executor reads it).
+                **({'measuring_mode': _mode(args)} if executor_takes_measuring_mode() else {}),
             },
         ),
         env,
@@ -599,6 +670,8 @@ class _RosSession:
         )
         self.executor_values: dict[str, str] = {}  # the executor's latest status
         self.verification_values: dict[str, str] = {}  # identify's latest verification status
+        self.driver_values: dict[str, str] = {}  # the simulated drives' latest status
+        self.driver_statuses = 0  # driver statuses received (a fresh one: the count grows)
         self.parameters: np.ndarray | None = None
         self._trigger = Trigger
         self.node.create_subscription(JointState, POSTURE_TOPIC, self._on_posture, POSTURE_QOS)
@@ -617,12 +690,19 @@ class _RosSession:
 
     def _on_status(self, message) -> None:
         from hexacal_msgs_py.conversions import status_values
-        from hexacal_msgs_py.names import EXECUTOR_STATUS_NAME, VERIFICATION_STATUS_NAME
+        from hexacal_msgs_py.names import (
+            DRIVER_STATUS_NAME,
+            EXECUTOR_STATUS_NAME,
+            VERIFICATION_STATUS_NAME,
+        )
 
         for status in message.status:
             values = status_values(status)
             if status.name == EXECUTOR_STATUS_NAME:
                 self.executor_values = values
+            elif status.name == DRIVER_STATUS_NAME:
+                self.driver_values = values
+                self.driver_statuses += 1
             elif status.name == VERIFICATION_STATUS_NAME:
                 self.verification_values = values
             elif values.get('outcome') == 'collecting':
@@ -648,6 +728,7 @@ class _RosSession:
             result = condition()
             if result is not None and result is not False:
                 return result
+            self.check_drives(what)
             exited = group.exited()
             if exited:
                 node = exited[0]
@@ -658,6 +739,33 @@ class _RosSession:
             if time.monotonic() > deadline:
                 raise DemoError(f'timed out after {timeout_s:.0f} s waiting for {what}')
             self.executor.spin_once(timeout_sec=0.1)
+
+    def check_drives(self, what: str) -> None:
+        """Raise DemoError when the simulated drives are in fault: they hold, nothing moves."""
+        values = self.driver_values
+        if values.get('state') != 'fault':
+            return
+        mode = values.get('measuring_mode', '?')
+        hint = ''
+        if mode != 'compliant' and not executor_takes_measuring_mode():
+            hint = (
+                f'; the executor of this install commands all six actuators and does not drive '
+                f'{mode} yet: try --measuring-mode compliant'
+            )
+        raise DemoError(
+            f'the simulated drives faulted ({mode}) while waiting for {what}: '
+            f'{values.get("fault") or "no reason given"}{hint}'
+        )
+
+    def fresh_driver_values(self, group: NodeGroup) -> dict[str, str]:
+        """Return the driver's status values from a status received from now on (at rest)."""
+        seen = self.driver_statuses
+        return self.wait(
+            'a fresh status of the simulated drives',
+            GRAPH_TIMEOUT_S,
+            group,
+            lambda: self.driver_values if self.driver_statuses > seen else None,
+        )
 
     def calibrate(self, group: NodeGroup) -> tuple[bool, str]:
         future = self.client.call_async(self._trigger.Request())
@@ -759,9 +867,11 @@ def report(
     paths: DemoPaths,
     wall_s: float,
     verification: dict[str, str] | None = None,
+    *,
+    poses: dict[str, dict] | None = None,
+    summary: dict | None = None,
 ) -> str:
     from ..bag import open_bag
-    from ..core.validation import pose_errors, validation_poses
 
     model = true_params.model
     arch, layout = true_params.architecture, true_params.layout
@@ -784,29 +894,24 @@ def report(
             f'{name:<6}{count:>6}{before[name][0]:>13.3f}{before[name][1]:>13.3f}'
             f'{after[name][0]:>12.4f}{after[name][1]:>12.4f}'
         )
-    poses = validation_poses(
-        true_params,
-        args.validation_postures,
-        args.seed,
-        true_params.architecture.default_workspace(),
-    )
+    if poses is None:
+        poses = pose_summaries(true_params, nominal, calibrated, args)
     lines += [
         '',
-        f'Pose errors over {len(poses)} validation postures',
+        f'Pose errors over {args.validation_postures} validation postures',
         f'{"":<20}{"position mean":>15}{"position max":>14}{"orientation mean":>18}'
         f'{"orientation max":>17}',
         f'{"":<20}{"(um)":>15}{"(um)":>14}{"(deg)":>18}{"(deg)":>17}',
     ]
-    for label, model in (('before (nominal)', nominal), ('after (calibrated)', calibrated)):
-        summary = pose_errors(true_params, model, poses).summary()
+    for label, errors in poses.items():
         lines.append(
-            f'{label:<20}{summary["position_mean_m"] * 1e6:>15.1f}'
-            f'{summary["position_max_m"] * 1e6:>14.1f}'
-            f'{math.degrees(summary["orientation_mean_rad"]):>18.5f}'
-            f'{math.degrees(summary["orientation_max_rad"]):>17.5f}'
+            f'{label:<20}{errors["position_mean_m"] * 1e6:>15.1f}'
+            f'{errors["position_max_m"] * 1e6:>14.1f}'
+            f'{math.degrees(errors["orientation_mean_rad"]):>18.5f}'
+            f'{math.degrees(errors["orientation_max_rad"]):>17.5f}'
             + (
-                f'  ({summary["failed_postures"]} FK failures)'
-                if summary['failed_postures']
+                f'  ({errors["failed_postures"]} FK failures)'
+                if errors['failed_postures']
                 else ''
             )
         )
@@ -819,18 +924,37 @@ def report(
         bag_text += f'  (unreadable: {error})'
     if verification:
         lines += verification_table(verification)
+    if summary is not None:
+        lines += summary_lines(summary)
     page = _report_page(paths, verification)
     lines += [
         '',
         f'bag:        {bag_text}',
         f'report:     {page}',
         f'calibrated: {paths.calibration}',
+        f'summary:    {paths.summary}',
         f'nominal:    {paths.nominal}',
         f'truth:      {paths.true_params}',
         f'logs:       {paths.logs}',
         f'wall time:  {wall_s:.0f} s',
     ]
     return '\n'.join(lines)
+
+
+def pose_summaries(true_params, nominal, calibrated, args) -> dict[str, dict]:
+    """Return the pose errors (PoseErrors.summary) of nominal and calibrated vs the truth."""
+    from ..core.validation import pose_errors, validation_poses
+
+    poses = validation_poses(
+        true_params,
+        args.validation_postures,
+        args.seed,
+        true_params.architecture.default_workspace(),
+    )
+    return {
+        label: pose_errors(true_params, model, poses).summary()
+        for label, model in (('before (nominal)', nominal), ('after (calibrated)', calibrated))
+    }
 
 
 def _report_page(paths: DemoPaths, verification: dict[str, str] | None) -> str:

@@ -1,0 +1,100 @@
+"""
+The demo's summary: what the drives went through and how well it calibrated (ROS-free).
+
+``hexacal demo`` writes ``summary.json`` into its work directory (docs/formats.md, summary.json):
+the measuring mode, the postures, the simulated drives' figures from the driver's status
+``hexacal driver`` (the TRUE positions of the commanded actuators vs their setpoints at rest,
+the force of compliant servos, the extension of an LVDT link), the pose errors against the
+simulated truth (the demo's pose table) and the verification figures as identify kept them in
+the calibration store: the object of ``hexacal verify --json`` (VerificationResult.to_json, one
+owner of those keys). SI units; a figure that does not apply to the mode is null.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any, Mapping
+
+from hexacal_msgs_py.files import atomic_write
+from hexacal_msgs_py.measuring_modes import MeasuringMode
+
+SUMMARY_FILE = 'summary.json'
+UM = 1e6
+
+
+def status_number(values: Mapping[str, str], key: str) -> float | None:
+    """Return a status value as a finite float; None when missing, empty or not a number."""
+    try:
+        number = float(values.get(key, '') or 'nan')
+    except ValueError:
+        return None
+    return number if math.isfinite(number) else None
+
+
+def driver_figures(values: Mapping[str, str], mode: str) -> dict[str, float | None]:
+    """
+    Return the drives' figures of a measuring mode from the driver's status values (SI).
+
+    The largest true deviation of a commanded actuator from its setpoint at rest; the largest
+    link extension (lvdt, else None) and the largest actuator force (compliant, else None).
+    """
+    return {
+        'max_actuator_deviation_m': status_number(values, 'max_actuator_deviation_m'),
+        'max_link_extension_m': (
+            status_number(values, 'max_link_extension_m') if mode == MeasuringMode.LVDT else None
+        ),
+        'max_force_n': (
+            status_number(values, 'max_force_n') if mode == MeasuringMode.COMPLIANT else None
+        ),
+    }
+
+
+def build_summary(
+    *,
+    model: str,
+    measuring_mode: str,
+    postures: int,
+    driver_values: Mapping[str, str],
+    pose_errors: Mapping[str, Any],
+    verification: Mapping[str, Any] | None,
+) -> dict[str, Any]:
+    """
+    Return the summary.json object (docs/formats.md).
+
+    ``pose_errors``: the calibrated model's PoseErrors.summary() against the simulated truth;
+    ``verification``: the ``hexacal verify --json`` object (None: no verification).
+    """
+    return {
+        'model': model,
+        'measuring_mode': str(measuring_mode),
+        'postures': int(postures),
+        **driver_figures(driver_values, str(measuring_mode)),
+        'pose_error_mean_m': float(pose_errors['position_mean_m']),
+        'pose_error_max_m': float(pose_errors['position_max_m']),
+        'orientation_error_mean_rad': float(pose_errors['orientation_mean_rad']),
+        'orientation_error_max_rad': float(pose_errors['orientation_max_rad']),
+        'verification': None if verification is None else dict(verification),
+    }
+
+
+def summary_lines(summary: Mapping[str, Any]) -> list[str]:
+    """Return the drives' figures of a summary as the lines the demo prints (um, N)."""
+    deviation = summary['max_actuator_deviation_m']
+    lines = [
+        '',
+        f'Drives ({summary["measuring_mode"]}), the simulated truth at rest',
+        'largest deviation of a commanded actuator from its setpoint: '
+        + ('n/a' if deviation is None else f'{deviation * UM:.1f} um'),
+    ]
+    if summary['max_force_n'] is not None:
+        lines.append(f'largest actuator force: {summary["max_force_n"]:.1f} N')
+    if summary['max_link_extension_m'] is not None:
+        lines.append(f'largest link extension: {summary["max_link_extension_m"] * UM:.1f} um')
+    return lines
+
+
+def write_summary(path: Path, summary: Mapping[str, Any]) -> Path:
+    """Write the summary as JSON, atomically (NaN refused: every figure is a number or null)."""
+    return atomic_write(path, json.dumps(summary, indent=2, allow_nan=False) + '\n')
