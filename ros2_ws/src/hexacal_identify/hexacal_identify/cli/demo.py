@@ -32,7 +32,7 @@ import sys
 import time
 from typing import Callable, TYPE_CHECKING
 
-from hexacal_msgs_py.measuring_modes import DEFAULT_MEASURING_MODE, MEASURING_MODES
+from hexacal_msgs_py.measuring_modes import MEASURING_MODES, MeasuringMode
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS  # numpy-free: `hexacal --help` stays fast
 
 from .demo_summary import build_summary, SUMMARY_FILE, summary_lines, write_summary
@@ -49,6 +49,10 @@ GRAPH_TIMEOUT_S = 30.0
 CALIBRATE_TIMEOUT_S = 300.0
 MODEL_CHOICES = tuple(MODELS)
 EXIT_OK, EXIT_FAILED = 0, 1
+
+# compliant until the planner keeps a released actuator well conditioned along every move
+# (issue #18): a passive Hexa Slide plan can jam the five commanded drives and the link.
+DEMO_MEASURING_MODE = MeasuringMode.COMPLIANT.value
 
 
 class DemoError(RuntimeError):
@@ -80,10 +84,12 @@ def add_parsers(subparsers) -> None:
     parser.add_argument(
         '--measuring-mode',
         choices=MEASURING_MODES,
-        default=DEFAULT_MEASURING_MODE.value,
-        help="how the drives meet the measuring link: passive_actuator (the paper's procedure, "
-        'default), lvdt or compliant; the plans are made for it and the driver (and an executor '
-        'that takes it) runs it',
+        default=DEMO_MEASURING_MODE,
+        help='how the drives meet the measuring link: compliant (default for now: all six '
+        "commanded, servos compliant), passive_actuator (the paper's procedure: one actuator "
+        'released per posture; the planner does not yet keep the release well conditioned along '
+        'every move, so a Hexa Slide plan can jam and fault the drives) or lvdt; the plans are '
+        'made for it and the driver and executor run it',
     )
     parser.add_argument(
         '--noise-um',
@@ -183,7 +189,7 @@ def _model(args) -> str:
 
 
 def _mode(args) -> str:
-    return getattr(args, 'measuring_mode', None) or DEFAULT_MEASURING_MODE.value
+    return getattr(args, 'measuring_mode', None) or DEMO_MEASURING_MODE
 
 
 def _paths(args) -> DemoPaths:
