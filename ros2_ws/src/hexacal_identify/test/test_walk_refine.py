@@ -144,3 +144,37 @@ def test_a_refused_late_or_absent_calibration_gives_no_model():
     assert not call.start(40.0, 60, service_ready=False)
     assert call.model is None and len(call.messages) == 1  # said once
     assert 'no calibration service' in call.messages[0][1]
+
+
+def test_the_executor_setup_schedules_refinement_and_guards_on_the_intermediate_model():
+    from hexacal_identify.core.architectures import default_parameters
+    from hexacal_identify.core.planning import Plan
+    from hexacal_identify.core.turns import DeviceTurnSetter
+    from hexacal_identify.core.walk_session import (
+        CalibrationCall,
+        ExecutorStatus,
+        model_defaults,
+        refined_guard,
+        setup_walk,
+    )
+    from hexacal_identify.nodes.executor_parameters import PARAMETERS
+
+    nominal = default_parameters('gough_stewart')
+    count = 24
+    poses = sample_poses(nominal, count, np.random.default_rng(0), 'sphere')
+    for mode, guarded in (('', False), ('compliant', True)):
+        plan = Plan('refine', L, poses, ['sphere'] * count, measuring_mode=mode or None)
+        defaults, source = model_defaults(plan.metadata, nominal)
+        values = {name: spec.default for name, spec in PARAMETERS.items()} | defaults
+        setup = setup_walk(values, nominal, plan, source, defaults['stroke_limits_m'])
+        assert setup.execution.refine_at == [17]  # refine_targets is on by default
+        assert (refined_guard(setup, nominal) is not None) == guarded
+        status = ExecutorStatus(
+            setup.execution, 'refine', nominal.model, [], CalibrationCall(False, 'c'),
+            DeviceTurnSetter({}),
+        )
+        assert status.values(0.0)['targets_model'] == 'nominal'
+        off = setup_walk(
+            values | {'refine_targets': False}, nominal, plan, source, defaults['stroke_limits_m']
+        )
+        assert off.execution.refine_at == []
