@@ -42,6 +42,12 @@ reported with what was missing. Pause holds the machine (a one-point command at
 the measured actuator positions) and restarts the current posture on resume
 (its timeout too); abort holds it and ends the plan.
 
+Refined targets (core/walk_refine.py): when the postures measured reach a count of
+``refine_at``, the walk stops at rest before the next posture (phase REFINING,
+``refine_request``); `on_refined` with the intermediate model re-targets the remaining
+postures (targets, paths, corrections and the guard on that model), without one the targets
+stay; then the posture is commanded.
+
 Turning the device (core/turns.py): the execution knows the mounting the
 device is in (``mounted_turn``, 0 = normal unless told otherwise).  Before it
 begins a posture whose turn differs from that mounting (modulo 2 pi) it pauses
