@@ -35,6 +35,11 @@ Measured = TypeVar('Measured')
 DEFAULT_GROWTH = 2.0  # a re-calibration uses at least this many times the previous postures
 
 
+def full_rank_postures(n_parameters: int) -> int:
+    """Return the postures of a first calibration: equations for every parameter, twice over."""
+    return math.ceil(2 * int(n_parameters) / 5)  # 5 equations per posture
+
+
 def refinement_checkpoints(
     total: int, first: int | None, growth: float = DEFAULT_GROWTH
 ) -> tuple[int, ...]:
@@ -108,4 +113,10 @@ def walk_refined(
     return RefinedWalk(stages, models, calibrated_at, batches, batch_indices)
 
 
-__all__ = ['DEFAULT_GROWTH', 'RefinedWalk', 'refinement_checkpoints', 'walk_refined']
+__all__ = [
+    'DEFAULT_GROWTH',
+    'RefinedWalk',
+    'full_rank_postures',
+    'refinement_checkpoints',
+    'walk_refined',
+]

@@ -42,6 +42,12 @@ reported with what was missing. Pause holds the machine (a one-point command at
 the measured actuator positions) and restarts the current posture on resume
 (its timeout too); abort holds it and ends the plan.
 
+Refined targets (core/walk_refine.py): when the postures measured reach a count of
+``refine_at``, the walk stops at rest before the next posture (phase REFINING,
+``refine_request``); `on_refined` with the intermediate model re-targets the remaining
+postures (targets, paths, corrections and the guard on that model), without one the targets
+stay; then the posture is commanded.
+
 Turning the device (core/turns.py): the execution knows the mounting the
 device is in (``mounted_turn``, 0 = normal unless told otherwise).  Before it
 begins a posture whose turn differs from that mounting (modulo 2 pi) it pauses
@@ -100,6 +106,7 @@ from .plan_check import check_stroke
 from .turns import check_turns, same_turn, turn_text
 from .walk_inclinometer import InclinometerJudgement, InclinometerState, judge_inclinometer
 from .walk_io import LogLevel, Messages, ReadingWindow
+from .walk_refine import refined_targets, targets_model_label
 from .walk_settings import ExecutionSettings, ExecutionState, PostureOutcome
 
 # The guard: (current actuators, start pose, command points, released chain) -> problem ('': ok).
@@ -116,6 +123,7 @@ class Phase(enum.Enum):
     MOVING = 'moving'  # commanded: arriving, settling, correcting
     POSTURE = 'posture'  # still at the target: waiting for the collector's posture
     RELEASING = 'releasing'  # at rest: waiting for the drive to lock/release a chain
+    REFINING = 'refining'  # at rest: waiting for an intermediate calibration (walk_refine.py)
 
 
 class GuardStop(Exception):
@@ -149,6 +157,7 @@ class PlanExecution:
         mounted_turn: float = 0.0,
         released: Sequence[int | None] | None = None,
         guard: Guard | None = None,
+        refine_at: Sequence[int] = (),
     ):
         """
         Walk `poses` (their nominal `targets` from core/plan_check.py) on `nominal`.
@@ -156,12 +165,14 @@ class PlanExecution:
         device_turns: the plan's turn of each posture (rad; None: every posture
         in the normal mounting); mounted_turn: the mounting the device is in at
         the start (rad); released: the chain released at each posture
-        (None: all six commanded, the compliant and lvdt modes).
+        (None: all six commanded, the compliant and lvdt modes); refine_at: the measured-posture
+        counts at which the walk stops at rest for an intermediate calibration
+        (core/walk_refine.py; the node answers with `on_refined`).
         """
         self.nominal = nominal
         self.poses = np.atleast_2d(np.asarray(poses, dtype=float))
         self.kinds = [str(kind) for kind in kinds]
-        self.targets = np.asarray(targets, dtype=float)
+        self.targets = np.array(targets, dtype=float)  # the remaining ones may be refined
         self.settings = settings
         self.stroke = check_stroke(stroke)
         self.link_length = float(link_length)
@@ -214,6 +225,10 @@ class PlanExecution:
         self.release_request: ReleaseRequest | None = None  # for the node to carry out
         self.notice = ''  # why the plan paused itself (a drive's refusal); '' otherwise
         self.guard = guard
+        self.refine_at = sorted(int(count) for count in refine_at)
+        self.refine_request: int | None = None  # measured postures to calibrate (for the node)
+        self.targets_model = targets_model_label(None)
+        self.refine_message = ''  # what the last intermediate calibration did
 
     # ------------------------------------------------------------------ inputs
 
@@ -281,6 +296,43 @@ class PlanExecution:
             self._say(LogLevel.ERROR, self.notice)
             return self._hold()
         return self._begin(now, fresh=False)
+
+    def _ask_refinement(self) -> list[Command]:
+        """Stop at rest before the current posture for an intermediate calibration."""
+        while self.refine_at and self.measured >= self.refine_at[0]:
+            self.refine_at.pop(0)
+        self.refine_request = self.measured
+        self._phase = Phase.REFINING
+        return []
+
+    def on_refined(
+        self,
+        now: float,
+        model: KinematicParameters | None,
+        message: str = '',
+        guard: Guard | None = None,
+    ) -> list[Command]:
+        """
+        Hear the intermediate calibration asked by `refine_request` (None: the targets stay).
+
+        With a model, the remaining postures' targets, paths, corrections and (`guard`, built
+        on the model) predictions come from it; then the current posture is commanded.
+        """
+        postures, self.refine_request = self.refine_request, None
+        self.refine_message = message
+        if model is not None and postures is not None:
+            self.nominal = model
+            self.targets[self.index:] = refined_targets(model, self.poses[self.index:])
+            self.guard = guard if guard is not None else self.guard
+            self.targets_model = targets_model_label(postures)
+            self._say(
+                LogLevel.INFO,
+                f'targets of postures {self.index + 1}-{self.total} from the '
+                f'{self.targets_model}',
+            )
+        if self._phase != Phase.REFINING or self.state != ExecutionState.RUNNING:
+            return []  # paused or aborted meanwhile: resume begins the posture
+        return self._begin(now, fresh=True)
 
     # ------------------------------------------------------------------ control
 
@@ -388,7 +440,7 @@ class PlanExecution:
         if (
             self.state != ExecutionState.RUNNING
             or self._phase is None
-            or self._phase == Phase.RELEASING
+            or self._phase in (Phase.RELEASING, Phase.REFINING)
         ):
             return []
         settings = self.settings
@@ -506,6 +558,8 @@ class PlanExecution:
                 self._pose_cmd = self.poses[self.index].copy()
                 self._target = self.targets[self.index].copy()
                 self._corrections = 0
+                if self.refine_at and self.measured >= self.refine_at[0]:
+                    return self._ask_refinement()
             self._posture_start = now
             wanted = self.released[self.index]
             if wanted != self.released_now:  # at rest: swap the released chain first

@@ -33,10 +33,11 @@ from .device import DEFAULT_MOUNT
 from .measurements import FIXED, SPHERE
 from .plan_check import check_stroke, plan_problems, plan_stroke, refusal_message
 from .turns import DeviceTurnSetter, TURN_PARAMETER, TurnSetState
-from .walk import PlanExecution
+from .walk import Guard, PlanExecution
 from .walk_guard import GuardSettings, move_guard
 from .walk_io import LogLevel, Messages
 from .walk_modes import walk_mode, WalkMode
+from .walk_refine import refine_checkpoints
 from .walk_settings import ExecutionSettings, ExecutionState
 
 if TYPE_CHECKING:
@@ -244,6 +245,9 @@ def setup_walk(
         mounted_turn=float(values['mounted_turn']),
         released=mode.released,
         guard=guard,
+        refine_at=refine_checkpoints(
+            bool(values.get('refine_targets', False)), nominal.layout.n_parameters, len(poses)
+        ),
     )
     refusal = refusal_message(problems, len(targets)) if problems else ''
     if problems:  # nothing is ever commanded
@@ -261,6 +265,21 @@ def setup_walk(
         execution,
         mode,
         guard_settings,
+    )
+
+
+def refined_guard(setup: WalkSetup, model: KinematicParameters) -> Guard | None:
+    """Return the walk's guard predicting on the intermediate `model` (None: no guard)."""
+    execution = setup.execution
+    if execution.guard is None:
+        return None
+    return move_guard(
+        model,
+        setup.mode.mode,
+        execution.link_length,
+        execution.stroke,
+        setup.guard,
+        execution.mount,
     )
 
 
@@ -359,6 +378,9 @@ class ExecutorStatus:
             values['calibration'] = self.calibration.state
             if self.calibration.message:
                 values['calibration_message'] = self.calibration.message
+        values['targets_model'] = execution.targets_model
+        if execution.refine_message:
+            values['targets_refinement'] = execution.refine_message
         if execution.waiting_for_turn:
             values['notice'] = execution.turn_notice
         elif execution.notice:

@@ -28,6 +28,7 @@ from hexacal_msgs_py.conversions import (
     diagnostic_status,
     imu_to_inclinometer_reading,
     joint_state_to_inclinometer_reading,
+    multiarray_to_parameters,
     NS_PER_S,
     status_values,
 )
@@ -51,6 +52,7 @@ from hexacal_msgs_py.names import (
     INCLINOMETER_TOPIC,
     LINK_LENGTH_JOINT,
     LINK_TOPIC,
+    PARAMETERS_TOPIC,
     POSTURE_TOPIC,
     release_service,
     RELEASE_SERVICE_PREFIX,
@@ -59,6 +61,7 @@ from hexacal_msgs_py.names import (
 from hexacal_msgs_py.parameters_file import read_parameters_file
 from hexacal_msgs_py.qos import (
     COMMAND_QOS,
+    PARAMETERS_QOS,
     POSTURE_QOS,
     SENSOR_QOS,
     STATUS_MONITOR_QOS,
@@ -74,6 +77,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from sensor_msgs.msg import Imu, JointState
+from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -88,8 +92,9 @@ from ..core.paths import Command
 from ..core.plan_check import PlanRefusedError
 from ..core.turns import DeviceTurnSetter, same_turn, TURN_PARAMETER
 from ..core.walk_io import joint_positions, LogLevel, Messages
+from ..core.walk_refine import RefineCall, RefineState
 from ..core.walk_session import CalibrationCall, ExecutorStatus, model_defaults
-from ..core.walk_session import parameter_problem, plan_mismatch, setup_walk
+from ..core.walk_session import parameter_problem, plan_mismatch, refined_guard, setup_walk
 from ..core.walk_settings import ExecutionState
 
 NODE_NAME = 'executor'
@@ -184,6 +189,7 @@ class ExecutorNode(Node):
         self.stroke, self.stroke_source = setup.stroke, setup.stroke_source
         self.settings, self.device_turn_nodes = setup.settings, setup.device_turn_nodes
         self.execution = setup.execution
+        self._setup = setup
         self.mode = setup.mode
         self.guard_settings = setup.guard
         self.release_wait_s = float(value['release_wait_s'])
@@ -224,6 +230,11 @@ class ExecutorNode(Node):
         self._calibrate_client = self.create_client(Trigger, CALIBRATE_SERVICE)
         self.turns = DeviceTurnSetter(
             {name: _TurnClient(self, name) for name in self.device_turn_nodes}
+        )
+        # refine_targets: intermediate calibrations at rest (core/walk_refine.py).
+        self.refine = RefineCall(self.nominal, float(value['refine_timeout_s']))
+        self.create_subscription(
+            Float64MultiArray, PARAMETERS_TOPIC, self._on_parameters, PARAMETERS_QOS
         )
         self.calibration = CalibrationCall(
             self.calibrate_when_done, self._calibrate_client.srv_name
@@ -449,6 +460,8 @@ class ExecutorNode(Node):
             execution.release_request is not None and execution.state == ExecutionState.RUNNING
         ):
             self._step_release(now)
+        if execution.refine_request is not None:
+            self._step_refine(now)
         if self.turns.setting is not None:
             self._step_turns(now)
         elif execution.state == ExecutionState.DONE:
@@ -610,7 +623,7 @@ class ExecutorNode(Node):
 
     def _drain_messages(self) -> None:
         logger = self.get_logger()
-        for owner in (self.execution, self.turns, self.calibration):
+        for owner in (self.execution, self.turns, self.calibration, self.refine):
             messages: Messages = owner.messages
             owner.messages = []
             # One call site per severity: rclpy refuses another severity from the same line.
@@ -640,6 +653,38 @@ class ExecutorNode(Node):
             self.calibration.answer(answer.success, answer.message)
         self._drain_messages()
         self._publish_status(force=True)
+
+    def _step_refine(self, now: float) -> None:
+        """Carry the execution's intermediate calibration out through hexacal/calibrate."""
+        refine, execution = self.refine, self.execution
+        if refine.state != RefineState.WAITING:
+            postures = execution.refine_request
+            assert postures is not None
+            if refine.start(now, postures, self._calibrate_client.service_is_ready()):
+                future = self._calibrate_client.call_async(Trigger.Request())
+                future.add_done_callback(self._on_refine_answer)
+        refine.poll(now)
+        if refine.state == RefineState.DONE:
+            refine.state = RefineState.IDLE
+            model = refine.model
+            guard = refined_guard(self._setup, model) if model is not None else None
+            self._send(execution.on_refined(now, model, refine.message, guard))
+            self._drain_messages()
+            self._publish_status(force=True)
+
+    def _on_refine_answer(self, future) -> None:
+        try:
+            answer = future.result()
+        except Exception as error:  # noqa: B902 - the status must say what happened
+            self.refine.answer(False, f'{type(error).__name__}: {error}')
+        else:
+            self.refine.answer(answer.success, answer.message)
+
+    def _on_parameters(self, message: Float64MultiArray) -> None:
+        try:
+            self.refine.parameters(multiarray_to_parameters(message, self.model))
+        except (HexacalContractError, ValueError) as error:
+            self.get_logger().warning(f'parameters on {PARAMETERS_TOPIC} ignored: {error}')
 
     # ------------------------------------------------------------------ status
 

@@ -118,6 +118,19 @@ PARAMETERS: dict[str, _Spec] = {
     'calibrate_when_done': _Spec(
         False, 'call hexacal/calibrate when the plan is done and report the answer'
     ),
+    'refine_targets': _Spec(
+        True,
+        'once the postures measured allow a calibration of full rank, stop at rest, call '
+        'hexacal/calibrate and compute the remaining targets with the intermediate model '
+        '(again at later checkpoints, core/refinement.py); without the service: nominal targets',
+    ),
+    'refine_timeout_s': _Spec(
+        120.0,
+        'refine_targets: how long to wait for the intermediate calibration and its published '
+        'parameters before going on with the current targets (s)',
+        1.0,
+        3600.0,
+    ),
     'start_paused': _Spec(False, 'wait for hexacal/executor/resume before the first move'),
     'device_turn_nodes': _Spec(
         [],

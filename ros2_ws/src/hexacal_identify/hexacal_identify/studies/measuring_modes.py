@@ -49,7 +49,12 @@ from ..core.measurements import Measurements, NoiseModel, simulate_measurements,
 from ..core.model import nominal_set
 from ..core.passive_actuator import solve_passive
 from ..core.postures import sample_poses, Workspace
-from ..core.refinement import RefinedWalk, refinement_checkpoints, walk_refined
+from ..core.refinement import (
+    full_rank_postures,
+    RefinedWalk,
+    refinement_checkpoints,
+    walk_refined,
+)
 from ..core.released_actuator import choose_released_actuators
 from ..core.validation import pose_errors, PoseErrors, validation_poses
 
@@ -109,8 +114,8 @@ class ModeStudyRun:
         if not self.refine:
             return ()
         first = self.first_calibration
-        if first is None:  # enough equations for every parameter, twice over (5 per posture)
-            first = math.ceil(2 * self.true_params.layout.n_parameters / 5)
+        if first is None:
+            first = full_rank_postures(self.true_params.layout.n_parameters)
         return refinement_checkpoints(self.postures, first)
 
 

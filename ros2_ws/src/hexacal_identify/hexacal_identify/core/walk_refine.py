@@ -1,0 +1,135 @@
+"""
+The executor's targets refined from a first calibration (issue #18 section 2), ROS-free.
+
+The schedule is core/refinement.py's (one owner): the first checkpoint is the posture count that
+allows a calibration of full rank, then geometrically more.  When the postures measured so far
+reach a checkpoint, the walk (core/walk.py) stops at rest between postures and asks for a
+calibration; `RefineCall` follows the identify node's answer and the parameters it publishes,
+bounded by ``refine_timeout_s``; the remaining targets then come from the intermediate model
+(`refined_targets`).  A calibration that fails, is refused or does not come in time leaves the
+current targets.
+"""
+
+from __future__ import annotations
+
+import enum
+
+import numpy as np
+
+from .architectures import KinematicParameters
+from .kinematics import inverse_kinematics
+from .refinement import full_rank_postures, refinement_checkpoints
+from .walk_io import LogLevel, Messages
+
+NOMINAL_TARGETS = 'nominal'
+
+
+def targets_model_label(postures: int | None) -> str:
+    """Return the status value ``targets_model``: nominal, or the calibration's posture count."""
+    return NOMINAL_TARGETS if postures is None else f'calibration after {postures} postures'
+
+
+def refine_checkpoints(enabled: bool, n_parameters: int, total: int) -> tuple[int, ...]:
+    """Return the measured-posture counts at which the executor re-calibrates (ascending)."""
+    if not enabled:
+        return ()
+    return refinement_checkpoints(total, full_rank_postures(n_parameters))
+
+
+def refined_targets(model: KinematicParameters, poses: np.ndarray) -> np.ndarray:
+    """Return the setpoints (N, 6) of `poses` (N, 6) under the intermediate `model`."""
+    return inverse_kinematics(model, np.atleast_2d(np.asarray(poses, dtype=float)))
+
+
+class RefineState(enum.StrEnum):
+    """Where an intermediate calibration stands."""
+
+    IDLE = 'idle'
+    WAITING = 'waiting'  # the service's answer and the parameters it publishes
+    DONE = 'done'  # model set (None: the current targets stay; ``message`` says why)
+
+
+class RefineCall:
+    """
+    One intermediate calibration through the identify node: answer, then published parameters.
+
+    The node calls `start` when it sent the request (or found no service), `answer` with the
+    service's reply, `parameters` with each parameter vector it hears, and `poll` every tick;
+    when ``state`` is DONE, ``model`` is the intermediate model (None: keep the targets).
+    """
+
+    def __init__(self, nominal: KinematicParameters, timeout_s: float):
+        self.nominal = nominal
+        self.timeout_s = float(timeout_s)
+        self.state = RefineState.IDLE
+        self.model: KinematicParameters | None = None
+        self.message = ''
+        self.messages: Messages = []
+        self._since = 0.0
+        self._answered = False
+        self._vector: np.ndarray | None = None
+        self._no_service_said = False
+        self.postures = 0
+
+    def start(self, now: float, postures: int, service_ready: bool) -> bool:
+        """Begin a calibration of `postures`; return whether to send the request now."""
+        self.model, self.message, self._answered, self._vector = None, '', False, None
+        self._since, self.postures = now, postures
+        if not service_ready:
+            self._done(None, 'no calibration service: the targets stay', once=True)
+            return False
+        self.state = RefineState.WAITING
+        self.messages.append(
+            (LogLevel.INFO, f'{postures} postures measured: intermediate calibration requested')
+        )
+        return True
+
+    def answer(self, success: bool, message: str) -> None:
+        """Hear the service's reply (False and the error when the call failed)."""
+        if self.state != RefineState.WAITING:
+            return
+        if not success:
+            self._done(None, f'intermediate calibration failed: {message}; the targets stay')
+            return
+        self._answered = True
+
+    def parameters(self, vector: np.ndarray) -> None:
+        """Hear a parameter vector published after the request."""
+        if self.state == RefineState.WAITING:
+            self._vector = np.asarray(vector, dtype=float)
+
+    def poll(self, now: float) -> None:
+        """Conclude when both the answer and the parameters came, or on the timeout."""
+        if self.state != RefineState.WAITING:
+            return
+        if self._answered and self._vector is not None:
+            try:
+                model = type(self.nominal)(self._vector)
+            except ValueError as error:
+                self._done(None, f'the published parameters do not fit: {error}')
+                return
+            self._done(model, f'targets from the {targets_model_label(self.postures)}')
+        elif now - self._since > self.timeout_s:
+            missing = 'the parameters' if self._answered else 'the answer'
+            self._done(
+                None,
+                f'intermediate calibration: {missing} did not come within '
+                f'{self.timeout_s:g} s; the targets stay',
+            )
+
+    def _done(self, model: KinematicParameters | None, message: str, once: bool = False) -> None:
+        self.state, self.model, self.message = RefineState.DONE, model, message
+        if once and self._no_service_said:
+            return
+        self._no_service_said = self._no_service_said or once
+        self.messages.append((LogLevel.INFO if model is not None else LogLevel.WARN, message))
+
+
+__all__ = [
+    'NOMINAL_TARGETS',
+    'RefineCall',
+    'RefineState',
+    'refine_checkpoints',
+    'refined_targets',
+    'targets_model_label',
+]
