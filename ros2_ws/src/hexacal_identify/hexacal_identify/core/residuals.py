@@ -14,13 +14,24 @@ Cost functions (``COSTS``):
                     on the sphere too).
 * ``fixed``         eq. 10, fixed-position postures only: [0 - x_c, 0 - y_c, -L - z_c, phi_m -
   phi_c]
-                    (+L - z_c for a standing device, ``DeviceModel.mount``).
+                    (+L - z_c for a standing device, ``DeviceModel.mount``; -L_m of the
+                    posture with an LVDT).
 * ``sphere-fixed``  eq. 8 on sphere postures and eq. 10 on fixed-position postures.
 * ``relative``      eq. 12 on sphere postures: |P_c^j| - |P_c^k|, and eq. 13 on fixed
                     postures: P_c^j - P_c^k, each for consecutive postures (j = k + 1)
                     of the same kind, plus phi_m - phi_c on every posture.  Differences
                     cancel a link-length or inclinometer offset; the paper leaves the
-                    pairing open, consecutive pairs are the choice made here.
+                    pairing open, consecutive pairs are the choice made here.  With an
+                    LVDT, eq. 12 compares L_m^j - L_m^k and eq. 13 F^j - F^k (below).
+
+The LVDT link (section 4's telescopic variant, ``Measurements.link_lengths``): its length is
+free and measured, so a fixed-position posture fixes the link's direction (the inclinometer
+reads zero: P on the vertical through O) and the LVDT says where along it.  Its fixed position
+F^k is where the inclinometer reads zero at the posture's own length, (0, 0, -L_m^k) (through
+the defect model as below: L_m^k + dL along the direction of a zero reading), in eq. 10 and
+in the difference of eq. 13; likewise eq. 8 compares |P_c| with L_m^k + dL and eq. 12
+|P_c^j| - |P_c^k| with L_m^j - L_m^k.  Without link lengths L_m^k = L: eqs. 8, 10, 12 and 13
+as printed, to the last bit.
 
 With device defects (``device.DeviceDefects``) the measured side changes: the
 measured position comes from the defect model, L becomes L + dL, phi_m becomes
@@ -136,6 +147,7 @@ class CostFunction:
             if measurements.link_lengths is not None
             else np.full(len(measurements), device.link_length)
         )
+        self.lvdt = measurements.link_lengths is not None
         self.sigma = sigma
         if cost == 'relative' and measurements.device_turn is not None:
             raise InvalidMeasurementError(
@@ -203,7 +215,7 @@ class CostFunction:
         Return where the inclinometer reads zero (eq. 10).
 
         Where the (defective, possibly turned) inclinometer reads zero: the fixed position of eq.
-        10.
+        10, at the nominal length L (a posture's own, with an LVDT: ``fixed_positions``).
         """
         return fixed_position(self.link_length, defects, self.mount, device_turn)
 
@@ -212,12 +224,19 @@ class CostFunction:
         Return fixed positions and their device derivatives of postures ``index``.
 
         Fixed positions (k, 3) and their device derivatives (k, 3, 4) of postures ``index``: a
-        turned device reads zero elsewhere (its offsets turn with it).
+        turned device reads zero elsewhere (its offsets turn with it); with an LVDT each at its
+        posture's measured length (module doc).
         """
         turns = self.measurements.turns[index]
         zeros = np.zeros(len(index))
+        # An LVDT link fixes the direction, not the length: L_m of each posture (module doc).
         fixed = device_position(
-            zeros, zeros, self.link_length, defects, self.mount, turns if np.any(turns) else None
+            zeros,
+            zeros,
+            self.link_lengths[index],
+            defects,
+            self.mount,
+            turns if np.any(turns) else None,
         )
         return fixed.position, fixed.d_defects
 
@@ -278,7 +297,7 @@ class CostFunction:
             blocks.append(self._fixed_block(pieces, defects, self.is_fixed))
         else:
             blocks.append(self._relative_length_block(pieces))
-            blocks.append(self._relative_position_block(pieces))
+            blocks.append(self._relative_position_block(pieces, defects))
         return _stack(blocks)
 
     # -- helpers ------------------------------------------------------------------
@@ -412,6 +431,8 @@ class CostFunction:
         scale = 1.0 / self.sigma.position_m
         length, d_params, d_pose = self._lengths(pieces, index)
         values = np.diff(length) * scale
+        if self.lvdt:  # the link's own change of length is measured (module doc)
+            values -= np.diff(self.link_lengths[index]) * scale
         jac = None
         if d_params is not None:
             jac = self._jacobian(
@@ -424,17 +445,22 @@ class CostFunction:
         )
         return self._with_partner_noise(block, pieces, index, d_pose * scale)
 
-    def _relative_position_block(self, pieces: _Pieces) -> ResidualBlock:
+    def _relative_position_block(
+        self, pieces: _Pieces, defects: DeviceDefects
+    ) -> ResidualBlock:
         index = np.flatnonzero(self.is_fixed)
         scale = 1.0 / self.sigma.position_m
         pairs = max(len(index) - 1, 0)
         values = (np.diff(pieces.poses[index, :3], axis=0) * scale).reshape(-1)
+        device_rows = np.zeros((3 * pairs, N_DEVICE_PARAMETERS))
+        if self.lvdt and pairs:  # F^j - F^k: fixed positions at their own lengths (module doc)
+            fixed, d_fixed = self.fixed_positions(defects, index)
+            values -= (np.diff(fixed, axis=0) * scale).reshape(-1)
+            device_rows[:, :4] = -(np.diff(d_fixed, axis=0) * scale).reshape(3 * pairs, 4)
         jac = None
         if pieces.has_jacobian:
             diff = np.diff(pieces.pose_rows(index, slice(0, 3), 1.0), axis=0) * scale
-            jac = self._jacobian(
-                pieces, diff.reshape(3 * pairs, -1), np.zeros((3 * pairs, N_DEVICE_PARAMETERS))
-            )
+            jac = self._jacobian(pieces, diff.reshape(3 * pairs, -1), device_rows)
         channels = np.tile(np.array(['x_difference', 'y_difference', 'z_difference']), pairs)
         block = ResidualBlock(values, jac, channels, np.repeat(index[1:], 3))
         d_pose = np.zeros((len(index), 3, 6))
