@@ -90,4 +90,3 @@ def test_corrections_aim_at_a_zero_reading_and_leave_the_lvdt_free():
     tolerance = ExecutionSettings().fixed_tolerance_rad * L * 1.5
     assert np.max(np.linalg.norm(fixed - taken[:, :3], axis=1)) < tolerance
     assert np.max(np.abs(lengths - L)) > 10 * tolerance  # (0, 0, -L) is that far off
-
