@@ -7,7 +7,9 @@ reach a checkpoint, the walk (core/walk.py) stops at rest between postures and a
 calibration; `RefineCall` follows the identify node's answer and the parameters it publishes,
 bounded by ``refine_timeout_s``; the remaining targets then come from the intermediate model
 (`refined_targets`).  A calibration that fails, is refused or does not come in time leaves the
-current targets.
+current targets.  Only this request's result is taken (core/refine_answer.py): the parameters
+file the answer names, read at the answer, else the one parameter set published since the
+request; another client's calibration or a stale latched message is ignored.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import numpy as np
 
 from .architectures import KinematicParameters
 from .kinematics import inverse_kinematics
+from .refine_answer import choose_parameters, OwnResult, read_own_result
 from .refinement import full_rank_postures, refinement_checkpoints
 from .walk_io import LogLevel, Messages
 
@@ -55,7 +58,9 @@ class RefineCall:
 
     The node calls `start` when it sent the request (or found no service), `answer` with the
     service's reply, `parameters` with each parameter vector it hears, and `poll` every tick;
-    when ``state`` is DONE, ``model`` is the intermediate model (None: keep the targets).
+    when ``state`` is DONE, ``model`` is the intermediate model (None: keep the targets), the
+    request's own result only (module doc); ``ignored`` counts the parameter sets heard that
+    were not.
     """
 
     def __init__(self, nominal: KinematicParameters, timeout_s: float):
@@ -67,13 +72,16 @@ class RefineCall:
         self.messages: Messages = []
         self._since = 0.0
         self._answered = False
-        self._vector: np.ndarray | None = None
+        self._own = OwnResult(None)  # the answer's file, read at the answer
+        self._heard: list[np.ndarray] = []  # every vector published since the request
         self._no_service_said = False
         self.postures = 0
+        self.ignored = 0
 
     def start(self, now: float, postures: int, service_ready: bool) -> bool:
         """Begin a calibration of `postures`; return whether to send the request now."""
-        self.model, self.message, self._answered, self._vector = None, '', False, None
+        self.model, self.message, self._answered = None, '', False
+        self._own, self._heard, self.ignored = OwnResult(None), [], 0
         self._since, self.postures = now, postures
         if not service_ready:
             self._done(None, 'no calibration service: the targets stay', once=True)
@@ -92,29 +100,38 @@ class RefineCall:
             self._done(None, f'intermediate calibration failed: {message}; the targets stay')
             return
         self._answered = True
+        self._own = read_own_result(message)  # at once: a later calibration may overwrite it
 
     def parameters(self, vector: np.ndarray) -> None:
-        """Hear a parameter vector published after the request."""
+        """Hear a parameter vector published after the request (whoever's it is)."""
         if self.state == RefineState.WAITING:
-            self._vector = np.asarray(vector, dtype=float)
+            self._heard.append(np.asarray(vector, dtype=float))
 
     def poll(self, now: float) -> None:
-        """Conclude when both the answer and the parameters came, or on the timeout."""
+        """Conclude when this request's parameters are known, or on the timeout."""
         if self.state != RefineState.WAITING:
             return
-        if self._answered and self._vector is not None:
-            try:
-                model = type(self.nominal)(self._vector)
-            except ValueError as error:
-                self._done(None, f'the published parameters do not fit: {error}')
+        choice = choose_parameters(self._own, self._heard) if self._answered else None
+        if choice is not None and not choice.waiting:
+            self.ignored = choice.ignored
+            if choice.vector is None:
+                self._done(None, f'intermediate calibration: {choice.note}')
                 return
+            source = 'published' if self._own.vector is None else "answer's file"
+            try:
+                model = type(self.nominal)(choice.vector)
+            except ValueError as error:
+                self._done(None, f'the {source} parameters do not fit: {error}')
+                return
+            self.messages.append((LogLevel.INFO, f'intermediate calibration: {choice.note}'))
             self._done(model, f'targets from the {targets_model_label(self.postures)}')
         elif now - self._since > self.timeout_s:
             missing = 'the parameters' if self._answered else 'the answer'
+            why = f' ({self._own.problem})' if self._answered and self._own.problem else ''
             self._done(
                 None,
                 f'intermediate calibration: {missing} did not come within '
-                f'{self.timeout_s:g} s; the targets stay',
+                f'{self.timeout_s:g} s{why}; the targets stay',
             )
 
     def _done(self, model: KinematicParameters | None, message: str, once: bool = False) -> None:

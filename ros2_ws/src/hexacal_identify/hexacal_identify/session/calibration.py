@@ -6,6 +6,7 @@ from collections.abc import Callable
 from datetime import datetime, timezone
 from typing import Protocol
 
+from hexacal_msgs_py.calibrate_answer import calibrate_answer, HEADER_SOURCE
 from hexacal_msgs_py.errors import HexacalContractError, ParameterFileError
 from hexacal_msgs_py.parameters_file import save_parameters
 
@@ -162,7 +163,7 @@ def run_calibration(
             model=result.parameters.model,
             header_comment=(
                 f'hexacal calibration {_now()}'
-                f'\nfrom {source}: {summary}\nnominal: {nominal_path}; SI units'
+                f'\n{HEADER_SOURCE}{source}: {summary}\nnominal: {nominal_path}; SI units'
             ),
             extras=pipeline.device_defects_extras(result) or None,
         )
@@ -210,7 +211,7 @@ def run_calibration(
         values['report_state'] = ReportState.DISABLED
     return Outcome(
         True,
-        f'{result.reason}: {summary}; wrote {target}',
+        calibrate_answer(result.reason, summary, target),  # the executor matches on it
         Level.OK if result.reason == CONVERGED else Level.WARN,
         values,
         result.parameters,
