@@ -425,6 +425,20 @@ def _print_measuring(measuring, actuator_names: tuple[str, ...]) -> None:
                 else ''
             )
         )
+        if release.move_conditions is not None and release.jams is not None:
+            risky = np.flatnonzero(release.jams > 0)
+            print(
+                f'  rehearsed on {release.machines} machines (the nominal and '
+                f'{release.machines - 1} with drawing-tolerance errors): worst condition along '
+                f'a move {np.max(release.move_conditions):.3g}; '
+                + (
+                    f'{len(risky)} move(s) jam on some of them whatever is released (to '
+                    f'posture(s) {", ".join(str(i) for i in risky[:10])}): the drive may fault '
+                    'there before the first calibration refines the targets'
+                    if risky.size
+                    else 'no move jams on any of them'
+                )
+            )
     lvdt = measuring.lvdt
     if lvdt is not None:
         print(

@@ -68,6 +68,12 @@ class MeasuringCheck:
                 released_travel_max_m=float(np.max(self.release.released_travel)),
                 moves_via_centre=int(np.sum(self.release.via_centre)),
             )
+            if self.release.move_conditions is not None and self.release.jams is not None:
+                out.update(
+                    rehearsed_machines=self.release.machines,
+                    released_move_condition_max=float(np.max(self.release.move_conditions)),
+                    moves_jamming=int(np.sum(self.release.jams > 0)),
+                )
         if self.lvdt is not None:
             out.update(
                 lvdt_stroke_m=self.lvdt.stroke_m,
