@@ -189,6 +189,8 @@ def test_the_blend_fades_the_offset_over_the_moves_time_and_keeps_its_speed():
     assert np.all(segments >= np.maximum(moves / SPEED, MIN_SEGMENT_S) - 1e-12)
     assert (blended.purpose, blended.posture) == (CommandPurpose.MOVE, 3)
     assert blend_command(command, setpoints, np.zeros(6), SPEED) is command
+    inside = blend_command(command, setpoints, offset, SPEED, (0.1, 1.0))  # near a stroke's end
+    assert inside.points.min() >= 0.1 and inside.points[0, 3] == 0.1
 
 
 def test_a_fresh_walk_knows_where_a_tilted_machine_stands():

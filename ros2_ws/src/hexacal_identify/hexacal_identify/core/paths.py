@@ -205,7 +205,11 @@ def point_times(current: np.ndarray, points: np.ndarray, max_speed_m_s: float) -
 
 
 def blend_command(
-    command: Command, setpoints: np.ndarray, offset: np.ndarray, max_speed_m_s: float
+    command: Command,
+    setpoints: np.ndarray,
+    offset: np.ndarray,
+    max_speed_m_s: float,
+    stroke: tuple[float, float] = (-math.inf, math.inf),
 ) -> Command:
     """
     Return `command` starting from the drive's `setpoints` instead of the model's start.
@@ -216,14 +220,15 @@ def blend_command(
     (setpoints - model at the start, (6,) m) in a few milliseconds: a following error to a
     stiff drive, a push toward a jam to the passive system.  Each point carries ``offset x
     (1 - its fraction of the move's time)``: the offset goes to zero smoothly along the move
-    and the last point is the model's target exactly.  Re-timed from `setpoints` at
-    max_speed_m_s.
+    and the last point is the model's target exactly, every point kept inside `stroke` (the
+    setpoints and the model's points are; their blend near an end might not be).  Re-timed
+    from `setpoints` at max_speed_m_s.
     """
     offset = np.asarray(offset, dtype=float)
     if not np.any(offset):
         return command
     fraction = command.times / command.times[-1]
-    points = command.points + (1.0 - fraction)[:, None] * offset[None]
+    points = np.clip(command.points + (1.0 - fraction)[:, None] * offset[None], *stroke)
     points[-1] = command.points[-1]  # the target stays the model's, bit for bit
     times = point_times(setpoints, points, max_speed_m_s)
     return Command(points, times, command.purpose, command.posture)

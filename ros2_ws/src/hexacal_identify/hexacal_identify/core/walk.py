@@ -726,7 +726,9 @@ class PlanExecution:
         offset = setpoints - legs.actuators[0]
         if self.released_now is not None:
             offset[self.released_now] = 0.0  # not commanded: the drive has no setpoint for it
-        return blend_command(command, setpoints, offset, self.settings.max_actuator_speed_m_s)
+        return blend_command(
+            command, setpoints, offset, self.settings.max_actuator_speed_m_s, self.stroke
+        )
 
     def _estimate(self) -> np.ndarray | None:
         """
