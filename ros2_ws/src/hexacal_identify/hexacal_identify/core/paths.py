@@ -9,7 +9,9 @@ intermediate points, the nominal inverse kinematics of poses along the sphere
 (great circle about O, Euler angles linear: `sphere_path`), at most ``step_m``
 apart, each timed from its largest actuator move at the speed limit
 (`path_command`); if that path leaves the stroke or the nominal workspace it
-goes by way of the centre (`route_command`).
+goes by way of the centre (`route_command`).  A controller interpolates from its current
+setpoints to the first point: `blend_command` starts a move there when they are not the
+model's start (a chain locked where the link put it, an earlier model's targets).
 
 `interpolate_pose` is also the simulated driver's (hexacal_driver.simulation):
 one interpolation for the commanded and the simulated machine.

@@ -11,6 +11,10 @@ posture:
    the link sphere when ``path_step_m`` > 0 (core/paths.py), each timed at
    ``max_actuator_speed_m_s``; the first path, from where the machine stands,
    is checked when it starts (it cannot be commanded: the plan is refused).
+   It starts where the drive's setpoints are (the last command's target, a
+   chain locked where the link put it, an earlier model's targets): their
+   offset from the model's start fades to zero over the move
+   (`paths.blend_command`), the target stays the model's.
 2. Arrive: the measured actuators are at the target (within
    ``position_tolerance_m``) and still (peak-to-peak within
    ``still_tolerance_m``) over the last ``settle_s``, counted from when the
@@ -761,7 +765,7 @@ class PlanExecution:
         # branch tolerance: a fresh walk after another plan's tilted last posture); continue
         # from the centre's actuators to the measured ones instead (core/live.py).
         try:
-            pose = solve_pose(self.nominal, latest, guesses[-1])
+            pose = solve_pose(self.nominal, latest.tolist(), guesses[-1].tolist())
         except (CalibrationError, ValueError) as error:
             self._say(
                 LogLevel.WARN,
