@@ -9,7 +9,9 @@ intermediate points, the nominal inverse kinematics of poses along the sphere
 (great circle about O, Euler angles linear: `sphere_path`), at most ``step_m``
 apart, each timed from its largest actuator move at the speed limit
 (`path_command`); if that path leaves the stroke or the nominal workspace it
-goes by way of the centre (`route_command`).
+goes by way of the centre (`route_command`).  A controller interpolates from its current
+setpoints to the first point: `blend_command` starts a move there when they are not the
+model's start (a chain locked where the link put it, an earlier model's targets).
 
 `interpolate_pose` is also the simulated driver's (hexacal_driver.simulation):
 one interpolation for the commanded and the simulated machine.
@@ -185,12 +187,53 @@ def path_command(
             f'{int(np.sum(outside))} of its {len(poses)} points are outside the stroke '
             f'[{low:g}, {high:g}] m ({which})'
         )
+    times = point_times(current, points, max_speed_m_s)
+    return Command(points.copy(), times, CommandPurpose(purpose), posture)
+
+
+def point_times(current: np.ndarray, points: np.ndarray, max_speed_m_s: float) -> np.ndarray:
+    """
+    Return the time_from_start (n,) of `points` (n, 6) from actuators at `current`.
+
+    Each segment takes its largest actuator move at max_speed_m_s (at least MIN_SEGMENT_S),
+    the whole at least MIN_MOVE_S.
+    """
     previous = np.concatenate([np.asarray(current, dtype=float)[None], points[:-1]])
     segments = np.maximum(np.max(np.abs(points - previous), axis=1) / max_speed_m_s, MIN_SEGMENT_S)
     times = np.cumsum(segments)
     if times[-1] < MIN_MOVE_S:
         times *= MIN_MOVE_S / times[-1]
-    return Command(points.copy(), times, CommandPurpose(purpose), posture)
+    return times
+
+
+def blend_command(
+    command: Command,
+    setpoints: np.ndarray,
+    offset: np.ndarray,
+    max_speed_m_s: float,
+    stroke: tuple[float, float] = (-math.inf, math.inf),
+) -> Command:
+    """
+    Return `command` starting from the drive's `setpoints` instead of the model's start.
+
+    A controller interpolates from its current setpoints to the first point; where those are
+    not the model's inverse kinematics of the path's start (a chain locked where the link put
+    it, the targets of an earlier model) the first segment would be a jump of that `offset`
+    (setpoints - model at the start, (6,) m) in a few milliseconds: a following error to a
+    stiff drive, a push toward a jam to the passive system.  Each point carries ``offset x
+    (1 - its fraction of the move's time)``: the offset goes to zero smoothly along the move
+    and the last point is the model's target exactly, every point kept inside `stroke` (the
+    setpoints and the model's points are; their blend near an end might not be).  Re-timed
+    from `setpoints` at max_speed_m_s.
+    """
+    offset = np.asarray(offset, dtype=float)
+    if not np.any(offset):
+        return command
+    fraction = command.times / command.times[-1]
+    points = np.clip(command.points + (1.0 - fraction)[:, None] * offset[None], *stroke)
+    points[-1] = command.points[-1]  # the target stays the model's, bit for bit
+    times = point_times(setpoints, points, max_speed_m_s)
+    return Command(points, times, command.purpose, command.posture)
 
 
 def route_command(

@@ -11,6 +11,10 @@ posture:
    the link sphere when ``path_step_m`` > 0 (core/paths.py), each timed at
    ``max_actuator_speed_m_s``; the first path, from where the machine stands,
    is checked when it starts (it cannot be commanded: the plan is refused).
+   It starts where the drive's setpoints are (the last command's target, a
+   chain locked where the link put it, an earlier model's targets): their
+   offset from the model's start fades to zero over the move
+   (`paths.blend_command`), the target stays the model's.
 2. Arrive: the measured actuators are at the target (within
    ``position_tolerance_m``) and still (peak-to-peak within
    ``still_tolerance_m``) over the last ``settle_s``, counted from when the
@@ -91,8 +95,10 @@ import numpy as np
 
 from .architectures import KinematicParameters
 from .device import DEFAULT_MOUNT, fixed_point
+from .errors import CalibrationError
 from .measurements import FIXED
 from .paths import (
+    blend_command,
     Command,
     CommandPurpose,
     corrected_pose,
@@ -211,6 +217,9 @@ class PlanExecution:
         # (received, actuators) since the last command
         self._postures: list[tuple[float, np.ndarray]] = []
         self._sent_any = False
+        # The drive's setpoints as the executor knows them (None: unknown, the measured
+        # actuators stand for them): the last command's end, a locked chain where it stood.
+        self._setpoints: np.ndarray | None = None
         self._where: np.ndarray | None = None  # the pose the last move went to
         self._at_where = False  # it stood still there since (so the next path starts there)
         self.refusal = ''  # why the plan was refused (state REFUSED)
@@ -249,6 +258,7 @@ class PlanExecution:
         """Hear the drive's fault: pause (the drive holds itself; resume once it is reset)."""
         if self.state != ExecutionState.RUNNING:
             return []
+        self._setpoints = None  # the drive holds, and a reset re-enables it where it stands
         return self._stop(
             now,
             f'the drive faulted: {fault}; reset the drive (hexacal/driver/reset) and resume',
@@ -283,6 +293,7 @@ class PlanExecution:
         """
         request, self.release_request = self.release_request, None
         self.released_now = released
+        self._locked(request)
         if request is None or self._phase != Phase.RELEASING:
             return []  # paused or aborted meanwhile: resume asks again if need be
         if problem:
@@ -296,6 +307,15 @@ class PlanExecution:
             self._say(LogLevel.ERROR, self.notice)
             return self._hold()
         return self._begin(now, fresh=False)
+
+    def _locked(self, request: ReleaseRequest | None) -> None:
+        """Take the chain the drive locked where it stands as its setpoint (drives.py)."""
+        latest = self.actuators.latest
+        if request is None or request.lock is None or self._setpoints is None:
+            return
+        if latest is None or self.released_now == request.lock:
+            return  # not locked (refused before): no setpoint changed
+        self._setpoints[request.lock] = latest[request.lock]
 
     def _ask_refinement(self) -> list[Command]:
         """Stop at rest before the current posture for an intermediate calibration."""
@@ -545,6 +565,7 @@ class PlanExecution:
         self._at_where = False
         if latest is None or not self._sent_any:
             return []
+        self._setpoints = latest.copy()
         return [Command(latest.copy()[None], np.array([HOLD_S]), CommandPurpose.HOLD, -1)]
 
     def _begin(self, now: float, fresh: bool) -> list[Command]:
@@ -654,6 +675,12 @@ class PlanExecution:
                 self.index,
             )
         if self.guard is not None:
+            # The guard sees the model's points, not the blend below: the offset is what the
+            # model cannot explain (a chain locked where the true link put it, an earlier
+            # model's targets), so on the model it would be a jump the machine does not make;
+            # passive_actuator predicts from the model's own standing at the start pose. The
+            # blend starts where the drive stands (measured, within the limits) and shrinks its
+            # departure from the predicted path linearly to nothing.
             # Where the machine stands: the path's start, else nominal forward kinematics.
             guess = start if start is not None else self._estimate()
             problem = self.guard(
@@ -667,7 +694,10 @@ class PlanExecution:
                     f'posture {self.index + 1} of {self.total}: the {purpose} was not sent: '
                     f'{problem}'
                 )
+        if start is not None and purpose == CommandPurpose.MOVE:
+            command = self._blended(command, start)
         self._target = command.positions.copy()
+        self._setpoints = command.positions.copy()
         # The collector's posture of this stop came before this correction: a correction below
         # its motion tolerances begins no new stationary period, so no posture may follow.
         self._posture_before = bool(self._postures) and purpose == CommandPurpose.CORRECT
@@ -681,6 +711,29 @@ class PlanExecution:
         self._sent_any = True
         return command
 
+    def _blended(self, command: Command, start: np.ndarray) -> Command:
+        """
+        Return the move `command` from the drive's setpoints (paths.blend_command).
+
+        The drive interpolates from its setpoints to the first point: after a swap (the
+        locked chain's setpoint is where the link put it) or a new model (the setpoints are
+        the old model's targets) they are not the model's inverse kinematics of the path's
+        start; the offset goes to zero along the move, the target stays the model's.
+        """
+        setpoints = self._setpoints if self._setpoints is not None else self.actuators.latest
+        if setpoints is None:
+            return command
+        arch = self.nominal.architecture
+        legs = arch.legs(arch.chains(self.nominal), start[None])
+        if not bool(legs.reachable()[0]):
+            return command  # no model standing at the start to blend from
+        offset = setpoints - legs.actuators[0]
+        if self.released_now is not None:
+            offset[self.released_now] = 0.0  # not commanded: the drive has no setpoint for it
+        return blend_command(
+            command, setpoints, offset, self.settings.max_actuator_speed_m_s, self.stroke
+        )
+
     def _estimate(self) -> np.ndarray | None:
         """
         Return where the platform stands: nominal forward kinematics of the measured actuators.
@@ -688,6 +741,7 @@ class PlanExecution:
         Moved onto the link sphere; None (one-point command) if that fails.
         """
         from .kinematics import forward_kinematics
+        from .live import solve_pose
 
         latest = self.actuators.latest
         if latest is None:
@@ -704,15 +758,22 @@ class PlanExecution:
         found = forward_kinematics(
             self.nominal, np.tile(latest, (len(guesses), 1)), np.array(guesses)
         )
-        for pose, converged in zip(found.poses, found.converged):
+        for converged_pose, converged in zip(found.poses, found.converged):
             if converged:
-                return on_sphere(pose, self.link_length, self.mount)
-        self._say(
-            LogLevel.WARN,
-            'cannot tell where the platform stands (nominal forward kinematics of '
-            'the measured actuators failed): one-point command',
-        )
-        return None
+                return on_sphere(converged_pose, self.link_length, self.mount)
+        # Newton from each guess refuses a pose far from it (another branch, or phi beyond its
+        # branch tolerance: a fresh walk after another plan's tilted last posture); continue
+        # from the centre's actuators to the measured ones instead (core/live.py).
+        try:
+            pose = solve_pose(self.nominal, latest.tolist(), guesses[-1].tolist())
+        except (CalibrationError, ValueError) as error:
+            self._say(
+                LogLevel.WARN,
+                'cannot tell where the platform stands (nominal forward kinematics of '
+                f'the measured actuators failed: {error}): one-point command',
+            )
+            return None
+        return on_sphere(pose, self.link_length, self.mount)
 
     def _still_mean_at(self, now: float) -> np.ndarray | None:
         settle = self.settings.settle_s
