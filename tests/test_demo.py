@@ -93,7 +93,7 @@ def _check_summary(path: Path, text: str) -> None:
 
 def _check_refinement(summary: dict, text: str) -> None:
     """
-    The drive figures before -> after target refinement (#18), from the driver's rests.
+    Check the drive figures before -> after target refinement (#18), from the driver's rests.
 
     20 postures stay below the Hexa Slide's first intermediate calibration (22): the
     calibration plan is walked on nominal targets, the verification plan on the calibration's,
