@@ -88,6 +88,36 @@ def _check_summary(path: Path, text: str) -> None:
     calibrated = re.search(r'^calibrated\s+([\d.]+)', text, re.M)
     rms = verification['calibrated']['position_rms_m'] * 1e6
     assert abs(rms - float(calibrated.group(1))) <= 0.051, (verification, text)
+    _check_refinement(summary, text)
+
+
+def _check_refinement(summary: dict, text: str) -> None:
+    """
+    Check the drive figures before -> after target refinement (#18), from the driver's rests.
+
+    20 postures stay below the Hexa Slide's first intermediate calibration (22): the
+    calibration plan is walked on nominal targets, the verification plan on the calibration's,
+    where the rigid link barely strains the compliant servos.
+    """
+    refinement = summary['refinement']
+    assert refinement['refine_targets'] is True and refinement['rests_missed'] == 0, refinement
+    assert refinement['targets_models'] == [], refinement
+    assert refinement['verification_targets'] == 'calibration', refinement
+    assert refinement['postures_on_nominal'] == 20, refinement
+    assert refinement['postures_on_refined'] == 8, refinement
+    before, after = refinement['before'], refinement['after']
+    assert before['rests'] >= 20 and after['rests'] >= 8, refinement  # corrections stop too
+    # The largest deviation of the run is on nominal targets; on the calibration's it is gone.
+    assert before['max_actuator_deviation_m'] == pytest.approx(
+        summary['max_actuator_deviation_m'], rel=1e-6
+    )
+    assert after['max_actuator_deviation_m'] < 50e-6 < 1e-3 < before['max_actuator_deviation_m']
+    assert after['max_force_n'] < 0.05 * before['max_force_n'], refinement
+    assert before['max_move_force_n'] >= before['max_force_n'] > 0, refinement
+    assert before['max_link_extension_m'] is None and after['max_link_extension_m'] is None
+    assert 'before -> after refinement (20 postures on nominal targets -> 8 on refined ones)' in (
+        text
+    ), text
 
 
 @pytest.mark.slow

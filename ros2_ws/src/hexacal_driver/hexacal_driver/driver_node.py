@@ -435,6 +435,9 @@ class DriverNode(Node):
         line = self._motion_report.motion_line(phase, strain, self.commands_accepted)
         if line is not None:
             self.get_logger().info(line)
+            # One status per rest: a monitor (the demo) hears every rest and its motion's peaks.
+            self.machine.follower.rest_reached()
+            self._publish_drive_status(force=True)
 
 
 def _finish(node: DriverNode) -> list[str]:

@@ -135,6 +135,11 @@ class DriveFollower(CommandFollower):
         self.peaks = {'following_error_m': 0.0, 'force_n': 0.0, 'link_extension_m': 0.0,
                       'actuator_deviation_m': 0.0}
         self.rest_deviation_m = 0.0
+        # Per motion (issue #18: before/after refinement splits): the rests reached after a
+        # commanded motion, the peaks of the motion under way and of the last one that ended.
+        self.rests = 0
+        self.move_peaks = {'force_n': 0.0, 'link_extension_m': 0.0}
+        self.last_move_peaks = dict(self.move_peaks)
         self.last_refusal = ''  # why the last trajectory was refused ('' none yet)
         self._update_measures()
 
@@ -208,7 +213,22 @@ class DriveFollower(CommandFollower):
             'actuator_deviation_m': self.rest_deviation_m,
             'max_actuator_deviation_m': self.peaks['actuator_deviation_m'],
             'refused_command': self.last_refusal,
+            'rests': self.rests,
+            'move_max_force_n': self.last_move_peaks['force_n'] if forces is not None else '',
+            'move_max_link_extension_m': self.last_move_peaks['link_extension_m'] if lvdt else '',
         }
+
+    def rest_reached(self) -> None:
+        """
+        Close the commanded motion that just ended at rest: count the rest, keep its peaks.
+
+        The node calls it once per rest (and then publishes the status), so a monitor hears
+        every rest's deviation and the largest force / extension of the motion that led there.
+        """
+        self.rests += 1
+        self.last_move_peaks = dict(self.move_peaks)
+        # This standing is counted in the motion that ended here; the next one starts anew.
+        self.move_peaks = {'force_n': 0.0, 'link_extension_m': 0.0}
 
     # ------------------------------------------------------------------ release, lock, reset
 
@@ -387,6 +407,10 @@ class DriveFollower(CommandFollower):
         if forces is not None:
             peaks['force_n'] = max(peaks['force_n'], float(np.max(np.abs(forces))))
         peaks['link_extension_m'] = max(peaks['link_extension_m'], abs(self.link_extension_m))
+        move = self.move_peaks
+        if forces is not None:
+            move['force_n'] = max(move['force_n'], float(np.max(np.abs(forces))))
+        move['link_extension_m'] = max(move['link_extension_m'], abs(self.link_extension_m))
 
     def _at_rest(self) -> None:
         """Record the commanded actuators' true deviation from their setpoints at rest."""

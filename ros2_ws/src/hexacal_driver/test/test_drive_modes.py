@@ -187,3 +187,25 @@ def test_the_start_line_names_the_mode_and_its_guard():
     assert 'fault above 100000 N' in drives_start_text(machine().follower)
     text = drives_start_text(machine(measuring_mode='lvdt', lvdt_stroke_m=0.002).follower)
     assert 'lvdt' in text and '+-0.002 m' in text and '0.0005 m following error' in text
+
+
+def test_each_rest_keeps_the_peaks_of_the_motion_into_it():
+    """rest_reached counts the rest and keeps the largest force of the motion that ended there."""
+    m = machine(measuring_mode='compliant')
+    f = m.follower
+    names = list(f.joint_names)
+    away = f.setpoints + np.array([3e-3, 0, -2e-3, 0, 1e-3, 0])
+    _, now_s = follow(m, names, away, 0.0)
+    f.rest_reached()
+    strained = f.status_values()
+    assert strained['rests'] == 1
+    assert strained['move_max_force_n'] >= strained['force_n'] > 0
+    assert strained['move_max_link_extension_m'] == ''  # no LVDT link in compliant mode
+    # Back to where it started: a smaller strain, and the motion's own peak, not the first one.
+    follow(m, names, f.setpoints - np.array([3e-3, 0, -2e-3, 0, 1e-3, 0]) * 0.9, now_s)
+    f.rest_reached()
+    values = f.status_values()
+    assert values['rests'] == 2
+    assert values['move_max_force_n'] < strained['move_max_force_n']
+    assert values['move_max_force_n'] >= values['force_n']
+    assert values['max_force_n'] == strained['max_force_n']  # the run's peak stays

@@ -35,6 +35,7 @@ from typing import Callable, TYPE_CHECKING
 from hexacal_msgs_py.measuring_modes import MEASURING_MODES, MeasuringMode
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS  # numpy-free: `hexacal --help` stays fast
 
+from .demo_refinement import refined_at, refinement_lines, refinement_summary, RestLog
 from .demo_summary import build_summary, SUMMARY_FILE, summary_lines, write_summary
 from ..bringup.system import executor_takes_measuring_mode
 
@@ -90,6 +91,16 @@ def add_parsers(subparsers) -> None:
         'released per posture; the planner does not yet keep the release well conditioned along '
         'every move, so a Hexa Slide plan can jam and fault the drives) or lvdt; the plans are '
         'made for it and the driver and executor run it',
+    )
+    parser.add_argument(
+        '--no-refine',
+        dest='refine',
+        action='store_false',
+        help="walk every posture on the nominal model's targets (the executor's refine_targets "
+        'false; both plans): the procedure before issue #18, as a baseline. Default: the '
+        'executor refines the remaining targets from intermediate calibrations once the '
+        'postures allow one of full rank, and the verification plan is walked on the '
+        "calibration's targets",
     )
     parser.add_argument(
         '--noise-um',
@@ -190,6 +201,10 @@ def _model(args) -> str:
 
 def _mode(args) -> str:
     return getattr(args, 'measuring_mode', None) or DEMO_MEASURING_MODE
+
+
+def _refine(args) -> bool:
+    return bool(getattr(args, 'refine', True))
 
 
 def _paths(args) -> DemoPaths:
@@ -331,6 +346,7 @@ def _run(args) -> int:
     verification = None
     stored_verification = None
     driver_values: dict[str, str] = {}
+    verification_postures = 0
     try:
         group.start(
             NodeLaunch(
@@ -361,6 +377,7 @@ def _run(args) -> int:
             paths.logs / 'identify.log',
         )
         session = _RosSession()
+        session.nominal_file = paths.nominal
         session.wait(
             'the collector and identify nodes to come up',
             GRAPH_TIMEOUT_S,
@@ -408,6 +425,7 @@ def _run(args) -> int:
             'calibration',
             env,
             paths.logs / 'executor.log',
+            refine=_refine(args),
         )
         session.wait(
             f'identify to hold the {walked} postures',
@@ -417,6 +435,7 @@ def _run(args) -> int:
         )
         calibration_postures = walked
         calibrate_started = time.monotonic()
+        session.parameters = None  # an intermediate calibration's (refinement) are not these
         success, message = session.calibrate(group)
         if not success:
             raise DemoError(f'hexacal/calibrate refused: {message}')
@@ -431,16 +450,20 @@ def _run(args) -> int:
                 f'{args.verify_postures} fresh postures',
                 flush=True,
             )
+            # Never refined: an intermediate calibration would fold these postures into the
+            # fit. With refinement the calibration's targets, else the nominal ones (as before).
             walked = _walk(
                 session,
                 group,
                 args,
                 paths.verification_plan,
-                paths.nominal,
+                paths.calibration if _refine(args) else paths.nominal,
                 'verification',
                 env,
                 paths.logs / 'executor_verification.log',
+                refine=False,
             )
+            verification_postures = walked
             session.wait(
                 'identify to hold the verification postures',
                 30.0,
@@ -474,6 +497,14 @@ def _run(args) -> int:
         driver_values=driver_values,
         pose_errors=poses['after (calibrated)'],
         verification=stored_verification,
+        refinement=refinement_summary(
+            session.rest_log,
+            _mode(args),
+            refine=_refine(args),
+            targets_models=session.targets_models,
+            calibration_postures=calibration_postures,
+            verification_postures=verification_postures,
+        ),
     )
     write_summary(paths.summary, summary)
     print(
@@ -530,8 +561,14 @@ def _walk(
     label: str,
     env: dict,
     log: Path,
+    *,
+    refine: bool = True,
 ) -> int:
-    """Start an executor on ``plan``, show its progress, wait until done; return the postures."""
+    """
+    Start an executor on ``plan``, show its progress, wait until done; return the postures.
+
+    ``refine``: the executor's refine_targets (intermediate calibrations at rest).
+    """
     from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC
     from tqdm import tqdm
 
@@ -540,6 +577,8 @@ def _walk(
 
     total = len(Plan.load(plan))
     session.executor_values = {}
+    session.walk_label = label
+    session.walk_nominal = nominal
     executor = group.start(
         NodeLaunch(
             'executor',
@@ -550,6 +589,7 @@ def _walk(
                 'max_actuator_speed_m_s': EXECUTOR_SPEED_M_S,
                 'settle_s': float(args.settle_s),
                 'timeout_s': 30.0 + float(args.dwell_s),
+                'refine_targets': bool(refine),
                 # Until the executor takes the mode the plan carries it (the executor reads it).
                 **({'measuring_mode': _mode(args)} if executor_takes_measuring_mode() else {}),
             },
@@ -679,6 +719,12 @@ class _RosSession:
         self.driver_values: dict[str, str] = {}  # the simulated drives' latest status
         self.driver_statuses = 0  # driver statuses received (a fresh one: the count grows)
         self.parameters: np.ndarray | None = None
+        # The drives' rests, tagged with the model the targets came from (demo_refinement.py).
+        self.rest_log = RestLog()
+        self.walk_label = ''  # the plan walked: calibration, verification
+        self.walk_nominal: Path | None = None  # the executor's nominal file for that plan
+        self.nominal_file: Path | None = None  # the demo's nominal model (set by _run)
+        self.targets_models: list[str] = []  # the calibration walk's targets_model values
         self._trigger = Trigger
         self.node.create_subscription(JointState, POSTURE_TOPIC, self._on_posture, POSTURE_QOS)
         self.node.create_subscription(
@@ -706,9 +752,15 @@ class _RosSession:
             values = status_values(status)
             if status.name == EXECUTOR_STATUS_NAME:
                 self.executor_values = values
+                model = values.get('targets_model', '')
+                if self.walk_label == 'calibration' and model and (
+                    not self.targets_models or self.targets_models[-1] != model
+                ):
+                    self.targets_models.append(model)
             elif status.name == DRIVER_STATUS_NAME:
                 self.driver_values = values
                 self.driver_statuses += 1
+                self.rest_log.hear(values, self.targets_refined())
             elif status.name == VERIFICATION_STATUS_NAME:
                 self.verification_values = values
             elif values.get('outcome') == 'collecting':
@@ -719,6 +771,12 @@ class _RosSession:
         from hexacal_msgs_py.conversions import multiarray_to_parameters
 
         self.parameters = multiarray_to_parameters(message)
+
+    def targets_refined(self) -> bool:
+        """Return whether the executor's targets now come from a calibration, not nominal."""
+        if self.walk_nominal is not None and self.walk_nominal != self.nominal_file:
+            return True  # the verification plan on the calibration's targets
+        return refined_at(self.executor_values.get('targets_model', '')) is not None
 
     def graph_ready(self) -> bool:
         # The collector publishes postures and identify receives them (as this node does).
@@ -931,7 +989,7 @@ def report(
     if verification:
         lines += verification_table(verification)
     if summary is not None:
-        lines += summary_lines(summary)
+        lines += summary_lines(summary) + refinement_lines(summary.get('refinement'))
     page = _report_page(paths, verification)
     lines += [
         '',

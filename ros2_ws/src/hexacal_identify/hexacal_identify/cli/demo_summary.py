@@ -59,12 +59,15 @@ def build_summary(
     driver_values: Mapping[str, str],
     pose_errors: Mapping[str, Any],
     verification: Mapping[str, Any] | None,
+    refinement: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """
     Return the summary.json object (docs/formats.md).
 
     ``pose_errors``: the calibrated model's PoseErrors.summary() against the simulated truth;
-    ``verification``: the ``hexacal verify --json`` object (None: no verification).
+    ``verification``: the ``hexacal verify --json`` object (None: no verification);
+    ``refinement``: the figures before / after target refinement (demo_refinement.py; None:
+    the key is left out).
     """
     return {
         'model': model,
@@ -76,6 +79,7 @@ def build_summary(
         'orientation_error_mean_rad': float(pose_errors['orientation_mean_rad']),
         'orientation_error_max_rad': float(pose_errors['orientation_max_rad']),
         'verification': None if verification is None else dict(verification),
+        **({} if refinement is None else {'refinement': dict(refinement)}),
     }
 
 
