@@ -11,8 +11,9 @@ nominal plus ``count`` draws of independent normal errors of ``error_m`` RMS on 
 (by default the architecture's Table 2 set 2 RMS, 1.45 mm on both shipped models; rail-direction
 components 1.45e-3).  Each machine walks the move the way the drive does: from its standing at
 the previous posture (the actuator released there locked where the link put it), the commanded
-setpoints carry that offset to zero along the move (as the executor commands a move), sampled at most ``step_m`` apart in joint space, each sample solved from the previous pose
-(``passive_actuator.solve_passive``: continuation on the machine's branch).  A candidate
+setpoints carry that offset to zero along the move (as the executor commands a move,
+core/paths.py), sampled at most ``step_m`` apart in joint space, each sample solved from the
+previous pose (``passive_actuator.solve_passive``: continuation on the machine's branch).  A candidate
 survives on a machine if every sample closes and its released actuator stays inside the stroke
 less the margin; its score is the worst condition number of the passive system met on the way,
 over all machines.
