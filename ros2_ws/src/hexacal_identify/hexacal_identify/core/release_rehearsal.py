@@ -13,10 +13,10 @@ components 1.45e-3).  Each machine walks the move the way the drive does: from i
 the previous posture (the actuator released there locked where the link put it), the commanded
 setpoints carry that offset to zero along the move (as the executor commands a move,
 core/paths.py), sampled at most ``step_m`` apart in joint space, each sample solved from the
-previous pose (``passive_actuator.solve_passive``: continuation on the machine's branch).  A candidate
-survives on a machine if every sample closes and its released actuator stays inside the stroke
-less the margin; its score is the worst condition number of the passive system met on the way,
-over all machines.
+previous pose (``passive_actuator.solve_passive``: continuation on the machine's branch).  A
+candidate survives on a machine if every sample closes and its released actuator stays inside
+the stroke less the margin; its score is the worst condition number of the passive system met
+on the way, over all machines.
 """
 
 from __future__ import annotations
