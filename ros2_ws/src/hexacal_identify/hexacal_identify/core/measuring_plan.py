@@ -94,15 +94,21 @@ def check_measuring_mode(
     mode: str,
     lvdt_stroke_m: float = DEFAULT_LVDT_STROKE_M,
     mount: str = DEFAULT_MOUNT,
+    groups: np.ndarray | None = None,
 ) -> MeasuringCheck:
     """
     Return what plan `poses` (K, 6, plan order) need in measuring mode `mode` (module doc).
+
+    `groups` (K,): the order within each group is free (passive_actuator may choose it:
+    ``release.order``).
 
     ReleaseError (passive_actuator) when a posture has no actuator that can be released.
     """
     chosen = measuring_mode(mode)
     if chosen == MeasuringMode.PASSIVE_ACTUATOR:
-        release = choose_released_actuators(nominal, poses, link_length, stroke_m, mount=mount)
+        release = choose_released_actuators(
+            nominal, poses, link_length, stroke_m, mount=mount, groups=groups
+        )
         return MeasuringCheck(chosen, release=release)
     if chosen == MeasuringMode.LVDT:
         if not (np.isfinite(lvdt_stroke_m) and lvdt_stroke_m > 0):

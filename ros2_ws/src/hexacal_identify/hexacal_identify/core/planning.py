@@ -74,6 +74,13 @@ def _turn_order(turns: np.ndarray | None, design: np.ndarray, order: np.ndarray)
     return order[np.argsort(turns[design][order], kind='stable')]
 
 
+def walk_groups(kinds: np.ndarray, turns: np.ndarray | None) -> np.ndarray:
+    """Return a group number per posture (plan order): a new group where kind or turn changes."""
+    keys = list(zip(kinds, np.zeros(len(kinds)) if turns is None else turns))
+    changes = [0] + [int(keys[i] != keys[i - 1]) for i in range(1, len(keys))]
+    return np.cumsum(changes)
+
+
 def travel_order(
     poses: np.ndarray, kinds: np.ndarray, link_length: float, keep_order_within_kind: bool
 ) -> np.ndarray:
@@ -396,6 +403,25 @@ def plan_postures(
             device_turns=list(device_turns),
             device_prior={n: {'value': v, 'std': sd} for n, v, sd in device_prior.entries},
         )
+    measuring = None
+    if measuring_mode is not None:
+        # The order within each kind and mounting is free unless the cost pairs consecutive
+        # postures: the passive-actuator check may choose it (released_actuator.py).
+        groups = None if cost == 'relative' else walk_groups(
+            kinds[design], None if turns is None else turns[design]
+        )
+        measuring = check_measuring_mode(
+            nominal,
+            poses[design],
+            limits.link_length,
+            limits.actuator_stroke_m,
+            measuring_mode,
+            lvdt_stroke_m,
+            limits.mount,
+            groups,
+        )
+        if measuring.release is not None and measuring.release.order is not None:
+            design = design[measuring.release.order]
     plan = Plan(
         name or 'plan',
         limits.link_length,
@@ -408,17 +434,7 @@ def plan_postures(
     )
     if name is None:  # default name: what it is and which postures
         plan.name = f'{method}-{index}-{n_postures}-{plan.fingerprint()}'
-    measuring = None
-    if measuring_mode is not None:
-        measuring = check_measuring_mode(
-            nominal,
-            plan.poses,
-            limits.link_length,
-            limits.actuator_stroke_m,
-            measuring_mode,
-            lvdt_stroke_m,
-            limits.mount,
-        )
+    if measuring is not None:
         plan.measuring_mode = measuring.mode.value
         if measuring.release is not None:
             plan.released_actuators = measuring.release.names(nominal.layout.actuator_names)

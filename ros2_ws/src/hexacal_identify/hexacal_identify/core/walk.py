@@ -231,6 +231,8 @@ class PlanExecution:
                 f'released names {len(self.released)} chains for {len(self.poses)} postures'
             )
         self.released_now: int | None = None  # the chain the drive has released
+        # Per posture, the chains released when the drive faulted on the way to it.
+        self._faulted_releases: dict[int, set[int]] = {}
         self.release_request: ReleaseRequest | None = None  # for the node to carry out
         self.notice = ''  # why the plan paused itself (a drive's refusal); '' otherwise
         self.guard = guard
@@ -254,11 +256,19 @@ class PlanExecution:
         if self.state in _UNDER_WAY and self._phase is not None:
             self._postures.append((now, np.asarray(actuators, dtype=float)))
 
+    def on_drive_released(self, released: int | None) -> None:
+        """Hear which chain the drive has released (its status) before the plan starts."""
+        if self.state == ExecutionState.WAITING and self.release_request is None:
+            self.released_now = released
+
     def on_drive_fault(self, now: float, fault: str) -> list[Command]:
         """Hear the drive's fault: pause (the drive holds itself; resume once it is reset)."""
         if self.state != ExecutionState.RUNNING:
             return []
         self._setpoints = None  # the drive holds, and a reset re-enables it where it stands
+        # Released then (a jam of the five commanded and the link): not for the rest of the move.
+        if self.released_now is not None:
+            self._faulted_releases.setdefault(self.index, set()).add(self.released_now)
         return self._stop(
             now,
             f'the drive faulted: {fault}; reset the drive (hexacal/driver/reset) and resume',
@@ -434,7 +444,47 @@ class PlanExecution:
                 f'axis (was {turn_text(previous)})'
             )
         self._say(LogLevel.INFO, text)
+        self._rechoose_release()
         return True, text, self._begin(now, fresh=fresh)
+
+    def _rechoose_release(self) -> None:
+        """
+        After a drive fault with a chain released, release another for the rest of the move.
+
+        The fault was most likely a jam of the five commanded and the link (a fold of the
+        passive system the plan's release meets on this machine, not on the model): from where
+        the machine stands, at rest, another chain is released (``release_from_here``) and the
+        swap happens as any other, at rest, before the move goes on.
+        """
+        faulted = self._faulted_releases.get(self.index, set())
+        if self.index >= self.total or self.released[self.index] not in faulted:
+            return
+        from .released_actuator import release_from_here
+
+        here, latest = self._estimate(), self.actuators.latest
+        if here is None or latest is None or self.released_now is None:
+            return
+        chosen = release_from_here(
+            self.nominal, here, latest, self.released_now, self.poses[self.index],
+            self.link_length, self.stroke, sorted(faulted), mount=self.mount,
+        )
+        names = self.nominal.layout.actuator_names
+        tried = ', '.join(names[c] for c in sorted(faulted))
+        if chosen is None:
+            self._say(
+                LogLevel.WARN,
+                f'posture {self.index + 1} of {self.total}: the drive faulted with {tried} '
+                'released and no other chain stays inside its stroke on the rest of the move: '
+                'the release stays',
+            )
+            return
+        self.released[self.index] = chosen
+        self._say(
+            LogLevel.WARN,
+            f'posture {self.index + 1} of {self.total}: the drive faulted with {tried} '
+            f'released; {names[chosen]} is released for the rest of the move (rehearsed from '
+            'where the machine stands, as the planner chooses)',
+        )
 
     def abort(self, now: float) -> tuple[bool, str, list[Command]]:
         """End the plan (hold the machine): (success, answer, commands)."""
@@ -571,6 +621,11 @@ class PlanExecution:
     def _begin(self, now: float, fresh: bool) -> list[Command]:
         """Command the current posture (fresh: from its planned pose; else go on correcting)."""
         while True:
+            if self.index >= self.total and self.released_now is not None:
+                # Leave the machine as a machine: every actuator held by its drive.
+                self.release_request = ReleaseRequest(self.total - 1, self.released_now, None)
+                self._phase = Phase.RELEASING
+                return []
             if self.index >= self.total:
                 return self._finish(now)
             if fresh and not same_turn(self.turns[self.index], self.mounted_turn):

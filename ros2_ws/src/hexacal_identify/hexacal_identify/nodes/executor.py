@@ -380,6 +380,10 @@ class ExecutorNode(Node):
                 continue
             values = status_values(status)
             self._drive_mode = values.get('measuring_mode', self._drive_mode)
+            joint = values.get('released_joint')
+            if joint is not None:  # e.g. left released by an earlier plan: lock it first
+                names = list(self.actuator_joints)
+                self.execution.on_drive_released(names.index(joint) if joint in names else None)
             if values.get('state') == 'fault':
                 self._send(self.execution.on_drive_fault(_now_s(self), values.get('fault', '')))
                 self._drain_messages()

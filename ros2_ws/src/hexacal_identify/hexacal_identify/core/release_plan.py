@@ -1,0 +1,283 @@
+"""
+Walk a passive-actuator plan in rehearsal: the release per move and, if free, the order (#18).
+
+`Rehearser` keeps where each rehearsed machine stands (core/release_rehearsal.py) and tries a
+move to a posture: the candidates that stay inside the stroke less the margin on the nominal
+move (core/release_moves.py) are rehearsed in the order of their worst nominal condition along
+it, the best ``FIRST_REHEARSED`` first; the first to close on every machine within
+``max_move_condition`` is taken, else all are rehearsed and the one that closes on most
+machines, then the best conditioned, is taken (its ``jams``: on how many it does not).
+
+`in_order` walks the postures as given.  `tour` may also choose the order within each group of
+postures (a kind and device turn: the plan's groups stay in their order): from the current
+posture the ``tries`` nearest of the group (travel distance, angles weighted by L, as the
+planner's travel order) are tried, nearest first, and the first whose move is safe (closes on
+every machine within the limit) is walked next, else the least risky of them (fewest jams, then
+the lowest worst condition).  Rehearsed on Table 1 with nominal set 2 (the demo), the order of
+the travel tour jams on the true machine on 1-2 of 49 moves whatever is released, the rehearsed
+tour on none.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .architectures import KinematicParameters
+from .device import DEFAULT_MOUNT
+from .kinematics import inverse_kinematics
+from .passive_actuator import release_conditions
+from .release_moves import inside_stroke, Move, move
+from .release_rehearsal import (
+    DEFAULT_JOINT_STEP_M,
+    DEFAULT_MODEL_SAMPLES,
+    model_error_rms_m,
+    Rehearsal,
+    rehearse,
+    sampled_machines,
+    setpoint_samples,
+    stand,
+    Standings,
+)
+
+# A move whose worst condition number on the rehearsed machines stays below this is taken
+# without rehearsing the other candidates; true-machine jams were met from a few hundred up
+# (Hexa Slide, set 2 error), the released chain's condition is 30-100 at most postures.
+DEFAULT_MAX_MOVE_CONDITION = 250.0
+FIRST_REHEARSED = 2  # candidates rehearsed before the others are tried
+DEFAULT_TOUR_TRIES = 4  # nearest postures tried for the next move of a tour
+
+
+@dataclass(frozen=True)
+class RehearsalSettings:
+    """How releases are rehearsed (release_rehearsal.py); model_error_m None: the default."""
+
+    model_samples: int = DEFAULT_MODEL_SAMPLES
+    model_error_m: float | None = None
+    max_move_condition: float = DEFAULT_MAX_MOVE_CONDITION
+    joint_step_m: float = DEFAULT_JOINT_STEP_M
+    seed: int = 0
+    tour_tries: int = DEFAULT_TOUR_TRIES
+
+
+@dataclass(frozen=True)
+class Leg:
+    """A move tried in rehearsal: the chain to release, its worst condition, jams, and after."""
+
+    move: Move
+    released: int
+    worst: float
+    jams: int
+    ends: Standings
+
+    @property
+    def risk(self) -> tuple[int, float]:
+        """Return (machines it jams on, worst condition): lower is safer."""
+        return self.jams, self.worst
+
+
+class NoRelease(Exception):
+    """No actuator stays inside its stroke (less the margin) on the nominal move."""
+
+
+class Rehearser:
+    """Where the rehearsed machines stand, and the moves tried from there (module doc)."""
+
+    def __init__(
+        self,
+        params: KinematicParameters,
+        link_length: float,
+        stroke: tuple[float, float],
+        margin_m: float,
+        step_m: float,
+        mount: str = DEFAULT_MOUNT,
+        settings: RehearsalSettings = RehearsalSettings(),
+    ):
+        error = (
+            model_error_rms_m(params) if settings.model_error_m is None
+            else settings.model_error_m
+        )
+        self.params = params
+        self.machines = sampled_machines(params, settings.model_samples, error, settings.seed)
+        self.link_length, self.stroke, self.margin_m = link_length, stroke, margin_m
+        self.step_m, self.mount, self.settings = step_m, mount, settings
+        self.standing: Standings | None = None
+
+    def ranked(self, nominal_move: Move) -> np.ndarray:
+        """Return each chain's worst nominal condition along the move (inf: leaves the stroke)."""
+        low, high = self.stroke
+        inside = np.all(
+            inside_stroke(nominal_move.actuators, low + self.margin_m, high - self.margin_m),
+            axis=0,
+        )
+        along = np.max(release_conditions(self.params, nominal_move.poses, self.link_length),
+                       axis=0)
+        return np.where(inside & np.isfinite(along), along, np.inf)
+
+    def try_move(
+        self, previous: np.ndarray | None, pose: np.ndarray, exclude: Sequence[int] = ()
+    ) -> Leg:
+        """Return the move to `pose` rehearsed from where the machines stand; NoRelease."""
+        nominal_move = move(self.params, previous, pose, self.link_length, self.stroke,
+                            self.step_m, self.mount)
+        ranked = self.ranked(nominal_move)
+        ranked[list(exclude)] = np.inf
+        if not np.any(np.isfinite(ranked)):
+            raise NoRelease()
+        standing = self.standing if previous is not None else None
+        if standing is None:  # the first posture: each machine at it with its own actuators
+            standing = Standings(
+                np.repeat(nominal_move.poses[:1], len(self.machines), axis=0),
+                np.array([inverse_kinematics(m, nominal_move.poses[:1])[0]
+                          for m in self.machines]),
+            )
+        # Where each machine stands against the nominal setpoints: its own actuators at the
+        # first posture, afterwards the released one where the link put it (the five commanded
+        # stood at their setpoints); the drive locks it there and the move fades the offset.
+        offsets = standing.actuators - nominal_move.actuators[0]
+        setpoints = setpoint_samples(offsets, nominal_move.actuators, self.settings.joint_step_m)
+        result = self._rehearse(standing, setpoints, ranked)
+        best = _best(result, len(self.machines), self.settings.max_move_condition)
+        chain = int(result.candidates[best])
+        ends = self._restand(result.ends[best], nominal_move, chain)
+        jams = len(self.machines) - int(result.survived[best])
+        return Leg(nominal_move, chain, float(result.worst[best]), jams, ends)
+
+    def take(self, leg: Leg) -> None:
+        """Walk `leg`: the machines stand where it ends."""
+        self.standing = leg.ends
+
+    def safe(self, leg: Leg) -> bool:
+        """Return True when the leg closes on every machine within the condition limit."""
+        return leg.jams == 0 and leg.worst <= self.settings.max_move_condition
+
+    def _rehearse(self, standing: Standings, setpoints: np.ndarray, ranked) -> Rehearsal:
+        """Rehearse the best-ranked candidates first, the rest only if none of those will do."""
+        order = [int(c) for c in np.argsort(ranked) if np.isfinite(ranked[c])]
+        run = (self.machines, standing, setpoints)
+        limits = (self.link_length, self.stroke, self.margin_m, self.mount)
+        first = rehearse(*run, np.array(order[:FIRST_REHEARSED]), *limits)
+        limit = self.settings.max_move_condition
+        if _acceptable(first, len(self.machines), limit).any() or len(order) <= FIRST_REHEARSED:
+            return first
+        rest = rehearse(*run, np.array(order[FIRST_REHEARSED:]), *limits)
+        return Rehearsal(
+            np.concatenate([first.candidates, rest.candidates]),
+            np.concatenate([first.survived, rest.survived]),
+            np.concatenate([first.worst, rest.worst]),
+            first.ends + rest.ends,
+        )
+
+    def _restand(self, ends: Standings, nominal_move: Move, chain: int) -> Standings:
+        """Return the standings after a move; a machine that jammed stands afresh at the end."""
+        jammed = np.flatnonzero(~np.all(np.isfinite(ends.poses), axis=1))
+        if not jammed.size:
+            return ends
+        fresh = stand(
+            tuple(self.machines[k] for k in jammed), nominal_move.actuators[-1], chain,
+            nominal_move.poses[-1], self.link_length, self.mount,
+        )
+        poses, actuators = ends.poses.copy(), ends.actuators.copy()
+        poses[jammed], actuators[jammed] = fresh.poses, fresh.actuators
+        return Standings(poses, actuators)
+
+
+def _acceptable(result: Rehearsal, machines: int, limit: float) -> np.ndarray:
+    """Return which candidates close on every machine within the condition limit."""
+    return (result.survived == machines) & (result.worst <= limit)
+
+
+def _best(result: Rehearsal, machines: int, limit: float) -> int:
+    """Return the index of the candidate to take (module doc)."""
+    good = _acceptable(result, machines, limit)
+    if good.any():
+        return int(np.argmin(np.where(good, result.worst, np.inf)))
+    # Closes on most machines, then the best conditioned there.
+    return int(np.lexsort((result.worst, -result.survived))[0])
+
+
+class Stuck(Exception):
+    """No actuator can be released on the move to posture ``posture`` (plan index)."""
+
+    def __init__(self, posture: int):
+        super().__init__(posture)
+        self.posture = posture
+
+
+def in_order(
+    rehearser: Rehearser, poses: np.ndarray, start: np.ndarray | None = None
+) -> list[Leg]:
+    """Return the legs of the postures walked in the given order (Stuck: one has no release)."""
+    legs = []
+    previous = start
+    for i, pose in enumerate(poses):
+        try:
+            leg = rehearser.try_move(previous, pose)
+        except NoRelease:
+            raise Stuck(i) from None
+        rehearser.take(leg)
+        legs.append(leg)
+        previous = pose
+    return legs
+
+
+def tour(
+    rehearser: Rehearser, poses: np.ndarray, groups: np.ndarray
+) -> tuple[np.ndarray, list[Leg]]:
+    """Return the plan indices in walking order and their legs, rehearsed (module doc)."""
+    groups = np.asarray(groups)
+    weighted = np.column_stack([poses[:, :3], poses[:, 3:6] * rehearser.link_length])
+    try:
+        first = rehearser.try_move(None, poses[0])
+    except NoRelease:
+        raise Stuck(0) from None
+    rehearser.take(first)
+    order, legs = [0], [first]
+    remaining = list(range(1, len(poses)))
+    while remaining:
+        current = order[-1]
+        pool = [j for j in remaining if groups[j] == groups[current]]
+        if not pool:  # the next group of the plan, in its order
+            pool = [j for j in remaining if groups[j] == groups[remaining[0]]]
+        distance = np.linalg.norm(weighted[pool] - weighted[current], axis=1)
+        nearest = [pool[k] for k in np.argsort(distance, kind='stable')]
+        chosen = _next(rehearser, poses, current, nearest[: max(1, rehearser.settings.tour_tries)])
+        if chosen is None:
+            raise Stuck(nearest[0])
+        index, leg = chosen
+        rehearser.take(leg)
+        order.append(index)
+        legs.append(leg)
+        remaining.remove(index)
+    return np.array(order, dtype=int), legs
+
+
+def _next(rehearser, poses, current, candidates) -> tuple[int, Leg] | None:
+    """Return the first safe move among the candidates, else the least risky (None: none)."""
+    best: tuple[int, Leg] | None = None
+    for index in candidates:
+        try:
+            leg = rehearser.try_move(poses[current], poses[index])
+        except NoRelease:
+            continue
+        if rehearser.safe(leg):
+            return index, leg
+        if best is None or leg.risk < best[1].risk:
+            best = (index, leg)
+    return best
+
+
+__all__ = [
+    'DEFAULT_MAX_MOVE_CONDITION',
+    'DEFAULT_TOUR_TRIES',
+    'FIRST_REHEARSED',
+    'Leg',
+    'NoRelease',
+    'Rehearser',
+    'RehearsalSettings',
+    'Stuck',
+    'in_order',
+    'tour',
+]
