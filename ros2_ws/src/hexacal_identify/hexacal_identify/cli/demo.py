@@ -22,6 +22,7 @@ stops the demo at once, naming it. Everything it writes lands under
 
 from __future__ import annotations
 
+import argparse
 from dataclasses import dataclass
 from datetime import datetime
 import math
@@ -51,9 +52,8 @@ CALIBRATE_TIMEOUT_S = 300.0
 MODEL_CHOICES = tuple(MODELS)
 EXIT_OK, EXIT_FAILED = 0, 1
 
-# compliant until the planner keeps a released actuator well conditioned along every move
-# (issue #18): a passive Hexa Slide plan can jam the five commanded drives and the link.
-DEMO_MEASURING_MODE = MeasuringMode.COMPLIANT.value
+# The paper's procedure (issue #18): the planner rehearses every move's release.
+DEMO_MEASURING_MODE = MeasuringMode.PASSIVE_ACTUATOR.value
 
 
 class DemoError(RuntimeError):
@@ -86,11 +86,11 @@ def add_parsers(subparsers) -> None:
         '--measuring-mode',
         choices=MEASURING_MODES,
         default=DEMO_MEASURING_MODE,
-        help='how the drives meet the measuring link: compliant (default for now: all six '
-        "commanded, servos compliant), passive_actuator (the paper's procedure: one actuator "
-        'released per posture; the planner does not yet keep the release well conditioned along '
-        'every move, so a Hexa Slide plan can jam and fault the drives) or lvdt; the plans are '
-        'made for it and the driver and executor run it',
+        help="how the drives meet the measuring link: passive_actuator (default; the paper's "
+        'procedure: one actuator released per posture, chosen by the planner so that the move '
+        'to it closes on machines unlike the nominal), lvdt (a telescopic link whose length is '
+        'measured; all six commanded) or compliant (all six commanded, servos compliant); the '
+        'plans are made for it and the driver and executor run it',
     )
     parser.add_argument(
         '--no-refine',
@@ -101,6 +101,16 @@ def add_parsers(subparsers) -> None:
         'executor refines the remaining targets from intermediate calibrations once the '
         'postures allow one of full rank, and the verification plan is walked on the '
         "calibration's targets",
+    )
+    parser.add_argument(
+        '--driver-param',
+        action='append',
+        default=[],
+        metavar='NAME=VALUE',
+        type=_driver_param,
+        help='set a parameter of the simulated driver (repeatable; docs/nodes.md, driver), e.g. '
+        'max_force_n=2000 to see its guard fault, servo_stiffness_n_per_m=5e5 or '
+        'lvdt_stroke_m=0.003',
     )
     parser.add_argument(
         '--noise-um',
@@ -267,6 +277,30 @@ COLLECTOR_WINDOWS = {'window_s': 0.2, 'capture_s': 0.3}
 PLAN_CANDIDATES = 1000
 
 
+def _driver_param(text: str) -> tuple[str, object]:
+    """Parse NAME=VALUE as the simulated driver declares NAME (its type), or say what is wrong."""
+    from hexacal_driver.parameters import PARAMETERS
+
+    name, sep, value = (part.strip() for part in text.partition('='))
+    if not sep or not name:
+        raise argparse.ArgumentTypeError(f'expected NAME=VALUE, got {text!r}')
+    if name not in PARAMETERS:
+        raise argparse.ArgumentTypeError(
+            f'the simulated driver has no parameter {name!r} (docs/nodes.md, driver)'
+        )
+    kind = type(PARAMETERS[name].default)
+    try:
+        if kind is bool:
+            if value.lower() not in ('true', 'false'):
+                raise ValueError(value)
+            return name, value.lower() == 'true'
+        return name, kind(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f'{name} takes a {kind.__name__}, got {value!r}'
+        ) from None
+
+
 def _plans(args, nominal, paths: DemoPaths) -> None:
     """Write the calibration plan (O1) and the verification plan (fresh postures, another draw)."""
     from ..core.measurements import NoiseModel
@@ -397,6 +431,7 @@ def _run(args) -> int:
                     'angle_noise_rad': args.noise_um * 1e-6,
                     'sensor_effects': getattr(args, 'sensor_effects', ''),
                     'measuring_mode': _mode(args),
+                    **dict(getattr(args, 'driver_param', []) or []),
                 },
             ),
             env,
@@ -621,6 +656,12 @@ def _walk(
         state = values.get('state')
         if state in ('refused', 'aborted'):
             raise DemoError(f'the executor {state} the {label} plan: {values}')
+        if state == 'paused' and session.driver_values.get('state') != 'fault':
+            # Paused by itself (its guard, a refused release): nobody here would resume it.
+            session.check_drives(f'the executor to walk the {label} plan')
+            raise DemoError(
+                f'the executor paused the {label} plan: {values.get("notice") or values}'
+            )
         return values if state == 'done' else None
 
     try:
