@@ -18,6 +18,10 @@ or link extension) and the path of the HTML report.
 and runs the driver (and an executor that declares the parameter) in it; a drive fault
 stops the demo at once, naming it. Everything it writes lands under
 ``out/demo_<timestamp>/`` (the bag in ``bag/``), with ``summary.json`` (demo_summary.py).
+The executor refines its targets from intermediate calibrations (``--no-refine``: nominal
+targets throughout, the procedure before issue #18); the drives' figures are also split
+before -> after refinement, from the driver's status at each rest (demo_refinement.py), and
+the verification plan is walked on the calibration's targets, never refined.
 """
 
 from __future__ import annotations
