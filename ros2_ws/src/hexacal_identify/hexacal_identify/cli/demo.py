@@ -484,13 +484,6 @@ def _run(args) -> int:
         calibrate_s = time.monotonic() - calibrate_started
         print(f'hexacal demo: calibrated in {calibrate_s:.1f} s: {message}', flush=True)
         if args.verify_postures:
-            locked = session.lock_released(group)
-            if locked:
-                print(
-                    f'hexacal demo: locked {locked}, released at the last calibration posture '
-                    '(the next executor starts with every joint locked)',
-                    flush=True,
-                )
             print(
                 'hexacal demo: the executor walks a verification plan of '
                 f'{args.verify_postures} fresh postures',
@@ -882,35 +875,6 @@ class _RosSession:
             group,
             lambda: self.driver_values if self.driver_statuses > seen else None,
         )
-
-    def lock_released(self, group: NodeGroup) -> str:
-        """
-        Lock the joint a finished plan left released (passive_actuator); return it ('' none).
-
-        An executor releases and locks joints along its plan and leaves the last posture's
-        released; the next one starts from every joint locked, so the drive would refuse its
-        first release (one joint at a time). Through the driver's hexacal/release/<joint>.
-        """
-        from hexacal_msgs_py.names import release_service
-        from std_srvs.srv import SetBool
-
-        joint = self.fresh_driver_values(group).get('released_joint', '')
-        if not joint:
-            return ''
-        client = self.node.create_client(SetBool, release_service(joint))
-        try:
-            self.wait(f'the service {release_service(joint)}', GRAPH_TIMEOUT_S, group,
-                      client.service_is_ready)
-            future = client.call_async(SetBool.Request(data=False))
-            response = self.wait(
-                f'the answer of {release_service(joint)}', GRAPH_TIMEOUT_S, group,
-                lambda: future.result() if future.done() else None,
-            )
-        finally:
-            self.node.destroy_client(client)
-        if not response.success:
-            raise DemoError(f'the drive refused to lock {joint}: {response.message}')
-        return joint
 
     def calibrate(self, group: NodeGroup) -> tuple[bool, str]:
         future = self.client.call_async(self._trigger.Request())
