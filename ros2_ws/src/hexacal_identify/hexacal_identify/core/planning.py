@@ -29,10 +29,11 @@ only.  The plan's postures carry their ``device_turn`` and are ordered by turn
 
 Planning for a measuring mode (``measuring_mode``, issue #18; measuring_plan.py).
 ``passive_actuator`` chooses each posture's released actuator (released_actuator.py)
-and writes it into the plan; ``lvdt`` checks every posture's predicted link
-extension; ``compliant`` adds nothing.  The plan's fingerprint (and so its default
-name) stays that of its postures and turns: the mode and the released actuators
-are how they are measured, recorded with the measurements.
+and, within each kind and mounting, the order, and writes them into the plan; ``lvdt``
+checks every posture's predicted link extension.  With six commanded actuators
+(``lvdt``, ``compliant``) the candidates are only those six stiff drives hold on
+machines unlike the nominal (robust_postures.py).  The plan's fingerprint (and so its
+default name) is that of its postures, in order, and turns.
 """
 
 from __future__ import annotations
@@ -62,6 +63,8 @@ from .measuring_plan import check_measuring_mode, MeasuringCheck
 from .observability import check_index, INDICES, PREDICTION
 from .posture_limits import default_fixed_fraction, generate_candidates, PostureLimits
 from .residuals import ChannelSigma
+from .robust_postures import hold_on_machines
+from .walk_guard import GuardSettings
 
 METHODS = ('greedy', 'exchange')
 
@@ -72,6 +75,31 @@ def _turn_order(turns: np.ndarray | None, design: np.ndarray, order: np.ndarray)
     if turns is None:
         return order
     return order[np.argsort(turns[design][order], kind='stable')]
+
+
+# Modes whose six actuators are all commanded: a posture must be one the true drives can hold.
+SIX_COMMANDED = ('lvdt', 'compliant')
+# The condition number a machine unlike the nominal may show at a held posture, x max_condition.
+HELD_CONDITION_FACTOR = 2.0
+
+
+def _held_candidates(nominal, poses, kinds, limits, n_postures, progress, extension):
+    """Return the candidates six stiff drives hold on machines unlike the nominal (doc)."""
+    held = hold_on_machines(
+        nominal, poses, limits.link_length, HELD_CONDITION_FACTOR * limits.max_condition,
+        max_extension_m=extension,
+    )
+    progress(
+        f'{int(np.sum(held))} of {len(poses)} candidates held by six commanded drives on '
+        'machines unlike the nominal'
+    )
+    if np.sum(held) < n_postures:
+        raise ValueError(
+            f'only {int(np.sum(held))} of {len(poses)} candidate postures can be held by six '
+            'commanded drives on machines that differ from the nominal as one built to its '
+            f'drawing does; {n_postures} are asked: narrow the workspace or plan more candidates'
+        )
+    return poses[held], kinds[held]
 
 
 def walk_groups(kinds: np.ndarray, turns: np.ndarray | None) -> np.ndarray:
@@ -323,6 +351,13 @@ def plan_postures(
     device = limits.device()
     rng = np.random.default_rng([seed, 0x91A4])
     poses, kinds = generate_candidates(nominal, n_candidates, rng, limits, fraction)
+    if measuring_mode is not None and measuring_mode in SIX_COMMANDED:
+        extension = (
+            lvdt_stroke_m - GuardSettings().lvdt_margin_m if measuring_mode == 'lvdt' else np.inf
+        )
+        poses, kinds = _held_candidates(
+            nominal, poses, kinds, limits, n_postures, progress, extension
+        )
     turns = None
     if len(device_turns) > 1 or any(device_turns):  # every sphere candidate in every mounting
         sphere = kinds == SPHERE
