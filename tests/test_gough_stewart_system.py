@@ -244,7 +244,7 @@ def test_driver_collector_identify_calibrate_a_gough_stewart(ros_processes, tmp_
 
     probe.spin_until(
         collected,
-        2.0 * POSTURES + 60.0,
+        4.0 * POSTURES + 120.0,  # a condition, not a sleep: generous for a loaded machine
         f'identify to receive {POSTURES} postures',
         lambda: '\n'.join(p.describe(10) for p in nodes),
     )
