@@ -156,13 +156,16 @@ class Rehearser:
     def _rehearse(self, standing: Standings, setpoints: np.ndarray, ranked) -> Rehearsal:
         """Rehearse the best-ranked candidates first, the rest only if none of those will do."""
         order = [int(c) for c in np.argsort(ranked) if np.isfinite(ranked[c])]
-        run = (self.machines, standing, setpoints)
-        limits = (self.link_length, self.stroke, self.margin_m, self.mount)
-        first = rehearse(*run, np.array(order[:FIRST_REHEARSED]), *limits)
+
+        def run(candidates: list[int]) -> Rehearsal:
+            return rehearse(self.machines, standing, setpoints, np.array(candidates),
+                            self.link_length, self.stroke, self.margin_m, self.mount)
+
+        first = run(order[:FIRST_REHEARSED])
         limit = self.settings.max_move_condition
         if _acceptable(first, len(self.machines), limit).any() or len(order) <= FIRST_REHEARSED:
             return first
-        rest = rehearse(*run, np.array(order[FIRST_REHEARSED:]), *limits)
+        rest = run(order[FIRST_REHEARSED:])
         return Rehearsal(
             np.concatenate([first.candidates, rest.candidates]),
             np.concatenate([first.survived, rest.survived]),
