@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-import subprocess
 
 from hexacal_driver.recording import simulate_recording, write_recording_bag
 from hexacal_driver.sensor_models import SENSOR_DEFAULTS
@@ -27,8 +26,8 @@ from hexacal_identify.pipeline import calibrate, postures_from_bag
 from hexacal_msgs_py.readings import PostureReading
 import numpy as np
 import pytest
-from rosproc import venv_executable
 from system_support import (  # noqa: F401 - probe is a fixture
+    hexacal,
     node_argv,
     probe,
     STOP_TIMEOUT_S,
@@ -117,21 +116,16 @@ def test_the_adequacy_verdict_fires_on_a_biased_posture_and_names_it(recordings)
 def test_hexacal_calibrate_on_the_raw_recording_with_every_effect(recordings, tmp_path):
     recording, bag = recordings['all']
     _, nominal = write_parameter_files(tmp_path)  # set 2 of the default machine, simulated
-    run = subprocess.run(
-        [
-            str(venv_executable('hexacal')),
-            'calibrate',
-            str(bag),
-            '--nominal',
-            str(nominal),
-            '--output',
-            str(tmp_path / 'calibrated.yaml'),
-            '--no-store',
-            '--json',
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
+    run = hexacal(
+        'calibrate',
+        str(bag),
+        '--nominal',
+        str(nominal),
+        '--output',
+        str(tmp_path / 'calibrated.yaml'),
+        '--no-store',
+        '--json',
+        script=True,
     )
     assert run.returncode == 0, run.stderr
     result = json.loads(run.stdout)
@@ -147,20 +141,15 @@ def test_an_inclinometer_slower_than_the_dwell_is_named_not_averaged(tmp_path):
     )
     bag = write_recording_bag(tmp_path / 'slow', recording)
     _, nominal = write_parameter_files(tmp_path)
-    run = subprocess.run(
-        [
-            str(venv_executable('hexacal')),
-            'calibrate',
-            str(bag),
-            '--nominal',
-            str(nominal),
-            '--output',
-            str(tmp_path / 'calibrated.yaml'),
-            '--no-store',
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
+    run = hexacal(
+        'calibrate',
+        str(bag),
+        '--nominal',
+        str(nominal),
+        '--output',
+        str(tmp_path / 'calibrated.yaml'),
+        '--no-store',
+        script=True,
     )
     assert run.returncode != 0
     assert 'before the inclinometer readings settled' in run.stderr, run.stderr
