@@ -113,20 +113,25 @@ def test_the_adequacy_verdict_fires_on_a_biased_posture_and_names_it(recordings)
     assert adequacy.worst_postures[0].name == str(biased)
 
 
-def test_hexacal_calibrate_on_the_raw_recording_with_every_effect(recordings, tmp_path):
-    recording, bag = recordings['all']
-    _, nominal = write_parameter_files(tmp_path)  # set 2 of the default machine, simulated
-    run = hexacal(
+def _calibrate(bag: Path, tmp_path: Path, *options: str):
+    """Run `hexacal calibrate` (console script) on bag, nominal set 2 of the default machine."""
+    _, nominal = write_parameter_files(tmp_path)  # simulated
+    return hexacal(
         'calibrate',
-        str(bag),
+        bag,
         '--nominal',
-        str(nominal),
+        nominal,
         '--output',
-        str(tmp_path / 'calibrated.yaml'),
+        tmp_path / 'calibrated.yaml',
         '--no-store',
-        '--json',
+        *options,
         script=True,
     )
+
+
+def test_hexacal_calibrate_on_the_raw_recording_with_every_effect(recordings, tmp_path):
+    recording, bag = recordings['all']
+    run = _calibrate(bag, tmp_path, '--json')
     assert run.returncode == 0, run.stderr
     result = json.loads(run.stdout)
     assert result['postures_used'] == POSTURES
@@ -140,17 +145,7 @@ def test_an_inclinometer_slower_than_the_dwell_is_named_not_averaged(tmp_path):
         sensor_effects='lag', inclinometer_time_constant_s=0.6, **{**WALK, 'postures': 16}
     )
     bag = write_recording_bag(tmp_path / 'slow', recording)
-    _, nominal = write_parameter_files(tmp_path)
-    run = hexacal(
-        'calibrate',
-        str(bag),
-        '--nominal',
-        str(nominal),
-        '--output',
-        str(tmp_path / 'calibrated.yaml'),
-        '--no-store',
-        script=True,
-    )
+    run = _calibrate(bag, tmp_path)
     assert run.returncode != 0
     assert 'before the inclinometer readings settled' in run.stderr, run.stderr
     assert 'hold each posture longer' in run.stderr
