@@ -1,4 +1,4 @@
-"""Helpers of the hexacal system tests: an in-process probe node, parameter files, postures.
+"""Helpers of the hexacal system tests: a probe node, parameter files, postures, the CLI.
 
 The probe joins the session's ROS domain (set by conftest.py before any context
 exists) and spins only while a test waits on it, so every wait is a bounded
@@ -11,6 +11,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 import os
 from pathlib import Path
+import subprocess
+import sys
 import time
 from typing import Any, TypeVar
 
@@ -23,6 +25,7 @@ T = TypeVar('T')
 NODE_START_TIMEOUT_S = 30.0  # a node process appears on the graph (import + DDS discovery)
 SERVICE_TIMEOUT_S = 60.0
 STOP_TIMEOUT_S = 15.0
+CLI_TIMEOUT_S = 300.0  # a calibration or a study in the CLI, with both cores busy
 
 
 @dataclass
@@ -216,6 +219,41 @@ def probe():
         yield node
     finally:
         node.close()
+
+
+# --------------------------------------------------------------------------- the CLI
+
+
+def hexacal(
+    *args: object,
+    timeout: float = CLI_TIMEOUT_S,
+    cwd: Path | str | None = None,
+    script: bool = False,
+) -> subprocess.CompletedProcess:
+    """
+    Run the hexacal CLI in a subprocess of the venv, as a user does; output captured as text.
+
+    By default ``python -m hexacal_identify.cli`` with this interpreter; ``script=True`` runs
+    the installed ``hexacal`` console script instead, so that its entry point is tested too.
+    Arguments are passed through str().
+    """
+    program = (
+        [venv_executable('hexacal')]
+        if script
+        else [sys.executable, '-m', 'hexacal_identify.cli']
+    )
+    return subprocess.run(
+        [*program, *map(str, args)], capture_output=True, text=True, timeout=timeout, cwd=cwd
+    )
+
+
+def hexacal_plan(out: Path, nominal: Path, *options: object, timeout: float = 120.0) -> Path:
+    """Write `out` with ``hexacal plan OPTIONS --nominal NOMINAL --out OUT`` (console script)."""
+    result = hexacal(
+        'plan', *options, '--nominal', nominal, '--out', out, timeout=timeout, script=True
+    )
+    assert result.returncode == 0, result.stderr
+    return out
 
 
 # --------------------------------------------------------------------------- data

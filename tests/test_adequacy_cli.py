@@ -10,12 +10,11 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-import subprocess
-import sys
 
 from hexacal_identify.core.measurements import NoiseModel
 from hexacal_identify.pipeline import calibrate, load_machine, postures_from_bag, status_fields
 import pytest
+from system_support import hexacal
 
 REPO = Path(__file__).resolve().parents[1]
 SAMPLE_BAG = REPO / 'bags' / 'sphere50_noise10'
@@ -28,15 +27,6 @@ KEYS = {
     'worst_postures',
     'worst_channels',
 }
-
-
-def hexacal(*args):
-    return subprocess.run(
-        [sys.executable, '-m', 'hexacal_identify.cli', *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
 
 
 @pytest.fixture(scope='module')

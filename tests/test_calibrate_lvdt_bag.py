@@ -2,8 +2,6 @@
 
 import json
 from pathlib import Path
-import subprocess
-import sys
 
 from hexacal_identify.core import sample_poses, simulate_measurements, table1_parameters
 from hexacal_identify.core.model import nominal_set
@@ -12,19 +10,11 @@ from hexacal_msgs_py.parameters_file import load_parameters, save_parameters
 import numpy as np
 import pytest
 from synthetic_recording import write_recording
+from system_support import hexacal
 
 TRUE = table1_parameters()
 EXTENSION_M = 3e-3  # the true link lengths vary by up to +-3 mm about L
 POSTURES = 40
-
-
-def hexacal(*args):
-    return subprocess.run(
-        [sys.executable, '-m', 'hexacal_identify.cli', *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
 
 
 def lvdt_measurements():

@@ -2,8 +2,6 @@
 
 import json
 from pathlib import Path
-import subprocess
-import sys
 
 from hexacal_identify.core import sample_poses, simulate_measurements, table1_parameters
 from hexacal_identify.core.model import nominal_set
@@ -11,17 +9,9 @@ from hexacal_msgs_py.parameters_file import load_parameters, save_parameters
 import numpy as np
 import pytest
 from synthetic_recording import write_recording
+from system_support import hexacal
 
 TRUE = table1_parameters()
-
-
-def hexacal(*args):
-    return subprocess.run(
-        [sys.executable, '-m', 'hexacal_identify.cli', *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
 
 
 @pytest.fixture(scope='module')

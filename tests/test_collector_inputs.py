@@ -20,13 +20,13 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-import subprocess
 import sys
 
 import numpy as np
 import pytest
 from system_support import (
     fast_collector_parameters,
+    hexacal,
     node_argv,
     probe,  # noqa: F401 - fixture
     STOP_TIMEOUT_S,
@@ -69,15 +69,6 @@ REMAP_ALL = [
     'hexacal/encoder:=/joint_states',
 ]
 JOINT_STATE = 'sensor_msgs/msg/JointState'
-
-
-def hexacal(*args):
-    return subprocess.run(
-        [sys.executable, '-m', 'hexacal_identify.cli', *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
 
 
 def exact_readings(count: int, seed: int = 5) -> np.ndarray:

@@ -10,12 +10,12 @@ records each posture's released actuator in the bag.
 
 from __future__ import annotations
 
-import subprocess
-import sys
+from pathlib import Path
 
 import numpy as np
 from system_support import (  # noqa: F401 - probe: a fixture
     fast_collector_parameters,
+    hexacal,
     node_argv,
     probe,
     STOP_TIMEOUT_S,
@@ -29,19 +29,30 @@ STEPS = (
 )
 
 
+def _collector_and_driver(ros_processes, probe, bag: Path, measuring_mode: str):  # noqa: F811
+    """
+    Start the fast collector recording `bag`, then the driver in `measuring_mode` at 100 Hz.
+
+    Returns the two processes, the driver's Machine and the names of its sliders.
+    """
+    probe.subscribe_postures()
+    collector = ros_processes.start(
+        node_argv('collector', fast_collector_parameters(bag.parent, bag_name=bag.name)),
+        name='collector',
+    )
+    probe.wait_for_node('collector', '/', collector)
+    driver = start_driver(ros_processes, measuring_mode=measuring_mode, rate_hz=100.0)
+    machine = Machine(probe, driver)
+    return collector, driver, machine, machine.sliders[-1][0]
+
+
 def test_collector_records_the_link_and_postures_carry_it(
     ros_processes, tmp_path, probe  # noqa: F811 - fixture
 ):
     bags = tmp_path / 'bags'
-    probe.subscribe_postures()
-    collector = ros_processes.start(
-        node_argv('collector', fast_collector_parameters(bags, bag_name='lvdt')),
-        name='collector',
+    collector, driver, machine, names = _collector_and_driver(
+        ros_processes, probe, bags / 'lvdt', 'lvdt'
     )
-    probe.wait_for_node('collector', '/', collector)
-    driver = start_driver(ros_processes, measuring_mode='lvdt', rate_hz=100.0)
-    machine = Machine(probe, driver)
-    names = machine.sliders[-1][0]
     extensions = []
     for step in STEPS:
         count = len(probe.postures)
@@ -94,15 +105,9 @@ def test_collector_records_each_postures_released_actuator(
 ):
     released = 'slider_3'
     bags = tmp_path / 'bags'
-    probe.subscribe_postures()
-    collector = ros_processes.start(
-        node_argv('collector', fast_collector_parameters(bags, bag_name='passive')),
-        name='collector',
+    collector, driver, machine, names = _collector_and_driver(
+        ros_processes, probe, bags / 'passive', 'passive_actuator'
     )
-    probe.wait_for_node('collector', '/', collector)
-    driver = start_driver(ros_processes, measuring_mode='passive_actuator', rate_hz=100.0)
-    machine = Machine(probe, driver)
-    names = machine.sliders[-1][0]
     answer = machine.set_bool(f'/hexacal/release/{released}', True)
     assert answer.success, answer.message
     machine.wait(
@@ -125,12 +130,7 @@ def test_collector_records_each_postures_released_actuator(
     recorded = postures_from_bag(bags / 'passive')
     assert recorded.measuring_mode == 'passive_actuator'
     assert recorded.measuring.released_at(recorded.postures[-1].stamp_ns) == released
-    completed = subprocess.run(
-        [sys.executable, '-m', 'hexacal_identify.cli', 'bag-info', str(bags / 'passive')],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    completed = hexacal('bag-info', bags / 'passive', timeout=120)
     assert completed.returncode == 0, completed.stderr
     lines = [line for line in completed.stdout.splitlines() if line.startswith('Posture ')]
     assert lines and lines[-1].endswith(f'released actuator {released}')

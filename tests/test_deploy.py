@@ -19,7 +19,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import subprocess
 
 from hexacal_identify.core.architectures import parameters_for
 from hexacal_identify.core.kinematics import inverse_kinematics
@@ -28,8 +27,8 @@ from hexacal_identify.store import CalibrationStore, file_digest
 from hexacal_msgs_py.parameters_file import read_parameters_file, save_parameters
 import numpy as np
 import pytest
-from rosproc import venv_executable
 from system_support import (
+    hexacal,
     node_argv,
     NODE_START_TIMEOUT_S,
     probe,  # noqa: F401 - fixture
@@ -116,12 +115,6 @@ def expected_command(entry_or_file) -> np.ndarray:
     path = getattr(entry_or_file, 'parameters_path', entry_or_file)
     saved = read_parameters_file(path)
     return inverse_kinematics(parameters_for(saved.model, saved.vector), TARGET[None])[0]
-
-
-def hexacal(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [venv_executable('hexacal'), *args], capture_output=True, text=True, timeout=120
-    )
 
 
 @pytest.mark.slow
@@ -243,7 +236,7 @@ def test_only_a_deployed_calibration_changes_the_commands(ros_processes, tmp_pat
     save_parameters(jump_file, vector, model=MODEL)
     jump = store.add(jump_file, {'postures_digest': 'fitted-elsewhere'})
     store.attach_verification(jump.id, {'verdict': 'pass'}, postures_digest='fresh-postures')
-    refused = hexacal('deploy', jump.id, '--store', str(store_path))
+    refused = hexacal('deploy', jump.id, '--store', str(store_path), script=True, timeout=120)
     assert refused.returncode == 1, refused.stdout + refused.stderr
     assert 'parameter-jump' in refused.stdout + refused.stderr
     assert store.active().id == second.id
@@ -311,7 +304,7 @@ def test_a_sigkill_mid_calibration_leaves_the_store_whole(ros_processes, tmp_pat
     assert output.read_bytes() == written
     entries = sorted(p.name for p in (store_path / 'entries').iterdir())
     assert entries == [kept.id]
-    history = hexacal('history', '--store', str(store_path), '--json')
+    history = hexacal('history', '--store', str(store_path), '--json', script=True, timeout=120)
     assert history.returncode == 0, history.stderr
     assert [e['id'] for e in json.loads(history.stdout)] == [kept.id]
 

@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-import subprocess
-import sys
 
 from hexacal_identify.core.device import DeviceDefects, DevicePrior
 from hexacal_identify.core.measurements import NoiseModel, simulate_measurements
@@ -19,6 +17,7 @@ from hexacal_msgs_py.parameters_file import save_parameters
 from hexacal_msgs_py.readings import PostureReading
 import numpy as np
 import pytest
+from system_support import hexacal
 from system_support import node_argv, probe  # noqa: F401 - fixture
 
 REPO = Path(__file__).resolve().parents[1]
@@ -26,15 +25,6 @@ SAMPLE_BAG = REPO / 'bags' / 'sphere50_noise10'
 TRUE_DL = 5e-4  # the link is 0.5 mm longer than the 0.75 m the device model assumes
 CALIPER = DevicePrior((('dL', TRUE_DL, 10e-6),))
 NOISE = NoiseModel.from_microns(10)
-
-
-def hexacal(*args):
-    return subprocess.run(
-        [sys.executable, '-m', 'hexacal_identify.cli', *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
 
 
 def _readings(data) -> list[PostureReading]:

@@ -17,9 +17,9 @@ from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC, EXECUTOR_STATUS_NAME
 from hexacal_msgs_py.parameters_file import read_parameters_file
 import numpy as np
 import pytest
-from rosproc import venv_executable
 from system_support import (
     fast_collector_parameters,
+    hexacal_plan,
     node_argv,
     probe,  # noqa: F401 - fixture
     STOP_TIMEOUT_S,
@@ -41,30 +41,18 @@ FAST_EXECUTOR = {
 
 
 def _plan(tmp_path: Path, nominal: Path, postures: int, name: str = 'plan.yaml') -> Path:
-    out = tmp_path / name
-    result = subprocess.run(
-        [
-            venv_executable('hexacal'),
-            'plan',
-            '--postures',
-            str(postures),
-            '--index',
-            'O1',
-            '--cost',
-            'sphere-fixed',
-            '--candidates',
-            '500',
-            '--nominal',
-            str(nominal),
-            '--out',
-            str(out),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=120,
+    return hexacal_plan(
+        tmp_path / name,
+        nominal,
+        '--postures',
+        postures,
+        '--index',
+        'O1',
+        '--cost',
+        'sphere-fixed',
+        '--candidates',
+        500,
     )
-    assert result.returncode == 0, result.stderr
-    return out
 
 
 def _driver(truth: Path, **overrides) -> list[str]:
@@ -137,19 +125,22 @@ class ExecutorWatch:
         )
 
 
-def _machine_and_collector(ros_processes, probe, tmp_path, truth, nominal, **collector):
-    driver_process = ros_processes.start(_driver(truth))
-    collector = ros_processes.start(
+def _machine_and_collector(
+    ros_processes, probe, tmp_path, truth, nominal, driver=None, bag_name='executor', **collector
+):
+    """Start the driver (`driver`: its overrides) and the fast collector; wait for both."""
+    driver_process = ros_processes.start(_driver(truth, **(driver or {})))
+    collector_process = ros_processes.start(
         node_argv(
             'collector',
             fast_collector_parameters(
-                tmp_path / 'bags', bag_name='executor', parameters_file=str(nominal), **collector
+                tmp_path / 'bags', bag_name=bag_name, parameters_file=str(nominal), **collector
             ),
         )
     )
     probe.wait_for_node('driver', process=driver_process)
-    probe.wait_for_node('collector', process=collector)
-    return driver_process, collector
+    probe.wait_for_node('collector', process=collector_process)
+    return driver_process, collector_process
 
 
 # --------------------------------------------------------------------------- (a) end to end

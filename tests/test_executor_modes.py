@@ -9,20 +9,13 @@ never faults and the commanded actuators stand at their setpoints.
 from __future__ import annotations
 
 from pathlib import Path
-import subprocess
 
 from hexacal_identify.core.planning import Plan
 import numpy as np
 import pytest
-from system_support import (
-    fast_collector_parameters,
-    node_argv,
-    STOP_TIMEOUT_S,
-    venv_executable,
-    write_parameter_files,
-)
+from system_support import hexacal_plan, STOP_TIMEOUT_S, write_parameter_files
 from system_support import probe  # noqa: F401 - fixture
-from test_executor import _driver, _executor, ExecutorWatch
+from test_executor import _driver, _executor, _machine_and_collector, ExecutorWatch
 
 GS = 'gough_stewart'
 POSTURES = 6
@@ -31,20 +24,10 @@ POSTURES = 6
 def _passive_plan(tmp_path: Path, nominal: Path, seed: int = 1) -> Path:
     # Seed 1: with seed 0 the planner's release of posture 4 jams the passive system at the
     # start of its move (test_a_drive_that_jams_pauses_the_plan_with_the_drives_fault).
-    out = tmp_path / f'passive-{seed}.yaml'
-    result = subprocess.run(
-        [
-            venv_executable('hexacal'), 'plan', '--postures', str(POSTURES), '--candidates',
-            '200', '--seed', str(seed), '--fixed-fraction', '0', '--measuring-mode',
-            'passive_actuator',
-            '--nominal', str(nominal), '--out', str(out),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=120,
+    return hexacal_plan(
+        tmp_path / f'passive-{seed}.yaml', nominal, '--postures', POSTURES, '--candidates', 200,
+        '--seed', seed, '--fixed-fraction', 0, '--measuring-mode', 'passive_actuator',
     )
-    assert result.returncode == 0, result.stderr
-    return out
 
 
 def _worst_released(plan_path: Path, nominal: Path) -> Path:
@@ -75,17 +58,10 @@ def test_a_passive_actuator_plan_releases_one_joint_per_posture_and_commands_fiv
     assert plan.measuring_mode == 'passive_actuator' and all(plan.released_actuators)
     probe.subscribe_status()
     watch = ExecutorWatch(probe)
-    driver = ros_processes.start(_driver(truth, measuring_mode='passive_actuator'))
-    collector = ros_processes.start(
-        node_argv(
-            'collector',
-            fast_collector_parameters(
-                tmp_path / 'bags', bag_name='passive', parameters_file=str(nominal)
-            ),
-        )
+    driver, collector = _machine_and_collector(
+        ros_processes, probe, tmp_path, truth, nominal, {'measuring_mode': 'passive_actuator'},
+        bag_name='passive',
     )
-    probe.wait_for_node('driver', process=driver)
-    probe.wait_for_node('collector', process=collector)
     executor = ros_processes.start(_executor(plan_path, nominal))
     nodes = (driver, collector, executor)
     released_seen: set[str] = set()
@@ -197,17 +173,9 @@ def test_the_same_plan_walks_with_six_commanded_in_the_other_modes(
     plan_path = _passive_plan(tmp_path, nominal)  # its releases are ignored: measuring_mode
     probe.subscribe_status()
     watch = ExecutorWatch(probe)
-    driver = ros_processes.start(_driver(truth, measuring_mode=mode))
-    collector = ros_processes.start(
-        node_argv(
-            'collector',
-            fast_collector_parameters(
-                tmp_path / 'bags', bag_name=mode, parameters_file=str(nominal)
-            ),
-        )
+    driver, collector = _machine_and_collector(
+        ros_processes, probe, tmp_path, truth, nominal, {'measuring_mode': mode}, bag_name=mode
     )
-    probe.wait_for_node('driver', process=driver)
-    probe.wait_for_node('collector', process=collector)
     executor = ros_processes.start(_executor(plan_path, nominal, measuring_mode=mode))
     nodes = (driver, collector, executor)
     finished = watch.wait(

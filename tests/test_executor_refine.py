@@ -11,18 +11,11 @@ driver's strain at rest (``actuator_deviation_m``) shrinks from millimetres to m
 from __future__ import annotations
 
 from pathlib import Path
-import subprocess
 
 import pytest
-from system_support import (
-    fast_collector_parameters,
-    node_argv,
-    STOP_TIMEOUT_S,
-    venv_executable,
-    write_parameter_files,
-)
+from system_support import hexacal_plan, node_argv, STOP_TIMEOUT_S, write_parameter_files
 from system_support import probe  # noqa: F401 - fixture
-from test_executor import _driver, _executor, ExecutorWatch
+from test_executor import _executor, _machine_and_collector, ExecutorWatch
 
 GS = 'gough_stewart'
 POSTURES = 24
@@ -30,19 +23,10 @@ FIRST = 17  # full_rank_postures(42)
 
 
 def _sphere_plan(tmp_path: Path, nominal: Path) -> Path:
-    out = tmp_path / 'refine.yaml'
-    result = subprocess.run(
-        [
-            venv_executable('hexacal'), 'plan', '--postures', str(POSTURES), '--candidates',
-            '300', '--seed', '0', '--fixed-fraction', '0', '--measuring-mode', 'compliant',
-            '--nominal', str(nominal), '--out', str(out),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=120,
+    return hexacal_plan(
+        tmp_path / 'refine.yaml', nominal, '--postures', POSTURES, '--candidates', 300,
+        '--seed', 0, '--fixed-fraction', 0, '--measuring-mode', 'compliant',
     )
-    assert result.returncode == 0, result.stderr
-    return out
 
 
 def _deviations(statuses) -> tuple[list[float], list[float]]:
@@ -73,17 +57,11 @@ def test_refined_targets_shrink_the_strain_of_the_link(
     identify = ros_processes.start(
         node_argv('identify', {'nominal': str(nominal), 'output_dir': str(tmp_path / 'out')})
     )
-    driver = ros_processes.start(_driver(truth, measuring_mode='compliant'))
-    collector = ros_processes.start(
-        node_argv(
-            'collector',
-            fast_collector_parameters(
-                tmp_path / 'bags', bag_name='refine', parameters_file=str(nominal)
-            ),
-        )
+    driver, collector = _machine_and_collector(
+        ros_processes, probe, tmp_path, truth, nominal, {'measuring_mode': 'compliant'},
+        bag_name='refine',
     )
-    for name, process in (('identify', identify), ('driver', driver), ('collector', collector)):
-        probe.wait_for_node(name, process=process)
+    probe.wait_for_node('identify', process=identify)
     executor = ros_processes.start(_executor(plan, nominal, refine_timeout_s=300.0))
     nodes = (identify, driver, collector, executor)
     models: list[str] = []

@@ -15,8 +15,6 @@ import math
 import os
 from pathlib import Path
 import re
-import subprocess
-import sys
 import time
 
 from hexacal_identify.bag import BagWriter, message_definition
@@ -29,6 +27,7 @@ from hexacal_msgs_py.parameters_file import load_parameters, save_parameters
 from hexacal_msgs_py.readings import PostureReading
 import numpy as np
 import pytest
+import system_support
 from system_support import (
     joint_state_dict,
     node_argv,
@@ -177,23 +176,9 @@ def test_identical_postures_repeated_are_refused_as_rank_deficient(capsys, files
     _, nominal = files
     posture = rows(simulated_postures(1, seed=13))[0]
     bag = posture_bag(tmp_path / 'same', [posture] * 40)
-    completed = (
-        subprocess.run(  # the real console entry point: exit code and stderr as a user sees
-            [
-                sys.executable,
-                '-m',
-                'hexacal_identify.cli',
-                'calibrate',
-                str(bag),
-                '--nominal',
-                str(nominal),
-                '--output',
-                str(tmp_path / 'out.yaml'),
-            ],
-            capture_output=True,
-            text=True,
-            timeout=120,
-        )
+    # The real console entry point: exit code and stderr as a user sees.
+    completed = system_support.hexacal(
+        'calibrate', bag, '--nominal', nominal, '--output', tmp_path / 'out.yaml', timeout=120
     )
     assert_named_error(
         completed.returncode, completed.stderr, 'rank 4 of 54', 'cannot be identified'

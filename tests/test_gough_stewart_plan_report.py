@@ -17,8 +17,6 @@ from __future__ import annotations
 import html
 import json
 import re
-import subprocess
-import sys
 
 from hexacal_identify.cli import main
 from hexacal_identify.core.architectures import architecture
@@ -40,6 +38,7 @@ from hexacal_msgs_py.parameters_file import save_parameters
 import matplotlib
 import numpy as np
 import pytest
+from system_support import hexacal
 
 GS = architecture('gough_stewart')
 TRUE = GS.default_parameters()
@@ -249,12 +248,7 @@ def _assert_gough_stewart_page(text: str, all_parameters: bool = True) -> None:
 def test_hexacal_report_of_a_gough_stewart_result(calibration, tmp_path):
     result, _, path = calibration
     out = tmp_path / 'report'
-    completed = subprocess.run(
-        [sys.executable, '-m', 'hexacal_identify.cli', 'report', str(path), '--out', str(out)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    completed = hexacal('report', str(path), '--out', str(out))
     assert completed.returncode == 0, completed.stderr
     page = (out / 'index.html').read_text(encoding='utf-8')
     text = _text(page)
@@ -329,23 +323,15 @@ def test_calibrate_report_of_the_gough_stewart_sample_bag(nominal_file, tmp_path
     if not bag.is_dir():
         pytest.skip(f'{bag} is not in this checkout')
     out = tmp_path / 'calibrate-report'
-    completed = subprocess.run(
-        [
-            sys.executable,
-            '-m',
-            'hexacal_identify.cli',
-            'calibrate',
-            str(bag),
-            '--nominal',
-            str(nominal_file),
-            '--output',
-            str(tmp_path / 'calibrated.yaml'),
-            '--report',
-            str(out),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
+    completed = hexacal(
+        'calibrate',
+        str(bag),
+        '--nominal',
+        str(nominal_file),
+        '--output',
+        str(tmp_path / 'calibrated.yaml'),
+        '--report',
+        str(out),
     )
     assert completed.returncode == 0, completed.stderr
     text = _text((out / 'index.html').read_text(encoding='utf-8'))
@@ -360,20 +346,7 @@ def test_a_result_whose_vectors_do_not_fit_its_model_is_refused(calibration, tmp
     payload['model'] = 'hexa_slide'  # 42 values under a 54-parameter model
     bad = tmp_path / 'bad.json'
     bad.write_text(json.dumps(payload))
-    completed = subprocess.run(
-        [
-            sys.executable,
-            '-m',
-            'hexacal_identify.cli',
-            'report',
-            str(bad),
-            '--out',
-            str(tmp_path / 'r'),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    completed = hexacal('report', str(bad), '--out', str(tmp_path / 'r'))
     assert completed.returncode == 2 and 'has 54 parameters' in completed.stderr
 
 

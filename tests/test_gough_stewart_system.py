@@ -26,8 +26,6 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-import subprocess
-import sys
 
 from hexacal_identify.core.architectures import architecture
 from hexacal_identify.core.measurements import FIXED, Measurements, simulate_measurements, SPHERE
@@ -46,6 +44,7 @@ from synthetic_recording import write_recording
 from system_support import (
     fast_collector_parameters,
     fast_driver_parameters,
+    hexacal,
     node_argv,
     probe,  # noqa: F401 - fixture
     simulated_postures,
@@ -62,15 +61,6 @@ BAGS = Path(__file__).resolve().parent.parent / 'bags'
 SAMPLE = BAGS / 'gs_sphere50_noise10'
 LEGS = tuple(f'leg_{i}' for i in range(1, 7))
 DEVICE_JOINTS = ('inclinometer_x', 'inclinometer_y', 'rotary')
-
-
-def hexacal(*args):
-    return subprocess.run(
-        [sys.executable, '-m', 'hexacal_identify.cli', *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
 
 
 @pytest.fixture(scope='module')

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-import subprocess
 
 from hexacal_driver.recording import simulate_recording, write_recording_bag
 from hexacal_driver.sensor_models import SENSOR_DEFAULTS
@@ -27,8 +26,8 @@ from hexacal_identify.pipeline import calibrate, postures_from_bag
 from hexacal_msgs_py.readings import PostureReading
 import numpy as np
 import pytest
-from rosproc import venv_executable
 from system_support import (  # noqa: F401 - probe is a fixture
+    hexacal,
     node_argv,
     probe,
     STOP_TIMEOUT_S,
@@ -114,25 +113,25 @@ def test_the_adequacy_verdict_fires_on_a_biased_posture_and_names_it(recordings)
     assert adequacy.worst_postures[0].name == str(biased)
 
 
+def _calibrate(bag: Path, tmp_path: Path, *options: str):
+    """Run `hexacal calibrate` (console script) on bag, nominal set 2 of the default machine."""
+    _, nominal = write_parameter_files(tmp_path)  # simulated
+    return hexacal(
+        'calibrate',
+        bag,
+        '--nominal',
+        nominal,
+        '--output',
+        tmp_path / 'calibrated.yaml',
+        '--no-store',
+        *options,
+        script=True,
+    )
+
+
 def test_hexacal_calibrate_on_the_raw_recording_with_every_effect(recordings, tmp_path):
     recording, bag = recordings['all']
-    _, nominal = write_parameter_files(tmp_path)  # set 2 of the default machine, simulated
-    run = subprocess.run(
-        [
-            str(venv_executable('hexacal')),
-            'calibrate',
-            str(bag),
-            '--nominal',
-            str(nominal),
-            '--output',
-            str(tmp_path / 'calibrated.yaml'),
-            '--no-store',
-            '--json',
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    run = _calibrate(bag, tmp_path, '--json')
     assert run.returncode == 0, run.stderr
     result = json.loads(run.stdout)
     assert result['postures_used'] == POSTURES
@@ -146,22 +145,7 @@ def test_an_inclinometer_slower_than_the_dwell_is_named_not_averaged(tmp_path):
         sensor_effects='lag', inclinometer_time_constant_s=0.6, **{**WALK, 'postures': 16}
     )
     bag = write_recording_bag(tmp_path / 'slow', recording)
-    _, nominal = write_parameter_files(tmp_path)
-    run = subprocess.run(
-        [
-            str(venv_executable('hexacal')),
-            'calibrate',
-            str(bag),
-            '--nominal',
-            str(nominal),
-            '--output',
-            str(tmp_path / 'calibrated.yaml'),
-            '--no-store',
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    run = _calibrate(bag, tmp_path)
     assert run.returncode != 0
     assert 'before the inclinometer readings settled' in run.stderr, run.stderr
     assert 'hold each posture longer' in run.stderr

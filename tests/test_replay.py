@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-import subprocess
-import sys
 
 from hexacal_identify.core.architectures import architecture
 from hexacal_identify.core.validation import pose_errors, validation_poses
@@ -27,6 +25,7 @@ import pytest
 from rosproc import venv_executable
 from system_support import (
     fast_collector_parameters,
+    hexacal,
     node_argv,
     probe,  # noqa: F401 - fixture
     STOP_TIMEOUT_S,
@@ -192,24 +191,16 @@ def test_posture_topic_replayed_into_identify_equals_offline_calibration(
     assert response.success, response.message
     probe.spin_until(lambda: received, 30.0, 'the published parameters')
 
-    offline = subprocess.run(
-        [
-            sys.executable,
-            '-m',
-            'hexacal_identify.cli',
-            'calibrate',
-            str(bag),
-            '--nominal',
-            str(nominal),
-            '--output',
-            str(tmp_path / 'offline.yaml'),
-            '--cost',
-            cost,
-            '--json',
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
+    offline = hexacal(
+        'calibrate',
+        str(bag),
+        '--nominal',
+        str(nominal),
+        '--output',
+        str(tmp_path / 'offline.yaml'),
+        '--cost',
+        cost,
+        '--json',
     )
     assert offline.returncode == 0, offline.stderr
     from hexacal_msgs_py.parameters_file import chain_dict_to_parameters

@@ -13,7 +13,6 @@ import os
 import re
 import shutil
 import subprocess
-import sys
 
 from hexacal_identify.core.identification import CONVERGED, identify, SolverOptions
 from hexacal_identify.core.measurements import (
@@ -28,6 +27,7 @@ from hexacal_identify.core.postures import sample_poses
 from hexacal_identify.report.page import load_result, save_result
 import numpy as np
 import pytest
+from system_support import hexacal
 
 TRUE = table1_parameters()
 CHROMIUM_FLAGS = [
@@ -111,12 +111,7 @@ def test_report_loads_in_headless_chromium_with_every_image_and_the_key_numbers(
 ):
     result, path = calibration
     out = tmp_path / 'report'
-    completed = subprocess.run(
-        [sys.executable, '-m', 'hexacal_identify.cli', 'report', str(path), '--out', str(out)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    completed = hexacal('report', str(path), '--out', str(out))
     assert completed.returncode == 0, completed.stderr
     page = out / 'index.html'
     assert page.is_file() and f'wrote {page}' in completed.stdout
@@ -183,39 +178,13 @@ def test_report_of_a_plain_json_output_says_what_is_missing(calibration, tmp_pat
     result, _ = calibration
     plain = tmp_path / 'plain.json'
     plain.write_text(json.dumps(result.to_json()))
-    completed = subprocess.run(
-        [
-            sys.executable,
-            '-m',
-            'hexacal_identify.cli',
-            'report',
-            str(plain),
-            '--out',
-            str(tmp_path / 'r'),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    completed = hexacal('report', str(plain), '--out', str(tmp_path / 'r'))
     assert completed.returncode == 0, completed.stderr
     page = (tmp_path / 'r' / 'index.html').read_text()
     assert 'Not shown' in page and 'singular_values' in page
     bad = tmp_path / 'bad.json'
     bad.write_text('{}')
-    completed = subprocess.run(
-        [
-            sys.executable,
-            '-m',
-            'hexacal_identify.cli',
-            'report',
-            str(bad),
-            '--out',
-            str(tmp_path / 'r2'),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    completed = hexacal('report', str(bad), '--out', str(tmp_path / 'r2'))
     assert completed.returncode == 2 and 'not a hexacal result' in completed.stderr
 
 

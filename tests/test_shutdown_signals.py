@@ -16,7 +16,6 @@ from collections.abc import Callable
 import os
 from pathlib import Path
 import signal
-import subprocess
 import time
 
 from hexacal_identify.bag import open_bag
@@ -27,6 +26,7 @@ import system_support
 from system_support import (
     fast_collector_parameters,
     fast_driver_parameters,
+    hexacal_plan,
     node_argv,
     STOP_TIMEOUT_S,
     write_parameter_files,
@@ -149,24 +149,7 @@ def test_replay_stops_cleanly_while_publishing(pattern, ros_processes, probe):
 def _plan(tmp_path: Path, nominal: Path) -> Path:
     out = tmp_path / 'plan.yaml'
     if not out.exists():
-        completed = subprocess.run(
-            [
-                venv_executable('hexacal'),
-                'plan',
-                '--postures',
-                '12',
-                '--candidates',
-                '200',
-                '--nominal',
-                str(nominal),
-                '--out',
-                str(out),
-            ],
-            capture_output=True,
-            text=True,
-            timeout=120,
-        )
-        assert completed.returncode == 0, completed.stderr
+        hexacal_plan(out, nominal, '--postures', 12, '--candidates', 200)
     return out
 
 

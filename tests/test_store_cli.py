@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 import subprocess
-import sys
 
 from hexacal_identify.core.architectures import architecture
 from hexacal_identify.core.measurements import Measurements, simulate_measurements, SPHERE
@@ -22,22 +21,14 @@ from hexacal_msgs_py.parameters_file import save_parameters
 import numpy as np
 import pytest
 from synthetic_recording import write_recording
+from system_support import hexacal
 
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
 FIT_BAG, VERIFY_BAG = BAGS / 'sphere50_noise10', BAGS / 'sphere60_fixed20_noise10'
 
 
-def _hexacal(*argv: object, timeout: float = 300) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, '-m', 'hexacal_identify.cli', *map(str, argv)],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-    )
-
-
 def _ok(*argv: object) -> subprocess.CompletedProcess:
-    completed = _hexacal(*argv)
+    completed = hexacal(*argv)
     assert completed.returncode == 0, completed.stdout + completed.stderr
     return completed
 
@@ -94,14 +85,14 @@ def test_calibrate_verify_deploy_rollback_and_a_refused_jump(tmp_path, nominal):
     assert first['id'][:8] in table and 'stored' in table and 'sphere50_noise10' in table
 
     # deploy refused: unverified (exit 1, one line naming why and --force)
-    refused = _hexacal('deploy', first['id'][:8], '--store', store)
+    refused = hexacal('deploy', first['id'][:8], '--store', store)
     assert refused.returncode == 1, refused.stderr
     assert refused.stderr.count('\n') == 1 and '--force' in refused.stderr
     assert '(unverified)' in refused.stderr
 
     # verified on its own bag: a pass, but not on fresh postures -> still refused
     _ok('verify', FIT_BAG, '--nominal', nominal, '--calibrated', first_file, '--store', store)
-    refused = _hexacal('deploy', first['id'], '--store', store)
+    refused = hexacal('deploy', first['id'], '--store', store)
     assert refused.returncode == 1 and 'verified-on-fit-postures' in refused.stderr
 
     # verified on another bag -> verified -> deploy -> active
@@ -148,7 +139,7 @@ def test_calibrate_verify_deploy_rollback_and_a_refused_jump(tmp_path, nominal):
     other = _history(store)[2]
     _ok('verify', other_verify, '--nominal', nominal, '--calibrated', other_file, '--store', store)
     assert _states(store)[other['id']] == 'verified'
-    refused = _hexacal('deploy', other['id'], '--store', store)
+    refused = hexacal('deploy', other['id'], '--store', store)
     assert refused.returncode == 1, refused.stdout + refused.stderr
     assert '(parameter-jump)' in refused.stderr and '(pose-jump)' in refused.stderr
     assert _states(store)[first['id']] == 'active'
@@ -167,7 +158,7 @@ def test_a_failed_verification_is_attached_and_exits_1(tmp_path, nominal):
     calibrated = tmp_path / 'calibrated.yaml'
     _ok('calibrate', FIT_BAG, '--nominal', nominal, '--output', calibrated, '--store', store)
     # a threshold of 1 nm: no calibration passes it
-    bad = _hexacal(
+    bad = hexacal(
         'verify',
         VERIFY_BAG,
         '--nominal',
@@ -182,7 +173,7 @@ def test_a_failed_verification_is_attached_and_exits_1(tmp_path, nominal):
     assert bad.returncode == 1, bad.stderr
     (entry,) = _history(store)
     assert entry['verdict'] == 'fail' and entry['state'] == 'stored'
-    refused = _hexacal('deploy', entry['id'], '--store', store)
+    refused = hexacal('deploy', entry['id'], '--store', store)
     assert refused.returncode == 1 and '(verification-failed)' in refused.stderr
 
 
@@ -224,7 +215,7 @@ def test_bad_input_exits_2_with_one_line(tmp_path, nominal):
         (('history', '--store', nominal), 'is not a directory'),
     ]
     for argv, message in cases:
-        completed = _hexacal(*argv)
+        completed = hexacal(*argv)
         assert completed.returncode == 2, (argv, completed.stdout, completed.stderr)
         assert message in completed.stderr and completed.stderr.count('\n') == 1, completed.stderr
         assert completed.stderr.startswith(f'hexacal {argv[0]}: error: ')

@@ -1,19 +1,10 @@
 """``hexacal study --device-defects ... --procedure NAME --device-prior ...`` as a user runs it."""
 
 import json
-import subprocess
-import sys
+
+from system_support import hexacal
 
 DEFECTS = 'dL=0.0005,alpha0=2e-4,beta0=-1.5e-4,gamma=1e-4,phi0=1e-4'
-
-
-def hexacal(*args):
-    return subprocess.run(
-        [sys.executable, '-m', 'hexacal_identify.cli', *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
 
 
 def study_json(*extra):

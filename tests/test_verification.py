@@ -38,6 +38,7 @@ from hexacal_msgs_py.parameters_file import save_parameters
 import numpy as np
 import pytest
 from system_support import (
+    hexacal,
     node_argv,
     probe,  # noqa: F401 - fixture
     simulated_postures,
@@ -236,16 +237,6 @@ def test_bad_input_is_refused():
 
 # --------------------------------------------------------------------------- CLI
 
-
-def _hexacal(*argv: str, timeout: float = 300) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, '-m', 'hexacal_identify.cli', *map(str, argv)],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-    )
-
-
 @pytest.fixture(scope='module')
 def bags(tmp_path_factory):
     """A calibration bag and a verification bag, two recordings of the Table 1 machine (synthetic writer);
@@ -261,7 +252,7 @@ def bags(tmp_path_factory):
     verify_bag = write_recording(
         root / 'verify', _postures(TRUTH, 12, 24, 6), seed=12, rate_hz=25.0, raw=False
     )
-    completed = _hexacal('calibrate', fit_bag, '--nominal', nominal, '--output', calibrated)
+    completed = hexacal('calibrate', fit_bag, '--nominal', nominal, '--output', calibrated)
     assert completed.returncode == 0, completed.stderr
     return {
         'root': root,
@@ -273,7 +264,7 @@ def bags(tmp_path_factory):
 
 
 def test_cli_passes_on_a_fresh_recording_with_the_contract_json(bags):
-    completed = _hexacal(
+    completed = hexacal(
         'verify',
         bags['verify'],
         '--nominal',
@@ -296,7 +287,7 @@ def test_cli_passes_on_a_fresh_recording_with_the_contract_json(bags):
 
 def test_cli_fails_with_exit_1(bags):
     # The nominal set as 'calibrated': millimetres, far beyond the threshold.
-    completed = _hexacal(
+    completed = hexacal(
         'verify',
         bags['verify'],
         '--nominal',
@@ -309,7 +300,7 @@ def test_cli_fails_with_exit_1(bags):
     payload = json.loads(completed.stdout)
     assert payload['verdict'] == 'fail' and payload['improvement'] == pytest.approx(1.0)
     # A threshold tighter than the noise: exit 1 too.
-    completed = _hexacal(
+    completed = hexacal(
         'verify',
         bags['verify'],
         '--nominal',
@@ -351,7 +342,7 @@ def test_cli_bad_input_exits_2_with_one_line(bags, case):
         broken.write_text('not: [a parameters file\n')
         argv[4] = broken
         expected = 'broken.yaml'
-    completed = _hexacal('verify', *argv, '--json')
+    completed = hexacal('verify', *argv, '--json')
     assert completed.returncode == 2, (completed.stdout, completed.stderr)
     assert completed.stdout == ''
     lines = completed.stderr.strip().splitlines()
@@ -365,14 +356,14 @@ def test_cli_model_of_the_bag_must_be_the_nominal_one(bags):
     save_parameters(
         gs, nominal_set(2, seed=0, model='gough_stewart').vector, model='gough_stewart'
     )
-    completed = _hexacal('verify', bags['verify'], '--nominal', gs, '--calibrated', gs)
+    completed = hexacal('verify', bags['verify'], '--nominal', gs, '--calibrated', gs)
     assert completed.returncode == 2
     assert 'holds hexa_slide postures' in completed.stderr
 
 
 def test_cli_table_and_report(bags, tmp_path):
     out = tmp_path / 'report'
-    completed = _hexacal(
+    completed = hexacal(
         'verify',
         bags['verify'],
         '--nominal',
@@ -407,9 +398,9 @@ def test_cli_sample_bags_calibrate_on_one_recording_verify_on_another(tmp_path):
     verify on the other, whose postures the fit never saw."""
     nominal, calibrated = tmp_path / 'nominal2.yaml', tmp_path / 'calibrated.yaml'
     save_parameters(nominal, nominal_set(2, seed=0).vector)
-    completed = _hexacal('calibrate', SAMPLE_FIT_BAG, '--nominal', nominal, '--output', calibrated)
+    completed = hexacal('calibrate', SAMPLE_FIT_BAG, '--nominal', nominal, '--output', calibrated)
     assert completed.returncode == 0, completed.stderr
-    completed = _hexacal(
+    completed = hexacal(
         'verify', SAMPLE_VERIFY_BAG, '--nominal', nominal, '--calibrated', calibrated, '--json'
     )
     assert completed.returncode == 0, completed.stderr
@@ -448,9 +439,9 @@ def test_cli_gough_stewart_recordings(tmp_path):
         model=gs,
         record_model=gs,
     )
-    completed = _hexacal('calibrate', fit, '--nominal', nominal, '--output', calibrated)
+    completed = hexacal('calibrate', fit, '--nominal', nominal, '--output', calibrated)
     assert completed.returncode == 0, completed.stderr
-    completed = _hexacal(
+    completed = hexacal(
         'verify', fresh, '--nominal', nominal, '--calibrated', calibrated, '--json'
     )
     assert completed.returncode == 0, completed.stderr

@@ -5,7 +5,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from hexacal_identify.core.dwell_detector import detect_dwell_postures, DwellDetector
-from hexacal_identify.core.posture_detector import detect_postures, synchronize_arrays
+from hexacal_identify.core.posture_detector import (
+    detect_postures,
+    PostureDetector,
+    synchronize_arrays,
+)
 from hexacal_identify.core.robust_stats import quantum, robust_mean
 from hexacal_msgs_py.errors import InvalidReadingError
 import numpy as np
@@ -348,3 +352,24 @@ def test_a_dwell_too_short_for_a_lagging_channel_is_counted_and_names_the_stream
     assert set(detector.unsettled) == {'inclinometer'}
     assert detector.dropped.get('unsettled', 0) == detector.unsettled['inclinometer']
     assert len(found) <= 2  # no biased posture of a still-creeping channel
+
+
+@pytest.mark.parametrize(
+    ('detector', 'settings', 'message'),
+    [
+        (DwellDetector, {'capture_s': 0.0}, 'window_s, capture_s and max_gap_s must be > 0'),
+        (DwellDetector, {'window_s': float('nan')}, 'window_s, capture_s and max_gap_s must'),
+        (DwellDetector, {'angle_tolerance_rad': -1e-4}, 'tolerances must be > 0'),
+        (DwellDetector, {'link_tolerance_m': 0.0}, 'tolerances must be > 0'),
+        (
+            PostureDetector,
+            {'max_rate_hz': 0.0},
+            'window_s, capture_s, max_gap_s and max_rate_hz must be > 0',
+        ),
+        (PostureDetector, {'slider_tolerance_m': float('nan')}, 'tolerances must be > 0'),
+    ],
+)
+def test_both_detectors_refuse_settings_that_are_not_positive(detector, settings, message):
+    """The shared check (check_detector_settings) keeps each detector's own message."""
+    with pytest.raises(ValueError, match=message):
+        detector(**settings)

@@ -59,6 +59,7 @@ from numpy.typing import ArrayLike
 from . import robust_stats as robust
 from .clock_offset import departure_ns, OffsetEstimator
 from .posture_detector import (
+    check_detector_settings,
     DetectedPosture,
     DetectorState,
     DroppedPeriod,
@@ -119,10 +120,10 @@ class DwellDetector:
         estimate_offsets: tuple[str, ...] = (Stream.INCLINOMETER, Stream.ENCODER),
         link_tolerance_m: float | None = None,
     ) -> None:
-        if not (window_s > 0 and capture_s > 0 and max_gap_s > 0):
-            raise ValueError('window_s, capture_s and max_gap_s must be > 0')
-        if not (slider_tolerance_m > 0 and angle_tolerance_rad > 0):
-            raise ValueError('tolerances must be > 0')
+        check_detector_settings(
+            {'window_s': window_s, 'capture_s': capture_s, 'max_gap_s': max_gap_s},
+            (slider_tolerance_m, angle_tolerance_rad),
+        )
         offsets = dict(clock_offsets_s or {})
         unknown = (set(offsets) | set(estimate_offsets)) - {Stream.INCLINOMETER, Stream.ENCODER}
         if unknown:

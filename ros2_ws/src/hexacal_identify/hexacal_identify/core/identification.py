@@ -421,6 +421,26 @@ class _RowTransform:
         return ResidualBlock(self.values(block), jacobian, block.channels, block.postures)
 
 
+def _row_variances(g: np.ndarray, variances: np.ndarray, postures: np.ndarray) -> np.ndarray:
+    """
+    Return each row's variance g diag(v) g^T from its noise derivatives g (R, 9).
+
+    v is the (9,) variances every posture shares, or row r's posture's own
+    (``variances[postures[r]]`` of (P, 9)).  Each case keeps its own einsum: the
+    shared one's results stay bit-for-bit those of earlier releases.
+    """
+    if variances.ndim == 1:
+        return np.einsum('rk,k,rk->r', g, variances, g)
+    return np.einsum('rk,rk,rk->r', g, variances[postures], g)
+
+
+def _group_covariances(g: np.ndarray, variances: np.ndarray, postures: np.ndarray) -> np.ndarray:
+    """Return the (P, k, k) covariances of groups of k rows, g (P, k, 9); see _row_variances."""
+    if variances.ndim == 1:
+        return np.einsum('pik,k,pjk->pij', g, variances, g)
+    return np.einsum('pik,pk,pjk->pij', g, variances[postures], g)
+
+
 class _Whitener:
     """
     Per-posture inverse Cholesky factors of the covariance that reading noise gives the rows.
@@ -434,9 +454,6 @@ class _Whitener:
     """
 
     def __init__(self, block: ResidualBlock, variances: np.ndarray):
-        if variances.ndim == 2:
-            self._init_per_posture(block, variances)
-            return
         if block.noise_jacobian is None:
             raise InvalidMeasurementError("noise weighting needs the rows' noise derivatives")
         paired = (
@@ -447,15 +464,12 @@ class _Whitener:
         self.scales = np.ones(len(block.values))
         if np.any(paired):
             # Rows get partners together with their partners' noise derivatives (residuals.py).
-            assert block.partner_noise_jacobian is not None
-            own = np.einsum(
-                'rk,k,rk->r', block.noise_jacobian[paired], variances, block.noise_jacobian[paired]
+            assert block.partner_noise_jacobian is not None and block.partners is not None
+            own = _row_variances(
+                block.noise_jacobian[paired], variances, block.postures[paired]
             )
-            partner = np.einsum(
-                'rk,k,rk->r',
-                block.partner_noise_jacobian[paired],
-                variances,
-                block.partner_noise_jacobian[paired],
+            partner = _row_variances(
+                block.partner_noise_jacobian[paired], variances, block.partners[paired]
             )
             self.scales[paired] = 1.0 / np.sqrt(own + partner)
         self.groups: list[
@@ -469,48 +483,7 @@ class _Whitener:
         for size in np.unique(counts):
             rows = np.stack([single[s:s + size] for s, c in zip(starts, counts) if c == size])
             g = block.noise_jacobian[rows]  # (P, k, 9)
-            covariance = np.einsum('pik,k,pjk->pij', g, variances, g)
-            covariance += np.eye(size) * 1e-30  # rows with no noise at all would be singular
-            self.groups.append((rows, np.linalg.inv(np.linalg.cholesky(covariance))))
-
-    def _init_per_posture(self, block: ResidualBlock, variances: np.ndarray) -> None:
-        """Whiten with each posture's own variances (P, 9): the same algebra, per posture."""
-        # The shared-noise path above stays as it was: its results are bit-for-bit those of
-        # earlier releases.
-        if block.noise_jacobian is None:
-            raise InvalidMeasurementError("noise weighting needs the rows' noise derivatives")
-        paired = (
-            block.partners >= 0
-            if block.partners is not None
-            else np.zeros(len(block.values), bool)
-        )
-        self.scales = np.ones(len(block.values))
-        if np.any(paired):
-            assert block.partner_noise_jacobian is not None and block.partners is not None
-            own = np.einsum(
-                'rk,rk,rk->r',
-                block.noise_jacobian[paired],
-                variances[block.postures[paired]],
-                block.noise_jacobian[paired],
-            )
-            partner = np.einsum(
-                'rk,rk,rk->r',
-                block.partner_noise_jacobian[paired],
-                variances[block.partners[paired]],
-                block.partner_noise_jacobian[paired],
-            )
-            self.scales[paired] = 1.0 / np.sqrt(own + partner)
-        self.groups = []
-        single = np.flatnonzero(~paired)
-        postures = block.postures[single]
-        order = np.argsort(postures, kind='stable')
-        single, postures = single[order], postures[order]
-        _, starts, counts = np.unique(postures, return_index=True, return_counts=True)
-        for size in np.unique(counts):
-            rows = np.stack([single[s:s + size] for s, c in zip(starts, counts) if c == size])
-            g = block.noise_jacobian[rows]  # (P, k, 9)
-            own_variances = variances[block.postures[rows[:, 0]]]  # (P, 9)
-            covariance = np.einsum('pik,pk,pjk->pij', g, own_variances, g)
+            covariance = _group_covariances(g, variances, block.postures[rows[:, 0]])
             covariance += np.eye(size) * 1e-30  # rows with no noise at all would be singular
             self.groups.append((rows, np.linalg.inv(np.linalg.cholesky(covariance))))
 

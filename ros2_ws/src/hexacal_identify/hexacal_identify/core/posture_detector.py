@@ -445,6 +445,19 @@ def _window_extrema(
     return maxima, minima
 
 
+def check_detector_settings(durations: dict[str, float], tolerances: tuple[float, ...]) -> None:
+    """
+    Raise ValueError unless every duration (or rate) and every tolerance is > 0 (not NaN).
+
+    The message names the durations in the given order, as both detectors always said.
+    """
+    if not all(value > 0 for value in durations.values()):
+        *first, last = durations
+        raise ValueError(f'{", ".join(first)} and {last} must be > 0')
+    if not all(tolerance > 0 for tolerance in tolerances):
+        raise ValueError('tolerances must be > 0')
+
+
 class PostureDetector:
     """
     Detects stationary periods in synchronised samples and emits one posture per period.
@@ -470,10 +483,15 @@ class PostureDetector:
         max_rate_hz: float = 2000.0,
         batch_size: int = 4096,
     ):
-        if not (window_s > 0 and capture_s > 0 and max_gap_s > 0 and max_rate_hz > 0):
-            raise ValueError('window_s, capture_s, max_gap_s and max_rate_hz must be > 0')
-        if not (slider_tolerance_m > 0 and angle_tolerance_rad > 0):
-            raise ValueError('tolerances must be > 0')
+        check_detector_settings(
+            {
+                'window_s': window_s,
+                'capture_s': capture_s,
+                'max_gap_s': max_gap_s,
+                'max_rate_hz': max_rate_hz,
+            },
+            (slider_tolerance_m, angle_tolerance_rad),
+        )
         self.window_ns = int(round(window_s * NS_PER_S))
         self.capture_ns = int(round(capture_s * NS_PER_S))
         self.max_gap_ns = int(round(max_gap_s * NS_PER_S))

@@ -141,6 +141,15 @@ def _duration(seconds: float) -> Duration:
     return Duration(sec=nanoseconds // NS_PER_S, nanosec=nanoseconds % NS_PER_S)
 
 
+def _trigger_answer(future: Any) -> tuple[bool, str]:
+    """Return a done hexacal/calibrate call's (success, message); a call that raised fails."""
+    try:
+        answer = future.result()
+    except Exception as error:  # noqa: B902 - the status must say what happened
+        return False, f'{type(error).__name__}: {error}'
+    return answer.success, answer.message
+
+
 def _now_s(node: Node) -> float:
     return node.get_clock().now().nanoseconds / NS_PER_S
 
@@ -649,12 +658,7 @@ class ExecutorNode(Node):
             self._publish_status(force=True)
 
     def _on_calibrated(self, future) -> None:
-        try:
-            answer = future.result()
-        except Exception as error:  # noqa: B902 - the status must say what happened
-            self.calibration.answer(False, f'{type(error).__name__}: {error}')
-        else:
-            self.calibration.answer(answer.success, answer.message)
+        self.calibration.answer(*_trigger_answer(future))
         self._drain_messages()
         self._publish_status(force=True)
 
@@ -677,12 +681,7 @@ class ExecutorNode(Node):
             self._publish_status(force=True)
 
     def _on_refine_answer(self, future) -> None:
-        try:
-            answer = future.result()
-        except Exception as error:  # noqa: B902 - the status must say what happened
-            self.refine.answer(False, f'{type(error).__name__}: {error}')
-        else:
-            self.refine.answer(answer.success, answer.message)
+        self.refine.answer(*_trigger_answer(future))
 
     def _on_parameters(self, message: Float64MultiArray) -> None:
         try:
