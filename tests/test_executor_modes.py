@@ -10,7 +10,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from hexacal_identify.core.model import nominal_set
 from hexacal_identify.core.planning import Plan
+from hexacal_msgs_py.parameters_file import save_parameters
 import numpy as np
 import pytest
 from system_support import hexacal_plan, STOP_TIMEOUT_S, write_parameter_files
@@ -31,7 +33,7 @@ def _passive_plan(tmp_path: Path, nominal: Path, seed: int = 1) -> Path:
 
 
 def _worst_released(plan_path: Path, nominal: Path) -> Path:
-    """Rewrite the plan to release, at each posture, its worst-conditioned actuator."""
+    """Rewrite the plan to release, after its first posture, the worst-conditioned actuator."""
     from hexacal_identify.core.passive_actuator import release_conditions
     from hexacal_identify.pipeline import load_machine
 
@@ -40,7 +42,9 @@ def _worst_released(plan_path: Path, nominal: Path) -> Path:
     conditions = release_conditions(params, plan.poses, plan.link_length)
     worst = np.argmax(np.where(np.isfinite(conditions), conditions, -np.inf), axis=1)
     names = params.layout.actuator_names
-    plan.released_actuators = tuple(names[int(chain)] for chain in worst)
+    plan.released_actuators = plan.released_actuators[:1] + tuple(
+        names[int(chain)] for chain in worst[1:]
+    )
     return plan.save(plan_path.with_name('worst-released.yaml'))
 
 
@@ -208,12 +212,14 @@ def test_the_same_plan_walks_with_six_commanded_in_the_other_modes(
 def test_a_drive_that_jams_pauses_the_plan_with_the_drives_fault(
     ros_processes, tmp_path, probe  # noqa: F811 - fixture
 ):
-    # The planner's postures with the worst-conditioned actuator released at each (the planner
-    # rehearses its releases so that they do not jam): on the true machine the five commanded
-    # plus the link jam on the way (the prediction on the nominal model, from the planned pose,
-    # misses it): the drive faults and holds, and the executor pauses with the drive's fault and
-    # what to do, sending nothing more.
+    # The planner's postures with, after the first, the worst-conditioned actuator released at
+    # each (the planner rehearses its releases so that they do not jam), on a machine further
+    # from its nominal (set 3, ~5 mm) than the planner's rehearsal assumes: on the true machine
+    # the five commanded plus the link jam on the way (the prediction on the nominal model, from
+    # the planned pose, misses it): the drive faults and holds, and the executor pauses with the
+    # drive's fault and what to do, sending nothing more.
     truth, nominal = write_parameter_files(tmp_path, GS)
+    save_parameters(nominal, nominal_set(3, seed=0, model=GS).vector, model=GS)
     plan_path = _worst_released(_passive_plan(tmp_path, nominal, seed=0), nominal)
     probe.subscribe_status()
     watch = ExecutorWatch(probe)

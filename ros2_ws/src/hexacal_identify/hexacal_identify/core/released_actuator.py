@@ -225,9 +225,13 @@ def release_from_here(
     margin_m: float = DEFAULT_MARGIN_M,
     mount: str = DEFAULT_MOUNT,
     rehearsal: RehearsalSettings = RehearsalSettings(),
+    prefer: int | None = None,
 ) -> int | None:
     """
     Return the chain to release for the rest of a move, none of `exclude`; None if none will do.
+
+    `prefer` (the plan's choice) is kept if it closes on every rehearsed machine within the
+    condition limit.  Also for a plan's first move, whose start the planner cannot know.
 
     After a drive fault with the chains `exclude` released (jams), at rest where the machine
     stands (`here`, a pose on the sphere, with the measured `actuators` and chain `released`
@@ -238,6 +242,13 @@ def release_from_here(
                           rehearsal)
     rehearser.standing = stand(rehearser.machines, np.asarray(actuators, dtype=float), released,
                                np.asarray(here, dtype=float), link_length, mount)
+    if prefer is not None and prefer not in exclude:
+        others = [c for c in range(6) if c != prefer]
+        try:
+            if rehearser.safe(rehearser.try_move(here, target, others)):
+                return prefer
+        except NoRelease:
+            pass
     try:
         leg = rehearser.try_move(here, target, exclude)
     except NoRelease:

@@ -392,7 +392,45 @@ class PlanExecution:
             self._say(LogLevel.INFO, f'ready to walk {self.total} postures; paused until resumed')
             return []
         self.state = ExecutionState.RUNNING
+        self._choose_first_release()
         return self._begin(now, fresh=True)
+
+    def _choose_first_release(self) -> None:
+        """
+        Keep the plan's releases if its first move is safe from where the machine stands.
+
+        The planner cannot know where the first move starts (it rehearses the first posture
+        from standing at it), and every later release assumes the standing the earlier ones
+        leave.  If the plan's first release is not safe from here (release_from_here), the
+        releases of the whole plan are rehearsed again from here, in the plan's order.
+        """
+        first = self.released[0] if self.total else None
+        here, latest = self._estimate(), self.actuators.latest
+        if first is None or here is None or latest is None:
+            return
+        from .released_actuator import choose_released_actuators, release_from_here
+
+        standing_release = first if self.released_now is None else self.released_now
+        kept = release_from_here(
+            self.nominal, here, latest, standing_release, self.poses[0], self.link_length,
+            self.stroke, (), mount=self.mount, prefer=first,
+        )
+        if kept == first:
+            return
+        try:
+            choice = choose_released_actuators(
+                self.nominal, self.poses, self.link_length, self.stroke, start=here,
+                mount=self.mount,
+            )
+        except ValueError:
+            return  # ReleaseError: the plan's releases stay; the guard still watches
+        changed = int(np.sum(choice.released != np.array(self.released)))
+        self.released = [int(chain) for chain in choice.released]
+        self._say(
+            LogLevel.INFO,
+            f"the plan's first release is not safe from where the machine stands: its releases "
+            f'were rehearsed again from here ({changed} of {self.total} changed)',
+        )
 
     def pause(self, now: float) -> tuple[bool, str, list[Command]]:
         """Pause (hold the machine): (success, the service's answer, commands to send)."""
