@@ -522,7 +522,11 @@ class ExecutorNode(Node):
             assert request is not None
             steps = [(request.lock, False)] if request.lock is not None else []
             steps += [(request.release, True)] if request.release is not None else []
-            calls = self._release = _ReleaseCalls(steps, request.lock, now)  # type: ignore
+            # Timed from now, not the tick's start: the walk may have rehearsed its releases
+            # (seconds) in this tick before asking.
+            calls = self._release = _ReleaseCalls(  # type: ignore
+                steps, request.lock, _now_s(self)
+            )
         if not calls.steps:
             return self._released(now, '')
         chain, release = calls.steps[0]
@@ -531,7 +535,7 @@ class ExecutorNode(Node):
         if calls.future is None:
             if client.service_is_ready():
                 calls.future = client.call_async(SetBool.Request(data=release))
-                calls.since = now
+                calls.since = _now_s(self)
             elif now - calls.since > self.release_wait_s:
                 self._released(
                     now,
