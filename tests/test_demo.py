@@ -136,7 +136,7 @@ def test_demo_stops_on_a_drive_fault_naming_it(tmp_path):
             '--measuring-mode',
             'compliant',
             '--driver-param',
-            'max_force_n=500',
+            'max_force_n=500.0',
             '--postures',
             '20',
             '--verify-postures',

@@ -58,6 +58,7 @@ EXIT_OK, EXIT_FAILED = 0, 1
 
 # The paper's procedure (issue #18): the planner rehearses every move's release.
 DEMO_MEASURING_MODE = MeasuringMode.PASSIVE_ACTUATOR.value
+DRIVE_FAULT_NOTICE = 'the drive faulted: '  # how the executor's notice names a drive fault
 
 
 class DemoError(RuntimeError):
@@ -112,9 +113,9 @@ def add_parsers(subparsers) -> None:
         default=[],
         metavar='NAME=VALUE',
         type=_driver_param,
-        help='set a parameter of the simulated driver (repeatable; docs/nodes.md, driver), e.g. '
-        'max_force_n=2000 to see its guard fault, servo_stiffness_n_per_m=5e5 or '
-        'lvdt_stroke_m=0.003',
+        help='set a parameter of the simulated driver (repeatable; docs/nodes.md, driver; a '
+        'float with a decimal point), e.g. max_force_n=2000.0 to see its guard fault, '
+        'servo_stiffness_n_per_m=5e5 or lvdt_stroke_m=0.003',
     )
     parser.add_argument(
         '--noise-um',
@@ -282,27 +283,23 @@ PLAN_CANDIDATES = 1000
 
 
 def _driver_param(text: str) -> tuple[str, object]:
-    """Parse NAME=VALUE as the simulated driver declares NAME (its type), or say what is wrong."""
-    from hexacal_driver.parameters import PARAMETERS
+    """
+    Parse NAME=VALUE: true/false a bool, digits an int, other numbers a float, else text.
 
+    The driver checks names and types itself (its parameter descriptors): a float parameter
+    takes a number with a decimal point or an exponent (max_force_n=500.0).
+    """
     name, sep, value = (part.strip() for part in text.partition('='))
     if not sep or not name:
         raise argparse.ArgumentTypeError(f'expected NAME=VALUE, got {text!r}')
-    if name not in PARAMETERS:
-        raise argparse.ArgumentTypeError(
-            f'the simulated driver has no parameter {name!r} (docs/nodes.md, driver)'
-        )
-    kind = type(PARAMETERS[name].default)
-    try:
-        if kind is bool:
-            if value.lower() not in ('true', 'false'):
-                raise ValueError(value)
-            return name, value.lower() == 'true'
-        return name, kind(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f'{name} takes a {kind.__name__}, got {value!r}'
-        ) from None
+    if value.lower() in ('true', 'false'):
+        return name, value.lower() == 'true'
+    for kind in (int, float):
+        try:
+            return name, kind(value)
+        except ValueError:
+            pass
+    return name, value
 
 
 def _plans(args, nominal, paths: DemoPaths) -> None:
@@ -660,12 +657,19 @@ def _walk(
         state = values.get('state')
         if state in ('refused', 'aborted'):
             raise DemoError(f'the executor {state} the {label} plan: {values}')
-        if state == 'paused' and session.driver_values.get('state') != 'fault':
-            # Paused by itself (its guard, a refused release): nobody here would resume it.
-            session.check_drives(f'the executor to walk the {label} plan')
-            raise DemoError(
-                f'the executor paused the {label} plan: {values.get("notice") or values}'
-            )
+        if state == 'paused':
+            # Paused by itself (its guard, a refused release, the drive's fault it heard first):
+            # nobody here would resume it.
+            what = f'the executor to walk the {label} plan'
+            session.check_drives(what)
+            notice = values.get('notice') or str(values)
+            if notice.startswith(DRIVE_FAULT_NOTICE):
+                mode = session.driver_values.get('measuring_mode') or _mode(args)
+                raise DemoError(
+                    f'the simulated drives faulted ({mode}) while waiting for {what}: '
+                    f'{notice[len(DRIVE_FAULT_NOTICE):]}'
+                )
+            raise DemoError(f'the executor paused the {label} plan: {notice}')
         return values if state == 'done' else None
 
     try:
