@@ -24,7 +24,8 @@ MASSES = MassModel(
 def _machine(model, n=12, seed=3):
     arch = architecture(model)
     params = arch.default_parameters()
-    poses = sample_poses(params, n, np.random.default_rng(seed), 'sphere', arch.default_workspace())
+    rng = np.random.default_rng(seed)
+    poses = sample_poses(params, n, rng, 'sphere', arch.default_workspace())
     return params, poses
 
 
@@ -71,7 +72,8 @@ def test_the_loads_balance_the_weights_force_and_moment(model, mode):
     rotation = rotation_matrices(poses[:, 3:6])
     joints = np.einsum('nij,cj->nci', rotation, params.platform_points)
     leg_forces = loads.thrust[..., None] * jacobian[:, :, :3]
-    link_force = -loads.link[:, None] * poses[:, :3] / np.linalg.norm(poses[:, :3], axis=1)[:, None]
+    radius = np.linalg.norm(poses[:, :3], axis=1)[:, None]
+    link_force = -loads.link[:, None] * poses[:, :3] / radius
     mass, moment = MASSES.platform_side(params)
     gravity = np.asarray(MASSES.gravity)
     force = leg_forces.sum(axis=1) + link_force + mass * gravity

@@ -36,8 +36,8 @@ from hexacal_msgs_py.measuring_modes import MeasuringMode
 import numpy as np
 
 from .architectures import KinematicParameters
-from .errors import InvalidMeasurementError
 from .device import DeviceModel
+from .errors import InvalidMeasurementError
 from .measurements import Measurements, NoiseModel, simulate_measurements
 from .residuals import ResidualBlock
 from .statics import MassModel, static_loads, StaticLoads
@@ -195,7 +195,8 @@ class ComplianceModel:
 
     def deflections(self, loads: StaticLoads, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return the reading shifts (N, 6) and the link's stretch (N,), m."""
-        return loads.reading_loads * self.chain_values(values), self.link_value(values) * loads.link
+        shifts = loads.reading_loads * self.chain_values(values)
+        return shifts, self.link_value(values) * loads.link
 
 
 def simulate_loaded_measurements(
@@ -235,7 +236,8 @@ def simulate_loaded_measurements(
     if noise.angle_rad:
         angles = angles + rng.uniform(-noise.angle_rad, noise.angle_rad, angles.shape)
         rotary = rotary + rng.uniform(-noise.angle_rad, noise.angle_rad, rotary.shape)
-    lengths = rigid.link_lengths if MeasuringMode(model.measuring_mode) == MeasuringMode.LVDT else None
+    lvdt = MeasuringMode(model.measuring_mode) == MeasuringMode.LVDT
+    lengths = rigid.link_lengths if lvdt else None
     return Measurements(actuators, angles, rotary, link_lengths=lengths), poses
 
 

@@ -231,7 +231,9 @@ def analyze(
     n_parameters = (
         params.layout.n_parameters
         if params is not None
-        else (len(free) if free is not None else len(names)) - N_DEVICE_PARAMETERS - len(extra_names)
+        else (len(free) if free is not None else len(names))
+        - N_DEVICE_PARAMETERS
+        - len(extra_names)
     )
     directions = _describe(
         null_space, names, gauges, _device_directions(free, scales, n_parameters, extra_names)

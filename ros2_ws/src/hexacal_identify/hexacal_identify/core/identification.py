@@ -343,7 +343,9 @@ class _Problem:
             )
             self._compliant_cost = (
                 key,
-                CostFunction(self.options.cost, corrected, self.options.device, self.options.sigma),
+                CostFunction(
+                    self.options.cost, corrected, self.options.device, self.options.sigma
+                ),
             )
         return self._compliant_cost[1]
 

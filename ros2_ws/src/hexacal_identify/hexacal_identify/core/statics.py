@@ -174,7 +174,8 @@ def weight_gradient(
     arm = rotation @ moment  # (N, 3): R h
     gradient = np.empty((len(poses), 6))
     gradient[:, :3] = -mass * gravity
-    gradient[:, 3:] = -np.einsum('nik,ni->nk', euler_rate_axes(poses[:, 3:6]), np.cross(arm, gravity))
+    axes = euler_rate_axes(poses[:, 3:6])
+    gradient[:, 3:] = -np.einsum('nik,ni->nk', axes, np.cross(arm, gravity))
     return gradient
 
 
