@@ -351,19 +351,26 @@ class _Problem:
 
     def update_loads(self, vector: np.ndarray, poses: np.ndarray) -> bool:
         """Evaluate the loads at ``poses``; return whether a deflection moved (compliance.py)."""
-        if not self.compliance.active:
-            return False
-        loads = self.compliance.loads(_split(vector, self.arch)[0], poses, self.used)
-        moved = True
-        if self.loads is not None:
-            values = vector[self._offset():]
-            old = self.compliance.deflections(self.loads, values)
-            new = self.compliance.deflections(loads, values)
-            moved = max(float(np.max(np.abs(a - b), initial=0.0)) for a, b in zip(old, new)) > (
-                LOADS_TOLERANCE_M
-            )
-        self.loads, self._compliant_cost = loads, None
+        moved, loads = self._loads_at(vector, poses)
+        if moved:
+            self.loads, self._compliant_cost = loads, None
         return moved
+
+    def loads_moved(self, vector: np.ndarray, poses: np.ndarray) -> bool:
+        """Return whether the loads at ``poses`` move a deflection from those held."""
+        return self._loads_at(vector, poses)[0]
+
+    def _loads_at(self, vector: np.ndarray, poses: np.ndarray):
+        if not self.compliance.active:
+            return False, None
+        loads = self.compliance.loads(_split(vector, self.arch)[0], poses, self.used)
+        if self.loads is None:
+            return True, loads
+        values = vector[self._offset():]
+        old = self.compliance.deflections(self.loads, values)
+        new = self.compliance.deflections(loads, values)
+        moved = max(float(np.max(np.abs(a - b), initial=0.0)) for a, b in zip(old, new))
+        return moved > LOADS_TOLERANCE_M, loads
 
     def solve_fk(
         self,
@@ -709,7 +716,7 @@ def _identify_once(
                 options.robust_loss is not None and moved > IRLS_TOLERANCE
             )
             # Compliances: the loads were held through the run; run again while they move.
-            reweight = reweight or problem.update_loads(vector, poses)
+            reweight = reweight or problem.loads_moved(vector, poses)
             if not changed and not reweight:
                 break
             previous = vector
@@ -776,7 +783,10 @@ def identify(
 def _run(
     problem: '_Problem', vector: np.ndarray, poses: np.ndarray, options: SolverOptions
 ) -> '_LevenbergMarquardt':
-    problem.update_loads(vector, poses)  # compliances: loads held through the run
+    if problem.update_loads(vector, poses):  # compliances: loads held through the run
+        # The corrected readings changed with the loads: start from their own FK poses.
+        fk = problem.solve_fk(_split(vector, problem.arch)[0], poses, vector=vector)
+        poses = np.where(fk.converged[:, None], fk.poses, poses)
     solver = _LevenbergMarquardt(problem, vector, poses, problem.row_transform(vector, poses))
     solver.run()
     return solver
