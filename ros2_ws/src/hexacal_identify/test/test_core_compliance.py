@@ -188,3 +188,32 @@ def test_bad_compliance_input_is_named():
         ComplianceModel('stiff')
     with pytest.raises(ValueError, match=r"unknown compliance\(s\) \['link'\]"):
         ComplianceModel('shared', MASSES, 'lvdt', prior={'link': (LINK, LINK)})
+
+
+def test_verification_uses_the_compliances_on_fresh_postures():
+    from hexacal_identify.core.verification import verify
+
+    arch, true, rng, poses, released = _setup('hexa_slide', n=70)
+    compliance = ComplianceModel('shared', MASSES, 'passive_actuator', released[:50])
+    truth = np.array([CHAIN, LINK])
+    measurements, _ = simulate_loaded_measurements(
+        true, poses, replace(compliance, released=released), truth, noise=NOISE, rng=rng
+    )
+    fit, fresh = measurements.subset(np.arange(50)), measurements.subset(np.arange(50, 70))
+    nominal = _nominal(true, rng)
+    result = identify(nominal, fit, SolverOptions(noise=NOISE, compliance=compliance))
+    values = np.array(list(result.compliance.values()))
+    fresh_model = replace(compliance, released=released[50:])
+    loaded = verify(
+        nominal,
+        result.parameters,
+        fresh,
+        noise=NOISE,
+        calibrated_compliance=(fresh_model, values),
+    )
+    rigid = verify(nominal, result.parameters, fresh, noise=NOISE)
+    loaded_rms = loaded.calibrated.figures()['position_rms_m']
+    rigid_rms = rigid.calibrated.figures()['position_rms_m']
+    assert loaded.verdict == 'pass', loaded.verdict_reason
+    # Read as rigid, the same readings show the link's stretch at the fresh postures.
+    assert loaded_rms < 8e-6 and rigid_rms > 3 * loaded_rms, (loaded_rms, rigid_rms)
