@@ -207,7 +207,9 @@ def compliance_model(args, bag, nominal):
 
     if args.compliance == 'none':
         if args.physical is not None or args.compliance_prior:
-            raise ValueError('--physical and --compliance-prior need --compliance shared|per_chain')
+            raise ValueError(
+                '--physical and --compliance-prior need --compliance shared|per_chain'
+            )
         return None
     if args.physical is None:
         raise ValueError(
@@ -227,8 +229,9 @@ def compliance_model(args, bag, nominal):
         missing = [i for i, joint in enumerate(joints) if joint not in names]
         if missing:
             raise ValueError(
-                f'--compliance {args.compliance}: {len(missing)} posture(s) of the passive_actuator '
-                f'bag name no released actuator of {", ".join(names)} (first: posture {missing[0]})'
+                f'--compliance {args.compliance}: {len(missing)} posture(s) of the '
+                f'passive_actuator bag name no released actuator of {", ".join(names)} '
+                f'(first: posture {missing[0]})'
             )
         released = np.array([names.index(joint) for joint in joints])
     return ComplianceModel(

@@ -53,7 +53,9 @@ class LoadedChains:
     def __post_init__(self) -> None:
         values = np.asarray(self.compliances, dtype=float)
         if values.shape != (6,) or not np.all(np.isfinite(values)):
-            raise ValueError(f'six finite chain compliances (m/N) expected, got {self.compliances}')
+            raise ValueError(
+                f'six finite chain compliances (m/N) expected, got {self.compliances}'
+            )
         object.__setattr__(self, 'compliances', tuple(float(v) for v in values))
         # In operation the measuring link is off the machine.
         object.__setattr__(self, 'masses', replace(self.masses, link_mass=0.0))
