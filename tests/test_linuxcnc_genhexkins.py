@@ -205,3 +205,25 @@ def test_all_zero_start_misses_the_hanging_machine(tmp_path, capsys, default_mac
     # Started above the base, it converges - to the mirror assembly, not the machine.
     above = genhexkins_forward(base, platform, joints, [0.0, 0.0, 750.0, 0.0, 0.0, 0.0])
     assert above.converged and above.pose[2] > 0.0
+
+
+def test_compliances_are_named_as_what_genhexkins_cannot_represent(tmp_path, capsys):
+    from hexacal_msgs_py.parameters_file import compliance_extras, save_parameters
+
+    contents = read_parameters_file(GS_FILE)
+    rigid_hal = tmp_path / 'rigid' / 'hexapod.hal'
+    rigid_hal.parent.mkdir()
+    assert cli.main(['export', str(GS_FILE), '--format', 'linuxcnc', '--out', str(rigid_hal)]) == 0
+    assert 'NOT REPRESENTED' not in rigid_hal.with_suffix('.ini').read_text()
+    assert 'genhexkins' not in capsys.readouterr().err
+    loaded = tmp_path / 'loaded.yaml'
+    extras = {**contents.extras, **compliance_extras({'chains': 2e-8, 'link': 1e-7})}
+    save_parameters(loaded, contents.vector, extras=extras, model=contents.model)
+    hal = tmp_path / 'hexapod.hal'
+    assert cli.main(['export', str(loaded), '--format', 'linuxcnc', '--out', str(hal)]) == 0
+    ini = (tmp_path / 'hexapod.ini').read_text()
+    assert '# NOT REPRESENTED by genhexkins:' in ini and 'chains 2e-08 m/N' in ini
+    assert 'link' not in ini.split('NOT REPRESENTED')[1].splitlines()[1]  # the link is not used
+    assert 'not represented by genhexkins: axial compliances' in capsys.readouterr().err
+    # The geometry is exported exactly as without the compliances.
+    assert hal.read_text().splitlines()[2:] == rigid_hal.read_text().splitlines()[2:]

@@ -44,6 +44,7 @@ import numpy as np
 from .bag.measuring import MEASURING_METADATA, MeasuringRecord
 from .bag.naming import COLLECTOR_METADATA  # the collector's record: model, detector, mapping
 from .core.architectures import KinematicParameters, parameters_for
+from .core.compliance import ComplianceModel
 from .core.device import (
     check_mount,
     DEFAULT_MOUNT,
@@ -123,6 +124,13 @@ def device_defects_extras(result: IdentificationResult) -> dict[str, float]:
     return {
         device_defect_key(name): float(getattr(result.device, name)) for name in result.free_device
     }
+
+
+def compliance_file_extras(result: IdentificationResult) -> dict[str, float]:
+    """Return the parameters-file keys of the compliances identified with `result` ({}: rigid)."""
+    from hexacal_msgs_py.parameters_file import compliance_extras
+
+    return compliance_extras(result.compliance, result.compliance_std)
 
 
 def load_device_defects(path: Path | str) -> tuple[DeviceDefects, tuple[str, ...]]:
@@ -315,6 +323,7 @@ def calibrate(
     device_prior: DevicePrior | None = None,
     weights: str = AUTO,
     scatter_floor: ScatterFloor = ScatterFloor(),
+    compliance: ComplianceModel | None = None,
 ) -> IdentificationResult:
     """
     Identify the parameters from received postures: the one call behind the node and the CLI.
@@ -330,7 +339,9 @@ def calibrate(
     certificate's alpha0 = 0 +- 50 urad; SI units): each such parameter is identified, its prior
     weighed against the data by ``noise``, which it therefore requires (ValueError naming both).
     A problem the postures do not determine raises RankDeficientError (never a
-    number that means nothing) unless ``allow_rank_deficient``.
+    number that means nothing) unless ``allow_rank_deficient``.  ``compliance``: axial
+    compliances identified with the geometry from the postures' static loads
+    (core/compliance.py; None: the rigid model).
     """
     choice = weight_choice(postures, weights, noise, scatter_floor)
     options = SolverOptions(
@@ -343,6 +354,7 @@ def calibrate(
         device_prior=device_prior if device_prior is not None else DevicePrior(),
         scatter_weights=choice.weights == Weights.SCATTER,
         scatter_floor=scatter_floor,
+        compliance=compliance if compliance is not None else ComplianceModel(),
     )
     measurements = measurements_from_postures(postures, nominal_link_length=link_length)
     result = identify(nominal, measurements, options)

@@ -31,6 +31,16 @@ their chain keys, e.g. a Gough-Stewart platform::
 A file without ``model`` is a Hexa Slide; Hexa Slide files are written without
 it, exactly as before.  A ``chain_N.<key>`` that is not a key of the file's
 model is an error naming the key.
+
+An optional section carries the axial compliances identified with the geometry
+(m/N; ``compliance_extras`` / ``compliances_from_extras``)::
+
+        compliance.chains: 2.0e-08        # or compliance.chain_1 .. chain_6
+        compliance.link: 1.0e-07          # the measuring link's (calibration only)
+        compliance_std.chains: 1.5e-09    # their standard deviations, where known
+
+A rigid calibration writes none of it (the file is exactly as before) and a file
+without it is a rigid machine.
 """
 
 from __future__ import annotations
@@ -179,6 +189,61 @@ class ParametersFile:
     @property
     def layout(self) -> ModelLayout:
         return MODELS[self.model]
+
+
+COMPLIANCE_KEY = 'compliance'
+COMPLIANCE_STD_KEY = 'compliance_std'
+SHARED_CHAIN_COMPLIANCE = 'chains'
+LINK_COMPLIANCE = 'link'
+COMPLIANCE_NAMES = (SHARED_CHAIN_COMPLIANCE,) + tuple(
+    f'chain_{c}' for c in range(1, N_CHAINS + 1)
+) + (LINK_COMPLIANCE,)
+
+
+def compliance_extras(
+    values: Mapping[str, float], std: Mapping[str, float] | None = None
+) -> dict[str, float]:
+    """Return the parameters-file keys of identified compliances (m/N; module doc); {}: rigid."""
+    extras: dict[str, float] = {}
+    for key, mapping in ((COMPLIANCE_KEY, values), (COMPLIANCE_STD_KEY, std or {})):
+        for name, value in mapping.items():
+            if name not in COMPLIANCE_NAMES:
+                raise ValueError(
+                    f'unknown compliance {name!r}; choose from {", ".join(COMPLIANCE_NAMES)}'
+                )
+            if value is not None and math.isfinite(float(value)):
+                extras[f'{key}.{name}'] = float(value)
+    return extras
+
+
+def compliances_from_extras(extras: Mapping[str, Any]) -> dict[str, float]:
+    """
+    Return {name: m/N} of a parameters file's compliance section ({} without one: rigid).
+
+    ValueError names a key that is not a compliance, a value that is not a finite number, or a
+    section that gives both the shared ``chains`` and per-chain values.
+    """
+    prefix = f'{COMPLIANCE_KEY}.'
+    values: dict[str, float] = {}
+    for key, value in extras.items():
+        if not key.startswith(prefix):
+            continue
+        name = key[len(prefix):]
+        if name not in COMPLIANCE_NAMES:
+            raise ValueError(
+                f'{key}: not a compliance; choose from '
+                + ', '.join(prefix + n for n in COMPLIANCE_NAMES)
+            )
+        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(
+            float(value)
+        ):
+            raise ValueError(f'{key}: a compliance is a finite number of m/N, got {value!r}')
+        values[name] = float(value)
+    if SHARED_CHAIN_COMPLIANCE in values and any(n.startswith('chain_') for n in values):
+        raise ValueError(
+            f'{prefix}{SHARED_CHAIN_COMPLIANCE} and per-chain {prefix}chain_N both given: give one'
+        )
+    return values
 
 
 def load_parameters(path: PathLike) -> np.ndarray:

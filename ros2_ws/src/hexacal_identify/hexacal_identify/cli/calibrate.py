@@ -128,6 +128,7 @@ def _calibrate_arguments(calibrate: argparse.ArgumentParser) -> None:
     calibrate.add_argument(
         '--robust', choices=ROBUST_LOSSES, default=None, help='robust loss (huber or soft_l1)'
     )
+    _compliance_arguments(calibrate)
     calibrate.add_argument(
         '--save-result',
         type=Path,
@@ -148,6 +149,113 @@ def _calibrate_arguments(calibrate: argparse.ArgumentParser) -> None:
     _redetection_arguments(calibrate)
     add_calibrate_arguments(calibrate)
     calibrate.set_defaults(handler=run_calibrate)
+
+
+def _compliance_arguments(calibrate: argparse.ArgumentParser) -> None:
+    from ..core.compliance import COMPLIANCE_MODES
+
+    calibrate.add_argument(
+        '--compliance',
+        choices=COMPLIANCE_MODES,
+        default='none',
+        help='axial compliances identified with the geometry from the static loads of each '
+        'posture: none (rigid, as before), shared (one for the six chains, one for the link) or '
+        'per_chain (one per chain, one for the link); needs --physical',
+    )
+    calibrate.add_argument(
+        '--physical',
+        type=Path,
+        default=None,
+        metavar='FILE',
+        help='physical description YAML (gravity, platform {mass, com}, payload {mass, com}, '
+        'legs {mass, com_fraction}, link {mass, com_fraction}; SI units): the weights that load '
+        'the chains and the link',
+    )
+    calibrate.add_argument(
+        '--compliance-prior',
+        type=compliance_prior_argument,
+        default=None,
+        metavar='NAME=VALUE:STD,...',
+        help='datasheet compliances in m/N, e.g. link=1e-7:2e-8 (a 1e7 N/m link +- 20 %%): each '
+        'weighed against the data by the reading noise; names: chains or chain_1..chain_6, link',
+    )
+
+
+def compliance_prior_argument(text: str) -> dict[str, tuple[float, float]]:
+    """Parse --compliance-prior NAME=VALUE:STD,... (m/N); argparse names a bad one."""
+    prior = {}
+    for item in filter(None, (part.strip() for part in text.split(','))):
+        name, _, figures = item.partition('=')
+        value, _, std = figures.partition(':')
+        try:
+            prior[name.strip()] = (float(value), float(std))
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f'compliance prior {item!r}: expected NAME=VALUE:STD in m/N, e.g. link=1e-7:2e-8'
+            ) from None
+    if not prior:
+        raise argparse.ArgumentTypeError('no compliance prior given: expected NAME=VALUE:STD')
+    return prior
+
+
+def compliance_model(args, bag, nominal):
+    """Return the ComplianceModel of --compliance for a bag's postures (None: rigid)."""
+    import numpy as np
+
+    from ..core.compliance import ComplianceModel
+    from ..core.statics import MassModel
+
+    if args.compliance == 'none':
+        if args.physical is not None or args.compliance_prior:
+            raise ValueError(
+                '--physical and --compliance-prior need --compliance shared|per_chain'
+            )
+        return None
+    if args.physical is None:
+        raise ValueError(
+            f'--compliance {args.compliance} needs the masses that load the machine: --physical '
+            'FILE'
+        )
+    mode = bag.measuring_mode
+    if mode is None:
+        raise ValueError(
+            f'--compliance {args.compliance}: the bag does not record its measuring mode, and the '
+            'loads depend on it (which chains and whether the link carry the weight)'
+        )
+    released = None
+    if mode == 'passive_actuator':
+        names = list(nominal.layout.actuator_names)
+        joints = [bag.measuring.released_at(p.stamp_ns) for p in bag.postures]
+        missing = [i for i, joint in enumerate(joints) if joint not in names]
+        if missing:
+            raise ValueError(
+                f'--compliance {args.compliance}: {len(missing)} posture(s) of the '
+                f'passive_actuator bag name no released actuator of {", ".join(names)} '
+                f'(first: posture {missing[0]})'
+            )
+        released = np.array([names.index(joint) for joint in joints])
+    return ComplianceModel(
+        args.compliance,
+        MassModel.load(args.physical),
+        mode,
+        released,
+        prior=args.compliance_prior or {},
+    )
+
+
+def compliance_lines(result) -> list[str]:
+    """Return the identified compliances (m/N, with the stiffness they mean) as summary lines."""
+    import math
+
+    if not result.compliance:
+        return []
+    lines = [f'axial compliances ({result.compliance_mode}; m/N, stiffness N/m):']
+    for name, value in result.compliance.items():
+        std = result.compliance_std.get(name, float('nan'))
+        std_text = f'{std:.3g}' if math.isfinite(std) else 'n/a'
+        stiffness = f', {1.0 / value:.3g} N/m' if value > 0 else ''
+        lines.append(f'  {name}: {value:.4g} +- {std_text} m/N{stiffness}')
+    return lines
 
 
 def clock_offset_argument(text: str) -> tuple[str, float]:
@@ -205,6 +313,7 @@ def run_calibrate(args) -> int:
     from ..pipeline import (
         calibrate,
         check_model,
+        compliance_file_extras,
         device_defects_extras,
         device_prior_json,
         link_length_count,
@@ -225,6 +334,7 @@ def run_calibrate(args) -> int:
     bag = postures_from_bag(args.bag, **redetection_options(args))
     check_model(bag.model, nominal, f'bag {args.bag}', str(args.nominal))
     noise = NoiseModel.from_microns(args.noise_um) if args.noise_um else None
+    compliance = compliance_model(args, bag, nominal)
     try:
         result = calibrate(
             nominal,
@@ -238,6 +348,7 @@ def run_calibrate(args) -> int:
             device_prior=args.device_prior,
             weights=args.weights,
             scatter_floor=ScatterFloor.from_microns(args.scatter_floor_um),
+            compliance=compliance,
         )
     except CalibrationError as error:
         if bag.rejected or bag.invalid_messages or bag.notes:  # say what of the bag was not used
@@ -256,7 +367,7 @@ def run_calibrate(args) -> int:
             result.parameters.vector,
             model=result.parameters.model,
             header_comment=comment,
-            extras=device_defects_extras(result) or None,
+            extras={**device_defects_extras(result), **compliance_file_extras(result)} or None,
         )
         stored = store_calibration(args, result, bag, mount)
     else:
@@ -379,6 +490,8 @@ def _print_summary(args, bag, result, adequacy) -> None:
         + result.parameters.architecture.std_note
     )
     for line in device_prior_lines(result, args.device_prior):
+        print(line)
+    for line in compliance_lines(result):
         print(line)
     print(f'weights: {result.weights_note or result.weights}')
     for line in adequacy.lines():

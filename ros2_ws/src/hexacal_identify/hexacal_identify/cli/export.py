@@ -41,6 +41,7 @@ import json
 import math
 import os
 from pathlib import Path
+import sys
 
 FORMATS = ('linuxcnc', 'yaml', 'json', 'controller', 'kinematics-node')
 LENGTH_UNITS = {'mm': 1e3, 'm': 1.0}
@@ -149,6 +150,10 @@ def run_export(args) -> int:
         _write(ini_path, ini_text)
         print(f'wrote {args.out}')
         print(f'wrote {ini_path}')
+        from .export_linuxcnc import unrepresented
+
+        for line in unrepresented(contents):
+            print(f'not represented by genhexkins: {line}', file=sys.stderr)
         return 0
     if args.format == 'json':
         _write(args.out, json_text(contents))

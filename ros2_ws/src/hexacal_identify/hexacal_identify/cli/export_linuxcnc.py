@@ -18,6 +18,13 @@ machine or finds the mirror assembly above the base.  So the fragment gives
 
 Everything is computed from the calibrated parameters and refused (ValueError)
 when the home pose or a switch reading lies outside the stroke.
+
+What genhexkins cannot represent (``unrepresented``): its struts are rigid, so a
+calibration with axial compliances (the parameters file's ``compliance.*``) is
+exported as its geometry alone, and the INI and the command say so: the loaded
+machine stands off the commanded pose by each strut's deflection c F under the
+weights unless something upstream compensates (hexacal's kinematics node with
+the compliances and the masses does).
 """
 
 from __future__ import annotations
@@ -40,6 +47,22 @@ from ..core.live import home_pose
 ANGLE_DECIMALS = 9  # degrees: 1e-9 deg moves a joint 0.2 m off the axis by 3 pm
 # LinuxCNC's [TRAJ] LINEAR_UNITS knows mm and inch (and their synonyms), not metres.
 _LINUXCNC_LINEAR_UNITS = {'mm': 'mm'}
+
+
+def unrepresented(contents) -> list[str]:
+    """Return what of a parameters file genhexkins cannot represent, one line each ([]: none)."""
+    from hexacal_msgs_py.parameters_file import compliances_from_extras
+
+    values = compliances_from_extras(contents.extras)
+    chains = {name: value for name, value in values.items() if name != 'link'}
+    if not chains:
+        return []
+    given = ', '.join(f'{name} {value:.4g} m/N' for name, value in chains.items())
+    return [
+        f'axial compliances of the struts ({given}): genhexkins has rigid struts, the export '
+        'carries the geometry only; the loaded machine deflects by c F per strut unless '
+        'compensated upstream'
+    ]
 
 
 @dataclass(frozen=True)
@@ -185,6 +208,9 @@ def linuxcnc_ini(
         f'phi {phi:.6g} rad).',
         f'HOME = {home_words}',
     ]
+    missing = unrepresented(contents)
+    if missing:
+        lines[1:1] = ['# NOT REPRESENTED by genhexkins:'] + [f'#   {line}' for line in missing]
     for leg in range(6):
         lines += [
             '',

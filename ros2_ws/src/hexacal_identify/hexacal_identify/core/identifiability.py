@@ -193,6 +193,7 @@ def analyze(
     link_length: float = DEFAULT_LINK_LENGTH_M,
     mount: str = DEFAULT_MOUNT,
     gram_root: np.ndarray | None = None,
+    extra_names: Sequence[str] = (),
 ) -> IdentifiabilityReport:
     """
     Rank, conditioning and unidentifiable combinations of a (rows x free params) Jacobian.
@@ -206,6 +207,8 @@ def analyze(
     suggested for fixing, with or without F.
 
     Without ``params`` (no architecture: no named frame motions) ``names`` is required.
+    ``extra_names``: unknowns after the device defects (``compliance.<name>``), each a candidate
+    explanation like a device defect (no effect, or imitated by a frame motion or a zero).
     """
     if names is None:
         if params is None:
@@ -228,10 +231,12 @@ def analyze(
     n_parameters = (
         params.layout.n_parameters
         if params is not None
-        else (len(free) if free is not None else len(names)) - N_DEVICE_PARAMETERS
+        else (len(free) if free is not None else len(names))
+        - N_DEVICE_PARAMETERS
+        - len(extra_names)
     )
     directions = _describe(
-        null_space, names, gauges, _device_directions(free, scales, n_parameters)
+        null_space, names, gauges, _device_directions(free, scales, n_parameters, extra_names)
     )
     return IdentifiabilityReport(
         rank=rank,
@@ -315,20 +320,31 @@ def _gauge_directions(
 
 
 def _device_directions(
-    free: np.ndarray | None, scales: np.ndarray, n_parameters: int
-) -> list[tuple[str, np.ndarray]]:
-    """Return unit changes of each identified device defect, in scaled free coordinates."""
+    free: np.ndarray | None,
+    scales: np.ndarray,
+    n_parameters: int,
+    extra_names: Sequence[str] = (),
+) -> list[tuple[str, np.ndarray, str]]:
+    """
+    Return (label, unit change, name to fix) of each identified device defect and extra unknown.
+
+    Unit changes are in scaled free coordinates.
+    """
     from .device import DEVICE_PARAMETER_NAMES
 
     if free is None or len(free) <= n_parameters:
         return []
+    labelled = [(f"the device's {name}", f'device.{name}') for name in DEVICE_PARAMETER_NAMES]
+    labelled += [(f'the axial {name.replace(".", " of ")}', name) for name in extra_names]
     directions = []
-    for k, name in enumerate(DEVICE_PARAMETER_NAMES):
+    for k, (label, name) in enumerate(labelled):
+        if n_parameters + k >= len(free):
+            break
         vector = np.zeros(len(free))
         vector[n_parameters + k] = 1.0
         vector = vector[free] * scales
         if np.linalg.norm(vector) > 0:
-            directions.append((name, vector))
+            directions.append((label, vector, name))
     return directions
 
 
@@ -336,7 +352,7 @@ def _describe(
     null_space: np.ndarray,
     names: list[str],
     gauges: list[tuple[str, np.ndarray]],
-    device: Sequence[tuple[str, np.ndarray]] = (),
+    device: Sequence[tuple[str, np.ndarray, str]] = (),
 ) -> list[NullDirection]:
     """Describe each null dimension: a named explanation if one fits, else the mixed parameters."""
     if null_space.shape[1] == 0:
@@ -379,7 +395,7 @@ def _top_coefficients(vector: np.ndarray, names: list[str]) -> dict[str, float]:
 def _explanations(
     null_space: np.ndarray,
     gauges: list[tuple[str, np.ndarray]],
-    device: list[tuple[str, np.ndarray]],
+    device: list[tuple[str, np.ndarray, str]],
 ) -> list[tuple[str, np.ndarray, str | None]]:
     """
     Named motions that lie in the null space, most specific first, none repeating another.
@@ -394,12 +410,12 @@ def _explanations(
         (name, [vector], None) for name, vector in gauges
     ]
     candidates += [
-        (f"the device's {name} has no effect on these measurements", [vector], name)
-        for name, vector in device
+        (f'{label} has no effect on these measurements', [vector], name)
+        for label, vector, name in device
     ]
     candidates += [
-        (f"the device's {d_name} cannot be told apart from {g_name}", [d_vector, g_vector], d_name)
-        for d_name, d_vector in device
+        (f'{label} cannot be told apart from {g_name}', [d_vector, g_vector], d_name)
+        for label, d_vector, d_name in device
         for g_name, g_vector in gauges
     ]
     found: list[tuple[str, np.ndarray, str | None]] = []
@@ -413,7 +429,7 @@ def _explanations(
             previous, _ = np.linalg.qr(np.column_stack([v for _, v, _ in found]))
             if np.linalg.norm(previous.T @ member) > 0.99:
                 continue  # already explained
-        found.append((text, member, f'device.{fix}' if fix else None))
+        found.append((text, member, fix))
         if len(found) == null_space.shape[1]:
             break
     return found

@@ -40,6 +40,7 @@ from threadpoolctl import ThreadpoolController
 
 from .adequacy import Adequacy, assess, WhitenedResiduals
 from .architectures import Architecture, KinematicParameters
+from .compliance import ComplianceModel, LOADS_TOLERANCE_M
 from .device import (
     DEVICE_PARAMETER_NAMES,
     DeviceDefects,
@@ -52,7 +53,8 @@ from .identifiability import analyze, column_scales, DEFAULT_RANK_TOLERANCE, Ide
 from .kinematics import forward_kinematics, pose_sensitivities
 from .measurements import MeasurementLimits, Measurements, NoiseModel, ScatterFloor, Weights
 from .model import parameter_names
-from .residuals import ChannelSigma, CostFunction, COSTS, N_NOISE_SOURCES, ResidualBlock
+from .residuals import ChannelSigma, CostFunction, COSTS, DL, N_NOISE_SOURCES, ResidualBlock
+from .statics import StaticLoads
 
 CONVERGED = 'converged'
 ITERATION_LIMIT = 'iteration-limit'
@@ -71,9 +73,14 @@ def _blas_controller() -> ThreadpoolController:
     return ThreadpoolController()
 
 
-def unknown_names(model: str) -> list[str]:
-    """Return the names of the model's kinematic parameters followed by the 5 device defects."""
-    return parameter_names(model) + [f'device.{name}' for name in DEVICE_PARAMETER_NAMES]
+def unknown_names(model: str, compliance: ComplianceModel | None = None) -> list[str]:
+    """
+    Return the names of the model's kinematic parameters followed by the 5 device defects.
+
+    With a ``compliance`` choice its unknowns (``compliance.<name>``) follow.
+    """
+    names = parameter_names(model) + [f'device.{name}' for name in DEVICE_PARAMETER_NAMES]
+    return names + (compliance.unknown_names if compliance is not None else [])
 
 
 @dataclass(frozen=True)
@@ -118,6 +125,8 @@ class SolverOptions:
     # solutions ~70 mm from the measured position, another FK branch moves them much further.
     branch_tolerance_m: float = 0.2
     branch_tolerance_rad: float = 0.5
+    # Axial compliances identified with the geometry from the static loads (core/compliance.py).
+    compliance: ComplianceModel = ComplianceModel()
 
     def free_mask(self, n_parameters: int) -> np.ndarray:
         """Return the mask over the unknowns: n_parameters kinematic (the layout's) + 5 device."""
@@ -136,6 +145,8 @@ class SolverOptions:
             )
         identified = set(self.free_device) | set(self.device_prior.names)
         device = np.array([name in identified for name in DEVICE_PARAMETER_NAMES])
+        if self.compliance.active:
+            return np.concatenate([kinematic, device, self.compliance.free()])
         return np.concatenate([kinematic, device])
 
     def validate(self, n_parameters: int) -> None:
@@ -159,6 +170,11 @@ class SolverOptions:
                 f'a device prior ({self.device_prior.describe()}) is weighed against the data by '
                 'the reading noise: give the noise model too (noise_slider_m and '
                 'noise_angle_rad, --noise-um / --weighted), or postures that carry their scatter'
+            )
+        if self.compliance.prior and self.weights == Weights.NONE:
+            raise ValueError(
+                'a compliance prior is weighed against the data by the reading noise: give the '
+                'noise model too (--noise-um / --weighted), or postures that carry their scatter'
             )
         self.free_mask(n_parameters)
 
@@ -205,6 +221,10 @@ class IdentificationResult:
     # What whitened the rows (the std, covariance and adequacy are under it), and why (one line).
     weights: str = Weights.NONE.value
     weights_note: str = ''
+    # Identified axial compliances (m/N) and their std (NaN: held or unidentifiable); empty: rigid.
+    compliance_mode: str = 'none'
+    compliance: dict[str, float] = field(default_factory=dict)
+    compliance_std: dict[str, float] = field(default_factory=dict)
 
     @property
     def adequacy(self) -> Adequacy:
@@ -251,6 +271,16 @@ class IdentificationResult:
             'robust_loss': self.robust_loss,
             'held_for_identifiability': self.held_for_identifiability,
         }
+        if self.compliance_mode != 'none':
+            payload['compliance'] = {
+                'mode': self.compliance_mode,
+                'unit': 'm/N',
+                'values': dict(self.compliance),
+                'std': {
+                    name: (None if not np.isfinite(s) else float(s))
+                    for name, s in self.compliance_std.items()
+                },
+            }
         payload['std_note'] = '-1 marks a parameter that was held fixed or is not identifiable'
         return payload
 
@@ -258,7 +288,9 @@ class IdentificationResult:
 def _split(vector: np.ndarray, arch: Architecture) -> tuple[KinematicParameters, DeviceDefects]:
     """Split the unknown vector into the architecture's parameters and the 5 device defects."""
     n = arch.layout.n_parameters
-    return arch.parameters(vector[:n]), DeviceDefects.from_vector(vector[n:])
+    return arch.parameters(vector[:n]), DeviceDefects.from_vector(
+        vector[n:n + N_DEVICE_PARAMETERS]
+    )
 
 
 class _Problem:
@@ -281,17 +313,75 @@ class _Problem:
         self.cost = CostFunction(
             options.cost, measurements.subset(self.used), options.device, options.sigma
         )
+        # Static loads of the used postures, held through a solver run (compliance.py).
+        self.loads: StaticLoads | None = None
+        self._compliant_cost: tuple[bytes, CostFunction] | None = None
 
     def without(self, local_indices) -> '_Problem':
         keep = np.setdiff1d(np.arange(len(self.used)), list(local_indices))
-        return _Problem(self.measurements, self.used[keep], self.options, self.free, self.arch)
+        problem = _Problem(self.measurements, self.used[keep], self.options, self.free, self.arch)
+        if self.loads is not None:
+            problem.loads = self.loads.subset(keep)
+        return problem
+
+    @property
+    def compliance(self) -> ComplianceModel:
+        return self.options.compliance
+
+    def _offset(self) -> int:
+        return self.n_parameters + N_DEVICE_PARAMETERS
+
+    def cost_at(self, vector: np.ndarray | None) -> CostFunction:
+        """Return the cost function of the readings corrected by ``vector``'s compliances."""
+        if not self.compliance.active or self.loads is None or vector is None:
+            return self.cost
+        values = vector[self._offset():]
+        key = values.tobytes()
+        if self._compliant_cost is None or self._compliant_cost[0] != key:
+            corrected = self.compliance.corrected(
+                self.cost.measurements, self.loads, values, self.options.device.link_length
+            )
+            self._compliant_cost = (
+                key,
+                CostFunction(
+                    self.options.cost, corrected, self.options.device, self.options.sigma
+                ),
+            )
+        return self._compliant_cost[1]
+
+    def update_loads(self, vector: np.ndarray, poses: np.ndarray) -> bool:
+        """Evaluate the loads at ``poses``; return whether a deflection moved (compliance.py)."""
+        moved, loads = self._loads_at(vector, poses)
+        if moved:
+            self.loads, self._compliant_cost = loads, None
+        return moved
+
+    def loads_moved(self, vector: np.ndarray, poses: np.ndarray) -> bool:
+        """Return whether the loads at ``poses`` move a deflection from those held."""
+        return self._loads_at(vector, poses)[0]
+
+    def _loads_at(self, vector: np.ndarray, poses: np.ndarray):
+        if not self.compliance.active:
+            return False, None
+        loads = self.compliance.loads(_split(vector, self.arch)[0], poses, self.used)
+        if self.loads is None:
+            return True, loads
+        values = vector[self._offset():]
+        old = self.compliance.deflections(self.loads, values)
+        new = self.compliance.deflections(loads, values)
+        moved = max(float(np.max(np.abs(a - b), initial=0.0)) for a, b in zip(old, new))
+        return moved > LOADS_TOLERANCE_M, loads
 
     def solve_fk(
-        self, params: KinematicParameters, start: np.ndarray, fit_tilt_first: bool = False
+        self,
+        params: KinematicParameters,
+        start: np.ndarray,
+        fit_tilt_first: bool = False,
+        vector: np.ndarray | None = None,
     ):
         return forward_kinematics(
             params,
-            self.cost.measurements.actuator_positions,
+            self.cost_at(vector).measurements.actuator_positions,
             start,
             tolerance=self.options.fk_tolerance,
             branch_tolerance_m=self.options.branch_tolerance_m,
@@ -303,9 +393,11 @@ class _Problem:
         return self.cost.initial_poses(defects)
 
     def residuals(self, vector: np.ndarray, poses: np.ndarray) -> ResidualBlock:
-        return self.cost.residuals(poses, None, _split(vector, self.arch)[1])
+        return self.cost_at(vector).residuals(poses, None, _split(vector, self.arch)[1])
 
     def jacobian(self, vector: np.ndarray, poses: np.ndarray) -> ResidualBlock:
+        if self.compliance.active:
+            return self._compliant_jacobian(vector, poses)
         params, defects = _split(vector, self.arch)
         # The 5 device columns are only formed when a device defect is identified.
         with_device = bool(self.free[self.n_parameters:].any())
@@ -322,8 +414,27 @@ class _Problem:
             block.jacobian = block.jacobian[:, columns]
         return block
 
+    def _compliant_jacobian(self, vector: np.ndarray, poses: np.ndarray) -> ResidualBlock:
+        """Return the rows with device columns as asked and the compliance columns after them."""
+        params, defects = _split(vector, self.arch)
+        n, offset = self.n_parameters, self._offset()
+        with_device = bool(self.free[n:offset].any())
+        assert self.loads is not None  # _run evaluates them before the solver starts
+        block = self.cost_at(vector).residuals(
+            poses, pose_sensitivities(params, poses), defects, with_device=True, with_noise=True
+        )
+        assert block.jacobian is not None
+        extra = self.compliance.columns(block, self.loads, n + DL)
+        kept = [self.free[:n]] + ([self.free[n:offset]] if with_device else [])
+        columns = np.concatenate(kept + [self.free[offset:]])
+        jacobian = block.jacobian if with_device else block.jacobian[:, :n]
+        block.jacobian = np.hstack([jacobian, extra])[:, columns]
+        block.noise_jacobian = None  # only row_transform's block needs them
+        return block
+
     def with_prior(self, block: ResidualBlock, vector: np.ndarray) -> ResidualBlock:
         """Return ``block`` (weighted) plus one row (value - prior) / std per device prior."""
+        block = self._with_compliance_prior(block, vector)
         prior = self.options.device_prior
         if not prior:
             return block
@@ -345,6 +456,29 @@ class _Problem:
             np.concatenate([block.postures, np.full(len(values), -1)]),
         )
 
+    def _with_compliance_prior(self, block: ResidualBlock, vector: np.ndarray) -> ResidualBlock:
+        """Return ``block`` plus one row (value - prior) / std per compliance prior."""
+        indices, prior_values, stds = self.compliance.prior_rows()
+        if not self.compliance.active or not len(indices):
+            return block
+        unknowns = self._offset() + indices
+        values = (vector[unknowns] - prior_values) / stds
+        jacobian = None
+        if block.jacobian is not None:
+            column = np.cumsum(self.free) - 1
+            jacobian = np.zeros((len(values), block.jacobian.shape[1]))
+            free = self.free[unknowns]
+            jacobian[np.flatnonzero(free), column[unknowns[free]]] = 1.0 / stds[free]
+            jacobian = np.vstack([block.jacobian, jacobian])
+        names = self.compliance.names
+        channels = np.array([f'prior.compliance.{names[k]}' for k in indices])
+        return ResidualBlock(
+            np.concatenate([block.values, values]),
+            jacobian,
+            np.concatenate([block.channels, channels]),
+            np.concatenate([block.postures, np.full(len(values), -1)]),
+        )
+
     def row_transform(
         self, vector: np.ndarray, poses: np.ndarray, robust: bool = True
     ) -> '_RowTransform':
@@ -354,7 +488,7 @@ class _Problem:
         if variances is None and loss is None:
             return _RowTransform()
         params, defects = _split(vector, self.arch)
-        raw = self.cost.residuals(
+        raw = self.cost_at(vector).residuals(
             poses, pose_sensitivities(params, poses), defects, with_device=True
         )
         return _RowTransform(raw, variances, loss)
@@ -536,7 +670,10 @@ def _identify_once(
             'these postures carry none: weigh by a noise model, or not at all'
         )
     free = options.free_mask(n_parameters)
+    options.compliance.validate(options.cost, len(measurements))
     start = np.concatenate([nominal.vector, options.device_defects.vector])
+    if options.compliance.active:
+        start = np.concatenate([start, options.compliance.start()])
     start[n_parameters + options.device_prior.indices] = (
         options.device_prior.values
     )  # start at the prior
@@ -578,6 +715,8 @@ def _identify_once(
             reweight = (round_number == 0 and options.weights != Weights.NONE) or (
                 options.robust_loss is not None and moved > IRLS_TOLERANCE
             )
+            # Compliances: the loads were held through the run; run again while they move.
+            reweight = reweight or problem.loads_moved(vector, poses)
             if not changed and not reweight:
                 break
             previous = vector
@@ -617,22 +756,37 @@ def identify(
         return result
     held = result.identifiability.unidentifiable_parameters
     n = nominal.layout.n_parameters
-    free = options.free_mask(n) & ~np.isin(unknown_names(nominal.model), held)
+    compliance = options.compliance
+    free = options.free_mask(n) & ~np.isin(unknown_names(nominal.model, compliance), held)
+    offset = n + N_DEVICE_PARAMETERS
     reduced = replace(
         options,
         free_parameters=tuple(bool(f) for f in free[:n]),
-        free_device=tuple(name for name, f in zip(DEVICE_PARAMETER_NAMES, free[n:]) if f),
+        free_device=tuple(name for name, f in zip(DEVICE_PARAMETER_NAMES, free[n:offset]) if f),
+        compliance=replace(
+            compliance,
+            held=tuple(
+                name for name, f in zip(compliance.names, free[offset:]) if not f
+            ),
+        ),
     )
     again = _identify_once(nominal, measurements, reduced)
     again.identifiability, again.rank = result.identifiability, result.rank
     again.held_for_identifiability = held
     again.std[np.isin(parameter_names(nominal.model), held)] = np.nan
+    for name in again.compliance_std:
+        if compliance.unknown_names and f'compliance.{name}' in held:
+            again.compliance_std[name] = float('nan')
     return again
 
 
 def _run(
     problem: '_Problem', vector: np.ndarray, poses: np.ndarray, options: SolverOptions
 ) -> '_LevenbergMarquardt':
+    if problem.update_loads(vector, poses):  # compliances: loads held through the run
+        # The corrected readings changed with the loads: start from their own FK poses.
+        fk = problem.solve_fk(_split(vector, problem.arch)[0], poses, vector=vector)
+        poses = np.where(fk.converged[:, None], fk.poses, poses)
     solver = _LevenbergMarquardt(problem, vector, poses, problem.row_transform(vector, poses))
     solver.run()
     return solver
@@ -641,7 +795,9 @@ def _run(
 def _admit(vector: np.ndarray, problem: '_Problem', context: str):
     """Solve FK from the expected postures; keep those that converge, set the others aside."""
     params, defects = _split(vector, problem.arch)
-    fk = problem.solve_fk(params, problem.expected_poses(defects), fit_tilt_first=True)
+    fk = problem.solve_fk(
+        params, problem.expected_poses(defects), fit_tilt_first=True, vector=vector
+    )
     failed = sorted(fk.failures)
     set_aside = {
         int(problem.used[i]): f'forward kinematics {context}: {fk.failures[i]}' for i in failed
@@ -737,7 +893,8 @@ class _LevenbergMarquardt:
         return _split(self.vector, self.problem.arch)[0]
 
     def free_names(self) -> list[str]:
-        return [n for n, f in zip(unknown_names(self.problem.arch.name), self.free) if f]
+        names = unknown_names(self.problem.arch.name, self.options.compliance)
+        return [n for n, f in zip(names, self.free) if f]
 
     def _set_block(self, raw_block: ResidualBlock, first: bool = False) -> None:
         """Take residuals and Jacobian (unweighted) here; reduce them to normal equations."""
@@ -761,6 +918,7 @@ class _LevenbergMarquardt:
             self.options.device.link_length,
             self.options.device.mount,
             gram_root=self.normal.square_root() * self.scales,
+            extra_names=self.options.compliance.unknown_names,
         )
 
     def run(self) -> None:
@@ -831,7 +989,7 @@ class _LevenbergMarquardt:
             ValueError
         ):  # the step left the valid parameter set (|a_xy| >= 1, absurd device defects)
             return None
-        fk = self.problem.solve_fk(params, self.poses)
+        fk = self.problem.solve_fk(params, self.poses, vector=vector)
         if fk.failures:
             # A few postures whose FK breaks down (near a singularity of the model) are set aside;
             # many failing at once means the step is too long.
@@ -874,6 +1032,8 @@ class _LevenbergMarquardt:
         params, defects = _split(self.vector, self.problem.arch)
         n = self.problem.n_parameters
         sigma = self.options.sigma
+        compliance = self.options.compliance
+        offset = n + N_DEVICE_PARAMETERS
         return IdentificationResult(
             parameters=params,
             initial_parameters=nominal,
@@ -895,13 +1055,18 @@ class _LevenbergMarquardt:
             identifiability=report,
             poses=self.poses,
             device=defects,
-            device_std=std_all[n:],
-            free_device=tuple(name for name, f in zip(DEVICE_PARAMETER_NAMES, self.free[n:]) if f),
+            device_std=std_all[n:offset],
+            free_device=tuple(
+                name for name, f in zip(DEVICE_PARAMETER_NAMES, self.free[n:offset]) if f
+            ),
             variance_factor=variance_factor,
             weighted=weights == Weights.NOISE_MODEL,
             robust_loss=self.options.robust_loss,
             whitened=self._whitened() if whitened else None,
             weights=weights.value,
+            compliance_mode=compliance.mode,
+            compliance={k: float(v) for k, v in zip(compliance.names, self.vector[offset:])},
+            compliance_std={k: float(v) for k, v in zip(compliance.names, std_all[offset:])},
         )
 
     def _whitened(self) -> WhitenedResiduals:

@@ -28,7 +28,14 @@ import numpy as np
 from .architectures import KinematicParameters
 from .device import MOUNTS
 from .errors import ForwardKinematicsError, UnreachablePoseError
-from .live import actuator_targets, default_stroke, home_pose, OutOfStrokeError, solve_pose
+from .live import (
+    actuator_targets,
+    default_stroke,
+    home_pose,
+    LoadedChains,
+    OutOfStrokeError,
+    solve_pose,
+)
 
 MIN_MOVE_TIME_S = 0.1  # a command's time_from_start is never shorter
 LOG_PERIOD_S = 5.0  # repeated problems (bad readings, failed solves) are reported this seldom
@@ -173,6 +180,8 @@ class LiveSession:
         # Which deployed calibration is in use: the status keys active_calibration,
         # active_since, active_reason ('' = none; the node sets them from the store).
         self.deployment: Mapping[str, object] = {}
+        # The calibration's chain compliances and the weights (None: a rigid machine).
+        self.loaded: LoadedChains | None = None
 
     @classmethod
     def start(
@@ -336,7 +345,9 @@ class LiveSession:
         for guess in cast(tuple[Sequence[float], ...], guesses):
             try:
                 # live.py takes sequences; the arrays are read as such (np.asarray).
-                pose = solve_pose(self.params, cast(Sequence[float], readings), guess)
+                pose = solve_pose(
+                    self.params, cast(Sequence[float], readings), guess, self.loaded
+                )
                 break
             except ForwardKinematicsError as error:
                 problems.append(str(error))
@@ -399,7 +410,9 @@ class LiveSession:
             return None, self._refuse(RefusalReason.INVALID_TARGET, text)
         try:
             limit = stroke(self.params, limits)
-            targets = actuator_targets(self.params, cast(Sequence[float], pose), limit)
+            targets = actuator_targets(
+                self.params, cast(Sequence[float], pose), limit, self.loaded
+            )
         except OutOfStrokeError as error:
             reason = RefusalReason(error.reason)
             return None, self._refuse(reason, f'target {pose_text(pose)} {error}', pose)

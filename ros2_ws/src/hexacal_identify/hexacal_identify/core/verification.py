@@ -58,6 +58,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .architectures import KinematicParameters
+from .compliance import ComplianceModel
 from .device import DeviceDefects, DeviceModel
 from .errors import InvalidMeasurementError
 from .jsonsafe import json_safe as _plain
@@ -284,15 +285,28 @@ def set_residuals(
     measurements: Measurements,
     device: DeviceModel = DeviceModel(),
     defects: DeviceDefects = DeviceDefects(),
+    compliance: tuple[ComplianceModel, np.ndarray] | None = None,
 ) -> tuple[SetResiduals, np.ndarray]:
     """
     (residuals of ``params``, the expected poses FK started from) at the measured postures.
 
     ``defects``: the device defects this parameter set assumes (identified jointly, or none).
+    ``compliance``: (model, values) of compliances identified with ``params``: the readings are
+    corrected by the static loads at the set's own poses (core/compliance.py) before FK.
     """
     from .identification import (
         SolverOptions,
     )  # the identification's FK tolerances and branch check
+
+    if compliance is not None:
+        model, values = compliance
+        corrected = measurements
+        for _ in range(2):  # loads at the rigid poses, then at the loaded ones
+            first, expected = set_residuals(params, corrected, device, defects)
+            poses = np.where(first.converged[:, None], first.poses, expected)
+            loads = model.loads(params, poses, np.arange(len(measurements)))
+            corrected = model.corrected(measurements, loads, values, device.link_length)
+        measurements = corrected
 
     options = SolverOptions()
     cost = CostFunction('absolute', measurements, device, ChannelSigma())
@@ -373,6 +387,7 @@ def verify(
     nominal_defects: DeviceDefects = DeviceDefects(),
     calibrated_defects: DeviceDefects = DeviceDefects(),
     limits: MeasurementLimits = MeasurementLimits(),
+    calibrated_compliance: tuple[ComplianceModel, np.ndarray] | None = None,
 ) -> VerificationResult:
     """
     Verify nominal and calibrated parameters at fresh measured postures.
@@ -383,7 +398,8 @@ def verify(
     ``noise``, else DEFAULT_THRESHOLD_M).  ``noise``: the reading noise half-widths, for the
     expected noise figures. ``postures_model``: the model whose actuator joints the postures carry
     (None: not known, not checked). ``calibrated_defects``: device defects identified with the
-    calibration (its device), if any. Raises VerificationModelError on a model mismatch,
+    calibration (its device), if any. ``calibrated_compliance``: (model, values) of compliances
+    identified with it (set_residuals). Raises VerificationModelError on a model mismatch,
     InvalidMeasurementError on no or invalid postures, ValueError on a threshold that is not a
     positive length.
     """
@@ -402,7 +418,9 @@ def verify(
         )
     measurements.validate(limits)
     before, _ = set_residuals(nominal, measurements, device, nominal_defects)
-    after, expected_after = set_residuals(calibrated, measurements, device, calibrated_defects)
+    after, expected_after = set_residuals(
+        calibrated, measurements, device, calibrated_defects, calibrated_compliance
+    )
     predicted = None
     if noise is not None:
         predicted = expected_noise(

@@ -1,0 +1,219 @@
+"""Axial compliances identified with the geometry: Jacobians, recovery, adequacy, named limits."""
+
+from dataclasses import replace
+
+from hexacal_identify.core.architectures import architecture
+from hexacal_identify.core.compliance import ComplianceModel, simulate_loaded_measurements
+from hexacal_identify.core.errors import InvalidMeasurementError, RankDeficientError
+from hexacal_identify.core.identification import _Problem, identify, SolverOptions
+from hexacal_identify.core.kinematics import forward_kinematics
+from hexacal_identify.core.measurements import NoiseModel
+from hexacal_identify.core.passive_actuator import release_conditions
+from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.statics import MassModel
+import numpy as np
+import pytest
+
+MODELS = ('hexa_slide', 'gough_stewart')
+MASSES = MassModel(
+    platform_mass=20.0, platform_com=(0.0, 0.0, 0.02), leg_mass=2.0, link_mass=1.5
+)
+LINK = 1e-7  # m/N: a 1e7 N/m measuring link
+CHAIN = 2e-8  # m/N: 5e7 N/m legs
+NOISE = NoiseModel.from_microns(2.0)
+
+
+def _setup(model, n=50, seed=1, mode='passive_actuator'):
+    arch = architecture(model)
+    true = arch.default_parameters()
+    rng = np.random.default_rng(seed)
+    poses = sample_poses(true, n, rng, 'sphere', arch.default_workspace())
+    # The released chain of each posture: the one that leaves the passive system best conditioned.
+    released = np.argmin(release_conditions(true, poses, 0.75), axis=1)
+    return arch, true, rng, poses, released
+
+
+def _nominal(true, rng, scale=2e-4):
+    return true.with_vector(true.vector + rng.normal(0.0, scale, true.vector.size))
+
+
+@pytest.mark.parametrize('model', MODELS)
+@pytest.mark.parametrize('choice', ['shared', 'per_chain'])
+def test_compliance_columns_match_finite_differences(model, choice):
+    arch, true, rng, poses, released = _setup(model, n=12)
+    compliance = ComplianceModel(choice, MASSES, 'passive_actuator', released)
+    truth = np.array([CHAIN] * (1 if choice == 'shared' else 6) + [LINK])
+    measurements, _ = simulate_loaded_measurements(true, poses, compliance, truth)
+    options = SolverOptions(compliance=compliance, free_device=('dL', 'alpha0'))
+    n = true.layout.n_parameters
+    free = options.free_mask(n)
+    problem = _Problem(measurements, np.arange(len(poses)), options, free, arch)
+    vector = np.concatenate([_nominal(true, rng).vector, np.zeros(5), truth * 0.7])
+    vector[n] = 1e-4  # dL
+    fk = problem.solve_fk(vector_params := arch.parameters(vector[:n]), poses)
+    problem.update_loads(vector, fk.poses)
+    fk = problem.solve_fk(vector_params, fk.poses, vector=vector)
+    analytic = problem.jacobian(vector, fk.poses).jacobian
+    columns = np.flatnonzero(free)
+    # Every compliance column, the dL column and a few kinematic ones.
+    checked = [k for k, c in enumerate(columns) if c >= n] + [0, 5, n // 2]
+    for k in checked:
+        unknown = columns[k]
+        step = 1e-6 if unknown < n + 5 else 1e-9
+        values = []
+        for sign in (1.0, -1.0):
+            trial = vector.copy()
+            trial[unknown] += sign * step
+            params = arch.parameters(trial[:n])
+            poses_k = forward_kinematics(
+                params,
+                problem.cost_at(trial).measurements.actuator_positions,
+                fk.poses,
+                tolerance=1e-14,
+            ).poses
+            values.append(problem.residuals(trial, poses_k).values)
+        numeric = (values[0] - values[1]) / (2 * step)
+        scale = np.max(np.abs(numeric)) + 1e-30
+        np.testing.assert_allclose(
+            analytic[:, k], numeric, atol=2e-5 * scale, err_msg=f'column {unknown}'
+        )
+        assert scale > 0.0
+
+
+@pytest.mark.parametrize('model', MODELS)
+@pytest.mark.parametrize('choice', ['shared', 'per_chain'])
+def test_known_compliances_are_recovered_within_their_std(model, choice):
+    arch, true, rng, poses, released = _setup(model)
+    compliance = ComplianceModel(choice, MASSES, 'passive_actuator', released)
+    chains = [CHAIN] if choice == 'shared' else list(CHAIN * np.linspace(0.6, 1.4, 6))
+    truth = np.array(chains + [LINK])
+    measurements, _ = simulate_loaded_measurements(
+        true, poses, compliance, truth, noise=NOISE, rng=rng
+    )
+    result = identify(
+        _nominal(true, rng), measurements, SolverOptions(noise=NOISE, compliance=compliance)
+    )
+    assert result.identifiability.identifiable
+    estimate = np.array(list(result.compliance.values()))
+    std = np.array(list(result.compliance_std.values()))
+    assert np.all(np.isfinite(std)) and np.all(std > 0)
+    # Within 3.3 reported standard deviations (two-sided 0.1 %) each, and the link well known.
+    assert np.all(np.abs(estimate - truth) < 3.3 * std), (estimate, truth, std)
+    assert std[-1] < 0.05 * LINK
+    assert result.adequacy.verdict == 'pass', result.adequacy.reason
+    payload = result.to_json()['compliance']
+    assert payload['mode'] == choice and set(payload['values']) == set(compliance.names)
+
+
+@pytest.mark.parametrize('model', MODELS)
+def test_a_rigid_fit_of_a_loaded_machine_fails_its_adequacy(model):
+    arch, true, rng, poses, released = _setup(model)
+    compliance = ComplianceModel('shared', MASSES, 'passive_actuator', released)
+    measurements, _ = simulate_loaded_measurements(
+        true, poses, compliance, np.array([CHAIN, LINK]), noise=NOISE, rng=rng
+    )
+    nominal = _nominal(true, rng)
+    rigid = identify(nominal, measurements, SolverOptions(noise=NOISE))
+    assert rigid.adequacy.failed and rigid.variance_factor > 20.0, rigid.variance_factor
+    assert 'compliance' not in rigid.to_json()
+    compliant = identify(nominal, measurements, SolverOptions(noise=NOISE, compliance=compliance))
+    assert compliant.adequacy.verdict == 'pass' and compliant.variance_factor < 2.0
+    # The geometry the compliant fit finds is the true one; the rigid fit's is bent by the loads.
+    rigid_error = np.max(np.abs(rigid.parameters.vector - true.vector))
+    compliant_error = np.max(np.abs(compliant.parameters.vector - true.vector))
+    assert compliant_error < rigid_error / 3.0, (compliant_error, rigid_error)
+
+
+def test_lvdt_mode_has_no_link_compliance_and_recovers_the_chains():
+    arch, true, rng, poses, _ = _setup('gough_stewart')
+    compliance = ComplianceModel('shared', MASSES, 'lvdt')
+    assert compliance.names == ('chains',)
+    measurements, _ = simulate_loaded_measurements(
+        true, poses, compliance, np.array([5 * CHAIN]), noise=NOISE, rng=rng
+    )
+    result = identify(
+        _nominal(true, rng), measurements, SolverOptions(noise=NOISE, compliance=compliance)
+    )
+    assert abs(result.compliance['chains'] - 5 * CHAIN) < 3.3 * result.compliance_std['chains']
+
+
+def test_a_compliance_without_load_is_named_unidentifiable():
+    arch, true, rng, poses, released = _setup('hexa_slide', n=30)
+    weightless = ComplianceModel('shared', MassModel(), 'passive_actuator', released)
+    measurements, _ = simulate_loaded_measurements(true, poses, weightless, np.zeros(2))
+    with pytest.raises(RankDeficientError, match='axial compliance of link has no effect'):
+        identify(_nominal(true, rng), measurements, SolverOptions(compliance=weightless))
+    result = identify(
+        _nominal(true, rng),
+        measurements,
+        SolverOptions(compliance=weightless, allow_rank_deficient=True),
+    )
+    assert 'compliance.link' in result.held_for_identifiability
+    assert np.isnan(result.compliance_std['link'])
+
+
+def test_a_prior_holds_a_compliance_the_data_barely_see():
+    arch, true, rng, poses, released = _setup('hexa_slide')
+    compliance = ComplianceModel('per_chain', MASSES, 'passive_actuator', released)
+    truth = np.array([CHAIN] * 6 + [LINK])
+    measurements, _ = simulate_loaded_measurements(
+        true, poses, compliance, truth, noise=NOISE, rng=rng
+    )
+    datasheet = replace(compliance, prior={'chain_1': (CHAIN, 0.01 * CHAIN)})
+    result = identify(
+        _nominal(true, rng), measurements, SolverOptions(noise=NOISE, compliance=datasheet)
+    )
+    assert abs(result.compliance['chain_1'] - CHAIN) < 0.03 * CHAIN
+    assert result.compliance_std['chain_1'] <= 0.0101 * CHAIN
+    with pytest.raises(ValueError, match='reading noise'):
+        identify(_nominal(true, rng), measurements, SolverOptions(compliance=datasheet))
+
+
+def test_bad_compliance_input_is_named():
+    arch, true, rng, poses, released = _setup('hexa_slide', n=12)
+    measurements, _ = simulate_loaded_measurements(
+        true, poses, ComplianceModel('shared', MASSES, 'lvdt'), np.array([CHAIN])
+    )
+    with pytest.raises(InvalidMeasurementError, match='released chain of every posture'):
+        identify(true, measurements, SolverOptions(compliance=ComplianceModel('shared', MASSES)))
+    with pytest.raises(ValueError, match='relative cost'):
+        identify(
+            true,
+            measurements,
+            SolverOptions(
+                cost='relative', compliance=ComplianceModel('shared', MASSES, 'lvdt')
+            ),
+        )
+    with pytest.raises(ValueError, match='unknown compliance choice'):
+        ComplianceModel('stiff')
+    with pytest.raises(ValueError, match=r"unknown compliance\(s\) \['link'\]"):
+        ComplianceModel('shared', MASSES, 'lvdt', prior={'link': (LINK, LINK)})
+
+
+def test_verification_uses_the_compliances_on_fresh_postures():
+    from hexacal_identify.core.verification import verify
+
+    arch, true, rng, poses, released = _setup('hexa_slide', n=70)
+    compliance = ComplianceModel('shared', MASSES, 'passive_actuator', released[:50])
+    truth = np.array([CHAIN, LINK])
+    measurements, _ = simulate_loaded_measurements(
+        true, poses, replace(compliance, released=released), truth, noise=NOISE, rng=rng
+    )
+    fit, fresh = measurements.subset(np.arange(50)), measurements.subset(np.arange(50, 70))
+    nominal = _nominal(true, rng)
+    result = identify(nominal, fit, SolverOptions(noise=NOISE, compliance=compliance))
+    values = np.array(list(result.compliance.values()))
+    fresh_model = replace(compliance, released=released[50:])
+    loaded = verify(
+        nominal,
+        result.parameters,
+        fresh,
+        noise=NOISE,
+        calibrated_compliance=(fresh_model, values),
+    )
+    rigid = verify(nominal, result.parameters, fresh, noise=NOISE)
+    loaded_rms = loaded.calibrated.figures()['position_rms_m']
+    rigid_rms = rigid.calibrated.figures()['position_rms_m']
+    assert loaded.verdict == 'pass', loaded.verdict_reason
+    # Read as rigid, the same readings show the link's stretch at the fresh postures.
+    assert loaded_rms < 8e-6 and rigid_rms > 3 * loaded_rms, (loaded_rms, rigid_rms)
