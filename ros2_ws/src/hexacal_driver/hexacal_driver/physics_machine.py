@@ -53,7 +53,8 @@ from hexacal_msgs_py.measuring_modes import measuring_mode, MeasuringMode
 from hexacal_msgs_py.physical_file import PhysicalDescription
 import numpy as np
 
-REST_SPEED = 1e-7  # m/s and rad/s: every joint slower than this is at rest
+REST_SPEED = 1e-7  # m/s and rad/s: every joint slower than this is at rest ...
+REST_HOLD_S = 0.02  # ... for this long (a vibration passes through zero speed at its turns)
 CONTROL_PERIOD_S = 1e-3  # setpoints of a move are updated this often
 NOSLIP_ITERATIONS = 20  # hard Coulomb friction on a released actuator (MuJoCo's is soft without)
 
@@ -174,6 +175,8 @@ class PhysicsMachine:
         self._connects = [self.model.equality(name).id for name in names.equalities]
         self.data.ctrl[:] = self.data.qpos[self._actuated_qpos]
         self._move: _Move | None = None
+        self._rest_speed = REST_SPEED
+        self._rest_since: float | None = None
         self._released: _Released | None = None
         self.faults: list[PhysicsFault] = []
         self.wall_s = 0.0  # wall time spent stepping (for the speed against real time)
@@ -274,21 +277,42 @@ class PhysicsMachine:
                 remaining -= n
                 self._check_stability()
                 self._check_following_error()
+                self._track_rest()
         finally:
             self.wall_s += time.perf_counter() - started
 
     def settle(self, max_seconds: float, speed: float = REST_SPEED) -> bool:
-        """Advance until at rest (True) or ``max_seconds`` passed (False)."""
+        """Advance until at rest (True) or ``max_seconds`` passed (False); rest below ``speed``."""
+        self._rest_speed, self._rest_since = float(speed), None
         end = self.time_s + max_seconds
-        while self.time_s < end:
-            self.advance(min(0.01, end - self.time_s))
-            if self.at_rest(speed):
-                return True
-        return self.at_rest(speed)
+        try:
+            while self.time_s < end - 0.5 * self.model.opt.timestep:
+                self.advance(min(0.01, end - self.time_s))
+                if self.at_rest():
+                    return True
+            return self.at_rest()
+        finally:
+            self._rest_speed = REST_SPEED
 
-    def at_rest(self, speed: float = REST_SPEED) -> bool:
-        """Return True when no joint moves faster than ``speed`` and no move is under way."""
-        return self._move is None and float(np.max(np.abs(self.data.qvel))) < speed
+    def at_rest(self) -> bool:
+        """
+        Return True when the machine is at rest.
+
+        No move under way and no joint faster than the rest speed (REST_SPEED, or settle's) for
+        REST_HOLD_S of simulated time.
+        """
+        return (
+            self._move is None
+            and self._rest_since is not None
+            and self.time_s - self._rest_since >= REST_HOLD_S - 1e-9
+        )
+
+    def _track_rest(self) -> None:
+        still = self._move is None and float(np.max(np.abs(self.data.qvel))) < self._rest_speed
+        if not still:
+            self._rest_since = None
+        elif self._rest_since is None:
+            self._rest_since = self.time_s
 
     def _check_stability(self) -> None:
         warnings = self._mj.mjtWarning
