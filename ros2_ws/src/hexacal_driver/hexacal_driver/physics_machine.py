@@ -180,6 +180,7 @@ class PhysicsMachine:
         self._released: _Released | None = None
         self.faults: list[PhysicsFault] = []
         self.wall_s = 0.0  # wall time spent stepping (for the speed against real time)
+        self.cpu_s = 0.0  # this process's CPU time spent stepping (one core, however busy)
         self._mj.mj_forward(self.model, self.data)
 
     # -- commands -----------------------------------------------------------------------------
@@ -260,7 +261,7 @@ class PhysicsMachine:
         mj, model, data = self._mj, self.model, self.data
         steps_per_control = max(1, round(CONTROL_PERIOD_S / model.opt.timestep))
         remaining = max(0, round(seconds / model.opt.timestep))
-        started = time.perf_counter()
+        started, cpu_started = time.perf_counter(), time.process_time()
         try:
             while remaining > 0:
                 if self._move is not None:
@@ -280,6 +281,7 @@ class PhysicsMachine:
                 self._track_rest()
         finally:
             self.wall_s += time.perf_counter() - started
+            self.cpu_s += time.process_time() - cpu_started
 
     def settle(self, max_seconds: float, speed: float = REST_SPEED) -> bool:
         """Advance until at rest (True) or ``max_seconds`` passed (False); rest below ``speed``."""
@@ -429,8 +431,10 @@ class PhysicsMachine:
                 for f in self.faults
             ],
             'real_time_factor': self.real_time_factor(),
+            'cpu_real_time_factor': self.real_time_factor(cpu=True),
         }
 
-    def real_time_factor(self) -> float:
-        """Return simulated seconds per wall second spent stepping (NaN before any step)."""
-        return self.time_s / self.wall_s if self.wall_s > 0 else math.nan
+    def real_time_factor(self, cpu: bool = False) -> float:
+        """Return simulated seconds per wall (``cpu``: CPU) second spent stepping; NaN at first."""
+        spent = self.cpu_s if cpu else self.wall_s
+        return self.time_s / spent if spent > 0 else math.nan
