@@ -9,6 +9,11 @@ to the node's clock.  The pose is the platform's, the actuators the encoders' (m
 the chains' springs), the link's length its own; the sensors read them as on the kinematic
 machine (sensor_models.py, with every sensor effect on top).
 
+Time: the trajectory is followed on the simulation's clock, the node's clock less the time
+the simulation fell behind it.  Each sample advances the machine at most MAX_STEP_S, the
+setpoints moving linearly along the trajectory within it; where the simulation is slower than
+real time, the machine moves slower in wall time and exactly as commanded in its own.
+
 Faults are the physics': a commanded actuator farther than the following-error limit (the
 physical description's ``drives.following_error_limit``) from its setpoint, a released one
 past its end of stroke, or an unstable simulation (PhysicsError).  The drives then hold where
@@ -29,7 +34,9 @@ from hexacal_msgs_py.physical_file import PhysicalDescription
 import numpy as np
 
 MAX_SETTLE_S = 2.0  # after a motion, STILL at rest or at the latest this long after its end
-MAX_CATCH_UP_S = 0.5  # a sample more than this after the previous one advances only this far
+# One sample advances the simulation at most this far: a machine that cannot keep up with the
+# node's clock runs slower than it (its clock falls behind), it never jumps.
+MAX_STEP_S = 0.02
 
 
 class PhysicsFollower(DriveFollower):
@@ -61,8 +68,20 @@ class PhysicsFollower(DriveFollower):
             params, physical, self.pose, link_length=link_length, mount=mount,
             defects=defects, device_turn=device_turn, mode=settings.mode,
         )
-        self._clock_offset_s: float | None = None  # node time - simulated time
+        self._lag_s = 0.0  # how far the simulation's clock is behind the node's (s)
+        self._simulated_s: float | None = None  # the node-clock time the machine has reached
         self._motion_end_s = -math.inf
+
+    def _clock(self, now_s: float) -> float:
+        """Return the simulation's clock at the node's ``now_s``."""
+        return now_s - self._lag_s
+
+    def command(self, now_s: float, points, start_s: float | None = None) -> float:
+        """Follow ``points`` on the simulation's clock; return the end on the node's."""
+        end_s = super().command(
+            self._clock(now_s), points, None if start_s is None else self._clock(start_s)
+        )
+        return end_s + self._lag_s
 
     def forces(self) -> np.ndarray | None:
         """Return each actuator's servo force (6,), N (compliant), kp x deviation."""
@@ -72,7 +91,7 @@ class PhysicsFollower(DriveFollower):
 
     def release(self, joint: str, release: bool, now_s: float) -> tuple[bool, str]:
         """Release or lock ``joint`` (DriveFollower's checks), then on the MuJoCo machine."""
-        done, message = super().release(joint, release, now_s)
+        done, message = super().release(joint, release, self._clock(now_s))
         if done:
             if self.released is not None:
                 self.machine.release(self.released)
@@ -97,17 +116,21 @@ class PhysicsFollower(DriveFollower):
 
     def sample(self, now_s: float) -> WalkSample:
         """Advance the MuJoCo machine to ``now_s`` with the trajectory's setpoints; read it."""
-        if self._clock_offset_s is None:
-            self._clock_offset_s = now_s - self.machine.time_s
-        step_s = now_s - self._clock_offset_s - self.machine.time_s
-        if step_s > MAX_CATCH_UP_S:  # a stalled node: the machine does not jump
-            self._clock_offset_s += step_s - MAX_CATCH_UP_S
-            step_s = MAX_CATCH_UP_S
+        if self._simulated_s is None:
+            self._simulated_s = self._clock(now_s)
+        step_s = self._clock(now_s) - self._simulated_s
+        if step_s > MAX_STEP_S:  # slower than the node's clock: fall behind, never jump
+            self._lag_s += step_s - MAX_STEP_S
+            step_s = MAX_STEP_S
+        now_s = self._simulated_s + max(step_s, 0.0)  # on the simulation's clock from here
         if self.fault is None:
             setpoints = self.setpoints_at(now_s)
-            self.machine.command(self._with_released_setpoint(setpoints))
+            self.machine.command(
+                self._with_released_setpoint(setpoints), max(step_s, 0.0), linear=True
+            )
             self.setpoints = setpoints
             self._solved_for = setpoints.copy()
+        self._simulated_s = now_s
         if step_s > 0.0:
             try:
                 self.machine.advance(step_s)

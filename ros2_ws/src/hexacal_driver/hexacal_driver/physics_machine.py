@@ -90,6 +90,7 @@ class _Move:
     end: np.ndarray
     start_s: float
     duration_s: float
+    linear: bool = False
 
 
 @dataclass
@@ -198,8 +199,15 @@ class PhysicsMachine:
         """Return the released chain (0-based), None when all six are powered."""
         return None if self._released is None else self._released.chain
 
-    def command(self, setpoints: np.ndarray, duration_s: float = 0.0) -> None:
-        """Move the setpoints to ``setpoints`` (m) over ``duration_s`` (quintic time law)."""
+    def command(
+        self, setpoints: np.ndarray, duration_s: float = 0.0, linear: bool = False
+    ) -> None:
+        """
+        Move the setpoints to ``setpoints`` (m) over ``duration_s``.
+
+        A quintic time law (at rest at both ends), or ``linear`` (a piece of a trajectory the
+        caller interpolates).
+        """
         end = np.asarray(setpoints, dtype=float).reshape(-1)
         if end.shape != (self.model.nu,) or not np.all(np.isfinite(end)):
             raise ValueError(f'setpoints must be {self.model.nu} finite values in m, got {end}')
@@ -207,7 +215,9 @@ class PhysicsMachine:
             self._move = None
             self.data.ctrl[:] = end
         else:
-            self._move = _Move(np.array(self.data.ctrl), end, self.time_s, float(duration_s))
+            self._move = _Move(
+                np.array(self.data.ctrl), end, self.time_s, float(duration_s), linear
+            )
 
     def release(self, chain: int) -> None:
         """Unpower actuator ``chain`` (0-based): it moves freely with the released friction."""
@@ -260,13 +270,15 @@ class PhysicsMachine:
         """Simulate ``seconds`` (setpoints of a move updated every CONTROL_PERIOD_S)."""
         mj, model, data = self._mj, self.model, self.data
         steps_per_control = max(1, round(CONTROL_PERIOD_S / model.opt.timestep))
+        n_step_s = steps_per_control * model.opt.timestep  # setpoints at the end of each chunk
         remaining = max(0, round(seconds / model.opt.timestep))
         started, cpu_started = time.perf_counter(), time.process_time()
         try:
             while remaining > 0:
                 if self._move is not None:
                     move = self._move
-                    s = smooth_step((self.time_s - move.start_s) / move.duration_s)
+                    fraction = (self.time_s + n_step_s - move.start_s) / move.duration_s
+                    s = min(fraction, 1.0) if move.linear else smooth_step(fraction)
                     target = move.start + s * (move.end - move.start)
                     if self._released is not None:
                         target[self._released.chain] = data.ctrl[self._released.chain]

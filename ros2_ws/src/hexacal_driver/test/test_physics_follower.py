@@ -80,14 +80,14 @@ def test_passive_actuator_on_the_mujoco_machine(tmp_path):
 
 
 def test_a_following_error_faults_and_reset_holds(tmp_path):
-    # A 10 um following-error limit: the servos' lag at 0.1 m/s (v kd / kp = 40 um) passes it.
+    # A 10 um following-error limit: the servos' lag at 1 m/s (v kd / kp = 0.4 mm) passes it.
     physical = tmp_path / 'physical.yaml'
     write_physical_file(physical, replace(default_physical(), following_error_limit=1e-5))
-    m = machine(measuring_mode='lvdt', physical=str(physical))
+    m = machine(measuring_mode='lvdt', physical=str(physical), max_actuator_speed_m_s=1.0)
     f = m.follower
     f.sample(0.0)
     checked, problem = m.check_command(
-        list(f.commanded_names()), [(list(f.setpoints + 0.002), 0.01)], 0, 0
+        list(f.commanded_names()), [(list(f.setpoints + 0.02), 0.01)], 0, 0
     )
     assert problem is None
     f.command(0.0, checked)
