@@ -147,4 +147,3 @@ def test_export_mjcf_writes_the_machine_with_its_physics(tmp_path, capsys):
     assert main(['export', str(parameters), '--format', 'mjcf', '--physical', str(physical),
                  '--out', str(out)]) == 2
     assert 'describes a hexa_slide' in capsys.readouterr().err
-
