@@ -152,7 +152,8 @@ def test_gravity_deflects_the_chain_springs_as_statics_says(model):
     assert machine.pose()[2] < home[2]  # the hanging platform sags
 
 
-def test_instability_is_an_error_not_a_reset():
+def test_instability_is_an_error_not_a_reset(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to MUJOCO_LOG.TXT here
     model = 'gough_stewart'
     params = architecture(model).default_parameters()
     # Servos far too stiff for the timestep: the explicit spring blows up.
