@@ -98,9 +98,16 @@ class SimulatedMachine:
         self.follower: DriveFollower | None = None
         self.drive_settings = DriveSettings.from_values(value)
         self.stroke: tuple[float, float] | None = None
+        self.physics = value.get('physics', 'kinematic')
+        self.physical = self._physical(value) if self.physics == 'mujoco' else None
         if value['command_topic']:
             self.follower = self._start_follower(value['max_actuator_speed_m_s'])
         else:
+            if self.physics == 'mujoco':
+                raise DriverConfigurationError(
+                    'physics mujoco simulates the commanded mode only: set command_topic (the '
+                    'plan walker moves the kinematic machine)'
+                )
             try:
                 self.plan = resolve_plan(
                     value['plan'],
@@ -267,6 +274,26 @@ class SimulatedMachine:
             for point in points
         ]
 
+    def _physical(self, value: Mapping[str, Any]):
+        """Return the physical description (the file's, else the model's shipped one)."""
+        from hexacal_msgs_py.physical_file import (
+            default_physical,
+            PhysicalFileError,
+            read_physical_file,
+        )
+
+        path = value.get('physical', '')
+        try:
+            physical = read_physical_file(path) if path else default_physical(self.model)
+        except PhysicalFileError as error:
+            raise DriverConfigurationError(f'physical: {error}') from error
+        if physical.model != self.model:
+            raise DriverConfigurationError(
+                f'physical {path} describes a {physical.model}, the true machine is a '
+                f'{self.model}'
+            )
+        return physical
+
     def _start_follower(self, max_speed_m_s: float) -> DriveFollower:
         """Commanded mode: the machine stands at the fixed-position point with zero angles."""
         workspace = machine_workspace(self.true_params, self.link_length, self.mount)
@@ -276,18 +303,27 @@ class SimulatedMachine:
         )
         # The link holds the platform on the true sphere (link_length + dL).
         home = np.concatenate([fixed_point(self.true_link_length, self.mount), np.zeros(3)])
+        options = {
+            'settings': self.drive_settings,
+            'joint_names': MODELS[self.model].actuator_names,
+            'nominal_link_m': self.link_length,
+            'stroke_m': self.stroke,
+        }
         try:
-            follower = DriveFollower(
-                self.true_params,
-                home,
-                max_speed_m_s,
-                self.true_link_length,
-                self.mount,
-                settings=self.drive_settings,
-                joint_names=MODELS[self.model].actuator_names,
-                nominal_link_m=self.link_length,
-                stroke_m=self.stroke,
-            )
+            if self.physics == 'mujoco':
+                # mujoco is imported only when it simulates the machine.
+                from hexacal_driver.physics_follower import PhysicsFollower
+
+                follower = PhysicsFollower(
+                    self.true_params, home, max_speed_m_s, self.true_link_length, self.mount,
+                    physical=self.physical, defects=self.defects, device_turn=self.device_turn,
+                    **options,
+                )
+            else:
+                follower = DriveFollower(
+                    self.true_params, home, max_speed_m_s, self.true_link_length, self.mount,
+                    **options,
+                )
         except (UnreachablePoseError, ConstraintError) as error:
             raise DriverConfigurationError(
                 f'commanded mode: the machine cannot stand at the fixed-position point {home[:3]} '

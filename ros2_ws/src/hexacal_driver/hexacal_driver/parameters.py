@@ -22,12 +22,14 @@ from hexacal_msgs_py.measuring_modes import (
 )
 from hexacal_msgs_py.models import MAX_DEVICE_TURN, MODELS
 from hexacal_msgs_py.parameters_file import load_parameters
+from hexacal_msgs_py.physical_file import PhysicalFileError, read_physical_file
 
 # Parameters that may change while the node runs; all others shape the plan and are read-only.
 RUNTIME_PARAMETERS = ('slider_noise_m', 'angle_noise_rad', 'device_turn')
 
 
 MODEL_CHOICES = ('', *MODELS)
+PHYSICS_CHOICES = ('kinematic', 'mujoco')
 
 PARAMETERS: dict[str, _Spec] = {
     'true_params': _Spec(
@@ -142,6 +144,22 @@ PARAMETERS: dict[str, _Spec] = {
         1e-6,
         1.0,
     ),
+    # The machine behind the commanded mode: the kinematic model or the MuJoCo simulation.
+    'physics': _Spec(
+        'kinematic',
+        'commanded mode: the machine the drives move: kinematic (the geometric model, exact '
+        'at every instant) or mujoco (a MuJoCo simulation: masses, gravity, servo gains, '
+        'springs and released-actuator friction of the physical description, '
+        'hexacal_driver.physics_follower; needs the mujoco package)',
+        constraints=', '.join(repr(name) for name in PHYSICS_CHOICES),
+    ),
+    'physical': _Spec(
+        '',
+        "physics mujoco: the machine's physical description YAML (docs/formats.md: masses, "
+        "stiffnesses, servo gains, following-error limit, friction, payload); '' = the "
+        "model's shipped realistic machine",
+        constraints="'' or a physical description file",
+    ),
     **SENSOR_PARAMETERS,  # sensor_effects and the sensor models' parameters (read-only)
 }
 
@@ -192,6 +210,13 @@ def parameter_problem(name: str, value: object) -> str | None:
             measuring_mode(value)
         except ValueError:
             return f'measuring_mode must be one of {", ".join(MEASURING_MODES)}, got {value!r}'
+    elif name == 'physics' and value not in PHYSICS_CHOICES:
+        return f'physics must be one of {", ".join(PHYSICS_CHOICES)}, got {value!r}'
+    elif name == 'physical' and value:
+        try:
+            read_physical_file(value)
+        except PhysicalFileError as error:
+            return f'physical: {error}'
     elif name == 'model' and value not in MODEL_CHOICES:
         return f"model must be '' or one of {', '.join(MODELS)}, got {value!r}"
     elif name in SENSOR_PARAMETERS:

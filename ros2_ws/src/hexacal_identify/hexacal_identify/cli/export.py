@@ -25,6 +25,12 @@ Slide has no genhexkins description and is refused.
 reads, ``--format kinematics-node`` the kinematics node's parameters file and
 the parameters it names (export_controller.py); either model.
 
+``--format mjcf`` writes the machine as a MuJoCo model (physics/mjcf.py, the simulated
+machine's own writer) with the measuring device, the payload and the physical description
+(``--physical FILE``, hexacal_msgs_py.physical_file; default: the model's shipped machine),
+assembled at the workspace centre: open it in MuJoCo's viewer (``python -m mujoco.viewer
+--mjcf NAME.xml``) or simulate it.
+
 ``--format yaml`` writes the parameters file format (SI units, its model, its
 other parameters); ``--format json`` writes ``{"model": ..., "parameters":
 {chain_1: {...}, ...}}`` (the chain dict of ``hexacal calibrate --json``).
@@ -43,7 +49,7 @@ import os
 from pathlib import Path
 import sys
 
-FORMATS = ('linuxcnc', 'yaml', 'json', 'controller', 'kinematics-node')
+FORMATS = ('linuxcnc', 'yaml', 'json', 'controller', 'kinematics-node', 'mjcf')
 LENGTH_UNITS = {'mm': 1e3, 'm': 1.0}
 # Decimals written per unit: 1 nm either way, far below what a calibration resolves.
 _DECIMALS = {'mm': 6, 'm': 9}
@@ -79,7 +85,16 @@ def _export_arguments(parser: argparse.ArgumentParser) -> None:
         help='linuxcnc: genhexkins HAL file and the INI fragment NAME.ini beside it '
         '(Gough-Stewart only); yaml: parameters file (SI); json: {"model", "parameters"} (SI); '
         'controller: JSON for a custom controller (geometry, conventions, check poses; SI); '
-        "kinematics-node: the kinematics node's ROS parameters file and NAME.parameters.yaml",
+        "kinematics-node: the kinematics node's ROS parameters file and NAME.parameters.yaml; "
+        "mjcf: a MuJoCo model of the machine with the device and its physics (MuJoCo's viewer)",
+    )
+    parser.add_argument(
+        '--physical',
+        type=Path,
+        default=None,
+        metavar='PHYSICAL.yaml',
+        help="mjcf: the machine's physical description (masses, stiffnesses, servo gains, "
+        "payload; docs/formats.md; default: the model's shipped realistic machine)",
     )
     parser.add_argument('--out', type=Path, required=True, help='file to write (atomically)')
     parser.add_argument(
@@ -139,6 +154,8 @@ def run_export(args) -> int:
     ]
     if linuxcnc_options and args.format != 'linuxcnc':
         raise ValueError(f'{linuxcnc_options[0]} applies to --format linuxcnc only')
+    if getattr(args, 'physical', None) is not None and args.format != 'mjcf':
+        raise ValueError('--physical applies to --format mjcf only')
     if args.out.is_dir():
         raise IsADirectoryError(f'--out {args.out} is a directory; name a file')
     contents = read_parameters_file(args.parameters)
@@ -161,6 +178,8 @@ def run_export(args) -> int:
         from .export_controller import controller_json
 
         _write(args.out, controller_json(contents, args.parameters))
+    elif args.format == 'mjcf':
+        _write(args.out, mjcf_text(contents, getattr(args, 'physical', None)))
     elif args.format == 'kinematics-node':
         from .export_controller import kinematics_node_yaml, parameters_path_beside
 
@@ -173,6 +192,32 @@ def run_export(args) -> int:
         _save_yaml(args.out, contents, source=args.parameters)
     print(f'wrote {args.out}')
     return 0
+
+
+def mjcf_text(contents, physical_path: Path | None) -> str:
+    """Return the MJCF of a parameters file's machine with its device and physics (module doc)."""
+    from hexacal_msgs_py.models import DEVICE_MOUNT_KEY
+    from hexacal_msgs_py.physical_file import default_physical, read_physical_file
+
+    from ..core.architectures import parameters_for
+    from ..core.device import check_mount, DEFAULT_MOUNT
+    from ..core.live import home_pose
+    from ..physics.mjcf import machine_mjcf
+
+    params = parameters_for(contents.model, contents.vector)
+    physical = (
+        default_physical(contents.model)
+        if physical_path is None
+        else read_physical_file(physical_path)
+    )
+    if physical.model != contents.model:
+        raise ValueError(
+            f'--physical {os.fspath(physical_path)} describes a {physical.model}, the parameters '
+            f'a {contents.model}'
+        )
+    mount = check_mount(contents.extras.get(DEVICE_MOUNT_KEY, DEFAULT_MOUNT))
+    link_length = params.architecture.default_workspace().link_length
+    return machine_mjcf(params, physical, home_pose(link_length, mount), mount=mount).xml
 
 
 def ini_path_beside(out: Path) -> Path:

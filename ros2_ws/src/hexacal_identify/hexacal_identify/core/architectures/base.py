@@ -45,6 +45,8 @@ whose ``architecture`` is the instance):
   offsets expressed as parameter changes (identifiability's named combinations);
 * ``in_frames``: the same machine in rotated frames (the device-frame study);
 * ``drawing(params, pose)``: what a visualiser draws of the machine at a pose;
+* ``mechanism(params, pose)``: each chain's bodies and joints (types, anchors, axes) at a pose,
+  what a physics model (hexacal_identify.physics.mjcf) builds the machine from;
 * optionally (defaults below): ``vector_problem`` (the solver's own check, the
   layout's by default), ``default_machine_comment`` (header of the shipped
   default file), the texts that name the default machine in reports
@@ -143,6 +145,78 @@ class KinematicParameters:
 
 # The parameter class of one architecture: its methods take only its own parameter sets.
 P = TypeVar('P', bound=KinematicParameters)
+
+
+SLIDE = 'slide'  # a prismatic joint: translation along its axis
+HINGE = 'hinge'  # a revolute joint: rotation about its axis through its anchor
+ACTUATED = 'actuated'  # the joint the actuator drives and its encoder reads (value = lambda)
+COMPLIANCE = 'compliance'  # the chain's axial spring between encoder and joint centres
+PASSIVE = 'passive'  # a passive joint of the chain
+ACTUATOR_BODY = 'actuator'  # a body carrying the actuator's moving mass
+LEG_BODY = 'leg'  # a body carrying the leg's mass
+
+
+@dataclass(frozen=True)
+class MechanismJoint:
+    """
+    One joint of a chain at a pose (base frame, m): ``kind`` SLIDE or HINGE, ``role``.
+
+    ``role`` is ACTUATED (its value is the actuator reading lambda at the pose), COMPLIANCE
+    (an axial spring, zero at the pose; a physics model omits it for a rigid chain) or PASSIVE.
+    Joints of one body apply in their order, each after the previous ones.
+    """
+
+    kind: str
+    role: str
+    anchor: np.ndarray  # (3,) a point on the axis
+    axis: np.ndarray  # (3,) unit vector
+
+
+@dataclass(frozen=True)
+class MechanismBody:
+    """
+    One moving body of a chain at a pose: its joints to the previous body and its extent.
+
+    ``carries`` says whose mass it holds (ACTUATOR_BODY: the actuator's moving mass at the
+    middle of ``segment``; LEG_BODY: the leg's mass at its centre-of-mass fraction along
+    ``segment`` from its start); ``segment`` (2, 3) start and end, base frame, m.
+    """
+
+    name: str
+    carries: str
+    joints: tuple[MechanismJoint, ...]
+    segment: np.ndarray
+
+
+@dataclass(frozen=True)
+class ChainMechanism:
+    """
+    One chain at a pose: bodies from the base (the first is a child of the base) outward.
+
+    The last body ends at ``platform_joint``, the spherical joint centre (base frame) that
+    joins it to the platform; ``actuator`` is the reading lambda at the pose.
+    """
+
+    bodies: tuple[MechanismBody, ...]
+    platform_joint: np.ndarray
+    actuator: float
+
+
+def universal_joint_axes(first_link: np.ndarray, leg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return the two axes of a universal joint joining a body to a leg (unit vectors).
+
+    The first axis is normal to ``first_link`` (a rail, or the base normal) and the leg, the
+    second normal to the first and the leg: the leg then turns freely about both but not about
+    itself.
+    """
+    leg_unit = leg / np.linalg.norm(leg)
+    first = np.cross(first_link, leg_unit)
+    if np.linalg.norm(first) < 1e-9:  # a leg along the first link: any normal serves
+        first = np.cross(leg_unit, [1.0, 0.0, 0.0] if abs(leg_unit[0]) < 0.9 else [0.0, 1.0, 0.0])
+    first = first / np.linalg.norm(first)
+    second = np.cross(leg_unit, first)
+    return first, second / np.linalg.norm(second)
 
 
 class Architecture(ABC, Generic[P]):
@@ -253,6 +327,15 @@ class Architecture(ABC, Generic[P]):
         The base frame is rotated by base_rotation^T and the platform frame by
         platform_rotation^T about their origins: points p -> rotation @ p.
         """
+
+    def mechanism(self, params: P, pose: np.ndarray) -> tuple[ChainMechanism, ...]:
+        """
+        Return each chain's bodies and joints at ``pose`` (6,): what a physics model builds.
+
+        Every chain ends at its platform joint centre (a spherical joint: the physics model
+        joins it to the platform there).  An architecture without one cannot be simulated.
+        """
+        raise NotImplementedError(f'{self.name} does not describe its mechanism')
 
     @abstractmethod
     def drawing(

@@ -35,13 +35,28 @@ from dataclasses import dataclass
 from hexacal_msgs_py.models import GOUGH_STEWART, MODELS
 import numpy as np
 
-from .base import Architecture, KinematicParameters
+from .base import (
+    ACTUATED,
+    ACTUATOR_BODY,
+    Architecture,
+    ChainMechanism,
+    COMPLIANCE,
+    HINGE,
+    KinematicParameters,
+    LEG_BODY,
+    MechanismBody,
+    MechanismJoint,
+    PASSIVE,
+    SLIDE,
+    universal_joint_axes,
+)
 from .common import (
     condition_ok,
     move_joint_points,
     platform_point_derivatives,
     PlatformPoints,
     pose_jacobian_rows,
+    rotation_from_trig,
 )
 
 LAYOUT = MODELS[GOUGH_STEWART]
@@ -300,6 +315,56 @@ class GoughStewart(Architecture[GoughStewartParameters]):
             params.platform_points @ platform_rotation.T,
             params.leg_offsets,
         )
+
+    def mechanism(
+        self, params: GoughStewartParameters, pose: np.ndarray
+    ) -> tuple[ChainMechanism, ...]:
+        """
+        Return the 6-UPS chains at ``pose``: universal joint, prismatic leg, spherical joint.
+
+        Per chain: a ``cylinder`` body (the leg's housing, carrying the leg mass) on the base's
+        universal joint at A (the first hinge normal to the base normal z and the leg, the second
+        normal to the leg and the first) and the leg's axial spring (a slide along the leg: the
+        housing and screw between the joint centre and the encoder), and a ``rod`` body on the
+        actuated slide along the leg (its value the extension lambda = |B - A| - l0) ending at
+        the platform's spherical joint B.
+        """
+        pose = np.asarray(pose, dtype=float).reshape(6)
+        rotation = rotation_from_trig(np.cos(pose[3:6]), np.sin(pose[3:6]))
+        joints = pose[:3] + params.platform_points @ rotation.T
+        chains = []
+        for c in range(N_CHAINS):
+            base, joint = params.base_points[c], joints[c]
+            leg = joint - base
+            length = float(np.linalg.norm(leg))
+            unit = leg / length
+            first, second = universal_joint_axes(np.array([0.0, 0.0, 1.0]), leg)
+            rod_start = base + min(params.leg_offsets[c], length) * unit
+            chains.append(
+                ChainMechanism(
+                    bodies=(
+                        MechanismBody(
+                            'cylinder',
+                            LEG_BODY,
+                            (
+                                MechanismJoint(HINGE, PASSIVE, base.copy(), first),
+                                MechanismJoint(HINGE, PASSIVE, base.copy(), second),
+                                MechanismJoint(SLIDE, COMPLIANCE, base.copy(), unit),
+                            ),
+                            np.array([base, joint]),
+                        ),
+                        MechanismBody(
+                            'rod',
+                            ACTUATOR_BODY,
+                            (MechanismJoint(SLIDE, ACTUATED, rod_start, unit),),
+                            np.array([rod_start, joint]),
+                        ),
+                    ),
+                    platform_joint=joint,
+                    actuator=length - float(params.leg_offsets[c]),
+                )
+            )
+        return tuple(chains)
 
     def drawing(
         self, params: GoughStewartParameters, pose: np.ndarray, actuators: np.ndarray | None = None

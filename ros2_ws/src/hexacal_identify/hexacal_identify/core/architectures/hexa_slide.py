@@ -33,7 +33,21 @@ from dataclasses import dataclass
 from hexacal_msgs_py.models import HEXA_SLIDE, MODELS
 import numpy as np
 
-from .base import Architecture, KinematicParameters
+from .base import (
+    ACTUATED,
+    ACTUATOR_BODY,
+    Architecture,
+    ChainMechanism,
+    COMPLIANCE,
+    HINGE,
+    KinematicParameters,
+    LEG_BODY,
+    MechanismBody,
+    MechanismJoint,
+    PASSIVE,
+    SLIDE,
+    universal_joint_axes,
+)
 from .common import (
     cross_last,
     euler_rate_axes,
@@ -448,6 +462,53 @@ class HexaSlide(Architecture[HexaParameters]):
             params.leg_lengths,
             rails[:, :2],
         )
+
+    def mechanism(self, params: HexaParameters, pose: np.ndarray) -> tuple[ChainMechanism, ...]:
+        """
+        Return the 6-PRRS chains at ``pose``: slider, universal joint, leg, spherical joint.
+
+        Per chain: a ``slider`` body on a slide joint along the rail a through A0 (the actuator,
+        its value the slider position lambda), a ``leg`` body on the slider's universal joint (two
+        hinges at A = A0 + lambda a: the first normal to the rail and the leg, the second normal to
+        the leg and the first) and the leg's axial spring (a slide along the leg), ending at the
+        platform's spherical joint B.
+        """
+        pose = np.asarray(pose, dtype=float).reshape(6)
+        geometry = leg_geometry(params, pose[None])
+        sliders = geometry.actuator_positions[0]
+        rails = params.rail_directions
+        chains = []
+        for c in range(N_CHAINS):
+            slider = params.base_points[c] + sliders[c] * rails[c]
+            leg = geometry.leg_vectors[0, c]
+            joint = slider + leg
+            first, second = universal_joint_axes(rails[c], leg)
+            leg_unit = leg / np.linalg.norm(leg)
+            chains.append(
+                ChainMechanism(
+                    bodies=(
+                        MechanismBody(
+                            'slider',
+                            ACTUATOR_BODY,
+                            (MechanismJoint(SLIDE, ACTUATED, slider, rails[c].copy()),),
+                            np.array([slider, slider]),
+                        ),
+                        MechanismBody(
+                            'leg',
+                            LEG_BODY,
+                            (
+                                MechanismJoint(HINGE, PASSIVE, slider, first),
+                                MechanismJoint(HINGE, PASSIVE, slider, second),
+                                MechanismJoint(SLIDE, COMPLIANCE, slider, leg_unit),
+                            ),
+                            np.array([slider, joint]),
+                        ),
+                    ),
+                    platform_joint=joint,
+                    actuator=float(sliders[c]),
+                )
+            )
+        return tuple(chains)
 
     def drawing(
         self, params: HexaParameters, pose: np.ndarray, actuators: np.ndarray | None = None
