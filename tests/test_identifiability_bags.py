@@ -45,10 +45,10 @@ def test_bag_verdicts(bag):
     postures = postures_from_bag(BAGS / bag).postures
     for cost in COSTS:
         verdict = _verdict(postures, cost)
-        if cost == 'sphere' or (cost == 'relative' and bag == 'sphere60_fixed20_noise10'):
+        if cost in ('fixed', 'sphere-fixed', 'relative') and bag != 'sphere60_fixed20_noise10':
+            assert 'fixed-position posture' in verdict, cost
+        elif cost in ('sphere', 'fixed', 'relative'):
             assert verdict[0] == 53 and verdict[3], cost  # refused, naming what to fix
             assert set(verdict[3]) <= set(verdict[1]), cost  # suggestions are parameters
-        elif cost in ('fixed', 'sphere-fixed', 'relative') and bag != 'sphere60_fixed20_noise10':
-            assert 'fixed-position posture' in verdict, cost
         else:
             assert verdict[0] == 54 and not verdict[3], cost
