@@ -18,9 +18,10 @@ convergence reason and the median time per solve; then the start-up time of
 ``hexacal --help`` and ``bringup --help`` against ``python -c "import numpy"``.
 
 Run: ``.venv/bin/python benchmarks/bench_solver.py [--json] [--repeats N]``
-Targets (issue 25): every parameter within 1e-9 (m, rad) of the old solver's,
-the same reason and rank; ``hexacal --help`` and ``bringup --help`` within 2x
-the numpy import.
+Targets (issue 25): every parameter within 1e-9 (m, rad) of the old solver's
+(the Huber rows at the default reweighting stop within 1e-8: see
+``TOLERANCE_IRLS_STOP``; run to 1e-12 they meet 1e-9), the same reason and
+rank; ``hexacal --help`` and ``bringup --help`` within 2x the numpy import.
 """
 
 from __future__ import annotations
@@ -49,14 +50,22 @@ STUDY_VARIANTS = {
     'plain': {},
     'weighted': {'weighted': True},
     'huber': {'robust_loss': 'huber'},
+    # The robust loss's outer reweighting stops when no unknown moves by more than
+    # IRLS_TOLERANCE (1e-9) between rounds: both sides stop within about that of its fixed
+    # point.  Run to 1e-12 (both sides), the solvers' own difference shows.
+    'huber irls-1e-12': {'robust_loss': 'huber', 'irls_tolerance': 1e-12},
     'device': {'identify_device': ('dL', 'alpha0', 'gamma'), 'weighted': True},
 }
 TOLERANCE = 1e-9  # m and rad
+# Robust loss at the default IRLS stop: each side is within ~IRLS_TOLERANCE / (1 - rate) of the
+# reweighting's fixed point (rate ~0.7 here), whatever solves the inner problems.
+TOLERANCE_IRLS_STOP = 1e-8
 STARTUP_RATIO = 2.0
 
 
 def _cases() -> list[tuple[str, object]]:
     """(name, a function returning an IdentificationResult) for every case, in this tree."""
+    from hexacal_identify.core import identification
     from hexacal_identify.core.errors import CalibrationError
     from hexacal_identify.core.measurements import NoiseModel
     from hexacal_identify.core.model import nominal_set
@@ -86,11 +95,20 @@ def _cases() -> list[tuple[str, object]]:
             )
         )
     for variant, settings in STUDY_VARIANTS.items():
+        settings = dict(settings)
+        irls_tolerance = settings.pop('irls_tolerance', identification.IRLS_TOLERANCE)
         for seed in STUDY_SEEDS:
             run = StudyRun(seed=seed, **settings)  # type: ignore[arg-type]
-            cases.append(
-                (f'study seed {seed} {variant}', lambda run=run: run_calibration(run).result)
-            )
+
+            def solve_run(run=run, irls_tolerance=irls_tolerance):
+                default = identification.IRLS_TOLERANCE
+                identification.IRLS_TOLERANCE = irls_tolerance
+                try:
+                    return run_calibration(run).result
+                finally:
+                    identification.IRLS_TOLERANCE = default
+
+            cases.append((f'study seed {seed} {variant}', solve_run))
     return cases
 
 
@@ -211,7 +229,7 @@ def compare(repeats: int) -> dict:
 
 def _print(report: dict) -> None:
     header = (
-        f'{"case":44s} {"max |new-old|":>13s} {"iter old/new":>12s} '
+        f'{"case":46s} {"max |new-old|":>13s} {"iter old/new":>12s} '
         f'{"reason old / new":>24s} {"ms old":>8s} {"ms new":>8s}'
     )
     print(header)
@@ -223,7 +241,7 @@ def _print(report: dict) -> None:
             same = old.get('refused') == new.get('refused')
             text = 'refused alike' if same else 'REFUSAL DIFFERS'
             print(
-                f'{row["case"]:44s} {text:>13s} {"-":>12s} {"-":>24s} '
+                f'{row["case"]:46s} {text:>13s} {"-":>12s} {"-":>24s} '
                 f'{1e3 * old["seconds"]:8.1f} {1e3 * new["seconds"]:8.1f}'
             )
             if not same:
@@ -231,13 +249,18 @@ def _print(report: dict) -> None:
             continue
         difference = row['max_abs_difference']
         print(
-            f'{row["case"]:44s} {difference:13.2e} '
+            f'{row["case"]:46s} {difference:13.2e} '
             f'{old["iterations"]:>5d} / {new["iterations"]:<4d} '
             f'{old["reason"] + " / " + new["reason"]:>24s} '
             f'{1e3 * old["seconds"]:8.1f} {1e3 * new["seconds"]:8.1f}'
         )
+        tolerance = (
+            TOLERANCE_IRLS_STOP
+            if 'huber' in row['case'] and 'irls-1e-12' not in row['case']
+            else TOLERANCE
+        )
         if (
-            difference > TOLERANCE
+            difference > tolerance
             or old['reason'] != new['reason']
             or old['rank'] != new['rank']
             or old['postures_used'] != new['postures_used']
@@ -245,7 +268,7 @@ def _print(report: dict) -> None:
             failures.append(row['case'])
     old_total = sum(row['old']['seconds'] for row in report['rows'])
     new_total = sum(row['new']['seconds'] for row in report['rows'])
-    print(f'{"all cases, time per solve summed (ms)":44s} {"":>13s} {"":>12s} {"":>24s} '
+    print(f'{"all cases, time per solve summed (ms)":46s} {"":>13s} {"":>12s} {"":>24s} '
           f'{1e3 * old_total:8.1f} {1e3 * new_total:8.1f}')
     print()
     print(f'{"start-up (median)":34s} {"old s":>8s} {"new s":>8s} {"new / numpy":>12s}')
@@ -264,8 +287,9 @@ def _print(report: dict) -> None:
         print('TARGET MISSED: ' + ', '.join(failures))
     else:
         print(
-            f'targets met: every parameter within {TOLERANCE:g} (m, rad) of the old solver, '
-            f'same reason, rank and postures; --help within {STARTUP_RATIO:g}x numpy'
+            f'targets met: every parameter within {TOLERANCE:g} (m, rad) of the old solver '
+            f'({TOLERANCE_IRLS_STOP:g} for Huber at the default IRLS stop), same reason, rank '
+            f'and postures; --help within {STARTUP_RATIO:g}x numpy'
         )
 
 

@@ -33,7 +33,8 @@ def test_factorization_reproduces_the_matrix(shape):
     np.testing.assert_array_equal(np.tril(r, -1), 0.0)
     permuted = matrix[:, pivots]
     # R^T R = (A P)^T (A P): Q is orthogonal.
-    np.testing.assert_allclose(r.T @ r, permuted.T @ permuted, atol=1e-9 * np.abs(matrix).max() ** 2)
+    scale = np.abs(matrix).max() ** 2
+    np.testing.assert_allclose(r.T @ r, permuted.T @ permuted, atol=1e-9 * scale)
     diagonal = np.abs(np.diag(r))
     assert np.all(diagonal[1:] <= diagonal[:-1] * (1 + 1e-12))
     # The first pivot is the column of largest norm.

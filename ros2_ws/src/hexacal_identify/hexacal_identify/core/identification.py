@@ -105,10 +105,10 @@ class SolverOptions:
     outlier_floor: float = (
         1e-7  # ... and exceeds this (m or rad, unweighted): below, it is rounding, not a glitch
     )
-    max_iterations: int = 100
-    step_tolerance: float = 1e-12  # converged when max |du| (m or unit-vector component) is below
+    max_iterations: int = 100  # Jacobians formed (accepted points) per solve
+    step_tolerance: float = 1e-12  # least_squares' xtol: a step below this x |unknowns| converges
     relative_cost_tolerance: float = (
-        1e-9  # ... or an accepted step lowers the cost by less than this
+        1e-9  # least_squares' ftol: ... or an accepted step lowers the cost by less than this
     )
     rank_tolerance: float = DEFAULT_RANK_TOLERANCE
     allow_rank_deficient: bool = (
@@ -503,6 +503,7 @@ class _Whitener:
 
 def _robust_weights(values: np.ndarray, loss: str) -> np.ndarray:
     """Return square roots of IRLS weights; the scale is a MAD estimate of the inlier spread."""
+    # Kept by hand: least_squares' losses take a fixed f_scale, this re-estimates it each round.
     scale = 1.4826 * np.median(np.abs(values)) + 1e-300
     if loss == 'huber':
         z = np.abs(values) / (1.345 * scale)
@@ -856,7 +857,8 @@ class _LeastSquares:
             if self._trial is not None and self._trial[0] == vector.tobytes():
                 poses = self._trial[1]
             else:
-                poses = self.problem.solve_fk(_split(vector, self.problem.arch)[0], self.poses).poses
+                params = _split(vector, self.problem.arch)[0]
+                poses = self.problem.solve_fk(params, self.poses).poses
             self.vector, self.poses = vector, poses
             self._set_block(self.problem.jacobian(self.vector, self.poses))
         self.iterations += 1
