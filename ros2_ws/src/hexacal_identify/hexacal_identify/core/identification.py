@@ -787,8 +787,11 @@ class _LeastSquares:
     def run(self) -> None:
         from scipy.optimize import least_squares  # ~0.2 s: imported by the solve alone
 
-        self.iterations = 0
+        self.iterations = 1  # the Jacobian at the start
         while True:
+            if self._negligible(self.options.step_tolerance, self.options.relative_cost_tolerance):
+                self.reason = CONVERGED
+                return
             try:
                 solution = least_squares(
                     self._values,
@@ -800,6 +803,7 @@ class _LeastSquares:
                     xtol=self.options.step_tolerance,
                     gtol=None,
                     max_nfev=20 * self.options.max_iterations,
+                    callback=self._stop_when_converged,
                 )
             except _FailedPostures as failed:
                 self._drop(failed.failures)
@@ -811,17 +815,28 @@ class _LeastSquares:
         if solution.status == 0:
             self.reason = ITERATION_LIMIT
             return
-        # least_squares stops when a step no longer lowers the cost: converged if the
-        # Gauss-Newton step from here is negligible too, otherwise the model cannot follow the
-        # data (the judgement the result's reason has always carried).
+        # Stopped by the callback, or no step lowers the cost any more: converged if the
+        # Gauss-Newton step from here is negligible (at the rounding floor of FK, which stops at
+        # fk_tolerance), otherwise the model cannot follow the data from here.
+        at_floor = self._negligible(
+            max(self.options.step_tolerance, FLOOR_STEP_M),
+            max(self.options.relative_cost_tolerance, 1e-6),
+        )
+        self.reason = CONVERGED if at_floor else DIVERGED
+
+    def _negligible(self, step_tolerance: float, relative_cost_tolerance: float) -> bool:
+        """Whether the full Gauss-Newton step from the accepted point is negligible."""
         gauss_newton = np.max(np.abs(self.normal.scaled_step(0.0) / self.scales), initial=0.0)
         predicted = self.normal.predicted_decrease()
-        cost = self.normal.squared_norm
-        negligible = (
-            gauss_newton < max(self.options.step_tolerance, FLOOR_STEP_M)
-            or predicted <= max(self.options.relative_cost_tolerance, 1e-6) * cost
+        return bool(
+            gauss_newton < step_tolerance
+            or predicted <= relative_cost_tolerance * self.normal.squared_norm
         )
-        self.reason = CONVERGED if negligible else DIVERGED
+
+    def _stop_when_converged(self, intermediate_result) -> None:
+        """Stop least_squares once the Gauss-Newton step would no longer lower the cost."""
+        if self._negligible(self.options.step_tolerance, self.options.relative_cost_tolerance):
+            raise StopIteration
 
     def _values(self, free_vector: np.ndarray) -> np.ndarray:
         """Return the weighted residual rows at a trial (inf where the step left the model)."""
@@ -861,9 +876,9 @@ class _LeastSquares:
                 poses = self.problem.solve_fk(params, self.poses).poses
             self.vector, self.poses = vector, poses
             self._set_block(self.problem.jacobian(self.vector, self.poses))
-        self.iterations += 1
-        if self.iterations > self.options.max_iterations:
-            raise _IterationLimit
+            self.iterations += 1
+            if self.iterations > self.options.max_iterations:
+                raise _IterationLimit
         assert self.block.jacobian is not None  # _set_block keeps only blocks with one
         return self.block.jacobian
 
