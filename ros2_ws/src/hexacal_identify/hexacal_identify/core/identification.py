@@ -8,7 +8,8 @@ unknowns.  Each evaluation solves forward kinematics for every posture
 (eq. 6) is analytic, by implicit differentiation of IK(X, u) = lambda.  At each
 accepted point the Jacobian is also reduced to its normal equations (J^T J,
 J^T r: n x n, n = the architecture's parameters + 5), whose eigendecomposition
-serves the convergence verdict, the covariance and the identifiability analysis.
+serves the stop (the Gauss-Newton step from there is below ``STOP_STEP``), the
+convergence verdict, the covariance and the identifiability analysis.
 
 Beyond the paper:
 
@@ -58,6 +59,9 @@ DIVERGED = 'diverged'
 FLOOR_STEP_M = (
     1e-9  # a Gauss-Newton step below this (m) is at the rounding floor of FK and residuals
 )
+# The solve stops when the Gauss-Newton step from the accepted point is below this (m or rad):
+# the unknowns are then within about this of the minimum.
+STOP_STEP = 1e-10
 ROBUST_LOSSES = ('huber', 'soft_l1')
 MAX_ROUNDS = 20  # outer rounds: re-admitting postures, screening outliers, refitting weights
 IRLS_TOLERANCE = 1e-9  # robust reweighting stops when no unknown moves more than this (m)
@@ -105,7 +109,7 @@ class SolverOptions:
     outlier_floor: float = (
         1e-7  # ... and exceeds this (m or rad, unweighted): below, it is rounding, not a glitch
     )
-    max_iterations: int = 100  # Jacobians formed (accepted points) per solve
+    max_iterations: int = 100  # steps taken per solve
     step_tolerance: float = 1e-12  # least_squares' xtol: a step below this x |unknowns| converges
     relative_cost_tolerance: float = (
         1e-9  # least_squares' ftol: ... or an accepted step lowers the cost by less than this
@@ -789,7 +793,7 @@ class _LeastSquares:
 
         self.iterations = 1  # the Jacobian at the start
         while True:
-            if self._negligible(self.options.step_tolerance, self.options.relative_cost_tolerance):
+            if self._at_minimum():
                 self.reason = CONVERGED
                 return
             try:
@@ -833,9 +837,13 @@ class _LeastSquares:
             or predicted <= relative_cost_tolerance * self.normal.squared_norm
         )
 
+    def _at_minimum(self) -> bool:
+        """Whether the Gauss-Newton step from the accepted point is below STOP_STEP."""
+        return self._negligible(max(self.options.step_tolerance, STOP_STEP), 0.0)
+
     def _stop_when_converged(self, intermediate_result) -> None:
-        """Stop least_squares once the Gauss-Newton step would no longer lower the cost."""
-        if self._negligible(self.options.step_tolerance, self.options.relative_cost_tolerance):
+        """Stop least_squares at the minimum (its own tests stop it at the rounding floor)."""
+        if self._at_minimum():
             raise StopIteration
 
     def _values(self, free_vector: np.ndarray) -> np.ndarray:
@@ -876,9 +884,10 @@ class _LeastSquares:
                 poses = self.problem.solve_fk(params, self.poses).poses
             self.vector, self.poses = vector, poses
             self._set_block(self.problem.jacobian(self.vector, self.poses))
-            self.iterations += 1
-            if self.iterations > self.options.max_iterations:
+            # As before: a pass per step taken, plus the one that finds no step worth taking.
+            if self.iterations >= self.options.max_iterations:
                 raise _IterationLimit
+            self.iterations += 1
         assert self.block.jacobian is not None  # _set_block keeps only blocks with one
         return self.block.jacobian
 
