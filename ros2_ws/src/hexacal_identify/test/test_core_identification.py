@@ -16,6 +16,7 @@ from hexacal_identify.core.identification import (
     _NormalEquations,
     CONVERGED,
     identify,
+    ITERATION_LIMIT,
     SolverOptions,
 )
 from hexacal_identify.core.kinematics import forward_kinematics, pose_parameter_sensitivity
@@ -130,6 +131,20 @@ def test_exact_parameters_recovered_without_noise(number):
     assert result.rank == 54
     assert np.max(np.abs(result.parameters.vector - TRUE.vector)) < 1e-9
     assert len(result.used_postures) == 25, result.rejected_postures
+
+
+def test_iteration_limit_is_reported_with_the_iterations_taken():
+    measurements = _measurements(25, 11)
+    # Without the outlier screen: a solve stopped short would set postures aside and run again.
+    options = SolverOptions(max_iterations=2, outlier_threshold=None)
+    result = identify(nominal_set(1, seed=0), measurements, options)
+    assert result.reason == ITERATION_LIMIT
+    assert result.iterations == 2
+    # Stopped short of the truth, it is still nearer than the start.
+    error = np.max(np.abs(result.parameters.vector - TRUE.vector))
+    assert 1e-9 < error < np.max(np.abs(nominal_set(1, seed=0).vector - TRUE.vector))
+    full = identify(nominal_set(1, seed=0), measurements)
+    assert full.reason == CONVERGED and full.iterations > 2
 
 
 def test_eq7_has_full_rank_and_the_other_costs_are_reported_honestly():

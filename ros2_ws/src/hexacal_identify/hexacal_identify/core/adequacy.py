@@ -13,8 +13,7 @@ describe (backlash, compliance) - or a noise model that under-states the noise.
 Naming the postures and channels whose whitened rows carry most of ``r^T W r``
 points at which.
 
-No scipy here: the quantiles are Wilson-Hilferty's (relative error below 1 %
-of chi2/dof from 30 degrees of freedom on), so this costs nothing at start-up.
+The quantiles are scipy's (``scipy.stats.chi2``), imported when a fit is judged.
 """
 
 from __future__ import annotations
@@ -27,7 +26,6 @@ import numpy as np
 
 # Two-sided 0.1 % / 99.9 %: a sound calibration fails one time in a thousand.
 TAIL_PROBABILITY = 1e-3
-TAIL_Z = 3.090232306167813  # the standard normal's 99.9 % quantile
 # Above this multiple of the upper bound (residuals twice the noise's), the verdict says in plain
 # words that the reading noise cannot explain them.
 FAR_ABOVE_FACTOR = 4.0
@@ -129,32 +127,12 @@ class Adequacy:
 
 
 def chi2_quantile(probability: float, dof: int) -> float:
-    """
-    Return the chi-square quantile by Wilson-Hilferty's cube-root normal approximation.
-
-    Only the two tails of TAIL_PROBABILITY are needed (z = -+TAIL_Z); other probabilities use
-    the inverse normal by bisection of math.erf.
-    """
+    """Return the chi-square quantile of ``probability`` with ``dof`` degrees of freedom."""
     if dof <= 0:
         raise ValueError(f'chi-square needs dof > 0, got {dof}')
-    z = _normal_quantile(probability)
-    c = 2.0 / (9.0 * dof)
-    return dof * max(1.0 - c + z * math.sqrt(c), 0.0) ** 3
+    from scipy.stats import chi2  # ~0.3 s: only when a fit is judged
 
-
-def _normal_quantile(probability: float) -> float:
-    if math.isclose(probability, TAIL_PROBABILITY):
-        return -TAIL_Z
-    if math.isclose(probability, 1.0 - TAIL_PROBABILITY):
-        return TAIL_Z
-    low, high = -10.0, 10.0
-    for _ in range(200):
-        middle = 0.5 * (low + high)
-        if 0.5 * (1.0 + math.erf(middle / math.sqrt(2.0))) < probability:
-            low = middle
-        else:
-            high = middle
-    return 0.5 * (low + high)
+    return float(chi2.ppf(probability, dof))
 
 
 def expected_range(dof: int, tail: float = TAIL_PROBABILITY) -> tuple[float, float]:

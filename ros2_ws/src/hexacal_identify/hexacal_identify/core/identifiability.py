@@ -95,93 +95,12 @@ def column_scales(jacobian: np.ndarray) -> np.ndarray:
     return np.where(norms > 0, norms, 1.0)
 
 
-_SQRT_EPS = float(np.sqrt(np.finfo(float).eps))  # LAPACK's tol3z
-
-
-def _column_norms(block: np.ndarray) -> np.ndarray:
-    """
-    Euclidean norms of the columns, rounded as OpenBLAS's x86-64 dnrm2 kernel rounds them.
-
-    Scaled Jacobian columns all have norm 1 to within rounding, so the first pivot
-    (and with it the rest) depends on the last bit of these norms.  The kernel
-    sums the squares in x87 extended precision in four interleaved partial sums
-    (elements k mod 4 of each whole group of 8; the rest into the first),
-    combines them as s3 + ((s2 + s0) + s1) and rounds the extended square root
-    to double: done here with numpy's longdouble, which is that x87 format on
-    x86-64 Linux (elsewhere it is near enough: only a tie could differ).
-    """
-    squares = block.astype(np.longdouble)
-    squares *= squares
-    rows = block.shape[0]
-    whole = rows // 8 * 8
-    partial = [
-        np.add.accumulate(squares[k:whole:4], axis=0)[-1]
-        if whole
-        else np.zeros(block.shape[1], np.longdouble)
-        for k in range(4)
-    ]
-    first = partial[0]
-    for row in range(whole, rows):
-        first = first + squares[row]
-    return np.sqrt(partial[3] + ((partial[2] + first) + partial[1])).astype(float)
-
-
 def pivoted_qr(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """
-    Return Householder QR with column pivoting: (R, pivots).
+    """Return Householder QR with column pivoting: (R, pivots), R min(m, n) x n (LAPACK dgeqp3)."""
+    from scipy.linalg import qr  # imported by the analysis that uses it, not at start-up
 
-    As ``scipy.linalg.qr(matrix, mode="r", pivoting=True)``.
-
-    The steps of LAPACK's unblocked dgeqp2/dlaqp2, which dgeqp3 (what scipy calls)
-    runs for fewer than 128 columns: at each step the remaining column of
-    largest (downdated) norm is the pivot, the first one on a tie; the norms are
-    downdated after each reflection and recomputed where cancellation makes
-    the downdate inaccurate (the same test, sqrt(eps)).  So the pivots are the
-    same as scipy's wherever rounding does not decide between equal norms,
-    without importing scipy (~0.2 s of every calibration's start-up).  R is
-    min(m, n) x n, its diagonal real with LAPACK's signs.
-    """
-    a = np.array(matrix, dtype=float, order='F')  # a copy, worked in place
-    m, n = a.shape
-    pivots = np.arange(n)
-    norms = _column_norms(a)  # vn1: downdated partial column norms
-    exact = norms.copy()  # vn2: the norms when last computed exactly
-    for i in range(min(m, n)):
-        p = i + int(np.argmax(norms[i:]))
-        if p != i:
-            a[:, [i, p]] = a[:, [p, i]]
-            pivots[[i, p]] = pivots[[p, i]]
-            norms[p], exact[p] = norms[i], exact[i]
-        # dlarfg: the reflector H = I - tau v v^T with H^T a[i:, i] = (beta, 0, ...), v[0] = 1
-        alpha = a[i, i]
-        x_norm = float(_column_norms(a[i + 1:, i:i + 1])[0]) if i < m - 1 else 0.0
-        if x_norm == 0.0:
-            tau = 0.0
-        else:
-            big, small = max(abs(alpha), x_norm), min(abs(alpha), x_norm)
-            beta = -np.copysign(big * np.sqrt(1.0 + (small / big) ** 2), alpha)  # dlapy2
-            tau = (beta - alpha) / beta
-            a[i + 1:, i] *= 1.0 / (alpha - beta)
-            a[i, i] = beta
-        if i < n - 1 and tau != 0.0:  # dlarf: apply H^T to the columns right of i
-            v = np.concatenate(([1.0], a[i + 1:, i]))
-            rest = a[i:, i + 1:]
-            rest -= np.outer(v, tau * (v @ rest))
-        # Downdate the remaining norms by the row just finished.
-        j = np.arange(i + 1, n)
-        j = j[norms[j] != 0.0]
-        if len(j):
-            ratio = np.maximum(1.0 - (np.abs(a[i, j]) / norms[j]) ** 2, 0.0)
-            stale = ratio * (norms[j] / exact[j]) ** 2 <= _SQRT_EPS
-            keep = j[~stale]
-            norms[keep] *= np.sqrt(ratio[~stale])
-            recompute = j[stale]
-            if len(recompute):
-                fresh = _column_norms(a[i + 1:, recompute]) if i < m - 1 else 0.0
-                norms[recompute] = fresh
-                exact[recompute] = fresh
-    k = min(m, n)
-    return np.triu(a[:k]), pivots
+    r, pivots = qr(matrix, mode='r', pivoting=True)
+    return r[: min(matrix.shape)], pivots
 
 
 def analyze(

@@ -1,16 +1,15 @@
 """
-Parameter identification by Levenberg-Marquardt on forward-kinematics residuals (eqs. 5-13).
+Parameter identification by least squares on forward-kinematics residuals (eqs. 5-13).
 
-Each iteration solves forward kinematics for every posture (warm-started from
-the previous solution), forms the residuals of the chosen cost function and the
-identification Jacobian (eq. 6) analytically by implicit differentiation of
-IK(X, u) = lambda, and takes a damped Gauss-Newton step ``du`` (eq. 5) in
-column-scaled coordinates.  The tall Jacobian (4 rows per posture) is reduced
-once per iteration to its normal equations (J^T J, J^T r: n x n, n = the
-architecture's parameters + 5);
-their eigendecomposition serves every damping value tried, the convergence
-test, the covariance and the identifiability analysis, so the per-posture work
-is one pass over J.
+scipy's ``least_squares`` (trust-region reflective, columns scaled by their norms
+at the start) minimises the residuals of the chosen cost function over the free
+unknowns.  Each evaluation solves forward kinematics for every posture
+(warm-started from the last accepted solution); the identification Jacobian
+(eq. 6) is analytic, by implicit differentiation of IK(X, u) = lambda.  At each
+accepted point the Jacobian is also reduced to its normal equations (J^T J,
+J^T r: n x n, n = the architecture's parameters + 5), whose eigendecomposition
+serves the stop (the Gauss-Newton step from there is below ``STOP_STEP``), the
+convergence verdict, the covariance and the identifiability analysis.
 
 Beyond the paper:
 
@@ -62,6 +61,9 @@ DIVERGED = 'diverged'
 FLOOR_STEP_M = (
     1e-9  # a Gauss-Newton step below this (m) is at the rounding floor of FK and residuals
 )
+# The solve stops when the Gauss-Newton step from the accepted point is below this (m or rad):
+# the unknowns are then within about this of the minimum.
+STOP_STEP = 1e-10
 ROBUST_LOSSES = ('huber', 'soft_l1')
 MAX_ROUNDS = 20  # outer rounds: re-admitting postures, screening outliers, refitting weights
 IRLS_TOLERANCE = 1e-9  # robust reweighting stops when no unknown moves more than this (m)
@@ -70,6 +72,9 @@ IRLS_TOLERANCE = 1e-9  # robust reweighting stops when no unknown moves more tha
 @functools.lru_cache(maxsize=1)
 def _blas_controller() -> ThreadpoolController:
     """Built once: inspecting the loaded BLAS libraries costs about a millisecond each time."""
+    # scipy brings its own OpenBLAS: loaded first, so that the one-thread limit covers it too.
+    import scipy.linalg  # noqa: F401
+
     return ThreadpoolController()
 
 
@@ -111,10 +116,10 @@ class SolverOptions:
     outlier_floor: float = (
         1e-7  # ... and exceeds this (m or rad, unweighted): below, it is rounding, not a glitch
     )
-    max_iterations: int = 100
-    step_tolerance: float = 1e-12  # converged when max |du| (m or unit-vector component) is below
+    max_iterations: int = 100  # steps taken per solve
+    step_tolerance: float = 1e-12  # least_squares' xtol: a step below this x |unknowns| converges
     relative_cost_tolerance: float = (
-        1e-9  # ... or an accepted step lowers the cost by less than this
+        1e-9  # least_squares' ftol: ... or an accepted step lowers the cost by less than this
     )
     rank_tolerance: float = DEFAULT_RANK_TOLERANCE
     allow_rank_deficient: bool = (
@@ -636,6 +641,7 @@ class _Whitener:
 
 def _robust_weights(values: np.ndarray, loss: str) -> np.ndarray:
     """Return square roots of IRLS weights; the scale is a MAD estimate of the inlier spread."""
+    # Kept by hand: least_squares' losses take a fixed f_scale, this re-estimates it each round.
     scale = 1.4826 * np.median(np.abs(values)) + 1e-300
     if loss == 'huber':
         z = np.abs(values) / (1.345 * scale)
@@ -782,12 +788,12 @@ def identify(
 
 def _run(
     problem: '_Problem', vector: np.ndarray, poses: np.ndarray, options: SolverOptions
-) -> '_LevenbergMarquardt':
+) -> '_LeastSquares':
     if problem.update_loads(vector, poses):  # compliances: loads held through the run
         # The corrected readings changed with the loads: start from their own FK poses.
         fk = problem.solve_fk(_split(vector, problem.arch)[0], poses, vector=vector)
         poses = np.where(fk.converged[:, None], fk.poses, poses)
-    solver = _LevenbergMarquardt(problem, vector, poses, problem.row_transform(vector, poses))
+    solver = _LeastSquares(problem, vector, poses, problem.row_transform(vector, poses))
     solver.run()
     return solver
 
@@ -866,8 +872,25 @@ def _outliers(
     }
 
 
-class _LevenbergMarquardt:
-    """Damped Gauss-Newton in column-scaled coordinates; the (weighted) cost never increases."""
+class _FailedPostures(Exception):
+    """A trial step at which a few postures' FK failed: set them aside and solve on."""
+
+    def __init__(self, failures: dict[int, str]):
+        super().__init__(f'{len(failures)} posture(s) failed forward kinematics')
+        self.failures = failures
+
+
+class _IterationLimit(Exception):
+    """The solve formed max_iterations Jacobians without converging."""
+
+
+class _LeastSquares:
+    """
+    scipy's least_squares (trust-region reflective) on the free unknowns, columns scaled.
+
+    FK is warm-started from the last accepted poses; a trial at which a few postures' FK
+    fails sets them aside and restarts from the accepted point.
+    """
 
     def __init__(
         self,
@@ -885,8 +908,10 @@ class _LevenbergMarquardt:
         self._set_block(problem.jacobian(self.vector, poses), first=True)
         self.initial_block = self.raw_block
         self.iterations = 0
+        self.evaluations = 0
         self.reason = ITERATION_LIMIT
         self.dropped: dict[int, str] = {}
+        self._trial: tuple[bytes, np.ndarray] | None = None  # the last trial's (x, FK poses)
 
     @property
     def params(self) -> KinematicParameters:
@@ -922,85 +947,107 @@ class _LevenbergMarquardt:
         )
 
     def run(self) -> None:
-        cost = float(self.block.values @ self.block.values)
-        damping = 1e-9
-        self.iterations = 0
-        while self.iterations < self.options.max_iterations:
-            self.iterations += 1
-            # Rank deficiency is judged once, at the solution (identify): at the nominal parameters
-            # residual-sized terms can make a gauge direction look weakly determined. Steps here
-            # simply stay out of directions the data do not determine.
-            normal = self.normal
-            gauss_newton = self._step(normal, 0.0)
-            # The full Gauss-Newton step would lower the cost by |U_k^T r|^2: when that is
-            # negligible (or the step itself is), the minimum is reached to working precision.
-            predicted_decrease = normal.predicted_decrease()
-            if (
-                np.max(np.abs(gauss_newton)) < self.options.step_tolerance
-                or predicted_decrease <= self.options.relative_cost_tolerance * cost
-            ):
+        from scipy.optimize import least_squares  # ~0.2 s: imported by the solve alone
+
+        self.iterations = 1  # the Jacobian at the start
+        while True:
+            if self._at_minimum():
                 self.reason = CONVERGED
                 return
-            # FK stops at fk_tolerance, so the cost is only known to ~1e-9 of itself: below that, a
-            # step that fails to lower it says nothing about the model.
-            at_floor = (
-                np.max(np.abs(gauss_newton)) < FLOOR_STEP_M or predicted_decrease < 1e-6 * cost
-            )
-            trial = None
-            while damping < 1e12:
-                trial = self._try(self._step(normal, damping))
-                if isinstance(trial, dict) or (trial is not None and trial[2] < cost):
-                    break
-                trial = None
-                if at_floor:
-                    # a sub-nanometre step that does not lower the cost: rounding error, done
-                    break
-                damping *= 10.0
-            if isinstance(trial, dict):
-                self._drop(trial)
-                cost = float(self.block.values @ self.block.values)
+            try:
+                solution = least_squares(
+                    self._values,
+                    self.vector[self.free],
+                    jac=self._jacobian,
+                    method='trf',
+                    x_scale=1.0 / self.scales,
+                    ftol=self.options.relative_cost_tolerance,
+                    xtol=self.options.step_tolerance,
+                    gtol=None,
+                    max_nfev=20 * self.options.max_iterations,
+                    callback=self._stop_when_converged,
+                )
+            except _FailedPostures as failed:
+                self._drop(failed.failures)
                 continue
-            if trial is None:
-                # No step lowers the cost: converged at the floor of rounding error if the
-                # Gauss-Newton step is negligible, otherwise the model cannot follow the data from
-                # here.
-                self.reason = CONVERGED if at_floor else DIVERGED
+            except _IterationLimit:
+                self.reason = ITERATION_LIMIT
                 return
-            self.vector, self.poses, trial_cost = trial
-            self._set_block(self.problem.jacobian(self.vector, self.poses))
-            decrease, cost = cost - trial_cost, trial_cost
-            damping = max(damping / 10.0, 1e-12)
-            if decrease <= self.options.relative_cost_tolerance * cost:
-                self.reason = CONVERGED
-                return
+            break
+        if solution.status == 0:
+            self.reason = ITERATION_LIMIT
+            return
+        # Stopped by the callback, or no step lowers the cost any more: converged if the
+        # Gauss-Newton step from here is negligible (at the rounding floor of FK, which stops at
+        # fk_tolerance), otherwise the model cannot follow the data from here.
+        at_floor = self._negligible(
+            max(self.options.step_tolerance, FLOOR_STEP_M),
+            max(self.options.relative_cost_tolerance, 1e-6),
+        )
+        self.reason = CONVERGED if at_floor else DIVERGED
 
-    def _step(self, normal: '_NormalEquations', damping: float) -> np.ndarray:
-        """Return the LM step for one damping value (zero along unidentifiable directions)."""
-        step = np.zeros(len(self.free))
-        step[self.free] = normal.scaled_step(damping) / self.scales
-        return step
+    def _negligible(self, step_tolerance: float, relative_cost_tolerance: float) -> bool:
+        """Whether the full Gauss-Newton step from the accepted point is negligible."""
+        gauss_newton = np.max(np.abs(self.normal.scaled_step(0.0) / self.scales), initial=0.0)
+        predicted = self.normal.predicted_decrease()
+        return bool(
+            gauss_newton < step_tolerance
+            or predicted <= relative_cost_tolerance * self.normal.squared_norm
+        )
 
-    def _try(self, step: np.ndarray):
-        """Return (vector, poses, cost) of a trial step or None, and {index: why} of failed FK."""
-        vector = self.vector + step
+    def _at_minimum(self) -> bool:
+        """Whether the Gauss-Newton step from the accepted point is below STOP_STEP."""
+        return self._negligible(max(self.options.step_tolerance, STOP_STEP), 0.0)
+
+    def _stop_when_converged(self, intermediate_result) -> None:
+        """Stop least_squares at the minimum (its own tests stop it at the rounding floor)."""
+        if self._at_minimum():
+            raise StopIteration
+
+    def _values(self, free_vector: np.ndarray) -> np.ndarray:
+        """Return the weighted residual rows at a trial (inf where the step left the model)."""
+        self.evaluations += 1
+        vector = self.vector.copy()
+        vector[self.free] = free_vector
+        if np.array_equal(vector, self.vector):
+            return self.block.values
+        rows = len(self.block.values)
         try:
             params, _ = _split(vector, self.problem.arch)
-        except (
-            ValueError
-        ):  # the step left the valid parameter set (|a_xy| >= 1, absurd device defects)
-            return None
+        except ValueError:  # the step left the valid parameter set (|a_xy| >= 1, absurd defects)
+            return np.full(rows, np.inf)
         fk = self.problem.solve_fk(params, self.poses, vector=vector)
         if fk.failures:
             # A few postures whose FK breaks down (near a singularity of the model) are set aside;
-            # many failing at once means the step is too long.
-            few = len(fk.failures) <= max(1, len(self.poses) // 20)
-            return dict(fk.failures) if few else None
+            # many failing at once means the step is too long: least_squares shortens it.
+            if len(fk.failures) <= max(1, len(self.poses) // 20):
+                raise _FailedPostures(dict(fk.failures))
+            return np.full(rows, np.inf)
+        self._trial = (vector.tobytes(), fk.poses)
         block = self.problem.residuals(vector, fk.poses)
-        values = self.problem.with_prior(
+        return self.problem.with_prior(
             ResidualBlock(self.transform.values(block), None, block.channels, block.postures),
             vector,
         ).values
-        return vector, fk.poses, float(values @ values)
+
+    def _jacobian(self, free_vector: np.ndarray) -> np.ndarray:
+        """Accept a point (least_squares asks for its Jacobian only at accepted points)."""
+        vector = self.vector.copy()
+        vector[self.free] = free_vector
+        if not np.array_equal(vector, self.vector):
+            if self._trial is not None and self._trial[0] == vector.tobytes():
+                poses = self._trial[1]
+            else:
+                params = _split(vector, self.problem.arch)[0]
+                poses = self.problem.solve_fk(params, self.poses, vector=vector).poses
+            self.vector, self.poses = vector, poses
+            self._set_block(self.problem.jacobian(self.vector, self.poses))
+            # As before: a pass per step taken, plus the one that finds no step worth taking.
+            if self.iterations >= self.options.max_iterations:
+                raise _IterationLimit
+            self.iterations += 1
+        assert self.block.jacobian is not None  # _set_block keeps only blocks with one
+        return self.block.jacobian
 
     def _drop(self, failures: dict[int, str]) -> None:
         local = sorted(failures)
