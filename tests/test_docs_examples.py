@@ -110,3 +110,20 @@ def test_the_store_example_runs_as_printed_and_its_rollback_rolls_back(guide_dir
         )
     }
     assert states == {first: 'active', second: 'rolled-back'}
+
+
+@pytest.mark.slow
+def test_the_guides_plans_run_as_printed_with_no_inf_and_say_what_a_short_plan_is_for(
+    guide_directory,
+):
+    lines = [line for line in hexacal_lines(section('### Plan')) if line.startswith('hexacal plan')]
+    assert len(lines) == 2, lines  # the measurement's plan, the verification's
+    outputs = [run(shlex.split(line), guide_directory).stdout for line in lines]
+    for output in outputs:
+        assert not re.search(r'\binf\b', output), output
+    # 8 postures cannot identify the 54 parameters: said as what it means for a verification.
+    verification = outputs[1]
+    assert 'of 54 parameters' in verification, verification
+    assert 'as a verification plan that is fine' in verification, verification
+    assert (guide_directory / 'plan.yaml').is_file()
+    assert (guide_directory / 'verify_plan.yaml').is_file()
