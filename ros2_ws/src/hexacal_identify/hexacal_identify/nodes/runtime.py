@@ -96,6 +96,20 @@ class ShutdownLog:
         return self._keep('fatal', message)
 
 
+def _log_line(logger, severity: str, text: str) -> None:
+    """Log `text` at `severity`: one call site per severity (rclpy refuses a change at one)."""
+    if severity == 'debug':
+        logger.debug(text)
+    elif severity == 'warning':
+        logger.warning(text)
+    elif severity == 'error':
+        logger.error(text)
+    elif severity == 'fatal':
+        logger.fatal(text)
+    else:
+        logger.info(text)
+
+
 def _stopped_during_startup() -> int:
     import rclpy
 
@@ -168,7 +182,6 @@ def run_node(
             lines = [line for line in finish(node) if line]
         node.destroy_node()
         for line in lines:
-            severity, text = line if isinstance(line, tuple) else ('info', line)
-            getattr(logger, severity)(text)
+            _log_line(logger, *(line if isinstance(line, tuple) else ('info', line)))
         rclpy.try_shutdown()
     return 0
