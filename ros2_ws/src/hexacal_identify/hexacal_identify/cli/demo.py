@@ -74,7 +74,8 @@ def add_parsers(subparsers) -> None:
         'through its trajectory-controller interface, collect, calibrate nominal set 2, walk a '
         'verification plan and verify; print parameter and pose errors before and after, the '
         "verification table, the drives' largest deviation and force or extension, and the "
-        'HTML report path. Takes about 3-4 minutes with the defaults; everything lands under '
+        'HTML report path. Takes about 4 minutes with the defaults on 2 idle cores, most of it '
+        'planning (far longer on a busy machine); everything lands under '
         'out/demo_<timestamp>, with summary.json.',
     )
     parser.add_argument(
