@@ -13,4 +13,3 @@ def test_the_shutdown_log_keeps_every_line_with_its_severity():
         ('warning', 'calibration report not written: disk full'),
         ('error', 'calibration failed'),
     ]
-
