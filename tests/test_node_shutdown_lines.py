@@ -15,7 +15,7 @@ def test_run_node_logs_the_kept_lines_after_the_node_is_destroyed():
     # A node whose finish logs at two severities: both lines come out, after the node is gone,
     # with no rosout error (its own process, so that rclpy.init is its own).
     program = textwrap.dedent(
-        '''
+        """
         from rclpy.node import Node
         from hexacal_identify.nodes.runtime import run_node, ShutdownLog
 
@@ -31,7 +31,7 @@ def test_run_node_logs_the_kept_lines_after_the_node_is_destroyed():
             return [*log.lines, 'plain line']
 
         raise SystemExit(run_node('stopping', Stopping, finish=finish))
-        '''
+        """
     )
     completed = subprocess.run(
         [sys.executable, '-c', program], capture_output=True, text=True, timeout=120
