@@ -90,10 +90,24 @@ def test_calibrate_verify_deploy_rollback_and_a_refused_jump(tmp_path, nominal):
     assert refused.stderr.count('\n') == 1 and '--force' in refused.stderr
     assert '(unverified)' in refused.stderr
 
-    # verified on its own bag: a pass, but not on fresh postures -> still refused
-    _ok('verify', FIT_BAG, '--nominal', nominal, '--calibrated', first_file, '--store', store)
+    # verified on its own bag: it does not count, said so, and not attached -> still refused
+    completed = _ok(
+        'verify', FIT_BAG, '--nominal', nominal, '--calibrated', first_file, '--store', store
+    )
+    assert 'does not count: these are the postures the calibration was fitted to' in (
+        completed.stdout
+    )
+    assert 'not attached to the store' in completed.stdout and 'attached to ' not in (
+        completed.stdout.replace('not attached to ', '')
+    )
+    assert _history(store)[0]['verdict'] is None
     refused = hexacal('deploy', first['id'], '--store', store)
-    assert refused.returncode == 1 and 'verified-on-fit-postures' in refused.stderr
+    assert refused.returncode == 1 and '(unverified)' in refused.stderr
+    # known from the file alone too (no store), in the JSON as well
+    fitted = json.loads(
+        _ok('verify', FIT_BAG, '--nominal', nominal, '--calibrated', first_file, '--json').stdout
+    )
+    assert fitted['fitted_postures'] and fitted['verdict'] == 'pass' and 'store' not in fitted
 
     # verified on another bag -> verified -> deploy -> active
     completed = _ok(
@@ -221,16 +235,28 @@ def test_bad_input_exits_2_with_one_line(tmp_path, nominal):
         assert completed.stderr.startswith(f'hexacal {argv[0]}: error: ')
 
 
-def test_the_default_store_is_the_environments_and_calibrate_says_nothing_of_it(
+def test_calibrate_stores_only_when_asked_and_says_where_or_that_it_did_not(
     tmp_path, nominal, monkeypatch
 ):
     monkeypatch.setenv(fmt.STORE_ENV, str(tmp_path / 'stores'))
     calibrated = tmp_path / 'calibrated.yaml'
+    default = tmp_path / 'stores' / 'hexa_slide'
+    # Offline, without --store: kept nowhere, and the output says so.
     completed = _ok('calibrate', FIT_BAG, '--nominal', nominal, '--output', calibrated, '--json')
-    assert 'store' not in json.loads(completed.stdout)  # the output is as it was
+    assert json.loads(completed.stdout)['store'] is None
+    text = _ok('calibrate', FIT_BAG, '--nominal', nominal, '--output', calibrated).stdout
+    assert 'not stored in a calibration store' in text and '--store' in text
+    assert not default.exists()
+    # --store alone: the machine model's store (the environment's here), said with its id.
+    completed = _ok('calibrate', FIT_BAG, '--nominal', nominal, '--output', calibrated, '--store')
     (entry,) = json.loads(_ok('history', '--json').stdout)
-    assert Path(entry['parameters']).is_relative_to(tmp_path / 'stores' / 'hexa_slide')
+    assert Path(entry['parameters']).is_relative_to(default)
+    assert f'stored as {entry["short_id"]} (stored) in {default}' in completed.stdout
+    completed = _ok(
+        'calibrate', FIT_BAG, '--nominal', nominal, '--output', calibrated, '--store', '--json'
+    )
+    assert json.loads(completed.stdout)['store']['dir'] == str(default)
     _ok('calibrate', FIT_BAG, '--nominal', nominal, '--output', calibrated, '--no-store')
-    assert len(json.loads(_ok('history', '--json').stdout)) == 1
+    assert len(json.loads(_ok('history', '--json').stdout)) == 2
     empty = _ok('history', '--model', 'gough_stewart').stdout
     assert empty.startswith('no calibrations in ')

@@ -16,6 +16,7 @@ from hexacal_identify.session import CalibrationSession, Settings
 from hexacal_identify.session.deployment import (
     ActiveWatch,
     DeployFollower,
+    followed_model,
     NO_ACTIVE,
     store_dir,
 )
@@ -89,6 +90,46 @@ def test_a_follower_without_model_takes_the_default_store_with_an_active_calibra
     store.deploy(store.add(parameters_file(tmp_path, 'a.yaml'), {}).id, force=True)
     follower = DeployFollower.start('', None)
     assert follower.root == tmp_path / MODEL and follower.deployed is not None
+
+
+def test_a_follower_without_model_follows_the_first_default_store_deployed_into(
+    tmp_path, monkeypatch
+):
+    monkeypatch.setenv('HEXACAL_STORE', str(tmp_path))
+    follower = DeployFollower.start('', None)  # nothing deployed anywhere yet
+    assert follower.deployed is None and str(tmp_path / MODEL) in follower.where
+    assert str(tmp_path / 'gough_stewart') in follower.where
+    vector = architecture('gough_stewart').default_parameters().vector
+    path = tmp_path / 'gs.yaml'
+    save_parameters(path, vector, model='gough_stewart')
+    other = CalibrationStore(tmp_path / 'gough_stewart')
+    entry = other.add(path, {})
+    other.deploy(entry.id, force=True)
+    deployed = follower.poll()  # the Gough-Stewart store's deploy reaches it
+    assert deployed is not None and deployed.active.entry.id == entry.id
+    assert follower.root == tmp_path / 'gough_stewart' and follower.where == str(follower.root)
+    hexa = CalibrationStore(tmp_path / MODEL)  # followed from now on: one store, not two
+    hexa.deploy(hexa.add(parameters_file(tmp_path, 'a.yaml'), {}).id, force=True)
+    assert follower.poll() is None and follower.deployed.model == 'gough_stewart'
+
+
+def test_the_followed_model_is_the_named_one_or_the_files_and_they_must_agree():
+    assert followed_model('', None) is None
+    assert followed_model('gough_stewart', None) == 'gough_stewart'
+    assert followed_model('', MODEL) == MODEL
+    assert followed_model(MODEL, MODEL) == MODEL
+    try:
+        followed_model('gough_stewart', MODEL)
+    except ValueError as error:
+        assert 'gough_stewart' in str(error) and MODEL in str(error)
+    else:
+        raise AssertionError('a model unlike the parameters file is accepted')
+    try:
+        followed_model('delta', None)
+    except ValueError as error:
+        assert "'delta'" in str(error)
+    else:
+        raise AssertionError('an unknown model is accepted')
 
 
 def test_the_watch_reads_the_store_again_only_when_the_marker_changes(tmp_path):

@@ -101,6 +101,9 @@ DIAGNOSTIC_LEVELS = {
     'ERROR': DiagnosticStatus.ERROR,
     'STALE': DiagnosticStatus.STALE,
 }
+# Every status also carries its level's name as a value (the level itself is a byte).
+LEVEL_NAME_KEY = 'level_name'
+LEVEL_NAMES = {level[0]: name for name, level in DIAGNOSTIC_LEVELS.items()}
 
 
 def stamp_ns(stamp: Time) -> int:
@@ -511,23 +514,26 @@ def diagnostic_status(
     `level` is DiagnosticStatus.OK/WARN/ERROR/STALE, 0..3 or 'OK'..'STALE';
     `stamp` is in ns (the header stamp is left at zero when None).
     """
+    level_byte = _level_byte(level)
+    pairs = [
+        KeyValue(key=str(key), value=_value_text(value)) for key, value in (values or {}).items()
+    ]
+    # DiagnosticStatus.level is a byte ('\x01' in `ros2 topic echo`): its name goes along.
+    pairs.append(KeyValue(key=LEVEL_NAME_KEY, value=LEVEL_NAMES[level_byte[0]]))
     status = DiagnosticStatus(
-        level=_level_byte(level),
+        level=level_byte,
         name=name,
         message=message,
         hardware_id=hardware_id,
-        values=[
-            KeyValue(key=str(key), value=_value_text(value))
-            for key, value in (values or {}).items()
-        ],
+        values=pairs,
     )
     header = Header(stamp=to_stamp(stamp)) if stamp is not None else Header()
     return DiagnosticArray(header=header, status=[status])
 
 
 def status_values(status: DiagnosticStatus) -> dict[str, str]:
-    """Return the KeyValue list of a DiagnosticStatus as a dict."""
-    return {kv.key: kv.value for kv in status.values}
+    """Return the KeyValue list of a DiagnosticStatus as a dict (the publisher's values)."""
+    return {kv.key: kv.value for kv in status.values if kv.key != LEVEL_NAME_KEY}
 
 
 # Deprecated names (issue #17): the old spellings stay importable for users' scripts.

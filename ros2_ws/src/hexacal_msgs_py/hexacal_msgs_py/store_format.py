@@ -185,6 +185,27 @@ def postures_digest(postures: Iterable[_Posture]) -> str:
     return digest.hexdigest()
 
 
+# A calibrated parameters file says in its header comment which postures it was fitted to
+# ('# fitted postures: <postures_digest>'), so that a verification on them is told apart
+# without a store.
+FITTED_POSTURES_COMMENT = 'fitted postures: '
+
+
+def fitted_postures_digest(path: Path | str) -> str | None:
+    """Return the postures_digest a parameters file's header names, or None (none, unreadable)."""
+    try:
+        with open(path, encoding='utf-8') as stream:
+            for line in stream:
+                if not line.startswith('#'):
+                    return None
+                text = line[1:].strip()
+                if text.startswith(FITTED_POSTURES_COMMENT):
+                    return text[len(FITTED_POSTURES_COMMENT):].strip() or None
+    except (OSError, UnicodeDecodeError):
+        return None
+    return None
+
+
 def vector_digest(model: str, values: Iterable[float]) -> str:
     """
     Return the sha256 (hex) of a parameter vector: the model name and little-endian float64s.

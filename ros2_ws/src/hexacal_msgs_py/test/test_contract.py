@@ -285,7 +285,10 @@ def test_diagnostic_status_builder():
         'rms_residual_m': '1.25e-05',
         'converged': 'false',
     }
+    # the level's name goes along as the last value (ros2 topic echo shows the level as a byte)
+    assert (status.values[-1].key, status.values[-1].value) == ('level_name', 'WARN')
     assert conv.diagnostic_status(2, 'n', 'm').status[0].level == DiagnosticStatus.ERROR
+    assert conv.diagnostic_status('stale', 'n', 'm').status[0].values[0].value == 'STALE'
     assert conv.diagnostic_status('stale', 'n', 'm').status[0].level == DiagnosticStatus.STALE
     with pytest.raises(ValueError):
         conv.diagnostic_status(4, 'n', 'm')

@@ -22,6 +22,7 @@ from hexacal_msgs_py.interface_names import (
 )
 
 from hexacal_msgs_py.measuring_modes import measuring_mode as check_mode, MEASURING_MODE_KEY
+from hexacal_msgs_py.models import DEFAULT_MODEL
 
 from .launch_spec import NodeLaunch
 
@@ -111,7 +112,8 @@ def launches(
 
     `model` (hexa_slide or gough_stewart) goes to the driver and the collector;
     identify and the executor take their model from the nominal file, kinematics from
-    its parameters file (or the first calibration it hears). An `executor_plan` adds the
+    its parameters file (else it is told `model`, else the nominal's, else the default
+    model, whose store - the one identify deploys into - it follows). An `executor_plan` adds the
     executor (plan, nominal, command_topic, calibrate_when_done, shutdown_when_done) and
     puts the driver in commanded mode on the same command topic; `with_kinematics` adds
     the kinematics node (its `parameters` file, commands on command_topic). `inputs`
@@ -154,9 +156,11 @@ def launches(
         NodeLaunch('identify', identify_parameters, namespace),
     ]
     if with_kinematics:
-        kinematics_parameters_ = {'command_topic': command_topic}
+        kinematics_parameters_: dict[str, object] = {'command_topic': command_topic}
         if kinematics_parameters:
             kinematics_parameters_['parameters'] = str(Path(kinematics_parameters).resolve())
+        else:  # the machine's store, the one identify deploys into (its nominal's model)
+            kinematics_parameters_['model'] = model or file_model(nominal) or DEFAULT_MODEL
         kinematics_parameters_.update(kinematics or {})
         nodes.append(
             NodeLaunch('kinematics', kinematics_parameters_, namespace, inputs.remaps(SLIDERS))

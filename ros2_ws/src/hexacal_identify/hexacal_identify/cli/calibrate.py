@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 import sys
 
-from .store import add_calibrate_arguments, store_calibration
+from .store import add_calibrate_arguments, calibrate_store_dir, store_calibration
 
 # The solver, the bag reader and the report are imported where they run: this module is imported by
 # every `hexacal` start-up to register the commands.
@@ -355,9 +355,11 @@ def run_calibrate(args) -> int:
             error.args = (f'{error} [bag {args.bag}: {_not_used(bag)}]',)
         raise
     adequacy = result.adequacy
+    from hexacal_msgs_py.store_format import FITTED_POSTURES_COMMENT, postures_digest
+
     comment = (
         f'hexacal calibrate {args.bag} (cost {args.cost}, {len(result.used_postures)} postures, '
-        f'{result.reason}), SI units'
+        f'{result.reason}), SI units\n{FITTED_POSTURES_COMMENT}{postures_digest(bag.postures)}'
     )
     if result.reason == CONVERGED:
         # The device defects identified with it go along: `hexacal verify` measures with the same
@@ -425,14 +427,35 @@ def run_calibrate(args) -> int:
         payload['measuring_mode'] = bag.measuring_mode  # the bag's; None: it does not say
         payload['adequacy'] = adequacy.to_json()
         payload['output'] = str(args.output) if result.reason == CONVERGED else None
-        if stored is not None and args.store is not None:  # the default store goes unsaid
-            payload['store'] = {'dir': str(args.store), 'id': stored.id}
+        # Where it was kept; None: in no store (not asked, or not converged).
+        payload['store'] = (
+            {'dir': str(_store_root(args, result)), 'id': stored.id}
+            if stored is not None
+            else None
+        )
         print(json.dumps(payload))
     else:
         _print_summary(args, bag, result, adequacy)
-        if stored is not None and args.store is not None:
-            print(f'stored as {stored.short_id} ({stored.state}) in {args.store}')
+        print(_store_line(args, result, stored))
     return 0 if result.reason == CONVERGED else 1
+
+
+def _store_root(args, result) -> Path:
+    return calibrate_store_dir(args.store, result.parameters.model)
+
+
+def _store_line(args, result, stored) -> str:
+    """Return the line that says where the calibration was kept, or that it was not."""
+    from ..core.identification import CONVERGED
+
+    if stored is not None:
+        return f'stored as {stored.short_id} ({stored.state}) in {_store_root(args, result)}'
+    if result.reason != CONVERGED:
+        return 'not stored: the calibration did not converge'
+    return (
+        'not stored in a calibration store (an offline calibration joins none unasked): '
+        "--store keeps it in the machine's store, --store DIR in another"
+    )
 
 
 def _print_summary(args, bag, result, adequacy) -> None:

@@ -332,7 +332,11 @@ def run_plan(args) -> int:
                     'candidates': len(planning.candidates),
                     'rank': planning.rank,
                     'indices': planning.indices,
-                    'random_mean_indices': random,
+                    # None: random draws of this size identify too little for the index.
+                    'random_mean_indices': {
+                        name: value if math.isfinite(value) else None
+                        for name, value in random.items()
+                    },
                     'candidate_seconds': planning.candidate_seconds,
                     'selection_seconds': planning.selection_seconds,
                     'exchange_swaps': max(len(planning.exchange_history) - 1, 0),
@@ -364,13 +368,26 @@ def run_plan(args) -> int:
         )
     )
     print('  index       ' + '  '.join(f'{name:>10}' for name in INDICES))
-    print('  planned     ' + '  '.join(f'{planning.indices[name]:>10.4g}' for name in INDICES))
-    print('  random mean ' + '  '.join(f'{random[name]:>10.4g}' for name in INDICES))
+    planned = planning.indices
+    print('  planned     ' + '  '.join(f'{_index_cell(planned[name]):>10}' for name in INDICES))
+    print('  random mean ' + '  '.join(f'{_index_cell(random[name]):>10}' for name in INDICES))
+    if not all(math.isfinite(random[name]) for name in INDICES):
+        print(
+            f'  (n/a: random draws of {len(plan)} postures leave parameters unidentified; such an '
+            'index has no finite value)'
+        )
     error = planning.indices[PREDICTION]
     if weighted and math.isfinite(error):
+        random_error = random[PREDICTION]
         print(
             f'  predicted RMS position error over the workspace (linearised, noise-weighted fit): '
-            f'{error * 1e6:.1f} um planned, {random[PREDICTION] * 1e6:.1f} um random'
+            f'{error * 1e6:.1f} um planned, '
+            + (
+                f'{random_error * 1e6:.1f} um random'
+                if math.isfinite(random_error)
+                else f'none for random draws of {len(plan)} postures (they leave parameters '
+                'unidentified)'
+            )
         )
     if args.procedure != 'none' or planning.candidates.device_columns:
         mountings = ', '.join(
@@ -385,12 +402,20 @@ def run_plan(args) -> int:
     _print_measuring(planning.measuring, layout.actuator_names)
     if planning.rank < layout.n_parameters:
         print(
-            f'  note: rank {planning.rank} of {layout.n_parameters} with the {args.cost} cost, so '
-            'every index is 0; the plan maximises log det(M + delta I), the information on the '
-            'identifiable part'
+            f'  note: these {len(plan)} postures identify {planning.rank} of '
+            f'{layout.n_parameters} parameters with the {args.cost} cost, so every index is 0 '
+            '(the plan maximises log det(M + delta I), the information on the identifiable '
+            'part). Too few to calibrate from alone; as a verification plan that is fine: a '
+            'verification identifies nothing, it needs postures the fit did not use, spread '
+            'over the workspace'
         )
     print(f'wrote {args.out}')
     return 0
+
+
+def _index_cell(value: float) -> str:
+    """Return an index for the table: 4 significant digits, or n/a when not finite."""
+    return f'{value:.4g}' if math.isfinite(value) else 'n/a'
 
 
 def _print_measuring(measuring, actuator_names: tuple[str, ...]) -> None:

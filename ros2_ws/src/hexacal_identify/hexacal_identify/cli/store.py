@@ -230,33 +230,47 @@ def run_rollback(args) -> int:
     return EXIT_OK
 
 
+# `hexacal calibrate --store` without a directory: the machine model's default store.
+MODEL_STORE = Path('<the store of the machine model>')
+
+
 def add_calibrate_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add ``--store DIR`` and ``--no-store`` to ``hexacal calibrate``."""
-    add_store_argument(parser, 'to keep the calibration in, with its provenance')
+    """Add ``--store [DIR]`` and ``--no-store`` to ``hexacal calibrate``."""
+    parser.add_argument(
+        '--store',
+        type=Path,
+        nargs='?',
+        const=MODEL_STORE,
+        default=None,
+        metavar='DIR',
+        help='keep the calibration, with its provenance, in this calibration store; --store '
+        "alone: the machine model's store ($HEXACAL_STORE/<model> if set, else "
+        '~/.local/share/hexacal/calibrations/<model>), the one the nodes deploy from. Default: '
+        'not kept (an offline calibration joins no store unasked)',
+    )
     parser.add_argument(
         '--no-store',
         action='store_true',
-        help='do not keep the calibration in a store (by default every converged calibration '
-        'is kept in the default store, silently unless --store names one)',
+        help='do not keep the calibration in a store (the default; kept for scripts that say it)',
     )
 
 
 def store_calibration(args, result, bag, mount: str):
     """
-    Keep a converged calibration (the --output file) in the store; return the entry or None.
+    Keep a converged calibration (the --output file) in the store asked for; the entry or None.
 
-    With --store the store must take it (a StoreError is bad input); the default store is
-    best effort: a warning on stderr when it cannot be written, and the calibration stands.
+    Only with --store (DIR, or alone: the model's default store); a StoreError is bad input.
+    Without it nothing is kept: an offline calibration does not join the machine's history.
     """
     from ..pipeline import device_prior_json
-    from ..store import CalibrationStore, StoreError
+    from ..store import CalibrationStore
     from ..store.provenance import calibration_record
 
-    if args.no_store:
-        if args.store is not None:
-            raise ValueError('--store and --no-store contradict each other; give one')
+    if args.no_store and args.store is not None:
+        raise ValueError('--store and --no-store contradict each other; give one')
+    if args.store is None:
         return None
-    store = CalibrationStore(store_dir(args.store, result.parameters.model))
+    store = CalibrationStore(calibrate_store_dir(args.store, result.parameters.model))
     record = calibration_record(
         result,
         source='hexacal calibrate',
@@ -269,16 +283,12 @@ def store_calibration(args, result, bag, mount: str):
         device_prior=device_prior_json(args.device_prior),
         bag=args.bag,
     )
-    try:
-        return store.add(args.output, record)
-    except (StoreError, OSError) as error:
-        if args.store is not None:
-            raise
-        print(
-            f'hexacal calibrate: warning: not kept in the calibration store {store.root}: {error}',
-            file=sys.stderr,
-        )
-        return None
+    return store.add(args.output, record)
+
+
+def calibrate_store_dir(store: Path | None, model: str) -> Path:
+    """Return the directory ``hexacal calibrate --store [DIR]`` keeps a `model` calibration in."""
+    return store_dir(None if store == MODEL_STORE else store, model)
 
 
 def _noise(microns: float):

@@ -23,7 +23,7 @@ import json
 import math
 from pathlib import Path
 
-from .store import add_verify_arguments, attach_verification
+from .store import add_verify_arguments, attach_verification, store_dir
 
 # numpy, the bag reader and the core are imported where they run: this module is imported by every
 # `hexacal` start-up to register the command.
@@ -180,16 +180,53 @@ def run_verify(args) -> int:
             title=f'hexacal verification report: {args.bag}',
         )
         payload['report'] = str(page)
-    stored = attach_verification(args, payload, bag, calibrated.model)
+    fitted = fitted_on(args, bag, calibrated.model)
+    # A calibration fits its own postures by construction: that verification tells nothing.
+    payload['fitted_postures'] = fitted or None
+    stored = None if fitted else attach_verification(args, payload, bag, calibrated.model)
     if stored is not None:
         payload['store'] = stored
     if args.json:
         print(json.dumps(payload, allow_nan=False))
     else:
         _print_table(args, bag, payload)
+        if fitted:
+            print(
+                'does not count: these are the postures the calibration was fitted to '
+                f'({fitted}); a calibration fits its own postures by construction, so this says '
+                'nothing of other poses - verify on a recording it was not fitted to'
+                + (' (not attached to the store)' if args.store or args.id else '')
+            )
         if stored is not None:
             print(f'attached to {stored["id"][:8]} ({stored["state"]}) in {stored["dir"]}')
     return EXIT_PASS if result.verdict == PASS else EXIT_FAIL
+
+
+def fitted_on(args, bag, model: str) -> str:
+    """
+    Return how the bag's postures are known to be those the calibration was fitted to, or ''.
+
+    The --calibrated file's header names the postures it was fitted to (``hexacal calibrate``
+    and the identify node write it); a file without it is looked up in the store (--store,
+    else the model's default store, read only), whose entry records them.
+    """
+    from hexacal_msgs_py import store_format as fmt
+
+    verified = fmt.postures_digest(bag.postures)
+    if fmt.fitted_postures_digest(args.calibrated) == verified:
+        return f'its file {args.calibrated} names them'
+    from ..store import CalibrationStore, StoreError
+
+    root = store_dir(args.store, model)
+    if not root.is_dir():
+        return ''
+    try:
+        entry = CalibrationStore(root).find_digest(fmt.file_digest(args.calibrated))
+    except (StoreError, OSError):
+        return ''  # attaching names a bad store; an unreadable one says nothing here
+    if entry is not None and entry.record.get(fmt.RECORD_POSTURES_DIGEST) == verified:
+        return f'store entry {entry.short_id} in {root} records them'
+    return ''
 
 
 def _device_defects(args):

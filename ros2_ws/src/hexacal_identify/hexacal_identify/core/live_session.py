@@ -23,6 +23,7 @@ from typing import cast
 
 from hexacal_msgs_py.errors import InvalidReadingError
 from hexacal_msgs_py.interface_names import SLIDERS_TOPIC
+from hexacal_msgs_py.models import MODELS
 import numpy as np
 
 from .architectures import KinematicParameters
@@ -114,6 +115,8 @@ def check_parameter(
         limits = list(value)  # type: ignore[call-overload]
         if len(limits) != 2 or not all(math.isfinite(v) for v in limits) or limits[0] >= limits[1]:
             return f'stroke_limits must be [low, high] (m) with low < high, got {limits}'
+    elif name == 'model' and value not in ('', *MODELS):
+        return f"model must be '' or one of {', '.join(MODELS)}, got {value!r}"
     elif name == 'mount' and value not in ('', *MOUNTS):
         return f"mount must be '' or one of {', '.join(MOUNTS)}, got {value!r}"
     elif name in ('base_frame', 'command_topic') and not value:

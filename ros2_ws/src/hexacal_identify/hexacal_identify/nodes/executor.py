@@ -599,8 +599,13 @@ class ExecutorNode(Node):
             else f'no release service {RELEASE_SERVICE_PREFIX}<joint> within '
             f'{RELEASE_DISCOVERY_S:g} s'
         )
+        # Say what to do, on either side: the drive's mode or the plan's.
         self.get_logger().warning(
-            f'{why}: {walking_notice(mode.mode.value)} (set measuring_mode to drive it)'
+            f'{why}: {walking_notice(mode.mode.value)}. To walk it as planned, run the drives '
+            'in measuring_mode passive_actuator with a release service per joint (the launch '
+            'argument measuring_mode:=passive_actuator, bringup --measuring-mode '
+            'passive_actuator for the simulated driver); else plan for these drives: hexacal '
+            f'plan --measuring-mode {self._drive_mode or "compliant"}'
         )
         self.mode = mode.all_six('the plan is passive_actuator, the drive is not')
         self.execution.released = list(self.mode.released)

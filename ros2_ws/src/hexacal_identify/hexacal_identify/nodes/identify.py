@@ -52,7 +52,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
-from .runtime import run_node
+from .runtime import run_node, ShutdownLog
 from ..core.device import DEVICE_PARAMETER_NAMES
 from ..core.measurements import ScatterFloor
 from ..core.residuals import COSTS
@@ -254,6 +254,7 @@ class IdentifyNode(Node):
         self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix='calibration')
         # The report of the latest calibration, written after the answer on a worker of its own.
         self._report_worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix='report')
+        self._shutdown_log: ShutdownLog | None = None  # set while the node stops
         self.parameters_pub = self.create_publisher(
             Float64MultiArray, PARAMETERS_TOPIC, PARAMETERS_QOS
         )
@@ -384,17 +385,17 @@ class IdentifyNode(Node):
         outcome = self.session.calibrate(settings)
         # One call site per severity: rclpy refuses a severity change at the same line.
         if outcome.success:
-            self.get_logger().info(outcome.message)
+            self._log().info(outcome.message)
         else:
-            self.get_logger().error(outcome.message)
+            self._log().error(outcome.message)
         return outcome
 
     def _verify(self, settings: Settings) -> Outcome:
         outcome = self.session.verify(settings)
         if outcome.level == Level.OK:
-            self.get_logger().info(f'verification: {outcome.message}')
+            self._log().info(f'verification: {outcome.message}')
         else:
-            self.get_logger().warning(f'verification: {outcome.message}')
+            self._log().warning(f'verification: {outcome.message}')
         return outcome
 
     def _deploy(self, settings: Settings, force: bool) -> Outcome:
@@ -405,26 +406,34 @@ class IdentifyNode(Node):
 
     def _logged(self, what: str, outcome: Outcome) -> Outcome:
         if outcome.success:
-            self.get_logger().info(f'{what}: {outcome.message}')
+            self._log().info(f'{what}: {outcome.message}')
         else:
-            self.get_logger().warning(f'{what}: {outcome.message}')
+            self._log().warning(f'{what}: {outcome.message}')
         return outcome
 
     def _write_reports(self) -> None:
         threading.Event().wait(REPORT_START_DELAY_S)  # let the answer go out first
         self.session.write_reports()
 
-    def shutdown(self) -> None:
-        """Finish the calibration under way, then the reports (written whole)."""
+    def _log(self):
+        """Return the node's logger, or while it stops the ShutdownLog that keeps the lines."""
+        return self._shutdown_log or self.get_logger()
+
+    def shutdown(self) -> list[tuple[str, str]]:
+        """Finish the calibration under way, then the reports (written whole); their lines."""
+        # What the workers log from now on is kept and logged once the node is destroyed: the
+        # context may already be gone (a signal), and with it the rosout publisher.
+        self._shutdown_log = ShutdownLog()
+        self.session.use_log(self._shutdown_log)
         self._worker.shutdown(wait=True, cancel_futures=True)
         # After the calibration worker: a calibration that finished during shutdown queues its
         # report. The report under way and the latest one waiting are written whole.
         self._report_worker.shutdown(wait=True)
+        return self._shutdown_log.lines
 
 
-def _finish(node: IdentifyNode) -> list[str]:
-    node.shutdown()  # a calibration under way finishes: its files are written whole
-    return []
+def _finish(node: IdentifyNode) -> list[tuple[str, str]]:
+    return node.shutdown()  # a calibration under way finishes: its files are written whole
 
 
 def main(args: list[str] | None = None) -> int:

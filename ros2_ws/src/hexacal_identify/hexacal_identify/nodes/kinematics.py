@@ -27,6 +27,7 @@ from hexacal_msgs_py.conversions import (
     stamp_ns,
 )
 from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError
+from hexacal_msgs_py.models import MODELS
 from hexacal_msgs_py.names import (
     CALIBRATION_STATUS_TOPIC,
     DEFAULT_COMMAND_TOPIC,
@@ -74,7 +75,7 @@ from ..core.live_session import (
     Report,
 )
 from ..pipeline import load_machine_and_mount
-from ..session.deployment import Deployed, DeployFollower, NO_ACTIVE
+from ..session.deployment import Deployed, DeployFollower, followed_model, NO_ACTIVE
 
 NODE_NAME = 'kinematics'
 DEFAULT_BASE_FRAME = 'hexacal_base'
@@ -130,6 +131,17 @@ class KinematicsNode(Node):
                 description='calibration store whose active calibration is used and whose '
                 "deploys and rollbacks are followed; '' = the machine model's default store",
                 read_only=True,
+            ),
+        )
+        self.declare_parameter(
+            'model',
+            '',
+            ParameterDescriptor(
+                description='machine model (hexa_slide, gough_stewart) whose default calibration '
+                "store is followed when calibration_store is ''; '' = the parameters file's "
+                "model, else every model's default store until one has a deployed calibration",
+                read_only=True,
+                additional_constraints="'', " + ', '.join(repr(m) for m in MODELS),
             ),
         )
         self.declare_parameter(
@@ -214,6 +226,7 @@ class KinematicsNode(Node):
                 'parameters',
                 'follow_calibrations',
                 'calibration_store',
+                'model',
                 'link_length',
                 'mount',
                 'max_pose_rate_hz',
@@ -225,9 +238,11 @@ class KinematicsNode(Node):
         if value['parameters']:
             params, file_mount = load_parameters_file(value['parameters'])
             source = value['parameters']
-        self.deploys = DeployFollower.start(
-            value['calibration_store'], params.model if params is not None else None
-        )
+        try:
+            model = followed_model(value['model'], params.model if params is not None else None)
+        except ValueError as error:
+            raise KinematicsConfigurationError(str(error)) from error
+        self.deploys = DeployFollower.start(value['calibration_store'], model)
         if self.deploys.deployed is not None:  # the active calibration comes first
             deployed, mount_of = load_parameters_file(str(self.deploys.deployed.path))
             if params is None or deployed.model == params.model:
@@ -273,7 +288,7 @@ class KinematicsNode(Node):
         following = self.resolve_topic_name(PARAMETERS_TOPIC) if self._follow_any else ''
         self._report(
             self.session.start_report(
-                following, self._command_pub.topic_name, str(self.deploys.root)
+                following, self._command_pub.topic_name, self.deploys.where
             )
         )
 
@@ -332,7 +347,7 @@ class KinematicsNode(Node):
         elif self._follow_any:
             deployment = dict(NO_ACTIVE)  # taken from the topic, not from the store
         else:
-            self._report(self.session.not_deployed(PARAMETERS_TOPIC, str(self.deploys.root)))
+            self._report(self.session.not_deployed(PARAMETERS_TOPIC, self.deploys.where))
             return
         report = self.session.take_calibration(params, PARAMETERS_TOPIC, source)
         if report is not None and report.outcome == Outcome.PARAMETERS:

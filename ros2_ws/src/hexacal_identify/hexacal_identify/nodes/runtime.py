@@ -54,6 +54,62 @@ def hold_termination_signals() -> None:
         signal.signal(signum, signal.SIG_IGN)
 
 
+class ShutdownLog:
+    """
+    A node logger's stand-in while the node stops: every line kept, logged after it is destroyed.
+
+    After a signal the context is shut down, and a line logged through the node's logger (or any
+    logger of its name) while the node still exists fails to reach rosout with an rcl error on
+    the terminal. A node's `finish` hands this to whatever may log while it stops (workers
+    finishing a calibration or a report) and returns `lines`; run_node logs them at their
+    severity once the node, and its rosout publisher, are gone.
+    """
+
+    def __init__(self) -> None:
+        """Start with no line."""
+        self.lines: list[tuple[str, str]] = []  # (severity method name, message)
+
+    def _keep(self, severity: str, message: str) -> bool:
+        self.lines.append((severity, str(message)))
+        return True
+
+    def debug(self, message: str, **_: object) -> bool:
+        """Keep a debug line."""
+        return self._keep('debug', message)
+
+    def info(self, message: str, **_: object) -> bool:
+        """Keep an info line."""
+        return self._keep('info', message)
+
+    def warning(self, message: str, **_: object) -> bool:
+        """Keep a warning."""
+        return self._keep('warning', message)
+
+    warn = warning
+
+    def error(self, message: str, **_: object) -> bool:
+        """Keep an error."""
+        return self._keep('error', message)
+
+    def fatal(self, message: str, **_: object) -> bool:
+        """Keep a fatal line."""
+        return self._keep('fatal', message)
+
+
+def _log_line(logger, severity: str, text: str) -> None:
+    """Log `text` at `severity`: one call site per severity (rclpy refuses a change at one)."""
+    if severity == 'debug':
+        logger.debug(text)
+    elif severity == 'warning':
+        logger.warning(text)
+    elif severity == 'error':
+        logger.error(text)
+    elif severity == 'fatal':
+        logger.fatal(text)
+    else:
+        logger.info(text)
+
+
 def _stopped_during_startup() -> int:
     import rclpy
 
@@ -69,7 +125,7 @@ def run_node(
     args: list[str] | None = None,
     startup_errors: tuple[type[BaseException], ...] = (),
     make_executor: Callable[[], 'Executor'] | None = None,
-    finish: Callable[[NodeT], Iterable[str]] | None = None,
+    finish: Callable[[NodeT], Iterable[str | tuple[str, str]]] | None = None,
 ) -> int:
     """
     Run one node until a signal or an external shutdown; return the exit code.
@@ -77,8 +133,9 @@ def run_node(
     ``startup_errors`` raised by ``create`` are a bad configuration: logged as
     fatal, exit code 2. ``finish`` runs after spinning with the termination
     signals held (close bags, write files, wait for workers); the lines it
-    returns are logged after the node is destroyed, since the context (and the
-    node's rosout publisher) may already be shut down by the signal.
+    returns (text, or (severity, text) as a ShutdownLog keeps them) are logged after
+    the node is destroyed, since the context (and the node's rosout publisher) may
+    already be shut down by the signal.
     """
     import rclpy
     from rclpy.executors import ExternalShutdownException
@@ -101,7 +158,7 @@ def run_node(
             raise
         return _stopped_during_startup()
     executor = None
-    lines: list[str] = []
+    lines: list[str | tuple[str, str]] = []
     try:
         if node.context.ok() and not _received:
             executor = make_executor() if make_executor is not None else None
@@ -125,6 +182,6 @@ def run_node(
             lines = [line for line in finish(node) if line]
         node.destroy_node()
         for line in lines:
-            logger.info(line)
+            _log_line(logger, *(line if isinstance(line, tuple) else ('info', line)))
         rclpy.try_shutdown()
     return 0

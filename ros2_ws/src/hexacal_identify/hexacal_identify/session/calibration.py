@@ -9,6 +9,7 @@ from typing import Protocol
 from hexacal_msgs_py.calibrate_answer import calibrate_answer, HEADER_SOURCE
 from hexacal_msgs_py.errors import HexacalContractError, ParameterFileError
 from hexacal_msgs_py.parameters_file import save_parameters
+from hexacal_msgs_py.store_format import FITTED_POSTURES_COMMENT, postures_digest
 
 from .nominal import NominalFile
 from .outcome import failure, Level, Outcome, Reason, ReportState
@@ -164,6 +165,7 @@ def run_calibration(
             header_comment=(
                 f'hexacal calibration {_now()}'
                 f'\n{HEADER_SOURCE}{source}: {summary}\nnominal: {nominal_path}; SI units'
+                f'\n{FITTED_POSTURES_COMMENT}{postures_digest(postures)}'
             ),
             extras=pipeline.device_defects_extras(result) or None,
         )

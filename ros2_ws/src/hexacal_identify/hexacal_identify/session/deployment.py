@@ -38,6 +38,23 @@ ACTIVE_KEYS = ('active_calibration', 'active_since', 'active_reason')
 NO_ACTIVE: dict[str, object] = {key: '' for key in ACTIVE_KEYS}
 
 
+def followed_model(named: str, file_model: str | None) -> str | None:
+    """
+    Return the machine model whose store the kinematics node follows (None: not known).
+
+    `named` is the node's `model` parameter ('' = none), `file_model` the model of its
+    parameters file (None without one); they must agree (ValueError naming both).
+    """
+    if named and named not in MODELS:
+        raise ValueError(f"model must be '' or one of {', '.join(MODELS)}, got {named!r}")
+    if named and file_model is not None and named != file_model:
+        raise ValueError(
+            f'model is {named} but the parameters file is a {file_model} model; give one '
+            'machine model'
+        )
+    return named or file_model
+
+
 def store_dir(configured: str, model: str) -> Path:
     """Return the store a node uses: `configured`, else the machine model's default store."""
     if configured:
@@ -126,35 +143,56 @@ class DeployFollower:
     `deployed_match(model, vector)` says whether a parameters message is the active one.
     """
 
-    def __init__(self, watch: ActiveWatch) -> None:
-        """Follow the store `watch` looks at."""
+    def __init__(self, watch: ActiveWatch, candidates: Sequence[ActiveWatch] = ()) -> None:
+        """
+        Follow the store `watch` looks at.
+
+        `candidates` (the default stores of every model, for a node told no model): until
+        one of them has an active calibration, each is looked at on every poll, and the first
+        with one is followed from then on (`watch` is the one named meanwhile).
+        """
         self.watch = watch
+        self.candidates = tuple(candidates)
         self.deployed: Deployed | None = None
         self.problem = ''  # why the active entry cannot be taken ('' = none)
 
     @classmethod
     def start(cls, configured: str, model: str | None) -> DeployFollower:
         """
-        Return the follower of the store `configured`, else of the machine's default store.
+        Return the follower of the store `configured`, else of the machine model's default store.
 
-        Without a model (no parameters file) the default stores are looked at in the models'
-        order, and the first with an active calibration is followed (else the default model's).
+        Without a model (no parameters file, no `model` parameter) the default stores of every
+        model are looked at, in the models' order, and the first with an active calibration is
+        followed - at start or at its first deploy - so a deploy reaches the node whichever
+        machine it runs.
         """
         if configured or model is not None:
             follower = cls(ActiveWatch(store_dir(configured, model or next(iter(MODELS)))))
         else:
             watches = [ActiveWatch(default_store_dir(name)) for name in MODELS]
-            for watch in watches:
-                watch.look()
-            chosen = next((w for w in watches if w.active is not None), watches[0])
-            follower = cls(chosen)
+            follower = cls(watches[0], watches)
         follower.poll()
         return follower
 
     @property
     def root(self) -> Path:
-        """Return the store followed."""
+        """Return the store followed (the first model's default while none is chosen)."""
         return self.watch.root
+
+    @property
+    def where(self) -> str:
+        """Return the store followed, or the default stores looked at while none is chosen."""
+        if not self.candidates:
+            return str(self.watch.root)
+        return ' or '.join(str(watch.root) for watch in self.candidates)
+
+    def _choose(self) -> None:
+        """Follow the first candidate store with an active calibration (once one has it)."""
+        for watch in self.candidates:
+            watch.look()
+            if watch.active is not None:
+                self.watch, self.candidates = watch, ()
+                return
 
     def values(self) -> dict[str, object]:
         """Return the status values of the calibration taken from the store."""
@@ -164,6 +202,8 @@ class DeployFollower:
 
     def poll(self) -> Deployed | None:
         """Return the active calibration when it changed since the last poll, else None."""
+        if self.candidates:
+            self._choose()
         self.watch.look()  # one stat; the store is read again only when the marker changed
         active = self.watch.active
         if active is None:

@@ -83,6 +83,10 @@ class CalibrationSession:
         self._latest: LatestCalibration | None = None
         self.history = History()  # the calibration store: every calibration kept, deploys
 
+    def use_log(self, log: Log) -> None:
+        """Log through `log` from now on (the node's shutdown keeps its lines for later)."""
+        self._log = log
+
     @property
     def latest(self) -> LatestCalibration | None:
         """Return the calibration hexacal/verify would verify (None: none yet)."""
