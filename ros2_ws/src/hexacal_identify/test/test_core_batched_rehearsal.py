@@ -52,6 +52,7 @@ def _assert_same_legs(batched_legs, reference_legs):
         assert np.nanmax(np.abs(got.ends.actuators - want.ends.actuators)) <= CLOSURE_M
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('model', MODELS)
 def test_the_batched_tour_releases_what_the_reference_releases(model):
     params, poses, workspace = _case(model, 4, 7)
