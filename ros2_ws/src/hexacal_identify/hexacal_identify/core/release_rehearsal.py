@@ -332,6 +332,10 @@ def _passive_jacobian(jacobian, poses, radius, released):
     return system
 
 
+# solve_passive's defaults, as the reference rehearsal calls it.
+MAX_ITERATIONS = 30
+BRANCH_TOLERANCE_M = 0.05
+BRANCH_TOLERANCE_RAD = 0.35
 # The scales of solve_passive's step halvings after the full step: exact powers of two.
 _HALVINGS = 0.5 ** np.arange(1, MAX_HALVINGS + 1)
 
@@ -514,28 +518,10 @@ def rehearse_stacked(
     for j, job in enumerate(jobs):
         rows = np.flatnonzero(job_of == j)
         setpoints[: len(job.setpoints), rows] = job.setpoints[:, machine[rows]]
-    alive = np.ones(total, bool)
-    worst = np.zeros(total)
     low, high = stroke[0] + margin_m, stroke[1] - margin_m
-    all_rows = np.arange(total)
-    for s, sample in enumerate(setpoints):
-        rows = all_rows[alive & (counts > s)]
-        if not rows.size:
-            continue
-        solved = solve_stacked(
-            stack, machine[rows], sample[rows], released[rows], poses[rows], link_length, mount,
-            tolerance=REHEARSAL_TOLERANCE_M,
-        )
-        ok = solved.converged
-        alive[rows[~ok]] = False
-        rows = rows[ok]
-        poses[rows] = solved.poses[ok]
-        actuators[rows] = solved.actuators[ok]
-        position = actuators[rows, released[rows]]
-        alive[rows] &= (position >= low) & (position <= high)
-        picked = released_condition(solved.jacobian[ok], solved.reachable[ok], poses[rows],
-                                    released[rows], link_length)
-        worst[rows] = np.maximum(worst[rows], picked)
+    walk = _Continuation(stack, machine, released, setpoints, counts, poses, link_length, mount)
+    alive, worst = walk.run(low, high)
+    poses, actuators = walk.poses, walk.actuators
     poses[~alive] = np.nan
     actuators[~alive] = np.nan
     results = []
@@ -553,6 +539,146 @@ def rehearse_stacked(
             tuple(Standings(job_poses[c], job_actuators[c]) for c in range(count)),
         ))
     return results
+
+
+class _Continuation:
+    """
+    Rows (a candidate on a machine) each walking its own setpoint samples, asynchronously.
+
+    Each row's arithmetic is solve_passive's on its samples in turn, as in ``rehearse``, but a
+    row that has settled a sample goes on to its next while others still iterate: one batched
+    Newton step per pass over every row still walking, so a row slow to close (near a fold, or
+    jamming) delays no other.  The IK at a row's pose is kept: a new sample's first residual
+    needs no evaluation.
+    """
+
+    def __init__(self, stack, machine, released, setpoints, counts, poses, link_length, mount):
+        n = len(machine)
+        self.stack, self.machine, self.released = stack, machine, released
+        self.setpoints, self.counts, self.link_length, self.mount = (
+            setpoints, counts, link_length, mount
+        )
+        self.poses = np.array(poses, dtype=float)
+        self.actuators = np.full((n, 6), np.nan)
+        self.sample = np.zeros(n, int)
+        self.used = np.full((n, 6), np.nan)
+        self.begun = self.poses.copy()  # the pose each row's current sample started from
+        self.error = np.full(n, np.inf)
+        self.stalls = np.zeros(n, int)
+        self.iterations = np.zeros(n, int)
+        self.ik = np.full((n, 6), np.nan)
+        self.jacobian = np.full((n, 6, 6), np.nan)
+        self.reachable = np.zeros(n, bool)
+        self.residual = np.full((n, 6), np.nan)
+        self.radius = np.full(n, np.nan)
+
+    def _evaluate(self, where: np.ndarray, at: np.ndarray):
+        ik, pose_jacobian, ok = self.stack.evaluate(self.machine[where], at)
+        res, rad = _passive_residual(ik, ok, at, self.used[where], self.released[where],
+                                     self.link_length)
+        return (ik, pose_jacobian, ok, res, rad), np.max(np.abs(res), axis=1)
+
+    def _keep(self, where: np.ndarray, values) -> None:
+        self.ik[where], self.jacobian[where], self.reachable[where] = values[:3]
+        self.residual[where], self.radius[where] = values[3:]
+
+    def _begin(self, which: np.ndarray) -> None:
+        """Start each row's current sample from where it stands (solve_passive's start)."""
+        used = self.setpoints[self.sample[which], which]
+        used[np.arange(len(which)), self.released[which]] = 0.0
+        self.used[which] = used
+        finite = np.all(np.isfinite(used), axis=1) & np.all(np.isfinite(self.poses[which]),
+                                                            axis=1)
+        residual, radius = _passive_residual(
+            self.ik[which], self.reachable[which], self.poses[which], used,
+            self.released[which], self.link_length,
+        )
+        self.residual[which], self.radius[which] = residual, radius
+        self.error[which] = np.where(finite, np.max(np.abs(residual), axis=1), np.inf)
+        self.stalls[which] = np.where(finite, 0, MAX_STALLS)
+        self.iterations[which] = 0
+        self.begun[which] = self.poses[which]
+
+    def run(self, low: float, high: float) -> tuple[np.ndarray, np.ndarray]:
+        """Walk every row through its samples; return alive (N,) and the worst condition."""
+        n = len(self.machine)
+        rows = np.arange(n)
+        alive, worst = np.ones(n, bool), np.zeros(n)
+        finite = np.all(np.isfinite(self.poses), axis=1)
+        if np.any(finite):
+            values, _ = self._evaluate(rows[finite], self.poses[finite])
+            self._keep(rows[finite], values)
+        self._begin(rows)
+        tolerance = REHEARSAL_TOLERANCE_M
+        while True:
+            live = rows[alive & (self.sample < self.counts)]
+            if not live.size:
+                break
+            settled = ((self.error[live] < tolerance) | (self.stalls[live] >= MAX_STALLS)
+                       | (self.iterations[live] >= MAX_ITERATIONS))
+            if np.any(settled):
+                self._settle(live[settled], alive, worst, low, high)
+                live = rows[alive & (self.sample < self.counts)]
+                live = live[(self.error[live] >= tolerance) & (self.stalls[live] < MAX_STALLS)
+                            & (self.iterations[live] < MAX_ITERATIONS)]
+            if live.size:
+                self._step(live)
+        self.poses[~alive] = np.nan
+        self.actuators[~alive] = np.nan
+        return alive, worst
+
+    def _settle(self, which, alive, worst, low, high) -> None:
+        """End each row's sample: closed on its branch and inside the stroke, or dead."""
+        converged = self.error[which] < REHEARSAL_TOLERANCE_M
+        _check_branch(self.poses[which], self.begun[which], converged, {}, self.mount,
+                      BRANCH_TOLERANCE_M, BRANCH_TOLERANCE_RAD)
+        alive[which[~converged]] = False
+        ok = which[converged]
+        self.actuators[ok] = self.ik[ok]
+        position = self.ik[ok, self.released[ok]]
+        alive[ok] &= (position >= low) & (position <= high)
+        picked = released_condition(self.jacobian[ok], self.reachable[ok], self.poses[ok],
+                                    self.released[ok], self.link_length)
+        worst[ok] = np.maximum(worst[ok], picked)
+        self.sample[ok] += 1
+        going = ok[alive[ok] & (self.sample[ok] < self.counts[ok])]
+        if going.size:
+            self._begin(going)
+
+    def _step(self, active: np.ndarray) -> None:
+        """One Newton step with solve_passive's halving on each row of `active`."""
+        self.iterations[active] += 1
+        system = _passive_jacobian(self.jacobian[active], self.poses[active],
+                                   self.radius[active], self.released[active])
+        step, solvable = _solve(system, self.residual[active])
+        self.stalls[active[~solvable]] = MAX_STALLS
+        active, step = active[solvable], step[solvable]
+        if not active.size:
+            return
+        base, current = self.poses[active], self.error[active]
+        trial = base - step
+        values, trial_error = self._evaluate(active, trial)
+        worse = np.flatnonzero(~(trial_error < current))
+        if worse.size:
+            count = len(_HALVINGS)
+            halved = (base[worse][:, None, :]
+                      - _HALVINGS[None, :, None] * step[worse][:, None, :]).reshape(-1, 6)
+            halved_values, halved_error = self._evaluate(np.repeat(active[worse], count), halved)
+            halved_error = halved_error.reshape(-1, count)
+            improves = halved_error < current[worse][:, None]
+            first = np.where(np.any(improves, axis=1), np.argmax(improves, axis=1), count - 1)
+            picked = np.arange(len(worse)) * count + first
+            trial[worse] = halved[picked]
+            trial_error[worse] = halved_error[np.arange(len(worse)), first]
+            values = tuple(v.copy() for v in values)
+            for value, halved_value in zip(values, halved_values):
+                value[worse] = halved_value[picked]
+        better = trial_error < current
+        taken = active[better]
+        self.poses[taken] = trial[better]
+        self.error[taken] = trial_error[better]
+        self._keep(taken, tuple(v[better] for v in values))
+        self.stalls[active[~better]] += 1
 
 
 def _worst_alive(worst: np.ndarray, alive: np.ndarray) -> np.ndarray:
