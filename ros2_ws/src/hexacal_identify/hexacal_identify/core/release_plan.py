@@ -17,9 +17,10 @@ the lowest worst condition).  The batched rehearser (the default) rehearses a mo
 candidates on all machines in one stacked batch (release_rehearsal.rehearse_stacked; the
 candidates ranked after the first ones, where needed, of all the moves asked at once in a second
 batch) and decides exactly as above; ``batched=False`` rehearses one machine at a time (the
-reference the tests compare it with).  Rehearsed on Table 1 with nominal set 2 (the demo), the order of
-the travel tour jams on the true machine on 1-2 of 49 moves whatever is released, the rehearsed
-tour on none.
+reference the tests compare it with).  Rehearsed on Table 1 with nominal set 2 (the demo),
+the order of the travel tour jams on the true machine on 1-2 of 49 moves whatever is
+released, the rehearsed tour on none.  Tries are rehearsed one after the other, not at once:
+the first is most often safe, and rows that jam would run their Newton iterations in full.
 """
 
 from __future__ import annotations

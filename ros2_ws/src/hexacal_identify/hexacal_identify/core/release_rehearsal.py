@@ -287,7 +287,8 @@ def _own_columns(legs, machine: np.ndarray, count: int):
     own = object.__new__(type(legs))
     for name in names:
         value = getattr(legs, name)
-        if isinstance(value, np.ndarray) and value.ndim >= 2 and value.shape[-2:] == (n, 6 * count):
+        side_by_side = isinstance(value, np.ndarray) and value.ndim >= 2
+        if side_by_side and value.shape[-2:] == (n, 6 * count):
             value = value[..., rows, columns]
         setattr(own, name, value)
     return own
