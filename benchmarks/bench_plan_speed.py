@@ -13,7 +13,7 @@ stacked rehearsal and by the machine-by-machine reference kept beside it (``batc
 with the Newton solves (one posture row of one continuation step on one machine) per second.
 
 Run: ``nice .venv/bin/python benchmarks/bench_plan_speed.py [--sizes 25 50]
-[--before-passive-sizes 25] [--json]`` (the before passive plans take minutes each: by default
+[--before-passive-sizes 25] [--models hexa_slide gough_stewart] [--json]`` (the before passive plans take minutes each: by default
 only the 25-posture one is run before).
 Target: a passive_actuator plan within 3x the compliant plan of the same size, both models.
 """
@@ -131,13 +131,14 @@ def main() -> int:
     parser.add_argument('--sizes', type=int, nargs='+', default=[25, 50])
     parser.add_argument('--before-passive-sizes', type=int, nargs='*', default=[25],
                         help='sizes of the before passive_actuator plans (minutes each)')
+    parser.add_argument('--models', nargs='+', choices=list(MODELS), default=list(MODELS))
     parser.add_argument('--rehearsal-postures', type=int, default=6)
     parser.add_argument('--json', action='store_true')
     args = parser.parse_args()
     results = []
     with tempfile.TemporaryDirectory(prefix='bench_plan_speed_') as tmp:
         before_root = export(args.before, Path(tmp) / 'before')
-        for model in MODELS:
+        for model in args.models:
             for size in args.sizes:
                 for mode in MODES:
                     row = {'model': model, 'postures': size, 'mode': mode}
@@ -154,7 +155,7 @@ def main() -> int:
                 model, Path(tmp) / f'{model}_passive_actuator_{min(args.sizes)}.yaml',
                 args.rehearsal_postures,
             )
-            for model in MODELS
+            for model in args.models
         }
     if args.json:
         print(json.dumps({'plans': results, 'rehearsal': rates}, indent=2))
