@@ -13,8 +13,8 @@ stacked rehearsal and by the machine-by-machine reference kept beside it (``batc
 with the Newton solves (one posture row of one continuation step on one machine) per second.
 
 Run: ``nice .venv/bin/python benchmarks/bench_plan_speed.py [--sizes 25 50]
-[--before-passive-sizes 25] [--models hexa_slide gough_stewart] [--json]`` (the before passive plans take minutes each: by default
-only the 25-posture one is run before).
+[--before-passive-sizes 25] [--models hexa_slide gough_stewart] [--json]`` (the before
+passive plans take minutes each: by default only the 25-posture one is run before).
 Target: a passive_actuator plan within 3x the compliant plan of the same size, both models.
 """
 
