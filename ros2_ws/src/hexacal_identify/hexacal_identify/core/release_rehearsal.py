@@ -572,6 +572,8 @@ class _Continuation:
         self.reachable = np.zeros(n, bool)
         self.residual = np.full((n, 6), np.nan)
         self.radius = np.full(n, np.nan)
+        # Each settled sample's Jacobian, kept for the condition numbers computed at the end.
+        self.settled: list[tuple[np.ndarray, ...]] = []
 
     def _evaluate(self, where: np.ndarray, at: np.ndarray):
         ik, pose_jacobian, ok = self.stack.evaluate(self.machine[where], at)
@@ -624,6 +626,12 @@ class _Continuation:
                             & (self.iterations[live] < MAX_ITERATIONS)]
             if live.size:
                 self._step(live)
+        if self.settled:  # the worst condition met on the way, all samples at once
+            which, jacobian, reachable, poses = (np.concatenate(part)
+                                                 for part in zip(*self.settled))
+            picked = released_condition(jacobian, reachable, poses, self.released[which],
+                                        self.link_length)
+            np.maximum.at(worst, which, picked)
         self.poses[~alive] = np.nan
         self.actuators[~alive] = np.nan
         return alive, worst
@@ -638,9 +646,7 @@ class _Continuation:
         self.actuators[ok] = self.ik[ok]
         position = self.ik[ok, self.released[ok]]
         alive[ok] &= (position >= low) & (position <= high)
-        picked = released_condition(self.jacobian[ok], self.reachable[ok], self.poses[ok],
-                                    self.released[ok], self.link_length)
-        worst[ok] = np.maximum(worst[ok], picked)
+        self.settled.append((ok, self.jacobian[ok], self.reachable[ok], self.poses[ok]))
         self.sample[ok] += 1
         going = ok[alive[ok] & (self.sample[ok] < self.counts[ok])]
         if going.size:
