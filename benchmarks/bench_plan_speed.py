@@ -88,10 +88,15 @@ def rehearsal_rates(model: str, plan_file: Path, postures: int) -> dict:
     poses = plan.poses[:postures]
     solves = {'n': 0}
     stacked, reference = release_rehearsal.solve_stacked, release_rehearsal.solve_passive
+    settle = release_rehearsal._Continuation._settle
 
     def count_stacked(stack, machine, *args, **kwargs):
         solves['n'] += len(machine)
         return stacked(stack, machine, *args, **kwargs)
+
+    def count_settled(self, which, *args, **kwargs):  # a row's sample solved (or failed)
+        solves['n'] += len(which)
+        return settle(self, which, *args, **kwargs)
 
     def count_reference(params, commanded, *args, **kwargs):
         solves['n'] += len(commanded)
@@ -99,6 +104,7 @@ def rehearsal_rates(model: str, plan_file: Path, postures: int) -> dict:
 
     release_rehearsal.solve_stacked = count_stacked
     release_rehearsal.solve_passive = count_reference
+    release_rehearsal._Continuation._settle = count_settled
     rows = {}
     try:
         for batched in (True, False):
@@ -118,6 +124,7 @@ def rehearsal_rates(model: str, plan_file: Path, postures: int) -> dict:
     finally:
         release_rehearsal.solve_stacked = stacked
         release_rehearsal.solve_passive = reference
+        release_rehearsal._Continuation._settle = settle
     rows['same_decisions'] = (
         rows['stacked']['released'] == rows['reference']['released']
         and rows['stacked']['jams'] == rows['reference']['jams']
@@ -133,12 +140,19 @@ def main() -> int:
                         help='sizes of the before passive_actuator plans (minutes each)')
     parser.add_argument('--models', nargs='+', choices=list(MODELS), default=list(MODELS))
     parser.add_argument('--rehearsal-postures', type=int, default=6)
+    parser.add_argument('--rates-only', action='store_true',
+                        help='only the rehearsal rates (on an after plan of the smallest size)')
     parser.add_argument('--json', action='store_true')
     args = parser.parse_args()
     results = []
     with tempfile.TemporaryDirectory(prefix='bench_plan_speed_') as tmp:
         before_root = export(args.before, Path(tmp) / 'before')
         for model in args.models:
+            if args.rates_only:
+                size = min(args.sizes)
+                run_plan(REPO, model, 'passive_actuator', size,
+                         Path(tmp) / f'{model}_passive_actuator_{size}.yaml')
+                continue
             for size in args.sizes:
                 for mode in MODES:
                     row = {'model': model, 'postures': size, 'mode': mode}
