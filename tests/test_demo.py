@@ -89,6 +89,11 @@ def _check_summary(path: Path, text: str) -> None:
     rms = verification['calibrated']['position_rms_m'] * 1e6
     assert abs(rms - float(calibrated.group(1))) <= 0.051, (verification, text)
     _check_refinement(summary, text)
+    timings = summary['timings']
+    stages = ('plan', 'walk', 'calibration', 'verification', 'report')
+    assert set(timings) == {*stages, 'total'}, timings
+    assert all(timings[stage] > 0 for stage in stages), timings  # each stage ran, and took time
+    assert timings['total'] >= sum(timings[stage] for stage in stages), timings
 
 
 def _check_refinement(summary: dict, text: str) -> None:

@@ -379,9 +379,11 @@ def _run(args) -> int:
             f'hexacal demo: nominal set 2 ({nominal_text}, seed {args.seed}), SI units'
         ),
     )
-    planning_started = time.monotonic()
+    timings = {}  # summary.json's timings: seconds of each stage (docs/formats.md)
+    stage_started = time.monotonic()
     _plans(args, nominal, paths)
-    print(f'hexacal demo: planned in {time.monotonic() - planning_started:.0f} s', flush=True)
+    timings['plan'] = time.monotonic() - stage_started
+    print(f'hexacal demo: planned in {timings["plan"]:.0f} s', flush=True)
     domain_id = claim_domain_id()
     env = {'ROS_DOMAIN_ID': str(domain_id), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
     # The simulated machine's calibrations are kept in the work directory, not the user's store.
@@ -466,6 +468,7 @@ def _run(args) -> int:
             ),
             flush=True,
         )
+        stage_started = time.monotonic()
         walked = _walk(
             session,
             group,
@@ -485,6 +488,7 @@ def _run(args) -> int:
         )
         calibration_postures = walked
         calibrate_started = time.monotonic()
+        timings['walk'] = calibrate_started - stage_started
         session.parameters = None  # an intermediate calibration's (refinement) are not these
         success, message = session.calibrate(group)
         if not success:
@@ -493,6 +497,8 @@ def _run(args) -> int:
             'the published parameters', 30.0, group, lambda: session.parameters
         )
         calibrate_s = time.monotonic() - calibrate_started
+        timings['calibration'] = calibrate_s
+        stage_started = time.monotonic()
         print(f'hexacal demo: calibrated in {calibrate_s:.1f} s: {message}', flush=True)
         held = session.identify_postures
         if held > walked:
@@ -531,6 +537,7 @@ def _run(args) -> int:
             )
             verification = session.verify(group)
             stored_verification = _stored_verification(verification, model)
+        timings['verification'] = time.monotonic() - stage_started
         driver_values = session.fresh_driver_values(group)  # its peaks over both plans
     except DemoError as error:
         print(f'hexacal demo: error: {error}', file=sys.stderr, flush=True)
@@ -547,6 +554,7 @@ def _run(args) -> int:
             f'hexacal demo: warning: nodes exited with {unclean} (logs in {paths.logs})',
             file=sys.stderr,
         )
+    stage_started = time.monotonic()
     calibrated_params = true_params.with_vector(calibrated)
     poses = pose_summaries(true_params, nominal, calibrated_params, args)
     summary = build_summary(
@@ -565,20 +573,25 @@ def _run(args) -> int:
             verification_postures=verification_postures,
         ),
     )
-    write_summary(paths.summary, summary)
-    print(
-        report(
-            true_params,
-            nominal,
-            calibrated_params,
-            args,
-            paths,
-            time.monotonic() - started,
-            verification,
-            poses=poses,
-            summary=summary,
-        )
+    text = report(
+        true_params,
+        nominal,
+        calibrated_params,
+        args,
+        paths,
+        time.monotonic() - started,
+        verification,
+        poses=poses,
+        summary=summary,
     )
+    timings['report'] = time.monotonic() - stage_started
+    timings['total'] = time.monotonic() - started
+    summary['timings'] = {
+        stage: timings.get(stage, 0.0)
+        for stage in ('plan', 'walk', 'calibration', 'verification', 'report', 'total')
+    }
+    write_summary(paths.summary, summary)
+    print(text)
     if not (paths.bag / 'metadata.yaml').exists():
         print(
             f'hexacal demo: error: the bag {paths.bag} was not closed (no metadata.yaml)',

@@ -13,14 +13,19 @@ postures (a kind and device turn: the plan's groups stay in their order): from t
 posture the ``tries`` nearest of the group (travel distance, angles weighted by L, as the
 planner's travel order) are tried, nearest first, and the first whose move is safe (closes on
 every machine within the limit) is walked next, else the least risky of them (fewest jams, then
-the lowest worst condition).  Rehearsed on Table 1 with nominal set 2 (the demo), the order of
-the travel tour jams on the true machine on 1-2 of 49 moves whatever is released, the rehearsed
-tour on none.
+the lowest worst condition).  The batched rehearser (the default) rehearses a move's
+candidates on all machines in one stacked batch (release_rehearsal.rehearse_stacked; the
+candidates ranked after the first ones, where needed, of all the moves asked at once in a second
+batch) and decides exactly as above; ``batched=False`` rehearses one machine at a time (the
+reference the tests compare it with).  Rehearsed on Table 1 with nominal set 2 (the demo),
+the order of the travel tour jams on the true machine on 1-2 of 49 moves whatever is
+released, the rehearsed tour on none.  Tries are rehearsed one after the other, not at once:
+the first is most often safe, and rows that jam would run their Newton iterations in full.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,12 +38,16 @@ from .release_moves import inside_stroke, Move, move
 from .release_rehearsal import (
     DEFAULT_JOINT_STEP_M,
     DEFAULT_MODEL_SAMPLES,
+    MachineStack,
     model_error_rms_m,
     Rehearsal,
+    RehearsalJob,
     rehearse,
+    rehearse_stacked,
     sampled_machines,
     setpoint_samples,
     stand,
+    stand_stacked,
     Standings,
 )
 
@@ -94,6 +103,8 @@ class Rehearser:
         step_m: float,
         mount: str = DEFAULT_MOUNT,
         settings: RehearsalSettings = RehearsalSettings(),
+        *,
+        batched: bool = True,
     ):
         error = (
             model_error_rms_m(params) if settings.model_error_m is None
@@ -104,6 +115,8 @@ class Rehearser:
         self.link_length, self.stroke, self.margin_m = link_length, stroke, margin_m
         self.step_m, self.mount, self.settings = step_m, mount, settings
         self.standing: Standings | None = None
+        self.batched = batched
+        self.stack = MachineStack(self.machines) if batched else None
 
     def ranked(self, nominal_move: Move) -> np.ndarray:
         """Return each chain's worst nominal condition along the move (inf: leaves the stroke)."""
@@ -120,6 +133,93 @@ class Rehearser:
         self, previous: np.ndarray | None, pose: np.ndarray, exclude: Sequence[int] = ()
     ) -> Leg:
         """Return the move to `pose` rehearsed from where the machines stand; NoRelease."""
+        if self.batched:
+            leg = self.try_moves(previous, [pose], exclude)[0]
+            if leg is None:
+                raise NoRelease()
+            return leg
+        nominal_move, standing, setpoints, ranked = self._prepare(previous, pose, exclude)
+        result = self._rehearse(standing, setpoints, ranked)
+        best = _best(result, len(self.machines), self.settings.max_move_condition)
+        chain = int(result.candidates[best])
+        ends = self._restand(result.ends[best], nominal_move, chain)
+        jams = len(self.machines) - int(result.survived[best])
+        return Leg(nominal_move, chain, float(result.worst[best]), jams, ends)
+
+    def try_moves(
+        self, previous: np.ndarray | None, poses: Sequence[np.ndarray],
+        exclude: Sequence[int] = (),
+    ) -> list[Leg | None]:
+        """Return ``try_move`` to each of `poses` (None: NoRelease), all rehearsed at once."""
+        if not self.batched:
+            return list(self.legs_to(previous, poses, exclude))
+        prepared, jobs = [], []
+        for pose in poses:
+            try:
+                nominal_move, standing, setpoints, ranked = self._prepare(previous, pose, exclude)
+            except NoRelease:
+                prepared.append(None)
+                continue
+            order = [int(c) for c in np.argsort(ranked) if np.isfinite(ranked[c])]
+            prepared.append((nominal_move, order))
+            jobs.append(RehearsalJob(standing, setpoints, np.array(order)))
+        # The best-ranked candidates first, the rest only where none of those will do (as
+        # _rehearse): every move's first ones in one batch, then every move's rest in another.
+        limit, count = self.settings.max_move_condition, len(self.machines)
+        firsts = self._stacked([RehearsalJob(job.start, job.setpoints,
+                                             job.candidates[:FIRST_REHEARSED]) for job in jobs])
+        needed = [i for i, (job, first) in enumerate(zip(jobs, firsts))
+                  if not _acceptable(first, count, limit).any()
+                  and len(job.candidates) > FIRST_REHEARSED]
+        rests = self._stacked([RehearsalJob(jobs[i].start, jobs[i].setpoints,
+                                            jobs[i].candidates[FIRST_REHEARSED:])
+                               for i in needed])
+        results = list(firsts)
+        for i, rest in zip(needed, rests):
+            first = firsts[i]
+            results[i] = Rehearsal(
+                np.concatenate([first.candidates, rest.candidates]),
+                np.concatenate([first.survived, rest.survived]),
+                np.concatenate([first.worst, rest.worst]),
+                first.ends + rest.ends,
+            )
+        results = iter(results)
+        chosen = []
+        for item in prepared:
+            if item is None:
+                chosen.append(None)
+                continue
+            nominal_move, order = item
+            result = next(results)
+            best = _best(result, count, limit)
+            chosen.append((nominal_move, result, best))
+        return self._restand_all(chosen)
+
+    def _stacked(self, jobs: list[RehearsalJob]) -> list[Rehearsal]:
+        """Return rehearse_stacked of `jobs` ([] for none)."""
+        if not jobs:
+            return []
+        return rehearse_stacked(self.stack, jobs, self.link_length, self.stroke, self.margin_m,
+                                self.mount)
+
+    def legs_to(
+        self, previous: np.ndarray | None, poses: Sequence[np.ndarray],
+        exclude: Sequence[int] = (),
+    ) -> Iterator[Leg | None]:
+        """
+        Yield ``try_move`` to each of `poses` in turn (None: NoRelease), lazily.
+
+        Lazily, not all at once: the first is most often safe, and the moves not taken are the
+        ones whose machines jam, each sample's Newton iteration then running its full count.
+        """
+        for pose in poses:
+            try:
+                yield self.try_move(previous, pose, exclude)
+            except NoRelease:
+                yield None
+
+    def _prepare(self, previous, pose, exclude):
+        """Return the nominal move, the standings, the setpoints and the ranks; NoRelease."""
         nominal_move = move(self.params, previous, pose, self.link_length, self.stroke,
                             self.step_m, self.mount)
         ranked = self.ranked(nominal_move)
@@ -138,12 +238,59 @@ class Rehearser:
         # stood at their setpoints); the drive locks it there and the move fades the offset.
         offsets = standing.actuators - nominal_move.actuators[0]
         setpoints = setpoint_samples(offsets, nominal_move.actuators, self.settings.joint_step_m)
-        result = self._rehearse(standing, setpoints, ranked)
-        best = _best(result, len(self.machines), self.settings.max_move_condition)
-        chain = int(result.candidates[best])
-        ends = self._restand(result.ends[best], nominal_move, chain)
-        jams = len(self.machines) - int(result.survived[best])
-        return Leg(nominal_move, chain, float(result.worst[best]), jams, ends)
+        return nominal_move, standing, setpoints, ranked
+
+    def _restand_all(self, chosen) -> list[Leg | None]:
+        """Return the legs of the chosen candidates, the machines that jammed stood afresh."""
+        machine, setpoints, released, poses, owners = [], [], [], [], []
+        for i, item in enumerate(chosen):
+            if item is None:
+                continue
+            nominal_move, result, best = item
+            ends = result.ends[best]
+            for k in np.flatnonzero(~np.all(np.isfinite(ends.poses), axis=1)):
+                machine.append(k)
+                setpoints.append(nominal_move.actuators[-1])
+                released.append(int(result.candidates[best]))
+                poses.append(nominal_move.poses[-1])
+                owners.append((i, k))
+        fresh = (
+            stand_stacked(self.stack, np.array(machine), np.array(setpoints), np.array(released),
+                          np.array(poses), self.link_length, self.mount)
+            if machine else None
+        )
+        legs: list[Leg | None] = []
+        for i, item in enumerate(chosen):
+            if item is None:
+                legs.append(None)
+                continue
+            nominal_move, result, best = item
+            ends = result.ends[best]
+            rows = [r for r, (owner, _) in enumerate(owners) if owner == i]
+            if rows:
+                ends = Standings(ends.poses.copy(), ends.actuators.copy())
+                for r in rows:
+                    k = owners[r][1]
+                    ends.poses[k], ends.actuators[k] = fresh.poses[r], fresh.actuators[r]
+            jams = len(self.machines) - int(result.survived[best])
+            legs.append(Leg(nominal_move, int(result.candidates[best]), float(result.worst[best]),
+                            jams, ends))
+        return legs
+
+    def stand_at(self, actuators: np.ndarray, released: int, pose: np.ndarray) -> None:
+        """Stand every machine with `actuators` and `released` free, near `pose` (stand)."""
+        actuators = np.asarray(actuators, dtype=float)
+        pose = np.asarray(pose, dtype=float)
+        if not self.batched:
+            self.standing = stand(self.machines, actuators, released, pose, self.link_length,
+                                  self.mount)
+            return
+        count = len(self.machines)
+        self.standing = stand_stacked(
+            self.stack, np.arange(count), np.repeat(actuators[None], count, axis=0),
+            np.full(count, released), np.repeat(pose[None], count, axis=0), self.link_length,
+            self.mount,
+        )
 
     def take(self, leg: Leg) -> None:
         """Walk `leg`: the machines stand where it ends."""
@@ -260,10 +407,9 @@ def tour(
 def _next(rehearser, poses, current, candidates) -> tuple[int, Leg] | None:
     """Return the first safe move among the candidates, else the least risky (None: none)."""
     best: tuple[int, Leg] | None = None
-    for index in candidates:
-        try:
-            leg = rehearser.try_move(poses[current], poses[index])
-        except NoRelease:
+    tried = rehearser.legs_to(poses[current], [poses[index] for index in candidates])
+    for index, leg in zip(candidates, tried):
+        if leg is None:
             continue
         if rehearser.safe(leg):
             return index, leg

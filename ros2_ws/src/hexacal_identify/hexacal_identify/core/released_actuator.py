@@ -49,7 +49,6 @@ from .release_plan import (
     Stuck,
     tour,
 )
-from .release_rehearsal import stand
 
 DEFAULT_STEP_M = 0.01  # path samples at most this far apart (position; angles times L)
 # Kept from both stroke ends by the released actuator along every move: the largest deviation
@@ -169,6 +168,7 @@ def choose_released_actuators(
     mount: str = DEFAULT_MOUNT,
     rehearsal: RehearsalSettings = RehearsalSettings(),
     groups: np.ndarray | None = None,
+    batched: bool = True,
 ) -> ReleaseChoice:
     """
     Choose each posture's released actuator (module doc); ReleaseError if one has none.
@@ -177,10 +177,12 @@ def choose_released_actuators(
     of radius `link_length`; `stroke_m` the actuator stroke (low, high), m; `margin_m` kept
     from both ends along every move by the released actuator; `mount` the device's (the centre
     a move may go by); `rehearsal` the machines the moves are rehearsed on; `groups` (K,) when
-    the order within each group of postures is free (``ReleaseChoice.order`` then says it).
+    the order within each group of postures is free (``ReleaseChoice.order`` then says it);
+    `batched` False rehearses machine by machine (the reference; the same choice, slower).
     """
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
-    rehearser = Rehearser(params, link_length, stroke_m, margin_m, step_m, mount, rehearsal)
+    rehearser = Rehearser(params, link_length, stroke_m, margin_m, step_m, mount, rehearsal,
+                          batched=batched)
     order = None
     try:
         if groups is None or len(poses) < 3:
@@ -226,6 +228,7 @@ def release_from_here(
     mount: str = DEFAULT_MOUNT,
     rehearsal: RehearsalSettings = RehearsalSettings(),
     prefer: int | None = None,
+    batched: bool = True,
 ) -> int | None:
     """
     Return the chain to release for the rest of a move, none of `exclude`; None if none will do.
@@ -236,12 +239,12 @@ def release_from_here(
     After a drive fault with the chains `exclude` released (jams), at rest where the machine
     stands (`here`, a pose on the sphere, with the measured `actuators` and chain `released`
     free): the move to `target` rehearsed on `model` and machines like it (module doc), each
-    standing with the five measured commanded actuators, as the planner would choose.
+    standing with the five measured commanded actuators, as the planner would choose
+    (`batched` as in ``choose_released_actuators``).
     """
     rehearser = Rehearser(model, link_length, stroke_m, margin_m, DEFAULT_STEP_M, mount,
-                          rehearsal)
-    rehearser.standing = stand(rehearser.machines, np.asarray(actuators, dtype=float), released,
-                               np.asarray(here, dtype=float), link_length, mount)
+                          rehearsal, batched=batched)
+    rehearser.stand_at(actuators, released, here)
     if prefer is not None and prefer not in exclude:
         others = [c for c in range(6) if c != prefer]
         try:

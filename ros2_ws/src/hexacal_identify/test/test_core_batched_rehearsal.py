@@ -1,0 +1,139 @@
+"""
+The batched release rehearsal decides as the machine-by-machine one (the reference).
+
+``Rehearser(batched=False)`` walks each move one machine and one candidate group at a time with
+``solve_passive`` (release_rehearsal.rehearse); the default stacks every machine and candidate
+in one Newton iteration (release_rehearsal.rehearse_stacked).  On seeded plans of both models
+they must release the same actuators in the same order with the same jams, and leave the
+machines standing at the same poses (closure to 1e-12 m).
+"""
+
+from hexacal_identify.core.architectures import default_parameters
+from hexacal_identify.core.passive_actuator import release_conditions, solve_passive
+from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.release_plan import in_order, RehearsalSettings, Rehearser, tour
+from hexacal_identify.core.release_rehearsal import (
+    MachineStack,
+    released_condition,
+    sampled_machines,
+    solve_stacked,
+)
+from hexacal_identify.core.released_actuator import release_from_here
+import numpy as np
+import pytest
+
+MODELS = ('hexa_slide', 'gough_stewart')
+CLOSURE_M = 1e-12
+
+
+def _case(model: str, count: int, seed: int):
+    params = default_parameters(model)
+    workspace = params.architecture.default_workspace()
+    poses = np.array(sample_poses(params, count, np.random.default_rng(seed), 'sphere', workspace))
+    return params, poses, workspace
+
+
+def _rehearsers(params, workspace, settings):
+    return [
+        Rehearser(params, workspace.link_length, workspace.actuator_stroke_m, 0.005, 0.01,
+                  settings=settings, batched=batched)
+        for batched in (True, False)
+    ]
+
+
+def _assert_same_legs(batched_legs, reference_legs):
+    assert len(batched_legs) == len(reference_legs)
+    for got, want in zip(batched_legs, reference_legs):
+        assert got.released == want.released
+        assert got.jams == want.jams
+        assert got.worst == pytest.approx(want.worst, rel=1e-9)
+        assert np.array_equal(np.isnan(got.ends.poses), np.isnan(want.ends.poses))
+        assert np.nanmax(np.abs(got.ends.poses[:, :3] - want.ends.poses[:, :3])) <= CLOSURE_M
+        assert np.nanmax(np.abs(got.ends.actuators - want.ends.actuators)) <= CLOSURE_M
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('model', MODELS)
+def test_the_batched_tour_releases_what_the_reference_releases(model):
+    params, poses, workspace = _case(model, 4, 7)
+    # Machines far off the nominal (1 cm RMS) so that some candidates jam on the way.
+    settings = RehearsalSettings(model_samples=1, model_error_m=0.01, seed=1, tour_tries=2)
+    batched, reference = _rehearsers(params, workspace, settings)
+    groups = np.zeros(len(poses), int)
+    order, legs = tour(batched, poses, groups)
+    want_order, want_legs = tour(reference, poses, groups)
+    assert np.array_equal(order, want_order)
+    _assert_same_legs(legs, want_legs)
+
+
+@pytest.mark.parametrize('model', MODELS)
+def test_the_batched_walk_in_order_from_a_start_matches_the_reference(model):
+    params, poses, workspace = _case(model, 3, 8)
+    settings = RehearsalSettings(model_samples=1, seed=2)
+    batched, reference = _rehearsers(params, workspace, settings)
+    start = poses[-1]
+    _assert_same_legs(in_order(batched, poses[:2], start), in_order(reference, poses[:2], start))
+
+
+@pytest.mark.parametrize('model', MODELS)
+def test_the_stacked_newton_closes_as_solve_passive(model):
+    params, poses, workspace = _case(model, 6, 5)
+    length = workspace.link_length
+    machines = sampled_machines(params, 3, 2e-3, seed=4)
+    stack = MachineStack(machines)
+    rng = np.random.default_rng(6)
+    machine = rng.integers(0, len(machines), 3 * len(poses))
+    released = rng.integers(0, 6, len(machine))
+    targets = np.repeat(poses, 3, axis=0)
+    commanded = np.array([
+        stack.evaluate(np.array([k]), target[None])[0][0] for k, target in zip(machine, targets)
+    ]) + rng.normal(0.0, 3e-3, (len(machine), 6))  # a few mm off: Newton has work to do
+    solved = solve_stacked(stack, machine, commanded, released, targets, length)
+    assert np.mean(solved.converged) > 0.5
+    for i, k in enumerate(machine):
+        one = solve_passive(machines[k], commanded[i][None], int(released[i]), targets[i][None],
+                            length)
+        assert bool(one.converged[0]) == bool(solved.converged[i])
+        if one.converged[0]:
+            assert np.max(np.abs(one.poses[0, :3] - solved.poses[i, :3])) <= CLOSURE_M
+            assert np.max(np.abs(one.actuators[0] - solved.actuators[i])) <= CLOSURE_M
+    ok = solved.converged
+    conditions = released_condition(solved.jacobian[ok], solved.reachable[ok], solved.poses[ok],
+                                    released[ok], length)
+    for row, i in enumerate(np.flatnonzero(ok)):
+        want = release_conditions(machines[machine[i]], solved.poses[i][None], length)[0]
+        assert conditions[row] == pytest.approx(want[released[i]], rel=1e-9)
+
+
+@pytest.mark.parametrize('model', MODELS)
+def test_the_stacked_ik_is_each_machine_s_own(model):
+    params, poses, _ = _case(model, 8, 2)
+    machines = sampled_machines(params, 4, 2e-3)
+    stack = MachineStack(machines)
+    assert stack.wide is not None  # both shipped architectures stack side by side
+    machine = np.arange(len(poses)) % len(machines)
+    actuators, jacobian, reachable = stack.evaluate(machine, poses)
+    for i, k in enumerate(machine):
+        arch = machines[k].architecture
+        legs = arch.legs(arch.chains(machines[k]), poses[i][None])
+        assert np.allclose(actuators[i], legs.actuators[0], rtol=0, atol=1e-15)
+        assert np.allclose(jacobian[i], legs.pose_jacobian()[0], rtol=1e-13, atol=1e-15)
+        assert reachable[i] == legs.reachable()[0]
+
+
+def test_release_from_here_batched_matches_the_reference():
+    params, poses, workspace = _case('hexa_slide', 2, 9)
+    length, stroke = workspace.link_length, workspace.actuator_stroke_m
+    here, target = poses
+    arch = params.architecture
+    actuators = arch.legs(arch.chains(params), here[None]).actuators[0]
+    settings = RehearsalSettings(model_samples=1)
+    answers = []
+    for batched in (True, False):
+        answers.append([
+            release_from_here(params, here, actuators, released, target, length, stroke, (),
+                              rehearsal=settings, prefer=prefer, batched=batched)
+            for released, prefer in ((0, 3), (2, None))
+        ])
+    assert answers[0] == answers[1]
+    assert all(answer is not None for answer in answers[0])
