@@ -35,6 +35,17 @@ class MeasurementLimits:
     # posture.
     actuator_min_m: float = -0.1
     actuator_max_m: float = 1.0
+    # Rotary actuators (a motor turning a crank): readings are angles within +-pi (IK wraps them)
+    # plus 0.1 rad of rounding and device defects.
+    actuator_max_abs_rad: float = np.pi + 0.1
+
+    def actuator_range(self, unit: str = 'm') -> tuple[float, float]:
+        """Return the plausible (low, high) actuator reading in ``unit`` ('m' or 'rad')."""
+        if unit == 'rad':
+            return -self.actuator_max_abs_rad, self.actuator_max_abs_rad
+        if unit != 'm':
+            raise ValueError(f"actuator readings are in 'm' or 'rad', got {unit!r}")
+        return self.actuator_min_m, self.actuator_max_m
 
 
 @dataclass
@@ -128,8 +139,14 @@ class Measurements:
             errors,
         )
 
-    def validate(self, limits: MeasurementLimits = MeasurementLimits()) -> None:
-        """Raise InvalidMeasurementError naming the first problem and the posture indices."""
+    def validate(
+        self, limits: MeasurementLimits = MeasurementLimits(), actuator_unit: str = 'm'
+    ) -> None:
+        """
+        Raise InvalidMeasurementError naming the first problem and the posture indices.
+
+        ``actuator_unit`` is the model's (``ModelLayout.actuator_unit``): 'm' or 'rad'.
+        """
         n = len(self)
         if self.actuator_positions.shape != (n, 6):
             raise InvalidMeasurementError(
@@ -181,13 +198,15 @@ class Measurements:
             'rad',
         )
         self._check_range('rotary angle', np.abs(self.rotary), limits.rotary_range_rad, 'rad')
+        least, most = limits.actuator_range(actuator_unit)
         low = np.flatnonzero(
-            np.any(self.actuator_positions < limits.actuator_min_m, axis=1)
-            | np.any(self.actuator_positions > limits.actuator_max_m, axis=1)
+            np.any(self.actuator_positions < least, axis=1)
+            | np.any(self.actuator_positions > most, axis=1)
         )
         if low.size:
+            what = 'slider position' if actuator_unit == 'm' else 'actuator reading'
             raise InvalidMeasurementError(
-                f'slider position outside [{limits.actuator_min_m}, {limits.actuator_max_m}] m at '
+                f'{what} outside [{least:g}, {most:g}] {actuator_unit} at '
                 f'posture(s) {low.tolist()}',
                 low,
             )

@@ -18,6 +18,7 @@ import numpy as np
 from .base import Architecture, ChainIK, KinematicParameters
 from .gough_stewart import ARCHITECTURE as _GOUGH_STEWART
 from .hexa_slide import ARCHITECTURE as _HEXA_SLIDE
+from .rotary_hexapod import ARCHITECTURE as _ROTARY_HEXAPOD
 
 # Every architecture hexacal knows, by model name (register_architecture adds one).
 ARCHITECTURES: dict[str, Architecture] = {}
@@ -47,6 +48,7 @@ def register_architecture(arch: Architecture) -> Architecture:
 
 register_architecture(_HEXA_SLIDE)
 register_architecture(_GOUGH_STEWART)
+register_architecture(_ROTARY_HEXAPOD)
 assert set(ARCHITECTURES) == set(MODELS), 'every model of the contract has an architecture'
 
 
