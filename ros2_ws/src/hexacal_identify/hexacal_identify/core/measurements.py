@@ -238,14 +238,20 @@ class Measurements:
 
 @dataclass(frozen=True)
 class NoiseModel:
-    """Uniform measurement noise, half-widths in SI units (the paper's section 4 model)."""
+    """
+    Uniform measurement noise, half-widths in SI units (the paper's section 4 model).
+
+    ``actuator_m`` is in the unit of the model's actuator readings (``ModelLayout.actuator_unit``):
+    metres for sliders and legs, radians for a rotary hexapod's cranks (the name is the field's
+    since the first, slider-only, version).
+    """
 
     actuator_m: float = 0.0
     angle_rad: float = 0.0
 
     @classmethod
     def from_microns(cls, microns: float) -> 'NoiseModel':
-        """'X um' noise as in Table 3: +-X um on sliders and +-X urad on every angle."""
+        """Return 'X um' noise as in Table 3: +-X um on sliders (urad on cranks), urad on angles."""
         return cls(actuator_m=microns * 1e-6, angle_rad=microns * 1e-6)
 
     def standard_deviations(self) -> np.ndarray:
