@@ -251,7 +251,7 @@ class NoiseModel:
 
     @classmethod
     def from_microns(cls, microns: float) -> 'NoiseModel':
-        """Return 'X um' noise as in Table 3: +-X um on sliders (urad on cranks), urad on angles."""
+        """Return 'X um' noise as in Table 3: +-X um on sliders (urad: cranks), urad on angles."""
         return cls(actuator_m=microns * 1e-6, angle_rad=microns * 1e-6)
 
     def standard_deviations(self) -> np.ndarray:
