@@ -304,3 +304,18 @@ def test_drawing_joins_cranks_and_rods():
         np.linalg.norm(drawn['cranks'][:, 1] - drawn['cranks'][:, 0], axis=1),
         TRUTH.crank_lengths, atol=1e-12,
     )
+
+
+def test_the_link_length_offset_is_the_machines_size():
+    # Nothing a rotary hexapod reads carries a length but the device's link: its offset dL cannot
+    # be told from a scaling of the whole machine (a slider machine's readings tell them apart).
+    options = SolverOptions(free_device=('dL',), allow_rank_deficient=True)
+    report = identify(TRUTH, _measurements(), options).identifiability
+    assert report.rank == 66
+    assert [d.description for d in report.null_directions] == [
+        "the device's dL cannot be told apart from a scaling of the machine about the base origin "
+        '(every length, the angles kept)'
+    ]
+    slide = default_parameters('hexa_slide')
+    poses = sample_poses(slide, 40, np.random.default_rng(0), SPHERE)
+    assert identify(slide, simulate_measurements(slide, poses), options).identifiability.identifiable
