@@ -318,4 +318,5 @@ def test_the_link_length_offset_is_the_machines_size():
     ]
     slide = default_parameters('hexa_slide')
     poses = sample_poses(slide, 40, np.random.default_rng(0), SPHERE)
-    assert identify(slide, simulate_measurements(slide, poses), options).identifiability.identifiable
+    slide_report = identify(slide, simulate_measurements(slide, poses), options).identifiability
+    assert slide_report.identifiable

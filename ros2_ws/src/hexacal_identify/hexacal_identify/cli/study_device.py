@@ -219,7 +219,8 @@ def print_device_defects(
             # A machine whose readings carry no length (a rotary hexapod's angles) cannot tell
             # dL from its own size: the joint problem is rank-deficient, said, not raised.
             reason = ' | '.join(line.strip() for line in str(error).splitlines() if line.strip())
-            print(f'  joint estimator ({RECOMMENDED_PROCEDURE}): not run on this machine: {reason}')
+            print(f'  joint estimator ({RECOMMENDED_PROCEDURE}): not run on this machine: '
+                  f'{reason}')
             return
         print(
             f'  joint estimator ({RECOMMENDED_PROCEDURE}, {", ".join(summary.identified)}) over '
