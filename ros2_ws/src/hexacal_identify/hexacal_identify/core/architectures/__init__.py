@@ -1,7 +1,7 @@
 """
 Kinematic architectures: one module per machine model, each implementing base.Architecture.
 
-Adding an architecture (say a rotary-actuated 6-RUS) is one module here - its
+Adding an architecture (the rotary hexapod 6-RUS was the third) is one module here - its
 parameters class, chain constants, IK with its two Jacobians, frame motions,
 default machine and workspace (the full list: ``base``'s docstring) - whose
 declarative layout is registered in the contract
