@@ -54,9 +54,12 @@ scaling of the machine about the base origin - the readings are angles, so
 nothing measured carries the machine's size once the link length cancels in
 the differences (a slider machine reads lengths and has no such gauge); fixed
 (eq. 10) 59: the base rotation about Y through the fixed point and six
-combinations of the rod lengths l with the crank circles' heights Az (with
-the platform centre pinned, each platform joint only moves on a small sphere,
-too little to tell a longer rod from a lower crank circle).
+combinations of the rod lengths l with the crank circles' heights Az (two
+exactly, four to ~1e-8 of the largest scaled singular value with 40
+postures: with the platform centre pinned, each platform joint only moves on a
+small sphere, too little to tell a longer rod from a lower crank circle).
+Angles as readings also make the device's link length offset dL the
+machine's scale: identified with dL free, any cost is one short.
 
 Inverse kinematics: with ``D = P + R B - A``, ``D.c(phi) = K`` where
 ``K = (|D|^2 + r^2 - l^2) / (2 r)``; with ``rho = |(D.h, D.w)|`` and ``beta =
