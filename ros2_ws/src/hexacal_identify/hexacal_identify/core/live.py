@@ -63,7 +63,8 @@ def actuator_targets(
     Return the six actuator readings that put the platform at ``pose``.
 
     The six actuator readings (SI: the layout's actuator_unit, m or rad) that put the platform
-    at ``pose``, inside ``stroke`` (None: the architecture's default). UnreachablePoseError / OutOfStrokeError say why a pose is refused.
+    at ``pose``, inside ``stroke`` (None: the architecture's default). UnreachablePoseError /
+    OutOfStrokeError say why a pose is refused.
     """
     poses = np.asarray(pose, dtype=float).reshape(1, 6)
     targets = inverse_kinematics(params, poses)[0]
