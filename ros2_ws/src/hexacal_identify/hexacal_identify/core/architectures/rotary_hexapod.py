@@ -460,8 +460,8 @@ class RotaryHexapod(Architecture[RotaryHexapodParameters]):
             f'{base_radius:.2f} m circle,\n'
             f'{float(np.mean(chains[:, R_INDEX])):.2f} m cranks, rods '
             f'{chains[:, L_INDEX].min():.3f}-{chains[:, L_INDEX].max():.3f} m, platform '
-            f'joints on a {platform_radius:.2f} m circle, with mm/mrad-level as-built '
-            'irregularity.\n'
+            f'joints on a {platform_radius:.2f} m circle,\n'
+            'with mm/mrad-level as-built irregularity.\n'
             f'Crank angle limits ({low:g}, {high:g}) rad of the actuator reading lambda.\n'
             f'Written by `hexacal params default --model {self.name}`.'
         )
