@@ -29,8 +29,10 @@ import pytest
 
 DATA = Path(hexacal_identify.__file__).parent / 'data'
 GS_FILE = DATA / 'gough_stewart_default.yaml'
+ROTARY_FILE = DATA / 'rotary_hexapod_default.yaml'
 TABLE1_FILE = DATA / 'table1_exact.yaml'
-MODELS = ('hexa_slide', 'gough_stewart')
+MODELS = ('hexa_slide', 'gough_stewart', 'rotary_hexapod')
+MODELS_UNIT = {'hexa_slide': 'm', 'gough_stewart': 'm', 'rotary_hexapod': 'rad'}
 SETP = re.compile(r'^setp genhexkins\.(base|platform)\.([0-5])\.([xyz]) +(-?[0-9]+\.[0-9]+)$')
 HOME_OFFSET = re.compile(r'^# \[JOINT_([0-5])\] HOME_OFFSET = (-?[0-9]+\.[0-9]+)$')
 
@@ -63,7 +65,9 @@ def test_params_default_writes_the_default_machine_of_either_model(capsys, tmp_p
     assert contents.model == model
     np.testing.assert_array_equal(contents.vector, default_parameters(model).vector)
     assert contents.extras == {}
-    assert contents.vector.size == {'hexa_slide': 54, 'gough_stewart': 42}[model]
+    assert contents.vector.size == {'hexa_slide': 54, 'gough_stewart': 42, 'rotary_hexapod': 66}[
+        model
+    ]
 
 
 def test_hexa_slide_params_are_written_as_before(capsys, tmp_path):
@@ -171,6 +175,21 @@ def test_table1_is_refused_for_a_gough_stewart(capsys, tmp_path):
     code, _, err = run(capsys, 'params', 'table1', '--model', 'gough_stewart', '--out', out)
     assert_one_line_error(code, err, 'table1', 'gough_stewart', 'default')
     assert not out.exists()
+
+
+def test_shipped_rotary_hexapod_file_is_the_default_machine(capsys, tmp_path):
+    contents = read_parameters_file(ROTARY_FILE)
+    assert contents.model == 'rotary_hexapod' and contents.extras == {}
+    np.testing.assert_array_equal(contents.vector, default_parameters('rotary_hexapod').vector)
+    regenerated = tmp_path / 'rotary.yaml'
+    assert (
+        run(capsys, 'params', 'default', '--model', 'rotary_hexapod', '--out', regenerated)[0]
+        == 0
+    )
+    assert regenerated.read_bytes() == ROTARY_FILE.read_bytes()
+    text = ' '.join(line for line in ROTARY_FILE.read_text().splitlines() if line.startswith('#'))
+    assert 'Rotary hexapod (6-RUS)' in text and 'Crank angle limits (-1.2, 1.2) rad' in text
+    assert '0.40 m circle' in text and '0.15 m cranks' in text and '0.25 m circle' in text
 
 
 def test_shipped_gough_stewart_file_is_the_default_machine(capsys, tmp_path):
@@ -314,7 +333,11 @@ def test_json_export_round_trips(capsys, tmp_path, model):
     payload = json.loads(out.read_text())
     assert set(payload) == {'model', 'parameters'} and payload['model'] == model
     assert sorted(payload['parameters']) == [f'chain_{n}' for n in range(1, 7)]
-    keys = {'hexa_slide': {'A0', 'B', 'a', 'l'}, 'gough_stewart': {'A', 'B', 'l0'}}[model]
+    keys = {
+        'hexa_slide': {'A0', 'B', 'a', 'l'},
+        'gough_stewart': {'A', 'B', 'l0'},
+        'rotary_hexapod': {'A', 'B', 'axis', 'r', 'l', 'alpha0'},
+    }[model]
     assert all(set(chain) == keys for chain in payload['parameters'].values())
     np.testing.assert_array_equal(
         chain_dict_to_parameters(payload['parameters'], model=payload['model']), vector
@@ -481,6 +504,13 @@ def _ik_from_description(payload: dict, pose: dict) -> np.ndarray:
             d = p + rotation @ np.array(chain['B']) - np.array(chain['A0'])
             a = np.array(chain['a'])
             readings.append(a @ d - np.sqrt(chain['l'] ** 2 - d @ d + (a @ d) ** 2))
+        elif payload['model'] == 'rotary_hexapod':
+            d = p + rotation @ np.array(chain['B']) - np.array(chain['A'])
+            n, h = np.array(chain['n']), np.array(chain['h'])
+            w = np.cross(n, h)
+            k = (d @ d + chain['r'] ** 2 - chain['l'] ** 2) / (2 * chain['r'])
+            phi = np.arctan2(d @ w, d @ h) + np.arccos(k / np.hypot(d @ h, d @ w))
+            readings.append(np.mod(phi - chain['alpha0'] + np.pi, 2 * np.pi) - np.pi)
         else:
             d = p + rotation @ np.array(chain['B']) - np.array(chain['A'])
             readings.append(np.linalg.norm(d) - chain['l0'])
@@ -506,6 +536,7 @@ def test_controller_json_describes_the_machine(capsys, tmp_path, model):
         rails = np.array([chain['a'] for chain in payload['chains']])
         np.testing.assert_allclose(np.linalg.norm(rails, axis=1), 1.0, atol=1e-15)
         assert np.all(rails[:, 2] < 0)  # the sign a controller could not guess
+    assert payload['actuator_unit'] == MODELS_UNIT[model]
     low, high = payload['stroke']
     assert low <= min(payload['home']['actuators']) and max(payload['home']['actuators']) <= high
     assert len(payload['checks']) >= 5

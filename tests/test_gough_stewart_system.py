@@ -368,7 +368,7 @@ def test_nodes_refuse_contradicting_models_and_name_the_other_models_joints(
         )
         assert process.popen.returncode == 2, process.describe()
     assert (
-        "model must be '' or one of hexa_slide, gough_stewart"
+        "model must be '' or one of hexa_slide, gough_stewart, rotary_hexapod"
         in started['driver-unknown-model'].log_text()
     )
     assert (

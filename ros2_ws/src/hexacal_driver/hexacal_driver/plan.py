@@ -255,10 +255,10 @@ def check_reachable(
     low, high = workspace.actuator_stroke_m
     outside = np.flatnonzero(np.any((actuators < low) | (actuators > high), axis=1))
     if outside.size:
-        actuator = architecture.layout.actuator_prefix
+        actuator, unit = architecture.layout.actuator_prefix, architecture.layout.actuator_unit
         raise PlanError(
             f"plan '{plan.name}': posture(s) {outside[:10].tolist()} need a {actuator} "
-            f'outside the stroke [{low:g}, {high:g}] m'
+            f'outside the stroke [{low:g}, {high:g}] {unit}'
         )
     return actuators
 

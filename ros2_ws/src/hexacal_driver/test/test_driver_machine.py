@@ -46,7 +46,11 @@ def test_only_noise_and_turn_change_at_run_time():
         ('device_defects', 'dX=1', "device_defects 'dX=1': "),
         ('device_turn', 7.0, 'device_turn must be a finite angle within +-2 pi rad, got 7.0'),
         ('device_turn', math.nan, 'device_turn must be a finite angle'),
-        ('model', 'delta', "model must be '' or one of hexa_slide, gough_stewart, got 'delta'"),
+        (
+            'model',
+            'delta',
+            "model must be '' or one of hexa_slide, gough_stewart, rotary_hexapod, got 'delta'",
+        ),
         ('rate_hz', math.inf, 'rate_hz must be finite, got inf'),
         ('max_actuator_speed_m_s', math.nan, 'max_actuator_speed_m_s must be finite'),
     ],

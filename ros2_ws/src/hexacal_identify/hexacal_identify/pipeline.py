@@ -215,12 +215,13 @@ def posture_problem(
     set it aside with this reason and keep every other posture. `model` names
     the actuators in the description (default: the Hexa Slide's sliders).
     """
-    names = MODELS[model or DEFAULT_MODEL].actuator_names
-    for name, value in zip(names, posture.actuator_positions):
-        if not limits.actuator_min_m <= value <= limits.actuator_max_m:
+    layout = MODELS[model or DEFAULT_MODEL]
+    unit = layout.actuator_unit
+    least, most = limits.actuator_range(unit)
+    for name, value in zip(layout.actuator_names, posture.actuator_positions):
+        if not least <= value <= most:
             return ACTUATOR_BEYOND_STROKE, (
-                f'{name} = {value!r} m is beyond the stroke '
-                f'[{limits.actuator_min_m:g}, {limits.actuator_max_m:g}] m'
+                f'{name} = {value!r} {unit} is beyond the stroke [{least:g}, {most:g}] {unit}'
             )
     for name, value, limit in (
         ('inclinometer_x (alpha)', posture.alpha, limits.inclinometer_range_rad),

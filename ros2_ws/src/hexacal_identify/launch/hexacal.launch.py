@@ -44,8 +44,8 @@ ARGUMENTS = {
     ),
     'model': (
         '',
-        "machine model of driver and collector: hexa_slide, gough_stewart or '' (that "
-        'of nominal, else true_params, else hexa_slide); identify and the executor take '
+        'machine model of driver and collector: hexa_slide, gough_stewart, rotary_hexapod or '
+        "'' (that of nominal, else true_params, else hexa_slide); identify and the executor take "
         'it from the nominal file',
     ),
     'use_driver': ('true', 'start the simulated machine (false with a real one)'),

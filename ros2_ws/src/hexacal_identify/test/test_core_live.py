@@ -67,7 +67,8 @@ def test_actuator_targets_and_the_stroke(model):
     # A tighter stroke refuses the same pose, naming the actuators outside it.
     high = float(np.sort(expected)[-2])  # the largest reading is above, the others not
     with pytest.raises(OutOfStrokeError) as refused:
-        actuator_targets(params, pose, (0.0, high))
+        # The low end below every reading (a crank's angles are negative as well).
+        actuator_targets(params, pose, (min(0.0, float(expected.min())), high))
     name = params.layout.actuator_names[int(np.argmax(expected))]
     assert refused.value.reason == 'outside-stroke' and name in str(refused.value)
     assert refused.value.indices == [int(np.argmax(expected))]

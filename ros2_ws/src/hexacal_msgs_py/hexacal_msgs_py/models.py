@@ -53,8 +53,12 @@ class FloatVector(Protocol):
         """Return entry `index`."""
 
 
+# SI units an actuator reading can have: a linear actuator's metres, a rotary one's radians.
+ACTUATOR_UNITS: tuple[str, ...] = ('m', 'rad')
+
 HEXA_SLIDE = 'hexa_slide'
 GOUGH_STEWART = 'gough_stewart'
+ROTARY_HEXAPOD = 'rotary_hexapod'
 DEFAULT_MODEL = HEXA_SLIDE
 
 
@@ -111,7 +115,28 @@ class UnitVectorXY:
         return None
 
 
-PhysicalCheck = PositiveField | UnitVectorXY
+@dataclass(frozen=True)
+class FieldBelow:
+    """Physical check: the per-chain field ``field`` must satisfy |value| < ``limit``."""
+
+    field: str
+    limit: float
+    note: str = ''
+
+    def problem(self, layout: ModelLayout, chain: int, vector: FloatVector) -> str | None:
+        """Return why chain's field is not inside (-limit, limit) (None: it is)."""
+        value = float(vector[layout.parameter_index(chain, self.field)])
+        if not abs(value) < self.limit:
+            unit = layout.field_units[layout.fields.index(self.field)]
+            unit_text = '' if unit == '1' else f' {unit}'  # '1': dimensionless
+            return (
+                f'chain_{chain}.{self.field} must be within +-{self.limit!r}{unit_text}'
+                f'{self.note}, got {value!r}'
+            )
+        return None
+
+
+PhysicalCheck = PositiveField | UnitVectorXY | FieldBelow
 
 
 @dataclass(frozen=True)
@@ -129,6 +154,8 @@ class ModelLayout:
     # the problem reported.
     physical_checks: tuple[PhysicalCheck, ...] = ()
     n_chains: int = N_CHAINS
+    # SI unit of the actuator readings lambda: 'm' (sliders, legs) or 'rad' (motors with cranks).
+    actuator_unit: str = 'm'
 
     def physical_problem(self, vector: FloatVector) -> str | None:
         """Return why `vector` is not a physical machine of this model (None: it is)."""
@@ -239,6 +266,32 @@ GOUGH_STEWART_LAYOUT = ModelLayout(
     physical_checks=(PositiveField('l0', ' (the leg length at actuator reading zero)'),),
 )
 
+ROTARY_HEXAPOD_LAYOUT = ModelLayout(
+    name=ROTARY_HEXAPOD,
+    title='Rotary hexapod (6-RUS)',
+    # A centre of the crank-tip circle on the motor axis (base frame), B platform joint (platform
+    # frame), l rod length, r crank length, axis_az, axis_el: azimuth and elevation of the unit
+    # motor axis n, alpha0: crank angle at reading zero about n from h = (-sin az, cos az, 0).
+    fields=('Ax', 'Ay', 'Az', 'Bx', 'By', 'Bz', 'l', 'r', 'axis_az', 'axis_el', 'alpha0'),
+    field_units=('m',) * 8 + ('rad',) * 3,
+    chain_keys=(
+        ChainKey('A', 0, 3, 'centre of the crank-tip circle on the motor axis, base frame (m)'),
+        ChainKey('B', 3, 3, 'platform joint centre, platform frame (m)'),
+        ChainKey('axis', 8, 2, 'azimuth and elevation of the unit motor axis direction (rad)'),
+        ChainKey('r', 7, None, 'crank length, motor axis to crank-tip joint centre (m)'),
+        ChainKey('l', 6, None, 'rod length, crank-tip joint centre to platform joint centre (m)'),
+        ChainKey('alpha0', 10, None, 'crank angle at reading zero, about the motor axis (rad)'),
+    ),
+    actuator_prefix='crank',
+    actuator_description='crank angle lambda about the motor axis from its zero (rad)',
+    actuator_unit='rad',
+    physical_checks=(
+        PositiveField('l', ' (the rod length)'),
+        PositiveField('r', ' (the crank length)'),
+        FieldBelow('axis_el', math.pi / 2, ' (a vertical motor axis has no azimuth)'),
+    ),
+)
+
 # Every model hexacal knows, by name (register_model adds one).
 MODELS: dict[str, ModelLayout] = {}
 
@@ -260,10 +313,15 @@ def register_model(layout: ModelLayout) -> ModelLayout:
     if covered != list(range(len(layout.fields))):
         raise ValueError(f'{layout.name}: the chain keys must cover every field once')
     for check in layout.physical_checks:
-        named = (check.field,) if isinstance(check, PositiveField) else (check.x, check.y)
+        named = (check.x, check.y) if isinstance(check, UnitVectorXY) else (check.field,)
         unknown = [field for field in named if field not in layout.fields]
         if unknown:
             raise ValueError(f'{layout.name}: a physical check names unknown field(s) {unknown}')
+    if layout.actuator_unit not in ACTUATOR_UNITS:
+        raise ValueError(
+            f'{layout.name}: actuator_unit must be one of {ACTUATOR_UNITS}, got '
+            f'{layout.actuator_unit!r}'
+        )
     for other in MODELS.values():
         if other.actuator_prefix == layout.actuator_prefix:
             raise ValueError(
@@ -275,6 +333,7 @@ def register_model(layout: ModelLayout) -> ModelLayout:
 
 register_model(HEXA_SLIDE_LAYOUT)
 register_model(GOUGH_STEWART_LAYOUT)
+register_model(ROTARY_HEXAPOD_LAYOUT)
 
 
 def model_layout(name: object) -> ModelLayout:

@@ -145,8 +145,10 @@ def as_parameter_vector(vector: object, model: str | ModelLayout | None = None) 
     if model is None:
         sizes = sorted({layout.n_parameters for layout in MODELS.values()})
         if array.ndim != 1 or array.size not in sizes:
+            default = MODELS[DEFAULT_MODEL]
             raise InvalidParametersError(
-                f'parameter vector must have shape ({sizes[-1]},) (a Hexa Slide) or one of '
+                f'parameter vector must have shape ({default.n_parameters},) (a {default.title}) '
+                'or one of '
                 f'{[(n,) for n in sizes]} (see models.MODELS), got {array.shape}'
             )
     layout = _layout_of(model, array.size)

@@ -564,7 +564,7 @@ def gs_dotted_yaml(vector: np.ndarray, model_line: str | None = '    model: goug
 def test_model_layouts():
     from hexacal_msgs_py import models
 
-    assert set(models.MODELS) == {'hexa_slide', 'gough_stewart'}
+    assert set(models.MODELS) == {'hexa_slide', 'gough_stewart', 'rotary_hexapod'}
     assert models.DEFAULT_MODEL == 'hexa_slide' and models.MODEL_KEY == 'model'
     slide, gs = models.MODELS['hexa_slide'], models.MODELS['gough_stewart']
     assert slide.n_parameters == 54 and slide.parameter_names == names.PARAMETER_NAMES

@@ -2,13 +2,17 @@
 
 from dataclasses import replace
 
+import math
+
 from hexacal_msgs_py.models import (
     ChainKey,
+    FieldBelow,
     GOUGH_STEWART,
     HEXA_SLIDE,
     MODELS,
     PositiveField,
     register_model,
+    ROTARY_HEXAPOD,
     UnitVectorXY,
 )
 import pytest
@@ -67,9 +71,36 @@ def test_gough_stewart_check_and_key_slices():
         ),
         ({'name': 'x', 'physical_checks': (PositiveField('r'),)}, r"unknown field\(s\) \['r'\]"),
         ({'name': 'x'}, "actuator joints leg_N are gough_stewart's"),
+        ({'name': 'x', 'actuator_prefix': 'x', 'actuator_unit': 'deg'}, 'actuator_unit must be'),
+        (
+            {'name': 'x', 'actuator_prefix': 'x', 'physical_checks': (FieldBelow('el', 1.0),)},
+            r"unknown field\(s\) \['el'\]",
+        ),
     ],
 )
 def test_register_model_refuses_an_inconsistent_layout(change, message):
     with pytest.raises(ValueError, match=message):
         register_model(replace(GS, **change))
-    assert set(MODELS) == {HEXA_SLIDE, GOUGH_STEWART}
+    assert set(MODELS) == {HEXA_SLIDE, GOUGH_STEWART, ROTARY_HEXAPOD}
+
+
+def test_rotary_hexapod_reads_angles_and_refuses_a_vertical_motor_axis():
+    rotary = MODELS[ROTARY_HEXAPOD]
+    assert rotary.actuator_unit == 'rad' and GS.actuator_unit == HEXA.actuator_unit == 'm'
+    assert rotary.actuator_names[0] == 'crank_1' and rotary.n_parameters == 66
+    assert rotary.field_units[rotary.fields.index('axis_el')] == 'rad'
+    vector = [0.4, 0.0, 0.0, 0.25, 0.0, 0.015, 0.78, 0.15, 3.14, 0.0, 0.0] * 6
+    assert rotary.physical_problem(vector) is None
+    vector[rotary.parameter_index(3, 'axis_el')] = -math.pi / 2
+    assert rotary.physical_problem(vector) == (
+        f'chain_3.axis_el must be within +-{math.pi / 2!r} rad (a vertical motor axis has no '
+        f'azimuth), got {-math.pi / 2!r}'
+    )
+    assert rotary.key_slices == {
+        'A': slice(0, 3),
+        'B': slice(3, 6),
+        'l': slice(6, 7),
+        'r': slice(7, 8),
+        'axis': slice(8, 10),
+        'alpha0': slice(10, 11),
+    }

@@ -104,7 +104,10 @@ def test_plan_describes_itself_and_counts_its_kinds():
         ({'link_length': True}, 'link_length must be a positive number of m, got True'),
         ({'poses': np.zeros((0, 6)), 'kinds': ()}, 'has no postures'),
         ({'kinds': ('sphere',)}, '2 poses but 1 kinds'),
-        ({'model': 'delta'}, "model must be one of hexa_slide, gough_stewart, got 'delta'"),
+        (
+            {'model': 'delta'},
+            "model must be one of hexa_slide, gough_stewart, rotary_hexapod, got 'delta'",
+        ),
         ({'mount': 'sideways'}, "mount must be one of hanging, standing, got 'sideways'"),
         ({'device_turns': (1.0,)}, '2 poses but 1 device turns'),
         ({'device_turns': (None, 7.0)}, 'posture 1: device_turn must be a finite angle'),

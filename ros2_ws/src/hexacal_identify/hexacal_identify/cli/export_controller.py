@@ -25,7 +25,7 @@ import json
 import os
 from pathlib import Path
 
-from hexacal_msgs_py.models import DEVICE_MOUNT_KEY, GOUGH_STEWART, HEXA_SLIDE
+from hexacal_msgs_py.models import DEVICE_MOUNT_KEY, GOUGH_STEWART, HEXA_SLIDE, ROTARY_HEXAPOD
 from hexacal_msgs_py.parameters_file import parameters_to_chain_dict
 import numpy as np
 
@@ -60,6 +60,13 @@ IK_TEXT = {
         'smaller root: lambda = a.d - sqrt(l^2 - |d|^2 + (a.d)^2) (no real root: unreachable)'
     ),
     GOUGH_STEWART: 'per leg, lambda = |p + R B - A| - l0 (the leg extension)',
+    ROTARY_HEXAPOD: (
+        'per chain, D = p + R B - A, K = (|D|^2 + r^2 - l^2) / (2 r); with the unit motor axis n, '
+        'the zero reference h and w = n x h, the crank angle phi = atan2(D.w, D.h) + '
+        "acos(K / |(D.h, D.w)|) (the machine's branch; |K| > |(D.h, D.w)|: unreachable) and the "
+        'reading lambda = phi - alpha0 in [-pi, pi) (rad): the crank tip A + r (cos phi h + '
+        'sin phi w) lies at l from p + R B'
+    ),
 }
 
 
@@ -82,6 +89,19 @@ def _chains(params, model: str) -> list[dict]:
                 B=per_chain[index, 3:6].tolist(),
                 l=float(per_chain[index, 6]),
                 a=params.rail_directions[index].tolist(),
+            )
+        elif model == ROTARY_HEXAPOD:
+            from ..core.architectures.rotary_hexapod import axis_frame
+
+            axis, zero, _, _, _ = axis_frame(per_chain[index, 8], per_chain[index, 9])
+            chain.update(
+                A=per_chain[index, 0:3].tolist(),
+                B=per_chain[index, 3:6].tolist(),
+                l=float(per_chain[index, 6]),
+                r=float(per_chain[index, 7]),
+                n=axis.tolist(),
+                h=zero.tolist(),
+                alpha0=float(per_chain[index, 10]),
             )
         else:
             chain.update(
@@ -131,6 +151,7 @@ def controller_payload(contents, source: Path) -> dict:
         'chains': _chains(params, model),
         'parameters': parameters_to_chain_dict(contents.vector, model),
         'stroke': [float(low), float(high)],
+        'actuator_unit': params.layout.actuator_unit,
         'mount': mount,
         'home': {'pose': _pose_dict(home), 'actuators': home_readings.tolist()},
         'checks': [

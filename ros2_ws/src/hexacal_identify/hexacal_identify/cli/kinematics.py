@@ -6,8 +6,9 @@
 
 A pose is ``[x, y, z, theta, psi, phi]``: the platform origin in the base frame
 (m) and the angles of R = R_Y(theta) R_X(psi) R_z(phi) (rad, eq. 2); the
-actuators are the model's six readings lambda (m) in chain order (Hexa Slide
-slider_1..6, Gough-Stewart leg_1..6).  ``--json`` prints one object
+actuators are the model's six readings lambda in chain order (Hexa Slide
+slider_1..6 and Gough-Stewart leg_1..6 in m, rotary hexapod crank_1..6 in
+rad).  ``--json`` prints one object
 ``{"model", "pose": {"x", "y", "z", "theta", "psi", "phi"}, "actuators": {name: value}}``
 (floats at full precision); without it, one ``name value unit`` line each.
 
@@ -56,17 +57,17 @@ def add_parsers(subparsers) -> None:
     subparsers.add_parser(
         'ik',
         help='actuator readings of a platform pose (inverse kinematics of a parameters file)',
-        description='Print the six actuator readings (m) that put the platform at a pose, by the '
-        'inverse '
-        'kinematics of the machine in a parameters YAML (either model).',
+        description='Print the six actuator readings (m; rad for a rotary hexapod) that put the '
+        'platform at a pose, by the inverse kinematics of the machine in a parameters YAML '
+        '(any model).',
         fill=_ik_arguments,
     )
     subparsers.add_parser(
         'fk',
         help='platform pose of actuator readings (forward kinematics of a parameters file)',
         description='Print the platform pose [x, y, z (m), theta, psi, phi (rad)] of six actuator '
-        'readings '
-        '(m), by the forward kinematics of the machine in a parameters YAML (either model).',
+        'readings (m; rad for a rotary hexapod), by the forward kinematics of the machine in a '
+        'parameters YAML (any model).',
         fill=_fk_arguments,
     )
 
@@ -107,7 +108,8 @@ def _fk_arguments(parser: argparse.ArgumentParser) -> None:
         '--actuators',
         required=True,
         metavar='l1,l2,l3,l4,l5,l6',
-        help='the six actuator readings (m) in chain order, comma-separated',
+        help='the six actuator readings (m; rad for a rotary hexapod) in chain order, '
+        'comma-separated',
     )
     parser.add_argument(
         '--guess',
@@ -186,8 +188,7 @@ def _print(params, pose, actuators, as_json: bool, angles: str = 'hexacal') -> N
     for field, value, unit in zip(POSE_FIELDS, pose, POSE_UNITS):
         extra = f'  ({math.degrees(value):.6f} deg)' if unit == 'rad' else ''
         print(f'{field:<8} {value: .12f} {unit}{extra}')
-    for name, value in zip(names, actuators):
-        print(f'{name:<8} {value: .12f} m')
+    _print_actuators(params, actuators)
 
 
 def run_ik(args) -> int:
@@ -215,7 +216,7 @@ def run_fk(args) -> int:
     from ..core.postures import Workspace
 
     _check_angles(args.angles)
-    actuators = parse_values(args.actuators, '--actuators', 'the six readings in m')
+    actuators = parse_values(args.actuators, '--actuators', 'the six readings in SI units')
     guess = None if args.guess is None else _pose_values(args.guess, '--guess', args.angles)
     params, mount = _load(args.parameters)
     if guess is None:
@@ -251,8 +252,15 @@ def _print_linuxcnc(params, pose, actuators, as_json: bool) -> None:
     print(f'model {params.model}')
     for field, value, unit in zip(LINUXCNC_POSE_FIELDS, values, LINUXCNC_POSE_UNITS):
         print(f'{field:<8} {value: .12f} {unit}')
-    for name, value in zip(names, actuators):
-        print(f'{name:<8} {value: .12f} m')
+    _print_actuators(params, actuators)
+
+
+def _print_actuators(params, actuators) -> None:
+    """Print one ``name value unit`` line per actuator (the model's unit; rad also in deg)."""
+    unit = params.layout.actuator_unit
+    for name, value in zip(params.layout.actuator_names, actuators):
+        extra = f'  ({math.degrees(value):.6f} deg)' if unit == 'rad' else ''
+        print(f'{name:<8} {value: .12f} {unit}{extra}')
 
 
 def _one_line(error: BaseException) -> str:

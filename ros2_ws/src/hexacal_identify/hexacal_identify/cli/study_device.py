@@ -204,14 +204,24 @@ def print_device_defects(
             f'({"met" if claim.met_like_for_like else "NOT met"})'
         )
     if efficiency_seeds > 1:
-        summary = estimator_efficiency(
-            efficiency_seeds,
-            RECOMMENDED_PROCEDURE,
-            defects=defects,
-            noise_um=noise_um,
-            true_params=truth,
-            progress=progress.step,
-        )
+        from ..core.errors import CalibrationError
+
+        try:
+            summary = estimator_efficiency(
+                efficiency_seeds,
+                RECOMMENDED_PROCEDURE,
+                defects=defects,
+                noise_um=noise_um,
+                true_params=truth,
+                progress=progress.step,
+            )
+        except CalibrationError as error:
+            # A machine whose readings carry no length (a rotary hexapod's angles) cannot tell
+            # dL from its own size: the joint problem is rank-deficient, said, not raised.
+            reason = ' | '.join(line.strip() for line in str(error).splitlines() if line.strip())
+            print(f'  joint estimator ({RECOMMENDED_PROCEDURE}): not run on this machine: '
+                  f'{reason}')
+            return
         print(
             f'  joint estimator ({RECOMMENDED_PROCEDURE}, {", ".join(summary.identified)}) over '
             f'{summary.seeds} noise seeds, same postures: CRB std / RMS error / bias per device '

@@ -5,8 +5,8 @@ The Jacobian's columns are scaled to unit norm first (parameters have different
 units and sensitivities; an unscaled SVD would mostly measure that).  The
 numerical rank counts singular values above ``rank_tolerance`` x the largest.
 Each null direction is described in words: first by matching it against the
-motions of a frame or a slider zero that leave every measurement unchanged
-(the usual reasons a calibration cannot see something), else by listing the
+motions of a frame, an actuator zero or the machine's scale that leave every
+measurement unchanged (the usual reasons a calibration cannot see something), else by listing the
 parameters it mixes.  Column-pivoted QR orders the parameters from best to
 worst determined; its last ``n - rank`` columns are those a user would fix.
 """
@@ -235,6 +235,16 @@ def _gauge_directions(
     for chain in range(params.layout.n_chains):
         name, delta = arch.actuator_zero_shift(params, chain)
         gauges.append((name, direction(delta)))
+    # Every length of the machine times (1 + e) about O: the poses scale, the angles do not.  A
+    # machine whose actuators read angles (a rotary hexapod) reads the same, and a cost that sees
+    # only differences of |P| (eq. 12) and of positions (eq. 13) cannot see its size.
+    lengths = np.array([unit == 'm' for unit in params.layout.parameter_units])
+    gauges.append(
+        (
+            'a scaling of the machine about the base origin (every length, the angles kept)',
+            direction(params.vector * lengths),
+        )
+    )
     return [(name, vec) for name, vec in gauges if np.linalg.norm(vec) > 0]
 
 

@@ -669,7 +669,7 @@ def _identify_once(
     started = time.perf_counter()
     n_parameters = nominal.layout.n_parameters
     options.validate(n_parameters)
-    measurements.validate(options.limits)
+    measurements.validate(options.limits, nominal.layout.actuator_unit)
     if options.scatter_weights and measurements.standard_errors is None:
         raise InvalidMeasurementError(
             "weighing by the postures' scatter needs the standard errors of every posture; "

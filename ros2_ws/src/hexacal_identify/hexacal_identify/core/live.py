@@ -97,7 +97,7 @@ def home_pose(
 
 
 def default_stroke(params: KinematicParameters) -> tuple[float, float]:
-    """Return the architecture's actuator stroke (m) of its default workspace."""
+    """Return the architecture's actuator stroke of its default workspace (m, or rad: its unit)."""
     low, high = params.architecture.default_workspace().actuator_stroke_m
     return float(low), float(high)
 
@@ -109,11 +109,12 @@ def actuator_targets(
     loaded: LoadedChains | None = None,
 ) -> np.ndarray:
     """
-    Return the six actuator readings (m) that put the platform at ``pose``.
+    Return the six actuator readings that put the platform at ``pose``.
 
-    The six actuator readings (m) that put the platform at ``pose``, inside ``stroke`` (None: the
-    architecture's default). UnreachablePoseError / OutOfStrokeError say why a pose is refused.
-    With ``loaded`` the encoders' readings at which the loaded chains reach it (module doc).
+    The six actuator readings (SI: the layout's actuator_unit, m or rad) that put the platform
+    at ``pose``, inside ``stroke`` (None: the architecture's default). UnreachablePoseError /
+    OutOfStrokeError say why a pose is refused. With ``loaded`` the encoders' readings at which
+    the loaded chains reach it (module doc).
     """
     poses = np.asarray(pose, dtype=float).reshape(1, 6)
     targets = inverse_kinematics(params, poses)[0]
@@ -122,10 +123,10 @@ def actuator_targets(
     low, high = default_stroke(params) if stroke is None else stroke
     outside = np.flatnonzero((targets < low) | (targets > high))
     if outside.size:
-        names = params.layout.actuator_names
-        detail = ', '.join(f'{names[i]} {targets[i]:.6f} m' for i in outside)
+        names, unit = params.layout.actuator_names, params.layout.actuator_unit
+        detail = ', '.join(f'{names[i]} {targets[i]:.6f} {unit}' for i in outside)
         raise OutOfStrokeError(
-            f'outside the stroke [{low:g}, {high:g}] m: {detail}', outside.tolist()
+            f'outside the stroke [{low:g}, {high:g}] {unit}: {detail}', outside.tolist()
         )
     return targets
 

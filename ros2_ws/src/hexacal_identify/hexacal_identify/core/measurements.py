@@ -35,6 +35,17 @@ class MeasurementLimits:
     # posture.
     actuator_min_m: float = -0.1
     actuator_max_m: float = 1.0
+    # Rotary actuators (a motor turning a crank): readings are angles within +-pi (IK wraps them)
+    # plus 0.1 rad of rounding and device defects.
+    actuator_max_abs_rad: float = np.pi + 0.1
+
+    def actuator_range(self, unit: str = 'm') -> tuple[float, float]:
+        """Return the plausible (low, high) actuator reading in ``unit`` ('m' or 'rad')."""
+        if unit == 'rad':
+            return -self.actuator_max_abs_rad, self.actuator_max_abs_rad
+        if unit != 'm':
+            raise ValueError(f"actuator readings are in 'm' or 'rad', got {unit!r}")
+        return self.actuator_min_m, self.actuator_max_m
 
 
 @dataclass
@@ -128,8 +139,14 @@ class Measurements:
             errors,
         )
 
-    def validate(self, limits: MeasurementLimits = MeasurementLimits()) -> None:
-        """Raise InvalidMeasurementError naming the first problem and the posture indices."""
+    def validate(
+        self, limits: MeasurementLimits = MeasurementLimits(), actuator_unit: str = 'm'
+    ) -> None:
+        """
+        Raise InvalidMeasurementError naming the first problem and the posture indices.
+
+        ``actuator_unit`` is the model's (``ModelLayout.actuator_unit``): 'm' or 'rad'.
+        """
         n = len(self)
         if self.actuator_positions.shape != (n, 6):
             raise InvalidMeasurementError(
@@ -181,13 +198,15 @@ class Measurements:
             'rad',
         )
         self._check_range('rotary angle', np.abs(self.rotary), limits.rotary_range_rad, 'rad')
+        least, most = limits.actuator_range(actuator_unit)
         low = np.flatnonzero(
-            np.any(self.actuator_positions < limits.actuator_min_m, axis=1)
-            | np.any(self.actuator_positions > limits.actuator_max_m, axis=1)
+            np.any(self.actuator_positions < least, axis=1)
+            | np.any(self.actuator_positions > most, axis=1)
         )
         if low.size:
+            what = 'slider position' if actuator_unit == 'm' else 'actuator reading'
             raise InvalidMeasurementError(
-                f'slider position outside [{limits.actuator_min_m}, {limits.actuator_max_m}] m at '
+                f'{what} outside [{least:g}, {most:g}] {actuator_unit} at '
                 f'posture(s) {low.tolist()}',
                 low,
             )
@@ -219,14 +238,20 @@ class Measurements:
 
 @dataclass(frozen=True)
 class NoiseModel:
-    """Uniform measurement noise, half-widths in SI units (the paper's section 4 model)."""
+    """
+    Uniform measurement noise, half-widths in SI units (the paper's section 4 model).
+
+    ``actuator_m`` is in the unit of the model's actuator readings (``ModelLayout.actuator_unit``):
+    metres for sliders and legs, radians for a rotary hexapod's cranks (the name is the field's
+    since the first, slider-only, version).
+    """
 
     actuator_m: float = 0.0
     angle_rad: float = 0.0
 
     @classmethod
     def from_microns(cls, microns: float) -> 'NoiseModel':
-        """'X um' noise as in Table 3: +-X um on sliders and +-X urad on every angle."""
+        """Return 'X um' noise as in Table 3: +-X um on sliders (urad: cranks), urad on angles."""
         return cls(actuator_m=microns * 1e-6, angle_rad=microns * 1e-6)
 
     def standard_deviations(self) -> np.ndarray:

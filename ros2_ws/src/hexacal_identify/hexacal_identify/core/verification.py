@@ -416,7 +416,7 @@ def verify(
         raise InvalidMeasurementError(
             'no postures to verify on: measure fresh postures (not used in the fit)'
         )
-    measurements.validate(limits)
+    measurements.validate(limits, nominal.layout.actuator_unit)
     before, _ = set_residuals(nominal, measurements, device, nominal_defects)
     after, expected_after = set_residuals(
         calibrated, measurements, device, calibrated_defects, calibrated_compliance

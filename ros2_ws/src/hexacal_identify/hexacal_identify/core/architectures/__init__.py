@@ -1,7 +1,7 @@
 """
 Kinematic architectures: one module per machine model, each implementing base.Architecture.
 
-Adding an architecture (say a rotary-actuated 6-RUS) is one module here - its
+Adding an architecture (the rotary hexapod 6-RUS was the third) is one module here - its
 parameters class, chain constants, IK with its two Jacobians, frame motions,
 default machine and workspace (the full list: ``base``'s docstring) - whose
 declarative layout is registered in the contract
@@ -18,6 +18,7 @@ import numpy as np
 from .base import Architecture, ChainIK, KinematicParameters
 from .gough_stewart import ARCHITECTURE as _GOUGH_STEWART
 from .hexa_slide import ARCHITECTURE as _HEXA_SLIDE
+from .rotary_hexapod import ARCHITECTURE as _ROTARY_HEXAPOD
 
 # Every architecture hexacal knows, by model name (register_architecture adds one).
 ARCHITECTURES: dict[str, Architecture] = {}
@@ -47,6 +48,7 @@ def register_architecture(arch: Architecture) -> Architecture:
 
 register_architecture(_HEXA_SLIDE)
 register_architecture(_GOUGH_STEWART)
+register_architecture(_ROTARY_HEXAPOD)
 assert set(ARCHITECTURES) == set(MODELS), 'every model of the contract has an architecture'
 
 

@@ -21,10 +21,11 @@ In the contract (``hexacal_msgs_py.models``, one declarative ``ModelLayout``):
 * ``fields`` and ``field_units`` of one chain (the vector is chain-major);
 * ``chain_keys``: the parameters-file keys ``chain_N.<key>``, each covering
   consecutive fields, in the order files are written;
-* ``actuator_prefix`` (joint names ``<prefix>_1..6``, unique among models) and
-  ``actuator_description``;
+* ``actuator_prefix`` (joint names ``<prefix>_1..6``, unique among models),
+  ``actuator_description`` and ``actuator_unit`` (the SI unit of the readings:
+  'm' for sliders and legs, the default, 'rad' for motors turning cranks);
 * ``physical_checks``: declarative checks naming fields (``PositiveField``,
-  ``UnitVectorXY``) that every parameters file and message must pass.
+  ``UnitVectorXY``, ``FieldBelow``) that every parameters file and message must pass.
 
 In the core (a subclass of ``Architecture`` and one of ``KinematicParameters``
 whose ``architecture`` is the instance):
