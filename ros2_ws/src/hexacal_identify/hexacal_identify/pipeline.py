@@ -22,6 +22,7 @@ a bag without one is read by the contract's topics and joints, as always.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from math import isfinite as _isfinite
 from pathlib import Path
 from typing import Sequence
 
@@ -913,6 +914,9 @@ def _redetect(
         ),
         ENCODER_TOPIC: lambda m: (joint_state_to_encoder_reading(m, mapping).phi,),
     }
+    # Without a mapping, the joints' places are learnt from the first message of each name list
+    # the full conversion reads: the messages after it with that name list are read in place.
+    known = _KnownJoints() if mapping is None else None
     inputs_of: dict[str, list[str]] = {}
     for input_topic in RAW_TOPICS:
         inputs_of.setdefault(topics[input_topic], []).append(input_topic)
@@ -931,11 +935,15 @@ def _redetect(
             continue
         stamp = None
         for key in inputs:
-            try:
-                value = convert[key](decoded)
-            except InvalidReadingError:
-                invalid += 1  # a bad reading is skipped; the synchroniser pairs around the gap
-                continue
+            value = None if known is None or imu else known.values(key, decoded)
+            if value is None:
+                try:
+                    value = convert[key](decoded)
+                except InvalidReadingError:
+                    invalid += 1  # a bad reading is skipped; the synchroniser pairs around the gap
+                    continue
+                if known is not None and not imu:
+                    known.learn(key, decoded, models)
             if stamp is None:
                 stamp = decoded.header.stamp.sec * 1_000_000_000 + decoded.header.stamp.nanosec
             stamps, values = streams[key]
@@ -987,6 +995,58 @@ def _redetect(
     )
     readings = [d.reading for d in detect_postures(stamps, values, **detector_options)]
     return _with_turns(readings, inclinometer_stamps, inclinometer[:, 2]), invalid
+
+
+class _KnownJoints:
+    """
+    Read the raw inputs' joints in place from messages whose name list was converted before.
+
+    The same values as the contract's conversions (hexacal_msgs_py.conversions, no input
+    mapping) for a message whose joint names equal those of one they converted: the positions at
+    the same places, finite (and a device turn within its range), else None and the conversion
+    decides (and names the problem).
+    """
+
+    def __init__(self) -> None:
+        from hexacal_msgs_py.names import MAX_DEVICE_TURN
+
+        self._max_turn = MAX_DEVICE_TURN
+        self._places: dict[str, tuple[list[str], tuple[int, ...], int | None]] = {}
+
+    def learn(self, key: str, decoded, models: set[str]) -> None:
+        from hexacal_msgs_py.models import MODELS as LAYOUTS
+        from hexacal_msgs_py.names import DEVICE_TURN_JOINT, ENCODER_NAMES, INCLINOMETER_NAMES
+
+        names = list(decoded.name)
+        if key == SLIDERS_TOPIC:
+            carried = [m for m in models if all(n in names for n in LAYOUTS[m].actuator_names)]
+            if len(carried) != 1:
+                return
+            joints = LAYOUTS[carried[0]].actuator_names
+        else:
+            joints = INCLINOMETER_NAMES if key == INCLINOMETER_TOPIC else ENCODER_NAMES
+        turn = None
+        if key == INCLINOMETER_TOPIC and DEVICE_TURN_JOINT in names:
+            turn = names.index(DEVICE_TURN_JOINT)
+        self._places[key] = (names, tuple(names.index(n) for n in joints), turn)
+
+    def values(self, key: str, decoded) -> tuple[float, ...] | None:
+        places = self._places.get(key)
+        if places is None:
+            return None
+        names, indexes, turn = places
+        position = decoded.position
+        if len(position) != len(names) or decoded.name != names:
+            return None
+        values = tuple([float(position[i]) for i in indexes])
+        if not all(map(_isfinite, values)):
+            return None
+        if key != INCLINOMETER_TOPIC:
+            return values
+        device_turn = 0.0 if turn is None else float(position[turn])
+        if not abs(device_turn) <= self._max_turn:
+            return None
+        return (*values, device_turn)
 
 
 def _link_stream(reader, topic: str) -> tuple[tuple[np.ndarray, np.ndarray], int]:
