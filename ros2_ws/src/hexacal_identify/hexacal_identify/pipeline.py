@@ -45,6 +45,7 @@ import numpy as np
 from .bag.measuring import MEASURING_METADATA, MeasuringRecord
 from .bag.naming import COLLECTOR_METADATA  # the collector's record: model, detector, mapping
 from .core.architectures import KinematicParameters, parameters_for
+from .core.detection import detector_problem
 from .core.device import (
     check_mount,
     DEFAULT_MOUNT,
@@ -463,8 +464,6 @@ def _topic_key(topic: str) -> str:
 # Where postures come from: the posture topic if the bag has one, else the raw inputs ("auto");
 # only the posture topic; or always re-detected from the raw inputs.
 POSTURE_SOURCES = ('auto', 'posture', 'raw')
-# Re-detection's detectors: the settled-streams detector (default) and the old window one.
-DETECTORS = ('settled', 'window')
 # The collector's detector settings in its metadata record: re-detection uses them.
 _DETECTOR_SETTINGS = (
     'window_s',
@@ -489,7 +488,7 @@ def postures_from_bag(
     Re-detection uses the detector settings the collector recorded (``hexacal.collector``;
     the detector's defaults where none), ``detector_options`` override them (window_s,
     capture_s, slider_tolerance_m, angle_tolerance_rad, max_gap_s, max_skew_s; ``detector``
-    'settled' (default) or 'window', ``inclinometer_clock_offset_s``/``encoder_clock_offset_s``
+    'settled', the only one, ``inclinometer_clock_offset_s``/``encoder_clock_offset_s``
     (s; None: estimated, or the collector's when it was told them), see `_redetect`).
 
     The raw inputs are the contract's topics (hexacal/sliders, hexacal/inclinometer,
@@ -874,19 +873,15 @@ def _redetect(
     Inputs that share a topic (one /joint_states) are read from each of its messages once;
     a reading that is not valid counts once in the returned number of invalid readings.
     ``detector``: 'settled' (core.dwell_detector, each stream judged on its own readings,
-    postures with their scatter; a clock offset given is used, None: estimated) or 'window'
-    (the paired StreamSynchronizer + PostureDetector of before, for comparison).
+    postures with their scatter; a clock offset given is used, None: estimated), the only one
+    (ValueError naming it for another, e.g. the removed 'window'). ``max_skew_s``: the
+    collector's pairing setting, recorded with the others; the detector does not pair.
     ``link_topic``: the recorded lvdt link length stream (hexacal/link), one more stream of the
-    settled detector (the postures get their link_length); the window detector refuses it.
+    detector (the postures get their link_length).
     """
-    if detector not in DETECTORS:
-        raise ValueError(f'detector must be one of {", ".join(DETECTORS)}, got {detector!r}')
-    if link_topic is not None and detector != 'settled':
-        # Postures without their L_m would be calibrated against the nominal L: millimetres off.
-        raise InvalidMeasurementError(
-            f'the bag records the measured link length ({link_topic}), which only the settled '
-            f'detector reads; re-detect with it, not {detector!r}'
-        )
+    problem = detector_problem(detector)
+    if problem is not None:
+        raise ValueError(problem)
     from hexacal_msgs_py.conversions import (
         imu_to_inclinometer_reading,
         joint_state_to_actuator_reading,
@@ -896,8 +891,7 @@ def _redetect(
     from hexacal_msgs_py.errors import InvalidReadingError
 
     from .bag import BagDecodeError
-    from .core.dwell_detector import LINK_STREAM
-    from .core.posture_detector import detect_postures, synchronize_arrays
+    from .core.dwell_detector import detect_dwell_postures, LINK_STREAM
 
     imu = mapping is not None and mapping.inclinometer_type == IMU_INCLINOMETER
     streams: dict[str, tuple[list[int], list]] = {t: ([], []) for t in RAW_TOPICS}
@@ -957,44 +951,29 @@ def _redetect(
     # to synchronise.
     inclinometer_stamps, inclinometer = arrays[1]
     inclinometer = inclinometer.reshape(-1, 3)
-    if detector == 'settled':
-        from .core.dwell_detector import detect_dwell_postures
-
-        given = {'inclinometer': inclinometer_clock_offset_s, 'encoder': encoder_clock_offset_s}
-        streams_in = {
-            'sliders': arrays[0],
-            'inclinometer': (inclinometer_stamps, inclinometer[:, :2]),
-            'encoder': arrays[2],
-        }
-        if link_topic is not None:
-            link, bad = _link_stream(reader, link_topic)
-            invalid += bad
-            if len(link[0]):
-                streams_in[LINK_STREAM] = link
-        found, dwell = detect_dwell_postures(
-            streams_in,
-            clock_offsets_s={k: v for k, v in given.items() if v is not None},
-            estimate_offsets=tuple(k for k, v in given.items() if v is None),
-            **detector_options,
-        )
-        if notes is not None:
-            notes.extend(unsettled_notes(dwell.unsettled))
-        # The turn of the inclinometer message at the posture's time, in the inclinometer's clock.
-        shift = int(round(dwell.offsets_s['inclinometer'] * 1_000_000_000))
-        readings = [d.reading for d in found]
-        return _with_turns(readings, inclinometer_stamps - shift, inclinometer[:, 2]), invalid
-    skew = {} if max_skew_s is None else {'max_skew_ns': int(max_skew_s * 1_000_000_000)}
-    stamps, values = synchronize_arrays(
-        arrays[0][0],
-        arrays[0][1],
-        inclinometer_stamps,
-        inclinometer[:, :2],
-        arrays[2][0],
-        arrays[2][1],
-        **skew,
+    given = {'inclinometer': inclinometer_clock_offset_s, 'encoder': encoder_clock_offset_s}
+    streams_in = {
+        'sliders': arrays[0],
+        'inclinometer': (inclinometer_stamps, inclinometer[:, :2]),
+        'encoder': arrays[2],
+    }
+    if link_topic is not None:
+        link, bad = _link_stream(reader, link_topic)
+        invalid += bad
+        if len(link[0]):
+            streams_in[LINK_STREAM] = link
+    found, dwell = detect_dwell_postures(
+        streams_in,
+        clock_offsets_s={k: v for k, v in given.items() if v is not None},
+        estimate_offsets=tuple(k for k, v in given.items() if v is None),
+        **detector_options,
     )
-    readings = [d.reading for d in detect_postures(stamps, values, **detector_options)]
-    return _with_turns(readings, inclinometer_stamps, inclinometer[:, 2]), invalid
+    if notes is not None:
+        notes.extend(unsettled_notes(dwell.unsettled))
+    # The turn of the inclinometer message at the posture's time, in the inclinometer's clock.
+    shift = int(round(dwell.offsets_s['inclinometer'] * 1_000_000_000))
+    readings = [d.reading for d in found]
+    return _with_turns(readings, inclinometer_stamps - shift, inclinometer[:, 2]), invalid
 
 
 class _KnownJoints:

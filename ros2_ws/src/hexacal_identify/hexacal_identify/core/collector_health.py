@@ -17,7 +17,8 @@ from enum import StrEnum
 from hexacal_msgs_py.readings import NS_PER_S
 
 from .dwell_detector import DwellDetector
-from .posture_detector import DropReason, PostureDetector, StreamSynchronizer
+from .detection import DropReason
+from .stream_synchronizer import StreamSynchronizer
 
 
 class Outcome(StrEnum):
@@ -114,7 +115,7 @@ class InputCounters:
 def problems(
     counters: InputCounters,
     synchronizer: StreamSynchronizer,
-    detector: PostureDetector | DwellDetector,
+    detector: DwellDetector,
     stopped_streams: tuple[str, ...],
     recording_error: str | None,
 ) -> dict[str, object]:
@@ -204,7 +205,7 @@ def summary(
     postures_published: int,
     counters: InputCounters,
     synchronizer: StreamSynchronizer,
-    detector: PostureDetector | DwellDetector,
+    detector: DwellDetector,
 ) -> str:
     """Return the collector's closing summary line."""
     rejected = {stream: reasons for stream, reasons in synchronizer.rejected.items() if reasons}

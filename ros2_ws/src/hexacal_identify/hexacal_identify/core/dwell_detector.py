@@ -58,7 +58,7 @@ from numpy.typing import ArrayLike
 
 from . import robust_stats as robust
 from .clock_offset import departure_ns, OffsetEstimator
-from .posture_detector import (
+from .detection import (
     check_detector_settings,
     DetectedPosture,
     DetectorState,
@@ -75,7 +75,7 @@ from .stream_lane import Judgement, StreamLane
 STREAM_WIDTHS = {Stream.SLIDERS: N_CHAINS, Stream.INCLINOMETER: 2, Stream.ENCODER: 1}
 REFERENCE = Stream.SLIDERS  # offsets are against the actuator stream's clock
 # The optional fourth stream: the link length an LVDT measures (m), published with the
-# actuators' stamps.  Not a Stream (the window detector's synchronizer pairs three streams).
+# actuators' stamps.  Not a Stream (the collector's synchronizer pairs three streams).
 LINK_STREAM = 'link'
 BLOCKS_PER_WINDOW = stream_lane.BLOCKS_PER_WINDOW
 # Levels differ significantly beyond 4 standard errors: with 9 channels judged at every block,
