@@ -64,6 +64,7 @@ def _run(arguments: list[str], root: Path | None) -> tuple[float, str]:
 
 
 def make_recording(directory: Path, postures: int) -> tuple[Path, int]:
+    """Write the raw recording (every sensor effect) into `directory`; return it and its size."""
     sys.path[:0] = [str(REPO / 'ros2_ws' / 'src' / package) for package in PACKAGES]
     from hexacal_driver.recording import simulate_recording, write_recording_bag
 
@@ -74,6 +75,7 @@ def make_recording(directory: Path, postures: int) -> tuple[Path, int]:
 
 
 def message_count(bag: Path) -> int:
+    """Return the number of messages of a bag."""
     sys.path[:0] = [str(REPO / 'ros2_ws' / 'src' / package) for package in PACKAGES]
     from hexacal_identify.bag import open_bag
 
@@ -81,6 +83,7 @@ def message_count(bag: Path) -> int:
 
 
 def main() -> int:
+    """Measure before and after; print the comparison."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     parser.add_argument('--bag', type=Path, help='a raw recording (default: made here)')
     parser.add_argument('--postures', type=int, default=50)

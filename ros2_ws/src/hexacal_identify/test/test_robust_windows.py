@@ -52,8 +52,9 @@ def test_each_window_is_computed_as_alone(channels):
         assert np.allclose(means.std[row], mean.std, rtol=1e-12, atol=1e-20)
         if len(part) >= 2:
             half = len(part) // 2
-            first = robust.windows_mean(padded[row:row + 1, :half], valid[row:row + 1, :half],
-                                        floor[row:row + 1])
+            first = robust.windows_mean(
+                padded[row:row + 1, :half], valid[row:row + 1, :half], floor[row:row + 1]
+            )
             second_values = part[half:]
             second = robust.windows_mean(
                 second_values[None], np.ones((1, len(second_values)), dtype=bool),
@@ -71,6 +72,7 @@ def test_a_window_does_not_depend_on_the_windows_beside_it():
         floor = robust.windows_quantum(padded, valid)
         together = robust.windows_mean(padded, valid, floor)
         for row in range(len(parts)):
-            alone = robust.windows_mean(padded[row:row + 1], valid[row:row + 1], floor[row:row + 1])
+            one = slice(row, row + 1)
+            alone = robust.windows_mean(padded[one], valid[one], floor[one])
             assert np.array_equal(alone.mean[0], together.mean[row])  # bit for bit
             assert np.array_equal(alone.std[0], together.std[row])

@@ -12,7 +12,6 @@ from hexacal_identify.core.detection import (
 from hexacal_identify.core.stream_synchronizer import StreamSynchronizer
 from hexacal_msgs_py.readings import ActuatorReading, EncoderReading, InclinometerReading
 import numpy as np
-import pytest
 
 NOISE = 20e-6  # uniform +-20 um on sliders, +-20 urad on angles
 NOISE_STD = NOISE / np.sqrt(3.0)

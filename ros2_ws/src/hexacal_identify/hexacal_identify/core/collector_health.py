@@ -16,8 +16,8 @@ from enum import StrEnum
 
 from hexacal_msgs_py.readings import NS_PER_S
 
-from .dwell_detector import DwellDetector
 from .detection import DropReason
+from .dwell_detector import DwellDetector
 from .stream_synchronizer import StreamSynchronizer
 
 

@@ -149,7 +149,6 @@ class DetectorState(StrEnum):
     CAPTURED = 'captured'  # posture emitted; waiting for motion
 
 
-
 def check_detector_settings(durations: dict[str, float], tolerances: tuple[float, ...]) -> None:
     """
     Raise ValueError unless every duration (or rate) and every tolerance is > 0 (not NaN).
@@ -161,5 +160,3 @@ def check_detector_settings(durations: dict[str, float], tolerances: tuple[float
         raise ValueError(f'{", ".join(first)} and {last} must be > 0')
     if not all(tolerance > 0 for tolerance in tolerances):
         raise ValueError('tolerances must be > 0')
-
-

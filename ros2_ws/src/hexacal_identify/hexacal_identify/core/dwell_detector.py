@@ -57,6 +57,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import robust_stats as robust
+from . import stream_lane
 from .clock_offset import departure_ns, OffsetEstimator
 from .detection import (
     check_detector_settings,
@@ -68,7 +69,6 @@ from .detection import (
     RejectReason,
     Stream,
 )
-from . import stream_lane
 from .stream_lane import Judgement, StreamLane
 
 # Channels of each stream, in POSTURE_NAMES order.

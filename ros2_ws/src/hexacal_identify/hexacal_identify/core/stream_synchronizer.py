@@ -24,8 +24,6 @@ from hexacal_msgs_py.readings import (
 from .detection import RejectReason, Stream, UnpairedReason
 
 
-
-
 @dataclass(frozen=True)
 class StreamStatus:
     """Health of one input stream."""
@@ -212,4 +210,3 @@ class StreamSynchronizer:
 
 def _readings(samples: list[tuple[int, tuple[float, ...]]]) -> list[PostureReading]:
     return [PostureReading.from_values(stamp, values) for stamp, values in samples]
-

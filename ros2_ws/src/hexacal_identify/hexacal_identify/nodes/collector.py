@@ -4,10 +4,10 @@ Node `collector`: turn the three sensor streams into postures, and record everyt
 Subscribes the inputs hexacal/sliders, hexacal/inclinometer, hexacal/encoder (remappable,
 e.g. all to /joint_states; Imu inclinometer) as raw CDR, judges each stream on its own
 readings (the settled detector), publishes one averaged posture per dwell on hexacal/posture,
-records a rosbag2 MCAP bag and reports its problems on hexacal/calibration_status.  Where the machine measures its link
-(lvdt mode) hexacal/link is recorded and is one more stream of the settled detector (the
-postures carry link_length); the driver's status gives the measuring mode and released
-actuator, recorded as the bag's hexacal.measuring record. Full reference: docs/nodes.md.
+records a rosbag2 MCAP bag and reports its problems on hexacal/calibration_status.  Where the
+machine measures its link (lvdt mode) hexacal/link is recorded and is one more stream of the
+detector (the postures carry link_length); the driver's status gives the measuring mode and
+released actuator, recorded as the bag's hexacal.measuring record. Full reference: docs/nodes.md.
 """
 
 from __future__ import annotations
@@ -51,8 +51,8 @@ from ..bag.qos_yaml import qos_profiles_yaml
 from ..bag.recording import Recording
 from ..core import collector_health as health
 from ..core import detection
-from ..core.stream_synchronizer import StreamSynchronizer
 from ..core.dwell_detector import DwellDetector, LINK_STREAM
+from ..core.stream_synchronizer import StreamSynchronizer
 from ..core.turn_history import TurnHistory
 
 NODE_NAME = 'collector'

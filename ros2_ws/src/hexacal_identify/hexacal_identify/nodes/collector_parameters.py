@@ -26,7 +26,7 @@ from .collector_inputs import RAW_TOPICS
 from .input_parameters import declare_mapping_parameters, INCLINOMETER_READING_PARAMETERS
 from .parameters import parameter_descriptor, ParameterSpec
 from ..bag.naming import bag_name_problem
-from ..core.detection import DETECTORS, detector_problem
+from ..core.detection import detector_problem, DETECTORS
 from ..core.turn_history import turn_problem
 
 MODEL_CHOICES = ('', *MODELS)
