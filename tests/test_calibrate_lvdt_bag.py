@@ -95,12 +95,13 @@ def test_redetection_reads_the_recorded_link_stream(bags, nominal_file, tmp_path
     assert result['bag']['postures_with_link_length'] == POSTURES
     assert '/hexacal/link' not in result['bag']['ignored_topics']
     assert errors['position_mean_m'] < 20e-6, errors
-    # The window detector does not read the link: refused, not calibrated against L.
+    # The removed window detector (it did not read the link) is refused, naming its successor.
     refused = hexacal(
         'calibrate', bags['raw'], '--nominal', nominal_file, '--output', tmp_path / 'w.yaml',
         '--detector', 'window',
     )
-    assert refused.returncode != 0 and 'only the settled detector' in refused.stderr
+    assert refused.returncode == 2 and "use 'settled'" in refused.stderr
+    assert not (tmp_path / 'w.yaml').exists()
 
 
 def test_text_output_and_bag_info_name_the_mode(bags, nominal_file, tmp_path):

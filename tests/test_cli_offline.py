@@ -79,7 +79,7 @@ def test_raw_streams_only_are_redetected_and_foreign_topics_ignored(
     assert np.max(np.abs(load_parameters(tmp_path / 'out.yaml') - TRUE.vector)) < 5e-4
 
 
-def test_redetection_detectors_agree_on_ideal_streams_and_the_new_one_gives_scatter(
+def test_redetection_gives_scatter_and_refuses_the_removed_window_detector(
     exact_postures, nominal_file, tmp_path
 ):
     from hexacal_identify.pipeline import postures_from_bag
@@ -89,10 +89,10 @@ def test_redetection_detectors_agree_on_ideal_streams_and_the_new_one_gives_scat
         [exact_postures.actuator_positions, exact_postures.inclinometer, exact_postures.rotary]
     )
     settled = postures_from_bag(bag).postures
-    window = postures_from_bag(bag, detector='window').postures
-    assert len(settled) == len(window) == 40
+    assert len(settled) == 40
     assert all(new.scatter is not None for new in settled)
-    assert all(old.scatter is None for old in window)
+    with pytest.raises(ValueError, match="'window' was removed in hexacal 0.2.0: use 'settled'"):
+        postures_from_bag(bag, detector='window')
     # (The recording opens with 0.6 s of the first posture without noise: from the second on.)
     for new, exact in zip(settled[1:], truth[1:]):
         errors = np.array(new.scatter.standard_errors)
@@ -101,10 +101,16 @@ def test_redetection_detectors_agree_on_ideal_streams_and_the_new_one_gives_scat
         assert np.all(np.abs(np.array(new.values()) - exact) < 5 * errors)
     completed = hexacal(
         'calibrate', bag, '--nominal', nominal_file, '--output', tmp_path / 'out.yaml',
-        '--json', '--detector', 'window', '--clock-offset', 'inclinometer=0.0',
+        '--json', '--detector', 'settled', '--clock-offset', 'inclinometer=0.0',
     )
     assert completed.returncode == 0, completed.stderr
     assert json.loads(completed.stdout)['bag']['postures'] == 40
+    removed = hexacal(
+        'calibrate', bag, '--nominal', nominal_file, '--output', tmp_path / 'out.yaml',
+        '--detector', 'window',
+    )
+    assert removed.returncode == 2
+    assert "detector 'window' was removed in hexacal 0.2.0: use 'settled'" in removed.stderr
     refused = hexacal(
         'calibrate', bag, '--nominal', nominal_file, '--output', tmp_path / 'out.yaml',
         '--clock-offset', 'sliders=0.1',

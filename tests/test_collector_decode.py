@@ -55,14 +55,12 @@ def _positions(seed: float) -> list[float]:
     return [seed + 0.01 * i for i in range(len(BROADCASTER_NAMES))]
 
 
-@pytest.mark.parametrize('detector', ['settled', 'window'])
-def test_the_collector_reads_one_joint_states_for_its_three_inputs_once_each(detector):
+def test_the_collector_reads_one_joint_states_for_its_three_inputs_once_each():
     """
     Read all three inputs remapped to one topic, each reading once per message.
 
-    One subscription, the in-place reader learned from the first message, the
-    synchronizer pairing them exactly (window detector) or taking each stream as it is
-    (settled detector).
+    One subscription, the in-place reader learned from the first message, the detector taking
+    each stream as it is.
     """
     from hexacal_identify.nodes.collector import CollectorNode
     from hexacal_msgs_py.names import ENCODER_TOPIC, INCLINOMETER_TOPIC, SLIDERS_TOPIC
@@ -74,7 +72,7 @@ def test_the_collector_reads_one_joint_states_for_its_three_inputs_once_each(det
             '-p',
             'record:=false',
             '-p',
-            f'detector:={detector}',
+            'detector:=settled',
             '-p',
             'window_s:=0.2',
             '-p',
@@ -133,11 +131,8 @@ def test_the_collector_reads_one_joint_states_for_its_three_inputs_once_each(det
         }
         assert node.counters.invalid == {} and node.synchronizer.unpaired == {}
         (posture,) = published
-        # The settled detector sends the posture's scatter (noise-free: 0, 30 readings each).
-        if detector == 'settled':
-            assert list(posture.velocity) == [0.0] * 9 and list(posture.effort) == [30.0] * 9
-        else:
-            assert list(posture.velocity) == [] and list(posture.effort) == []
+        # The detector sends the posture's scatter (noise-free: 0, 30 readings each).
+        assert list(posture.velocity) == [0.0] * 9 and list(posture.effort) == [30.0] * 9
         value = dict(zip(BROADCASTER_NAMES, positions))
         assert list(posture.name) == [f'slider_{i}' for i in range(1, 7)] + [
             'inclinometer_x',
@@ -152,4 +147,20 @@ def test_the_collector_reads_one_joint_states_for_its_three_inputs_once_each(det
     finally:
         if node is not None:
             node.destroy_node()
+        rclpy.shutdown()
+
+
+def test_the_collector_refuses_the_removed_window_detector_naming_settled():
+    from hexacal_identify.nodes.collector import CollectorNode
+    import rclpy
+    from rclpy.exceptions import InvalidParameterValueException
+
+    rclpy.init(args=['--ros-args', '-p', 'record:=false', '-p', 'detector:=window'])
+    try:
+        with pytest.raises(InvalidParameterValueException) as refused:
+            CollectorNode().destroy_node()
+        assert "detector 'window' was removed in hexacal 0.2.0: use 'settled'" in str(
+            refused.value
+        )
+    finally:
         rclpy.shutdown()

@@ -27,9 +27,9 @@ from hexacal_driver.simulation import (
     SETTLING,
     smooth_step,
 )
+from hexacal_identify.core.dwell_detector import detect_dwell_postures
 from hexacal_identify.core.measurements import FIXED, NoiseModel, simulate_measurements, SPHERE
 from hexacal_identify.core.model import nominal_set, table1_parameters
-from hexacal_identify.core.posture_detector import PostureDetector
 from hexacal_identify.pipeline import calibrate
 import numpy as np
 import pytest
@@ -179,8 +179,14 @@ def test_walked_plan_gives_postures_that_calibrate_the_machine():
     for t in times:
         reading = sensors.read(walker.sample(t))
         values.append([*reading.actuators_m, reading.alpha_rad, reading.beta_rad, reading.phi_rad])
-    detector = PostureDetector()
-    postures = detector.update((times * 1e9).astype(np.int64), np.array(values))
+    stamps, values = (times * 1e9).astype(np.int64), np.array(values)
+    postures, detector = detect_dwell_postures(
+        {
+            'sliders': (stamps, values[:, :6]),
+            'inclinometer': (stamps, values[:, 6:8]),
+            'encoder': (stamps, values[:, 8:]),
+        }
+    )
     assert len(postures) == len(plan), detector.dropped
     exact = simulate_measurements(TRUE, plan.poses, np.array(plan.kinds))
     measured = np.array([p.values for p in postures])

@@ -22,6 +22,7 @@ a bag without one is read by the contract's topics and joints, as always.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from math import isfinite as _isfinite
 from pathlib import Path
 from typing import Sequence
 
@@ -45,6 +46,7 @@ from .bag.measuring import MEASURING_METADATA, MeasuringRecord
 from .bag.naming import COLLECTOR_METADATA  # the collector's record: model, detector, mapping
 from .core.architectures import KinematicParameters, parameters_for
 from .core.compliance import ComplianceModel
+from .core.detection import detector_problem
 from .core.device import (
     check_mount,
     DEFAULT_MOUNT,
@@ -475,8 +477,6 @@ def _topic_key(topic: str) -> str:
 # Where postures come from: the posture topic if the bag has one, else the raw inputs ("auto");
 # only the posture topic; or always re-detected from the raw inputs.
 POSTURE_SOURCES = ('auto', 'posture', 'raw')
-# Re-detection's detectors: the settled-streams detector (default) and the old window one.
-DETECTORS = ('settled', 'window')
 # The collector's detector settings in its metadata record: re-detection uses them.
 _DETECTOR_SETTINGS = (
     'window_s',
@@ -501,7 +501,7 @@ def postures_from_bag(
     Re-detection uses the detector settings the collector recorded (``hexacal.collector``;
     the detector's defaults where none), ``detector_options`` override them (window_s,
     capture_s, slider_tolerance_m, angle_tolerance_rad, max_gap_s, max_skew_s; ``detector``
-    'settled' (default) or 'window', ``inclinometer_clock_offset_s``/``encoder_clock_offset_s``
+    'settled', the only one, ``inclinometer_clock_offset_s``/``encoder_clock_offset_s``
     (s; None: estimated, or the collector's when it was told them), see `_redetect`).
 
     The raw inputs are the contract's topics (hexacal/sliders, hexacal/inclinometer,
@@ -886,19 +886,15 @@ def _redetect(
     Inputs that share a topic (one /joint_states) are read from each of its messages once;
     a reading that is not valid counts once in the returned number of invalid readings.
     ``detector``: 'settled' (core.dwell_detector, each stream judged on its own readings,
-    postures with their scatter; a clock offset given is used, None: estimated) or 'window'
-    (the paired StreamSynchronizer + PostureDetector of before, for comparison).
+    postures with their scatter; a clock offset given is used, None: estimated), the only one
+    (ValueError naming it for another, e.g. the removed 'window'). ``max_skew_s``: the
+    collector's pairing setting, recorded with the others; the detector does not pair.
     ``link_topic``: the recorded lvdt link length stream (hexacal/link), one more stream of the
-    settled detector (the postures get their link_length); the window detector refuses it.
+    detector (the postures get their link_length).
     """
-    if detector not in DETECTORS:
-        raise ValueError(f'detector must be one of {", ".join(DETECTORS)}, got {detector!r}')
-    if link_topic is not None and detector != 'settled':
-        # Postures without their L_m would be calibrated against the nominal L: millimetres off.
-        raise InvalidMeasurementError(
-            f'the bag records the measured link length ({link_topic}), which only the settled '
-            f'detector reads; re-detect with it, not {detector!r}'
-        )
+    problem = detector_problem(detector)
+    if problem is not None:
+        raise ValueError(problem)
     from hexacal_msgs_py.conversions import (
         imu_to_inclinometer_reading,
         joint_state_to_actuator_reading,
@@ -908,8 +904,7 @@ def _redetect(
     from hexacal_msgs_py.errors import InvalidReadingError
 
     from .bag import BagDecodeError
-    from .core.dwell_detector import LINK_STREAM
-    from .core.posture_detector import detect_postures, synchronize_arrays
+    from .core.dwell_detector import detect_dwell_postures, LINK_STREAM
 
     imu = mapping is not None and mapping.inclinometer_type == IMU_INCLINOMETER
     streams: dict[str, tuple[list[int], list]] = {t: ([], []) for t in RAW_TOPICS}
@@ -926,6 +921,9 @@ def _redetect(
         ),
         ENCODER_TOPIC: lambda m: (joint_state_to_encoder_reading(m, mapping).phi,),
     }
+    # Without a mapping, the joints' places are learnt from the first message of each name list
+    # the full conversion reads: the messages after it with that name list are read in place.
+    known = _KnownJoints() if mapping is None else None
     inputs_of: dict[str, list[str]] = {}
     for input_topic in RAW_TOPICS:
         inputs_of.setdefault(topics[input_topic], []).append(input_topic)
@@ -944,11 +942,15 @@ def _redetect(
             continue
         stamp = None
         for key in inputs:
-            try:
-                value = convert[key](decoded)
-            except InvalidReadingError:
-                invalid += 1  # a bad reading is skipped; the synchroniser pairs around the gap
-                continue
+            value = None if known is None or imu else known.values(key, decoded)
+            if value is None:
+                try:
+                    value = convert[key](decoded)
+                except InvalidReadingError:
+                    invalid += 1  # a bad reading is skipped; the synchroniser pairs around the gap
+                    continue
+                if known is not None and not imu:
+                    known.learn(key, decoded, models)
             if stamp is None:
                 stamp = decoded.header.stamp.sec * 1_000_000_000 + decoded.header.stamp.nanosec
             stamps, values = streams[key]
@@ -962,44 +964,81 @@ def _redetect(
     # to synchronise.
     inclinometer_stamps, inclinometer = arrays[1]
     inclinometer = inclinometer.reshape(-1, 3)
-    if detector == 'settled':
-        from .core.dwell_detector import detect_dwell_postures
-
-        given = {'inclinometer': inclinometer_clock_offset_s, 'encoder': encoder_clock_offset_s}
-        streams_in = {
-            'sliders': arrays[0],
-            'inclinometer': (inclinometer_stamps, inclinometer[:, :2]),
-            'encoder': arrays[2],
-        }
-        if link_topic is not None:
-            link, bad = _link_stream(reader, link_topic)
-            invalid += bad
-            if len(link[0]):
-                streams_in[LINK_STREAM] = link
-        found, dwell = detect_dwell_postures(
-            streams_in,
-            clock_offsets_s={k: v for k, v in given.items() if v is not None},
-            estimate_offsets=tuple(k for k, v in given.items() if v is None),
-            **detector_options,
-        )
-        if notes is not None:
-            notes.extend(unsettled_notes(dwell.unsettled))
-        # The turn of the inclinometer message at the posture's time, in the inclinometer's clock.
-        shift = int(round(dwell.offsets_s['inclinometer'] * 1_000_000_000))
-        readings = [d.reading for d in found]
-        return _with_turns(readings, inclinometer_stamps - shift, inclinometer[:, 2]), invalid
-    skew = {} if max_skew_s is None else {'max_skew_ns': int(max_skew_s * 1_000_000_000)}
-    stamps, values = synchronize_arrays(
-        arrays[0][0],
-        arrays[0][1],
-        inclinometer_stamps,
-        inclinometer[:, :2],
-        arrays[2][0],
-        arrays[2][1],
-        **skew,
+    given = {'inclinometer': inclinometer_clock_offset_s, 'encoder': encoder_clock_offset_s}
+    streams_in = {
+        'sliders': arrays[0],
+        'inclinometer': (inclinometer_stamps, inclinometer[:, :2]),
+        'encoder': arrays[2],
+    }
+    if link_topic is not None:
+        link, bad = _link_stream(reader, link_topic)
+        invalid += bad
+        if len(link[0]):
+            streams_in[LINK_STREAM] = link
+    found, dwell = detect_dwell_postures(
+        streams_in,
+        clock_offsets_s={k: v for k, v in given.items() if v is not None},
+        estimate_offsets=tuple(k for k, v in given.items() if v is None),
+        **detector_options,
     )
-    readings = [d.reading for d in detect_postures(stamps, values, **detector_options)]
-    return _with_turns(readings, inclinometer_stamps, inclinometer[:, 2]), invalid
+    if notes is not None:
+        notes.extend(unsettled_notes(dwell.unsettled))
+    # The turn of the inclinometer message at the posture's time, in the inclinometer's clock.
+    shift = int(round(dwell.offsets_s['inclinometer'] * 1_000_000_000))
+    readings = [d.reading for d in found]
+    return _with_turns(readings, inclinometer_stamps - shift, inclinometer[:, 2]), invalid
+
+
+class _KnownJoints:
+    """
+    Read the raw inputs' joints in place from messages whose name list was converted before.
+
+    The same values as the contract's conversions (hexacal_msgs_py.conversions, no input
+    mapping) for a message whose joint names equal those of one they converted: the positions at
+    the same places, finite (and a device turn within its range), else None and the conversion
+    decides (and names the problem).
+    """
+
+    def __init__(self) -> None:
+        from hexacal_msgs_py.names import MAX_DEVICE_TURN
+
+        self._max_turn = MAX_DEVICE_TURN
+        self._places: dict[str, tuple[list[str], tuple[int, ...], int | None]] = {}
+
+    def learn(self, key: str, decoded, models: set[str]) -> None:
+        from hexacal_msgs_py.models import MODELS as LAYOUTS
+        from hexacal_msgs_py.names import DEVICE_TURN_JOINT, ENCODER_NAMES, INCLINOMETER_NAMES
+
+        names = list(decoded.name)
+        if key == SLIDERS_TOPIC:
+            carried = [m for m in models if all(n in names for n in LAYOUTS[m].actuator_names)]
+            if len(carried) != 1:
+                return
+            joints = LAYOUTS[carried[0]].actuator_names
+        else:
+            joints = INCLINOMETER_NAMES if key == INCLINOMETER_TOPIC else ENCODER_NAMES
+        turn = None
+        if key == INCLINOMETER_TOPIC and DEVICE_TURN_JOINT in names:
+            turn = names.index(DEVICE_TURN_JOINT)
+        self._places[key] = (names, tuple(names.index(n) for n in joints), turn)
+
+    def values(self, key: str, decoded) -> tuple[float, ...] | None:
+        places = self._places.get(key)
+        if places is None:
+            return None
+        names, indexes, turn = places
+        position = decoded.position
+        if len(position) != len(names) or decoded.name != names:
+            return None
+        values = tuple([float(position[i]) for i in indexes])
+        if not all(map(_isfinite, values)):
+            return None
+        if key != INCLINOMETER_TOPIC:
+            return values
+        device_turn = 0.0 if turn is None else float(position[turn])
+        if not abs(device_turn) <= self._max_turn:
+            return None
+        return (*values, device_turn)
 
 
 def _link_stream(reader, topic: str) -> tuple[tuple[np.ndarray, np.ndarray], int]:

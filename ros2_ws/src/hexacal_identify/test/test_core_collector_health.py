@@ -9,11 +9,9 @@ from hexacal_identify.core.collector_health import (
     silent_streams,
     summary,
 )
-from hexacal_identify.core.posture_detector import (
-    DROPPED_FOR_STREAM_STOP,
-    PostureDetector,
-    StreamSynchronizer,
-)
+from hexacal_identify.core.detection import DROPPED_FOR_STREAM_STOP
+from hexacal_identify.core.dwell_detector import DwellDetector
+from hexacal_identify.core.stream_synchronizer import StreamSynchronizer
 
 S = 1_000_000_000
 TOPICS = ('hexacal/sliders', 'hexacal/inclinometer', 'hexacal/encoder')
@@ -41,7 +39,7 @@ def test_problems_are_keyed_by_kind_stream_and_reason():
     synchronizer = StreamSynchronizer()
     synchronizer.add_values('sliders', 5, (0.0,) * 6)
     synchronizer.add_values('sliders', 5, (0.0,) * 6)  # a repeated stamp
-    detector = PostureDetector()
+    detector = DwellDetector()
     detector.dropped[DROPPED_FOR_STREAM_STOP] = 1
     found = problems(counters, synchronizer, detector, ('/joint_states',), 'disk full')
     assert found == {
@@ -82,7 +80,7 @@ def test_silent_streams_and_the_summary():
     names = {'sliders': '/a', 'inclinometer': '/b', 'encoder': '/a'}
     assert silent_streams(synchronizer, int(3.5 * S), names) == ['/a']
     counters = InputCounters(TOPICS)
-    text = summary(2, counters, synchronizer, PostureDetector())
+    text = summary(2, counters, synchronizer, DwellDetector())
     assert text.startswith('2 postures published; messages received {')
     assert text.endswith(
         'invalid messages 0; lost 0; stamps rejected 0; periods dropped 0; unpaired samples 0'

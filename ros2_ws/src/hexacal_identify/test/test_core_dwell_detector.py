@@ -1,15 +1,10 @@
-"""The dwell detector on synthetic raw streams with real-sensor effects, against the old one."""
+"""The dwell detector on synthetic raw streams with real-sensor effects, against their truth."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 from hexacal_identify.core.dwell_detector import detect_dwell_postures, DwellDetector
-from hexacal_identify.core.posture_detector import (
-    detect_postures,
-    PostureDetector,
-    synchronize_arrays,
-)
 from hexacal_identify.core.robust_stats import quantum, robust_mean
 from hexacal_msgs_py.errors import InvalidReadingError
 import numpy as np
@@ -109,13 +104,6 @@ def make_streams(
     return Truth(streams, points, holds_ns, offsets)
 
 
-def old_detector(truth: Truth, **options):
-    """Today's detector: pair on the slider stamps, then the window detector."""
-    (st, sv), (it, iv), (et, ev) = (truth.streams[name] for name in SLICES)
-    stamps, values = synchronize_arrays(st, sv, it, iv, et, ev)
-    return detect_postures(stamps, values, **options)
-
-
 def errors_in_se(postures, truth: Truth) -> np.ndarray:
     """Per posture and channel: |value - settled truth| / standard error (matched by time)."""
     out = []
@@ -159,7 +147,7 @@ def feed_online(truth: Truth, chunk_s: float, **options):
 def test_ideal_streams_give_one_posture_per_dwell_within_noise():
     truth = make_streams(seed=3)
     postures, detector = detect_dwell_postures(truth.streams)
-    assert len(postures) == len(truth.targets) == len(old_detector(truth))
+    assert len(postures) == len(truth.targets)
     assert np.all(errors_in_se(postures, truth) < 4.0)
     for posture in postures:
         scatter = posture.scatter
@@ -172,25 +160,19 @@ def test_ideal_streams_give_one_posture_per_dwell_within_noise():
     assert detector.dropped == {} and detector.rejected == {}
 
 
-def test_a_lagging_inclinometer_is_waited_for_where_the_old_detector_is_biased():
+def test_a_lagging_inclinometer_is_waited_for_and_its_postures_are_unbiased():
     truth = make_streams(seed=5, lag_s=0.2, hold_s=3.0)
     postures, _ = detect_dwell_postures(truth.streams)
-    old = old_detector(truth)
-    assert len(postures) == len(truth.targets) == len(old)
+    assert len(postures) == len(truth.targets)
     errors = errors_in_se(postures, truth)
     assert np.all(errors < 4.0), errors.max(axis=0)
-    # The old detector averages the inclinometer while it still creeps: tens of urad off,
-    # tens of its own standard errors.
-    old_errors = errors_in_se(old, truth)[:, 6:8]
-    assert bias(old, truth) > 10e-6 and np.median(old_errors.max(axis=1)) > 5.0
+    # Averaged while it still creeps, the inclinometer would be tens of urad off.
     assert bias(postures, truth) < 4e-6
 
 
 def test_a_spike_neither_splits_nor_biases_a_dwell():
     truth = make_streams(seed=7, spikes=30)
     postures, detector = detect_dwell_postures(truth.streams)
-    old = old_detector(truth)
-    assert len(old) != len(truth.targets)  # spikes split (or break) the old one's dwells
     assert len(postures) == len(truth.targets)
     assert np.all(errors_in_se(postures, truth) < 4.0)
     spikes = sum(lane.health.spikes_rejected for lane in detector.lanes.values())
@@ -361,15 +343,10 @@ def test_a_dwell_too_short_for_a_lagging_channel_is_counted_and_names_the_stream
         (DwellDetector, {'window_s': float('nan')}, 'window_s, capture_s and max_gap_s must'),
         (DwellDetector, {'angle_tolerance_rad': -1e-4}, 'tolerances must be > 0'),
         (DwellDetector, {'link_tolerance_m': 0.0}, 'tolerances must be > 0'),
-        (
-            PostureDetector,
-            {'max_rate_hz': 0.0},
-            'window_s, capture_s, max_gap_s and max_rate_hz must be > 0',
-        ),
-        (PostureDetector, {'slider_tolerance_m': float('nan')}, 'tolerances must be > 0'),
+        (DwellDetector, {'slider_tolerance_m': float('nan')}, 'tolerances must be > 0'),
     ],
 )
-def test_both_detectors_refuse_settings_that_are_not_positive(detector, settings, message):
-    """The shared check (check_detector_settings) keeps each detector's own message."""
+def test_the_detector_refuses_settings_that_are_not_positive(detector, settings, message):
+    """The settings check (check_detector_settings) names the settings."""
     with pytest.raises(ValueError, match=message):
         detector(**settings)

@@ -17,9 +17,10 @@ from pathlib import Path
 import tempfile
 
 from hexacal_identify.bag import BagError, BagWriter, message_definition, open_bag
+from hexacal_identify.core.dwell_detector import DwellDetector
 from hexacal_identify.core.errors import CalibrationError
 from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.posture_detector import PostureDetector, StreamSynchronizer
+from hexacal_identify.core.stream_synchronizer import StreamSynchronizer
 from hexacal_identify.pipeline import postures_from_bag
 from hexacal_msgs_py.errors import (
     HexacalContractError,
@@ -273,11 +274,18 @@ def sample_streams(draw):
 @given(sample_streams(), st.integers(1, 64))
 def test_posture_detector_never_raises_and_emits_only_finite_postures_from_its_input(data, chunk):
     stamps, rows = data
-    detector = PostureDetector(window_s=0.05, capture_s=0.1, max_gap_s=0.02)
+    detector = DwellDetector(window_s=0.05, capture_s=0.1, max_gap_s=0.02)
     postures = []
     for begin in range(0, len(stamps), chunk):
-        postures += detector.update(stamps[begin:begin + chunk], rows[begin:begin + chunk])
-    detector.finish()
+        part = slice(begin, begin + chunk)
+        postures += detector.update(
+            {
+                'sliders': (stamps[part], rows[part, :6]),
+                'inclinometer': (stamps[part], rows[part, 6:8]),
+                'encoder': (stamps[part], rows[part, 8:]),
+            }
+        )
+    postures += detector.finish()[0]
     finite = rows[np.all(np.isfinite(rows), axis=1)]
     emitted = [p.stamp_ns for p in postures]
     assert emitted == sorted(set(emitted))  # one posture per stamp, in time order
@@ -296,7 +304,7 @@ def test_posture_detector_never_raises_and_emits_only_finite_postures_from_its_i
 )
 def test_posture_detector_refuses_malformed_batches_with_a_named_error(stamps, rows):
     try:
-        PostureDetector().update(stamps, rows)
+        DwellDetector().add('sliders', stamps, rows)
     except InvalidReadingError:
         pass
 

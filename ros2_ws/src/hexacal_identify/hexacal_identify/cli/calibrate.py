@@ -272,14 +272,25 @@ def clock_offset_argument(text: str) -> tuple[str, float]:
     return stream, value
 
 
+def detector_argument(text: str) -> str:
+    """Parse --detector: 'settled'; the removed 'window' is refused naming its successor."""
+    from ..core.detection import detector_problem
+
+    problem = detector_problem(text)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(problem)
+    return text
+
+
 def _redetection_arguments(calibrate: argparse.ArgumentParser) -> None:
     calibrate.add_argument(
         '--detector',
-        choices=('settled', 'window'),
+        type=detector_argument,
         default='settled',
+        metavar='settled',
         help='when postures are re-detected from raw streams: settled (each stream judged on '
-        'its own readings, postures with their scatter) or window (the paired detector of '
-        'before, for comparison); default settled',
+        "its own readings, postures with their scatter), the only detector ('window' was "
+        'removed in 0.2.0); default settled',
     )
     calibrate.add_argument(
         '--clock-offset',

@@ -114,6 +114,7 @@ class OffsetEstimator:
         self._reference: deque[float] = deque(maxlen=4)  # unmatched actuator departures
         self._stream: deque[float] = deque(maxlen=4)  # unmatched departures of this stream
         self.differences: deque[float] = deque(maxlen=KEPT_EDGES)
+        self._estimate: int | None = None  # of the differences as they stand
 
     def reference_departure(self, stamp_ns: float) -> None:
         self._reference.append(stamp_ns)
@@ -130,11 +131,15 @@ class OffsetEstimator:
             nearest = min(self._reference, key=lambda reference: abs(own - reference))
             if abs(own - nearest) <= self.max_match_ns:
                 self.differences.append(own - nearest)
+                self._estimate = self._median()
                 self._stream.remove(own)
                 self._reference.remove(nearest)
 
     def estimate_ns(self) -> int | None:
         """Return the median difference once MIN_EDGES are matched, else None."""
+        return self._estimate
+
+    def _median(self) -> int | None:
         if len(self.differences) < MIN_EDGES:
             return None
         return int(round(float(np.median(self.differences))))

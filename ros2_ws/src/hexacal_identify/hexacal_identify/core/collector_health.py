@@ -3,9 +3,9 @@ What the collector reports about its inputs: counters, stopped streams, status d
 
 Everything not used is counted by stream and reason (`problems`): invalid messages, messages
 DDS reports lost, readings whose stamps repeat or go back, slider readings without a
-partner (window detector), time the settled detector judged without a stream stamped too
-far behind, samples and periods the detector rejects or drops, the streams that stopped and a
-recording error. The status is published when that changes (`decide_status`).
+partner (the synchronizer's pairing; the detector itself does not pair), time the detector
+judged without a stream stamped too far behind, samples and periods the detector rejects or
+drops, the streams that stopped and a recording error. The status is published when that changes (`decide_status`).
 """
 
 from __future__ import annotations
@@ -16,8 +16,9 @@ from enum import StrEnum
 
 from hexacal_msgs_py.readings import NS_PER_S
 
+from .detection import DropReason
 from .dwell_detector import DwellDetector
-from .posture_detector import DropReason, PostureDetector, StreamSynchronizer
+from .stream_synchronizer import StreamSynchronizer
 
 
 class Outcome(StrEnum):
@@ -114,7 +115,7 @@ class InputCounters:
 def problems(
     counters: InputCounters,
     synchronizer: StreamSynchronizer,
-    detector: PostureDetector | DwellDetector,
+    detector: DwellDetector,
     stopped_streams: tuple[str, ...],
     recording_error: str | None,
 ) -> dict[str, object]:
@@ -204,7 +205,7 @@ def summary(
     postures_published: int,
     counters: InputCounters,
     synchronizer: StreamSynchronizer,
-    detector: PostureDetector | DwellDetector,
+    detector: DwellDetector,
 ) -> str:
     """Return the collector's closing summary line."""
     rejected = {stream: reasons for stream, reasons in synchronizer.rejected.items() if reasons}

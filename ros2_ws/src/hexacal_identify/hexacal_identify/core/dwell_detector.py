@@ -57,8 +57,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import robust_stats as robust
+from . import stream_lane
 from .clock_offset import departure_ns, OffsetEstimator
-from .posture_detector import (
+from .detection import (
     check_detector_settings,
     DetectedPosture,
     DetectorState,
@@ -68,15 +69,15 @@ from .posture_detector import (
     RejectReason,
     Stream,
 )
-from .stream_lane import StreamLane
+from .stream_lane import Judgement, StreamLane
 
 # Channels of each stream, in POSTURE_NAMES order.
 STREAM_WIDTHS = {Stream.SLIDERS: N_CHAINS, Stream.INCLINOMETER: 2, Stream.ENCODER: 1}
 REFERENCE = Stream.SLIDERS  # offsets are against the actuator stream's clock
 # The optional fourth stream: the link length an LVDT measures (m), published with the
-# actuators' stamps.  Not a Stream (the window detector's synchronizer pairs three streams).
+# actuators' stamps.  Not a Stream (the collector's synchronizer pairs three streams).
 LINK_STREAM = 'link'
-BLOCKS_PER_WINDOW = 4
+BLOCKS_PER_WINDOW = stream_lane.BLOCKS_PER_WINDOW
 # Levels differ significantly beyond 4 standard errors: with 9 channels judged at every block,
 # 3 would call noise 'settling' every few blocks (Student t of ~30 samples), delaying postures.
 SETTLED_SIGMAS = 4.0
@@ -96,6 +97,15 @@ class Verdict(StrEnum):
     SETTLING = 'settling'
     SETTLED = 'settled'
     UNKNOWN = 'unknown'  # a gap, or too few readings
+
+
+# The lane's verdict codes, named.
+_VERDICTS = {
+    stream_lane.MOVING: Verdict.MOVING,
+    stream_lane.SETTLING: Verdict.SETTLING,
+    stream_lane.SETTLED: Verdict.SETTLED,
+    stream_lane.UNKNOWN: Verdict.UNKNOWN,
+}
 
 
 @dataclass(frozen=True)
@@ -331,7 +341,11 @@ class DwellDetector:
         return True
 
     def _at_block(self, block: int) -> DetectedPosture | None:
-        verdicts = {stream: self._verdict(stream, block) for stream in self.lanes}
+        judgements = {
+            stream: lane.judge(block, self.tolerances[stream], SETTLED_SIGMAS)
+            for stream, lane in self.lanes.items()
+        }
+        verdicts = {stream: self._verdict(j) for stream, j in judgements.items()}
         self._note_departures(verdicts, block)
         self._verdicts = verdicts
         values = set(verdicts.values())
@@ -339,7 +353,7 @@ class DwellDetector:
             self._settled_at.append(block)
         unsettled = self._note_settling(verdicts, values)
         if self.state is DetectorState.CAPTURED:
-            if Verdict.MOVING in values or self._left_posture(block):
+            if Verdict.MOVING in values or self._left_posture(judgements):
                 self.state = DetectorState.ARMED
             return None
         if Verdict.MOVING in values or Verdict.UNKNOWN in values:
@@ -395,43 +409,18 @@ class DwellDetector:
 
     # ------------------------------------------------------------------ judging
 
-    def _window(self, stream: str, block: int) -> tuple[np.ndarray, np.ndarray] | None:
-        lane = self.lanes[stream]
-        half = BLOCKS_PER_WINDOW // 2
-        first = lane.samples(block - BLOCKS_PER_WINDOW + 1, block - half)[2]
-        second = lane.samples(block - half + 1, block)[2]
-        if not len(first) or not len(second):
-            return None
-        if not lane.gaps_ok(block - BLOCKS_PER_WINDOW + 1, block, through_now=True):
-            return None
-        return first, second
-
-    def _verdict(self, stream: str, block: int) -> Verdict:
-        halves = self._window(stream, block)
-        if halves is None:
-            return Verdict.UNKNOWN
-        first, second = halves
-        both = np.concatenate(halves)
-        floor = robust.quantum(both)
-        tolerance = self.tolerances[stream]
-        if np.any(robust.robust_spread(both, floor) > tolerance):
-            return Verdict.MOVING
+    def _verdict(self, judgement: Judgement) -> Verdict:
         if self.state is DetectorState.CAPTURED:
             # Waiting for motion only: settled or settling makes no difference (cheaper).
-            moved = np.abs(robust.median(second) - robust.median(first)) > tolerance
-            return Verdict.MOVING if np.any(moved) else Verdict.SETTLED
-        shift, threshold = robust.level_shift(first, second, SETTLED_SIGMAS, floor)
-        if np.any(shift > tolerance):
-            return Verdict.MOVING
-        return Verdict.SETTLED if np.all(shift <= threshold) else Verdict.SETTLING
+            return _VERDICTS[judgement.captured_verdict]
+        return _VERDICTS[judgement.verdict]
 
-    def _left_posture(self, block: int) -> bool:
+    def _left_posture(self, judgements: dict[str, Judgement]) -> bool:
         """Return True if a stream's level left the posture's by more than its tolerance."""
         for stream, values in self._posture_values.items():
-            halves = self._window(stream, block)
-            if halves is None:
+            level = judgements[stream].level
+            if level is None:
                 continue  # a gap: judged when data is back
-            level = robust.median(halves[1])
             if np.any(np.abs(level - values) > self.tolerances[stream]):
                 return True
         return False

@@ -121,3 +121,101 @@ def robust_mean(values: np.ndarray, floor: np.ndarray) -> RobustMean:
     return RobustMean(
         center + mean_deviation, std, std / np.sqrt(safe), count, len(values) - count
     )
+
+
+# ---------------------------------------------------------------------- many windows at once
+#
+# The same statistics of many windows in one call: `values` (windows, n, channels) holds each
+# window's samples first, `valid` (windows, n) says which are samples (the rest is padding).
+# Sorting, medians and comparisons are exact, and sums run in sample order (a cumulative sum),
+# so a window's result does not depend on how many windows are computed with it.
+
+
+def _padded_sort(values: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    return np.sort(np.where(valid[..., None], values, np.inf), axis=1)
+
+
+def _sorted_median(ordered: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """Return per window and channel the median of sorted samples (count >= 1 each)."""
+    middle = np.maximum(count, 1) // 2
+    rows = np.arange(len(ordered))
+    upper = ordered[rows, middle]
+    lower = ordered[rows, np.maximum(middle - 1, 0)]
+    return np.where((count % 2 == 1)[:, None], upper, (lower + upper) / 2.0)
+
+
+def windows_median(values: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Return `median` of each window (windows, channels); a window must hold a sample."""
+    return _sorted_median(_padded_sort(values, valid), valid.sum(axis=1))
+
+
+def windows_quantum(values: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Return `quantum` of each window (windows, channels)."""
+    count = valid.sum(axis=1)
+    ordered = _padded_sort(values, valid)
+    with np.errstate(invalid='ignore'):
+        steps = np.diff(ordered, axis=1)
+    # quantum's steps[1:-1]: indices 1 .. count - 3 of the count - 1 steps.
+    index = np.arange(steps.shape[1])
+    inner = (index >= 1) & (index[None, :] <= (count - 3)[:, None])
+    steps = np.where(inner[..., None] & (steps > 0.0), steps, np.inf)
+    smallest = steps.min(axis=1)
+    smallest = np.where(np.isfinite(smallest), smallest, 0.0)
+    return np.where((count >= 4)[:, None], smallest, 0.0)
+
+
+@dataclass(frozen=True)
+class WindowsMean:
+    """Per window and channel: `robust_mean`'s mean, std and count, and the median."""
+
+    mean: np.ndarray
+    std: np.ndarray
+    count: np.ndarray
+    median: np.ndarray
+
+
+def _windows_spikes(
+    values: np.ndarray, valid: np.ndarray, floor: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return the mask of samples that are not spikes and the medians (`_spike_mask`)."""
+    count = valid.sum(axis=1)
+    center = _sorted_median(_padded_sort(values, valid), count)
+    deviation = np.abs(values - center[:, None, :])
+    sigma = MAD_TO_SIGMA * _sorted_median(_padded_sort(deviation, valid), count)
+    limit = SPIKE_SIGMAS * np.maximum(sigma, floor)
+    return valid[..., None] & (deviation <= limit[:, None, :]), center
+
+
+def windows_spread(values: np.ndarray, valid: np.ndarray, floor: np.ndarray) -> np.ndarray:
+    """Return `robust_spread` of each window (windows, channels)."""
+    kept = _windows_spikes(values, valid, floor)[0]
+    high = np.where(kept, values, -np.inf).max(axis=1)
+    low = np.where(kept, values, np.inf).min(axis=1)
+    return np.where(kept.any(axis=1), high - low, 0.0)
+
+
+def windows_mean(values: np.ndarray, valid: np.ndarray, floor: np.ndarray) -> WindowsMean:
+    """Return `robust_mean` of each window (the sums in sample order) and its median."""
+    kept, center = _windows_spikes(values, valid, floor)
+    count = kept.sum(axis=1)
+    safe = np.maximum(count, 1)
+    deviation = np.where(kept, values - center[:, None, :], 0.0)
+    mean_deviation = np.cumsum(deviation, axis=1)[:, -1] / safe
+    squares = np.where(kept, (values - center[:, None, :] - mean_deviation[:, None, :]) ** 2, 0.0)
+    std = np.sqrt(np.cumsum(squares, axis=1)[:, -1] / np.maximum(count - 1, 1))
+    std = np.where(count > 1, std, 0.0)
+    return WindowsMean(center + mean_deviation, std, count, center)
+
+
+def windows_level_shift(
+    first: WindowsMean, second: WindowsMean, sigmas: float, floor: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return `level_shift` of each window's two parts, from their `windows_mean`."""
+    squares = first.std**2 * np.maximum(first.count - 1, 0) + second.std**2 * np.maximum(
+        second.count - 1, 0
+    )
+    pooled = np.sqrt(squares / np.maximum(first.count + second.count - 2, 1))
+    error = pooled * np.sqrt(
+        1.0 / np.maximum(first.count, 1) + 1.0 / np.maximum(second.count, 1)
+    )
+    return np.abs(second.mean - first.mean), np.maximum(sigmas * error, floor)

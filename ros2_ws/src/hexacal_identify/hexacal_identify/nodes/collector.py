@@ -2,12 +2,12 @@
 Node `collector`: turn the three sensor streams into postures, and record everything.
 
 Subscribes the inputs hexacal/sliders, hexacal/inclinometer, hexacal/encoder (remappable,
-e.g. all to /joint_states; Imu inclinometer) as raw CDR, pairs them, publishes one
-averaged posture per stationary period on hexacal/posture, records a rosbag2 MCAP bag and
-reports its problems on hexacal/calibration_status.  Where the machine measures its link
-(lvdt mode) hexacal/link is recorded and is one more stream of the settled detector (the
-postures carry link_length); the driver's status gives the measuring mode and released
-actuator, recorded as the bag's hexacal.measuring record. Full reference: docs/nodes.md.
+e.g. all to /joint_states; Imu inclinometer) as raw CDR, judges each stream on its own
+readings (the settled detector), publishes one averaged posture per dwell on hexacal/posture,
+records a rosbag2 MCAP bag and reports its problems on hexacal/calibration_status.  Where the
+machine measures its link (lvdt mode) hexacal/link is recorded and is one more stream of the
+detector (the postures carry link_length); the driver's status gives the measuring mode and
+released actuator, recorded as the bag's hexacal.measuring record. Full reference: docs/nodes.md.
 """
 
 from __future__ import annotations
@@ -50,8 +50,9 @@ from ..bag.measuring import MEASURING_METADATA, MeasuringRecord
 from ..bag.qos_yaml import qos_profiles_yaml
 from ..bag.recording import Recording
 from ..core import collector_health as health
-from ..core import posture_detector as detection
+from ..core import detection
 from ..core.dwell_detector import DwellDetector, LINK_STREAM
+from ..core.stream_synchronizer import StreamSynchronizer
 from ..core.turn_history import TurnHistory
 
 NODE_NAME = 'collector'
@@ -87,7 +88,7 @@ class CollectorNode(Node):
         self.mapping = params.declare_inputs(self, self.actuator_names)
 
         skew_ns = int(value['max_skew_s'] * NS_PER_S)
-        self.synchronizer = detection.StreamSynchronizer(max_skew_ns=skew_ns)
+        self.synchronizer = StreamSynchronizer(max_skew_ns=skew_ns)
         settings = {name: value[name] for name in params.DETECTOR_PARAMETERS}
         self.detector_settings = {
             name: repr(setting)
@@ -97,12 +98,7 @@ class CollectorNode(Node):
             }.items()
         }
         del settings['max_skew_s']  # the synchronizer's
-        self.settled = value['detector'] == 'settled'
-        self.detector: detection.PostureDetector | DwellDetector
-        if self.settled:
-            self.detector = dwell_detector(value, settings)
-        else:
-            self.detector = detection.PostureDetector(**settings)
+        self.detector = dwell_detector(value, settings)
         self.postures_published = 0
         self.counters = health.InputCounters(RAW_TOPICS)
         self.stopped_streams: tuple[str, ...] = ()
@@ -127,8 +123,6 @@ class CollectorNode(Node):
         self.reader = InputReader(
             self.mapping, self.model, self.synchronizer, self.turns, self._invalid
         )
-        if self.settled:
-            self.reader.keep_readings()  # each stream as it is: no pairing
         group = PolledGroup()
         # One subscription per distinct input topic: inputs remapped to one topic share it.
         self._sources = input_sources(self.mapping, self.topic_names, SENSOR_QOS)
@@ -143,7 +137,7 @@ class CollectorNode(Node):
         for source in self._recorded_only:
             qos = deep_reader_qos(source.qos, SENSOR_SUBSCRIPTION_QOS.depth)
             source.polled = PolledSubscription(self, source.message_type, source.name, qos, group)
-        # The lvdt's link length (hexacal/link): recorded and, settled, a detector stream.
+        # The lvdt's link length (hexacal/link): recorded, and a detector stream.
         self._link = link_source(self.resolve_topic_name(LINK_TOPIC), self.mapping, SENSOR_QOS)
         self._link.polled = PolledSubscription(
             self, JointState, self._link.name, SENSOR_SUBSCRIPTION_QOS, group
@@ -246,15 +240,8 @@ class CollectorNode(Node):
         if not (value > 0.0 and value < float('inf')):
             self._link_problem(f'{LINK_LENGTH_JOINT} {value!r} m is not a length')
             return
-        if self.settled:
-            self._link_readings[0].append(stamp_ns(message.header.stamp))
-            self._link_readings[1].append(value)
-        else:
-            self.get_logger().warning(
-                f'{self._link.name}: the window detector does not read the link length, so '
-                'its postures carry none (recorded only); use detector settled',
-                once=True,
-            )
+        self._link_readings[0].append(stamp_ns(message.header.stamp))
+        self._link_readings[1].append(value)
 
     def _link_problem(self, problem: str) -> None:
         self.link_invalid += 1
@@ -291,20 +278,11 @@ class CollectorNode(Node):
             self.recording.write_metadata(writer, MEASURING_METADATA, self.measuring.to_metadata())
 
     def _detect(self) -> None:
-        """Run the posture detector over the samples paired since the last call."""
-        if isinstance(self.detector, DwellDetector):
-            readings = {**self.reader.take_readings(), **self._take_link()}
-            if readings:
-                for posture in self.detector.update(readings):
-                    self._on_posture(posture)
-            return
-        samples = self.reader.take_samples()
-        if not samples:
-            return
-        for posture in self.detector.update(
-            [stamp for stamp, _ in samples], [values for _, values in samples]
-        ):
-            self._on_posture(posture)
+        """Run the posture detector over the readings accepted since the last call."""
+        readings = {**self.reader.take_readings(), **self._take_link()}
+        if readings:
+            for posture in self.detector.update(readings):
+                self._on_posture(posture)
 
     def _on_lost(self, key: str, status) -> None:
         self.counters.lost[key] = int(status.total_count)
@@ -320,11 +298,7 @@ class CollectorNode(Node):
     def _on_posture(self, posture: detection.DetectedPosture) -> None:
         # The turn of the inclinometer messages paired with its last sample, else the setting.
         # The posture's stamp is the actuators'; the inclinometer messages are in their clock.
-        offset_ns = (
-            int(self.detector.offsets_s[detection.Stream.INCLINOMETER] * NS_PER_S)
-            if isinstance(self.detector, DwellDetector)
-            else 0
-        )
+        offset_ns = int(self.detector.offsets_s[detection.Stream.INCLINOMETER] * NS_PER_S)
         turn = self.turns.turn_at(
             posture.reading.stamp_ns + offset_ns, self.synchronizer.max_skew_ns, self.device_turn
         )
@@ -481,7 +455,7 @@ class CollectorNode(Node):
             self.stopped_streams = stopped
         if stopped:
             self._detect()  # normally nothing left: _poll runs the detector after each batch
-            if isinstance(self.detector, DwellDetector) and self.counters.all_stopped(
+            if self.counters.all_stopped(
                 time.monotonic_ns(), STREAM_STOPPED_S
             ):
                 # Every stream stopped: the data ended, so a capture the last readings
@@ -504,12 +478,8 @@ class CollectorNode(Node):
     def _publish_status(self) -> None:
         """Publish on hexacal/calibration_status when a problem counter or state changed."""
         problems = self.problems()
-        streams = (
-            health.stream_statistics(
-                self.detector, {**self._stream_names, LINK_STREAM: self._link.name}
-            )
-            if isinstance(self.detector, DwellDetector)
-            else {}
+        streams = health.stream_statistics(
+            self.detector, {**self._stream_names, LINK_STREAM: self._link.name}
         )
         decision = health.decide_status(
             problems,

@@ -48,7 +48,8 @@ from sensor_msgs.msg import Imu, JointState
 from visualization_msgs.msg import MarkerArray
 
 from ..bag.qos_yaml import qos_profiles_yaml
-from ..core.posture_detector import Stream, StreamSynchronizer
+from ..core.detection import Stream
+from ..core.stream_synchronizer import StreamSynchronizer
 from ..core.turn_history import TurnHistory
 
 RAW_TOPICS = (SLIDERS_TOPIC, INCLINOMETER_TOPIC, ENCODER_TOPIC)
@@ -147,7 +148,7 @@ def mapping_transforms_inclinometer(mapping: InputMapping) -> bool:
 
 
 class InputReader:
-    """Read the inputs' messages into the synchronizer; collect the paired samples."""
+    """Read the inputs' messages into the synchronizer; collect each stream's readings."""
 
     def __init__(
         self,
@@ -163,36 +164,23 @@ class InputReader:
         self.turns = turns
         self.on_invalid = on_invalid  # (input topic, problem)
         self.transform_inclinometer = mapping_transforms_inclinometer(mapping)
-        self.samples: list[tuple[int, tuple[float, ...]]] = []  # paired, for the detector
-        # Per stream, the accepted readings (stamps, values) for a detector that takes the
-        # streams as they are (DwellDetector); None: readings are paired (PostureDetector).
-        self.readings: dict[Stream, tuple[list[int], list[tuple[float, ...]]]] | None = None
-
-    def keep_readings(self) -> None:
-        """Collect each stream's readings instead of pairing them."""
-        self.readings = {stream: ([], []) for stream in Stream}
+        # Per stream, the accepted readings (stamps, values) for the detector, which takes the
+        # streams as they are.
+        self.readings: dict[Stream, tuple[list[int], list[tuple[float, ...]]]] = {
+            stream: ([], []) for stream in Stream
+        }
 
     def take_readings(self) -> dict[Stream, tuple[list[int], list[tuple[float, ...]]]]:
         """Return each stream's readings accepted since the last call."""
-        readings = self.readings or {}
+        readings = self.readings
         self.readings = {stream: ([], []) for stream in Stream}
         return {stream: lists for stream, lists in readings.items() if lists[0]}
 
     def _add(self, stream: Stream, stamp: int, values: tuple[float, ...]) -> None:
-        if self.readings is not None:
-            if self.synchronizer.accept(stream, stamp, values):
-                stamps, rows = self.readings[stream]
-                stamps.append(stamp)
-                rows.append(values)
-            return
-        samples = self.synchronizer.add_values(stream, stamp, values)
-        if samples:
-            self.samples += samples
-
-    def take_samples(self) -> list[tuple[int, tuple[float, ...]]]:
-        """Return the samples paired since the last call."""
-        samples, self.samples = self.samples, []
-        return samples
+        if self.synchronizer.accept(stream, stamp, values):
+            stamps, rows = self.readings[stream]
+            stamps.append(stamp)
+            rows.append(values)
 
     def read(self, source: InputSource, data: bytes) -> None:
         """Read one message of `source`: each input's reading taken once."""

