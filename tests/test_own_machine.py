@@ -12,10 +12,13 @@ gets nominal set 2 as `nominal.yaml`.
 Every command of the README section's ``sh`` blocks runs in order, as written,
 in the test's directory (`.venv/bin/<exe>` for the executable); the stand-in
 moves faster than a real machine, so the bringup lines get the executor's
-speed and settle time appended. The ``text`` block's `ros2 launch` line is
-checked to start the same nodes as the bringup line of the same step (there is
-no ros2 launch here). Real processes in their own process groups, this
-session's ROS domain on localhost (conftest.py), waits on conditions.
+speed and settle time appended (and a stop timeout for a loaded test machine). Each ``text`` block's `ros2 launch` line is
+checked to start the same nodes, with the same parameters, as the bringup line of
+the same step; there is no ros2 launch here, so the verification's launch line runs
+through a stand-in (ROS2_LAUNCH: the launch file's own nodes, ended with the executor
+as its shutdown_when_done does) instead of the bringup line, and `hexacal verify`
+reads what it left. Real processes in their own process groups, this session's ROS
+domain on localhost (conftest.py), waits on conditions.
 """
 
 from __future__ import annotations
@@ -51,7 +54,48 @@ FAST_EXECUTOR = [
     '--param',
     'executor:settle_s=0.3',
 ]
+# How long a node may take to exit once stopped: identify finishes its HTML report first, which
+# took over 20 s on a loaded 2-core machine (the default 10 s then SIGKILLs it).
+STOP_ALLOWANCE_S = 120.0
 EXECUTABLES = ('hexacal', 'bringup', 'kinematics')
+ROS2_LAUNCH_PREFIX = ['ros2', 'launch', 'hexacal_identify', 'hexacal.launch.py']
+# `ros2 launch hexacal_identify hexacal.launch.py ARG:=VALUE...` without ros2 launch: the nodes
+# of the launch file's node_launches (those its generate_launch_description starts) in this
+# directory, until a node ends (the executor, with shutdown_when_done) or SIGINT.
+# argv: launch file, executor parameters (JSON), stop timeout (s), the launch arguments.
+ROS2_LAUNCH = """
+import importlib.util, json, signal, sys, time
+from hexacal_identify.bringup.supervisor import NodeGroup
+spec = importlib.util.spec_from_file_location('hexacal_launch', sys.argv[1])
+launch_file = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(launch_file)
+values = dict(item.split(':=', 1) for item in sys.argv[4:])
+unknown = sorted(set(values) - set(launch_file.ARGUMENTS))
+if unknown:
+    sys.exit(f'not an argument of the launch file: {unknown}')
+nodes = launch_file.node_launches(values)
+for node in nodes:
+    if node.executable == 'executor':
+        node.parameters.update(json.loads(sys.argv[2]))
+received = []
+for signum in (signal.SIGINT, signal.SIGTERM):
+    signal.signal(signum, lambda signum, frame: received.append(signum))
+group = NodeGroup(die_with_parent=True)
+for node in nodes:
+    group.start(node)
+    print('launch: started', node.executable, flush=True)
+while not received and not group.exited():
+    time.sleep(0.1)
+ended = [node.name for node in group.exited()]
+order = ('executor', 'driver', 'collector', 'kinematics', 'identify')
+codes = group.stop(float(sys.argv[3]), order=order)
+print('launch: exit codes', codes, flush=True)
+if ended == ['executor'] and codes['executor'] == 0:
+    print('launch: the executor is done', flush=True)
+if any(codes.values()):
+    sys.exit(1)
+print('launch: all nodes stopped cleanly', flush=True)
+"""
 
 
 def readme_section() -> str:
@@ -83,6 +127,11 @@ def _in(directory: Path, argv: list[str]) -> list[str]:
     ]
 
 
+def launch_commands() -> list[list[str]]:
+    """argv of the section's `ros2 launch` lines (its ```text blocks): measure, verify."""
+    return readme_commands('text')
+
+
 def test_readme_section_has_each_step():
     commands = readme_commands()
     steps = [(argv[0], argv[1] if argv[0] == 'hexacal' else '') for argv in commands]
@@ -102,33 +151,64 @@ def test_readme_section_has_each_step():
         assert option in measure
     assert measure[measure.index('--sliders-topic') + 1] == '/joint_states'
     assert '/joint_trajectory_controller/joint_trajectory' in readme_section()
-    [launch] = readme_commands('text')
-    assert launch[:4] == ['ros2', 'launch', 'hexacal_identify', 'hexacal.launch.py']
+    # A ros2 launch line for each bringup line, naming the bag the next command reads.
+    launches = launch_commands()
+    assert [argv[:4] for argv in launches] == [ROS2_LAUNCH_PREFIX] * 2
+    for argv, bag in zip(launches, ('measure', 'verify')):
+        assert f'bag_name:={bag}' in argv and 'bag_dir:=bags' in argv
+    assert commands[3][2] == 'bags/measure' and commands[5][2] == 'bags/verify'
 
 
-def test_the_ros2_launch_line_starts_what_the_bringup_line_starts():
+def _launch_file():
     import importlib.util
-
-    from hexacal_identify.bringup import cli as bringup
 
     spec = importlib.util.spec_from_file_location('hexacal_launch', LAUNCH_FILE)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    [launch] = readme_commands('text')
+    return module
+
+
+@pytest.mark.parametrize('step, bringup_line', [(0, 2), (1, 4)], ids=['measure', 'verify'])
+def test_the_ros2_launch_line_starts_what_the_bringup_line_starts(step, bringup_line):
+    from hexacal_identify.bringup import cli as bringup
+
+    module = _launch_file()
+    launch = launch_commands()[step]
     arguments = dict(item.split(':=', 1) for item in launch[4:])
     assert set(arguments) <= set(module.ARGUMENTS)
-    measure = readme_commands()[2]
-    from_bringup = bringup.node_launches(bringup.build_parser().parse_args(measure[1:]))
+    line = readme_commands()[bringup_line]
+    from_bringup = bringup.node_launches(bringup.build_parser().parse_args(line[1:]))
     from_launch = module.node_launches(arguments)
 
     def nodes(launches):
-        return {
-            n.executable: ({k: v for k, v in n.parameters.items() if k != 'bag_name'}, n.remaps)
-            for n in launches
-        }
+        return {n.executable: (n.parameters, n.remaps, n.namespace) for n in launches}
 
     assert nodes(from_launch) == nodes(from_bringup)
     assert set(nodes(from_launch)) == {'collector', 'identify', 'kinematics', 'executor'}
+
+
+def test_the_launch_file_offers_what_bringup_does_by_the_same_names():
+    """Every bringup option that is a node setting is the launch argument of the same name."""
+    from hexacal_identify.bringup import cli as bringup
+
+    module = _launch_file()
+    # bringup's own: its other node parameters, its stop timeout; a negated flag is the
+    # launch argument it sets false.
+    own = {'param', 'stop_timeout', 'help'}
+    negated = {'no_driver': 'use_driver', 'no_kinematics': 'use_kinematics', 'no_record': 'record'}
+    options = {a.dest for a in bringup.build_parser()._actions} - own
+    assert {negated.get(o, o) for o in options} == set(module.ARGUMENTS)
+    store = 'machine_store'
+    values = {'bag_name': 'measure', 'calibration_store': store, 'use_driver': 'false'}
+    nodes = {n.executable: n.parameters for n in module.node_launches(values)}
+    options = ['--bag-name', 'measure', '--calibration-store', store, '--no-driver']
+    options += ['--bag-dir', 'bags']  # the launch file's default, the collector's own
+    from_bringup = bringup.node_launches(bringup.build_parser().parse_args(options))
+    assert nodes == {n.executable: n.parameters for n in from_bringup}
+    assert nodes['collector']['bag_name'] == 'measure'
+    # identify stores and deploys, kinematics follows the deploys: one store for both.
+    assert nodes['identify']['calibration_store'] == str(Path(store).resolve())
+    assert nodes['kinematics']['calibration_store'] == str(Path(store).resolve())
 
 
 def _standin(ros_processes, probe, truth: Path):
@@ -175,14 +255,40 @@ def _run(tmp_path: Path, argv: list[str], timeout: float = 300.0) -> subprocess.
     return subprocess.run(_in(tmp_path, argv), capture_output=True, text=True, timeout=timeout)
 
 
+def _launched_in(directory: Path, argv: list[str]) -> list[str]:
+    """A `ros2 launch` line as written, run in `directory` by the stand-in (ROS2_LAUNCH)."""
+    assert argv[:4] == ROS2_LAUNCH_PREFIX, argv
+    fast = {}  # FAST_EXECUTOR's executor parameters, as bringup's --param gives them
+    for option in FAST_EXECUTOR[1::2]:
+        name, value = option.removeprefix('executor:').split('=')
+        fast[name] = float(value)
+    return [
+        '/bin/sh',
+        '-c',
+        'cd "$0" && exec "$@"',
+        str(directory),
+        sys.executable,
+        '-c',
+        ROS2_LAUNCH,
+        str(LAUNCH_FILE),
+        json.dumps(fast),
+        str(STOP_ALLOWANCE_S),
+        *argv[4:],
+    ]
+
+
 def _walk(ros_processes, tmp_path, argv, postures: int, machine) -> str:
-    """A bringup line with --shutdown-when-done: runs until the plan is walked; its log."""
-    process = ros_processes.start(_in(tmp_path, argv + FAST_EXECUTOR), name='bringup')
+    """A bringup or ros2 launch line with shutdown when done: runs until the plan is walked."""
+    if argv[0] == 'ros2':
+        process = ros_processes.start(_launched_in(tmp_path, argv), name='ros2_launch')
+    else:
+        stop = ['--stop-timeout', str(STOP_ALLOWANCE_S)]
+        process = ros_processes.start(_in(tmp_path, argv + FAST_EXECUTOR + stop), name='bringup')
     wait_for(
         lambda: not process.running() or any(not p.running() for p in machine),
         60.0 + 6.0 * postures + 60.0,
         interval=0.2,
-        what='bringup to finish the plan',
+        what=f'{argv[0]} to finish the plan',
         details=process.describe,
     )
     for p in machine:
@@ -239,8 +345,12 @@ def test_readme_own_machine_commands_on_a_ros2_control_standin(ros_processes, tm
     offline = read_parameters_file(tmp_path / 'out' / 'offline.yaml').vector
     assert np.abs(offline - truth.vector).max() < 2e-4
 
-    # Verify on a second recording, never used in the fit.
-    _walk(ros_processes, tmp_path, next(commands), verify_postures, machine)
+    # Verify on a second recording, never used in the fit: the step's ros2 launch line (the
+    # same nodes as its bringup line, test_the_ros2_launch_line_starts_what_the_bringup_line_starts).
+    assert next(commands)[0] == 'bringup'
+    log = _walk(ros_processes, tmp_path, launch_commands()[1], verify_postures, machine)
+    assert 'started driver' not in log and 'started executor' in log
+    assert (tmp_path / 'bags' / 'verify' / 'metadata.yaml').exists()
     argv = next(commands)
     result = _run(tmp_path, argv)
     assert result.returncode == 0, result.stdout + result.stderr  # pass

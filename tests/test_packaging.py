@@ -1,12 +1,14 @@
-"""Packaging of the ament_python packages: colcon build, package.xml, venv install."""
+"""Packaging of the ament_python packages: colcon build and test, package.xml, venv install."""
 
 from __future__ import annotations
 
 import ast
+import configparser
 from contextlib import chdir
 from importlib import metadata
 import os
 from pathlib import Path
+import re
 import shutil
 import subprocess
 import sys
@@ -60,7 +62,12 @@ PYTHON_PACKAGES = {
     'zstandard': ('python3-zstandard', 'zstandard'),
     'mcap': (None, 'mcap'),  # no rosdep key: pip only
     'mcap_ros2': (None, 'mcap-ros2-support'),
+    # Imported by the tests only: test dependencies (rosdep key, the setup.py test extra).
+    'pytest': ('python3-pytest', 'pytest'),
+    'hypothesis': ('python3-hypothesis', 'hypothesis'),
 }
+COLCON = Path(sys.executable).parent / 'colcon'
+NO_COLCON = 'colcon is not installed here (`make setup` installs it from requirements-dev.txt)'
 BUILD_ARTIFACTS = shutil.ignore_patterns(
     'build', 'install', 'log', '__pycache__', '*.egg-info', '.pytest_cache', '.hypothesis'
 )
@@ -151,6 +158,45 @@ def test_setup_py_requires_every_imported_python_package(package):
             )
 
 
+@pytest.mark.parametrize('package', PACKAGES)
+def test_setup_py_declares_pytest_and_every_test_import_as_colcon_reads_it(package):
+    # colcon test runs pytest only for a package whose setup.py names it a test dependency.
+    pytest.importorskip('colcon_python_setup_py', reason=NO_COLCON)
+    from colcon_core.package_augmentation.python import extract_dependencies
+    from colcon_core.task.python.test import has_test_dependency
+    from colcon_python_setup_py.package_identification.python_setup_py import (
+        get_setup_information,
+    )
+
+    data = get_setup_information(SRC / package / 'setup.py')
+    assert has_test_dependency(data, 'pytest'), (
+        f"{package}/setup.py: colcon test falls back to unittest: add extras_require={{'test': "
+        "['pytest']}"
+    )
+    dependencies = extract_dependencies(data)
+    declared = {d.name.lower() for kind in ('run', 'test') for d in dependencies[kind]}
+    _, tests = package_sources(package)
+    for module, path in imported_modules(tests).items():
+        if module in PYTHON_PACKAGES:
+            requirement = PYTHON_PACKAGES[module][1]
+            assert requirement in declared, (
+                f'{path.relative_to(REPO)} imports {module}: add {requirement!r} to '
+                f"extras_require['test'] in {package}/setup.py"
+            )
+
+
+def _pytest_options(path: Path) -> dict[str, str]:
+    parser = configparser.ConfigParser(interpolation=None)
+    parser.read(path)
+    return {name: parser['pytest'][name] for name in ('addopts', 'markers')}
+
+
+@pytest.mark.parametrize('package', PACKAGES)
+def test_a_package_runs_its_tests_with_the_repository_options(package):
+    # colcon test runs pytest in the package directory, where the package's pytest.ini rules.
+    assert _pytest_options(SRC / package / 'pytest.ini') == _pytest_options(REPO / 'pytest.ini')
+
+
 def test_identify_requires_its_python_dependencies():
     required = {r.lower() for r in setup_py_data('hexacal_identify').install_requires}
     assert {
@@ -187,9 +233,28 @@ def test_venv_has_entry_points_and_ament_index_entries():
         ).read_bytes()
 
 
-@pytest.mark.slow
-def test_colcon_build_installs_executables_and_markers(tmp_path):
-    workspace = tmp_path / 'ws'
+def _colcon(root: Path, *arguments: str, timeout: float) -> subprocess.CompletedProcess:
+    """Run colcon with its logs, build and install spaces under `root`."""
+    verb, *rest = arguments
+    spaces = ['--build-base', str(root / 'build'), '--install-base', str(root / 'install')]
+    if verb == 'test-result':
+        spaces = []
+    return subprocess.run(
+        [str(COLCON), '--log-base', str(root / 'log'), verb, *spaces, *rest],
+        cwd=root,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+
+
+@pytest.fixture(scope='module')
+def colcon_workspace(tmp_path_factory) -> Path:
+    """Return a scratch workspace (its root) with the three packages built by `colcon build`."""
+    if not COLCON.is_file():
+        pytest.skip(NO_COLCON)
+    root = tmp_path_factory.mktemp('colcon')
+    workspace = root / 'ws'
     shutil.copytree(SRC, workspace / 'src', ignore=BUILD_ARTIFACTS)
     # A launch file proves that launch/*.launch.py is installed (the repo may have none yet).
     launch_dir = workspace / 'src' / 'hexacal_identify' / 'launch'
@@ -197,28 +262,14 @@ def test_colcon_build_installs_executables_and_markers(tmp_path):
     (launch_dir / 'packaging_probe.launch.py').write_text(
         'def generate_launch_description():\n    raise NotImplementedError\n'
     )
-    install = tmp_path / 'install'
-    colcon = Path(sys.executable).parent / 'colcon'
-    result = subprocess.run(
-        [
-            str(colcon),
-            '--log-base',
-            str(tmp_path / 'log'),
-            'build',
-            '--base-paths',
-            str(workspace / 'src'),
-            '--build-base',
-            str(tmp_path / 'build'),
-            '--install-base',
-            str(install),
-        ],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
+    result = _colcon(root, 'build', '--base-paths', str(workspace / 'src'), timeout=600)
     assert result.returncode == 0, f'colcon build failed:\n{result.stdout}\n{result.stderr}'
+    return root
 
+
+@pytest.mark.slow
+def test_colcon_build_installs_executables_and_markers(colcon_workspace):
+    install = colcon_workspace / 'install'
     for package, names in EXECUTABLES.items():
         for name in names:
             executable = install / package / 'lib' / package / name
@@ -248,3 +299,49 @@ def test_colcon_build_installs_executables_and_markers(tmp_path):
     found = subprocess.run([sys.executable, '-c', code], env=env, capture_output=True, text=True)
     assert found.returncode == 0, found.stderr
     assert Path(found.stdout.strip()) == install / 'hexacal_driver/share/hexacal_driver'
+
+
+def _pytest_count(package: str) -> int:
+    """Return the number of tests pytest collects in the package's directory."""
+    result = subprocess.run(
+        [sys.executable, '-m', 'pytest', '--collect-only', '-q', '-p', 'no:cacheprovider'],
+        cwd=SRC / package,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr
+    return int(re.search(r'^(\d+) tests? collected', result.stdout, re.M).group(1))
+
+
+@pytest.mark.slow  # the package's whole suite, its slow tests and lint included
+def test_colcon_test_runs_the_package_suite_as_pytest_does(colcon_workspace):
+    package = 'hexacal_msgs_py'  # the smallest suite
+    source = colcon_workspace / 'ws' / 'src' / package
+    result = _colcon(
+        colcon_workspace,
+        'test',
+        '--base-paths',
+        str(source),
+        '--event-handlers',
+        'console_direct-',
+        timeout=1800,
+    )
+    assert result.returncode == 0, f'colcon test failed:\n{result.stdout}\n{result.stderr}'
+    results = colcon_workspace / 'build' / package
+    summary = _colcon(
+        colcon_workspace, 'test-result', '--test-result-base', str(results), '--verbose', timeout=60
+    )
+    found = re.search(
+        r'^Summary: (\d+) tests, (\d+) errors, (\d+) failures, (\d+) skipped$',
+        summary.stdout,
+        re.M,
+    )
+    assert found, summary.stdout + summary.stderr
+    tests, errors, failures, _ = map(int, found.groups())
+    assert (errors, failures) == (0, 0) and summary.returncode == 0, summary.stdout
+    assert tests == _pytest_count(package), summary.stdout
+    # pytest ran them (colcon's unittest fallback finds none): its JUnit file, its lint tests.
+    junit = (results / 'pytest.xml').read_text()
+    assert f'classname="{package}.test.test_flake8_msgs"' in junit
+    assert f'classname="{package}.test.test_pep257_msgs"' in junit

@@ -13,6 +13,13 @@ setup(
     # hexacal_identify, hexacal_msgs_py and the ROS packages come from the
     # workspace or the ROS install, not PyPI.
     install_requires=['setuptools', 'numpy', 'scipy', 'pyyaml'],
+    # colcon test runs pytest when it is a test dependency (as ament_python packages
+    # declare it); every module the tests import besides the runtime ones.
+    extras_require={
+        'test': [
+            'pytest',
+        ],
+    },
     zip_safe=True,
     maintainer='hexacal developers',
     maintainer_email='hexacal@example.com',

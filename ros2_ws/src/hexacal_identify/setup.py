@@ -37,6 +37,14 @@ setup(
         'lz4',
         'zstandard',
     ],
+    # colcon test runs pytest when it is a test dependency (as ament_python packages
+    # declare it); every module the tests import besides the runtime ones.
+    extras_require={
+        'test': [
+            'pytest',
+            'hypothesis',
+        ],
+    },
     zip_safe=True,
     maintainer='hexacal developers',
     maintainer_email='hexacal@example.com',

@@ -12,6 +12,14 @@ setup(
     ],
     # ROS packages (rclpy, message packages) come from the ROS install, not PyPI.
     install_requires=['setuptools', 'numpy', 'pyyaml'],
+    # colcon test runs pytest when it is a test dependency (as ament_python packages
+    # declare it); every module the tests import besides the runtime ones.
+    extras_require={
+        'test': [
+            'pytest',
+            'hypothesis',
+        ],
+    },
     zip_safe=True,
     maintainer='hexacal developers',
     maintainer_email='hexacal@example.com',

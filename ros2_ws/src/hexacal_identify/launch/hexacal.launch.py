@@ -31,6 +31,12 @@ ARGUMENTS = {
     ),
     'output_dir': ('', 'directory identify writes its calibration YAML under'),
     'bag_dir': ('bags', 'directory the collector records bags into'),
+    'bag_name': ('', "the bag's directory name under bag_dir ('' = hexacal_<date>_<time>)"),
+    'calibration_store': (
+        '',
+        "calibration store directory of identify and kinematics ('' = the machine model's "
+        'store, as `hexacal history`)',
+    ),
     'record': ('true', 'record from the start'),
     'plan': (
         'random',

@@ -70,20 +70,48 @@ class _Command(NodeLaunch):
         return [sys.executable, '-c', self.program]
 
 
-def test_the_supervisor_stops_in_order_and_escalates(tmp_path):
-    group = NodeGroup(die_with_parent=True)
-    stubborn = 'import signal, time\nsignal.signal(signal.SIGINT, signal.SIG_IGN)\n'
-    polite = 'import time\n'
-    ready = 'print("ready", flush=True)\ntime.sleep(60)\n'
-    logs = {'driver': tmp_path / 'driver.log', 'collector': tmp_path / 'collector.log'}
-    group.start(_Command('driver', stubborn + ready), log_path=logs['driver'])
-    group.start(_Command('collector', polite + ready), log_path=logs['collector'])
-    # Stop only once both handle signals as they will (a signal during start-up ends any process).
-    deadline = time.monotonic() + 30.0
+def _start_when_ready(group: NodeGroup, programs: dict[str, str], log_dir) -> None:
+    """Start each program as a node and return once each has set up its signal handling."""
+    logs = {name: log_dir / f'{name}.log' for name in programs}
+    for name, program in programs.items():
+        ready = 'print("ready", flush=True)\ntime.sleep(600)\n'
+        group.start(_Command(name, program + ready), log_path=logs[name])
+    # A signal during start-up ends any process: stop only once each handles signals as it will.
+    deadline = time.monotonic() + 120.0
     while not all(p.exists() and 'ready' in p.read_text() for p in logs.values()):
         assert time.monotonic() < deadline and not group.exited(), 'the children did not start'
         time.sleep(0.01)
-    codes = group.stop(timeout=2.0, order=('driver',))
-    # SIGINT ends the collector (Python dies of it); the driver ignores it and gets SIGTERM.
-    assert codes == {'driver': -signal.SIGTERM, 'collector': -signal.SIGINT}
+
+
+def test_the_supervisor_stops_in_order(tmp_path):
+    # Each child notes its SIGINT in one file, then dies of it as Python does.
+    stopped = tmp_path / 'stopped'
+    noting = (
+        'import signal, time\n'
+        'def note(signum, frame):\n'
+        f'    open({str(stopped)!r}, "a").write(NAME + "\\n")\n'
+        '    raise KeyboardInterrupt\n'
+        'signal.signal(signal.SIGINT, note)\n'
+    )
+    group = NodeGroup(die_with_parent=True)
+    programs = {name: f'NAME = {name!r}\n' + noting for name in ('collector', 'driver')}
+    _start_when_ready(group, programs, tmp_path)
+    # A polite node exits as soon as it can: the timeout only bounds a hung one.
+    codes = group.stop(timeout=120.0, order=('driver',))
+    assert codes == {'driver': -signal.SIGINT, 'collector': -signal.SIGINT}
+    # The driver was stopped (and gone) before the collector heard of it.
+    assert stopped.read_text().split() == ['driver', 'collector']
+    assert group.nodes == []
+
+
+def test_the_supervisor_escalates_to_sigterm_then_sigkill(tmp_path):
+    # Escalation waits out the timeout, whatever the load: these children ignore the signal.
+    group = NodeGroup(die_with_parent=True)
+    ignores = 'import signal, time\nsignal.signal(signal.SIGINT, signal.SIG_IGN)\n'
+    deaf = ignores + 'signal.signal(signal.SIGTERM, signal.SIG_IGN)\n'
+    _start_when_ready(group, {'driver': ignores, 'collector': deaf}, tmp_path)
+    codes = group.stop(timeout=0.5, order=('driver',))
+    # SIGTERM's default action ends the driver in the kernel (no Python code runs); the
+    # collector ignores it too and gets SIGKILL, which the supervisor waits for without limit.
+    assert codes == {'driver': -signal.SIGTERM, 'collector': -signal.SIGKILL}
     assert group.nodes == []

@@ -120,6 +120,17 @@ def build_parser() -> argparse.ArgumentParser:
         '--bag-dir', default='', help='directory the collector records bags into (default: bags)'
     )
     parser.add_argument(
+        '--bag-name',
+        default='',
+        help="the bag's directory name under --bag-dir (default: hexacal_<date>_<time>)",
+    )
+    parser.add_argument(
+        '--calibration-store',
+        default='',
+        help='calibration store directory of identify and kinematics (default: the '
+        "machine model's store, as `hexacal history`)",
+    )
+    parser.add_argument(
         '--no-record',
         action='store_true',
         help='do not record until hexacal/start_recording is called',
@@ -300,6 +311,8 @@ def node_launches(args: argparse.Namespace) -> list[NodeLaunch]:
         kinematics=extra['kinematics'],
         inputs=inputs,
         measuring_mode=args.measuring_mode,
+        bag_name=args.bag_name,
+        calibration_store=args.calibration_store,
     )
     return nodes
 

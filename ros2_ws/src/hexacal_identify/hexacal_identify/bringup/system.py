@@ -106,6 +106,8 @@ def launches(
     kinematics: Mapping[str, object] | None = None,
     inputs: MachineInputs | None = None,
     measuring_mode: str = '',
+    bag_name: str = '',
+    calibration_store: str = '',
 ) -> list[NodeLaunch]:
     """
     Return the NodeLaunch of each node; empty options keep the nodes' defaults.
@@ -120,6 +122,8 @@ def launches(
     remaps the sensor topics of every node that reads (or, the driver, publishes) them.
     `measuring_mode` ('' keeps the nodes' defaults) goes to the driver and, when it declares
     the parameter, the executor (else the executor follows the plan's mode).
+    `bag_name` names the collector's bag ('' = hexacal_<date>_<time>); `calibration_store`
+    is the store of identify and kinematics ('' = the model's default store).
     """
     inputs = inputs or MachineInputs()
     mode = {MEASURING_MODE_KEY: check_mode(measuring_mode).value} if measuring_mode else {}
@@ -138,9 +142,15 @@ def launches(
     collector_parameters: dict[str, object] = {'record': bool(record), **collector_model}
     if bag_dir:
         collector_parameters['output_dir'] = str(bag_dir)
+    if bag_name:
+        collector_parameters['bag_name'] = str(bag_name)
     collector_parameters.update(inputs.collector_parameters())
     collector_parameters.update(collector or {})
-    identify_parameters: dict[str, object] = {}
+    # identify keeps its calibrations in the store; kinematics follows its deploys: the same one.
+    store: dict[str, object] = {}
+    if calibration_store:
+        store['calibration_store'] = str(Path(calibration_store).resolve())
+    identify_parameters: dict[str, object] = dict(store)
     if nominal:
         identify_parameters['nominal'] = str(Path(nominal).resolve())
     if output_dir:
@@ -156,7 +166,7 @@ def launches(
         NodeLaunch('identify', identify_parameters, namespace),
     ]
     if with_kinematics:
-        kinematics_parameters_: dict[str, object] = {'command_topic': command_topic}
+        kinematics_parameters_: dict[str, object] = {'command_topic': command_topic, **store}
         if kinematics_parameters:
             kinematics_parameters_['parameters'] = str(Path(kinematics_parameters).resolve())
         else:  # the machine's store, the one identify deploys into (its nominal's model)
@@ -281,6 +291,8 @@ def launches_from_arguments(values: Mapping[str, str]) -> list[NodeLaunch]:
         kinematics_parameters=get('kinematics_parameters'),
         inputs=inputs,
         measuring_mode=get('measuring_mode'),
+        bag_name=get('bag_name'),
+        calibration_store=get('calibration_store'),
     )
 
 
