@@ -104,7 +104,7 @@ PARAMETERS: dict[str, _Spec] = {
         10.0,
     ),
     # The drives in commanded mode (drives.py): the measuring mode and a real drive's guards.
-    # 'compliant' (today's behaviour) stays the default until the executor drives the others.
+    # 'compliant' is the default: a drive that is not told otherwise commands all six.
     'measuring_mode': _Spec(
         MeasuringMode.COMPLIANT.value,
         'commanded mode: how the drives meet the measuring link: passive_actuator (stiff '
