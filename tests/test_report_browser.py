@@ -24,7 +24,8 @@ from hexacal_identify.core.measurements import (
 )
 from hexacal_identify.core.model import nominal_set, table1_parameters
 from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.report.page import load_result, save_result
+from hexacal_identify.report.page import save_result
+from hexacal_msgs_py.result_file import read_result_file
 import numpy as np
 import pytest
 from system_support import hexacal
@@ -85,7 +86,7 @@ def calibration(tmp_path_factory):
 
 def test_result_file_is_a_superset_of_the_json_output(calibration):
     result, path = calibration
-    payload = load_result(path)
+    payload = read_result_file(path)
     for key, value in result.to_json().items():
         assert key in payload, key
     data = payload['report_data']

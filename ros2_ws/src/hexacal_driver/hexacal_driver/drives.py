@@ -5,7 +5,7 @@ The simulated machine's drives in commanded mode, per measuring mode, with a gua
 drives behave as the measuring mode (hexacal_msgs_py.measuring_modes) says, on the TRUE machine
 with the true link (link_length + dL):
 
-* ``compliant`` (today's behaviour, the default for now): six equally compliant servos; the
+* ``compliant`` (the default): six equally compliant servos; the
   platform stands on the link sphere where the elastic energy is least
   (simulation.device_constrained_pose). Each actuator carries the force
   ``servo_stiffness_n_per_m * (position - setpoint)`` (N, positive when the link pushes it
@@ -135,7 +135,7 @@ class DriveFollower(CommandFollower):
         self.peaks = {'following_error_m': 0.0, 'force_n': 0.0, 'link_extension_m': 0.0,
                       'actuator_deviation_m': 0.0}
         self.rest_deviation_m = 0.0
-        # Per motion (issue #18: before/after refinement splits): the rests reached after a
+        # Per motion (so a report can split before/after refinement): the rests reached after a
         # commanded motion, the peaks of the motion under way and of the last one that ended.
         self.rests = 0
         self.move_peaks = {'force_n': 0.0, 'link_extension_m': 0.0}
@@ -297,7 +297,7 @@ class DriveFollower(CommandFollower):
             if self.mode != MeasuringMode.COMPLIANT:
                 self._trip(self._jam(error))
                 return
-            # Compliant servos (as before the modes had names): it stays where it was.
+            # Compliant servos: all six commanded, the platform stays where it was.
             standing = Standing(self.pose, self.actuators, self.link_m)
         fault = self._check(standing, setpoints)
         if fault is not None:

@@ -1,7 +1,7 @@
 """
 Parameters of the driver node (ROS-free): their specs and the checks beyond type and range.
 
-The node declares `PARAMETERS` with descriptors (hexacal_identify.nodes.parameters) and
+The node declares `PARAMETERS` with descriptors (hexacal_msgs_py.node_parameters) and
 refuses a value for which `parameter_problem` names a problem, at start-up and at run time.
 """
 
@@ -12,7 +12,6 @@ import math
 from hexacal_driver.plan import GENERATED_PLANS, load_plan, PlanError
 from hexacal_driver.sensor_parameters import sensor_parameter_problem, SENSOR_PARAMETERS
 from hexacal_identify.core.device import DeviceDefects
-from hexacal_identify.nodes.parameters import ParameterSpec as _Spec
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.measuring_modes import (
     DEFAULT_LVDT_STROKE_M,
@@ -21,6 +20,7 @@ from hexacal_msgs_py.measuring_modes import (
     MeasuringMode,
 )
 from hexacal_msgs_py.models import MAX_DEVICE_TURN, MODELS
+from hexacal_msgs_py.node_parameters import ParameterSpec as _Spec
 from hexacal_msgs_py.parameters_file import load_parameters
 from hexacal_msgs_py.physical_file import PhysicalFileError, read_physical_file
 
@@ -106,7 +106,7 @@ PARAMETERS: dict[str, _Spec] = {
         10.0,
     ),
     # The drives in commanded mode (drives.py): the measuring mode and a real drive's guards.
-    # 'compliant' (today's behaviour) stays the default until the executor drives the others.
+    # 'compliant' is the default: a drive that is not told otherwise commands all six.
     'measuring_mode': _Spec(
         MeasuringMode.COMPLIANT.value,
         'commanded mode: how the drives meet the measuring link: passive_actuator (stiff '

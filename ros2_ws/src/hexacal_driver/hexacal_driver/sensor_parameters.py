@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 
 from hexacal_driver.sensor_models import parse_effects, SENSOR_DEFAULTS, SensorEffect
-from hexacal_identify.nodes.parameters import ParameterSpec as _Spec
+from hexacal_msgs_py.node_parameters import ParameterSpec as _Spec
 
 _D = SENSOR_DEFAULTS
 

@@ -24,6 +24,10 @@ _EXPORTS = {
     'SliderReading': 'hexacal_msgs_py.readings',
 }
 
+# Renamed names: answered (their module warns, DeprecationWarning) and never cached here, so
+# every use warns.
+_DEPRECATED = frozenset({'SliderReading'})
+
 __all__ = sorted(_EXPORTS)
 
 
@@ -32,7 +36,8 @@ def __getattr__(name: str) -> object:
     if name not in _EXPORTS:
         raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
     value = getattr(import_module(_EXPORTS[name]), name)
-    globals()[name] = value
+    if name not in _DEPRECATED:
+        globals()[name] = value
     return value
 
 

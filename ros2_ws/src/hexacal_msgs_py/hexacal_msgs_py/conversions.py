@@ -22,7 +22,7 @@ The device's turn about its link axis (rad: 0 normal mounting, pi reversed,
 pi/2 a quarter turn) travels as the optional joint ``device_turn``
 (DEVICE_TURN_JOINT) of the inclinometer and posture JointStates, whatever the
 mapping: absent means 0, and it is written only when non-zero, so messages and
-bags of a normally mounted device are the same as before it existed.
+bags of a normally mounted device carry no trace of it.
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ import numbers
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from hexacal_msgs_py.deprecation import deprecated_attribute
 from hexacal_msgs_py.errors import InvalidParametersError, InvalidReadingError
 from hexacal_msgs_py.inputs import (
     imu_inclinometer_angles,
@@ -536,6 +537,13 @@ def status_values(status: DiagnosticStatus) -> dict[str, str]:
     return {kv.key: kv.value for kv in status.values if kv.key != LEVEL_NAME_KEY}
 
 
-# Deprecated names (issue #17): the old spellings stay importable for users' scripts.
-joint_state_to_slider_reading = joint_state_to_actuator_reading  # deprecated
-slider_reading_to_joint_state = actuator_reading_to_joint_state  # deprecated
+# Renamed names: still importable for users' scripts, with a DeprecationWarning.
+DEPRECATED_NAMES = {
+    'joint_state_to_slider_reading': 'joint_state_to_actuator_reading',
+    'slider_reading_to_joint_state': 'actuator_reading_to_joint_state',
+}
+
+
+def __getattr__(name: str) -> object:
+    """Return a renamed name's new object, warning (PEP 562); else AttributeError."""
+    return deprecated_attribute(__name__, name, DEPRECATED_NAMES, globals())

@@ -30,8 +30,8 @@ def load_yaml_text(text: str, loader: type | None = None, fast_loader: type | No
 
     Default: ``yaml.SafeLoader`` and ``yaml.CSafeLoader``.  The fast loader is
     used when PyYAML has libyaml and the text cannot nest more than about
-    MAX_LIBYAML_INDICATORS deep; else the pure-Python loader (as before, a
-    RecursionError for absurd nesting).  yaml.YAMLError and RecursionError
+    MAX_LIBYAML_INDICATORS deep; else the pure-Python loader (a RecursionError
+    for absurd nesting).  yaml.YAMLError and RecursionError
     propagate: callers name the file.
     """
     import yaml

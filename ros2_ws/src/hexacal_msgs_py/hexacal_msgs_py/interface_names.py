@@ -29,7 +29,7 @@ EXECUTOR_ABORT_SERVICE = 'hexacal/executor/abort'
 # own namespace).
 DEFAULT_COMMAND_TOPIC = '/joint_trajectory_controller/joint_trajectory'
 
-# Measuring modes (issue #18, hexacal_msgs_py.measuring_modes). The LVDT link's length
+# Measuring modes (hexacal_msgs_py.measuring_modes). The LVDT link's length
 # (joint 'link_length', m) is a fourth device reading on its own sensor stream; a machine whose
 # actuators can be released offers one std_srvs/SetBool service per actuator joint
 # (release_service(joint)): data true releases the joint (it follows the link, its encoder still

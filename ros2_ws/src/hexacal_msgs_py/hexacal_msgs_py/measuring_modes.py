@@ -1,5 +1,5 @@
 """
-The measuring modes of issue #18: how the machine is driven while the link is attached (ROS-free).
+The measuring modes: how the machine is driven while the link is attached (ROS-free).
 
 With the measuring link attached the platform has 5 degrees of freedom (the paper's section 4),
 so six position-controlled actuators over-constrain it.  A measuring procedure says how that is

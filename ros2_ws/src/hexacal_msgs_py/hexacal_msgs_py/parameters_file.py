@@ -29,7 +29,7 @@ their chain keys, e.g. a Gough-Stewart platform::
         ...
 
 A file without ``model`` is a Hexa Slide; Hexa Slide files are written without
-it, exactly as before.  A ``chain_N.<key>`` that is not a key of the file's
+it.  A ``chain_N.<key>`` that is not a key of the file's
 model is an error naming the key.
 
 An optional section carries the axial compliances identified with the geometry
@@ -39,7 +39,7 @@ An optional section carries the axial compliances identified with the geometry
         compliance.link: 1.0e-07          # the measuring link's (calibration only)
         compliance_std.chains: 1.5e-09    # their standard deviations, where known
 
-A rigid calibration writes none of it (the file is exactly as before) and a file
+A rigid calibration writes none of it (its file is the geometry alone) and a file
 without it is a rigid machine.
 """
 

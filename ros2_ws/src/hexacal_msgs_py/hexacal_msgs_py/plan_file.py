@@ -24,7 +24,7 @@ units::
 that posture; a posture without one takes the reader's default (the driver's
 ``device_turn`` parameter, the normal mounting for the executor).
 
-``measuring_mode`` (issue #18, hexacal_msgs_py.measuring_modes: ``passive_actuator``,
+``measuring_mode`` (hexacal_msgs_py.measuring_modes: ``passive_actuator``,
 ``lvdt`` or ``compliant``) says how the machine is driven while the link is
 attached; a plan without it takes the reader's default.  ``released_actuator``
 (one of the plan model's actuator joint names, e.g. ``slider_3`` / ``leg_3``)
@@ -36,15 +36,14 @@ joint name is what every consumer uses (the commanded trajectory names the five
 other joints, the release interface is per joint, the bag's JointStates name
 it), it carries no 0/1-based ambiguity, and it is checked against the plan's
 model (a Hexa Slide plan cannot release ``leg_2``).  Both keys are written only
-when given, so every earlier plan file reads, and is written, byte for byte as
-before.
+when given, so a plan without them reads, and is written, byte for byte as a plan
+of the keys above.
 
 The planner's metadata rides in the ``# hexacal-plan:`` comment line (one JSON
-object) so that files written before this module existed, and readers that know
-only the keys above, read them unchanged: the written bytes stay those of every
-earlier hexacal release. ``read_plan_file`` checks everything that needs no
-machine model; a subclass of `PlanFile` adds the checks that need kinematics
-(`PlanFile.posture_problem`, the driver's PosturePlan).
+object) so that plan files without it, and readers that know only the keys above,
+read them unchanged: a strict YAML reader skips the line. ``read_plan_file`` checks
+everything that needs no machine model; a subclass of `PlanFile` adds the checks that need
+kinematics (`PlanFile.posture_problem`, the driver's PosturePlan).
 """
 
 from __future__ import annotations
@@ -87,7 +86,7 @@ REQUIRED_PLAN_KEYS = frozenset({'name', 'link_length'})
 OPTIONAL_PLAN_KEYS = frozenset({PLAN_MODEL_KEY, PLAN_MOUNT_KEY})
 POSTURE_KEYS = frozenset({'kind', 'pose'})
 OPTIONAL_POSTURE_KEYS = frozenset({DEVICE_TURN_KEY})
-# The measuring-mode keys (issue #18), optional too; listed apart in the refusals.
+# The measuring-mode keys, optional too; listed apart in the refusals.
 MODE_PLAN_KEYS = frozenset({MEASURING_MODE_KEY})
 MODE_POSTURE_KEYS = frozenset({RELEASED_ACTUATOR_KEY})
 

@@ -16,6 +16,7 @@ import math
 import operator
 from typing import cast, SupportsIndex
 
+from hexacal_msgs_py.deprecation import deprecated_attribute, warn_deprecated
 from hexacal_msgs_py.errors import InvalidReadingError
 from hexacal_msgs_py.names import (
     DEVICE_TURN_JOINT,
@@ -108,7 +109,8 @@ class ActuatorReading:
 
     @property
     def slider_positions(self) -> tuple[float, ...]:
-        """Return actuator_positions (deprecated name, issue #17)."""
+        """Return actuator_positions, warning: the field's deprecated name."""
+        warn_deprecated('slider_positions', 'actuator_positions')
         return self.actuator_positions
 
 
@@ -259,7 +261,8 @@ class PostureReading:
 
     @property
     def slider_positions(self) -> tuple[float, ...]:
-        """Return actuator_positions (deprecated name, issue #17)."""
+        """Return actuator_positions, warning: the field's deprecated name."""
+        warn_deprecated('slider_positions', 'actuator_positions')
         return self.actuator_positions
 
     @classmethod
@@ -321,5 +324,10 @@ class PostureReading:
         )
 
 
-# Deprecated names (issue #17): the old spellings stay importable for users' scripts.
-SliderReading = ActuatorReading  # deprecated
+# Renamed names: still importable for users' scripts, with a DeprecationWarning.
+DEPRECATED_NAMES = {'SliderReading': 'ActuatorReading'}
+
+
+def __getattr__(name: str) -> object:
+    """Return a renamed name's new object, warning (PEP 562); else AttributeError."""
+    return deprecated_attribute(__name__, name, DEPRECATED_NAMES, globals())

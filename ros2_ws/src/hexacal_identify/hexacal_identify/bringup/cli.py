@@ -6,7 +6,7 @@ the simulated driver unless --no-driver (a real machine publishes), and the
 executor when --executor-plan names a plan from `hexacal plan`: it walks the
 plan through the trajectory controller on --command-topic (with the simulated
 driver, the driver then runs in commanded mode on that topic; without an
-executor plan the driver walks its own --plan as before). The input remaps
+executor plan the driver walks its own --plan). The input remaps
 (--sliders-topic, --inclinometer-topic, --encoder-topic) and the joint mapping
 (--actuator-joints, --inclinometer-joints, --rotary-joint, --inclinometer-type,
 --inclinometer-signs, --inclinometer-offsets-rad) say where a real machine's

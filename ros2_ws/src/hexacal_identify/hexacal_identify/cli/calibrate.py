@@ -159,7 +159,7 @@ def _compliance_arguments(calibrate: argparse.ArgumentParser) -> None:
         choices=COMPLIANCE_MODES,
         default='none',
         help='axial compliances identified with the geometry from the static loads of each '
-        'posture: none (rigid, as before), shared (one for the six chains, one for the link) or '
+        'posture: none (rigid), shared (one for the six chains, one for the link) or '
         'per_chain (one per chain, one for the link); needs --physical',
     )
     calibrate.add_argument(
@@ -563,7 +563,7 @@ def device_prior_lines(result, prior) -> list[str]:
 
 
 def _measuring_line(bag) -> str:
-    """Return the measuring mode line ('' when the bag says nothing of it: as before)."""
+    """Return the measuring mode line ('' when the bag does not record its mode)."""
     from ..pipeline import link_length_count
 
     measured = link_length_count(bag.postures)

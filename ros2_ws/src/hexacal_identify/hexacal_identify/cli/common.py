@@ -1,7 +1,7 @@
 """
 Shared pieces of the ``hexacal`` command line.
 
-Lazy subcommands, progress display, parameter-file arguments.
+Lazy subcommands, progress display.
 
 Imported by every ``hexacal`` start-up: keep its imports to the standard library.
 """
@@ -9,12 +9,8 @@ Imported by every ``hexacal`` start-up: keep its imports to the standard library
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 import sys
-from typing import Callable, TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from ..core.architectures import KinematicParameters
+from typing import Callable
 
 
 class LazySubcommands(argparse._SubParsersAction):
@@ -79,18 +75,3 @@ class Progress:
     def close(self) -> None:
         if self._bar is not None:
             self._bar.close()
-
-
-def load_params_arg(path: Path) -> 'KinematicParameters':
-    """
-    Load a parameters YAML named on the command line, of the model it names.
-
-    A parameters YAML named on the command line, of the model it names, validated
-    (ParameterFileError names the file and the bad key).
-    """
-    from hexacal_msgs_py.parameters_file import read_parameters_file
-
-    from ..core.architectures import parameters_for
-
-    contents = read_parameters_file(path)
-    return parameters_for(contents.model, contents.vector)

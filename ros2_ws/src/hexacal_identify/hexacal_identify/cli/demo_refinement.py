@@ -1,5 +1,5 @@
 """
-The demo's drive figures split before / after target refinement (issue #18), ROS-free.
+The demo's drive figures split before / after target refinement, ROS-free.
 
 The executor walks the calibration plan on nominal targets until the postures measured allow a
 calibration of full rank, then on targets from intermediate calibrations (status

@@ -138,19 +138,6 @@ def parse_values(text: str, option: str, what: str) -> list[float]:
     return values
 
 
-def _load(path: Path):
-    """(parameters object, device mount) of a parameters YAML."""
-    from hexacal_msgs_py.models import DEVICE_MOUNT_KEY
-    from hexacal_msgs_py.parameters_file import read_parameters_file
-
-    from ..core.architectures import parameters_for
-    from ..core.device import check_mount, DEFAULT_MOUNT
-
-    contents = read_parameters_file(path)
-    mount = check_mount(contents.extras.get(DEVICE_MOUNT_KEY, DEFAULT_MOUNT))
-    return parameters_for(contents.model, contents.vector), mount
-
-
 def _pose_values(text: str, option: str, angles: str) -> list[float]:
     """Return a hexacal pose of an option's six values in the chosen angle convention."""
     _check_angles(angles)
@@ -194,9 +181,10 @@ def _print(params, pose, actuators, as_json: bool, angles: str = 'hexacal') -> N
 def run_ik(args) -> int:
     from ..core.errors import UnreachablePoseError
     from ..core.kinematics import inverse_kinematics
+    from ..pipeline import load_machine_and_mount
 
     pose = _pose_values(args.pose, '--pose', args.angles)
-    params, _ = _load(args.parameters)
+    params, _ = load_machine_and_mount(args.parameters)
     try:
         actuators = inverse_kinematics(params, [pose])[0]
     except UnreachablePoseError as error:
@@ -214,11 +202,12 @@ def run_fk(args) -> int:
     from ..core.errors import ForwardKinematicsError
     from ..core.live import home_pose, solve_pose
     from ..core.postures import Workspace
+    from ..pipeline import load_machine_and_mount
 
     _check_angles(args.angles)
     actuators = parse_values(args.actuators, '--actuators', 'the six readings in SI units')
     guess = None if args.guess is None else _pose_values(args.guess, '--guess', args.angles)
-    params, mount = _load(args.parameters)
+    params, mount = load_machine_and_mount(args.parameters)
     if guess is None:
         guess = home_pose(Workspace().link_length, mount)
     try:

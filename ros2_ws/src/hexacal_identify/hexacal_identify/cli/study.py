@@ -37,8 +37,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from hexacal_msgs_py.models import MODELS
 
     from . import study_device as cli_study_device
+    from . import study_plan
     from ..core.residuals import COSTS
-    from ..studies import planning as planning_study
 
     parser.add_argument(
         '--model',
@@ -99,14 +99,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=Path('study_out'),
         help='directory for PNG figures (default study_out)',
     )
-    planning_study.add_arguments(parser)
+    study_plan.add_arguments(parser)
     cli_study_device.add_arguments(parser)
     add_mode_arguments(parser)
     parser.set_defaults(handler=run)
 
 
 def add_mode_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add the options of the measuring-mode study (issue #18; absent: today's study)."""
+    """Add the options of the measuring-mode study (absent: the accuracy study)."""
     from hexacal_msgs_py.measuring_modes import DEFAULT_LVDT_STROKE_M, MEASURING_MODES
 
     group = parser.add_argument_group(
@@ -158,20 +158,6 @@ def add_mode_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _load_params(path: Path) -> KinematicParameters:
-    """
-    Load a parameters YAML of any model.
-
-    A parameters YAML of any model, validated (ParameterFileError names the file and the bad key).
-    """
-    from hexacal_msgs_py.parameters_file import read_parameters_file
-
-    from ..core.architectures import parameters_for
-
-    contents = read_parameters_file(path)
-    return parameters_for(contents.model, contents.vector)
-
-
 def study_model(args) -> str:
     """
     Return the model studied.
@@ -204,11 +190,12 @@ def study_model(args) -> str:
 def configured_run(args) -> StudyRun:
     from ..core.architectures import default_parameters
     from ..core.device import DeviceDefects
+    from ..pipeline import load_machine
     from ..studies.accuracy import StudyRun
 
     model = study_model(args)
-    true_params = _load_params(args.true_params) if args.true_params else default_parameters(model)
-    nominal = _load_params(args.nominal_params) if args.nominal_params else None
+    true_params = load_machine(args.true_params) if args.true_params else default_parameters(model)
+    nominal = load_machine(args.nominal_params) if args.nominal_params else None
     if args.postures < 1:
         raise ValueError(f'--postures must be positive, got {args.postures}')
     return StudyRun(
@@ -232,16 +219,17 @@ def configured_run(args) -> StudyRun:
 
 def run(args) -> int:
     from . import study_device as cli_study_device
-    from ..studies import planning as planning_study
+    from . import study_plan
     from ..studies.accuracy import run_calibration
 
     args.model = study_model(args)  # resolved once: the files' model when --model is not given
     if args.plan:
-        return planning_study.run(args)
+        return study_plan.run(args)
     if args.measuring_mode is not None:
         from . import study_modes
+        from ..pipeline import load_machine
 
-        return study_modes.run(args, _load_params)
+        return study_modes.run(args, load_machine)
     configured = configured_run(args)
     if args.json:
         print(json.dumps(run_calibration(configured).to_json()))

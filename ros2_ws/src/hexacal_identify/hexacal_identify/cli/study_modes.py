@@ -1,4 +1,4 @@
-"""``hexacal study --measuring-mode M``: the accuracy of each measuring mode (issue #18)."""
+"""``hexacal study --measuring-mode M``: the accuracy of each measuring mode."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ UM = 1e6
 
 
 def mode_runs(args, load_params: Callable) -> list:
-    """Return the runs the options ask for; ``all`` adds today's compliant run as the baseline."""
+    """Return the runs the options ask for; ``all`` adds the compliant run as the baseline."""
     from ..core.architectures import default_parameters
     from ..studies.measuring_modes import ModeStudyRun, selected_modes
 

@@ -11,8 +11,8 @@ inclinometer cannot see:
 * the link: it is ``L + c_L T`` long (T its tension), the length eq. 4's position,
   the sphere of eq. 8 and the fixed position of eq. 10 use.
 
-Compliance choices (``COMPLIANCE_MODES``): ``none`` (the rigid model, today's
-results to the bit), ``shared`` (one compliance for all six chains, ``chains``,
+Compliance choices (``COMPLIANCE_MODES``): ``none`` (the rigid model,
+the rigid results to the bit), ``shared`` (one compliance for all six chains, ``chains``,
 plus ``link``) and ``per_chain`` (``chain_1`` .. ``chain_6`` plus ``link``).  The
 unknowns follow the device defects in the solver's vector, named
 ``compliance.<name>`` (m/N).  The loads are evaluated at the poses at the start

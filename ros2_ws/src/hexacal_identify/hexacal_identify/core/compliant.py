@@ -1,7 +1,7 @@
 """
 The compliant measuring mode: where equally stiff servos put the platform on the link sphere.
 
-In the ``compliant`` mode (issue #18) all six actuators are commanded against the rigid
+In the ``compliant`` mode all six actuators are commanded against the rigid
 measuring link: setpoints the true machine cannot reach on the link sphere strain it until the
 actuators, equally stiff position loops, settle where the elastic energy is least.
 `device_constrained_pose` solves that pose.  It lives in the core so that the simulated driver

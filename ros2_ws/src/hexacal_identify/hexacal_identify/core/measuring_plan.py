@@ -1,5 +1,5 @@
 """
-What a plan adds for its measuring mode (issue #18): released actuators, LVDT extensions.
+What a plan adds for its measuring mode: released actuators, LVDT extensions.
 
 * ``passive_actuator``: each posture's released actuator (``released_actuator.py``), written
   into the plan by joint name, with the conditioning it gives and the worst it avoids.
@@ -129,9 +129,9 @@ def walking_notice(mode: str | None) -> str | None:
     """
     Return what the executor must tell the operator before walking a plan of `mode`, or None.
 
-    The executor drives the compliant mode only (issue #18 is in progress): it commands all six
-    actuators whatever the plan says, so a plan made for a released actuator or an LVDT link is
-    walked over-constrained. The operator hears it before anything moves.
+    For an executor that commands all six actuators whatever the plan says (its drive cannot
+    release one): a plan made for a released actuator or an LVDT link is then walked
+    over-constrained. The operator hears it before anything moves.
     """
     if mode is None or measuring_mode(mode) is MeasuringMode.COMPLIANT:
         return None

@@ -27,7 +27,7 @@ device parameters' uncertainty marginalised: W weighs the kinematic columns
 only.  The plan's postures carry their ``device_turn`` and are ordered by turn
 (one remount per turn), each turn's postures in a travel tour.
 
-Planning for a measuring mode (``measuring_mode``, issue #18; measuring_plan.py).
+Planning for a measuring mode (``measuring_mode``; measuring_plan.py).
 ``passive_actuator`` chooses each posture's released actuator (released_actuator.py)
 and, within each kind and mounting, the order, and writes them into the plan; ``lvdt``
 checks every posture's predicted link extension.  With six commanded actuators

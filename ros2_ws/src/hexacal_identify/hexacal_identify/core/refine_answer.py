@@ -1,5 +1,5 @@
 """
-Which calibration is the executor's own (issue #18 section 2, ROS-free).
+Which calibration is the executor's own (ROS-free).
 
 The executor asks ``hexacal/calibrate`` for an intermediate calibration and must compute its
 targets (and rebuild its guard) with THAT result only.  ``hexacal/parameters`` is no answer to

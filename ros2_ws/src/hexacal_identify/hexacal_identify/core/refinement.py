@@ -1,5 +1,5 @@
 """
-Targets refined from a first calibration (issue #18 section 2), ROS-free.
+Targets refined from a first calibration, ROS-free.
 
 A plan's targets are the nominal model's inverse kinematics of its poses; on the true machine
 they are millimetres off, and whatever resolves the over-constraint (a released actuator, an

@@ -1,5 +1,5 @@
 """
-The moves between a plan's postures as the executor takes them, on the nominal (issue #18).
+The moves between a plan's postures as the executor takes them, on the nominal.
 
 A move runs along the link sphere (``paths.sphere_path``: great circle, Euler angles linear) if
 the nominal IK of all six stays inside the stroke there, else by way of the centre (the fixed

@@ -1,5 +1,5 @@
 """
-Walk a passive-actuator plan in rehearsal: the release per move and, if free, the order (#18).
+Walk a passive-actuator plan in rehearsal: the release per move and, if free, the order.
 
 `Rehearser` keeps where each rehearsed machine stands (core/release_rehearsal.py) and tries a
 move to a posture: the candidates that stay inside the stroke less the margin on the nominal

@@ -1,5 +1,5 @@
 """
-Rehearse a passive-actuator move on machines that differ from the nominal (issue #18).
+Rehearse a passive-actuator move on machines that differ from the nominal.
 
 With one actuator released, the five commanded ones and the link decide where the platform
 goes, and on the true machine that is not where the nominal model says: millimetres of model

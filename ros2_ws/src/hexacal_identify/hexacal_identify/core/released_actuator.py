@@ -1,5 +1,5 @@
 """
-Choose the actuator released at each posture of a passive-actuator plan (issue #18).
+Choose the actuator released at each posture of a passive-actuator plan.
 
 For each planned posture, among the six actuators, the released one is the one
 that keeps the five commanded plus the link well conditioned all along the move
@@ -52,7 +52,7 @@ from .release_plan import (
 
 DEFAULT_STEP_M = 0.01  # path samples at most this far apart (position; angles times L)
 # Kept from both stroke ends by the released actuator along every move: the largest deviation
-# of the true machine from a nominal model (the demo's strain, issue #18: up to 4 mm) and more.
+# of the true machine from a nominal model (the demo's strain: up to 4 mm) and more.
 DEFAULT_MARGIN_M = 0.005
 
 

@@ -1,5 +1,5 @@
 """
-Postures that six commanded actuators can hold on a machine unlike the nominal (issue #18).
+Postures that six commanded actuators can hold on a machine unlike the nominal.
 
 A posture is planned on the nominal model, and the executor commands the nominal IK. With all
 six actuators stiff (``lvdt``, ``compliant``) the true machine then stands where its own

@@ -31,6 +31,27 @@ from .postures import sample_poses
 from .validation import pose_errors, validation_poses
 
 
+def position_covariances(
+    params: KinematicParameters,
+    covariance: np.ndarray,
+    poses: np.ndarray,
+    wrt_parameters: np.ndarray | None = None,
+) -> np.ndarray:
+    """
+    Return the (N, 3, 3) platform-position covariances J_p C J_p^T at ``poses`` (m^2, linearised).
+
+    J_p = dP/du at each pose, C the parameter covariance (its kinematic block: device defects
+    after the n kinematic parameters are ignored). ``wrt_parameters``: dX/du (N, 6, n) at
+    ``poses`` when the caller has it already.
+    """
+    n = params.layout.n_parameters
+    covariance = np.asarray(covariance)[:n, :n]
+    if wrt_parameters is None:
+        wrt_parameters = pose_sensitivities(params, poses).wrt_parameters
+    position = wrt_parameters[:, :3]
+    return np.einsum('nik,kl,njl->nij', position, covariance, position)
+
+
 @dataclass
 class PredictedPoseErrors:
     position_mean_m: np.ndarray  # (N,) expected |position error| per pose
@@ -61,9 +82,7 @@ def predicted_pose_errors(
     d_pose = np.einsum('nik,sk->nsi', sensitivity, draws)  # (N, samples, 6)
     rotation_axes = euler_rate_axes(poses[:, 3:6])  # angle rates -> rotation vector
     rotation = np.einsum('nij,nsj->nsi', rotation_axes, d_pose[:, :, 3:6])
-    position_covariance = np.einsum(
-        'nik,kl,njl->nij', sensitivity[:, :3], covariance, sensitivity[:, :3]
-    )
+    position_covariance = position_covariances(params, covariance, poses, sensitivity)
     return PredictedPoseErrors(
         position_mean_m=np.linalg.norm(d_pose[:, :, :3], axis=2).mean(axis=1),
         orientation_mean_rad=np.linalg.norm(rotation, axis=2).mean(axis=1),
@@ -140,7 +159,7 @@ def monte_carlo(
         position.append(errors['position_mean_m'])
         orientation.append(errors['orientation_mean_rad'])
     estimate_array = np.array(estimates)
-    # None only when no seed gave a covariance (then, as before, predicted_pose_errors fails).
+    # None only when no seed gave a covariance (then predicted_pose_errors fails).
     predicted = predicted_pose_errors(true_params, cast(np.ndarray, first_covariance), validation)
     return MonteCarloSummary(
         seeds=seeds,
@@ -170,4 +189,10 @@ def _crb_std(
     return np.sqrt(np.diag(result.covariance)[: true_params.layout.n_parameters])
 
 
-__all__ = ['MonteCarloSummary', 'PredictedPoseErrors', 'monte_carlo', 'predicted_pose_errors']
+__all__ = [
+    'MonteCarloSummary',
+    'PredictedPoseErrors',
+    'monte_carlo',
+    'position_covariances',
+    'predicted_pose_errors',
+]

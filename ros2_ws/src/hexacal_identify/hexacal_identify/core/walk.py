@@ -65,7 +65,7 @@ from the resume).  progress() reports the current posture's
 A posture skipped after the turn does not undo it: the next posture's turn is
 compared with the mounting the device is in.
 
-Releasing an actuator (measuring_mode ``passive_actuator``, issue #18): with
+Releasing an actuator (measuring_mode ``passive_actuator``): with
 ``released`` given, each posture names the chain released while it is moved to
 and measured (None: all six commanded).  Before a posture whose released chain
 is not the one released now, at rest, the execution asks the node to lock the

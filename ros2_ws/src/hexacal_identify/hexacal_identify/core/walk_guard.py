@@ -1,5 +1,5 @@
 """
-The executor's guard (issue #18, ROS-free): predict a move before it is sent, on the model.
+The executor's guard (ROS-free): predict a move before it is sent, on the model.
 
 A real drive faults when a commanded actuator cannot follow, and a measuring link bends or
 reaches its end stop; the executor must stop before, never after. Before a command is sent,

@@ -1,8 +1,8 @@
 """
-How the executor drives a plan's measuring mode (issue #18, ROS-free).
+How the executor drives a plan's measuring mode (ROS-free).
 
 The executor's ``measuring_mode`` parameter ('' = the plan's mode, and a plan without one walks
-``compliant``, as before the modes had names) decides:
+``compliant``: all six commanded) decides:
 
 * ``passive_actuator``: the chain released at each posture, from the plan's
   ``released_actuator`` (joint names of the model) or, where the plan names none, chosen as the

@@ -1,5 +1,5 @@
 """
-The executor's targets refined from a first calibration (issue #18 section 2), ROS-free.
+The executor's targets refined from a first calibration, ROS-free.
 
 The schedule is core/refinement.py's (one owner): the first checkpoint is the posture count that
 allows a calibration of full rank, then geometrically more.  When the postures measured so far

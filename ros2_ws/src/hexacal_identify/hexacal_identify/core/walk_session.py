@@ -358,7 +358,7 @@ class ExecutorStatus:
         self.waiting_for: tuple[str, ...] = ()  # what the start waits for
         self._last_key: tuple | None = None
         self._last_s = 0.0
-        # Set by the node (issue #18): the mode walked and the controller's joint names.
+        # Set by the node: the mode walked and the controller's joint names.
         self.measuring_mode = ''
         self.joint_names: tuple[str, ...] = ()
 

@@ -5,7 +5,7 @@ A posture the collector averaged carries its scatter (``PostureScatter``: the st
 of each channel's mean).  Where every posture does, the fit weighs each posture's channels by
 it (``Weights.SCATTER``): a posture taken while the machine still shook, or a channel that
 scattered more, counts less, and the variance factor compares the residuals with what the
-postures' own scatter predicts.  Postures without scatter (a bag recorded before it existed,
+postures' own scatter predicts.  Postures without scatter (a bag recorded without it,
 postures given by hand) are weighed by the noise model when one is given (``--noise-um``,
 the identify node's noise_slider_m / noise_angle_rad; ``Weights.NOISE_MODEL``), else not at
 all (``Weights.NONE``).  The modes (``--weights``, the identify node's ``weights``):

@@ -70,7 +70,7 @@ from ..session import (
 )
 from ..session.prior import ANGLE_PRIORS, LINK_LENGTH_PRIOR
 
-# output_path: tests and tools import it from here, as before the session existed.
+# output_path: tests and tools import it from here (it lives in the session).
 __all__ = ['IdentifyNode', 'main', 'NODE_NAME', 'output_path']
 
 NODE_NAME = 'identify'

@@ -1,7 +1,8 @@
 """
-Node parameters declared with descriptors.
+Node parameters declared with descriptors: the contract's spec type and descriptor builder.
 
-One spec type and one descriptor builder for every node.
+The one definition is hexacal_msgs_py.node_parameters (the simulated driver uses it too); the
+nodes import it from here.
 
 Kept apart from nodes/runtime.py, which entry points import before anything else (its imports must
 stay minimal so a Ctrl-C during start-up finds the signal handlers in place).
@@ -9,50 +10,6 @@ stay minimal so a Ctrl-C during start-up finds the signal handlers in place).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from hexacal_msgs_py.node_parameters import parameter_descriptor, ParameterSpec
 
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-
-
-@dataclass(frozen=True)
-class ParameterSpec:
-    """
-    A node parameter: default (its type), description, range, further constraints.
-
-    Default (its type), description, range (numbers), further constraints (text).
-    """
-
-    default: object
-    description: str
-    low: float | int | None = None
-    high: float | int | None = None
-    constraints: str = ''
-
-
-def parameter_descriptor(
-    name: str, spec: ParameterSpec, read_only: bool = True
-) -> ParameterDescriptor:
-    """
-    Return the descriptor rcl enforces.
-
-    Type from the default, range for numbers, lists of either number type.
-    """
-    descriptor = ParameterDescriptor(
-        name=name,
-        description=spec.description,
-        read_only=read_only,
-        additional_constraints=spec.constraints,
-    )
-    if isinstance(spec.default, list):
-        descriptor.dynamic_typing = (
-            True  # [0, 1] is as good as [0.0, 1.0]; the node checks the items
-        )
-    elif isinstance(spec.default, float):
-        descriptor.floating_point_range = [
-            FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high), step=0.0)
-        ]
-    elif isinstance(spec.default, int) and not isinstance(spec.default, bool):
-        descriptor.integer_range = [
-            IntegerRange(from_value=int(spec.low), to_value=int(spec.high), step=1)
-        ]
-    return descriptor
+__all__ = ['ParameterSpec', 'parameter_descriptor']

@@ -1,9 +1,9 @@
 """
 The calibration report: a result file with everything, and a self-contained HTML page of it.
 
-``save_result`` writes a JSON file that is a superset of ``IdentificationResult.to_json()``
-(what ``hexacal calibrate --json`` prints): the same keys, plus under
-``report_data`` the vectors and arrays a report needs (SI units; NaN as null).
+``save_result`` writes a result file (its format: hexacal_msgs_py.result_file), a superset of
+``IdentificationResult.to_json()`` (what ``hexacal calibrate --json`` prints): the same keys,
+plus under ``report_data`` the vectors and arrays a report needs (SI units; NaN as null).
 ``write_report`` turns such a file (or a plain ``--json`` output, with fewer
 figures, or an IdentificationResult) into DIR/index.html plus PNG figures.  The
 page embeds the PNGs as data URIs, so it opens offline and alone; the PNG files
@@ -20,19 +20,26 @@ from __future__ import annotations
 import base64
 from dataclasses import replace
 import html
-import json
 import math
 from pathlib import Path
 
 from hexacal_msgs_py.files import atomic_write
 from hexacal_msgs_py.models import DEFAULT_MODEL, ModelLayout
+from hexacal_msgs_py.result_file import (
+    ADEQUACY_KEY,
+    DEVICE_PRIOR_KEY,
+    FORMAT_KEY,
+    read_result_file,
+    REPORT_DATA_KEY,
+    RESULT_FORMAT,
+    write_result_file,
+)
 import numpy as np
 
 from ..core.architectures import architecture
 from ..core.device import check_mount, DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, fixed_point, STANDING
 from ..core.jsonsafe import json_safe as _plain
 
-RESULT_FORMAT = 'hexacal-result/1'
 UM, MM = 1e6, 1e3
 MAP_GRID = 41  # cells per axis of the predicted pose-error map
 
@@ -58,9 +65,9 @@ def result_payload(
     and posterior side by side.
     """
     payload = result.to_json()
-    payload['adequacy'] = result.adequacy.to_json()
+    payload[ADEQUACY_KEY] = result.adequacy.to_json()
     if device_prior is not None:
-        payload['device_prior'] = _device_prior_dict(device_prior)
+        payload[DEVICE_PRIOR_KEY] = _device_prior_dict(device_prior)
     layout = result.parameters.layout
     n = layout.n_parameters
     used = [int(i) for i in result.used_postures]
@@ -73,8 +80,8 @@ def result_payload(
         truth = np.asarray(getattr(true_parameters, 'vector', true_parameters), dtype=float)[:n]
     if link_length is None:
         link_length = DEFAULT_LINK_LENGTH_M
-    payload['format'] = RESULT_FORMAT
-    payload['report_data'] = _plain(
+    payload[FORMAT_KEY] = RESULT_FORMAT
+    payload[REPORT_DATA_KEY] = _plain(
         {
             'parameter_names': list(layout.parameter_names),
             'parameters': result.parameters.vector,
@@ -98,7 +105,7 @@ def result_payload(
         }
     )
     if mount is not None:
-        payload['report_data']['mount'] = check_mount(mount)
+        payload[REPORT_DATA_KEY]['mount'] = check_mount(mount)
     return payload
 
 
@@ -123,7 +130,7 @@ def save_result(
     mount: str | None = None,
     device_prior=None,
 ) -> Path:
-    """Write ``result_payload`` as strict JSON, atomically."""
+    """Write ``result_payload`` as a result file (hexacal_msgs_py.result_file)."""
     payload = result_payload(
         result,
         extras,
@@ -133,25 +140,7 @@ def save_result(
         mount=mount,
         device_prior=device_prior,
     )
-    return _atomic_write(Path(path), json.dumps(_plain(payload), allow_nan=False))
-
-
-def load_result(path: Path | str) -> dict:
-    """
-    Load a result file.
-
-    From save_result, or a plain ``--json`` output (then without report_data).
-    """
-    try:
-        payload = json.loads(Path(path).read_text(encoding='utf-8'))
-    except json.JSONDecodeError as error:
-        raise ValueError(f'{path}: not a JSON result file ({error})') from None
-    if not isinstance(payload, dict) or 'rank' not in payload or 'reason' not in payload:
-        raise ValueError(
-            f'{path}: not a hexacal result (expected the output of save_result or '
-            "`hexacal calibrate --json`, with 'rank' and 'reason')"
-        )
-    return payload
+    return write_result_file(path, _plain(payload))
 
 
 def _atomic_write(path: Path, content: str | bytes) -> Path:
@@ -177,7 +166,7 @@ def write_report(
     (a payload's own ``verification`` key is shown the same way).
     """
     if isinstance(source, (str, Path)):
-        payload = load_result(source)
+        payload = read_result_file(source)
         title = title or f'hexacal calibration report: {Path(source).name}'
     elif isinstance(source, dict):
         payload = source
@@ -212,7 +201,7 @@ class _Sections:
     def __init__(self, payload: dict, out: Path):
         self.payload = payload
         self.out = out
-        data = payload.get('report_data') or {}
+        data = payload.get(REPORT_DATA_KEY) or {}
         self.data = data
         self.model = (
             payload.get('model') or DEFAULT_MODEL
@@ -336,7 +325,7 @@ class _Sections:
             ('Postures used', p.get('postures_used'), 'postures-used'),
             ('Postures rejected', len(p.get('postures_rejected') or []), 'postures-rejected'),
         ]
-        if p.get('weights'):  # what weighed the fit (a result file of before issue 19: unsaid)
+        if p.get('weights'):  # what weighed the fit (a result file without the key: unsaid)
             rows.append(('Weights', p.get('weights_note') or p['weights'], 'weights'))
         initial_rms = self.data.get('initial_rms_residual') or {}
         for channel, value in (p.get('rms_residual') or {}).items():
@@ -877,8 +866,8 @@ def predicted_position_error_map(
     a variance count as exact.  ``model`` None = the Hexa Slide; ``xy_range_m`` None = the
     workspace's.
     """
-    from ..core.kinematics import pose_parameter_sensitivity
     from ..core.postures import acceptable_poses
+    from ..core.uncertainty import position_covariances
 
     arch = architecture(model)
     n = arch.layout.n_parameters
@@ -903,10 +892,9 @@ def predicted_position_error_map(
     ok = (radius2.ravel() > 0) & acceptable_poses(params, poses, workspace)
     std = np.full(x.size, np.nan)
     if np.any(ok):
-        sensitivity, _ = pose_parameter_sensitivity(params, poses[ok])
         cov = np.nan_to_num(np.asarray(covariance, dtype=float)[:n, :n], nan=0.0, posinf=0.0)
-        position = sensitivity[:, :3, :]
-        std[ok] = np.sqrt(np.maximum(np.einsum('nik,kl,nil->n', position, cov, position), 0.0))
+        variance = np.trace(position_covariances(params, cov, poses[ok]), axis1=1, axis2=2)
+        std[ok] = np.sqrt(np.maximum(variance, 0.0))
     return x, y, std.reshape(x.shape)
 
 
@@ -983,8 +971,6 @@ def _page(title: str, sections: list[str], layout: ModelLayout) -> str:
 
 
 __all__ = [
-    'RESULT_FORMAT',
-    'load_result',
     'predicted_position_error_map',
     'result_payload',
     'save_result',

@@ -1,5 +1,5 @@
 """
-The accuracy of each measuring mode (issue #18 section 4: ``hexacal study --measuring-mode M``).
+The accuracy of each measuring mode (``hexacal study --measuring-mode M``).
 
 Each mode's procedure is simulated on the TRUE machine with targets computed by a model, the
 NOMINAL one at first (as the executor does), then calibrated with the core and judged against
@@ -277,7 +277,7 @@ class ModeOutcome:
         return int(np.sum(np.abs(extensions[np.isfinite(extensions)]) > self.run.lvdt_stroke_m))
 
     def to_json(self) -> dict:
-        """Return the outcome as JSON-safe builtins, snake_case SI keys (issue #18 section 4)."""
+        """Return the outcome as JSON-safe builtins, snake_case SI keys."""
         summary = self.after.summary()
         overall = self.figures()
         mode = measuring_mode(self.run.mode)
