@@ -205,16 +205,16 @@ _MODEL_DEFAULTS: dict[str, dict[str, Any]] = {
         'drive_kd': (1.2e4,) * N_CHAINS,
     },
     # A 10 kg platform 0.5 m across, 1 kg cranks of 0.15 m and 0.5 kg rods; geared servo motors
-    # of 5e4 N m/rad (2.2e6 N/m at the crank tip; kd near critical with the platform's share)
-    # with a 5 mrad following-error limit (0.75 mm at the tip), a released motor's gearbox
-    # 1 N m and 10 N m s/rad, rods of 2e7 N/m.
+    # of 2e5 N m/rad (8.9e6 N/m at the crank tip; kd with the platform's share of the inertia
+    # settles in 0.5 s and lags 2 mrad on a 0.15 s move) with a 5 mrad following-error limit
+    # (0.75 mm at the tip), a released motor's gearbox 1 N m and 10 N m s/rad, rods of 2e7 N/m.
     ROTARY_HEXAPOD: {
         'platform_mass': 10.0,
         'platform_inertia': (0.16, 0.16, 0.32),
         'leg_mass': 0.5,
         'actuator_moving_mass': 1.0,
-        'drive_kp': (5.0e4,) * N_CHAINS,
-        'drive_kd': (200.0,) * N_CHAINS,
+        'drive_kp': (2.0e5,) * N_CHAINS,
+        'drive_kd': (300.0,) * N_CHAINS,
         'following_error_limit': 5.0e-3,
         'structure_axial_stiffness': (2.0e7,) * N_CHAINS,
         'released_coulomb': 1.0,
