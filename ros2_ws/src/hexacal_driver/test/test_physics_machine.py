@@ -3,7 +3,8 @@ The MuJoCo machine (physics_machine.py) against the geometric model it must agre
 
 Gravity off and a rigid structure: every built-in model in every measuring mode stands where
 the core's kinematics says, to nanometres (nanoradians: the rotary hexapod's cranks); with
-gravity on the accelerometer reads eq. 4's angles of the link; with springs, gravity deflects the chains by what statics predicts.
+gravity on the accelerometer reads eq. 4's angles of the link; with springs, gravity deflects
+the chains by what statics predicts.
 """
 
 from __future__ import annotations
