@@ -165,10 +165,11 @@ class PhysicsFollower(DriveFollower):
         if self.machine.faults:
             fault = self.machine.faults[0]
             joint = self.joint_names[fault.chain]
+            unit = self.machine.params.layout.actuator_unit  # m, or rad for a crank
             self._trip(DriveFault(
-                f'following error of {joint} {abs(fault.following_error_m):.3g} m beyond the '
-                f'limit {fault.limit_m:g} m (drives.following_error_limit of the physical '
-                'description)',
+                f'following error of {joint} {abs(fault.following_error_m):.3g} {unit} beyond '
+                f'the limit {fault.limit_m:g} {unit} (drives.following_error_limit of the '
+                'physical description)',
                 joint, abs(fault.following_error_m), fault.limit_m,
             ))
             self.machine.command(self.machine.encoders())  # hold where it stands

@@ -10,7 +10,10 @@ in the measuring link, friction on a released actuator.
 
 Readings are what the instruments see:
 
-* actuators: the encoder, i.e. the actuated joint (motor side of the chain's spring);
+* actuators: the encoder, i.e. the actuated joint (motor side of the chain's spring), a slide
+  or a hinge as the architecture's mechanism says.  Actuator values (setpoints, encoders,
+  following errors and their limit) are in the model's actuator unit: m, or rad for a motor
+  turning a crank (the ``_m`` names are kept for both);
 * inclinometer: an accelerometer on the link (its site frame is the device frame at zero
   reading, turned by ``device_turn``); at rest it reads the specific force -g, whose direction
   in that frame gives eq. 4's (alpha, beta) for the device's universal joint order (beta about
@@ -65,7 +68,7 @@ class PhysicsError(RuntimeError):
 
 @dataclass(frozen=True)
 class PhysicsReadings:
-    """One reading of every sensor: actuators (m), alpha, beta, phi (rad), the link (m)."""
+    """One reading of every sensor: actuators (m; rad), alpha, beta, phi (rad), the link (m)."""
 
     actuators_m: np.ndarray
     alpha_rad: float
@@ -76,7 +79,7 @@ class PhysicsReadings:
 
 @dataclass(frozen=True)
 class PhysicsFault:
-    """A drive fault: the joint (0-based chain), its following error and the limit (m)."""
+    """A drive fault: the joint (0-based chain), its following error and the limit (m; rad)."""
 
     chain: int
     following_error_m: float
@@ -203,14 +206,17 @@ class PhysicsMachine:
         self, setpoints: np.ndarray, duration_s: float = 0.0, linear: bool = False
     ) -> None:
         """
-        Move the setpoints to ``setpoints`` (m) over ``duration_s``.
+        Move the setpoints to ``setpoints`` (the actuator unit: m, rad) over ``duration_s``.
 
         A quintic time law (at rest at both ends), or ``linear`` (a piece of a trajectory the
         caller interpolates).
         """
         end = np.asarray(setpoints, dtype=float).reshape(-1)
         if end.shape != (self.model.nu,) or not np.all(np.isfinite(end)):
-            raise ValueError(f'setpoints must be {self.model.nu} finite values in m, got {end}')
+            unit = self.params.layout.actuator_unit
+            raise ValueError(
+                f'setpoints must be {self.model.nu} finite values in {unit}, got {end}'
+            )
         if duration_s <= 0.0:
             self._move = None
             self.data.ctrl[:] = end
@@ -358,14 +364,14 @@ class PhysicsMachine:
     # -- readings -------------------------------------------------------------------------------
 
     def following_errors(self) -> np.ndarray:
-        """Return setpoint - encoder per actuator (m); 0 for a released one."""
+        """Return setpoint - encoder per actuator (m; rad); 0 for a released one."""
         errors = self.data.ctrl - self.data.qpos[self._actuated_qpos]
         if self._released is not None:
             errors[self._released.chain] = 0.0
         return np.array(errors)
 
     def encoders(self) -> np.ndarray:
-        """Return the actuator readings (m): the actuated joints, motor side of the springs."""
+        """Return the actuator readings (m; rad): the actuated joints, motor side of springs."""
         return np.array(self.data.qpos[self._actuated_qpos])
 
     def pose(self) -> np.ndarray:

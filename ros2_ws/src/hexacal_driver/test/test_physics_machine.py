@@ -2,8 +2,9 @@
 The MuJoCo machine (physics_machine.py) against the geometric model it must agree with at rest.
 
 Gravity off and a rigid structure: every built-in model in every measuring mode stands where
-the core's kinematics says, to nanometres; with gravity on the accelerometer reads eq. 4's
-angles of the link; with springs, gravity deflects the chains by what statics predicts.
+the core's kinematics says, to nanometres (nanoradians: the rotary hexapod's cranks); with
+gravity on the accelerometer reads eq. 4's angles of the link; with springs, gravity deflects
+the chains by what statics predicts.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ mujoco = pytest.importorskip('mujoco')
 
 L = 0.75
 NM = 1e-9
-MODELS = ('hexa_slide', 'gough_stewart')
+MODELS = ('hexa_slide', 'gough_stewart', 'rotary_hexapod')
 
 
 def sphere_pose(x: float, y: float, angles, length: float = L) -> np.ndarray:
@@ -59,6 +60,7 @@ def test_passive_actuator_at_rest_agrees_with_the_closure(model):
     machine = PhysicsMachine(params, physical, START, link_length=L)
     released = 2
     machine.release(released)
+    start = machine.encoders()[released]
     setpoints = inverse_kinematics(params, TARGET[None])[0]
     setpoints[0] += 20e-6  # setpoints off the target: the closure, not the target, decides
     settle(machine, setpoints)
@@ -67,6 +69,7 @@ def test_passive_actuator_at_rest_agrees_with_the_closure(model):
     assert pose_error_m(machine.pose(), solution.poses[0]) < 10 * NM
     encoders = machine.encoders()
     assert abs(encoders[released] - solution.released_positions[0]) < 10 * NM
+    assert abs(encoders[released] - start) > 1e-3  # the closure moved the released actuator
     assert np.abs(encoders - solution.actuators[0]).max() < 10 * NM
     assert machine.joint_gaps().max() < 10 * NM
     status = machine.status()
@@ -137,7 +140,11 @@ def test_gravity_deflects_the_chain_springs_as_statics_says(model):
     chains = architecture(model).mechanism(params, home)
     columns = []
     for chain in chains:
-        hinge = next(j.anchor for b in chain.bodies for j in b.joints if j.kind == 'hinge')
+        # The leg (rod) is the two-force member between its passive hinges and the platform.
+        hinge = next(
+            j.anchor for b in chain.bodies for j in b.joints
+            if j.kind == 'hinge' and j.role == 'passive'
+        )
         unit = (chain.platform_joint - hinge) / np.linalg.norm(chain.platform_joint - hinge)
         columns.append(np.concatenate([unit, np.cross(chain.platform_joint - home[:3], unit)]))
     weight = physical.platform_mass * np.array(physical.gravity)

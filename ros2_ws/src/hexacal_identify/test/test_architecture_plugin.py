@@ -303,3 +303,16 @@ def test_parameters_file_round_trip_and_physical_checks(arch, tmp_path):
     assert LAYOUT.physical_problem(vector) == 'chain_2.r0 must be > 0 m, got 0.0'
     with pytest.raises((InvalidParametersError, ValueError), match=r'chain_2\.r0'):
         save_parameters(tmp_path / 'zero.yaml', vector, model=NAME)
+
+
+def test_mjcf_export_of_a_machine_without_its_mechanism_is_a_named_error(arch, tmp_path, capsys):
+    # The architecture does not describe its mechanism: no MuJoCo model, said in one line.
+    from hexacal_identify.cli import main
+
+    parameters = tmp_path / 'sps.yaml'
+    save_parameters(parameters, arch.default_parameters().vector, model=NAME)
+    out = tmp_path / 'sps.xml'
+    assert main(['export', str(parameters), '--format', 'mjcf', '--out', str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f'the {NAME} architecture does not describe its mechanism' in err
+    assert 'Traceback' not in err and not out.exists()

@@ -11,7 +11,7 @@ import subprocess
 import sys
 
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.architectures.base import ACTUATED, COMPLIANCE, HINGE, SLIDE
+from hexacal_identify.core.architectures.base import ACTUATED, COMPLIANCE, HINGE, PASSIVE, SLIDE
 from hexacal_identify.core.device import sphere_z
 from hexacal_identify.core.kinematics import inverse_kinematics
 from hexacal_identify.physics.mjcf import device_readings_at, machine_mjcf
@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 L = 0.75
-BUILT_IN = ('hexa_slide', 'gough_stewart')
+BUILT_IN = ('hexa_slide', 'gough_stewart', 'rotary_hexapod')
 
 
 def sphere_pose(x: float, y: float, angles) -> np.ndarray:
@@ -51,10 +51,10 @@ def test_mechanism_closes_every_chain_at_the_pose(model):
                 assert joint.kind in (SLIDE, HINGE)
         # The universal joint's hinges are normal to the leg, the spring along it.
         leg = chain.platform_joint - [j.anchor for b in chain.bodies for j in b.joints
-                                      if j.kind == HINGE][0]
+                                      if j.kind == HINGE and j.role == PASSIVE][0]
         for body in chain.bodies:
             for joint in body.joints:
-                if joint.kind == HINGE:
+                if joint.kind == HINGE and joint.role == PASSIVE:
                     assert abs(joint.axis @ leg) < 1e-12
                 if joint.role == COMPLIANCE:
                     assert abs(joint.axis @ leg) == pytest.approx(np.linalg.norm(leg))
@@ -71,6 +71,44 @@ def test_the_hexa_slide_actuated_joint_runs_along_the_rail_from_A0():
         )
         leg = np.linalg.norm(chain.platform_joint - slide.anchor)
         assert leg == pytest.approx(params.leg_lengths[c], abs=1e-12)
+
+
+def test_the_rotary_hexapod_crank_turns_about_the_motor_axis_from_its_zero():
+    arch = architecture('rotary_hexapod')
+    params = arch.default_parameters()
+    for c, chain in enumerate(arch.mechanism(params, POSE)):
+        crank, rod = chain.bodies
+        hinge = crank.joints[0]
+        assert (hinge.kind, hinge.role) == (HINGE, ACTUATED)
+        np.testing.assert_allclose(hinge.axis, params.axis_directions[c], atol=1e-15)
+        np.testing.assert_allclose(hinge.anchor, params.base_points[c], atol=1e-15)
+        # The crank points along c(lambda + alpha0): the hinge's zero is the crank zero.
+        tip = params.base_points[c] + params.crank_lengths[c] * params.crank_directions(
+            np.full(6, chain.actuator)
+        )[c]
+        np.testing.assert_allclose(crank.segment[1], tip, atol=1e-12)
+        np.testing.assert_allclose(rod.joints[0].anchor, tip, atol=1e-12)
+        rod_length = np.linalg.norm(chain.platform_joint - tip)
+        assert rod_length == pytest.approx(params.rod_lengths[c], abs=1e-12)
+
+
+def test_the_rotary_hexapod_hinge_value_is_the_crank_reading():
+    # Turning the MJCF's actuated hinge to any value puts the crank tip where the architecture
+    # puts it for that reading.
+    mujoco = pytest.importorskip('mujoco')
+    params = architecture('rotary_hexapod').default_parameters()
+    mjcf = machine_mjcf(params, default_physical('rotary_hexapod'), POSE, link_length=L)
+    m = mujoco.MjModel.from_xml_string(mjcf.xml)
+    d = mujoco.MjData(m)
+    readings = inverse_kinematics(params, POSE[None])[0] + np.linspace(-0.4, 0.5, 6)
+    for c, name in enumerate(mjcf.names.actuated_joints):
+        assert m.jnt_type[m.joint(name).id] == mujoco.mjtJoint.mjJNT_HINGE
+        d.qpos[m.jnt_qposadr[m.joint(name).id]] = readings[c]
+    mujoco.mj_kinematics(m, d)
+    tips = params.base_points + params.crank_lengths[:, None] * params.crank_directions(readings)
+    for c in range(6):
+        rod = m.body(f'chain_{c + 1}_rod').id  # its frame origin is the crank tip's U joint
+        np.testing.assert_allclose(d.xpos[rod], tips[c], atol=1e-12)
 
 
 def test_device_readings_at_are_eq4s_angles():

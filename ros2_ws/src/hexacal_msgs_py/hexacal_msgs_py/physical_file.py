@@ -25,6 +25,12 @@ machine (hexacal_driver.physics_machine), the MJCF export
       axial_stiffness: 5.0e7              # N/m between encoder and joint centres; null = rigid
     released_friction: {coulomb: 10.0, viscous: 100.0}   # N and N s/m, the released actuator
 
+The drives' and the released friction's values are in the model's actuator unit (the
+contract's ``actuator_unit``): for a machine whose actuators turn (the rotary hexapod's
+motors, readings in rad) kp is in N m/rad, kd in N m s/rad, the following-error limit in rad
+and the released friction in N m and N m s/rad; ``actuators.moving_mass`` is then the crank's
+mass and ``legs`` are the rods.
+
 Every section and key is optional except ``format`` and ``model``; what is
 missing takes the shipped default of the model (`default_physical`).  An
 unknown section or key, a negative mass or a non-positive stiffness is an error
@@ -41,7 +47,7 @@ from typing import Any, Callable, Union
 
 from hexacal_msgs_py.errors import HexacalContractError
 from hexacal_msgs_py.files import atomic_write, load_yaml_text
-from hexacal_msgs_py.models import GOUGH_STEWART, HEXA_SLIDE, MODELS
+from hexacal_msgs_py.models import GOUGH_STEWART, HEXA_SLIDE, MODELS, ROTARY_HEXAPOD
 from hexacal_msgs_py.names import N_CHAINS
 
 PathLike = Union[str, os.PathLike]
@@ -197,6 +203,22 @@ _MODEL_DEFAULTS: dict[str, dict[str, Any]] = {
         'actuator_moving_mass': 1.5,
         'drive_kp': (1.0e7,) * N_CHAINS,
         'drive_kd': (1.2e4,) * N_CHAINS,
+    },
+    # A 10 kg platform 0.5 m across, 1 kg cranks of 0.15 m and 0.5 kg rods; geared servo motors
+    # of 2e5 N m/rad (8.9e6 N/m at the crank tip; kd with the platform's share of the inertia
+    # settles in 0.5 s and lags 2 mrad on a 0.15 s move) with a 5 mrad following-error limit
+    # (0.75 mm at the tip), a released motor's gearbox 1 N m and 10 N m s/rad, rods of 2e7 N/m.
+    ROTARY_HEXAPOD: {
+        'platform_mass': 10.0,
+        'platform_inertia': (0.16, 0.16, 0.32),
+        'leg_mass': 0.5,
+        'actuator_moving_mass': 1.0,
+        'drive_kp': (2.0e5,) * N_CHAINS,
+        'drive_kd': (300.0,) * N_CHAINS,
+        'following_error_limit': 5.0e-3,
+        'structure_axial_stiffness': (2.0e7,) * N_CHAINS,
+        'released_coulomb': 1.0,
+        'released_viscous': 10.0,
     },
 }
 

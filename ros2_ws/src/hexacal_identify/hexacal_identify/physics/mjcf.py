@@ -21,7 +21,9 @@ Built at one pose (the assembly pose, the model's reference configuration):
   its spring (``link.axial_stiffness``) or, in the lvdt mode, the LVDT; the inclinometer is an
   accelerometer site on the link whose frame is the device frame;
 * position servos (``general`` actuators: force = kp (ctrl - q) - kd q') named like the
-  contract's actuator joints (``slider_1`` ...), controls = actuator setpoints in m;
+  contract's actuator joints (``slider_1`` ...), controls = actuator setpoints in the model's
+  actuator unit: on a slide (a slider, a leg) m, kp in N/m, kd in N s/m; on a hinge (a motor
+  turning a crank) rad, kp in N m/rad, kd in N m s/rad (the physical description's drives);
 * stiff constraint settings: equality solref (2 dt, 1), solimp (0.9999, 0.9999, 0.001, 0.5,
   2), Newton, contacts off.  MuJoCo's defaults leave the closed chains millimetres open; these
   close them to nanometres at rest.
@@ -186,7 +188,13 @@ def machine_mjcf(
         )
     pose = np.asarray(pose, dtype=float).reshape(6)
     arch = params.architecture
-    chains = arch.mechanism(params, pose)
+    try:
+        chains = arch.mechanism(params, pose)
+    except NotImplementedError:
+        raise ValueError(
+            f'the {params.model} architecture does not describe its mechanism '
+            '(Architecture.mechanism: its bodies and joints), so it has no MuJoCo model'
+        ) from None
     actuator_names = MODELS[params.model].actuator_names
     rotation = rotation_from_trig(np.cos(pose[3:6]), np.sin(pose[3:6]))
     if link_length is None:
@@ -243,9 +251,11 @@ def machine_mjcf(
                     f'axis="{_vec(joint.axis)}"'
                 )
                 if joint.role == ACTUATED:
+                    # ref: the joint's value at the assembly is the reading, slide or hinge.
                     actuated.append(jname)
+                    kind = 'hinge' if joint.kind == HINGE else 'slide'
                     lines.append(
-                        f'{indent}  <joint {attrs} type="slide" ref="{chain.actuator!r}" '
+                        f'{indent}  <joint {attrs} type="{kind}" ref="{chain.actuator!r}" '
                         f'limited="false"/>'
                     )
                 elif joint.role == COMPLIANCE:

@@ -98,7 +98,21 @@ from dataclasses import dataclass
 from hexacal_msgs_py.models import MODELS, ROTARY_HEXAPOD
 import numpy as np
 
-from .base import Architecture, KinematicParameters
+from .base import (
+    ACTUATED,
+    ACTUATOR_BODY,
+    Architecture,
+    ChainMechanism,
+    COMPLIANCE,
+    HINGE,
+    KinematicParameters,
+    LEG_BODY,
+    MechanismBody,
+    MechanismJoint,
+    PASSIVE,
+    SLIDE,
+    universal_joint_axes,
+)
 from .common import (
     condition_ok,
     move_joint_points,
@@ -590,6 +604,62 @@ class RotaryHexapod(Architecture[RotaryHexapodParameters]):
             axes,
             wrap_angle(params.crank_zeros + offset),
         )
+
+    def mechanism(
+        self, params: RotaryHexapodParameters, pose: np.ndarray
+    ) -> tuple[ChainMechanism, ...]:
+        """
+        Return the 6-RUS chains at ``pose``: crank, universal joint, rod, spherical joint.
+
+        Per chain: a ``crank`` body on a hinge about the motor axis n through A (the actuator,
+        its value the crank reading lambda: the crank points along c(lambda + alpha0) at every
+        value, so the hinge's zero is the crank zero alpha0), a ``rod`` body on the crank tip's
+        universal joint (two hinges at C = A + r c: the first normal to the motor axis and the
+        rod, the second normal to the rod and the first; rods hang across horizontal motor axes,
+        so the joint is far from its own singularity) and the rod's axial spring (a slide along
+        the rod), ending at the platform's spherical joint B.
+        """
+        pose_row = np.asarray(pose, dtype=float).reshape(1, 6)
+        legs = self.legs(_Chains(params), pose_row)
+        if not legs.reachable()[0]:
+            raise ValueError(
+                f'pose {pose_row[0].tolist()} is unreachable: {self.unreachable_reason}'
+            )
+        readings = legs.actuators[0]
+        base, axes = params.base_points, params.axis_directions
+        tips = base + params.crank_lengths[:, None] * legs.crank_dirs[:, 0, :].T
+        rods = legs.rods[:, 0, :].T  # crank tip -> platform joint
+        chains = []
+        for c in range(N_CHAINS):
+            tip, rod = tips[c], rods[c]
+            joint = tip + rod
+            first, second = universal_joint_axes(axes[c], rod)
+            rod_unit = rod / np.linalg.norm(rod)
+            chains.append(
+                ChainMechanism(
+                    bodies=(
+                        MechanismBody(
+                            'crank',
+                            ACTUATOR_BODY,
+                            (MechanismJoint(HINGE, ACTUATED, base[c].copy(), axes[c].copy()),),
+                            np.array([base[c], tip]),
+                        ),
+                        MechanismBody(
+                            'rod',
+                            LEG_BODY,
+                            (
+                                MechanismJoint(HINGE, PASSIVE, tip.copy(), first),
+                                MechanismJoint(HINGE, PASSIVE, tip.copy(), second),
+                                MechanismJoint(SLIDE, COMPLIANCE, tip.copy(), rod_unit),
+                            ),
+                            np.array([tip, joint]),
+                        ),
+                    ),
+                    platform_joint=joint,
+                    actuator=float(readings[c]),
+                )
+            )
+        return tuple(chains)
 
     def drawing(
         self,
