@@ -155,21 +155,6 @@ def noisy(walk: dict, rng: np.random.Generator) -> Measurements:
     )
 
 
-def mass_model(physical: PhysicalDescription) -> MassModel:
-    """Return the loads the compliance model knows: the description's masses and gravity."""
-    return MassModel(
-        gravity=physical.gravity,
-        platform_mass=physical.platform_mass,
-        platform_com=physical.platform_com,
-        payload_mass=physical.payload_mass,
-        payload_com=physical.payload_com,
-        leg_mass=physical.leg_mass,
-        leg_com_fraction=physical.leg_com_fraction,
-        link_mass=physical.link_mass,
-        link_com_fraction=physical.link_com_fraction,
-    )
-
-
 def truth(physical: PhysicalDescription) -> dict[str, float]:
     """Return the true compliances (m/N) of the description (0 for a rigid member)."""
     structure = physical.structure_axial_stiffness
@@ -189,7 +174,7 @@ def evaluate(model: str, effect: str, fit: dict, fresh: dict, seed: int) -> list
     rows = []
     for choice in ('none', 'shared'):
         compliance = ComplianceModel(
-            choice, mass_model(physical), 'passive_actuator', fit['released'].astype(int)
+            choice, MassModel.from_physical(physical), 'passive_actuator', fit['released'].astype(int)
         )
         started = time.perf_counter()
         result = identify(nominal, measurements, SolverOptions(noise=NOISE, compliance=compliance))
