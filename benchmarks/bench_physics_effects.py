@@ -173,8 +173,9 @@ def evaluate(model: str, effect: str, fit: dict, fresh: dict, seed: int) -> list
     check_poses = validation_poses(true, 200, seed)
     rows = []
     for choice in ('none', 'shared'):
+        masses = MassModel.from_physical(physical)
         compliance = ComplianceModel(
-            choice, MassModel.from_physical(physical), 'passive_actuator', fit['released'].astype(int)
+            choice, masses, 'passive_actuator', fit['released'].astype(int)
         )
         started = time.perf_counter()
         result = identify(nominal, measurements, SolverOptions(noise=NOISE, compliance=compliance))

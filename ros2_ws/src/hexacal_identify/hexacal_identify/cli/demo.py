@@ -308,7 +308,7 @@ def _physics_params(args: argparse.Namespace) -> dict[str, str]:
 
 
 def _physics(args: argparse.Namespace) -> str:
-    """Return the machine the driver simulates: --physics, a physics driver param, else kinematic."""
+    """Return the simulated machine: --physics, a physics driver param, else kinematic."""
     given = dict(getattr(args, 'driver_param', []) or []).get('physics')
     return str(given or getattr(args, 'physics', None) or 'kinematic')
 
