@@ -17,7 +17,9 @@ TRUE parameters (the model's default machine) and the physical description
 
 Passive_actuator measuring mode: ``--postures`` sphere postures and ``--fresh`` verification
 postures (sample_poses; the released chain of each posture the one leaving the passive system
-best conditioned, release_conditions).  At each posture the machine is assembled at the pose
+best conditioned, release_conditions).  A posture that has not come to rest (every joint slower
+than 1e-7 m/s or rad/s) within the settle time is not used, as a collector would not take it
+(the ``settled`` column counts those used).  At each posture the machine is assembled at the pose
 with the servos commanded there, settles under gravity with every actuator powered, then one
 actuator is released and it settles again; the encoders, the accelerometer inclinometer and the
 rotary sensor are read.  The readings (exact) are cached in ``--cache`` (npz per model and
@@ -163,8 +165,20 @@ def truth(physical: PhysicalDescription) -> dict[str, float]:
     return {'chains': chains, 'link': 0.0 if link is None else 1.0 / link}
 
 
-def evaluate(model: str, effect: str, fit: dict, fresh: dict, seed: int) -> list[dict]:
+def at_rest(walk: dict) -> dict:
+    """Return the postures of a walk that came to rest (a collector takes no moving posture)."""
+    keep = walk['settled'].astype(bool)
+    n = len(keep)
+    return {
+        key: value[keep] if isinstance(value, np.ndarray) and value.ndim and len(value) == n
+        else value
+        for key, value in walk.items()
+    }
+
+
+def evaluate(model: str, effect: str, walked: dict, fresh: dict, seed: int) -> list[dict]:
     """Identify the walk rigid and with shared compliances; the row of each (module doc)."""
+    fit, fresh = at_rest(walked), at_rest(fresh)
     true = architecture(model).default_parameters()
     nominal = nominal_set(2, seed=seed, exact=true)
     physical = physical_for(model, effect)
@@ -211,8 +225,8 @@ def evaluate(model: str, effect: str, fit: dict, fresh: dict, seed: int) -> list
                 }
                 for name, value in result.compliance.items()
             },
-            'settled': int(fit['settled'].sum()),
-            'postures': len(fit['settled']),
+            'settled': int(walked['settled'].sum()),
+            'postures': len(walked['settled']),
             'link_stretch_um': float(np.ptp(fit['link_length'])) * 1e6,
             'identify_s': time.perf_counter() - started,
         })
@@ -248,7 +262,7 @@ def print_rows(rows: list[dict], header: bool) -> None:
         print(
             f'{"model":<14}{"effects":<17}{"fit":<8}{"pose mean um":>13}{"max um":>9}'
             f'{"orient urad":>12}{"verif rms um":>13}{"verdict":>8}{"var.factor":>12}'
-            f'  adequacy  settled  link stretch um'
+            f'  adequacy  at rest  link stretch um'
         )
     for row in rows:
         print(
