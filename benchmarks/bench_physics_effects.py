@@ -49,6 +49,7 @@ import time
 from hexacal_identify.core.architectures import architecture
 from hexacal_identify.core.compliance import ComplianceModel
 from hexacal_identify.core.device import DeviceModel
+from hexacal_identify.core.errors import RankDeficientError
 from hexacal_identify.core.identification import identify, SolverOptions
 from hexacal_identify.core.measurements import Measurements, NoiseModel
 from hexacal_identify.core.model import nominal_set
@@ -192,7 +193,16 @@ def evaluate(model: str, effect: str, walked: dict, fresh: dict, seed: int) -> l
             choice, masses, 'passive_actuator', fit['released'].astype(int)
         )
         started = time.perf_counter()
-        result = identify(nominal, measurements, SolverOptions(noise=NOISE, compliance=compliance))
+        try:
+            result = identify(
+                nominal, measurements, SolverOptions(noise=NOISE, compliance=compliance)
+            )
+        except RankDeficientError as error:  # e.g. no weight: no load tells a compliance
+            rows.append({
+                'model': model, 'effect': effect, 'compliance': choice,
+                'refused': str(error).splitlines()[1].strip(),
+            })
+            continue
         errors = pose_errors(true, result.parameters, check_poses)
         calibrated_compliance = None
         if compliance.active:
@@ -265,6 +275,10 @@ def print_rows(rows: list[dict], header: bool) -> None:
             f'  adequacy  at rest  link stretch um'
         )
     for row in rows:
+        if 'refused' in row:
+            print(f'{row["model"]:<14}{row["effect"]:<17}{row["compliance"]:<8}'
+                  f'  refused: {row["refused"]}')
+            continue
         print(
             f'{row["model"]:<14}{row["effect"]:<17}{row["compliance"]:<8}'
             f'{row["pose_mean_um"]:>13.2f}{row["pose_max_um"]:>9.2f}'
