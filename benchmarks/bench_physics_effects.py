@@ -13,7 +13,10 @@ TRUE parameters (the model's default machine) and the physical description
 - ``+friction``: plus the released actuator's friction (= the shipped defaults);
 - ``defaults_rigid``: the shipped defaults made rigid (gravity, servo, friction; no springs):
   the "same machine made rigid" the compliant fit is judged by;
-- ``3x_softer``: the shipped defaults with kp and every stiffness divided by 3.
+- ``3x_softer``: the shipped defaults with kp and every stiffness divided by 3;
+- ``light_actuators``: ``+link`` with massless sliders / extending rods: the load the mass
+  model does not hold (MassModel has no actuator moving mass: the released slider's weight
+  along the Hexa Slide's inclined rail, the Gough-Stewart's extending rods) taken away.
 
 Passive_actuator measuring mode: ``--postures`` sphere postures and ``--fresh`` verification
 postures (sample_poses; the released chain of each posture the one leaving the passive system
@@ -64,7 +67,7 @@ import numpy as np
 MODELS = ('hexa_slide', 'gough_stewart')
 EFFECTS = (
     'rigid_weightless', 'servo', '+structure', '+link', '+friction', 'defaults_rigid',
-    '3x_softer',
+    '3x_softer', 'light_actuators',
 )
 NOISE = NoiseModel(actuator_m=2e-6, angle_rad=5e-6)
 LINK_LENGTH = DeviceModel().link_length
@@ -93,6 +96,8 @@ def physical_for(model: str, effect: str) -> PhysicalDescription:
             structure_axial_stiffness=tuple(k / 3.0 for k in shipped.structure_axial_stiffness),
             link_axial_stiffness=shipped.link_axial_stiffness / 3.0,
         )
+    if effect == 'light_actuators':
+        return replace(shipped, released_coulomb=0.0, actuator_moving_mass=0.0)
     raise ValueError(f'unknown effect {effect!r}; choose one of {", ".join(EFFECTS)}')
 
 
