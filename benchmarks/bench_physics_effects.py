@@ -14,9 +14,11 @@ TRUE parameters (the model's default machine) and the physical description
 - ``defaults_rigid``: the shipped defaults made rigid (gravity, servo, friction; no springs):
   the "same machine made rigid" the compliant fit is judged by;
 - ``3x_softer``: the shipped defaults with kp and every stiffness divided by 3;
-- ``light_actuators``: ``+link`` with massless sliders / extending rods: the load the mass
+- ``link_only``: gravity, servos and the link's spring (legs rigid, no friction);
+- ``link_only_light``: the same with massless sliders / extending rods: the load the mass
   model does not hold (MassModel has no actuator moving mass: the released slider's weight
-  along the Hexa Slide's inclined rail, the Gough-Stewart's extending rods) taken away.
+  along the Hexa Slide's inclined rail, the Gough-Stewart's extending rods) taken away.  (With
+  the legs' springs massless sliders make the simulation unstable.)
 
 Passive_actuator measuring mode: ``--postures`` sphere postures and ``--fresh`` verification
 postures (sample_poses; the released chain of each posture the one leaving the passive system
@@ -67,7 +69,7 @@ import numpy as np
 MODELS = ('hexa_slide', 'gough_stewart')
 EFFECTS = (
     'rigid_weightless', 'servo', '+structure', '+link', '+friction', 'defaults_rigid',
-    '3x_softer', 'light_actuators',
+    '3x_softer', 'link_only', 'link_only_light',
 )
 NOISE = NoiseModel(actuator_m=2e-6, angle_rad=5e-6)
 LINK_LENGTH = DeviceModel().link_length
@@ -96,8 +98,13 @@ def physical_for(model: str, effect: str) -> PhysicalDescription:
             structure_axial_stiffness=tuple(k / 3.0 for k in shipped.structure_axial_stiffness),
             link_axial_stiffness=shipped.link_axial_stiffness / 3.0,
         )
-    if effect == 'light_actuators':
-        return replace(shipped, released_coulomb=0.0, actuator_moving_mass=0.0)
+    if effect == 'link_only':
+        return replace(shipped, structure_axial_stiffness=None, released_coulomb=0.0)
+    if effect == 'link_only_light':
+        return replace(
+            shipped, structure_axial_stiffness=None, released_coulomb=0.0,
+            actuator_moving_mass=0.0,
+        )
     raise ValueError(f'unknown effect {effect!r}; choose one of {", ".join(EFFECTS)}')
 
 
