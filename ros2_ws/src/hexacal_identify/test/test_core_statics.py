@@ -129,3 +129,20 @@ def test_mass_model_reads_the_physical_description_keys(tmp_path):
     path.write_text('platform: 3\n')
     with pytest.raises(ValueError, match='platform'):
         MassModel.load(path)
+
+
+def test_mass_model_reads_a_complete_physical_file_with_the_contracts_reader(tmp_path):
+    from hexacal_msgs_py.physical_file import default_physical, write_physical_file
+
+    shipped = default_physical('gough_stewart')
+    path = write_physical_file(tmp_path / 'physical.yaml', shipped)
+    assert MassModel.load(path) == MassModel.from_physical(shipped)
+    # A missing section takes the model's shipped default, as the MuJoCo machine takes it.
+    path.write_text('format: hexacal-physical/1\nmodel: hexa_slide\nlegs: {mass: 3.0}\n')
+    masses = MassModel.load(path)
+    assert masses.leg_mass == 3.0
+    assert masses.platform_mass == default_physical('hexa_slide').platform_mass > 0.0
+    assert masses.gravity == default_physical('hexa_slide').gravity
+    path.write_text('format: hexacal-physical/1\nmodel: hexa_slide\nlink: {stiffness: 1}\n')
+    with pytest.raises(ValueError, match='link.stiffness'):
+        MassModel.load(path)

@@ -80,3 +80,29 @@ def test_a_summary_without_verification_or_driver_status_has_nulls():
     assert summary['verification'] is None and summary['max_actuator_deviation_m'] is None
     assert json.loads(json.dumps(summary, allow_nan=False)) == summary
     assert 'n/a' in '\n'.join(summary_lines(summary))
+
+
+def test_summary_says_which_machine_and_the_fits_adequacy():
+    fit = {'adequacy.verdict': 'fail', 'adequacy.variance_factor': '2.7e4', 'outcome': 'ok'}
+    summary = build_summary(
+        model='hexa_slide',
+        measuring_mode='passive_actuator',
+        postures=20,
+        driver_values=DRIVER,
+        pose_errors=POSES,
+        verification=None,
+        physics='mujoco',
+        fit=fit,
+    )
+    assert summary['physics'] == 'mujoco'
+    assert summary['adequacy'] == {'verdict': 'fail', 'variance_factor': 27000.0}
+    plain = build_summary(
+        model='hexa_slide',
+        measuring_mode='passive_actuator',
+        postures=20,
+        driver_values=DRIVER,
+        pose_errors=POSES,
+        verification=None,
+    )
+    assert plain['physics'] == 'kinematic'
+    assert plain['adequacy'] == {'verdict': 'unknown', 'variance_factor': None}

@@ -171,6 +171,21 @@ def add_parsers(subparsers) -> None:
         "(default: every effect at its realistic default), '' (ideal sensors), or a comma list "
         'of lag, quantisation, clock, drops, spikes, drift (docs/user-guide.md, Sensor models)',
     )
+    parser.add_argument(
+        '--physics',
+        choices=('kinematic', 'mujoco'),
+        default=None,
+        help="the simulated machine, the driver's physics parameter: kinematic (the driver's "
+        "default: hexacal's own kinematics) or mujoco (MuJoCo: gravity, servo stiffness, "
+        'springs, friction of the physical description)',
+    )
+    parser.add_argument(
+        '--physical',
+        default=None,
+        metavar='FILE',
+        help="with --physics mujoco: the machine's physical description YAML (docs/formats.md; "
+        "default: the model's shipped description)",
+    )
     parser.add_argument('--seed', type=int, default=0, help='seed of plan, noise and nominal set')
     parser.add_argument(
         '--validation-postures',
@@ -281,6 +296,22 @@ EXECUTOR_SPEED_M_S = 0.5
 DRIVER_SPEED_M_S = 1.0
 COLLECTOR_WINDOWS = {'window_s': 0.2, 'capture_s': 0.3}
 PLAN_CANDIDATES = 1000
+
+
+def _physics_params(args: argparse.Namespace) -> dict[str, str]:
+    """Return the driver's physics parameters of ``--physics`` / ``--physical`` (if given)."""
+    params = {}
+    if getattr(args, 'physics', None):
+        params['physics'] = args.physics
+    if getattr(args, 'physical', None):
+        params['physical'] = str(Path(args.physical).resolve())
+    return params
+
+
+def _physics(args: argparse.Namespace) -> str:
+    """Return the simulated machine: --physics, a physics driver param, else kinematic."""
+    given = dict(getattr(args, 'driver_param', []) or []).get('physics')
+    return str(given or getattr(args, 'physics', None) or 'kinematic')
 
 
 def _driver_param(text: str) -> tuple[str, object]:
@@ -448,6 +479,7 @@ def _run(args) -> int:
                     'angle_noise_rad': args.noise_um * 1e-6,
                     'sensor_effects': getattr(args, 'sensor_effects', ''),
                     'measuring_mode': _mode(args),
+                    **_physics_params(args),
                     **dict(getattr(args, 'driver_param', []) or []),
                 },
             ),
@@ -564,6 +596,8 @@ def _run(args) -> int:
         driver_values=driver_values,
         pose_errors=poses['after (calibrated)'],
         verification=stored_verification,
+        physics=_physics(args),
+        fit=session.fit_values,
         refinement=refinement_summary(
             session.rest_log,
             _mode(args),
@@ -801,6 +835,7 @@ class _RosSession:
         )
         self.executor_values: dict[str, str] = {}  # the executor's latest status
         self.verification_values: dict[str, str] = {}  # identify's latest verification status
+        self.fit_values: dict[str, str] = {}  # identify's latest status with a fit's adequacy
         self.driver_values: dict[str, str] = {}  # the simulated drives' latest status
         self.driver_statuses = 0  # driver statuses received (a fresh one: the count grows)
         self.parameters: np.ndarray | None = None
@@ -851,6 +886,8 @@ class _RosSession:
             elif values.get('outcome') == 'collecting':
                 self.identify_postures = int(values.get('postures_received', 0))
                 self.verification_postures = int(values.get('verification_postures', 0) or 0)
+            if status.name != VERIFICATION_STATUS_NAME and 'adequacy.verdict' in values:
+                self.fit_values = values
 
     def _on_parameters(self, message) -> None:
         from hexacal_msgs_py.conversions import multiarray_to_parameters

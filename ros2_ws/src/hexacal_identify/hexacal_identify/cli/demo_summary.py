@@ -60,6 +60,8 @@ def build_summary(
     pose_errors: Mapping[str, Any],
     verification: Mapping[str, Any] | None,
     refinement: Mapping[str, Any] | None = None,
+    physics: str = 'kinematic',
+    fit: Mapping[str, str] | None = None,
 ) -> dict[str, Any]:
     """
     Return the summary.json object (docs/formats.md).
@@ -67,7 +69,9 @@ def build_summary(
     ``pose_errors``: the calibrated model's PoseErrors.summary() against the simulated truth;
     ``verification``: the ``hexacal verify --json`` object (None: no verification);
     ``refinement``: the figures before / after target refinement (demo_refinement.py; None:
-    the key is left out).
+    the key is left out); ``physics``: the machine the driver simulated (kinematic, mujoco);
+    ``fit``: identify's calibration status values (its ``adequacy.*`` keys; None or without
+    them: the verdict is unknown).
     """
     return {
         'model': model,
@@ -79,7 +83,17 @@ def build_summary(
         'orientation_error_mean_rad': float(pose_errors['orientation_mean_rad']),
         'orientation_error_max_rad': float(pose_errors['orientation_max_rad']),
         'verification': None if verification is None else dict(verification),
+        'physics': str(physics),
+        'adequacy': fit_adequacy(fit or {}),
         **({} if refinement is None else {'refinement': dict(refinement)}),
+    }
+
+
+def fit_adequacy(values: Mapping[str, str]) -> dict[str, Any]:
+    """Return the fit's adequacy (verdict, variance_factor) from its status values."""
+    return {
+        'verdict': values.get('adequacy.verdict') or 'unknown',
+        'variance_factor': status_number(values, 'adequacy.variance_factor'),
     }
 
 

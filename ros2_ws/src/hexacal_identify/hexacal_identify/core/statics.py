@@ -51,6 +51,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from hexacal_msgs_py.measuring_modes import MeasuringMode
+from hexacal_msgs_py.physical_file import PhysicalDescription, read_physical_file
 import numpy as np
 
 from .architectures import KinematicParameters
@@ -133,8 +134,30 @@ class MassModel:
         )
 
     @classmethod
+    def from_physical(cls, physical: PhysicalDescription) -> 'MassModel':
+        """Return the masses and gravity of a physical description (the contract's reader)."""
+        return cls(
+            gravity=physical.gravity,
+            platform_mass=physical.platform_mass,
+            platform_com=physical.platform_com,
+            payload_mass=physical.payload_mass,
+            payload_com=physical.payload_com,
+            leg_mass=physical.leg_mass,
+            leg_com_fraction=physical.leg_com_fraction,
+            link_mass=physical.link_mass,
+            link_com_fraction=physical.link_com_fraction,
+        )
+
+    @classmethod
     def load(cls, path: Path | str) -> 'MassModel':
-        """Read the mass model from a physical description YAML file (keys as from_mapping)."""
+        """
+        Read the mass model from a physical description YAML file.
+
+        A complete ``hexacal-physical/1`` file (it names its ``model``) is read by the contract's
+        reader (hexacal_msgs_py.physical_file), so a missing key takes the model's shipped default
+        as the MuJoCo machine and the MJCF export take it; a file of the mass keys only is read
+        as ``from_mapping`` reads it (missing masses are 0).
+        """
         import yaml
 
         path = Path(path)
@@ -142,6 +165,8 @@ class MassModel:
             data = yaml.safe_load(path.read_text())
         except (OSError, yaml.YAMLError) as error:
             raise ValueError(f'cannot read the physical description {path}: {error}') from error
+        if isinstance(data, dict) and 'model' in data:
+            return cls.from_physical(read_physical_file(path))
         try:
             return cls.from_mapping(data)
         except (TypeError, ValueError) as error:
