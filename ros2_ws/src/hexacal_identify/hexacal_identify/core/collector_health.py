@@ -5,7 +5,8 @@ Everything not used is counted by stream and reason (`problems`): invalid messag
 DDS reports lost, readings whose stamps repeat or go back, slider readings without a
 partner (the synchronizer's pairing; the detector itself does not pair), time the detector
 judged without a stream stamped too far behind, samples and periods the detector rejects or
-drops, the streams that stopped and a recording error. The status is published when that changes (`decide_status`).
+drops, the streams that stopped and a recording error. The status is published when that
+changes (`decide_status`).
 """
 
 from __future__ import annotations
