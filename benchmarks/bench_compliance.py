@@ -2,7 +2,7 @@
 """
 Compliance benchmark: the rigid and the compliant fit of a machine loaded by its weights.
 
-Synthetic data from hexacal's own loaded forward model (core/compliance.py
+Synthetic data from hexacal's own loaded forward model (core/fit/compliance.py
 ``simulate_loaded_measurements``): each built-in model with a 20 kg platform, 2 kg legs, a
 1.5 kg link, legs of 5e7 N/m (compliance 2e-8 m/N, 0.6x..1.4x per chain for ``per_chain``)
 and a 1e7 N/m link (1e-7 m/N), ``--postures`` sphere postures (the released chain of each: the
@@ -27,13 +27,13 @@ import argparse
 import json
 
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.compliance import ComplianceModel, simulate_loaded_measurements
-from hexacal_identify.core.identification import identify, SolverOptions
-from hexacal_identify.core.kinematics import forward_kinematics, inverse_kinematics
-from hexacal_identify.core.measurements import NoiseModel
-from hexacal_identify.core.passive_actuator import release_conditions
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.statics import MassModel
+from hexacal_identify.core.fit.compliance import ComplianceModel, simulate_loaded_measurements
+from hexacal_identify.core.fit.identification import identify, SolverOptions
+from hexacal_identify.core.fit.statics import MassModel
+from hexacal_identify.core.machine.kinematics import forward_kinematics, inverse_kinematics
+from hexacal_identify.core.machine.measurements import NoiseModel
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.core.modes.passive_actuator import release_conditions
 import numpy as np
 
 MASSES = MassModel(platform_mass=20.0, leg_mass=2.0, link_mass=1.5)

@@ -44,7 +44,7 @@ from hexacal_identify.core import (  # noqa: E402
     simulate_measurements,
     table1_parameters,
 )
-from hexacal_identify.core.model import nominal_set  # noqa: E402
+from hexacal_identify.core.machine.model import nominal_set  # noqa: E402
 from hexacal_msgs_py.cdr_messages import IMU_TYPE, MessageDecoder  # noqa: E402
 from hexacal_msgs_py.parameters_file import save_parameters  # noqa: E402
 from mcap.records import Schema  # noqa: E402

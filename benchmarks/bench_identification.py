@@ -24,9 +24,9 @@ import sys
 import time
 
 from hexacal_identify.core.architectures import ARCHITECTURES, default_parameters
-from hexacal_identify.core.baseline import absolute_residuals, identify_baseline
-from hexacal_identify.core.identification import identify
-from hexacal_identify.core.measurements import Measurements
+from hexacal_identify.core.fit.baseline import absolute_residuals, identify_baseline
+from hexacal_identify.core.fit.identification import identify
+from hexacal_identify.core.machine.measurements import Measurements
 from hexacal_identify.studies.accuracy import simulate_run_measurements, StudyRun
 import numpy as np
 

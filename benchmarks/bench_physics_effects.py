@@ -33,10 +33,10 @@ actuators, +-5 urad on every angle (uniform, the NoiseModel the fit is whitened 
 
 Each row identifies from nominal parameter set 2 (core.model.nominal_set): ``none`` (the rigid
 geometric fit) and ``shared`` (one chain compliance and the link's, from the static loads of the
-physical description's masses, core/compliance.py), and prints the pose error against the MuJoCo
-machine's true geometry on 200 fresh poses (core/validation.py), the verification of the
-calibration on the fresh simulated postures (core/verification.py), the variance factor and the
-adequacy verdict (core/adequacy.py) and the identified compliances (+- std) beside the truth
+physical description's masses, core/fit/compliance.py), and prints the pose error against the MuJoCo
+machine's true geometry on 200 fresh poses (core/fit/validation.py), the verification of the
+calibration on the fresh simulated postures (core/fit/verification.py), the variance factor and the
+adequacy verdict (core/fit/adequacy.py) and the identified compliances (+- std) beside the truth
 (1 / stiffness).
 
 Run: ``.venv/bin/python benchmarks/bench_physics_effects.py [--models hexa_slide gough_stewart]
@@ -52,17 +52,17 @@ from pathlib import Path
 import time
 
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.compliance import ComplianceModel
-from hexacal_identify.core.device import DeviceModel
 from hexacal_identify.core.errors import RankDeficientError
-from hexacal_identify.core.identification import identify, SolverOptions
-from hexacal_identify.core.measurements import Measurements, NoiseModel
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.passive_actuator import release_conditions
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.statics import MassModel
-from hexacal_identify.core.validation import pose_errors, validation_poses
-from hexacal_identify.core.verification import verify
+from hexacal_identify.core.fit.compliance import ComplianceModel
+from hexacal_identify.core.fit.identification import identify, SolverOptions
+from hexacal_identify.core.fit.statics import MassModel
+from hexacal_identify.core.fit.validation import pose_errors, validation_poses
+from hexacal_identify.core.fit.verification import verify
+from hexacal_identify.core.machine.device import DeviceModel
+from hexacal_identify.core.machine.measurements import Measurements, NoiseModel
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.core.modes.passive_actuator import release_conditions
 from hexacal_msgs_py.physical_file import default_physical, PhysicalDescription
 import numpy as np
 

@@ -77,9 +77,9 @@ def run_plan(root: Path, model: str, mode: str, size: int, out: Path) -> tuple[f
 def rehearsal_rates(model: str, plan_file: Path, postures: int) -> dict:
     """Return the stacked and reference rehearsal of a plan's first postures: s, solves/s."""
     sys.path[:0] = python_path(REPO).split(os.pathsep)
-    from hexacal_identify.core import release_rehearsal
+    from hexacal_identify.core.modes import release_rehearsal
     from hexacal_identify.core.architectures import default_parameters
-    from hexacal_identify.core.released_actuator import choose_released_actuators
+    from hexacal_identify.core.modes.released_actuator import choose_released_actuators
     from hexacal_msgs_py.plan_file import read_plan_file
 
     plan = read_plan_file(str(plan_file))

@@ -83,8 +83,8 @@ def _posture_deviation(found, settled) -> tuple[int, float, float]:
 
 def _row(recording, bag: Path, variant: str, args) -> dict:
     """Detect, calibrate and judge one bag with one variant's detector and weights."""
-    from hexacal_identify.core.model import nominal_set
-    from hexacal_identify.core.validation import pose_errors, validation_poses
+    from hexacal_identify.core.machine.model import nominal_set
+    from hexacal_identify.core.fit.validation import pose_errors, validation_poses
     from hexacal_identify.pipeline import calibrate, postures_from_bag
 
     options = VARIANTS[variant]

@@ -58,7 +58,7 @@ class BareSolve:
 
     def __init__(self, nominal_path: Path, postures: list) -> None:
         from hexacal_identify import pipeline
-        from hexacal_identify.core.model import HexaParameters
+        from hexacal_identify.core.machine.model import HexaParameters
         from hexacal_msgs_py.parameters_file import load_parameters
 
         self.calibrate = pipeline.calibrate

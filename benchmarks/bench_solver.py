@@ -63,8 +63,8 @@ STARTUP_RATIO = 2.0
 def _cases() -> list[tuple[str, object]]:
     """(name, a function returning an IdentificationResult) for every case, in this tree."""
     from hexacal_identify.core.errors import CalibrationError
-    from hexacal_identify.core.measurements import NoiseModel
-    from hexacal_identify.core.model import nominal_set
+    from hexacal_identify.core.machine.measurements import NoiseModel
+    from hexacal_identify.core.machine.model import nominal_set
     from hexacal_identify.pipeline import calibrate, postures_from_bag
     from hexacal_identify.studies.accuracy import run_calibration, StudyRun
 

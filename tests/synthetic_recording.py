@@ -20,7 +20,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from hexacal_identify.bag import BagWriter
-from hexacal_identify.core.measurements import Measurements
+from hexacal_identify.core.machine.measurements import Measurements
 from hexacal_msgs_py.names import (
     actuator_names,
     ENCODER_NAMES,

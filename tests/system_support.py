@@ -266,7 +266,7 @@ def write_parameter_files(directory: Path, model: str | None = None) -> tuple[Pa
     (written with its ``model`` key, as is the nominal set).
     """
     from hexacal_identify.core.architectures import default_parameters
-    from hexacal_identify.core.model import nominal_set
+    from hexacal_identify.core.machine.model import nominal_set
     from hexacal_msgs_py.parameters_file import save_parameters
 
     if model in (None, 'hexa_slide'):
@@ -285,8 +285,8 @@ def simulated_postures(
     """PostureReadings of sphere postures on the Table 1 machine (or the default machine of
     `model`, in its default workspace) (core simulation)."""
     from hexacal_identify.core.architectures import architecture
-    from hexacal_identify.core.measurements import NoiseModel, simulate_measurements
-    from hexacal_identify.core.postures import sample_poses
+    from hexacal_identify.core.machine.measurements import NoiseModel, simulate_measurements
+    from hexacal_identify.core.machine.postures import sample_poses
     from hexacal_msgs_py.readings import PostureReading
 
     rng = np.random.default_rng([seed, 42])

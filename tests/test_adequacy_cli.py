@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from hexacal_identify.core.measurements import NoiseModel
+from hexacal_identify.core.machine.measurements import NoiseModel
 from hexacal_identify.pipeline import calibrate, load_machine, postures_from_bag, status_fields
 import pytest
 from system_support import hexacal

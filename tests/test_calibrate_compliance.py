@@ -15,12 +15,12 @@ from pathlib import Path
 
 from hexacal_identify.bag import BagWriter
 from hexacal_identify.bag.measuring import MEASURING_METADATA, MeasuringRecord
-from hexacal_identify.core.compliance import ComplianceModel, simulate_loaded_measurements
-from hexacal_identify.core.measurements import NoiseModel
-from hexacal_identify.core.model import table1_parameters
-from hexacal_identify.core.passive_actuator import release_conditions
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.statics import MassModel
+from hexacal_identify.core.fit.compliance import ComplianceModel, simulate_loaded_measurements
+from hexacal_identify.core.fit.statics import MassModel
+from hexacal_identify.core.machine.measurements import NoiseModel
+from hexacal_identify.core.machine.model import table1_parameters
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.core.modes.passive_actuator import release_conditions
 from hexacal_msgs_py.names import JOINT_STATE_TYPE, POSTURE_NAMES, POSTURE_TOPIC
 from hexacal_msgs_py.parameters_file import compliances_from_extras, read_parameters_file
 import numpy as np

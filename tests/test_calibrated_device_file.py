@@ -15,10 +15,10 @@ import json
 from pathlib import Path
 
 from hexacal_identify.cli import main as hexacal_main
-from hexacal_identify.core.device import DeviceDefects
-from hexacal_identify.core.measurements import NoiseModel, simulate_measurements
-from hexacal_identify.core.model import nominal_set, table1_parameters
-from hexacal_identify.core.postures import sample_poses, Workspace
+from hexacal_identify.core.machine.device import DeviceDefects
+from hexacal_identify.core.machine.measurements import NoiseModel, simulate_measurements
+from hexacal_identify.core.machine.model import nominal_set, table1_parameters
+from hexacal_identify.core.machine.postures import sample_poses, Workspace
 from hexacal_identify.pipeline import load_device_defects
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.parameters_file import read_parameters_file, save_parameters

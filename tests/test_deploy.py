@@ -21,8 +21,8 @@ import os
 import signal
 
 from hexacal_identify.core.architectures import parameters_for
-from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.live import home_pose
+from hexacal_identify.core.machine.kinematics import inverse_kinematics
+from hexacal_identify.core.machine.live import home_pose
 from hexacal_identify.store import CalibrationStore, file_digest
 from hexacal_msgs_py.parameters_file import read_parameters_file, save_parameters
 import numpy as np

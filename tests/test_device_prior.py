@@ -9,10 +9,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from hexacal_identify.core.device import DeviceDefects, DevicePrior
-from hexacal_identify.core.measurements import NoiseModel, simulate_measurements
-from hexacal_identify.core.model import nominal_set, table1_parameters
-from hexacal_identify.core.postures import sample_poses, Workspace
+from hexacal_identify.core.machine.device import DeviceDefects, DevicePrior
+from hexacal_identify.core.machine.measurements import NoiseModel, simulate_measurements
+from hexacal_identify.core.machine.model import nominal_set, table1_parameters
+from hexacal_identify.core.machine.postures import sample_poses, Workspace
 from hexacal_msgs_py.parameters_file import save_parameters
 from hexacal_msgs_py.readings import PostureReading
 import numpy as np

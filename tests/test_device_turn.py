@@ -43,8 +43,12 @@ def expected_readings(plan, turns: np.ndarray) -> np.ndarray:
     straight from the core: the platform on the true sphere L + dL (sphere postures radially,
     fixed ones where the turned device reads zero)."""
     from hexacal_identify.core import table1_parameters
-    from hexacal_identify.core.device import DeviceDefects, fixed_position, inclinometer_readings
-    from hexacal_identify.core.kinematics import inverse_kinematics
+    from hexacal_identify.core.machine.device import (
+        DeviceDefects,
+        fixed_position,
+        inclinometer_readings,
+    )
+    from hexacal_identify.core.machine.kinematics import inverse_kinematics
 
     defects = DeviceDefects.parse(DEFECTS)
     true_length = LINK_LENGTH_M + defects.dL

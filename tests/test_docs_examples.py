@@ -18,7 +18,7 @@ from pathlib import Path
 import re
 import shlex
 
-from hexacal_identify.core.model import nominal_set
+from hexacal_identify.core.machine.model import nominal_set
 from hexacal_msgs_py.parameters_file import save_parameters
 import pytest
 from system_support import hexacal

@@ -87,8 +87,8 @@ class Machine:
 def released_truth(index: int, five_targets: np.ndarray) -> float:
     """Return where the released actuator stands on the default machine (core solve_passive)."""
     from hexacal_identify.core.architectures import architecture
-    from hexacal_identify.core.device import fixed_point
-    from hexacal_identify.core.passive_actuator import solve_passive
+    from hexacal_identify.core.machine.device import fixed_point
+    from hexacal_identify.core.modes.passive_actuator import solve_passive
 
     truth = architecture('hexa_slide').default_parameters()
     home = np.concatenate([fixed_point(0.75), np.zeros(3)])  # where the driver starts

@@ -86,7 +86,7 @@ def assert_multiples(values: np.ndarray, resolution: float, what: str) -> None:
 
 def test_driver_streams_carry_their_own_clocks_and_resolutions(ros_processes, listener):
     from hexacal_driver.recording import simulate_recording
-    from hexacal_identify.core.measurements import NoiseModel
+    from hexacal_identify.core.machine.measurements import NoiseModel
 
     probe = listener
     received = subscribe(probe)

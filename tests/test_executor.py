@@ -11,8 +11,8 @@ from pathlib import Path
 import subprocess
 
 from hexacal_identify.core.architectures import parameters_for
-from hexacal_identify.core.planning import Plan
-from hexacal_identify.core.validation import pose_errors, validation_poses
+from hexacal_identify.core.fit.validation import pose_errors, validation_poses
+from hexacal_identify.core.planning.planner import Plan
 from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC, EXECUTOR_STATUS_NAME
 from hexacal_msgs_py.parameters_file import read_parameters_file
 import numpy as np
@@ -365,7 +365,7 @@ def test_a_posture_the_machine_never_reaches_is_skipped_and_reported(
 def test_the_commanded_driver_follows_a_joint_trajectory_at_bounded_speed(ros_processes, probe):
     from builtin_interfaces.msg import Duration
     from hexacal_identify.core.architectures import default_parameters
-    from hexacal_identify.core.kinematics import inverse_kinematics
+    from hexacal_identify.core.machine.kinematics import inverse_kinematics
     from hexacal_msgs_py.qos import COMMAND_QOS, SENSOR_QOS
     from sensor_msgs.msg import JointState
     from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint

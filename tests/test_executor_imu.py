@@ -11,10 +11,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.plan_check import check_plan, default_stroke
-from hexacal_identify.core.planning import Plan
-from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.core.planning.plan_check import check_plan, default_stroke
+from hexacal_identify.core.planning.planner import Plan
 import numpy as np
 import pytest
 from system_support import (

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.planning import Plan
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.planning.planner import Plan
 from hexacal_msgs_py.parameters_file import save_parameters
 import numpy as np
 import pytest
@@ -34,7 +34,7 @@ def _passive_plan(tmp_path: Path, nominal: Path, seed: int = 1) -> Path:
 
 def _worst_released(plan_path: Path, nominal: Path) -> Path:
     """Rewrite the plan to release, after its first posture, the worst-conditioned actuator."""
-    from hexacal_identify.core.passive_actuator import release_conditions
+    from hexacal_identify.core.modes.passive_actuator import release_conditions
     from hexacal_identify.pipeline import load_machine
 
     plan = Plan.load(plan_path)

@@ -13,10 +13,10 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.plan_check import check_plan, default_stroke
-from hexacal_identify.core.planning import Plan
-from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.core.planning.plan_check import check_plan, default_stroke
+from hexacal_identify.core.planning.planner import Plan
 from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC, DEVICE_TURN_JOINT
 import numpy as np
 import pytest
@@ -66,7 +66,7 @@ def _turning_plan(tmp_path: Path) -> tuple[Path, np.ndarray]:
 def test_the_executor_pauses_for_a_device_turn_and_the_nodes_take_it(
     ros_processes, tmp_path, probe
 ):  # noqa: F811
-    from hexacal_identify.core.walk_io import joint_positions
+    from hexacal_identify.core.walk.messages import joint_positions
     from hexacal_msgs_py.qos import POSTURE_QOS
     from sensor_msgs.msg import JointState
 

@@ -17,8 +17,8 @@ import sys
 import hexacal_identify
 from hexacal_identify import cli
 from hexacal_identify.core.architectures import architecture, default_parameters
-from hexacal_identify.core.kinematics import inverse_kinematics, rotation_matrices
-from hexacal_identify.core.model import nominal_set
+from hexacal_identify.core.machine.kinematics import inverse_kinematics, rotation_matrices
+from hexacal_identify.core.machine.model import nominal_set
 from hexacal_msgs_py.parameters_file import (
     chain_dict_to_parameters,
     read_parameters_file,
@@ -443,7 +443,7 @@ def test_linuxcnc_export_writes_the_ini_beside_the_hal(capsys, tmp_path, gs_cali
 
 
 def test_linuxcnc_home_options_move_the_homes(capsys, tmp_path, gs_calibrated):
-    from hexacal_identify.core.angle_conventions import linuxcnc_from_pose
+    from hexacal_identify.core.machine.angle_conventions import linuxcnc_from_pose
 
     out = tmp_path / 'machine.hal'
     pose = [-0.01, -0.02, -0.8, 0.05, 0.02, -0.1]  # a negative first value is a value

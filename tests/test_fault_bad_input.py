@@ -19,7 +19,7 @@ import time
 
 from hexacal_identify.bag import BagWriter, message_definition
 from hexacal_identify.cli import main as hexacal_main
-from hexacal_identify.core.model import HexaParameters
+from hexacal_identify.core.machine.model import HexaParameters
 from hexacal_identify.nodes.identify import output_path
 from hexacal_identify.pipeline import calibrate
 from hexacal_msgs_py.names import JOINT_STATE_TYPE, POSTURE_NAMES, SLIDER_NAMES

@@ -17,7 +17,7 @@ import tempfile
 import textwrap
 
 from hexacal_identify.bag import open_bag
-from hexacal_identify.core.model import nominal_set
+from hexacal_identify.core.machine.model import nominal_set
 from hexacal_msgs_py.conversions import joint_state_to_posture_reading, stamp_ns
 from hexacal_msgs_py.parameters_file import load_parameters, save_parameters
 import numpy as np
@@ -226,7 +226,7 @@ def test_identify_killed_during_a_calibration_keeps_the_last_good_one(
 
 _WRITER = textwrap.dedent("""
     import sys
-    from hexacal_identify.core.model import nominal_set
+    from hexacal_identify.core.machine.model import nominal_set
     from hexacal_msgs_py.parameters_file import save_parameters
     vectors = [nominal_set(1, seed=1).vector, nominal_set(2, seed=2).vector]
     count = 0

@@ -20,19 +20,19 @@ import re
 
 from hexacal_identify.cli import main
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.identification import CONVERGED, identify, SolverOptions
-from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.measurements import (
+from hexacal_identify.core.fit.identification import CONVERGED, identify, SolverOptions
+from hexacal_identify.core.machine.kinematics import inverse_kinematics
+from hexacal_identify.core.machine.measurements import (
     FIXED,
     Measurements,
     NoiseModel,
     simulate_measurements,
     SPHERE,
 )
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.planning import Plan
-from hexacal_identify.core.posture_limits import PostureLimits
-from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.core.planning.planner import Plan
+from hexacal_identify.core.planning.posture_limits import PostureLimits
 from hexacal_msgs_py.models import MODELS
 from hexacal_msgs_py.parameters_file import save_parameters
 import matplotlib

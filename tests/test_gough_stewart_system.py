@@ -28,10 +28,15 @@ import json
 from pathlib import Path
 
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.measurements import FIXED, Measurements, simulate_measurements, SPHERE
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.validation import pose_errors, validation_poses
+from hexacal_identify.core.fit.validation import pose_errors, validation_poses
+from hexacal_identify.core.machine.measurements import (
+    FIXED,
+    Measurements,
+    simulate_measurements,
+    SPHERE,
+)
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_identify.pipeline import postures_from_bag
 from hexacal_msgs_py.parameters_file import (
     chain_dict_to_parameters,

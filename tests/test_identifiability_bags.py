@@ -12,8 +12,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from hexacal_identify.core.errors import RankDeficientError, TooFewPosturesError
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.residuals import COSTS
+from hexacal_identify.core.fit.residuals import COSTS
+from hexacal_identify.core.machine.model import nominal_set
 from hexacal_identify.pipeline import calibrate, postures_from_bag
 import pytest
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from hexacal_identify.core.measurements import NoiseModel
+from hexacal_identify.core.machine.measurements import NoiseModel
 from hexacal_msgs_py.readings import PostureScatter
 import pytest
 from system_support import (

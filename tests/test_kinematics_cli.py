@@ -14,9 +14,9 @@ import sys
 
 from hexacal_identify import cli
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.postures import sample_poses, Workspace
+from hexacal_identify.core.machine.kinematics import inverse_kinematics
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.machine.postures import sample_poses, Workspace
 from hexacal_msgs_py.models import MODELS
 from hexacal_msgs_py.parameters_file import save_parameters
 import numpy as np
@@ -240,7 +240,7 @@ def test_the_script_takes_negative_values_and_help_imports_no_numpy(files):
 
 def test_linuxcnc_angles_agree_with_hexacals(capsys, files):
     """The same R as a,b,c (deg) or theta,psi,phi gives the same ik; fk prints a,b,c back."""
-    from hexacal_identify.core.angle_conventions import linuxcnc_from_pose
+    from hexacal_identify.core.machine.angle_conventions import linuxcnc_from_pose
 
     true_path, _ = files['gough_stewart']
     pose = np.array([0.03, -0.02, -0.8, 0.15, -0.1, 0.2])

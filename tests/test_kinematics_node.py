@@ -26,8 +26,8 @@ from dataclasses import dataclass, field
 
 from hexacal_driver.plan import resolve_plan
 from hexacal_identify.core.architectures import architecture, parameters_for
-from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.live import home_pose, solve_pose
+from hexacal_identify.core.machine.kinematics import inverse_kinematics
+from hexacal_identify.core.machine.live import home_pose, solve_pose
 from hexacal_msgs_py.models import GOUGH_STEWART, HEXA_SLIDE, MODELS
 from hexacal_msgs_py.parameters_file import read_parameters_file
 import numpy as np
@@ -536,8 +536,8 @@ def calibrate_a_recording(tmp_path, truth, nominal_path, model: str):
     40 sphere postures, +-1 um / urad noise, from nominal set 2: the calibrated parameters file.
     """
     from hexacal_identify import cli
-    from hexacal_identify.core.measurements import NoiseModel, simulate_measurements
-    from hexacal_identify.core.postures import sample_poses
+    from hexacal_identify.core.machine.measurements import NoiseModel, simulate_measurements
+    from hexacal_identify.core.machine.postures import sample_poses
     from synthetic_recording import write_recording
 
     rng = np.random.default_rng(17)
@@ -579,7 +579,7 @@ def test_compensation_reaches_the_true_pose(ros_processes, tmp_path, probe, mode
     link's sphere, so targets lie on it.
     """
     from geometry_msgs.msg import PoseStamped
-    from hexacal_identify.core.postures import sample_poses
+    from hexacal_identify.core.machine.postures import sample_poses
     from hexacal_msgs_py.conversions import joint_state_to_actuator_reading
     from hexacal_msgs_py.poses import fill_pose_message
     from hexacal_msgs_py.qos import COMMAND_QOS, POSE_QOS, SENSOR_QOS

@@ -26,9 +26,9 @@ import re
 import hexacal_identify
 from hexacal_identify import cli
 from hexacal_identify.core.architectures import parameters_for
-from hexacal_identify.core.kinematics import inverse_kinematics, rotation_matrices
-from hexacal_identify.core.live import home_pose, solve_pose
-from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.machine.kinematics import inverse_kinematics, rotation_matrices
+from hexacal_identify.core.machine.live import home_pose, solve_pose
+from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_msgs_py.parameters_file import read_parameters_file
 import numpy as np
 import pytest

@@ -28,8 +28,8 @@ import subprocess
 from typing import Any
 
 from hexacal_identify.core.architectures import architecture, KinematicParameters
-from hexacal_identify.core.passive_actuator import solve_passive
-from hexacal_identify.core.planning import Plan
+from hexacal_identify.core.modes.passive_actuator import solve_passive
+from hexacal_identify.core.planning.planner import Plan
 import numpy as np
 import pytest
 from system_support import (
@@ -50,7 +50,7 @@ FORCE_LIMIT_N = 1e5  # max_force_n, the driver's and the executor's default
 STIFFNESS_N_PER_M = 2e6  # servo_stiffness_n_per_m, the driver's default
 SHORT = 6  # postures of the Hexa Slide plans
 REFINED = 20  # postures of the Gough-Stewart refinement plans
-FIRST = 17  # core/refinement.py's first checkpoint for 42 parameters
+FIRST = 17  # core/walk/refinement.py's first checkpoint for 42 parameters
 MATCH_M = 5e-5  # a posture stands at a command's target: far below the plans' spacing
 
 
@@ -379,7 +379,7 @@ def test_refined_targets_shrink_the_lvdt_extension_and_the_bag_calibrates_with_l
 
 def _calibrations(walk: Walk, tmp_path: Path) -> tuple[float, float]:
     """Return the mean pose errors of the bag calibrated with L_m (hexacal calibrate) and L."""
-    from hexacal_identify.core.validation import pose_errors, validation_poses
+    from hexacal_identify.core.fit.validation import pose_errors, validation_poses
     from hexacal_identify.pipeline import calibrate, postures_from_bag
 
     output = tmp_path / 'calibrated.yaml'

@@ -305,7 +305,7 @@ def _walk(ros_processes, tmp_path, argv, postures: int, machine) -> str:
 def test_readme_own_machine_commands_on_a_ros2_control_standin(ros_processes, tmp_path, probe):
     from geometry_msgs.msg import PoseStamped
     from hexacal_identify.core.architectures import parameters_for
-    from hexacal_identify.core.live import solve_pose
+    from hexacal_identify.core.machine.live import solve_pose
     from hexacal_msgs_py.parameters_file import read_parameters_file
     from hexacal_msgs_py.poses import pose_from_message
     from hexacal_msgs_py.qos import POSE_QOS, SENSOR_QOS

@@ -20,8 +20,8 @@ from pathlib import Path
 
 from hexacal_driver.recording import simulate_recording, write_recording_bag
 from hexacal_driver.sensor_models import SENSOR_DEFAULTS
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.validation import pose_errors, validation_poses
+from hexacal_identify.core.fit.validation import pose_errors, validation_poses
+from hexacal_identify.core.machine.model import nominal_set
 from hexacal_identify.pipeline import calibrate, postures_from_bag
 from hexacal_msgs_py.readings import PostureReading
 import numpy as np
@@ -106,7 +106,7 @@ def test_fed_in_chunks_the_detector_finds_the_same_postures_bit_for_bit(recordin
     (the readings after a block are not in yet): the same postures, every bit of their
     means and scatter, and the same clock offsets and counters.
     """
-    from hexacal_identify.core.dwell_detector import detect_dwell_postures, DwellDetector
+    from hexacal_identify.core.detection.dwell_detector import detect_dwell_postures, DwellDetector
 
     recording, _ = recordings['all']
     streams = {

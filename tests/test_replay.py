@@ -18,7 +18,7 @@ import json
 from pathlib import Path
 
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.validation import pose_errors, validation_poses
+from hexacal_identify.core.fit.validation import pose_errors, validation_poses
 from hexacal_identify.pipeline import postures_from_bag
 import numpy as np
 import pytest

@@ -14,16 +14,16 @@ import re
 import shutil
 import subprocess
 
-from hexacal_identify.core.identification import CONVERGED, identify, SolverOptions
-from hexacal_identify.core.measurements import (
+from hexacal_identify.core.fit.identification import CONVERGED, identify, SolverOptions
+from hexacal_identify.core.machine.measurements import (
     FIXED,
     Measurements,
     NoiseModel,
     simulate_measurements,
     SPHERE,
 )
-from hexacal_identify.core.model import nominal_set, table1_parameters
-from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.machine.model import nominal_set, table1_parameters
+from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_identify.report.page import save_result
 from hexacal_msgs_py.result_file import read_result_file
 import numpy as np
@@ -193,7 +193,7 @@ def test_report_of_a_plain_json_output_says_what_is_missing(calibration, tmp_pat
 def test_report_with_a_verification_section_loads_in_headless_chromium(calibration, tmp_path):
     """What identify writes after hexacal/verify: the calibration's page with the verification section and its
     figure; every image decodes and the verification figures are on the page in um / urad."""
-    from hexacal_identify.core.verification import verify
+    from hexacal_identify.core.fit.verification import verify
     from hexacal_identify.report.page import write_report
 
     result, _ = calibration

@@ -24,8 +24,8 @@ BAG = REPO / 'bags' / 'sphere50_noise10'
 STUDY_MODULES = (
     'hexacal_identify.studies.accuracy',
     'hexacal_identify.studies.device',
-    'hexacal_identify.core.uncertainty',
-    'hexacal_identify.core.baseline',
+    'hexacal_identify.core.fit.uncertainty',
+    'hexacal_identify.core.fit.baseline',
     'hexacal_identify.studies.planning',
     'hexacal_identify.report.figures',
 )
@@ -78,7 +78,7 @@ def test_command_help_imports_no_matplotlib_nor_studies(tmp_path, command):
 
 
 def test_calibrate_imports_no_matplotlib_or_studies(tmp_path):
-    from hexacal_identify.core.model import nominal_set
+    from hexacal_identify.core.machine.model import nominal_set
     from hexacal_msgs_py.parameters_file import save_parameters
 
     nominal, output_file = tmp_path / 'nominal2.yaml', tmp_path / 'calibrated.yaml'
@@ -88,15 +88,15 @@ def test_calibrate_imports_no_matplotlib_or_studies(tmp_path):
     )
     assert code == 0, output
     assert output_file.exists(), output  # it did calibrate
-    assert 'hexacal_identify.core.identification' in modules
-    assert 'hexacal_identify.core.identifiability' in modules
+    assert 'hexacal_identify.core.fit.identification' in modules
+    assert 'hexacal_identify.core.fit.identifiability' in modules
     assert 'scipy.optimize' in modules and 'scipy.linalg' in modules  # the solve's libraries
     assert imported(modules, ('rclpy', 'matplotlib', *STUDY_MODULES)) == []
 
 
 def test_refused_calibration_imports_no_matplotlib_or_studies(tmp_path):
     """The sphere cost is rank 53: the refusal names the combination and what to fix."""
-    from hexacal_identify.core.model import nominal_set
+    from hexacal_identify.core.machine.model import nominal_set
     from hexacal_msgs_py.parameters_file import save_parameters
 
     nominal = tmp_path / 'nominal2.yaml'

@@ -13,9 +13,9 @@ from pathlib import Path
 import subprocess
 
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.measurements import Measurements, simulate_measurements, SPHERE
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.machine.measurements import Measurements, simulate_measurements, SPHERE
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_msgs_py import store_format as fmt
 from hexacal_msgs_py.parameters_file import save_parameters
 import numpy as np

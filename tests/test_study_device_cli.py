@@ -72,7 +72,7 @@ def test_bad_device_prior_and_procedure_are_usage_errors():
 
 
 def test_plan_for_a_turning_procedure_groups_the_mountings(tmp_path):
-    from hexacal_identify.core.planning import Plan
+    from hexacal_identify.core.planning.planner import Plan
 
     out = tmp_path / 'turns.yaml'
     done = hexacal(

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hexacal_identify.core.model import HexaParameters
-from hexacal_identify.core.validation import pose_errors, validation_poses
+from hexacal_identify.core.fit.validation import pose_errors, validation_poses
+from hexacal_identify.core.machine.model import HexaParameters
 from hexacal_identify.pipeline import postures_from_bag
 from hexacal_msgs_py.parameters_file import load_parameters
 from hexacal_msgs_py.readings import PostureReading, PostureScatter

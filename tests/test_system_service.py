@@ -9,7 +9,7 @@ from __future__ import annotations
 import time
 
 from hexacal_identify.bag import open_bag
-from hexacal_identify.core.model import nominal_set
+from hexacal_identify.core.machine.model import nominal_set
 from hexacal_msgs_py.parameters_file import load_parameters, save_parameters
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Verification without ground truth (#11 section 3): core/verification.py, `hexacal verify`, identify's hexacal/verify.
+"""Verification without ground truth (#11 section 3): core/fit/verification.py, `hexacal verify`, identify's hexacal/verify.
 
 The verification postures are never the fit's: the core tests calibrate on one
 simulated set and verify on another of the same true machine; the CLI tests
@@ -15,25 +15,25 @@ import subprocess
 import sys
 
 from hexacal_identify.core.architectures import architecture, default_parameters
-from hexacal_identify.core.device import DeviceModel
 from hexacal_identify.core.errors import InvalidMeasurementError
-from hexacal_identify.core.identification import CONVERGED, identify, SolverOptions
-from hexacal_identify.core.measurements import (
-    FIXED,
-    Measurements,
-    NoiseModel,
-    simulate_measurements,
-    SPHERE,
-)
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.verification import (
+from hexacal_identify.core.fit.identification import CONVERGED, identify, SolverOptions
+from hexacal_identify.core.fit.verification import (
     DEFAULT_THRESHOLD_M,
     FAIL,
     PASS,
     VerificationModelError,
     verify,
 )
+from hexacal_identify.core.machine.device import DeviceModel
+from hexacal_identify.core.machine.measurements import (
+    FIXED,
+    Measurements,
+    NoiseModel,
+    simulate_measurements,
+    SPHERE,
+)
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_msgs_py.parameters_file import save_parameters
 import numpy as np
 import pytest
@@ -320,7 +320,7 @@ def test_cli_fails_with_exit_1(bags):
     'case', ['gough_stewart_nominal', 'missing_bag', 'bad_threshold', 'bad_calibrated']
 )
 def test_cli_bad_input_exits_2_with_one_line(bags, case):
-    from hexacal_identify.core.model import nominal_set as nominal_of
+    from hexacal_identify.core.machine.model import nominal_set as nominal_of
 
     root = bags['root']
     argv = [bags['verify'], '--nominal', bags['nominal'], '--calibrated', bags['calibrated']]
@@ -696,9 +696,9 @@ def test_restarted_identify_verifies_through_the_device_it_calibrated_with(
     ros_processes, tmp_path, probe
 ):
     """A joint calibration's file keeps its device defects: the restarted node verifies with them."""
-    from hexacal_identify.core.device import DeviceDefects
-    from hexacal_identify.core.model import table1_parameters
-    from hexacal_identify.core.postures import Workspace
+    from hexacal_identify.core.machine.device import DeviceDefects
+    from hexacal_identify.core.machine.model import table1_parameters
+    from hexacal_identify.core.machine.postures import Workspace
     from hexacal_identify.pipeline import load_device_defects
     from hexacal_msgs_py.names import VERIFICATION_STATUS_NAME, VERIFY_SERVICE
     from hexacal_msgs_py.readings import PostureReading

@@ -43,10 +43,10 @@ from hexacal_driver.simulation import (
     WalkSample,
 )
 from hexacal_identify.core.architectures import KinematicParameters
-from hexacal_identify.core.device import DEFAULT_MOUNT
 from hexacal_identify.core.errors import ForwardKinematicsError, UnreachablePoseError
-from hexacal_identify.core.kinematics import forward_kinematics
-from hexacal_identify.core.passive_actuator import solve_passive
+from hexacal_identify.core.machine.device import DEFAULT_MOUNT
+from hexacal_identify.core.machine.kinematics import forward_kinematics
+from hexacal_identify.core.modes.passive_actuator import solve_passive
 from hexacal_msgs_py.measuring_modes import measuring_mode, MeasuringMode
 import numpy as np
 

@@ -31,14 +31,14 @@ from hexacal_driver.simulation import (
     WalkSample,
 )
 from hexacal_identify.core.architectures import architecture, KinematicParameters
-from hexacal_identify.core.device import (
+from hexacal_identify.core.errors import UnreachablePoseError
+from hexacal_identify.core.machine.device import (
     DEFAULT_MOUNT,
     DeviceDefects,
     DeviceMountError,
     fixed_point,
 )
-from hexacal_identify.core.errors import UnreachablePoseError
-from hexacal_identify.core.measurements import NoiseModel
+from hexacal_identify.core.machine.measurements import NoiseModel
 from hexacal_identify.pipeline import load_machine_and_mount
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS

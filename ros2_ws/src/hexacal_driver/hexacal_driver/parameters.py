@@ -11,7 +11,7 @@ import math
 
 from hexacal_driver.plan import GENERATED_PLANS, load_plan, PlanError
 from hexacal_driver.sensor_parameters import sensor_parameter_problem, SENSOR_PARAMETERS
-from hexacal_identify.core.device import DeviceDefects
+from hexacal_identify.core.machine.device import DeviceDefects
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.measuring_modes import (
     DEFAULT_LVDT_STROKE_M,

@@ -28,7 +28,7 @@ from hexacal_driver.drives import DriveFault, DriveFollower, DriveSettings
 from hexacal_driver.physics_machine import PhysicsError, PhysicsMachine
 from hexacal_driver.simulation import MOVING, STILL, WalkSample
 from hexacal_identify.core.architectures import KinematicParameters
-from hexacal_identify.core.device import DEFAULT_MOUNT, DeviceDefects
+from hexacal_identify.core.machine.device import DEFAULT_MOUNT, DeviceDefects
 from hexacal_msgs_py.measuring_modes import MeasuringMode
 from hexacal_msgs_py.physical_file import PhysicalDescription
 import numpy as np

@@ -37,13 +37,13 @@ import time
 from typing import Any
 
 from hexacal_identify.core.architectures import KinematicParameters
-from hexacal_identify.core.device import (
+from hexacal_identify.core.machine.device import (
     DEFAULT_MOUNT,
     device_position,
     DeviceDefects,
     inclinometer_readings,
 )
-from hexacal_identify.core.kinematics import wrap_angle
+from hexacal_identify.core.machine.kinematics import wrap_angle
 from hexacal_identify.physics.mjcf import (
     DEFAULT_TIMESTEP_S,
     INCLINOMETER_SENSOR,

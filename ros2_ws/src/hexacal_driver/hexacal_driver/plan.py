@@ -9,7 +9,7 @@ paper's eq. 1), each of one kind:
 * ``fixed``: the inclinometer reads zero, so the platform sits at ``[0, 0, -L]``
   and only its orientation varies (section 3.2's second procedure).
 
-With the device mount ``standing`` (core/device.py: an upright machine, the
+With the device mount ``standing`` (core/machine/device.py: an upright machine, the
 platform above the device's base joint) sphere postures lie on the upper half
 of the sphere and the fixed position is ``[0, 0, +L]``.
 
@@ -36,16 +36,16 @@ import math
 import os
 
 from hexacal_identify.core.architectures import KinematicParameters
-from hexacal_identify.core.device import (
+from hexacal_identify.core.errors import UnreachablePoseError
+from hexacal_identify.core.machine.device import (
     DEFAULT_LINK_LENGTH_M,
     DEFAULT_MOUNT,
     fixed_point,
     inclinometer_angles,
 )
-from hexacal_identify.core.errors import UnreachablePoseError
-from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.measurements import FIXED, MeasurementLimits, SPHERE
-from hexacal_identify.core.postures import sample_poses, Workspace
+from hexacal_identify.core.machine.kinematics import inverse_kinematics
+from hexacal_identify.core.machine.measurements import FIXED, MeasurementLimits, SPHERE
+from hexacal_identify.core.machine.postures import sample_poses, Workspace
 from hexacal_msgs_py.plan_file import (
     plan_document,
     PlanError,

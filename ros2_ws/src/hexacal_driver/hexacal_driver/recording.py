@@ -27,8 +27,8 @@ from hexacal_driver.plan import PosturePlan
 from hexacal_driver.sensor_models import NS_PER_S, SENSOR_DEFAULTS, SensorSettings
 from hexacal_driver.simulation import exact_readings, SETTLING
 from hexacal_identify.core.architectures import KinematicParameters
-from hexacal_identify.core.device import DEFAULT_MOUNT
-from hexacal_identify.core.measurements import NoiseModel
+from hexacal_identify.core.machine.device import DEFAULT_MOUNT
+from hexacal_identify.core.machine.measurements import NoiseModel
 from hexacal_msgs_py.readings import PostureReading
 import numpy as np
 

@@ -13,8 +13,8 @@ from hexacal_driver.drives import DriveFollower
 from hexacal_driver.machine import SimulatedMachine
 from hexacal_driver.plan import PosturePlan
 from hexacal_driver.simulation import DONE, DWELLING, MOVING
-from hexacal_identify.core.device import DEFAULT_MOUNT, DeviceDefects
-from hexacal_identify.core.measurements import NoiseModel
+from hexacal_identify.core.machine.device import DEFAULT_MOUNT, DeviceDefects
+from hexacal_identify.core.machine.measurements import NoiseModel
 from hexacal_msgs_py.measuring_modes import MeasuringMode
 from hexacal_msgs_py.models import HEXA_SLIDE, MODELS
 import numpy as np

@@ -15,7 +15,7 @@ kinematics of the platform pose. Any architecture (core.architectures): the
 "sliders" are its six actuator readings (Hexa Slide: slider positions along the
 rails; Gough-Stewart: leg extensions).
 
-The device may be defective and turned about its link axis (core/device.py:
+The device may be defective and turned about its link axis (core/machine/device.py:
 `DeviceDefects`, ``device_turn`` rad, 0 normal mounting, pi reversed, pi/2 a
 quarter turn): the inclinometer reads through the core's defect model
 (`inclinometer_readings`) in the turned device's frame and the rotary sensor
@@ -30,24 +30,23 @@ from dataclasses import dataclass
 import math
 
 from hexacal_identify.core.architectures import KinematicParameters
-# The compliant servos' pose on the link sphere: one model, the core's (re-exported here).
-from hexacal_identify.core.compliant import (  # noqa: F401
-    ConstraintError,
-    device_constrained_pose,
-    STRAIN_RETRY_M,
-)
-from hexacal_identify.core.device import (
+from hexacal_identify.core.errors import UnreachablePoseError
+from hexacal_identify.core.machine.device import (
     DEFAULT_MOUNT,
     device_position,
     DeviceDefects,
     inclinometer_readings,
 )
-from hexacal_identify.core.errors import UnreachablePoseError
-from hexacal_identify.core.kinematics import inverse_kinematics, wrap_angle
-from hexacal_identify.core.measurements import FIXED, NoiseModel
-
+from hexacal_identify.core.machine.kinematics import inverse_kinematics, wrap_angle
+from hexacal_identify.core.machine.measurements import FIXED, NoiseModel
+# The compliant servos' pose on the link sphere: one model, the core's (re-exported here).
+from hexacal_identify.core.modes.compliant import (  # noqa: F401
+    ConstraintError,
+    device_constrained_pose,
+    STRAIN_RETRY_M,
+)
 # The executor's interpolation; without a link length: the great circle of the true sphere.
-from hexacal_identify.core.paths import interpolate_pose
+from hexacal_identify.core.walk.platform_paths import interpolate_pose
 import numpy as np
 
 SETTLING = 'settling'  # moving to the posture (or, at the start, standing at it)

@@ -2,7 +2,7 @@
 The driver's commanded mode, ROS-free.
 
 Trajectory checks, bounded-speed following, the link's constraint, and the executor's rules
-(core/walk.py) walking a plan on it to a calibration.
+(core/walk/execution.py) walking a plan on it to a calibration.
 """
 
 from __future__ import annotations
@@ -20,14 +20,14 @@ from hexacal_driver.simulation import (
     TrajectoryPoint,
 )
 from hexacal_identify.core.architectures import default_parameters
-from hexacal_identify.core.device import fixed_point
-from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.measurements import NoiseModel
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.plan_check import check_plan, default_stroke
-from hexacal_identify.core.planning import plan_postures
-from hexacal_identify.core.walk import ExecutionSettings, PlanExecution
-from hexacal_identify.core.walk import ExecutionState as State
+from hexacal_identify.core.machine.device import fixed_point
+from hexacal_identify.core.machine.kinematics import inverse_kinematics
+from hexacal_identify.core.machine.measurements import NoiseModel
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.planning.plan_check import check_plan, default_stroke
+from hexacal_identify.core.planning.planner import plan_postures
+from hexacal_identify.core.walk.execution import ExecutionSettings, PlanExecution
+from hexacal_identify.core.walk.execution import ExecutionState as State
 import numpy as np
 import pytest
 
@@ -131,7 +131,7 @@ def _upright(params):
 def test_the_link_holds_the_platform_on_its_sphere_and_the_readings_are_the_true_machine(
     model, mount
 ):
-    from hexacal_identify.core.postures import sample_poses
+    from hexacal_identify.core.machine.postures import sample_poses
 
     truth = default_parameters(model)
     nominal = nominal_set(2, seed=0, model=model)

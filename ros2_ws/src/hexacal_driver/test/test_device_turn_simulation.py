@@ -15,8 +15,8 @@ from hexacal_driver.simulation import (
     WalkSample,
 )
 from hexacal_identify.core import table1_parameters
-from hexacal_identify.core.device import device_position, DeviceDefects, DeviceModel
-from hexacal_identify.core.measurements import NoiseModel, simulate_measurements
+from hexacal_identify.core.machine.device import device_position, DeviceDefects, DeviceModel
+from hexacal_identify.core.machine.measurements import NoiseModel, simulate_measurements
 import numpy as np
 import pytest
 

@@ -5,8 +5,8 @@ from hexacal_driver.machine import SimulatedMachine
 from hexacal_driver.parameters import parameter_problem, PARAMETERS
 from hexacal_driver.reports import drives_start_text
 from hexacal_driver.simulation import CommandFollower
-from hexacal_identify.core.lvdt import lvdt_extensions
-from hexacal_identify.core.passive_actuator import solve_passive
+from hexacal_identify.core.modes.lvdt import lvdt_extensions
+from hexacal_identify.core.modes.passive_actuator import solve_passive
 import numpy as np
 import pytest
 

@@ -14,14 +14,14 @@ from dataclasses import replace
 
 from hexacal_driver.physics_machine import PhysicsMachine
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.compliance import ComplianceModel
-from hexacal_identify.core.device import DeviceModel
-from hexacal_identify.core.identification import identify, SolverOptions
-from hexacal_identify.core.measurements import Measurements, NoiseModel
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.passive_actuator import release_conditions
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.statics import MassModel
+from hexacal_identify.core.fit.compliance import ComplianceModel
+from hexacal_identify.core.fit.identification import identify, SolverOptions
+from hexacal_identify.core.fit.statics import MassModel
+from hexacal_identify.core.machine.device import DeviceModel
+from hexacal_identify.core.machine.measurements import Measurements, NoiseModel
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.core.modes.passive_actuator import release_conditions
 from hexacal_msgs_py.physical_file import default_physical
 import numpy as np
 import pytest

@@ -13,7 +13,7 @@ from dataclasses import replace
 from hexacal_driver.machine import DriverConfigurationError, SimulatedMachine
 from hexacal_driver.parameters import parameter_problem, PARAMETERS
 from hexacal_driver.simulation import STILL
-from hexacal_identify.core.passive_actuator import solve_passive
+from hexacal_identify.core.modes.passive_actuator import solve_passive
 from hexacal_msgs_py.physical_file import default_physical, write_physical_file
 import numpy as np
 import pytest

@@ -13,10 +13,10 @@ from dataclasses import replace
 
 from hexacal_driver.physics_machine import PhysicsError, PhysicsMachine
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.compliant import device_constrained_pose
-from hexacal_identify.core.device import DeviceDefects, inclinometer_readings, sphere_z
-from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.passive_actuator import solve_passive
+from hexacal_identify.core.machine.device import DeviceDefects, inclinometer_readings, sphere_z
+from hexacal_identify.core.machine.kinematics import inverse_kinematics
+from hexacal_identify.core.modes.compliant import device_constrained_pose
+from hexacal_identify.core.modes.passive_actuator import solve_passive
 from hexacal_msgs_py.physical_file import default_physical
 import numpy as np
 import pytest

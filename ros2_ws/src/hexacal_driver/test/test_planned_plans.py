@@ -2,8 +2,8 @@
 
 from hexacal_driver.plan import check_reachable, load_plan, PlanError, resolve_plan, save_plan
 from hexacal_identify.core.architectures import default_parameters
-from hexacal_identify.core.model import nominal_set, table1_parameters
-from hexacal_identify.core.planning import plan_postures
+from hexacal_identify.core.machine.model import nominal_set, table1_parameters
+from hexacal_identify.core.planning.planner import plan_postures
 import numpy as np
 import pytest
 
@@ -43,9 +43,9 @@ def test_a_planned_file_is_what_the_executor_commands_within_the_commanded_drive
     tmp_path, model
 ):
     from hexacal_driver.plan import machine_workspace
-    from hexacal_identify.core.plan_check import check_plan, default_stroke
-    from hexacal_identify.core.kinematics import inverse_kinematics
-    from hexacal_identify.core.planning import Plan
+    from hexacal_identify.core.planning.plan_check import check_plan, default_stroke
+    from hexacal_identify.core.machine.kinematics import inverse_kinematics
+    from hexacal_identify.core.planning.planner import Plan
 
     nominal = nominal_set(2, model=model)
     planning = plan_postures(nominal, 16, n_candidates=500, cost='sphere-fixed', seed=7)

@@ -13,7 +13,7 @@ from hexacal_driver.recording import (
 )
 from hexacal_identify.bag import open_bag
 from hexacal_identify.core.architectures import default_parameters
-from hexacal_identify.core.measurements import NoiseModel
+from hexacal_identify.core.machine.measurements import NoiseModel
 from hexacal_identify.pipeline import postures_from_bag
 from hexacal_msgs_py.parameters_file import save_parameters
 import numpy as np

@@ -17,9 +17,9 @@ from hexacal_driver.sensor_models import (
 )
 from hexacal_driver.sensor_parameters import SENSOR_PARAMETERS
 from hexacal_driver.simulation import PlanWalker, SensorSimulator, WalkSample
-from hexacal_identify.core.measurements import NoiseModel
-from hexacal_identify.core.model import table1_parameters
-from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.machine.measurements import NoiseModel
+from hexacal_identify.core.machine.model import table1_parameters
+from hexacal_identify.core.machine.postures import sample_poses
 import numpy as np
 import pytest
 

@@ -27,9 +27,14 @@ from hexacal_driver.simulation import (
     SETTLING,
     smooth_step,
 )
-from hexacal_identify.core.dwell_detector import detect_dwell_postures
-from hexacal_identify.core.measurements import FIXED, NoiseModel, simulate_measurements, SPHERE
-from hexacal_identify.core.model import nominal_set, table1_parameters
+from hexacal_identify.core.detection.dwell_detector import detect_dwell_postures
+from hexacal_identify.core.machine.measurements import (
+    FIXED,
+    NoiseModel,
+    simulate_measurements,
+    SPHERE,
+)
+from hexacal_identify.core.machine.model import nominal_set, table1_parameters
 from hexacal_identify.pipeline import calibrate
 import numpy as np
 import pytest

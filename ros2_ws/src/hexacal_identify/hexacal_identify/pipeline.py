@@ -45,9 +45,12 @@ import numpy as np
 from .bag.measuring import MEASURING_METADATA, MeasuringRecord
 from .bag.naming import COLLECTOR_METADATA  # the collector's record: model, detector, mapping
 from .core.architectures import KinematicParameters, parameters_for
-from .core.compliance import ComplianceModel
-from .core.detection import detector_problem
-from .core.device import (
+from .core.detection.vocabulary import detector_problem
+from .core.errors import InvalidMeasurementError
+from .core.fit.compliance import ComplianceModel
+from .core.fit.identification import IdentificationResult, identify, SolverOptions
+from .core.fit.weighting import AUTO, choose_weights, WeightChoice
+from .core.machine.device import (
     check_mount,
     DEFAULT_MOUNT,
     DEVICE_PARAMETER_NAMES,
@@ -55,9 +58,7 @@ from .core.device import (
     DeviceModel,
     DevicePrior,
 )
-from .core.errors import InvalidMeasurementError
-from .core.identification import IdentificationResult, identify, SolverOptions
-from .core.measurements import (
+from .core.machine.measurements import (
     FIXED,
     MeasurementLimits,
     Measurements,
@@ -66,8 +67,7 @@ from .core.measurements import (
     SPHERE,
     Weights,
 )
-from .core.model import parameter_names
-from .core.weighting import AUTO, choose_weights, WeightChoice
+from .core.machine.model import parameter_names
 
 # A posture whose inclinometer reads zero on both axes (within this, rad) was taken at the fixed
 # position [0, 0, -L] (section 3.2's second procedure). 5e-5 rad is 37 um at L = 0.75 m: above
@@ -106,7 +106,7 @@ def load_machine_and_mount(path: Path | str) -> tuple[KinematicParameters, str]:
     """
     from hexacal_msgs_py.parameters_file import read_parameters_file
 
-    from .core.device import DeviceMountError
+    from .core.machine.device import DeviceMountError
 
     loaded = read_parameters_file(path)
     try:
@@ -344,7 +344,7 @@ def calibrate(
     A problem the postures do not determine raises RankDeficientError (never a
     number that means nothing) unless ``allow_rank_deficient``.  ``compliance``: axial
     compliances identified with the geometry from the postures' static loads
-    (core/compliance.py; None: the rigid model).
+    (core/fit/compliance.py; None: the rigid model).
     """
     choice = weight_choice(postures, weights, noise, scatter_floor)
     options = SolverOptions(
@@ -904,7 +904,7 @@ def _redetect(
     from hexacal_msgs_py.errors import InvalidReadingError
 
     from .bag import BagDecodeError
-    from .core.dwell_detector import detect_dwell_postures, LINK_STREAM
+    from .core.detection.dwell_detector import detect_dwell_postures, LINK_STREAM
 
     imu = mapping is not None and mapping.inclinometer_type == IMU_INCLINOMETER
     streams: dict[str, tuple[list[int], list]] = {t: ([], []) for t in RAW_TOPICS}

@@ -12,11 +12,11 @@ its layout's physical checks by field name.
 from __future__ import annotations
 
 from hexacal_identify.core.architectures import architecture, ARCHITECTURES, default_parameters
-from hexacal_identify.core.identification import CONVERGED, identify, SolverOptions
-from hexacal_identify.core.kinematics import forward_kinematics, inverse_kinematics
-from hexacal_identify.core.measurements import simulate_measurements
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.fit.identification import CONVERGED, identify, SolverOptions
+from hexacal_identify.core.machine.kinematics import forward_kinematics, inverse_kinematics
+from hexacal_identify.core.machine.measurements import simulate_measurements
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_msgs_py.models import GOUGH_STEWART, HEXA_SLIDE, MODELS, PositiveField, ROTARY_HEXAPOD
 from hexacal_msgs_py.parameters_file import read_parameters_file, save_parameters
 import numpy as np

@@ -31,11 +31,11 @@ from hexacal_identify.core.architectures.common import (
     PlatformPoints,
     pose_jacobian_rows,
 )
-from hexacal_identify.core.identification import CONVERGED, identify, SolverOptions
-from hexacal_identify.core.kinematics import forward_kinematics, inverse_kinematics
-from hexacal_identify.core.measurements import simulate_measurements
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.postures import sample_poses, Workspace
+from hexacal_identify.core.fit.identification import CONVERGED, identify, SolverOptions
+from hexacal_identify.core.machine.kinematics import forward_kinematics, inverse_kinematics
+from hexacal_identify.core.machine.measurements import simulate_measurements
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.machine.postures import sample_poses, Workspace
 from hexacal_msgs_py.errors import InvalidParametersError, ParameterFileError
 from hexacal_msgs_py.models import ChainKey, ModelLayout, MODELS, PositiveField, register_model
 from hexacal_msgs_py.parameters_file import read_parameters_file, save_parameters

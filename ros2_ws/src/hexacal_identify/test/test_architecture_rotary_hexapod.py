@@ -24,11 +24,11 @@ from hexacal_identify.core.architectures.rotary_hexapod import (
     RotaryHexapod,
     RotaryHexapodParameters,
 )
-from hexacal_identify.core.identification import CONVERGED, identify, SolverOptions
-from hexacal_identify.core.kinematics import forward_kinematics, inverse_kinematics
-from hexacal_identify.core.measurements import FIXED, simulate_measurements, SPHERE
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.fit.identification import CONVERGED, identify, SolverOptions
+from hexacal_identify.core.machine.kinematics import forward_kinematics, inverse_kinematics
+from hexacal_identify.core.machine.measurements import FIXED, simulate_measurements, SPHERE
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.models import MODELS, ROTARY_HEXAPOD
 from hexacal_msgs_py.parameters_file import read_parameters_file, save_parameters

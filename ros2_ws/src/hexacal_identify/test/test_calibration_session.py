@@ -12,9 +12,9 @@ from pathlib import Path
 import sys
 
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.measurements import NoiseModel, simulate_measurements
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.machine.measurements import NoiseModel, simulate_measurements
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_identify.session import (
     CalibrationSession,
     Level,

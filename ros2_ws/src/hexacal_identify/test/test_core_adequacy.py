@@ -2,7 +2,7 @@
 
 import json
 
-from hexacal_identify.core.adequacy import (
+from hexacal_identify.core.fit.adequacy import (
     assess,
     CAUSES,
     chi2_quantile,
@@ -10,10 +10,10 @@ from hexacal_identify.core.adequacy import (
     Verdict,
     WhitenedResiduals,
 )
-from hexacal_identify.core.identification import identify, SolverOptions
-from hexacal_identify.core.measurements import NoiseModel, simulate_measurements
-from hexacal_identify.core.model import nominal_set, table1_parameters
-from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.fit.identification import identify, SolverOptions
+from hexacal_identify.core.machine.measurements import NoiseModel, simulate_measurements
+from hexacal_identify.core.machine.model import nominal_set, table1_parameters
+from hexacal_identify.core.machine.postures import sample_poses
 import numpy as np
 import pytest
 

@@ -1,6 +1,6 @@
-"""core/angle_conventions.py: hexacal's R_Y(theta) R_X(psi) R_z(phi) <-> Rz(C) Ry(B) Rx(A)."""
+"""core/machine/angle_conventions.py: R_Y(theta) R_X(psi) R_z(phi) <-> Rz(C) Ry(B) Rx(A)."""
 
-from hexacal_identify.core.angle_conventions import (
+from hexacal_identify.core.machine.angle_conventions import (
     angles_from_rpy,
     hexacal_rotations,
     linuxcnc_from_pose,
@@ -8,7 +8,7 @@ from hexacal_identify.core.angle_conventions import (
     rpy_from_angles,
     rpy_rotations,
 )
-from hexacal_identify.core.kinematics import rotation_matrices
+from hexacal_identify.core.machine.kinematics import rotation_matrices
 import numpy as np
 
 

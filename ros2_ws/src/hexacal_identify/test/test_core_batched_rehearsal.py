@@ -9,16 +9,16 @@ machines standing at the same poses (closure to 1e-12 m).
 """
 
 from hexacal_identify.core.architectures import default_parameters
-from hexacal_identify.core.passive_actuator import release_conditions, solve_passive
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.release_plan import in_order, RehearsalSettings, Rehearser, tour
-from hexacal_identify.core.release_rehearsal import (
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.core.modes.passive_actuator import release_conditions, solve_passive
+from hexacal_identify.core.modes.release_plan import in_order, RehearsalSettings, Rehearser, tour
+from hexacal_identify.core.modes.release_rehearsal import (
     MachineStack,
     released_condition,
     sampled_machines,
     solve_stacked,
 )
-from hexacal_identify.core.released_actuator import release_from_here
+from hexacal_identify.core.modes.released_actuator import release_from_here
 import numpy as np
 import pytest
 

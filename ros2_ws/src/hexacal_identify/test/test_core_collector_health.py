@@ -1,6 +1,9 @@
 """The collector's problem counters and status decisions (core.collector_health)."""
 
-from hexacal_identify.core.collector_health import (
+from hexacal_identify.core.detection.dwell_detector import DwellDetector
+from hexacal_identify.core.detection.stream_synchronizer import StreamSynchronizer
+from hexacal_identify.core.detection.vocabulary import DROPPED_FOR_STREAM_STOP
+from hexacal_identify.core.sessions.collector_session import (
     decide_status,
     InputCounters,
     Level,
@@ -9,9 +12,6 @@ from hexacal_identify.core.collector_health import (
     silent_streams,
     summary,
 )
-from hexacal_identify.core.detection import DROPPED_FOR_STREAM_STOP
-from hexacal_identify.core.dwell_detector import DwellDetector
-from hexacal_identify.core.stream_synchronizer import StreamSynchronizer
 
 S = 1_000_000_000
 TOPICS = ('hexacal/sliders', 'hexacal/inclinometer', 'hexacal/encoder')
@@ -88,8 +88,8 @@ def test_silent_streams_and_the_summary():
 
 
 def test_stream_statistics_name_rate_gaps_offset_and_spikes_and_publish_on_change():
-    from hexacal_identify.core.collector_health import stream_statistics
-    from hexacal_identify.core.dwell_detector import DwellDetector
+    from hexacal_identify.core.sessions.collector_session import stream_statistics
+    from hexacal_identify.core.detection.dwell_detector import DwellDetector
     import numpy as np
 
     detector = DwellDetector(clock_offsets_s={'encoder': 0.03}, estimate_offsets=())

@@ -3,14 +3,14 @@
 from dataclasses import replace
 
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.compliance import ComplianceModel, simulate_loaded_measurements
 from hexacal_identify.core.errors import InvalidMeasurementError, RankDeficientError
-from hexacal_identify.core.identification import _Problem, identify, SolverOptions
-from hexacal_identify.core.kinematics import forward_kinematics
-from hexacal_identify.core.measurements import NoiseModel
-from hexacal_identify.core.passive_actuator import release_conditions
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.statics import MassModel
+from hexacal_identify.core.fit.compliance import ComplianceModel, simulate_loaded_measurements
+from hexacal_identify.core.fit.identification import _Problem, identify, SolverOptions
+from hexacal_identify.core.fit.statics import MassModel
+from hexacal_identify.core.machine.kinematics import forward_kinematics
+from hexacal_identify.core.machine.measurements import NoiseModel
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.core.modes.passive_actuator import release_conditions
 import numpy as np
 import pytest
 
@@ -191,7 +191,7 @@ def test_bad_compliance_input_is_named():
 
 
 def test_verification_uses_the_compliances_on_fresh_postures():
-    from hexacal_identify.core.verification import verify
+    from hexacal_identify.core.fit.verification import verify
 
     arch, true, rng, poses, released = _setup('hexa_slide', n=70)
     compliance = ComplianceModel('shared', MASSES, 'passive_actuator', released[:50])

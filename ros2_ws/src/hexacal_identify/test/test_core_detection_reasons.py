@@ -8,8 +8,9 @@ exactly the strings they were before the enums.
 
 import json
 
-from hexacal_identify.core import detection
-from hexacal_identify.core.detection import (
+from hexacal_identify.core.detection.dwell_detector import DwellDetector
+from hexacal_identify.core.detection.stream_synchronizer import StreamSynchronizer
+from hexacal_identify.core.detection.vocabulary import (
     DetectorState,
     DroppedPeriod,
     DropReason,
@@ -17,8 +18,7 @@ from hexacal_identify.core.detection import (
     Stream,
     UnpairedReason,
 )
-from hexacal_identify.core.dwell_detector import DwellDetector
-from hexacal_identify.core.stream_synchronizer import StreamSynchronizer
+from hexacal_identify.core.detection.vocabulary import vocabulary as detection
 from hexacal_msgs_py.readings import ActuatorReading, EncoderReading, InclinometerReading
 import numpy as np
 

@@ -4,19 +4,19 @@ Device defects: measurement model, joint identification, identifiability, uncert
 The measurement model, joint identification, what is (not) identifiable, robustness, uncertainty.
 """
 
-from hexacal_identify.core.device import (
+from hexacal_identify.core.errors import RankDeficientError
+from hexacal_identify.core.fit.identification import CONVERGED, identify, SolverOptions
+from hexacal_identify.core.fit.uncertainty import monte_carlo
+from hexacal_identify.core.fit.validation import pose_errors, validation_poses
+from hexacal_identify.core.machine.device import (
     device_position,
     DeviceDefects,
     inclinometer_readings,
     measured_position,
 )
-from hexacal_identify.core.errors import RankDeficientError
-from hexacal_identify.core.identification import CONVERGED, identify, SolverOptions
-from hexacal_identify.core.measurements import NoiseModel, simulate_measurements
-from hexacal_identify.core.model import nominal_set, table1_parameters
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.uncertainty import monte_carlo
-from hexacal_identify.core.validation import pose_errors, validation_poses
+from hexacal_identify.core.machine.measurements import NoiseModel, simulate_measurements
+from hexacal_identify.core.machine.model import nominal_set, table1_parameters
+from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_identify.studies.device import (
     DEFAULT_DEFECTS,
     device_frame_poses,

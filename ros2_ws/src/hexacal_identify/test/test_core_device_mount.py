@@ -8,7 +8,10 @@ from hexacal_identify.core.architectures.gough_stewart import (
     default_gough_stewart,
     GoughStewartParameters,
 )
-from hexacal_identify.core.device import (
+from hexacal_identify.core.errors import CalibrationError
+from hexacal_identify.core.fit.identification import CONVERGED, identify, SolverOptions
+from hexacal_identify.core.fit.residuals import ChannelSigma, CostFunction
+from hexacal_identify.core.machine.device import (
     check_mount,
     device_position,
     DeviceDefects,
@@ -22,13 +25,10 @@ from hexacal_identify.core.device import (
     MOUNTS,
     sphere_z,
 )
-from hexacal_identify.core.errors import CalibrationError
-from hexacal_identify.core.identification import CONVERGED, identify, SolverOptions
-from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.measurements import FIXED, Measurements, SPHERE
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.postures import sample_poses, Workspace
-from hexacal_identify.core.residuals import ChannelSigma, CostFunction
+from hexacal_identify.core.machine.kinematics import inverse_kinematics
+from hexacal_identify.core.machine.measurements import FIXED, Measurements, SPHERE
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.machine.postures import sample_poses, Workspace
 import numpy as np
 import pytest
 
@@ -432,7 +432,7 @@ def test_noise_free_identification_of_an_upright_hexapod_with_a_standing_device(
 
 
 def test_simulated_readings_follow_the_device_mount():
-    from hexacal_identify.core.measurements import simulate_measurements
+    from hexacal_identify.core.machine.measurements import simulate_measurements
 
     params = _upright_machine()
     poses, kinds = _upright_poses(8, 2, 9, L + SMALL.dL)

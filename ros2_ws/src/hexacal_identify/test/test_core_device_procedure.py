@@ -2,18 +2,18 @@
 
 import math
 
-from hexacal_identify.core.device import (
+from hexacal_identify.core.errors import InvalidMeasurementError, RankDeficientError
+from hexacal_identify.core.fit.identification import CONVERGED, identify, SolverOptions
+from hexacal_identify.core.fit.residuals import ChannelSigma, CostFunction
+from hexacal_identify.core.machine.device import (
     device_position,
     DeviceDefects,
     DeviceModel,
     DevicePrior,
     inclinometer_readings,
 )
-from hexacal_identify.core.errors import InvalidMeasurementError, RankDeficientError
-from hexacal_identify.core.identification import CONVERGED, identify, SolverOptions
-from hexacal_identify.core.measurements import Measurements, NoiseModel
-from hexacal_identify.core.model import nominal_set, table1_parameters
-from hexacal_identify.core.residuals import ChannelSigma, CostFunction
+from hexacal_identify.core.machine.measurements import Measurements, NoiseModel
+from hexacal_identify.core.machine.model import nominal_set, table1_parameters
 from hexacal_identify.studies.device import DEFAULT_DEFECTS
 from hexacal_identify.studies.device_procedure import (
     ALL_BUT_PHI0,
@@ -266,7 +266,7 @@ def test_efficiency_summary_compares_the_monte_carlo_with_the_bound():
 
 
 def test_planning_with_device_columns_priors_and_turns():
-    from hexacal_identify.core.planning import Plan, plan_postures, PREDICTION
+    from hexacal_identify.core.planning.planner import Plan, plan_postures, PREDICTION
 
     nominal = nominal_set(2, seed=0, exact=TRUE)
     noise = NoiseModel.from_microns(10)
@@ -323,7 +323,7 @@ def test_planning_with_device_columns_priors_and_turns():
 
 
 def test_plan_files_round_trip_device_turns(tmp_path):
-    from hexacal_identify.core.planning import Plan
+    from hexacal_identify.core.planning.planner import Plan
 
     poses = np.tile([0.1, 0.0, -0.74, 0.0, 0.0, 0.0], (3, 1))
     plan = Plan(

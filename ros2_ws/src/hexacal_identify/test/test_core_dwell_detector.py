@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from hexacal_identify.core.dwell_detector import detect_dwell_postures, DwellDetector
-from hexacal_identify.core.robust_stats import quantum, robust_mean
+from hexacal_identify.core.detection.dwell_detector import detect_dwell_postures, DwellDetector
+from hexacal_identify.core.detection.robust_stats import quantum, robust_mean
 from hexacal_msgs_py.errors import InvalidReadingError
 import numpy as np
 import pytest
@@ -307,7 +307,7 @@ def test_disordered_repeated_and_non_finite_readings_are_counted_never_fatal(see
 
 def test_a_dwell_too_short_for_a_lagging_channel_is_counted_and_names_the_stream():
     """A first-order lag of 0.5 s cannot settle in a 1.5 s dwell: no posture, the stream named."""
-    from hexacal_identify.core.dwell_detector import detect_dwell_postures
+    from hexacal_identify.core.detection.dwell_detector import detect_dwell_postures
 
     rate, tau, dwell, move = 100.0, 0.5, 1.5, 0.5
     period = dwell + move

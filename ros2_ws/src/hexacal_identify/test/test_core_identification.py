@@ -4,26 +4,34 @@ Identification: Jacobians, exact recovery, identifiability, named errors.
 Analytic vs finite-difference Jacobian, exact recovery, identifiability, named errors.
 """
 
-from hexacal_identify.core.baseline import absolute_residuals, finite_difference_jacobian
-from hexacal_identify.core.device import DeviceModel
 from hexacal_identify.core.errors import (
     InvalidMeasurementError,
     RankDeficientError,
     TooFewPosturesError,
 )
-from hexacal_identify.core.identifiability import analyze, column_scales, DEFAULT_RANK_TOLERANCE
-from hexacal_identify.core.identification import (
+from hexacal_identify.core.fit.baseline import absolute_residuals, finite_difference_jacobian
+from hexacal_identify.core.fit.identifiability import (
+    analyze,
+    column_scales,
+    DEFAULT_RANK_TOLERANCE,
+)
+from hexacal_identify.core.fit.identification import (
     _NormalEquations,
     CONVERGED,
     identify,
     ITERATION_LIMIT,
     SolverOptions,
 )
-from hexacal_identify.core.kinematics import forward_kinematics, pose_parameter_sensitivity
-from hexacal_identify.core.measurements import Measurements, NoiseModel, simulate_measurements
-from hexacal_identify.core.model import HexaParameters, nominal_set, table1_parameters
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.residuals import ChannelSigma, CostFunction, COSTS
+from hexacal_identify.core.fit.residuals import ChannelSigma, CostFunction, COSTS
+from hexacal_identify.core.machine.device import DeviceModel
+from hexacal_identify.core.machine.kinematics import forward_kinematics, pose_parameter_sensitivity
+from hexacal_identify.core.machine.measurements import (
+    Measurements,
+    NoiseModel,
+    simulate_measurements,
+)
+from hexacal_identify.core.machine.model import HexaParameters, nominal_set, table1_parameters
+from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_identify.studies.accuracy import (
     identifiability_by_cost,
     simulate_run_measurements,
@@ -79,7 +87,7 @@ def test_factored_sensitivity_gives_the_same_jacobian_and_noise_rows(cost):
     CostFunction.residuals with a PoseSensitivity (rows formed from the factored dX/du) equals the
     full-array path.
     """
-    from hexacal_identify.core.kinematics import pose_sensitivities
+    from hexacal_identify.core.machine.kinematics import pose_sensitivities
 
     params = nominal_set(1, seed=1)
     measurements = simulate_run_measurements(

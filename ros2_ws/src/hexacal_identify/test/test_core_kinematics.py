@@ -5,7 +5,7 @@ IK at home, IK/FK round trips over the workspace, analytic Jacobians vs finite d
 """
 
 from hexacal_identify.core.errors import InvalidMeasurementError, UnreachablePoseError
-from hexacal_identify.core.kinematics import (
+from hexacal_identify.core.machine.kinematics import (
     forward_kinematics,
     inverse_kinematics,
     leg_geometry,
@@ -13,8 +13,8 @@ from hexacal_identify.core.kinematics import (
     pose_jacobian,
     rotation_matrices,
 )
-from hexacal_identify.core.model import HexaParameters, nominal_set, table1_parameters
-from hexacal_identify.core.postures import acceptable_poses, sample_poses, Workspace
+from hexacal_identify.core.machine.model import HexaParameters, nominal_set, table1_parameters
+from hexacal_identify.core.machine.postures import acceptable_poses, sample_poses, Workspace
 from hypothesis import given, settings
 from hypothesis import strategies as st
 import numpy as np
@@ -172,7 +172,7 @@ def test_fk_internal_jacobians_match_finite_differences_and_the_public_ones():
 
 
 def test_factored_pose_sensitivity_rows_equal_the_full_array():
-    from hexacal_identify.core.kinematics import pose_sensitivities
+    from hexacal_identify.core.machine.kinematics import pose_sensitivities
 
     params = nominal_set(1, seed=4)
     poses = sample_poses(TRUE, 9, np.random.default_rng(10))

@@ -6,15 +6,15 @@ The pose of live readings (FK on the guess's branch) and actuator targets with t
 
 from hexacal_identify.core.architectures import architecture, ARCHITECTURES
 from hexacal_identify.core.errors import ForwardKinematicsError, UnreachablePoseError
-from hexacal_identify.core.kinematics import forward_kinematics, inverse_kinematics
-from hexacal_identify.core.live import (
+from hexacal_identify.core.machine.kinematics import forward_kinematics, inverse_kinematics
+from hexacal_identify.core.machine.live import (
     actuator_targets,
     default_stroke,
     home_pose,
     OutOfStrokeError,
     solve_pose,
 )
-from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.machine.postures import sample_poses
 import numpy as np
 import pytest
 

@@ -1,10 +1,15 @@
-"""The calibrated compliances at work: loaded poses and compensated commands (core/live.py)."""
+"""The calibrated compliances at work: loaded poses and compensated commands (machine/live.py)."""
 
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.live import actuator_targets, home_pose, LoadedChains, solve_pose
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.statics import MassModel, static_loads
+from hexacal_identify.core.fit.statics import MassModel, static_loads
+from hexacal_identify.core.machine.kinematics import inverse_kinematics
+from hexacal_identify.core.machine.live import (
+    actuator_targets,
+    home_pose,
+    LoadedChains,
+    solve_pose,
+)
+from hexacal_identify.core.machine.postures import sample_poses
 import numpy as np
 import pytest
 

@@ -1,9 +1,9 @@
-"""core/live_session.py: what the kinematics node decides, without DDS."""
+"""core/sessions/kinematics_session.py: what the kinematics node decides, without DDS."""
 
 from hexacal_identify.core.architectures import architecture, ARCHITECTURES, parameters_for
-from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.live import home_pose
-from hexacal_identify.core.live_session import (
+from hexacal_identify.core.machine.kinematics import inverse_kinematics
+from hexacal_identify.core.machine.live import home_pose
+from hexacal_identify.core.sessions.kinematics_session import (
     check_parameter,
     KinematicsConfigurationError,
     Level,

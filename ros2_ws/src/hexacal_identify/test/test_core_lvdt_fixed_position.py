@@ -3,19 +3,19 @@ Fixed-position postures with an LVDT link (#18): the direction is fixed, the len
 
 A telescopic link's length is free: a fixed-position posture holds the inclinometer at zero (P
 on the vertical through O) and the LVDT says where along it, so its fixed position is
-(0, 0, -L_m) of its own posture in eqs. 10 and 13 (core/residuals.py), not (0, 0, -L).
+(0, 0, -L_m) of its own posture in eqs. 10 and 13 (core/fit/residuals.py), not (0, 0, -L).
 """
 
 from dataclasses import replace
 
 from hexacal_identify.core import sample_poses, simulate_measurements, table1_parameters
-from hexacal_identify.core.device import DeviceDefects, DeviceModel, fixed_position
-from hexacal_identify.core.identification import identify, SolverOptions
-from hexacal_identify.core.kinematics import pose_sensitivities
-from hexacal_identify.core.measurements import FIXED, Measurements, SPHERE
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.residuals import ChannelSigma, CostFunction
-from hexacal_identify.core.validation import pose_errors, validation_poses
+from hexacal_identify.core.fit.identification import identify, SolverOptions
+from hexacal_identify.core.fit.residuals import ChannelSigma, CostFunction
+from hexacal_identify.core.fit.validation import pose_errors, validation_poses
+from hexacal_identify.core.machine.device import DeviceDefects, DeviceModel, fixed_position
+from hexacal_identify.core.machine.kinematics import pose_sensitivities
+from hexacal_identify.core.machine.measurements import FIXED, Measurements, SPHERE
+from hexacal_identify.core.machine.model import nominal_set
 import numpy as np
 import pytest
 

@@ -4,7 +4,7 @@ Model: Table 1 in SI units, nominal sets, validation of parameter vectors.
 Table 1 in SI units, nominal sets with Table 2's statistics, validation of parameter vectors.
 """
 
-from hexacal_identify.core.model import (
+from hexacal_identify.core.machine.model import (
     error_stats_mm,
     HexaParameters,
     nominal_set,

@@ -8,15 +8,19 @@ the LVDT extension is |P| - L of the six actuators' forward kinematics.
 
 from hexacal_identify.core.architectures import default_parameters
 from hexacal_identify.core.errors import InvalidMeasurementError
-from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.lvdt import extension_gains, extension_sensitivity, lvdt_extensions
-from hexacal_identify.core.passive_actuator import (
+from hexacal_identify.core.machine.kinematics import inverse_kinematics
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.core.modes.lvdt import (
+    extension_gains,
+    extension_sensitivity,
+    lvdt_extensions,
+)
+from hexacal_identify.core.modes.passive_actuator import (
     passive_system,
     PassiveSolveError,
     release_conditions,
     solve_passive,
 )
-from hexacal_identify.core.postures import sample_poses
 import numpy as np
 import pytest
 

@@ -1,8 +1,8 @@
-"""core/paths.py: the one pose interpolation, for the executor (link length) and the driver."""
+"""core/walk/platform_paths.py: the one pose interpolation, for the executor and the driver."""
 
 from __future__ import annotations
 
-from hexacal_identify.core.paths import interpolate_pose, SAME_SPHERE, sphere_path
+from hexacal_identify.core.walk.platform_paths import interpolate_pose, SAME_SPHERE, sphere_path
 import numpy as np
 import pytest
 

@@ -9,10 +9,10 @@ of 54).
 """
 
 from hexacal_identify.core.errors import RankDeficientError
-from hexacal_identify.core.identifiability import pivoted_qr
-from hexacal_identify.core.identification import identify, SolverOptions
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.residuals import COSTS
+from hexacal_identify.core.fit.identifiability import pivoted_qr
+from hexacal_identify.core.fit.identification import identify, SolverOptions
+from hexacal_identify.core.fit.residuals import COSTS
+from hexacal_identify.core.machine.model import nominal_set
 from hexacal_identify.studies.accuracy import (
     identifiability_by_cost,
     simulate_run_measurements,

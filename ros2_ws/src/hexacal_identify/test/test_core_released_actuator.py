@@ -7,27 +7,27 @@ the plan, which every reader reads back, and a plan without a mode is written as
 """
 
 from hexacal_identify.core.architectures import default_parameters
-from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.measuring_plan import check_measuring_mode
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.passive_actuator import release_conditions
-from hexacal_identify.core.paths import sphere_path
-from hexacal_identify.core.planning import Plan, plan_postures
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.release_rehearsal import (
+from hexacal_identify.core.machine.kinematics import inverse_kinematics
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.core.modes.passive_actuator import release_conditions
+from hexacal_identify.core.modes.release_rehearsal import (
     DEFAULT_MODEL_SAMPLES,
     rehearse,
     setpoint_samples,
     stand,
     Standings,
 )
-from hexacal_identify.core.released_actuator import (
+from hexacal_identify.core.modes.released_actuator import (
     choose_released_actuators,
     move_paths,
     move_samples,
     RehearsalSettings,
     ReleaseError,
 )
+from hexacal_identify.core.planning.measuring_plan import check_measuring_mode
+from hexacal_identify.core.planning.planner import Plan, plan_postures
+from hexacal_identify.core.walk.platform_paths import sphere_path
 from hexacal_msgs_py.plan_file import read_plan_file
 import numpy as np
 import pytest
@@ -210,7 +210,7 @@ def test_an_lvdt_plan_reports_its_extensions_and_gains(model):
 
 
 def test_the_executor_warns_before_walking_a_plan_it_cannot_measure_as_made():
-    from hexacal_identify.core.measuring_plan import walking_notice
+    from hexacal_identify.core.planning.measuring_plan import walking_notice
 
     assert walking_notice(None) is None
     assert walking_notice('compliant') is None

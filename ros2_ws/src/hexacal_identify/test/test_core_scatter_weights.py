@@ -2,20 +2,20 @@
 
 from dataclasses import replace
 
-from hexacal_identify.core.adequacy import Verdict
 from hexacal_identify.core.errors import InvalidMeasurementError
-from hexacal_identify.core.identification import identify, SolverOptions
-from hexacal_identify.core.measurements import (
+from hexacal_identify.core.fit.adequacy import Verdict
+from hexacal_identify.core.fit.identification import identify, SolverOptions
+from hexacal_identify.core.fit.validation import pose_errors, validation_poses
+from hexacal_identify.core.fit.weighting import choose_weights, weight_mode
+from hexacal_identify.core.machine.measurements import (
     Measurements,
     NoiseModel,
     ScatterFloor,
     simulate_measurements,
     Weights,
 )
-from hexacal_identify.core.model import nominal_set, table1_parameters
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.validation import pose_errors, validation_poses
-from hexacal_identify.core.weighting import choose_weights, weight_mode
+from hexacal_identify.core.machine.model import nominal_set, table1_parameters
+from hexacal_identify.core.machine.postures import sample_poses
 import numpy as np
 import pytest
 

@@ -1,9 +1,9 @@
 """Statics of the weights: the chains' and the link's loads balance the wrench, every mode."""
 
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.kinematics import rotation_matrices
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.statics import MassModel, static_loads, weight_gradient
+from hexacal_identify.core.fit.statics import MassModel, static_loads, weight_gradient
+from hexacal_identify.core.machine.kinematics import rotation_matrices
+from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_msgs_py.measuring_modes import MeasuringMode
 import numpy as np
 import pytest

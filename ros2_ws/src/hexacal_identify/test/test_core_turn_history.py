@@ -1,8 +1,8 @@
-"""The device-turn history of the collector (hexacal_identify.core.turn_history)."""
+"""The device-turn history of the collector (hexacal_identify.core.detection.turn_history)."""
 
 import math
 
-from hexacal_identify.core.turn_history import turn_problem, TurnHistory
+from hexacal_identify.core.detection.turn_history import turn_problem, TurnHistory
 import pytest
 
 MS = 1_000_000  # ns

@@ -1,11 +1,12 @@
-"""core/turns.py: device turns, and the device_turn requests to the nodes without DDS."""
+"""core/walk/turns.py: device turns, and the device_turn requests to the nodes without DDS."""
 
 from __future__ import annotations
 
 from concurrent.futures import Future
 import math
 
-from hexacal_identify.core.turns import (
+from hexacal_identify.core.walk.messages import LogLevel
+from hexacal_identify.core.walk.turns import (
     check_turns,
     DeviceTurnSetter,
     same_turn,
@@ -13,7 +14,6 @@ from hexacal_identify.core.turns import (
     turn_text,
     TurnSetState,
 )
-from hexacal_identify.core.walk_io import LogLevel
 import numpy as np
 import pytest
 from rcl_interfaces.msg import SetParametersResult

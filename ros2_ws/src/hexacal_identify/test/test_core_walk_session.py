@@ -1,15 +1,13 @@
-"""core/walk_session.py: the executor node's set-up, status, calibration call and checks."""
+"""core/sessions/executor_session.py: the executor node's set-up, status, calibration, checks."""
 
 from __future__ import annotations
 
 import math
 
 from hexacal_identify.core.architectures import default_parameters
-from hexacal_identify.core.planning import Plan
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.turns import DeviceTurnSetter
-from hexacal_identify.core.walk_io import LogLevel
-from hexacal_identify.core.walk_session import (
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.core.planning.planner import Plan
+from hexacal_identify.core.sessions.executor_session import (
     CalibrationCall,
     CalibrationState,
     ExecutorStatus,
@@ -20,7 +18,9 @@ from hexacal_identify.core.walk_session import (
     setup_walk,
     STATUS_PERIOD_S,
 )
-from hexacal_identify.core.walk_settings import ExecutionState
+from hexacal_identify.core.walk.messages import LogLevel
+from hexacal_identify.core.walk.settings import ExecutionState
+from hexacal_identify.core.walk.turns import DeviceTurnSetter
 from hexacal_identify.nodes.executor_parameters import MODEL_PARAMETERS, PARAMETERS
 import numpy as np
 import pytest

@@ -230,7 +230,7 @@ def test_the_report_names_the_store_entry_and_the_active_calibration(
 
 
 def test_the_live_session_reports_a_message_not_deployed_and_the_active_keys():
-    from hexacal_identify.core.live_session import LiveSession
+    from hexacal_identify.core.sessions.kinematics_session import LiveSession
 
     params = architecture(MODEL).default_parameters()
     session = LiveSession.start(params, 'file.yaml', 0.75, 'hanging', 0)

@@ -5,8 +5,8 @@ The machine at a pose as points and segments in the base frame (machine markers)
 """
 
 from hexacal_identify.core.architectures import architecture, ARCHITECTURES
-from hexacal_identify.core.kinematics import inverse_kinematics, rotation_matrices
-from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.machine.kinematics import inverse_kinematics, rotation_matrices
+from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_msgs_py.models import GOUGH_STEWART, HEXA_SLIDE
 import numpy as np
 import pytest

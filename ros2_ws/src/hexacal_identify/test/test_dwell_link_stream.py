@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
-from hexacal_identify.core.dwell_detector import detect_dwell_postures, DwellDetector, LINK_STREAM
+from hexacal_identify.core.detection.dwell_detector import (
+    detect_dwell_postures,
+    DwellDetector,
+    LINK_STREAM,
+)
 import numpy as np
 from test_core_dwell_detector import make_streams, Truth
 

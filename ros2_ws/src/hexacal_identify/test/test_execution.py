@@ -1,32 +1,36 @@
-"""core/plan_check.py, paths.py, walk*.py: targets, strokes, moves, corrections, the walk."""
+"""core/planning/plan_check.py, core/walk/: targets, strokes, moves, corrections, the walk."""
 
 from __future__ import annotations
 
 import math
 
 from hexacal_identify.core.architectures import default_parameters
-from hexacal_identify.core.device import fixed_point, inclinometer_angles, measured_position
-from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.model import nominal_set, table1_parameters
-from hexacal_identify.core.paths import CommandPurpose as Purpose
-from hexacal_identify.core.paths import (
-    corrected_pose,
-    fixed_position_correction,
-    MIN_MOVE_S,
-    move_duration,
+from hexacal_identify.core.machine.device import (
+    fixed_point,
+    inclinometer_angles,
+    measured_position,
 )
-from hexacal_identify.core.plan_check import (
+from hexacal_identify.core.machine.kinematics import inverse_kinematics
+from hexacal_identify.core.machine.model import nominal_set, table1_parameters
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.core.planning.plan_check import (
     check_plan,
     check_stroke,
     default_stroke,
     plan_targets,
     PlanRefusedError,
 )
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.walk import PlanExecution
-from hexacal_identify.core.walk_io import joint_positions
-from hexacal_identify.core.walk_settings import ExecutionSettings
-from hexacal_identify.core.walk_settings import ExecutionState as State
+from hexacal_identify.core.walk.execution import PlanExecution
+from hexacal_identify.core.walk.messages import joint_positions
+from hexacal_identify.core.walk.platform_paths import CommandPurpose as Purpose
+from hexacal_identify.core.walk.platform_paths import (
+    corrected_pose,
+    fixed_position_correction,
+    MIN_MOVE_S,
+    move_duration,
+)
+from hexacal_identify.core.walk.settings import ExecutionSettings
+from hexacal_identify.core.walk.settings import ExecutionState as State
 import numpy as np
 import pytest
 
@@ -164,7 +168,7 @@ class _Machine:
         return self.start + s * (self.goal - self.start)
 
     def run(self, until, dt=0.01):
-        from hexacal_identify.core.kinematics import forward_kinematics
+        from hexacal_identify.core.machine.kinematics import forward_kinematics
 
         execution = self.execution
         while self.t < until and execution.state not in (State.DONE, State.ABORTED):
@@ -280,7 +284,7 @@ def test_start_paused_waits_for_resume_and_eta_counts_down():
 
 
 def test_the_stroke_defaults_to_the_plans_limits_then_the_models():
-    from hexacal_identify.core.plan_check import plan_stroke
+    from hexacal_identify.core.planning.plan_check import plan_stroke
 
     assert plan_stroke({'limits': {'actuator_stroke_m': [0.05, 0.8]}}, NOMINAL) == (
         (0.05, 0.8),
@@ -405,7 +409,7 @@ def test_abort_while_waiting_for_a_turn_and_bad_turns():
         _turning_execution([0.0, 0.0])
     with pytest.raises(ValueError, match='one finite angle'):
         _turning_execution([0.0, math.nan, 0.0, 0.0])
-    from hexacal_identify.core.turns import same_turn
+    from hexacal_identify.core.walk.turns import same_turn
 
     assert same_turn(0.0, 2 * math.pi) and same_turn(-math.pi, math.pi)
     assert not same_turn(0.0, math.pi) and not same_turn(math.pi / 2, 3 * math.pi / 2)

@@ -1,7 +1,7 @@
 """
-The Imu inclinometer convention reads what core/device.py says.
+The Imu inclinometer convention reads what core/machine/device.py says.
 
-The Imu inclinometer convention (hexacal_msgs_py.inputs) reads what core/device.py says the
+The Imu inclinometer convention (hexacal_msgs_py.inputs) reads what core/machine/device.py says the
 inclinometer reads.
 
 An IMU fixed on the measuring link, axes along the base's at zero reading, turns with the
@@ -12,7 +12,7 @@ world frame, must give device.inclinometer_angles(p), and device.measured_positi
 those angles must give p back, on either mount.
 """
 
-from hexacal_identify.core.device import (
+from hexacal_identify.core.machine.device import (
     HANGING,
     inclinometer_angles,
     measured_position,

@@ -12,8 +12,8 @@ import sys
 
 from hexacal_identify.core.architectures import architecture
 from hexacal_identify.core.architectures.base import ACTUATED, COMPLIANCE, HINGE, PASSIVE, SLIDE
-from hexacal_identify.core.device import sphere_z
-from hexacal_identify.core.kinematics import inverse_kinematics
+from hexacal_identify.core.machine.device import sphere_z
+from hexacal_identify.core.machine.kinematics import inverse_kinematics
 from hexacal_identify.physics.mjcf import device_readings_at, machine_mjcf
 from hexacal_msgs_py.models import MODELS
 from hexacal_msgs_py.physical_file import default_physical, write_physical_file

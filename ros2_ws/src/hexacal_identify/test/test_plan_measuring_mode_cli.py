@@ -5,7 +5,7 @@ from pathlib import Path
 import subprocess
 import sys
 
-from hexacal_identify.core.planning import Plan
+from hexacal_identify.core.planning.planner import Plan
 from hexacal_msgs_py.plan_file import read_plan_file
 import pytest
 

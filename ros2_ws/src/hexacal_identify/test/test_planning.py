@@ -2,16 +2,16 @@
 
 import time
 
-from hexacal_identify.core.candidate_set import build_candidate_set
-from hexacal_identify.core.design import exchange_design, greedy_design
-from hexacal_identify.core.model import table1_parameters
-from hexacal_identify.core.observability import (
+from hexacal_identify.core.machine.model import table1_parameters
+from hexacal_identify.core.planning.candidate_set import build_candidate_set
+from hexacal_identify.core.planning.observability import (
     INDICES,
     observability_index,
     observability_indices,
 )
-from hexacal_identify.core.planning import Plan, plan_postures
-from hexacal_identify.core.posture_limits import generate_candidates, PostureLimits
+from hexacal_identify.core.planning.planner import Plan, plan_postures
+from hexacal_identify.core.planning.posture_limits import generate_candidates, PostureLimits
+from hexacal_identify.core.planning.selection import exchange_design, greedy_design
 import numpy as np
 import pytest
 
@@ -85,7 +85,7 @@ def test_exchange_improves_on_greedy_monotonically(candidates, index):
 
 @pytest.mark.parametrize('weighted', [False, True])
 def test_planned_20_postures_beat_random_20_on_o1(weighted):
-    from hexacal_identify.core.measurements import NoiseModel
+    from hexacal_identify.core.machine.measurements import NoiseModel
 
     planning = plan_postures(
         NOMINAL,
@@ -101,7 +101,7 @@ def test_planned_20_postures_beat_random_20_on_o1(weighted):
 
 
 def test_i_optimal_plan_predicts_a_smaller_position_error_than_the_d_optimal_one():
-    from hexacal_identify.core.measurements import NoiseModel
+    from hexacal_identify.core.machine.measurements import NoiseModel
 
     noise = NoiseModel.from_microns(10)
     d_optimal = plan_postures(NOMINAL, 25, index='O1', n_candidates=1000, seed=8, noise=noise)

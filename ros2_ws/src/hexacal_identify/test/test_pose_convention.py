@@ -6,7 +6,7 @@ The contract's pose <-> quaternion convention (hexacal_msgs_py.poses) is the cor
 
 import math
 
-from hexacal_identify.core.kinematics import rotation_matrices
+from hexacal_identify.core.machine.kinematics import rotation_matrices
 from hexacal_msgs_py import poses
 import numpy as np
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import subprocess
 import sys
 
-from hexacal_identify.core.model import nominal_set
+from hexacal_identify.core.machine.model import nominal_set
 from hexacal_identify.session import (
     DEFAULT_OUTPUT,
     device_prior,

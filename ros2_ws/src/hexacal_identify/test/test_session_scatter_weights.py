@@ -5,9 +5,9 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from hexacal_identify.core.measurements import NoiseModel, simulate_measurements
-from hexacal_identify.core.model import nominal_set, table1_parameters
-from hexacal_identify.core.postures import sample_poses
+from hexacal_identify.core.machine.measurements import NoiseModel, simulate_measurements
+from hexacal_identify.core.machine.model import nominal_set, table1_parameters
+from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_identify.session import CalibrationSession, Settings
 from hexacal_identify.session.settings import parameter_problem
 from hexacal_msgs_py.models import MODELS

@@ -7,7 +7,7 @@ import os
 from pathlib import Path
 
 from hexacal_identify.core.architectures import default_parameters
-from hexacal_identify.core.model import nominal_set
+from hexacal_identify.core.machine.model import nominal_set
 from hexacal_identify.store import (
     ActivationReason,
     CalibrationStore,

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from hexacal_identify.core.detection import (
+from hexacal_identify.core.detection.stream_synchronizer import StreamSynchronizer
+from hexacal_identify.core.detection.vocabulary import (
     DUPLICATE_STAMP,
     NO_ENCODER_WITHIN_SKEW,
     OUT_OF_ORDER,
 )
-from hexacal_identify.core.stream_synchronizer import StreamSynchronizer
 from hexacal_msgs_py.readings import ActuatorReading, EncoderReading, InclinometerReading
 import numpy as np
 

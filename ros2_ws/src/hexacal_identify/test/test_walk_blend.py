@@ -1,22 +1,22 @@
-"""The executor's moves start where the drive stands (core/walk.py, paths.blend_command)."""
+"""The executor's moves start where the drive stands (core/walk/execution.py, blend_command)."""
 
 from __future__ import annotations
 
-from hexacal_identify.core.device import fixed_point
-from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.model import nominal_set, table1_parameters
-from hexacal_identify.core.passive_actuator import solve_passive
-from hexacal_identify.core.paths import (
+from hexacal_identify.core.machine.device import fixed_point
+from hexacal_identify.core.machine.kinematics import inverse_kinematics
+from hexacal_identify.core.machine.model import nominal_set, table1_parameters
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.core.modes.passive_actuator import solve_passive
+from hexacal_identify.core.planning.plan_check import default_stroke, plan_targets
+from hexacal_identify.core.walk.execution import PlanExecution
+from hexacal_identify.core.walk.platform_paths import (
     blend_command,
     Command,
     CommandPurpose,
     MIN_SEGMENT_S,
 )
-from hexacal_identify.core.plan_check import default_stroke, plan_targets
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.walk import PlanExecution
-from hexacal_identify.core.walk_settings import ExecutionSettings
-from hexacal_identify.core.walk_settings import ExecutionState as State
+from hexacal_identify.core.walk.settings import ExecutionSettings
+from hexacal_identify.core.walk.settings import ExecutionState as State
 import numpy as np
 import pytest
 

@@ -1,15 +1,15 @@
-"""core/walk_guard.py: the executor's predictions of a move before it is sent."""
+"""core/walk/guard.py: the executor's predictions of a move before it is sent."""
 
 from __future__ import annotations
 
 import math
 
 from hexacal_identify.core.architectures import default_parameters
-from hexacal_identify.core.device import fixed_point
-from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.paths import sphere_path
-from hexacal_identify.core.plan_check import default_stroke
-from hexacal_identify.core.walk_guard import GuardSettings, joint_samples, predict_move
+from hexacal_identify.core.machine.device import fixed_point
+from hexacal_identify.core.machine.kinematics import inverse_kinematics
+from hexacal_identify.core.planning.plan_check import default_stroke
+from hexacal_identify.core.walk.guard import GuardSettings, joint_samples, predict_move
+from hexacal_identify.core.walk.platform_paths import sphere_path
 from hexacal_msgs_py.measuring_modes import MeasuringMode
 import numpy as np
 import pytest

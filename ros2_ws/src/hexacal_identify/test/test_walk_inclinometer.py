@@ -1,26 +1,26 @@
-"""core/walk_inclinometer.py and the fixed-position loop with a lagging, noisy inclinometer."""
+"""core/walk/inclinometer.py and the fixed-position loop with a lagging, noisy inclinometer."""
 
 from __future__ import annotations
 
 import math
 import re
 
-from hexacal_identify.core.device import inclinometer_angles
-from hexacal_identify.core.kinematics import forward_kinematics, inverse_kinematics
-from hexacal_identify.core.model import nominal_set, table1_parameters
-from hexacal_identify.core.paths import CommandPurpose as Purpose
-from hexacal_identify.core.plan_check import check_plan, default_stroke
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.walk import PlanExecution
-from hexacal_identify.core.walk_inclinometer import (
+from hexacal_identify.core.machine.device import inclinometer_angles
+from hexacal_identify.core.machine.kinematics import forward_kinematics, inverse_kinematics
+from hexacal_identify.core.machine.model import nominal_set, table1_parameters
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.core.planning.plan_check import check_plan, default_stroke
+from hexacal_identify.core.walk.execution import PlanExecution
+from hexacal_identify.core.walk.inclinometer import (
     InclinometerState,
     judge_inclinometer,
     robust_noise,
     SETTLE_FRACTION,
     trimmed_mean,
 )
-from hexacal_identify.core.walk_settings import ExecutionSettings
-from hexacal_identify.core.walk_settings import ExecutionState as State
+from hexacal_identify.core.walk.platform_paths import CommandPurpose as Purpose
+from hexacal_identify.core.walk.settings import ExecutionSettings
+from hexacal_identify.core.walk.settings import ExecutionState as State
 import numpy as np
 import pytest
 

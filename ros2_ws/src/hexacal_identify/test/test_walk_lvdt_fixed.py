@@ -2,21 +2,21 @@
 The executor's fixed-position postures in the lvdt mode (#18): aim at a zero reading only.
 
 All six actuators are commanded and the telescopic link follows: the corrections (driven by the
-inclinometer, core/walk.py) bring the link to the vertical through O, the LVDT extension is left
-where the true machine puts it (nothing corrects it), and the guard still predicts every
+inclinometer, core/walk/execution.py) bring the link to the vertical through O, the LVDT extension
+is left where the true machine puts it (nothing corrects it), and the guard still predicts every
 correction. The posture then lies where eq. 10 puts it with the measured length, (0, 0, -L_m).
 """
 
 from hexacal_identify.core import sample_poses, table1_parameters
-from hexacal_identify.core.device import DeviceDefects, DeviceModel
-from hexacal_identify.core.kinematics import forward_kinematics
-from hexacal_identify.core.measurements import FIXED, Measurements
-from hexacal_identify.core.model import nominal_set
-from hexacal_identify.core.plan_check import default_stroke, plan_targets
-from hexacal_identify.core.residuals import ChannelSigma, CostFunction
-from hexacal_identify.core.walk import PlanExecution
-from hexacal_identify.core.walk_guard import GuardSettings, move_guard
-from hexacal_identify.core.walk_settings import ExecutionSettings
+from hexacal_identify.core.fit.residuals import ChannelSigma, CostFunction
+from hexacal_identify.core.machine.device import DeviceDefects, DeviceModel
+from hexacal_identify.core.machine.kinematics import forward_kinematics
+from hexacal_identify.core.machine.measurements import FIXED, Measurements
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.planning.plan_check import default_stroke, plan_targets
+from hexacal_identify.core.walk.execution import PlanExecution
+from hexacal_identify.core.walk.guard import GuardSettings, move_guard
+from hexacal_identify.core.walk.settings import ExecutionSettings
 from hexacal_msgs_py.measuring_modes import MeasuringMode
 import numpy as np
 

@@ -1,14 +1,14 @@
-"""core/walk_modes.py and core/walk.py's released chain: the passive actuator walked at rest."""
+"""core/walk/mode_driver.py and execution.py's released chain: the passive actuator at rest."""
 
 from __future__ import annotations
 
 from hexacal_identify.core.architectures import default_parameters
-from hexacal_identify.core.plan_check import default_stroke, plan_targets
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.walk import PlanExecution, ReleaseRequest
-from hexacal_identify.core.walk_modes import walk_mode
-from hexacal_identify.core.walk_settings import ExecutionSettings
-from hexacal_identify.core.walk_settings import ExecutionState as State
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.core.planning.plan_check import default_stroke, plan_targets
+from hexacal_identify.core.walk.execution import PlanExecution, ReleaseRequest
+from hexacal_identify.core.walk.mode_driver import walk_mode
+from hexacal_identify.core.walk.settings import ExecutionSettings
+from hexacal_identify.core.walk.settings import ExecutionState as State
 import numpy as np
 import pytest
 
@@ -37,7 +37,7 @@ def test_the_mode_comes_from_the_parameter_else_the_plan_else_compliant():
 
 
 def test_releases_the_plan_does_not_name_are_chosen_as_the_planner_chooses():
-    from hexacal_identify.core.released_actuator import choose_released_actuators
+    from hexacal_identify.core.modes.released_actuator import choose_released_actuators
 
     chosen = _mode('passive_actuator', 'compliant', None)
     expected = choose_released_actuators(NOMINAL, POSES, L, STROKE).released
@@ -146,8 +146,8 @@ def test_a_drive_fault_pauses_the_plan_without_a_command():
 
 
 def test_the_status_names_the_mode_the_released_joint_and_the_notice():
-    from hexacal_identify.core.turns import DeviceTurnSetter
-    from hexacal_identify.core.walk_session import CalibrationCall, ExecutorStatus
+    from hexacal_identify.core.walk.turns import DeviceTurnSetter
+    from hexacal_identify.core.sessions.executor_session import CalibrationCall, ExecutorStatus
 
     execution, _ = _execution([2, 2, 4])
     status = ExecutorStatus(

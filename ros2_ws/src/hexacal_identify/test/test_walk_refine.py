@@ -1,24 +1,24 @@
-"""core/walk_refine.py and the walk's stop for an intermediate calibration (no DDS)."""
+"""core/walk/refined_targets.py and the walk's stop for an intermediate calibration (no DDS)."""
 
 from __future__ import annotations
 
 import math
 
-from hexacal_identify.core.kinematics import inverse_kinematics
-from hexacal_identify.core.model import nominal_set, table1_parameters
-from hexacal_identify.core.plan_check import check_plan, default_stroke
-from hexacal_identify.core.postures import sample_poses
-from hexacal_identify.core.refinement import full_rank_postures, refinement_checkpoints
-from hexacal_identify.core.walk import PlanExecution
-from hexacal_identify.core.walk_refine import (
+from hexacal_identify.core.machine.kinematics import inverse_kinematics
+from hexacal_identify.core.machine.model import nominal_set, table1_parameters
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.core.planning.plan_check import check_plan, default_stroke
+from hexacal_identify.core.walk.execution import PlanExecution
+from hexacal_identify.core.walk.refined_targets import (
     NOMINAL_TARGETS,
     refine_checkpoints,
     RefineCall,
     RefineState,
     targets_model_label,
 )
-from hexacal_identify.core.walk_settings import ExecutionSettings
-from hexacal_identify.core.walk_settings import ExecutionState as State
+from hexacal_identify.core.walk.refinement import full_rank_postures, refinement_checkpoints
+from hexacal_identify.core.walk.settings import ExecutionSettings
+from hexacal_identify.core.walk.settings import ExecutionState as State
 import numpy as np
 
 L = 0.75
@@ -148,9 +148,9 @@ def test_a_refused_late_or_absent_calibration_gives_no_model():
 
 def test_the_executor_setup_schedules_refinement_and_guards_on_the_intermediate_model():
     from hexacal_identify.core.architectures import default_parameters
-    from hexacal_identify.core.planning import Plan
-    from hexacal_identify.core.turns import DeviceTurnSetter
-    from hexacal_identify.core.walk_session import (
+    from hexacal_identify.core.planning.planner import Plan
+    from hexacal_identify.core.walk.turns import DeviceTurnSetter
+    from hexacal_identify.core.sessions.executor_session import (
         CalibrationCall,
         ExecutorStatus,
         model_defaults,

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from hexacal_identify.bag import BagMetadataError, open_bag
 from hexacal_identify.bag.reader import load_metadata_yaml
-from hexacal_identify.core.model import nominal_set, table1_parameters
+from hexacal_identify.core.machine.model import nominal_set, table1_parameters
 from hexacal_msgs_py import files, parameters_file
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.parameters_file import load_parameters_file, save_parameters

@@ -26,7 +26,7 @@ Z up, as sensor_msgs/Imu and REP-145 define it). Only the direction of gravity
 in the sensor frame enters, which is what an inclinometer senses: the IMU's
 heading (yaw about the world's Z, magnetometer or integrated) does not matter.
 
-Why this is core/device.py's reading: device.py defines alpha and beta as what
+Why this is core/machine/device.py's reading: device.py defines alpha and beta as what
 an ideal biaxial inclinometer on the link reads, the link pointing from O to the
 platform along ``u = (cos a sin b, -sin a, -cos a cos b)`` on the hanging mount
 (eq. 4) and ``-u`` standing. That is the link turned by ``R_link = R_Y(-beta)

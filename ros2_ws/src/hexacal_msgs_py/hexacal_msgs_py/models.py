@@ -27,11 +27,13 @@ from hexacal_msgs_py.errors import InvalidParametersError
 N_CHAINS = 6
 MODEL_KEY = 'model'
 DEVICE_MOUNT_KEY = (
-    'device.mount'  # parameters-file key of the device mount: hanging | standing (core/device.py)
+    # parameters-file key of the device mount: hanging | standing (core/machine/device.py)
+    'device.mount'
 )
-# The measuring device's defects (core/device.py), SI units: link length offset (m), inclinometer
-# zero offsets, axis non-perpendicularity and rotary zero offset (rad).  A calibrated parameters
-# file carries those identified with it as `device.defects.<name>` keys (absent: not identified).
+# The measuring device's defects (core/machine/device.py), SI units: link length offset (m),
+# inclinometer zero offsets, axis non-perpendicularity and rotary zero offset (rad).  A calibrated
+# parameters file carries those identified with it as `device.defects.<name>` keys (absent: not
+# identified).
 DEVICE_DEFECT_NAMES: tuple[str, ...] = ('dL', 'alpha0', 'beta0', 'gamma', 'phi0')
 DEVICE_DEFECT_UNITS: tuple[str, ...] = ('m', 'rad', 'rad', 'rad', 'rad')
 DEVICE_DEFECTS_KEY = 'device.defects'

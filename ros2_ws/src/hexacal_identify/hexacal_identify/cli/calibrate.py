@@ -53,10 +53,10 @@ def device_prior_argument(text: str):
 
 
 def _calibrate_arguments(calibrate: argparse.ArgumentParser) -> None:
-    from ..core.device import DEFAULT_LINK_LENGTH_M
-    from ..core.identification import ROBUST_LOSSES
-    from ..core.residuals import COSTS
-    from ..core.weighting import WEIGHT_MODES
+    from ..core.machine.device import DEFAULT_LINK_LENGTH_M
+    from ..core.fit.identification import ROBUST_LOSSES
+    from ..core.fit.residuals import COSTS
+    from ..core.fit.weighting import WEIGHT_MODES
     from .study_device import device_names_argument
 
     calibrate.add_argument('bag', type=Path, help='bag directory or .mcap file')
@@ -152,7 +152,7 @@ def _calibrate_arguments(calibrate: argparse.ArgumentParser) -> None:
 
 
 def _compliance_arguments(calibrate: argparse.ArgumentParser) -> None:
-    from ..core.compliance import COMPLIANCE_MODES
+    from ..core.fit.compliance import COMPLIANCE_MODES
 
     calibrate.add_argument(
         '--compliance',
@@ -202,8 +202,8 @@ def compliance_model(args, bag, nominal):
     """Return the ComplianceModel of --compliance for a bag's postures (None: rigid)."""
     import numpy as np
 
-    from ..core.compliance import ComplianceModel
-    from ..core.statics import MassModel
+    from ..core.fit.compliance import ComplianceModel
+    from ..core.fit.statics import MassModel
 
     if args.compliance == 'none':
         if args.physical is not None or args.compliance_prior:
@@ -274,7 +274,7 @@ def clock_offset_argument(text: str) -> tuple[str, float]:
 
 def detector_argument(text: str) -> str:
     """Parse --detector: 'settled'; the removed 'window' is refused naming its successor."""
-    from ..core.detection import detector_problem
+    from ..core.detection.vocabulary import detector_problem
 
     problem = detector_problem(text)
     if problem is not None:
@@ -319,8 +319,8 @@ def run_calibrate(args) -> int:
     from hexacal_msgs_py.parameters_file import save_parameters
 
     from ..core.errors import CalibrationError
-    from ..core.identification import CONVERGED
-    from ..core.measurements import NoiseModel, ScatterFloor
+    from ..core.fit.identification import CONVERGED
+    from ..core.machine.measurements import NoiseModel, ScatterFloor
     from ..pipeline import (
         calibrate,
         check_model,
@@ -457,7 +457,7 @@ def _store_root(args, result) -> Path:
 
 def _store_line(args, result, stored) -> str:
     """Return the line that says where the calibration was kept, or that it was not."""
-    from ..core.identification import CONVERGED
+    from ..core.fit.identification import CONVERGED
 
     if stored is not None:
         return f'stored as {stored.short_id} ({stored.state}) in {_store_root(args, result)}'
@@ -473,7 +473,7 @@ def _print_summary(args, bag, result, adequacy) -> None:
     from hexacal_msgs_py.models import DEFAULT_MODEL
     import numpy as np
 
-    from ..core.identification import CONVERGED
+    from ..core.fit.identification import CONVERGED
 
     model = result.parameters.model
     model_text = '' if model == DEFAULT_MODEL else f' ({model})'  # the default goes unnamed
@@ -540,7 +540,7 @@ def device_prior_lines(result, prior) -> list[str]:
     """Return prior vs identified value of each identified device defect (um / urad lines)."""
     import numpy as np
 
-    from ..core.device import DEVICE_PARAMETER_NAMES
+    from ..core.machine.device import DEVICE_PARAMETER_NAMES
 
     if not result.free_device:
         return []

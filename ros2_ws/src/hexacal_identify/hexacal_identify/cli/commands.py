@@ -58,7 +58,7 @@ def _write_params(args) -> int:
     from hexacal_msgs_py.parameters_file import save_parameters
 
     from ..core.architectures import architecture
-    from ..core.model import nominal_set
+    from ..core.machine.model import nominal_set
 
     arch = architecture(args.model)
     # `table1` names the Hexa Slide's default machine (its default_machine_alias) only.

@@ -336,8 +336,8 @@ def _driver_param(text: str) -> tuple[str, object]:
 
 def _plans(args, nominal, paths: DemoPaths) -> None:
     """Write the calibration plan (O1) and the verification plan (fresh postures, another draw)."""
-    from ..core.measurements import NoiseModel
-    from ..core.planning import plan_postures
+    from ..core.machine.measurements import NoiseModel
+    from ..core.planning.planner import plan_postures
 
     noise = NoiseModel.from_microns(args.noise_um) if args.noise_um > 0 else None
     mixed = args.plan == 'mixed'
@@ -385,7 +385,7 @@ def _run(args) -> int:
     from hexacal_msgs_py.parameters_file import save_parameters
 
     from ..core.architectures import architecture
-    from ..core.model import nominal_set
+    from ..core.machine.model import nominal_set
     from ..bringup.launch_spec import NodeLaunch
     from ..bringup.supervisor import NodeGroup
 
@@ -678,7 +678,7 @@ def _walk(
     from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC
     from tqdm import tqdm
 
-    from ..core.planning import Plan
+    from ..core.planning.planner import Plan
     from ..bringup.launch_spec import NodeLaunch
 
     total = len(Plan.load(plan))
@@ -1129,7 +1129,7 @@ def report(
 
 def pose_summaries(true_params, nominal, calibrated, args) -> dict[str, dict]:
     """Return the pose errors (PoseErrors.summary) of nominal and calibrated vs the truth."""
-    from ..core.validation import pose_errors, validation_poses
+    from ..core.fit.validation import pose_errors, validation_poses
 
     poses = validation_poses(
         true_params,

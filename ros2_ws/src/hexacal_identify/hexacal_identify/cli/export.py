@@ -200,8 +200,8 @@ def mjcf_text(contents, physical_path: Path | None) -> str:
     from hexacal_msgs_py.physical_file import default_physical, read_physical_file
 
     from ..core.architectures import parameters_for
-    from ..core.device import check_mount, DEFAULT_MOUNT
-    from ..core.live import home_pose
+    from ..core.machine.device import check_mount, DEFAULT_MOUNT
+    from ..core.machine.live import home_pose
     from ..physics.mjcf import machine_mjcf
 
     params = parameters_for(contents.model, contents.vector)

@@ -30,10 +30,10 @@ from hexacal_msgs_py.parameters_file import parameters_to_chain_dict
 import numpy as np
 
 from ..core.architectures import parameters_for
-from ..core.device import check_mount, DEFAULT_MOUNT
 from ..core.errors import UnreachablePoseError
-from ..core.kinematics import inverse_kinematics
-from ..core.live import home_pose
+from ..core.machine.device import check_mount, DEFAULT_MOUNT
+from ..core.machine.kinematics import inverse_kinematics
+from ..core.machine.live import home_pose
 
 CONTROLLER_FORMAT = 'hexacal-controller'
 CONTROLLER_VERSION = 1

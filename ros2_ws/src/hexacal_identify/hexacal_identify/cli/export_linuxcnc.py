@@ -37,12 +37,12 @@ from hexacal_msgs_py.models import DEVICE_MOUNT_KEY, GOUGH_STEWART
 import numpy as np
 
 from .export import _DECIMALS, LENGTH_UNITS
-from ..core.angle_conventions import linuxcnc_from_pose
 from ..core.architectures import parameters_for
-from ..core.device import check_mount, DEFAULT_MOUNT
 from ..core.errors import UnreachablePoseError
-from ..core.kinematics import inverse_kinematics
-from ..core.live import home_pose
+from ..core.machine.angle_conventions import linuxcnc_from_pose
+from ..core.machine.device import check_mount, DEFAULT_MOUNT
+from ..core.machine.kinematics import inverse_kinematics
+from ..core.machine.live import home_pose
 
 ANGLE_DECIMALS = 9  # degrees: 1e-9 deg moves a joint 0.2 m off the axis by 3 pm
 # LinuxCNC's [TRAJ] LINEAR_UNITS knows mm and inch (and their synonyms), not metres.

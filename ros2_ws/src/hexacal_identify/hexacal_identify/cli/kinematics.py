@@ -13,7 +13,7 @@ rad).  ``--json`` prints one object
 (floats at full precision); without it, one ``name value unit`` line each.
 
 ``--angles linuxcnc`` reads and prints the angles as LinuxCNC's genhexkins
-A, B, C in degrees instead (R = Rz(C) Ry(B) Rx(A), core/angle_conventions.py):
+A, B, C in degrees instead (R = Rz(C) Ry(B) Rx(A), core/machine/angle_conventions.py):
 ``--pose`` / ``--guess`` are ``x,y,z,a,b,c`` (m, deg) and the pose printed is
 ``x y z a b c`` (``--json``: ``"pose": {"x", "y", "z", "a", "b", "c"}``), so a
 pose can be checked on both sides.  The default (``--angles hexacal``) prints
@@ -23,7 +23,7 @@ exactly what it always did.
 kinematics node refuses commands outside the stroke).  ``fk`` starts Newton
 from ``--guess`` (default: the workspace centre, the device's fixed point
 [0, 0, -L] with the platform level, [0, 0, +L] for a ``device.mount:
-standing`` file) and follows the readings from there (core/live.py), so the
+standing`` file) and follows the readings from there (core/machine/live.py), so the
 pose printed is on the guess's branch.
 
 Exit codes: 0; 1 forward kinematics found no pose (``forward-kinematics-failed: ...``);
@@ -143,7 +143,7 @@ def _pose_values(text: str, option: str, angles: str) -> list[float]:
     _check_angles(angles)
     if angles == 'hexacal':
         return parse_values(text, option, 'x,y,z in m, theta,psi,phi in rad')
-    from ..core.angle_conventions import pose_from_linuxcnc
+    from ..core.machine.angle_conventions import pose_from_linuxcnc
 
     values = parse_values(text, option, "x,y,z in m, LinuxCNC's a,b,c in deg")
     return [float(value) for value in pose_from_linuxcnc(values)]
@@ -180,7 +180,7 @@ def _print(params, pose, actuators, as_json: bool, angles: str = 'hexacal') -> N
 
 def run_ik(args) -> int:
     from ..core.errors import UnreachablePoseError
-    from ..core.kinematics import inverse_kinematics
+    from ..core.machine.kinematics import inverse_kinematics
     from ..pipeline import load_machine_and_mount
 
     pose = _pose_values(args.pose, '--pose', args.angles)
@@ -200,8 +200,8 @@ def run_ik(args) -> int:
 
 def run_fk(args) -> int:
     from ..core.errors import ForwardKinematicsError
-    from ..core.live import home_pose, solve_pose
-    from ..core.postures import Workspace
+    from ..core.machine.live import home_pose, solve_pose
+    from ..core.machine.postures import Workspace
     from ..pipeline import load_machine_and_mount
 
     _check_angles(args.angles)
@@ -223,7 +223,7 @@ def run_fk(args) -> int:
 
 
 def _print_linuxcnc(params, pose, actuators, as_json: bool) -> None:
-    from ..core.angle_conventions import linuxcnc_from_pose
+    from ..core.machine.angle_conventions import linuxcnc_from_pose
 
     values = [float(value) for value in linuxcnc_from_pose(pose)]
     names = params.layout.actuator_names

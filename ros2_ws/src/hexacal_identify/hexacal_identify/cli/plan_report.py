@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 from .common import Progress
 
 if TYPE_CHECKING:
-    from ..core.posture_limits import PostureLimits
+    from ..core.planning.posture_limits import PostureLimits
 
 # = hexacal_msgs_py.models.DEVICE_MOUNT_KEY (not imported: `hexacal --help` stays light)
 MOUNT_PARAMETER = 'device.mount'
@@ -49,10 +49,10 @@ def _plan_arguments(plan) -> None:
         MEASURING_MODES,
     )
 
-    from ..core.observability import CRITERIA
-    from ..core.planning import METHODS
-    from ..core.posture_limits import PostureLimits
-    from ..core.residuals import COSTS
+    from ..core.planning.observability import CRITERIA
+    from ..core.planning.planner import METHODS
+    from ..core.planning.posture_limits import PostureLimits
+    from ..core.fit.residuals import COSTS
     from .study_device import device_names_argument, device_prior_argument
 
     plan.add_argument('--postures', type=int, required=True, help='number of postures K to choose')
@@ -232,7 +232,7 @@ def _limits(args, nominal, extras: dict) -> PostureLimits:
     The options given replace the defaults. The device mount: --mount, else the nominal file's
     ``device.mount``, else hanging.
     """
-    from ..core.posture_limits import PostureLimits
+    from ..core.planning.posture_limits import PostureLimits
 
     given = {
         'mount': args.mount or extras.get(MOUNT_PARAMETER),
@@ -274,10 +274,10 @@ def load_nominal(path: Path | None) -> tuple:
 def run_plan(args) -> int:
     import numpy as np
 
-    from ..core.device import DevicePrior, procedure_turns
-    from ..core.measurements import NoiseModel
-    from ..core.observability import INDICES, PREDICTION
-    from ..core.planning import plan_postures
+    from ..core.machine.device import DevicePrior, procedure_turns
+    from ..core.machine.measurements import NoiseModel
+    from ..core.planning.observability import INDICES, PREDICTION
+    from ..core.planning.planner import plan_postures
 
     nominal, extras = load_nominal(args.nominal)
     layout = nominal.layout
@@ -422,7 +422,7 @@ def _print_measuring(measuring, actuator_names: tuple[str, ...]) -> None:
     """Print what the plan's measuring mode adds: released actuators, or LVDT extensions."""
     import numpy as np
 
-    from ..core.released_actuator import DEFAULT_MARGIN_M
+    from ..core.modes.released_actuator import DEFAULT_MARGIN_M
 
     print(f'  measuring mode {measuring.mode.value}')
     release = measuring.release

@@ -292,7 +292,7 @@ def calibrate_store_dir(store: Path | None, model: str) -> Path:
 
 
 def _noise(microns: float):
-    from ..core.measurements import NoiseModel
+    from ..core.machine.measurements import NoiseModel
 
     return NoiseModel.from_microns(microns)
 

@@ -38,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
     from . import study_device as cli_study_device
     from . import study_plan
-    from ..core.residuals import COSTS
+    from ..core.fit.residuals import COSTS
 
     parser.add_argument(
         '--model',
@@ -189,7 +189,7 @@ def study_model(args) -> str:
 
 def configured_run(args) -> StudyRun:
     from ..core.architectures import default_parameters
-    from ..core.device import DeviceDefects
+    from ..core.machine.device import DeviceDefects
     from ..pipeline import load_machine
     from ..studies.accuracy import StudyRun
 
@@ -280,8 +280,8 @@ def _print_model(truth: KinematicParameters) -> None:
 
 
 def _print_identifiability(out: Path, truth: KinematicParameters) -> None:
-    from ..core.identifiability import DEFAULT_RANK_TOLERANCE
-    from ..core.residuals import COST_EQUATIONS
+    from ..core.fit.identifiability import DEFAULT_RANK_TOLERANCE
+    from ..core.fit.residuals import COST_EQUATIONS
     from ..report import figures
     from ..studies.accuracy import identifiability_by_cost
 
@@ -317,7 +317,7 @@ def _print_identifiability(out: Path, truth: KinematicParameters) -> None:
 def _print_noise_free(out: Path, progress: Progress, truth: KinematicParameters) -> None:
     import numpy as np
 
-    from ..core.model import error_stats_mm
+    from ..core.machine.model import error_stats_mm
     from ..report import figures
     from ..studies.accuracy import noise_free_recovery
 
@@ -413,7 +413,7 @@ def _print_noise_table(
 
 
 def _print_procedures(progress: Progress, truth: KinematicParameters) -> None:
-    from ..core.residuals import COST_EQUATIONS, COSTS
+    from ..core.fit.residuals import COST_EQUATIONS, COSTS
     from ..studies.accuracy import run_calibration, StudyRun
 
     claim = _paper(truth, " (paper: 'of the same order as the noise')")
@@ -484,7 +484,7 @@ def _print_configured(run: StudyRun) -> None:
 
 
 def _device_values(result) -> tuple[list[float], list[float]]:
-    from ..core.device import DEVICE_PARAMETER_NAMES
+    from ..core.machine.device import DEVICE_PARAMETER_NAMES
 
     index = [DEVICE_PARAMETER_NAMES.index(name) for name in result.free_device]
     return [float(result.device.vector[i]) for i in index], [

@@ -11,7 +11,7 @@ import math
 from typing import TYPE_CHECKING
 
 from .common import Progress
-from ..core.device import DEVICE_PARAMETER_NAMES, DeviceDefects, DevicePrior
+from ..core.machine.device import DEVICE_PARAMETER_NAMES, DeviceDefects, DevicePrior
 
 if TYPE_CHECKING:
     from ..core.architectures import KinematicParameters
@@ -57,7 +57,7 @@ def device_names_argument(text: str) -> tuple[str, ...]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from ..core.identification import ROBUST_LOSSES
+    from ..core.fit.identification import ROBUST_LOSSES
 
     parser.add_argument('--device-defects', type=_defects, default=None, help=DEFECTS_HELP)
     parser.add_argument(
@@ -251,7 +251,7 @@ def print_monte_carlo(
 ) -> None:
     import numpy as np
 
-    from ..core.uncertainty import monte_carlo
+    from ..core.fit.uncertainty import monte_carlo
 
     print(
         f'\nUncertainty check: one calibration (50 postures, +-{noise_um:g} um / urad, '

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from .common import Progress
-from ..core.observability import CRITERIA
-from ..core.planning import METHODS
+from ..core.planning.observability import CRITERIA
+from ..core.planning.planner import METHODS
 from ..studies.planning import (
     DEFAULT_KS,
     planned_vs_random,

@@ -8,7 +8,7 @@ The bag holds fresh postures, never used in the fit (a second, verification plan
 walked after the calibration). For each, what the device measured (position by
 eq. 4, the fixed point for a fixed-position posture; phi from the rotary sensor)
 is compared with forward kinematics at the measured actuator readings, once with
-the nominal and once with the calibrated parameters (core/verification.py). The
+the nominal and once with the calibrated parameters (core/fit/verification.py). The
 device measures through the defects identified with the calibration (the
 calibrated file's `device.defects.<name>` keys) unless --device-defects names others.
 
@@ -48,8 +48,8 @@ def add_parsers(subparsers) -> None:
 
 
 def _verify_arguments(parser: argparse.ArgumentParser) -> None:
-    from ..core.device import DEFAULT_LINK_LENGTH_M
-    from ..core.verification import DEFAULT_THRESHOLD_M, NOISE_THRESHOLD_FACTOR
+    from ..core.machine.device import DEFAULT_LINK_LENGTH_M
+    from ..core.fit.verification import DEFAULT_THRESHOLD_M, NOISE_THRESHOLD_FACTOR
 
     parser.add_argument(
         'bag', type=Path, help='bag directory or .mcap file with the verification postures'
@@ -115,9 +115,9 @@ def _verify_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_verify(args) -> int:
-    from ..core.device import DeviceModel
-    from ..core.measurements import NoiseModel
-    from ..core.verification import PASS, verify
+    from ..core.machine.device import DeviceModel
+    from ..core.machine.measurements import NoiseModel
+    from ..core.fit.verification import PASS, verify
     from ..pipeline import (
         check_model,
         load_machine_and_mount,
@@ -236,7 +236,7 @@ def _device_defects(args):
     (defects, (where they come from, names given)) of the device that measured the bag: the
     --device-defects option, else those identified with the calibration (calibrated file).
     """
-    from ..core.device import DEVICE_PARAMETER_NAMES, DeviceDefects
+    from ..core.machine.device import DEVICE_PARAMETER_NAMES, DeviceDefects
     from ..pipeline import load_device_defects
 
     if args.device_defects is None:
@@ -267,7 +267,7 @@ def _print_table(args, bag, payload: dict) -> None:
     nominal, calibrated = payload['nominal'], payload['calibrated']
     device = payload['device_defects']
     if device['values']:
-        from ..core.device import DEVICE_PARAMETER_NAMES, DEVICE_PARAMETER_UNITS
+        from ..core.machine.device import DEVICE_PARAMETER_NAMES, DEVICE_PARAMETER_UNITS
 
         units = dict(zip(DEVICE_PARAMETER_NAMES, DEVICE_PARAMETER_UNITS))
         print(

@@ -5,7 +5,6 @@ Nothing in this subpackage imports rclpy or ROS message packages; scipy is
 imported by the functions that solve, not here.
 """
 
-from .device import DeviceModel, inclinometer_angles, measured_position
 from .errors import (
     CalibrationError,
     ForwardKinematicsError,
@@ -14,18 +13,19 @@ from .errors import (
     TooFewPosturesError,
     UnreachablePoseError,
 )
-from .identification import IdentificationResult, identify, SolverOptions
-from .kinematics import forward_kinematics, inverse_kinematics
-from .measurements import FIXED, Measurements, NoiseModel, simulate_measurements, SPHERE
-from .model import (
+from .fit.identification import IdentificationResult, identify, SolverOptions
+from .fit.residuals import ChannelSigma, COSTS
+from .machine.device import DeviceModel, inclinometer_angles, measured_position
+from .machine.kinematics import forward_kinematics, inverse_kinematics
+from .machine.measurements import FIXED, Measurements, NoiseModel, simulate_measurements, SPHERE
+from .machine.model import (
     HexaParameters,
     N_PARAMETERS,
     nominal_set,
     parameter_names,
     table1_parameters,
 )
-from .postures import sample_poses, Workspace
-from .residuals import ChannelSigma, COSTS
+from .machine.postures import sample_poses, Workspace
 
 __all__ = [
     'COSTS',

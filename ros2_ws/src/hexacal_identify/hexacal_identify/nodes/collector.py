@@ -49,11 +49,11 @@ from ..bag import naming
 from ..bag.measuring import MEASURING_METADATA, MeasuringRecord
 from ..bag.qos_yaml import qos_profiles_yaml
 from ..bag.recording import Recording
-from ..core import collector_health as health
-from ..core import detection
-from ..core.dwell_detector import DwellDetector, LINK_STREAM
-from ..core.stream_synchronizer import StreamSynchronizer
-from ..core.turn_history import TurnHistory
+from ..core.detection import vocabulary as detection
+from ..core.detection.dwell_detector import DwellDetector, LINK_STREAM
+from ..core.detection.stream_synchronizer import StreamSynchronizer
+from ..core.detection.turn_history import TurnHistory
+from ..core.sessions import collector_session as health
 
 NODE_NAME = 'collector'
 START_RECORDING_SERVICE = 'hexacal/start_recording'

@@ -48,9 +48,9 @@ from sensor_msgs.msg import Imu, JointState
 from visualization_msgs.msg import MarkerArray
 
 from ..bag.qos_yaml import qos_profiles_yaml
-from ..core.detection import Stream
-from ..core.stream_synchronizer import StreamSynchronizer
-from ..core.turn_history import TurnHistory
+from ..core.detection.stream_synchronizer import StreamSynchronizer
+from ..core.detection.turn_history import TurnHistory
+from ..core.detection.vocabulary import Stream
 
 RAW_TOPICS = (SLIDERS_TOPIC, INCLINOMETER_TOPIC, ENCODER_TOPIC)
 STREAM_OF_TOPIC = {

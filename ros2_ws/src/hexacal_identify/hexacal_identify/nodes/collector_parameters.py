@@ -26,8 +26,8 @@ from .collector_inputs import RAW_TOPICS
 from .input_parameters import declare_mapping_parameters, INCLINOMETER_READING_PARAMETERS
 from .parameters import parameter_descriptor, ParameterSpec
 from ..bag.naming import bag_name_problem
-from ..core.detection import detector_problem, DETECTORS
-from ..core.turn_history import turn_problem
+from ..core.detection.turn_history import turn_problem
+from ..core.detection.vocabulary import detector_problem, DETECTORS
 
 MODEL_CHOICES = ('', *MODELS)
 # Defaults are the detector's and StreamSynchronizer's (max_skew_s).

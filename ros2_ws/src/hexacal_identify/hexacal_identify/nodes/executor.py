@@ -8,8 +8,8 @@ inclinometer (a JointState or an Imu, read as the collector reads it: the InputM
 parameters of nodes/input_parameters.py) and the collector's postures in;
 pause/resume/abort services;
 progress on ``hexacal/calibration_status``.  What decides is ROS-free:
-core/plan_check.py (the plan is checked before anything moves), core/walk.py
-(the walk), core/turns.py (device turns), core/walk_session.py (set-up,
+core/planning/plan_check.py (the plan is checked before anything moves), core/walk/execution.py
+(the walk), core/walk/turns.py (device turns), core/sessions/executor_session.py (set-up,
 status, calibration call, parameter checks).  This node hears, publishes and keeps time.
 
 Full reference: docs/nodes.md
@@ -85,17 +85,22 @@ from .executor_parameters import MODEL_PARAMETERS, PARAMETERS
 from .input_parameters import declare_mapping_parameters, INCLINOMETER_READING_PARAMETERS
 from .parameters import parameter_descriptor
 from .runtime import run_node
-from ..core.device import DEFAULT_MOUNT, DeviceMountError
-from ..core.measurements import FIXED
-from ..core.measuring_plan import walking_notice
-from ..core.paths import Command
-from ..core.plan_check import PlanRefusedError
-from ..core.turns import DeviceTurnSetter, same_turn, TURN_PARAMETER
-from ..core.walk_io import joint_positions, LogLevel, Messages
-from ..core.walk_refine import RefineCall, RefineState
-from ..core.walk_session import CalibrationCall, ExecutorStatus, model_defaults
-from ..core.walk_session import parameter_problem, plan_mismatch, refined_guard, setup_walk
-from ..core.walk_settings import ExecutionState
+from ..core.machine.device import DEFAULT_MOUNT, DeviceMountError
+from ..core.machine.measurements import FIXED
+from ..core.planning.measuring_plan import walking_notice
+from ..core.planning.plan_check import PlanRefusedError
+from ..core.sessions.executor_session import CalibrationCall, ExecutorStatus, model_defaults
+from ..core.sessions.executor_session import (
+    parameter_problem,
+    plan_mismatch,
+    refined_guard,
+    setup_walk,
+)
+from ..core.walk.messages import joint_positions, LogLevel, Messages
+from ..core.walk.platform_paths import Command
+from ..core.walk.refined_targets import RefineCall, RefineState
+from ..core.walk.settings import ExecutionState
+from ..core.walk.turns import DeviceTurnSetter, same_turn, TURN_PARAMETER
 
 NODE_NAME = 'executor'
 CONTROL_PERIOD_S = 0.05  # the state machine steps this often
@@ -240,7 +245,7 @@ class ExecutorNode(Node):
         self.turns = DeviceTurnSetter(
             {name: _TurnClient(self, name) for name in self.device_turn_nodes}
         )
-        # refine_targets: intermediate calibrations at rest (core/walk_refine.py).
+        # refine_targets: intermediate calibrations at rest (core/walk/refined_targets.py).
         self.refine = RefineCall(self.nominal, float(value['refine_timeout_s']))
         self.create_subscription(
             Float64MultiArray, PARAMETERS_TOPIC, self._on_parameters, PARAMETERS_QOS
@@ -280,7 +285,7 @@ class ExecutorNode(Node):
             raise ExecutorConfigurationError(f'nominal: {error}') from error
 
     def _load_plan(self, path: str, nominal_path: str, nominal_mount: str):
-        from ..core.planning import Plan
+        from ..core.planning.planner import Plan
 
         try:
             plan = Plan.load(path)

@@ -2,7 +2,7 @@
 The executor node's ROS parameters: names, defaults, ranges and descriptions.
 
 Kept apart from nodes/executor.py so the node module holds only the glue; the
-checks beyond type and range are core/walk_session.py's `parameter_problem`. How the
+checks beyond type and range are core/sessions/executor_session.py's `parameter_problem`. How the
 inclinometer input is read (inclinometer_type, signs, offsets) is declared as the
 collector declares it (nodes/input_parameters.py).
 """
@@ -13,8 +13,8 @@ from hexacal_msgs_py.models import MAX_DEVICE_TURN
 from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC, INCLINOMETER_NAMES
 
 from .parameters import ParameterSpec as _Spec
-from ..core.walk_guard import GuardSettings
-from ..core.walk_settings import ExecutionSettings
+from ..core.walk.guard import GuardSettings
+from ..core.walk.settings import ExecutionSettings
 
 SETTINGS = ExecutionSettings()
 GUARD = GuardSettings()
@@ -122,7 +122,8 @@ PARAMETERS: dict[str, _Spec] = {
         True,
         'once the postures measured allow a calibration of full rank, stop at rest, call '
         'hexacal/calibrate and compute the remaining targets with the intermediate model '
-        '(again at later checkpoints, core/refinement.py); without the service: nominal targets',
+        '(again at later checkpoints, core/walk/refinement.py); '
+        'without the service: nominal targets',
     ),
     'refine_timeout_s': _Spec(
         120.0,

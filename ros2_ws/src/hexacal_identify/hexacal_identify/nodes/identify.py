@@ -53,10 +53,10 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
 from .runtime import run_node, ShutdownLog
-from ..core.device import DEVICE_PARAMETER_NAMES
-from ..core.measurements import ScatterFloor
-from ..core.residuals import COSTS
-from ..core.weighting import WEIGHT_MODES
+from ..core.fit.residuals import COSTS
+from ..core.fit.weighting import WEIGHT_MODES
+from ..core.machine.device import DEVICE_PARAMETER_NAMES
+from ..core.machine.measurements import ScatterFloor
 from ..session import (
     CalibrationSession,
     DEFAULT_OUTPUT,

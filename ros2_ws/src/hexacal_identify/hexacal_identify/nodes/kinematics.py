@@ -7,7 +7,7 @@ refusal with its reason; the machine's drawing on hexacal/machine_markers; the p
 the calibration store's active calibration (else the `parameters` file), then every deploy and
 rollback in the store (a timer watches its active marker); a message on hexacal/parameters only
 when it is the deployed calibration (any, with follow_calibrations). What it decides lives in
-core/live_session.py and session/deployment.py; this module is the ROS glue.
+core/sessions/kinematics_session.py and session/deployment.py; this module is the ROS glue.
 Full reference: docs/nodes.md.
 """
 
@@ -64,8 +64,8 @@ from visualization_msgs.msg import MarkerArray
 from .markers import machine_markers  # noqa: F401 - also imported from here
 from .runtime import run_node
 from ..core.architectures import KinematicParameters, parameters_for
-from ..core.device import check_mount, DEFAULT_MOUNT, DeviceMountError, MOUNTS
-from ..core.live_session import (
+from ..core.machine.device import check_mount, DEFAULT_MOUNT, DeviceMountError, MOUNTS
+from ..core.sessions.kinematics_session import (
     check_parameter,
     KinematicsConfigurationError,
     Level,

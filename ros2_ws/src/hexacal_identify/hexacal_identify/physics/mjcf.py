@@ -13,7 +13,8 @@ Built at one pose (the assembly pose, the model's reference configuration):
   centres, and its spherical platform joint an equality ``connect`` to the platform;
 * the platform: a free body in the platform frame (eq. 2's R), its mass, centre of mass and
   principal inertia, the payload a point mass welded to it;
-* the measuring device (core/device.py): the link's universal joint at the device's base joint
+* the measuring device (core/machine/device.py): the link's universal joint at the device's base
+joint
   O (the base origin), its first hinge about -Y and its second about -X of the device frame
   turned by ``device_turn`` about Z, so that the hinge angles are (beta, alpha) of eq. 4; the
   link (length L + dL) ends at the platform frame origin P, a ``connect`` (the platform-side
@@ -48,7 +49,7 @@ from ..core.architectures.base import (
     KinematicParameters,
 )
 from ..core.architectures.common import rotation_from_trig
-from ..core.device import DEFAULT_MOUNT, STANDING
+from ..core.machine.device import DEFAULT_MOUNT, STANDING
 
 DEFAULT_TIMESTEP_S = 1e-4
 # solimp: (dmin, dmax, width, midpoint, power): the constraint's impedance near 1 at any violation.

@@ -37,8 +37,14 @@ from hexacal_msgs_py.result_file import (
 import numpy as np
 
 from ..core.architectures import architecture
-from ..core.device import check_mount, DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT, fixed_point, STANDING
 from ..core.jsonsafe import json_safe as _plain
+from ..core.machine.device import (
+    check_mount,
+    DEFAULT_LINK_LENGTH_M,
+    DEFAULT_MOUNT,
+    fixed_point,
+    STANDING,
+)
 
 UM, MM = 1e6, 1e3
 MAP_GRID = 41  # cells per axis of the predicted pose-error map
@@ -489,7 +495,7 @@ class _Sections:
 
         Prior (value +- std, or none) and posterior of each identified device parameter, um / urad.
         """
-        from ..core.device import DEVICE_PARAMETER_NAMES
+        from ..core.machine.device import DEVICE_PARAMETER_NAMES
 
         title = 'Device parameters: prior and posterior'
         identified = [
@@ -609,7 +615,7 @@ class _Sections:
         if not singular:
             return self.missing(title, 'the result file has no singular values')
         from . import figures
-        from ..core.identifiability import DEFAULT_RANK_TOLERANCE
+        from ..core.fit.identifiability import DEFAULT_RANK_TOLERANCE
 
         image = self.figure(
             'singular_values.png',
@@ -866,8 +872,8 @@ def predicted_position_error_map(
     a variance count as exact.  ``model`` None = the Hexa Slide; ``xy_range_m`` None = the
     workspace's.
     """
-    from ..core.postures import acceptable_poses
-    from ..core.uncertainty import position_covariances
+    from ..core.machine.postures import acceptable_poses
+    from ..core.fit.uncertainty import position_covariances
 
     arch = architecture(model)
     n = arch.layout.n_parameters

@@ -21,7 +21,7 @@ from .settings import names, Settings
 # pipeline and core.identification (the solver) are imported where they are used: at the first
 # calibration, not when the node starts.
 from ..core.errors import CalibrationError
-from ..core.measurements import Weights
+from ..core.machine.measurements import Weights
 from ..store.provenance import calibration_record
 
 
@@ -57,7 +57,7 @@ def run_calibration(
     left to do (Outcome.report). Unexpected errors propagate: the session names them.
     """
     from .. import pipeline
-    from ..core.identification import CONVERGED, ITERATION_LIMIT
+    from ..core.fit.identification import CONVERGED, ITERATION_LIMIT
 
     nominal_path, cost, bag = settings.nominal, settings.cost, settings.bag
     link_length = settings.link_length

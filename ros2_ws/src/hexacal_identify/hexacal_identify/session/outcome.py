@@ -7,7 +7,7 @@ import enum
 from typing import TYPE_CHECKING
 
 from ..core.architectures import KinematicParameters
-from ..core.device import DeviceDefects
+from ..core.machine.device import DeviceDefects
 
 if TYPE_CHECKING:  # reports imports this module
     from .reports import ReportJob

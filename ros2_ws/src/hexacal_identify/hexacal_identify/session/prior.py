@@ -18,7 +18,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 import math
 
-from ..core.device import DevicePrior
+from ..core.machine.device import DevicePrior
 
 LINK_LENGTH_PRIOR = 'device.link_length'
 ANGLE_PRIORS = ('alpha0', 'beta0', 'gamma', 'phi0')

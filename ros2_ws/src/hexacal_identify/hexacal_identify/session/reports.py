@@ -16,7 +16,7 @@ from hexacal_msgs_py.readings import PostureReading
 
 from .outcome import Outcome
 from .paths import output_path
-from ..core.device import DevicePrior
+from ..core.machine.device import DevicePrior
 from ..report.page import write_report, write_verification_report
 
 

@@ -9,10 +9,10 @@ from typing import Any
 
 from .paths import DEFAULT_OUTPUT, output_path
 from .prior import LINK_LENGTH_PRIOR, prior_parameter_problem, PRIOR_PARAMETERS
-from ..core.device import DEVICE_PARAMETER_NAMES
-from ..core.measurements import NoiseModel, ScatterFloor
-from ..core.residuals import COSTS
-from ..core.weighting import weight_mode
+from ..core.fit.residuals import COSTS
+from ..core.fit.weighting import weight_mode
+from ..core.machine.device import DEVICE_PARAMETER_NAMES
+from ..core.machine.measurements import NoiseModel, ScatterFloor
 
 
 def names(text: str) -> tuple[str, ...]:
@@ -75,7 +75,7 @@ def parameter_problem(name: str, value: Any, current: Callable[[str, Any], Any])
                 f'{", ".join(DEVICE_PARAMETER_NAMES)}'
             )
     if name == 'robust_loss' and value != '':  # '' (the default): no import of the solver
-        from ..core.identification import ROBUST_LOSSES
+        from ..core.fit.identification import ROBUST_LOSSES
 
         if value not in ROBUST_LOSSES:
             return f"robust_loss must be '', {', '.join(ROBUST_LOSSES)}; got {value!r}"

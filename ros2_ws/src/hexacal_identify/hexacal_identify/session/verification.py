@@ -13,8 +13,8 @@ from .postures import PostureStore
 from .reports import VerificationTask
 from .settings import Settings
 from ..core.architectures import KinematicParameters
-from ..core.device import DeviceDefects
 from ..core.errors import CalibrationError
+from ..core.machine.device import DeviceDefects
 from ..store import postures_digest
 
 
@@ -48,8 +48,8 @@ def run_verification(
     propagate: the session names them.
     """
     from .. import pipeline
-    from ..core.device import DeviceModel
-    from ..core.verification import PASS, verify
+    from ..core.machine.device import DeviceModel
+    from ..core.fit.verification import PASS, verify
 
     if latest is None:
         return failure(

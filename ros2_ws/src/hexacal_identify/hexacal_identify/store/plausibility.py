@@ -62,8 +62,8 @@ def compare(previous_id: str, previous_file: Path, new_file: Path) -> Change:
 
     from ..core.architectures import architecture, parameters_for
     from ..core.errors import CalibrationError
-    from ..core.kinematics import forward_kinematics, inverse_kinematics
-    from ..core.postures import sample_poses
+    from ..core.machine.kinematics import forward_kinematics, inverse_kinematics
+    from ..core.machine.postures import sample_poses
 
     old, new = read_parameters_file(previous_file), read_parameters_file(new_file)
     if old.model != new.model:

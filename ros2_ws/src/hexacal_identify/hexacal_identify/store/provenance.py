@@ -58,7 +58,7 @@ def calibration_record(
     read from, if any (its path and the digest of its files).
     """
     posture_list = list(postures)
-    from ..core.device import DEVICE_PARAMETER_NAMES
+    from ..core.machine.device import DEVICE_PARAMETER_NAMES
 
     defects = {
         name: float(value)

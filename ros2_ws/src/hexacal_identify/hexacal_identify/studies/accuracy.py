@@ -25,16 +25,22 @@ from typing import Callable, Iterable
 import numpy as np
 
 from ..core.architectures import ARCHITECTURES, default_parameters, KinematicParameters
-from ..core.device import DeviceDefects, DeviceModel, DevicePrior
 from ..core.errors import CalibrationError
-from ..core.identifiability import analyze, IdentifiabilityReport
-from ..core.identification import IdentificationResult, identify, SolverOptions
-from ..core.kinematics import pose_parameter_sensitivity
-from ..core.measurements import FIXED, Measurements, NoiseModel, simulate_measurements, SPHERE
-from ..core.model import nominal_set
-from ..core.postures import sample_poses, Workspace
-from ..core.residuals import ChannelSigma, CostFunction, COSTS
-from ..core.validation import pose_errors, PoseErrors, validation_poses
+from ..core.fit.identifiability import analyze, IdentifiabilityReport
+from ..core.fit.identification import IdentificationResult, identify, SolverOptions
+from ..core.fit.residuals import ChannelSigma, CostFunction, COSTS
+from ..core.fit.validation import pose_errors, PoseErrors, validation_poses
+from ..core.machine.device import DeviceDefects, DeviceModel, DevicePrior
+from ..core.machine.kinematics import pose_parameter_sensitivity
+from ..core.machine.measurements import (
+    FIXED,
+    Measurements,
+    NoiseModel,
+    simulate_measurements,
+    SPHERE,
+)
+from ..core.machine.model import nominal_set
+from ..core.machine.postures import sample_poses, Workspace
 
 NEEDS_FIXED_POSTURES = ('fixed', 'sphere-fixed', 'relative')
 
@@ -296,7 +302,7 @@ def identifiability_by_cost(
 
 def _true_poses(run: StudyRun, measurements: Measurements) -> np.ndarray:
     """Return the exact poses of noise-free simulated measurements (FK, true parameters)."""
-    from ..core.kinematics import forward_kinematics
+    from ..core.machine.kinematics import forward_kinematics
 
     function = CostFunction(run.cost, measurements, run.device, ChannelSigma())
     fk = forward_kinematics(

@@ -22,13 +22,19 @@ from typing import Callable
 import numpy as np
 
 from ..core.architectures import default_parameters, KinematicParameters
-from ..core.device import device_position, DeviceDefects, DeviceModel
 from ..core.errors import CalibrationError
-from ..core.identification import identify, SolverOptions
-from ..core.measurements import FIXED, Measurements, NoiseModel, simulate_measurements, SPHERE
-from ..core.model import nominal_set
-from ..core.postures import sample_poses, Workspace
-from ..core.validation import pose_errors, validation_poses
+from ..core.fit.identification import identify, SolverOptions
+from ..core.fit.validation import pose_errors, validation_poses
+from ..core.machine.device import device_position, DeviceDefects, DeviceModel
+from ..core.machine.measurements import (
+    FIXED,
+    Measurements,
+    NoiseModel,
+    simulate_measurements,
+    SPHERE,
+)
+from ..core.machine.model import nominal_set
+from ..core.machine.postures import sample_poses, Workspace
 
 DEFAULT_DEFECTS = DeviceDefects(dL=5e-4, alpha0=2e-4, beta0=-1.5e-4, gamma=1e-4, phi0=1e-4)
 FRAME_DEFINING = (

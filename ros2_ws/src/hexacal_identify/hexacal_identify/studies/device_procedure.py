@@ -45,22 +45,20 @@ import numpy as np
 
 from .device import DEFAULT_DEFECTS, device_frame_poses, device_frame_truth, simulate_procedure
 from ..core.architectures import default_parameters, KinematicParameters
-from ..core.device import (
+from ..core.errors import CalibrationError
+from ..core.fit.identification import identify, SolverOptions
+from ..core.fit.uncertainty import predicted_pose_errors
+from ..core.fit.validation import pose_errors, validation_poses
+from ..core.machine.device import (
     DEVICE_PARAMETER_NAMES,
     DeviceDefects,
     DeviceModel,
     DevicePrior,
     TURNING_PROCEDURES,
 )
-from ..core.device import (
-    procedure_turns as turns_of,
-)
-from ..core.errors import CalibrationError
-from ..core.identification import identify, SolverOptions
-from ..core.measurements import Measurements, NoiseModel, simulate_measurements
-from ..core.model import nominal_set
-from ..core.uncertainty import predicted_pose_errors
-from ..core.validation import pose_errors, validation_poses
+from ..core.machine.device import procedure_turns as turns_of
+from ..core.machine.measurements import Measurements, NoiseModel, simulate_measurements
+from ..core.machine.model import nominal_set
 
 PROCEDURES = TURNING_PROCEDURES  # device turns of each procedure, rad (core.device)
 RECOMMENDED_PROCEDURE = 'quarter-turns'
@@ -131,7 +129,7 @@ def plan_for(
 
     I-optimal with the device columns, priors and turns.
     """
-    from ..core.planning import plan_postures, PREDICTION
+    from ..core.planning.planner import plan_postures, PREDICTION
 
     return plan_postures(
         nominal,

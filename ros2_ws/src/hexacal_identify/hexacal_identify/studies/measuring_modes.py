@@ -6,21 +6,21 @@ NOMINAL one at first (as the executor does), then calibrated with the core and j
 the truth on fresh validation poses:
 
 * ``passive_actuator``: per posture the released actuator chosen on the nominal plan
-  (core/released_actuator.py); the five others stand exactly at their setpoints; the platform
-  and the released actuator are where the link puts them (core/passive_actuator.py,
+  (core/modes/released_actuator.py); the five others stand exactly at their setpoints; the platform
+  and the released actuator are where the link puts them (core/modes/passive_actuator.py,
   ``solve_passive`` on the true machine); the released encoder reads where it went.
 * ``lvdt``: the six stand at their setpoints; the platform is the true forward kinematics of
   the six; the link length L_m = |P| is read with the LVDT's noise and used per posture in
   eq. 4 (``Measurements.link_lengths``); its extension |P| - L is checked against the stroke.
 * ``compliant``: the six commanded against the rigid link; equally stiff servos put the
-  platform on the true sphere (core/compliant.py, the simulated driver's model); the encoders
+  platform on the true sphere (core/modes/compliant.py, the simulated driver's model); the encoders
   read where the actuators stand; the force is the servo stiffness times the deviation.
 
 A posture the procedure cannot measure on the true machine is skipped and counted
 (``failed_postures``), as an executor would have to: in ``passive_actuator`` the five nominal
 setpoints and the link may have no assembly near the planned pose (a fold of the passive system
 the nominal model does not see), in ``lvdt`` the forward kinematics may fail.  The readings
-carry the study's uniform noise.  With refinement (core/refinement.py) the
+carry the study's uniform noise.  With refinement (core/walk/refinement.py) the
 remaining targets come from an intermediate calibration once the postures measured so far give
 one of full rank; the deviations before (nominal targets) and after (refined targets) are
 reported apart.  SI units throughout (um only for display, by the CLI).
@@ -40,23 +40,23 @@ from hexacal_msgs_py.measuring_modes import (
 import numpy as np
 
 from ..core.architectures import default_parameters, KinematicParameters
-from ..core.compliant import device_constrained_pose
-from ..core.device import DeviceModel
 from ..core.errors import CalibrationError
-from ..core.identification import IdentificationResult, identify, SolverOptions
-from ..core.kinematics import forward_kinematics, inverse_kinematics
-from ..core.measurements import Measurements, NoiseModel, simulate_measurements, SPHERE
-from ..core.model import nominal_set
-from ..core.passive_actuator import solve_passive
-from ..core.postures import sample_poses, Workspace
-from ..core.refinement import (
+from ..core.fit.identification import IdentificationResult, identify, SolverOptions
+from ..core.fit.validation import pose_errors, PoseErrors, validation_poses
+from ..core.machine.device import DeviceModel
+from ..core.machine.kinematics import forward_kinematics, inverse_kinematics
+from ..core.machine.measurements import Measurements, NoiseModel, simulate_measurements, SPHERE
+from ..core.machine.model import nominal_set
+from ..core.machine.postures import sample_poses, Workspace
+from ..core.modes.compliant import device_constrained_pose
+from ..core.modes.passive_actuator import solve_passive
+from ..core.modes.released_actuator import choose_released_actuators
+from ..core.walk.refinement import (
     full_rank_postures,
     RefinedWalk,
     refinement_checkpoints,
     walk_refined,
 )
-from ..core.released_actuator import choose_released_actuators
-from ..core.validation import pose_errors, PoseErrors, validation_poses
 
 DEFAULT_SERVO_STIFFNESS_N_PER_M = 2e6  # a stiff position loop: 1 mm of strain is 2 kN
 DEFAULT_LVDT_NOISE_M = 1e-6  # uniform half-width of the LVDT's reading

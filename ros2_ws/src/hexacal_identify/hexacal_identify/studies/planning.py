@@ -25,14 +25,14 @@ from hexacal_msgs_py.models import DEFAULT_MODEL
 import numpy as np
 
 from .accuracy import run_calibration, study_truth, StudyOutcome, StudyRun
-from ..core.design import exchange_design
 from ..core.errors import CalibrationError
-from ..core.identification import identify, SolverOptions
-from ..core.measurements import NoiseModel, simulate_measurements
-from ..core.observability import PREDICTION
-from ..core.planning import plan_postures
-from ..core.posture_limits import PostureLimits
-from ..core.validation import pose_errors, validation_poses
+from ..core.fit.identification import identify, SolverOptions
+from ..core.fit.validation import pose_errors, validation_poses
+from ..core.machine.measurements import NoiseModel, simulate_measurements
+from ..core.planning.observability import PREDICTION
+from ..core.planning.planner import plan_postures
+from ..core.planning.posture_limits import PostureLimits
+from ..core.planning.selection import exchange_design
 
 DEFAULT_KS = (15, 20, 25, 30, 40, 50)
 REFERENCE_RANDOM_POSTURES = 50

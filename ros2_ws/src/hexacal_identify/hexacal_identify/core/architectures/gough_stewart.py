@@ -230,7 +230,7 @@ class GoughStewart(Architecture[GoughStewartParameters]):
         return default_gough_stewart()
 
     def default_workspace(self):
-        from ..postures import Workspace
+        from ..machine.postures import Workspace
 
         return Workspace(
             xy_range_m=0.25, rotation_range_rad=float(np.radians(20.0)), actuator_stroke_m=STROKE_M

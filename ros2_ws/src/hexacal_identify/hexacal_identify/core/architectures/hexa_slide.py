@@ -375,7 +375,7 @@ class HexaSlide(Architecture[HexaParameters]):
         return table1_parameters()
 
     def default_workspace(self):
-        from ..postures import Workspace
+        from ..machine.postures import Workspace
 
         return Workspace()
 

@@ -484,7 +484,7 @@ class RotaryHexapod(Architecture[RotaryHexapodParameters]):
         return default_rotary_hexapod()
 
     def default_workspace(self):
-        from ..postures import Workspace
+        from ..machine.postures import Workspace
 
         return Workspace(
             xy_range_m=0.2,

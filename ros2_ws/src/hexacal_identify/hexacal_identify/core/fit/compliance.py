@@ -1,0 +1,257 @@
+"""
+Axial compliances identified jointly with the geometry: the unknowns and their residual columns.
+
+The static loads of each posture (core/fit/statics.py: the weights through the
+measuring mode) turn compliances into deflections the encoders and the
+inclinometer cannot see:
+
+* chain c: the encoder reads ``lambda_joint + c_c q_c`` (q_c = ``reading_loads``,
+  the leg's axial force times d lambda / d leg length), so forward kinematics
+  solves for the corrected readings ``lambda_m - c_c q_c``;
+* the link: it is ``L + c_L T`` long (T its tension), the length eq. 4's position,
+  the sphere of eq. 8 and the fixed position of eq. 10 use.
+
+Compliance choices (``COMPLIANCE_MODES``): ``none`` (the rigid model,
+the rigid results to the bit), ``shared`` (one compliance for all six chains, ``chains``,
+plus ``link``) and ``per_chain`` (``chain_1`` .. ``chain_6`` plus ``link``).  The
+unknowns follow the device defects in the solver's vector, named
+``compliance.<name>`` (m/N).  The loads are evaluated at the poses at the start
+of each solver run and held through it (the model is then linear in the
+compliances, its Jacobian exact); the solver runs again while they move.
+
+What the data can separate: a chain compliance is told from its actuator's zero
+offset only by how its load varies from posture to posture, and the link's from
+the device's dL only by how the link's tension varies (identifiability names the
+combinations it cannot).  In the lvdt mode the link carries no load: its
+compliance has no effect and is not an unknown there.  The relative cost
+(eqs. 12 + 13) pairs postures whose loads differ: it is not offered with
+compliances.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+from hexacal_msgs_py.measuring_modes import MeasuringMode
+import numpy as np
+
+from .residuals import ResidualBlock
+from .statics import MassModel, static_loads, StaticLoads
+from ..architectures import KinematicParameters
+from ..errors import InvalidMeasurementError
+from ..machine.device import DeviceModel
+from ..machine.measurements import Measurements, NoiseModel, simulate_measurements
+
+NONE, SHARED, PER_CHAIN = 'none', 'shared', 'per_chain'
+COMPLIANCE_MODES = (NONE, SHARED, PER_CHAIN)
+LINK = 'link'
+SHARED_CHAINS = 'chains'
+COMPLIANCE_PREFIX = 'compliance.'
+# A deflection that moves less than this between solver runs (1 nm, far below any reading noise)
+# is settled: the loads are not evaluated again.
+LOADS_TOLERANCE_M = 1e-9
+
+
+def compliance_names(mode: str, measuring_mode: str, n_chains: int = 6) -> tuple[str, ...]:
+    """Return the compliance unknowns of a choice, in the solver's order (module doc)."""
+    if mode not in COMPLIANCE_MODES:
+        raise ValueError(
+            f'unknown compliance choice {mode!r}; choose one of {", ".join(COMPLIANCE_MODES)}'
+        )
+    if mode == NONE:
+        return ()
+    chains = (SHARED_CHAINS,) if mode == SHARED else tuple(
+        f'chain_{c + 1}' for c in range(n_chains)
+    )
+    link = () if MeasuringMode(measuring_mode) == MeasuringMode.LVDT else (LINK,)
+    return chains + link
+
+
+@dataclass(frozen=True)
+class ComplianceModel:
+    """What the solver needs to identify compliances (module doc); ``none`` = rigid."""
+
+    mode: str = NONE
+    masses: MassModel = MassModel()
+    measuring_mode: str = MeasuringMode.PASSIVE_ACTUATOR.value
+    # Per posture of the measurement set: the released chain, 0-based (passive_actuator).
+    released: np.ndarray | None = field(default=None, compare=False)
+    # name -> (value, std) m/N: a datasheet figure weighed against the data like a device prior.
+    prior: dict[str, tuple[float, float]] = field(default_factory=dict, compare=False)
+    held: tuple[str, ...] = ()  # names held at their start (prior or zero), not identified
+
+    def __post_init__(self) -> None:
+        names = self.names
+        unknown = sorted((set(self.prior) | set(self.held)) - set(names))
+        if unknown:
+            raise ValueError(
+                f'unknown compliance(s) {unknown} for the {self.mode} choice in the '
+                f'{self.measuring_mode} mode; choose from {", ".join(names) or "none"}'
+            )
+        for name, (value, std) in self.prior.items():
+            if not (np.isfinite(value) and np.isfinite(std) and std > 0):
+                raise ValueError(f'compliance prior {name}: value and a std > 0 m/N, got '
+                                 f'{value!r} +- {std!r}')
+
+    @property
+    def active(self) -> bool:
+        return self.mode != NONE
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return compliance_names(self.mode, self.measuring_mode)
+
+    @property
+    def unknown_names(self) -> list[str]:
+        return [COMPLIANCE_PREFIX + name for name in self.names]
+
+    @property
+    def has_link(self) -> bool:
+        return LINK in self.names
+
+    def start(self) -> np.ndarray:
+        """Return the start values: the prior where given, else zero (rigid)."""
+        return np.array([self.prior.get(name, (0.0, 0.0))[0] for name in self.names])
+
+    def free(self) -> np.ndarray:
+        return np.array([name not in self.held for name in self.names], bool)
+
+    def prior_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return (indices into the compliance unknowns, values, stds) of the priors."""
+        indices = [k for k, name in enumerate(self.names) if name in self.prior]
+        values = np.array([self.prior[self.names[k]][0] for k in indices])
+        stds = np.array([self.prior[self.names[k]][1] for k in indices])
+        return np.array(indices, int), values, stds
+
+    def validate(self, cost: str, n_postures: int) -> None:
+        if not self.active:
+            return
+        if cost == 'relative':
+            raise ValueError(
+                'compliances are identified with the absolute, sphere, fixed or sphere-fixed '
+                'cost: the relative cost (eqs. 12 + 13) pairs postures whose loads differ'
+            )
+        if MeasuringMode(self.measuring_mode) == MeasuringMode.PASSIVE_ACTUATOR:
+            if self.released is None or len(self.released) != n_postures:
+                raise InvalidMeasurementError(
+                    'compliances in the passive_actuator mode need the released chain of every '
+                    f'posture ({n_postures}); the postures carry '
+                    f'{"none" if self.released is None else len(self.released)}'
+                )
+
+    def chain_values(self, values: np.ndarray) -> np.ndarray:
+        """Return the six chains' compliances (6,) from the compliance unknowns."""
+        if self.mode == SHARED:
+            return np.full(6, values[0])
+        return np.asarray(values[:6])
+
+    def link_value(self, values: np.ndarray) -> float:
+        return float(values[-1]) if self.has_link else 0.0
+
+    def loads(
+        self, params: KinematicParameters, poses: np.ndarray, used: np.ndarray
+    ) -> StaticLoads:
+        """Return the static loads at the poses of postures ``used`` (of the measurement set)."""
+        released = None if self.released is None else np.asarray(self.released)[used]
+        return static_loads(params, poses, self.masses, self.measuring_mode, released)
+
+    def corrected(
+        self,
+        measurements: Measurements,
+        loads: StaticLoads,
+        values: np.ndarray,
+        link_length: float,
+    ) -> Measurements:
+        """Return the readings at the joints and the link's loaded lengths (module doc)."""
+        actuators = measurements.actuator_positions - loads.reading_loads * self.chain_values(
+            values
+        )
+        lengths = (
+            measurements.link_lengths
+            if measurements.link_lengths is not None
+            else np.full(len(measurements), link_length)
+        )
+        if self.has_link:
+            lengths = lengths + self.link_value(values) * loads.link
+        return replace(measurements, actuator_positions=actuators, link_lengths=lengths)
+
+    def columns(self, block: ResidualBlock, loads: StaticLoads, dl_column: int) -> np.ndarray:
+        """
+        Return d rows / d compliances (rows, unknowns) of a block with noise derivatives.
+
+        ``block.noise_jacobian[:, :6]`` is d row / d reading of the row's posture (through FK)
+        and column ``dl_column`` of its Jacobian d row / d dL, which is d row / d link length
+        for every cost offered here.
+        """
+        assert block.noise_jacobian is not None and block.jacobian is not None
+        postures = block.postures
+        d_readings = -block.noise_jacobian[:, :6] * loads.reading_loads[postures]
+        if self.mode == SHARED:
+            chains = d_readings.sum(axis=1, keepdims=True)
+        else:
+            chains = d_readings
+        if not self.has_link:
+            return chains
+        link = block.jacobian[:, dl_column] * loads.link[postures]
+        return np.column_stack([chains, link])
+
+    def deflections(self, loads: StaticLoads, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return the reading shifts (N, 6) and the link's stretch (N,), m."""
+        shifts = loads.reading_loads * self.chain_values(values)
+        return shifts, self.link_value(values) * loads.link
+
+
+def simulate_loaded_measurements(
+    params: KinematicParameters,
+    poses: np.ndarray,
+    model: ComplianceModel,
+    values: np.ndarray,
+    device: DeviceModel = DeviceModel(),
+    noise: NoiseModel = NoiseModel(),
+    rng: np.random.Generator | None = None,
+    settle_iterations: int = 4,
+) -> tuple[Measurements, np.ndarray]:
+    """
+    Return what the encoders and the device read on a machine loaded by its weights, and the poses.
+
+    ``poses`` (N, 6) give the direction of the link and the orientation; the platform stands where
+    the loaded link's length puts it (P scaled to ``L + c_L T``, T at that pose, settled by a few
+    fixed-point steps).  Encoders read ``lambda_joint + c_c q_c`` (module doc), then the sensors'
+    noise is added as ``simulate_measurements`` adds it.  Sphere postures, no device defects.
+    """
+    poses = np.array(np.atleast_2d(poses), dtype=float)
+    direction = poses[:, :3] / np.linalg.norm(poses[:, :3], axis=1, keepdims=True)
+    used = np.arange(len(poses))
+    for _ in range(settle_iterations):
+        loads = model.loads(params, poses, used)
+        poses[:, :3] = direction * (device.link_length + model.link_value(values) * loads.link)[
+            :, None
+        ]
+    loads = model.loads(params, poses, used)
+    rigid = simulate_measurements(params, poses, device=device, noise=NoiseModel(), lvdt=True)
+    rng = rng if rng is not None else np.random.default_rng(0)
+    shifts, _ = model.deflections(loads, values)
+    actuators = rigid.actuator_positions + shifts
+    angles, rotary = rigid.inclinometer, rigid.rotary
+    if noise.actuator_m:
+        actuators = actuators + rng.uniform(-noise.actuator_m, noise.actuator_m, actuators.shape)
+    if noise.angle_rad:
+        angles = angles + rng.uniform(-noise.angle_rad, noise.angle_rad, angles.shape)
+        rotary = rotary + rng.uniform(-noise.angle_rad, noise.angle_rad, rotary.shape)
+    lvdt = MeasuringMode(model.measuring_mode) == MeasuringMode.LVDT
+    lengths = rigid.link_lengths if lvdt else None
+    return Measurements(actuators, angles, rotary, link_lengths=lengths), poses
+
+
+__all__ = [
+    'COMPLIANCE_MODES',
+    'COMPLIANCE_PREFIX',
+    'ComplianceModel',
+    'LINK',
+    'NONE',
+    'PER_CHAIN',
+    'SHARED',
+    'SHARED_CHAINS',
+    'compliance_names',
+    'simulate_loaded_measurements',
+]

@@ -1,0 +1,264 @@
+"""
+Static loads of the chains and of the measuring link from the weights, batched over postures.
+
+The weights a user can know (``MassModel``: gravity, the platform's and a payload's
+mass and centre of mass in the platform frame, each leg's and the link's mass with
+the fraction of the way from its base-side end to its platform-side end at which
+its centre of mass lies) load the chains and the link at every posture.  Each leg
+and the link are two-force members: their weight is lumped at their ends by
+``com_fraction`` (the platform-side share ``com_fraction * mass`` rides on the
+platform, at the leg's platform joint and at the link's platform end P; the
+base-side share is carried by the base, the rail or the slider's guides).
+
+Statics by virtual work on the pose coordinates X (any architecture): the weights'
+potential U(X) has the generalised gradient
+
+    G = dU/dX = [-M g, -E^T ((R h) x g)]
+
+(M the platform-side mass, h its first moment in the platform frame, E the
+Euler-rate axes of ``euler_rate_axes``), and the actuator thrusts tau (along
++lambda, N) and the link's tension T hold it:
+
+    J^T tau - T j_L = G,     J = d lambda / d X,  j_L = d|P| / d X = [P / |P|, 0, 0, 0]
+
+(the link runs from the device's base joint O at the base origin to the platform
+frame origin P on either mount, core/machine/device.py).  The measuring mode says who
+carries the load:
+
+* ``passive_actuator``: the five commanded chains and the link (six unknowns,
+  six equations); the released chain carries nothing.
+* ``lvdt``: the six chains; the telescopic link carries only its spring, taken
+  as zero (an LVDT's return spring is a few newtons).
+* ``compliant``: six equally stiff position loops and an axially rigid link
+  share the load by least elastic energy: tau = J dX with the platform moving
+  on the link's sphere (j_L dX = 0).  Only the weights are modelled: the force
+  of setpoints the machine cannot reach on the sphere is what the compliant
+  mode's refinement removes, not a load this model knows.
+
+Each chain's force is carried along its leg: ``r_c = |d lambda_c / d P|`` is how
+far the actuator moves per unit of leg length at a fixed pose (1 for a prismatic
+leg, 1 / |e . rail| for a slider), the leg's axial force is ``F_c = tau_c r_c``
+(signed as the thrust), and a leg of axial compliance c_c between the encoder
+and its joint centres shifts the reading by ``c_c F_c r_c`` (``reading_loads``):
+the encoder reads lambda_joint + c_c F_c r_c.  A compliance that sits along the
+actuator (a ball screw) enters the same way, referred to the leg at each posture.
+The link of axial compliance c_L is ``L + c_L T`` long (eq. 4's position).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from hexacal_msgs_py.measuring_modes import MeasuringMode
+from hexacal_msgs_py.physical_file import PhysicalDescription, read_physical_file
+import numpy as np
+
+from ..architectures import KinematicParameters
+from ..architectures.common import euler_rate_axes, rotation_from_trig
+from ..errors import InvalidMeasurementError
+
+STANDARD_GRAVITY = (0.0, 0.0, -9.80665)
+
+
+@dataclass(frozen=True)
+class MassModel:
+    """What loads the machine: gravity, masses (kg) and centres of mass (m, SI)."""
+
+    gravity: tuple[float, float, float] = STANDARD_GRAVITY  # base frame, m/s^2
+    platform_mass: float = 0.0
+    platform_com: tuple[float, float, float] = (0.0, 0.0, 0.0)  # platform frame
+    payload_mass: float = 0.0
+    payload_com: tuple[float, float, float] = (0.0, 0.0, 0.0)  # platform frame
+    leg_mass: float = 0.0  # each of the six legs
+    leg_com_fraction: float = 0.5  # from the base-side joint (0) to the platform joint (1)
+    link_mass: float = 0.0  # the measuring link
+    link_com_fraction: float = 0.5  # from O (0) to the platform end P (1)
+
+    def __post_init__(self) -> None:
+        for name in ('gravity', 'platform_com', 'payload_com'):
+            value = np.asarray(getattr(self, name), dtype=float)
+            if value.shape != (3,) or not np.all(np.isfinite(value)):
+                raise ValueError(f'{name} must be 3 finite numbers, got {getattr(self, name)!r}')
+            object.__setattr__(self, name, tuple(float(v) for v in value))
+        for name in ('platform_mass', 'payload_mass', 'leg_mass', 'link_mass'):
+            value = float(getattr(self, name))
+            if not np.isfinite(value) or value < 0:
+                raise ValueError(f'{name} must be a mass >= 0 kg, got {value!r}')
+        for name in ('leg_com_fraction', 'link_com_fraction'):
+            value = float(getattr(self, name))
+            if not 0.0 <= value <= 1.0:
+                raise ValueError(f'{name} must lie in [0, 1], got {value!r}')
+
+    def platform_side(self, params: KinematicParameters) -> tuple[float, np.ndarray]:
+        """Return the mass M (kg) the platform carries and its first moment h (kg m, platform)."""
+        legs = self.leg_com_fraction * self.leg_mass
+        link = self.link_com_fraction * self.link_mass  # at P, the platform frame origin
+        mass = self.platform_mass + self.payload_mass + 6 * legs + link
+        moment = (
+            self.platform_mass * np.asarray(self.platform_com)
+            + self.payload_mass * np.asarray(self.payload_com)
+            + legs * params.platform_points.sum(axis=0)
+        )
+        return mass, moment
+
+    @classmethod
+    def from_mapping(cls, data: dict) -> 'MassModel':
+        """
+        Read the keys of a physical description (``hexacal-physical/1``'s names).
+
+        ``gravity``, ``platform {mass, com}``, ``payload {mass, com}``, ``legs {mass,
+        com_fraction}``, ``link {mass, com_fraction}``; other keys are left to their readers.
+        """
+        if not isinstance(data, dict):
+            raise ValueError('a physical description is a mapping of sections')
+
+        def section(name: str) -> dict:
+            value = data.get(name) or {}
+            if not isinstance(value, dict):
+                raise ValueError(f'section {name!r} must be a mapping, got {value!r}')
+            return value
+
+        platform, payload = section('platform'), section('payload')
+        legs, link = section('legs'), section('link')
+        return cls(
+            gravity=tuple(data.get('gravity', STANDARD_GRAVITY)),
+            platform_mass=float(platform.get('mass', 0.0)),
+            platform_com=tuple(platform.get('com', (0.0, 0.0, 0.0))),
+            payload_mass=float(payload.get('mass', 0.0)),
+            payload_com=tuple(payload.get('com', (0.0, 0.0, 0.0))),
+            leg_mass=float(legs.get('mass', 0.0)),
+            leg_com_fraction=float(legs.get('com_fraction', 0.5)),
+            link_mass=float(link.get('mass', 0.0)),
+            link_com_fraction=float(link.get('com_fraction', 0.5)),
+        )
+
+    @classmethod
+    def from_physical(cls, physical: PhysicalDescription) -> 'MassModel':
+        """Return the masses and gravity of a physical description (the contract's reader)."""
+        return cls(
+            gravity=physical.gravity,
+            platform_mass=physical.platform_mass,
+            platform_com=physical.platform_com,
+            payload_mass=physical.payload_mass,
+            payload_com=physical.payload_com,
+            leg_mass=physical.leg_mass,
+            leg_com_fraction=physical.leg_com_fraction,
+            link_mass=physical.link_mass,
+            link_com_fraction=physical.link_com_fraction,
+        )
+
+    @classmethod
+    def load(cls, path: Path | str) -> 'MassModel':
+        """
+        Read the mass model from a physical description YAML file.
+
+        A complete ``hexacal-physical/1`` file (it names its ``model``) is read by the contract's
+        reader (hexacal_msgs_py.physical_file), so a missing key takes the model's shipped default
+        as the MuJoCo machine and the MJCF export take it; a file of the mass keys only is read
+        as ``from_mapping`` reads it (missing masses are 0).
+        """
+        import yaml
+
+        path = Path(path)
+        try:
+            data = yaml.safe_load(path.read_text())
+        except (OSError, yaml.YAMLError) as error:
+            raise ValueError(f'cannot read the physical description {path}: {error}') from error
+        if isinstance(data, dict) and 'model' in data:
+            return cls.from_physical(read_physical_file(path))
+        try:
+            return cls.from_mapping(data)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f'{path}: {error}') from error
+
+
+@dataclass
+class StaticLoads:
+    """Static loads at N postures (N, SI)."""
+
+    thrust: np.ndarray  # (N, 6) actuator thrust along +lambda holding the load
+    chains: np.ndarray  # (N, 6) axial force of each leg, signed as the thrust
+    link: np.ndarray  # (N,) tension of the measuring link
+    reading_loads: np.ndarray  # (N, 6) reading shift per unit axial compliance, N
+
+    def subset(self, index: np.ndarray) -> 'StaticLoads':
+        return StaticLoads(
+            self.thrust[index], self.chains[index], self.link[index], self.reading_loads[index]
+        )
+
+
+def weight_gradient(
+    params: KinematicParameters, poses: np.ndarray, masses: MassModel
+) -> np.ndarray:
+    """Return G = dU/dX (N, 6) of the weights the platform carries (module doc)."""
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    mass, moment = masses.platform_side(params)
+    gravity = np.asarray(masses.gravity)
+    rotation = rotation_from_trig(np.cos(poses[:, 3:6].T), np.sin(poses[:, 3:6].T))
+    arm = rotation @ moment  # (N, 3): R h
+    gradient = np.empty((len(poses), 6))
+    gradient[:, :3] = -mass * gravity
+    axes = euler_rate_axes(poses[:, 3:6])
+    gradient[:, 3:] = -np.einsum('nik,ni->nk', axes, np.cross(arm, gravity))
+    return gradient
+
+
+def static_loads(
+    params: KinematicParameters,
+    poses: np.ndarray,
+    masses: MassModel,
+    mode: MeasuringMode | str,
+    released: np.ndarray | None = None,
+) -> StaticLoads:
+    """
+    Return the static loads of the chains and the link at ``poses`` (N, 6) (module doc).
+
+    ``released`` (N,): the chain released at each posture, 0-based (passive_actuator only).
+    """
+    mode = MeasuringMode(mode)
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    n = len(poses)
+    arch = params.architecture
+    jacobian = np.array(arch.legs(arch.chains(params), poses).pose_jacobian())  # (N, 6, 6)
+    gradient = weight_gradient(params, poses, masses)
+    link_row = np.zeros((n, 6))
+    link_row[:, :3] = poses[:, :3] / np.linalg.norm(poses[:, :3], axis=1, keepdims=True)
+    rows = np.arange(n)
+    thrust = np.zeros((n, 6))
+    tension = np.zeros(n)
+    if mode == MeasuringMode.PASSIVE_ACTUATOR:
+        if released is None:
+            raise InvalidMeasurementError(
+                'the passive_actuator loads need the released chain of every posture'
+            )
+        index = np.asarray(released)
+        if index.shape != (n,) or np.any((index < 0) | (index > 5)):
+            raise InvalidMeasurementError(
+                f'released chains must be {n} chain indices 0..5, got {np.unique(index)}'
+            )
+        carriers = jacobian.copy()
+        carriers[rows, index] = -link_row  # the link takes the released chain's place
+        unknowns = np.linalg.solve(np.swapaxes(carriers, 1, 2), gradient[..., None])[..., 0]
+        tension = unknowns[rows, index]
+        thrust = unknowns
+        thrust[rows, index] = 0.0
+    elif mode == MeasuringMode.LVDT:
+        thrust = np.linalg.solve(np.swapaxes(jacobian, 1, 2), gradient[..., None])[..., 0]
+    else:
+        # Least elastic energy of equal drives on the sphere: [J^T J, -j_L^T; j_L, 0].
+        system = np.zeros((n, 7, 7))
+        system[:, :6, :6] = np.swapaxes(jacobian, 1, 2) @ jacobian
+        system[:, :6, 6] = -link_row
+        system[:, 6, :6] = link_row
+        right = np.zeros((n, 7))
+        right[:, :6] = gradient
+        solution = np.linalg.solve(system, right[..., None])[..., 0]
+        thrust = np.einsum('ncx,nx->nc', jacobian, solution[:, :6])
+        tension = solution[:, 6]
+    leg_factor = np.linalg.norm(jacobian[:, :, :3], axis=2)  # r_c = d lambda_c / d leg length
+    chains = thrust * leg_factor
+    return StaticLoads(thrust, chains, tension, chains * leg_factor)
+
+
+__all__ = ['MassModel', 'STANDARD_GRAVITY', 'StaticLoads', 'static_loads', 'weight_gradient']

@@ -1,0 +1,432 @@
+"""
+Walk a passive-actuator plan in rehearsal: the release per move and, if free, the order.
+
+`Rehearser` keeps where each rehearsed machine stands (core/modes/release_rehearsal.py) and tries a
+move to a posture: the candidates that stay inside the stroke less the margin on the nominal
+move (core/modes/release_moves.py) are rehearsed in the order of their worst nominal condition
+along it, the best ``FIRST_REHEARSED`` first; the first to close on every machine within
+``max_move_condition`` is taken, else all are rehearsed and the one that closes on most
+machines, then the best conditioned, is taken (its ``jams``: on how many it does not).
+
+`in_order` walks the postures as given.  `tour` may also choose the order within each group of
+postures (a kind and device turn: the plan's groups stay in their order): from the current
+posture the ``tries`` nearest of the group (travel distance, angles weighted by L, as the
+planner's travel order) are tried, nearest first, and the first whose move is safe (closes on
+every machine within the limit) is walked next, else the least risky of them (fewest jams, then
+the lowest worst condition).  The batched rehearser (the default) rehearses a move's
+candidates on all machines in one stacked batch (release_rehearsal.rehearse_stacked; the
+candidates ranked after the first ones, where needed, of all the moves asked at once in a second
+batch) and decides exactly as above; ``batched=False`` rehearses one machine at a time (the
+reference the tests compare it with).  Rehearsed on Table 1 with nominal set 2 (the demo),
+the order of the travel tour jams on the true machine on 1-2 of 49 moves whatever is
+released, the rehearsed tour on none.  Tries are rehearsed one after the other, not at once:
+the first is most often safe, and rows that jam would run their Newton iterations in full.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .passive_actuator import release_conditions
+from .release_moves import inside_stroke, Move, move
+from .release_rehearsal import (
+    DEFAULT_JOINT_STEP_M,
+    DEFAULT_MODEL_SAMPLES,
+    MachineStack,
+    model_error_rms_m,
+    Rehearsal,
+    RehearsalJob,
+    rehearse,
+    rehearse_stacked,
+    sampled_machines,
+    setpoint_samples,
+    stand,
+    stand_stacked,
+    Standings,
+)
+from ..architectures import KinematicParameters
+from ..machine.device import DEFAULT_MOUNT
+from ..machine.kinematics import inverse_kinematics
+
+# A move whose worst condition number on the rehearsed machines stays below this is taken
+# without rehearsing the other candidates; true-machine jams were met from a few hundred up
+# (Hexa Slide, set 2 error), the released chain's condition is 30-100 at most postures.
+DEFAULT_MAX_MOVE_CONDITION = 250.0
+FIRST_REHEARSED = 2  # candidates rehearsed before the others are tried
+DEFAULT_TOUR_TRIES = 4  # nearest postures tried for the next move of a tour
+
+
+@dataclass(frozen=True)
+class RehearsalSettings:
+    """How releases are rehearsed (release_rehearsal.py); model_error_m None: the default."""
+
+    model_samples: int = DEFAULT_MODEL_SAMPLES
+    model_error_m: float | None = None
+    max_move_condition: float = DEFAULT_MAX_MOVE_CONDITION
+    joint_step_m: float = DEFAULT_JOINT_STEP_M
+    seed: int = 0
+    tour_tries: int = DEFAULT_TOUR_TRIES
+
+
+@dataclass(frozen=True)
+class Leg:
+    """A move tried in rehearsal: the chain to release, its worst condition, jams, and after."""
+
+    move: Move
+    released: int
+    worst: float
+    jams: int
+    ends: Standings
+
+    @property
+    def risk(self) -> tuple[int, float]:
+        """Return (machines it jams on, worst condition): lower is safer."""
+        return self.jams, self.worst
+
+
+class NoRelease(Exception):
+    """No actuator stays inside its stroke (less the margin) on the nominal move."""
+
+
+class Rehearser:
+    """Where the rehearsed machines stand, and the moves tried from there (module doc)."""
+
+    def __init__(
+        self,
+        params: KinematicParameters,
+        link_length: float,
+        stroke: tuple[float, float],
+        margin_m: float,
+        step_m: float,
+        mount: str = DEFAULT_MOUNT,
+        settings: RehearsalSettings = RehearsalSettings(),
+        *,
+        batched: bool = True,
+    ):
+        error = (
+            model_error_rms_m(params) if settings.model_error_m is None
+            else settings.model_error_m
+        )
+        self.params = params
+        self.machines = sampled_machines(params, settings.model_samples, error, settings.seed)
+        self.link_length, self.stroke, self.margin_m = link_length, stroke, margin_m
+        self.step_m, self.mount, self.settings = step_m, mount, settings
+        self.standing: Standings | None = None
+        self.batched = batched
+        self.stack = MachineStack(self.machines) if batched else None
+
+    def ranked(self, nominal_move: Move) -> np.ndarray:
+        """Return each chain's worst nominal condition along the move (inf: leaves the stroke)."""
+        low, high = self.stroke
+        inside = np.all(
+            inside_stroke(nominal_move.actuators, low + self.margin_m, high - self.margin_m),
+            axis=0,
+        )
+        along = np.max(release_conditions(self.params, nominal_move.poses, self.link_length),
+                       axis=0)
+        return np.where(inside & np.isfinite(along), along, np.inf)
+
+    def try_move(
+        self, previous: np.ndarray | None, pose: np.ndarray, exclude: Sequence[int] = ()
+    ) -> Leg:
+        """Return the move to `pose` rehearsed from where the machines stand; NoRelease."""
+        if self.batched:
+            leg = self.try_moves(previous, [pose], exclude)[0]
+            if leg is None:
+                raise NoRelease()
+            return leg
+        nominal_move, standing, setpoints, ranked = self._prepare(previous, pose, exclude)
+        result = self._rehearse(standing, setpoints, ranked)
+        best = _best(result, len(self.machines), self.settings.max_move_condition)
+        chain = int(result.candidates[best])
+        ends = self._restand(result.ends[best], nominal_move, chain)
+        jams = len(self.machines) - int(result.survived[best])
+        return Leg(nominal_move, chain, float(result.worst[best]), jams, ends)
+
+    def try_moves(
+        self, previous: np.ndarray | None, poses: Sequence[np.ndarray],
+        exclude: Sequence[int] = (),
+    ) -> list[Leg | None]:
+        """Return ``try_move`` to each of `poses` (None: NoRelease), all rehearsed at once."""
+        if not self.batched:
+            return list(self.legs_to(previous, poses, exclude))
+        prepared, jobs = [], []
+        for pose in poses:
+            try:
+                nominal_move, standing, setpoints, ranked = self._prepare(previous, pose, exclude)
+            except NoRelease:
+                prepared.append(None)
+                continue
+            order = [int(c) for c in np.argsort(ranked) if np.isfinite(ranked[c])]
+            prepared.append((nominal_move, order))
+            jobs.append(RehearsalJob(standing, setpoints, np.array(order)))
+        # The best-ranked candidates first, the rest only where none of those will do (as
+        # _rehearse): every move's first ones in one batch, then every move's rest in another.
+        limit, count = self.settings.max_move_condition, len(self.machines)
+        firsts = self._stacked([RehearsalJob(job.start, job.setpoints,
+                                             job.candidates[:FIRST_REHEARSED]) for job in jobs])
+        needed = [i for i, (job, first) in enumerate(zip(jobs, firsts))
+                  if not _acceptable(first, count, limit).any()
+                  and len(job.candidates) > FIRST_REHEARSED]
+        rests = self._stacked([RehearsalJob(jobs[i].start, jobs[i].setpoints,
+                                            jobs[i].candidates[FIRST_REHEARSED:])
+                               for i in needed])
+        results = list(firsts)
+        for i, rest in zip(needed, rests):
+            first = firsts[i]
+            results[i] = Rehearsal(
+                np.concatenate([first.candidates, rest.candidates]),
+                np.concatenate([first.survived, rest.survived]),
+                np.concatenate([first.worst, rest.worst]),
+                first.ends + rest.ends,
+            )
+        results = iter(results)
+        chosen = []
+        for item in prepared:
+            if item is None:
+                chosen.append(None)
+                continue
+            nominal_move, order = item
+            result = next(results)
+            best = _best(result, count, limit)
+            chosen.append((nominal_move, result, best))
+        return self._restand_all(chosen)
+
+    def _stacked(self, jobs: list[RehearsalJob]) -> list[Rehearsal]:
+        """Return rehearse_stacked of `jobs` ([] for none)."""
+        if not jobs:
+            return []
+        return rehearse_stacked(self.stack, jobs, self.link_length, self.stroke, self.margin_m,
+                                self.mount)
+
+    def legs_to(
+        self, previous: np.ndarray | None, poses: Sequence[np.ndarray],
+        exclude: Sequence[int] = (),
+    ) -> Iterator[Leg | None]:
+        """
+        Yield ``try_move`` to each of `poses` in turn (None: NoRelease), lazily.
+
+        Lazily, not all at once: the first is most often safe, and the moves not taken are the
+        ones whose machines jam, each sample's Newton iteration then running its full count.
+        """
+        for pose in poses:
+            try:
+                yield self.try_move(previous, pose, exclude)
+            except NoRelease:
+                yield None
+
+    def _prepare(self, previous, pose, exclude):
+        """Return the nominal move, the standings, the setpoints and the ranks; NoRelease."""
+        nominal_move = move(self.params, previous, pose, self.link_length, self.stroke,
+                            self.step_m, self.mount)
+        ranked = self.ranked(nominal_move)
+        ranked[list(exclude)] = np.inf
+        if not np.any(np.isfinite(ranked)):
+            raise NoRelease()
+        standing = self.standing if previous is not None else None
+        if standing is None:  # the first posture: each machine at it with its own actuators
+            standing = Standings(
+                np.repeat(nominal_move.poses[:1], len(self.machines), axis=0),
+                np.array([inverse_kinematics(m, nominal_move.poses[:1])[0]
+                          for m in self.machines]),
+            )
+        # Where each machine stands against the nominal setpoints: its own actuators at the
+        # first posture, afterwards the released one where the link put it (the five commanded
+        # stood at their setpoints); the drive locks it there and the move fades the offset.
+        offsets = standing.actuators - nominal_move.actuators[0]
+        setpoints = setpoint_samples(offsets, nominal_move.actuators, self.settings.joint_step_m)
+        return nominal_move, standing, setpoints, ranked
+
+    def _restand_all(self, chosen) -> list[Leg | None]:
+        """Return the legs of the chosen candidates, the machines that jammed stood afresh."""
+        machine, setpoints, released, poses, owners = [], [], [], [], []
+        for i, item in enumerate(chosen):
+            if item is None:
+                continue
+            nominal_move, result, best = item
+            ends = result.ends[best]
+            for k in np.flatnonzero(~np.all(np.isfinite(ends.poses), axis=1)):
+                machine.append(k)
+                setpoints.append(nominal_move.actuators[-1])
+                released.append(int(result.candidates[best]))
+                poses.append(nominal_move.poses[-1])
+                owners.append((i, k))
+        fresh = (
+            stand_stacked(self.stack, np.array(machine), np.array(setpoints), np.array(released),
+                          np.array(poses), self.link_length, self.mount)
+            if machine else None
+        )
+        legs: list[Leg | None] = []
+        for i, item in enumerate(chosen):
+            if item is None:
+                legs.append(None)
+                continue
+            nominal_move, result, best = item
+            ends = result.ends[best]
+            rows = [r for r, (owner, _) in enumerate(owners) if owner == i]
+            if rows:
+                ends = Standings(ends.poses.copy(), ends.actuators.copy())
+                for r in rows:
+                    k = owners[r][1]
+                    ends.poses[k], ends.actuators[k] = fresh.poses[r], fresh.actuators[r]
+            jams = len(self.machines) - int(result.survived[best])
+            legs.append(Leg(nominal_move, int(result.candidates[best]), float(result.worst[best]),
+                            jams, ends))
+        return legs
+
+    def stand_at(self, actuators: np.ndarray, released: int, pose: np.ndarray) -> None:
+        """Stand every machine with `actuators` and `released` free, near `pose` (stand)."""
+        actuators = np.asarray(actuators, dtype=float)
+        pose = np.asarray(pose, dtype=float)
+        if not self.batched:
+            self.standing = stand(self.machines, actuators, released, pose, self.link_length,
+                                  self.mount)
+            return
+        count = len(self.machines)
+        self.standing = stand_stacked(
+            self.stack, np.arange(count), np.repeat(actuators[None], count, axis=0),
+            np.full(count, released), np.repeat(pose[None], count, axis=0), self.link_length,
+            self.mount,
+        )
+
+    def take(self, leg: Leg) -> None:
+        """Walk `leg`: the machines stand where it ends."""
+        self.standing = leg.ends
+
+    def safe(self, leg: Leg) -> bool:
+        """Return True when the leg closes on every machine within the condition limit."""
+        return leg.jams == 0 and leg.worst <= self.settings.max_move_condition
+
+    def _rehearse(self, standing: Standings, setpoints: np.ndarray, ranked) -> Rehearsal:
+        """Rehearse the best-ranked candidates first, the rest only if none of those will do."""
+        order = [int(c) for c in np.argsort(ranked) if np.isfinite(ranked[c])]
+
+        def run(candidates: list[int]) -> Rehearsal:
+            return rehearse(self.machines, standing, setpoints, np.array(candidates),
+                            self.link_length, self.stroke, self.margin_m, self.mount)
+
+        first = run(order[:FIRST_REHEARSED])
+        limit = self.settings.max_move_condition
+        if _acceptable(first, len(self.machines), limit).any() or len(order) <= FIRST_REHEARSED:
+            return first
+        rest = run(order[FIRST_REHEARSED:])
+        return Rehearsal(
+            np.concatenate([first.candidates, rest.candidates]),
+            np.concatenate([first.survived, rest.survived]),
+            np.concatenate([first.worst, rest.worst]),
+            first.ends + rest.ends,
+        )
+
+    def _restand(self, ends: Standings, nominal_move: Move, chain: int) -> Standings:
+        """Return the standings after a move; a machine that jammed stands afresh at the end."""
+        jammed = np.flatnonzero(~np.all(np.isfinite(ends.poses), axis=1))
+        if not jammed.size:
+            return ends
+        fresh = stand(
+            tuple(self.machines[k] for k in jammed), nominal_move.actuators[-1], chain,
+            nominal_move.poses[-1], self.link_length, self.mount,
+        )
+        poses, actuators = ends.poses.copy(), ends.actuators.copy()
+        poses[jammed], actuators[jammed] = fresh.poses, fresh.actuators
+        return Standings(poses, actuators)
+
+
+def _acceptable(result: Rehearsal, machines: int, limit: float) -> np.ndarray:
+    """Return which candidates close on every machine within the condition limit."""
+    return (result.survived == machines) & (result.worst <= limit)
+
+
+def _best(result: Rehearsal, machines: int, limit: float) -> int:
+    """Return the index of the candidate to take (module doc)."""
+    good = _acceptable(result, machines, limit)
+    if good.any():
+        return int(np.argmin(np.where(good, result.worst, np.inf)))
+    # Closes on most machines, then the best conditioned there.
+    return int(np.lexsort((result.worst, -result.survived))[0])
+
+
+class Stuck(Exception):
+    """No actuator can be released on the move to posture ``posture`` (plan index)."""
+
+    def __init__(self, posture: int):
+        super().__init__(posture)
+        self.posture = posture
+
+
+def in_order(
+    rehearser: Rehearser, poses: np.ndarray, start: np.ndarray | None = None
+) -> list[Leg]:
+    """Return the legs of the postures walked in the given order (Stuck: one has no release)."""
+    legs = []
+    previous = start
+    for i, pose in enumerate(poses):
+        try:
+            leg = rehearser.try_move(previous, pose)
+        except NoRelease:
+            raise Stuck(i) from None
+        rehearser.take(leg)
+        legs.append(leg)
+        previous = pose
+    return legs
+
+
+def tour(
+    rehearser: Rehearser, poses: np.ndarray, groups: np.ndarray
+) -> tuple[np.ndarray, list[Leg]]:
+    """Return the plan indices in walking order and their legs, rehearsed (module doc)."""
+    groups = np.asarray(groups)
+    weighted = np.column_stack([poses[:, :3], poses[:, 3:6] * rehearser.link_length])
+    try:
+        first = rehearser.try_move(None, poses[0])
+    except NoRelease:
+        raise Stuck(0) from None
+    rehearser.take(first)
+    order, legs = [0], [first]
+    remaining = list(range(1, len(poses)))
+    while remaining:
+        current = order[-1]
+        pool = [j for j in remaining if groups[j] == groups[current]]
+        if not pool:  # the next group of the plan, in its order
+            pool = [j for j in remaining if groups[j] == groups[remaining[0]]]
+        distance = np.linalg.norm(weighted[pool] - weighted[current], axis=1)
+        nearest = [pool[k] for k in np.argsort(distance, kind='stable')]
+        chosen = _next(rehearser, poses, current, nearest[: max(1, rehearser.settings.tour_tries)])
+        if chosen is None:
+            raise Stuck(nearest[0])
+        index, leg = chosen
+        rehearser.take(leg)
+        order.append(index)
+        legs.append(leg)
+        remaining.remove(index)
+    return np.array(order, dtype=int), legs
+
+
+def _next(rehearser, poses, current, candidates) -> tuple[int, Leg] | None:
+    """Return the first safe move among the candidates, else the least risky (None: none)."""
+    best: tuple[int, Leg] | None = None
+    tried = rehearser.legs_to(poses[current], [poses[index] for index in candidates])
+    for index, leg in zip(candidates, tried):
+        if leg is None:
+            continue
+        if rehearser.safe(leg):
+            return index, leg
+        if best is None or leg.risk < best[1].risk:
+            best = (index, leg)
+    return best
+
+
+__all__ = [
+    'DEFAULT_MAX_MOVE_CONDITION',
+    'DEFAULT_TOUR_TRIES',
+    'FIRST_REHEARSED',
+    'Leg',
+    'NoRelease',
+    'Rehearser',
+    'RehearsalSettings',
+    'Stuck',
+    'in_order',
+    'tour',
+]

@@ -1,0 +1,715 @@
+"""
+Rehearse a passive-actuator move on machines that differ from the nominal.
+
+With one actuator released, the five commanded ones and the link decide where the platform
+goes, and on the true machine that is not where the nominal model says: millimetres of model
+error move the platform by centimetres on a Hexa Slide, and a move that is well conditioned on
+the nominal can pass a singularity of the passive system on the true machine, where the five
+commanded chains and the link jam (the drive faults).  A release is therefore judged on
+machines whose geometry departs from the nominal as a machine built to its drawing does: the
+nominal plus ``count`` draws of independent normal errors of ``error_m`` RMS on every parameter
+(by default the architecture's Table 2 set 2 RMS, 1.45 mm on both shipped models; rail-direction
+components 1.45e-3).  Each machine walks the move the way the drive does: from its standing at
+the previous posture (the actuator released there locked where the link put it), the commanded
+setpoints carry that offset to zero along the move (as the executor commands a move,
+core/walk/platform_paths.py), sampled at most ``step_m`` apart in joint space, each sample solved
+from the previous pose (``passive_actuator.solve_passive``: continuation on the machine's branch).
+A candidate survives on a machine if every sample closes and its released actuator stays inside
+the stroke less the margin; its score is the worst condition number of the passive system met
+on the way, over all machines.
+
+``rehearse`` walks one move's candidates machine by machine (the reference); ``rehearse_stacked``
+walks many moves, all their candidates and all machines in one Newton iteration over a stacked
+batch (``MachineStack``: each machine's per-chain constants computed once), with the same
+arithmetic row by row, so the same closures and decisions, in a fraction of the calls.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from .passive_actuator import (
+    _check_branch,
+    _solve,
+    MAX_HALVINGS,
+    MAX_STALLS,
+    release_conditions,
+    solve_passive,
+)
+from ..architectures import KinematicParameters
+from ..machine.device import DEFAULT_MOUNT
+from ..machine.kinematics import inverse_kinematics
+
+DEFAULT_MODEL_SAMPLES = 8  # machines besides the nominal a release is rehearsed on
+DEFAULT_JOINT_STEP_M = 0.01  # a continuation step that follows the branch; the drive's is 5 mm
+# Closing to 1 nm is plenty to follow a branch (the driver closes to 1e-12 m): fewer iterations.
+REHEARSAL_TOLERANCE_M = 1e-9
+NOMINAL_ERROR_SET = 2  # Table 2's set of a machine built to its drawing
+
+
+def model_error_rms_m(nominal: KinematicParameters) -> float:
+    """Return the default RMS parameter error (m) of the nominal's architecture (module doc)."""
+    stats = nominal.architecture.nominal_error_stats_mm
+    return float(stats[NOMINAL_ERROR_SET][2]) * 1e-3
+
+
+def sampled_machines(
+    nominal: KinematicParameters, count: int, error_m: float, seed: int = 0
+) -> tuple[KinematicParameters, ...]:
+    """Return the nominal and `count` machines with normal parameter errors of RMS `error_m`."""
+    rng = np.random.default_rng([seed, 18])
+    base = nominal.vector
+    drawn = tuple(
+        nominal.with_vector(base + rng.normal(0.0, error_m, len(base))) for _ in range(count)
+    )
+    return (nominal, *drawn)
+
+
+@dataclass
+class Standings:
+    """Where each machine stands (K machines): poses (K, 6) and actuators (K, 6)."""
+
+    poses: np.ndarray
+    actuators: np.ndarray
+
+
+@dataclass(frozen=True)
+class Rehearsal:
+    """
+    A move rehearsed for candidate releases on K machines.
+
+    ``survived`` (C,) on how many machines each candidate closes all along and stays inside
+    its stroke; ``worst`` (C,) the worst condition number met on the machines it survived on
+    (inf if none);
+    ``ends`` the standings after the move per candidate (a machine that jammed: NaN rows).
+    """
+
+    candidates: np.ndarray
+    survived: np.ndarray
+    worst: np.ndarray
+    ends: tuple[Standings, ...]
+
+
+def stand(
+    machines: tuple[KinematicParameters, ...],
+    setpoints: np.ndarray,
+    released: int,
+    pose: np.ndarray,
+    link_length: float,
+    mount: str = DEFAULT_MOUNT,
+) -> Standings:
+    """Return each machine standing with `setpoints` and `released` free, near `pose`."""
+    poses, actuators = [], []
+    for machine in machines:
+        solved = solve_passive(machine, setpoints[None], released, pose[None], link_length, mount)
+        if bool(solved.converged[0]):
+            poses.append(solved.poses[0])
+            actuators.append(solved.actuators[0])
+        else:  # it cannot stand there: rehearse it from the posture as planned
+            poses.append(np.asarray(pose, dtype=float))
+            actuators.append(inverse_kinematics(machine, pose[None])[0])
+    return Standings(np.array(poses), np.array(actuators))
+
+
+def setpoint_samples(offsets: np.ndarray, model_path: np.ndarray, step_m: float) -> np.ndarray:
+    """
+    Return the setpoints (S, K, 6) of K machines along `model_path` (M, 6), offsets fading.
+
+    Machine k starts at model_path[0] + offsets[k] and ends at model_path[-1]; samples at most
+    `step_m` apart along the path (max-norm), the offset carried to zero with the path
+    fraction.
+    """
+    lengths = np.max(np.abs(np.diff(model_path, axis=0)), axis=1)
+    total = float(np.sum(lengths))
+    count = max(1, math.ceil(max(total, float(np.max(np.abs(offsets)))) / step_m))
+    fractions = np.arange(1, count + 1) / count
+    if total > 0:
+        along = np.concatenate([[0.0], np.cumsum(lengths)]) / total
+        points = np.column_stack(
+            [np.interp(fractions, along, model_path[:, c]) for c in range(6)]
+        )
+    else:
+        points = np.repeat(model_path[-1:], count, axis=0)
+    return points[:, None, :] + (1.0 - fractions)[:, None, None] * offsets[None]
+
+
+def rehearse(
+    machines: tuple[KinematicParameters, ...],
+    start: Standings,
+    setpoints: np.ndarray,
+    candidates: np.ndarray,
+    link_length: float,
+    stroke: tuple[float, float],
+    margin_m: float,
+    mount: str = DEFAULT_MOUNT,
+) -> Rehearsal:
+    """Rehearse releasing each candidate along `setpoints` (S, K, 6) on every machine."""
+    candidates = np.asarray(candidates, dtype=int)
+    count, machine_count = len(candidates), len(machines)
+    poses = np.repeat(start.poses[None], count, axis=0)  # (C, K, 6)
+    actuators = np.repeat(start.actuators[None], count, axis=0)
+    alive = np.ones((count, machine_count), bool)
+    worst = np.zeros((count, machine_count))
+    low, high = stroke[0] + margin_m, stroke[1] - margin_m
+    for sample in setpoints:
+        for k, machine in enumerate(machines):
+            rows = np.flatnonzero(alive[:, k])
+            if not rows.size:
+                continue
+            released = candidates[rows]
+            solved = solve_passive(
+                machine, np.repeat(sample[k][None], len(rows), axis=0), released,
+                poses[rows, k], link_length, mount, tolerance=REHEARSAL_TOLERANCE_M,
+            )
+            ok = solved.converged
+            alive[rows[~ok], k] = False
+            rows, released = rows[ok], released[ok]
+            poses[rows, k] = solved.poses[ok]
+            actuators[rows, k] = solved.actuators[ok]
+            position = actuators[rows, k, released]
+            alive[rows, k] &= (position >= low) & (position <= high)
+            conditions = release_conditions(machine, poses[rows, k], link_length)
+            picked = conditions[np.arange(len(rows)), released]
+            worst[rows, k] = np.maximum(worst[rows, k], picked)
+    poses[~alive] = np.nan
+    actuators[~alive] = np.nan
+    return Rehearsal(
+        candidates,
+        np.sum(alive, axis=1),
+        _worst_alive(worst, alive),
+        tuple(Standings(poses[c], actuators[c]) for c in range(count)),
+    )
+
+
+class MachineStack:
+    """
+    Machines of one architecture, their per-chain constants computed once, IK stacked.
+
+    The architectures keep a chain's constants and IK intermediates on the last axis
+    (coordinate-major (3, 6) and (3, N, 6) arrays, architectures/common.py), so the constants of
+    K machines side by side ((3, 6K): 6K chains) give in one ``legs`` call every row's IK on
+    every machine, and each row keeps its own machine's six columns.  That is K times the
+    arithmetic of the rows but one call instead of K: the rehearsal's batches are small, and the
+    per-call overhead is what costs.  Checked against the per-machine IK when built; an
+    architecture whose IK is not laid out so is evaluated machine by machine.
+    """
+
+    def __init__(self, machines: tuple[KinematicParameters, ...]):
+        self.machines = tuple(machines)
+        self.architecture = self.machines[0].architecture
+        self.chains = [self.architecture.chains(machine) for machine in self.machines]
+        self.wide = _side_by_side(self.chains) if len(self.machines) > 1 else None
+        if self.wide is not None and not self._wide_agrees():
+            self.wide = None
+
+    def evaluate(
+        self, machine: np.ndarray, poses: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return IK (N, 6), d lambda / d X (N, 6, 6) and reachable (N,) of row i on machine[i]."""
+        if machine.size and machine.min() == machine.max():
+            legs = self.architecture.legs(self.chains[machine[0]], poses)
+            return legs.actuators, legs.pose_jacobian(), legs.reachable()
+        present = np.unique(machine)
+        if present.size == 1:
+            legs = self.architecture.legs(self.chains[present[0]], poses)
+            return legs.actuators, legs.pose_jacobian(), legs.reachable()
+        if self.wide is not None:
+            legs = _own_columns(self.architecture.legs(self.wide, poses), machine,
+                                len(self.machines))
+            if legs is not None:
+                return legs.actuators, legs.pose_jacobian(), legs.reachable()
+        return self._one_by_one(machine, poses, present)
+
+    def _one_by_one(self, machine, poses, present):
+        n = len(poses)
+        actuators, jacobian = np.empty((n, 6)), np.empty((n, 6, 6))
+        reachable = np.empty(n, bool)
+        for k in present:
+            rows = machine == k
+            legs = self.architecture.legs(self.chains[k], poses[rows])
+            actuators[rows] = legs.actuators
+            jacobian[rows] = legs.pose_jacobian()
+            reachable[rows] = legs.reachable()
+        return actuators, jacobian, reachable
+
+    def _wide_agrees(self) -> bool:
+        """Return True when the side-by-side IK equals each machine's own (a few poses)."""
+        count = len(self.machines)
+        machine = np.arange(2 * count) % count
+        rng = np.random.default_rng(0)
+        poses = np.column_stack([rng.uniform(-0.2, 0.2, (2 * count, 3)) + [0, 0, -0.75],
+                                 rng.uniform(-0.2, 0.2, (2 * count, 3))])
+        try:
+            with np.errstate(all='ignore'):
+                legs = _own_columns(self.architecture.legs(self.wide, poses), machine, count)
+                if legs is None:
+                    return False
+                wide = (legs.actuators, legs.pose_jacobian(), legs.reachable())
+                own = self._one_by_one(machine, poses, np.arange(count))
+            return all(np.allclose(a, b, rtol=1e-12, atol=1e-15, equal_nan=True)
+                       for a, b in zip(wide, own))
+        except (AttributeError, IndexError, TypeError, ValueError):
+            return False
+
+
+def _slots(value) -> tuple[str, ...] | None:
+    slots = getattr(type(value), '__slots__', None)
+    return (slots,) if isinstance(slots, str) else (tuple(slots) if slots else None)
+
+
+def _side_by_side(chains: list):
+    """Return the machines' per-chain constants side by side (6K chains); None: not arrays."""
+    first = chains[0]
+    names = _slots(first)
+    if names is None:
+        return None
+    wide = object.__new__(type(first))
+    for name in names:
+        values = [getattr(c, name) for c in chains]
+        if not all(isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[-1] == 6
+                   for v in values):
+            return None
+        setattr(wide, name, np.concatenate(values, axis=-1))
+    return wide
+
+
+def _own_columns(legs, machine: np.ndarray, count: int):
+    """Return the legs of row i on machine[i] from the side-by-side IK; None: not laid out so."""
+    names = _slots(legs)
+    if names is None:
+        return None
+    n = len(machine)
+    rows = np.arange(n)[:, None]
+    columns = machine[:, None] * 6 + np.arange(6)
+    own = object.__new__(type(legs))
+    for name in names:
+        value = getattr(legs, name)
+        side_by_side = isinstance(value, np.ndarray) and value.ndim >= 2
+        if side_by_side and value.shape[-2:] == (n, 6 * count):
+            value = value[..., rows, columns]
+        setattr(own, name, value)
+    return own
+
+
+@dataclass
+class StackedSolution:
+    """``solve_stacked``'s closures: poses and IK (NaN where failed), converged, d lambda / d X."""
+
+    poses: np.ndarray
+    actuators: np.ndarray
+    converged: np.ndarray
+    jacobian: np.ndarray
+    reachable: np.ndarray
+
+
+def _radius(poses: np.ndarray) -> np.ndarray:
+    """Return |P| per pose: np.linalg.norm's arithmetic without its per-call checks."""
+    position = poses[:, :3]
+    return np.sqrt(np.add.reduce(position * position, axis=1))
+
+
+def _passive_residual(actuators, reachable, poses, used, released, link_length):
+    """Return passive_system's residuals (N, 6) and |P| from IK already evaluated at `poses`."""
+    rows = np.arange(len(poses))
+    radius = _radius(poses)
+    with np.errstate(invalid='ignore'):
+        residual = actuators - used
+    residual[rows, released] = radius - link_length
+    residual[~(reachable & (radius > 0))] = np.inf
+    return residual, radius
+
+
+def _passive_jacobian(jacobian, poses, radius, released):
+    """Return passive_system's Jacobian: row `released` replaced by the sphere's gradient."""
+    n = len(poses)
+    system = jacobian.copy()
+    sphere = np.zeros((n, 6))
+    with np.errstate(divide='ignore', invalid='ignore'):
+        sphere[:, :3] = poses[:, :3] / radius[:, None]
+    system[np.arange(n), released] = sphere
+    return system
+
+
+# solve_passive's defaults, as the reference rehearsal calls it.
+MAX_ITERATIONS = 30
+BRANCH_TOLERANCE_M = 0.05
+BRANCH_TOLERANCE_RAD = 0.35
+# The scales of solve_passive's step halvings after the full step: exact powers of two.
+_HALVINGS = 0.5 ** np.arange(1, MAX_HALVINGS + 1)
+
+
+def solve_stacked(
+    stack: MachineStack,
+    machine: np.ndarray,
+    commanded: np.ndarray,
+    released: np.ndarray,
+    start: np.ndarray,
+    link_length: float,
+    mount: str = DEFAULT_MOUNT,
+    *,
+    tolerance: float = 1e-12,
+    max_iterations: int = 30,
+    branch_tolerance_m: float = 0.05,
+    branch_tolerance_rad: float = 0.35,
+) -> StackedSolution:
+    """
+    Solve the passive system of row i on machine[i]: ``solve_passive`` over a stacked batch.
+
+    The same Newton iteration, step halving and branch check as ``solve_passive``, row by row:
+    the same poses.  The IK evaluated at a pose is kept for the next step (and the pose
+    Jacobian of the solution returned, for its condition number); where the full step does not
+    reduce the residual, every halving of it is evaluated at once and the first that does is
+    taken (solve_passive evaluates them in turn until one does: the same one).
+    """
+    n = len(start)
+    rows = np.arange(n)
+    machine = np.asarray(machine, dtype=int)
+    released = np.asarray(released, dtype=int)
+    used = np.array(commanded, dtype=float)
+    used[rows, released] = 0.0
+    poses = np.array(start, dtype=float)
+    finite = np.all(np.isfinite(used), axis=1) & np.all(np.isfinite(poses), axis=1)
+    actuators = np.full((n, 6), np.nan)
+    jacobian = np.full((n, 6, 6), np.nan)
+    reachable = np.zeros(n, bool)
+    residual = np.full((n, 6), np.nan)
+    radius = np.full(n, np.nan)
+    error = np.full(n, np.inf)
+
+    def evaluate(where: np.ndarray, at: np.ndarray):
+        """Return the IK, residuals, |P| and errors of rows `where` at poses `at`."""
+        ik, pose_jacobian, ok = stack.evaluate(machine[where], at)
+        res, rad = _passive_residual(ik, ok, at, used[where], released[where], link_length)
+        return (ik, pose_jacobian, ok, res, rad), np.max(np.abs(res), axis=1)
+
+    def keep(where: np.ndarray, values) -> None:
+        actuators[where], jacobian[where], reachable[where], residual[where], radius[where] = (
+            values
+        )
+
+    active = np.flatnonzero(finite)
+    if active.size:
+        values, error[active] = evaluate(active, poses[active])
+        keep(active, values)
+    stalls = np.zeros(n, int)
+    for _ in range(max_iterations):
+        active = active[(error[active] >= tolerance) & (stalls[active] < MAX_STALLS)]
+        if not active.size:
+            break
+        system = _passive_jacobian(jacobian[active], poses[active], radius[active],
+                                   released[active])
+        step, solvable = _solve(system, residual[active])
+        stalls[active[~solvable]] = MAX_STALLS
+        active, step = active[solvable], step[solvable]
+        if not active.size:
+            continue
+        base, current = poses[active], error[active]
+        trial = base - step
+        values, trial_error = evaluate(active, trial)
+        worse = np.flatnonzero(~(trial_error < current))
+        if worse.size:
+            halved = (base[worse][:, None, :]
+                      - _HALVINGS[None, :, None] * step[worse][:, None, :]).reshape(-1, 6)
+            count = len(_HALVINGS)
+            halved_values, halved_error = evaluate(np.repeat(active[worse], count), halved)
+            halved_error = halved_error.reshape(-1, count)
+            improves = halved_error < current[worse][:, None]
+            # The first halving that reduces the residual, else the last (not taken).
+            first = np.where(np.any(improves, axis=1), np.argmax(improves, axis=1), count - 1)
+            picked = np.arange(len(worse)) * count + first
+            trial[worse] = halved[picked]
+            trial_error[worse] = halved_error[np.arange(len(worse)), first]
+            values = tuple(v.copy() for v in values)
+            for value, halved_value in zip(values, halved_values):
+                value[worse] = halved_value[picked]
+        better = trial_error < current
+        taken = active[better]
+        poses[taken] = trial[better]
+        error[taken] = trial_error[better]
+        keep(taken, tuple(v[better] for v in values))
+        stalls[active[~better]] += 1
+    converged = finite & (error < tolerance)
+    _check_branch(poses, start, converged, {}, mount, branch_tolerance_m, branch_tolerance_rad)
+    poses[~converged] = np.nan
+    actuators[~converged] = np.nan
+    return StackedSolution(poses, actuators, converged, jacobian, reachable)
+
+
+def released_condition(
+    jacobian: np.ndarray,
+    reachable: np.ndarray,
+    poses: np.ndarray,
+    released: np.ndarray,
+    link_length: float,
+) -> np.ndarray:
+    """Return ``release_conditions`` of the released chain only (N,), from d lambda / d X."""
+    n = len(poses)
+    system = jacobian.copy()
+    system[:, :, 3:] /= link_length
+    radius = _radius(poses)
+    sphere = np.zeros((n, 6))
+    sphere[:, :3] = poses[:, :3] / np.where(radius > 0, radius, np.nan)[:, None]
+    system[np.arange(n), released] = sphere
+    ok = reachable & (radius > 0)
+    conditions = np.full(n, np.inf)
+    if np.any(ok):
+        conditions[ok] = np.linalg.cond(system[ok])
+    return conditions
+
+
+def stand_stacked(
+    stack: MachineStack,
+    machine: np.ndarray,
+    setpoints: np.ndarray,
+    released: np.ndarray,
+    poses: np.ndarray,
+    link_length: float,
+    mount: str = DEFAULT_MOUNT,
+) -> Standings:
+    """Return ``stand`` of row i: machine[i] with setpoints[i], released[i] free, near poses[i]."""
+    machine = np.asarray(machine, dtype=int)
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    solved = solve_stacked(stack, machine, np.atleast_2d(setpoints), np.asarray(released, int),
+                           poses, link_length, mount)
+    out_poses, out_actuators = solved.poses.copy(), solved.actuators.copy()
+    for i in np.flatnonzero(~solved.converged):  # it cannot stand there: from the posture
+        out_poses[i] = poses[i]
+        out_actuators[i] = inverse_kinematics(stack.machines[machine[i]], poses[i][None])[0]
+    return Standings(out_poses, out_actuators)
+
+
+@dataclass(frozen=True)
+class RehearsalJob:
+    """One move to rehearse: where the K machines stand, setpoints (S, K, 6), candidates (C,)."""
+
+    start: Standings
+    setpoints: np.ndarray
+    candidates: np.ndarray
+
+
+def rehearse_stacked(
+    stack: MachineStack,
+    jobs: list[RehearsalJob],
+    link_length: float,
+    stroke: tuple[float, float],
+    margin_m: float,
+    mount: str = DEFAULT_MOUNT,
+) -> list[Rehearsal]:
+    """Return ``rehearse`` of each job, every job, candidate and machine in one stacked batch."""
+    machine_count = len(stack.machines)
+    job_of, candidate_of, machine_of, counts, starts, starts_act = [], [], [], [], [], []
+    for j, job in enumerate(jobs):
+        candidates = np.asarray(job.candidates, dtype=int)
+        c_index, k_index = np.meshgrid(np.arange(len(candidates)), np.arange(machine_count),
+                                       indexing='ij')
+        job_of.append(np.full(c_index.size, j))
+        candidate_of.append(candidates[c_index.ravel()])
+        machine_of.append(k_index.ravel())
+        counts.append(np.full(c_index.size, len(job.setpoints)))
+        starts.append(job.start.poses[k_index.ravel()])
+        starts_act.append(job.start.actuators[k_index.ravel()])
+    job_of, released = np.concatenate(job_of), np.concatenate(candidate_of)
+    machine, counts = np.concatenate(machine_of), np.concatenate(counts)
+    poses, actuators = np.concatenate(starts), np.concatenate(starts_act)
+    total = len(job_of)
+    setpoints = np.full((int(np.max(counts)), total, 6), np.nan)
+    for j, job in enumerate(jobs):
+        rows = np.flatnonzero(job_of == j)
+        setpoints[: len(job.setpoints), rows] = job.setpoints[:, machine[rows]]
+    low, high = stroke[0] + margin_m, stroke[1] - margin_m
+    walk = _Continuation(stack, machine, released, setpoints, counts, poses, link_length, mount)
+    alive, worst = walk.run(low, high)
+    poses, actuators = walk.poses, walk.actuators
+    poses[~alive] = np.nan
+    actuators[~alive] = np.nan
+    results = []
+    for j, job in enumerate(jobs):
+        rows = np.flatnonzero(job_of == j)
+        count = len(job.candidates)
+        shape = (count, machine_count)
+        job_alive = alive[rows].reshape(shape)
+        job_poses = poses[rows].reshape(shape + (6,))
+        job_actuators = actuators[rows].reshape(shape + (6,))
+        results.append(Rehearsal(
+            np.asarray(job.candidates, dtype=int),
+            np.sum(job_alive, axis=1),
+            _worst_alive(worst[rows].reshape(shape), job_alive),
+            tuple(Standings(job_poses[c], job_actuators[c]) for c in range(count)),
+        ))
+    return results
+
+
+class _Continuation:
+    """
+    Rows (a candidate on a machine) each walking its own setpoint samples, asynchronously.
+
+    Each row's arithmetic is solve_passive's on its samples in turn, as in ``rehearse``, but a
+    row that has settled a sample goes on to its next while others still iterate: one batched
+    Newton step per pass over every row still walking, so a row slow to close (near a fold, or
+    jamming) delays no other.  The IK at a row's pose is kept: a new sample's first residual
+    needs no evaluation.
+    """
+
+    def __init__(self, stack, machine, released, setpoints, counts, poses, link_length, mount):
+        n = len(machine)
+        self.stack, self.machine, self.released = stack, machine, released
+        self.setpoints, self.counts, self.link_length, self.mount = (
+            setpoints, counts, link_length, mount
+        )
+        self.poses = np.array(poses, dtype=float)
+        self.actuators = np.full((n, 6), np.nan)
+        self.sample = np.zeros(n, int)
+        self.used = np.full((n, 6), np.nan)
+        self.begun = self.poses.copy()  # the pose each row's current sample started from
+        self.error = np.full(n, np.inf)
+        self.stalls = np.zeros(n, int)
+        self.iterations = np.zeros(n, int)
+        self.ik = np.full((n, 6), np.nan)
+        self.jacobian = np.full((n, 6, 6), np.nan)
+        self.reachable = np.zeros(n, bool)
+        self.residual = np.full((n, 6), np.nan)
+        self.radius = np.full(n, np.nan)
+        # Each settled sample's Jacobian, kept for the condition numbers computed at the end.
+        self.settled: list[tuple[np.ndarray, ...]] = []
+
+    def _evaluate(self, where: np.ndarray, at: np.ndarray):
+        ik, pose_jacobian, ok = self.stack.evaluate(self.machine[where], at)
+        res, rad = _passive_residual(ik, ok, at, self.used[where], self.released[where],
+                                     self.link_length)
+        return (ik, pose_jacobian, ok, res, rad), np.max(np.abs(res), axis=1)
+
+    def _keep(self, where: np.ndarray, values) -> None:
+        self.ik[where], self.jacobian[where], self.reachable[where] = values[:3]
+        self.residual[where], self.radius[where] = values[3:]
+
+    def _begin(self, which: np.ndarray) -> None:
+        """Start each row's current sample from where it stands (solve_passive's start)."""
+        used = self.setpoints[self.sample[which], which]
+        used[np.arange(len(which)), self.released[which]] = 0.0
+        self.used[which] = used
+        finite = np.all(np.isfinite(used), axis=1) & np.all(np.isfinite(self.poses[which]),
+                                                            axis=1)
+        residual, radius = _passive_residual(
+            self.ik[which], self.reachable[which], self.poses[which], used,
+            self.released[which], self.link_length,
+        )
+        self.residual[which], self.radius[which] = residual, radius
+        self.error[which] = np.where(finite, np.max(np.abs(residual), axis=1), np.inf)
+        self.stalls[which] = np.where(finite, 0, MAX_STALLS)
+        self.iterations[which] = 0
+        self.begun[which] = self.poses[which]
+
+    def run(self, low: float, high: float) -> tuple[np.ndarray, np.ndarray]:
+        """Walk every row through its samples; return alive (N,) and the worst condition."""
+        n = len(self.machine)
+        rows = np.arange(n)
+        alive, worst = np.ones(n, bool), np.zeros(n)
+        finite = np.all(np.isfinite(self.poses), axis=1)
+        if np.any(finite):
+            values, _ = self._evaluate(rows[finite], self.poses[finite])
+            self._keep(rows[finite], values)
+        self._begin(rows)
+        tolerance = REHEARSAL_TOLERANCE_M
+        while True:
+            live = rows[alive & (self.sample < self.counts)]
+            if not live.size:
+                break
+            settled = ((self.error[live] < tolerance) | (self.stalls[live] >= MAX_STALLS)
+                       | (self.iterations[live] >= MAX_ITERATIONS))
+            if np.any(settled):
+                self._settle(live[settled], alive, worst, low, high)
+                live = rows[alive & (self.sample < self.counts)]
+                live = live[(self.error[live] >= tolerance) & (self.stalls[live] < MAX_STALLS)
+                            & (self.iterations[live] < MAX_ITERATIONS)]
+            if live.size:
+                self._step(live)
+        if self.settled:  # the worst condition met on the way, all samples at once
+            which, jacobian, reachable, poses = (np.concatenate(part)
+                                                 for part in zip(*self.settled))
+            picked = released_condition(jacobian, reachable, poses, self.released[which],
+                                        self.link_length)
+            np.maximum.at(worst, which, picked)
+        self.poses[~alive] = np.nan
+        self.actuators[~alive] = np.nan
+        return alive, worst
+
+    def _settle(self, which, alive, worst, low, high) -> None:
+        """End each row's sample: closed on its branch and inside the stroke, or dead."""
+        converged = self.error[which] < REHEARSAL_TOLERANCE_M
+        _check_branch(self.poses[which], self.begun[which], converged, {}, self.mount,
+                      BRANCH_TOLERANCE_M, BRANCH_TOLERANCE_RAD)
+        alive[which[~converged]] = False
+        ok = which[converged]
+        self.actuators[ok] = self.ik[ok]
+        position = self.ik[ok, self.released[ok]]
+        alive[ok] &= (position >= low) & (position <= high)
+        self.settled.append((ok, self.jacobian[ok], self.reachable[ok], self.poses[ok]))
+        self.sample[ok] += 1
+        going = ok[alive[ok] & (self.sample[ok] < self.counts[ok])]
+        if going.size:
+            self._begin(going)
+
+    def _step(self, active: np.ndarray) -> None:
+        """One Newton step with solve_passive's halving on each row of `active`."""
+        self.iterations[active] += 1
+        system = _passive_jacobian(self.jacobian[active], self.poses[active],
+                                   self.radius[active], self.released[active])
+        step, solvable = _solve(system, self.residual[active])
+        self.stalls[active[~solvable]] = MAX_STALLS
+        active, step = active[solvable], step[solvable]
+        if not active.size:
+            return
+        base, current = self.poses[active], self.error[active]
+        trial = base - step
+        values, trial_error = self._evaluate(active, trial)
+        worse = np.flatnonzero(~(trial_error < current))
+        if worse.size:
+            count = len(_HALVINGS)
+            halved = (base[worse][:, None, :]
+                      - _HALVINGS[None, :, None] * step[worse][:, None, :]).reshape(-1, 6)
+            halved_values, halved_error = self._evaluate(np.repeat(active[worse], count), halved)
+            halved_error = halved_error.reshape(-1, count)
+            improves = halved_error < current[worse][:, None]
+            first = np.where(np.any(improves, axis=1), np.argmax(improves, axis=1), count - 1)
+            picked = np.arange(len(worse)) * count + first
+            trial[worse] = halved[picked]
+            trial_error[worse] = halved_error[np.arange(len(worse)), first]
+            values = tuple(v.copy() for v in values)
+            for value, halved_value in zip(values, halved_values):
+                value[worse] = halved_value[picked]
+        better = trial_error < current
+        taken = active[better]
+        self.poses[taken] = trial[better]
+        self.error[taken] = trial_error[better]
+        self._keep(taken, tuple(v[better] for v in values))
+        self.stalls[active[~better]] += 1
+
+
+def _worst_alive(worst: np.ndarray, alive: np.ndarray) -> np.ndarray:
+    """Return the worst condition over the machines each candidate survived on (inf: none)."""
+    masked = np.where(alive, worst, -np.inf)
+    best = np.max(masked, axis=1)
+    return np.where(np.any(alive, axis=1), best, np.inf)
+
+
+__all__ = [
+    'DEFAULT_JOINT_STEP_M',
+    'DEFAULT_MODEL_SAMPLES',
+    'MachineStack',
+    'Rehearsal',
+    'RehearsalJob',
+    'StackedSolution',
+    'Standings',
+    'model_error_rms_m',
+    'rehearse',
+    'rehearse_stacked',
+    'released_condition',
+    'sampled_machines',
+    'setpoint_samples',
+    'solve_stacked',
+    'stand',
+    'stand_stacked',
+]

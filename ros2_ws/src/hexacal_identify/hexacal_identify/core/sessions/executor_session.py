@@ -1,0 +1,454 @@
+"""
+What the executor node decides besides the walk itself (ROS-free).
+
+* `setup_walk`: the walk its parameters, nominal machine and plan describe:
+  joints, stroke, settings, the plan checked before anything moves (refused:
+  state REFUSED, nothing is ever commanded), the `PlanExecution`.
+* `ExecutorStatus`: the fields, level and text of the executor's status
+  (``hexacal/calibration_status``, status name 'hexacal executor'): the walk's
+  progress, the plan, the refusal, what the start waits for, the calibration
+  call, the device_turn requests; when it is due (at every change, and at
+  least every ``STATUS_PERIOD_S`` for the ETA).
+* `CalibrationCall`: ``calibrate_when_done``, the call of hexacal/calibrate
+  once the plan is done.
+* `parameter_problem`: the checks of the node's parameters beyond type and
+  range (which their descriptors enforce); `plan_mismatch`: a plan for
+  another model or device mount than the nominal file's.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+import enum
+import math
+import re
+from typing import Any, TYPE_CHECKING
+
+from hexacal_msgs_py.measuring_modes import measuring_mode
+from hexacal_msgs_py.models import DEVICE_MOUNT_KEY
+
+from ..architectures import KinematicParameters
+from ..machine.device import DEFAULT_MOUNT
+from ..machine.measurements import FIXED, SPHERE
+from ..planning.plan_check import check_stroke, plan_problems, plan_stroke, refusal_message
+from ..walk.execution import Guard, PlanExecution
+from ..walk.guard import GuardSettings, move_guard
+from ..walk.messages import LogLevel, Messages
+from ..walk.mode_driver import walk_mode, WalkMode
+from ..walk.refined_targets import refine_checkpoints
+from ..walk.settings import ExecutionSettings, ExecutionState
+from ..walk.turns import DeviceTurnSetter, TURN_PARAMETER, TurnSetState
+
+if TYPE_CHECKING:
+    from ..planning.planner import Plan
+
+STATUS_PERIOD_S = 1.0  # progress (ETA) is republished at least this often
+SERVICE_WAIT_S = 30.0  # calibrate_when_done: how long hexacal/calibrate may take to appear
+_TIMES = ('eta_s', 'elapsed_s', 'paused_s')  # change every second: not a change of status
+_NODE_NAME = re.compile(r'^/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$')
+
+
+def joint_names(name: str, value: object, count: int) -> tuple[str, ...]:
+    """Return `count` distinct non-empty joint names; ValueError naming parameter `name`."""
+    if (
+        not isinstance(value, (list, tuple))
+        or len(value) != count
+        or not all(isinstance(item, str) and item for item in value)
+        or len(set(value)) != count
+    ):
+        raise ValueError(f'{name} must be {count} distinct joint names, got {value!r}')
+    return tuple(value)
+
+
+def node_names(value: object) -> tuple[str, ...]:
+    """Return device_turn_nodes: distinct node names (relative or absolute); else ValueError."""
+    if (
+        not isinstance(value, (list, tuple))
+        or not all(isinstance(item, str) and _NODE_NAME.match(item) for item in value)
+        or len(set(value)) != len(value)
+    ):
+        raise ValueError(
+            f'device_turn_nodes must be distinct node names (e.g. [collector, driver]), got '
+            f'{list(value) if isinstance(value, (list, tuple)) else value!r}'
+        )
+    return tuple(value)
+
+
+def parameter_problem(name: str, value: Any) -> str | None:
+    """Return what is wrong with the executor's parameter `name` set to `value` (None: fine)."""
+    if name in ('plan', 'nominal') and not value:
+        return f"parameter '{name}' is required (-p {name}:=<path>)"
+    if name == 'command_topic' and not value:
+        return 'command_topic must name a topic'
+    if isinstance(value, float) and not math.isfinite(value):
+        return f'{name} must be finite, got {value}'
+    try:
+        if name == 'stroke_limits_m':
+            try:
+                check_stroke(list(value))
+            except ValueError as error:
+                return f'stroke_limits_m: {error}'
+        elif name == 'actuator_joints':
+            joint_names(name, list(value), 6)
+        elif name == 'inclinometer_joints':
+            joint_names(name, list(value), 2)
+        elif name == 'device_turn_nodes':
+            node_names(list(value))
+        elif name == 'measuring_mode' and value:
+            measuring_mode(value)
+    except (TypeError, ValueError) as error:
+        return str(error)
+    return None
+
+
+def plan_mismatch(
+    plan_path: str, plan_model: str, plan_mount: str, model: str, nominal_mount: str | None
+) -> str | None:
+    """
+    Return why a plan cannot be walked on the nominal machine (None: it can).
+
+    The plan must be for the nominal file's model, and for its device mount
+    when the file names one (``nominal_mount`` None: it names none).
+    """
+    if plan_model != model:
+        return (
+            f'plan {plan_path} was made for a {plan_model} (plan.model; absent: hexa_slide) but '
+            f'the nominal machine is a {model}'
+        )
+    if nominal_mount is not None and plan_mount != nominal_mount:
+        return (
+            f'plan {plan_path} is for a {plan_mount} device (plan.mount; absent: '
+            f'{DEFAULT_MOUNT}) but the nominal file says {DEVICE_MOUNT_KEY}: {nominal_mount}'
+        )
+    return None
+
+
+@dataclass(frozen=True)
+class WalkSetup:
+    """The walk the executor's parameters describe on the nominal machine."""
+
+    actuator_joints: tuple[str, ...]  # in chain order, as the controller names them
+    inclinometer_joints: tuple[str, ...]  # alpha, beta
+    stroke: tuple[float, float]  # m
+    stroke_source: str  # where the stroke comes from (for the log)
+    settings: ExecutionSettings
+    device_turn_nodes: tuple[str, ...]
+    problems: dict[int, str]  # posture index -> why it cannot be commanded (refused)
+    refusal: str  # '' unless refused
+    execution: PlanExecution
+    mode: WalkMode
+    guard: GuardSettings
+
+    def start_lines(self, plan: Plan, model: str, command_topic: str) -> list[str]:
+        """Return what the node logs at the start: the plan, the commands, the turns."""
+        kinds, stroke = [str(kind) for kind in plan.kinds], self.stroke
+        counts = {kind: kinds.count(kind) for kind in (SPHERE, FIXED)}
+        lines = [
+            f"plan '{plan.name}': {len(plan.poses)} postures ({counts[SPHERE]} sphere, "
+            f'{counts[FIXED]} fixed) for a {model}; commands on {command_topic} (joints '
+            f'{", ".join(self.actuator_joints)}), at most '
+            f'{self.settings.max_actuator_speed_m_s:g} m/s, stroke [{stroke[0]:g}, '
+            f'{stroke[1]:g}] m ({self.stroke_source})'
+        ]
+        turns = sorted({float(turn) for turn in plan.turns})
+        if any(turns):
+            degrees = [round(math.degrees(t), 3) for t in turns]
+            lines.append(
+                f'turning procedure: device turns {degrees} deg; '
+                + (
+                    f'device_turn set on {", ".join(self.device_turn_nodes)} at each remount'
+                    if self.device_turn_nodes
+                    else 'device_turn_nodes is empty: no node is told the turn'
+                )
+            )
+        if self.mode.source != 'default':  # a plan without a mode walks as it always did
+            lines.append(self.mode.describe(self.actuator_joints))
+        return lines
+
+
+def model_defaults(
+    metadata: dict, nominal: KinematicParameters
+) -> tuple[dict[str, object], str]:
+    """Return the defaults of the model's parameters and where the stroke comes from."""
+    stroke, source = plan_stroke(metadata, nominal)
+    return {
+        'stroke_limits_m': list(stroke),
+        'actuator_joints': list(nominal.layout.actuator_names),
+    }, source
+
+
+def setup_walk(
+    values: Mapping[str, Any],
+    nominal: KinematicParameters,
+    plan: Plan,
+    stroke_source: str,
+    default_stroke: list[float],
+) -> WalkSetup:
+    """
+    Return the walk of `plan` the parameter `values` describe.
+
+    ValueError naming the parameter if they describe none; a plan with
+    postures that cannot be commanded is refused (state REFUSED).
+    """
+    actuator_joints = joint_names('actuator_joints', list(values['actuator_joints']), 6)
+    inclinometer_joints = joint_names(
+        'inclinometer_joints', list(values['inclinometer_joints']), 2
+    )
+    if list(values['stroke_limits_m']) != list(default_stroke):
+        stroke_source = 'stroke_limits_m'
+    try:
+        stroke = check_stroke(list(values['stroke_limits_m']))
+    except ValueError as error:
+        raise ValueError(f'stroke_limits_m: {error}') from error
+    settings = ExecutionSettings(  # a setting not given keeps its default
+        **{name: values[name] for name in ExecutionSettings.__dataclass_fields__ if name in values}
+    )
+    turn_nodes = node_names(list(values['device_turn_nodes']))
+    poses, link_length, mount = plan.poses, plan.link_length, plan.mount
+    targets, problems = plan_problems(
+        nominal, poses, plan.kinds, stroke, link_length, mount, settings.path_step_m
+    )
+    try:
+        mode = walk_mode(
+            str(values.get('measuring_mode', '')),
+            plan.measuring_mode,
+            plan.released_actuators,
+            nominal,
+            poses,
+            link_length,
+            stroke,
+            mount,
+        )
+    except ValueError as error:
+        raise ValueError(f'measuring_mode: {error}') from error
+    guard_settings = GuardSettings(  # a setting not given keeps its default
+        **{name: values[name] for name in GuardSettings.__dataclass_fields__ if name in values}
+    )
+    # A plan without a mode walks as it always did: no prediction in the default compliant mode.
+    guard = (
+        move_guard(nominal, mode.mode, link_length, stroke, guard_settings, mount)
+        if mode.source != 'default'
+        else None
+    )
+    execution = PlanExecution(
+        nominal,
+        poses,
+        plan.kinds,
+        targets,
+        settings,
+        stroke,
+        link_length,
+        mount,
+        start_paused=bool(values['start_paused']),
+        device_turns=plan.turns,
+        mounted_turn=float(values['mounted_turn']),
+        released=mode.released,
+        guard=guard,
+        refine_at=refine_checkpoints(
+            bool(values.get('refine_targets', False)), nominal.layout.n_parameters, len(poses)
+        ),
+    )
+    refusal = refusal_message(problems, len(targets)) if problems else ''
+    if problems:  # nothing is ever commanded
+        execution.state = ExecutionState.REFUSED
+        execution.refusal = refusal
+    return WalkSetup(
+        actuator_joints,
+        inclinometer_joints,
+        stroke,
+        stroke_source,
+        settings,
+        turn_nodes,
+        problems,
+        refusal,
+        execution,
+        mode,
+        guard_settings,
+    )
+
+
+def refined_guard(setup: WalkSetup, model: KinematicParameters) -> Guard | None:
+    """Return the walk's guard predicting on the intermediate `model` (None: no guard)."""
+    execution = setup.execution
+    if execution.guard is None:
+        return None
+    return move_guard(
+        model,
+        setup.mode.mode,
+        execution.link_length,
+        execution.stroke,
+        setup.guard,
+        execution.mount,
+    )
+
+
+class CalibrationState(enum.StrEnum):
+    """calibrate_when_done's call (status field ``calibration``: the values)."""
+
+    DISABLED = 'disabled'
+    PENDING = 'pending'  # until the plan is done and the service is there
+    RUNNING = 'running'
+    SUCCESS = 'success'
+    FAILED = 'failed'
+
+
+class CalibrationCall:
+    """The call of hexacal/calibrate once the plan is done (calibrate_when_done)."""
+
+    def __init__(self, enabled: bool, service: str):
+        self.enabled = bool(enabled)
+        self.service = service
+        self.state = CalibrationState.PENDING if enabled else CalibrationState.DISABLED
+        self.message = ''  # the service's answer, or why it was not called
+        self.requested_at: float | None = None
+        self.messages: Messages = []  # for the node to log
+
+    @property
+    def answered(self) -> bool:
+        """Return whether nothing more will happen (disabled, answered or failed)."""
+        return self.state not in (CalibrationState.PENDING, CalibrationState.RUNNING)
+
+    def due(self, now: float, service_ready: bool) -> bool:
+        """Return whether to call the service now (the plan is done); fail if it never appears."""
+        if self.state != CalibrationState.PENDING:
+            return False
+        if self.requested_at is None:
+            self.requested_at = now
+            self.messages.append((LogLevel.INFO, f'plan done: calling {self.service}'))
+        if not service_ready:
+            if now - self.requested_at > SERVICE_WAIT_S:
+                self.state = CalibrationState.FAILED
+                self.message = f'{self.service} did not appear within {SERVICE_WAIT_S:g} s'
+                self.messages.append((LogLevel.ERROR, f'calibration not run: {self.message}'))
+            return False
+        self.state = CalibrationState.RUNNING
+        return True
+
+    def answer(self, success: bool, message: str) -> None:
+        """Record what the service answered: success and message, or False and the error."""
+        self.state = CalibrationState.SUCCESS if success else CalibrationState.FAILED
+        self.message = message
+        if success:
+            self.messages.append((LogLevel.INFO, f'calibration: {message}'))
+        else:
+            self.messages.append((LogLevel.ERROR, f'calibration failed: {message}'))
+
+
+class ExecutorStatus:
+    """The executor's status: fields, level, text, and when to publish them."""
+
+    def __init__(
+        self,
+        execution: PlanExecution,
+        plan: str,
+        model: str,
+        refused_postures: list[int],
+        calibration: CalibrationCall,
+        turns: DeviceTurnSetter,
+    ):
+        self.execution = execution
+        self.plan = plan
+        self.model = model
+        self.refused_postures = list(refused_postures)  # 0-based
+        self.calibration = calibration
+        self.turns = turns
+        self.commands_sent = 0
+        self.invalid_readings = 0
+        self.waiting_for: tuple[str, ...] = ()  # what the start waits for
+        self._last_key: tuple | None = None
+        self._last_s = 0.0
+        # Set by the node: the mode walked and the controller's joint names.
+        self.measuring_mode = ''
+        self.joint_names: tuple[str, ...] = ()
+
+    def values(self, now: float) -> dict[str, object]:
+        """Return the status fields (KeyValues) at `now` (s)."""
+        execution = self.execution
+        values: dict[str, object] = dict(execution.progress(now))
+        values['plan'] = self.plan
+        values['model'] = self.model
+        values['commands_sent'] = self.commands_sent
+        if execution.state == ExecutionState.REFUSED:
+            values['refused_postures'] = ', '.join(str(i + 1) for i in self.refused_postures)
+            values['reason'] = execution.refusal
+        if execution.state == ExecutionState.WAITING and self.waiting_for:
+            values['waiting_for'] = '; '.join(self.waiting_for)
+        if self.calibration.enabled:
+            values['calibration'] = self.calibration.state
+            if self.calibration.message:
+                values['calibration_message'] = self.calibration.message
+        values['targets_model'] = execution.targets_model
+        if execution.refine_message:
+            values['targets_refinement'] = execution.refine_message
+        if execution.waiting_for_turn:
+            values['notice'] = execution.turn_notice
+        elif execution.notice:
+            values['notice'] = execution.notice
+        if self.measuring_mode:
+            values['measuring_mode'] = self.measuring_mode
+        if self.measuring_mode == 'passive_actuator':
+            released = execution.released_now
+            values['released_joint'] = '' if released is None else self.joint_names[released]
+        if self.turns.state is not None:
+            values['device_turn_set'] = self.turns.state
+            if self.turns.message:
+                values['device_turn_set_message'] = self.turns.message
+        if self.invalid_readings:
+            values['invalid_readings'] = self.invalid_readings
+        return values
+
+    def due(self, now: float, values: dict[str, object], force: bool = False) -> bool:
+        """Return whether to publish `values` now: forced, changed, or STATUS_PERIOD_S passed."""
+        key = tuple((k, v) for k, v in values.items() if k not in _TIMES)
+        if not force and key == self._last_key and now - self._last_s < STATUS_PERIOD_S:
+            return False
+        self._last_key, self._last_s = key, now
+        return True
+
+    def level(self, values: dict[str, object]) -> str:
+        """Return the diagnostic level: ERROR (refused, calibration failed), WARN or OK."""
+        state = self.execution.state
+        if state == ExecutionState.REFUSED or self.calibration.state == CalibrationState.FAILED:
+            return 'ERROR'
+        if (
+            state == ExecutionState.ABORTED
+            or values.get('skipped')
+            or self.turns.state == TurnSetState.FAILED
+            or (state == ExecutionState.PAUSED and self.execution.notice)
+        ):
+            return 'WARN'
+        return 'OK'
+
+    def text(self, values: dict[str, object]) -> str:
+        """Return the status message: one line on where the walk stands."""
+        execution = self.execution
+        state = execution.state
+        if state == ExecutionState.REFUSED:
+            return execution.refusal
+        if state == ExecutionState.WAITING:
+            return 'waiting for ' + ', '.join(self.waiting_for) if self.waiting_for else 'starting'
+        text = (
+            f'{state}: posture {values["posture"]} of {values["postures"]}, '
+            f'{values["measured"]} measured, {values["skipped"]} skipped'
+        )
+        if 'eta_s' in values and state in (ExecutionState.RUNNING, ExecutionState.PAUSED):
+            text += f', ETA {values["eta_s"]:.0f} s'
+        if execution.notice and state == ExecutionState.PAUSED:
+            text += f'; {execution.notice}'
+        if execution.waiting_for_turn:
+            text += f'; {execution.turn_notice}'
+            if self.turns.state == TurnSetState.PENDING:
+                text += f' (setting {TURN_PARAMETER} on {self.turns.names})'
+        if self.calibration.enabled and state == ExecutionState.DONE:
+            text += f'; calibration {self.calibration.state}'
+            if self.calibration.message:
+                text += f': {self.calibration.message}'
+        return text
+
+    def finished(self) -> bool:
+        """Return whether the node has nothing left to do (shutdown_when_done)."""
+        state = self.execution.state
+        if state in (ExecutionState.ABORTED, ExecutionState.REFUSED):
+            return True
+        return state == ExecutionState.DONE and self.calibration.answered

@@ -1,0 +1,317 @@
+"""
+Platform paths and actuator commands along the measuring link's sphere (ROS-free).
+
+With the measuring link attached the platform must stay on the link sphere
+(|p| = L about O) on the way between postures too: a controller interpolates a
+one-point command in joint space, which between two postures leaves the sphere
+by centimetres and strains the machine against the link.  So a move carries
+intermediate points, the nominal inverse kinematics of poses along the sphere
+(great circle about O, Euler angles linear: `sphere_path`), at most ``step_m``
+apart, each timed from its largest actuator move at the speed limit
+(`path_command`); if that path leaves the stroke or the nominal workspace it
+goes by way of the centre (`route_command`).  A controller interpolates from its current
+setpoints to the first point: `blend_command` starts a move there when they are not the
+model's start (a chain locked where the link put it, an earlier model's targets).
+
+`interpolate_pose` is also the simulated driver's (hexacal_driver.simulation):
+one interpolation for the commanded and the simulated machine.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import enum
+import math
+
+import numpy as np
+
+from ..architectures import KinematicParameters
+from ..machine.device import DEFAULT_MOUNT, device_position, fixed_point
+
+MIN_MOVE_S = 0.1  # shortest time_from_start of a command (a zero time asks a controller to jump)
+MIN_SEGMENT_S = 0.01  # shortest time between two points of a path
+SAME_SPHERE = 1e-3  # positions within this fraction of L of the link sphere move along it
+SAME_RADIUS_M = 1e-9  # without L: positions this close in |p| share a sphere
+_MIN_ANGLE_RAD = 1e-12  # below: the same direction, a straight line
+_ANTIPODES_RAD = 1e-6  # within this of pi the great circle is undefined (never in a workspace)
+
+
+class CommandPurpose(enum.StrEnum):
+    """Why a command is sent (the values are the log's words)."""
+
+    MOVE = 'move'
+    CORRECT = 'correct'  # a closed-loop fixed-position correction
+    HOLD = 'hold'  # stand where the machine is (pause, abort, a turn)
+
+
+@dataclass(frozen=True)
+class Command:
+    """
+    One JointTrajectory: actuator positions at times from its start.
+
+    ``points`` (n, 6) in model order (m), ``times`` (n,) s; the last point is
+    the target.
+    """
+
+    points: np.ndarray
+    times: np.ndarray
+    purpose: CommandPurpose
+    posture: int  # plan index (0-based) it serves; -1 for a hold
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Return the target: the last point."""
+        return self.points[-1]
+
+    @property
+    def duration_s(self) -> float:
+        """Return the command's time_from_start of its target (s)."""
+        return float(self.times[-1])
+
+
+class PathError(ValueError):
+    """A path along the link sphere leaves the nominal workspace or the stroke."""
+
+
+def move_duration(
+    current: np.ndarray, target: np.ndarray, max_speed_m_s: float, minimum_s: float = MIN_MOVE_S
+) -> float:
+    """Return the time_from_start of a move: its largest actuator move at max_speed_m_s."""
+    largest = float(
+        np.max(np.abs(np.asarray(target, dtype=float) - np.asarray(current, dtype=float)))
+    )
+    return max(largest / max_speed_m_s, minimum_s)
+
+
+def interpolate_pose(
+    start: np.ndarray, end: np.ndarray, s: float, link_length: float | None = None
+) -> np.ndarray:
+    """
+    Return the pose a fraction s in [0, 1] of the way from start to end.
+
+    Positions on one sphere about O move along its great circle (slerp),
+    others on a straight line; Euler angles move linearly.  Which positions
+    share a sphere depends on who asks, hence ``link_length``:
+
+    * the executor (``link_length`` = L, the nominal link): both positions
+      within ``SAME_SPHERE`` L of the link sphere, and the radius goes linearly
+      from |p0| to |p1| (plan postures, the standing estimate and the centre
+      are each on it to within micrometres, not to the bit);
+    * the simulated driver (None): it walks the true machine, whose link is
+      L + dL and unknown to the walker, so positions share a sphere when their
+      distances from O agree to within ``SAME_RADIUS_M``; the slerp keeps that
+      radius as it is (no rescaling, so its samples stay bit for bit).
+    """
+    start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+    p0, p1 = start[:3], end[:3]
+    r0, r1 = float(np.linalg.norm(p0)), float(np.linalg.norm(p1))
+    if link_length is None:
+        same_sphere = r0 > 0 and abs(r0 - r1) <= SAME_RADIUS_M
+    else:
+        tolerance = SAME_SPHERE * link_length
+        same_sphere = (
+            r0 > 0 and r1 > 0 and max(abs(r0 - link_length), abs(r1 - link_length)) <= tolerance
+        )
+    angle = 0.0
+    if same_sphere:
+        angle = math.acos(min(max(float(np.dot(p0, p1)) / (r0 * r1), -1.0), 1.0))
+    if angle > _MIN_ANGLE_RAD and math.pi - angle > _ANTIPODES_RAD:
+        position = (math.sin((1 - s) * angle) * p0 + math.sin(s * angle) * p1) / math.sin(angle)
+        if link_length is not None:
+            position *= ((1 - s) * r0 + s * r1) / float(np.linalg.norm(position))
+    else:
+        position = p0 + s * (p1 - p0)
+    return np.concatenate([position, start[3:] + s * (end[3:] - start[3:])])
+
+
+def sphere_path(
+    start: np.ndarray, end: np.ndarray, link_length: float, step_m: float
+) -> np.ndarray:
+    """
+    Return poses (n, 6) from start (excluded) to end (included) along the link sphere.
+
+    At most step_m apart in position and step_m / L in each angle; just [end]
+    for step_m = 0.
+    """
+    start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+    if step_m <= 0:
+        return end[None].copy()
+    p0, p1 = start[:3], end[:3]
+    r0, r1 = float(np.linalg.norm(p0)), float(np.linalg.norm(p1))
+    angle = (
+        math.acos(min(max(float(p0 @ p1) / (r0 * r1), -1.0), 1.0)) if r0 > 0 and r1 > 0 else 0.0
+    )
+    length = max(angle * max(r0, r1), float(np.linalg.norm(p1 - p0)))
+    turn = float(np.max(np.abs(end[3:] - start[3:]))) * link_length
+    count = max(1, math.ceil(max(length, turn) / step_m - 1e-9))
+    return np.array(
+        [interpolate_pose(start, end, (k + 1) / count, link_length) for k in range(count)]
+    )
+
+
+def path_command(
+    nominal: KinematicParameters,
+    current: np.ndarray,
+    poses: np.ndarray,
+    stroke: tuple[float, float],
+    max_speed_m_s: float,
+    purpose: CommandPurpose = CommandPurpose.MOVE,
+    posture: int = -1,
+) -> Command:
+    """
+    Return the command through `poses` (nominal inverse kinematics) from actuators at `current`.
+
+    Each point is timed from its largest actuator move at max_speed_m_s (the
+    whole at least MIN_MOVE_S).  PathError if a pose is out of the nominal
+    machine's reach or a point outside the stroke.
+    """
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    arch = nominal.architecture
+    legs = arch.legs(arch.chains(nominal), poses)
+    reachable = legs.reachable()
+    if not np.all(reachable):
+        raise PathError(
+            f'{int(np.sum(~reachable))} of its {len(poses)} points are out of the '
+            f"nominal machine's reach ({arch.unreachable_reason})"
+        )
+    points = legs.actuators
+    low, high = stroke
+    outside = np.any((points < low) | (points > high), axis=1)
+    if np.any(outside):
+        names = nominal.layout.actuator_names
+        worst = points[np.flatnonzero(outside)[0]]
+        which = ', '.join(
+            f'{names[c]} {worst[c]:.4f} m' for c in range(6) if not low <= worst[c] <= high
+        )
+        raise PathError(
+            f'{int(np.sum(outside))} of its {len(poses)} points are outside the stroke '
+            f'[{low:g}, {high:g}] m ({which})'
+        )
+    times = point_times(current, points, max_speed_m_s)
+    return Command(points.copy(), times, CommandPurpose(purpose), posture)
+
+
+def point_times(current: np.ndarray, points: np.ndarray, max_speed_m_s: float) -> np.ndarray:
+    """
+    Return the time_from_start (n,) of `points` (n, 6) from actuators at `current`.
+
+    Each segment takes its largest actuator move at max_speed_m_s (at least MIN_SEGMENT_S),
+    the whole at least MIN_MOVE_S.
+    """
+    previous = np.concatenate([np.asarray(current, dtype=float)[None], points[:-1]])
+    segments = np.maximum(np.max(np.abs(points - previous), axis=1) / max_speed_m_s, MIN_SEGMENT_S)
+    times = np.cumsum(segments)
+    if times[-1] < MIN_MOVE_S:
+        times *= MIN_MOVE_S / times[-1]
+    return times
+
+
+def blend_command(
+    command: Command,
+    setpoints: np.ndarray,
+    offset: np.ndarray,
+    max_speed_m_s: float,
+    stroke: tuple[float, float] = (-math.inf, math.inf),
+) -> Command:
+    """
+    Return `command` starting from the drive's `setpoints` instead of the model's start.
+
+    A controller interpolates from its current setpoints to the first point; where those are
+    not the model's inverse kinematics of the path's start (a chain locked where the link put
+    it, the targets of an earlier model) the first segment would be a jump of that `offset`
+    (setpoints - model at the start, (6,) m) in a few milliseconds: a following error to a
+    stiff drive, a push toward a jam to the passive system.  Each point carries ``offset x
+    (1 - its fraction of the move's time)``: the offset goes to zero smoothly along the move
+    and the last point is the model's target exactly, every point kept inside `stroke` (the
+    setpoints and the model's points are; their blend near an end might not be).  Re-timed
+    from `setpoints` at max_speed_m_s.
+    """
+    offset = np.asarray(offset, dtype=float)
+    if not np.any(offset):
+        return command
+    fraction = command.times / command.times[-1]
+    points = np.clip(command.points + (1.0 - fraction)[:, None] * offset[None], *stroke)
+    points[-1] = command.points[-1]  # the target stays the model's, bit for bit
+    times = point_times(setpoints, points, max_speed_m_s)
+    return Command(points, times, command.purpose, command.posture)
+
+
+def route_command(
+    nominal: KinematicParameters,
+    current: np.ndarray,
+    start: np.ndarray,
+    end: np.ndarray,
+    stroke: tuple[float, float],
+    max_speed_m_s: float,
+    link_length: float,
+    step_m: float,
+    mount: str = DEFAULT_MOUNT,
+    purpose: CommandPurpose = CommandPurpose.MOVE,
+    posture: int = -1,
+) -> Command:
+    """
+    Return the command along the link sphere from pose `start` to `end` (`sphere_path`).
+
+    If that path leaves the stroke or the nominal workspace, it goes by way of
+    the centre (the fixed-position point, zero angles: the middle of the
+    workspace); PathError (the direct path's) if neither can be commanded.
+    """
+    try:
+        return path_command(
+            nominal,
+            current,
+            sphere_path(start, end, link_length, step_m),
+            stroke,
+            max_speed_m_s,
+            purpose,
+            posture,
+        )
+    except PathError as error:
+        centre = np.concatenate([fixed_point(link_length, mount), np.zeros(3)])
+        via = np.concatenate(
+            [
+                sphere_path(start, centre, link_length, step_m),
+                sphere_path(centre, end, link_length, step_m),
+            ]
+        )
+        try:
+            return path_command(nominal, current, via, stroke, max_speed_m_s, purpose, posture)
+        except PathError:
+            raise error from None
+
+
+def on_sphere(pose: np.ndarray, link_length: float, mount: str = DEFAULT_MOUNT) -> np.ndarray:
+    """Return the pose with its position moved radially onto the link sphere (mount's side)."""
+    pose = np.array(pose, dtype=float)
+    radius = float(np.linalg.norm(pose[:3]))
+    if radius > 0:
+        pose[:3] *= link_length / radius
+    else:
+        pose[:3] = fixed_point(link_length, mount)
+    return pose
+
+
+def fixed_position_correction(
+    alpha: float, beta: float, link_length: float, mount: str = DEFAULT_MOUNT
+) -> np.ndarray:
+    """
+    Return the platform position change (3,) that brings the inclinometer from (alpha, beta) to 0.
+
+    ``-dp/d(alpha, beta) [alpha, beta]`` with eq. 4's derivative at the
+    reading (first order).
+    """
+    placed = device_position(np.array([alpha]), np.array([beta]), link_length, mount=mount)
+    return -placed.d_readings[0] @ np.array([alpha, beta])
+
+
+def corrected_pose(
+    commanded: np.ndarray,
+    alpha: float,
+    beta: float,
+    link_length: float,
+    mount: str = DEFAULT_MOUNT,
+) -> np.ndarray:
+    """Return the commanded pose, its position corrected for the inclinometer reading."""
+    pose = np.array(commanded, dtype=float)
+    pose[:3] += fixed_position_correction(alpha, beta, link_length, mount)
+    return pose
