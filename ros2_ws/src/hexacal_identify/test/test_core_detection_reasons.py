@@ -8,6 +8,7 @@ exactly the strings they were before the enums.
 
 import json
 
+from hexacal_identify.core.detection import vocabulary as detection
 from hexacal_identify.core.detection.dwell_detector import DwellDetector
 from hexacal_identify.core.detection.stream_synchronizer import StreamSynchronizer
 from hexacal_identify.core.detection.vocabulary import (
@@ -18,7 +19,6 @@ from hexacal_identify.core.detection.vocabulary import (
     Stream,
     UnpairedReason,
 )
-from hexacal_identify.core.detection.vocabulary import vocabulary as detection
 from hexacal_msgs_py.readings import ActuatorReading, EncoderReading, InclinometerReading
 import numpy as np
 

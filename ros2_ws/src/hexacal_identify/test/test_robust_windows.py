@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from hexacal_identify.core.detection.vocabulary import robust_stats as robust
+from hexacal_identify.core.detection import robust_stats as robust
 import numpy as np
 import pytest
 

@@ -82,13 +82,13 @@ class MassModel:
                 raise ValueError(f'{name} must be 3 finite numbers, got {getattr(self, name)!r}')
             object.__setattr__(self, name, tuple(float(v) for v in value))
         for name in ('platform_mass', 'payload_mass', 'leg_mass', 'link_mass'):
-            value = float(getattr(self, name))
-            if not np.isfinite(value) or value < 0:
-                raise ValueError(f'{name} must be a mass >= 0 kg, got {value!r}')
+            mass = float(getattr(self, name))
+            if not np.isfinite(mass) or mass < 0:
+                raise ValueError(f'{name} must be a mass >= 0 kg, got {mass!r}')
         for name in ('leg_com_fraction', 'link_com_fraction'):
-            value = float(getattr(self, name))
-            if not 0.0 <= value <= 1.0:
-                raise ValueError(f'{name} must lie in [0, 1], got {value!r}')
+            fraction = float(getattr(self, name))
+            if not 0.0 <= fraction <= 1.0:
+                raise ValueError(f'{name} must lie in [0, 1], got {fraction!r}')
 
     def platform_side(self, params: KinematicParameters) -> tuple[float, np.ndarray]:
         """Return the mass M (kg) the platform carries and its first moment h (kg m, platform)."""
@@ -225,8 +225,8 @@ def static_loads(
     link_row = np.zeros((n, 6))
     link_row[:, :3] = poses[:, :3] / np.linalg.norm(poses[:, :3], axis=1, keepdims=True)
     rows = np.arange(n)
-    thrust = np.zeros((n, 6))
-    tension = np.zeros(n)
+    thrust: np.ndarray = np.zeros((n, 6))
+    tension: np.ndarray = np.zeros(n)
     if mode == MeasuringMode.PASSIVE_ACTUATOR:
         if released is None:
             raise InvalidMeasurementError(

@@ -156,7 +156,9 @@ def solve_pose(
 
 
 def _solve_rigid_pose(
-    params: KinematicParameters, actuators: Sequence[float], guess: Sequence[float]
+    params: KinematicParameters,
+    actuators: Sequence[float] | np.ndarray,
+    guess: Sequence[float] | np.ndarray,
 ) -> np.ndarray:
     """Return the pose of joint coordinates ``actuators`` (solve_pose without loads)."""
     target = np.asarray(actuators, dtype=float).reshape(6)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -153,7 +154,8 @@ class Rehearser:
         """Return ``try_move`` to each of `poses` (None: NoRelease), all rehearsed at once."""
         if not self.batched:
             return list(self.legs_to(previous, poses, exclude))
-        prepared, jobs = [], []
+        prepared: list[tuple[Any, list[int]] | None] = []
+        jobs: list[RehearsalJob] = []
         for pose in poses:
             try:
                 nominal_move, standing, setpoints, ranked = self._prepare(previous, pose, exclude)
@@ -183,14 +185,14 @@ class Rehearser:
                 np.concatenate([first.worst, rest.worst]),
                 first.ends + rest.ends,
             )
-        results = iter(results)
-        chosen = []
+        remaining = iter(results)
+        chosen: list[tuple[Any, Rehearsal, int] | None] = []
         for item in prepared:
             if item is None:
                 chosen.append(None)
                 continue
             nominal_move, order = item
-            result = next(results)
+            result = next(remaining)
             best = _best(result, count, limit)
             chosen.append((nominal_move, result, best))
         return self._restand_all(chosen)
@@ -199,6 +201,7 @@ class Rehearser:
         """Return rehearse_stacked of `jobs` ([] for none)."""
         if not jobs:
             return []
+        assert self.stack is not None  # batched
         return rehearse_stacked(self.stack, jobs, self.link_length, self.stroke, self.margin_m,
                                 self.mount)
 
@@ -254,6 +257,7 @@ class Rehearser:
                 released.append(int(result.candidates[best]))
                 poses.append(nominal_move.poses[-1])
                 owners.append((i, k))
+        assert self.stack is not None  # batched
         fresh = (
             stand_stacked(self.stack, np.array(machine), np.array(setpoints), np.array(released),
                           np.array(poses), self.link_length, self.mount)
@@ -268,6 +272,7 @@ class Rehearser:
             ends = result.ends[best]
             rows = [r for r, (owner, _) in enumerate(owners) if owner == i]
             if rows:
+                assert fresh is not None  # rows are owned only where machines were stood again
                 ends = Standings(ends.poses.copy(), ends.actuators.copy())
                 for r in rows:
                     k = owners[r][1]
@@ -286,6 +291,7 @@ class Rehearser:
                                   self.mount)
             return
         count = len(self.machines)
+        assert self.stack is not None  # batched
         self.standing = stand_stacked(
             self.stack, np.arange(count), np.repeat(actuators[None], count, axis=0),
             np.full(count, released), np.repeat(pose[None], count, axis=0), self.link_length,

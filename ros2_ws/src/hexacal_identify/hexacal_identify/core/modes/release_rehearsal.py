@@ -500,20 +500,25 @@ def rehearse_stacked(
 ) -> list[Rehearsal]:
     """Return ``rehearse`` of each job, every job, candidate and machine in one stacked batch."""
     machine_count = len(stack.machines)
-    job_of, candidate_of, machine_of, counts, starts, starts_act = [], [], [], [], [], []
+    job_parts: list[np.ndarray] = []
+    candidate_parts: list[np.ndarray] = []
+    machine_parts: list[np.ndarray] = []
+    count_parts: list[np.ndarray] = []
+    start_parts: list[np.ndarray] = []
+    start_act_parts: list[np.ndarray] = []
     for j, job in enumerate(jobs):
         candidates = np.asarray(job.candidates, dtype=int)
         c_index, k_index = np.meshgrid(np.arange(len(candidates)), np.arange(machine_count),
                                        indexing='ij')
-        job_of.append(np.full(c_index.size, j))
-        candidate_of.append(candidates[c_index.ravel()])
-        machine_of.append(k_index.ravel())
-        counts.append(np.full(c_index.size, len(job.setpoints)))
-        starts.append(job.start.poses[k_index.ravel()])
-        starts_act.append(job.start.actuators[k_index.ravel()])
-    job_of, released = np.concatenate(job_of), np.concatenate(candidate_of)
-    machine, counts = np.concatenate(machine_of), np.concatenate(counts)
-    poses, actuators = np.concatenate(starts), np.concatenate(starts_act)
+        job_parts.append(np.full(c_index.size, j))
+        candidate_parts.append(candidates[c_index.ravel()])
+        machine_parts.append(k_index.ravel())
+        count_parts.append(np.full(c_index.size, len(job.setpoints)))
+        start_parts.append(job.start.poses[k_index.ravel()])
+        start_act_parts.append(job.start.actuators[k_index.ravel()])
+    job_of, released = np.concatenate(job_parts), np.concatenate(candidate_parts)
+    machine, counts = np.concatenate(machine_parts), np.concatenate(count_parts)
+    poses, actuators = np.concatenate(start_parts), np.concatenate(start_act_parts)
     total = len(job_of)
     setpoints = np.full((int(np.max(counts)), total, 6), np.nan)
     for j, job in enumerate(jobs):
