@@ -15,10 +15,10 @@ TRUE parameters (the model's default machine) and the physical description
   the "same machine made rigid" the compliant fit is judged by;
 - ``3x_softer``: the shipped defaults with kp and every stiffness divided by 3;
 - ``link_only``: gravity, servos and the link's spring (legs rigid, no friction);
-- ``link_only_light``: the same with massless sliders / extending rods: the load the mass
-  model does not hold (MassModel has no actuator moving mass: the released slider's weight
-  along the Hexa Slide's inclined rail, the Gough-Stewart's extending rods) taken away.  (With
-  the legs' springs massless sliders make the simulation unstable.)
+- ``link_only_light``: the same with massless sliders / extending rods: the actuators' moving
+  mass (MassModel's ``actuator_moving_mass``: the released slider's weight along the Hexa
+  Slide's inclined rail, the Gough-Stewart's extending rods) taken away.  (With the legs'
+  springs massless sliders make the simulation unstable.)
 
 Passive_actuator measuring mode: ``--postures`` sphere postures and ``--fresh`` verification
 postures (sample_poses; the released chain of each posture the one leaving the passive system

@@ -1,7 +1,15 @@
 """Statics of the weights: the chains' and the link's loads balance the wrench, every mode."""
 
+from dataclasses import replace
+
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.fit.statics import MassModel, static_loads, weight_gradient
+from hexacal_identify.core.architectures.base import ACTUATOR_BODY
+from hexacal_identify.core.fit.statics import (
+    actuator_weight_loads,
+    MassModel,
+    static_loads,
+    weight_gradient,
+)
 from hexacal_identify.core.machine.kinematics import rotation_matrices
 from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_msgs_py.measuring_modes import MeasuringMode
@@ -146,3 +154,148 @@ def test_mass_model_reads_a_complete_physical_file_with_the_contracts_reader(tmp
     path.write_text('format: hexacal-physical/1\nmodel: hexa_slide\nlink: {stiffness: 1}\n')
     with pytest.raises(ValueError, match='link.stiffness'):
         MassModel.load(path)
+
+
+ALL_MODELS = ('hexa_slide', 'gough_stewart', 'rotary_hexapod')
+MOVING = replace(MASSES, actuator_moving_mass=3.0)
+
+
+def _actuator_parts(params, pose, rods=None):
+    """
+    Return the actuators' moving parts' centres (6, 3) at ``pose`` from the mechanism.
+
+    ``rods`` (6,): place each part as a rigid rod hanging that far before the platform joint
+    along the chain's first body (the part rides on the leg); None: the middle of the part's
+    segment, as the mechanism places it at the pose.
+    """
+    centres = []
+    for c, chain in enumerate(params.architecture.mechanism(params, pose)):
+        part = next(body for body in chain.bodies if body.carries == ACTUATOR_BODY)
+        if rods is None:
+            centres.append(part.segment.mean(axis=0))
+        else:
+            leg = chain.platform_joint - chain.bodies[0].segment[0]
+            centres.append(chain.platform_joint - rods[c] * leg / np.linalg.norm(leg))
+    return np.array(centres)
+
+
+def _rides_on_the_leg(params, pose):
+    """Return the half lengths (6,) of parts that do not move with the reading at a held pose."""
+    with_reading, _ = params.architecture.actuator_mass_motion(params, pose[None])
+    if np.any(with_reading):
+        return None
+    return np.array([
+        0.5 * np.linalg.norm(np.diff(next(
+            body for body in chain.bodies if body.carries == ACTUATOR_BODY
+        ).segment, axis=0))
+        for chain in params.architecture.mechanism(params, pose)
+    ])
+
+
+@pytest.mark.parametrize('model', ALL_MODELS)
+def test_actuator_parts_move_as_the_mechanism_places_them(model):
+    params, poses = _machine(model, n=4)
+    with_reading, with_pose = params.architecture.actuator_mass_motion(params, poses)
+    jacobian = params.architecture.legs(params.architecture.chains(params), poses).pose_jacobian()
+    step = 1e-6
+    for n, pose in enumerate(poses):
+        rods = _rides_on_the_leg(params, pose)
+        for k in range(6):
+            delta = np.zeros(6)
+            delta[k] = step
+            numeric = (
+                _actuator_parts(params, pose + delta, rods)
+                - _actuator_parts(params, pose - delta, rods)
+            ) / (2 * step)
+            np.testing.assert_allclose(with_pose[n, :, :, k], numeric, atol=1e-8)
+        if rods is None:
+            # A part moving with the reading moves with the pose only through it.
+            np.testing.assert_allclose(
+                with_pose[n], with_reading[n][..., None] * jacobian[n][:, None, :], atol=1e-12
+            )
+    assert np.max(np.abs(with_pose)) > 0.1
+
+
+def _moving_potential_gradient(params, poses, masses, step=1e-6):
+    """Return d U_a / d X (N, 6), U_a = -sum m g . p_c of the rigid parts (central differences)."""
+    gradient = np.empty((len(poses), 6))
+    for n, pose in enumerate(poses):
+        rods = _rides_on_the_leg(params, pose)  # a rod's place on the leg is the pose's
+        for k in range(6):
+            delta = np.zeros(6)
+            delta[k] = step
+            rise = (
+                _actuator_parts(params, pose + delta, rods)
+                - _actuator_parts(params, pose - delta, rods)
+            ) / (2 * step)
+            gradient[n, k] = -masses.actuator_moving_mass * np.sum(rise @ masses.gravity)
+    return gradient
+
+
+@pytest.mark.parametrize('model', ALL_MODELS)
+@pytest.mark.parametrize('mode', list(MeasuringMode))
+def test_moving_parts_weight_is_held_by_virtual_work(model, mode):
+    params, poses = _machine(model, n=6)
+    n = len(poses)
+    released = np.arange(n) % 6
+    loads = static_loads(params, poses, MOVING, mode, released)
+    arch = params.architecture
+    jacobian = arch.legs(arch.chains(params), poses).pose_jacobian()
+    link_row = np.zeros((n, 6))
+    link_row[:, :3] = poses[:, :3] / np.linalg.norm(poses[:, :3], axis=1, keepdims=True)
+    held = np.einsum('ncx,nc->nx', jacobian, loads.thrust) - loads.link[:, None] * link_row
+    numeric = _moving_potential_gradient(params, poses, MOVING)
+    # The drives and the link hold the platform's weights and the parts' potential gradient.
+    np.testing.assert_allclose(
+        held, weight_gradient(params, poses, MOVING) + numeric, atol=1e-5 * 9.81 * 3.0
+    )
+    if mode == MeasuringMode.PASSIVE_ACTUATOR:
+        assert np.all(loads.thrust[np.arange(n), released] == 0.0), 'the released drive is free'
+    # The leg carries the drive's thrust less the parts' weight along their motion at a held
+    # pose: a slider's, a crank's, not a rod's.
+    with_reading, _ = arch.actuator_mass_motion(params, poses)
+    along = -MOVING.actuator_moving_mass * with_reading @ np.asarray(MOVING.gravity)
+    lever = np.linalg.norm(jacobian[:, :, :3], axis=2)
+    np.testing.assert_allclose(loads.chains, (loads.thrust - along) * lever, rtol=1e-12)
+    np.testing.assert_allclose(loads.reading_loads, loads.chains * lever, rtol=1e-12)
+    if mode == MeasuringMode.PASSIVE_ACTUATOR and model != 'gough_stewart':
+        # The released slider's or crank's weight along its motion is its leg's load.
+        free = loads.chains[np.arange(n), released]
+        assert np.all(np.abs(free) > 0.1)
+
+
+@pytest.mark.parametrize('model', ALL_MODELS)
+def test_without_moving_mass_the_loads_are_unchanged(model):
+    params, poses = _machine(model, n=6)
+    released = np.arange(6)
+    for mode in MeasuringMode:
+        plain = static_loads(params, poses, MASSES, mode, released)
+        zero = static_loads(
+            params, poses, replace(MASSES, actuator_moving_mass=0.0), mode, released
+        )
+        moving = static_loads(params, poses, MOVING, mode, released)
+        for name in ('thrust', 'chains', 'link', 'reading_loads'):
+            assert np.array_equal(getattr(plain, name), getattr(zero, name))
+        if mode == MeasuringMode.PASSIVE_ACTUATOR:
+            assert not np.allclose(moving.reading_loads, plain.reading_loads, atol=1e-3)
+        if mode == MeasuringMode.LVDT and model != 'gough_stewart':
+            # Six holding drives hold the sliders' (cranks') weight: the legs do not see it.
+            np.testing.assert_allclose(moving.reading_loads, plain.reading_loads, atol=1e-9)
+            assert not np.allclose(moving.thrust, plain.thrust, atol=1e-3)
+    pose_load, reading_load = actuator_weight_loads(params, poses, MASSES)
+    assert np.all(pose_load == 0.0) and np.all(reading_load == 0.0)
+
+
+def test_mass_model_reads_the_actuators_moving_mass(tmp_path):
+    from hexacal_msgs_py.physical_file import default_physical
+
+    path = tmp_path / 'physical.yaml'
+    path.write_text('platform: {mass: 20}\nlegs: {mass: 2}\n')
+    assert MassModel.load(path).actuator_moving_mass == 0.0, 'mass keys only: as before'
+    path.write_text('platform: {mass: 20}\nactuators: {moving_mass: 2.5}\n')
+    assert MassModel.load(path).actuator_moving_mass == 2.5
+    shipped = default_physical('hexa_slide')
+    assert MassModel.from_physical(shipped).actuator_moving_mass == shipped.actuator_moving_mass
+    assert shipped.actuator_moving_mass > 0.0
+    with pytest.raises(ValueError, match='actuator_moving_mass'):
+        MassModel(actuator_moving_mass=-1.0)

@@ -329,6 +329,23 @@ class Architecture(ABC, Generic[P]):
         platform_rotation^T about their origins: points p -> rotation @ p.
         """
 
+    def actuator_mass_motion(
+        self, params: P, poses: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return how each actuator's moving part's centre of mass moves at ``poses`` (N, 6).
+
+        The moving part is the ACTUATOR_BODY of ``mechanism`` (its mass at the middle of its
+        segment, as a physics model places it), a rigid body.  Returns ``with_reading`` (N, 6,
+        3), its motion per unit reading with the pose held (the chain's axial spring giving;
+        zero for a part on the platform side of the spring), and ``with_pose`` (N, 6, 3, 6),
+        d centre / d X of the rigid chain: what the statics' virtual work needs of the weight
+        of the actuators' moving parts.  An architecture without it has no moving-mass statics.
+        """
+        raise NotImplementedError(
+            f"{self.name} does not describe how its actuators' moving parts move"
+        )
+
     def mechanism(self, params: P, pose: np.ndarray) -> tuple[ChainMechanism, ...]:
         """
         Return each chain's bodies and joints at ``pose`` (6,): what a physics model builds.

@@ -112,6 +112,21 @@ def platform_point_derivatives(rotations: np.ndarray, unit: np.ndarray) -> np.nd
     return np.matmul(rotations.transpose(0, 2, 1), unit.transpose(1, 0, 2)).transpose(0, 2, 1)
 
 
+def platform_point_motion(rotated: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """
+    Return d(P + R B) / d X (N, 6, 3, 6) of the platform joints R B (N, 6, 3) at Euler ``angles``.
+
+    Position columns: the identity; angle column k: axis_k x R B (euler_rate_axes).
+    """
+    axes = euler_rate_axes(angles)  # (N, 3, 3), columns
+    motion = np.zeros(rotated.shape + (6,))
+    motion[..., :3] = np.eye(3)
+    motion[..., 3:] = np.cross(
+        axes.transpose(0, 2, 1)[:, None, :, :], rotated[:, :, None, :]
+    ).transpose(0, 1, 3, 2)
+    return motion
+
+
 def condition_ok(jac: np.ndarray, link_length: float, max_condition: float) -> np.ndarray:
     """Return the mask of pose Jacobians conditioned below max_condition (angles scaled by L)."""
     jac = jac.copy()

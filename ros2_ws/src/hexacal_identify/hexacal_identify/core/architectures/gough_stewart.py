@@ -54,6 +54,7 @@ from .common import (
     condition_ok,
     move_joint_points,
     platform_point_derivatives,
+    platform_point_motion,
     PlatformPoints,
     pose_jacobian_rows,
     rotation_from_trig,
@@ -315,6 +316,29 @@ class GoughStewart(Architecture[GoughStewartParameters]):
             params.platform_points @ platform_rotation.T,
             params.leg_offsets,
         )
+
+    def actuator_mass_motion(
+        self, params: GoughStewartParameters, poses: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return the extending rods' motion (Base): a rigid rod hanging from the platform joint.
+
+        The rod's middle lies d = (|B - A| - l0) / 2 before B along the leg's unit u (as
+        ``mechanism`` places it), on the platform side of the leg's spring: the pose held, it
+        does not move with the reading.  With the pose, the rigid rod (d fixed) follows B and
+        turns with u: d(B - d u) = (I - (d / |B - A|) (I - u u^T)) dB.
+        """
+        poses = np.atleast_2d(np.asarray(poses, dtype=float))
+        points = PlatformPoints(params.platform_points.T, params.base_points.T, poses)
+        legs = points.offsets.transpose(1, 2, 0)  # B - A, (N, 6, 3)
+        lengths = np.linalg.norm(legs, axis=2)
+        units = legs / lengths[..., None]
+        half_rods = 0.5 * (lengths - np.minimum(params.leg_offsets, lengths))
+        ratio = (half_rods / lengths)[..., None, None]
+        transverse = np.eye(3) - units[..., :, None] * units[..., None, :]
+        carry = np.eye(3) - ratio * transverse  # (N, 6, 3, 3)
+        joints = platform_point_motion(points.rotated.transpose(1, 2, 0), poses[:, 3:6])
+        return np.zeros_like(legs), carry @ joints
 
     def mechanism(
         self, params: GoughStewartParameters, pose: np.ndarray

@@ -463,6 +463,16 @@ class HexaSlide(Architecture[HexaParameters]):
             rails[:, :2],
         )
 
+    def actuator_mass_motion(
+        self, params: HexaParameters, poses: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Return the sliders' motion (Base): the rail a per unit reading, a d lambda / d X."""
+        poses = np.atleast_2d(np.asarray(poses, dtype=float))
+        jacobian = np.asarray(self.legs(self.chains(params), poses).pose_jacobian())
+        rails = params.rail_directions
+        with_reading = np.broadcast_to(rails, (len(poses),) + rails.shape).copy()
+        return with_reading, with_reading[..., None] * jacobian[:, :, None, :]
+
     def mechanism(self, params: HexaParameters, pose: np.ndarray) -> tuple[ChainMechanism, ...]:
         """
         Return the 6-PRRS chains at ``pose``: slider, universal joint, leg, spherical joint.

@@ -605,6 +605,22 @@ class RotaryHexapod(Architecture[RotaryHexapodParameters]):
             wrap_angle(params.crank_zeros + offset),
         )
 
+    def actuator_mass_motion(
+        self, params: RotaryHexapodParameters, poses: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return the cranks' motion (Base): the crank's middle A + (r / 2) c turns about n.
+
+        Per unit reading it moves (r / 2) n x c; with the pose through d lambda / d X.
+        """
+        poses = np.atleast_2d(np.asarray(poses, dtype=float))
+        legs = self.legs(_Chains(params), poses)
+        cranks = legs.crank_dirs.transpose(1, 2, 0)  # (N, 6, 3)
+        tangents = np.cross(params.axis_directions[None], cranks)  # n x c
+        with_reading = 0.5 * params.crank_lengths[None, :, None] * tangents
+        jacobian = np.asarray(legs.pose_jacobian())
+        return with_reading, with_reading[..., None] * jacobian[:, :, None, :]
+
     def mechanism(
         self, params: RotaryHexapodParameters, pose: np.ndarray
     ) -> tuple[ChainMechanism, ...]:

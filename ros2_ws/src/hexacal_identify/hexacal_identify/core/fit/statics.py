@@ -35,6 +35,16 @@ carries the load:
   of setpoints the machine cannot reach on the sphere is what the compliant
   mode's refinement removes, not a load this model knows.
 
+The actuators' moving parts (``actuator_moving_mass`` each: a slider, an extending rod, a
+crank, placed and moved as ``Architecture.actuator_mass_motion`` says) add the gradient of
+their potential U_a(X) to G: the drives and the link hold it with the rest, so tau is the
+drive's thrust (zero for the released chain).  A part that moves with the reading at a held
+pose (on the base side of the leg's spring: a slider, a crank) has its weight along its
+motion, w_c = dU_a / d lambda_c at a held pose, held by the drive and not by the leg: the
+leg's force below is (tau_c - w_c) r_c, and the released chain's leg carries its part's
+weight, -w_c r_c.  A part on the platform side of the spring (a rod) loads the leg only
+through tau.
+
 Each chain's force is carried along its leg: ``r_c = |d lambda_c / d P|`` is how
 far the actuator moves per unit of leg length at a fixed pose (1 for a prismatic
 leg, 1 / |e . rail| for a slider), the leg's axial force is ``F_c = tau_c r_c``
@@ -74,6 +84,7 @@ class MassModel:
     leg_com_fraction: float = 0.5  # from the base-side joint (0) to the platform joint (1)
     link_mass: float = 0.0  # the measuring link
     link_com_fraction: float = 0.5  # from O (0) to the platform end P (1)
+    actuator_moving_mass: float = 0.0  # each actuator's moving part (slider, rod, crank)
 
     def __post_init__(self) -> None:
         for name in ('gravity', 'platform_com', 'payload_com'):
@@ -81,7 +92,9 @@ class MassModel:
             if value.shape != (3,) or not np.all(np.isfinite(value)):
                 raise ValueError(f'{name} must be 3 finite numbers, got {getattr(self, name)!r}')
             object.__setattr__(self, name, tuple(float(v) for v in value))
-        for name in ('platform_mass', 'payload_mass', 'leg_mass', 'link_mass'):
+        for name in (
+            'platform_mass', 'payload_mass', 'leg_mass', 'link_mass', 'actuator_moving_mass'
+        ):
             mass = float(getattr(self, name))
             if not np.isfinite(mass) or mass < 0:
                 raise ValueError(f'{name} must be a mass >= 0 kg, got {mass!r}')
@@ -108,7 +121,9 @@ class MassModel:
         Read the keys of a physical description (``hexacal-physical/1``'s names).
 
         ``gravity``, ``platform {mass, com}``, ``payload {mass, com}``, ``legs {mass,
-        com_fraction}``, ``link {mass, com_fraction}``; other keys are left to their readers.
+        com_fraction}``, ``link {mass, com_fraction}``, ``actuators {moving_mass}`` (0 when
+        missing: a file of the mass keys only reads as before); other keys are left to their
+        readers.
         """
         if not isinstance(data, dict):
             raise ValueError('a physical description is a mapping of sections')
@@ -121,6 +136,7 @@ class MassModel:
 
         platform, payload = section('platform'), section('payload')
         legs, link = section('legs'), section('link')
+        actuators = section('actuators')
         return cls(
             gravity=tuple(data.get('gravity', STANDARD_GRAVITY)),
             platform_mass=float(platform.get('mass', 0.0)),
@@ -131,6 +147,7 @@ class MassModel:
             leg_com_fraction=float(legs.get('com_fraction', 0.5)),
             link_mass=float(link.get('mass', 0.0)),
             link_com_fraction=float(link.get('com_fraction', 0.5)),
+            actuator_moving_mass=float(actuators.get('moving_mass', 0.0)),
         )
 
     @classmethod
@@ -146,6 +163,7 @@ class MassModel:
             leg_com_fraction=physical.leg_com_fraction,
             link_mass=physical.link_mass,
             link_com_fraction=physical.link_com_fraction,
+            actuator_moving_mass=physical.actuator_moving_mass,
         )
 
     @classmethod
@@ -171,6 +189,23 @@ class MassModel:
             return cls.from_mapping(data)
         except (TypeError, ValueError) as error:
             raise ValueError(f'{path}: {error}') from error
+
+
+def actuator_weight_loads(
+    params: KinematicParameters, poses: np.ndarray, masses: MassModel
+) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return the actuators' moving parts' weight as generalised forces (module doc).
+
+    ``pose`` (N, 6): d U_a / d X of their potential U_a = -m g . p_c summed over the chains,
+    what the drives and the link hold with the platform's load; ``reading`` (N, 6): d U_a /
+    d lambda_c with the pose held, the part of a chain's drive force its leg does not carry.
+    """
+    with_reading, with_pose = params.architecture.actuator_mass_motion(params, poses)
+    weight = masses.actuator_moving_mass * np.asarray(masses.gravity)
+    pose = -np.einsum('ncix,i->nx', with_pose, weight)
+    reading = -np.einsum('nci,i->nc', with_reading, weight)
+    return pose, reading
 
 
 @dataclass
@@ -222,6 +257,10 @@ def static_loads(
     arch = params.architecture
     jacobian = np.array(arch.legs(arch.chains(params), poses).pose_jacobian())  # (N, 6, 6)
     gradient = weight_gradient(params, poses, masses)
+    moving = masses.actuator_moving_mass > 0.0
+    if moving:
+        moving_pose, moving_reading = actuator_weight_loads(params, poses, masses)
+        gradient = gradient + moving_pose
     link_row = np.zeros((n, 6))
     link_row[:, :3] = poses[:, :3] / np.linalg.norm(poses[:, :3], axis=1, keepdims=True)
     rows = np.arange(n)
@@ -257,8 +296,16 @@ def static_loads(
         thrust = np.einsum('ncx,nx->nc', jacobian, solution[:, :6])
         tension = solution[:, 6]
     leg_factor = np.linalg.norm(jacobian[:, :, :3], axis=2)  # r_c = d lambda_c / d leg length
-    chains = thrust * leg_factor
+    # The leg carries the drive's thrust less the weight of what moves between them.
+    chains = (thrust - moving_reading if moving else thrust) * leg_factor
     return StaticLoads(thrust, chains, tension, chains * leg_factor)
 
 
-__all__ = ['MassModel', 'STANDARD_GRAVITY', 'StaticLoads', 'static_loads', 'weight_gradient']
+__all__ = [
+    'actuator_weight_loads',
+    'MassModel',
+    'STANDARD_GRAVITY',
+    'StaticLoads',
+    'static_loads',
+    'weight_gradient',
+]
