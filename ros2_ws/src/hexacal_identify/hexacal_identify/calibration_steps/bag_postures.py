@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from hexacal_msgs_py.inputs import IMU_INCLINOMETER, INPUT_NAMES, InputMapping, InputMappingError
 from hexacal_msgs_py.models import MODELS
@@ -202,7 +203,7 @@ def postures_from_bag(
             else f'bag {path} lacks the raw stream(s) {", ".join(missing)} needed to re-detect '
             'postures'
         )
-    options = {
+    options: dict[str, Any] = {
         name: float(collector[name])
         for name in _DETECTOR_SETTINGS
         if _is_number(collector.get(name))
@@ -288,7 +289,7 @@ def _valid(messages, convert) -> tuple[list, int]:
 
     from ..bag import BagDecodeError
 
-    converted, invalid, checked = [], 0, set()
+    converted, invalid, checked = [], 0, set[str]()
     for message in messages:
         try:
             converted.append(convert(decoded_joint_state(message, checked)))

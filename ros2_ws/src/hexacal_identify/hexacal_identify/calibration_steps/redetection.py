@@ -90,7 +90,7 @@ def redetect(
     for input_topic in RAW_TOPICS:
         inputs_of.setdefault(topics[input_topic], []).append(input_topic)
     imu_topic = topics[INCLINOMETER_TOPIC] if imu else None
-    invalid, checked = 0, set()
+    invalid, checked = 0, set[str]()
     for message in reader.messages(list(inputs_of)):
         inputs = inputs_of[message.topic]
         try:
@@ -209,7 +209,7 @@ def _link_stream(reader, topic: str) -> tuple[tuple[np.ndarray, np.ndarray], int
 
     stamps: list[int] = []
     values: list[float] = []
-    invalid, checked = 0, set()
+    invalid, checked = 0, set[str]()
     for message in reader.messages([topic]):
         try:
             decoded = decoded_joint_state(message, checked)
