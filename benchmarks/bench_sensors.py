@@ -85,7 +85,8 @@ def _row(recording, bag: Path, variant: str, args) -> dict:
     """Detect, calibrate and judge one bag with one variant's detector and weights."""
     from hexacal_identify.core.machine.model import nominal_set
     from hexacal_identify.core.fit.validation import pose_errors, validation_poses
-    from hexacal_identify.pipeline import calibrate, postures_from_bag
+    from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
+    from hexacal_identify.calibration_steps.calibration_run import calibrate
 
     options = VARIANTS[variant]
     started = time.perf_counter()

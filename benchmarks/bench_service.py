@@ -17,7 +17,7 @@ hexacal/calibrate ``--calls`` times. Per call it measures, from just before
   writes the report before answering says so in its result status).
 
 Between calls it waits for the report, so each call starts on an idle node.
-The bare solve time is ``pipeline.calibrate`` on the same nominal model and
+The bare solve time is ``calibration_run.calibrate`` on the same nominal model and
 postures in this process: after a warm-up, ``--solve-repeats`` runs before each
 call (interleaved, so both see the same load), median of all.
 
@@ -54,14 +54,14 @@ REPORT_DONE = ('ready', 'failed')
 
 
 class BareSolve:
-    """Return wall times of pipeline.calibrate (the node's solve call) here, after a warm-up."""
+    """Return wall times of calibration_run.calibrate (the node's solve call), after a warm-up."""
 
     def __init__(self, nominal_path: Path, postures: list) -> None:
-        from hexacal_identify import pipeline
+        from hexacal_identify.calibration_steps.calibration_run import calibrate
         from hexacal_identify.core.machine.model import HexaParameters
         from hexacal_msgs_py.parameters_file import load_parameters
 
-        self.calibrate = pipeline.calibrate
+        self.calibrate = calibrate
         self.nominal = HexaParameters(load_parameters(nominal_path))
         self.postures = postures
         self.times: list[float] = []

@@ -8,7 +8,7 @@ is the code at the last commit with the hand-written solver, pivoted QR and
 Wilson-Hilferty quantiles (git ``OLD_COMMIT``, exported with ``git archive``
 into a temporary folder and put first on PYTHONPATH).  The cases are the sample
 bags (``hexacal calibrate`` from nominal set 2, seed 0, of the bag's model: the
-pipeline's ``calibrate``) with the costs each supports, and simulated study
+calibration_run's ``calibrate``) with the costs each supports, and simulated study
 runs (``hexacal study`` settings: 50 postures, 10 um / 10 urad, seeds 0-2;
 plain, noise-weighted, Huber, device defects identified).  For each case the
 table gives the largest parameter difference new - old (m for lengths, rad for
@@ -65,7 +65,8 @@ def _cases() -> list[tuple[str, object]]:
     from hexacal_identify.core.errors import CalibrationError
     from hexacal_identify.core.machine.measurements import NoiseModel
     from hexacal_identify.core.machine.model import nominal_set
-    from hexacal_identify.pipeline import calibrate, postures_from_bag
+    from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
+    from hexacal_identify.calibration_steps.calibration_run import calibrate
     from hexacal_identify.studies.accuracy import run_calibration, StudyRun
 
     cases: list[tuple[str, object]] = []

@@ -12,7 +12,9 @@ import json
 from pathlib import Path
 
 from hexacal_identify.core.machine.measurements import NoiseModel
-from hexacal_identify.pipeline import calibrate, load_machine, postures_from_bag, status_fields
+from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
+from hexacal_identify.calibration_steps.calibration_run import calibrate, status_fields
+from hexacal_identify.calibration_steps.machine_files import load_machine
 import pytest
 from system_support import hexacal
 

@@ -19,7 +19,7 @@ from hexacal_identify.core.machine.device import DeviceDefects
 from hexacal_identify.core.machine.measurements import NoiseModel, simulate_measurements
 from hexacal_identify.core.machine.model import nominal_set, table1_parameters
 from hexacal_identify.core.machine.postures import sample_poses, Workspace
-from hexacal_identify.pipeline import load_device_defects
+from hexacal_identify.calibration_steps.machine_files import load_device_defects
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.parameters_file import read_parameters_file, save_parameters
 import numpy as np

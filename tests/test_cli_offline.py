@@ -82,7 +82,7 @@ def test_raw_streams_only_are_redetected_and_foreign_topics_ignored(
 def test_redetection_gives_scatter_and_refuses_the_removed_window_detector(
     exact_postures, nominal_file, tmp_path
 ):
-    from hexacal_identify.pipeline import postures_from_bag
+    from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
 
     bag = write_recording(tmp_path / 'raw', exact_postures, seed=5, postures=False)
     truth = np.column_stack(
@@ -363,7 +363,7 @@ def test_a_mapped_bag_of_joint_states_and_an_imu_calibrates(
 def test_a_mapped_bag_reads_as_the_contracts_recording_of_the_same_readings(
     exact_postures, tmp_path
 ):
-    from hexacal_identify.pipeline import postures_from_bag
+    from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
 
     mapped = postures_from_bag(
         write_mapped_recording(tmp_path / 'mapped', exact_postures, seed=6, noise=0.0)

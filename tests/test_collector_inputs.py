@@ -269,7 +269,7 @@ def without_posture_topic(bag: Path, copy: Path) -> Path:
 @pytest.mark.slow
 def test_one_joint_states_and_an_imu_give_the_contracts_postures(ros_processes, tmp_path, probe):
     from hexacal_identify.core import table1_parameters
-    from hexacal_identify.pipeline import postures_from_bag
+    from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
     from hexacal_msgs_py.inputs import InputMapping
     from hexacal_msgs_py.parameters_file import load_parameters
     from rosproc import venv_executable  # noqa: F401 - the console scripts are installed

@@ -86,7 +86,7 @@ def test_collector_records_the_link_and_postures_carry_it(
     assert ros_processes.stop(collector, STOP_TIMEOUT_S) == 0, collector.describe()
 
     from hexacal_identify.bag import open_bag
-    from hexacal_identify.pipeline import postures_from_bag
+    from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
 
     assert '/hexacal/link' in open_bag(bags / 'lvdt').topics()
     recorded = postures_from_bag(bags / 'lvdt')
@@ -125,7 +125,7 @@ def test_collector_records_each_postures_released_actuator(
     assert ros_processes.stop(driver, STOP_TIMEOUT_S) == 0, driver.describe()
     assert ros_processes.stop(collector, STOP_TIMEOUT_S) == 0, collector.describe()
 
-    from hexacal_identify.pipeline import postures_from_bag
+    from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
 
     recorded = postures_from_bag(bags / 'passive')
     assert recorded.measuring_mode == 'passive_actuator'

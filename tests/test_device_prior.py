@@ -1,6 +1,6 @@
 """Device priors (a caliper's link length, a certificate's inclinometer zero) everywhere a calibration runs.
 
-pipeline.calibrate and its status fields, the report's prior/posterior table, `hexacal calibrate
+calibrate and its status fields, the report's prior/posterior table, `hexacal calibrate
 --device-prior` in a subprocess, and the identify node's device.* parameters over a real ROS graph.
 """
 
@@ -50,11 +50,11 @@ def long_link_postures() -> list[PostureReading]:
     return _readings(data)
 
 
-# --------------------------------------------------------------------------- pipeline (no ROS)
+# ----------------------------------------------------------------- calibration_run (no ROS)
 
 
 def test_a_caliper_prior_bounds_the_link_offset(long_link_postures):
-    from hexacal_identify.pipeline import calibrate, status_fields
+    from hexacal_identify.calibration_steps.calibration_run import calibrate, status_fields
 
     nominal = nominal_set(2)
     with_prior = calibrate(nominal, long_link_postures, noise=NOISE, device_prior=CALIPER)
@@ -71,14 +71,14 @@ def test_a_caliper_prior_bounds_the_link_offset(long_link_postures):
 
 
 def test_a_prior_without_the_noise_model_is_a_clear_error(long_link_postures):
-    from hexacal_identify.pipeline import calibrate
+    from hexacal_identify.calibration_steps.calibration_run import calibrate
 
     with pytest.raises(ValueError, match='noise'):
         calibrate(nominal_set(2), long_link_postures, device_prior=CALIPER)
 
 
 def test_measurements_carry_each_postures_device_turn():
-    from hexacal_identify.pipeline import measurements_from_postures
+    from hexacal_identify.calibration_steps.posture_checks import measurements_from_postures
 
     postures = [
         PostureReading(i + 1, (0.1,) * 6, 0.01, 0.02, 0.0, device_turn=turn)
@@ -92,7 +92,7 @@ def test_measurements_carry_each_postures_device_turn():
 
 @pytest.mark.slow
 def test_the_report_shows_prior_and_posterior(long_link_postures, tmp_path):
-    from hexacal_identify.pipeline import calibrate
+    from hexacal_identify.calibration_steps.calibration_run import calibrate
     from hexacal_identify.report.page import save_result, write_report
 
     result = calibrate(

@@ -84,7 +84,7 @@ def test_driver_with_defects_and_turns_to_the_collectors_bag(ros_processes, tmp_
 
     from hexacal_driver.plan import generated_plan, save_plan
     from hexacal_identify.core import table1_parameters
-    from hexacal_identify.pipeline import postures_from_bag
+    from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
     from hexacal_msgs_py.names import DEVICE_TURN_JOINT, INCLINOMETER_NAMES, POSTURE_NAMES
 
     plan = replace(
@@ -172,7 +172,7 @@ def test_driver_with_defects_and_turns_to_the_collectors_bag(ros_processes, tmp_
 
 @pytest.mark.slow
 def test_collector_parameter_turns_postures_without_the_joint(ros_processes, tmp_path, probe):
-    from hexacal_identify.pipeline import postures_from_bag
+    from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
     from hexacal_msgs_py.names import DEVICE_TURN_JOINT, POSTURE_NAMES
     from rcl_interfaces.srv import SetParameters
     from rclpy.parameter import Parameter

@@ -187,7 +187,7 @@ def _walk_to_a_calibration(ros_processes, tmp_path, probe, model, postures):
     for process in (executor, driver, collector, identify):
         assert ros_processes.stop(process, STOP_TIMEOUT_S) == 0, process.log_path.read_text()
     assert len(watch.commands) >= postures  # one per posture, more for the corrections
-    from hexacal_identify.pipeline import postures_from_bag
+    from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
 
     recorded = postures_from_bag(tmp_path / 'bags' / 'executor')
     # The plan's postures, and the one where the machine stood before the first move.

@@ -62,7 +62,7 @@ def _imu_reader(argv: list[str], parameters_file: Path) -> list[str]:
 def test_the_executor_reaches_fixed_positions_on_an_imu_inclinometer(
     ros_processes, tmp_path, probe
 ):  # noqa: F811
-    from hexacal_identify.pipeline import postures_from_bag
+    from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
     from hexacal_msgs_py.conversions import (
         imu_to_inclinometer_reading,
         joint_state_to_inclinometer_reading,

@@ -35,7 +35,7 @@ def _passive_plan(tmp_path: Path, nominal: Path, seed: int = 1) -> Path:
 def _worst_released(plan_path: Path, nominal: Path) -> Path:
     """Rewrite the plan to release, after its first posture, the worst-conditioned actuator."""
     from hexacal_identify.core.modes.passive_actuator import release_conditions
-    from hexacal_identify.pipeline import load_machine
+    from hexacal_identify.calibration_steps.machine_files import load_machine
 
     plan = Plan.load(plan_path)
     params = load_machine(nominal)

@@ -549,7 +549,7 @@ def test_controller_json_describes_the_machine(capsys, tmp_path, model):
 def test_kinematics_node_file_names_a_copy_of_the_parameters(capsys, tmp_path):
     import yaml
 
-    from hexacal_identify.pipeline import load_machine_and_mount
+    from hexacal_identify.calibration_steps.machine_files import load_machine_and_mount
 
     source = tmp_path / 'calibrated.yaml'
     vector = nominal_set(1, seed=6).vector

@@ -21,7 +21,7 @@ from hexacal_identify.bag import BagWriter, message_definition
 from hexacal_identify.cli import main as hexacal_main
 from hexacal_identify.core.machine.model import HexaParameters
 from hexacal_identify.nodes.identify import output_path
-from hexacal_identify.pipeline import calibrate
+from hexacal_identify.calibration_steps.calibration_run import calibrate
 from hexacal_msgs_py.names import JOINT_STATE_TYPE, POSTURE_NAMES, SLIDER_NAMES
 from hexacal_msgs_py.parameters_file import load_parameters, save_parameters
 from hexacal_msgs_py.readings import PostureReading

@@ -37,7 +37,7 @@ from hexacal_identify.core.machine.measurements import (
 )
 from hexacal_identify.core.machine.model import nominal_set
 from hexacal_identify.core.machine.postures import sample_poses
-from hexacal_identify.pipeline import postures_from_bag
+from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
 from hexacal_msgs_py.parameters_file import (
     chain_dict_to_parameters,
     read_parameters_file,

@@ -14,7 +14,8 @@ from pathlib import Path
 from hexacal_identify.core.errors import RankDeficientError, TooFewPosturesError
 from hexacal_identify.core.fit.residuals import COSTS
 from hexacal_identify.core.machine.model import nominal_set
-from hexacal_identify.pipeline import calibrate, postures_from_bag
+from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
+from hexacal_identify.calibration_steps.calibration_run import calibrate
 import pytest
 
 BAGS = Path(__file__).resolve().parents[1] / 'bags'

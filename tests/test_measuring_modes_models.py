@@ -380,7 +380,8 @@ def test_refined_targets_shrink_the_lvdt_extension_and_the_bag_calibrates_with_l
 def _calibrations(walk: Walk, tmp_path: Path) -> tuple[float, float]:
     """Return the mean pose errors of the bag calibrated with L_m (hexacal calibrate) and L."""
     from hexacal_identify.core.fit.validation import pose_errors, validation_poses
-    from hexacal_identify.pipeline import calibrate, postures_from_bag
+    from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
+    from hexacal_identify.calibration_steps.calibration_run import calibrate
 
     output = tmp_path / 'calibrated.yaml'
     completed = subprocess.run(

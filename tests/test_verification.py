@@ -699,7 +699,7 @@ def test_restarted_identify_verifies_through_the_device_it_calibrated_with(
     from hexacal_identify.core.machine.device import DeviceDefects
     from hexacal_identify.core.machine.model import table1_parameters
     from hexacal_identify.core.machine.postures import Workspace
-    from hexacal_identify.pipeline import load_device_defects
+    from hexacal_identify.calibration_steps.machine_files import load_device_defects
     from hexacal_msgs_py.names import VERIFICATION_STATUS_NAME, VERIFY_SERVICE
     from hexacal_msgs_py.readings import PostureReading
     from system_support import STOP_TIMEOUT_S

@@ -30,6 +30,7 @@ from hexacal_driver.simulation import (
     TrajectoryPoint,
     WalkSample,
 )
+from hexacal_identify.calibration_steps.machine_files import load_machine_and_mount
 from hexacal_identify.core.architectures import architecture, KinematicParameters
 from hexacal_identify.core.errors import UnreachablePoseError
 from hexacal_identify.core.machine.device import (
@@ -39,7 +40,6 @@ from hexacal_identify.core.machine.device import (
     fixed_point,
 )
 from hexacal_identify.core.machine.measurements import NoiseModel
-from hexacal_identify.pipeline import load_machine_and_mount
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 import numpy as np

@@ -212,7 +212,7 @@ def _walk(model, postures, noise=1e-5, seed=0, **settings):
 @pytest.mark.slow
 @pytest.mark.parametrize('model', [None, GS])
 def test_the_executor_walks_a_plan_on_the_commanded_machine_to_a_good_calibration(model):
-    from hexacal_identify.pipeline import calibrate
+    from hexacal_identify.calibration_steps.calibration_run import calibrate
     from hexacal_msgs_py.readings import PostureReading
 
     execution, seen, truth, nominal, plan = _walk(model, 16)

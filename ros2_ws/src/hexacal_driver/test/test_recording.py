@@ -12,9 +12,9 @@ from hexacal_driver.recording import (
     write_recording_bag,
 )
 from hexacal_identify.bag import open_bag
+from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
 from hexacal_identify.core.architectures import default_parameters
 from hexacal_identify.core.machine.measurements import NoiseModel
-from hexacal_identify.pipeline import postures_from_bag
 from hexacal_msgs_py.parameters_file import save_parameters
 import numpy as np
 import pytest

@@ -27,6 +27,7 @@ from hexacal_driver.simulation import (
     SETTLING,
     smooth_step,
 )
+from hexacal_identify.calibration_steps.calibration_run import calibrate
 from hexacal_identify.core.detection.dwell_detector import detect_dwell_postures
 from hexacal_identify.core.machine.measurements import (
     FIXED,
@@ -35,7 +36,6 @@ from hexacal_identify.core.machine.measurements import (
     SPHERE,
 )
 from hexacal_identify.core.machine.model import nominal_set, table1_parameters
-from hexacal_identify.pipeline import calibrate
 import numpy as np
 import pytest
 

@@ -261,7 +261,7 @@ def _recording(directory: Path, imu: bool = False) -> Path:
 
 @pytest.mark.parametrize('imu', (False, True), ids=('device_turn', 'imu'))
 def test_recordings_decode_and_redetect_as_with_the_generic_decoder(tmp_path, monkeypatch, imu):
-    from hexacal_identify.pipeline import postures_from_bag
+    from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
 
     bag = _recording(tmp_path / 'raw', imu)
     inclinometer = '/imu' if imu else '/hexacal/inclinometer'
@@ -276,7 +276,7 @@ def test_recordings_decode_and_redetect_as_with_the_generic_decoder(tmp_path, mo
 
 
 def test_sample_bag_redetects_the_same_postures(monkeypatch):
-    from hexacal_identify.pipeline import postures_from_bag
+    from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
 
     bag = BAGS / 'sphere30_nonoise'
     in_place = postures_from_bag(bag, source='raw')

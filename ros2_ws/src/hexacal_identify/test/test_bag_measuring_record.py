@@ -1,7 +1,10 @@
 """The bags' hexacal.measuring record and the postures' link lengths in Measurements."""
 
 from hexacal_identify.bag.measuring import MeasuringRecord
-from hexacal_identify.pipeline import link_length_count, measurements_from_postures
+from hexacal_identify.calibration_steps.posture_checks import (
+    link_length_count,
+    measurements_from_postures,
+)
 from hexacal_msgs_py.readings import PostureReading
 import numpy as np
 import pytest

@@ -17,11 +17,11 @@ from pathlib import Path
 import tempfile
 
 from hexacal_identify.bag import BagError, BagWriter, message_definition, open_bag
+from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
 from hexacal_identify.core.detection.dwell_detector import DwellDetector
 from hexacal_identify.core.detection.stream_synchronizer import StreamSynchronizer
 from hexacal_identify.core.errors import CalibrationError
 from hexacal_identify.core.machine.model import nominal_set
-from hexacal_identify.pipeline import postures_from_bag
 from hexacal_msgs_py.errors import (
     HexacalContractError,
     InvalidParametersError,

@@ -206,5 +206,5 @@ def test_the_session_imports_without_ros():
     )
     assert completed.returncode == 0, completed.stderr
     assert 'hexacal_identify.session.session' in completed.stdout
-    # The solver and the pipeline wait for the first calibration.
-    assert 'hexacal_identify.pipeline' not in completed.stdout
+    # The solver and the calibration steps wait for the first calibration.
+    assert 'hexacal_identify.calibration_steps' not in completed.stdout

@@ -321,16 +321,17 @@ def run_calibrate(args) -> int:
     from ..core.errors import CalibrationError
     from ..core.fit.identification import CONVERGED
     from ..core.machine.measurements import NoiseModel, ScatterFloor
-    from ..pipeline import (
-        calibrate,
-        check_model,
+    from ..calibration_steps.bag_postures import postures_from_bag
+    from ..calibration_steps.calibration_run import calibrate, device_prior_json
+    from ..calibration_steps.machine_files import (
         compliance_file_extras,
         device_defects_extras,
-        device_prior_json,
-        link_length_count,
         load_machine_and_mount,
+    )
+    from ..calibration_steps.posture_checks import (
+        check_model,
+        link_length_count,
         measurements_from_postures,
-        postures_from_bag,
     )
 
     if not (math.isfinite(args.scatter_floor_um) and args.scatter_floor_um > 0):
@@ -564,7 +565,7 @@ def device_prior_lines(result, prior) -> list[str]:
 
 def _measuring_line(bag) -> str:
     """Return the measuring mode line ('' when the bag does not record its mode)."""
-    from ..pipeline import link_length_count
+    from ..calibration_steps.posture_checks import link_length_count
 
     measured = link_length_count(bag.postures)
     if bag.measuring_mode is None and not measured:
@@ -598,7 +599,7 @@ def _not_used(bag) -> str:
 
 def run_bag_info(args) -> int:
     from ..bag import open_bag
-    from ..pipeline import postures_from_bag
+    from ..calibration_steps.bag_postures import postures_from_bag
 
     info = open_bag(args.bag).info()
     print(info.format())

@@ -181,7 +181,7 @@ def _print(params, pose, actuators, as_json: bool, angles: str = 'hexacal') -> N
 def run_ik(args) -> int:
     from ..core.errors import UnreachablePoseError
     from ..core.machine.kinematics import inverse_kinematics
-    from ..pipeline import load_machine_and_mount
+    from ..calibration_steps.machine_files import load_machine_and_mount
 
     pose = _pose_values(args.pose, '--pose', args.angles)
     params, _ = load_machine_and_mount(args.parameters)
@@ -202,7 +202,7 @@ def run_fk(args) -> int:
     from ..core.errors import ForwardKinematicsError
     from ..core.machine.live import home_pose, solve_pose
     from ..core.machine.postures import Workspace
-    from ..pipeline import load_machine_and_mount
+    from ..calibration_steps.machine_files import load_machine_and_mount
 
     _check_angles(args.angles)
     actuators = parse_values(args.actuators, '--actuators', 'the six readings in SI units')

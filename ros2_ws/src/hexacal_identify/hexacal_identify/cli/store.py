@@ -262,7 +262,7 @@ def store_calibration(args, result, bag, mount: str):
     Only with --store (DIR, or alone: the model's default store); a StoreError is bad input.
     Without it nothing is kept: an offline calibration does not join the machine's history.
     """
-    from ..pipeline import device_prior_json
+    from ..calibration_steps.calibration_run import device_prior_json
     from ..store import CalibrationStore
     from ..store.provenance import calibration_record
 

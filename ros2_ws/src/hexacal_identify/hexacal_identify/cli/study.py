@@ -190,7 +190,7 @@ def study_model(args) -> str:
 def configured_run(args) -> StudyRun:
     from ..core.architectures import default_parameters
     from ..core.machine.device import DeviceDefects
-    from ..pipeline import load_machine
+    from ..calibration_steps.machine_files import load_machine
     from ..studies.accuracy import StudyRun
 
     model = study_model(args)
@@ -227,7 +227,7 @@ def run(args) -> int:
         return study_plan.run(args)
     if args.measuring_mode is not None:
         from . import study_modes
-        from ..pipeline import load_machine
+        from ..calibration_steps.machine_files import load_machine
 
         return study_modes.run(args, load_machine)
     configured = configured_run(args)

@@ -118,12 +118,9 @@ def run_verify(args) -> int:
     from ..core.machine.device import DeviceModel
     from ..core.machine.measurements import NoiseModel
     from ..core.fit.verification import PASS, verify
-    from ..pipeline import (
-        check_model,
-        load_machine_and_mount,
-        measurements_from_postures,
-        postures_from_bag,
-    )
+    from ..calibration_steps.bag_postures import postures_from_bag
+    from ..calibration_steps.machine_files import load_machine_and_mount
+    from ..calibration_steps.posture_checks import check_model, measurements_from_postures
 
     if args.threshold_um is not None and not (
         math.isfinite(args.threshold_um) and args.threshold_um > 0
@@ -237,7 +234,7 @@ def _device_defects(args):
     --device-defects option, else those identified with the calibration (calibrated file).
     """
     from ..core.machine.device import DEVICE_PARAMETER_NAMES, DeviceDefects
-    from ..pipeline import load_device_defects
+    from ..calibration_steps.machine_files import load_device_defects
 
     if args.device_defects is None:
         defects, names = load_device_defects(args.calibrated)

@@ -277,7 +277,7 @@ class ExecutorNode(Node):
 
     def _load_nominal(self, path: str):
         """Return the nominal machine and the device mount its file names."""
-        from ..pipeline import load_machine_and_mount
+        from ..calibration_steps.machine_files import load_machine_and_mount
 
         try:
             return load_machine_and_mount(path)

@@ -63,6 +63,7 @@ from visualization_msgs.msg import MarkerArray
 
 from .markers import machine_markers  # noqa: F401 - also imported from here
 from .runtime import run_node
+from ..calibration_steps.machine_files import load_machine_and_mount
 from ..core.architectures import KinematicParameters, parameters_for
 from ..core.machine.device import check_mount, DEFAULT_MOUNT, DeviceMountError, MOUNTS
 from ..core.sessions.kinematics_session import (
@@ -74,7 +75,6 @@ from ..core.sessions.kinematics_session import (
     Outcome,
     Report,
 )
-from ..pipeline import load_machine_and_mount
 from ..session.deployment import Deployed, DeployFollower, followed_model, NO_ACTIVE
 
 NODE_NAME = 'kinematics'

@@ -18,8 +18,8 @@ from .postures import PostureStore
 from .prior import device_prior
 from .reports import ReportJob
 from .settings import names, Settings
-# pipeline and core.identification (the solver) are imported where they are used: at the first
-# calibration, not when the node starts.
+# calibration_steps and core.identification (the solver) are imported where they are used: at the
+# first calibration, not when the node starts.
 from ..core.errors import CalibrationError
 from ..core.machine.measurements import Weights
 from ..store.provenance import calibration_record
@@ -56,7 +56,15 @@ def run_calibration(
     The output is written (atomically, with the device defects identified); the report is
     left to do (Outcome.report). Unexpected errors propagate: the session names them.
     """
-    from .. import pipeline
+    from ..calibration_steps.bag_postures import postures_from_bag
+    from ..calibration_steps.calibration_run import (
+        calibrate,
+        device_prior_json,
+        status_fields,
+        weight_choice,
+    )
+    from ..calibration_steps.machine_files import device_defects_extras
+    from ..calibration_steps.posture_checks import check_model, ModelMismatchError
     from ..core.fit.identification import CONVERGED, ITERATION_LIMIT
 
     nominal_path, cost, bag = settings.nominal, settings.cost, settings.bag
@@ -74,7 +82,7 @@ def run_calibration(
         return failure(Reason.INVALID_NOMINAL, f'nominal: {error}')
     if bag:
         try:
-            loaded = pipeline.postures_from_bag(bag)
+            loaded = postures_from_bag(bag)
         except Exception as error:  # noqa: BLE001 - BagError, CalibrationError, contract
             return failure(Reason.INVALID_BAG, f'bag {bag}: {error}', bag=bag)
         postures, source = loaded.postures, f'bag {bag} ({loaded.source})'
@@ -90,10 +98,10 @@ def run_calibration(
     verify_from = len(store)  # the postures after these verify it, never fit it
     for model in sorted(postures_models):
         try:
-            pipeline.check_model(
+            check_model(
                 model, nominal, 'the bag' if bag else 'the postures received', nominal_path
             )
-        except pipeline.ModelMismatchError as error:
+        except ModelMismatchError as error:
             return failure(
                 error.reason,
                 str(error),
@@ -110,7 +118,7 @@ def run_calibration(
     except ValueError as error:
         return failure(Reason.INVALID_DEVICE_PRIOR, str(error), **about)
     try:
-        choice = pipeline.weight_choice(
+        choice = weight_choice(
             postures, settings.weights, noise, settings.scatter_floor()
         )
     except ValueError as error:  # scatter asked for but missing, a noise model asked for but unset
@@ -125,7 +133,7 @@ def run_calibration(
             **about,
         )
     try:
-        result = pipeline.calibrate(
+        result = calibrate(
             nominal,
             postures,
             cost=cost,
@@ -145,7 +153,7 @@ def run_calibration(
     values: dict[str, object] = {
         'postures_received': len(postures),
         'source': source,
-        **pipeline.status_fields(result, prior),
+        **status_fields(result, prior),
         **not_used,
     }
     summary = (
@@ -167,7 +175,7 @@ def run_calibration(
                 f'\n{HEADER_SOURCE}{source}: {summary}\nnominal: {nominal_path}; SI units'
                 f'\n{FITTED_POSTURES_COMMENT}{postures_digest(postures)}'
             ),
-            extras=pipeline.device_defects_extras(result) or None,
+            extras=device_defects_extras(result) or None,
         )
     except HexacalContractError as error:
         return Outcome(
@@ -192,7 +200,7 @@ def run_calibration(
         robust_loss=settings.robust_loss or None,
         link_length=link_length,
         mount=mount,
-        device_prior=pipeline.device_prior_json(prior),
+        device_prior=device_prior_json(prior),
         bag=bag or None,
     )
     # The report (figures, pose-error map, result payload) is written after the answer.

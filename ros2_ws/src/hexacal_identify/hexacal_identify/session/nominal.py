@@ -30,7 +30,7 @@ def file_identity(path: str | Path) -> FileIdentity | None:
 
 class NominalFile:
     """
-    The (parameters, device mount) of a nominal file, through pipeline.load_machine_and_mount.
+    The (parameters, device mount) of a nominal file, through load_machine_and_mount.
 
     Parsing the YAML takes ~4 ms, and the model is looked up for every posture received, so the
     file is read again only when its identity (file_identity) changes. The cache is one tuple,
@@ -44,7 +44,7 @@ class NominalFile:
 
     def load(self, path: str) -> tuple[KinematicParameters, str]:
         """Return the nominal model and the device mount (ParameterFileError, ValueError)."""
-        from ..pipeline import load_machine_and_mount
+        from ..calibration_steps.machine_files import load_machine_and_mount
 
         key = file_identity(path)  # None: read_parameters_file names the problem
         cached = self._cache

@@ -79,7 +79,7 @@ class ReportQueue:
 
 def write_page(job: ReportJob | None, verification: VerificationTask | None) -> Path:
     """Write the calibration's page (with the verification's section), or the verification's."""
-    from .. import pipeline
+    from ..calibration_steps.posture_checks import measurements_from_postures
 
     if job is None:  # a calibration republished at start-up: no result to show
         if verification is None:
@@ -96,7 +96,7 @@ def write_page(job: ReportJob | None, verification: VerificationTask | None) -> 
         job.result,
         directory,
         title=f'hexacal calibration ({job.source})',
-        measurements=pipeline.measurements_from_postures(
+        measurements=measurements_from_postures(
             job.postures, nominal_link_length=job.link_length
         ),
         link_length=job.link_length,

@@ -107,7 +107,7 @@ class CalibrationSession:
         The nominal file's model names the joints; without a loadable one the joints decide.
         `convert(model)` reads the message as that model's posture (InvalidReadingError).
         """
-        from .. import pipeline
+        from ..calibration_steps.posture_checks import MODEL_MISMATCH, posture_problem
 
         expected = self.nominal.model(nominal_path)
         carried = model_for_actuator_names(joint_names)
@@ -122,7 +122,7 @@ class CalibrationSession:
         ):
             joints = carried.actuator_names
             problem = (
-                pipeline.MODEL_MISMATCH,
+                MODEL_MISMATCH,
                 f'posture carries the actuator joints of a {carried.name} '
                 f'({joints[0]}..{joints[-1]}) but '
                 f"the nominal model is a {expected}'s ({nominal_path})",
@@ -130,7 +130,7 @@ class CalibrationSession:
         else:
             try:
                 posture = convert(model)
-                problem = pipeline.posture_problem(posture, model=model)
+                problem = posture_problem(posture, model=model)
             except InvalidReadingError as error:
                 problem = (Reason.INVALID_READING, str(error))
         if problem is not None:
@@ -442,7 +442,7 @@ class CalibrationSession:
         self._sink.parameters(saved.vector, saved.model)
         self._log.info(f'republished the saved calibration {target}')
         from ..core.architectures import parameters_for
-        from ..pipeline import device_defects_from_extras
+        from ..calibration_steps.machine_files import device_defects_from_extras
 
         try:
             parameters = parameters_for(saved.model, saved.vector)

@@ -47,7 +47,7 @@ def run_verification(
     Return the outcome, and the report to write (None: no report). Unexpected errors
     propagate: the session names them.
     """
-    from .. import pipeline
+    from ..calibration_steps.posture_checks import check_model, measurements_from_postures
     from ..core.machine.device import DeviceModel
     from ..core.fit.verification import PASS, verify
 
@@ -89,13 +89,13 @@ def run_verification(
     mount = latest.mount or mount
     try:
         for model in sorted(postures_models):
-            pipeline.check_model(
+            check_model(
                 model, nominal, 'the postures received since the calibration', nominal_path
             )
         result = verify(
             nominal,
             latest.parameters,
-            pipeline.measurements_from_postures(postures, nominal_link_length=link_length),
+            measurements_from_postures(postures, nominal_link_length=link_length),
             device=DeviceModel(link_length=link_length, mount=mount),
             threshold_m=settings.verify_threshold_m or None,
             noise=settings.noise(),

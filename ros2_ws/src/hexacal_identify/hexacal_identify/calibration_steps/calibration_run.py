@@ -1,0 +1,145 @@
+"""
+The calibration call shared by the identify node and ``hexacal calibrate``, and its status.
+
+The node and the CLI both go through :func:`calibrate`, so a bag calibrated
+offline gives the same parameters as the node that received the same postures.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+from hexacal_msgs_py.readings import PostureReading
+
+from .posture_checks import measurements_from_postures, scatter_count
+from ..core.architectures import KinematicParameters
+from ..core.fit.compliance import ComplianceModel
+from ..core.fit.identification import IdentificationResult, identify, SolverOptions
+from ..core.fit.weighting import AUTO, choose_weights, WeightChoice
+from ..core.machine.device import DEFAULT_MOUNT, DEVICE_PARAMETER_NAMES, DeviceModel, DevicePrior
+from ..core.machine.measurements import NoiseModel, ScatterFloor, Weights
+from ..core.machine.model import parameter_names
+
+
+def weight_choice(
+    postures: Sequence[PostureReading],
+    weights: str = AUTO,
+    noise: NoiseModel | None = None,
+    scatter_floor: ScatterFloor = ScatterFloor(),
+) -> WeightChoice:
+    """Return what weighs a calibration of `postures` (core.weighting.choose_weights)."""
+    return choose_weights(weights, scatter_count(postures), len(postures), noise, scatter_floor)
+
+
+def calibrate(
+    nominal: KinematicParameters,
+    postures: Sequence[PostureReading],
+    *,
+    cost: str = 'absolute',
+    link_length: float = DeviceModel().link_length,
+    allow_rank_deficient: bool = False,
+    identify_device: Sequence[str] = (),
+    noise: NoiseModel | None = None,
+    robust_loss: str | None = None,
+    mount: str = DEFAULT_MOUNT,
+    device_prior: DevicePrior | None = None,
+    weights: str = AUTO,
+    scatter_floor: ScatterFloor = ScatterFloor(),
+    compliance: ComplianceModel | None = None,
+) -> IdentificationResult:
+    """
+    Identify the parameters from received postures: the one call behind the node and the CLI.
+
+    ``nominal`` is the starting parameter set of any architecture (its model is the
+    result's). ``identify_device`` names device defects to identify jointly (e.g. dL,
+    alpha0, gamma).  ``weights`` (core.weighting: auto, scatter, noise-model, none) says what
+    weighs the residuals: by default the postures' scatter where every posture carries it
+    (each standard error raised to ``scatter_floor``), else ``noise`` (reading noise
+    half-widths) when given; the result's ``weights`` / ``weights_note`` say which.
+    ``mount`` is the device's (hanging, or standing for an upright machine).
+    ``device_prior``: prior knowledge of device parameters (a caliper's dL = 0 +- 10 um, a
+    certificate's alpha0 = 0 +- 50 urad; SI units): each such parameter is identified, its prior
+    weighed against the data by ``noise``, which it therefore requires (ValueError naming both).
+    A problem the postures do not determine raises RankDeficientError (never a
+    number that means nothing) unless ``allow_rank_deficient``.  ``compliance``: axial
+    compliances identified with the geometry from the postures' static loads
+    (core/fit/compliance.py; None: the rigid model).
+    """
+    choice = weight_choice(postures, weights, noise, scatter_floor)
+    options = SolverOptions(
+        cost=cost,
+        device=DeviceModel(link_length=link_length, mount=mount),
+        allow_rank_deficient=allow_rank_deficient,
+        free_device=tuple(identify_device),
+        noise=noise if choice.weights == Weights.NOISE_MODEL else None,
+        robust_loss=robust_loss,
+        device_prior=device_prior if device_prior is not None else DevicePrior(),
+        scatter_weights=choice.weights == Weights.SCATTER,
+        scatter_floor=scatter_floor,
+        compliance=compliance if compliance is not None else ComplianceModel(),
+    )
+    measurements = measurements_from_postures(postures, nominal_link_length=link_length)
+    result = identify(nominal, measurements, options)
+    result.weights_note = choice.note
+    return result
+
+
+def device_prior_json(prior: DevicePrior | None) -> dict[str, dict[str, float]]:
+    """
+    Return {name: {"value", "std"}} (SI units) of a device prior.
+
+    {"value", "std"}} (SI units) of a device prior: what ``calibrate --json`` and the report carry.
+    """
+    if prior is None:
+        return {}
+    return {name: {'value': float(value), 'std': float(std)} for name, value, std in prior.entries}
+
+
+def status_fields(
+    result: IdentificationResult, device_prior: DevicePrior | None = None
+) -> dict[str, str]:
+    """
+    Key/values for /hexacal/calibration_status (SI units, machine-readable).
+
+    Identified device parameters: posterior ``device.<name>`` / ``std.device.<name>``; with a prior
+    on
+    one, also ``prior.device.<name>`` / ``prior_std.device.<name>``. The fit's adequacy
+    (core.adequacy): ``adequacy.verdict`` / ``adequacy.reason`` always, the figures
+    (``adequacy.variance_factor``, ``adequacy.expected_low`` / ``_high``, ``adequacy.dof``) and
+    the worst ``adequacy.worst_postures`` / ``adequacy.worst_channels`` with a noise model.
+    ``weights`` (scatter, noise_model, none) and ``weights_note``: what weighed the fit.
+    """
+    model = result.parameters.model
+    fields = {
+        'outcome': result.reason,
+        'model': model,
+        'cost': result.cost,
+        'rank': str(result.rank),
+        'condition_number': f'{result.condition_number:.6g}',
+        'iterations': str(result.iterations),
+        'postures_used': str(len(result.used_postures)),
+        'postures_rejected': str(len(result.rejected_postures)),
+        'solve_seconds': f'{result.solve_seconds:.6f}',
+        'identifiable': str(result.identifiability.identifiable).lower(),
+    }
+    fields['identifiability'] = result.identifiability.verdict().replace('\n', ' ')
+    fields.update({f'rms_residual.{k}': f'{v:.6g}' for k, v in result.rms_residual.items()})
+    for index, name in enumerate(DEVICE_PARAMETER_NAMES):
+        if name in result.free_device:
+            fields[f'device.{name}'] = f'{result.device.vector[index]:.6g}'
+            fields[f'std.device.{name}'] = f'{result.device_std[index]:.6g}'
+        prior = device_prior.get(name) if device_prior is not None else None
+        if prior is not None:
+            fields[f'prior.device.{name}'] = f'{prior[0]:.6g}'
+            fields[f'prior_std.device.{name}'] = f'{prior[1]:.6g}'
+    fields.update(
+        {f'std.{name}': f'{s:.6g}' for name, s in zip(parameter_names(model), result.std)}
+    )
+    for index, why in sorted(result.rejected_postures.items())[:20]:
+        fields[f'rejected.{index}'] = why
+    # The fit against its noise model (adequacy.verdict unknown without one).
+    fields.update(result.adequacy.status_fields())
+    fields['weights'] = result.weights
+    if result.weights_note:
+        fields['weights_note'] = result.weights_note
+    return fields
