@@ -62,7 +62,7 @@ def test_node_starts_and_exits_0_on_ctrl_c(
         ('identify', {'cost': 'quadratic'}, 'cost must be one of'),
         ('identify', {'output': '/etc/hexacal.yaml'}, 'is outside output_dir'),
         ('collector', {'bag_name': 'a/b'}, 'bag_name must be a plain directory name'),
-        ('collector', {'detector': 'median'}, 'detector must be one of settled, window'),
+        ('collector', {'detector': 'median'}, "detector must be 'settled', got 'median'"),
         ('collector', {'encoder_clock_offset_s': 2.0}, 'encoder_clock_offset_s'),
     ],
 )
