@@ -198,10 +198,14 @@ def test_sigterm_also_stops_the_collector_cleanly(ros_processes, tmp_path, probe
         node_argv('collector', {'output_dir': str(tmp_path / 'bags'), 'bag_name': 'terminated'})
     )
     probe.wait_for_node('collector', process=collector)
+    # The node is in the graph before its constructor ends; the bag opens last. A signal before
+    # that stops it with no bag (start-up); this test is about a collector that is recording.
+    bag = tmp_path / 'bags' / 'terminated'
+    probe.spin_until(bag.is_dir, 60.0, 'the collector to open its bag', collector.describe)
     os.killpg(collector.pid, signal.SIGTERM)
     collector.popen.wait(STOP_TIMEOUT_S)
     assert collector.popen.returncode == 0, collector.describe()
-    assert (tmp_path / 'bags' / 'terminated' / 'metadata.yaml').exists()
+    assert (bag / 'metadata.yaml').exists()
 
 
 @pytest.mark.slow
