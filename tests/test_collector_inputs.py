@@ -235,8 +235,12 @@ def subscribe_postures(probe, topic: str) -> list:
         assert tuple(message.name) == POSTURE_NAMES  # the contract's names, whatever the inputs
         received.append(joint_state_to_posture_reading(message))
 
-    probe.node.create_subscription(JointState, topic, on_posture, POSTURE_QOS)
+    subscription = probe.node.create_subscription(JointState, topic, on_posture, POSTURE_QOS)
+    _SUBSCRIPTIONS[id(received)] = subscription
     return received
+
+
+_SUBSCRIPTIONS: dict = {}  # id(received list) -> its subscription (matched publishers)
 
 
 def posture_array(postures) -> np.ndarray:
@@ -301,6 +305,17 @@ def test_one_joint_states_and_an_imu_give_the_contracts_postures(ros_processes, 
     )
     probe.wait_for_node('collector', '/', collector)
     probe.wait_for_node('collector', IMU_NAMESPACE, imu_collector)
+    # Each collector's posture publisher matched with the probe before any reading is sent: on a
+    # loaded machine discovery can take longer than the first posture.
+    probe.spin_until(
+        lambda: all(
+            _SUBSCRIPTIONS[id(r)].get_publisher_count() >= 1
+            for r in (joint_states_postures, imu_postures)
+        ),
+        60.0,
+        'the collectors\' posture publishers to match the probe',
+        lambda: '\n'.join(p.describe(15) for p in (collector, imu_collector)),
+    )
     machine = ros_processes.start([sys.executable, __file__, '--publish'], name='machine')
     nodes = (collector, imu_collector, machine)
 
