@@ -341,6 +341,35 @@ BRANCH_TOLERANCE_RAD = 0.35
 _HALVINGS = 0.5 ** np.arange(1, MAX_HALVINGS + 1)
 
 
+def _damped_step(evaluate, active: np.ndarray, base: np.ndarray, step: np.ndarray,
+                 current: np.ndarray) -> tuple[np.ndarray, tuple, np.ndarray]:
+    """
+    Return the Newton trial of each row, its evaluated values and error.
+
+    A row whose full step does not reduce the residual takes the first halving that does, else
+    the last (which the caller does not take): all rows' halvings are evaluated at once.
+    """
+    trial = base - step
+    values, trial_error = evaluate(active, trial)
+    worse = np.flatnonzero(~(trial_error < current))
+    if not worse.size:
+        return trial, values, trial_error
+    count = len(_HALVINGS)
+    halved = (base[worse][:, None, :]
+              - _HALVINGS[None, :, None] * step[worse][:, None, :]).reshape(-1, 6)
+    halved_values, halved_error = evaluate(np.repeat(active[worse], count), halved)
+    halved_error = halved_error.reshape(-1, count)
+    improves = halved_error < current[worse][:, None]
+    first = np.where(np.any(improves, axis=1), np.argmax(improves, axis=1), count - 1)
+    picked = np.arange(len(worse)) * count + first
+    trial[worse] = halved[picked]
+    trial_error[worse] = halved_error[np.arange(len(worse)), first]
+    values = tuple(v.copy() for v in values)
+    for value, halved_value in zip(values, halved_values):
+        value[worse] = halved_value[picked]
+    return trial, values, trial_error
+
+
 def solve_stacked(
     stack: MachineStack,
     machine: np.ndarray,
@@ -407,24 +436,7 @@ def solve_stacked(
         if not active.size:
             continue
         base, current = poses[active], error[active]
-        trial = base - step
-        values, trial_error = evaluate(active, trial)
-        worse = np.flatnonzero(~(trial_error < current))
-        if worse.size:
-            halved = (base[worse][:, None, :]
-                      - _HALVINGS[None, :, None] * step[worse][:, None, :]).reshape(-1, 6)
-            count = len(_HALVINGS)
-            halved_values, halved_error = evaluate(np.repeat(active[worse], count), halved)
-            halved_error = halved_error.reshape(-1, count)
-            improves = halved_error < current[worse][:, None]
-            # The first halving that reduces the residual, else the last (not taken).
-            first = np.where(np.any(improves, axis=1), np.argmax(improves, axis=1), count - 1)
-            picked = np.arange(len(worse)) * count + first
-            trial[worse] = halved[picked]
-            trial_error[worse] = halved_error[np.arange(len(worse)), first]
-            values = tuple(v.copy() for v in values)
-            for value, halved_value in zip(values, halved_values):
-                value[worse] = halved_value[picked]
+        trial, values, trial_error = _damped_step(evaluate, active, base, step, current)
         better = trial_error < current
         taken = active[better]
         poses[taken] = trial[better]
@@ -668,23 +680,7 @@ class _Continuation:
         if not active.size:
             return
         base, current = self.poses[active], self.error[active]
-        trial = base - step
-        values, trial_error = self._evaluate(active, trial)
-        worse = np.flatnonzero(~(trial_error < current))
-        if worse.size:
-            count = len(_HALVINGS)
-            halved = (base[worse][:, None, :]
-                      - _HALVINGS[None, :, None] * step[worse][:, None, :]).reshape(-1, 6)
-            halved_values, halved_error = self._evaluate(np.repeat(active[worse], count), halved)
-            halved_error = halved_error.reshape(-1, count)
-            improves = halved_error < current[worse][:, None]
-            first = np.where(np.any(improves, axis=1), np.argmax(improves, axis=1), count - 1)
-            picked = np.arange(len(worse)) * count + first
-            trial[worse] = halved[picked]
-            trial_error[worse] = halved_error[np.arange(len(worse)), first]
-            values = tuple(v.copy() for v in values)
-            for value, halved_value in zip(values, halved_values):
-                value[worse] = halved_value[picked]
+        trial, values, trial_error = _damped_step(self._evaluate, active, base, step, current)
         better = trial_error < current
         taken = active[better]
         self.poses[taken] = trial[better]
