@@ -28,10 +28,8 @@ from hexacal_msgs_py.conversions import (
     stamp_ns,
 )
 from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError
-from hexacal_msgs_py.models import MODELS
 from hexacal_msgs_py.names import (
     CALIBRATION_STATUS_TOPIC,
-    DEFAULT_COMMAND_TOPIC,
     KINEMATICS_STATUS_NAME,
     MACHINE_MARKERS_TOPIC,
     PARAMETERS_TOPIC,
@@ -69,7 +67,7 @@ from .parameters import parameter_descriptor
 from .runtime import run_node
 from ..calibration_steps.machine_files import load_machine_and_mount
 from ..core.architectures import KinematicParameters, parameters_for
-from ..core.machine.device import check_mount, DEFAULT_MOUNT, DeviceMountError, MOUNTS
+from ..core.machine.device import check_mount, DEFAULT_MOUNT, DeviceMountError
 from ..core.sessions.kinematics_session import (
     check_parameter,
     KinematicsConfigurationError,
