@@ -36,6 +36,7 @@ from hexacal_msgs_py.result_file import (
 )
 import numpy as np
 
+from .compliance_section import compliance_section
 from ..core.architectures import architecture
 from ..core.jsonsafe import json_safe as _plain
 from ..core.machine.device import (
@@ -271,6 +272,8 @@ class _Sections:
         parts.append(self.identified())
         if self.payload.get('device_identified'):
             parts.append(self.device_parameters())
+        if compliance_section(self.payload):
+            parts.append(compliance_section(self.payload))
         for section in (
             self.corrections,
             self.truth_errors,
