@@ -9,7 +9,10 @@ with the true link (link_length + dL):
   platform stands on the link sphere where the elastic energy is least
   (simulation.device_constrained_pose). Each actuator carries the force
   ``servo_stiffness_n_per_m * (position - setpoint)`` (N, positive when the link pushes it
-  past its setpoint). The drive faults when a force would exceed ``max_force_n``.
+  past its setpoint). The drive faults when a force would exceed ``max_force_n``, or the
+  tension or compression those forces put on the rigid link (core.modes.compliant.link_tension)
+  would exceed ``max_link_force_n`` (both by default the 500 N a measuring link of the
+  documented kind bears, hexacal_msgs_py.measuring_modes.LINK_FORCE_LIMIT_N).
 * ``passive_actuator``: stiff drives. With one joint released (`release`) the five commanded
   actuators stand exactly at their setpoints and the released one is where the link puts it
   (core.passive_actuator.solve_passive from the previous pose); it faults at its stroke's end.
@@ -46,8 +49,14 @@ from hexacal_identify.core.architectures import KinematicParameters
 from hexacal_identify.core.errors import ForwardKinematicsError, UnreachablePoseError
 from hexacal_identify.core.machine.device import DEFAULT_MOUNT
 from hexacal_identify.core.machine.kinematics import forward_kinematics
+from hexacal_identify.core.modes.compliant import link_tension
 from hexacal_identify.core.modes.passive_actuator import solve_passive
-from hexacal_msgs_py.measuring_modes import measuring_mode, MeasuringMode
+from hexacal_msgs_py.measuring_modes import (
+    COMPLIANT_SERVO_STIFFNESS_N_PER_M,
+    LINK_FORCE_LIMIT_N,
+    measuring_mode,
+    MeasuringMode,
+)
 import numpy as np
 
 
@@ -64,9 +73,10 @@ class DriveSettings:
 
     mode: MeasuringMode = MeasuringMode.COMPLIANT
     max_following_error_m: float = 5e-4
-    servo_stiffness_n_per_m: float = 2e6
-    max_force_n: float = 1e5
+    servo_stiffness_n_per_m: float = COMPLIANT_SERVO_STIFFNESS_N_PER_M
+    max_force_n: float = LINK_FORCE_LIMIT_N
     lvdt_stroke_m: float = 0.005
+    max_link_force_n: float = LINK_FORCE_LIMIT_N
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> DriveSettings:
@@ -77,6 +87,7 @@ class DriveSettings:
             float(values['servo_stiffness_n_per_m']),
             float(values['max_force_n']),
             float(values['lvdt_stroke_m']),
+            float(values.get('max_link_force_n', LINK_FORCE_LIMIT_N)),
         )
 
 
@@ -352,7 +363,7 @@ class DriveFollower(CommandFollower):
     def _check(self, standing: Standing, setpoints: np.ndarray) -> DriveFault | None:
         """Return the fault this standing would cause (a limit crossed), else None."""
         if self.mode == MeasuringMode.COMPLIANT:
-            return self.compliant_fault(setpoints, standing.actuators)
+            return self.compliant_fault(setpoints, standing.actuators, standing.pose)
         mask = self.commanded_mask()
         deviation = np.where(mask, np.abs(standing.actuators - setpoints), 0.0)
         worst = int(np.argmax(deviation))
@@ -377,17 +388,35 @@ class DriveFollower(CommandFollower):
                 )
         return None
 
-    def compliant_fault(self, setpoints: np.ndarray, actuators: np.ndarray) -> DriveFault | None:
-        """Return the compliant drives' fault for a standing (a force beyond max_force_n)."""
-        forces = np.abs(self.settings.servo_stiffness_n_per_m * (actuators - setpoints))
+    def compliant_fault(
+        self, setpoints: np.ndarray, actuators: np.ndarray, pose: np.ndarray | None = None
+    ) -> DriveFault | None:
+        """
+        Return the compliant drives' fault for a standing, else None.
+
+        A servo's force beyond max_force_n, or (with the standing's `pose`) the link's tension
+        or compression beyond max_link_force_n.
+        """
+        stiffness = self.settings.servo_stiffness_n_per_m
+        forces = np.abs(stiffness * (actuators - setpoints))
         worst = int(np.argmax(forces))
         limit = self.settings.max_force_n
-        if forces[worst] <= limit:
+        if forces[worst] > limit:
+            return DriveFault(
+                f'force on {self.joint_names[worst]} {forces[worst]:.4g} N beyond the limit '
+                f'{limit:g} N (compliant servos against the link)',
+                self.joint_names[worst], float(forces[worst]), limit,
+            )
+        if pose is None:
+            return None
+        tension = float(link_tension(self.params, pose, actuators, setpoints, stiffness)[0])
+        limit = self.settings.max_link_force_n
+        if abs(tension) <= limit:
             return None
         return DriveFault(
-            f'force on {self.joint_names[worst]} {forces[worst]:.4g} N beyond the limit '
-            f'{limit:g} N (compliant servos against the link)',
-            self.joint_names[worst], float(forces[worst]), limit,
+            f'measuring link {"tension" if tension > 0 else "compression"} {abs(tension):.4g} N '
+            f'beyond the limit {limit:g} N (compliant servos against the link)',
+            'link', abs(tension), limit,
         )
 
     def _trip(self, fault: DriveFault) -> None:
