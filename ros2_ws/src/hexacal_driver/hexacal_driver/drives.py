@@ -49,7 +49,7 @@ from hexacal_identify.core.architectures import KinematicParameters
 from hexacal_identify.core.errors import ForwardKinematicsError, UnreachablePoseError
 from hexacal_identify.core.machine.device import DEFAULT_MOUNT
 from hexacal_identify.core.machine.kinematics import forward_kinematics
-from hexacal_identify.core.modes.compliant import link_tension
+from hexacal_identify.core.modes.compliant import thrust_link_tension
 from hexacal_identify.core.modes.passive_actuator import solve_passive
 from hexacal_msgs_py.measuring_modes import (
     COMPLIANT_SERVO_STIFFNESS_N_PER_M,
@@ -144,7 +144,7 @@ class DriveFollower(CommandFollower):
         self.link_m = float(np.linalg.norm(self.pose[:3]))
         self.end_stop = False
         self.peaks = {'following_error_m': 0.0, 'force_n': 0.0, 'link_extension_m': 0.0,
-                      'actuator_deviation_m': 0.0}
+                      'actuator_deviation_m': 0.0, 'link_force_n': 0.0}
         self.rest_deviation_m = 0.0
         # Per motion (so a report can split before/after refinement): the rests reached after a
         # commanded motion, the peaks of the motion under way and of the last one that ended.
@@ -152,6 +152,8 @@ class DriveFollower(CommandFollower):
         self.move_peaks = {'force_n': 0.0, 'link_extension_m': 0.0}
         self.last_move_peaks = dict(self.move_peaks)
         self.last_refusal = ''  # why the last trajectory was refused ('' none yet)
+        self._tension_key: tuple[bytes, bytes] | None = None  # the last link tension computed
+        self._tension_n = 0.0
         self._update_measures()
 
     # ------------------------------------------------------------------ what the drives show
@@ -192,6 +194,21 @@ class DriveFollower(CommandFollower):
             return None
         return self.settings.servo_stiffness_n_per_m * (self.actuators - self.setpoints)
 
+    def link_force(self) -> float | None:
+        """Return the measuring link's tension (N, compression negative): compliant, else None."""
+        forces = self.forces()  # the servos' (a physics machine's own gains)
+        if forces is None:
+            return None
+        return self._tension(self.pose, -forces)
+
+    def _tension(self, pose: np.ndarray, thrust: np.ndarray) -> float:
+        """Return the link's tension for these thrusts at `pose`: the guard's, reused by status."""
+        key = (pose.tobytes(), thrust.tobytes())
+        if key != self._tension_key:
+            self._tension_key = key
+            self._tension_n = float(thrust_link_tension(self.params, pose, thrust)[0])
+        return self._tension_n
+
     @property
     def link_extension_m(self) -> float:
         """Return the link's extension from its rest length (m): lvdt, else 0."""
@@ -221,6 +238,8 @@ class DriveFollower(CommandFollower):
             'max_link_extension_m': self.peaks['link_extension_m'] if lvdt else '',
             'force_n': float(np.max(np.abs(forces))) if forces is not None else '',
             'max_force_n': self.peaks['force_n'] if forces is not None else '',
+            'link_force_n': self.link_force_n if forces is not None else '',
+            'max_link_force_n': self.peaks['link_force_n'] if forces is not None else '',
             'actuator_deviation_m': self.rest_deviation_m,
             'max_actuator_deviation_m': self.peaks['actuator_deviation_m'],
             'refused_command': self.last_refusal,
@@ -409,7 +428,7 @@ class DriveFollower(CommandFollower):
             )
         if pose is None:
             return None
-        tension = float(link_tension(self.params, pose, actuators, setpoints, stiffness)[0])
+        tension = self._tension(np.asarray(pose, dtype=float), stiffness * (setpoints - actuators))
         limit = self.settings.max_link_force_n
         if abs(tension) <= limit:
             return None
@@ -435,6 +454,9 @@ class DriveFollower(CommandFollower):
         forces = self.forces()
         if forces is not None:
             peaks['force_n'] = max(peaks['force_n'], float(np.max(np.abs(forces))))
+        link = self.link_force()
+        self.link_force_n = 0.0 if link is None else link
+        peaks['link_force_n'] = max(peaks['link_force_n'], abs(self.link_force_n))
         peaks['link_extension_m'] = max(peaks['link_extension_m'], abs(self.link_extension_m))
         move = self.move_peaks
         if forces is not None:

@@ -175,6 +175,9 @@ def test_compliant_servos_fault_before_they_overload_the_measuring_link():
     assert np.array_equal(samples[-1].actuators, samples[-2].actuators)
     held = link_tension(f.params, f.pose, f.actuators, f.setpoints, 1e6)[0]
     assert 0 < abs(held) <= 500.0
+    values = f.status_values()
+    assert values['link_force_n'] == pytest.approx(held)
+    assert abs(held) <= values['max_link_force_n'] <= 500.0
 
 
 def test_compliant_default_follows_as_before():

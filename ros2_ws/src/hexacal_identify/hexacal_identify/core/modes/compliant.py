@@ -141,11 +141,19 @@ def link_tension(
     tension T is the force part of J^T tau along P (compression negative).  Where the standing
     is the least-energy one on the sphere (device_constrained_pose) J^T tau has no other part.
     """
-    poses = np.atleast_2d(np.asarray(poses, dtype=float))
     thrust = stiffness_n_per_m * (
         np.atleast_2d(np.asarray(setpoints, dtype=float))
         - np.atleast_2d(np.asarray(actuators, dtype=float))
     )
+    return thrust_link_tension(params, poses, thrust)
+
+
+def thrust_link_tension(
+    params: KinematicParameters, poses: np.ndarray, thrust: np.ndarray
+) -> np.ndarray:
+    """Return the link's tension (N,), N, that holds the platform against the thrusts (N, 6)."""
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    thrust = np.atleast_2d(np.asarray(thrust, dtype=float))
     arch = params.architecture
     jacobian = np.asarray(arch.legs(arch.chains(params), poses).pose_jacobian())
     generalised = np.einsum('ncx,nc->nx', jacobian, thrust)
@@ -153,4 +161,10 @@ def link_tension(
     return np.einsum('nx,nx->n', generalised[:, :3], direction)
 
 
-__all__ = ['ConstraintError', 'device_constrained_pose', 'link_tension', 'STRAIN_RETRY_M']
+__all__ = [
+    'ConstraintError',
+    'device_constrained_pose',
+    'link_tension',
+    'STRAIN_RETRY_M',
+    'thrust_link_tension',
+]
