@@ -76,7 +76,7 @@ def drives_start_text(follower: DriveFollower) -> str:
     if settings.mode == MeasuringMode.COMPLIANT:
         guard = (
             f'compliant servos of {settings.servo_stiffness_n_per_m:g} N/m, fault above '
-            f'{settings.max_force_n:g} N'
+            f'{settings.max_force_n:g} N on a servo or {settings.max_link_force_n:g} N on the link'
         )
     else:
         guard = f'stiff drives, fault above {settings.max_following_error_m:g} m following error'

@@ -5,6 +5,7 @@ from hexacal_driver.machine import SimulatedMachine
 from hexacal_driver.parameters import parameter_problem, PARAMETERS
 from hexacal_driver.reports import drives_start_text
 from hexacal_driver.simulation import CommandFollower
+from hexacal_identify.core.modes.compliant import link_tension
 from hexacal_identify.core.modes.lvdt import lvdt_extensions
 from hexacal_identify.core.modes.passive_actuator import solve_passive
 import numpy as np
@@ -148,7 +149,10 @@ def test_over_constrained_passive_faults_before_the_limit_and_holds():
 
 
 def test_compliant_force_is_stiffness_times_deviation_and_faults_at_the_limit():
-    m = machine(measuring_mode='compliant', servo_stiffness_n_per_m=1e6, max_force_n=1e3)
+    m = machine(
+        measuring_mode='compliant', servo_stiffness_n_per_m=1e6, max_force_n=1e3,
+        max_link_force_n=1e9,
+    )
     f = m.follower
     samples = ramp_until_fault(m, np.full(6, 5e-3))
     forces = f.forces()
@@ -159,8 +163,25 @@ def test_compliant_force_is_stiffness_times_deviation_and_faults_at_the_limit():
     assert f.status_values()['force_n'] == pytest.approx(np.max(np.abs(forces)))
 
 
+def test_compliant_servos_fault_before_they_overload_the_measuring_link():
+    m = machine(measuring_mode='compliant', servo_stiffness_n_per_m=1e6, max_force_n=1e9)
+    f = m.follower
+    samples = ramp_until_fault(m, np.full(6, 5e-3))
+    # The default link limit: what a measuring link of the documented kind bears.
+    assert f.settings.max_link_force_n == 500.0
+    assert f.fault.joint == 'link' and f.fault.value > 500.0 == f.fault.limit, f.fault
+    assert 'measuring link' in f.fault.text and 'beyond the limit 500 N' in f.fault.text
+    # The standing held is the last one inside the limit.
+    assert np.array_equal(samples[-1].actuators, samples[-2].actuators)
+    held = link_tension(f.params, f.pose, f.actuators, f.setpoints, 1e6)[0]
+    assert 0 < abs(held) <= 500.0
+    values = f.status_values()
+    assert values['link_force_n'] == pytest.approx(held)
+    assert abs(held) <= values['max_link_force_n'] <= 500.0
+
+
 def test_compliant_default_follows_as_before():
-    """The default (compliant, 1e4 N at 2e6 N/m) moves exactly as the plain CommandFollower."""
+    """The default (compliant, 500 N at 2e4 N/m) moves exactly as the plain CommandFollower."""
     m = machine()
     f = m.follower
     plain = CommandFollower(m.true_params, f.pose, f.max_speed_m_s, m.true_link_length, m.mount)
@@ -184,7 +205,9 @@ def test_measuring_mode_parameter_is_checked():
 
 
 def test_the_start_line_names_the_mode_and_its_guard():
-    assert 'fault above 100000 N' in drives_start_text(machine().follower)
+    assert 'fault above 500 N on a servo or 500 N on the link' in drives_start_text(
+        machine().follower
+    )
     text = drives_start_text(machine(measuring_mode='lvdt', lvdt_stroke_m=0.002).follower)
     assert 'lvdt' in text and '+-0.002 m' in text and '0.0005 m following error' in text
 

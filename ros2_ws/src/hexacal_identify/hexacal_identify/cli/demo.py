@@ -115,7 +115,7 @@ def add_parsers(subparsers) -> None:
         metavar='NAME=VALUE',
         type=_driver_param,
         help='set a parameter of the simulated driver (repeatable; docs/nodes.md, driver; a '
-        'float with a decimal point), e.g. max_force_n=2000.0 to see its guard fault, '
+        'float with a decimal point), e.g. max_force_n=50.0 to see its guard fault, '
         'servo_stiffness_n_per_m=5e5 or lvdt_stroke_m=0.003',
     )
     parser.add_argument(

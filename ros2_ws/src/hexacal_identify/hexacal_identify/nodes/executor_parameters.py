@@ -180,7 +180,16 @@ PARAMETERS: dict[str, _Spec] = {
     'max_force_n': _Spec(
         GUARD.max_force_n,
         'compliant (named): a move whose predicted force on a servo exceeds this (N) is not sent: '
-        'the plan pauses',
+        "the plan pauses (default 0.8 x the driver's: room for what the model misses)",
+        1e-6,
+        1e9,
+    ),
+    'max_link_force_n': _Spec(
+        GUARD.max_link_force_n,
+        'compliant: a move whose predicted tension or compression of the measuring link (the '
+        "servos' strain carried by the rigid link) exceeds this (N) is not sent: the plan pauses "
+        "(default 0.8 x the 500 N a measuring link of the documented kind bears, the driver's "
+        'max_link_force_n)',
         1e-6,
         1e9,
     ),
