@@ -305,6 +305,25 @@ class PlanningResult:
         return means
 
 
+def _model_margin_candidates(nominal, poses, kinds, limits, n_postures, model_error_m):
+    """Keep the candidates whose targets keep the model-change margin (model_margin.py)."""
+    from ..modes.release_rehearsal import model_error_rms_m
+    from .model_margin import keep_model_margin
+
+    error_m = model_error_rms_m(nominal) if model_error_m is None else float(model_error_m)
+    if error_m == 0:
+        return poses, kinds
+    keep = keep_model_margin(nominal, poses, limits.actuator_stroke_m, error_m)
+    if int(np.sum(keep)) < n_postures:
+        raise ValueError(
+            f'only {int(np.sum(keep))} of {len(poses)} candidate postures keep their targets '
+            f'inside the stroke {tuple(limits.actuator_stroke_m)} m less the margin a model '
+            f'error of {error_m * 1e3:g} mm RMS needs; {n_postures} postures were asked for '
+            '(more candidates, a smaller model error, or a wider stroke)'
+        )
+    return poses[keep], kinds[keep]
+
+
 def plan_postures(
     nominal: KinematicParameters,
     n_postures: int,
@@ -325,6 +344,7 @@ def plan_postures(
     device_turns: tuple[float, ...] = (0.0,),
     measuring_mode: str | None = None,
     lvdt_stroke_m: float = DEFAULT_LVDT_STROKE_M,
+    model_error_m: float | None = None,
 ) -> PlanningResult:
     """
     Candidates -> Jacobian rows at ``nominal`` -> greedy (and exchange) selection -> ordered Plan.
@@ -334,6 +354,9 @@ def plan_postures(
     doc);
     ``device_turns``: the mountings of a turning procedure, each sphere candidate offered in each.
     ``measuring_mode``: written into the plan with what it adds (module doc); None: neither.
+    ``model_error_m``: the RMS parameter error of the nominal, from which the stroke margin a
+    posture keeps for the model change before its targets are walked (model_margin.py); None:
+    the architecture's Table 2 set 2 RMS, 0: no margin.
     """
     check_index(index)
     if limits is None:
@@ -351,6 +374,8 @@ def plan_postures(
     device = limits.device()
     rng = np.random.default_rng([seed, 0x91A4])
     poses, kinds = generate_candidates(nominal, n_candidates, rng, limits, fraction)
+    poses, kinds = _model_margin_candidates(nominal, poses, kinds, limits, n_postures,
+                                            model_error_m)
     if measuring_mode is not None and measuring_mode in SIX_COMMANDED:
         extension = (
             lvdt_stroke_m - GuardSettings().lvdt_margin_m if measuring_mode == 'lvdt' else np.inf
