@@ -71,7 +71,8 @@ class StackedChains:
         self.kind = type(chains[0])
         self.count = len(chains)
         self.arrays = {
-            name: np.stack([getattr(c, name) for c in chains], axis=0 if name == 'platform' else -2)
+            name: np.stack([getattr(c, name) for c in chains],
+                           axis=0 if name == 'platform' else -2)
             for name in self.kind.__slots__
         }
 

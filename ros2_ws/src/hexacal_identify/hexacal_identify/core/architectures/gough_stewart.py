@@ -58,9 +58,9 @@ from .common import (
     platform_point_derivatives,
     platform_point_motion,
     PlatformPoints,
-    StackedChains,
     pose_jacobian_rows,
     rotation_from_trig,
+    StackedChains,
 )
 
 LAYOUT = MODELS[GOUGH_STEWART]

@@ -56,8 +56,8 @@ from .common import (
     move_joint_points,
     platform_point_derivatives,
     PlatformPoints,
-    StackedChains,
     pose_jacobian_rows,
+    StackedChains,
 )
 
 LAYOUT = MODELS[HEXA_SLIDE]
