@@ -18,13 +18,13 @@ from hexacal_msgs_py.inputs import (
 )
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 from hexacal_msgs_py.names import DEVICE_TURN_JOINT, MAX_DEVICE_TURN
+from hexacal_msgs_py.node_parameters import parameter_descriptor, ParameterSpec
 from hexacal_msgs_py.parameters_file import read_parameters_file
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.node import Node
 
 from .collector_inputs import RAW_TOPICS
 from .input_parameters import declare_mapping_parameters, INCLINOMETER_READING_PARAMETERS
-from .parameters import parameter_descriptor, ParameterSpec
 from ..bag.naming import bag_name_problem
 from ..core.detection.turn_history import turn_problem
 from ..core.detection.vocabulary import detector_problem, DETECTORS

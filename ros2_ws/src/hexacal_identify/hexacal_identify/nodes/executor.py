@@ -41,6 +41,7 @@ from hexacal_msgs_py.inputs import (
     InputMappingError,
 )
 from hexacal_msgs_py.models import DEVICE_MOUNT_KEY as MOUNT_PARAMETER
+from hexacal_msgs_py.node_parameters import parameter_descriptor
 from hexacal_msgs_py.names import (
     CALIBRATE_SERVICE,
     CALIBRATION_STATUS_TOPIC,
@@ -83,7 +84,6 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from .executor_parameters import MODEL_PARAMETERS, PARAMETERS
 from .input_parameters import declare_mapping_parameters, INCLINOMETER_READING_PARAMETERS
-from .parameters import parameter_descriptor
 from .runtime import run_node
 from ..core.machine.device import DEFAULT_MOUNT, DeviceMountError
 from ..core.machine.measurements import FIXED

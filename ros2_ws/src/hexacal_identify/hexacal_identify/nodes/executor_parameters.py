@@ -11,8 +11,8 @@ from __future__ import annotations
 
 from hexacal_msgs_py.models import MAX_DEVICE_TURN
 from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC, INCLINOMETER_NAMES
+from hexacal_msgs_py.node_parameters import ParameterSpec as _Spec
 
-from .parameters import ParameterSpec as _Spec
 from ..core.walk.guard import GuardSettings
 from ..core.walk.settings import ExecutionSettings
 
