@@ -1,5 +1,5 @@
 """
-The vocabulary of a plan's walk (ROS-free): its states, settings and outcomes.
+The vocabulary of a plan's walk (ROS-free): its states, phases, settings and outcomes.
 
 core/walk/execution.py walks the plan with them; the executor node reports them
 (``state`` in its status is an `ExecutionState` value) and declares its
@@ -92,3 +92,16 @@ class PostureOutcome:
     duration_s: float
     move_s: float  # the planned move time of its first command
     corrections: int
+
+
+class Phase(enum.Enum):
+    """Where the current posture stands while RUNNING."""
+
+    MOVING = 'moving'  # commanded: arriving, settling, correcting
+    POSTURE = 'posture'  # still at the target: waiting for the collector's posture
+    RELEASING = 'releasing'  # at rest: waiting for the drive to lock/release a chain
+    REFINING = 'refining'  # at rest: waiting for an intermediate calibration (refined_targets.py)
+
+
+class GuardStop(Exception):
+    """The guard refuses a command: it would cross a limit (the message says which)."""
