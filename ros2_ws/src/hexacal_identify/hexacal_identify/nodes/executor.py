@@ -55,7 +55,7 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
-from .executor_io import log_messages, now_s as _now_s, ReleaseClient, TurnClient
+from .executor_io import log_lines, log_messages, now_s as _now_s, ReleaseClient, TurnClient
 from .executor_io import trajectory_message, trigger_answer
 from .executor_parameters import declare_model_parameters, declare_parameters
 from .runtime import run_node
@@ -154,7 +154,7 @@ class ExecutorNode(Node):
         self._stopping = False
         topic = self._command_pub.topic_name
         lines = setup.start_messages(self.plan, self.model, topic, self.mapping)
-        log_messages(self.get_logger(), [lines])
+        log_lines(self.get_logger(), lines)
         self._publish_status(force=True)
         self._timer = self.create_timer(CONTROL_PERIOD_S, self._tick)
 

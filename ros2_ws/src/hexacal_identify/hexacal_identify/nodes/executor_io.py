@@ -90,19 +90,24 @@ def trigger_answer(future: Any) -> tuple[bool, str]:
     return answer.success, answer.message
 
 
+def log_lines(logger: Any, messages: Messages) -> None:
+    """Log each (level, text) of `messages` at its level."""
+    # One call site per severity: rclpy refuses another severity from the same line.
+    for level, text in messages:
+        if level == LogLevel.ERROR:
+            logger.error(text)
+        elif level == LogLevel.WARN:
+            logger.warning(text)
+        else:
+            logger.info(text)
+
+
 def log_messages(logger: Any, owners: Iterable[Any]) -> None:
     """Log and clear what each owner's ``messages`` (core.walk.messages.Messages) holds."""
     for owner in owners:
         messages: Messages = owner.messages
         owner.messages = []
-        # One call site per severity: rclpy refuses another severity from the same line.
-        for level, text in messages:
-            if level == LogLevel.ERROR:
-                logger.error(text)
-            elif level == LogLevel.WARN:
-                logger.warning(text)
-            else:
-                logger.info(text)
+        log_lines(logger, messages)
 
 
 def now_s(node: Node) -> float:
