@@ -1,4 +1,4 @@
-"""What the executor decides about the drive, without DDS: core/walk/drive_calls.py and the session."""
+"""What the executor decides about the drive, without DDS: core/walk/drive_calls.py, session."""
 
 from __future__ import annotations
 
