@@ -263,7 +263,7 @@ def stream_statistics(
 
 def dwell_detector(value: Mapping[str, Any], settings: Mapping[str, Any]) -> DwellDetector:
     """Return the settled-streams detector of the collector's parameters."""
-    offsets = {
+    offsets: dict[str, float] = {
         Stream.INCLINOMETER: value['inclinometer_clock_offset_s'],
         Stream.ENCODER: value['encoder_clock_offset_s'],
     }

@@ -17,7 +17,7 @@ core/walk/execution.py asks these at each step of a posture:
 * Measured: the collector's posture of this stop, its actuators within ``still_tolerance_m``
   of the still mean (`posture_matched`).
 * Timeout: what was missing (`timeout_reason`).
-* `FixedPositionLoop`: the part of `PlanExecution` that corrects a fixed position.
+* `correct_fixed_position`: what `PlanExecution` does with a fixed position not reached.
 """
 
 from __future__ import annotations
@@ -171,67 +171,68 @@ def timeout_reason(
     )
 
 
-class FixedPositionLoop:
-    """The fixed-position corrections of `PlanExecution` (a base class of it)."""
-
-    def _correct(self: PlanExecution, now: float, alpha: float, beta: float) -> list[Command]:
-        index = self.index
-        if self._corrections >= self.settings.max_corrections:
-            return self._skip(
-                now,
-                (
-                    f'fixed position not reached after {self._corrections} corrections '
-                    f'(inclinometer {alpha:.3g}, {beta:.3g} rad; tolerance '
-                    f'{self.settings.fixed_tolerance_rad:g} rad)'
-                ),
-            )
-        judged = (
-            f' (settled {now - self._arrive_after:.1f} s after the move)'
-            if self.inclinometer_judgement is not None
-            else ''
-        )
-        previous = self._pose_cmd
-        self._pose_cmd = corrected_pose(previous, alpha, beta, self.link_length, self.mount)
-        via = nudge(self._pose_cmd, previous, self.settings.correction_nudge_m)
-        try:
-            return self._send_correction(now, previous, via, index, alpha, beta, judged)
-        except GuardStop as stop:
-            self._pose_cmd = previous
-            return self._stop(now, str(stop))
-
-    def _send_correction(
-        self: PlanExecution, now, previous, via, index, alpha, beta, judged
-    ) -> list[Command]:
-        try:
-            try:
-                command = self._command(now, CommandPurpose.CORRECT, via)
-            except PathError:
-                if via is None:
-                    raise
-                via = None  # the nudge cannot be commanded (e.g. at the stroke's end)
-                command = self._command(now, CommandPurpose.CORRECT)
-        except PathError as error:
-            self._pose_cmd = previous
-            return self._skip(now, f'the fixed-position correction cannot be commanded: {error}')
-        self._corrections += 1
-        self.total_corrections += 1
-        moved = np.linalg.norm(self._pose_cmd[:3] - previous[:3])
-        self._say(
-            LogLevel.INFO,
-            f'posture {index + 1}: inclinometer {alpha:.3g}, {beta:.3g} rad{judged}; correction '
-            f'{self._corrections} moves the platform by {moved * 1e6:.0f} um'
-            + (
-                f' (through a {self.settings.correction_nudge_m * 1e6:.0f} um nudge beyond it, '
-                'so the collector sees a move)'
-                if via is not None
-                else ''
+def correct_fixed_position(
+    walk: PlanExecution, now: float, alpha: float, beta: float
+) -> list[Command]:
+    """Correct the walk's fixed-position posture by the judged angles (rad), or skip it."""
+    index = walk.index
+    if walk._corrections >= walk.settings.max_corrections:
+        return walk._skip(
+            now,
+            (
+                f'fixed position not reached after {walk._corrections} corrections '
+                f'(inclinometer {alpha:.3g}, {beta:.3g} rad; tolerance '
+                f'{walk.settings.fixed_tolerance_rad:g} rad)'
             ),
         )
-        return [command]
+    judged = (
+        f' (settled {now - walk._arrive_after:.1f} s after the move)'
+        if walk.inclinometer_judgement is not None
+        else ''
+    )
+    previous = walk._pose_cmd
+    walk._pose_cmd = corrected_pose(previous, alpha, beta, walk.link_length, walk.mount)
+    via = nudge(walk._pose_cmd, previous, walk.settings.correction_nudge_m)
+    try:
+        return _send_correction(walk, now, previous, via, index, alpha, beta, judged)
+    except GuardStop as stop:
+        walk._pose_cmd = previous
+        return walk._stop(now, str(stop))
+
+
+def _send_correction(
+    walk: PlanExecution, now, previous, via, index, alpha, beta, judged
+) -> list[Command]:
+    try:
+        try:
+            command = walk._command(now, CommandPurpose.CORRECT, via)
+        except PathError:
+            if via is None:
+                raise
+            via = None  # the nudge cannot be commanded (e.g. at the stroke's end)
+            command = walk._command(now, CommandPurpose.CORRECT)
+    except PathError as error:
+        walk._pose_cmd = previous
+        return walk._skip(now, f'the fixed-position correction cannot be commanded: {error}')
+    walk._corrections += 1
+    walk.total_corrections += 1
+    moved = np.linalg.norm(walk._pose_cmd[:3] - previous[:3])
+    walk._say(
+        LogLevel.INFO,
+        f'posture {index + 1}: inclinometer {alpha:.3g}, {beta:.3g} rad{judged}; correction '
+        f'{walk._corrections} moves the platform by {moved * 1e6:.0f} um'
+        + (
+            f' (through a {walk.settings.correction_nudge_m * 1e6:.0f} um nudge beyond it, '
+            'so the collector sees a move)'
+            if via is not None
+            else ''
+        ),
+    )
+    return [command]
 
 
 __all__ = [
-    'FixedPositionLoop',
+    'correct_fixed_position',
     'commanded_away',
     'judged_angles',
     'MIN_WINDOW_READINGS',

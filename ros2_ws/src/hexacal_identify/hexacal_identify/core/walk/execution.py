@@ -55,7 +55,7 @@ import math
 from hexacal_msgs_py.names import EXECUTOR_RESUME_SERVICE as RESUME_SERVICE
 import numpy as np
 
-from .arrival import FixedPositionLoop, judged_angles, posture_matched, still_mean
+from .arrival import correct_fixed_position, judged_angles, posture_matched, still_mean
 from .arrival import timeout_reason
 from .inclinometer import InclinometerJudgement
 from .messages import LogLevel, Messages, ReadingWindow
@@ -63,7 +63,8 @@ from .platform_paths import Command, CommandPurpose
 from .platform_paths import path_command, PathError, route_command
 from .progress import eta_s, progress, summary, UNDER_WAY
 from .refined_targets import refined_targets, targets_model_label
-from .release_choice import ReleaseRequest, ReleaseSwaps
+from .release_choice import choose_first_release, hear_release, rechoose_release
+from .release_choice import ReleaseRequest
 from .settings import ExecutionSettings, ExecutionState, GuardStop, Phase, PostureOutcome
 from .standing import blend_from_setpoints, estimate_pose
 from .turns import check_turns, same_turn, turn_text
@@ -77,7 +78,7 @@ Guard = Callable[[np.ndarray, np.ndarray, np.ndarray, int | None], str]
 HOLD_S = 0.2  # time_from_start of a hold command
 
 
-class PlanExecution(ReleaseSwaps, FixedPositionLoop):
+class PlanExecution:
     """The executor's state machine: feed it readings, postures and time; send its commands."""
 
     def __init__(
@@ -187,6 +188,20 @@ class PlanExecution(ReleaseSwaps, FixedPositionLoop):
         if self.state in UNDER_WAY and self._phase is not None:
             self._postures.append((now, np.asarray(actuators, dtype=float)))
 
+    def on_drive_released(self, released: int | None) -> None:
+        """Hear which chain the drive has released (its status) before the plan starts."""
+        if self.state == ExecutionState.WAITING and self.release_request is None:
+            self.released_now = released
+
+    def on_release(self, now: float, released: int | None, problem: str) -> list[Command]:
+        """
+        Hear the drive's answer to `release_request`: the chain released now, what went wrong.
+
+        problem '': done, the posture is commanded; else the plan pauses (holding) with
+        `problem` in ``notice`` until resumed (release_choice.py).
+        """
+        return hear_release(self, now, released, problem)
+
     def on_drive_fault(self, now: float, fault: str) -> list[Command]:
         """Hear the drive's fault: pause (the drive holds itself; resume once it is reset)."""
         if self.state != ExecutionState.RUNNING:
@@ -285,7 +300,7 @@ class PlanExecution(ReleaseSwaps, FixedPositionLoop):
             self._say(LogLevel.INFO, f'ready to walk {self.total} postures; paused until resumed')
             return []
         self.state = ExecutionState.RUNNING
-        self._choose_first_release()
+        choose_first_release(self)
         return self._begin(now, fresh=True)
 
     def pause(self, now: float) -> tuple[bool, str, list[Command]]:
@@ -338,7 +353,7 @@ class PlanExecution(ReleaseSwaps, FixedPositionLoop):
                 f'axis (was {turn_text(previous)})'
             )
         self._say(LogLevel.INFO, text)
-        self._rechoose_release()
+        rechoose_release(self)
         return True, text, self._begin(now, fresh=fresh)
 
     def abort(self, now: float) -> tuple[bool, str, list[Command]]:
@@ -383,7 +398,7 @@ class PlanExecution(ReleaseSwaps, FixedPositionLoop):
                     return []
                 alpha, beta = angles
                 if max(abs(alpha), abs(beta)) > settings.fixed_tolerance_rad:
-                    return self._correct(now, alpha, beta)
+                    return correct_fixed_position(self, now, alpha, beta)
             self._still_mean = still
             self._phase = Phase.POSTURE
         if self._phase == Phase.POSTURE:

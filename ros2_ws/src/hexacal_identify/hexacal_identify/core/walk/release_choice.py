@@ -14,8 +14,8 @@ the released chain is locked: the machine is left a machine, every actuator held
 * `first_releases`: the planner cannot know where the first move starts; if the plan's first
   release is not safe from where the machine stands, the whole plan's releases are rehearsed
   again from there.
-* `ReleaseSwaps`: the part of `PlanExecution` that hears the drive's releases and asks for
-  swaps.
+* `hear_release`, `choose_first_release`, `rechoose_release`: what `PlanExecution` does with
+  the drive's answers and its releases (the walk is their first argument).
 * `release_after_fault`: after a drive fault with a chain released (most likely a jam of the
   five commanded and the link), another chain is released for the rest of the move.
 """
@@ -57,7 +57,7 @@ def first_releases(
     link_length: float,
     stroke: tuple[float, float],
     mount: str,
-) -> tuple[list[int], str] | None:
+) -> tuple[list[int | None], str] | None:
     """
     Return the releases rehearsed again from pose `here` and the line to log; None: keep them.
 
@@ -68,6 +68,8 @@ def first_releases(
     from ..modes.released_actuator import choose_released_actuators, release_from_here
 
     first = released[0]
+    if first is None:
+        return None  # nothing released at the first posture: nothing to rehearse
     standing_release = first if released_now is None else released_now
     kept = release_from_here(
         nominal, here, actuators, standing_release, poses[0], link_length, stroke, (),
@@ -82,7 +84,8 @@ def first_releases(
     except ValueError:
         return None  # ReleaseError: the plan's releases stay; the guard still watches
     changed = int(np.sum(choice.released != np.array(released)))
-    return [int(chain) for chain in choice.released], (
+    rehearsed: list[int | None] = [int(chain) for chain in choice.released]
+    return rehearsed, (
         "the plan's first release is not safe from where the machine stands: its releases "
         f'were rehearsed again from here ({changed} of {len(poses)} changed)'
     )
@@ -126,92 +129,94 @@ def release_after_fault(
     )
 
 
-class ReleaseSwaps:
-    """The releases of `PlanExecution` (a base class of it): the drive's answers, the choices."""
+def hear_release(
+    walk: PlanExecution, now: float, released: int | None, problem: str
+) -> list[Command]:
+    """
+    Hear the drive's answer to `release_request`: the chain released now, what went wrong.
 
-    def on_drive_released(self: PlanExecution, released: int | None) -> None:
-        """Hear which chain the drive has released (its status) before the plan starts."""
-        if self.state == ExecutionState.WAITING and self.release_request is None:
-            self.released_now = released
-
-    def on_release(
-        self: PlanExecution, now: float, released: int | None, problem: str
-    ) -> list[Command]:
-        """
-        Hear the drive's answer to `release_request`: the chain released now, what went wrong.
-
-        problem '': done, the posture is commanded; else the plan pauses (holding) with
-        `problem` in ``notice`` until resumed.
-        """
-        request, self.release_request = self.release_request, None
-        self.released_now = released
-        self._locked(request)
-        if request is None or self._phase != Phase.RELEASING:
-            return []  # paused or aborted meanwhile: resume asks again if need be
-        if problem:
-            self.state = ExecutionState.PAUSED
-            self._paused_at = now
-            self._phase = None
-            self.notice = (
-                f'posture {request.posture + 1} of {self.total}: {problem}; paused: fix the '
-                f'drive, then call {RESUME_SERVICE}'
-            )
-            self._say(LogLevel.ERROR, self.notice)
-            return self._hold()
-        return self._begin(now, fresh=False)
-
-    def _locked(self: PlanExecution, request: ReleaseRequest | None) -> None:
-        """Take the chain the drive locked where it stands as its setpoint (drives.py)."""
-        latest = self.actuators.latest
-        if request is None or request.lock is None or self._setpoints is None:
-            return
-        if latest is None or self.released_now == request.lock:
-            return  # not locked (refused before): no setpoint changed
-        self._setpoints[request.lock] = latest[request.lock]
-
-    def _choose_first_release(self: PlanExecution) -> None:
-        """
-        Keep the plan's releases if its first move is safe from where the machine stands.
-
-        The planner cannot know where the first move starts (it rehearses the first posture
-        from standing at it), and every later release assumes the standing the earlier ones
-        leave.  If the plan's first release is not safe from here (release_from_here), the
-        releases of the whole plan are rehearsed again from here, in the plan's order.
-        """
-        first = self.released[0] if self.total else None
-        here, latest = self._estimate(), self.actuators.latest
-        if first is None or here is None or latest is None:
-            return
-        chosen = first_releases(
-            self.nominal, self.poses, self.released, self.released_now, here, latest,
-            self.link_length, self.stroke, self.mount,
+    problem '': done, the posture is commanded; else the plan pauses (holding) with
+    `problem` in ``notice`` until resumed.
+    """
+    request, walk.release_request = walk.release_request, None
+    walk.released_now = released
+    _lock_setpoint(walk, request)
+    if request is None or walk._phase != Phase.RELEASING:
+        return []  # paused or aborted meanwhile: resume asks again if need be
+    if problem:
+        walk.state = ExecutionState.PAUSED
+        walk._paused_at = now
+        walk._phase = None
+        walk.notice = (
+            f'posture {request.posture + 1} of {walk.total}: {problem}; paused: fix the '
+            f'drive, then call {RESUME_SERVICE}'
         )
-        if chosen is not None:
-            self.released, text = list(chosen[0]), chosen[1]
-            self._say(LogLevel.INFO, text)
-
-    def _rechoose_release(self: PlanExecution) -> None:
-        """
-        After a drive fault with a chain released, release another for the rest of the move.
-
-        The fault was most likely a jam of the five commanded and the link (a fold of the
-        passive system the plan's release meets on this machine, not on the model): from where
-        the machine stands, at rest, another chain is released (``release_from_here``) and the
-        swap happens as any other, at rest, before the move goes on.
-        """
-        faulted = self._faulted_releases.get(self.index, set())
-        if self.index >= self.total or self.released[self.index] not in faulted:
-            return
-        here, latest = self._estimate(), self.actuators.latest
-        if here is None or latest is None or self.released_now is None:
-            return
-        chosen, level, text = release_after_fault(
-            self.nominal, here, latest, self.released_now, self.poses[self.index], faulted,
-            self.link_length, self.stroke, self.mount, f'posture {self.index + 1} of {self.total}',
-        )
-        if chosen is not None:
-            self.released[self.index] = chosen
-        self._say(level, text)
+        walk._say(LogLevel.ERROR, walk.notice)
+        return walk._hold()
+    return walk._begin(now, fresh=False)
 
 
-__all__ = ['first_releases', 'release_after_fault', 'ReleaseRequest', 'ReleaseSwaps']
+def _lock_setpoint(walk: PlanExecution, request: ReleaseRequest | None) -> None:
+    """Take the chain the drive locked where it stands as its setpoint (drives.py)."""
+    latest = walk.actuators.latest
+    if request is None or request.lock is None or walk._setpoints is None:
+        return
+    if latest is None or walk.released_now == request.lock:
+        return  # not locked (refused before): no setpoint changed
+    walk._setpoints[request.lock] = latest[request.lock]
+
+
+def choose_first_release(walk: PlanExecution) -> None:
+    """
+    Keep the walk's releases if its first move is safe from where the machine stands.
+
+    The planner cannot know where the first move starts (it rehearses the first posture
+    from standing at it), and every later release assumes the standing the earlier ones
+    leave.  If the plan's first release is not safe from here (release_from_here), the
+    releases of the whole plan are rehearsed again from here, in the plan's order.
+    """
+    first = walk.released[0] if walk.total else None
+    here, latest = walk._estimate(), walk.actuators.latest
+    if first is None or here is None or latest is None:
+        return
+    chosen = first_releases(
+        walk.nominal, walk.poses, walk.released, walk.released_now, here, latest,
+        walk.link_length, walk.stroke, walk.mount,
+    )
+    if chosen is not None:
+        walk.released, text = chosen
+        walk._say(LogLevel.INFO, text)
+
+
+def rechoose_release(walk: PlanExecution) -> None:
+    """
+    After a drive fault with a chain released, release another for the rest of the move.
+
+    The fault was most likely a jam of the five commanded and the link (a fold of the
+    passive system the plan's release meets on this machine, not on the model): from where
+    the machine stands, at rest, another chain is released (``release_from_here``) and the
+    swap happens as any other, at rest, before the move goes on.
+    """
+    faulted = walk._faulted_releases.get(walk.index, set())
+    if walk.index >= walk.total or walk.released[walk.index] not in faulted:
+        return
+    here, latest = walk._estimate(), walk.actuators.latest
+    if here is None or latest is None or walk.released_now is None:
+        return
+    chosen, level, text = release_after_fault(
+        walk.nominal, here, latest, walk.released_now, walk.poses[walk.index], faulted,
+        walk.link_length, walk.stroke, walk.mount, f'posture {walk.index + 1} of {walk.total}',
+    )
+    if chosen is not None:
+        walk.released[walk.index] = chosen
+    walk._say(level, text)
+
+
+__all__ = [
+    'choose_first_release',
+    'first_releases',
+    'hear_release',
+    'rechoose_release',
+    'release_after_fault',
+    'ReleaseRequest',
+]

@@ -41,7 +41,7 @@ class ExecutionSettings:
     # 0: judge the mean over settle_s once the actuators are still (core/walk/inclinometer.py).
     inclinometer_settle_s: float = 0.25
     # A correction smaller than this goes this far beyond its target and back (m; 0: never),
-    # so the collector sees a move (core/walk/execution.py's _nudge).
+    # so the collector sees a move (core/walk/arrival.py's nudge).
     correction_nudge_m: float = 1e-3
 
     def __post_init__(self) -> None:
