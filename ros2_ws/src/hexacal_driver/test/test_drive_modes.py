@@ -232,3 +232,19 @@ def test_each_rest_keeps_the_peaks_of_the_motion_into_it():
     assert values['move_max_force_n'] < strained['move_max_force_n']
     assert values['move_max_force_n'] >= values['force_n']
     assert values['max_force_n'] == strained['max_force_n']  # the run's peak stays
+
+
+def test_the_drives_status_is_due_on_a_change_when_forced_and_every_period():
+    from hexacal_driver.reports import DriveStatusReport
+
+    m = machine(measuring_mode='passive_actuator')
+    report = DriveStatusReport(period_s=1.0)
+    level, message, values, new_fault = report.report(m.follower, 0)
+    assert (level, message, new_fault) == ('OK', 'passive_actuator', '')
+    assert values == m.follower.status_values()
+    assert report.report(m.follower, 500_000_000) is None  # unchanged, within the period
+    assert report.report(m.follower, 500_000_000, force=True) is not None
+    assert report.report(m.follower, 1_600_000_000) is not None  # the period has passed
+    assert m.follower.release(RELEASED, True, 0.0)[0]
+    level, message, _, _ = report.report(m.follower, 1_700_000_000)  # a change: at once
+    assert (level, message) == ('OK', f'passive_actuator, {RELEASED} released')
