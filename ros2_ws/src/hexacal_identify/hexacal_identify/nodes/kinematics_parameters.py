@@ -11,8 +11,8 @@ from __future__ import annotations
 
 from hexacal_msgs_py.models import MODELS
 from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC
+from hexacal_msgs_py.node_parameters import ParameterSpec as _Spec
 
-from .parameters import ParameterSpec as _Spec
 from ..core.machine.device import MOUNTS
 from ..core.sessions.kinematics_session import MIN_MOVE_TIME_S
 
