@@ -59,6 +59,14 @@ from hexacal_msgs_py.measuring_modes import (
 )
 import numpy as np
 
+# The largest change of the setpoints the machine is solved across at once (m; rad for a crank).
+# A tick brings 1 / rate_hz of motion (1 mm at 0.1 m/s and 100 Hz), but a late wake-up on a
+# loaded computer can bring 50 mm at once, across which the passive system's Newton solve may
+# land on another branch. A real machine moves continuously whatever the node's timing: the
+# solve follows it in steps of at most this much.
+CONTINUATION_STEP = 5e-3
+MAX_CONTINUATION_STEPS = 1000
+
 
 class DriveState(StrEnum):
     """The drives' state, as the status says it."""
@@ -141,6 +149,7 @@ class DriveFollower(CommandFollower):
         self.actuator_stroke_m = stroke_m
         self.released: int | None = None
         self.fault: DriveFault | None = None
+        self._sampled_s: float | None = None  # the last sample's time (continuation)
         self.link_m = float(np.linalg.norm(self.pose[:3]))
         self.end_stop = False
         self.peaks = {'following_error_m': 0.0, 'force_n': 0.0, 'link_extension_m': 0.0,
@@ -311,13 +320,24 @@ class DriveFollower(CommandFollower):
 
     def sample(self, now_s: float) -> WalkSample:
         """Return the machine at now_s (s): moved as the mode says, unless the guard faults."""
-        setpoints = self.setpoints_at(now_s)
-        if self.fault is None and not np.array_equal(setpoints, self._solved_for):
-            self._move(setpoints)
+        for time_s in self._continuation(now_s):
+            setpoints = self.setpoints_at(time_s)
+            if self.fault is None and not np.array_equal(setpoints, self._solved_for):
+                self._move(setpoints)
+        self._sampled_s = now_s
         phase = MOVING if now_s < self.end_time_s else STILL
         if phase == STILL:
             self._at_rest()
         return WalkSample(self.pose.copy(), self.actuators.copy(), 0, phase, 0)
+
+    def _continuation(self, now_s: float) -> np.ndarray:
+        """Return the times (s) up to now_s to solve the machine at: one unless a tick is late."""
+        last_s = self._sampled_s
+        change = float(np.max(np.abs(self.setpoints_at(now_s) - self._solved_for)))
+        steps = min(MAX_CONTINUATION_STEPS, math.ceil(change / CONTINUATION_STEP))
+        if self.fault is not None or last_s is None or now_s <= last_s or steps <= 1:
+            return np.array([now_s])
+        return np.linspace(last_s, now_s, steps + 1)[1:]
 
     def _move(self, setpoints: np.ndarray) -> None:
         """Take the standing for `setpoints`, or fault and hold if it crosses a limit."""

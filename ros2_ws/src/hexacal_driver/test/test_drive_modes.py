@@ -248,3 +248,27 @@ def test_the_drives_status_is_due_on_a_change_when_forced_and_every_period():
     assert m.follower.release(RELEASED, True, 0.0)[0]
     level, message, _, _ = report.report(m.follower, 1_700_000_000)  # a change: at once
     assert (level, message) == ('OK', f'passive_actuator, {RELEASED} released')
+
+
+def test_a_late_tick_moves_the_machine_as_the_ticks_it_missed_would_have():
+    # A loaded computer wakes the node late: one sample then covers a whole move. The machine
+    # still moves continuously, so it ends where the 100 Hz samples take it, with no jam.
+    offset = np.array([40e-3, -30e-3, 0.0, 35e-3, -25e-3, 30e-3])
+    ends = []
+    for late in (False, True):
+        m = machine(measuring_mode='passive_actuator')
+        f = m.follower
+        assert f.release(RELEASED, True, 0.0)[0]
+        names, target = five(m, offset)
+        if late:
+            checked, problem = m.check_command(names, [(list(target), 1.0)], 0, 0)
+            assert problem is None, problem
+            end_s = f.command(0.0, checked)
+            f.sample(0.0)
+            sample = f.sample(end_s + 0.05)
+        else:
+            sample, _ = follow(m, names, target, 0.0)
+        assert f.fault is None, f.fault
+        ends.append(sample)
+    np.testing.assert_allclose(ends[1].pose, ends[0].pose, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ends[1].actuators, ends[0].actuators, rtol=0, atol=1e-9)
