@@ -1,0 +1,160 @@
+"""
+The identify node's compliance parameters without DDS: validation and the session's calibration.
+
+The session calibrates with axial compliances through the call `hexacal calibrate --compliance`
+makes. Live lvdt postures show their mode by their measured link length; live postures without
+one carry neither the mode nor the released actuator, and are refused by name.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from hexacal_identify.core.architectures import architecture
+from hexacal_identify.core.fit.compliance import ComplianceModel, simulate_loaded_measurements
+from hexacal_identify.core.fit.statics import MassModel
+from hexacal_identify.core.machine.measurements import NoiseModel
+from hexacal_identify.core.machine.postures import sample_poses
+from hexacal_identify.session import CalibrationSession, parameter_problem, Reason, Settings
+from hexacal_msgs_py.names import CALIBRATION_STATUS_NAME
+from hexacal_msgs_py.parameters_file import (
+    compliances_from_extras,
+    read_parameters_file,
+    save_parameters,
+)
+from hexacal_msgs_py.readings import PostureReading
+import numpy as np
+import pytest
+
+MASSES = MassModel(platform_mass=20.0, leg_mass=2.0, link_mass=1.5)
+PHYSICAL = """gravity: [0.0, 0.0, -9.80665]
+platform: {mass: 20.0, com: [0.0, 0.0, 0.0]}
+legs: {mass: 2.0, com_fraction: 0.5}
+link: {mass: 1.5, com_fraction: 0.5}
+"""
+CHAINS = 1e-7  # m/N: 1e7 N/m legs, deflections of a few um under the weights
+NOISE = NoiseModel.from_microns(2.0)
+
+
+class Recorder:
+    """A StatusSink that keeps what was published."""
+
+    def __init__(self) -> None:
+        self.statuses: list[tuple] = []
+
+    def status(self, name, level, message, values) -> None:
+        self.statuses.append((name, level, message, dict(values)))
+
+    def parameters(self, vector, model) -> None:
+        pass
+
+
+def _unchanged(name, fallback):
+    return fallback
+
+
+def test_bad_compliance_parameters_are_refused_by_name(tmp_path: Path):
+    problem = parameter_problem('compliance', 'stiff', _unchanged)
+    assert problem is not None and "'stiff'" in problem
+    assert 'none, shared, per_chain' in problem
+    for mode in ('none', 'shared', 'per_chain'):
+        assert parameter_problem('compliance', mode, _unchanged) is None
+    problem = parameter_problem('compliance_prior', 'link=1e-7', _unchanged)
+    assert problem is not None and "'link=1e-7'" in problem and 'NAME=VALUE:STD' in problem
+    assert parameter_problem('compliance_prior', 'link=1e-7:2e-8, chains=2e-8:1e-8',
+                             _unchanged) is None
+    assert parameter_problem('compliance_prior', '', _unchanged) is None
+    missing = tmp_path / 'missing.yaml'
+    problem = parameter_problem('physical_file', str(missing), _unchanged)
+    assert problem is not None and str(missing) in problem
+    physical = tmp_path / 'physical.yaml'
+    physical.write_text(PHYSICAL)
+    assert parameter_problem('physical_file', str(physical), _unchanged) is None
+    assert parameter_problem('physical_file', '', _unchanged) is None
+
+
+@pytest.fixture(scope='module')
+def loaded(tmp_path_factory) -> dict:
+    """Lvdt postures of the Table 1 machine loaded by its weights, a nominal file, the masses."""
+    directory = tmp_path_factory.mktemp('loaded')
+    true = architecture('hexa_slide').default_parameters()
+    rng = np.random.default_rng(11)
+    poses = sample_poses(true, 40, rng)
+    model = ComplianceModel('shared', MASSES, 'lvdt')
+    measurements, _ = simulate_loaded_measurements(
+        true, poses, model, np.array([CHAINS]), noise=NOISE, rng=rng
+    )
+    postures = [
+        PostureReading.from_values(
+            (i + 1) * 10**9,
+            [*measurements.actuator_positions[i], *measurements.inclinometer[i],
+             measurements.rotary[i]],
+            link_length=float(measurements.link_lengths[i]),
+        )
+        for i in range(len(poses))
+    ]
+    nominal = directory / 'nominal.yaml'
+    save_parameters(nominal, true.vector + rng.normal(0.0, 2e-4, true.vector.size))
+    physical = directory / 'physical.yaml'
+    physical.write_text(PHYSICAL)
+    return {'postures': postures, 'nominal': nominal, 'physical': physical}
+
+
+def _session(postures) -> tuple[CalibrationSession, Recorder]:
+    recorder = Recorder()
+    session = CalibrationSession(recorder, logging.getLogger('test'), lambda: None)
+    for posture in postures:
+        session.postures.add(posture, 'hexa_slide')
+    return session, recorder
+
+
+def _settings(loaded, tmp_path: Path, **changes) -> Settings:
+    return Settings(
+        nominal=str(loaded['nominal']),
+        output_dir=str(tmp_path),
+        report_dir='',
+        calibration_store=str(tmp_path / 'store'),
+        noise_slider_m=NOISE.actuator_m,
+        noise_angle_rad=NOISE.angle_rad,
+        weights='noise-model',
+        **changes,
+    )
+
+
+@pytest.mark.slow
+def test_the_session_identifies_live_lvdt_compliances_and_writes_them(loaded, tmp_path):
+    session, recorder = _session(loaded['postures'])
+    settings = _settings(
+        loaded, tmp_path, compliance='shared', physical_file=str(loaded['physical'])
+    )
+    outcome = session.calibrate(settings)
+    assert outcome.success, outcome.message
+    values = recorder.statuses[-1][3]
+    assert recorder.statuses[-1][0] == CALIBRATION_STATUS_NAME
+    assert values['compliance_mode'] == 'shared'
+    assert values['compliance_physical'] == str(loaded['physical'])
+    chains, std = float(values['compliance.chains']), float(values['std.compliance.chains'])
+    assert 0 < std < 0.2 * CHAINS
+    assert abs(chains - CHAINS) < 3.3 * std
+    assert 'compliance.link' not in values  # the lvdt link carries no load
+    written = compliances_from_extras(read_parameters_file(values['output']).extras)
+    assert written == pytest.approx({'chains': chains}, rel=1e-5)
+
+
+def test_live_postures_without_their_mode_are_refused_with_compliance(loaded, tmp_path):
+    bare = [
+        PostureReading.from_values(p.stamp_ns, p.values()) for p in loaded['postures']
+    ]
+    session, recorder = _session(bare)
+    outcome = session.calibrate(_settings(loaded, tmp_path, compliance='per_chain'))
+    assert not outcome.success
+    assert outcome.values['outcome'] == Reason.INVALID_OPTIONS
+    assert 'released actuator' in outcome.message and 'parameter bag' in outcome.message
+    assert not (tmp_path / 'hexacal_calibration.yaml').exists()
+
+
+def test_a_compliance_prior_without_compliance_is_refused(loaded, tmp_path):
+    session, _ = _session(loaded['postures'])
+    outcome = session.calibrate(_settings(loaded, tmp_path, compliance_prior='chains=1e-7:1e-8'))
+    assert not outcome.success and 'compliance_prior' in outcome.message
