@@ -27,8 +27,9 @@ from hexacal_msgs_py.readings import PostureReading
 import numpy as np
 import pytest
 
-MASSES = MassModel(platform_mass=20.0, leg_mass=2.0, link_mass=1.5)
-PHYSICAL = """gravity: [0.0, 0.0, -9.80665]
+PHYSICAL = """format: hexacal-physical/1
+model: hexa_slide
+gravity: [0.0, 0.0, -9.80665]
 platform: {mass: 20.0, com: [0.0, 0.0, 0.0]}
 legs: {mass: 2.0, com_fraction: 0.5}
 link: {mass: 1.5, com_fraction: 0.5}
@@ -81,7 +82,12 @@ def loaded(tmp_path_factory) -> dict:
     true = architecture('hexa_slide').default_parameters()
     rng = np.random.default_rng(11)
     poses = sample_poses(true, 40, rng)
-    model = ComplianceModel('shared', MASSES, 'lvdt')
+    nominal = directory / 'nominal.yaml'
+    save_parameters(nominal, true.vector + rng.normal(0.0, 2e-4, true.vector.size))
+    physical = directory / 'physical.yaml'
+    physical.write_text(PHYSICAL)
+    masses = MassModel.load(physical)  # the shipped description's defaults fill the rest
+    model = ComplianceModel('shared', masses, 'lvdt')
     measurements, _ = simulate_loaded_measurements(
         true, poses, model, np.array([CHAINS]), noise=NOISE, rng=rng
     )
@@ -94,10 +100,6 @@ def loaded(tmp_path_factory) -> dict:
         )
         for i in range(len(poses))
     ]
-    nominal = directory / 'nominal.yaml'
-    save_parameters(nominal, true.vector + rng.normal(0.0, 2e-4, true.vector.size))
-    physical = directory / 'physical.yaml'
-    physical.write_text(PHYSICAL)
     return {'postures': postures, 'nominal': nominal, 'physical': physical}
 
 
@@ -158,3 +160,47 @@ def test_a_compliance_prior_without_compliance_is_refused(loaded, tmp_path):
     session, _ = _session(loaded['postures'])
     outcome = session.calibrate(_settings(loaded, tmp_path, compliance_prior='chains=1e-7:1e-8'))
     assert not outcome.success and 'compliance_prior' in outcome.message
+
+
+def test_ik_and_fk_apply_a_files_compliance_section(tmp_path, capsys):
+    import json
+
+    from hexacal_identify.cli.commands import main
+    from hexacal_identify.core.machine.kinematics import inverse_kinematics
+    from hexacal_identify.core.machine.live import LoadedChains
+    from hexacal_msgs_py.parameters_file import compliance_extras
+
+    true = architecture('hexa_slide').default_parameters()
+    rigid, compliant = tmp_path / 'rigid.yaml', tmp_path / 'compliant.yaml'
+    save_parameters(rigid, true.vector)
+    save_parameters(compliant, true.vector, extras=compliance_extras({'chains': CHAINS}))
+    physical = tmp_path / 'physical.yaml'
+    physical.write_text(PHYSICAL)
+    pose = [0.02, -0.01, -0.74, 0.01, 0.0, 0.02]
+    pose_text = ','.join(str(v) for v in pose)
+
+    def run(*argv):
+        assert main(list(argv)) == 0
+        return json.loads(capsys.readouterr().out)
+
+    plain = run('ik', str(rigid), '--pose', pose_text, '--json')
+    assert 'compliance' not in plain
+    loaded = run('ik', str(compliant), '--pose', pose_text, '--json', '--physical', str(physical))
+    assert str(physical) in loaded['compliance']
+    names = true.layout.actuator_names
+    rigid_targets = inverse_kinematics(true, [pose])[0]
+    masses = MassModel.load(physical)
+    shifts = LoadedChains((CHAINS,) * 6, masses).shifts(true, np.array([pose]))[0]
+    assert np.abs(shifts).max() > 1e-6  # the weights shift the readings by microns
+    assert [loaded['actuators'][n] for n in names] == pytest.approx(
+        rigid_targets + shifts, abs=1e-12
+    )
+    assert [plain['actuators'][n] for n in names] == pytest.approx(rigid_targets, abs=1e-12)
+    readings = ','.join(repr(loaded['actuators'][n]) for n in names)
+    back = run('fk', str(compliant), '--actuators', readings, '--json', '--physical',
+               str(physical))
+    assert [back['pose'][f] for f in ('x', 'y', 'z', 'theta', 'psi', 'phi')] == pytest.approx(
+        pose, abs=1e-9
+    )
+    shipped = run('fk', str(compliant), '--actuators', readings, '--json')
+    assert 'shipped hexa_slide physical description' in shipped['compliance']

@@ -109,14 +109,14 @@ PARAMETERS: dict[str, _Spec] = {
         'axial compliances identified with the geometry from the static loads of each posture '
         '(as hexacal calibrate --compliance): none (rigid), shared (one for the six chains, one '
         'for the link) or per_chain (one per chain, one for the link); needs the measuring mode '
-        'and, in passive_actuator, each posture\'s released actuator: a bag has them, live '
+        "and, in passive_actuator, each posture's released actuator: a bag has them, live "
         'postures only in the lvdt mode (their link_length)',
         constraints='one of ' + ', '.join(COMPLIANCE_MODES),
     ),
     'physical_file': _Spec(
         '',
         'physical description YAML (gravity, platform, payload, legs, link masses and centres '
-        "of mass; SI) whose weights load the chains and the link when compliance is not none; "
+        'of mass; SI) whose weights load the chains and the link when compliance is not none; '
         "'' = the nominal model's shipped physical description",
     ),
     'compliance_prior': _Spec(

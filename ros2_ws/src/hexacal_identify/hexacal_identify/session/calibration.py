@@ -251,6 +251,7 @@ def run_calibration(
         record=record,
     )
 
+
 def live_measuring_mode(postures: Sequence[PostureReading]) -> str | None:
     """
     Return the measuring mode live postures show, None when they do not say.
