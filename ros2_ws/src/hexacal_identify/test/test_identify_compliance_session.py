@@ -204,3 +204,54 @@ def test_ik_and_fk_apply_a_files_compliance_section(tmp_path, capsys):
     )
     shipped = run('fk', str(compliant), '--actuators', readings, '--json')
     assert 'shipped hexa_slide physical description' in shipped['compliance']
+
+
+@pytest.mark.slow
+def test_the_session_identifies_compliances_from_a_passive_actuator_bag(loaded, tmp_path):
+    """The bag's measuring record gives the mode and each posture's released actuator."""
+    from hexacal_identify.bag import BagWriter
+    from hexacal_identify.bag.measuring import MEASURING_METADATA, MeasuringRecord
+    from hexacal_identify.core.modes.passive_actuator import release_conditions
+    from hexacal_msgs_py.names import JOINT_STATE_TYPE, POSTURE_NAMES, POSTURE_TOPIC
+
+    true = architecture('hexa_slide').default_parameters()
+    rng = np.random.default_rng(5)
+    poses = sample_poses(true, 40, rng)
+    released = np.argmin(release_conditions(true, poses, 0.75), axis=1)
+    truth = {'chains': 2e-8, 'link': 1e-7}
+    model = ComplianceModel(
+        'shared', MassModel.load(loaded['physical']), 'passive_actuator', released
+    )
+    measurements, _ = simulate_loaded_measurements(
+        true, poses, model, np.array([truth['chains'], truth['link']]), noise=NOISE, rng=rng
+    )
+    bag, record, names = tmp_path / 'passive', MeasuringRecord(), true.layout.actuator_names
+    with BagWriter(bag) as writer:
+        topic = '/' + POSTURE_TOPIC
+        writer.add_topic(topic, JOINT_STATE_TYPE)
+        for index in range(len(poses)):
+            stamp = (index + 1) * 10**9
+            record.note('passive_actuator', names[released[index]], stamp - 1)
+            row = [*measurements.actuator_positions[index], *measurements.inclinometer[index],
+                   measurements.rotary[index]]
+            message = {
+                'header': {'stamp': {'sec': stamp // 10**9, 'nanosec': 0}, 'frame_id': ''},
+                'name': list(POSTURE_NAMES),
+                'position': [float(v) for v in row],
+                'velocity': [],
+                'effort': [],
+            }
+            writer.write(topic, message, stamp)
+        writer.write_metadata(MEASURING_METADATA, record.to_metadata())
+    session, recorder = _session([])
+    outcome = session.calibrate(_settings(
+        loaded, tmp_path, bag=str(bag), compliance='shared', physical_file=str(loaded['physical'])
+    ))
+    assert outcome.success, outcome.message
+    values = recorder.statuses[-1][3]
+    for name, value in truth.items():
+        std = float(values[f'std.compliance.{name}'])
+        assert abs(float(values[f'compliance.{name}']) - value) < 3.3 * std, name
+    rigid = _session([])[0].calibrate(_settings(loaded, tmp_path / 'rigid', bag=str(bag)))
+    assert 'compliance_mode' not in rigid.values
+    assert rigid.values['adequacy.verdict'] != 'pass'  # the weights the rigid model misses
