@@ -225,8 +225,11 @@ def test_the_executor_walks_a_plan_on_the_commanded_machine_to_a_good_calibratio
     readings = [PostureReading.from_values(10**9 * (i + 1), list(p)) for i, p in enumerate(seen)]
     result = calibrate(nominal, readings, link_length=L)
     assert result.reason == 'converged'
-    assert np.abs(result.parameters.vector - truth.vector).max() < 1e-3
-    assert np.abs(nominal.vector - truth.vector).max() > 1e-3
+    # 16 postures for 54 parameters and 10 um noise: each parameter as close to the truth as the
+    # fit says (5 of its standard deviations), and all of them closer than the nominal's worst.
+    error = np.abs(result.parameters.vector - truth.vector)
+    assert np.all(error <= 5.0 * result.std), np.max(error / result.std)
+    assert error.max() < 0.5 * np.abs(nominal.vector - truth.vector).max()
 
 
 @pytest.mark.slow
