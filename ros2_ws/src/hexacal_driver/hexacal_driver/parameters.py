@@ -49,7 +49,13 @@ PARAMETERS: dict[str, _Spec] = {
     'link_length': _Spec(
         0.75, 'measuring link length L between the U-joint centres (m)', 0.1, 5.0
     ),
-    'slider_noise_m': _Spec(1e-5, 'half-width of the uniform slider noise (m)', 0.0, 0.01),
+    'slider_noise_m': _Spec(
+        1e-5,
+        'half-width of the uniform actuator noise (m; rad for actuators that turn, the LVDT '
+        'link reading takes it in m)',
+        0.0,
+        0.01,
+    ),
     'angle_noise_rad': _Spec(
         1e-5, 'half-width of the uniform inclinometer and rotary noise (rad)', 0.0, 0.1
     ),
@@ -100,7 +106,7 @@ PARAMETERS: dict[str, _Spec] = {
     ),
     'max_actuator_speed_m_s': _Spec(
         0.1,
-        'commanded mode: the fastest an actuator moves (m/s); '
+        'commanded mode: the fastest an actuator moves (m/s; rad/s for actuators that turn); '
         "slower when a point's time_from_start asks for it",
         1e-6,
         10.0,
@@ -118,22 +124,25 @@ PARAMETERS: dict[str, _Spec] = {
     'max_following_error_m': _Spec(
         5e-4,
         'commanded mode, passive_actuator and lvdt: the stiff drives fault when a commanded '
-        'actuator would stand farther than this from its setpoint (m)',
+        'actuator would stand farther than this from its setpoint (m; rad for actuators that '
+        'turn)',
         1e-9,
         1.0,
     ),
     'servo_stiffness_n_per_m': _Spec(
         2e6,
-        'commanded mode, compliant: the stiffness of each servo (N/m); its force (effort of '
-        'the sliders message, N) = stiffness x (position - setpoint)',
+        'commanded mode, compliant: the stiffness of each servo (N/m; N m/rad for actuators '
+        'that turn); its force (effort of the sliders message, N; a torque in N m for those) = '
+        'stiffness x (position - setpoint)',
         1.0,
         1e12,
     ),
     'max_force_n': _Spec(
         1e5,
         'commanded mode, compliant: the servos fault when the force of an actuator would exceed '
-        'this (N; 1e5 N at 2e6 N/m is 50 mm of deviation: straight moves between the targets '
-        'of a nominal model strain the link up to about 26 mm, which must not fault)',
+        'this (N, N m for a torque; 1e5 N at 2e6 N/m is 50 mm of deviation: straight moves '
+        'between the targets of a nominal model strain the link up to about 26 mm, which must '
+        'not fault)',
         1e-6,
         1e9,
     ),

@@ -122,7 +122,8 @@ def add_parsers(subparsers) -> None:
         '--noise-um',
         type=float,
         default=10.0,
-        help='uniform noise half-width: um on sliders, urad on angles (default 10)',
+        help='uniform noise half-width: um on sliders and legs, urad on cranks and angles '
+        '(default 10)',
     )
     parser.add_argument(
         '--out',
@@ -490,8 +491,8 @@ def _run(args) -> int:
         print(
             f'hexacal demo: the executor walks an O1 plan of {args.postures} postures '
             f'({args.plan}, {_mode(args)}) on the simulated machine{machine} through its '
-            f'trajectory-controller interface, +-{args.noise_um:g} um / +-{args.noise_um:g} urad '
-            'noise, '
+            f'trajectory-controller interface, +-{args.noise_um:g} '
+            f'{MODELS[model].actuator_quantities.small} / +-{args.noise_um:g} urad noise, '
             f'{args.rate_hz:g} Hz'
             + (
                 f', sensor effects {args.sensor_effects}'

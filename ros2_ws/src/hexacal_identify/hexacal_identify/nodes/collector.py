@@ -315,12 +315,13 @@ class CollectorNode(Node):
                 self.recording.flush()
         self._posture_pub.publish(message)
         self.postures_published += 1
-        spread_um = max(posture.std[:6]) * 1e6
+        units = MODELS[self.model].actuator_quantities  # um for sliders, urad for cranks
+        spread = units.shown_small(max(posture.std[:6]))
         spread_urad = max(posture.std[6:]) * 1e6
         turned = f', device turn {turn:.6g} rad' if turn != 0.0 else ''
         self.get_logger().info(
             f'posture {self.postures_published}: {posture.sample_count} samples, '
-            f'std <= {spread_um:.1f} um (sliders) / {spread_urad:.1f} urad (angles){turned}'
+            f'std <= {spread} (actuators) / {spread_urad:.1f} urad (angles){turned}'
         )
 
     # ------------------------------------------------------------------ recording

@@ -147,8 +147,8 @@ PARAMETERS: dict[str, ParameterSpec] = {
     ),
     'noise_slider_m': (
         0.0,
-        'known slider noise half-width (m); with noise_angle_rad > 0 the residuals are weighted '
-        'by the reading noise; 0 = unweighted',
+        'known actuator noise half-width (m; rad for actuators that turn); with '
+        'noise_angle_rad > 0 the residuals are weighted by the reading noise; 0 = unweighted',
         {'floating_point_range': _range(0.0, 0.01)},
     ),
     'noise_angle_rad': (
@@ -165,7 +165,8 @@ PARAMETERS: dict[str, ParameterSpec] = {
     ),
     'scatter_floor_actuator_m': (
         ScatterFloor().actuator_m,
-        'smallest standard error (m) an actuator value is credited with when weighed by scatter',
+        'smallest standard error (m; rad for actuators that turn) an actuator value is '
+        'credited with when weighed by scatter',
         {'floating_point_range': _range(1e-9, 0.01)},
     ),
     'scatter_floor_angle_rad': (

@@ -67,7 +67,7 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any, ClassVar, Generic, Protocol, Self, TypeVar
 
-from hexacal_msgs_py.models import ModelLayout
+from hexacal_msgs_py.models import ActuatorQuantities, ModelLayout
 import numpy as np
 
 from .common import rotation_from_trig
@@ -235,6 +235,21 @@ class Architecture(ABC, Generic[P]):
     default_machine_alias: ClassVar[str | None] = None  # a `hexacal params` choice for it
     # A published accuracy table of this machine (Table 3-like), printed beside its study.
     paper_accuracy: ClassVar[dict[Any, dict[str, float]] | None] = None
+    # Kept from both stroke ends by a released actuator along every planned move, in the
+    # actuators' unit (m; rad for actuators that turn): the true machine's departure from the
+    # nominal (up to 4 mm on the demo's sliders) and more.  An architecture whose readings are
+    # not metres states its own (modes/released_actuator.py).
+    released_margin: ClassVar[float] = 0.005
+
+    @property
+    def actuator_quantities(self) -> ActuatorQuantities:
+        """
+        Return the units of this architecture's actuators: the layout's ``actuator_unit``.
+
+        Linear (m, force, mm shown) or rotary (rad, torque, deg shown): what every consumer
+        outside the architecture's module reads instead of assuming a slider in metres.
+        """
+        return self.layout.actuator_quantities
 
     @property
     def machine_label(self) -> str:
