@@ -299,6 +299,38 @@ COLLECTOR_WINDOWS = {'window_s': 0.2, 'capture_s': 0.3}
 PLAN_CANDIDATES = 1000
 
 
+# The drives' and the executor's limits sized for sliders (the nodes' defaults: m, N/m, N).
+SLIDER_DRIVE_LIMITS = {
+    'max_following_error_m': (5e-4, 'length'),
+    'servo_stiffness_n_per_m': (2e6, 'stiffness'),
+    'max_force_n': (1e5, 'force'),
+}
+SLIDER_EXECUTOR_LIMITS = {
+    'position_tolerance_m': (5e-3, 'length'),
+    'still_tolerance_m': (1e-4, 'length'),
+    'released_margin_m': (1e-3, 'length'),
+    'servo_stiffness_n_per_m': (2e6, 'stiffness'),
+    'max_force_n': (1e5, 'force'),
+}
+
+
+def actuator_limits(arch, limits: dict[str, tuple[float, str]]) -> dict[str, float]:
+    """
+    Return the node parameters of `limits` in the actuators' unit of `arch` (none for sliders).
+
+    The nodes' defaults are sized for sliders (m, N/m, N); an architecture whose actuators
+    turn gets them through its lever (Architecture.actuator_limit: rad, N m/rad, N m), so the
+    compliant servos, the following-error guard and the executor's tolerances mean the same
+    travel at the actuator's joint.
+    """
+    if arch.actuator_lever_m == 1.0:
+        return {}
+    return {
+        name: arch.actuator_limit(value, dimension)
+        for name, (value, dimension) in limits.items()
+    }
+
+
 def _physics_params(args: argparse.Namespace) -> dict[str, str]:
     """Return the driver's physics parameters of ``--physics`` / ``--physical`` (if given)."""
     params = {}
@@ -480,6 +512,7 @@ def _run(args) -> int:
                     'angle_noise_rad': args.noise_um * 1e-6,
                     'sensor_effects': getattr(args, 'sensor_effects', ''),
                     'measuring_mode': _mode(args),
+                    **actuator_limits(arch, SLIDER_DRIVE_LIMITS),
                     **_physics_params(args),
                     **dict(getattr(args, 'driver_param', []) or []),
                 },
@@ -679,6 +712,7 @@ def _walk(
     from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC
     from tqdm import tqdm
 
+    from ..core.architectures import architecture
     from ..core.planning.planner import Plan
     from ..bringup.launch_spec import NodeLaunch
 
@@ -697,6 +731,7 @@ def _walk(
                 'settle_s': float(args.settle_s),
                 'timeout_s': 30.0 + float(args.dwell_s),
                 'refine_targets': bool(refine),
+                **actuator_limits(architecture(_model(args)), SLIDER_EXECUTOR_LIMITS),
                 # Until the executor takes the mode the plan carries it (the executor reads it).
                 **({'measuring_mode': _mode(args)} if executor_takes_measuring_mode() else {}),
             },

@@ -235,11 +235,11 @@ class Architecture(ABC, Generic[P]):
     default_machine_alias: ClassVar[str | None] = None  # a `hexacal params` choice for it
     # A published accuracy table of this machine (Table 3-like), printed beside its study.
     paper_accuracy: ClassVar[dict[Any, dict[str, float]] | None] = None
-    # Kept from both stroke ends by a released actuator along every planned move, in the
-    # actuators' unit (m; rad for actuators that turn): the true machine's departure from the
-    # nominal (up to 4 mm on the demo's sliders) and more.  An architecture whose readings are
-    # not metres states its own (modes/released_actuator.py).
-    released_margin: ClassVar[float] = 0.005
+    # Metres of travel at the actuator's joint per unit of its reading: 1 for sliders and legs,
+    # the crank length (m/rad) for actuators that turn.  What turns the limits sized for
+    # sliders (margins and tolerances in m, stiffness in N/m, force in N) into this actuator's
+    # unit (``actuator_limit``), so that no consumer asks which model it drives.
+    actuator_lever_m: ClassVar[float] = 1.0
 
     @property
     def actuator_quantities(self) -> ActuatorQuantities:
@@ -250,6 +250,30 @@ class Architecture(ABC, Generic[P]):
         outside the architecture's module reads instead of assuming a slider in metres.
         """
         return self.layout.actuator_quantities
+
+    def actuator_limit(self, value: float, dimension: str = 'length') -> float:
+        """
+        Return a limit sized for sliders in this architecture's actuator unit.
+
+        ``dimension``: 'length' (m -> m or rad: a margin, a tolerance, a following error),
+        'force' (N -> N or N m) or 'stiffness' (N/m -> N/m or N m/rad); through
+        ``actuator_lever_m``, so a slider's limits come back unchanged.
+        """
+        lever = self.actuator_lever_m
+        scale = {'length': 1.0 / lever, 'force': lever, 'stiffness': lever * lever}
+        if dimension not in scale:
+            raise ValueError(f'dimension must be one of {sorted(scale)}, got {dimension!r}')
+        return float(value) * scale[dimension]
+
+    @property
+    def released_margin(self) -> float:
+        """
+        Return the margin a released actuator keeps from its stroke ends, in its unit.
+
+        5 mm of travel at the actuator's joint (m for sliders, rad for cranks): the true
+        machine's departure from the nominal (up to 4 mm on the demo's sliders) and more.
+        """
+        return self.actuator_limit(0.005)
 
     @property
     def machine_label(self) -> str:

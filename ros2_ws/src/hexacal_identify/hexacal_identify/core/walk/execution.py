@@ -883,7 +883,7 @@ class PlanExecution:
         return mean
 
     def _commanded_away(self, actuators: np.ndarray) -> float:
-        """Return the largest distance (m) of a commanded chain from its target."""
+        """Return the largest distance of a commanded chain from its target (m, or rad)."""
         away = np.abs(actuators - self._target)
         if self.released_now is not None:  # the link puts the released chain where it goes
             away = np.delete(away, self.released_now)
@@ -1030,7 +1030,7 @@ class PlanExecution:
             )
         return (
             f'not at the target and still within {timeout:g} s (actuators up to '
-            f'{away * 1e3:.3f} mm from it)'
+            f'{self.nominal.layout.actuator_quantities.shown(away)} from it)'
         )
 
     def _skip(self, now: float, reason: str) -> list[Command]:
