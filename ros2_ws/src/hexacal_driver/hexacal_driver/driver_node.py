@@ -437,7 +437,8 @@ class DriverNode(Node):
         """Log the link's strain (throttled) and the end of each commanded motion."""
         strain = self.machine.follower.strain_m
         units = actuator_quantities_of(self.machine)
-        warning = MotionReport.strain_warning(strain, units)
+        limit = self.machine.true_params.architecture.actuator_limit(STRAIN_WARNING_M)
+        warning = MotionReport.strain_warning(strain, units, limit)
         if warning is not None:
             self.get_logger().warning(warning, throttle_duration_sec=STRAIN_WARNING_PERIOD_S)
         line = self._motion_report.motion_line(phase, strain, self.commands_accepted, units)

@@ -20,7 +20,7 @@ from hexacal_msgs_py.models import ActuatorQuantities, HEXA_SLIDE, LINEAR_ACTUAT
 import numpy as np
 
 # Commanded mode: a strain of the measuring link beyond this is logged (at most every period);
-# in the actuators' unit (m, or rad for cranks: 0.01 rad is 1.5 mm at a 0.15 m crank).
+# m of travel at the actuator's joint (for cranks, Architecture.actuator_limit turns it into rad).
 STRAIN_WARNING_M = 0.01
 STRAIN_WARNING_PERIOD_S = 5.0
 
@@ -188,14 +188,17 @@ class MotionReport:
 
     @staticmethod
     def strain_warning(
-        strain_m: float, quantities: ActuatorQuantities = LINEAR_ACTUATOR
+        strain_m: float,
+        quantities: ActuatorQuantities = LINEAR_ACTUATOR,
+        limit: float = STRAIN_WARNING_M,
     ) -> str | None:
         """
-        Return the warning while the link strains the machine beyond STRAIN_WARNING_M.
+        Return the warning while the link strains the machine beyond `limit`.
 
-        ``strain_m`` is in the actuators' unit (m, or rad for cranks), shown in mm or deg.
+        ``strain_m`` and ``limit`` are in the actuators' unit (m, or rad for cranks), shown in
+        mm or deg.
         """
-        if strain_m <= STRAIN_WARNING_M:
+        if strain_m <= limit:
             return None
         return (
             f'the measuring link strains the machine: actuators {quantities.shown(strain_m, 1)} '
