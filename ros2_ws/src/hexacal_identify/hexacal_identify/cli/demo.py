@@ -779,8 +779,10 @@ def _walk(
         return values if state == 'done' else None
 
     try:
+        # The executor may take its own timeout_s per posture before it skips one: wait as long.
+        per_posture_s = 30.0 + float(args.dwell_s)
         done = session.wait(
-            f'the executor to walk the {label} plan', 60.0 + 10.0 * total, group, progress
+            f'the executor to walk the {label} plan', 60.0 + per_posture_s * total, group, progress
         )
     finally:
         bar.close()
