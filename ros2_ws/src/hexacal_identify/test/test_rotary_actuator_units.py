@@ -98,4 +98,3 @@ def test_a_crank_target_outside_its_stroke_is_named_in_rad():
     assert np.all(np.isfinite(targets)) and workspace.actuator_stroke_m == (-1.2, 1.2)
     assert 'outside the stroke [-0.01, 0.01] rad' in problems[0] and 'crank_' in problems[0]
     assert ' m:' not in problems[0]
-

@@ -113,6 +113,7 @@ def actuator_quantities(unit: str) -> ActuatorQuantities:
             f'actuator unit must be one of {ACTUATOR_UNITS}, got {unit!r}'
         ) from None
 
+
 HEXA_SLIDE = 'hexa_slide'
 GOUGH_STEWART = 'gough_stewart'
 ROTARY_HEXAPOD = 'rotary_hexapod'

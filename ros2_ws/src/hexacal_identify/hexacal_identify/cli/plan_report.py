@@ -145,7 +145,7 @@ def _plan_arguments(plan) -> None:
         metavar=('MIN', 'MAX'),
         help="actuator stroke: the reading lambda's range in its SI unit, m for sliders and "
         "legs, rad for cranks (default: the model's; Hexa Slide slider 0 0.9 m, Gough-Stewart "
-        "leg extension 0 0.5 m, rotary hexapod crank -1.2 1.2 rad)",
+        'leg extension 0 0.5 m, rotary hexapod crank -1.2 1.2 rad)',
     )
     plan.add_argument(
         '--max-u-joint-deg',
