@@ -98,3 +98,26 @@ def test_a_crank_target_outside_its_stroke_is_named_in_rad():
     assert np.all(np.isfinite(targets)) and workspace.actuator_stroke_m == (-1.2, 1.2)
     assert 'outside the stroke [-0.01, 0.01] rad' in problems[0] and 'crank_' in problems[0]
     assert ' m:' not in problems[0]
+
+
+def test_refinement_lines_show_a_cranks_deviation_in_urad_and_torque_in_n_m():
+    from hexacal_identify.cli.demo_refinement import refinement_lines
+    from hexacal_msgs_py.models import ROTARY_ACTUATOR
+
+    phase = {
+        'max_actuator_deviation_m': 2e-3,
+        'max_force_n': 90.0,
+        'max_move_force_n': 95.0,
+        'max_link_extension_m': None,
+        'max_move_link_extension_m': None,
+    }
+    refinement = {
+        'postures_on_nominal': 20,
+        'postures_on_refined': 6,
+        'before': phase,
+        'after': {**phase, 'max_actuator_deviation_m': 1e-6, 'max_force_n': 1.0},
+    }
+    lines = refinement_lines(refinement, ROTARY_ACTUATOR)
+    assert 'deviation 2000.0 -> 1.0 urad' in lines[0]
+    assert 'torque at rest 90.0 -> 1.0 N m' in lines[1]
+    assert 'force at rest 90.0 -> 1.0 N,' in refinement_lines(refinement)[1]  # sliders
