@@ -2,7 +2,7 @@
 The rotary hexapod (6-RUS, actuators that turn) end to end with real nodes, and its sample bag.
 
 * ``hexacal demo --model rotary_hexapod`` (driver, collector, identify and executor as real
-  processes in the demo's own ROS domain) in the lvdt measuring mode: the calibration from
+  processes in the demo's own ROS domain) in the lvdt measuring mode, 40 postures: the calibration from
   nominal set 2 brings the pose error from millimetres to micrometres, the verification on
   fresh postures without the truth passes, and what the demo prints about the cranks is in
   their units (readings in rad, noise and deviations in urad; never a slider's mm or um).
@@ -35,6 +35,9 @@ TRUE = ARCH.default_parameters()
 # lvdt: six stiff drives at their setpoints, the telescopic link measured (no released crank to
 # rehearse, no compliant servos strained by the nominal model's error): planned in seconds.
 MODE = 'lvdt'
+# 66 parameters: with 20 postures the fit is 24 um off on average and verification at 37 um rms
+# misses its 19.5 um threshold (measured); 40 determine it to the noise level.
+POSTURES = 40
 SAMPLE = Path(__file__).resolve().parent.parent / 'bags' / 'rh_sphere60_noise10'
 
 
@@ -50,7 +53,7 @@ def test_demo_calibrates_the_rotary_hexapod_and_verification_passes(tmp_path):
             '--measuring-mode',
             MODE,
             '--postures',
-            '20',
+            str(POSTURES),
             '--verify-postures',
             '6',
             '--out',
@@ -58,12 +61,12 @@ def test_demo_calibrates_the_rotary_hexapod_and_verification_passes(tmp_path):
         ],
         capture_output=True,
         text=True,
-        timeout=1500,
+        timeout=2400,
         cwd=tmp_path,
     )
     text = completed.stdout
     assert completed.returncode == 0, text + completed.stderr
-    assert f'the executor walks an O1 plan of 20 postures (mixed, {MODE})' in text, text
+    assert f'the executor walks an O1 plan of {POSTURES} postures (mixed, {MODE})' in text, text
     assert '+-10 urad / +-10 urad noise' in text, text  # crank noise in urad, not um
     # The calibration beats the nominal model against the simulated truth: mm -> um.
     before = re.search(r'before \(nominal\)\s+([\d.]+)', text)
@@ -74,7 +77,7 @@ def test_demo_calibrates_the_rotary_hexapod_and_verification_passes(tmp_path):
     assert re.search(r'threshold [\d.]+ um: pass', text), text
     summary = json.loads((out / 'summary.json').read_text())
     assert summary['model'] == MODEL and summary['actuator_unit'] == 'rad', summary
-    assert summary['measuring_mode'] == MODE and summary['postures'] == 20, summary
+    assert summary['measuring_mode'] == MODE and summary['postures'] == POSTURES, summary
     assert summary['pose_error_mean_m'] < 100e-6, summary
     verification = summary['verification']
     assert verification['verdict'] == 'pass' and verification['postures'] == 6, verification
