@@ -54,8 +54,12 @@ whose ``architecture`` is the instance):
   (``machine_label``, ``nominal_label``, ``truth_file_name``), notes on
   dimensionless fields (``error_table_note``, ``std_note``),
   ``default_machine_alias`` (a ``hexacal params`` choice naming the default
-  machine) and ``paper_accuracy`` (a published Table 3 to print beside the
-  study of this machine).
+  machine), ``paper_accuracy`` (a published Table 3 to print beside the
+  study of this machine) and ``actuator_lever_m`` (metres of travel at the
+  actuator's joint per unit reading: 1 for sliders, the crank length for cranks;
+  ``actuator_limit`` and ``released_margin`` size the limits by it).  The units
+  of the actuators (``actuator_quantities``) come from the layout's
+  ``actuator_unit``.
 
 Poses are ``X = [x, y, z, theta, psi, phi]`` with R = R_Y(theta) R_X(psi)
 R_z(phi) (eq. 2) for every architecture.
