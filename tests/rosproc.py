@@ -20,6 +20,9 @@ from typing import IO, TypeVar
 T = TypeVar('T')
 
 DEFAULT_STOP_TIMEOUT_S = 10.0
+# A process that outlives its stop timeout gets SIGABRT first: with PYTHONFAULTHANDLER set (as
+# start_node sets it) Python writes every thread's stack to the log, which says where it hung.
+ABORT_GRACE_S = 5.0
 
 
 def venv_executable(name: str) -> str:
@@ -76,6 +79,7 @@ def start_node(
     log_path.parent.mkdir(parents=True, exist_ok=True)
     log_file = open(log_path, 'wb')  # noqa: SIM115 (closed by stop())
     child_env = dict(os.environ)
+    child_env.setdefault('PYTHONFAULTHANDLER', '1')
     if env:
         child_env.update(env)
     try:
@@ -119,10 +123,11 @@ def _wait_group_gone(pgid: int, deadline: float) -> bool:
 
 
 def stop(process: RosProcess, timeout: float = DEFAULT_STOP_TIMEOUT_S) -> int:
-    """SIGINT the process group, SIGKILL it after `timeout` s; return the exit code.
+    """SIGINT the process group, SIGABRT then SIGKILL it after `timeout` s; the exit code.
 
-    The exit code is the leader's: 0 for a clean shutdown, -9 if it had to be
-    killed. Children left in the group get the same treatment.
+    The exit code is the leader's: 0 for a clean shutdown, -6 or -9 if it had to
+    be killed (after SIGABRT the log holds the stack of each of its threads).
+    Children left in the group get the same treatment.
     """
     pgid = process.popen.pid  # start_new_session: the leader's pid is the group id
     try:
@@ -131,8 +136,12 @@ def stop(process: RosProcess, timeout: float = DEFAULT_STOP_TIMEOUT_S) -> int:
             try:
                 process.popen.wait(timeout)
             except subprocess.TimeoutExpired:
-                _signal_group(pgid, signal.SIGKILL)
-                process.popen.wait()
+                _signal_group(pgid, signal.SIGABRT)
+                try:
+                    process.popen.wait(ABORT_GRACE_S)
+                except subprocess.TimeoutExpired:
+                    _signal_group(pgid, signal.SIGKILL)
+                    process.popen.wait()
         # Children that outlive the leader (they are not ours to wait for).
         if _group_alive(pgid):
             _signal_group(pgid, signal.SIGINT)

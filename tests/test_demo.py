@@ -131,7 +131,8 @@ def test_demo_stops_on_a_drive_fault_naming_it(tmp_path):
     Drives that fault stop the demo at once, naming the fault; it never hangs.
 
     The simulated drives' force limit set below what the rigid link makes compliant servos
-    carry on the Hexa Slide (several kN): the first move faults them, the executor pauses.
+    carry on the Hexa Slide (tens of newtons at the default 2e4 N/m before the targets are
+    refined): the first move faults them, the executor pauses.
     """
     out = tmp_path / 'out'
     completed = subprocess.run(
@@ -141,7 +142,7 @@ def test_demo_stops_on_a_drive_fault_naming_it(tmp_path):
             '--measuring-mode',
             'compliant',
             '--driver-param',
-            'max_force_n=500.0',
+            'max_force_n=5.0',
             '--postures',
             '20',
             '--verify-postures',

@@ -183,6 +183,7 @@ def pose_error(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
         (['stroke_limits:=0.5'], "expecting type 'DOUBLE_ARRAY'"),
         ({'mount': 'sideways'}, "mount must be '' or one of hanging, standing"),
         ({'max_actuator_speed': -1.0}, 'max_actuator_speed'),
+        ({'physical_file': 'missing.yaml'}, 'physical_file: missing.yaml'),
     ],
 )
 def test_bad_configuration_stops_the_node_with_exit_2(ros_processes, tmp_path, parameters, words):
@@ -726,3 +727,84 @@ def test_compensation_reaches_the_true_pose(ros_processes, tmp_path, probe, mode
     assert min(nominal_m) > 5e-4, errors  # millimetres with the nominal parameters
     for process in processes:
         assert ros_processes.stop(process, STOP_TIMEOUT_S) == 0, process.log_path.read_text()
+
+
+@pytest.mark.slow
+def test_compliance_section_compensates_the_commands(ros_processes, tmp_path, probe):
+    """A calibration with chain compliances: commands past the rigid ones by the deflection."""
+    from dataclasses import replace
+
+    from geometry_msgs.msg import PoseStamped
+    from hexacal_identify.core.fit.statics import MassModel
+    from hexacal_identify.core.machine.live import LoadedChains
+    from hexacal_msgs_py.conversions import actuator_reading_to_joint_state
+    from hexacal_msgs_py.parameters_file import compliance_extras, save_parameters
+    from hexacal_msgs_py.physical_file import default_physical, write_physical_file
+    from hexacal_msgs_py.poses import fill_pose_message
+    from hexacal_msgs_py.qos import COMMAND_QOS, SENSOR_QOS
+    from hexacal_msgs_py.readings import ActuatorReading
+    from sensor_msgs.msg import JointState
+
+    truth_path, _ = write_parameter_files(tmp_path, HEXA_SLIDE)
+    truth = parameters_for(HEXA_SLIDE, read_parameters_file(truth_path).vector)
+    compliances = {'chains': 2e-8, 'link': 1e-7}
+    compliant_path = tmp_path / 'compliant.yaml'
+    save_parameters(compliant_path, truth.vector, compliance_extras(compliances))
+    physical = replace(default_physical(HEXA_SLIDE), payload_mass=30.0)
+    physical_path = write_physical_file(tmp_path / 'physical.yaml', physical)
+    heard = listen(probe, HEXA_SLIDE)
+    nodes = [
+        ros_processes.start(
+            kinematics_argv('true', compliant_path, physical_file=str(physical_path)),
+            name='kinematics-compliant',
+        ),
+        ros_processes.start(kinematics_argv('nominal', truth_path), name='kinematics-rigid'),
+    ]
+    for ns, process in zip(NAMESPACES, nodes):
+        probe.wait_for_node('kinematics', f'/{ns}', process)
+
+    def details() -> str:
+        return '\n'.join(p.describe(15) for p in nodes)
+
+    # One reading for the move time, then a target pose to each node.
+    pose = home_pose() + np.array([0.01, -0.02, 0.005, 0.02, -0.01, 0.05])
+    readings = inverse_kinematics(truth, pose[None])[0]
+    sliders = probe.node.create_publisher(JointState, '/hexacal/sliders', SENSOR_QOS)
+    targets = {
+        ns: probe.node.create_publisher(PoseStamped, f'/{ns}/hexacal/target_pose', COMMAND_QOS)
+        for ns in NAMESPACES
+    }
+
+    def publish_reading() -> bool:
+        stamp = probe.node.get_clock().now().nanoseconds
+        sliders.publish(
+            actuator_reading_to_joint_state(ActuatorReading(stamp, tuple(readings)))
+        )
+        return all(heard.poses[ns] for ns in NAMESPACES)
+
+    probe.spin_until(publish_reading, NODE_START_TIMEOUT_S, 'a pose from both nodes', details)
+
+    def send_targets() -> bool:
+        for ns, publisher in targets.items():
+            if not heard.commands[ns]:
+                message = fill_pose_message(PoseStamped(), pose)
+                message.header.frame_id = 'hexacal_base'
+                publisher.publish(message)
+        return all(heard.commands[ns] for ns in NAMESPACES)
+
+    probe.spin_until(send_targets, 15.0, 'a command from both nodes', details)
+    compensated = np.array(heard.commands['true'][0].points[0].positions)
+    rigid = np.array(heard.commands['nominal'][0].points[0].positions)
+    np.testing.assert_allclose(rigid, readings, atol=1e-12)
+    # The deflection of six chains of 2e-8 m/N under the weights of the physical file.
+    loaded = LoadedChains((2e-8,) * 6, MassModel.from_physical(physical))
+    predicted = loaded.shifts(truth, pose[None])[0]
+    assert np.abs(predicted).max() > 1e-6
+    np.testing.assert_allclose(compensated - rigid, predicted, atol=1e-12)
+    # The compliant node's pose of the rigid readings is off by what the deflection moves it.
+    compliant_pose = next(iter(heard.poses['true'].values()))
+    rigid_pose = next(iter(heard.poses['nominal'].values()))
+    np.testing.assert_allclose(rigid_pose, pose, atol=1e-9)
+    assert pose_error(compliant_pose, pose)[0] > 1e-7
+    statuses = [values for _, _, values in heard.statuses['true']]
+    assert any(str(physical_path) in str(v.get('compliance', '')) for v in statuses), statuses

@@ -46,8 +46,8 @@ HS, GS = 'hexa_slide', 'gough_stewart'
 LINK_M = 0.75  # the driver's link (no dL) and the plan's L
 NOISE_M = 1e-6  # the driver's actuator and LVDT noise: uniform +- this
 STROKE_M = 5e-3  # the LVDT stroke, the driver's and the executor's default
-FORCE_LIMIT_N = 1e5  # max_force_n, the driver's and the executor's default
-STIFFNESS_N_PER_M = 2e6  # servo_stiffness_n_per_m, the driver's default
+FORCE_LIMIT_N = 500.0  # max_force_n, the driver's default (the executor's: 0.8 x)
+STIFFNESS_N_PER_M = 2e4  # servo_stiffness_n_per_m, the driver's default
 SHORT = 6  # postures of the Hexa Slide plans
 REFINED = 20  # postures of the Gough-Stewart refinement plans
 FIRST = 17  # core/walk/refinement.py's first checkpoint for 42 parameters
@@ -450,7 +450,7 @@ def _crossing_plan(tmp_path: Path, mode: str) -> Path:
     [
         ('lvdt', {'lvdt_stroke_m': 2e-3, 'lvdt_margin_m': 5e-4},
          'beyond the LVDT stroke +-2 mm less the 0.5 mm margin'),
-        ('compliant', {'max_force_n': 4000.0}, 'beyond max_force_n'),
+        ('compliant', {'max_force_n': 50.0}, 'beyond max_force_n'),
     ],
 )
 def test_a_hexa_slide_move_that_would_cross_a_limit_is_paused_before_it_is_sent(

@@ -4,8 +4,8 @@ Node `driver`: a simulated machine (Hexa Slide or Gough-Stewart) with the measur
 Walks a posture plan (or, with `command_topic`, follows JointTrajectory commands like a
 trajectory controller with mock hardware) and publishes the actuator, inclinometer and rotary
 readings at `rate_hz` (SENSOR_QOS, SI units). What it simulates is decided in machine.py,
-parameters.py, plan.py and simulation.py, what it logs in reports.py; this node keeps time,
-converts messages and publishes. Full reference: docs/nodes.md.
+parameters.py, plan.py, drives.py and simulation.py, what it logs and its drives' status in
+reports.py; this node keeps time, converts messages and publishes. Full reference: docs/nodes.md.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import math
 import sys
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray
 from hexacal_driver.machine import DriverConfigurationError, SimulatedMachine
 from hexacal_driver.parameters import (
     MODEL_CHOICES,
@@ -28,6 +28,7 @@ from hexacal_driver.reports import (
     commanded_start_text,
     device_turn_text,
     drives_start_text,
+    DriveStatusReport,
     finish_lines,
     machine_source,
     MotionReport,
@@ -77,7 +78,6 @@ NODE_NAME = 'driver'
 # wake-up costs more than the publishing, so 1 kHz costs 200 wake-ups per second, not 1000.
 MAX_WAKE_HZ = 200.0
 SHUTDOWN_LINGER_S = 0.3
-DRIVER_STATUS_PERIOD_S = 1.0  # commanded mode: the drives' status at least this often
 
 __all__ = [
     'DriverConfigurationError',
@@ -88,11 +88,6 @@ __all__ = [
     'RUNTIME_PARAMETERS',
     'STRAIN_WARNING_M',
 ]
-
-
-def _parameter_problem(parameter: Parameter) -> str | None:
-    """Return what is wrong with a parameter beyond type and range (parameters.py), or None."""
-    return parameter_problem(parameter.name, parameter.value)
 
 
 class DriverNode(Node):
@@ -111,7 +106,6 @@ class DriverNode(Node):
             )
         self.add_post_set_parameters_callback(self._apply_parameters)
         value = {name: self.get_parameter(name).value for name in PARAMETERS}
-
         self.machine = SimulatedMachine(value)
         self.command_topic = value['command_topic']
         plan = self.machine.plan
@@ -125,16 +119,12 @@ class DriverNode(Node):
         )
         self.rate_hz = float(value['rate_hz'])
         self.wait_for_subscriber = bool(value['wait_for_subscriber'])
-
         self._sliders_pub = self.create_publisher(JointState, SLIDERS_TOPIC, SENSOR_QOS)
         self._inclinometer_pub = self.create_publisher(JointState, INCLINOMETER_TOPIC, SENSOR_QOS)
         self._encoder_pub = self.create_publisher(JointState, ENCODER_TOPIC, SENSOR_QOS)
         try:  # the inclinometer as an Imu too (imu_topic): what a real Imu inclinometer sends
-            self._imu_pub = (
-                self.create_publisher(Imu, value['imu_topic'], SENSOR_QOS)
-                if value['imu_topic']
-                else None
-            )
+            topic = value['imu_topic']
+            self._imu_pub = self.create_publisher(Imu, topic, SENSOR_QOS) if topic else None
         except InvalidTopicNameException as error:
             raise DriverConfigurationError(f'imu_topic: {error}') from error
         self._imu_stamp_ns = -1  # of the last Imu published
@@ -172,7 +162,6 @@ class DriverNode(Node):
                 raise DriverConfigurationError(f'command_topic: {error}') from error
             self._create_drive_interfaces()
         self._timer = self.create_timer(self._per_wake / self.rate_hz, self._wake)
-
         source = machine_source(value['true_params'], self.machine)
         if plan is None:
             topic = self.resolve_topic_name(self.command_topic)
@@ -193,8 +182,7 @@ class DriverNode(Node):
         self._status_pub = self.create_publisher(
             DiagnosticArray, CALIBRATION_STATUS_TOPIC, STATUS_QOS
         )
-        self._status_key: tuple | None = None
-        self._status_due_ns = 0
+        self._drive_status = DriveStatusReport()
         self.create_service(Trigger, DRIVER_RESET_SERVICE, self._on_reset)
         if mode == MeasuringMode.PASSIVE_ACTUATOR:
             for joint in MODELS[self.machine.model].actuator_names:
@@ -236,26 +224,17 @@ class DriverNode(Node):
         return response
 
     def _publish_drive_status(self, force: bool = False) -> None:
-        """Publish 'hexacal driver' on a change of state, release or fault, else periodically."""
-        follower = self.machine.follower
+        """Publish 'hexacal driver' when due (reports.DriveStatusReport); log a new fault."""
         now_ns = self.get_clock().now().nanoseconds
-        key = (follower.state, follower.released_joint, follower.fault)
-        if not force and key == self._status_key and now_ns < self._status_due_ns:
+        report = self._drive_status.report(self.machine.follower, now_ns, force)
+        if report is None:
             return
-        if follower.fault is not None and key != self._status_key:
+        level, message, values, new_fault = report
+        if new_fault:
             self.get_logger().error(
-                f'drive fault: {follower.fault.text}; holding, trajectories refused until '
+                f'drive fault: {new_fault}; holding, trajectories refused until '
                 f'{self.resolve_service_name(DRIVER_RESET_SERVICE)} is called'
             )
-        self._status_key = key
-        self._status_due_ns = now_ns + int(DRIVER_STATUS_PERIOD_S * NS_PER_S)
-        values = follower.status_values()
-        released = follower.released_joint
-        if follower.fault is not None:
-            level, message = DiagnosticStatus.ERROR, f'fault: {follower.fault.text}'
-        else:
-            level = DiagnosticStatus.OK
-            message = f'{follower.mode.value}' + (f', {released} released' if released else '')
         self._status_pub.publish(
             diagnostic_status(
                 level,
@@ -305,7 +284,7 @@ class DriverNode(Node):
     def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         """Refuse the first parameter with a problem (parameters.parameter_problem)."""
         for parameter in parameters:
-            problem = _parameter_problem(parameter)
+            problem = parameter_problem(parameter.name, parameter.value)
             if problem:
                 return SetParametersResult(successful=False, reason=problem)
         return SetParametersResult(successful=True)
@@ -401,7 +380,6 @@ class DriverNode(Node):
             self._publish_link(output.stamps_ns[0])
         # Complete ticks: Ctrl-C may cut the last one after some of its publishes.
         self.published += 1
-
         self._publish_imu(inclinometer)
 
     def _publish_link(self, sliders_stamp_ns: int | None) -> None:

@@ -9,7 +9,10 @@ with the true link (link_length + dL):
   platform stands on the link sphere where the elastic energy is least
   (simulation.device_constrained_pose). Each actuator carries the force
   ``servo_stiffness_n_per_m * (position - setpoint)`` (N, positive when the link pushes it
-  past its setpoint). The drive faults when a force would exceed ``max_force_n``.
+  past its setpoint). The drive faults when a force would exceed ``max_force_n``, or the
+  tension or compression those forces put on the rigid link (core.modes.compliant.link_tension)
+  would exceed ``max_link_force_n`` (both by default the 500 N a measuring link of the
+  documented kind bears, hexacal_msgs_py.measuring_modes.LINK_FORCE_LIMIT_N).
 * ``passive_actuator``: stiff drives. With one joint released (`release`) the five commanded
   actuators stand exactly at their setpoints and the released one is where the link puts it
   (core.passive_actuator.solve_passive from the previous pose); it faults at its stroke's end.
@@ -46,9 +49,23 @@ from hexacal_identify.core.architectures import KinematicParameters
 from hexacal_identify.core.errors import ForwardKinematicsError, UnreachablePoseError
 from hexacal_identify.core.machine.device import DEFAULT_MOUNT
 from hexacal_identify.core.machine.kinematics import forward_kinematics
+from hexacal_identify.core.modes.compliant import thrust_link_tension
 from hexacal_identify.core.modes.passive_actuator import solve_passive
-from hexacal_msgs_py.measuring_modes import measuring_mode, MeasuringMode
+from hexacal_msgs_py.measuring_modes import (
+    COMPLIANT_SERVO_STIFFNESS_N_PER_M,
+    LINK_FORCE_LIMIT_N,
+    measuring_mode,
+    MeasuringMode,
+)
 import numpy as np
+
+# The largest change of the setpoints the machine is solved across at once (m; rad for a crank).
+# A tick brings 1 / rate_hz of motion (1 mm at 0.1 m/s and 100 Hz), but a late wake-up on a
+# loaded computer can bring 50 mm at once, across which the passive system's Newton solve may
+# land on another branch. A real machine moves continuously whatever the node's timing: the
+# solve follows it in steps of at most this much.
+CONTINUATION_STEP = 5e-3
+MAX_CONTINUATION_STEPS = 1000
 
 
 class DriveState(StrEnum):
@@ -64,9 +81,10 @@ class DriveSettings:
 
     mode: MeasuringMode = MeasuringMode.COMPLIANT
     max_following_error_m: float = 5e-4
-    servo_stiffness_n_per_m: float = 2e6
-    max_force_n: float = 1e5
+    servo_stiffness_n_per_m: float = COMPLIANT_SERVO_STIFFNESS_N_PER_M
+    max_force_n: float = LINK_FORCE_LIMIT_N
     lvdt_stroke_m: float = 0.005
+    max_link_force_n: float = LINK_FORCE_LIMIT_N
 
     @classmethod
     def from_values(cls, values: Mapping[str, Any]) -> DriveSettings:
@@ -77,6 +95,7 @@ class DriveSettings:
             float(values['servo_stiffness_n_per_m']),
             float(values['max_force_n']),
             float(values['lvdt_stroke_m']),
+            float(values.get('max_link_force_n', LINK_FORCE_LIMIT_N)),
         )
 
 
@@ -130,10 +149,11 @@ class DriveFollower(CommandFollower):
         self.actuator_stroke_m = stroke_m
         self.released: int | None = None
         self.fault: DriveFault | None = None
+        self._sampled_s: float | None = None  # the last sample's time (continuation)
         self.link_m = float(np.linalg.norm(self.pose[:3]))
         self.end_stop = False
         self.peaks = {'following_error_m': 0.0, 'force_n': 0.0, 'link_extension_m': 0.0,
-                      'actuator_deviation_m': 0.0}
+                      'actuator_deviation_m': 0.0, 'link_force_n': 0.0}
         self.rest_deviation_m = 0.0
         # Per motion (so a report can split before/after refinement): the rests reached after a
         # commanded motion, the peaks of the motion under way and of the last one that ended.
@@ -141,6 +161,8 @@ class DriveFollower(CommandFollower):
         self.move_peaks = {'force_n': 0.0, 'link_extension_m': 0.0}
         self.last_move_peaks = dict(self.move_peaks)
         self.last_refusal = ''  # why the last trajectory was refused ('' none yet)
+        self._tension_key: tuple[bytes, bytes] | None = None  # the last link tension computed
+        self._tension_n = 0.0
         self._update_measures()
 
     # ------------------------------------------------------------------ what the drives show
@@ -181,6 +203,21 @@ class DriveFollower(CommandFollower):
             return None
         return self.settings.servo_stiffness_n_per_m * (self.actuators - self.setpoints)
 
+    def link_force(self) -> float | None:
+        """Return the measuring link's tension (N, compression negative): compliant, else None."""
+        forces = self.forces()  # the servos' (a physics machine's own gains)
+        if forces is None:
+            return None
+        return self._tension(self.pose, -forces)
+
+    def _tension(self, pose: np.ndarray, thrust: np.ndarray) -> float:
+        """Return the link's tension for these thrusts at `pose`: the guard's, reused by status."""
+        key = (pose.tobytes(), thrust.tobytes())
+        if key != self._tension_key:
+            self._tension_key = key
+            self._tension_n = float(thrust_link_tension(self.params, pose, thrust)[0])
+        return self._tension_n
+
     @property
     def link_extension_m(self) -> float:
         """Return the link's extension from its rest length (m): lvdt, else 0."""
@@ -210,6 +247,8 @@ class DriveFollower(CommandFollower):
             'max_link_extension_m': self.peaks['link_extension_m'] if lvdt else '',
             'force_n': float(np.max(np.abs(forces))) if forces is not None else '',
             'max_force_n': self.peaks['force_n'] if forces is not None else '',
+            'link_force_n': self.link_force_n if forces is not None else '',
+            'max_link_force_n': self.peaks['link_force_n'] if forces is not None else '',
             'actuator_deviation_m': self.rest_deviation_m,
             'max_actuator_deviation_m': self.peaks['actuator_deviation_m'],
             'refused_command': self.last_refusal,
@@ -282,13 +321,24 @@ class DriveFollower(CommandFollower):
 
     def sample(self, now_s: float) -> WalkSample:
         """Return the machine at now_s (s): moved as the mode says, unless the guard faults."""
-        setpoints = self.setpoints_at(now_s)
-        if self.fault is None and not np.array_equal(setpoints, self._solved_for):
-            self._move(setpoints)
+        for time_s in self._continuation(now_s):
+            setpoints = self.setpoints_at(time_s)
+            if self.fault is None and not np.array_equal(setpoints, self._solved_for):
+                self._move(setpoints)
+        self._sampled_s = now_s
         phase = MOVING if now_s < self.end_time_s else STILL
         if phase == STILL:
             self._at_rest()
         return WalkSample(self.pose.copy(), self.actuators.copy(), 0, phase, 0)
+
+    def _continuation(self, now_s: float) -> np.ndarray:
+        """Return the times (s) up to now_s to solve the machine at: one unless a tick is late."""
+        last_s = self._sampled_s
+        change = float(np.max(np.abs(self.setpoints_at(now_s) - self._solved_for)))
+        steps = min(MAX_CONTINUATION_STEPS, math.ceil(change / CONTINUATION_STEP))
+        if self.fault is not None or last_s is None or now_s <= last_s or steps <= 1:
+            return np.array([now_s])
+        return np.linspace(last_s, now_s, steps + 1)[1:]
 
     def _move(self, setpoints: np.ndarray) -> None:
         """Take the standing for `setpoints`, or fault and hold if it crosses a limit."""
@@ -353,7 +403,7 @@ class DriveFollower(CommandFollower):
     def _check(self, standing: Standing, setpoints: np.ndarray) -> DriveFault | None:
         """Return the fault this standing would cause (a limit crossed), else None."""
         if self.mode == MeasuringMode.COMPLIANT:
-            return self.compliant_fault(setpoints, standing.actuators)
+            return self.compliant_fault(setpoints, standing.actuators, standing.pose)
         mask = self.commanded_mask()
         deviation = np.where(mask, np.abs(standing.actuators - setpoints), 0.0)
         worst = int(np.argmax(deviation))
@@ -378,17 +428,35 @@ class DriveFollower(CommandFollower):
                 )
         return None
 
-    def compliant_fault(self, setpoints: np.ndarray, actuators: np.ndarray) -> DriveFault | None:
-        """Return the compliant drives' fault for a standing (a force beyond max_force_n)."""
-        forces = np.abs(self.settings.servo_stiffness_n_per_m * (actuators - setpoints))
+    def compliant_fault(
+        self, setpoints: np.ndarray, actuators: np.ndarray, pose: np.ndarray | None = None
+    ) -> DriveFault | None:
+        """
+        Return the compliant drives' fault for a standing, else None.
+
+        A servo's force beyond max_force_n, or (with the standing's `pose`) the link's tension
+        or compression beyond max_link_force_n.
+        """
+        stiffness = self.settings.servo_stiffness_n_per_m
+        forces = np.abs(stiffness * (actuators - setpoints))
         worst = int(np.argmax(forces))
         limit = self.settings.max_force_n
-        if forces[worst] <= limit:
+        if forces[worst] > limit:
+            return DriveFault(
+                f'force on {self.joint_names[worst]} {forces[worst]:.4g} N beyond the limit '
+                f'{limit:g} N (compliant servos against the link)',
+                self.joint_names[worst], float(forces[worst]), limit,
+            )
+        if pose is None:
+            return None
+        tension = self._tension(np.asarray(pose, dtype=float), stiffness * (setpoints - actuators))
+        limit = self.settings.max_link_force_n
+        if abs(tension) <= limit:
             return None
         return DriveFault(
-            f'force on {self.joint_names[worst]} {forces[worst]:.4g} N beyond the limit '
-            f'{limit:g} N (compliant servos against the link)',
-            self.joint_names[worst], float(forces[worst]), limit,
+            f'measuring link {"tension" if tension > 0 else "compression"} {abs(tension):.4g} N '
+            f'beyond the limit {limit:g} N (compliant servos against the link)',
+            'link', abs(tension), limit,
         )
 
     def _trip(self, fault: DriveFault) -> None:
@@ -407,6 +475,9 @@ class DriveFollower(CommandFollower):
         forces = self.forces()
         if forces is not None:
             peaks['force_n'] = max(peaks['force_n'], float(np.max(np.abs(forces))))
+        link = self.link_force()
+        self.link_force_n = 0.0 if link is None else link
+        peaks['link_force_n'] = max(peaks['link_force_n'], abs(self.link_force_n))
         peaks['link_extension_m'] = max(peaks['link_extension_m'], abs(self.link_extension_m))
         move = self.move_peaks
         if forces is not None:

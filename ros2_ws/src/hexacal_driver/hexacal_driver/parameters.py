@@ -14,7 +14,9 @@ from hexacal_driver.sensor_parameters import sensor_parameter_problem, SENSOR_PA
 from hexacal_identify.core.machine.device import DeviceDefects
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.measuring_modes import (
+    COMPLIANT_SERVO_STIFFNESS_N_PER_M,
     DEFAULT_LVDT_STROKE_M,
+    LINK_FORCE_LIMIT_N,
     measuring_mode,
     MEASURING_MODES,
     MeasuringMode,
@@ -130,19 +132,27 @@ PARAMETERS: dict[str, _Spec] = {
         1.0,
     ),
     'servo_stiffness_n_per_m': _Spec(
-        2e6,
+        COMPLIANT_SERVO_STIFFNESS_N_PER_M,
         'commanded mode, compliant: the stiffness of each servo (N/m; N m/rad for actuators '
         'that turn); its force (effort of the sliders message, N; a torque in N m for those) = '
-        'stiffness x (position - setpoint)',
+        "stiffness x (position - setpoint) (2e4 N/m: the millimetres a nominal model's targets "
+        'miss load the link with a few hundred newtons at most)',
         1.0,
         1e12,
     ),
     'max_force_n': _Spec(
-        1e5,
+        LINK_FORCE_LIMIT_N,
         'commanded mode, compliant: the servos fault when the force of an actuator would exceed '
-        'this (N, N m for a torque; 1e5 N at 2e6 N/m is 50 mm of deviation: straight moves '
-        'between the targets of a nominal model strain the link up to about 26 mm, which must '
-        'not fault)',
+        'this (N, N m for a torque; the rigid measuring link carries it: by default the 500 N '
+        'a link of the documented kind bears)',
+        1e-6,
+        1e9,
+    ),
+    'max_link_force_n': _Spec(
+        LINK_FORCE_LIMIT_N,
+        'commanded mode, compliant: the servos fault when the tension or compression they put '
+        'on the measuring link would exceed this (N; 500 N: a tenth of the buckling load of a '
+        '0.75 m link of 1e7 N/m, 50 um of stretch)',
         1e-6,
         1e9,
     ),
@@ -184,6 +194,7 @@ FINITE_PARAMETERS = (
     'max_following_error_m',
     'servo_stiffness_n_per_m',
     'max_force_n',
+    'max_link_force_n',
     'lvdt_stroke_m',
 )
 

@@ -91,7 +91,8 @@ def drives_start_text(follower: DriveFollower) -> str:
     if settings.mode == MeasuringMode.COMPLIANT:
         guard = (
             f'compliant servos of {settings.servo_stiffness_n_per_m:g} {units.stiffness_unit}, '
-            f'fault above {settings.max_force_n:g} {units.effort_unit}'
+            f'fault above {settings.max_force_n:g} {units.effort_unit} on a servo or '
+            f'{settings.max_link_force_n:g} N on the link'
         )
     else:
         guard = (
@@ -253,3 +254,44 @@ def finish_lines(
     if commands is not None:
         lines.append(f'commands: {commands[0]} followed, {commands[1]} rejected')
     return lines
+
+
+# Commanded mode: the drives' status is published at least this often.
+DRIVER_STATUS_PERIOD_S = 1.0
+
+
+class DriveStatusReport:
+    """
+    The drives' status ('hexacal driver'): when it is due, its level, text and fields.
+
+    Due on a change of state, release or fault, when forced (a service answered, a command was
+    refused), else every DRIVER_STATUS_PERIOD_S.
+    """
+
+    def __init__(self, period_s: float = DRIVER_STATUS_PERIOD_S):
+        """Publish at least every `period_s` (s)."""
+        self.period_ns = int(period_s * 1e9)
+        self._key: tuple | None = None
+        self._due_ns = 0
+
+    def report(
+        self, follower: DriveFollower, now_ns: int, force: bool = False
+    ) -> tuple[str, str, dict[str, object], str] | None:
+        """
+        Return (level, message, fields, a new fault's text or '') if due now; else None.
+
+        The level is 'ERROR' while the drives are faulted, else 'OK'.
+        """
+        key = (follower.state, follower.released_joint, follower.fault)
+        if not force and key == self._key and now_ns < self._due_ns:
+            return None
+        new_fault = follower.fault.text if follower.fault is not None and key != self._key else ''
+        self._key = key
+        self._due_ns = now_ns + self.period_ns
+        released = follower.released_joint
+        if follower.fault is not None:
+            level, message = 'ERROR', f'fault: {follower.fault.text}'
+        else:
+            level = 'OK'
+            message = f'{follower.mode.value}' + (f', {released} released' if released else '')
+        return level, message, follower.status_values(), new_fault

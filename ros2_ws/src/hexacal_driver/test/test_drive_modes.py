@@ -5,6 +5,7 @@ from hexacal_driver.machine import SimulatedMachine
 from hexacal_driver.parameters import parameter_problem, PARAMETERS
 from hexacal_driver.reports import drives_start_text
 from hexacal_driver.simulation import CommandFollower
+from hexacal_identify.core.modes.compliant import link_tension
 from hexacal_identify.core.modes.lvdt import lvdt_extensions
 from hexacal_identify.core.modes.passive_actuator import solve_passive
 import numpy as np
@@ -148,7 +149,10 @@ def test_over_constrained_passive_faults_before_the_limit_and_holds():
 
 
 def test_compliant_force_is_stiffness_times_deviation_and_faults_at_the_limit():
-    m = machine(measuring_mode='compliant', servo_stiffness_n_per_m=1e6, max_force_n=1e3)
+    m = machine(
+        measuring_mode='compliant', servo_stiffness_n_per_m=1e6, max_force_n=1e3,
+        max_link_force_n=1e9,
+    )
     f = m.follower
     samples = ramp_until_fault(m, np.full(6, 5e-3))
     forces = f.forces()
@@ -159,8 +163,25 @@ def test_compliant_force_is_stiffness_times_deviation_and_faults_at_the_limit():
     assert f.status_values()['force_n'] == pytest.approx(np.max(np.abs(forces)))
 
 
+def test_compliant_servos_fault_before_they_overload_the_measuring_link():
+    m = machine(measuring_mode='compliant', servo_stiffness_n_per_m=1e6, max_force_n=1e9)
+    f = m.follower
+    samples = ramp_until_fault(m, np.full(6, 5e-3))
+    # The default link limit: what a measuring link of the documented kind bears.
+    assert f.settings.max_link_force_n == 500.0
+    assert f.fault.joint == 'link' and f.fault.value > 500.0 == f.fault.limit, f.fault
+    assert 'measuring link' in f.fault.text and 'beyond the limit 500 N' in f.fault.text
+    # The standing held is the last one inside the limit.
+    assert np.array_equal(samples[-1].actuators, samples[-2].actuators)
+    held = link_tension(f.params, f.pose, f.actuators, f.setpoints, 1e6)[0]
+    assert 0 < abs(held) <= 500.0
+    values = f.status_values()
+    assert values['link_force_n'] == pytest.approx(held)
+    assert abs(held) <= values['max_link_force_n'] <= 500.0
+
+
 def test_compliant_default_follows_as_before():
-    """The default (compliant, 1e4 N at 2e6 N/m) moves exactly as the plain CommandFollower."""
+    """The default (compliant, 500 N at 2e4 N/m) moves exactly as the plain CommandFollower."""
     m = machine()
     f = m.follower
     plain = CommandFollower(m.true_params, f.pose, f.max_speed_m_s, m.true_link_length, m.mount)
@@ -184,7 +205,9 @@ def test_measuring_mode_parameter_is_checked():
 
 
 def test_the_start_line_names_the_mode_and_its_guard():
-    assert 'fault above 100000 N' in drives_start_text(machine().follower)
+    assert 'fault above 500 N on a servo or 500 N on the link' in drives_start_text(
+        machine().follower
+    )
     text = drives_start_text(machine(measuring_mode='lvdt', lvdt_stroke_m=0.002).follower)
     assert 'lvdt' in text and '+-0.002 m' in text and '0.0005 m following error' in text
 
@@ -209,3 +232,43 @@ def test_each_rest_keeps_the_peaks_of_the_motion_into_it():
     assert values['move_max_force_n'] < strained['move_max_force_n']
     assert values['move_max_force_n'] >= values['force_n']
     assert values['max_force_n'] == strained['max_force_n']  # the run's peak stays
+
+
+def test_the_drives_status_is_due_on_a_change_when_forced_and_every_period():
+    from hexacal_driver.reports import DriveStatusReport
+
+    m = machine(measuring_mode='passive_actuator')
+    report = DriveStatusReport(period_s=1.0)
+    level, message, values, new_fault = report.report(m.follower, 0)
+    assert (level, message, new_fault) == ('OK', 'passive_actuator', '')
+    assert values == m.follower.status_values()
+    assert report.report(m.follower, 500_000_000) is None  # unchanged, within the period
+    assert report.report(m.follower, 500_000_000, force=True) is not None
+    assert report.report(m.follower, 1_600_000_000) is not None  # the period has passed
+    assert m.follower.release(RELEASED, True, 0.0)[0]
+    level, message, _, _ = report.report(m.follower, 1_700_000_000)  # a change: at once
+    assert (level, message) == ('OK', f'passive_actuator, {RELEASED} released')
+
+
+def test_a_late_tick_moves_the_machine_as_the_ticks_it_missed_would_have():
+    # A loaded computer wakes the node late: one sample then covers a whole move. The machine
+    # still moves continuously, so it ends where the 100 Hz samples take it, with no jam.
+    offset = np.array([40e-3, -30e-3, 0.0, 35e-3, -25e-3, 30e-3])
+    ends = []
+    for late in (False, True):
+        m = machine(measuring_mode='passive_actuator')
+        f = m.follower
+        assert f.release(RELEASED, True, 0.0)[0]
+        names, target = five(m, offset)
+        if late:
+            checked, problem = m.check_command(names, [(list(target), 1.0)], 0, 0)
+            assert problem is None, problem
+            end_s = f.command(0.0, checked)
+            f.sample(0.0)
+            sample = f.sample(end_s + 0.05)
+        else:
+            sample, _ = follow(m, names, target, 0.0)
+        assert f.fault is None, f.fault
+        ends.append(sample)
+    np.testing.assert_allclose(ends[1].pose, ends[0].pose, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ends[1].actuators, ends[0].actuators, rtol=0, atol=1e-9)

@@ -30,7 +30,8 @@ def machine(**overrides) -> SimulatedMachine:
 def test_a_rotary_machine_logs_its_drives_in_rad_and_n_m():
     rotary = machine(model='rotary_hexapod')
     compliant = drives_start_text(rotary.follower)
-    assert '2e+06 N m/rad' in compliant and '100000 N m' in compliant
+    assert 'servos of 20000 N m/rad' in compliant and 'above 500 N m on a servo' in compliant
+    assert 'or 500 N on the link' in compliant  # the link's force: N whatever the actuators
     stiff = drives_start_text(machine(model='rotary_hexapod', measuring_mode='lvdt').follower)
     assert '0.0005 rad following error' in stiff and 'LVDT link stroke +-0.005 m' in stiff
     start = commanded_start_text(rotary, TOPIC, 'the default', 100.0)
@@ -41,8 +42,9 @@ def test_a_rotary_machine_logs_its_drives_in_rad_and_n_m():
 
 def test_a_slider_machine_logs_as_before():
     slider = machine()
-    assert 'compliant servos of 2e+06 N/m, fault above 100000 N' in drives_start_text(
-        slider.follower
+    assert (
+        'compliant servos of 20000 N/m, fault above 500 N on a servo or 500 N on the link'
+        in drives_start_text(slider.follower)
     )
     start = commanded_start_text(slider, TOPIC, 'Table 1', 100.0)
     assert ' m/s, stroke [' in start and '] m);' in start

@@ -8,6 +8,7 @@ directory, held until the process exits (the lock files are shared by tests/conf
 
 from __future__ import annotations
 
+import atexit
 import fcntl
 import os
 from pathlib import Path
@@ -53,6 +54,8 @@ def claim_domain_id(
         except OSError:
             lock.close()
             continue
+        if not _held:
+            atexit.register(_release_all)
         _held.append(lock)
         return domain_id
     hint = f'; set {override_env}' if override_env else ''
@@ -60,3 +63,9 @@ def claim_domain_id(
         f'every ROS domain id {DOMAIN_ID_RANGE.start}..{DOMAIN_ID_RANGE.stop - 1} is in use '
         f'by another hexacal test session, demo or benchmark{hint}'
     )
+
+
+def _release_all() -> None:
+    """Close the lock files at exit (the claims end with the process anyway)."""
+    while _held:
+        _held.pop().close()

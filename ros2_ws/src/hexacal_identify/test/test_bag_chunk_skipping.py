@@ -13,7 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from hexacal_identify.bag import BagCorruptError, BagWriter, open_bag
-from hexacal_identify.bag import reader as reader_module
+from hexacal_identify.bag import mcap_records
 from hexacal_msgs_py.names import INCLINOMETER_NAMES, JOINT_STATE_TYPE, SLIDER_NAMES
 import pytest
 
@@ -40,13 +40,13 @@ def _filtered(reader, topics):
 def expanded_chunks(monkeypatch):
     """Count the chunks messages() decompresses and unpacks."""
     count = [0]
-    original = reader_module._chunk_records
+    original = mcap_records._chunk_records
 
     def counting(*args, **kwargs):
         count[0] += 1
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(reader_module, '_chunk_records', counting)
+    monkeypatch.setattr(mcap_records, '_chunk_records', counting)
     return count
 
 

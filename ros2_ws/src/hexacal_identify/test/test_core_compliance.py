@@ -5,7 +5,8 @@ from dataclasses import replace
 from hexacal_identify.core.architectures import architecture
 from hexacal_identify.core.errors import InvalidMeasurementError, RankDeficientError
 from hexacal_identify.core.fit.compliance import ComplianceModel, simulate_loaded_measurements
-from hexacal_identify.core.fit.identification import _Problem, identify, SolverOptions
+from hexacal_identify.core.fit.fit_problem import FitProblem
+from hexacal_identify.core.fit.identification import identify, SolverOptions
 from hexacal_identify.core.fit.statics import MassModel
 from hexacal_identify.core.machine.kinematics import forward_kinematics
 from hexacal_identify.core.machine.measurements import NoiseModel
@@ -47,7 +48,7 @@ def test_compliance_columns_match_finite_differences(model, choice):
     options = SolverOptions(compliance=compliance, free_device=('dL', 'alpha0'))
     n = true.layout.n_parameters
     free = options.free_mask(n)
-    problem = _Problem(measurements, np.arange(len(poses)), options, free, arch)
+    problem = FitProblem(measurements, np.arange(len(poses)), options, free, arch)
     vector = np.concatenate([_nominal(true, rng).vector, np.zeros(5), truth * 0.7])
     vector[n] = 1e-4  # dL
     fk = problem.solve_fk(vector_params := arch.parameters(vector[:n]), poses)

@@ -16,12 +16,12 @@ from hexacal_identify.core.fit.identifiability import (
     DEFAULT_RANK_TOLERANCE,
 )
 from hexacal_identify.core.fit.identification import (
-    _NormalEquations,
     CONVERGED,
     identify,
     ITERATION_LIMIT,
     SolverOptions,
 )
+from hexacal_identify.core.fit.least_squares_run import NormalEquations
 from hexacal_identify.core.fit.residuals import ChannelSigma, CostFunction, COSTS
 from hexacal_identify.core.machine.device import DeviceModel
 from hexacal_identify.core.machine.kinematics import forward_kinematics, pose_parameter_sensitivity
@@ -273,7 +273,7 @@ def _scaled_problem(cost):
 )  # full rank, and rank 53 (base rotation about Y)
 def test_normal_equations_give_the_steps_and_covariance_of_the_tall_svd(cost):
     block, scales = _scaled_problem(cost)
-    normal = _NormalEquations.of(block, scales, DEFAULT_RANK_TOLERANCE)
+    normal = NormalEquations.of(block, scales, DEFAULT_RANK_TOLERANCE)
     # J^T J squares the condition number (~2e3-5e3 here): ~1e-8 relative agreement is what rounding
     # allows.
     tolerance = 1e-7
@@ -295,7 +295,7 @@ def test_normal_equations_give_the_steps_and_covariance_of_the_tall_svd(cost):
 @pytest.mark.parametrize('cost', ['absolute', 'sphere'])
 def test_identifiability_from_the_gram_root_matches_the_tall_jacobian(cost):
     block, scales = _scaled_problem(cost)
-    normal = _NormalEquations.of(block, scales, DEFAULT_RANK_TOLERANCE)
+    normal = NormalEquations.of(block, scales, DEFAULT_RANK_TOLERANCE)
     params = nominal_set(2, seed=0)
     tall = analyze(block.jacobian, params=params)
     small = analyze(block.jacobian, params=params, gram_root=normal.square_root() * scales)

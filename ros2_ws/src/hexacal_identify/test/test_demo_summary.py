@@ -15,6 +15,7 @@ DRIVER = {
     'state': 'ok',
     'max_actuator_deviation_m': '0.003964',
     'max_force_n': '7928.0',
+    'max_link_force_n': '15448.7',
     'max_link_extension_m': '',
 }
 POSES = {
@@ -40,11 +41,13 @@ def test_only_the_figures_of_the_mode_are_given():
         'max_actuator_deviation_m': 0.003964,
         'max_link_extension_m': None,
         'max_force_n': 7928.0,
+        'max_link_force_n': 15448.7,
     }
     lvdt = driver_figures({**DRIVER, 'max_link_extension_m': '0.0012'}, 'lvdt')
     assert lvdt['max_link_extension_m'] == 0.0012 and lvdt['max_force_n'] is None
     passive = driver_figures(DRIVER, 'passive_actuator')
     assert passive['max_force_n'] is None and passive['max_link_extension_m'] is None
+    assert lvdt['max_link_force_n'] is None and passive['max_link_force_n'] is None
 
 
 def test_summary_is_written_as_json_with_the_keys_and_printed_in_um(tmp_path):
@@ -66,6 +69,7 @@ def test_summary_is_written_as_json_with_the_keys_and_printed_in_um(tmp_path):
     assert not list(tmp_path.glob('*.tmp*'))  # atomic: no temporary file left
     text = '\n'.join(summary_lines(summary))
     assert '3964.0 um' in text and '7928.0 N' in text and 'extension' not in text
+    assert 'largest measuring-link force: 15448.7 N' in text
 
 
 def test_a_summary_without_verification_or_driver_status_has_nulls():

@@ -1,6 +1,5 @@
 """Posture planning: observability indices, greedy / exchange selection, limits, plan files."""
 
-import time
 
 from hexacal_identify.core.machine.model import table1_parameters
 from hexacal_identify.core.planning.candidate_set import build_candidate_set
@@ -115,12 +114,10 @@ def test_i_optimal_plan_predicts_a_smaller_position_error_than_the_d_optimal_one
     )  # metres: the weighted fit predicts a few um to tens of um
 
 
-def test_planning_25_of_2000_takes_seconds():
-    started = time.perf_counter()
+def test_the_exchange_selection_of_25_of_2000_is_at_least_as_good_as_the_greedy_one():
+    # Its speed is measured in benchmarks/bench_plan_speed.py, not here.
     greedy = plan_postures(NOMINAL, 25, n_candidates=2000, method='greedy')
     exchange = plan_postures(NOMINAL, 25, n_candidates=2000, method='exchange')
-    assert time.perf_counter() - started < 30.0
-    assert greedy.selection_seconds < 5.0
     assert exchange.indices['O1'] >= greedy.indices['O1']
 
 

@@ -10,6 +10,11 @@ from hexacal_identify.core.fit.weighting import choose_weights
 from hexacal_identify.core.machine.measurements import NoiseModel, ScatterFloor
 from hexacal_identify.core.modes.released_actuator import DEFAULT_MARGIN_M, released_margin
 from hexacal_identify.core.planning.plan_check import plan_targets
+from hexacal_msgs_py.measuring_modes import (
+    COMPLIANT_SERVO_STIFFNESS_N_PER_M,
+    GUARD_FORCE_FRACTION,
+    LINK_FORCE_LIMIT_N,
+)
 import numpy as np
 import pytest
 
@@ -47,12 +52,17 @@ def test_crank_limits_are_the_same_travel_at_the_crank_tip():
         ROTARY.actuator_limit(1.0, 'speed')
     drive = actuator_limits(ROTARY, SLIDER_DRIVE_LIMITS)
     assert drive['max_following_error_m'] == pytest.approx(5e-4 / lever)
-    assert drive['max_force_n'] == pytest.approx(1e5 * lever)
+    assert drive['max_force_n'] == pytest.approx(LINK_FORCE_LIMIT_N * lever)
+    assert drive['servo_stiffness_n_per_m'] == pytest.approx(
+        COMPLIANT_SERVO_STIFFNESS_N_PER_M * lever**2
+    )
+    assert 'max_link_force_n' not in drive  # on the link: N for every architecture
     executor = actuator_limits(ROTARY, SLIDER_EXECUTOR_LIMITS)
     assert executor['position_tolerance_m'] == pytest.approx(5e-3 / lever)
-    # The executor's guard predicts the driver's servos: the same stiffness and torque limit.
+    # The executor's guard predicts the driver's servos: the same stiffness, and a torque limit
+    # inside the drives' by the guard's margin.
     assert executor['servo_stiffness_n_per_m'] == drive['servo_stiffness_n_per_m']
-    assert executor['max_force_n'] == drive['max_force_n']
+    assert executor['max_force_n'] == pytest.approx(GUARD_FORCE_FRACTION * drive['max_force_n'])
 
 
 def test_the_demo_prints_a_cranks_deviation_in_urad_and_its_torque_in_n_m():

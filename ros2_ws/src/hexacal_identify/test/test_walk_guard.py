@@ -58,10 +58,24 @@ def test_a_path_along_the_sphere_stays_inside_and_a_joint_space_move_does_not():
     assert 'compressed by 2.953 mm on the way, beyond the LVDT stroke +-2 mm' in crossing.problem
     assert _predict(MeasuringMode.LVDT, straight, start=EAST).problem == ''  # +-5 mm less 1
     assert _predict(MeasuringMode.COMPLIANT, along, start=EAST).problem == ''
-    forced = _predict(MeasuringMode.COMPLIANT, straight, start=EAST, max_force_n=1e3)
+    forced = _predict(MeasuringMode.COMPLIANT, straight, start=EAST, max_force_n=1e3,
+                      servo_stiffness_n_per_m=2e6)
     assert forced.worst > 1e3 and 'beyond max_force_n 1000 N' in forced.problem
-    # The same straight move within a generous force limit passes.
+    # The same straight move at the default compliant servos stays within the default limits.
     assert _predict(MeasuringMode.COMPLIANT, straight, start=EAST).problem == ''
+
+
+def test_the_link_force_the_servos_cause_is_predicted_and_kept_within_its_limit():
+    straight = inverse_kinematics(MODEL, WEST[None])
+    free = _predict(MeasuringMode.COMPLIANT, straight, start=EAST)
+    assert free.problem == '' and free.what == 'servo force'
+    # The link's tension is the force part of J^T tau along P: what the servos push on it.
+    loaded = _predict(MeasuringMode.COMPLIANT, straight, start=EAST, max_link_force_n=10.0)
+    assert loaded.what == 'link force' and abs(loaded.worst) > 10.0, loaded
+    assert 'beyond max_link_force_n 10 N' in loaded.problem
+    assert 'the servos would load the measuring link with' in loaded.problem
+    # The default limit is below what a link of the documented kind bears.
+    assert GuardSettings().max_link_force_n < 500.0
 
 
 def test_the_released_actuator_is_kept_inside_its_stroke_along_the_move():
@@ -81,3 +95,23 @@ def test_standing_still_is_always_fine(mode):
     current = inverse_kinematics(MODEL, CENTRE[None])
     released = 0 if mode == MeasuringMode.PASSIVE_ACTUATOR else None
     assert _predict(mode, current, released=released).problem == ''
+
+
+def test_the_link_tension_balances_the_strained_servos_on_the_platform():
+    from hexacal_identify.core.machine.model import nominal_set
+    from hexacal_identify.core.modes.compliant import device_constrained_pose, link_tension
+
+    # Targets of a nominal model strain the true machine against the link by millimetres.
+    nominal = nominal_set(2, seed=0, model=GS, exact=MODEL)
+    setpoints = inverse_kinematics(nominal, EAST[None])[0]
+    pose, actuators = device_constrained_pose(MODEL, setpoints, EAST, L)
+    stiffness = 2e4
+    tension = link_tension(MODEL, pose, actuators, setpoints, stiffness)[0]
+    thrust = stiffness * (setpoints - actuators)
+    legs = MODEL.architecture.legs(MODEL.architecture.chains(MODEL), pose[None])
+    generalised = np.asarray(legs.pose_jacobian())[0].T @ thrust
+    # At the least-energy standing the servos' wrench is a pure force along the link.
+    along = pose[:3] / np.linalg.norm(pose[:3])
+    np.testing.assert_allclose(generalised[:3], tension * along, atol=1e-6 * abs(tension))
+    np.testing.assert_allclose(generalised[3:], 0.0, atol=1e-6 * abs(tension))
+    assert abs(tension) > 1.0 and np.max(np.abs(thrust)) > 1.0

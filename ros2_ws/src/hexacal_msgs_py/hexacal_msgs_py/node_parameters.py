@@ -37,7 +37,8 @@ def parameter_descriptor(
     """
     Return the descriptor rcl enforces.
 
-    Type from the default, range for numbers, lists of either number type.
+    Type from the default, range for numbers (none when the spec gives no low and high), lists
+    of either number type.
     """
     from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
@@ -51,6 +52,8 @@ def parameter_descriptor(
         descriptor.dynamic_typing = (
             True  # [0, 1] is as good as [0.0, 1.0]; the node checks the items
         )
+    elif spec.low is None or spec.high is None:
+        pass  # a number without a range: any value of its type (the node checks the rest)
     elif isinstance(spec.default, float):
         descriptor.floating_point_range = [
             FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high), step=0.0)

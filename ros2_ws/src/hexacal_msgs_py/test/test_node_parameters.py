@@ -42,3 +42,9 @@ def test_an_int_gets_an_integer_range_and_a_bool_none():
 def test_a_list_is_dynamically_typed():
     descriptor = parameter_descriptor('offsets', ParameterSpec([0.0, 0.0], 'offsets, rad'))
     assert descriptor.dynamic_typing
+
+
+def test_a_number_without_low_and_high_gets_no_range():
+    descriptor = parameter_descriptor('prior', ParameterSpec(0.0, 'a prior, rad'), read_only=False)
+    assert list(descriptor.floating_point_range) == [] and list(descriptor.integer_range) == []
+    assert not descriptor.read_only

@@ -25,15 +25,8 @@ _EXPORTS = {
         'BagWriteError',
         'MessageDefinitionNotFoundError',
     ),
-    'reader': (
-        'BagInfo',
-        'BagMessage',
-        'BagReader',
-        'FileInfo',
-        'MetadataRecord',
-        'TopicInfo',
-        'open_bag',
-    ),
+    'bag_info': ('BagInfo', 'FileInfo', 'MetadataRecord', 'TopicInfo'),
+    'reader': ('BagMessage', 'BagReader', 'open_bag'),
     'qos_yaml': ('DEFAULT_QOS_PROFILES_YAML', 'qos_profiles_yaml', 'read_qos_profiles'),
     'reindex': ('reindex',),
     'schemas': ('message_definition', 'normalize_type_name'),
@@ -91,6 +84,7 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:
+    from .bag_info import BagInfo, FileInfo, MetadataRecord, TopicInfo
     from .errors import (
         BagCorruptError,
         BagDecodeError,
@@ -105,15 +99,7 @@ if TYPE_CHECKING:
         BagWriteError,
         MessageDefinitionNotFoundError,
     )
-    from .reader import (
-        BagInfo,
-        BagMessage,
-        BagReader,
-        FileInfo,
-        MetadataRecord,
-        open_bag,
-        TopicInfo,
-    )
+    from .reader import BagMessage, BagReader, open_bag
     from .qos_yaml import DEFAULT_QOS_PROFILES_YAML, qos_profiles_yaml, read_qos_profiles
     from .reindex import reindex
     from .schemas import message_definition, normalize_type_name

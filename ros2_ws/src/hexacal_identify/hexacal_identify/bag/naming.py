@@ -9,6 +9,7 @@ metadata.yaml `custom_data` keys, named here.
 from __future__ import annotations
 
 from datetime import datetime
+import json
 from pathlib import Path
 
 # MCAP metadata record of the collector: namespace, model, detector settings, input mapping.
@@ -65,3 +66,25 @@ def next_bag_directory(
         suffix += 1
         candidate = output_dir / f'{base}_{suffix}'
     return candidate
+
+
+def collector_records(
+    recorded_by: str,
+    namespace: str,
+    model: str,
+    inputs: dict[str, object],
+    detector_settings: dict[str, str],
+) -> tuple[dict[str, str], dict[str, dict[str, object]]]:
+    """
+    Return the custom data and metadata a collector's bag records about how it was made.
+
+    `recorded_by`: the collector's fully qualified name; `inputs`: its input mapping
+    (InputMapping.to_metadata); `detector_settings`: its detector's settings as text.
+    """
+    custom_data = {
+        RECORDED_BY_CUSTOM_DATA: recorded_by,
+        MODEL_CUSTOM_DATA: model,
+        INPUTS_CUSTOM_DATA: json.dumps(inputs),
+    }
+    collector = {'namespace': namespace, 'model': model}
+    return custom_data, {COLLECTOR_METADATA: {**collector, **detector_settings, **inputs}}

@@ -12,15 +12,10 @@ import os
 from pathlib import Path
 from typing import Mapping
 
+from .bag_info import BagInfo, METADATA_FILE_NAME
 from .errors import BagMetadataError, BagMissingFileError, BagNotFoundError, BagWriteError
-from .reader import (
-    _McapFile,
-    BagInfo,
-    BagReader,
-    load_metadata_yaml,
-    mcap_files_in,
-    METADATA_FILE_NAME,
-)
+from .mcap_file import McapFile
+from .reader import BagReader, load_metadata_yaml, mcap_files_in
 from .writer import metadata_document, ROS_DISTRO, write_metadata_yaml
 
 
@@ -40,7 +35,7 @@ def reindex(
     if not files:
         raise BagMissingFileError(f'{bag_directory} has no .mcap file to reindex')
     previous = _previous_metadata(bag_directory / METADATA_FILE_NAME)
-    info = BagReader(bag_directory, [_McapFile(path) for path in files]).info()
+    info = BagReader(bag_directory, [McapFile(path) for path in files]).info()
     if custom_data is None:
         custom_data = previous.get('custom_data') or {}
     document = metadata_document(

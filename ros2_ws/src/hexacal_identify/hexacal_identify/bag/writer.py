@@ -24,9 +24,9 @@ from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 import yaml
 
+from .bag_info import BagInfo, FileInfo, METADATA_FILE_NAME, STORAGE_IDENTIFIER, TopicInfo
 from .errors import BagEncodeError, BagError, BagSchemaError, BagWriteError
 from .qos_yaml import DEFAULT_QOS_PROFILES_YAML, read_qos_profiles
-from .reader import BagInfo, FileInfo, METADATA_FILE_NAME, STORAGE_IDENTIFIER, TopicInfo
 from .schemas import (
     field_names,
     message_definition,

@@ -4,8 +4,9 @@ The steps of a calibration, shared by the identify node and ``hexacal calibrate`
 Start at ``calibration_run.calibrate``, the one calibration call: a bag calibrated offline
 gives the same parameters as the node that received the same postures.
 
-* ``machine_files``: a parameters file -> the machine (``load_machine_and_mount``, the one
-  loader), the device defects and compliances to and from its extra keys.
+* ``machine_files``: a parameters file -> the machine (``load_machine_and_extras``, the one
+  loader, and ``load_machine_and_mount`` on it), the device defects and compliances to and
+  from its extra keys.
 * ``posture_checks``: postures of the right model (``check_model``), within the sensors'
   ranges (``posture_problem`` and its reason codes), stacked into Measurements.
 * ``calibration_run``: ``calibrate``, what weighs it, its status fields.

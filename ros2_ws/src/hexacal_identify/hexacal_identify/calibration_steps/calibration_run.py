@@ -7,6 +7,7 @@ offline gives the same parameters as the node that received the same postures.
 
 from __future__ import annotations
 
+import math
 from typing import Sequence
 
 from hexacal_msgs_py.readings import PostureReading
@@ -113,6 +114,8 @@ def status_fields(
     (``adequacy.variance_factor``, ``adequacy.expected_low`` / ``_high``, ``adequacy.dof``) and
     the worst ``adequacy.worst_postures`` / ``adequacy.worst_channels`` with a noise model.
     ``weights`` (scatter, noise_model, none) and ``weights_note``: what weighed the fit.
+    Identified axial compliances (m/N): ``compliance_mode``, ``compliance.<name>`` /
+    ``std.compliance.<name>``.
     """
     model = result.parameters.model
     fields = {
@@ -147,4 +150,10 @@ def status_fields(
     fields['weights'] = result.weights
     if result.weights_note:
         fields['weights_note'] = result.weights_note
+    # Identified compliances (m/N) as the device parameters: value and std (nan: unknown).
+    if result.compliance:
+        fields['compliance_mode'] = result.compliance_mode
+    for name, value in result.compliance.items():
+        fields[f'compliance.{name}'] = f'{value:.6g}'
+        fields[f'std.compliance.{name}'] = f'{result.compliance_std.get(name, math.nan):.6g}'
     return fields

@@ -1,8 +1,9 @@
 """
 The parameters files of a calibration: the machine they load, the device defects they carry.
 
-``load_machine_and_mount`` is the one loader of a parameters file into a machine (on the
-contract's read_parameters_file); the device defects and compliances a calibration identified
+``load_machine_and_extras`` is the one loader of a parameters file into a machine (on the
+contract's read_parameters_file): ``load_machine_and_mount``, ``load_machine`` and the CLI's
+``load_nominal`` go through it. The device defects and compliances a calibration identified
 go to and come from the same file's extra keys.
 """
 
@@ -35,6 +36,22 @@ def load_machine(path: Path | str) -> KinematicParameters:
     return load_machine_and_mount(path)[0]
 
 
+def load_machine_and_extras(path: Path | str) -> tuple[KinematicParameters, dict[str, object]]:
+    """
+    Load (parameters, the file's other keys) of a parameters YAML, of the model it names.
+
+    The contract's reader checks the file (ParameterFileError names the file and key); the
+    architecture's own checks of the values are a ValueError naming the file.
+    """
+    from hexacal_msgs_py.parameters_file import read_parameters_file
+
+    loaded = read_parameters_file(path)
+    try:
+        return parameters_for(loaded.model, loaded.vector), dict(loaded.extras)
+    except ValueError as error:
+        raise ValueError(f'{path}: {error}') from None
+
+
 def load_machine_and_mount(path: Path | str) -> tuple[KinematicParameters, str]:
     """
     Load (parameters, device mount) of a parameters YAML.
@@ -42,16 +59,14 @@ def load_machine_and_mount(path: Path | str) -> tuple[KinematicParameters, str]:
     Its model's parameters and its ``device.mount`` (default hanging; another value is a
     DeviceMountError naming the file).
     """
-    from hexacal_msgs_py.parameters_file import read_parameters_file
-
     from ..core.machine.device import DeviceMountError
 
-    loaded = read_parameters_file(path)
+    parameters, extras = load_machine_and_extras(path)
     try:
-        mount = check_mount(loaded.extras.get(MOUNT_PARAMETER, DEFAULT_MOUNT))
+        mount = check_mount(extras.get(MOUNT_PARAMETER, DEFAULT_MOUNT))
     except DeviceMountError as error:
         raise DeviceMountError(f'{path}: {MOUNT_PARAMETER}: {error}') from None
-    return parameters_for(loaded.model, loaded.vector), mount
+    return parameters, mount
 
 
 def device_defects_extras(result: IdentificationResult) -> dict[str, float]:

@@ -13,7 +13,7 @@ from pathlib import Path
 import sys
 
 from . import study as cli_study
-from .common import LazySubcommands
+from .command_line import LazySubcommands
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -96,7 +96,7 @@ def build_parser(fill: bool = True) -> argparse.ArgumentParser:
     With fill=False a command's arguments are added when it is chosen.
 
     main() parses with fill=False, so a command imports only the modules its own options and
-    handler need (see cli.common.LazySubcommands) and `hexacal --help` imports none of them.
+    handler need (see cli.command_line.LazySubcommands) and `hexacal --help` imports none of them.
     """
     parser = argparse.ArgumentParser(
         prog='hexacal',
@@ -114,7 +114,7 @@ def build_parser(fill: bool = True) -> argparse.ArgumentParser:
         'plan_report',
         'export',
         'verify',
-        'kinematics',
+        'kinematics_commands',
         'store',
     ):
         module = _optional_module(module_name)

@@ -42,7 +42,8 @@ def driver_figures(values: Mapping[str, str], mode: str) -> dict[str, float | No
     Return the drives' figures of a measuring mode from the driver's status values (SI).
 
     The largest true deviation of a commanded actuator from its setpoint at rest; the largest
-    link extension (lvdt, else None) and the largest actuator force (compliant, else None).
+    link extension (lvdt, else None), the largest actuator force and the largest force of the
+    measuring link (compliant, else None; a driver that does not report it: None).
     """
     return {
         'max_actuator_deviation_m': status_number(values, 'max_actuator_deviation_m'),
@@ -51,6 +52,9 @@ def driver_figures(values: Mapping[str, str], mode: str) -> dict[str, float | No
         ),
         'max_force_n': (
             status_number(values, 'max_force_n') if mode == MeasuringMode.COMPLIANT else None
+        ),
+        'max_link_force_n': (
+            status_number(values, 'max_link_force_n') if mode == MeasuringMode.COMPLIANT else None
         ),
     }
 
@@ -121,6 +125,8 @@ def summary_lines(summary: Mapping[str, Any]) -> list[str]:
         lines.append(
             f'largest actuator {units.effort}: {summary["max_force_n"]:.1f} {units.effort_unit}'
         )
+    if summary.get('max_link_force_n') is not None:
+        lines.append(f'largest measuring-link force: {summary["max_link_force_n"]:.1f} N')
     if summary['max_link_extension_m'] is not None:
         lines.append(f'largest link extension: {summary["max_link_extension_m"] * UM:.1f} um')
     return lines

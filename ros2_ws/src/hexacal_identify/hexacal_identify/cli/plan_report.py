@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 from hexacal_msgs_py.models import ActuatorQuantities, LINEAR_ACTUATOR
 
-from .common import Progress
+from .command_line import Progress
 
 if TYPE_CHECKING:
     from ..core.planning.posture_limits import PostureLimits
@@ -260,19 +260,16 @@ def load_nominal(path: Path | None) -> tuple:
     """
     Return (parameters, other parameters of the file) of a parameters YAML of any model.
 
-    Its ``model`` key names the model; no file: the default machine (no other parameters).
+    Its ``model`` key names the model (calibration_steps.machine_files.load_machine_and_extras,
+    the one loader); no file: the default machine (no other parameters).
     """
-    from ..core.architectures import default_parameters, parameters_for
-
     if path is None:
-        return default_parameters(), {}
-    from hexacal_msgs_py.parameters_file import read_parameters_file
+        from ..core.architectures import default_parameters
 
-    contents = read_parameters_file(path)
-    try:
-        return parameters_for(contents.model, contents.vector), dict(contents.extras)
-    except ValueError as error:  # the architecture's own checks: name the file, as the loader does
-        raise ValueError(f'{path}: {error}') from None
+        return default_parameters(), {}
+    from ..calibration_steps.machine_files import load_machine_and_extras
+
+    return load_machine_and_extras(path)
 
 
 def run_plan(args) -> int:

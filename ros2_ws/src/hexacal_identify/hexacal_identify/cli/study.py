@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .common import Progress
+from .command_line import Progress
 
 if TYPE_CHECKING:
     from ..core.architectures import KinematicParameters

@@ -10,7 +10,7 @@ import argparse
 import math
 from typing import TYPE_CHECKING
 
-from .common import Progress
+from .command_line import Progress
 from ..core.machine.device import DEVICE_PARAMETER_NAMES, DeviceDefects, DevicePrior
 
 if TYPE_CHECKING:

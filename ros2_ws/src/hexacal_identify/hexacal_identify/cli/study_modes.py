@@ -31,7 +31,7 @@ def mode_runs(args, load_params: Callable) -> list:
     }
     runs = [ModeStudyRun(mode=mode, refine=args.refine, **common)
             for mode in selected_modes(args.measuring_mode)]
-    if args.measuring_mode == 'all' and args.refine:  # the demo of today: no refinement
+    if args.measuring_mode == 'all' and args.refine:  # the baseline: the demo without refinement
         runs.append(ModeStudyRun(mode='compliant', refine=False, **common))
     return runs
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import Progress
+from .command_line import Progress
 from ..core.planning.observability import CRITERIA
 from ..core.planning.planner import METHODS
 from ..studies.planning import (

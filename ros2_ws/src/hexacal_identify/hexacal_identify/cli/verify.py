@@ -11,6 +11,9 @@ is compared with forward kinematics at the measured actuator readings, once with
 the nominal and once with the calibrated parameters (core/fit/verification.py). The
 device measures through the defects identified with the calibration (the
 calibrated file's `device.defects.<name>` keys) unless --device-defects names others.
+A calibration that carries axial compliances (its `compliance.*` keys) is verified with
+the static loads of each posture (core/fit/compliance.py): the weights of --physical FILE,
+else of the model's shipped physical description (said in the output).
 
 Exit codes: 0 pass (calibrated position rms <= threshold, FK converged on every
 posture), 1 fail, 2 bad input (one line on stderr naming the problem).
@@ -103,6 +106,16 @@ def _verify_arguments(parser: argparse.ArgumentParser) -> None:
         'device.defects.* keys), the same device measuring again',
     )
     parser.add_argument(
+        '--physical',
+        type=Path,
+        default=None,
+        metavar='FILE',
+        help='physical description YAML (gravity, platform {mass, com}, payload {mass, com}, '
+        'legs {mass, com_fraction}, link {mass, com_fraction}; SI units): the weights that load '
+        "the chains and the link of a calibration with compliances (the calibrated file's "
+        "compliance.* keys); default: the model's shipped physical description",
+    )
+    parser.add_argument(
         '--report',
         type=Path,
         default=None,
@@ -141,6 +154,7 @@ def run_verify(args) -> int:
             + (f" ({len(bag.rejected)} set aside beyond a sensor's range)" if bag.rejected else '')
         )
     defects, defects_source = _device_defects(args)
+    compliance, compliance_payload = calibrated_compliance(args, bag, calibrated)
     result = verify(
         nominal,
         calibrated,
@@ -150,6 +164,7 @@ def run_verify(args) -> int:
         threshold_m=None if args.threshold_um is None else args.threshold_um / UM,
         noise=NoiseModel.from_microns(args.noise_um) if args.noise_um else None,
         postures_model=bag.model,
+        calibrated_compliance=compliance,
     )
     payload = result.to_json()
     payload['bag'] = {
@@ -163,6 +178,7 @@ def run_verify(args) -> int:
         'values': {name: getattr(defects, name) for name in defects_source[1]},
         'source': defects_source[0],
     }
+    payload['compliance'] = compliance_payload
     if args.report:
         from ..report.page import write_verification_report
 
@@ -226,6 +242,63 @@ def fitted_on(args, bag, model: str) -> str:
     return ''
 
 
+def calibrated_compliance(args, bag, calibrated):
+    """
+    Return the calibration's compliances for verify() (None: rigid) and what the output says.
+
+    ((ComplianceModel, values) or None, {'values': m/N, 'mode', 'physical': where the weights
+    come from}) of the calibrated file's compliance section, loaded through the bag's measuring
+    mode (passive_actuator: each posture's released chain) by the weights of --physical, else
+    of the model's shipped physical description.
+    """
+    from hexacal_msgs_py.parameters_file import compliances_from_extras, read_parameters_file
+
+    values = compliances_from_extras(read_parameters_file(args.calibrated).extras)
+    if not values:
+        physical = 'not used: the calibration carries no compliances (rigid)'
+        if args.physical is None:
+            physical = ''
+        return None, {'values': {}, 'mode': 'none', 'physical': physical}
+    import numpy as np
+
+    from ..core.fit.compliance import ComplianceModel, PER_CHAIN, SHARED
+    from ..core.fit.statics import MassModel
+
+    if args.physical is not None:
+        masses, physical = MassModel.load(args.physical), f'--physical {args.physical}'
+    else:
+        from hexacal_msgs_py.physical_file import default_physical
+
+        masses = MassModel.from_physical(default_physical(calibrated.model))
+        physical = (
+            f'the shipped {calibrated.model} physical description (no --physical given: the '
+            'weights of your machine may differ)'
+        )
+    mode = bag.measuring_mode
+    if mode is None:
+        raise ValueError(
+            f'the calibration {args.calibrated} carries compliances and the bag does not record '
+            'its measuring mode, on which the loads depend (which chains and whether the link '
+            'carry the weight)'
+        )
+    released = None
+    if mode == 'passive_actuator':
+        names = list(calibrated.layout.actuator_names)
+        joints = [bag.measuring.released_at(p.stamp_ns) for p in bag.postures]
+        missing = [i for i, joint in enumerate(joints) if joint not in names]
+        if missing:
+            raise ValueError(
+                f'the calibration {args.calibrated} carries compliances and {len(missing)} '
+                f'posture(s) of the passive_actuator bag name no released actuator of '
+                f'{", ".join(names)} (first: posture {missing[0]})'
+            )
+        released = np.array([names.index(joint) for joint in joints])
+    per_chain = any(name.startswith('chain_') for name in values)
+    model = ComplianceModel(PER_CHAIN if per_chain else SHARED, masses, mode, released)
+    vector = np.array([values.get(name, 0.0) for name in model.names])
+    return (model, vector), {'values': values, 'mode': model.mode, 'physical': physical}
+
+
 def _device_defects(args):
     """
     Return the defects of the device that measured the bag, and where they come from.
@@ -278,6 +351,15 @@ def _print_table(args, bag, payload: dict) -> None:
         )
     else:
         print(f'  measuring device: {device["source"]}')
+    compliance = payload['compliance']
+    if compliance['values']:
+        print(
+            '  compliances (calibrated file): '
+            + ', '.join(f'{name} {value:.4g}' for name, value in compliance['values'].items())
+            + f' m/N; weights of {compliance["physical"]}'
+        )
+    elif compliance['physical']:
+        print(f'  --physical {compliance["physical"]}')
     print(f'  {"":22s}{"nominal":>14s}{"calibrated":>14s}')
     for label, key, scale in (
         ('position rms [um]', 'position_rms_m', UM),

@@ -12,10 +12,7 @@ released actuator, recorded as the bag's hexacal.measuring record. Full referenc
 
 from __future__ import annotations
 
-from dataclasses import replace
 from functools import partial
-import heapq
-import json
 import sys
 import time
 
@@ -25,10 +22,9 @@ from hexacal_msgs_py.conversions import diagnostic_status, NS_PER_S
 from hexacal_msgs_py.conversions import posture_reading_to_joint_state, stamp_ns, status_values
 from hexacal_msgs_py.errors import HexacalContractError
 from hexacal_msgs_py.models import MODELS
-from hexacal_msgs_py.names import CALIBRATION_STATUS_TOPIC, DEVICE_TURN_JOINT, JOINT_STATE_TYPE
+from hexacal_msgs_py.names import CALIBRATION_STATUS_TOPIC, JOINT_STATE_TYPE
 from hexacal_msgs_py.names import DRIVER_STATUS_NAME, LINK_LENGTH_JOINT, LINK_TOPIC, POSTURE_TOPIC
 from hexacal_msgs_py.qos import POSTURE_QOS, SENSOR_QOS, STATUS_QOS
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
@@ -40,7 +36,7 @@ from std_srvs.srv import Trigger
 from . import collector_parameters as params
 from .collector_inputs import input_sources, recorded_only_sources
 from .collector_inputs import InputReader, InputSource, link_source, RAW_TOPICS
-from .collector_inputs import STREAM_OF_TOPIC
+from .collector_inputs import stamp_ordered, STREAM_OF_TOPIC
 from .collector_parameters import CollectorConfigurationError, resolve_model
 from .polled_subscriptions import deep_reader_qos, PolledGroup, PolledSubscription
 from .runtime import run_node
@@ -50,7 +46,7 @@ from ..bag.measuring import MEASURING_METADATA, MeasuringRecord
 from ..bag.qos_yaml import qos_profiles_yaml
 from ..bag.recording import Recording
 from ..core.detection import vocabulary as detection
-from ..core.detection.dwell_detector import DwellDetector, LINK_STREAM
+from ..core.detection.dwell_detector import LINK_STREAM
 from ..core.detection.stream_synchronizer import StreamSynchronizer
 from ..core.detection.turn_history import TurnHistory
 from ..core.sessions import collector_session as health
@@ -79,26 +75,17 @@ class CollectorNode(Node):
 
     def __init__(self) -> None:
         super().__init__(NODE_NAME)
-        self.add_on_set_parameters_callback(self._validate_parameters)
-        value = params.declare_parameters(self)
+        value = params.declare_parameters(self)  # checked by params.parameter_problem
         self.device_turn = params.checked_turn(value['device_turn'])
         self.turns = TurnHistory()  # the turns inclinometer messages carried
         self.model = resolve_model(value['model'], value['parameters_file'])
         self.actuator_names = MODELS[self.model].actuator_names
         self.mapping = params.declare_inputs(self, self.actuator_names)
-
-        skew_ns = int(value['max_skew_s'] * NS_PER_S)
-        self.synchronizer = StreamSynchronizer(max_skew_ns=skew_ns)
-        settings = {name: value[name] for name in params.DETECTOR_PARAMETERS}
-        self.detector_settings = {
-            name: repr(setting)
-            for name, setting in {
-                **settings,
-                **{name: value[name] for name in params.DWELL_PARAMETERS},
-            }.items()
-        }
-        del settings['max_skew_s']  # the synchronizer's
-        self.detector = dwell_detector(value, settings)
+        self.synchronizer = StreamSynchronizer(max_skew_ns=int(value['max_skew_s'] * NS_PER_S))
+        self.detector_settings, settings = health.detector_settings(
+            value, params.DETECTOR_PARAMETERS, params.DWELL_PARAMETERS
+        )
+        self.detector = health.dwell_detector(value, settings)
         self.postures_published = 0
         self.counters = health.InputCounters(RAW_TOPICS)
         self.stopped_streams: tuple[str, ...] = ()
@@ -110,9 +97,8 @@ class CollectorNode(Node):
         self._plan_request = None
         self.measuring = MeasuringRecord()  # from the driver's status, recorded per bag
         self._driver_status: tuple[str | None, str | None, int] | None = None  # its last
-        self._link_readings: tuple[list[int], list[float]] = ([], [])  # for the detector
+        self._link_readings = health.LinkReadings()  # for the detector
         self.link_invalid = 0
-
         self._posture_pub = self.create_publisher(JointState, POSTURE_TOPIC, POSTURE_QOS)
         self._status_pub = self.create_publisher(
             DiagnosticArray, CALIBRATION_STATUS_TOPIC, STATUS_QOS
@@ -127,8 +113,7 @@ class CollectorNode(Node):
         # One subscription per distinct input topic: inputs remapped to one topic share it.
         self._sources = input_sources(self.mapping, self.topic_names, SENSOR_QOS)
         for source in self._sources:
-            on_lost = partial(self._on_lost, source.key)
-            qos = SENSOR_SUBSCRIPTION_QOS
+            on_lost, qos = partial(self._on_lost, source.key), SENSOR_SUBSCRIPTION_QOS
             source.polled = PolledSubscription(
                 self, source.message_type, source.name, qos, group, on_lost=on_lost
             )
@@ -142,9 +127,8 @@ class CollectorNode(Node):
         self._link.polled = PolledSubscription(
             self, JointState, self._link.name, SENSOR_SUBSCRIPTION_QOS, group
         )
-        self.create_subscription(
-            DiagnosticArray, CALIBRATION_STATUS_TOPIC, self._on_status, STATUS_QOS
-        )
+        status_topic = CALIBRATION_STATUS_TOPIC
+        self.create_subscription(DiagnosticArray, status_topic, self._on_status, STATUS_QOS)
         self._poll_timer = self.create_timer(POLL_PERIOD_S, self._poll)
         self.create_service(Trigger, START_RECORDING_SERVICE, self._start_recording)
         self.create_service(Trigger, STOP_RECORDING_SERVICE, self._stop_recording)
@@ -153,29 +137,15 @@ class CollectorNode(Node):
         self._housekeeping_timer = self.create_timer(1.0, self._housekeeping)
         self.add_post_set_parameters_callback(self._apply_parameters)
 
-        log = self.get_logger()
-        log.info(
-            f'collecting postures on {self.topic_names[POSTURE_TOPIC]} (window '
-            f'{value["window_s"]:g} s, capture {value["capture_s"]:g} s); model {self.model}, '
-            f'actuator joints {self.actuator_names[0]}..{self.actuator_names[-1]}'
-        )
-        log.info(f'inputs: {self.mapping.describe()}')
-        if self.device_turn != 0.0:
-            log.info(
-                f'device_turn {self.device_turn:.6g} rad for postures whose inclinometer '
-                f'message has no {DEVICE_TURN_JOINT} joint'
-            )
+        for line in health.start_lines(
+            self.topic_names[POSTURE_TOPIC], value, self.model, self.actuator_names,
+            self.mapping.describe(), self.device_turn,
+        ):
+            self.get_logger().info(line)
         if value['record']:
             self.open_bag()
 
     # ------------------------------------------------------------------ parameters
-
-    def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
-        for parameter in parameters:
-            problem = params.parameter_problem(parameter.name, parameter.value)
-            if problem is not None:
-                return SetParametersResult(successful=False, reason=problem)
-        return SetParametersResult(successful=True)
 
     def _apply_parameters(self, parameters: list[Parameter]) -> None:
         for parameter in parameters:
@@ -183,12 +153,9 @@ class CollectorNode(Node):
                 self._flush_timer.timer_period_ns = int(parameter.value * NS_PER_S)
             if parameter.name == 'device_turn':
                 previous, self.device_turn = self.device_turn, float(parameter.value)
-                if self.device_turn != previous:
-                    self.get_logger().info(
-                        f'device_turn {previous:.6g} -> {self.device_turn:.6g} rad: postures '
-                        f'from now on whose inclinometer message has no {DEVICE_TURN_JOINT} '
-                        'joint carry it'
-                    )
+                line = health.turn_change_line(previous, self.device_turn)
+                if line is not None:
+                    self.get_logger().info(line)
 
     # ------------------------------------------------------------------ streams
 
@@ -200,11 +167,7 @@ class CollectorNode(Node):
             for source in self._sources
             if (taken := source.polled.take(limit))
         ]
-        if len(batches) > 1:  # each stream keeps its arrival order
-            messages = heapq.merge(*batches, key=lambda entry: entry[0])
-        else:
-            messages = batches[0] if batches else ()
-        for _, source, data, info in messages:
+        for _, source, data, info in stamp_ordered(batches):
             self._on_raw(source, data, info)
         for data, info in self._link.polled.take(limit):
             self._on_link(data, info)
@@ -233,15 +196,12 @@ class CollectorNode(Node):
         self._record_received(self._link, data, info)
         try:
             message = deserialize_message(data, JointState)
-            value = float(message.position[list(message.name).index(LINK_LENGTH_JOINT)])
+            stamp = stamp_ns(message.header.stamp)
+            problem = self._link_readings.add(message.name, message.position, stamp)
         except (ValueError, IndexError, TypeError) as error:
-            self._link_problem(f'no {LINK_LENGTH_JOINT} position ({error})')
-            return
-        if not (value > 0.0 and value < float('inf')):
-            self._link_problem(f'{LINK_LENGTH_JOINT} {value!r} m is not a length')
-            return
-        self._link_readings[0].append(stamp_ns(message.header.stamp))
-        self._link_readings[1].append(value)
+            problem = f'no {LINK_LENGTH_JOINT} position ({error})'
+        if problem is not None:
+            self._link_problem(problem)
 
     def _link_problem(self, problem: str) -> None:
         self.link_invalid += 1
@@ -251,14 +211,6 @@ class CollectorNode(Node):
             throttle_duration_sec=INVALID_LOG_PERIOD_S,
         )
 
-    def _take_link(self) -> dict:
-        """Return the link readings since the last call, as a detector stream (or nothing)."""
-        stamps, values = self._link_readings
-        if not stamps:
-            return {}
-        self._link_readings = ([], [])
-        return {LINK_STREAM: (stamps, [[value] for value in values])}
-
     def _on_status(self, message: DiagnosticArray) -> None:
         """Note the driver's measuring mode and released actuator (hexacal.measuring)."""
         for status in message.status:
@@ -266,25 +218,23 @@ class CollectorNode(Node):
                 continue
             values = status_values(status)
             stamp = stamp_ns(message.header.stamp) or self.get_clock().now().nanoseconds
-            self._driver_status = (
-                values.get('measuring_mode'), values.get('released_joint'), stamp
-            )
+            mode, released = values.get('measuring_mode'), values.get('released_joint')
+            self._driver_status = (mode, released, stamp)
             if self.measuring.note(*self._driver_status):
                 self._record_measuring()
 
     def _record_measuring(self) -> None:
-        writer = self.recording.writer
-        if writer is not None:
+        if (writer := self.recording.writer) is not None:
             self.recording.write_metadata(writer, MEASURING_METADATA, self.measuring.to_metadata())
 
     def _detect(self) -> None:
         """Run the posture detector over the readings accepted since the last call."""
-        readings = {**self.reader.take_readings(), **self._take_link()}
+        readings = {**self.reader.take_readings(), **self._link_readings.take()}
         if readings:
             for posture in self.detector.update(readings):
                 self._on_posture(posture)
 
-    def _on_lost(self, key: str, status) -> None:
+    def _on_lost(self, key: str, status) -> None:  # DDS's sample-lost report
         self.counters.lost[key] = int(status.total_count)
 
     def _invalid(self, topic: str, problem: str) -> None:
@@ -296,13 +246,9 @@ class CollectorNode(Node):
         )
 
     def _on_posture(self, posture: detection.DetectedPosture) -> None:
-        # The turn of the inclinometer messages paired with its last sample, else the setting.
-        # The posture's stamp is the actuators'; the inclinometer messages are in their clock.
-        offset_ns = int(self.detector.offsets_s[detection.Stream.INCLINOMETER] * NS_PER_S)
-        turn = self.turns.turn_at(
-            posture.reading.stamp_ns + offset_ns, self.synchronizer.max_skew_ns, self.device_turn
+        reading, turn = health.turned_reading(
+            posture, self.detector, self.turns, self.synchronizer.max_skew_ns, self.device_turn
         )
-        reading = posture.reading if turn == 0.0 else replace(posture.reading, device_turn=turn)
         message = posture_reading_to_joint_state(reading, model=self.model)
         if self.recording.writer is not None:
             # Durable before it is published: whoever received a posture finds it in the bag.
@@ -316,12 +262,8 @@ class CollectorNode(Node):
         self._posture_pub.publish(message)
         self.postures_published += 1
         units = MODELS[self.model].actuator_quantities  # um for sliders, urad for cranks
-        spread = units.shown_small(max(posture.std[:6]))
-        spread_urad = max(posture.std[6:]) * 1e6
-        turned = f', device turn {turn:.6g} rad' if turn != 0.0 else ''
         self.get_logger().info(
-            f'posture {self.postures_published}: {posture.sample_count} samples, '
-            f'std <= {spread} (actuators) / {spread_urad:.1f} urad (angles){turned}'
+            health.posture_line(self.postures_published, posture, turn, units)
         )
 
     # ------------------------------------------------------------------ recording
@@ -347,20 +289,13 @@ class CollectorNode(Node):
         topics.append(
             (self.topic_names[POSTURE_TOPIC], JOINT_STATE_TYPE, qos_profiles_yaml(POSTURE_QOS))
         )
-        mapping = self.mapping.to_metadata()
-        collector = {'namespace': self.get_namespace(), 'model': self.model}
+        custom_data, metadata = naming.collector_records(
+            self.get_fully_qualified_name(), self.get_namespace(), self.model,
+            self.mapping.to_metadata(), self.detector_settings,
+        )
         try:
             self.recording.start(
-                directory,
-                custom_data={
-                    naming.RECORDED_BY_CUSTOM_DATA: self.get_fully_qualified_name(),
-                    naming.MODEL_CUSTOM_DATA: self.model,
-                    naming.INPUTS_CUSTOM_DATA: json.dumps(mapping),
-                },
-                topics=topics,
-                metadata={
-                    naming.COLLECTOR_METADATA: {**collector, **self.detector_settings, **mapping}
-                },
+                directory, custom_data=custom_data, topics=topics, metadata=metadata
             )
         except BagError as error:
             self.get_logger().error(f'cannot record to {directory}: {error}')
@@ -381,9 +316,7 @@ class CollectorNode(Node):
             self.get_logger().info(text)
         return text
 
-    def _start_recording(
-        self, request: Trigger.Request, response: Trigger.Response
-    ) -> Trigger.Response:
+    def _start_recording(self, request, response: Trigger.Response) -> Trigger.Response:
         if self.recording.writer is not None:
             response.message = f'already recording to {self.recording.directory}'
             response.success = True
@@ -394,9 +327,7 @@ class CollectorNode(Node):
             response.success, response.message = False, f'cannot record: {error}'
         return response
 
-    def _stop_recording(
-        self, request: Trigger.Request, response: Trigger.Response
-    ) -> Trigger.Response:
+    def _stop_recording(self, request, response: Trigger.Response) -> Trigger.Response:
         text = self.close_bag()
         response.success = text is not None
         response.message = text or 'not recording'
@@ -417,11 +348,7 @@ class CollectorNode(Node):
         if writer is not self.recording.writer or future.exception() is not None:
             return
         values = map(parameter_value_to_python, future.result().values)
-        plan = {
-            name: str(value)
-            for name, value in zip(naming.PLAN_PARAMETERS, values)
-            if value is not None
-        }
+        plan = health.plan_record(naming.PLAN_PARAMETERS, values)
         if not plan or not self.recording.write_metadata(writer, naming.PLAN_METADATA, plan):
             return
         self._plan_recorded = True
@@ -445,31 +372,21 @@ class CollectorNode(Node):
     def _check_streams(self) -> None:
         """Report streams that stopped; drop a posture they leave half-captured."""
         stopped = self.counters.stopped(time.monotonic_ns(), STREAM_STOPPED_S, self.topic_names)
-        if stopped != self.stopped_streams:
-            if stopped:
-                self.get_logger().warning(
-                    f'stream(s) stopped: no message on {", ".join(stopped)} for '
-                    f'{STREAM_STOPPED_S:g} s'
-                )
+        for level, text in health.stopped_lines(self.stopped_streams, stopped, STREAM_STOPPED_S):
+            if level == health.Level.WARN:
+                self.get_logger().warning(text)
             else:
-                self.get_logger().info(f'stream(s) resumed: {", ".join(self.stopped_streams)}')
-            self.stopped_streams = stopped
+                self.get_logger().info(text)
+        self.stopped_streams = stopped
         if stopped:
             self._detect()  # normally nothing left: _poll runs the detector after each batch
-            if self.counters.all_stopped(
-                time.monotonic_ns(), STREAM_STOPPED_S
-            ):
-                # Every stream stopped: the data ended, so a capture the last readings
-                # complete is a posture (its last block needs no later reading).
-                for posture in self.detector.flush():
-                    self._on_posture(posture)
-            dropped = self.detector.abort(detection.DropReason.STREAM_STOPPED)
+            now_ns = time.monotonic_ns()
+            ended = health.end_of_data(self.counters, self.detector, now_ns, STREAM_STOPPED_S)
+            for posture in ended:
+                self._on_posture(posture)
+            dropped = health.dropped_line(self.detector, stopped)
             if dropped is not None:
-                self.get_logger().warning(
-                    f'dropped a partial posture ({dropped.sample_count} samples over '
-                    f'{(dropped.last_stamp_ns - dropped.first_stamp_ns) / NS_PER_S:.2f} s, '
-                    f'never published): {", ".join(stopped)} stopped'
-                )
+                self.get_logger().warning(dropped)
 
     def problems(self) -> dict[str, object]:
         """Return the counters of everything not used, by stream and reason (the status's)."""
@@ -482,34 +399,21 @@ class CollectorNode(Node):
         streams = health.stream_statistics(
             self.detector, {**self._stream_names, LINK_STREAM: self._link.name}
         )
+        recording, changed = self.recording.writer is not None, streams != self._reported_streams
         decision = health.decide_status(
-            problems,
-            self._reported,
-            self.recording.error,
-            self.recording.writer is not None,
-            statistics_changed=streams != self._reported_streams,
+            problems, self._reported, self.recording.error, recording, statistics_changed=changed
         )
         if decision is None:
             return
         self._reported, self._reported_streams = problems, streams
-        values: dict[str, object] = {
-            'outcome': decision.outcome,
-            'postures_published': self.postures_published,
-            'bag': str(self.recording.directory or ''),
-            **{f'received.{topic}': count for topic, count in self.counters.received.items()},
-            **problems,
-            **streams,
-        }
-        self._status_pub.publish(
-            diagnostic_status(
-                decision.level,
-                STATUS_NAME,
-                decision.message,
-                values,
-                hardware_id=self.get_fully_qualified_name(),
-                stamp=self.get_clock().now().nanoseconds,
-            )
+        values = health.status_values(
+            decision.outcome, self.postures_published, str(self.recording.directory or ''),
+            self.counters, problems, streams,
         )
+        stamp, name = self.get_clock().now().nanoseconds, self.get_fully_qualified_name()
+        self._status_pub.publish(diagnostic_status(
+            decision.level, STATUS_NAME, decision.message, values, hardware_id=name, stamp=stamp
+        ))
         if decision.to_log:
             self.get_logger().warning(
                 'not used: ' + '; '.join(f'{key}: {problems[key]}' for key in decision.to_log),
@@ -521,23 +425,6 @@ class CollectorNode(Node):
         self.detector.abort(detection.DropReason.END_OF_STREAM)
         counts = (self.counters, self.synchronizer, self.detector)
         return health.summary(self.postures_published, *counts)
-
-
-def dwell_detector(value: dict, settings: dict) -> DwellDetector:
-    """Return the settled-streams detector of the collector's parameters."""
-    offsets = {
-        detection.Stream.INCLINOMETER: value['inclinometer_clock_offset_s'],
-        detection.Stream.ENCODER: value['encoder_clock_offset_s'],
-    }
-    return DwellDetector(
-        window_s=settings['window_s'],
-        slider_tolerance_m=settings['slider_tolerance_m'],
-        angle_tolerance_rad=settings['angle_tolerance_rad'],
-        capture_s=settings['capture_s'],
-        max_gap_s=settings['max_gap_s'],
-        clock_offsets_s=offsets,
-        estimate_offsets=tuple(offsets) if value['estimate_clock_offsets'] else (),
-    )
 
 
 def _finish(node: CollectorNode) -> list[str]:

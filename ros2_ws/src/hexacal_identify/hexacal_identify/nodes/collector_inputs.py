@@ -10,7 +10,8 @@ decoded by rclpy and checked by the contract, which names every problem.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
+import heapq
 import struct
 from typing import Any
 
@@ -97,6 +98,13 @@ class InputSource:
             joints = mapping.input_joints(topic)
             self.slices.append((topic, len(self.wanted), len(self.wanted) + len(joints)))
             self.wanted += joints
+
+
+def stamp_ordered(batches: Sequence[list[tuple]]) -> Iterable[tuple]:
+    """Return the (stamp, ...) entries of the streams' batches in stamp order, each in its own."""
+    if len(batches) > 1:  # each stream keeps its arrival order
+        return heapq.merge(*batches, key=lambda entry: entry[0])
+    return batches[0] if batches else ()
 
 
 def input_sources(

@@ -18,13 +18,15 @@ from hexacal_msgs_py.inputs import (
 )
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 from hexacal_msgs_py.names import DEVICE_TURN_JOINT, MAX_DEVICE_TURN
+from hexacal_msgs_py.node_parameters import parameter_descriptor, ParameterSpec
 from hexacal_msgs_py.parameters_file import read_parameters_file
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 from .collector_inputs import RAW_TOPICS
 from .input_parameters import declare_mapping_parameters, INCLINOMETER_READING_PARAMETERS
-from .parameters import parameter_descriptor, ParameterSpec
 from ..bag.naming import bag_name_problem
 from ..core.detection.turn_history import turn_problem
 from ..core.detection.vocabulary import detector_problem, DETECTORS
@@ -163,8 +165,18 @@ def resolve_model(model: str, parameters_file: str) -> str:
     return named
 
 
+def _validate(parameters: list[Parameter]) -> SetParametersResult:
+    for parameter in parameters:
+        problem = parameter_problem(parameter.name, parameter.value)
+        if problem is not None:
+            return SetParametersResult(successful=False, reason=problem)
+    return SetParametersResult(successful=True)
+
+
 def declare_parameters(node: Node) -> dict[str, Any]:
-    """Declare the parameters that do not depend on the model; return their values."""
+    """Declare the parameters that do not depend on the model, checked; return their values."""
+    # Registered before declaring, so command-line overrides are checked too.
+    node.add_on_set_parameters_callback(_validate)
     for name, (spec, read_only) in PARAMETERS.items():
         node.declare_parameter(name, spec.default, parameter_descriptor(name, spec, read_only))
     return {name: node.get_parameter(name).value for name in PARAMETERS}

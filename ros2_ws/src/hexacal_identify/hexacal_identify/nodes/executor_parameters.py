@@ -2,17 +2,26 @@
 The executor node's ROS parameters: names, defaults, ranges and descriptions.
 
 Kept apart from nodes/executor.py so the node module holds only the glue; the
-checks beyond type and range are core/sessions/executor_session.py's `parameter_problem`. How the
+checks beyond type and range are core/sessions/executor_session.py's `parameter_problem`
+(`declare_parameters` installs them as the node's parameter callback). How the
 inclinometer input is read (inclinometer_type, signs, offsets) is declared as the
 collector declares it (nodes/input_parameters.py).
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 from hexacal_msgs_py.models import MAX_DEVICE_TURN
 from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC, INCLINOMETER_NAMES
+from hexacal_msgs_py.node_parameters import parameter_descriptor
+from hexacal_msgs_py.node_parameters import ParameterSpec as _Spec
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.node import Node
+from rclpy.parameter import Parameter
 
-from .parameters import ParameterSpec as _Spec
+from .input_parameters import declare_mapping_parameters, INCLINOMETER_READING_PARAMETERS
+from ..core.sessions.executor_session import parameter_problem
 from ..core.walk.guard import GuardSettings
 from ..core.walk.settings import ExecutionSettings
 
@@ -181,7 +190,17 @@ PARAMETERS: dict[str, _Spec] = {
     'max_force_n': _Spec(
         GUARD.max_force_n,
         'compliant (named): a move whose predicted force on a servo exceeds this (N; N m for '
-        'actuators that turn) is not sent: the plan pauses',
+        "actuators that turn) is not sent: the plan pauses (default 0.8 x the driver's: room "
+        'for what the model misses)',
+        1e-6,
+        1e9,
+    ),
+    'max_link_force_n': _Spec(
+        GUARD.max_link_force_n,
+        'compliant: a move whose predicted tension or compression of the measuring link (the '
+        "servos' strain carried by the rigid link) exceeds this (N) is not sent: the plan pauses "
+        "(default 0.8 x the 500 N a measuring link of the documented kind bears, the driver's "
+        'max_link_force_n)',
         1e-6,
         1e9,
     ),
@@ -225,3 +244,40 @@ MODEL_PARAMETERS: dict[str, _Spec] = {
         constraints='six distinct names',
     ),
 }
+
+
+def _validate(parameters: list[Parameter]) -> SetParametersResult:
+    for parameter in parameters:
+        problem = parameter_problem(parameter.name, parameter.value)
+        if problem:
+            return SetParametersResult(successful=False, reason=problem)
+    return SetParametersResult(successful=True)
+
+
+def declare_parameters(node: Node) -> dict[str, Any]:
+    """Declare PARAMETERS and how the inclinometer is read, checked; return their values."""
+    node.add_on_set_parameters_callback(_validate)
+    for name, spec in PARAMETERS.items():
+        node.declare_parameter(name, spec.default, parameter_descriptor(name, spec))
+    values = {name: node.get_parameter(name).value for name in PARAMETERS}
+    values.update(declare_mapping_parameters(node, INCLINOMETER_READING_PARAMETERS))
+    return values
+
+
+def declare_model_parameters(
+    node: Node, plan_name: str, defaults: dict[str, object]
+) -> dict[str, Any]:
+    """Declare plan_name and MODEL_PARAMETERS (`defaults`: the model's); return their values."""
+    # As the driver's: a collector with driver_node:=executor records the plan in its bag.
+    node.declare_parameter(
+        'plan_name',
+        plan_name,
+        ParameterDescriptor(
+            description='name of the plan being walked (set by the node)', read_only=True
+        ),
+        ignore_override=True,
+    )
+    return {
+        name: node.declare_parameter(name, defaults[name], parameter_descriptor(name, spec)).value
+        for name, spec in MODEL_PARAMETERS.items()
+    }

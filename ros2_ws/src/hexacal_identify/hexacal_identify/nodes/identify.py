@@ -20,7 +20,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
-import os
 import sys
 import threading
 
@@ -40,9 +39,10 @@ from hexacal_msgs_py.names import (
     ROLLBACK_SERVICE,
     VERIFY_SERVICE,
 )
+from hexacal_msgs_py.node_parameters import parameter_descriptor
 from hexacal_msgs_py.qos import PARAMETERS_QOS, POSTURE_QOS, STATUS_QOS
 import numpy as np
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.executors import MultiThreadedExecutor
@@ -52,14 +52,10 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
+from .identify_parameters import PARAMETERS
 from .runtime import run_node, ShutdownLog
-from ..core.fit.residuals import COSTS
-from ..core.fit.weighting import WEIGHT_MODES
-from ..core.machine.device import DEVICE_PARAMETER_NAMES
-from ..core.machine.measurements import ScatterFloor
 from ..session import (
     CalibrationSession,
-    DEFAULT_OUTPUT,
     Level,
     Outcome,
     output_path,
@@ -68,7 +64,6 @@ from ..session import (
     Settings,
     SETTINGS_PARAMETERS,
 )
-from ..session.prior import ANGLE_PRIORS, LINK_LENGTH_PRIOR
 
 # output_path: tests and tools import it from here (it lives in the session).
 __all__ = ['IdentifyNode', 'main', 'NODE_NAME', 'output_path']
@@ -82,135 +77,6 @@ PROGRESS_LOG_PERIOD_S = 5.0
 # The report task lets the answer go out first: rendering holds the GIL in long stretches, and
 # the executor thread that sends the response would wait for it (a few ms per switch).
 REPORT_START_DELAY_S = 0.05
-
-
-def _range(low: float, high: float) -> list[FloatingPointRange]:
-    return [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
-
-
-ParameterSpec = tuple[object, str, dict[str, object]]  # default, description, descriptor extras
-
-
-def _angle_priors() -> dict[str, ParameterSpec]:
-    specs: dict[str, ParameterSpec] = {}
-    for name in ANGLE_PRIORS:
-        specs[f'device.{name}'] = (
-            0.0,
-            f'prior value of the device defect {name} (rad), used when device.{name}_std > 0',
-            {},
-        )
-        specs[f'device.{name}_std'] = (
-            0.0,
-            f'standard deviation of the prior on {name} (rad); > 0 makes it a prior (the defect '
-            'is identified; needs noise_slider_m and noise_angle_rad, or postures with scatter); '
-            '0.0 = no prior',
-            {},
-        )
-    return specs
-
-
-# name -> (default, description, extra descriptor fields); declared in this order. The prior
-# values come before their stds: a std given at start-up is checked against its value.
-PARAMETERS: dict[str, ParameterSpec] = {
-    'output_dir': (
-        os.getcwd(),
-        'directory the node writes under (default: its working directory)',
-        {},
-    ),
-    'output': (
-        DEFAULT_OUTPUT,
-        'parameters YAML written after a calibration; relative to output_dir, and never '
-        'outside it',
-        {},
-    ),
-    'nominal': (
-        '',
-        'parameters YAML of the nominal model to start from (required to calibrate); its '
-        "'model' key (none: hexa_slide) is the machine model, which names the posture joints",
-        {},
-    ),
-    'cost': (
-        'absolute',
-        'cost function of the identification',
-        {'additional_constraints': 'one of ' + ', '.join(COSTS)},
-    ),
-    'bag': ('', "bag to calibrate from; '' = the postures received live", {}),
-    'link_length': (
-        0.75,
-        'measuring link length L (m)',
-        {'floating_point_range': _range(0.1, 5.0)},
-    ),
-    'identify_device': (
-        '',
-        "device defects to identify jointly, comma-separated (e.g. 'dL,alpha0,gamma'); '' = none",
-        {'additional_constraints': 'names from ' + ', '.join(DEVICE_PARAMETER_NAMES)},
-    ),
-    'noise_slider_m': (
-        0.0,
-        'known actuator noise half-width (m; rad for actuators that turn); with '
-        'noise_angle_rad > 0 the residuals are weighted by the reading noise; 0 = unweighted',
-        {'floating_point_range': _range(0.0, 0.01)},
-    ),
-    'noise_angle_rad': (
-        0.0,
-        'known angle noise half-width (rad), see noise_slider_m',
-        {'floating_point_range': _range(0.0, 0.01)},
-    ),
-    'weights': (
-        'auto',
-        "what weighs the residuals: 'scatter' (each posture's measured scatter, carried in the "
-        "posture's velocity/effort), 'noise-model' (noise_slider_m, noise_angle_rad) or 'none'; "
-        "'auto': scatter when every posture carries it, else the noise model when set, else none",
-        {'additional_constraints': 'one of ' + ', '.join(WEIGHT_MODES)},
-    ),
-    'scatter_floor_actuator_m': (
-        ScatterFloor().actuator_m,
-        'smallest standard error (m; rad for actuators that turn) an actuator value is '
-        'credited with when weighed by scatter',
-        {'floating_point_range': _range(1e-9, 0.01)},
-    ),
-    'scatter_floor_angle_rad': (
-        ScatterFloor().angle_rad,
-        'smallest standard error (rad) an angle is credited with when weighed by scatter',
-        {'floating_point_range': _range(1e-9, 0.01)},
-    ),
-    'robust_loss': ('', "'' (least squares), 'huber' or 'soft_l1'", {}),
-    LINK_LENGTH_PRIOR: (
-        0.0,
-        'measured length of the device link (m), e.g. by a caliper; with '
-        'device.link_length_std > 0 it is a prior on dL = device.link_length - link_length '
-        '(link_length is the length the device model assumes); 0.0 = not measured',
-        {},
-    ),
-    f'{LINK_LENGTH_PRIOR}_std': (
-        0.0,
-        'standard deviation of device.link_length (m); > 0 makes the prior (needs '
-        'device.link_length > 0 and noise_slider_m, noise_angle_rad); 0.0 = no prior',
-        {},
-    ),
-    **_angle_priors(),
-    'verify_threshold_m': (
-        0.0,
-        'hexacal/verify passes when the calibrated position rms is at most this (m); 0 = 3x '
-        'the rms the reading noise alone gives when noise_slider_m and noise_angle_rad are '
-        'set, else 50 um',
-        {'floating_point_range': _range(0.0, 0.1)},
-    ),
-    'report_dir': (
-        'report',
-        'HTML calibration report written after each calibration, relative to output_dir; '
-        "'' = none",
-        {},
-    ),
-    'calibration_store': (
-        '',
-        'calibration store directory: every calibration is kept there with its provenance and '
-        "verifications, and deployed from there; '' = the machine model's default store "
-        '(as `hexacal history`: $HEXACAL_STORE, else a directory per model under the user '
-        'data directory)',
-        {},
-    ),
-}
 
 
 class _Publishers:
@@ -245,9 +111,9 @@ class IdentifyNode(Node):
         """Declare the parameters, wire the session to the topics and services."""
         super().__init__(NODE_NAME)
         self.add_on_set_parameters_callback(self._validate_parameters)
-        for name, (default, description, extra) in PARAMETERS.items():
+        for name, spec in PARAMETERS.items():  # settable at run time (read at each call)
             self.declare_parameter(
-                name, default, ParameterDescriptor(description=description, **extra)
+                name, spec.default, parameter_descriptor(name, spec, read_only=False)
             )
         self._busy = threading.Lock()
         self._busy_message = BUSY_MESSAGE  # what a call answers while _busy is held

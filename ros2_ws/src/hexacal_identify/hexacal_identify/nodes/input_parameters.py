@@ -13,9 +13,8 @@ from __future__ import annotations
 from typing import Any
 
 from hexacal_msgs_py.inputs import DEFAULT_OFFSETS_RAD, DEFAULT_SIGNS, INCLINOMETER_TYPES
+from hexacal_msgs_py.node_parameters import parameter_descriptor, ParameterSpec
 from rclpy.node import Node
-
-from .parameters import parameter_descriptor, ParameterSpec
 
 INCLINOMETER_READING_PARAMETERS: dict[str, ParameterSpec] = {
     'inclinometer_type': ParameterSpec(

@@ -4,9 +4,10 @@ Node `kinematics`: the calibrated model at work - platform pose, compensated com
 Live actuator readings (hexacal/sliders) -> forward kinematics -> hexacal/platform_pose; a target
 pose (hexacal/target_pose) -> inverse kinematics -> a JointTrajectory on `command_topic`, or a
 refusal with its reason; the machine's drawing on hexacal/machine_markers; the parameters from
-the calibration store's active calibration (else the `parameters` file), then every deploy and
-rollback in the store (a timer watches its active marker); a message on hexacal/parameters only
-when it is the deployed calibration (any, with follow_calibrations). What it decides lives in
+the calibration store's active calibration (else the `parameters` file; its compliance section
+loaded by the weights of `physical_file`), then every deploy and rollback in the store (a timer
+watches its active marker); a message on hexacal/parameters only when it is the deployed
+calibration (any, with follow_calibrations). What it decides lives in
 core/sessions/kinematics_session.py and session/deployment.py; this module is the ROS glue.
 Full reference: docs/nodes.md.
 """
@@ -27,10 +28,8 @@ from hexacal_msgs_py.conversions import (
     stamp_ns,
 )
 from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError
-from hexacal_msgs_py.models import MODELS
 from hexacal_msgs_py.names import (
     CALIBRATION_STATUS_TOPIC,
-    DEFAULT_COMMAND_TOPIC,
     KINEMATICS_STATUS_NAME,
     MACHINE_MARKERS_TOPIC,
     PARAMETERS_TOPIC,
@@ -38,6 +37,7 @@ from hexacal_msgs_py.names import (
     SLIDERS_TOPIC,
     TARGET_POSE_TOPIC,
 )
+from hexacal_msgs_py.node_parameters import parameter_descriptor
 from hexacal_msgs_py.poses import fill_pose_message, pose_from_message
 from hexacal_msgs_py.qos import (
     COMMAND_QOS,
@@ -48,7 +48,7 @@ from hexacal_msgs_py.qos import (
     STATUS_QOS,
 )
 import numpy as np
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import (
     InvalidParameterTypeException,
     InvalidParameterValueException,
@@ -61,29 +61,25 @@ from std_msgs.msg import Float64MultiArray, Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import MarkerArray
 
+from .kinematics_parameters import DEFAULT_BASE_FRAME  # noqa: F401 - also imported from here
+from .kinematics_parameters import PARAMETERS, RUNTIME_PARAMETERS, UNSET
 from .markers import machine_markers  # noqa: F401 - also imported from here
 from .runtime import run_node
 from ..calibration_steps.machine_files import load_machine_and_mount
 from ..core.architectures import KinematicParameters, parameters_for
-from ..core.machine.device import check_mount, DEFAULT_MOUNT, DeviceMountError, MOUNTS
+from ..core.machine.device import check_mount, DEFAULT_MOUNT, DeviceMountError
 from ..core.sessions.kinematics_session import (
     check_parameter,
     KinematicsConfigurationError,
     Level,
     LiveSession,
-    MIN_MOVE_TIME_S,
     Outcome,
     Report,
 )
 from ..session.deployment import Deployed, DeployFollower, followed_model, NO_ACTIVE
 
 NODE_NAME = 'kinematics'
-DEFAULT_BASE_FRAME = 'hexacal_base'
 STORE_POLL_PERIOD_S = 0.5  # how often the store's active marker is looked at (one stat)
-
-
-def _range(low: float, high: float) -> list[FloatingPointRange]:
-    return [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
 
 
 def _duration(seconds: float) -> Duration:
@@ -93,10 +89,23 @@ def _duration(seconds: float) -> Duration:
 
 def load_parameters_file(path: str) -> tuple[KinematicParameters, str]:
     """Return (parameters, device mount) of a parameters file; errors as configuration errors."""
+    return load_calibration_file(path)[:2]
+
+
+def load_calibration_file(path: str) -> tuple[KinematicParameters, str, dict[str, float]]:
+    """
+    Return (parameters, device mount, compliance section) of a parameters file.
+
+    The compliance section in m/N ({}: rigid); errors as configuration errors.
+    """
+    from hexacal_msgs_py.parameters_file import compliances_from_extras, read_parameters_file
+
     try:
-        return load_machine_and_mount(path)
+        params, mount = load_machine_and_mount(path)
+        compliances = compliances_from_extras(read_parameters_file(path).extras)
     except (HexacalContractError, DeviceMountError, ValueError) as error:
         raise KinematicsConfigurationError(f'parameters: {error}') from error
+    return params, mount, compliances
 
 
 class KinematicsNode(Node):
@@ -105,138 +114,18 @@ class KinematicsNode(Node):
     def __init__(self) -> None:
         super().__init__(NODE_NAME)
         self.add_on_set_parameters_callback(self._validate_parameters)
-        self.declare_parameter(
-            'parameters',
-            '',
-            ParameterDescriptor(
-                description='parameters YAML (either model) to start from when the calibration '
-                "store has no active calibration; '' = wait for a deploy",
-                read_only=True,
-            ),
-        )
-        self.declare_parameter(
-            'follow_calibrations',
-            False,
-            ParameterDescriptor(
-                description='true: take every calibration published on hexacal/parameters '
-                '(latched), verified or not, from any process on the ROS domain (RISK: an '
-                'unverified calibration moves the machine); false: only the deployed one',
-                read_only=True,
-            ),
-        )
-        self.declare_parameter(
-            'calibration_store',
-            '',
-            ParameterDescriptor(
-                description='calibration store whose active calibration is used and whose '
-                "deploys and rollbacks are followed; '' = the machine model's default store",
-                read_only=True,
-            ),
-        )
-        self.declare_parameter(
-            'model',
-            '',
-            ParameterDescriptor(
-                description='machine model (hexa_slide, gough_stewart) whose default calibration '
-                "store is followed when calibration_store is ''; '' = the parameters file's "
-                "model, else every model's default store until one has a deployed calibration",
-                read_only=True,
-                additional_constraints="'', " + ', '.join(repr(m) for m in MODELS),
-            ),
-        )
-        self.declare_parameter(
-            'base_frame',
-            DEFAULT_BASE_FRAME,
-            ParameterDescriptor(
-                description='frame_id of the platform pose and the markers (the base frame '
-                'OXYZ); target poses must be in it (or have an empty frame_id)'
-            ),
-        )
-        self.declare_parameter(
-            'command_topic',
-            DEFAULT_COMMAND_TOPIC,
-            ParameterDescriptor(
-                description='topic of the compensated actuator commands '
-                "(trajectory_msgs/JointTrajectory; ros2_control's joint_trajectory_controller "
-                'listens on <controller>/joint_trajectory)',
-                read_only=True,
-            ),
-        )
-        self.declare_parameter(
-            'max_actuator_speed',
-            0.02,
-            ParameterDescriptor(
-                description="actuator speed (m/s) that sets a command's time_from_start: the "
-                'largest travel from the current readings / this speed (at least '
-                f'{MIN_MOVE_TIME_S:g} s)',
-                floating_point_range=_range(1e-6, 10.0),
-            ),
-        )
-        self.declare_parameter(
-            'stroke_limits',
-            Parameter.Type.DOUBLE_ARRAY,
-            ParameterDescriptor(
-                description='[low, high] actuator readings (m) a command may ask for; unset = '
-                "the architecture's workspace stroke (Hexa Slide 0-0.9 m, Gough-Stewart 0-0.5 m)"
-            ),
-        )
-        self.declare_parameter(
-            'link_length',
-            0.75,
-            ParameterDescriptor(
-                description='measuring link length L (m): the first pose solve starts at the '
-                'workspace centre, the fixed point [0, 0, -L] (standing: +L)',
-                floating_point_range=_range(0.1, 5.0),
-                read_only=True,
-            ),
-        )
-        self.declare_parameter(
-            'mount',
-            '',
-            ParameterDescriptor(
-                description='device mount, which side of the base the workspace centre is: '
-                "'hanging' or 'standing'; '' = the parameters file's device.mount, else hanging",
-                read_only=True,
-                additional_constraints="'', " + ', '.join(repr(m) for m in MOUNTS),
-            ),
-        )
-        self.declare_parameter(
-            'max_pose_rate_hz',
-            200.0,
-            ParameterDescriptor(
-                description='actuator readings solved per second at most (by their stamps); the '
-                'others are skipped',
-                floating_point_range=_range(0.1, 10000.0),
-                read_only=True,
-            ),
-        )
-        self.declare_parameter(
-            'markers_rate_hz',
-            10.0,
-            ParameterDescriptor(
-                description='machine markers published per second at most (when the pose '
-                'changed); 0 = no markers',
-                floating_point_range=_range(0.0, 100.0),
-                read_only=True,
-            ),
-        )
-        value = {
-            name: self.get_parameter(name).value
-            for name in (
-                'parameters',
-                'follow_calibrations',
-                'calibration_store',
-                'model',
-                'link_length',
-                'mount',
-                'max_pose_rate_hz',
-                'markers_rate_hz',
-                'command_topic',
+        for name, spec in PARAMETERS.items():
+            self.declare_parameter(
+                name,
+                Parameter.Type.DOUBLE_ARRAY if name in UNSET else spec.default,
+                parameter_descriptor(name, spec, read_only=name not in RUNTIME_PARAMETERS),
             )
+        value = {
+            name: self.get_parameter(name).value for name in PARAMETERS if name not in UNSET
         }
-        params, file_mount, source = None, DEFAULT_MOUNT, ''
+        params, file_mount, source, compliances = None, DEFAULT_MOUNT, '', {}
         if value['parameters']:
-            params, file_mount = load_parameters_file(value['parameters'])
+            params, file_mount, compliances = load_calibration_file(value['parameters'])
             source = value['parameters']
         try:
             model = followed_model(value['model'], params.model if params is not None else None)
@@ -244,9 +133,12 @@ class KinematicsNode(Node):
             raise KinematicsConfigurationError(str(error)) from error
         self.deploys = DeployFollower.start(value['calibration_store'], model)
         if self.deploys.deployed is not None:  # the active calibration comes first
-            deployed, mount_of = load_parameters_file(str(self.deploys.deployed.path))
+            deployed, mount_of, deployed_compliances = load_calibration_file(
+                str(self.deploys.deployed.path)
+            )
             if params is None or deployed.model == params.model:
                 params, source = deployed, self._deployed_source(self.deploys.deployed)
+                compliances = deployed_compliances
                 file_mount = file_mount if value['parameters'] else mount_of
         try:
             mount = check_mount(value['mount'] or file_mount)
@@ -258,6 +150,8 @@ class KinematicsNode(Node):
             value['link_length'],
             mount,
             int(NS_PER_S / value['max_pose_rate_hz']),
+            value['physical_file'],
+            compliances,
         )
 
         self._pose_pub = self.create_publisher(PoseStamped, PLATFORM_POSE_TOPIC, POSE_QOS)
@@ -323,12 +217,14 @@ class KinematicsNode(Node):
         if deployed is None:
             return
         try:
-            params, _ = load_parameters_file(str(deployed.path))
+            params, _, compliances = load_calibration_file(str(deployed.path))
         except KinematicsConfigurationError as error:
             self._report(self.session.invalid_calibration(str(self.deploys.root), error))
             return
         source = self._deployed_source(deployed)
-        report = self.session.take_calibration(params, 'the calibration store', source)
+        report = self.session.take_calibration(
+            params, 'the calibration store', source, compliances
+        )
         if report is None or report.outcome == Outcome.PARAMETERS:  # else the model in use stays
             self.session.deployment = self.deploys.values()
         self._report(report)

@@ -13,11 +13,14 @@ decoded (``data-images-loaded`` / ``data-images-total``), for headless checks.
 Any machine model: the result names its model (``model``, as ``calibrate --json``
 prints it; none = a Hexa Slide), and the page's parameter tables, figures and
 workspace map use that model's fields, units, actuator names and default workspace.
+
+The parts: ``payload`` (the result file's payload), ``verification_page`` (the verification
+section and its page alone), ``markup`` (the page shell, units, number formats); the
+workspace map's numbers come from ``core.fit.position_error``.
 """
 
 from __future__ import annotations
 
-import base64
 from dataclasses import replace
 import html
 import math
@@ -25,18 +28,20 @@ from pathlib import Path
 
 from hexacal_msgs_py.files import atomic_write
 from hexacal_msgs_py.models import DEFAULT_MODEL, ModelLayout
-from hexacal_msgs_py.result_file import (
-    ADEQUACY_KEY,
-    DEVICE_PRIOR_KEY,
-    FORMAT_KEY,
-    read_result_file,
-    REPORT_DATA_KEY,
-    RESULT_FORMAT,
-    write_result_file,
-)
+from hexacal_msgs_py.result_file import read_result_file, REPORT_DATA_KEY
 import numpy as np
 
+from .compliance_section import compliance_section
+from .markup import dimensionless_fields as _dimensionless
+from .markup import embedded_figure
+from .markup import MM, UM
+from .markup import number_text as _fmt
+from .markup import page as _page
+from .markup import vector_or_none as _vector
+from .payload import result_payload, save_result
+from .verification_page import verification_section, write_verification_report
 from ..core.architectures import architecture
+from ..core.fit.position_error import MAP_GRID, predicted_position_error_map
 from ..core.jsonsafe import json_safe as _plain
 from ..core.machine.device import (
     check_mount,
@@ -45,112 +50,6 @@ from ..core.machine.device import (
     fixed_point,
     STANDING,
 )
-
-UM, MM = 1e6, 1e3
-MAP_GRID = 41  # cells per axis of the predicted pose-error map
-
-
-# --------------------------------------------------------------------------- result file
-def result_payload(
-    result,
-    extras: dict | None = None,
-    *,
-    measurements=None,
-    true_parameters=None,
-    link_length: float | None = None,
-    mount: str | None = None,
-    device_prior=None,
-) -> dict:
-    """
-    ``result.to_json()`` plus the arrays of ``report_data`` (see module doc).
-
-    ``mount``: the device mount (device.py), recorded when given; a report of a file without it
-    takes the side of the device's base joint the poses are on.  ``device_prior``: the DevicePrior
-    the calibration was given (or its ``{name: {value, std}}`` form), recorded as ``device_prior``
-    beside ``device`` and ``device_std`` (what ``calibrate --json`` prints); the page shows prior
-    and posterior side by side.
-    """
-    payload = result.to_json()
-    payload[ADEQUACY_KEY] = result.adequacy.to_json()
-    if device_prior is not None:
-        payload[DEVICE_PRIOR_KEY] = _device_prior_dict(device_prior)
-    layout = result.parameters.layout
-    n = layout.n_parameters
-    used = [int(i) for i in result.used_postures]
-    kinds = None
-    if measurements is not None:
-        kinds = [str(k) for k in np.asarray(measurements.kinds)[used]]
-    identifiability = result.identifiability
-    truth = None
-    if true_parameters is not None:
-        truth = np.asarray(getattr(true_parameters, 'vector', true_parameters), dtype=float)[:n]
-    if link_length is None:
-        link_length = DEFAULT_LINK_LENGTH_M
-    payload[FORMAT_KEY] = RESULT_FORMAT
-    payload[REPORT_DATA_KEY] = _plain(
-        {
-            'parameter_names': list(layout.parameter_names),
-            'parameters': result.parameters.vector,
-            'initial_parameters': result.initial_parameters.vector,
-            'true_parameters': truth,
-            'std': np.asarray(result.std, dtype=float)[:n],
-            'covariance': np.asarray(result.covariance, dtype=float)[:n, :n],
-            'initial_rms_residual': result.initial_rms_residual,
-            'residuals': {
-                'values': result.residuals,
-                'channels': [str(c) for c in result.residual_channels],
-                'postures': [int(p) for p in result.residual_postures],
-            },
-            'used_postures': used,
-            'poses': result.poses if result.poses is not None else [],
-            'kinds': kinds,
-            'singular_values': identifiability.singular_values,
-            'verdict': identifiability.verdict(),
-            'link_length': link_length,
-            'extras': extras or {},
-        }
-    )
-    if mount is not None:
-        payload[REPORT_DATA_KEY]['mount'] = check_mount(mount)
-    return payload
-
-
-def _device_prior_dict(prior) -> dict:
-    """{name: {"value", "std"}} (SI) of a DevicePrior, or such a dict as it is."""
-    if isinstance(prior, dict):
-        return {
-            str(name): {'value': float(entry['value']), 'std': float(entry['std'])}
-            for name, entry in prior.items()
-        }
-    return {name: {'value': float(value), 'std': float(std)} for name, value, std in prior.entries}
-
-
-def save_result(
-    path: Path | str,
-    result,
-    extras: dict | None = None,
-    *,
-    measurements=None,
-    true_parameters=None,
-    link_length: float | None = None,
-    mount: str | None = None,
-    device_prior=None,
-) -> Path:
-    """Write ``result_payload`` as a result file (hexacal_msgs_py.result_file)."""
-    payload = result_payload(
-        result,
-        extras,
-        measurements=measurements,
-        true_parameters=true_parameters,
-        link_length=link_length,
-        mount=mount,
-        device_prior=device_prior,
-    )
-    return write_result_file(path, _plain(payload))
-
-
-def _atomic_write(path: Path, content: str | bytes) -> Path:
-    return atomic_write(path, content)
 
 
 # --------------------------------------------------------------------------- the report
@@ -184,13 +83,7 @@ def write_report(
     out.mkdir(parents=True, exist_ok=True)
     sections = _Sections(payload, out)
     page = _page(title or 'hexacal calibration report', sections.build(), sections.layout)
-    return _atomic_write(out / 'index.html', page)
-
-
-def _vector(values) -> np.ndarray | None:
-    if values is None:
-        return None
-    return np.array([np.nan if v is None else v for v in values], dtype=float)
+    return atomic_write(out / 'index.html', page)
 
 
 def _parameters_from_chain_dict(chains: dict | None, model: str) -> np.ndarray | None:
@@ -271,6 +164,8 @@ class _Sections:
         parts.append(self.identified())
         if self.payload.get('device_identified'):
             parts.append(self.device_parameters())
+        if compliance_section(self.payload):
+            parts.append(compliance_section(self.payload))
         for section in (
             self.corrections,
             self.truth_errors,
@@ -284,12 +179,7 @@ class _Sections:
 
     # -- helpers
     def figure(self, name: str, draw) -> str:
-        path = draw(self.out / name)
-        encoded = base64.b64encode(Path(path).read_bytes()).decode('ascii')
-        return (
-            f'<figure><img src="data:image/png;base64,{encoded}" alt="{html.escape(name)}">'
-            f'<figcaption>{html.escape(name)}</figcaption></figure>'
-        )
+        return embedded_figure(self.out, name, draw)
 
     @staticmethod
     def missing(title: str, why: str) -> str:
@@ -687,223 +577,6 @@ class _Sections:
         return f'<section><h2>{title}</h2>{image}</section>'
 
 
-def verification_section(verification: dict, figure) -> str:
-    """
-    Return the verification section.
-
-    Nominal vs calibrated figures, verdict, and the per-posture figure.
-
-    ``verification`` is ``VerificationResult.to_json(per_posture=True)`` (SI units, null for NaN);
-    ``figure(name, draw)`` embeds a PNG (``_Sections.figure``).
-    """
-    title = 'Verification on fresh postures (no ground truth)'
-    sets = {name: verification.get(name) or {} for name in ('nominal', 'calibrated')}
-
-    def cell(name: str, key: str, scale: float, unit: str) -> str:
-        value = sets[name].get(key)
-        return 'n/a' if value is None else f'{value * scale:.2f} {unit}'
-
-    rows = [
-        ('Position error rms', 'position_rms_m', UM, 'um'),
-        ('Position error max', 'position_max_m', UM, 'um'),
-        ('Rotary error rms', 'rotary_rms_rad', UM, 'urad'),
-    ]
-    table = '<tr><th></th><th>nominal</th><th>calibrated</th></tr>'
-    for label, key, scale, unit in rows:
-        table += (
-            f'<tr><th>{label}</th><td '
-            f"id='verification-nominal-{key}'>{cell('nominal', key, scale, unit)}</td>"
-            f"<td id='verification-calibrated-{key}'>"
-            f'{cell("calibrated", key, scale, unit)}</td></tr>'
-        )
-    table += (
-        '<tr><th>Forward kinematics failed</th>'
-        + ''.join(
-            f"<td id='verification-{name}-fk-failures'>"
-            f'{int(sets[name].get("fk_failures") or 0)}</td>'
-            for name in sets
-        )
-        + '</tr>'
-    )
-    improvement = verification.get('improvement')
-    threshold = verification.get('threshold_m')
-    summary_rows = [
-        ('Postures', verification.get('postures'), 'verification-postures'),
-        (
-            'Improvement (nominal rms / calibrated rms)',
-            'n/a' if improvement is None else f'{improvement:.1f} x',
-            'verification-improvement',
-        ),
-        (
-            'Threshold',
-            ('n/a' if threshold is None else f'{threshold * UM:.2f} um')
-            + (
-                f' ({verification["threshold_source"]})'
-                if verification.get('threshold_source')
-                else ''
-            ),
-            'verification-threshold',
-        ),
-    ]
-    noise = verification.get('expected_noise')
-    if noise and noise.get('position_rms_m') is not None:
-        summary_rows.append(
-            (
-                'Expected from reading noise alone',
-                f'{noise["position_rms_m"] * UM:.2f} um, '
-                f'{(noise.get("rotary_rms_rad") or 0) * UM:.2f} urad',
-                'verification-expected-noise',
-            )
-        )
-    summary_rows.append(
-        (
-            'Verdict',
-            verification.get('verdict_reason') or verification.get('verdict'),
-            'verification-verdict',
-        )
-    )
-    summary = ''.join(
-        f"<tr><th>{html.escape(str(k))}</th><td id='{i}'>{html.escape(str(v))}</td></tr>"
-        for k, v, i in summary_rows
-    )
-    failures = ''
-    for name in sets:
-        failed = sets[name].get('failed_postures') or []
-        if failed:
-            items = ''.join(
-                f'<li>posture {f.get("index")}: {html.escape(str(f.get("reason")))}</li>'
-                for f in failed
-            )
-            failures += (
-                f'<h3>Forward kinematics failed with the {name} parameters</h3><ul>{items}</ul>'
-            )
-    image = ''
-    per_posture = verification.get('per_posture') or {}
-    if per_posture.get('nominal_position_error_m') is not None:
-        from . import figures
-
-        before = _vector(per_posture['nominal_position_error_m'])
-        after = _vector(per_posture['calibrated_position_error_m'])
-        rotary = [per_posture.get(f'{name}_rotary_error_rad') for name in sets]
-        image = figure(
-            'verification.png',
-            lambda path: figures.verification_errors(
-                before,
-                after,
-                threshold if threshold is not None else float('nan'),
-                path,
-                kinds=np.asarray(per_posture.get('kinds') or ['sphere'] * len(before)),
-                nominal_rotary_rad=_vector(rotary[0]),
-                calibrated_rotary_rad=_vector(rotary[1]),
-            ),
-        )
-    text = (
-        '<p>Fresh postures, not used in the fit: what the device measured (position by eq. 4, the '
-        'fixed point for fixed-position postures; phi from the rotary sensor) against forward '
-        'kinematics at the measured actuator readings, with the nominal and with the calibrated '
-        'parameters.</p>'
-    )
-    return (
-        f"<section id='verification'><h2>{title}</h2>{text}<table class='data' "
-        "id='verification-figures'>"
-        f"{table}</table><table class='summary'>{summary}</table>{failures}{image}</section>"
-    )
-
-
-def write_verification_report(
-    verification: dict, out_dir: Path | str, *, title: str | None = None
-) -> Path:
-    """
-    Write DIR/index.html with the verification section alone.
-
-    DIR/index.html (+ verification.png) with the verification section alone (``hexacal verify
-    --report``).
-    """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    verification = _plain(verification)
-    layout = architecture(verification.get('model') or DEFAULT_MODEL).layout
-
-    def figure(name: str, draw) -> str:
-        path = draw(out / name)
-        encoded = base64.b64encode(Path(path).read_bytes()).decode('ascii')
-        return (
-            f'<figure><img src="data:image/png;base64,{encoded}" alt="{html.escape(name)}">'
-            f'<figcaption>{html.escape(name)}</figcaption></figure>'
-        )
-
-    rows = [
-        ('Machine model', f'{layout.title}'),
-        ('Source', verification.get('source') or 'n/a'),
-        ('Nominal parameters', verification.get('nominal_file') or 'n/a'),
-        ('Calibrated parameters', verification.get('calibrated_file') or 'n/a'),
-        (
-            'Device',
-            f'link {(verification.get("link_length_m") or DEFAULT_LINK_LENGTH_M) * MM:.1f} mm, '
-            f'{verification.get("mount") or DEFAULT_MOUNT}',
-        ),
-    ]
-    header = ''.join(
-        f'<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>' for k, v in rows
-    )
-    sections = [
-        f"<section><h2>Summary</h2><table class='summary'>{header}</table></section>",
-        verification_section(verification, figure),
-    ]
-    return _atomic_write(
-        out / 'index.html', _page(title or 'hexacal verification report', sections, layout)
-    )
-
-
-def predicted_position_error_map(
-    parameters: np.ndarray,
-    covariance: np.ndarray,
-    link_length: float,
-    grid: int = MAP_GRID,
-    xy_range_m: float | None = None,
-    model: str | None = None,
-    mount: str = DEFAULT_MOUNT,
-):
-    """
-    (x, y, std) of the linearised position error, sqrt(trace(J_p C J_p^T)), on an x, y grid (m).
-
-    J_p = dP/du at (x, y, -sqrt(L^2 - x^2 - y^2), 0, 0, 0) (+sqrt standing); cells the machine
-    cannot reach (its architecture's default workspace, on this link) are NaN.  Parameters without
-    a variance count as exact.  ``model`` None = the Hexa Slide; ``xy_range_m`` None = the
-    workspace's.
-    """
-    from ..core.machine.postures import acceptable_poses
-    from ..core.fit.uncertainty import position_covariances
-
-    arch = architecture(model)
-    n = arch.layout.n_parameters
-    params = arch.parameters(np.asarray(parameters, dtype=float)[:n])
-    workspace = replace(arch.default_workspace(), link_length=link_length)
-    if xy_range_m is None:
-        xy_range_m = workspace.xy_range_m
-    axis = np.linspace(-xy_range_m, xy_range_m, grid)
-    x, y = np.meshgrid(axis, axis)
-    radius2 = link_length**2 - x**2 - y**2
-    side = np.sign(
-        fixed_point(link_length, mount)[2]
-    )  # -1 hanging, +1 standing: the platform's side of O
-    poses = np.column_stack(
-        [
-            x.ravel(),
-            y.ravel(),
-            side * np.sqrt(np.maximum(radius2, 0.0)).ravel(),
-            np.zeros((x.size, 3)),
-        ]
-    )
-    ok = (radius2.ravel() > 0) & acceptable_poses(params, poses, workspace)
-    std = np.full(x.size, np.nan)
-    if np.any(ok):
-        cov = np.nan_to_num(np.asarray(covariance, dtype=float)[:n, :n], nan=0.0, posinf=0.0)
-        variance = np.trace(position_covariances(params, cov, poses[ok]), axis1=1, axis2=2)
-        std[ok] = np.sqrt(np.maximum(variance, 0.0))
-    return x, y, std.reshape(x.shape)
-
-
 def _verdict_from_json(identifiability: dict) -> str:
     if not identifiability:
         return 'unknown'
@@ -920,63 +593,8 @@ def _verdict_from_json(identifiability: dict) -> str:
     )
 
 
-def _fmt(value, pattern: str) -> str:
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return 'n/a'
-    return pattern.format(value)
-
-
-_STYLE = """
-body { font-family: sans-serif; margin: 2em auto; max-width: 1150px; color: #222; }
-h1 { font-size: 1.5em; } h2 { font-size: 1.2em; border-bottom: 1px solid #ccc; margin-top: 2em; }
-table.summary th { text-align: left; padding-right: 2em; font-weight: normal; color: #555; }
-table.data { border-collapse: collapse; font-size: 0.85em; }
-table.data td, table.data th { padding: 1px 8px; }
-figure { margin: 1em 0; } img { max-width: 100%; } figcaption { font-size: 0.8em; color: #777; }
-.verdict { font-weight: bold; white-space: pre-wrap; } .note { color: #777; }
-"""
-
-# Counts the images that decoded once the page has loaded, for headless checks (works offline: no
-# requests).
-_IMAGE_CHECK = """
-window.addEventListener('load', function () {
-  var images = document.images, loaded = 0;
-  for (var i = 0; i < images.length; i++) {
-    if (images[i].complete && images[i].naturalWidth > 0) loaded++;
-  }
-  document.body.setAttribute('data-images-loaded', String(loaded));
-  document.body.setAttribute('data-images-total', String(images.length));
-});
-"""
-
-
-def _dimensionless(layout: ModelLayout) -> list[str]:
-    """
-    Return the per-chain fields without a unit.
-
-    Per-chain fields without a unit (the Hexa Slide's rail components ax, ay): shown as 1000 x the
-    value.
-    """
-    return [name for name, unit in zip(layout.fields, layout.field_units) if unit == '1']
-
-
-def _page(title: str, sections: list[str], layout: ModelLayout) -> str:
-    dimensionless = _dimensionless(layout)
-    scaled = (
-        f' (dimensionless {", ".join(dimensionless)} as 1000 x the value)' if dimensionless else ''
-    )
-    return (
-        "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
-        f'<title>{html.escape(title)}</title><style>{_STYLE}</style></head>\n<body>'
-        f'<h1>{html.escape(title)}</h1>'
-        f"<p class='note'>Units: parameters in mm{scaled}, standard deviations "
-        'and residuals in um and urad; the files hold SI units.</p>\n'
-        + '\n'.join(sections)
-        + f'\n<script>{_IMAGE_CHECK}</script></body></html>\n'
-    )
-
-
 __all__ = [
+    'MAP_GRID',
     'predicted_position_error_map',
     'result_payload',
     'save_result',

@@ -15,7 +15,7 @@ from __future__ import annotations
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 import numpy as np
 
-from .base import Architecture, ChainIK, KinematicParameters
+from .base import Architecture, ChainIK, KinematicParameters, StackedLegs
 from .gough_stewart import ARCHITECTURE as _GOUGH_STEWART
 from .hexa_slide import ARCHITECTURE as _HEXA_SLIDE
 from .rotary_hexapod import ARCHITECTURE as _ROTARY_HEXAPOD
@@ -76,6 +76,7 @@ __all__ = [
     'Architecture',
     'KinematicParameters',
     'ChainIK',
+    'StackedLegs',
     'architecture',
     'default_parameters',
     'parameters_for',

@@ -41,6 +41,9 @@ whose ``architecture`` is the instance):
   ``pose_jacobian()`` = d lambda / d X (N, 6, 6), ``parameter_blocks(chains)``
   = d lambda_c / d u_c (N, 6, fields per chain), ``unit_legs()``, plus
   ``subset``/``replace_rows`` for the batched Newton iteration;
+* optionally ``stack_chains``/``legs_stacked``: IK of many parameter sets at once, each pose
+  row on its own set (the release rehearsal's machines and candidates); the default calls
+  ``legs`` once per parameter set present, an architecture overrides it vectorised;
 * ``acceptable_poses`` and ``joint_cosines``: the workspace and planning limits;
 * ``frame_motion`` and ``actuator_zero_shift``: frame motions and actuator zero
   offsets expressed as parameter changes (identifiability's named combinations);
@@ -69,7 +72,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any, ClassVar, Generic, Protocol, Self, TypeVar
+from typing import Any, ClassVar, Generic, Protocol, Self, Sequence, TypeVar
 
 from hexacal_msgs_py.models import ActuatorQuantities, ModelLayout
 import numpy as np
@@ -96,6 +99,15 @@ class ChainIK(Protocol):
     def subset(self, mask: np.ndarray) -> Self: ...
 
     def replace_rows(self, mask: np.ndarray, rows: Self) -> None: ...
+
+
+@dataclass(frozen=True)
+class StackedLegs:
+    """IK of a stacked batch, pose row i on its own parameter set: what Newton needs."""
+
+    actuators: np.ndarray  # actuator readings lambda, (N, 6)
+    pose_jacobian: np.ndarray  # d lambda / d X, (N, 6, 6)
+    reachable: np.ndarray  # (N,) every chain can reach
 
 
 @dataclass(frozen=True)
@@ -320,6 +332,41 @@ class Architecture(ABC, Generic[P]):
     @abstractmethod
     def legs(self, chains: Any, poses: np.ndarray) -> ChainIK:
         """IK for poses (N, 6) with the intermediates both Jacobians reuse."""
+
+    def stack_chains(self, chains: Sequence[Any]) -> Any:
+        """
+        Return the per-chain constants of K parameter sets (each ``chains``) for ``legs_stacked``.
+
+        The default keeps them as they are; an architecture that overrides ``legs_stacked`` lays
+        them out as its vectorised IK needs.
+        """
+        return tuple(chains)
+
+    def legs_stacked(self, stacked: Any, machine: np.ndarray, poses: np.ndarray) -> StackedLegs:
+        """
+        Return the IK of row i at ``poses[i]`` (N, 6) on parameter set ``machine[i]`` (N,).
+
+        ``stacked`` is what ``stack_chains`` returned.  The default calls ``legs`` once per
+        parameter set present in ``machine``; an architecture whose IK is elementwise over its
+        chains overrides it with one call for every row (the release rehearsal evaluates many
+        machines and candidates at a time, and the per-call overhead is what costs there).
+        """
+        machine = np.asarray(machine, dtype=int)
+        poses = np.asarray(poses, dtype=float)
+        present = np.unique(machine)
+        if present.size == 1:
+            legs = self.legs(stacked[present[0]], poses)
+            return StackedLegs(legs.actuators, legs.pose_jacobian(), legs.reachable())
+        n, chains = len(poses), self.layout.n_chains
+        actuators, jacobian = np.empty((n, chains)), np.empty((n, chains, 6))
+        reachable = np.empty(n, bool)
+        for k in present:
+            rows = machine == k
+            legs = self.legs(stacked[k], poses[rows])
+            actuators[rows] = legs.actuators
+            jacobian[rows] = legs.pose_jacobian()
+            reachable[rows] = legs.reachable()
+        return StackedLegs(actuators, jacobian, reachable)
 
     @abstractmethod
     def acceptable_poses(

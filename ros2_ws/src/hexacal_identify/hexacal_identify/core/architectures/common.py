@@ -40,7 +40,11 @@ class PlatformPoints:
     __slots__ = ('tilt_trig', 'rotations', 'rotated', 'offsets')
 
     def __init__(self, platform: np.ndarray, base: np.ndarray, poses: np.ndarray):
-        """Platform, base: (3, 6) joint centres (platform frame, base frame); poses (N, 6)."""
+        """
+        Platform, base: (3, 6) joint centres (platform frame, base frame); poses (N, 6).
+
+        Or, a parameter set per pose row (a stacked batch): platform (N, 3, 6), base (3, N, 6).
+        """
         angles = poses[:, 3:6].T
         cosines, sines = np.cos(angles), np.sin(angles)
         self.tilt_trig = np.stack(
@@ -48,9 +52,39 @@ class PlatformPoints:
         )  # ct, st, cp, sp: (4, N)
         self.rotations = rotation_from_trig(cosines, sines)  # (N, 3, 3)
         self.rotated = np.matmul(self.rotations, platform).transpose(1, 0, 2)  # R B, (3, N, 6)
-        self.offsets = self.rotated + (
-            poses[:, :3].T[:, :, None] - base[:, None, :]
-        )  # P + R B - A, (3, N, 6)
+        base = base if base.ndim == 3 else base[:, None, :]
+        self.offsets = self.rotated + (poses[:, :3].T[:, :, None] - base)  # P + R B - A, (3, N, 6)
+
+
+class StackedChains:
+    """
+    The per-chain constants of K parameter sets, gathered per pose row of a stacked batch.
+
+    ``chains`` are K objects of one class whose slots are arrays with the chain on the last axis
+    (coordinate-major (3, 6), or (6,)).  A slot is kept as (..., K, 6) and gathered for N rows
+    as (..., N, 6), which an architecture's elementwise IK takes as it takes (..., 6): one call
+    for every row, each on its own parameter set.  The platform joints are gathered as
+    (N, 3, 6), what PlatformPoints multiplies by the (N, 3, 3) rotations.
+    """
+
+    def __init__(self, chains):
+        self.kind = type(chains[0])
+        self.count = len(chains)
+        self.arrays = {
+            name: np.stack([getattr(c, name) for c in chains],
+                           axis=0 if name == 'platform' else -2)
+            for name in self.kind.__slots__
+        }
+
+    def __len__(self) -> int:
+        return self.count
+
+    def rows(self, machine: np.ndarray):
+        """Return constants whose row i are those of parameter set machine[i] (N,)."""
+        out = object.__new__(self.kind)
+        for name, value in self.arrays.items():
+            setattr(out, name, value[machine] if name == 'platform' else value[..., machine, :])
+        return out
 
 
 def euler_rate_axes(angles: np.ndarray) -> np.ndarray:

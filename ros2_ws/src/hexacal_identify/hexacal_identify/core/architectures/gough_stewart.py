@@ -31,6 +31,7 @@ with Table 2's statistics (the same three rows), drawn over 42 parameters.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Sequence
 
 from hexacal_msgs_py.models import GOUGH_STEWART, MODELS
 import numpy as np
@@ -48,6 +49,7 @@ from .base import (
     MechanismJoint,
     PASSIVE,
     SLIDE,
+    StackedLegs,
     universal_joint_axes,
 )
 from .common import (
@@ -58,6 +60,7 @@ from .common import (
     PlatformPoints,
     pose_jacobian_rows,
     rotation_from_trig,
+    StackedChains,
 )
 
 LAYOUT = MODELS[GOUGH_STEWART]
@@ -133,7 +136,11 @@ def default_gough_stewart() -> GoughStewartParameters:
 
 
 class _Chains:
-    """Per-chain constants, coordinate-major ((3, 6) arrays)."""
+    """
+    Per-chain constants, coordinate-major ((3, 6) arrays).
+
+    Or those of a stacked batch's rows (common.StackedChains): (3, N, 6), platform (N, 3, 6).
+    """
 
     __slots__ = ('base', 'platform', 'offsets')
 
@@ -242,6 +249,17 @@ class GoughStewart(Architecture[GoughStewartParameters]):
 
     def legs(self, chains: _Chains, poses: np.ndarray) -> _ChainIK:
         return _ChainIK(chains, poses)
+
+    def stack_chains(self, chains: Sequence[_Chains]) -> StackedChains:
+        return StackedChains(chains)
+
+    def legs_stacked(
+        self, stacked: StackedChains, machine: np.ndarray, poses: np.ndarray
+    ) -> StackedLegs:
+        """Return the IK of row i on parameter set machine[i]: one elementwise call for all."""
+        rows = stacked.rows(np.asarray(machine, dtype=int))
+        legs = _ChainIK(rows, np.asarray(poses, dtype=float))
+        return StackedLegs(legs.actuators, legs.pose_jacobian(), legs.reachable())
 
     def acceptable_poses(
         self, params: GoughStewartParameters, poses: np.ndarray, workspace

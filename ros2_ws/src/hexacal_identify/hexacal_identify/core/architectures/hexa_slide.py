@@ -29,6 +29,7 @@ vector is ``e = d - lambda a`` (slider joint A -> spherical joint B) and
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Sequence
 
 from hexacal_msgs_py.models import HEXA_SLIDE, MODELS
 import numpy as np
@@ -46,6 +47,7 @@ from .base import (
     MechanismJoint,
     PASSIVE,
     SLIDE,
+    StackedLegs,
     universal_joint_axes,
 )
 from .common import (
@@ -55,6 +57,7 @@ from .common import (
     platform_point_derivatives,
     PlatformPoints,
     pose_jacobian_rows,
+    StackedChains,
 )
 
 LAYOUT = MODELS[HEXA_SLIDE]
@@ -148,7 +151,11 @@ def table1_parameters() -> HexaParameters:
 
 
 class _Chains:
-    """One parameter set's per-chain constants, coordinate-major ((3, 6) arrays: row = x, y, z)."""
+    """
+    One parameter set's per-chain constants, coordinate-major ((3, 6) arrays: row = x, y, z).
+
+    Or those of a stacked batch's rows (common.StackedChains): (3, N, 6), platform (N, 3, 6).
+    """
 
     __slots__ = ('base', 'platform', 'rails', 'lengths', 'lengths_squared', 'rail_z_slope')
 
@@ -200,7 +207,8 @@ class _ChainIK:
         sliders = a_dot_d - root
         self.rotated = rotated
         self.actuators = sliders
-        self.legs = d - sliders * rails[:, None, :]
+        # (3, 6) constants of one parameter set, or (3, N, 6) of a stacked batch (StackedChains).
+        self.legs = d - sliders * (rails if rails.ndim == 3 else rails[:, None, :])
         self.rail_dot = root
         self.discriminant = discriminant
 
@@ -384,6 +392,17 @@ class HexaSlide(Architecture[HexaParameters]):
 
     def legs(self, chains: _Chains, poses: np.ndarray) -> _ChainIK:
         return _ChainIK(chains, poses)
+
+    def stack_chains(self, chains: Sequence[_Chains]) -> StackedChains:
+        return StackedChains(chains)
+
+    def legs_stacked(
+        self, stacked: StackedChains, machine: np.ndarray, poses: np.ndarray
+    ) -> StackedLegs:
+        """Return the IK of row i on parameter set machine[i]: one elementwise call for all."""
+        rows = stacked.rows(np.asarray(machine, dtype=int))
+        legs = _ChainIK(rows, np.asarray(poses, dtype=float))
+        return StackedLegs(legs.actuators, legs.pose_jacobian(), legs.reachable())
 
     def acceptable_poses(self, params: HexaParameters, poses: np.ndarray, workspace) -> np.ndarray:
         geometry = leg_geometry(params, poses)

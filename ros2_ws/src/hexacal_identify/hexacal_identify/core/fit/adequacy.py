@@ -13,6 +13,18 @@ describe (backlash, compliance) - or a noise model that under-states the noise.
 Naming the postures and channels whose whitened rows carry most of ``r^T W r``
 points at which.
 
+The test's tail.  Only a variance factor above the range fails (below it the noise model
+over-states the noise, which harms no estimate), so the test is one-sided, and its false-alarm
+probability ``TAIL_PROBABILITY`` is 1 %, not 0.1 %: a misfit the 54 geometric parameters can
+partly absorb (compliance: the leg springs of the MuJoCo Hexa Slide deflect it by up to 8 um
+against 2 um readings) leaves whitened residuals only 1.1-1.5 times the noise on the fit's own
+postures, while fresh postures show it whole (verification rms 7-18 um against 5-8 um for the
+same machine made rigid).  With 30 postures (66 degrees of freedom) the 0.1 % bound, s0^2 <=
+1.63, passed 4 of 8 noise draws of that machine (variance factors 1.25-2.18, one at 1.61); the
+1 % bound, 1.45, fails 7 of them, and neither fails the rigid machine (0.83-1.18).  A global
+test of a least-squares fit is run at a larger false-alarm rate than a single-observation test
+for this reason (Baarda's B-method); a fail names the postures and channels to look at.
+
 The quantiles are scipy's (``scipy.stats.chi2``), imported when a fit is judged.
 """
 
@@ -24,8 +36,9 @@ import math
 
 import numpy as np
 
-# Two-sided 0.1 % / 99.9 %: a sound calibration fails one time in a thousand.
-TAIL_PROBABILITY = 1e-3
+# The 1 % and 99 % quantiles: a sound calibration fails one time in a hundred (module doc: a
+# misfit the parameters partly absorb slips through the 0.1 % bound half the time).
+TAIL_PROBABILITY = 1e-2
 # Above this multiple of the upper bound (residuals twice the noise's), the verdict says in plain
 # words that the reading noise cannot explain them.
 FAR_ABOVE_FACTOR = 4.0

@@ -12,6 +12,8 @@ many noise seeds (same machine, same postures) and compares:
 * the efficiency CRB variance / empirical mean squared error per parameter
   (1 = as good as any unbiased estimator can be for Gaussian noise).
 
+``position_error`` holds the position covariances and their map over the workspace.
+
 Written against the parameters object: any architecture, n = its number of parameters.
 """
 
@@ -23,33 +25,13 @@ from typing import Callable, cast
 import numpy as np
 
 from .identification import identify, SolverOptions
+from .position_error import position_covariances
 from .validation import pose_errors, validation_poses
 from ..architectures import default_parameters, KinematicParameters
 from ..machine.kinematics import euler_rate_axes, pose_sensitivities
 from ..machine.measurements import NoiseModel, simulate_measurements
 from ..machine.model import nominal_set
 from ..machine.postures import sample_poses
-
-
-def position_covariances(
-    params: KinematicParameters,
-    covariance: np.ndarray,
-    poses: np.ndarray,
-    wrt_parameters: np.ndarray | None = None,
-) -> np.ndarray:
-    """
-    Return the (N, 3, 3) platform-position covariances J_p C J_p^T at ``poses`` (m^2, linearised).
-
-    J_p = dP/du at each pose, C the parameter covariance (its kinematic block: device defects
-    after the n kinematic parameters are ignored). ``wrt_parameters``: dX/du (N, 6, n) at
-    ``poses`` when the caller has it already.
-    """
-    n = params.layout.n_parameters
-    covariance = np.asarray(covariance)[:n, :n]
-    if wrt_parameters is None:
-        wrt_parameters = pose_sensitivities(params, poses).wrt_parameters
-    position = wrt_parameters[:, :3]
-    return np.einsum('nik,kl,njl->nij', position, covariance, position)
 
 
 @dataclass

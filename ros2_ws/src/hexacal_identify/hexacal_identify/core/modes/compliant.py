@@ -124,4 +124,47 @@ def device_constrained_pose(
     return pose, legs.actuators[0].copy()
 
 
-__all__ = ['ConstraintError', 'device_constrained_pose', 'STRAIN_RETRY_M']
+def link_tension(
+    params: KinematicParameters,
+    poses: np.ndarray,
+    actuators: np.ndarray,
+    setpoints: np.ndarray,
+    stiffness_n_per_m: float,
+) -> np.ndarray:
+    """
+    Return the measuring link's tension (N,), N, where compliant servos stand strained.
+
+    Each servo pushes its actuator back towards its setpoint with the thrust
+    ``stiffness (setpoint - position)`` along +lambda; the platform, at rest, is held by those
+    thrusts and the link alone (weights aside: core/fit/statics.py adds them), so by virtual
+    work J^T tau = T j_L with J = d lambda / d X and j_L = [P / |P|, 0, 0, 0]: the link's
+    tension T is the force part of J^T tau along P (compression negative).  Where the standing
+    is the least-energy one on the sphere (device_constrained_pose) J^T tau has no other part.
+    """
+    thrust = stiffness_n_per_m * (
+        np.atleast_2d(np.asarray(setpoints, dtype=float))
+        - np.atleast_2d(np.asarray(actuators, dtype=float))
+    )
+    return thrust_link_tension(params, poses, thrust)
+
+
+def thrust_link_tension(
+    params: KinematicParameters, poses: np.ndarray, thrust: np.ndarray
+) -> np.ndarray:
+    """Return the link's tension (N,), N, that holds the platform against the thrusts (N, 6)."""
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    thrust = np.atleast_2d(np.asarray(thrust, dtype=float))
+    arch = params.architecture
+    jacobian = np.asarray(arch.legs(arch.chains(params), poses).pose_jacobian())
+    generalised = np.einsum('ncx,nc->nx', jacobian, thrust)
+    direction = poses[:, :3] / np.linalg.norm(poses[:, :3], axis=1, keepdims=True)
+    return np.einsum('nx,nx->n', generalised[:, :3], direction)
+
+
+__all__ = [
+    'ConstraintError',
+    'device_constrained_pose',
+    'link_tension',
+    'STRAIN_RETRY_M',
+    'thrust_link_tension',
+]

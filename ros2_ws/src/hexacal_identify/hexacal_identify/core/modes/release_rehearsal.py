@@ -20,7 +20,8 @@ on the way, over all machines.
 
 ``rehearse`` walks one move's candidates machine by machine (the reference); ``rehearse_stacked``
 walks many moves, all their candidates and all machines in one Newton iteration over a stacked
-batch (``MachineStack``: each machine's per-chain constants computed once), with the same
+batch (``MachineStack``: each machine's per-chain constants computed once, the IK of every row
+on its own machine in one call of the architecture's ``legs_stacked``), with the same
 arithmetic row by row, so the same closures and decisions, in a fraction of the calls.
 """
 
@@ -188,110 +189,24 @@ class MachineStack:
     """
     Machines of one architecture, their per-chain constants computed once, IK stacked.
 
-    The architectures keep a chain's constants and IK intermediates on the last axis
-    (coordinate-major (3, 6) and (3, N, 6) arrays, architectures/common.py), so the constants of
-    K machines side by side ((3, 6K): 6K chains) give in one ``legs`` call every row's IK on
-    every machine, and each row keeps its own machine's six columns.  That is K times the
-    arithmetic of the rows but one call instead of K: the rehearsal's batches are small, and the
-    per-call overhead is what costs.  Checked against the per-machine IK when built; an
-    architecture whose IK is not laid out so is evaluated machine by machine.
+    ``evaluate`` gives the IK of every row on its own machine in one call of the architecture's
+    ``legs_stacked`` (vectorised on the shipped architectures; a loop over the machines present
+    by default): the rehearsal's batches are small, and the per-call overhead is what costs.
     """
 
     def __init__(self, machines: tuple[KinematicParameters, ...]):
         self.machines = tuple(machines)
         self.architecture = self.machines[0].architecture
-        self.chains = [self.architecture.chains(machine) for machine in self.machines]
-        self.wide = _side_by_side(self.chains) if len(self.machines) > 1 else None
-        if self.wide is not None and not self._wide_agrees():
-            self.wide = None
+        self.stacked = self.architecture.stack_chains(
+            [self.architecture.chains(machine) for machine in self.machines]
+        )
 
     def evaluate(
         self, machine: np.ndarray, poses: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return IK (N, 6), d lambda / d X (N, 6, 6) and reachable (N,) of row i on machine[i]."""
-        if machine.size and machine.min() == machine.max():
-            legs = self.architecture.legs(self.chains[machine[0]], poses)
-            return legs.actuators, legs.pose_jacobian(), legs.reachable()
-        present = np.unique(machine)
-        if present.size == 1:
-            legs = self.architecture.legs(self.chains[present[0]], poses)
-            return legs.actuators, legs.pose_jacobian(), legs.reachable()
-        if self.wide is not None:
-            legs = _own_columns(self.architecture.legs(self.wide, poses), machine,
-                                len(self.machines))
-            if legs is not None:
-                return legs.actuators, legs.pose_jacobian(), legs.reachable()
-        return self._one_by_one(machine, poses, present)
-
-    def _one_by_one(self, machine, poses, present):
-        n = len(poses)
-        actuators, jacobian = np.empty((n, 6)), np.empty((n, 6, 6))
-        reachable = np.empty(n, bool)
-        for k in present:
-            rows = machine == k
-            legs = self.architecture.legs(self.chains[k], poses[rows])
-            actuators[rows] = legs.actuators
-            jacobian[rows] = legs.pose_jacobian()
-            reachable[rows] = legs.reachable()
-        return actuators, jacobian, reachable
-
-    def _wide_agrees(self) -> bool:
-        """Return True when the side-by-side IK equals each machine's own (a few poses)."""
-        count = len(self.machines)
-        machine = np.arange(2 * count) % count
-        rng = np.random.default_rng(0)
-        poses = np.column_stack([rng.uniform(-0.2, 0.2, (2 * count, 3)) + [0, 0, -0.75],
-                                 rng.uniform(-0.2, 0.2, (2 * count, 3))])
-        try:
-            with np.errstate(all='ignore'):
-                legs = _own_columns(self.architecture.legs(self.wide, poses), machine, count)
-                if legs is None:
-                    return False
-                wide = (legs.actuators, legs.pose_jacobian(), legs.reachable())
-                own = self._one_by_one(machine, poses, np.arange(count))
-            return all(np.allclose(a, b, rtol=1e-12, atol=1e-15, equal_nan=True)
-                       for a, b in zip(wide, own))
-        except (AttributeError, IndexError, TypeError, ValueError):
-            return False
-
-
-def _slots(value) -> tuple[str, ...] | None:
-    slots = getattr(type(value), '__slots__', None)
-    return (slots,) if isinstance(slots, str) else (tuple(slots) if slots else None)
-
-
-def _side_by_side(chains: list):
-    """Return the machines' per-chain constants side by side (6K chains); None: not arrays."""
-    first = chains[0]
-    names = _slots(first)
-    if names is None:
-        return None
-    wide = object.__new__(type(first))
-    for name in names:
-        values = [getattr(c, name) for c in chains]
-        if not all(isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[-1] == 6
-                   for v in values):
-            return None
-        setattr(wide, name, np.concatenate(values, axis=-1))
-    return wide
-
-
-def _own_columns(legs, machine: np.ndarray, count: int):
-    """Return the legs of row i on machine[i] from the side-by-side IK; None: not laid out so."""
-    names = _slots(legs)
-    if names is None:
-        return None
-    n = len(machine)
-    rows = np.arange(n)[:, None]
-    columns = machine[:, None] * 6 + np.arange(6)
-    own = object.__new__(type(legs))
-    for name in names:
-        value = getattr(legs, name)
-        side_by_side = isinstance(value, np.ndarray) and value.ndim >= 2
-        if side_by_side and value.shape[-2:] == (n, 6 * count):
-            value = value[..., rows, columns]
-        setattr(own, name, value)
-    return own
+        legs = self.architecture.legs_stacked(self.stacked, machine, poses)
+        return legs.actuators, legs.pose_jacobian, legs.reachable
 
 
 @dataclass

@@ -305,6 +305,50 @@ class PlanningResult:
         return means
 
 
+MARGIN_REDRAWS = 10  # draws that replace candidates short of the model-change margin
+
+
+def _model_margin_candidates(nominal, poses, kinds, limits, rng, model_error_m):
+    """
+    Return the candidates, each keeping the model-change margin (model_margin.py).
+
+    A candidate short of it is replaced by a fresh draw of its kind from the same generator, so
+    the count and kind split stay those asked for; the others are unchanged.
+    """
+    from ..modes.release_rehearsal import model_error_rms_m
+    from .model_margin import keep_model_margin
+
+    error_m = model_error_rms_m(nominal) if model_error_m is None else float(model_error_m)
+    if error_m == 0:
+        return poses, kinds
+    stroke = limits.actuator_stroke_m
+    keep = keep_model_margin(nominal, poses, stroke, error_m)
+    if keep.all():
+        return poses, kinds
+    parts, part_kinds = [], []
+    for kind, fixed_fraction in ((SPHERE, 0.0), (FIXED, 1.0)):
+        wanted = int(np.sum(kinds == kind))
+        if not wanted:
+            continue
+        kept = poses[(kinds == kind) & keep]
+        for _ in range(MARGIN_REDRAWS):
+            if len(kept) >= wanted:
+                break
+            extra, _ = generate_candidates(nominal, 2 * (wanted - len(kept)) + 16, rng, limits,
+                                           fixed_fraction)
+            kept = np.concatenate([kept, extra[keep_model_margin(nominal, extra, stroke,
+                                                                 error_m)]])
+        else:
+            raise ValueError(
+                f'could not find {wanted} {kind} candidate postures whose targets stay inside '
+                f'the stroke {tuple(stroke)} m less the margin a model error of '
+                f'{error_m * 1e3:g} mm RMS needs (a smaller model error, or a wider stroke)'
+            )
+        parts.append(kept[:wanted])
+        part_kinds.append(np.full(wanted, kind))
+    return np.concatenate(parts), np.concatenate(part_kinds)
+
+
 def plan_postures(
     nominal: KinematicParameters,
     n_postures: int,
@@ -325,6 +369,7 @@ def plan_postures(
     device_turns: tuple[float, ...] = (0.0,),
     measuring_mode: str | None = None,
     lvdt_stroke_m: float = DEFAULT_LVDT_STROKE_M,
+    model_error_m: float | None = None,
 ) -> PlanningResult:
     """
     Candidates -> Jacobian rows at ``nominal`` -> greedy (and exchange) selection -> ordered Plan.
@@ -334,6 +379,9 @@ def plan_postures(
     doc);
     ``device_turns``: the mountings of a turning procedure, each sphere candidate offered in each.
     ``measuring_mode``: written into the plan with what it adds (module doc); None: neither.
+    ``model_error_m``: the RMS parameter error of the nominal, from which the stroke margin a
+    posture keeps for the model change before its targets are walked (model_margin.py); None:
+    the architecture's Table 2 set 2 RMS, 0: no margin.
     """
     check_index(index)
     if limits is None:
@@ -351,6 +399,7 @@ def plan_postures(
     device = limits.device()
     rng = np.random.default_rng([seed, 0x91A4])
     poses, kinds = generate_candidates(nominal, n_candidates, rng, limits, fraction)
+    poses, kinds = _model_margin_candidates(nominal, poses, kinds, limits, rng, model_error_m)
     if measuring_mode is not None and measuring_mode in SIX_COMMANDED:
         extension = (
             lvdt_stroke_m - GuardSettings().lvdt_margin_m if measuring_mode == 'lvdt' else np.inf

@@ -9,24 +9,33 @@ What the executor node decides besides the walk itself (ROS-free).
   progress, the plan, the refusal, what the start waits for, the calibration
   call, the device_turn requests; when it is due (at every change, and at
   least every ``STATUS_PERIOD_S`` for the ETA).
+* `refine_step`: the intermediate calibrations of ``refine_targets``.
 * `CalibrationCall`: ``calibrate_when_done``, the call of hexacal/calibrate
   once the plan is done.
 * `parameter_problem`: the checks of the node's parameters beyond type and
-  range (which their descriptors enforce); `plan_mismatch`: a plan for
-  another model or device mount than the nominal file's.
+  range (which their descriptors enforce); `load_plan`, `plan_mismatch`: a plan for
+  another model or device mount than the nominal file's is refused.
+* `inclinometer_line`: how fixed positions are judged, for the start's log.
+
+What it asks of the drive and hears from it (release calls, the drive's mode):
+core/walk/drive_calls.py.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 import enum
 import math
 import re
 from typing import Any, TYPE_CHECKING
 
+from hexacal_msgs_py.inputs import DEFAULT_OFFSETS_RAD, DEFAULT_SIGNS, IMU_INCLINOMETER
+from hexacal_msgs_py.inputs import InputMapping
 from hexacal_msgs_py.measuring_modes import measuring_mode
 from hexacal_msgs_py.models import DEVICE_MOUNT_KEY, MODELS
+from hexacal_msgs_py.names import INCLINOMETER_TOPIC
+from hexacal_msgs_py.parameters_file import read_parameters_file
 
 from ..architectures import KinematicParameters
 from ..machine.device import DEFAULT_MOUNT
@@ -36,7 +45,8 @@ from ..walk.execution import Guard, PlanExecution
 from ..walk.guard import GuardSettings, move_guard
 from ..walk.messages import LogLevel, Messages
 from ..walk.mode_driver import walk_mode, WalkMode
-from ..walk.refined_targets import refine_checkpoints
+from ..walk.platform_paths import Command
+from ..walk.refined_targets import refine_checkpoints, RefineCall, RefineState
 from ..walk.settings import ExecutionSettings, ExecutionState
 from ..walk.turns import DeviceTurnSetter, TURN_PARAMETER, TurnSetState
 
@@ -124,6 +134,77 @@ def plan_mismatch(
     return None
 
 
+def load_plan(path: str, nominal_path: str, nominal_mount: str, model: str) -> Plan:
+    """
+    Return the plan at `path` if it can be walked on the nominal machine; else ValueError.
+
+    A nominal file that names no device.mount (read as the default) takes any plan's mount.
+    """
+    from ..planning.planner import Plan
+
+    try:
+        plan = Plan.load(path)
+    except (OSError, ValueError) as error:
+        raise ValueError(f'plan: {error}') from error
+    named = nominal_mount != DEFAULT_MOUNT or (
+        plan.mount != nominal_mount
+        and DEVICE_MOUNT_KEY in read_parameters_file(nominal_path).extras
+    )
+    problem = plan_mismatch(
+        path, plan.model, plan.mount, model, nominal_mount if named else None
+    )
+    if problem:
+        raise ValueError(problem)
+    return plan
+
+
+def inclinometer_line(mapping: InputMapping, settings: ExecutionSettings) -> str:
+    """Return the log line on how fixed positions are judged (the inclinometer input)."""
+    what = (
+        'sensor_msgs/Imu orientation'
+        if mapping.inclinometer_type == IMU_INCLINOMETER
+        else f'JointState {", ".join(mapping.inclinometer_joints)}'
+    )
+    window = settings.inclinometer_settle_s
+    text = f'fixed positions: inclinometer <- {mapping.input_topic(INCLINOMETER_TOPIC)} ({what})'
+    corrections = (mapping.inclinometer_signs, mapping.inclinometer_offsets_rad)
+    if corrections != (DEFAULT_SIGNS, DEFAULT_OFFSETS_RAD):
+        text += (
+            f', signs {list(mapping.inclinometer_signs)}, offsets '
+            f'{list(mapping.inclinometer_offsets_rad)} rad'
+        )
+    return text + (
+        f'; judged once settled over two {window:g} s windows'
+        if window
+        else f'; judged on the mean over settle_s ({settings.settle_s:g} s)'
+    )
+
+
+def start_waits(
+    readings: bool,
+    sliders_topic: str,
+    controllers: int,
+    command_topic: str,
+    no_collector: bool,
+    posture_topic: str,
+) -> list[str]:
+    """
+    Return what the start waits for (empty: nothing).
+
+    The plan starts once the machine is there: actuator readings, a controller on the command
+    topic, (wait_for_posture: `no_collector` says none publishes postures) a collector; the
+    node adds the nodes set to the mounting (core/walk/turns.py).
+    """
+    waiting = []
+    if not readings:
+        waiting.append(f'actuator readings on {sliders_topic}')
+    if controllers == 0:
+        waiting.append(f'a controller on {command_topic}')
+    if no_collector:
+        waiting.append(f'a collector on {posture_topic}')
+    return waiting
+
+
 @dataclass(frozen=True)
 class WalkSetup:
     """The walk the executor's parameters describe on the nominal machine."""
@@ -166,6 +247,30 @@ class WalkSetup:
         if self.mode.source != 'default':  # a plan without a mode walks as it always did
             lines.append(self.mode.describe(self.actuator_joints))
         return lines
+
+    def start_messages(
+        self, plan: Plan, model: str, command_topic: str, mapping: InputMapping
+    ) -> Messages:
+        """Return what the node logs at the start: `start_lines`, the inclinometer, a refusal."""
+        messages: Messages = [
+            (LogLevel.INFO, line) for line in self.start_lines(plan, model, command_topic)
+        ]
+        if FIXED in self.execution.kinds:
+            messages.append((LogLevel.INFO, inclinometer_line(mapping, self.settings)))
+        if self.problems:
+            messages.append((LogLevel.ERROR, self.refusal))
+        return messages
+
+    def status(
+        self, plan: str, model: str, calibration: CalibrationCall, turns: DeviceTurnSetter
+    ) -> ExecutorStatus:
+        """Return the executor's status of this walk."""
+        status = ExecutorStatus(
+            self.execution, plan, model, sorted(self.problems), calibration, turns
+        )
+        status.measuring_mode = self.mode.mode.value
+        status.joint_names = self.actuator_joints
+        return status
 
 
 def model_defaults(
@@ -284,6 +389,48 @@ def refined_guard(setup: WalkSetup, model: KinematicParameters) -> Guard | None:
     )
 
 
+def input_mapping(
+    values: Mapping[str, Any], setup: WalkSetup, topics: Sequence[str]
+) -> InputMapping:
+    """
+    Return how the inputs are read, as the collector reads them (InputMappingError if not).
+
+    `topics`: the resolved sliders and inclinometer topics (the executor reads no encoder).
+    """
+    return InputMapping(
+        actuator_joints=setup.actuator_joints,
+        inclinometer_joints=setup.inclinometer_joints,
+        inclinometer_type=values['inclinometer_type'],
+        inclinometer_signs=values['inclinometer_signs'],
+        inclinometer_offsets_rad=values['inclinometer_offsets_rad'],
+        topics=(topics[0], topics[1], ''),
+    )
+
+
+def refine_step(
+    refine: RefineCall, setup: WalkSetup, now: float, service_ready: bool
+) -> tuple[bool, list[Command] | None]:
+    """
+    Advance the intermediate calibration the walk asks (``refine_request``).
+
+    Return whether to call hexacal/calibrate now, and once it is answered (or has timed out)
+    the walk's commands re-targeted on the intermediate model (None until then).
+    """
+    execution = setup.execution
+    call = False
+    if refine.state != RefineState.WAITING:
+        postures = execution.refine_request
+        assert postures is not None
+        call = refine.start(now, postures, service_ready)
+    refine.poll(now)
+    if refine.state != RefineState.DONE:
+        return call, None
+    refine.state = RefineState.IDLE
+    model = refine.model
+    guard = refined_guard(setup, model) if model is not None else None
+    return call, execution.on_refined(now, model, refine.message, guard)
+
+
 class CalibrationState(enum.StrEnum):
     """calibrate_when_done's call (status field ``calibration``: the values)."""
 
@@ -398,6 +545,13 @@ class ExecutorStatus:
         if self.invalid_readings:
             values['invalid_readings'] = self.invalid_readings
         return values
+
+    def wait_for(self, waiting: Sequence[str]) -> bool:
+        """Record what the start waits for; return whether that changed (log and publish it)."""
+        if tuple(waiting) == self.waiting_for:
+            return False
+        self.waiting_for = tuple(waiting)
+        return True
 
     def due(self, now: float, values: dict[str, object], force: bool = False) -> bool:
         """Return whether to publish `values` now: forced, changed, or STATUS_PERIOD_S passed."""

@@ -6,8 +6,10 @@ which calibration to take (`take_calibration`: a new one, the same again, one of
 another model), which actuator readings to solve (`wants_reading`: at most one
 per `min_period_ns` of their stamps), the pose of a reading (`solve`: from the
 previous pose, else the workspace centre), whether a target pose becomes a
-command or is refused and why (`command`, `RefusalReason`), when the markers
-are drawn again and how often a repeated problem is reported. Each decision
+command or is refused and why (`command`, `RefusalReason`), which chain
+compliances load the pose and the commands (`use_compliances`: the calibration's
+compliance section with the weights of the physical description, `loaded_chains`),
+when the markers are drawn again and how often a repeated problem is reported. Each decision
 comes back as a `Report`: the status (level, `Outcome`, message, values) and
 the log line the node publishes and logs. The node converts messages and
 publishes; the texts, reasons and status values are all made here.
@@ -24,10 +26,17 @@ from typing import cast
 from hexacal_msgs_py.errors import InvalidReadingError
 from hexacal_msgs_py.interface_names import SLIDERS_TOPIC
 from hexacal_msgs_py.models import MODELS
+from hexacal_msgs_py.physical_file import (
+    default_physical,
+    PhysicalDescription,
+    PhysicalFileError,
+    read_physical_file,
+)
 import numpy as np
 
 from ..architectures import KinematicParameters
 from ..errors import ForwardKinematicsError, UnreachablePoseError
+from ..fit.statics import MassModel
 from ..machine.device import MOUNTS
 from ..machine.live import (
     actuator_targets,
@@ -126,9 +135,53 @@ def check_parameter(
             load(str(value))
         except KinematicsConfigurationError as error:
             return str(error)
+    elif name == 'physical_file' and value:
+        try:
+            read_physical(str(value))
+        except KinematicsConfigurationError as error:
+            return str(error)
     elif isinstance(value, float) and not math.isfinite(value):
         return f'{name} must be finite, got {value}'
     return None
+
+
+def read_physical(path: str) -> PhysicalDescription:
+    """Return the physical description of a file; errors as configuration errors."""
+    try:
+        return read_physical_file(path)
+    except PhysicalFileError as error:
+        raise KinematicsConfigurationError(f'physical_file: {error}') from error
+
+
+def loaded_chains(
+    model: str, compliances: Mapping[str, float], physical_file: str = ''
+) -> tuple[LoadedChains | None, str]:
+    """
+    Return the chains that load the machine of a calibration, and the status text saying so.
+
+    ``compliances``: the calibration's compliance section (m/N; {}: rigid); the weights come from
+    ``physical_file`` ('' = the model's shipped physical description). The link's compliance is
+    the calibration's only (the link is off the machine in operation). A physical description
+    of another model is a KinematicsConfigurationError.
+    """
+    physical = read_physical(physical_file) if physical_file else default_physical(model)
+    if physical.model != model:
+        raise KinematicsConfigurationError(
+            f'physical_file {physical_file} describes a {physical.model}, the calibration is '
+            f'of a {model}'
+        )
+    try:
+        loaded = LoadedChains.from_file_values(compliances, MassModel.from_physical(physical))
+    except ValueError as error:
+        raise KinematicsConfigurationError(f'compliance: {error}') from error
+    if loaded is None:
+        return None, 'none (rigid)'
+    if len(set(loaded.compliances)) == 1:
+        values = f'chains {loaded.compliances[0]:.4g} m/N'
+    else:
+        values = 'chains ' + ', '.join(f'{c:.4g}' for c in loaded.compliances) + ' m/N'
+    masses = physical_file or f'the shipped {model} physical description'
+    return loaded, f'{values}, loaded by the weights of {masses}'
 
 
 def stroke(params: KinematicParameters, limits: Sequence[float] | None) -> tuple[float, float]:
@@ -185,6 +238,9 @@ class LiveSession:
         self.deployment: Mapping[str, object] = {}
         # The calibration's chain compliances and the weights (None: a rigid machine).
         self.loaded: LoadedChains | None = None
+        self.physical_file = ''  # the weights' physical description ('': the model's default)
+        self.compliances: Mapping[str, float] = {}  # the calibration's compliance section
+        self.compliance_text = 'none (rigid)'  # the status value `compliance`
 
     @classmethod
     def start(
@@ -194,9 +250,28 @@ class LiveSession:
         link_length: float,
         mount: str,
         min_period_ns: int,
+        physical_file: str = '',
+        compliances: Mapping[str, float] | None = None,
     ) -> LiveSession:
-        """Return a session whose first solve starts at the workspace centre of `mount`."""
-        return cls(params, parameters_source, home_pose(link_length, mount), min_period_ns)
+        """
+        Return a session whose first solve starts at the workspace centre of `mount`.
+
+        `compliances`: the compliance section of the calibration `params` come from (None or {}:
+        rigid), loaded by the weights of `physical_file` ('' = the model's default).
+        """
+        session = cls(params, parameters_source, home_pose(link_length, mount), min_period_ns)
+        session.physical_file = physical_file
+        if params is not None:
+            session.use_compliances(compliances or {})
+        return session
+
+    def use_compliances(self, compliances: Mapping[str, float]) -> None:
+        """Load the chains by the compliances of the calibration in use (module doc)."""
+        assert self.params is not None
+        self.loaded, self.compliance_text = loaded_chains(
+            self.params.model, compliances, self.physical_file
+        )
+        self.compliances = dict(compliances)
 
     # ------------------------------------------------------------------ status
 
@@ -210,6 +285,7 @@ class LiveSession:
             'poses_published': self.poses_published,
             'commands_sent': self.commands_sent,
             'commands_refused': self.commands_refused,
+            'compliance': self.compliance_text,
             **self.deployment,
             **report.values,
         }
@@ -240,6 +316,8 @@ class LiveSession:
                 log_level=Level.OK,  # waiting is normal at start: logged as information
             )
         text = f'{self.params.model} parameters from {self.parameters_source}'
+        if self.loaded is not None:
+            text = f'{text}; compliances {self.compliance_text}'
         if following:
             calibrations = f'following calibrations on {following}'
         else:
@@ -285,12 +363,19 @@ class LiveSession:
         )
 
     def take_calibration(
-        self, params: KinematicParameters, topic: str, source: str
+        self,
+        params: KinematicParameters,
+        topic: str,
+        source: str,
+        compliances: Mapping[str, float] | None = None,
     ) -> Report | None:
         """
         Take a calibration heard on `topic` (resolved: `source`); None when it is the same.
 
         One of another model than the parameters in use is refused (model-mismatch).
+        `compliances`: its file's compliance section; None: not known (a parameters message
+        carries only the geometry): the same parameters keep their compliances, others are
+        rigid. Compliances that cannot load the machine are refused (invalid-parameters).
         """
         previous = self.params
         if previous is not None and params.model != previous.model:
@@ -299,20 +384,32 @@ class LiveSession:
                 f'machine ({self.parameters_source}); keeping its parameters'
             )
             return Report(Level.ERROR, Outcome.MODEL_MISMATCH, text)
-        if previous is not None and np.array_equal(params.vector, previous.vector):
+        same = previous is not None and np.array_equal(params.vector, previous.vector)
+        if same and (compliances is None or dict(compliances) == self.compliances):
             return None  # the same calibration again (e.g. republished at identify's start)
+        try:
+            loaded = loaded_chains(params.model, compliances or {}, self.physical_file)
+        except KinematicsConfigurationError as error:
+            return self.invalid_calibration(topic, error)
+        was_loaded = self.loaded is not None
+        self.loaded, self.compliance_text = loaded
+        self.compliances = dict(compliances or {})
         self.params = params
         self.parameters_source = source
         self.parameters_updates += 1
         self._drawn = None
         if previous is None:
             text = f'calibrated {params.model} parameters received on {source}'
+            if self.loaded is not None:
+                text = f'{text}; compliances {self.compliance_text}'
             return Report(Level.OK, Outcome.PARAMETERS, text, {'largest_change_m': ''})
         change = float(np.abs(params.vector - previous.vector).max())
         text = (
             f'new calibration on {source}: {params.model} parameters updated '
             f'(largest change {change * 1e3:.4f} mm)'
         )
+        if was_loaded or self.loaded is not None:
+            text = f'{text}; compliances {self.compliance_text}'
         return Report(Level.OK, Outcome.PARAMETERS, text, {'largest_change_m': change})
 
     # ------------------------------------------------------------------ pose

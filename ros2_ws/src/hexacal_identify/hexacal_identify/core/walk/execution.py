@@ -9,37 +9,17 @@ each posture:
 
 1. Move: one command to the nominal targets, with intermediate points along
    the link sphere when ``path_step_m`` > 0 (core/walk/platform_paths.py), each timed at
-   ``max_actuator_speed_m_s``; the first path, from where the machine stands,
-   is checked when it starts (it cannot be commanded: the plan is refused).
-   It starts where the drive's setpoints are (the last command's target, a
-   chain locked where the link put it, an earlier model's targets): their
-   offset from the model's start fades to zero over the move
-   (`paths.blend_command`), the target stays the model's.
-2. Arrive: the measured actuators are at the target (within
-   ``position_tolerance_m``) and still (peak-to-peak within
-   ``still_tolerance_m``) over the last ``settle_s``, counted from when the
-   command's own time has passed.  The tolerance allows for the strain of the
-   measuring link: the link holds the platform on its sphere, so where the
-   nominal model is millimetres off, the actuators stop up to millimetres away
-   from targets the true machine cannot reach on that sphere.
-3. Fixed-position postures (eq. 10) are reached in closed loop: with the
-   machine still and the inclinometer settled after the move (its readings no
-   longer trend: two consecutive ``inclinometer_settle_s`` windows agree,
-   core/walk/inclinometer.py; a real inclinometer lags through its filter),
-   the average of the settled readings (alpha, beta) (with
-   ``inclinometer_settle_s`` 0: the mean over ``settle_s`` as soon as the
-   actuators are still) gives the platform's position by eq. 4; the commanded pose's position is
-   moved by ``-dp/d(alpha, beta) [alpha, beta]`` (`fixed_position_correction`)
-   and new targets come from the nominal inverse kinematics, until both angles
-   are within ``fixed_tolerance_rad``; a correction smaller than
-   ``correction_nudge_m`` goes that far beyond its target and back, so the
-   collector (one posture per stationary period) sees a move and measures the
-   corrected position; after ``max_corrections`` the posture is
-   skipped and reported.  Intermediate stops are valid sphere postures if the
-   collector measures them.
-4. Measured: the collector's posture of this stop (received after the last
-   command, its actuators within ``still_tolerance_m`` of the still mean).
-   Then the next posture.
+   ``max_actuator_speed_m_s``; the first path, from where the machine stands
+   (core/walk/standing.py), is checked when it starts (it cannot be commanded: the plan is
+   refused).  It starts where the drive's setpoints are, their offset fading over the move.
+2. Arrive: at the target and still over the last ``settle_s`` (core/walk/arrival.py).
+3. Fixed-position postures (eq. 10) are reached in closed loop: once the inclinometer has
+   settled after the move (core/walk/arrival.py, core/walk/inclinometer.py), the commanded
+   pose's position is moved by ``-dp/d(alpha, beta) [alpha, beta]`` (`corrected_pose`) and
+   new targets come from the nominal inverse kinematics, until both angles are within
+   ``fixed_tolerance_rad``; after ``max_corrections`` the posture is skipped and reported.
+   Intermediate stops are valid sphere postures if the collector measures them.
+4. Measured: the collector's posture of this stop.  Then the next posture.
 
 A posture not done within ``timeout_s`` of its first command is skipped and
 reported with what was missing. Pause holds the machine (a one-point command at
@@ -52,29 +32,13 @@ Refined targets (core/walk/refined_targets.py): when the postures measured reach
 postures (targets, paths, corrections and the guard on that model), without one the targets
 stay; then the posture is commanded.
 
-Turning the device (core/walk/turns.py): the execution knows the mounting the
-device is in (``mounted_turn``, 0 = normal unless told otherwise).  Before it
-begins a posture whose turn differs from that mounting (modulo 2 pi) it pauses
-itself: state PAUSED, the hold command a pause sends, and a warning notice
-(``turn_notice``) naming the posture, the turn it needs and what to do ("turn
-the device to 180 deg about its link axis, then call hexacal/executor/resume").
-Nothing moves while the operator remounts the device.  resume() then records
-the new mounting and begins that posture from its planned pose (its timeout
-from the resume).  progress() reports the current posture's
-``device_turn_rad`` and, while waiting for a turn, ``device_turn_needed_rad``.
-A posture skipped after the turn does not undo it: the next posture's turn is
-compared with the mounting the device is in.
+Turning the device (core/walk/turns.py): before a posture whose turn differs from the
+mounting the device is in (``mounted_turn``, modulo 2 pi) the walk pauses itself, holding,
+with a ``turn_notice`` naming the posture, the turn and what to do; resume() records the new
+mounting and begins the posture from its planned pose.  A posture skipped after the turn does
+not undo it.
 
-Releasing an actuator (measuring_mode ``passive_actuator``): with
-``released`` given, each posture names the chain released while it is moved to
-and measured (None: all six commanded).  Before a posture whose released chain
-is not the one released now, at rest, the execution asks the node to lock the
-one released now and release the posture's (`release_request`; the node calls
-the drive's services and answers with `on_release`); it moves on only once
-the drive has done both.  A refusal or a missing service pauses the plan with
-the drive's answer in ``notice``; resume asks again.  The released chain is
-never commanded (the node leaves it out of the trajectory) and is not judged
-against its target: the link puts it where the constraint says.
+Releasing an actuator (measuring_mode ``passive_actuator``): core/walk/release_choice.py.
 
 The guard (core/walk/guard.py): with ``guard`` given, every move and correction
 is predicted on the model before it is sent; one that would cross a limit is not
@@ -86,31 +50,25 @@ margin (`on_link`) pauses it too.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
-import enum
 import math
 
 from hexacal_msgs_py.names import EXECUTOR_RESUME_SERVICE as RESUME_SERVICE
 import numpy as np
 
-from .inclinometer import InclinometerJudgement, InclinometerState, judge_inclinometer
+from .arrival import correct_fixed_position, judged_angles, posture_matched, still_mean
+from .arrival import timeout_reason
+from .inclinometer import InclinometerJudgement
 from .messages import LogLevel, Messages, ReadingWindow
-from .platform_paths import (
-    blend_command,
-    Command,
-    CommandPurpose,
-    corrected_pose,
-    move_duration,
-    on_sphere,
-    path_command,
-    PathError,
-    route_command,
-)
+from .platform_paths import Command, CommandPurpose
+from .platform_paths import path_command, PathError, route_command
+from .progress import eta_s, progress, summary, UNDER_WAY
 from .refined_targets import refined_targets, targets_model_label
-from .settings import ExecutionSettings, ExecutionState, PostureOutcome
+from .release_choice import choose_first_release, hear_release, rechoose_release
+from .release_choice import ReleaseRequest
+from .settings import ExecutionSettings, ExecutionState, GuardStop, Phase, PostureOutcome
+from .standing import blend_from_setpoints, estimate_pose
 from .turns import check_turns, same_turn, turn_text
 from ..architectures import KinematicParameters
-from ..errors import CalibrationError
 from ..machine.device import DEFAULT_MOUNT, fixed_point
 from ..machine.measurements import FIXED
 from ..planning.plan_check import check_stroke
@@ -118,31 +76,6 @@ from ..planning.plan_check import check_stroke
 # The guard: (current actuators, start pose, command points, released chain) -> problem ('': ok).
 Guard = Callable[[np.ndarray, np.ndarray, np.ndarray, int | None], str]
 HOLD_S = 0.2  # time_from_start of a hold command
-MIN_WINDOW_READINGS = 3  # readings a still window needs
-DEFAULT_OVERHEAD_S = 1.0  # ETA before any posture is done: per posture, besides moving, settle_s
-_UNDER_WAY = (ExecutionState.RUNNING, ExecutionState.PAUSED)  # started, not over
-
-
-class Phase(enum.Enum):
-    """Where the current posture stands while RUNNING."""
-
-    MOVING = 'moving'  # commanded: arriving, settling, correcting
-    POSTURE = 'posture'  # still at the target: waiting for the collector's posture
-    RELEASING = 'releasing'  # at rest: waiting for the drive to lock/release a chain
-    REFINING = 'refining'  # at rest: waiting for an intermediate calibration (walk_refine.py)
-
-
-class GuardStop(Exception):
-    """The guard refuses a command: it would cross a limit (the message says which)."""
-
-
-@dataclass(frozen=True)
-class ReleaseRequest:
-    """Lock chain `lock` then release chain `release` (0-based; None: nothing) before `posture`."""
-
-    posture: int
-    lock: int | None
-    release: int | None
 
 
 class PlanExecution:
@@ -206,9 +139,8 @@ class PlanExecution:
         self._pose_cmd = np.zeros(6)
         self._target = np.zeros(6)
         self._corrections = 0
-        self._posture_start = 0.0
+        self.posture_start = 0.0
         self._first_move_s = 0.0
-        self._command_time = 0.0
         self._arrive_after = 0.0
         self._still_mean: np.ndarray | None = None
         self._posture_before = False  # see _command
@@ -253,13 +185,22 @@ class PlanExecution:
 
     def on_posture(self, now: float, actuators: np.ndarray) -> None:
         """Hear a posture the collector measured (its actuators, m) at `now` (s)."""
-        if self.state in _UNDER_WAY and self._phase is not None:
+        if self.state in UNDER_WAY and self._phase is not None:
             self._postures.append((now, np.asarray(actuators, dtype=float)))
 
     def on_drive_released(self, released: int | None) -> None:
         """Hear which chain the drive has released (its status) before the plan starts."""
         if self.state == ExecutionState.WAITING and self.release_request is None:
             self.released_now = released
+
+    def on_release(self, now: float, released: int | None, problem: str) -> list[Command]:
+        """
+        Hear the drive's answer to `release_request`: the chain released now, what went wrong.
+
+        problem '': done, the posture is commanded; else the plan pauses (holding) with
+        `problem` in ``notice`` until resumed (release_choice.py).
+        """
+        return hear_release(self, now, released, problem)
 
     def on_drive_fault(self, now: float, fault: str) -> list[Command]:
         """Hear the drive's fault: pause (the drive holds itself; resume once it is reset)."""
@@ -293,39 +234,6 @@ class PlanExecution:
         self.notice = f'{text}; paused: call {RESUME_SERVICE} once safe'
         self._say(LogLevel.ERROR, self.notice)
         return self._hold() if hold else []
-
-    def on_release(self, now: float, released: int | None, problem: str) -> list[Command]:
-        """
-        Hear the drive's answer to `release_request`: the chain released now, what went wrong.
-
-        problem '': done, the posture is commanded; else the plan pauses (holding) with
-        `problem` in ``notice`` until resumed.
-        """
-        request, self.release_request = self.release_request, None
-        self.released_now = released
-        self._locked(request)
-        if request is None or self._phase != Phase.RELEASING:
-            return []  # paused or aborted meanwhile: resume asks again if need be
-        if problem:
-            self.state = ExecutionState.PAUSED
-            self._paused_at = now
-            self._phase = None
-            self.notice = (
-                f'posture {request.posture + 1} of {self.total}: {problem}; paused: fix the '
-                f'drive, then call {RESUME_SERVICE}'
-            )
-            self._say(LogLevel.ERROR, self.notice)
-            return self._hold()
-        return self._begin(now, fresh=False)
-
-    def _locked(self, request: ReleaseRequest | None) -> None:
-        """Take the chain the drive locked where it stands as its setpoint (drives.py)."""
-        latest = self.actuators.latest
-        if request is None or request.lock is None or self._setpoints is None:
-            return
-        if latest is None or self.released_now == request.lock:
-            return  # not locked (refused before): no setpoint changed
-        self._setpoints[request.lock] = latest[request.lock]
 
     def _ask_refinement(self) -> list[Command]:
         """Stop at rest before the current posture for an intermediate calibration."""
@@ -392,45 +300,8 @@ class PlanExecution:
             self._say(LogLevel.INFO, f'ready to walk {self.total} postures; paused until resumed')
             return []
         self.state = ExecutionState.RUNNING
-        self._choose_first_release()
+        choose_first_release(self)
         return self._begin(now, fresh=True)
-
-    def _choose_first_release(self) -> None:
-        """
-        Keep the plan's releases if its first move is safe from where the machine stands.
-
-        The planner cannot know where the first move starts (it rehearses the first posture
-        from standing at it), and every later release assumes the standing the earlier ones
-        leave.  If the plan's first release is not safe from here (release_from_here), the
-        releases of the whole plan are rehearsed again from here, in the plan's order.
-        """
-        first = self.released[0] if self.total else None
-        here, latest = self._estimate(), self.actuators.latest
-        if first is None or here is None or latest is None:
-            return
-        from ..modes.released_actuator import choose_released_actuators, release_from_here
-
-        standing_release = first if self.released_now is None else self.released_now
-        kept = release_from_here(
-            self.nominal, here, latest, standing_release, self.poses[0], self.link_length,
-            self.stroke, (), mount=self.mount, prefer=first,
-        )
-        if kept == first:
-            return
-        try:
-            choice = choose_released_actuators(
-                self.nominal, self.poses, self.link_length, self.stroke, start=here,
-                mount=self.mount,
-            )
-        except ValueError:
-            return  # ReleaseError: the plan's releases stay; the guard still watches
-        changed = int(np.sum(choice.released != np.array(self.released)))
-        self.released = [int(chain) for chain in choice.released]
-        self._say(
-            LogLevel.INFO,
-            f"the plan's first release is not safe from where the machine stands: its releases "
-            f'were rehearsed again from here ({changed} of {self.total} changed)',
-        )
 
     def pause(self, now: float) -> tuple[bool, str, list[Command]]:
         """Pause (hold the machine): (success, the service's answer, commands to send)."""
@@ -482,47 +353,8 @@ class PlanExecution:
                 f'axis (was {turn_text(previous)})'
             )
         self._say(LogLevel.INFO, text)
-        self._rechoose_release()
+        rechoose_release(self)
         return True, text, self._begin(now, fresh=fresh)
-
-    def _rechoose_release(self) -> None:
-        """
-        After a drive fault with a chain released, release another for the rest of the move.
-
-        The fault was most likely a jam of the five commanded and the link (a fold of the
-        passive system the plan's release meets on this machine, not on the model): from where
-        the machine stands, at rest, another chain is released (``release_from_here``) and the
-        swap happens as any other, at rest, before the move goes on.
-        """
-        faulted = self._faulted_releases.get(self.index, set())
-        if self.index >= self.total or self.released[self.index] not in faulted:
-            return
-        from ..modes.released_actuator import release_from_here
-
-        here, latest = self._estimate(), self.actuators.latest
-        if here is None or latest is None or self.released_now is None:
-            return
-        chosen = release_from_here(
-            self.nominal, here, latest, self.released_now, self.poses[self.index],
-            self.link_length, self.stroke, sorted(faulted), mount=self.mount,
-        )
-        names = self.nominal.layout.actuator_names
-        tried = ', '.join(names[c] for c in sorted(faulted))
-        if chosen is None:
-            self._say(
-                LogLevel.WARN,
-                f'posture {self.index + 1} of {self.total}: the drive faulted with {tried} '
-                'released and no other chain stays inside its stroke on the rest of the move: '
-                'the release stays',
-            )
-            return
-        self.released[self.index] = chosen
-        self._say(
-            LogLevel.WARN,
-            f'posture {self.index + 1} of {self.total}: the drive faulted with {tried} '
-            f'released; {names[chosen]} is released for the rest of the move (rehearsed from '
-            'where the machine stands, as the planner chooses)',
-        )
 
     def abort(self, now: float) -> tuple[bool, str, list[Command]]:
         """End the plan (hold the machine): (success, answer, commands)."""
@@ -552,10 +384,12 @@ class PlanExecution:
         ):
             return []
         settings = self.settings
-        if now - self._posture_start > settings.timeout_s:
+        if now - self.posture_start > settings.timeout_s:
             return self._skip(now, self._timeout_reason(now))
         if self._phase == Phase.MOVING:
-            still = self._still_mean_at(now)
+            still = still_mean(
+                self.actuators, now, self._arrive_after, settings, self._target, self.released_now
+            )
             if still is None:
                 return []
             if self.kinds[self.index] == FIXED:
@@ -564,84 +398,38 @@ class PlanExecution:
                     return []
                 alpha, beta = angles
                 if max(abs(alpha), abs(beta)) > settings.fixed_tolerance_rad:
-                    return self._correct(now, alpha, beta)
+                    return correct_fixed_position(self, now, alpha, beta)
             self._still_mean = still
             self._phase = Phase.POSTURE
         if self._phase == Phase.POSTURE:
-            if not settings.wait_for_posture or self._posture_matched():
+            if not settings.wait_for_posture or posture_matched(
+                self._still_mean, self._postures, settings.still_tolerance_m
+            ):
                 return self._complete(now)
         return []
 
     # ------------------------------------------------------------------ progress
 
+    @property
+    def commanding(self) -> bool:
+        """Return whether a posture is being commanded (RUNNING: moving, at rest, measured)."""
+        return self._phase is not None
+
+    def paused_s(self, now: float) -> float:
+        """Return the seconds paused so far (s)."""
+        return self._paused_total + (now - self._paused_at if self._paused_at is not None else 0)
+
     def eta_s(self, now: float) -> float | None:
         """Return seconds until the plan is done at the pace so far (None when over)."""
-        if self.state not in (*_UNDER_WAY, ExecutionState.WAITING):
-            return None
-        done = [o for o in self.outcomes if o.measured]
-        overhead = (
-            float(np.mean([o.duration_s - o.move_s for o in done]))
-            if done
-            else self.settings.settle_s + DEFAULT_OVERHEAD_S
-        )
-        remaining = 0.0
-        previous = self.actuators.latest if self.actuators.latest is not None else self.targets[0]
-        for index in range(self.index, self.total):
-            remaining += move_duration(
-                previous, self.targets[index], self.settings.max_actuator_speed_m_s
-            ) + max(overhead, 0.0)
-            previous = self.targets[index]
-        if self.state == ExecutionState.RUNNING and self._phase is not None:
-            remaining -= min(now - self._posture_start, remaining)
-        return max(remaining, 0.0)
+        return eta_s(self, now)
 
     def progress(self, now: float) -> dict[str, object]:
         """Return the status fields: state, posture k of K, measured, skipped, ETA."""
-        current = min(self.index + 1, self.total)
-        values: dict[str, object] = {
-            'state': self.state,
-            'posture': current if self.state != ExecutionState.DONE else self.total,
-            'postures': self.total,
-            'measured': self.measured,
-            'skipped': len(self.skipped),
-            'corrections': self.total_corrections,
-        }
-        if self.skipped:
-            values['skipped_postures'] = '; '.join(
-                f'{o.index + 1}: {o.reason}' for o in self.skipped
-            )
-        if self.state in _UNDER_WAY and self.index < self.total:
-            values['kind'] = self.kinds[self.index]
-        judgement = self.inclinometer_judgement
-        if self._phase is not None and judgement is not None:
-            values['inclinometer'] = judgement.state  # fixed position: since the last move
-        if self.total:
-            values['device_turn_rad'] = float(self.turns[min(self.index, self.total - 1)])
-        if self.turn_needed is not None:
-            values['device_turn_needed_rad'] = self.turn_needed
-        eta = self.eta_s(now)
-        if eta is not None:
-            values['eta_s'] = round(eta, 1)
-        if self.started_at is not None:
-            end = self.finished_at if self.finished_at is not None else now
-            values['elapsed_s'] = round(end - self.started_at, 1)
-            paused = self._paused_total + (
-                now - self._paused_at if self._paused_at is not None else 0.0
-            )
-            if paused > 0:
-                values['paused_s'] = round(paused, 1)
-        return values
+        return progress(self, now)
 
     def summary(self) -> str:
         """Return one line: postures measured and skipped (which and why)."""
-        return (
-            f'{self.measured} of {self.total} postures measured, {len(self.skipped)} skipped'
-            + (
-                f' ({"; ".join(f"{o.index + 1}: {o.reason}" for o in self.skipped)})'
-                if self.skipped
-                else ''
-            )
-        )
+        return summary(self)
 
     # ------------------------------------------------------------------ internals
 
@@ -674,7 +462,7 @@ class PlanExecution:
                 self._corrections = 0
                 if self.refine_at and self.measured >= self.refine_at[0]:
                     return self._ask_refinement()
-            self._posture_start = now
+            self.posture_start = now
             wanted = self.released[self.index]
             if wanted != self.released_now:  # at rest: swap the released chain first
                 self.release_request = ReleaseRequest(self.index, self.released_now, wanted)
@@ -795,7 +583,6 @@ class PlanExecution:
         # its motion tolerances begins no new stationary period, so no posture may follow.
         self._posture_before = bool(self._postures) and purpose == CommandPurpose.CORRECT
         self._where, self._at_where = self._pose_cmd.copy(), False
-        self._command_time = now
         self._arrive_after = now + command.duration_s
         self._phase = Phase.MOVING
         self._postures = []
@@ -805,37 +592,17 @@ class PlanExecution:
         return command
 
     def _blended(self, command: Command, start: np.ndarray) -> Command:
-        """
-        Return the move `command` from the drive's setpoints (paths.blend_command).
-
-        The drive interpolates from its setpoints to the first point: after a swap (the
-        locked chain's setpoint is where the link put it) or a new model (the setpoints are
-        the old model's targets) they are not the model's inverse kinematics of the path's
-        start; the offset goes to zero along the move, the target stays the model's.
-        """
+        """Return the move `command` from the drive's setpoints (standing.py)."""
         setpoints = self._setpoints if self._setpoints is not None else self.actuators.latest
         if setpoints is None:
             return command
-        arch = self.nominal.architecture
-        legs = arch.legs(arch.chains(self.nominal), start[None])
-        if not bool(legs.reachable()[0]):
-            return command  # no model standing at the start to blend from
-        offset = setpoints - legs.actuators[0]
-        if self.released_now is not None:
-            offset[self.released_now] = 0.0  # not commanded: the drive has no setpoint for it
-        return blend_command(
-            command, setpoints, offset, self.settings.max_actuator_speed_m_s, self.stroke
+        return blend_from_setpoints(
+            self.nominal, command, start, setpoints, self.released_now,
+            self.settings.max_actuator_speed_m_s, self.stroke,
         )
 
     def _estimate(self) -> np.ndarray | None:
-        """
-        Return where the platform stands: nominal forward kinematics of the measured actuators.
-
-        Moved onto the link sphere; None (one-point command) if that fails.
-        """
-        from ..machine.kinematics import forward_kinematics
-        from ..machine.live import solve_pose
-
+        """Return where the platform stands (standing.py); None (one-point command) if unknown."""
         latest = self.actuators.latest
         if latest is None:
             return None
@@ -848,189 +615,25 @@ class PlanExecution:
             )
             if pose is not None
         ]
-        found = forward_kinematics(
-            self.nominal, np.tile(latest, (len(guesses), 1)), np.array(guesses)
-        )
-        for converged_pose, converged in zip(found.poses, found.converged):
-            if converged:
-                return on_sphere(converged_pose, self.link_length, self.mount)
-        # Newton from each guess refuses a pose far from it (another branch, or phi beyond its
-        # branch tolerance: a fresh walk after another plan's tilted last posture); continue
-        # from the centre's actuators to the measured ones instead (core/machine/live.py).
-        try:
-            pose = solve_pose(self.nominal, latest.tolist(), guesses[-1].tolist())
-        except (CalibrationError, ValueError) as error:
-            self._say(
-                LogLevel.WARN,
-                'cannot tell where the platform stands (nominal forward kinematics of '
-                f'the measured actuators failed: {error}): one-point command',
-            )
-            return None
-        return on_sphere(pose, self.link_length, self.mount)
-
-    def _still_mean_at(self, now: float) -> np.ndarray | None:
-        settle = self.settings.settle_s
-        if now < self._arrive_after + settle:
-            return None
-        window = self.actuators.between(now - settle, now)
-        if len(window) < MIN_WINDOW_READINGS:
-            return None
-        if float(np.max(np.ptp(window, axis=0))) > self.settings.still_tolerance_m:
-            return None
-        mean = window.mean(axis=0)
-        if self._commanded_away(mean) > self.settings.position_tolerance_m:
-            return None
-        return mean
-
-    def _commanded_away(self, actuators: np.ndarray) -> float:
-        """Return the largest distance of a commanded chain from its target (m, or rad)."""
-        away = np.abs(actuators - self._target)
-        if self.released_now is not None:  # the link puts the released chain where it goes
-            away = np.delete(away, self.released_now)
-        return float(np.max(away))
+        pose, problem = estimate_pose(self.nominal, latest, guesses, self.link_length, self.mount)
+        if problem:
+            self._say(LogLevel.WARN, problem)
+        return pose
 
     def _judged_angles(self, now: float) -> tuple[float, float] | None:
         """Return the inclinometer reading to judge the position on, None: not yet."""
         settings = self.settings
-        window_s = settings.inclinometer_settle_s
-        if window_s == 0:  # the mean over settle_s, as soon as the actuators are still
-            start = max(now - settings.settle_s, self._arrive_after)
-            window = self.inclinometer.between(start, now)
-            if len(window) < MIN_WINDOW_READINGS:
-                return None
-            alpha, beta = window.mean(axis=0)
-            return float(alpha), float(beta)
-        times, readings = self.inclinometer.timed(now - 2.0 * window_s, now)
-        judgement = judge_inclinometer(
-            times, readings, now, self._arrive_after, window_s, settings.fixed_tolerance_rad
-        )
-        self.inclinometer_judgement = judgement
-        return judgement.angles
-
-    def _unsettled_reason(self) -> str | None:
-        """Return why a fixed position was not judged (the inclinometer), None if it was."""
-        judgement = self.inclinometer_judgement
-        if judgement is None or judgement.settled:
-            return None
-        described = judgement.describe(self.settings.inclinometer_settle_s)
-        if judgement.state == InclinometerState.NO_READINGS:
-            return f'no inclinometer readings ({described})'
-        return f'the inclinometer did not settle ({described})'
-
-    def _posture_matched(self) -> bool:
-        if self._still_mean is None:
-            return False
-        tolerance = self.settings.still_tolerance_m
-        return any(
-            float(np.max(np.abs(actuators - self._still_mean))) <= tolerance
-            for _, actuators in self._postures
-        )
-
-    def _correct(self, now: float, alpha: float, beta: float) -> list[Command]:
-        index = self.index
-        if self._corrections >= self.settings.max_corrections:
-            return self._skip(
-                now,
-                (
-                    f'fixed position not reached after {self._corrections} corrections '
-                    f'(inclinometer {alpha:.3g}, {beta:.3g} rad; tolerance '
-                    f'{self.settings.fixed_tolerance_rad:g} rad)'
-                ),
-            )
-        judged = (
-            f' (settled {now - self._arrive_after:.1f} s after the move)'
-            if self.inclinometer_judgement is not None
-            else ''
-        )
-        previous = self._pose_cmd
-        self._pose_cmd = corrected_pose(previous, alpha, beta, self.link_length, self.mount)
-        via = self._nudge(previous)
-        try:
-            return self._send_correction(now, previous, via, index, alpha, beta, judged)
-        except GuardStop as stop:
-            self._pose_cmd = previous
-            return self._stop(now, str(stop))
-
-    def _send_correction(self, now, previous, via, index, alpha, beta, judged) -> list[Command]:
-        try:
-            try:
-                command = self._command(now, CommandPurpose.CORRECT, via)
-            except PathError:
-                if via is None:
-                    raise
-                via = None  # the nudge cannot be commanded (e.g. at the stroke's end)
-                command = self._command(now, CommandPurpose.CORRECT)
-        except PathError as error:
-            self._pose_cmd = previous
-            return self._skip(now, f'the fixed-position correction cannot be commanded: {error}')
-        self._corrections += 1
-        self.total_corrections += 1
-        moved = np.linalg.norm(self._pose_cmd[:3] - previous[:3])
-        self._say(
-            LogLevel.INFO,
-            f'posture {index + 1}: inclinometer {alpha:.3g}, {beta:.3g} rad{judged}; correction '
-            f'{self._corrections} moves the platform by {moved * 1e6:.0f} um'
-            + (
-                f' (through a {self.settings.correction_nudge_m * 1e6:.0f} um nudge beyond it, '
-                'so the collector sees a move)'
-                if via is not None
-                else ''
-            ),
-        )
-        return [command]
-
-    def _nudge(self, previous: np.ndarray) -> np.ndarray | None:
-        """
-        Return the pose a correction from `previous` passes through first; None: none.
-
-        A correction smaller than ``correction_nudge_m`` goes that far beyond its target
-        along its own direction (tangent to the link sphere) and back, so the collector
-        sees a move and measures the corrected position: a smaller move would continue
-        its stationary period, of which it takes one posture (perhaps before the
-        correction, or averaged across it).
-        """
-        nudge = self.settings.correction_nudge_m
-        step = self._pose_cmd[:3] - previous[:3]
-        size = float(np.linalg.norm(step))
-        if nudge == 0 or size == 0 or size >= nudge:
-            return None
-        via = self._pose_cmd.copy()
-        via[:3] += step / size * nudge
-        return via
+        angles, judgement = judged_angles(self.inclinometer, now, self._arrive_after, settings)
+        if judgement is not None:
+            self.inclinometer_judgement = judgement
+        return angles
 
     def _timeout_reason(self, now: float) -> str:
-        timeout = self.settings.timeout_s
-        if self._phase == Phase.POSTURE:
-            if self._posture_before:
-                return (
-                    f'no posture from the collector within {timeout:g} s (its posture of this '
-                    'stop came before the last correction, too small to be a move for it)'
-                )
-            return f'no posture from the collector within {timeout:g} s'
-        latest = self.actuators.latest
-        if latest is None or self.actuators.between(now - self.settings.settle_s, now).size == 0:
-            return f'no actuator readings (timeout {timeout:g} s)'
-        away = self._commanded_away(latest)
-        unsettled = self._unsettled_reason()
-        if (
-            self.kinds[self.index] == FIXED
-            and away <= self.settings.position_tolerance_m
-            and unsettled
-        ):
-            corrections = f', {self._corrections} corrections' if self._corrections else ''
-            return f'{unsettled} within {timeout:g} s{corrections}'
-        if (
-            self.kinds[self.index] == FIXED
-            and away <= self.settings.position_tolerance_m
-            and self._corrections
-        ):
-            return (
-                f'fixed position not reached within {timeout:g} s '
-                f'({self._corrections} corrections)'
-            )
-        return (
-            f'not at the target and still within {timeout:g} s (actuators up to '
-            f'{self.nominal.layout.actuator_quantities.shown(away)} from it)'
+        return timeout_reason(
+            now, self.settings, self._phase == Phase.POSTURE, self._posture_before,
+            self.actuators, self.kinds[self.index], self._target, self.released_now,
+            self.inclinometer_judgement, self._corrections,
+            self.nominal.layout.actuator_quantities,
         )
 
     def _skip(self, now: float, reason: str) -> list[Command]:
@@ -1049,7 +652,7 @@ class PlanExecution:
         self._say(
             LogLevel.INFO,
             f'posture {self.index + 1} of {self.total} ({self.kinds[self.index]}) '
-            f'measured in {now - self._posture_start:.1f} s{corrections}',
+            f'measured in {now - self.posture_start:.1f} s{corrections}',
         )
         return self._advance(now)
 
@@ -1060,7 +663,7 @@ class PlanExecution:
                 self.kinds[self.index],
                 measured,
                 reason,
-                now - self._posture_start,
+                now - self.posture_start,
                 self._first_move_s,
                 self._corrections,
             )

@@ -12,7 +12,12 @@ the previous one (continuation on the machine's branch):
   core/modes/lvdt.py) must stay within ``lvdt_stroke_m`` less ``lvdt_margin_m``;
 * ``compliant``: the force of the most loaded servo, ``servo_stiffness_n_per_m`` x its strain
   (where the link lets the machine stand, core/modes/compliant.py, minus the sample), must stay
-  within ``max_force_n``;
+  within ``max_force_n``, and the link's tension those servos load it with
+  (core/modes/compliant.link_tension) within ``max_link_force_n``.  The first sample is the
+  measured standing: on the model it is strained by what the model misses there, so the
+  prediction carries the current mismatch; what it misses at the next standing the defaults
+  leave room for (the limits are GUARD_FORCE_FRACTION of the drives', hexacal_msgs_py.
+  measuring_modes);
 * ``passive_actuator`` (from the model's standing at the start pose, not the measured
   actuators): the five commanded plus the link must have a solution near the previous one
   (core/modes/passive_actuator.py: no jam at a singularity) and the released actuator must stay
@@ -27,14 +32,20 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from hexacal_msgs_py.measuring_modes import DEFAULT_LVDT_STROKE_M, MeasuringMode
+from hexacal_msgs_py.measuring_modes import (
+    COMPLIANT_SERVO_STIFFNESS_N_PER_M,
+    DEFAULT_LVDT_STROKE_M,
+    GUARD_FORCE_FRACTION,
+    LINK_FORCE_LIMIT_N,
+    MeasuringMode,
+)
 import numpy as np
 
 from ..architectures import KinematicParameters
 from ..errors import CalibrationError
 from ..machine.device import DEFAULT_MOUNT
 from ..machine.kinematics import forward_kinematics, inverse_kinematics
-from ..modes.compliant import ConstraintError, device_constrained_pose
+from ..modes.compliant import ConstraintError, device_constrained_pose, link_tension
 from ..modes.passive_actuator import solve_passive
 
 MAX_SAMPLES = 400  # per move: a long move is sampled coarser
@@ -46,8 +57,11 @@ class GuardSettings:
 
     lvdt_stroke_m: float = DEFAULT_LVDT_STROKE_M
     lvdt_margin_m: float = 1e-3
-    servo_stiffness_n_per_m: float = 2e6
-    max_force_n: float = 1e5
+    servo_stiffness_n_per_m: float = COMPLIANT_SERVO_STIFFNESS_N_PER_M
+    # Inside the drives' fault limits (the driver's max_force_n and max_link_force_n, both the
+    # link's LINK_FORCE_LIMIT_N) by the margin the model's error needs.
+    max_force_n: float = GUARD_FORCE_FRACTION * LINK_FORCE_LIMIT_N
+    max_link_force_n: float = GUARD_FORCE_FRACTION * LINK_FORCE_LIMIT_N
     released_margin_m: float = 1e-3
     sample_step_m: float = 1e-3
 
@@ -56,7 +70,7 @@ class GuardSettings:
 class MovePrediction:
     """The worst predicted value along a move (m or N), its limit, and what was predicted."""
 
-    what: str  # 'link extension', 'servo force', 'released actuator'
+    what: str  # 'link extension', 'servo force', 'link force', 'released actuator'
     worst: float
     limit: float
     problem: str  # '' when the move stays inside its limit
@@ -128,25 +142,38 @@ def _lvdt(model, samples, pose, link_length, settings) -> MovePrediction:
 
 
 def _compliant(model, samples, pose, link_length, settings, mount) -> MovePrediction:
-    worst = 0.0
-    for sample in samples:
+    poses = np.empty_like(samples)
+    standing = np.empty_like(samples)
+    for index, sample in enumerate(samples):
         try:
-            pose, actuators = device_constrained_pose(model, sample, pose, link_length, mount)
+            pose, standing[index] = device_constrained_pose(
+                model, sample, pose, link_length, mount
+            )
         except (CalibrationError, ConstraintError, ValueError, FloatingPointError) as error:
             return MovePrediction(
                 'servo force', math.inf, settings.max_force_n,
                 f'the model cannot tell where the link would hold the machine ({error})',
             )
-        worst = max(worst, float(np.max(np.abs(actuators - sample))))
-    force = settings.servo_stiffness_n_per_m * worst
-    problem = (
-        f'a servo would carry {force:.4g} N on the way (strain {worst * 1e3:.3f} mm at '
-        f'{settings.servo_stiffness_n_per_m:g} N/m), beyond max_force_n {settings.max_force_n:g}'
-        ' N'
-        if force > settings.max_force_n
-        else ''
-    )
-    return MovePrediction('servo force', force, settings.max_force_n, problem)
+        poses[index] = pose
+    stiffness = settings.servo_stiffness_n_per_m
+    strain = float(np.max(np.abs(standing - samples)))
+    force = stiffness * strain
+    tension = link_tension(model, poses, standing, samples, stiffness)
+    link = float(tension[np.argmax(np.abs(tension))])
+    if force > settings.max_force_n:
+        return MovePrediction(
+            'servo force', force, settings.max_force_n,
+            f'a servo would carry {force:.4g} N on the way (strain {strain * 1e3:.3f} mm at '
+            f'{stiffness:g} N/m), beyond max_force_n {settings.max_force_n:g} N',
+        )
+    if abs(link) > settings.max_link_force_n:
+        return MovePrediction(
+            'link force', link, settings.max_link_force_n,
+            f'the servos would load the measuring link with {abs(link):.4g} N of '
+            f'{"tension" if link > 0 else "compression"} on the way (strain {strain * 1e3:.3f} mm '
+            f'at {stiffness:g} N/m), beyond max_link_force_n {settings.max_link_force_n:g} N',
+        )
+    return MovePrediction('servo force', force, settings.max_force_n, '')
 
 
 def _passive(model, samples, pose, released, link_length, stroke, settings, mount):

@@ -1,5 +1,5 @@
 """
-The vocabulary of a plan's walk (ROS-free): its states, settings and outcomes.
+The vocabulary of a plan's walk (ROS-free): its states, phases, settings and outcomes.
 
 core/walk/execution.py walks the plan with them; the executor node reports them
 (``state`` in its status is an `ExecutionState` value) and declares its
@@ -41,7 +41,7 @@ class ExecutionSettings:
     # 0: judge the mean over settle_s once the actuators are still (core/walk/inclinometer.py).
     inclinometer_settle_s: float = 0.25
     # A correction smaller than this goes this far beyond its target and back (m; 0: never),
-    # so the collector sees a move (core/walk/execution.py's _nudge).
+    # so the collector sees a move (core/walk/arrival.py's nudge).
     correction_nudge_m: float = 1e-3
 
     def __post_init__(self) -> None:
@@ -92,3 +92,16 @@ class PostureOutcome:
     duration_s: float
     move_s: float  # the planned move time of its first command
     corrections: int
+
+
+class Phase(enum.Enum):
+    """Where the current posture stands while RUNNING."""
+
+    MOVING = 'moving'  # commanded: arriving, settling, correcting
+    POSTURE = 'posture'  # still at the target: waiting for the collector's posture
+    RELEASING = 'releasing'  # at rest: waiting for the drive to lock/release a chain
+    REFINING = 'refining'  # at rest: waiting for an intermediate calibration (refined_targets.py)
+
+
+class GuardStop(Exception):
+    """The guard refuses a command: it would cross a limit (the message says which)."""

@@ -17,7 +17,7 @@ A, B, C in degrees instead (R = Rz(C) Ry(B) Rx(A), core/machine/angle_convention
 ``--pose`` / ``--guess`` are ``x,y,z,a,b,c`` (m, deg) and the pose printed is
 ``x y z a b c`` (``--json``: ``"pose": {"x", "y", "z", "a", "b", "c"}``), so a
 pose can be checked on both sides.  The default (``--angles hexacal``) prints
-exactly what it always did.
+hexacal's own angles.
 
 ``ik`` does not limit the stroke (it prints what the pose needs; the
 kinematics node refuses commands outside the stroke).  ``fk`` starts Newton

@@ -1,0 +1,458 @@
+"""
+The run of ``hexacal demo``: files, plans, the system's nodes, two walks, calibrate, verify.
+
+``run_demo`` writes the simulated truth and the nominal model, plans both walks, claims a ROS
+domain of its own, and starts the nodes as child processes through bringup: their launches
+are those of ``bringup.system.launches`` (the ``bringup`` executable's and the launch file's),
+started and stopped by its supervisor (NodeGroup). The demo's own rclpy node (demo_session)
+watches them, walks each plan with an executor and calls the services; at the end the report
+(demo_report) and summary.json (demo_summary) are written.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+from datetime import datetime
+import os
+from pathlib import Path
+import sys
+import time
+from typing import TYPE_CHECKING
+
+from hexacal_msgs_py.measuring_modes import (
+    COMPLIANT_SERVO_STIFFNESS_N_PER_M,
+    GUARD_FORCE_FRACTION,
+    LINK_FORCE_LIMIT_N,
+)
+from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
+
+from .demo import (
+    DemoError,
+    EXIT_FAILED,
+    EXIT_OK,
+    measuring_mode,
+    model_name,
+    physics,
+    physics_parameters,
+    refines,
+)
+from .demo_refinement import refinement_summary
+from .demo_report import pose_summaries, report, stored_verification
+from .demo_session import DemoSession, GRAPH_TIMEOUT_S, log_tail, walk
+from .demo_summary import build_summary, SUMMARY_FILE, write_summary
+
+if TYPE_CHECKING:
+    from ..bringup.launch_spec import NodeLaunch
+
+# Executor and commanded driver: moves at up to 0.5 m/s (executor) on a machine that follows at 1
+# m/s; the collector's detector window 0.2 s + capture 0.3 s (the executor waits for each posture).
+EXECUTOR_SPEED_M_S = 0.5
+DRIVER_SPEED_M_S = 1.0
+COLLECTOR_WINDOWS = {'window_s': 0.2, 'capture_s': 0.3}
+PLAN_CANDIDATES = 1000
+# The supervisor stops the machine first, so that the collector records to the end.
+STOP_ORDER = ('executor', 'driver', 'collector', 'identify')
+
+# The drives' and the executor's limits sized for sliders (the nodes' defaults: m, N/m, N).
+SLIDER_DRIVE_LIMITS = {
+    'max_following_error_m': (5e-4, 'length'),
+    'servo_stiffness_n_per_m': (COMPLIANT_SERVO_STIFFNESS_N_PER_M, 'stiffness'),
+    'max_force_n': (LINK_FORCE_LIMIT_N, 'force'),
+}
+SLIDER_EXECUTOR_LIMITS = {
+    'position_tolerance_m': (5e-3, 'length'),
+    'still_tolerance_m': (1e-4, 'length'),
+    'released_margin_m': (1e-3, 'length'),
+    'servo_stiffness_n_per_m': (COMPLIANT_SERVO_STIFFNESS_N_PER_M, 'stiffness'),
+    'max_force_n': (GUARD_FORCE_FRACTION * LINK_FORCE_LIMIT_N, 'force'),
+}
+
+
+def actuator_limits(arch, limits: dict[str, tuple[float, str]]) -> dict[str, float]:
+    """
+    Return the node parameters of `limits` in the actuators' unit of `arch` (none for sliders).
+
+    The nodes' defaults are sized for sliders (m, N/m, N); an architecture whose actuators
+    turn gets them through its lever (Architecture.actuator_limit: rad, N m/rad, N m), so the
+    compliant servos, the following-error guard and the executor's tolerances mean the same
+    travel at the actuator's joint. The measuring link's force limits (``max_link_force_n``)
+    are on the link, in N for every architecture, and are not among them.
+    """
+    if arch.actuator_lever_m == 1.0:
+        return {}
+    return {
+        name: arch.actuator_limit(value, dimension)
+        for name, (value, dimension) in limits.items()
+    }
+
+
+def claim_domain_id() -> int:
+    """Return a ROS domain id no test session or other demo uses (held until exit)."""
+    from ..ros_domain import claim_domain_id as claim, NoFreeDomainError
+
+    try:  # from pid * 7: away from the test sessions, which start at their pid
+        return claim('HEXACAL_DEMO_DOMAIN_ID', start=os.getpid() * 7)
+    except NoFreeDomainError as error:
+        raise DemoError(str(error)) from None
+
+
+@dataclass
+class DemoPaths:
+    """Where the demo writes: its work directory and each file in it."""
+
+    work: Path
+    bag: Path
+    true_params: Path
+    nominal: Path
+    calibration: Path
+    logs: Path
+    plan: Path
+    verification_plan: Path
+    report: Path
+    summary: Path
+
+
+def demo_paths(args: argparse.Namespace) -> DemoPaths:
+    """Return the demo's paths: --out (default out/demo_<timestamp>), --bag-dir."""
+    stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
+    work = (args.out or Path('out') / f'demo_{stamp}').resolve()
+    from ..core.architectures import architecture
+
+    truth = architecture(model_name(args)).truth_file_name
+    bag = (args.bag_dir / f'demo_{stamp}').resolve() if args.bag_dir is not None else work / 'bag'
+    return DemoPaths(
+        work,
+        bag,
+        work / truth,
+        work / 'nominal_set2.yaml',
+        work / 'calibration.yaml',
+        work / 'logs',
+        work / 'plan.yaml',
+        work / 'verification_plan.yaml',
+        work / 'report',
+        work / SUMMARY_FILE,
+    )
+
+
+def write_plans(args: argparse.Namespace, nominal, paths: DemoPaths) -> None:
+    """Write the calibration plan (O1) and the verification plan (fresh postures, another draw)."""
+    from ..core.machine.measurements import NoiseModel
+    from ..core.planning.planner import plan_postures
+
+    noise = NoiseModel.from_microns(args.noise_um) if args.noise_um > 0 else None
+    mixed = args.plan == 'mixed'
+    plan_postures(
+        nominal,
+        args.postures,
+        index='O1',
+        cost='sphere-fixed' if mixed else 'absolute',
+        fixed_fraction=0.25 if mixed else None,
+        n_candidates=PLAN_CANDIDATES,
+        seed=args.seed,
+        noise=noise,
+        name='demo-calibration',
+        measuring_mode=measuring_mode(args),
+    ).plan.save(paths.plan)
+    if args.verify_postures:
+        plan_postures(
+            nominal,
+            args.verify_postures,
+            index='O1',
+            cost='absolute',
+            n_candidates=PLAN_CANDIDATES,
+            seed=args.seed + 1000,
+            noise=noise,
+            name='demo-verification',
+            measuring_mode=measuring_mode(args),
+        ).plan.save(paths.verification_plan)
+
+
+def system_launches(
+    args: argparse.Namespace, paths: DemoPaths, plan: Path, nominal: Path, *, refine: bool
+) -> dict[str, NodeLaunch]:
+    """
+    Return executable -> NodeLaunch of the demo's system, as bringup starts it.
+
+    collector, identify, the executor walking ``plan`` on the targets of ``nominal`` and the
+    simulated driver in commanded mode, through bringup.system.launches: the demo gives only
+    its own settings (the work directory's files, speeds, noise, --driver-param).
+    """
+    from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC
+
+    from ..bringup.system import launches
+    from ..core.architectures import architecture
+
+    noise = args.noise_um * 1e-6
+    arch = architecture(model_name(args))
+    nodes = launches(
+        nominal=str(paths.nominal),
+        output_dir=str(paths.work),
+        bag_dir=str(paths.bag.parent),
+        bag_name=paths.bag.name,
+        executor_plan=str(plan),
+        command_topic=DEFAULT_COMMAND_TOPIC,
+        measuring_mode=measuring_mode(args),
+        collector={'parameters_file': str(paths.nominal), **COLLECTOR_WINDOWS},
+        identify={
+            'output': paths.calibration.name,
+            'report_dir': str(paths.report),
+            'noise_slider_m': noise,
+            'noise_angle_rad': noise,
+        },
+        executor={
+            'nominal': str(nominal),
+            'max_actuator_speed_m_s': EXECUTOR_SPEED_M_S,
+            'settle_s': float(args.settle_s),
+            'timeout_s': 30.0 + float(args.dwell_s),
+            'refine_targets': bool(refine),
+            **actuator_limits(arch, SLIDER_EXECUTOR_LIMITS),
+        },
+        driver={
+            'true_params': str(paths.true_params),
+            'max_actuator_speed_m_s': DRIVER_SPEED_M_S,
+            'rate_hz': float(args.rate_hz),
+            'seed': args.seed,
+            'slider_noise_m': noise,
+            'angle_noise_rad': noise,
+            'sensor_effects': getattr(args, 'sensor_effects', ''),
+            **actuator_limits(arch, SLIDER_DRIVE_LIMITS),
+            **physics_parameters(args),
+            **dict(getattr(args, 'driver_param', []) or []),
+        },
+    )
+    return {node.executable: node for node in nodes}
+
+
+def write_machines(args: argparse.Namespace, paths: DemoPaths) -> tuple:
+    """Write the simulated truth and nominal set 2 as parameters YAML; return both machines."""
+    from hexacal_msgs_py.parameters_file import save_parameters
+
+    from ..core.architectures import architecture
+    from ..core.machine.model import nominal_set
+
+    model = model_name(args)
+    arch = architecture(model)
+    true_params, nominal = (
+        arch.default_parameters(),
+        nominal_set(2, seed=args.seed, model=model),
+    )
+    truth_text, nominal_text = arch.machine_label, arch.nominal_label
+    save_parameters(
+        paths.true_params,
+        true_params.vector,
+        model=model,
+        header_comment=f'hexacal demo: the simulated true machine ({truth_text}), SI units',
+    )
+    save_parameters(
+        paths.nominal,
+        nominal.vector,
+        model=model,
+        header_comment=(
+            f'hexacal demo: nominal set 2 ({nominal_text}, seed {args.seed}), SI units'
+        ),
+    )
+    return true_params, nominal
+
+
+def run_demo(args: argparse.Namespace) -> int:
+    """Run the demo end to end; return its exit code (the report printed, summary.json written)."""
+    started = time.monotonic()
+    paths = demo_paths(args)
+    # Planning takes the first minutes (every release rehearsed on several machines): say so at
+    # once, before the imports, so that the demo is never silent.
+    verify_text = (
+        f' and a verification plan of {args.verify_postures}' if args.verify_postures else ''
+    )
+    print(
+        f'hexacal demo: planning {args.postures} calibration postures{verify_text} '
+        f'({model_name(args)}, {measuring_mode(args)}; O1 over {PLAN_CANDIDATES} candidates, '
+        'every move rehearsed on machines unlike the nominal); then the nodes start',
+        flush=True,
+    )
+    model = model_name(args)
+    true_params, nominal = write_machines(args, paths)
+    timings = {}  # summary.json's timings: seconds of each stage (docs/formats.md)
+    stage_started = time.monotonic()
+    write_plans(args, nominal, paths)
+    timings['plan'] = time.monotonic() - stage_started
+    print(f'hexacal demo: planned in {timings["plan"]:.0f} s', flush=True)
+    domain_id = claim_domain_id()
+    env = {'ROS_DOMAIN_ID': str(domain_id), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
+    # The simulated machine's calibrations are kept in the work directory, not the user's store.
+    env['HEXACAL_STORE'] = str(paths.work / 'store')
+    os.environ.update(env)  # the demo's own node (demo_session) joins the same domain
+    os.environ.pop('ROS_STATIC_PEERS', None)
+    print(f'hexacal demo: work directory {paths.work}, ROS domain {domain_id}', flush=True)
+
+    from ..bringup.supervisor import NodeGroup
+
+    nodes = system_launches(args, paths, paths.plan, paths.nominal, refine=refines(args))
+    group = NodeGroup()
+    session = None
+    verification = None
+    kept_verification = None
+    driver_values: dict[str, str] = {}
+    verification_postures = 0
+    try:
+        group.start(nodes['collector'], env, paths.logs / 'collector.log')
+        group.start(nodes['identify'], env, paths.logs / 'identify.log')
+        session = DemoSession()
+        session.nominal_file = paths.nominal
+        session.wait(
+            'the collector and identify nodes to come up',
+            GRAPH_TIMEOUT_S,
+            group,
+            session.graph_ready,
+        )
+        group.start(nodes['driver'], env, paths.logs / 'driver.log')
+        machine = '' if model == DEFAULT_MODEL else f' of a {model}'  # the default goes unnamed
+        print(
+            f'hexacal demo: the executor walks an O1 plan of {args.postures} postures '
+            f'({args.plan}, {measuring_mode(args)}) on the simulated machine{machine} through its '
+            f'trajectory-controller interface, +-{args.noise_um:g} '
+            f'{MODELS[model].actuator_quantities.small} / +-{args.noise_um:g} urad noise, '
+            f'{args.rate_hz:g} Hz'
+            + (
+                f', sensor effects {args.sensor_effects}'
+                if getattr(args, 'sensor_effects', '')
+                else ''
+            ),
+            flush=True,
+        )
+        stage_started = time.monotonic()
+        walked = walk(
+            session,
+            group,
+            nodes['executor'],
+            'calibration',
+            env,
+            paths.logs / 'executor.log',
+            measuring_mode(args),
+        )
+        session.wait(
+            f'identify to hold the {walked} postures',
+            30.0,
+            group,
+            lambda: session.identify_postures >= walked,
+        )
+        calibration_postures = walked
+        calibrate_started = time.monotonic()
+        timings['walk'] = calibrate_started - stage_started
+        session.parameters = None  # an intermediate calibration's (refinement) are not these
+        success, message = session.calibrate(group)
+        if not success:
+            raise DemoError(f'hexacal/calibrate refused: {message}')
+        calibrated = session.wait(
+            'the published parameters', 30.0, group, lambda: session.parameters
+        )
+        calibrate_s = time.monotonic() - calibrate_started
+        timings['calibration'] = calibrate_s
+        stage_started = time.monotonic()
+        print(f'hexacal demo: calibrated in {calibrate_s:.1f} s: {message}', flush=True)
+        held = session.identify_postures
+        if held > walked:
+            # The collector records every rest it detects: the one before the first move too.
+            print(
+                f'hexacal demo: {held} postures = the {walked} planned + {held - walked} '
+                'where the machine rested before the executor moved it (the collector records '
+                'every rest, measured like the others)',
+                flush=True,
+            )
+        if args.verify_postures:
+            print(
+                'hexacal demo: the executor walks a verification plan of '
+                f'{args.verify_postures} fresh postures',
+                flush=True,
+            )
+            # Never refined: an intermediate calibration would fold these postures into the
+            # fit. With refinement the calibration's targets, else the nominal ones.
+            verification_executor = system_launches(
+                args,
+                paths,
+                paths.verification_plan,
+                paths.calibration if refines(args) else paths.nominal,
+                refine=False,
+            )['executor']
+            walked = walk(
+                session,
+                group,
+                verification_executor,
+                'verification',
+                env,
+                paths.logs / 'executor_verification.log',
+                measuring_mode(args),
+            )
+            verification_postures = walked
+            session.wait(
+                'identify to hold the verification postures',
+                30.0,
+                group,
+                lambda: session.verification_postures >= walked,
+            )
+            verification = session.verify(group)
+            kept_verification = stored_verification(verification, model)
+        timings['verification'] = time.monotonic() - stage_started
+        driver_values = session.fresh_driver_values(group)  # its peaks over both plans
+    except DemoError as error:
+        print(f'hexacal demo: error: {error}', file=sys.stderr, flush=True)
+        for node in group.nodes:
+            print(log_tail(node), file=sys.stderr)
+        return EXIT_FAILED
+    finally:
+        if session is not None:
+            session.close()
+        codes = group.stop(order=STOP_ORDER)
+    unclean = {name: code for name, code in codes.items() if code != 0}
+    if unclean:
+        print(
+            f'hexacal demo: warning: nodes exited with {unclean} (logs in {paths.logs})',
+            file=sys.stderr,
+        )
+    stage_started = time.monotonic()
+    calibrated_params = true_params.with_vector(calibrated)
+    poses = pose_summaries(true_params, nominal, calibrated_params, args)
+    summary = build_summary(
+        model=model,
+        measuring_mode=measuring_mode(args),
+        postures=calibration_postures,
+        driver_values=driver_values,
+        pose_errors=poses['after (calibrated)'],
+        verification=kept_verification,
+        physics=physics(args),
+        fit=session.fit_values,
+        refinement=refinement_summary(
+            session.rest_log,
+            measuring_mode(args),
+            refine=refines(args),
+            targets_models=session.targets_models,
+            calibration_postures=calibration_postures,
+            verification_postures=verification_postures,
+        ),
+    )
+    text = report(
+        true_params,
+        nominal,
+        calibrated_params,
+        args,
+        paths,
+        time.monotonic() - started,
+        verification,
+        poses=poses,
+        summary=summary,
+    )
+    timings['report'] = time.monotonic() - stage_started
+    timings['total'] = time.monotonic() - started
+    summary['timings'] = {
+        stage: timings.get(stage, 0.0)
+        for stage in ('plan', 'walk', 'calibration', 'verification', 'report', 'total')
+    }
+    write_summary(paths.summary, summary)
+    print(text)
+    if not (paths.bag / 'metadata.yaml').exists():
+        print(
+            f'hexacal demo: error: the bag {paths.bag} was not closed (no metadata.yaml)',
+            file=sys.stderr,
+        )
+        return EXIT_FAILED
+    return EXIT_OK
