@@ -11,11 +11,13 @@ import math
 from typing import Sequence
 
 from hexacal_msgs_py.readings import PostureReading
+import numpy as np
 
 from .posture_checks import measurements_from_postures, scatter_count
 from ..core.architectures import KinematicParameters
 from ..core.fit.compliance import ComplianceModel
 from ..core.fit.identification import IdentificationResult, identify, SolverOptions
+from ..core.fit.statics import MassModel
 from ..core.fit.weighting import AUTO, choose_weights, WeightChoice
 from ..core.machine.device import DEFAULT_MOUNT, DEVICE_PARAMETER_NAMES, DeviceModel, DevicePrior
 from ..core.machine.measurements import NoiseModel, ScatterFloor, Weights
@@ -88,6 +90,67 @@ def calibrate(
     result = identify(nominal, measurements, options)
     result.weights_note = choice.note
     return result
+
+
+def parse_compliance_prior(text: str) -> dict[str, tuple[float, float]]:
+    """
+    Parse datasheet compliances NAME=VALUE:STD,... (m/N); '' = none.
+
+    The syntax of ``hexacal calibrate --compliance-prior`` and of the identify node's
+    ``compliance_prior``; a bad item is a ValueError naming it.
+    """
+    prior = {}
+    for item in filter(None, (part.strip() for part in text.split(','))):
+        name, _, figures = item.partition('=')
+        value, _, std = figures.partition(':')
+        try:
+            prior[name.strip()] = (float(value), float(std))
+        except ValueError:
+            raise ValueError(
+                f'compliance prior {item!r}: expected NAME=VALUE:STD in m/N, e.g. link=1e-7:2e-8'
+            ) from None
+    return prior
+
+
+def compliance_for_postures(
+    choice: str,
+    masses: MassModel,
+    measuring_mode: str | None,
+    released_joints: Sequence[str] | None,
+    actuator_names: Sequence[str],
+    prior: dict[str, tuple[float, float]] | None = None,
+    label: str = 'compliance',
+) -> ComplianceModel | None:
+    """
+    Return the ComplianceModel of a compliance choice for a set of postures (None: rigid).
+
+    What ``hexacal calibrate --compliance`` and the identify node's ``compliance`` share:
+    ``measuring_mode`` (None: unknown, refused) says who carries the weights, and in the
+    passive_actuator mode ``released_joints`` (one actuator joint name per posture) which chain
+    carries nothing. ``label`` names the option in the errors (ValueError).
+    """
+    from ..core.fit.compliance import NONE
+
+    if choice == NONE:
+        return None
+    if measuring_mode is None:
+        raise ValueError(
+            f'{label} {choice}: the measuring mode of the postures is not known, and the loads '
+            'depend on it (which chains and whether the link carry the weight)'
+        )
+    released = None
+    if measuring_mode == 'passive_actuator':
+        names = list(actuator_names)
+        joints = list(released_joints or ())
+        missing = [i for i, joint in enumerate(joints) if joint not in names]
+        if missing:
+            raise ValueError(
+                f'{label} {choice}: {len(missing)} of the {len(joints)} passive_actuator '
+                f'postures name no released actuator of {", ".join(names)} '
+                f'(first: posture {missing[0]})'
+            )
+        released = np.array([names.index(joint) for joint in joints])
+    return ComplianceModel(choice, masses, measuring_mode, released, prior=prior or {})
 
 
 def device_prior_json(prior: DevicePrior | None) -> dict[str, dict[str, float]]:

@@ -183,16 +183,12 @@ def _compliance_arguments(calibrate: argparse.ArgumentParser) -> None:
 
 def compliance_prior_argument(text: str) -> dict[str, tuple[float, float]]:
     """Parse --compliance-prior NAME=VALUE:STD,... (m/N); argparse names a bad one."""
-    prior = {}
-    for item in filter(None, (part.strip() for part in text.split(','))):
-        name, _, figures = item.partition('=')
-        value, _, std = figures.partition(':')
-        try:
-            prior[name.strip()] = (float(value), float(std))
-        except ValueError:
-            raise argparse.ArgumentTypeError(
-                f'compliance prior {item!r}: expected NAME=VALUE:STD in m/N, e.g. link=1e-7:2e-8'
-            ) from None
+    from ..calibration_steps.calibration_run import parse_compliance_prior
+
+    try:
+        prior = parse_compliance_prior(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
     if not prior:
         raise argparse.ArgumentTypeError('no compliance prior given: expected NAME=VALUE:STD')
     return prior
@@ -200,9 +196,7 @@ def compliance_prior_argument(text: str) -> dict[str, tuple[float, float]]:
 
 def compliance_model(args, bag, nominal):
     """Return the ComplianceModel of --compliance for a bag's postures (None: rigid)."""
-    import numpy as np
-
-    from ..core.fit.compliance import ComplianceModel
+    from ..calibration_steps.calibration_run import compliance_for_postures
     from ..core.fit.statics import MassModel
 
     if args.compliance == 'none':
@@ -224,22 +218,15 @@ def compliance_model(args, bag, nominal):
         )
     released = None
     if mode == 'passive_actuator':
-        names = list(nominal.layout.actuator_names)
-        joints = [bag.measuring.released_at(p.stamp_ns) for p in bag.postures]
-        missing = [i for i, joint in enumerate(joints) if joint not in names]
-        if missing:
-            raise ValueError(
-                f'--compliance {args.compliance}: {len(missing)} posture(s) of the '
-                f'passive_actuator bag name no released actuator of {", ".join(names)} '
-                f'(first: posture {missing[0]})'
-            )
-        released = np.array([names.index(joint) for joint in joints])
-    return ComplianceModel(
+        released = [bag.measuring.released_at(p.stamp_ns) for p in bag.postures]
+    return compliance_for_postures(
         args.compliance,
         MassModel.load(args.physical),
         mode,
         released,
-        prior=args.compliance_prior or {},
+        nominal.layout.actuator_names,
+        args.compliance_prior,
+        label='--compliance',
     )
 
 

@@ -26,6 +26,14 @@ from ``--guess`` (default: the workspace centre, the device's fixed point
 standing`` file) and follows the readings from there (core/machine/live.py), so the
 pose printed is on the guess's branch.
 
+A parameters file with a compliance section (``compliance.chains`` or ``compliance.chain_1..6``,
+m/N: a calibration by ``hexacal calibrate --compliance``) is used loaded as the kinematics node
+uses it (core/sessions/kinematics_session.py ``loaded_chains``, core/machine/live.py): the
+encoders' readings at which the loaded chains reach the pose (``ik``), the pose of the joint
+coordinates under the weights (``fk``); the weights are those of ``--physical FILE`` (a
+physical description), else of the model's shipped one.  Such a run prints what it applied
+(a ``compliance`` line; ``--json``: the ``"compliance"`` key); a rigid file's output is as before.
+
 Exit codes: 0; 1 forward kinematics found no pose (``forward-kinematics-failed: ...``);
 2 bad input or a pose no leg configuration reaches (``unreachable-pose: ...``), one line on stderr.
 
@@ -88,6 +96,15 @@ def _common(parser: argparse.ArgumentParser) -> None:
         default='hexacal',
         help='hexacal: theta,psi,phi (rad) of R = R_Y(theta) R_X(psi) R_z(phi); linuxcnc: '
         "genhexkins' a,b,c (deg) of R = Rz(c) Ry(b) Rx(a), in --pose, --guess and the output",
+    )
+    parser.add_argument(
+        '--physical',
+        type=Path,
+        default=None,
+        metavar='FILE',
+        help="physical description (hexacal-physical/1 YAML) whose weights load the file's "
+        "compliance section, as the kinematics node's physical_file; default: the model's "
+        'shipped one; unused for a file without compliances',
     )
 
 
@@ -155,23 +172,47 @@ def _check_angles(angles: str) -> None:
         raise ValueError(f'unknown --angles {angles!r}; choose one of {", ".join(ANGLES)}')
 
 
-def _print(params, pose, actuators, as_json: bool, angles: str = 'hexacal') -> None:
+def loaded_machine(path: Path, physical: Path | None):
+    """
+    Return (parameters, mount, LoadedChains or None, what the output says of the compliance).
+
+    The compliance section of the parameters file at ``path`` loaded by the weights of
+    ``physical`` (None: the model's shipped description), as the kinematics node loads it;
+    ('', None) of a rigid file.
+    """
+    from hexacal_msgs_py.parameters_file import compliances_from_extras, read_parameters_file
+
+    from ..calibration_steps.machine_files import load_machine_and_mount
+    from ..core.sessions.kinematics_session import loaded_chains
+
+    params, mount = load_machine_and_mount(path)
+    compliances = compliances_from_extras(read_parameters_file(path).extras)
+    if not compliances:
+        return params, mount, None, ''
+    loaded, text = loaded_chains(params.model, compliances, str(physical) if physical else '')
+    return params, mount, loaded, text if loaded is not None else ''
+
+
+def _print(
+    params, pose, actuators, as_json: bool, angles: str = 'hexacal', compliance: str = ''
+) -> None:
     if angles == 'linuxcnc':
-        _print_linuxcnc(params, pose, actuators, as_json)
+        _print_linuxcnc(params, pose, actuators, as_json, compliance)
         return
     names = params.layout.actuator_names
     if as_json:
-        print(
-            json.dumps(
-                {
-                    'model': params.model,
-                    'pose': {field: float(value) for field, value in zip(POSE_FIELDS, pose)},
-                    'actuators': {name: float(value) for name, value in zip(names, actuators)},
-                }
-            )
-        )
+        payload = {
+            'model': params.model,
+            'pose': {field: float(value) for field, value in zip(POSE_FIELDS, pose)},
+            'actuators': {name: float(value) for name, value in zip(names, actuators)},
+        }
+        if compliance:
+            payload['compliance'] = compliance
+        print(json.dumps(payload))
         return
     print(f'model {params.model}')
+    if compliance:
+        print(f'compliance {compliance}')
     for field, value, unit in zip(POSE_FIELDS, pose, POSE_UNITS):
         extra = f'  ({math.degrees(value):.6f} deg)' if unit == 'rad' else ''
         print(f'{field:<8} {value: .12f} {unit}{extra}')
@@ -179,14 +220,17 @@ def _print(params, pose, actuators, as_json: bool, angles: str = 'hexacal') -> N
 
 
 def run_ik(args) -> int:
+    import numpy as np
+
     from ..core.errors import UnreachablePoseError
     from ..core.machine.kinematics import inverse_kinematics
-    from ..calibration_steps.machine_files import load_machine_and_mount
 
     pose = _pose_values(args.pose, '--pose', args.angles)
-    params, _ = load_machine_and_mount(args.parameters)
+    params, _, loaded, compliance = loaded_machine(args.parameters, args.physical)
     try:
         actuators = inverse_kinematics(params, [pose])[0]
+        if loaded is not None:  # the encoders' readings of the loaded chains (no stroke limit)
+            actuators = actuators + loaded.shifts(params, np.array([pose]))[0]
     except UnreachablePoseError as error:
         print(
             f'hexacal ik: error: {error.reason}: pose {pose} is unreachable: '
@@ -194,7 +238,7 @@ def run_ik(args) -> int:
             file=sys.stderr,
         )
         return EXIT_BAD_INPUT
-    _print(params, pose, actuators, args.json, args.angles)
+    _print(params, pose, actuators, args.json, args.angles, compliance)
     return EXIT_OK
 
 
@@ -202,43 +246,43 @@ def run_fk(args) -> int:
     from ..core.errors import ForwardKinematicsError
     from ..core.machine.live import home_pose, solve_pose
     from ..core.machine.postures import Workspace
-    from ..calibration_steps.machine_files import load_machine_and_mount
 
     _check_angles(args.angles)
     actuators = parse_values(args.actuators, '--actuators', 'the six readings in SI units')
     guess = None if args.guess is None else _pose_values(args.guess, '--guess', args.angles)
-    params, mount = load_machine_and_mount(args.parameters)
+    params, mount, loaded, compliance = loaded_machine(args.parameters, args.physical)
     if guess is None:
         guess = home_pose(Workspace().link_length, mount)
     try:
-        pose = solve_pose(params, actuators, guess)
+        pose = solve_pose(params, actuators, guess, loaded)
     except ForwardKinematicsError as error:
         print(
             f'hexacal fk: error: {error.reason}: readings {actuators}: {_one_line(error)}',
             file=sys.stderr,
         )
         return EXIT_NO_POSE
-    _print(params, pose, actuators, args.json, args.angles)
+    _print(params, pose, actuators, args.json, args.angles, compliance)
     return EXIT_OK
 
 
-def _print_linuxcnc(params, pose, actuators, as_json: bool) -> None:
+def _print_linuxcnc(params, pose, actuators, as_json: bool, compliance: str = '') -> None:
     from ..core.machine.angle_conventions import linuxcnc_from_pose
 
     values = [float(value) for value in linuxcnc_from_pose(pose)]
     names = params.layout.actuator_names
     if as_json:
-        print(
-            json.dumps(
-                {
-                    'model': params.model,
-                    'pose': dict(zip(LINUXCNC_POSE_FIELDS, values)),
-                    'actuators': {name: float(value) for name, value in zip(names, actuators)},
-                }
-            )
-        )
+        payload = {
+            'model': params.model,
+            'pose': dict(zip(LINUXCNC_POSE_FIELDS, values)),
+            'actuators': {name: float(value) for name, value in zip(names, actuators)},
+        }
+        if compliance:
+            payload['compliance'] = compliance
+        print(json.dumps(payload))
         return
     print(f'model {params.model}')
+    if compliance:
+        print(f'compliance {compliance}')
     for field, value, unit in zip(LINUXCNC_POSE_FIELDS, values, LINUXCNC_POSE_UNITS):
         print(f'{field:<8} {value: .12f} {unit}')
     _print_actuators(params, actuators)

@@ -12,6 +12,7 @@ import os
 
 from hexacal_msgs_py.node_parameters import ParameterSpec as _Spec
 
+from ..core.fit.compliance import COMPLIANCE_MODES
 from ..core.fit.residuals import COSTS
 from ..core.fit.weighting import WEIGHT_MODES
 from ..core.machine.device import DEVICE_PARAMETER_NAMES
@@ -104,6 +105,27 @@ PARAMETERS: dict[str, _Spec] = {
         0.01,
     ),
     'robust_loss': _Spec('', "'' (least squares), 'huber' or 'soft_l1'"),
+    'compliance': _Spec(
+        'none',
+        'axial compliances identified with the geometry from the static loads of each posture '
+        '(as hexacal calibrate --compliance): none (rigid), shared (one for the six chains, one '
+        'for the link) or per_chain (one per chain, one for the link); needs the measuring mode '
+        "and, in passive_actuator, each posture's released actuator: a bag has them, live "
+        'postures only in the lvdt mode (their link_length)',
+        constraints='one of ' + ', '.join(COMPLIANCE_MODES),
+    ),
+    'physical_file': _Spec(
+        '',
+        'physical description YAML (gravity, platform, payload, legs, link masses and centres '
+        'of mass; SI) whose weights load the chains and the link when compliance is not none; '
+        "'' = the nominal model's shipped physical description",
+    ),
+    'compliance_prior': _Spec(
+        '',
+        'datasheet compliances NAME=VALUE:STD,... in m/N (as hexacal calibrate '
+        "--compliance-prior), e.g. 'link=1e-7:2e-8'; names: chains or chain_1..chain_6, link; "
+        "'' = none",
+    ),
     LINK_LENGTH_PRIOR: _Spec(
         0.0,
         'measured length of the device link (m), e.g. by a caliper; with '

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from datetime import datetime, timezone
-from typing import Protocol
+from typing import Protocol, TYPE_CHECKING
 
 from hexacal_msgs_py.calibrate_answer import calibrate_answer, HEADER_SOURCE
 from hexacal_msgs_py.errors import HexacalContractError, ParameterFileError
 from hexacal_msgs_py.parameters_file import save_parameters
+from hexacal_msgs_py.readings import PostureReading
 from hexacal_msgs_py.store_format import FITTED_POSTURES_COMMENT, postures_digest
 
 from .nominal import NominalFile
@@ -23,6 +24,10 @@ from .settings import names, Settings
 from ..core.errors import CalibrationError
 from ..core.machine.measurements import Weights
 from ..store.provenance import calibration_record
+
+if TYPE_CHECKING:
+    from ..core.architectures import KinematicParameters
+    from ..core.fit.compliance import ComplianceModel
 
 
 class Log(Protocol):
@@ -63,7 +68,7 @@ def run_calibration(
         status_fields,
         weight_choice,
     )
-    from ..calibration_steps.machine_files import device_defects_extras
+    from ..calibration_steps.machine_files import compliance_file_extras, device_defects_extras
     from ..calibration_steps.posture_checks import check_model, ModelMismatchError
     from ..core.fit.identification import CONVERGED, ITERATION_LIMIT
 
@@ -91,10 +96,13 @@ def run_calibration(
             'invalid_messages': loaded.invalid_messages,
         }
         postures_models = {loaded.model} if loaded.model else set()
+        measuring_mode = loaded.measuring_mode
+        released_joints = [loaded.measuring.released_at(p.stamp_ns) for p in postures]
     else:
         postures, postures_models = store.since(0)
         source = 'live postures'
         not_used = {'postures_rejected_on_receipt': store.rejected}
+        measuring_mode, released_joints = live_measuring_mode(postures), None
     verify_from = len(store)  # the postures after these verify it, never fit it
     for model in sorted(postures_models):
         try:
@@ -128,6 +136,12 @@ def run_calibration(
     except ValueError as error:  # scatter asked for but missing, a noise model asked for but unset
         return failure(Reason.INVALID_OPTIONS, str(error), **about)
     log.info(f'weights: {choice.note}')
+    try:
+        compliance, masses_source = compliance_setting(
+            settings, nominal, measuring_mode, released_joints, bool(bag)
+        )
+    except ValueError as error:
+        return failure(Reason.INVALID_OPTIONS, str(error), **about)
     if prior and choice.weights == Weights.NONE:
         return failure(
             Reason.DEVICE_PRIOR_WITHOUT_NOISE,
@@ -149,6 +163,7 @@ def run_calibration(
             device_prior=prior,
             weights=settings.weights,
             scatter_floor=settings.scatter_floor(),
+            compliance=compliance,
         )
     except CalibrationError as error:
         return failure(error.reason, str(error), **about)
@@ -160,6 +175,8 @@ def run_calibration(
         **status_fields(result, prior),
         **not_used,
     }
+    if compliance is not None:  # whose weights loaded the compliances identified
+        values['compliance_physical'] = masses_source
     summary = (
         f'{len(result.used_postures)} of {len(postures)} postures, {cost} cost, '
         f'{result.iterations} iterations, rank {result.rank}, rms residual '
@@ -179,7 +196,7 @@ def run_calibration(
                 f'\n{HEADER_SOURCE}{source}: {summary}\nnominal: {nominal_path}; SI units'
                 f'\n{FITTED_POSTURES_COMMENT}{postures_digest(postures)}'
             ),
-            extras=device_defects_extras(result) or None,
+            extras={**device_defects_extras(result), **compliance_file_extras(result)} or None,
         )
     except HexacalContractError as error:
         return Outcome(
@@ -237,5 +254,80 @@ def run_calibration(
         source=source,
         record=record,
     )
+
+
+def live_measuring_mode(postures: Sequence[PostureReading]) -> str | None:
+    """
+    Return the measuring mode live postures show, None when they do not say.
+
+    A posture on hexacal/posture carries a measured link length (joint link_length) only in the
+    lvdt mode (hexacal_msgs_py.measuring_modes), so postures that all carry one are the lvdt
+    mode's. Neither the passive_actuator mode nor a posture's released actuator is on the
+    message: the collector records them in its bag (bag.measuring), not on the topic.
+    """
+    if postures and all(p.link_length is not None for p in postures):
+        return 'lvdt'
+    return None
+
+
+def compliance_setting(
+    settings: Settings,
+    nominal: KinematicParameters,
+    measuring_mode: str | None,
+    released_joints: Sequence[str] | None,
+    from_bag: bool,
+) -> tuple[ComplianceModel | None, str]:
+    """
+    Return (ComplianceModel or None, where the weights come from) of the compliance parameters.
+
+    The same ComplianceModel ``hexacal calibrate --compliance`` builds
+    (calibration_steps.calibration_run.compliance_for_postures); ValueError names what is
+    missing or wrong.
+    """
+    from ..calibration_steps.calibration_run import (
+        compliance_for_postures,
+        parse_compliance_prior,
+    )
+    from ..core.fit.statics import MassModel
+
+    prior = parse_compliance_prior(settings.compliance_prior)
+    if settings.compliance == 'none':
+        if prior:
+            raise ValueError(
+                'compliance_prior is set but compliance is none: set compliance to shared or '
+                "per_chain, or compliance_prior to ''"
+            )
+        return None, ''
+    if measuring_mode is None and not from_bag:
+        raise ValueError(
+            f'compliance {settings.compliance}: the live postures do not carry the measuring '
+            'mode nor the released actuator of each posture (hexacal/posture has no such joint; '
+            'only the lvdt postures show their mode, by their link_length), and the loads '
+            'depend on them: calibrate from the bag the collector recorded (parameter bag), '
+            'whose measuring record holds both, or set compliance to none'
+        )
+    if measuring_mode is None:
+        raise ValueError(
+            f'compliance {settings.compliance}: the bag does not record its measuring mode, and '
+            'the loads depend on it (which chains and whether the link carry the weight)'
+        )
+    if settings.physical_file:
+        masses, source = MassModel.load(settings.physical_file), settings.physical_file
+    else:
+        from hexacal_msgs_py.physical_file import default_physical
+
+        masses = MassModel.from_physical(default_physical(nominal.model))
+        source = f'the shipped {nominal.model} physical description'
+    model = compliance_for_postures(
+        settings.compliance,
+        masses,
+        measuring_mode,
+        released_joints,
+        nominal.layout.actuator_names,
+        prior,
+        label='compliance',
+    )
+    return model, source
+
 
 # ------------------------------------------------------------------ verification

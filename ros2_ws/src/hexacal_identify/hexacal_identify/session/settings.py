@@ -9,6 +9,7 @@ from typing import Any
 
 from .paths import DEFAULT_OUTPUT, output_path
 from .prior import LINK_LENGTH_PRIOR, prior_parameter_problem, PRIOR_PARAMETERS
+from ..core.fit.compliance import COMPLIANCE_MODES
 from ..core.fit.residuals import COSTS
 from ..core.fit.weighting import weight_mode
 from ..core.machine.device import DEVICE_PARAMETER_NAMES
@@ -40,6 +41,12 @@ class Settings:
     weights: str = 'auto'  # core.weighting: auto, scatter, noise-model, none
     scatter_floor_actuator_m: float = ScatterFloor().actuator_m
     scatter_floor_angle_rad: float = ScatterFloor().angle_rad
+    # Axial compliances identified with the geometry (core/fit/compliance.py): the choice, the
+    # physical description whose weights load them ('' = the model's shipped one) and datasheet
+    # priors NAME=VALUE:STD,... (m/N; '' = none), as `hexacal calibrate --compliance` takes them.
+    compliance: str = 'none'
+    physical_file: str = ''
+    compliance_prior: str = ''
     # device.* parameters by name (prior.PRIOR_PARAMETERS); missing = 0 (no prior)
     device_prior: Mapping[str, float] = field(default_factory=dict)
 
@@ -93,6 +100,22 @@ def parameter_problem(name: str, value: Any, current: Callable[[str, Any], Any])
         math.isfinite(value) and value > 0
     ):
         return f'{name} must be a positive standard deviation (SI), got {value!r}'
+    if name == 'compliance' and value not in COMPLIANCE_MODES:
+        return f'compliance must be one of {", ".join(COMPLIANCE_MODES)}, got {value!r}'
+    if name == 'compliance_prior' and value:
+        from ..calibration_steps.calibration_run import parse_compliance_prior
+
+        try:
+            parse_compliance_prior(value)
+        except ValueError as error:
+            return f'compliance_prior: {error}'
+    if name == 'physical_file' and value:
+        from ..core.fit.statics import MassModel
+
+        try:
+            MassModel.load(value)
+        except ValueError as error:  # unreadable, or not a physical description
+            return f'physical_file: {error}'
     if name == 'cost' and value not in COSTS:
         return f'cost must be one of {", ".join(COSTS)}, got {value!r}'
     if name == 'link_length' and not math.isfinite(value):
