@@ -70,7 +70,7 @@ def add_parsers(subparsers) -> None:
 
 
 def _export_arguments(parser: argparse.ArgumentParser) -> None:
-    from .kinematics import NEGATIVE_LIST
+    from .kinematics_commands import NEGATIVE_LIST
 
     # Formats and units are checked by the handler, so that a wrong one is a one-line error (exit
     # 2).
@@ -232,7 +232,7 @@ def ini_path_beside(out: Path) -> Path:
 
 def _linuxcnc_ini_text(args, contents) -> str:
     from .export_linuxcnc import linuxcnc_homing, linuxcnc_ini
-    from .kinematics import parse_values
+    from .kinematics_commands import parse_values
 
     home = (
         None
