@@ -40,6 +40,8 @@ SAMPLES = (
     Sample('sphere60_fixed20_noise10', 'mixed', 80, 10e-6, 2),
     Sample('sphere30_nonoise', 'random', 30, 0.0, 3),
     Sample('gs_sphere50_noise10', 'random', 50, 10e-6, 4, 'gough_stewart'),
+    # Crank angles: the noise half-width is 10 urad on the cranks, 10 urad on the angles.
+    Sample('rh_sphere60_noise10', 'random', 60, 10e-6, 5, 'rotary_hexapod'),
 )
 DRIVER = {'rate_hz': 50.0, 'settle_s': 0.6, 'dwell_s': 1.2}
 

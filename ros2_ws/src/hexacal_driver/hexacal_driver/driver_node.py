@@ -23,6 +23,7 @@ from hexacal_driver.parameters import (
     RUNTIME_PARAMETERS,
 )
 from hexacal_driver.reports import (
+    actuator_quantities_of,
     command_text,
     commanded_start_text,
     device_turn_text,
@@ -272,7 +273,12 @@ class DriverNode(Node):
             now_ns / NS_PER_S, checked, start_ns / NS_PER_S if start_ns else None
         )
         self.get_logger().info(
-            command_text(self.commands_accepted, checked[-1].positions, end_s - now_ns / NS_PER_S)
+            command_text(
+                self.commands_accepted,
+                checked[-1].positions,
+                end_s - now_ns / NS_PER_S,
+                actuator_quantities_of(self.machine),
+            )
         )
 
     def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
@@ -289,7 +295,8 @@ class DriverNode(Node):
             return  # still declaring
         given = {parameter.name: parameter.value for parameter in parameters}
         if self.machine.set_noise(given.get('slider_noise_m'), given.get('angle_noise_rad')):
-            self.get_logger().info(f'noise now {noise_text(self.machine.sensors.noise)}')
+            noise = noise_text(self.machine.sensors.noise, actuator_quantities_of(self.machine))
+            self.get_logger().info(f'noise now {noise}')
         if 'device_turn' in given:
             previous = self.machine.set_device_turn(given['device_turn'])
             if previous is not None:
@@ -407,10 +414,12 @@ class DriverNode(Node):
     def _report_motion(self, phase: str) -> None:
         """Log the link's strain (throttled) and the end of each commanded motion."""
         strain = self.machine.follower.strain_m
-        warning = MotionReport.strain_warning(strain)
+        units = actuator_quantities_of(self.machine)
+        limit = self.machine.true_params.architecture.actuator_limit(STRAIN_WARNING_M)
+        warning = MotionReport.strain_warning(strain, units, limit)
         if warning is not None:
             self.get_logger().warning(warning, throttle_duration_sec=STRAIN_WARNING_PERIOD_S)
-        line = self._motion_report.motion_line(phase, strain, self.commands_accepted)
+        line = self._motion_report.motion_line(phase, strain, self.commands_accepted, units)
         if line is not None:
             self.get_logger().info(line)
             # One status per rest: a monitor (the demo) hears every rest and its motion's peaks.

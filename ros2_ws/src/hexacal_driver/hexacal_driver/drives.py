@@ -301,7 +301,8 @@ class DriveFollower(CommandFollower):
         self._segments = []
         self.released = None
         self._update_measures()
-        return True, f'{joint} locked at {self.actuators[index]:.6f} m'
+        unit = self.params.layout.actuator_unit  # m, or rad for a crank
+        return True, f'{joint} locked at {self.actuators[index]:.6f} {unit}'
 
     def reset(self) -> tuple[bool, str]:
         """Clear a fault: re-enable the drives where they stand; return (done, message)."""

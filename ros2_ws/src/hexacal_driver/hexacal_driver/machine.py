@@ -248,7 +248,11 @@ class SimulatedMachine:
                 f'others {list(follower.commanded_names())} only'
             )
         checked, problem = check_trajectory(
-            joint_names, points, follower.commanded_names(), self.stroke
+            joint_names,
+            points,
+            follower.commanded_names(),
+            self.stroke,
+            self.true_params.layout.actuator_unit,
         )
         if problem is not None and self.drive_settings.mode == 'passive_actuator' and not released:
             problem += (
@@ -330,10 +334,11 @@ class SimulatedMachine:
                 f'with zero angles: {error}'
             ) from error
         low, high = self.stroke
+        unit = self.true_params.layout.actuator_unit  # m, or rad for cranks
         if np.any((follower.actuators < low) | (follower.actuators > high)):
             raise DriverConfigurationError(
                 f'commanded mode: at the fixed-position point the actuators '
-                f'{np.round(follower.actuators, 4).tolist()} m are outside the stroke [{low:g}, '
-                f'{high:g}] m'
+                f'{np.round(follower.actuators, 4).tolist()} {unit} are outside the stroke '
+                f'[{low:g}, {high:g}] {unit}'
             )
         return follower

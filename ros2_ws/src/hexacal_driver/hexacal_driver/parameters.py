@@ -51,7 +51,13 @@ PARAMETERS: dict[str, _Spec] = {
     'link_length': _Spec(
         0.75, 'measuring link length L between the U-joint centres (m)', 0.1, 5.0
     ),
-    'slider_noise_m': _Spec(1e-5, 'half-width of the uniform slider noise (m)', 0.0, 0.01),
+    'slider_noise_m': _Spec(
+        1e-5,
+        'half-width of the uniform actuator noise (m; rad for actuators that turn, the LVDT '
+        'link reading takes it in m)',
+        0.0,
+        0.01,
+    ),
     'angle_noise_rad': _Spec(
         1e-5, 'half-width of the uniform inclinometer and rotary noise (rad)', 0.0, 0.1
     ),
@@ -102,7 +108,7 @@ PARAMETERS: dict[str, _Spec] = {
     ),
     'max_actuator_speed_m_s': _Spec(
         0.1,
-        'commanded mode: the fastest an actuator moves (m/s); '
+        'commanded mode: the fastest an actuator moves (m/s; rad/s for actuators that turn); '
         "slower when a point's time_from_start asks for it",
         1e-6,
         10.0,
@@ -120,23 +126,25 @@ PARAMETERS: dict[str, _Spec] = {
     'max_following_error_m': _Spec(
         5e-4,
         'commanded mode, passive_actuator and lvdt: the stiff drives fault when a commanded '
-        'actuator would stand farther than this from its setpoint (m)',
+        'actuator would stand farther than this from its setpoint (m; rad for actuators that '
+        'turn)',
         1e-9,
         1.0,
     ),
     'servo_stiffness_n_per_m': _Spec(
         COMPLIANT_SERVO_STIFFNESS_N_PER_M,
-        'commanded mode, compliant: the stiffness of each servo (N/m); its force (effort of '
-        'the sliders message, N) = stiffness x (position - setpoint) (2e4 N/m: the millimetres '
-        "a nominal model's targets miss load the link with a few hundred newtons at most)",
+        'commanded mode, compliant: the stiffness of each servo (N/m; N m/rad for actuators '
+        'that turn); its force (effort of the sliders message, N; a torque in N m for those) = '
+        "stiffness x (position - setpoint) (2e4 N/m: the millimetres a nominal model's targets "
+        'miss load the link with a few hundred newtons at most)',
         1.0,
         1e12,
     ),
     'max_force_n': _Spec(
         LINK_FORCE_LIMIT_N,
         'commanded mode, compliant: the servos fault when the force of an actuator would exceed '
-        'this (N; the rigid measuring link carries it: by default the 500 N a link of the '
-        'documented kind bears)',
+        'this (N, N m for a torque; the rigid measuring link carries it: by default the 500 N '
+        'a link of the documented kind bears)',
         1e-6,
         1e9,
     ),

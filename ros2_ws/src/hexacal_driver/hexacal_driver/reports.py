@@ -16,10 +16,11 @@ from hexacal_driver.simulation import DONE, DWELLING, MOVING
 from hexacal_identify.core.machine.device import DEFAULT_MOUNT, DeviceDefects
 from hexacal_identify.core.machine.measurements import NoiseModel
 from hexacal_msgs_py.measuring_modes import MeasuringMode
-from hexacal_msgs_py.models import HEXA_SLIDE, MODELS
+from hexacal_msgs_py.models import ActuatorQuantities, HEXA_SLIDE, LINEAR_ACTUATOR, MODELS
 import numpy as np
 
-# Commanded mode: a strain of the measuring link beyond this is logged (at most every period).
+# Commanded mode: a strain of the measuring link beyond this is logged (at most every period);
+# m of travel at the actuator's joint (for cranks, Architecture.actuator_limit turns it into rad).
 STRAIN_WARNING_M = 0.01
 STRAIN_WARNING_PERIOD_S = 5.0
 
@@ -44,16 +45,21 @@ def machine_source(true_params: str, machine: SimulatedMachine) -> str:
     return source
 
 
-def noise_text(noise: NoiseModel) -> str:
-    """Return the noise half-widths as logged."""
-    return f'+-{noise.actuator_m:g} m / +-{noise.angle_rad:g} rad'
+def actuator_quantities_of(machine: SimulatedMachine) -> ActuatorQuantities:
+    """Return the units of the simulated machine's actuators (m and N, or rad and N m)."""
+    return MODELS[machine.model].actuator_quantities
+
+
+def noise_text(noise: NoiseModel, quantities: ActuatorQuantities = LINEAR_ACTUATOR) -> str:
+    """Return the noise half-widths as logged (the actuators' in their SI unit, m or rad)."""
+    return f'+-{noise.actuator_m:g} {quantities.unit} / +-{noise.angle_rad:g} rad'
 
 
 def sensors_text(machine: SimulatedMachine) -> str:
     """Return the noise as logged at start-up, with the active sensor effects if any."""
     settings = machine.streams.settings
     effects = f'; {settings.describe()}' if settings.effects else ''
-    return f'noise {noise_text(machine.sensors.noise)}{effects}'
+    return f'noise {noise_text(machine.sensors.noise, actuator_quantities_of(machine))}{effects}'
 
 
 def commanded_start_text(
@@ -61,25 +67,38 @@ def commanded_start_text(
 ) -> str:
     """Return the start-up line of commanded mode."""
     low, high = machine.stroke
+    units = actuator_quantities_of(machine)
     return (
         f'following JointTrajectory commands on {topic} (joints '
         f'{", ".join(MODELS[machine.model].actuator_names)}, at most '
-        f'{machine.follower.max_speed_m_s:g} m/s, stroke [{low:g}, {high:g}] m); true machine: '
+        f'{machine.follower.max_speed_m_s:g} {units.speed_unit}, stroke [{low:g}, {high:g}] '
+        f'{units.unit}); true machine: '
         f'{source}; {rate_hz:g} Hz, {sensors_text(machine)}; standing at the '
         'fixed-position point'
     )
 
 
 def drives_start_text(follower: DriveFollower) -> str:
-    """Return the start-up line of the drives in commanded mode: the mode and its guard."""
+    """
+    Return the start-up line of the drives in commanded mode: the mode and its guard.
+
+    The settings keep their slider names (``servo_stiffness_n_per_m``, ``max_force_n``,
+    ``max_following_error_m``); for actuators that turn they are in N m/rad, N m and rad, and
+    the line says so.
+    """
     settings = follower.settings
+    units = follower.params.layout.actuator_quantities
     if settings.mode == MeasuringMode.COMPLIANT:
         guard = (
-            f'compliant servos of {settings.servo_stiffness_n_per_m:g} N/m, fault above '
-            f'{settings.max_force_n:g} N on a servo or {settings.max_link_force_n:g} N on the link'
+            f'compliant servos of {settings.servo_stiffness_n_per_m:g} {units.stiffness_unit}, '
+            f'fault above {settings.max_force_n:g} {units.effort_unit} on a servo or '
+            f'{settings.max_link_force_n:g} N on the link'
         )
     else:
-        guard = f'stiff drives, fault above {settings.max_following_error_m:g} m following error'
+        guard = (
+            f'stiff drives, fault above {settings.max_following_error_m:g} {units.unit} '
+            'following error'
+        )
         if settings.mode == MeasuringMode.LVDT:
             guard += f'; LVDT link stroke +-{settings.lvdt_stroke_m:g} m'
         else:
@@ -110,11 +129,17 @@ def device_turn_text(previous: float, turn: float, plan: PosturePlan | None) -> 
     )
 
 
-def command_text(count: int, target: np.ndarray, duration_s: float) -> str:
-    """Return the line logged for an accepted JointTrajectory command."""
+def command_text(
+    count: int,
+    target: np.ndarray,
+    duration_s: float,
+    quantities: ActuatorQuantities = LINEAR_ACTUATOR,
+) -> str:
+    """Return the line logged for an accepted JointTrajectory command (mm, or deg for cranks)."""
+    scale = quantities.display_scale
     return (
-        f'command {count}: to [{", ".join(f"{v * 1e3:.3f}" for v in target)}] '
-        f'mm in {duration_s:.2f} s'
+        f'command {count}: to [{", ".join(f"{v * scale:.3f}" for v in target)}] '
+        f'{quantities.display} in {duration_s:.2f} s'
     )
 
 
@@ -163,16 +188,31 @@ class MotionReport:
         self._last_phase = ''
 
     @staticmethod
-    def strain_warning(strain_m: float) -> str | None:
-        """Return the warning while the link strains the machine beyond STRAIN_WARNING_M."""
-        if strain_m <= STRAIN_WARNING_M:
+    def strain_warning(
+        strain_m: float,
+        quantities: ActuatorQuantities = LINEAR_ACTUATOR,
+        limit: float = STRAIN_WARNING_M,
+    ) -> str | None:
+        """
+        Return the warning while the link strains the machine beyond `limit`.
+
+        ``strain_m`` and ``limit`` are in the actuators' unit (m, or rad for cranks), shown in
+        mm or deg.
+        """
+        if strain_m <= limit:
             return None
         return (
-            f'the measuring link strains the machine: actuators {strain_m * 1e3:.1f} mm from '
-            'their setpoints (commanded positions off the link sphere: move along it)'
+            f'the measuring link strains the machine: actuators {quantities.shown(strain_m, 1)} '
+            'from their setpoints (commanded positions off the link sphere: move along it)'
         )
 
-    def motion_line(self, phase: str, strain_m: float, commands_accepted: int) -> str | None:
+    def motion_line(
+        self,
+        phase: str,
+        strain_m: float,
+        commands_accepted: int,
+        quantities: ActuatorQuantities = LINEAR_ACTUATOR,
+    ) -> str | None:
         """Return one line when a commanded motion ends (with the link's strain), else None."""
         if phase == self._last_phase:
             return None
@@ -181,8 +221,9 @@ class MotionReport:
             return None
         if strain_m > 1e-6:
             return (
-                f'standing at the commanded position (actuators {strain_m * 1e6:.0f} um from the '
-                'setpoints: the strain of the measuring link)'
+                'standing at the commanded position (actuators '
+                f'{quantities.shown_small(strain_m, 0)} from the setpoints: the strain of the '
+                'measuring link)'
             )
         return 'standing at the commanded position'
 

@@ -273,6 +273,7 @@ def check_trajectory(
     points: list[tuple[list[float], float]],
     expected_names: tuple[str, ...],
     stroke_m: tuple[float, float],
+    unit: str = 'm',
 ) -> tuple[list[TrajectoryPoint], str | None]:
     """
     Return a JointTrajectory's joints and points in the machine's order, or the reason.
@@ -284,6 +285,7 @@ def check_trajectory(
     finite position per joint, times from start must strictly increase and not be negative, and
     an empty trajectory is rejected. Unlike the controller, a position outside the actuator
     stroke rejects the whole command (a simulated hard limit) instead of being clamped.
+    ``stroke_m`` and the positions are in the actuators' ``unit``: m, or rad for cranks.
     """
     names = list(joint_names)
     if not names:
@@ -319,13 +321,13 @@ def check_trajectory(
                 f'point {index - 1} ({previous:g} s)'
             )
         outside = [
-            f'{expected_names[i]} {values[i]:.6g} m'
+            f'{expected_names[i]} {values[i]:.6g} {unit}'
             for i in range(len(values))
             if not low <= values[i] <= high
         ]
         if outside:
             return [], (
-                f'point {index} is outside the actuator stroke [{low:g}, {high:g}] m: '
+                f'point {index} is outside the actuator stroke [{low:g}, {high:g}] {unit}: '
                 + ', '.join(outside)
             )
         previous = time_s

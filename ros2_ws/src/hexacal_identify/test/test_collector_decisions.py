@@ -21,6 +21,7 @@ from hexacal_identify.core.sessions.collector_session import (
 )
 from hexacal_identify.nodes.collector_parameters import DETECTOR_PARAMETERS, DWELL_PARAMETERS
 from hexacal_identify.nodes.collector_parameters import PARAMETERS
+from hexacal_msgs_py.models import ROTARY_ACTUATOR
 from hexacal_msgs_py.names import DEVICE_TURN_JOINT, LINK_LENGTH_JOINT
 from hexacal_msgs_py.readings import PostureReading
 
@@ -78,8 +79,11 @@ def test_a_posture_carries_the_turn_of_its_inclinometer_messages_else_the_settin
     assert turn == 3.14 and reading.device_turn == 3.14
     line = posture_line(7, _posture(10 * S), turn)
     assert line == (
-        'posture 7: 40 samples, std <= 2.0 um (sliders) / 3.0 urad (angles), device turn 3.14 rad'
+        'posture 7: 40 samples, std <= 2.0 um (actuators) / 3.0 urad (angles), device turn '
+        '3.14 rad'
     )
+    line = posture_line(7, _posture(10 * S), 0.0, ROTARY_ACTUATOR)
+    assert line == 'posture 7: 40 samples, std <= 2.0 urad (actuators) / 3.0 urad (angles)'
 
 
 def test_the_status_fields_the_log_lines_and_the_bag_records():

@@ -58,6 +58,62 @@ class FloatVector(Protocol):
 # SI units an actuator reading can have: a linear actuator's metres, a rotary one's radians.
 ACTUATOR_UNITS: tuple[str, ...] = ('m', 'rad')
 
+
+@dataclass(frozen=True)
+class ActuatorQuantities:
+    """
+    The units of what an actuator reads and carries, by the kind of its motion (SI and display).
+
+    A linear actuator (slider, leg) reads metres and carries a force; a rotary one (a motor
+    turning a crank) reads radians and carries a torque.  Every consumer outside a model's
+    module (noise models, drives, guards, reports, the CLI) takes its units and words from
+    here, so none names a model.  ``display_scale`` converts an SI reading to ``display``
+    (mm or deg), ``small_scale`` to ``small`` (um or urad: noise, deviations).
+    """
+
+    unit: str  # SI unit of the reading: 'm' or 'rad'
+    kind: str  # 'linear' or 'rotary'
+    reading: str  # what the reading is, in words
+    effort: str  # what a drive carries ('force' or 'torque')
+    effort_unit: str  # 'N' or 'N m'
+    stiffness_unit: str  # servo stiffness: 'N/m' or 'N m/rad'
+    speed_unit: str  # 'm/s' or 'rad/s'
+    display: str  # display unit of a reading: 'mm' or 'deg'
+    display_scale: float  # SI -> display
+    small: str  # display unit of a small difference: 'um' or 'urad'
+    small_scale: float  # SI -> small
+
+    def shown(self, value: float, digits: int = 3) -> str:
+        """Return an SI reading in the display unit, labelled (e.g. '12.300 mm', '4.500 deg')."""
+        return f'{value * self.display_scale:.{digits}f} {self.display}'
+
+    def shown_small(self, value: float, digits: int = 1) -> str:
+        """Return a small SI difference in um or urad, labelled."""
+        return f'{value * self.small_scale:.{digits}f} {self.small}'
+
+
+LINEAR_ACTUATOR = ActuatorQuantities(
+    'm', 'linear', 'actuator position', 'force', 'N', 'N/m', 'm/s', 'mm', 1e3, 'um', 1e6
+)
+ROTARY_ACTUATOR = ActuatorQuantities(
+    'rad', 'rotary', 'actuator angle', 'torque', 'N m', 'N m/rad', 'rad/s', 'deg',
+    180.0 / math.pi, 'urad', 1e6,
+)
+_ACTUATOR_QUANTITIES = {
+    quantities.unit: quantities for quantities in (LINEAR_ACTUATOR, ROTARY_ACTUATOR)
+}
+
+
+def actuator_quantities(unit: str) -> ActuatorQuantities:
+    """Return the units of an actuator whose readings are in `unit` ('m' or 'rad')."""
+    try:
+        return _ACTUATOR_QUANTITIES[unit]
+    except KeyError:
+        raise ValueError(
+            f'actuator unit must be one of {ACTUATOR_UNITS}, got {unit!r}'
+        ) from None
+
+
 HEXA_SLIDE = 'hexa_slide'
 GOUGH_STEWART = 'gough_stewart'
 ROTARY_HEXAPOD = 'rotary_hexapod'
@@ -167,6 +223,11 @@ class ModelLayout:
                 if problem:
                     return problem
         return None
+
+    @property
+    def actuator_quantities(self) -> ActuatorQuantities:
+        """Return the units of this model's actuators (readings, efforts, display)."""
+        return actuator_quantities(self.actuator_unit)
 
     @property
     def fields_per_chain(self) -> int:

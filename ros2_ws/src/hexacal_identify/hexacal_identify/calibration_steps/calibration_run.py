@@ -29,9 +29,12 @@ def weight_choice(
     weights: str = AUTO,
     noise: NoiseModel | None = None,
     scatter_floor: ScatterFloor = ScatterFloor(),
+    actuator_unit: str = 'm',
 ) -> WeightChoice:
     """Return what weighs a calibration of `postures` (core.weighting.choose_weights)."""
-    return choose_weights(weights, scatter_count(postures), len(postures), noise, scatter_floor)
+    return choose_weights(
+        weights, scatter_count(postures), len(postures), noise, scatter_floor, actuator_unit
+    )
 
 
 def calibrate(
@@ -68,7 +71,9 @@ def calibrate(
     compliances identified with the geometry from the postures' static loads
     (core/fit/compliance.py; None: the rigid model).
     """
-    choice = weight_choice(postures, weights, noise, scatter_floor)
+    choice = weight_choice(
+        postures, weights, noise, scatter_floor, nominal.layout.actuator_unit
+    )
     options = SolverOptions(
         cost=cost,
         device=DeviceModel(link_length=link_length, mount=mount),

@@ -61,6 +61,9 @@ _MOVED = {
     'DRIVER_SPEED_M_S': 'demo_run',
     'COLLECTOR_WINDOWS': 'demo_run',
     'PLAN_CANDIDATES': 'demo_run',
+    'SLIDER_DRIVE_LIMITS': 'demo_run',
+    'SLIDER_EXECUTOR_LIMITS': 'demo_run',
+    'actuator_limits': 'demo_run',
     'parameter_error_rows': 'demo_report',
     'verification_table': 'demo_report',
     'report': 'demo_report',
@@ -138,7 +141,8 @@ def add_parsers(subparsers) -> None:
         '--noise-um',
         type=float,
         default=10.0,
-        help='uniform noise half-width: um on sliders, urad on angles (default 10)',
+        help='uniform noise half-width: um on sliders and legs, urad on cranks and angles '
+        '(default 10)',
     )
     parser.add_argument(
         '--out',

@@ -23,6 +23,7 @@ import re
 from typing import Any, Mapping
 
 from hexacal_msgs_py.measuring_modes import MeasuringMode
+from hexacal_msgs_py.models import ActuatorQuantities, LINEAR_ACTUATOR
 
 from .demo_summary import status_number
 
@@ -143,8 +144,15 @@ def refinement_summary(
     }
 
 
-def refinement_lines(refinement: Mapping[str, Any] | None) -> list[str]:
-    """Return the before -> after lines the demo prints (um, N)."""
+def refinement_lines(
+    refinement: Mapping[str, Any] | None, units: ActuatorQuantities = LINEAR_ACTUATOR
+) -> list[str]:
+    """
+    Return the before -> after lines the demo prints.
+
+    Deviations in um and forces in N for linear actuators, urad and N m for ``units`` of
+    actuators that turn; the link's extension in um.
+    """
     if not refinement:
         return []
     before, after = refinement['before'], refinement['after']
@@ -158,12 +166,12 @@ def refinement_lines(refinement: Mapping[str, Any] | None) -> list[str]:
     lines = [
         f'before -> after refinement ({refinement["postures_on_nominal"]} postures on nominal '
         f'targets -> {refinement["postures_on_refined"]} on refined ones): deviation '
-        + pair('max_actuator_deviation_m', 1e6, 'um')
+        + pair('max_actuator_deviation_m', units.small_scale, units.small)
     ]
     if before['max_force_n'] is not None or after['max_force_n'] is not None:
         lines.append(
-            f'  force at rest {pair("max_force_n", 1.0, "N")}, moves included '
-            f'{pair("max_move_force_n", 1.0, "N")}'
+            f'  {units.effort} at rest {pair("max_force_n", 1.0, units.effort_unit)}, moves '
+            f'included {pair("max_move_force_n", 1.0, units.effort_unit)}'
         )
     if before['max_link_extension_m'] is not None or after['max_link_extension_m'] is not None:
         lines.append(

@@ -164,7 +164,8 @@ def report(
     if verification:
         lines += verification_table(verification)
     if summary is not None:
-        lines += summary_lines(summary) + refinement_lines(summary.get('refinement'))
+        units = MODELS[summary['model']].actuator_quantities
+        lines += summary_lines(summary) + refinement_lines(summary.get('refinement'), units)
     page = _report_page(paths, verification)
     lines += [
         '',

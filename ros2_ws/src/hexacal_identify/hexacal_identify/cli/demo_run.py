@@ -20,7 +20,12 @@ import sys
 import time
 from typing import TYPE_CHECKING
 
-from hexacal_msgs_py.models import DEFAULT_MODEL
+from hexacal_msgs_py.measuring_modes import (
+    COMPLIANT_SERVO_STIFFNESS_N_PER_M,
+    GUARD_FORCE_FRACTION,
+    LINK_FORCE_LIMIT_N,
+)
+from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 
 from .demo import (
     DemoError,
@@ -48,6 +53,38 @@ COLLECTOR_WINDOWS = {'window_s': 0.2, 'capture_s': 0.3}
 PLAN_CANDIDATES = 1000
 # The supervisor stops the machine first, so that the collector records to the end.
 STOP_ORDER = ('executor', 'driver', 'collector', 'identify')
+
+# The drives' and the executor's limits sized for sliders (the nodes' defaults: m, N/m, N).
+SLIDER_DRIVE_LIMITS = {
+    'max_following_error_m': (5e-4, 'length'),
+    'servo_stiffness_n_per_m': (COMPLIANT_SERVO_STIFFNESS_N_PER_M, 'stiffness'),
+    'max_force_n': (LINK_FORCE_LIMIT_N, 'force'),
+}
+SLIDER_EXECUTOR_LIMITS = {
+    'position_tolerance_m': (5e-3, 'length'),
+    'still_tolerance_m': (1e-4, 'length'),
+    'released_margin_m': (1e-3, 'length'),
+    'servo_stiffness_n_per_m': (COMPLIANT_SERVO_STIFFNESS_N_PER_M, 'stiffness'),
+    'max_force_n': (GUARD_FORCE_FRACTION * LINK_FORCE_LIMIT_N, 'force'),
+}
+
+
+def actuator_limits(arch, limits: dict[str, tuple[float, str]]) -> dict[str, float]:
+    """
+    Return the node parameters of `limits` in the actuators' unit of `arch` (none for sliders).
+
+    The nodes' defaults are sized for sliders (m, N/m, N); an architecture whose actuators
+    turn gets them through its lever (Architecture.actuator_limit: rad, N m/rad, N m), so the
+    compliant servos, the following-error guard and the executor's tolerances mean the same
+    travel at the actuator's joint. The measuring link's force limits (``max_link_force_n``)
+    are on the link, in N for every architecture, and are not among them.
+    """
+    if arch.actuator_lever_m == 1.0:
+        return {}
+    return {
+        name: arch.actuator_limit(value, dimension)
+        for name, (value, dimension) in limits.items()
+    }
 
 
 def claim_domain_id() -> int:
@@ -144,8 +181,10 @@ def system_launches(
     from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC
 
     from ..bringup.system import launches
+    from ..core.architectures import architecture
 
     noise = args.noise_um * 1e-6
+    arch = architecture(model_name(args))
     nodes = launches(
         nominal=str(paths.nominal),
         output_dir=str(paths.work),
@@ -167,6 +206,7 @@ def system_launches(
             'settle_s': float(args.settle_s),
             'timeout_s': 30.0 + float(args.dwell_s),
             'refine_targets': bool(refine),
+            **actuator_limits(arch, SLIDER_EXECUTOR_LIMITS),
         },
         driver={
             'true_params': str(paths.true_params),
@@ -176,6 +216,7 @@ def system_launches(
             'slider_noise_m': noise,
             'angle_noise_rad': noise,
             'sensor_effects': getattr(args, 'sensor_effects', ''),
+            **actuator_limits(arch, SLIDER_DRIVE_LIMITS),
             **physics_parameters(args),
             **dict(getattr(args, 'driver_param', []) or []),
         },
@@ -269,8 +310,8 @@ def run_demo(args: argparse.Namespace) -> int:
         print(
             f'hexacal demo: the executor walks an O1 plan of {args.postures} postures '
             f'({args.plan}, {measuring_mode(args)}) on the simulated machine{machine} through its '
-            f'trajectory-controller interface, +-{args.noise_um:g} um / +-{args.noise_um:g} urad '
-            'noise, '
+            f'trajectory-controller interface, +-{args.noise_um:g} '
+            f'{MODELS[model].actuator_quantities.small} / +-{args.noise_um:g} urad noise, '
             f'{args.rate_hz:g} Hz'
             + (
                 f', sensor effects {args.sensor_effects}'

@@ -95,8 +95,10 @@ def walk(
         return values if state == 'done' else None
 
     try:
+        # The executor may take its own timeout_s per posture before it skips one: wait as long.
+        per_posture_s = float(executor_launch.parameters.get('timeout_s', 30.0))
         done = session.wait(
-            f'the executor to walk the {label} plan', 60.0 + 10.0 * total, group, progress
+            f'the executor to walk the {label} plan', 60.0 + per_posture_s * total, group, progress
         )
     finally:
         bar.close()

@@ -7,7 +7,10 @@ the measuring mode, the postures, the simulated drives' figures from the driver'
 the force of compliant servos, the extension of an LVDT link), the pose errors against the
 simulated truth (the demo's pose table) and the verification figures as identify kept them in
 the calibration store: the object of ``hexacal verify --json`` (VerificationResult.to_json, one
-owner of those keys). SI units; a figure that does not apply to the mode is null.
+owner of those keys). SI units; a figure that does not apply to the mode is null.  The
+actuator figures keep their slider names (``max_actuator_deviation_m``, ``max_force_n``) and are
+in the model's actuator units, which ``actuator_unit`` names: m and N, or rad and N m for
+actuators that turn.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from typing import Any, Mapping
 
 from hexacal_msgs_py.files import atomic_write
 from hexacal_msgs_py.measuring_modes import MeasuringMode
+from hexacal_msgs_py.models import MODELS
 
 SUMMARY_FILE = 'summary.json'
 UM = 1e6
@@ -79,6 +83,7 @@ def build_summary(
     """
     return {
         'model': model,
+        'actuator_unit': MODELS[model].actuator_unit,
         'measuring_mode': str(measuring_mode),
         'postures': int(postures),
         **driver_figures(driver_values, str(measuring_mode)),
@@ -102,16 +107,24 @@ def fit_adequacy(values: Mapping[str, str]) -> dict[str, Any]:
 
 
 def summary_lines(summary: Mapping[str, Any]) -> list[str]:
-    """Return the drives' figures of a summary as the lines the demo prints (um, N)."""
+    """
+    Return the drives' figures of a summary as the lines the demo prints.
+
+    Deviations in um and forces in N for linear actuators, urad and N m for those that turn
+    (the summary's model says which); the link's extension in um.
+    """
+    units = MODELS[summary['model']].actuator_quantities
     deviation = summary['max_actuator_deviation_m']
     lines = [
         '',
         f'Drives ({summary["measuring_mode"]}), the simulated truth at rest',
         'largest deviation of a commanded actuator from its setpoint: '
-        + ('n/a' if deviation is None else f'{deviation * UM:.1f} um'),
+        + ('n/a' if deviation is None else units.shown_small(deviation)),
     ]
     if summary['max_force_n'] is not None:
-        lines.append(f'largest actuator force: {summary["max_force_n"]:.1f} N')
+        lines.append(
+            f'largest actuator {units.effort}: {summary["max_force_n"]:.1f} {units.effort_unit}'
+        )
     if summary.get('max_link_force_n') is not None:
         lines.append(f'largest measuring-link force: {summary["max_link_force_n"]:.1f} N')
     if summary['max_link_extension_m'] is not None:

@@ -7,6 +7,8 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from hexacal_msgs_py.models import ActuatorQuantities, LINEAR_ACTUATOR
+
 from .command_line import Progress
 
 if TYPE_CHECKING:
@@ -136,12 +138,14 @@ def _plan_arguments(plan) -> None:
     plan.add_argument(
         '--stroke-m',
         '--slider-stroke-m',
+        '--stroke',
         dest='stroke_m',
         type=float,
         nargs=2,
         metavar=('MIN', 'MAX'),
-        help="actuator stroke: the reading lambda's range (default: the "
-        "model's; Hexa Slide slider 0 0.9, Gough-Stewart leg extension 0 0.5)",
+        help="actuator stroke: the reading lambda's range in its SI unit, m for sliders and "
+        "legs, rad for cranks (default: the model's; Hexa Slide slider 0 0.9 m, Gough-Stewart "
+        'leg extension 0 0.5 m, rotary hexapod crank -1.2 1.2 rad)',
     )
     plan.add_argument(
         '--max-u-joint-deg',
@@ -396,7 +400,10 @@ def run_plan(args) -> int:
             f'identified with the machine; procedure {args.procedure}: {mountings} (turn the '
             'device about its link axis between the groups)'
         )
-    _print_measuring(planning.measuring, layout.actuator_names)
+    _print_measuring(
+        planning.measuring, layout.actuator_names, layout.actuator_quantities,
+        nominal.architecture.released_margin,
+    )
     if planning.rank < layout.n_parameters:
         print(
             f'  note: these {len(plan)} postures identify {planning.rank} of '
@@ -415,12 +422,23 @@ def _index_cell(value: float) -> str:
     return f'{value:.4g}' if math.isfinite(value) else 'n/a'
 
 
-def _print_measuring(measuring, actuator_names: tuple[str, ...]) -> None:
-    """Print what the plan's measuring mode adds: released actuators, or LVDT extensions."""
+def _print_measuring(
+    measuring,
+    actuator_names: tuple[str, ...],
+    units: ActuatorQuantities = LINEAR_ACTUATOR,
+    margin: float | None = None,
+) -> None:
+    """
+    Print what the plan's measuring mode adds: released actuators, or LVDT extensions.
+
+    The released actuator's travel and margin in the actuators' display unit (mm, or deg for
+    cranks); the LVDT's in mm.
+    """
     import numpy as np
 
     from ..core.modes.released_actuator import DEFAULT_MARGIN_M
 
+    margin = DEFAULT_MARGIN_M if margin is None else margin
     print(f'  measuring mode {measuring.mode.value}')
     release = measuring.release
     if release is not None:
@@ -439,8 +457,8 @@ def _print_measuring(measuring, actuator_names: tuple[str, ...]) -> None:
             f'  conditioning, angles scaled by L: chosen max {np.max(chosen):.3g} (median '
             f'{np.median(chosen):.3g}); the worst actuator to release would give max '
             f'{np.max(worst):.3g} (median {np.median(worst):.3g}); the released actuator travels '
-            f'up to {np.max(release.released_travel) * 1e3:.1f} mm on a move, inside its stroke'
-            f' less {DEFAULT_MARGIN_M * 1e3:g} mm'
+            f'up to {units.shown(np.max(release.released_travel), 1)} on a move, inside its '
+            f'stroke less {units.shown(margin, 2)}'
             + (
                 f'; {int(np.sum(release.via_centre))} move(s) by way of the centre'
                 if np.any(release.via_centre)

@@ -261,7 +261,10 @@ class CollectorNode(Node):
                 self.recording.flush()
         self._posture_pub.publish(message)
         self.postures_published += 1
-        self.get_logger().info(health.posture_line(self.postures_published, posture, turn))
+        units = MODELS[self.model].actuator_quantities  # um for sliders, urad for cranks
+        self.get_logger().info(
+            health.posture_line(self.postures_published, posture, turn, units)
+        )
 
     # ------------------------------------------------------------------ recording
 

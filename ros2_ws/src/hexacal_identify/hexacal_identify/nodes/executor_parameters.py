@@ -41,14 +41,15 @@ PARAMETERS: dict[str, _Spec] = {
     ),
     'max_actuator_speed_m_s': _Spec(
         SETTINGS.max_actuator_speed_m_s,
-        'time_from_start of a move is its largest actuator move at this speed (m/s)',
+        'time_from_start of a move is its largest actuator move at this speed (m/s'
+        '; rad/s for actuators that turn)',
         1e-6,
         10.0,
     ),
     'position_tolerance_m': _Spec(
         SETTINGS.position_tolerance_m,
         'the machine is at the target '
-        'when every measured actuator is within this of it (m); it '
+        'when every measured actuator is within this of it (m; rad for actuators that turn); it '
         'allows for the strain of the measuring link with a nominal '
         'model millimetres off',
         1e-7,
@@ -56,9 +57,8 @@ PARAMETERS: dict[str, _Spec] = {
     ),
     'still_tolerance_m': _Spec(
         SETTINGS.still_tolerance_m,
-        'the machine is still when no measured '
-        'actuator moves more than this (peak to peak, m) over settle_s: '
-        'above the reading noise',
+        'the machine is still when no measured actuator moves more than this (peak to peak, '
+        'm; rad for actuators that turn) over settle_s: above the reading noise',
         1e-7,
         0.01,
     ),
@@ -181,15 +181,17 @@ PARAMETERS: dict[str, _Spec] = {
     ),
     'servo_stiffness_n_per_m': _Spec(
         GUARD.servo_stiffness_n_per_m,
-        "compliant (named): each servo's stiffness (N/m; the driver's); a move's predicted force "
-        'is this x the predicted strain of the machine against the link',
+        "compliant (named): each servo's stiffness (N/m, N m/rad for actuators that turn; the "
+        "driver's); a move's predicted force (torque) is this x the predicted strain of the "
+        'machine against the link',
         1.0,
         1e12,
     ),
     'max_force_n': _Spec(
         GUARD.max_force_n,
-        'compliant (named): a move whose predicted force on a servo exceeds this (N) is not sent: '
-        "the plan pauses (default 0.8 x the driver's: room for what the model misses)",
+        'compliant (named): a move whose predicted force on a servo exceeds this (N; N m for '
+        "actuators that turn) is not sent: the plan pauses (default 0.8 x the driver's: room "
+        'for what the model misses)',
         1e-6,
         1e9,
     ),
@@ -205,7 +207,8 @@ PARAMETERS: dict[str, _Spec] = {
     'released_margin_m': _Spec(
         GUARD.released_margin_m,
         'passive_actuator: the released actuator is kept this far inside the actuator stroke '
-        '(stroke_limits_m) along every move (predicted on the model, m); a move that would jam '
+        '(stroke_limits_m) along every move (predicted on the model, m; rad for actuators that '
+        'turn); a move that would jam '
         'the passive system or leave it pauses the plan',
         0.0,
         1.0,
@@ -228,7 +231,7 @@ PARAMETERS: dict[str, _Spec] = {
 MODEL_PARAMETERS: dict[str, _Spec] = {
     'stroke_limits_m': _Spec(
         [0.0, 1.0],
-        '[low, high] actuator stroke (m) every target must lie '
+        '[low, high] actuator stroke (m; rad for actuators that turn) every target must lie '
         "in; default: the plan's (hexacal plan's --stroke-m, recorded "
         "in the plan file), else the model's (its default workspace)",
         constraints='two finite numbers, low < high',

@@ -73,8 +73,8 @@ PARAMETERS: dict[str, _Spec] = {
     ),
     'noise_slider_m': _Spec(
         0.0,
-        'known slider noise half-width (m); with noise_angle_rad > 0 the residuals are weighted '
-        'by the reading noise; 0 = unweighted',
+        'known actuator noise half-width (m; rad for actuators that turn); with '
+        'noise_angle_rad > 0 the residuals are weighted by the reading noise; 0 = unweighted',
         0.0,
         0.01,
     ),
@@ -93,7 +93,8 @@ PARAMETERS: dict[str, _Spec] = {
     ),
     'scatter_floor_actuator_m': _Spec(
         ScatterFloor().actuator_m,
-        'smallest standard error (m) an actuator value is credited with when weighed by scatter',
+        'smallest standard error (m; rad for actuators that turn) an actuator value is '
+        'credited with when weighed by scatter',
         1e-9,
         0.01,
     ),

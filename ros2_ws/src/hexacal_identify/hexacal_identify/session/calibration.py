@@ -127,7 +127,11 @@ def run_calibration(
         return failure(Reason.INVALID_DEVICE_PRIOR, str(error), **about)
     try:
         choice = weight_choice(
-            postures, settings.weights, noise, settings.scatter_floor()
+            postures,
+            settings.weights,
+            noise,
+            settings.scatter_floor(),
+            nominal.layout.actuator_unit,
         )
     except ValueError as error:  # scatter asked for but missing, a noise model asked for but unset
         return failure(Reason.INVALID_OPTIONS, str(error), **about)

@@ -57,8 +57,12 @@ whose ``architecture`` is the instance):
   (``machine_label``, ``nominal_label``, ``truth_file_name``), notes on
   dimensionless fields (``error_table_note``, ``std_note``),
   ``default_machine_alias`` (a ``hexacal params`` choice naming the default
-  machine) and ``paper_accuracy`` (a published Table 3 to print beside the
-  study of this machine).
+  machine), ``paper_accuracy`` (a published Table 3 to print beside the
+  study of this machine) and ``actuator_lever_m`` (metres of travel at the
+  actuator's joint per unit reading: 1 for sliders, the crank length for cranks;
+  ``actuator_limit`` and ``released_margin`` size the limits by it).  The units
+  of the actuators (``actuator_quantities``) come from the layout's
+  ``actuator_unit``.
 
 Poses are ``X = [x, y, z, theta, psi, phi]`` with R = R_Y(theta) R_X(psi)
 R_z(phi) (eq. 2) for every architecture.
@@ -70,7 +74,7 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any, ClassVar, Generic, Protocol, Self, Sequence, TypeVar
 
-from hexacal_msgs_py.models import ModelLayout
+from hexacal_msgs_py.models import ActuatorQuantities, ModelLayout
 import numpy as np
 
 from .common import rotation_from_trig
@@ -247,6 +251,45 @@ class Architecture(ABC, Generic[P]):
     default_machine_alias: ClassVar[str | None] = None  # a `hexacal params` choice for it
     # A published accuracy table of this machine (Table 3-like), printed beside its study.
     paper_accuracy: ClassVar[dict[Any, dict[str, float]] | None] = None
+    # Metres of travel at the actuator's joint per unit of its reading: 1 for sliders and legs,
+    # the crank length (m/rad) for actuators that turn.  What turns the limits sized for
+    # sliders (margins and tolerances in m, stiffness in N/m, force in N) into this actuator's
+    # unit (``actuator_limit``), so that no consumer asks which model it drives.
+    actuator_lever_m: ClassVar[float] = 1.0
+
+    @property
+    def actuator_quantities(self) -> ActuatorQuantities:
+        """
+        Return the units of this architecture's actuators: the layout's ``actuator_unit``.
+
+        Linear (m, force, mm shown) or rotary (rad, torque, deg shown): what every consumer
+        outside the architecture's module reads instead of assuming a slider in metres.
+        """
+        return self.layout.actuator_quantities
+
+    def actuator_limit(self, value: float, dimension: str = 'length') -> float:
+        """
+        Return a limit sized for sliders in this architecture's actuator unit.
+
+        ``dimension``: 'length' (m -> m or rad: a margin, a tolerance, a following error),
+        'force' (N -> N or N m) or 'stiffness' (N/m -> N/m or N m/rad); through
+        ``actuator_lever_m``, so a slider's limits come back unchanged.
+        """
+        lever = self.actuator_lever_m
+        scale = {'length': 1.0 / lever, 'force': lever, 'stiffness': lever * lever}
+        if dimension not in scale:
+            raise ValueError(f'dimension must be one of {sorted(scale)}, got {dimension!r}')
+        return float(value) * scale[dimension]
+
+    @property
+    def released_margin(self) -> float:
+        """
+        Return the margin a released actuator keeps from its stroke ends, in its unit.
+
+        5 mm of travel at the actuator's joint (m for sliders, rad for cranks): the true
+        machine's departure from the nominal (up to 4 mm on the demo's sliders) and more.
+        """
+        return self.actuator_limit(0.005)
 
     @property
     def machine_label(self) -> str:

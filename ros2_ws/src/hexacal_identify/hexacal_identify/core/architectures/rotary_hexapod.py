@@ -445,6 +445,8 @@ class RotaryHexapod(Architecture[RotaryHexapodParameters]):
     # Table 2's rows; on the three angles "1 mm" is 1 mrad.
     nominal_error_stats_mm = {1: (1.8, 0.80, 0.87), 2: (2.8, 1.33, 1.45), 3: (9.2, 4.99, 5.28)}
     error_table_note = ' (axis_az, axis_el, alpha0: mrad)'
+    # Travel at the crank tip per rad of reading: limits sized for sliders, in rad.
+    actuator_lever_m = CRANK_M
     std_note = ' (angles: urad)'
 
     def __init__(self, branch: int = MACHINE_BRANCH, reading_centre: float | None = None):

@@ -22,6 +22,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from hexacal_msgs_py.models import actuator_quantities
+
 from ..errors import InvalidMeasurementError
 from ..machine.measurements import NoiseModel, ScatterFloor, Weights
 
@@ -52,14 +54,18 @@ def choose_weights(
     postures: int,
     noise: NoiseModel | None,
     floor: ScatterFloor = ScatterFloor(),
+    actuator_unit: str = 'm',
 ) -> WeightChoice:
     """
     Return what weighs a fit of `postures` postures, `with_scatter` of which carry scatter.
 
-    Raises InvalidMeasurementError for ``scatter`` when a posture carries none, ValueError for
-    ``noise-model`` without a noise model or an unknown mode.
+    ``actuator_unit`` (the model's, m or rad) labels the actuators' figures in the note: um for
+    sliders and legs, urad for cranks.  Raises InvalidMeasurementError for ``scatter`` when a
+    posture carries none, ValueError for ``noise-model`` without a noise model or an unknown
+    mode.
     """
     mode = weight_mode(mode)
+    small = actuator_quantities(actuator_unit).small  # um, or urad for cranks
     everyone = postures > 0 and with_scatter == postures
     if mode == SCATTER and not everyone:
         raise InvalidMeasurementError(
@@ -70,7 +76,7 @@ def choose_weights(
         return WeightChoice(
             Weights.SCATTER,
             "each posture's measured scatter (standard errors of its means, at least "
-            f'{floor.actuator_m * UM:.3g} um / {floor.angle_rad * UM:.3g} urad)',
+            f'{floor.actuator_m * UM:.3g} {small} / {floor.angle_rad * UM:.3g} urad)',
         )
     # Scatter on some postures only: it cannot weigh them all alike, so it weighs none.
     partial = (
@@ -86,7 +92,7 @@ def choose_weights(
     if mode in (NOISE_MODEL, AUTO) and noise is not None:
         return WeightChoice(
             Weights.NOISE_MODEL,
-            f'{partial}the noise model (uniform +-{noise.actuator_m * UM:.3g} um on the '
+            f'{partial}the noise model (uniform +-{noise.actuator_m * UM:.3g} {small} on the '
             f'actuators, +-{noise.angle_rad * UM:.3g} urad on the angles, every posture alike)',
         )
     why = 'asked for' if mode == NONE else 'no noise model and no scatter'

@@ -52,8 +52,15 @@ from ..machine.device import DEFAULT_MOUNT
 
 DEFAULT_STEP_M = 0.01  # path samples at most this far apart (position; angles times L)
 # Kept from both stroke ends by the released actuator along every move: the largest deviation
-# of the true machine from a nominal model (the demo's strain: up to 4 mm) and more.
+# of the true machine from a nominal model (the demo's strain: up to 4 mm) and more.  The
+# default of linear actuators; each architecture states its own in its actuators' unit
+# (Architecture.released_margin, rad for cranks), which a margin of None takes.
 DEFAULT_MARGIN_M = 0.005
+
+
+def released_margin(params: KinematicParameters, margin_m: float | None = None) -> float:
+    """Return `margin_m`, or when None the architecture's (its actuators' unit: m or rad)."""
+    return params.architecture.released_margin if margin_m is None else float(margin_m)
 
 
 class ReleaseError(CalibrationError, ValueError):
@@ -162,7 +169,7 @@ def choose_released_actuators(
     link_length: float,
     stroke_m: tuple[float, float],
     *,
-    margin_m: float = DEFAULT_MARGIN_M,
+    margin_m: float | None = None,
     step_m: float = DEFAULT_STEP_M,
     start: np.ndarray | None = None,
     mount: str = DEFAULT_MOUNT,
@@ -175,12 +182,14 @@ def choose_released_actuators(
 
     `poses` (K, 6) in plan order, planned on `params` (the nominal machine) and the link sphere
     of radius `link_length`; `stroke_m` the actuator stroke (low, high), m; `margin_m` kept
-    from both ends along every move by the released actuator; `mount` the device's (the centre
+    from both ends along every move by the released actuator (None: the architecture's
+    ``released_margin``; m, or rad for cranks like the stroke); `mount` the device's (the centre
     a move may go by); `rehearsal` the machines the moves are rehearsed on; `groups` (K,) when
     the order within each group of postures is free (``ReleaseChoice.order`` then says it);
     `batched` False rehearses machine by machine (the reference; the same choice, slower).
     """
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    margin_m = released_margin(params, margin_m)
     rehearser = Rehearser(params, link_length, stroke_m, margin_m, step_m, mount, rehearsal,
                           batched=batched)
     order = None
@@ -224,7 +233,7 @@ def release_from_here(
     stroke_m: tuple[float, float],
     exclude: Sequence[int],
     *,
-    margin_m: float = DEFAULT_MARGIN_M,
+    margin_m: float | None = None,
     mount: str = DEFAULT_MOUNT,
     rehearsal: RehearsalSettings = RehearsalSettings(),
     prefer: int | None = None,
@@ -242,6 +251,7 @@ def release_from_here(
     standing with the five measured commanded actuators, as the planner would choose
     (`batched` as in ``choose_released_actuators``).
     """
+    margin_m = released_margin(model, margin_m)
     rehearser = Rehearser(model, link_length, stroke_m, margin_m, DEFAULT_STEP_M, mount,
                           rehearsal, batched=batched)
     rehearser.stand_at(actuators, released, here)
@@ -262,11 +272,11 @@ def release_from_here(
 def _release_error(params, stroke, margin_m, posture: int) -> ReleaseError:
     """Return the error of a posture no actuator can be released for."""
     low, high = stroke
-    names = params.layout.actuator_names
+    names, unit = params.layout.actuator_names, params.layout.actuator_unit
     return ReleaseError(
         f'posture {posture}: no actuator can be released - every one of '
-        f'{", ".join(names)} leaves the stroke [{low + margin_m:g}, {high - margin_m:g}] m '
-        f'(stroke less the {margin_m:g} m margin) at the posture or on the move to it, or '
+        f'{", ".join(names)} leaves the stroke [{low + margin_m:g}, {high - margin_m:g}] {unit} '
+        f'(stroke less the {margin_m:g} {unit} margin) at the posture or on the move to it, or '
         'makes the five commanded plus the link singular',
         posture,
     )
@@ -274,6 +284,7 @@ def _release_error(params, stroke, margin_m, posture: int) -> ReleaseError:
 
 __all__ = [
     'DEFAULT_MARGIN_M',
+    'released_margin',
     'DEFAULT_MAX_MOVE_CONDITION',
     'DEFAULT_STEP_M',
     'RehearsalSettings',

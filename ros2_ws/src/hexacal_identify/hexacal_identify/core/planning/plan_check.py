@@ -127,14 +127,15 @@ def plan_targets(
                 f'got |p| = {np.linalg.norm(pose[:3]):.9g} m'
             )
         else:
+            unit = nominal.layout.actuator_unit
             outside = [
-                f'{names[c]} {targets[index, c]:.4f} m'
+                f'{names[c]} {targets[index, c]:.4f} {unit}'
                 for c in range(6)
                 if not low <= targets[index, c] <= high
             ]
             if outside:
-                problems[index] = f'target outside the stroke [{low:g}, {high:g}] m: ' + ', '.join(
-                    outside
+                problems[index] = (
+                    f'target outside the stroke [{low:g}, {high:g}] {unit}: ' + ', '.join(outside)
                 )
     return targets, problems
 

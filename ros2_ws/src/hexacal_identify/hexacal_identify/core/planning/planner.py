@@ -463,7 +463,10 @@ def plan_postures(
     weighting = (
         'none'
         if noise is None
-        else f'noise {actuator} {noise.actuator_m:g} m, angles {noise.angle_rad:g} rad'
+        else (
+            f'noise {actuator} {noise.actuator_m:g} {nominal.layout.actuator_unit}, angles '
+            f'{noise.angle_rad:g} rad'
+        )
     )
     metadata = {
         'planner': 'hexacal plan',

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from typing import Any
 
+from hexacal_msgs_py.models import ActuatorQuantities, LINEAR_ACTUATOR
 from hexacal_msgs_py.names import DEVICE_TURN_JOINT, LINK_LENGTH_JOINT
 from hexacal_msgs_py.readings import NS_PER_S, PostureReading
 
@@ -415,14 +416,23 @@ def turn_change_line(previous: float, turn: float) -> str | None:
     )
 
 
-def posture_line(count: int, posture: DetectedPosture, turn: float) -> str:
-    """Return the line on the `count`-th posture published (its samples, spread, turn)."""
-    spread_um = max(posture.std[:6]) * 1e6
+def posture_line(
+    count: int,
+    posture: DetectedPosture,
+    turn: float,
+    quantities: ActuatorQuantities = LINEAR_ACTUATOR,
+) -> str:
+    """
+    Return the line on the `count`-th posture published (its samples, spread, turn).
+
+    The actuators' spread is in um, or urad for actuators that turn (`quantities`).
+    """
+    spread = quantities.shown_small(max(posture.std[:6]))
     spread_urad = max(posture.std[6:]) * 1e6
     turned = f', device turn {turn:.6g} rad' if turn != 0.0 else ''
     return (
-        f'posture {count}: {posture.sample_count} samples, std <= {spread_um:.1f} um '
-        f'(sliders) / {spread_urad:.1f} urad (angles){turned}'
+        f'posture {count}: {posture.sample_count} samples, std <= {spread} '
+        f'(actuators) / {spread_urad:.1f} urad (angles){turned}'
     )
 
 

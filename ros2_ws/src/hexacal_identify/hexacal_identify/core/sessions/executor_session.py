@@ -33,7 +33,7 @@ from typing import Any, TYPE_CHECKING
 from hexacal_msgs_py.inputs import DEFAULT_OFFSETS_RAD, DEFAULT_SIGNS, IMU_INCLINOMETER
 from hexacal_msgs_py.inputs import InputMapping
 from hexacal_msgs_py.measuring_modes import measuring_mode
-from hexacal_msgs_py.models import DEVICE_MOUNT_KEY
+from hexacal_msgs_py.models import DEVICE_MOUNT_KEY, MODELS
 from hexacal_msgs_py.names import INCLINOMETER_TOPIC
 from hexacal_msgs_py.parameters_file import read_parameters_file
 
@@ -224,13 +224,14 @@ class WalkSetup:
     def start_lines(self, plan: Plan, model: str, command_topic: str) -> list[str]:
         """Return what the node logs at the start: the plan, the commands, the turns."""
         kinds, stroke = [str(kind) for kind in plan.kinds], self.stroke
+        units = MODELS[model].actuator_quantities  # m and m/s, or rad and rad/s for cranks
         counts = {kind: kinds.count(kind) for kind in (SPHERE, FIXED)}
         lines = [
             f"plan '{plan.name}': {len(plan.poses)} postures ({counts[SPHERE]} sphere, "
             f'{counts[FIXED]} fixed) for a {model}; commands on {command_topic} (joints '
             f'{", ".join(self.actuator_joints)}), at most '
-            f'{self.settings.max_actuator_speed_m_s:g} m/s, stroke [{stroke[0]:g}, '
-            f'{stroke[1]:g}] m ({self.stroke_source})'
+            f'{self.settings.max_actuator_speed_m_s:g} {units.speed_unit}, stroke '
+            f'[{stroke[0]:g}, {stroke[1]:g}] {units.unit} ({self.stroke_source})'
         ]
         turns = sorted({float(turn) for turn in plan.turns})
         if any(turns):

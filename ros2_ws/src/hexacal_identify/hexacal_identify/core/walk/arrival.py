@@ -25,6 +25,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
+from hexacal_msgs_py.models import ActuatorQuantities, LINEAR_ACTUATOR
 import numpy as np
 
 from .inclinometer import InclinometerJudgement, InclinometerState, judge_inclinometer
@@ -40,7 +41,7 @@ MIN_WINDOW_READINGS = 3  # readings a still window needs
 
 
 def commanded_away(actuators: np.ndarray, target: np.ndarray, released: int | None) -> float:
-    """Return the largest distance (m) of a commanded chain from its target."""
+    """Return the largest distance of a commanded chain from its target (m, or rad)."""
     away = np.abs(actuators - target)
     if released is not None:  # the link puts the released chain where it goes
         away = np.delete(away, released)
@@ -139,12 +140,14 @@ def timeout_reason(
     released: int | None,
     judgement: InclinometerJudgement | None,
     corrections: int,
+    quantities: ActuatorQuantities = LINEAR_ACTUATOR,
 ) -> str:
     """
     Return why a posture was not done within ``timeout_s``.
 
     waiting_for_posture: it stood still at the target and waited for the collector;
-    posture_before: the collector's posture of this stop came before the last correction.
+    posture_before: the collector's posture of this stop came before the last correction;
+    quantities: the actuators' units (the distance from the target in mm, or deg for cranks).
     """
     timeout = settings.timeout_s
     if waiting_for_posture:
@@ -167,7 +170,7 @@ def timeout_reason(
         return f'fixed position not reached within {timeout:g} s ({corrections} corrections)'
     return (
         f'not at the target and still within {timeout:g} s (actuators up to '
-        f'{away * 1e3:.3f} mm from it)'
+        f'{quantities.shown(away)} from it)'
     )
 
 

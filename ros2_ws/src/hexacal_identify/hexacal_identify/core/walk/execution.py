@@ -633,6 +633,7 @@ class PlanExecution:
             now, self.settings, self._phase == Phase.POSTURE, self._posture_before,
             self.actuators, self.kinds[self.index], self._target, self.released_now,
             self.inclinometer_judgement, self._corrections,
+            self.nominal.layout.actuator_quantities,
         )
 
     def _skip(self, now: float, reason: str) -> list[Command]:

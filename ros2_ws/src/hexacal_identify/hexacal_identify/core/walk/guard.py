@@ -192,9 +192,11 @@ def _passive(model, samples, pose, released, link_length, stroke, settings, moun
         pose = solved.poses[0]
         position = float(solved.actuators[0, released])
         worst = max(worst, low - position, position - high)
+    units = model.layout.actuator_quantities  # the stroke and margin: m, or rad for cranks
     problem = (
-        f'the released actuator would leave its stroke [{stroke[0]:g}, {stroke[1]:g}] m less '
-        f'the {settings.released_margin_m * 1e3:g} mm margin by {worst * 1e3:.3f} mm on the way'
+        f'the released actuator would leave its stroke [{stroke[0]:g}, {stroke[1]:g}] '
+        f'{units.unit} less the {units.shown(settings.released_margin_m, 3)} margin by '
+        f'{units.shown(worst, 3)} on the way'
         if worst > limit
         else ''
     )
