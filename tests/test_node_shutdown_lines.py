@@ -17,7 +17,7 @@ def test_run_node_logs_the_kept_lines_after_the_node_is_destroyed():
     program = textwrap.dedent(
         """
         from rclpy.node import Node
-        from hexacal_identify.nodes.runtime import run_node, ShutdownLog
+        from hexacal_msgs_py.node_runtime import run_node, ShutdownLog
 
         class Stopping(Node):
             def __init__(self):

@@ -39,7 +39,6 @@ from hexacal_driver.reports import (
     WalkReport,
 )
 from hexacal_driver.simulation import WalkSample
-from hexacal_identify.nodes.runtime import run_node
 from hexacal_msgs_py.conversions import (
     actuator_reading_to_joint_state,
     diagnostic_status,
@@ -62,6 +61,7 @@ from hexacal_msgs_py.names import (
     SLIDERS_TOPIC,
 )
 from hexacal_msgs_py.node_parameters import parameter_descriptor
+from hexacal_msgs_py.node_runtime import run_node
 from hexacal_msgs_py.qos import COMMAND_QOS, SENSOR_QOS, STATUS_QOS
 from hexacal_msgs_py.readings import ActuatorReading, EncoderReading, InclinometerReading
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult

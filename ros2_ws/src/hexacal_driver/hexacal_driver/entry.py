@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sys
 
-from hexacal_identify.nodes.runtime import remember_termination_signals
+from hexacal_msgs_py.node_runtime import remember_termination_signals
 
 
 def driver() -> int:

@@ -24,6 +24,7 @@ from hexacal_msgs_py.errors import HexacalContractError
 from hexacal_msgs_py.models import MODELS
 from hexacal_msgs_py.names import CALIBRATION_STATUS_TOPIC, JOINT_STATE_TYPE
 from hexacal_msgs_py.names import DRIVER_STATUS_NAME, LINK_LENGTH_JOINT, LINK_TOPIC, POSTURE_TOPIC
+from hexacal_msgs_py.node_runtime import run_node
 from hexacal_msgs_py.qos import POSTURE_QOS, SENSOR_QOS, STATUS_QOS
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
@@ -39,7 +40,6 @@ from .collector_inputs import InputReader, InputSource, link_source, RAW_TOPICS
 from .collector_inputs import stamp_ordered, STREAM_OF_TOPIC
 from .collector_parameters import CollectorConfigurationError, resolve_model
 from .polled_subscriptions import deep_reader_qos, PolledGroup, PolledSubscription
-from .runtime import run_node
 from ..bag import BagError, BagWriter
 from ..bag import naming
 from ..bag.measuring import MEASURING_METADATA, MeasuringRecord

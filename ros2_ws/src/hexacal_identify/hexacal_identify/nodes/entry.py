@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import sys
 
-from .runtime import remember_termination_signals
+from hexacal_msgs_py.node_runtime import remember_termination_signals
 
 
 def collector() -> int:

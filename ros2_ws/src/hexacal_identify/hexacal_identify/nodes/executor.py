@@ -45,6 +45,7 @@ from hexacal_msgs_py.names import (
     POSTURE_TOPIC,
     SLIDERS_TOPIC,
 )
+from hexacal_msgs_py.node_runtime import run_node
 from hexacal_msgs_py.qos import COMMAND_QOS, PARAMETERS_QOS, POSTURE_QOS, SENSOR_QOS
 from hexacal_msgs_py.qos import STATUS_MONITOR_QOS, STATUS_QOS
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
@@ -58,7 +59,6 @@ from trajectory_msgs.msg import JointTrajectory
 from .executor_io import log_lines, log_messages, now_s as _now_s, ReleaseClient, TurnClient
 from .executor_io import trajectory_message, trigger_answer
 from .executor_parameters import declare_model_parameters, declare_parameters
-from .runtime import run_node
 from ..core.machine.device import DeviceMountError
 from ..core.planning.plan_check import PlanRefusedError
 from ..core.sessions.executor_session import CalibrationCall, input_mapping, load_plan

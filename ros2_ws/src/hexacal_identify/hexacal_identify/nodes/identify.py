@@ -40,6 +40,7 @@ from hexacal_msgs_py.names import (
     VERIFY_SERVICE,
 )
 from hexacal_msgs_py.node_parameters import parameter_descriptor
+from hexacal_msgs_py.node_runtime import run_node, ShutdownLog
 from hexacal_msgs_py.qos import PARAMETERS_QOS, POSTURE_QOS, STATUS_QOS
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
@@ -53,7 +54,6 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
 from .identify_parameters import PARAMETERS
-from .runtime import run_node, ShutdownLog
 from ..session import (
     CalibrationSession,
     Level,

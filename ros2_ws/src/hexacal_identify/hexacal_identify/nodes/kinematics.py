@@ -38,6 +38,7 @@ from hexacal_msgs_py.names import (
     TARGET_POSE_TOPIC,
 )
 from hexacal_msgs_py.node_parameters import parameter_descriptor
+from hexacal_msgs_py.node_runtime import run_node
 from hexacal_msgs_py.poses import fill_pose_message, pose_from_message
 from hexacal_msgs_py.qos import (
     COMMAND_QOS,
@@ -64,7 +65,6 @@ from visualization_msgs.msg import MarkerArray
 from .kinematics_parameters import DEFAULT_BASE_FRAME  # noqa: F401 - also imported from here
 from .kinematics_parameters import PARAMETERS, RUNTIME_PARAMETERS, UNSET
 from .markers import machine_markers  # noqa: F401 - also imported from here
-from .runtime import run_node
 from ..calibration_steps.machine_files import load_machine_and_mount
 from ..core.architectures import KinematicParameters, parameters_for
 from ..core.machine.device import check_mount, DEFAULT_MOUNT, DeviceMountError

@@ -21,13 +21,13 @@ from pathlib import Path
 import sys
 import time
 
+from hexacal_msgs_py.node_runtime import hold_termination_signals
 import rclpy
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from .runtime import hold_termination_signals
 from ..bag import BagError, open_bag
 from ..bag.qos_yaml import first_offered_profile
 
@@ -188,7 +188,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     except Exception:
         # A signal while the player is being built shuts the context down under it; the next rcl
-        # call (creating a publisher) then fails: a stop, not a crash (nodes/runtime.py's rule).
+        # call (creating a publisher) then fails: a stop, not a crash (node_runtime's rule).
         if rclpy.ok():
             raise
         return 0

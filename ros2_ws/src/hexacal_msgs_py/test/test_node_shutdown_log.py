@@ -1,6 +1,6 @@
 """A stopping node's lines are kept with their severity and logged once it is gone (no DDS)."""
 
-from hexacal_identify.nodes.runtime import ShutdownLog
+from hexacal_msgs_py.node_runtime import ShutdownLog
 
 
 def test_the_shutdown_log_keeps_every_line_with_its_severity():
