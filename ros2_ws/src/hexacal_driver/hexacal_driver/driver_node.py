@@ -79,15 +79,8 @@ NODE_NAME = 'driver'
 MAX_WAKE_HZ = 200.0
 SHUTDOWN_LINGER_S = 0.3
 
-__all__ = [
-    'DriverConfigurationError',
-    'DriverNode',
-    'main',
-    'MODEL_CHOICES',
-    'PARAMETERS',
-    'RUNTIME_PARAMETERS',
-    'STRAIN_WARNING_M',
-]
+__all__ = ['DriverConfigurationError', 'DriverNode', 'main', 'MODEL_CHOICES', 'PARAMETERS',
+           'RUNTIME_PARAMETERS', 'STRAIN_WARNING_M']
 
 
 class DriverNode(Node):
@@ -413,13 +406,9 @@ class DriverNode(Node):
 
     def _report_motion(self, phase: str) -> None:
         """Log the link's strain (throttled) and the end of each commanded motion."""
-        strain = self.machine.follower.strain_m
-        units = actuator_quantities_of(self.machine)
-        limit = self.machine.true_params.architecture.actuator_limit(STRAIN_WARNING_M)
-        warning = MotionReport.strain_warning(strain, units, limit)
+        warning, line = self._motion_report.lines(self.machine, phase, self.commands_accepted)
         if warning is not None:
             self.get_logger().warning(warning, throttle_duration_sec=STRAIN_WARNING_PERIOD_S)
-        line = self._motion_report.motion_line(phase, strain, self.commands_accepted, units)
         if line is not None:
             self.get_logger().info(line)
             # One status per rest: a monitor (the demo) hears every rest and its motion's peaks.

@@ -206,6 +206,16 @@ class MotionReport:
             'from their setpoints (commanded positions off the link sphere: move along it)'
         )
 
+    def lines(
+        self, machine: SimulatedMachine, phase: str, commands_accepted: int
+    ) -> tuple[str | None, str | None]:
+        """Return this tick's strain warning and end-of-motion line (each may be None)."""
+        strain = machine.follower.strain_m
+        units = actuator_quantities_of(machine)
+        limit = machine.true_params.architecture.actuator_limit(STRAIN_WARNING_M)
+        warning = self.strain_warning(strain, units, limit)
+        return warning, self.motion_line(phase, strain, commands_accepted, units)
+
     def motion_line(
         self,
         phase: str,

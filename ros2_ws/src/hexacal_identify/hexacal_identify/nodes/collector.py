@@ -40,8 +40,7 @@ from .collector_inputs import InputReader, InputSource, link_source, RAW_TOPICS
 from .collector_inputs import stamp_ordered, STREAM_OF_TOPIC
 from .collector_parameters import CollectorConfigurationError, resolve_model
 from .polled_subscriptions import deep_reader_qos, PolledGroup, PolledSubscription
-from ..bag import BagError, BagWriter
-from ..bag import naming
+from ..bag import BagError, BagWriter, naming
 from ..bag.measuring import MEASURING_METADATA, MeasuringRecord
 from ..bag.qos_yaml import qos_profiles_yaml
 from ..bag.recording import Recording
@@ -262,9 +261,7 @@ class CollectorNode(Node):
         self._posture_pub.publish(message)
         self.postures_published += 1
         units = MODELS[self.model].actuator_quantities  # um for sliders, urad for cranks
-        self.get_logger().info(
-            health.posture_line(self.postures_published, posture, turn, units)
-        )
+        self.get_logger().info(health.posture_line(self.postures_published, posture, turn, units))
 
     # ------------------------------------------------------------------ recording
 
