@@ -57,6 +57,7 @@ from dataclasses import dataclass
 import json
 import math
 import numbers
+from typing import Any, cast
 
 from hexacal_msgs_py.errors import HexacalContractError, InvalidReadingError
 from hexacal_msgs_py.interface_names import (  # noqa: F401 - re-exported
@@ -80,8 +81,7 @@ INPUT_NAMES = {
     INCLINOMETER_TOPIC: 'inclinometer',
     ENCODER_TOPIC: 'encoder',
 }
-# type: ignore[assignment]
-DEFAULT_INCLINOMETER_JOINTS: tuple[str, str] = tuple(INCLINOMETER_NAMES)
+DEFAULT_INCLINOMETER_JOINTS: tuple[str, str] = (INCLINOMETER_NAMES[0], INCLINOMETER_NAMES[1])
 DEFAULT_ROTARY_JOINT: str = ENCODER_NAMES[0]
 DEFAULT_SIGNS = (1.0, 1.0)
 DEFAULT_OFFSETS_RAD = (0.0, 0.0)
@@ -298,7 +298,8 @@ class InputMapping:
 
         `model`'s actuators, inclinometer_x/_y, rotary.
         """
-        return cls(model_layout(model or DEFAULT_MODEL).actuator_names, topics=tuple(topics))
+        three = cast('tuple[str, str, str]', tuple(topics))  # __post_init__ checks them
+        return cls(model_layout(model or DEFAULT_MODEL).actuator_names, topics=three)
 
     def _check_shared_topics(self) -> None:
         """
@@ -419,7 +420,7 @@ class InputMapping:
         if not any(key in record for key in MAPPING_KEYS):
             return None
 
-        def listed(key: str, default: Sequence) -> object:
+        def listed(key: str, default: Sequence) -> Any:  # a tuple, checked by __post_init__
             if key not in record:
                 return tuple(default)
             try:
@@ -434,20 +435,18 @@ class InputMapping:
 
         default = cls.default(model)
         return cls(
-            # type: ignore[arg-type]
             actuator_joints=listed('actuator_joints', default.actuator_joints),
-            # type: ignore[arg-type]
             inclinometer_joints=listed('inclinometer_joints', default.inclinometer_joints),
             rotary_joint=record.get('rotary_joint', default.rotary_joint),
             inclinometer_type=record.get('inclinometer_type', default.inclinometer_type),
-            # type: ignore[arg-type]
             inclinometer_signs=listed('inclinometer_signs', default.inclinometer_signs),
             inclinometer_offsets_rad=listed(
-                'inclinometer_offsets_rad',  # type: ignore[arg-type]
-                default.inclinometer_offsets_rad,
+                'inclinometer_offsets_rad', default.inclinometer_offsets_rad
             ),
-            # type: ignore[arg-type]
-            topics=tuple(record.get(_TOPIC_KEYS[topic], '') for topic in INPUT_TOPICS),
+            topics=cast(
+                'tuple[str, str, str]',
+                tuple(record.get(_TOPIC_KEYS[topic], '') for topic in INPUT_TOPICS),
+            ),
         )
 
     def describe(self) -> str:

@@ -31,7 +31,6 @@ with Table 2's statistics (the same three rows), drawn over 42 parameters.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
 
 from hexacal_msgs_py.models import GOUGH_STEWART, MODELS
 import numpy as np
@@ -49,7 +48,6 @@ from .base import (
     MechanismJoint,
     PASSIVE,
     SLIDE,
-    StackedLegs,
     universal_joint_axes,
 )
 from .common import (
@@ -60,8 +58,8 @@ from .common import (
     PlatformPoints,
     pose_jacobian_rows,
     rotation_from_trig,
-    StackedChains,
 )
+from .stacking import ElementwiseStacking
 
 LAYOUT = MODELS[GOUGH_STEWART]
 N_CHAINS = LAYOUT.n_chains
@@ -207,13 +205,14 @@ class _ChainIK:
         return blocks
 
 
-class GoughStewart(Architecture[GoughStewartParameters]):
+class GoughStewart(ElementwiseStacking, Architecture[GoughStewartParameters]):
     """6-UPS: universal joint on the base, prismatic leg, spherical joint on the platform."""
 
     name = GOUGH_STEWART
     layout = LAYOUT
     unreachable_reason = 'a leg of zero length'
     parameters_type = GoughStewartParameters
+    chain_ik = _ChainIK  # stacked rows too (ElementwiseStacking)
     nominal_error_stats_mm = {1: (1.8, 0.80, 0.87), 2: (2.8, 1.33, 1.45), 3: (9.2, 4.99, 5.28)}
 
     def default_machine_comment(self, params: KinematicParameters) -> str:
@@ -249,17 +248,6 @@ class GoughStewart(Architecture[GoughStewartParameters]):
 
     def legs(self, chains: _Chains, poses: np.ndarray) -> _ChainIK:
         return _ChainIK(chains, poses)
-
-    def stack_chains(self, chains: Sequence[_Chains]) -> StackedChains:
-        return StackedChains(chains)
-
-    def legs_stacked(
-        self, stacked: StackedChains, machine: np.ndarray, poses: np.ndarray
-    ) -> StackedLegs:
-        """Return the IK of row i on parameter set machine[i]: one elementwise call for all."""
-        rows = stacked.rows(np.asarray(machine, dtype=int))
-        legs = _ChainIK(rows, np.asarray(poses, dtype=float))
-        return StackedLegs(legs.actuators, legs.pose_jacobian(), legs.reachable())
 
     def acceptable_poses(
         self, params: GoughStewartParameters, poses: np.ndarray, workspace

@@ -29,7 +29,6 @@ vector is ``e = d - lambda a`` (slider joint A -> spherical joint B) and
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
 
 from hexacal_msgs_py.models import HEXA_SLIDE, MODELS
 import numpy as np
@@ -47,7 +46,6 @@ from .base import (
     MechanismJoint,
     PASSIVE,
     SLIDE,
-    StackedLegs,
     universal_joint_axes,
 )
 from .common import (
@@ -57,8 +55,8 @@ from .common import (
     platform_point_derivatives,
     PlatformPoints,
     pose_jacobian_rows,
-    StackedChains,
 )
+from .stacking import ElementwiseStacking
 
 LAYOUT = MODELS[HEXA_SLIDE]
 N_CHAINS = LAYOUT.n_chains
@@ -332,13 +330,14 @@ def rail_xy_slice(chain: int) -> slice:
     return slice(start + AXY_SLICE.start, start + AXY_SLICE.stop)
 
 
-class HexaSlide(Architecture[HexaParameters]):
+class HexaSlide(ElementwiseStacking, Architecture[HexaParameters]):
     """6-PRRS: a slider on an inclined rail, a fixed-length leg, a spherical platform joint."""
 
     name = HEXA_SLIDE
     layout = LAYOUT
     unreachable_reason = 'a leg is shorter than its distance to the rail'
     parameters_type = HexaParameters
+    chain_ik = _ChainIK  # stacked rows too (ElementwiseStacking)
     nominal_error_stats_mm = TABLE2_ERROR_STATS_MM
     # The rail components are dimensionless: "1 mm" of them is 1e-3, as Table 1 prints them.
     error_table_note = ' (a: unit-vector components x 1000, as in Table 1)'
@@ -392,17 +391,6 @@ class HexaSlide(Architecture[HexaParameters]):
 
     def legs(self, chains: _Chains, poses: np.ndarray) -> _ChainIK:
         return _ChainIK(chains, poses)
-
-    def stack_chains(self, chains: Sequence[_Chains]) -> StackedChains:
-        return StackedChains(chains)
-
-    def legs_stacked(
-        self, stacked: StackedChains, machine: np.ndarray, poses: np.ndarray
-    ) -> StackedLegs:
-        """Return the IK of row i on parameter set machine[i]: one elementwise call for all."""
-        rows = stacked.rows(np.asarray(machine, dtype=int))
-        legs = _ChainIK(rows, np.asarray(poses, dtype=float))
-        return StackedLegs(legs.actuators, legs.pose_jacobian(), legs.reachable())
 
     def acceptable_poses(self, params: HexaParameters, poses: np.ndarray, workspace) -> np.ndarray:
         geometry = leg_geometry(params, poses)
