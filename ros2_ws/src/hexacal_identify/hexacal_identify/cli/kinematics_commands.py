@@ -199,20 +199,9 @@ def _print(
     if angles == 'linuxcnc':
         _print_linuxcnc(params, pose, actuators, as_json, compliance)
         return
-    names = params.layout.actuator_names
-    if as_json:
-        payload = {
-            'model': params.model,
-            'pose': {field: float(value) for field, value in zip(POSE_FIELDS, pose)},
-            'actuators': {name: float(value) for name, value in zip(names, actuators)},
-        }
-        if compliance:
-            payload['compliance'] = compliance
-        print(json.dumps(payload))
+    fields = {field: float(value) for field, value in zip(POSE_FIELDS, pose)}
+    if _answer_head(params, fields, actuators, as_json, compliance):
         return
-    print(f'model {params.model}')
-    if compliance:
-        print(f'compliance {compliance}')
     for field, value, unit in zip(POSE_FIELDS, pose, POSE_UNITS):
         extra = f'  ({math.degrees(value):.6f} deg)' if unit == 'rad' else ''
         print(f'{field:<8} {value: .12f} {unit}{extra}')
@@ -269,23 +258,31 @@ def _print_linuxcnc(params, pose, actuators, as_json: bool, compliance: str = ''
     from ..core.machine.angle_conventions import linuxcnc_from_pose
 
     values = [float(value) for value in linuxcnc_from_pose(pose)]
-    names = params.layout.actuator_names
+    fields = dict(zip(LINUXCNC_POSE_FIELDS, values))
+    if _answer_head(params, fields, actuators, as_json, compliance):
+        return
+    for field, value, unit in zip(LINUXCNC_POSE_FIELDS, values, LINUXCNC_POSE_UNITS):
+        print(f'{field:<8} {value: .12f} {unit}')
+    _print_actuators(params, actuators)
+
+
+def _answer_head(params, pose: dict, actuators, as_json: bool, compliance) -> bool:
+    """Print the whole JSON answer (return True), or the text answer's first lines (False)."""
     if as_json:
+        names = params.layout.actuator_names
         payload = {
             'model': params.model,
-            'pose': dict(zip(LINUXCNC_POSE_FIELDS, values)),
+            'pose': pose,
             'actuators': {name: float(value) for name, value in zip(names, actuators)},
         }
         if compliance:
             payload['compliance'] = compliance
         print(json.dumps(payload))
-        return
+        return True
     print(f'model {params.model}')
     if compliance:
         print(f'compliance {compliance}')
-    for field, value, unit in zip(LINUXCNC_POSE_FIELDS, values, LINUXCNC_POSE_UNITS):
-        print(f'{field:<8} {value: .12f} {unit}')
-    _print_actuators(params, actuators)
+    return False
 
 
 def _print_actuators(params, actuators) -> None:
