@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from hexacal_driver.parameters import PARAMETERS
 import numpy as np
 import pytest
 from system_support import node_argv, probe  # noqa: F401 - fixture
@@ -218,13 +219,15 @@ def test_lvdt_link_length_is_published_and_six_stand_at_their_setpoints(
 def test_compliant_servos_publish_their_force_as_effort(
     ros_processes, probe  # noqa: F811 - fixture
 ):
+    stiffness = PARAMETERS['servo_stiffness_n_per_m'].default  # N/m, the driver's default
     machine = Machine(probe, start_driver(ros_processes, measuring_mode='compliant'))
     names = machine.sliders[-1][0]
     target = machine.positions() + np.array([1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3])
     machine.command(names, target, 1.0)
     status = machine.wait(
         lambda: machine.driver_status(
-            lambda v: float(v['actuator_deviation_m']) > 1e-4 and float(v['force_n']) > 100.0
+            lambda v: float(v['actuator_deviation_m']) > 1e-4
+            and float(v['force_n']) > stiffness * 1e-4
         ),
         'the status at rest with the servos strained by the link',
     )
@@ -235,5 +238,5 @@ def test_compliant_servos_publish_their_force_as_effort(
         'the efforts of the strained servos',
     )
     # effort = stiffness x (true position - setpoint); the readings carry +-1e-6 m of noise.
-    expected = 2e6 * (machine.positions() - target)
-    assert np.max(np.abs(machine.efforts[-1] - expected)) < 2e6 * 1.5e-6
+    expected = stiffness * (machine.positions() - target)
+    assert np.max(np.abs(machine.efforts[-1] - expected)) < stiffness * 1.5e-6
