@@ -80,7 +80,9 @@ def test_a_plan_keeps_the_margin_and_refuses_clearly_when_it_cannot():
     nominal = nominal_set(2, seed=1, model='hexa_slide')
     limits = PostureLimits.for_machine(nominal)
     error = model_error_rms_m(nominal)
-    result = plan_postures(nominal, 6, n_candidates=120, seed=1001, fixed_fraction=0.25)
+    result = plan_postures(
+        nominal, 6, n_candidates=120, seed=1001, fixed_fraction=0.25, model_error_m=None
+    )
     # Candidates short of the margin are replaced: the count and kind split asked for.
     assert len(result.candidates) == 120
     assert np.sum(result.candidates.kinds == 'fixed') == 30

@@ -369,7 +369,7 @@ def plan_postures(
     device_turns: tuple[float, ...] = (0.0,),
     measuring_mode: str | None = None,
     lvdt_stroke_m: float = DEFAULT_LVDT_STROKE_M,
-    model_error_m: float | None = None,
+    model_error_m: float | None = 0.0,
 ) -> PlanningResult:
     """
     Candidates -> Jacobian rows at ``nominal`` -> greedy (and exchange) selection -> ordered Plan.
@@ -381,7 +381,9 @@ def plan_postures(
     ``measuring_mode``: written into the plan with what it adds (module doc); None: neither.
     ``model_error_m``: the RMS parameter error of the nominal, from which the stroke margin a
     posture keeps for the model change before its targets are walked (model_margin.py); None:
-    the architecture's Table 2 set 2 RMS, 0: no margin.
+    the architecture's Table 2 set 2 RMS; 0 (the default): no margin. Not yet the default: the
+    margin changes which postures and releases a plan takes, and the passive system's
+    rehearsal does not yet keep every such plan off a fold on the true machine.
     """
     check_index(index)
     if limits is None:
