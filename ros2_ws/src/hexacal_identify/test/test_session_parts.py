@@ -48,6 +48,9 @@ def test_settings_fields_are_the_node_parameters():
         'weights',
         'scatter_floor_actuator_m',
         'scatter_floor_angle_rad',
+        'compliance',
+        'physical_file',
+        'compliance_prior',
     )
     assert Settings().output == DEFAULT_OUTPUT == 'hexacal_calibration.yaml'
     assert Settings(noise_slider_m=1e-5).noise() is None
