@@ -261,7 +261,8 @@ def calibrated_compliance(args, bag, calibrated):
         return None, {'values': {}, 'mode': 'none', 'physical': physical}
     import numpy as np
 
-    from ..core.fit.compliance import ComplianceModel, PER_CHAIN, SHARED
+    from ..calibration_steps.calibration_run import compliance_for_postures
+    from ..core.fit.compliance import PER_CHAIN, SHARED
     from ..core.fit.statics import MassModel
 
     if args.physical is not None:
@@ -274,27 +275,19 @@ def calibrated_compliance(args, bag, calibrated):
             f'the shipped {calibrated.model} physical description (no --physical given: the '
             'weights of your machine may differ)'
         )
+    per_chain = any(name.startswith('chain_') for name in values)
     mode = bag.measuring_mode
-    if mode is None:
-        raise ValueError(
-            f'the calibration {args.calibrated} carries compliances and the bag does not record '
-            'its measuring mode, on which the loads depend (which chains and whether the link '
-            'carry the weight)'
-        )
     released = None
     if mode == 'passive_actuator':
-        names = list(calibrated.layout.actuator_names)
-        joints = [bag.measuring.released_at(p.stamp_ns) for p in bag.postures]
-        missing = [i for i, joint in enumerate(joints) if joint not in names]
-        if missing:
-            raise ValueError(
-                f'the calibration {args.calibrated} carries compliances and {len(missing)} '
-                f'posture(s) of the passive_actuator bag name no released actuator of '
-                f'{", ".join(names)} (first: posture {missing[0]})'
-            )
-        released = np.array([names.index(joint) for joint in joints])
-    per_chain = any(name.startswith('chain_') for name in values)
-    model = ComplianceModel(PER_CHAIN if per_chain else SHARED, masses, mode, released)
+        released = [bag.measuring.released_at(p.stamp_ns) for p in bag.postures]
+    model = compliance_for_postures(
+        PER_CHAIN if per_chain else SHARED,
+        masses,
+        mode,
+        released,
+        calibrated.layout.actuator_names,
+        label=f'the calibration {args.calibrated} carries compliances:',
+    )
     vector = np.array([values.get(name, 0.0) for name in model.names])
     return (model, vector), {'values': values, 'mode': model.mode, 'physical': physical}
 
