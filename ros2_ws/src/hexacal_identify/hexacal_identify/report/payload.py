@@ -97,25 +97,11 @@ def _device_prior_dict(prior) -> dict:
     return {name: {'value': float(value), 'std': float(std)} for name, value, std in prior.entries}
 
 
-def save_result(
-    path: Path | str,
-    result,
-    extras: dict | None = None,
-    *,
-    measurements=None,
-    true_parameters=None,
-    link_length: float | None = None,
-    mount: str | None = None,
-    device_prior=None,
-) -> Path:
-    """Write ``result_payload`` as a result file (hexacal_msgs_py.result_file)."""
-    payload = result_payload(
-        result,
-        extras,
-        measurements=measurements,
-        true_parameters=true_parameters,
-        link_length=link_length,
-        mount=mount,
-        device_prior=device_prior,
-    )
-    return write_result_file(path, _plain(payload))
+def save_result(path: Path | str, result, extras: dict | None = None, **details) -> Path:
+    """
+    Write ``result_payload`` as a result file (hexacal_msgs_py.result_file).
+
+    ``details`` are ``result_payload``'s keywords (measurements, true_parameters, link_length,
+    mount, device_prior).
+    """
+    return write_result_file(path, _plain(result_payload(result, extras, **details)))
