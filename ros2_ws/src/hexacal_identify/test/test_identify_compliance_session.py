@@ -125,8 +125,8 @@ def _settings(loaded, tmp_path: Path, **changes) -> Settings:
 
 
 @pytest.mark.slow
-def test_the_session_identifies_live_lvdt_compliances_and_writes_them(loaded, tmp_path):
-    session, recorder = _session(loaded['postures'])
+def test_the_session_identifies_live_lvdt_compliances_and_verifies_with_them(loaded, tmp_path):
+    session, recorder = _session(loaded['postures'][:30])
     settings = _settings(
         loaded, tmp_path, compliance='shared', physical_file=str(loaded['physical'])
     )
@@ -142,6 +142,16 @@ def test_the_session_identifies_live_lvdt_compliances_and_writes_them(loaded, tm
     assert 'compliance.link' not in values  # the lvdt link carries no load
     written = compliances_from_extras(read_parameters_file(values['output']).extras)
     assert written == pytest.approx({'chains': chains}, rel=1e-5)
+    # hexacal/verify on fresh live postures applies the compliances the calibration carries.
+    for posture in loaded['postures'][30:]:
+        session.postures.add(posture, 'hexa_slide')
+    verified = session.verify(settings)
+    assert verified.values['compliance_mode'] == 'shared', verified.message
+    with_loads = verified.figures['calibrated']['position_rms_m']
+    session.latest.compliance = {}  # the same geometry verified as a rigid machine
+    rigid = session.verify(settings).figures['calibrated']['position_rms_m']
+    assert 'compliance_mode' not in recorder.statuses[-1][3]
+    assert with_loads < 0.5 * rigid, (with_loads, rigid)
 
 
 def test_live_postures_without_their_mode_are_refused_with_compliance(loaded, tmp_path):

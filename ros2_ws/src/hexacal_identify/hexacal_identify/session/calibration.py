@@ -28,6 +28,7 @@ from ..store.provenance import calibration_record
 if TYPE_CHECKING:
     from ..core.architectures import KinematicParameters
     from ..core.fit.compliance import ComplianceModel
+    from ..core.fit.statics import MassModel
 
 
 class Log(Protocol):
@@ -210,6 +211,7 @@ def run_calibration(
             link_length=link_length,
             mount=mount,
             source=source,
+            compliance=dict(result.compliance),
         )
     values['output'] = str(target)
     record = calibration_record(
@@ -252,6 +254,7 @@ def run_calibration(
         link_length=link_length,
         mount=mount,
         source=source,
+        compliance=dict(result.compliance),
         record=record,
     )
 
@@ -288,7 +291,6 @@ def compliance_setting(
         compliance_for_postures,
         parse_compliance_prior,
     )
-    from ..core.fit.statics import MassModel
 
     prior = parse_compliance_prior(settings.compliance_prior)
     if settings.compliance == 'none':
@@ -311,13 +313,7 @@ def compliance_setting(
             f'compliance {settings.compliance}: the bag does not record its measuring mode, and '
             'the loads depend on it (which chains and whether the link carry the weight)'
         )
-    if settings.physical_file:
-        masses, source = MassModel.load(settings.physical_file), settings.physical_file
-    else:
-        from hexacal_msgs_py.physical_file import default_physical
-
-        masses = MassModel.from_physical(default_physical(nominal.model))
-        source = f'the shipped {nominal.model} physical description'
+    masses, source = mass_model(settings, nominal.model)
     model = compliance_for_postures(
         settings.compliance,
         masses,
@@ -328,6 +324,20 @@ def compliance_setting(
         label='compliance',
     )
     return model, source
+
+
+def mass_model(settings: Settings, model: str) -> tuple[MassModel, str]:
+    """Return the weights that load the compliances, and where they come from (physical_file)."""
+    from ..core.fit.statics import MassModel
+
+    if settings.physical_file:
+        return MassModel.load(settings.physical_file), settings.physical_file
+    from hexacal_msgs_py.physical_file import default_physical
+
+    return (
+        MassModel.from_physical(default_physical(model)),
+        f'the shipped {model} physical description',
+    )
 
 
 # ------------------------------------------------------------------ verification

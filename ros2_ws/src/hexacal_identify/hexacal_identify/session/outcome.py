@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import enum
 from typing import TYPE_CHECKING
 
@@ -73,6 +73,8 @@ class Outcome:
     link_length: float | None = None
     mount: str | None = None
     source: str = ''
+    # A calibration's identified axial compliances (m/N; empty: rigid), which verify applies.
+    compliance: dict[str, float] = field(default_factory=dict)
     # A calibration's provenance record for the store; a verification's `hexacal verify --json`
     # figures, attached to the calibration's store entry.
     record: dict[str, object] | None = None

@@ -201,6 +201,7 @@ class CalibrationSession:
                     outcome.mount,
                     outcome,
                     store_id,
+                    outcome.compliance,
                 )
         if outcome.report is not None:
             replaced = self.reports.put_calibration(number, outcome)
@@ -441,12 +442,15 @@ class CalibrationSession:
             return
         self._sink.parameters(saved.vector, saved.model)
         self._log.info(f'republished the saved calibration {target}')
+        from hexacal_msgs_py.parameters_file import compliances_from_extras
+
         from ..core.architectures import parameters_for
         from ..calibration_steps.machine_files import device_defects_from_extras
 
         try:
             parameters = parameters_for(saved.model, saved.vector)
             defects, _ = device_defects_from_extras(saved.extras, target)  # the device it had
+            compliance = compliances_from_extras(saved.extras)
         except ValueError as error:
             self._log.warning(f'the saved calibration cannot be verified: {error}')
             return
@@ -462,4 +466,5 @@ class CalibrationSession:
                 None,
                 None,
                 entry.id if entry is not None else None,
+                compliance,
             )

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Sequence, TYPE_CHECKING
 
 from hexacal_msgs_py import store_format as fmt
 from hexacal_msgs_py.errors import ParameterFileError
@@ -16,6 +17,12 @@ from ..core.architectures import KinematicParameters
 from ..core.errors import CalibrationError
 from ..core.machine.device import DeviceDefects
 from ..store import postures_digest
+
+if TYPE_CHECKING:
+    import numpy as np
+    from hexacal_msgs_py.readings import PostureReading
+
+    from ..core.fit.compliance import ComplianceModel
 
 
 @dataclass
@@ -31,6 +38,7 @@ class LatestCalibration:
     mount: str | None
     outcome: Outcome | None  # its result (its report job); None when republished from the file
     store_id: str | None = None  # its calibration store entry (None: not kept in the store)
+    compliance: dict[str, float] = field(default_factory=dict)  # identified, m/N; {}: rigid
 
 
 def run_verification(
@@ -88,6 +96,11 @@ def run_verification(
     link_length = latest.link_length or settings.link_length
     mount = latest.mount or mount
     try:
+        names = nominal.layout.actuator_names
+        compliance = calibrated_compliance(settings, latest, names, postures)
+    except ValueError as error:
+        return failure(Reason.INVALID_OPTIONS, str(error), postures=len(postures), **about), None
+    try:
         for model in sorted(postures_models):
             check_model(
                 model, nominal, 'the postures received since the calibration', nominal_path
@@ -101,6 +114,7 @@ def run_verification(
             noise=settings.noise(),
             postures_model=next(iter(postures_models)) if len(postures_models) == 1 else None,
             calibrated_defects=latest.defects,
+            calibrated_compliance=compliance,
         )
     except (CalibrationError, ValueError) as error:
         reason = getattr(error, 'reason', Reason.INVALID_INPUT)
@@ -110,6 +124,8 @@ def run_verification(
         **result.status_values(),
         **about,
     }
+    if compliance is not None:
+        values['compliance_mode'] = compliance[0].mode
     before, after = result.nominal.figures(), result.calibrated.figures()
     message = (
         f'{result.verdict_reason()}; position rms nominal '
@@ -149,3 +165,46 @@ def run_verification(
         outcome,
     )
     return outcome, task
+
+
+def calibrated_compliance(
+    settings: Settings,
+    latest: LatestCalibration,
+    actuator_names: Sequence[str],
+    postures: Sequence[PostureReading],
+) -> tuple[ComplianceModel, np.ndarray] | None:
+    """
+    Return the calibration's compliances loaded for the live postures (None: a rigid one).
+
+    The loads depend on the measuring mode, which live postures show only in lvdt (their
+    measured link length); a ValueError names the offline way otherwise, as calibrate does.
+    """
+    if not latest.compliance:
+        return None
+    import numpy as np
+
+    from .calibration import live_measuring_mode, mass_model
+    from ..calibration_steps.calibration_run import compliance_for_postures
+    from ..core.fit.compliance import PER_CHAIN, SHARED
+
+    mode = live_measuring_mode(postures)
+    if mode is None:
+        raise ValueError(
+            f'the calibration ({latest.source}) carries compliances, and the live postures do '
+            "not show their measuring mode nor each posture's released actuator (only lvdt "
+            'postures do), on which the loads depend: verify the bag the collector recorded '
+            '(hexacal verify BAG --calibrated FILE)'
+        )
+    per_chain = any(name.startswith('chain_') for name in latest.compliance)
+    masses, _ = mass_model(settings, latest.parameters.model)
+    model = compliance_for_postures(
+        PER_CHAIN if per_chain else SHARED,
+        masses,
+        mode,
+        None,
+        actuator_names,
+        label='verify',
+    )
+    assert model is not None  # PER_CHAIN and SHARED always give one
+    vector = np.array([latest.compliance.get(name, 0.0) for name in model.names])
+    return model, vector
