@@ -41,6 +41,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 import math
+from typing import Any
 
 from hexacal_msgs_py.errors import InvalidReadingError
 
@@ -132,7 +133,7 @@ def pose_from_position_quaternion(
 
 def pose_from_message(message: object) -> tuple[float, ...]:
     """[x, y, z, theta, psi, phi] of a geometry_msgs Pose or PoseStamped."""
-    pose = getattr(message, 'pose', message)
+    pose: Any = getattr(message, 'pose', message)  # a Pose, duck-typed: no message import
     p, q = pose.position, pose.orientation
     return pose_from_position_quaternion((p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
 
@@ -144,7 +145,7 @@ def fill_pose_message(message: object, pose: Sequence[float]) -> object:
     Write [x, y, z, theta, psi, phi] into a geometry_msgs Pose (or a PoseStamped's pose); returns
     it.
     """
-    target = getattr(message, 'pose', message)
+    target: Any = getattr(message, 'pose', message)
     (x, y, z), (qx, qy, qz, qw) = pose_to_position_quaternion(pose)
     target.position.x, target.position.y, target.position.z = x, y, z
     target.orientation.x, target.orientation.y = qx, qy

@@ -158,10 +158,19 @@ def bytes_digest(data: bytes) -> str:
 
 
 class _Posture(Protocol):
-    actuator_positions: Sequence[float]
-    alpha: float
-    beta: float
-    phi: float
+    """What a digest reads of a posture (read-only: frozen dataclasses qualify)."""
+
+    @property
+    def actuator_positions(self) -> Sequence[float]: ...  # noqa: D102
+
+    @property
+    def alpha(self) -> float: ...  # noqa: D102
+
+    @property
+    def beta(self) -> float: ...  # noqa: D102
+
+    @property
+    def phi(self) -> float: ...  # noqa: D102
 
 
 def postures_digest(postures: Iterable[_Posture]) -> str:

@@ -63,7 +63,7 @@ def load_machine_and_mount(path: Path | str) -> tuple[KinematicParameters, str]:
 
     parameters, extras = load_machine_and_extras(path)
     try:
-        mount = check_mount(extras.get(MOUNT_PARAMETER, DEFAULT_MOUNT))
+        mount = check_mount(str(extras.get(MOUNT_PARAMETER, DEFAULT_MOUNT)))
     except DeviceMountError as error:
         raise DeviceMountError(f'{path}: {MOUNT_PARAMETER}: {error}') from None
     return parameters, mount

@@ -25,7 +25,7 @@ tests/test_polled_subscriptions.py:
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 from rclpy.callback_groups import CallbackGroup
 from rclpy.event_handler import QoSSubscriptionEventType, SubscriptionEventCallbacks
@@ -85,7 +85,8 @@ class PolledSubscription:
         # Only the loss reports are polled; the other QoS events are not used.
         self._lost_handlers = [
             handler
-            for handler in self.subscription.event_handlers
+            # rclpy types it as one EventHandler; it is the list of them.
+            for handler in cast(list, self.subscription.event_handlers)
             if handler.event_type == QoSSubscriptionEventType.RCL_SUBSCRIPTION_MESSAGE_LOST
         ]
 

@@ -315,10 +315,11 @@ def planning_accuracy(
     Planned against random (mean +- error bar over seeds).
     """
     fig, ax = plt.subplots(figsize=(7.5, 4.2))
-    for label, (mean_um, spread_um) in curves.items():
-        mean_um, spread_um = np.asarray(mean_um, float), np.asarray(spread_um, float)
+    for label, (mean_values, spread_values) in curves.items():
+        mean_um, spread_um = np.asarray(mean_values, float), np.asarray(spread_values, float)
         lower = np.minimum(spread_um, 0.9 * mean_um)  # a log axis cannot show a bar below zero
-        ax.errorbar(ks, mean_um, yerr=[lower, spread_um], fmt='o-', capsize=3, label=label)
+        bars = np.array([lower, spread_um])
+        ax.errorbar(ks, mean_um, yerr=bars, fmt='o-', capsize=3, label=label)
     ax.axhline(reference_um, color='k', ls='--', lw=0.9, label=reference_label)
     ax.set_xlabel('postures K')
     ax.set_ylabel('mean validation position error [um]')
@@ -358,7 +359,7 @@ def verification_errors(
         if kinds is not None
         else np.zeros(len(index), bool)
     )
-    panels = [
+    panels: list[tuple] = [  # (axes, nominal, calibrated, label, threshold or None)
         (axes[0, 0], nominal_m * UM, calibrated_m * UM, 'position error [um]', threshold_m * UM)
     ]
     if rotary:

@@ -17,6 +17,11 @@ def vector_or_none(values) -> np.ndarray | None:
     """Return ``values`` as floats (None entries as NaN), or None without values."""
     if values is None:
         return None
+    return vector(values)
+
+
+def vector(values) -> np.ndarray:
+    """Return ``values`` as floats (None entries as NaN)."""
     return np.array([np.nan if v is None else v for v in values], dtype=float)
 
 

@@ -112,7 +112,7 @@ class CalibrationSession:
         expected = self.nominal.model(nominal_path)
         carried = model_for_actuator_names(joint_names)
         model = expected or (carried.name if carried is not None else DEFAULT_MODEL)
-        posture = None
+        posture: PostureReading | None = None
         problem: tuple[str, str] | None
         if (
             expected is not None
@@ -136,6 +136,7 @@ class CalibrationSession:
         if problem is not None:
             receipt = self.postures.reject(*problem)
         else:
+            assert posture is not None  # converted, and no problem found
             receipt = self.postures.add(posture, model)
         with self._status_lock:
             if not self._calibrating:  # a running calibration's status stays until its result
