@@ -19,10 +19,10 @@ import subprocess
 import sys
 
 from hexacal_identify.core.architectures import architecture, default_parameters
+from hexacal_identify.core.assessment.uncertainty import predicted_pose_errors
 from hexacal_identify.core.fit.baseline import absolute_residuals
 from hexacal_identify.core.fit.identification import CONVERGED
 from hexacal_identify.core.fit.residuals import ChannelSigma, CostFunction
-from hexacal_identify.core.fit.uncertainty import predicted_pose_errors
 from hexacal_identify.core.machine.device import DeviceDefects, DeviceModel
 from hexacal_identify.core.machine.kinematics import (
     forward_kinematics,

@@ -4,10 +4,10 @@ Device defects: measurement model, joint identification, identifiability, uncert
 The measurement model, joint identification, what is (not) identifiable, robustness, uncertainty.
 """
 
+from hexacal_identify.core.assessment.uncertainty import monte_carlo
+from hexacal_identify.core.assessment.validation import pose_errors, validation_poses
 from hexacal_identify.core.errors import RankDeficientError
 from hexacal_identify.core.fit.identification import CONVERGED, identify, SolverOptions
-from hexacal_identify.core.fit.uncertainty import monte_carlo
-from hexacal_identify.core.fit.validation import pose_errors, validation_poses
 from hexacal_identify.core.machine.device import (
     device_position,
     DeviceDefects,

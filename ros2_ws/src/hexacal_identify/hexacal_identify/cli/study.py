@@ -280,7 +280,7 @@ def _print_model(truth: KinematicParameters) -> None:
 
 
 def _print_identifiability(out: Path, truth: KinematicParameters) -> None:
-    from ..core.fit.identifiability import DEFAULT_RANK_TOLERANCE
+    from ..core.assessment.identifiability import DEFAULT_RANK_TOLERANCE
     from ..core.fit.residuals import COST_EQUATIONS
     from ..report import figures
     from ..studies.accuracy import identifiability_by_cost

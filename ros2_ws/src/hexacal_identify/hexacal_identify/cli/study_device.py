@@ -251,7 +251,7 @@ def print_monte_carlo(
 ) -> None:
     import numpy as np
 
-    from ..core.fit.uncertainty import monte_carlo
+    from ..core.assessment.uncertainty import monte_carlo
 
     print(
         f'\nUncertainty check: one calibration (50 postures, +-{noise_um:g} um / urad, '

@@ -49,7 +49,7 @@ def run_verification(
     """
     from ..calibration_steps.posture_checks import check_model, measurements_from_postures
     from ..core.machine.device import DeviceModel
-    from ..core.fit.verification import PASS, verify
+    from ..core.assessment.verification import PASS, verify
 
     if latest is None:
         return failure(

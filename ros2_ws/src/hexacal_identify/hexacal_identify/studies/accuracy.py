@@ -25,11 +25,11 @@ from typing import Callable, Iterable
 import numpy as np
 
 from ..core.architectures import ARCHITECTURES, default_parameters, KinematicParameters
+from ..core.assessment.identifiability import analyze, IdentifiabilityReport
+from ..core.assessment.validation import pose_errors, PoseErrors, validation_poses
 from ..core.errors import CalibrationError
-from ..core.fit.identifiability import analyze, IdentifiabilityReport
 from ..core.fit.identification import IdentificationResult, identify, SolverOptions
 from ..core.fit.residuals import ChannelSigma, CostFunction, COSTS
-from ..core.fit.validation import pose_errors, PoseErrors, validation_poses
 from ..core.machine.device import DeviceDefects, DeviceModel, DevicePrior
 from ..core.machine.kinematics import pose_parameter_sensitivity
 from ..core.machine.measurements import (
