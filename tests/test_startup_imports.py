@@ -23,7 +23,7 @@ BAG = REPO / 'bags' / 'sphere50_noise10'
 # Modules of the simulation studies and their figures: only `hexacal study` (and `plan`, `report`) need them.
 STUDY_MODULES = (
     'hexacal_identify.studies.accuracy',
-    'hexacal_identify.studies.device',
+    'hexacal_identify.studies.defective_device',
     'hexacal_identify.core.assessment.uncertainty',
     'hexacal_identify.core.fit.baseline',
     'hexacal_identify.studies.planning',

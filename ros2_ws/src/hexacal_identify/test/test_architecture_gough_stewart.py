@@ -33,7 +33,7 @@ from hexacal_identify.core.machine.measurements import FIXED, simulate_measureme
 from hexacal_identify.core.machine.model import error_stats_mm, nominal_set
 from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_identify.studies.accuracy import identifiability_by_cost, run_calibration, StudyRun
-from hexacal_identify.studies.device import device_frame_poses, device_frame_truth
+from hexacal_identify.studies.defective_device import device_frame_poses, device_frame_truth
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.parameters_file import read_parameters_file, save_parameters
 import numpy as np

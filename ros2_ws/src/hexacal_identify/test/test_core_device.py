@@ -17,7 +17,7 @@ from hexacal_identify.core.machine.device import (
 from hexacal_identify.core.machine.measurements import NoiseModel, simulate_measurements
 from hexacal_identify.core.machine.model import nominal_set, table1_parameters
 from hexacal_identify.core.machine.postures import sample_poses
-from hexacal_identify.studies.device import (
+from hexacal_identify.studies.defective_device import (
     DEFAULT_DEFECTS,
     device_frame_poses,
     device_frame_truth,

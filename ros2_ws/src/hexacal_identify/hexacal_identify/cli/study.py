@@ -14,9 +14,9 @@ if TYPE_CHECKING:
     from ..core.architectures import KinematicParameters
     from ..studies.accuracy import StudyRun
 
-# The studies (studies.accuracy, studies.planning, studies.device, figures with matplotlib) are
-# imported where they run: this module is imported by every `hexacal` start-up to register the
-# command.
+# The studies (studies.accuracy, studies.planning, studies.defective_device, figures with
+# matplotlib) are imported where they run: this module is imported by every `hexacal` start-up
+# to register the command.
 UM, DEG = 1e6, math.degrees(1.0)
 
 

@@ -28,12 +28,12 @@ import numpy as np
 from .calibration import Log, run_calibration
 from .deployment import ACTIVE_KEYS
 from .history import History
+from .html_reports import ReportQueue, VerificationTask, write_page
+from .node_settings import Settings
 from .nominal import NominalFile
 from .outcome import failure, Level, Outcome, Reason, ReportState
 from .paths import interrupted_writes, output_path
-from .postures import PostureStore, Receipt
-from .reports import ReportQueue, VerificationTask, write_page
-from .settings import Settings
+from .received_postures import PostureStore, Receipt
 from .verification import LatestCalibration, run_verification
 from ..store import StoreError
 

@@ -7,11 +7,11 @@ from dataclasses import dataclass
 from hexacal_msgs_py import store_format as fmt
 from hexacal_msgs_py.errors import ParameterFileError
 
+from .html_reports import VerificationTask
+from .node_settings import Settings
 from .nominal import NominalFile
 from .outcome import failure, Level, Outcome, Reason, ReportState
-from .postures import PostureStore
-from .reports import VerificationTask
-from .settings import Settings
+from .received_postures import PostureStore
 from ..core.architectures import KinematicParameters
 from ..core.errors import CalibrationError
 from ..core.machine.device import DeviceDefects

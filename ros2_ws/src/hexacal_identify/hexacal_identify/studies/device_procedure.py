@@ -43,7 +43,12 @@ from typing import Callable
 
 import numpy as np
 
-from .device import DEFAULT_DEFECTS, device_frame_poses, device_frame_truth, simulate_procedure
+from .defective_device import (
+    DEFAULT_DEFECTS,
+    device_frame_poses,
+    device_frame_truth,
+    simulate_procedure,
+)
 from ..core.architectures import default_parameters, KinematicParameters
 from ..core.assessment.uncertainty import predicted_pose_errors
 from ..core.assessment.validation import pose_errors, validation_poses
