@@ -23,7 +23,7 @@ import statistics
 
 from hexacal_identify.cli.study_modes import print_table
 from hexacal_identify.core.architectures import default_parameters
-from hexacal_identify.studies.measuring_modes import ModeStudyRun, run_mode
+from hexacal_identify.studies.measuring_mode_accuracy import ModeStudyRun, run_mode
 
 MODES = ('passive_actuator', 'lvdt', 'compliant')
 MODELS = ('hexa_slide', 'gough_stewart')

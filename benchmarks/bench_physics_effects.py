@@ -34,9 +34,9 @@ actuators, +-5 urad on every angle (uniform, the NoiseModel the fit is whitened 
 Each row identifies from nominal parameter set 2 (core.model.nominal_set): ``none`` (the rigid
 geometric fit) and ``shared`` (one chain compliance and the link's, from the static loads of the
 physical description's masses, core/fit/compliance.py), and prints the pose error against the MuJoCo
-machine's true geometry on 200 fresh poses (core/fit/validation.py), the verification of the
-calibration on the fresh simulated postures (core/fit/verification.py), the variance factor and the
-adequacy verdict (core/fit/adequacy.py) and the identified compliances (+- std) beside the truth
+machine's true geometry on 200 fresh poses (core/assessment/validation.py), the verification of the
+calibration on the fresh simulated postures (core/assessment/verification.py), the variance factor and the
+adequacy verdict (core/assessment/adequacy.py) and the identified compliances (+- std) beside the truth
 (1 / stiffness).
 
 Run: ``.venv/bin/python benchmarks/bench_physics_effects.py [--models hexa_slide gough_stewart]
@@ -56,8 +56,8 @@ from hexacal_identify.core.errors import RankDeficientError
 from hexacal_identify.core.fit.compliance import ComplianceModel
 from hexacal_identify.core.fit.identification import identify, SolverOptions
 from hexacal_identify.core.fit.statics import MassModel
-from hexacal_identify.core.fit.validation import pose_errors, validation_poses
-from hexacal_identify.core.fit.verification import verify
+from hexacal_identify.core.assessment.validation import pose_errors, validation_poses
+from hexacal_identify.core.assessment.verification import verify
 from hexacal_identify.core.machine.device import DeviceModel
 from hexacal_identify.core.machine.measurements import Measurements, NoiseModel
 from hexacal_identify.core.machine.model import nominal_set

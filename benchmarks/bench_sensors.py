@@ -84,7 +84,7 @@ def _posture_deviation(found, settled) -> tuple[int, float, float]:
 def _row(recording, bag: Path, variant: str, args) -> dict:
     """Detect, calibrate and judge one bag with one variant's detector and weights."""
     from hexacal_identify.core.machine.model import nominal_set
-    from hexacal_identify.core.fit.validation import pose_errors, validation_poses
+    from hexacal_identify.core.assessment.validation import pose_errors, validation_poses
     from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
     from hexacal_identify.calibration_steps.calibration_run import calibrate
 

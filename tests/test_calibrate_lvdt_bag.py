@@ -4,7 +4,7 @@ import json
 from pathlib import Path
 
 from hexacal_identify.core import sample_poses, simulate_measurements, table1_parameters
-from hexacal_identify.core.fit.validation import pose_errors, validation_poses
+from hexacal_identify.core.assessment.validation import pose_errors, validation_poses
 from hexacal_identify.core.machine.model import nominal_set
 from hexacal_msgs_py.parameters_file import load_parameters, save_parameters
 import numpy as np

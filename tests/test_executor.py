@@ -11,7 +11,7 @@ from pathlib import Path
 import subprocess
 
 from hexacal_identify.core.architectures import parameters_for
-from hexacal_identify.core.fit.validation import pose_errors, validation_poses
+from hexacal_identify.core.assessment.validation import pose_errors, validation_poses
 from hexacal_identify.core.planning.planner import Plan
 from hexacal_msgs_py.names import DEFAULT_COMMAND_TOPIC, EXECUTOR_STATUS_NAME
 from hexacal_msgs_py.parameters_file import read_parameters_file

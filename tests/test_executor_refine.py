@@ -3,7 +3,7 @@ Targets refined from a first calibration (real nodes, real processes).
 
 A Gough-Stewart plan of 24 sphere postures walked in compliant mode on the driver with a true
 machine, the collector recording, the identify node on the nominal file: once 17 postures
-(core/walk/refinement.py's first checkpoint for 42 parameters) are measured the executor calls
+(core/walk_refine/refinement.py's first checkpoint for 42 parameters) are measured the executor calls
 hexacal/calibrate at rest and computes the remaining targets with the intermediate model; the
 driver's strain at rest (``actuator_deviation_m``) shrinks from millimetres to micrometres.
 """

@@ -28,7 +28,7 @@ import json
 from pathlib import Path
 
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.fit.validation import pose_errors, validation_poses
+from hexacal_identify.core.assessment.validation import pose_errors, validation_poses
 from hexacal_identify.core.machine.measurements import (
     FIXED,
     Measurements,

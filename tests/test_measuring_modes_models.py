@@ -50,7 +50,7 @@ FORCE_LIMIT_N = 500.0  # max_force_n, the driver's default (the executor's: 0.8 
 STIFFNESS_N_PER_M = 2e4  # servo_stiffness_n_per_m, the driver's default
 SHORT = 6  # postures of the Hexa Slide plans
 REFINED = 20  # postures of the Gough-Stewart refinement plans
-FIRST = 17  # core/walk/refinement.py's first checkpoint for 42 parameters
+FIRST = 17  # core/walk_refine/refinement.py's first checkpoint for 42 parameters
 MATCH_M = 5e-5  # a posture stands at a command's target: far below the plans' spacing
 
 
@@ -379,7 +379,7 @@ def test_refined_targets_shrink_the_lvdt_extension_and_the_bag_calibrates_with_l
 
 def _calibrations(walk: Walk, tmp_path: Path) -> tuple[float, float]:
     """Return the mean pose errors of the bag calibrated with L_m (hexacal calibrate) and L."""
-    from hexacal_identify.core.fit.validation import pose_errors, validation_poses
+    from hexacal_identify.core.assessment.validation import pose_errors, validation_poses
     from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
     from hexacal_identify.calibration_steps.calibration_run import calibrate
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from hexacal_driver.recording import simulate_recording, write_recording_bag
 from hexacal_driver.sensor_models import SENSOR_DEFAULTS
-from hexacal_identify.core.fit.validation import pose_errors, validation_poses
+from hexacal_identify.core.assessment.validation import pose_errors, validation_poses
 from hexacal_identify.core.machine.model import nominal_set
 from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
 from hexacal_identify.calibration_steps.calibration_run import calibrate

@@ -18,7 +18,7 @@ import json
 from pathlib import Path
 
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.fit.validation import pose_errors, validation_poses
+from hexacal_identify.core.assessment.validation import pose_errors, validation_poses
 from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
 import numpy as np
 import pytest

@@ -193,7 +193,7 @@ def test_report_of_a_plain_json_output_says_what_is_missing(calibration, tmp_pat
 def test_report_with_a_verification_section_loads_in_headless_chromium(calibration, tmp_path):
     """What identify writes after hexacal/verify: the calibration's page with the verification section and its
     figure; every image decodes and the verification figures are on the page in um / urad."""
-    from hexacal_identify.core.fit.verification import verify
+    from hexacal_identify.core.assessment.verification import verify
     from hexacal_identify.report.page import write_report
 
     result, _ = calibration

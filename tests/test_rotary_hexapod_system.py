@@ -20,7 +20,7 @@ import subprocess
 
 from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.fit.validation import pose_errors, validation_poses
+from hexacal_identify.core.assessment.validation import pose_errors, validation_poses
 from hexacal_identify.core.machine.model import nominal_set
 from hexacal_msgs_py.parameters_file import chain_dict_to_parameters, save_parameters
 import numpy as np

@@ -23,8 +23,8 @@ BAG = REPO / 'bags' / 'sphere50_noise10'
 # Modules of the simulation studies and their figures: only `hexacal study` (and `plan`, `report`) need them.
 STUDY_MODULES = (
     'hexacal_identify.studies.accuracy',
-    'hexacal_identify.studies.device',
-    'hexacal_identify.core.fit.uncertainty',
+    'hexacal_identify.studies.defective_device',
+    'hexacal_identify.core.assessment.uncertainty',
     'hexacal_identify.core.fit.baseline',
     'hexacal_identify.studies.planning',
     'hexacal_identify.report.figures',
@@ -89,7 +89,7 @@ def test_calibrate_imports_no_matplotlib_or_studies(tmp_path):
     assert code == 0, output
     assert output_file.exists(), output  # it did calibrate
     assert 'hexacal_identify.core.fit.identification' in modules
-    assert 'hexacal_identify.core.fit.identifiability' in modules
+    assert 'hexacal_identify.core.assessment.identifiability' in modules
     assert 'scipy.optimize' in modules and 'scipy.linalg' in modules  # the solve's libraries
     assert imported(modules, ('rclpy', 'matplotlib', *STUDY_MODULES)) == []
 

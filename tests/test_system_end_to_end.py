@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hexacal_identify.core.fit.validation import pose_errors, validation_poses
+from hexacal_identify.core.assessment.validation import pose_errors, validation_poses
 from hexacal_identify.core.machine.model import HexaParameters
 from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
 from hexacal_msgs_py.parameters_file import load_parameters

@@ -1,4 +1,4 @@
-"""Verification without ground truth (#11 section 3): core/fit/verification.py, `hexacal verify`, identify's hexacal/verify.
+"""Verification without ground truth (#11 section 3): core/assessment/verification.py, `hexacal verify`, identify's hexacal/verify.
 
 The verification postures are never the fit's: the core tests calibrate on one
 simulated set and verify on another of the same true machine; the CLI tests
@@ -17,7 +17,7 @@ import sys
 from hexacal_identify.core.architectures import architecture, default_parameters
 from hexacal_identify.core.errors import InvalidMeasurementError
 from hexacal_identify.core.fit.identification import CONVERGED, identify, SolverOptions
-from hexacal_identify.core.fit.verification import (
+from hexacal_identify.core.assessment.verification import (
     DEFAULT_THRESHOLD_M,
     FAIL,
     PASS,

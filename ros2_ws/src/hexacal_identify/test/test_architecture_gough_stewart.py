@@ -19,10 +19,10 @@ import subprocess
 import sys
 
 from hexacal_identify.core.architectures import architecture, default_parameters
+from hexacal_identify.core.assessment.uncertainty import predicted_pose_errors
 from hexacal_identify.core.fit.baseline import absolute_residuals
 from hexacal_identify.core.fit.identification import CONVERGED
 from hexacal_identify.core.fit.residuals import ChannelSigma, CostFunction
-from hexacal_identify.core.fit.uncertainty import predicted_pose_errors
 from hexacal_identify.core.machine.device import DeviceDefects, DeviceModel
 from hexacal_identify.core.machine.kinematics import (
     forward_kinematics,
@@ -33,7 +33,7 @@ from hexacal_identify.core.machine.measurements import FIXED, simulate_measureme
 from hexacal_identify.core.machine.model import error_stats_mm, nominal_set
 from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_identify.studies.accuracy import identifiability_by_cost, run_calibration, StudyRun
-from hexacal_identify.studies.device import device_frame_poses, device_frame_truth
+from hexacal_identify.studies.defective_device import device_frame_poses, device_frame_truth
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.parameters_file import read_parameters_file, save_parameters
 import numpy as np

@@ -1,8 +1,8 @@
-"""The collector's recording (hexacal_identify.bag.recording): one bag, stopped by an error."""
+"""The collector's recording (hexacal_identify.bag.bag_recording): one bag, stopped by an error."""
 
 from hexacal_identify.bag import BagError, open_bag
+from hexacal_identify.bag.bag_recording import Recording
 from hexacal_identify.bag.qos_yaml import DEFAULT_QOS_PROFILES_YAML
-from hexacal_identify.bag.recording import Recording
 from hexacal_msgs_py.names import JOINT_STATE_TYPE
 import pytest
 

@@ -2,7 +2,7 @@
 
 import json
 
-from hexacal_identify.core.fit.adequacy import (
+from hexacal_identify.core.assessment.adequacy import (
     assess,
     CAUSES,
     chi2_quantile,

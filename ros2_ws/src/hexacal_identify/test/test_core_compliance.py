@@ -192,7 +192,7 @@ def test_bad_compliance_input_is_named():
 
 
 def test_verification_uses_the_compliances_on_fresh_postures():
-    from hexacal_identify.core.fit.verification import verify
+    from hexacal_identify.core.assessment.verification import verify
 
     arch, true, rng, poses, released = _setup('hexa_slide', n=70)
     compliance = ComplianceModel('shared', MASSES, 'passive_actuator', released[:50])

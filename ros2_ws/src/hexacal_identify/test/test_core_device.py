@@ -4,10 +4,10 @@ Device defects: measurement model, joint identification, identifiability, uncert
 The measurement model, joint identification, what is (not) identifiable, robustness, uncertainty.
 """
 
+from hexacal_identify.core.assessment.uncertainty import monte_carlo
+from hexacal_identify.core.assessment.validation import pose_errors, validation_poses
 from hexacal_identify.core.errors import RankDeficientError
 from hexacal_identify.core.fit.identification import CONVERGED, identify, SolverOptions
-from hexacal_identify.core.fit.uncertainty import monte_carlo
-from hexacal_identify.core.fit.validation import pose_errors, validation_poses
 from hexacal_identify.core.machine.device import (
     device_position,
     DeviceDefects,
@@ -17,7 +17,7 @@ from hexacal_identify.core.machine.device import (
 from hexacal_identify.core.machine.measurements import NoiseModel, simulate_measurements
 from hexacal_identify.core.machine.model import nominal_set, table1_parameters
 from hexacal_identify.core.machine.postures import sample_poses
-from hexacal_identify.studies.device import (
+from hexacal_identify.studies.defective_device import (
     DEFAULT_DEFECTS,
     device_frame_poses,
     device_frame_truth,

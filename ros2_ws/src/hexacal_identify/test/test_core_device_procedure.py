@@ -14,7 +14,7 @@ from hexacal_identify.core.machine.device import (
 )
 from hexacal_identify.core.machine.measurements import Measurements, NoiseModel
 from hexacal_identify.core.machine.model import nominal_set, table1_parameters
-from hexacal_identify.studies.device import DEFAULT_DEFECTS
+from hexacal_identify.studies.defective_device import DEFAULT_DEFECTS
 from hexacal_identify.studies.device_procedure import (
     ALL_BUT_PHI0,
     caliper_prior,

@@ -4,17 +4,17 @@ Identification: Jacobians, exact recovery, identifiability, named errors.
 Analytic vs finite-difference Jacobian, exact recovery, identifiability, named errors.
 """
 
+from hexacal_identify.core.assessment.identifiability import (
+    analyze,
+    column_scales,
+    DEFAULT_RANK_TOLERANCE,
+)
 from hexacal_identify.core.errors import (
     InvalidMeasurementError,
     RankDeficientError,
     TooFewPosturesError,
 )
 from hexacal_identify.core.fit.baseline import absolute_residuals, finite_difference_jacobian
-from hexacal_identify.core.fit.identifiability import (
-    analyze,
-    column_scales,
-    DEFAULT_RANK_TOLERANCE,
-)
 from hexacal_identify.core.fit.identification import (
     CONVERGED,
     identify,

@@ -9,9 +9,9 @@ on the vertical through O) and the LVDT says where along it, so its fixed positi
 from dataclasses import replace
 
 from hexacal_identify.core import sample_poses, simulate_measurements, table1_parameters
+from hexacal_identify.core.assessment.validation import pose_errors, validation_poses
 from hexacal_identify.core.fit.identification import identify, SolverOptions
 from hexacal_identify.core.fit.residuals import ChannelSigma, CostFunction
-from hexacal_identify.core.fit.validation import pose_errors, validation_poses
 from hexacal_identify.core.machine.device import DeviceDefects, DeviceModel, fixed_position
 from hexacal_identify.core.machine.kinematics import pose_sensitivities
 from hexacal_identify.core.machine.measurements import FIXED, Measurements, SPHERE

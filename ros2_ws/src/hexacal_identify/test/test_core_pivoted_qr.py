@@ -8,8 +8,8 @@ sphere, fixed and relative costs cannot see a translation of the frame: rank 53
 of 54).
 """
 
+from hexacal_identify.core.assessment.identifiability import pivoted_qr
 from hexacal_identify.core.errors import RankDeficientError
-from hexacal_identify.core.fit.identifiability import pivoted_qr
 from hexacal_identify.core.fit.identification import identify, SolverOptions
 from hexacal_identify.core.fit.residuals import COSTS
 from hexacal_identify.core.machine.model import nominal_set

@@ -1,5 +1,7 @@
 """
-core/walk/refine_answer.py: the executor takes only its own intermediate calibration (#18, no DDS).
+core/walk_refine/refine_answer.py: the executor takes only its own intermediate calibration.
+
+(#18, no DDS)
 
 The calibrations are the identify node's own (session.CalibrationSession, the code behind
 ``hexacal/calibrate``): their answers' messages and the files they write are the real ones.
@@ -13,8 +15,8 @@ from pathlib import Path
 from hexacal_identify.core.machine.measurements import simulate_measurements
 from hexacal_identify.core.machine.model import nominal_set, table1_parameters
 from hexacal_identify.core.machine.postures import sample_poses
-from hexacal_identify.core.walk.refine_answer import choose_parameters, read_own_result
-from hexacal_identify.core.walk.refined_targets import RefineCall, RefineState
+from hexacal_identify.core.walk_refine.refine_answer import choose_parameters, read_own_result
+from hexacal_identify.core.walk_refine.refined_targets import RefineCall, RefineState
 from hexacal_identify.session import CalibrationSession, Settings
 from hexacal_msgs_py.models import MODELS
 from hexacal_msgs_py.parameters_file import save_parameters

@@ -2,10 +2,10 @@
 
 from dataclasses import replace
 
+from hexacal_identify.core.assessment.adequacy import Verdict
+from hexacal_identify.core.assessment.validation import pose_errors, validation_poses
 from hexacal_identify.core.errors import InvalidMeasurementError
-from hexacal_identify.core.fit.adequacy import Verdict
 from hexacal_identify.core.fit.identification import identify, SolverOptions
-from hexacal_identify.core.fit.validation import pose_errors, validation_poses
 from hexacal_identify.core.fit.weighting import choose_weights, weight_mode
 from hexacal_identify.core.machine.measurements import (
     Measurements,

@@ -1,4 +1,4 @@
-"""core/walk/turns.py: device turns, and the device_turn requests to the nodes without DDS."""
+"""core/walk_device/turns.py: device turns, and the device_turn requests to the nodes (no DDS)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from concurrent.futures import Future
 import math
 
 from hexacal_identify.core.walk.messages import LogLevel
-from hexacal_identify.core.walk.turns import (
+from hexacal_identify.core.walk_device.turns import (
     check_turns,
     DeviceTurnSetter,
     same_turn,

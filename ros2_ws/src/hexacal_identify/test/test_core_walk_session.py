@@ -20,7 +20,7 @@ from hexacal_identify.core.sessions.executor_session import (
 )
 from hexacal_identify.core.walk.messages import LogLevel
 from hexacal_identify.core.walk.settings import ExecutionState
-from hexacal_identify.core.walk.turns import DeviceTurnSetter
+from hexacal_identify.core.walk_device.turns import DeviceTurnSetter
 from hexacal_identify.nodes.executor_parameters import MODEL_PARAMETERS, PARAMETERS
 import numpy as np
 import pytest

@@ -409,7 +409,7 @@ def test_abort_while_waiting_for_a_turn_and_bad_turns():
         _turning_execution([0.0, 0.0])
     with pytest.raises(ValueError, match='one finite angle'):
         _turning_execution([0.0, math.nan, 0.0, 0.0])
-    from hexacal_identify.core.walk.turns import same_turn
+    from hexacal_identify.core.walk_device.turns import same_turn
 
     assert same_turn(0.0, 2 * math.pi) and same_turn(-math.pi, math.pi)
     assert not same_turn(0.0, math.pi) and not same_turn(math.pi / 2, 3 * math.pi / 2)

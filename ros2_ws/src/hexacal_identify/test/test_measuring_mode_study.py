@@ -7,8 +7,8 @@ import sys
 
 from hexacal_identify.core.architectures import default_parameters
 from hexacal_identify.core.machine.kinematics import inverse_kinematics
-from hexacal_identify.core.walk.refinement import refinement_checkpoints, walk_refined
-from hexacal_identify.studies.measuring_modes import (
+from hexacal_identify.core.walk_refine.refinement import refinement_checkpoints, walk_refined
+from hexacal_identify.studies.measuring_mode_accuracy import (
     calibrate,
     ModeStudyRun,
     run_mode,

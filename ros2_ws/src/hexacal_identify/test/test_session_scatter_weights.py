@@ -9,7 +9,7 @@ from hexacal_identify.core.machine.measurements import NoiseModel, simulate_meas
 from hexacal_identify.core.machine.model import nominal_set, table1_parameters
 from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_identify.session import CalibrationSession, Settings
-from hexacal_identify.session.settings import parameter_problem
+from hexacal_identify.session.node_settings import parameter_problem
 from hexacal_msgs_py.models import MODELS
 from hexacal_msgs_py.parameters_file import save_parameters
 from hexacal_msgs_py.readings import PostureReading, PostureScatter

@@ -1,7 +1,7 @@
 """
 The calibration store survives a writer killed at any step: the whole entry or event, or nothing.
 
-A child process writes to the store and stops at a named step (store.files' stage hook); the
+A child process writes to the store and stops at a named step (store.store_writes' stage hook); the
 test kills it there with SIGKILL, then checks what a reader sees and that the next writer cleans
 up what the dead one left.
 """
@@ -16,14 +16,14 @@ import subprocess
 import sys
 
 from hexacal_identify.core.architectures import default_parameters
-from hexacal_identify.store import CalibrationStore, files, StoreState
+from hexacal_identify.store import CalibrationStore, store_writes, StoreState
 from hexacal_msgs_py import store_format as fmt
 from hexacal_msgs_py.parameters_file import save_parameters
 import pytest
 
 CHILD = r"""
 import sys, time
-from hexacal_identify.store import CalibrationStore, files
+from hexacal_identify.store import CalibrationStore, store_writes
 
 root, stage, action, argument = sys.argv[1:5]
 
@@ -32,7 +32,7 @@ def hook(name):
         print('at ' + name, flush=True)
         time.sleep(120)  # killed here
 
-files._CRASH_HOOK = hook
+store_writes._CRASH_HOOK = hook
 store = CalibrationStore(root)
 if action == 'add':
     store.add(argument, {'postures_digest': 'f' * 64})
@@ -131,10 +131,10 @@ def test_an_interrupted_rename_leaves_nothing(tmp_path, parameters, monkeypatch)
             raise OSError(28, 'No space left on device')
         return real_rename(source, target)
 
-    monkeypatch.setattr(files.os, 'rename', failing_rename)
+    monkeypatch.setattr(store_writes.os, 'rename', failing_rename)
     with pytest.raises(OSError, match='No space'):
         store.add(parameters, {})
-    monkeypatch.setattr(files.os, 'rename', real_rename)
+    monkeypatch.setattr(store_writes.os, 'rename', real_rename)
     assert store.entries() == [] and _leftovers(root) == []
 
 
@@ -148,7 +148,7 @@ def test_an_event_never_replaces_another(tmp_path, parameters):
     intruder = events / fmt.event_file_name(2, fmt.EventType.VERIFIED, entry.id)
     intruder.write_text(taken.read_text())
     assert first.verdict == 'fail'
-    assert files.write_new_file(intruder, b'{}') is False  # the hard link does not replace
+    assert store_writes.write_new_file(intruder, b'{}') is False  # the hard link does not replace
     assert json.loads(intruder.read_text())[fmt.EVENT_VERDICT] == 'fail'
     store.attach_verification(entry.id, {'verdict': 'pass'}, postures_digest='e' * 64)
     assert sorted(fmt.event_sequence(p.name) for p in events.iterdir()) == [1, 2, 3]

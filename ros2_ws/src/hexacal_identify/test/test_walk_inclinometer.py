@@ -1,4 +1,4 @@
-"""core/walk/inclinometer.py and the fixed-position loop with a lagging, noisy inclinometer."""
+"""core/walk_device/inclinometer.py and the fixed-position loop with a lagging, noisy sensor."""
 
 from __future__ import annotations
 
@@ -11,16 +11,16 @@ from hexacal_identify.core.machine.model import nominal_set, table1_parameters
 from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_identify.core.planning.plan_check import check_plan, default_stroke
 from hexacal_identify.core.walk.execution import PlanExecution
-from hexacal_identify.core.walk.inclinometer import (
+from hexacal_identify.core.walk.platform_paths import CommandPurpose as Purpose
+from hexacal_identify.core.walk.settings import ExecutionSettings
+from hexacal_identify.core.walk.settings import ExecutionState as State
+from hexacal_identify.core.walk_device.inclinometer import (
     InclinometerState,
     judge_inclinometer,
     robust_noise,
     SETTLE_FRACTION,
     trimmed_mean,
 )
-from hexacal_identify.core.walk.platform_paths import CommandPurpose as Purpose
-from hexacal_identify.core.walk.settings import ExecutionSettings
-from hexacal_identify.core.walk.settings import ExecutionState as State
 import numpy as np
 import pytest
 

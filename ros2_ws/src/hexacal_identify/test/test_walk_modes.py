@@ -146,7 +146,7 @@ def test_a_drive_fault_pauses_the_plan_without_a_command():
 
 
 def test_the_status_names_the_mode_the_released_joint_and_the_notice():
-    from hexacal_identify.core.walk.turns import DeviceTurnSetter
+    from hexacal_identify.core.walk_device.turns import DeviceTurnSetter
     from hexacal_identify.core.sessions.executor_session import CalibrationCall, ExecutorStatus
 
     execution, _ = _execution([2, 2, 4])

@@ -1,4 +1,4 @@
-"""core/walk/refined_targets.py and the walk's stop for an intermediate calibration (no DDS)."""
+"""core/walk_refine/refined_targets.py: the walk's stop for an intermediate calibration, no DDS."""
 
 from __future__ import annotations
 
@@ -9,16 +9,16 @@ from hexacal_identify.core.machine.model import nominal_set, table1_parameters
 from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_identify.core.planning.plan_check import check_plan, default_stroke
 from hexacal_identify.core.walk.execution import PlanExecution
-from hexacal_identify.core.walk.refined_targets import (
+from hexacal_identify.core.walk.settings import ExecutionSettings
+from hexacal_identify.core.walk.settings import ExecutionState as State
+from hexacal_identify.core.walk_refine.refined_targets import (
     NOMINAL_TARGETS,
     refine_checkpoints,
     RefineCall,
     RefineState,
     targets_model_label,
 )
-from hexacal_identify.core.walk.refinement import full_rank_postures, refinement_checkpoints
-from hexacal_identify.core.walk.settings import ExecutionSettings
-from hexacal_identify.core.walk.settings import ExecutionState as State
+from hexacal_identify.core.walk_refine.refinement import full_rank_postures, refinement_checkpoints
 import numpy as np
 
 L = 0.75
@@ -149,7 +149,7 @@ def test_a_refused_late_or_absent_calibration_gives_no_model():
 def test_the_executor_setup_schedules_refinement_and_guards_on_the_intermediate_model():
     from hexacal_identify.core.architectures import default_parameters
     from hexacal_identify.core.planning.planner import Plan
-    from hexacal_identify.core.walk.turns import DeviceTurnSetter
+    from hexacal_identify.core.walk_device.turns import DeviceTurnSetter
     from hexacal_identify.core.sessions.executor_session import (
         CalibrationCall,
         ExecutorStatus,

@@ -22,7 +22,7 @@ EXECUTABLE_MODULES = {
     'collector': 'hexacal_identify.nodes.collector',
     'identify': 'hexacal_identify.nodes.identify',
     'executor': 'hexacal_identify.nodes.executor',
-    'kinematics': 'hexacal_identify.nodes.kinematics',
+    'kinematics': 'hexacal_identify.nodes.kinematics_node',
 }
 # Executable -> its ROS package (launch_ros finds the executable through it).
 PACKAGES = {

@@ -183,7 +183,7 @@ def report(
 
 def pose_summaries(true_params, nominal, calibrated, args) -> dict[str, dict]:
     """Return the pose errors (PoseErrors.summary) of nominal and calibrated vs the truth."""
-    from ..core.fit.validation import pose_errors, validation_poses
+    from ..core.assessment.validation import pose_errors, validation_poses
 
     poses = validation_poses(
         true_params,

@@ -14,9 +14,9 @@ if TYPE_CHECKING:
     from ..core.architectures import KinematicParameters
     from ..studies.accuracy import StudyRun
 
-# The studies (studies.accuracy, studies.planning, studies.device, figures with matplotlib) are
-# imported where they run: this module is imported by every `hexacal` start-up to register the
-# command.
+# The studies (studies.accuracy, studies.planning, studies.defective_device, figures with
+# matplotlib) are imported where they run: this module is imported by every `hexacal` start-up
+# to register the command.
 UM, DEG = 1e6, math.degrees(1.0)
 
 
@@ -280,7 +280,7 @@ def _print_model(truth: KinematicParameters) -> None:
 
 
 def _print_identifiability(out: Path, truth: KinematicParameters) -> None:
-    from ..core.fit.identifiability import DEFAULT_RANK_TOLERANCE
+    from ..core.assessment.identifiability import DEFAULT_RANK_TOLERANCE
     from ..core.fit.residuals import COST_EQUATIONS
     from ..report import figures
     from ..studies.accuracy import identifiability_by_cost

@@ -115,7 +115,7 @@ def print_sections(args, progress: Progress, truth: KinematicParameters | None =
     The device-defect table and the Monte Carlo check on ``truth`` (default: the Table 1 Hexa
     Slide).
     """
-    from ..studies.device import DEFAULT_DEFECTS
+    from ..studies.defective_device import DEFAULT_DEFECTS
 
     print_device_defects(
         args.device_defects or DEFAULT_DEFECTS,
@@ -251,7 +251,7 @@ def print_monte_carlo(
 ) -> None:
     import numpy as np
 
-    from ..core.fit.uncertainty import monte_carlo
+    from ..core.assessment.uncertainty import monte_carlo
 
     print(
         f'\nUncertainty check: one calibration (50 postures, +-{noise_um:g} um / urad, '

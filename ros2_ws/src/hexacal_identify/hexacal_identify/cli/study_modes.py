@@ -11,7 +11,7 @@ UM = 1e6
 def mode_runs(args, load_params: Callable) -> list:
     """Return the runs the options ask for; ``all`` adds the compliant run as the baseline."""
     from ..core.architectures import default_parameters
-    from ..studies.measuring_modes import ModeStudyRun, selected_modes
+    from ..studies.measuring_mode_accuracy import ModeStudyRun, selected_modes
 
     truth = load_params(args.true_params) if args.true_params else default_parameters(args.model)
     nominal = load_params(args.nominal_params) if args.nominal_params else None
@@ -38,7 +38,7 @@ def mode_runs(args, load_params: Callable) -> list:
 
 def run(args, load_params: Callable) -> int:
     """Run the measuring-mode study and print its table (or, with --json, its JSON)."""
-    from ..studies.measuring_modes import run_mode
+    from ..studies.measuring_mode_accuracy import run_mode
 
     outcomes = [run_mode(study) for study in mode_runs(args, load_params)]
     payloads = [outcome.to_json() for outcome in outcomes]

@@ -8,7 +8,7 @@ The bag holds fresh postures, never used in the fit (a second, verification plan
 walked after the calibration). For each, what the device measured (position by
 eq. 4, the fixed point for a fixed-position posture; phi from the rotary sensor)
 is compared with forward kinematics at the measured actuator readings, once with
-the nominal and once with the calibrated parameters (core/fit/verification.py). The
+the nominal and once with the calibrated parameters (core/assessment/verification.py). The
 device measures through the defects identified with the calibration (the
 calibrated file's `device.defects.<name>` keys) unless --device-defects names others.
 A calibration that carries axial compliances (its `compliance.*` keys) is verified with
@@ -52,7 +52,7 @@ def add_parsers(subparsers) -> None:
 
 def _verify_arguments(parser: argparse.ArgumentParser) -> None:
     from ..core.machine.device import DEFAULT_LINK_LENGTH_M
-    from ..core.fit.verification import DEFAULT_THRESHOLD_M, NOISE_THRESHOLD_FACTOR
+    from ..core.assessment.verification import DEFAULT_THRESHOLD_M, NOISE_THRESHOLD_FACTOR
 
     parser.add_argument(
         'bag', type=Path, help='bag directory or .mcap file with the verification postures'
@@ -130,7 +130,7 @@ def _verify_arguments(parser: argparse.ArgumentParser) -> None:
 def run_verify(args) -> int:
     from ..core.machine.device import DeviceModel
     from ..core.machine.measurements import NoiseModel
-    from ..core.fit.verification import PASS, verify
+    from ..core.assessment.verification import PASS, verify
     from ..calibration_steps.bag_postures import postures_from_bag
     from ..calibration_steps.machine_files import load_machine_and_mount
     from ..calibration_steps.posture_checks import check_model, measurements_from_postures

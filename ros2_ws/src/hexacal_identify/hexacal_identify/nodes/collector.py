@@ -41,9 +41,9 @@ from .collector_inputs import stamp_ordered, STREAM_OF_TOPIC
 from .collector_parameters import CollectorConfigurationError, resolve_model
 from .polled_subscriptions import deep_reader_qos, PolledGroup, PolledSubscription
 from ..bag import BagError, BagWriter, naming
+from ..bag.bag_recording import Recording
 from ..bag.measuring import MEASURING_METADATA, MeasuringRecord
 from ..bag.qos_yaml import qos_profiles_yaml
-from ..bag.recording import Recording
 from ..core.detection import vocabulary as detection
 from ..core.detection.dwell_detector import LINK_STREAM
 from ..core.detection.stream_synchronizer import StreamSynchronizer

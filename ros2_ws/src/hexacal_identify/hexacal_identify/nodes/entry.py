@@ -40,6 +40,6 @@ def executor() -> int:
 
 def kinematics() -> int:
     remember_termination_signals()
-    from .kinematics import main
+    from .kinematics_node import main
 
     return main(sys.argv)

@@ -67,9 +67,9 @@ from ..core.walk.drive_calls import command_text, DriveMode, lvdt_extension, Rel
 from ..core.walk.drive_calls import trajectory
 from ..core.walk.messages import joint_positions
 from ..core.walk.platform_paths import Command
-from ..core.walk.refined_targets import RefineCall
 from ..core.walk.settings import ExecutionState
-from ..core.walk.turns import DeviceTurnSetter, same_turn
+from ..core.walk_device.turns import DeviceTurnSetter, same_turn
+from ..core.walk_refine.refined_targets import RefineCall
 
 NODE_NAME = 'executor'
 CONTROL_PERIOD_S = 0.05  # the state machine steps this often

@@ -23,7 +23,7 @@ from std_srvs.srv import SetBool
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ..core.walk.messages import LogLevel, Messages
-from ..core.walk.turns import TURN_PARAMETER
+from ..core.walk_device.turns import TURN_PARAMETER
 
 
 class ReleaseClient:

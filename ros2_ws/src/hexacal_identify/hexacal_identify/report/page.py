@@ -16,7 +16,7 @@ workspace map use that model's fields, units, actuator names and default workspa
 
 The parts: ``payload`` (the result file's payload), ``verification_page`` (the verification
 section and its page alone), ``markup`` (the page shell, units, number formats); the
-workspace map's numbers come from ``core.fit.position_error``.
+workspace map's numbers come from ``core.assessment.position_error``.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ from .markup import vector, vector_or_none as _vector
 from .payload import result_payload, save_result
 from .verification_page import verification_section, write_verification_report
 from ..core.architectures import architecture
-from ..core.fit.position_error import MAP_GRID, predicted_position_error_map
+from ..core.assessment.position_error import MAP_GRID, predicted_position_error_map
 from ..core.jsonsafe import json_safe as _plain
 from ..core.machine.device import (
     check_mount,
@@ -505,7 +505,7 @@ class _Sections:
         if not singular:
             return self.missing(title, 'the result file has no singular values')
         from . import figures
-        from ..core.fit.identifiability import DEFAULT_RANK_TOLERANCE
+        from ..core.assessment.identifiability import DEFAULT_RANK_TOLERANCE
 
         image = self.figure(
             'singular_values.png',

@@ -12,13 +12,13 @@ from hexacal_msgs_py.parameters_file import save_parameters
 from hexacal_msgs_py.readings import PostureReading
 from hexacal_msgs_py.store_format import FITTED_POSTURES_COMMENT, postures_digest
 
+from .html_reports import ReportJob
+from .node_settings import names, Settings
 from .nominal import NominalFile
 from .outcome import failure, Level, Outcome, Reason, ReportState
 from .paths import output_path
-from .postures import PostureStore
 from .prior import device_prior
-from .reports import ReportJob
-from .settings import names, Settings
+from .received_postures import PostureStore
 # calibration_steps and core.identification (the solver) are imported where they are used: at the
 # first calibration, not when the node starts.
 from ..core.errors import CalibrationError

@@ -10,7 +10,7 @@ from ..core.architectures import KinematicParameters
 from ..core.machine.device import DeviceDefects
 
 if TYPE_CHECKING:  # reports imports this module
-    from .reports import ReportJob
+    from .html_reports import ReportJob
 
 
 class Level(enum.StrEnum):

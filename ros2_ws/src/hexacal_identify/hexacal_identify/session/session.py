@@ -28,12 +28,12 @@ import numpy as np
 from .calibration import Log, run_calibration
 from .deployment import ACTIVE_KEYS
 from .history import History
+from .html_reports import ReportQueue, VerificationTask, write_page
+from .node_settings import Settings
 from .nominal import NominalFile
 from .outcome import failure, Level, Outcome, Reason, ReportState
 from .paths import interrupted_writes, output_path
-from .postures import PostureStore, Receipt
-from .reports import ReportQueue, VerificationTask, write_page
-from .settings import Settings
+from .received_postures import PostureStore, Receipt
 from .verification import LatestCalibration, run_verification
 from ..store import StoreError
 
@@ -250,9 +250,10 @@ class CalibrationSession:
         The latest calibration that produced parameters (or the output republished at start-up)
         is verified on the postures that arrived after it took its postures, never one the fit
         used: the device's measurement against forward kinematics at the measured actuator
-        readings, for the nominal and the calibrated parameters (core/fit/verification.py). The
-        status (VERIFICATION_STATUS_NAME, outcome `verified`) carries the `hexacal verify` JSON
-        keys flattened; success when the verdict is pass. Threshold: `verify_threshold_m`, or
+        readings, for the nominal and the calibrated parameters
+        (core/assessment/verification.py). The status (VERIFICATION_STATUS_NAME, outcome
+        `verified`) carries the `hexacal verify` JSON keys flattened; success when the verdict
+        is pass. Threshold: `verify_threshold_m`, or
         (0) 3x the residual the reading noise alone gives when it is set, else 50 um. Refused
         as `no-calibration` or `no-postures`. The calibration's report is then written again
         with a verification section. The postures stay: the next calibration fits on all.

@@ -8,11 +8,11 @@ from typing import Sequence, TYPE_CHECKING
 from hexacal_msgs_py import store_format as fmt
 from hexacal_msgs_py.errors import ParameterFileError
 
+from .html_reports import VerificationTask
+from .node_settings import Settings
 from .nominal import NominalFile
 from .outcome import failure, Level, Outcome, Reason, ReportState
-from .postures import PostureStore
-from .reports import VerificationTask
-from .settings import Settings
+from .received_postures import PostureStore
 from ..core.architectures import KinematicParameters
 from ..core.errors import CalibrationError
 from ..core.machine.device import DeviceDefects
@@ -57,7 +57,7 @@ def run_verification(
     """
     from ..calibration_steps.posture_checks import check_model, measurements_from_postures
     from ..core.machine.device import DeviceModel
-    from ..core.fit.verification import PASS, verify
+    from ..core.assessment.verification import PASS, verify
 
     if latest is None:
         return failure(

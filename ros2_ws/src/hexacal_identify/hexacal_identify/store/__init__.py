@@ -40,13 +40,13 @@ from hexacal_msgs_py.store_format import (
 )
 
 from .calibration_store import CalibrationStore, hexacal_version, utc_now
-from .entry import Activation, DeployRefused, Refusal, StoreEntry, StoreError
 from .plausibility import (
     DEFAULT_MAX_PARAMETER_CHANGE_M,
     DEFAULT_MAX_POSE_CHANGE_M,
     DEFAULT_MAX_ROTATION_CHANGE_RAD,
 )
 from .provenance import bag_digest, calibration_record, fit_figures
+from .store_entry import Activation, DeployRefused, Refusal, StoreEntry, StoreError
 
 
 def default_store_dir(model: str) -> Path:

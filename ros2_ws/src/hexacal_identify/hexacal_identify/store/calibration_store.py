@@ -18,15 +18,15 @@ from typing import Any
 from hexacal_msgs_py import store_format as fmt
 from hexacal_msgs_py.store_format import EventType, StoreState
 
-from . import files
+from . import store_writes
 from .checks import on_other_postures, plausibility_refusals, verification_refusals
-from .entry import Activation, DeployRefused, StoreEntry, StoreError
 from .events import History, replay
 from .plausibility import (
     DEFAULT_MAX_PARAMETER_CHANGE_M,
     DEFAULT_MAX_POSE_CHANGE_M,
     DEFAULT_MAX_ROTATION_CHANGE_RAD,
 )
+from .store_entry import Activation, DeployRefused, StoreEntry, StoreError
 
 ID_HEX_DIGITS = 12
 MIN_PREFIX = 4
@@ -81,7 +81,7 @@ class CalibrationStore:
                     'empty or new directory'
                 )
             return False
-        header = files.read_json(marker)
+        header = store_writes.read_json(marker)
         if not isinstance(header, dict) or header.get('format') != fmt.STORE_FORMAT:
             raise StoreError(f'{marker}: not a {fmt.STORE_FORMAT} header')
         if header.get('version') != fmt.STORE_FORMAT_VERSION:
@@ -99,7 +99,7 @@ class CalibrationStore:
         for directory in self.entries_dir.iterdir():
             if directory.name.startswith(fmt.TEMP_PREFIX):
                 continue
-            record = files.read_json(directory / fmt.RECORD_FILE)
+            record = store_writes.read_json(directory / fmt.RECORD_FILE)
             if not isinstance(record, dict) or record.get(fmt.RECORD_ID) != directory.name:
                 raise StoreError(f'{directory}: its {fmt.RECORD_FILE} is not its entry record')
             parameters = directory / fmt.PARAMETERS_FILE
@@ -125,7 +125,7 @@ class CalibrationStore:
             for path in self.events_dir.iterdir()
             if (sequence := fmt.event_sequence(path.name)) is not None
         )
-        return [(sequence, path, files.read_json(path)) for sequence, path in numbered]
+        return [(sequence, path, store_writes.read_json(path)) for sequence, path in numbered]
 
     def _entry(self, record: dict[str, Any], history: History) -> StoreEntry:
         entry_id = record[fmt.RECORD_ID]
@@ -238,18 +238,18 @@ class CalibrationStore:
         if not self._check_root():
             self.root.mkdir(parents=True, exist_ok=True)
             header = {'format': fmt.STORE_FORMAT, 'version': fmt.STORE_FORMAT_VERSION}
-            files.write_new_file(  # False: another writer made it just now, the same header
-                self.root / fmt.FORMAT_FILE, files.json_text(header).encode('utf-8')
+            store_writes.write_new_file(  # False: another writer made it just now, the same header
+                self.root / fmt.FORMAT_FILE, store_writes.json_text(header).encode('utf-8')
             )
         self.entries_dir.mkdir(exist_ok=True)
         self.events_dir.mkdir(exist_ok=True)
 
     def _writing(self):
         self._prepare()
-        return files.writer_lock(self.root)
+        return store_writes.writer_lock(self.root)
 
     def _clean(self) -> None:
-        files.remove_leftovers(self.root, self.entries_dir, self.events_dir)
+        store_writes.remove_leftovers(self.root, self.entries_dir, self.events_dir)
 
     def add(self, parameters_file: Path | str, record: dict[str, Any]) -> StoreEntry:
         """
@@ -292,11 +292,11 @@ class CalibrationStore:
                     fmt.RECORD_NUMBER: number,
                 }
             )
-            files.write_directory(
+            store_writes.write_directory(
                 self.entries_dir / entry_id,
                 {
                     fmt.PARAMETERS_FILE: data,
-                    fmt.RECORD_FILE: files.json_text(full).encode('utf-8'),
+                    fmt.RECORD_FILE: store_writes.json_text(full).encode('utf-8'),
                 },
             )
             entries, history = self._read()
@@ -315,8 +315,8 @@ class CalibrationStore:
                 **json_safe(fields),
             }
             name = fmt.event_file_name(sequence, kind, entry_id)
-            if files.write_new_file(
-                self.events_dir / name, files.json_text(payload).encode('utf-8')
+            if store_writes.write_new_file(
+                self.events_dir / name, store_writes.json_text(payload).encode('utf-8')
             ):
                 return sequence
             sequence += 1  # taken by a writer that ignored the lock: never overwrite
@@ -446,11 +446,11 @@ class CalibrationStore:
         }
         marker = self.active_marker()
         try:
-            if files.read_json(marker) == payload:
+            if store_writes.read_json(marker) == payload:
                 return
         except (StoreError, FileNotFoundError):
             pass
-        files.replace_file(marker, files.json_text(payload).encode('utf-8'))
+        store_writes.replace_file(marker, store_writes.json_text(payload).encode('utf-8'))
 
 
 def hexacal_version() -> str:

@@ -10,8 +10,8 @@ from typing import Any
 
 from hexacal_msgs_py import store_format as fmt
 
-from .entry import Refusal, StoreEntry
 from .plausibility import DEFAULT_MAX_ROTATION_CHANGE_RAD
+from .store_entry import Refusal, StoreEntry
 
 
 def on_other_postures(record: dict[str, Any], verification: dict[str, Any] | None) -> bool:

@@ -9,7 +9,7 @@ from typing import Any
 from hexacal_msgs_py import store_format as fmt
 from hexacal_msgs_py.store_format import ActivationReason, EventType
 
-from .entry import StoreError
+from .store_entry import StoreError
 
 
 @dataclass

@@ -25,11 +25,11 @@ from typing import Callable, Iterable
 import numpy as np
 
 from ..core.architectures import ARCHITECTURES, default_parameters, KinematicParameters
+from ..core.assessment.identifiability import analyze, IdentifiabilityReport
+from ..core.assessment.validation import pose_errors, PoseErrors, validation_poses
 from ..core.errors import CalibrationError
-from ..core.fit.identifiability import analyze, IdentifiabilityReport
 from ..core.fit.identification import IdentificationResult, identify, SolverOptions
 from ..core.fit.residuals import ChannelSigma, CostFunction, COSTS
-from ..core.fit.validation import pose_errors, PoseErrors, validation_poses
 from ..core.machine.device import DeviceDefects, DeviceModel, DevicePrior
 from ..core.machine.kinematics import pose_parameter_sensitivity
 from ..core.machine.measurements import (
@@ -188,7 +188,7 @@ def posture_split(cost: str, total: int) -> tuple[int, int]:
 
 def simulate_run_measurements(run: StudyRun) -> Measurements:
     if run.defects != DeviceDefects() or run.lvdt or run.procedure != 'none':
-        from .device import simulate_procedure
+        from .defective_device import simulate_procedure
         from .device_procedure import procedure_turns
 
         sphere, fixed = posture_split(run.cost, run.postures)
@@ -219,7 +219,7 @@ def simulate_run_measurements(run: StudyRun) -> Measurements:
 
 def run_calibration(run: StudyRun, options: SolverOptions | None = None) -> StudyOutcome:
     """Simulate the measurements of ``run``, identify, and validate on fresh postures."""
-    from .device import calibrated_frames, device_frame_poses, device_frame_truth
+    from .defective_device import calibrated_frames, device_frame_poses, device_frame_truth
 
     options = options or SolverOptions(
         cost=run.cost,

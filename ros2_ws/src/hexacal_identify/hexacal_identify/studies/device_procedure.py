@@ -43,12 +43,17 @@ from typing import Callable
 
 import numpy as np
 
-from .device import DEFAULT_DEFECTS, device_frame_poses, device_frame_truth, simulate_procedure
+from .defective_device import (
+    DEFAULT_DEFECTS,
+    device_frame_poses,
+    device_frame_truth,
+    simulate_procedure,
+)
 from ..core.architectures import default_parameters, KinematicParameters
+from ..core.assessment.uncertainty import predicted_pose_errors
+from ..core.assessment.validation import pose_errors, validation_poses
 from ..core.errors import CalibrationError
 from ..core.fit.identification import identify, SolverOptions
-from ..core.fit.uncertainty import predicted_pose_errors
-from ..core.fit.validation import pose_errors, validation_poses
 from ..core.machine.device import (
     DEVICE_PARAMETER_NAMES,
     DeviceDefects,

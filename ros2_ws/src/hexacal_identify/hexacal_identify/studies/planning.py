@@ -25,9 +25,9 @@ from hexacal_msgs_py.models import DEFAULT_MODEL
 import numpy as np
 
 from .accuracy import run_calibration, study_truth, StudyOutcome, StudyRun
+from ..core.assessment.validation import pose_errors, validation_poses
 from ..core.errors import CalibrationError
 from ..core.fit.identification import identify, SolverOptions
-from ..core.fit.validation import pose_errors, validation_poses
 from ..core.machine.measurements import NoiseModel, simulate_measurements
 from ..core.planning.observability import PREDICTION
 from ..core.planning.planner import plan_postures

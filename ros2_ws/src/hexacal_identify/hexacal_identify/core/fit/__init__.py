@@ -1,7 +1,7 @@
 """
-The fit: identification by least squares (eqs. 5-13) and what judges it.
+The fit: identification by least squares (eqs. 5-13).
 
-Start at ``identification.identify``.
+Start at ``identification.identify``; what judges a fit is in ``core.assessment``.
 
 * ``residuals``: the cost functions (eqs. 7, 8, 10, 12, 13) and their Jacobians.
 * ``identification``: the solve (its rounds), and the names a caller needs.
@@ -11,11 +11,7 @@ Start at ``identification.identify``.
 * ``row_weights``: whitening by the reading noise and robust weights.
 * ``least_squares_run``: one solver run, its normal equations and covariance.
 * ``weighting``: what weighs a fit (measured scatter, a noise model, none).
-* ``identifiability``: rank and the named unidentifiable combinations.
-* ``adequacy``: does the fit explain its residuals by the reading noise.
-* ``uncertainty``: predicted pose errors from the covariance.
-* ``position_error``: the position error a covariance predicts, mapped over the workspace.
-* ``verification``: verification on fresh postures without ground truth.
-* ``validation``: pose accuracy against a known true machine (studies, tests).
+* ``compliance``: axial compliances identified with the geometry.
+* ``statics``: loads of the chains and the link from the weights, per measuring mode.
 * ``baseline``: the paper-style identification, the baseline to measure against.
 """

@@ -6,9 +6,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .adequacy import Adequacy, assess, WhitenedResiduals
-from .identifiability import IdentifiabilityReport
 from ..architectures import KinematicParameters
+from ..assessment.adequacy import Adequacy, assess, WhitenedResiduals
+from ..assessment.identifiability import IdentifiabilityReport
 from ..machine.device import DEVICE_PARAMETER_NAMES, DeviceDefects, N_DEVICE_PARAMETERS
 from ..machine.measurements import Weights
 

@@ -13,14 +13,14 @@ import time
 
 import numpy as np
 
-from .adequacy import WhitenedResiduals
 from .fit_problem import FitProblem, split_unknowns
-from .identifiability import analyze, column_scales, IdentifiabilityReport
 from .identification_result import CONVERGED, DIVERGED, IdentificationResult, ITERATION_LIMIT
 from .residuals import ChannelSigma, ResidualBlock
 from .row_weights import RowTransform
 from .solver_options import unknown_names
 from ..architectures import KinematicParameters
+from ..assessment.adequacy import WhitenedResiduals
+from ..assessment.identifiability import analyze, column_scales, IdentifiabilityReport
 from ..machine.device import DEVICE_PARAMETER_NAMES, N_DEVICE_PARAMETERS
 from ..machine.measurements import Weights
 

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .compliance import ComplianceModel
-from .identifiability import DEFAULT_RANK_TOLERANCE
 from .residuals import ChannelSigma, COSTS
+from ..assessment.identifiability import DEFAULT_RANK_TOLERANCE
 from ..machine.device import (
     DEVICE_PARAMETER_NAMES,
     DeviceDefects,

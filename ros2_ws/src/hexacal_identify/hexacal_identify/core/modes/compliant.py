@@ -5,7 +5,7 @@ In the ``compliant`` mode all six actuators are commanded against the rigid
 measuring link: setpoints the true machine cannot reach on the link sphere strain it until the
 actuators, equally stiff position loops, settle where the elastic energy is least.
 `device_constrained_pose` solves that pose.  It lives in the core so that the simulated driver
-and the studies (studies/measuring_modes.py) share one model; the driver re-exports it.
+and the studies (studies/measuring_mode_accuracy.py) share one model; the driver re-exports it.
 """
 
 from __future__ import annotations

@@ -46,9 +46,9 @@ from ..walk.guard import GuardSettings, move_guard
 from ..walk.messages import LogLevel, Messages
 from ..walk.mode_driver import walk_mode, WalkMode
 from ..walk.platform_paths import Command
-from ..walk.refined_targets import refine_checkpoints, RefineCall, RefineState
 from ..walk.settings import ExecutionSettings, ExecutionState
-from ..walk.turns import DeviceTurnSetter, TURN_PARAMETER, TurnSetState
+from ..walk_device.turns import DeviceTurnSetter, TURN_PARAMETER, TurnSetState
+from ..walk_refine.refined_targets import refine_checkpoints, RefineCall, RefineState
 
 if TYPE_CHECKING:
     from ..planning.planner import Plan
@@ -193,7 +193,7 @@ def start_waits(
 
     The plan starts once the machine is there: actuator readings, a controller on the command
     topic, (wait_for_posture: `no_collector` says none publishes postures) a collector; the
-    node adds the nodes set to the mounting (core/walk/turns.py).
+    node adds the nodes set to the mounting (core/walk_device/turns.py).
     """
     waiting = []
     if not readings:

@@ -10,7 +10,7 @@ core/walk/execution.py asks these at each step of a posture:
   the measuring link: where the nominal model is millimetres off, the actuators stop up to
   millimetres away from targets the true machine cannot reach on the link sphere.
 * Fixed positions (eq. 10): the inclinometer reading judged once it has settled (two
-  consecutive ``inclinometer_settle_s`` windows agree, core/walk/inclinometer.py), or with
+  consecutive ``inclinometer_settle_s`` windows agree, core/walk_device/inclinometer.py), or with
   ``inclinometer_settle_s`` 0 the mean over ``settle_s`` as soon as the actuators are still
   (`judged_angles`).  A correction smaller than ``correction_nudge_m`` passes a nudge beyond
   its target first (`nudge`), so the collector sees a move.
@@ -28,11 +28,11 @@ from typing import TYPE_CHECKING
 from hexacal_msgs_py.models import ActuatorQuantities, LINEAR_ACTUATOR
 import numpy as np
 
-from .inclinometer import InclinometerJudgement, InclinometerState, judge_inclinometer
 from .messages import LogLevel, ReadingWindow
 from .platform_paths import Command, CommandPurpose, corrected_pose, PathError
 from .settings import ExecutionSettings, GuardStop
 from ..machine.measurements import FIXED
+from ..walk_device.inclinometer import InclinometerJudgement, InclinometerState, judge_inclinometer
 
 if TYPE_CHECKING:
     from .execution import PlanExecution

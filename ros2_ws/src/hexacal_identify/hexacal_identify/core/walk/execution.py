@@ -14,7 +14,7 @@ each posture:
    refused).  It starts where the drive's setpoints are, their offset fading over the move.
 2. Arrive: at the target and still over the last ``settle_s`` (core/walk/arrival.py).
 3. Fixed-position postures (eq. 10) are reached in closed loop: once the inclinometer has
-   settled after the move (core/walk/arrival.py, core/walk/inclinometer.py), the commanded
+   settled after the move (core/walk/arrival.py, core/walk_device/inclinometer.py), the commanded
    pose's position is moved by ``-dp/d(alpha, beta) [alpha, beta]`` (`corrected_pose`) and
    new targets come from the nominal inverse kinematics, until both angles are within
    ``fixed_tolerance_rad``; after ``max_corrections`` the posture is skipped and reported.
@@ -26,13 +26,13 @@ reported with what was missing. Pause holds the machine (a one-point command at
 the measured actuator positions) and restarts the current posture on resume
 (its timeout too); abort holds it and ends the plan.
 
-Refined targets (core/walk/refined_targets.py): when the postures measured reach a count of
+Refined targets (core/walk_refine/refined_targets.py): when the postures measured reach a count of
 ``refine_at``, the walk stops at rest before the next posture (phase REFINING,
 ``refine_request``); `on_refined` with the intermediate model re-targets the remaining
 postures (targets, paths, corrections and the guard on that model), without one the targets
 stay; then the posture is commanded.
 
-Turning the device (core/walk/turns.py): before a posture whose turn differs from the
+Turning the device (core/walk_device/turns.py): before a posture whose turn differs from the
 mounting the device is in (``mounted_turn``, modulo 2 pi) the walk pauses itself, holding,
 with a ``turn_notice`` naming the posture, the turn and what to do; resume() records the new
 mounting and begins the posture from its planned pose.  A posture skipped after the turn does
@@ -57,21 +57,21 @@ import numpy as np
 
 from .arrival import correct_fixed_position, judged_angles, posture_matched, still_mean
 from .arrival import timeout_reason
-from .inclinometer import InclinometerJudgement
 from .messages import LogLevel, Messages, ReadingWindow
 from .platform_paths import Command, CommandPurpose
 from .platform_paths import path_command, PathError, route_command
 from .progress import eta_s, progress, summary, UNDER_WAY
-from .refined_targets import refined_targets, targets_model_label
 from .release_choice import choose_first_release, hear_release, rechoose_release
 from .release_choice import ReleaseRequest
 from .settings import ExecutionSettings, ExecutionState, GuardStop, Phase, PostureOutcome
 from .standing import blend_from_setpoints, estimate_pose
-from .turns import check_turns, same_turn, turn_text
 from ..architectures import KinematicParameters
 from ..machine.device import DEFAULT_MOUNT, fixed_point
 from ..machine.measurements import FIXED
 from ..planning.plan_check import check_stroke
+from ..walk_device.inclinometer import InclinometerJudgement
+from ..walk_device.turns import check_turns, same_turn, turn_text
+from ..walk_refine.refined_targets import refined_targets, targets_model_label
 
 # The guard: (current actuators, start pose, command points, released chain) -> problem ('': ok).
 Guard = Callable[[np.ndarray, np.ndarray, np.ndarray, int | None], str]
@@ -106,7 +106,7 @@ class PlanExecution:
         the start (rad); released: the chain released at each posture
         (None: all six commanded, the compliant and lvdt modes); refine_at: the measured-posture
         counts at which the walk stops at rest for an intermediate calibration
-        (core/walk/refined_targets.py; the node answers with `on_refined`).
+        (core/walk_refine/refined_targets.py; the node answers with `on_refined`).
         """
         self.nominal = nominal
         self.poses = np.atleast_2d(np.asarray(poses, dtype=float))

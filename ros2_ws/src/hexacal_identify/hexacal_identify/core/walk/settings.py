@@ -38,7 +38,8 @@ class ExecutionSettings:
     wait_for_posture: bool = True
     path_step_m: float = 0.02  # 0: one-point commands
     # Fixed-position loop: the two windows in which the inclinometer must have settled (s);
-    # 0: judge the mean over settle_s once the actuators are still (core/walk/inclinometer.py).
+    # 0: judge the mean over settle_s once the actuators are still
+    # (core/walk_device/inclinometer.py).
     inclinometer_settle_s: float = 0.25
     # A correction smaller than this goes this far beyond its target and back (m; 0: never),
     # so the collector sees a move (core/walk/arrival.py's nudge).

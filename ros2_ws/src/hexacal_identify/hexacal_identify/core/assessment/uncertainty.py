@@ -24,10 +24,10 @@ from typing import Callable, cast
 
 import numpy as np
 
-from .identification import identify, SolverOptions
 from .position_error import position_covariances
 from .validation import pose_errors, validation_poses
 from ..architectures import default_parameters, KinematicParameters
+from ..fit.identification import identify, SolverOptions
 from ..machine.kinematics import euler_rate_axes, pose_sensitivities
 from ..machine.measurements import NoiseModel, simulate_measurements
 from ..machine.model import nominal_set

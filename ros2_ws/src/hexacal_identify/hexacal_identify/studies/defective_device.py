@@ -22,9 +22,9 @@ from typing import Callable
 import numpy as np
 
 from ..core.architectures import default_parameters, KinematicParameters
+from ..core.assessment.validation import pose_errors, validation_poses
 from ..core.errors import CalibrationError
 from ..core.fit.identification import identify, SolverOptions
-from ..core.fit.validation import pose_errors, validation_poses
 from ..core.machine.device import device_position, DeviceDefects, DeviceModel
 from ..core.machine.measurements import (
     FIXED,

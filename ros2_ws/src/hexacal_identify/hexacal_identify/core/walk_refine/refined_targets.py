@@ -1,15 +1,15 @@
 """
 The executor's targets refined from a first calibration, ROS-free.
 
-The schedule is core/walk/refinement.py's (one owner): the first checkpoint is the posture count
-that allows a calibration of full rank, then geometrically more.  When the postures measured so far
-reach a checkpoint, the walk (core/walk/execution.py) stops at rest between postures and asks for a
-calibration; `RefineCall` follows the identify node's answer and the parameters it publishes,
-bounded by ``refine_timeout_s``; the remaining targets then come from the intermediate model
-(`refined_targets`).  A calibration that fails, is refused or does not come in time leaves the
-current targets.  Only this request's result is taken (core/walk/refine_answer.py): the parameters
-file the answer names, read at the answer, else the one parameter set published since the
-request; another client's calibration or a stale latched message is ignored.
+The schedule is core/walk_refine/refinement.py's (one owner): the first checkpoint is the posture
+count that allows a calibration of full rank, then geometrically more.  When the postures measured
+so far reach a checkpoint, the walk (core/walk/execution.py) stops at rest between postures and
+asks for a calibration; `RefineCall` follows the identify node's answer and the parameters it
+publishes, bounded by ``refine_timeout_s``; the remaining targets then come from the intermediate
+model (`refined_targets`).  A calibration that fails, is refused or does not come in time leaves
+the current targets.  Only this request's result is taken (core/walk_refine/refine_answer.py):
+the parameters file the answer names, read at the answer, else the one parameter set published
+since the request; another client's calibration or a stale latched message is ignored.
 """
 
 from __future__ import annotations
@@ -18,11 +18,11 @@ import enum
 
 import numpy as np
 
-from .messages import LogLevel, Messages
 from .refine_answer import choose_parameters, OwnResult, read_own_result
 from .refinement import full_rank_postures, refinement_checkpoints
 from ..architectures import KinematicParameters
 from ..machine.kinematics import inverse_kinematics
+from ..walk.messages import LogLevel, Messages
 
 NOMINAL_TARGETS = 'nominal'
 

@@ -20,7 +20,7 @@ A posture the procedure cannot measure on the true machine is skipped and counte
 (``failed_postures``), as an executor would have to: in ``passive_actuator`` the five nominal
 setpoints and the link may have no assembly near the planned pose (a fold of the passive system
 the nominal model does not see), in ``lvdt`` the forward kinematics may fail.  The readings
-carry the study's uniform noise.  With refinement (core/walk/refinement.py) the
+carry the study's uniform noise.  With refinement (core/walk_refine/refinement.py) the
 remaining targets come from an intermediate calibration once the postures measured so far give
 one of full rank; the deviations before (nominal targets) and after (refined targets) are
 reported apart.  SI units throughout (um only for display, by the CLI).
@@ -40,9 +40,9 @@ from hexacal_msgs_py.measuring_modes import (
 import numpy as np
 
 from ..core.architectures import default_parameters, KinematicParameters
+from ..core.assessment.validation import pose_errors, PoseErrors, validation_poses
 from ..core.errors import CalibrationError
 from ..core.fit.identification import IdentificationResult, identify, SolverOptions
-from ..core.fit.validation import pose_errors, PoseErrors, validation_poses
 from ..core.machine.device import DeviceModel
 from ..core.machine.kinematics import forward_kinematics, inverse_kinematics
 from ..core.machine.measurements import Measurements, NoiseModel, simulate_measurements, SPHERE
@@ -51,7 +51,7 @@ from ..core.machine.postures import sample_poses, Workspace
 from ..core.modes.compliant import device_constrained_pose
 from ..core.modes.passive_actuator import solve_passive
 from ..core.modes.released_actuator import choose_released_actuators
-from ..core.walk.refinement import (
+from ..core.walk_refine.refinement import (
     full_rank_postures,
     RefinedWalk,
     refinement_checkpoints,

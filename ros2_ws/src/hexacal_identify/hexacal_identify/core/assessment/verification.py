@@ -57,10 +57,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .compliance import ComplianceModel
-from .residuals import ChannelSigma, CostFunction
 from ..architectures import KinematicParameters
 from ..errors import InvalidMeasurementError
+from ..fit.compliance import ComplianceModel
+from ..fit.residuals import ChannelSigma, CostFunction
 from ..jsonsafe import json_safe as _plain
 from ..machine.device import DeviceDefects, DeviceModel
 from ..machine.kinematics import forward_kinematics, wrap_angle
@@ -294,7 +294,7 @@ def set_residuals(
     ``compliance``: (model, values) of compliances identified with ``params``: the readings are
     corrected by the static loads at the set's own poses (core/fit/compliance.py) before FK.
     """
-    from .identification import SolverOptions
+    from ..fit.identification import SolverOptions
 
     if compliance is not None:
         model, values = compliance

@@ -16,9 +16,9 @@ machine can go.  `walk_refined` walks a plan that way, in batches between checkp
 `refinement_checkpoints` spaces the checkpoints geometrically (again later if it helps: each
 re-calibration uses at least ``growth`` times the postures of the previous one, so a plan of K
 postures is calibrated O(log K) times).  Everything the walk needs is a callable, so the study
-(studies/measuring_modes.py) and an executor share the logic: ``targets(model, indices)`` the
-setpoints of postures ``indices`` under ``model``, ``measure(indices, setpoints)`` what the
-machine read there, ``calibrate(measured)`` a model or None.
+(studies/measuring_mode_accuracy.py) and an executor share the logic: ``targets(model,
+indices)`` the setpoints of postures ``indices`` under ``model``, ``measure(indices, setpoints)``
+what the machine read there, ``calibrate(measured)`` a model or None.
 """
 
 from __future__ import annotations

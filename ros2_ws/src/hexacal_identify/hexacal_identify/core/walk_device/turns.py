@@ -27,7 +27,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from .messages import LogLevel, Messages
+from ..walk.messages import LogLevel, Messages
 
 TURN_TOLERANCE_RAD = 1e-9  # mountings closer than this (modulo 2 pi) are the same
 TURN_PARAMETER = 'device_turn'  # the parameter (rad) of the collector and the driver

@@ -24,7 +24,7 @@ from typing import Any
 from hexacal_msgs_py.files import fsync_directory
 from hexacal_msgs_py.store_format import LOCK_FILE, TEMP_PREFIX
 
-from .entry import StoreError
+from .store_entry import StoreError
 
 # Test hook: called with a stage name between the steps of a write (simulated crashes).
 _CRASH_HOOK = None

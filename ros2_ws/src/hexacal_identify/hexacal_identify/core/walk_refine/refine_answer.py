@@ -19,7 +19,7 @@ names the parameters file it wrote and the fit's summary, which the file's heade
    vectors heard since the request decide: exactly one distinct vector is taken; several
    distinct ones are ambiguous and leave the targets (the safe side: a wrong model would move
    the machine and the guard's predictions with it); none yet: wait (at most
-   ``refine_timeout_s``, core/walk/refined_targets.py).
+   ``refine_timeout_s``, core/walk_refine/refined_targets.py).
 """
 
 from __future__ import annotations
