@@ -3,7 +3,8 @@ The demo's drive figures split before / after target refinement, ROS-free.
 
 The executor walks the calibration plan on nominal targets until the postures measured allow a
 calibration of full rank, then on targets from intermediate calibrations (status
-``targets_model``: ``nominal`` | ``calibration after N postures``, core/walk/refined_targets.py);
+``targets_model``: ``nominal`` | ``calibration after N postures``,
+core/walk_refine/refined_targets.py);
 with refinement the demo walks the verification plan on the calibration's targets. The simulated
 driver publishes its status ``hexacal driver`` at every rest (key ``rests``) with the TRUE
 deviation of the commanded actuators from their setpoints there (``actuator_deviation_m``), the

@@ -8,7 +8,7 @@ JointState or an Imu, read as the collector reads it: the InputMapping parameter
 nodes/input_parameters.py) and the collector's postures in; pause/resume/abort services;
 progress on ``hexacal/calibration_status``.  What decides is ROS-free:
 core/planning/plan_check.py (the plan is checked before anything moves), core/walk/execution.py
-(the walk), core/walk/turns.py (device turns), core/walk/drive_calls.py (release calls, the
+(the walk), core/walk_device/turns.py (device turns), core/walk/drive_calls.py (release calls, the
 drive's mode, the trajectory sent), core/sessions/executor_session.py (set-up, status,
 calibration call, parameter checks).  This node hears, publishes and keeps time; its ROS
 adapters are nodes/executor_io.py, its parameters nodes/executor_parameters.py.
@@ -142,7 +142,7 @@ class ExecutorNode(Node):
         self.turns = DeviceTurnSetter(
             {name: TurnClient(self, name) for name in setup.device_turn_nodes}
         )
-        # refine_targets: intermediate calibrations at rest (core/walk/refined_targets.py).
+        # refine_targets: intermediate calibrations at rest (core/walk_refine/refined_targets.py).
         self.refine = RefineCall(self.nominal, float(value['refine_timeout_s']))
         self.create_subscription(
             Float64MultiArray, PARAMETERS_TOPIC, self._on_parameters, PARAMETERS_QOS

@@ -3,7 +3,7 @@ The executor node's ROS adapters: its service and parameter clients, trajectorie
 
 The ROS-free walk (core/walk/) calls the drive's release services and the nodes' device_turn
 parameters through small client protocols (core/walk/drive_calls.py `ReleaseClient`,
-core/walk/turns.py `TurnClient`); these are their rclpy implementations. The walk's commands
+core/walk_device/turns.py `TurnClient`); these are their rclpy implementations. The walk's commands
 become trajectory_msgs/JointTrajectory here, and what its parts ask to log goes to the node's
 logger here.
 """
@@ -44,7 +44,7 @@ class ReleaseClient:
 
 
 class TurnClient:
-    """One node's device_turn through its parameter services (core.walk.turns.TurnClient)."""
+    """One node's device_turn through its parameter services (walk_device.turns.TurnClient)."""
 
     def __init__(self, node: Node, name: str):
         """Create the parameter client of node `name` on `node`."""
@@ -57,7 +57,7 @@ class TurnClient:
 
     def request(self, turn: float):
         """Set its device_turn (rad) without blocking; return the future."""
-        # Never blocks: the executor's timer collects the answer (core.walk.turns).
+        # Never blocks: the executor's timer collects the answer (core.walk_device.turns).
         parameter = Parameter(TURN_PARAMETER, Parameter.Type.DOUBLE, turn)
         return self._client.set_parameters([parameter])
 

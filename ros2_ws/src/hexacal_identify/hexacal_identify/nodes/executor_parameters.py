@@ -131,7 +131,7 @@ PARAMETERS: dict[str, _Spec] = {
         True,
         'once the postures measured allow a calibration of full rank, stop at rest, call '
         'hexacal/calibrate and compute the remaining targets with the intermediate model '
-        '(again at later checkpoints, core/walk/refinement.py); '
+        '(again at later checkpoints, core/walk_refine/refinement.py); '
         'without the service: nominal targets',
     ),
     'refine_timeout_s': _Spec(

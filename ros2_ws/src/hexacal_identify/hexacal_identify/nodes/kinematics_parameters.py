@@ -1,7 +1,7 @@
 """
 The kinematics node's ROS parameters: names, defaults, ranges and descriptions.
 
-Kept apart from nodes/kinematics.py so the node module holds only the glue; the checks beyond
+Kept apart from nodes/kinematics_node.py so the node module holds only the glue; the checks beyond
 type and range are core/sessions/kinematics_session.py's `check_parameter`. Every parameter is
 read only except `RUNTIME_PARAMETERS`; `stroke_limits` is declared without a default (`UNSET`:
 a double array, unset = the architecture's stroke).
