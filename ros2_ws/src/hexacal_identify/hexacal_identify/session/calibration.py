@@ -287,6 +287,7 @@ def compliance_setting(
     from ..calibration_steps.calibration_run import (
         compliance_for_postures,
         parse_compliance_prior,
+        released_friction_of,
     )
     from ..core.fit.statics import MassModel
 
@@ -326,6 +327,7 @@ def compliance_setting(
         nominal.layout.actuator_names,
         prior,
         label='compliance',
+        released_friction=released_friction_of(settings.physical_file, nominal.model),
     )
     return model, source
 
