@@ -23,7 +23,10 @@ What the data can separate: a chain compliance is told from its actuator's zero
 offset only by how its load varies from posture to posture, and the link's from
 the device's dL only by how the link's tension varies (identifiability names the
 combinations it cannot).  In the lvdt mode the link carries no load: its
-compliance has no effect and is not an unknown there.  The relative cost
+compliance has no effect and is not an unknown there.  In the passive_actuator mode a released
+actuator's stiction (``released_friction``, N) leaves it holding an unknown force within
++-that bound: its loads per newton (statics.released_force_loads) times the compliances are
+one more noise source of each posture, in the whitening of the rows.  The relative cost
 (eqs. 12 + 13) pairs postures whose loads differ: it is not offered with
 compliances.
 """

@@ -53,6 +53,9 @@ and its joint centres shifts the reading by ``c_c F_c r_c`` (``reading_loads``):
 the encoder reads lambda_joint + c_c F_c r_c.  A compliance that sits along the
 actuator (a ball screw) enters the same way, referred to the leg at each posture.
 The link of axial compliance c_L is ``L + c_L T`` long (eq. 4's position).
+
+A released actuator that stops by stiction holds a force its friction bounds: the loads per
+newton of it (``released_force_loads``) are what the fit weighs it by (compliance.py).
 """
 
 from __future__ import annotations
