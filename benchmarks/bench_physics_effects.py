@@ -66,7 +66,7 @@ from pathlib import Path
 import time
 
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.errors import RankDeficientError
+from hexacal_identify.core.errors import RankDeficientError, TooFewPosturesError
 from hexacal_identify.core.fit.compliance import ComplianceModel
 from hexacal_identify.core.fit.identification import identify, SolverOptions
 from hexacal_identify.core.fit.statics import MassModel
@@ -258,10 +258,12 @@ def evaluate(
             result = identify(
                 nominal, measurements, SolverOptions(noise=NOISE, compliance=compliance)
             )
-        except RankDeficientError as error:  # e.g. no weight: no load tells a compliance
+        except (RankDeficientError, TooFewPosturesError) as error:
+            # No weight: no load tells a compliance; an unstable machine: no posture at rest.
+            lines = str(error).splitlines()
             rows.append({
                 'model': model, 'mode': mode, 'effect': effect, 'compliance': label,
-                'refused': str(error).splitlines()[1].strip(),
+                'refused': lines[min(1, len(lines) - 1)].strip(),
             })
             continue
         errors = pose_errors(true, result.parameters, check_poses)
