@@ -19,7 +19,7 @@ and the wall time. A run that fails (a drive fault: the demo exits non-zero) is 
 what failed. ``--json`` prints the rows.
 
 Run: ``.venv/bin/python benchmarks/bench_demo_modes.py [--models gough_stewart]
-[--postures 50] [--verify-postures 20] [--seed 0] [--json]`` (about 3 minutes per run).
+[--modes compliant] [--postures 50] [--verify-postures 20] [--seed 0] [--json]`` (about 3 minutes per run).
 """
 
 from __future__ import annotations
@@ -78,13 +78,13 @@ class RunResult:
     summary: dict[str, Any] | None = field(default=None, repr=False)
 
 
-def runs(models: list[str]) -> list[DemoRun]:
-    """Return the runs: per model the three refined modes, then today's compliant demo."""
+def runs(models: list[str], modes: tuple[str, ...] = MODES) -> list[DemoRun]:
+    """Return the runs: per model the refined modes, then today's compliant demo (if asked)."""
     return [
         run
         for model in models
-        for run in [DemoRun(model, mode, True) for mode in MODES]
-        + [DemoRun(model, 'compliant', False)]
+        for run in [DemoRun(model, mode, True) for mode in modes]
+        + ([DemoRun(model, 'compliant', False)] if 'compliant' in modes else [])
     ]
 
 
@@ -265,6 +265,10 @@ def print_table(model: str, rows: list[dict], args: argparse.Namespace) -> None:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--models', nargs='+', choices=MODELS, default=list(MODELS))
+    parser.add_argument(
+        '--modes', nargs='+', choices=MODES, default=list(MODES),
+        help="measuring modes (default all; compliant adds today's --no-refine demo)",
+    )
     parser.add_argument('--postures', type=int, default=50, help='postures (default 50)')
     parser.add_argument(
         '--verify-postures', type=int, default=20, help='verification postures (default 20)'
@@ -280,7 +284,7 @@ def main() -> int:
     args = parser.parse_args()
     root = (args.out or Path(tempfile.mkdtemp(prefix='bench_demo_modes_'))).resolve()
     progress = sys.stderr if args.json else sys.stdout
-    planned = runs(args.models)
+    planned = runs(args.models, tuple(args.modes))
     print(f'{len(planned)} demos, work directories under {root}', file=progress, flush=True)
     rows = []
     for number, run in enumerate(planned, 1):

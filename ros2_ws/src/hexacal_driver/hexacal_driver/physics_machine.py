@@ -48,6 +48,7 @@ from hexacal_identify.physics.mjcf import (
     DEFAULT_TIMESTEP_S,
     INCLINOMETER_SENSOR,
     INCLINOMETER_SITE,
+    LINK_CONNECT,
     machine_mjcf,
     MachineMjcf,
     PLATFORM_NAME,
@@ -177,6 +178,9 @@ class PhysicsMachine:
             else self.model.jnt_qposadr[self.model.joint(names.link_spring_joint).id]
         )
         self._connects = [self.model.equality(name).id for name in names.equalities]
+        self._link_connect = (
+            self.model.equality(LINK_CONNECT).id if LINK_CONNECT in names.equalities else None
+        )
         self.data.ctrl[:] = self.data.qpos[self._actuated_qpos]
         self._move: _Move | None = None
         self._rest_speed = REST_SPEED
@@ -385,6 +389,29 @@ class PhysicsMachine:
         """Return the link's length (m): its rest length plus the spring or LVDT travel."""
         extension = 0.0 if self._link_qpos is None else float(self.data.qpos[self._link_qpos])
         return self.mjcf.link_length + extension
+
+    def link_force(self) -> float:
+        """
+        Return the measuring link's axial force at its platform joint (N, tension positive).
+
+        The connect constraint's force on the platform projected on the link's direction: the
+        link's spring (or LVDT spring) and the axial share of its weight; in passive_actuator
+        mode the load it bears for the released actuator.
+        """
+        if self._link_connect is None:
+            raise ValueError('the machine has no measuring link')
+        mj, model, data = self._mj, self.model, self.data
+        mj.mj_forward(model, data)
+        rows = np.flatnonzero(
+            (data.efc_type == int(mj.mjtConstraint.mjCNSTR_EQUALITY))
+            & (data.efc_id == self._link_connect)
+        )
+        if len(rows) != 3:
+            raise PhysicsError(f'the link joint has {len(rows)} constraint rows, not 3')
+        # A connect's rows are the world-frame components of (link end - platform point); its
+        # force pulls the link's end toward the platform when positive along the link.
+        direction = self.pose()[:3] / np.linalg.norm(self.pose()[:3])
+        return float(np.asarray(data.efc_force[rows]) @ direction)
 
     def ideal_inclinometer(self) -> tuple[float, float]:
         """Return (alpha, beta) of the device frame from the accelerometer (module doc)."""

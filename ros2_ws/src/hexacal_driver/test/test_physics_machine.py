@@ -101,6 +101,27 @@ def test_compliant_servos_settle_where_the_least_squares_pose_is(model):
     assert np.abs(machine.encoders() - actuators).max() < 10 * NM
 
 
+def test_the_links_force_is_its_spring_and_its_weight():
+    params = architecture('hexa_slide').default_parameters()
+    shipped = default_physical('hexa_slide')
+    # Gravity off: the link's force at its platform joint is its spring's tension.
+    machine = PhysicsMachine(params, shipped.weightless(), START, link_length=L)
+    setpoints = inverse_kinematics(params, TARGET[None])[0]
+    machine.release(2)
+    setpoints[0] += 20e-6  # the released actuator follows; the link bears the rest
+    settle(machine, setpoints)
+    stretch = machine.link_length() - L
+    assert abs(stretch) > 1e-7
+    tension = shipped.link_axial_stiffness * stretch
+    assert abs(machine.link_force() - tension) < 1e-6 * abs(tension) + 1e-6
+    # An LVDT without spring under gravity: only the sliding link's weight along its axis.
+    machine = PhysicsMachine(params, shipped, START, link_length=L, mode='lvdt')
+    assert machine.settle(1.5, speed=1e-6)
+    direction = machine.pose()[:3] / np.linalg.norm(machine.pose()[:3])
+    weight = shipped.link_mass * np.asarray(shipped.gravity) @ direction  # > 0: pulls it down
+    assert abs(machine.link_force() + weight) < 1e-3 * weight
+
+
 @pytest.mark.parametrize('turn', [0.0, np.pi / 2])
 def test_the_accelerometer_reads_eq4s_angles_at_rest(turn):
     model = 'hexa_slide'

@@ -7,9 +7,9 @@ from hexacal_identify.core.errors import InvalidMeasurementError, RankDeficientE
 from hexacal_identify.core.fit.compliance import ComplianceModel, simulate_loaded_measurements
 from hexacal_identify.core.fit.fit_problem import FitProblem
 from hexacal_identify.core.fit.identification import identify, SolverOptions
-from hexacal_identify.core.fit.statics import MassModel
+from hexacal_identify.core.fit.statics import MassModel, released_force_loads
 from hexacal_identify.core.machine.kinematics import forward_kinematics
-from hexacal_identify.core.machine.measurements import NoiseModel
+from hexacal_identify.core.machine.measurements import NoiseModel, simulate_measurements
 from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_identify.core.modes.passive_actuator import release_conditions
 import numpy as np
@@ -218,3 +218,74 @@ def test_verification_uses_the_compliances_on_fresh_postures():
     assert loaded.verdict == 'pass', loaded.verdict_reason
     # Read as rigid, the same readings show the link's stretch at the fresh postures.
     assert loaded_rms < 8e-6 and rigid_rms > 3 * loaded_rms, (loaded_rms, rigid_rms)
+
+
+def _with_stiction(true, poses, compliance, truth, forces, rng):
+    """Return a loaded machine's readings with ``forces`` (N) held by the released actuators."""
+    poses = poses.copy()
+    direction = poses[:, :3] / np.linalg.norm(poses[:, :3], axis=1, keepdims=True)
+    used = np.arange(len(poses))
+    for _ in range(4):  # the platform stands where the loaded link's length puts it
+        loads = compliance.loads(true, poses, used)
+        unit = released_force_loads(true, poses, compliance.released)
+        tension = loads.link + forces * unit.link
+        poses[:, :3] = direction * (0.75 + truth[-1] * tension)[:, None]
+    rigid = simulate_measurements(true, poses, noise=NOISE, rng=rng)
+    shifts = truth[0] * (loads.reading_loads + forces[:, None] * unit.reading_loads)
+    return replace(rigid, actuator_positions=rigid.actuator_positions + shifts)
+
+
+def test_released_friction_weighed_as_noise_keeps_the_adequacy_honest():
+    arch, true, rng, poses, released = _setup('hexa_slide', n=40)
+    friction = 20.0  # N: the released actuator stops anywhere its stiction holds it
+    compliance = ComplianceModel('shared', MASSES, 'passive_actuator', released)
+    truth = np.array([CHAIN, LINK])
+    forces = rng.uniform(-friction, friction, len(poses))
+    measurements = _with_stiction(true, poses, compliance, truth, forces, rng)
+    nominal = _nominal(true, rng)
+    unweighed = identify(nominal, measurements, SolverOptions(noise=NOISE, compliance=compliance))
+    assert unweighed.adequacy.failed, unweighed.variance_factor
+    weighed = identify(
+        nominal,
+        measurements,
+        SolverOptions(noise=NOISE, compliance=replace(compliance, released_friction=friction)),
+    )
+    assert weighed.adequacy.verdict == 'pass', (weighed.variance_factor, weighed.adequacy.reason)
+    assert weighed.variance_factor < unweighed.variance_factor / 2.0
+    estimate, std = weighed.compliance['link'], weighed.compliance_std['link']
+    assert abs(estimate - LINK) < 3.3 * std, (estimate, std)
+    # Nothing changes where no actuator is released or there is no friction.
+    assert not replace(compliance, measuring_mode='lvdt', released=None,
+                       released_friction=friction).weighs_friction
+    with pytest.raises(ValueError, match='released_friction'):
+        replace(compliance, released_friction=-1.0)
+
+
+def test_the_calibration_builder_weighs_the_described_friction(tmp_path):
+    from hexacal_identify.calibration_steps.calibration_run import (
+        compliance_for_postures,
+        released_friction_of,
+    )
+    from hexacal_msgs_py.physical_file import default_physical, write_physical_file
+
+    shipped = default_physical('hexa_slide')
+    assert released_friction_of('', 'hexa_slide') == shipped.released_coulomb > 0.0
+    complete = tmp_path / 'machine.yaml'
+    write_physical_file(complete, replace(shipped, released_coulomb=25.0))
+    assert released_friction_of(str(complete), 'hexa_slide') == 25.0
+    masses_only = tmp_path / 'masses.yaml'
+    masses_only.write_text('platform: {mass: 20.0}\n')
+    assert released_friction_of(str(masses_only), 'hexa_slide') == 0.0
+    masses_only.write_text('platform: {mass: 20.0}\nreleased_friction: {coulomb: 7.5}\n')
+    assert released_friction_of(str(masses_only), 'hexa_slide') == 7.5
+    masses_only.write_text('released_friction: {coulomb: -1}\n')
+    with pytest.raises(ValueError, match='released_friction.coulomb'):
+        released_friction_of(str(masses_only), 'hexa_slide')
+    names = ('slider_1', 'slider_2', 'slider_3', 'slider_4', 'slider_5', 'slider_6')
+    passive = compliance_for_postures(
+        'shared', MASSES, 'passive_actuator', ['slider_2', 'slider_5'], names,
+        released_friction=25.0,
+    )
+    assert passive.weighs_friction and passive.released_friction == 25.0
+    lvdt = compliance_for_postures('shared', MASSES, 'lvdt', None, names, released_friction=25.0)
+    assert lvdt.released_friction == 0.0 and not lvdt.weighs_friction

@@ -4,9 +4,11 @@ from dataclasses import replace
 
 from hexacal_identify.core.architectures import architecture
 from hexacal_identify.core.architectures.base import ACTUATOR_BODY
+from hexacal_identify.core.errors import InvalidMeasurementError
 from hexacal_identify.core.fit.statics import (
     actuator_weight_loads,
     MassModel,
+    released_force_loads,
     static_loads,
     weight_gradient,
 )
@@ -299,3 +301,24 @@ def test_mass_model_reads_the_actuators_moving_mass(tmp_path):
     assert shipped.actuator_moving_mass > 0.0
     with pytest.raises(ValueError, match='actuator_moving_mass'):
         MassModel(actuator_moving_mass=-1.0)
+
+
+@pytest.mark.parametrize('model', MODELS)
+def test_a_force_on_the_released_actuator_is_held_by_the_others_and_the_link(model):
+    params, poses = _machine(model)
+    released = np.arange(len(poses)) % 6
+    unit = released_force_loads(params, poses, released)
+    rows = np.arange(len(poses))
+    np.testing.assert_array_equal(unit.thrust[rows, released], 1.0)
+    # No weight: J^T tau - T j_L = 0 with the released actuator pushing 1 N along +lambda.
+    arch = params.architecture
+    jacobian = np.array(arch.legs(arch.chains(params), poses).pose_jacobian())
+    link_row = np.zeros((len(poses), 6))
+    link_row[:, :3] = poses[:, :3] / np.linalg.norm(poses[:, :3], axis=1, keepdims=True)
+    balance = np.einsum('ncx,nc->nx', jacobian, unit.thrust) - unit.link[:, None] * link_row
+    np.testing.assert_allclose(balance, 0.0, atol=1e-9 * np.abs(unit.link).max())
+    assert np.abs(unit.link).min() > 0.0  # the link takes part of it at every posture
+    leg_factor = np.linalg.norm(jacobian[:, :, :3], axis=2)
+    np.testing.assert_allclose(unit.reading_loads, unit.thrust * leg_factor**2)
+    with pytest.raises(InvalidMeasurementError, match='released chains'):
+        released_force_loads(params, poses, released[:-1])

@@ -8,6 +8,7 @@ offline gives the same parameters as the node that received the same postures.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Sequence
 
 from hexacal_msgs_py.readings import PostureReading
@@ -120,6 +121,7 @@ def compliance_for_postures(
     actuator_names: Sequence[str],
     prior: dict[str, tuple[float, float]] | None = None,
     label: str = 'compliance',
+    released_friction: float = 0.0,
 ) -> ComplianceModel | None:
     """
     Return the ComplianceModel of a compliance choice for a set of postures (None: rigid).
@@ -128,6 +130,8 @@ def compliance_for_postures(
     ``measuring_mode`` (None: unknown, refused) says who carries the weights, and in the
     passive_actuator mode ``released_joints`` (one actuator joint name per posture) which chain
     carries nothing. ``label`` names the option in the errors (ValueError).
+    ``released_friction`` (N, passive_actuator): the released actuator's friction bound, the
+    force it may hold where it stops, weighed as a noise source of each posture.
     """
     from ..core.fit.compliance import NONE
 
@@ -150,7 +154,41 @@ def compliance_for_postures(
                 f'(first: posture {missing[0]})'
             )
         released = np.array([names.index(joint) for joint in joints])
-    return ComplianceModel(choice, masses, measuring_mode, released, prior=prior or {})
+    return ComplianceModel(
+        choice, masses, measuring_mode, released, prior=prior or {},
+        released_friction=released_friction if measuring_mode == 'passive_actuator' else 0.0,
+    )
+
+
+def released_friction_of(path: str | None, model: str) -> float:
+    """
+    Return the released actuator's friction bound (N) of a physical description.
+
+    ``path`` None or '': the model's shipped description; a complete ``hexacal-physical/1``
+    file through the contract's reader; a file of the mass keys only: its
+    ``released_friction.coulomb`` (0 when missing).  ValueError names an unreadable file.
+    """
+    from hexacal_msgs_py.physical_file import default_physical, read_physical_file
+    import yaml
+
+    if not path:
+        return default_physical(model).released_coulomb
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except (OSError, yaml.YAMLError) as error:
+        raise ValueError(f'cannot read the physical description {path}: {error}') from error
+    if isinstance(data, dict) and 'model' in data:
+        return read_physical_file(path).released_coulomb
+    section = data.get('released_friction') if isinstance(data, dict) else None
+    try:
+        friction = float((section or {}).get('coulomb', 0.0))
+    except (AttributeError, TypeError, ValueError):
+        raise ValueError(
+            f'{path}: released_friction.coulomb must be a force in N, got {section!r}'
+        ) from None
+    if not np.isfinite(friction) or friction < 0.0:
+        raise ValueError(f'{path}: released_friction.coulomb must be >= 0 N, got {friction!r}')
+    return friction
 
 
 def device_prior_json(prior: DevicePrior | None) -> dict[str, dict[str, float]]:

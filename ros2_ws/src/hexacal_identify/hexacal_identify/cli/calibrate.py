@@ -196,7 +196,10 @@ def compliance_prior_argument(text: str) -> dict[str, tuple[float, float]]:
 
 def compliance_model(args, bag, nominal):
     """Return the ComplianceModel of --compliance for a bag's postures (None: rigid)."""
-    from ..calibration_steps.calibration_run import compliance_for_postures
+    from ..calibration_steps.calibration_run import (
+        compliance_for_postures,
+        released_friction_of,
+    )
     from ..core.fit.statics import MassModel
 
     if args.compliance == 'none':
@@ -227,6 +230,7 @@ def compliance_model(args, bag, nominal):
         nominal.layout.actuator_names,
         args.compliance_prior,
         label='--compliance',
+        released_friction=released_friction_of(args.physical, nominal.model),
     )
 
 

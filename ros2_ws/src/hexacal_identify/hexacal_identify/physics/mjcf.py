@@ -61,6 +61,7 @@ SLIDER_RADIUS_M = 0.04
 PASSIVE_JOINT_DAMPING = 0.05
 PLATFORM_NAME = 'platform'
 LINK_NAME = 'device_link'
+LINK_CONNECT = 'device_link_platform_joint'  # the link's platform-side joint (a connect)
 LINK_SPRING_JOINT = 'device_link_axial'
 LINK_HINGES = ('device_beta', 'device_alpha')  # the device's universal joint, base side first
 INCLINOMETER_SITE = 'inclinometer'
@@ -364,9 +365,9 @@ def machine_mjcf(
             f'quat="{_vec(_quat(frame))}" size="0.015"/>',
             '    </body>',
         ]
-        equalities.append('device_link_platform_joint')
+        equalities.append(LINK_CONNECT)
         connects.append(
-            f'    <connect name="device_link_platform_joint" body1="{LINK_NAME}" '
+            f'    <connect name="{LINK_CONNECT}" body1="{LINK_NAME}" '
             f'body2="{PLATFORM_NAME}" anchor="{_vec(end)}"{equality}/>'
         )
     lines.append('  </worldbody>')

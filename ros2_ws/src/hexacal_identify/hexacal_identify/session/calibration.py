@@ -290,6 +290,7 @@ def compliance_setting(
     from ..calibration_steps.calibration_run import (
         compliance_for_postures,
         parse_compliance_prior,
+        released_friction_of,
     )
 
     prior = parse_compliance_prior(settings.compliance_prior)
@@ -322,6 +323,7 @@ def compliance_setting(
         nominal.layout.actuator_names,
         prior,
         label='compliance',
+        released_friction=released_friction_of(settings.physical_file, nominal.model),
     )
     return model, source
 

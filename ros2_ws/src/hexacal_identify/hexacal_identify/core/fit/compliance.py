@@ -23,7 +23,10 @@ What the data can separate: a chain compliance is told from its actuator's zero
 offset only by how its load varies from posture to posture, and the link's from
 the device's dL only by how the link's tension varies (identifiability names the
 combinations it cannot).  In the lvdt mode the link carries no load: its
-compliance has no effect and is not an unknown there.  The relative cost
+compliance has no effect and is not an unknown there.  In the passive_actuator mode a released
+actuator's stiction (``released_friction``, N) leaves it holding an unknown force within
++-that bound: its loads per newton (statics.released_force_loads) times the compliances are
+one more noise source of each posture, in the whitening of the rows.  The relative cost
 (eqs. 12 + 13) pairs postures whose loads differ: it is not offered with
 compliances.
 """
@@ -36,7 +39,7 @@ from hexacal_msgs_py.measuring_modes import MeasuringMode
 import numpy as np
 
 from .residuals import ResidualBlock
-from .statics import MassModel, static_loads, StaticLoads
+from .statics import MassModel, released_force_loads, static_loads, StaticLoads
 from ..architectures import KinematicParameters
 from ..errors import InvalidMeasurementError
 from ..machine.device import DeviceModel
@@ -79,6 +82,10 @@ class ComplianceModel:
     # name -> (value, std) m/N: a datasheet figure weighed against the data like a device prior.
     prior: dict[str, tuple[float, float]] = field(default_factory=dict, compare=False)
     held: tuple[str, ...] = ()  # names held at their start (prior or zero), not identified
+    # passive_actuator: the released actuator's friction bound (N, the physical description's
+    # released_friction.coulomb): it stops holding an unknown force within +-this, weighed as
+    # a noise source of each posture (uniform: std bound / sqrt(3)); 0 = frictionless.
+    released_friction: float = 0.0
 
     def __post_init__(self) -> None:
         names = self.names
@@ -88,6 +95,9 @@ class ComplianceModel:
                 f'unknown compliance(s) {unknown} for the {self.mode} choice in the '
                 f'{self.measuring_mode} mode; choose from {", ".join(names) or "none"}'
             )
+        friction = float(self.released_friction)
+        if not (np.isfinite(friction) and friction >= 0):
+            raise ValueError(f'released_friction must be a force >= 0 N, got {friction!r}')
         for name, (value, std) in self.prior.items():
             if not (np.isfinite(value) and np.isfinite(std) and std > 0):
                 raise ValueError(f'compliance prior {name}: value and a std > 0 m/N, got '
@@ -154,6 +164,36 @@ class ComplianceModel:
         """Return the static loads at the poses of postures ``used`` (of the measurement set)."""
         released = None if self.released is None else np.asarray(self.released)[used]
         return static_loads(params, poses, self.masses, self.measuring_mode, released)
+
+    @property
+    def weighs_friction(self) -> bool:
+        """Return True when the released actuator's friction is a noise source of the fit."""
+        return (
+            self.active
+            and self.released_friction > 0.0
+            and MeasuringMode(self.measuring_mode) == MeasuringMode.PASSIVE_ACTUATOR
+        )
+
+    def friction_noise(
+        self,
+        params: KinematicParameters,
+        poses: np.ndarray,
+        used: np.ndarray,
+        block: ResidualBlock,
+        values: np.ndarray,
+        dl_column: int,
+    ) -> tuple[np.ndarray, float]:
+        """
+        Return d rows / d released force (rows,) at the compliances ``values``, and its variance.
+
+        The force on the released actuator (within +-released_friction) moves the loads by
+        ``released_force_loads`` per newton, the deflections with them by the compliances: a
+        noise source shared by a posture's rows (row_weights.py whitens them by it).
+        """
+        assert self.released is not None  # validate() refuses passive postures without them
+        unit = released_force_loads(params, poses, np.asarray(self.released)[used])
+        derivative = self.columns(block, unit, dl_column) @ np.asarray(values, dtype=float)
+        return derivative, self.released_friction**2 / 3.0
 
     def corrected(
         self,

@@ -232,6 +232,15 @@ class FitProblem:
         raw = self.cost_at(vector).residuals(
             poses, pose_sensitivities(params, poses), defects, with_device=True
         )
+        if variances is not None and self.compliance.weighs_friction:
+            # The released actuator's friction: one more noise source of each posture.
+            derivative, variance = self.compliance.friction_noise(
+                params, poses, self.used, raw, vector[self._offset():], self.n_parameters + DL
+            )
+            assert raw.noise_jacobian is not None
+            raw.noise_jacobian = np.column_stack([raw.noise_jacobian, derivative])
+            extra = np.full(variances.shape[:-1] + (1,), variance)
+            variances = np.concatenate([variances, extra], axis=-1)
         return RowTransform(raw, variances, loss)
 
     def variances(self) -> np.ndarray | None:

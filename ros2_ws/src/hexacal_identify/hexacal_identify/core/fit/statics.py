@@ -53,6 +53,9 @@ and its joint centres shifts the reading by ``c_c F_c r_c`` (``reading_loads``):
 the encoder reads lambda_joint + c_c F_c r_c.  A compliance that sits along the
 actuator (a ball screw) enters the same way, referred to the leg at each posture.
 The link of axial compliance c_L is ``L + c_L T`` long (eq. 4's position).
+
+A released actuator that stops by stiction holds a force its friction bounds: the loads per
+newton of it (``released_force_loads``) are what the fit weighs it by (compliance.py).
 """
 
 from __future__ import annotations
@@ -301,8 +304,45 @@ def static_loads(
     return StaticLoads(thrust, chains, tension, chains * leg_factor)
 
 
+def released_force_loads(
+    params: KinematicParameters, poses: np.ndarray, released: np.ndarray
+) -> StaticLoads:
+    """
+    Return the change of the loads per newton of force on the released actuator (passive_actuator).
+
+    A released actuator with friction (stiction) stops where its guide holds a force f along
+    +lambda (anywhere within the friction's bound): its leg carries f r_c, and the five
+    commanded chains and the link balance -J_r^T f (module doc: the released chain's row of J
+    carries f in J^T tau - T j_L = G).  Linear in f; the loads of f are f times these.
+    """
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    n = len(poses)
+    index = np.asarray(released)
+    if index.shape != (n,) or np.any((index < 0) | (index > 5)):
+        raise InvalidMeasurementError(
+            f'released chains must be {n} chain indices 0..5, got {np.unique(index)}'
+        )
+    arch = params.architecture
+    jacobian = np.array(arch.legs(arch.chains(params), poses).pose_jacobian())  # (N, 6, 6)
+    rows = np.arange(n)
+    link_row = np.zeros((n, 6))
+    link_row[:, :3] = poses[:, :3] / np.linalg.norm(poses[:, :3], axis=1, keepdims=True)
+    carriers = jacobian.copy()
+    carriers[rows, index] = -link_row
+    unknowns = np.linalg.solve(
+        np.swapaxes(carriers, 1, 2), -jacobian[rows, index][..., None]
+    )[..., 0]
+    tension = unknowns[rows, index]
+    thrust = unknowns
+    thrust[rows, index] = 1.0
+    leg_factor = np.linalg.norm(jacobian[:, :, :3], axis=2)
+    chains = thrust * leg_factor
+    return StaticLoads(thrust, chains, tension, chains * leg_factor)
+
+
 __all__ = [
     'actuator_weight_loads',
+    'released_force_loads',
     'MassModel',
     'STANDARD_GRAVITY',
     'StaticLoads',
