@@ -89,6 +89,16 @@ class PhysicsFollower(DriveFollower):
             return None
         return np.array(self.physical.drive_kp) * (self.actuators - self.setpoints)
 
+    def link_force(self) -> float | None:
+        """
+        Return the link's axial force the simulation measures (N, tension positive), any mode.
+
+        Not only the compliant mode's: in passive_actuator the link bears the load of the
+        released actuator, which no encoder and no kinematic model shows.
+        """
+        machine = getattr(self, 'machine', None)  # None while DriveFollower.__init__ runs
+        return machine.link_force() if machine is not None and machine.has_link else None
+
     def release(self, joint: str, release: bool, now_s: float) -> tuple[bool, str]:
         """Release or lock ``joint`` (DriveFollower's checks), then on the MuJoCo machine."""
         done, message = super().release(joint, release, self._clock(now_s))
@@ -196,4 +206,8 @@ class PhysicsFollower(DriveFollower):
             max_joint_gap_m=status['max_joint_gap_m'],
             real_time_factor=status['cpu_real_time_factor'],
         )
+        if self.machine.has_link:  # the simulated link's force, in every measuring mode
+            values.update(
+                link_force_n=self.link_force_n, max_link_force_n=self.peaks['link_force_n']
+            )
         return values

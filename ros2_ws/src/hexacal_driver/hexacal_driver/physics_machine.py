@@ -390,6 +390,11 @@ class PhysicsMachine:
         extension = 0.0 if self._link_qpos is None else float(self.data.qpos[self._link_qpos])
         return self.mjcf.link_length + extension
 
+    @property
+    def has_link(self) -> bool:
+        """Whether the machine carries the measuring link (link_force needs it)."""
+        return self._link_connect is not None
+
     def link_force(self) -> float:
         """
         Return the measuring link's axial force at its platform joint (N, tension positive).

@@ -73,6 +73,10 @@ def test_passive_actuator_on_the_mujoco_machine(tmp_path):
     status = f.status_values()
     assert status['physics'] == 'mujoco' and status['released_joint'] == RELEASED
     assert status['max_joint_gap_m'] < 1e-8 and status['state'] == 'ok'
+    # The simulated link's force is on the status in this mode too: weightless, none at rest
+    # (the peak holds the move's inertial forces).
+    assert status['link_force_n'] == pytest.approx(m.follower.machine.link_force(), abs=1e-9)
+    assert abs(status['link_force_n']) < 1e-3 < status['max_link_force_n']
     # Locked where it stands: no jump.
     before = f.actuators[index]
     assert f.release(RELEASED, False, now_s)[0]

@@ -45,9 +45,16 @@ def test_only_the_figures_of_the_mode_are_given():
     }
     lvdt = driver_figures({**DRIVER, 'max_link_extension_m': '0.0012'}, 'lvdt')
     assert lvdt['max_link_extension_m'] == 0.0012 and lvdt['max_force_n'] is None
-    passive = driver_figures(DRIVER, 'passive_actuator')
+    # The kinematic drives model the link's force in the compliant mode only ('' otherwise).
+    unloaded = {**DRIVER, 'max_link_force_n': ''}
+    passive = driver_figures(unloaded, 'passive_actuator')
     assert passive['max_force_n'] is None and passive['max_link_extension_m'] is None
-    assert lvdt['max_link_force_n'] is None and passive['max_link_force_n'] is None
+    assert passive['max_link_force_n'] is None
+    assert driver_figures({**unloaded, 'max_link_extension_m': '0.0012'}, 'lvdt')[
+        'max_link_force_n'] is None
+    # The MuJoCo machine measures the link's force in every mode: a passive link bears load.
+    mujoco = driver_figures({**DRIVER, 'max_link_force_n': '586.0'}, 'passive_actuator')
+    assert mujoco['max_link_force_n'] == 586.0 and mujoco['max_force_n'] is None
 
 
 def test_summary_is_written_as_json_with_the_keys_and_printed_in_um(tmp_path):
@@ -70,6 +77,14 @@ def test_summary_is_written_as_json_with_the_keys_and_printed_in_um(tmp_path):
     text = '\n'.join(summary_lines(summary))
     assert '3964.0 um' in text and '7928.0 N' in text and 'extension' not in text
     assert 'largest measuring-link force: 15448.7 N' in text
+    assert 'beyond the 500 N a measuring link' in text  # and what to do instead
+    within = build_summary(
+        model='hexa_slide', measuring_mode='passive_actuator', postures=20,
+        driver_values={**DRIVER, 'max_link_force_n': '420.0'}, pose_errors=POSES,
+        verification=verification,
+    )
+    text = '\n'.join(summary_lines(within))
+    assert 'largest measuring-link force: 420.0 N' in text and 'beyond' not in text
 
 
 def test_a_summary_without_verification_or_driver_status_has_nulls():

@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from hexacal_msgs_py.files import atomic_write
-from hexacal_msgs_py.measuring_modes import MeasuringMode
+from hexacal_msgs_py.measuring_modes import LINK_FORCE_LIMIT_N, MeasuringMode
 from hexacal_msgs_py.models import MODELS
 
 SUMMARY_FILE = 'summary.json'
@@ -43,7 +43,8 @@ def driver_figures(values: Mapping[str, str], mode: str) -> dict[str, float | No
 
     The largest true deviation of a commanded actuator from its setpoint at rest; the largest
     link extension (lvdt, else None), the largest actuator force and the largest force of the
-    measuring link (compliant, else None; a driver that does not report it: None).
+    measuring link (the compliant drives' modelled one, or the MuJoCo machine's in any mode; a
+    driver that does not report it: None).
     """
     return {
         'max_actuator_deviation_m': status_number(values, 'max_actuator_deviation_m'),
@@ -53,9 +54,8 @@ def driver_figures(values: Mapping[str, str], mode: str) -> dict[str, float | No
         'max_force_n': (
             status_number(values, 'max_force_n') if mode == MeasuringMode.COMPLIANT else None
         ),
-        'max_link_force_n': (
-            status_number(values, 'max_link_force_n') if mode == MeasuringMode.COMPLIANT else None
-        ),
+        # The compliant drives' modelled force, or the MuJoCo link's in every mode.
+        'max_link_force_n': status_number(values, 'max_link_force_n'),
     }
 
 
@@ -125,8 +125,14 @@ def summary_lines(summary: Mapping[str, Any]) -> list[str]:
         lines.append(
             f'largest actuator {units.effort}: {summary["max_force_n"]:.1f} {units.effort_unit}'
         )
-    if summary.get('max_link_force_n') is not None:
-        lines.append(f'largest measuring-link force: {summary["max_link_force_n"]:.1f} N')
+    link_force = summary.get('max_link_force_n')
+    if link_force is not None:
+        lines.append(f'largest measuring-link force: {link_force:.1f} N')
+        if link_force > LINK_FORCE_LIMIT_N:
+            lines.append(
+                f'  beyond the {LINK_FORCE_LIMIT_N:g} N a measuring link of the documented kind '
+                'bears: a lighter payload, or the lvdt mode (the link then carries no load)'
+            )
     if summary['max_link_extension_m'] is not None:
         lines.append(f'largest link extension: {summary["max_link_extension_m"] * UM:.1f} um')
     return lines
