@@ -158,10 +158,22 @@ def bytes_digest(data: bytes) -> str:
 
 
 class _Posture(Protocol):
-    actuator_positions: Sequence[float]
-    alpha: float
-    beta: float
-    phi: float
+    # Read-only (properties): a frozen PostureReading is one.
+    @property
+    def actuator_positions(self) -> Sequence[float]:
+        ...
+
+    @property
+    def alpha(self) -> float:
+        ...
+
+    @property
+    def beta(self) -> float:
+        ...
+
+    @property
+    def phi(self) -> float:
+        ...
 
 
 def postures_digest(postures: Iterable[_Posture]) -> str:

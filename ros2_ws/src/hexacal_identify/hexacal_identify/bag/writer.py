@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import os
 from pathlib import Path
 import time
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, cast, IO, Mapping
 
 from hexacal_msgs_py.files import atomic_write
 from mcap.writer import CompressionType
@@ -234,7 +234,8 @@ class BagWriter:
                 os_error=error,
             ) from error
         self._mcap = McapWriter(
-            self._file,
+            # mcap's stub asks for a file object; the Writer uses only write/tell/flush.
+            cast(IO[Any], self._file),
             chunk_size=chunk_size_bytes or preset.chunk_size_bytes or 1,
             compression=preset.compression,
             use_chunking=preset.chunked,

@@ -132,7 +132,7 @@ def measurements_from_postures(
         angles,
         rotary,
         np.where(fixed, FIXED, SPHERE),
-        device_turn=[p.device_turn for p in postures],
+        device_turn=np.array([p.device_turn for p in postures], dtype=float),
         standard_errors=errors,
         link_lengths=_link_lengths(postures, nominal_link_length),
     )

@@ -147,7 +147,7 @@ class IdentifyNode(Node):
         self.create_service(
             Trigger, VERIFY_SERVICE, self._on_verify, callback_group=ReentrantCallbackGroup()
         )
-        deployments = {
+        deployments: dict[str, Callable[[Settings], Outcome]] = {
             DEPLOY_SERVICE: lambda settings: self._deploy(settings, False),
             DEPLOY_FORCE_SERVICE: lambda settings: self._deploy(settings, True),
             ROLLBACK_SERVICE: self._rollback,

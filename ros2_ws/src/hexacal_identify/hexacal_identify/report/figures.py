@@ -13,7 +13,7 @@ parameter vector has that many entries (54 Hexa Slide, 42 Gough-Stewart).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Mapping, Sequence
 
 from hexacal_msgs_py.models import model_for_vector_size, ModelLayout
 import matplotlib
@@ -304,7 +304,7 @@ def postures_on_sphere(
 
 def planning_accuracy(
     ks: Sequence[int],
-    curves: dict[str, tuple[Sequence[float], Sequence[float]]],
+    curves: Mapping[str, tuple[Sequence[float] | np.ndarray, Sequence[float] | np.ndarray]],
     reference_um: float,
     reference_label: str,
     path: Path,
@@ -315,8 +315,8 @@ def planning_accuracy(
     Planned against random (mean +- error bar over seeds).
     """
     fig, ax = plt.subplots(figsize=(7.5, 4.2))
-    for label, (mean_um, spread_um) in curves.items():
-        mean_um, spread_um = np.asarray(mean_um, float), np.asarray(spread_um, float)
+    for label, (mean_values, spread_values) in curves.items():
+        mean_um, spread_um = np.asarray(mean_values, float), np.asarray(spread_values, float)
         lower = np.minimum(spread_um, 0.9 * mean_um)  # a log axis cannot show a bar below zero
         ax.errorbar(ks, mean_um, yerr=[lower, spread_um], fmt='o-', capsize=3, label=label)
     ax.axhline(reference_um, color='k', ls='--', lw=0.9, label=reference_label)
@@ -358,7 +358,8 @@ def verification_errors(
         if kinds is not None
         else np.zeros(len(index), bool)
     )
-    panels = [
+    # (axes, nominal, calibrated, label, threshold or None)
+    panels: list[tuple[Any, np.ndarray, np.ndarray, str, float | None]] = [
         (axes[0, 0], nominal_m * UM, calibrated_m * UM, 'position error [um]', threshold_m * UM)
     ]
     if rotary:

@@ -37,6 +37,7 @@ from .markup import embedded_figure
 from .markup import MM, UM
 from .markup import number_text as _fmt
 from .markup import page as _page
+from .markup import vector
 from .markup import vector_or_none as _vector
 from .payload import result_payload, save_result
 from .verification_page import verification_section, write_verification_report
@@ -116,8 +117,9 @@ class _Sections:
         self.truth = _vector(data.get('true_parameters'))
         std = _vector(data.get('std'))
         if std is None and payload.get('std'):  # plain --json output: -1 marks an unknown std
-            std = _parameters_from_chain_dict(payload['std'], self.model)
-            std = np.where(std < 0, np.nan, std)
+            chain_std = _parameters_from_chain_dict(payload['std'], self.model)
+            if chain_std is not None:
+                std = np.where(chain_std < 0, np.nan, chain_std)
         self.std = std
         covariance = data.get('covariance')
         self.covariance = (
@@ -488,7 +490,7 @@ class _Sections:
             return self.missing(title, 'the result file has no residual rows')
         from . import figures
 
-        values = _vector(residuals['values'])
+        values = vector(residuals['values'])
         image = self.figure(
             'residuals.png',
             lambda path: figures.residuals_by_posture(
@@ -510,7 +512,7 @@ class _Sections:
         image = self.figure(
             'singular_values.png',
             lambda path: figures.singular_values(
-                {'this calibration': _vector(singular)}, DEFAULT_RANK_TOLERANCE, path
+                {'this calibration': vector(singular)}, DEFAULT_RANK_TOLERANCE, path
             ),
         )
         return (

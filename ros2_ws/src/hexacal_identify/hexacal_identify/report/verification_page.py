@@ -14,7 +14,7 @@ from hexacal_msgs_py.files import atomic_write
 from hexacal_msgs_py.models import DEFAULT_MODEL
 import numpy as np
 
-from .markup import embedded_figure, MM, page, UM, vector_or_none
+from .markup import embedded_figure, MM, page, UM, vector, vector_or_none
 from ..core.architectures import architecture
 from ..core.jsonsafe import json_safe as _plain
 from ..core.machine.device import DEFAULT_LINK_LENGTH_M, DEFAULT_MOUNT
@@ -115,8 +115,9 @@ def verification_section(verification: dict, figure) -> str:
     if per_posture.get('nominal_position_error_m') is not None:
         from . import figures
 
-        before = vector_or_none(per_posture['nominal_position_error_m'])
-        after = vector_or_none(per_posture['calibrated_position_error_m'])
+        # Written together (core.fit.verification): both sets' errors are there.
+        before = vector(per_posture['nominal_position_error_m'])
+        after = vector(per_posture['calibrated_position_error_m'])
         rotary = [per_posture.get(f'{name}_rotary_error_rad') for name in sets]
         image = figure(
             'verification.png',

@@ -499,14 +499,14 @@ def estimator_efficiency(
         errors.append(result.device.vector[index] - defects.vector[index])
         sliders_truth = pose_errors(target, result.parameters, validation)
         squared.append(float(np.nanmean(sliders_truth.position_m**2)))
-    errors = np.array(errors)
+    error_array = np.array(errors)
     return EfficiencySummary(
         seeds,
         procedure,
         identified,
         crb_std,
-        np.sqrt(np.mean(errors**2, axis=0)),
-        errors.mean(axis=0),
+        np.sqrt(np.mean(error_array**2, axis=0)),
+        error_array.mean(axis=0),
         predicted_ms,
         float(np.mean(squared)),
         failures,

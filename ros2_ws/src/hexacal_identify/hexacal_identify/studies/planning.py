@@ -165,7 +165,7 @@ def planned_variants(
             f'planned-{name}-unweighted': (name, None)
             for name in dict.fromkeys([index, PREDICTION])
         }
-    variants = {f'planned-{index}': (index, noise)}
+    variants: dict[str, tuple[str, NoiseModel | None]] = {f'planned-{index}': (index, noise)}
     if index != PREDICTION:
         variants[f'planned-{PREDICTION}'] = (PREDICTION, noise)
     variants[f'planned-{index}-unweighted'] = (index, None)
