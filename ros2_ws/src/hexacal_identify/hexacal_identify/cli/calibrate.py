@@ -7,6 +7,7 @@ import json
 import math
 from pathlib import Path
 import sys
+from typing import Any
 
 from .store import add_calibrate_arguments, calibrate_store_dir, store_calibration
 
