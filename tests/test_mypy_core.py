@@ -28,7 +28,10 @@ PACKAGES = [
 def test_mypy_core() -> None:
     """Check every package against mypy.ini: no type errors."""
     completed = subprocess.run(
-        [sys.executable, '-m', 'mypy', '--config-file', str(REPOSITORY / 'mypy.ini'), *map(str, PACKAGES)],
+        [
+            sys.executable, '-m', 'mypy', '--config-file', str(REPOSITORY / 'mypy.ini'),
+            *map(str, PACKAGES),
+        ],
         cwd=REPOSITORY,
         capture_output=True,
         text=True,

@@ -105,7 +105,9 @@ class CollectorNode(Node):
         )
         self.topic_names = dict(zip(RAW_TOPICS, self.mapping.topics))
         self.topic_names[POSTURE_TOPIC] = self.resolve_topic_name(POSTURE_TOPIC)
-        self._stream_names: dict[str, str] = {STREAM_OF_TOPIC[t]: self.topic_names[t] for t in RAW_TOPICS}
+        self._stream_names: dict[str, str] = {
+            STREAM_OF_TOPIC[t]: self.topic_names[t] for t in RAW_TOPICS
+        }
         self.reader = InputReader(
             self.mapping, self.model, self.synchronizer, self.turns, self._invalid
         )
