@@ -70,7 +70,7 @@ test: setup
 test-fast: setup
 	$(VENV_PY) -m pytest $(UNIT_TESTS) -m 'not slow' $(PYTEST_ARGS)
 
-# ament_flake8 and ament_pep257 on each package, mypy on core/: the tests marked linter.
+# ament_flake8 and ament_pep257 on each package, mypy on all three: the tests marked linter.
 lint: setup
 	$(VENV_PY) -m pytest $(UNIT_TESTS) tests/test_mypy_core.py -m linter $(PYTEST_ARGS)
 

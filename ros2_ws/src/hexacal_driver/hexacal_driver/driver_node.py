@@ -10,6 +10,7 @@ reports.py; this node keeps time, converts messages and publishes. Full referenc
 
 from __future__ import annotations
 
+import functools
 import math
 import sys
 import time
@@ -127,7 +128,9 @@ class DriverNode(Node):
         self.plan_start_stamp_ns: int | None = None  # stamp of the first message of the plan
         self._started = False
         self._started_monotonic = 0.0
-        self._walk_report = None if plan is None else WalkReport(plan, self.machine.walker.loop)
+        self._walk_report = None if plan is None else WalkReport(
+            plan, self.machine.require_walker().loop
+        )
         self._motion_report = MotionReport()
         self._per_wake = max(1, math.ceil(self.rate_hz / MAX_WAKE_HZ - 1e-9))
         self._period_ns = int(round(NS_PER_S / self.rate_hz))
@@ -159,7 +162,7 @@ class DriverNode(Node):
         if plan is None:
             topic = self.resolve_topic_name(self.command_topic)
             self.get_logger().info(commanded_start_text(self.machine, topic, source, self.rate_hz))
-            self.get_logger().info(drives_start_text(self.machine.follower))
+            self.get_logger().info(drives_start_text(self.machine.require_follower()))
             return
         self.get_logger().info(plan_start_text(self.machine, source, self.rate_hz))
         if self.wait_for_subscriber:
@@ -182,22 +185,19 @@ class DriverNode(Node):
                 self.create_service(
                     SetBool,
                     release_service(joint),
-                    lambda request, response, joint=joint: self._on_release(
-                        joint, request, response
-                    ),
+                    functools.partial(self._on_release, joint),
                 )
         self._link_pub = None
         if mode == MeasuringMode.LVDT:
             self._link_pub = self.create_publisher(JointState, LINK_TOPIC, SENSOR_QOS)
             self._link_message = JointState(name=[LINK_LENGTH_JOINT], position=[0.0])
-        self._compliant = mode == MeasuringMode.COMPLIANT
 
     def _on_release(
         self, joint: str, request: SetBool.Request, response: SetBool.Response
     ) -> SetBool.Response:
         """Release (data true) or lock (false) `joint`, at rest only."""
         now_s = self.get_clock().now().nanoseconds / NS_PER_S
-        response.success, response.message = self.machine.follower.release(
+        response.success, response.message = self.machine.require_follower().release(
             joint, bool(request.data), now_s
         )
         text = f'{"release" if request.data else "lock"} {joint}: {response.message}'
@@ -211,7 +211,7 @@ class DriverNode(Node):
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """Clear a fault: the drives are re-enabled where they stand."""
-        response.success, response.message = self.machine.follower.reset()
+        response.success, response.message = self.machine.require_follower().reset()
         self.get_logger().info(f'reset: {response.message}')
         self._publish_drive_status(force=True)
         return response
@@ -219,7 +219,7 @@ class DriverNode(Node):
     def _publish_drive_status(self, force: bool = False) -> None:
         """Publish 'hexacal driver' when due (reports.DriveStatusReport); log a new fault."""
         now_ns = self.get_clock().now().nanoseconds
-        report = self._drive_status.report(self.machine.follower, now_ns, force)
+        report = self._drive_status.report(self.machine.require_follower(), now_ns, force)
         if report is None:
             return
         level, message, values, new_fault = report
@@ -255,14 +255,16 @@ class DriverNode(Node):
         checked, problem = self.machine.check_command(
             list(message.joint_names), points, start_ns, now_ns
         )
+        follower = self.machine.require_follower()
         if problem is not None:
             self.commands_rejected += 1
             self.get_logger().warning(f'rejected a JointTrajectory command: {problem}')
-            self.machine.follower.last_refusal = problem
+            follower.last_refusal = problem
             self._publish_drive_status(force=True)
             return
+        assert checked is not None  # no problem: the checked points
         self.commands_accepted += 1
-        end_s = self.machine.follower.command(
+        end_s = follower.command(
             now_ns / NS_PER_S, checked, start_ns / NS_PER_S if start_ns else None
         )
         self.get_logger().info(
@@ -323,18 +325,20 @@ class DriverNode(Node):
         if not self._started:
             # Matched (DDS), not just on the graph, on all three: no plan sample goes to nobody.
             if self.wait_for_subscriber and min(self._subscription_counts()) == 0:
-                self._publish(machine.walker.sample(0.0), stamp)
+                self._publish(machine.require_walker().sample(0.0), stamp)
                 return
             self._started = True
             self._started_monotonic = time.monotonic()
             self.published_before_plan = self.published
-            self.get_logger().info(f"starting plan '{machine.plan.name}'")
-        sample = machine.walker.sample(self._ticks / self.rate_hz)
+            self.get_logger().info(f"starting plan '{machine.require_plan().name}'")
+        sample = machine.require_walker().sample(self._ticks / self.rate_hz)
         self._ticks += 1
         self._publish(sample, stamp)
         elapsed = time.monotonic() - self._started_monotonic
         turn = machine.posture_turn(sample.posture_index)
-        for line in self._walk_report.lines(
+        walk_report = self._walk_report
+        assert walk_report is not None  # plan mode
+        for line in walk_report.lines(
             sample.posture_index, sample.lap, sample.phase, elapsed, turn
         ):
             self.get_logger().info(line)
@@ -347,9 +351,11 @@ class DriverNode(Node):
             self.plan_start_stamp_ns = stamp
         messages = self._messages
         messages['sliders'].position = readings.actuators_m.tolist()
-        if self.machine.follower is not None and self._compliant:
+        follower = self.machine.follower
+        forces = None if follower is None else follower.forces()
+        if forces is not None:
             # Compliant servos: the force each carries (N), stiffness x deviation.
-            messages['sliders'].effort = self.machine.follower.forces().tolist()
+            messages['sliders'].effort = forces.tolist()
         if turn == 0.0:  # the normal mounting: the message as it always was
             inclinometer = messages['inclinometer']
             inclinometer.position = [readings.alpha_rad, readings.beta_rad]
@@ -378,7 +384,7 @@ class DriverNode(Node):
     def _publish_link(self, sliders_stamp_ns: int | None) -> None:
         """Publish the LVDT's link length (lvdt mode), read with the actuators."""
         value, stamp = self.machine.read_link(sliders_stamp_ns)
-        if stamp is None:
+        if stamp is None or self._link_pub is None:
             return
         message = self._link_message
         message.position = [value]
@@ -412,7 +418,7 @@ class DriverNode(Node):
         if line is not None:
             self.get_logger().info(line)
             # One status per rest: a monitor (the demo) hears every rest and its motion's peaks.
-            self.machine.follower.rest_reached()
+            self.machine.require_follower().rest_reached()
             self._publish_drive_status(force=True)
 
 

@@ -9,7 +9,7 @@ models (sensor_models.py). The node only keeps time, converts messages and publi
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import Any, Mapping, TYPE_CHECKING
 
 from hexacal_driver.drives import DriveFollower, DriveSettings
 from hexacal_driver.plan import machine_workspace, PlanError, PosturePlan, resolve_plan
@@ -43,6 +43,9 @@ from hexacal_identify.core.machine.measurements import NoiseModel
 from hexacal_msgs_py.errors import ParameterFileError
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 import numpy as np
+
+if TYPE_CHECKING:
+    from hexacal_msgs_py.physical_file import PhysicalDescription
 
 NOISE_STREAM = 0x5E45  # noise draws from their own stream: the same seed gives the same plan
 LINK_STREAM = 0x11D7  # the LVDT's noise: its own stream, so the other streams draw as before
@@ -135,6 +138,24 @@ class SimulatedMachine:
             1.0 / float(value['rate_hz']),
         )
 
+    def require_follower(self) -> DriveFollower:
+        """Return the command follower (commanded mode); RuntimeError in plan mode."""
+        if self.follower is None:
+            raise RuntimeError('the driver walks a plan: it has no drives to command')
+        return self.follower
+
+    def require_plan(self) -> PosturePlan:
+        """Return the plan (plan mode); RuntimeError in commanded mode."""
+        if self.plan is None:
+            raise RuntimeError('the driver is commanded: it walks no plan')
+        return self.plan
+
+    def require_walker(self) -> PlanWalker:
+        """Return the plan walker (plan mode); RuntimeError in commanded mode."""
+        if self.walker is None:
+            raise RuntimeError('the driver is commanded: it walks no plan')
+        return self.walker
+
     def read_link(self, sliders_stamp_ns: int | None) -> tuple[float, int | None]:
         """
         Return the LVDT's reading (m) and its stamp (None: dropped), lvdt commanded mode.
@@ -143,7 +164,7 @@ class SimulatedMachine:
         actuators' half-width (slider_noise_m); with sensor_effects `quantisation` rounded to
         actuator_resolution_m. The LVDT is read with the actuators (their stamp, their drop).
         """
-        value = self.follower.link_reading_m
+        value = self.require_follower().link_reading_m
         value += float(self._link_rng.uniform(-1.0, 1.0)) * self.sensors.noise.actuator_m
         settings = self.streams.settings
         resolution = settings.actuator_resolution_m
@@ -158,9 +179,10 @@ class SimulatedMachine:
         simulation.device_true_poses: on the sphere L + dL, fixed ones where the turned
         device reads zero.
         """
+        plan = self.require_plan()
         poses = device_true_poses(
-            self.plan.poses,
-            self.plan.kinds,
+            plan.poses,
+            plan.kinds,
             self.link_length,
             self.defects,
             self.mount,
@@ -170,15 +192,14 @@ class SimulatedMachine:
             return PlanWalker(self.true_params, poses, settle_s, dwell_s, loop)
         except UnreachablePoseError as error:
             raise DriverConfigurationError(
-                f"plan '{self.plan.name}' with the device's true link length "
+                f"plan '{plan.name}' with the device's true link length "
                 f'{self.true_link_length!r} m (device_defects): {error}'
             ) from error
 
     def posture_turns(self) -> np.ndarray:
         """Return the device turn of every plan posture (rad): the plan's, else the parameter."""
-        return np.array(
-            [self.plan.device_turn(i, self.device_turn) for i in range(len(self.plan))]
-        )
+        plan = self.require_plan()
+        return np.array([plan.device_turn(i, self.device_turn) for i in range(len(plan))])
 
     def posture_turn(self, index: int) -> float:
         """Return the device turn at plan posture `index` (plan mode), else the parameter."""
@@ -235,7 +256,7 @@ class SimulatedMachine:
 
         points: (positions m, time_from_start s); start_ns: header.stamp (0: on arrival).
         """
-        follower = self.follower
+        follower = self.require_follower()
         if follower.fault is not None:
             return None, (
                 f'the drives are in fault ({follower.fault.text}): reset them first '
@@ -251,7 +272,7 @@ class SimulatedMachine:
             joint_names,
             points,
             follower.commanded_names(),
-            self.stroke,
+            follower.actuator_stroke_m,  # the stroke (_start_follower)
             self.true_params.layout.actuator_unit,
         )
         if problem is not None and self.drive_settings.mode == 'passive_actuator' and not released:
@@ -271,14 +292,17 @@ class SimulatedMachine:
 
     def _with_released(self, points: list[TrajectoryPoint]) -> list[TrajectoryPoint]:
         """Return five-joint points with the released joint's column (its position) inserted."""
-        index = self.follower.released
-        position = float(self.follower.actuators[index])
+        follower = self.require_follower()
+        index = follower.released
+        if index is None:  # nothing released: the points have the six columns
+            return points
+        position = float(follower.actuators[index])
         return [
             TrajectoryPoint(np.insert(point.positions, index, position), point.time_from_start_s)
             for point in points
         ]
 
-    def _physical(self, value: Mapping[str, Any]):
+    def _physical(self, value: Mapping[str, Any]) -> PhysicalDescription:
         """Return the physical description (the file's, else the model's shipped one)."""
         from hexacal_msgs_py.physical_file import (
             default_physical,
@@ -307,14 +331,15 @@ class SimulatedMachine:
         )
         # The link holds the platform on the true sphere (link_length + dL).
         home = np.concatenate([fixed_point(self.true_link_length, self.mount), np.zeros(3)])
-        options = {
+        options: dict[str, Any] = {
             'settings': self.drive_settings,
             'joint_names': MODELS[self.model].actuator_names,
             'nominal_link_m': self.link_length,
             'stroke_m': self.stroke,
         }
+        follower: DriveFollower
         try:
-            if self.physics == 'mujoco':
+            if self.physical is not None:  # physics mujoco
                 # mujoco is imported only when it simulates the machine.
                 from hexacal_driver.physics_follower import PhysicsFollower
 

@@ -8,6 +8,7 @@ refuses a value for which `parameter_problem` names a problem, at start-up and a
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from hexacal_driver.plan import GENERATED_PLANS, load_plan, PlanError
 from hexacal_driver.sensor_parameters import sensor_parameter_problem, SENSOR_PARAMETERS
@@ -199,7 +200,7 @@ FINITE_PARAMETERS = (
 )
 
 
-def parameter_problem(name: str, value: object) -> str | None:
+def parameter_problem(name: str, value: Any) -> str | None:
     """Return what is wrong with a parameter value beyond type and range (descriptors), or None."""
     if name == 'plan':
         if value in GENERATED_PLANS:

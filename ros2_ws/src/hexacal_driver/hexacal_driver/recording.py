@@ -148,7 +148,7 @@ def simulate_recording(
         **{name: float(value) for name, value in sensor_parameters.items()},
     )
     truth = _truth(true_params, model)
-    if truth is None:
+    if not isinstance(true_params, KinematicParameters):  # a file, or the default machine
         values['true_params'] = os.fspath(true_params or '')
     _check(values)
     machine = SimulatedMachine(values, truth)
@@ -182,7 +182,7 @@ def _walk(
     machine: SimulatedMachine, values: dict[str, Any], tail_s: float, start_ns: int
 ) -> Recording:
     """Walk the machine's plan as the driver node does; return the streams and the truth."""
-    walker = machine.walker
+    walker = machine.require_walker()
     rate_hz = float(values['rate_hz'])
     period_ns = int(round(NS_PER_S / rate_hz))  # as the node's
     ticks = math.ceil((walker.lap_duration_s + tail_s) * rate_hz - 1e-9)
@@ -229,7 +229,7 @@ def _walk(
         parameters=dict(values),
         true_params=machine.true_params,
         mount=machine.mount,
-        plan=machine.plan,
+        plan=machine.require_plan(),
         actuator_stamps_ns=stamp_arrays[0],
         actuator_sample_ns=sample_arrays[0],
         actuator_positions=value_arrays[0],
@@ -250,7 +250,7 @@ def _walk(
 
 def _settled_truth(machine: SimulatedMachine) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Return per posture the true pose, what ideal sensors read there at rest, the turn."""
-    walker = machine.walker
+    walker = machine.require_walker()
     turns = machine.posture_turns()
     settled = []
     for pose, actuators, turn in zip(walker.poses, walker.posture_actuators, turns):

@@ -66,12 +66,13 @@ def commanded_start_text(
     machine: SimulatedMachine, topic: str, source: str, rate_hz: float
 ) -> str:
     """Return the start-up line of commanded mode."""
-    low, high = machine.stroke
+    follower = machine.require_follower()
+    low, high = follower.actuator_stroke_m  # the machine's stroke
     units = actuator_quantities_of(machine)
     return (
         f'following JointTrajectory commands on {topic} (joints '
         f'{", ".join(MODELS[machine.model].actuator_names)}, at most '
-        f'{machine.follower.max_speed_m_s:g} {units.speed_unit}, stroke [{low:g}, {high:g}] '
+        f'{follower.max_speed_m_s:g} {units.speed_unit}, stroke [{low:g}, {high:g}] '
         f'{units.unit}); true machine: '
         f'{source}; {rate_hz:g} Hz, {sensors_text(machine)}; standing at the '
         'fixed-position point'
@@ -108,9 +109,9 @@ def drives_start_text(follower: DriveFollower) -> str:
 
 def plan_start_text(machine: SimulatedMachine, source: str, rate_hz: float) -> str:
     """Return the start-up line of plan mode."""
-    walker = machine.walker
+    walker = machine.require_walker()
     return (
-        f'{machine.plan.describe()}; true machine: {source}; {rate_hz:g} Hz, settle '
+        f'{machine.require_plan().describe()}; true machine: {source}; {rate_hz:g} Hz, settle '
         f'{walker.settle_s:g} s, dwell {walker.dwell_s:g} s (one pass '
         f'{walker.lap_duration_s:.1f} s), {sensors_text(machine)}'
         f'{", looping" if walker.loop else ""}'
@@ -210,7 +211,7 @@ class MotionReport:
         self, machine: SimulatedMachine, phase: str, commands_accepted: int
     ) -> tuple[str | None, str | None]:
         """Return this tick's strain warning and end-of-motion line (each may be None)."""
-        strain = machine.follower.strain_m
+        strain = machine.require_follower().strain_m
         units = actuator_quantities_of(machine)
         limit = machine.true_params.architecture.actuator_limit(STRAIN_WARNING_M)
         warning = self.strain_warning(strain, units, limit)

@@ -151,7 +151,9 @@ class SensorSettings:
 
 # The parameters of the sensor models (besides `sensor_effects`) and their defaults.
 SENSOR_DEFAULTS: dict[str, float] = {
-    item.name: item.default for item in fields(SensorSettings) if item.name != 'effects'
+    item.name: getattr(SensorSettings(), item.name)
+    for item in fields(SensorSettings)
+    if item.name != 'effects'
 }
 
 

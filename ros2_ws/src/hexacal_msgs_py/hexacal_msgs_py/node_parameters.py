@@ -10,7 +10,7 @@ files, docs, tests) without ROS; rcl_interfaces is imported only when a descript
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Any, TYPE_CHECKING
 
 if TYPE_CHECKING:
     from rcl_interfaces.msg import ParameterDescriptor
@@ -24,7 +24,7 @@ class ParameterSpec:
     Default (its type), description, range (numbers), further constraints (text).
     """
 
-    default: object
+    default: Any  # a bool, int, float, str or list: its type is the parameter's
     description: str
     low: float | int | None = None
     high: float | int | None = None

@@ -131,14 +131,14 @@ def pose_from_position_quaternion(
     return (x, y, z, *angles_from_quaternion(quaternion))
 
 
-def pose_from_message(message: object) -> tuple[float, ...]:
+def pose_from_message(message: Any) -> tuple[float, ...]:
     """[x, y, z, theta, psi, phi] of a geometry_msgs Pose or PoseStamped."""
     pose: Any = getattr(message, 'pose', message)  # a Pose, duck-typed: no message import
     p, q = pose.position, pose.orientation
     return pose_from_position_quaternion((p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
 
 
-def fill_pose_message(message: object, pose: Sequence[float]) -> object:
+def fill_pose_message(message: Any, pose: Sequence[float]) -> Any:
     """
     Write [x, y, z, theta, psi, phi] into a geometry_msgs Pose.
 

@@ -158,19 +158,22 @@ def bytes_digest(data: bytes) -> str:
 
 
 class _Posture(Protocol):
-    """What a digest reads of a posture (read-only: frozen dataclasses qualify)."""
+    # Read-only (properties): a frozen PostureReading is one.
+    @property
+    def actuator_positions(self) -> Sequence[float]:
+        ...
 
     @property
-    def actuator_positions(self) -> Sequence[float]: ...  # noqa: D102
+    def alpha(self) -> float:
+        ...
 
     @property
-    def alpha(self) -> float: ...  # noqa: D102
+    def beta(self) -> float:
+        ...
 
     @property
-    def beta(self) -> float: ...  # noqa: D102
-
-    @property
-    def phi(self) -> float: ...  # noqa: D102
+    def phi(self) -> float:
+        ...
 
 
 def postures_digest(postures: Iterable[_Posture]) -> str:

@@ -72,9 +72,9 @@ def collector_records(
     recorded_by: str,
     namespace: str,
     model: str,
-    inputs: dict[str, object],
+    inputs: dict[str, str],
     detector_settings: dict[str, str],
-) -> tuple[dict[str, str], dict[str, dict[str, object]]]:
+) -> tuple[dict[str, str], dict[str, dict[str, str]]]:
     """
     Return the custom data and metadata a collector's bag records about how it was made.
 

@@ -234,7 +234,8 @@ class BagWriter:
                 os_error=error,
             ) from error
         self._mcap = McapWriter(
-            cast(IO[bytes], self._file),  # duck-typed: write, tell and flush are all it uses
+            # mcap's stub asks for a file object; the Writer uses only write/tell/flush.
+            cast(IO[Any], self._file),
             chunk_size=chunk_size_bytes or preset.chunk_size_bytes or 1,
             compression=preset.compression,
             use_chunking=preset.chunked,

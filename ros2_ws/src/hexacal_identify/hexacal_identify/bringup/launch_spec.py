@@ -13,6 +13,7 @@ import os
 from pathlib import Path
 import shutil
 import sys
+from typing import Any
 
 import yaml
 
@@ -39,7 +40,7 @@ class NodeLaunch:
     """One node to start: its executable, namespace and parameters."""
 
     executable: str  # a key of EXECUTABLE_MODULES
-    parameters: dict[str, object] = field(default_factory=dict)
+    parameters: dict[str, Any] = field(default_factory=dict)  # ROS parameter values
     namespace: str = ''
     remaps: dict[str, str] = field(default_factory=dict)  # ROS name -> topic (`-r from:=to`)
 

@@ -69,7 +69,7 @@ class MachineInputs:
 
     def executor_parameters(self) -> dict[str, object]:
         """Return the executor's mapping parameters that are set (inclinometer included)."""
-        names = ('actuator_joints', 'inclinometer_type', 'inclinometer_signs')
+        names: tuple[str, ...] = ('actuator_joints', 'inclinometer_type', 'inclinometer_signs')
         names += ('inclinometer_offsets_rad',)
         if not self.imu:
             names += ('inclinometer_joints',)
@@ -217,7 +217,7 @@ def executor_takes_measuring_mode() -> bool:
     return MEASURING_MODE_KEY in PARAMETERS
 
 
-def name_list(text: str | Sequence[str]) -> tuple[str, ...]:
+def name_list(text: str | Sequence[object]) -> tuple[str, ...]:
     """Return 'a,b', '[a, b]' or ['a', 'b'] as ('a', 'b'); '' as ()."""
     if not isinstance(text, str):
         return tuple(str(item) for item in text)

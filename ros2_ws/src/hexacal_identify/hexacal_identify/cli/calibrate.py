@@ -7,6 +7,7 @@ import json
 import math
 from pathlib import Path
 import sys
+from typing import Any
 
 from .store import add_calibrate_arguments, calibrate_store_dir, store_calibration
 
@@ -331,7 +332,7 @@ def run_calibrate(args) -> int:
         )
     nominal, mount = load_machine_and_mount(args.nominal)
     mount = args.mount or mount
-    mount_option = {} if mount == 'hanging' else {'mount': mount}
+    mount_option: dict[str, Any] = {} if mount == 'hanging' else {'mount': mount}
     if args.output.exists() and args.output.is_dir():
         raise IsADirectoryError(f'--output {args.output} is a directory; name a YAML file')
     bag = postures_from_bag(args.bag, **redetection_options(args))

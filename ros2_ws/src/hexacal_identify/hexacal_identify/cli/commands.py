@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 import sys
+from typing import cast
 
 from . import study as cli_study
 from .command_line import LazySubcommands
@@ -103,8 +104,12 @@ def build_parser(fill: bool = True) -> argparse.ArgumentParser:
         description='Kinematic calibration of six-leg parallel manipulators: Hexa Slide, '
         'Gough-Stewart (ROS 2).',
     )
-    subparsers = parser.add_subparsers(
-        dest='command', required=True, metavar='COMMAND', action=LazySubcommands
+    # typeshed types add_subparsers as the base action, whatever `action` makes it.
+    subparsers = cast(
+        LazySubcommands,
+        parser.add_subparsers(
+            dest='command', required=True, metavar='COMMAND', action=LazySubcommands
+        ),
     )
     cli_study.add_parser(subparsers)
     _add_params_parser(subparsers)

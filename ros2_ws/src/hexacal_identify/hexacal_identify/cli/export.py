@@ -212,7 +212,7 @@ def mjcf_text(contents, physical_path: Path | None) -> str:
     )
     if physical.model != contents.model:
         raise ValueError(
-            f'--physical {os.fspath(physical_path)} describes a {physical.model}, the parameters '
+            f'--physical {physical_path} describes a {physical.model}, the parameters '
             f'a {contents.model}'
         )
     mount = check_mount(contents.extras.get(DEVICE_MOUNT_KEY, DEFAULT_MOUNT))

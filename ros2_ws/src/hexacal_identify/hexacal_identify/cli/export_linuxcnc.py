@@ -38,6 +38,7 @@ import numpy as np
 
 from .export import _DECIMALS, LENGTH_UNITS
 from ..core.architectures import parameters_for
+from ..core.architectures.gough_stewart import GoughStewartParameters
 from ..core.errors import UnreachablePoseError
 from ..core.machine.angle_conventions import linuxcnc_from_pose
 from ..core.machine.device import check_mount, DEFAULT_MOUNT
@@ -92,6 +93,8 @@ def linuxcnc_homing(
     home pose is unreachable or outside the stroke, or a switch reading is outside it.
     """
     params = parameters_for(contents.model, contents.vector)
+    if not isinstance(params, GoughStewartParameters):  # the leg offsets are genhexkins'
+        raise ValueError(f'genhexkins describes a {GOUGH_STEWART} only, not a {params.model}')
     workspace = params.architecture.default_workspace()
     low, high = workspace.actuator_stroke_m if stroke is None else stroke
     if not low < high:

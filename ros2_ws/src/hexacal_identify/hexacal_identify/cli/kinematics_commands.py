@@ -160,10 +160,12 @@ def _pose_values(text: str, option: str, angles: str) -> list[float]:
     _check_angles(angles)
     if angles == 'hexacal':
         return parse_values(text, option, 'x,y,z in m, theta,psi,phi in rad')
+    import numpy as np
+
     from ..core.machine.angle_conventions import pose_from_linuxcnc
 
     values = parse_values(text, option, "x,y,z in m, LinuxCNC's a,b,c in deg")
-    return [float(value) for value in pose_from_linuxcnc(values)]
+    return [float(value) for value in pose_from_linuxcnc(np.array(values, dtype=float))]
 
 
 def _check_angles(angles: str) -> None:
@@ -217,7 +219,7 @@ def run_ik(args) -> int:
     pose = _pose_values(args.pose, '--pose', args.angles)
     params, _, loaded, compliance = loaded_machine(args.parameters, args.physical)
     try:
-        actuators = inverse_kinematics(params, [pose])[0]
+        actuators = inverse_kinematics(params, np.array([pose], dtype=float))[0]
         if loaded is not None:  # the encoders' readings of the loaded chains (no stroke limit)
             actuators = actuators + loaded.shifts(params, np.array([pose]))[0]
     except UnreachablePoseError as error:
@@ -232,13 +234,17 @@ def run_ik(args) -> int:
 
 
 def run_fk(args) -> int:
+    import numpy as np
+
     from ..core.errors import ForwardKinematicsError
     from ..core.machine.live import home_pose, solve_pose
     from ..core.machine.postures import Workspace
 
     _check_angles(args.angles)
     actuators = parse_values(args.actuators, '--actuators', 'the six readings in SI units')
-    guess = None if args.guess is None else _pose_values(args.guess, '--guess', args.angles)
+    guess: list[float] | np.ndarray | None = (
+        None if args.guess is None else _pose_values(args.guess, '--guess', args.angles)
+    )
     params, mount, loaded, compliance = loaded_machine(args.parameters, args.physical)
     if guess is None:
         guess = home_pose(Workspace().link_length, mount)

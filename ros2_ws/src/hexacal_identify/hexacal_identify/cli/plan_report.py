@@ -347,7 +347,11 @@ def run_plan(args) -> int:
                         f'{turn:.6f}': int(np.sum(np.isclose(plan.turns, turn)))
                         for turn in procedure_turns(args.procedure)
                     },
-                    **planning.measuring.to_json(layout.actuator_names),
+                    **(
+                        {}
+                        if planning.measuring is None  # no measuring mode: nothing it adds
+                        else planning.measuring.to_json(layout.actuator_names)
+                    ),
                 }
             )
         )

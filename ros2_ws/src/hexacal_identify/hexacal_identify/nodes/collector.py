@@ -31,6 +31,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.serialization import deserialize_message
+from rclpy.task import Future
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
@@ -93,7 +94,7 @@ class CollectorNode(Node):
         self.recording = Recording(on_failure=self._recording_failed)
         self._bag_counter = 0
         self._plan_recorded = False
-        self._plan_request = None
+        self._plan_request: Future | None = None
         self.measuring = MeasuringRecord()  # from the driver's status, recorded per bag
         self._driver_status: tuple[str | None, str | None, int] | None = None  # its last
         self._link_readings = health.LinkReadings()  # for the detector
@@ -104,7 +105,9 @@ class CollectorNode(Node):
         )
         self.topic_names = dict(zip(RAW_TOPICS, self.mapping.topics))
         self.topic_names[POSTURE_TOPIC] = self.resolve_topic_name(POSTURE_TOPIC)
-        self._stream_names = {STREAM_OF_TOPIC[t]: self.topic_names[t] for t in RAW_TOPICS}
+        self._stream_names: dict[str, str] = {
+            STREAM_OF_TOPIC[t]: self.topic_names[t] for t in RAW_TOPICS
+        }
         self.reader = InputReader(
             self.mapping, self.model, self.synchronizer, self.turns, self._invalid
         )
@@ -426,7 +429,7 @@ class CollectorNode(Node):
 
 def _finish(node: CollectorNode) -> list[str]:
     closed = node.close_bag(log=False)  # metadata.yaml and the MCAP footer: the bag is complete
-    return [closed, node.summary()]
+    return [*([] if closed is None else [closed]), node.summary()]
 
 
 def main(args: list[str] | None = None) -> int:

@@ -245,7 +245,7 @@ class InputReader:
                 self.on_invalid(topic, str(error))
                 continue
             values.append((topic, reading))
-        if not values:
+        if not values or stamp is None:  # no input was valid
             return None
         if len(values) == len(source.inputs):
             try:

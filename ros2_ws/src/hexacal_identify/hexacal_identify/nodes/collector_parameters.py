@@ -204,6 +204,7 @@ def declare_inputs(node: Node, actuator_names: tuple[str, ...]) -> InputMapping:
         **INCLINOMETER_READING_PARAMETERS,  # the executor's too
     }
     value = declare_mapping_parameters(node, specs)
+    sliders, inclinometer, encoder = (node.resolve_topic_name(topic) for topic in RAW_TOPICS)
     return InputMapping(
         actuator_joints=value['actuator_joints'],
         inclinometer_joints=value['inclinometer_joints'],
@@ -211,11 +212,11 @@ def declare_inputs(node: Node, actuator_names: tuple[str, ...]) -> InputMapping:
         inclinometer_type=value['inclinometer_type'],
         inclinometer_signs=value['inclinometer_signs'],
         inclinometer_offsets_rad=value['inclinometer_offsets_rad'],
-        topics=tuple(node.resolve_topic_name(topic) for topic in RAW_TOPICS),
+        topics=(sliders, inclinometer, encoder),
     )
 
 
-def checked_turn(value: object) -> float:
+def checked_turn(value: Any) -> float:
     """Return the device_turn parameter as a float (InvalidParameterValueException if bad)."""
     problem = turn_problem(value)
     if problem is not None:

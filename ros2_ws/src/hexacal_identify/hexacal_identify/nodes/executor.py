@@ -247,11 +247,12 @@ class ExecutorNode(Node):
 
     def _on_resume(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         execution = self.execution
-        if self.turns.clients and execution.waiting_for_turn:
+        turn = execution.turn_needed  # set while waiting for a turn
+        if self.turns.clients and execution.waiting_for_turn and turn is not None:
             # The posture begins once the nodes have answered (`_step_turns`).
             now = _now_s(self)
             response.message = self.turns.resume(
-                float(execution.turn_needed), now, execution.index, execution.total
+                float(turn), now, execution.index, execution.total
             )
             self._step_turns(now)
             response.success = True
@@ -277,7 +278,8 @@ class ExecutorNode(Node):
         if settled is None:
             return
         execution = self.execution
-        if execution.waiting_for_turn and same_turn(execution.turn_needed, settled.turn):
+        turn = execution.turn_needed  # set while waiting for a turn
+        if execution.waiting_for_turn and turn is not None and same_turn(turn, settled.turn):
             self._service(Trigger.Response(), execution.resume)
         else:
             self._report()

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
+import functools
 import sys
 import threading
 
@@ -147,7 +148,7 @@ class IdentifyNode(Node):
         self.create_service(
             Trigger, VERIFY_SERVICE, self._on_verify, callback_group=ReentrantCallbackGroup()
         )
-        deployments = {
+        deployments: dict[str, Callable[[Settings], Outcome]] = {
             DEPLOY_SERVICE: lambda settings: self._deploy(settings, False),
             DEPLOY_FORCE_SERVICE: lambda settings: self._deploy(settings, True),
             ROLLBACK_SERVICE: self._rollback,
@@ -156,9 +157,7 @@ class IdentifyNode(Node):
             self.create_service(
                 Trigger,
                 service,
-                lambda request, response, run=run: self._serve(
-                    response, run, BUSY_DEPLOYING_MESSAGE
-                ),
+                functools.partial(self._on_deployment, run),
                 callback_group=ReentrantCallbackGroup(),
             )
         self.session.republish_saved(self.settings())
@@ -223,6 +222,14 @@ class IdentifyNode(Node):
 
     def _on_verify(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         return self._serve(response, self._verify, BUSY_VERIFYING_MESSAGE)
+
+    def _on_deployment(
+        self,
+        run: Callable[[Settings], Outcome],
+        request: Trigger.Request,
+        response: Trigger.Response,
+    ) -> Trigger.Response:
+        return self._serve(response, run, BUSY_DEPLOYING_MESSAGE)
 
     def _serve(
         self,

@@ -123,7 +123,8 @@ class KinematicsNode(Node):
         value = {
             name: self.get_parameter(name).value for name in PARAMETERS if name not in UNSET
         }
-        params, file_mount, source, compliances = None, DEFAULT_MOUNT, '', {}
+        params, file_mount, source = None, DEFAULT_MOUNT, ''
+        compliances: dict[str, float] = {}
         if value['parameters']:
             params, file_mount, compliances = load_calibration_file(value['parameters'])
             source = value['parameters']
@@ -252,10 +253,11 @@ class KinematicsNode(Node):
 
     def _on_readings(self, message: JointState) -> None:
         stamp = stamp_ns(message.header.stamp)
-        if not self.session.wants_reading(stamp):
+        params = self.session.params
+        if params is None or not self.session.wants_reading(stamp):  # no parameters: none
             return
         try:
-            reading = joint_state_to_actuator_reading(message, self.session.params.model)
+            reading = joint_state_to_actuator_reading(message, params.model)
         except InvalidReadingError as error:
             self._report(self.session.invalid_reading(error, self._now_s()))
             return
@@ -266,7 +268,7 @@ class KinematicsNode(Node):
             return
         frame = self.get_parameter('base_frame').value
         out = PoseStamped(header=Header(stamp=message.header.stamp, frame_id=frame))
-        self._pose_pub.publish(fill_pose_message(out, pose))
+        self._pose_pub.publish(fill_pose_message(out, pose.tolist()))
         self._report(self.session.published(pose, self._pose_pub.topic_name))
 
     def _publish_markers(self) -> None:
@@ -274,7 +276,7 @@ class KinematicsNode(Node):
         frame = self.get_parameter('base_frame').value
         key = (stamp.sec, stamp.nanosec) if stamp is not None else ()
         drawing = self.session.drawing(key, frame)
-        if drawing is not None:
+        if drawing is not None and self._markers_pub is not None:
             self._markers_pub.publish(machine_markers(drawing, frame, stamp))
 
     def _on_target(self, message: PoseStamped) -> None:

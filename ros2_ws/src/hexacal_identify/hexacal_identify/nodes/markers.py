@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 from geometry_msgs.msg import Point
 import numpy as np
 from std_msgs.msg import ColorRGBA, Header
@@ -21,7 +23,7 @@ MARKER_STYLES: dict[str, tuple[tuple[float, float, float, float], float]] = {
 DEFAULT_STYLE = ((0.8, 0.8, 0.8, 1.0), 0.01)  # of any other drawing name
 
 
-def machine_markers(drawing: dict[str, np.ndarray], frame_id: str, stamp) -> MarkerArray:
+def machine_markers(drawing: Mapping[str, np.ndarray], frame_id: str, stamp) -> MarkerArray:
     """
     Return the MarkerArray of an Architecture.drawing.
 

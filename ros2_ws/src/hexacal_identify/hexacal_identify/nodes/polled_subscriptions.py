@@ -28,7 +28,11 @@ from collections.abc import Callable
 from typing import Any, cast
 
 from rclpy.callback_groups import CallbackGroup
-from rclpy.event_handler import QoSSubscriptionEventType, SubscriptionEventCallbacks
+from rclpy.event_handler import (
+    EventHandler,
+    QoSSubscriptionEventType,
+    SubscriptionEventCallbacks,
+)
 from rclpy.exceptions import InvalidHandle
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile
@@ -83,10 +87,11 @@ class PolledSubscription:
             event_callbacks=callbacks,
         )
         # Only the loss reports are polled; the other QoS events are not used.
+        # rclpy annotates event_handlers as one EventHandler; it is the list of them.
+        handlers = cast(list[EventHandler], self.subscription.event_handlers)
         self._lost_handlers = [
             handler
-            # rclpy types it as one EventHandler; it is the list of them.
-            for handler in cast(list, self.subscription.event_handlers)
+            for handler in handlers
             if handler.event_type == QoSSubscriptionEventType.RCL_SUBSCRIPTION_MESSAGE_LOST
         ]
 

@@ -51,8 +51,8 @@ def qos_from_recorded(qos_profiles_yaml: str) -> QoSProfile:
     return QoSProfile(
         history=history,
         depth=max(depth, 1),
-        reliability=_RELIABILITY.get(str(profile.get('reliability')), ReliabilityPolicy.RELIABLE),
-        durability=_DURABILITY.get(str(profile.get('durability')), DurabilityPolicy.VOLATILE),
+        reliability=_RELIABILITY.get(profile.get('reliability', ''), ReliabilityPolicy.RELIABLE),
+        durability=_DURABILITY.get(profile.get('durability', ''), DurabilityPolicy.VOLATILE),
     )
 
 

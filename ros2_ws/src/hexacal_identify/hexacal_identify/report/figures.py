@@ -13,7 +13,7 @@ parameter vector has that many entries (54 Hexa Slide, 42 Gough-Stewart).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Mapping, Sequence
 
 from hexacal_msgs_py.models import model_for_vector_size, ModelLayout
 import matplotlib
@@ -304,7 +304,7 @@ def postures_on_sphere(
 
 def planning_accuracy(
     ks: Sequence[int],
-    curves: dict[str, tuple[Sequence[float], Sequence[float]]],
+    curves: Mapping[str, tuple[Sequence[float] | np.ndarray, Sequence[float] | np.ndarray]],
     reference_um: float,
     reference_label: str,
     path: Path,
@@ -359,7 +359,8 @@ def verification_errors(
         if kinds is not None
         else np.zeros(len(index), bool)
     )
-    panels: list[tuple] = [  # (axes, nominal, calibrated, label, threshold or None)
+    # (axes, nominal, calibrated, label, threshold or None)
+    panels: list[tuple[Any, np.ndarray, np.ndarray, str, float | None]] = [
         (axes[0, 0], nominal_m * UM, calibrated_m * UM, 'position error [um]', threshold_m * UM)
     ]
     if rotary:

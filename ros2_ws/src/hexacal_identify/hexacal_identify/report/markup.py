@@ -6,6 +6,7 @@ import base64
 import html
 import math
 from pathlib import Path
+from typing import Iterable
 
 from hexacal_msgs_py.models import ModelLayout
 import numpy as np
@@ -13,16 +14,16 @@ import numpy as np
 UM, MM = 1e6, 1e3
 
 
-def vector_or_none(values) -> np.ndarray | None:
+def vector(values: Iterable[float | None]) -> np.ndarray:
+    """Return ``values`` as floats (None entries as NaN)."""
+    return np.array([np.nan if v is None else v for v in values], dtype=float)
+
+
+def vector_or_none(values: Iterable[float | None] | None) -> np.ndarray | None:
     """Return ``values`` as floats (None entries as NaN), or None without values."""
     if values is None:
         return None
     return vector(values)
-
-
-def vector(values) -> np.ndarray:
-    """Return ``values`` as floats (None entries as NaN)."""
-    return np.array([np.nan if v is None else v for v in values], dtype=float)
 
 
 def number_text(value, pattern: str) -> str:

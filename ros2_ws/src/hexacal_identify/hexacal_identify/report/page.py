@@ -37,7 +37,8 @@ from .markup import embedded_figure
 from .markup import MM, UM
 from .markup import number_text as _fmt
 from .markup import page as _page
-from .markup import vector, vector_or_none as _vector
+from .markup import vector
+from .markup import vector_or_none as _vector
 from .payload import result_payload, save_result
 from .verification_page import verification_section, write_verification_report
 from ..core.architectures import architecture
@@ -116,8 +117,9 @@ class _Sections:
         self.truth = _vector(data.get('true_parameters'))
         std = _vector(data.get('std'))
         if std is None and payload.get('std'):  # plain --json output: -1 marks an unknown std
-            chains = _parameters_from_chain_dict(payload['std'], self.model)
-            std = None if chains is None else np.where(chains < 0, np.nan, chains)
+            chain_std = _parameters_from_chain_dict(payload['std'], self.model)
+            if chain_std is not None:
+                std = np.where(chain_std < 0, np.nan, chain_std)
         self.std = std
         covariance = data.get('covariance')
         self.covariance = (

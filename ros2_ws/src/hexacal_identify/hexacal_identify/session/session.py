@@ -136,7 +136,7 @@ class CalibrationSession:
         if problem is not None:
             receipt = self.postures.reject(*problem)
         else:
-            assert posture is not None  # converted, and no problem found
+            assert posture is not None  # converted, no problem found
             receipt = self.postures.add(posture, model)
         with self._status_lock:
             if not self._calibrating:  # a running calibration's status stays until its result

@@ -288,7 +288,7 @@ def identifiability_by_cost(
         truth_poses = _true_poses(run, used)
         sensitivity, _ = pose_parameter_sensitivity(true_params, truth_poses)
         jacobian = function.residuals(truth_poses, sensitivity).jacobian
-        assert jacobian is not None  # asked for with a sensitivity
+        assert jacobian is not None  # residuals with a sensitivity carry it
         sphere, fixed = posture_split(cost, postures)
         rows.append(
             CostIdentifiability(

@@ -131,7 +131,7 @@ class DeviceMountError(CalibrationError, ValueError):
     reason = 'invalid-device-mount'
 
 
-def check_mount(mount: str) -> str:
+def check_mount(mount: object) -> str:
     """``mount`` if it is one of MOUNTS, else a DeviceMountError naming the allowed values."""
     if not (isinstance(mount, str) and mount in MOUNTS):
         raise DeviceMountError(

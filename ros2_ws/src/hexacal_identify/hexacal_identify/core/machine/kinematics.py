@@ -282,7 +282,7 @@ def _check_branch(poses, start, converged, failures, tol_m, tol_rad) -> None:
     converged &= ~wrong
 
 
-def wrap_angle(angle: np.ndarray) -> np.ndarray:
+def wrap_angle(angle: np.ndarray | float) -> np.ndarray:
     """Angles into [-pi, pi) (the rotary sensor's range)."""
     return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 

@@ -133,8 +133,8 @@ def actuator_targets(
 
 def solve_pose(
     params: KinematicParameters,
-    actuators: Sequence[float],
-    guess: Sequence[float],
+    actuators: Sequence[float] | np.ndarray,
+    guess: Sequence[float] | np.ndarray,
     loaded: LoadedChains | None = None,
 ) -> np.ndarray:
     """

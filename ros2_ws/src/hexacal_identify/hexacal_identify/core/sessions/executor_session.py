@@ -275,7 +275,7 @@ class WalkSetup:
 
 def model_defaults(
     metadata: dict, nominal: KinematicParameters
-) -> tuple[dict[str, object], str]:
+) -> tuple[dict[str, Any], str]:
     """Return the defaults of the model's parameters and where the stroke comes from."""
     stroke, source = plan_stroke(metadata, nominal)
     return {

@@ -21,7 +21,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 import math
-from typing import cast
+from typing import Any, cast
 
 from hexacal_msgs_py.errors import InvalidReadingError
 from hexacal_msgs_py.interface_names import SLIDERS_TOPIC
@@ -223,7 +223,7 @@ class LiveSession:
         self.min_period_ns = min_period_ns  # readings closer (by their stamps) are skipped
         self.pose: np.ndarray | None = None  # latest solved pose, its readings and stamp
         self.readings: np.ndarray | None = None
-        self.pose_stamp: object = None  # the reading's stamp, as the node keeps it
+        self.pose_stamp: Any = None  # the reading's stamp, as the node keeps it
         self.poses_published = 0
         self.pose_failures = 0
         self.invalid_readings = 0
