@@ -31,7 +31,7 @@ import numpy as np
 
 
 def plans(model: str, size: int, seed: int, margin: bool, verify: int):
-    """Return the demo's machines and its calibration and verification plans (module doc)."""
+    """Return the true machine, the nominal, the calibration and verification plans."""
     from hexacal_identify.core.architectures import architecture
     from hexacal_identify.core.machine.measurements import NoiseModel
     from hexacal_identify.core.machine.model import nominal_set

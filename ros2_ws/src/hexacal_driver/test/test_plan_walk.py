@@ -1,4 +1,4 @@
-"""The offline walk check: a move the true machine's passive system jams on, and one it does not."""
+"""The offline walk check: a move the true passive system jams on, and one it does not."""
 
 from hexacal_driver.plan_walk import walk_plan
 from hexacal_identify.core.architectures import architecture
