@@ -19,7 +19,9 @@ Each move reports the worst condition number of the passive system with its rele
 the true machine along the way (``release_conditions``: unit-free, angles as lengths; the fold
 is where it is infinite) and the drive's fault, if any.  After a fault the drive is reset where
 it stands and the walk goes on to the next posture (the executor would pause: every fold of the
-plan is reported, not only the first).
+plan is reported, not only the first); with ``recover`` (the default) it first does what the
+executor does once the drive is reset and the walk resumed: another chain is released from where
+the machine stands (``release_after_fault``) and the move is taken again.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from hexacal_identify.core.architectures import KinematicParameters
 from hexacal_identify.core.machine.device import DEFAULT_MOUNT, fixed_point
 from hexacal_identify.core.modes.passive_actuator import release_conditions
 from hexacal_identify.core.walk.platform_paths import CommandPurpose, PathError, route_command
-from hexacal_identify.core.walk.release_choice import first_releases
+from hexacal_identify.core.walk.release_choice import first_releases, release_after_fault
 from hexacal_identify.core.walk.standing import blend_from_setpoints, estimate_pose
 from hexacal_msgs_py.measuring_modes import MeasuringMode
 import numpy as np
@@ -60,6 +62,7 @@ class MoveWalk:
     worst_condition: float
     fault: str = ''
     refused: str = ''
+    recovered: bool = False  # faulted, then reached with another chain released
 
     @property
     def jammed(self) -> bool:
@@ -78,6 +81,11 @@ class PlanWalk:
     def jams(self) -> int:
         """Return the moves on which the drive faulted."""
         return sum(move.jammed for move in self.moves)
+
+    @property
+    def recovered(self) -> int:
+        """Return the moves that faulted and were then reached with another chain released."""
+        return sum(move.recovered for move in self.moves)
 
     @property
     def refused(self) -> int:
@@ -125,6 +133,7 @@ def walk_plan(
     refine_at: int | None = None,
     refined: KinematicParameters | None = None,
     rechoose_first: bool = True,
+    recover: bool = True,
     path_step_m: float = PATH_STEP_M,
 ) -> PlanWalk:
     """
@@ -133,7 +142,9 @@ def walk_plan(
     `model` the executor's (its targets and paths), `link_length` the nominal link L (m),
     `true_link_length` the machine's (default L), `stroke` the actuators' (low, high);
     from posture `refine_at` (0-based) on the executor walks on `refined` instead.  The
-    machine starts at the fixed-position point with zero angles, all six locked.
+    machine starts at the fixed-position point with zero angles, all six locked.  `recover`:
+    after a fault the executor's recovery (another chain released from where it stands) is
+    taken, else the walk goes on to the next posture from where the drive stopped.
     """
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
     released = list(released)
@@ -160,58 +171,93 @@ def walk_plan(
     for index, pose in enumerate(poses):
         if refine_at is not None and refined is not None and index == refine_at:
             model = refined
-        wanted = released[index]
         if targets_outside(model, pose[None], stroke)[0]:
-            moves.append(MoveWalk(index, wanted, 0.0, refused='a target outside the stroke'))
+            moves.append(MoveWalk(index, released[index], 0.0,
+                                  refused='a target outside the stroke'))
             continue
-        if wanted != drive.released:
-            if drive.released is not None:
-                locked = drive.released
-                drive.release(names[locked], False, now)
-                setpoints[locked] = drive.actuators[locked]
-            if wanted is not None:
-                drive.release(names[wanted], True, now)
-        start = where if where is not None else _estimate(
-            model, drive.actuators, [poses[max(index - 1, 0)], pose, centre], link_length, mount
-        )
-        if start is None:
-            moves.append(MoveWalk(index, wanted, 0.0, refused='cannot tell where it stands'))
-            continue
-        try:
-            command = route_command(model, drive.actuators.copy(), start, pose, stroke,
-                                    EXECUTOR_SPEED_M_S, link_length, path_step_m, mount,
-                                    CommandPurpose.MOVE, index)
-        except PathError as error:
-            moves.append(MoveWalk(index, wanted, 0.0, refused=f'its path: {error}'))
-            continue
-        command = blend_from_setpoints(model, command, start, setpoints, drive.released,
-                                       EXECUTOR_SPEED_M_S, stroke)
-        points = command.points.copy()
-        if drive.released is not None:  # not commanded: the driver holds its column
-            points[:, drive.released] = drive.actuators[drive.released]
-        drive.command(now, [TrajectoryPoint(p, float(t)) for p, t in zip(points, command.times)])
-        visited = [drive.pose.copy()]
-        for time_s in _step_times(list(drive._segments)):
-            drive.sample(time_s)
-            if drive.fault is not None:
+        faulted: set[int] = set()
+        first_fault = ''
+        while True:
+            wanted = released[index]
+            if wanted != drive.released:
+                if drive.released is not None:
+                    locked = drive.released
+                    drive.release(names[locked], False, now)
+                    setpoints[locked] = drive.actuators[locked]
+                if wanted is not None:
+                    drive.release(names[wanted], True, now)
+            start = where if where is not None else _estimate(
+                model, drive.actuators, [poses[max(index - 1, 0)], pose, centre], link_length,
+                mount,
+            )
+            outcome = _move(drive, truth, model, start, pose, setpoints, stroke, link_length,
+                            true_link, path_step_m, mount, index, now)
+            if isinstance(outcome, str):
+                moves.append(MoveWalk(index, wanted, 0.0, fault=first_fault, refused=outcome))
                 break
-            visited.append(drive.pose.copy())
-        now = max(now, drive.end_time_s) + 1.0
-        worst = 0.0
-        if drive.released is not None:
-            conditions = release_conditions(truth, np.array(visited), true_link)
-            worst = float(np.max(conditions[:, drive.released]))
-        if drive.fault is not None:
-            moves.append(MoveWalk(index, wanted, math.inf, fault=drive.fault.text))
+            now, worst, target = outcome
+            if drive.fault is None:
+                setpoints, where = target, pose
+                moves.append(MoveWalk(index, wanted, worst, fault=first_fault,
+                                      recovered=bool(first_fault)))
+                break
+            # The executor pauses; reset and resumed, it releases another chain from where the
+            # machine stands (core/walk/release_choice.rechoose_release), if any may be.
+            first_fault = first_fault or drive.fault.text
             drive.reset()
-            setpoints = drive.actuators.copy()
-            where = None
-            continue
-        drive.sample(now)  # at rest
-        moves.append(MoveWalk(index, wanted, worst))
-        setpoints = command.positions.copy()
-        where = pose
+            setpoints, where = drive.actuators.copy(), None
+            chosen = None
+            if recover and drive.released is not None:
+                faulted.add(drive.released)
+                here = _estimate(model, drive.actuators, [pose, centre], link_length, mount)
+                if here is not None:
+                    chosen, _, _ = release_after_fault(
+                        model, here, drive.actuators.copy(), drive.released, pose, faulted,
+                        link_length, stroke, mount, f'posture {index + 1}',
+                    )
+            if chosen is None:
+                moves.append(MoveWalk(index, wanted, math.inf, fault=first_fault))
+                break
+            released[index] = chosen
     return PlanWalk(tuple(moves), tuple(released))
+
+
+def _move(drive, truth, model, start, pose, setpoints, stroke, link_length, true_link,
+          path_step_m, mount, index, now):
+    """Command one move as the executor does and follow it on the drive (module doc).
+
+    Return (the time at rest, the worst condition along, the command's target), or why the
+    executor could not command it.
+    """
+    if start is None:
+        return 'cannot tell where it stands'
+    try:
+        command = route_command(model, drive.actuators.copy(), start, pose, stroke,
+                                EXECUTOR_SPEED_M_S, link_length, path_step_m, mount,
+                                CommandPurpose.MOVE, index)
+    except PathError as error:
+        return f'its path: {error}'
+    command = blend_from_setpoints(model, command, start, setpoints, drive.released,
+                                   EXECUTOR_SPEED_M_S, stroke)
+    points = command.points.copy()
+    if drive.released is not None:  # not commanded: the driver holds its column
+        points[:, drive.released] = drive.actuators[drive.released]
+    drive.command(now, [TrajectoryPoint(p, float(t)) for p, t in zip(points, command.times)])
+    visited = [drive.pose.copy()]
+    for time_s in _step_times(list(drive._segments)):
+        drive.sample(time_s)
+        if drive.fault is not None:
+            break
+        visited.append(drive.pose.copy())
+    now = max(now, drive.end_time_s) + 1.0
+    if drive.fault is not None:
+        return now, math.inf, command.positions.copy()
+    drive.sample(now)  # at rest
+    worst = 0.0
+    if drive.released is not None:
+        conditions = release_conditions(truth, np.array(visited), true_link)
+        worst = float(np.max(conditions[:, drive.released]))
+    return now, worst, command.positions.copy()
 
 
 def _estimate(model, actuators, guesses, link_length, mount) -> np.ndarray | None:

@@ -19,7 +19,7 @@ RELEASED = 4
 def _walk(model):
     truth = architecture(GS).default_parameters()
     return walk_plan(truth, model, np.array([CENTRE, TILTED]), [RELEASED, RELEASED], L,
-                     default_stroke(truth), rechoose_first=False)
+                     default_stroke(truth), rechoose_first=False, recover=False)
 
 
 def test_a_move_walked_on_the_executors_model_equal_to_the_machine_does_not_jam():
@@ -37,3 +37,16 @@ def test_the_same_move_on_a_nominal_unlike_the_machine_jams_the_drive():
     assert jammed.posture == 1 and jammed.released == RELEASED
     assert 'jam' in jammed.fault and 'leg_5' in jammed.fault, jammed.fault
     assert walked.worst_condition == np.inf
+
+
+def test_after_the_jam_the_executors_recovery_releases_another_chain_and_reaches_it():
+    truth = architecture(GS).default_parameters()
+    walked = walk_plan(truth, nominal_set(2, seed=1, model=GS), np.array([CENTRE, TILTED]),
+                       [RELEASED, RELEASED], L, default_stroke(truth), rechoose_first=False)
+    move = walked.moves[1]
+    assert 'jam' in move.fault and 'leg_5' in move.fault and walked.jams == 1
+    # Reset and resumed, another chain is released from where the machine stood: it closes
+    # all along, well away from its fold.
+    assert move.recovered and walked.recovered == 1
+    assert move.released != RELEASED and walked.released[1] == move.released
+    assert move.worst_condition < 100.0

@@ -13,7 +13,9 @@ postures (a kind and device turn: the plan's groups stay in their order): from t
 posture the ``tries`` nearest of the group (travel distance, angles weighted by L, as the
 planner's travel order) are tried, nearest first, and the first whose move is safe (closes on
 every machine within the limit) is walked next, else the least risky of them (fewest jams, then
-the lowest worst condition).  The batched rehearser (the default) rehearses a move's
+the lowest worst condition); where each of them jams on a drawn machine, the next ``tries``
+farther ones of the group are tried the same way (at most ``WIDER_TOUR_BATCHES`` times) before the least
+risky of all tried is taken.  The batched rehearser (the default) rehearses a move's
 candidates on all machines in one stacked batch (release_rehearsal.rehearse_stacked; the
 candidates ranked after the first ones, where needed, of all the moves asked at once in a second
 batch) and decides exactly as above; ``batched=False`` rehearses one machine at a time (the
@@ -58,6 +60,7 @@ from ..machine.kinematics import inverse_kinematics
 DEFAULT_MAX_MOVE_CONDITION = 250.0
 FIRST_REHEARSED = 2  # candidates rehearsed before the others are tried
 DEFAULT_TOUR_TRIES = 4  # nearest postures tried for the next move of a tour
+WIDER_TOUR_BATCHES = 3  # batches of farther postures tried when none of the nearest is safe
 
 
 @dataclass(frozen=True)
@@ -399,7 +402,20 @@ def tour(
             pool = [j for j in remaining if groups[j] == groups[remaining[0]]]
         distance = np.linalg.norm(weighted[pool] - weighted[current], axis=1)
         nearest = [pool[k] for k in np.argsort(distance, kind='stable')]
-        chosen = _next(rehearser, poses, current, nearest[: max(1, rehearser.settings.tour_tries)])
+        tries = max(1, rehearser.settings.tour_tries)
+        chosen = _next(rehearser, poses, current, nearest[:tries])
+        # Each of the nearest jams on a drawn machine: the farther postures of the group, a
+        # batch at a time, before the least risky is taken (a move that jams on a drawn machine
+        # is what jammed the true one's drive, Hexa Slide, nominal set 2 of seed 0).
+        for wider in range(WIDER_TOUR_BATCHES):
+            if chosen is not None and chosen[1].jams == 0:
+                break
+            farther = nearest[tries * (wider + 1): tries * (wider + 2)]
+            if not farther:
+                break
+            found = _next(rehearser, poses, current, farther)
+            if found is not None and (chosen is None or found[1].risk < chosen[1].risk):
+                chosen = found
         if chosen is None:
             raise Stuck(nearest[0])
         index, leg = chosen
@@ -433,6 +449,7 @@ __all__ = [
     'Rehearser',
     'RehearsalSettings',
     'Stuck',
+    'WIDER_TOUR_BATCHES',
     'in_order',
     'tour',
 ]
