@@ -171,13 +171,21 @@ def test_a_passive_plan_carries_its_released_actuators_through_every_reader(tmp_
     assert plan.measuring_mode == 'passive_actuator'
     release = result.measuring.release
     assert plan.released_actuators == release.names(params.layout.actuator_names)
-    plain = plan_postures(params, 12, n_candidates=300).plan
-    # The same postures; the passive plan walks them in the order its releases are safe in
-    # (within each kind), so its fingerprint - which names the postures in order - may differ.
+    plain_result = plan_postures(params, 12, n_candidates=300)
+    plain = plain_result.plan
+    # The same postures, unless some jammed in rehearsal (then selected again without them); the
+    # passive plan walks them in the order its releases are safe in (within each kind), so its
+    # fingerprint - which names the postures in order - may differ.
     order = result.measuring.release.order
     assert sorted(order.tolist()) == list(range(12))
-    np.testing.assert_array_equal(plan.poses, plain.poses[order])
-    np.testing.assert_array_equal(plan.kinds, plain.kinds[order])
+    assert plain_result.excluded == ()
+    if result.excluded:
+        assert not set(result.excluded) & set(result.design.tolist())
+        # The first ones left out were among the plain plan's postures.
+        assert set(result.excluded) & set(plain_result.design.tolist())
+    else:
+        np.testing.assert_array_equal(plan.poses, plain.poses[order])
+        np.testing.assert_array_equal(plan.kinds, plain.kinds[order])
     assert plan.name.rsplit('-', 1)[0] == plain.name.rsplit('-', 1)[0]
     assert plan.name.endswith(plan.fingerprint())
     path = plan.save(tmp_path / 'passive.yaml')

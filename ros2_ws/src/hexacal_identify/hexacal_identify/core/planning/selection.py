@@ -71,6 +71,7 @@ def greedy_design(
     progress: Progress = no_progress,
     kind_counts: dict[str, int] | None = None,
     screen: int = 300,
+    excluded: np.ndarray | None = None,
 ) -> tuple[np.ndarray, list[float]]:
     """
     Add, one at a time, the candidate that maximises the index; return (design, history).
@@ -83,12 +84,15 @@ def greedy_design(
     partner), so one-step greedy would never start the fixed-position kind.
     For O2-O4 only the ``screen`` candidates with the best D-criterion gain are
     scored exactly (n x n eigenvalues each); O1 and I score every candidate.
+    ``excluded``: candidate indices never chosen.
     """
     check_index(index)
     n = len(candidates)
     if n_postures > n:
         raise ValueError(f'cannot choose {n_postures} postures from {n} candidates')
     available = np.ones(n, bool)
+    if excluded is not None and len(excluded):
+        available[np.asarray(excluded, dtype=int)] = False
     remaining = dict(kind_counts) if kind_counts is not None else None
     ridge = RIDGE * _mean_posture_information(candidates)
     information = candidates.start_information()
