@@ -224,7 +224,8 @@ def walk_plan(
 
 def _move(drive, truth, model, start, pose, setpoints, stroke, link_length, true_link,
           path_step_m, mount, index, now):
-    """Command one move as the executor does and follow it on the drive (module doc).
+    """
+    Command one move as the executor does and follow it on the drive (module doc).
 
     Return (the time at rest, the worst condition along, the command's target), or why the
     executor could not command it.
