@@ -15,8 +15,8 @@ planner's travel order) are tried, nearest first, and the first whose move is sa
 every machine within the limit) is walked next, else the least risky of them (fewest jams, then
 the lowest worst condition); where each of them jams on a drawn machine, the next ``tries``
 farther ones of the group are tried the same way (at most ``WIDER_TOUR_BATCHES`` times)
-before the least risky of all tried is taken.  The batched rehearser (the default) rehearses a move's
-candidates on all machines in one stacked batch (release_rehearsal.rehearse_stacked; the
+before the least risky of all tried is taken.  The batched rehearser (the default) rehearses
+a move's candidates on all machines in one stacked batch (release_rehearsal.rehearse_stacked; the
 candidates ranked after the first ones, where needed, of all the moves asked at once in a second
 batch) and decides exactly as above; ``batched=False`` rehearses one machine at a time (the
 reference the tests compare it with).  Rehearsed on Table 1 with nominal set 2 (the demo),
