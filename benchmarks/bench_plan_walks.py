@@ -115,7 +115,8 @@ def main() -> None:
                     first_jams = [next((m.posture for m in w.moves if m.jammed), None)
                                   for w in walked]
                     print(f'  {model_name} {margin} K={size} seed {seed}: jams '
-                          f'{[w.jams for w in walked]} (first at {first_jams}), '
+                          f'{[w.jams for w in walked]} (first at {first_jams}, recovered '
+                          f'{[w.recovered for w in walked]}), '
                           f'outside {[w.refused for w in walked]}, '
                           f'worst cond {[round(w.worst_condition) if np.isfinite(w.worst_condition) else "inf" for w in walked]} '  # noqa: E501
                           f'({t1 - t0:.0f} s plan, {t2 - t1:.0f} s walk)', flush=True)
