@@ -1,0 +1,138 @@
+#!/usr/bin/env python3
+"""
+Passive-actuator plans made as the demo makes them, walked offline on the demo's true machine.
+
+For each model, each size K and seed: the demo's machines (``hexacal demo``, cli/demo_run.py:
+the true machine is the architecture's default parameters, the nominal is Table 2 set 2 of
+the seed), its calibration plan (``mixed``: sphere-fixed, a quarter fixed positions, O1 over
+1000 candidates, 10 um noise, the seed) and its verification plan (20 postures, absolute, seed
++ 1000), both planned on the nominal in passive_actuator mode, with the model-change margin off
+(``model_error_m=0``) and on (None: the architecture's Table 2 set 2 RMS).  Each plan is walked
+offline on the true machine (hexacal_driver.plan_walk): the calibration plan on the nominal's
+targets until the executor's first refinement checkpoint, on the calibration's afterwards; the
+verification plan on the calibration's targets.  The calibration is stood in for by the true
+machine (a calibration is micrometres from it; no fit is run here).
+
+The table per model, margin and K (summed over the seeds): plans walked, moves that jam the
+drive, plans with a jam, the closest approach to a fold (the largest condition number of the
+passive system met along a move that did not jam; inf: a fold reached), and the targets
+outside the stroke (the executor refuses such a plan).  Planning and walking times are printed.
+
+Run: ``nice .venv/bin/python benchmarks/bench_plan_walks.py [--models hexa_slide gough_stewart]
+[--sizes 20 30 50 80] [--seeds 5] [--margins off on] [--verify-postures 20]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+
+def plans(model: str, size: int, seed: int, margin: bool, verify: int):
+    """Return the true machine, the nominal, the calibration and verification plans."""
+    from hexacal_identify.core.architectures import architecture
+    from hexacal_identify.core.machine.measurements import NoiseModel
+    from hexacal_identify.core.machine.model import nominal_set
+    from hexacal_identify.core.planning.planner import plan_postures
+
+    truth = architecture(model).default_parameters()
+    nominal = nominal_set(2, seed=seed, model=model)
+    error = None if margin else 0.0
+    noise = NoiseModel.from_microns(10.0)
+    calibration = plan_postures(
+        nominal, size, index='O1', cost='sphere-fixed', fixed_fraction=0.25, n_candidates=1000,
+        seed=seed, noise=noise, name='demo-calibration', measuring_mode='passive_actuator',
+        model_error_m=error,
+    ).plan
+    verification = plan_postures(
+        nominal, verify, index='O1', cost='absolute', n_candidates=1000, seed=seed + 1000,
+        noise=noise, name='demo-verification', measuring_mode='passive_actuator',
+        model_error_m=error,
+    ).plan
+    return truth, nominal, calibration, verification
+
+
+def walk(truth, model, plan, refined=None, refine_at=None):
+    """Return the plan walked offline on `truth` (plan_walk.walk_plan)."""
+    from hexacal_driver.plan_walk import walk_plan
+    from hexacal_identify.core.planning.plan_check import plan_stroke
+
+    stroke, _ = plan_stroke(plan.metadata, model)
+    names = list(model.layout.actuator_names)
+    released = [names.index(name) for name in plan.released_actuators]
+    return walk_plan(truth, model, plan.poses, released, plan.link_length, stroke,
+                     mount=plan.mount, refine_at=refine_at, refined=refined)
+
+
+def main() -> None:
+    """Plan, walk and print the table (module doc)."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--models', nargs='+', default=['hexa_slide', 'gough_stewart'])
+    parser.add_argument('--sizes', nargs='+', type=int, default=[20, 30, 50, 80])
+    parser.add_argument('--seeds', type=int, default=5)
+    parser.add_argument('--margins', nargs='+', default=['off', 'on'], choices=['off', 'on'])
+    parser.add_argument('--verify-postures', type=int, default=20)
+    args = parser.parse_args()
+    from hexacal_identify.core.walk_refine.refinement import full_rank_postures
+
+    started = time.perf_counter()
+    rows = []
+    for model_name in args.models:
+        for margin in args.margins:
+            for size in args.sizes:
+                row = {'plans': 0, 'jams': 0, 'jammed': 0, 'closest': 0.0, 'outside': 0,
+                       'plan_s': 0.0, 'walk_s': 0.0, 'failed': 0}
+                for seed in range(args.seeds):
+                    t0 = time.perf_counter()
+                    try:
+                        truth, nominal, calibration, verification = plans(
+                            model_name, size, seed, margin == 'on', args.verify_postures)
+                    except ValueError as error:  # no release, no margin: the planner refuses
+                        row['failed'] += 1
+                        print(f'  {model_name} {margin} K={size} seed {seed}: {error}',
+                              flush=True)
+                        continue
+                    t1 = time.perf_counter()
+                    first = full_rank_postures(nominal.layout.n_parameters)
+                    walked = [
+                        walk(truth, nominal, calibration, truth,
+                             first if first < size else None),
+                        walk(truth, truth, verification),
+                    ]
+                    t2 = time.perf_counter()
+                    row['plan_s'] += t1 - t0
+                    row['walk_s'] += t2 - t1
+                    for plan_walk in walked:
+                        row['plans'] += 1
+                        row['jams'] += plan_walk.jams
+                        row['jammed'] += plan_walk.jams > 0
+                        row['outside'] += plan_walk.refused
+                        closed = [m.worst_condition for m in plan_walk.moves
+                                  if not m.refused and not m.jammed]
+                        row['closest'] = max(row['closest'], max(closed, default=0.0))
+                    first_jams = [next((m.posture for m in w.moves if m.jammed), None)
+                                  for w in walked]
+                    print(f'  {model_name} {margin} K={size} seed {seed}: jams '
+                          f'{[w.jams for w in walked]} (first at {first_jams}, recovered '
+                          f'{[w.recovered for w in walked]}), '
+                          f'outside {[w.refused for w in walked]}, '
+                          f'worst cond {[round(w.worst_condition) if np.isfinite(w.worst_condition) else "inf" for w in walked]} '  # noqa: E501
+                          f'({t1 - t0:.0f} s plan, {t2 - t1:.0f} s walk)', flush=True)
+                rows.append((model_name, margin, size, row))
+    print()
+    print(f'{"model":14} {"margin":6} {"K":>3} {"plans":>5} {"jams":>5} {"jammed":>6} '
+          f'{"closest cond":>12} {"outside":>7} {"refused":>7} {"plan s":>7} {"walk s":>7}')
+    for model_name, margin, size, row in rows:
+        print(f'{model_name:14} {margin:6} {size:3d} {row["plans"]:5d} {row["jams"]:5d} '
+              f'{row["jammed"]:6d} {row["closest"]:12.0f} {row["outside"]:7d} '
+              f'{row["failed"]:7d} {row["plan_s"]:7.0f} {row["walk_s"]:7.0f}')
+    print(f'total {time.perf_counter() - started:.0f} s (jams: moves the drive faulted on; '
+          'jammed: plans with one; closest cond: worst condition of the passive system on a '
+          'move that closed; outside: targets outside the stroke; refused: plans the planner '
+          'could not make)')
+
+
+if __name__ == '__main__':
+    main()

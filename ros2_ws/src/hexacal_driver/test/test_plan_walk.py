@@ -1,0 +1,52 @@
+"""The offline walk check: a move the true passive system jams on, and one it does not."""
+
+from hexacal_driver.plan_walk import walk_plan
+from hexacal_identify.core.architectures import architecture
+from hexacal_identify.core.machine.model import nominal_set
+from hexacal_identify.core.planning.plan_check import default_stroke
+import numpy as np
+
+L = 0.75
+GS = 'gough_stewart'
+CENTRE = np.array([0.0, 0.0, -L, 0.0, 0.0, 0.0])
+# A tilted posture whose move from the centre with leg_5 released passes near the passive
+# system's fold (its determinant changes sign along the sphere path on the true machine).
+TILTED = np.array([-0.2006, 0.1554, -0.7058, -0.4096, -0.4324, -0.3762])
+TILTED[:3] *= L / np.linalg.norm(TILTED[:3])
+RELEASED = 4
+
+
+def _walk(model):
+    truth = architecture(GS).default_parameters()
+    return walk_plan(truth, model, np.array([CENTRE, TILTED]), [RELEASED, RELEASED], L,
+                     default_stroke(truth), rechoose_first=False, recover=False)
+
+
+def test_a_move_walked_on_the_executors_model_equal_to_the_machine_does_not_jam():
+    walked = _walk(architecture(GS).default_parameters())
+    assert walked.jams == 0 and walked.refused == 0
+    # It passes close to the fold, but the setpoints are the machine's own: it closes all along.
+    assert 100.0 < walked.worst_condition < np.inf
+    assert walked.released == (RELEASED, RELEASED)
+
+
+def test_the_same_move_on_a_nominal_unlike_the_machine_jams_the_drive():
+    walked = _walk(nominal_set(2, seed=1, model=GS))
+    assert walked.jams == 1 and walked.moves[0].fault == ''
+    jammed = walked.moves[1]
+    assert jammed.posture == 1 and jammed.released == RELEASED
+    assert 'jam' in jammed.fault and 'leg_5' in jammed.fault, jammed.fault
+    assert walked.worst_condition == np.inf
+
+
+def test_after_the_jam_the_executors_recovery_releases_another_chain_and_reaches_it():
+    truth = architecture(GS).default_parameters()
+    walked = walk_plan(truth, nominal_set(2, seed=1, model=GS), np.array([CENTRE, TILTED]),
+                       [RELEASED, RELEASED], L, default_stroke(truth), rechoose_first=False)
+    move = walked.moves[1]
+    assert 'jam' in move.fault and 'leg_5' in move.fault and walked.jams == 1
+    # Reset and resumed, another chain is released from where the machine stood: it closes
+    # all along, well away from its fold.
+    assert move.recovered and walked.recovered == 1
+    assert move.released != RELEASED and walked.released[1] == move.released
+    assert move.worst_condition < 100.0
