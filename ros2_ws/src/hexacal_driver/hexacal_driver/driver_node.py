@@ -16,8 +16,10 @@ import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
-from hexacal_driver.machine import DriverConfigurationError, SimulatedMachine
+from hexacal_driver.machine import DriverConfigurationError, SimulatedMachine, true_machine
 from hexacal_driver.parameters import (
+    actuator_parameter_defaults,
+    ACTUATOR_PARAMETERS,
     MODEL_CHOICES,
     parameter_problem,
     PARAMETERS,
@@ -93,14 +95,17 @@ class DriverNode(Node):
         # Registered before declaring, so command-line overrides are validated too.
         self.add_on_set_parameters_callback(self._validate_parameters)
         for name, spec in PARAMETERS.items():
-            self.declare_parameter(
-                name,
-                spec.default,
-                parameter_descriptor(name, spec, read_only=name not in RUNTIME_PARAMETERS),
-            )
+            if name not in ACTUATOR_PARAMETERS:
+                self._declare(name, spec.default)
+        # The actuator quantities' defaults are the true machine's model's (rad for cranks).
+        truth = true_machine(
+            self.get_parameter('true_params').value, self.get_parameter('model').value
+        )
+        for name, default in actuator_parameter_defaults(truth[0].model).items():
+            self._declare(name, default)
         self.add_post_set_parameters_callback(self._apply_parameters)
         value = {name: self.get_parameter(name).value for name in PARAMETERS}
-        self.machine = SimulatedMachine(value)
+        self.machine = SimulatedMachine(value, truth)
         self.command_topic = value['command_topic']
         plan = self.machine.plan
         self.declare_parameter(
@@ -275,6 +280,12 @@ class DriverNode(Node):
                 actuator_quantities_of(self.machine),
             )
         )
+
+    def _declare(self, name: str, default: object) -> None:
+        descriptor = parameter_descriptor(
+            name, PARAMETERS[name], read_only=name not in RUNTIME_PARAMETERS
+        )
+        self.declare_parameter(name, default, descriptor)
 
     def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         """Refuse the first parameter with a problem (parameters.parameter_problem)."""

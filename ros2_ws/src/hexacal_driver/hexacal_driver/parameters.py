@@ -183,6 +183,24 @@ PARAMETERS: dict[str, _Spec] = {
     **SENSOR_PARAMETERS,  # sensor_effects and the sensor models' parameters (read-only)
 }
 
+# Actuator quantities (core.architectures.actuator_defaults): declared once the true machine's
+# model is known, with that model's defaults (the specs' for sliders and legs).
+ACTUATOR_PARAMETERS = {
+    'slider_noise_m': 'reading',
+    'max_actuator_speed_m_s': 'speed',
+    'max_following_error_m': 'length',
+    'servo_stiffness_n_per_m': 'stiffness',
+    'max_force_n': 'force',
+}
+
+
+def actuator_parameter_defaults(model: str) -> dict[str, float]:
+    """Return the defaults of ACTUATOR_PARAMETERS for a true machine of `model`."""
+    from hexacal_identify.core.architectures.actuator_defaults import actuator_defaults
+
+    return actuator_defaults(model, PARAMETERS, ACTUATOR_PARAMETERS)
+
+
 # Numbers whose descriptors give a range but let inf and nan through.
 FINITE_PARAMETERS = (
     'link_length',

@@ -70,7 +70,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         '--noise-um',
         type=float,
         default=10.0,
-        help='uniform noise half-width: um on sliders, urad on angles (default 10)',
+        help='uniform noise half-width: um on sliders and legs, urad on cranks and angles '
+        '(default 10)',
     )
     parser.add_argument('--seed', type=int, default=0, help='random seed (default 0)')
     parser.add_argument(
@@ -152,9 +153,10 @@ def add_mode_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         '--servo-stiffness-n-per-m',
         type=float,
-        default=2e6,
-        help='compliant mode: the stiffness of the servos, N/m, for the force they carry '
-        '(default 2e6)',
+        default=None,
+        help='compliant mode: the stiffness of the servos, N/m (N m/rad for actuators that '
+        "turn), for the force (torque) they carry (default 2e6 N/m at the actuator's joint: "
+        '2e6 for sliders and legs, 2e6 x crank^2 N m/rad for cranks)',
     )
 
 
@@ -356,6 +358,7 @@ def _print_noise_table(
     from ..studies.accuracy import noise_study, paper_reference
 
     paper_table = paper_reference(truth.model)
+    noise_unit = truth.architecture.actuator_quantities.small  # um for sliders, urad for cranks
     print(
         '\nMeasurement noise, 50 postures, nominal set 2, eq. 7; mean over 50 validation '
         f'postures, {seeds} seeds (mean +- spread){_paper(truth, " [paper Table 3]")}:'
@@ -365,7 +368,7 @@ def _print_noise_table(
     before_ori = summaries[0].mean_and_spread('before', 'orientation_mean_rad')
     print(
         f'  {"":<12} {"initial":>22} '
-        + ' '.join(f'{"+-" + format(s.noise_um, "g") + " um":>24}' for s in summaries)
+        + ' '.join(f'{"+-" + format(s.noise_um, "g") + " " + noise_unit:>24}' for s in summaries)
     )
     after_pos = [s.mean_and_spread('after', 'position_mean_m') for s in summaries]
     after_ori = [s.mean_and_spread('after', 'orientation_mean_rad') for s in summaries]
@@ -399,6 +402,7 @@ def _print_noise_table(
         [v[0] * DEG for v in after_ori],
         [v * DEG for v in paper_ori],
         out / 'table3_pose_error_vs_noise.png',
+        noise_unit,
     )
     for figure_number, summary in zip((7, 8, 9), summaries):
         if summary.outcomes:
@@ -406,7 +410,7 @@ def _print_noise_table(
             figures.chain_errors(
                 first.initial_parameter_errors,
                 first.final_parameter_errors,
-                f'Errors in kinematic chains, +-{summary.noise_um:g} um noise'
+                f'Errors in kinematic chains, +-{summary.noise_um:g} {noise_unit} noise'
                 f'{_paper(truth, f" (cf. paper Fig. {figure_number})")}',
                 out / f'fig{figure_number}_chain_errors_{summary.noise_um:g}um.png',
             )
@@ -417,8 +421,10 @@ def _print_procedures(progress: Progress, truth: KinematicParameters) -> None:
     from ..studies.accuracy import run_calibration, StudyRun
 
     claim = _paper(truth, " (paper: 'of the same order as the noise')")
+    noise_unit = truth.architecture.actuator_quantities.small
     print(
-        '\nSphere + fixed-position procedure, 60 sphere + 20 fixed postures, +-10 um noise, '
+        '\nSphere + fixed-position procedure, 60 sphere + 20 fixed postures, '
+        f'+-10 {noise_unit} noise, '
         f'nominal set 2{claim}:'
     )
     print(
@@ -450,7 +456,8 @@ def _print_configured(run: StudyRun) -> None:
     result = outcome.result
     before, after = outcome.before.summary(), outcome.after.summary()
     print(
-        f'\nConfigured run: {run.postures} postures, +-{run.noise_um:g} um, seed {run.seed}, cost '
+        f'\nConfigured run: {run.postures} postures, +-{run.noise_um:g} '
+        f'{run.true_params.architecture.actuator_quantities.small}, seed {run.seed}, cost '
         f'{run.cost}: '
         f'{result.reason} in {result.iterations} iterations, {result.solve_seconds * 1e3:.1f} ms, '
         f'rank {result.rank}, condition {result.condition_number:.3g}'

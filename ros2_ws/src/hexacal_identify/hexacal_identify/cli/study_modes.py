@@ -5,16 +5,25 @@ from __future__ import annotations
 import json
 from typing import Callable
 
+from hexacal_msgs_py.models import ActuatorQuantities, LINEAR_ACTUATOR
+
 UM = 1e6
 
 
 def mode_runs(args, load_params: Callable) -> list:
     """Return the runs the options ask for; ``all`` adds the compliant run as the baseline."""
     from ..core.architectures import default_parameters
-    from ..studies.measuring_mode_accuracy import ModeStudyRun, selected_modes
+    from ..studies.measuring_mode_accuracy import (
+        DEFAULT_SERVO_STIFFNESS_N_PER_M,
+        ModeStudyRun,
+        selected_modes,
+    )
 
     truth = load_params(args.true_params) if args.true_params else default_parameters(args.model)
     nominal = load_params(args.nominal_params) if args.nominal_params else None
+    stiffness = args.servo_stiffness_n_per_m
+    if stiffness is None:  # the model's: 2e6 N/m at the actuator's joint (N m/rad for a crank)
+        stiffness = truth.architecture.actuator_limit(DEFAULT_SERVO_STIFFNESS_N_PER_M, 'stiffness')
     common = {
         'true_params': truth,
         'nominal_params': nominal,
@@ -23,7 +32,7 @@ def mode_runs(args, load_params: Callable) -> list:
         'noise_um': args.noise_um,
         'lvdt_noise_m': args.lvdt_noise_m,
         'lvdt_stroke_m': args.lvdt_stroke_m,
-        'servo_stiffness_n_per_m': args.servo_stiffness_n_per_m,
+        'servo_stiffness_n_per_m': stiffness,
         'seed': args.seed,
         'cost': args.cost,
         'validation_postures': args.validation_postures,
@@ -46,19 +55,21 @@ def run(args, load_params: Callable) -> int:
         print(json.dumps(payloads[0] if len(payloads) == 1 else payloads))
         return 0
     first = outcomes[0].run
+    units = first.true_params.architecture.actuator_quantities
     print(
         f'Measuring modes on the simulated {first.true_params.model} (nominal set '
-        f'{first.nominal_set_number}, {first.postures} postures, +-{first.noise_um:g} um noise, '
+        f'{first.nominal_set_number}, {first.postures} postures, +-{first.noise_um:g} '
+        f'{units.small} noise, '
         f'seed {first.seed}); targets from the nominal model'
         + (', then refined from intermediate calibrations' if args.refine else '')
         + ':'
     )
-    print_table(payloads)
+    print_table(payloads, units)
     return 0
 
 
-def _um(value: float | None) -> str:
-    return '-' if value is None else f'{value * UM:.1f}'
+def _um(value: float | None, scale: float = UM) -> str:
+    return '-' if value is None else f'{value * scale:.1f}'
 
 
 def _kn(value: float | None) -> str:
@@ -76,11 +87,22 @@ def _label(payload: dict) -> str:
     return f'{payload["measuring_mode"]} ({refined})'
 
 
-def print_table(payloads: list[dict]) -> None:
-    """Print one row per mode: before -> after refinement figures, then the accuracy."""
+def print_table(payloads: list[dict], units: ActuatorQuantities = LINEAR_ACTUATOR) -> None:
+    """
+    Print one row per mode: before -> after refinement figures, then the accuracy.
+
+    The actuators' deviations and the released one's offsets and travel in `units` (um and
+    mm for sliders, urad and deg for cranks), their efforts in N or N m.
+    """
+    small, effort = units.small, units.effort_unit
+
+    def actuator(value: float | None) -> str:
+        return _um(value, units.small_scale)
+
     print(
-        f'  {"mode":<30} {"postures":>8} {"deviation um":>18} {"force N":>14} '
-        f'{"extension um":>18} {"released um":>18} {"pose err mean/max um":>21} '
+        f'  {"mode":<30} {"postures":>8} {"deviation " + small:>18} '
+        f'{units.effort + " " + effort:>14} '
+        f'{"extension um":>18} {"released " + small:>18} {"pose err mean/max um":>21} '
         f'{"rms xyz um":>11} {"rank":>5} {"failed":>6}'
     )
     for payload in payloads:
@@ -94,8 +116,8 @@ def print_table(payloads: list[dict]) -> None:
         rms = _position_rms(payload['rms_residual'])
         print(
             f'  {_label(payload):<30} {payload["postures"]:>8} '
-            f'{pair("max_actuator_deviation_m"):>18} {pair("max_force_n", _kn):>14} '
-            f'{pair("max_link_extension_m"):>18} {pair("max_released_offset_m"):>18} '
+            f'{pair("max_actuator_deviation_m", actuator):>18} {pair("max_force_n", _kn):>14} '
+            f'{pair("max_link_extension_m"):>18} {pair("max_released_offset_m", actuator):>18} '
             f'{accuracy:>21} {_um(rms):>11} {payload["rank"]:>5} {payload["failed_postures"]:>6}'
         )
     print(
@@ -116,5 +138,5 @@ def print_table(payloads: list[dict]) -> None:
         if payload['released_travel_max_m'] is not None:
             print(
                 f'  passive_actuator: the released actuators travel up to '
-                f'{payload["released_travel_max_m"] * 1e3:.1f} mm along a move (nominal plan)'
+                f'{units.shown(payload["released_travel_max_m"], 1)} along a move (nominal plan)'
             )

@@ -110,10 +110,12 @@ def _print_table(study: PlanningStudy) -> None:
     names = list(study.position_error_m)
     from ..core.architectures import architecture
 
+    arch = architecture(study.model)
     print(
-        f'Planned vs random postures, {architecture(study.model).layout.title}: mean validation '
+        f'Planned vs random postures, {arch.layout.title}: mean validation '
         f'position error [um] over {len(study.seeds)} seeds (mean +- std; failed calibrations in '
-        f'brackets), +-{study.noise_um:g} um noise, cost {study.cost}, index {study.index}, '
+        f'brackets), +-{study.noise_um:g} {arch.actuator_quantities.small} noise, cost '
+        f'{study.cost}, index {study.index}, '
         f'{study.method}:'
     )
     print(f'  {"K":>3} ' + ' '.join(f'{name:>26}' for name in names))

@@ -80,6 +80,7 @@ class CollectorNode(Node):
         self.turns = TurnHistory()  # the turns inclinometer messages carried
         self.model = resolve_model(value['model'], value['parameters_file'])
         self.actuator_names = MODELS[self.model].actuator_names
+        value.update(params.declare_actuator_parameters(self, self.model))
         self.mapping = params.declare_inputs(self, self.actuator_names)
         self.synchronizer = StreamSynchronizer(max_skew_ns=int(value['max_skew_s'] * NS_PER_S))
         self.detector_settings, settings = health.detector_settings(

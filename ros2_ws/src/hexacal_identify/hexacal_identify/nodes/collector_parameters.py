@@ -28,6 +28,7 @@ from rclpy.parameter import Parameter
 from .collector_inputs import RAW_TOPICS
 from .input_parameters import declare_mapping_parameters, INCLINOMETER_READING_PARAMETERS
 from ..bag.naming import bag_name_problem
+from ..core.architectures.actuator_defaults import actuator_defaults
 from ..core.detection.turn_history import turn_problem
 from ..core.detection.vocabulary import detector_problem, DETECTORS
 
@@ -143,6 +144,11 @@ PARAMETERS = {
 }
 
 
+# Actuator quantities (core.architectures.actuator_defaults): declared once the model is known,
+# with its defaults (the specs' for sliders and legs).
+ACTUATOR_PARAMETERS = {'slider_tolerance_m': 'length'}
+
+
 class CollectorConfigurationError(Exception):
     """The collector's parameters contradict each other (e.g. model and parameters_file)."""
 
@@ -174,12 +180,37 @@ def _validate(parameters: list[Parameter]) -> SetParametersResult:
 
 
 def declare_parameters(node: Node) -> dict[str, Any]:
-    """Declare the parameters that do not depend on the model, checked; return their values."""
+    """
+    Declare the parameters that do not depend on the model, checked; return their values.
+
+    ACTUATOR_PARAMETERS are declared once the model is known (declare_actuator_parameters).
+    """
     # Registered before declaring, so command-line overrides are checked too.
     node.add_on_set_parameters_callback(_validate)
     for name, (spec, read_only) in PARAMETERS.items():
-        node.declare_parameter(name, spec.default, parameter_descriptor(name, spec, read_only))
-    return {name: node.get_parameter(name).value for name in PARAMETERS}
+        if name not in ACTUATOR_PARAMETERS:
+            node.declare_parameter(name, spec.default, parameter_descriptor(name, spec, read_only))
+    return {
+        name: node.get_parameter(name).value
+        for name in PARAMETERS
+        if name not in ACTUATOR_PARAMETERS
+    }
+
+
+def actuator_parameter_defaults(model: str) -> dict[str, float]:
+    """Return the defaults of ACTUATOR_PARAMETERS for a machine of `model`."""
+    specs = {name: PARAMETERS[name][0] for name in ACTUATOR_PARAMETERS}
+    return actuator_defaults(model, specs, ACTUATOR_PARAMETERS)
+
+
+def declare_actuator_parameters(node: Node, model: str) -> dict[str, Any]:
+    """Declare ACTUATOR_PARAMETERS with the defaults of `model`; return their values."""
+    values = {}
+    for name, default in actuator_parameter_defaults(model).items():
+        spec, read_only = PARAMETERS[name]
+        descriptor = parameter_descriptor(name, spec, read_only)
+        values[name] = node.declare_parameter(name, default, descriptor).value
+    return values
 
 
 def declare_inputs(node: Node, actuator_names: tuple[str, ...]) -> InputMapping:

@@ -21,7 +21,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from .input_parameters import declare_mapping_parameters, INCLINOMETER_READING_PARAMETERS
-from ..core.sessions.executor_session import parameter_problem
+# ACTUATOR_PARAMETERS: declared once the nominal file is read, with its model's defaults.
+from ..core.sessions.executor_session import ACTUATOR_PARAMETERS, parameter_problem
 from ..core.walk.guard import GuardSettings
 from ..core.walk.settings import ExecutionSettings
 
@@ -258,8 +259,13 @@ def declare_parameters(node: Node) -> dict[str, Any]:
     """Declare PARAMETERS and how the inclinometer is read, checked; return their values."""
     node.add_on_set_parameters_callback(_validate)
     for name, spec in PARAMETERS.items():
-        node.declare_parameter(name, spec.default, parameter_descriptor(name, spec))
-    values = {name: node.get_parameter(name).value for name in PARAMETERS}
+        if name not in ACTUATOR_PARAMETERS:
+            node.declare_parameter(name, spec.default, parameter_descriptor(name, spec))
+    values = {
+        name: node.get_parameter(name).value
+        for name in PARAMETERS
+        if name not in ACTUATOR_PARAMETERS
+    }
     values.update(declare_mapping_parameters(node, INCLINOMETER_READING_PARAMETERS))
     return values
 
@@ -267,7 +273,11 @@ def declare_parameters(node: Node) -> dict[str, Any]:
 def declare_model_parameters(
     node: Node, plan_name: str, defaults: dict[str, object]
 ) -> dict[str, Any]:
-    """Declare plan_name and MODEL_PARAMETERS (`defaults`: the model's); return their values."""
+    """
+    Declare plan_name, MODEL_PARAMETERS and ACTUATOR_PARAMETERS; return their values.
+
+    `defaults`: the model's (executor_session.model_defaults).
+    """
     # As the driver's: a collector with driver_node:=executor records the plan in its bag.
     node.declare_parameter(
         'plan_name',
@@ -277,7 +287,8 @@ def declare_model_parameters(
         ),
         ignore_override=True,
     )
+    specs = {**MODEL_PARAMETERS, **{name: PARAMETERS[name] for name in ACTUATOR_PARAMETERS}}
     return {
         name: node.declare_parameter(name, defaults[name], parameter_descriptor(name, spec)).value
-        for name, spec in MODEL_PARAMETERS.items()
+        for name, spec in specs.items()
     }

@@ -62,8 +62,14 @@ from std_msgs.msg import Float64MultiArray, Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import MarkerArray
 
+from .kinematics_parameters import (
+    actuator_parameter_defaults,
+    ACTUATOR_PARAMETERS,
+    PARAMETERS,
+    RUNTIME_PARAMETERS,
+    UNSET,
+)
 from .kinematics_parameters import DEFAULT_BASE_FRAME  # noqa: F401 - also imported from here
-from .kinematics_parameters import PARAMETERS, RUNTIME_PARAMETERS, UNSET
 from .markers import machine_markers  # noqa: F401 - also imported from here
 from ..calibration_steps.machine_files import load_machine_and_mount
 from ..core.architectures import KinematicParameters, parameters_for
@@ -115,13 +121,12 @@ class KinematicsNode(Node):
         super().__init__(NODE_NAME)
         self.add_on_set_parameters_callback(self._validate_parameters)
         for name, spec in PARAMETERS.items():
-            self.declare_parameter(
-                name,
-                Parameter.Type.DOUBLE_ARRAY if name in UNSET else spec.default,
-                parameter_descriptor(name, spec, read_only=name not in RUNTIME_PARAMETERS),
-            )
+            if name not in ACTUATOR_PARAMETERS:
+                self._declare(name, Parameter.Type.DOUBLE_ARRAY if name in UNSET else spec.default)
         value = {
-            name: self.get_parameter(name).value for name in PARAMETERS if name not in UNSET
+            name: self.get_parameter(name).value
+            for name in PARAMETERS
+            if name not in UNSET and name not in ACTUATOR_PARAMETERS
         }
         params, file_mount, source = None, DEFAULT_MOUNT, ''
         compliances: dict[str, float] = {}
@@ -141,6 +146,10 @@ class KinematicsNode(Node):
                 params, source = deployed, self._deployed_source(self.deploys.deployed)
                 compliances = deployed_compliances
                 file_mount = file_mount if value['parameters'] else mount_of
+        # The actuator quantities' defaults are the model's in use (rad/s for cranks).
+        in_use = params.model if params is not None else model
+        for name, default in actuator_parameter_defaults(in_use).items():
+            self._declare(name, default)
         try:
             mount = check_mount(value['mount'] or file_mount)
         except DeviceMountError as error:
@@ -191,6 +200,12 @@ class KinematicsNode(Node):
     def params(self) -> KinematicParameters | None:
         """Return the parameters in use (None before any)."""
         return self.session.params
+
+    def _declare(self, name: str, default: object) -> None:
+        descriptor = parameter_descriptor(
+            name, PARAMETERS[name], read_only=name not in RUNTIME_PARAMETERS
+        )
+        self.declare_parameter(name, default, descriptor)
 
     def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         for parameter in parameters:

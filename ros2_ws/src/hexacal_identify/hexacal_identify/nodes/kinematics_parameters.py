@@ -18,6 +18,9 @@ from ..core.sessions.kinematics_session import MIN_MOVE_TIME_S
 
 DEFAULT_BASE_FRAME = 'hexacal_base'
 RUNTIME_PARAMETERS = ('base_frame', 'max_actuator_speed', 'stroke_limits')
+# Actuator quantities (core.architectures.actuator_defaults): declared once the model in use is
+# known, with its defaults (the specs' for sliders and legs; the default model's if none yet).
+ACTUATOR_PARAMETERS = {'max_actuator_speed': 'speed'}
 UNSET = ('stroke_limits',)  # spec default None: declared as a double array without a value
 
 PARAMETERS: dict[str, _Spec] = {
@@ -101,3 +104,10 @@ PARAMETERS: dict[str, _Spec] = {
         100.0,
     ),
 }
+
+
+def actuator_parameter_defaults(model: str | None) -> dict[str, float]:
+    """Return the defaults of ACTUATOR_PARAMETERS for a machine of `model` (None: not known)."""
+    from ..core.architectures.actuator_defaults import actuator_defaults
+
+    return actuator_defaults(model, PARAMETERS, ACTUATOR_PARAMETERS)

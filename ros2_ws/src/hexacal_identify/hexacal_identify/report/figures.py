@@ -108,8 +108,14 @@ def noise_table(
     ours_deg: Sequence[float],
     paper_deg: Sequence[float],
     path: Path,
+    noise_unit: str = 'um',
 ) -> Path:
-    """Table 3 as a picture: mean validation pose error after calibration, hexacal vs the paper."""
+    """
+    Draw Table 3: mean validation pose error after calibration, hexacal vs the paper.
+
+    The noise levels are labelled in `noise_unit` (ActuatorQuantities.small: um on sliders,
+    urad on cranks, whose readings are all angles).
+    """
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 3.6))
     x = np.arange(len(levels))
     left.bar(
@@ -121,12 +127,13 @@ def noise_table(
         color='tab:blue',
     )
     left.bar(x + 0.2, paper_um, 0.4, label='paper, Table 3', color='tab:gray')
-    left.set_xticks(x, [f'+-{level:g} um' for level in levels])
+    ticks = [f'+-{level:g} {noise_unit}' for level in levels]
+    left.set_xticks(x, ticks)
     left.set_ylabel('mean position error [um]')
     left.legend(fontsize=8)
     right.bar(x - 0.2, ours_deg, 0.4, color='tab:blue')
     right.bar(x + 0.2, paper_deg, 0.4, color='tab:gray')
-    right.set_xticks(x, [f'+-{level:g} um' for level in levels])
+    right.set_xticks(x, ticks)
     right.set_ylabel('mean orientation error [deg]')
     fig.suptitle('Pose error after calibration, 50 validation postures')
     return _save(fig, path)

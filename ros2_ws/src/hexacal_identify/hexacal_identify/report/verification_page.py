@@ -115,7 +115,7 @@ def verification_section(verification: dict, figure) -> str:
     if per_posture.get('nominal_position_error_m') is not None:
         from . import figures
 
-        # Written together (core.fit.verification): both sets' errors are there.
+        # Written together (core.assessment.verification): both sets' errors are there.
         before = vector(per_posture['nominal_position_error_m'])
         after = vector(per_posture['calibrated_position_error_m'])
         rotary = [per_posture.get(f'{name}_rotary_error_rad') for name in sets]

@@ -38,6 +38,7 @@ from hexacal_msgs_py.names import INCLINOMETER_TOPIC
 from hexacal_msgs_py.parameters_file import read_parameters_file
 
 from ..architectures import KinematicParameters
+from ..architectures.actuator_defaults import actuator_defaults
 from ..machine.device import DEFAULT_MOUNT
 from ..machine.measurements import FIXED, SPHERE
 from ..planning.plan_check import check_stroke, plan_problems, plan_stroke, refusal_message
@@ -273,14 +274,40 @@ class WalkSetup:
         return status
 
 
+# The executor's parameters that are actuator quantities (core.architectures.actuator_defaults)
+# and their slider-sized defaults (ExecutionSettings', GuardSettings'): the nominal model's
+# defaults follow from them.
+ACTUATOR_PARAMETERS = {
+    'max_actuator_speed_m_s': 'speed',
+    'position_tolerance_m': 'length',
+    'still_tolerance_m': 'length',
+    'servo_stiffness_n_per_m': 'stiffness',
+    'max_force_n': 'force',
+    'released_margin_m': 'length',
+}
+ACTUATOR_DEFAULTS = {
+    name: getattr(
+        GuardSettings() if name in GuardSettings.__dataclass_fields__ else ExecutionSettings(),
+        name,
+    )
+    for name in ACTUATOR_PARAMETERS
+}
+
+
 def model_defaults(
     metadata: dict, nominal: KinematicParameters
 ) -> tuple[dict[str, Any], str]:
-    """Return the defaults of the model's parameters and where the stroke comes from."""
+    """
+    Return the defaults of the model's parameters and where the stroke comes from.
+
+    The model's parameters: the stroke, the joint names and the actuator quantities
+    (ACTUATOR_PARAMETERS, in the nominal model's actuator unit).
+    """
     stroke, source = plan_stroke(metadata, nominal)
     return {
         'stroke_limits_m': list(stroke),
         'actuator_joints': list(nominal.layout.actuator_names),
+        **actuator_defaults(nominal.model, ACTUATOR_DEFAULTS, ACTUATOR_PARAMETERS),
     }, source
 
 

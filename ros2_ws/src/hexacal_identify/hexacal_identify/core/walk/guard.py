@@ -160,18 +160,22 @@ def _compliant(model, samples, pose, link_length, settings, mount) -> MovePredic
     force = stiffness * strain
     tension = link_tension(model, poses, standing, samples, stiffness)
     link = float(tension[np.argmax(np.abs(tension))])
+    # The servos' strain, stiffness and effort in the actuators' units (mm, N/m, N for sliders;
+    # deg, N m/rad, N m for cranks); the link's force is in N for every machine.
+    units = model.layout.actuator_quantities
+    strained = f'strain {units.shown(strain, 3)} at {stiffness:g} {units.stiffness_unit}'
     if force > settings.max_force_n:
         return MovePrediction(
             'servo force', force, settings.max_force_n,
-            f'a servo would carry {force:.4g} N on the way (strain {strain * 1e3:.3f} mm at '
-            f'{stiffness:g} N/m), beyond max_force_n {settings.max_force_n:g} N',
+            f'a servo would carry {force:.4g} {units.effort_unit} on the way ({strained}), '
+            f'beyond max_force_n {settings.max_force_n:g} {units.effort_unit}',
         )
     if abs(link) > settings.max_link_force_n:
         return MovePrediction(
             'link force', link, settings.max_link_force_n,
             f'the servos would load the measuring link with {abs(link):.4g} N of '
-            f'{"tension" if link > 0 else "compression"} on the way (strain {strain * 1e3:.3f} mm '
-            f'at {stiffness:g} N/m), beyond max_link_force_n {settings.max_link_force_n:g} N',
+            f'{"tension" if link > 0 else "compression"} on the way ({strained}), beyond '
+            f'max_link_force_n {settings.max_link_force_n:g} N',
         )
     return MovePrediction('servo force', force, settings.max_force_n, '')
 
