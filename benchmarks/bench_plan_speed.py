@@ -2,9 +2,10 @@
 """
 Wall and CPU time of `hexacal plan` per measuring mode and model, before and after the batching.
 
-Before: the code of git ``--before`` (default ca4aa69, the release rehearsal machine by machine),
-exported with ``git archive`` to a temporary directory and run with it first on PYTHONPATH;
-after: this checkout.  Each run is one ``python -m hexacal_identify.cli plan --postures K
+Before: the code of git ``--before`` (default 8620458: the stacked rehearsal gathering and
+indexing its rows in every Newton pass; ca4aa69 is the machine-by-machine rehearsal before the
+stacking), exported with ``git archive`` to a temporary directory and run with it first on
+PYTHONPATH; after: this checkout.  Each run is one ``python -m hexacal_identify.cli plan --postures K
 --measuring-mode M [--nominal <model's default file>] --out <tmp>`` in a child process: its
 wall time and its CPU time (user + sys, from the children's rusage; less sensitive to a busy
 machine).  Then the rehearsal alone, in this process: the releases of the first
@@ -77,6 +78,8 @@ def run_plan(root: Path, model: str, mode: str, size: int, out: Path) -> tuple[f
 def rehearsal_rates(model: str, plan_file: Path, postures: int) -> dict:
     """Return the stacked and reference rehearsal of a plan's first postures: s, solves/s."""
     sys.path[:0] = python_path(REPO).split(os.pathsep)
+    import numpy as np
+
     from hexacal_identify.core.modes import release_rehearsal
     from hexacal_identify.core.architectures import default_parameters
     from hexacal_identify.core.modes.released_actuator import choose_released_actuators
@@ -94,9 +97,9 @@ def rehearsal_rates(model: str, plan_file: Path, postures: int) -> dict:
         solves['n'] += len(machine)
         return stacked(stack, machine, *args, **kwargs)
 
-    def count_settled(self, which, *args, **kwargs):  # a row's sample solved (or failed)
-        solves['n'] += len(which)
-        return settle(self, which, *args, **kwargs)
+    def count_settled(self, settled, *args, **kwargs):  # rows' samples solved (or failed)
+        solves['n'] += int(np.count_nonzero(settled))
+        return settle(self, settled, *args, **kwargs)
 
     def count_reference(params, commanded, *args, **kwargs):
         solves['n'] += len(commanded)
@@ -134,7 +137,7 @@ def rehearsal_rates(model: str, plan_file: Path, postures: int) -> dict:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
-    parser.add_argument('--before', default='ca4aa69', help='git commit of the before code')
+    parser.add_argument('--before', default='8620458', help='git commit of the before code')
     parser.add_argument('--sizes', type=int, nargs='+', default=[25, 50])
     parser.add_argument('--before-passive-sizes', type=int, nargs='*', default=[25],
                         help='sizes of the before passive_actuator plans (minutes each)')
@@ -176,16 +179,20 @@ def main() -> int:
         return 0
     print(f'hexacal plan, wall / CPU seconds (before: {args.before}; after: this checkout)')
     print(f'{"model":14s} {"K":>3s} {"mode":17s} {"before wall":>11s} {"before CPU":>10s} '
-          f'{"after wall":>10s} {"after CPU":>9s} {"CPU x compliant":>15s}')
+          f'{"x compliant":>11s} {"after wall":>10s} {"after CPU":>9s} {"x compliant":>11s}')
     for row in results:
         compliant = next(r for r in results if r['model'] == row['model']
                          and r['postures'] == row['postures'] and r['mode'] == 'compliant')
         ratio = row['after_cpu_s'] / compliant['after_cpu_s']
         before_wall = f'{row["before_wall_s"]:11.1f}' if 'before_wall_s' in row else f'{"-":>11s}'
         before_cpu = f'{row["before_cpu_s"]:10.1f}' if 'before_cpu_s' in row else f'{"-":>10s}'
+        before_ratio = (
+            f'{row["before_cpu_s"] / compliant["before_cpu_s"]:11.2f}'
+            if 'before_cpu_s' in row and 'before_cpu_s' in compliant else f'{"-":>11s}'
+        )
         print(f'{row["model"]:14s} {row["postures"]:3d} {row["mode"]:17s} {before_wall} '
-              f'{before_cpu} {row["after_wall_s"]:10.1f} {row["after_cpu_s"]:9.1f} '
-              f'{ratio:15.2f}')
+              f'{before_cpu} {before_ratio} {row["after_wall_s"]:10.1f} '
+              f'{row["after_cpu_s"]:9.1f} {ratio:11.2f}')
     print(f'\nrehearsal of the first {args.rehearsal_postures} postures in order (9 machines):')
     for model, rows in rates.items():
         for name in ('stacked', 'reference'):

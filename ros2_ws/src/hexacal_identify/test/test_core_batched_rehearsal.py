@@ -129,6 +129,22 @@ def test_the_stacked_ik_is_each_machine_s_own(model):
         assert reachable[i] == legs.reachable()[0]
 
 
+@pytest.mark.parametrize('model', MODELS)
+def test_rows_gathered_once_evaluate_as_the_stacked_ik(model):
+    params, poses, _ = _case(model, 8, 3)
+    machines = sampled_machines(params, 3, 2e-3)
+    stack = MachineStack(machines)
+    machine = np.arange(len(poses)) % len(machines)
+    want = stack.evaluate(machine, poses)
+    rows = stack.rows(machine)
+    # The continuation evaluates the same gathered rows at new poses every Newton pass.
+    for at in (poses, poses + 1e-3):
+        got = stack.evaluate_rows(rows, at)
+        expected = want if at is poses else stack.evaluate(machine, at)
+        for a, b in zip(got, expected):
+            assert np.array_equal(a, b)
+
+
 def test_release_from_here_batched_matches_the_reference():
     params, poses, workspace = _case('hexa_slide', 2, 9)
     length, stroke = workspace.link_length, workspace.actuator_stroke_m

@@ -368,6 +368,20 @@ class Architecture(ABC, Generic[P]):
             reachable[rows] = legs.reachable()
         return StackedLegs(actuators, jacobian, reachable)
 
+    def stacked_rows(self, stacked: Any, machine: np.ndarray) -> Any:
+        """
+        Return the rows ``machine`` (N,) of a stack, gathered once for many ``legs_of_rows``.
+
+        A Newton iteration evaluates the same rows at new poses every step: an architecture
+        that gathers per-row constants in ``legs_stacked`` gathers them here once instead.
+        """
+        return stacked, np.asarray(machine, dtype=int)
+
+    def legs_of_rows(self, rows: Any, poses: np.ndarray) -> StackedLegs:
+        """Return ``legs_stacked`` of the rows ``stacked_rows`` returned, at ``poses`` (N, 6)."""
+        stacked, machine = rows
+        return self.legs_stacked(stacked, machine, poses)
+
     @abstractmethod
     def acceptable_poses(
         self, params: P, poses: np.ndarray, workspace: Any

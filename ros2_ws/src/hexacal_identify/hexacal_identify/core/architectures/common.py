@@ -21,15 +21,16 @@ def rotation_from_trig(cosines: np.ndarray, sines: np.ndarray) -> np.ndarray:
     """
     ct, cp, cf = cosines
     st, sp, sf = sines
+    st_sp, ct_sp = st * sp, ct * sp  # each used twice, as (st * sp) * sf etc. are evaluated
     rot = np.empty(cosines.shape[1:] + (3, 3))
-    rot[..., 0, 0] = ct * cf + st * sp * sf
-    rot[..., 0, 1] = -ct * sf + st * sp * cf
+    rot[..., 0, 0] = ct * cf + st_sp * sf
+    rot[..., 0, 1] = -ct * sf + st_sp * cf
     rot[..., 0, 2] = st * cp
     rot[..., 1, 0] = cp * sf
     rot[..., 1, 1] = cp * cf
     rot[..., 1, 2] = -sp
-    rot[..., 2, 0] = -st * cf + ct * sp * sf
-    rot[..., 2, 1] = st * sf + ct * sp * cf
+    rot[..., 2, 0] = -st * cf + ct_sp * sf
+    rot[..., 2, 1] = st * sf + ct_sp * cf
     rot[..., 2, 2] = ct * cp
     return rot
 
@@ -47,9 +48,9 @@ class PlatformPoints:
         """
         angles = poses[:, 3:6].T
         cosines, sines = np.cos(angles), np.sin(angles)
-        self.tilt_trig = np.stack(
-            [cosines[0], sines[0], cosines[1], sines[1]]
-        )  # ct, st, cp, sp: (4, N)
+        self.tilt_trig = np.empty((4, len(poses)))  # ct, st, cp, sp: (4, N)
+        self.tilt_trig[0::2] = cosines[:2]
+        self.tilt_trig[1::2] = sines[:2]
         self.rotations = rotation_from_trig(cosines, sines)  # (N, 3, 3)
         self.rotated = np.matmul(self.rotations, platform).transpose(1, 0, 2)  # R B, (3, N, 6)
         base = base if base.ndim == 3 else base[:, None, :]

@@ -197,10 +197,9 @@ class _ChainIK:
         )
         d = points.offsets  # A0 -> B
         rails = chains.rails
-        a_dot_d = rails[0] * d[0] + rails[1] * d[1] + rails[2] * d[2]
-        discriminant = (
-            chains.lengths_squared - (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) + a_dot_d * a_dot_d
-        )
+        d0, d1, d2 = d
+        a_dot_d = rails[0] * d0 + rails[1] * d1 + rails[2] * d2
+        discriminant = chains.lengths_squared - (d0 * d0 + d1 * d1 + d2 * d2) + a_dot_d * a_dot_d
         root = np.sqrt(np.maximum(discriminant, 0.0))
         sliders = a_dot_d - root
         self.rotated = rotated
@@ -229,7 +228,7 @@ class _ChainIK:
         self.legs[:, mask] = rows.legs
 
     def reachable(self) -> np.ndarray:
-        return np.all(self.discriminant >= 0.0, axis=1)
+        return (self.discriminant >= 0.0).all(axis=1)
 
     def unit_legs(self) -> np.ndarray:
         """Return e / w, (3, N, 6) (inf/NaN at a singular leg, which FK flags)."""

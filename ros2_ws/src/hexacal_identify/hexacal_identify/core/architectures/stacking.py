@@ -29,6 +29,13 @@ class ElementwiseStacking:
         self, stacked: StackedChains, machine: np.ndarray, poses: np.ndarray
     ) -> StackedLegs:
         """Return the IK of row i on parameter set machine[i]: one elementwise call for all."""
-        rows = stacked.rows(np.asarray(machine, dtype=int))
+        return self.legs_of_rows(self.stacked_rows(stacked, machine), poses)
+
+    def stacked_rows(self, stacked: StackedChains, machine: np.ndarray) -> Any:
+        """Return the per-chain constants of rows ``machine`` (N,), gathered."""
+        return stacked.rows(np.asarray(machine, dtype=int))
+
+    def legs_of_rows(self, rows: Any, poses: np.ndarray) -> StackedLegs:
+        """Return the IK of each gathered row at its pose: one elementwise call."""
         legs = self.chain_ik(rows, np.asarray(poses, dtype=float))
         return StackedLegs(legs.actuators, legs.pose_jacobian(), legs.reachable())

@@ -41,8 +41,8 @@ from .passive_actuator import (
     solve_passive,
 )
 from ..architectures import KinematicParameters
-from ..machine.device import DEFAULT_MOUNT
-from ..machine.kinematics import inverse_kinematics
+from ..machine.device import DEFAULT_MOUNT, STANDING
+from ..machine.kinematics import inverse_kinematics, wrap_angle
 
 DEFAULT_MODEL_SAMPLES = 8  # machines besides the nominal a release is rehearsed on
 DEFAULT_JOINT_STEP_M = 0.01  # a continuation step that follows the branch; the drive's is 5 mm
@@ -206,6 +206,17 @@ class MachineStack:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return IK (N, 6), d lambda / d X (N, 6, 6) and reachable (N,) of row i on machine[i]."""
         legs = self.architecture.legs_stacked(self.stacked, machine, poses)
+        return legs.actuators, legs.pose_jacobian, legs.reachable
+
+    def rows(self, machine: np.ndarray) -> object:
+        """Return rows on machine[i], their constants gathered once for ``evaluate_rows``."""
+        return self.architecture.stacked_rows(self.stacked, machine)
+
+    def evaluate_rows(
+        self, rows: object, poses: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return ``evaluate`` of the gathered ``rows`` (``rows``) at ``poses``."""
+        legs = self.architecture.legs_of_rows(rows, poses)
         return legs.actuators, legs.pose_jacobian, legs.reachable
 
 
@@ -474,6 +485,9 @@ def rehearse_stacked(
     return results
 
 
+_IDENTITY = np.eye(6)
+
+
 class _Continuation:
     """
     Rows (a candidate on a machine) each walking its own setpoint samples, asynchronously.
@@ -482,7 +496,10 @@ class _Continuation:
     row that has settled a sample goes on to its next while others still iterate: one batched
     Newton step per pass over every row still walking, so a row slow to close (near a fold, or
     jamming) delays no other.  The IK at a row's pose is kept: a new sample's first residual
-    needs no evaluation.
+    needs no evaluation.  As every row still walking steps in every pass (one that settles a
+    sample begins its next in the same pass), a pass evaluates all rows, their per-chain
+    constants gathered once, and keeps what the stepping rows took, with masks rather than
+    index lists: the rows done or jammed cost less than gathering the others every pass.
     """
 
     def __init__(self, stack, machine, released, setpoints, counts, poses, link_length, mount):
@@ -522,8 +539,7 @@ class _Continuation:
         used = self.setpoints[self.sample[which], which]
         used[np.arange(len(which)), self.released[which]] = 0.0
         self.used[which] = used
-        finite = np.all(np.isfinite(used), axis=1) & np.all(np.isfinite(self.poses[which]),
-                                                            axis=1)
+        finite = np.isfinite(used).all(axis=1) & np.isfinite(self.poses[which]).all(axis=1)
         residual, radius = _passive_residual(
             self.ik[which], self.reachable[which], self.poses[which], used,
             self.released[which], self.link_length,
@@ -534,30 +550,42 @@ class _Continuation:
         self.iterations[which] = 0
         self.begun[which] = self.poses[which]
 
+    def _evaluate_all(self, at: np.ndarray):
+        ik, pose_jacobian, ok = self.stack.evaluate_rows(self.bound, at)
+        residual = ik - self.used
+        radius = _radius(at)
+        residual[self.rows, self.released] = radius - self.link_length
+        residual[~(ok & (radius > 0))] = np.inf
+        return (ik, pose_jacobian, ok, residual, radius), np.abs(residual).max(axis=1)
+
     def run(self, low: float, high: float) -> tuple[np.ndarray, np.ndarray]:
         """Walk every row through its samples; return alive (N,) and the worst condition."""
         n = len(self.machine)
-        rows = np.arange(n)
+        rows = self.rows = np.arange(n)
+        self.bound = self.stack.rows(self.machine)
         alive, worst = np.ones(n, bool), np.zeros(n)
-        finite = np.all(np.isfinite(self.poses), axis=1)
-        if np.any(finite):
+        finite = np.isfinite(self.poses).all(axis=1)
+        if finite.any():
             values, _ = self._evaluate(rows[finite], self.poses[finite])
             self._keep(rows[finite], values)
         self._begin(rows)
         tolerance = REHEARSAL_TOLERANCE_M
-        while True:
-            live = rows[alive & (self.sample < self.counts)]
-            if not live.size:
-                break
-            settled = ((self.error[live] < tolerance) | (self.stalls[live] >= MAX_STALLS)
-                       | (self.iterations[live] >= MAX_ITERATIONS))
-            if np.any(settled):
-                self._settle(live[settled], alive, worst, low, high)
-                live = rows[alive & (self.sample < self.counts)]
-                live = live[(self.error[live] >= tolerance) & (self.stalls[live] < MAX_STALLS)
-                            & (self.iterations[live] < MAX_ITERATIONS)]
-            if live.size:
-                self._step(live)
+        with np.errstate(all='ignore'):  # rows done or jammed compute NaN, never kept
+            while True:
+                walking = alive & (self.sample < self.counts)
+                if not walking.any():
+                    break
+                open_ = ((self.error >= tolerance) & (self.stalls < MAX_STALLS)
+                         & (self.iterations < MAX_ITERATIONS))
+                settled = walking & ~open_
+                if settled.any():
+                    self._settle(settled, alive, low, high)
+                    walking = alive & (self.sample < self.counts)
+                    open_ = ((self.error >= tolerance) & (self.stalls < MAX_STALLS)
+                             & (self.iterations < MAX_ITERATIONS))
+                stepping = walking & open_
+                if stepping.any():
+                    self._step(stepping)
         if self.settled:  # the worst condition met on the way, all samples at once
             which, jacobian, reachable, poses = (np.concatenate(part)
                                                  for part in zip(*self.settled))
@@ -568,40 +596,56 @@ class _Continuation:
         self.actuators[~alive] = np.nan
         return alive, worst
 
-    def _settle(self, which, alive, worst, low, high) -> None:
-        """End each row's sample: closed on its branch and inside the stroke, or dead."""
-        converged = self.error[which] < REHEARSAL_TOLERANCE_M
-        _check_branch(self.poses[which], self.begun[which], converged, {}, self.mount,
-                      BRANCH_TOLERANCE_M, BRANCH_TOLERANCE_RAD)
-        alive[which[~converged]] = False
-        ok = which[converged]
+    def _settle(self, settled, alive, low, high) -> None:
+        """End each settled row's sample: closed on its branch and inside the stroke, or dead."""
+        converged = settled & (self.error < REHEARSAL_TOLERANCE_M)
+        poses, begun = self.poses, self.begun
+        jump = _radius(poses - begun)
+        turn = np.abs(wrap_angle(poses[:, 3:] - begun[:, 3:])).max(axis=1)
+        side = poses[:, 2] > 0 if self.mount == STANDING else poses[:, 2] < 0
+        converged &= ~((jump > BRANCH_TOLERANCE_M) | (turn > BRANCH_TOLERANCE_RAD) | ~side)
+        alive &= ~settled | converged
+        ok = np.flatnonzero(converged)
         self.actuators[ok] = self.ik[ok]
-        position = self.ik[ok, self.released[ok]]
-        alive[ok] &= (position >= low) & (position <= high)
-        self.settled.append((ok, self.jacobian[ok], self.reachable[ok], self.poses[ok]))
-        self.sample[ok] += 1
-        going = ok[alive[ok] & (self.sample[ok] < self.counts[ok])]
+        position = self.ik[self.rows, self.released]
+        alive &= ~converged | ((position >= low) & (position <= high))
+        self.settled.append((ok, self.jacobian[ok], self.reachable[ok], poses[ok]))
+        self.sample += converged
+        going = np.flatnonzero(converged & alive & (self.sample < self.counts))
         if going.size:
             self._begin(going)
 
-    def _step(self, active: np.ndarray) -> None:
-        """One Newton step with solve_passive's halving on each row of `active`."""
-        self.iterations[active] += 1
-        system = _passive_jacobian(self.jacobian[active], self.poses[active],
-                                   self.radius[active], self.released[active])
-        step, solvable = _solve(system, self.residual[active])
-        self.stalls[active[~solvable]] = MAX_STALLS
-        active, step = active[solvable], step[solvable]
-        if not active.size:
-            return
-        base, current = self.poses[active], self.error[active]
-        trial, values, trial_error = _damped_step(self._evaluate, active, base, step, current)
-        better = trial_error < current
-        taken = active[better]
-        self.poses[taken] = trial[better]
-        self.error[taken] = trial_error[better]
-        self._keep(taken, tuple(v[better] for v in values))
-        self.stalls[active[~better]] += 1
+    def _step(self, stepping: np.ndarray) -> None:
+        """One Newton step with solve_passive's halving on every stepping row."""
+        self.iterations += stepping
+        system = _passive_jacobian(self.jacobian, self.poses, self.radius, self.released)
+        idle = ~stepping
+        system[idle] = _IDENTITY
+        step, solvable = _solve(system, np.where(idle[:, None], 0.0, self.residual))
+        self.stalls[stepping & ~solvable] = MAX_STALLS
+        ok = stepping & solvable
+        trial = self.poses - step
+        values, trial_error = self._evaluate_all(trial)
+        worse = np.flatnonzero(ok & ~(trial_error < self.error))
+        if worse.size:
+            count = len(_HALVINGS)
+            halved = (self.poses[worse][:, None, :]
+                      - _HALVINGS[None, :, None] * step[worse][:, None, :]).reshape(-1, 6)
+            halved_values, halved_error = self._evaluate(np.repeat(worse, count), halved)
+            halved_error = halved_error.reshape(-1, count)
+            improves = halved_error < self.error[worse][:, None]
+            first = np.where(improves.any(axis=1), improves.argmax(axis=1), count - 1)
+            picked = np.arange(len(worse)) * count + first
+            trial[worse] = halved[picked]
+            trial_error[worse] = halved_error[np.arange(len(worse)), first]
+            for value, halved_value in zip(values, halved_values):
+                value[worse] = halved_value[picked]
+        better = ok & (trial_error < self.error)
+        self.stalls += ok & ~better
+        taken = np.flatnonzero(better)
+        self.poses[taken] = trial[taken]
+        self.error[taken] = trial_error[taken]
+        self._keep(taken, tuple(value[taken] for value in values))
 
 
 def _worst_alive(worst: np.ndarray, alive: np.ndarray) -> np.ndarray:
