@@ -134,6 +134,7 @@ def test_lvdt_end_stop_faults_before_the_stroke_is_passed_and_holds():
     assert f.reset()[0] and f.state == DriveState.OK and f.following_error_m == 0.0
 
 
+@pytest.mark.slow
 def test_over_constrained_passive_faults_before_the_limit_and_holds():
     m = machine(measuring_mode='passive_actuator')
     f = m.follower

@@ -180,6 +180,7 @@ def test_quantisation_rounds_every_channel_to_its_resolution(walk):
     assert (stamps == reference_stamps(len(walk))[:, None]).all()
 
 
+@pytest.mark.slow
 def test_clock_stamps_each_stream_by_its_own_clock():
     samples = standing(20000)
     offsets = {'inclinometer_clock_offset_s': 0.03, 'encoder_clock_offset_s': -0.004}
@@ -221,6 +222,7 @@ def test_drops_lose_messages_at_their_rate_independently_per_stream():
     assert np.array_equal(values, ideal)  # a dropped message takes no reading with it
 
 
+@pytest.mark.slow
 def test_spikes_come_at_their_rate_with_their_size_on_the_inclinometer():
     count, rate, size = 20000, 2.0, 5e-4  # 200 s
     samples = standing(count)

@@ -276,6 +276,7 @@ def _check_gough_stewart_payload(payload):
     assert payload['identifiability']['n_parameters'] == N and payload['rank'] == N
 
 
+@pytest.mark.slow
 def test_study_json_on_the_default_gough_stewart():
     done = _hexacal(
         'study', '--model', MODEL, '--json', '--postures', '30', '--noise-um', '10', '--seed', '1'

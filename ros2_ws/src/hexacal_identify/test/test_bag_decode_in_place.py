@@ -92,6 +92,7 @@ def _imu(stamp_ns: int, quaternion, frame_id='imu'):
 # --------------------------------------------------------------------------- sample bags
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('bag', SAMPLE_BAGS, ids=lambda p: p.name)
 def test_every_message_of_the_sample_bags_decodes_as_the_generic_decoder(bag):
     for topic in open_bag(bag).topics():
@@ -99,6 +100,7 @@ def test_every_message_of_the_sample_bags_decodes_as_the_generic_decoder(bag):
         assert fast.in_place >= open_bag(bag).topics()[topic].count - 3  # learned at once
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('bag', SAMPLE_BAGS[:1], ids=lambda p: p.name)
 def test_the_reader_gives_the_generic_messages(bag, monkeypatch):
     fast = [_fields(m.decoded) for m in open_bag(bag).messages()]
@@ -259,6 +261,7 @@ def _recording(directory: Path, imu: bool = False) -> Path:
     return directory
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('imu', (False, True), ids=('device_turn', 'imu'))
 def test_recordings_decode_and_redetect_as_with_the_generic_decoder(tmp_path, monkeypatch, imu):
     from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
@@ -275,6 +278,7 @@ def test_recordings_decode_and_redetect_as_with_the_generic_decoder(tmp_path, mo
     assert {p.device_turn for p in in_place.postures} == ({0.0} if imu else {0.0, math.pi})
 
 
+@pytest.mark.slow
 def test_sample_bag_redetects_the_same_postures(monkeypatch):
     from hexacal_identify.calibration_steps.bag_postures import postures_from_bag
 

@@ -333,6 +333,7 @@ def test_a_verification_of_an_older_calibration_is_superseded(tmp_path, nominal)
     )
 
 
+@pytest.mark.slow
 def test_the_report_of_the_latest_calibration_is_written(tmp_path, nominal):
     session, recorder, _ = make_session()
     receive(session, simulated(40, 0), nominal)

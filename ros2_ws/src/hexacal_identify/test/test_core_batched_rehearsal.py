@@ -145,6 +145,7 @@ def test_rows_gathered_once_evaluate_as_the_stacked_ik(model):
             assert np.array_equal(a, b)
 
 
+@pytest.mark.slow
 def test_release_from_here_batched_matches_the_reference():
     params, poses, workspace = _case('hexa_slide', 2, 9)
     length, stroke = workspace.link_length, workspace.actuator_stroke_m

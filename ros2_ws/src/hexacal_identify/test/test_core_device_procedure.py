@@ -228,6 +228,7 @@ def test_caliper_prior_reads_the_truth_with_its_own_error():
     assert abs(values.mean() - 5e-4) < 3e-6 and 7e-6 < values.std() < 13e-6
 
 
+@pytest.mark.slow
 def test_quarter_turns_bring_the_true_frame_error_down_and_claims_are_judged():
     seeds = range(3)
     reference = run_row(DeviceRow('ideal', defective=False), TRUE, DEFAULT_DEFECTS, seeds)
@@ -256,6 +257,7 @@ def test_quarter_turns_bring_the_true_frame_error_down_and_claims_are_judged():
     assert claim.met == (claim.value <= 1.5)
 
 
+@pytest.mark.slow
 def test_efficiency_summary_compares_the_monte_carlo_with_the_bound():
     summary = estimator_efficiency(seeds=8, identified=ALL_BUT_PHI0)
     assert summary.identified == ALL_BUT_PHI0 and summary.failures == 0

@@ -24,6 +24,7 @@ def test_home_pose_is_the_fixed_point_level():
     assert np.array_equal(home_pose(0.5, 'standing'), [0, 0, 0.5, 0, 0, 0])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('model', sorted(ARCHITECTURES))
 def test_solve_pose_from_the_workspace_centre_over_the_workspace(model):
     arch = architecture(model)

@@ -79,6 +79,7 @@ def _jammed_moves(true, nominal, poses, length, released) -> int:
     return jammed
 
 
+@pytest.mark.slow
 def test_rehearsing_the_moves_on_machines_unlike_the_nominal_avoids_jams():
     true = default_parameters('hexa_slide')
     nominal = nominal_set(2, seed=5)  # a machine built to its drawing, millimetres off
@@ -163,6 +164,7 @@ def test_a_move_that_leaves_the_stroke_goes_by_way_of_the_centre():
     assert np.all(choice.inside[np.arange(12), choice.released])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('model', MODELS)
 def test_a_passive_plan_carries_its_released_actuators_through_every_reader(tmp_path, model):
     params = default_parameters(model)

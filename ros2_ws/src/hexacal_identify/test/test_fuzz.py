@@ -270,6 +270,7 @@ def sample_streams(draw):
     return np.array(stamps[:count], dtype=np.int64), np.array(rows[:count]).reshape(-1, 9)
 
 
+@pytest.mark.slow
 @FAST
 @given(sample_streams(), st.integers(1, 64))
 def test_posture_detector_never_raises_and_emits_only_finite_postures_from_its_input(data, chunk):

@@ -139,6 +139,7 @@ def test_a_posture_the_true_machine_cannot_assemble_is_skipped_and_counted():
     assert outcome.to_json()['failed_postures'] == 1
 
 
+@pytest.mark.slow
 def test_study_cli_compares_all_modes_as_json():
     done = subprocess.run(
         [sys.executable, '-m', 'hexacal_identify.cli', 'study', '--measuring-mode', 'all',

@@ -46,6 +46,7 @@ def test_joint_samples_go_linearly_through_every_point_at_most_a_step_apart():
     )
 
 
+@pytest.mark.slow
 def test_a_path_along_the_sphere_stays_inside_and_a_joint_space_move_does_not():
     along = inverse_kinematics(MODEL, sphere_path(EAST, WEST, L, 0.02))
     straight = inverse_kinematics(MODEL, WEST[None])  # one point: the controller interpolates
@@ -65,6 +66,7 @@ def test_a_path_along_the_sphere_stays_inside_and_a_joint_space_move_does_not():
     assert _predict(MeasuringMode.COMPLIANT, straight, start=EAST).problem == ''
 
 
+@pytest.mark.slow
 def test_the_link_force_the_servos_cause_is_predicted_and_kept_within_its_limit():
     straight = inverse_kinematics(MODEL, WEST[None])
     free = _predict(MeasuringMode.COMPLIANT, straight, start=EAST)

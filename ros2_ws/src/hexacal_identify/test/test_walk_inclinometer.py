@@ -278,6 +278,7 @@ def test_judging_unsettled_readings_overcorrects_the_same_walk():
     assert any(o.corrections > 3 or not o.measured for o in fixed), fixed
 
 
+@pytest.mark.slow
 def test_an_inclinometer_that_never_settles_or_is_silent_skips_the_posture_saying_so():
     execution, machine = _walk(0.25, timeout_s=4.0, drift_rad_s=2e-4)
     assert execution.measured == 1, execution.summary()
@@ -290,6 +291,7 @@ def test_an_inclinometer_that_never_settles_or_is_silent_skips_the_posture_sayin
     assert 'no-readings' in machine.states
 
 
+@pytest.mark.slow
 def test_a_small_correction_nudges_so_a_one_posture_per_stop_collector_measures_it():
     # A collector that takes one posture per stationary period (0.2 mm: the detector's
     # default tolerance) measured each stop before the settled inclinometer asked for the
