@@ -206,19 +206,19 @@ def walk_plan(
             first_fault = first_fault or drive.fault.text
             drive.reset()
             setpoints, where = drive.actuators.copy(), None
-            chosen = None
+            rechosen: int | None = None
             if recover and drive.released is not None:
                 faulted.add(drive.released)
                 here = _estimate(model, drive.actuators, [pose, centre], link_length, mount)
                 if here is not None:
-                    chosen, _, _ = release_after_fault(
+                    rechosen, _, _ = release_after_fault(
                         model, here, drive.actuators.copy(), drive.released, pose, faulted,
                         link_length, stroke, mount, f'posture {index + 1}',
                     )
-            if chosen is None:
+            if rechosen is None:
                 moves.append(MoveWalk(index, wanted, math.inf, fault=first_fault))
                 break
-            released[index] = chosen
+            released[index] = rechosen
     return PlanWalk(tuple(moves), tuple(released))
 
 

@@ -152,7 +152,7 @@ def _solve(jacobian: np.ndarray, residual: np.ndarray) -> tuple[np.ndarray, np.n
     """Solve J step = residual per posture, batched; flag the singular ones."""
     try:
         step = np.linalg.solve(jacobian, residual[..., None])[..., 0]
-        return step, np.isfinite(step).all(axis=1)
+        return step, np.asarray(np.isfinite(step).all(axis=1))
     except np.linalg.LinAlgError:  # rare: one at a time, so a singular one fails alone
         step = np.zeros_like(residual)
         solvable = np.zeros(len(jacobian), bool)

@@ -1,4 +1,9 @@
-"""The nodes' actuator-quantity parameters default to the model's unit: rad, N m for cranks."""
+"""
+The nodes' actuator-quantity parameters default to the model's unit: rad, N m for cranks.
+
+In the driver's tests: it compares the driver's defaults with the identify package's nodes', and
+the driver depends on that package (not the other way round).
+"""
 
 from hexacal_driver import parameters as driver
 from hexacal_driver.machine import true_machine
