@@ -160,6 +160,35 @@ def compliance_for_postures(
     )
 
 
+def identified_compliance(
+    values: dict[str, float],
+    masses: MassModel,
+    measuring_mode: str | None,
+    released_joints: Sequence[str] | None,
+    actuator_names: Sequence[str],
+    label: str,
+) -> tuple[ComplianceModel, np.ndarray]:
+    """
+    Return a calibration's identified compliances as (model, values) for a verification.
+
+    ``values`` (m/N) are a parameters file's compliance section: per chain when they name a
+    chain, else shared; the postures' loads as compliance_for_postures gives them.
+    """
+    from ..core.fit.compliance import PER_CHAIN, SHARED
+
+    per_chain = any(name.startswith('chain_') for name in values)
+    model = compliance_for_postures(
+        PER_CHAIN if per_chain else SHARED,
+        masses,
+        measuring_mode,
+        released_joints,
+        actuator_names,
+        label=label,
+    )
+    assert model is not None  # PER_CHAIN and SHARED always give one
+    return model, np.array([values.get(name, 0.0) for name in model.names])
+
+
 def released_friction_of(path: str | None, model: str) -> float:
     """
     Return the released actuator's friction bound (N) of a physical description.

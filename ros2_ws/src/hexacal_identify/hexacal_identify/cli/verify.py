@@ -259,10 +259,7 @@ def calibrated_compliance(args, bag, calibrated):
         if args.physical is None:
             physical = ''
         return None, {'values': {}, 'mode': 'none', 'physical': physical}
-    import numpy as np
-
-    from ..calibration_steps.calibration_run import compliance_for_postures
-    from ..core.fit.compliance import PER_CHAIN, SHARED
+    from ..calibration_steps.calibration_run import identified_compliance
     from ..core.fit.statics import MassModel
 
     if args.physical is not None:
@@ -275,20 +272,18 @@ def calibrated_compliance(args, bag, calibrated):
             f'the shipped {calibrated.model} physical description (no --physical given: the '
             'weights of your machine may differ)'
         )
-    per_chain = any(name.startswith('chain_') for name in values)
     mode = bag.measuring_mode
     released = None
     if mode == 'passive_actuator':
         released = [bag.measuring.released_at(p.stamp_ns) for p in bag.postures]
-    model = compliance_for_postures(
-        PER_CHAIN if per_chain else SHARED,
+    model, vector = identified_compliance(
+        values,
         masses,
         mode,
         released,
         calibrated.layout.actuator_names,
-        label=f'the calibration {args.calibrated} carries compliances:',
+        f'the calibration {args.calibrated} carries compliances:',
     )
-    vector = np.array([values.get(name, 0.0) for name in model.names])
     return (model, vector), {'values': values, 'mode': model.mode, 'physical': physical}
 
 

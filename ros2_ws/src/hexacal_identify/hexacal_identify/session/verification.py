@@ -181,11 +181,8 @@ def calibrated_compliance(
     """
     if not latest.compliance:
         return None
-    import numpy as np
-
     from .calibration import live_measuring_mode, mass_model
-    from ..calibration_steps.calibration_run import compliance_for_postures
-    from ..core.fit.compliance import PER_CHAIN, SHARED
+    from ..calibration_steps.calibration_run import identified_compliance
 
     mode = live_measuring_mode(postures)
     if mode is None:
@@ -195,16 +192,5 @@ def calibrated_compliance(
             'postures do), on which the loads depend: verify the bag the collector recorded '
             '(hexacal verify BAG --calibrated FILE)'
         )
-    per_chain = any(name.startswith('chain_') for name in latest.compliance)
     masses, _ = mass_model(settings, latest.parameters.model)
-    model = compliance_for_postures(
-        PER_CHAIN if per_chain else SHARED,
-        masses,
-        mode,
-        None,
-        actuator_names,
-        label='verify',
-    )
-    assert model is not None  # PER_CHAIN and SHARED always give one
-    vector = np.array([latest.compliance.get(name, 0.0) for name in model.names])
-    return model, vector
+    return identified_compliance(latest.compliance, masses, mode, None, actuator_names, 'verify')
