@@ -231,13 +231,15 @@ def test_pause_holds_and_resume_restarts_the_posture_abort_ends_the_plan():
     machine = _Machine(default_parameters(), execution)
     machine.run(0.05)
     assert execution.state == State.RUNNING and len(machine.commands) == 1
+    first = machine.commands[0]
+    # Mid-move: nothing is sent, the move ends at its target (a hold's straight line from
+    # wherever the drive is when it arrives would leave the path along the link sphere).
     ok, message, commands = execution.pause(machine.t)
     assert ok and execution.state == State.PAUSED and 'paused at posture 1 of 4' in message
-    assert [c.purpose for c in commands] == [Purpose.HOLD]
-    np.testing.assert_array_equal(commands[0].positions, execution.actuators.latest)
-    machine.command(commands)
+    assert 'the move under way ends at its target' in message and commands == []
     machine.run(machine.t + 3.0)  # paused: nothing moves on
     assert execution.state == State.PAUSED and execution.measured == 0
+    assert len(machine.commands) == 1 and np.array_equal(machine.at(machine.t), first.positions)
     assert execution.progress(machine.t)['state'] == 'paused'
     assert execution.progress(machine.t)['paused_s'] >= 2.9
     ok, message, commands = execution.resume(machine.t)
@@ -247,12 +249,29 @@ def test_pause_holds_and_resume_restarts_the_posture_abort_ends_the_plan():
     machine.command(commands)
     while execution.measured < 2:
         machine.run(machine.t + 0.1)
+    while execution._move_left_s(machine.t) > 0:  # at rest: the hold is one point, no jump
+        machine.run(machine.t + 0.01)
     ok, message, commands = execution.abort(machine.t)
     assert ok and execution.state == State.ABORTED
     assert 'aborted at posture 3 of 4 (2 measured' in message
     assert [c.purpose for c in commands] == [Purpose.HOLD]
+    np.testing.assert_array_equal(commands[0].positions, machine.commands[-1].positions)
     assert not execution.abort(machine.t)[0] and not execution.resume(machine.t)[0]
     assert execution.step(machine.t + 100.0) == []  # nothing more is ever commanded
+    assert first.purpose == Purpose.MOVE
+
+
+def test_a_pause_and_resume_within_a_move_let_it_go_on():
+    execution = _execution(NOMINAL, sphere=2, fixed=0)
+    machine = _Machine(default_parameters(), execution)
+    machine.run(0.05)
+    assert execution.pause(machine.t)[2] == []
+    ok, message, commands = execution.resume(machine.t + 0.01)
+    assert ok and commands == [] and execution.state == State.RUNNING
+    while execution.state == State.RUNNING:
+        machine.run(machine.t + 0.1)
+    assert execution.state == State.DONE and execution.measured == 2
+    assert len(machine.commands) == 2  # the first move was never sent again
 
 
 def test_a_posture_not_reached_in_time_is_skipped_and_reported():

@@ -22,9 +22,9 @@ each posture:
 4. Measured: the collector's posture of this stop.  Then the next posture.
 
 A posture not done within ``timeout_s`` of its first command is skipped and
-reported with what was missing. Pause holds the machine (a one-point command at
-the measured actuator positions) and restarts the current posture on resume
-(its timeout too); abort holds it and ends the plan.
+reported with what was missing. Pause holds the machine (a move under way ends at
+its target, else a one-point command at the drive's setpoints) and restarts the
+current posture on resume (its timeout too); abort holds it and ends the plan.
 
 Refined targets (core/walk_refine/refined_targets.py): when the postures measured reach a count of
 ``refine_at``, the walk stops at rest before the next posture (phase REFINING,
@@ -59,7 +59,7 @@ from .arrival import correct_fixed_position, judged_angles, posture_matched, sti
 from .arrival import timeout_reason
 from .messages import LogLevel, Messages, ReadingWindow
 from .platform_paths import Command, CommandPurpose
-from .platform_paths import path_command, PathError, route_command
+from .platform_paths import path_command, PathError, route_command, setpoints_at
 from .progress import eta_s, progress, summary, UNDER_WAY
 from .release_choice import choose_first_release, hear_release, rechoose_release
 from .release_choice import ReleaseRequest
@@ -152,6 +152,8 @@ class PlanExecution:
         # The drive's setpoints as the executor knows them (None: unknown, the measured
         # actuators stand for them): the last command's end, a locked chain where it stood.
         self._setpoints: np.ndarray | None = None
+        # The last command: (sent at, the setpoints it started from, it) for a hold mid-move.
+        self._in_flight: tuple[float, np.ndarray, Command] | None = None
         self._where: np.ndarray | None = None  # the pose the last move went to
         self._at_where = False  # it stood still there since (so the next path starts there)
         self.refusal = ''  # why the plan was refused (state REFUSED)
@@ -207,6 +209,7 @@ class PlanExecution:
         if self.state != ExecutionState.RUNNING:
             return []
         self._setpoints = None  # the drive holds, and a reset re-enables it where it stands
+        self._in_flight = None
         # Released then (a jam of the five commanded and the link): not for the rest of the move.
         if self.released_now is not None:
             self._faulted_releases.setdefault(self.index, set()).add(self.released_now)
@@ -233,7 +236,7 @@ class PlanExecution:
         self._phase = None
         self.notice = f'{text}; paused: call {RESUME_SERVICE} once safe'
         self._say(LogLevel.ERROR, self.notice)
-        return self._hold() if hold else []
+        return self._hold(now) if hold else []
 
     def _ask_refinement(self) -> list[Command]:
         """Stop at rest before the current posture for an intermediate calibration."""
@@ -324,12 +327,14 @@ class PlanExecution:
         self.state = ExecutionState.PAUSED
         self._paused_at = now
         self._phase = None
+        left = self._move_left_s(now)
+        holding = f'the move under way ends at its target in {left:.2g} s, then ' if left else ''
         text = (
-            f'paused at posture {self.index + 1} of {self.total}: holding; resume restarts '
-            'this posture'
+            f'paused at posture {self.index + 1} of {self.total}: {holding}holding; resume '
+            'restarts this posture'
         )
         self._say(LogLevel.INFO, text)
-        return True, text, self._hold()
+        return True, text, [] if left else self._hold(now)
 
     def resume(self, now: float) -> tuple[bool, str, list[Command]]:
         """Resume (after a turn: in the new mounting): (success, answer, commands)."""
@@ -353,6 +358,10 @@ class PlanExecution:
                 f'axis (was {turn_text(previous)})'
             )
         self._say(LogLevel.INFO, text)
+        if self._move_left_s(now) and self.turn_needed is None and not fresh:
+            # Paused and resumed within a move: it went on meanwhile (_move_left_s), and goes on.
+            self._phase, self.posture_start = Phase.MOVING, now
+            return True, text, []
         rechoose_release(self)
         return True, text, self._begin(now, fresh=fresh)
 
@@ -368,12 +377,16 @@ class PlanExecution:
         self.finished_at = now
         self._phase = None
         self.turn_needed, self.turn_notice = None, ''
+        left = self._move_left_s(now)
         text = (
             f'aborted at posture {self.index + 1} of {self.total} ({self.measured} measured, '
             f'{len(self.skipped)} skipped)'
+            + (f'; the move under way ends at its target in {left:.2g} s' if left else '')
         )
         self._say(LogLevel.WARN, text)
-        return True, text, self._hold() if was == ExecutionState.RUNNING else []
+        if was != ExecutionState.RUNNING or left:
+            return True, text, []
+        return True, text, self._hold(now)
 
     def step(self, now: float) -> list[Command]:
         """Advance on the readings so far; return the commands to publish now."""
@@ -436,13 +449,42 @@ class PlanExecution:
     def _say(self, level: LogLevel, text: str) -> None:
         self.messages.append((level, text))
 
-    def _hold(self) -> list[Command]:
+    def _move_left_s(self, now: float) -> float:
+        """
+        Return how long the move under way has to go (s; 0 at rest).
+
+        The operator's pause and abort do not cut a move short: the drive's setpoints when a
+        hold arrived are unknown here (the hold is late by the network and a busy machine), and
+        the drive would go from them to the hold in a straight line, off the path along the
+        link sphere that the guard checked (a busy CI machine: 538 N on the 500 N link).  The
+        move ends at its target, and the drive holds its last setpoints.
+        """
+        if self._in_flight is None:
+            return 0.0
+        sent_at, _, command = self._in_flight
+        return max(sent_at + command.duration_s - now, 0.0)
+
+    def _hold(self, now: float) -> list[Command]:
+        """
+        Hold where the drive's setpoints are at `now`: a move under way stops where it is.
+
+        Not at the measured actuators: a compliant drive stands off its setpoints by the link's
+        strain, and readings arrive late.  Cutting a move short is for the executor's own
+        stops (an LVDT link near its end, a drive's answer); see _move_left_s.
+        """
         latest = self.actuators.latest
         self._at_where = False
         if latest is None or not self._sent_any:
             return []
-        self._setpoints = latest.copy()
-        return [Command(latest.copy()[None], np.array([HOLD_S]), CommandPurpose.HOLD, -1)]
+        hold = latest.copy() if self._setpoints is None else self._setpoints.copy()
+        if self._setpoints is not None and self._in_flight is not None:
+            sent_at, before, command = self._in_flight
+            if now - sent_at < command.duration_s:
+                hold = setpoints_at(before, command, now - sent_at)
+        if self.released_now is not None:
+            hold[self.released_now] = latest[self.released_now]  # not commanded: follows
+        self._setpoints, self._in_flight = hold.copy(), None
+        return [Command(hold[None], np.array([HOLD_S]), CommandPurpose.HOLD, -1)]
 
     def _begin(self, now: float, fresh: bool) -> list[Command]:
         """Command the current posture (fresh: from its planned pose; else go on correcting)."""
@@ -514,7 +556,7 @@ class PlanExecution:
             f'{RESUME_SERVICE}'
         )
         self._say(LogLevel.WARN, self.turn_notice)
-        return self._hold()
+        return self._hold(now)
 
     def _command(
         self, now: float, purpose: CommandPurpose, via: np.ndarray | None = None
@@ -578,6 +620,8 @@ class PlanExecution:
         if start is not None and purpose == CommandPurpose.MOVE:
             command = self._blended(command, start)
         self._target = command.positions.copy()
+        before = current if self._setpoints is None else self._setpoints
+        self._in_flight = (now, before.copy(), command)
         self._setpoints = command.positions.copy()
         # The collector's posture of this stop came before this correction: a correction below
         # its motion tolerances begins no new stationary period, so no posture may follow.

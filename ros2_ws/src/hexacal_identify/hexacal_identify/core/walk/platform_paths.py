@@ -206,6 +206,18 @@ def point_times(current: np.ndarray, points: np.ndarray, max_speed_m_s: float) -
     return times
 
 
+def setpoints_at(start: np.ndarray, command: Command, elapsed_s: float) -> np.ndarray:
+    """
+    Return the setpoints (6,) `elapsed_s` after `command` was sent to setpoints at `start`.
+
+    As the drive follows it: linearly from `start` through each point at its time_from_start
+    (a joint_trajectory_controller given positions only), at the target from its time on.
+    """
+    times = np.concatenate([[0.0], command.times])
+    points = np.vstack([np.asarray(start, dtype=float)[None], command.points])
+    return np.array([np.interp(elapsed_s, times, points[:, j]) for j in range(points.shape[1])])
+
+
 def blend_command(
     command: Command,
     setpoints: np.ndarray,

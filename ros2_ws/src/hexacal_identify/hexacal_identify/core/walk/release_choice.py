@@ -152,7 +152,7 @@ def hear_release(
             f'drive, then call {RESUME_SERVICE}'
         )
         walk._say(LogLevel.ERROR, walk.notice)
-        return walk._hold()
+        return walk._hold(now)
     return walk._begin(now, fresh=False)
 
 
