@@ -170,46 +170,6 @@ def test_a_move_that_would_cross_the_lvdt_stroke_is_paused_before_it_is_sent(
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize('mode', ['lvdt', 'compliant'])
-def test_the_same_plan_walks_with_six_commanded_in_the_other_modes(
-    ros_processes, tmp_path, probe, mode  # noqa: F811 - fixture
-):
-    truth, nominal = write_parameter_files(tmp_path, GS)
-    plan_path = _passive_plan(tmp_path, nominal)  # its releases are ignored: measuring_mode
-    probe.subscribe_status()
-    watch = ExecutorWatch(probe)
-    driver, collector = _machine_and_collector(
-        ros_processes, probe, tmp_path, truth, nominal, {'measuring_mode': mode}, bag_name=mode
-    )
-    executor = ros_processes.start(_executor(plan_path, nominal, measuring_mode=mode))
-    nodes = (driver, collector, executor)
-    finished = watch.wait(
-        lambda s: s.get('state') in ('done', 'paused', 'aborted') and s,
-        60.0 + 15.0 * POSTURES,
-        f'the plan walked in {mode}',
-        *nodes,
-    )
-    assert finished['state'] == 'done' and finished['measured'] == str(POSTURES), finished
-    assert finished['measuring_mode'] == mode and 'released_joint' not in finished
-    assert all(len(c.joint_names) == 6 for c in watch.commands)
-    drive = probe.spin_until(
-        lambda: (s := _driver_statuses(probe)) and s[-1], 10.0, "the driver's status"
-    )
-    assert all(s['state'] == 'ok' for s in _driver_statuses(probe))
-    for process in nodes:
-        assert ros_processes.stop(process, STOP_TIMEOUT_S) == 0, process.log_path.read_text()
-    figure = (
-        f'largest link extension {float(drive["max_link_extension_m"]) * 1e6:.1f} um'
-        if mode == 'lvdt'
-        else f'largest servo force {float(drive["max_force_n"]):.4g} N'
-    )
-    print(
-        f'\n{mode}, Gough-Stewart, {POSTURES} postures (nominal targets): {figure}; largest '
-        f'actuator deviation at rest {float(drive["max_actuator_deviation_m"]) * 1e6:.1f} um'
-    )
-
-
-@pytest.mark.slow
 def test_a_drive_that_jams_pauses_the_plan_with_the_drives_fault(
     ros_processes, tmp_path, probe  # noqa: F811 - fixture
 ):

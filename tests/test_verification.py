@@ -215,6 +215,17 @@ def test_gough_stewart_hanging_and_standing():
     assert wrong.verdict == FAIL
 
 
+def test_a_rotary_hexapod_verifies_as_the_sliders_do():
+    rh = 'rotary_hexapod'
+    truth = default_parameters(rh)
+    exact = _postures(truth, 6, 15, 3, model=rh)
+    result = verify(nominal_set(2, seed=0, model=rh), truth, exact, postures_model=rh)
+    assert result.model == rh and result.verdict == PASS
+    assert result.calibrated.figures()['position_rms_m'] < 1e-10
+    assert result.nominal.figures()['position_rms_m'] > 1e-3
+    assert verify(truth, nominal_set(2, seed=0, model=rh), exact, postures_model=rh).verdict == FAIL
+
+
 def test_model_mismatch_is_a_named_error():
     exact = _postures(TRUTH, 8, 5)
     with pytest.raises(VerificationModelError, match='same machine model') as error:
