@@ -72,3 +72,43 @@ def test_plan_in_lvdt_and_compliant_modes(tmp_path):
         'plan', '--postures', 8, '--measuring-mode', 'rigid', '--out', tmp_path / 'x.yaml'
     )
     assert refused.returncode == 2 and "invalid choice: 'rigid'" in refused.stderr
+
+
+@pytest.mark.slow
+def test_plan_reports_the_links_predicted_load_with_the_weights(tmp_path):
+    from hexacal_identify.core.architectures import default_parameters
+    from hexacal_identify.core.fit.statics import MassModel
+    from hexacal_identify.core.modes.link_load import released_link_forces
+    from hexacal_msgs_py.physical_file import default_physical, write_physical_file
+
+    physical = write_physical_file(tmp_path / 'physical.yaml', default_physical('hexa_slide'))
+
+    def plan(limit_n: float, out: Path) -> dict:
+        done = hexacal(
+            'plan', '--postures', 10, '--candidates', 200, '--physical', physical,
+            '--max-link-force-n', limit_n, '--out', out, '--json',
+        )
+        assert done.returncode == 0, done.stderr
+        return json.loads(done.stdout)
+
+    free = plan(1e9, tmp_path / 'free.yaml')  # as chosen for the conditioning alone
+    out = tmp_path / 'loaded.yaml'
+    data = plan(150.0, out)
+    forces = data['link_force_n']
+    assert len(forces) == 10 and data['link_force_limit_n'] == 150.0
+    # Postures whose release loads the link beyond the limit were left out, and chosen again.
+    assert max(free['link_force_n']) > 150.0 >= max(forces), (free, data)
+    assert data['link_overloaded_postures'] == []
+    plan_file = Plan.load(out)
+    assert plan_file.metadata['link_overloaded_left_out'] > 0
+    # The load of each posture with its release, as the statics give it on the plan's nominal
+    # (Table 1 without --nominal).
+    chains = [f'slider_{i}' for i in range(1, 7)]
+    released = [chains.index(name) for name in plan_file.released_actuators]
+    expected = released_link_forces(
+        default_parameters('hexa_slide'), plan_file.poses, MassModel.load(physical)
+    )[range(10), released]
+    assert forces == pytest.approx(expected.tolist(), rel=1e-9)
+    missing = tmp_path / 'missing.yaml'
+    refused = hexacal('plan', '--postures', 4, '--physical', missing, '--out', tmp_path / 'x.yaml')
+    assert refused.returncode == 2 and 'missing.yaml' in refused.stderr, refused.stderr

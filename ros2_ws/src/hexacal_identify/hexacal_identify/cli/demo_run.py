@@ -142,7 +142,7 @@ def write_plans(args: argparse.Namespace, nominal, paths: DemoPaths) -> None:
 
     noise = NoiseModel.from_microns(args.noise_um) if args.noise_um > 0 else None
     mixed = args.plan == 'mixed'
-    plan_postures(
+    planning = plan_postures(
         nominal,
         args.postures,
         index='O1',
@@ -153,7 +153,24 @@ def write_plans(args: argparse.Namespace, nominal, paths: DemoPaths) -> None:
         noise=noise,
         name='demo-calibration',
         measuring_mode=measuring_mode(args),
-    ).plan.save(paths.plan)
+        link_load=_link_load(args),
+    )
+    planning.plan.save(paths.plan)
+    measuring = planning.measuring
+    if measuring is not None and measuring.link_forces is not None:
+        over = measuring.overloaded
+        print(
+            'hexacal demo: the measuring link at the calibration postures, predicted from the '
+            f'physical description: up to {max(measuring.link_forces):.0f} N'
+            + (
+                f', beyond the {measuring.link_force_limit_n:g} N a link of the documented kind '
+                f'bears at {len(over)} of {len(measuring.link_forces)}: the lvdt mode keeps it '
+                'unloaded'
+                if over.size
+                else ''
+            ),
+            flush=True,
+        )
     if args.verify_postures:
         plan_postures(
             nominal,
@@ -166,6 +183,22 @@ def write_plans(args: argparse.Namespace, nominal, paths: DemoPaths) -> None:
             name='demo-verification',
             measuring_mode=measuring_mode(args),
         ).plan.save(paths.verification_plan)
+
+
+def _link_load(args: argparse.Namespace):
+    """Return the MuJoCo machine's weights and the link's limit (passive_actuator), else None."""
+    if physics(args) != 'mujoco' or measuring_mode(args) != 'passive_actuator':
+        return None
+    from hexacal_msgs_py.physical_file import default_physical, read_physical_file
+
+    from ..core.fit.statics import MassModel
+    from ..core.modes.link_load import LinkLoad
+
+    physical = getattr(args, 'physical', None)
+    description = (
+        read_physical_file(physical) if physical else default_physical(model_name(args))
+    )
+    return LinkLoad(MassModel.from_physical(description))
 
 
 def system_launches(

@@ -48,6 +48,7 @@ def _plan_arguments(plan) -> None:
     from hexacal_msgs_py.measuring_modes import (
         DEFAULT_LVDT_STROKE_M,
         DEFAULT_MEASURING_MODE,
+        LINK_FORCE_LIMIT_N,
         MEASURING_MODES,
     )
 
@@ -215,6 +216,23 @@ def _plan_arguments(plan) -> None:
         help="lvdt mode: the LVDT link's stroke about its nominal length, +- m (default "
         f'{DEFAULT_LVDT_STROKE_M:g})',
     )
+    plan.add_argument(
+        '--physical',
+        type=Path,
+        default=None,
+        metavar='FILE',
+        help='passive_actuator: physical description YAML (docs/formats.md; its gravity and '
+        'masses): the measuring link holds the platform with the five commanded chains; a '
+        'posture whose release would load it beyond --max-link-force-n is left out and the '
+        'postures chosen again; the plan reports the predicted load at each posture',
+    )
+    plan.add_argument(
+        '--max-link-force-n',
+        type=float,
+        default=LINK_FORCE_LIMIT_N,
+        help='with --physical: the largest force the measuring link bears, N (default '
+        f'{LINK_FORCE_LIMIT_N:g}: a link of the documented kind)',
+    )
     plan.add_argument('--out', type=Path, required=True, help='plan file to write (YAML)')
     plan.add_argument(
         '--json', action='store_true', help='print one JSON object (no progress display)'
@@ -308,6 +326,7 @@ def run_plan(args) -> int:
             device_turns=procedure_turns(args.procedure),
             measuring_mode=args.measuring_mode,
             lvdt_stroke_m=args.lvdt_stroke_m,
+            link_load=_link_load(args),
         )
     finally:
         progress.close()
@@ -421,6 +440,16 @@ def run_plan(args) -> int:
     return 0
 
 
+def _link_load(args):
+    """Return the planner's LinkLoad of --physical and --max-link-force-n (None: no file)."""
+    if args.physical is None:
+        return None
+    from ..core.fit.statics import MassModel
+    from ..core.modes.link_load import LinkLoad
+
+    return LinkLoad(MassModel.load(args.physical), args.max_link_force_n)
+
+
 def _index_cell(value: float) -> str:
     """Return an index for the table: 4 significant digits, or n/a when not finite."""
     return f'{value:.4g}' if math.isfinite(value) else 'n/a'
@@ -483,6 +512,21 @@ def _print_measuring(
                     else 'no move jams on any of them'
                 )
             )
+    if measuring.link_forces is not None:
+        forces, over = measuring.link_forces, measuring.overloaded
+        print(
+            f'  measuring link at the postures, predicted from the weights: largest force '
+            f'{np.max(forces):.4g} N (median {np.median(forces):.4g} N), limit '
+            f'{measuring.link_force_limit_n:g} N'
+            + (
+                f'; beyond it at {len(over)} posture(s) ({", ".join(str(i) for i in over[:10])}'
+                f'{", ..." if len(over) > 10 else ""}): the released actuator leaves the link '
+                "the platform's load there; measure in lvdt (the link then carries its own "
+                'weight only), or leave those postures out'
+                if over.size
+                else ''
+            )
+        )
     lvdt = measuring.lvdt
     if lvdt is not None:
         print(

@@ -2,7 +2,11 @@
 What a plan adds for its measuring mode: released actuators, LVDT extensions.
 
 * ``passive_actuator``: each posture's released actuator (``released_actuator.py``), written
-  into the plan by joint name, with the conditioning it gives and the worst it avoids.
+  into the plan by joint name, with the conditioning it gives and the worst it avoids; given
+  the weights, the link's predicted load at each posture (``link_load.py``): the release is
+  chosen for the passive system's conditioning along the moves (a jam faults the drives), and
+  the postures where that loads the link beyond its limit are named (the planner leaves them
+  out and chooses again).
 * ``lvdt``: every posture's predicted link extension on the nominal machine (zero to rounding
   for postures planned on the sphere: the check that the plan is the link's) and its gain, the
   extension per unit actuator error (``lvdt.extension_gains``), from which the model error the
@@ -24,6 +28,7 @@ import numpy as np
 from ..architectures import KinematicParameters
 from ..machine.device import DEFAULT_MOUNT
 from ..machine.kinematics import inverse_kinematics
+from ..modes.link_load import LinkLoad, released_link_forces
 from ..modes.lvdt import extension_gains, lvdt_extensions
 from ..modes.released_actuator import choose_released_actuators, ReleaseChoice
 
@@ -54,6 +59,17 @@ class MeasuringCheck:
     mode: MeasuringMode
     release: ReleaseChoice | None = None
     lvdt: LvdtCheck | None = None
+    # passive_actuator with the weights given: the link's predicted |tension| at each posture
+    # with its chosen release (K, walking order), N, and the limit it is compared with.
+    link_forces: np.ndarray | None = None
+    link_force_limit_n: float | None = None
+
+    @property
+    def overloaded(self) -> np.ndarray:
+        """Return the postures (walking order) whose predicted link force is beyond the limit."""
+        if self.link_forces is None or self.link_force_limit_n is None:
+            return np.zeros(0, int)
+        return np.flatnonzero(self.link_forces > self.link_force_limit_n)
 
     def to_json(self, actuator_names: tuple[str, ...]) -> dict:
         """Return the check as JSON-safe builtins (SI units)."""
@@ -74,6 +90,13 @@ class MeasuringCheck:
                     released_move_condition_max=float(np.max(self.release.move_conditions)),
                     moves_jamming=int(np.sum(self.release.jams > 0)),
                 )
+        if self.link_forces is not None:
+            out.update(
+                link_force_n=self.link_forces.tolist(),
+                link_force_max_n=float(np.max(self.link_forces)),
+                link_force_limit_n=self.link_force_limit_n,
+                link_overloaded_postures=self.overloaded.tolist(),
+            )
         if self.lvdt is not None:
             out.update(
                 lvdt_stroke_m=self.lvdt.stroke_m,
@@ -95,12 +118,14 @@ def check_measuring_mode(
     lvdt_stroke_m: float = DEFAULT_LVDT_STROKE_M,
     mount: str = DEFAULT_MOUNT,
     groups: np.ndarray | None = None,
+    link_load: LinkLoad | None = None,
 ) -> MeasuringCheck:
     """
     Return what plan `poses` (K, 6, plan order) need in measuring mode `mode` (module doc).
 
     `groups` (K,): the order within each group is free (passive_actuator may choose it:
-    ``release.order``).
+    ``release.order``); `link_load`: passive_actuator, the weights and the link's limit: the
+    link's predicted load at each posture with its release (modes/link_load.py).
 
     ReleaseError (passive_actuator) when a posture has no actuator that can be released.
     """
@@ -109,7 +134,16 @@ def check_measuring_mode(
         release = choose_released_actuators(
             nominal, poses, link_length, stroke_m, mount=mount, groups=groups
         )
-        return MeasuringCheck(chosen, release=release)
+        if link_load is None:
+            return MeasuringCheck(chosen, release=release)
+        walked = poses if release.order is None else poses[release.order]
+        forces = released_link_forces(nominal, walked, link_load.masses)
+        return MeasuringCheck(
+            chosen,
+            release=release,
+            link_forces=forces[np.arange(len(walked)), release.released],
+            link_force_limit_n=link_load.max_force_n,
+        )
     if chosen == MeasuringMode.LVDT:
         if not (np.isfinite(lvdt_stroke_m) and lvdt_stroke_m > 0):
             raise ValueError(

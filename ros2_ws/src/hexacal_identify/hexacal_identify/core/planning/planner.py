@@ -64,9 +64,19 @@ from ..architectures import KinematicParameters
 from ..fit.residuals import ChannelSigma
 from ..machine.device import check_mount, DEFAULT_MOUNT, DevicePrior
 from ..machine.measurements import FIXED, NoiseModel, POSTURE_KINDS, SPHERE
+from ..modes.link_load import LinkLoad
 from ..walk.guard import GuardSettings
 
+# Candidates a plan may leave out, in all, for loading the link beyond its limit (link_load): a
+# few planning rounds; what is left beyond is reported (MeasuringCheck.overloaded).
+MAX_LEFT_OUT = 100
+
 METHODS = ('greedy', 'exchange')
+
+
+def _fingerprint(nominal: KinematicParameters) -> str:
+    """Return the nominal parameters' fingerprint in a plan's metadata (16 hex digits)."""
+    return hashlib.sha256(np.round(nominal.vector, 12).tobytes()).hexdigest()[:16]
 
 
 def _turn_order(turns: np.ndarray | None, design: np.ndarray, order: np.ndarray) -> np.ndarray:
@@ -370,6 +380,7 @@ def plan_postures(
     measuring_mode: str | None = None,
     lvdt_stroke_m: float = DEFAULT_LVDT_STROKE_M,
     model_error_m: float | None = 0.0,
+    link_load: LinkLoad | None = None,
 ) -> PlanningResult:
     """
     Candidates -> Jacobian rows at ``nominal`` -> greedy (and exchange) selection -> ordered Plan.
@@ -379,6 +390,9 @@ def plan_postures(
     doc);
     ``device_turns``: the mountings of a turning procedure, each sphere candidate offered in each.
     ``measuring_mode``: written into the plan with what it adds (module doc); None: neither.
+    ``link_load``: the weights and the link's limit (passive_actuator): a posture whose chosen
+    release would load the link beyond it is left out and the postures are chosen again (at
+    most ``MAX_LEFT_OUT`` in all; the plan reports any left beyond the limit).
     ``model_error_m``: the RMS parameter error of the nominal, from which the stroke margin a
     posture keeps for the model change before its targets are walked (model_margin.py); None:
     the architecture's Table 2 set 2 RMS; 0 (the default): no margin. Not yet the default: the
@@ -420,97 +434,115 @@ def plan_postures(
         )
         poses = np.concatenate([np.tile(poses[sphere], (len(device_turns), 1)), poses[~sphere]])
         kinds = np.concatenate([np.tile(kinds[sphere], len(device_turns)), kinds[~sphere]])
-    progress(f'{len(poses)} candidates')
-    candidates = build_candidate_set(
-        nominal,
-        poses,
-        kinds,
-        cost,
-        device,
-        sigma,
-        noise,
-        tuple(device_columns),
-        device_prior,
-        turns,
-    )
-    candidate_seconds = time.perf_counter() - started
-    started = time.perf_counter()
-    kind_counts = None
-    if (
-        cost == 'relative'
-    ):  # the paper's 3 sphere : 1 fixed (60 + 20, 30 + 10), as study.posture_split
-        fixed = max(n_postures // 4, 1) if np.any(kinds == FIXED) else 0
-        kind_counts = {SPHERE: n_postures - fixed, FIXED: fixed}
-    design, greedy_history = greedy_design(candidates, n_postures, index, progress, kind_counts)
-    exchange_history: list[float] = []
-    if method == 'exchange':
-        design, exchange_history = exchange_design(candidates, design, index, progress=progress)
-    selection_seconds = time.perf_counter() - started
-    selection_order = design.copy()
-    order = _turn_order(
-        turns,
-        design,
-        travel_order(
-            poses[design],
-            kinds[design],
-            limits.link_length,
-            keep_order_within_kind=cost == 'relative',
-        ),
-    )
-    design = design[order]
-    indices = candidates.indices(design)
-    indices[PREDICTION] = candidates.predicted_position_error(design)
-    rank = candidates.rank(design)
-    actuator = nominal.layout.actuator_prefix
-    weighting = (
-        'none'
-        if noise is None
-        else (
-            f'noise {actuator} {noise.actuator_m:g} {nominal.layout.actuator_unit}, angles '
-            f'{noise.angle_rad:g} rad'
-        )
-    )
-    metadata = {
-        'planner': 'hexacal plan',
-        'model': nominal.model,
-        'index': index,
-        'index_value': indices[index],
-        'rank': rank,
-        'method': method,
-        'cost': cost,
-        'weighting': weighting,
-        'candidates': int(len(poses)),
-        'seed': int(seed),
-        'nominal_fingerprint': hashlib.sha256(np.round(nominal.vector, 12).tobytes()).hexdigest()[
-            :16
-        ],
-        'limits': limits.to_json(),
-    }
-    if turns is not None or candidates.device_columns:
-        metadata.update(
-            device_columns=list(candidates.device_columns),
-            device_turns=list(device_turns),
-            device_prior={n: {'value': v, 'std': sd} for n, v, sd in device_prior.entries},
-        )
-    measuring = None
-    if measuring_mode is not None:
-        # The order within each kind and mounting is free unless the cost pairs consecutive
-        # postures: the passive-actuator check may choose it (released_actuator.py).
-        groups = None if cost == 'relative' else walk_groups(
-            kinds[design], None if turns is None else turns[design]
-        )
-        measuring = check_measuring_mode(
+    left_out = 0  # candidates left out for the link's load (link_load)
+    while True:
+        progress(f'{len(poses)} candidates')
+        candidates = build_candidate_set(
             nominal,
-            poses[design],
-            limits.link_length,
-            limits.actuator_stroke_m,
-            measuring_mode,
-            lvdt_stroke_m,
-            limits.mount,
-            groups,
+            poses,
+            kinds,
+            cost,
+            device,
+            sigma,
+            noise,
+            tuple(device_columns),
+            device_prior,
+            turns,
         )
-        if measuring.release is not None and measuring.release.order is not None:
-            design = design[measuring.release.order]
+        candidate_seconds = time.perf_counter() - started
+        started = time.perf_counter()
+        kind_counts = None
+        if (
+            cost == 'relative'
+        ):  # the paper's 3 sphere : 1 fixed (60 + 20, 30 + 10), as study.posture_split
+            fixed = max(n_postures // 4, 1) if np.any(kinds == FIXED) else 0
+            kind_counts = {SPHERE: n_postures - fixed, FIXED: fixed}
+        design, greedy_history = greedy_design(
+            candidates, n_postures, index, progress, kind_counts
+        )
+        exchange_history: list[float] = []
+        if method == 'exchange':
+            design, exchange_history = exchange_design(
+                candidates, design, index, progress=progress
+            )
+        selection_seconds = time.perf_counter() - started
+        selection_order = design.copy()
+        order = _turn_order(
+            turns,
+            design,
+            travel_order(
+                poses[design],
+                kinds[design],
+                limits.link_length,
+                keep_order_within_kind=cost == 'relative',
+            ),
+        )
+        design = design[order]
+        indices = candidates.indices(design)
+        indices[PREDICTION] = candidates.predicted_position_error(design)
+        rank = candidates.rank(design)
+        actuator = nominal.layout.actuator_prefix
+        weighting = (
+            'none'
+            if noise is None
+            else (
+                f'noise {actuator} {noise.actuator_m:g} {nominal.layout.actuator_unit}, angles '
+                f'{noise.angle_rad:g} rad'
+            )
+        )
+        metadata = {
+            'planner': 'hexacal plan',
+            'model': nominal.model,
+            'index': index,
+            'index_value': indices[index],
+            'rank': rank,
+            'method': method,
+            'cost': cost,
+            'weighting': weighting,
+            'candidates': int(len(poses)),
+            'seed': int(seed),
+            'nominal_fingerprint': _fingerprint(nominal),
+            'limits': limits.to_json(),
+        }
+        if turns is not None or candidates.device_columns:
+            metadata.update(
+                device_columns=list(candidates.device_columns),
+                device_turns=list(device_turns),
+                device_prior={n: {'value': v, 'std': sd} for n, v, sd in device_prior.entries},
+            )
+        measuring = None
+        if measuring_mode is not None:
+            # The order within each kind and mounting is free unless the cost pairs consecutive
+            # postures: the passive-actuator check may choose it (released_actuator.py).
+            groups = None if cost == 'relative' else walk_groups(
+                kinds[design], None if turns is None else turns[design]
+            )
+            measuring = check_measuring_mode(
+                nominal,
+                poses[design],
+                limits.link_length,
+                limits.actuator_stroke_m,
+                measuring_mode,
+                lvdt_stroke_m,
+                limits.mount,
+                groups,
+                link_load,
+            )
+            if measuring.release is not None and measuring.release.order is not None:
+                design = design[measuring.release.order]
+        over = np.zeros(0, int) if measuring is None else measuring.overloaded
+        if not over.size or len(poses) - over.size < n_postures or left_out >= MAX_LEFT_OUT:
+            break
+        # Plan again without the postures whose release loads the link beyond its limit:
+        # the releases are chosen for the passive system's conditioning along the moves.
+        keep = np.ones(len(poses), bool)
+        keep[design[over]] = False
+        left_out += int(over.size)
+        poses, kinds = poses[keep], kinds[keep]
+        turns = None if turns is None else turns[keep]
+    if link_load is not None and measuring is not None and measuring.link_forces is not None:
+        metadata['link_force_limit_n'] = link_load.max_force_n
+        metadata['link_overloaded_left_out'] = left_out
     plan = Plan(
         name or 'plan',
         limits.link_length,

@@ -1,0 +1,55 @@
+"""
+The measuring link's load with each actuator released, from the weights (ROS-free).
+
+With one actuator released the five commanded chains and the link hold the platform with
+nothing to spare: the link is a load-bearing member, and which chain is released decides how
+much it carries (core/fit/statics.py: ``static_loads`` in passive_actuator).  On the Hexa Slide
+and the Gough-Stewart of the shipped physical descriptions, over 200 sphere postures, the
+least-loaded release leaves the link a median 92 / 73 N, the median release 391 / 446 N, and
+the best-conditioned one may load it past the 500 N a link of the documented kind bears.
+`LinkLoad` is what a planner needs to keep every release under a limit: the masses (from a
+physical description) and the limit; `released_link_forces` the predicted |tension| of each
+release at each pose.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from hexacal_msgs_py.measuring_modes import LINK_FORCE_LIMIT_N, MeasuringMode
+import numpy as np
+
+from ..architectures import KinematicParameters
+from ..fit.statics import MassModel, static_loads
+
+
+@dataclass(frozen=True)
+class LinkLoad:
+    """The weights that load the link (masses, gravity) and the largest force it may carry (N)."""
+
+    masses: MassModel
+    max_force_n: float = LINK_FORCE_LIMIT_N  # a link of the documented kind
+
+    def __post_init__(self) -> None:
+        """Refuse a limit that is not a positive force."""
+        if not (np.isfinite(self.max_force_n) and self.max_force_n > 0):
+            raise ValueError(f'the link force limit must be > 0 N, got {self.max_force_n!r}')
+
+
+def released_link_forces(
+    params: KinematicParameters, poses: np.ndarray, masses: MassModel
+) -> np.ndarray:
+    """Return the link's predicted |tension| (M, 6), N, at `poses` (M, 6) with each chain free."""
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    count = len(poses)
+    loads = static_loads(
+        params,
+        np.tile(poses, (6, 1)),
+        masses,
+        MeasuringMode.PASSIVE_ACTUATOR,
+        np.repeat(np.arange(6), count),
+    )
+    return np.abs(loads.link).reshape(6, count).T
+
+
+__all__ = ['LinkLoad', 'released_link_forces']
