@@ -125,14 +125,30 @@ def physical_for(model: str, effect: str) -> PhysicalDescription:
     raise ValueError(f'unknown effect {effect!r}; choose one of {", ".join(EFFECTS)}')
 
 
-def postures(model: str, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Return sphere poses and the released chain of each (best-conditioned passive system)."""
+RELEASES = ('conditioning', 'load')
+# --release load: the least link load among the releases conditioned within this factor of the
+# best (the planner keeps conditioning first: a jam faults the drives).
+LOAD_CONDITION_FACTOR = 2.0
+
+
+def postures(
+    model: str, n: int, seed: int, release: str = 'conditioning'
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return sphere poses and the released chain of each (best-conditioned, or least load)."""
     true = architecture(model).default_parameters()
     poses = sample_poses(
         true, n, np.random.default_rng(seed), 'sphere', true.architecture.default_workspace()
     )
-    released = np.argmin(release_conditions(true, poses, LINK_LENGTH), axis=1)
-    return poses, released
+    conditions = release_conditions(true, poses, LINK_LENGTH)
+    if release == 'conditioning':
+        return poses, np.argmin(conditions, axis=1)
+    from hexacal_identify.core.modes.link_load import released_link_forces
+
+    forces = released_link_forces(
+        true, poses, MassModel.from_physical(default_physical(model))
+    )
+    good = conditions <= LOAD_CONDITION_FACTOR * conditions.min(axis=1, keepdims=True)
+    return poses, np.argmin(np.where(good, forces, np.inf), axis=1)
 
 
 def simulate(
@@ -175,16 +191,19 @@ def simulate(
 
 
 def cached_walk(
-    cache: Path, model: str, effect: str, n: int, seed: int, mode: str = PASSIVE
+    cache: Path, model: str, effect: str, n: int, seed: int, mode: str = PASSIVE,
+    release: str = 'conditioning',
 ) -> dict:
     """Return the walk's readings, simulating only when the cache does not hold them."""
     prefix = model if mode == PASSIVE else f'{model}_{mode}'
+    if mode == PASSIVE and release != 'conditioning':
+        prefix += f'_{release}'
     path = cache / f'{prefix}_{effect.strip("+")}_{n}_{seed}.npz'
     if path.exists():
         with np.load(path) as data:
             if 'link_force' in data.files:  # a walk cached before the link's force: walk again
                 return {key: data[key] for key in data.files}
-    poses, released = postures(model, n, seed)
+    poses, released = postures(model, n, seed, release)
     walk = simulate(model, effect, poses, released, mode)
     walk['released'] = released
     cache.mkdir(parents=True, exist_ok=True)
@@ -319,6 +338,11 @@ def main() -> int:
     parser.add_argument('--fresh', type=int, default=8)
     parser.add_argument('--seed', type=int, default=1)
     parser.add_argument('--cache', type=Path, default=Path('/tmp/hexacal_physics_effects'))
+    parser.add_argument(
+        '--release', choices=RELEASES, default='conditioning',
+        help='passive_actuator: the released chain of each posture, the best-conditioned '
+        '(default) or the least link load among those within 2x of the best conditioning',
+    )
     parser.add_argument('--json', action='store_true')
     args = parser.parse_args()
     rows, mode_rows = [], []
@@ -333,9 +357,11 @@ def main() -> int:
     for model in args.models:
         for mode in args.modes:
             for effect in MODE_EFFECTS:
-                fit = cached_walk(args.cache, model, effect, args.postures, args.seed, mode)
+                fit = cached_walk(
+                    args.cache, model, effect, args.postures, args.seed, mode, args.release
+                )
                 fresh = cached_walk(
-                    args.cache, model, effect, args.fresh, args.seed + 1000, mode
+                    args.cache, model, effect, args.fresh, args.seed + 1000, mode, args.release
                 )
                 mode_rows.extend(
                     evaluate(model, effect, fit, fresh, args.seed, mode, with_prior=True)
