@@ -86,6 +86,15 @@ def test_the_loads_balance_the_weights_force_and_moment(model, mode):
     link_force = -loads.link[:, None] * poses[:, :3] / radius
     mass, moment = MASSES.platform_side(params)
     gravity = np.asarray(MASSES.gravity)
+    if model == 'gough_stewart':
+        # A cylinder's housing turns with its leg but does not extend: only its weight's share
+        # across the leg reaches the platform joint, its axial weight goes to the base.
+        share = MASSES.leg_com_fraction * MASSES.leg_mass
+        mass -= 6 * share
+        moment = moment - share * params.platform_points.sum(axis=0)
+        units = _leg_units(params, poses)
+        across = share * (gravity - (units @ gravity)[..., None] * units)
+        leg_forces = leg_forces + across
     force = leg_forces.sum(axis=1) + link_force + mass * gravity
     torque = np.cross(joints, leg_forces).sum(axis=1) + np.cross(rotation @ moment, gravity)
     weight = mass * np.linalg.norm(gravity)
@@ -102,12 +111,27 @@ def test_the_loads_balance_the_weights_force_and_moment(model, mode):
         assert np.max(np.abs(loads.link)) > 0.0
 
 
+def _leg_units(params, poses):
+    """Return the Gough-Stewart legs' unit vectors (N, 6, 3) from A to B."""
+    rotation = rotation_matrices(poses[:, 3:6])
+    legs = (
+        poses[:, None, :3] + np.einsum('nij,cj->nci', rotation, params.platform_points)
+        - params.base_points
+    )
+    return legs / np.linalg.norm(legs, axis=2, keepdims=True)
+
+
 def test_reading_loads_are_the_leg_force_times_its_lever():
     params, poses = _machine('gough_stewart')
     loads = static_loads(params, poses, MASSES, 'lvdt')
-    # A prismatic leg: the reading is the leg's length, so its force is the thrust.
-    np.testing.assert_allclose(loads.chains, loads.thrust, rtol=1e-12)
-    np.testing.assert_allclose(loads.reading_loads, loads.thrust, rtol=1e-12)
+    # A prismatic leg: the reading is the leg's length, so its force is the thrust, less the
+    # housing's axial weight: the housing lies between the actuator and the leg's spring.
+    housing = MASSES.leg_mass * _leg_units(params, poses) @ np.asarray(MASSES.gravity)
+    assert np.abs(housing).max() > 10.0
+    np.testing.assert_allclose(loads.chains, loads.thrust - housing, rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(loads.reading_loads, loads.chains, rtol=1e-12)
+    weightless = static_loads(params, poses, replace(MASSES, leg_mass=0.0), 'lvdt')
+    np.testing.assert_allclose(weightless.chains, weightless.thrust, rtol=1e-12)
 
 
 def test_no_weight_no_load_and_bad_input_is_named():
@@ -234,6 +258,44 @@ def _moving_potential_gradient(params, poses, masses, step=1e-6):
     return gradient
 
 
+def _housing_gradient(params, poses, masses, step=1e-6):
+    """
+    Return d U_l / d X (N, 6) of the legs' weight less the lumped share's (central differences).
+
+    A leg whose housing does not extend (the Gough-Stewart's cylinder): the housing is a rigid
+    body hanging on the base-side joint A, its centre a = f |B - A| from A along the leg at the
+    pose (as the mechanism's leg body places it), a held fixed; the lumped share (what
+    ``weight_gradient`` holds) is f m at B.  Zero for the two-force legs.
+    """
+    gradient = np.zeros((len(poses), 6))
+    if params.model != 'gough_stewart':
+        return gradient
+    fraction = masses.leg_com_fraction
+
+    def potential(pose, arms):
+        total = 0.0
+        for c, chain in enumerate(params.architecture.mechanism(params, pose)):
+            start, joint = chain.bodies[0].segment
+            unit = (joint - start) / np.linalg.norm(joint - start)
+            total -= masses.leg_mass * (start + arms[c] * unit - fraction * joint) @ np.asarray(
+                masses.gravity
+            )
+        return total
+
+    for n, pose in enumerate(poses):
+        arms = [
+            fraction * np.linalg.norm(np.diff(chain.bodies[0].segment, axis=0))
+            for chain in params.architecture.mechanism(params, pose)
+        ]
+        for k in range(6):
+            delta = np.zeros(6)
+            delta[k] = step
+            gradient[n, k] = (
+                potential(pose + delta, arms) - potential(pose - delta, arms)
+            ) / (2 * step)
+    return gradient
+
+
 @pytest.mark.parametrize('model', ALL_MODELS)
 @pytest.mark.parametrize('mode', list(MeasuringMode))
 def test_moving_parts_weight_is_held_by_virtual_work(model, mode):
@@ -247,6 +309,7 @@ def test_moving_parts_weight_is_held_by_virtual_work(model, mode):
     link_row[:, :3] = poses[:, :3] / np.linalg.norm(poses[:, :3], axis=1, keepdims=True)
     held = np.einsum('ncx,nc->nx', jacobian, loads.thrust) - loads.link[:, None] * link_row
     numeric = _moving_potential_gradient(params, poses, MOVING)
+    numeric += _housing_gradient(params, poses, MOVING)
     # The drives and the link hold the platform's weights and the parts' potential gradient.
     np.testing.assert_allclose(
         held, weight_gradient(params, poses, MOVING) + numeric, atol=1e-5 * 9.81 * 3.0
@@ -257,6 +320,9 @@ def test_moving_parts_weight_is_held_by_virtual_work(model, mode):
     # pose: a slider's, a crank's, not a rod's.
     with_reading, _ = arch.actuator_mass_motion(params, poses)
     along = -MOVING.actuator_moving_mass * with_reading @ np.asarray(MOVING.gravity)
+    if model == 'gough_stewart':
+        # The housing between the drive and the leg's spring: its axial weight is the spring's.
+        along += MOVING.leg_mass * _leg_units(params, poses) @ np.asarray(MOVING.gravity)
     lever = np.linalg.norm(jacobian[:, :, :3], axis=2)
     np.testing.assert_allclose(loads.chains, (loads.thrust - along) * lever, rtol=1e-12)
     np.testing.assert_allclose(loads.reading_loads, loads.chains * lever, rtol=1e-12)

@@ -450,6 +450,21 @@ class Architecture(ABC, Generic[P]):
             f"{self.name} does not describe how its actuators' moving parts move"
         )
 
+    def leg_mass_motion(
+        self, params: P, poses: np.ndarray, com_fraction: float
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """
+        Return how each leg's centre of mass moves at ``poses`` (N, 6), or None.
+
+        None (this default): the leg is a rigid member of fixed length between its base-side
+        joint and the platform joint, a two-force member whose weight the statics lumps at its
+        ends by ``com_fraction``.  An architecture whose leg is not (a leg mass that does not
+        extend with the actuator, such as a cylinder's housing) returns ``with_reading`` (N, 6,
+        3) and ``with_pose`` (N, 6, 3, 6) as ``actuator_mass_motion`` does, for the leg mass
+        placed as ``mechanism`` places it.
+        """
+        return None
+
     def mechanism(self, params: P, pose: np.ndarray) -> tuple[ChainMechanism, ...]:
         """
         Return each chain's bodies and joints at ``pose`` (6,): what a physics model builds.

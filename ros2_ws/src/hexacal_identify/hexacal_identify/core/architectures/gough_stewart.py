@@ -346,6 +346,27 @@ class GoughStewart(ElementwiseStacking, Architecture[GoughStewartParameters]):
         joints = platform_point_motion(points.rotated.transpose(1, 2, 0), poses[:, 3:6])
         return np.zeros_like(legs), carry @ joints
 
+    def leg_mass_motion(
+        self, params: GoughStewartParameters, poses: np.ndarray, com_fraction: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return the housings' motion (Base): a rigid housing hanging on the base's joint.
+
+        The leg's mass is its housing (``mechanism``'s cylinder), on the base side of the
+        actuated slide: it turns with the leg but does not extend with it, so its weight is not
+        a two-force member's.  Its centre lies a = f |B - A| from A along u (f the
+        ``com_fraction``): with the pose, d(A + a u) = (a / |B - A|) (I - u u^T) dB (its axial
+        weight goes to the base, through a released drive too); with the pose held it lies on
+        the platform side of the leg's spring, which giving moves it by -u per unit reading.
+        """
+        poses = np.atleast_2d(np.asarray(poses, dtype=float))
+        points = PlatformPoints(params.platform_points.T, params.base_points.T, poses)
+        legs = points.offsets.transpose(1, 2, 0)  # B - A, (N, 6, 3)
+        units = legs / np.linalg.norm(legs, axis=2)[..., None]
+        transverse = np.eye(3) - units[..., :, None] * units[..., None, :]
+        joints = platform_point_motion(points.rotated.transpose(1, 2, 0), poses[:, 3:6])
+        return -units, com_fraction * transverse @ joints
+
     def mechanism(
         self, params: GoughStewartParameters, pose: np.ndarray
     ) -> tuple[ChainMechanism, ...]:

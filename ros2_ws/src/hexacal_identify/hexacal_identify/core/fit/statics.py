@@ -8,7 +8,12 @@ its centre of mass lies) load the chains and the link at every posture.  Each le
 and the link are two-force members: their weight is lumped at their ends by
 ``com_fraction`` (the platform-side share ``com_fraction * mass`` rides on the
 platform, at the leg's platform joint and at the link's platform end P; the
-base-side share is carried by the base, the rail or the slider's guides).
+base-side share is carried by the base, the rail or the slider's guides).  A leg that is not
+a rigid member of fixed length (``Architecture.leg_mass_motion``: a Gough-Stewart cylinder's
+housing, which turns with the leg but does not extend) adds the gradient of its true
+potential less the lumped share's (``leg_weight_loads``): the housing's axial weight goes to
+the base through its joint, not through a released drive to the platform and the link, and
+lies on the leg's spring with the drive's thrust.
 
 Statics by virtual work on the pose coordinates X (any architecture): the weights'
 potential U(X) has the generalised gradient
@@ -68,7 +73,7 @@ from hexacal_msgs_py.physical_file import PhysicalDescription, read_physical_fil
 import numpy as np
 
 from ..architectures import KinematicParameters
-from ..architectures.common import euler_rate_axes, rotation_from_trig
+from ..architectures.common import euler_rate_axes, platform_point_motion, rotation_from_trig
 from ..errors import InvalidMeasurementError
 
 STANDARD_GRAVITY = (0.0, 0.0, -9.80665)
@@ -211,6 +216,35 @@ def actuator_weight_loads(
     return pose, reading
 
 
+def leg_weight_loads(
+    params: KinematicParameters, poses: np.ndarray, masses: MassModel
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """
+    Return what the legs' weight adds to the two-force members' lumping, or None (module doc).
+
+    None when the legs are weightless or the architecture's legs are two-force members
+    (``Architecture.leg_mass_motion``).  Otherwise ``pose`` (N, 6): the legs' d U_l / d X less
+    the lumped platform-side share's (which ``weight_gradient`` holds); ``reading`` (N, 6):
+    d U_l / d lambda_c with the pose held, the part of a chain's drive force its spring does
+    not carry.
+    """
+    if masses.leg_mass <= 0.0:
+        return None
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    motion = params.architecture.leg_mass_motion(params, poses, masses.leg_com_fraction)
+    if motion is None:
+        return None
+    with_reading, with_pose = motion
+    rotation = rotation_from_trig(np.cos(poses[:, 3:6].T), np.sin(poses[:, 3:6].T))
+    lumped = masses.leg_com_fraction * platform_point_motion(
+        np.einsum('nij,cj->nci', rotation, params.platform_points), poses[:, 3:6]
+    )
+    weight = masses.leg_mass * np.asarray(masses.gravity)
+    pose = -np.einsum('ncix,i->nx', with_pose - lumped, weight)
+    reading = -np.einsum('nci,i->nc', with_reading, weight)
+    return pose, reading
+
+
 @dataclass
 class StaticLoads:
     """Static loads at N postures (N, SI)."""
@@ -264,6 +298,12 @@ def static_loads(
     if moving:
         moving_pose, moving_reading = actuator_weight_loads(params, poses, masses)
         gradient = gradient + moving_pose
+    legs = leg_weight_loads(params, poses, masses)
+    if legs is not None:
+        leg_pose, leg_reading = legs
+        gradient = gradient + leg_pose
+        moving_reading = (moving_reading if moving else 0.0) + leg_reading
+        moving = True
     link_row = np.zeros((n, 6))
     link_row[:, :3] = poses[:, :3] / np.linalg.norm(poses[:, :3], axis=1, keepdims=True)
     rows = np.arange(n)
@@ -342,6 +382,7 @@ def released_force_loads(
 
 __all__ = [
     'actuator_weight_loads',
+    'leg_weight_loads',
     'released_force_loads',
     'MassModel',
     'STANDARD_GRAVITY',

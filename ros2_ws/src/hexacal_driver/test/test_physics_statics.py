@@ -1,0 +1,62 @@
+"""
+The static loads of the core (core/fit/statics.py) against the MuJoCo machine at rest.
+
+The fit's compliance model predicts the chains' and the link's loads from the weights; the
+MuJoCo machine, which hexacal did not write, holds the same weights by its constraints.  At
+rest in passive_actuator mode (the released drive free, without friction) the drives' forces,
+the chains' springs and the link's force must be the statics'.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from hexacal_driver.physics_machine import PhysicsMachine
+from hexacal_identify.core.architectures import architecture
+from hexacal_identify.core.fit.statics import MassModel, static_loads
+from hexacal_identify.core.machine.device import sphere_z
+from hexacal_msgs_py.physical_file import default_physical
+import numpy as np
+import pytest
+
+mujoco = pytest.importorskip('mujoco')
+
+L = 0.75
+
+
+def _at_rest(model, physical, pose, released):
+    """Return the machine settled at ``pose`` with chain ``released`` free."""
+    params = architecture(model).default_parameters()
+    machine = PhysicsMachine(params, physical, pose, link_length=L)
+    machine.settle(1.0, speed=1e-6)
+    machine.release(released)
+    assert machine.settle(3.0)
+    return params, machine
+
+
+@pytest.mark.parametrize(
+    'xy, angles, released',
+    [((0.03, -0.02), (0.02, -0.01, 0.03), 0), ((-0.05, 0.04), (-0.03, 0.02, -0.02), 4)],
+)
+def test_gough_stewart_loads_at_rest_are_the_statics(xy, angles, released):
+    # The shipped masses (a 20 kg platform, 2 kg housings, 1.5 kg rods, a 1.5 kg link), rigid
+    # link, the legs' springs on: the housing's axial weight goes to the base, not through the
+    # released drive to the platform and the link.
+    model = 'gough_stewart'
+    physical = replace(default_physical(model), link_axial_stiffness=None, released_coulomb=0.0)
+    pose = np.array([*xy, sphere_z(np.array([xy]), L)[0], *angles])
+    params, machine = _at_rest(model, physical, pose, released)
+    at = machine.pose()
+    masses = MassModel.from_physical(physical)
+    loads = static_loads(params, at[None], masses, 'passive_actuator', np.array([released]))
+    # The link's force at its platform joint: its axial force less the axial share of its
+    # weight lumped at the platform end (which the joint carries to the platform).
+    direction = at[:3] / np.linalg.norm(at[:3])
+    share = masses.link_com_fraction * masses.link_mass * np.asarray(masses.gravity) @ direction
+    assert abs(loads.link[0]) > 100.0 and abs(share) > 5.0
+    assert machine.link_force() == pytest.approx(loads.link[0] - share, abs=0.5)
+    np.testing.assert_allclose(machine.data.actuator_force, loads.thrust[0], atol=0.5)
+    springs = [machine.model.joint(name).id for name in machine.mjcf.names.spring_joints]
+    # qfrc_spring pushes the housing back towards the base: a compressed leg's force.
+    spring_forces = -np.asarray(machine.data.qfrc_spring)[machine.model.jnt_dofadr[springs]]
+    np.testing.assert_allclose(spring_forces, -loads.chains[0], atol=0.5)
