@@ -35,14 +35,19 @@ def _at_rest(model, physical, pose, released):
 
 
 @pytest.mark.parametrize(
-    'xy, angles, released',
-    [((0.03, -0.02), (0.02, -0.01, 0.03), 0), ((-0.05, 0.04), (-0.03, 0.02, -0.02), 4)],
+    'model, xy, angles, released',
+    [
+        ('gough_stewart', (0.03, -0.02), (0.02, -0.01, 0.03), 0),
+        ('gough_stewart', (-0.05, 0.04), (-0.03, 0.02, -0.02), 4),
+        ('hexa_slide', (0.03, -0.02), (0.02, -0.01, 0.03), 2),
+        ('hexa_slide', (-0.05, 0.04), (-0.03, 0.02, -0.02), 5),
+    ],
 )
-def test_gough_stewart_loads_at_rest_are_the_statics(xy, angles, released):
-    # The shipped masses (a 20 kg platform, 2 kg housings, 1.5 kg rods, a 1.5 kg link), rigid
-    # link, the legs' springs on: the housing's axial weight goes to the base, not through the
-    # released drive to the platform and the link.
-    model = 'gough_stewart'
+def test_loads_at_rest_are_the_statics(model, xy, angles, released):
+    # The shipped masses (a 20 kg platform, 2 kg legs, 1.5 kg rods or 3 kg sliders, a 1.5 kg
+    # link), rigid link, the legs' springs on.  A Gough-Stewart housing's axial weight goes to
+    # the base, not through the released drive to the platform and the link; a Hexa Slide leg's
+    # base-side share rides on its slider, along a released rail held by the leg and the link.
     physical = replace(default_physical(model), link_axial_stiffness=None, released_coulomb=0.0)
     pose = np.array([*xy, sphere_z(np.array([xy]), L)[0], *angles])
     params, machine = _at_rest(model, physical, pose, released)

@@ -3,7 +3,7 @@
 from dataclasses import replace
 
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.architectures.base import ACTUATOR_BODY
+from hexacal_identify.core.architectures.base import ACTUATOR_BODY, LEG_BODY
 from hexacal_identify.core.errors import InvalidMeasurementError
 from hexacal_identify.core.fit.statics import (
     actuator_weight_loads,
@@ -12,7 +12,7 @@ from hexacal_identify.core.fit.statics import (
     static_loads,
     weight_gradient,
 )
-from hexacal_identify.core.machine.kinematics import rotation_matrices
+from hexacal_identify.core.machine.kinematics import inverse_kinematics, rotation_matrices
 from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_msgs_py.measuring_modes import MeasuringMode
 import numpy as np
@@ -95,6 +95,12 @@ def test_the_loads_balance_the_weights_force_and_moment(model, mode):
         units = _leg_units(params, poses)
         across = share * (gravity - (units @ gravity)[..., None] * units)
         leg_forces = leg_forces + across
+    if model == 'hexa_slide':
+        # A leg's base-side share rides on its slider: along the rail the drive holds it with
+        # the thrust, so the leg pushes the platform with both.
+        share = (1.0 - MASSES.leg_com_fraction) * MASSES.leg_mass
+        along = loads.thrust + share * params.rail_directions @ gravity
+        leg_forces = along[..., None] * jacobian[:, :, :3]
     force = leg_forces.sum(axis=1) + link_force + mass * gravity
     torque = np.cross(joints, leg_forces).sum(axis=1) + np.cross(rotation @ moment, gravity)
     weight = mass * np.linalg.norm(gravity)
@@ -264,22 +270,26 @@ def _housing_gradient(params, poses, masses, step=1e-6):
 
     A leg whose housing does not extend (the Gough-Stewart's cylinder): the housing is a rigid
     body hanging on the base-side joint A, its centre a = f |B - A| from A along the leg at the
-    pose (as the mechanism's leg body places it), a held fixed; the lumped share (what
-    ``weight_gradient`` holds) is f m at B.  Zero for the two-force legs.
+    pose (as the mechanism's leg body places it), a held fixed.  A rigid leg on a slider (the
+    Hexa Slide): its centre at the fraction f of its segment.  The lumped share (what
+    ``weight_gradient`` holds) is f m at B.  Zero for the legs between fixed base joints.
     """
     gradient = np.zeros((len(poses), 6))
-    if params.model != 'gough_stewart':
+    if params.model not in ('gough_stewart', 'hexa_slide'):
         return gradient
     fraction = masses.leg_com_fraction
 
     def potential(pose, arms):
         total = 0.0
         for c, chain in enumerate(params.architecture.mechanism(params, pose)):
-            start, joint = chain.bodies[0].segment
+            leg = next(body for body in chain.bodies if body.carries == LEG_BODY)
+            start, joint = leg.segment
             unit = (joint - start) / np.linalg.norm(joint - start)
-            total -= masses.leg_mass * (start + arms[c] * unit - fraction * joint) @ np.asarray(
-                masses.gravity
-            )
+            if params.model == 'hexa_slide':  # a rigid leg on the slider: its fraction
+                centre = start + fraction * (joint - start)
+            else:
+                centre = start + arms[c] * unit
+            total -= masses.leg_mass * (centre - fraction * joint) @ np.asarray(masses.gravity)
         return total
 
     for n, pose in enumerate(poses):
@@ -323,8 +333,24 @@ def test_moving_parts_weight_is_held_by_virtual_work(model, mode):
     if model == 'gough_stewart':
         # The housing between the drive and the leg's spring: its axial weight is the spring's.
         along += MOVING.leg_mass * _leg_units(params, poses) @ np.asarray(MOVING.gravity)
+    if model == 'hexa_slide':
+        # The leg's base-side share across the leg pushes the slider: the drive holds it.
+        rotation = rotation_matrices(poses[:, 3:6])
+        sliders = params.base_points + inverse_kinematics(params, poses)[..., None] * (
+            params.rail_directions
+        )
+        legs = poses[:, None, :3] + np.einsum(
+            'nij,cj->nci', rotation, params.platform_points
+        ) - sliders
+        units = legs / np.linalg.norm(legs, axis=2, keepdims=True)
+        rails = params.rail_directions
+        across = rails - np.einsum('nci,ci->nc', units, rails)[..., None] * units
+        share = (1.0 - MOVING.leg_com_fraction) * MOVING.leg_mass
+        along -= share * across @ np.asarray(MOVING.gravity)
     lever = np.linalg.norm(jacobian[:, :, :3], axis=2)
-    np.testing.assert_allclose(loads.chains, (loads.thrust - along) * lever, rtol=1e-12)
+    np.testing.assert_allclose(
+        loads.chains, (loads.thrust - along) * lever, rtol=1e-12, atol=1e-9
+    )
     np.testing.assert_allclose(loads.reading_loads, loads.chains * lever, rtol=1e-12)
     if mode == MeasuringMode.PASSIVE_ACTUATOR and model != 'gough_stewart':
         # The released slider's or crank's weight along its motion is its leg's load.

@@ -53,6 +53,7 @@ from .common import (
     euler_rate_axes,
     move_joint_points,
     platform_point_derivatives,
+    platform_point_motion,
     PlatformPoints,
     pose_jacobian_rows,
 )
@@ -478,6 +479,28 @@ class HexaSlide(ElementwiseStacking, Architecture[HexaParameters]):
         rails = params.rail_directions
         with_reading = np.broadcast_to(rails, (len(poses),) + rails.shape).copy()
         return with_reading, with_reading[..., None] * jacobian[:, :, None, :]
+
+    def leg_mass_motion(
+        self, params: HexaParameters, poses: np.ndarray, com_fraction: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return the legs' motion (Base): a rigid leg between the slider and the platform joint.
+
+        Its centre S + f (B - S) (f the ``com_fraction``) moves with the pose as f dB + (1 - f)
+        a d lambda: the base-side share rides on the slider, so along a released slider's rail
+        it is held by the leg and the link, not by the guides.  With the pose held the leg (on
+        the platform side of its spring at the slider) turns about B: (1 - f) (I - u u^T) a per
+        unit reading.
+        """
+        poses = np.atleast_2d(np.asarray(poses, dtype=float))
+        geometry = leg_geometry(params, poses)
+        jacobian = pose_jacobian(geometry, poses[:, 3:6])
+        rails = params.rail_directions
+        units = geometry.leg_vectors / np.linalg.norm(geometry.leg_vectors, axis=2)[..., None]
+        across = rails - np.einsum('nci,ci->nc', units, rails)[..., None] * units
+        joints = platform_point_motion(geometry.rotated_platform_points, poses[:, 3:6])
+        base_side = (1.0 - com_fraction) * rails[None, :, :, None] * jacobian[:, :, None, :]
+        return (1.0 - com_fraction) * across, com_fraction * joints + base_side
 
     def mechanism(self, params: HexaParameters, pose: np.ndarray) -> tuple[ChainMechanism, ...]:
         """
