@@ -3,7 +3,7 @@
 from dataclasses import replace
 
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.architectures.base import ACTUATOR_BODY, LEG_BODY
+from hexacal_identify.core.architectures.base import ACTUATED, ACTUATOR_BODY, HINGE, LEG_BODY
 from hexacal_identify.core.errors import InvalidMeasurementError
 from hexacal_identify.core.fit.statics import (
     actuator_weight_loads,
@@ -12,7 +12,7 @@ from hexacal_identify.core.fit.statics import (
     static_loads,
     weight_gradient,
 )
-from hexacal_identify.core.machine.kinematics import inverse_kinematics, rotation_matrices
+from hexacal_identify.core.machine.kinematics import rotation_matrices
 from hexacal_identify.core.machine.postures import sample_poses
 from hexacal_msgs_py.measuring_modes import MeasuringMode
 import numpy as np
@@ -264,19 +264,38 @@ def _moving_potential_gradient(params, poses, masses, step=1e-6):
     return gradient
 
 
+def _base_side_motion(params, pose):
+    """
+    Return the legs' base-side joints' motion per unit reading (6, 3) and the legs' units.
+
+    From the mechanism: the actuated joint's axis for a slider, its axis x the arm to the leg's
+    joint for a crank.
+    """
+    tips, units = [], []
+    for chain in params.architecture.mechanism(params, pose):
+        actuated = next(
+            joint for body in chain.bodies for joint in body.joints if joint.role == ACTUATED
+        )
+        start, joint = next(body for body in chain.bodies if body.carries == LEG_BODY).segment
+        if actuated.kind == HINGE:
+            tips.append(np.cross(actuated.axis, start - actuated.anchor))
+        else:
+            tips.append(actuated.axis)
+        units.append((joint - start) / np.linalg.norm(joint - start))
+    return np.array(tips), np.array(units)
+
+
 def _housing_gradient(params, poses, masses, step=1e-6):
     """
     Return d U_l / d X (N, 6) of the legs' weight less the lumped share's (central differences).
 
     A leg whose housing does not extend (the Gough-Stewart's cylinder): the housing is a rigid
     body hanging on the base-side joint A, its centre a = f |B - A| from A along the leg at the
-    pose (as the mechanism's leg body places it), a held fixed.  A rigid leg on a slider (the
-    Hexa Slide): its centre at the fraction f of its segment.  The lumped share (what
-    ``weight_gradient`` holds) is f m at B.  Zero for the legs between fixed base joints.
+    pose (as the mechanism's leg body places it), a held fixed.  A rigid leg on a slider or a
+    crank's tip: its centre at the fraction f of its segment.  The lumped share (what
+    ``weight_gradient`` holds) is f m at B.
     """
     gradient = np.zeros((len(poses), 6))
-    if params.model not in ('gough_stewart', 'hexa_slide'):
-        return gradient
     fraction = masses.leg_com_fraction
 
     def potential(pose, arms):
@@ -285,10 +304,10 @@ def _housing_gradient(params, poses, masses, step=1e-6):
             leg = next(body for body in chain.bodies if body.carries == LEG_BODY)
             start, joint = leg.segment
             unit = (joint - start) / np.linalg.norm(joint - start)
-            if params.model == 'hexa_slide':  # a rigid leg on the slider: its fraction
-                centre = start + fraction * (joint - start)
-            else:
+            if params.model == 'gough_stewart':
                 centre = start + arms[c] * unit
+            else:  # a rigid leg on the slider (crank): its fraction
+                centre = start + fraction * (joint - start)
             total -= masses.leg_mass * (centre - fraction * joint) @ np.asarray(masses.gravity)
         return total
 
@@ -333,20 +352,14 @@ def test_moving_parts_weight_is_held_by_virtual_work(model, mode):
     if model == 'gough_stewart':
         # The housing between the drive and the leg's spring: its axial weight is the spring's.
         along += MOVING.leg_mass * _leg_units(params, poses) @ np.asarray(MOVING.gravity)
-    if model == 'hexa_slide':
-        # The leg's base-side share across the leg pushes the slider: the drive holds it.
-        rotation = rotation_matrices(poses[:, 3:6])
-        sliders = params.base_points + inverse_kinematics(params, poses)[..., None] * (
-            params.rail_directions
-        )
-        legs = poses[:, None, :3] + np.einsum(
-            'nij,cj->nci', rotation, params.platform_points
-        ) - sliders
-        units = legs / np.linalg.norm(legs, axis=2, keepdims=True)
-        rails = params.rail_directions
-        across = rails - np.einsum('nci,ci->nc', units, rails)[..., None] * units
+    if model != 'gough_stewart':
+        # The leg's base-side share across the leg pushes the slider (crank): the drive holds
+        # it.
         share = (1.0 - MOVING.leg_com_fraction) * MOVING.leg_mass
-        along -= share * across @ np.asarray(MOVING.gravity)
+        for k, pose in enumerate(poses):
+            tips, units = _base_side_motion(params, pose)
+            across = tips - np.sum(tips * units, axis=1)[:, None] * units
+            along[k] -= share * across @ np.asarray(MOVING.gravity)
     lever = np.linalg.norm(jacobian[:, :, :3], axis=2)
     np.testing.assert_allclose(
         loads.chains, (loads.thrust - along) * lever, rtol=1e-12, atol=1e-9

@@ -53,9 +53,9 @@ from .common import (
     euler_rate_axes,
     move_joint_points,
     platform_point_derivatives,
-    platform_point_motion,
     PlatformPoints,
     pose_jacobian_rows,
+    rigid_leg_motion,
 )
 from .stacking import ElementwiseStacking
 
@@ -494,13 +494,12 @@ class HexaSlide(ElementwiseStacking, Architecture[HexaParameters]):
         """
         poses = np.atleast_2d(np.asarray(poses, dtype=float))
         geometry = leg_geometry(params, poses)
-        jacobian = pose_jacobian(geometry, poses[:, 3:6])
-        rails = params.rail_directions
+        rails = np.broadcast_to(params.rail_directions, geometry.leg_vectors.shape)
         units = geometry.leg_vectors / np.linalg.norm(geometry.leg_vectors, axis=2)[..., None]
-        across = rails - np.einsum('nci,ci->nc', units, rails)[..., None] * units
-        joints = platform_point_motion(geometry.rotated_platform_points, poses[:, 3:6])
-        base_side = (1.0 - com_fraction) * rails[None, :, :, None] * jacobian[:, :, None, :]
-        return (1.0 - com_fraction) * across, com_fraction * joints + base_side
+        return rigid_leg_motion(
+            rails, units, pose_jacobian(geometry, poses[:, 3:6]),
+            geometry.rotated_platform_points, poses[:, 3:6], com_fraction,
+        )
 
     def mechanism(self, params: HexaParameters, pose: np.ndarray) -> tuple[ChainMechanism, ...]:
         """

@@ -13,8 +13,9 @@ base-side share is carried by the base).  A leg whose weight that lumping does n
 share's (``leg_weight_loads``): a Gough-Stewart cylinder's housing turns with the leg but
 does not extend, so its axial weight goes to the base through its joint, not through a
 released drive to the platform and the link, and lies on the leg's spring with the drive's
-thrust; a Hexa Slide leg's base-side share rides on its slider, and along a released rail
-only the leg and the link hold it.
+thrust; a Hexa Slide leg's (a rotary hexapod rod's) base-side share rides on its slider
+(crank tip), and along a released rail (about a released motor's axis) only the leg and the
+link hold it.
 
 Statics by virtual work on the pose coordinates X (any architecture): the weights'
 potential U(X) has the generalised gradient
