@@ -3,7 +3,7 @@
 from dataclasses import replace
 
 from hexacal_identify.core.architectures import architecture
-from hexacal_identify.core.architectures.base import ACTUATOR_BODY
+from hexacal_identify.core.architectures.base import ACTUATED, ACTUATOR_BODY, HINGE, LEG_BODY
 from hexacal_identify.core.errors import InvalidMeasurementError
 from hexacal_identify.core.fit.statics import (
     actuator_weight_loads,
@@ -95,6 +95,12 @@ def test_the_loads_balance_the_weights_force_and_moment(model, mode):
         units = _leg_units(params, poses)
         across = share * (gravity - (units @ gravity)[..., None] * units)
         leg_forces = leg_forces + across
+    if model == 'hexa_slide':
+        # A leg's base-side share rides on its slider: along the rail the drive holds it with
+        # the thrust, so the leg pushes the platform with both.
+        share = (1.0 - MASSES.leg_com_fraction) * MASSES.leg_mass
+        along = loads.thrust + share * params.rail_directions @ gravity
+        leg_forces = along[..., None] * jacobian[:, :, :3]
     force = leg_forces.sum(axis=1) + link_force + mass * gravity
     torque = np.cross(joints, leg_forces).sum(axis=1) + np.cross(rotation @ moment, gravity)
     weight = mass * np.linalg.norm(gravity)
@@ -258,28 +264,51 @@ def _moving_potential_gradient(params, poses, masses, step=1e-6):
     return gradient
 
 
+def _base_side_motion(params, pose):
+    """
+    Return the legs' base-side joints' motion per unit reading (6, 3) and the legs' units.
+
+    From the mechanism: the actuated joint's axis for a slider, its axis x the arm to the leg's
+    joint for a crank.
+    """
+    tips, units = [], []
+    for chain in params.architecture.mechanism(params, pose):
+        actuated = next(
+            joint for body in chain.bodies for joint in body.joints if joint.role == ACTUATED
+        )
+        start, joint = next(body for body in chain.bodies if body.carries == LEG_BODY).segment
+        if actuated.kind == HINGE:
+            tips.append(np.cross(actuated.axis, start - actuated.anchor))
+        else:
+            tips.append(actuated.axis)
+        units.append((joint - start) / np.linalg.norm(joint - start))
+    return np.array(tips), np.array(units)
+
+
 def _housing_gradient(params, poses, masses, step=1e-6):
     """
     Return d U_l / d X (N, 6) of the legs' weight less the lumped share's (central differences).
 
     A leg whose housing does not extend (the Gough-Stewart's cylinder): the housing is a rigid
     body hanging on the base-side joint A, its centre a = f |B - A| from A along the leg at the
-    pose (as the mechanism's leg body places it), a held fixed; the lumped share (what
-    ``weight_gradient`` holds) is f m at B.  Zero for the two-force legs.
+    pose (as the mechanism's leg body places it), a held fixed.  A rigid leg on a slider or a
+    crank's tip: its centre at the fraction f of its segment.  The lumped share (what
+    ``weight_gradient`` holds) is f m at B.
     """
     gradient = np.zeros((len(poses), 6))
-    if params.model != 'gough_stewart':
-        return gradient
     fraction = masses.leg_com_fraction
 
     def potential(pose, arms):
         total = 0.0
         for c, chain in enumerate(params.architecture.mechanism(params, pose)):
-            start, joint = chain.bodies[0].segment
+            leg = next(body for body in chain.bodies if body.carries == LEG_BODY)
+            start, joint = leg.segment
             unit = (joint - start) / np.linalg.norm(joint - start)
-            total -= masses.leg_mass * (start + arms[c] * unit - fraction * joint) @ np.asarray(
-                masses.gravity
-            )
+            if params.model == 'gough_stewart':
+                centre = start + arms[c] * unit
+            else:  # a rigid leg on the slider (crank): its fraction
+                centre = start + fraction * (joint - start)
+            total -= masses.leg_mass * (centre - fraction * joint) @ np.asarray(masses.gravity)
         return total
 
     for n, pose in enumerate(poses):
@@ -323,8 +352,18 @@ def test_moving_parts_weight_is_held_by_virtual_work(model, mode):
     if model == 'gough_stewart':
         # The housing between the drive and the leg's spring: its axial weight is the spring's.
         along += MOVING.leg_mass * _leg_units(params, poses) @ np.asarray(MOVING.gravity)
+    if model != 'gough_stewart':
+        # The leg's base-side share across the leg pushes the slider (crank): the drive holds
+        # it.
+        share = (1.0 - MOVING.leg_com_fraction) * MOVING.leg_mass
+        for k, pose in enumerate(poses):
+            tips, units = _base_side_motion(params, pose)
+            across = tips - np.sum(tips * units, axis=1)[:, None] * units
+            along[k] -= share * across @ np.asarray(MOVING.gravity)
     lever = np.linalg.norm(jacobian[:, :, :3], axis=2)
-    np.testing.assert_allclose(loads.chains, (loads.thrust - along) * lever, rtol=1e-12)
+    np.testing.assert_allclose(
+        loads.chains, (loads.thrust - along) * lever, rtol=1e-12, atol=1e-9
+    )
     np.testing.assert_allclose(loads.reading_loads, loads.chains * lever, rtol=1e-12)
     if mode == MeasuringMode.PASSIVE_ACTUATOR and model != 'gough_stewart':
         # The released slider's or crank's weight along its motion is its leg's load.

@@ -456,12 +456,13 @@ class Architecture(ABC, Generic[P]):
         """
         Return how each leg's centre of mass moves at ``poses`` (N, 6), or None.
 
-        None (this default): the leg is a rigid member of fixed length between its base-side
-        joint and the platform joint, a two-force member whose weight the statics lumps at its
-        ends by ``com_fraction``.  An architecture whose leg is not (a leg mass that does not
-        extend with the actuator, such as a cylinder's housing) returns ``with_reading`` (N, 6,
-        3) and ``with_pose`` (N, 6, 3, 6) as ``actuator_mass_motion`` does, for the leg mass
-        placed as ``mechanism`` places it.
+        None (this default): the leg is a rigid member of fixed length between a joint fixed
+        on the base and the platform joint, a two-force member whose weight the statics lumps
+        at its ends by ``com_fraction`` (the base-side share on the base).  Any other leg (one
+        on a slider or a crank's tip, whose base-side share moves with the reading; a mass
+        that does not extend with the actuator, such as a cylinder's housing) returns
+        ``with_reading`` (N, 6, 3) and ``with_pose`` (N, 6, 3, 6) as ``actuator_mass_motion``
+        does, for the leg mass placed as ``mechanism`` places it.
         """
         return None
 

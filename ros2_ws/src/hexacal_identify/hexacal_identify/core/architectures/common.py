@@ -162,6 +162,29 @@ def platform_point_motion(rotated: np.ndarray, angles: np.ndarray) -> np.ndarray
     return motion
 
 
+def rigid_leg_motion(
+    tips: np.ndarray,
+    units: np.ndarray,
+    jacobian: np.ndarray,
+    rotated: np.ndarray,
+    angles: np.ndarray,
+    com_fraction: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return how a rigid leg's centre of mass moves (Architecture.leg_mass_motion).
+
+    The leg of fixed length runs from a base-side joint that moves by ``tips`` (N, 6, 3) per
+    unit reading (a slider, a crank's tip) to the platform joint R B (``rotated``, N, 6, 3),
+    along ``units`` (N, 6, 3); its centre S + f (B - S) moves with the pose as f dB + (1 - f)
+    tip d lambda (``jacobian`` d lambda / d X, N, 6, 6).  With the pose held the leg, on the
+    platform side of its spring at S, turns about B: (1 - f) (I - u u^T) tip per unit reading.
+    """
+    across = tips - np.einsum('nci,nci->nc', units, tips)[..., None] * units
+    joints = platform_point_motion(rotated, angles)
+    base_side = tips[..., None] * jacobian[:, :, None, :]
+    return (1.0 - com_fraction) * across, com_fraction * joints + (1.0 - com_fraction) * base_side
+
+
 def condition_ok(jac: np.ndarray, link_length: float, max_condition: float) -> np.ndarray:
     """Return the mask of pose Jacobians conditioned below max_condition (angles scaled by L)."""
     jac = jac.copy()

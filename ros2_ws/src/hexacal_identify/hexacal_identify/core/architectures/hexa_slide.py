@@ -55,6 +55,7 @@ from .common import (
     platform_point_derivatives,
     PlatformPoints,
     pose_jacobian_rows,
+    rigid_leg_motion,
 )
 from .stacking import ElementwiseStacking
 
@@ -478,6 +479,27 @@ class HexaSlide(ElementwiseStacking, Architecture[HexaParameters]):
         rails = params.rail_directions
         with_reading = np.broadcast_to(rails, (len(poses),) + rails.shape).copy()
         return with_reading, with_reading[..., None] * jacobian[:, :, None, :]
+
+    def leg_mass_motion(
+        self, params: HexaParameters, poses: np.ndarray, com_fraction: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return the legs' motion (Base): a rigid leg between the slider and the platform joint.
+
+        Its centre S + f (B - S) (f the ``com_fraction``) moves with the pose as f dB + (1 - f)
+        a d lambda: the base-side share rides on the slider, so along a released slider's rail
+        it is held by the leg and the link, not by the guides.  With the pose held the leg (on
+        the platform side of its spring at the slider) turns about B: (1 - f) (I - u u^T) a per
+        unit reading.
+        """
+        poses = np.atleast_2d(np.asarray(poses, dtype=float))
+        geometry = leg_geometry(params, poses)
+        rails = np.broadcast_to(params.rail_directions, geometry.leg_vectors.shape)
+        units = geometry.leg_vectors / np.linalg.norm(geometry.leg_vectors, axis=2)[..., None]
+        return rigid_leg_motion(
+            rails, units, pose_jacobian(geometry, poses[:, 3:6]),
+            geometry.rotated_platform_points, poses[:, 3:6], com_fraction,
+        )
 
     def mechanism(self, params: HexaParameters, pose: np.ndarray) -> tuple[ChainMechanism, ...]:
         """

@@ -59,6 +59,7 @@ from .common import (
     platform_point_derivatives,
     PlatformPoints,
     pose_jacobian_rows,
+    rigid_leg_motion,
 )
 
 from .rotary_hexapod_parameters import (
@@ -424,6 +425,27 @@ class RotaryHexapod(Architecture[RotaryHexapodParameters]):
         with_reading = 0.5 * params.crank_lengths[None, :, None] * tangents
         jacobian = np.asarray(legs.pose_jacobian())
         return with_reading, with_reading[..., None] * jacobian[:, :, None, :]
+
+    def leg_mass_motion(
+        self, params: RotaryHexapodParameters, poses: np.ndarray, com_fraction: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return the rods' motion (Base): a rigid rod from the crank's tip C to B.
+
+        Its base-side share rides on the tip, which moves r n x c per unit reading: on a
+        released crank the rod and the link hold its moment, not the motor (common.py
+        rigid_leg_motion).
+        """
+        poses = np.atleast_2d(np.asarray(poses, dtype=float))
+        legs = self.legs(_Chains(params), poses)
+        cranks = legs.crank_dirs.transpose(1, 2, 0)  # (N, 6, 3)
+        tips = params.crank_lengths[None, :, None] * np.cross(params.axis_directions[None], cranks)
+        rods = legs.rods.transpose(1, 2, 0)
+        return rigid_leg_motion(
+            tips, rods / np.linalg.norm(rods, axis=2)[..., None],
+            np.asarray(legs.pose_jacobian()), legs.rotated.transpose(1, 2, 0), poses[:, 3:6],
+            com_fraction,
+        )
 
     def mechanism(
         self, params: RotaryHexapodParameters, pose: np.ndarray

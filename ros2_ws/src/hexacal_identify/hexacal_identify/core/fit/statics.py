@@ -8,12 +8,14 @@ its centre of mass lies) load the chains and the link at every posture.  Each le
 and the link are two-force members: their weight is lumped at their ends by
 ``com_fraction`` (the platform-side share ``com_fraction * mass`` rides on the
 platform, at the leg's platform joint and at the link's platform end P; the
-base-side share is carried by the base, the rail or the slider's guides).  A leg that is not
-a rigid member of fixed length (``Architecture.leg_mass_motion``: a Gough-Stewart cylinder's
-housing, which turns with the leg but does not extend) adds the gradient of its true
-potential less the lumped share's (``leg_weight_loads``): the housing's axial weight goes to
-the base through its joint, not through a released drive to the platform and the link, and
-lies on the leg's spring with the drive's thrust.
+base-side share is carried by the base).  A leg whose weight that lumping does not place
+(``Architecture.leg_mass_motion``) adds the gradient of its true potential less the lumped
+share's (``leg_weight_loads``): a Gough-Stewart cylinder's housing turns with the leg but
+does not extend, so its axial weight goes to the base through its joint, not through a
+released drive to the platform and the link, and lies on the leg's spring with the drive's
+thrust; a Hexa Slide leg's (a rotary hexapod rod's) base-side share rides on its slider
+(crank tip), and along a released rail (about a released motor's axis) only the leg and the
+link hold it.
 
 Statics by virtual work on the pose coordinates X (any architecture): the weights'
 potential U(X) has the generalised gradient
