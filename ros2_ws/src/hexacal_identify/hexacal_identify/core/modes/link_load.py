@@ -7,9 +7,9 @@ much it carries (core/fit/statics.py: ``static_loads`` in passive_actuator).  On
 and the Gough-Stewart of the shipped physical descriptions, over 200 sphere postures, the
 least-loaded release leaves the link a median 92 / 73 N, the median release 391 / 446 N, and
 the best-conditioned one may load it past the 500 N a link of the documented kind bears.
-`LinkLoad` is what a planner needs to keep every release under a limit: the masses (from a
-physical description) and the limit; `released_link_forces` the predicted |tension| of each
-release at each pose.
+`LinkLoad` is what a planner needs to keep the link under a limit at its postures: the masses
+(from a physical description) and the limit; `released_link_forces` the predicted |tension|
+of each release at each pose.
 """
 
 from __future__ import annotations

@@ -540,8 +540,8 @@ def plan_postures(
         left_out += int(over.size)
         poses, kinds = poses[keep], kinds[keep]
         turns = None if turns is None else turns[keep]
-    if link_load is not None and measuring is not None and measuring.link_forces is not None:
-        metadata['link_force_limit_n'] = link_load.max_force_n
+    if measuring is not None and measuring.link_force_limit_n is not None:  # link_load given
+        metadata['link_force_limit_n'] = measuring.link_force_limit_n
         metadata['link_overloaded_left_out'] = left_out
     plan = Plan(
         name or 'plan',

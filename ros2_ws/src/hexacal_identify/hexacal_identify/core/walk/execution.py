@@ -477,10 +477,9 @@ class PlanExecution:
         if latest is None or not self._sent_any:
             return []
         hold = latest.copy() if self._setpoints is None else self._setpoints.copy()
-        if self._setpoints is not None and self._in_flight is not None:
+        if self._setpoints is not None and self._in_flight is not None and self._move_left_s(now):
             sent_at, before, command = self._in_flight
-            if now - sent_at < command.duration_s:
-                hold = setpoints_at(before, command, now - sent_at)
+            hold = setpoints_at(before, command, now - sent_at)
         if self.released_now is not None:
             hold[self.released_now] = latest[self.released_now]  # not commanded: follows
         self._setpoints, self._in_flight = hold.copy(), None
