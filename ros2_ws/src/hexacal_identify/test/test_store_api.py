@@ -92,8 +92,10 @@ def test_entries_are_oldest_first_and_found_by_prefix_or_digest(tmp_path, machin
 def test_an_ambiguous_prefix_is_named(tmp_path, machine):
     store = CalibrationStore(tmp_path / 'store')
     entry = store.add(machine['first'], {})
-    # A second entry whose id shares 6 hex digits, written in the store's format by hand.
-    twin_id = entry.id[:6] + 'f' * 6 if entry.id[6:] != 'f' * 6 else entry.id[:6] + 'e' * 6
+    # A second entry whose id shares exactly 6 hex digits (the 7th differs, whatever the
+    # entry's random id is), written in the store's format by hand.
+    other = 'e' if entry.id[6] == 'f' else 'f'
+    twin_id = entry.id[:6] + other * 6
     twin = tmp_path / 'store' / fmt.ENTRIES_DIR / twin_id
     twin.mkdir()
     twin.joinpath(fmt.PARAMETERS_FILE).write_bytes(entry.parameters_path.read_bytes())
