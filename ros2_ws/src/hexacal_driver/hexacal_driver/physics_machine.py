@@ -44,6 +44,7 @@ from hexacal_identify.core.machine.device import (
     inclinometer_readings,
 )
 from hexacal_identify.core.machine.kinematics import wrap_angle
+from hexacal_identify.core.walk.platform_paths import smooth_step
 from hexacal_identify.physics.mjcf import (
     DEFAULT_TIMESTEP_S,
     INCLINOMETER_SENSOR,
@@ -102,12 +103,6 @@ class _Released:
     chain: int
     gains: tuple[float, float, float]
     extra: dict[str, float] = field(default_factory=dict)
-
-
-def smooth_step(s: float) -> float:
-    """Quintic time law on [0, 1]: zero velocity and acceleration at both ends."""
-    s = min(max(float(s), 0.0), 1.0)
-    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
 
 
 def pose_from_frame(position: np.ndarray, rotation: np.ndarray) -> np.ndarray:

@@ -35,7 +35,8 @@ from hexacal_driver.simulation import TrajectoryPoint
 from hexacal_identify.core.architectures import KinematicParameters
 from hexacal_identify.core.machine.device import DEFAULT_MOUNT, fixed_point
 from hexacal_identify.core.modes.passive_actuator import release_conditions
-from hexacal_identify.core.walk.platform_paths import CommandPurpose, PathError, route_command
+from hexacal_identify.core.walk.platform_paths import CommandPurpose, eased_command, PathError
+from hexacal_identify.core.walk.platform_paths import route_command
 from hexacal_identify.core.walk.release_choice import first_releases, release_after_fault
 from hexacal_identify.core.walk.standing import blend_from_setpoints, estimate_pose
 from hexacal_msgs_py.measuring_modes import MeasuringMode
@@ -240,6 +241,7 @@ def _move(drive, truth, model, start, pose, setpoints, stroke, link_length, true
         return f'its path: {error}'
     command = blend_from_setpoints(model, command, start, setpoints, drive.released,
                                    EXECUTOR_SPEED_M_S, stroke)
+    command = eased_command(command, setpoints, EXECUTOR_SPEED_M_S)
     points = command.points.copy()
     if drive.released is not None:  # not commanded: the driver holds its column
         points[:, drive.released] = drive.actuators[drive.released]

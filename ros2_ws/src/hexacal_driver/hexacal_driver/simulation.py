@@ -46,18 +46,12 @@ from hexacal_identify.core.modes.compliant import (  # noqa: F401
     STRAIN_RETRY_M,
 )
 # The executor's interpolation; without a link length: the great circle of the true sphere.
-from hexacal_identify.core.walk.platform_paths import interpolate_pose
+from hexacal_identify.core.walk.platform_paths import interpolate_pose, smooth_step
 import numpy as np
 
 SETTLING = 'settling'  # moving to the posture (or, at the start, standing at it)
 DWELLING = 'dwelling'  # standing still at the posture: what the collector measures
 DONE = 'done'  # the plan is finished: standing still at its last posture
-
-
-def smooth_step(s: float) -> float:
-    """Quintic time law on [0, 1]: zero velocity and acceleration at both ends."""
-    s = min(max(float(s), 0.0), 1.0)
-    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
 
 
 @dataclass(frozen=True)
@@ -131,7 +125,7 @@ class PlanWalker:
                 self.poses[0].copy(), self.posture_actuators[0].copy(), 0, SETTLING, 0
             )
         previous = (index - 1) % n
-        s = smooth_step(into / self.settle_s)
+        s = float(smooth_step(into / self.settle_s))
         pose = interpolate_pose(self.poses[previous], self.poses[index], s)
         try:
             actuators = inverse_kinematics(self.params, pose[None])[0]

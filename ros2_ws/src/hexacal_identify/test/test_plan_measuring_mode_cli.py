@@ -93,11 +93,13 @@ def test_plan_reports_the_links_predicted_load_with_the_weights(tmp_path):
 
     free = plan(1e9, tmp_path / 'free.yaml')  # as chosen for the conditioning alone
     out = tmp_path / 'loaded.yaml'
-    data = plan(150.0, out)
-    forces = data['link_force_n']
-    assert len(forces) == 10 and data['link_force_limit_n'] == 150.0
-    # Postures whose release loads the link beyond the limit were left out, and chosen again.
-    assert max(free['link_force_n']) > 150.0 >= max(forces), (free, data)
+    data = plan(400.0, out)
+    forces, moves = data['link_force_n'], data['link_move_force_n']
+    assert len(forces) == 10 and data['link_force_limit_n'] == 400.0
+    # Postures whose release loads the link beyond the limit, there or on the way (from the
+    # swap of the releases at the posture before), were left out, and chosen again.
+    assert max(free['link_move_force_n']) > 400.0 >= max(moves) >= max(forces), (free, data)
+    assert data['link_move_force_max_n'] == max(moves)
     assert data['link_overloaded_postures'] == []
     plan_file = Plan.load(out)
     assert plan_file.metadata['link_overloaded_left_out'] > 0
@@ -109,6 +111,13 @@ def test_plan_reports_the_links_predicted_load_with_the_weights(tmp_path):
         default_parameters('hexa_slide'), plan_file.poses, MassModel.load(physical)
     )[range(10), released]
     assert forces == pytest.approx(expected.tolist(), rel=1e-9)
+    # A move starts where the posture before stands, this posture's release already swapped in.
+    swaps = released_link_forces(
+        default_parameters('hexa_slide'), plan_file.poses[:-1], MassModel.load(physical)
+    )[range(9), released[1:]]
+    assert moves[0] == forces[0] and all(
+        move >= max(force, swap) - 1e-9 for move, force, swap in zip(moves[1:], forces[1:], swaps)
+    )
     missing = tmp_path / 'missing.yaml'
     refused = hexacal('plan', '--postures', 4, '--physical', missing, '--out', tmp_path / 'x.yaml')
     assert refused.returncode == 2 and 'missing.yaml' in refused.stderr, refused.stderr

@@ -304,10 +304,13 @@ def test_a_small_correction_nudges_so_a_one_posture_per_stop_collector_measures_
     execution, machine = _walk(0.25, collector_motion_m=2e-4)
     assert execution.state == State.DONE and execution.measured == 3, execution.summary()
     corrections = [c for c in machine.commands if c.purpose == Purpose.CORRECT]
-    nudged = [c for c in corrections if len(c.points) == 2]
-    assert nudged and all(len(c.points) in (1, 2) for c in corrections)
-    for command in nudged:  # 1 mm beyond along the sphere, then the target
-        assert 2e-4 < np.abs(command.points[0] - command.points[1]).max() < 5e-3
+    # An eased correction comes ever closer to its target; a nudge passes it and comes back.
+    away = [np.abs(c.points - c.points[-1]).max(axis=1) for c in corrections]
+    nudged = [d for d in away if np.any(np.diff(d) > 1e-12)]
+    assert nudged and len(nudged) < len(corrections), away
+    for distance in nudged:  # 1 mm beyond along the sphere, then the target
+        turn = int(np.argmax(np.diff(distance) > 1e-12))  # where it passes the target
+        assert 2e-4 < distance[turn:].max() < 5e-3, distance
     at_fixed = [angles for _, angles in machine.postures if np.abs(angles).max() <= TOLERANCE]
     assert len(at_fixed) >= 2, machine.postures
     assert np.abs(machine.postures[-1][1]).max() <= TOLERANCE  # the last, a fixed posture's

@@ -142,6 +142,7 @@ def write_plans(args: argparse.Namespace, nominal, paths: DemoPaths) -> None:
 
     noise = NoiseModel.from_microns(args.noise_um) if args.noise_um > 0 else None
     mixed = args.plan == 'mixed'
+    link_load = _link_load(args)
     planning = plan_postures(
         nominal,
         args.postures,
@@ -153,19 +154,21 @@ def write_plans(args: argparse.Namespace, nominal, paths: DemoPaths) -> None:
         noise=noise,
         name='demo-calibration',
         measuring_mode=measuring_mode(args),
-        link_load=_link_load(args),
+        link_load=link_load,
     )
     planning.plan.save(paths.plan)
     measuring = planning.measuring
     if measuring is not None and measuring.link_forces is not None:
         over = measuring.overloaded
+        moves = measuring.link_move_forces
         print(
             'hexacal demo: the measuring link at the calibration postures, predicted from the '
             f'physical description: up to {max(measuring.link_forces):.0f} N'
+            + ('' if moves is None else f', {max(moves):.0f} N along the moves')
             + (
                 f', beyond the {measuring.link_force_limit_n:g} N a link of the documented kind '
-                f'bears at {len(over)} of {len(measuring.link_forces)}: the lvdt mode keeps it '
-                'unloaded'
+                f'bears on the way to {len(over)} of {len(measuring.link_forces)}: the lvdt mode '
+                'keeps it unloaded'
                 if over.size
                 else ''
             ),
@@ -182,6 +185,7 @@ def write_plans(args: argparse.Namespace, nominal, paths: DemoPaths) -> None:
             noise=noise,
             name='demo-verification',
             measuring_mode=measuring_mode(args),
+            link_load=link_load,
         ).plan.save(paths.verification_plan)
 
 

@@ -514,12 +514,20 @@ def _print_measuring(
             )
     if measuring.link_forces is not None:
         forces, over = measuring.link_forces, measuring.overloaded
+        moves = measuring.link_move_forces
+        along = (
+            ''
+            if moves is None
+            else f', along the moves {np.max(moves):.4g} N (from the swap of the releases at '
+            'the posture before)'
+        )
         print(
             f'  measuring link at the postures, predicted from the weights: largest force '
-            f'{np.max(forces):.4g} N (median {np.median(forces):.4g} N), limit '
+            f'{np.max(forces):.4g} N (median {np.median(forces):.4g} N){along}, limit '
             f'{measuring.link_force_limit_n:g} N'
             + (
-                f'; beyond it at {len(over)} posture(s) ({", ".join(str(i) for i in over[:10])}'
+                f'; beyond it on the way to {len(over)} posture(s) '
+                f'({", ".join(str(i) for i in over[:10])}'
                 f'{", ..." if len(over) > 10 else ""}): the released actuator leaves the link '
                 "the platform's load there; measure in lvdt (the link then carries its own "
                 'weight only), or leave those postures out'

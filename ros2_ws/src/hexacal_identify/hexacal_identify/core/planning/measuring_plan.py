@@ -3,10 +3,11 @@ What a plan adds for its measuring mode: released actuators, LVDT extensions.
 
 * ``passive_actuator``: each posture's released actuator (``released_actuator.py``), written
   into the plan by joint name, with the conditioning it gives and the worst it avoids; given
-  the weights, the link's predicted load at each posture (``link_load.py``): the release is
-  chosen for the passive system's conditioning along the moves (a jam faults the drives), and
-  the postures where that loads the link beyond its limit are named (the planner leaves them
-  out and chooses again).
+  the weights, the link's predicted load at each posture and along the move into it
+  (``link_load.py``; the move's start bears the posture's release: the executor swaps the
+  releases at rest before it moves): the release is chosen for the passive system's
+  conditioning along the moves (a jam faults the drives), and the postures whose move loads
+  the link beyond its limit are named (the planner leaves them out and chooses again).
 * ``lvdt``: every posture's predicted link extension on the nominal machine (zero to rounding
   for postures planned on the sphere: the check that the plan is the link's) and its gain, the
   extension per unit actuator error (``lvdt.extension_gains``), from which the model error the
@@ -28,7 +29,7 @@ import numpy as np
 from ..architectures import KinematicParameters
 from ..machine.device import DEFAULT_MOUNT
 from ..machine.kinematics import inverse_kinematics
-from ..modes.link_load import LinkLoad, released_link_forces
+from ..modes.link_load import LinkLoad, move_link_forces, released_link_forces
 from ..modes.lvdt import extension_gains, lvdt_extensions
 from ..modes.released_actuator import choose_released_actuators, ReleaseChoice
 
@@ -60,16 +61,19 @@ class MeasuringCheck:
     release: ReleaseChoice | None = None
     lvdt: LvdtCheck | None = None
     # passive_actuator with the weights given: the link's predicted |tension| at each posture
-    # with its chosen release (K, walking order), N, and the limit it is compared with.
+    # with its chosen release and the largest along the move into it (K, walking order), N,
+    # and the limit they are compared with.
     link_forces: np.ndarray | None = None
     link_force_limit_n: float | None = None
+    link_move_forces: np.ndarray | None = None
 
     @property
     def overloaded(self) -> np.ndarray:
-        """Return the postures (walking order) whose predicted link force is beyond the limit."""
-        if self.link_forces is None or self.link_force_limit_n is None:
+        """Return the postures (walking order) whose move loads the link beyond the limit."""
+        forces = self.link_forces if self.link_move_forces is None else self.link_move_forces
+        if forces is None or self.link_force_limit_n is None:
             return np.zeros(0, int)
-        return np.flatnonzero(self.link_forces > self.link_force_limit_n)
+        return np.flatnonzero(forces > self.link_force_limit_n)
 
     def to_json(self, actuator_names: tuple[str, ...]) -> dict:
         """Return the check as JSON-safe builtins (SI units)."""
@@ -96,6 +100,11 @@ class MeasuringCheck:
                 link_force_max_n=float(np.max(self.link_forces)),
                 link_force_limit_n=self.link_force_limit_n,
                 link_overloaded_postures=self.overloaded.tolist(),
+            )
+        if self.link_move_forces is not None:
+            out.update(
+                link_move_force_n=self.link_move_forces.tolist(),
+                link_move_force_max_n=float(np.max(self.link_move_forces)),
             )
         if self.lvdt is not None:
             out.update(
@@ -125,7 +134,8 @@ def check_measuring_mode(
 
     `groups` (K,): the order within each group is free (passive_actuator may choose it:
     ``release.order``); `link_load`: passive_actuator, the weights and the link's limit: the
-    link's predicted load at each posture with its release (modes/link_load.py).
+    link's predicted load at each posture with its release and along the move into it
+    (modes/link_load.py: ``move_link_forces``).
 
     ReleaseError (passive_actuator) when a posture has no actuator that can be released.
     """
@@ -143,6 +153,10 @@ def check_measuring_mode(
             release=release,
             link_forces=forces[np.arange(len(walked)), release.released],
             link_force_limit_n=link_load.max_force_n,
+            link_move_forces=move_link_forces(
+                nominal, walked, release.released, link_load.masses, link_length, stroke_m,
+                mount,
+            ),
         )
     if chosen == MeasuringMode.LVDT:
         if not (np.isfinite(lvdt_stroke_m) and lvdt_stroke_m > 0):

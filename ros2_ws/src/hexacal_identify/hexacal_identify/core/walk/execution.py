@@ -58,7 +58,7 @@ import numpy as np
 from .arrival import correct_fixed_position, judged_angles, posture_matched, still_mean
 from .arrival import timeout_reason
 from .messages import LogLevel, Messages, ReadingWindow
-from .platform_paths import Command, CommandPurpose
+from .platform_paths import Command, CommandPurpose, eased_command
 from .platform_paths import path_command, PathError, route_command, setpoints_at
 from .progress import eta_s, progress, summary, UNDER_WAY
 from .release_choice import choose_first_release, hear_release, rechoose_release
@@ -618,8 +618,9 @@ class PlanExecution:
                 )
         if start is not None and purpose == CommandPurpose.MOVE:
             command = self._blended(command, start)
-        self._target = command.positions.copy()
         before = current if self._setpoints is None else self._setpoints
+        command = eased_command(command, before, self.settings.max_actuator_speed_m_s)
+        self._target = command.positions.copy()
         self._in_flight = (now, before.copy(), command)
         self._setpoints = command.positions.copy()
         # The collector's posture of this stop came before this correction: a correction below

@@ -29,6 +29,16 @@ from ..architectures import KinematicParameters
 from ..machine.device import DEFAULT_MOUNT, device_position, fixed_point
 
 MIN_MOVE_S = 0.1  # shortest time_from_start of a command (a zero time asks a controller to jump)
+# An eased move's points are at most this far apart in time: a controller interpolating linearly
+# between them (a joint_trajectory_controller given positions only) changes its speed in steps
+# a stiff drive follows without a jolt (on the MuJoCo Hexa Slide the released passive system's
+# link peaks at its static load with 20 ms, at 10-15 kN when a move starts at full speed).
+EASED_STEP_S = 0.02
+# An eased move reaches its speed limit no faster than this: acceleration <= speed / RAMP_S.
+RAMP_S = 0.25
+CORNER_COS = 0.5  # a path turning by more than 60 deg between two segments stops there
+_QUINTIC_PEAK_SPEED = 1.875  # the quintic law's largest speed over its mean
+_QUINTIC_PEAK_ACCELERATION = 10.0 / math.sqrt(3.0)  # its largest acceleration, x distance / T^2
 MIN_SEGMENT_S = 0.01  # shortest time between two points of a path
 SAME_SPHERE = 1e-3  # positions within this fraction of L of the link sphere move along it
 SAME_RADIUS_M = 1e-9  # without L: positions this close in |p| share a sphere
@@ -204,6 +214,77 @@ def point_times(current: np.ndarray, points: np.ndarray, max_speed_m_s: float) -
     if times[-1] < MIN_MOVE_S:
         times *= MIN_MOVE_S / times[-1]
     return times
+
+
+def smooth_step(fraction: float | np.ndarray) -> np.ndarray:
+    """Return the quintic time law on [0, 1] (clipped): at rest, no acceleration, at both ends."""
+    s = np.clip(fraction, 0.0, 1.0)
+    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+
+
+def eased_command(command: Command, start: np.ndarray, max_speed_m_s: float) -> Command:
+    """
+    Return `command` re-timed to start and stop at rest, from the drive's setpoints `start`.
+
+    Timed at full speed from the first point on (`point_times`), a move's speed jumps from 0 to
+    the limit: a stiff servo answers with the platform's inertia at its bandwidth, loads that no
+    static model holds (on the MuJoCo Hexa Slide, 10-15 kN in a measuring link whose static
+    load is a few hundred newtons).  Each leg of the path (split where it turns by more than
+    60 deg: the centre of a route, a blend's start) follows the quintic law along its length
+    (the largest actuator move), its peak speed at most `max_speed_m_s` and its acceleration at
+    most max_speed_m_s / RAMP_S, sampled every EASED_STEP_S or less; the target is the
+    command's, bit for bit.  A command that does not move is returned as it is.
+    """
+    start = np.asarray(start, dtype=float)
+    path = np.vstack([start[None], command.points])
+    steps = np.diff(path, axis=0)
+    lengths = np.max(np.abs(steps), axis=1)
+    if not np.any(lengths > 0):
+        return command
+    points: list[np.ndarray] = []
+    times: list[np.ndarray] = []
+    elapsed = 0.0
+    for first, last in _legs(steps, lengths):
+        leg_points, leg_times = _eased_leg(
+            path[first:last + 1], lengths[first:last], max_speed_m_s
+        )
+        points.append(leg_points)
+        times.append(elapsed + leg_times)
+        elapsed += float(leg_times[-1])
+    eased = np.vstack(points)
+    eased[-1] = command.points[-1]
+    return Command(eased, np.concatenate(times), command.purpose, command.posture)
+
+
+def _legs(steps: np.ndarray, lengths: np.ndarray) -> list[tuple[int, int]]:
+    """Return (first, last) vertex indices of the path's legs, split at sharp turns."""
+    moving = np.flatnonzero(lengths > 0)
+    directions = steps[moving] / np.linalg.norm(steps[moving], axis=1)[:, None]
+    turns = np.sum(directions[1:] * directions[:-1], axis=1) < CORNER_COS
+    ends = [int(moving[k + 1]) for k in np.flatnonzero(turns)]  # a leg ends where one turns
+    bounds = [0, *ends, len(lengths)]
+    return [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if np.any(lengths[a:b] > 0)]
+
+
+def _eased_leg(
+    vertices: np.ndarray, lengths: np.ndarray, max_speed_m_s: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return the points after the first vertex and their times along one leg (quintic)."""
+    along = np.concatenate([[0.0], np.cumsum(lengths)])
+    total = float(along[-1])
+    duration = max(
+        MIN_MOVE_S,
+        _QUINTIC_PEAK_SPEED * total / max_speed_m_s,
+        math.sqrt(_QUINTIC_PEAK_ACCELERATION * total * RAMP_S / max_speed_m_s),
+    )
+    count = max(1, math.ceil(duration / EASED_STEP_S - 1e-9))
+    times = duration * np.arange(1, count + 1) / count
+    travelled = smooth_step(times / duration) * total
+    points = np.column_stack(
+        [np.interp(travelled, along, vertices[:, j]) for j in range(vertices.shape[1])]
+    )
+    points[-1] = vertices[-1]
+    return points, times
 
 
 def setpoints_at(start: np.ndarray, command: Command, elapsed_s: float) -> np.ndarray:
