@@ -150,7 +150,9 @@ def test_a_move_that_would_cross_the_lvdt_stroke_is_paused_before_it_is_sent(
     assert notice.startswith('posture 2 of 2: the move was not sent: the link would be ')
     assert 'beyond the LVDT stroke +-2 mm less the 0.5 mm margin' in notice, notice
     assert watch.statuses[-1][0] == 1  # WARN
-    assert all(len(c.points) == 1 for c in watch.commands)  # one-point moves
+    assert all(  # path_step_m 0
+        _straight_in_joint_space([p.positions for p in c.points]) for c in watch.commands
+    )
     # Whatever was published before the pause has arrived by now (late under load), and the
     # crossing move would be a third command: the move to posture 1, perhaps the hold.
     probe.spin_for(2.0)
@@ -167,6 +169,17 @@ def test_a_move_that_would_cross_the_lvdt_stroke_is_paused_before_it_is_sent(
         "\nlvdt guard: paused before posture 2; the driver's largest link extension "
         f'{extension * 1e6:.1f} um (stroke +-2 mm); {notice}'
     )
+
+
+def _straight_in_joint_space(points: np.ndarray) -> bool:
+    """Return True when a command's points lie on one line in joint space (an eased move)."""
+    points = np.asarray(points, dtype=float)
+    along = points[-1] - points[0]
+    if len(points) < 3 or not np.any(along):
+        return True
+    offsets = points - points[0]
+    fractions = offsets @ along / (along @ along)
+    return bool(np.max(np.abs(offsets - fractions[:, None] * along)) < 1e-9)
 
 
 @pytest.mark.slow

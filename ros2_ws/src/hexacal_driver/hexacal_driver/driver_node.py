@@ -33,6 +33,7 @@ from hexacal_driver.reports import (
     drives_start_text,
     DriveStatusReport,
     finish_lines,
+    link_overload_warning,
     machine_source,
     MotionReport,
     noise_text,
@@ -428,6 +429,9 @@ class DriverNode(Node):
             self.get_logger().warning(warning, throttle_duration_sec=STRAIN_WARNING_PERIOD_S)
         if line is not None:
             self.get_logger().info(line)
+            overload = link_overload_warning(self.machine.require_follower())
+            if overload is not None:
+                self.get_logger().warning(overload)
             # One status per rest: a monitor (the demo) hears every rest and its motion's peaks.
             self.machine.require_follower().rest_reached()
             self._publish_drive_status(force=True)

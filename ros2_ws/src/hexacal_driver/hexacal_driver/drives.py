@@ -158,7 +158,7 @@ class DriveFollower(CommandFollower):
         # Per motion (so a report can split before/after refinement): the rests reached after a
         # commanded motion, the peaks of the motion under way and of the last one that ended.
         self.rests = 0
-        self.move_peaks = {'force_n': 0.0, 'link_extension_m': 0.0}
+        self.move_peaks = {'force_n': 0.0, 'link_extension_m': 0.0, 'link_force_n': 0.0}
         self.last_move_peaks = dict(self.move_peaks)
         self.last_refusal = ''  # why the last trajectory was refused ('' none yet)
         self._tension_key: tuple[bytes, bytes] | None = None  # the last link tension computed
@@ -255,6 +255,9 @@ class DriveFollower(CommandFollower):
             'rests': self.rests,
             'move_max_force_n': self.last_move_peaks['force_n'] if forces is not None else '',
             'move_max_link_extension_m': self.last_move_peaks['link_extension_m'] if lvdt else '',
+            'move_max_link_force_n': (
+                self.last_move_peaks['link_force_n'] if forces is not None else ''
+            ),
         }
 
     def rest_reached(self) -> None:
@@ -267,7 +270,7 @@ class DriveFollower(CommandFollower):
         self.rests += 1
         self.last_move_peaks = dict(self.move_peaks)
         # This standing is counted in the motion that ended here; the next one starts anew.
-        self.move_peaks = {'force_n': 0.0, 'link_extension_m': 0.0}
+        self.move_peaks = {'force_n': 0.0, 'link_extension_m': 0.0, 'link_force_n': 0.0}
 
     # ------------------------------------------------------------------ release, lock, reset
 
@@ -483,6 +486,7 @@ class DriveFollower(CommandFollower):
         if forces is not None:
             move['force_n'] = max(move['force_n'], float(np.max(np.abs(forces))))
         move['link_extension_m'] = max(move['link_extension_m'], abs(self.link_extension_m))
+        move['link_force_n'] = max(move['link_force_n'], abs(self.link_force_n))
 
     def _at_rest(self) -> None:
         """Record the commanded actuators' true deviation from their setpoints at rest."""

@@ -208,6 +208,7 @@ class PhysicsFollower(DriveFollower):
         )
         if self.machine.has_link:  # the simulated link's force, in every measuring mode
             values.update(
-                link_force_n=self.link_force_n, max_link_force_n=self.peaks['link_force_n']
+                link_force_n=self.link_force_n, max_link_force_n=self.peaks['link_force_n'],
+                move_max_link_force_n=self.last_move_peaks['link_force_n'],
             )
         return values

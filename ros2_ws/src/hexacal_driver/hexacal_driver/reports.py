@@ -239,6 +239,24 @@ class MotionReport:
         return 'standing at the commanded position'
 
 
+def link_overload_warning(follower: DriveFollower) -> str | None:
+    """
+    Return the warning for a motion that just ended at rest having loaded the link past its limit.
+
+    The compliant drives fault on it; a released actuator's (passive_actuator) may not fault,
+    since the link is then a load-bearing member whose load the drives cannot limit, and the
+    load of a real link is the user's to know.  None when it stayed inside or is not known.
+    """
+    peak = follower.move_peaks['link_force_n']
+    limit = follower.settings.max_link_force_n
+    if follower.link_force() is None or peak <= limit:
+        return None
+    return (
+        f'the measuring link carried up to {peak:.4g} N on the way here, beyond its '
+        f'{limit:g} N limit (max_link_force_n)'
+    )
+
+
 def finish_lines(
     published: int,
     published_before_plan: int,

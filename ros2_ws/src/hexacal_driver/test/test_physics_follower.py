@@ -12,6 +12,7 @@ from dataclasses import replace
 
 from hexacal_driver.machine import DriverConfigurationError, SimulatedMachine
 from hexacal_driver.parameters import parameter_problem, PARAMETERS
+from hexacal_driver.reports import link_overload_warning
 from hexacal_driver.simulation import STILL
 from hexacal_identify.core.modes.passive_actuator import solve_passive
 from hexacal_msgs_py.physical_file import default_physical, write_physical_file
@@ -77,6 +78,13 @@ def test_passive_actuator_on_the_mujoco_machine(tmp_path):
     # (the peak holds the move's inertial forces).
     assert status['link_force_n'] == pytest.approx(m.follower.machine.link_force(), abs=1e-9)
     assert abs(status['link_force_n']) < 1e-3 < status['max_link_force_n']
+    # At this rest the driver hears whether the move loaded the link past its limit.
+    assert link_overload_warning(f) is None  # the default 500 N
+    f.settings = replace(f.settings, max_link_force_n=1e-3)
+    warning = link_overload_warning(f)
+    assert warning is not None and 'beyond its 0.001 N limit' in warning, warning
+    f.rest_reached()
+    assert f.status_values()['move_max_link_force_n'] > 1e-3 and link_overload_warning(f) is None
     # Locked where it stands: no jump.
     before = f.actuators[index]
     assert f.release(RELEASED, False, now_s)[0]

@@ -7,8 +7,8 @@ from hexacal_identify.core.machine.model import table1_parameters
 from hexacal_identify.core.walk.platform_paths import (
     Command,
     CommandPurpose,
-    EASED_STEP_S,
     eased_command,
+    EASED_STEP_S,
     RAMP_S,
     route_command,
 )
