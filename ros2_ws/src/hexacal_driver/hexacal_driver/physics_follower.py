@@ -77,10 +77,20 @@ class PhysicsFollower(DriveFollower):
         return now_s - self._lag_s
 
     def command(self, now_s: float, points, start_s: float | None = None) -> float:
-        """Follow ``points`` on the simulation's clock; return the end on the node's."""
-        end_s = super().command(
-            self._clock(now_s), points, None if start_s is None else self._clock(start_s)
-        )
+        """
+        Follow ``points`` on the simulation's clock; return the end on the node's.
+
+        A drive still letting a released chain go (the description's ``release_ramp_s``)
+        starts the trajectory once it has: moved meanwhile, the five would pull against a
+        drive that still holds.
+        """
+        begin = None if start_s is None else self._clock(start_s)
+        left_s = self.machine.release_left_s()
+        if left_s > 0.0:
+            reached = self._clock(now_s) if self._simulated_s is None else self._simulated_s
+            released_s = reached + left_s
+            begin = released_s if begin is None else max(begin, released_s)
+        end_s = super().command(self._clock(now_s), points, begin)
         return end_s + self._lag_s
 
     def forces(self) -> np.ndarray | None:
@@ -163,10 +173,12 @@ class PhysicsFollower(DriveFollower):
         return WalkSample(self.pose.copy(), self.actuators.copy(), 0, phase, 0)
 
     def _with_released_setpoint(self, setpoints: np.ndarray) -> np.ndarray:
-        """Return the servo controls: the released actuator's is where it stands."""
+        """Return the servo controls: the released actuator's is left where the drive has it."""
         controls = np.array(setpoints, dtype=float)
         if self.released is not None:
-            controls[self.released] = self.machine.encoders()[self.released]
+            # Where it was released: a drive ramping its force down lets go of that standing
+            # (moved along, it would drop the force at once).
+            controls[self.released] = self.machine.setpoints[self.released]
         return controls
 
     def _fault_from_machine(self) -> None:

@@ -61,6 +61,7 @@ import numpy as np
 REST_SPEED = 1e-7  # m/s and rad/s: every joint slower than this is at rest ...
 REST_HOLD_S = 0.02  # ... for this long (a vibration passes through zero speed at its turns)
 CONTROL_PERIOD_S = 1e-3  # setpoints of a move are updated this often
+_CLOCK_ROUNDING_S = 1e-9  # simulated times this close are the same (sums of timesteps)
 NOSLIP_ITERATIONS = 20  # hard Coulomb friction on a released actuator (MuJoCo's is soft without)
 
 
@@ -103,6 +104,8 @@ class _Released:
     chain: int
     gains: tuple[float, float, float]
     extra: dict[str, float] = field(default_factory=dict)
+    start_s: float = 0.0  # when the release began: the drive's force ramps down from there
+    ramping: bool = False
 
 
 def pose_from_frame(position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
@@ -225,7 +228,14 @@ class PhysicsMachine:
             )
 
     def release(self, chain: int) -> None:
-        """Unpower actuator ``chain`` (0-based): it moves freely with the released friction."""
+        """
+        Unpower actuator ``chain`` (0-based): it moves freely with the released friction.
+
+        The drive's force goes to zero over the description's ``drives.release_ramp_s`` (its
+        gains scaled down on the quintic law): cut at once, the force the link then takes is a
+        step, and the machine overshoots to about 1.5x the link's static load (Hexa Slide,
+        shipped description; a 0.3 s ramp: within 15 %).
+        """
         if self._released is not None:
             if self._released.chain == chain:
                 return
@@ -241,14 +251,16 @@ class PhysicsMachine:
             float(model.actuator_biasprm[chain, 1]),
             float(model.actuator_biasprm[chain, 2]),
         )
-        model.actuator_gainprm[chain, 0] = 0.0
-        model.actuator_biasprm[chain, 1:3] = 0.0
+        ramping = self.physical.release_ramp_s > 0.0
+        if not ramping:
+            model.actuator_gainprm[chain, 0] = 0.0
+            model.actuator_biasprm[chain, 1:3] = 0.0
         dof = self._actuated_dof[chain]
         model.dof_frictionloss[dof] = self.physical.released_coulomb
         model.dof_damping[dof] = self.physical.released_viscous
         if self.physical.released_coulomb > 0.0:
             model.opt.noslip_iterations = NOSLIP_ITERATIONS
-        self._released = _Released(chain, gains)
+        self._released = _Released(chain, gains, start_s=self.time_s, ramping=ramping)
 
     def lock(self) -> None:
         """Power the released actuator again, holding it where it stands."""
@@ -290,6 +302,8 @@ class PhysicsMachine:
                     data.ctrl[:] = target
                     if s >= 1.0:
                         self._move = None
+                if self._released is not None and self._released.ramping:
+                    self._ramp_release(self._released)
                 n = min(steps_per_control, remaining)
                 mj.mj_step(model, data, nstep=n)
                 remaining -= n
@@ -299,6 +313,27 @@ class PhysicsMachine:
         finally:
             self.wall_s += time.perf_counter() - started
             self.cpu_s += time.process_time() - cpu_started
+
+    def release_left_s(self) -> float:
+        """Return how long the released drive still takes to let go (s; 0: it has)."""
+        released = self._released
+        if released is None or not released.ramping:
+            return 0.0
+        left = released.start_s + self.physical.release_ramp_s - self.time_s
+        return left if left > _CLOCK_ROUNDING_S else 0.0
+
+    def _ramp_release(self, released: _Released) -> None:
+        """Scale the released drive's gains down along its ramp (release's doc)."""
+        fraction = (self.time_s - released.start_s) / self.physical.release_ramp_s
+        scale = 1.0 - float(smooth_step(fraction))
+        kp, bias_p, bias_d = released.gains
+        model, chain = self.model, released.chain
+        model.actuator_gainprm[chain, 0] = kp * scale
+        model.actuator_biasprm[chain, 1] = bias_p * scale
+        model.actuator_biasprm[chain, 2] = bias_d * scale
+        released.ramping = fraction * self.physical.release_ramp_s < (
+            self.physical.release_ramp_s - _CLOCK_ROUNDING_S
+        )
 
     def settle(self, max_seconds: float, speed: float = REST_SPEED) -> bool:
         """Advance until at rest (True) or ``max_seconds`` passed (False); rest below ``speed``."""
@@ -317,17 +352,22 @@ class PhysicsMachine:
         """
         Return True when the machine is at rest.
 
-        No move under way and no joint faster than the rest speed (REST_SPEED, or settle's) for
-        REST_HOLD_S of simulated time.
+        No move under way, no release still ramping down, and no joint faster than the rest
+        speed (REST_SPEED, or settle's) for REST_HOLD_S of simulated time.
         """
         return (
             self._move is None
+            and not (self._released is not None and self._released.ramping)
             and self._rest_since is not None
             and self.time_s - self._rest_since >= REST_HOLD_S - 1e-9
         )
 
     def _track_rest(self) -> None:
-        still = self._move is None and float(np.max(np.abs(self.data.qvel))) < self._rest_speed
+        ramping = self._released is not None and self._released.ramping
+        still = (
+            self._move is None and not ramping
+            and float(np.max(np.abs(self.data.qvel))) < self._rest_speed
+        )
         if not still:
             self._rest_since = None
         elif self._rest_since is None:

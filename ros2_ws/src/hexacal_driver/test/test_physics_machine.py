@@ -60,6 +60,9 @@ def test_passive_actuator_at_rest_agrees_with_the_closure(model):
     machine = PhysicsMachine(params, physical, START, link_length=L)
     released = 2
     machine.release(released)
+    assert 0.0 < machine.release_left_s() <= physical.release_ramp_s
+    machine.advance(machine.release_left_s())  # the drive lets go before the others move
+    assert machine.release_left_s() == 0.0
     start = machine.encoders()[released]
     setpoints = inverse_kinematics(params, TARGET[None])[0]
     setpoints[0] += 20e-6  # setpoints off the target: the closure, not the target, decides

@@ -21,6 +21,7 @@ machine (hexacal_driver.physics_machine), the MJCF export
       kp: 1.0e8                           # N/m, scalar or 6 values (one per actuator)
       kd: 4.0e4                           # N s/m, scalar or 6 values
       following_error_limit: 0.001        # m: a larger servo error is a drive fault
+      release_ramp_s: 0.3                 # s: a released drive's force goes to zero this gradually
     structure:
       axial_stiffness: 5.0e7              # N/m between encoder and joint centres; null = rigid
     released_friction: {coulomb: 10.0, viscous: 100.0}   # N and N s/m, the released actuator
@@ -89,6 +90,7 @@ class PhysicalDescription:
     drive_kp: PerActuator = (1.0e8,) * N_CHAINS
     drive_kd: PerActuator = (4.0e4,) * N_CHAINS
     following_error_limit: float = 1.0e-3
+    release_ramp_s: float = 0.3
     structure_axial_stiffness: PerActuator | None = (5.0e7,) * N_CHAINS
     released_coulomb: float = 10.0
     released_viscous: float = 100.0
@@ -137,6 +139,7 @@ _FILE_KEYS: dict[str, tuple[str, str]] = {
     'drive_kp': ('drives', 'kp'),
     'drive_kd': ('drives', 'kd'),
     'following_error_limit': ('drives', 'following_error_limit'),
+    'release_ramp_s': ('drives', 'release_ramp_s'),
     'structure_axial_stiffness': ('structure', 'axial_stiffness'),
     'released_coulomb': ('released_friction', 'coulomb'),
     'released_viscous': ('released_friction', 'viscous'),
@@ -151,7 +154,7 @@ _POSITIVE = {
 }
 _NON_NEGATIVE = {
     'payload_mass', 'leg_mass', 'actuator_moving_mass', 'link_mass', 'drive_kd',
-    'released_coulomb', 'released_viscous', 'platform_inertia',
+    'released_coulomb', 'released_viscous', 'platform_inertia', 'release_ramp_s',
 }
 _FRACTIONS = {'leg_com_fraction', 'link_com_fraction'}
 

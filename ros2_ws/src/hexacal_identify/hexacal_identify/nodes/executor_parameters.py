@@ -42,8 +42,8 @@ PARAMETERS: dict[str, _Spec] = {
     ),
     'max_actuator_speed_m_s': _Spec(
         SETTINGS.max_actuator_speed_m_s,
-        'time_from_start of a move is its largest actuator move at this speed (m/s'
-        '; rad/s for actuators that turn)',
+        'the fastest an actuator moves (m/s; rad/s for actuators that turn): a move starts '
+        'and stops at rest, its acceleration at most this speed / 0.25 s',
         1e-6,
         10.0,
     ),
