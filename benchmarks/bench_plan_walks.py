@@ -54,7 +54,7 @@ def plans(model: str, size: int, seed: int, margin: bool, verify: int):
     return truth, nominal, calibration, verification
 
 
-def walk(truth, model, plan, refined=None, refine_at=None):
+def walk(truth, model, plan, refined=None, refine_at=None, check_at_rest=True):
     """Return the plan walked offline on `truth` (plan_walk.walk_plan)."""
     from hexacal_driver.plan_walk import walk_plan
     from hexacal_identify.core.planning.plan_check import plan_stroke
@@ -63,7 +63,19 @@ def walk(truth, model, plan, refined=None, refine_at=None):
     names = list(model.layout.actuator_names)
     released = [names.index(name) for name in plan.released_actuators]
     return walk_plan(truth, model, plan.poses, released, plan.link_length, stroke,
-                     mount=plan.mount, refine_at=refine_at, refined=refined)
+                     mount=plan.mount, refine_at=refine_at, refined=refined,
+                     check_at_rest=check_at_rest)
+
+
+def _count(row: dict, walked) -> None:
+    """Add the walks' jams, refusals and closest approach to a fold to `row`."""
+    for plan_walk in walked:
+        row['plans'] += 1
+        row['jams'] += plan_walk.jams
+        row['jammed'] += plan_walk.jams > 0
+        row['outside'] += plan_walk.refused
+        closed = [m.worst_condition for m in plan_walk.moves if not m.refused and not m.jammed]
+        row['closest'] = max(row['closest'], max(closed, default=0.0))
 
 
 def main() -> None:
@@ -74,6 +86,10 @@ def main() -> None:
     parser.add_argument('--seeds', type=int, default=5)
     parser.add_argument('--margins', nargs='+', default=['off', 'on'], choices=['off', 'on'])
     parser.add_argument('--verify-postures', type=int, default=20)
+    parser.add_argument(
+        '--at-rest', nargs='+', default=['off', 'on'], choices=['off', 'on'],
+        help="the executor's check_releases_at_rest: each plan walked without and with it",
+    )
     args = parser.parse_args()
     from hexacal_identify.core.walk_refine.refinement import full_rank_postures
 
@@ -82,50 +98,53 @@ def main() -> None:
     for model_name in args.models:
         for margin in args.margins:
             for size in args.sizes:
-                row = {'plans': 0, 'jams': 0, 'jammed': 0, 'closest': 0.0, 'outside': 0,
-                       'plan_s': 0.0, 'walk_s': 0.0, 'failed': 0}
+                by_check = {
+                    check: {'plans': 0, 'jams': 0, 'jammed': 0, 'closest': 0.0, 'outside': 0,
+                            'plan_s': 0.0, 'walk_s': 0.0, 'failed': 0}
+                    for check in args.at_rest
+                }
                 for seed in range(args.seeds):
                     t0 = time.perf_counter()
                     try:
                         truth, nominal, calibration, verification = plans(
                             model_name, size, seed, margin == 'on', args.verify_postures)
                     except ValueError as error:  # no release, no margin: the planner refuses
-                        row['failed'] += 1
+                        for row in by_check.values():
+                            row['failed'] += 1
                         print(f'  {model_name} {margin} K={size} seed {seed}: {error}',
                               flush=True)
                         continue
                     t1 = time.perf_counter()
                     first = full_rank_postures(nominal.layout.n_parameters)
-                    walked = [
-                        walk(truth, nominal, calibration, truth,
-                             first if first < size else None),
-                        walk(truth, truth, verification),
-                    ]
-                    t2 = time.perf_counter()
-                    row['plan_s'] += t1 - t0
-                    row['walk_s'] += t2 - t1
-                    for plan_walk in walked:
-                        row['plans'] += 1
-                        row['jams'] += plan_walk.jams
-                        row['jammed'] += plan_walk.jams > 0
-                        row['outside'] += plan_walk.refused
-                        closed = [m.worst_condition for m in plan_walk.moves
-                                  if not m.refused and not m.jammed]
-                        row['closest'] = max(row['closest'], max(closed, default=0.0))
-                    first_jams = [next((m.posture for m in w.moves if m.jammed), None)
-                                  for w in walked]
-                    print(f'  {model_name} {margin} K={size} seed {seed}: jams '
-                          f'{[w.jams for w in walked]} (first at {first_jams}, recovered '
-                          f'{[w.recovered for w in walked]}), '
-                          f'outside {[w.refused for w in walked]}, '
-                          f'worst cond {[round(w.worst_condition) if np.isfinite(w.worst_condition) else "inf" for w in walked]} '  # noqa: E501
-                          f'({t1 - t0:.0f} s plan, {t2 - t1:.0f} s walk)', flush=True)
-                rows.append((model_name, margin, size, row))
+                    for check, row in by_check.items():
+                        t2 = time.perf_counter()
+                        walked = [
+                            walk(truth, nominal, calibration, truth,
+                                 first if first < size else None, check == 'on'),
+                            walk(truth, truth, verification, check_at_rest=check == 'on'),
+                        ]
+                        t3 = time.perf_counter()
+                        row['plan_s'] += t1 - t0
+                        row['walk_s'] += t3 - t2
+                        _count(row, walked)
+                        first_jams = [next((m.posture for m in w.moves if m.jammed), None)
+                                      for w in walked]
+                        worst = [round(w.worst_condition) if np.isfinite(w.worst_condition)
+                                 else 'inf' for w in walked]
+                        print(f'  {model_name} {margin} K={size} seed {seed} at rest {check}: '
+                              f'jams {[w.jams for w in walked]} (first at {first_jams}, '
+                              f'recovered {[w.recovered for w in walked]}), '
+                              f'outside {[w.refused for w in walked]}, worst cond {worst} '
+                              f'({t1 - t0:.0f} s plan, {t3 - t2:.0f} s walk)', flush=True)
+                rows.extend((model_name, margin, size, check, row)
+                            for check, row in by_check.items())
     print()
-    print(f'{"model":14} {"margin":6} {"K":>3} {"plans":>5} {"jams":>5} {"jammed":>6} '
-          f'{"closest cond":>12} {"outside":>7} {"refused":>7} {"plan s":>7} {"walk s":>7}')
-    for model_name, margin, size, row in rows:
-        print(f'{model_name:14} {margin:6} {size:3d} {row["plans"]:5d} {row["jams"]:5d} '
+    print(f'{"model":14} {"margin":6} {"K":>3} {"at rest":>7} {"plans":>5} {"jams":>5} '
+          f'{"jammed":>6} {"closest cond":>12} {"outside":>7} {"refused":>7} {"plan s":>7} '
+          f'{"walk s":>7}')
+    for model_name, margin, size, check, row in rows:
+        print(f'{model_name:14} {margin:6} {size:3d} {check:>7} {row["plans"]:5d} '
+              f'{row["jams"]:5d} '
               f'{row["jammed"]:6d} {row["closest"]:12.0f} {row["outside"]:7d} '
               f'{row["failed"]:7d} {row["plan_s"]:7.0f} {row["walk_s"]:7.0f}')
     print(f'total {time.perf_counter() - started:.0f} s (jams: moves the drive faulted on; '

@@ -199,7 +199,10 @@ def test_a_drive_that_jams_pauses_the_plan_with_the_drives_fault(
     watch = ExecutorWatch(probe)
     driver = ros_processes.start(_driver(truth, measuring_mode='passive_actuator'))
     probe.wait_for_node('driver', process=driver)
-    executor = ros_processes.start(_executor(plan_path, nominal, wait_for_posture=False))
+    # Walked as planned: rehearsed again at rest, the executor would release other chains.
+    executor = ros_processes.start(
+        _executor(plan_path, nominal, wait_for_posture=False, check_releases_at_rest=False)
+    )
     nodes = (driver, executor)
     paused = watch.wait(
         lambda s: s.get('state') in ('paused', 'done') and s, 90.0, 'the pause', *nodes

@@ -10,7 +10,9 @@ the executor commands and the simulated drives take:
   from where the machine stands (``route_command``: by way of the centre where the direct path
   leaves the stroke), blended from the drive's setpoints (``blend_from_setpoints``), on the
   executor's model (the nominal, or the refined model from a checkpoint on: ``refine_at``); the
-  first release is rehearsed again from where the machine stands (``first_releases``);
+  first release is rehearsed again from where the machine stands (``first_releases``), and
+  with ``check_at_rest`` (the default, the executor's ``check_releases_at_rest``) each later
+  one before its move (``release_from_here``, as ``check_release_here`` does);
 * the drive's side (hexacal_driver.drives.DriveFollower on the true machine): the setpoints
   followed segment by segment, solved at most ``CONTINUATION_STEP`` apart (the driver's
   continuation) from the previous pose; a jam or a released actuator past its stroke faults.
@@ -35,6 +37,7 @@ from hexacal_driver.simulation import TrajectoryPoint
 from hexacal_identify.core.architectures import KinematicParameters
 from hexacal_identify.core.machine.device import DEFAULT_MOUNT, fixed_point
 from hexacal_identify.core.modes.passive_actuator import release_conditions
+from hexacal_identify.core.modes.released_actuator import release_from_here
 from hexacal_identify.core.walk.platform_paths import CommandPurpose, eased_command, PathError
 from hexacal_identify.core.walk.platform_paths import route_command
 from hexacal_identify.core.walk.release_choice import first_releases, release_after_fault
@@ -134,6 +137,7 @@ def walk_plan(
     refine_at: int | None = None,
     refined: KinematicParameters | None = None,
     rechoose_first: bool = True,
+    check_at_rest: bool = True,
     recover: bool = True,
     path_step_m: float = PATH_STEP_M,
 ) -> PlanWalk:
@@ -176,6 +180,9 @@ def walk_plan(
             moves.append(MoveWalk(index, released[index], 0.0,
                                   refused='a target outside the stroke'))
             continue
+        if check_at_rest and index > 0:
+            released[index] = _checked_release(model, drive, released[index], pose, poses,
+                                               index, centre, link_length, stroke, mount)
         faulted: set[int] = set()
         first_fault = ''
         while True:
@@ -261,6 +268,19 @@ def _move(drive, truth, model, start, pose, setpoints, stroke, link_length, true
         conditions = release_conditions(truth, np.array(visited), true_link)
         worst = float(np.max(conditions[:, drive.released]))
     return now, worst, command.positions.copy()
+
+
+def _checked_release(model, drive, planned, pose, poses, index, centre, link_length, stroke,
+                     mount):
+    """Return the release the executor walks to `pose`: checked at rest from here."""
+    if planned is None or drive.released is None:
+        return planned
+    here = _estimate(model, drive.actuators, [poses[index - 1], pose, centre], link_length, mount)
+    if here is None:
+        return planned
+    chosen = release_from_here(model, here, drive.actuators.copy(), drive.released, pose,
+                               link_length, stroke, (), mount=mount, prefer=planned)
+    return planned if chosen is None else chosen
 
 
 def _estimate(model, actuators, guesses, link_length, mount) -> np.ndarray | None:

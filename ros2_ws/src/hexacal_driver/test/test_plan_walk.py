@@ -19,7 +19,8 @@ RELEASED = 4
 def _walk(model):
     truth = architecture(GS).default_parameters()
     return walk_plan(truth, model, np.array([CENTRE, TILTED]), [RELEASED, RELEASED], L,
-                     default_stroke(truth), rechoose_first=False, recover=False)
+                     default_stroke(truth), rechoose_first=False, check_at_rest=False,
+                     recover=False)
 
 
 def test_a_move_walked_on_the_executors_model_equal_to_the_machine_does_not_jam():
@@ -42,7 +43,8 @@ def test_the_same_move_on_a_nominal_unlike_the_machine_jams_the_drive():
 def test_after_the_jam_the_executors_recovery_releases_another_chain_and_reaches_it():
     truth = architecture(GS).default_parameters()
     walked = walk_plan(truth, nominal_set(2, seed=1, model=GS), np.array([CENTRE, TILTED]),
-                       [RELEASED, RELEASED], L, default_stroke(truth), rechoose_first=False)
+                       [RELEASED, RELEASED], L, default_stroke(truth), rechoose_first=False,
+                       check_at_rest=False)
     move = walked.moves[1]
     assert 'jam' in move.fault and 'leg_5' in move.fault and walked.jams == 1
     # Reset and resumed, another chain is released from where the machine stood: it closes
@@ -50,3 +52,13 @@ def test_after_the_jam_the_executors_recovery_releases_another_chain_and_reaches
     assert move.recovered and walked.recovered == 1
     assert move.released != RELEASED and walked.released[1] == move.released
     assert move.worst_condition < 100.0
+
+
+def test_checked_at_rest_before_the_move_another_chain_is_released_and_nothing_jams():
+    # The executor's check_releases_at_rest: the move rehearsed again from where the machine
+    # stands, on the executor's model and machines like it, before anything moves.
+    truth = architecture(GS).default_parameters()
+    walked = walk_plan(truth, nominal_set(2, seed=1, model=GS), np.array([CENTRE, TILTED]),
+                       [RELEASED, RELEASED], L, default_stroke(truth), rechoose_first=False)
+    assert walked.jams == 0 and walked.recovered == 0
+    assert walked.released[1] != RELEASED and walked.worst_condition < 100.0

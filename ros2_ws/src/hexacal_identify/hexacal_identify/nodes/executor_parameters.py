@@ -121,6 +121,13 @@ PARAMETERS: dict[str, _Spec] = {
         'the inclinometer joints alpha (about X), beta (about Y) of the inclinometer input (rad)',
         constraints='two distinct names',
     ),
+    'check_releases_at_rest': _Spec(
+        SETTINGS.check_releases_at_rest,
+        "passive_actuator: before each move after the first, at rest, rehearse the posture's "
+        'release again from where the machine stands (on the model and machines like it) and '
+        "release another chain if it may jam (false: the plan's releases as planned; the "
+        'guard and the recovery after a drive fault still act)',
+    ),
     'wait_for_posture': _Spec(
         True,
         "wait for the collector's posture at each stop (false: move on once the machine is still)",

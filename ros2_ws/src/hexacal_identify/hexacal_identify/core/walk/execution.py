@@ -61,7 +61,8 @@ from .messages import LogLevel, Messages, ReadingWindow
 from .platform_paths import Command, CommandPurpose, eased_command
 from .platform_paths import path_command, PathError, route_command, setpoints_at
 from .progress import eta_s, progress, summary, UNDER_WAY
-from .release_choice import choose_first_release, hear_release, rechoose_release
+from .release_choice import check_release_here, choose_first_release, hear_release
+from .release_choice import rechoose_release
 from .release_choice import ReleaseRequest
 from .settings import ExecutionSettings, ExecutionState, GuardStop, Phase, PostureOutcome
 from .standing import blend_from_setpoints, estimate_pose
@@ -504,6 +505,8 @@ class PlanExecution:
                 if self.refine_at and self.measured >= self.refine_at[0]:
                     return self._ask_refinement()
             self.posture_start = now
+            if fresh and self.settings.check_releases_at_rest:
+                check_release_here(self)
             wanted = self.released[self.index]
             if wanted != self.released_now:  # at rest: swap the released chain first
                 self.release_request = ReleaseRequest(self.index, self.released_now, wanted)

@@ -14,8 +14,10 @@ the released chain is locked: the machine is left a machine, every actuator held
 * `first_releases`: the planner cannot know where the first move starts; if the plan's first
   release is not safe from where the machine stands, the whole plan's releases are rehearsed
   again from there.
-* `hear_release`, `choose_first_release`, `rechoose_release`: what `PlanExecution` does with
-  the drive's answers and its releases (the walk is their first argument).
+* `hear_release`, `choose_first_release`, `check_release_here`, `rechoose_release`: what
+  `PlanExecution` does with the drive's answers and its releases (the walk is their first
+  argument); before each later move, at rest, the posture's release is rehearsed again from
+  where the machine stands and another chain released if it may jam.
 * `release_after_fault`: after a drive fault with a chain released (most likely a jam of the
   five commanded and the link), another chain is released for the rest of the move.
 """
@@ -188,6 +190,39 @@ def choose_first_release(walk: PlanExecution) -> None:
         walk._say(LogLevel.INFO, text)
 
 
+def check_release_here(walk: PlanExecution) -> None:
+    """
+    At rest before a posture's move, keep its release only if the move is safe from here.
+
+    The planner rehearsed each move from the posture before as the nominal stands there;
+    the machine stands where the true machine put it.  The posture's release is rehearsed
+    again from here on the walk's model and machines like it (``release_from_here``, as for
+    the first move); if it may jam, another chain is released instead, before anything moves
+    (a jam found by the drive faults it and pauses the plan).  The first posture is
+    `choose_first_release`'s.
+    """
+    from ..modes.released_actuator import release_from_here
+
+    planned = walk.released[walk.index] if 0 < walk.index < walk.total else None
+    here, latest = walk._estimate(), walk.actuators.latest
+    if planned is None or walk.released_now is None or here is None or latest is None:
+        return
+    chosen = release_from_here(
+        walk.nominal, here, latest, walk.released_now, walk.poses[walk.index],
+        walk.link_length, walk.stroke, (), mount=walk.mount, prefer=planned,
+    )
+    if chosen is None or chosen == planned:
+        return  # safe as planned, or nothing is safer: the guard still watches
+    names = walk.nominal.layout.actuator_names
+    walk.released[walk.index] = chosen
+    walk._say(
+        LogLevel.WARN,
+        f'posture {walk.index + 1} of {walk.total}: from where the machine stands the move '
+        f'may jam with {names[planned]} released (rehearsed on machines like the model); '
+        f'{names[chosen]} is released instead',
+    )
+
+
 def rechoose_release(walk: PlanExecution) -> None:
     """
     After a drive fault with a chain released, release another for the rest of the move.
@@ -213,6 +248,7 @@ def rechoose_release(walk: PlanExecution) -> None:
 
 
 __all__ = [
+    'check_release_here',
     'choose_first_release',
     'first_releases',
     'hear_release',

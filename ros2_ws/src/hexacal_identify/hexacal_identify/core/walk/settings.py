@@ -44,6 +44,11 @@ class ExecutionSettings:
     # A correction smaller than this goes this far beyond its target and back (m; 0: never),
     # so the collector sees a move (core/walk/arrival.py's nudge).
     correction_nudge_m: float = 1e-3
+    # passive_actuator: before each later move, at rest, rehearse the posture's release again
+    # from where the machine stands and release another chain if it may jam
+    # (release_choice.check_release_here); False walks the plan's releases as planned (the
+    # guard and the recovery after a drive fault still act).
+    check_releases_at_rest: bool = True
 
     def __post_init__(self) -> None:
         problems = []
