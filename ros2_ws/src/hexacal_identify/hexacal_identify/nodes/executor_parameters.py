@@ -92,8 +92,8 @@ PARAMETERS: dict[str, _Spec] = {
         SETTINGS.path_step_m,
         'a move goes along the link sphere through '
         'points at most this far apart (m; also this / L rad in each angle), so '
-        'the platform stays where the measuring link lets it; 0: one-point '
-        'commands (joint-space moves)',
+        'the platform stays where the measuring link lets it; 0: straight moves in joint '
+        'space (no points on the sphere)',
         0.0,
         1.0,
     ),
@@ -112,7 +112,7 @@ PARAMETERS: dict[str, _Spec] = {
         'a fixed-position correction smaller than this goes this far beyond its target and '
         'back (m), so the collector, which takes one posture per stationary period, sees a '
         'move and measures the corrected position; above its slider_tolerance_m; 0: '
-        'one-point corrections',
+        'straight corrections',
         0.0,
         0.01,
     ),

@@ -36,7 +36,7 @@ class ExecutionSettings:
     fixed_tolerance_rad: float = 2e-5
     max_corrections: int = 5
     wait_for_posture: bool = True
-    path_step_m: float = 0.02  # 0: one-point commands
+    path_step_m: float = 0.02  # 0: straight moves in joint space (no points on the sphere)
     # Fixed-position loop: the two windows in which the inclinometer must have settled (s);
     # 0: judge the mean over settle_s once the actuators are still
     # (core/walk_device/inclinometer.py).
