@@ -302,8 +302,8 @@ class PhysicsMachine:
                     data.ctrl[:] = target
                     if s >= 1.0:
                         self._move = None
-                if self._released is not None and self._released.ramping:
-                    self._ramp_release(self._released)
+                if self._releasing:
+                    self._ramp_release()
                 n = min(steps_per_control, remaining)
                 mj.mj_step(model, data, nstep=n)
                 remaining -= n
@@ -314,6 +314,11 @@ class PhysicsMachine:
             self.wall_s += time.perf_counter() - started
             self.cpu_s += time.process_time() - cpu_started
 
+    @property
+    def _releasing(self) -> bool:
+        """Return True while the released drive is still letting go (release's ramp)."""
+        return self._released is not None and self._released.ramping
+
     def release_left_s(self) -> float:
         """Return how long the released drive still takes to let go (s; 0: it has)."""
         released = self._released
@@ -322,8 +327,11 @@ class PhysicsMachine:
         left = released.start_s + self.physical.release_ramp_s - self.time_s
         return left if left > _CLOCK_ROUNDING_S else 0.0
 
-    def _ramp_release(self, released: _Released) -> None:
+    def _ramp_release(self) -> None:
         """Scale the released drive's gains down along its ramp (release's doc)."""
+        released = self._released
+        if released is None:
+            return
         fraction = (self.time_s - released.start_s) / self.physical.release_ramp_s
         scale = 1.0 - float(smooth_step(fraction))
         kp, bias_p, bias_d = released.gains
@@ -331,9 +339,7 @@ class PhysicsMachine:
         model.actuator_gainprm[chain, 0] = kp * scale
         model.actuator_biasprm[chain, 1] = bias_p * scale
         model.actuator_biasprm[chain, 2] = bias_d * scale
-        released.ramping = fraction * self.physical.release_ramp_s < (
-            self.physical.release_ramp_s - _CLOCK_ROUNDING_S
-        )
+        released.ramping = self.release_left_s() > 0.0
 
     def settle(self, max_seconds: float, speed: float = REST_SPEED) -> bool:
         """Advance until at rest (True) or ``max_seconds`` passed (False); rest below ``speed``."""
@@ -357,15 +363,14 @@ class PhysicsMachine:
         """
         return (
             self._move is None
-            and not (self._released is not None and self._released.ramping)
+            and not self._releasing
             and self._rest_since is not None
             and self.time_s - self._rest_since >= REST_HOLD_S - 1e-9
         )
 
     def _track_rest(self) -> None:
-        ramping = self._released is not None and self._released.ramping
         still = (
-            self._move is None and not ramping
+            self._move is None and not self._releasing
             and float(np.max(np.abs(self.data.qvel))) < self._rest_speed
         )
         if not still:

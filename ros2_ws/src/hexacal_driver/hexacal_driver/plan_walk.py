@@ -12,7 +12,7 @@ the executor commands and the simulated drives take:
   executor's model (the nominal, or the refined model from a checkpoint on: ``refine_at``); the
   first release is rehearsed again from where the machine stands (``first_releases``), and
   with ``check_at_rest`` (the default, the executor's ``check_releases_at_rest``) each later
-  one before its move (``release_from_here``, as ``check_release_here`` does);
+  one before its move (``release_checked_here``, as the executor does);
 * the drive's side (hexacal_driver.drives.DriveFollower on the true machine): the setpoints
   followed segment by segment, solved at most ``CONTINUATION_STEP`` apart (the driver's
   continuation) from the previous pose; a jam or a released actuator past its stroke faults.
@@ -37,10 +37,10 @@ from hexacal_driver.simulation import TrajectoryPoint
 from hexacal_identify.core.architectures import KinematicParameters
 from hexacal_identify.core.machine.device import DEFAULT_MOUNT, fixed_point
 from hexacal_identify.core.modes.passive_actuator import release_conditions
-from hexacal_identify.core.modes.released_actuator import release_from_here
 from hexacal_identify.core.walk.platform_paths import CommandPurpose, eased_command, PathError
 from hexacal_identify.core.walk.platform_paths import route_command
 from hexacal_identify.core.walk.release_choice import first_releases, release_after_fault
+from hexacal_identify.core.walk.release_choice import release_checked_here
 from hexacal_identify.core.walk.standing import blend_from_setpoints, estimate_pose
 from hexacal_msgs_py.measuring_modes import MeasuringMode
 import numpy as np
@@ -278,9 +278,8 @@ def _checked_release(model, drive, planned, pose, poses, index, centre, link_len
     here = _estimate(model, drive.actuators, [poses[index - 1], pose, centre], link_length, mount)
     if here is None:
         return planned
-    chosen = release_from_here(model, here, drive.actuators.copy(), drive.released, pose,
-                               link_length, stroke, (), mount=mount, prefer=planned)
-    return planned if chosen is None else chosen
+    return release_checked_here(model, here, drive.actuators.copy(), drive.released, pose,
+                                planned, link_length, stroke, mount)
 
 
 def _estimate(model, actuators, guesses, link_length, mount) -> np.ndarray | None:

@@ -27,8 +27,9 @@ from .release_moves import move
 from ..architectures import KinematicParameters
 from ..fit.statics import MassModel, static_loads
 from ..machine.device import DEFAULT_MOUNT
+from ..walk.settings import ExecutionSettings
 
-MOVE_STEP_M = 0.02  # the executor's default path_step_m: a move's statics sampled this often
+MOVE_STEP_M = ExecutionSettings().path_step_m  # a move's statics sampled as the executor paths it
 
 
 @dataclass(frozen=True)

@@ -190,6 +190,33 @@ def choose_first_release(walk: PlanExecution) -> None:
         walk._say(LogLevel.INFO, text)
 
 
+def release_checked_here(
+    nominal: KinematicParameters,
+    here: np.ndarray,
+    actuators: np.ndarray,
+    released_now: int,
+    pose: np.ndarray,
+    planned: int,
+    link_length: float,
+    stroke: tuple[float, float],
+    mount: str,
+) -> int:
+    """
+    Return the chain to release for the move from `here` (at rest) to `pose`.
+
+    `planned` if the move closes with it on `nominal` and machines like it
+    (``release_from_here``), else another chain that does; `planned` when none does (the guard
+    still watches).
+    """
+    from ..modes.released_actuator import release_from_here
+
+    chosen = release_from_here(
+        nominal, here, actuators, released_now, pose, link_length, stroke, (), mount=mount,
+        prefer=planned,
+    )
+    return planned if chosen is None else chosen
+
+
 def check_release_here(walk: PlanExecution) -> None:
     """
     At rest before a posture's move, keep its release only if the move is safe from here.
@@ -201,18 +228,16 @@ def check_release_here(walk: PlanExecution) -> None:
     (a jam found by the drive faults it and pauses the plan).  The first posture is
     `choose_first_release`'s.
     """
-    from ..modes.released_actuator import release_from_here
-
     planned = walk.released[walk.index] if 0 < walk.index < walk.total else None
     here, latest = walk._estimate(), walk.actuators.latest
     if planned is None or walk.released_now is None or here is None or latest is None:
         return
-    chosen = release_from_here(
-        walk.nominal, here, latest, walk.released_now, walk.poses[walk.index],
-        walk.link_length, walk.stroke, (), mount=walk.mount, prefer=planned,
+    chosen = release_checked_here(
+        walk.nominal, here, latest, walk.released_now, walk.poses[walk.index], planned,
+        walk.link_length, walk.stroke, walk.mount,
     )
-    if chosen is None or chosen == planned:
-        return  # safe as planned, or nothing is safer: the guard still watches
+    if chosen == planned:
+        return
     names = walk.nominal.layout.actuator_names
     walk.released[walk.index] = chosen
     walk._say(
@@ -254,5 +279,6 @@ __all__ = [
     'hear_release',
     'rechoose_release',
     'release_after_fault',
+    'release_checked_here',
     'ReleaseRequest',
 ]
