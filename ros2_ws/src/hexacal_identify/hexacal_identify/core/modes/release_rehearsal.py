@@ -48,6 +48,8 @@ DEFAULT_MODEL_SAMPLES = 8  # machines besides the nominal a release is rehearsed
 DEFAULT_JOINT_STEP_M = 0.01  # a continuation step that follows the branch; the drive's is 5 mm
 # Closing to 1 nm is plenty to follow a branch (the driver closes to 1e-12 m): fewer iterations.
 REHEARSAL_TOLERANCE_M = 1e-9
+# Samples on the way need only stay on the branch: Newton's next pass closes 0.1 mm to ~1e-8.
+PATH_TOLERANCE_M = 1e-4
 NOMINAL_ERROR_SET = 2  # Table 2's set of a machine built to its drawing
 
 
@@ -155,7 +157,8 @@ def rehearse(
     alive = np.ones((count, machine_count), bool)
     worst = np.zeros((count, machine_count))
     low, high = stroke[0] + margin_m, stroke[1] - margin_m
-    for sample in setpoints:
+    for s, sample in enumerate(setpoints):
+        tolerance = REHEARSAL_TOLERANCE_M if s == len(setpoints) - 1 else PATH_TOLERANCE_M
         for k, machine in enumerate(machines):
             rows = np.flatnonzero(alive[:, k])
             if not rows.size:
@@ -163,7 +166,7 @@ def rehearse(
             released = candidates[rows]
             solved = solve_passive(
                 machine, np.repeat(sample[k][None], len(rows), axis=0), released,
-                poses[rows, k], link_length, mount, tolerance=REHEARSAL_TOLERANCE_M,
+                poses[rows, k], link_length, mount, tolerance=tolerance,
             )
             ok = solved.converged
             alive[rows[~ok], k] = False
@@ -569,19 +572,18 @@ class _Continuation:
             values, _ = self._evaluate(rows[finite], self.poses[finite])
             self._keep(rows[finite], values)
         self._begin(rows)
-        tolerance = REHEARSAL_TOLERANCE_M
         with np.errstate(all='ignore'):  # rows done or jammed compute NaN, never kept
             while True:
                 walking = alive & (self.sample < self.counts)
                 if not walking.any():
                     break
-                open_ = ((self.error >= tolerance) & (self.stalls < MAX_STALLS)
+                open_ = ((self.error >= self._tolerance()) & (self.stalls < MAX_STALLS)
                          & (self.iterations < MAX_ITERATIONS))
                 settled = walking & ~open_
                 if settled.any():
                     self._settle(settled, alive, low, high)
                     walking = alive & (self.sample < self.counts)
-                    open_ = ((self.error >= tolerance) & (self.stalls < MAX_STALLS)
+                    open_ = ((self.error >= self._tolerance()) & (self.stalls < MAX_STALLS)
                              & (self.iterations < MAX_ITERATIONS))
                 stepping = walking & open_
                 if stepping.any():
@@ -596,9 +598,12 @@ class _Continuation:
         self.actuators[~alive] = np.nan
         return alive, worst
 
+    def _tolerance(self) -> np.ndarray:
+        return np.where(self.sample >= self.counts - 1, REHEARSAL_TOLERANCE_M, PATH_TOLERANCE_M)
+
     def _settle(self, settled, alive, low, high) -> None:
         """End each settled row's sample: closed on its branch and inside the stroke, or dead."""
-        converged = settled & (self.error < REHEARSAL_TOLERANCE_M)
+        converged = settled & (self.error < self._tolerance())
         poses, begun = self.poses, self.begun
         jump = _radius(poses - begun)
         turn = np.abs(wrap_angle(poses[:, 3:] - begun[:, 3:])).max(axis=1)
