@@ -49,6 +49,10 @@ EXIT_OK, EXIT_FAILED = 0, 1
 
 # The paper's procedure: the planner rehearses every move's release.
 DEMO_MEASURING_MODE = MeasuringMode.PASSIVE_ACTUATOR.value
+# The executor's speed limit (m/s, rad/s for cranks); the simulated drive follows at twice it,
+# and the driver's parameter caps that at 10.
+EXECUTOR_SPEED_M_S = 0.5
+MAX_ACTUATOR_SPEED = 5.0
 
 # Names of the demo's parts kept importable from here; their modules load on first use.
 _MOVED = {
@@ -57,7 +61,6 @@ _MOVED = {
     'DRIVE_FAULT_NOTICE': 'demo_session',
     'claim_domain_id': 'demo_run',
     'DemoPaths': 'demo_run',
-    'EXECUTOR_SPEED_M_S': 'demo_run',
     'DRIVER_SPEED_M_S': 'demo_run',
     'COLLECTOR_WINDOWS': 'demo_run',
     'PLAN_CANDIDATES': 'demo_run',
@@ -184,6 +187,14 @@ def add_parsers(subparsers) -> None:
     )
     parser.add_argument('--rate-hz', type=float, default=100.0, help='sensor rate (default 100)')
     parser.add_argument(
+        '--actuator-speed',
+        type=float,
+        default=0.5,
+        metavar='SPEED',
+        help="the executor's fastest actuator move (m/s; rad/s for actuators that turn; "
+        'default 0.5, at most 5); the simulated drives follow at up to twice that',
+    )
+    parser.add_argument(
         '--sensor-effects',
         default='all',
         metavar='TEXT',
@@ -277,10 +288,14 @@ def _check_args(args) -> None:
             f'--postures must be at least {minimum} ({count} parameters, 4 residuals '
             f'per posture), got {args.postures}'
         )
-    for name in ('noise_um', 'settle_s', 'dwell_s', 'rate_hz'):
+    for name in ('noise_um', 'settle_s', 'dwell_s', 'rate_hz', 'actuator_speed'):
         value = getattr(args, name)
         if not math.isfinite(value) or value < 0 or (name != 'noise_um' and value == 0):
             raise ValueError(f'--{name.replace("_", "-")} must be positive, got {value}')
+    if args.actuator_speed > MAX_ACTUATOR_SPEED:
+        raise ValueError(
+            f'--actuator-speed must be at most {MAX_ACTUATOR_SPEED}, got {args.actuator_speed}'
+        )
     if args.verify_postures < 0:
         raise ValueError(f'--verify-postures must be 0 or more, got {args.verify_postures}')
 

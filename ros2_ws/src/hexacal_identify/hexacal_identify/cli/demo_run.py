@@ -29,6 +29,7 @@ from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 
 from .demo import (
     DemoError,
+    EXECUTOR_SPEED_M_S,
     EXIT_FAILED,
     EXIT_OK,
     measuring_mode,
@@ -45,10 +46,10 @@ from .demo_summary import build_summary, SUMMARY_FILE, write_summary
 if TYPE_CHECKING:
     from ..bringup.launch_spec import NodeLaunch
 
-# Executor and commanded driver: moves at up to 0.5 m/s (executor) on a machine that follows at 1
-# m/s; the collector's detector window 0.2 s + capture 0.3 s (the executor waits for each posture).
-EXECUTOR_SPEED_M_S = 0.5
-DRIVER_SPEED_M_S = 1.0
+# Executor and commanded driver: moves at up to --actuator-speed (0.5 m/s) on a machine that
+# follows at twice it; the collector's detector window 0.2 s + capture 0.3 s (the executor waits
+# for each posture).
+DRIVER_SPEED_M_S = 2 * EXECUTOR_SPEED_M_S  # at the default --actuator-speed
 COLLECTOR_WINDOWS = {'window_s': 0.2, 'capture_s': 0.3}
 PLAN_CANDIDATES = 1000
 # The supervisor stops the machine first, so that the collector records to the end.
@@ -205,6 +206,11 @@ def _link_load(args: argparse.Namespace):
     return LinkLoad(MassModel.from_physical(description))
 
 
+def _speed(args: argparse.Namespace) -> float:
+    """Return the executor's speed limit, --actuator-speed (m/s, rad/s for cranks)."""
+    return float(getattr(args, 'actuator_speed', EXECUTOR_SPEED_M_S))
+
+
 def system_launches(
     args: argparse.Namespace, paths: DemoPaths, plan: Path, nominal: Path, *, refine: bool
 ) -> dict[str, NodeLaunch]:
@@ -239,7 +245,7 @@ def system_launches(
         },
         executor={
             'nominal': str(nominal),
-            'max_actuator_speed_m_s': EXECUTOR_SPEED_M_S,
+            'max_actuator_speed_m_s': _speed(args),
             'settle_s': float(args.settle_s),
             'timeout_s': 30.0 + float(args.dwell_s),
             'refine_targets': bool(refine),
@@ -247,7 +253,7 @@ def system_launches(
         },
         driver={
             'true_params': str(paths.true_params),
-            'max_actuator_speed_m_s': DRIVER_SPEED_M_S,
+            'max_actuator_speed_m_s': 2.0 * _speed(args),
             'rate_hz': float(args.rate_hz),
             'seed': args.seed,
             'slider_noise_m': noise,
