@@ -28,6 +28,16 @@ def test_the_speed_goes_to_the_executor_and_twice_it_to_the_drive(tmp_path):
     assert _speeds(_arguments('--actuator-speed', '1.5'), tmp_path) == (1.5, 3.0)
 
 
+def test_the_released_machine_on_mujoco_moves_slower_unless_told():
+    slow = demo.PASSIVE_PHYSICS_SPEED
+    assert slow < demo.EXECUTOR_SPEED_M_S
+    assert demo.actuator_speed(_arguments('--physics', 'mujoco')) == slow
+    assert demo.actuator_speed(
+        _arguments('--physics', 'mujoco', '--measuring-mode', 'lvdt')
+    ) == demo.EXECUTOR_SPEED_M_S
+    assert demo.actuator_speed(_arguments('--physics', 'mujoco', '--actuator-speed', '0.4')) == 0.4
+
+
 @pytest.mark.parametrize('speed', ['0', '-1', 'nan', '5.5'])
 def test_a_speed_out_of_range_is_refused_by_name(speed):
     with pytest.raises(ValueError, match='--actuator-speed'):

@@ -52,6 +52,9 @@ DEMO_MEASURING_MODE = MeasuringMode.PASSIVE_ACTUATOR.value
 # The executor's speed limit (m/s, rad/s for cranks); the simulated drive follows at twice it,
 # and the driver's parameter caps that at 10.
 EXECUTOR_SPEED_M_S = 0.5
+# passive_actuator on the MuJoCo machine: the link bears the motion's inertia with one chain
+# released (Hexa Slide moves at 0.5 m/s: up to 2.3x its static load; at 0.25 m/s within 10 %).
+PASSIVE_PHYSICS_SPEED = 0.25
 MAX_ACTUATOR_SPEED = 5.0
 
 # Names of the demo's parts kept importable from here; their modules load on first use.
@@ -189,10 +192,12 @@ def add_parsers(subparsers) -> None:
     parser.add_argument(
         '--actuator-speed',
         type=float,
-        default=0.5,
+        default=None,
         metavar='SPEED',
-        help="the executor's fastest actuator move (m/s; rad/s for actuators that turn; "
-        'default 0.5, at most 5); the simulated drives follow at up to twice that',
+        help="the executor's fastest actuator move (m/s; rad/s for actuators that turn; at "
+        f'most {MAX_ACTUATOR_SPEED:g}; default {EXECUTOR_SPEED_M_S}, or {PASSIVE_PHYSICS_SPEED} '
+        "in passive_actuator with --physics mujoco, where the released machine's inertia "
+        'loads the measuring link); the simulated drives follow at up to twice that',
     )
     parser.add_argument(
         '--sensor-effects',
@@ -258,6 +263,16 @@ def physics(args: argparse.Namespace) -> str:
     return str(given or getattr(args, 'physics', None) or 'kinematic')
 
 
+def actuator_speed(args: argparse.Namespace) -> float:
+    """Return the executor's speed limit: --actuator-speed, else the mode's and machine's."""
+    speed = getattr(args, 'actuator_speed', None)
+    if speed is not None:
+        return float(speed)
+    if physics(args) == 'mujoco' and measuring_mode(args) == 'passive_actuator':
+        return PASSIVE_PHYSICS_SPEED
+    return EXECUTOR_SPEED_M_S
+
+
 def _driver_param(text: str) -> tuple[str, object]:
     """
     Parse NAME=VALUE: true/false a bool, digits an int, other numbers a float, else text.
@@ -290,9 +305,11 @@ def _check_args(args) -> None:
         )
     for name in ('noise_um', 'settle_s', 'dwell_s', 'rate_hz', 'actuator_speed'):
         value = getattr(args, name)
+        if value is None:  # --actuator-speed by default: actuator_speed(args)
+            continue
         if not math.isfinite(value) or value < 0 or (name != 'noise_um' and value == 0):
             raise ValueError(f'--{name.replace("_", "-")} must be positive, got {value}')
-    if args.actuator_speed > MAX_ACTUATOR_SPEED:
+    if args.actuator_speed is not None and args.actuator_speed > MAX_ACTUATOR_SPEED:
         raise ValueError(
             f'--actuator-speed must be at most {MAX_ACTUATOR_SPEED}, got {args.actuator_speed}'
         )

@@ -28,6 +28,7 @@ from hexacal_msgs_py.measuring_modes import (
 from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 
 from .demo import (
+    actuator_speed,
     DemoError,
     EXECUTOR_SPEED_M_S,
     EXIT_FAILED,
@@ -206,11 +207,6 @@ def _link_load(args: argparse.Namespace):
     return LinkLoad(MassModel.from_physical(description))
 
 
-def _speed(args: argparse.Namespace) -> float:
-    """Return the executor's speed limit, --actuator-speed (m/s, rad/s for cranks)."""
-    return float(getattr(args, 'actuator_speed', EXECUTOR_SPEED_M_S))
-
-
 def system_launches(
     args: argparse.Namespace, paths: DemoPaths, plan: Path, nominal: Path, *, refine: bool
 ) -> dict[str, NodeLaunch]:
@@ -245,7 +241,7 @@ def system_launches(
         },
         executor={
             'nominal': str(nominal),
-            'max_actuator_speed_m_s': _speed(args),
+            'max_actuator_speed_m_s': actuator_speed(args),
             'settle_s': float(args.settle_s),
             'timeout_s': 30.0 + float(args.dwell_s),
             'refine_targets': bool(refine),
@@ -253,7 +249,7 @@ def system_launches(
         },
         driver={
             'true_params': str(paths.true_params),
-            'max_actuator_speed_m_s': 2.0 * _speed(args),
+            'max_actuator_speed_m_s': 2.0 * actuator_speed(args),
             'rate_hz': float(args.rate_hz),
             'seed': args.seed,
             'slider_noise_m': noise,
