@@ -5,7 +5,7 @@
 * Each bag's raw streams replayed (`replay`) into a fresh collector + identify:
   the collector re-detects the bag's postures (same count, same values within
   the noise) and the calibration matches the truth the bag was made with.
-* Each bag's posture topic replayed straight into identify: the published
+* The posture topic of each cost and model replayed straight into identify: the published
   parameters equal `hexacal calibrate` of the same bag to 1e-9.
 
 The Hexa Slide bags were made on Table 1, the Gough-Stewart bag on the default
@@ -44,6 +44,9 @@ SAMPLES = {
 # Re-detected from their raw streams: fixed positions, exact data, the other model (the fourth,
 # sphere50_noise10, is a Hexa Slide of the same kind as sphere60_fixed20_noise10).
 RAW_SAMPLES = ('sphere60_fixed20_noise10', 'sphere30_nonoise', 'gs_sphere50_noise10')
+# Replayed as postures into identify: each cost and model once (sphere30_nonoise's exact data
+# are calibrated online from its raw streams above).
+POSTURE_SAMPLES = ('sphere60_fixed20_noise10', 'sphere50_noise10', 'gs_sphere50_noise10')
 # The machine model of each bag (default: the Hexa Slide).
 MODELS = {'gs_sphere50_noise10': 'gough_stewart'}
 RAW_TOPICS = ['/hexacal/sliders', '/hexacal/inclinometer', '/hexacal/encoder']
@@ -166,7 +169,7 @@ def test_raw_streams_replayed_into_collector_and_identify(name, ros_processes, t
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize('name', sorted(SAMPLES))
+@pytest.mark.parametrize('name', sorted(POSTURE_SAMPLES))
 def test_posture_topic_replayed_into_identify_equals_offline_calibration(
     name, ros_processes, tmp_path, probe
 ):
