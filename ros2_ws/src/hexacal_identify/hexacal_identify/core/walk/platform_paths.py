@@ -22,7 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 import enum
 import math
-from typing import Any
 
 import numpy as np
 
@@ -37,7 +36,6 @@ MIN_MOVE_S = 0.1  # shortest time_from_start of a command (a zero time asks a co
 EASED_STEP_S = 0.02
 # An eased move reaches its speed limit no faster than this: acceleration <= speed / RAMP_S.
 RAMP_S = 0.25
-STEEPNESS_SAMPLES_PER_VERTEX = 8  # where a move's curve is searched for its steepest slope
 CORNER_COS = 0.5  # a path turning by more than 60 deg between two segments stops there
 _QUINTIC_PEAK_SPEED = 1.875  # the quintic law's largest speed over its mean
 _QUINTIC_PEAK_ACCELERATION = 10.0 / math.sqrt(3.0)  # its largest acceleration, x distance / T^2
@@ -274,42 +272,19 @@ def _eased_leg(
     """Return the points after the first vertex and their times along one leg (quintic)."""
     along = np.concatenate([[0.0], np.cumsum(lengths)])
     total = float(along[-1])
-    curve, stretch = _smooth_through(vertices, along)
-    distance = total * stretch  # what the fastest actuator travels at the curve's steepest
     duration = max(
         MIN_MOVE_S,
-        _QUINTIC_PEAK_SPEED * distance / max_speed_m_s,
-        math.sqrt(_QUINTIC_PEAK_ACCELERATION * distance * RAMP_S / max_speed_m_s),
+        _QUINTIC_PEAK_SPEED * total / max_speed_m_s,
+        math.sqrt(_QUINTIC_PEAK_ACCELERATION * total * RAMP_S / max_speed_m_s),
     )
     count = max(1, math.ceil(duration / EASED_STEP_S - 1e-9))
     times = duration * np.arange(1, count + 1) / count
-    points = curve(smooth_step(times / duration) * total)
+    travelled = smooth_step(times / duration) * total
+    points = np.column_stack(
+        [np.interp(travelled, along, vertices[:, j]) for j in range(vertices.shape[1])]
+    )
     points[-1] = vertices[-1]
     return points, times
-
-
-def _smooth_through(vertices: np.ndarray, along: np.ndarray) -> tuple[Any, float]:
-    """
-    Return the path through `vertices` at distances `along` as a C1 curve, and its steepness.
-
-    Followed along the polyline, a move changes direction at every vertex, a step in each
-    actuator's speed: on the MuJoCo Hexa Slide the vertices 20 mm apart, passed at 0.25 m/s,
-    shook the released passive system's softest mode (about 15 Hz) and the link by +-450 N about
-    its static load.  PCHIP per actuator keeps each between its vertex values (no overshoot past
-    the stroke) and its speed continuous.  The steepness (>= 1) is the curve's largest
-    actuator travel per unit of `along`: the time law is stretched by it to keep the limits.
-    """
-    from scipy.interpolate import PchipInterpolator
-
-    distinct = np.concatenate([[True], np.diff(along) > 0])
-    if np.count_nonzero(distinct) < 3:
-        return (lambda at: np.column_stack(
-            [np.interp(at, along, vertices[:, j]) for j in range(vertices.shape[1])]
-        )), 1.0
-    curve = PchipInterpolator(along[distinct], vertices[distinct], axis=0)
-    grid = np.linspace(0.0, along[-1], STEEPNESS_SAMPLES_PER_VERTEX * len(along))
-    steepness = float(np.max(np.abs(curve.derivative()(grid))))
-    return curve, max(1.0, steepness)
 
 
 def setpoints_at(start: np.ndarray, command: Command, elapsed_s: float) -> np.ndarray:
