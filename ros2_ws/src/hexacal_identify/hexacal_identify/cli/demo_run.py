@@ -50,7 +50,8 @@ if TYPE_CHECKING:
 # Executor and commanded driver: moves at up to --actuator-speed (0.5 m/s) on a machine that
 # follows at twice it; the collector's detector window 0.2 s + capture 0.3 s (the executor waits
 # for each posture).
-DRIVER_SPEED_M_S = 2 * EXECUTOR_SPEED_M_S  # at the default --actuator-speed
+DRIVER_SPEED_FACTOR = 2.0  # the simulated drive's speed limit over the executor's
+DRIVER_SPEED_M_S = DRIVER_SPEED_FACTOR * EXECUTOR_SPEED_M_S  # at the default --actuator-speed
 COLLECTOR_WINDOWS = {'window_s': 0.2, 'capture_s': 0.3}
 PLAN_CANDIDATES = 1000
 # The supervisor stops the machine first, so that the collector records to the end.
@@ -249,7 +250,7 @@ def system_launches(
         },
         driver={
             'true_params': str(paths.true_params),
-            'max_actuator_speed_m_s': 2.0 * actuator_speed(args),
+            'max_actuator_speed_m_s': DRIVER_SPEED_FACTOR * actuator_speed(args),
             'rate_hz': float(args.rate_hz),
             'seed': args.seed,
             'slider_noise_m': noise,

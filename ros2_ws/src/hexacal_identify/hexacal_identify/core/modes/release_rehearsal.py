@@ -53,6 +53,11 @@ PATH_TOLERANCE_M = 1e-4
 NOMINAL_ERROR_SET = 2  # Table 2's set of a machine built to its drawing
 
 
+def _sample_tolerance(sample, count):
+    """Return the closure a continuation sample needs: its move's last tight, others loose."""
+    return np.where(sample >= count - 1, REHEARSAL_TOLERANCE_M, PATH_TOLERANCE_M)
+
+
 def model_error_rms_m(nominal: KinematicParameters) -> float:
     """Return the default RMS parameter error (m) of the nominal's architecture (module doc)."""
     stats = nominal.architecture.nominal_error_stats_mm
@@ -158,7 +163,7 @@ def rehearse(
     worst = np.zeros((count, machine_count))
     low, high = stroke[0] + margin_m, stroke[1] - margin_m
     for s, sample in enumerate(setpoints):
-        tolerance = REHEARSAL_TOLERANCE_M if s == len(setpoints) - 1 else PATH_TOLERANCE_M
+        tolerance = float(_sample_tolerance(s, len(setpoints)))
         for k, machine in enumerate(machines):
             rows = np.flatnonzero(alive[:, k])
             if not rows.size:
@@ -599,7 +604,7 @@ class _Continuation:
         return alive, worst
 
     def _tolerance(self) -> np.ndarray:
-        return np.where(self.sample >= self.counts - 1, REHEARSAL_TOLERANCE_M, PATH_TOLERANCE_M)
+        return _sample_tolerance(self.sample, self.counts)
 
     def _settle(self, settled, alive, low, high) -> None:
         """End each settled row's sample: closed on its branch and inside the stroke, or dead."""
