@@ -36,11 +36,14 @@ geometric fit), ``shared`` (one chain compliance and the link's, from the static
 physical description's masses, core/fit/compliance.py) and, where the released actuator has
 friction, ``shared+f`` (the same with the description's friction bound weighed as a noise source
 of each posture: ComplianceModel.released_friction), in the modes' table also ``shared+p`` (the
-chains' compliance given as a datasheet prior, the truth +-20 %, with the friction), and prints the pose error against the MuJoCo
-machine's true geometry on 200 fresh poses (core/assessment/validation.py), the verification of the
-calibration on the fresh simulated postures (core/assessment/verification.py), the variance factor and the
-adequacy verdict (core/assessment/adequacy.py) and the identified compliances (+- std) beside the truth
-(1 / stiffness).
+chains' compliance given as a datasheet prior, the truth +-20 %, with the friction) and, in the
+compliant mode, ``shared=`` (the load shared by equal drives and a rigid link, the rule before
+the drives' gain and the compliances shared it: ``shared`` takes the description's
+``drives.kp``, ComplianceModel.drive_stiffness), and prints the pose error against the MuJoCo
+machine's true geometry on 200 fresh poses (core/assessment/validation.py), the verification of
+the calibration on the fresh simulated postures (core/assessment/verification.py), the variance
+factor and the adequacy verdict (core/assessment/adequacy.py) and the identified compliances
+(+- std) beside the truth (1 / stiffness).
 
 Then the measuring modes (``--modes``, default all three) at the shipped defaults and on the
 same machine made rigid (``defaults_rigid``), the same postures: passive_actuator as above;
@@ -259,6 +262,9 @@ def evaluate(
     fits: list[tuple[str, str, float, dict]] = [
         ('none', 'none', 0.0, {}), ('shared', 'shared', 0.0, {})
     ]
+    if mode == COMPLIANT:
+        # The load shared by equal drives and a rigid link, the rule before the stiffnesses.
+        fits.append(('shared=', 'shared', 0.0, {}))
     if friction > 0.0:
         # The released actuator's stiction weighed as a noise source (compliance.py).
         fits.append(('shared+f', 'shared', friction, {}))
@@ -269,8 +275,11 @@ def evaluate(
     for label, choice, friction, prior in fits:
         masses = MassModel.from_physical(physical)
         released = fit['released'].astype(int) if mode == PASSIVE else None
+        # compliant: the drives' gain shares the load with the compliances (statics.py).
+        drives = physical.drive_kp if mode == COMPLIANT and label != 'shared=' else None
         compliance = ComplianceModel(
-            choice, masses, mode, released, prior=prior, released_friction=friction
+            choice, masses, mode, released, prior=prior, released_friction=friction,
+            drive_stiffness=drives,
         )
         started = time.perf_counter()
         try:

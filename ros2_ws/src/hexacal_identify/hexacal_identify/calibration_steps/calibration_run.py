@@ -122,6 +122,7 @@ def compliance_for_postures(
     prior: dict[str, tuple[float, float]] | None = None,
     label: str = 'compliance',
     released_friction: float = 0.0,
+    drive_stiffness: tuple[float, ...] | None = None,
 ) -> ComplianceModel | None:
     """
     Return the ComplianceModel of a compliance choice for a set of postures (None: rigid).
@@ -132,6 +133,7 @@ def compliance_for_postures(
     carries nothing. ``label`` names the option in the errors (ValueError).
     ``released_friction`` (N, passive_actuator): the released actuator's friction bound, the
     force it may hold where it stops, weighed as a noise source of each posture.
+    ``drive_stiffness`` (compliant): the servos' gain the load is shared by (statics.py).
     """
     from ..core.fit.compliance import NONE
 
@@ -157,6 +159,7 @@ def compliance_for_postures(
     return ComplianceModel(
         choice, masses, measuring_mode, released, prior=prior or {},
         released_friction=released_friction if measuring_mode == 'passive_actuator' else 0.0,
+        drive_stiffness=drive_stiffness if measuring_mode == 'compliant' else None,
     )
 
 
@@ -167,6 +170,7 @@ def identified_compliance(
     released_joints: Sequence[str] | None,
     actuator_names: Sequence[str],
     label: str,
+    drive_stiffness: tuple[float, ...] | None = None,
 ) -> tuple[ComplianceModel, np.ndarray]:
     """
     Return a calibration's identified compliances as (model, values) for a verification.
@@ -184,9 +188,55 @@ def identified_compliance(
         released_joints,
         actuator_names,
         label=label,
+        drive_stiffness=drive_stiffness,
     )
     assert model is not None  # PER_CHAIN and SHARED always give one
     return model, np.array([values.get(name, 0.0) for name in model.names])
+
+
+def _physical_of(path: str | None, model: str):
+    """
+    Return (the complete description, or None; the file's mapping) of ``path`` (module doc).
+
+    ``path`` None or '': the model's shipped description; a complete ``hexacal-physical/1``
+    file through the contract's reader; else the file's mapping of (mass) keys.
+    """
+    from hexacal_msgs_py.physical_file import default_physical, read_physical_file
+    import yaml
+
+    if not path:
+        return default_physical(model), None
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except (OSError, yaml.YAMLError) as error:
+        raise ValueError(f'cannot read the physical description {path}: {error}') from error
+    if isinstance(data, dict) and 'model' in data:
+        return read_physical_file(path), None
+    return None, data
+
+
+def drive_stiffness_of(path: str | None, model: str) -> tuple[float, ...] | None:
+    """
+    Return the servos' gain (N/m or N m/rad, six) of a physical description, or None.
+
+    As ``released_friction_of`` reads the file; a file of the mass keys only gives its
+    ``drives.kp`` (one value or six), None when missing: the compliant mode's load is then
+    shared by equal drives and a rigid link (core/fit/statics.py).
+    """
+    physical, data = _physical_of(path, model)
+    if physical is not None:
+        return tuple(physical.drive_kp)
+    section = data.get('drives') if isinstance(data, dict) else None
+    kp = (section or {}).get('kp') if isinstance(section, dict) else None
+    if kp is None:
+        return None
+    try:
+        gains = np.broadcast_to(np.asarray(kp, dtype=float), (6,))
+    except (TypeError, ValueError):
+        raise ValueError(f'{path}: drives.kp must be one gain or six, got {kp!r}') from None
+    if not np.all(np.isfinite(gains) & (gains > 0)):
+        raise ValueError(f'{path}: drives.kp must be > 0, got {kp!r}')
+    return tuple(float(g) for g in gains)
 
 
 def released_friction_of(path: str | None, model: str) -> float:
@@ -197,17 +247,9 @@ def released_friction_of(path: str | None, model: str) -> float:
     file through the contract's reader; a file of the mass keys only: its
     ``released_friction.coulomb`` (0 when missing).  ValueError names an unreadable file.
     """
-    from hexacal_msgs_py.physical_file import default_physical, read_physical_file
-    import yaml
-
-    if not path:
-        return default_physical(model).released_coulomb
-    try:
-        data = yaml.safe_load(Path(path).read_text())
-    except (OSError, yaml.YAMLError) as error:
-        raise ValueError(f'cannot read the physical description {path}: {error}') from error
-    if isinstance(data, dict) and 'model' in data:
-        return read_physical_file(path).released_coulomb
+    physical, data = _physical_of(path, model)
+    if physical is not None:
+        return physical.released_coulomb
     section = data.get('released_friction') if isinstance(data, dict) else None
     try:
         friction = float((section or {}).get('coulomb', 0.0))

@@ -199,6 +199,7 @@ def compliance_model(args, bag, nominal):
     """Return the ComplianceModel of --compliance for a bag's postures (None: rigid)."""
     from ..calibration_steps.calibration_run import (
         compliance_for_postures,
+        drive_stiffness_of,
         released_friction_of,
     )
     from ..core.fit.statics import MassModel
@@ -232,6 +233,7 @@ def compliance_model(args, bag, nominal):
         args.compliance_prior,
         label='--compliance',
         released_friction=released_friction_of(args.physical, nominal.model),
+        drive_stiffness=drive_stiffness_of(args.physical, nominal.model),
     )
 
 

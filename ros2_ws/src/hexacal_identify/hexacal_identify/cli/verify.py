@@ -259,7 +259,7 @@ def calibrated_compliance(args, bag, calibrated):
         if args.physical is None:
             physical = ''
         return None, {'values': {}, 'mode': 'none', 'physical': physical}
-    from ..calibration_steps.calibration_run import identified_compliance
+    from ..calibration_steps.calibration_run import drive_stiffness_of, identified_compliance
     from ..core.fit.statics import MassModel
 
     if args.physical is not None:
@@ -283,6 +283,7 @@ def calibrated_compliance(args, bag, calibrated):
         released,
         calibrated.layout.actuator_names,
         f'the calibration {args.calibrated} carries compliances:',
+        drive_stiffness_of(args.physical, calibrated.model),
     )
     return (model, vector), {'values': values, 'mode': model.mode, 'physical': physical}
 

@@ -289,6 +289,7 @@ def compliance_setting(
     """
     from ..calibration_steps.calibration_run import (
         compliance_for_postures,
+        drive_stiffness_of,
         parse_compliance_prior,
         released_friction_of,
     )
@@ -324,6 +325,7 @@ def compliance_setting(
         prior,
         label='compliance',
         released_friction=released_friction_of(settings.physical_file, nominal.model),
+        drive_stiffness=drive_stiffness_of(settings.physical_file, nominal.model),
     )
     return model, source
 

@@ -182,7 +182,7 @@ def calibrated_compliance(
     if not latest.compliance:
         return None
     from .calibration import live_measuring_mode, mass_model
-    from ..calibration_steps.calibration_run import identified_compliance
+    from ..calibration_steps.calibration_run import drive_stiffness_of, identified_compliance
 
     mode = live_measuring_mode(postures)
     if mode is None:
@@ -193,4 +193,7 @@ def calibrated_compliance(
             '(hexacal verify BAG --calibrated FILE)'
         )
     masses, _ = mass_model(settings, latest.parameters.model)
-    return identified_compliance(latest.compliance, masses, mode, None, actuator_names, 'verify')
+    return identified_compliance(
+        latest.compliance, masses, mode, None, actuator_names, 'verify',
+        drive_stiffness_of(settings.physical_file, latest.parameters.model),
+    )

@@ -302,7 +302,7 @@ def set_residuals(
         for _ in range(2):  # loads at the rigid poses, then at the loaded ones
             first, expected = set_residuals(params, corrected, device, defects)
             poses = np.where(first.converged[:, None], first.poses, expected)
-            loads = model.loads(params, poses, np.arange(len(measurements)))
+            loads = model.loads(params, poses, np.arange(len(measurements)), values)
             corrected = model.corrected(measurements, loads, values, device.link_length)
         measurements = corrected
 

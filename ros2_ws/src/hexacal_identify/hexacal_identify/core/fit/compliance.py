@@ -39,7 +39,9 @@ from hexacal_msgs_py.measuring_modes import MeasuringMode
 import numpy as np
 
 from .residuals import ResidualBlock
-from .statics import MassModel, released_force_loads, static_loads, StaticLoads
+from .statics import (
+    LoadSharing, MassModel, released_force_loads, static_loads, StaticLoads
+)
 from ..architectures import KinematicParameters
 from ..errors import InvalidMeasurementError
 from ..machine.device import DeviceModel
@@ -86,6 +88,10 @@ class ComplianceModel:
     # released_friction.coulomb): it stops holding an unknown force within +-this, weighed as
     # a noise source of each posture (uniform: std bound / sqrt(3)); 0 = frictionless.
     released_friction: float = 0.0
+    # compliant: the servos' gain (N/m or N m/rad, one or six: the physical description's
+    # drives.kp); the load is then shared by the drives' and the identified compliances'
+    # stiffness (statics.LoadSharing), else by equal drives and a rigid link.
+    drive_stiffness: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         names = self.names
@@ -98,6 +104,8 @@ class ComplianceModel:
         friction = float(self.released_friction)
         if not (np.isfinite(friction) and friction >= 0):
             raise ValueError(f'released_friction must be a force >= 0 N, got {friction!r}')
+        if self.drive_stiffness is not None:
+            LoadSharing.of(self.drive_stiffness)  # ValueError names a bad gain
         for name, (value, std) in self.prior.items():
             if not (np.isfinite(value) and np.isfinite(std) and std > 0):
                 raise ValueError(f'compliance prior {name}: value and a std > 0 m/N, got '
@@ -159,11 +167,33 @@ class ComplianceModel:
         return float(values[-1]) if self.has_link else 0.0
 
     def loads(
-        self, params: KinematicParameters, poses: np.ndarray, used: np.ndarray
+        self,
+        params: KinematicParameters,
+        poses: np.ndarray,
+        used: np.ndarray,
+        values: np.ndarray | None = None,
     ) -> StaticLoads:
-        """Return the static loads at the poses of postures ``used`` (of the measurement set)."""
+        """
+        Return the static loads at the poses of postures ``used`` (of the measurement set).
+
+        ``values``: the compliances the compliant mode shares the load by (with
+        ``drive_stiffness``; None: rigid chains and link behind the drives).
+        """
         released = None if self.released is None else np.asarray(self.released)[used]
-        return static_loads(params, poses, self.masses, self.measuring_mode, released)
+        return static_loads(
+            params, poses, self.masses, self.measuring_mode, released, self.sharing(values)
+        )
+
+    def sharing(self, values: np.ndarray | None) -> LoadSharing | None:
+        """Return the stiffnesses the compliant mode's load is shared by, or None (statics)."""
+        if self.drive_stiffness is None or MeasuringMode(self.measuring_mode) != MeasuringMode.COMPLIANT:
+            return None
+        if values is None or not self.active:
+            return LoadSharing.of(self.drive_stiffness)
+        values = np.asarray(values, dtype=float)
+        return LoadSharing.of(
+            self.drive_stiffness, self.chain_values(values), self.link_value(values)
+        )
 
     @property
     def weighs_friction(self) -> bool:
@@ -263,11 +293,11 @@ def simulate_loaded_measurements(
     direction = poses[:, :3] / np.linalg.norm(poses[:, :3], axis=1, keepdims=True)
     used = np.arange(len(poses))
     for _ in range(settle_iterations):
-        loads = model.loads(params, poses, used)
+        loads = model.loads(params, poses, used, values)
         poses[:, :3] = direction * (device.link_length + model.link_value(values) * loads.link)[
             :, None
         ]
-    loads = model.loads(params, poses, used)
+    loads = model.loads(params, poses, used, values)
     rigid = simulate_measurements(params, poses, device=device, noise=NoiseModel(), lvdt=True)
     rng = rng if rng is not None else np.random.default_rng(0)
     shifts, _ = model.deflections(loads, values)

@@ -104,10 +104,12 @@ class FitProblem:
     def _loads_at(self, vector: np.ndarray, poses: np.ndarray):
         if not self.compliance.active:
             return False, None
-        loads = self.compliance.loads(split_unknowns(vector, self.arch)[0], poses, self.used)
+        values = vector[self._offset():]
+        loads = self.compliance.loads(
+            split_unknowns(vector, self.arch)[0], poses, self.used, values
+        )
         if self.loads is None:
             return True, loads
-        values = vector[self._offset():]
         old = self.compliance.deflections(self.loads, values)
         new = self.compliance.deflections(loads, values)
         moved = max(float(np.max(np.abs(a - b), initial=0.0)) for a, b in zip(old, new))

@@ -36,11 +36,22 @@ carries the load:
   six equations); the released chain carries nothing.
 * ``lvdt``: the six chains; the telescopic link carries only its spring, taken
   as zero (an LVDT's return spring is a few newtons).
-* ``compliant``: six equally stiff position loops and an axially rigid link
-  share the load by least elastic energy: tau = J dX with the platform moving
-  on the link's sphere (j_L dX = 0).  Only the weights are modelled: the force
-  of setpoints the machine cannot reach on the sphere is what the compliant
-  mode's refinement removes, not a load this model knows.
+* ``compliant``: six position loops and the link share the load by their
+  stiffness (``LoadSharing``): chain c yields ``k_c = 1 / (1 / kp_c + c_c r_c^2)`` in its
+  actuator's unit (the servo's gain in series with the leg's compliance referred to the
+  actuator), the link ``c_L``.  With the platform displaced by -y from where the setpoints put
+  it, tau = K (J y + c_c r_c^2 w_c) (w_c below: the weight the leg's spring does not carry)
+  and the link's stretch -j_L y = c_L T, so
+
+      [J^T K J, -j_L^T; j_L, c_L] [y; T] = [G - J^T K c r^2 w; 0].
+
+  Without a ``LoadSharing`` the six loops are equally stiff and the link axially rigid (the
+  platform moves on the link's sphere, j_L y = 0).  The link's share depends on the ratio:
+  on the shipped Hexa Slide (kp 1e8 N/m, legs 5e7 N/m, link 1e7 N/m) the rigid link's rule
+  gave it 207 +- 101 N more than the MuJoCo machine carries, the stiffness rule 13 +- 1 N
+  (of which about 7 N is the link's own weight at its platform joint, where MuJoCo reads it).
+  Only the weights are modelled: the force of setpoints the machine cannot reach on the
+  sphere is what the compliant mode's refinement removes, not a load this model knows.
 
 The actuators' moving parts (``actuator_moving_mass`` each: a slider, an extending rod, a
 crank, placed and moved as ``Architecture.actuator_mass_motion`` says) add the gradient of
@@ -247,6 +258,33 @@ def leg_weight_loads(
     return pose, reading
 
 
+@dataclass(frozen=True)
+class LoadSharing:
+    """
+    How stiff the chains and the link are where all six drives hold the platform (compliant).
+
+    ``drive_compliance`` (6,): 1 / kp of each servo in its actuator's unit (m/N, rad/(N m));
+    ``chain_compliance`` (6,): each leg's axial compliance between encoder and joint centres
+    (m/N, along the leg); ``link_compliance``: the measuring link's (m/N).  Negative values (an
+    estimate on its way) count as rigid.
+    """
+
+    drive_compliance: np.ndarray
+    chain_compliance: np.ndarray
+    link_compliance: float = 0.0
+
+    @classmethod
+    def of(
+        cls, drive_stiffness, chain_compliance=0.0, link_compliance: float = 0.0
+    ) -> 'LoadSharing':
+        """Return the sharing of drives of gain ``drive_stiffness`` (6 values or one)."""
+        stiffness = np.broadcast_to(np.asarray(drive_stiffness, dtype=float), (6,))
+        if not np.all(np.isfinite(stiffness) & (stiffness > 0)):
+            raise ValueError(f'drive stiffness must be 6 values > 0, got {drive_stiffness!r}')
+        chains = np.broadcast_to(np.asarray(chain_compliance, dtype=float), (6,))
+        return cls(1.0 / stiffness, np.maximum(chains, 0.0), max(float(link_compliance), 0.0))
+
+
 @dataclass
 class StaticLoads:
     """Static loads at N postures (N, SI)."""
@@ -284,11 +322,14 @@ def static_loads(
     masses: MassModel,
     mode: MeasuringMode | str,
     released: np.ndarray | None = None,
+    sharing: LoadSharing | None = None,
 ) -> StaticLoads:
     """
     Return the static loads of the chains and the link at ``poses`` (N, 6) (module doc).
 
     ``released`` (N,): the chain released at each posture, 0-based (passive_actuator only).
+    ``sharing``: the stiffness the compliant mode shares the load by (None: equal drives and a
+    rigid link).
     """
     mode = MeasuringMode(mode)
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
@@ -329,21 +370,47 @@ def static_loads(
         thrust[rows, index] = 0.0
     elif mode == MeasuringMode.LVDT:
         thrust = np.linalg.solve(np.swapaxes(jacobian, 1, 2), gradient[..., None])[..., 0]
-    else:
-        # Least elastic energy of equal drives on the sphere: [J^T J, -j_L^T; j_L, 0].
-        system = np.zeros((n, 7, 7))
-        system[:, :6, :6] = np.swapaxes(jacobian, 1, 2) @ jacobian
-        system[:, :6, 6] = -link_row
-        system[:, 6, :6] = link_row
-        right = np.zeros((n, 7))
-        right[:, :6] = gradient
-        solution = np.linalg.solve(system, right[..., None])[..., 0]
-        thrust = np.einsum('ncx,nx->nc', jacobian, solution[:, :6])
-        tension = solution[:, 6]
     leg_factor = np.linalg.norm(jacobian[:, :, :3], axis=2)  # r_c = d lambda_c / d leg length
+    if mode == MeasuringMode.COMPLIANT:
+        thrust, tension = _shared_by_stiffness(
+            jacobian, link_row, gradient, leg_factor, moving_reading if moving else 0.0, sharing
+        )
     # The leg carries the drive's thrust less the weight of what moves between them.
     chains = (thrust - moving_reading if moving else thrust) * leg_factor
     return StaticLoads(thrust, chains, tension, chains * leg_factor)
+
+
+def _shared_by_stiffness(
+    jacobian: np.ndarray,
+    link_row: np.ndarray,
+    gradient: np.ndarray,
+    leg_factor: np.ndarray,
+    unborne: np.ndarray | float,
+    sharing: LoadSharing | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return the thrusts (N, 6) and link tension (N,) of the compliant mode (module doc)."""
+    n = len(gradient)
+    if sharing is None:  # equal drives, rigid link: the rule before the stiffnesses were known
+        stiffness, link, offset = np.ones((n, 6)), 0.0, np.zeros((n, 6))
+    else:
+        leg = sharing.chain_compliance * leg_factor**2  # the leg's compliance at the actuator
+        compliance = sharing.drive_compliance + leg
+        # Scaled by the mean stiffness, so the system's entries are of order one.
+        scale = 1.0 / compliance.mean(axis=1, keepdims=True)
+        stiffness = 1.0 / (compliance * scale)
+        link = sharing.link_compliance * scale[:, 0]
+        offset = leg * scale * unborne
+    system = np.zeros((n, 7, 7))
+    weighted = jacobian if sharing is None else stiffness[..., None] * jacobian
+    system[:, :6, :6] = np.swapaxes(jacobian, 1, 2) @ weighted
+    system[:, :6, 6] = -link_row
+    system[:, 6, :6] = link_row
+    system[:, 6, 6] = link
+    right = np.zeros((n, 7))
+    right[:, :6] = gradient - np.einsum('ncx,nc->nx', jacobian, stiffness * offset)
+    solution = np.linalg.solve(system, right[..., None])[..., 0]
+    thrust = stiffness * (np.einsum('ncx,nx->nc', jacobian, solution[:, :6]) + offset)
+    return thrust, solution[:, 6]
 
 
 def released_force_loads(
@@ -385,6 +452,7 @@ def released_force_loads(
 __all__ = [
     'actuator_weight_loads',
     'leg_weight_loads',
+    'LoadSharing',
     'released_force_loads',
     'MassModel',
     'STANDARD_GRAVITY',
