@@ -39,10 +39,16 @@ def _nominal(true, rng, scale=2e-4):
 
 
 @pytest.mark.parametrize('model', MODELS)
-@pytest.mark.parametrize('choice', ['shared', 'per_chain'])
-def test_compliance_columns_match_finite_differences(model, choice):
+@pytest.mark.parametrize('choice, mode', [
+    ('shared', 'passive_actuator'), ('per_chain', 'passive_actuator'),
+    ('shared', 'compliant'), ('per_chain', 'compliant'),
+])
+def test_compliance_columns_match_finite_differences(model, choice, mode):
     arch, true, rng, poses, released = _setup(model, n=12)
-    compliance = ComplianceModel(choice, MASSES, 'passive_actuator', released)
+    if mode == 'compliant':  # the loads move with the compliances (load_sharing.py)
+        compliance = ComplianceModel(choice, MASSES, mode, drive_stiffness=(3e7,) * 6)
+    else:
+        compliance = ComplianceModel(choice, MASSES, mode, released)
     truth = np.array([CHAIN] * (1 if choice == 'shared' else 6) + [LINK])
     measurements, _ = simulate_loaded_measurements(true, poses, compliance, truth)
     options = SolverOptions(compliance=compliance, free_device=('dL', 'alpha0'))
@@ -60,7 +66,7 @@ def test_compliance_columns_match_finite_differences(model, choice):
     checked = [k for k, c in enumerate(columns) if c >= n] + [0, 5, n // 2]
     for k in checked:
         unknown = columns[k]
-        step = 1e-6 if unknown < n + 5 else 1e-9
+        step = 1e-6 if unknown < n + 5 else 1e-11  # T(c_L) is curved: a small step
         values = []
         for sign in (1.0, -1.0):
             trial = vector.copy()
@@ -82,10 +88,15 @@ def test_compliance_columns_match_finite_differences(model, choice):
 
 
 @pytest.mark.parametrize('model', MODELS)
-@pytest.mark.parametrize('choice', ['shared', 'per_chain'])
-def test_known_compliances_are_recovered_within_their_std(model, choice):
+@pytest.mark.parametrize('choice, mode', [
+    ('shared', 'passive_actuator'), ('per_chain', 'passive_actuator'), ('shared', 'compliant'),
+])
+def test_known_compliances_are_recovered_within_their_std(model, choice, mode):
     arch, true, rng, poses, released = _setup(model)
-    compliance = ComplianceModel(choice, MASSES, 'passive_actuator', released)
+    if mode == 'compliant':  # drives of 3e7 N/m share the load with the compliances
+        compliance = ComplianceModel(choice, MASSES, mode, drive_stiffness=(3e7,) * 6)
+    else:
+        compliance = ComplianceModel(choice, MASSES, mode, released)
     chains = [CHAIN] if choice == 'shared' else list(CHAIN * np.linspace(0.6, 1.4, 6))
     truth = np.array(chains + [LINK])
     measurements, _ = simulate_loaded_measurements(
@@ -100,7 +111,13 @@ def test_known_compliances_are_recovered_within_their_std(model, choice):
     assert np.all(np.isfinite(std)) and np.all(std > 0)
     # Within 3.3 reported standard deviations (two-sided 0.1 %) each, and the link well known.
     assert np.all(np.abs(estimate - truth) < 3.3 * std), (estimate, truth, std)
-    assert std[-1] < 0.05 * LINK
+    # Released, the link bears the load and its compliance is well known.  With all six drives
+    # powered a softer link bears less and stretches about as much: barely told (the Gough-
+    # Stewart's std 3.7x the value, results.md); the chains' is (43 %).
+    if mode == 'passive_actuator':
+        assert std[-1] < 0.05 * LINK
+    else:
+        assert std[0] < 0.5 * CHAIN, std
     assert result.adequacy.verdict == 'pass', result.adequacy.reason
     payload = result.to_json()['compliance']
     assert payload['mode'] == choice and set(payload['values']) == set(compliance.names)

@@ -17,7 +17,10 @@ plus ``link``) and ``per_chain`` (``chain_1`` .. ``chain_6`` plus ``link``).  Th
 unknowns follow the device defects in the solver's vector, named
 ``compliance.<name>`` (m/N).  The loads are evaluated at the poses at the start
 of each solver run and held through it (the model is then linear in the
-compliances, its Jacobian exact); the solver runs again while they move.
+compliances, its Jacobian exact); the solver runs again while they move.  In the
+compliant mode with the drives' gain known (``drive_stiffness``) the load is shared by
+the compliances themselves (load_sharing.py): there the loads are evaluated at each
+trial's compliances, at the held poses, and the columns carry their derivatives.
 
 What the data can separate: a chain compliance is told from its actuator's zero
 offset only by how its load varies from posture to posture, and the link's from
@@ -40,7 +43,7 @@ import numpy as np
 
 from .residuals import ResidualBlock
 from .statics import (
-    LoadSharing, MassModel, released_force_loads, static_loads, StaticLoads
+    compliant_loads, LoadSharing, MassModel, released_force_loads, static_loads, StaticLoads
 )
 from ..architectures import KinematicParameters
 from ..errors import InvalidMeasurementError
@@ -184,9 +187,36 @@ class ComplianceModel:
             params, poses, self.masses, self.measuring_mode, released, self.sharing(values)
         )
 
+    @property
+    def shares_by_values(self) -> bool:
+        """Return True when the loads move with the identified compliances (compliant mode)."""
+        return self.active and self.sharing(None) is not None
+
+    def load_sensitivities(
+        self, params: KinematicParameters, poses: np.ndarray, values: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return d reading_loads / d unknowns (N, 6, U) and d link tension / d unknowns (N, U).
+
+        Only where the loads move with the compliances (``shares_by_values``, load_sharing.py).
+        """
+        sharing = self.sharing(values)
+        assert sharing is not None
+        readings, link = compliant_loads(params, poses, self.masses, sharing).sensitivities()
+        per_unknown = np.zeros((7, len(self.names)))  # (c_1..c_6, c_L) -> the unknowns
+        if self.mode == SHARED:
+            per_unknown[:6, 0] = 1.0
+        else:
+            per_unknown[:6, :6] = np.eye(6)
+        per_unknown[6, -1] = 1.0
+        # A negative estimate counts as rigid (LoadSharing): the loads do not move with it.
+        per_unknown[:, np.asarray(values) < 0.0] = 0.0
+        return readings @ per_unknown, link @ per_unknown
+
     def sharing(self, values: np.ndarray | None) -> LoadSharing | None:
         """Return the stiffnesses the compliant mode's load is shared by, or None (statics)."""
-        if self.drive_stiffness is None or MeasuringMode(self.measuring_mode) != MeasuringMode.COMPLIANT:
+        compliant = MeasuringMode(self.measuring_mode) == MeasuringMode.COMPLIANT
+        if self.drive_stiffness is None or not compliant:
             return None
         if values is None or not self.active:
             return LoadSharing.of(self.drive_stiffness)
@@ -245,13 +275,20 @@ class ComplianceModel:
             lengths = lengths + self.link_value(values) * loads.link
         return replace(measurements, actuator_positions=actuators, link_lengths=lengths)
 
-    def columns(self, block: ResidualBlock, loads: StaticLoads, dl_column: int) -> np.ndarray:
+    def columns(
+        self,
+        block: ResidualBlock,
+        loads: StaticLoads,
+        dl_column: int,
+        moving: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    ) -> np.ndarray:
         """
         Return d rows / d compliances (rows, unknowns) of a block with noise derivatives.
 
         ``block.noise_jacobian[:, :6]`` is d row / d reading of the row's posture (through FK)
         and column ``dl_column`` of its Jacobian d row / d dL, which is d row / d link length
-        for every cost offered here.
+        for every cost offered here.  ``moving``: (values, ``load_sensitivities``) where the
+        loads move with the compliances: the deflections c q and c_L T gain c dq and c_L dT.
         """
         assert block.noise_jacobian is not None and block.jacobian is not None
         postures = block.postures
@@ -263,7 +300,14 @@ class ComplianceModel:
         if not self.has_link:
             return chains
         link = block.jacobian[:, dl_column] * loads.link[postures]
-        return np.column_stack([chains, link])
+        columns = np.column_stack([chains, link])
+        if moving is not None:
+            values, d_reading_loads, d_tension = moving
+            shifts = self.chain_values(values)[None, :, None] * d_reading_loads[postures]
+            columns = columns - np.einsum('rc,rcu->ru', block.noise_jacobian[:, :6], shifts)
+            stretch = self.link_value(values) * d_tension[postures]
+            columns = columns + block.jacobian[:, dl_column, None] * stretch
+        return columns
 
     def deflections(self, loads: StaticLoads, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return the reading shifts (N, 6) and the link's stretch (N,), m."""

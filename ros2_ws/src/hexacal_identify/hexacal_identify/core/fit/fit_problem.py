@@ -52,9 +52,12 @@ class FitProblem:
         self.cost = CostFunction(
             options.cost, measurements.subset(self.used), options.device, options.sigma
         )
-        # Static loads of the used postures, held through a solver run (compliance.py).
+        # Static loads of the used postures, held through a solver run (compliance.py), and the
+        # parameters and poses they were evaluated at: where the loads move with the
+        # compliances (the compliant mode's sharing) they are evaluated there at each vector's.
         self.loads: StaticLoads | None = None
-        self._compliant_cost: tuple[bytes, CostFunction] | None = None
+        self._load_basis: tuple[KinematicParameters, np.ndarray] | None = None
+        self._compliant_cost: tuple[bytes, CostFunction, StaticLoads] | None = None
 
     def without(self, local_indices) -> 'FitProblem':
         keep = np.setdiff1d(np.arange(len(self.used)), list(local_indices))
@@ -63,6 +66,8 @@ class FitProblem:
         )
         if self.loads is not None:
             problem.loads = self.loads.subset(keep)
+        if self._load_basis is not None:
+            problem._load_basis = (self._load_basis[0], self._load_basis[1][keep])
         return problem
 
     @property
@@ -79,22 +84,33 @@ class FitProblem:
         values = vector[self._offset():]
         key = values.tobytes()
         if self._compliant_cost is None or self._compliant_cost[0] != key:
+            loads = self._held_loads(values)
             corrected = self.compliance.corrected(
-                self.cost.measurements, self.loads, values, self.options.device.link_length
+                self.cost.measurements, loads, values, self.options.device.link_length
             )
             self._compliant_cost = (
                 key,
                 CostFunction(
                     self.options.cost, corrected, self.options.device, self.options.sigma
                 ),
+                loads,
             )
         return self._compliant_cost[1]
+
+    def _held_loads(self, values: np.ndarray) -> StaticLoads:
+        """Return the held loads, at the compliances ``values`` where they move with them."""
+        assert self.loads is not None
+        if self._load_basis is None or not self.compliance.shares_by_values:
+            return self.loads
+        params, poses = self._load_basis
+        return self.compliance.loads(params, poses, self.used, values)
 
     def update_loads(self, vector: np.ndarray, poses: np.ndarray) -> bool:
         """Evaluate the loads at ``poses``; return whether a deflection moved (compliance.py)."""
         moved, loads = self._loads_at(vector, poses)
         if moved:
             self.loads, self._compliant_cost = loads, None
+            self._load_basis = (split_unknowns(vector, self.arch)[0], np.array(poses))
         return moved
 
     def loads_moved(self, vector: np.ndarray, poses: np.ndarray) -> bool:
@@ -110,7 +126,7 @@ class FitProblem:
         )
         if self.loads is None:
             return True, loads
-        old = self.compliance.deflections(self.loads, values)
+        old = self.compliance.deflections(self._held_loads(values), values)
         new = self.compliance.deflections(loads, values)
         moved = max(float(np.max(np.abs(a - b), initial=0.0)) for a, b in zip(old, new))
         return moved > LOADS_TOLERANCE_M, loads
@@ -166,8 +182,15 @@ class FitProblem:
         block = self.cost_at(vector).residuals(
             poses, pose_sensitivities(params, poses), defects, with_device=True, with_noise=True
         )
-        assert block.jacobian is not None
-        extra = self.compliance.columns(block, self.loads, n + DL)
+        assert block.jacobian is not None and self._compliant_cost is not None
+        values = vector[offset:]
+        moving = None
+        if self.compliance.shares_by_values and self._load_basis is not None:
+            basis_params, basis_poses = self._load_basis
+            moving = (values, *self.compliance.load_sensitivities(
+                basis_params, basis_poses, values
+            ))
+        extra = self.compliance.columns(block, self._compliant_cost[2], n + DL, moving)
         kept = [self.free[:n]] + ([self.free[n:offset]] if with_device else [])
         columns = np.concatenate(kept + [self.free[offset:]])
         jacobian = block.jacobian if with_device else block.jacobian[:, :n]

@@ -85,6 +85,7 @@ from hexacal_msgs_py.measuring_modes import MeasuringMode
 from hexacal_msgs_py.physical_file import PhysicalDescription, read_physical_file
 import numpy as np
 
+from .load_sharing import LoadSharing, share_by_stiffness, SharedLoads
 from ..architectures import KinematicParameters
 from ..architectures.common import euler_rate_axes, platform_point_motion, rotation_from_trig
 from ..errors import InvalidMeasurementError
@@ -258,33 +259,6 @@ def leg_weight_loads(
     return pose, reading
 
 
-@dataclass(frozen=True)
-class LoadSharing:
-    """
-    How stiff the chains and the link are where all six drives hold the platform (compliant).
-
-    ``drive_compliance`` (6,): 1 / kp of each servo in its actuator's unit (m/N, rad/(N m));
-    ``chain_compliance`` (6,): each leg's axial compliance between encoder and joint centres
-    (m/N, along the leg); ``link_compliance``: the measuring link's (m/N).  Negative values (an
-    estimate on its way) count as rigid.
-    """
-
-    drive_compliance: np.ndarray
-    chain_compliance: np.ndarray
-    link_compliance: float = 0.0
-
-    @classmethod
-    def of(
-        cls, drive_stiffness, chain_compliance=0.0, link_compliance: float = 0.0
-    ) -> 'LoadSharing':
-        """Return the sharing of drives of gain ``drive_stiffness`` (6 values or one)."""
-        stiffness = np.broadcast_to(np.asarray(drive_stiffness, dtype=float), (6,))
-        if not np.all(np.isfinite(stiffness) & (stiffness > 0)):
-            raise ValueError(f'drive stiffness must be 6 values > 0, got {drive_stiffness!r}')
-        chains = np.broadcast_to(np.asarray(chain_compliance, dtype=float), (6,))
-        return cls(1.0 / stiffness, np.maximum(chains, 0.0), max(float(link_compliance), 0.0))
-
-
 @dataclass
 class StaticLoads:
     """Static loads at N postures (N, SI)."""
@@ -334,21 +308,8 @@ def static_loads(
     mode = MeasuringMode(mode)
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
     n = len(poses)
-    arch = params.architecture
-    jacobian = np.array(arch.legs(arch.chains(params), poses).pose_jacobian())  # (N, 6, 6)
-    gradient = weight_gradient(params, poses, masses)
-    moving = masses.actuator_moving_mass > 0.0
-    if moving:
-        moving_pose, moving_reading = actuator_weight_loads(params, poses, masses)
-        gradient = gradient + moving_pose
-    legs = leg_weight_loads(params, poses, masses)
-    if legs is not None:
-        leg_pose, leg_reading = legs
-        gradient = gradient + leg_pose
-        moving_reading = (moving_reading if moving else 0.0) + leg_reading
-        moving = True
-    link_row = np.zeros((n, 6))
-    link_row[:, :3] = poses[:, :3] / np.linalg.norm(poses[:, :3], axis=1, keepdims=True)
+    jacobian, gradient, moving_reading, link_row = _weights_held(params, poses, masses)
+    moving = moving_reading is not None
     rows = np.arange(n)
     thrust: np.ndarray = np.zeros((n, 6))
     tension: np.ndarray = np.zeros(n)
@@ -372,45 +333,46 @@ def static_loads(
         thrust = np.linalg.solve(np.swapaxes(jacobian, 1, 2), gradient[..., None])[..., 0]
     leg_factor = np.linalg.norm(jacobian[:, :, :3], axis=2)  # r_c = d lambda_c / d leg length
     if mode == MeasuringMode.COMPLIANT:
-        thrust, tension = _shared_by_stiffness(
-            jacobian, link_row, gradient, leg_factor, moving_reading if moving else 0.0, sharing
-        )
+        unborne = moving_reading if moving else np.zeros((n, 6))
+        shared = share_by_stiffness(jacobian, link_row, gradient, leg_factor, unborne, sharing)
+        thrust, tension = shared.thrust, shared.tension
     # The leg carries the drive's thrust less the weight of what moves between them.
     chains = (thrust - moving_reading if moving else thrust) * leg_factor
     return StaticLoads(thrust, chains, tension, chains * leg_factor)
 
 
-def _shared_by_stiffness(
-    jacobian: np.ndarray,
-    link_row: np.ndarray,
-    gradient: np.ndarray,
-    leg_factor: np.ndarray,
-    unborne: np.ndarray | float,
-    sharing: LoadSharing | None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Return the thrusts (N, 6) and link tension (N,) of the compliant mode (module doc)."""
-    n = len(gradient)
-    if sharing is None:  # equal drives, rigid link: the rule before the stiffnesses were known
-        stiffness, link, offset = np.ones((n, 6)), 0.0, np.zeros((n, 6))
-    else:
-        leg = sharing.chain_compliance * leg_factor**2  # the leg's compliance at the actuator
-        compliance = sharing.drive_compliance + leg
-        # Scaled by the mean stiffness, so the system's entries are of order one.
-        scale = 1.0 / compliance.mean(axis=1, keepdims=True)
-        stiffness = 1.0 / (compliance * scale)
-        link = sharing.link_compliance * scale[:, 0]
-        offset = leg * scale * unborne
-    system = np.zeros((n, 7, 7))
-    weighted = jacobian if sharing is None else stiffness[..., None] * jacobian
-    system[:, :6, :6] = np.swapaxes(jacobian, 1, 2) @ weighted
-    system[:, :6, 6] = -link_row
-    system[:, 6, :6] = link_row
-    system[:, 6, 6] = link
-    right = np.zeros((n, 7))
-    right[:, :6] = gradient - np.einsum('ncx,nc->nx', jacobian, stiffness * offset)
-    solution = np.linalg.solve(system, right[..., None])[..., 0]
-    thrust = stiffness * (np.einsum('ncx,nx->nc', jacobian, solution[:, :6]) + offset)
-    return thrust, solution[:, 6]
+def _weights_held(params: KinematicParameters, poses: np.ndarray, masses: MassModel):
+    """
+    Return J (N, 6, 6), G (N, 6), the weight between drive and spring (N, 6) or None, j_L.
+
+    What every mode's balance starts from (module doc).
+    """
+    arch = params.architecture
+    jacobian = np.array(arch.legs(arch.chains(params), poses).pose_jacobian())  # (N, 6, 6)
+    gradient = weight_gradient(params, poses, masses)
+    moving_reading = None
+    if masses.actuator_moving_mass > 0.0:
+        moving_pose, moving_reading = actuator_weight_loads(params, poses, masses)
+        gradient = gradient + moving_pose
+    legs = leg_weight_loads(params, poses, masses)
+    if legs is not None:
+        leg_pose, leg_reading = legs
+        gradient = gradient + leg_pose
+        moving_reading = leg_reading if moving_reading is None else moving_reading + leg_reading
+    link_row = np.zeros((len(poses), 6))
+    link_row[:, :3] = poses[:, :3] / np.linalg.norm(poses[:, :3], axis=1, keepdims=True)
+    return jacobian, gradient, moving_reading, link_row
+
+
+def compliant_loads(
+    params: KinematicParameters, poses: np.ndarray, masses: MassModel, sharing: LoadSharing
+) -> SharedLoads:
+    """Return the compliant mode's loads with their parts for the derivatives (load_sharing)."""
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    jacobian, gradient, unborne, link_row = _weights_held(params, poses, masses)
+    unborne = np.zeros((len(poses), 6)) if unborne is None else unborne
+    leg_factor = np.linalg.norm(jacobian[:, :, :3], axis=2)
+    return share_by_stiffness(jacobian, link_row, gradient, leg_factor, unborne, sharing)
 
 
 def released_force_loads(
@@ -451,6 +413,7 @@ def released_force_loads(
 
 __all__ = [
     'actuator_weight_loads',
+    'compliant_loads',
     'leg_weight_loads',
     'LoadSharing',
     'released_force_loads',
