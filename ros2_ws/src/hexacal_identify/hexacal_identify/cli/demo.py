@@ -53,8 +53,9 @@ DEMO_MEASURING_MODE = MeasuringMode.PASSIVE_ACTUATOR.value
 # and the driver's parameter caps that at 10.
 EXECUTOR_SPEED_M_S = 0.5
 # passive_actuator on the MuJoCo machine: the link bears the motion's inertia with one chain
-# released (the Hexa Slide demo's peak link force 952 N at 0.5 m/s, 662 N at 0.25 m/s).
-PASSIVE_PHYSICS_SPEED = 0.25
+# released (the Hexa Slide demo's peak link force 952 N at 0.5 m/s, 662 N at 0.25 m/s, 546 N at
+# 0.15 m/s, there at a release swap, not on a move).
+PASSIVE_PHYSICS_SPEED = 0.15
 MAX_ACTUATOR_SPEED = 5.0
 
 # Names of the demo's parts kept importable from here; their modules load on first use.
