@@ -6,6 +6,10 @@ SRC := ros2_ws/src
 PACKAGES := hexacal_msgs_py hexacal_identify hexacal_driver
 # Extra pytest arguments, e.g. make test PYTEST_ARGS="-m 'not slow'"
 PYTEST_ARGS ?=
+# Test processes (pytest-xdist), each test file whole on one of them (its module fixtures
+# shared); each process claims a ROS domain of its own (tests/conftest.py).  1: one process.
+TEST_WORKERS ?= 2
+PARALLEL := $(if $(filter 1,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist loadfile)
 # The unit tier: the packages' own tests (no DDS, no processes).
 UNIT_TESTS := $(foreach p,$(PACKAGES),$(SRC)/$(p)/test)
 
@@ -64,11 +68,11 @@ $(STAMP): $(SETUP_INPUTS) | $(VENV_PY)
 # Everything, the lint set included (tests marked linter): the CI command (.ci/run).
 test: setup
 	sh scripts/ensure_chromium.sh
-	$(VENV_PY) -m pytest $(PYTEST_ARGS)
+	$(VENV_PY) -m pytest $(PARALLEL) $(PYTEST_ARGS)
 
 # The fast loop: the unit tier without the tests marked slow (about a minute on 2 cores).
 test-fast: setup
-	$(VENV_PY) -m pytest $(UNIT_TESTS) -m 'not slow' $(PYTEST_ARGS)
+	$(VENV_PY) -m pytest $(PARALLEL) $(UNIT_TESTS) -m 'not slow' $(PYTEST_ARGS)
 
 # ament_flake8 and ament_pep257 on each package, mypy on all three: the tests marked linter.
 lint: setup
