@@ -12,10 +12,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 import re
-import subprocess
 
 import pytest
-from rosproc import venv_executable
+from system_support import hexacal
 
 
 @pytest.mark.slow
@@ -28,13 +27,9 @@ def test_demo_walks_plans_calibrates_verifies_and_keeps_everything_under_out(tmp
     verification walk, without the truth, says so.
     """
     out = tmp_path / 'out'
-    completed = subprocess.run(
-        [venv_executable('hexacal'), 'demo', '--postures', '20', '--verify-postures', '8',
-         '--out', str(out)],
-        capture_output=True,
-        text=True,
-        timeout=900,
-        cwd=tmp_path,
+    completed = hexacal(
+        'demo', '--postures', '20', '--verify-postures', '8', '--out', out, timeout=900,
+        cwd=tmp_path, script=True,
     )
     assert completed.returncode == 0, completed.stdout + completed.stderr
     text = completed.stdout
@@ -114,25 +109,10 @@ def test_demo_stops_on_a_drive_fault_naming_it(tmp_path):
     refined): the first move faults them, the executor pauses.
     """
     out = tmp_path / 'out'
-    completed = subprocess.run(
-        [
-            venv_executable('hexacal'),
-            'demo',
-            '--measuring-mode',
-            'compliant',
-            '--driver-param',
-            'max_force_n=5.0',
-            '--postures',
-            '20',
-            '--verify-postures',
-            '0',
-            '--out',
-            str(out),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        cwd=tmp_path,
+    completed = hexacal(
+        'demo', '--measuring-mode', 'compliant', '--driver-param', 'max_force_n=5.0',
+        '--postures', '20', '--verify-postures', '0', '--out', out, timeout=300, cwd=tmp_path,
+        script=True,
     )
     assert completed.returncode == 1, completed.stdout + completed.stderr
     assert re.search(

@@ -12,10 +12,9 @@ from __future__ import annotations
 
 import json
 import re
-import subprocess
 
 import pytest
-from rosproc import venv_executable
+from system_support import hexacal
 
 pytest.importorskip('mujoco')
 
@@ -25,13 +24,9 @@ def test_the_demo_calibrates_the_mujoco_machine_and_says_the_rigid_model_is_not_
     out = tmp_path / 'out'
     # 0.25 m/s, above the demo's 0.15 m/s on this machine: a shorter walk.  At 0.5 m/s the
     # fixed postures' inclinometer corrections did not converge, and the executor gave them up.
-    completed = subprocess.run(
-        [venv_executable('hexacal'), 'demo', '--physics', 'mujoco', '--postures', '16',
-         '--verify-postures', '3', '--actuator-speed', '0.25', '--out', str(out)],
-        capture_output=True,
-        text=True,
-        timeout=900,
-        cwd=tmp_path,
+    completed = hexacal(
+        'demo', '--physics', 'mujoco', '--postures', '16', '--verify-postures', '3',
+        '--actuator-speed', '0.25', '--out', out, timeout=900, cwd=tmp_path, script=True,
     )
     assert completed.returncode == 0, completed.stdout + completed.stderr
     text = completed.stdout

@@ -43,7 +43,7 @@ import numpy as np
 
 from .residuals import ResidualBlock
 from .statics import (
-    compliant_loads, LoadSharing, MassModel, released_force_loads, static_loads, StaticLoads
+    LoadSharing, MassModel, released_force_loads, static_loads, StaticLoads
 )
 from ..architectures import KinematicParameters
 from ..errors import InvalidMeasurementError
@@ -193,16 +193,16 @@ class ComplianceModel:
         return self.active and self.sharing(None) is not None
 
     def load_sensitivities(
-        self, params: KinematicParameters, poses: np.ndarray, values: np.ndarray
+        self, loads: StaticLoads, values: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """
         Return d reading_loads / d unknowns (N, 6, U) and d link tension / d unknowns (N, U).
 
-        Only where the loads move with the compliances (``shares_by_values``, load_sharing.py).
+        Of ``loads`` evaluated at ``values`` where the loads move with the compliances
+        (``shares_by_values``: they carry their solved system, load_sharing.py).
         """
-        sharing = self.sharing(values)
-        assert sharing is not None
-        readings, link = compliant_loads(params, poses, self.masses, sharing).sensitivities()
+        assert loads.shared is not None
+        readings, link = loads.shared.sensitivities()
         per_unknown = np.zeros((7, len(self.names)))  # (c_1..c_6, c_L) -> the unknowns
         if self.mode == SHARED:
             per_unknown[:6, 0] = 1.0

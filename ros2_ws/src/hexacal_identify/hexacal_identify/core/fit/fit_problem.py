@@ -184,13 +184,11 @@ class FitProblem:
         )
         assert block.jacobian is not None and self._compliant_cost is not None
         values = vector[offset:]
+        loads = self._compliant_cost[2]  # at these compliances: cost_at evaluated them
         moving = None
         if self.compliance.shares_by_values and self._load_basis is not None:
-            basis_params, basis_poses = self._load_basis
-            moving = (values, *self.compliance.load_sensitivities(
-                basis_params, basis_poses, values
-            ))
-        extra = self.compliance.columns(block, self._compliant_cost[2], n + DL, moving)
+            moving = (values, *self.compliance.load_sensitivities(loads, values))
+        extra = self.compliance.columns(block, loads, n + DL, moving)
         kept = [self.free[:n]] + ([self.free[n:offset]] if with_device else [])
         columns = np.concatenate(kept + [self.free[offset:]])
         jacobian = block.jacobian if with_device else block.jacobian[:, :n]

@@ -267,6 +267,8 @@ class StaticLoads:
     chains: np.ndarray  # (N, 6) axial force of each leg, signed as the thrust
     link: np.ndarray  # (N,) tension of the measuring link
     reading_loads: np.ndarray  # (N, 6) reading shift per unit axial compliance, N
+    # compliant: the solved system the loads came from, for their derivatives (load_sharing.py)
+    shared: SharedLoads | None = None
 
     def subset(self, index: np.ndarray) -> 'StaticLoads':
         return StaticLoads(
@@ -313,6 +315,7 @@ def static_loads(
     rows = np.arange(n)
     thrust: np.ndarray = np.zeros((n, 6))
     tension: np.ndarray = np.zeros(n)
+    shared: SharedLoads | None = None
     if mode == MeasuringMode.PASSIVE_ACTUATOR:
         if released is None:
             raise InvalidMeasurementError(
@@ -338,7 +341,7 @@ def static_loads(
         thrust, tension = shared.thrust, shared.tension
     # The leg carries the drive's thrust less the weight of what moves between them.
     chains = (thrust - moving_reading if moving else thrust) * leg_factor
-    return StaticLoads(thrust, chains, tension, chains * leg_factor)
+    return StaticLoads(thrust, chains, tension, chains * leg_factor, shared)
 
 
 def _weights_held(params: KinematicParameters, poses: np.ndarray, masses: MassModel):
@@ -362,17 +365,6 @@ def _weights_held(params: KinematicParameters, poses: np.ndarray, masses: MassMo
     link_row = np.zeros((len(poses), 6))
     link_row[:, :3] = poses[:, :3] / np.linalg.norm(poses[:, :3], axis=1, keepdims=True)
     return jacobian, gradient, moving_reading, link_row
-
-
-def compliant_loads(
-    params: KinematicParameters, poses: np.ndarray, masses: MassModel, sharing: LoadSharing
-) -> SharedLoads:
-    """Return the compliant mode's loads with their parts for the derivatives (load_sharing)."""
-    poses = np.atleast_2d(np.asarray(poses, dtype=float))
-    jacobian, gradient, unborne, link_row = _weights_held(params, poses, masses)
-    unborne = np.zeros((len(poses), 6)) if unborne is None else unborne
-    leg_factor = np.linalg.norm(jacobian[:, :, :3], axis=2)
-    return share_by_stiffness(jacobian, link_row, gradient, leg_factor, unborne, sharing)
 
 
 def released_force_loads(
@@ -413,7 +405,6 @@ def released_force_loads(
 
 __all__ = [
     'actuator_weight_loads',
-    'compliant_loads',
     'leg_weight_loads',
     'LoadSharing',
     'released_force_loads',
