@@ -102,10 +102,11 @@ class _Move:
 @dataclass
 class _Released:
     chain: int
-    gains: tuple[float, float, float]
+    gains: tuple[float, float, float, float]  # kp and the bias terms (constant, position, speed)
     extra: dict[str, float] = field(default_factory=dict)
     start_s: float = 0.0  # when the release began: the drive's force ramps down from there
     ramping: bool = False
+    held_force: float = 0.0  # the drive's force when the release began (N, or N m)
 
 
 def pose_from_frame(position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
@@ -231,10 +232,13 @@ class PhysicsMachine:
         """
         Unpower actuator ``chain`` (0-based): it moves freely with the released friction.
 
-        The drive's force goes to zero over the description's ``drives.release_ramp_s`` (its
-        gains scaled down on the quintic law): cut at once, the force the link then takes is a
-        step, and the machine overshoots to about 1.5x the link's static load (Hexa Slide,
-        shipped description; a 0.3 s ramp: within 15 %).
+        The drive's force goes to zero over the description's ``drives.release_ramp_s``: the
+        servo loop is opened and the force it held then is applied, scaled down on the quintic
+        law, as a drive disabled with a torque ramp does.  Cut at once, the force the link then
+        takes is a step, and the machine overshoots to about 1.5x the link's static load (Hexa
+        Slide, shipped description).  The gains scaled down instead (before session 8) overshot
+        by up to 26 % of the load's change at a swap: the softened servo let the slider move
+        while it still held most of its force.
         """
         if self._released is not None:
             if self._released.chain == chain:
@@ -248,27 +252,32 @@ class PhysicsMachine:
         model = self.model
         gains = (
             float(model.actuator_gainprm[chain, 0]),
+            float(model.actuator_biasprm[chain, 0]),
             float(model.actuator_biasprm[chain, 1]),
             float(model.actuator_biasprm[chain, 2]),
         )
         ramping = self.physical.release_ramp_s > 0.0
-        if not ramping:
-            model.actuator_gainprm[chain, 0] = 0.0
-            model.actuator_biasprm[chain, 1:3] = 0.0
+        held = float(self.data.actuator_force[chain]) if ramping else 0.0
+        model.actuator_gainprm[chain, 0] = 0.0
+        model.actuator_biasprm[chain, 0] = held  # the servo open: a constant force, ramped down
+        model.actuator_biasprm[chain, 1:3] = 0.0
         dof = self._actuated_dof[chain]
         model.dof_frictionloss[dof] = self.physical.released_coulomb
         model.dof_damping[dof] = self.physical.released_viscous
         if self.physical.released_coulomb > 0.0:
             model.opt.noslip_iterations = NOSLIP_ITERATIONS
-        self._released = _Released(chain, gains, start_s=self.time_s, ramping=ramping)
+        self._released = _Released(
+            chain, gains, start_s=self.time_s, ramping=ramping, held_force=held
+        )
 
     def lock(self) -> None:
         """Power the released actuator again, holding it where it stands."""
         if self._released is None:
             return
-        chain, (kp, bias_p, bias_d) = self._released.chain, self._released.gains
+        chain, (kp, bias_0, bias_p, bias_d) = self._released.chain, self._released.gains
         model = self.model
         model.actuator_gainprm[chain, 0] = kp
+        model.actuator_biasprm[chain, 0] = bias_0
         model.actuator_biasprm[chain, 1] = bias_p
         model.actuator_biasprm[chain, 2] = bias_d
         dof = self._actuated_dof[chain]
@@ -328,18 +337,15 @@ class PhysicsMachine:
         return left if left > _CLOCK_ROUNDING_S else 0.0
 
     def _ramp_release(self) -> None:
-        """Scale the released drive's gains down along its ramp (release's doc)."""
+        """Scale the released drive's force down along its ramp (release's doc)."""
         released = self._released
         if released is None:
             return
         fraction = (self.time_s - released.start_s) / self.physical.release_ramp_s
         scale = 1.0 - float(smooth_step(fraction))
-        kp, bias_p, bias_d = released.gains
-        model, chain = self.model, released.chain
-        model.actuator_gainprm[chain, 0] = kp * scale
-        model.actuator_biasprm[chain, 1] = bias_p * scale
-        model.actuator_biasprm[chain, 2] = bias_d * scale
         released.ramping = self.release_left_s() > 0.0
+        held = released.held_force * scale if released.ramping else 0.0
+        self.model.actuator_biasprm[released.chain, 0] = held
 
     def settle(self, max_seconds: float, speed: float = REST_SPEED) -> bool:
         """Advance until at rest (True) or ``max_seconds`` passed (False); rest below ``speed``."""

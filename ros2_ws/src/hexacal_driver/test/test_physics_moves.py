@@ -81,7 +81,8 @@ def test_a_release_ramped_down_hands_the_link_its_load_without_a_jolt():
     chain = 3
     static = released_link_forces(params, pose[None], MassModel.from_physical(physical))[0, chain]
 
-    def peak(ramp_s: float) -> float:
+    def peak(ramp_s: float) -> tuple[float, float]:
+        """Return the link's largest |force| over 0.6 s after the release, and where it settles."""
         machine = PhysicsMachine(params, replace(physical, release_ramp_s=ramp_s), pose,
                                  link_length=L)
         machine.settle(1.0, speed=1e-6)
@@ -90,9 +91,14 @@ def test_a_release_ramped_down_hands_the_link_its_load_without_a_jolt():
         for _ in range(600):
             machine.advance(1e-3)
             largest = max(largest, abs(machine.link_force()))
-        return largest
+        machine.settle(1.0)
+        return largest, abs(machine.link_force())
 
-    # Measured: static 303 N, at once 466 N, ramped 364 N.
+    # Measured: static 303 N; at once a 466 N peak; ramped, 251 N and no overshoot (the released
+    # slider's 10 N stiction stops it short of the frictionless statics). The drive's gains
+    # scaled down instead of its force peaked at 364 N.
     assert physical.release_ramp_s == 0.3
-    assert peak(0.0) > 1.35 * static > 1.35 * 250.0
-    assert peak(physical.release_ramp_s) < 1.3 * static
+    assert peak(0.0)[0] > 1.35 * static > 1.35 * 250.0
+    ramped, settled = peak(physical.release_ramp_s)
+    assert ramped < 1.02 * settled, (ramped, settled)
+    assert abs(settled - static) < 0.25 * static, (settled, static)
