@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from .link_load import LinkLoad, released_link_forces
 from .passive_actuator import release_conditions
 from .release_moves import inside_stroke, Move, move
 from .release_rehearsal import (
@@ -106,6 +107,7 @@ class Rehearser:
         settings: RehearsalSettings = RehearsalSettings(),
         *,
         batched: bool = True,
+        link_load: LinkLoad | None = None,
     ):
         error = (
             model_error_rms_m(params) if settings.model_error_m is None
@@ -118,6 +120,7 @@ class Rehearser:
         self.standing: Standings | None = None
         self.batched = batched
         self.stack = MachineStack(self.machines) if batched else None
+        self.link_load = link_load
 
     def ranked(self, nominal_move: Move) -> np.ndarray:
         """Return each chain's worst nominal condition along the move (inf: leaves the stroke)."""
@@ -128,7 +131,26 @@ class Rehearser:
         )
         along = np.max(release_conditions(self.params, nominal_move.poses, self.link_length),
                        axis=0)
-        return np.where(inside & np.isfinite(along), along, np.inf)
+        ranked = np.where(inside & np.isfinite(along), along, np.inf)
+        if self.link_load is not None:
+            ranked = self._within_link_limit(nominal_move, ranked)
+        return ranked
+
+    def _within_link_limit(self, nominal_move: Move, ranked: np.ndarray) -> np.ndarray:
+        """
+        Return `ranked` without the chains whose release loads the link beyond its limit.
+
+        The link's static load along the nominal move with each chain released, from its start
+        (where the executor swaps the releases) on; where every candidate passes the limit, all
+        stay ranked as they were (the plan then reports the posture as overloaded).
+        """
+        assert self.link_load is not None
+        forces = released_link_forces(self.params, nominal_move.poses, self.link_load.masses)
+        largest = np.fmax.reduce(forces, axis=0)  # a pose out of reach (NaN) bears nothing
+        light = largest <= self.link_load.max_force_n
+        if not np.any(light & np.isfinite(ranked)):
+            return ranked
+        return np.where(light, ranked, np.inf)
 
     def try_move(
         self, previous: np.ndarray | None, pose: np.ndarray, exclude: Sequence[int] = ()

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .link_load import LinkLoad
 from .passive_actuator import release_conditions
 from .release_moves import inside_stroke, move
 from .release_plan import (
@@ -176,6 +177,7 @@ def choose_released_actuators(
     rehearsal: RehearsalSettings = RehearsalSettings(),
     groups: np.ndarray | None = None,
     batched: bool = True,
+    link_load: LinkLoad | None = None,
 ) -> ReleaseChoice:
     """
     Choose each posture's released actuator (module doc); ReleaseError if one has none.
@@ -186,12 +188,14 @@ def choose_released_actuators(
     ``released_margin``; m, or rad for cranks like the stroke); `mount` the device's (the centre
     a move may go by); `rehearsal` the machines the moves are rehearsed on; `groups` (K,) when
     the order within each group of postures is free (``ReleaseChoice.order`` then says it);
-    `batched` False rehearses machine by machine (the reference; the same choice, slower).
+    `batched` False rehearses machine by machine (the reference; the same choice, slower);
+    `link_load` the weights and the link's limit: a chain whose release loads the link beyond
+    it along a move is not chosen where another will do (Rehearser.ranked).
     """
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
     margin_m = released_margin(params, margin_m)
     rehearser = Rehearser(params, link_length, stroke_m, margin_m, step_m, mount, rehearsal,
-                          batched=batched)
+                          batched=batched, link_load=link_load)
     order = None
     try:
         if groups is None or len(poses) < 3:

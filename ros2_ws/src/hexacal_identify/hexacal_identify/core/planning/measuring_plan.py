@@ -142,7 +142,8 @@ def check_measuring_mode(
     chosen = measuring_mode(mode)
     if chosen == MeasuringMode.PASSIVE_ACTUATOR:
         release = choose_released_actuators(
-            nominal, poses, link_length, stroke_m, mount=mount, groups=groups
+            nominal, poses, link_length, stroke_m, mount=mount, groups=groups,
+            link_load=link_load,
         )
         if link_load is None:
             return MeasuringCheck(chosen, release=release)
