@@ -222,9 +222,10 @@ def _plan_arguments(plan) -> None:
         default=None,
         metavar='FILE',
         help='passive_actuator: physical description YAML (docs/formats.md; its gravity and '
-        'masses): the measuring link holds the platform with the five commanded chains; a '
-        'posture whose release would load it beyond --max-link-force-n is left out and the '
-        'postures chosen again; the plan reports the predicted load at each posture',
+        'masses): the measuring link holds the platform with the five commanded chains; each '
+        'move releases a chain that keeps its load within --max-link-force-n where one does, '
+        'a posture no release keeps within it is left out and the postures chosen again; the '
+        'plan reports the predicted load at each posture',
     )
     plan.add_argument(
         '--max-link-force-n',
