@@ -41,13 +41,14 @@ from hexacal_identify.core.walk.platform_paths import CommandPurpose, eased_comm
 from hexacal_identify.core.walk.platform_paths import route_command
 from hexacal_identify.core.walk.release_choice import first_releases, release_after_fault
 from hexacal_identify.core.walk.release_choice import release_checked_here
+from hexacal_identify.core.walk.settings import ExecutionSettings
 from hexacal_identify.core.walk.standing import blend_from_setpoints, estimate_pose
 from hexacal_msgs_py.measuring_modes import MeasuringMode
 import numpy as np
 
 EXECUTOR_SPEED_M_S = 0.5  # the demo's executor
 DRIVER_SPEED_M_S = 1.0  # the demo's driver
-PATH_STEP_M = 0.02  # the executor's default path_step_m
+PATH_STEP_M = ExecutionSettings().path_step_m  # the executor's default
 
 
 @dataclass(frozen=True)
