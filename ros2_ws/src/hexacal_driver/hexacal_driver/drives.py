@@ -43,6 +43,7 @@ from hexacal_driver.simulation import (
     device_constrained_pose,
     MOVING,
     STILL,
+    TrajectoryPoint,
     WalkSample,
 )
 from hexacal_identify.core.architectures import KinematicParameters
@@ -160,6 +161,11 @@ class DriveFollower(CommandFollower):
         self.rests = 0
         self.move_peaks = {'force_n': 0.0, 'link_extension_m': 0.0, 'link_force_n': 0.0}
         self.last_move_peaks = dict(self.move_peaks)
+        # What the link's peak of the motion came after: 'move' (a trajectory), 'release' or
+        # 'lock' (of `peak_joint`); a swap of the releases is a lock then a release.
+        self._last_event = ('move', '')
+        self.move_link_peak_after = ('', '')
+        self.last_move_link_peak_after = ('', '')
         self.last_refusal = ''  # why the last trajectory was refused ('' none yet)
         self._tension_key: tuple[bytes, bytes] | None = None  # the last link tension computed
         self._tension_n = 0.0
@@ -258,6 +264,9 @@ class DriveFollower(CommandFollower):
             'move_max_link_force_n': (
                 self.last_move_peaks['link_force_n'] if forces is not None else ''
             ),
+            'move_max_link_force_after': (
+                self.last_move_link_peak_after[0] if forces is not None else ''
+            ),
         }
 
     def rest_reached(self) -> None:
@@ -269,10 +278,19 @@ class DriveFollower(CommandFollower):
         """
         self.rests += 1
         self.last_move_peaks = dict(self.move_peaks)
+        self.last_move_link_peak_after = self.move_link_peak_after
         # This standing is counted in the motion that ended here; the next one starts anew.
         self.move_peaks = {'force_n': 0.0, 'link_extension_m': 0.0, 'link_force_n': 0.0}
+        self.move_link_peak_after = ('', '')
 
     # ------------------------------------------------------------------ release, lock, reset
+
+    def command(
+        self, now_s: float, points: list[TrajectoryPoint], start_s: float | None = None
+    ) -> float:
+        """Follow `points` (CommandFollower.command); the link's next peak comes after a move."""
+        self._last_event = ('move', '')
+        return super().command(now_s, points, start_s)
 
     def release(self, joint: str, release: bool, now_s: float) -> tuple[bool, str]:
         """Release (True) or lock (False) `joint`; return (done, what happened or why not)."""
@@ -294,6 +312,7 @@ class DriveFollower(CommandFollower):
                 )
             self.released = index
             self._segments = []  # at rest: the setpoints are self.setpoints from now on
+            self._last_event = ('release', joint)
             self._update_measures()
             return True, f'{joint} released: it follows the link, its encoder reads'
         if self.released != index:
@@ -303,6 +322,7 @@ class DriveFollower(CommandFollower):
         self._solved_for = self.setpoints.copy()
         self._segments = []
         self.released = None
+        self._last_event = ('lock', joint)
         self._update_measures()
         unit = self.params.layout.actuator_unit  # m, or rad for a crank
         return True, f'{joint} locked at {self.actuators[index]:.6f} {unit}'
@@ -486,7 +506,9 @@ class DriveFollower(CommandFollower):
         if forces is not None:
             move['force_n'] = max(move['force_n'], float(np.max(np.abs(forces))))
         move['link_extension_m'] = max(move['link_extension_m'], abs(self.link_extension_m))
-        move['link_force_n'] = max(move['link_force_n'], abs(self.link_force_n))
+        if abs(self.link_force_n) > move['link_force_n']:
+            move['link_force_n'] = abs(self.link_force_n)
+            self.move_link_peak_after = self._last_event
 
     def _at_rest(self) -> None:
         """Record the commanded actuators' true deviation from their setpoints at rest."""

@@ -222,5 +222,6 @@ class PhysicsFollower(DriveFollower):
             values.update(
                 link_force_n=self.link_force_n, max_link_force_n=self.peaks['link_force_n'],
                 move_max_link_force_n=self.last_move_peaks['link_force_n'],
+                move_max_link_force_after=self.last_move_link_peak_after[0],
             )
         return values

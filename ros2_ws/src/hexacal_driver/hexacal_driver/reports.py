@@ -251,8 +251,11 @@ def link_overload_warning(follower: DriveFollower) -> str | None:
     limit = follower.settings.max_link_force_n
     if follower.link_force() is None or peak <= limit:
         return None
+    event, joint = follower.move_link_peak_after
+    after = {'move': ', on a move', 'release': f', after the release of {joint}',
+             'lock': f', after the lock of {joint}'}.get(event, '')
     return (
-        f'the measuring link carried up to {peak:.4g} N on the way here, beyond its '
+        f'the measuring link carried up to {peak:.4g} N on the way here{after}, beyond its '
         f'{limit:g} N limit (max_link_force_n)'
     )
 

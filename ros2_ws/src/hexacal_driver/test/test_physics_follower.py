@@ -83,12 +83,16 @@ def test_passive_actuator_on_the_mujoco_machine(tmp_path):
     f.settings = replace(f.settings, max_link_force_n=1e-3)
     warning = link_overload_warning(f)
     assert warning is not None and 'beyond its 0.001 N limit' in warning, warning
+    assert ', on a move,' in warning, warning  # weightless: the release itself loads nothing
     f.rest_reached()
     assert f.status_values()['move_max_link_force_n'] > 1e-3 and link_overload_warning(f) is None
-    # Locked where it stands: no jump.
+    assert f.status_values()['move_max_link_force_after'] == 'move'
+    # Locked where it stands: no jump; what the link bears next comes after the lock.
     before = f.actuators[index]
     assert f.release(RELEASED, False, now_s)[0]
     assert abs(f.sample(now_s + 0.1).actuators[index] - before) < 1e-8
+    f.rest_reached()
+    assert f.status_values()['move_max_link_force_after'] == 'lock'
 
 
 def test_a_following_error_faults_and_reset_holds(tmp_path):
