@@ -161,8 +161,8 @@ class DriveFollower(CommandFollower):
         self.rests = 0
         self.move_peaks = {'force_n': 0.0, 'link_extension_m': 0.0, 'link_force_n': 0.0}
         self.last_move_peaks = dict(self.move_peaks)
-        # What the link's peak of the motion came after: 'move' (a trajectory), 'release' or
-        # 'lock' (of `peak_joint`); a swap of the releases is a lock then a release.
+        # What the link's peak of the motion came after, with the joint: ('move', '') for a
+        # trajectory, ('release' | 'lock', joint); a swap of the releases is a lock, a release.
         self._last_event = ('move', '')
         self.move_link_peak_after = ('', '')
         self.last_move_link_peak_after = ('', '')
