@@ -3,13 +3,15 @@ How every hexacal node starts, spins and stops: one place for the shutdown rules
 
 A terminal's Ctrl-C reaches a node twice under `ros2 launch`: the terminal sends
 SIGINT to the whole process group, then launch forwards another SIGINT to each
-node; supervisors send SIGTERM. rclpy's own handlers turn the first signal into
-a shutdown of the context, which ends spinning. They also chain to the Python
-handler that was there before, which for SIGINT would raise KeyboardInterrupt
-at whatever line the main thread is on - possibly in the middle of closing a
-bag. So a no-op Python handler is installed before rclpy's, and once spinning
-has ended SIGINT and SIGTERM are ignored: the node finishes its files,
-destroys itself and exits 0 with no traceback, however many signals follow.
+node; supervisors send SIGTERM. rclpy's own handlers would shut the context down
+from their signal thread while the main thread may be inside the executor's wait
+on that context, a race that aborts the process now and then (rclpy issue 1453:
+"Fatal Python error: Aborted" in `_wait_for_ready_callbacks`). So rclpy installs
+no handler here: a Python handler notes the signal, the executor's wait is
+bounded by SPIN_POLL_S so the main thread sees the note, spinning ends, and the
+context is shut down on the main thread once nothing waits on it. From then on
+SIGINT and SIGTERM are ignored: the node finishes its files, destroys itself and
+exits 0 with no traceback, however many signals follow.
 
 A node module calls `remember_termination_signals()` before its heavy imports,
 so a Ctrl-C while the node is still starting is remembered and the node stops
@@ -28,17 +30,14 @@ if TYPE_CHECKING:
     from rclpy.node import Node
 
 TERMINATION_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+SPIN_POLL_S = 0.1  # the longest a noted signal waits for the executor's wait to return
 
 NodeT = TypeVar('NodeT', bound='Node')
 _received: list[int] = []  # signals seen by the Python-level handler
 
 
 def _noted(signum: int, frame: object) -> None:
-    """
-    Python-level handler under rclpy's: the context shutdown already ends spinning.
-
-    Remembered, for a signal that arrives before rclpy.init has installed rclpy's handlers.
-    """
+    """Note a termination signal: `run_node` stops spinning at the executor's next return."""
     _received.append(signum)
 
 
@@ -58,11 +57,11 @@ class ShutdownLog:
     """
     A node logger's stand-in while the node stops: every line kept, logged after it is destroyed.
 
-    After a signal the context is shut down, and a line logged through the node's logger (or any
-    logger of its name) while the node still exists fails to reach rosout with an rcl error on
-    the terminal. A node's `finish` hands this to whatever may log while it stops (workers
-    finishing a calibration or a report) and returns `lines`; run_node logs them at their
-    severity once the node, and its rosout publisher, are gone.
+    After an external shutdown (a node that stops itself shuts its context down) a line logged
+    through the node's logger (or any logger of its name) while the node still exists fails to
+    reach rosout with an rcl error on the terminal. A node's `finish` hands this to whatever may
+    log while it stops (workers finishing a calibration or a report) and returns `lines`;
+    run_node logs them at their severity once the node, and its rosout publisher, are gone.
     """
 
     def __init__(self) -> None:
@@ -110,12 +109,11 @@ def _log_line(logger, severity: str, text: str) -> None:
         logger.info(text)
 
 
-def _stopped_during_startup() -> int:
-    import rclpy
-
-    hold_termination_signals()
-    rclpy.try_shutdown()
-    return 0
+def _spin(node: 'Node', executor: 'Executor') -> None:
+    """Spin until a noted signal or an external shutdown: the wait is bounded, signals are seen."""
+    executor.add_node(node)
+    while node.context.ok() and not _received:
+        executor.spin_once(timeout_sec=SPIN_POLL_S)
 
 
 def run_node(
@@ -134,46 +132,31 @@ def run_node(
     fatal, exit code 2. ``finish`` runs after spinning with the termination
     signals held (close bags, write files, wait for workers); the lines it
     returns (text, or (severity, text) as a ShutdownLog keeps them) are logged after
-    the node is destroyed, since the context (and the node's rosout publisher) may
-    already be shut down by the signal.
+    the node is destroyed (a worker's line through the node's logger could race its
+    rosout publisher's teardown).
     """
     import rclpy
-    from rclpy.executors import ExternalShutdownException
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
 
-    remember_termination_signals()  # before rclpy.init, so that rclpy chains to these
-    rclpy.init(args=args)
+    remember_termination_signals()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     logger = rclpy.logging.get_logger(node_name)
     try:
         node = create()
     except startup_errors as error:
-        if rclpy.ok():
-            logger.fatal(f'cannot start: {error}')
-            rclpy.try_shutdown()
-            return 2
-        return _stopped_during_startup()
-    except Exception:
-        # A signal during start-up shuts the context down under the constructor, whose next rcl
-        # call then fails ("context is not valid"): that is a stop, not a crash.
-        if rclpy.ok():
-            raise
-        return _stopped_during_startup()
+        logger.fatal(f'cannot start: {error}')
+        hold_termination_signals()
+        rclpy.try_shutdown()
+        return 2
     executor = None
     lines: list[str | tuple[str, str]] = []
     try:
-        if node.context.ok() and not _received:
-            executor = make_executor() if make_executor is not None else None
-            if executor is None:
-                rclpy.spin(node)
-            else:
-                executor.add_node(node)
-                executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
+        if not _received:  # a signal while the node was being built: stop before spinning
+            executor = make_executor() if make_executor is not None else SingleThreadedExecutor()
+            _spin(node, executor)
+    except ExternalShutdownException:
         pass
-    except Exception:
-        # A signal that shuts the context down while an executor is created or builds its wait
-        # set surfaces as an rcl error ("context is not valid"), not as ExternalShutdownException.
-        if node.context.ok():
-            raise
     finally:
         hold_termination_signals()
         if executor is not None:
