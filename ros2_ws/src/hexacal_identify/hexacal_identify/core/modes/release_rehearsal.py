@@ -14,6 +14,11 @@ the previous posture (the actuator released there locked where the link put it),
 setpoints carry that offset to zero along the move (as the executor commands a move,
 core/walk/platform_paths.py), sampled at most ``step_m`` apart in joint space, each sample solved
 from the previous pose (``passive_actuator.solve_passive``: continuation on the machine's branch).
+After a move's first sample, Newton starts from a predicted pose when that is closer: the
+tangent step from the previous pose plus the previous sample's second-order correction (where
+it closed less where its tangent step led; ``predicted_starts``), so that most samples close in
+one Newton step instead of two.  The solution must then lie within the branch tolerance of both
+the previous pose and the predicted one.
 A candidate survives on a machine if every sample closes and its released actuator stays inside
 the stroke less the margin; its score is the worst condition number of the passive system met
 on the way, over all machines.
@@ -34,9 +39,11 @@ import numpy as np
 
 from .passive_actuator import (
     _check_branch,
+    _errors,
     _solve,
     MAX_HALVINGS,
     MAX_STALLS,
+    passive_system,
     release_conditions,
     solve_passive,
 )
@@ -50,6 +57,9 @@ DEFAULT_JOINT_STEP_M = 0.01  # a continuation step that follows the branch; the 
 REHEARSAL_TOLERANCE_M = 1e-9
 # Samples on the way need only stay on the branch: Newton's next pass closes 0.1 mm to ~1e-8.
 PATH_TOLERANCE_M = 1e-4
+# The largest second-order correction (m or rad, any pose coordinate) a prediction carries:
+# 99 % of the Hexa Slide's are below it, and it stays well inside the branch tolerance.
+PREDICTION_LIMIT = 0.02
 NOMINAL_ERROR_SET = 2  # Table 2's set of a machine built to its drawing
 
 
@@ -162,6 +172,7 @@ def rehearse(
     alive = np.ones((count, machine_count), bool)
     worst = np.zeros((count, machine_count))
     low, high = stroke[0] + margin_m, stroke[1] - margin_m
+    tangent = np.full((count, machine_count, 6), np.nan)  # where each sample's tangent led
     for s, sample in enumerate(setpoints):
         tolerance = float(_sample_tolerance(s, len(setpoints)))
         for k, machine in enumerate(machines):
@@ -169,11 +180,17 @@ def rehearse(
             if not rows.size:
                 continue
             released = candidates[rows]
-            solved = solve_passive(
-                machine, np.repeat(sample[k][None], len(rows), axis=0), released,
-                poses[rows, k], link_length, mount, tolerance=tolerance,
+            commanded = np.repeat(sample[k][None], len(rows), axis=0)
+            here = poses[rows, k]
+            starts, tangent[rows, k] = predicted_starts(
+                machine, commanded, released, here, tangent[rows, k], link_length, tolerance,
+                predict=s > 0,
             )
+            solved = solve_passive(machine, commanded, released, starts, link_length, mount,
+                                   tolerance=tolerance)
             ok = solved.converged
+            _check_branch(solved.poses, here, ok, {}, mount, BRANCH_TOLERANCE_M,
+                          BRANCH_TOLERANCE_RAD)
             alive[rows[~ok], k] = False
             rows, released = rows[ok], released[ok]
             poses[rows, k] = solved.poses[ok]
@@ -191,6 +208,44 @@ def rehearse(
         _worst_alive(worst, alive),
         tuple(Standings(poses[c], actuators[c]) for c in range(count)),
     )
+
+
+def predicted_starts(
+    machine: KinematicParameters,
+    commanded: np.ndarray,
+    released: np.ndarray,
+    here: np.ndarray,
+    last_tangent: np.ndarray,
+    link_length: float,
+    tolerance: float,
+    *,
+    predict: bool,
+) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return where Newton starts each row's next sample, and where its tangent step leads.
+
+    The tangent step is Newton's first from `here` (the previous sample's pose; NaN for a row
+    already closed there); the prediction adds the previous sample's second-order correction
+    (`here` less `last_tangent`, where that sample's tangent step led), up to PREDICTION_LIMIT,
+    and is the start where its residual is smaller than at `here` (else `here`).  The stacked
+    continuation takes the same first step.
+    """
+    used = commanded.copy()
+    used[np.arange(len(here)), released] = 0.0
+    error = _errors(machine, here, used, released, link_length)
+    residual, jacobian, _ = passive_system(machine, here, used, released, link_length)
+    step, solvable = _solve(jacobian, residual)
+    with np.errstate(invalid='ignore'):
+        moving = error >= tolerance
+        tangent = np.where(moving[:, None], here - step, np.nan)
+        correction = here - last_tangent
+        usable = (predict & moving & solvable
+                  & (np.abs(correction).max(axis=1) <= PREDICTION_LIMIT))
+    if not usable.any():
+        return here, tangent
+    guess = np.where(usable[:, None], tangent + correction, here)
+    closer = usable & (_errors(machine, guess, used, released, link_length) < error)
+    return np.where(closer[:, None], guess, here), tangent
 
 
 class MachineStack:
@@ -520,7 +575,10 @@ class _Continuation:
         self.actuators = np.full((n, 6), np.nan)
         self.sample = np.zeros(n, int)
         self.used = np.full((n, 6), np.nan)
-        self.begun = self.poses.copy()  # the pose each row's current sample started from
+        # The poses each row's solution must stay near: where its sample began, and where
+        # Newton restarted (the prediction, when taken; else the same pose).
+        self.anchors = np.repeat(self.poses[None], 2, axis=0)
+        self.tolerance = np.full(n, PATH_TOLERANCE_M)  # the closure of each row's sample
         self.error = np.full(n, np.inf)
         self.stalls = np.zeros(n, int)
         self.iterations = np.zeros(n, int)
@@ -529,6 +587,12 @@ class _Continuation:
         self.reachable = np.zeros(n, bool)
         self.residual = np.full((n, 6), np.nan)
         self.radius = np.full(n, np.nan)
+        # The prediction (predicted_starts): each sample's tangent landing, the correction the
+        # next sample's first step carries, and the pose Newton restarted from when it was taken.
+        self.tangent = np.full((n, 6), np.nan)
+        self.correction = np.zeros((n, 6))
+        self.fresh = np.zeros(n, bool)  # the sample's first step is still to take
+        self.predicting = np.zeros(n, bool)
         # Each settled sample's Jacobian, kept for the condition numbers computed at the end.
         self.settled: list[tuple[np.ndarray, ...]] = []
 
@@ -556,7 +620,15 @@ class _Continuation:
         self.error[which] = np.where(finite, np.max(np.abs(residual), axis=1), np.inf)
         self.stalls[which] = np.where(finite, 0, MAX_STALLS)
         self.iterations[which] = 0
-        self.begun[which] = self.poses[which]
+        self.tolerance[which] = _sample_tolerance(self.sample[which], self.counts[which])
+        self.anchors[:, which] = self.poses[which]
+        correction = self.poses[which] - self.tangent[which]
+        self.correction[which] = correction
+        self.predicting[which] = (self.sample[which] > 0) & (
+            np.abs(correction).max(axis=1) <= PREDICTION_LIMIT
+        )
+        self.tangent[which] = np.nan  # recorded by the sample's first step, if it takes one
+        self.fresh[which] = True
 
     def _evaluate_all(self, at: np.ndarray):
         ik, pose_jacobian, ok = self.stack.evaluate_rows(self.bound, at)
@@ -582,13 +654,13 @@ class _Continuation:
                 walking = alive & (self.sample < self.counts)
                 if not walking.any():
                     break
-                open_ = ((self.error >= self._tolerance()) & (self.stalls < MAX_STALLS)
+                open_ = ((self.error >= self.tolerance) & (self.stalls < MAX_STALLS)
                          & (self.iterations < MAX_ITERATIONS))
                 settled = walking & ~open_
                 if settled.any():
                     self._settle(settled, alive, low, high)
                     walking = alive & (self.sample < self.counts)
-                    open_ = ((self.error >= self._tolerance()) & (self.stalls < MAX_STALLS)
+                    open_ = ((self.error >= self.tolerance) & (self.stalls < MAX_STALLS)
                              & (self.iterations < MAX_ITERATIONS))
                 stepping = walking & open_
                 if stepping.any():
@@ -596,22 +668,23 @@ class _Continuation:
         if self.settled:  # the worst condition met on the way, all samples at once
             which, jacobian, reachable, poses = (np.concatenate(part)
                                                  for part in zip(*self.settled))
-            picked = released_condition(jacobian, reachable, poses, self.released[which],
-                                        self.link_length)
+            kept = alive[which]  # a row that jammed has no score (_worst_alive)
+            which = which[kept]
+            picked = released_condition(jacobian[kept], reachable[kept], poses[kept],
+                                        self.released[which], self.link_length)
             np.maximum.at(worst, which, picked)
         self.poses[~alive] = np.nan
         self.actuators[~alive] = np.nan
         return alive, worst
 
-    def _tolerance(self) -> np.ndarray:
-        return _sample_tolerance(self.sample, self.counts)
-
     def _settle(self, settled, alive, low, high) -> None:
         """End each settled row's sample: closed on its branch and inside the stroke, or dead."""
-        converged = settled & (self.error < self._tolerance())
-        poses, begun = self.poses, self.begun
-        jump = _radius(poses - begun)
-        turn = np.abs(wrap_angle(poses[:, 3:] - begun[:, 3:])).max(axis=1)
+        converged = settled & (self.error < self.tolerance)
+        poses = self.poses
+        away = poses - self.anchors  # (2, N, 6): from where the sample began and restarted
+        moved = away[..., :3]
+        jump = np.sqrt(np.add.reduce(moved * moved, axis=2)).max(axis=0)  # _radius of each
+        turn = np.abs(wrap_angle(away[..., 3:])).max(axis=2).max(axis=0)
         side = poses[:, 2] > 0 if self.mount == STANDING else poses[:, 2] < 0
         converged &= ~((jump > BRANCH_TOLERANCE_M) | (turn > BRANCH_TOLERANCE_RAD) | ~side)
         alive &= ~settled | converged
@@ -626,17 +699,30 @@ class _Continuation:
             self._begin(going)
 
     def _step(self, stepping: np.ndarray) -> None:
-        """One Newton step with solve_passive's halving on every stepping row."""
-        self.iterations += stepping
+        """
+        One Newton step with solve_passive's halving on every stepping row.
+
+        A predicting row instead tries its predicted start (predicted_starts): taken, Newton
+        restarts there (no iteration counted); not closer, the row's next pass takes the plain
+        step from where it stands.
+        """
+        predicting = stepping & self.predicting
+        self.iterations += stepping & ~predicting
         system = _passive_jacobian(self.jacobian, self.poses, self.radius, self.released)
         idle = ~stepping
         system[idle] = _IDENTITY
         step, solvable = _solve(system, np.where(idle[:, None], 0.0, self.residual))
+        fresh = stepping & self.fresh
+        self.tangent[fresh] = self.poses[fresh] - step[fresh]
+        self.fresh &= ~stepping
+        self.predicting &= ~stepping
+        predicting &= solvable
+        step[predicting] -= self.correction[predicting]
         self.stalls[stepping & ~solvable] = MAX_STALLS
         ok = stepping & solvable
         trial = self.poses - step
         values, trial_error = self._evaluate_all(trial)
-        worse = np.flatnonzero(ok & ~(trial_error < self.error))
+        worse = np.flatnonzero(ok & ~predicting & ~(trial_error < self.error))
         if worse.size:
             count = len(_HALVINGS)
             halved = (self.poses[worse][:, None, :]
@@ -651,7 +737,9 @@ class _Continuation:
             for value, halved_value in zip(values, halved_values):
                 value[worse] = halved_value[picked]
         better = ok & (trial_error < self.error)
-        self.stalls += ok & ~better
+        self.stalls += ok & ~better & ~predicting
+        restarted = predicting & better
+        self.anchors[1, restarted] = trial[restarted]
         taken = np.flatnonzero(better)
         self.poses[taken] = trial[taken]
         self.error[taken] = trial_error[taken]
