@@ -13,14 +13,17 @@ postures (a kind and device turn: the plan's groups stay in their order): from t
 posture the ``tries`` nearest of the group (travel distance, angles weighted by L, as the
 planner's travel order) are tried, nearest first, and the first whose move is safe (closes on
 every machine within the limit) is walked next, else the least risky of them (fewest jams, then
-the lowest worst condition).  The batched rehearser (the default) rehearses all of a move's
-candidates on all machines in one stacked batch (release_rehearsal.rehearse_stacked; the rows
-are independent, and one batch with more rows costs less than a second batch for the rest) and
-decides exactly as above, from the first ones' part where one of them will do;
-``batched=False`` rehearses one machine at a time (the reference the tests compare it with).  Rehearsed on Table 1 with nominal set 2 (the demo),
-the order of the travel tour jams on the true machine on 1-2 of 49 moves whatever is
-released, the rehearsed tour on none.  Tries are rehearsed one after the other, not at once:
-the first is most often safe, and rows that jam would run their Newton iterations in full.
+the lowest worst condition).  The batched rehearser (the default) rehearses a move's
+first candidates on all machines in one stacked batch (release_rehearsal.rehearse_stacked) and
+the rest, where needed, in a second; after a move that needed them, all candidates in one batch
+(the rows are independent, and a batch of more rows costs less than a second batch where the
+rest is likely needed again: on the Hexa Slide; rarely on the Gough-Stewart) and decides
+exactly as above, from the first ones' part where one of them will do;
+``batched=False`` rehearses one machine at a time (the reference the tests compare it with).
+Rehearsed on Table 1 with nominal set 2 (the demo), the order of the travel tour jams on the
+true machine on 1-2 of 49 moves whatever is released, the rehearsed tour on none.  Tries are
+rehearsed one after the other, not at once: the first is most often safe, and rows that jam
+would run their Newton iterations in full.
 """
 
 from __future__ import annotations
@@ -121,6 +124,7 @@ class Rehearser:
         self.batched = batched
         self.stack = MachineStack(self.machines) if batched else None
         self.link_load = link_load
+        self._rest_was_needed = False  # whether the last move tried needed its rest candidates
 
     def ranked(self, nominal_move: Move) -> np.ndarray:
         """Return each chain's worst nominal condition along the move (inf: leaves the stroke)."""
@@ -187,11 +191,14 @@ class Rehearser:
             order = [int(c) for c in np.argsort(ranked) if np.isfinite(ranked[c])]
             prepared.append((nominal_move, order))
             jobs.append(RehearsalJob(standing, setpoints, np.array(order)))
-        # Every candidate in one batch, then decided as _rehearse does: the best-ranked ones
-        # first, the rest only where none of those will do.  Rows are independent, so the first
-        # ones close as they would alone; one batch of more rows costs less than a second one.
         limit, count = self.settings.max_move_condition, len(self.machines)
-        results = [_first_then_rest(result, count, limit) for result in self._stacked(jobs)]
+        if self._rest_was_needed:
+            # The last move needed the candidates after the first ones, and the next most often
+            # does too: all in one batch, decided as _rehearse does (rows are independent).
+            results = [_first_then_rest(result, count, limit) for result in self._stacked(jobs)]
+        else:
+            results = self._first_then_rest_batches(jobs, count, limit)
+        self._rest_was_needed = any(len(r.candidates) > FIRST_REHEARSED for r in results)
         remaining = iter(results)
         chosen: list[tuple[Any, Rehearsal, int] | None] = []
         for item in prepared:
@@ -203,6 +210,28 @@ class Rehearser:
             best = _best(result, count, limit)
             chosen.append((nominal_move, result, best))
         return self._restand_all(chosen)
+
+    def _first_then_rest_batches(self, jobs: list[RehearsalJob], count: int,
+                                 limit: float) -> list[Rehearsal]:
+        """Rehearse every job's first candidates in one batch, the rest where needed in another."""
+        firsts = self._stacked([RehearsalJob(job.start, job.setpoints,
+                                             job.candidates[:FIRST_REHEARSED]) for job in jobs])
+        needed = [i for i, (job, first) in enumerate(zip(jobs, firsts))
+                  if not _acceptable(first, count, limit).any()
+                  and len(job.candidates) > FIRST_REHEARSED]
+        rests = self._stacked([RehearsalJob(jobs[i].start, jobs[i].setpoints,
+                                            jobs[i].candidates[FIRST_REHEARSED:])
+                               for i in needed])
+        results = list(firsts)
+        for i, rest in zip(needed, rests):
+            first = firsts[i]
+            results[i] = Rehearsal(
+                np.concatenate([first.candidates, rest.candidates]),
+                np.concatenate([first.survived, rest.survived]),
+                np.concatenate([first.worst, rest.worst]),
+                first.ends + rest.ends,
+            )
+        return results
 
     def _stacked(self, jobs: list[RehearsalJob]) -> list[Rehearsal]:
         """Return rehearse_stacked of `jobs` ([] for none)."""
