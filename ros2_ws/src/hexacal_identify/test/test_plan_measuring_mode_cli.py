@@ -2,6 +2,7 @@
 
 import json
 from pathlib import Path
+import re
 import subprocess
 import sys
 
@@ -41,6 +42,12 @@ def test_plan_in_passive_actuator_mode_writes_and_names_the_released_actuators(t
     for index, name in enumerate(released):  # the text names each posture's released actuator
         assert f' {index:>3} {name} (' in done.stdout
     assert 'chosen max' in done.stdout and 'the worst actuator to release' in done.stdout
+    # Off a terminal, a line per stage on stderr; the report gives each stage's time (#28).
+    stages = [line for line in done.stderr.splitlines() if line.startswith('hexacal plan: ')]
+    assert stages == ['hexacal plan: candidates', 'hexacal plan: selection',
+                      'hexacal plan: rehearsal of the releases']
+    assert re.search(r'candidates [\d.]+ s, selection [\d.]+ s, rehearsal [\d.]+ s',
+                     done.stdout)
     assert Plan.load(out).released_actuators == released
     summary = hexacal('plan', *common, '--out', tmp_path / 'j.yaml', '--json')
     assert summary.returncode == 0, summary.stderr
@@ -48,6 +55,7 @@ def test_plan_in_passive_actuator_mode_writes_and_names_the_released_actuators(t
     assert data['measuring_mode'] == 'passive_actuator'  # the default
     assert data['released_actuators'] == list(released)
     assert data['released_condition_max'] < data['worst_condition_max']
+    assert data['rehearsal_seconds'] > 0 and summary.stderr == ''  # --json: no progress lines
 
 
 def test_plan_in_lvdt_and_compliant_modes(tmp_path):
@@ -67,6 +75,7 @@ def test_plan_in_lvdt_and_compliant_modes(tmp_path):
     )
     assert text.returncode == 0, text.stderr
     assert 'measuring mode compliant' in text.stdout and 'released' not in text.stdout
+    assert 'rehearsal' not in text.stdout and 'hexacal plan: selection' in text.stderr
     assert read_plan_file(tmp_path / 'compliant.yaml').measuring_mode == 'compliant'
     refused = hexacal(
         'plan', '--postures', 8, '--measuring-mode', 'rigid', '--out', tmp_path / 'x.yaml'

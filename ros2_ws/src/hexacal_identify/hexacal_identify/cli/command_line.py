@@ -56,10 +56,16 @@ class LazySubcommands(argparse._SubParsersAction):
 
 
 class Progress:
-    """A one-line progress display on stderr when it is a terminal; silent otherwise."""
+    """
+    Progress on stderr: a one-line display on a terminal, else a line per stage (`stage`).
 
-    def __init__(self, enabled: bool = True, total: int | None = None):
+    Disabled (a --json run), silent.  `prefix` begins each stage line ('hexacal plan: ...').
+    """
+
+    def __init__(self, enabled: bool = True, total: int | None = None, prefix: str = 'hexacal'):
         self._bar = None
+        self._lines = enabled and not sys.stderr.isatty()
+        self._prefix = prefix
         if enabled and sys.stderr.isatty():
             from tqdm import tqdm
 
@@ -71,6 +77,13 @@ class Progress:
         if self._bar is not None:
             self._bar.set_description_str(description)
             self._bar.update(1)
+
+    def stage(self, description: str) -> None:
+        """Announce a stage begun: the display's text on a terminal, else a line of its own."""
+        if self._bar is not None:
+            self._bar.set_description_str(description)
+        elif self._lines:
+            print(f'{self._prefix}: {description}', file=sys.stderr, flush=True)
 
     def close(self) -> None:
         if self._bar is not None:

@@ -141,22 +141,17 @@ def demo_paths(args: argparse.Namespace) -> DemoPaths:
 def write_plans(args: argparse.Namespace, nominal, paths: DemoPaths) -> None:
     """Write the calibration plan (O1) and the verification plan (fresh postures, another draw)."""
     from ..core.machine.measurements import NoiseModel
-    from ..core.planning.planner import plan_postures
 
     noise = NoiseModel.from_microns(args.noise_um) if args.noise_um > 0 else None
     mixed = args.plan == 'mixed'
     link_load = _link_load(args)
-    planning = plan_postures(
-        nominal,
-        args.postures,
-        index='O1',
+    planning = _plan(
+        'calibration plan', args, nominal, args.postures,
         cost='sphere-fixed' if mixed else 'absolute',
         fixed_fraction=0.25 if mixed else None,
-        n_candidates=PLAN_CANDIDATES,
         seed=args.seed,
         noise=noise,
         name='demo-calibration',
-        measuring_mode=measuring_mode(args),
         link_load=link_load,
     )
     planning.plan.save(paths.plan)
@@ -178,18 +173,32 @@ def write_plans(args: argparse.Namespace, nominal, paths: DemoPaths) -> None:
             flush=True,
         )
     if args.verify_postures:
-        plan_postures(
-            nominal,
-            args.verify_postures,
-            index='O1',
+        _plan(
+            'verification plan', args, nominal, args.verify_postures,
             cost='absolute',
-            n_candidates=PLAN_CANDIDATES,
             seed=args.seed + 1000,
             noise=noise,
             name='demo-verification',
-            measuring_mode=measuring_mode(args),
             link_load=link_load,
         ).plan.save(paths.verification_plan)
+
+
+def _plan(what: str, args: argparse.Namespace, nominal, postures: int, **options):
+    """Return plan_postures of the demo's measuring mode, its stages and steps shown as it goes."""
+    from ..core.planning.planner import plan_postures
+    from .command_line import Progress
+
+    mode = measuring_mode(args)
+    steps = postures * (2 if mode == 'passive_actuator' else 1) + 1
+    progress = Progress(total=steps, prefix='hexacal demo')
+    try:
+        return plan_postures(
+            nominal, postures, index='O1', n_candidates=PLAN_CANDIDATES, measuring_mode=mode,
+            progress=progress.step, stage=lambda stage: progress.stage(f'{what}: {stage}'),
+            **options,
+        )
+    finally:
+        progress.close()
 
 
 def _link_load(args: argparse.Namespace):

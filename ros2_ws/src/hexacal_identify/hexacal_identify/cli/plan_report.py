@@ -307,7 +307,9 @@ def run_plan(args) -> int:
     weighted = not args.unweighted and args.cost != 'relative' and args.noise_um > 0
     noise = NoiseModel.from_microns(args.noise_um) if weighted else None
     steps = args.postures * (2 if args.method == 'exchange' else 1) + 1
-    progress = Progress(enabled=not args.json, total=steps)
+    if args.measuring_mode == 'passive_actuator':
+        steps += args.postures  # each posture rehearsed
+    progress = Progress(enabled=not args.json, total=steps, prefix='hexacal plan')
     try:
         planning = plan_postures(
             nominal,
@@ -322,6 +324,7 @@ def run_plan(args) -> int:
             noise=noise,
             name=args.name,
             progress=progress.step,
+            stage=progress.stage,
             device_columns=args.identify_device,
             device_prior=args.device_prior or DevicePrior(),
             device_turns=procedure_turns(args.procedure),
@@ -360,6 +363,11 @@ def run_plan(args) -> int:
                     },
                     'candidate_seconds': planning.candidate_seconds,
                     'selection_seconds': planning.selection_seconds,
+                    **(
+                        {'rehearsal_seconds': planning.measuring_seconds}
+                        if args.measuring_mode == 'passive_actuator'
+                        else {}
+                    ),
                     'exchange_swaps': max(len(planning.exchange_history) - 1, 0),
                     'procedure': args.procedure,
                     'device_columns': list(planning.candidates.device_columns),
@@ -386,6 +394,11 @@ def run_plan(args) -> int:
     print(
         f'  candidates {planning.candidate_seconds:.2f} s, selection '
         f'{planning.selection_seconds:.2f} s'
+        + (
+            f', rehearsal {planning.measuring_seconds:.2f} s'
+            if args.measuring_mode == 'passive_actuator'
+            else ''
+        )
         + (
             f', {len(planning.exchange_history) - 1} exchange swaps'
             if args.method == 'exchange'

@@ -28,7 +28,7 @@ would run their Newton iterations in full.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -415,9 +415,14 @@ class Stuck(Exception):
 
 
 def in_order(
-    rehearser: Rehearser, poses: np.ndarray, start: np.ndarray | None = None
+    rehearser: Rehearser, poses: np.ndarray, start: np.ndarray | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> list[Leg]:
-    """Return the legs of the postures walked in the given order (Stuck: one has no release)."""
+    """
+    Return the legs of the postures walked in the given order (Stuck: one has no release).
+
+    `progress` hears of each posture walked (``rehearsal k/K``).
+    """
     legs = []
     previous = start
     for i, pose in enumerate(poses):
@@ -428,13 +433,24 @@ def in_order(
         rehearser.take(leg)
         legs.append(leg)
         previous = pose
+        _walked(progress, len(legs), len(poses))
     return legs
 
 
+def _walked(progress: Callable[[str], None] | None, done: int, total: int) -> None:
+    if progress is not None:
+        progress(f'rehearsal {done}/{total}')
+
+
 def tour(
-    rehearser: Rehearser, poses: np.ndarray, groups: np.ndarray
+    rehearser: Rehearser, poses: np.ndarray, groups: np.ndarray,
+    progress: Callable[[str], None] | None = None,
 ) -> tuple[np.ndarray, list[Leg]]:
-    """Return the plan indices in walking order and their legs, rehearsed (module doc)."""
+    """
+    Return the plan indices in walking order and their legs, rehearsed (module doc).
+
+    `progress` hears of each posture walked (``rehearsal k/K``).
+    """
     groups = np.asarray(groups)
     weighted = np.column_stack([poses[:, :3], poses[:, 3:6] * rehearser.link_length])
     try:
@@ -443,6 +459,7 @@ def tour(
         raise Stuck(0) from None
     rehearser.take(first)
     order, legs = [0], [first]
+    _walked(progress, 1, len(poses))
     remaining = list(range(1, len(poses)))
     while remaining:
         current = order[-1]
@@ -459,6 +476,7 @@ def tour(
         order.append(index)
         legs.append(leg)
         remaining.remove(index)
+        _walked(progress, len(legs), len(poses))
     return np.array(order, dtype=int), legs
 
 

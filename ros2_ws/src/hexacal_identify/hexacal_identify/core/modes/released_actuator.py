@@ -29,7 +29,7 @@ if given).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -178,6 +178,7 @@ def choose_released_actuators(
     groups: np.ndarray | None = None,
     batched: bool = True,
     link_load: LinkLoad | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> ReleaseChoice:
     """
     Choose each posture's released actuator (module doc); ReleaseError if one has none.
@@ -190,7 +191,8 @@ def choose_released_actuators(
     the order within each group of postures is free (``ReleaseChoice.order`` then says it);
     `batched` False rehearses machine by machine (the reference; the same choice, slower);
     `link_load` the weights and the link's limit: a chain whose release loads the link beyond
-    it along a move is not chosen where another will do (Rehearser.ranked).
+    it along a move is not chosen where another will do (Rehearser.ranked); `progress` hears
+    of each posture rehearsed.
     """
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
     margin_m = released_margin(params, margin_m)
@@ -199,9 +201,9 @@ def choose_released_actuators(
     order = None
     try:
         if groups is None or len(poses) < 3:
-            legs = in_order(rehearser, poses, start)
+            legs = in_order(rehearser, poses, start, progress)
         else:
-            order, legs = tour(rehearser, poses, np.asarray(groups))
+            order, legs = tour(rehearser, poses, np.asarray(groups), progress)
     except Stuck as stuck:
         raise _release_error(params, stroke_m, margin_m, stuck.posture) from None
     ordered = poses if order is None else poses[order]

@@ -17,6 +17,7 @@ What a plan adds for its measuring mode: released actuators, LVDT extensions.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from hexacal_msgs_py.measuring_modes import (
@@ -128,6 +129,7 @@ def check_measuring_mode(
     mount: str = DEFAULT_MOUNT,
     groups: np.ndarray | None = None,
     link_load: LinkLoad | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> MeasuringCheck:
     """
     Return what plan `poses` (K, 6, plan order) need in measuring mode `mode` (module doc).
@@ -135,7 +137,7 @@ def check_measuring_mode(
     `groups` (K,): the order within each group is free (passive_actuator may choose it:
     ``release.order``); `link_load`: passive_actuator, the weights and the link's limit: the
     link's predicted load at each posture with its release and along the move into it
-    (modes/link_load.py: ``move_link_forces``).
+    (modes/link_load.py: ``move_link_forces``); `progress` hears of each posture rehearsed.
 
     ReleaseError (passive_actuator) when a posture has no actuator that can be released.
     """
@@ -143,7 +145,7 @@ def check_measuring_mode(
     if chosen == MeasuringMode.PASSIVE_ACTUATOR:
         release = choose_released_actuators(
             nominal, poses, link_length, stroke_m, mount=mount, groups=groups,
-            link_load=link_load,
+            link_load=link_load, progress=progress,
         )
         if link_load is None:
             return MeasuringCheck(chosen, release=release)

@@ -292,6 +292,7 @@ class PlanningResult:
     candidate_seconds: float
     selection_seconds: float
     measuring: MeasuringCheck | None = None  # the measuring mode's additions (None: no mode)
+    measuring_seconds: float = 0.0  # its check: passive_actuator, the release rehearsal
 
     def random_indices(self, draws: int = 20, seed: int = 0) -> dict[str, float]:
         """Return the mean O1..O4 and I of random plans of this size and kind mix."""
@@ -359,6 +360,10 @@ def _model_margin_candidates(nominal, poses, kinds, limits, rng, model_error_m):
     return np.concatenate(parts), np.concatenate(part_kinds)
 
 
+# What `stage` hears as a measuring mode's check begins.
+_MEASURING_STAGES = {'passive_actuator': 'rehearsal of the releases'}
+
+
 def plan_postures(
     nominal: KinematicParameters,
     n_postures: int,
@@ -374,6 +379,7 @@ def plan_postures(
     noise: NoiseModel | None = None,
     name: str | None = None,
     progress: Progress = no_progress,
+    stage: Progress = no_progress,
     device_columns: tuple[str, ...] = (),
     device_prior: DevicePrior = DevicePrior(),
     device_turns: tuple[float, ...] = (0.0,),
@@ -386,6 +392,8 @@ def plan_postures(
     Candidates -> Jacobian rows at ``nominal`` -> greedy (and exchange) selection -> ordered Plan.
 
     ``nominal`` names its architecture; ``limits`` None = ``PostureLimits.for_machine(nominal)``.
+    ``progress`` hears of each step (a candidate chosen, a posture rehearsed), ``stage`` of each
+    stage begun (candidates, selection, the measuring mode's check).
     ``device_columns`` / ``device_prior``: device parameters identified with the machine (module
     doc);
     ``device_turns``: the mountings of a turning procedure, each sphere candidate offered in each.
@@ -410,6 +418,7 @@ def plan_postures(
         raise ValueError(
             f'need at least as many candidates ({n_candidates}) as postures ({n_postures})'
         )
+    stage('candidates')
     started = time.perf_counter()
     fraction = default_fixed_fraction(cost) if fixed_fraction is None else fixed_fraction
     device = limits.device()
@@ -435,6 +444,7 @@ def plan_postures(
         poses = np.concatenate([np.tile(poses[sphere], (len(device_turns), 1)), poses[~sphere]])
         kinds = np.concatenate([np.tile(kinds[sphere], len(device_turns)), kinds[~sphere]])
     left_out = 0  # candidates left out for the link's load (link_load)
+    measuring_seconds = 0.0
     while True:
         progress(f'{len(poses)} candidates')
         candidates = build_candidate_set(
@@ -450,6 +460,7 @@ def plan_postures(
             turns,
         )
         candidate_seconds = time.perf_counter() - started
+        stage('selection')
         started = time.perf_counter()
         kind_counts = None
         if (
@@ -517,6 +528,8 @@ def plan_postures(
             groups = None if cost == 'relative' else walk_groups(
                 kinds[design], None if turns is None else turns[design]
             )
+            stage(_MEASURING_STAGES.get(measuring_mode, f'{measuring_mode} check'))
+            checking = time.perf_counter()
             measuring = check_measuring_mode(
                 nominal,
                 poses[design],
@@ -527,7 +540,9 @@ def plan_postures(
                 limits.mount,
                 groups,
                 link_load,
+                progress,
             )
+            measuring_seconds += time.perf_counter() - checking
             if measuring.release is not None and measuring.release.order is not None:
                 design = design[measuring.release.order]
         over = np.zeros(0, int) if measuring is None else measuring.overloaded
@@ -571,6 +586,7 @@ def plan_postures(
         candidate_seconds,
         selection_seconds,
         measuring,
+        measuring_seconds,
     )
 
 
