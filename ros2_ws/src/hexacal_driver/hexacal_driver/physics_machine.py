@@ -31,7 +31,7 @@ never a silent reset.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 import math
 import time
 from typing import Any
@@ -103,7 +103,6 @@ class _Move:
 class _Released:
     chain: int
     gains: tuple[float, float, float, float]  # kp and the bias terms (constant, position, speed)
-    extra: dict[str, float] = field(default_factory=dict)
     start_s: float = 0.0  # when the release began: the drive's force ramps down from there
     ramping: bool = False
     held_force: float = 0.0  # the drive's force when the release began (N, or N m)

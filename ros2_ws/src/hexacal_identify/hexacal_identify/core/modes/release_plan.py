@@ -97,7 +97,12 @@ class NoRelease(Exception):
 
 
 class Rehearser:
-    """Where the rehearsed machines stand, and the moves tried from there (module doc)."""
+    """
+    Where the rehearsed machines stand, and the moves tried from there (module doc).
+
+    `link_load` (the weights and the link's limit): the chains whose release loads the link
+    beyond it along a move are not tried where another will do (``ranked``).
+    """
 
     def __init__(
         self,
