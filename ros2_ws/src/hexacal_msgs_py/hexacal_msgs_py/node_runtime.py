@@ -7,11 +7,13 @@ node; supervisors send SIGTERM. rclpy's own handlers would shut the context down
 from their signal thread while the main thread may be inside the executor's wait
 on that context, a race that aborts the process now and then (rclpy issue 1453:
 "Fatal Python error: Aborted" in `_wait_for_ready_callbacks`). So rclpy installs
-no handler here: a Python handler notes the signal, the executor's wait is
-bounded by SPIN_POLL_S so the main thread sees the note, spinning ends, and the
-context is shut down on the main thread once nothing waits on it. From then on
-SIGINT and SIGTERM are ignored: the node finishes its files, destroys itself and
-exits 0 with no traceback, however many signals follow.
+no handler here: a Python handler notes the signal; the interpreter's wakeup fd
+(`signal.set_wakeup_fd`) lets a watcher thread trigger a guard condition, which
+wakes the executor's wait (a Python handler runs only once the main thread is
+back from C); spinning ends, and the context is shut down on the main thread
+once nothing waits on it. The executor spins as `Executor.spin` does, with no
+timeout. From then on SIGINT and SIGTERM are ignored: the node finishes its
+files, destroys itself and exits 0 with no traceback, however many signals follow.
 
 A node module calls `remember_termination_signals()` before its heavy imports,
 so a Ctrl-C while the node is still starting is remembered and the node stops
@@ -22,7 +24,9 @@ This module imports rclpy only inside `run_node` for the same reason.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
+import os
 import signal
+import threading
 from typing import TYPE_CHECKING, TypeVar
 
 if TYPE_CHECKING:
@@ -30,14 +34,13 @@ if TYPE_CHECKING:
     from rclpy.node import Node
 
 TERMINATION_SIGNALS = (signal.SIGINT, signal.SIGTERM)
-SPIN_POLL_S = 0.1  # the longest a noted signal waits for the executor's wait to return
 
 NodeT = TypeVar('NodeT', bound='Node')
 _received: list[int] = []  # signals seen by the Python-level handler
 
 
 def _noted(signum: int, frame: object) -> None:
-    """Note a termination signal: `run_node` stops spinning at the executor's next return."""
+    """Note a termination signal: `run_node` stops spinning when the executor's wait returns."""
     _received.append(signum)
 
 
@@ -109,11 +112,51 @@ def _log_line(logger, severity: str, text: str) -> None:
         logger.info(text)
 
 
+def _watch_signals(wake: Callable[[], None]) -> Callable[[], None]:
+    """
+    Call `wake` from a thread whenever a signal arrives; return the function that stops it.
+
+    The interpreter writes each signal's number to its wakeup fd from the C handler, even while
+    the main thread is blocked in the executor's wait, where no Python handler can run.
+    """
+    read_fd, write_fd = os.pipe()
+    os.set_blocking(write_fd, False)  # set_wakeup_fd's requirement: a signal never blocks
+    previous = signal.set_wakeup_fd(write_fd, warn_on_full_buffer=False)
+
+    def watch() -> None:
+        while os.read(read_fd, 64):  # b'' once the write end is closed: stop
+            try:
+                wake()
+            except Exception:  # a wake after the node is gone: nothing to wake
+                return
+
+    thread = threading.Thread(target=watch, name='signal watch', daemon=True)
+    thread.start()
+
+    def stop() -> None:
+        signal.set_wakeup_fd(previous)
+        os.close(write_fd)
+        thread.join()
+        os.close(read_fd)
+
+    return stop
+
+
 def _spin(node: 'Node', executor: 'Executor') -> None:
-    """Spin until a noted signal or an external shutdown: the wait is bounded, signals are seen."""
+    """Spin as Executor.spin does until a noted signal or an external shutdown."""
+    from rclpy.callback_groups import ReentrantCallbackGroup
+
     executor.add_node(node)
-    while node.context.ok() and not _received:
-        executor.spin_once(timeout_sec=SPIN_POLL_S)
+    # A node's guard condition, its own group never busy: the executor's wait returns for it
+    # (a trigger of the executor's own guard only makes the wait start again).
+    wake = node.create_guard_condition(lambda: None, callback_group=ReentrantCallbackGroup())
+    stop_watching = _watch_signals(wake.trigger)
+    try:
+        while node.context.ok() and not _received:
+            executor.spin_once()
+    finally:
+        stop_watching()
+        node.destroy_guard_condition(wake)
 
 
 def run_node(
