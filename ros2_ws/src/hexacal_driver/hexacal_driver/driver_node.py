@@ -82,6 +82,10 @@ NODE_NAME = 'driver'
 # wake-up costs more than the publishing, so 1 kHz costs 200 wake-ups per second, not 1000.
 MAX_WAKE_HZ = 200.0
 SHUTDOWN_LINGER_S = 0.3
+# With wait_for_subscriber, the plan starts this long after all three writers matched a reader:
+# a writer matches before its reader has matched it back, and a best-effort sample sent in
+# between is dropped (seen: a stream's first plan sample lost, the two others whole).
+MATCH_SETTLE_S = 0.2
 
 __all__ = ['DriverConfigurationError', 'DriverNode', 'main', 'MODEL_CHOICES', 'PARAMETERS',
            'RUNTIME_PARAMETERS', 'STRAIN_WARNING_M']
@@ -134,6 +138,7 @@ class DriverNode(Node):
         self.plan_start_stamp_ns: int | None = None  # stamp of the first message of the plan
         self._started = False
         self._started_monotonic = 0.0
+        self._matched_monotonic: float | None = None  # when all three writers matched a reader
         self._walk_report = None if plan is None else WalkReport(
             plan, self.machine.require_walker().loop
         )
@@ -322,6 +327,16 @@ class DriverNode(Node):
             self._last_stamp_ns = stamp
             self._tick(stamp)
 
+    def _matched_long_enough(self) -> bool:
+        """Return True once all three writers have had a reader for MATCH_SETTLE_S."""
+        if min(self._subscription_counts()) == 0:
+            self._matched_monotonic = None
+            return False
+        now = time.monotonic()
+        if self._matched_monotonic is None:
+            self._matched_monotonic = now
+        return now - self._matched_monotonic >= MATCH_SETTLE_S
+
     def _tick(self, stamp: int) -> None:
         """Publish the sample at `stamp` (ns): the follower's, or the plan walker's."""
         machine = self.machine
@@ -335,8 +350,9 @@ class DriverNode(Node):
             self._publish_drive_status()
             return
         if not self._started:
-            # Matched (DDS), not just on the graph, on all three: no plan sample goes to nobody.
-            if self.wait_for_subscriber and min(self._subscription_counts()) == 0:
+            # Matched (DDS), not just on the graph, on all three, and the readers given time to
+            # match back (MATCH_SETTLE_S): no plan sample goes to nobody.
+            if self.wait_for_subscriber and not self._matched_long_enough():
                 self._publish(machine.require_walker().sample(0.0), stamp)
                 return
             self._started = True
