@@ -229,13 +229,7 @@ class Rehearser:
                                for i in needed])
         results = list(firsts)
         for i, rest in zip(needed, rests):
-            first = firsts[i]
-            results[i] = Rehearsal(
-                np.concatenate([first.candidates, rest.candidates]),
-                np.concatenate([first.survived, rest.survived]),
-                np.concatenate([first.worst, rest.worst]),
-                first.ends + rest.ends,
-            )
+            results[i] = _joined(firsts[i], rest)
         return results
 
     def _stacked(self, jobs: list[RehearsalJob]) -> list[Rehearsal]:
@@ -360,12 +354,7 @@ class Rehearser:
         if _acceptable(first, len(self.machines), limit).any() or len(order) <= FIRST_REHEARSED:
             return first
         rest = run(order[FIRST_REHEARSED:])
-        return Rehearsal(
-            np.concatenate([first.candidates, rest.candidates]),
-            np.concatenate([first.survived, rest.survived]),
-            np.concatenate([first.worst, rest.worst]),
-            first.ends + rest.ends,
-        )
+        return _joined(first, rest)
 
     def _restand(self, ends: Standings, nominal_move: Move, chain: int) -> Standings:
         """Return the standings after a move; a machine that jammed stands afresh at the end."""
@@ -389,6 +378,16 @@ def _first_then_rest(result: Rehearsal, machines: int, limit: float) -> Rehearsa
     ).any():
         return result
     return _part(result, slice(0, first))
+
+
+def _joined(first: Rehearsal, rest: Rehearsal) -> Rehearsal:
+    """Return the rehearsal of the first candidates followed by the rest."""
+    return Rehearsal(
+        np.concatenate([first.candidates, rest.candidates]),
+        np.concatenate([first.survived, rest.survived]),
+        np.concatenate([first.worst, rest.worst]),
+        first.ends + rest.ends,
+    )
 
 
 def _part(result: Rehearsal, which: slice) -> Rehearsal:

@@ -232,8 +232,8 @@ def predicted_starts(
     """
     used = commanded.copy()
     used[np.arange(len(here)), released] = 0.0
-    error = _errors(machine, here, used, released, link_length)
     residual, jacobian, _ = passive_system(machine, here, used, released, link_length)
+    error = np.max(np.abs(residual), axis=1)  # _errors at `here`, from the same evaluation
     step, solvable = _solve(jacobian, residual)
     with np.errstate(invalid='ignore'):
         moving = error >= tolerance
