@@ -36,7 +36,6 @@ from hexacal_driver.drives import CONTINUATION_STEP, DriveFollower, DriveSetting
 from hexacal_driver.simulation import TrajectoryPoint
 from hexacal_identify.core.architectures import KinematicParameters
 from hexacal_identify.core.machine.device import DEFAULT_MOUNT, fixed_point
-from hexacal_identify.core.machine.kinematics import measured_pose
 from hexacal_identify.core.modes.passive_actuator import release_conditions
 from hexacal_identify.core.walk.platform_paths import CommandPurpose, eased_command, PathError
 from hexacal_identify.core.walk.platform_paths import route_command
@@ -44,6 +43,7 @@ from hexacal_identify.core.walk.release_choice import first_releases, release_af
 from hexacal_identify.core.walk.release_choice import release_checked_here
 from hexacal_identify.core.walk.settings import ExecutionSettings
 from hexacal_identify.core.walk.standing import blend_from_setpoints, estimate_pose
+from hexacal_identify.core.walk.standing import measured_pose
 from hexacal_msgs_py.measuring_modes import MeasuringMode
 import numpy as np
 

@@ -54,7 +54,7 @@ from .release_rehearsal import (
 )
 from ..architectures import KinematicParameters
 from ..machine.device import DEFAULT_MOUNT
-from ..machine.kinematics import inverse_kinematics, measured_pose
+from ..machine.kinematics import inverse_kinematics
 
 # A move whose worst condition number on the rehearsed machines stays below this is taken
 # without rehearsing the other candidates; true-machine jams were met from a few hundred up
@@ -337,27 +337,26 @@ class Rehearser:
         """
         Stand every machine where the device measured the platform, reading what was measured.
 
-        `pose`: the measured position, the angles a guess.  Each rehearsed machine stands at the
-        position with the angles that fit `actuators` best on it (``measured_pose``), made to
-        agree with the measurement (``measured_machine``: its actuator zeros shifted by what its
-        geometry still leaves, so that it reads `actuators` there): a move is rehearsed from
-        where the machine is, with the readings its stroke is judged on.  ``stand_at`` instead
-        lets each machine's geometry put it where it would stand with those actuators:
-        centimetres away on a Hexa Slide, where a move may meet no fold and no end of stroke the
-        machine meets from here.  False (nothing changed) when a machine cannot reach there.
+        Each rehearsed machine is made to agree with the measurement (``measured_machine``: its
+        actuator zeros shifted so that its inverse kinematics of `pose` reads `actuators`) and
+        stands there: a move is rehearsed from where the machine is, with the readings its
+        stroke is judged on.  ``stand_at`` instead lets each machine's geometry put it where it
+        would stand with those actuators: centimetres away on a Hexa Slide, where a move may
+        meet no fold and no end of stroke the machine meets from here.  False (nothing changed)
+        when a machine cannot reach the pose.
         """
         pose = np.asarray(pose, dtype=float)
-        actuators = np.asarray(actuators, dtype=float)
-        poses = np.array([measured_pose(machine, actuators, pose[None, :3], pose[None])[0]
-                          for machine in self.machines])
-        shifted = [measured_machine(machine, at, actuators)
-                   for machine, at in zip(self.machines, poses)]
+        shifted = [measured_machine(machine, pose, actuators) for machine in self.machines]
         if any(machine is None for machine in shifted):
             return False
         self.machines = tuple(m for m in shifted if m is not None)
         if self.stack is not None:
             self.stack = MachineStack(self.machines)
-        self.standing = Standings(poses, np.repeat(actuators[None], len(poses), axis=0))
+        count = len(self.machines)
+        self.standing = Standings(
+            np.repeat(pose[None], count, axis=0),
+            np.repeat(np.asarray(actuators, dtype=float)[None], count, axis=0),
+        )
         return True
 
     def take(self, leg: Leg) -> None:

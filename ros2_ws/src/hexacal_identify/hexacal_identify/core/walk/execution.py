@@ -65,10 +65,9 @@ from .release_choice import check_release_here, choose_first_release, hear_relea
 from .release_choice import rechoose_release
 from .release_choice import ReleaseRequest
 from .settings import ExecutionSettings, ExecutionState, GuardStop, Phase, PostureOutcome
-from .standing import blend_from_setpoints, estimate_pose
+from .standing import blend_from_setpoints, estimate_pose, measured_pose
 from ..architectures import KinematicParameters
 from ..machine.device import DEFAULT_MOUNT, device_position, fixed_point
-from ..machine.kinematics import measured_pose
 from ..machine.measurements import FIXED
 from ..planning.plan_check import check_stroke
 from ..walk_device.inclinometer import InclinometerJudgement
