@@ -43,7 +43,6 @@ from hexacal_identify.core.walk.release_choice import first_releases, release_af
 from hexacal_identify.core.walk.release_choice import release_checked_here
 from hexacal_identify.core.walk.settings import ExecutionSettings
 from hexacal_identify.core.walk.standing import blend_from_setpoints, estimate_pose
-from hexacal_identify.core.walk.standing import measured_pose
 from hexacal_msgs_py.measuring_modes import MeasuringMode
 import numpy as np
 
@@ -166,12 +165,10 @@ def walk_plan(
         joint_names=names, nominal_link_m=link_length, stroke_m=stroke,
     )
     now = 0.0
-    here = _measured(model, drive, [poses[0], centre], link_length, mount)
+    here = _estimate(model, drive.actuators, [poses[0], centre], link_length, mount)
     if rechoose_first and here is not None and len(poses):
         chosen = first_releases(model, poses, released, None, here, drive.actuators.copy(),
-                                link_length, stroke, mount, measured=True,
-                                start=_estimate(model, drive.actuators, [poses[0], centre],
-                                                link_length, mount))
+                                link_length, stroke, mount)
         if chosen is not None:
             released = list(chosen[0])
     setpoints = drive.actuators.copy()
@@ -186,7 +183,7 @@ def walk_plan(
             continue
         if check_at_rest and index > 0:
             released[index] = _checked_release(model, drive, released[index], pose, poses,
-                                               index, centre, link_length, stroke, mount, where)
+                                               index, centre, link_length, stroke, mount)
         faulted: set[int] = set()
         first_fault = ''
         while True:
@@ -221,13 +218,11 @@ def walk_plan(
             rechosen: int | None = None
             if recover and drive.released is not None:
                 faulted.add(drive.released)
-                here = _measured(model, drive, [pose, centre], link_length, mount)
+                here = _estimate(model, drive.actuators, [pose, centre], link_length, mount)
                 if here is not None:
                     rechosen, _, _ = release_after_fault(
                         model, here, drive.actuators.copy(), drive.released, pose, faulted,
-                        link_length, stroke, mount, f'posture {index + 1}', measured=True,
-                        start=_estimate(model, drive.actuators, [poses[max(index - 1, 0)], pose,
-                                                                 centre], link_length, mount),
+                        link_length, stroke, mount, f'posture {index + 1}',
                     )
             if rechosen is None:
                 moves.append(MoveWalk(index, wanted, math.inf, fault=first_fault))
@@ -277,32 +272,15 @@ def _move(drive, truth, model, start, pose, setpoints, stroke, link_length, true
 
 
 def _checked_release(model, drive, planned, pose, poses, index, centre, link_length, stroke,
-                     mount, where):
+                     mount):
     """Return the release the executor walks to `pose`: checked at rest from here."""
     if planned is None or drive.released is None:
         return planned
-    guesses = [poses[index - 1], pose, centre]
-    here = _measured(model, drive, guesses, link_length, mount)
+    here = _estimate(model, drive.actuators, [poses[index - 1], pose, centre], link_length, mount)
     if here is None:
         return planned
-    start = where if where is not None else _estimate(model, drive.actuators, guesses,
-                                                      link_length, mount)
     return release_checked_here(model, here, drive.actuators.copy(), drive.released, pose,
-                                planned, link_length, stroke, mount, measured=True, start=start)
-
-
-def _measured(model, drive, guesses, link_length, mount) -> np.ndarray | None:
-    """
-    Return where the executor measures the platform standing (PlanExecution._standing).
-
-    The inclinometer's position: the true link's direction at the nominal link length (eq. 4
-    of an ideal inclinometer); the angles fitted on the executor's model to the actuators.
-    """
-    estimate = _estimate(model, drive.actuators, guesses, link_length, mount)
-    if estimate is None:
-        return None
-    direction = drive.pose[:3] / np.linalg.norm(drive.pose[:3])
-    return measured_pose(model, drive.actuators, link_length * direction[None], estimate)[0]
+                                planned, link_length, stroke, mount)
 
 
 def _estimate(model, actuators, guesses, link_length, mount) -> np.ndarray | None:

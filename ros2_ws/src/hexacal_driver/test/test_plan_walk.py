@@ -62,27 +62,3 @@ def test_checked_at_rest_before_the_move_another_chain_is_released_and_nothing_j
                        [RELEASED, RELEASED], L, default_stroke(truth), rechoose_first=False)
     assert walked.jams == 0 and walked.recovered == 0
     assert walked.released[1] != RELEASED and walked.worst_condition < 100.0
-
-
-def test_a_hexa_slide_demo_plan_walks_without_a_drive_fault_from_where_the_device_measures():
-    # The demo's 20-posture Hexa Slide plan of seed 4, made on the nominal and walked on the
-    # true machine with the executor's checks at rest.  Rehearsed from the model's estimate of
-    # where it stands (millimetres off), two of its moves faulted the drive (postures 6 and 8);
-    # rehearsed from where the inclinometer puts the platform, on machines that read the
-    # actuators measured there, none does.
-    from hexacal_identify.core.machine.measurements import NoiseModel
-    from hexacal_identify.core.planning.plan_check import plan_stroke
-    from hexacal_identify.core.planning.planner import plan_postures
-
-    model = 'hexa_slide'
-    truth, nominal = architecture(model).default_parameters(), nominal_set(2, seed=4, model=model)
-    plan = plan_postures(
-        nominal, 20, index='O1', cost='sphere-fixed', fixed_fraction=0.25, n_candidates=1000,
-        seed=4, noise=NoiseModel.from_microns(10.0), measuring_mode='passive_actuator',
-    ).plan
-    names = list(nominal.layout.actuator_names)
-    walked = walk_plan(truth, nominal, plan.poses,
-                       [names.index(name) for name in plan.released_actuators],
-                       plan.link_length, plan_stroke(plan.metadata, nominal)[0], mount=plan.mount)
-    assert walked.jams == 0 and walked.refused == 0, [m.fault for m in walked.moves if m.fault]
-    assert len(walked.moves) == 20

@@ -333,32 +333,6 @@ class Rehearser:
             self.mount,
         )
 
-    def stand_measured(self, pose: np.ndarray, actuators: np.ndarray) -> bool:
-        """
-        Stand every machine where the device measured the platform, reading what was measured.
-
-        Each rehearsed machine is made to agree with the measurement (``measured_machine``: its
-        actuator zeros shifted so that its inverse kinematics of `pose` reads `actuators`) and
-        stands there: a move is rehearsed from where the machine is, with the readings its
-        stroke is judged on.  ``stand_at`` instead lets each machine's geometry put it where it
-        would stand with those actuators: centimetres away on a Hexa Slide, where a move may
-        meet no fold and no end of stroke the machine meets from here.  False (nothing changed)
-        when a machine cannot reach the pose.
-        """
-        pose = np.asarray(pose, dtype=float)
-        shifted = [measured_machine(machine, pose, actuators) for machine in self.machines]
-        if any(machine is None for machine in shifted):
-            return False
-        self.machines = tuple(m for m in shifted if m is not None)
-        if self.stack is not None:
-            self.stack = MachineStack(self.machines)
-        count = len(self.machines)
-        self.standing = Standings(
-            np.repeat(pose[None], count, axis=0),
-            np.repeat(np.asarray(actuators, dtype=float)[None], count, axis=0),
-        )
-        return True
-
     def take(self, leg: Leg) -> None:
         """Walk `leg`: the machines stand where it ends."""
         self.standing = leg.ends
@@ -394,33 +368,6 @@ class Rehearser:
         poses, actuators = ends.poses.copy(), ends.actuators.copy()
         poses[jammed], actuators[jammed] = fresh.poses, fresh.actuators
         return Standings(poses, actuators)
-
-
-ZERO_SHIFT_PASSES = 2  # an actuator zero moves its reading linearly: the second pass checks
-
-
-def measured_machine(
-    machine: KinematicParameters, pose: np.ndarray, actuators: np.ndarray
-) -> KinematicParameters | None:
-    """
-    Return `machine` with its actuator zeros shifted so that at `pose` it reads `actuators`.
-
-    Each chain's zero moves along the architecture's ``actuator_zero_shift`` (a slider's rail
-    start, a leg's length offset, a crank's zero angle), which changes that chain's reading
-    alone; None when the machine cannot reach `pose`.
-    """
-    arch = machine.architecture
-    pose = np.asarray(pose, dtype=float)[None]
-    shifts = np.array([arch.actuator_zero_shift(machine, c)[1] for c in range(6)])
-    vector = machine.vector.copy()
-    for _ in range(ZERO_SHIFT_PASSES):
-        legs = arch.legs(arch.chains(machine.with_vector(vector)), pose)
-        moved = arch.legs(arch.chains(machine.with_vector(vector + shifts.sum(axis=0))), pose)
-        if not (bool(legs.reachable()[0]) and bool(moved.reachable()[0])):
-            return None
-        per_unit = moved.actuators[0] - legs.actuators[0]  # each chain's reading per unit shift
-        vector = vector + ((actuators - legs.actuators[0]) / per_unit) @ shifts
-    return machine.with_vector(vector)
 
 
 def _first_then_rest(result: Rehearsal, machines: int, limit: float) -> Rehearsal:

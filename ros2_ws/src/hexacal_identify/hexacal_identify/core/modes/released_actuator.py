@@ -244,8 +244,6 @@ def release_from_here(
     rehearsal: RehearsalSettings = RehearsalSettings(),
     prefer: int | None = None,
     batched: bool = True,
-    measured: bool = False,
-    start: np.ndarray | None = None,
 ) -> int | None:
     """
     Return the chain to release for the rest of a move, none of `exclude`; None if none will do.
@@ -257,28 +255,21 @@ def release_from_here(
     stands (`here`, a pose on the sphere, with the measured `actuators` and chain `released`
     free): the move to `target` rehearsed on `model` and machines like it (module doc), each
     standing with the five measured commanded actuators, as the planner would choose
-    (`batched` as in ``choose_released_actuators``).  With `measured` (`here` is where the
-    device measured the platform, core/walk/standing.measured_pose) every machine stands at
-    `here`, reading the measured `actuators` (``Rehearser.stand_measured``).  `start`: the pose
-    the executor's path starts from when it is not `here` (the last commanded pose: the
-    command blends from the drive's setpoints there, core/walk/standing.py), so that the move
-    rehearsed is the one commanded.
+    (`batched` as in ``choose_released_actuators``).
     """
     margin_m = released_margin(model, margin_m)
     rehearser = Rehearser(model, link_length, stroke_m, margin_m, DEFAULT_STEP_M, mount,
                           rehearsal, batched=batched)
-    if not (measured and rehearser.stand_measured(here, actuators)):
-        rehearser.stand_at(actuators, released, here)
-    start = here if start is None else start
+    rehearser.stand_at(actuators, released, here)
     if prefer is not None and prefer not in exclude:
         others = [c for c in range(6) if c != prefer]
         try:
-            if rehearser.safe(rehearser.try_move(start, target, others)):
+            if rehearser.safe(rehearser.try_move(here, target, others)):
                 return prefer
         except NoRelease:
             pass
     try:
-        leg = rehearser.try_move(start, target, exclude)
+        leg = rehearser.try_move(here, target, exclude)
     except NoRelease:
         return None
     return leg.released

@@ -65,9 +65,9 @@ from .release_choice import check_release_here, choose_first_release, hear_relea
 from .release_choice import rechoose_release
 from .release_choice import ReleaseRequest
 from .settings import ExecutionSettings, ExecutionState, GuardStop, Phase, PostureOutcome
-from .standing import blend_from_setpoints, estimate_pose, measured_pose
+from .standing import blend_from_setpoints, estimate_pose
 from ..architectures import KinematicParameters
-from ..machine.device import DEFAULT_MOUNT, device_position, fixed_point
+from ..machine.device import DEFAULT_MOUNT, fixed_point
 from ..machine.measurements import FIXED
 from ..planning.plan_check import check_stroke
 from ..walk_device.inclinometer import InclinometerJudgement
@@ -77,8 +77,6 @@ from ..walk_refine.refined_targets import refined_targets, targets_model_label
 # The guard: (current actuators, start pose, command points, released chain) -> problem ('': ok).
 Guard = Callable[[np.ndarray, np.ndarray, np.ndarray, int | None], str]
 HOLD_S = 0.2  # time_from_start of a hold command
-# An inclinometer reading this much older than the actuators' is not where the platform is now.
-STALE_READING_S = 1.0
 
 
 class PlanExecution:
@@ -576,7 +574,7 @@ class PlanExecution:
         step = self.settings.path_step_m
         start = None
         if purpose != CommandPurpose.CORRECT and step > 0:
-            start = self._route_start()
+            start = self._where if self._at_where else self._estimate()
         if start is None:
             command = path_command(
                 self.nominal,
@@ -668,31 +666,6 @@ class PlanExecution:
         if problem:
             self._say(LogLevel.WARN, problem)
         return pose
-
-    def _route_start(self) -> np.ndarray | None:
-        """Return the pose a move's path starts from: the last commanded, if it got there."""
-        return self._where if self._at_where else self._estimate()
-
-    def _standing(self) -> tuple[np.ndarray | None, bool]:
-        """
-        Return where the platform stands and whether the device measured it (standing.py).
-
-        The position from the newest inclinometer reading (eq. 4, in the mounting the device
-        is in), the angles fitted on the model to the measured actuators; the model's estimate
-        (False) while the inclinometer is silent or older than the actuators by STALE_READING_S.
-        """
-        estimate, latest = self._estimate(), self.actuators.latest
-        angles = self.inclinometer.latest
-        newest, actuated = self.inclinometer.newest_s, self.actuators.newest_s
-        if estimate is None or latest is None or angles is None or newest is None:
-            return estimate, False
-        if actuated is not None and actuated - newest > STALE_READING_S:
-            return estimate, False
-        position = device_position(
-            angles[:1], angles[1:], self.link_length, mount=self.mount,
-            device_turn=self.mounted_turn,
-        ).position
-        return measured_pose(self.nominal, latest, position, estimate)[0], True
 
     def _judged_angles(self, now: float) -> tuple[float, float] | None:
         """Return the inclinometer reading to judge the position on, None: not yet."""

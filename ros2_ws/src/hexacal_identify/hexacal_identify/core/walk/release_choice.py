@@ -59,16 +59,13 @@ def first_releases(
     link_length: float,
     stroke: tuple[float, float],
     mount: str,
-    measured: bool = False,
-    start: np.ndarray | None = None,
 ) -> tuple[list[int | None], str] | None:
     """
     Return the releases rehearsed again from pose `here` and the line to log; None: keep them.
 
     Every later release assumes the standing the earlier ones leave, so they are rehearsed
     again in the plan's order (a plan whose releases cannot be rehearsed keeps its own: the
-    guard still watches).  `measured`: `here` is where the device measured the platform;
-    `start`: where the first move's path starts, if not there (``release_from_here``).
+    guard still watches).
     """
     from ..modes.released_actuator import choose_released_actuators, release_from_here
 
@@ -78,7 +75,7 @@ def first_releases(
     standing_release = first if released_now is None else released_now
     kept = release_from_here(
         nominal, here, actuators, standing_release, poses[0], link_length, stroke, (),
-        mount=mount, prefer=first, measured=measured, start=start,
+        mount=mount, prefer=first,
     )
     if kept == first:
         return None
@@ -107,23 +104,19 @@ def release_after_fault(
     stroke: tuple[float, float],
     mount: str,
     where: str,
-    measured: bool = False,
-    start: np.ndarray | None = None,
 ) -> tuple[int | None, LogLevel, str]:
     """
     Return the chain to release for the rest of the move to `pose` (None: the release stays).
 
     From where the machine stands, at rest, another chain than the `faulted` ones is
     released (``release_from_here``); the swap happens as any other, at rest, before the
-    move goes on.  `where` names the posture for the line to log (returned with its level);
-    `measured`: `here` is where the device measured the platform; `start`: where the path
-    starts, if not there (``release_from_here``).
+    move goes on.  `where` names the posture for the line to log (returned with its level).
     """
     from ..modes.released_actuator import release_from_here
 
     chosen = release_from_here(
         nominal, here, actuators, released_now, pose, link_length, stroke, sorted(faulted),
-        mount=mount, measured=measured, start=start,
+        mount=mount,
     )
     names = nominal.layout.actuator_names
     tried = ', '.join(names[c] for c in sorted(faulted))
@@ -185,12 +178,12 @@ def choose_first_release(walk: PlanExecution) -> None:
     releases of the whole plan are rehearsed again from here, in the plan's order.
     """
     first = walk.released[0] if walk.total else None
-    (here, measured), latest = walk._standing(), walk.actuators.latest
+    here, latest = walk._estimate(), walk.actuators.latest
     if first is None or here is None or latest is None:
         return
     chosen = first_releases(
         walk.nominal, walk.poses, walk.released, walk.released_now, here, latest,
-        walk.link_length, walk.stroke, walk.mount, measured, walk._route_start(),
+        walk.link_length, walk.stroke, walk.mount,
     )
     if chosen is not None:
         walk.released, text = chosen
@@ -207,22 +200,19 @@ def release_checked_here(
     link_length: float,
     stroke: tuple[float, float],
     mount: str,
-    measured: bool = False,
-    start: np.ndarray | None = None,
 ) -> int:
     """
     Return the chain to release for the move from `here` (at rest) to `pose`.
 
     `planned` if the move closes with it on `nominal` and machines like it
     (``release_from_here``), else another chain that does; `planned` when none does (the guard
-    still watches).  `measured`: `here` is where the device measured the platform; `start`:
-    where the move's path starts, if not there (``release_from_here``).
+    still watches).
     """
     from ..modes.released_actuator import release_from_here
 
     chosen = release_from_here(
         nominal, here, actuators, released_now, pose, link_length, stroke, (), mount=mount,
-        prefer=planned, measured=measured, start=start,
+        prefer=planned,
     )
     return planned if chosen is None else chosen
 
@@ -239,12 +229,12 @@ def check_release_here(walk: PlanExecution) -> None:
     `choose_first_release`'s.
     """
     planned = walk.released[walk.index] if 0 < walk.index < walk.total else None
-    (here, measured), latest = walk._standing(), walk.actuators.latest
+    here, latest = walk._estimate(), walk.actuators.latest
     if planned is None or walk.released_now is None or here is None or latest is None:
         return
     chosen = release_checked_here(
         walk.nominal, here, latest, walk.released_now, walk.poses[walk.index], planned,
-        walk.link_length, walk.stroke, walk.mount, measured, walk._route_start(),
+        walk.link_length, walk.stroke, walk.mount,
     )
     if chosen == planned:
         return
@@ -270,13 +260,12 @@ def rechoose_release(walk: PlanExecution) -> None:
     faulted = walk._faulted_releases.get(walk.index, set())
     if walk.index >= walk.total or walk.released[walk.index] not in faulted:
         return
-    (here, measured), latest = walk._standing(), walk.actuators.latest
+    here, latest = walk._estimate(), walk.actuators.latest
     if here is None or latest is None or walk.released_now is None:
         return
     chosen, level, text = release_after_fault(
         walk.nominal, here, latest, walk.released_now, walk.poses[walk.index], faulted,
         walk.link_length, walk.stroke, walk.mount, f'posture {walk.index + 1} of {walk.total}',
-        measured, walk._route_start(),
     )
     if chosen is not None:
         walk.released[walk.index] = chosen

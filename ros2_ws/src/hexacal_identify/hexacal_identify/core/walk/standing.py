@@ -3,10 +3,6 @@ Where the machine stands, and a move started from where its drive stands (ROS-fr
 
 * `estimate_pose`: the platform's pose from the measured actuators (nominal forward kinematics
   moved onto the link sphere); a move along the sphere starts there.
-* `measured_pose`: the platform's pose from what the device measures (its position, eq. 4 of
-  the inclinometer's angles) and the model only for its orientation, fitted to the six measured
-  actuators.  On a Hexa Slide millimetres of model error put `estimate_pose` centimetres from
-  where the platform is; the measured position does not depend on the model.
 * `blend_from_setpoints`: a move starts where the drive's setpoints are (the last command's
   target, a chain locked where the link put it, an earlier model's targets); their offset
   from the model's standing at the path's start fades to zero over the move
@@ -57,38 +53,6 @@ def estimate_pose(
             f'the measured actuators failed: {error}): one-point command'
         )
     return on_sphere(pose, link_length, mount), ''
-
-
-ANGLE_ITERATIONS = 8  # Gauss-Newton passes on the three angles: millimetres of error, 1e-12 rad
-
-
-def measured_pose(
-    model: KinematicParameters,
-    actuators: np.ndarray,
-    positions: np.ndarray,
-    guesses: np.ndarray,
-) -> np.ndarray:
-    """
-    Return poses (N, 6) at the measured `positions` (N, 3), angles fitted to `actuators` (N, 6).
-
-    The angles least-squares fit the model's inverse kinematics at the measured position to the
-    six measured actuators (Gauss-Newton from the angles of `guesses` (N, 6)); a row whose legs
-    leave the model's reach keeps its guess's angles.
-    """
-    arch = model.architecture
-    chains = arch.chains(model)
-    poses = np.array(guesses, dtype=float, ndmin=2)
-    poses[:, :3] = positions
-    measured = np.atleast_2d(np.asarray(actuators, dtype=float))
-    for _ in range(ANGLE_ITERATIONS):
-        legs = arch.legs(chains, poses)
-        reachable = legs.reachable()
-        if not reachable.any():
-            break
-        jacobian = legs.pose_jacobian()[reachable][:, :, 3:]  # d actuators / d angles
-        residual = (legs.actuators - measured)[reachable]
-        poses[reachable, 3:] -= (np.linalg.pinv(jacobian) @ residual[..., None])[..., 0]
-    return poses
 
 
 def blend_from_setpoints(
