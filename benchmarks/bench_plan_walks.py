@@ -11,7 +11,9 @@ the seed), its calibration plan (``mixed``: sphere-fixed, a quarter fixed positi
 offline on the true machine (hexacal_driver.plan_walk): the calibration plan on the nominal's
 targets until the executor's first refinement checkpoint, on the calibration's afterwards; the
 verification plan on the calibration's targets.  The calibration is stood in for by the true
-machine (a calibration is micrometres from it; no fit is run here).
+machine (a calibration is micrometres from it; no fit is run here).  A fixed-position posture is
+walked to its planned pose: the executor's closed-loop corrections on the inclinometer (which
+can leave the platform far from the plan, docs/results.md) are not emulated.
 
 The table per model, margin and K (summed over the seeds): plans walked, moves that jam the
 drive, plans with a jam, the closest approach to a fold (the largest condition number of the
