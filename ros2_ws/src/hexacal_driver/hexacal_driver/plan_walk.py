@@ -12,7 +12,9 @@ the executor commands and the simulated drives take:
   executor's model (the nominal, or the refined model from a checkpoint on: ``refine_at``); the
   first release is rehearsed again from where the machine stands (``first_releases``), and
   with ``check_at_rest`` (the default, the executor's ``check_releases_at_rest``) each later
-  one before its move (``release_checked_here``, as the executor does);
+  one before its move (``release_checked_here``, as the executor does); each of these checks
+  again from where the inclinometer puts the platform (``measured_standing``, the default: the
+  true link's direction, the angles fitted on the executor's model);
 * the drive's side (hexacal_driver.drives.DriveFollower on the true machine): the setpoints
   followed segment by segment, solved at most ``CONTINUATION_STEP`` apart (the driver's
   continuation) from the previous pose; a jam or a released actuator past its stroke faults.
@@ -36,6 +38,7 @@ from hexacal_driver.drives import CONTINUATION_STEP, DriveFollower, DriveSetting
 from hexacal_driver.simulation import TrajectoryPoint
 from hexacal_identify.core.architectures import KinematicParameters
 from hexacal_identify.core.machine.device import DEFAULT_MOUNT, fixed_point
+from hexacal_identify.core.machine.kinematics import measured_pose
 from hexacal_identify.core.modes.passive_actuator import release_conditions
 from hexacal_identify.core.walk.platform_paths import CommandPurpose, eased_command, PathError
 from hexacal_identify.core.walk.platform_paths import route_command
@@ -141,6 +144,7 @@ def walk_plan(
     check_at_rest: bool = True,
     recover: bool = True,
     path_step_m: float = PATH_STEP_M,
+    measured_standing: bool = True,
 ) -> PlanWalk:
     """
     Walk `poses` (K, 6, plan order) with `released` (0-based) on `truth` (module doc).
@@ -151,6 +155,8 @@ def walk_plan(
     machine starts at the fixed-position point with zero angles, all six locked.  `recover`:
     after a fault the executor's recovery (another chain released from where it stands) is
     taken, else the walk goes on to the next posture from where the drive stopped.
+    `measured_standing`: the checks at rest also rehearse from where the inclinometer puts the
+    platform, as the executor does (False: from the model's estimate alone).
     """
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
     released = list(released)
@@ -168,7 +174,8 @@ def walk_plan(
     here = _estimate(model, drive.actuators, [poses[0], centre], link_length, mount)
     if rechoose_first and here is not None and len(poses):
         chosen = first_releases(model, poses, released, None, here, drive.actuators.copy(),
-                                link_length, stroke, mount)
+                                link_length, stroke, mount,
+                                _measured(model, drive, here, measured_standing))
         if chosen is not None:
             released = list(chosen[0])
     setpoints = drive.actuators.copy()
@@ -183,7 +190,8 @@ def walk_plan(
             continue
         if check_at_rest and index > 0:
             released[index] = _checked_release(model, drive, released[index], pose, poses,
-                                               index, centre, link_length, stroke, mount)
+                                               index, centre, link_length, stroke, mount,
+                                               measured_standing)
         faulted: set[int] = set()
         first_fault = ''
         while True:
@@ -223,6 +231,7 @@ def walk_plan(
                     rechosen, _, _ = release_after_fault(
                         model, here, drive.actuators.copy(), drive.released, pose, faulted,
                         link_length, stroke, mount, f'posture {index + 1}',
+                        _measured(model, drive, here, measured_standing),
                     )
             if rechosen is None:
                 moves.append(MoveWalk(index, wanted, math.inf, fault=first_fault))
@@ -272,7 +281,7 @@ def _move(drive, truth, model, start, pose, setpoints, stroke, link_length, true
 
 
 def _checked_release(model, drive, planned, pose, poses, index, centre, link_length, stroke,
-                     mount):
+                     mount, measured_standing):
     """Return the release the executor walks to `pose`: checked at rest from here."""
     if planned is None or drive.released is None:
         return planned
@@ -280,7 +289,22 @@ def _checked_release(model, drive, planned, pose, poses, index, centre, link_len
     if here is None:
         return planned
     return release_checked_here(model, here, drive.actuators.copy(), drive.released, pose,
-                                planned, link_length, stroke, mount)
+                                planned, link_length, stroke, mount,
+                                _measured(model, drive, here, measured_standing))
+
+
+def _measured(model, drive, estimate, measured_standing=True) -> np.ndarray | None:
+    """
+    Return where the executor measures the platform standing (PlanExecution._measured_standing).
+
+    The inclinometer's position: the true link's direction at the nominal link length (eq. 4
+    of an ideal inclinometer); the angles fitted on the executor's model to the actuators.
+    """
+    if not measured_standing:
+        return None
+    direction = drive.pose[:3] / np.linalg.norm(drive.pose[:3])
+    return measured_pose(model, drive.actuators, drive.nominal_link_m * direction[None],
+                         estimate)[0]
 
 
 def _estimate(model, actuators, guesses, link_length, mount) -> np.ndarray | None:

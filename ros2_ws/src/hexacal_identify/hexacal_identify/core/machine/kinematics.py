@@ -48,6 +48,7 @@ __all__ = [
     'euler_rate_axes',
     'forward_kinematics',
     'inverse_kinematics',
+    'measured_pose',
     'pose_sensitivities',
     'rotation_matrices',
 ]
@@ -217,6 +218,40 @@ def _fit_tilt(
         fitted[:, 3:5] -= np.clip(step, -0.3, 0.3)
     poses[finite] = fitted
     return np.where(np.isfinite(poses), poses, start)
+
+
+ANGLE_ITERATIONS = 8  # Gauss-Newton passes on the three angles: millimetres of error, 1e-12 rad
+
+
+def measured_pose(
+    params: KinematicParameters,
+    actuators: np.ndarray,
+    positions: np.ndarray,
+    guesses: np.ndarray,
+) -> np.ndarray:
+    """
+    Return poses (N, 6) at the measured `positions` (N, 3), angles fitted to `actuators` (N, 6).
+
+    Where the device measured the platform (its position, eq. 4 of the inclinometer's angles)
+    with the orientation that fits the six measured actuators best on `params` (Gauss-Newton
+    on the three angles from those of `guesses` (N, 6)); a row whose legs leave the reach keeps
+    its guess's angles.  On a Hexa Slide millimetres of model error put forward kinematics
+    millimetres from where the platform is; the measured position does not depend on the model.
+    """
+    arch = params.architecture
+    chains = arch.chains(params)
+    poses = np.array(guesses, dtype=float, ndmin=2)
+    poses[:, :3] = positions
+    measured = np.atleast_2d(np.asarray(actuators, dtype=float))
+    for _ in range(ANGLE_ITERATIONS):
+        legs = arch.legs(chains, poses)
+        reachable = legs.reachable()
+        if not reachable.any():
+            break
+        jacobian = legs.pose_jacobian()[reachable][:, :, 3:]  # d actuators / d angles
+        residual = (legs.actuators - measured)[reachable]
+        poses[reachable, 3:] -= (np.linalg.pinv(jacobian) @ residual[..., None])[..., 0]
+    return poses
 
 
 def _actuator_error(legs, targets: np.ndarray) -> np.ndarray:

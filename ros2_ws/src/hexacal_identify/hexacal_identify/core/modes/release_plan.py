@@ -54,7 +54,7 @@ from .release_rehearsal import (
 )
 from ..architectures import KinematicParameters
 from ..machine.device import DEFAULT_MOUNT
-from ..machine.kinematics import inverse_kinematics
+from ..machine.kinematics import inverse_kinematics, measured_pose
 
 # A move whose worst condition number on the rehearsed machines stays below this is taken
 # without rehearsing the other candidates; true-machine jams were met from a few hundred up
@@ -333,6 +333,42 @@ class Rehearser:
             self.mount,
         )
 
+    def stand_measured(self, pose: np.ndarray, actuators: np.ndarray, keep: bool = True) -> bool:
+        """
+        Also rehearse on each machine standing where the device measured the platform.
+
+        `pose`: the measured position, the angles a guess.  Each rehearsed machine is added
+        again, standing at the position with the angles that fit `actuators` best on it
+        (``measured_pose``) and made to agree with the measurement (``measured_machine``: its
+        actuator zeros shifted by what its geometry still leaves, so that it reads `actuators`
+        there), beside the standings it has (``stand_at``: where its geometry puts it with
+        those actuators, centimetres away on a Hexa Slide).  Neither alone says where the true
+        machine is: the angles are the model's, and a move safe from both is safer.  False
+        (nothing added) when a machine cannot reach there or nothing stands yet.
+        """
+        if self.standing is None and keep:
+            return False
+        pose = np.asarray(pose, dtype=float)
+        actuators = np.asarray(actuators, dtype=float)
+        poses = np.array([measured_pose(machine, actuators, pose[None, :3], pose[None])[0]
+                          for machine in self.machines])
+        shifted = [measured_machine(machine, at, actuators)
+                   for machine, at in zip(self.machines, poses)]
+        if any(machine is None for machine in shifted):
+            return False
+        added = tuple(m for m in shifted if m is not None)
+        readings = np.repeat(actuators[None], len(poses), axis=0)
+        if keep and self.standing is not None:
+            self.machines = self.machines + added
+            poses = np.concatenate([self.standing.poses, poses])
+            readings = np.concatenate([self.standing.actuators, readings])
+        else:
+            self.machines = added
+        if self.stack is not None:
+            self.stack = MachineStack(self.machines)
+        self.standing = Standings(poses, readings)
+        return True
+
     def take(self, leg: Leg) -> None:
         """Walk `leg`: the machines stand where it ends."""
         self.standing = leg.ends
@@ -368,6 +404,33 @@ class Rehearser:
         poses, actuators = ends.poses.copy(), ends.actuators.copy()
         poses[jammed], actuators[jammed] = fresh.poses, fresh.actuators
         return Standings(poses, actuators)
+
+
+ZERO_SHIFT_PASSES = 2  # an actuator zero moves its reading linearly: the second pass checks
+
+
+def measured_machine(
+    machine: KinematicParameters, pose: np.ndarray, actuators: np.ndarray
+) -> KinematicParameters | None:
+    """
+    Return `machine` with its actuator zeros shifted so that at `pose` it reads `actuators`.
+
+    Each chain's zero moves along the architecture's ``actuator_zero_shift`` (a slider's rail
+    start, a leg's length offset, a crank's zero angle), which changes that chain's reading
+    alone; None when the machine cannot reach `pose`.
+    """
+    arch = machine.architecture
+    pose = np.asarray(pose, dtype=float)[None]
+    shifts = np.array([arch.actuator_zero_shift(machine, c)[1] for c in range(6)])
+    vector = machine.vector.copy()
+    for _ in range(ZERO_SHIFT_PASSES):
+        legs = arch.legs(arch.chains(machine.with_vector(vector)), pose)
+        moved = arch.legs(arch.chains(machine.with_vector(vector + shifts.sum(axis=0))), pose)
+        if not (bool(legs.reachable()[0]) and bool(moved.reachable()[0])):
+            return None
+        per_unit = moved.actuators[0] - legs.actuators[0]  # each chain's reading per unit shift
+        vector = vector + ((actuators - legs.actuators[0]) / per_unit) @ shifts
+    return machine.with_vector(vector)
 
 
 def _first_then_rest(result: Rehearsal, machines: int, limit: float) -> Rehearsal:

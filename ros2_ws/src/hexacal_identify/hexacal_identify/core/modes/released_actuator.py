@@ -244,6 +244,7 @@ def release_from_here(
     rehearsal: RehearsalSettings = RehearsalSettings(),
     prefer: int | None = None,
     batched: bool = True,
+    measured_here: np.ndarray | None = None,
 ) -> int | None:
     """
     Return the chain to release for the rest of a move, none of `exclude`; None if none will do.
@@ -256,18 +257,48 @@ def release_from_here(
     free): the move to `target` rehearsed on `model` and machines like it (module doc), each
     standing with the five measured commanded actuators, as the planner would choose
     (`batched` as in ``choose_released_actuators``).
+
+    `measured_here`: where the device measured the platform (kinematics.measured_pose), when
+    known.  The move is then rehearsed again on the machines standing there, reading the
+    measured `actuators` (``Rehearser.stand_measured``): `prefer` (else the chain chosen above)
+    if it is safe on them, else the safest of the others if one is.  Where none is, the choice
+    above stays: from a standing none of the machines walks out of, the rehearsal says nothing
+    about which release the true machine can.
     """
     margin_m = released_margin(model, margin_m)
     rehearser = Rehearser(model, link_length, stroke_m, margin_m, DEFAULT_STEP_M, mount,
                           rehearsal, batched=batched)
     rehearser.stand_at(actuators, released, here)
-    if prefer is not None and prefer not in exclude:
-        others = [c for c in range(6) if c != prefer]
-        try:
-            if rehearser.safe(rehearser.try_move(here, target, others)):
-                return prefer
-        except NoRelease:
-            pass
+    chosen = _chosen_here(rehearser, here, target, exclude, prefer)
+    if measured_here is None or chosen is None:
+        return chosen
+    measured = Rehearser(model, link_length, stroke_m, margin_m, DEFAULT_STEP_M, mount,
+                         rehearsal, batched=batched)
+    if not measured.stand_measured(measured_here, actuators, keep=False):
+        return chosen
+    wanted = prefer if prefer is not None and prefer not in exclude else chosen
+    if _safe(measured, here, target, wanted):
+        return wanted
+    try:
+        leg = measured.try_move(here, target, exclude)
+    except NoRelease:
+        return chosen
+    return leg.released if measured.safe(leg) else chosen
+
+
+def _safe(rehearser: Rehearser, here, target, chain: int) -> bool:
+    """Return whether releasing `chain` on the move closes on every machine within the limit."""
+    try:
+        others = [c for c in range(6) if c != chain]
+        return rehearser.safe(rehearser.try_move(here, target, others))
+    except NoRelease:
+        return False
+
+
+def _chosen_here(rehearser: Rehearser, here, target, exclude, prefer) -> int | None:
+    """Return `prefer` if safe on the rehearser's machines, else the best other; None: none."""
+    if prefer is not None and prefer not in exclude and _safe(rehearser, here, target, prefer):
+        return prefer
     try:
         leg = rehearser.try_move(here, target, exclude)
     except NoRelease:

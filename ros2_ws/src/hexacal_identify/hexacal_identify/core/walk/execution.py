@@ -67,7 +67,8 @@ from .release_choice import ReleaseRequest
 from .settings import ExecutionSettings, ExecutionState, GuardStop, Phase, PostureOutcome
 from .standing import blend_from_setpoints, estimate_pose
 from ..architectures import KinematicParameters
-from ..machine.device import DEFAULT_MOUNT, fixed_point
+from ..machine.device import DEFAULT_MOUNT, device_position, fixed_point
+from ..machine.kinematics import measured_pose
 from ..machine.measurements import FIXED
 from ..planning.plan_check import check_stroke
 from ..walk_device.inclinometer import InclinometerJudgement
@@ -77,6 +78,8 @@ from ..walk_refine.refined_targets import refined_targets, targets_model_label
 # The guard: (current actuators, start pose, command points, released chain) -> problem ('': ok).
 Guard = Callable[[np.ndarray, np.ndarray, np.ndarray, int | None], str]
 HOLD_S = 0.2  # time_from_start of a hold command
+# An inclinometer reading this much older than the actuators' is not where the platform is now.
+STALE_READING_S = 1.0
 
 
 class PlanExecution:
@@ -666,6 +669,26 @@ class PlanExecution:
         if problem:
             self._say(LogLevel.WARN, problem)
         return pose
+
+    def _measured_standing(self, estimate: np.ndarray | None) -> np.ndarray | None:
+        """
+        Return where the device measures the platform standing (None: it cannot tell).
+
+        The position from the newest inclinometer reading (eq. 4, in the mounting the device
+        is in), the angles fitted on the model to the measured actuators from `estimate`'s;
+        None while the inclinometer is silent or older than the actuators by STALE_READING_S.
+        """
+        latest, angles = self.actuators.latest, self.inclinometer.latest
+        newest, actuated = self.inclinometer.newest_s, self.actuators.newest_s
+        if estimate is None or latest is None or angles is None or newest is None:
+            return None
+        if actuated is not None and actuated - newest > STALE_READING_S:
+            return None
+        position = device_position(
+            angles[:1], angles[1:], self.link_length, mount=self.mount,
+            device_turn=self.mounted_turn,
+        ).position
+        return measured_pose(self.nominal, latest, position, estimate)[0]
 
     def _judged_angles(self, now: float) -> tuple[float, float] | None:
         """Return the inclinometer reading to judge the position on, None: not yet."""

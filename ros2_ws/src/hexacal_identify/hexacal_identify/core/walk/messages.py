@@ -66,6 +66,11 @@ class ReadingWindow:
         """Return the newest reading (None before the first)."""
         return self._values[-1] if self._values else None
 
+    @property
+    def newest_s(self) -> float | None:
+        """Return the time (s) of the newest reading (None before the first)."""
+        return self._times[-1] if self._times else None
+
     def timed(self, start: float, end: float) -> tuple[np.ndarray, np.ndarray]:
         """Return the times (n,) and readings (n, channels) received in [start, end]."""
         times = np.fromiter(self._times, dtype=float, count=len(self._times))

@@ -59,13 +59,15 @@ def first_releases(
     link_length: float,
     stroke: tuple[float, float],
     mount: str,
+    measured_here: np.ndarray | None = None,
 ) -> tuple[list[int | None], str] | None:
     """
     Return the releases rehearsed again from pose `here` and the line to log; None: keep them.
 
     Every later release assumes the standing the earlier ones leave, so they are rehearsed
     again in the plan's order (a plan whose releases cannot be rehearsed keeps its own: the
-    guard still watches).
+    guard still watches).  `measured_here`: where the device measured the platform
+    (``release_from_here``).
     """
     from ..modes.released_actuator import choose_released_actuators, release_from_here
 
@@ -75,7 +77,7 @@ def first_releases(
     standing_release = first if released_now is None else released_now
     kept = release_from_here(
         nominal, here, actuators, standing_release, poses[0], link_length, stroke, (),
-        mount=mount, prefer=first,
+        mount=mount, prefer=first, measured_here=measured_here,
     )
     if kept == first:
         return None
@@ -104,19 +106,21 @@ def release_after_fault(
     stroke: tuple[float, float],
     mount: str,
     where: str,
+    measured_here: np.ndarray | None = None,
 ) -> tuple[int | None, LogLevel, str]:
     """
     Return the chain to release for the rest of the move to `pose` (None: the release stays).
 
     From where the machine stands, at rest, another chain than the `faulted` ones is
     released (``release_from_here``); the swap happens as any other, at rest, before the
-    move goes on.  `where` names the posture for the line to log (returned with its level).
+    move goes on.  `where` names the posture for the line to log (returned with its level);
+    `measured_here`: where the device measured the platform (``release_from_here``).
     """
     from ..modes.released_actuator import release_from_here
 
     chosen = release_from_here(
         nominal, here, actuators, released_now, pose, link_length, stroke, sorted(faulted),
-        mount=mount,
+        mount=mount, measured_here=measured_here,
     )
     names = nominal.layout.actuator_names
     tried = ', '.join(names[c] for c in sorted(faulted))
@@ -183,7 +187,7 @@ def choose_first_release(walk: PlanExecution) -> None:
         return
     chosen = first_releases(
         walk.nominal, walk.poses, walk.released, walk.released_now, here, latest,
-        walk.link_length, walk.stroke, walk.mount,
+        walk.link_length, walk.stroke, walk.mount, walk._measured_standing(here),
     )
     if chosen is not None:
         walk.released, text = chosen
@@ -200,19 +204,20 @@ def release_checked_here(
     link_length: float,
     stroke: tuple[float, float],
     mount: str,
+    measured_here: np.ndarray | None = None,
 ) -> int:
     """
     Return the chain to release for the move from `here` (at rest) to `pose`.
 
     `planned` if the move closes with it on `nominal` and machines like it
     (``release_from_here``), else another chain that does; `planned` when none does (the guard
-    still watches).
+    still watches).  `measured_here`: where the device measured the platform.
     """
     from ..modes.released_actuator import release_from_here
 
     chosen = release_from_here(
         nominal, here, actuators, released_now, pose, link_length, stroke, (), mount=mount,
-        prefer=planned,
+        prefer=planned, measured_here=measured_here,
     )
     return planned if chosen is None else chosen
 
@@ -234,7 +239,7 @@ def check_release_here(walk: PlanExecution) -> None:
         return
     chosen = release_checked_here(
         walk.nominal, here, latest, walk.released_now, walk.poses[walk.index], planned,
-        walk.link_length, walk.stroke, walk.mount,
+        walk.link_length, walk.stroke, walk.mount, walk._measured_standing(here),
     )
     if chosen == planned:
         return
@@ -266,6 +271,7 @@ def rechoose_release(walk: PlanExecution) -> None:
     chosen, level, text = release_after_fault(
         walk.nominal, here, latest, walk.released_now, walk.poses[walk.index], faulted,
         walk.link_length, walk.stroke, walk.mount, f'posture {walk.index + 1} of {walk.total}',
+        walk._measured_standing(here),
     )
     if chosen is not None:
         walk.released[walk.index] = chosen
