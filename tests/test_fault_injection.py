@@ -7,6 +7,7 @@ collector SIGKILLed mid-recording is tests/test_system_kill.py.
 
 from __future__ import annotations
 
+import ast
 import os
 from pathlib import Path
 import re
@@ -144,7 +145,10 @@ def test_driver_killed_mid_posture_drops_the_partial_posture_and_reports_it(
     assert ros_processes.stop(driver, STOP_TIMEOUT_S) == 0
     assert ros_processes.stop(collector, STOP_TIMEOUT_S) == 0
     log = collector.log_path.read_text()
-    assert "periods dropped {'stream_stopped': 1" in log, log
+    # The summary counts the partial posture once; under load a capture window with a gap may
+    # be dropped besides (its own kind, 'gap').
+    dropped = re.search(r'periods dropped (\{[^}]*\})', log)
+    assert dropped and ast.literal_eval(dropped.group(1)).get('stream_stopped') == 1, log
     in_bag = [
         joint_state_to_posture_reading(m.decoded)
         for m in open_bag(tmp_path / 'bags' / 'killed_driver').messages(['/hexacal/posture'])
