@@ -20,8 +20,13 @@ drive, plans with a jam, the closest approach to a fold (the largest condition n
 passive system met along a move that did not jam; inf: a fold reached), and the targets
 outside the stroke (the executor refuses such a plan).  Planning and walking times are printed.
 
+Each plan is walked without and with the executor's checks at rest (``--at-rest``) and, with
+``--measured-standing off on``, with the checks made from the model's estimate of the standing
+alone and again from the inclinometer's, in the same run.
+
 Run: ``nice .venv/bin/python benchmarks/bench_plan_walks.py [--models hexa_slide gough_stewart]
-[--sizes 20 30 50 80] [--seeds 5] [--margins off on] [--verify-postures 20]``.
+[--sizes 20 30 50 80] [--seeds 5] [--margins off on] [--verify-postures 20] [--at-rest off on]
+[--measured-standing off on]``.
 """
 
 from __future__ import annotations
@@ -56,7 +61,8 @@ def plans(model: str, size: int, seed: int, margin: bool, verify: int):
     return truth, nominal, calibration, verification
 
 
-def walk(truth, model, plan, refined=None, refine_at=None, check_at_rest=True):
+def walk(truth, model, plan, refined=None, refine_at=None, check_at_rest=True,
+         measured_standing=True):
     """Return the plan walked offline on `truth` (plan_walk.walk_plan)."""
     from hexacal_driver.plan_walk import walk_plan
     from hexacal_identify.core.planning.plan_check import plan_stroke
@@ -66,7 +72,7 @@ def walk(truth, model, plan, refined=None, refine_at=None, check_at_rest=True):
     released = [names.index(name) for name in plan.released_actuators]
     return walk_plan(truth, model, plan.poses, released, plan.link_length, stroke,
                      mount=plan.mount, refine_at=refine_at, refined=refined,
-                     check_at_rest=check_at_rest)
+                     check_at_rest=check_at_rest, measured_standing=measured_standing)
 
 
 def _count(row: dict, walked) -> None:
@@ -92,6 +98,11 @@ def main() -> None:
         '--at-rest', nargs='+', default=['off', 'on'], choices=['off', 'on'],
         help="the executor's check_releases_at_rest: each plan walked without and with it",
     )
+    parser.add_argument(
+        '--measured-standing', nargs='+', default=['on'], choices=['off', 'on'],
+        help='the checks at rest again from where the inclinometer puts the platform (the '
+        "executor's; off: from the model's estimate alone, as before 2026-11-28)",
+    )
     args = parser.parse_args()
     from hexacal_identify.core.walk_refine.refinement import full_rank_postures
 
@@ -101,9 +112,9 @@ def main() -> None:
         for margin in args.margins:
             for size in args.sizes:
                 by_check = {
-                    check: {'plans': 0, 'jams': 0, 'jammed': 0, 'closest': 0.0, 'outside': 0,
-                            'plan_s': 0.0, 'walk_s': 0.0, 'failed': 0}
-                    for check in args.at_rest
+                    (check, measured): {'plans': 0, 'jams': 0, 'jammed': 0, 'closest': 0.0,
+                                        'outside': 0, 'plan_s': 0.0, 'walk_s': 0.0, 'failed': 0}
+                    for check in args.at_rest for measured in args.measured_standing
                 }
                 for seed in range(args.seeds):
                     t0 = time.perf_counter()
@@ -118,12 +129,14 @@ def main() -> None:
                         continue
                     t1 = time.perf_counter()
                     first = full_rank_postures(nominal.layout.n_parameters)
-                    for check, row in by_check.items():
+                    for (check, measured), row in by_check.items():
                         t2 = time.perf_counter()
                         walked = [
                             walk(truth, nominal, calibration, truth,
-                                 first if first < size else None, check == 'on'),
-                            walk(truth, truth, verification, check_at_rest=check == 'on'),
+                                 first if first < size else None, check == 'on',
+                                 measured == 'on'),
+                            walk(truth, truth, verification, check_at_rest=check == 'on',
+                                 measured_standing=measured == 'on'),
                         ]
                         t3 = time.perf_counter()
                         row['plan_s'] += t1 - t0
@@ -133,7 +146,8 @@ def main() -> None:
                                       for w in walked]
                         worst = [round(w.worst_condition) if np.isfinite(w.worst_condition)
                                  else 'inf' for w in walked]
-                        print(f'  {model_name} {margin} K={size} seed {seed} at rest {check}: '
+                        print(f'  {model_name} {margin} K={size} seed {seed} at rest {check} '
+                              f'measured {measured}: '
                               f'jams {[w.jams for w in walked]} (first at {first_jams}, '
                               f'recovered {[w.recovered for w in walked]}), '
                               f'outside {[w.refused for w in walked]}, worst cond {worst} '
@@ -141,11 +155,12 @@ def main() -> None:
                 rows.extend((model_name, margin, size, check, row)
                             for check, row in by_check.items())
     print()
-    print(f'{"model":14} {"margin":6} {"K":>3} {"at rest":>7} {"plans":>5} {"jams":>5} '
+    print(f'{"model":14} {"margin":6} {"K":>3} {"at rest":>7} {"measured":>8} {"plans":>5} '
+          f'{"jams":>5} '
           f'{"jammed":>6} {"closest cond":>12} {"outside":>7} {"refused":>7} {"plan s":>7} '
           f'{"walk s":>7}')
-    for model_name, margin, size, check, row in rows:
-        print(f'{model_name:14} {margin:6} {size:3d} {check:>7} {row["plans"]:5d} '
+    for model_name, margin, size, (check, measured), row in rows:
+        print(f'{model_name:14} {margin:6} {size:3d} {check:>7} {measured:>8} {row["plans"]:5d} '
               f'{row["jams"]:5d} '
               f'{row["jammed"]:6d} {row["closest"]:12.0f} {row["outside"]:7d} '
               f'{row["failed"]:7d} {row["plan_s"]:7.0f} {row["walk_s"]:7.0f}')
