@@ -333,21 +333,18 @@ class Rehearser:
             self.mount,
         )
 
-    def stand_measured(self, pose: np.ndarray, actuators: np.ndarray, keep: bool = True) -> bool:
+    def stand_measured(self, pose: np.ndarray, actuators: np.ndarray) -> bool:
         """
-        Also rehearse on each machine standing where the device measured the platform.
+        Stand every machine where the device measured the platform, reading what was measured.
 
-        `pose`: the measured position, the angles a guess.  Each rehearsed machine is added
-        again, standing at the position with the angles that fit `actuators` best on it
-        (``measured_pose``) and made to agree with the measurement (``measured_machine``: its
-        actuator zeros shifted by what its geometry still leaves, so that it reads `actuators`
-        there), beside the standings it has (``stand_at``: where its geometry puts it with
-        those actuators, centimetres away on a Hexa Slide).  Neither alone says where the true
-        machine is: the angles are the model's, and a move safe from both is safer.  False
-        (nothing added) when a machine cannot reach there or nothing stands yet.
+        `pose`: the measured position, the angles a guess.  Each rehearsed machine stands at the
+        position with the angles that fit `actuators` best on it (``measured_pose``), made to
+        agree with the measurement (``measured_machine``: its actuator zeros shifted by what
+        its geometry still leaves, so that it reads `actuators` there); ``stand_at`` instead
+        lets each machine's geometry put it where it would stand with those actuators,
+        centimetres away on a Hexa Slide.  False (nothing changed) when a machine cannot reach
+        there.
         """
-        if self.standing is None and keep:
-            return False
         pose = np.asarray(pose, dtype=float)
         actuators = np.asarray(actuators, dtype=float)
         poses = np.array([measured_pose(machine, actuators, pose[None, :3], pose[None])[0]
@@ -356,17 +353,10 @@ class Rehearser:
                    for machine, at in zip(self.machines, poses)]
         if any(machine is None for machine in shifted):
             return False
-        added = tuple(m for m in shifted if m is not None)
-        readings = np.repeat(actuators[None], len(poses), axis=0)
-        if keep and self.standing is not None:
-            self.machines = self.machines + added
-            poses = np.concatenate([self.standing.poses, poses])
-            readings = np.concatenate([self.standing.actuators, readings])
-        else:
-            self.machines = added
+        self.machines = tuple(m for m in shifted if m is not None)
         if self.stack is not None:
             self.stack = MachineStack(self.machines)
-        self.standing = Standings(poses, readings)
+        self.standing = Standings(poses, np.repeat(actuators[None], len(poses), axis=0))
         return True
 
     def take(self, leg: Leg) -> None:

@@ -274,7 +274,7 @@ def release_from_here(
         return chosen
     measured = Rehearser(model, link_length, stroke_m, margin_m, DEFAULT_STEP_M, mount,
                          rehearsal, batched=batched)
-    if not measured.stand_measured(measured_here, actuators, keep=False):
+    if not measured.stand_measured(measured_here, actuators):
         return chosen
     wanted = prefer if prefer is not None and prefer not in exclude else chosen
     if _safe(measured, here, target, wanted):
