@@ -66,21 +66,26 @@ def test_checked_at_rest_before_the_move_another_chain_is_released_and_nothing_j
 
 
 @pytest.mark.slow
-def test_a_hexa_slide_demo_plan_faults_the_drive_less_rehearsed_from_where_the_device_measures():
-    # The demo's 30-posture Hexa Slide plan of seed 2, made on the nominal and walked on the
-    # true machine with the executor's checks at rest.  Rehearsed only from the model's estimate
-    # of where the platform stands (centimetres off), two of its moves fault the drive; checked
-    # again from where the inclinometer puts it, on machines that read the measured actuators
-    # there, none does.
+@pytest.mark.parametrize('seed, faults_from_the_estimate', [(2, 2), (3, 1)])
+def test_a_hexa_slide_demo_plan_faults_the_drive_less_rehearsed_from_where_the_device_measures(
+    seed, faults_from_the_estimate
+):
+    # The demo's 30-posture Hexa Slide plans of seeds 2 and 3, made on the nominal and walked on
+    # the true machine with the executor's checks at rest.  Rehearsed only from the model's
+    # estimate of where the platform stands (centimetres off), some moves fault the drive;
+    # checked again from where the inclinometer puts it, on machines that read the measured
+    # actuators there, none does.  Seed 3's posture 18 is safe on none of those machines: the
+    # release that closes on the most of them walks (the estimate's choice faulted).
     from hexacal_identify.core.machine.measurements import NoiseModel
     from hexacal_identify.core.planning.plan_check import plan_stroke
     from hexacal_identify.core.planning.planner import plan_postures
 
     model = 'hexa_slide'
-    truth, nominal = architecture(model).default_parameters(), nominal_set(2, seed=2, model=model)
+    truth = architecture(model).default_parameters()
+    nominal = nominal_set(2, seed=seed, model=model)
     plan = plan_postures(
         nominal, 30, index='O1', cost='sphere-fixed', fixed_fraction=0.25, n_candidates=1000,
-        seed=2, noise=NoiseModel.from_microns(10.0), measuring_mode='passive_actuator',
+        seed=seed, noise=NoiseModel.from_microns(10.0), measuring_mode='passive_actuator',
         model_error_m=None,
     ).plan
     names = list(nominal.layout.actuator_names)
@@ -92,7 +97,7 @@ def test_a_hexa_slide_demo_plan_faults_the_drive_less_rehearsed_from_where_the_d
                          mount=plan.mount, refine_at=22, refined=truth,
                          measured_standing=measured_standing)
 
-    assert walk(False).jams == 2
+    assert walk(False).jams == faults_from_the_estimate
     walked = walk(True)
     assert walked.jams == 0 and walked.refused == 0, [m.fault for m in walked.moves if m.fault]
     assert len(walked.moves) == 30

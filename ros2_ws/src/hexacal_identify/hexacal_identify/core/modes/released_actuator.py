@@ -261,7 +261,8 @@ def release_from_here(
     `measured_here`: where the device measured the platform (kinematics.measured_pose), when
     known.  The move is then rehearsed again on the machines standing there, reading the
     measured `actuators` (``Rehearser.stand_measured``): `prefer` (else the chain chosen above)
-    if it is safe on them, else the safest of the others if one is.  Where none is, the choice
+    if it is safe on them, else the safest of the others: the one that closes on the most of
+    them, then the best conditioned.  Where every release jams on all of them, the choice
     above stays: from a standing none of the machines walks out of, the rehearsal says nothing
     about which release the true machine can.
     """
@@ -283,7 +284,9 @@ def release_from_here(
         leg = measured.try_move(here, target, exclude)
     except NoRelease:
         return chosen
-    return leg.released if measured.safe(leg) else chosen
+    # A release that walks out on some of the machines standing there tells more than the
+    # estimate's choice; one that jams on all of them says nothing (make demo's posture 10).
+    return leg.released if leg.jams < len(measured.machines) else chosen
 
 
 def _safe(rehearser: Rehearser, here, target, chain: int) -> bool:
