@@ -10,7 +10,8 @@ machines standing at the same poses (closure to 1e-12 m).
 
 from hexacal_identify.core.architectures import Architecture, default_parameters
 from hexacal_identify.core.machine.postures import sample_poses
-from hexacal_identify.core.modes.passive_actuator import release_conditions, solve_passive
+from hexacal_identify.core.modes.passive_actuator import largest_conditions, release_conditions
+from hexacal_identify.core.modes.passive_actuator import solve_passive
 from hexacal_identify.core.modes.release_moves import move
 from hexacal_identify.core.modes.release_plan import in_order, RehearsalSettings, Rehearser, tour
 from hexacal_identify.core.modes.release_rehearsal import (
@@ -202,3 +203,25 @@ def test_the_predicted_starts_save_newton_steps_on_the_same_branch():
     # A prediction costs what a Newton step does (one evaluation): 38 against 67 steps here.
     assert steps + predicted < 0.75 * plain_steps
     assert np.max(np.abs(end - plain_end)) <= 1e-9
+
+
+def test_the_largest_condition_per_group_is_the_svd_s_taken_only_where_it_can_be():
+    # Well and badly conditioned 6x6 systems, one exactly singular group apart: the maximum per
+    # group equals np.linalg.cond's, bit for bit, whichever matrices the SVD was taken on.
+    rng = np.random.default_rng(7)
+    systems = rng.normal(size=(600, 6, 6))
+    near = rng.choice(600, 40, replace=False)
+    systems[near, 5] = systems[near, 4] + rng.normal(scale=1e-9, size=(40, 6))  # cond ~1e9
+    groups = rng.integers(0, 25, size=600)
+    want = np.zeros(26)
+    np.maximum.at(want, groups, np.linalg.cond(systems))
+    assert np.array_equal(largest_conditions(systems, groups, 26), want)  # group 25 empty: 0
+    singular = systems.copy()
+    singular[3, 2] = 0.0
+    singular[3, :, 2] = 0.0
+    singular[3, 2, 2] = 0.0
+    singular[3, 1] = singular[3, 0]
+    with np.errstate(divide='ignore'):
+        want_singular = np.zeros(26)
+        np.maximum.at(want_singular, groups, np.linalg.cond(singular))
+        assert np.array_equal(largest_conditions(singular, groups, 26), want_singular)

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from .link_load import LinkLoad, released_link_forces
-from .passive_actuator import release_conditions
+from .passive_actuator import worst_release_conditions
 from .release_moves import inside_stroke, Move, move
 from .release_rehearsal import (
     DEFAULT_JOINT_STEP_M,
@@ -138,8 +138,7 @@ class Rehearser:
             inside_stroke(nominal_move.actuators, low + self.margin_m, high - self.margin_m),
             axis=0,
         )
-        along = np.max(release_conditions(self.params, nominal_move.poses, self.link_length),
-                       axis=0)
+        along = worst_release_conditions(self.params, nominal_move.poses, self.link_length)
         ranked = np.where(inside & np.isfinite(along), along, np.inf)
         if self.link_load is not None:
             ranked = self._within_link_limit(nominal_move, ranked)

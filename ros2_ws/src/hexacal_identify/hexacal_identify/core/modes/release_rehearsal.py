@@ -41,6 +41,7 @@ from .passive_actuator import (
     _check_branch,
     _errors,
     _solve,
+    largest_conditions,
     MAX_HALVINGS,
     MAX_STALLS,
     passive_system,
@@ -447,6 +448,31 @@ def released_condition(
     link_length: float,
 ) -> np.ndarray:
     """Return ``release_conditions`` of the released chain only (N,), from d lambda / d X."""
+    system, ok = _released_systems(jacobian, reachable, poses, released, link_length)
+    conditions = np.full(len(poses), np.inf)
+    if np.any(ok):
+        conditions[ok] = np.linalg.cond(system[ok])
+    return conditions
+
+
+def worst_released_condition(
+    jacobian: np.ndarray,
+    reachable: np.ndarray,
+    poses: np.ndarray,
+    released: np.ndarray,
+    link_length: float,
+    rows: np.ndarray,
+    count: int,
+) -> np.ndarray:
+    """Return the largest ``released_condition`` of each of `count` rows (`rows` (N,); 0: none)."""
+    system, ok = _released_systems(jacobian, reachable, poses, released, link_length)
+    worst = largest_conditions(system[ok], rows[ok], count)
+    worst[np.unique(rows[~ok])] = np.inf
+    return worst
+
+
+def _released_systems(jacobian, reachable, poses, released, link_length):
+    """Return the passive systems of ``released_condition`` (N, 6, 6) and where they hold."""
     n = len(poses)
     system = jacobian.copy()
     system[:, :, 3:] /= link_length
@@ -454,11 +480,7 @@ def released_condition(
     sphere = np.zeros((n, 6))
     sphere[:, :3] = poses[:, :3] / np.where(radius > 0, radius, np.nan)[:, None]
     system[np.arange(n), released] = sphere
-    ok = reachable & (radius > 0)
-    conditions = np.full(n, np.inf)
-    if np.any(ok):
-        conditions[ok] = np.linalg.cond(system[ok])
-    return conditions
+    return system, reachable & (radius > 0)
 
 
 def stand_stacked(
@@ -670,9 +692,8 @@ class _Continuation:
                                                  for part in zip(*self.settled))
             kept = alive[which]  # a row that jammed has no score (_worst_alive)
             which = which[kept]
-            picked = released_condition(jacobian[kept], reachable[kept], poses[kept],
-                                        self.released[which], self.link_length)
-            np.maximum.at(worst, which, picked)
+            worst = worst_released_condition(jacobian[kept], reachable[kept], poses[kept],
+                                             self.released[which], self.link_length, which, n)
         self.poses[~alive] = np.nan
         self.actuators[~alive] = np.nan
         return alive, worst
@@ -765,6 +786,7 @@ __all__ = [
     'rehearse',
     'rehearse_stacked',
     'released_condition',
+    'worst_released_condition',
     'sampled_machines',
     'setpoint_samples',
     'solve_stacked',
