@@ -39,6 +39,7 @@ from hexacal_driver.simulation import TrajectoryPoint
 from hexacal_identify.core.architectures import KinematicParameters
 from hexacal_identify.core.machine.device import DEFAULT_MOUNT, fixed_point
 from hexacal_identify.core.machine.kinematics import measured_pose
+from hexacal_identify.core.modes.link_load import LinkLoad
 from hexacal_identify.core.modes.passive_actuator import release_conditions
 from hexacal_identify.core.walk.platform_paths import CommandPurpose, eased_command, PathError
 from hexacal_identify.core.walk.platform_paths import route_command
@@ -145,6 +146,7 @@ def walk_plan(
     recover: bool = True,
     path_step_m: float = PATH_STEP_M,
     measured_standing: bool = True,
+    link_load: LinkLoad | None = None,
 ) -> PlanWalk:
     """
     Walk `poses` (K, 6, plan order) with `released` (0-based) on `truth` (module doc).
@@ -156,7 +158,8 @@ def walk_plan(
     after a fault the executor's recovery (another chain released from where it stands) is
     taken, else the walk goes on to the next posture from where the drive stopped.
     `measured_standing`: the checks at rest also rehearse from where the inclinometer puts the
-    platform, as the executor does (False: from the model's estimate alone).
+    platform, as the executor does (False: from the model's estimate alone).  `link_load`: the
+    executor's (its ``physical_file`` weights and the plan's limit; None: not weighed).
     """
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
     released = list(released)
@@ -175,7 +178,7 @@ def walk_plan(
     if rechoose_first and here is not None and len(poses):
         chosen = first_releases(model, poses, released, None, here, drive.actuators.copy(),
                                 link_length, stroke, mount,
-                                _measured(model, drive, here, measured_standing))
+                                _measured(model, drive, here, measured_standing), link_load)
         if chosen is not None:
             released = list(chosen[0])
     setpoints = drive.actuators.copy()
@@ -191,7 +194,7 @@ def walk_plan(
         if check_at_rest and index > 0:
             released[index] = _checked_release(model, drive, released[index], pose, poses,
                                                index, centre, link_length, stroke, mount,
-                                               measured_standing)
+                                               measured_standing, link_load)
         faulted: set[int] = set()
         first_fault = ''
         while True:
@@ -231,7 +234,7 @@ def walk_plan(
                     rechosen, _, _ = release_after_fault(
                         model, here, drive.actuators.copy(), drive.released, pose, faulted,
                         link_length, stroke, mount, f'posture {index + 1}',
-                        _measured(model, drive, here, measured_standing),
+                        _measured(model, drive, here, measured_standing), link_load,
                     )
             if rechosen is None:
                 moves.append(MoveWalk(index, wanted, math.inf, fault=first_fault))
@@ -281,7 +284,7 @@ def _move(drive, truth, model, start, pose, setpoints, stroke, link_length, true
 
 
 def _checked_release(model, drive, planned, pose, poses, index, centre, link_length, stroke,
-                     mount, measured_standing):
+                     mount, measured_standing, link_load):
     """Return the release the executor walks to `pose`: checked at rest from here."""
     if planned is None or drive.released is None:
         return planned
@@ -290,7 +293,7 @@ def _checked_release(model, drive, planned, pose, poses, index, centre, link_len
         return planned
     return release_checked_here(model, here, drive.actuators.copy(), drive.released, pose,
                                 planned, link_length, stroke, mount,
-                                _measured(model, drive, here, measured_standing))
+                                _measured(model, drive, here, measured_standing), link_load)
 
 
 def _measured(model, drive, estimate, measured_standing=True) -> np.ndarray | None:

@@ -23,6 +23,7 @@ from hexacal_identify.core.modes.released_actuator import (
     move_paths,
     move_samples,
     RehearsalSettings,
+    release_from_here,
     ReleaseError,
 )
 from hexacal_identify.core.planning.measuring_plan import check_measuring_mode
@@ -82,6 +83,39 @@ def test_with_the_weights_a_release_that_overloads_the_link_is_not_chosen():
     assert np.sum(free_forces > limit) >= 2, free_forces
     assert np.all(forces <= limit), (free_forces, forces)
     assert np.any(free != loaded)
+
+
+def test_the_executors_checks_at_rest_keep_the_link_within_the_plans_limit():
+    # The releases the executor chooses again at the machine weigh the link as the planner's:
+    # on the Gough-Stewart moves whose best-conditioned release loads the link beyond 500 N
+    # (measured: 506, 952, 1583 N), the plan's release is kept without the weights and another
+    # chain is released with them, which keeps the move under the limit (428, 414, 147 N).
+    from hexacal_identify.core.fit.statics import MassModel
+    from hexacal_identify.core.modes.link_load import LinkLoad, move_link_forces
+    from hexacal_msgs_py.physical_file import default_physical
+
+    params, poses, workspace = _poses('gough_stewart', 12, 3)
+    length, stroke = workspace.link_length, workspace.actuator_stroke_m
+    masses = MassModel.from_physical(default_physical('gough_stewart'))
+    planned = choose_released_actuators(params, poses, length, stroke).released
+    forces = move_link_forces(params, poses, planned, masses, length, stroke)
+    overloaded = [i for i in np.flatnonzero(forces > 500.0) if i > 0]
+    assert len(overloaded) >= 2, forces
+    for i in overloaded:
+        here = poses[i - 1]
+        standing = inverse_kinematics(params, here[None])[0]
+
+        def checked(link_load):
+            return release_from_here(params, here, standing, int(planned[i - 1]), poses[i],
+                                     length, stroke, (), prefer=int(planned[i]),
+                                     link_load=link_load)
+
+        assert checked(None) == planned[i]
+        chosen = checked(LinkLoad(masses, 500.0))
+        released = planned.copy()
+        released[i] = chosen
+        after = move_link_forces(params, poses, released, masses, length, stroke)[i]
+        assert chosen != planned[i] and after <= 500.0, (i, chosen, after)
 
 
 def _jammed_moves(true, nominal, poses, length, released) -> int:

@@ -17,6 +17,7 @@ from hexacal_identify.core.sessions.executor_session import (
     SERVICE_WAIT_S,
     setup_walk,
     STATUS_PERIOD_S,
+    walk_link_load,
 )
 from hexacal_identify.core.walk.messages import LogLevel
 from hexacal_identify.core.walk.settings import ExecutionState
@@ -93,6 +94,26 @@ def test_setup_walks_a_plan_within_the_stroke_and_names_the_stroke_source():
     assert sorted(narrow.problems) == [0, 1, 2, 3]
     assert narrow.execution.refusal == narrow.refusal
     assert narrow.refusal.startswith('plan refused before anything moved: 4 of 4 postures')
+
+
+def test_the_link_load_is_weighed_only_for_a_passive_plan_made_with_it(tmp_path):
+    from dataclasses import replace
+
+    from hexacal_msgs_py.measuring_modes import MeasuringMode
+    from hexacal_msgs_py.physical_file import default_physical, write_physical_file
+
+    passive, limit = MeasuringMode.PASSIVE_ACTUATOR, {'link_force_limit_n': 450.0}
+    assert walk_link_load('', {}, 'hexa_slide', passive) is None  # planned without the load
+    assert walk_link_load('', limit, 'hexa_slide', MeasuringMode.LVDT) is None
+    shipped = walk_link_load('', limit, 'hexa_slide', passive)
+    assert shipped is not None and shipped.max_force_n == 450.0
+    assert shipped.masses.platform_mass == default_physical('hexa_slide').platform_mass
+    heavy = write_physical_file(tmp_path / 'heavy.yaml',
+                                replace(default_physical('hexa_slide'), payload_mass=7.5))
+    given = walk_link_load(str(heavy), limit, 'hexa_slide', passive)
+    assert given is not None and given.masses.payload_mass == 7.5
+    with pytest.raises(ValueError, match='physical_file: cannot read'):
+        walk_link_load(str(tmp_path / 'missing.yaml'), limit, 'hexa_slide', passive)
 
 
 def test_setup_refuses_parameters_that_describe_no_walk():

@@ -258,6 +258,12 @@ def physics_parameters(args: argparse.Namespace) -> dict[str, str]:
     return params
 
 
+def executor_physical(args: argparse.Namespace) -> dict[str, str]:
+    """Return the executor's physical_file: --physical's weights load the link (if given)."""
+    physical = getattr(args, 'physical', None)
+    return {'physical_file': str(Path(physical).resolve())} if physical else {}
+
+
 def physics(args: argparse.Namespace) -> str:
     """Return the simulated machine: --physics, a physics driver param, else kinematic."""
     given = dict(getattr(args, 'driver_param', []) or []).get('physics')

@@ -30,6 +30,7 @@ from hexacal_msgs_py.models import DEFAULT_MODEL, MODELS
 from .demo import (
     actuator_speed,
     DemoError,
+    executor_physical,
     EXECUTOR_SPEED_M_S,
     EXIT_FAILED,
     EXIT_OK,
@@ -256,6 +257,7 @@ def system_launches(
             'timeout_s': 30.0 + float(args.dwell_s),
             'refine_targets': bool(refine),
             **actuator_limits(arch, SLIDER_EXECUTOR_LIMITS),
+            **executor_physical(args),
         },
         driver={
             'true_params': str(paths.true_params),

@@ -221,6 +221,15 @@ PARAMETERS: dict[str, _Spec] = {
         0.0,
         1.0,
     ),
+    'physical_file': _Spec(
+        '',
+        "passive_actuator, a plan made with the link's load (its link_force_limit_n): the "
+        'physical description YAML (hexacal-physical/1: masses and centres of mass, gravity, '
+        'payload) whose weights load the measuring link; the releases the executor chooses '
+        "again at rest and after a drive fault keep the link within the plan's limit, as the "
+        "planner's did; '' = the model's shipped physical description; unused for a plan made "
+        "without the link's load",
+    ),
     'release_wait_s': _Spec(
         10.0,
         'passive_actuator: how long to wait for a release service (std_srvs/SetBool '

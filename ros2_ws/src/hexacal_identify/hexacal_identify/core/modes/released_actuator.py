@@ -245,6 +245,7 @@ def release_from_here(
     prefer: int | None = None,
     batched: bool = True,
     measured_here: np.ndarray | None = None,
+    link_load: LinkLoad | None = None,
 ) -> int | None:
     """
     Return the chain to release for the rest of a move, none of `exclude`; None if none will do.
@@ -265,16 +266,20 @@ def release_from_here(
     them, then the best conditioned.  Where every release jams on all of them, the choice
     above stays: from a standing none of the machines walks out of, the rehearsal says nothing
     about which release the true machine can.
+
+    `link_load` (the weights and the link's limit, as the planner's): a chain whose release
+    loads the link beyond the limit along the move is neither kept nor chosen where another's
+    does not (``Rehearser.ranked``).
     """
     margin_m = released_margin(model, margin_m)
     rehearser = Rehearser(model, link_length, stroke_m, margin_m, DEFAULT_STEP_M, mount,
-                          rehearsal, batched=batched)
+                          rehearsal, batched=batched, link_load=link_load)
     rehearser.stand_at(actuators, released, here)
     chosen = _chosen_here(rehearser, here, target, exclude, prefer)
     if measured_here is None or chosen is None:
         return chosen
     measured = Rehearser(model, link_length, stroke_m, margin_m, DEFAULT_STEP_M, mount,
-                         rehearsal, batched=batched)
+                         rehearsal, batched=batched, link_load=link_load)
     if not measured.stand_measured(measured_here, actuators):
         return chosen
     wanted = prefer if prefer is not None and prefer not in exclude else chosen

@@ -32,7 +32,7 @@ from typing import Any, TYPE_CHECKING
 
 from hexacal_msgs_py.inputs import DEFAULT_OFFSETS_RAD, DEFAULT_SIGNS, IMU_INCLINOMETER
 from hexacal_msgs_py.inputs import InputMapping
-from hexacal_msgs_py.measuring_modes import measuring_mode
+from hexacal_msgs_py.measuring_modes import measuring_mode, MeasuringMode
 from hexacal_msgs_py.models import DEVICE_MOUNT_KEY, MODELS
 from hexacal_msgs_py.names import INCLINOMETER_TOPIC
 from hexacal_msgs_py.parameters_file import read_parameters_file
@@ -52,6 +52,7 @@ from ..walk_device.turns import DeviceTurnSetter, TURN_PARAMETER, TurnSetState
 from ..walk_refine.refined_targets import refine_checkpoints, RefineCall, RefineState
 
 if TYPE_CHECKING:
+    from ..modes.link_load import LinkLoad
     from ..planning.planner import Plan
 
 STATUS_PERIOD_S = 1.0  # progress (ETA) is republished at least this often
@@ -247,6 +248,12 @@ class WalkSetup:
             )
         if self.mode.source != 'default':  # a plan without a mode walks as it always did
             lines.append(self.mode.describe(self.actuator_joints))
+        load = self.execution.link_load
+        if load is not None:
+            lines.append(
+                'releases chosen again at the machine keep the measuring link within the '
+                f"plan's {load.max_force_n:g} N (the weights of physical_file)"
+            )
         return lines
 
     def start_messages(
@@ -381,6 +388,9 @@ def setup_walk(
         refine_at=refine_checkpoints(
             bool(values.get('refine_targets', False)), nominal.layout.n_parameters, len(poses)
         ),
+        link_load=walk_link_load(
+            str(values.get('physical_file', '')), plan.metadata, nominal.model, mode.mode
+        ),
     )
     refusal = refusal_message(problems, len(targets)) if problems else ''
     if problems:  # nothing is ever commanded
@@ -399,6 +409,34 @@ def setup_walk(
         mode,
         guard_settings,
     )
+
+
+def walk_link_load(
+    physical_file: str, metadata: Mapping[str, Any] | None, model: str, mode: MeasuringMode
+) -> LinkLoad | None:
+    """
+    Return the link's load the executor's own release choices keep within (None: none).
+
+    A passive_actuator plan made with the link's load names its limit (``link_force_limit_n``);
+    the weights are `physical_file`'s ('' : the model's shipped physical description).
+    ValueError naming physical_file when it cannot be read.
+    """
+    limit = (metadata or {}).get('link_force_limit_n')
+    if mode != MeasuringMode.PASSIVE_ACTUATOR or limit is None:
+        return None
+    from hexacal_msgs_py.physical_file import default_physical
+
+    from ..fit.statics import MassModel
+    from ..modes.link_load import LinkLoad
+
+    try:
+        masses = (
+            MassModel.load(physical_file) if physical_file
+            else MassModel.from_physical(default_physical(model))
+        )
+        return LinkLoad(masses, float(limit))
+    except (ValueError, TypeError) as error:  # PhysicalFileError is a ValueError
+        raise ValueError(f'physical_file: {error}') from error
 
 
 def refined_guard(setup: WalkSetup, model: KinematicParameters) -> Guard | None:

@@ -51,6 +51,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
 import math
+from typing import TYPE_CHECKING
 
 from hexacal_msgs_py.names import EXECUTOR_RESUME_SERVICE as RESUME_SERVICE
 import numpy as np
@@ -74,6 +75,9 @@ from ..planning.plan_check import check_stroke
 from ..walk_device.inclinometer import InclinometerJudgement
 from ..walk_device.turns import check_turns, same_turn, turn_text
 from ..walk_refine.refined_targets import refined_targets, targets_model_label
+
+if TYPE_CHECKING:
+    from ..modes.link_load import LinkLoad
 
 # The guard: (current actuators, start pose, command points, released chain) -> problem ('': ok).
 Guard = Callable[[np.ndarray, np.ndarray, np.ndarray, int | None], str]
@@ -101,6 +105,7 @@ class PlanExecution:
         released: Sequence[int | None] | None = None,
         guard: Guard | None = None,
         refine_at: Sequence[int] = (),
+        link_load: LinkLoad | None = None,
     ):
         """
         Walk `poses` (their nominal `targets` from core/planning/plan_check.py) on `nominal`.
@@ -110,7 +115,9 @@ class PlanExecution:
         the start (rad); released: the chain released at each posture
         (None: all six commanded, the compliant and lvdt modes); refine_at: the measured-posture
         counts at which the walk stops at rest for an intermediate calibration
-        (core/walk_refine/refined_targets.py; the node answers with `on_refined`).
+        (core/walk_refine/refined_targets.py; the node answers with `on_refined`); link_load:
+        passive_actuator, the weights and the link's limit the releases chosen again at the
+        machine keep within (release_choice.py; None: the link's load is not weighed).
         """
         self.nominal = nominal
         self.poses = np.atleast_2d(np.asarray(poses, dtype=float))
@@ -120,6 +127,7 @@ class PlanExecution:
         self.stroke = check_stroke(stroke)
         self.link_length = float(link_length)
         self.mount = mount
+        self.link_load = link_load
         self.turns = check_turns(device_turns, len(self.poses))
         if isinstance(mounted_turn, bool) or not math.isfinite(float(mounted_turn)):
             raise ValueError(f'mounted_turn must be a finite angle (rad), got {mounted_turn!r}')

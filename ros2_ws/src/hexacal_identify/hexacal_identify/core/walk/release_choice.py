@@ -38,6 +38,7 @@ from ..architectures import KinematicParameters
 
 if TYPE_CHECKING:
     from .execution import PlanExecution
+    from ..modes.link_load import LinkLoad
 
 
 @dataclass(frozen=True)
@@ -60,6 +61,7 @@ def first_releases(
     stroke: tuple[float, float],
     mount: str,
     measured_here: np.ndarray | None = None,
+    link_load: LinkLoad | None = None,
 ) -> tuple[list[int | None], str] | None:
     """
     Return the releases rehearsed again from pose `here` and the line to log; None: keep them.
@@ -67,7 +69,8 @@ def first_releases(
     Every later release assumes the standing the earlier ones leave, so they are rehearsed
     again in the plan's order (a plan whose releases cannot be rehearsed keeps its own: the
     guard still watches).  `measured_here`: where the device measured the platform
-    (``release_from_here``).
+    (``release_from_here``); `link_load`: the link's limit the releases keep within, as the
+    planner's did.
     """
     from ..modes.released_actuator import choose_released_actuators, release_from_here
 
@@ -77,13 +80,13 @@ def first_releases(
     standing_release = first if released_now is None else released_now
     kept = release_from_here(
         nominal, here, actuators, standing_release, poses[0], link_length, stroke, (),
-        mount=mount, prefer=first, measured_here=measured_here,
+        mount=mount, prefer=first, measured_here=measured_here, link_load=link_load,
     )
     if kept == first:
         return None
     try:
         choice = choose_released_actuators(
-            nominal, poses, link_length, stroke, start=here, mount=mount
+            nominal, poses, link_length, stroke, start=here, mount=mount, link_load=link_load
         )
     except ValueError:
         return None  # ReleaseError: the plan's releases stay; the guard still watches
@@ -107,6 +110,7 @@ def release_after_fault(
     mount: str,
     where: str,
     measured_here: np.ndarray | None = None,
+    link_load: LinkLoad | None = None,
 ) -> tuple[int | None, LogLevel, str]:
     """
     Return the chain to release for the rest of the move to `pose` (None: the release stays).
@@ -114,13 +118,14 @@ def release_after_fault(
     From where the machine stands, at rest, another chain than the `faulted` ones is
     released (``release_from_here``); the swap happens as any other, at rest, before the
     move goes on.  `where` names the posture for the line to log (returned with its level);
-    `measured_here`: where the device measured the platform (``release_from_here``).
+    `measured_here`: where the device measured the platform, `link_load` the link's limit
+    (``release_from_here``).
     """
     from ..modes.released_actuator import release_from_here
 
     chosen = release_from_here(
         nominal, here, actuators, released_now, pose, link_length, stroke, sorted(faulted),
-        mount=mount, measured_here=measured_here,
+        mount=mount, measured_here=measured_here, link_load=link_load,
     )
     names = nominal.layout.actuator_names
     tried = ', '.join(names[c] for c in sorted(faulted))
@@ -187,7 +192,7 @@ def choose_first_release(walk: PlanExecution) -> None:
         return
     chosen = first_releases(
         walk.nominal, walk.poses, walk.released, walk.released_now, here, latest,
-        walk.link_length, walk.stroke, walk.mount, walk._measured_standing(here),
+        walk.link_length, walk.stroke, walk.mount, walk._measured_standing(here), walk.link_load,
     )
     if chosen is not None:
         walk.released, text = chosen
@@ -205,19 +210,21 @@ def release_checked_here(
     stroke: tuple[float, float],
     mount: str,
     measured_here: np.ndarray | None = None,
+    link_load: LinkLoad | None = None,
 ) -> int:
     """
     Return the chain to release for the move from `here` (at rest) to `pose`.
 
     `planned` if the move closes with it on `nominal` and machines like it
     (``release_from_here``), else another chain that does; `planned` when none does (the guard
-    still watches).  `measured_here`: where the device measured the platform.
+    still watches).  `measured_here`: where the device measured the platform; `link_load`: the
+    link's limit a chain's release must keep within where another's does.
     """
     from ..modes.released_actuator import release_from_here
 
     chosen = release_from_here(
         nominal, here, actuators, released_now, pose, link_length, stroke, (), mount=mount,
-        prefer=planned, measured_here=measured_here,
+        prefer=planned, measured_here=measured_here, link_load=link_load,
     )
     return planned if chosen is None else chosen
 
@@ -239,7 +246,7 @@ def check_release_here(walk: PlanExecution) -> None:
         return
     chosen = release_checked_here(
         walk.nominal, here, latest, walk.released_now, walk.poses[walk.index], planned,
-        walk.link_length, walk.stroke, walk.mount, walk._measured_standing(here),
+        walk.link_length, walk.stroke, walk.mount, walk._measured_standing(here), walk.link_load,
     )
     if chosen == planned:
         return
@@ -271,7 +278,7 @@ def rechoose_release(walk: PlanExecution) -> None:
     chosen, level, text = release_after_fault(
         walk.nominal, here, latest, walk.released_now, walk.poses[walk.index], faulted,
         walk.link_length, walk.stroke, walk.mount, f'posture {walk.index + 1} of {walk.total}',
-        walk._measured_standing(here),
+        walk._measured_standing(here), walk.link_load,
     )
     if chosen is not None:
         walk.released[walk.index] = chosen
