@@ -114,6 +114,15 @@ def test_the_link_load_is_weighed_only_for_a_passive_plan_made_with_it(tmp_path)
     assert given is not None and given.masses.payload_mass == 7.5
     with pytest.raises(ValueError, match='physical_file: cannot read'):
         walk_link_load(str(tmp_path / 'missing.yaml'), limit, 'hexa_slide', passive)
+    plan = _plan()
+    plan = replace(plan, metadata={**(plan.metadata or {}), **limit})
+    setup = _setup(plan, measuring_mode='passive_actuator', physical_file=str(heavy))
+    assert setup.execution.link_load is not None
+    assert setup.execution.link_load.masses.payload_mass == 7.5
+    assert setup.start_lines(plan, NOMINAL.model, '/cmd')[-1].endswith(
+        f"within the plan's 450 N (weights: {heavy})"
+    )
+    assert _setup(_plan(), measuring_mode='passive_actuator').execution.link_load is None
 
 
 def test_setup_refuses_parameters_that_describe_no_walk():

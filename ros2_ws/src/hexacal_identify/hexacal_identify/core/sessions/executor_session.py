@@ -222,6 +222,7 @@ class WalkSetup:
     execution: PlanExecution
     mode: WalkMode
     guard: GuardSettings
+    weights: str = ''  # where the link's weights come from (physical_file), when weighed
 
     def start_lines(self, plan: Plan, model: str, command_topic: str) -> list[str]:
         """Return what the node logs at the start: the plan, the commands, the turns."""
@@ -252,7 +253,7 @@ class WalkSetup:
         if load is not None:
             lines.append(
                 'releases chosen again at the machine keep the measuring link within the '
-                f"plan's {load.max_force_n:g} N (the weights of physical_file)"
+                f"plan's {load.max_force_n:g} N (weights: {self.weights})"
             )
         return lines
 
@@ -408,6 +409,8 @@ def setup_walk(
         execution,
         mode,
         guard_settings,
+        str(values.get('physical_file', ''))
+        or f'the shipped {nominal.model} physical description',
     )
 
 
