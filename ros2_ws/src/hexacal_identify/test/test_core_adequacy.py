@@ -51,6 +51,14 @@ def test_quantiles_match_the_chi_square_distribution():
     assert 1.40 < expected_range(146, 1e-3)[1] < 1.41
     with pytest.raises(ValueError, match='dof > 0'):
         chi2_quantile(0.5, 0)
+    # scipy.stats' chi-square, which the quantiles stand in for without its import.
+    from scipy.stats import chi2
+
+    for dof in (1, 7, 146, 30000):
+        for probability in (1e-3, 0.01, 0.5, 0.99, 1 - 1e-3):
+            assert chi2_quantile(probability, dof) == pytest.approx(
+                chi2.ppf(probability, dof), rel=1e-12
+            )
 
 
 def test_the_true_noise_passes(measured):
