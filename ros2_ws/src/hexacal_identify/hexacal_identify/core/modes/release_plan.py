@@ -221,8 +221,7 @@ class Rehearser:
         firsts = self._stacked([RehearsalJob(job.start, job.setpoints,
                                              job.candidates[:FIRST_REHEARSED]) for job in jobs])
         needed = [i for i, (job, first) in enumerate(zip(jobs, firsts))
-                  if not _acceptable(first, count, limit).any()
-                  and len(job.candidates) > FIRST_REHEARSED]
+                  if _rest_needed(first, len(job.candidates), count, limit)]
         rests = self._stacked([RehearsalJob(jobs[i].start, jobs[i].setpoints,
                                             jobs[i].candidates[FIRST_REHEARSED:])
                                for i in needed])
@@ -375,8 +374,8 @@ class Rehearser:
                             self.link_length, self.stroke, self.margin_m, self.mount)
 
         first = run(order[:FIRST_REHEARSED])
-        limit = self.settings.max_move_condition
-        if _acceptable(first, len(self.machines), limit).any() or len(order) <= FIRST_REHEARSED:
+        if not _rest_needed(first, len(order), len(self.machines),
+                            self.settings.max_move_condition):
             return first
         rest = run(order[FIRST_REHEARSED:])
         return _joined(first, rest)
@@ -424,12 +423,13 @@ def measured_machine(
 
 def _first_then_rest(result: Rehearsal, machines: int, limit: float) -> Rehearsal:
     """Return the first FIRST_REHEARSED candidates' part where one will do, else all of it."""
-    first = FIRST_REHEARSED
-    if len(result.candidates) <= first or not _acceptable(
-        _part(result, slice(0, first)), machines, limit
-    ).any():
-        return result
-    return _part(result, slice(0, first))
+    first = _part(result, slice(0, FIRST_REHEARSED))
+    return result if _rest_needed(first, len(result.candidates), machines, limit) else first
+
+
+def _rest_needed(first: Rehearsal, candidates: int, machines: int, limit: float) -> bool:
+    """Return whether the candidates after the first ones are rehearsed: none of those will do."""
+    return candidates > FIRST_REHEARSED and not _acceptable(first, machines, limit).any()
 
 
 def _joined(first: Rehearsal, rest: Rehearsal) -> Rehearsal:
