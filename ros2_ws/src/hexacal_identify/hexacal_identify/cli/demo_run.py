@@ -186,12 +186,11 @@ def write_plans(args: argparse.Namespace, nominal, paths: DemoPaths) -> None:
 
 def _plan(what: str, args: argparse.Namespace, nominal, postures: int, **options):
     """Return plan_postures of the demo's measuring mode, its stages and steps shown as it goes."""
-    from ..core.planning.planner import plan_postures
+    from ..core.planning.planner import plan_postures, progress_steps
     from .command_line import Progress
 
     mode = measuring_mode(args)
-    steps = postures * (2 if mode == 'passive_actuator' else 1) + 1
-    progress = Progress(total=steps, prefix='hexacal demo')
+    progress = Progress(total=progress_steps(postures, measuring_mode=mode), prefix='hexacal demo')
     try:
         return plan_postures(
             nominal, postures, index='O1', n_candidates=PLAN_CANDIDATES, measuring_mode=mode,

@@ -297,7 +297,7 @@ def run_plan(args) -> int:
     from ..core.machine.device import DevicePrior, procedure_turns
     from ..core.machine.measurements import NoiseModel
     from ..core.planning.observability import INDICES, PREDICTION
-    from ..core.planning.planner import plan_postures
+    from ..core.planning.planner import plan_postures, progress_steps
 
     nominal, extras = load_nominal(args.nominal)
     layout = nominal.layout
@@ -306,10 +306,12 @@ def run_plan(args) -> int:
         raise IsADirectoryError(f'--out {args.out} is a directory; name a YAML file')
     weighted = not args.unweighted and args.cost != 'relative' and args.noise_um > 0
     noise = NoiseModel.from_microns(args.noise_um) if weighted else None
-    steps = args.postures * (2 if args.method == 'exchange' else 1) + 1
-    if args.measuring_mode == 'passive_actuator':
-        steps += args.postures  # each posture rehearsed
-    progress = Progress(enabled=not args.json, total=steps, prefix='hexacal plan')
+    rehearsed = args.measuring_mode == 'passive_actuator'  # its releases: a stage of its own
+    progress = Progress(
+        enabled=not args.json,
+        total=progress_steps(args.postures, args.method, args.measuring_mode),
+        prefix='hexacal plan',
+    )
     try:
         planning = plan_postures(
             nominal,
@@ -363,11 +365,7 @@ def run_plan(args) -> int:
                     },
                     'candidate_seconds': planning.candidate_seconds,
                     'selection_seconds': planning.selection_seconds,
-                    **(
-                        {'rehearsal_seconds': planning.measuring_seconds}
-                        if args.measuring_mode == 'passive_actuator'
-                        else {}
-                    ),
+                    **({'rehearsal_seconds': planning.measuring_seconds} if rehearsed else {}),
                     'exchange_swaps': max(len(planning.exchange_history) - 1, 0),
                     'procedure': args.procedure,
                     'device_columns': list(planning.candidates.device_columns),
@@ -394,11 +392,7 @@ def run_plan(args) -> int:
     print(
         f'  candidates {planning.candidate_seconds:.2f} s, selection '
         f'{planning.selection_seconds:.2f} s'
-        + (
-            f', rehearsal {planning.measuring_seconds:.2f} s'
-            if args.measuring_mode == 'passive_actuator'
-            else ''
-        )
+        + (f', rehearsal {planning.measuring_seconds:.2f} s' if rehearsed else '')
         + (
             f', {len(planning.exchange_history) - 1} exchange swaps'
             if args.method == 'exchange'

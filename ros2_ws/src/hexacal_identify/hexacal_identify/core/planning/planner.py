@@ -364,12 +364,22 @@ def _model_margin_candidates(nominal, poses, kinds, limits, rng, model_error_m):
 _MEASURING_STAGES = {'passive_actuator': 'rehearsal of the releases'}
 
 
+def progress_steps(
+    n_postures: int, method: str = METHODS[0], measuring_mode: str | None = None
+) -> int:
+    """Return how many steps ``plan_postures`` reports to its ``progress`` (a display's total)."""
+    steps = n_postures * (2 if method == 'exchange' else 1) + 1
+    if measuring_mode == 'passive_actuator':
+        steps += n_postures  # each posture rehearsed
+    return steps
+
+
 def plan_postures(
     nominal: KinematicParameters,
     n_postures: int,
     *,
     index: str = 'O1',
-    method: str = 'greedy',
+    method: str = METHODS[0],
     n_candidates: int = 2000,
     cost: str = 'absolute',
     limits: PostureLimits | None = None,
@@ -595,5 +605,6 @@ __all__ = [
     'Plan',
     'PlanningResult',
     'plan_postures',
+    'progress_steps',
     'travel_order',
 ]
