@@ -37,7 +37,10 @@ PACKAGES = ('hexacal_msgs_py', 'hexacal_identify', 'hexacal_driver')
 TARGET_FACTOR = 10.0
 _REDETECT = (
     'import sys, time\n'
-    'from hexacal_identify.calibration_steps.bag_postures import postures_from_bag\n'
+    'try:\n'
+    '    from hexacal_identify.calibration_steps.bag_postures import postures_from_bag\n'
+    'except ImportError:  # a revision before the layout of 2026-11 (pipeline.py)\n'
+    '    from hexacal_identify.pipeline import postures_from_bag\n'
     'start = time.process_time()\n'
     'found = postures_from_bag(sys.argv[1], source="raw")\n'
     'seconds = time.process_time() - start\n'
