@@ -116,6 +116,14 @@ def test_the_executors_checks_at_rest_keep_the_link_within_the_plans_limit():
         released[i] = chosen
         after = move_link_forces(params, poses, released, masses, length, stroke)[i]
         assert chosen != planned[i] and after <= 500.0, (i, chosen, after)
+    # After faults with every other chain released, the one left is still a candidate: where
+    # no chain that may be released keeps the link within the limit, the limit ranks none out.
+    i = overloaded[0]
+    others = [c for c in range(6) if c != planned[i]]
+    left = release_from_here(params, poses[i - 1], inverse_kinematics(params, poses[i - 1:i])[0],
+                             int(planned[i - 1]), poses[i], length, stroke, others,
+                             link_load=LinkLoad(masses, 500.0))
+    assert left == planned[i]
 
 
 def _jammed_moves(true, nominal, poses, length, released) -> int:

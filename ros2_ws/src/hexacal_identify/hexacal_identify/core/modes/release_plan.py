@@ -129,6 +129,9 @@ class Rehearser:
         self.batched = batched
         self.stack = MachineStack(self.machines) if batched else None
         self.link_load = link_load
+        # Chains that may not be released at all (they faulted on this move): never candidates,
+        # and not among those the link's limit keeps to (``_within_link_limit``).
+        self.unavailable: tuple[int, ...] = ()
         self._rest_was_needed = False  # whether the last move tried needed its rest candidates
 
     def ranked(self, nominal_move: Move) -> np.ndarray:
@@ -140,6 +143,7 @@ class Rehearser:
         )
         along = worst_release_conditions(self.params, nominal_move.poses, self.link_length)
         ranked = np.where(inside & np.isfinite(along), along, np.inf)
+        ranked[list(self.unavailable)] = np.inf
         if self.link_load is not None:
             ranked = self._within_link_limit(nominal_move, ranked)
         return ranked

@@ -269,17 +269,19 @@ def release_from_here(
 
     `link_load` (the weights and the link's limit, as the planner's): a chain whose release
     loads the link beyond the limit along the move is neither kept nor chosen where another's
-    does not (``Rehearser.ranked``).
+    does not (``Rehearser.ranked``); the chains `exclude` are not among those others.
     """
     margin_m = released_margin(model, margin_m)
     rehearser = Rehearser(model, link_length, stroke_m, margin_m, DEFAULT_STEP_M, mount,
                           rehearsal, batched=batched, link_load=link_load)
+    rehearser.unavailable = tuple(exclude)
     rehearser.stand_at(actuators, released, here)
     chosen = _chosen_here(rehearser, here, target, exclude, prefer)
     if measured_here is None or chosen is None:
         return chosen
     measured = Rehearser(model, link_length, stroke_m, margin_m, DEFAULT_STEP_M, mount,
                          rehearsal, batched=batched, link_load=link_load)
+    measured.unavailable = rehearser.unavailable
     if not measured.stand_measured(measured_here, actuators):
         return chosen
     wanted = prefer if prefer is not None and prefer not in exclude else chosen
