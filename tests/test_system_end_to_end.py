@@ -7,6 +7,7 @@ The bag is read back by two independent readers (mcap + mcap_ros2, rosbags).
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from hexacal_identify.core.assessment.validation import pose_errors, validation_poses
@@ -27,7 +28,20 @@ from system_support import (
 import yaml
 
 POSTURES = 50
+# A posture or two a loaded machine may cost (the collector names why: dropped.*, unsettled.*).
+MAY_MISS = 2
+NOT_USED = ('dropped.', 'unsettled.')
 TOPICS = ('/hexacal/sliders', '/hexacal/inclinometer', '/hexacal/encoder', '/hexacal/posture')
+
+
+def _collector_status(probe) -> dict:
+    """Return the collector's latest status values ({} before any)."""
+    found = [
+        values
+        for _, _, values in probe.statuses
+        if values.get('outcome') in ('recording', 'not-recording', 'recording-stopped')
+    ]
+    return found[-1] if found else {}
 
 
 @pytest.mark.slow
@@ -66,19 +80,33 @@ def test_fifty_postures_calibrate_the_simulated_machine(ros_processes, tmp_path,
     )
     nodes = (driver, collector, identify)
 
+    def accounted() -> tuple[int, int]:
+        """Return the collector's postures published and its periods not used, with a reason."""
+        status = _collector_status(probe)
+        dropped = sum(int(v) for k, v in status.items() if k.startswith(NOT_USED))
+        return int(status.get('postures_published', 0)), dropped
+
     def collected() -> bool:
         for process in nodes:
             if not process.running():
                 raise AssertionError(f'a node exited early\n{process.describe()}')
-        return probe.postures_received_by_identify() >= POSTURES
+        published, dropped = accounted()
+        if probe.postures_received_by_identify() != published:
+            return False  # identify has not heard all the collector published yet
+        # Every posture published, or the plan over with each one missing named by the collector
+        # (a busy machine can stall a stream: the capture it spans is not used, 'dropped.gap').
+        return published >= POSTURES or (
+            published + dropped >= POSTURES and 'end of plan' in driver.log_path.read_text()
+        )
 
     probe.spin_until(
         collected,
         2.0 * POSTURES + 60.0,
-        f'identify to receive {POSTURES} postures',
+        f'identify to receive the {POSTURES} postures (or the collector to name each missing)',
         lambda: '\n'.join(p.describe(10) for p in nodes),
     )
-    assert len(probe.postures) == POSTURES
+    received = len(probe.postures)
+    assert received >= POSTURES - MAY_MISS, (received, _collector_status(probe))
     # Each posture carries its scatter: ~0.3 s of 100 Hz readings, uniform +-10 um noise.
     for posture in probe.postures:
         assert posture.scatter is not None
@@ -97,7 +125,9 @@ def test_fifty_postures_calibrate_the_simulated_machine(ros_processes, tmp_path,
 
     response = probe.call_trigger(timeout=120.0)
     assert response.success, response.message
-    assert f'{POSTURES} of {POSTURES} postures' in response.message
+    used = re.search(r'(\d+) of (\d+) postures', response.message)
+    assert used and used.group(1) == used.group(2), response.message
+    assert int(used.group(1)) >= received, response.message
     calibrated = probe.spin_until(lambda: published, 10.0, 'hexacal/parameters')[0]
     error = np.abs(calibrated - truth.vector)
     assert error.max() < 1e-3, f'max parameter error {error.max() * 1e3:.3f} mm'
@@ -143,7 +173,7 @@ def test_fifty_postures_calibrate_the_simulated_machine(ros_processes, tmp_path,
         for t in metadata['topics_with_message_count']
     }
     assert set(expected) == set(TOPICS)
-    assert expected['/hexacal/posture'] == POSTURES
+    assert expected['/hexacal/posture'] == len(probe.postures) >= POSTURES - MAY_MISS
     assert metadata['message_count'] == sum(expected.values())
 
     mcap_counts, mcap_postures = _read_with_mcap(bag)
