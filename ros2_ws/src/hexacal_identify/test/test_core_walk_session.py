@@ -103,14 +103,15 @@ def test_the_link_load_is_weighed_only_for_a_passive_plan_made_with_it(tmp_path)
     from hexacal_msgs_py.physical_file import default_physical, write_physical_file
 
     passive, limit = MeasuringMode.PASSIVE_ACTUATOR, {'link_force_limit_n': 450.0}
-    assert walk_link_load('', {}, 'hexa_slide', passive) is None  # planned without the load
-    assert walk_link_load('', limit, 'hexa_slide', MeasuringMode.LVDT) is None
-    shipped = walk_link_load('', limit, 'hexa_slide', passive)
+    assert walk_link_load('', {}, 'hexa_slide', passive) == (None, '')  # planned without it
+    assert walk_link_load('', limit, 'hexa_slide', MeasuringMode.LVDT) == (None, '')
+    shipped, source = walk_link_load('', limit, 'hexa_slide', passive)
     assert shipped is not None and shipped.max_force_n == 450.0
     assert shipped.masses.platform_mass == default_physical('hexa_slide').platform_mass
+    assert source == 'the shipped hexa_slide physical description'
     heavy = write_physical_file(tmp_path / 'heavy.yaml',
                                 replace(default_physical('hexa_slide'), payload_mass=7.5))
-    given = walk_link_load(str(heavy), limit, 'hexa_slide', passive)
+    given, _ = walk_link_load(str(heavy), limit, 'hexa_slide', passive)
     assert given is not None and given.masses.payload_mass == 7.5
     with pytest.raises(ValueError, match='physical_file: cannot read'):
         walk_link_load(str(tmp_path / 'missing.yaml'), limit, 'hexa_slide', passive)

@@ -332,16 +332,9 @@ def compliance_setting(
 
 def mass_model(settings: Settings, model: str) -> tuple[MassModel, str]:
     """Return the weights that load the compliances, and where they come from (physical_file)."""
-    from ..core.fit.statics import MassModel
+    from ..core.fit.statics import physical_weights
 
-    if settings.physical_file:
-        return MassModel.load(settings.physical_file), settings.physical_file
-    from hexacal_msgs_py.physical_file import default_physical
-
-    return (
-        MassModel.from_physical(default_physical(model)),
-        f'the shipped {model} physical description',
-    )
+    return physical_weights(settings.physical_file, model)
 
 
 # ------------------------------------------------------------------ verification

@@ -213,6 +213,22 @@ class MassModel:
             raise ValueError(f'{path}: {error}') from error
 
 
+def physical_weights(physical_file: str, model: str) -> tuple[MassModel, str]:
+    """
+    Return the weights of `physical_file` and where they come from, for the nodes' parameter.
+
+    '' : the model's shipped physical description.  ValueError when the file cannot be read.
+    """
+    if physical_file:
+        return MassModel.load(physical_file), physical_file
+    from hexacal_msgs_py.physical_file import default_physical
+
+    return (
+        MassModel.from_physical(default_physical(model)),
+        f'the shipped {model} physical description',
+    )
+
+
 def actuator_weight_loads(
     params: KinematicParameters, poses: np.ndarray, masses: MassModel
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -409,6 +425,7 @@ __all__ = [
     'LoadSharing',
     'released_force_loads',
     'MassModel',
+    'physical_weights',
     'STANDARD_GRAVITY',
     'StaticLoads',
     'static_loads',

@@ -101,7 +101,8 @@ class Rehearser:
     Where the rehearsed machines stand, and the moves tried from there (module doc).
 
     `link_load` (the weights and the link's limit): the chains whose release loads the link
-    beyond it along a move are not tried where another will do (``ranked``).
+    beyond it along a move are not tried where another will do (``ranked``); `unavailable`:
+    chains never tried (they faulted), and not among those others.
     """
 
     def __init__(
@@ -116,6 +117,7 @@ class Rehearser:
         *,
         batched: bool = True,
         link_load: LinkLoad | None = None,
+        unavailable: Sequence[int] = (),
     ):
         error = (
             model_error_rms_m(params) if settings.model_error_m is None
@@ -131,7 +133,7 @@ class Rehearser:
         self.link_load = link_load
         # Chains that may not be released at all (they faulted on this move): never candidates,
         # and not among those the link's limit keeps to (``_within_link_limit``).
-        self.unavailable: tuple[int, ...] = ()
+        self.unavailable = tuple(unavailable)
         self._rest_was_needed = False  # whether the last move tried needed its rest candidates
 
     def ranked(self, nominal_move: Move) -> np.ndarray:

@@ -273,15 +273,13 @@ def release_from_here(
     """
     margin_m = released_margin(model, margin_m)
     rehearser = Rehearser(model, link_length, stroke_m, margin_m, DEFAULT_STEP_M, mount,
-                          rehearsal, batched=batched, link_load=link_load)
-    rehearser.unavailable = tuple(exclude)
+                          rehearsal, batched=batched, link_load=link_load, unavailable=exclude)
     rehearser.stand_at(actuators, released, here)
     chosen = _chosen_here(rehearser, here, target, exclude, prefer)
     if measured_here is None or chosen is None:
         return chosen
     measured = Rehearser(model, link_length, stroke_m, margin_m, DEFAULT_STEP_M, mount,
-                         rehearsal, batched=batched, link_load=link_load)
-    measured.unavailable = rehearser.unavailable
+                         rehearsal, batched=batched, link_load=link_load, unavailable=exclude)
     if not measured.stand_measured(measured_here, actuators):
         return chosen
     wanted = prefer if prefer is not None and prefer not in exclude else chosen

@@ -222,7 +222,7 @@ class WalkSetup:
     execution: PlanExecution
     mode: WalkMode
     guard: GuardSettings
-    weights: str = ''  # where the link's weights come from (physical_file), when weighed
+    weights: str = ''  # where the link's weights come from (walk_link_load), when weighed
 
     def start_lines(self, plan: Plan, model: str, command_topic: str) -> list[str]:
         """Return what the node logs at the start: the plan, the commands, the turns."""
@@ -372,6 +372,9 @@ def setup_walk(
         if mode.source != 'default'
         else None
     )
+    link_load, weights = walk_link_load(
+        str(values.get('physical_file', '')), plan.metadata, nominal.model, mode.mode
+    )
     execution = PlanExecution(
         nominal,
         poses,
@@ -389,9 +392,7 @@ def setup_walk(
         refine_at=refine_checkpoints(
             bool(values.get('refine_targets', False)), nominal.layout.n_parameters, len(poses)
         ),
-        link_load=walk_link_load(
-            str(values.get('physical_file', '')), plan.metadata, nominal.model, mode.mode
-        ),
+        link_load=link_load,
     )
     refusal = refusal_message(problems, len(targets)) if problems else ''
     if problems:  # nothing is ever commanded
@@ -409,35 +410,29 @@ def setup_walk(
         execution,
         mode,
         guard_settings,
-        str(values.get('physical_file', ''))
-        or f'the shipped {nominal.model} physical description',
+        weights,
     )
 
 
 def walk_link_load(
     physical_file: str, metadata: Mapping[str, Any] | None, model: str, mode: MeasuringMode
-) -> LinkLoad | None:
+) -> tuple[LinkLoad | None, str]:
     """
-    Return the link's load the executor's own release choices keep within (None: none).
+    Return the link's load the executor's own release choices keep within, and its weights' file.
 
     A passive_actuator plan made with the link's load names its limit (``link_force_limit_n``);
-    the weights are `physical_file`'s ('' : the model's shipped physical description).
-    ValueError naming physical_file when it cannot be read.
+    the weights are `physical_file`'s ('' : the model's shipped physical description).  (None,
+    '') for any other plan.  ValueError naming physical_file when it cannot be read.
     """
     limit = (metadata or {}).get('link_force_limit_n')
     if mode != MeasuringMode.PASSIVE_ACTUATOR or limit is None:
-        return None
-    from hexacal_msgs_py.physical_file import default_physical
-
-    from ..fit.statics import MassModel
+        return None, ''
+    from ..fit.statics import physical_weights
     from ..modes.link_load import LinkLoad
 
     try:
-        masses = (
-            MassModel.load(physical_file) if physical_file
-            else MassModel.from_physical(default_physical(model))
-        )
-        return LinkLoad(masses, float(limit))
+        masses, source = physical_weights(physical_file, model)
+        return LinkLoad(masses, float(limit)), source
     except (ValueError, TypeError) as error:  # PhysicalFileError is a ValueError
         raise ValueError(f'physical_file: {error}') from error
 
