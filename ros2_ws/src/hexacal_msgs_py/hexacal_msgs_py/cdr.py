@@ -15,14 +15,18 @@ decoded messages are used through their attributes only.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 import math
 import struct
-from typing import Any
+from typing import Any, Sequence, TYPE_CHECKING
 
 from hexacal_msgs_py.errors import InvalidReadingError
 from hexacal_msgs_py.inputs import imu_inclinometer_angles
 from hexacal_msgs_py.names import DEVICE_TURN_JOINT, MAX_DEVICE_TURN
 from hexacal_msgs_py.readings import NS_PER_S
+
+if TYPE_CHECKING:
+    import numpy as np
 
 CDR_HEADER = b'\x00\x01\x00\x00'  # XCDR1 little endian, what Fast DDS sends
 STAMP = struct.Struct('<iI')  # builtin_interfaces/Time (sec, nanosec) at byte 4
@@ -165,6 +169,57 @@ class JointStateReader(_LearnedLayout):
                 return None
             self.last_turn = turn
         return seconds * NS_PER_S + nanoseconds, values
+
+    def read_many(self, messages: Sequence[bytes]) -> JointStateBlock:
+        """
+        Read every message `read` reads, at once: the same values, float bits and stamps.
+
+        A recording's raw stream repeats one layout tens of thousands of times; reading them
+        as one byte array costs a fraction of a call per message. Messages not read (another
+        layout, a negative stamp, a non-finite wanted value, a device turn out of range) are
+        left to the caller's full decoding, as `read` leaves them.
+        """
+        import numpy as np
+
+        sizes = np.fromiter(map(len, messages), dtype=np.int64, count=len(messages))
+        rows = np.flatnonzero(sizes == self.size)
+        block = np.frombuffer(b''.join([messages[i] for i in rows.tolist()]), dtype=np.uint8)
+        block = block.reshape(len(rows), self.size)
+        learned = np.frombuffer(CDR_HEADER + b'\0' * 8 + self.prefix, dtype=np.uint8)
+        fits = (block[:, :4] == learned[:4]).all(axis=1)
+        fits &= (block[:, 12:self.offset] == learned[12:]).all(axis=1)
+        counts = _column(block, self.counts_offset, '<u4')
+        counts_after = self.counts_offset + self.counts.size - 4
+        fits &= counts == self.expected_counts[0]
+        fits &= _column(block, counts_after, '<u4') == self.expected_counts[1]
+        seconds = _column(block, 4, '<i4').astype(np.int64)
+        fits &= seconds >= 0
+        positions = block[:, self.offset:self.offset + self.positions.size].copy()
+        positions = positions.view('<f8').astype(float)
+        values = positions[:, list(self.order)]
+        fits &= np.isfinite(values).all(axis=1)
+        turns = None
+        if self.turn_index is not None:
+            turns = positions[:, self.turn_index]
+            fits &= np.abs(turns) <= MAX_DEVICE_TURN  # NaN is not: the full way reports it
+            turns = turns[fits]
+        stamps = seconds * NS_PER_S + _column(block, 8, '<u4').astype(np.int64)
+        return JointStateBlock(rows[fits], stamps[fits], values[fits], turns)
+
+
+@dataclass(frozen=True)
+class JointStateBlock:
+    """The messages a JointStateReader read at once (`JointStateReader.read_many`)."""
+
+    rows: np.ndarray  # (n,) int: which of the messages given were read, ascending
+    stamps_ns: np.ndarray  # (n,) int64: their header stamps
+    values: np.ndarray  # (n, wanted) float: the wanted joints' positions, in the wanted order
+    turns: np.ndarray | None  # (n,) float: the device turn where the layout carries one
+
+
+def _column(block: np.ndarray, offset: int, dtype: str) -> np.ndarray:
+    """Return the 4-byte field at `offset` of each row of `block` as one value per row."""
+    return block[:, offset:offset + 4].copy().view(dtype)[:, 0]
 
 
 class ImuReader(_LearnedLayout):

@@ -9,6 +9,7 @@ to the full decoding, which reports the problem as before.
 from __future__ import annotations
 
 import math
+import struct
 
 from hexacal_msgs_py.cdr import (
     header_stamp_ns,
@@ -87,6 +88,35 @@ def test_joint_order_follows_the_names_of_the_learned_message():
 def test_anything_else_goes_the_full_way(other):
     fast = _learned(_message())
     assert fast.read(_message(**other)) is None
+
+
+def test_read_many_reads_what_read_reads_with_the_same_bits():
+    """A recording's stream read at once: the messages `read` reads, in order, nothing else."""
+    from hexacal_msgs_py.names import DEVICE_TURN_JOINT, MAX_DEVICE_TURN
+
+    names = (*SLIDER_NAMES, DEVICE_TURN_JOINT)
+    fast = JointStateReader(
+        _message(names=names, positions=(0.1,) * 7),
+        deserialize_message(_message(names=names, positions=(0.1,) * 7), JointState),
+        tuple(SLIDER_NAMES),
+    )
+    messages = [
+        _message(5 + k, names=names, positions=(0.1 * k, -0.2, 3e-9, -0.0, 1e300, 0.6, 0.01 * k))
+        for k in range(6)
+    ]
+    messages[1] = _message(names=names, positions=(0.1, math.nan, 0.3, 0.4, 0.5, 0.6, 0.0))
+    messages[2] = _message(-1, names=names, positions=(0.1,) * 7)
+    messages[3] = _message(names=names, positions=(0.1,) * 6 + (MAX_DEVICE_TURN * 2,))
+    messages.append(_message(7, names=names, positions=(0.2,) * 7, frame_id='base'))
+    messages.append(_message()[:-8])
+    block = fast.read_many(messages)
+    read = [(i, fast.read(m)) for i, m in enumerate(messages) if fast.read(m) is not None]
+    assert block.rows.tolist() == [i for i, _ in read] == [0, 4, 5]
+    assert block.stamps_ns.tolist() == [stamp for _, (stamp, _) in read]
+    assert [tuple(v) for v in block.values.tolist()] == [values for _, (_, values) in read]
+    assert block.values.tobytes() == struct.pack('<18d', *(v for _, (_, r) in read for v in r))
+    assert block.turns is not None and block.turns.tolist() == [0.0, 0.04, 0.05]
+    assert fast.read_many([]).rows.size == 0
 
 
 def test_malformed_bytes_have_no_layout():

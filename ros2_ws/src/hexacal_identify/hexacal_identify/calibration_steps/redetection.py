@@ -10,7 +10,6 @@ the inclinometer message nearest it.
 from __future__ import annotations
 
 from dataclasses import replace
-from math import isfinite as _isfinite
 
 from hexacal_msgs_py.inputs import IMU_INCLINOMETER, InputMapping
 from hexacal_msgs_py.names import (
@@ -63,13 +62,9 @@ def redetect(
         joint_state_to_encoder_reading,
         joint_state_to_inclinometer_reading,
     )
-    from hexacal_msgs_py.errors import InvalidReadingError
-
-    from ..bag import BagDecodeError
     from ..core.detection.dwell_detector import detect_dwell_postures, LINK_STREAM
 
     imu = mapping is not None and mapping.inclinometer_type == IMU_INCLINOMETER
-    streams: dict[str, tuple[list[int], list]] = {t: ([], []) for t in RAW_TOPICS}
     convert = {
         SLIDERS_TOPIC: lambda m: (
             joint_state_to_actuator_reading(
@@ -83,45 +78,26 @@ def redetect(
         ),
         ENCODER_TOPIC: lambda m: (joint_state_to_encoder_reading(m, mapping).phi,),
     }
-    # Without a mapping, the joints' places are learnt from the first message of each name list
-    # the full conversion reads: the messages after it with that name list are read in place.
-    known = _KnownJoints() if mapping is None else None
     inputs_of: dict[str, list[str]] = {}
     for input_topic in RAW_TOPICS:
         inputs_of.setdefault(topics[input_topic], []).append(input_topic)
     imu_topic = topics[INCLINOMETER_TOPIC] if imu else None
-    invalid, checked = 0, set[str]()
+    by_topic: dict[str, list] = {topic: [] for topic in inputs_of}
     for message in reader.messages(list(inputs_of)):
-        inputs = inputs_of[message.topic]
-        try:
-            decoded = (
-                decoded_imu(message, checked)
-                if message.topic == imu_topic
-                else decoded_joint_state(message, checked)
-            )
-        except BagDecodeError:
-            invalid += len(inputs)  # bytes that are no message: not used, counted
-            continue
-        stamp = None
-        for key in inputs:
-            value = None if known is None or imu else known.values(key, decoded)
-            if value is None:
-                try:
-                    value = convert[key](decoded)
-                except InvalidReadingError:
-                    invalid += 1  # a bad reading is skipped; the synchroniser pairs around the gap
-                    continue
-                if known is not None and not imu:
-                    known.learn(key, decoded, models)
-            if stamp is None:
-                stamp = decoded.header.stamp.sec * 1_000_000_000 + decoded.header.stamp.nanosec
-            stamps, values = streams[key]
-            stamps.append(stamp)
-            values.append(value)
-    arrays = [
-        (np.array(streams[t][0], dtype=np.int64), np.array(streams[t][1], dtype=float))
-        for t in RAW_TOPICS
-    ]
+        by_topic[message.topic].append(message)
+    invalid = 0
+    streams: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for topic, messages in by_topic.items():
+        # Without a mapping, messages laid out like one the conversions read are read at once.
+        wanted = None if mapping is not None or topic == imu_topic else _wanted_joints(
+            models, recorded_model
+        )
+        topic_streams, bad = _read_topic(
+            messages, inputs_of[topic], convert, topic == imu_topic, wanted
+        )
+        streams.update(topic_streams)
+        invalid += bad
+    arrays = [streams[t] for t in RAW_TOPICS]
     # The inclinometer's device_turn joint (the mounting) rides beside alpha, beta: not a channel
     # to synchronise.
     inclinometer_stamps, inclinometer = arrays[1]
@@ -151,56 +127,107 @@ def redetect(
     return _with_turns(readings, inclinometer_stamps - shift, inclinometer[:, 2]), invalid
 
 
-class _KnownJoints:
-    """
-    Read the raw inputs' joints in place from messages whose name list was converted before.
+MAX_LAYOUTS = 64  # layouts read at once per topic; a stream that changes it more goes one by one
 
-    The same values as the contract's conversions (hexacal_msgs_py.conversions, no input
-    mapping) for a message whose joint names equal those of one they converted: the positions at
-    the same places, finite (and a device turn within its range), else None and the conversion
-    decides (and names the problem).
-    """
 
-    def __init__(self) -> None:
-        from hexacal_msgs_py.names import MAX_DEVICE_TURN
+def _wanted_joints(models: set[str], recorded_model: str | None):
+    """Return wanted(key, decoded): the joints the conversion of input `key` reads, in order."""
+    from hexacal_msgs_py.models import MODELS as LAYOUTS
+    from hexacal_msgs_py.names import ENCODER_NAMES, INCLINOMETER_NAMES
 
-        self._max_turn = MAX_DEVICE_TURN
-        self._places: dict[str, tuple[list[str], tuple[int, ...], int | None]] = {}
-
-    def learn(self, key: str, decoded, models: set[str]) -> None:
-        from hexacal_msgs_py.models import MODELS as LAYOUTS
-        from hexacal_msgs_py.names import DEVICE_TURN_JOINT, ENCODER_NAMES, INCLINOMETER_NAMES
-
-        names = list(decoded.name)
+    def wanted(key: str, decoded) -> tuple[str, ...]:
         if key == SLIDERS_TOPIC:
-            carried = [m for m in models if all(n in names for n in LAYOUTS[m].actuator_names)]
-            if len(carried) != 1:
-                return
-            joints = LAYOUTS[carried[0]].actuator_names
-        else:
-            joints = INCLINOMETER_NAMES if key == INCLINOMETER_TOPIC else ENCODER_NAMES
-        turn = None
-        if key == INCLINOMETER_TOPIC and DEVICE_TURN_JOINT in names:
-            turn = names.index(DEVICE_TURN_JOINT)
-        self._places[key] = (names, tuple(names.index(n) for n in joints), turn)
+            return tuple(LAYOUTS[model_of(decoded, models, recorded_model)].actuator_names)
+        return tuple(INCLINOMETER_NAMES if key == INCLINOMETER_TOPIC else ENCODER_NAMES)
 
-    def values(self, key: str, decoded) -> tuple[float, ...] | None:
-        places = self._places.get(key)
-        if places is None:
-            return None
-        names, indexes, turn = places
-        position = decoded.position
-        if len(position) != len(names) or decoded.name != names:
-            return None
-        values = tuple([float(position[i]) for i in indexes])
-        if not all(map(_isfinite, values)):
-            return None
-        if key != INCLINOMETER_TOPIC:
-            return values
-        device_turn = 0.0 if turn is None else float(position[turn])
-        if not abs(device_turn) <= self._max_turn:
-            return None
-        return (*values, device_turn)
+    return wanted
+
+
+def _read_topic(messages: list, keys: list[str], convert, imu: bool, wanted) -> tuple[
+    dict[str, tuple[np.ndarray, np.ndarray]], int
+]:
+    """
+    Return each input's (stamps ns, values) of one topic's messages and the invalid count.
+
+    Each message is read by the contract's conversions; with `wanted` (no input mapping, not an
+    Imu), the later messages laid out like one that every input read are read at once
+    (JointStateReader.read_many: the same values) and not again.
+    """
+    from hexacal_msgs_py.errors import InvalidReadingError
+
+    from ..bag import BagDecodeError
+
+    parts: dict[str, list] = {key: [] for key in keys}  # (rows, stamps, values) per input
+    pending = np.ones(len(messages), dtype=bool)
+    invalid, layouts, checked = 0, 0, set[str]()
+    for row in range(len(messages)):
+        if not pending[row]:
+            continue
+        message = messages[row]
+        try:
+            decoded = (
+                decoded_imu(message, checked) if imu else decoded_joint_state(message, checked)
+            )
+        except BagDecodeError:
+            invalid += len(keys)  # bytes that are no message: not used, counted
+            continue
+        read = 0
+        for key in keys:
+            try:
+                value = convert[key](decoded)
+            except InvalidReadingError:
+                invalid += 1  # a bad reading is skipped; the detector reads around the gap
+                continue
+            stamp = decoded.header.stamp.sec * 1_000_000_000 + decoded.header.stamp.nanosec
+            parts[key].append(([row], [stamp], [value]))
+            read += 1
+        if wanted is not None and read == len(keys) and layouts < MAX_LAYOUTS:
+            layouts += 1
+            later = np.flatnonzero(pending[row + 1:]) + row + 1
+            for key, block in _read_at_once(message, decoded, keys, wanted, messages, later):
+                parts[key].append(block)
+                pending[block[0]] = False
+    return {key: _in_order(parts[key]) for key in keys}, invalid
+
+
+def _read_at_once(message, decoded, keys, wanted, messages, rows: np.ndarray) -> list:
+    """Return (key, (rows, stamps, values)) of the `rows` every input's reader reads at once."""
+    import struct
+
+    from hexacal_msgs_py.cdr import JointStateReader
+
+    try:
+        readers = {
+            key: JointStateReader(message.data_bytes, decoded, wanted(key, decoded))
+            for key in keys
+        }
+    except (KeyError, ValueError, struct.error):
+        return []  # not a layout read in place: these messages go one by one
+    data = [messages[i].data_bytes for i in rows]
+    blocks = {key: reader.read_many(data) for key, reader in readers.items()}
+    common = blocks[keys[0]].rows
+    for block in blocks.values():
+        common = np.intersect1d(common, block.rows)  # a message is read by all inputs or none
+    found = []
+    for key, block in blocks.items():
+        kept = np.isin(block.rows, common)
+        values = block.values[kept]
+        if key == INCLINOMETER_TOPIC:
+            turns = np.zeros(len(values)) if block.turns is None else block.turns[kept]
+            values = np.column_stack([values, turns])
+        found.append((key, (rows[common], block.stamps_ns[kept], values)))
+    return found
+
+
+def _in_order(parts: list) -> tuple[np.ndarray, np.ndarray]:
+    """Return the (stamps, values) of `parts` ((rows, stamps, values) each) in message order."""
+    if not parts:
+        return np.array([], dtype=np.int64), np.array([], dtype=float)
+    rows = np.concatenate([np.asarray(p[0], dtype=np.int64) for p in parts])
+    stamps = np.concatenate([np.asarray(p[1], dtype=np.int64) for p in parts])
+    values = np.concatenate([np.asarray(p[2], dtype=float).reshape(len(p[0]), -1) for p in parts])
+    order = np.argsort(rows, kind='stable')
+    return stamps[order], values[order]
 
 
 def _link_stream(reader, topic: str) -> tuple[tuple[np.ndarray, np.ndarray], int]:
