@@ -194,7 +194,7 @@ def walk_plan(
         if check_at_rest and index > 0:
             released[index] = _checked_release(model, drive, released[index], pose, poses,
                                                index, centre, link_length, stroke, mount,
-                                               measured_standing, link_load)
+                                               measured_standing, link_load, where)
         faulted: set[int] = set()
         first_fault = ''
         while True:
@@ -284,8 +284,13 @@ def _move(drive, truth, model, start, pose, setpoints, stroke, link_length, true
 
 
 def _checked_release(model, drive, planned, pose, poses, index, centre, link_length, stroke,
-                     mount, measured_standing, link_load):
-    """Return the release the executor walks to `pose`: checked at rest from here."""
+                     mount, measured_standing, link_load, where):
+    """
+    Return the release the executor walks to `pose`: checked at rest from here.
+
+    Rehearsed along the path the executor commands: from `where` (the pose it commanded last,
+    where the machine stood still after it; None: from its estimate), blended from the setpoints.
+    """
     if planned is None or drive.released is None:
         return planned
     here = _estimate(model, drive.actuators, [poses[index - 1], pose, centre], link_length, mount)
@@ -293,7 +298,8 @@ def _checked_release(model, drive, planned, pose, poses, index, centre, link_len
         return planned
     return release_checked_here(model, here, drive.actuators.copy(), drive.released, pose,
                                 planned, link_length, stroke, mount,
-                                _measured(model, drive, here, measured_standing), link_load)
+                                _measured(model, drive, here, measured_standing), link_load,
+                                where)
 
 
 def _measured(model, drive, estimate, measured_standing=True) -> np.ndarray | None:

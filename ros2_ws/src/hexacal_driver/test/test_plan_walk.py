@@ -66,11 +66,13 @@ def test_checked_at_rest_before_the_move_another_chain_is_released_and_nothing_j
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize('seed, faults_from_the_estimate', [(2, 2), (3, 1)])
+# Seed 2 faulted twice from the estimate alone until the moves were rehearsed along the path the
+# executor commands (the next test); seed 3's posture 18 still does.
+@pytest.mark.parametrize('seed, faults_from_the_estimate', [(3, 1)])
 def test_a_hexa_slide_demo_plan_faults_the_drive_less_rehearsed_from_where_the_device_measures(
     seed, faults_from_the_estimate
 ):
-    # The demo's 30-posture Hexa Slide plans of seeds 2 and 3, made on the nominal and walked on
+    # The demo's 30-posture Hexa Slide plan of seed 3, made on the nominal and walked on
     # the true machine with the executor's checks at rest.  Rehearsed only from the model's
     # estimate of where the platform stands (centimetres off), some moves fault the drive;
     # checked again from where the inclinometer puts it, on machines that read the measured
@@ -101,3 +103,35 @@ def test_a_hexa_slide_demo_plan_faults_the_drive_less_rehearsed_from_where_the_d
     walked = walk(True)
     assert walked.jams == 0 and walked.refused == 0, [m.fault for m in walked.moves if m.fault]
     assert len(walked.moves) == 30
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('size, seed', [(20, 1), (30, 4)])
+def test_a_hexa_slide_demo_plan_walks_along_the_path_its_releases_were_rehearsed_on(size, seed):
+    # The demo's Hexa Slide plans of 20 postures seed 1 and 30 postures seed 4. The chain the
+    # previous move released stood centimetres from the model (slider_3: 21 cm): the drive's
+    # blend from the setpoints once took a share of that offset in one straight segment from
+    # the setpoints, and the checks at rest rehearsed from the model's estimate, not from the
+    # pose the path starts at; the release those checks found safe faulted the drive (seed 4
+    # then refused four paths outside the stroke). Blended from the path's first point and
+    # rehearsed along the path the executor commands, both walk without a fault.
+    from hexacal_identify.core.machine.measurements import NoiseModel
+    from hexacal_identify.core.planning.plan_check import plan_stroke
+    from hexacal_identify.core.planning.planner import plan_postures
+
+    model = 'hexa_slide'
+    truth = architecture(model).default_parameters()
+    nominal = nominal_set(2, seed=seed, model=model)
+    plan = plan_postures(
+        nominal, size, index='O1', cost='sphere-fixed', fixed_fraction=0.25, n_candidates=1000,
+        seed=seed, noise=NoiseModel.from_microns(10.0), measuring_mode='passive_actuator',
+        model_error_m=None,
+    ).plan
+    names = list(nominal.layout.actuator_names)
+    released = [names.index(name) for name in plan.released_actuators]
+    walked = walk_plan(truth, nominal, plan.poses, released, plan.link_length,
+                       plan_stroke(plan.metadata, nominal)[0], mount=plan.mount,
+                       refine_at=22 if size > 22 else None, refined=truth)
+    assert walked.jams == 0 and walked.refused == 0, [m.fault or m.refused for m in walked.moves
+                                                      if m.fault or m.refused]
+    assert len(walked.moves) == size

@@ -192,14 +192,20 @@ def test_a_move_after_a_new_model_starts_from_the_old_targets():
 
 
 def test_the_blend_fades_the_offset_over_the_moves_time_and_keeps_its_speed():
+    # The fraction counts from the path's first point: the whole offset is there (the first
+    # point is the setpoints plus the path's own step), none of it in one straight segment
+    # from the setpoints (a chain locked centimetres from the model took a share of its offset
+    # alone there, a path the release's rehearsal never walked: the drive jammed).
     points = np.linspace(0.1, 0.2, 5)[:, None] * np.ones(6)
     times = np.array([0.1, 0.2, 0.3, 0.4, 0.5])
     command = Command(points, times, CommandPurpose.MOVE, 3)
     offset = np.array([8e-3, 0, 0, -4e-3, 0, 0])
     setpoints = np.full(6, 0.075) + offset
     blended = blend_command(command, setpoints, offset, SPEED)
-    np.testing.assert_allclose(blended.points[:-1], points[:-1] + (1 - times[:-1, None] / 0.5)
+    fraction = (times - 0.1) / 0.4
+    np.testing.assert_allclose(blended.points[:-1], points[:-1] + (1 - fraction[:-1, None])
                                * offset)
+    np.testing.assert_allclose(blended.points[0] - setpoints, points[0] - 0.075)
     np.testing.assert_array_equal(blended.points[-1], points[-1])
     moves = np.abs(np.diff(np.vstack([setpoints, blended.points]), axis=0)).max(axis=1)
     segments = np.diff(np.concatenate([[0.0], blended.times]))

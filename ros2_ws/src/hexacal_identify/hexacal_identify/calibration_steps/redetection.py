@@ -2,9 +2,9 @@
 Postures re-detected from a bag's raw input streams by the settled detector.
 
 The raw inputs (sliders, inclinometer, encoder, and the lvdt's link length where recorded)
-are read through the contract's conversions (or in place, for messages whose joint names
-repeat) and handed to core.detection's dwell detector; each posture gets the device turn of
-the inclinometer message nearest it.
+are read through the contract's conversions (or at once, for the messages laid out like one
+they read: hexacal_msgs_py.cdr.JointStateReader.read_many) and handed to core.detection's dwell
+detector; each posture gets the device turn of the inclinometer message nearest it.
 """
 
 from __future__ import annotations

@@ -246,6 +246,7 @@ def release_from_here(
     batched: bool = True,
     measured_here: np.ndarray | None = None,
     link_load: LinkLoad | None = None,
+    path_start: np.ndarray | None = None,
 ) -> int | None:
     """
     Return the chain to release for the rest of a move, none of `exclude`; None if none will do.
@@ -270,12 +271,17 @@ def release_from_here(
     `link_load` (the weights and the link's limit, as the planner's): a chain whose release
     loads the link beyond the limit along the move is neither kept nor chosen where another's
     does not (``Rehearser.ranked``); the chains `exclude` are not among those others.
+
+    `path_start`: the pose the executor's path starts from, when not `here` (the pose it last
+    commanded, where it believes the machine arrived); the move is rehearsed along that path,
+    blended from where the machines stand, as the executor commands it (walk/standing.py).
     """
     margin_m = released_margin(model, margin_m)
+    start = here if path_start is None else path_start
     rehearser = Rehearser(model, link_length, stroke_m, margin_m, DEFAULT_STEP_M, mount,
                           rehearsal, batched=batched, link_load=link_load, unavailable=exclude)
     rehearser.stand_at(actuators, released, here)
-    chosen = _chosen_here(rehearser, here, target, exclude, prefer)
+    chosen = _chosen_here(rehearser, start, target, exclude, prefer)
     if measured_here is None or chosen is None:
         return chosen
     measured = Rehearser(model, link_length, stroke_m, margin_m, DEFAULT_STEP_M, mount,
@@ -283,10 +289,10 @@ def release_from_here(
     if not measured.stand_measured(measured_here, actuators):
         return chosen
     wanted = prefer if prefer is not None and prefer not in exclude else chosen
-    if _safe(measured, here, target, wanted):
+    if _safe(measured, start, target, wanted):
         return wanted
     try:
-        leg = measured.try_move(here, target, exclude)
+        leg = measured.try_move(start, target, exclude)
     except NoRelease:
         return chosen
     # A release that walks out on some of the machines standing there tells more than the

@@ -585,7 +585,7 @@ class PlanExecution:
         step = self.settings.path_step_m
         start = None
         if purpose != CommandPurpose.CORRECT and step > 0:
-            start = self._where if self._at_where else self._estimate()
+            start = self._path_start()
         if start is None:
             command = path_command(
                 self.nominal,
@@ -648,6 +648,10 @@ class PlanExecution:
         self.inclinometer_judgement = None
         self._sent_any = True
         return command
+
+    def _path_start(self) -> np.ndarray | None:
+        """Return where a move's path starts: the pose commanded last if it stood still there."""
+        return self._where if self._at_where else self._estimate()
 
     def _blended(self, command: Command, start: np.ndarray) -> Command:
         """Return the move `command` from the drive's setpoints (standing.py)."""

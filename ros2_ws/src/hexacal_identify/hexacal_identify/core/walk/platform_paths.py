@@ -314,15 +314,21 @@ def blend_command(
     it, the targets of an earlier model) the first segment would be a jump of that `offset`
     (setpoints - model at the start, (6,) m) in a few milliseconds: a following error to a
     stiff drive, a push toward a jam to the passive system.  Each point carries ``offset x
-    (1 - its fraction of the move's time)``: the offset goes to zero smoothly along the move
-    and the last point is the model's target exactly, every point kept inside `stroke` (the
-    setpoints and the model's points are; their blend near an end might not be).  Re-timed
-    from `setpoints` at max_speed_m_s.
+    (1 - its fraction of the move's time from the first point)``: the first point is the
+    setpoints, the offset goes to zero smoothly along the path and the last point is the
+    model's target exactly, every point kept inside `stroke` (the setpoints and the model's
+    points are; their blend near an end might not be).  The fraction is counted from the first
+    point, not from the drive's setpoints: from those, the time to the model's start is the
+    offset's own, and a chain locked centimetres from the model (the released one, where the
+    link put it) would take that share of its offset in one straight segment, a path no
+    rehearsal walked (core/modes/release_rehearsal.py fades it along the path).  Re-timed from
+    `setpoints` at max_speed_m_s.
     """
     offset = np.asarray(offset, dtype=float)
     if not np.any(offset):
         return command
-    fraction = command.times / command.times[-1]
+    elapsed = command.times - command.times[0]
+    fraction = elapsed / elapsed[-1] if elapsed[-1] > 0 else np.ones(len(elapsed))
     points = np.clip(command.points + (1.0 - fraction)[:, None] * offset[None], *stroke)
     points[-1] = command.points[-1]  # the target stays the model's, bit for bit
     times = point_times(setpoints, points, max_speed_m_s)

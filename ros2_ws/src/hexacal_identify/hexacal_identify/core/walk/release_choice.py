@@ -211,6 +211,7 @@ def release_checked_here(
     mount: str,
     measured_here: np.ndarray | None = None,
     link_load: LinkLoad | None = None,
+    path_start: np.ndarray | None = None,
 ) -> int:
     """
     Return the chain to release for the move from `here` (at rest) to `pose`.
@@ -218,13 +219,15 @@ def release_checked_here(
     `planned` if the move closes with it on `nominal` and machines like it
     (``release_from_here``), else another chain that does; `planned` when none does (the guard
     still watches).  `measured_here`: where the device measured the platform; `link_load`: the
-    link's limit a chain's release must keep within where another's does.
+    link's limit a chain's release must keep within where another's does; `path_start`: where
+    the executor's path starts when not `here` (the pose it last commanded).
     """
     from ..modes.released_actuator import release_from_here
 
     chosen = release_from_here(
         nominal, here, actuators, released_now, pose, link_length, stroke, (), mount=mount,
         prefer=planned, measured_here=measured_here, link_load=link_load,
+        path_start=path_start,
     )
     return planned if chosen is None else chosen
 
@@ -244,9 +247,12 @@ def check_release_here(walk: PlanExecution) -> None:
     here, latest = walk._estimate(), walk.actuators.latest
     if planned is None or walk.released_now is None or here is None or latest is None:
         return
+    # Rehearsed along the path the move will take: from the pose commanded last, where the
+    # machine stood still (PlanExecution._path_start), blended from where it stands.
     chosen = release_checked_here(
         walk.nominal, here, latest, walk.released_now, walk.poses[walk.index], planned,
         walk.link_length, walk.stroke, walk.mount, walk._measured_standing(here), walk.link_load,
+        walk._path_start(),
     )
     if chosen == planned:
         return
