@@ -134,3 +134,34 @@ def test_compliance_without_masses_is_refused_by_name(loaded, tmp_path):
     run = _calibrate(loaded, tmp_path / 'out.yaml', '--compliance', 'shared')
     assert run.returncode != 0
     assert '--physical' in run.stderr
+
+
+def test_the_rigid_fit_with_a_physical_description_says_how_far_its_compliances_bias_it(
+    loaded, tmp_path
+):
+    # The machine's description with its stiffnesses (the bag's truth: chains 5e7 N/m, link
+    # 1e7 N/m): the rigid fit is checked against what they do to it.  A file of the masses
+    # only cannot be checked: the calibration is written all the same, and the error says why.
+    from hexacal_identify.calibration_steps.machine_files import load_machine_and_mount
+    from hexacal_identify.core.assessment.validation import pose_errors
+
+    described = tmp_path / 'described.yaml'
+    described.write_text(PHYSICAL + 'model: hexa_slide\nstructure: {axial_stiffness: 5.0e7}\n')
+    output = tmp_path / 'rigid.yaml'
+    run = _calibrate(loaded, output, '--physical', described, '--json')
+    assert run.returncode == 0, run.stderr
+    check = json.loads(run.stdout)['deflection_check']
+    assert check['source'] == str(described) and check['postures'] == 50
+    assert check['significant'] is True
+    true = table1_parameters()
+    fresh = sample_poses(true, 200, np.random.default_rng(3))
+    error = np.nanmean(pose_errors(true, load_machine_and_mount(output)[0], fresh).position_m)
+    assert 0.5 * error < check['pose_bias_mean_m'] < 2.0 * error
+
+    text = _calibrate(loaded, tmp_path / 'text.yaml', '--physical', described)
+    assert 'deflection check' in text.stdout and 'identify the compliances' in text.stdout
+
+    kept = tmp_path / 'kept.yaml'
+    refused = _calibrate(loaded, kept, '--physical', loaded['physical'])  # the masses only
+    assert refused.returncode != 0 and 'hexacal-physical/1' in refused.stderr
+    assert kept.exists()  # the calibration was written before the check

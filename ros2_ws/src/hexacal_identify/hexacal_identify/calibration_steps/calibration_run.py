@@ -194,6 +194,62 @@ def identified_compliance(
     return model, np.array([values.get(name, 0.0) for name in model.names])
 
 
+def deflection_check(
+    result: IdentificationResult,
+    physical_path: str,
+    measuring_mode: str | None,
+    released_joints: Sequence[str] | None,
+    *,
+    cost: str = 'absolute',
+    link_length: float = DeviceModel().link_length,
+    mount: str = DEFAULT_MOUNT,
+    identify_device: Sequence[str] = (),
+):
+    """
+    Return the bias a physical description's compliances put into the rigid fit `result`.
+
+    core/assessment/deflection.py: the calibrated machine loaded by the description's weights
+    and compliances (1 / each chain's structure stiffness, 1 / the link's) at the postures'
+    measuring mode and releases, refitted rigid with the calibration's cost, device and
+    unknowns.  ValueError: a file without the stiffnesses (a mass-only file), an unknown mode.
+    """
+    from ..core.assessment.deflection import deflection_bias
+    from ..core.fit.compliance import PER_CHAIN
+
+    model = result.parameters.model
+    physical, _ = _physical_of(physical_path, model)
+    if physical is None:
+        raise ValueError(
+            f'{physical_path}: the deflection check needs the stiffnesses: a physical '
+            'description that names its model (format: hexacal-physical/1)'
+        )
+    if measuring_mode is None:
+        raise ValueError(
+            'the deflection check: the measuring mode of the postures is not known, and the '
+            'loads depend on it (which chains and whether the link carry the weight)'
+        )
+    names = list(result.parameters.layout.actuator_names)
+    released = None
+    if measuring_mode == 'passive_actuator':  # -1: no release recorded, left out of the check
+        released = np.array([names.index(j) if j in names else -1 for j in released_joints or ()])
+    compliance = ComplianceModel(
+        PER_CHAIN, MassModel.from_physical(physical), measuring_mode, released,
+        drive_stiffness=tuple(physical.drive_kp) if measuring_mode == 'compliant' else None,
+    )
+    chains = physical.structure_axial_stiffness
+    values = np.array([
+        (0.0 if chains is None else 1.0 / chains[int(name.split('_')[1]) - 1])
+        if name.startswith('chain_') else
+        (0.0 if physical.link_axial_stiffness is None else 1.0 / physical.link_axial_stiffness)
+        for name in compliance.names
+    ])
+    options = SolverOptions(
+        cost=cost, device=DeviceModel(link_length=link_length, mount=mount),
+        free_device=tuple(identify_device),
+    )
+    return deflection_bias(result, options, compliance, values, physical_path)
+
+
 def _physical_of(path: str | None, model: str):
     """
     Return (the complete description, or None; the file's mapping) of ``path`` (module doc).

@@ -170,7 +170,9 @@ def _compliance_arguments(calibrate: argparse.ArgumentParser) -> None:
         metavar='FILE',
         help='physical description YAML (gravity, platform {mass, com}, payload {mass, com}, '
         'legs {mass, com_fraction}, link {mass, com_fraction}; SI units): the weights that load '
-        'the chains and the link',
+        'the chains and the link; with --compliance none (a hexacal-physical/1 file, with its '
+        'stiffnesses), the deflection check: how far its compliances bias the rigid fit, which '
+        'its residuals cannot show',
     )
     calibrate.add_argument(
         '--compliance-prior',
@@ -205,11 +207,9 @@ def compliance_model(args, bag, nominal):
     from ..core.fit.statics import MassModel
 
     if args.compliance == 'none':
-        if args.physical is not None or args.compliance_prior:
-            raise ValueError(
-                '--physical and --compliance-prior need --compliance shared|per_chain'
-            )
-        return None
+        if args.compliance_prior:
+            raise ValueError('--compliance-prior needs --compliance shared|per_chain')
+        return None  # with --physical: the rigid fit's deflection check (deflection_lines)
     if args.physical is None:
         raise ValueError(
             f'--compliance {args.compliance} needs the masses that load the machine: --physical '
@@ -234,6 +234,26 @@ def compliance_model(args, bag, nominal):
         label='--compliance',
         released_friction=released_friction_of(args.physical, nominal.model),
         drive_stiffness=drive_stiffness_of(args.physical, nominal.model),
+    )
+
+
+def deflection_of(args, bag, result, mount: str):
+    """Return the deflection check of a rigid fit with --physical (None: not asked)."""
+    if args.physical is None or args.compliance != 'none':
+        return None
+    from ..calibration_steps.calibration_run import deflection_check
+
+    if bag.measuring_mode is None:
+        raise ValueError(
+            '--physical: the bag does not record its measuring mode, and the loads of the '
+            'deflection check depend on it (which chains and whether the link carry the weight)'
+        )
+    released = None
+    if bag.measuring_mode == 'passive_actuator':
+        released = [bag.measuring.released_at(p.stamp_ns) for p in bag.postures]
+    return deflection_check(
+        result, str(args.physical), bag.measuring_mode, released, cost=args.cost,
+        link_length=args.link_length, mount=mount, identify_device=args.identify_device,
     )
 
 
@@ -380,6 +400,8 @@ def run_calibrate(args) -> int:
         stored = store_calibration(args, result, bag, mount)
     else:
         stored = None
+    # After the calibration is saved: a file the check cannot use loses nothing.
+    check = deflection_of(args, bag, result, mount) if result.reason == CONVERGED else None
     measurements = (
         measurements_from_postures(bag.postures, nominal_link_length=args.link_length)
         if args.save_result or args.report
@@ -432,6 +454,8 @@ def run_calibrate(args) -> int:
         }
         payload['measuring_mode'] = bag.measuring_mode  # the bag's; None: it does not say
         payload['adequacy'] = adequacy.to_json()
+        # With --physical and the rigid model: what its compliances would bias (None: not run).
+        payload['deflection_check'] = None if check is None else check.to_json()
         payload['output'] = str(args.output) if result.reason == CONVERGED else None
         # Where it was kept; None: in no store (not asked, or not converged).
         payload['store'] = (
@@ -442,6 +466,8 @@ def run_calibrate(args) -> int:
         print(json.dumps(payload))
     else:
         _print_summary(args, bag, result, adequacy)
+        if check is not None:
+            print(check.text())
         print(_store_line(args, result, stored))
     return 0 if result.reason == CONVERGED else 1
 
