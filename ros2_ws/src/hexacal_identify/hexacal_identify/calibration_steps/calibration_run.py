@@ -208,6 +208,8 @@ def deflection_check(
     """
     Return the bias a physical description's compliances put into the rigid fit `result`.
 
+    `physical_path` '' : the model's shipped description.
+
     core/assessment/deflection.py: the calibrated machine loaded by the description's weights
     and compliances (1 / each chain's structure stiffness, 1 / the link's) at the postures'
     measuring mode and releases, refitted rigid with the calibration's cost, device and
@@ -247,7 +249,8 @@ def deflection_check(
         cost=cost, device=DeviceModel(link_length=link_length, mount=mount),
         free_device=tuple(identify_device),
     )
-    return deflection_bias(result, options, compliance, values, physical_path)
+    source = physical_path or f'the shipped {model} physical description'
+    return deflection_bias(result, options, compliance, values, source)
 
 
 def _physical_of(path: str | None, model: str):

@@ -217,6 +217,37 @@ def _link_load(args: argparse.Namespace):
     return LinkLoad(MassModel.from_physical(description))
 
 
+def deflection_summary(args: argparse.Namespace, paths: DemoPaths, nominal):
+    """
+    Return the deflection check of the demo's rigid fit on the MuJoCo machine (None: kinematic).
+
+    The bag's postures calibrated offline as ``hexacal calibrate`` does, then checked against
+    the machine's physical description (``--physical``, else the shipped one): what its
+    compliances bias, beside the pose error against the true geometry the demo measures.
+    """
+    if physics(args) != 'mujoco':
+        return None
+    from ..calibration_steps.bag_postures import postures_from_bag
+    from ..calibration_steps.calibration_run import calibrate, deflection_check
+
+    from ..core.errors import CalibrationError
+    from ..core.fit.identification import CONVERGED
+
+    try:
+        bag = postures_from_bag(paths.bag)
+        released = None
+        if bag.measuring_mode == 'passive_actuator':
+            released = [bag.measuring.released_at(p.stamp_ns) for p in bag.postures]
+        result = calibrate(nominal, bag.postures)
+        if result.reason != CONVERGED:
+            raise CalibrationError(f'the offline fit did not converge ({result.reason})')
+        return deflection_check(result, str(getattr(args, 'physical', None) or ''),
+                                bag.measuring_mode, released)
+    except (CalibrationError, ValueError) as error:
+        print(f'hexacal demo: no deflection check: {error}', file=sys.stderr, flush=True)
+        return None
+
+
 def system_launches(
     args: argparse.Namespace, paths: DemoPaths, plan: Path, nominal: Path, *, refine: bool
 ) -> dict[str, NodeLaunch]:
@@ -480,6 +511,9 @@ def run_demo(args: argparse.Namespace) -> int:
             verification_postures=verification_postures,
         ),
     )
+    check = deflection_summary(args, paths, nominal)
+    if check is not None:
+        summary['deflection_check'] = check.to_json()
     text = report(
         true_params,
         nominal,
@@ -491,6 +525,8 @@ def run_demo(args: argparse.Namespace) -> int:
         poses=poses,
         summary=summary,
     )
+    if check is not None:
+        text += '\n' + check.text()
     timings['report'] = time.monotonic() - stage_started
     timings['total'] = time.monotonic() - started
     summary['timings'] = {

@@ -37,6 +37,7 @@ from ..fit.identification import IdentificationResult, identify, SolverOptions
 FRESH_POSTURES = 200  # workspace postures the bias is judged at
 FRESH_SEED = 0xDEF1
 COVARIANCE_SAMPLES = 1000
+POSITION_CHANNELS = ('x', 'y', 'z')  # residual channels in m; the others (phi) in rad
 
 
 @dataclass(frozen=True)
@@ -46,7 +47,7 @@ class DeflectionBias:
     source: str  # the physical description the compliances came from
     postures: int  # the calibration's postures it was judged at
     largest_deflection_m: float
-    visible_rms: dict[str, float]  # per channel, the loaded readings' rigid fit residual
+    visible_rms: dict[str, float]  # per channel (m; phi rad), the loaded readings' rigid fit
     pose_bias_mean_m: float
     pose_bias_max_m: float
     orientation_bias_mean_rad: float
@@ -59,7 +60,11 @@ class DeflectionBias:
 
     def text(self) -> str:
         """Return the check in one line (mm / um / urad for display)."""
-        visible = max(self.visible_rms.values(), default=0.0)
+        lengths = [v for name, v in self.visible_rms.items() if name in POSITION_CHANNELS]
+        angles = [v for name, v in self.visible_rms.items() if name not in POSITION_CHANNELS]
+        visible = f'{max(lengths, default=0.0) * 1e6:.2f} um'
+        if angles:
+            visible += f' / {max(angles) * 1e6:.2f} urad'
         statistical = f'{self.statistical_mean_m * 1e6:.2f} um'
         verdict = (
             f"larger than the calibration's statistical error ({statistical}): its reported "
@@ -71,7 +76,7 @@ class DeflectionBias:
         return (
             f'deflection check ({self.source}, {self.postures} postures): deflections up to '
             f'{self.largest_deflection_m * 1e6:.1f} um that a rigid fit absorbs leave '
-            f'{visible * 1e6:.2f} um in its residuals and bias its poses by '
+            f'{visible} in its residuals (rms) and bias its poses by '
             f'{self.pose_bias_mean_m * 1e6:.2f} um mean ({self.pose_bias_max_m * 1e6:.2f} um max, '
             f'{self.orientation_bias_mean_rad * 1e6:.1f} urad), {verdict}'
         )
