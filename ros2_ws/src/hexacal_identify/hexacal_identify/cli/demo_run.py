@@ -512,8 +512,7 @@ def run_demo(args: argparse.Namespace) -> int:
         ),
     )
     check = deflection_summary(args, paths, nominal)
-    if check is not None:
-        summary['deflection_check'] = check.to_json()
+    summary['deflection_check'] = None if check is None else check.to_json()
     text = report(
         true_params,
         nominal,
