@@ -40,6 +40,7 @@ class Probe:
     posture_joint_names: list = field(default_factory=list)
     parameters: list = field(default_factory=list)
     statuses: list = field(default_factory=list)
+    posture_subscriptions: list = field(default_factory=list)
 
     def __post_init__(self) -> None:
         import rclpy
@@ -122,7 +123,22 @@ class Probe:
             self.posture_joint_names.append(tuple(message.name))
             self.postures.append(joint_state_to_posture_reading(message, model))
 
-        self.node.create_subscription(JointState, topic, on_posture, POSTURE_QOS)
+        self.posture_subscriptions.append(
+            self.node.create_subscription(JointState, topic, on_posture, POSTURE_QOS)
+        )
+
+    def wait_for_posture_publisher(self, timeout: float = 30.0) -> None:
+        """
+        Wait until the posture subscriptions are matched with a publisher (the collector's).
+
+        The posture topic is volatile: a posture published before discovery matched the two
+        (seconds on a loaded machine) never reaches this probe.
+        """
+        self.spin_until(
+            lambda: all(s.get_publisher_count() >= 1 for s in self.posture_subscriptions),
+            timeout,
+            'a posture publisher matched with the probe',
+        )
 
     def subscribe_parameters(self, topic: str = 'hexacal/parameters') -> list:
         """A new transient-local subscription; returns the list its vectors are appended to."""

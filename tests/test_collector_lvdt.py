@@ -41,6 +41,7 @@ def _collector_and_driver(ros_processes, probe, bag: Path, measuring_mode: str):
         name='collector',
     )
     probe.wait_for_node('collector', '/', collector)
+    probe.wait_for_posture_publisher()  # volatile: a posture before the match would be lost
     driver = start_driver(ros_processes, measuring_mode=measuring_mode, rate_hz=100.0)
     machine = Machine(probe, driver)
     return collector, driver, machine, machine.sliders[-1][0]
