@@ -71,6 +71,13 @@ class BagPostures:
         """Return the measuring mode the bag was recorded in, None when it does not say."""
         return self.measuring.mode
 
+    @property
+    def released_joints(self) -> list[str] | None:
+        """Return each posture's released actuator joint (passive_actuator), else None."""
+        if self.measuring_mode != 'passive_actuator':
+            return None
+        return [self.measuring.released_at(p.stamp_ns) for p in self.postures]
+
 
 def _screened(
     postures: list[PostureReading], model: str | None = None

@@ -217,6 +217,7 @@ def deflection_check(
     """
     from ..core.assessment.deflection import deflection_bias
     from ..core.fit.compliance import PER_CHAIN
+    from ..core.fit.statics import physical_source
 
     model = result.parameters.model
     physical, _ = _physical_of(physical_path, model)
@@ -249,8 +250,9 @@ def deflection_check(
         cost=cost, device=DeviceModel(link_length=link_length, mount=mount),
         free_device=tuple(identify_device),
     )
-    source = physical_path or f'the shipped {model} physical description'
-    return deflection_bias(result, options, compliance, values, source)
+    return deflection_bias(
+        result, options, compliance, values, physical_source(physical_path, model)
+    )
 
 
 def _physical_of(path: str | None, model: str):

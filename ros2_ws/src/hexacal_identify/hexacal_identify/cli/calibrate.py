@@ -209,7 +209,7 @@ def compliance_model(args, bag, nominal):
     if args.compliance == 'none':
         if args.compliance_prior:
             raise ValueError('--compliance-prior needs --compliance shared|per_chain')
-        return None  # with --physical: the rigid fit's deflection check (deflection_lines)
+        return None  # with --physical: the rigid fit's deflection check (deflection_of)
     if args.physical is None:
         raise ValueError(
             f'--compliance {args.compliance} needs the masses that load the machine: --physical '
@@ -221,14 +221,11 @@ def compliance_model(args, bag, nominal):
             f'--compliance {args.compliance}: the bag does not record its measuring mode, and the '
             'loads depend on it (which chains and whether the link carry the weight)'
         )
-    released = None
-    if mode == 'passive_actuator':
-        released = [bag.measuring.released_at(p.stamp_ns) for p in bag.postures]
     return compliance_for_postures(
         args.compliance,
         MassModel.load(args.physical),
         mode,
-        released,
+        bag.released_joints,
         nominal.layout.actuator_names,
         args.compliance_prior,
         label='--compliance',
@@ -243,16 +240,8 @@ def deflection_of(args, bag, result, mount: str):
         return None
     from ..calibration_steps.calibration_run import deflection_check
 
-    if bag.measuring_mode is None:
-        raise ValueError(
-            '--physical: the bag does not record its measuring mode, and the loads of the '
-            'deflection check depend on it (which chains and whether the link carry the weight)'
-        )
-    released = None
-    if bag.measuring_mode == 'passive_actuator':
-        released = [bag.measuring.released_at(p.stamp_ns) for p in bag.postures]
     return deflection_check(
-        result, str(args.physical), bag.measuring_mode, released, cost=args.cost,
+        result, str(args.physical), bag.measuring_mode, bag.released_joints, cost=args.cost,
         link_length=args.link_length, mount=mount, identify_device=args.identify_device,
     )
 

@@ -235,14 +235,11 @@ def deflection_summary(args: argparse.Namespace, paths: DemoPaths, nominal):
 
     try:
         bag = postures_from_bag(paths.bag)
-        released = None
-        if bag.measuring_mode == 'passive_actuator':
-            released = [bag.measuring.released_at(p.stamp_ns) for p in bag.postures]
         result = calibrate(nominal, bag.postures)
         if result.reason != CONVERGED:
             raise CalibrationError(f'the offline fit did not converge ({result.reason})')
         return deflection_check(result, str(getattr(args, 'physical', None) or ''),
-                                bag.measuring_mode, released)
+                                bag.measuring_mode, bag.released_joints)
     except (CalibrationError, ValueError) as error:
         print(f'hexacal demo: no deflection check: {error}', file=sys.stderr, flush=True)
         return None

@@ -260,22 +260,15 @@ def calibrated_compliance(args, bag, calibrated):
             physical = ''
         return None, {'values': {}, 'mode': 'none', 'physical': physical}
     from ..calibration_steps.calibration_run import drive_stiffness_of, identified_compliance
-    from ..core.fit.statics import MassModel
+    from ..core.fit.statics import physical_weights
 
+    masses, physical = physical_weights(str(args.physical or ''), calibrated.model)
     if args.physical is not None:
-        masses, physical = MassModel.load(args.physical), f'--physical {args.physical}'
+        physical = f'--physical {args.physical}'
     else:
-        from hexacal_msgs_py.physical_file import default_physical
-
-        masses = MassModel.from_physical(default_physical(calibrated.model))
-        physical = (
-            f'the shipped {calibrated.model} physical description (no --physical given: the '
-            'weights of your machine may differ)'
-        )
+        physical += ' (no --physical given: the weights of your machine may differ)'
     mode = bag.measuring_mode
-    released = None
-    if mode == 'passive_actuator':
-        released = [bag.measuring.released_at(p.stamp_ns) for p in bag.postures]
+    released = bag.released_joints
     model, vector = identified_compliance(
         values,
         masses,

@@ -223,10 +223,12 @@ def physical_weights(physical_file: str, model: str) -> tuple[MassModel, str]:
         return MassModel.load(physical_file), physical_file
     from hexacal_msgs_py.physical_file import default_physical
 
-    return (
-        MassModel.from_physical(default_physical(model)),
-        f'the shipped {model} physical description',
-    )
+    return MassModel.from_physical(default_physical(model)), physical_source('', model)
+
+
+def physical_source(physical_file: str, model: str) -> str:
+    """Return how a physical description is named in messages ('' : the shipped one)."""
+    return physical_file or f'the shipped {model} physical description'
 
 
 def actuator_weight_loads(
@@ -425,6 +427,7 @@ __all__ = [
     'LoadSharing',
     'released_force_loads',
     'MassModel',
+    'physical_source',
     'physical_weights',
     'STANDARD_GRAVITY',
     'StaticLoads',

@@ -36,7 +36,7 @@ import numpy as np
 
 from ..architectures import KinematicParameters
 from ..errors import ForwardKinematicsError, UnreachablePoseError
-from ..fit.statics import MassModel
+from ..fit.statics import MassModel, physical_source
 from ..machine.device import MOUNTS
 from ..machine.live import (
     actuator_targets,
@@ -180,8 +180,7 @@ def loaded_chains(
         values = f'chains {loaded.compliances[0]:.4g} m/N'
     else:
         values = 'chains ' + ', '.join(f'{c:.4g}' for c in loaded.compliances) + ' m/N'
-    masses = physical_file or f'the shipped {model} physical description'
-    return loaded, f'{values}, loaded by the weights of {masses}'
+    return loaded, f'{values}, loaded by the weights of {physical_source(physical_file, model)}'
 
 
 def stroke(params: KinematicParameters, limits: Sequence[float] | None) -> tuple[float, float]:
