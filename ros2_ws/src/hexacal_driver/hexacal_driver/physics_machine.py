@@ -219,7 +219,9 @@ class PhysicsMachine:
             raise ValueError(
                 f'setpoints must be {self.model.nu} finite values in {unit}, got {end}'
             )
-        if duration_s <= 0.0:
+        if duration_s <= 0.0 or np.array_equal(end, self.data.ctrl):
+            # Setpoints that stay where they are are no move: the follower re-commands them
+            # every tick, and a move each tick would keep the machine from ever being at rest.
             self._move = None
             self.data.ctrl[:] = end
         else:

@@ -12,6 +12,7 @@ from dataclasses import replace
 
 from hexacal_driver.machine import DriverConfigurationError, SimulatedMachine
 from hexacal_driver.parameters import parameter_problem, PARAMETERS
+from hexacal_driver.physics_follower import MAX_SETTLE_S
 from hexacal_driver.reports import link_overload_warning
 from hexacal_driver.simulation import STILL
 from hexacal_identify.core.modes.passive_actuator import solve_passive
@@ -33,7 +34,12 @@ def machine(**overrides) -> SimulatedMachine:
 
 
 def follow(m: SimulatedMachine, names, target, start_s: float, duration_s: float = 0.3):
-    """Command one point, sample at 100 Hz until STILL after its end; return the last sample."""
+    """
+    Command one point, sample at 100 Hz until STILL after its end; return the last sample.
+
+    STILL is the machine's own rest, not the follower's MAX_SETTLE_S fallback: the setpoints it
+    re-commands every tick are no move.
+    """
     checked, problem = m.check_command(list(names), [(list(target), duration_s)], 0, 0)
     assert problem is None, problem
     end_s = m.follower.command(start_s, checked)
@@ -41,7 +47,8 @@ def follow(m: SimulatedMachine, names, target, start_s: float, duration_s: float
     while sample is None or now_s <= end_s or sample.phase != STILL:
         sample = m.follower.sample(now_s)
         now_s += 0.01
-        assert now_s < end_s + 3.0
+        assert now_s < end_s + MAX_SETTLE_S
+    assert m.follower.machine.at_rest()
     return sample, now_s
 
 

@@ -127,7 +127,8 @@ def summary_lines(summary: Mapping[str, Any]) -> list[str]:
         )
     link_force = summary.get('max_link_force_n')
     if link_force is not None:
-        lines.append(f'largest measuring-link force: {link_force:.1f} N')
+        # The driver's peak over the whole walk: the moves' loads, not only the rests'.
+        lines.append(f'largest measuring-link force: {link_force:.1f} N (moves included)')
         if link_force > LINK_FORCE_LIMIT_N:
             lines.append(
                 f'  beyond the {LINK_FORCE_LIMIT_N:g} N a measuring link of the documented kind '
