@@ -153,6 +153,7 @@ class _Machine:
         self.commands = []
         self.measured_at = None
         self.t = 0.0
+        self.inclinometer_scale = 1.0  # what the inclinometer reads per radian
 
     def command(self, commands):
         for command in commands:
@@ -180,7 +181,8 @@ class _Machine:
                         self.truth, q[None], np.array([[0, 0, -L, 0, 0, 0.0]])
                     )
                     angles = inclinometer_angles(pose.poses[:, :3])
-                    self.angles = (float(angles[0][0]), float(angles[1][0]))
+                    scale = self.inclinometer_scale
+                    self.angles = (scale * float(angles[0][0]), scale * float(angles[1][0]))
                     self.measured_at = self.t + 0.4
                 execution.on_inclinometer(self.t, *self.angles)
                 if self.t >= self.measured_at:
@@ -224,6 +226,19 @@ def test_a_plan_is_walked_to_the_end_with_the_fixed_posture_in_closed_loop():
     progress = execution.progress(machine.t)
     assert progress['state'] == 'done' and progress['posture'] == 4 and progress['skipped'] == 0
     assert 'eta_s' not in progress
+
+
+def test_a_fixed_posture_whose_corrections_overshoot_is_reached_by_learning_the_answer():
+    # An inclinometer reading 1.4x the angle: each correction the model asks for moves the
+    # reading 1.4x as far, and the first-order corrections alone leave 40 % each time (from
+    # 18 mrad, 8 to reach 20 urad). Learned from the first, the next one lands.
+    execution = _execution(NOMINAL, sphere=1, fixed=1, max_corrections=4)
+    machine = _Machine(table1_parameters(), execution)
+    machine.inclinometer_scale = 1.4
+    machine.run(60.0)
+    assert execution.state == State.DONE and execution.measured == 2 and not execution.skipped
+    assert 2 <= execution.outcomes[-1].corrections <= 4
+    assert max(map(abs, machine.angles)) <= execution.settings.fixed_tolerance_rad
 
 
 def test_pause_holds_and_resume_restarts_the_posture_abort_ends_the_plan():

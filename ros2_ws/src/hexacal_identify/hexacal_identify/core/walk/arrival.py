@@ -194,13 +194,21 @@ def correct_fixed_position(
         else ''
     )
     previous = walk._pose_cmd
-    walk._pose_cmd = corrected_pose(previous, alpha, beta, walk.link_length, walk.mount)
+    reading = np.array([alpha, beta])
+    change = walk.correction_response.ask(reading)
+    walk._pose_cmd = corrected_pose(
+        previous, alpha, beta, walk.link_length, walk.mount, change
+    )
     via = nudge(walk._pose_cmd, previous, walk.settings.correction_nudge_m)
+    done = walk._corrections
     try:
-        return _send_correction(walk, now, previous, via, index, alpha, beta, judged)
+        commands = _send_correction(walk, now, previous, via, index, alpha, beta, judged)
     except GuardStop as stop:
         walk._pose_cmd = previous
         return walk._stop(now, str(stop))
+    if walk._corrections > done:  # commanded (not skipped): learn from what it does
+        walk.correction_response.sent(reading, change)
+    return commands
 
 
 def _send_correction(

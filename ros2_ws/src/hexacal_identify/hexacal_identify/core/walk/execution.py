@@ -15,7 +15,9 @@ each posture:
 2. Arrive: at the target and still over the last ``settle_s`` (core/walk/arrival.py).
 3. Fixed-position postures (eq. 10) are reached in closed loop: once the inclinometer has
    settled after the move (core/walk/arrival.py, core/walk_device/inclinometer.py), the commanded
-   pose's position is moved by ``-dp/d(alpha, beta) [alpha, beta]`` (`corrected_pose`) and
+   pose's position is moved by ``-dp/d(alpha, beta) [alpha, beta]`` (`corrected_pose`; from
+   the second correction on, the change asked for is scaled by how the machine answered the
+   earlier ones: core/walk/correction_response.py) and
    new targets come from the nominal inverse kinematics, until both angles are within
    ``fixed_tolerance_rad``; after ``max_corrections`` the posture is skipped and reported.
    Intermediate stops are valid sphere postures if the collector measures them.
@@ -58,6 +60,7 @@ import numpy as np
 
 from .arrival import correct_fixed_position, judged_angles, posture_matched, still_mean
 from .arrival import timeout_reason
+from .correction_response import CorrectionResponse
 from .messages import LogLevel, Messages, ReadingWindow
 from .platform_paths import Command, CommandPurpose, eased_command
 from .platform_paths import path_command, PathError, route_command, setpoints_at
@@ -151,6 +154,8 @@ class PlanExecution:
         self._pose_cmd = np.zeros(6)
         self._target = np.zeros(6)
         self._corrections = 0
+        # How the machine answers this posture's fixed-position corrections (learned anew).
+        self.correction_response = CorrectionResponse()
         self.posture_start = 0.0
         self._first_move_s = 0.0
         self._arrive_after = 0.0
@@ -513,6 +518,7 @@ class PlanExecution:
                 self._pose_cmd = self.poses[self.index].copy()
                 self._target = self.targets[self.index].copy()
                 self._corrections = 0
+                self.correction_response = CorrectionResponse()
                 if self.refine_at and self.measured >= self.refine_at[0]:
                     return self._ask_refinement()
             self.posture_start = now
@@ -626,8 +632,9 @@ class PlanExecution:
                 self.released_now,
             )
             if problem:
+                what = 'correction' if purpose == CommandPurpose.CORRECT else purpose
                 raise GuardStop(
-                    f'posture {self.index + 1} of {self.total}: the {purpose} was not sent: '
+                    f'posture {self.index + 1} of {self.total}: the {what} was not sent: '
                     f'{problem}'
                 )
         if start is not None and purpose == CommandPurpose.MOVE:
@@ -755,6 +762,7 @@ class PlanExecution:
         self.index += 1
         self._phase = None
         self._corrections = 0
+        self.correction_response = CorrectionResponse()
         return self._begin(now, fresh=True)
 
     def _finish(self, now: float) -> list[Command]:

@@ -391,16 +391,22 @@ def on_sphere(pose: np.ndarray, link_length: float, mount: str = DEFAULT_MOUNT) 
 
 
 def fixed_position_correction(
-    alpha: float, beta: float, link_length: float, mount: str = DEFAULT_MOUNT
+    alpha: float,
+    beta: float,
+    link_length: float,
+    mount: str = DEFAULT_MOUNT,
+    change: np.ndarray | None = None,
 ) -> np.ndarray:
     """
     Return the platform position change (3,) that brings the inclinometer from (alpha, beta) to 0.
 
     ``-dp/d(alpha, beta) [alpha, beta]`` with eq. 4's derivative at the
-    reading (first order).
+    reading (first order); `change` (2,), rad: the reading change to make instead
+    (core/walk/correction_response.py: what the machine's answer so far asks for).
     """
     placed = device_position(np.array([alpha]), np.array([beta]), link_length, mount=mount)
-    return -placed.d_readings[0] @ np.array([alpha, beta])
+    wanted = -np.array([alpha, beta]) if change is None else np.asarray(change, dtype=float)
+    return placed.d_readings[0] @ wanted
 
 
 def corrected_pose(
@@ -409,8 +415,9 @@ def corrected_pose(
     beta: float,
     link_length: float,
     mount: str = DEFAULT_MOUNT,
+    change: np.ndarray | None = None,
 ) -> np.ndarray:
     """Return the commanded pose, its position corrected for the inclinometer reading."""
     pose = np.array(commanded, dtype=float)
-    pose[:3] += fixed_position_correction(alpha, beta, link_length, mount)
+    pose[:3] += fixed_position_correction(alpha, beta, link_length, mount, change)
     return pose
