@@ -166,6 +166,40 @@ def test_live_postures_without_their_mode_are_refused_with_compliance(loaded, tm
     assert not (tmp_path / 'hexacal_calibration.yaml').exists()
 
 
+def test_the_session_checks_a_rigid_fit_for_deflections_it_absorbs(loaded, tmp_path):
+    # Live lvdt postures of a machine whose 1e7 N/m legs deflect under its weights: the rigid
+    # fit, checked with the shipped description's stiffnesses (5e7 N/m legs, as
+    # `hexacal calibrate --physical` checks it).
+    session, recorder = _session(loaded['postures'][:30])
+    outcome = session.calibrate(_settings(loaded, tmp_path, deflection_check=True))
+    assert outcome.success, outcome.message
+    values = recorder.statuses[-1][3]
+    assert values['deflection_check.source'] == 'the shipped hexa_slide physical description'
+    assert values['deflection_check.postures'] == 30
+    assert 0 < values['deflection_check.largest_deflection_m'] < 1e-4
+    assert values['deflection_check.pose_bias_mean_m'] > 0
+    assert values['deflection_check.visible_rms.x'] >= 0
+    assert values['deflection_check.significant'] == (
+        values['deflection_check.pose_bias_mean_m']
+        > values['deflection_check.statistical_pose_error_mean_m']
+    )
+    # A mass-only file (no model: no stiffnesses) cannot be checked: named, the calibration
+    # stands.
+    masses = tmp_path / 'masses.yaml'
+    masses.write_text('platform_mass: 20.0\nleg_mass: 2.0\n')
+    outcome = session.calibrate(
+        _settings(loaded, tmp_path, deflection_check=True, physical_file=str(masses))
+    )
+    assert outcome.success, outcome.message
+    error = recorder.statuses[-1][3]['deflection_check.error']
+    assert 'needs the stiffnesses' in error and str(masses) in error
+    # With the compliances identified there is no rigid fit to check: refused by name.
+    outcome = session.calibrate(
+        _settings(loaded, tmp_path, deflection_check=True, compliance='shared')
+    )
+    assert not outcome.success and 'deflection_check judges a rigid fit' in outcome.message
+
+
 def test_a_compliance_prior_without_compliance_is_refused(loaded, tmp_path):
     session, _ = _session(loaded['postures'])
     outcome = session.calibrate(_settings(loaded, tmp_path, compliance_prior='chains=1e-7:1e-8'))

@@ -120,6 +120,14 @@ PARAMETERS: dict[str, _Spec] = {
         'of mass; SI) whose weights load the chains and the link when compliance is not none; '
         "'' = the nominal model's shipped physical description",
     ),
+    'deflection_check': _Spec(
+        False,
+        'with compliance none: after the calibration, how far the compliances of physical_file '
+        "('' = the shipped description; it must give the stiffnesses) bias the rigid fit, as "
+        'hexacal calibrate --physical: deflection_check.* on the calibration status and a '
+        "warning when the bias exceeds the calibration's statistical error; needs the postures' "
+        'measuring mode (a bag, or live lvdt postures)',
+    ),
     'compliance_prior': _Spec(
         '',
         'datasheet compliances NAME=VALUE:STD,... in m/N (as hexacal calibrate '

@@ -214,6 +214,10 @@ def run_calibration(
             compliance=dict(result.compliance),
         )
     values['output'] = str(target)
+    if settings.deflection_check and result.reason == CONVERGED:
+        values.update(
+            deflection_values(settings, result, measuring_mode, released_joints, mount, log)
+        )
     record = calibration_record(
         result,
         source='identify node',
@@ -259,6 +263,48 @@ def run_calibration(
     )
 
 
+def deflection_values(
+    settings: Settings,
+    result,
+    measuring_mode: str | None,
+    released_joints: Sequence[str] | None,
+    mount: str,
+    log: Log,
+) -> dict[str, object]:
+    """
+    Return the rigid fit's deflection check as status values (``deflection_check.*``, SI).
+
+    calibration_steps.calibration_run.deflection_check with physical_file's stiffnesses, as
+    ``hexacal calibrate --physical`` runs it; logged in one line, a warning when the bias
+    exceeds the calibration's statistical error.  A check that cannot run (a mass-only file,
+    live postures that do not show their mode) is named in ``deflection_check.error``: the
+    calibration stands.
+    """
+    from ..calibration_steps.calibration_run import deflection_check
+
+    try:
+        check = deflection_check(
+            result, settings.physical_file, measuring_mode, released_joints,
+            cost=settings.cost, link_length=settings.link_length, mount=mount,
+            identify_device=names(settings.identify_device),
+        )
+    except ValueError as error:
+        log.warning(f'no deflection check: {error}')
+        return {'deflection_check.error': str(error)}
+    # One call site per severity: rclpy refuses a severity change at the same line.
+    if check.significant:
+        log.warning(check.text())
+    else:
+        log.info(check.text())
+    values: dict[str, object] = {}
+    for key, value in check.to_json().items():
+        if isinstance(value, dict):  # visible_rms: one per residual channel
+            values.update({f'deflection_check.{key}.{k}': v for k, v in value.items()})
+        else:
+            values[f'deflection_check.{key}'] = value
+    return values
+
+
 def live_measuring_mode(postures: Sequence[PostureReading]) -> str | None:
     """
     Return the measuring mode live postures show, None when they do not say.
@@ -295,6 +341,12 @@ def compliance_setting(
     )
 
     prior = parse_compliance_prior(settings.compliance_prior)
+    if settings.deflection_check and settings.compliance != 'none':
+        raise ValueError(
+            f'deflection_check judges a rigid fit, but compliance is {settings.compliance}: '
+            'the compliances are identified (their values and standard deviations are on the '
+            'status); set compliance to none, or deflection_check to false'
+        )
     if settings.compliance == 'none':
         if prior:
             raise ValueError(

@@ -47,6 +47,9 @@ class Settings:
     compliance: str = 'none'
     physical_file: str = ''
     compliance_prior: str = ''
+    # With compliance none: the rigid fit's deflection check (core/assessment/deflection.py)
+    # with physical_file's stiffnesses, as `hexacal calibrate --physical` runs it.
+    deflection_check: bool = False
     # device.* parameters by name (prior.PRIOR_PARAMETERS); missing = 0 (no prior)
     device_prior: Mapping[str, float] = field(default_factory=dict)
 
