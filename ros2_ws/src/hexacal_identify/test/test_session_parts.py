@@ -51,6 +51,7 @@ def test_settings_fields_are_the_node_parameters():
         'compliance',
         'physical_file',
         'compliance_prior',
+        'deflection_check',
     )
     assert Settings().output == DEFAULT_OUTPUT == 'hexacal_calibration.yaml'
     assert Settings(noise_slider_m=1e-5).noise() is None
