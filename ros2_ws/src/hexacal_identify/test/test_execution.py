@@ -154,17 +154,23 @@ class _Machine:
         self.measured_at = None
         self.t = 0.0
         self.inclinometer_scale = 1.0  # what the inclinometer reads per radian
+        # Stiction: each actuator stops this far short of its goal, on the side its last
+        # approach came from (its sign per actuator).
+        self.stiction_m = 0.0
+        self.approach = np.zeros(6)
 
     def command(self, commands):
         for command in commands:
             self.commands.append(command)
+            path = np.vstack([self.at(self.t)[None], command.points])
+            self.approach = np.sign(path[-1] - path[-2])
             self.start = self.at(self.t)
             self.goal = command.positions
             self.t0, self.t1 = self.t, self.t + command.duration_s / self.speed_factor
 
     def at(self, t):
         if t >= self.t1:
-            return self.goal
+            return self.goal - self.stiction_m * self.approach
         s = (t - self.t0) / (self.t1 - self.t0)
         return self.start + s * (self.goal - self.start)
 
@@ -238,6 +244,22 @@ def test_a_fixed_posture_whose_corrections_overshoot_is_reached_by_learning_the_
     machine.run(60.0)
     assert execution.state == State.DONE and execution.measured == 2 and not execution.skipped
     assert 2 <= execution.outcomes[-1].corrections <= 4
+    assert max(map(abs, machine.angles)) <= execution.settings.fixed_tolerance_rad
+
+
+STICTION_M = 1e-5  # 10 um short: 36 to 56 urad of reading, flipping (5 um already did)
+
+
+def test_small_corrections_approach_from_one_side_past_a_released_actuators_stiction():
+    # Stiction leaves each actuator short of its goal on the side it came from: corrections
+    # that approached from alternating sides (through their own nudge) made the reading flip
+    # around the 20 urad tolerance until the posture was skipped (the MuJoCo Gough-Stewart).
+    # From one side, the offset is the same each time and is corrected away.
+    execution = _execution(NOMINAL, sphere=1, fixed=1, max_corrections=5)
+    machine = _Machine(table1_parameters(), execution)
+    machine.stiction_m = STICTION_M
+    machine.run(60.0)
+    assert execution.state == State.DONE and execution.measured == 2 and not execution.skipped
     assert max(map(abs, machine.angles)) <= execution.settings.fixed_tolerance_rad
 
 

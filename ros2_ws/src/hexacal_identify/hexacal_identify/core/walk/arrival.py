@@ -111,21 +111,26 @@ def posture_matched(
     return any(float(np.max(np.abs(actuators - mean))) <= tolerance for _, actuators in postures)
 
 
-def nudge(pose: np.ndarray, previous: np.ndarray, nudge_m: float) -> np.ndarray | None:
+def nudge(
+    pose: np.ndarray, previous: np.ndarray, nudge_m: float, side: np.ndarray | None = None
+) -> np.ndarray | None:
     """
     Return the pose a correction from `previous` to `pose` passes through first; None: none.
 
-    A correction smaller than `nudge_m` goes that far beyond its target along its own
-    direction (tangent to the link sphere) and back, so the collector sees a move and
-    measures the corrected position: a smaller move would continue its stationary period,
-    of which it takes one posture (perhaps before the correction, or averaged across it).
+    A correction smaller than `nudge_m` goes that far beyond its target and back, so the
+    collector sees a move and measures the corrected position: a smaller move would continue
+    its stationary period, of which it takes one posture (perhaps before the correction, or
+    averaged across it).  Beyond it along its own direction (tangent to the link sphere), or
+    along `side` (a unit vector): the side every nudged correction of the posture approaches
+    from, so that a released actuator's stiction leaves the same offset each time instead of
+    one of alternating sign (corrections that flip the reading around the tolerance).
     """
     step = pose[:3] - previous[:3]
     size = float(np.linalg.norm(step))
     if nudge_m == 0 or size == 0 or size >= nudge_m:
         return None
     via = pose.copy()
-    via[:3] += step / size * nudge_m
+    via[:3] += (step / size if side is None else side) * nudge_m
     return via
 
 
@@ -199,7 +204,9 @@ def correct_fixed_position(
     walk._pose_cmd = corrected_pose(
         previous, alpha, beta, walk.link_length, walk.mount, change
     )
-    via = nudge(walk._pose_cmd, previous, walk.settings.correction_nudge_m)
+    response = walk.correction_response
+    nudge_m = walk.settings.correction_nudge_m
+    via = nudge(walk._pose_cmd, previous, nudge_m, response.side)
     done = walk._corrections
     try:
         commands = _send_correction(walk, now, previous, via, index, alpha, beta, judged)
@@ -207,7 +214,9 @@ def correct_fixed_position(
         walk._pose_cmd = previous
         return walk._stop(now, str(stop))
     if walk._corrections > done:  # commanded (not skipped): learn from what it does
-        walk.correction_response.sent(reading, change)
+        response.sent(reading, change)
+        if via is not None and response.side is None:  # the first nudge sets the side
+            response.side = (via[:3] - walk._pose_cmd[:3]) / nudge_m
     return commands
 
 

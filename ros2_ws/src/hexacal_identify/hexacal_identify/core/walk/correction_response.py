@@ -17,6 +17,11 @@ learned: a change too small to read above the sensor's noise; one too large for 
 be linear (a platform landing centimetres off: learned from, the next correction was three
 times the model's and would have jammed the passive system); an update that would scale the
 model's correction beyond `MAX_GAIN` either way.
+
+It also keeps the side the posture's nudged corrections approach from (`side`, arrival.nudge):
+on the MuJoCo Gough-Stewart the released actuator's stiction left each small correction
+about 35 urad off, on alternating sides as the approach alternated, and the readings flipped
+around the 20 urad tolerance until the posture was skipped.
 """
 
 from __future__ import annotations
@@ -35,6 +40,9 @@ class CorrectionResponse:
     """The machine's answer to the corrections of one fixed-position posture (module doc)."""
 
     gain: np.ndarray = field(default_factory=lambda: np.eye(2))
+    # The side (unit vector, 3) every nudged correction approaches its target from
+    # (arrival.nudge); None until the first nudge.
+    side: np.ndarray | None = None
     _reading: np.ndarray | None = None  # the reading the last correction was sent for
     _asked: np.ndarray | None = None  # the change it asked for (rad)
 
