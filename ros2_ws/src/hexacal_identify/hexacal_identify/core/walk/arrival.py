@@ -198,13 +198,10 @@ def correct_fixed_position(
         if walk.inclinometer_judgement is not None
         else ''
     )
-    previous = walk._pose_cmd
+    previous, response = walk._pose_cmd, walk.correction_response
     reading = np.array([alpha, beta])
-    change = walk.correction_response.ask(reading)
-    walk._pose_cmd = corrected_pose(
-        previous, alpha, beta, walk.link_length, walk.mount, change
-    )
-    response = walk.correction_response
+    change = response.ask(reading)
+    walk._pose_cmd = corrected_pose(previous, alpha, beta, walk.link_length, walk.mount, change)
     nudge_m = walk.settings.correction_nudge_m
     via = nudge(walk._pose_cmd, previous, nudge_m, response.side)
     done = walk._corrections
