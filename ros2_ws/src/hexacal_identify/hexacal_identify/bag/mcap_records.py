@@ -137,25 +137,32 @@ def _chunk_records(chunk: Chunk, ignore_channels: frozenset[int] = frozenset()) 
     Messages on ``ignore_channels`` are left out (not unpacked; still checked for length).
     """
     data = _decompress(chunk)
-    records = []
-    position = 0
-    while position < len(data):
-        if len(data) - position < RECORD_HEADER.size:
+    records: list[Any] = []
+    # Messages are nearly every record: unpacked here, with plain ints and bound methods (the
+    # per-record cost is most of reading a bag; parse_record would slice each body twice).
+    message, others = int(Opcode.MESSAGE), (int(Opcode.SCHEMA), int(Opcode.CHANNEL))
+    header, header_size = RECORD_HEADER.unpack_from, RECORD_HEADER.size
+    prefix, prefix_size = _MESSAGE_PREFIX.unpack_from, _MESSAGE_PREFIX.size
+    append, size, position = records.append, len(data), 0
+    while position < size:
+        if size - position < header_size:
             raise RecordDamage('chunk ends inside a record header')
-        opcode, length = RECORD_HEADER.unpack_from(data, position)
-        position += RECORD_HEADER.size
-        if length > len(data) - position:
+        opcode, length = header(data, position)
+        position += header_size
+        end = position + length
+        if end > size:
             raise RecordDamage(f'record of {length} bytes overruns its chunk')
-        if (
-            opcode == Opcode.MESSAGE
-            and ignore_channels
-            and length >= _MESSAGE_PREFIX.size
-            and _CHANNEL_ID.unpack_from(data, position)[0] in ignore_channels
-        ):
-            pass
-        elif opcode in (Opcode.MESSAGE, Opcode.SCHEMA, Opcode.CHANNEL):
-            records.append(parse_record(opcode, data[position:position + length]))
-        position += length
+        if opcode == message:
+            if length < prefix_size:
+                raise RecordDamage(f'message record of {length} bytes is too short')
+            channel_id, sequence, log_time, publish_time = prefix(data, position)
+            if channel_id not in ignore_channels:
+                append(RawMessage(
+                    channel_id, sequence, log_time, publish_time, data[position + prefix_size:end]
+                ))
+        elif opcode in others:
+            append(parse_record(opcode, data[position:end]))
+        position = end
     return records
 
 

@@ -252,6 +252,9 @@ class BagReader:
                 if ids and ids.isdisjoint(selected) and ids <= channel_topics.keys()
             )
             ignore_channels = frozenset(channel_topics.keys() - selected.keys())
+            decoders = {
+                cid: self._lazy_decoder(file_index, mcap_file, cid) for cid in selected
+            }  # once per channel, not per message
             for record in scan.records(skip_chunks, ignore_channels):
                 if not isinstance(record, RawMessage):
                     continue
@@ -267,7 +270,7 @@ class BagReader:
                     record.log_time,
                     record.publish_time,
                     record.data,
-                    self._lazy_decoder(file_index, mcap_file, record.channel_id),
+                    decoders[record.channel_id],
                 )
 
     def _lazy_decoder(
