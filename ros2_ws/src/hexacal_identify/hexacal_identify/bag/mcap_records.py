@@ -134,7 +134,7 @@ def _chunk_records(chunk: Chunk, ignore_channels: frozenset[int] = frozenset()) 
     """
     All schema, channel and message records of a chunk (all or nothing).
 
-    Messages on ``ignore_channels`` are left out (not unpacked; still checked for length).
+    Messages on ``ignore_channels`` are left out (bodies not copied; still checked for length).
     """
     data = _decompress(chunk)
     records: list[Any] = []

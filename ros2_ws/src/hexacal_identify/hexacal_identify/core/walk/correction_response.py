@@ -16,7 +16,9 @@ corrections converge superlinearly on a machine whose answer differs from the mo
 learned: a change too small to read above the sensor's noise; one too large for the answer to
 be linear (a platform landing centimetres off: learned from, the next correction was three
 times the model's and would have jammed the passive system); an update that would scale the
-model's correction beyond `MAX_GAIN` either way.
+model's correction beyond `MAX_GAIN` either way.  (The update is written here: scipy's
+broyden1/broyden2 drive a function they call themselves, while each evaluation here is a move
+of the machine that the walk's state machine makes between its steps.)
 
 It also keeps the side the posture's nudged corrections approach from (`side`, arrival.nudge):
 on the MuJoCo Gough-Stewart the released actuator's stiction left each small correction

@@ -153,9 +153,7 @@ class PlanExecution:
         self._phase: Phase | None = None  # None: not commanding (waiting, paused, over)
         self._pose_cmd = np.zeros(6)
         self._target = np.zeros(6)
-        self._corrections = 0
-        # How the machine answers this posture's fixed-position corrections (learned anew).
-        self.correction_response = CorrectionResponse()
+        self._new_corrections()
         self.posture_start = 0.0
         self._first_move_s = 0.0
         self._arrive_after = 0.0
@@ -517,8 +515,7 @@ class PlanExecution:
             if fresh:
                 self._pose_cmd = self.poses[self.index].copy()
                 self._target = self.targets[self.index].copy()
-                self._corrections = 0
-                self.correction_response = CorrectionResponse()
+                self._new_corrections()
                 if self.refine_at and self.measured >= self.refine_at[0]:
                     return self._ask_refinement()
             self.posture_start = now
@@ -761,9 +758,13 @@ class PlanExecution:
     def _advance(self, now: float) -> list[Command]:
         self.index += 1
         self._phase = None
+        self._new_corrections()
+        return self._begin(now, fresh=True)
+
+    def _new_corrections(self) -> None:
+        """Start a posture's fixed-position corrections: none yet, the machine's answer unknown."""
         self._corrections = 0
         self.correction_response = CorrectionResponse()
-        return self._begin(now, fresh=True)
 
     def _finish(self, now: float) -> list[Command]:
         self.state = ExecutionState.DONE
